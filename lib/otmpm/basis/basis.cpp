@@ -1,0 +1,168 @@
+/// \file basis.cpp
+/// The basis factory (make_basis: scene name -> family) and the per-step
+/// basis table (design.md point 2): every particle's stencil evaluated once,
+/// stored in compressed rows, independent of the OpenMP thread count.
+#include "otmpm/basis/basis.hpp"
+
+#include "otmpm/basis/families.hpp"
+
+#include <exception>
+#include <limits>
+#include <utility>
+
+#ifdef OTMPM_HAVE_OPENMP
+#include <omp.h>
+#endif
+
+namespace otmpm {
+
+namespace {
+
+template <int D> Vec<D> ugimp_half_width(const BasisOptions& opt) {
+  Vec<D> l;
+  for (int k = 0; k < D; ++k) l[k] = opt.ugimp_half_width[k];
+  return l;
+}
+
+template <int D> const CartesianGrid<D>& require_grid(const NodeSet<D>& nodes, const std::string& kind) {
+  if (!nodes.grid())
+    throw InputError("basis '" + kind + "' needs a structured grid (cartesian or perturbed), not a node cloud");
+  return *nodes.grid();
+}
+
+constexpr int kQuadraticDegree = 2;
+constexpr int kCubicDegree = 3;
+
+} // namespace
+
+template <int D>
+std::unique_ptr<Basis<D>> make_basis(const BasisOptions& opt, NodeSet<D> nodes) {
+  const std::string& k = opt.kind;
+  if (k == "linear") return make_linear_basis<D>(std::move(nodes));
+  if (k == "ugimp") return make_ugimp_basis<D>(std::move(nodes), ugimp_half_width<D>(opt));
+  if (k == "bspline2") return make_bspline_basis<D>(require_grid(nodes, k), kQuadraticDegree);
+  if (k == "bspline3") return make_bspline_basis<D>(require_grid(nodes, k), kCubicDegree);
+  if (k == "lme") return make_lme_basis<D>(std::move(nodes), opt);
+  if (k == "maxent") return make_maxent_basis<D>(std::move(nodes), opt);
+  throw InputError("unknown basis kind '" + k + "' (expected linear, ugimp, bspline2, bspline3, lme or maxent)");
+}
+
+namespace {
+
+/// The rows of a contiguous range of particles, evaluated by one thread.
+template <int D> struct TableChunk {
+  std::vector<int> count; // stencil size per particle of the chunk
+  std::vector<int> node;
+  std::vector<double> N;
+  AlignedVector<Vec<D>> dN;
+  Stencil<D> stencil;
+  /// First failure in the chunk (lowest particle index, since rows go in order).
+  std::exception_ptr error;
+
+  void clear() {
+    count.clear();
+    node.clear();
+    N.clear();
+    dN.clear();
+    error = nullptr;
+  }
+};
+
+/// Evaluates particles [begin, end) into `c`; stops at the first error.
+template <int D>
+void fill_chunk(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, AlignedVector<Vec<D>>* lambda,
+                std::vector<Index<D>>* cell_hint, int begin, int end, TableChunk<D>& c) {
+  c.clear();
+  c.count.reserve(static_cast<std::size_t>(end - begin));
+  for (int p = begin; p < end; ++p) {
+    PointQuery<D> q;
+    q.x = x[p];
+    q.id = p;
+    q.lambda = lambda ? &(*lambda)[p] : nullptr;
+    q.cell_hint = cell_hint ? &(*cell_hint)[p] : nullptr;
+    try {
+      basis.evaluate(q, c.stencil);
+    } catch (const BasisError& e) {
+      c.error = std::make_exception_ptr(
+          BasisError("particle " + std::to_string(p) + " at " + format_point<D>(x[p]) + ": " + e.what()));
+      return;
+    } catch (...) {
+      c.error = std::current_exception();
+      return;
+    }
+    const Stencil<D>& s = c.stencil;
+    c.count.push_back(s.size());
+    c.node.insert(c.node.end(), s.node.begin(), s.node.end());
+    c.N.insert(c.N.end(), s.N.begin(), s.N.end());
+    c.dN.insert(c.dN.end(), s.dN.begin(), s.dN.end());
+  }
+}
+
+/// Appends the chunks in particle order: the table does not depend on how the
+/// particles were split among threads.
+template <int D> void concatenate(std::vector<TableChunk<D>>& chunks, BasisTable<D>& table) {
+  table.offset.assign(1, 0);
+  table.node.clear();
+  table.N.clear();
+  table.dN.clear();
+  for (const TableChunk<D>& c : chunks) {
+    for (int n : c.count) table.offset.push_back(table.offset.back() + n);
+    table.node.insert(table.node.end(), c.node.begin(), c.node.end());
+    table.N.insert(table.N.end(), c.N.begin(), c.N.end());
+    table.dN.insert(table.dN.end(), c.dN.begin(), c.dN.end());
+  }
+}
+
+} // namespace
+
+template <int D>
+void fill_basis_table(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, AlignedVector<Vec<D>>* lambda,
+                      std::vector<std::type_identity_t<Index<D>>>* cell_hint, BasisTable<D>& table) {
+  if (x.size() > static_cast<std::size_t>(std::numeric_limits<int>::max()))
+    throw InputError("fill_basis_table: too many points");
+  const int n = static_cast<int>(x.size());
+  if (lambda && !lambda->empty() && lambda->size() != x.size())
+    throw InputError("fill_basis_table: " + std::to_string(lambda->size()) + " lambdas for " +
+                     std::to_string(n) + " points");
+  if (cell_hint && !cell_hint->empty() && cell_hint->size() != x.size())
+    throw InputError("fill_basis_table: " + std::to_string(cell_hint->size()) + " cell hints for " +
+                     std::to_string(n) + " points");
+  if (lambda && lambda->empty()) lambda = nullptr;
+  if (cell_hint && cell_hint->empty()) cell_hint = nullptr;
+
+  basis.nodes().prepare_search(); // build the R-tree before threads query it
+
+  int threads = 1;
+#ifdef OTMPM_HAVE_OPENMP
+  threads = omp_get_max_threads();
+#endif
+  std::vector<TableChunk<D>> chunks(static_cast<std::size_t>(threads));
+#ifdef OTMPM_HAVE_OPENMP
+#pragma omp parallel num_threads(threads)
+#endif
+  {
+    int t = 0, team = 1;
+#ifdef OTMPM_HAVE_OPENMP
+    t = omp_get_thread_num();
+    team = omp_get_num_threads();
+#endif
+    // Contiguous static chunk t of `team`, in particle order.
+    const long long begin = static_cast<long long>(n) * t / team;
+    const long long end = static_cast<long long>(n) * (t + 1) / team;
+    fill_chunk<D>(basis, x, lambda, cell_hint, static_cast<int>(begin), static_cast<int>(end), chunks[t]);
+  }
+  for (const TableChunk<D>& c : chunks)
+    if (c.error) std::rethrow_exception(c.error); // the failing particle with the lowest index
+  concatenate<D>(chunks, table);
+}
+
+#define OTMPM_INSTANTIATE_BASIS(D)                                                                      \
+  template std::unique_ptr<Basis<D>> make_basis<D>(const BasisOptions&, NodeSet<D>);                    \
+  template void fill_basis_table<D>(const Basis<D>&, const AlignedVector<Vec<D>>&, AlignedVector<Vec<D>>*, \
+                                    std::vector<Index<D>>*, BasisTable<D>&);
+OTMPM_INSTANTIATE_BASIS(1)
+OTMPM_INSTANTIATE_BASIS(2)
+OTMPM_INSTANTIATE_BASIS(3)
+#undef OTMPM_INSTANTIATE_BASIS
+
+} // namespace otmpm

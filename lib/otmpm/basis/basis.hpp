@@ -1,0 +1,120 @@
+#pragma once
+/// \file basis.hpp
+/// The one question every basis family answers (spec algorithms.md sect. 1,
+/// design.md point 2): "for this point, which nodes, with what N and grad N?"
+/// Families: linear, ugimp, bspline2, bspline3, lme, maxent. Every integrator
+/// consumes a BasisTable filled once per step, without knowing the family.
+#include "otmpm/core.hpp"
+#include "otmpm/nodes/node_set.hpp"
+
+#include <memory>
+#include <string>
+#include <string_view>
+#include <type_traits>
+
+namespace otmpm {
+
+/// The stencil of one point: node ids I with N_I(x) > 0 and grad N_I(x).
+/// Also carries scratch arrays that a family may use during evaluation, so
+/// that evaluating a point allocates nothing once the buffers have grown.
+template <int D> struct Stencil {
+  std::vector<int> node;
+  std::vector<double> N;
+  AlignedVector<Vec<D>> dN;
+  // scratch, owned by the caller's thread; contents meaningless between calls
+  std::vector<int> scratch_ids;
+  std::vector<double> scratch_w;
+  AlignedVector<Vec<D>> scratch_dx;
+
+  void clear() { node.clear(); N.clear(); dN.clear(); }
+  int size() const { return static_cast<int>(node.size()); }
+  void push(int I, double n, const Vec<D>& g) { node.push_back(I); N.push_back(n); dN.push_back(g); }
+};
+
+/// One evaluation request. `id` names the point in error messages (a particle
+/// index, or -1). `lambda` is the LME/max-ent Lagrange multiplier used as a
+/// warm start and overwritten with the converged value (may be null: cold
+/// start from zero). `iterations`, when not null, receives the Newton count.
+template <int D> struct PointQuery {
+  Vec<D> x = Vec<D>::Zero();
+  int id = -1;
+  Vec<D>* lambda = nullptr;
+  int* iterations = nullptr;
+  /// Cell hint for structured layouts (lattice index of the containing cell
+  /// from the previous step), or null. Updated by families that use it.
+  Index<D>* cell_hint = nullptr;
+};
+
+/// Parameters of every family (only those of the chosen family are used).
+struct BasisOptions {
+  std::string kind = "linear"; ///< linear | ugimp | bspline2 | bspline3 | lme | maxent
+  double gamma_lme = 4.0;      ///< LME: beta = gamma_lme / h^2
+  double tolerance = 1e-6;     ///< LME: support cut-off exp(-beta r^2) >= tolerance
+  double newton_tolerance = 1e-12; ///< LME/max-ent: converged when |r| <= newton_tolerance * h
+  int max_newton_iterations = 100;
+  double d_max = 2.0;          ///< max-ent: support radius d_max * h of the cubic-spline prior
+  /// uGIMP particle half-width per axis (l_p = h / (2 n_ppc_axis)).
+  double ugimp_half_width[3] = {0.0, 0.0, 0.0};
+};
+
+/// A basis family bound to a node set. `evaluate` is const and thread-safe
+/// (all scratch lives in the Stencil). Implementations: see make_basis().
+template <int D> class Basis {
+public:
+  virtual ~Basis() = default;
+  /// The family name as in the scene file ("lme", "bspline2", ...).
+  virtual std::string_view kind() const = 0;
+  /// The nodes the family's degrees of freedom live on. For Lagrangian-type
+  /// families these are the grid vertices; for B-splines the control points
+  /// placed at the Greville abscissae of the knot vectors.
+  virtual const NodeSet<D>& nodes() const = 0;
+  /// Mutable access for advection in `ul` mode (x_I += dx_I); call
+  /// nodes_moved() afterwards.
+  virtual NodeSet<D>& nodes() = 0;
+  /// Tells the family the nodes moved by dx (already applied to nodes()). The
+  /// B-spline family advects its knot vectors here; others refresh indices.
+  virtual void nodes_moved(const AlignedVector<Vec<D>>& dx) = 0;
+  /// Fills `out` (cleared first) with the stencil of q.x. Throws BasisError
+  /// naming the point when it cannot.
+  virtual void evaluate(const PointQuery<D>& q, Stencil<D>& out) const = 0;
+  /// True when sum_I N_I x_I = x holds (linear completeness w.r.t. nodes()).
+  virtual bool linearly_complete() const = 0;
+  /// Upper bound on the stencil size (for buffer reservation).
+  virtual int max_stencil() const = 0;
+};
+
+/// Creates the basis family `opt.kind` on `nodes` (for B-splines: on the
+/// lattice `nodes.grid()`, building the control points). Throws InputError on
+/// an unknown kind or a layout the family cannot use (uGIMP off-lattice,
+/// B-splines without a lattice).
+template <int D>
+std::unique_ptr<Basis<D>> make_basis(const BasisOptions& opt, NodeSet<D> nodes);
+
+/// Per-particle basis table in compressed rows (design.md point 2): row p holds
+/// the stencil of particle p, entries offset[p] .. offset[p+1]-1. Filled once
+/// per step and reused by every stage of that step.
+template <int D> struct BasisTable {
+  std::vector<int> offset{0};
+  std::vector<int> node;
+  std::vector<double> N;
+  AlignedVector<Vec<D>> dN;
+
+  int rows() const { return static_cast<int>(offset.size()) - 1; }
+  int begin(int p) const { return offset[p]; }
+  int end(int p) const { return offset[p + 1]; }
+  std::size_t entries() const { return node.size(); }
+};
+
+/// Evaluates `basis` at every point x[p] into `table` (OpenMP over particles;
+/// the result does not depend on the thread count). lambda (may be empty) is
+/// the per-point warm start of LME/max-ent, updated in place; cell_hint (may be
+/// empty) the per-point cell hint. A BasisError is rethrown with the point's
+/// index prepended. (cell_hint is a non-deduced context: D comes from the
+/// basis, since std::array's size_t extent cannot deduce an int D.)
+template <int D>
+void fill_basis_table(const Basis<D>& basis, const AlignedVector<Vec<D>>& x,
+                      AlignedVector<Vec<D>>* lambda,
+                      std::vector<std::type_identity_t<Index<D>>>* cell_hint,
+                      BasisTable<D>& table);
+
+} // namespace otmpm

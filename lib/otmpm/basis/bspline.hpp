@@ -1,0 +1,172 @@
+#pragma once
+/// \file bspline.hpp
+/// B-spline basis functions (wobbes sect. 6.2, spec algorithms.md sect. 1) on
+/// open, possibly non-uniform knot vectors, and their tensor product in 2D/3D
+/// with knot vectors that are advected in the `unified` mode (wobbes sect. 7,
+/// Algorithm 3; spec algorithms.md sect. 3 `unified`).
+///
+/// Vocabulary: the *vertices* v_0 < ... < v_m of one axis are the distinct
+/// knots (the lattice coordinates, m cells); the *knot vector* of degree p is
+/// t = {v_0 (p+1 times), v_1, ..., v_{m-1}, v_m (p+1 times)}; there are
+/// n = m + p basis functions N_0 .. N_{n-1} and as many *control points*, placed
+/// at the Greville abscissae xi_i = (t_{i+1} + ... + t_{i+p}) / p.
+#include "otmpm/basis/basis.hpp"
+
+#include <array>
+#include <string_view>
+#include <vector>
+
+namespace otmpm {
+
+/// Highest B-spline degree supported; bounds the fixed-size evaluation arrays.
+inline constexpr int kMaxBsplineDegree = 3;
+/// Lowest degree accepted (degree 1 reproduces the linear hat functions).
+inline constexpr int kMinBsplineDegree = 1;
+/// Number of basis functions that do not vanish on one knot span (p + 1).
+inline constexpr int kMaxBsplineSpanFunctions = kMaxBsplineDegree + 1;
+
+/// Values and first derivatives of the p+1 B-splines that can be non-zero on
+/// one knot span: N[a] = N_{first+a}(x), dN[a] = dN_{first+a}/dx, a = 0..p.
+struct BsplineSpanValues {
+  int first = 0;
+  std::array<double, kMaxBsplineSpanFunctions> N{};
+  std::array<double, kMaxBsplineSpanFunctions> dN{};
+};
+
+/// A 1D open (clamped) knot vector of degree p built from strictly increasing
+/// vertices (wobbes sect. 6.2: first and last knot repeated p+1 times, so the
+/// basis interpolates at the ends). Evaluates all non-zero B-splines and their
+/// first derivatives at a point by the Cox-de Boor recursion (wobbes eq. after
+/// (76), the triangular scheme: degree 0 -> p on the one span that contains x,
+/// fixed-size arrays, no allocation). Knot span j (between vertices v_j and
+/// v_{j+1}) is called *cell* j; on cell j the functions j .. j+p are non-zero.
+///
+/// Invariant: vertices strictly increasing, at least one cell, degree in
+/// [kMinBsplineDegree, kMaxBsplineDegree].
+class KnotVector {
+public:
+  KnotVector() = default;
+  /// Open knot vector of `degree` on `vertices` (strictly increasing, >= 2).
+  /// Throws InputError otherwise.
+  KnotVector(std::vector<double> vertices, int degree);
+  /// Uniform vertices: `cells` cells of equal width on [lower, upper].
+  static KnotVector uniform(double lower, double upper, int cells, int degree);
+
+  int degree() const { return p_; }
+  int num_cells() const { return static_cast<int>(v_.size()) - 1; }
+  /// Number of basis functions = number of control points, n = cells + degree.
+  int num_basis() const { return num_cells() + p_; }
+  /// The distinct knots v_0 .. v_m.
+  const std::vector<double>& vertices() const { return v_; }
+  /// The full knot vector t_0 .. t_{n+p} (end vertices repeated p+1 times).
+  const std::vector<double>& knots() const { return t_; }
+  double lower() const { return v_.front(); }
+  double upper() const { return v_.back(); }
+  /// Smallest cell width (min_j v_{j+1} - v_j).
+  double min_cell_width() const;
+
+  /// Greville abscissa xi_i = (t_{i+1} + ... + t_{i+p}) / p of control point i;
+  /// sum_i N_i(x) xi_i = x holds exactly (linear completeness).
+  double greville(int i) const;
+  /// All Greville abscissae, i = 0 .. n-1.
+  std::vector<double> greville() const;
+
+  /// True when x lies in [lower - r, upper + r], r = kBoundaryRoundoff * length:
+  /// a point within round-off of an end is taken as being on that end.
+  bool contains(double x) const;
+  /// The cell j with v_j <= x < v_{j+1} (the last cell for x at the upper
+  /// end). `hint` (a cell index, or -1) is tried first together with its two
+  /// neighbours; otherwise a binary search. Throws BasisError naming x when
+  /// !contains(x).
+  int find_cell(double x, int hint = -1) const;
+  /// Values and derivatives of N_j .. N_{j+p} at x on cell j (x is clamped to
+  /// [lower, upper]). Cox-de Boor; no allocation.
+  BsplineSpanValues evaluate_on_cell(double x, int cell) const;
+  /// find_cell + evaluate_on_cell.
+  BsplineSpanValues evaluate(double x, int hint = -1) const;
+  /// Value of the B-spline function sum_i N_i(x) c_i with coefficients c
+  /// (size num_basis()), e.g. a displacement interpolated from control points.
+  double interpolate(double x, const std::vector<double>& c) const;
+
+  /// The unified-approach knot update along this axis: every vertex v_j moves
+  /// by the displacement u(v_j) = sum_i N_i(v_j) d_i interpolated from the
+  /// control-point increments d (size num_basis()) with the current basis.
+  /// Returns the advected knot vector; *this is unchanged. Throws
+  /// InstabilityError (naming the cell and positions) if a cell's width would
+  /// become <= 0 (the grid inverted), InputError if d has the wrong size.
+  KnotVector advected(const std::vector<double>& d) const;
+
+  /// Relative distance (to the knot-vector length) within which a point just
+  /// outside an end is accepted as lying on it (round-off of advected points).
+  static constexpr double kBoundaryRoundoff = 1e-12;
+
+private:
+  std::vector<double> v_; ///< vertices (distinct knots)
+  std::vector<double> t_; ///< full open knot vector
+  int p_ = 1;
+};
+
+/// B-spline basis of degree p on a D-dimensional tensor product of open knot
+/// vectors (spec algorithms.md sect. 1, families `bspline2`/`bspline3`):
+/// N_I(x) = prod_k N^k_{i_k}(x_k), grad N_I = (dN^0 N^1 N^2, N^0 dN^1 N^2, ...).
+/// The degrees of freedom are the control points on an n_0 x .. x n_{D-1}
+/// lattice, n_k = cells_k + p, ids lexicographic with axis 0 fastest, placed at
+/// the Greville abscissae (so sum_I N_I x_I = x: linearly complete with respect
+/// to nodes()). nodes() is a NodeSet cloud with spacing = the smallest cell
+/// width of the initial grid.
+///
+/// Advection (unified approach, wobbes Algorithm 3 and sect. 8.3 "the knot
+/// vector in each direction is updated based on the velocity field"):
+/// nodes_moved(dx) assumes the motion is separable per axis - the increment
+/// component k of a control point depends only on its index along axis k -
+/// which holds for the wobbes benchmarks (1D bars, the axis-aligned plate).
+/// Per axis k the 1D increments d^k_i are the mean of dx_I[k] over all control
+/// points with lattice index i on axis k (exact for separable motion, the
+/// least-squares separable part otherwise); every vertex of axis k moves by
+/// u_k(v) = sum_i N^k_i(v) d^k_i (old basis). The control points are then set to
+/// the Greville abscissae of the advected knots, which keeps linear
+/// completeness exact. For increments that are affine per axis (translation,
+/// uniform stretch, any x_k -> a_k + b_k x_k) these Greville points coincide
+/// with x_I + dx_I up to round-off; otherwise they differ by O(h^2 u'') and the
+/// largest such difference is reported by last_projection_distance().
+template <int D> class BsplineBasis final : public Basis<D> {
+public:
+  /// Knot vectors from the lattice vertices of `grid` on each axis.
+  BsplineBasis(const CartesianGrid<D>& grid, int degree);
+  /// Knot vectors from arbitrary strictly increasing vertices per axis.
+  BsplineBasis(const std::array<std::vector<double>, D>& vertices, int degree);
+
+  std::string_view kind() const override;
+  const NodeSet<D>& nodes() const override { return nodes_; }
+  NodeSet<D>& nodes() override { return nodes_; }
+  void nodes_moved(const AlignedVector<Vec<D>>& dx) override;
+  void evaluate(const PointQuery<D>& q, Stencil<D>& out) const override;
+  bool linearly_complete() const override { return true; }
+  int max_stencil() const override;
+
+  int degree() const { return degree_; }
+  const KnotVector& knot_vector(int axis) const { return knots_[axis]; }
+  /// Control points per axis, n_k = cells_k + degree.
+  Index<D> control_points_per_axis() const { return n_; }
+  /// Flat id of the control point with lattice index ijk (axis 0 fastest).
+  int control_point_id(const Index<D>& ijk) const;
+  /// Largest |x_I + dx_I - xi_I| of the last nodes_moved() (0 before any).
+  double last_projection_distance() const { return last_projection_; }
+
+private:
+  void rebuild_nodes(double spacing);
+  AlignedVector<Vec<D>> greville_points() const;
+  std::vector<double> mean_axis_increments(const AlignedVector<Vec<D>>& dx, int axis) const;
+
+  std::array<KnotVector, D> knots_;
+  Index<D> n_{};
+  int degree_ = 2;
+  NodeSet<D> nodes_;
+  double last_projection_ = 0.0;
+};
+
+extern template class BsplineBasis<1>;
+extern template class BsplineBasis<2>;
+extern template class BsplineBasis<3>;
+
+} // namespace otmpm

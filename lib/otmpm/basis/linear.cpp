@@ -1,0 +1,434 @@
+/// \file linear.cpp
+/// The `linear` family (tensor-product hat functions on an untouched Cartesian
+/// lattice; isoparametric multilinear elements - 2-node segments, Q4, Q8 - on a
+/// perturbed or moved lattice) and the `ugimp` family (uniform GIMP,
+/// Bardenhagen & Kober 2004), spec algorithms.md sect. 1.
+#include "otmpm/basis/linear.hpp"
+
+#include "otmpm/basis/families.hpp"
+
+#include <Eigen/LU>
+
+#include <algorithm>
+#include <cmath>
+#include <utility>
+
+namespace otmpm {
+
+namespace detail {
+
+Weight1D ugimp_weight(double xi, double h, double lp) {
+  const double r = std::abs(xi);
+  const double sign = xi < 0.0 ? -1.0 : 1.0;
+  if (r < lp) return {1.0 - (xi * xi + lp * lp) / (2.0 * h * lp), -xi / (h * lp)};
+  if (r <= h - lp) return {1.0 - r / h, -sign / h};
+  if (r < h + lp) {
+    const double gap = h + lp - r;
+    return {gap * gap / (4.0 * h * lp), -sign * gap / (2.0 * h * lp)};
+  }
+  return {};
+}
+
+} // namespace detail
+
+namespace {
+
+/// The nodes of one axis that carry a weight at the point, with the 1D weight
+/// and its derivative (at most M of them).
+template <int M> struct AxisWeights {
+  int count = 0;
+  std::array<int, M> node{};
+  std::array<double, M> w{};
+  std::array<double, M> dw{};
+
+  void push(int i, double s, double ds) {
+    node[count] = i;
+    w[count] = s;
+    dw[count] = ds;
+    ++count;
+  }
+};
+
+/// Appends the tensor product of the per-axis weights to `out`:
+/// N = prod_k w_k, (grad N)_k = dw_k prod_{j != k} w_j.
+template <int D, int M>
+void push_tensor_product(const CartesianGrid<D>& g, const std::array<AxisWeights<M>, D>& axes, Stencil<D>& out) {
+  std::array<int, D> j{};
+  for (;;) {
+    Index<D> ijk;
+    double N = 1.0;
+    Vec<D> grad = Vec<D>::Ones();
+    for (int k = 0; k < D; ++k) {
+      ijk[k] = axes[k].node[j[k]];
+      N *= axes[k].w[j[k]];
+      for (int m = 0; m < D; ++m) grad[m] *= (m == k ? axes[k].dw[j[k]] : axes[k].w[j[k]]);
+    }
+    out.push(g.node_id(ijk), N, grad);
+    int k = 0;
+    for (; k < D; ++k) {
+      if (++j[k] < axes[k].count) break;
+      j[k] = 0;
+    }
+    if (k == D) return;
+  }
+}
+
+/// "(lower) .. (upper)" for messages.
+template <int D> std::string box_text(const CartesianGrid<D>& g) {
+  return format_point<D>(g.lower) + " .. " + format_point<D>(g.upper);
+}
+
+template <int D> std::string point_text(const PointQuery<D>& q) {
+  return "point " + format_point<D>(q.x) + (q.id >= 0 ? " (id " + std::to_string(q.id) + ")" : std::string());
+}
+
+// ---------------------------------------------------------------------------
+// Isoparametric multilinear element (2-node segment, Q4, Q8)
+// ---------------------------------------------------------------------------
+
+/// Number of vertices of a D-dimensional multilinear element.
+template <int D> constexpr int kCorners = 1 << D;
+
+/// Newton on the inverse map stops when the natural-coordinate step is below
+/// this; the error after that step is O(step^2), far below round-off.
+constexpr double kNewtonStepTolerance = 1e-10;
+constexpr int kMaxNewtonIterations = 30;
+/// A point counts as inside an element when |xi_k| <= 1 + this (round-off of
+/// the inverse map for points on a face); xi is then clamped to [-1, 1].
+constexpr double kInsideTolerance = 1e-12;
+/// Natural coordinates beyond this are "far outside": stop Newton, walk on.
+constexpr double kFarOutside = 4.0;
+/// Extra steps allowed to the element walk beyond the lattice diameter.
+constexpr int kWalkSlack = 8;
+
+/// Shape functions of the reference element [-1, 1]^D at xi:
+/// N_a = prod_k (1 + s_ak xi_k) / 2 with s_ak = +-1 from bit k of corner a.
+template <int D> struct ReferenceShape {
+  std::array<double, kCorners<D>> N;
+  std::array<Vec<D>, kCorners<D>> dN; // dN_a / dxi
+
+  explicit ReferenceShape(const Vec<D>& xi) {
+    for (int a = 0; a < kCorners<D>; ++a) {
+      std::array<double, D> f, df;
+      for (int k = 0; k < D; ++k) {
+        const double s = ((a >> k) & 1) ? 1.0 : -1.0;
+        f[k] = 0.5 * (1.0 + s * xi[k]);
+        df[k] = 0.5 * s;
+      }
+      N[a] = 1.0;
+      dN[a] = Vec<D>::Ones();
+      for (int k = 0; k < D; ++k) {
+        N[a] *= f[k];
+        for (int m = 0; m < D; ++m) dN[a][m] *= (m == k ? df[k] : f[k]);
+      }
+    }
+  }
+};
+
+/// The element of lattice cell c: its vertex ids and current positions.
+template <int D> struct Element {
+  std::array<int, kCorners<D>> id;
+  std::array<Vec<D>, kCorners<D>> x;
+
+  Element(const CartesianGrid<D>& g, const NodeSet<D>& nodes, const Index<D>& c) {
+    for (int a = 0; a < kCorners<D>; ++a) {
+      Index<D> ijk = c;
+      for (int k = 0; k < D; ++k) ijk[k] += (a >> k) & 1;
+      id[a] = g.node_id(ijk);
+      x[a] = nodes.position(id[a]);
+    }
+  }
+  /// Position x(xi) = sum N_a x_a and Jacobian J = dx/dxi = sum x_a (x) dN_a/dxi.
+  void map(const ReferenceShape<D>& s, Vec<D>& pos, Mat<D>& J) const {
+    pos.setZero();
+    J.setZero();
+    for (int a = 0; a < kCorners<D>; ++a) {
+      pos += s.N[a] * x[a];
+      J += x[a] * s.dN[a].transpose();
+    }
+  }
+};
+
+enum class InverseStatus { inside, outside, failed };
+
+/// Solves x(xi) = x for xi by Newton from the element centre. On `outside`,
+/// xi tells the direction of the point; on `failed` (singular Jacobian or no
+/// convergence) xi is the affine estimate of the first step.
+template <int D> InverseStatus inverse_map(const Element<D>& e, const Vec<D>& x, Vec<D>& xi) {
+  xi.setZero();
+  Vec<D> first = Vec<D>::Zero();
+  for (int it = 0; it < kMaxNewtonIterations; ++it) {
+    const ReferenceShape<D> s(xi);
+    Vec<D> pos;
+    Mat<D> J;
+    e.map(s, pos, J);
+    const double det = J.determinant();
+    if (!(std::abs(det) > 0.0) || !std::isfinite(det)) {
+      xi = first;
+      return InverseStatus::failed;
+    }
+    const Vec<D> step = J.inverse() * (pos - x);
+    xi -= step;
+    if (it == 0) first = xi;
+    if (!xi.allFinite()) {
+      xi = first;
+      return InverseStatus::failed;
+    }
+    if (xi.cwiseAbs().maxCoeff() > kFarOutside) return InverseStatus::outside;
+    if (step.cwiseAbs().maxCoeff() <= kNewtonStepTolerance)
+      return xi.cwiseAbs().maxCoeff() <= 1.0 + kInsideTolerance ? InverseStatus::inside : InverseStatus::outside;
+  }
+  xi = first;
+  return InverseStatus::failed;
+}
+
+// ---------------------------------------------------------------------------
+// linear
+// ---------------------------------------------------------------------------
+
+/// Linear Lagrange basis on the lattice topology of a structured node set:
+/// tensor-product hat functions N_I = prod_k (1 - |x_k - x_Ik| / h_k) while the
+/// nodes sit on their Cartesian lattice; isoparametric multilinear elements
+/// (N_a(xi(x)) with the inverse map by Newton, grad N_a = J^{-T} dN_a/dxi)
+/// once the lattice is perturbed or moved. Partition of unity and linear
+/// completeness hold exactly (to round-off) at every point of the node set.
+template <int D> class LinearBasis final : public Basis<D> {
+public:
+  explicit LinearBasis(NodeSet<D> nodes) : nodes_(std::move(nodes)) {
+    if (!nodes_.grid())
+      throw InputError("linear basis needs a structured grid (cartesian or perturbed), not a node cloud");
+    grid_ = *nodes_.grid();
+  }
+
+  std::string_view kind() const override { return "linear"; }
+  const NodeSet<D>& nodes() const override { return nodes_; }
+  NodeSet<D>& nodes() override { return nodes_; }
+  /// Nothing to refresh: evaluate() switches to the isoparametric map as soon
+  /// as the node set is no longer on its lattice.
+  void nodes_moved(const AlignedVector<Vec<D>>&) override {}
+  bool linearly_complete() const override { return true; }
+  int max_stencil() const override { return kCorners<D>; }
+
+  void evaluate(const PointQuery<D>& q, Stencil<D>& out) const override {
+    out.clear();
+    if (nodes_.on_lattice())
+      evaluate_on_lattice(q, out);
+    else
+      evaluate_isoparametric(q, out);
+  }
+
+private:
+  /// Hat functions of the cell containing x. A point on an interior cell face
+  /// belongs to the cell above it (the one floor() picks); on the upper grid
+  /// boundary to the last cell. All 2^D vertices are kept, also those with
+  /// N = 0 on a face, because their one-sided gradient is not zero.
+  void evaluate_on_lattice(const PointQuery<D>& q, Stencil<D>& out) const {
+    if (!grid_.contains(q.x))
+      throw BasisError("linear basis: " + point_text(q) + " is outside the grid " + box_text(grid_));
+    const Vec<D> h = grid_.h();
+    std::array<AxisWeights<2>, D> axes;
+    Index<D> cell;
+    for (int k = 0; k < D; ++k) {
+      const double s = (q.x[k] - grid_.lower[k]) / h[k];
+      const int i = std::clamp(static_cast<int>(std::floor(s)), 0, grid_.cells[k] - 1);
+      const double t = std::clamp(s - i, 0.0, 1.0);
+      axes[k].push(i, 1.0 - t, -1.0 / h[k]);
+      axes[k].push(i + 1, t, 1.0 / h[k]);
+      cell[k] = i;
+    }
+    push_tensor_product<D, 2>(grid_, axes, out);
+    if (q.cell_hint) *q.cell_hint = cell;
+  }
+
+  /// Finds the element containing x (from the hint or the Cartesian guess,
+  /// walking to the neighbour across the face the point lies beyond) and
+  /// evaluates its shape functions there.
+  void evaluate_isoparametric(const PointQuery<D>& q, Stencil<D>& out) const {
+    Index<D> c = start_cell(q);
+    int max_steps = kWalkSlack;
+    for (int k = 0; k < D; ++k) max_steps += grid_.cells[k];
+    for (int step = 0; step < max_steps; ++step) {
+      const Element<D> e(grid_, nodes_, c);
+      Vec<D> xi;
+      const InverseStatus st = inverse_map(e, q.x, xi);
+      if (st == InverseStatus::inside) {
+        push_element(e, xi, q, out);
+        if (q.cell_hint) *q.cell_hint = c;
+        return;
+      }
+      if (st == InverseStatus::failed && xi.cwiseAbs().maxCoeff() <= 1.0)
+        throw BasisError("linear basis: inverse isoparametric map did not converge for " + point_text(q) +
+                         " in the element of cell " + cell_text(c) + " (element too distorted)");
+      if (!walk(c, xi))
+        throw BasisError("linear basis: " + point_text(q) + " is outside the node set (beyond the boundary at cell " +
+                         cell_text(c) + ")");
+    }
+    throw BasisError("linear basis: no element contains " + point_text(q) + " (walk of " +
+                     std::to_string(max_steps) + " elements ended at cell " + cell_text(c) + ")");
+  }
+
+  Index<D> start_cell(const PointQuery<D>& q) const {
+    if (q.cell_hint) {
+      bool valid = true;
+      for (int k = 0; k < D; ++k) valid = valid && (*q.cell_hint)[k] >= 0 && (*q.cell_hint)[k] < grid_.cells[k];
+      if (valid) return *q.cell_hint;
+    }
+    return grid_.cell_of(q.x);
+  }
+
+  /// Moves c one element along the axis where xi lies furthest outside
+  /// [-1, 1] and a neighbour exists; false when every such axis is at the
+  /// lattice boundary (the point is outside the node set).
+  bool walk(Index<D>& c, const Vec<D>& xi) const {
+    int best = -1;
+    double excess = 0.0;
+    for (int k = 0; k < D; ++k) {
+      const double e = std::abs(xi[k]) - 1.0;
+      const int to = c[k] + (xi[k] > 0.0 ? 1 : -1);
+      if (e > kInsideTolerance && e > excess && to >= 0 && to < grid_.cells[k]) {
+        best = k;
+        excess = e;
+      }
+    }
+    if (best < 0) return false;
+    c[best] += xi[best] > 0.0 ? 1 : -1;
+    return true;
+  }
+
+  void push_element(const Element<D>& e, Vec<D> xi, const PointQuery<D>& q, Stencil<D>& out) const {
+    xi = xi.cwiseMax(-1.0).cwiseMin(1.0);
+    const ReferenceShape<D> s(xi);
+    Vec<D> pos;
+    Mat<D> J;
+    e.map(s, pos, J);
+    const double det = J.determinant();
+    if (!(det > 0.0))
+      throw BasisError("linear basis: the element containing " + point_text(q) +
+                       " is inverted or degenerate (det J = " + std::to_string(det) + ")");
+    const Mat<D> JinvT = J.inverse().transpose();
+    for (int a = 0; a < kCorners<D>; ++a) out.push(e.id[a], s.N[a], JinvT * s.dN[a]);
+  }
+
+  static std::string cell_text(const Index<D>& c) {
+    std::string s = "[";
+    for (int k = 0; k < D; ++k) s += (k ? ", " : "") + std::to_string(c[k]);
+    return s + "]";
+  }
+
+  NodeSet<D> nodes_;
+  CartesianGrid<D> grid_;
+};
+
+// ---------------------------------------------------------------------------
+// ugimp
+// ---------------------------------------------------------------------------
+
+/// Nodes per axis with a non-zero uGIMP weight: the support |xi| < h + lp is
+/// an open interval of length 2 (h + lp) <= 3 h, so 3 nodes, or 4 when
+/// lp = h/2 and round-off keeps both end nodes.
+constexpr int kUgimpAxisCapacity = 4;
+constexpr int kUgimpAxisTypical = 3;
+/// lp counts as h/2 (the 4-node case) within this relative margin.
+constexpr double kHalfCellMargin = 1e-9;
+
+/// Uniform GIMP: S_I(x_p) = (1/V_p) int_{Omega_p} N_I dx, the hat function
+/// averaged over the particle box of half-width lp (Bardenhagen & Kober 2004),
+/// a tensor product of detail::ugimp_weight per axis.
+///
+/// Grid edge: a particle box that pokes out of the grid would need the ghost
+/// node one cell outside. Its weight (and gradient) is given to the boundary
+/// node of that axis, i.e. the boundary node's hat function is continued as 1
+/// outside the grid. Partition of unity and sum grad S = 0 therefore hold at
+/// every point of the grid; what is lost there, for points within lp of the
+/// edge, is linear completeness (sum S_I x_I != x, sum x_I (x) grad S_I != I).
+template <int D> class UgimpBasis final : public Basis<D> {
+public:
+  UgimpBasis(NodeSet<D> nodes, const Vec<D>& half_width) : nodes_(std::move(nodes)), lp_(half_width) {
+    if (!nodes_.grid() || nodes_.layout() != NodeLayout::cartesian || !nodes_.on_lattice())
+      throw InputError("ugimp needs an unperturbed Cartesian grid (got a " + layout_text() + " node set)");
+    grid_ = *nodes_.grid();
+    h_ = grid_.h();
+    for (int k = 0; k < D; ++k)
+      if (!(lp_[k] > 0.0 && lp_[k] <= 0.5 * h_[k] * (1.0 + kHalfCellMargin)))
+        throw InputError("ugimp: particle half-width on axis " + std::to_string(k) + " must be in (0, h/2] = (0, " +
+                         std::to_string(0.5 * h_[k]) + "], got " + std::to_string(lp_[k]) +
+                         " (l_p = h / (2 particles_per_cell))");
+  }
+
+  std::string_view kind() const override { return "ugimp"; }
+  const NodeSet<D>& nodes() const override { return nodes_; }
+  NodeSet<D>& nodes() override { return nodes_; }
+  void nodes_moved(const AlignedVector<Vec<D>>&) override {
+    throw InputError("ugimp needs an unperturbed Cartesian grid: its nodes cannot move (use mode = \"mpm\")");
+  }
+  /// Only away from the grid edge (see the class comment).
+  bool linearly_complete() const override { return false; }
+  int max_stencil() const override {
+    int n = 1;
+    for (int k = 0; k < D; ++k)
+      n *= 2.0 * lp_[k] < h_[k] * (1.0 - kHalfCellMargin) ? kUgimpAxisTypical : kUgimpAxisCapacity;
+    return n;
+  }
+
+  void evaluate(const PointQuery<D>& q, Stencil<D>& out) const override {
+    out.clear();
+    if (!nodes_.on_lattice())
+      throw BasisError("ugimp: the nodes moved off their Cartesian lattice; cannot evaluate " + point_text(q));
+    if (!grid_.contains(q.x))
+      throw BasisError("ugimp: " + point_text(q) + " is outside the grid " + box_text(grid_));
+    std::array<AxisWeights<kUgimpAxisCapacity>, D> axes;
+    for (int k = 0; k < D; ++k) axis_weights(k, q.x[k], axes[k]);
+    push_tensor_product<D, kUgimpAxisCapacity>(grid_, axes, out);
+    if (q.cell_hint) *q.cell_hint = grid_.cell_of(q.x);
+  }
+
+private:
+  /// Weights of the nodes i-1 .. i+2 around the cell i containing x on axis
+  /// k; ghost nodes (-1, cells+1) are merged into the boundary node.
+  void axis_weights(int k, double x, AxisWeights<kUgimpAxisCapacity>& a) const {
+    const double s = (x - grid_.lower[k]) / h_[k];
+    const int i = std::clamp(static_cast<int>(std::floor(s)), 0, grid_.cells[k] - 1);
+    for (int j = i - 1; j <= i + 2; ++j) {
+      const double xj = (j == grid_.cells[k]) ? grid_.upper[k] : grid_.lower[k] + j * h_[k];
+      const detail::Weight1D w = detail::ugimp_weight(x - xj, h_[k], lp_[k]);
+      if (w.S == 0.0) continue; // outside the support, where dS = 0 too
+      const int node = std::clamp(j, 0, grid_.cells[k]);
+      if (a.count > 0 && a.node[a.count - 1] == node) {
+        a.w[a.count - 1] += w.S;
+        a.dw[a.count - 1] += w.dS;
+      } else {
+        a.push(node, w.S, w.dS);
+      }
+    }
+  }
+
+  std::string layout_text() const {
+    if (!nodes_.grid() || nodes_.layout() == NodeLayout::cloud) return "cloud";
+    if (nodes_.layout() == NodeLayout::perturbed) return "perturbed";
+    return "moved Cartesian";
+  }
+
+  NodeSet<D> nodes_;
+  CartesianGrid<D> grid_;
+  Vec<D> h_;
+  Vec<D> lp_;
+};
+
+} // namespace
+
+template <int D> std::unique_ptr<Basis<D>> make_linear_basis(NodeSet<D> nodes) {
+  return std::make_unique<LinearBasis<D>>(std::move(nodes));
+}
+
+template <int D> std::unique_ptr<Basis<D>> make_ugimp_basis(NodeSet<D> nodes, const Vec<D>& half_width) {
+  return std::make_unique<UgimpBasis<D>>(std::move(nodes), half_width);
+}
+
+template std::unique_ptr<Basis<1>> make_linear_basis<1>(NodeSet<1>);
+template std::unique_ptr<Basis<2>> make_linear_basis<2>(NodeSet<2>);
+template std::unique_ptr<Basis<3>> make_linear_basis<3>(NodeSet<3>);
+template std::unique_ptr<Basis<1>> make_ugimp_basis<1>(NodeSet<1>, const Vec<1>&);
+template std::unique_ptr<Basis<2>> make_ugimp_basis<2>(NodeSet<2>, const Vec<2>&);
+template std::unique_ptr<Basis<3>> make_ugimp_basis<3>(NodeSet<3>, const Vec<3>&);
+
+} // namespace otmpm

@@ -1,0 +1,574 @@
+// Local max-ent (LME) and max-ent with a cubic-spline prior (spec algorithms.md
+// sect. 1; molinos sect. 2.3; wobbes sect. 6.3).
+//
+// Choices made here (the papers leave them open)
+// ----------------------------------------------
+// * One formula, two priors. N_I = w_I exp(lambda.(x - x_I)) / Z with
+//   w_I = exp(-beta |x - x_I|^2) (LME, beta = gamma_lme / h^2, h = the initial
+//   spacing NodeSet::spacing(), also for moved nodes) or the cubic spline of
+//   wobbes eq. 89 at r = |x - x_I| / (d_max h). The paper's d_I = d_max zeta_I
+//   (zeta_I = distance to the nearest node) is replaced by d_max h with the same
+//   h for every node, so that the support radius is one number known in
+//   advance (neighbour search by NodeSet::within) and does not change when the
+//   nodes are advected; on a Cartesian grid both are the same.
+// * Support: LME keeps node I when beta |x - x_I|^2 <= -ln(tol), i.e.
+//   exp(-beta r^2) >= tol, radius R = h sqrt(-ln(tol) / gamma_lme); max-ent keeps
+//   nodes with |x - x_I| < d_max h (w_I > 0).
+// * Newton on the convex dual log Z(lambda): r = sum N_I (x - x_I),
+//   J = sum N_I (x - x_I)(x - x_I)^T - r r^T, step -J^{-1} r (Cholesky), with an
+//   Armijo backtracking line search on log Z: accept step t*s when
+//   log Z(lambda + t s) - log Z(lambda) <= kArmijo t r.s (kArmijo = 1e-4),
+//   otherwise halve t (kBacktrack = 0.5), at most kMaxBacktracks = 40 times.
+//   The change of log Z is computed directly as log sum_I N_I exp(t s.(x - x_I))
+//   (log1p/expm1 form for moderate exponents), not as the difference of two
+//   log Z values, so that the decrease of order |r|^2 / |J| stays resolvable
+//   down to |r| ~ 1e-14 h. Converged when |r| <= newton_tolerance * h.
+//   Exponents are shifted by their maximum before exp() (no overflow).
+// * Warm start from *q.lambda; if the warm-started solve fails for any reason
+//   it is repeated once from lambda = 0 (a stale multiplier from a far-away
+//   previous position must not turn into an error). The iteration count
+//   reported is the total of both solves; lambda is written back only on success.
+// * Convex hull detection. Inside the hull of the support log Z has a unique
+//   minimiser; outside it log Z is unbounded below, the Newton iterates run off
+//   to infinity and J collapses in the direction normal to the hull. This is
+//   caught (cheapest first) by:
+//     - fewer than D + 1 support nodes;
+//     - x outside the bounding box of its support nodes by more than the
+//       residual tolerance (no Newton needed);
+//     - the smallest eigenvalue of J below kSingularHessian h^2 (1e-14 h^2),
+//       reported as "outside the convex hull" when |r| > kHullResidual h
+//       (1e-8 h; |r| >= distance to the hull always), else as a singular J;
+//     - |lambda| R > kMaxExponentSpread (700): the exponents no longer fit in
+//       a double;
+//     - the line search finding no decrease, or max_newton_iterations reached.
+//   Every one of these is a BasisError naming the point (and q.id). A point
+//   exactly on the boundary of the hull is accepted: there lambda -> infinity
+//   but r -> 0 linearly per Newton step, and the iteration stops at
+//   |r| <= tol h (about 30 iterations from a cold start), which is the limit of
+//   N_I from inside to within the tolerance.
+// * Gradients are taken at the converged lambda with x - x_I replaced by
+//   xbar - x_I, xbar = sum N_I x_I = x - r (identical at r = 0):
+//     LME:     grad N_I = -N_I J^{-1} (xbar - x_I)
+//     max-ent: grad N_I = N_I ( g_I - gbar - (I + A^T) J^{-1} (xbar - x_I) ),
+//              g_I = grad log w_I, gbar = sum N_J g_J,
+//              A = sum N_J (xbar - x_J)(g_J - gbar)^T,
+//   the latter derived by differentiating log N_I and the constraint
+//   r(x, lambda(x)) = 0 implicitly (dlambda/dx = -J^{-1}(I + A)); it reduces to
+//   the LME form for the Gaussian prior. (wobbes eq. 84 has the sign of the
+//   J^{-1} term flipped.) With xbar these satisfy sum grad N_I = 0 and
+//   sum x_I (x) grad N_I = I to round-off even before |r| is exactly zero.
+// * Nodes whose N_I underflows to 0 are dropped from the stencil (their
+//   gradient is N_I times a finite vector, hence 0 too).
+// * max_stencil(): on an untouched Cartesian lattice the smaller of the box
+//   count prod_k (floor(2R/h_k) + 1) and the volume bound
+//   |B(R + |h|/2)| / prod h_k; otherwise the maximum over the cells of a bucket
+//   grid (side R/2) of the nodes in all cells that can meet a ball of radius R
+//   centred in that cell. Computed lazily, cached, invalidated by nodes_moved().
+#include "otmpm/basis/lme.hpp"
+
+#include "otmpm/basis/families.hpp"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <numbers>
+#include <sstream>
+
+namespace otmpm::maxent {
+namespace {
+
+// ---- Newton / line search constants (see the file comment) -----------------
+constexpr double kArmijo = 1e-4;           ///< sufficient-decrease factor of the line search
+constexpr double kBacktrack = 0.5;         ///< step reduction per backtracking step
+constexpr int kMaxBacktracks = 40;         ///< then the line search has stalled
+constexpr double kSingularHessian = 1e-14; ///< J singular when lambda_min(J) <= this * h^2
+constexpr double kHullResidual = 1e-8;     ///< |r| / h above which a singular J means "outside the hull"
+constexpr double kMaxExponentSpread = 700; ///< |lambda| R beyond this: exp() range exhausted
+/// Largest exponent for which the expm1 form of the log Z change is used.
+constexpr double kPreciseFormMaxExponent = 500.0;
+
+// ---- cubic spline (wobbes eq. 89) -----------------------------------------
+constexpr double kSplineInner = 0.5;            ///< r where the two cubic pieces meet
+constexpr double kSplineCentre = 2.0 / 3.0;     ///< w(0)
+constexpr double kSplineOuterFactor = 4.0 / 3.0; ///< w = 4/3 (1 - r)^3 for 1/2 < r < 1
+
+// ---- stencil bound ---------------------------------------------------------
+constexpr double kBucketsPerRadius = 2.0;    ///< bucket side R / 2
+constexpr double kMaxBucketsPerNode = 16.0;  ///< coarsen buckets beyond this many per node
+constexpr double kMinBuckets = 4096.0;
+constexpr double kBucketSafety = 1e-9;       ///< relative slack on the bucket distance test
+
+/// Views of the support of one point: offsets dx_I = x - x_I, log-priors
+/// a_I = log w_I, and the current N_I (written by the solver).
+template <int D> struct Support {
+  const Vec<D>* dx;
+  const double* log_w;
+  double* p;
+  int n;
+};
+
+template <int D> double smallest_eigenvalue(const Mat<D>& J) {
+  if constexpr (D == 1) {
+    return J(0, 0);
+  } else {
+    Eigen::SelfAdjointEigenSolver<Mat<D>> es;
+    es.computeDirect(J, Eigen::EigenvaluesOnly);
+    return es.eigenvalues()[0];
+  }
+}
+
+/// N_I, r and J at lambda (molinos eqs. 36-40) with shifted exponents.
+/// Returns false when an exponent or J is not finite.
+template <int D> bool dual_state(const Vec<D>& lambda, const Support<D>& s, NewtonState<D>& st) {
+  double fmax = -std::numeric_limits<double>::infinity();
+  for (int i = 0; i < s.n; ++i) {
+    s.p[i] = s.log_w[i] + lambda.dot(s.dx[i]);
+    fmax = std::max(fmax, s.p[i]);
+  }
+  if (!std::isfinite(fmax)) return false;
+  double Z = 0.0;
+  for (int i = 0; i < s.n; ++i) {
+    s.p[i] = std::exp(s.p[i] - fmax);
+    Z += s.p[i];
+  }
+  const double inv_Z = 1.0 / Z;
+  Vec<D> r = Vec<D>::Zero();
+  Mat<D> H = Mat<D>::Zero();
+  double psum = 0.0;
+  for (int i = 0; i < s.n; ++i) {
+    const double p = s.p[i] * inv_Z;
+    s.p[i] = p;
+    psum += p;
+    r.noalias() += p * s.dx[i];
+    H.noalias() += (p * s.dx[i]) * s.dx[i].transpose();
+  }
+  st.r = r;
+  st.J = H - r * r.transpose();
+  st.psum = psum;
+  return st.J.allFinite();
+}
+
+/// log Z(lambda + step) - log Z(lambda) = log sum_I N_I exp(step . dx_I),
+/// in the log1p/expm1 form while the exponents are moderate (resolves
+/// decreases far below the round-off of log Z itself).
+template <int D> double log_partition_change(const Vec<D>& step, const Support<D>& s, double psum) {
+  double umax = -std::numeric_limits<double>::infinity();
+  for (int i = 0; i < s.n; ++i) umax = std::max(umax, step.dot(s.dx[i]));
+  double sum = 0.0;
+  if (umax <= kPreciseFormMaxExponent) {
+    for (int i = 0; i < s.n; ++i) sum += s.p[i] * std::expm1(step.dot(s.dx[i]));
+    return std::log1p(sum / psum);
+  }
+  for (int i = 0; i < s.n; ++i) sum += s.p[i] * std::exp(step.dot(s.dx[i]) - umax);
+  return umax + std::log(sum / psum);
+}
+
+/// The shared Newton solver for lambda = argmin log Z (spec algorithms.md
+/// sect. 1): Newton steps on r with an Armijo backtracking line search on
+/// log Z. On return s.p holds N_I at the final lambda and the state its r, J.
+template <int D>
+NewtonState<D> solve_lambda(const NewtonSettings& set, const Support<D>& s, Vec<D>& lambda) {
+  NewtonState<D> st;
+  const double singular = kSingularHessian * set.h * set.h;
+  if (!dual_state(lambda, s, st)) {
+    st.status = NewtonStatus::diverged;
+    return st;
+  }
+  for (;;) {
+    st.lambda_min = smallest_eigenvalue<D>(st.J);
+    const bool regular = st.lambda_min > singular;
+    if (st.r.norm() <= set.residual_tolerance) {
+      st.status = regular ? NewtonStatus::converged : NewtonStatus::singular;
+      return st;
+    }
+    if (!regular) {
+      st.status = NewtonStatus::singular;
+      return st;
+    }
+    if (st.iterations >= set.max_iterations) {
+      st.status = NewtonStatus::max_iterations;
+      return st;
+    }
+    const Vec<D> step = -st.J.llt().solve(st.r);
+    const double slope = st.r.dot(step); // = -r^T J^{-1} r < 0
+    double t = 1.0;
+    for (int k = 0; !(log_partition_change<D>(t * step, s, st.psum) <= kArmijo * t * slope); ++k) {
+      if (k == kMaxBacktracks) {
+        st.status = NewtonStatus::stalled;
+        return st;
+      }
+      t *= kBacktrack;
+    }
+    lambda += t * step;
+    ++st.iterations;
+    if (!(lambda.norm() * set.support_radius <= kMaxExponentSpread) || !dual_state(lambda, s, st)) {
+      st.status = NewtonStatus::diverged;
+      return st;
+    }
+  }
+}
+
+std::string format_number(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.3g", v);
+  return buf;
+}
+
+/// Explains a failed solve. `h` scales r (length) and J (length^2).
+template <int D> std::string describe_failure(const NewtonState<D>& st, double h, double tol, int n) {
+  const std::string rh = format_number(st.r.norm() / h);
+  const std::string support = " of its " + std::to_string(n) + " support nodes";
+  const std::string after = " after " + std::to_string(st.iterations) + " Newton iterations";
+  switch (st.status) {
+  case NewtonStatus::singular:
+    if (st.r.norm() > kHullResidual * h)
+      return "outside the convex hull" + support + " (Newton drives lambda to infinity: |r| = " + rh +
+             " h, smallest eigenvalue of J = " + format_number(st.lambda_min / (h * h)) + " h^2" + after + ")";
+    return "singular Hessian J (smallest eigenvalue " + format_number(st.lambda_min / (h * h)) +
+           " h^2 <= " + format_number(kSingularHessian) + " h^2): the support nodes are degenerate around the point";
+  case NewtonStatus::diverged:
+    return "outside the convex hull" + support + " (lambda diverged, |r| = " + rh + " h" + after + ")";
+  case NewtonStatus::stalled:
+    return "Newton did not converge: the line search found no decrease of log Z at |r| = " + rh +
+           " h > " + format_number(tol) + " h" + after + " (outside or on the boundary of the convex hull" +
+           support + "?)";
+  case NewtonStatus::max_iterations:
+    return "Newton did not converge" + after + " (|r| = " + rh + " h > " + format_number(tol) +
+           " h; outside or on the boundary of the convex hull" + support + "?)";
+  case NewtonStatus::converged: break;
+  }
+  return "internal error: describe_failure on a converged solve";
+}
+
+} // namespace
+
+// ---- priors ------------------------------------------------------------------
+
+double cubic_spline(double r) {
+  if (r <= kSplineInner) return kSplineCentre - 4.0 * r * r + 4.0 * r * r * r;
+  if (r < 1.0) return kSplineOuterFactor * (1.0 - r) * (1.0 - r) * (1.0 - r);
+  return 0.0;
+}
+
+double cubic_spline_derivative(double r) {
+  if (r <= kSplineInner) return -8.0 * r + 12.0 * r * r;
+  if (r < 1.0) return -4.0 * (1.0 - r) * (1.0 - r);
+  return 0.0;
+}
+
+template <int D> double GaussianPrior<D>::support_radius() const { return std::sqrt(max_exponent / beta); }
+
+template <int D> bool GaussianPrior<D>::log_weight(const Vec<D>& dx, double& log_w) const {
+  const double e = beta * dx.squaredNorm();
+  if (!(e <= max_exponent)) return false;
+  log_w = -e;
+  return true;
+}
+
+template <int D> bool CubicSplinePrior<D>::log_weight(const Vec<D>& dx, double& log_w) const {
+  const double r = dx.norm() / d;
+  if (!(r < 1.0)) return false;
+  const double w = cubic_spline(r);
+  if (!(w > 0.0)) return false;
+  log_w = std::log(w);
+  return true;
+}
+
+template <int D> Vec<D> CubicSplinePrior<D>::grad_log_weight(const Vec<D>& dx) const {
+  const double r = dx.norm() / d;
+  // d log w / dr / r, written so that r -> 0 is regular (w'(r)/r = -8 + 12 r).
+  const double factor = r <= kSplineInner ? (-8.0 + 12.0 * r) / cubic_spline(r) : -3.0 / ((1.0 - r) * r);
+  return (factor / (d * d)) * dx;
+}
+
+// ---- stencil bound -------------------------------------------------------------
+
+namespace {
+
+/// Bound for an untouched Cartesian lattice (see file comment).
+template <int D> int lattice_bound(const CartesianGrid<D>& grid, double R) {
+  const Vec<D> h = grid.h();
+  const Index<D> n = grid.nodes_per_axis();
+  double box = 1.0, cell_volume = 1.0;
+  for (int k = 0; k < D; ++k) {
+    box *= std::min<double>(n[k], std::floor(2.0 * R / h[k]) + 1.0);
+    cell_volume *= h[k];
+  }
+  const double rho = R + 0.5 * h.norm();
+  const double ball = std::pow(std::numbers::pi, 0.5 * D) / std::tgamma(0.5 * D + 1.0) * std::pow(rho, D);
+  return static_cast<int>(std::min(box, std::floor(ball / cell_volume)));
+}
+
+/// Bucket-grid bound for any node set (see file comment).
+template <int D> int bucket_bound(const NodeSet<D>& nodes, double R) {
+  const auto& x = nodes.positions();
+  Vec<D> lo = x.front(), hi = x.front();
+  for (const auto& p : x) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  double side = R / kBucketsPerRadius;
+  const double limit = kMaxBucketsPerNode * static_cast<double>(x.size()) + kMinBuckets;
+  Index<D> n{};
+  for (;;) {
+    double total = 1.0;
+    for (int k = 0; k < D; ++k) total *= std::floor((hi[k] - lo[k]) / side) + 1.0;
+    if (total <= limit) break;
+    side *= std::pow(total / limit, 1.0 / D) * (1.0 + kBucketSafety);
+  }
+  std::int64_t total = 1;
+  for (int k = 0; k < D; ++k) {
+    n[k] = static_cast<int>(std::floor((hi[k] - lo[k]) / side)) + 1;
+    total *= n[k];
+  }
+  auto bucket_of = [&](const Vec<D>& p) {
+    std::int64_t id = 0;
+    for (int k = D - 1; k >= 0; --k) {
+      const int i = std::clamp(static_cast<int>(std::floor((p[k] - lo[k]) / side)), 0, n[k] - 1);
+      id = id * n[k] + i;
+    }
+    return id;
+  };
+  std::vector<int> count(static_cast<std::size_t>(total), 0);
+  for (const auto& p : x) ++count[static_cast<std::size_t>(bucket_of(p))];
+
+  // Offsets o whose bucket can hold a node within R of a point of bucket 0:
+  // the gap between the buckets, side * sqrt(sum max(0, |o_k| - 1)^2), <= R.
+  const int reach = static_cast<int>(std::ceil(R / side)) + 1;
+  const double reach2 = (R / side) * (R / side) * (1.0 + kBucketSafety);
+  std::vector<Index<D>> offsets;
+  Index<D> o{};
+  o.fill(-reach);
+  for (;;) {
+    double gap2 = 0.0;
+    for (int k = 0; k < D; ++k) {
+      const double g = std::max(0, std::abs(o[k]) - 1);
+      gap2 += g * g;
+    }
+    if (gap2 <= reach2) offsets.push_back(o);
+    int k = 0;
+    while (k < D && ++o[k] > reach) o[k++] = -reach;
+    if (k == D) break;
+  }
+  std::vector<int> reached(static_cast<std::size_t>(total), 0);
+  for (std::int64_t b = 0; b < total; ++b) {
+    if (count[static_cast<std::size_t>(b)] == 0) continue;
+    Index<D> ijk{};
+    std::int64_t rest = b;
+    for (int k = 0; k < D; ++k) {
+      ijk[k] = static_cast<int>(rest % n[k]);
+      rest /= n[k];
+    }
+    for (const auto& off : offsets) {
+      std::int64_t id = 0;
+      bool inside = true;
+      for (int k = D - 1; k >= 0 && inside; --k) {
+        const int i = ijk[k] + off[k];
+        inside = i >= 0 && i < n[k];
+        id = id * n[k] + i;
+      }
+      if (inside) reached[static_cast<std::size_t>(id)] += count[static_cast<std::size_t>(b)];
+    }
+  }
+  return *std::max_element(reached.begin(), reached.end());
+}
+
+} // namespace
+
+template <int D> int max_nodes_within(const NodeSet<D>& nodes, double R) {
+  if (nodes.size() == 0) return 0;
+  int bound = nodes.size();
+  if (nodes.on_lattice() && nodes.grid()) bound = std::min(bound, lattice_bound(*nodes.grid(), R));
+  else bound = std::min(bound, bucket_bound(nodes, R));
+  return bound;
+}
+
+// ---- the basis ---------------------------------------------------------------
+
+template <int D, class Prior>
+MaxEntBasis<D, Prior>::MaxEntBasis(NodeSet<D> nodes, const BasisOptions& opt, const Prior& prior,
+                                   std::string_view kind)
+    : nodes_(std::move(nodes)), prior_(prior), kind_(kind) {
+  const std::string name(kind);
+  if (nodes_.size() < D + 1)
+    throw InputError(name + " basis needs at least " + std::to_string(D + 1) + " nodes, got " +
+                     std::to_string(nodes_.size()));
+  if (!(opt.newton_tolerance > 0.0) || !std::isfinite(opt.newton_tolerance))
+    throw InputError(name + " basis: newton_tolerance must be > 0, got " + format_number(opt.newton_tolerance));
+  if (opt.max_newton_iterations < 1)
+    throw InputError(name + " basis: max_newton_iterations must be >= 1, got " +
+                     std::to_string(opt.max_newton_iterations));
+  settings_.h = nodes_.spacing();
+  settings_.residual_tolerance = opt.newton_tolerance * settings_.h;
+  settings_.max_iterations = opt.max_newton_iterations;
+  settings_.support_radius = prior_.support_radius();
+  nodes_.prepare_search();
+}
+
+template <int D, class Prior> void MaxEntBasis<D, Prior>::nodes_moved(const AlignedVector<Vec<D>>&) {
+  // NodeSet marked itself moved; rebuild its search index now so that
+  // evaluate() may run from several threads. The stencil bound is stale.
+  nodes_.prepare_search();
+  std::lock_guard lock(bound_mutex_);
+  bound_ = -1;
+}
+
+template <int D, class Prior> int MaxEntBasis<D, Prior>::max_stencil() const {
+  std::lock_guard lock(bound_mutex_);
+  if (bound_ < 0) bound_ = max_nodes_within(nodes_, settings_.support_radius);
+  return bound_;
+}
+
+template <int D, class Prior> void MaxEntBasis<D, Prior>::fail(const PointQuery<D>& q, const std::string& why) const {
+  std::ostringstream msg;
+  msg << kind_ << " basis: point ";
+  if (q.id >= 0) msg << q.id << " at ";
+  msg << format_point<D>(q.x) << ": " << why;
+  throw BasisError(msg.str());
+}
+
+template <int D, class Prior>
+void MaxEntBasis<D, Prior>::gather_support(const PointQuery<D>& q, Stencil<D>& out) const {
+  out.scratch_ids.clear();
+  nodes_.within(q.x, settings_.support_radius, out.scratch_ids);
+  out.scratch_dx.clear();
+  out.scratch_w.clear();
+  for (const int I : out.scratch_ids) {
+    const Vec<D> dx = q.x - nodes_.position(I);
+    double log_w = 0.0;
+    if (!prior_.log_weight(dx, log_w)) continue;
+    out.node.push_back(I);
+    out.scratch_dx.push_back(dx);
+    out.scratch_w.push_back(log_w);
+  }
+}
+
+template <int D, class Prior> void MaxEntBasis<D, Prior>::evaluate(const PointQuery<D>& q, Stencil<D>& out) const {
+  out.clear();
+  if (!q.x.allFinite()) fail(q, "the position is not finite");
+  gather_support(q, out);
+  const int n = out.size();
+  if (n < D + 1)
+    fail(q, "outside the convex hull of the nodes: only " + std::to_string(n) + " nodes within the support radius " +
+                format_number(settings_.support_radius) + " (at least " + std::to_string(D + 1) + " needed)");
+  for (int k = 0; k < D; ++k) {
+    double lo = out.scratch_dx[0][k], hi = lo;
+    for (int i = 1; i < n; ++i) {
+      lo = std::min(lo, out.scratch_dx[i][k]);
+      hi = std::max(hi, out.scratch_dx[i][k]);
+    }
+    // dx = x - x_I: x beyond every support node along axis k.
+    if (lo > settings_.residual_tolerance || hi < -settings_.residual_tolerance)
+      fail(q, "outside the convex hull of its " + std::to_string(n) + " support nodes (beyond their extent along axis " +
+                  std::to_string(k) + ")");
+  }
+  out.N.resize(static_cast<std::size_t>(n));
+  const Support<D> s{out.scratch_dx.data(), out.scratch_w.data(), out.N.data(), n};
+  const Vec<D> warm = q.lambda && q.lambda->allFinite() ? *q.lambda : Vec<D>::Zero();
+  Vec<D> lambda = warm;
+  NewtonState<D> st = solve_lambda<D>(settings_, s, lambda);
+  int iterations = st.iterations;
+  if (st.status != NewtonStatus::converged && !warm.isZero(0.0)) {
+    lambda.setZero();
+    st = solve_lambda<D>(settings_, s, lambda);
+    iterations += st.iterations;
+  }
+  if (q.iterations) *q.iterations = iterations;
+  st.iterations = iterations;
+  if (st.status != NewtonStatus::converged)
+    fail(q, describe_failure<D>(st, settings_.h, settings_.residual_tolerance / settings_.h, n));
+  if (q.lambda) *q.lambda = lambda;
+  finish_stencil(st, out);
+}
+
+template <int D, class Prior>
+void MaxEntBasis<D, Prior>::finish_stencil(const NewtonState<D>& st, Stencil<D>& out) const {
+  const int n = out.size();
+  const auto& dx = out.scratch_dx;
+  const Mat<D> J_inv = st.J.llt().solve(Mat<D>::Identity());
+  out.dN.resize(static_cast<std::size_t>(n));
+  if constexpr (Prior::kGaussian) {
+    for (int i = 0; i < n; ++i) out.dN[i] = -out.N[i] * (J_inv * (dx[i] - st.r));
+  } else {
+    Vec<D> g_bar = Vec<D>::Zero();
+    for (int i = 0; i < n; ++i) {
+      out.dN[i] = prior_.grad_log_weight(dx[i]); // g_I, overwritten below
+      g_bar += out.N[i] * out.dN[i];
+    }
+    Mat<D> A = Mat<D>::Zero();
+    for (int i = 0; i < n; ++i) A.noalias() += (out.N[i] * (dx[i] - st.r)) * (out.dN[i] - g_bar).transpose();
+    const Mat<D> M = (Mat<D>::Identity() + A.transpose()) * J_inv;
+    for (int i = 0; i < n; ++i) out.dN[i] = out.N[i] * (out.dN[i] - g_bar - M * (dx[i] - st.r));
+  }
+  // Drop nodes whose N_I underflowed to zero (their gradient is zero too).
+  int kept = 0;
+  for (int i = 0; i < n; ++i) {
+    if (!(out.N[i] > 0.0)) continue;
+    out.node[kept] = out.node[i];
+    out.N[kept] = out.N[i];
+    out.dN[kept] = out.dN[i];
+    ++kept;
+  }
+  out.node.resize(static_cast<std::size_t>(kept));
+  out.N.resize(static_cast<std::size_t>(kept));
+  out.dN.resize(static_cast<std::size_t>(kept));
+}
+
+template struct GaussianPrior<1>;
+template struct GaussianPrior<2>;
+template struct GaussianPrior<3>;
+template struct CubicSplinePrior<1>;
+template struct CubicSplinePrior<2>;
+template struct CubicSplinePrior<3>;
+template class MaxEntBasis<1, GaussianPrior<1>>;
+template class MaxEntBasis<2, GaussianPrior<2>>;
+template class MaxEntBasis<3, GaussianPrior<3>>;
+template class MaxEntBasis<1, CubicSplinePrior<1>>;
+template class MaxEntBasis<2, CubicSplinePrior<2>>;
+template class MaxEntBasis<3, CubicSplinePrior<3>>;
+template int max_nodes_within<1>(const NodeSet<1>&, double);
+template int max_nodes_within<2>(const NodeSet<2>&, double);
+template int max_nodes_within<3>(const NodeSet<3>&, double);
+
+} // namespace otmpm::maxent
+
+namespace otmpm {
+
+template <int D> std::unique_ptr<Basis<D>> make_lme_basis(NodeSet<D> nodes, const BasisOptions& opt) {
+  if (!(opt.gamma_lme > 0.0) || !std::isfinite(opt.gamma_lme))
+    throw InputError("lme basis: gamma_lme must be > 0, got " + maxent::format_number(opt.gamma_lme));
+  if (!(opt.tolerance > 0.0 && opt.tolerance < 1.0))
+    throw InputError("lme basis: tolerance must be in (0, 1), got " + maxent::format_number(opt.tolerance));
+  const double h = nodes.spacing();
+  if (!(h > 0.0) || !std::isfinite(h))
+    throw InputError("lme basis: the nodal spacing must be > 0, got " + maxent::format_number(h));
+  maxent::GaussianPrior<D> prior;
+  prior.beta = opt.gamma_lme / (h * h);
+  prior.max_exponent = -std::log(opt.tolerance);
+  return std::make_unique<maxent::MaxEntBasis<D, maxent::GaussianPrior<D>>>(std::move(nodes), opt, prior, "lme");
+}
+
+template <int D> std::unique_ptr<Basis<D>> make_maxent_basis(NodeSet<D> nodes, const BasisOptions& opt) {
+  if (!(opt.d_max > 0.0) || !std::isfinite(opt.d_max))
+    throw InputError("maxent basis: d_max must be > 0, got " + maxent::format_number(opt.d_max));
+  const double h = nodes.spacing();
+  if (!(h > 0.0) || !std::isfinite(h))
+    throw InputError("maxent basis: the nodal spacing must be > 0, got " + maxent::format_number(h));
+  maxent::CubicSplinePrior<D> prior;
+  prior.d = opt.d_max * h;
+  return std::make_unique<maxent::MaxEntBasis<D, maxent::CubicSplinePrior<D>>>(std::move(nodes), opt, prior,
+                                                                                "maxent");
+}
+
+template std::unique_ptr<Basis<1>> make_lme_basis<1>(NodeSet<1>, const BasisOptions&);
+template std::unique_ptr<Basis<2>> make_lme_basis<2>(NodeSet<2>, const BasisOptions&);
+template std::unique_ptr<Basis<3>> make_lme_basis<3>(NodeSet<3>, const BasisOptions&);
+template std::unique_ptr<Basis<1>> make_maxent_basis<1>(NodeSet<1>, const BasisOptions&);
+template std::unique_ptr<Basis<2>> make_maxent_basis<2>(NodeSet<2>, const BasisOptions&);
+template std::unique_ptr<Basis<3>> make_maxent_basis<3>(NodeSet<3>, const BasisOptions&);
+
+} // namespace otmpm

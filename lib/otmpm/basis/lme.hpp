@@ -1,0 +1,138 @@
+#pragma once
+/// \file lme.hpp
+/// Internal declarations of the two maximum-entropy families (spec
+/// algorithms.md sect. 1): local max-ent (LME, Arroyo & Ortiz 2006, molinos
+/// sect. 2.3) and max-ent with a cubic-spline prior (wobbes sect. 6.3). Both are
+///
+///     N_I(x) = w_I(x) exp(lambda . (x - x_I)) / Z(x, lambda),
+///     Z = sum_J w_J(x) exp(lambda . (x - x_J)),
+///
+/// with lambda(x) the minimiser of the convex log Z (molinos eqs. 36-39,
+/// wobbes eqs. 80-83); they differ only in the prior w_I. One class template,
+/// MaxEntBasis<D, Prior>, and one Newton solver serve both. Use
+/// make_lme_basis / make_maxent_basis (families.hpp); this header is for the
+/// implementation and its tests.
+#include "otmpm/basis/basis.hpp"
+
+#include <mutex>
+#include <string_view>
+
+namespace otmpm::maxent {
+
+/// The LME prior w_I = exp(-beta |x - x_I|^2) (molinos eq. 36), cut off where
+/// w_I < tol, i.e. beyond R = sqrt(-ln(tol) / beta) = h sqrt(-ln(tol) / gamma_lme)
+/// (molinos sect. 2.3). With this prior the gradient has the closed form
+/// grad N_I = -N_I J^{-1} (x - x_I) (Arroyo & Ortiz 2006, molinos eq. 42).
+template <int D> struct GaussianPrior {
+  /// Marks the prior whose log-gradient is -2 beta (x - x_I), which lets the
+  /// gradient use the closed LME form.
+  static constexpr bool kGaussian = true;
+  double beta = 1.0;       ///< beta = gamma_lme / h^2
+  double max_exponent = 1; ///< -ln(tol): node kept while beta |x - x_I|^2 <= -ln(tol)
+
+  /// Support radius R = sqrt(-ln(tol) / beta).
+  double support_radius() const;
+  /// log w_I for dx = x - x_I; false when the node lies outside the support.
+  bool log_weight(const Vec<D>& dx, double& log_w) const;
+  /// grad_x log w_I = -2 beta dx.
+  Vec<D> grad_log_weight(const Vec<D>& dx) const { return -2.0 * beta * dx; }
+};
+
+/// The cubic-spline prior of wobbes eq. 89, w_I = w(|x - x_I| / d) with support
+/// radius d = d_max * h (wobbes eqs. 87-88 with zeta_I = h, the initial nodal
+/// spacing, for every node).
+template <int D> struct CubicSplinePrior {
+  static constexpr bool kGaussian = false;
+  double d = 1.0; ///< support radius d_max * h
+
+  double support_radius() const { return d; }
+  /// log w_I for dx = x - x_I; false when |dx| >= d (w_I = 0).
+  bool log_weight(const Vec<D>& dx, double& log_w) const;
+  /// grad_x log w_I = w'(r) / (w(r) r) dx / d^2, r = |dx| / d < 1.
+  Vec<D> grad_log_weight(const Vec<D>& dx) const;
+};
+
+/// The cubic spline of wobbes eq. 89 at normalised radius r >= 0 (zero for r >= 1).
+double cubic_spline(double r);
+/// Its derivative dw/dr.
+double cubic_spline_derivative(double r);
+
+/// Why a Newton solve for lambda stopped.
+enum class NewtonStatus {
+  converged,      ///< |r| <= newton_tolerance * h
+  singular,       ///< smallest eigenvalue of J below kSingularHessian * h^2
+  diverged,       ///< |lambda| R beyond the double range of the exponents
+  stalled,        ///< the backtracking line search found no decrease of log Z
+  max_iterations, ///< not converged within max_newton_iterations
+};
+
+/// Settings of the Newton solve for lambda (spec algorithms.md sect. 1).
+struct NewtonSettings {
+  double h = 1.0;                  ///< the nodal spacing h of beta = gamma_lme / h^2
+  double residual_tolerance = 0.0; ///< converged when |r| <= residual_tolerance (= tol * h)
+  int max_iterations = 100;
+  double support_radius = 1.0;     ///< R, bounds |x - x_I| of every node in the sum
+};
+
+/// State of the dual problem at one lambda: gradient r = d log Z / d lambda and
+/// Hessian J = d^2 log Z / d lambda^2 (molinos eqs. 38-40).
+template <int D> struct NewtonState {
+  Vec<D> r = Vec<D>::Zero();
+  Mat<D> J = Mat<D>::Zero();
+  double psum = 1.0;          ///< sum of the computed N_I (1 up to round-off)
+  double lambda_min = 0.0;    ///< smallest eigenvalue of J (set by the solver)
+  int iterations = 0;
+  NewtonStatus status = NewtonStatus::max_iterations;
+};
+
+/// A maximum-entropy basis with prior `Prior` bound to a node set (see file
+/// comment). evaluate() finds the support by NodeSet::within, solves for lambda
+/// by the shared Newton solver and returns N_I and grad N_I. Thread-safe; no
+/// allocation per evaluation once the Stencil buffers have grown.
+template <int D, class Prior> class MaxEntBasis final : public Basis<D> {
+public:
+  MaxEntBasis(NodeSet<D> nodes, const BasisOptions& opt, const Prior& prior, std::string_view kind);
+
+  std::string_view kind() const override { return kind_; }
+  const NodeSet<D>& nodes() const override { return nodes_; }
+  NodeSet<D>& nodes() override { return nodes_; }
+  void nodes_moved(const AlignedVector<Vec<D>>& dx) override;
+  void evaluate(const PointQuery<D>& q, Stencil<D>& out) const override;
+  bool linearly_complete() const override { return true; }
+  int max_stencil() const override;
+
+  const Prior& prior() const { return prior_; }
+
+private:
+  /// Gathers the support of x into out.node / scratch_dx / scratch_w (log w_I).
+  void gather_support(const PointQuery<D>& q, Stencil<D>& out) const;
+  /// Fills out.dN from the converged state (and removes nodes with N_I = 0).
+  void finish_stencil(const NewtonState<D>& s, Stencil<D>& out) const;
+  [[noreturn]] void fail(const PointQuery<D>& q, const std::string& why) const;
+  int compute_stencil_bound() const;
+
+  NodeSet<D> nodes_;
+  Prior prior_;
+  NewtonSettings settings_;
+  std::string_view kind_;
+  mutable std::mutex bound_mutex_;
+  mutable int bound_ = -1; ///< cached max_stencil(), -1 when stale
+};
+
+/// Sound upper bound on the number of nodes within distance R of any point.
+template <int D> int max_nodes_within(const NodeSet<D>& nodes, double R);
+
+extern template struct GaussianPrior<1>;
+extern template struct GaussianPrior<2>;
+extern template struct GaussianPrior<3>;
+extern template struct CubicSplinePrior<1>;
+extern template struct CubicSplinePrior<2>;
+extern template struct CubicSplinePrior<3>;
+extern template class MaxEntBasis<1, GaussianPrior<1>>;
+extern template class MaxEntBasis<2, GaussianPrior<2>>;
+extern template class MaxEntBasis<3, GaussianPrior<3>>;
+extern template class MaxEntBasis<1, CubicSplinePrior<1>>;
+extern template class MaxEntBasis<2, CubicSplinePrior<2>>;
+extern template class MaxEntBasis<3, CubicSplinePrior<3>>;
+
+} // namespace otmpm::maxent

@@ -1,0 +1,421 @@
+#include "otmpm/engine/engine.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+namespace otmpm {
+
+namespace {
+/// Nodes within this fraction of h of a Dirichlet box belong to it.
+constexpr double box_tolerance = 1e-6;
+/// Floor of the energy reference of the runaway monitor (J), so that a body
+/// at rest with no load never trips it.
+constexpr double energy_floor = 1e-300;
+} // namespace
+
+Integrator parse_integrator(const std::string& name) {
+  if (name == "fe") return Integrator::fe;
+  if (name == "musl") return Integrator::musl;
+  if (name == "npc") return Integrator::npc;
+  if (name == "otm") return Integrator::otm;
+  if (name == "unified") return Integrator::unified;
+  throw InputError("unknown integrator '" + name + "' (expected fe, musl, npc, otm or unified)");
+}
+
+std::string to_string(Integrator integrator) {
+  switch (integrator) {
+  case Integrator::fe: return "fe";
+  case Integrator::musl: return "musl";
+  case Integrator::npc: return "npc";
+  case Integrator::otm: return "otm";
+  case Integrator::unified: return "unified";
+  }
+  return "?";
+}
+
+double time_function(const TimeFunction& g, double t) {
+  if (g.kind != "ramp") return 1.0;
+  // molinos eq. 45: sine ramp reaching 1 at T/2, constant afterwards.
+  const double half = 0.5 * g.period;
+  if (t >= half) return 1.0;
+  return std::sin(std::numbers::pi * t / g.period);
+}
+
+template <int D> void NodalFields<D>::resize(int n) {
+  m.assign(n, 0.0);
+  q.assign(n, Vec<D>::Zero());
+  v = f = a = dx = reaction = q;
+  active.assign(n, 0);
+}
+
+template <int D> Engine<D>::Engine(const Scene& scene) : scene_(scene) {
+  const SimulationSection& sim = scene_.simulation;
+  mode_ = sim.mode == "ul" ? NodeMode::ul : NodeMode::mpm;
+  integrator_ = parse_integrator(sim.integrator);
+  if ((integrator_ == Integrator::otm || integrator_ == Integrator::unified) && mode_ != NodeMode::ul)
+    input_error(scene_.locate("simulation.integrator"),
+                "integrator '" + sim.integrator + "' runs only with simulation.mode = \"ul\"");
+  if (integrator_ == Integrator::unified && scene_.basis.kind.rfind("bspline", 0) != 0)
+    input_error(scene_.locate("basis.kind"), "integrator 'unified' needs a B-spline basis");
+  for (const MaterialSection& ms : scene_.materials) {
+    Material m;
+    m.name = ms.name;
+    m.model = Material::parse_model(ms.model);
+    m.density = ms.density;
+    m.young = ms.young;
+    m.poisson = ms.poisson;
+    any_finite_strain_ = any_finite_strain_ || m.finite_strain();
+    materials_.push_back(m);
+  }
+  for (int k = 0; k < D; ++k)
+    grid_h_[k] = (scene_.grid.upper[k] - scene_.grid.lower[k]) / scene_.grid.cells[k];
+  P_ = seed_particles<D>(scene_, grid_h_);
+  P_.has_F = any_finite_strain_ || mode_ == NodeMode::ul;
+  if (integrator_ == Integrator::otm) P_.x_prev = P_.x;
+  build_nodes_and_basis();
+  nodal_.resize(basis_->nodes().size());
+  build_dirichlet();
+  build_tractions();
+  if (scene_.body_force) {
+    for (int k = 0; k < D; ++k) body_force_[k] = scene_.body_force->value[k];
+    has_body_force_ = true;
+  }
+  exact_ = make_exact_solution<D>(scene_);
+  if (exact_ && exact_->has_body_force()) has_body_force_ = true;
+  if (scene_.simulation.mass == "consistent" || integrator_ == Integrator::unified)
+    mass_matrix_ = std::make_unique<MassMatrix<D>>();
+  update_energy();
+  energy_.initial = energy_.total();
+}
+
+template <int D> Engine<D>::~Engine() = default;
+
+template <int D> void Engine<D>::build_nodes_and_basis() {
+  CartesianGrid<D> grid;
+  for (int k = 0; k < D; ++k) {
+    grid.lower[k] = scene_.grid.lower[k];
+    grid.upper[k] = scene_.grid.upper[k];
+    grid.cells[k] = scene_.grid.cells[k];
+  }
+  if (mode_ == NodeMode::ul) { // nodes discretise only the material domain
+    for (int k = 0; k < D; ++k) {
+      grid.lower[k] = scene_.bodies.front().lower[k];
+      grid.upper[k] = scene_.bodies.front().upper[k];
+      for (const BodySection& b : scene_.bodies) {
+        grid.lower[k] = std::min(grid.lower[k], b.lower[k]);
+        grid.upper[k] = std::max(grid.upper[k], b.upper[k]);
+      }
+      grid.cells[k] = std::max(1, static_cast<int>(std::lround((grid.upper[k] - grid.lower[k]) / grid_h_[k])));
+    }
+  }
+  grid.validate();
+  domain_lower_ = grid.lower;
+  domain_upper_ = grid.upper;
+  NodeSet<D> nodes = scene_.grid.kind == "perturbed"
+                         ? NodeSet<D>::perturbed(grid, scene_.grid.perturbation, scene_.grid.seed)
+                         : NodeSet<D>::cartesian(grid);
+  BasisOptions opt = scene_.basis;
+  try {
+    basis_ = make_basis<D>(opt, std::move(nodes));
+  } catch (const InputError& e) {
+    input_error(scene_.basis_where, e.what());
+  }
+  h_min0_ = grid.h().minCoeff();
+  node_spacing0_ = basis_->nodes().min_spacing();
+}
+
+template <int D> void Engine<D>::build_dirichlet() {
+  const NodeSet<D>& nodes = basis_->nodes();
+  const double tol = box_tolerance * h_min0_;
+  for (const BoundarySection& bs : scene_.boundaries) {
+    int selected = 0;
+    for (int I = 0; I < nodes.size(); ++I) {
+      const Vec<D>& x = nodes.position(I);
+      bool inside = true;
+      for (int k = 0; k < D; ++k)
+        inside = inside && x[k] >= bs.lower[k] - tol && x[k] <= bs.upper[k] + tol;
+      if (!inside) continue;
+      dirichlet_.node.push_back(I);
+      dirichlet_.fix.push_back(bs.fix);
+      dirichlet_.value.push_back(bs.value);
+      ++selected;
+    }
+    if (selected == 0)
+      input_error(bs.where, "boundary '" + bs.name + "' selects no node of the " +
+                                std::string(mode_ == NodeMode::ul ? "material" : "grid") + " node set");
+  }
+}
+
+template <int D> void Engine<D>::build_tractions() {
+  for (const TractionSection& ts : scene_.tractions) {
+    TractionLoad<D> load;
+    for (int k = 0; k < D; ++k) load.value[k] = ts.value[k];
+    load.time = ts.time;
+    load.value.cwiseAbs().maxCoeff(&load.axis);
+    for (int p = 0; p < P_.size(); ++p) {
+      bool inside = true;
+      for (int k = 0; k < D; ++k) inside = inside && P_.x[p][k] >= ts.lower[k] && P_.x[p][k] <= ts.upper[k];
+      if (inside) load.particle.push_back(p);
+    }
+    if (load.particle.empty()) input_error(ts.where, "traction box selects no particle");
+    tractions_.push_back(std::move(load));
+  }
+}
+
+template <int D> double Engine<D>::stable_dt() const {
+  double dt;
+  if (scene_.simulation.dt) {
+    dt = *scene_.simulation.dt;
+  } else {
+    double c = 0.0;
+    for (int p = 0; p < P_.size(); ++p) {
+      const double cp = std::sqrt(materials_[P_.material[p]].p_modulus(D) / P_.rho[p]);
+      c = std::max({c, cp, P_.v[p].norm()});
+    }
+    double h = h_min0_;
+    if (mode_ == NodeMode::ul) h *= basis_->nodes().min_spacing() / node_spacing0_;
+    dt = scene_.simulation.cfl * h / c;
+  }
+  return std::min(dt, scene_.simulation.t_end - t_);
+}
+
+template <int D> void Engine<D>::step() {
+  dt_ = stable_dt();
+  if (!(dt_ > 0.0) || !std::isfinite(dt_))
+    throw InstabilityError("step " + std::to_string(step_) + ", t = " + std::to_string(t_) +
+                           ": time step " + std::to_string(dt_) + " is not positive and finite");
+  if (dt_prev_ == 0.0) dt_prev_ = dt_;
+  switch (integrator_) {
+  case Integrator::fe: step_fe(*this, false); break;
+  case Integrator::musl: step_fe(*this, true); break;
+  case Integrator::npc: step_npc(*this); break;
+  case Integrator::otm: step_otm(*this); break;
+  case Integrator::unified: step_unified(*this); break;
+  }
+  t_ += dt_;
+  ++step_;
+  dt_prev_ = dt_;
+  check_state();
+  energy_.external_work += dt_ * external_power(t_);
+  update_energy();
+  check_energy();
+}
+
+template <int D> void Engine<D>::evaluate_basis() {
+  ScopedPhase timer(timers_, Phase::basis);
+  try {
+    const bool maxent = basis_->kind() == "lme" || basis_->kind() == "maxent";
+    fill_basis_table(*basis_, P_.x, maxent ? &P_.lambda : nullptr, &P_.cell_hint, table_);
+  } catch (const BasisError& e) {
+    throw InstabilityError("step " + std::to_string(step_) + ", t = " + std::to_string(t_) +
+                           ": basis evaluation failed: " + e.what());
+  }
+}
+
+template <int D> void Engine<D>::project_mass() {
+  ScopedPhase timer(timers_, Phase::to_nodes);
+  std::fill(nodal_.m.begin(), nodal_.m.end(), 0.0);
+  for (int p = 0; p < P_.size(); ++p)
+    for (int a = table_.begin(p); a < table_.end(p); ++a) nodal_.m[table_.node[a]] += table_.N[a] * P_.m[p];
+  const double m_max = *std::max_element(nodal_.m.begin(), nodal_.m.end());
+  const double m_min = scene_.simulation.mass_tolerance * m_max;
+  for (std::size_t I = 0; I < nodal_.m.size(); ++I) nodal_.active[I] = nodal_.m[I] > m_min;
+  if (!mass_matrix_) return;
+  std::vector<char> constrained(nodal_.m.size() * D, 0);
+  for (std::size_t i = 0; i < dirichlet_.node.size(); ++i)
+    for (int k = 0; k < D; ++k)
+      if (dirichlet_.fix[i][k]) constrained[dirichlet_.node[i] * D + k] = 1;
+  mass_matrix_->assemble(table_, P_.m, nodal_.active, constrained, static_cast<int>(nodal_.m.size()));
+}
+
+template <int D>
+void Engine<D>::project_momentum(const AlignedVector<Vec<D>>& w, double c, const AlignedVector<Vec<D>>* a) {
+  ScopedPhase timer(timers_, Phase::to_nodes);
+  std::fill(nodal_.q.begin(), nodal_.q.end(), Vec<D>::Zero());
+  for (int p = 0; p < P_.size(); ++p) {
+    Vec<D> mw = P_.m[p] * w[p];
+    if (a) mw += (P_.m[p] * c) * (*a)[p];
+    for (int e = table_.begin(p); e < table_.end(p); ++e) nodal_.q[table_.node[e]] += table_.N[e] * mw;
+  }
+}
+
+template <int D> void Engine<D>::compute_forces(double t) {
+  ScopedPhase timer(timers_, Phase::to_nodes);
+  std::fill(nodal_.f.begin(), nodal_.f.end(), Vec<D>::Zero());
+  for (int p = 0; p < P_.size(); ++p) {
+    const Mat<D> Vs = P_.V[p] * P_.sigma[p];
+    for (int e = table_.begin(p); e < table_.end(p); ++e) nodal_.f[table_.node[e]] -= Vs * table_.dN[e];
+  }
+  for_each_external_force(t, [&](int p, const Vec<D>& force) {
+    for (int e = table_.begin(p); e < table_.end(p); ++e) nodal_.f[table_.node[e]] += table_.N[e] * force;
+  });
+}
+
+template <int D>
+template <class Visit>
+void Engine<D>::for_each_external_force(double t, Visit&& visit) const {
+  if (has_body_force_) {
+    const Vec<D> b = body_force_ * (scene_.body_force ? time_function(scene_.body_force->time, t) : 1.0);
+    const bool mms = exact_ && exact_->has_body_force();
+    for (int p = 0; p < P_.size(); ++p)
+      visit(p, Vec<D>(P_.m[p] * (mms ? Vec<D>(b + exact_->body_force(P_.X[p], t)) : b)));
+  }
+  for (const TractionLoad<D>& load : tractions_) {
+    Vec<D> traction = load.value * time_function(load.time, t);
+    if (load.history) traction[load.axis] = load.history(t);
+    for (int p : load.particle) visit(p, Vec<D>(traction * (P_.V0[p] / P_.length0[p][load.axis])));
+  }
+}
+
+template <int D> double Engine<D>::external_power(double t) const {
+  double power = 0.0;
+  for_each_external_force(t, [&](int p, const Vec<D>& force) { power += force.dot(P_.v[p]); });
+  return power;
+}
+
+template <int D> void Engine<D>::check_energy() const {
+  const double reference = std::max(energy_.initial + std::abs(energy_.external_work), energy_floor);
+  const double total = energy_.total();
+  if (total > scene_.simulation.energy_limit * reference)
+    throw InstabilityError("step " + std::to_string(step_) + ", t = " + std::to_string(t_) +
+                           ": runaway energy: kinetic + strain = " + std::to_string(total) +
+                           " J exceeds " + std::to_string(scene_.simulation.energy_limit) +
+                           " x (initial energy + |external work|) = " + std::to_string(reference) + " J");
+}
+
+template <int D>
+void Engine<D>::solve_mass(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>& y) {
+  ScopedPhase timer(timers_, Phase::nodal_update);
+  const int n = static_cast<int>(r.size());
+  y.resize(n);
+  if (!mass_matrix_) {
+    for (int I = 0; I < n; ++I) y[I] = nodal_.active[I] ? Vec<D>(r[I] / nodal_.m[I]) : Vec<D>::Zero();
+    return;
+  }
+  for (int I = 0; I < n; ++I) y[I].setZero();
+  mass_matrix_->solve(r, y);
+}
+
+template <int D> void Engine<D>::apply_dirichlet_velocity(AlignedVector<Vec<D>>& v) const {
+  for (std::size_t i = 0; i < dirichlet_.node.size(); ++i)
+    for (int k = 0; k < D; ++k)
+      if (dirichlet_.fix[i][k]) v[dirichlet_.node[i]][k] = dirichlet_.value[i][k];
+}
+
+template <int D> void Engine<D>::apply_dirichlet_force(AlignedVector<Vec<D>>& f) {
+  for (auto& r : nodal_.reaction) r.setZero();
+  for (std::size_t i = 0; i < dirichlet_.node.size(); ++i) {
+    const int I = dirichlet_.node[i];
+    for (int k = 0; k < D; ++k)
+      if (dirichlet_.fix[i][k]) {
+        nodal_.reaction[I][k] = -f[I][k];
+        f[I][k] = 0.0;
+      }
+  }
+  for (const auto& r : nodal_.reaction) reaction_impulse_ += dt_ * r;
+}
+
+template <int D>
+void Engine<D>::interpolate(const AlignedVector<Vec<D>>& y, AlignedVector<Vec<D>>& out) const {
+  out.resize(P_.size());
+  for (int p = 0; p < P_.size(); ++p) {
+    Vec<D> s = Vec<D>::Zero();
+    for (int e = table_.begin(p); e < table_.end(p); ++e) s += table_.N[e] * y[table_.node[e]];
+    out[p] = s;
+  }
+}
+
+template <int D> void Engine<D>::advect_nodes(const AlignedVector<Vec<D>>& dx) {
+  if (mode_ != NodeMode::ul) return;
+  ScopedPhase timer(timers_, Phase::nodal_update);
+  basis_->nodes().advect(dx);
+  basis_->nodes_moved(dx);
+}
+
+namespace {
+/// Gradient of a nodal field at particle p: sum_I y_I (x) grad N_Ip.
+template <int D>
+Mat<D> nodal_gradient(const BasisTable<D>& table, int p, const AlignedVector<Vec<D>>& y) {
+  Mat<D> G = Mat<D>::Zero();
+  for (int e = table.begin(p); e < table.end(p); ++e) G.noalias() += y[table.node[e]] * table.dN[e].transpose();
+  return G;
+}
+} // namespace
+
+template <int D>
+void Engine<D>::update_stress(const AlignedVector<Vec<D>>& v_nodes, double dt) {
+  ScopedPhase timer(timers_, Phase::constitutive);
+  for (int p = 0; p < P_.size(); ++p) {
+    const Mat<D> H = dt * nodal_gradient(table_, p, v_nodes); // dt L_p
+    const Material& mat = materials_[P_.material[p]];
+    if (P_.has_F) P_.F[p] = (Mat<D>::Identity() + H) * P_.F[p];
+    if (!mat.finite_strain()) {
+      const Mat<D> d_eps = 0.5 * (H + H.transpose());
+      P_.eps[p] += d_eps;
+      P_.sigma[p] += elastic_stress_increment<D>(mat, d_eps);
+      const double dilation = 1.0 + d_eps.trace();
+      if (!(dilation > 0.0)) unstable(p, "volume change 1 + tr(d_eps) = " + std::to_string(dilation) + " <= 0");
+      P_.rho[p] /= dilation;
+      P_.V[p] = P_.m[p] / P_.rho[p];
+      continue;
+    }
+    const double J = P_.F[p].determinant();
+    if (!(J > 0.0)) unstable(p, "det F = " + std::to_string(J) + " <= 0");
+    P_.V[p] = J * P_.V0[p];
+    P_.rho[p] = P_.m[p] / P_.V[p];
+    P_.sigma[p] = cauchy_stress<D>(mat, P_.F[p]);
+    P_.eps[p] = 0.5 * (P_.F[p] + P_.F[p].transpose()) - Mat<D>::Identity();
+  }
+}
+
+template <int D>
+void Engine<D>::update_stress_from_increment(const AlignedVector<Vec<D>>& dx) {
+  // G_p - I = sum dx_I (x) grad N_Ip equals dt L_p with L from v_I = dx_I / dt.
+  update_stress(dx, 1.0);
+}
+
+template <int D> Vec<D> Engine<D>::momentum() const {
+  Vec<D> s = Vec<D>::Zero();
+  for (int p = 0; p < P_.size(); ++p) s += P_.m[p] * P_.v[p];
+  return s;
+}
+
+template <int D> void Engine<D>::update_energy() {
+  energy_.kinetic = energy_.strain = 0.0;
+  for (int p = 0; p < P_.size(); ++p) {
+    energy_.kinetic += 0.5 * P_.m[p] * P_.v[p].squaredNorm();
+    energy_.strain += P_.V[p] * strain_energy_density<D>(P_.sigma[p], P_.eps[p]);
+  }
+}
+
+template <int D> void Engine<D>::unstable(int p, const std::string& what) const {
+  throw InstabilityError("step " + std::to_string(step_) + ", t = " + std::to_string(t_) +
+                         ": particle " + std::to_string(p) + " at " + format_point<D>(P_.x[p]) + ": " + what);
+}
+
+template <int D> void Engine<D>::check_particles_inside() const {
+  if (mode_ != NodeMode::mpm) return;
+  for (int p = 0; p < P_.size(); ++p)
+    for (int k = 0; k < D; ++k)
+      if (!(P_.x[p][k] > domain_lower_[k] && P_.x[p][k] < domain_upper_[k]))
+        unstable(p, "left the grid [" + format_point<D>(domain_lower_) + ", " + format_point<D>(domain_upper_) +
+                        "] (enlarge the grid or shorten t_end)");
+}
+
+template <int D> void Engine<D>::check_state() const {
+  for (int p = 0; p < P_.size(); ++p) {
+    if (!P_.x[p].allFinite() || !P_.v[p].allFinite()) unstable(p, "position or velocity is not finite");
+    if (!P_.sigma[p].allFinite()) unstable(p, "stress is not finite");
+  }
+  check_particles_inside();
+}
+
+template class Engine<1>;
+template class Engine<2>;
+template class Engine<3>;
+template struct NodalFields<1>;
+template struct NodalFields<2>;
+template struct NodalFields<3>;
+
+} // namespace otmpm

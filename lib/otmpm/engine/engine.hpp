@@ -1,0 +1,184 @@
+#pragma once
+/// \file engine.hpp
+/// The particle-node engine (design.md points 1-4): one step loop, templated
+/// on the dimension D, shared by every basis family, every integrator and both
+/// node modes. `mpm`: the nodes are a fixed Eulerian grid. `ul`: the nodes are
+/// advected with the increment that moves the particles (advect_nodes), and the
+/// basis is recomputed on the moved nodes each step. That is the only place the
+/// two modes differ.
+#include "otmpm/basis/basis.hpp"
+#include "otmpm/engine/mass_matrix.hpp"
+#include "otmpm/engine/timers.hpp"
+#include "otmpm/materials/material.hpp"
+#include "otmpm/particles/particles.hpp"
+#include "otmpm/reference/exact.hpp"
+#include "otmpm/scene/scene.hpp"
+
+#include <functional>
+#include <memory>
+
+namespace otmpm {
+
+enum class NodeMode { mpm, ul };
+enum class Integrator { fe, musl, npc, otm, unified };
+
+Integrator parse_integrator(const std::string& name);
+std::string to_string(Integrator integrator);
+
+/// Nodal fields of one step. m: lumped mass m_I; q: momentum; v: velocity
+/// (after the nodal update); v_pred: NPC predictor; f: force f_I (internal +
+/// body + traction); a: acceleration; dx: the increment that moves the nodes in
+/// `ul` mode (and the particles); reaction: Dirichlet reaction forces.
+template <int D> struct NodalFields {
+  std::vector<double> m;
+  AlignedVector<Vec<D>> q, v, f, a, dx, reaction;
+  std::vector<char> active;
+  void resize(int n);
+};
+
+/// A Dirichlet node set: node ids and, per component, fixed flag and value.
+template <int D> struct Dirichlet {
+  std::vector<int> node;
+  std::vector<std::array<bool, 3>> fix;
+  std::vector<Vec3> value;
+};
+
+/// A traction load on a set of particles: force per unit reference area
+/// `value * g(t)` (or a built-in history), area A_p = V0_p / l_p[axis].
+template <int D> struct TractionLoad {
+  std::vector<int> particle;
+  Vec<D> value = Vec<D>::Zero();
+  TimeFunction time;
+  std::function<double(double)> history; ///< replaces value[axis] * g(t) when set
+  int axis = 0;
+};
+
+/// Values of the time functions of spec algorithms.md (molinos eq. 45 ramp).
+double time_function(const TimeFunction& g, double t);
+
+/// Energies for the runaway monitor: kinetic, strain, and the work done by
+/// external forces (body force, traction) and reactions since t = 0.
+struct EnergyBalance {
+  double kinetic = 0, strain = 0, external_work = 0, initial = 0;
+  double total() const { return kinetic + strain; }
+};
+
+template <int D> class Engine {
+public:
+  /// Builds the engine for a validated scene: node set (grid over the scene's
+  /// grid in `mpm`; over the bodies' bounding box in `ul`), basis, particles,
+  /// materials, Dirichlet sets, loads. Throws InputError naming the key when
+  /// the combination is not allowed.
+  explicit Engine(const Scene& scene);
+  ~Engine();
+
+  /// Advances one step of size dt() with the scene's integrator.
+  void step();
+  /// Time step from the CFL condition (spec sect. 5), or the fixed dt.
+  double stable_dt() const;
+
+  const Scene& scene() const { return scene_; }
+  Particles<D>& particles() { return P_; }
+  const Particles<D>& particles() const { return P_; }
+  const Basis<D>& basis() const { return *basis_; }
+  Basis<D>& basis() { return *basis_; }
+  const NodalFields<D>& nodal() const { return nodal_; }
+  const BasisTable<D>& table() const { return table_; }
+  const std::vector<Material>& materials() const { return materials_; }
+  const Dirichlet<D>& dirichlet() const { return dirichlet_; }
+  NodeMode mode() const { return mode_; }
+  Integrator integrator() const { return integrator_; }
+  double time() const { return t_; }
+  long steps() const { return step_; }
+  double last_dt() const { return dt_; }
+  PhaseTimers& timers() { return timers_; }
+  const EnergyBalance& energy() const { return energy_; }
+  /// Sum of the Dirichlet reaction impulses since t = 0 (per component).
+  const Vec<D>& reaction_impulse() const { return reaction_impulse_; }
+  /// Total momentum sum_p m_p v_p.
+  Vec<D> momentum() const;
+  /// Recomputes the kinetic and strain energy.
+  void update_energy();
+  /// Throws InstabilityError when kinetic + strain energy exceeds
+  /// energy_limit * (initial energy + |external work|) (runaway).
+  void check_energy() const;
+
+  // ---- stages of the step (spec algorithms.md sect. 3), used by the integrators
+  void evaluate_basis();
+  void project_mass();
+  /// q_I = sum_p N_Ip m_p w_p for a particle field w (v_p, or v_p + c a_p).
+  void project_momentum(const AlignedVector<Vec<D>>& w, double c, const AlignedVector<Vec<D>>* a);
+  /// f_I = sum_p (-V_p sigma_p grad N_Ip + N_Ip m_p b_p(t)) + traction(t).
+  void compute_forces(double t);
+  /// Solves M y = r (lumped: division by m_I; consistent: sparse solve) on
+  /// active nodes; inactive nodes get zero.
+  void solve_mass(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>& y);
+  /// Sets fixed components of a nodal velocity-like field to their value.
+  void apply_dirichlet_velocity(AlignedVector<Vec<D>>& v) const;
+  /// Zeroes fixed components of f and stores them as reactions.
+  void apply_dirichlet_force(AlignedVector<Vec<D>>& f);
+  /// L_p = sum_I v_I (x) grad N_Ip, then the constitutive update (sect. 4).
+  void update_stress(const AlignedVector<Vec<D>>& v_nodes, double dt);
+  /// F_p = G_p F_p with G_p = I + sum_I dx_I (x) grad N_Ip, V_p, rho_p, stress
+  /// (OTM and unified: the increment instead of dt L_p).
+  void update_stress_from_increment(const AlignedVector<Vec<D>>& dx);
+  /// Power of the external loads sum_p (m_p b_p(t) + t_p A_p) . v_p.
+  double external_power(double t) const;
+  /// Interpolates a nodal field to particles: out_p = sum_I N_Ip y_I.
+  void interpolate(const AlignedVector<Vec<D>>& y, AlignedVector<Vec<D>>& out) const;
+  /// x_I += dx_I in `ul` mode (no-op in `mpm`): the node-mode switch.
+  void advect_nodes(const AlignedVector<Vec<D>>& dx);
+  /// Throws InstabilityError if particle p is outside the domain of the basis.
+  void check_particles_inside() const;
+
+private:
+  void build_nodes_and_basis();
+  void build_dirichlet();
+  void build_tractions();
+  void check_state() const;
+  /// Calls visit(p, force) for every external force on a particle at time t.
+  template <class Visit> void for_each_external_force(double t, Visit&& visit) const;
+  [[noreturn]] void unstable(int p, const std::string& what) const;
+
+  Scene scene_;
+  NodeMode mode_ = NodeMode::mpm;
+  Integrator integrator_ = Integrator::npc;
+  std::unique_ptr<Basis<D>> basis_;
+  std::unique_ptr<MassMatrix<D>> mass_matrix_;
+  Particles<D> P_;
+  std::vector<Material> materials_;
+  bool any_finite_strain_ = false;
+  NodalFields<D> nodal_;
+  BasisTable<D> table_;
+  Dirichlet<D> dirichlet_;
+  std::vector<TractionLoad<D>> tractions_;
+  Vec<D> body_force_ = Vec<D>::Zero();
+  bool has_body_force_ = false;
+  std::unique_ptr<ExactSolution<D>> exact_; ///< for a manufactured body force
+  Vec<D> grid_h_ = Vec<D>::Ones();
+  double h_min0_ = 1.0, node_spacing0_ = 1.0;
+  Vec<D> domain_lower_, domain_upper_;
+  double t_ = 0.0, dt_ = 0.0, dt_prev_ = 0.0;
+  long step_ = 0;
+  PhaseTimers timers_;
+  EnergyBalance energy_;
+  Vec<D> reaction_impulse_ = Vec<D>::Zero();
+
+  template <int E> friend void step_fe(Engine<E>&, bool musl);
+  template <int E> friend void step_npc(Engine<E>&);
+  template <int E> friend void step_otm(Engine<E>&);
+  template <int E> friend void step_unified(Engine<E>&);
+};
+
+/// One step of each integrator (integrators/*.cpp), reading like the
+/// algorithm listings of spec algorithms.md sect. 3.
+template <int D> void step_fe(Engine<D>& e, bool musl);
+template <int D> void step_npc(Engine<D>& e);
+template <int D> void step_otm(Engine<D>& e);
+template <int D> void step_unified(Engine<D>& e);
+
+extern template class Engine<1>;
+extern template class Engine<2>;
+extern template class Engine<3>;
+
+} // namespace otmpm

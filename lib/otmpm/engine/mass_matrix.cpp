@@ -1,0 +1,89 @@
+#include "otmpm/engine/mass_matrix.hpp"
+
+#include <Eigen/SparseCholesky>
+
+#include <cmath>
+
+namespace otmpm {
+
+template <int D> struct MassMatrix<D>::Factor {
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt;
+  Eigen::SparseMatrix<double> A;
+};
+
+template <int D> MassMatrix<D>::MassMatrix() = default;
+template <int D> MassMatrix<D>::~MassMatrix() = default;
+
+template <int D>
+void MassMatrix<D>::assemble(const BasisTable<D>& table, const std::vector<double>& m_p,
+                             const std::vector<char>& active, const std::vector<char>& constrained,
+                             int nodes) {
+  std::vector<Eigen::Triplet<double>> triplets;
+  triplets.reserve(table.entries() * 4);
+  for (int p = 0; p < table.rows(); ++p)
+    for (int a = table.begin(p); a < table.end(p); ++a)
+      for (int b = table.begin(p); b < table.end(p); ++b)
+        triplets.emplace_back(table.node[a], table.node[b], m_p[p] * table.N[a] * table.N[b]);
+  M_.resize(nodes, nodes);
+  M_.setFromTriplets(triplets.begin(), triplets.end());
+  factor_.clear();
+  fixed_.clear();
+  for (int k = 0; k < D; ++k) {
+    std::vector<char> fixed(nodes, 0);
+    for (int I = 0; I < nodes; ++I) fixed[I] = !active[I] || constrained[I * D + k];
+    if (k > 0 && fixed == fixed_.back()) { // same constraints: share the factor
+      fixed_.push_back(fixed);
+      factor_.push_back(nullptr);
+      continue;
+    }
+    auto f = std::make_unique<Factor>();
+    f->A = M_;
+    for (int col = 0; col < f->A.outerSize(); ++col)
+      for (Eigen::SparseMatrix<double>::InnerIterator it(f->A, col); it; ++it)
+        if (fixed[it.row()] || fixed[it.col()]) it.valueRef() = it.row() == it.col() ? 1.0 : 0.0;
+    for (int I = 0; I < nodes; ++I)
+      if (fixed[I]) f->A.coeffRef(I, I) = 1.0;
+    f->A.prune(0.0);
+    f->ldlt.compute(f->A);
+    if (f->ldlt.info() != Eigen::Success)
+      throw InstabilityError("consistent mass matrix: factorisation failed (singular matrix)");
+    fixed_.push_back(std::move(fixed));
+    factor_.push_back(std::move(f));
+  }
+}
+
+template <int D>
+double MassMatrix<D>::solve(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>& y) const {
+  const int n = static_cast<int>(M_.rows());
+  double worst = 0.0;
+  const Factor* f = nullptr;
+  for (int k = 0; k < D; ++k) {
+    if (factor_[k]) f = factor_[k].get();
+    const std::vector<char>& fixed = fixed_[k];
+    Eigen::VectorXd y0 = Eigen::VectorXd::Zero(n), rk(n);
+    for (int I = 0; I < n; ++I) {
+      rk[I] = r[I][k];
+      if (fixed[I]) y0[I] = y[I][k];
+    }
+    Eigen::VectorXd b = rk - M_ * y0;
+    for (int I = 0; I < n; ++I)
+      if (fixed[I]) b[I] = y0[I];
+    const Eigen::VectorXd sol = f->ldlt.solve(b);
+    // residual of the free rows of M y = r
+    const Eigen::VectorXd res = M_ * sol - rk;
+    double num = 0.0, den = 0.0;
+    for (int I = 0; I < n; ++I) {
+      if (!fixed[I]) num = std::max(num, std::abs(res[I]));
+      den = std::max(den, std::abs(rk[I]));
+      y[I][k] = sol[I];
+    }
+    if (den > 0.0) worst = std::max(worst, num / den);
+  }
+  return worst;
+}
+
+template class MassMatrix<1>;
+template class MassMatrix<2>;
+template class MassMatrix<3>;
+
+} // namespace otmpm

@@ -1,0 +1,223 @@
+#include "otmpm/engine/run.hpp"
+
+#include "otmpm/engine/engine.hpp"
+#include "otmpm/io/results.hpp"
+#include "otmpm/reference/exact.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+
+namespace otmpm {
+
+namespace {
+
+/// Relative slack when comparing the simulated time with output times.
+constexpr double time_slack = 1e-9;
+
+/// The particle a probe follows: the leftmost/rightmost by initial position
+/// (ties: lowest index) or the one nearest to a point.
+template <int D> int probe_particle(const Particles<D>& P, const ProbeSection& probe) {
+  int best = 0;
+  Vec<D> at;
+  for (int k = 0; k < D; ++k) at[k] = probe.at[k];
+  for (int p = 1; p < P.size(); ++p) {
+    if (probe.particle == "leftmost" ? P.X[p][0] < P.X[best][0]
+        : probe.particle == "rightmost" ? P.X[p][0] > P.X[best][0]
+                                        : (P.X[p] - at).norm() < (P.X[best] - at).norm())
+      best = p;
+  }
+  return best;
+}
+
+/// Copies DxD matrices into row-major rows of D*D doubles.
+template <int D> std::vector<double> row_major(const AlignedVector<Mat<D>>& A) {
+  std::vector<double> out(A.size() * D * D);
+  for (std::size_t p = 0; p < A.size(); ++p)
+    for (int i = 0; i < D; ++i)
+      for (int j = 0; j < D; ++j) out[p * D * D + i * D + j] = A[p](i, j);
+  return out;
+}
+
+template <int D> class Recorder {
+public:
+  Recorder(const Scene& scene, const RunOptions& opt, Engine<D>& e, const ExactSolution<D>* exact)
+      : scene_(scene), e_(e), exact_(exact) {
+    for (const ProbeSection& pr : scene.output.probes) probes_.push_back({pr.name, probe_particle(e.particles(), pr), 0.0, 0});
+    if (!opt.write_results) return;
+    path_ = opt.out_file.empty() ? scene.output.file : opt.out_file;
+    writer_ = std::make_unique<ResultWriter>(path_, scene.text, D);
+  }
+
+  /// Writes a frame and probe samples when t reached the next output time.
+  void maybe_record(bool force) {
+    const double every = scene_.output.every;
+    const double t = e_.time();
+    if (!force && !(every > 0.0 && t >= next_ * (1.0 - time_slack))) return;
+    ScopedPhase timer(e_.timers(), Phase::output);
+    record(t);
+    if (every > 0.0)
+      while (next_ <= t * (1.0 + time_slack)) next_ += every;
+  }
+
+  void finish(RunSummary& s) {
+    for (const Probe& pr : probes_)
+      if (exact_ && pr.samples > 0) s.errors["history_error_" + pr.name] = std::sqrt(pr.sum_sq / pr.samples);
+    if (exact_ && s.exit_code == 0) final_errors(s);
+    if (!writer_) return;
+    writer_->set_attribute("status", s.status);
+    writer_->set_attribute("steps", static_cast<long long>(s.steps));
+    writer_->set_attribute("t_end", s.time);
+    writer_->set_attribute("wall_seconds", s.wall_seconds);
+    writer_->set_attribute("particles", static_cast<long long>(s.particles));
+    writer_->set_attribute("nodes", static_cast<long long>(s.nodes));
+    for (const auto& [name, value] : s.errors) writer_->set_attribute(name, value);
+    for (std::size_t i = 0; i < phase_names.size(); ++i)
+      writer_->set_attribute("seconds_" + std::string(phase_names[i]), s.timers.seconds[i]);
+    writer_->flush();
+    s.out_file = path_;
+  }
+
+  /// Marks the file with a diagnosis (the file stays valid).
+  void set_status(const std::string& status) {
+    if (writer_) {
+      writer_->set_attribute("status", status);
+      writer_->flush();
+    }
+  }
+
+private:
+  struct Probe {
+    std::string name;
+    int particle;
+    double sum_sq;
+    int samples;
+  };
+
+  void record(double t) {
+    const Particles<D>& P = e_.particles();
+    for (Probe& pr : probes_) {
+      const int p = pr.particle;
+      if (exact_) {
+        pr.sum_sq += (P.v[p] - exact_->velocity(P.X[p], t)).squaredNorm();
+        ++pr.samples;
+      }
+      if (writer_) {
+        std::vector<double> x(P.x[p].data(), P.x[p].data() + D), v(P.v[p].data(), P.v[p].data() + D);
+        std::vector<double> sig(P.sigma[p].data(), P.sigma[p].data() + D * D);
+        writer_->append_probe(pr.name, t, {{"x", x}, {"v", v}, {"stress", sig}});
+      }
+    }
+    if (writer_) write_frame(t);
+  }
+
+  void write_frame(double t) {
+    const Particles<D>& P = e_.particles();
+    const int n = P.size();
+    std::vector<FieldView> fields;
+    std::vector<std::vector<double>> buffers;
+    buffers.reserve(8);
+    for (const std::string& f : scene_.output.fields) {
+      if (f == "x") fields.push_back({"x", n, D, P.x.front().data()});
+      else if (f == "v") fields.push_back({"v", n, D, P.v.front().data()});
+      else if (f == "a") fields.push_back({"a", n, D, P.a.front().data()});
+      else if (f == "stress") fields.push_back({"stress", n, D * D, (buffers.push_back(row_major<D>(P.sigma)), buffers.back().data())});
+      else if (f == "strain") fields.push_back({"strain", n, D * D, (buffers.push_back(row_major<D>(P.eps)), buffers.back().data())});
+      else if (f == "F") fields.push_back({"F", n, D * D, (buffers.push_back(row_major<D>(P.F)), buffers.back().data())});
+      else if (f == "density") fields.push_back({"density", n, 1, P.rho.data()});
+      else if (f == "volume") fields.push_back({"volume", n, 1, P.V.data()});
+      else if (f == "mass") fields.push_back({"mass", n, 1, P.m.data()});
+      else if (f == "displacement") {
+        std::vector<double> u(static_cast<std::size_t>(n) * D);
+        for (int p = 0; p < n; ++p)
+          for (int k = 0; k < D; ++k) u[p * D + k] = P.x[p][k] - P.X[p][k];
+        buffers.push_back(std::move(u));
+        fields.push_back({"displacement", n, D, buffers.back().data()});
+      }
+    }
+    writer_->write_frame(t, fields);
+  }
+
+  void final_errors(RunSummary& s) const {
+    const Particles<D>& P = e_.particles();
+    const double t = e_.time();
+    std::vector<double> ev, eu, es;
+    for (int p = 0; p < P.size(); ++p) {
+      ev.push_back((P.v[p] - exact_->velocity(P.X[p], t)).squaredNorm());
+      eu.push_back((P.x[p] - P.X[p] - exact_->displacement(P.X[p], t)).squaredNorm());
+      es.push_back((P.sigma[p] - exact_->stress(P.X[p], t)).squaredNorm());
+    }
+    s.errors["rms_velocity_error"] = rms_error(ev);
+    s.errors["rms_displacement_error"] = rms_error(eu);
+    s.errors["rms_stress_error"] = rms_error(es);
+  }
+
+  const Scene& scene_;
+  Engine<D>& e_;
+  const ExactSolution<D>* exact_;
+  std::vector<Probe> probes_;
+  std::string path_;
+  std::unique_ptr<ResultWriter> writer_;
+  double next_ = 0.0;
+};
+
+template <int D> RunSummary run_dim(const Scene& scene, const RunOptions& opt) {
+  const auto start = std::chrono::steady_clock::now();
+  RunSummary s;
+  Engine<D> e(scene);
+  const auto exact = make_exact_solution<D>(scene);
+  Recorder<D> rec(scene, opt, e, exact.get());
+  s.mode = scene.simulation.mode;
+  s.integrator = scene.simulation.integrator;
+  s.basis = scene.basis.kind;
+  s.particles = e.particles().size();
+  s.nodes = e.basis().nodes().size();
+  const double t_end = scene.simulation.t_end;
+  rec.maybe_record(true);
+  try {
+    while (e.time() < t_end * (1.0 - time_slack)) {
+      e.step();
+      rec.maybe_record(e.time() >= t_end * (1.0 - time_slack));
+      if (opt.progress) opt.progress(e.time(), t_end, e.steps());
+    }
+  } catch (const InstabilityError& err) {
+    s.status = std::string("unstable: ") + err.what();
+    s.exit_code = 1;
+    rec.set_status(s.status);
+  }
+  s.steps = e.steps();
+  s.time = e.time();
+  s.timers = e.timers();
+  s.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  rec.finish(s);
+  return s;
+}
+
+} // namespace
+
+RunSummary run_scene(const Scene& scene, const RunOptions& options) {
+  switch (scene.simulation.dimension) {
+  case 1: return run_dim<1>(scene, options);
+  case 2: return run_dim<2>(scene, options);
+  case 3: return run_dim<3>(scene, options);
+  default:
+    input_error(scene.locate("simulation.dimension"),
+                "dimension must be 1, 2 or 3, got " + std::to_string(scene.simulation.dimension));
+  }
+}
+
+std::string summary_line(const RunSummary& s) {
+  char buf[256];
+  std::snprintf(buf, sizeof buf, "%s %s %s: %ld steps, t = %.6g s, %.3f s wall, %.3g particle-steps/s",
+                s.mode.c_str(), s.integrator.c_str(), s.basis.c_str(), s.steps, s.time, s.wall_seconds,
+                s.particle_steps_per_second());
+  std::string line = (s.exit_code == 0 ? "ok: " : "UNSTABLE: ") + std::string(buf);
+  for (const auto& [name, value] : s.errors) {
+    std::snprintf(buf, sizeof buf, ", %s = %.4g", name.c_str(), value);
+    line += buf;
+  }
+  return line;
+}
+
+} // namespace otmpm

@@ -1,0 +1,44 @@
+#pragma once
+/// \file run.hpp
+/// Runs a whole scene: builds the engine for the scene's dimension, steps to
+/// t_end, writes the HDF5 result file (frames, probes, errors against the
+/// exact solution) and returns a summary. Used by `otmpm run` and `otmpm pair`.
+#include "otmpm/engine/timers.hpp"
+#include "otmpm/scene/scene.hpp"
+
+#include <functional>
+#include <map>
+#include <string>
+
+namespace otmpm {
+
+struct RunOptions {
+  std::string out_file;  ///< overrides output.file when not empty
+  bool write_results = true;
+  /// Called after every step with (t, t_end, steps) - e.g. a progress bar.
+  std::function<void(double, double, long)> progress;
+};
+
+/// What a run reports (spec algorithms.md sect. 6).
+struct RunSummary {
+  std::string status = "ok"; ///< "ok" or the diagnosis
+  int exit_code = 0;         ///< 0 ok, 1 unstable
+  std::string mode, integrator, basis;
+  long steps = 0;
+  double time = 0.0;         ///< simulated time reached
+  double wall_seconds = 0.0;
+  long particles = 0, nodes = 0;
+  std::map<std::string, double> errors; ///< rms_velocity_error, history_error_A, ...
+  PhaseTimers timers;
+  std::string out_file;
+  double particle_steps_per_second() const { return wall_seconds > 0 ? particles * steps / wall_seconds : 0.0; }
+};
+
+/// Runs the scene. InputError propagates (exit 2); an instability is caught,
+/// written into the result file's status, and reported with exit_code 1.
+RunSummary run_scene(const Scene& scene, const RunOptions& options = {});
+
+/// One line: "ok: 1234 steps, 0.52 s wall, rms_velocity_error = 0.01 ...".
+std::string summary_line(const RunSummary& s);
+
+} // namespace otmpm

@@ -1,0 +1,39 @@
+#pragma once
+/// \file timers.hpp
+/// Wall time spent in each phase of a step (spec algorithms.md sect. 6).
+#include <array>
+#include <chrono>
+#include <string_view>
+
+namespace otmpm {
+
+/// The phases every run reports.
+enum class Phase { basis, to_nodes, nodal_update, to_particles, constitutive, output, count };
+
+constexpr std::array<std::string_view, 6> phase_names{"basis", "to_nodes", "nodal_update",
+                                                      "to_particles", "constitutive", "output"};
+
+/// Accumulated seconds per phase.
+struct PhaseTimers {
+  std::array<double, static_cast<int>(Phase::count)> seconds{};
+  double& operator[](Phase p) { return seconds[static_cast<int>(p)]; }
+  double operator[](Phase p) const { return seconds[static_cast<int>(p)]; }
+};
+
+/// Adds the lifetime of the guard to one phase.
+class ScopedPhase {
+public:
+  ScopedPhase(PhaseTimers& timers, Phase phase)
+      : slot_(timers[phase]), start_(std::chrono::steady_clock::now()) {}
+  ~ScopedPhase() {
+    slot_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  }
+  ScopedPhase(const ScopedPhase&) = delete;
+  ScopedPhase& operator=(const ScopedPhase&) = delete;
+
+private:
+  double& slot_;
+  std::chrono::steady_clock::time_point start_;
+};
+
+} // namespace otmpm

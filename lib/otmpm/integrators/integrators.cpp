@@ -1,0 +1,167 @@
+/// \file integrators.cpp
+/// One step of each time integrator, written to read like the listings of
+/// spec algorithms.md sect. 3. The stages (project_mass, compute_forces, ...)
+/// live in the engine and are shared; advect_nodes() is a no-op in `mpm`
+/// mode, which is the only difference between the two node modes.
+#include "otmpm/engine/engine.hpp"
+
+namespace otmpm {
+
+namespace {
+/// a += s * b over nodal or particle arrays.
+template <int D> void axpy(AlignedVector<Vec<D>>& a, double s, const AlignedVector<Vec<D>>& b) {
+  for (std::size_t i = 0; i < a.size(); ++i) a[i] += s * b[i];
+}
+} // namespace
+
+/// fe / musl: forward Euler, update stress last (wobbes Algorithm 1, lumped).
+template <int D> void step_fe(Engine<D>& e, bool musl) {
+  auto& P = e.P_;
+  auto& n = e.nodal_;
+  const double dt = e.dt_;
+  e.evaluate_basis();
+  // 1. q_I = sum N_Ip m_p v_p; f_I; Dirichlet on q_I and f_I.
+  e.project_mass();
+  e.project_momentum(P.v, 0.0, nullptr);
+  e.compute_forces(e.t_);
+  e.apply_dirichlet_force(n.f);
+  // 2. a_I = f_I / m_I; v_I = q_I / m_I + dt a_I.
+  e.solve_mass(n.f, n.a);
+  e.solve_mass(n.q, n.v);
+  axpy(n.v, dt, n.a);
+  e.apply_dirichlet_velocity(n.v);
+  // 3. v_p += dt sum N_Ip a_I; x_p += dt sum N_Ip v_I; x_I += dt v_I in ul.
+  AlignedVector<Vec<D>> tmp;
+  {
+    ScopedPhase timer(e.timers_, Phase::to_particles);
+    e.interpolate(n.a, tmp);
+    axpy(P.v, dt, tmp);
+    e.interpolate(n.v, tmp);
+    axpy(P.x, dt, tmp);
+  }
+  n.dx = n.v;
+  for (auto& d : n.dx) d *= dt;
+  e.advect_nodes(n.dx);
+  // musl: v_I recomputed from the updated particle momenta.
+  if (musl) {
+    e.project_momentum(P.v, 0.0, nullptr);
+    e.solve_mass(n.q, n.v);
+    e.apply_dirichlet_velocity(n.v);
+  }
+  // 4. L_p = sum v_I (x) grad N_Ip; strain, density and stress update.
+  e.update_stress(n.v, dt);
+}
+
+/// npc: explicit Newmark predictor-corrector (molinos Algorithm 1).
+template <int D> void step_npc(Engine<D>& e) {
+  auto& P = e.P_;
+  auto& n = e.nodal_;
+  const double dt = e.dt_;
+  const double gamma = e.scene_.simulation.gamma;
+  e.evaluate_basis();
+  // 1. m_I = sum N_Ip m_p.
+  e.project_mass();
+  // 2. predictor: v_I^pred = sum N_Ip m_p (v_p + (1-gamma) dt a_p) / m_I.
+  e.project_momentum(P.v, (1.0 - gamma) * dt, &P.a);
+  e.solve_mass(n.q, n.v);
+  // 3. Dirichlet on the predictor.
+  e.apply_dirichlet_velocity(n.v);
+  // 4. L_p from the predictor; strain, density and stress update.
+  e.update_stress(n.v, dt);
+  // 5. f_I with the updated stresses and b(t + dt); fixed components zeroed.
+  e.compute_forces(e.t_ + dt);
+  e.apply_dirichlet_force(n.f);
+  // 6. corrector: v_I = v_I^pred + gamma dt f_I / m_I.
+  e.solve_mass(n.f, n.a);
+  axpy(n.v, gamma * dt, n.a);
+  // 7. a_p = sum N_Ip f_I/m_I; v_p += dt a_p; x_p += sum N_Ip (dt v_I + dt^2/2 f_I/m_I).
+  n.dx.resize(n.v.size());
+  for (std::size_t I = 0; I < n.v.size(); ++I) n.dx[I] = dt * n.v[I] + (0.5 * dt * dt) * n.a[I];
+  {
+    ScopedPhase timer(e.timers_, Phase::to_particles);
+    e.interpolate(n.a, P.a);
+    axpy(P.v, dt, P.a);
+    AlignedVector<Vec<D>> tmp;
+    e.interpolate(n.dx, tmp);
+    axpy(P.x, 1.0, tmp);
+  }
+  e.advect_nodes(n.dx);
+}
+
+/// otm: optimal transportation meshfree update (wobbes Algorithm 2), ul only.
+template <int D> void step_otm(Engine<D>& e) {
+  auto& P = e.P_;
+  auto& n = e.nodal_;
+  const double dt = e.dt_, dt_prev = e.dt_prev_;
+  e.evaluate_basis();
+  // v_p := (x_p^s - x_p^{s-1}) / dt_s (initially x^{-1} = x^0 - dt v^0).
+  if (e.step_ > 0)
+    for (int p = 0; p < P.size(); ++p) P.v[p] = (P.x[p] - P.x_prev[p]) / dt_prev;
+  // 1. q_I = sum N_Ip m_p v_p; dx_I = dt M^{-1} (q + (dt + dt_prev)/2 f).
+  e.project_mass();
+  e.project_momentum(P.v, 0.0, nullptr);
+  e.compute_forces(e.t_);
+  e.apply_dirichlet_force(n.f);
+  AlignedVector<Vec<D>> rhs(n.q.size());
+  for (std::size_t I = 0; I < rhs.size(); ++I) rhs[I] = n.q[I] + (0.5 * (dt + dt_prev)) * n.f[I];
+  e.solve_mass(rhs, n.v); // the velocity dx_I / dt
+  e.apply_dirichlet_velocity(n.v);
+  n.dx.resize(n.v.size());
+  for (std::size_t I = 0; I < n.v.size(); ++I) n.dx[I] = dt * n.v[I];
+  // 2. x_I += dx_I; x_p = sum N_Ip x_I (old N): x_p += sum N_Ip dx_I.
+  P.x_prev = P.x;
+  {
+    ScopedPhase timer(e.timers_, Phase::to_particles);
+    AlignedVector<Vec<D>> tmp;
+    e.interpolate(n.dx, tmp);
+    axpy(P.x, 1.0, tmp);
+    for (int p = 0; p < P.size(); ++p) P.v[p] = tmp[p] / dt;
+  }
+  e.advect_nodes(n.dx);
+  // 3. G_p = I + sum dx_I (x) grad N_Ip; F_p = G_p F_p; V_p = det(G_p) V_p; stress.
+  e.update_stress_from_increment(n.dx);
+}
+
+/// unified: B-spline basis on advected knots, consistent mass (wobbes Algorithm 3).
+template <int D> void step_unified(Engine<D>& e) {
+  auto& P = e.P_;
+  auto& n = e.nodal_;
+  const double dt = e.dt_, dt_prev = e.dt_prev_;
+  e.evaluate_basis();
+  e.project_mass();
+  e.project_momentum(P.v, 0.0, nullptr);
+  e.compute_forces(e.t_);
+  e.apply_dirichlet_force(n.f);
+  // 1. a = M^{-1} f; dx = dt M^{-1} (q + (dt + dt_prev)/2 f); x_I += dx_I.
+  e.solve_mass(n.f, n.a);
+  AlignedVector<Vec<D>> rhs(n.q.size());
+  for (std::size_t I = 0; I < rhs.size(); ++I) rhs[I] = n.q[I] + (0.5 * (dt + dt_prev)) * n.f[I];
+  e.solve_mass(rhs, n.v);
+  e.apply_dirichlet_velocity(n.v);
+  n.dx.resize(n.v.size());
+  for (std::size_t I = 0; I < n.v.size(); ++I) n.dx[I] = dt * n.v[I];
+  // 2. x_p += sum N_Ip dx_I; v_p += dt sum N_Ip a_I.
+  {
+    ScopedPhase timer(e.timers_, Phase::to_particles);
+    AlignedVector<Vec<D>> tmp;
+    e.interpolate(n.dx, tmp);
+    axpy(P.x, 1.0, tmp);
+    e.interpolate(n.a, tmp);
+    axpy(P.v, dt, tmp);
+  }
+  e.advect_nodes(n.dx);
+  // 3. F_p = (I + sum dx_I (x) grad N_Ip) F_p; V_p = det(F_p) V0_p; stress.
+  e.update_stress_from_increment(n.dx);
+}
+
+#define OTMPM_INSTANTIATE(D)                                                             \
+  template void step_fe<D>(Engine<D>&, bool);                                           \
+  template void step_npc<D>(Engine<D>&);                                                \
+  template void step_otm<D>(Engine<D>&);                                                \
+  template void step_unified<D>(Engine<D>&);
+OTMPM_INSTANTIATE(1)
+OTMPM_INSTANTIATE(2)
+OTMPM_INSTANTIATE(3)
+#undef OTMPM_INSTANTIATE
+
+} // namespace otmpm

@@ -1,0 +1,59 @@
+#pragma once
+/// \file results.hpp
+/// The HDF5 result file of interfaces.md: root attributes, /frames/NNNNNN/
+/// groups of particle datasets, /probes/<name>/ histories, and an .xdmf
+/// sidecar that ParaView opens. Every frame is flushed to disk before the
+/// sidecar names it, so a run killed at any moment leaves a readable file.
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace otmpm {
+
+/// One particle field of a frame: `rows` particles by `cols` components,
+/// row-major contiguous doubles (e.g. x: cols = D; stress: cols = D*D).
+struct FieldView {
+  std::string name;
+  int rows = 0;
+  int cols = 0;
+  const double* data = nullptr;
+};
+
+/// Writes one result file. Creating it writes the root attributes
+/// otmpm_version, scene and status = "running"; finish() sets the final
+/// status and the summary attributes. The destructor closes the file
+/// (status stays whatever was last set).
+class ResultWriter {
+public:
+  ResultWriter(const std::string& path, const std::string& scene_text, int dimension);
+  ~ResultWriter();
+  ResultWriter(const ResultWriter&) = delete;
+  ResultWriter& operator=(const ResultWriter&) = delete;
+
+  /// Appends /frames/NNNNNN with attribute time and the given fields; the
+  /// field named "x" gives the point coordinates in the XDMF sidecar.
+  void write_frame(double time, const std::vector<FieldView>& fields);
+  /// Appends one sample to /probes/<probe>/time and /probes/<probe>/<field>
+  /// (extendible datasets, `values` components per sample).
+  void append_probe(const std::string& probe, double time,
+                    const std::vector<std::pair<std::string, std::vector<double>>>& values);
+  void set_attribute(const std::string& name, double value);
+  void set_attribute(const std::string& name, long long value);
+  void set_attribute(const std::string& name, const std::string& value);
+  /// Flushes everything to disk.
+  void flush();
+  const std::string& path() const { return path_; }
+  int frames() const { return frames_; }
+
+private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  std::string path_;
+  int frames_ = 0;
+};
+
+/// Reads a root attribute back (tests and tools). Throws InputError if absent.
+std::string read_string_attribute(const std::string& path, const std::string& name);
+double read_double_attribute(const std::string& path, const std::string& name);
+
+} // namespace otmpm

@@ -1,0 +1,340 @@
+/// \file node_set.cpp
+/// Node sets (spec algorithms.md sect. 2): Cartesian lattice arithmetic, the
+/// perturbed lattice, clouds, and the neighbour search (index arithmetic on an
+/// untouched lattice, a packed Boost.Geometry R-tree otherwise).
+#include "otmpm/nodes/node_set.hpp"
+
+#include <boost/geometry.hpp>
+#include <boost/geometry/index/rtree.hpp>
+#include <boost/iterator/function_output_iterator.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <random>
+#include <utility>
+
+namespace otmpm {
+
+namespace bg = boost::geometry;
+namespace bgi = boost::geometry::index;
+
+// ---------------------------------------------------------------------------
+// CartesianGrid
+// ---------------------------------------------------------------------------
+
+template <int D> Vec<D> CartesianGrid<D>::h() const {
+  Vec<D> s;
+  for (int k = 0; k < D; ++k) s[k] = (upper[k] - lower[k]) / cells[k];
+  return s;
+}
+
+template <int D> Index<D> CartesianGrid<D>::nodes_per_axis() const {
+  Index<D> n;
+  for (int k = 0; k < D; ++k) n[k] = cells[k] + 1;
+  return n;
+}
+
+template <int D> int CartesianGrid<D>::num_nodes() const {
+  int n = 1;
+  for (int k = 0; k < D; ++k) n *= cells[k] + 1;
+  return n;
+}
+
+template <int D> int CartesianGrid<D>::num_cells() const {
+  int n = 1;
+  for (int k = 0; k < D; ++k) n *= cells[k];
+  return n;
+}
+
+template <int D> int CartesianGrid<D>::node_id(const Index<D>& ijk) const {
+  int id = 0;
+  for (int k = D - 1; k >= 0; --k) id = id * (cells[k] + 1) + ijk[k];
+  return id;
+}
+
+template <int D> Index<D> CartesianGrid<D>::node_index(int id) const {
+  Index<D> ijk;
+  for (int k = 0; k < D; ++k) {
+    ijk[k] = id % (cells[k] + 1);
+    id /= cells[k] + 1;
+  }
+  return ijk;
+}
+
+template <int D> Vec<D> CartesianGrid<D>::node_position(const Index<D>& ijk) const {
+  Vec<D> x;
+  for (int k = 0; k < D; ++k) {
+    // The last node is exactly `upper`, so the lattice spans the box exactly.
+    x[k] = ijk[k] == cells[k] ? upper[k]
+                              : lower[k] + ijk[k] * ((upper[k] - lower[k]) / cells[k]);
+  }
+  return x;
+}
+
+template <int D> Index<D> CartesianGrid<D>::cell_of(const Vec<D>& x) const {
+  Index<D> c;
+  for (int k = 0; k < D; ++k) {
+    const double s = (x[k] - lower[k]) / (upper[k] - lower[k]) * cells[k];
+    const double f = std::floor(s);
+    // Clamp in floating point first: x may be far away (or NaN).
+    const double clamped = std::isnan(f) ? 0.0 : std::clamp(f, 0.0, double(cells[k] - 1));
+    c[k] = static_cast<int>(clamped);
+  }
+  return c;
+}
+
+template <int D> bool CartesianGrid<D>::contains(const Vec<D>& x) const {
+  for (int k = 0; k < D; ++k)
+    if (!(x[k] >= lower[k] && x[k] <= upper[k])) return false;
+  return true;
+}
+
+template <int D> void CartesianGrid<D>::validate() const {
+  for (int k = 0; k < D; ++k) {
+    if (!(std::isfinite(lower[k]) && std::isfinite(upper[k]) && lower[k] < upper[k]))
+      throw InputError("grid: axis " + std::to_string(k) + " needs finite lower < upper, got lower = " +
+                       format_point<D>(lower) + ", upper = " + format_point<D>(upper));
+    if (cells[k] < 1)
+      throw InputError("grid: axis " + std::to_string(k) + " needs at least one cell, got " +
+                       std::to_string(cells[k]));
+  }
+}
+
+// ---------------------------------------------------------------------------
+// Neighbour search index (R-tree over the current positions)
+// ---------------------------------------------------------------------------
+
+template <int D> struct NodeSet<D>::SearchIndex {
+  using Point = bg::model::point<double, D, bg::cs::cartesian>;
+  using Box = bg::model::box<Point>;
+  using Value = std::pair<Point, int>;
+  /// Node capacity of an R-tree leaf; packing (STR) fills the leaves, so the
+  /// split algorithm only matters for later insertions, which we never do.
+  static constexpr std::size_t kMaxElements = 16;
+  using Tree = bgi::rtree<Value, bgi::quadratic<kMaxElements>>;
+
+  Tree tree;
+
+  static Point to_point(const Vec<D>& x) {
+    Point p;
+    set_coords(p, x, std::make_integer_sequence<int, D>{});
+    return p;
+  }
+  template <int... K> static void set_coords(Point& p, const Vec<D>& x, std::integer_sequence<int, K...>) {
+    (bg::set<K>(p, x[K]), ...);
+  }
+
+  explicit SearchIndex(const AlignedVector<Vec<D>>& x) : tree(make_values(x)) {}
+
+  static std::vector<Value> make_values(const AlignedVector<Vec<D>>& x) {
+    std::vector<Value> v;
+    v.reserve(x.size());
+    for (std::size_t i = 0; i < x.size(); ++i) v.emplace_back(to_point(x[i]), static_cast<int>(i));
+    return v;
+  }
+};
+
+// ---------------------------------------------------------------------------
+// NodeSet: factories and special members
+// ---------------------------------------------------------------------------
+
+namespace {
+
+template <int D> AlignedVector<Vec<D>> lattice_positions(const CartesianGrid<D>& grid) {
+  AlignedVector<Vec<D>> x(static_cast<std::size_t>(grid.num_nodes()));
+  for (int id = 0; id < grid.num_nodes(); ++id) x[id] = grid.node_position(grid.node_index(id));
+  return x;
+}
+
+template <int D> bool on_boundary(const CartesianGrid<D>& grid, const Index<D>& ijk) {
+  for (int k = 0; k < D; ++k)
+    if (ijk[k] == 0 || ijk[k] == grid.cells[k]) return true;
+  return false;
+}
+
+/// Uniform in [-1, 1] from the raw 32-bit mt19937 stream (whose output the
+/// standard fixes), so a seed gives the same layout with any standard library.
+double symmetric_unit(std::mt19937& rng) {
+  constexpr double kTwoPow32 = 4294967296.0;
+  return 2.0 * (static_cast<double>(rng()) / kTwoPow32) - 1.0;
+}
+
+} // namespace
+
+template <int D> NodeSet<D> NodeSet<D>::cartesian(const CartesianGrid<D>& grid) {
+  grid.validate();
+  NodeSet s;
+  s.x_ = lattice_positions<D>(grid);
+  s.x0_ = s.x_;
+  s.grid_ = grid;
+  s.layout_ = NodeLayout::cartesian;
+  s.on_lattice_ = true;
+  s.spacing_ = grid.h().minCoeff();
+  return s;
+}
+
+template <int D>
+NodeSet<D> NodeSet<D>::perturbed(const CartesianGrid<D>& grid, double fraction, unsigned seed) {
+  // Beyond half a cell two neighbouring nodes could swap and invert an element.
+  constexpr double kMaxFraction = 0.5;
+  if (!(fraction >= 0.0 && fraction < kMaxFraction))
+    throw InputError("perturbed grid: fraction must be in [0, 0.5), got " + std::to_string(fraction));
+  NodeSet s = cartesian(grid);
+  std::mt19937 rng(seed);
+  const Vec<D> h = grid.h();
+  for (int id = 0; id < s.size(); ++id) {
+    Vec<D> d;
+    for (int k = 0; k < D; ++k) d[k] = fraction * h[k] * symmetric_unit(rng);
+    if (!on_boundary<D>(grid, grid.node_index(id))) s.x_[id] += d;
+  }
+  s.x0_ = s.x_;
+  s.layout_ = NodeLayout::perturbed;
+  s.on_lattice_ = false;
+  return s;
+}
+
+template <int D> NodeSet<D> NodeSet<D>::cloud(AlignedVector<Vec<D>> positions, double spacing) {
+  if (positions.empty()) throw InputError("node cloud: no nodes");
+  if (!(spacing > 0.0 && std::isfinite(spacing)))
+    throw InputError("node cloud: spacing must be positive, got " + std::to_string(spacing));
+  for (std::size_t i = 0; i < positions.size(); ++i)
+    if (!positions[i].allFinite())
+      throw InputError("node cloud: node " + std::to_string(i) + " has a non-finite position " +
+                       format_point<D>(positions[i]));
+  NodeSet s;
+  s.x_ = std::move(positions);
+  s.x0_ = s.x_;
+  s.layout_ = NodeLayout::cloud;
+  s.on_lattice_ = false;
+  s.spacing_ = spacing;
+  return s;
+}
+
+template <int D> NodeSet<D>::NodeSet() = default;
+template <int D> NodeSet<D>::~NodeSet() = default;
+template <int D> NodeSet<D>::NodeSet(NodeSet&&) noexcept = default;
+template <int D> NodeSet<D>& NodeSet<D>::operator=(NodeSet&&) noexcept = default;
+
+// A copy rebuilds its own index lazily (the R-tree is a cache, not state).
+template <int D>
+NodeSet<D>::NodeSet(const NodeSet& o)
+    : x_(o.x_), x0_(o.x0_), grid_(o.grid_), layout_(o.layout_), on_lattice_(o.on_lattice_),
+      spacing_(o.spacing_), index_(nullptr), index_stale_(true) {}
+
+template <int D> NodeSet<D>& NodeSet<D>::operator=(const NodeSet& o) {
+  if (this != &o) {
+    NodeSet tmp(o);
+    *this = std::move(tmp);
+  }
+  return *this;
+}
+
+// ---------------------------------------------------------------------------
+// Motion
+// ---------------------------------------------------------------------------
+
+template <int D> void NodeSet<D>::set_positions(AlignedVector<Vec<D>> x) {
+  if (x.size() != x_.size())
+    throw InputError("NodeSet::set_positions: " + std::to_string(x.size()) + " positions for " +
+                     std::to_string(x_.size()) + " nodes");
+  x_ = std::move(x);
+  on_lattice_ = false;
+  index_stale_ = true;
+}
+
+template <int D> void NodeSet<D>::advect(const AlignedVector<Vec<D>>& dx) {
+  if (dx.size() != x_.size())
+    throw InputError("NodeSet::advect: " + std::to_string(dx.size()) + " increments for " +
+                     std::to_string(x_.size()) + " nodes");
+  for (std::size_t i = 0; i < x_.size(); ++i) x_[i] += dx[i];
+  on_lattice_ = false;
+  index_stale_ = true;
+}
+
+// ---------------------------------------------------------------------------
+// Neighbour search
+// ---------------------------------------------------------------------------
+
+template <int D> void NodeSet<D>::prepare_search() const {
+  if (on_lattice_ && grid_) return; // index arithmetic, nothing to build
+  if (index_ && !index_stale_) return;
+  index_ = std::make_unique<SearchIndex>(x_);
+  index_stale_ = false;
+}
+
+template <int D> void NodeSet<D>::within(const Vec<D>& x, double radius, std::vector<int>& out) const {
+  const std::size_t first = out.size();
+  const double r2 = radius * radius;
+  if (on_lattice_ && grid_) {
+    // Candidate lattice box, widened by one node on each side so that rounding
+    // in the division cannot lose a node; the exact test below decides.
+    const CartesianGrid<D>& g = *grid_;
+    const Vec<D> h = g.h();
+    Index<D> lo, hi;
+    for (int k = 0; k < D; ++k) {
+      const double a = std::floor((x[k] - radius - g.lower[k]) / h[k]) - 1.0;
+      const double b = std::ceil((x[k] + radius - g.lower[k]) / h[k]) + 1.0;
+      if (!(a <= g.cells[k] && b >= 0.0)) return; // box misses the grid (or NaN)
+      lo[k] = static_cast<int>(std::max(a, 0.0));
+      hi[k] = static_cast<int>(std::min(b, double(g.cells[k])));
+    }
+    Index<D> ijk = lo;
+    for (;;) {
+      const int id = g.node_id(ijk);
+      if ((x_[id] - x).squaredNorm() <= r2) out.push_back(id);
+      int k = 0;
+      for (; k < D; ++k) {
+        if (++ijk[k] <= hi[k]) break;
+        ijk[k] = lo[k];
+      }
+      if (k == D) break;
+    }
+    return; // lattice order is already ascending in id
+  }
+  prepare_search();
+  using SI = SearchIndex;
+  typename SI::Box box(SI::to_point(x - Vec<D>::Constant(radius)), SI::to_point(x + Vec<D>::Constant(radius)));
+  index_->tree.query(bgi::intersects(box), boost::make_function_output_iterator([&](const typename SI::Value& v) {
+                       if ((x_[v.second] - x).squaredNorm() <= r2) out.push_back(v.second);
+                     }));
+  // Ascending ids: the same order as the lattice search and independent of
+  // how the tree happened to be packed.
+  std::sort(out.begin() + static_cast<std::ptrdiff_t>(first), out.end());
+}
+
+template <int D> double NodeSet<D>::min_spacing() const {
+  double m = std::numeric_limits<double>::infinity();
+  if (grid_) {
+    const CartesianGrid<D>& g = *grid_;
+    for (int id = 0; id < size(); ++id) {
+      const Index<D> ijk = g.node_index(id);
+      for (int k = 0; k < D; ++k) {
+        if (ijk[k] == g.cells[k]) continue;
+        Index<D> nb = ijk;
+        ++nb[k];
+        m = std::min(m, (x_[g.node_id(nb)] - x_[id]).norm());
+      }
+    }
+    return m;
+  }
+  prepare_search();
+  using SI = SearchIndex;
+  constexpr unsigned kSelfAndNearest = 2;
+  for (int id = 0; id < size(); ++id) {
+    index_->tree.query(bgi::nearest(SI::to_point(x_[id]), kSelfAndNearest),
+                       boost::make_function_output_iterator([&](const typename SI::Value& v) {
+                         if (v.second != id) m = std::min(m, (x_[v.second] - x_[id]).norm());
+                       }));
+  }
+  return m;
+}
+
+template struct CartesianGrid<1>;
+template struct CartesianGrid<2>;
+template struct CartesianGrid<3>;
+template class NodeSet<1>;
+template class NodeSet<2>;
+template class NodeSet<3>;
+
+} // namespace otmpm

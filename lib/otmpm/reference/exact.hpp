@@ -1,0 +1,41 @@
+#pragma once
+/// \file exact.hpp
+/// Exact solutions of the benchmark scenes (benchmarks.md) and the error
+/// norms of spec algorithms.md sect. 6. All fields are functions of the
+/// initial (material) position X and time t.
+#include "otmpm/core.hpp"
+
+#include <memory>
+#include <string>
+
+namespace otmpm {
+
+struct Scene;
+
+/// An exact solution u(X, t), v(X, t), sigma(X, t). Scenes with a manufactured
+/// solution also provide the body force per unit mass b(X, t) that drives it.
+template <int D> class ExactSolution {
+public:
+  virtual ~ExactSolution() = default;
+  virtual std::string name() const = 0;
+  virtual Vec<D> displacement(const Vec<D>& X, double t) const = 0;
+  virtual Vec<D> velocity(const Vec<D>& X, double t) const = 0;
+  /// Cauchy stress.
+  virtual Mat<D> stress(const Vec<D>& X, double t) const = 0;
+  /// Body force per unit mass needed by a manufactured solution (zero otherwise).
+  virtual Vec<D> body_force(const Vec<D>& /*X*/, double /*t*/) const { return Vec<D>::Zero(); }
+  virtual bool has_body_force() const { return false; }
+};
+
+/// The exact solution named by scene.reference.solution, with its
+/// parameters (material, bar length, initial velocity) taken from the scene.
+/// Returns null when the scene has none; throws InputError (naming the key)
+/// when the scene does not fit the solution (e.g. "dyka" in a scene with two
+/// materials, "mms_plate" in 1D).
+template <int D> std::unique_ptr<ExactSolution<D>> make_exact_solution(const Scene& scene);
+
+/// RMS over particles (spec sect. 6, molinos eq. 44):
+/// sqrt((1/N) sum_p |q_p - q_exact(X_p, t)|^2).
+double rms_error(const std::vector<double>& squared_errors);
+
+} // namespace otmpm

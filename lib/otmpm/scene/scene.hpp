@@ -1,0 +1,170 @@
+#pragma once
+/// \file scene.hpp
+/// A scene: everything a run needs, as plain data read from a TOML file
+/// (interfaces.md "Scene file"). Vectors are stored with 3 components; only
+/// the first `dimension` are meaningful. Every value remembers where it came
+/// from (SourceRef) so that later consistency checks (a body outside the grid,
+/// a boundary box selecting no node) can still name file, line and key.
+#include "otmpm/basis/basis.hpp"
+
+#include <array>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace otmpm {
+
+/// Where a scene value came from: "dyka.toml:12: key 'grid.cells'".
+struct SourceRef {
+  std::string file;
+  int line = 0;
+  std::string key;
+  /// "FILE:LINE: key 'KEY'" (or "--set KEY" for command-line overrides).
+  std::string describe() const;
+};
+
+/// Throws InputError "FILE:LINE: key 'KEY': message".
+[[noreturn]] void input_error(const SourceRef& where, const std::string& message);
+
+using Vec3 = std::array<double, 3>;
+
+/// A time function multiplying a load: constant 1, or the sine ramp of molinos
+/// eq. 45, g(t) = sin(pi t / T) ... rising to 1 at T/2 and constant after.
+struct TimeFunction {
+  std::string kind = "constant"; ///< constant | ramp
+  double period = 0.0;           ///< T of molinos eq. 45
+};
+
+struct SimulationSection {
+  int dimension = 1;
+  std::string mode = "mpm";        ///< mpm | ul
+  std::string integrator = "npc";  ///< fe | musl | npc | otm | unified
+  double gamma = 0.5;              ///< Newmark parameter of NPC
+  std::string mass = "lumped";     ///< lumped | consistent
+  double t_end = 0.0;
+  double cfl = 0.1;
+  std::optional<double> dt;        ///< fixed step instead of cfl
+  double mass_tolerance = 1e-12;   ///< nodes with m_I < tol * max m are inactive
+  double energy_limit = 10.0;      ///< runaway: kinetic + strain energy > limit * (initial energy + |external work|) stops the run
+  SourceRef where;
+};
+
+struct GridSection {
+  std::string kind = "cartesian"; ///< cartesian | perturbed
+  Vec3 lower{0, 0, 0}, upper{1, 1, 1};
+  std::array<int, 3> cells{1, 1, 1};
+  double perturbation = 0.0;      ///< perturbed: fraction of h
+  unsigned seed = 1;
+  SourceRef where;
+};
+
+struct MaterialSection {
+  std::string name;
+  std::string model = "linear_elastic"; ///< linear_elastic | linear_elastic_finite | neo_hookean
+  double density = 0, young = 0, poisson = 0;
+  SourceRef where;
+};
+
+struct BodySection {
+  std::string name;
+  std::string material;
+  Vec3 lower{0, 0, 0}, upper{0, 0, 0};
+  int particles_per_cell = 2;           ///< per axis
+  std::string placement = "gauss";      ///< gauss | cell_centres
+  Vec3 velocity{0, 0, 0};
+  /// "sin_x": initial velocity amplitude * sin(pi (x - lower)/(upper-lower)) per component (fixed bar)
+  std::optional<std::string> velocity_profile;
+  SourceRef where;
+};
+
+/// Sets the initial velocity of particles inside a box.
+struct InitialVelocitySection {
+  Vec3 lower{0, 0, 0}, upper{0, 0, 0};
+  Vec3 velocity{0, 0, 0};
+  SourceRef where;
+};
+
+/// Dirichlet node set: nodes inside the closed box [lower, upper] (with a
+/// tolerance of 1e-9 h) get the fixed velocity components held at `value`.
+struct BoundarySection {
+  std::string name;
+  Vec3 lower{0, 0, 0}, upper{0, 0, 0};
+  std::array<bool, 3> fix{false, false, false};
+  Vec3 value{0, 0, 0};
+  SourceRef where;
+};
+
+/// Body force b(t) = value * g(t) on every particle (e.g. gravity).
+struct BodyForceSection {
+  Vec3 value{0, 0, 0};
+  TimeFunction time;
+  SourceRef where;
+};
+
+/// Traction on the particles inside a box: a force per unit area `value` times
+/// the time function, applied as f_I += N_Ip t A_p with A_p = V_p / h_p along
+/// `normal_axis` (the particle's face area). `function = "wobbes_traction_bar"`
+/// uses wobbes eq. 103 instead of value * g(t).
+struct TractionSection {
+  Vec3 lower{0, 0, 0}, upper{0, 0, 0};
+  Vec3 value{0, 0, 0};
+  TimeFunction time;
+  std::string function;  ///< empty or the name of a built-in traction history
+  SourceRef where;
+};
+
+struct ProbeSection {
+  std::string name;
+  std::string particle = "leftmost"; ///< leftmost | rightmost | nearest
+  Vec3 at{0, 0, 0};                  ///< for "nearest"
+  SourceRef where;
+};
+
+struct OutputSection {
+  std::string file = "out.h5";
+  double every = 0.0;                 ///< seconds between frames (0: first and last only)
+  std::vector<std::string> fields{"x", "v", "stress"};
+  std::vector<ProbeSection> probes;
+  SourceRef where;
+};
+
+struct ReferenceSection {
+  std::string solution; ///< "" | dyka | fixed_bar | traction_bar | mms_plate
+  SourceRef where;
+};
+
+/// The whole scene. `text` is the resolved scene as TOML (after --set), stored
+/// in the result file.
+struct Scene {
+  std::string file;
+  std::string text;
+  SimulationSection simulation;
+  BasisOptions basis;
+  SourceRef basis_where;
+  GridSection grid;
+  std::vector<MaterialSection> materials;
+  std::vector<BodySection> bodies;
+  std::vector<InitialVelocitySection> initial_velocities;
+  std::vector<BoundarySection> boundaries;
+  std::optional<BodyForceSection> body_force;
+  std::vector<TractionSection> tractions;
+  OutputSection output;
+  ReferenceSection reference;
+  /// Source locations of every key read, for consistency errors found later.
+  std::map<std::string, SourceRef> where;
+  /// The SourceRef of `key` if known, else {file, 0, key}.
+  SourceRef locate(const std::string& key) const;
+};
+
+/// Reads and validates a scene file. `overrides` are "KEY=VALUE" strings from
+/// --set (KEY is the TOML path; an array of tables is addressed by its name:
+/// material.steel.young). Throws InputError naming file, line and key for
+/// syntax errors, unknown keys, missing required keys, wrong types and
+/// out-of-range values. Nothing partially read is returned.
+Scene load_scene(const std::string& path, const std::vector<std::string>& overrides = {});
+/// The same from TOML text (`name` is used as the file name in messages).
+Scene parse_scene(const std::string& text, const std::string& name,
+                  const std::vector<std::string>& overrides = {});
+
+} // namespace otmpm

@@ -1,0 +1,20 @@
+#!/usr/bin/env bash
+# Installs otmpm's build, test and plotting dependencies from Debian packages.
+# Idempotent: safe to run again; does nothing when everything is present.
+set -euo pipefail
+pkgs=(
+  build-essential cmake pkg-config
+  libeigen3-dev libboost-dev libhdf5-dev hdf5-tools
+  libtomlplusplus-dev doctest-dev
+  python3 python3-matplotlib python3-h5py python3-numpy
+)
+missing=()
+for p in "${pkgs[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+  export DEBIAN_FRONTEND=noninteractive
+  $SUDO apt-get update -qq
+  $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi

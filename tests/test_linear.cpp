@@ -1,0 +1,328 @@
+// The `linear` family: tensor-product hats on a Cartesian lattice and
+// isoparametric multilinear elements on perturbed / moved lattices.
+#include "otmpm/basis/families.hpp"
+
+#include <doctest/doctest.h>
+
+#include <cmath>
+#include <map>
+#include <random>
+#include <type_traits>
+
+using namespace otmpm;
+
+namespace {
+
+using Dims = std::tuple<std::integral_constant<int, 1>, std::integral_constant<int, 2>, std::integral_constant<int, 3>>;
+
+// Round-off tolerance for the identities below. A sum of n terms a_I has a
+// floating error of about n * eps * sum |a_I| (eps = 2.2e-16, n <= 8), so
+// 1e-12 * sum |a_I| is ~500 times that bound and still far below any error a
+// wrong basis would make.
+constexpr double kRelTol = 1e-12;
+
+template <int D> CartesianGrid<D> test_grid() {
+  CartesianGrid<D> g;
+  const double lo[3] = {-0.3, 1.2, 0.05};
+  const double up[3] = {0.9, 2.0, 0.55};
+  const int n[3] = {6, 4, 3};
+  for (int k = 0; k < D; ++k) {
+    g.lower[k] = lo[k];
+    g.upper[k] = up[k];
+    g.cells[k] = n[k];
+  }
+  return g;
+}
+
+template <int D> Vec<D> random_in_box(std::mt19937& rng, const Vec<D>& lo, const Vec<D>& hi) {
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  Vec<D> x;
+  for (int k = 0; k < D; ++k) x[k] = lo[k] + u(rng) * (hi[k] - lo[k]);
+  return x;
+}
+
+/// Random points of the box plus the awkward ones: nodes, points one ulp
+/// inside the boundary or next to a node, face and edge midpoints, corners.
+template <int D> AlignedVector<Vec<D>> sample_points(const CartesianGrid<D>& g, unsigned seed) {
+  std::mt19937 rng(seed);
+  AlignedVector<Vec<D>> pts;
+  for (int n = 0; n < 150; ++n) pts.push_back(random_in_box<D>(rng, g.lower, g.upper));
+  const Vec<D> h = g.h();
+  for (int id = 0; id < g.num_nodes(); id += 3) {
+    const Vec<D> xn = g.node_position(g.node_index(id));
+    pts.push_back(xn);
+    Vec<D> near = xn;
+    for (int k = 0; k < D; ++k)
+      near[k] = std::nextafter(xn[k], xn[k] < 0.5 * (g.lower[k] + g.upper[k]) ? g.upper[k] : g.lower[k]);
+    pts.push_back(near);
+    Vec<D> mid = xn;
+    mid[0] = std::min(g.upper[0], xn[0] + 0.5 * h[0]);
+    pts.push_back(mid);
+  }
+  for (int n = 0; n < 40; ++n) {
+    Vec<D> x = random_in_box<D>(rng, g.lower, g.upper);
+    const int k = n % D;
+    x[k] = (n / D) % 2 ? g.upper[k] : std::nextafter(g.lower[k], g.upper[k]);
+    pts.push_back(x);
+  }
+  pts.push_back(g.lower);
+  pts.push_back(g.upper);
+  return pts;
+}
+
+/// Partition of unity, sum grad N = 0, linear completeness (sum N_I x_I = x,
+/// sum x_I (x) grad N_I = I), non-negativity, at one point.
+template <int D> void check_identities(const Basis<D>& b, const Vec<D>& x) {
+  Stencil<D> st;
+  PointQuery<D> q;
+  q.x = x;
+  b.evaluate(q, st);
+  REQUIRE(st.size() > 0);
+  CHECK(st.size() <= b.max_stencil());
+  double sumN = 0, absN = 0;
+  Vec<D> sumG = Vec<D>::Zero(), absG = Vec<D>::Zero(), sumX = Vec<D>::Zero(), absX = Vec<D>::Zero();
+  Mat<D> sumXG = Mat<D>::Zero(), absXG = Mat<D>::Zero();
+  for (int a = 0; a < st.size(); ++a) {
+    const Vec<D>& xI = b.nodes().position(st.node[a]);
+    CHECK(st.N[a] >= 0.0);
+    sumN += st.N[a];
+    absN += std::abs(st.N[a]);
+    sumG += st.dN[a];
+    absG += st.dN[a].cwiseAbs();
+    sumX += st.N[a] * xI;
+    absX += (st.N[a] * xI).cwiseAbs();
+    sumXG += xI * st.dN[a].transpose();
+    absXG += (xI * st.dN[a].transpose()).cwiseAbs();
+  }
+  INFO("point ", format_point<D>(x));
+  CHECK(std::abs(sumN - 1.0) <= kRelTol * absN);
+  for (int k = 0; k < D; ++k) {
+    CHECK(std::abs(sumG[k]) <= kRelTol * absG[k]);
+    CHECK(std::abs(sumX[k] - x[k]) <= kRelTol * absX[k]);
+    for (int m = 0; m < D; ++m) CHECK(std::abs(sumXG(k, m) - (k == m)) <= kRelTol * absXG(k, m));
+  }
+}
+
+template <int D> std::map<int, double> values_at(const Basis<D>& b, const Vec<D>& x) {
+  Stencil<D> st;
+  PointQuery<D> q;
+  q.x = x;
+  b.evaluate(q, st);
+  std::map<int, double> m;
+  for (int a = 0; a < st.size(); ++a) m[st.node[a]] += st.N[a];
+  return m;
+}
+
+/// grad N against central differences with step delta = 1e-6 h. Points are
+/// images of natural coordinates in [-0.9, 0.9]^D of random elements, so
+/// x +- delta stays inside one element where N is smooth (multilinear in xi).
+/// Error: O(delta^2 |N'''|) ~ 1e-12 / h truncation plus eps / delta ~ 1e-10 / h
+/// cancellation; the tolerance 1e-7 / h leaves a wide margin.
+template <int D> void check_fd_gradient(const Basis<D>& b, const CartesianGrid<D>& g, unsigned seed) {
+  std::mt19937 rng(seed);
+  const double h = g.h().minCoeff();
+  const double delta = 1e-6 * h;
+  const double tol = 1e-7 / h;
+  for (int n = 0; n < 40; ++n) {
+    Index<D> c;
+    for (int k = 0; k < D; ++k) c[k] = static_cast<int>(rng() % static_cast<unsigned>(g.cells[k]));
+    const Vec<D> xi = random_in_box<D>(rng, Vec<D>::Constant(-0.9), Vec<D>::Constant(0.9));
+    Vec<D> x = Vec<D>::Zero();
+    for (int a = 0; a < (1 << D); ++a) {
+      Index<D> ijk = c;
+      double w = 1;
+      for (int k = 0; k < D; ++k) {
+        const int bit = (a >> k) & 1;
+        ijk[k] += bit;
+        w *= 0.5 * (1 + (bit ? xi[k] : -xi[k]));
+      }
+      x += w * b.nodes().position(g.node_id(ijk));
+    }
+    Stencil<D> st;
+    PointQuery<D> q;
+    q.x = x;
+    b.evaluate(q, st);
+    for (int k = 0; k < D; ++k) {
+      Vec<D> e = Vec<D>::Zero();
+      e[k] = delta;
+      const auto plus = values_at(b, Vec<D>(x + e));
+      const auto minus = values_at(b, Vec<D>(x - e));
+      for (int a = 0; a < st.size(); ++a) {
+        const int I = st.node[a];
+        const double fd = (plus.at(I) - minus.at(I)) / (2 * delta);
+        INFO("point ", format_point<D>(x), " node ", I, " axis ", k);
+        CHECK(std::abs(fd - st.dN[a][k]) <= tol);
+      }
+    }
+  }
+}
+
+template <int D> void check_outside_names_point(const Basis<D>& b, const Vec<D>& x) {
+  Stencil<D> st;
+  PointQuery<D> q;
+  q.x = x;
+  try {
+    b.evaluate(q, st);
+    FAIL("no BasisError for ", format_point<D>(x));
+  } catch (const BasisError& e) {
+    CHECK(std::string(e.what()).find(format_point<D>(x)) != std::string::npos);
+  }
+}
+
+} // namespace
+
+TEST_CASE_TEMPLATE_DEFINE("linear on a Cartesian grid: partition of unity and linear completeness", T, cart_id) {
+  constexpr int D = T::value;
+  const auto b = make_linear_basis<D>(NodeSet<D>::cartesian(test_grid<D>()));
+  CHECK(b->kind() == "linear");
+  CHECK(b->linearly_complete());
+  for (const Vec<D>& x : sample_points(test_grid<D>(), 1u)) check_identities(*b, x);
+}
+TEST_CASE_TEMPLATE_APPLY(cart_id, Dims);
+
+TEST_CASE_TEMPLATE_DEFINE("linear on a perturbed grid: partition of unity and linear completeness", T, pert_id) {
+  constexpr int D = T::value;
+  const auto b = make_linear_basis<D>(NodeSet<D>::perturbed(test_grid<D>(), 0.35, 17u));
+  for (const Vec<D>& x : sample_points(test_grid<D>(), 2u)) check_identities(*b, x);
+}
+TEST_CASE_TEMPLATE_APPLY(pert_id, Dims);
+
+TEST_CASE_TEMPLATE_DEFINE("linear stencil on a Cartesian grid is the 2^D vertices of the containing cell", T, st_id) {
+  constexpr int D = T::value;
+  const CartesianGrid<D> g = test_grid<D>();
+  const auto b = make_linear_basis<D>(NodeSet<D>::cartesian(g));
+  // At a node every other hat vanishes: N is the Kronecker delta.
+  const int I = g.num_nodes() / 2;
+  const Vec<D> xI = g.node_position(g.node_index(I));
+  const auto m = values_at(*b, xI);
+  CHECK(static_cast<int>(m.size()) == (1 << D));
+  for (const auto& [J, N] : m) CHECK(N == (J == I ? 1.0 : 0.0));
+  // Hat value at a generic point: prod_k (1 - |x_k - x_Ik| / h_k).
+  std::mt19937 rng(3);
+  const Vec<D> x = random_in_box<D>(rng, g.lower, g.upper);
+  for (const auto& [J, N] : values_at(*b, x)) {
+    const Vec<D> d = (x - g.node_position(g.node_index(J))).cwiseAbs().cwiseQuotient(g.h());
+    double expect = 1;
+    for (int k = 0; k < D; ++k) expect *= 1 - d[k];
+    CHECK(N == doctest::Approx(expect).epsilon(1e-13));
+  }
+}
+TEST_CASE_TEMPLATE_APPLY(st_id, Dims);
+
+TEST_CASE_TEMPLATE_DEFINE("linear gradients equal central differences", T, fd_id) {
+  constexpr int D = T::value;
+  const CartesianGrid<D> g = test_grid<D>();
+  check_fd_gradient(*make_linear_basis<D>(NodeSet<D>::cartesian(g)), g, 4u);
+  check_fd_gradient(*make_linear_basis<D>(NodeSet<D>::perturbed(g, 0.35, 5u)), g, 6u);
+}
+TEST_CASE_TEMPLATE_APPLY(fd_id, Dims);
+
+TEST_CASE_TEMPLATE_DEFINE("linear after an affine motion of the nodes equals the mapped Cartesian basis", T, aff_id) {
+  // x' = A x + b maps every multilinear element to an element whose inverse
+  // map is exact, so N'_I(A x + b) = N_I(x) and grad N'_I = A^{-T} grad N_I.
+  // The strong shear moves points several cells away from their Cartesian
+  // guess, which exercises the element walk.
+  constexpr int D = T::value;
+  const CartesianGrid<D> g = test_grid<D>();
+  auto ref = make_linear_basis<D>(NodeSet<D>::cartesian(g));
+  auto moved = make_linear_basis<D>(NodeSet<D>::cartesian(g));
+  Mat<D> A = Mat<D>::Identity();
+  for (int k = 0; k < D; ++k) A(k, k) = 1.0 + 0.1 * (k + 1);
+  if constexpr (D > 1) A(0, D - 1) = 2.5;
+  const Vec<D> shift = Vec<D>::Constant(0.37);
+  AlignedVector<Vec<D>> dx;
+  for (const Vec<D>& x : moved->nodes().positions()) dx.push_back(A * x + shift - x);
+  moved->nodes().advect(dx);
+  moved->nodes_moved(dx);
+  CHECK_FALSE(moved->nodes().on_lattice());
+  const Mat<D> AinvT = A.inverse().transpose();
+  for (const Vec<D>& x : sample_points(g, 7u)) {
+    Stencil<D> s0, s1;
+    PointQuery<D> q;
+    q.x = x;
+    ref->evaluate(q, s0);
+    q.x = A * x + shift;
+    moved->evaluate(q, s1);
+    check_identities(*moved, q.x);
+    std::map<int, std::pair<double, Vec<D>>> m0;
+    for (int a = 0; a < s0.size(); ++a) m0[s0.node[a]] = {s0.N[a], s0.dN[a]};
+    for (int a = 0; a < s1.size(); ++a) {
+      INFO("point ", format_point<D>(x), " node ", s1.node[a]);
+      // Nodes with N = 0 on a face may differ between the two cells sharing it.
+      if (!m0.count(s1.node[a])) {
+        CHECK(std::abs(s1.N[a]) <= 1e-12);
+        continue;
+      }
+      CHECK(std::abs(s1.N[a] - m0[s1.node[a]].first) <= 1e-12);
+      // Gradients only where both picked the same cell (not on faces).
+      if (s0.N[a] > 1e-9 && s1.N[a] > 1e-9 && s0.node == s1.node)
+        CHECK((s1.dN[a] - AinvT * m0[s1.node[a]].second).norm() <= 1e-10 * m0[s1.node[a]].second.norm() + 1e-10);
+    }
+  }
+}
+TEST_CASE_TEMPLATE_APPLY(aff_id, Dims);
+
+TEST_CASE("linear uses and updates the cell hint") {
+  const CartesianGrid<2> g = test_grid<2>();
+  const auto b = make_linear_basis<2>(NodeSet<2>::perturbed(g, 0.3, 8u));
+  std::mt19937 rng(9);
+  for (int n = 0; n < 50; ++n) {
+    const Vec<2> x = random_in_box<2>(rng, g.lower, g.upper);
+    Stencil<2> cold, warm;
+    PointQuery<2> q;
+    q.x = x;
+    b->evaluate(q, cold);
+    Index<2> hint{g.cells[0] - 1, 0}; // a far corner: the walk must get there
+    q.cell_hint = &hint;
+    b->evaluate(q, warm);
+    CHECK(cold.node == warm.node);
+    for (int a = 0; a < cold.size(); ++a) CHECK(cold.N[a] == doctest::Approx(warm.N[a]).epsilon(1e-12));
+    // The hint now names the element whose vertices are the stencil.
+    CHECK(warm.node[0] == g.node_id(hint));
+    Index<2> bogus{-5, 99}; // invalid hints are ignored
+    q.cell_hint = &bogus;
+    b->evaluate(q, warm);
+    CHECK(cold.node == warm.node);
+  }
+}
+
+TEST_CASE_TEMPLATE_DEFINE("linear: a point outside the grid is a BasisError naming the point", T, out_id) {
+  constexpr int D = T::value;
+  const CartesianGrid<D> g = test_grid<D>();
+  const Vec<D> below = g.lower - 0.01 * g.h();
+  Vec<D> beside = 0.5 * (g.lower + g.upper);
+  beside[D - 1] = std::nextafter(g.upper[D - 1], 10.0);
+  for (const auto& b : {make_linear_basis<D>(NodeSet<D>::cartesian(g)),
+                        make_linear_basis<D>(NodeSet<D>::perturbed(g, 0.3, 1u))}) {
+    check_outside_names_point<D>(*b, below);
+    check_outside_names_point<D>(*b, beside);
+    check_outside_names_point<D>(*b, Vec<D>::Constant(1e6));
+  }
+}
+TEST_CASE_TEMPLATE_APPLY(out_id, Dims);
+
+TEST_CASE("linear: a point in an inverted element is a BasisError") {
+  // Nodes 0, 2.5, 2, 3: the second segment runs backwards.
+  CartesianGrid<1> g;
+  g.lower[0] = 0;
+  g.upper[0] = 3;
+  g.cells[0] = 3;
+  auto b = make_linear_basis<1>(NodeSet<1>::cartesian(g));
+  AlignedVector<Vec<1>> dx(4, Vec<1>::Zero());
+  dx[1][0] = 1.5;
+  b->nodes().advect(dx);
+  b->nodes_moved(dx);
+  Stencil<1> st;
+  PointQuery<1> q;
+  q.x = Vec<1>(2.6);
+  CHECK_NOTHROW(b->evaluate(q, st)); // only in the last element
+  Index<1> hint{1};                  // start the search in the inverted element
+  q.x = Vec<1>(2.2);
+  q.cell_hint = &hint;
+  CHECK_THROWS_WITH_AS(b->evaluate(q, st), doctest::Contains("inverted"), BasisError);
+}
+
+TEST_CASE("linear needs a structured grid") {
+  AlignedVector<Vec<2>> x{Vec<2>(0, 0), Vec<2>(1, 0), Vec<2>(0, 1)};
+  CHECK_THROWS_AS(make_linear_basis<2>(NodeSet<2>::cloud(x, 1.0)), InputError);
+}

@@ -1,0 +1,614 @@
+// Tests of the local max-ent basis (spec algorithms.md sect. 1, molinos sect. 2.3).
+//
+// Tolerances used throughout (h = nodal spacing):
+// * partition of unity |sum N - 1| <= 1e-12: N_I are normalised explicitly, so
+//   only summation round-off (~n eps) remains.
+// * |sum grad N| <= 1e-12 sum |grad N|: exact to round-off by construction.
+// * linear completeness |sum N_I x_I - x| <= 2e-12 h: equals |r| <= newton_tolerance h
+//   (1e-12 h) plus round-off.
+// * gradient consistency |sum x_I (x) grad N_I - I| <= 1e-10: J J^{-1} to
+//   round-off times the conditioning of J (<= ~1e3 at the points used).
+// * gradients vs central differences with step 1e-4 h: truncation error
+//   (1e-4)^2 / 6 |d^3 N| h^2 ~ 1e-8 / h for gamma_lme = 4, Newton solved to 1e-14 h
+//   so that its noise (<~ 1e-13 / 2e-4 h) is negligible; tolerance 1e-6 / h.
+#include "otmpm/basis/families.hpp"
+#include "otmpm/basis/lme.hpp"
+
+#include <doctest/doctest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <string>
+#include <vector>
+
+using namespace otmpm;
+
+namespace {
+
+constexpr double kPartitionTol = 1e-12;
+constexpr double kGradientSumTol = 1e-12;
+constexpr double kCompletenessTol = 2e-12;  // times h
+constexpr double kGradientConsistencyTol = 1e-10;
+constexpr double kFdStep = 1e-4;            // times h
+constexpr double kFdTol = 1e-6;             // times 1/h
+
+template <int D> CartesianGrid<D> unit_grid(int cells) {
+  CartesianGrid<D> g;
+  g.lower = Vec<D>::Zero();
+  g.upper = Vec<D>::Ones();
+  g.cells.fill(cells);
+  return g;
+}
+
+/// Cells per axis used for the D-dimensional tests (keeps 3D small).
+template <int D> int cells_for() { return D == 1 ? 10 : D == 2 ? 8 : 5; }
+
+/// A random cloud with the same hull as the unit box: the boundary nodes of
+/// the lattice plus one uniformly random node inside every cell.
+template <int D> NodeSet<D> random_cloud(int cells, unsigned seed) {
+  const CartesianGrid<D> g = unit_grid<D>(cells);
+  const NodeSet<D> lattice = NodeSet<D>::cartesian(g);
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  AlignedVector<Vec<D>> x;
+  for (int id = 0; id < lattice.size(); ++id) {
+    const Index<D> ijk = g.node_index(id);
+    bool boundary = false;
+    for (int k = 0; k < D; ++k) boundary = boundary || ijk[k] == 0 || ijk[k] == cells;
+    if (boundary) x.push_back(lattice.position(id));
+  }
+  const double h = 1.0 / cells;
+  for (int id = 0; id < lattice.size(); ++id) {
+    const Index<D> ijk = g.node_index(id);
+    if (*std::max_element(ijk.begin(), ijk.end()) == cells) continue; // not a cell corner
+    Vec<D> p;
+    for (int k = 0; k < D; ++k) p[k] = (ijk[k] + u(rng)) * h;
+    x.push_back(p);
+  }
+  return NodeSet<D>::cloud(std::move(x), h);
+}
+
+/// Test points in the unit box: uniform ones, ones next to the boundary (some
+/// coordinates at distance 1e-3 h .. 1e-10 h from a face) and ones next to a node.
+template <int D> AlignedVector<Vec<D>> sample_points(const NodeSet<D>& nodes, int count, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const double h = nodes.spacing();
+  const double gaps[] = {1e-3, 1e-6, 1e-10};
+  AlignedVector<Vec<D>> pts;
+  for (int i = 0; i < count; ++i) {
+    Vec<D> p;
+    for (int k = 0; k < D; ++k) p[k] = u(rng);
+    pts.push_back(p);
+  }
+  for (int i = 0; i < count; ++i) {
+    Vec<D> p;
+    for (int k = 0; k < D; ++k) p[k] = u(rng);
+    const int axis = static_cast<int>(rng() % D);
+    const double gap = gaps[rng() % 3] * h;
+    p[axis] = (rng() % 2) ? gap : 1.0 - gap;
+    if (D > 1 && rng() % 4 == 0) p[(axis + 1) % D] = (rng() % 2) ? gap : 1.0 - gap; // near an edge
+    pts.push_back(p);
+  }
+  for (int i = 0; i < count; ++i) {
+    const int I = static_cast<int>(rng() % static_cast<unsigned>(nodes.size()));
+    Vec<D> p = nodes.position(I);
+    for (int k = 0; k < D; ++k) p[k] = std::clamp(p[k] + 1e-7 * h * (2.0 * u(rng) - 1.0), 0.0, 1.0);
+    pts.push_back(p);
+  }
+  return pts;
+}
+
+/// Worst violations of the basis identities over a set of points.
+template <int D> struct Identities {
+  double partition = 0, gradient_sum = 0, completeness = 0, gradient_consistency = 0;
+  double min_N = 1;
+  Vec<D> worst_point = Vec<D>::Zero();
+};
+
+template <int D> Identities<D> check_identities(const Basis<D>& basis, const AlignedVector<Vec<D>>& pts) {
+  Identities<D> id;
+  Stencil<D> st;
+  const double h = basis.nodes().spacing();
+  for (const Vec<D>& x : pts) {
+    PointQuery<D> q;
+    q.x = x;
+    basis.evaluate(q, st);
+    double sumN = 0, abs_dN = 0;
+    Vec<D> sum_dN = Vec<D>::Zero(), sum_xN = Vec<D>::Zero();
+    Mat<D> sum_xdN = Mat<D>::Zero();
+    for (int a = 0; a < st.size(); ++a) {
+      const Vec<D>& xI = basis.nodes().position(st.node[a]);
+      sumN += st.N[a];
+      sum_dN += st.dN[a];
+      abs_dN += st.dN[a].norm();
+      sum_xN += st.N[a] * xI;
+      sum_xdN += xI * st.dN[a].transpose();
+      id.min_N = std::min(id.min_N, st.N[a]);
+    }
+    const double e_pu = std::abs(sumN - 1.0);
+    const double e_gs = sum_dN.norm() / abs_dN;
+    const double e_c = (sum_xN - x).norm() / h;
+    const double e_gc = (sum_xdN - Mat<D>::Identity()).norm();
+    if (e_gc > id.gradient_consistency || e_c > id.completeness) id.worst_point = x;
+    id.partition = std::max(id.partition, e_pu);
+    id.gradient_sum = std::max(id.gradient_sum, e_gs);
+    id.completeness = std::max(id.completeness, e_c);
+    id.gradient_consistency = std::max(id.gradient_consistency, e_gc);
+  }
+  return id;
+}
+
+template <int D> void require_identities(const Basis<D>& basis, const AlignedVector<Vec<D>>& pts) {
+  const Identities<D> id = check_identities(basis, pts);
+  INFO("worst point " << format_point<D>(id.worst_point));
+  CHECK(id.partition <= kPartitionTol);
+  CHECK(id.gradient_sum <= kGradientSumTol);
+  CHECK(id.completeness <= kCompletenessTol);
+  CHECK(id.gradient_consistency <= kGradientConsistencyTol);
+  CHECK(id.min_N > 0.0); // non-negative, and zero entries are not listed
+}
+
+BasisOptions lme_options(double gamma = 4.0) {
+  BasisOptions opt;
+  opt.kind = "lme";
+  opt.gamma_lme = gamma;
+  return opt;
+}
+
+/// Dense N and grad N over all nodes at x.
+template <int D>
+void dense_eval(const Basis<D>& b, const Vec<D>& x, std::vector<double>& N, AlignedVector<Vec<D>>* dN = nullptr) {
+  Stencil<D> st;
+  PointQuery<D> q;
+  q.x = x;
+  b.evaluate(q, st);
+  N.assign(static_cast<std::size_t>(b.nodes().size()), 0.0);
+  if (dN) dN->assign(N.size(), Vec<D>::Zero());
+  for (int a = 0; a < st.size(); ++a) {
+    N[st.node[a]] = st.N[a];
+    if (dN) (*dN)[st.node[a]] = st.dN[a];
+  }
+}
+
+/// max_I |grad N_I - central difference| * h at x.
+template <int D> double fd_gradient_error(const Basis<D>& b, const Vec<D>& x) {
+  const double h = b.nodes().spacing();
+  const double eps = kFdStep * h;
+  std::vector<double> N, Np, Nm;
+  AlignedVector<Vec<D>> dN;
+  dense_eval(b, x, N, &dN);
+  double err = 0;
+  for (int k = 0; k < D; ++k) {
+    Vec<D> e = Vec<D>::Zero();
+    e[k] = eps;
+    dense_eval<D>(b, x + e, Np);
+    dense_eval<D>(b, x - e, Nm);
+    for (std::size_t I = 0; I < N.size(); ++I)
+      err = std::max(err, std::abs((Np[I] - Nm[I]) / (2 * eps) - dN[I][k]) * h);
+  }
+  return err;
+}
+
+template <int D> void identities_on(const NodeSet<D>& nodes, unsigned seed) {
+  const auto basis = make_lme_basis<D>(nodes, lme_options());
+  require_identities<D>(*basis, sample_points<D>(basis->nodes(), 60, seed));
+}
+
+template <int D> void fd_on(const NodeSet<D>& nodes, unsigned seed) {
+  BasisOptions opt = lme_options();
+  opt.newton_tolerance = 1e-14;
+  const auto basis = make_lme_basis<D>(nodes, opt);
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0.01, 0.99); // central differences stay inside the hull
+  double err = 0;
+  for (int i = 0; i < 30; ++i) {
+    Vec<D> x;
+    for (int k = 0; k < D; ++k) x[k] = u(rng);
+    err = std::max(err, fd_gradient_error<D>(*basis, x));
+  }
+  CHECK(err <= kFdTol);
+}
+
+} // namespace
+
+TEST_CASE("lme: kind, linear completeness flag and option checks") {
+  const auto nodes = NodeSet<2>::cartesian(unit_grid<2>(4));
+  const auto b = make_lme_basis<2>(nodes, lme_options());
+  CHECK(b->kind() == "lme");
+  CHECK(b->linearly_complete());
+  BasisOptions bad = lme_options(0.0);
+  CHECK_THROWS_AS(make_lme_basis<2>(nodes, bad), InputError);
+  bad = lme_options();
+  bad.tolerance = 1.0;
+  CHECK_THROWS_AS(make_lme_basis<2>(nodes, bad), InputError);
+  bad = lme_options();
+  bad.newton_tolerance = 0.0;
+  CHECK_THROWS_AS(make_lme_basis<2>(nodes, bad), InputError);
+  bad = lme_options();
+  bad.max_newton_iterations = 0;
+  CHECK_THROWS_AS(make_lme_basis<2>(nodes, bad), InputError);
+}
+
+TEST_CASE("lme: symmetric 1D values match the closed form (lambda = 0)") {
+  // On a uniform 1D grid, at a node and at a cell midpoint lambda = 0 by
+  // symmetry, so N_I = exp(-beta d_I^2) / sum_J exp(-beta d_J^2) over the nodes
+  // with exp(-beta d^2) >= tol. gamma = 4, tol = 1e-6: R = 1.858 h.
+  const auto b = make_lme_basis<1>(NodeSet<1>::cartesian(unit_grid<1>(10)), lme_options());
+  std::vector<double> N;
+  dense_eval<1>(*b, Vec<1>(0.5), N); // node 5; neighbours at +-h (2h > R)
+  const double e1 = std::exp(-4.0);
+  CHECK(N[5] == doctest::Approx(1.0 / (1.0 + 2.0 * e1)).epsilon(1e-13));
+  CHECK(N[4] == doctest::Approx(e1 / (1.0 + 2.0 * e1)).epsilon(1e-13));
+  CHECK(N[3] == 0.0);
+  dense_eval<1>(*b, Vec<1>(0.45), N); // midpoint: +-h/2 and +-3h/2
+  const double a = std::exp(-1.0), c = std::exp(-9.0);
+  CHECK(N[4] == doctest::Approx(a / (2.0 * a + 2.0 * c)).epsilon(1e-13));
+  CHECK(N[3] == doctest::Approx(c / (2.0 * a + 2.0 * c)).epsilon(1e-13));
+}
+
+TEST_CASE("lme: identities on Cartesian grids (1D, 2D, 3D)") {
+  identities_on<1>(NodeSet<1>::cartesian(unit_grid<1>(cells_for<1>())), 11);
+  identities_on<2>(NodeSet<2>::cartesian(unit_grid<2>(cells_for<2>())), 12);
+  identities_on<3>(NodeSet<3>::cartesian(unit_grid<3>(cells_for<3>())), 13);
+}
+
+TEST_CASE("lme: identities on perturbed grids (1D, 2D, 3D)") {
+  identities_on<1>(NodeSet<1>::perturbed(unit_grid<1>(cells_for<1>()), 0.3, 5), 21);
+  identities_on<2>(NodeSet<2>::perturbed(unit_grid<2>(cells_for<2>()), 0.3, 6), 22);
+  identities_on<3>(NodeSet<3>::perturbed(unit_grid<3>(cells_for<3>()), 0.3, 7), 23);
+}
+
+TEST_CASE("lme: identities on random clouds (1D, 2D, 3D)") {
+  identities_on<1>(random_cloud<1>(cells_for<1>(), 8), 31);
+  identities_on<2>(random_cloud<2>(cells_for<2>(), 9), 32);
+  identities_on<3>(random_cloud<3>(cells_for<3>(), 10), 33);
+}
+
+TEST_CASE("lme: identities for small and large gamma_lme") {
+  const auto nodes = NodeSet<2>::perturbed(unit_grid<2>(8), 0.3, 3);
+  for (double gamma : {0.8, 10.0}) {
+    CAPTURE(gamma);
+    require_identities<2>(*make_lme_basis<2>(nodes, lme_options(gamma)), sample_points<2>(nodes, 30, 41));
+  }
+}
+
+TEST_CASE("lme: gradients agree with central differences") {
+  fd_on<1>(NodeSet<1>::perturbed(unit_grid<1>(10), 0.3, 1), 51);
+  fd_on<2>(NodeSet<2>::cartesian(unit_grid<2>(8)), 52);
+  fd_on<2>(NodeSet<2>::perturbed(unit_grid<2>(8), 0.3, 2), 53);
+  fd_on<2>(random_cloud<2>(8, 4), 54);
+  fd_on<3>(NodeSet<3>::perturbed(unit_grid<3>(5), 0.3, 3), 55);
+}
+
+TEST_CASE("lme: points exactly on the boundary get the limit from inside") {
+  // On the hull boundary lambda -> infinity; the solver stops at |r| <= 1e-12 h,
+  // where the interior nodes carry at most ~1e-12 / (their distance / h).
+  const auto b1 = make_lme_basis<1>(NodeSet<1>::cartesian(unit_grid<1>(10)), lme_options());
+  std::vector<double> N;
+  dense_eval<1>(*b1, Vec<1>(0.0), N);
+  CHECK(N[0] == doctest::Approx(1.0).epsilon(1e-11));
+  dense_eval<1>(*b1, Vec<1>(1.0), N);
+  CHECK(N[10] == doctest::Approx(1.0).epsilon(1e-11));
+
+  const auto nodes = NodeSet<2>::cartesian(unit_grid<2>(8));
+  const auto b2 = make_lme_basis<2>(nodes, lme_options());
+  AlignedVector<Vec<2>> edge;
+  for (double s : {0.0, 0.1, 0.33, 0.5, 0.77, 1.0}) {
+    edge.push_back(Vec<2>(s, 0.0));
+    edge.push_back(Vec<2>(1.0, s));
+  }
+  Stencil<2> st;
+  for (const Vec<2>& x : edge) {
+    PointQuery<2> q;
+    q.x = x;
+    b2->evaluate(q, st);
+    double off_edge = 0;
+    for (int a = 0; a < st.size(); ++a) {
+      const Vec<2>& xI = nodes.position(st.node[a]);
+      if (std::abs(xI[1]) > 1e-12 && std::abs(xI[0] - 1.0) > 1e-12) off_edge += st.N[a];
+    }
+    CAPTURE(x.transpose());
+    CHECK(off_edge <= 1e-11);
+  }
+  Identities<2> id = check_identities<2>(*b2, edge);
+  CHECK(id.partition <= kPartitionTol);
+  CHECK(id.completeness <= kCompletenessTol);
+}
+
+TEST_CASE("lme: tends to the linear hat functions in 1D as gamma_lme grows") {
+  // Error max_I |N_I - hat_I| over points in one cell; decays roughly like
+  // exp(-c gamma). tol = 1e-100 keeps both cell nodes in the support at large gamma.
+  const auto nodes = NodeSet<1>::cartesian(unit_grid<1>(10));
+  double previous = 1.0;
+  for (double gamma : {2.0, 4.0, 8.0, 16.0, 32.0}) {
+    BasisOptions opt = lme_options(gamma);
+    opt.tolerance = 1e-100;
+    const auto b = make_lme_basis<1>(nodes, opt);
+    double err = 0;
+    std::vector<double> N;
+    for (double xi : {0.1, 0.25, 0.5, 0.6, 0.9}) {
+      dense_eval<1>(*b, Vec<1>((4 + xi) * 0.1), N);
+      for (std::size_t I = 0; I < N.size(); ++I) {
+        const double hat = I == 4 ? 1 - xi : I == 5 ? xi : 0.0;
+        err = std::max(err, std::abs(N[I] - hat));
+      }
+    }
+    CAPTURE(gamma);
+    CAPTURE(err);
+    CHECK(err < previous);
+    previous = err;
+  }
+  CHECK(previous <= 1e-6);
+}
+
+TEST_CASE("lme: tends to the bilinear hat functions on 2D cell edges as gamma_lme grows") {
+  // On a cell edge of a square lattice every Delaunay triangulation gives the
+  // 1D hat along the edge, so N -> (1 - xi) and xi on the two edge nodes.
+  const auto nodes = NodeSet<2>::cartesian(unit_grid<2>(6));
+  const CartesianGrid<2> g = unit_grid<2>(6);
+  double previous = 1.0;
+  for (double gamma : {2.0, 4.0, 8.0, 16.0, 24.0}) {
+    BasisOptions opt = lme_options(gamma);
+    opt.tolerance = 1e-100;
+    const auto b = make_lme_basis<2>(nodes, opt);
+    double err = 0;
+    std::vector<double> N;
+    for (double xi : {0.2, 0.5, 0.7}) {
+      for (int dir = 0; dir < 2; ++dir) {
+        Index<2> a{2, 3}, c{2, 3};
+        c[dir] += 1;
+        Vec<2> x = (1 - xi) * g.node_position(a) + xi * g.node_position(c);
+        dense_eval<2>(*b, x, N);
+        for (std::size_t I = 0; I < N.size(); ++I) {
+          const double hat = int(I) == g.node_id(a) ? 1 - xi : int(I) == g.node_id(c) ? xi : 0.0;
+          err = std::max(err, std::abs(N[I] - hat));
+        }
+      }
+    }
+    CAPTURE(gamma);
+    CAPTURE(err);
+    CHECK(err < previous);
+    previous = err;
+  }
+  CHECK(previous <= 1e-4);
+}
+
+TEST_CASE("lme: support radius R = h sqrt(-ln tol / gamma_lme)") {
+  for (double gamma : {0.8, 4.0}) {
+    for (double tol : {1e-6, 1e-3}) {
+      BasisOptions opt = lme_options(gamma);
+      opt.tolerance = tol;
+      const auto nodes = NodeSet<2>::perturbed(unit_grid<2>(8), 0.25, 9);
+      const auto b = make_lme_basis<2>(nodes, opt);
+      const double h = nodes.spacing();
+      const double R = h * std::sqrt(-std::log(tol) / gamma);
+      Stencil<2> st;
+      int mismatches = 0;
+      double farthest = 0;
+      for (const Vec<2>& x : sample_points<2>(nodes, 40, 61)) {
+        PointQuery<2> q;
+        q.x = x;
+        b->evaluate(q, st);
+        std::vector<int> kept(st.node.begin(), st.node.end());
+        std::sort(kept.begin(), kept.end());
+        std::vector<int> expected;
+        for (int I = 0; I < nodes.size(); ++I) {
+          const double d = (nodes.position(I) - x).norm();
+          if (std::abs(d - R) <= 1e-12 * R) continue; // on the cut-off: either answer is right
+          if (d < R) expected.push_back(I);
+        }
+        for (int I : kept) {
+          const double d = (nodes.position(I) - x).norm();
+          farthest = std::max(farthest, d);
+          if (std::abs(d - R) <= 1e-12 * R) expected.push_back(I);
+        }
+        std::sort(expected.begin(), expected.end());
+        if (kept != expected) ++mismatches;
+      }
+      CAPTURE(gamma);
+      CAPTURE(tol);
+      CHECK(mismatches == 0);     // kept exactly the nodes within R
+      CHECK(farthest <= R);
+      CHECK(farthest >= R - h);   // and nodes close to R are reached
+    }
+  }
+}
+
+TEST_CASE("lme: max_stencil bounds every stencil") {
+  auto check = [](const auto& basis, const auto& pts) {
+    int largest = 0;
+    Stencil<2> st;
+    for (const Vec<2>& x : pts) {
+      PointQuery<2> q;
+      q.x = x;
+      basis.evaluate(q, st);
+      largest = std::max(largest, st.size());
+    }
+    CHECK(largest <= basis.max_stencil());
+    CHECK(basis.max_stencil() <= 4 * largest); // a useful bound, not the node count
+  };
+  const auto cart = NodeSet<2>::cartesian(unit_grid<2>(10));
+  check(*make_lme_basis<2>(cart, lme_options()), sample_points<2>(cart, 100, 71));
+  const auto cloud = random_cloud<2>(10, 72);
+  check(*make_lme_basis<2>(cloud, lme_options()), sample_points<2>(cloud, 100, 73));
+  // a clustered cloud: the bound must follow the nodes
+  AlignedVector<Vec<2>> x = cart.positions();
+  for (int i = 0; i < 40; ++i) x.push_back(Vec<2>(0.5 + 0.001 * (i % 7), 0.5 + 0.001 * (i / 7)));
+  const auto clustered = NodeSet<2>::cloud(x, 0.1);
+  const auto b = make_lme_basis<2>(clustered, lme_options());
+  AlignedVector<Vec<2>> pts = sample_points<2>(clustered, 50, 74);
+  pts.push_back(Vec<2>(0.503, 0.503));
+  check(*b, pts);
+}
+
+TEST_CASE("lme: max_nodes_within is sound for lattices and clouds in 3D") {
+  const auto cart = NodeSet<3>::cartesian(unit_grid<3>(5));
+  const auto cloud = random_cloud<3>(5, 81);
+  for (const NodeSet<3>* nodes : {&cart, &cloud}) {
+    const double R = 0.37;
+    const int bound = maxent::max_nodes_within<3>(*nodes, R);
+    std::vector<int> ids;
+    int largest = 0;
+    for (const Vec<3>& x : sample_points<3>(*nodes, 60, 82)) {
+      ids.clear();
+      nodes->within(x, R, ids);
+      largest = std::max(largest, static_cast<int>(ids.size()));
+    }
+    CHECK(largest <= bound);
+    CHECK(bound < nodes->size());
+  }
+}
+
+TEST_CASE("lme: warm start gives the same answer in fewer iterations") {
+  const auto nodes = NodeSet<2>::perturbed(unit_grid<2>(8), 0.3, 12);
+  const auto b = make_lme_basis<2>(nodes, lme_options());
+  const double h = nodes.spacing();
+  std::mt19937 rng(91);
+  std::uniform_real_distribution<double> u(0.05, 0.95);
+  Stencil<2> cold, warm;
+  int cold_total = 0, warm_total = 0;
+  double diff = 0;
+  for (int i = 0; i < 20; ++i) {
+    Vec<2> x(u(rng), u(rng));
+    Vec<2> lambda = Vec<2>::Zero();
+    int it = -1;
+    PointQuery<2> q;
+    q.x = x;
+    q.lambda = &lambda;
+    q.iterations = &it;
+    b->evaluate(q, cold); // lambda now holds the multiplier at x
+    CHECK(it > 0);
+    // same point again: already converged
+    b->evaluate(q, warm);
+    CHECK(it == 0);
+    // a nearby point (a particle after one step)
+    q.x = x + Vec<2>(0.01 * h, -0.02 * h);
+    b->evaluate(q, warm);
+    warm_total += it;
+    PointQuery<2> qc;
+    qc.x = q.x;
+    qc.iterations = &it;
+    b->evaluate(qc, cold);
+    cold_total += it;
+    REQUIRE(warm.node == cold.node);
+    for (int a = 0; a < cold.size(); ++a) diff = std::max(diff, std::abs(warm.N[a] - cold.N[a]));
+  }
+  CHECK(warm_total < cold_total);
+  CHECK(diff <= 1e-11); // both converged to |r| <= 1e-12 h; J^{-1} r shifts N by < ~1e-11
+}
+
+TEST_CASE("lme: a poor warm start still converges (cold restart)") {
+  const auto nodes = NodeSet<2>::cartesian(unit_grid<2>(8));
+  const auto b = make_lme_basis<2>(nodes, lme_options());
+  Vec<2> lambda(1e6, -1e6); // absurd multiplier
+  PointQuery<2> q;
+  q.x = Vec<2>(0.41, 0.53);
+  q.lambda = &lambda;
+  Stencil<2> st;
+  b->evaluate(q, st);
+  Identities<2> id = check_identities<2>(*b, {q.x});
+  CHECK(id.completeness <= kCompletenessTol);
+  CHECK(lambda.norm() * nodes.spacing() < 10.0);
+}
+
+TEST_CASE("lme: points outside the convex hull are a BasisError naming the point") {
+  auto message_of = [](const auto& basis, const auto& q) {
+    Stencil<std::decay_t<decltype(q.x)>::RowsAtCompileTime> st;
+    try {
+      basis.evaluate(q, st);
+    } catch (const BasisError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  SUBCASE("1D, half a cell outside") {
+    const auto b = make_lme_basis<1>(NodeSet<1>::cartesian(unit_grid<1>(10)), lme_options());
+    PointQuery<1> q;
+    q.x = Vec<1>(-0.05);
+    q.id = 17;
+    const std::string m = message_of(*b, q);
+    CHECK(m.find("convex hull") != std::string::npos);
+    CHECK(m.find("point 17 at (-0.05)") != std::string::npos);
+  }
+  SUBCASE("2D, far away (no nodes within R)") {
+    const auto b = make_lme_basis<2>(NodeSet<2>::cartesian(unit_grid<2>(8)), lme_options());
+    PointQuery<2> q;
+    q.x = Vec<2>(3.0, 0.5);
+    const std::string m = message_of(*b, q);
+    CHECK(m.find("convex hull") != std::string::npos);
+    CHECK(m.find(format_point<2>(q.x)) != std::string::npos);
+  }
+  SUBCASE("2D, outside a triangular cloud but inside its bounding box") {
+    // nodes i + j <= 8 of a lattice: the hull's hypotenuse is x + y = 1
+    const auto g = unit_grid<2>(8);
+    const auto lattice = NodeSet<2>::cartesian(g);
+    AlignedVector<Vec<2>> x;
+    for (int id = 0; id < lattice.size(); ++id) {
+      const auto ijk = g.node_index(id);
+      if (ijk[0] + ijk[1] <= 8) x.push_back(lattice.position(id));
+    }
+    const auto b = make_lme_basis<2>(NodeSet<2>::cloud(x, 0.125), lme_options());
+    for (double off : {0.02, 0.001}) {
+      Vec<2> lambda = Vec<2>::Zero();
+      PointQuery<2> q;
+      q.x = Vec<2>(0.5 + off, 0.5 + off);
+      q.id = 3;
+      q.lambda = &lambda;
+      CAPTURE(off);
+      const std::string m = message_of(*b, q);
+      CHECK(m.find("convex hull") != std::string::npos);
+      CHECK(m.find("point 3 at " + format_point<2>(q.x)) != std::string::npos);
+      CHECK(lambda.isZero(0.0)); // not written on failure
+    }
+    // just inside the hypotenuse it works
+    PointQuery<2> q;
+    q.x = Vec<2>(0.5 - 1e-3, 0.5 - 1e-3);
+    Identities<2> id = check_identities<2>(*b, {q.x});
+    CHECK(id.completeness <= kCompletenessTol);
+  }
+  SUBCASE("3D, outside a face") {
+    const auto b = make_lme_basis<3>(NodeSet<3>::cartesian(unit_grid<3>(5)), lme_options());
+    PointQuery<3> q;
+    q.x = Vec<3>(0.5, 1.03, 0.5);
+    const std::string m = message_of(*b, q);
+    CHECK(m.find("convex hull") != std::string::npos);
+  }
+}
+
+TEST_CASE("lme: degenerate support (collinear nodes) is a singular-J BasisError") {
+  // All nodes on the x axis in 2D: points on the segment have a singular J.
+  AlignedVector<Vec<2>> x;
+  for (int i = 0; i <= 10; ++i) x.push_back(Vec<2>(0.1 * i, 0.0));
+  const auto b = make_lme_basis<2>(NodeSet<2>::cloud(x, 0.1), lme_options());
+  PointQuery<2> q;
+  q.x = Vec<2>(0.43, 0.0);
+  Stencil<2> st;
+  CHECK_THROWS_WITH_AS(b->evaluate(q, st), doctest::Contains("singular Hessian J"), BasisError);
+}
+
+TEST_CASE("lme: moved nodes keep beta from the initial spacing and a fresh search") {
+  const auto g = unit_grid<2>(8);
+  auto b = make_lme_basis<2>(NodeSet<2>::perturbed(g, 0.2, 4), lme_options());
+  const Vec<2> x(0.37, 0.61);
+  std::vector<double> before, after;
+  dense_eval<2>(*b, x, before);
+  // rigid translation: N at the translated point is unchanged
+  const Vec<2> shift(0.31, -0.17);
+  AlignedVector<Vec<2>> dx(static_cast<std::size_t>(b->nodes().size()), shift);
+  b->nodes().advect(dx);
+  b->nodes_moved(dx);
+  dense_eval<2>(*b, Vec<2>(x + shift), after);
+  double diff = 0;
+  for (std::size_t I = 0; I < before.size(); ++I) diff = std::max(diff, std::abs(before[I] - after[I]));
+  CHECK(diff <= 1e-11);
+  // a stretch: h (hence beta) stays the initial one; identities still hold
+  for (int I = 0; I < b->nodes().size(); ++I) dx[I] = 0.2 * (b->nodes().position(I) - shift);
+  b->nodes().advect(dx);
+  b->nodes_moved(dx);
+  CHECK(b->nodes().spacing() == doctest::Approx(1.0 / 8));
+  AlignedVector<Vec<2>> pts;
+  for (const Vec<2>& p : sample_points<2>(NodeSet<2>::cartesian(g), 20, 99)) pts.push_back(shift + 1.2 * p);
+  require_identities<2>(*b, pts);
+}

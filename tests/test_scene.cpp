@@ -1,0 +1,293 @@
+// Scene reader tests: a valid scene gives the right values, --set overrides
+// reach every kind of key, and each class of mistake is an InputError that
+// names the file, the line and the key (interfaces.md "Scene file").
+//
+// Values read from the file are compared with ==: the reader converts the same
+// decimal literal the test writes, so the doubles are bit-identical.
+#include "otmpm/scene/scene.hpp"
+
+#include <doctest/doctest.h>
+
+#include <string>
+#include <vector>
+
+using namespace otmpm;
+
+namespace {
+
+const std::string kScenes = std::string(OTMPM_SOURCE_DIR) + "/tests/scenes/";
+const std::string kGood = kScenes + "good_minimal.toml";
+
+std::string bad(const std::string& name) { return kScenes + "bad/" + name + ".toml"; }
+
+/// The message of the InputError that loading `path` throws ("" if none).
+std::string error_of(const std::string& path, const std::vector<std::string>& overrides = {}) {
+  try {
+    load_scene(path, overrides);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+/// Checks that the message contains every fragment (and says which is missing).
+void check_message(const std::string& message, const std::vector<std::string>& fragments) {
+  INFO("message: " << message);
+  REQUIRE_FALSE(message.empty());
+  for (const auto& f : fragments) CHECK(message.find(f) != std::string::npos);
+}
+
+/// A small 2D scene as text, used by the tests that need geometry in 2D.
+const char* kPlate2D = R"(
+[simulation]
+dimension = 2
+t_end = 1.0
+[basis]
+kind = "linear"
+[grid]
+lower = [0.0, 0.0]
+upper = [4.0, 2.0]
+h = 0.5
+[[material]]
+name = "rubber"
+model = "neo_hookean"
+density = 1.0
+young = 10
+poisson = 0.3
+[[body]]
+material = "rubber"
+lower = [1.0, 0.5]
+upper = [3.0, 1.5]
+[[boundary]]
+name = "base"
+lower = [0.0, 0.0]
+upper = [4.0, 0.0]
+fix = [false, true]
+)";
+
+} // namespace
+
+TEST_CASE("the minimal good scene has the values written in it") {
+  const Scene s = load_scene(kGood);
+  CHECK(s.file == kGood);
+  CHECK(s.simulation.dimension == 1);
+  CHECK(s.simulation.mode == "mpm");
+  CHECK(s.simulation.integrator == "npc");
+  CHECK(s.simulation.t_end == 1.0e-4);
+  CHECK(s.simulation.cfl == 0.1);
+  CHECK_FALSE(s.simulation.dt.has_value());
+  CHECK(s.basis.kind == "lme");
+  CHECK(s.basis.gamma_lme == 4.0);
+  CHECK(s.grid.lower[0] == -0.0067);
+  CHECK(s.grid.upper[0] == 0.1333);
+  CHECK(s.grid.cells[0] == 40);
+  REQUIRE(s.materials.size() == 1);
+  CHECK(s.materials[0].name == "steel");
+  CHECK(s.materials[0].density == 7833.0);
+  CHECK(s.materials[0].young == 200.0e9);
+  CHECK(s.materials[0].poisson == 0.0);
+  REQUIRE(s.bodies.size() == 1);
+  CHECK(s.bodies[0].name == "bar");
+  CHECK(s.bodies[0].material == "steel");
+  CHECK(s.bodies[0].upper[0] == 0.1333);
+  CHECK(s.bodies[0].particles_per_cell == 2);
+  CHECK(s.bodies[0].placement == "gauss");
+  REQUIRE(s.initial_velocities.size() == 1);
+  CHECK(s.initial_velocities[0].velocity[0] == -5.0);
+  REQUIRE(s.boundaries.size() == 1);
+  CHECK(s.boundaries[0].name == "right_end");
+  CHECK(s.boundaries[0].fix[0]);
+  CHECK(s.output.file == "dyka.h5");
+  CHECK(s.output.every == 1.0e-6);
+  REQUIRE(s.output.probes.size() == 1);
+  CHECK(s.output.probes[0].name == "A");
+  CHECK(s.output.probes[0].particle == "leftmost");
+  CHECK(s.reference.solution == "dyka");
+  CHECK_FALSE(s.body_force.has_value());
+}
+
+TEST_CASE("every key read remembers its line") {
+  const Scene s = load_scene(kGood);
+  CHECK(s.locate("material.steel.density").line == 22);
+  CHECK(s.locate("material.steel.density").describe() == kGood + ":22: key 'material.steel.density'");
+  CHECK(s.bodies[0].where.line == 26); // the [[body]] header
+  CHECK(s.locate("output.probes.A.particle").line == 47);
+  CHECK(s.locate("no.such.key").line == 0);
+}
+
+TEST_CASE("--set overrides scalars, arrays of tables by name and bare-word strings") {
+  const Scene s = load_scene(kGood, {"material.steel.young=70e9", "body.bar.velocity=[1.5]", "simulation.mode=ul",
+                                     "simulation.integrator=\"otm\"", "basis.gamma_lme = 2"});
+  CHECK(s.materials[0].young == 70e9);
+  CHECK(s.bodies[0].velocity[0] == 1.5);
+  CHECK(s.simulation.mode == "ul");
+  CHECK(s.simulation.integrator == "otm");
+  CHECK(s.basis.gamma_lme == 2.0);
+  CHECK(s.locate("material.steel.young").describe() == "--set material.steel.young");
+}
+
+TEST_CASE("--set can add keys and tables the file does not have") {
+  const Scene s = load_scene(kGood, {"simulation.dt=1e-7", "body_force.value=[-9.81]"});
+  REQUIRE(s.simulation.dt.has_value());
+  CHECK(*s.simulation.dt == 1e-7);
+  REQUIRE(s.body_force.has_value());
+  CHECK(s.body_force->value[0] == -9.81);
+  CHECK(s.body_force->time.kind == "constant");
+}
+
+TEST_CASE("grid.h replaces grid.cells, also from --set") {
+  const Scene s = load_scene(kGood, {"grid.h=0.0035"});
+  CHECK(s.grid.cells[0] == 40);
+  check_message(error_of(kGood, {"grid.h=0.0036"}), {"--set grid.h", "whole cells"});
+  const Scene plate = parse_scene(kPlate2D, "plate.toml");
+  CHECK(plate.grid.cells[0] == 8);
+  CHECK(plate.grid.cells[1] == 4);
+}
+
+TEST_CASE("the resolved text reads back to the same scene") {
+  const Scene s = load_scene(kGood, {"material.steel.young=70e9", "simulation.mode=ul"});
+  const Scene again = parse_scene(s.text, "resolved.toml");
+  CHECK(again.materials[0].young == 70e9);
+  CHECK(again.simulation.mode == "ul");
+  CHECK(again.grid.cells[0] == s.grid.cells[0]);
+  CHECK(again.output.probes.size() == 1);
+}
+
+TEST_CASE("uGIMP gets the particle half-width h / (2 ppc)") {
+  const Scene s = load_scene(kGood, {"basis.kind=ugimp"});
+  const double h = (0.1333 - -0.0067) / 40;
+  // Same arithmetic on the same doubles up to association order: 1e-15 relative.
+  CHECK(s.basis.ugimp_half_width[0] == doctest::Approx(h / 4).epsilon(1e-15));
+}
+
+TEST_CASE("2D scene: defaults, unnamed body and a boundary on the edge") {
+  const Scene s = parse_scene(kPlate2D, "plate.toml");
+  CHECK(s.simulation.dimension == 2);
+  CHECK(s.bodies[0].name == "body0");
+  CHECK(s.bodies[0].particles_per_cell == 2);
+  CHECK_FALSE(s.boundaries[0].fix[0]);
+  CHECK(s.boundaries[0].fix[1]);
+  CHECK(s.output.file == "out.h5");
+}
+
+// ------------------------------------------------------------ mistakes
+
+TEST_CASE("syntax error names file and line") {
+  check_message(error_of(bad("syntax")), {"syntax.toml:21:", "syntax error"});
+}
+
+TEST_CASE("wrong type names file, line and key") {
+  check_message(error_of(bad("bad_type")), {"bad_type.toml:6: key 'simulation.t_end'", "expected a number"});
+}
+
+TEST_CASE("unknown key is named, with a suggestion") {
+  check_message(error_of(bad("unknown_key")),
+                {"unknown_key.toml:22: key 'material.steel.yuong'", "unknown key", "did you mean 'young'"});
+}
+
+TEST_CASE("missing required key names the table's line") {
+  check_message(error_of(bad("missing_required")),
+                {"missing_required.toml:2: key 'simulation.t_end'", "missing"});
+}
+
+TEST_CASE("a body naming an undefined material") {
+  check_message(error_of(bad("missing_material")),
+                {"missing_material.toml:27: key 'body.bar.material'", "aluminium"});
+}
+
+TEST_CASE("a scene without any material") {
+  check_message(error_of(bad("no_material")), {"no_material.toml:1: key 'material'", "[[material]]"});
+}
+
+TEST_CASE("negative density") {
+  check_message(error_of(bad("negative_density")),
+                {"negative_density.toml:21: key 'material.steel.density'", "> 0"});
+}
+
+TEST_CASE("poisson ratio 0.5 is rejected") {
+  check_message(error_of(bad("poisson_half")), {"poisson_half.toml:23: key 'material.steel.poisson'", "(-1, 0.5)"});
+  check_message(error_of(kGood, {"material.steel.poisson=-1"}), {"--set material.steel.poisson"});
+}
+
+TEST_CASE("gamma_lme <= 0 is rejected") {
+  check_message(error_of(bad("gamma_lme_zero")), {"gamma_lme_zero.toml:11: key 'basis.gamma_lme'", "> 0"});
+}
+
+TEST_CASE("a body outside the grid names the body") {
+  check_message(error_of(bad("body_outside_grid")), {"body_outside_grid.toml:25: key 'body.bar'", "not inside"});
+  // The same body is fine in ul mode, where the grid is not a fixed domain.
+  CHECK_NOTHROW(load_scene(bad("body_outside_grid"), {"simulation.mode=ul"}));
+}
+
+TEST_CASE("a boundary that selects no node names the boundary") {
+  check_message(error_of(bad("boundary_selects_nothing")),
+                {"boundary_selects_nothing.toml:37: key 'boundary.right_end'", "no grid node"});
+  // A box between nodes in 2D: y in [0.1, 0.4] holds no node when h = 0.5.
+  const std::string plate = kPlate2D;
+  std::string moved = plate;
+  moved.replace(moved.find("upper = [4.0, 0.0]"), 18, "upper = [4.0, 0.4]");
+  moved.replace(moved.find("lower = [0.0, 0.0]\nupper = [4.0, 0.4]"), 18, "lower = [0.0, 0.1]");
+  try {
+    parse_scene(moved, "plate.toml");
+    FAIL("expected an InputError");
+  } catch (const InputError& e) {
+    check_message(e.what(), {"plate.toml:", "boundary.base", "no grid node"});
+  }
+}
+
+TEST_CASE("an unknown --set key is named as such") {
+  check_message(error_of(kGood, {"simulation.modee=ul"}), {"--set simulation.modee", "did you mean 'mode'"});
+  check_message(error_of(kGood, {"material.iron.young=1"}), {"--set material.iron.young", "iron"});
+  check_message(error_of(kGood, {"nonsense"}), {"--set nonsense", "KEY=VALUE"});
+}
+
+TEST_CASE("otm in mpm mode is rejected") {
+  check_message(error_of(bad("otm_in_mpm")), {"otm_in_mpm.toml:5: key 'simulation.integrator'", "ul"});
+  CHECK_NOTHROW(load_scene(bad("otm_in_mpm"), {"simulation.mode=ul"}));
+}
+
+TEST_CASE("dimension out of range") {
+  check_message(error_of(bad("dimension_four")), {"dimension_four.toml:3: key 'simulation.dimension'"});
+}
+
+TEST_CASE("array length must match the dimension") {
+  check_message(error_of(bad("array_length")), {"array_length.toml:14: key 'grid.lower'", "2 components"});
+}
+
+TEST_CASE("uGIMP on a perturbed grid is rejected") {
+  check_message(error_of(kGood, {"basis.kind=ugimp", "grid.kind=perturbed", "grid.perturbation=0.1"}),
+                {"--set basis.kind", "Cartesian"});
+}
+
+TEST_CASE("other out-of-range values") {
+  check_message(error_of(kGood, {"simulation.t_end=0"}), {"--set simulation.t_end", "> 0"});
+  check_message(error_of(kGood, {"simulation.gamma=1.5"}), {"--set simulation.gamma", "(0, 1]"});
+  check_message(error_of(kGood, {"simulation.cfl=-0.1"}), {"--set simulation.cfl"});
+  check_message(error_of(kGood, {"basis.tolerance=1"}), {"--set basis.tolerance"});
+  check_message(error_of(kGood, {"basis.kind=quadratic"}), {"--set basis.kind", "\"lme\""});
+  check_message(error_of(kGood, {"body.bar.particles_per_cell=0"}), {"--set body.bar.particles_per_cell"});
+  check_message(error_of(kGood, {"output.every=-1"}), {"--set output.every"});
+  check_message(error_of(kGood, {"reference.solution=exact"}), {"--set reference.solution"});
+  check_message(error_of(kGood, {"simulation.mass=diagonal"}), {"--set simulation.mass"});
+  check_message(error_of(kGood, {"simulation.dimension=2.0"}), {"--set simulation.dimension", "integer"});
+  check_message(error_of(kGood, {"output.fields=[\"x\", \"velocity\"]"}), {"--set output.fields", "velocity"});
+}
+
+TEST_CASE("duplicate names are rejected") {
+  const std::string twice = std::string(kPlate2D) + R"(
+[[material]]
+name = "rubber"
+model = "neo_hookean"
+density = 2.0
+young = 10
+poisson = 0.3
+)";
+  check_message([&] {
+    try { parse_scene(twice, "twice.toml"); } catch (const InputError& e) { return std::string(e.what()); }
+    return std::string();
+  }(), {"twice.toml:", "material.rubber.name", "duplicate"});
+}
+
+TEST_CASE("a missing file is an InputError naming it") {
+  check_message(error_of(kScenes + "does_not_exist.toml"), {"does_not_exist.toml", "cannot open"});
+}
