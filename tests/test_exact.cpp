@@ -7,7 +7,9 @@
 #include "otmpm/scene/scene.hpp"
 
 #include <doctest/doctest.h>
+#include <Eigen/LU>
 
+#include <algorithm>
 #include <cmath>
 #include <functional>
 #include <numbers>
@@ -157,18 +159,17 @@ TEST_CASE("dyka: point A (the free end) and the fixed end follow the reflection 
       const double t = (p.s0 + f * (p.s1 - p.s0)) / c;
       CHECK(dv(b, 0.0, t) == doctest::Approx(p.v).epsilon(1e-12));
     }
-  // Fixed end: the compressive... here tensile pulse of rho c |V0| / 2 doubles
-  // on reflection, sigma(L, t) = rho c |V0| for ct in (L - a, L + a), zero before.
+  // Fixed end: the tensile pulse rho c |V0| / 2 doubles on reflection,
+  // sigma(L, t) = rho c |V0| for ct in (L - a, L + a), zero before.
   const double rc = kDykaRho * c;
   CHECK(std::abs(ds(b, L, 0.5 * (L - a) / c)) <= 1e-12 * rc);
   CHECK(ds(b, L, (L - 0.5 * a) / c) == doctest::Approx(5.0 * rc).epsilon(1e-12));
   CHECK(ds(b, L, (L + 0.5 * a) / c) == doctest::Approx(5.0 * rc).epsilon(1e-12));
   // Mid-bar while the right-going release front has passed: half velocity.
   CHECK(dv(b, 0.5 * L, 0.5 * L / c) == doctest::Approx(-2.5).epsilon(1e-12));
-  // After reflection from the free end the front pushes +2.5 m/s into the bar
-  // at rest: x = 0.5 L, ct = 1.1 L ... between the reflected fronts v = 0,
-  // and behind the wave reflected at the fixed end the bar has v = +2.5 where
-  // only that wave (V(x - ct) = +5 from the odd extension) has arrived.
+  // Later, x = L/2 at ct = 1.625 L: V(x - ct) = V(1.125 L) = 0 (outside the
+  // images of the region) and V(x + ct) = V(2.125 L) = -V0 = +5 (image of
+  // [0, a] reflected at the fixed end, sign flipped): v = +2.5 m/s.
   CHECK(dv(b, 0.5 * L, (1.5 * L + 0.5 * a) / c) == doctest::Approx(2.5).epsilon(1e-12));
 }
 
@@ -190,7 +191,6 @@ TEST_CASE("dyka: stress and velocity agree with the displacement (sigma = E u_x,
     const double ft = (du(b, x, t + k) - du(b, x, t)) / k, bt = (du(b, x, t) - du(b, x, t - k)) / k;
     if (std::abs(fx - bx) > strain_tol || std::abs(ft - bt) > strain_tol * c) continue; // kink inside the stencil
     ++tested;
-    CHECK(kDykaE * 0.5 * (fx + bx) == doctest::Approx(ds(b, x, t)).epsilon(0).scale(1).epsilon(0));
     CHECK(std::abs(kDykaE * 0.5 * (fx + bx) - ds(b, x, t)) <= kDykaE * strain_tol);
     CHECK(std::abs(0.5 * (ft + bt) - dv(b, x, t)) <= strain_tol * c);
   }
@@ -230,7 +230,9 @@ TEST_CASE("dyka: momentum balance and the constitutive law hold in integral form
   struct Box {
     double x1, x2, t1, t2;
   };
-  const Box boxes[] = {{0.3 * kDykaL, 0.9 * kDykaL, 0.3 * kDykaL / c, 1.7 * kDykaL / c},
+  // Boxes chosen so that both balances are far from 0 = 0.
+  const Box boxes[] = {{0.1 * kDykaL, 0.7 * kDykaL, 0.2 * kDykaL / c, 1.1 * kDykaL / c},
+                       {0.0, 0.6 * kDykaL, 0.3 * kDykaL / c, 2.2 * kDykaL / c},
                        {0.0, kDykaL, 0.1 * kDykaL / c, 2.9 * kDykaL / c},
                        {0.05 * kDykaL, 0.45 * kDykaL, 0.0, 0.6 * kDykaL / c}};
   for (const Box& q : boxes) {
@@ -270,7 +272,9 @@ TEST_CASE("dyka: in 2D and 3D only the x components are set, equal to 1D") {
     CHECK(v2[0] == s.v);
     CHECK(v2[1] == 0.0);
     CHECK(s3(0, 0) == s.sigma);
-    CHECK(s3.norm() == std::abs(s.sigma)); // every other component zero
+    Mat<3> expected = Mat<3>::Zero();
+    expected(0, 0) = s.sigma;
+    CHECK((s3 - expected).norm() == 0.0); // every other component zero
     CHECK(b3.displacement(Vec<3>(x, 0.1, 0.2), t)[0] == s.u);
   }
 }
@@ -520,7 +524,9 @@ TEST_CASE("mms plate: Cauchy stress is the neo-Hookean stress of wobbes eq. 11 a
     const Mat<2> sigma =
         m.lambda() * std::log(J) / J * Mat<2>::Identity() + m.mu() / J * (F * F.transpose() - Mat<2>::Identity());
     CHECK((sigma - m.stress(X, t)).norm() <= 1e-7 * scale);
-    const Mat<2> P = J * m.stress(X, t) * m.deformation_gradient(X, t).inverse().transpose();
+    // Round trip with the exact F: rounding only (~1e-15 of mu ~ 1e-8 of scale... use 1e-12).
+    const Mat<2> Fe = m.deformation_gradient(X, t);
+    const Mat<2> P = Fe.determinant() * m.stress(X, t) * Fe.inverse().transpose();
     CHECK((P - m.first_piola(X, t)).norm() <= 1e-12 * scale);
   }
 }
@@ -634,8 +640,6 @@ TEST_CASE("make_exact_solution: builds each solution with the scene's parameters
     REQUIRE(tb != nullptr);
     CHECK(tb->traction(0.5) == doctest::Approx(-2.0).epsilon(1e-15));
     s.tractions[0].value = {0.0, 0.0, 0.0}; // default: wobbes' unit amplitude
-    const auto* tb1 = dynamic_cast<const TractionBar<1>*>(make_exact_solution<1>(s).get());
-    CHECK(tb1 == nullptr); // the temporary is gone; rebuild into a variable instead
     const auto e1 = make_exact_solution<1>(s);
     CHECK(dynamic_cast<const TractionBar<1>&>(*e1).traction(0.5) == doctest::Approx(-1.0).epsilon(1e-15));
   }

@@ -196,7 +196,8 @@ TEST_CASE_TEMPLATE_DEFINE("linear stencil on a Cartesian grid is the 2^D vertice
   const Vec<D> xI = g.node_position(g.node_index(I));
   const auto m = values_at(*b, xI);
   CHECK(static_cast<int>(m.size()) == (1 << D));
-  for (const auto& [J, N] : m) CHECK(N == (J == I ? 1.0 : 0.0));
+  // 1e-15: x_I - lower divided by h is an integer only to round-off.
+  for (const auto& [J, N] : m) CHECK(std::abs(N - (J == I ? 1.0 : 0.0)) <= 1e-15);
   // Hat value at a generic point: prod_k (1 - |x_k - x_Ik| / h_k).
   std::mt19937 rng(3);
   const Vec<D> x = random_in_box<D>(rng, g.lower, g.upper);
@@ -290,8 +291,9 @@ TEST_CASE_TEMPLATE_DEFINE("linear: a point outside the grid is a BasisError nami
   constexpr int D = T::value;
   const CartesianGrid<D> g = test_grid<D>();
   const Vec<D> below = g.lower - 0.01 * g.h();
+  // Just beyond the round-off slack of 1e-12 cells that counts as inside.
   Vec<D> beside = 0.5 * (g.lower + g.upper);
-  beside[D - 1] = std::nextafter(g.upper[D - 1], 10.0);
+  beside[D - 1] = g.upper[D - 1] + 1e-9 * g.h()[D - 1];
   for (const auto& b : {make_linear_basis<D>(NodeSet<D>::cartesian(g)),
                         make_linear_basis<D>(NodeSet<D>::perturbed(g, 0.3, 1u))}) {
     check_outside_names_point<D>(*b, below);
@@ -326,3 +328,19 @@ TEST_CASE("linear needs a structured grid") {
   AlignedVector<Vec<2>> x{Vec<2>(0, 0), Vec<2>(1, 0), Vec<2>(0, 1)};
   CHECK_THROWS_AS(make_linear_basis<2>(NodeSet<2>::cloud(x, 1.0)), InputError);
 }
+
+TEST_CASE_TEMPLATE_DEFINE("linear: a point within round-off outside the grid is clamped onto it", T, clamp_id) {
+  constexpr int D = T::value;
+  const CartesianGrid<D> g = test_grid<D>();
+  Vec<D> x = g.upper;
+  x[0] += 1e-14 * g.h()[0];
+  for (const auto& b : {make_linear_basis<D>(NodeSet<D>::cartesian(g)),
+                        make_linear_basis<D>(NodeSet<D>::perturbed(g, 0.3, 1u))}) {
+    const auto m = values_at(*b, x);
+    Index<D> last;
+    for (int k = 0; k < D; ++k) last[k] = g.cells[k];
+    // The corner node carries everything (to the 1e-14 offset).
+    CHECK(m.at(g.node_id(last)) == doctest::Approx(1.0).epsilon(1e-12));
+  }
+}
+TEST_CASE_TEMPLATE_APPLY(clamp_id, Dims);

@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <utility>
 
 namespace otmpm {
@@ -78,6 +79,19 @@ template <int D> std::string box_text(const CartesianGrid<D>& g) {
   return format_point<D>(g.lower) + " .. " + format_point<D>(g.upper);
 }
 
+/// Points within this fraction of a cell outside the grid (or, for the
+/// isoparametric map, with |xi_k| <= 1 + this) count as inside: round-off of a
+/// point on the boundary or on a face. They are clamped onto it.
+constexpr double kInsideTolerance = 1e-12;
+
+/// True when x lies in the grid box widened by kInsideTolerance cells.
+template <int D> bool in_grid(const CartesianGrid<D>& g, const Vec<D>& x) {
+  const Vec<D> slack = kInsideTolerance * g.h();
+  for (int k = 0; k < D; ++k)
+    if (!(x[k] >= g.lower[k] - slack[k] && x[k] <= g.upper[k] + slack[k])) return false;
+  return true;
+}
+
 template <int D> std::string point_text(const PointQuery<D>& q) {
   return "point " + format_point<D>(q.x) + (q.id >= 0 ? " (id " + std::to_string(q.id) + ")" : std::string());
 }
@@ -93,13 +107,12 @@ template <int D> constexpr int kCorners = 1 << D;
 /// this; the error after that step is O(step^2), far below round-off.
 constexpr double kNewtonStepTolerance = 1e-10;
 constexpr int kMaxNewtonIterations = 30;
-/// A point counts as inside an element when |xi_k| <= 1 + this (round-off of
-/// the inverse map for points on a face); xi is then clamped to [-1, 1].
-constexpr double kInsideTolerance = 1e-12;
 /// Natural coordinates beyond this are "far outside": stop Newton, walk on.
 constexpr double kFarOutside = 4.0;
 /// Extra steps allowed to the element walk beyond the lattice diameter.
 constexpr int kWalkSlack = 8;
+/// Cells remembered by the walk to notice that it goes round in a cycle.
+constexpr int kWalkMemory = 4;
 
 /// Shape functions of the reference element [-1, 1]^D at xi:
 /// N_a = prod_k (1 + s_ak xi_k) / 2 with s_ak = +-1 from bit k of corner a.
@@ -151,35 +164,42 @@ template <int D> struct Element {
 
 enum class InverseStatus { inside, outside, failed };
 
-/// Solves x(xi) = x for xi by Newton from the element centre. On `outside`,
-/// xi tells the direction of the point; on `failed` (singular Jacobian or no
-/// convergence) xi is the affine estimate of the first step.
-template <int D> InverseStatus inverse_map(const Element<D>& e, const Vec<D>& x, Vec<D>& xi) {
+/// Solves x(xi) = x for xi by Newton from the element centre. `affine`
+/// receives the first iterate, J(0)^{-1} (x - x(0)): the parallelogram
+/// estimate, which tells the side of a point outside the element reliably
+/// (Newton itself may converge to a spurious preimage of the folded bilinear
+/// extension there). On `outside` xi is Newton's estimate; on `failed`
+/// (singular Jacobian or no convergence) xi is meaningless.
+template <int D> InverseStatus inverse_map(const Element<D>& e, const Vec<D>& x, Vec<D>& xi, Vec<D>& affine) {
   xi.setZero();
-  Vec<D> first = Vec<D>::Zero();
+  affine.setConstant(std::numeric_limits<double>::quiet_NaN());
   for (int it = 0; it < kMaxNewtonIterations; ++it) {
     const ReferenceShape<D> s(xi);
     Vec<D> pos;
     Mat<D> J;
     e.map(s, pos, J);
     const double det = J.determinant();
-    if (!(std::abs(det) > 0.0) || !std::isfinite(det)) {
-      xi = first;
-      return InverseStatus::failed;
-    }
+    if (!(std::abs(det) > 0.0) || !std::isfinite(det)) return InverseStatus::failed;
     const Vec<D> step = J.inverse() * (pos - x);
     xi -= step;
-    if (it == 0) first = xi;
-    if (!xi.allFinite()) {
-      xi = first;
-      return InverseStatus::failed;
-    }
+    if (it == 0) affine = xi;
+    if (!xi.allFinite()) return InverseStatus::failed;
     if (xi.cwiseAbs().maxCoeff() > kFarOutside) return InverseStatus::outside;
     if (step.cwiseAbs().maxCoeff() <= kNewtonStepTolerance)
       return xi.cwiseAbs().maxCoeff() <= 1.0 + kInsideTolerance ? InverseStatus::inside : InverseStatus::outside;
   }
-  xi = first;
   return InverseStatus::failed;
+}
+
+/// True when x lies in the bounding box of the element's vertices widened by
+/// `slack`: a cheap necessary condition for containment.
+template <int D> bool in_bounding_box(const Element<D>& e, const Vec<D>& x, double slack) {
+  Vec<D> lo = e.x[0], hi = e.x[0];
+  for (int a = 1; a < kCorners<D>; ++a) {
+    lo = lo.cwiseMin(e.x[a]);
+    hi = hi.cwiseMax(e.x[a]);
+  }
+  return ((x.array() >= lo.array() - slack) && (x.array() <= hi.array() + slack)).all();
 }
 
 // ---------------------------------------------------------------------------
@@ -223,7 +243,7 @@ private:
   /// boundary to the last cell. All 2^D vertices are kept, also those with
   /// N = 0 on a face, because their one-sided gradient is not zero.
   void evaluate_on_lattice(const PointQuery<D>& q, Stencil<D>& out) const {
-    if (!grid_.contains(q.x))
+    if (!in_grid(grid_, q.x))
       throw BasisError("linear basis: " + point_text(q) + " is outside the grid " + box_text(grid_));
     const Vec<D> h = grid_.h();
     std::array<AxisWeights<2>, D> axes;
@@ -240,31 +260,78 @@ private:
     if (q.cell_hint) *q.cell_hint = cell;
   }
 
-  /// Finds the element containing x (from the hint or the Cartesian guess,
-  /// walking to the neighbour across the face the point lies beyond) and
-  /// evaluates its shape functions there.
+  /// Finds the element containing x and evaluates its shape functions there.
+  /// Start: the hint, else the Cartesian guess. Walk: to the neighbour across
+  /// the face the point lies beyond, by the affine estimate of xi. A walk that
+  /// reaches the lattice boundary, goes round in a cycle (possible on a
+  /// strongly distorted lattice) or runs too long hands over to an exhaustive
+  /// search in growing rings of cells around where it stopped.
   void evaluate_isoparametric(const PointQuery<D>& q, Stencil<D>& out) const {
     Index<D> c = start_cell(q);
     int max_steps = kWalkSlack;
     for (int k = 0; k < D; ++k) max_steps += grid_.cells[k];
+    std::array<Index<D>, kWalkMemory> recent;
+    recent.fill(c);
     for (int step = 0; step < max_steps; ++step) {
       const Element<D> e(grid_, nodes_, c);
-      Vec<D> xi;
-      const InverseStatus st = inverse_map(e, q.x, xi);
-      if (st == InverseStatus::inside) {
-        push_element(e, xi, q, out);
-        if (q.cell_hint) *q.cell_hint = c;
-        return;
-      }
-      if (st == InverseStatus::failed && xi.cwiseAbs().maxCoeff() <= 1.0)
-        throw BasisError("linear basis: inverse isoparametric map did not converge for " + point_text(q) +
-                         " in the element of cell " + cell_text(c) + " (element too distorted)");
-      if (!walk(c, xi))
-        throw BasisError("linear basis: " + point_text(q) + " is outside the node set (beyond the boundary at cell " +
-                         cell_text(c) + ")");
+      Vec<D> xi, affine;
+      const InverseStatus st = inverse_map(e, q.x, xi, affine);
+      if (st == InverseStatus::inside) return finish(e, xi, c, q, out);
+      const bool affine_outside = affine.allFinite() && affine.cwiseAbs().maxCoeff() > 1.0 + kInsideTolerance;
+      if (!affine_outside && st == InverseStatus::failed) break;
+      Index<D> next = c;
+      if (!walk(next, affine_outside ? affine : xi)) break;
+      if (std::find(recent.begin(), recent.end(), next) != recent.end()) break;
+      recent[static_cast<std::size_t>(step % kWalkMemory)] = c;
+      c = next;
     }
-    throw BasisError("linear basis: no element contains " + point_text(q) + " (walk of " +
-                     std::to_string(max_steps) + " elements ended at cell " + cell_text(c) + ")");
+    search_rings(c, q, out);
+  }
+
+  /// Tries every cell at Chebyshev distance r = 0, 1, ... of `centre` whose
+  /// vertex bounding box holds the point, until the whole lattice is covered.
+  void search_rings(const Index<D>& centre, const PointQuery<D>& q, Stencil<D>& out) const {
+    const double slack = kInsideTolerance * nodes_.spacing();
+    int r_max = 0;
+    for (int k = 0; k < D; ++k) r_max = std::max({r_max, centre[k], grid_.cells[k] - 1 - centre[k]});
+    bool distorted = false;
+    for (int r = 0; r <= r_max; ++r) {
+      Index<D> lo, hi;
+      for (int k = 0; k < D; ++k) {
+        lo[k] = std::max(0, centre[k] - r);
+        hi[k] = std::min(grid_.cells[k] - 1, centre[k] + r);
+      }
+      Index<D> c = lo;
+      for (;;) {
+        int dist = 0;
+        for (int k = 0; k < D; ++k) dist = std::max(dist, std::abs(c[k] - centre[k]));
+        if (dist == r) {
+          const Element<D> e(grid_, nodes_, c);
+          if (in_bounding_box(e, q.x, slack)) {
+            Vec<D> xi, affine;
+            const InverseStatus st = inverse_map(e, q.x, xi, affine);
+            if (st == InverseStatus::inside) return finish(e, xi, c, q, out);
+            distorted = distorted || st == InverseStatus::failed;
+          }
+        }
+        int k = 0;
+        for (; k < D; ++k) {
+          if (++c[k] <= hi[k]) break;
+          c[k] = lo[k];
+        }
+        if (k == D) break;
+      }
+    }
+    if (distorted)
+      throw BasisError("linear basis: the inverse isoparametric map did not converge for " + point_text(q) +
+                       " (an element around it is too distorted)");
+    throw BasisError("linear basis: " + point_text(q) + " is outside the node set (no element contains it)");
+  }
+
+  void finish(const Element<D>& e, const Vec<D>& xi, const Index<D>& c, const PointQuery<D>& q,
+              Stencil<D>& out) const {
+    push_element(e, xi, q, out);
+    if (q.cell_hint) *q.cell_hint = c;
   }
 
   Index<D> start_cell(const PointQuery<D>& q) const {
@@ -277,8 +344,7 @@ private:
   }
 
   /// Moves c one element along the axis where xi lies furthest outside
-  /// [-1, 1] and a neighbour exists; false when every such axis is at the
-  /// lattice boundary (the point is outside the node set).
+  /// [-1, 1] and a neighbour exists; false when there is none.
   bool walk(Index<D>& c, const Vec<D>& xi) const {
     int best = -1;
     double excess = 0.0;
@@ -374,7 +440,7 @@ public:
     out.clear();
     if (!nodes_.on_lattice())
       throw BasisError("ugimp: the nodes moved off their Cartesian lattice; cannot evaluate " + point_text(q));
-    if (!grid_.contains(q.x))
+    if (!in_grid(grid_, q.x))
       throw BasisError("ugimp: " + point_text(q) + " is outside the grid " + box_text(grid_));
     std::array<AxisWeights<kUgimpAxisCapacity>, D> axes;
     for (int k = 0; k < D; ++k) axis_weights(k, q.x[k], axes[k]);

@@ -35,12 +35,27 @@
 //     - fewer than D + 1 support nodes;
 //     - x outside the bounding box of its support nodes by more than the
 //       residual tolerance (no Newton needed);
-//     - the smallest eigenvalue of J below kSingularHessian h^2 (1e-14 h^2),
-//       reported as "outside the convex hull" when |r| > kHullResidual h
-//       (1e-8 h; |r| >= distance to the hull always), else as a singular J;
-//     - |lambda| R > kMaxExponentSpread (700): the exponents no longer fit in
-//       a double;
+//     - J not positive definite, or the smallest eigenvalue of the diagonally
+//       scaled Js = S J S, S = diag(J_kk^{-1/2}), below kSingularHessian =
+//       1e-13 (estimated as 1 / tr(Js^{-1}) through its Cholesky factor,
+//       within a factor D). Not a bound on J relative to h^2: J's entries are
+//       sums of non-negative terms, accurate to ~n eps even when tiny, so J
+//       small along an axis (a point on or next to a face of a box, nodes
+//       clustered near it) is solved accurately and must not be rejected;
+//       what cannot be solved is a Js near singular (degenerate nodes). Outside
+//       the hull the iterates drive lambda to infinity and J collapses along
+//       the normal of the nearest face: Js becomes singular for a slanted face,
+//       and for an axis-aligned face the normal variance underflows to exactly
+//       zero a few (exponentially growing) steps later, so this always triggers. Reported as a degenerate support when
+//       it happens at lambda = 0 (then every support node has N_I > 0, so the
+//       nodes do not span D dimensions), as "outside the convex hull" when
+//       |r| > kHullResidual h (1e-8 h; |r| >= the distance to the hull), else
+//       as a singular J;
+//     - non-finite exponents (lambda diverged);
 //     - the line search finding no decrease, or max_newton_iterations reached.
+//   lambda itself is not bounded: where nodes cluster (distance g << h) the
+//   converged |lambda| is of order ln(g / distance to the node) / g, legitimately
+//   large; the max-shift of the exponents keeps exp() in range.
 //   Every one of these is a BasisError naming the point (and q.id). A point
 //   exactly on the boundary of the hull is accepted: there lambda -> infinity
 //   but r -> 0 linearly per Newton step, and the iteration stops at
@@ -69,7 +84,6 @@
 #include "otmpm/basis/families.hpp"
 
 #include <Eigen/Cholesky>
-#include <Eigen/Eigenvalues>
 
 #include <algorithm>
 #include <cmath>
@@ -85,9 +99,10 @@ namespace {
 constexpr double kArmijo = 1e-4;           ///< sufficient-decrease factor of the line search
 constexpr double kBacktrack = 0.5;         ///< step reduction per backtracking step
 constexpr int kMaxBacktracks = 40;         ///< then the line search has stalled
-constexpr double kSingularHessian = 1e-14; ///< J singular when lambda_min(J) <= this * h^2
+/// J singular when the smallest eigenvalue of the diagonally scaled J (unit
+/// diagonal) is below this (~500 eps: round-off of a degenerate J is ~D eps).
+constexpr double kSingularHessian = 1e-13;
 constexpr double kHullResidual = 1e-8;     ///< |r| / h above which a singular J means "outside the hull"
-constexpr double kMaxExponentSpread = 700; ///< |lambda| R beyond this: exp() range exhausted
 /// Largest exponent for which the expm1 form of the log Z change is used.
 constexpr double kPreciseFormMaxExponent = 500.0;
 
@@ -111,18 +126,9 @@ template <int D> struct Support {
   int n;
 };
 
-template <int D> double smallest_eigenvalue(const Mat<D>& J) {
-  if constexpr (D == 1) {
-    return J(0, 0);
-  } else {
-    Eigen::SelfAdjointEigenSolver<Mat<D>> es;
-    es.computeDirect(J, Eigen::EigenvaluesOnly);
-    return es.eigenvalues()[0];
-  }
-}
-
-/// N_I, r and J at lambda (molinos eqs. 36-40) with shifted exponents.
-/// Returns false when an exponent or J is not finite.
+/// N_I, r and J at lambda (molinos eqs. 36-40) with shifted exponents; J is
+/// accumulated in the centred form sum N_I (dx_I - r)(dx_I - r)^T (no
+/// cancellation near the hull boundary). Returns false when not finite.
 template <int D> bool dual_state(const Vec<D>& lambda, const Support<D>& s, NewtonState<D>& st) {
   double fmax = -std::numeric_limits<double>::infinity();
   for (int i = 0; i < s.n; ++i) {
@@ -131,26 +137,58 @@ template <int D> bool dual_state(const Vec<D>& lambda, const Support<D>& s, Newt
   }
   if (!std::isfinite(fmax)) return false;
   double Z = 0.0;
+  Vec<D> r = Vec<D>::Zero();
   for (int i = 0; i < s.n; ++i) {
     s.p[i] = std::exp(s.p[i] - fmax);
     Z += s.p[i];
+    r.noalias() += s.p[i] * s.dx[i];
   }
   const double inv_Z = 1.0 / Z;
-  Vec<D> r = Vec<D>::Zero();
-  Mat<D> H = Mat<D>::Zero();
+  r *= inv_Z;
+  Mat<D> J = Mat<D>::Zero();
   double psum = 0.0;
   for (int i = 0; i < s.n; ++i) {
     const double p = s.p[i] * inv_Z;
     s.p[i] = p;
     psum += p;
-    r.noalias() += p * s.dx[i];
-    H.noalias() += (p * s.dx[i]) * s.dx[i].transpose();
+    const Vec<D> c = s.dx[i] - r;
+    J.noalias() += (p * c) * c.transpose();
   }
   st.r = r;
-  st.J = H - r * r.transpose();
+  st.J = J;
   st.psum = psum;
-  return st.J.allFinite();
+  return r.allFinite() && J.allFinite();
 }
+
+/// Cholesky factorisation of J after symmetric diagonal scaling,
+/// Js = S J S with S = diag(J_kk^{-1/2}) (unit diagonal). Js is what decides
+/// whether J^{-1} can be computed: J's entries are sums of non-negative terms
+/// (relative accuracy ~ n eps) and Cholesky is scale-invariant, so a J that is
+/// tiny only along an axis (a point next to a face of a box) is harmless,
+/// whereas a small eigenvalue of Js (degenerate nodes, the iterates leaving
+/// the hull through a slanted face) is not.
+template <int D> struct ScaledCholesky {
+  Vec<D> s = Vec<D>::Ones();
+  Eigen::LLT<Mat<D>> llt;
+  /// 1 / tr(Js^{-1}), within a factor D of the smallest eigenvalue of Js; 0
+  /// when J is not positive definite.
+  double lambda_min = 0.0;
+
+  void compute(const Mat<D>& J) {
+    lambda_min = 0.0;
+    const Vec<D> d = J.diagonal();
+    if (!(d.minCoeff() > 0.0) || !d.allFinite()) return;
+    s = d.cwiseSqrt().cwiseInverse();
+    llt.compute(s.asDiagonal() * J * s.asDiagonal());
+    if (llt.info() != Eigen::Success) return;
+    const double trace_inv = llt.solve(Mat<D>::Identity()).trace();
+    if (trace_inv > 0.0 && std::isfinite(trace_inv)) lambda_min = 1.0 / trace_inv;
+  }
+  Vec<D> solve(const Vec<D>& b) const { return s.asDiagonal() * llt.solve(s.asDiagonal() * b); }
+  Mat<D> inverse() const {
+    return s.asDiagonal() * llt.solve(Mat<D>(s.asDiagonal())) ;
+  }
+};
 
 /// log Z(lambda + step) - log Z(lambda) = log sum_I N_I exp(step . dx_I),
 /// in the log1p/expm1 form while the exponents are moderate (resolves
@@ -173,14 +211,15 @@ template <int D> double log_partition_change(const Vec<D>& step, const Support<D
 template <int D>
 NewtonState<D> solve_lambda(const NewtonSettings& set, const Support<D>& s, Vec<D>& lambda) {
   NewtonState<D> st;
-  const double singular = kSingularHessian * set.h * set.h;
   if (!dual_state(lambda, s, st)) {
     st.status = NewtonStatus::diverged;
     return st;
   }
+  ScaledCholesky<D> chol;
   for (;;) {
-    st.lambda_min = smallest_eigenvalue<D>(st.J);
-    const bool regular = st.lambda_min > singular;
+    chol.compute(st.J);
+    st.lambda_min = chol.lambda_min;
+    const bool regular = st.lambda_min > kSingularHessian;
     if (st.r.norm() <= set.residual_tolerance) {
       st.status = regular ? NewtonStatus::converged : NewtonStatus::singular;
       return st;
@@ -193,7 +232,7 @@ NewtonState<D> solve_lambda(const NewtonSettings& set, const Support<D>& s, Vec<
       st.status = NewtonStatus::max_iterations;
       return st;
     }
-    const Vec<D> step = -st.J.llt().solve(st.r);
+    const Vec<D> step = -chol.solve(st.r);
     const double slope = st.r.dot(step); // = -r^T J^{-1} r < 0
     double t = 1.0;
     for (int k = 0; !(log_partition_change<D>(t * step, s, st.psum) <= kArmijo * t * slope); ++k) {
@@ -205,7 +244,7 @@ NewtonState<D> solve_lambda(const NewtonSettings& set, const Support<D>& s, Vec<
     }
     lambda += t * step;
     ++st.iterations;
-    if (!(lambda.norm() * set.support_radius <= kMaxExponentSpread) || !dual_state(lambda, s, st)) {
+    if (!dual_state(lambda, s, st)) {
       st.status = NewtonStatus::diverged;
       return st;
     }
@@ -218,18 +257,25 @@ std::string format_number(double v) {
   return buf;
 }
 
-/// Explains a failed solve. `h` scales r (length) and J (length^2).
-template <int D> std::string describe_failure(const NewtonState<D>& st, double h, double tol, int n) {
+/// Explains a failed solve. `st` is the last solve, which started from
+/// lambda = 0; `total` counts the iterations of all solves. `h` scales r
+/// (length) and J (length^2).
+template <int D>
+std::string describe_failure(const NewtonState<D>& st, int total, double h, double tol, int n) {
   const std::string rh = format_number(st.r.norm() / h);
   const std::string support = " of its " + std::to_string(n) + " support nodes";
-  const std::string after = " after " + std::to_string(st.iterations) + " Newton iterations";
+  const std::string after = " after " + std::to_string(total) + " Newton iterations";
+  const std::string eig = format_number(st.lambda_min);
   switch (st.status) {
   case NewtonStatus::singular:
+    if (st.iterations == 0) // at lambda = 0 every support node has N_I > 0
+      return "singular Hessian J at lambda = 0 (scaled smallest eigenvalue ~" + eig + "): the " + std::to_string(n) +
+             " support nodes do not span " + std::to_string(D) + " dimensions around the point";
     if (st.r.norm() > kHullResidual * h)
       return "outside the convex hull" + support + " (Newton drives lambda to infinity: |r| = " + rh +
-             " h, smallest eigenvalue of J = " + format_number(st.lambda_min / (h * h)) + " h^2" + after + ")";
-    return "singular Hessian J (smallest eigenvalue " + format_number(st.lambda_min / (h * h)) +
-           " h^2 <= " + format_number(kSingularHessian) + " h^2): the support nodes are degenerate around the point";
+             " h, scaled smallest eigenvalue of J ~" + eig + after + ")";
+    return "singular Hessian J (scaled smallest eigenvalue ~" + eig + " <= " + format_number(kSingularHessian) +
+           after + "): the support nodes are degenerate around the point";
   case NewtonStatus::diverged:
     return "outside the convex hull" + support + " (lambda diverged, |r| = " + rh + " h" + after + ")";
   case NewtonStatus::stalled:
@@ -478,9 +524,8 @@ template <int D, class Prior> void MaxEntBasis<D, Prior>::evaluate(const PointQu
     iterations += st.iterations;
   }
   if (q.iterations) *q.iterations = iterations;
-  st.iterations = iterations;
   if (st.status != NewtonStatus::converged)
-    fail(q, describe_failure<D>(st, settings_.h, settings_.residual_tolerance / settings_.h, n));
+    fail(q, describe_failure<D>(st, iterations, settings_.h, settings_.residual_tolerance / settings_.h, n));
   if (q.lambda) *q.lambda = lambda;
   finish_stencil(st, out);
 }
@@ -489,7 +534,9 @@ template <int D, class Prior>
 void MaxEntBasis<D, Prior>::finish_stencil(const NewtonState<D>& st, Stencil<D>& out) const {
   const int n = out.size();
   const auto& dx = out.scratch_dx;
-  const Mat<D> J_inv = st.J.llt().solve(Mat<D>::Identity());
+  ScaledCholesky<D> chol;
+  chol.compute(st.J);
+  const Mat<D> J_inv = chol.inverse();
   out.dN.resize(static_cast<std::size_t>(n));
   if constexpr (Prior::kGaussian) {
     for (int i = 0; i < n; ++i) out.dN[i] = -out.N[i] * (J_inv * (dx[i] - st.r));

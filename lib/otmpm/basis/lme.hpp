@@ -60,8 +60,8 @@ double cubic_spline_derivative(double r);
 /// Why a Newton solve for lambda stopped.
 enum class NewtonStatus {
   converged,      ///< |r| <= newton_tolerance * h
-  singular,       ///< smallest eigenvalue of J below kSingularHessian * h^2
-  diverged,       ///< |lambda| R beyond the double range of the exponents
+  singular,       ///< J not positive definite or its smallest eigenvalue below 1e-14 h^2
+  diverged,       ///< lambda or the exponents stopped being finite
   stalled,        ///< the backtracking line search found no decrease of log Z
   max_iterations, ///< not converged within max_newton_iterations
 };
@@ -71,7 +71,7 @@ struct NewtonSettings {
   double h = 1.0;                  ///< the nodal spacing h of beta = gamma_lme / h^2
   double residual_tolerance = 0.0; ///< converged when |r| <= residual_tolerance (= tol * h)
   int max_iterations = 100;
-  double support_radius = 1.0;     ///< R, bounds |x - x_I| of every node in the sum
+  double support_radius = 1.0;     ///< R: nodes farther than R from x are not in the sum
 };
 
 /// State of the dual problem at one lambda: gradient r = d log Z / d lambda and
@@ -80,7 +80,7 @@ template <int D> struct NewtonState {
   Vec<D> r = Vec<D>::Zero();
   Mat<D> J = Mat<D>::Zero();
   double psum = 1.0;          ///< sum of the computed N_I (1 up to round-off)
-  double lambda_min = 0.0;    ///< smallest eigenvalue of J (set by the solver)
+  double lambda_min = 0.0;    ///< 1 / tr(J^{-1}), within a factor D of J's smallest eigenvalue
   int iterations = 0;
   NewtonStatus status = NewtonStatus::max_iterations;
 };

@@ -1,5 +1,7 @@
 #include "otmpm/engine/engine.hpp"
 
+#include "otmpm/reference/solutions.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <numbers>
@@ -76,12 +78,12 @@ template <int D> Engine<D>::Engine(const Scene& scene) : scene_(scene) {
   build_nodes_and_basis();
   nodal_.resize(basis_->nodes().size());
   build_dirichlet();
+  exact_ = make_exact_solution<D>(scene_);
   build_tractions();
   if (scene_.body_force) {
     for (int k = 0; k < D; ++k) body_force_[k] = scene_.body_force->value[k];
     has_body_force_ = true;
   }
-  exact_ = make_exact_solution<D>(scene_);
   if (exact_ && exact_->has_body_force()) has_body_force_ = true;
   if (scene_.simulation.mass == "consistent" || integrator_ == Integrator::unified)
     mass_matrix_ = std::make_unique<MassMatrix<D>>();
@@ -159,6 +161,15 @@ template <int D> void Engine<D>::build_tractions() {
       if (inside) load.particle.push_back(p);
     }
     if (load.particle.empty()) input_error(ts.where, "traction box selects no particle");
+    if (ts.function == "wobbes_traction_bar") {
+      const auto* bar = dynamic_cast<const TractionBar<D>*>(exact_.get());
+      if (!bar)
+        input_error(ts.where, "traction function 'wobbes_traction_bar' needs reference.solution = \"traction_bar\"");
+      load.axis = 0;
+      load.history = [bar](double t) { return bar->traction(t); };
+    } else if (!ts.function.empty()) {
+      input_error(ts.where, "unknown traction function '" + ts.function + "' (expected wobbes_traction_bar)");
+    }
     tractions_.push_back(std::move(load));
   }
 }

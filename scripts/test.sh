@@ -1,0 +1,11 @@
+#!/usr/bin/env bash
+# Builds otmpm with warnings as errors and runs every test (ctest).
+# Usage: bash scripts/test.sh            (from any directory; installs Debian packages if missing)
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+bash "$root/scripts/install-deps.sh"
+build=${OTMPM_BUILD_DIR:-$root/build}
+jobs=$(nproc 2>/dev/null || echo 2)
+cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=Release -DOTMPM_WERROR=ON
+cmake --build "$build" -j"$jobs"
+ctest --test-dir "$build" --output-on-failure -j"$jobs"

@@ -1,0 +1,2 @@
+// Placeholder: real tests follow.
+#include <doctest/doctest.h>
