@@ -9,3 +9,6 @@ int pair_command(const std::vector<std::string>& args);
 int basis_command(const std::vector<std::string>& args);
 const char* version();
 } // namespace otmpm::cli
+namespace otmpm::cli {
+int study_command(const std::vector<std::string>& args);
+}

@@ -2,6 +2,7 @@
 //
 //   otmpm run   SCENE.toml [--set KEY=VALUE]... [--out FILE.h5] [--quiet]
 //   otmpm pair  SCENE.toml [--set KEY=VALUE]... [--quiet]
+//   otmpm study STUDY.toml
 //   otmpm basis --kind K [options] --out FILE.csv
 //
 // Exit status: 0 success, 1 the simulation became unstable (diagnosis
@@ -21,6 +22,7 @@ void usage(std::FILE* out) {
   std::fputs("usage:\n"
              "  otmpm run   SCENE.toml [--set KEY=VALUE]... [--out FILE.h5] [--quiet]\n"
              "  otmpm pair  SCENE.toml [--set KEY=VALUE]... [--quiet]\n"
+             "  otmpm study STUDY.toml\n"
              "  otmpm basis --kind K [--dim D] [--lower X] [--upper X] [--cells N] [--perturb F]\n"
              "              [--gamma-lme G] [--tolerance T] [--d-max D] [--samples N] --out FILE.csv\n"
              "exit status: 0 ok, 1 unstable, 2 bad input, 3 internal error\n",
@@ -40,6 +42,7 @@ int main(int argc, char** argv) {
     if (args[0] == "run") return otmpm::cli::run_command(rest);
     if (args[0] == "pair") return otmpm::cli::pair_command(rest);
     if (args[0] == "basis") return otmpm::cli::basis_command(rest);
+    if (args[0] == "study") return otmpm::cli::study_command(rest);
     if (args[0] == "--version") {
       std::puts(otmpm::cli::version());
       return 0;
