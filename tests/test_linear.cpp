@@ -344,3 +344,29 @@ TEST_CASE_TEMPLATE_DEFINE("linear: a point within round-off outside the grid is 
   }
 }
 TEST_CASE_TEMPLATE_APPLY(clamp_id, Dims);
+
+TEST_CASE_TEMPLATE_DEFINE("linear finds the containing element from any start cell on a strongly perturbed grid", T,
+                          walk_id) {
+  // A random (mostly wrong) hint makes the search walk, and on a strongly
+  // distorted lattice the walk may cycle and hand over to the ring search.
+  // Completeness sum N_I x_I = x can only hold in the element that contains x.
+  constexpr int D = T::value;
+  const CartesianGrid<D> g = test_grid<D>();
+  const auto b = make_linear_basis<D>(NodeSet<D>::perturbed(g, 0.4, 23u));
+  std::mt19937 rng(24);
+  for (int n = 0; n < 400; ++n) {
+    const Vec<D> x = random_in_box<D>(rng, g.lower, g.upper);
+    Index<D> hint;
+    for (int k = 0; k < D; ++k) hint[k] = static_cast<int>(rng() % static_cast<unsigned>(g.cells[k]));
+    Stencil<D> st;
+    PointQuery<D> q;
+    q.x = x;
+    q.cell_hint = &hint;
+    b->evaluate(q, st);
+    Vec<D> sumX = Vec<D>::Zero();
+    for (int a = 0; a < st.size(); ++a) sumX += st.N[a] * b->nodes().position(st.node[a]);
+    // 1e-12 of the coordinate scale (|x| <= 2): see kRelTol.
+    CHECK((sumX - x).cwiseAbs().maxCoeff() <= 2e-12);
+  }
+}
+TEST_CASE_TEMPLATE_APPLY(walk_id, Dims);

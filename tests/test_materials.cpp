@@ -1,2 +1,233 @@
-// Placeholder: real tests follow.
+// Constitutive models (spec algorithms.md sect. 4): the small-strain
+// increment, the two finite-strain models of wobbes eqs. 10 and 11, their
+// small-deformation limit, a hand computation and objectivity.
+#include "otmpm/materials/material.hpp"
+
+#include <Eigen/Geometry>
 #include <doctest/doctest.h>
+
+#include <cmath>
+#include <numbers>
+
+using namespace otmpm;
+
+namespace {
+
+Material make(Material::Model model, double young, double poisson) {
+  Material m;
+  m.name = "test";
+  m.model = model;
+  m.density = 1000.0;
+  m.young = young;
+  m.poisson = poisson;
+  return m;
+}
+
+constexpr double kE = 10.0, kNu = 0.3;
+// Lame parameters of E = 10, nu = 0.3 by hand: lambda = E nu / ((1+nu)(1-2nu))
+// = 3 / 0.52, mu = E / (2 (1 + nu)) = 10 / 2.6.
+constexpr double kLambda = 3.0 / 0.52, kMu = 10.0 / 2.6;
+
+/// A fixed, non-symmetric, well-conditioned D x D matrix (entries O(1)).
+template <int D> Mat<D> sample_matrix() {
+  Mat<D> H;
+  for (int i = 0; i < D; ++i)
+    for (int j = 0; j < D; ++j) H(i, j) = std::sin(1.0 + 3.0 * i + 1.7 * j); // deterministic "random"
+  return H;
+}
+
+/// A rotation: by angle theta about z (2D: in the plane); 3D: about the axis (1, 2, 3).
+template <int D> Mat<D> rotation(double theta) {
+  if constexpr (D == 2) {
+    Mat<2> R;
+    R << std::cos(theta), -std::sin(theta), std::sin(theta), std::cos(theta);
+    return R;
+  } else {
+    return Eigen::AngleAxisd(theta, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+  }
+}
+
+// Stresses of magnitude E ~ 10 computed from O(1) entries with a few dozen
+// operations: round-off is ~1e-15 E; 1e-13 E is the bound used for "exact".
+constexpr double kExact = 1e-13 * kE;
+
+} // namespace
+
+TEST_CASE("Lame parameters and P-wave modulus") {
+  const Material m = make(Material::Model::linear_elastic, kE, kNu);
+  CHECK(m.lambda() == doctest::Approx(kLambda).epsilon(1e-15));
+  CHECK(m.mu() == doctest::Approx(kMu).epsilon(1e-15));
+  CHECK(m.p_modulus(1) == kE); // uniaxial stress in 1D
+  CHECK(m.p_modulus(2) == doctest::Approx(kLambda + 2 * kMu).epsilon(1e-15));
+  CHECK(m.p_modulus(3) == doctest::Approx(kLambda + 2 * kMu).epsilon(1e-15));
+  CHECK(!m.finite_strain());
+  CHECK(make(Material::Model::neo_hookean, kE, kNu).finite_strain());
+  CHECK_THROWS_AS(Material::parse_model("hookean"), InputError);
+}
+
+TEST_CASE("small-strain increment: lambda tr(d_eps) I + 2 mu d_eps in 2D and 3D, E d_eps in 1D") {
+  const Material m = make(Material::Model::linear_elastic, kE, kNu);
+  {
+    Mat<1> d;
+    d << 1e-3;
+    CHECK(elastic_stress_increment<1>(m, d)(0, 0) == doctest::Approx(kE * 1e-3).epsilon(1e-15));
+  }
+  {
+    Mat<2> d;
+    d << 1e-3, 2e-4, 2e-4, -5e-4;
+    const Mat<2> s = elastic_stress_increment<2>(m, d);
+    // By hand: tr = 5e-4; plane strain.
+    CHECK(s(0, 0) == doctest::Approx(kLambda * 5e-4 + 2 * kMu * 1e-3).epsilon(1e-14));
+    CHECK(s(1, 1) == doctest::Approx(kLambda * 5e-4 - 2 * kMu * 5e-4).epsilon(1e-14));
+    CHECK(s(0, 1) == doctest::Approx(2 * kMu * 2e-4).epsilon(1e-14));
+    CHECK(s(1, 0) == s(0, 1));
+  }
+  {
+    Mat<3> d = 1e-3 * sample_matrix<3>();
+    d = (0.5 * (d + d.transpose())).eval();
+    const Mat<3> s = elastic_stress_increment<3>(m, d);
+    const Mat<3> expected = kLambda * d.trace() * Mat<3>::Identity() + 2 * kMu * d;
+    CHECK((s - expected).norm() <= 1e-3 * kExact);
+  }
+}
+
+TEST_CASE("finite models: F = I gives zero stress (1D, 2D, 3D)") {
+  for (auto model : {Material::Model::linear_elastic_finite, Material::Model::neo_hookean}) {
+    const Material m = make(model, kE, kNu);
+    CHECK(cauchy_stress<1>(m, Mat<1>::Identity()).norm() == 0.0);
+    CHECK(cauchy_stress<2>(m, Mat<2>::Identity()).norm() == 0.0);
+    CHECK(cauchy_stress<3>(m, Mat<3>::Identity()).norm() == 0.0);
+  }
+}
+
+namespace {
+
+/// |sigma(I + eps H) - C : sym(eps H)| for the finite model (C: plane strain /
+/// 3D isotropic, or E in 1D with the uniaxial modulus).
+template <int D> double small_strain_gap(const Material& m, double eps) {
+  const Mat<D> H = eps * sample_matrix<D>();
+  const Mat<D> F = Mat<D>::Identity() + H;
+  const Mat<D> e = 0.5 * (H + H.transpose());
+  const Material lin = make(Material::Model::linear_elastic, m.young, D == 1 ? 0.0 : m.poisson);
+  return (cauchy_stress<D>(m, F) - elastic_stress_increment<D>(lin, e)).norm();
+}
+
+template <int D> void check_small_strain_limit(Material::Model model) {
+  INFO("dimension " << D << ", model " << static_cast<int>(model));
+  // 1D finite models use the uniaxial modulus lambda + 2 mu -> E only for nu = 0.
+  const Material m = make(model, kE, D == 1 ? 0.0 : kNu);
+  const double e1 = small_strain_gap<D>(m, 1e-3), e2 = small_strain_gap<D>(m, 5e-4);
+  // O(eps^2): the gap is below a few E eps^2 (|H| ~ 2, the quadratic terms of
+  // eqs. 10-11 carry factors lambda, mu <= 2 E) ...
+  CHECK(e1 <= 20 * kE * 1e-6);
+  // ... and halving eps divides it by 4 (third-order terms: 1e-3 relative;
+  // round-off 1e-15 E is 1e-9 of the gap).
+  CHECK(e1 / e2 == doctest::Approx(4.0).epsilon(0.01));
+}
+
+} // namespace
+
+TEST_CASE("finite models reduce to linear elasticity to O(eps^2) (with rotation part)") {
+  for (auto model : {Material::Model::linear_elastic_finite, Material::Model::neo_hookean}) {
+    check_small_strain_limit<2>(model);
+    check_small_strain_limit<3>(model);
+  }
+  check_small_strain_limit<1>(Material::Model::neo_hookean);
+}
+
+TEST_CASE("linear_elastic_finite in 1D is exactly sigma = E (F - 1)") {
+  // lambda = 0, mu = E/2: sigma = 2 mu / J F (F - 1) = E (F - 1) for J = F.
+  const Material m = make(Material::Model::linear_elastic_finite, kE, 0.0);
+  for (double f : {0.8, 1.001, 1.3}) {
+    Mat<1> F;
+    F << f;
+    CHECK(cauchy_stress<1>(m, F)(0, 0) == doctest::Approx(kE * (f - 1)).epsilon(1e-14));
+  }
+}
+
+TEST_CASE("neo-Hookean (wobbes eq. 11) matches a hand computation in 2D") {
+  // F = [[a, b], [0, d]]: J = a d, F F^T = [[a^2 + b^2, b d], [b d, d^2]],
+  // sigma = lambda ln J / J I + mu / J (F F^T - I), component by component.
+  const double a = 1.2, b = 0.1, d = 0.9, J = a * d;
+  Mat<2> F;
+  F << a, b, 0.0, d;
+  const Mat<2> s = cauchy_stress<2>(make(Material::Model::neo_hookean, kE, kNu), F);
+  CHECK(s(0, 0) == doctest::Approx(kLambda * std::log(J) / J + kMu / J * (a * a + b * b - 1)).epsilon(1e-14));
+  CHECK(s(0, 1) == doctest::Approx(kMu / J * b * d).epsilon(1e-14));
+  CHECK(s(1, 0) == doctest::Approx(kMu / J * b * d).epsilon(1e-14));
+  CHECK(s(1, 1) == doctest::Approx(kLambda * std::log(J) / J + kMu / J * (d * d - 1)).epsilon(1e-14));
+  // The same numbers evaluated independently (Python, double precision).
+  CHECK(s(0, 0) == doctest::Approx(2.013680775299831).epsilon(1e-14));
+  CHECK(s(0, 1) == doctest::Approx(0.32051282051282054).epsilon(1e-14));
+  CHECK(s(1, 1) == doctest::Approx(-0.26552150390244783).epsilon(1e-14));
+}
+
+TEST_CASE("neo-Hookean 1D: uniaxial sigma = E/2 (F^2 - 1) / F") {
+  // 1D uses lambda = 0, mu = E/2 (uniaxial modulus E at small strain).
+  Mat<1> F;
+  F << 1.1;
+  const double s = cauchy_stress<1>(make(Material::Model::neo_hookean, kE, 0.0), F)(0, 0);
+  CHECK(s == doctest::Approx(kE / 2 * (1.1 * 1.1 - 1) / 1.1).epsilon(1e-14));
+}
+
+TEST_CASE("linear_elastic_finite (wobbes eq. 10) matches a hand computation in 2D") {
+  // E_s = sym(F) - I = [[a-1, b/2], [b/2, d-1]], sigma = lambda/J tr(E_s) F +
+  // 2 mu / J F E_s. Eq. 10 as printed is not symmetric (F E_s is not).
+  const double a = 1.2, b = 0.1, d = 0.9, J = a * d, tr = a + d - 2;
+  Mat<2> F;
+  F << a, b, 0.0, d;
+  const Mat<2> s = cauchy_stress<2>(make(Material::Model::linear_elastic_finite, kE, kNu), F);
+  const double FE00 = a * (a - 1) + b * b / 2, FE01 = a * b / 2 + b * (d - 1);
+  const double FE10 = d * b / 2, FE11 = d * (d - 1);
+  CHECK(s(0, 0) == doctest::Approx(kLambda / J * tr * a + 2 * kMu / J * FE00).epsilon(1e-14));
+  CHECK(s(0, 1) == doctest::Approx(kLambda / J * tr * b + 2 * kMu / J * FE01).epsilon(1e-14));
+  CHECK(s(1, 0) == doctest::Approx(2 * kMu / J * FE10).epsilon(1e-14));
+  CHECK(s(1, 1) == doctest::Approx(kLambda / J * tr * d + 2 * kMu / J * FE11).epsilon(1e-14));
+  CHECK(s(0, 0) == doctest::Approx(2.3860398860398857).epsilon(1e-14));
+  CHECK(s(0, 1) == doctest::Approx(0.40954415954415957).epsilon(1e-14));
+}
+
+namespace {
+
+template <int D> void check_objectivity(const Material& m) {
+  INFO("dimension " << D);
+  const Mat<D> F = Mat<D>::Identity() + 0.2 * sample_matrix<D>();
+  REQUIRE(F.determinant() > 0.0);
+  const Mat<D> s = cauchy_stress<D>(m, F);
+  for (double theta : {0.3, 1.0, 2.5}) {
+    const Mat<D> R = rotation<D>(theta);
+    const Mat<D> sR = cauchy_stress<D>(m, Mat<D>(R * F));
+    CHECK((sR - R * s * R.transpose()).norm() <= kExact);
+    // A rigid rotation alone is stress free.
+    CHECK(cauchy_stress<D>(m, R).norm() <= kExact);
+  }
+}
+
+} // namespace
+
+TEST_CASE("neo-Hookean is objective: sigma(R F) = R sigma(F) R^T (2D, 3D)") {
+  const Material m = make(Material::Model::neo_hookean, kE, kNu);
+  check_objectivity<2>(m);
+  check_objectivity<3>(m);
+}
+
+TEST_CASE("linear_elastic_finite is objective only to first order: a rotation by theta gives O(theta^2) stress") {
+  // Eq. 10 uses sym(F) - I, which a rigid rotation R does not leave at zero:
+  // sym(R) - I = (cos theta - 1) I in 2D, so sigma(R) = O(E theta^2). That is
+  // the model of the paper (used there for axis-aligned motion only); the
+  // neo-Hookean model is the objective one.
+  const Material m = make(Material::Model::linear_elastic_finite, kE, kNu);
+  for (double theta : {1e-2, 1e-3}) {
+    const double s = cauchy_stress<2>(m, rotation<2>(theta)).norm();
+    // By hand: E_s = (cos theta - 1) I, J = 1, sigma = (cos theta - 1)(2 lambda + 2 mu) R:
+    // |sigma|_F = sqrt(2) (1 - cos theta) 2 (lambda + mu).
+    CHECK(s == doctest::Approx(std::sqrt(2.0) * (1 - std::cos(theta)) * 2 * (kLambda + kMu)).epsilon(1e-6));
+  }
+}
+
+TEST_CASE("strain energy density is sigma : eps / 2") {
+  Mat<2> s, e;
+  s << 2.0, 0.5, 0.5, -1.0;
+  e << 1e-3, 2e-4, 2e-4, -3e-4;
+  CHECK(strain_energy_density<2>(s, e) == doctest::Approx(0.5 * (2e-3 + 2 * 1e-4 + 3e-4)).epsilon(1e-14));
+}

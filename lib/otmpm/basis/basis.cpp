@@ -6,6 +6,7 @@
 
 #include "otmpm/basis/families.hpp"
 
+#include <algorithm>
 #include <exception>
 #include <limits>
 #include <utility>
@@ -98,26 +99,40 @@ void fill_chunk(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, AlignedVe
   }
 }
 
-/// Appends the chunks in particle order: the table does not depend on how the
-/// particles were split among threads.
-template <int D> void concatenate(std::vector<TableChunk<D>>& chunks, BasisTable<D>& table) {
-  table.offset.assign(1, 0);
-  table.node.clear();
-  table.N.clear();
-  table.dN.clear();
-  for (const TableChunk<D>& c : chunks) {
-    for (int n : c.count) table.offset.push_back(table.offset.back() + n);
-    table.node.insert(table.node.end(), c.node.begin(), c.node.end());
-    table.N.insert(table.N.end(), c.N.begin(), c.N.end());
-    table.dN.insert(table.dN.end(), c.dN.begin(), c.dN.end());
+/// Copies the rows of chunk `c` into the table, starting at row `row0` and
+/// entry `entry0` (the table is already sized).
+template <int D> void copy_chunk(const TableChunk<D>& c, int row0, int entry0, BasisTable<D>& table) {
+  int end = entry0;
+  for (std::size_t i = 0; i < c.count.size(); ++i) {
+    end += c.count[i];
+    table.offset[static_cast<std::size_t>(row0) + i + 1] = end;
   }
+  std::copy(c.node.begin(), c.node.end(), table.node.begin() + entry0);
+  std::copy(c.N.begin(), c.N.end(), table.N.begin() + entry0);
+  std::copy(c.dN.begin(), c.dN.end(), table.dN.begin() + entry0);
+}
+
+/// Turns per-chunk counts (in slots 1..team) into starting positions and
+/// sizes the table for all of them.
+template <int D>
+void size_table(std::vector<int>& rows, std::vector<int>& entries, int team, BasisTable<D>& table) {
+  for (int t = 0; t < team; ++t) {
+    rows[t + 1] += rows[t];
+    entries[t + 1] += entries[t];
+  }
+  table.offset.resize(static_cast<std::size_t>(rows[team]) + 1);
+  table.offset[0] = 0;
+  table.node.resize(static_cast<std::size_t>(entries[team]));
+  table.N.resize(static_cast<std::size_t>(entries[team]));
+  table.dN.resize(static_cast<std::size_t>(entries[team]));
 }
 
 } // namespace
 
 template <int D>
-void fill_basis_table(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, AlignedVector<Vec<D>>* lambda,
-                      std::vector<std::type_identity_t<Index<D>>>* cell_hint, BasisTable<D>& table) {
+void fill_basis_table(const Basis<D>& basis, const AlignedVector<Vec<D>>& x,
+                      std::type_identity_t<AlignedVector<Vec<D>>>* lambda,
+                      std::type_identity_t<std::vector<Index<D>>>* cell_hint, BasisTable<D>& table) {
   if (x.size() > static_cast<std::size_t>(std::numeric_limits<int>::max()))
     throw InputError("fill_basis_table: too many points");
   const int n = static_cast<int>(x.size());
@@ -136,7 +151,9 @@ void fill_basis_table(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, Ali
 #ifdef OTMPM_HAVE_OPENMP
   threads = omp_get_max_threads();
 #endif
-  std::vector<TableChunk<D>> chunks(static_cast<std::size_t>(threads));
+  std::vector<std::exception_ptr> errors(static_cast<std::size_t>(threads));
+  std::vector<int> rows(static_cast<std::size_t>(threads) + 1, 0), entries = rows;
+  bool failed = false;
 #ifdef OTMPM_HAVE_OPENMP
 #pragma omp parallel num_threads(threads)
 #endif
@@ -146,14 +163,29 @@ void fill_basis_table(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, Ali
     t = omp_get_thread_num();
     team = omp_get_num_threads();
 #endif
+    // Each thread keeps its buffers from call to call: after the first step
+    // filling the table allocates nothing.
+    thread_local TableChunk<D> chunk;
     // Contiguous static chunk t of `team`, in particle order.
     const long long begin = static_cast<long long>(n) * t / team;
     const long long end = static_cast<long long>(n) * (t + 1) / team;
-    fill_chunk<D>(basis, x, lambda, cell_hint, static_cast<int>(begin), static_cast<int>(end), chunks[t]);
+    fill_chunk<D>(basis, x, lambda, cell_hint, static_cast<int>(begin), static_cast<int>(end), chunk);
+    errors[t] = chunk.error;
+    rows[t + 1] = static_cast<int>(chunk.count.size());
+    entries[t + 1] = static_cast<int>(chunk.node.size());
+#ifdef OTMPM_HAVE_OPENMP
+#pragma omp barrier
+#pragma omp single
+#endif
+    {
+      failed = std::any_of(errors.begin(), errors.end(), [](const std::exception_ptr& e) { return bool(e); });
+      if (!failed) size_table<D>(rows, entries, team, table);
+    }
+    // Rows land in particle order whatever the team size.
+    if (!failed) copy_chunk<D>(chunk, rows[t], entries[t], table);
   }
-  for (const TableChunk<D>& c : chunks)
-    if (c.error) std::rethrow_exception(c.error); // the failing particle with the lowest index
-  concatenate<D>(chunks, table);
+  for (const std::exception_ptr& e : errors)
+    if (e) std::rethrow_exception(e); // the failing particle with the lowest index
 }
 
 #define OTMPM_INSTANTIATE_BASIS(D)                                                                      \

@@ -109,12 +109,13 @@ template <int D> struct BasisTable {
 /// the result does not depend on the thread count). lambda (may be empty) is
 /// the per-point warm start of LME/max-ent, updated in place; cell_hint (may be
 /// empty) the per-point cell hint. A BasisError is rethrown with the point's
-/// index prepended. (cell_hint is a non-deduced context: D comes from the
-/// basis, since std::array's size_t extent cannot deduce an int D.)
+/// index prepended. (lambda and cell_hint are non-deduced: D comes from the
+/// basis, so nullptr may be passed, and std::array's size_t extent need not
+/// deduce the int D.)
 template <int D>
 void fill_basis_table(const Basis<D>& basis, const AlignedVector<Vec<D>>& x,
-                      AlignedVector<Vec<D>>* lambda,
-                      std::vector<std::type_identity_t<Index<D>>>* cell_hint,
+                      std::type_identity_t<AlignedVector<Vec<D>>>* lambda,
+                      std::type_identity_t<std::vector<Index<D>>>* cell_hint,
                       BasisTable<D>& table);
 
 } // namespace otmpm

@@ -10,6 +10,7 @@
 #include <Eigen/LU>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <limits>
 #include <utility>
@@ -81,7 +82,8 @@ template <int D> std::string box_text(const CartesianGrid<D>& g) {
 
 /// Points within this fraction of a cell outside the grid (or, for the
 /// isoparametric map, with |xi_k| <= 1 + this) count as inside: round-off of a
-/// point on the boundary or on a face. They are clamped onto it.
+/// point on the boundary or on a face. `linear` clamps them onto it; for
+/// `ugimp` the weights are defined there anyway (ghost weight merged).
 constexpr double kInsideTolerance = 1e-12;
 
 /// True when x lies in the grid box widened by kInsideTolerance cells.
@@ -138,26 +140,44 @@ template <int D> struct ReferenceShape {
   }
 };
 
-/// The element of lattice cell c: its vertex ids and current positions.
+/// The element of lattice cell c: its vertex ids, positions x_a, and the
+/// map x(xi) = sum_a N_a(xi) x_a expanded in monomials,
+/// x(xi) = sum_S c_S prod_{k in S} xi_k with c_S = 2^-D sum_a x_a prod_{k in S} s_ak
+/// (S a subset of the axes, as a bit mask), so that Newton's x(xi) and J(xi)
+/// cost a few multiply-adds.
 template <int D> struct Element {
   std::array<int, kCorners<D>> id;
   std::array<Vec<D>, kCorners<D>> x;
+  std::array<Vec<D>, kCorners<D>> c;
 
-  Element(const CartesianGrid<D>& g, const NodeSet<D>& nodes, const Index<D>& c) {
+  Element(const CartesianGrid<D>& g, const NodeSet<D>& nodes, const Index<D>& cell) {
+    const int base = g.node_id(cell);
+    std::array<int, D> stride;
+    for (int k = 0, st = 1; k < D; st *= g.cells[k] + 1, ++k) stride[k] = st;
+    for (Vec<D>& v : c) v.setZero();
     for (int a = 0; a < kCorners<D>; ++a) {
-      Index<D> ijk = c;
-      for (int k = 0; k < D; ++k) ijk[k] += (a >> k) & 1;
-      id[a] = g.node_id(ijk);
+      id[a] = base;
+      for (int k = 0; k < D; ++k) id[a] += ((a >> k) & 1) * stride[k];
       x[a] = nodes.position(id[a]);
+      for (int S = 0; S < kCorners<D>; ++S) {
+        // prod_{k in S} s_ak = (-1)^(number of k in S with bit k of a clear)
+        const bool negative = std::popcount(static_cast<unsigned>(S & ~a)) % 2 != 0;
+        c[S] += negative ? Vec<D>(-x[a]) : x[a];
+      }
     }
+    for (Vec<D>& v : c) v /= kCorners<D>;
   }
-  /// Position x(xi) = sum N_a x_a and Jacobian J = dx/dxi = sum x_a (x) dN_a/dxi.
-  void map(const ReferenceShape<D>& s, Vec<D>& pos, Mat<D>& J) const {
-    pos.setZero();
+  /// Position x(xi) and Jacobian J = dx/dxi, (J)_km = dx_k / dxi_m.
+  void map(const Vec<D>& xi, Vec<D>& pos, Mat<D>& J) const {
+    std::array<double, kCorners<D>> mono; // mono[S] = prod_{k in S} xi_k
+    mono[0] = 1.0;
+    for (int S = 1; S < kCorners<D>; ++S) mono[S] = mono[S & (S - 1)] * xi[std::countr_zero(static_cast<unsigned>(S))];
+    pos = c[0];
     J.setZero();
-    for (int a = 0; a < kCorners<D>; ++a) {
-      pos += s.N[a] * x[a];
-      J += x[a] * s.dN[a].transpose();
+    for (int S = 1; S < kCorners<D>; ++S) {
+      pos += mono[S] * c[S];
+      for (int m = 0; m < D; ++m)
+        if (S & (1 << m)) J.col(m) += mono[S ^ (1 << m)] * c[S];
     }
   }
 };
@@ -174,10 +194,9 @@ template <int D> InverseStatus inverse_map(const Element<D>& e, const Vec<D>& x,
   xi.setZero();
   affine.setConstant(std::numeric_limits<double>::quiet_NaN());
   for (int it = 0; it < kMaxNewtonIterations; ++it) {
-    const ReferenceShape<D> s(xi);
     Vec<D> pos;
     Mat<D> J;
-    e.map(s, pos, J);
+    e.map(xi, pos, J);
     const double det = J.determinant();
     if (!(std::abs(det) > 0.0) || !std::isfinite(det)) return InverseStatus::failed;
     const Vec<D> step = J.inverse() * (pos - x);
@@ -218,6 +237,7 @@ public:
     if (!nodes_.grid())
       throw InputError("linear basis needs a structured grid (cartesian or perturbed), not a node cloud");
     grid_ = *nodes_.grid();
+    h_ = grid_.h();
   }
 
   std::string_view kind() const override { return "linear"; }
@@ -245,9 +265,9 @@ private:
   void evaluate_on_lattice(const PointQuery<D>& q, Stencil<D>& out) const {
     if (!in_grid(grid_, q.x))
       throw BasisError("linear basis: " + point_text(q) + " is outside the grid " + box_text(grid_));
-    const Vec<D> h = grid_.h();
     std::array<AxisWeights<2>, D> axes;
     Index<D> cell;
+    const Vec<D>& h = h_;
     for (int k = 0; k < D; ++k) {
       const double s = (q.x[k] - grid_.lower[k]) / h[k];
       const int i = std::clamp(static_cast<int>(std::floor(s)), 0, grid_.cells[k] - 1);
@@ -366,7 +386,7 @@ private:
     const ReferenceShape<D> s(xi);
     Vec<D> pos;
     Mat<D> J;
-    e.map(s, pos, J);
+    e.map(xi, pos, J);
     const double det = J.determinant();
     if (!(det > 0.0))
       throw BasisError("linear basis: the element containing " + point_text(q) +
@@ -375,14 +395,9 @@ private:
     for (int a = 0; a < kCorners<D>; ++a) out.push(e.id[a], s.N[a], JinvT * s.dN[a]);
   }
 
-  static std::string cell_text(const Index<D>& c) {
-    std::string s = "[";
-    for (int k = 0; k < D; ++k) s += (k ? ", " : "") + std::to_string(c[k]);
-    return s + "]";
-  }
-
   NodeSet<D> nodes_;
   CartesianGrid<D> grid_;
+  Vec<D> h_; ///< lattice spacing per axis
 };
 
 // ---------------------------------------------------------------------------

@@ -3,87 +3,100 @@
 //
 // Choices made here (the papers leave them open)
 // ----------------------------------------------
-// * One formula, two priors. N_I = w_I exp(lambda.(x - x_I)) / Z with
-//   w_I = exp(-beta |x - x_I|^2) (LME, beta = gamma_lme / h^2, h = the initial
-//   spacing NodeSet::spacing(), also for moved nodes) or the cubic spline of
-//   wobbes eq. 89 at r = |x - x_I| / (d_max h). The paper's d_I = d_max zeta_I
-//   (zeta_I = distance to the nearest node) is replaced by d_max h with the same
-//   h for every node, so that the support radius is one number known in
-//   advance (neighbour search by NodeSet::within) and does not change when the
-//   nodes are advected; on a Cartesian grid both are the same.
+// * One formula, two priors, one solver. N_I = w_I exp(lambda.(x - x_I)) / Z
+//   with w_I = exp(-beta |x - x_I|^2) (LME, beta = gamma_lme / h^2, h = the
+//   initial spacing NodeSet::spacing(), also for moved nodes) or the cubic
+//   spline of wobbes eq. 89 at r = |x - x_I| / (d_max h). The paper's
+//   d_I = d_max zeta_I (zeta_I = distance from node I to its nearest node) is
+//   replaced by d_max h with the same h for every node, so that the support
+//   radius is one number known in advance (neighbour search by
+//   NodeSet::within) and does not change when nodes are advected; on a
+//   Cartesian grid the two are the same. The Newton solver only sees
+//   log w_I, so both families share it (MaxEntBasis<D, Prior>).
 // * Support: LME keeps node I when beta |x - x_I|^2 <= -ln(tol), i.e.
-//   exp(-beta r^2) >= tol, radius R = h sqrt(-ln(tol) / gamma_lme); max-ent keeps
-//   nodes with |x - x_I| < d_max h (w_I > 0).
+//   exp(-beta r^2) >= tol, radius R = h sqrt(-ln(tol) / gamma_lme); max-ent
+//   keeps nodes with |x - x_I| < d_max h (w_I > 0).
 // * Newton on the convex dual log Z(lambda): r = sum N_I (x - x_I),
-//   J = sum N_I (x - x_I)(x - x_I)^T - r r^T, step -J^{-1} r (Cholesky), with an
-//   Armijo backtracking line search on log Z: accept step t*s when
+//   J = sum N_I (x - x_I)(x - x_I)^T - r r^T, accumulated in the centred form
+//   sum N_I (x - x_I - r)(x - x_I - r)^T (sum of non-negative terms, no
+//   cancellation next to the hull boundary). Exponents are shifted by their
+//   maximum before exp(). Step s = -J^{-1} r through the closed-form inverse of
+//   the diagonally scaled J (see below). Converged when |r| <= newton_tolerance h.
+// * Line search: Armijo backtracking on log Z, accept t s when
 //   log Z(lambda + t s) - log Z(lambda) <= kArmijo t r.s (kArmijo = 1e-4),
-//   otherwise halve t (kBacktrack = 0.5), at most kMaxBacktracks = 40 times.
-//   The change of log Z is computed directly as log sum_I N_I exp(t s.(x - x_I))
-//   (log1p/expm1 form for moderate exponents), not as the difference of two
-//   log Z values, so that the decrease of order |r|^2 / |J| stays resolvable
-//   down to |r| ~ 1e-14 h. Converged when |r| <= newton_tolerance * h.
-//   Exponents are shifted by their maximum before exp() (no overflow).
+//   otherwise halve t (kBacktrack = 0.5), at most kMaxBacktracks = 40 times
+//   ("stalled"). The change of log Z is computed directly as
+//   log sum_I N_I exp(t s.(x - x_I)) in the log1p/expm1 form (shifted-exp form
+//   if an exponent change exceeds 500), not as the difference of two log Z
+//   values, so that decreases of order r^T J^{-1} r far below the round-off of
+//   log Z stay resolvable (needed next to the hull boundary, where J is tiny).
+//   When every exponent changes by at most kSafeExponentChange = 0.25 the
+//   Armijo condition provably holds (see the constant) and log Z is not
+//   evaluated: the quadratic phase costs no extra exp() pass.
 // * Warm start from *q.lambda; if the warm-started solve fails for any reason
 //   it is repeated once from lambda = 0 (a stale multiplier from a far-away
 //   previous position must not turn into an error). The iteration count
 //   reported is the total of both solves; lambda is written back only on success.
+// * Singular J. Js = S J S, S = diag(J_kk^{-1/2}) (unit diagonal); J is
+//   singular when not positive definite or when 1 / tr(Js^{-1}) (within a
+//   factor D of the smallest eigenvalue of Js) <= kSingularHessian = 1e-13.
+//   This is deliberately not a bound on J relative to h^2: J's entries are sums
+//   of non-negative terms, accurate to ~n eps even when tiny, so a J that is
+//   small along an axis (a point on or next to a face of a box, interior nodes
+//   clustered near it) is inverted accurately and must not be rejected; what
+//   cannot be inverted is a near-singular Js (degenerate nodes).
 // * Convex hull detection. Inside the hull of the support log Z has a unique
-//   minimiser; outside it log Z is unbounded below, the Newton iterates run off
-//   to infinity and J collapses in the direction normal to the hull. This is
-//   caught (cheapest first) by:
+//   minimiser; outside it log Z is unbounded below, the iterates run off to
+//   infinity and J collapses along the normal of the nearest face of the hull.
+//   Caught, cheapest first, by:
 //     - fewer than D + 1 support nodes;
-//     - x outside the bounding box of its support nodes by more than the
-//       residual tolerance (no Newton needed);
-//     - J not positive definite, or the smallest eigenvalue of the diagonally
-//       scaled Js = S J S, S = diag(J_kk^{-1/2}), below kSingularHessian =
-//       1e-13 (estimated as 1 / tr(Js^{-1}) through its Cholesky factor,
-//       within a factor D). Not a bound on J relative to h^2: J's entries are
-//       sums of non-negative terms, accurate to ~n eps even when tiny, so J
-//       small along an axis (a point on or next to a face of a box, nodes
-//       clustered near it) is solved accurately and must not be rejected;
-//       what cannot be solved is a Js near singular (degenerate nodes). Outside
-//       the hull the iterates drive lambda to infinity and J collapses along
-//       the normal of the nearest face: Js becomes singular for a slanted face,
-//       and for an axis-aligned face the normal variance underflows to exactly
-//       zero a few (exponentially growing) steps later, so this always triggers. Reported as a degenerate support when
-//       it happens at lambda = 0 (then every support node has N_I > 0, so the
-//       nodes do not span D dimensions), as "outside the convex hull" when
-//       |r| > kHullResidual h (1e-8 h; |r| >= the distance to the hull), else
-//       as a singular J;
+//     - x beyond the bounding box of its support nodes by more than
+//       newton_tolerance h (no Newton needed);
+//     - singular J: Js becomes singular for a slanted face; for an axis-aligned
+//       face the normal variance underflows to exactly zero a few
+//       (exponentially growing) steps later, so this always triggers outside.
+//       Reported as a degenerate support when it happens at lambda = 0 (every
+//       support node then has N_I > 0, so the nodes do not span D dimensions),
+//       as "outside the convex hull" when |r| > kHullResidual h = 1e-8 h
+//       (|r| >= the distance to the hull), else as "on or just outside the
+//       boundary of the convex hull";
 //     - non-finite exponents (lambda diverged);
-//     - the line search finding no decrease, or max_newton_iterations reached.
-//   lambda itself is not bounded: where nodes cluster (distance g << h) the
-//   converged |lambda| is of order ln(g / distance to the node) / g, legitimately
-//   large; the max-shift of the exponents keeps exp() in range.
-//   Every one of these is a BasisError naming the point (and q.id). A point
-//   exactly on the boundary of the hull is accepted: there lambda -> infinity
-//   but r -> 0 linearly per Newton step, and the iteration stops at
-//   |r| <= tol h (about 30 iterations from a cold start), which is the limit of
-//   N_I from inside to within the tolerance.
-// * Gradients are taken at the converged lambda with x - x_I replaced by
-//   xbar - x_I, xbar = sum N_I x_I = x - r (identical at r = 0):
+//     - the line search stalling, or max_newton_iterations reached.
+//   Every one of these is a BasisError naming the point (and q.id). lambda
+//   itself is not bounded: where nodes cluster at a distance g << h the
+//   converged |lambda| is of order ln(g / distance to the node) / g,
+//   legitimately large. A point exactly on the hull boundary is accepted:
+//   there lambda -> infinity but |r| falls by a constant factor per Newton step
+//   and the iteration stops at |r| <= newton_tolerance h (about 25-30
+//   iterations from a cold start), the limit of N_I from inside to within the
+//   tolerance.
+// * Gradients at the converged lambda, with x - x_I replaced by xbar - x_I,
+//   xbar = sum N_I x_I = x - r (identical at r = 0):
 //     LME:     grad N_I = -N_I J^{-1} (xbar - x_I)
 //     max-ent: grad N_I = N_I ( g_I - gbar - (I + A^T) J^{-1} (xbar - x_I) ),
 //              g_I = grad log w_I, gbar = sum N_J g_J,
 //              A = sum N_J (xbar - x_J)(g_J - gbar)^T,
-//   the latter derived by differentiating log N_I and the constraint
-//   r(x, lambda(x)) = 0 implicitly (dlambda/dx = -J^{-1}(I + A)); it reduces to
-//   the LME form for the Gaussian prior. (wobbes eq. 84 has the sign of the
-//   J^{-1} term flipped.) With xbar these satisfy sum grad N_I = 0 and
-//   sum x_I (x) grad N_I = I to round-off even before |r| is exactly zero.
+//   the latter from differentiating log N_I and the constraint
+//   r(x, lambda(x)) = 0 implicitly (dlambda/dx = -J^{-1} (I + A)); it reduces
+//   to the LME form for the Gaussian prior (g_I = -2 beta (x - x_I),
+//   A = -2 beta J). wobbes eq. 84 as printed does not reduce to the LME
+//   gradient for a Gaussian prior (its signs differ); this expression is
+//   checked against finite differences in tests/test_maxent.cpp.
+//   With xbar, sum grad N_I = 0 and sum x_I (x) grad N_I = I hold to round-off
+//   even though |r| is only below the tolerance.
 // * Nodes whose N_I underflows to 0 are dropped from the stencil (their
 //   gradient is N_I times a finite vector, hence 0 too).
 // * max_stencil(): on an untouched Cartesian lattice the smaller of the box
 //   count prod_k (floor(2R/h_k) + 1) and the volume bound
-//   |B(R + |h|/2)| / prod h_k; otherwise the maximum over the cells of a bucket
-//   grid (side R/2) of the nodes in all cells that can meet a ball of radius R
-//   centred in that cell. Computed lazily, cached, invalidated by nodes_moved().
+//   |B(R + |h|/2)| / prod h_k; otherwise the maximum, over the cells of a
+//   bucket grid of side R/2, of the nodes in all cells that a ball of radius R
+//   centred in that cell can reach. Computed lazily, cached, invalidated by
+//   nodes_moved().
 #include "otmpm/basis/lme.hpp"
 
 #include "otmpm/basis/families.hpp"
 
-#include <Eigen/Cholesky>
+#include <Eigen/LU>
 
 #include <algorithm>
 #include <cmath>
@@ -105,6 +118,18 @@ constexpr double kSingularHessian = 1e-13;
 constexpr double kHullResidual = 1e-8;     ///< |r| / h above which a singular J means "outside the hull"
 /// Largest exponent for which the expm1 form of the log Z change is used.
 constexpr double kPreciseFormMaxExponent = 500.0;
+/// A Newton step s with max_I |s.(x - x_I)| <= this satisfies the Armijo
+/// condition without evaluating log Z: with u_I = s.(x - x_I), E_N[u] = r.s =
+/// -delta^2 and Var_N[u] = s^T J s = delta^2, so by e^v <= 1 + v + v^2 e^|v| / 2
+/// (v = u - E u, |v| <= 0.5), log Z change <= -delta^2 + delta^2 e^0.5 / 2
+/// = -0.18 delta^2 <= kArmijo r.s. Saves the exp pass in the quadratic phase.
+constexpr double kSafeExponentChange = 0.25;
+/// Relative round-off of log Z = max_I f_I + log sum_I exp(f_I - max f), per
+/// unit of max_I |f_I| (a few eps).
+constexpr double kLogZRoundoff = 8.0 * std::numeric_limits<double>::epsilon();
+/// The line search compares two log Z values only when the Armijo decrease
+/// exceeds this multiple of their round-off; below, it uses the expm1 form.
+constexpr double kResolvableFactor = 1e4;
 
 // ---- cubic spline (wobbes eq. 89) -----------------------------------------
 constexpr double kSplineInner = 0.5;            ///< r where the two cubic pieces meet
@@ -117,59 +142,65 @@ constexpr double kMaxBucketsPerNode = 16.0;  ///< coarsen buckets beyond this ma
 constexpr double kMinBuckets = 4096.0;
 constexpr double kBucketSafety = 1e-9;       ///< relative slack on the bucket distance test
 
-/// Views of the support of one point: offsets dx_I = x - x_I, log-priors
-/// a_I = log w_I, and the current N_I (written by the solver).
+/// The support of one point: offsets dx_I = x - x_I and log-priors
+/// a_I = log w_I; and two buffers for N_I (the current state and a trial
+/// state of the line search; the solver swaps them on acceptance).
 template <int D> struct Support {
   const Vec<D>* dx;
   const double* log_w;
-  double* p;
   int n;
+  double* p;     ///< N_I at the current lambda
+  double* trial; ///< scratch of the same length
 };
 
-/// N_I, r and J at lambda (molinos eqs. 36-40) with shifted exponents; J is
-/// accumulated in the centred form sum N_I (dx_I - r)(dx_I - r)^T (no
-/// cancellation near the hull boundary). Returns false when not finite.
-template <int D> bool dual_state(const Vec<D>& lambda, const Support<D>& s, NewtonState<D>& st) {
+/// N_I (into p), r, J and log Z at lambda (molinos eqs. 36-40) with shifted
+/// exponents; J is accumulated in the centred form
+/// sum N_I (dx_I - r)(dx_I - r)^T (no cancellation near the hull boundary).
+/// Returns false when not finite.
+template <int D> bool dual_state(const Vec<D>& lambda, const Support<D>& s, double* p, NewtonState<D>& st) {
   double fmax = -std::numeric_limits<double>::infinity();
+  double fabs_max = 0.0;
   for (int i = 0; i < s.n; ++i) {
-    s.p[i] = s.log_w[i] + lambda.dot(s.dx[i]);
-    fmax = std::max(fmax, s.p[i]);
+    p[i] = s.log_w[i] + lambda.dot(s.dx[i]);
+    fmax = std::max(fmax, p[i]);
+    fabs_max = std::max(fabs_max, std::abs(p[i]));
   }
   if (!std::isfinite(fmax)) return false;
   double Z = 0.0;
   Vec<D> r = Vec<D>::Zero();
   for (int i = 0; i < s.n; ++i) {
-    s.p[i] = std::exp(s.p[i] - fmax);
-    Z += s.p[i];
-    r.noalias() += s.p[i] * s.dx[i];
+    p[i] = std::exp(p[i] - fmax);
+    Z += p[i];
+    r.noalias() += p[i] * s.dx[i];
   }
   const double inv_Z = 1.0 / Z;
   r *= inv_Z;
   Mat<D> J = Mat<D>::Zero();
   double psum = 0.0;
   for (int i = 0; i < s.n; ++i) {
-    const double p = s.p[i] * inv_Z;
-    s.p[i] = p;
-    psum += p;
+    p[i] *= inv_Z;
+    psum += p[i];
     const Vec<D> c = s.dx[i] - r;
-    J.noalias() += (p * c) * c.transpose();
+    J.noalias() += (p[i] * c) * c.transpose();
   }
   st.r = r;
   st.J = J;
   st.psum = psum;
-  return r.allFinite() && J.allFinite();
+  st.log_Z = fmax + std::log(Z);
+  st.log_Z_error = kLogZRoundoff * (1.0 + fabs_max);
+  return r.allFinite() && J.allFinite() && std::isfinite(st.log_Z);
 }
 
-/// Cholesky factorisation of J after symmetric diagonal scaling,
-/// Js = S J S with S = diag(J_kk^{-1/2}) (unit diagonal). Js is what decides
-/// whether J^{-1} can be computed: J's entries are sums of non-negative terms
-/// (relative accuracy ~ n eps) and Cholesky is scale-invariant, so a J that is
-/// tiny only along an axis (a point next to a face of a box) is harmless,
-/// whereas a small eigenvalue of Js (degenerate nodes, the iterates leaving
-/// the hull through a slanted face) is not.
-template <int D> struct ScaledCholesky {
+/// J^{-1} through the symmetric diagonal scaling Js = S J S, S =
+/// diag(J_kk^{-1/2}) (unit diagonal), and the closed-form inverse of the
+/// D x D matrix Js. Js is what decides whether J^{-1} can be computed: J's
+/// entries are sums of non-negative terms (relative accuracy ~ n eps), so a J
+/// that is tiny only along an axis (a point next to a face of a box) is
+/// harmless, whereas a small eigenvalue of Js (degenerate nodes, the iterates
+/// leaving the hull through a slanted face) is not.
+template <int D> struct ScaledInverse {
   Vec<D> s = Vec<D>::Ones();
-  Eigen::LLT<Mat<D>> llt;
+  Mat<D> Js_inv = Mat<D>::Identity();
   /// 1 / tr(Js^{-1}), within a factor D of the smallest eigenvalue of Js; 0
   /// when J is not positive definite.
   double lambda_min = 0.0;
@@ -179,23 +210,42 @@ template <int D> struct ScaledCholesky {
     const Vec<D> d = J.diagonal();
     if (!(d.minCoeff() > 0.0) || !d.allFinite()) return;
     s = d.cwiseSqrt().cwiseInverse();
-    llt.compute(s.asDiagonal() * J * s.asDiagonal());
-    if (llt.info() != Eigen::Success) return;
-    const double trace_inv = llt.solve(Mat<D>::Identity()).trace();
+    const Mat<D> Js = s.asDiagonal() * J * s.asDiagonal();
+    const double det = Js.determinant();
+    if (!(det > 0.0)) return;
+    if constexpr (D == 3) // Sylvester: the leading 2 x 2 minor must be positive too
+      if (!(1.0 - Js(0, 1) * Js(0, 1) > 0.0)) return;
+    Js_inv = Js.inverse();
+    const double trace_inv = Js_inv.trace();
     if (trace_inv > 0.0 && std::isfinite(trace_inv)) lambda_min = 1.0 / trace_inv;
   }
-  Vec<D> solve(const Vec<D>& b) const { return s.asDiagonal() * llt.solve(s.asDiagonal() * b); }
-  Mat<D> inverse() const {
-    return s.asDiagonal() * llt.solve(Mat<D>(s.asDiagonal())) ;
-  }
+  Vec<D> solve(const Vec<D>& b) const { return s.asDiagonal() * (Js_inv * (s.asDiagonal() * b)); }
+  Mat<D> inverse() const { return s.asDiagonal() * Js_inv * s.asDiagonal(); }
 };
 
-/// log Z(lambda + step) - log Z(lambda) = log sum_I N_I exp(step . dx_I),
-/// in the log1p/expm1 form while the exponents are moderate (resolves
-/// decreases far below the round-off of log Z itself).
-template <int D> double log_partition_change(const Vec<D>& step, const Support<D>& s, double psum) {
-  double umax = -std::numeric_limits<double>::infinity();
-  for (int i = 0; i < s.n; ++i) umax = std::max(umax, step.dot(s.dx[i]));
+/// Largest and largest absolute change u_I = step . dx_I of the exponents.
+struct ExponentChange {
+  double max = 0.0;
+  double max_abs = 0.0;
+};
+
+template <int D> ExponentChange exponent_change(const Vec<D>& step, const Support<D>& s) {
+  ExponentChange c;
+  c.max = -std::numeric_limits<double>::infinity();
+  for (int i = 0; i < s.n; ++i) {
+    const double u = step.dot(s.dx[i]);
+    c.max = std::max(c.max, u);
+    c.max_abs = std::max(c.max_abs, std::abs(u));
+  }
+  return c;
+}
+
+/// log Z(lambda + step) - log Z(lambda) = log sum_I N_I exp(step . dx_I) from
+/// the current N_I, in the log1p/expm1 form while the exponents are moderate:
+/// resolves decreases far below the round-off of log Z itself.
+/// umax = max_I step . dx_I shifts the exponents in the other form.
+template <int D>
+double log_partition_change(const Vec<D>& step, const Support<D>& s, double psum, double umax) {
   double sum = 0.0;
   if (umax <= kPreciseFormMaxExponent) {
     for (int i = 0; i < s.n; ++i) sum += s.p[i] * std::expm1(step.dot(s.dx[i]));
@@ -205,20 +255,49 @@ template <int D> double log_partition_change(const Vec<D>& step, const Support<D
   return umax + std::log(sum / psum);
 }
 
+/// Outcome of one backtracking line search.
+enum class LineSearch { accepted, accepted_evaluated, stalled };
+
+/// Armijo backtracking along `step` from the state `st` (see the file
+/// comment). On `accepted_evaluated` the new state (with N_I in s.trial) is
+/// already in `next`; on `accepted` it still has to be computed.
+template <int D>
+LineSearch line_search(const Support<D>& s, const Vec<D>& lambda, const Vec<D>& step, const NewtonState<D>& st,
+                       double& t, NewtonState<D>& next) {
+  const double slope = st.r.dot(step); // = -r^T J^{-1} r < 0
+  t = 1.0;
+  for (int k = 0; k <= kMaxBacktracks; ++k, t *= kBacktrack) {
+    const ExponentChange u = exponent_change<D>(t * step, s);
+    if (u.max_abs <= kSafeExponentChange) return LineSearch::accepted; // Armijo holds
+    const double wanted = kArmijo * t * slope;
+    if (-wanted > kResolvableFactor * st.log_Z_error) {
+      // the decrease is far above the round-off of log Z: compare two log Z
+      // values, and keep the trial state when it is accepted
+      if (dual_state<D>(lambda + t * step, s, s.trial, next) &&
+          next.log_Z - st.log_Z <= wanted)
+        return LineSearch::accepted_evaluated;
+    } else if (log_partition_change<D>(t * step, s, st.psum, u.max) <= wanted) {
+      return LineSearch::accepted;
+    }
+  }
+  return LineSearch::stalled;
+}
+
 /// The shared Newton solver for lambda = argmin log Z (spec algorithms.md
 /// sect. 1): Newton steps on r with an Armijo backtracking line search on
-/// log Z. On return s.p holds N_I at the final lambda and the state its r, J.
+/// log Z. On return s.p holds N_I at the final lambda (the buffers s.p and
+/// s.trial may have been swapped) and the state its r and J.
 template <int D>
-NewtonState<D> solve_lambda(const NewtonSettings& set, const Support<D>& s, Vec<D>& lambda) {
-  NewtonState<D> st;
-  if (!dual_state(lambda, s, st)) {
+NewtonState<D> solve_lambda(const NewtonSettings& set, Support<D>& s, Vec<D>& lambda) {
+  NewtonState<D> st, next;
+  if (!dual_state(lambda, s, s.p, st)) {
     st.status = NewtonStatus::diverged;
     return st;
   }
-  ScaledCholesky<D> chol;
+  ScaledInverse<D> inv;
   for (;;) {
-    chol.compute(st.J);
-    st.lambda_min = chol.lambda_min;
+    inv.compute(st.J);
+    st.lambda_min = inv.lambda_min;
     const bool regular = st.lambda_min > kSingularHessian;
     if (st.r.norm() <= set.residual_tolerance) {
       st.status = regular ? NewtonStatus::converged : NewtonStatus::singular;
@@ -232,22 +311,24 @@ NewtonState<D> solve_lambda(const NewtonSettings& set, const Support<D>& s, Vec<
       st.status = NewtonStatus::max_iterations;
       return st;
     }
-    const Vec<D> step = -chol.solve(st.r);
-    const double slope = st.r.dot(step); // = -r^T J^{-1} r < 0
+    const Vec<D> step = -inv.solve(st.r);
     double t = 1.0;
-    for (int k = 0; !(log_partition_change<D>(t * step, s, st.psum) <= kArmijo * t * slope); ++k) {
-      if (k == kMaxBacktracks) {
-        st.status = NewtonStatus::stalled;
-        return st;
-      }
-      t *= kBacktrack;
+    const LineSearch ls = line_search<D>(s, lambda, step, st, t, next);
+    if (ls == LineSearch::stalled) {
+      st.status = NewtonStatus::stalled;
+      return st;
     }
     lambda += t * step;
-    ++st.iterations;
-    if (!dual_state(lambda, s, st)) {
+    const int iterations = st.iterations + 1;
+    if (ls == LineSearch::accepted_evaluated) {
+      std::swap(s.p, s.trial);
+      st = next;
+    } else if (!dual_state(lambda, s, s.p, st)) {
+      st.iterations = iterations;
       st.status = NewtonStatus::diverged;
       return st;
     }
+    st.iterations = iterations;
   }
 }
 
@@ -258,8 +339,7 @@ std::string format_number(double v) {
 }
 
 /// Explains a failed solve. `st` is the last solve, which started from
-/// lambda = 0; `total` counts the iterations of all solves. `h` scales r
-/// (length) and J (length^2).
+/// lambda = 0; `total` counts the iterations of all solves; `h` scales r.
 template <int D>
 std::string describe_failure(const NewtonState<D>& st, int total, double h, double tol, int n) {
   const std::string rh = format_number(st.r.norm() / h);
@@ -274,8 +354,8 @@ std::string describe_failure(const NewtonState<D>& st, int total, double h, doub
     if (st.r.norm() > kHullResidual * h)
       return "outside the convex hull" + support + " (Newton drives lambda to infinity: |r| = " + rh +
              " h, scaled smallest eigenvalue of J ~" + eig + after + ")";
-    return "singular Hessian J (scaled smallest eigenvalue ~" + eig + " <= " + format_number(kSingularHessian) +
-           after + "): the support nodes are degenerate around the point";
+    return "on or just outside the boundary of the convex hull" + support + " (singular Hessian J, scaled smallest eigenvalue ~" +
+           eig + " <= " + format_number(kSingularHessian) + ", |r| = " + rh + " h" + after + ")";
   case NewtonStatus::diverged:
     return "outside the convex hull" + support + " (lambda diverged, |r| = " + rh + " h" + after + ")";
   case NewtonStatus::stalled:
@@ -349,41 +429,45 @@ template <int D> int lattice_bound(const CartesianGrid<D>& grid, double R) {
   return static_cast<int>(std::min(box, std::floor(ball / cell_volume)));
 }
 
-/// Bucket-grid bound for any node set (see file comment).
-template <int D> int bucket_bound(const NodeSet<D>& nodes, double R) {
-  const auto& x = nodes.positions();
-  Vec<D> lo = x.front(), hi = x.front();
-  for (const auto& p : x) {
-    lo = lo.cwiseMin(p);
-    hi = hi.cwiseMax(p);
-  }
-  double side = R / kBucketsPerRadius;
-  const double limit = kMaxBucketsPerNode * static_cast<double>(x.size()) + kMinBuckets;
+/// A uniform bucket grid over the bounding box of a node set.
+template <int D> struct BucketGrid {
+  Vec<D> lo = Vec<D>::Zero();
+  double side = 1.0;
   Index<D> n{};
-  for (;;) {
-    double total = 1.0;
-    for (int k = 0; k < D; ++k) total *= std::floor((hi[k] - lo[k]) / side) + 1.0;
-    if (total <= limit) break;
-    side *= std::pow(total / limit, 1.0 / D) * (1.0 + kBucketSafety);
-  }
   std::int64_t total = 1;
-  for (int k = 0; k < D; ++k) {
-    n[k] = static_cast<int>(std::floor((hi[k] - lo[k]) / side)) + 1;
-    total *= n[k];
+
+  /// Buckets of side >= `side` over [lo, hi], coarsened until there are at most `limit`.
+  BucketGrid(const Vec<D>& lower, const Vec<D>& hi, double wanted_side, double limit) : lo(lower), side(wanted_side) {
+    for (;;) {
+      double cells = 1.0;
+      for (int k = 0; k < D; ++k) cells *= std::floor((hi[k] - lo[k]) / side) + 1.0;
+      if (cells <= limit) break;
+      side *= std::pow(cells / limit, 1.0 / D) * (1.0 + kBucketSafety);
+    }
+    for (int k = 0; k < D; ++k) {
+      n[k] = static_cast<int>(std::floor((hi[k] - lo[k]) / side)) + 1;
+      total *= n[k];
+    }
   }
-  auto bucket_of = [&](const Vec<D>& p) {
+  Index<D> index_of(const Vec<D>& p) const {
+    Index<D> ijk{};
+    for (int k = 0; k < D; ++k) ijk[k] = std::clamp(static_cast<int>(std::floor((p[k] - lo[k]) / side)), 0, n[k] - 1);
+    return ijk;
+  }
+  /// Flat id of ijk, or -1 outside the grid.
+  std::int64_t id(const Index<D>& ijk) const {
     std::int64_t id = 0;
     for (int k = D - 1; k >= 0; --k) {
-      const int i = std::clamp(static_cast<int>(std::floor((p[k] - lo[k]) / side)), 0, n[k] - 1);
-      id = id * n[k] + i;
+      if (ijk[k] < 0 || ijk[k] >= n[k]) return -1;
+      id = id * n[k] + ijk[k];
     }
     return id;
-  };
-  std::vector<int> count(static_cast<std::size_t>(total), 0);
-  for (const auto& p : x) ++count[static_cast<std::size_t>(bucket_of(p))];
+  }
+};
 
-  // Offsets o whose bucket can hold a node within R of a point of bucket 0:
-  // the gap between the buckets, side * sqrt(sum max(0, |o_k| - 1)^2), <= R.
+/// Bucket offsets o that can hold a node within R of a point of bucket 0: the
+/// gap between the buckets, side * sqrt(sum_k max(0, |o_k| - 1)^2), is <= R.
+template <int D> std::vector<Index<D>> reachable_offsets(double R, double side) {
   const int reach = static_cast<int>(std::ceil(R / side)) + 1;
   const double reach2 = (R / side) * (R / side) * (1.0 + kBucketSafety);
   std::vector<Index<D>> offsets;
@@ -398,26 +482,34 @@ template <int D> int bucket_bound(const NodeSet<D>& nodes, double R) {
     if (gap2 <= reach2) offsets.push_back(o);
     int k = 0;
     while (k < D && ++o[k] > reach) o[k++] = -reach;
-    if (k == D) break;
+    if (k == D) return offsets;
   }
-  std::vector<int> reached(static_cast<std::size_t>(total), 0);
-  for (std::int64_t b = 0; b < total; ++b) {
-    if (count[static_cast<std::size_t>(b)] == 0) continue;
-    Index<D> ijk{};
-    std::int64_t rest = b;
-    for (int k = 0; k < D; ++k) {
-      ijk[k] = static_cast<int>(rest % n[k]);
-      rest /= n[k];
-    }
-    for (const auto& off : offsets) {
-      std::int64_t id = 0;
-      bool inside = true;
-      for (int k = D - 1; k >= 0 && inside; --k) {
-        const int i = ijk[k] + off[k];
-        inside = i >= 0 && i < n[k];
-        id = id * n[k] + i;
-      }
-      if (inside) reached[static_cast<std::size_t>(id)] += count[static_cast<std::size_t>(b)];
+}
+
+/// Bucket-grid bound for any node set (see file comment): every bucket adds
+/// its node count to all buckets it can be reached from; the bound is the
+/// largest total. A query point outside the box counts no more nodes than its
+/// projection onto the box, so the buckets of the box suffice.
+template <int D> int bucket_bound(const NodeSet<D>& nodes, double R) {
+  const auto& x = nodes.positions();
+  Vec<D> lo = x.front(), hi = x.front();
+  for (const auto& p : x) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  const BucketGrid<D> grid(lo, hi, R / kBucketsPerRadius,
+                           kMaxBucketsPerNode * static_cast<double>(x.size()) + kMinBuckets);
+  std::vector<int> count(static_cast<std::size_t>(grid.total), 0);
+  for (const auto& p : x) ++count[static_cast<std::size_t>(grid.id(grid.index_of(p)))];
+  const std::vector<Index<D>> offsets = reachable_offsets<D>(R, grid.side);
+  std::vector<int> reached(static_cast<std::size_t>(grid.total), 0);
+  for (const auto& p : x) {
+    const Index<D> b = grid.index_of(p);
+    for (const auto& o : offsets) {
+      Index<D> c = b;
+      for (int k = 0; k < D; ++k) c[k] += o[k];
+      const std::int64_t id = grid.id(c);
+      if (id >= 0) ++reached[static_cast<std::size_t>(id)];
     }
   }
   return *std::max_element(reached.begin(), reached.end());
@@ -501,19 +593,10 @@ template <int D, class Prior> void MaxEntBasis<D, Prior>::evaluate(const PointQu
   if (n < D + 1)
     fail(q, "outside the convex hull of the nodes: only " + std::to_string(n) + " nodes within the support radius " +
                 format_number(settings_.support_radius) + " (at least " + std::to_string(D + 1) + " needed)");
-  for (int k = 0; k < D; ++k) {
-    double lo = out.scratch_dx[0][k], hi = lo;
-    for (int i = 1; i < n; ++i) {
-      lo = std::min(lo, out.scratch_dx[i][k]);
-      hi = std::max(hi, out.scratch_dx[i][k]);
-    }
-    // dx = x - x_I: x beyond every support node along axis k.
-    if (lo > settings_.residual_tolerance || hi < -settings_.residual_tolerance)
-      fail(q, "outside the convex hull of its " + std::to_string(n) + " support nodes (beyond their extent along axis " +
-                  std::to_string(k) + ")");
-  }
+  check_extent(q, out);
   out.N.resize(static_cast<std::size_t>(n));
-  const Support<D> s{out.scratch_dx.data(), out.scratch_w.data(), out.N.data(), n};
+  out.scratch_w.resize(2 * static_cast<std::size_t>(n)); // log w_I, then the trial buffer
+  Support<D> s{out.scratch_dx.data(), out.scratch_w.data(), n, out.N.data(), out.scratch_w.data() + n};
   const Vec<D> warm = q.lambda && q.lambda->allFinite() ? *q.lambda : Vec<D>::Zero();
   Vec<D> lambda = warm;
   NewtonState<D> st = solve_lambda<D>(settings_, s, lambda);
@@ -527,16 +610,33 @@ template <int D, class Prior> void MaxEntBasis<D, Prior>::evaluate(const PointQu
   if (st.status != NewtonStatus::converged)
     fail(q, describe_failure<D>(st, iterations, settings_.h, settings_.residual_tolerance / settings_.h, n));
   if (q.lambda) *q.lambda = lambda;
+  if (s.p != out.N.data()) std::copy(s.p, s.p + n, out.N.begin());
   finish_stencil(st, out);
+}
+
+template <int D, class Prior>
+void MaxEntBasis<D, Prior>::check_extent(const PointQuery<D>& q, const Stencil<D>& out) const {
+  const int n = out.size();
+  for (int k = 0; k < D; ++k) {
+    double lo = out.scratch_dx[0][k], hi = lo;
+    for (int i = 1; i < n; ++i) {
+      lo = std::min(lo, out.scratch_dx[i][k]);
+      hi = std::max(hi, out.scratch_dx[i][k]);
+    }
+    // dx = x - x_I: x beyond every support node along axis k.
+    if (lo > settings_.residual_tolerance || hi < -settings_.residual_tolerance)
+      fail(q, "outside the convex hull of its " + std::to_string(n) + " support nodes (beyond their extent along axis " +
+                  std::to_string(k) + ")");
+  }
 }
 
 template <int D, class Prior>
 void MaxEntBasis<D, Prior>::finish_stencil(const NewtonState<D>& st, Stencil<D>& out) const {
   const int n = out.size();
   const auto& dx = out.scratch_dx;
-  ScaledCholesky<D> chol;
-  chol.compute(st.J);
-  const Mat<D> J_inv = chol.inverse();
+  ScaledInverse<D> inv;
+  inv.compute(st.J);
+  const Mat<D> J_inv = inv.inverse();
   out.dN.resize(static_cast<std::size_t>(n));
   if constexpr (Prior::kGaussian) {
     for (int i = 0; i < n; ++i) out.dN[i] = -out.N[i] * (J_inv * (dx[i] - st.r));

@@ -60,7 +60,7 @@ double cubic_spline_derivative(double r);
 /// Why a Newton solve for lambda stopped.
 enum class NewtonStatus {
   converged,      ///< |r| <= newton_tolerance * h
-  singular,       ///< J not positive definite or its smallest eigenvalue below 1e-14 h^2
+  singular,       ///< J not positive definite, or diag-scaled J with smallest eigenvalue <= 1e-13
   diverged,       ///< lambda or the exponents stopped being finite
   stalled,        ///< the backtracking line search found no decrease of log Z
   max_iterations, ///< not converged within max_newton_iterations
@@ -80,7 +80,11 @@ template <int D> struct NewtonState {
   Vec<D> r = Vec<D>::Zero();
   Mat<D> J = Mat<D>::Zero();
   double psum = 1.0;          ///< sum of the computed N_I (1 up to round-off)
-  double lambda_min = 0.0;    ///< 1 / tr(J^{-1}), within a factor D of J's smallest eigenvalue
+  double log_Z = 0.0;         ///< log Z at lambda
+  double log_Z_error = 0.0;   ///< bound on the round-off of log_Z
+  /// 1 / tr(Js^{-1}) of the diagonally scaled Js = S J S (unit diagonal), within
+  /// a factor D of its smallest eigenvalue; 0 when J is not positive definite.
+  double lambda_min = 0.0;
   int iterations = 0;
   NewtonStatus status = NewtonStatus::max_iterations;
 };
@@ -106,6 +110,8 @@ public:
 private:
   /// Gathers the support of x into out.node / scratch_dx / scratch_w (log w_I).
   void gather_support(const PointQuery<D>& q, Stencil<D>& out) const;
+  /// Throws unless x lies within the bounding box of its support nodes.
+  void check_extent(const PointQuery<D>& q, const Stencil<D>& out) const;
   /// Fills out.dN from the converged state (and removes nodes with N_I = 0).
   void finish_stencil(const NewtonState<D>& s, Stencil<D>& out) const;
   [[noreturn]] void fail(const PointQuery<D>& q, const std::string& why) const;

@@ -162,19 +162,18 @@ public:
     const std::string p = key_path(key);
     SourceRef r = ctx_->ref(p, node(key), self_.line);
     if (r.line == kCommandLineLine || node(key)) ctx_->where[p] = r;
-    else r.line = self_.line;
     return r;
   }
 
-  /// Unknown keys are errors; the first one in file order is reported.
+  /// Unknown keys are errors; the first one in file order (or from --set) is reported.
   void only(Names allowed) const {
     if (!table_) return;
-    const toml::key* worst = nullptr;
+    const toml::key* first = nullptr;
     for (auto&& [k, v] : *table_) {
       if (std::find(allowed.begin(), allowed.end(), k.str()) != allowed.end()) continue;
-      if (!worst || k.source().begin.line < worst->source().begin.line) worst = &k;
+      if (!first || k.source().begin.line < first->source().begin.line) first = &k;
     }
-    if (worst) input_error(ref(worst->str()), "unknown key" + suggestion(worst->str(), allowed));
+    if (first) input_error(ref(first->str()), "unknown key" + suggestion(first->str(), allowed));
   }
 
   [[noreturn]] void missing(std::string_view key, const std::string& what = "required key is missing") const {
@@ -332,7 +331,10 @@ SimulationSection read_simulation(const TableReader& t) {
         "integrator \"" + s.integrator + "\" needs advected nodes: use simulation.mode = \"ul\"");
   s.gamma = t.get<double>("gamma", s.gamma);
   check(s.gamma > 0 && s.gamma <= 1, t.ref("gamma"), "must be in (0, 1] (got " + fmt(s.gamma) + ")");
-  s.mass = t.choice("mass", s.mass, {"lumped", "consistent"});
+  // Default: the mass matrix of each algorithm's listing - lumped for fe, musl
+  // and npc; consistent for otm (wobbes eq. 48) and unified (Algorithm 3).
+  const bool consistent_default = s.integrator == "otm" || s.integrator == "unified";
+  s.mass = t.choice("mass", consistent_default ? "consistent" : "lumped", {"lumped", "consistent"});
   s.t_end = t.require<double>("t_end");
   check(s.t_end > 0, t.ref("t_end"), "must be > 0 (got " + fmt(s.t_end) + ")");
   check(!(t.has("cfl") && t.has("dt")), t.ref("dt"), "give either simulation.cfl or simulation.dt, not both");

@@ -41,7 +41,7 @@ struct SimulationSection {
   std::string mode = "mpm";        ///< mpm | ul
   std::string integrator = "npc";  ///< fe | musl | npc | otm | unified
   double gamma = 0.5;              ///< Newmark parameter of NPC
-  std::string mass = "lumped";     ///< lumped | consistent
+  std::string mass = "lumped";     ///< lumped | consistent (default: consistent for otm and unified)
   double t_end = 0.0;
   double cfl = 0.1;
   std::optional<double> dt;        ///< fixed step instead of cfl

@@ -1,0 +1,161 @@
+// The per-step basis table (fill_basis_table) and the basis factory
+// (make_basis).
+#include "otmpm/basis/basis.hpp"
+
+#include <doctest/doctest.h>
+
+#include <random>
+#include <string>
+
+#ifdef OTMPM_HAVE_OPENMP
+#include <omp.h>
+#endif
+
+using namespace otmpm;
+
+namespace {
+
+CartesianGrid<2> test_grid() {
+  CartesianGrid<2> g;
+  g.lower = Vec<2>(-0.3, 1.2);
+  g.upper = Vec<2>(0.9, 2.0);
+  g.cells = {6, 4};
+  return g;
+}
+
+AlignedVector<Vec<2>> random_points(int n, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const CartesianGrid<2> g = test_grid();
+  AlignedVector<Vec<2>> x;
+  for (int i = 0; i < n; ++i) x.emplace_back(g.lower[0] + u(rng) * 1.2, g.lower[1] + u(rng) * 0.8);
+  return x;
+}
+
+std::unique_ptr<Basis<2>> basis(const std::string& kind, NodeSet<2> nodes) {
+  BasisOptions opt;
+  opt.kind = kind;
+  opt.ugimp_half_width[0] = 0.25 * test_grid().h()[0];
+  opt.ugimp_half_width[1] = 0.25 * test_grid().h()[1];
+  return make_basis<2>(opt, std::move(nodes));
+}
+
+bool same_table(const BasisTable<2>& a, const BasisTable<2>& b) {
+  return a.offset == b.offset && a.node == b.node && a.N == b.N && a.dN == b.dN;
+}
+
+/// Runs fill_basis_table with `threads` OpenMP threads (1 without OpenMP).
+void fill_with_threads(int threads, const Basis<2>& b, const AlignedVector<Vec<2>>& x,
+                       std::vector<Index<2>>* hint, BasisTable<2>& t) {
+#ifdef OTMPM_HAVE_OPENMP
+  const int saved = omp_get_max_threads();
+  omp_set_num_threads(threads);
+  fill_basis_table(b, x, nullptr, hint, t);
+  omp_set_num_threads(saved);
+#else
+  (void)threads;
+  fill_basis_table(b, x, nullptr, hint, t);
+#endif
+}
+
+} // namespace
+
+TEST_CASE("basis table rows equal per-point evaluation") {
+  for (const auto& b : {basis("linear", NodeSet<2>::cartesian(test_grid())),
+                        basis("linear", NodeSet<2>::perturbed(test_grid(), 0.3, 2u)),
+                        basis("ugimp", NodeSet<2>::cartesian(test_grid()))}) {
+    const AlignedVector<Vec<2>> x = random_points(101, 1u);
+    BasisTable<2> t;
+    fill_basis_table(*b, x, nullptr, nullptr, t);
+    REQUIRE(t.rows() == 101);
+    CHECK(t.entries() == t.N.size());
+    CHECK(t.entries() == t.dN.size());
+    for (int p = 0; p < t.rows(); ++p) {
+      Stencil<2> st;
+      PointQuery<2> q;
+      q.x = x[p];
+      b->evaluate(q, st);
+      REQUIRE(t.end(p) - t.begin(p) == st.size());
+      for (int a = 0; a < st.size(); ++a) {
+        CHECK(t.node[t.begin(p) + a] == st.node[a]);
+        CHECK(t.N[t.begin(p) + a] == st.N[a]);
+        CHECK(t.dN[t.begin(p) + a] == st.dN[a]);
+      }
+    }
+  }
+}
+
+TEST_CASE("basis table is identical with 1 and 2 threads") {
+  const auto b = basis("linear", NodeSet<2>::perturbed(test_grid(), 0.3, 3u));
+  const AlignedVector<Vec<2>> x = random_points(257, 4u);
+  BasisTable<2> one, two;
+  std::vector<Index<2>> hint1(x.size(), Index<2>{0, 0}), hint2 = hint1;
+  fill_with_threads(1, *b, x, &hint1, one);
+  fill_with_threads(2, *b, x, &hint2, two);
+  CHECK(same_table(one, two));
+  CHECK(hint1 == hint2);
+  // Refilling reuses the table (and gives the same rows).
+  fill_with_threads(2, *b, x, &hint2, two);
+  CHECK(same_table(one, two));
+}
+
+TEST_CASE("basis table updates the cell hints to the containing cells") {
+  const CartesianGrid<2> g = test_grid();
+  const auto b = basis("linear", NodeSet<2>::cartesian(g));
+  const AlignedVector<Vec<2>> x = random_points(50, 5u);
+  std::vector<Index<2>> hint(x.size(), Index<2>{-1, -1});
+  BasisTable<2> t;
+  fill_basis_table(*b, x, nullptr, &hint, t);
+  for (std::size_t p = 0; p < x.size(); ++p) CHECK(hint[p] == g.cell_of(x[p]));
+}
+
+TEST_CASE("basis table error names the particle with the lowest index") {
+  const auto b = basis("linear", NodeSet<2>::cartesian(test_grid()));
+  AlignedVector<Vec<2>> x = random_points(40, 6u);
+  x[7] = Vec<2>(5.0, 1.5);
+  x[33] = Vec<2>(-5.0, 1.5); // in the second thread's half
+  for (int threads : {1, 2}) {
+    BasisTable<2> t;
+    try {
+      fill_with_threads(threads, *b, x, nullptr, t);
+      FAIL("no BasisError");
+    } catch (const BasisError& e) {
+      const std::string what = e.what();
+      CHECK(what.find("particle 7 at " + format_point<2>(x[7]) + ": ") == 0);
+    }
+  }
+}
+
+TEST_CASE("basis table: empty input and mismatched side arrays") {
+  const auto b = basis("linear", NodeSet<2>::cartesian(test_grid()));
+  BasisTable<2> t;
+  fill_basis_table(*b, AlignedVector<Vec<2>>{}, nullptr, nullptr, t);
+  CHECK(t.rows() == 0);
+  CHECK(t.entries() == 0u);
+  const AlignedVector<Vec<2>> x = random_points(5, 7u);
+  AlignedVector<Vec<2>> lambda(3);
+  CHECK_THROWS_AS(fill_basis_table(*b, x, &lambda, nullptr, t), InputError);
+  std::vector<Index<2>> hint(2);
+  CHECK_THROWS_AS(fill_basis_table(*b, x, nullptr, &hint, t), InputError);
+  // Empty side arrays mean "none".
+  AlignedVector<Vec<2>> no_lambda;
+  std::vector<Index<2>> no_hint;
+  CHECK_NOTHROW(fill_basis_table(*b, x, &no_lambda, &no_hint, t));
+  CHECK(t.rows() == 5);
+}
+
+TEST_CASE("make_basis dispatches on the kind name") {
+  const CartesianGrid<2> g = test_grid();
+  for (const char* kind : {"linear", "ugimp", "bspline2", "bspline3", "lme", "maxent"})
+    CHECK(basis(kind, NodeSet<2>::cartesian(g))->kind() == kind);
+}
+
+TEST_CASE("make_basis rejects unknown kinds and layouts a family cannot use") {
+  const CartesianGrid<2> g = test_grid();
+  CHECK_THROWS_WITH_AS(basis("quintic", NodeSet<2>::cartesian(g)), doctest::Contains("quintic"), InputError);
+  CHECK_THROWS_WITH_AS(basis("ugimp", NodeSet<2>::perturbed(g, 0.2, 1u)),
+                       doctest::Contains("ugimp needs an unperturbed Cartesian grid"), InputError);
+  AlignedVector<Vec<2>> x{Vec<2>(0, 0), Vec<2>(1, 0), Vec<2>(0, 1), Vec<2>(1, 1)};
+  for (const char* kind : {"linear", "ugimp", "bspline2", "bspline3"})
+    CHECK_THROWS_AS(basis(kind, NodeSet<2>::cloud(x, 1.0)), InputError);
+}

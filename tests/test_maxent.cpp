@@ -1,0 +1,430 @@
+// Tests of the max-ent basis with a cubic-spline prior (wobbes sect. 6.3,
+// spec algorithms.md sect. 1).
+//
+// Tolerances (h = nodal spacing):
+// * partition of unity |sum N - 1| <= 1e-12 and |sum grad N| <= 1e-12 sum |grad N|:
+//   exact up to summation round-off by construction.
+// * linear completeness |sum N_I x_I - x| <= 2e-12 h: |r| <= newton_tolerance h
+//   (1e-12 h) plus round-off.
+// * gradient consistency |sum x_I (x) grad N_I - I| <= 1e-10: exact identity of
+//   the implicit-differentiation gradient, up to round-off times cond(J).
+// * gradients vs central differences with step 2e-6 h: truncation error
+//   step^2 / 6 |d^3 N| <= ~1e-9 / h here (measured to fall 100-fold per decade of
+//   the step), Newton solved to 1e-14 h so that its noise (/ 4e-6 h) stays below
+//   ~1e-9 / h; tolerance 2e-8 / h. A gradient that ignores the x-dependence of
+//   the prior is off by O(1 / h) (checked below).
+#include "otmpm/basis/families.hpp"
+#include "otmpm/basis/lme.hpp"
+
+#include <doctest/doctest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <string>
+#include <vector>
+
+using namespace otmpm;
+
+namespace {
+
+constexpr double kPartitionTol = 1e-12;
+constexpr double kGradientSumTol = 1e-12;
+constexpr double kCompletenessTol = 2e-12; // times h
+constexpr double kGradientConsistencyTol = 1e-10;
+constexpr double kFdStep = 2e-6; // times h
+constexpr double kFdTol = 2e-8;  // times 1/h
+
+template <int D> CartesianGrid<D> unit_grid(int cells) {
+  CartesianGrid<D> g;
+  g.lower = Vec<D>::Zero();
+  g.upper = Vec<D>::Ones();
+  g.cells.fill(cells);
+  return g;
+}
+
+template <int D> int cells_for() { return D == 1 ? 10 : D == 2 ? 8 : 5; }
+
+/// Boundary lattice nodes plus one uniformly random node per cell (hull = box).
+template <int D> NodeSet<D> random_cloud(int cells, unsigned seed) {
+  const CartesianGrid<D> g = unit_grid<D>(cells);
+  const NodeSet<D> lattice = NodeSet<D>::cartesian(g);
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  AlignedVector<Vec<D>> x;
+  for (int id = 0; id < lattice.size(); ++id) {
+    const Index<D> ijk = g.node_index(id);
+    bool boundary = false;
+    for (int k = 0; k < D; ++k) boundary = boundary || ijk[k] == 0 || ijk[k] == cells;
+    if (boundary) x.push_back(lattice.position(id));
+  }
+  const double h = 1.0 / cells;
+  for (int id = 0; id < lattice.size(); ++id) {
+    const Index<D> ijk = g.node_index(id);
+    if (*std::max_element(ijk.begin(), ijk.end()) == cells) continue;
+    Vec<D> p;
+    for (int k = 0; k < D; ++k) p[k] = (ijk[k] + u(rng)) * h;
+    x.push_back(p);
+  }
+  return NodeSet<D>::cloud(std::move(x), h);
+}
+
+/// Uniform points, points 1e-3 h .. 1e-10 h from a face (or an edge), points next to a node.
+template <int D> AlignedVector<Vec<D>> sample_points(const NodeSet<D>& nodes, int count, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const double h = nodes.spacing();
+  const double gaps[] = {1e-3, 1e-6, 1e-10};
+  AlignedVector<Vec<D>> pts;
+  for (int i = 0; i < count; ++i) {
+    Vec<D> p;
+    for (int k = 0; k < D; ++k) p[k] = u(rng);
+    pts.push_back(p);
+  }
+  for (int i = 0; i < count; ++i) {
+    Vec<D> p;
+    for (int k = 0; k < D; ++k) p[k] = u(rng);
+    const int axis = static_cast<int>(rng() % D);
+    const double gap = gaps[rng() % 3] * h;
+    p[axis] = (rng() % 2) ? gap : 1.0 - gap;
+    if (D > 1 && rng() % 4 == 0) p[(axis + 1) % D] = (rng() % 2) ? gap : 1.0 - gap;
+    pts.push_back(p);
+  }
+  for (int i = 0; i < count; ++i) {
+    const int I = static_cast<int>(rng() % static_cast<unsigned>(nodes.size()));
+    Vec<D> p = nodes.position(I);
+    for (int k = 0; k < D; ++k) p[k] = std::clamp(p[k] + 1e-7 * h * (2.0 * u(rng) - 1.0), 0.0, 1.0);
+    pts.push_back(p);
+  }
+  return pts;
+}
+
+BasisOptions maxent_options(double d_max = 2.0) {
+  BasisOptions opt;
+  opt.kind = "maxent";
+  opt.d_max = d_max;
+  return opt;
+}
+
+/// Checks every basis identity at every point; reports the worst violations.
+template <int D> void require_identities(const Basis<D>& basis, const AlignedVector<Vec<D>>& pts) {
+  double pu = 0, gs = 0, lc = 0, gc = 0, min_N = 1;
+  Vec<D> worst = Vec<D>::Zero();
+  Stencil<D> st;
+  const double h = basis.nodes().spacing();
+  for (const Vec<D>& x : pts) {
+    PointQuery<D> q;
+    q.x = x;
+    basis.evaluate(q, st);
+    double sumN = 0, abs_dN = 0;
+    Vec<D> sum_dN = Vec<D>::Zero(), sum_xN = Vec<D>::Zero();
+    Mat<D> sum_xdN = Mat<D>::Zero();
+    for (int a = 0; a < st.size(); ++a) {
+      const Vec<D>& xI = basis.nodes().position(st.node[a]);
+      sumN += st.N[a];
+      sum_dN += st.dN[a];
+      abs_dN += st.dN[a].norm();
+      sum_xN += st.N[a] * xI;
+      sum_xdN += xI * st.dN[a].transpose();
+      min_N = std::min(min_N, st.N[a]);
+    }
+    const double e_gc = (sum_xdN - Mat<D>::Identity()).norm();
+    if (e_gc > gc) worst = x;
+    pu = std::max(pu, std::abs(sumN - 1.0));
+    gs = std::max(gs, sum_dN.norm() / abs_dN);
+    lc = std::max(lc, (sum_xN - x).norm() / h);
+    gc = std::max(gc, e_gc);
+  }
+  INFO("worst point " << format_point<D>(worst));
+  CHECK(pu <= kPartitionTol);
+  CHECK(gs <= kGradientSumTol);
+  CHECK(lc <= kCompletenessTol);
+  CHECK(gc <= kGradientConsistencyTol);
+  CHECK(min_N > 0.0);
+}
+
+template <int D>
+void dense_eval(const Basis<D>& b, const Vec<D>& x, std::vector<double>& N, AlignedVector<Vec<D>>* dN = nullptr) {
+  Stencil<D> st;
+  PointQuery<D> q;
+  q.x = x;
+  b.evaluate(q, st);
+  N.assign(static_cast<std::size_t>(b.nodes().size()), 0.0);
+  if (dN) dN->assign(N.size(), Vec<D>::Zero());
+  for (int a = 0; a < st.size(); ++a) {
+    N[st.node[a]] = st.N[a];
+    if (dN) (*dN)[st.node[a]] = st.dN[a];
+  }
+}
+
+template <int D> double fd_gradient_error(const Basis<D>& b, const Vec<D>& x) {
+  const double h = b.nodes().spacing();
+  const double eps = kFdStep * h;
+  std::vector<double> N, Np, Nm;
+  AlignedVector<Vec<D>> dN;
+  dense_eval(b, x, N, &dN);
+  double err = 0;
+  for (int k = 0; k < D; ++k) {
+    Vec<D> e = Vec<D>::Zero();
+    e[k] = eps;
+    dense_eval<D>(b, x + e, Np);
+    dense_eval<D>(b, x - e, Nm);
+    for (std::size_t I = 0; I < N.size(); ++I)
+      err = std::max(err, std::abs((Np[I] - Nm[I]) / (2 * eps) - dN[I][k]) * h);
+  }
+  return err;
+}
+
+template <int D> void identities_on(const NodeSet<D>& nodes, unsigned seed, double d_max = 2.0) {
+  const auto basis = make_maxent_basis<D>(nodes, maxent_options(d_max));
+  require_identities<D>(*basis, sample_points<D>(basis->nodes(), 60, seed));
+}
+
+template <int D> void fd_on(const NodeSet<D>& nodes, unsigned seed) {
+  BasisOptions opt = maxent_options();
+  opt.newton_tolerance = 1e-14;
+  const auto basis = make_maxent_basis<D>(nodes, opt);
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0.01, 0.99);
+  double err = 0;
+  for (int i = 0; i < 30; ++i) {
+    Vec<D> x;
+    for (int k = 0; k < D; ++k) x[k] = u(rng);
+    err = std::max(err, fd_gradient_error<D>(*basis, x));
+  }
+  INFO("layout " << int(nodes.layout()) << ", D = " << D);
+  CHECK(err <= kFdTol);
+}
+
+} // namespace
+
+TEST_CASE("maxent: cubic spline prior (wobbes eq. 89)") {
+  using maxent::cubic_spline;
+  using maxent::cubic_spline_derivative;
+  CHECK(cubic_spline(0.0) == doctest::Approx(2.0 / 3.0).epsilon(1e-15));
+  CHECK(cubic_spline(0.5) == doctest::Approx(1.0 / 6.0).epsilon(1e-15));
+  CHECK(cubic_spline(1.0) == 0.0);
+  CHECK(cubic_spline(1.5) == 0.0);
+  // C^2 at r = 1/2: both pieces agree in value and slope (-1)
+  const double e = 1e-9;
+  CHECK(cubic_spline(0.5 - e) == doctest::Approx(cubic_spline(0.5 + e)).epsilon(1e-8));
+  CHECK(cubic_spline_derivative(0.5) == doctest::Approx(-1.0).epsilon(1e-15));
+  CHECK(cubic_spline_derivative(0.5 + 1e-12) == doctest::Approx(-1.0).epsilon(1e-10));
+  // derivative vs central differences (step 1e-6: truncation ~1e-12, round-off ~1e-10)
+  double err = 0;
+  for (double r = 0.013; r < 1.0; r += 0.0611)
+    err = std::max(err, std::abs((cubic_spline(r + 1e-6) - cubic_spline(r - 1e-6)) / 2e-6 - cubic_spline_derivative(r)));
+  CHECK(err <= 1e-8);
+}
+
+TEST_CASE("maxent: gradient of the log-prior matches finite differences") {
+  maxent::CubicSplinePrior<2> prior;
+  prior.d = 0.3;
+  double err = 0;
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-0.2, 0.2);
+  for (int i = 0; i < 50; ++i) {
+    const Vec<2> dx(u(rng), u(rng));
+    double a = 0;
+    if (!prior.log_weight(dx, a)) continue;
+    const Vec<2> g = prior.grad_log_weight(dx);
+    for (int k = 0; k < 2; ++k) {
+      Vec<2> e = Vec<2>::Zero();
+      e[k] = 1e-7;
+      double ap = 0, am = 0;
+      REQUIRE(prior.log_weight(dx + e, ap));
+      REQUIRE(prior.log_weight(dx - e, am));
+      err = std::max(err, std::abs((ap - am) / 2e-7 - g[k]) / (1.0 + std::abs(g[k])));
+    }
+  }
+  CHECK(err <= 1e-6); // step 1e-7 on |dx| ~ 0.1: truncation ~1e-12, round-off ~1e-9
+  double a = 0;
+  CHECK_FALSE(prior.log_weight(Vec<2>(0.3, 0.0), a)); // r = 1: w = 0, not in the support
+  CHECK(prior.grad_log_weight(Vec<2>::Zero()).norm() == 0.0); // regular at the node
+}
+
+TEST_CASE("maxent: kind, flags and option checks") {
+  const auto nodes = NodeSet<2>::cartesian(unit_grid<2>(4));
+  const auto b = make_maxent_basis<2>(nodes, maxent_options());
+  CHECK(b->kind() == "maxent");
+  CHECK(b->linearly_complete());
+  CHECK_THROWS_AS(make_maxent_basis<2>(nodes, maxent_options(0.0)), InputError);
+  CHECK_THROWS_AS(make_maxent_basis<2>(nodes, maxent_options(-1.0)), InputError);
+}
+
+TEST_CASE("maxent: symmetric 1D values match the closed form (lambda = 0)") {
+  // Uniform 1D grid, d_max = 2: at a node the neighbours at +-h have r = 1/2,
+  // w = 1/6, against w(0) = 2/3: N = 2/3 and 1/6. At a midpoint, r = 1/4 and 3/4:
+  // w = 23/48 and 1/48, which already sum to 1 over the four nodes.
+  const auto b = make_maxent_basis<1>(NodeSet<1>::cartesian(unit_grid<1>(10)), maxent_options());
+  std::vector<double> N;
+  dense_eval<1>(*b, Vec<1>(0.5), N);
+  CHECK(N[5] == doctest::Approx(2.0 / 3.0).epsilon(1e-13));
+  CHECK(N[6] == doctest::Approx(1.0 / 6.0).epsilon(1e-13));
+  CHECK(N[7] == 0.0);
+  dense_eval<1>(*b, Vec<1>(0.45), N);
+  CHECK(N[4] == doctest::Approx(23.0 / 48.0).epsilon(1e-13));
+  CHECK(N[6] == doctest::Approx(1.0 / 48.0).epsilon(1e-13));
+}
+
+TEST_CASE("maxent: identities on Cartesian grids (1D, 2D, 3D)") {
+  identities_on<1>(NodeSet<1>::cartesian(unit_grid<1>(cells_for<1>())), 11);
+  identities_on<2>(NodeSet<2>::cartesian(unit_grid<2>(cells_for<2>())), 12);
+  identities_on<2>(NodeSet<2>::cartesian(unit_grid<2>(cells_for<2>())), 14, 3.0);
+  identities_on<3>(NodeSet<3>::cartesian(unit_grid<3>(cells_for<3>())), 13);
+}
+
+TEST_CASE("maxent: identities on perturbed grids (1D, 2D, 3D)") {
+  identities_on<1>(NodeSet<1>::perturbed(unit_grid<1>(cells_for<1>()), 0.3, 5), 21);
+  identities_on<2>(NodeSet<2>::perturbed(unit_grid<2>(cells_for<2>()), 0.3, 6), 22);
+  identities_on<3>(NodeSet<3>::perturbed(unit_grid<3>(cells_for<3>()), 0.3, 7), 23);
+}
+
+TEST_CASE("maxent: identities on random clouds (1D, 2D, 3D)") {
+  identities_on<1>(random_cloud<1>(cells_for<1>(), 8), 31);
+  identities_on<2>(random_cloud<2>(cells_for<2>(), 9), 32);
+  identities_on<3>(random_cloud<3>(cells_for<3>(), 10), 33);
+}
+
+TEST_CASE("maxent: gradients agree with central differences") {
+  fd_on<1>(NodeSet<1>::perturbed(unit_grid<1>(10), 0.3, 1), 51);
+  fd_on<2>(NodeSet<2>::cartesian(unit_grid<2>(8)), 52);
+  fd_on<2>(NodeSet<2>::perturbed(unit_grid<2>(8), 0.3, 2), 53);
+  fd_on<2>(random_cloud<2>(8, 4), 54);
+  fd_on<3>(NodeSet<3>::perturbed(unit_grid<3>(5), 0.3, 3), 55);
+}
+
+TEST_CASE("maxent: the prior's dependence on x contributes to the gradient") {
+  // The closed LME form -N_I J^{-1} (x - x_I) is wrong for this prior: at
+  // generic points it differs from the (finite-difference checked) gradient by O(1/h).
+  const auto nodes = NodeSet<2>::perturbed(unit_grid<2>(8), 0.3, 2);
+  const auto b = make_maxent_basis<2>(nodes, maxent_options());
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<double> u(0.1, 0.9);
+  double diff = 0, fd = 0;
+  for (int i = 0; i < 10; ++i) {
+    Stencil<2> st;
+    PointQuery<2> q;
+    q.x = Vec<2>(u(rng), u(rng));
+    b->evaluate(q, st);
+    Vec<2> r = Vec<2>::Zero();
+    for (int a = 0; a < st.size(); ++a) r += st.N[a] * (q.x - nodes.position(st.node[a]));
+    Mat<2> J = Mat<2>::Zero();
+    for (int a = 0; a < st.size(); ++a) {
+      const Vec<2> c = q.x - nodes.position(st.node[a]) - r;
+      J += st.N[a] * c * c.transpose();
+    }
+    for (int a = 0; a < st.size(); ++a) {
+      const Vec<2> naive = -st.N[a] * J.inverse() * (q.x - nodes.position(st.node[a]) - r);
+      diff = std::max(diff, (naive - st.dN[a]).norm() * nodes.spacing());
+    }
+    fd = std::max(fd, fd_gradient_error<2>(*b, q.x));
+  }
+  CHECK(diff >= 0.05);
+  CHECK(fd <= kFdTol);
+}
+
+TEST_CASE("maxent: support is the ball of radius d_max h") {
+  for (double d_max : {2.0, 3.0}) {
+    const auto nodes = NodeSet<2>::perturbed(unit_grid<2>(8), 0.25, 9);
+    const auto b = make_maxent_basis<2>(nodes, maxent_options(d_max));
+    const double d = d_max * nodes.spacing();
+    Stencil<2> st;
+    int mismatches = 0;
+    int largest = 0;
+    for (const Vec<2>& x : sample_points<2>(nodes, 40, 61)) {
+      PointQuery<2> q;
+      q.x = x;
+      b->evaluate(q, st);
+      largest = std::max(largest, st.size());
+      std::vector<int> kept(st.node.begin(), st.node.end());
+      std::sort(kept.begin(), kept.end());
+      std::vector<int> expected;
+      for (int I = 0; I < nodes.size(); ++I)
+        if ((nodes.position(I) - x).norm() < d * (1 - 1e-12)) expected.push_back(I);
+      for (int I : kept) // on the cut-off w ~ (1 - r)^3 ~ 1e-36: either answer is right
+        if (std::abs((nodes.position(I) - x).norm() - d) <= 1e-12 * d) expected.push_back(I);
+      std::sort(expected.begin(), expected.end());
+      if (kept != expected) ++mismatches;
+    }
+    CAPTURE(d_max);
+    CHECK(mismatches == 0);
+    CHECK(largest <= b->max_stencil());
+  }
+}
+
+TEST_CASE("maxent: warm start gives the same answer in fewer iterations") {
+  const auto nodes = NodeSet<3>::perturbed(unit_grid<3>(5), 0.3, 12);
+  const auto b = make_maxent_basis<3>(nodes, maxent_options());
+  const double h = nodes.spacing();
+  std::mt19937 rng(91);
+  std::uniform_real_distribution<double> u(0.05, 0.95);
+  Stencil<3> cold, warm;
+  int cold_total = 0, warm_total = 0;
+  double diff = 0;
+  for (int i = 0; i < 20; ++i) {
+    Vec<3> lambda = Vec<3>::Zero();
+    int it = -1;
+    PointQuery<3> q;
+    q.x = Vec<3>(u(rng), u(rng), u(rng));
+    q.lambda = &lambda;
+    q.iterations = &it;
+    b->evaluate(q, cold);
+    b->evaluate(q, warm);
+    CHECK(it == 0); // already converged at the same point
+    q.x += Vec<3>(0.01 * h, -0.02 * h, 0.005 * h);
+    b->evaluate(q, warm);
+    warm_total += it;
+    PointQuery<3> qc;
+    qc.x = q.x;
+    qc.iterations = &it;
+    b->evaluate(qc, cold);
+    cold_total += it;
+    REQUIRE(warm.node == cold.node);
+    for (int a = 0; a < cold.size(); ++a) diff = std::max(diff, std::abs(warm.N[a] - cold.N[a]));
+  }
+  CHECK(warm_total < cold_total);
+  CHECK(diff <= 1e-11); // both within |r| <= 1e-12 h of the same lambda
+}
+
+TEST_CASE("maxent: points outside the convex hull are a BasisError naming the point") {
+  const auto b = make_maxent_basis<2>(NodeSet<2>::cartesian(unit_grid<2>(8)), maxent_options());
+  for (const Vec<2>& x : {Vec<2>(-0.02, 0.5), Vec<2>(0.3, 1.001), Vec<2>(5.0, 5.0)}) {
+    PointQuery<2> q;
+    q.x = x;
+    q.id = 42;
+    Stencil<2> st;
+    CAPTURE(x.transpose());
+    const std::string named = "point 42 at " + format_point<2>(x);
+    CHECK_THROWS_WITH_AS(b->evaluate(q, st), doctest::Contains(named.c_str()), BasisError);
+    CHECK_THROWS_WITH_AS(b->evaluate(q, st), doctest::Contains("convex hull"), BasisError);
+  }
+  // outside a slanted face, inside the bounding box: detected by the Newton solve
+  const auto g = unit_grid<2>(8);
+  const auto lattice = NodeSet<2>::cartesian(g);
+  AlignedVector<Vec<2>> x;
+  for (int id = 0; id < lattice.size(); ++id) {
+    const auto ijk = g.node_index(id);
+    if (ijk[0] + ijk[1] <= 8) x.push_back(lattice.position(id));
+  }
+  const auto tri = make_maxent_basis<2>(NodeSet<2>::cloud(x, 0.125), maxent_options());
+  PointQuery<2> q;
+  q.x = Vec<2>(0.51, 0.51);
+  Stencil<2> st;
+  CHECK_THROWS_WITH_AS(tri->evaluate(q, st), doctest::Contains("convex hull"), BasisError);
+}
+
+TEST_CASE("maxent: moved nodes keep the initial support radius") {
+  auto b = make_maxent_basis<2>(NodeSet<2>::perturbed(unit_grid<2>(8), 0.2, 4), maxent_options());
+  const Vec<2> x(0.37, 0.61);
+  std::vector<double> before, after;
+  dense_eval<2>(*b, x, before);
+  const Vec<2> shift(-0.21, 0.4);
+  AlignedVector<Vec<2>> dx(static_cast<std::size_t>(b->nodes().size()), shift);
+  b->nodes().advect(dx);
+  b->nodes_moved(dx);
+  dense_eval<2>(*b, Vec<2>(x + shift), after);
+  double diff = 0;
+  for (std::size_t I = 0; I < before.size(); ++I) diff = std::max(diff, std::abs(before[I] - after[I]));
+  CHECK(diff <= 1e-11); // translation invariance (round-off of the shifted coordinates only)
+}
