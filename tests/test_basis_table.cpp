@@ -87,7 +87,8 @@ TEST_CASE("basis table rows equal per-point evaluation") {
 
 TEST_CASE("basis table is identical with 1 and 2 threads") {
   const auto b = basis("linear", NodeSet<2>::perturbed(test_grid(), 0.3, 3u));
-  const AlignedVector<Vec<2>> x = random_points(257, 4u);
+  // more than 2 x 512 points, so that fill_basis_table really uses two threads
+  const AlignedVector<Vec<2>> x = random_points(2049, 4u);
   BasisTable<2> one, two;
   std::vector<Index<2>> hint1(x.size(), Index<2>{0, 0}), hint2 = hint1;
   fill_with_threads(1, *b, x, &hint1, one);
@@ -111,9 +112,9 @@ TEST_CASE("basis table updates the cell hints to the containing cells") {
 
 TEST_CASE("basis table error names the particle with the lowest index") {
   const auto b = basis("linear", NodeSet<2>::cartesian(test_grid()));
-  AlignedVector<Vec<2>> x = random_points(40, 6u);
+  AlignedVector<Vec<2>> x = random_points(2048, 6u);
   x[7] = Vec<2>(5.0, 1.5);
-  x[33] = Vec<2>(-5.0, 1.5); // in the second thread's half
+  x[2000] = Vec<2>(-5.0, 1.5); // in the second thread's half
   for (int threads : {1, 2}) {
     BasisTable<2> t;
     try {

@@ -149,7 +149,10 @@ void fill_basis_table(const Basis<D>& basis, const AlignedVector<Vec<D>>& x,
 
   int threads = 1;
 #ifdef OTMPM_HAVE_OPENMP
-  threads = omp_get_max_threads();
+  // Below this many points per thread the fork/join costs more than it saves
+  // (and a loaded machine makes spinning threads very slow).
+  constexpr int min_points_per_thread = 512;
+  threads = std::max(1, std::min(omp_get_max_threads(), n / min_points_per_thread));
 #endif
   std::vector<std::exception_ptr> errors(static_cast<std::size_t>(threads));
   std::vector<int> rows(static_cast<std::size_t>(threads) + 1, 0), entries = rows;

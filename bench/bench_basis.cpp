@@ -1,0 +1,91 @@
+// bench_basis: basis evaluations per second for each family in 2D, on one core.
+//
+//   OMP_NUM_THREADS=1 build/bench/bench_basis [--points N] [--repeat R]
+//
+// For each family: a 64 x 64 Cartesian grid of the unit square, N random
+// points (fixed seed) away from the boundary by 2 cells, the whole table
+// filled with fill_basis_table (as the engine does once per step). LME and
+// max-ent run twice per repetition: cold (lambda = 0) and warm (lambda from
+// the previous fill of the same points moved by 1e-3 h, as between two time
+// steps). Prints the median over R repetitions and the mean stencil size.
+#include "otmpm/basis/basis.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <random>
+#include <string>
+#include <vector>
+
+using namespace otmpm;
+
+namespace {
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+struct Case {
+  std::string label;
+  BasisOptions opt;
+};
+
+} // namespace
+
+int main(int argc, char** argv) {
+  int points = 100000, repeat = 5;
+  for (int i = 1; i + 1 < argc; i += 2) {
+    if (!std::strcmp(argv[i], "--points")) points = std::atoi(argv[i + 1]);
+    if (!std::strcmp(argv[i], "--repeat")) repeat = std::atoi(argv[i + 1]);
+  }
+  constexpr int cells = 64;
+  CartesianGrid<2> grid;
+  grid.cells = {cells, cells};
+  const double h = 1.0 / cells;
+  std::mt19937_64 rng(42);
+  std::uniform_real_distribution<double> u(2 * h, 1 - 2 * h);
+  AlignedVector<Vec<2>> x(points), x_moved(points);
+  for (int p = 0; p < points; ++p) {
+    x[p] = Vec<2>(u(rng), u(rng));
+    x_moved[p] = x[p] + Vec<2>::Constant(1e-3 * h);
+  }
+  std::vector<Case> cases;
+  auto add = [&](const std::string& label, const std::string& kind, double gamma = 4.0, double d_max = 2.0) {
+    Case c{label, {}};
+    c.opt.kind = kind;
+    c.opt.gamma_lme = gamma;
+    c.opt.d_max = d_max;
+    for (double& w : c.opt.ugimp_half_width) w = h / 4;
+    cases.push_back(c);
+  };
+  add("linear", "linear");
+  add("ugimp", "ugimp");
+  add("bspline2", "bspline2");
+  add("bspline3", "bspline3");
+  add("lme gamma_lme=4", "lme", 4.0);
+  add("lme gamma_lme=1.5", "lme", 1.5);
+  add("maxent d_max=2", "maxent", 4.0, 2.0);
+  std::printf("%-20s %14s %14s %12s\n", "family (2D)", "evals/s cold", "evals/s warm", "mean stencil");
+  for (const Case& c : cases) {
+    const auto basis = make_basis<2>(c.opt, NodeSet<2>::cartesian(grid));
+    const bool maxent = c.opt.kind == "lme" || c.opt.kind == "maxent";
+    BasisTable<2> table;
+    std::vector<double> cold, warm;
+    for (int r = 0; r < repeat; ++r) {
+      AlignedVector<Vec<2>> lambda(points, Vec<2>::Zero());
+      std::vector<Index<2>> hint(points, Index<2>{});
+      auto t0 = std::chrono::steady_clock::now();
+      fill_basis_table(*basis, x, maxent ? &lambda : nullptr, &hint, table);
+      auto t1 = std::chrono::steady_clock::now();
+      fill_basis_table(*basis, x_moved, maxent ? &lambda : nullptr, &hint, table);
+      auto t2 = std::chrono::steady_clock::now();
+      cold.push_back(points / std::chrono::duration<double>(t1 - t0).count());
+      warm.push_back(points / std::chrono::duration<double>(t2 - t1).count());
+    }
+    std::printf("%-20s %14.3e %14.3e %12.1f\n", c.label.c_str(), median(cold), median(warm),
+                double(table.entries()) / points);
+  }
+  return 0;
+}
