@@ -53,7 +53,8 @@ template <int D> struct TractionLoad {
   int axis = 0;
 };
 
-/// Values of the time functions of spec algorithms.md (molinos eq. 45 ramp).
+/// Values of the time functions: constant 1, or the ramp of molinos eq. 45,
+/// 0.5 (sin(2 pi t / T - pi/2) + 1) for t <= T/2 and 1 afterwards.
 double time_function(const TimeFunction& g, double t);
 
 /// Energies for the runaway monitor: kinetic, strain, and the work done by

@@ -29,8 +29,8 @@ struct SourceRef {
 
 using Vec3 = std::array<double, 3>;
 
-/// A time function multiplying a load: constant 1, or the sine ramp of molinos
-/// eq. 45, g(t) = sin(pi t / T) ... rising to 1 at T/2 and constant after.
+/// A time function multiplying a load: constant 1, or the ramp of molinos
+/// eq. 45, g(t) = 0.5 (sin(2 pi t / T - pi/2) + 1), rising to 1 at T/2 and constant after.
 struct TimeFunction {
   std::string kind = "constant"; ///< constant | ramp
   double period = 0.0;           ///< T of molinos eq. 45
