@@ -196,6 +196,7 @@ TEST_CASE("the XDMF sidecar names every frame and points into the .h5 file") {
   w.write_frame(0.0, fields_2d());
   w.write_frame(0.25, fields_2d());
   w.write_frame(0.5, fields_2d());
+  w.publish(); // the sidecar is otherwise rewritten at most every 0.25 s
   const std::string xdmf = slurp(t.file("run.xdmf"));
   CHECK(count(xdmf, "TopologyType=\"Polyvertex\"") == 3);
   CHECK(count(xdmf, "GeometryType=\"XY\"") == 3);
@@ -262,6 +263,7 @@ TEST_CASE("a process killed after a frame leaves a readable file") {
       w.write_frame(0.0, fields_2d());
       w.append_probe("A", 0.0, {{"v", {1.0, 2.0}}});
       w.write_frame(0.5, fields_2d());
+      w.publish();
       ::kill(::getpid(), SIGKILL);
     } catch (...) {
     }

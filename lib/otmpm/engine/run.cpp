@@ -75,7 +75,7 @@ public:
     for (const auto& [name, value] : s.errors) writer_->set_attribute(name, value);
     for (std::size_t i = 0; i < phase_names.size(); ++i)
       writer_->set_attribute("seconds_" + std::string(phase_names[i]), s.timers.seconds[i]);
-    writer_->flush();
+    writer_->publish();
     s.out_file = path_;
   }
 
@@ -83,7 +83,7 @@ public:
   void set_status(const std::string& status) {
     if (writer_) {
       writer_->set_attribute("status", status);
-      writer_->flush();
+      writer_->publish();
     }
   }
 

@@ -11,6 +11,7 @@
 #include <hdf5.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -23,6 +24,9 @@
 namespace otmpm {
 
 namespace {
+
+/// Longest wall time between two rewrites of the XDMF sidecar.
+constexpr std::chrono::milliseconds kXdmfInterval{250};
 
 /// Rows per chunk of the extendible probe datasets (one row per sample).
 constexpr hsize_t kProbeChunkRows = 256;
@@ -224,6 +228,12 @@ struct ResultWriter::Impl {
   std::map<std::string, ProbeInfo> probe_infos;
 
   void write_xdmf() const;
+  /// Rewrites the sidecar if `force` or if the last rewrite is older than
+  /// kXdmfInterval: the sidecar is O(frames) long, so rewriting it for every
+  /// frame would cost O(frames^2). It only ever names flushed frames.
+  void publish_xdmf(bool force);
+  std::chrono::steady_clock::time_point xdmf_written{};
+  std::size_t xdmf_frames = 0;
   FrameInfo describe_frame(const std::string& group, double time, const std::vector<FieldView>& fields) const;
 };
 
@@ -256,6 +266,19 @@ ResultWriter::ResultWriter(const std::string& path, const std::string& scene_tex
 
 ResultWriter::~ResultWriter() {
   if (impl_ && impl_->file.valid()) H5Fflush(impl_->file.get(), H5F_SCOPE_GLOBAL);
+  try {
+    if (impl_) impl_->publish_xdmf(true);
+  } catch (...) { // a destructor must not throw; the .h5 file is complete anyway
+  }
+}
+
+void ResultWriter::Impl::publish_xdmf(bool force) {
+  const auto now = std::chrono::steady_clock::now();
+  if (!force && now - xdmf_written < kXdmfInterval) return;
+  if (force && xdmf_frames == frame_infos.size()) return;
+  write_xdmf();
+  xdmf_written = now;
+  xdmf_frames = frame_infos.size();
 }
 
 FrameInfo ResultWriter::Impl::describe_frame(const std::string& group_path, double time,
@@ -304,7 +327,7 @@ void ResultWriter::write_frame(double time, const std::vector<FieldView>& fields
   ++frames_;
   flush();
   if (!info.geometry.empty()) m.frame_infos.push_back(std::move(info));
-  m.write_xdmf();
+  m.publish_xdmf(false);
 }
 
 void ResultWriter::append_probe(const std::string& probe, double time,
@@ -355,6 +378,11 @@ void ResultWriter::set_attribute(const std::string& name, const std::string& val
 
 void ResultWriter::flush() {
   checked_status(H5Fflush(impl_->file.get(), H5F_SCOPE_GLOBAL), path_, "flush the file");
+}
+
+void ResultWriter::publish() {
+  flush();
+  impl_->publish_xdmf(true);
 }
 
 /// Writes the sidecar: a temporal collection of Polyvertex grids whose

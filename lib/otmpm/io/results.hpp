@@ -3,7 +3,8 @@
 /// The HDF5 result file of interfaces.md: root attributes, /frames/NNNNNN/
 /// groups of particle datasets, /probes/<name>/ histories, and an .xdmf
 /// sidecar that ParaView opens. Every frame is flushed to disk before the
-/// sidecar names it, so a run killed at any moment leaves a readable file.
+/// sidecar names it, so a run killed at any moment leaves a readable file
+/// (the sidecar may lag the .h5 file by at most 0.25 s of wall time).
 #include <memory>
 #include <string>
 #include <vector>
@@ -42,6 +43,9 @@ public:
   void set_attribute(const std::string& name, const std::string& value);
   /// Flushes everything to disk.
   void flush();
+  /// Flushes and rewrites the XDMF sidecar so it names every frame written
+  /// (it is otherwise rewritten at most every 0.25 s, and on destruction).
+  void publish();
   const std::string& path() const { return path_; }
   int frames() const { return frames_; }
 
