@@ -341,6 +341,8 @@ def convergence_figure(sweep, path):
         ax.set_ylabel(f"{what} [m/s]")
         ax.grid(True, which="both", color="0.9")
         ax.legend(fontsize=9)
+    axes[1].set_title("RMS over the frames: every 1 $\\mu$s, every 2 $\\mu$s for h = L/401 and L/1333",
+                      fontsize=9)
     fig.suptitle("Dyka bar, mpm, LME $\\gamma_{lme}$ = 4, cfl = 0.1, t_end = 1e-4 s, scenes examples/dyka/dyka_nN.toml "
                  "(cf. molinos et al. Fig. 6)", fontsize=10.5)
     fig.savefig(path, dpi=110)
