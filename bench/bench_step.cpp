@@ -1,0 +1,109 @@
+// bench_step: whole-step throughput of the engine (issue 7 table).
+//
+//   OMP_NUM_THREADS=1 build/bench/bench_step [--cells N] [--steps S] [--repeat R]
+//       [--basis linear|lme|...] [--integrator fe|npc] [--mode mpm|ul] [--gamma-lme G]
+//
+// A 2D elastic block (plane strain, E = 10 MPa, rho = 1000, nu = 0.3) of
+// N x N cells with 2 x 2 particles per cell, inside a grid with two spare cells
+// on each side, falling under gravity with its base fixed - every stage of a
+// step runs. Prints the median over R repetitions of particle-steps per second
+// and the share of each phase.
+#include "otmpm/engine/engine.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <string>
+
+using namespace otmpm;
+
+namespace {
+
+std::string scene_text(int cells, const std::string& basis, const std::string& integrator, const std::string& mode,
+                       double gamma_lme) {
+  const double h = 1.0 / cells;
+  char buf[2048];
+  std::snprintf(buf, sizeof buf, R"(
+[simulation]
+dimension = 2
+mode = "%s"
+integrator = "%s"
+t_end = 1.0
+cfl = 0.3
+[basis]
+kind = "%s"
+gamma_lme = %g
+[grid]
+lower = [%.17g, %.17g]
+upper = [%.17g, %.17g]
+cells = [%d, %d]
+[[material]]
+name = "m"
+model = "linear_elastic"
+density = 1000.0
+young = 1.0e7
+poisson = 0.3
+[[body]]
+name = "block"
+material = "m"
+lower = [0.0, 0.0]
+upper = [1.0, 1.0]
+particles_per_cell = 2
+velocity = [0.0, 0.0]
+[[boundary]]
+name = "base"
+lower = [%.17g, 0.0]
+upper = [%.17g, 0.0]
+fix = [true, true]
+[body_force]
+value = [0.0, -9.81]
+)",
+                mode.c_str(), integrator.c_str(), basis.c_str(), gamma_lme, -2 * h, 0.0, 1 + 2 * h, 1 + 2 * h,
+                cells + 4, cells + 2, -2 * h, 1 + 2 * h);
+  return buf;
+}
+
+} // namespace
+
+int main(int argc, char** argv) {
+  int cells = 200, steps = 100, repeat = 5;
+  std::string basis = "linear", integrator = "fe", mode = "mpm";
+  double gamma_lme = 3.0;
+  for (int i = 1; i + 1 < argc; i += 2) {
+    const std::string a = argv[i], v = argv[i + 1];
+    if (a == "--cells") cells = std::stoi(v);
+    else if (a == "--steps") steps = std::stoi(v);
+    else if (a == "--repeat") repeat = std::stoi(v);
+    else if (a == "--basis") basis = v;
+    else if (a == "--integrator") integrator = v;
+    else if (a == "--mode") mode = v;
+    else if (a == "--gamma-lme") gamma_lme = std::stod(v);
+  }
+  const Scene scene = parse_scene(scene_text(cells, basis, integrator, mode, gamma_lme), "bench_step.toml");
+  std::vector<double> rates;
+  PhaseTimers last;
+  long particles = 0;
+  for (int r = 0; r < repeat; ++r) {
+    Engine<2> e(scene);
+    e.step(); // warm-up: first basis evaluation (cold LME start), buffers grow
+    e.timers() = PhaseTimers{};
+    particles = e.particles().size();
+    const auto t0 = std::chrono::steady_clock::now();
+    for (int s = 0; s < steps; ++s) e.step();
+    const double sec = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    rates.push_back(double(particles) * steps / sec);
+    last = e.timers();
+  }
+  std::sort(rates.begin(), rates.end());
+  double total = 0;
+  for (double s : last.seconds) total += s;
+  std::printf("block %dx%d cells, %ld particles, %s %s %s: median %.3e particle-steps/s (of %d runs), %.3f us/step/particle\n",
+              cells, cells, particles, mode.c_str(), basis.c_str(), integrator.c_str(), rates[rates.size() / 2], repeat,
+              1e6 / rates[rates.size() / 2]);
+  std::printf("phases:");
+  for (std::size_t i = 0; i < phase_names.size(); ++i)
+    std::printf(" %s %.0f%%", std::string(phase_names[i]).c_str(), total > 0 ? 100 * last.seconds[i] / total : 0.0);
+  std::printf("\n");
+  return 0;
+}
