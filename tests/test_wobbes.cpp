@@ -5,7 +5,7 @@
 // with a consistent mass matrix where the unified approach stays stable, and
 // the stress of the manufactured plate. Every bound below was set from a
 // measured value (quoted next to it, Release build) with the stated margin;
-// docs/benchmarks-wobbes.md has the full tables and the figures.
+// docs/benchmarks.md (Wobbes section) has the full tables and the figures.
 #include "otmpm/engine/engine.hpp"
 #include "otmpm/engine/run.hpp"
 #include "otmpm/reference/exact.hpp"
@@ -47,9 +47,10 @@ const Overrides unified = {"simulation.mode=ul", "simulation.integrator=unified"
 
 /// The manufactured plate displacement of wobbes eqs. 104-105 has u_1(X_1)
 /// and u_2(X_2) only, so it is not zero tangentially on the edges: the exact
-/// solution holds only the normal component fixed. (examples/mms_plate.toml
-/// fixes both components, which pins the tangential motion the exact solution
-/// has and leaves a boundary layer with ~10% displacement error.)
+/// solution holds only the normal component fixed, as examples/mms_plate.toml
+/// does; stated here again so the tests do not depend on the scene's choice.
+/// (Fixing both components pins the tangential motion the exact solution has
+/// and leaves a boundary layer with ~10% displacement error.)
 const Overrides mms_rollers = {"boundary.left.fix=[true,false]", "boundary.right.fix=[true,false]",
                                "boundary.bottom.fix=[false,true]", "boundary.top.fix=[false,true]"};
 
@@ -203,7 +204,7 @@ TEST_CASE("fixed bar: MPM-LME error is below MPM-linear on the same grid") {
   CHECK(fixed_bar_error(mpm_lme, 255) < 0.5 * fixed_bar_error(mpm_linear, 255));
   // With its consistent mass matrix LME is below linear on a coarse grid too:
   // measured 1.51e-7 vs 7.33e-7 at 32 nodes. (With lumped mass, gamma_lme = 4
-  // and 32 nodes the two agree within 2% - see docs/benchmarks-wobbes.md.)
+  // and 32 nodes the two agree within 2% - see docs/benchmarks.md (Wobbes section).)
   CHECK(fixed_bar_error(mpm_lme_consistent, 31) < 0.3 * fixed_bar_error(mpm_linear, 31));
 }
 
@@ -231,7 +232,7 @@ TEST_CASE("traction bar: the free-end displacement is within 1.5% of its maximum
   // oscillations average out: measured max |u_end - u_exact| over all steps
   // 2.3e-5 (MPM-linear), 1.9e-5 (OTM-linear), 1.5e-5 (unified), with
   // max |u_exact| = 2.18e-3 m. Bound: 3.3e-5 = 1.5% of the maximum. MPM-linear
-  // is NOT worse here (docs/benchmarks-wobbes.md).
+  // is NOT worse here (docs/benchmarks.md (Wobbes section)).
   // (An instability would throw InstabilityError out of Engine::step.)
   std::vector<EndHistory> h;
   for (const Overrides& method : {mpm_linear, otm_linear, unified}) {
@@ -297,7 +298,7 @@ TEST_CASE("mms plate: MPM-LME stress error at t_end is that of a cell-wise const
   // gamma_lme = 4 the LME basis is nearly linear, so the stress is nearly
   // constant per cell; replacing sigma_11 and sigma_22 on every particle by
   // their values at the cell centre gives an RMS error of 277.6 Pa (computed
-  // for this particle layout in docs/benchmarks-wobbes.md), 4% of the
+  // for this particle layout in docs/benchmarks.md (Wobbes section)), 4% of the
   // amplitude. Bound 345 Pa: measured +30%.
   const double e = error_of(mms_plate_file, mpm_lme + mms_rollers, "rms_stress_error");
   CHECK(e < 345.0);

@@ -335,6 +335,8 @@ SimulationSection read_simulation(const TableReader& t) {
   // and npc; consistent for otm (wobbes eq. 48) and unified (Algorithm 3).
   const bool consistent_default = s.integrator == "otm" || s.integrator == "unified";
   s.mass = t.choice("mass", consistent_default ? "consistent" : "lumped", {"lumped", "consistent"});
+  check(!(s.integrator == "unified" && s.mass == "lumped"), t.ref("mass"),
+        "integrator \"unified\" uses the consistent mass matrix (wobbes Algorithm 3): remove mass = \"lumped\"");
   s.t_end = t.require<double>("t_end");
   check(s.t_end > 0, t.ref("t_end"), "must be > 0 (got " + fmt(s.t_end) + ")");
   check(!(t.has("cfl") && t.has("dt")), t.ref("dt"), "give either simulation.cfl or simulation.dt, not both");
