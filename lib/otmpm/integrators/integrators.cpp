@@ -12,6 +12,16 @@ namespace {
 template <int D> void axpy(AlignedVector<Vec<D>>& a, double s, const AlignedVector<Vec<D>>& b) {
   for (std::size_t i = 0; i < a.size(); ++i) a[i] += s * b[i];
 }
+/// The nodal increment of OTM and the unified approach (wobbes eq. 51):
+/// v_I = M^{-1} (q + (dt + dt_prev)/2 f) with Dirichlet values, dx_I = dt v_I.
+template <int D> void transport_increment(Engine<D>& e, NodalFields<D>& n, double dt, double dt_prev) {
+  AlignedVector<Vec<D>> rhs(n.q.size());
+  for (std::size_t I = 0; I < rhs.size(); ++I) rhs[I] = n.q[I] + (0.5 * (dt + dt_prev)) * n.f[I];
+  e.solve_mass(rhs, n.v);
+  e.apply_dirichlet_velocity(n.v);
+  n.dx.resize(n.v.size());
+  for (std::size_t I = 0; I < n.v.size(); ++I) n.dx[I] = dt * n.v[I];
+}
 } // namespace
 
 /// fe / musl: forward Euler, update stress last (wobbes Algorithm 1, lumped).
@@ -102,12 +112,7 @@ template <int D> void step_otm(Engine<D>& e) {
   e.project_momentum(P.v, 0.0, nullptr);
   e.compute_forces(e.t_);
   e.apply_dirichlet_force(n.f);
-  AlignedVector<Vec<D>> rhs(n.q.size());
-  for (std::size_t I = 0; I < rhs.size(); ++I) rhs[I] = n.q[I] + (0.5 * (dt + dt_prev)) * n.f[I];
-  e.solve_mass(rhs, n.v); // the velocity dx_I / dt
-  e.apply_dirichlet_velocity(n.v);
-  n.dx.resize(n.v.size());
-  for (std::size_t I = 0; I < n.v.size(); ++I) n.dx[I] = dt * n.v[I];
+  transport_increment(e, n, dt, dt_prev);
   // 2. x_I += dx_I; x_p = sum N_Ip x_I (old N): x_p += sum N_Ip dx_I.
   P.x_prev = P.x;
   {
@@ -134,12 +139,7 @@ template <int D> void step_unified(Engine<D>& e) {
   e.apply_dirichlet_force(n.f);
   // 1. a = M^{-1} f; dx = dt M^{-1} (q + (dt + dt_prev)/2 f); x_I += dx_I.
   e.solve_mass(n.f, n.a);
-  AlignedVector<Vec<D>> rhs(n.q.size());
-  for (std::size_t I = 0; I < rhs.size(); ++I) rhs[I] = n.q[I] + (0.5 * (dt + dt_prev)) * n.f[I];
-  e.solve_mass(rhs, n.v);
-  e.apply_dirichlet_velocity(n.v);
-  n.dx.resize(n.v.size());
-  for (std::size_t I = 0; I < n.v.size(); ++I) n.dx[I] = dt * n.v[I];
+  transport_increment(e, n, dt, dt_prev);
   // 2. x_p += sum N_Ip dx_I; v_p += dt sum N_Ip a_I.
   {
     ScopedPhase timer(e.timers_, Phase::to_particles);
