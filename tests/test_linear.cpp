@@ -2,6 +2,8 @@
 // isoparametric multilinear elements on perturbed / moved lattices.
 #include "otmpm/basis/families.hpp"
 
+#include "support.hpp"
+
 #include <doctest/doctest.h>
 
 #include <cmath>
@@ -10,6 +12,7 @@
 #include <type_traits>
 
 using namespace otmpm;
+using namespace otmpm::test;
 
 namespace {
 
@@ -21,25 +24,7 @@ using Dims = std::tuple<std::integral_constant<int, 1>, std::integral_constant<i
 // wrong basis would make.
 constexpr double kRelTol = 1e-12;
 
-template <int D> CartesianGrid<D> test_grid() {
-  CartesianGrid<D> g;
-  const double lo[3] = {-0.3, 1.2, 0.05};
-  const double up[3] = {0.9, 2.0, 0.55};
-  const int n[3] = {6, 4, 3};
-  for (int k = 0; k < D; ++k) {
-    g.lower[k] = lo[k];
-    g.upper[k] = up[k];
-    g.cells[k] = n[k];
-  }
-  return g;
-}
-
-template <int D> Vec<D> random_in_box(std::mt19937& rng, const Vec<D>& lo, const Vec<D>& hi) {
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  Vec<D> x;
-  for (int k = 0; k < D; ++k) x[k] = lo[k] + u(rng) * (hi[k] - lo[k]);
-  return x;
-}
+template <int D> CartesianGrid<D> test_grid() { return offset_grid<D>({6, 4, 3}); }
 
 /// Random points of the box plus the awkward ones: nodes, points one ulp
 /// inside the boundary or next to a node, face and edge midpoints, corners.
@@ -74,43 +59,15 @@ template <int D> AlignedVector<Vec<D>> sample_points(const CartesianGrid<D>& g, 
 /// sum x_I (x) grad N_I = I), non-negativity, at one point.
 template <int D> void check_identities(const Basis<D>& b, const Vec<D>& x) {
   Stencil<D> st;
-  PointQuery<D> q;
-  q.x = x;
-  b.evaluate(q, st);
+  evaluate_at(b, x, st);
   REQUIRE(st.size() > 0);
   CHECK(st.size() <= b.max_stencil());
-  double sumN = 0, absN = 0;
-  Vec<D> sumG = Vec<D>::Zero(), absG = Vec<D>::Zero(), sumX = Vec<D>::Zero(), absX = Vec<D>::Zero();
-  Mat<D> sumXG = Mat<D>::Zero(), absXG = Mat<D>::Zero();
-  for (int a = 0; a < st.size(); ++a) {
-    const Vec<D>& xI = b.nodes().position(st.node[a]);
-    CHECK(st.N[a] >= 0.0);
-    sumN += st.N[a];
-    absN += std::abs(st.N[a]);
-    sumG += st.dN[a];
-    absG += st.dN[a].cwiseAbs();
-    sumX += st.N[a] * xI;
-    absX += (st.N[a] * xI).cwiseAbs();
-    sumXG += xI * st.dN[a].transpose();
-    absXG += (xI * st.dN[a].transpose()).cwiseAbs();
-  }
+  for (int a = 0; a < st.size(); ++a) CHECK(st.N[a] >= 0.0);
+  const StencilSums<D> s = stencil_sums(b, st);
   INFO("point ", format_point<D>(x));
-  CHECK(std::abs(sumN - 1.0) <= kRelTol * absN);
-  for (int k = 0; k < D; ++k) {
-    CHECK(std::abs(sumG[k]) <= kRelTol * absG[k]);
-    CHECK(std::abs(sumX[k] - x[k]) <= kRelTol * absX[k]);
-    for (int m = 0; m < D; ++m) CHECK(std::abs(sumXG(k, m) - (k == m)) <= kRelTol * absXG(k, m));
-  }
-}
-
-template <int D> std::map<int, double> values_at(const Basis<D>& b, const Vec<D>& x) {
-  Stencil<D> st;
-  PointQuery<D> q;
-  q.x = x;
-  b.evaluate(q, st);
-  std::map<int, double> m;
-  for (int a = 0; a < st.size(); ++a) m[st.node[a]] += st.N[a];
-  return m;
+  CHECK(std::abs(s.sumN - 1.0) <= kRelTol * s.absN);
+  for (int k = 0; k < D; ++k) CHECK(std::abs(s.sumG[k]) <= kRelTol * s.absG[k]);
+  check_linear_completeness(s, x, kRelTol);
 }
 
 /// grad N against central differences with step delta = 1e-6 h. Points are

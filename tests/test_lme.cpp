@@ -15,6 +15,7 @@
 //   that its noise (/ 4e-6 h) stays near 1e-9 / h; tolerance 2e-8 / h.
 #include "otmpm/basis/families.hpp"
 #include "otmpm/basis/lme.hpp"
+#include "support.hpp"
 
 #include <doctest/doctest.h>
 
@@ -29,6 +30,7 @@
 #include <vector>
 
 using namespace otmpm;
+using namespace otmpm::test;
 
 // Counts heap allocations through operator new (std::vector<int/double>,
 // strings, ...) for the no-allocation test below. Eigen's aligned allocator
@@ -53,121 +55,11 @@ constexpr double kGradientConsistencyTol = 1e-10;
 constexpr double kFdStep = 2e-6;            // times h
 constexpr double kFdTol = 2e-8;             // times 1/h
 
-template <int D> CartesianGrid<D> unit_grid(int cells) {
-  CartesianGrid<D> g;
-  g.lower = Vec<D>::Zero();
-  g.upper = Vec<D>::Ones();
-  g.cells.fill(cells);
-  return g;
-}
-
-/// Cells per axis used for the D-dimensional tests (keeps 3D small).
-template <int D> int cells_for() { return D == 1 ? 10 : D == 2 ? 8 : 5; }
-
-/// A random cloud with the same hull as the unit box: the boundary nodes of
-/// the lattice plus one uniformly random node inside every cell.
-template <int D> NodeSet<D> random_cloud(int cells, unsigned seed) {
-  const CartesianGrid<D> g = unit_grid<D>(cells);
-  const NodeSet<D> lattice = NodeSet<D>::cartesian(g);
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  AlignedVector<Vec<D>> x;
-  for (int id = 0; id < lattice.size(); ++id) {
-    const Index<D> ijk = g.node_index(id);
-    bool boundary = false;
-    for (int k = 0; k < D; ++k) boundary = boundary || ijk[k] == 0 || ijk[k] == cells;
-    if (boundary) x.push_back(lattice.position(id));
-  }
-  const double h = 1.0 / cells;
-  for (int id = 0; id < lattice.size(); ++id) {
-    const Index<D> ijk = g.node_index(id);
-    if (*std::max_element(ijk.begin(), ijk.end()) == cells) continue; // not a cell corner
-    Vec<D> p;
-    for (int k = 0; k < D; ++k) p[k] = (ijk[k] + u(rng)) * h;
-    x.push_back(p);
-  }
-  return NodeSet<D>::cloud(std::move(x), h);
-}
-
-/// Test points in the unit box: uniform ones, ones next to the boundary (some
-/// coordinates at distance 1e-3 h .. 1e-10 h from a face) and ones next to a node.
-template <int D> AlignedVector<Vec<D>> sample_points(const NodeSet<D>& nodes, int count, unsigned seed) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  const double h = nodes.spacing();
-  const double gaps[] = {1e-3, 1e-6, 1e-10};
-  AlignedVector<Vec<D>> pts;
-  for (int i = 0; i < count; ++i) {
-    Vec<D> p;
-    for (int k = 0; k < D; ++k) p[k] = u(rng);
-    pts.push_back(p);
-  }
-  for (int i = 0; i < count; ++i) {
-    Vec<D> p;
-    for (int k = 0; k < D; ++k) p[k] = u(rng);
-    const int axis = static_cast<int>(rng() % D);
-    const double gap = gaps[rng() % 3] * h;
-    p[axis] = (rng() % 2) ? gap : 1.0 - gap;
-    if (D > 1 && rng() % 4 == 0) p[(axis + 1) % D] = (rng() % 2) ? gap : 1.0 - gap; // near an edge
-    pts.push_back(p);
-  }
-  for (int i = 0; i < count; ++i) {
-    const int I = static_cast<int>(rng() % static_cast<unsigned>(nodes.size()));
-    Vec<D> p = nodes.position(I);
-    for (int k = 0; k < D; ++k) p[k] = std::clamp(p[k] + 1e-7 * h * (2.0 * u(rng) - 1.0), 0.0, 1.0);
-    pts.push_back(p);
-  }
-  return pts;
-}
-
-/// Worst violations of the basis identities over a set of points.
-template <int D> struct Identities {
-  double partition = 0, gradient_sum = 0, completeness = 0, gradient_consistency = 0;
-  double min_N = 1;
-  Vec<D> worst_point = Vec<D>::Zero();
-};
-
-template <int D> Identities<D> check_identities(const Basis<D>& basis, const AlignedVector<Vec<D>>& pts) {
-  Identities<D> id;
-  Stencil<D> st;
-  const double h = basis.nodes().spacing();
-  for (const Vec<D>& x : pts) {
-    PointQuery<D> q;
-    q.x = x;
-    basis.evaluate(q, st);
-    double sumN = 0, abs_dN = 0;
-    Vec<D> sum_dN = Vec<D>::Zero(), sum_xN = Vec<D>::Zero();
-    Mat<D> sum_xdN = Mat<D>::Zero();
-    for (int a = 0; a < st.size(); ++a) {
-      const Vec<D>& xI = basis.nodes().position(st.node[a]);
-      sumN += st.N[a];
-      sum_dN += st.dN[a];
-      abs_dN += st.dN[a].norm();
-      sum_xN += st.N[a] * xI;
-      sum_xdN += xI * st.dN[a].transpose();
-      id.min_N = std::min(id.min_N, st.N[a]);
-    }
-    const double e_pu = std::abs(sumN - 1.0);
-    const double e_gs = sum_dN.norm() / abs_dN;
-    const double e_c = (sum_xN - x).norm() / h;
-    const double e_gc = (sum_xdN - Mat<D>::Identity()).norm();
-    if (e_gc > id.gradient_consistency || e_c > id.completeness) id.worst_point = x;
-    id.partition = std::max(id.partition, e_pu);
-    id.gradient_sum = std::max(id.gradient_sum, e_gs);
-    id.completeness = std::max(id.completeness, e_c);
-    id.gradient_consistency = std::max(id.gradient_consistency, e_gc);
-  }
-  return id;
-}
+constexpr IdentityTolerances kIdentityTol{kPartitionTol, kGradientSumTol, kCompletenessTol, kGradientConsistencyTol};
 
 template <int D> void require_identities(const Basis<D>& basis, const AlignedVector<Vec<D>>& pts) {
   const Identities<D> id = check_identities(basis, pts);
-  INFO("worst point " << format_point<D>(id.worst_point));
-  CHECK(id.partition <= kPartitionTol);
-  CHECK(id.gradient_sum <= kGradientSumTol);
-  CHECK(id.completeness <= kCompletenessTol);
-  CHECK(id.gradient_consistency <= kGradientConsistencyTol);
-  CHECK(id.min_N > 0.0); // non-negative, and zero entries are not listed
+  test::require_identities(id, id.worst_point, kIdentityTol);
 }
 
 BasisOptions lme_options(double gamma = 4.0) {
@@ -177,57 +69,16 @@ BasisOptions lme_options(double gamma = 4.0) {
   return opt;
 }
 
-/// Dense N and grad N over all nodes at x.
-template <int D>
-void dense_eval(const Basis<D>& b, const Vec<D>& x, std::vector<double>& N, AlignedVector<Vec<D>>* dN = nullptr) {
-  Stencil<D> st;
-  PointQuery<D> q;
-  q.x = x;
-  b.evaluate(q, st);
-  N.assign(static_cast<std::size_t>(b.nodes().size()), 0.0);
-  if (dN) dN->assign(N.size(), Vec<D>::Zero());
-  for (int a = 0; a < st.size(); ++a) {
-    N[st.node[a]] = st.N[a];
-    if (dN) (*dN)[st.node[a]] = st.dN[a];
-  }
-}
-
-/// max_I |grad N_I - central difference| * h at x.
-template <int D> double fd_gradient_error(const Basis<D>& b, const Vec<D>& x) {
-  const double h = b.nodes().spacing();
-  const double eps = kFdStep * h;
-  std::vector<double> N, Np, Nm;
-  AlignedVector<Vec<D>> dN;
-  dense_eval(b, x, N, &dN);
-  double err = 0;
-  for (int k = 0; k < D; ++k) {
-    Vec<D> e = Vec<D>::Zero();
-    e[k] = eps;
-    dense_eval<D>(b, x + e, Np);
-    dense_eval<D>(b, x - e, Nm);
-    for (std::size_t I = 0; I < N.size(); ++I)
-      err = std::max(err, std::abs((Np[I] - Nm[I]) / (2 * eps) - dN[I][k]) * h);
-  }
-  return err;
-}
-
 template <int D> void identities_on(const NodeSet<D>& nodes, unsigned seed) {
   const auto basis = make_lme_basis<D>(nodes, lme_options());
-  require_identities<D>(*basis, sample_points<D>(basis->nodes(), 60, seed));
+  require_identities<D>(*basis, unit_box_points<D>(basis->nodes(), 60, seed));
 }
 
 template <int D> void fd_on(const NodeSet<D>& nodes, unsigned seed) {
   BasisOptions opt = lme_options();
   opt.newton_tolerance = 1e-14;
   const auto basis = make_lme_basis<D>(nodes, opt);
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> u(0.01, 0.99); // central differences stay inside the hull
-  double err = 0;
-  for (int i = 0; i < 30; ++i) {
-    Vec<D> x;
-    for (int k = 0; k < D; ++k) x[k] = u(rng);
-    err = std::max(err, fd_gradient_error<D>(*basis, x));
-  }
+  const double err = max_fd_gradient_error<D>(*basis, seed, kFdStep);
   INFO("layout " << int(nodes.layout()) << ", D = " << D);
   CHECK(err <= kFdTol);
 }
@@ -296,7 +147,7 @@ TEST_CASE("lme: identities for small and large gamma_lme") {
     CAPTURE(gamma);
     BasisOptions opt = lme_options(gamma);
     opt.tolerance = gamma > 4 ? 1e-12 : 1e-6;
-    require_identities<2>(*make_lme_basis<2>(nodes, opt), sample_points<2>(nodes, 30, 41));
+    require_identities<2>(*make_lme_basis<2>(nodes, opt), unit_box_points<2>(nodes, 30, 41));
   }
 }
 
@@ -413,7 +264,7 @@ TEST_CASE("lme: support radius R = h sqrt(-ln tol / gamma_lme)") {
       Stencil<2> st;
       int mismatches = 0;
       double farthest = 0;
-      for (const Vec<2>& x : sample_points<2>(nodes, 40, 61)) {
+      for (const Vec<2>& x : unit_box_points<2>(nodes, 40, 61)) {
         PointQuery<2> q;
         q.x = x;
         b->evaluate(q, st);
@@ -456,15 +307,15 @@ TEST_CASE("lme: max_stencil bounds every stencil") {
     CHECK(basis.max_stencil() <= 4 * largest); // a useful bound, not the node count
   };
   const auto cart = NodeSet<2>::cartesian(unit_grid<2>(10));
-  check(*make_lme_basis<2>(cart, lme_options()), sample_points<2>(cart, 100, 71));
+  check(*make_lme_basis<2>(cart, lme_options()), unit_box_points<2>(cart, 100, 71));
   const auto cloud = random_cloud<2>(10, 72);
-  check(*make_lme_basis<2>(cloud, lme_options()), sample_points<2>(cloud, 100, 73));
+  check(*make_lme_basis<2>(cloud, lme_options()), unit_box_points<2>(cloud, 100, 73));
   // a clustered cloud: the bound must follow the nodes
   AlignedVector<Vec<2>> x = cart.positions();
   for (int i = 0; i < 40; ++i) x.push_back(Vec<2>(0.5 + 0.001 * (i % 7), 0.5 + 0.001 * (i / 7)));
   const auto clustered = NodeSet<2>::cloud(x, 0.1);
   const auto b = make_lme_basis<2>(clustered, lme_options());
-  AlignedVector<Vec<2>> pts = sample_points<2>(clustered, 50, 74);
+  AlignedVector<Vec<2>> pts = unit_box_points<2>(clustered, 50, 74);
   pts.push_back(Vec<2>(0.503, 0.503));
   check(*b, pts);
 }
@@ -477,7 +328,7 @@ TEST_CASE("lme: max_nodes_within is sound for lattices and clouds in 3D") {
     const int bound = maxent::max_nodes_within<3>(*nodes, R);
     std::vector<int> ids;
     int largest = 0;
-    for (const Vec<3>& x : sample_points<3>(*nodes, 60, 82)) {
+    for (const Vec<3>& x : unit_box_points<3>(*nodes, 60, 82)) {
       ids.clear();
       nodes->within(x, R, ids);
       largest = std::max(largest, static_cast<int>(ids.size()));
@@ -635,7 +486,7 @@ TEST_CASE("lme: moved nodes keep beta from the initial spacing and a fresh searc
   b->nodes_moved(dx);
   CHECK(b->nodes().spacing() == doctest::Approx(1.0 / 8));
   AlignedVector<Vec<2>> pts;
-  for (const Vec<2>& p : sample_points<2>(NodeSet<2>::cartesian(g), 20, 99)) pts.push_back(shift + 1.2 * p);
+  for (const Vec<2>& p : unit_box_points<2>(NodeSet<2>::cartesian(g), 20, 99)) pts.push_back(shift + 1.2 * p);
   require_identities<2>(*b, pts);
 }
 
@@ -643,7 +494,7 @@ TEST_CASE("lme: evaluate allocates nothing once the stencil buffers have grown")
   for (const bool lattice : {true, false}) {
     const auto nodes = lattice ? NodeSet<3>::cartesian(unit_grid<3>(5)) : NodeSet<3>::perturbed(unit_grid<3>(5), 0.3, 2);
     const auto b = make_lme_basis<3>(nodes, lme_options());
-    const AlignedVector<Vec<3>> pts = sample_points<3>(nodes, 30, 101);
+    const AlignedVector<Vec<3>> pts = unit_box_points<3>(nodes, 30, 101);
     AlignedVector<Vec<3>> lambda(pts.size(), Vec<3>::Zero());
     Stencil<3> st;
     auto pass = [&] {
@@ -674,7 +525,7 @@ TEST_CASE("lme: evaluate allocates nothing once the stencil buffers have grown")
 TEST_CASE("lme: concurrent evaluation gives the serial result") {
   auto nodes = NodeSet<2>::perturbed(unit_grid<2>(8), 0.3, 8);
   const auto b = make_lme_basis<2>(nodes, lme_options());
-  const AlignedVector<Vec<2>> pts = sample_points<2>(nodes, 40, 111);
+  const AlignedVector<Vec<2>> pts = unit_box_points<2>(nodes, 40, 111);
   auto run = [&](std::size_t first, std::size_t step, std::vector<double>& sums) {
     Stencil<2> st;
     for (std::size_t i = first; i < pts.size(); i += step) {

@@ -2,6 +2,8 @@
 // neighbour search (lattice arithmetic vs R-tree vs brute force).
 #include "otmpm/nodes/node_set.hpp"
 
+#include "support.hpp"
+
 #include <doctest/doctest.h>
 
 #include <algorithm>
@@ -11,29 +13,13 @@
 #include <type_traits>
 
 using namespace otmpm;
+using otmpm::test::offset_grid;
+using otmpm::test::random_in_box;
 
 namespace {
 
 /// A grid with an offset origin and a different cell count and width per axis.
-template <int D> CartesianGrid<D> test_grid() {
-  CartesianGrid<D> g;
-  const double lo[3] = {-0.3, 1.2, 0.05};
-  const double up[3] = {0.9, 2.0, 0.55};
-  const int n[3] = {7, 5, 4};
-  for (int k = 0; k < D; ++k) {
-    g.lower[k] = lo[k];
-    g.upper[k] = up[k];
-    g.cells[k] = n[k];
-  }
-  return g;
-}
-
-template <int D> Vec<D> random_point(std::mt19937& rng, const Vec<D>& lo, const Vec<D>& hi) {
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  Vec<D> x;
-  for (int k = 0; k < D; ++k) x[k] = lo[k] + u(rng) * (hi[k] - lo[k]);
-  return x;
-}
+template <int D> CartesianGrid<D> test_grid() { return offset_grid<D>({7, 5, 4}); }
 
 template <int D> std::vector<int> brute_within(const NodeSet<D>& s, const Vec<D>& x, double r) {
   std::vector<int> ids;
@@ -57,7 +43,7 @@ template <int D> void check_within_matches_brute_force(const NodeSet<D>& s, cons
   const Vec<D> pad = Vec<D>::Constant(h);
   const double radii[] = {0.3 * h, h, 1.7 * h, 3.1 * h};
   for (int n = 0; n < 60; ++n) {
-    const Vec<D> x = random_point<D>(rng, lo - pad, hi + pad);
+    const Vec<D> x = random_in_box<D>(rng, lo - pad, hi + pad);
     for (double r : radii) CHECK(sorted_within(s, x, r) == brute_within(s, x, r));
   }
   // Radius exactly equal to a node distance: the closed ball includes it.
@@ -68,7 +54,7 @@ template <int D> void check_within_matches_brute_force(const NodeSet<D>& s, cons
 template <int D> AlignedVector<Vec<D>> random_cloud(int n, unsigned seed) {
   std::mt19937 rng(seed);
   AlignedVector<Vec<D>> x;
-  for (int i = 0; i < n; ++i) x.push_back(random_point<D>(rng, Vec<D>::Zero(), Vec<D>::Ones()));
+  for (int i = 0; i < n; ++i) x.push_back(random_in_box<D>(rng, Vec<D>::Zero(), Vec<D>::Ones()));
   return x;
 }
 
@@ -140,7 +126,7 @@ TEST_CASE_TEMPLATE("cell_of finds the cell containing the point and clamps outsi
   std::mt19937 rng(11);
   const Vec<D> h = g.h();
   for (int n = 0; n < 200; ++n) {
-    const Vec<D> x = random_point<D>(rng, g.lower, g.upper);
+    const Vec<D> x = random_in_box<D>(rng, g.lower, g.upper);
     const Index<D> c = g.cell_of(x);
     Index<D> c1 = c;
     for (int k = 0; k < D; ++k) ++c1[k];
@@ -276,7 +262,7 @@ TEST_CASE_TEMPLATE("within after a Cartesian lattice is advected equals brute fo
   check_within_matches_brute_force<D>(s, g.lower, g.upper, h, 1u); // before: index arithmetic
   std::mt19937 rng(2);
   AlignedVector<Vec<D>> dx;
-  for (int I = 0; I < s.size(); ++I) dx.push_back(random_point<D>(rng, Vec<D>::Constant(-h), Vec<D>::Constant(h)));
+  for (int I = 0; I < s.size(); ++I) dx.push_back(random_in_box<D>(rng, Vec<D>::Constant(-h), Vec<D>::Constant(h)));
   s.advect(dx);
   CHECK_FALSE(s.on_lattice());
   check_within_matches_brute_force<D>(s, g.lower, g.upper, h, 2u); // after: R-tree

@@ -3,6 +3,8 @@
 #include "otmpm/basis/families.hpp"
 #include "otmpm/basis/linear.hpp"
 
+#include "support.hpp"
+
 #include <doctest/doctest.h>
 
 #include <cmath>
@@ -11,6 +13,7 @@
 #include <type_traits>
 
 using namespace otmpm;
+using namespace otmpm::test;
 
 namespace {
 
@@ -21,18 +24,7 @@ using Dims = std::tuple<std::integral_constant<int, 1>, std::integral_constant<i
 // still orders of magnitude below any modelling error.
 constexpr double kRelTol = 1e-12;
 
-template <int D> CartesianGrid<D> test_grid() {
-  CartesianGrid<D> g;
-  const double lo[3] = {-0.3, 1.2, 0.05};
-  const double up[3] = {0.9, 2.0, 0.55};
-  const int n[3] = {6, 4, 3};
-  for (int k = 0; k < D; ++k) {
-    g.lower[k] = lo[k];
-    g.upper[k] = up[k];
-    g.cells[k] = n[k];
-  }
-  return g;
-}
+template <int D> CartesianGrid<D> test_grid() { return offset_grid<D>({6, 4, 3}); }
 
 /// Half-widths: a quarter cell (2 particles per cell and axis) on axis 0,
 /// half a cell (1 per cell, the widest allowed) on axis 1, a sixth on axis 2.
@@ -41,13 +33,6 @@ template <int D> Vec<D> test_half_width(const CartesianGrid<D>& g) {
   Vec<D> l;
   for (int k = 0; k < D; ++k) l[k] = frac[k] * g.h()[k];
   return l;
-}
-
-template <int D> Vec<D> random_in_box(std::mt19937& rng, const Vec<D>& lo, const Vec<D>& hi) {
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  Vec<D> x;
-  for (int k = 0; k < D; ++k) x[k] = lo[k] + u(rng) * (hi[k] - lo[k]);
-  return x;
 }
 
 /// Random points, nodes, points next to nodes and to the boundary, the
@@ -87,44 +72,16 @@ template <int D> bool particle_inside(const CartesianGrid<D>& g, const Vec<D>& l
 /// box lies in the grid.
 template <int D> void check_identities(const Basis<D>& b, const CartesianGrid<D>& g, const Vec<D>& lp, const Vec<D>& x) {
   Stencil<D> st;
-  PointQuery<D> q;
-  q.x = x;
-  b.evaluate(q, st);
+  evaluate_at(b, x, st);
   REQUIRE(st.size() > 0);
   CHECK(st.size() <= b.max_stencil());
-  double sumN = 0, absN = 0;
-  Vec<D> sumG = Vec<D>::Zero(), absG = Vec<D>::Zero(), sumX = Vec<D>::Zero(), absX = Vec<D>::Zero();
-  Mat<D> sumXG = Mat<D>::Zero(), absXG = Mat<D>::Zero();
-  for (int a = 0; a < st.size(); ++a) {
-    const Vec<D>& xI = b.nodes().position(st.node[a]);
-    CHECK(st.N[a] > 0.0); // zero weights are not part of the stencil
-    sumN += st.N[a];
-    absN += std::abs(st.N[a]);
-    sumG += st.dN[a];
-    absG += st.dN[a].cwiseAbs();
-    sumX += st.N[a] * xI;
-    absX += (st.N[a] * xI).cwiseAbs();
-    sumXG += xI * st.dN[a].transpose();
-    absXG += (xI * st.dN[a].transpose()).cwiseAbs();
-  }
+  for (int a = 0; a < st.size(); ++a) CHECK(st.N[a] > 0.0); // zero weights are not part of the stencil
+  const StencilSums<D> s = stencil_sums(b, st);
   INFO("point ", format_point<D>(x));
-  CHECK(std::abs(sumN - 1.0) <= kRelTol * absN);
-  for (int k = 0; k < D; ++k) CHECK(std::abs(sumG[k]) <= kRelTol * absG[k] + 1e-300);
+  CHECK(std::abs(s.sumN - 1.0) <= kRelTol * s.absN);
+  for (int k = 0; k < D; ++k) CHECK(std::abs(s.sumG[k]) <= kRelTol * s.absG[k] + 1e-300);
   if (!particle_inside(g, lp, x)) return;
-  for (int k = 0; k < D; ++k) {
-    CHECK(std::abs(sumX[k] - x[k]) <= kRelTol * absX[k]);
-    for (int m = 0; m < D; ++m) CHECK(std::abs(sumXG(k, m) - (k == m)) <= kRelTol * absXG(k, m));
-  }
-}
-
-template <int D> std::map<int, double> values_at(const Basis<D>& b, const Vec<D>& x) {
-  Stencil<D> st;
-  PointQuery<D> q;
-  q.x = x;
-  b.evaluate(q, st);
-  std::map<int, double> m;
-  for (int a = 0; a < st.size(); ++a) m[st.node[a]] += st.N[a];
-  return m;
+  check_linear_completeness(s, x, kRelTol);
 }
 
 template <int D> std::unique_ptr<Basis<D>> test_basis() {
@@ -187,9 +144,7 @@ TEST_CASE_TEMPLATE_DEFINE("ugimp: next to the grid edge the ghost weight goes to
   Vec<D> x = 0.5 * (g.lower + g.upper);
   x[0] = g.lower[0] + 0.5 * lp[0]; // box reaches lp / 2 beyond the lower edge
   Stencil<D> st;
-  PointQuery<D> q;
-  q.x = x;
-  b->evaluate(q, st);
+  evaluate_at(*b, x, st);
   double sumN = 0, sumX0 = 0;
   for (int a = 0; a < st.size(); ++a) {
     sumN += st.N[a];
@@ -222,9 +177,7 @@ TEST_CASE_TEMPLATE_DEFINE("ugimp gradients equal central differences", T, fd_id)
   for (const Vec<D>& x0 : sample_points(g, lp, 2u)) {
     const Vec<D> x = x0.cwiseMax(g.lower + Vec<D>::Constant(2 * delta)).cwiseMin(g.upper - Vec<D>::Constant(2 * delta));
     Stencil<D> st;
-    PointQuery<D> q;
-    q.x = x;
-    b->evaluate(q, st);
+    evaluate_at(*b, x, st);
     for (int k = 0; k < D; ++k) {
       Vec<D> e = Vec<D>::Zero();
       e[k] = delta;
