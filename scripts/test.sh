@@ -8,4 +8,6 @@ build=${OTMPM_BUILD_DIR:-$root/build}
 jobs=$(nproc 2>/dev/null || echo 2)
 cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=Release -DOTMPM_WERROR=ON
 cmake --build "$build" -j"$jobs"
+# Tests run side by side (ctest -j): OpenMP threads must sleep, not spin, while waiting.
+export OMP_WAIT_POLICY=${OMP_WAIT_POLICY:-passive}
 ctest --test-dir "$build" --output-on-failure -j"$jobs"
