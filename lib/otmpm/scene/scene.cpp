@@ -653,7 +653,7 @@ ReferenceSection read_reference(const TableReader& root) {
 void finish_basis(Scene& s, const TableReader& basis) {
   if (s.basis.kind != "ugimp") return;
   check(s.grid.kind == "cartesian", basis.ref("kind"),
-        "uGIMP needs a Cartesian grid (grid.kind = \"" + s.grid.kind + "\")");
+        "uGIMP needs an unperturbed Cartesian grid; this scene has grid.kind = \"" + s.grid.kind + "\"");
   const int ppc = s.bodies.front().particles_per_cell;
   for (int k = 0; k < s.simulation.dimension; ++k) s.basis.ugimp_half_width[k] = spacing(s.grid, k) / (2.0 * ppc);
 }
