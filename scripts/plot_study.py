@@ -59,7 +59,7 @@ def draw(series, xkey, xlabel, error, title, prefix, suffix):
     for i, (variant, runs) in enumerate(sorted(series.items())):
         good = [r for r in runs if r["ok"] and r["error"] > 0 and r[xkey] > 0]
         line = ax.loglog([r[xkey] for r in good], [r["error"] for r in good], marker=markers[i % len(markers)],
-                         ms=4, lw=1.2, label=variant)[0]
+                         ms=4, lw=1.2, label=variant, color=plt.cm.tab20(i % 20))[0]
         bad = [r for r in runs if not r["ok"] and r[xkey] > 0]
         if bad:
             ax.loglog([r[xkey] for r in bad], [top] * len(bad), "x", color="red", ms=9, mew=2,
