@@ -159,11 +159,11 @@ TEST_CASE("cli: a run that leaves the grid exits with 1 and leaves a valid file 
       dir, {"run", (kSource / "tests" / "scenes" / "engine" / "leaves_grid.toml").string(), "--out", out.string(), "--quiet"});
   INFO("stderr: " << r.err);
   CHECK(r.status == 1);
-  CHECK(r.err.find("left the grid") != std::string::npos);
+  CHECK(r.err.find("would leave the grid") != std::string::npos);
   REQUIRE(fs::exists(out));
   const std::string status = root_string_attribute(out, "status");
   CHECK(status.rfind("unstable", 0) == 0);
-  CHECK(status.find("left the grid") != std::string::npos);
+  CHECK(status.find("would leave the grid") != std::string::npos);
 }
 
 TEST_CASE("cli: --set of an unknown key exits with 2 and names the key") {

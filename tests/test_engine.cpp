@@ -1,7 +1,7 @@
 // Engine tests: conservation properties that hold exactly (to round-off) for
 // every basis family and integrator, rigid motion, the frequency of a single
 // element, ul-mode consistency, the OTM/FE equivalence of wobbes sect. 5,
-// Dirichlet nodes, the "left the grid" diagnosis and 1D/2D/3D agreement of
+// Dirichlet nodes, the "would leave the grid" diagnosis and 1D/2D/3D agreement of
 // the Dyka bar. Scenes are built from TOML text (otmpm::parse_scene), kept
 // coarse and short so that the executable runs in a few seconds.
 #include "otmpm/engine/engine.hpp"
@@ -619,7 +619,7 @@ Spec escaping_block(const std::string& basis) {
 
 } // namespace
 
-TEST_CASE("a particle leaving the grid in mpm mode is an InstabilityError saying 'left the grid'") {
+TEST_CASE("a particle about to leave the grid in mpm mode is an InstabilityError one step before it leaves") {
   for (const char* basis : {"linear", "lme", "bspline2"}) {
     INFO("basis " << basis);
     Engine<1> e(scene_of(escaping_block(basis)));
@@ -629,13 +629,15 @@ TEST_CASE("a particle leaving the grid in mpm mode is an InstabilityError saying
     } catch (const InstabilityError& err) {
       message = err.what();
     }
-    CHECK(message.find("left the grid") != std::string::npos);
+    CHECK(message.find("would leave the grid in the next step") != std::string::npos);
     CHECK(message.find("particle") != std::string::npos);
-    // Only in the step where the front particle (Gauss point at 0.5 - h (1/2 -
-    // 1/(2 sqrt 3)), h = 0.25) really crossed x = 1 (time already advanced).
+    // In the step after which the front particle (Gauss point at 0.5 - h (1/2 -
+    // 1/(2 sqrt 3)), h = 0.25, moving at 1 m/s) is less than one step from
+    // x = 1: before it crossed, never after.
     const double t_cross = 1.0 - (0.5 - 0.25 * (0.5 - 0.5 / std::sqrt(3.0)));
-    CHECK(e.time() >= t_cross);
-    CHECK(e.time() <= t_cross + e.last_dt());
+    CHECK(e.time() < t_cross);
+    CHECK(e.time() >= t_cross - 1.01 * e.last_dt());
+    for (const Vec<1>& x : e.particles().x) CHECK(x[0] < 1.0); // every particle still inside
   }
 }
 
@@ -643,7 +645,7 @@ TEST_CASE("run_scene reports a particle leaving the grid as exit code 1 with the
   const RunOptions opt{.out_file = "", .write_results = false, .progress = {}};
   const RunSummary s = run_scene(scene_of(escaping_block("lme")), opt);
   CHECK(s.exit_code == 1);
-  CHECK(s.status.find("left the grid") != std::string::npos);
+  CHECK(s.status.find("would leave the grid") != std::string::npos);
   CHECK(s.time < 1.0); // stopped early
 }
 

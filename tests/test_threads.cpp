@@ -14,35 +14,59 @@ namespace {
 
 /// Steps the andersen block (LME, NPC; 10 x 10 m at h = 0.25 m: 6400
 /// particles, enough for fill_basis_table to split the work) with `threads`.
-Particles<2> run_with_threads(int threads, const std::string& basis) {
+struct Result {
+  Particles<2> particles;
+  EnergyBalance energy;
+  Vec<2> momentum;
+};
+
+Result run_with_threads(int threads, const std::vector<std::string>& sets) {
 #ifdef OTMPM_HAVE_OPENMP
   const int saved = omp_get_max_threads();
   omp_set_num_threads(threads);
 #else
   (void)threads;
 #endif
-  const Scene scene = load_scene(OTMPM_SOURCE_DIR "/examples/andersen_block.toml",
-                                 {"grid.cells=[72, 48]", "output.every=0", "basis.kind=" + basis});
+  std::vector<std::string> all{"grid.cells=[72, 48]", "output.every=0"};
+  all.insert(all.end(), sets.begin(), sets.end());
+  const Scene scene = load_scene(OTMPM_SOURCE_DIR "/examples/andersen_block.toml", all);
   Engine<2> e(scene);
   for (int s = 0; s < 5; ++s) e.step();
 #ifdef OTMPM_HAVE_OPENMP
   omp_set_num_threads(saved);
 #endif
-  return e.particles();
+  return {e.particles(), e.energy(), e.momentum()};
 }
 
 } // namespace
 
+// Every stage runs threaded: the basis table, the gather over node columns
+// (mass, momentum, forces), the particle updates, and the blocked sums of
+// energy and momentum. Each variant exercises another path.
 TEST_CASE("engine results are bitwise identical with 1 and 2 threads") {
-  for (const char* basis : {"lme", "linear"}) {
-    CAPTURE(basis);
-    const Particles<2> one = run_with_threads(1, basis);
-    const Particles<2> two = run_with_threads(2, basis);
-    REQUIRE(one.size() == 6400);
-    REQUIRE(one.size() == two.size());
+  const std::vector<std::vector<std::string>> variants{
+      {"basis.kind=\"lme\""},
+      {"basis.kind=\"linear\"", "simulation.integrator=\"fe\""},
+      {"basis.kind=\"linear\"", "simulation.integrator=\"musl\""},
+      {"basis.kind=\"bspline2\"", "simulation.mode=\"ul\"", "simulation.integrator=\"unified\""},
+      {"basis.kind=\"linear\"", "simulation.mode=\"ul\"", "simulation.integrator=\"otm\""},
+  };
+  for (const auto& sets : variants) {
+    CAPTURE(sets.front());
+    CAPTURE(sets.back());
+    const Result one = run_with_threads(1, sets);
+    const Result two = run_with_threads(2, sets);
+    const Particles<2>& a = one.particles;
+    const Particles<2>& b = two.particles;
+    REQUIRE(a.size() == 6400);
+    REQUIRE(a.size() == b.size());
     bool same = true;
-    for (int p = 0; p < one.size(); ++p)
-      same = same && one.x[p] == two.x[p] && one.v[p] == two.v[p] && one.sigma[p] == two.sigma[p];
+    for (int p = 0; p < a.size(); ++p)
+      same = same && a.x[p] == b.x[p] && a.v[p] == b.v[p] && a.sigma[p] == b.sigma[p] && a.V[p] == b.V[p];
     CHECK(same);
+    CHECK(one.energy.kinetic == two.energy.kinetic);
+    CHECK(one.energy.strain == two.energy.strain);
+    CHECK(one.energy.external_work == two.energy.external_work);
+    CHECK(one.momentum == two.momentum);
   }
 }

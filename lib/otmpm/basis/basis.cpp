@@ -6,7 +6,10 @@
 
 #include "otmpm/basis/families.hpp"
 
+#include "otmpm/engine/parallel.hpp"
+
 #include <algorithm>
+#include <atomic>
 #include <exception>
 #include <limits>
 #include <utility>
@@ -69,6 +72,62 @@ template <int D> struct TableChunk {
   }
 };
 
+/// The query for point p of a table fill.
+template <int D>
+PointQuery<D> point_query(const AlignedVector<Vec<D>>& x, AlignedVector<Vec<D>>* lambda,
+                          std::vector<Index<D>>* cell_hint, int p) {
+  PointQuery<D> q;
+  q.x = x[p];
+  q.id = p;
+  q.lambda = lambda ? &(*lambda)[p] : nullptr;
+  q.cell_hint = cell_hint ? &(*cell_hint)[p] : nullptr;
+  return q;
+}
+
+/// The BasisError of point p, with the particle index and position prepended.
+template <int D> BasisError point_error(const AlignedVector<Vec<D>>& x, int p, const BasisError& e) {
+  return BasisError("particle " + std::to_string(p) + " at " + format_point<D>(x[p]) + ": " + e.what());
+}
+
+/// Fills the table of a family whose stencils all have S entries: row p is
+/// entries p S .. (p+1) S - 1, written in place by the thread owning p (no
+/// per-thread buffer, no copy). Returns false when some point gave another
+/// stencil size; the caller then takes the general path.
+template <int D>
+bool fill_fixed(const Basis<D>& basis, int S, const AlignedVector<Vec<D>>& x, AlignedVector<Vec<D>>* lambda,
+                std::vector<Index<D>>* cell_hint, BasisTable<D>& table) {
+  const int n = static_cast<int>(x.size());
+  const std::size_t entries = static_cast<std::size_t>(n) * static_cast<std::size_t>(S);
+  table.offset.resize(static_cast<std::size_t>(n) + 1);
+  table.node.resize(entries);
+  table.N.resize(entries);
+  table.dN.resize(entries);
+  std::atomic<bool> irregular{false};
+  parallel_chunks(n, [&](long long begin, long long end) {
+    thread_local Stencil<D> st;
+    for (int p = static_cast<int>(begin); p < end; ++p) {
+      const std::size_t e0 = static_cast<std::size_t>(p) * static_cast<std::size_t>(S);
+      table.offset[static_cast<std::size_t>(p)] = static_cast<int>(e0);
+      const PointQuery<D> q = point_query<D>(x, lambda, cell_hint, p);
+      try {
+        if (basis.evaluate_fixed(q, &table.node[e0], &table.N[e0], &table.dN[e0])) continue;
+        basis.evaluate(q, st);
+      } catch (const BasisError& e) {
+        throw point_error<D>(x, p, e);
+      }
+      if (st.size() != S) {
+        irregular.store(true, std::memory_order_relaxed);
+        return;
+      }
+      std::copy(st.node.begin(), st.node.end(), table.node.begin() + static_cast<std::ptrdiff_t>(e0));
+      std::copy(st.N.begin(), st.N.end(), table.N.begin() + static_cast<std::ptrdiff_t>(e0));
+      std::copy(st.dN.begin(), st.dN.end(), table.dN.begin() + static_cast<std::ptrdiff_t>(e0));
+    }
+  });
+  table.offset[static_cast<std::size_t>(n)] = static_cast<int>(entries);
+  return !irregular.load();
+}
+
 /// Evaluates particles [begin, end) into `c`; stops at the first error.
 template <int D>
 void fill_chunk(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, AlignedVector<Vec<D>>* lambda,
@@ -76,16 +135,10 @@ void fill_chunk(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, AlignedVe
   c.clear();
   c.count.reserve(static_cast<std::size_t>(end - begin));
   for (int p = begin; p < end; ++p) {
-    PointQuery<D> q;
-    q.x = x[p];
-    q.id = p;
-    q.lambda = lambda ? &(*lambda)[p] : nullptr;
-    q.cell_hint = cell_hint ? &(*cell_hint)[p] : nullptr;
     try {
-      basis.evaluate(q, c.stencil);
+      basis.evaluate(point_query<D>(x, lambda, cell_hint, p), c.stencil);
     } catch (const BasisError& e) {
-      c.error = std::make_exception_ptr(
-          BasisError("particle " + std::to_string(p) + " at " + format_point<D>(x[p]) + ": " + e.what()));
+      c.error = std::make_exception_ptr(point_error<D>(x, p, e));
       return;
     } catch (...) {
       c.error = std::current_exception();
@@ -146,14 +199,9 @@ void fill_basis_table(const Basis<D>& basis, const AlignedVector<Vec<D>>& x,
   if (cell_hint && cell_hint->empty()) cell_hint = nullptr;
 
   basis.nodes().prepare_search(); // build the R-tree before threads query it
+  if (const int S = basis.fixed_stencil(); S > 0 && fill_fixed<D>(basis, S, x, lambda, cell_hint, table)) return;
 
-  int threads = 1;
-#ifdef OTMPM_HAVE_OPENMP
-  // Below this many points per thread the fork/join costs more than it saves
-  // (and a loaded machine makes spinning threads very slow).
-  constexpr int min_points_per_thread = 512;
-  threads = std::max(1, std::min(omp_get_max_threads(), n / min_points_per_thread));
-#endif
+  const int threads = team_size(n);
   std::vector<std::exception_ptr> errors(static_cast<std::size_t>(threads));
   std::vector<int> rows(static_cast<std::size_t>(threads) + 1, 0), entries = rows;
   bool failed = false;
@@ -191,10 +239,59 @@ void fill_basis_table(const Basis<D>& basis, const AlignedVector<Vec<D>>& x,
     if (e) std::rethrow_exception(e); // the failing particle with the lowest index
 }
 
+template <int D> void transpose_basis_table(const BasisTable<D>& table, int nodes, NodeColumns& columns) {
+  const int rows = table.rows();
+  const int team = team_size(static_cast<long long>(table.entries()));
+  // counts[t * nodes + I]: entries of node I in thread t's particle chunk;
+  // turned into that chunk's first slot in column I.
+  std::vector<int>& counts = columns.scratch;
+  counts.assign(static_cast<std::size_t>(team) * static_cast<std::size_t>(nodes), 0);
+  auto chunk_of = [&](int t, int& begin, int& end) {
+    begin = static_cast<int>(static_cast<long long>(rows) * t / team);
+    end = static_cast<int>(static_cast<long long>(rows) * (t + 1) / team);
+  };
+  parallel_chunks(team, team, [&](long long t0, long long t1) {
+    for (int t = static_cast<int>(t0); t < t1; ++t) {
+      int b, e;
+      chunk_of(t, b, e);
+      int* c = &counts[static_cast<std::size_t>(t) * static_cast<std::size_t>(nodes)];
+      for (int a = table.offset[static_cast<std::size_t>(b)]; a < table.offset[static_cast<std::size_t>(e)]; ++a) ++c[table.node[a]];
+    }
+  });
+  columns.offset.assign(static_cast<std::size_t>(nodes) + 1, 0);
+  int slot = 0;
+  for (int I = 0; I < nodes; ++I) {
+    columns.offset[static_cast<std::size_t>(I)] = slot;
+    for (int t = 0; t < team; ++t) {
+      int& c = counts[static_cast<std::size_t>(t) * static_cast<std::size_t>(nodes) + static_cast<std::size_t>(I)];
+      const int k = c;
+      c = slot;
+      slot += k;
+    }
+  }
+  columns.offset[static_cast<std::size_t>(nodes)] = slot;
+  columns.entry.resize(table.entries());
+  columns.particle.resize(table.entries());
+  parallel_chunks(team, team, [&](long long t0, long long t1) {
+    for (int t = static_cast<int>(t0); t < t1; ++t) {
+      int b, e;
+      chunk_of(t, b, e);
+      int* c = &counts[static_cast<std::size_t>(t) * static_cast<std::size_t>(nodes)];
+      for (int p = b; p < e; ++p)
+        for (int a = table.begin(p); a < table.end(p); ++a) {
+          const int s = c[table.node[a]]++;
+          columns.entry[static_cast<std::size_t>(s)] = a;
+          columns.particle[static_cast<std::size_t>(s)] = p;
+        }
+    }
+  });
+}
+
 #define OTMPM_INSTANTIATE_BASIS(D)                                                                      \
   template std::unique_ptr<Basis<D>> make_basis<D>(const BasisOptions&, NodeSet<D>);                    \
   template void fill_basis_table<D>(const Basis<D>&, const AlignedVector<Vec<D>>&, AlignedVector<Vec<D>>*, \
-                                    std::vector<Index<D>>*, BasisTable<D>&);
+                                    std::vector<Index<D>>*, BasisTable<D>&);          \
+  template void transpose_basis_table<D>(const BasisTable<D>&, int, NodeColumns&);
 OTMPM_INSTANTIATE_BASIS(1)
 OTMPM_INSTANTIATE_BASIS(2)
 OTMPM_INSTANTIATE_BASIS(3)

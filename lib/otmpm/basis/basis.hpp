@@ -81,6 +81,16 @@ public:
   virtual bool linearly_complete() const = 0;
   /// Upper bound on the stencil size (for buffer reservation).
   virtual int max_stencil() const = 0;
+  /// The stencil size when every point has the same one (linear: 2^D,
+  /// B-splines: (p+1)^D), else 0. fill_basis_table then writes rows in place.
+  virtual int fixed_stencil() const { return 0; }
+  /// Fast path of evaluate() for fixed-stencil families: writes the
+  /// fixed_stencil() entries of q.x to node/N/dN and returns true, or returns
+  /// false (nothing written) when the family must go through evaluate().
+  virtual bool evaluate_fixed(const PointQuery<D>& q, int* node, double* N, Vec<D>* dN) const {
+    (void)q, (void)node, (void)N, (void)dN;
+    return false;
+  }
 };
 
 /// Creates the basis family `opt.kind` on `nodes` (for B-splines: on the
@@ -104,6 +114,23 @@ template <int D> struct BasisTable {
   int end(int p) const { return offset[p + 1]; }
   std::size_t entries() const { return node.size(); }
 };
+
+/// The node-ordered (transposed) view of a BasisTable: column I lists the
+/// table entries e (and their particles p) whose node is I, entries
+/// offset[I] .. offset[I+1]-1, in increasing particle order. Gathering over a
+/// column visits a node's contributions in the same order as a serial
+/// scatter over particles, so parallel node loops reproduce its bits.
+struct NodeColumns {
+  std::vector<int> offset{0};
+  std::vector<int> entry;
+  std::vector<int> particle;
+  /// Per-thread counts (scratch kept between steps).
+  std::vector<int> scratch;
+};
+
+/// Builds `columns` for `table` over `nodes` nodes (OpenMP; the result does
+/// not depend on the thread count).
+template <int D> void transpose_basis_table(const BasisTable<D>& table, int nodes, NodeColumns& columns);
 
 /// Evaluates `basis` at every point x[p] into `table` (OpenMP over particles;
 /// the result does not depend on the thread count). lambda (may be empty) is

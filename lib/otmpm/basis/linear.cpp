@@ -51,10 +51,10 @@ template <int M> struct AxisWeights {
   }
 };
 
-/// Appends the tensor product of the per-axis weights to `out`:
-/// N = prod_k w_k, (grad N)_k = dw_k prod_{j != k} w_j.
-template <int D, int M>
-void push_tensor_product(const CartesianGrid<D>& g, const std::array<AxisWeights<M>, D>& axes, Stencil<D>& out) {
+/// Calls emit(I, N, grad N) for the tensor product of the per-axis weights:
+/// N = prod_k w_k, (grad N)_k = dw_k prod_{j != k} w_j (axis 0 fastest).
+template <int D, int M, class Emit>
+void tensor_product(const CartesianGrid<D>& g, const std::array<AxisWeights<M>, D>& axes, Emit&& emit) {
   std::array<int, D> j{};
   for (;;) {
     Index<D> ijk;
@@ -65,7 +65,7 @@ void push_tensor_product(const CartesianGrid<D>& g, const std::array<AxisWeights
       N *= axes[k].w[j[k]];
       for (int m = 0; m < D; ++m) grad[m] *= (m == k ? axes[k].dw[j[k]] : axes[k].w[j[k]]);
     }
-    out.push(g.node_id(ijk), N, grad);
+    emit(g.node_id(ijk), N, grad);
     int k = 0;
     for (; k < D; ++k) {
       if (++j[k] < axes[k].count) break;
@@ -73,6 +73,12 @@ void push_tensor_product(const CartesianGrid<D>& g, const std::array<AxisWeights
     }
     if (k == D) return;
   }
+}
+
+/// Appends the tensor product of the per-axis weights to `out`.
+template <int D, int M>
+void push_tensor_product(const CartesianGrid<D>& g, const std::array<AxisWeights<M>, D>& axes, Stencil<D>& out) {
+  tensor_product<D, M>(g, axes, [&](int I, double N, const Vec<D>& grad) { out.push(I, N, grad); });
 }
 
 /// "(lower) .. (upper)" for messages.
@@ -248,6 +254,7 @@ public:
   void nodes_moved(const AlignedVector<Vec<D>>&) override {}
   bool linearly_complete() const override { return true; }
   int max_stencil() const override { return kCorners<D>; }
+  int fixed_stencil() const override { return kCorners<D>; }
 
   void evaluate(const PointQuery<D>& q, Stencil<D>& out) const override {
     out.clear();
@@ -257,12 +264,59 @@ public:
       evaluate_isoparametric(q, out);
   }
 
+  /// The lattice hat functions written straight into the caller's arrays
+  /// (the basis table): corner a of the cell has bit k of a set when it is
+  /// the upper node on axis k. The isoparametric case goes through evaluate().
+  bool evaluate_fixed(const PointQuery<D>& q, int* node, double* N, Vec<D>* dN) const override {
+    if (!nodes_.on_lattice()) return false;
+    if (!in_grid(grid_, q.x))
+      throw BasisError("linear basis: " + point_text(q) + " is outside the grid " + box_text(grid_));
+    std::array<double, D> t, inv_h;
+    Index<D> cell;
+    int base = 0, stride[D];
+    for (int k = 0, s = 1; k < D; s *= grid_.cells[k] + 1, ++k) {
+      const double u = (q.x[k] - grid_.lower[k]) / h_[k];
+      cell[k] = std::clamp(static_cast<int>(std::floor(u)), 0, grid_.cells[k] - 1);
+      t[k] = std::clamp(u - cell[k], 0.0, 1.0);
+      inv_h[k] = 1.0 / h_[k];
+      stride[k] = s;
+      base += s * cell[k];
+    }
+    for (int a = 0; a < kCorners<D>; ++a) {
+      double w[D];
+      int id = base;
+      for (int k = 0; k < D; ++k) {
+        const bool upper = (a >> k) & 1;
+        w[k] = upper ? t[k] : 1.0 - t[k];
+        id += upper ? stride[k] : 0;
+      }
+      double n = 1.0;
+      Vec<D> g;
+      for (int k = 0; k < D; ++k) {
+        n *= w[k];
+        double gk = 1.0; // the product in axis order, as evaluate() forms it
+        for (int j = 0; j < D; ++j) gk *= j != k ? w[j] : (((a >> k) & 1) ? inv_h[k] : -inv_h[k]);
+        g[k] = gk;
+      }
+      node[a] = id;
+      N[a] = n;
+      dN[a] = g;
+    }
+    if (q.cell_hint) *q.cell_hint = cell;
+    return true;
+  }
+
 private:
   /// Hat functions of the cell containing x. A point on an interior cell face
   /// belongs to the cell above it (the one floor() picks); on the upper grid
   /// boundary to the last cell. All 2^D vertices are kept, also those with
   /// N = 0 on a face, because their one-sided gradient is not zero.
   void evaluate_on_lattice(const PointQuery<D>& q, Stencil<D>& out) const {
+    lattice_weights(q, [&](int I, double N, const Vec<D>& grad) { out.push(I, N, grad); });
+  }
+
+  /// The 2^D hat functions of the cell containing q.x, passed to emit(I, N, grad N).
+  template <class Emit> void lattice_weights(const PointQuery<D>& q, Emit&& emit) const {
     if (!in_grid(grid_, q.x))
       throw BasisError("linear basis: " + point_text(q) + " is outside the grid " + box_text(grid_));
     std::array<AxisWeights<2>, D> axes;
@@ -276,7 +330,7 @@ private:
       axes[k].push(i + 1, t, 1.0 / h[k]);
       cell[k] = i;
     }
-    push_tensor_product<D, 2>(grid_, axes, out);
+    tensor_product<D, 2>(grid_, axes, emit);
     if (q.cell_hint) *q.cell_hint = cell;
   }
 

@@ -1,5 +1,6 @@
 #include "otmpm/engine/engine.hpp"
 
+#include "otmpm/engine/parallel.hpp"
 #include "otmpm/reference/solutions.hpp"
 
 #include <algorithm>
@@ -91,8 +92,24 @@ template <int D> Engine<D>::Engine(const Scene& scene) : scene_(scene) {
   if (exact_ && exact_->has_body_force()) has_body_force_ = true;
   if (scene_.simulation.mass == "consistent" || integrator_ == Integrator::unified)
     mass_matrix_ = std::make_unique<MassMatrix<D>>();
-  update_energy();
+  uniform_body_force_ = has_body_force_ && tractions_.empty() && !(exact_ && exact_->has_body_force());
+  drop_unused_fields();
+  after_step(); // initial checks, energy and wave speed
   energy_.initial = energy_.total();
+}
+
+template <int D> void Engine<D>::drop_unused_fields() {
+  const auto& fields = scene_.output.fields;
+  auto wanted = [&](const char* f) { return std::find(fields.begin(), fields.end(), f) != fields.end(); };
+  auto drop = [](auto& field) { std::decay_t<decltype(field)>().swap(field); };
+  if (integrator_ != Integrator::npc && !wanted("a")) drop(P_.a);
+  if (!P_.has_F && !wanted("F")) drop(P_.F);
+  const std::string_view kind = basis_->kind();
+  if (kind != "lme" && kind != "maxent") drop(P_.lambda);
+  // The hint serves the element walk on moved/perturbed lattices and B-splines.
+  const bool lattice_fixed = mode_ == NodeMode::mpm && scene_.grid.kind != "perturbed";
+  if (kind == "lme" || kind == "maxent" || (lattice_fixed && (kind == "linear" || kind == "ugimp"))) drop(P_.cell_hint);
+  if (tractions_.empty()) drop(P_.length0);
 }
 
 template <int D> Engine<D>::~Engine() = default;
@@ -183,11 +200,7 @@ template <int D> double Engine<D>::stable_dt() const {
   if (scene_.simulation.dt) {
     dt = *scene_.simulation.dt;
   } else {
-    double c = 0.0;
-    for (int p = 0; p < P_.size(); ++p) {
-      const double cp = std::sqrt(materials_[P_.material[p]].p_modulus(D) / P_.rho[p]);
-      c = std::max({c, cp, P_.v[p].norm()});
-    }
+    const double c = wave_speed_; // max_p max(c_p, |v_p|), from after_step()
     double h = h_min0_;
     if (mode_ == NodeMode::ul) h *= basis_->nodes().min_spacing() / node_spacing0_;
     dt = scene_.simulation.cfl * h / c;
@@ -211,9 +224,8 @@ template <int D> void Engine<D>::step() {
   t_ += dt_;
   ++step_;
   dt_prev_ = dt_;
-  check_state();
+  after_step();
   energy_.external_work += dt_ * external_power(t_);
-  update_energy();
   check_energy();
 }
 
@@ -222,17 +234,108 @@ template <int D> void Engine<D>::evaluate_basis() {
   try {
     const bool maxent = basis_->kind() == "lme" || basis_->kind() == "maxent";
     fill_basis_table(*basis_, P_.x, maxent ? &P_.lambda : nullptr, &P_.cell_hint, table_);
+    columns_valid_ = false;
   } catch (const BasisError& e) {
     throw InstabilityError("step " + std::to_string(step_) + ", t = " + std::to_string(t_) +
                            ": basis evaluation failed: " + e.what());
   }
 }
 
-template <int D> void Engine<D>::project_mass() {
+template <int D> template <class Prep, class Add> void Engine<D>::scatter(Prep&& prep, Add&& add) {
+  const int nodes = static_cast<int>(nodal_.m.size());
+  const int team = team_size(static_cast<long long>(table_.entries()));
+  if (team <= 1) {
+    for (int p = 0; p < P_.size(); ++p) {
+      const auto w = prep(p);
+      for (int e = table_.begin(p); e < table_.end(p); ++e) add(table_.node[e], e, w);
+    }
+    return;
+  }
+  if (!columns_valid_) transpose_basis_table(table_, nodes, columns_);
+  columns_valid_ = true;
+  // Chunks of nodes with equal numbers of entries; each node summed by one thread.
+  const std::vector<int>& off = columns_.offset;
+  const long long total = off.back();
+  parallel_chunks(team, team, [&](long long t0, long long t1) {
+    for (long long t = t0; t < t1; ++t) {
+      const auto first = [&](long long u) {
+        if (u >= team) return nodes;
+        return static_cast<int>(std::lower_bound(off.begin(), off.end(), total * u / team) - off.begin());
+      };
+      for (int I = first(t), end = first(t + 1); I < end; ++I)
+        for (int k = off[I]; k < off[I + 1]; ++k) add(I, columns_.entry[k], prep(columns_.particle[k]));
+    }
+  });
+}
+
+template <int D> void Engine<D>::project_mass() { to_nodes({.mass = true}); }
+
+template <int D>
+void Engine<D>::project_momentum(const AlignedVector<Vec<D>>& w, double c, const AlignedVector<Vec<D>>* a) {
+  to_nodes({.w = &w, .c = c, .a = a});
+}
+
+template <int D> void Engine<D>::compute_forces(double t) { to_nodes({.forces = true, .t = t}); }
+
+template <int D> void Engine<D>::to_nodes(const ToNodes<D>& what) {
   ScopedPhase timer(timers_, Phase::to_nodes);
-  std::fill(nodal_.m.begin(), nodal_.m.end(), 0.0);
-  for (int p = 0; p < P_.size(); ++p)
-    for (int a = table_.begin(p); a < table_.end(p); ++a) nodal_.m[table_.node[a]] += table_.N[a] * P_.m[p];
+  if (what.forces) prepare_external_forces(what.t);
+  const bool q = what.w != nullptr;
+  if (what.mass && q && what.forces) to_nodes_impl<true, true, true>(what);
+  else if (what.mass && q) to_nodes_impl<true, true, false>(what);
+  else if (what.mass && what.forces) to_nodes_impl<true, false, true>(what);
+  else if (what.mass) to_nodes_impl<true, false, false>(what);
+  else if (q && what.forces) to_nodes_impl<false, true, true>(what);
+  else if (q) to_nodes_impl<false, true, false>(what);
+  else if (what.forces) to_nodes_impl<false, false, true>(what);
+  if (what.mass) finish_mass();
+}
+
+template <int D>
+template <bool Mass, bool Momentum, bool Forces>
+void Engine<D>::to_nodes_impl(const ToNodes<D>& what) {
+  if (Mass) std::fill(nodal_.m.begin(), nodal_.m.end(), 0.0);
+  if (Momentum) std::fill(nodal_.q.begin(), nodal_.q.end(), Vec<D>::Zero());
+  if (Forces) std::fill(nodal_.f.begin(), nodal_.f.end(), Vec<D>::Zero());
+  const Vec<D> b = uniform_body_force_ ? Vec<D>(body_force_ * (scene_.body_force ? time_function(scene_.body_force->time, what.t) : 1.0))
+                                       : Vec<D>::Zero();
+  const bool field = !fext_.empty(), uniform = uniform_body_force_;
+  struct Payload { // what particle p carries to each of its nodes
+    double m;
+    Vec<D> mw, fext;
+    Mat<D> Vs;
+  };
+  auto prep = [&](int p) {
+    Payload w{};
+    w.m = P_.m[p];
+    if (Momentum) {
+      w.mw = P_.m[p] * (*what.w)[p];
+      if (what.a) w.mw += (P_.m[p] * what.c) * (*what.a)[p];
+    }
+    if (Forces) {
+      w.Vs = P_.V[p] * P_.sigma[p];
+      w.fext = uniform ? Vec<D>(P_.m[p] * b) : field ? fext_[p] : Vec<D>::Zero();
+    }
+    return w;
+  };
+  scatter(prep, [&](int I, int e, const Payload& w) {
+    const double N = table_.N[e];
+    if (Mass) nodal_.m[I] += N * w.m;
+    if (Momentum) nodal_.q[I] += N * w.mw;
+    if (Forces) {
+      nodal_.f[I] -= w.Vs * table_.dN[e];
+      nodal_.f[I] += N * w.fext;
+    }
+  });
+}
+
+template <int D> void Engine<D>::prepare_external_forces(double t) {
+  if (uniform_body_force_ || (!has_body_force_ && tractions_.empty())) return;
+  fext_.assign(P_.size(), Vec<D>::Zero());
+  for_each_external_force(t, [&](int p, const Vec<D>& force) { fext_[p] += force; });
+}
+
+template <int D> void Engine<D>::finish_mass() {
   const double m_max = *std::max_element(nodal_.m.begin(), nodal_.m.end());
   const double m_min = scene_.simulation.mass_tolerance * m_max;
   for (std::size_t I = 0; I < nodal_.m.size(); ++I) nodal_.active[I] = nodal_.m[I] > m_min;
@@ -242,29 +345,6 @@ template <int D> void Engine<D>::project_mass() {
     for (int k = 0; k < D; ++k)
       if (dirichlet_.fix[i][k]) constrained[dirichlet_.node[i] * D + k] = 1;
   mass_matrix_->assemble(table_, P_.m, nodal_.active, constrained, static_cast<int>(nodal_.m.size()));
-}
-
-template <int D>
-void Engine<D>::project_momentum(const AlignedVector<Vec<D>>& w, double c, const AlignedVector<Vec<D>>* a) {
-  ScopedPhase timer(timers_, Phase::to_nodes);
-  std::fill(nodal_.q.begin(), nodal_.q.end(), Vec<D>::Zero());
-  for (int p = 0; p < P_.size(); ++p) {
-    Vec<D> mw = P_.m[p] * w[p];
-    if (a) mw += (P_.m[p] * c) * (*a)[p];
-    for (int e = table_.begin(p); e < table_.end(p); ++e) nodal_.q[table_.node[e]] += table_.N[e] * mw;
-  }
-}
-
-template <int D> void Engine<D>::compute_forces(double t) {
-  ScopedPhase timer(timers_, Phase::to_nodes);
-  std::fill(nodal_.f.begin(), nodal_.f.end(), Vec<D>::Zero());
-  for (int p = 0; p < P_.size(); ++p) {
-    const Mat<D> Vs = P_.V[p] * P_.sigma[p];
-    for (int e = table_.begin(p); e < table_.end(p); ++e) nodal_.f[table_.node[e]] -= Vs * table_.dN[e];
-  }
-  for_each_external_force(t, [&](int p, const Vec<D>& force) {
-    for (int e = table_.begin(p); e < table_.end(p); ++e) nodal_.f[table_.node[e]] += table_.N[e] * force;
-  });
 }
 
 template <int D>
@@ -334,11 +414,35 @@ template <int D> void Engine<D>::apply_dirichlet_force(AlignedVector<Vec<D>>& f)
 template <int D>
 void Engine<D>::interpolate(const AlignedVector<Vec<D>>& y, AlignedVector<Vec<D>>& out) const {
   out.resize(P_.size());
-  for (int p = 0; p < P_.size(); ++p) {
-    Vec<D> s = Vec<D>::Zero();
-    for (int e = table_.begin(p); e < table_.end(p); ++e) s += table_.N[e] * y[table_.node[e]];
-    out[p] = s;
-  }
+  parallel_chunks(P_.size(), [&](long long begin, long long end) {
+    for (int p = static_cast<int>(begin); p < end; ++p) {
+      Vec<D> s = Vec<D>::Zero();
+      for (int e = table_.begin(p); e < table_.end(p); ++e) s += table_.N[e] * y[table_.node[e]];
+      out[p] = s;
+    }
+  });
+}
+
+template <int D> void Engine<D>::to_particles(const ToParticles<D>& what) {
+  ScopedPhase timer(timers_, Phase::to_particles);
+  parallel_chunks(P_.size(), [&](long long begin, long long end) {
+    for (int p = static_cast<int>(begin); p < end; ++p) {
+      Vec<D> r = Vec<D>::Zero(), u = Vec<D>::Zero();
+      Mat<D> G = Mat<D>::Zero();
+      for (int e = table_.begin(p); e < table_.end(p); ++e) {
+        const int I = table_.node[e];
+        if (what.rate) r += table_.N[e] * (*what.rate)[I];
+        if (what.move) u += table_.N[e] * (*what.move)[I];
+        if (what.grad) G.noalias() += (*what.grad)[I] * table_.dN[e].transpose();
+      }
+      if (what.rate) {
+        if (what.rate_out) (*what.rate_out)[p] = r;
+        P_.v[p] += what.c_rate * r;
+      }
+      if (what.move) P_.x[p] += what.c_move * u;
+      if (what.grad) update_particle_stress(p, what.c_grad * G);
+    }
+  });
 }
 
 template <int D> void Engine<D>::advect_nodes(const AlignedVector<Vec<D>>& dx) {
@@ -361,27 +465,30 @@ Mat<D> nodal_gradient(const BasisTable<D>& table, int p, const AlignedVector<Vec
 template <int D>
 void Engine<D>::update_stress(const AlignedVector<Vec<D>>& v_nodes, double dt) {
   ScopedPhase timer(timers_, Phase::constitutive);
-  for (int p = 0; p < P_.size(); ++p) {
-    const Mat<D> H = dt * nodal_gradient(table_, p, v_nodes); // dt L_p
-    const Material& mat = materials_[P_.material[p]];
-    if (P_.has_F) P_.F[p] = (Mat<D>::Identity() + H) * P_.F[p];
-    if (!mat.finite_strain()) {
-      const Mat<D> d_eps = 0.5 * (H + H.transpose());
-      P_.eps[p] += d_eps;
-      P_.sigma[p] += elastic_stress_increment<D>(mat, d_eps);
-      const double dilation = 1.0 + d_eps.trace();
-      if (!(dilation > 0.0)) unstable(p, "volume change 1 + tr(d_eps) = " + std::to_string(dilation) + " <= 0");
-      P_.rho[p] /= dilation;
-      P_.V[p] = P_.m[p] / P_.rho[p];
-      continue;
-    }
-    const double J = P_.F[p].determinant();
-    if (!(J > 0.0)) unstable(p, "det F = " + std::to_string(J) + " <= 0");
-    P_.V[p] = J * P_.V0[p];
-    P_.rho[p] = P_.m[p] / P_.V[p];
-    P_.sigma[p] = cauchy_stress<D>(mat, P_.F[p]);
-    P_.eps[p] = 0.5 * (P_.F[p] + P_.F[p].transpose()) - Mat<D>::Identity();
+  parallel_chunks(P_.size(), [&](long long begin, long long end) {
+    for (int p = static_cast<int>(begin); p < end; ++p) update_particle_stress(p, dt * nodal_gradient(table_, p, v_nodes));
+  });
+}
+
+template <int D> void Engine<D>::update_particle_stress(int p, const Mat<D>& H) {
+  const Material& mat = materials_[P_.material[p]];
+  if (P_.has_F) P_.F[p] = (Mat<D>::Identity() + H) * P_.F[p];
+  if (!mat.finite_strain()) {
+    const Mat<D> d_eps = 0.5 * (H + H.transpose());
+    P_.eps[p] += d_eps;
+    P_.sigma[p] += elastic_stress_increment<D>(mat, d_eps);
+    const double dilation = 1.0 + d_eps.trace();
+    if (!(dilation > 0.0)) unstable(p, "volume change 1 + tr(d_eps) = " + std::to_string(dilation) + " <= 0");
+    P_.rho[p] /= dilation;
+    P_.V[p] = P_.m[p] / P_.rho[p];
+    return;
   }
+  const double J = P_.F[p].determinant();
+  if (!(J > 0.0)) unstable(p, "det F = " + std::to_string(J) + " <= 0");
+  P_.V[p] = J * P_.V0[p];
+  P_.rho[p] = P_.m[p] / P_.V[p];
+  P_.sigma[p] = cauchy_stress<D>(mat, P_.F[p]);
+  P_.eps[p] = 0.5 * (P_.F[p] + P_.F[p].transpose()) - Mat<D>::Identity();
 }
 
 template <int D>
@@ -390,18 +497,55 @@ void Engine<D>::update_stress_from_increment(const AlignedVector<Vec<D>>& dx) {
   update_stress(dx, 1.0);
 }
 
+namespace {
+/// Per-particle sums of the after-step pass (added block by block).
+struct ParticleSums {
+  double kinetic = 0.0, strain = 0.0, wave_speed2 = 0.0;
+  ParticleSums& operator+=(const ParticleSums& o) {
+    kinetic += o.kinetic;
+    strain += o.strain;
+    wave_speed2 = std::max(wave_speed2, o.wave_speed2);
+    return *this;
+  }
+};
+
+/// A D-vector summed over particles with blocked_reduce.
+template <int D> struct VecSum {
+  Vec<D> v = Vec<D>::Zero();
+  VecSum& operator+=(const VecSum& o) {
+    v += o.v;
+    return *this;
+  }
+};
+} // namespace
+
 template <int D> Vec<D> Engine<D>::momentum() const {
-  Vec<D> s = Vec<D>::Zero();
-  for (int p = 0; p < P_.size(); ++p) s += P_.m[p] * P_.v[p];
-  return s;
+  return blocked_reduce<VecSum<D>>(P_.size(), [&](long long p, VecSum<D>& s) { s.v += P_.m[p] * P_.v[p]; }).v;
 }
 
 template <int D> void Engine<D>::update_energy() {
-  energy_.kinetic = energy_.strain = 0.0;
-  for (int p = 0; p < P_.size(); ++p) {
-    energy_.kinetic += 0.5 * P_.m[p] * P_.v[p].squaredNorm();
-    energy_.strain += P_.V[p] * strain_energy_density<D>(P_.sigma[p], P_.eps[p]);
-  }
+  const ParticleSums s = blocked_reduce<ParticleSums>(P_.size(), [&](long long p, ParticleSums& acc) {
+    acc.kinetic += 0.5 * P_.m[p] * P_.v[p].squaredNorm();
+    acc.strain += P_.V[p] * strain_energy_density<D>(P_.sigma[p], P_.eps[p]);
+  });
+  energy_.kinetic = s.kinetic;
+  energy_.strain = s.strain;
+}
+
+template <int D> void Engine<D>::after_step() {
+  // Checks in particle order within each chunk: the lowest failing particle
+  // is reported, as a serial loop would.
+  const ParticleSums s = blocked_reduce<ParticleSums>(P_.size(), [&](long long p, ParticleSums& acc) {
+    check_particle(static_cast<int>(p));
+    const double v2 = P_.v[p].squaredNorm();
+    acc.kinetic += 0.5 * P_.m[p] * v2;
+    acc.strain += P_.V[p] * strain_energy_density<D>(P_.sigma[p], P_.eps[p]);
+    const double c2 = materials_[P_.material[p]].p_modulus(D) / P_.rho[p];
+    acc.wave_speed2 = std::max({acc.wave_speed2, c2, v2});
+  });
+  energy_.kinetic = s.kinetic;
+  energy_.strain = s.strain;
+  wave_speed_ = std::sqrt(s.wave_speed2);
 }
 
 template <int D> void Engine<D>::unstable(int p, const std::string& what) const {
@@ -409,21 +553,31 @@ template <int D> void Engine<D>::unstable(int p, const std::string& what) const 
                          ": particle " + std::to_string(p) + " at " + format_point<D>(P_.x[p]) + ": " + what);
 }
 
+template <int D> void Engine<D>::check_particle(int p) const {
+  if (!P_.x[p].allFinite() || !P_.v[p].allFinite()) unstable(p, "position or velocity is not finite");
+  if (!P_.sigma[p].allFinite()) unstable(p, "stress is not finite");
+  if (mode_ != NodeMode::mpm) return;
+  for (int k = 0; k < D; ++k)
+    if (!(P_.x[p][k] > domain_lower_[k] && P_.x[p][k] < domain_upper_[k]))
+      unstable(p, "left the grid [" + format_point<D>(domain_lower_) + ", " + format_point<D>(domain_upper_) +
+                      "] (enlarge the grid or shorten t_end)");
+  // Warn one step ahead: at the last step's size and the particle's velocity,
+  // the next step would carry it out of the grid.
+  const Vec<D> next = P_.x[p] + dt_ * P_.v[p];
+  for (int k = 0; k < D; ++k)
+    if (!(next[k] > domain_lower_[k] && next[k] < domain_upper_[k]))
+      unstable(p, "moving at " + format_point<D>(P_.v[p]) + ", it would leave the grid in the next step (grid [" +
+                      format_point<D>(domain_lower_) + ", " + format_point<D>(domain_upper_) +
+                      "]; enlarge the grid or shorten t_end)");
+}
+
 template <int D> void Engine<D>::check_particles_inside() const {
   if (mode_ != NodeMode::mpm) return;
-  for (int p = 0; p < P_.size(); ++p)
-    for (int k = 0; k < D; ++k)
-      if (!(P_.x[p][k] > domain_lower_[k] && P_.x[p][k] < domain_upper_[k]))
-        unstable(p, "left the grid [" + format_point<D>(domain_lower_) + ", " + format_point<D>(domain_upper_) +
-                        "] (enlarge the grid or shorten t_end)");
+  for (int p = 0; p < P_.size(); ++p) check_particle(p);
 }
 
 template <int D> void Engine<D>::check_state() const {
-  for (int p = 0; p < P_.size(); ++p) {
-    if (!P_.x[p].allFinite() || !P_.v[p].allFinite()) unstable(p, "position or velocity is not finite");
-    if (!P_.sigma[p].allFinite()) unstable(p, "stress is not finite");
-  }
-  check_particles_inside();
+  for (int p = 0; p < P_.size(); ++p) check_particle(p);
 }
 
 template class Engine<1>;

@@ -57,6 +57,33 @@ template <int D> struct TractionLoad {
 /// 0.5 (sin(2 pi t / T - pi/2) + 1) for t <= T/2 and 1 afterwards.
 double time_function(const TimeFunction& g, double t);
 
+/// What the fused particle-to-node map carries, all from one pass over the
+/// basis table (molinos Algorithm 1 steps 1-2 and 5, wobbes Algorithm 1 step 1):
+/// m_I = sum_p N_Ip m_p; q_I = sum_p N_Ip m_p (w_p + c a_p); f_I = sum_p
+/// (-V_p sigma_p grad N_Ip + N_Ip f_ext,p(t)). A null `w` skips the momentum.
+template <int D> struct ToNodes {
+  bool mass = false;
+  const AlignedVector<Vec<D>>* w = nullptr;
+  double c = 0.0;
+  const AlignedVector<Vec<D>>* a = nullptr;
+  bool forces = false;
+  double t = 0.0;
+};
+
+/// What the fused node-to-particle map does, all from one pass over the basis
+/// table: v_p += c_rate sum_I N_Ip r_I (the interpolated r also stored in
+/// rate_out when given); x_p += c_move sum_I N_Ip u_I; and, when `grad` is
+/// set, the constitutive update with dt L_p = c_grad sum_I g_I (x) grad N_Ip.
+template <int D> struct ToParticles {
+  const AlignedVector<Vec<D>>* rate = nullptr;
+  double c_rate = 0.0;
+  AlignedVector<Vec<D>>* rate_out = nullptr;
+  const AlignedVector<Vec<D>>* move = nullptr;
+  double c_move = 0.0;
+  const AlignedVector<Vec<D>>* grad = nullptr;
+  double c_grad = 0.0;
+};
+
 /// Energies for the runaway monitor: kinetic, strain, and the work done by
 /// external forces (body force, traction) and reactions since t = 0.
 struct EnergyBalance {
@@ -123,6 +150,11 @@ public:
   /// F_p = G_p F_p with G_p = I + sum_I dx_I (x) grad N_Ip, V_p, rho_p, stress
   /// (OTM and unified: the increment instead of dt L_p).
   void update_stress_from_increment(const AlignedVector<Vec<D>>& dx);
+  /// The fused particle-to-node map (see ToNodes); mass first sets the
+  /// active nodes and assembles the consistent mass matrix when used.
+  void to_nodes(const ToNodes<D>& what);
+  /// The fused node-to-particle map (see ToParticles).
+  void to_particles(const ToParticles<D>& what);
   /// Power of the external loads sum_p (m_p b_p(t) + t_p A_p) . v_p.
   double external_power(double t) const;
   /// Interpolates a nodal field to particles: out_p = sum_I N_Ip y_I.
@@ -137,6 +169,26 @@ private:
   void build_dirichlet();
   void build_tractions();
   void check_state() const;
+  /// The checks of particle p: finite position, velocity and stress; in
+  /// `mpm` mode inside the grid, and not about to leave it in the next step.
+  void check_particle(int p) const;
+  /// One pass after each step: the state checks of check_state(), the
+  /// energies and the wave speed for the next stable_dt().
+  void after_step();
+  /// Calls add(I, e, prep(p)) for every basis table entry e (particle p,
+  /// node I), for each node in increasing particle order: a serial scatter on
+  /// one thread (prep once per particle), a parallel gather over the node
+  /// columns on more (prep once per entry) - the same bits either way.
+  template <class Prep, class Add> void scatter(Prep&& prep, Add&& add);
+  template <bool Mass, bool Momentum, bool Forces> void to_nodes_impl(const ToNodes<D>& what);
+  /// The particles' external forces at time t into fext_ (when they are not
+  /// the uniform body force m_p b(t), which to_nodes computes inline).
+  void prepare_external_forces(double t);
+  void finish_mass();
+  /// Strain, density, volume and stress update of particle p from H = dt L_p.
+  void update_particle_stress(int p, const Mat<D>& H);
+  /// Drops the per-particle fields this scene never reads (memory).
+  void drop_unused_fields();
   /// Calls visit(p, force) for every external force on a particle at time t.
   template <class Visit> void for_each_external_force(double t, Visit&& visit) const;
   [[noreturn]] void unstable(int p, const std::string& what) const;
@@ -151,6 +203,11 @@ private:
   bool any_finite_strain_ = false;
   NodalFields<D> nodal_;
   BasisTable<D> table_;
+  NodeColumns columns_;          ///< transposed table_, built when a scatter runs on > 1 thread
+  bool columns_valid_ = false;
+  AlignedVector<Vec<D>> fext_;   ///< external force per particle (tractions, manufactured body force)
+  bool uniform_body_force_ = false;
+  double wave_speed_ = 0.0;      ///< max_p max(c_p, |v_p|) after the last step
   Dirichlet<D> dirichlet_;
   std::vector<TractionLoad<D>> tractions_;
   Vec<D> body_force_ = Vec<D>::Zero();

@@ -30,10 +30,8 @@ template <int D> void step_fe(Engine<D>& e, bool musl) {
   auto& n = e.nodal_;
   const double dt = e.dt_;
   e.evaluate_basis();
-  // 1. q_I = sum N_Ip m_p v_p; f_I; Dirichlet on q_I and f_I.
-  e.project_mass();
-  e.project_momentum(P.v, 0.0, nullptr);
-  e.compute_forces(e.t_);
+  // 1. m_I, q_I = sum N_Ip m_p v_p and f_I in one pass; Dirichlet on f_I.
+  e.to_nodes({.mass = true, .w = &P.v, .forces = true, .t = e.t_});
   e.apply_dirichlet_force(n.f);
   // 2. a_I = f_I / m_I; v_I = q_I / m_I + dt a_I.
   e.solve_mass(n.f, n.a);
@@ -41,25 +39,19 @@ template <int D> void step_fe(Engine<D>& e, bool musl) {
   axpy(n.v, dt, n.a);
   e.apply_dirichlet_velocity(n.v);
   // 3. v_p += dt sum N_Ip a_I; x_p += dt sum N_Ip v_I; x_I += dt v_I in ul.
-  AlignedVector<Vec<D>> tmp;
-  {
-    ScopedPhase timer(e.timers_, Phase::to_particles);
-    e.interpolate(n.a, tmp);
-    axpy(P.v, dt, tmp);
-    e.interpolate(n.v, tmp);
-    axpy(P.x, dt, tmp);
-  }
-  n.dx = n.v;
-  for (auto& d : n.dx) d *= dt;
+  // 4. (usl) L_p = sum v_I (x) grad N_Ip; strain, density and stress update,
+  //    in the same pass over the particles.
+  e.to_particles({.rate = &n.a, .c_rate = dt, .move = &n.v, .c_move = dt, .grad = musl ? nullptr : &n.v, .c_grad = dt});
+  n.dx.resize(n.v.size());
+  for (std::size_t I = 0; I < n.v.size(); ++I) n.dx[I] = dt * n.v[I];
   e.advect_nodes(n.dx);
-  // musl: v_I recomputed from the updated particle momenta.
+  // musl: v_I recomputed from the updated particle momenta, then step 4.
   if (musl) {
     e.project_momentum(P.v, 0.0, nullptr);
     e.solve_mass(n.q, n.v);
     e.apply_dirichlet_velocity(n.v);
+    e.update_stress(n.v, dt);
   }
-  // 4. L_p = sum v_I (x) grad N_Ip; strain, density and stress update.
-  e.update_stress(n.v, dt);
 }
 
 /// npc: explicit Newmark predictor-corrector (molinos Algorithm 1).
@@ -69,10 +61,9 @@ template <int D> void step_npc(Engine<D>& e) {
   const double dt = e.dt_;
   const double gamma = e.scene_.simulation.gamma;
   e.evaluate_basis();
-  // 1. m_I = sum N_Ip m_p.
-  e.project_mass();
+  // 1. m_I = sum N_Ip m_p, and (same pass)
   // 2. predictor: v_I^pred = sum N_Ip m_p (v_p + (1-gamma) dt a_p) / m_I.
-  e.project_momentum(P.v, (1.0 - gamma) * dt, &P.a);
+  e.to_nodes({.mass = true, .w = &P.v, .c = (1.0 - gamma) * dt, .a = &P.a});
   e.solve_mass(n.q, n.v);
   // 3. Dirichlet on the predictor.
   e.apply_dirichlet_velocity(n.v);
@@ -87,14 +78,7 @@ template <int D> void step_npc(Engine<D>& e) {
   // 7. a_p = sum N_Ip f_I/m_I; v_p += dt a_p; x_p += sum N_Ip (dt v_I + dt^2/2 f_I/m_I).
   n.dx.resize(n.v.size());
   for (std::size_t I = 0; I < n.v.size(); ++I) n.dx[I] = dt * n.v[I] + (0.5 * dt * dt) * n.a[I];
-  {
-    ScopedPhase timer(e.timers_, Phase::to_particles);
-    e.interpolate(n.a, P.a);
-    axpy(P.v, dt, P.a);
-    AlignedVector<Vec<D>> tmp;
-    e.interpolate(n.dx, tmp);
-    axpy(P.x, 1.0, tmp);
-  }
+  e.to_particles({.rate = &n.a, .c_rate = dt, .rate_out = &P.a, .move = &n.dx, .c_move = 1.0});
   e.advect_nodes(n.dx);
 }
 
@@ -108,9 +92,7 @@ template <int D> void step_otm(Engine<D>& e) {
   if (e.step_ > 0)
     for (int p = 0; p < P.size(); ++p) P.v[p] = (P.x[p] - P.x_prev[p]) / dt_prev;
   // 1. q_I = sum N_Ip m_p v_p; dx_I = dt M^{-1} (q + (dt + dt_prev)/2 f).
-  e.project_mass();
-  e.project_momentum(P.v, 0.0, nullptr);
-  e.compute_forces(e.t_);
+  e.to_nodes({.mass = true, .w = &P.v, .forces = true, .t = e.t_});
   e.apply_dirichlet_force(n.f);
   transport_increment(e, n, dt, dt_prev);
   // 2. x_I += dx_I; x_p = sum N_Ip x_I (old N): x_p += sum N_Ip dx_I.
@@ -133,25 +115,15 @@ template <int D> void step_unified(Engine<D>& e) {
   auto& n = e.nodal_;
   const double dt = e.dt_, dt_prev = e.dt_prev_;
   e.evaluate_basis();
-  e.project_mass();
-  e.project_momentum(P.v, 0.0, nullptr);
-  e.compute_forces(e.t_);
+  e.to_nodes({.mass = true, .w = &P.v, .forces = true, .t = e.t_});
   e.apply_dirichlet_force(n.f);
   // 1. a = M^{-1} f; dx = dt M^{-1} (q + (dt + dt_prev)/2 f); x_I += dx_I.
   e.solve_mass(n.f, n.a);
   transport_increment(e, n, dt, dt_prev);
-  // 2. x_p += sum N_Ip dx_I; v_p += dt sum N_Ip a_I.
-  {
-    ScopedPhase timer(e.timers_, Phase::to_particles);
-    AlignedVector<Vec<D>> tmp;
-    e.interpolate(n.dx, tmp);
-    axpy(P.x, 1.0, tmp);
-    e.interpolate(n.a, tmp);
-    axpy(P.v, dt, tmp);
-  }
-  e.advect_nodes(n.dx);
+  // 2. x_p += sum N_Ip dx_I; v_p += dt sum N_Ip a_I; and (same pass)
   // 3. F_p = (I + sum dx_I (x) grad N_Ip) F_p; V_p = det(F_p) V0_p; stress.
-  e.update_stress_from_increment(n.dx);
+  e.to_particles({.rate = &n.a, .c_rate = dt, .move = &n.dx, .c_move = 1.0, .grad = &n.dx, .c_grad = 1.0});
+  e.advect_nodes(n.dx);
 }
 
 #define OTMPM_INSTANTIATE(D)                                                             \

@@ -47,12 +47,6 @@ template <int D> int CartesianGrid<D>::num_cells() const {
   return n;
 }
 
-template <int D> int CartesianGrid<D>::node_id(const Index<D>& ijk) const {
-  int id = 0;
-  for (int k = D - 1; k >= 0; --k) id = id * (cells[k] + 1) + ijk[k];
-  return id;
-}
-
 template <int D> Index<D> CartesianGrid<D>::node_index(int id) const {
   Index<D> ijk;
   for (int k = 0; k < D; ++k) {

@@ -24,8 +24,12 @@ template <int D> struct CartesianGrid {
   Index<D> nodes_per_axis() const;
   int num_nodes() const;
   int num_cells() const;
-  /// Flat id of the node with lattice index ijk.
-  int node_id(const Index<D>& ijk) const;
+  /// Flat id of the node with lattice index ijk (inline: called per entry).
+  int node_id(const Index<D>& ijk) const {
+    int id = 0;
+    for (int k = D - 1; k >= 0; --k) id = id * (cells[k] + 1) + ijk[k];
+    return id;
+  }
   /// Lattice index of node id.
   Index<D> node_index(int id) const;
   /// Position of the lattice node ijk.
