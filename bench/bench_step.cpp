@@ -8,6 +8,7 @@
 // on each side, falling under gravity with its base fixed - every stage of a
 // step runs. Prints the median over R repetitions of particle-steps per second
 // and the share of each phase.
+#include "bench_scenes.hpp"
 #include "otmpm/engine/engine.hpp"
 
 #include <algorithm>
@@ -17,54 +18,8 @@
 #include <string>
 
 using namespace otmpm;
+using otmpm::bench::block_scene;
 
-namespace {
-
-std::string scene_text(int cells, const std::string& basis, const std::string& integrator, const std::string& mode,
-                       double gamma_lme) {
-  const double h = 1.0 / cells;
-  char buf[2048];
-  std::snprintf(buf, sizeof buf, R"(
-[simulation]
-dimension = 2
-mode = "%s"
-integrator = "%s"
-t_end = 1.0
-cfl = 0.3
-[basis]
-kind = "%s"
-gamma_lme = %g
-[grid]
-lower = [%.17g, %.17g]
-upper = [%.17g, %.17g]
-cells = [%d, %d]
-[[material]]
-name = "m"
-model = "linear_elastic"
-density = 1000.0
-young = 1.0e7
-poisson = 0.3
-[[body]]
-name = "block"
-material = "m"
-lower = [0.0, 0.0]
-upper = [1.0, 1.0]
-particles_per_cell = 2
-velocity = [0.0, 0.0]
-[[boundary]]
-name = "base"
-lower = [%.17g, 0.0]
-upper = [%.17g, 0.0]
-fix = [true, true]
-[body_force]
-value = [0.0, -9.81]
-)",
-                mode.c_str(), integrator.c_str(), basis.c_str(), gamma_lme, -2 * h, 0.0, 1 + 2 * h, 1 + 2 * h,
-                cells + 4, cells + 2, -2 * h, 1 + 2 * h);
-  return buf;
-}
-
-} // namespace
 
 int main(int argc, char** argv) {
   int cells = 200, steps = 100, repeat = 5;
@@ -80,7 +35,7 @@ int main(int argc, char** argv) {
     else if (a == "--mode") mode = v;
     else if (a == "--gamma-lme") gamma_lme = std::stod(v);
   }
-  const Scene scene = parse_scene(scene_text(cells, basis, integrator, mode, gamma_lme), "bench_step.toml");
+  const Scene scene = parse_scene(block_scene(cells, basis, integrator, mode, gamma_lme), "bench_step.toml");
   std::vector<double> rates;
   PhaseTimers last;
   long particles = 0;

@@ -545,3 +545,20 @@ TEST_CASE("lme: concurrent evaluation gives the serial result") {
   t2.join();
   CHECK(serial == parallel); // bitwise: evaluation is deterministic and shares no state
 }
+
+TEST_CASE("lme: exp_shifted is within 2 ulp of std::exp on [-708, 0] and exact at 0") {
+  CHECK(maxent::exp_shifted(0.0) == 1.0);
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> wide(-708.0, 0.0), narrow(-20.0, 0.0);
+  double worst_ulp = 0.0;
+  for (int i = 0; i < 200000; ++i) {
+    const double x = i % 2 ? wide(rng) : narrow(rng); // the LME range is mostly [-20, 0]
+    const double exact = std::exp(x), fast = maxent::exp_shifted(x);
+    const double ulp = std::nextafter(exact, INFINITY) - exact;
+    worst_ulp = std::max(worst_ulp, std::abs(fast - exact) / ulp);
+  }
+  MESSAGE("worst error of exp_shifted: " << worst_ulp << " ulp of std::exp");
+  CHECK(worst_ulp <= 2.0);
+  CHECK(maxent::exp_shifted(-800.0) == std::exp(-800.0)); // libm below -708
+  CHECK(std::isnan(maxent::exp_shifted(std::nan(""))));
+}

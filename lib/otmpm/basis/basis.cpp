@@ -128,6 +128,30 @@ bool fill_fixed(const Basis<D>& basis, int S, const AlignedVector<Vec<D>>& x, Al
   return !irregular.load();
 }
 
+/// One thread: every row appended straight to the table (no chunk copy).
+template <int D>
+void fill_serial(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, AlignedVector<Vec<D>>* lambda,
+                 std::vector<Index<D>>* cell_hint, BasisTable<D>& table) {
+  thread_local Stencil<D> st;
+  const int n = static_cast<int>(x.size());
+  table.offset.resize(static_cast<std::size_t>(n) + 1);
+  table.offset[0] = 0;
+  table.node.clear();
+  table.N.clear();
+  table.dN.clear();
+  for (int p = 0; p < n; ++p) {
+    try {
+      basis.evaluate(point_query<D>(x, lambda, cell_hint, p), st);
+    } catch (const BasisError& e) {
+      throw point_error<D>(x, p, e);
+    }
+    table.node.insert(table.node.end(), st.node.begin(), st.node.end());
+    table.N.insert(table.N.end(), st.N.begin(), st.N.end());
+    table.dN.insert(table.dN.end(), st.dN.begin(), st.dN.end());
+    table.offset[static_cast<std::size_t>(p) + 1] = static_cast<int>(table.node.size());
+  }
+}
+
 /// Evaluates particles [begin, end) into `c`; stops at the first error.
 template <int D>
 void fill_chunk(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, AlignedVector<Vec<D>>* lambda,
@@ -202,6 +226,7 @@ void fill_basis_table(const Basis<D>& basis, const AlignedVector<Vec<D>>& x,
   if (const int S = basis.fixed_stencil(); S > 0 && fill_fixed<D>(basis, S, x, lambda, cell_hint, table)) return;
 
   const int threads = team_size(n);
+  if (threads == 1) return fill_serial<D>(basis, x, lambda, cell_hint, table);
   std::vector<std::exception_ptr> errors(static_cast<std::size_t>(threads));
   std::vector<int> rows(static_cast<std::size_t>(threads) + 1, 0), entries = rows;
   bool failed = false;

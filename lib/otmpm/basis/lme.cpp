@@ -99,6 +99,7 @@
 #include <Eigen/LU>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -169,7 +170,7 @@ template <int D> bool dual_state(const Vec<D>& lambda, const Support<D>& s, doub
   double Z = 0.0;
   Vec<D> r = Vec<D>::Zero();
   for (int i = 0; i < s.n; ++i) {
-    p[i] = std::exp(p[i] - fmax);
+    p[i] = exp_shifted(p[i] - fmax);
     Z += p[i];
     r.noalias() += p[i] * s.dx[i];
   }

@@ -257,33 +257,64 @@ template <int D> void NodeSet<D>::prepare_search() const {
   index_stale_ = false;
 }
 
+namespace {
+
+/// Lattice index range [lo, hi] of the nodes that may lie within `reach` of
+/// coordinate u along axis k, widened by one node on each side so that
+/// rounding cannot lose one (the exact distance test decides). False when
+/// the range misses the grid.
+template <int D>
+bool lattice_span(const CartesianGrid<D>& g, int k, double u, double reach, double h, int& lo, int& hi) {
+  const double a = std::ceil((u - reach - g.lower[k]) / h) - 1.0;
+  const double b = std::floor((u + reach - g.lower[k]) / h) + 1.0;
+  if (!(a <= g.cells[k] && b >= 0.0)) return false; // misses the grid (or NaN)
+  lo = static_cast<int>(std::max(a, 0.0));
+  hi = static_cast<int>(std::min(b, double(g.cells[k])));
+  return true;
+}
+
+/// The nodes of an untouched lattice within `radius` of x (exact test on the
+/// stored positions), in ascending id. The outer axes run over their spans;
+/// axis 0 (fastest) only over the span left by the distance already used on
+/// the others, so the candidates are the rows of the ball, not its box.
+template <int D>
+void lattice_within(const CartesianGrid<D>& g, const AlignedVector<Vec<D>>& pos, const Vec<D>& x, double radius,
+                    std::vector<int>& out) {
+  constexpr double row_slack = 1e-9; // cells: covers rounding of the row coordinate
+  const Vec<D> h = g.h();
+  const double r2 = radius * radius;
+  Index<D> lo{}, hi{};
+  for (int k = 1; k < D; ++k)
+    if (!lattice_span(g, k, x[k], radius, h[k], lo[k], hi[k])) return;
+  Index<D> ijk = lo;
+  for (;;) {
+    double rest = r2; // r^2 minus the squared offsets along axes 1..D-1
+    int row = 0;
+    for (int k = D - 1; k >= 1; --k) {
+      const double d = std::max(0.0, std::abs(g.lower[k] + ijk[k] * h[k] - x[k]) - row_slack * h[k]);
+      rest -= d * d;
+      row = row * (g.cells[k] + 1) + ijk[k];
+    }
+    int a, b;
+    if (rest >= 0.0 && lattice_span(g, 0, x[0], std::sqrt(rest), h[0], a, b))
+      for (int i = a, id = row * (g.cells[0] + 1) + a; i <= b; ++i, ++id)
+        if ((pos[id] - x).squaredNorm() <= r2) out.push_back(id);
+    int k = 1;
+    for (; k < D; ++k) {
+      if (++ijk[k] <= hi[k]) break;
+      ijk[k] = lo[k];
+    }
+    if (k >= D) break;
+  }
+}
+
+} // namespace
+
 template <int D> void NodeSet<D>::within(const Vec<D>& x, double radius, std::vector<int>& out) const {
   const std::size_t first = out.size();
   const double r2 = radius * radius;
   if (on_lattice_ && grid_) {
-    // Candidate lattice box, widened by one node on each side so that rounding
-    // in the division cannot lose a node; the exact test below decides.
-    const CartesianGrid<D>& g = *grid_;
-    const Vec<D> h = g.h();
-    Index<D> lo, hi;
-    for (int k = 0; k < D; ++k) {
-      const double a = std::floor((x[k] - radius - g.lower[k]) / h[k]) - 1.0;
-      const double b = std::ceil((x[k] + radius - g.lower[k]) / h[k]) + 1.0;
-      if (!(a <= g.cells[k] && b >= 0.0)) return; // box misses the grid (or NaN)
-      lo[k] = static_cast<int>(std::max(a, 0.0));
-      hi[k] = static_cast<int>(std::min(b, double(g.cells[k])));
-    }
-    Index<D> ijk = lo;
-    for (;;) {
-      const int id = g.node_id(ijk);
-      if ((x_[id] - x).squaredNorm() <= r2) out.push_back(id);
-      int k = 0;
-      for (; k < D; ++k) {
-        if (++ijk[k] <= hi[k]) break;
-        ijk[k] = lo[k];
-      }
-      if (k == D) break;
-    }
+    lattice_within(*grid_, x_, x, radius, out);
     return; // lattice order is already ascending in id
   }
   prepare_search();
