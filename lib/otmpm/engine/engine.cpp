@@ -93,23 +93,21 @@ template <int D> Engine<D>::Engine(const Scene& scene) : scene_(scene) {
   if (scene_.simulation.mass == "consistent" || integrator_ == Integrator::unified)
     mass_matrix_ = std::make_unique<MassMatrix<D>>();
   uniform_body_force_ = has_body_force_ && tractions_.empty() && !(exact_ && exact_->has_body_force());
-  drop_unused_fields();
+  allocate_fields();
   after_step(); // initial checks, energy and wave speed
   energy_.initial = energy_.total();
 }
 
-template <int D> void Engine<D>::drop_unused_fields() {
+template <int D> void Engine<D>::allocate_fields() {
   const auto& fields = scene_.output.fields;
   auto wanted = [&](const char* f) { return std::find(fields.begin(), fields.end(), f) != fields.end(); };
-  auto drop = [](auto& field) { std::decay_t<decltype(field)>().swap(field); };
-  if (integrator_ != Integrator::npc && !wanted("a")) drop(P_.a);
-  if (!P_.has_F && !wanted("F")) drop(P_.F);
   const std::string_view kind = basis_->kind();
-  if (kind != "lme" && kind != "maxent") drop(P_.lambda);
+  const bool maxent = kind == "lme" || kind == "maxent";
   // The hint serves the element walk on moved/perturbed lattices and B-splines.
   const bool lattice_fixed = mode_ == NodeMode::mpm && scene_.grid.kind != "perturbed";
-  if (kind == "lme" || kind == "maxent" || (lattice_fixed && (kind == "linear" || kind == "ugimp"))) drop(P_.cell_hint);
-  if (tractions_.empty()) drop(P_.length0);
+  const bool hint = !maxent && !(lattice_fixed && (kind == "linear" || kind == "ugimp"));
+  P_.allocate_optional(integrator_ == Integrator::npc || wanted("a"), P_.has_F || wanted("F"), maxent, hint);
+  if (tractions_.empty()) AlignedVector<Vec<D>>().swap(P_.length0);
 }
 
 template <int D> Engine<D>::~Engine() = default;

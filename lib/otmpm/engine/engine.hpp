@@ -187,8 +187,9 @@ private:
   void finish_mass();
   /// Strain, density, volume and stress update of particle p from H = dt L_p.
   void update_particle_stress(int p, const Mat<D>& H);
-  /// Drops the per-particle fields this scene never reads (memory).
-  void drop_unused_fields();
+  /// Allocates the optional particle fields this scene reads and drops
+  /// length0 when no traction needs it (memory).
+  void allocate_fields();
   /// Calls visit(p, force) for every external force on a particle at time t.
   template <class Visit> void for_each_external_force(double t, Visit&& visit) const;
   [[noreturn]] void unstable(int p, const std::string& what) const;

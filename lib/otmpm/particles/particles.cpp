@@ -9,15 +9,22 @@ namespace otmpm {
 
 template <int D> void Particles<D>::resize(int n) {
   x.assign(n, Vec<D>::Zero());
-  X = v = a = lambda = length0 = x;
+  X = v = length0 = x;
   m.assign(n, 0.0);
   V = V0 = rho = m;
-  F.assign(n, Mat<D>::Identity());
   eps.assign(n, Mat<D>::Zero());
   sigma = eps;
-  cell_hint.assign(n, Index<D>{});
   material.assign(n, 0);
   body.assign(n, 0);
+  a.clear(), F.clear(), lambda.clear(), cell_hint.clear(), x_prev.clear();
+}
+
+template <int D> void Particles<D>::allocate_optional(bool with_a, bool with_F, bool with_lambda, bool with_cell_hint) {
+  const auto n = static_cast<std::size_t>(size());
+  if (with_a) a.assign(n, Vec<D>::Zero());
+  if (with_F) F.assign(n, Mat<D>::Identity());
+  if (with_lambda) lambda.assign(n, Vec<D>::Zero());
+  if (with_cell_hint) cell_hint.assign(n, Index<D>{});
 }
 
 void gauss_legendre(int n, std::vector<double>& points, std::vector<double>& weights) {
@@ -92,23 +99,40 @@ Vec<D> initial_body_velocity(const BodySection& body, const Vec<D>& x) {
 
 } // namespace
 
+/// Cells of the grid spacing h that tile a body box along each axis.
+template <int D> Index<D> body_cells(const BodySection& body, const Vec<D>& h) {
+  Index<D> cells;
+  for (int k = 0; k < D; ++k)
+    cells[k] = std::max(1, static_cast<int>(std::lround((body.upper[k] - body.lower[k]) / h[k])));
+  return cells;
+}
+
+/// The number of particles seed_particles creates.
+template <int D> std::size_t seed_count(const Scene& scene, const Vec<D>& h) {
+  std::size_t total = 0;
+  for (const BodySection& body : scene.bodies) {
+    std::size_t n = 1;
+    const Index<D> cells = body_cells<D>(body, h);
+    for (int k = 0; k < D; ++k) n *= static_cast<std::size_t>(cells[k]) * static_cast<std::size_t>(body.particles_per_cell);
+    total += n;
+  }
+  return total;
+}
+
 template <int D> Particles<D> seed_particles(const Scene& scene, const Vec<D>& h) {
   Particles<D> P;
   struct Seed { Vec<D> x, len; double V; int mat, body; };
   std::vector<Seed> seeds;
+  seeds.reserve(seed_count<D>(scene, h)); // no growth by doubling: peak memory
   for (std::size_t b = 0; b < scene.bodies.size(); ++b) {
     const BodySection& body = scene.bodies[b];
     const int mat = material_index(scene, body);
     const int n = body.particles_per_cell;
     std::vector<double> s, w;
     cell_pattern(body.placement, n, s, w);
-    Index<D> cells;
+    const Index<D> cells = body_cells<D>(body, h);
     Vec<D> size;
-    for (int k = 0; k < D; ++k) {
-      const double extent = body.upper[k] - body.lower[k];
-      cells[k] = std::max(1, static_cast<int>(std::lround(extent / h[k])));
-      size[k] = extent / cells[k];
-    }
+    for (int k = 0; k < D; ++k) size[k] = (body.upper[k] - body.lower[k]) / cells[k];
     Index<D> c{};
     // Iterate cells (axis 0 fastest), then particles inside each cell.
     while (true) {

@@ -14,6 +14,9 @@ template <int D> struct CartesianGrid;
 /// coordinate used by exact solutions), `x_prev` the previous position used
 /// by the OTM velocity (only filled for `otm`), `F` only when a finite-strain
 /// model or the `ul` mode needs it (has_F), `lambda` the LME warm start.
+/// Optional fields are empty when the run does not use them (a: NPC;
+/// lambda: LME/max-ent; cell_hint: element walk and B-splines; length0:
+/// tractions); see Engine::allocate_fields.
 template <int D> struct Particles {
   AlignedVector<Vec<D>> x, X, v, a, x_prev;
   std::vector<double> m, V, V0, rho;
@@ -28,8 +31,12 @@ template <int D> struct Particles {
   bool has_F = false;
 
   int size() const { return static_cast<int>(x.size()); }
-  /// Resizes every field to n particles (F = I, everything else zero).
+  /// Resizes the fields every run uses to n particles (all zero) and empties
+  /// the optional ones (a, F, lambda, cell_hint, x_prev).
   void resize(int n);
+  /// Allocates the optional fields a run needs (a = 0, F = I, lambda = 0,
+  /// cell_hint = 0), so that a scene pays memory only for what it reads.
+  void allocate_optional(bool with_a, bool with_F, bool with_lambda, bool with_cell_hint);
 };
 
 /// Gauss-Legendre points (in [-1, 1]) and weights (sum 2) of order n >= 1.
