@@ -233,35 +233,80 @@ template <int D> void Engine<D>::evaluate_basis() {
     const bool maxent = basis_->kind() == "lme" || basis_->kind() == "maxent";
     fill_basis_table(*basis_, P_.x, maxent ? &P_.lambda : nullptr, &P_.cell_hint, table_);
     columns_valid_ = false;
+    blocks_.valid = false;
   } catch (const BasisError& e) {
     throw InstabilityError("step " + std::to_string(step_) + ", t = " + std::to_string(t_) +
                            ": basis evaluation failed: " + e.what());
   }
 }
 
-template <int D> template <class Prep, class Add> void Engine<D>::scatter(Prep&& prep, Add&& add) {
-  const int nodes = static_cast<int>(nodal_.m.size());
-  const int team = team_size(static_cast<long long>(table_.entries()));
-  if (team <= 1) {
-    for (int p = 0; p < P_.size(); ++p) {
-      const auto w = prep(p);
-      for (int e = table_.begin(p); e < table_.end(p); ++e) add(table_.node[e], e, w);
+template <int D> void Engine<D>::plan_scatter() {
+  if (blocks_.valid) return;
+  blocks_.valid = true;
+  const int n = P_.size(), nodes = static_cast<int>(nodal_.m.size());
+  const int count = (n + scatter_block - 1) / scatter_block;
+  blocks_.lo.assign(static_cast<std::size_t>(count), nodes);
+  blocks_.hi.assign(static_cast<std::size_t>(count), -1);
+  parallel_chunks(count, team_size(n), [&](long long b0, long long b1) {
+    for (long long b = b0; b < b1; ++b) {
+      const int e0 = table_.begin(static_cast<int>(b * scatter_block));
+      const int e1 = table_.end(static_cast<int>(std::min<long long>(n, (b + 1) * scatter_block)) - 1);
+      for (int e = e0; e < e1; ++e) {
+        blocks_.lo[b] = std::min(blocks_.lo[b], table_.node[e]);
+        blocks_.hi[b] = std::max(blocks_.hi[b], table_.node[e]);
+      }
     }
-    return;
-  }
+  });
+  blocks_.offset.assign(static_cast<std::size_t>(count) + 1, 0);
+  for (int b = 0; b < count; ++b)
+    blocks_.offset[b + 1] = blocks_.offset[b] + std::max(0, blocks_.hi[b] - blocks_.lo[b] + 1);
+  // Spatially coherent particle order (as seeded): each node lies in the
+  // range of one or two blocks. Otherwise the gather over node columns.
+  blocks_.compact = blocks_.offset.back() <= max_block_overlap * std::max(nodes, 1);
+}
+
+template <int D>
+template <class Prep, class Add, class Merge>
+void Engine<D>::scatter(Prep&& prep, Add&& add, Merge&& merge) {
+  plan_scatter();
+  const int n = P_.size(), nodes = static_cast<int>(nodal_.m.size());
+  if (!blocks_.compact) return gather_columns(prep, add, merge);
+  const int count = static_cast<int>(blocks_.lo.size());
+  blocks_.buffer.resize(static_cast<std::size_t>(blocks_.offset.back()));
+  // 1. every block sums its particles, in particle order, into its own range
+  parallel_chunks(count, team_size(n), [&](long long b0, long long b1) {
+    for (long long b = b0; b < b1; ++b) {
+      if (blocks_.hi[b] < blocks_.lo[b]) continue; // no entries
+      NodeSums<D>* buf = blocks_.buffer.data() + blocks_.offset[b] - blocks_.lo[b];
+      std::fill(buf + blocks_.lo[b], buf + blocks_.hi[b] + 1, NodeSums<D>{});
+      for (int p = static_cast<int>(b * scatter_block), end = static_cast<int>(std::min<long long>(n, (b + 1) * scatter_block)); p < end; ++p) {
+        const auto w = prep(p);
+        for (int e = table_.begin(p); e < table_.end(p); ++e) add(buf[table_.node[e]], e, w);
+      }
+    }
+  });
+  // 2. every node adds the block sums in block order (threads own node ranges)
+  parallel_chunks(nodes, team_size(n), [&](long long I0, long long I1) {
+    for (int b = 0; b < count; ++b) {
+      const NodeSums<D>* buf = blocks_.buffer.data() + blocks_.offset[b] - blocks_.lo[b];
+      for (int I = std::max<int>(static_cast<int>(I0), blocks_.lo[b]), end = std::min<int>(static_cast<int>(I1) - 1, blocks_.hi[b]); I <= end; ++I)
+        merge(I, buf[I]);
+    }
+  });
+}
+
+template <int D>
+template <class Prep, class Add, class Merge>
+void Engine<D>::gather_columns(Prep&& prep, Add&& add, Merge&& merge) {
+  const int nodes = static_cast<int>(nodal_.m.size());
   if (!columns_valid_) transpose_basis_table(table_, nodes, columns_);
   columns_valid_ = true;
-  // Chunks of nodes with equal numbers of entries; each node summed by one thread.
   const std::vector<int>& off = columns_.offset;
-  const long long total = off.back();
-  parallel_chunks(team, team, [&](long long t0, long long t1) {
-    for (long long t = t0; t < t1; ++t) {
-      const auto first = [&](long long u) {
-        if (u >= team) return nodes;
-        return static_cast<int>(std::lower_bound(off.begin(), off.end(), total * u / team) - off.begin());
-      };
-      for (int I = first(t), end = first(t + 1); I < end; ++I)
-        for (int k = off[I]; k < off[I + 1]; ++k) add(I, columns_.entry[k], prep(columns_.particle[k]));
+  parallel_chunks(nodes, team_size(static_cast<long long>(table_.entries())), [&](long long I0, long long I1) {
+    for (int I = static_cast<int>(I0); I < I1; ++I) {
+      NodeSums<D> acc{};
+      for (int k = off[I]; k < off[I + 1]; ++k) add(acc, columns_.entry[k], prep(columns_.particle[k]));
+      merge(I, acc);
     }
   });
 }
@@ -316,14 +361,19 @@ void Engine<D>::to_nodes_impl(const ToNodes<D>& what) {
     }
     return w;
   };
-  scatter(prep, [&](int I, int e, const Payload& w) {
+  auto add = [&](NodeSums<D>& acc, int e, const Payload& w) {
     const double N = table_.N[e];
-    if (Mass) nodal_.m[I] += N * w.m;
-    if (Momentum) nodal_.q[I] += N * w.mw;
+    if (Mass) acc.m += N * w.m;
+    if (Momentum) acc.q += N * w.mw;
     if (Forces) {
-      nodal_.f[I] -= w.Vs * table_.dN[e];
-      nodal_.f[I] += N * w.fext;
+      acc.f -= w.Vs * table_.dN[e];
+      acc.f += N * w.fext;
     }
+  };
+  scatter(prep, add, [&](int I, const NodeSums<D>& acc) {
+    if (Mass) nodal_.m[I] += acc.m;
+    if (Momentum) nodal_.q[I] += acc.q;
+    if (Forces) nodal_.f[I] += acc.f;
   });
 }
 

@@ -84,6 +84,18 @@ template <int D> struct ToParticles {
   double c_grad = 0.0;
 };
 
+/// Per-node partial sums of the particle-to-node map (mass, momentum, force).
+template <int D> struct NodeSums {
+  double m = 0.0;
+  Vec<D> q = Vec<D>::Zero();
+  Vec<D> f = Vec<D>::Zero();
+};
+
+/// Particles per scatter block, and the largest total of block node ranges
+/// (in units of the node count) for which the blocked scatter is used.
+constexpr int scatter_block = 8192;
+constexpr int max_block_overlap = 2;
+
 /// Energies for the runaway monitor: kinetic, strain, and the work done by
 /// external forces (body force, traction) and reactions since t = 0.
 struct EnergyBalance {
@@ -123,6 +135,9 @@ public:
   const EnergyBalance& energy() const { return energy_; }
   /// Sum of the Dirichlet reaction impulses since t = 0 (per component).
   const Vec<D>& reaction_impulse() const { return reaction_impulse_; }
+  /// True when the last particle-to-node map used the blocked scatter, false
+  /// when it used the gather over node columns (see scatter()).
+  bool scatter_blocked() const { return blocks_.compact; }
   /// Total momentum sum_p m_p v_p.
   Vec<D> momentum() const;
   /// Recomputes the kinetic and strain energy.
@@ -175,11 +190,17 @@ private:
   /// One pass after each step: the state checks of check_state(), the
   /// energies and the wave speed for the next stable_dt().
   void after_step();
-  /// Calls add(I, e, prep(p)) for every basis table entry e (particle p,
-  /// node I), for each node in increasing particle order: a serial scatter on
-  /// one thread (prep once per particle), a parallel gather over the node
-  /// columns on more (prep once per entry) - the same bits either way.
-  template <class Prep, class Add> void scatter(Prep&& prep, Add&& add);
+  /// The particle-to-node sum: for every basis table entry e (particle p,
+  /// node I) add(acc_I, e, prep(p)), then merge(I, acc_I) into the nodal
+  /// fields. Particles are cut into fixed blocks of scatter_block; each block
+  /// sums in particle order into its own node range, and each node adds the
+  /// block sums in block order - the same bits for any thread count. When the
+  /// block ranges overlap too much (particles not spatially ordered), a
+  /// gather over the transposed table (gather_columns) does it instead.
+  template <class Prep, class Add, class Merge> void scatter(Prep&& prep, Add&& add, Merge&& merge);
+  template <class Prep, class Add, class Merge> void gather_columns(Prep&& prep, Add&& add, Merge&& merge);
+  /// Node ranges of the scatter blocks for the current basis table.
+  void plan_scatter();
   template <bool Mass, bool Momentum, bool Forces> void to_nodes_impl(const ToNodes<D>& what);
   /// The particles' external forces at time t into fext_ (when they are not
   /// the uniform body force m_p b(t), which to_nodes computes inline).
@@ -204,8 +225,13 @@ private:
   bool any_finite_strain_ = false;
   NodalFields<D> nodal_;
   BasisTable<D> table_;
-  NodeColumns columns_;          ///< transposed table_, built when a scatter runs on > 1 thread
+  NodeColumns columns_;          ///< transposed table_, for gather_columns
   bool columns_valid_ = false;
+  struct ScatterBlocks {
+    std::vector<int> lo, hi, offset; ///< node range of each block, start in buffer
+    AlignedVector<NodeSums<D>> buffer;
+    bool valid = false, compact = false;
+  } blocks_;
   AlignedVector<Vec<D>> fext_;   ///< external force per particle (tractions, manufactured body force)
   bool uniform_body_force_ = false;
   double wave_speed_ = 0.0;      ///< max_p max(c_p, |v_p|) after the last step
