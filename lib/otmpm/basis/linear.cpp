@@ -276,7 +276,8 @@ public:
     int base = 0, stride[D];
     for (int k = 0, s = 1; k < D; s *= grid_.cells[k] + 1, ++k) {
       const double u = (q.x[k] - grid_.lower[k]) / h_[k];
-      cell[k] = std::clamp(static_cast<int>(std::floor(u)), 0, grid_.cells[k] - 1);
+      // u >= -1e-12 here (in_grid), so truncation, clamped, is floor, clamped
+      cell[k] = std::clamp(static_cast<int>(u), 0, grid_.cells[k] - 1);
       t[k] = std::clamp(u - cell[k], 0.0, 1.0);
       inv_h[k] = 1.0 / h_[k];
       stride[k] = s;

@@ -92,6 +92,7 @@ template <int D> Engine<D>::Engine(const Scene& scene) : scene_(scene) {
   if (exact_ && exact_->has_body_force()) has_body_force_ = true;
   if (scene_.simulation.mass == "consistent" || integrator_ == Integrator::unified)
     mass_matrix_ = std::make_unique<MassMatrix<D>>();
+  for (const Material& m : materials_) p_modulus_.push_back(m.p_modulus(D));
   uniform_body_force_ = has_body_force_ && tractions_.empty() && !(exact_ && exact_->has_body_force());
   allocate_fields();
   after_step(); // initial checks, energy and wave speed
@@ -251,10 +252,13 @@ template <int D> void Engine<D>::plan_scatter() {
     for (long long b = b0; b < b1; ++b) {
       const int e0 = table_.begin(static_cast<int>(b * scatter_block));
       const int e1 = table_.end(static_cast<int>(std::min<long long>(n, (b + 1) * scatter_block)) - 1);
+      int lo = nodes, hi = -1; // locals: the loop vectorises
       for (int e = e0; e < e1; ++e) {
-        blocks_.lo[b] = std::min(blocks_.lo[b], table_.node[e]);
-        blocks_.hi[b] = std::max(blocks_.hi[b], table_.node[e]);
+        lo = std::min(lo, table_.node[e]);
+        hi = std::max(hi, table_.node[e]);
       }
+      blocks_.lo[b] = lo;
+      blocks_.hi[b] = hi;
     }
   });
   blocks_.offset.assign(static_cast<std::size_t>(count) + 1, 0);
@@ -412,6 +416,8 @@ void Engine<D>::for_each_external_force(double t, Visit&& visit) const {
 }
 
 template <int D> double Engine<D>::external_power(double t) const {
+  if (uniform_body_force_) // sum_p m_p b(t) . v_p = b(t) . sum_p m_p v_p
+    return (body_force_ * (scene_.body_force ? time_function(scene_.body_force->time, t) : 1.0)).dot(momentum());
   double power = 0.0;
   for_each_external_force(t, [&](int p, const Vec<D>& force) { power += force.dot(P_.v[p]); });
   return power;
@@ -588,7 +594,7 @@ template <int D> void Engine<D>::after_step() {
     const double v2 = P_.v[p].squaredNorm();
     acc.kinetic += 0.5 * P_.m[p] * v2;
     acc.strain += P_.V[p] * strain_energy_density<D>(P_.sigma[p], P_.eps[p]);
-    const double c2 = materials_[P_.material[p]].p_modulus(D) / P_.rho[p];
+    const double c2 = p_modulus_[P_.material[p]] / P_.rho[p];
     acc.wave_speed2 = std::max({acc.wave_speed2, c2, v2});
   });
   energy_.kinetic = s.kinetic;

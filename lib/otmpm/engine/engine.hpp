@@ -235,6 +235,7 @@ private:
   AlignedVector<Vec<D>> fext_;   ///< external force per particle (tractions, manufactured body force)
   bool uniform_body_force_ = false;
   double wave_speed_ = 0.0;      ///< max_p max(c_p, |v_p|) after the last step
+  std::vector<double> p_modulus_; ///< per material: P-wave modulus for D
   Dirichlet<D> dirichlet_;
   std::vector<TractionLoad<D>> tractions_;
   Vec<D> body_force_ = Vec<D>::Zero();
