@@ -264,13 +264,17 @@ namespace {
 /// rounding cannot lose one (the exact distance test decides). False when
 /// the range misses the grid.
 template <int D>
-bool lattice_span(const CartesianGrid<D>& g, int k, double u, double reach, double h, int& lo, int& hi) {
-  const double a = std::ceil((u - reach - g.lower[k]) / h) - 1.0;
-  const double b = std::floor((u + reach - g.lower[k]) / h) + 1.0;
-  if (!(a <= g.cells[k] && b >= 0.0)) return false; // misses the grid (or NaN)
-  lo = static_cast<int>(std::max(a, 0.0));
-  hi = static_cast<int>(std::min(b, double(g.cells[k])));
-  return true;
+bool lattice_span(const CartesianGrid<D>& g, int k, double u, double reach, double inv_h, int& lo, int& hi) {
+  const double a = (u - reach - g.lower[k]) * inv_h; // lattice coordinates of the span's ends
+  const double b = (u + reach - g.lower[k]) * inv_h;
+  if (!(a <= g.cells[k] + 1.0 && b >= -1.0)) return false; // misses the grid (or NaN)
+  // a >= b - 2 reach/h >= -1 - 2 reach/h, so a + shift > 0: truncation of
+  // the shifted values is floor, without a libm call. floor(a) <= ceil(a) - 1
+  // + 1 and floor(b) + 1 widen the span by up to one node on each side.
+  const double shift = 2.0 + 2.0 * reach * inv_h; // a + shift >= 1
+  lo = std::max(0, static_cast<int>(a + shift) - static_cast<int>(shift) - 1);
+  hi = std::min(g.cells[k], static_cast<int>(b + shift) - static_cast<int>(shift) + 1);
+  return lo <= hi;
 }
 
 /// The nodes of an untouched lattice within `radius` of x (exact test on the
@@ -282,10 +286,11 @@ void lattice_within(const CartesianGrid<D>& g, const AlignedVector<Vec<D>>& pos,
                     std::vector<int>& out) {
   constexpr double row_slack = 1e-9; // cells: covers rounding of the row coordinate
   const Vec<D> h = g.h();
+  const Vec<D> inv_h = h.cwiseInverse();
   const double r2 = radius * radius;
   Index<D> lo{}, hi{};
   for (int k = 1; k < D; ++k)
-    if (!lattice_span(g, k, x[k], radius, h[k], lo[k], hi[k])) return;
+    if (!lattice_span(g, k, x[k], radius, inv_h[k], lo[k], hi[k])) return;
   Index<D> ijk = lo;
   for (;;) {
     double rest = r2; // r^2 minus the squared offsets along axes 1..D-1
@@ -296,7 +301,7 @@ void lattice_within(const CartesianGrid<D>& g, const AlignedVector<Vec<D>>& pos,
       row = row * (g.cells[k] + 1) + ijk[k];
     }
     int a, b;
-    if (rest >= 0.0 && lattice_span(g, 0, x[0], std::sqrt(rest), h[0], a, b))
+    if (rest >= 0.0 && lattice_span(g, 0, x[0], std::sqrt(rest), inv_h[0], a, b))
       for (int i = a, id = row * (g.cells[0] + 1) + a; i <= b; ++i, ++id)
         if ((pos[id] - x).squaredNorm() <= r2) out.push_back(id);
     int k = 1;
