@@ -227,6 +227,14 @@ TEST_CASE_TEMPLATE("within on an untouched lattice equals brute force", T, std::
   std::vector<int> more{-7};
   s.within(g.lower, 0.0, more);
   CHECK(more == std::vector<int>{-7, 0});
+  // Far outside, or not a number: no node, and no out-of-range index.
+  const double h = g.h().maxCoeff();
+  for (const Vec<D>& far : {Vec<D>(g.upper + Vec<D>::Constant(1e3 * h)), Vec<D>(g.lower - Vec<D>::Constant(1e6 * h)),
+                            Vec<D>(Vec<D>::Constant(std::numeric_limits<double>::quiet_NaN()))}) {
+    std::vector<int> none;
+    s.within(far, 2 * h, none);
+    CHECK(none.empty());
+  }
 }
 
 TEST_CASE_TEMPLATE("within on a perturbed lattice (R-tree) equals brute force", T, std::integral_constant<int, 1>,
