@@ -20,20 +20,29 @@ namespace fs = std::filesystem;
 
 namespace {
 
-fs::path make_study_dir(const std::string& name) {
+/// The mesh h = L/13 of the Dyka bar as a [[mesh]] table.
+const char* const kMeshN13 = "[[mesh]]\nname = \"n13\"\nh = 0.010253846\n"
+                             "set = [\"grid.cells=[15]\", \"grid.lower=[-0.020507692]\"]\n";
+
+/// A fresh directory with study.toml: the Dyka bar scene, study.csv, and `body`.
+fs::path study_dir(const std::string& name, const std::string& body) {
   const fs::path dir = fs::temp_directory_path() / ("otmpm_study_" + name + "_" + std::to_string(::getpid()));
   fs::remove_all(dir);
   fs::create_directories(dir);
   std::ofstream(dir / "study.toml") << "scene = \"" OTMPM_SOURCE_DIR "/examples/dyka.toml\"\n"
                                     << "csv = \"study.csv\"\n"
-                                    << "jobs = 2\n"
-                                    << "set = [\"output.every=1e-5\", \"simulation.t_end=2e-5\"]\n"
-                                    << "[sweep]\n\"simulation.integrator\" = [\"fe\", \"npc\"]\n"
-                                    << "[[mesh]]\nname = \"n13\"\nh = 0.010253846\n"
-                                    << "set = [\"grid.cells=[15]\", \"grid.lower=[-0.020507692]\"]\n"
-                                    << "[[mesh]]\nname = \"n20\"\nh = 0.006665\n"
-                                    << "set = [\"grid.cells=[22]\", \"grid.lower=[-0.01333]\"]\n";
+                                    << body;
   return dir;
+}
+
+/// Two integrators x two meshes (h = L/13, L/20), 2e-5 s each.
+fs::path make_study_dir(const std::string& name) {
+  return study_dir(name, std::string("jobs = 2\n"
+                                     "set = [\"output.every=1e-5\", \"simulation.t_end=2e-5\"]\n"
+                                     "[sweep]\n\"simulation.integrator\" = [\"fe\", \"npc\"]\n") +
+                             kMeshN13 +
+                             "[[mesh]]\nname = \"n20\"\nh = 0.006665\n"
+                             "set = [\"grid.cells=[22]\", \"grid.lower=[-0.01333]\"]\n");
 }
 
 /// Runs `otmpm study` in dir; returns the exit status and fills `out` with stdout.
@@ -153,18 +162,15 @@ TEST_CASE("study: a CSV written before the energy columns is extended in place a
 
 TEST_CASE("study: a [stability] sweep marks a blown-up cfl unstable, the stable one stable, and draws the map") {
   // The Dyka bar at h = L/13 with the linear basis and forward Euler: cfl 0.5
-  // is inside the measured limit (0.7, docs/stability.md), cfl 3 is far past
-  // it (the highest mode grows by a factor of about 30 per step).
-  const fs::path dir = fs::temp_directory_path() / ("otmpm_study_stability_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  std::ofstream(dir / "study.toml") << "scene = \"" OTMPM_SOURCE_DIR "/examples/dyka.toml\"\n"
-                                    << "csv = \"study.csv\"\njobs = 1\n"
-                                    << "set = [\"output.fields=[]\", \"basis.kind=linear\", \"simulation.integrator=fe\"]\n"
-                                    << "[stability]\nband = 0.05\n"
-                                    << "[sweep]\n\"simulation.cfl\" = [0.5, 3.0]\n"
-                                    << "[[mesh]]\nname = \"n13\"\nh = 0.010253846\n"
-                                    << "set = [\"grid.cells=[15]\", \"grid.lower=[-0.020507692]\"]\n";
+  // is below the limit measured for this combination at L/133 and L/401
+  // (0.7, docs/stability.md); cfl 3 is far past it (measured: the runaway
+  // monitor stops the run at step 2).
+  const fs::path dir = study_dir("stability", std::string("jobs = 1\n"
+                                                          "set = [\"output.fields=[]\", \"basis.kind=linear\", "
+                                                          "\"simulation.integrator=fe\"]\n"
+                                                          "[stability]\nband = 0.05\n"
+                                                          "[sweep]\n\"simulation.cfl\" = [0.5, 3.0]\n") +
+                                                  kMeshN13);
   std::string out;
   REQUIRE(run_study(dir, out) == 0);
   const auto rows = read_csv(dir / "study.csv");
