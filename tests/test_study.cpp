@@ -45,16 +45,20 @@ fs::path make_study_dir(const std::string& name) {
                              "set = [\"grid.cells=[22]\", \"grid.lower=[-0.01333]\"]\n");
 }
 
-/// Runs `otmpm study` in dir; returns the exit status and fills `out` with stdout.
-int run_study(const fs::path& dir, std::string& out) {
-  const std::string cmd = "cd '" + dir.string() + "' && '" OTMPM_BINARY "' study study.toml 2>&1";
-  std::FILE* p = ::popen(cmd.c_str(), "r");
+/// Runs a shell command; returns its exit status and fills `out` with its stdout and stderr.
+int run_command(const std::string& cmd, std::string& out) {
+  std::FILE* p = ::popen((cmd + " 2>&1").c_str(), "r");
   REQUIRE(p != nullptr);
   char buf[512];
   out.clear();
   while (std::fgets(buf, sizeof buf, p)) out += buf;
   const int status = ::pclose(p);
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+/// Runs `otmpm study` in dir; returns the exit status and fills `out` with stdout.
+int run_study(const fs::path& dir, std::string& out) {
+  return run_command("cd '" + dir.string() + "' && '" OTMPM_BINARY "' study study.toml", out);
 }
 
 std::vector<std::vector<std::string>> read_csv(const fs::path& file) {
@@ -199,7 +203,33 @@ TEST_CASE("study: a [stability] sweep marks a blown-up cfl unstable, the stable 
   CHECK(fs::exists(dir / "study_map.png"));
   CHECK(fs::exists(dir / "study_map.svg"));
   CHECK(out.find("| base | 0.5 | 3 (blown_up) |") != std::string::npos);
+  // scripts/plot_energy_histories.py reads the /energy series of both result files.
+  std::string printed;
+  CHECK(run_command("/usr/bin/python3 '" OTMPM_SOURCE_DIR "/scripts/plot_energy_histories.py' 'cfl 0.5=" +
+                        (dir / "study_results" / "0.5_n13.h5").string() + "' 'cfl 3=" +
+                        (dir / "study_results" / "3_n13.h5").string() + "' --out '" + (dir / "energy.png").string() +
+                        "'",
+                    printed) == 0);
+  INFO(printed);
+  CHECK(fs::exists(dir / "energy.png"));
+  CHECK(printed.find("cfl 0.5: ") != std::string::npos);
+  CHECK(printed.find("status unstable") != std::string::npos);
   fs::remove_all(dir);
+}
+
+TEST_CASE("study: a [stability] table without a positive band or with an unswept key is refused") {
+  for (const auto& [table, what] : std::vector<std::pair<std::string, std::string>>{
+           {"[stability]\nband = 0.0\n", "stability.band"},
+           {"[stability]\n", "stability.band"},
+           {"[stability]\nband = 0.05\nkey = \"simulation.gamma\"\n", "'simulation.gamma' is not swept"}}) {
+    const fs::path dir = study_dir("bad_stability", table + "[sweep]\n\"simulation.cfl\" = [0.5]\n" + kMeshN13);
+    std::string out;
+    INFO(table);
+    CHECK(run_study(dir, out) == 2);
+    CHECK(out.find(what) != std::string::npos);
+    CHECK(!fs::exists(dir / "study.csv")); // refused before any run
+    fs::remove_all(dir);
+  }
 }
 
 TEST_CASE("study: a malformed study file is refused with exit status 2 and the line") {
