@@ -19,13 +19,16 @@ namespace {
 /// A linear elastic bar [0, 1], E = rho = 1, h = 1/8, 2 particles per cell, on
 /// a grid [-0.25, 1.25] (mpm) or on its own nodes (ul), plus `extra` TOML
 /// (boundaries, loads, initial velocities).
-std::string bar_scene(const std::string& mode, const std::string& integrator, const std::string& basis, double cfl,
-                      double t_end, const std::string& extra) {
+std::string bar_scene(const std::string& mode, const std::string& integrator, const std::string& basis,
+                      double cfl, double t_end, const std::string& extra) {
   return "[simulation]\ndimension = 1\nmode = \"" + mode + "\"\nintegrator = \"" + integrator +
-         "\"\nt_end = " + std::to_string(t_end) + "\ncfl = " + std::to_string(cfl) + "\n" + "[basis]\nkind = \"" +
-         basis + "\"\n[grid]\nlower = [-0.25]\nupper = [1.25]\ncells = [12]\n" +
-         "[[material]]\nname = \"m\"\nmodel = \"linear_elastic\"\ndensity = 1.0\nyoung = 1.0\npoisson = 0.0\n" +
-         "[[body]]\nname = \"bar\"\nmaterial = \"m\"\nlower = [0.0]\nupper = [1.0]\nparticles_per_cell = 2\n" + extra;
+         "\"\nt_end = " + std::to_string(t_end) + "\ncfl = " + std::to_string(cfl) + "\n" +
+         "[basis]\nkind = \"" + basis + "\"\n[grid]\nlower = [-0.25]\nupper = [1.25]\ncells = [12]\n" +
+         "[[material]]\nname = \"m\"\nmodel = \"linear_elastic\"\ndensity = 1.0\nyoung = 1.0\npoisson = "
+         "0.0\n" +
+         "[[body]]\nname = \"bar\"\nmaterial = \"m\"\nlower = [0.0]\nupper = [1.0]\nparticles_per_cell = "
+         "2\n" +
+         extra;
 }
 
 /// Both ends held fixed (the nodes at x = 0 and x = 1).
@@ -70,15 +73,17 @@ TEST_CASE("energy balance: a bar with fixed ends and no load loses energy at O(d
     double drift[2] = {0, 0};
     const double cfls[2] = {0.1, 0.05};
     for (int k = 0; k < 2; ++k) {
-      Engine<1> e(parse_scene(bar_scene(c.mode, c.integrator, c.basis, cfls[k], 4.0, kMode + kFixedEnds), "bar.toml"));
+      Engine<1> e(parse_scene(bar_scene(c.mode, c.integrator, c.basis, cfls[k], 4.0, kMode + kFixedEnds),
+                              "bar.toml"));
       REQUIRE(e.energy().initial > 0.0);
       drift[k] = run_balance(e);
       CHECK(e.energy().reaction_work == 0.0); // fixed supports do no work, exactly
       CHECK(e.energy().external_work == 0.0);
       CHECK(e.energy().total() <= 1.01 * e.energy().initial);
     }
-    MESSAGE(std::string(c.mode) << " " << std::string(c.integrator) << " " << std::string(c.basis) << ": energy drift " << drift[0]
-                                << " at cfl 0.1, " << drift[1] << " at cfl 0.05");
+    MESSAGE(std::string(c.mode) << " " << std::string(c.integrator) << " " << std::string(c.basis)
+                                << ": energy drift " << drift[0] << " at cfl 0.1, " << drift[1]
+                                << " at cfl 0.05");
     CHECK(drift[0] < 0.25);
     CHECK(drift[1] < 0.6 * drift[0]);
   }
@@ -90,10 +95,11 @@ TEST_CASE("energy balance: the work of a constant body force equals the change o
     // rigidly, E(t) = M (b t)^2 / 2; the trapezoidal rule integrates the
     // linear power M b^2 t exactly, so the balance holds to round-off.
     for (const char* integrator : {"fe", "npc"}) {
-      Engine<1> e(parse_scene(bar_scene("mpm", integrator, "linear", 0.1, 0.5, "[body_force]\nvalue = [-0.01]\n"),
-                              "fall.toml"));
+      Engine<1> e(parse_scene(
+          bar_scene("mpm", integrator, "linear", 0.1, 0.5, "[body_force]\nvalue = [-0.01]\n"), "fall.toml"));
       const double drift = run_balance(e);
-      INFO(std::string(integrator) << ": W_ext = " << e.energy().external_work << ", E = " << e.energy().total());
+      INFO(std::string(integrator) << ": W_ext = " << e.energy().external_work
+                                   << ", E = " << e.energy().total());
       CHECK(e.energy().external_work == doctest::Approx(0.5 * 1.0 * 0.005 * 0.005).epsilon(1e-9));
       CHECK(drift < 1e-9);
     }
@@ -103,8 +109,8 @@ TEST_CASE("energy balance: the work of a constant body force equals the change o
     // E(t) = W_ext(t) + the scheme's energy error. Measured drift (relative
     // to max W_ext, over two periods of the hanging oscillation): fe 0.0096,
     // npc 0.017; 0.05 bounds them and fails for a lost factor of 1/2.
-    const std::string extra =
-        "[body_force]\nvalue = [-0.01]\n[[boundary]]\nname = \"top\"\nlower = [1.0]\nupper = [1.0]\nfix = [true]\n";
+    const std::string extra = "[body_force]\nvalue = [-0.01]\n[[boundary]]\nname = \"top\"\nlower = "
+                              "[1.0]\nupper = [1.0]\nfix = [true]\n";
     for (const char* integrator : {"fe", "npc"}) {
       Engine<1> e(parse_scene(bar_scene("mpm", integrator, "linear", 0.1, 4.0, extra), "hang.toml"));
       const double drift = run_balance(e);
@@ -129,14 +135,15 @@ TEST_CASE("energy balance: a moving boundary does the work rho c v0^2 t of a pis
   // (v_p = sum N_Ip dx_I / dt), so the reset of the driven node's velocity is
   // an impulse that the stored reaction -f_I does not contain (docs/stability.md).
   const double v0 = 0.01, t_end = 0.5;
-  const std::string extra = "[[boundary]]\nname = \"piston\"\nlower = [0.0]\nupper = [0.0]\nfix = [true]\nvalue = [" +
-                            std::to_string(v0) + "]\n";
+  const std::string extra =
+      "[[boundary]]\nname = \"piston\"\nlower = [0.0]\nupper = [0.0]\nfix = [true]\nvalue = [" +
+      std::to_string(v0) + "]\n";
   for (const char* integrator : {"fe", "npc", "musl"}) {
     Engine<1> e(parse_scene(bar_scene("ul", integrator, "linear", 0.1, t_end, extra), "piston.toml"));
     const double drift = run_balance(e);
     const double exact = v0 * v0 * t_end;
-    MESSAGE("piston, " << std::string(integrator) << ": W_R = " << e.energy().reaction_work << " (exact " << exact
-                       << "), E = " << e.energy().total() << ", drift " << drift);
+    MESSAGE("piston, " << std::string(integrator) << ": W_R = " << e.energy().reaction_work << " (exact "
+                       << exact << "), E = " << e.energy().total() << ", drift " << drift);
     CHECK(e.energy().initial == 0.0);
     CHECK(e.energy().reaction_work == doctest::Approx(exact).epsilon(0.08));
     CHECK(drift < 0.05);
