@@ -20,6 +20,15 @@
 //   name = "n13"
 //   h = 0.010254
 //   set = ["grid.cells=[15]", "grid.lower=[-0.020508]"]
+//   [stability]                       # optional: a stability study
+//   band = 0.05                       # stable: exit 0 and max_energy_ratio <= 1 + band
+//   key = "simulation.cfl"            # the swept parameter on the map's x axis (default)
+//
+// Every row has the run's max_energy_ratio and energy_drift (RunSummary's
+// EnergySummary, read from the result file). With [stability] the rows also
+// get `stable` (1 or 0) and `stability` (stable, energy_growth, blown_up,
+// refused, failed), and the plot is the stability map of
+// scripts/plot_stability.py instead of the work-precision plots.
 #include "commands.hpp"
 
 #include "otmpm/core.hpp"
@@ -56,10 +65,19 @@ struct StudyRun {
   std::vector<std::pair<std::string, std::string>> params; ///< variant parameters (for CSV columns)
 };
 
+/// The [stability] section: a run is stable when it exits 0 and its
+/// max_energy_ratio is at most 1 + band.
+struct StabilityCriterion {
+  bool enabled = false;
+  double band = 0.0;
+  std::string key = "simulation.cfl";
+};
+
 struct Study {
   fs::path file, scene, csv, results;
   int jobs = 1;
   std::string error = "rms_velocity_error";
+  StabilityCriterion stability;
   std::vector<StudyRun> runs;
   std::vector<std::string> param_keys;
 };
@@ -93,9 +111,13 @@ void only_keys(const fs::path& file, const toml::table& t, const std::string& pr
 std::string set_value(const fs::path& file, const toml::node& n, const std::string& key) {
   if (auto s = n.value<std::string>(); s && n.is_string()) return *s;
   if (n.is_integer()) return std::to_string(*n.value<std::int64_t>());
-  if (n.is_floating_point()) {
+  if (n.is_floating_point()) { // the shortest text that reads back as the same double: 0.1, not 0.10000000000000001
+    const double v = *n.value<double>();
     char b[40];
-    std::snprintf(b, sizeof b, "%.17g", *n.value<double>());
+    for (int digits = 1; digits <= 17; ++digits) {
+      std::snprintf(b, sizeof b, "%.*g", digits, v);
+      if (std::strtod(b, nullptr) == v) break;
+    }
     return b;
   }
   if (n.is_boolean()) return *n.value<bool>() ? "true" : "false";
@@ -169,7 +191,8 @@ Study read_study(const fs::path& file) {
     throw InputError(file.string() + ":" + std::to_string(e.source().begin.line) + ":" +
                      std::to_string(e.source().begin.column) + ": syntax error: " + std::string(e.description()));
   }
-  only_keys(file, root, "", {"scene", "csv", "results", "jobs", "error", "set", "sweep", "variant", "mesh"});
+  only_keys(file, root, "",
+            {"scene", "csv", "results", "jobs", "error", "set", "sweep", "variant", "mesh", "stability"});
   Study s;
   s.file = file;
   const fs::path dir = file.parent_path();
@@ -191,6 +214,20 @@ Study read_study(const fs::path& file) {
   if (const toml::node* n = root.get("jobs")) {
     if (!n->is_integer() || *n->value<std::int64_t>() < 1) study_error(file, n, "jobs", "expected an integer >= 1");
     s.jobs = static_cast<int>(*n->value<std::int64_t>());
+  }
+  if (const toml::node* n = root.get("stability")) {
+    const toml::table* t = n->as_table();
+    if (!t) study_error(file, n, "stability", "expected a table");
+    only_keys(file, *t, "stability.", {"band", "key"});
+    const toml::node* band = t->get("band");
+    if (!band || !band->is_number() || !(band->value<double>().value_or(0.0) > 0.0))
+      study_error(file, band ? band : n, "stability.band", "expected a number > 0 (the allowed energy growth, e.g. 0.05)");
+    s.stability.enabled = true;
+    s.stability.band = *band->value<double>();
+    if (const toml::node* k = t->get("key")) {
+      if (!k->is_string()) study_error(file, k, "stability.key", "expected a string");
+      s.stability.key = *k->value<std::string>();
+    }
   }
   const std::vector<std::string> common = string_list(file, root, "set", "set");
   const std::vector<Variant> variants = read_variants(file, root, s.param_keys);
@@ -220,6 +257,10 @@ Study read_study(const fs::path& file) {
       s.runs.push_back(r);
     }
   }
+  if (s.stability.enabled &&
+      std::find(s.param_keys.begin(), s.param_keys.end(), s.stability.key) == s.param_keys.end())
+    study_error(file, root.get("stability"), "stability.key",
+                "'" + s.stability.key + "' is not swept: add it to [sweep] or to the variants' set");
   return s;
 }
 
@@ -233,12 +274,41 @@ std::string csv_escape(const std::string& s) {
   return out + "\"";
 }
 
-std::string header(const Study& s) {
+/// Energy columns: attributes of the result file, after the error columns.
+const std::vector<std::string> energy_columns{"max_energy_ratio", "energy_drift"};
+
+/// The header without the energy and stability columns: CSVs written before
+/// those columns existed start with it and are extended in place.
+std::string legacy_header(const Study& s) {
   std::string h = "variant,mesh,h";
   for (const std::string& k : s.param_keys) h += "," + csv_escape(k);
   h += ",status,exit_code,steps,wall_seconds,particles,nodes,particle_steps_per_second";
   for (const std::string& e : error_columns) h += "," + e;
   return h;
+}
+
+std::string header(const Study& s) {
+  std::string h = legacy_header(s);
+  for (const std::string& e : energy_columns) h += "," + e;
+  if (s.stability.enabled) h += ",stable,stability";
+  return h;
+}
+
+/// Rewrites a CSV whose header is legacy_header(s) with header(s), the rows
+/// padded with empty cells for the new columns (they were not measured).
+void upgrade_csv(const Study& s) {
+  std::ifstream in(s.csv);
+  std::string line;
+  if (!std::getline(in, line) || line != legacy_header(s)) return;
+  const std::string now = header(s);
+  const std::string pad(static_cast<std::size_t>(std::count(now.begin(), now.end(), ',') -
+                                                 std::count(line.begin(), line.end(), ',')),
+                        ',');
+  std::string text = now + "\n";
+  while (std::getline(in, line)) text += line + pad + "\n";
+  in.close();
+  std::ofstream(s.csv, std::ios::trunc) << text;
+  std::printf("%s: added the columns of this version (empty for the rows already there)\n", s.csv.c_str());
 }
 
 /// The (variant, mesh) pairs already in the CSV (first two columns).
@@ -307,6 +377,20 @@ std::string last_line(const fs::path& log) {
   return last;
 }
 
+/// The stability class of a run: stable (exit 0, max_energy_ratio <= 1 +
+/// band), energy_growth (exit 0 but more energy than that), blown_up (exit 1:
+/// NaN, runaway energy, det F <= 0, ...), refused (exit 2: the scene does not
+/// allow the combination) or failed (anything else).
+std::string stability_class(const StabilityCriterion& c, int exit_code, double max_energy_ratio) {
+  if (exit_code == 0) {
+    if (!std::isfinite(max_energy_ratio)) return "failed";
+    return max_energy_ratio <= 1.0 + c.band ? "stable" : "energy_growth";
+  }
+  if (exit_code == 1) return "blown_up";
+  if (exit_code == 2) return "refused";
+  return "failed";
+}
+
 /// One CSV row from the finished child's result file (or its log if it failed early).
 std::string result_row(const Study& s, const StudyRun& r, int exit_code, const fs::path& out, const fs::path& log) {
   std::string row = csv_escape(r.variant) + "," + csv_escape(r.mesh) + "," + number(r.h);
@@ -318,7 +402,7 @@ std::string result_row(const Study& s, const StudyRun& r, int exit_code, const f
   }
   std::string status = "ok";
   double steps = NAN, wall = NAN, particles = NAN, nodes = NAN;
-  std::map<std::string, double> errors;
+  std::map<std::string, double> errors, energy;
   try {
     status = read_string_attribute(out.string(), "status");
     steps = read_double_attribute(out.string(), "steps");
@@ -331,6 +415,7 @@ std::string result_row(const Study& s, const StudyRun& r, int exit_code, const f
       } catch (const InputError&) {
       }
     }
+    for (const std::string& e : energy_columns) energy[e] = read_double_attribute(out.string(), e);
   } catch (const InputError&) {
     status = exit_code == 2 ? "input error: " + last_line(log) : "failed: " + last_line(log);
   }
@@ -339,6 +424,12 @@ std::string result_row(const Study& s, const StudyRun& r, int exit_code, const f
   row += "," + csv_escape(status) + "," + std::to_string(exit_code) + "," + number(steps) + "," + number(wall) + "," +
          number(particles) + "," + number(nodes) + "," + number(psps);
   for (const std::string& e : error_columns) row += "," + (errors.count(e) ? number(errors[e]) : std::string());
+  for (const std::string& e : energy_columns) row += "," + (energy.count(e) ? number(energy[e]) : std::string());
+  if (s.stability.enabled) {
+    const double ratio = energy.count("max_energy_ratio") ? energy["max_energy_ratio"] : NAN;
+    const std::string verdict = stability_class(s.stability, exit_code, ratio);
+    row += "," + std::string(verdict == "stable" ? "1" : "0") + "," + verdict;
+  }
   return row;
 }
 
@@ -349,12 +440,16 @@ std::string safe_name(std::string s) {
 }
 
 void draw_plots(const Study& s) {
-  const fs::path script = fs::path(OTMPM_SOURCE_DIR) / "scripts" / "plot_study.py";
+  const std::string name = s.stability.enabled ? "plot_stability.py" : "plot_study.py";
+  const fs::path script = fs::path(OTMPM_SOURCE_DIR) / "scripts" / name;
+  const std::string args = s.stability.enabled
+                               ? " --band " + number(s.stability.band) + " --key '" + s.stability.key + "'"
+                               : " --error " + s.error;
   if (!fs::exists(script) || !fs::exists("/usr/bin/python3")) {
-    std::printf("plots: run python3 scripts/plot_study.py %s\n", s.csv.c_str());
+    std::printf("plots: run python3 scripts/%s %s%s\n", name.c_str(), s.csv.c_str(), args.c_str());
     return;
   }
-  const std::string cmd = "/usr/bin/python3 '" + script.string() + "' '" + s.csv.string() + "' --error " + s.error;
+  const std::string cmd = "/usr/bin/python3 '" + script.string() + "' '" + s.csv.string() + "'" + args;
   if (std::system(cmd.c_str()) != 0) std::fprintf(stderr, "otmpm: plot script failed: %s\n", cmd.c_str());
 }
 
@@ -366,6 +461,7 @@ int study_command(const std::vector<std::string>& args) {
   const Study s = read_study(args[0]);
   if (!fs::exists(s.scene)) throw InputError(s.file.string() + ": key 'scene': no such file " + s.scene.string());
   fs::create_directories(s.results);
+  upgrade_csv(s);
   const auto done = done_runs(s);
   const bool fresh = !fs::exists(s.csv) || fs::file_size(s.csv) == 0;
   std::ofstream csv(s.csv, std::ios::app);

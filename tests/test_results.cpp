@@ -6,6 +6,7 @@
 #include "otmpm/io/results.hpp"
 
 #include "otmpm/core.hpp"
+#include "otmpm/engine/run.hpp"
 
 #include <doctest/doctest.h>
 #include <hdf5.h>
@@ -151,6 +152,60 @@ TEST_CASE("probe histories grow by one row per sample") {
   CHECK(read_dataset(path, "/probes/B/v").dims == std::vector<hsize_t>{1, 2});
 }
 
+TEST_CASE("a root-level series grows by one rank-1 row per sample; reserved names are refused") {
+  TempDir t("series");
+  const std::string path = t.file("run.h5");
+  {
+    ResultWriter w(path, "", 1);
+    for (int k = 0; k < 3; ++k) w.append_series("energy", 0.5 * k, {{"kinetic", 1.0 + k}, {"strain", -2.0 * k}});
+    CHECK_THROWS_AS(w.append_series("energy", 2.0, {{"kinetic", 1.0}}), std::invalid_argument);
+    CHECK_THROWS_AS(w.append_series("probes", 2.0, {{"kinetic", 1.0}}), std::invalid_argument);
+    CHECK_THROWS_AS(w.append_series("frames", 2.0, {{"kinetic", 1.0}}), std::invalid_argument);
+    CHECK_THROWS_AS(w.append_series("energy", 2.0, {{"kinetic", std::nan("")}, {"strain", 0.0}}), InstabilityError);
+  }
+  const Dataset time = read_dataset(path, "/energy/time");
+  CHECK(time.dims == std::vector<hsize_t>{3});
+  CHECK(time.values == std::vector<double>{0.0, 0.5, 1.0});
+  const Dataset kinetic = read_dataset(path, "/energy/kinetic");
+  CHECK(kinetic.dims == std::vector<hsize_t>{3});
+  CHECK(kinetic.values == std::vector<double>{1.0, 2.0, 3.0});
+  CHECK(read_dataset(path, "/energy/strain").values == std::vector<double>{0.0, -2.0, -4.0});
+}
+
+TEST_CASE("a run writes its energy history at every output time and the energy summary attributes") {
+  // The Dyka bar at h = L/13 for 2e-5 s, an output every 5e-6 s: 5 samples
+  // (t = 0 and four more), the same times as the frames.
+  TempDir t("run_energy");
+  const std::string path = t.file("dyka.h5");
+  RunOptions opt;
+  opt.out_file = path;
+  const RunSummary s = run_scene(load_scene(OTMPM_SOURCE_DIR "/examples/dyka.toml",
+                                            {"grid.cells=[15]", "grid.lower=[-0.020507692307692307]",
+                                             "simulation.t_end=2e-5", "output.every=5e-6"}),
+                                 opt);
+  REQUIRE(s.exit_code == 0);
+  const Dataset time = read_dataset(path, "/energy/time");
+  CHECK(time.dims == std::vector<hsize_t>{5});
+  for (std::size_t k = 0; k < time.values.size(); ++k) {
+    char frame[32];
+    std::snprintf(frame, sizeof frame, "/frames/%06zu", k);
+    CHECK(time.values[k] == read_object_attribute(path, frame, "time"));
+  }
+  const Dataset kinetic = read_dataset(path, "/energy/kinetic"), strain = read_dataset(path, "/energy/strain");
+  // t = 0: no strain; the 7 of 26 particles (mass rho L / 26 each, A = 1 in
+  // 1D) whose Gauss positions lie in the left quarter move at 5 m/s.
+  CHECK(kinetic.values.front() == s.energy.initial);
+  CHECK(kinetic.values.front() == doctest::Approx(7.0 * 7833.0 * 0.1333 / 26.0 * 25.0 / 2.0).epsilon(1e-12));
+  CHECK(strain.values.front() == 0.0);
+  CHECK(strain.values.back() > 0.0);
+  for (const char* zero : {"/energy/external_work", "/energy/reaction_work"}) // no load, a fixed support
+    for (double w : read_dataset(path, zero).values) CHECK(w == 0.0);
+  CHECK(read_double_attribute(path, "max_energy_ratio") == s.energy.max_energy_ratio());
+  CHECK(read_double_attribute(path, "energy_drift") == s.energy.energy_drift());
+  CHECK(s.energy.max_energy_ratio() >= 1.0);
+  CHECK(s.energy.max_energy_ratio() < 1.05);
+}
+
 TEST_CASE("a probe sample with different fields is refused") {
   TempDir t("probe_mismatch");
   ResultWriter w(t.file("run.h5"), "", 1);
@@ -262,6 +317,7 @@ TEST_CASE("a process killed after a frame leaves a readable file") {
       ResultWriter w(path, "scene", 2);
       w.write_frame(0.0, fields_2d());
       w.append_probe("A", 0.0, {{"v", {1.0, 2.0}}});
+      w.append_series("energy", 0.0, {{"kinetic", 4.0}});
       w.write_frame(0.5, fields_2d());
       w.publish();
       ::kill(::getpid(), SIGKILL);
@@ -275,6 +331,7 @@ TEST_CASE("a process killed after a frame leaves a readable file") {
   CHECK(read_string_attribute(path, "status") == "running");
   CHECK(read_dataset(path, "/frames/000001/v").values == kV);
   CHECK(read_dataset(path, "/probes/A/time").values == std::vector<double>{0.0});
+  CHECK(read_dataset(path, "/energy/kinetic").values == std::vector<double>{4.0});
   CHECK(slurp(t.file("run.xdmf")).find("/frames/000001/x<") != std::string::npos);
 }
 

@@ -1,6 +1,7 @@
 // `otmpm study`: a 2 x 2 sweep (two integrators x two meshes of the Dyka bar)
 // writes one CSV row per run with the expected parameters and errors, and a
-// rerun resumes: rows already present are not run again.
+// rerun resumes: rows already present are not run again. A [stability] study
+// classifies a stable and a blown-up cfl and draws the stability map.
 #include <doctest/doctest.h>
 
 #include <cstdio>
@@ -19,26 +20,34 @@ namespace fs = std::filesystem;
 
 namespace {
 
-fs::path make_study_dir(const std::string& name) {
+/// The mesh h = L/13 of the Dyka bar as a [[mesh]] table.
+const char* const kMeshN13 = "[[mesh]]\nname = \"n13\"\nh = 0.010253846\n"
+                             "set = [\"grid.cells=[15]\", \"grid.lower=[-0.020507692]\"]\n";
+
+/// A fresh directory with study.toml: the Dyka bar scene, study.csv, and `body`.
+fs::path study_dir(const std::string& name, const std::string& body) {
   const fs::path dir = fs::temp_directory_path() / ("otmpm_study_" + name + "_" + std::to_string(::getpid()));
   fs::remove_all(dir);
   fs::create_directories(dir);
   std::ofstream(dir / "study.toml") << "scene = \"" OTMPM_SOURCE_DIR "/examples/dyka.toml\"\n"
                                     << "csv = \"study.csv\"\n"
-                                    << "jobs = 2\n"
-                                    << "set = [\"output.every=1e-5\", \"simulation.t_end=2e-5\"]\n"
-                                    << "[sweep]\n\"simulation.integrator\" = [\"fe\", \"npc\"]\n"
-                                    << "[[mesh]]\nname = \"n13\"\nh = 0.010253846\n"
-                                    << "set = [\"grid.cells=[15]\", \"grid.lower=[-0.020507692]\"]\n"
-                                    << "[[mesh]]\nname = \"n20\"\nh = 0.006665\n"
-                                    << "set = [\"grid.cells=[22]\", \"grid.lower=[-0.01333]\"]\n";
+                                    << body;
   return dir;
 }
 
-/// Runs `otmpm study` in dir; returns the exit status and fills `out` with stdout.
-int run_study(const fs::path& dir, std::string& out) {
-  const std::string cmd = "cd '" + dir.string() + "' && '" OTMPM_BINARY "' study study.toml 2>&1";
-  std::FILE* p = ::popen(cmd.c_str(), "r");
+/// Two integrators x two meshes (h = L/13, L/20), 2e-5 s each.
+fs::path make_study_dir(const std::string& name) {
+  return study_dir(name, std::string("jobs = 2\n"
+                                     "set = [\"output.every=1e-5\", \"simulation.t_end=2e-5\"]\n"
+                                     "[sweep]\n\"simulation.integrator\" = [\"fe\", \"npc\"]\n") +
+                             kMeshN13 +
+                             "[[mesh]]\nname = \"n20\"\nh = 0.006665\n"
+                             "set = [\"grid.cells=[22]\", \"grid.lower=[-0.01333]\"]\n");
+}
+
+/// Runs a shell command; returns its exit status and fills `out` with its stdout and stderr.
+int run_command(const std::string& cmd, std::string& out) {
+  std::FILE* p = ::popen((cmd + " 2>&1").c_str(), "r");
   REQUIRE(p != nullptr);
   char buf[512];
   out.clear();
@@ -47,15 +56,25 @@ int run_study(const fs::path& dir, std::string& out) {
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
+/// Runs `otmpm study` in dir; returns the exit status and fills `out` with stdout.
+int run_study(const fs::path& dir, std::string& out) {
+  return run_command("cd '" + dir.string() + "' && '" OTMPM_BINARY "' study study.toml", out);
+}
+
 std::vector<std::vector<std::string>> read_csv(const fs::path& file) {
   std::vector<std::vector<std::string>> rows;
   std::ifstream in(file);
   std::string line;
-  while (std::getline(in, line)) {
-    std::vector<std::string> cols;
-    std::stringstream ss(line);
-    std::string c;
-    while (std::getline(ss, c, ',')) cols.push_back(c);
+  while (std::getline(in, line)) { // RFC 4180 cells: "a, ""b""" is one cell; trailing empty cells are kept
+    std::vector<std::string> cols(1);
+    bool quoted = false;
+    for (std::size_t i = 0; i < line.size(); ++i) {
+      const char c = line[i];
+      if (c == '"' && quoted && i + 1 < line.size() && line[i + 1] == '"') cols.back() += line[++i];
+      else if (c == '"') quoted = !quoted;
+      else if (c == ',' && !quoted) cols.emplace_back();
+      else cols.back() += c;
+    }
     rows.push_back(cols);
   }
   return rows;
@@ -80,7 +99,7 @@ TEST_CASE("study: a 2x2 sweep writes one CSV row per run with parameters, status
   std::set<std::string> seen;
   for (std::size_t r = 1; r < rows.size(); ++r) {
     const auto& row = rows[r];
-    REQUIRE(row.size() >= h.size() - 1);
+    REQUIRE(row.size() == h.size());
     seen.insert(row[column(h, "variant")] + "@" + row[column(h, "mesh")]);
     CHECK(row[column(h, "status")] == "ok");
     CHECK(row[column(h, "simulation.integrator")] == row[column(h, "variant")]);
@@ -116,6 +135,101 @@ TEST_CASE("study: a rerun skips the runs already in the CSV and completes a trun
   CHECK(out.find("1 to do") != std::string::npos);
   CHECK(read_csv(dir / "study.csv").size() == 5);
   fs::remove_all(dir);
+}
+
+TEST_CASE("study: a CSV written before the energy columns is extended in place and resumed") {
+  const fs::path dir = make_study_dir("upgrade");
+  std::string out;
+  REQUIRE(run_study(dir, out) == 0);
+  // Rewrite the CSV as an older otmpm wrote it: without the two energy
+  // columns, and without its last row.
+  const auto rows = read_csv(dir / "study.csv");
+  const int ratio = column(rows[0], "max_energy_ratio");
+  REQUIRE(ratio + 2 == static_cast<int>(rows[0].size()));
+  std::string text;
+  for (std::size_t r = 0; r + 1 < rows.size(); ++r) {
+    for (int c = 0; c < ratio; ++c) text += (c ? "," : "") + rows[r][static_cast<std::size_t>(c)];
+    text += "\n";
+  }
+  std::ofstream(dir / "study.csv") << text;
+  REQUIRE(run_study(dir, out) == 0);
+  CHECK(out.find("added the columns") != std::string::npos);
+  CHECK(out.find("1 to do") != std::string::npos);
+  const auto now = read_csv(dir / "study.csv");
+  REQUIRE(now.size() == 5);
+  CHECK(now[0] == rows[0]);
+  CHECK(now[1].size() == rows[0].size()); // padded with empty cells
+  CHECK(now[1][static_cast<std::size_t>(ratio)].empty());
+  CHECK(std::stod(now[4][static_cast<std::size_t>(ratio)]) > 0.0); // the rerun row is measured
+  fs::remove_all(dir);
+}
+
+TEST_CASE("study: a [stability] sweep marks a blown-up cfl unstable, the stable one stable, and draws the map") {
+  // The Dyka bar at h = L/13 with the linear basis and forward Euler: cfl 0.5
+  // is below the limit measured for this combination at L/133 and L/401
+  // (0.7, docs/stability.md); cfl 3 is far past it (measured: the runaway
+  // monitor stops the run at step 2).
+  const fs::path dir = study_dir("stability", std::string("jobs = 1\n"
+                                                          "set = [\"output.fields=[]\", \"basis.kind=linear\", "
+                                                          "\"simulation.integrator=fe\"]\n"
+                                                          "[stability]\nband = 0.05\n"
+                                                          "[sweep]\n\"simulation.cfl\" = [0.5, 3.0]\n") +
+                                                  kMeshN13);
+  std::string out;
+  REQUIRE(run_study(dir, out) == 0);
+  const auto rows = read_csv(dir / "study.csv");
+  REQUIRE(rows.size() == 3);
+  const auto& h = rows[0];
+  CHECK(h.back() == "stability");
+  for (std::size_t r = 1; r < rows.size(); ++r) {
+    const auto& row = rows[r];
+    const std::string cfl = row[column(h, "simulation.cfl")];
+    INFO("cfl " << cfl << ": " << row[column(h, "status")]);
+    const double ratio = std::stod(row[column(h, "max_energy_ratio")]);
+    if (cfl == "0.5") {
+      CHECK(row[column(h, "stable")] == "1");
+      CHECK(row[column(h, "stability")] == "stable");
+      CHECK(ratio <= 1.05);
+      CHECK(ratio >= 1.0);
+    } else {
+      CHECK(cfl == "3");
+      CHECK(row[column(h, "stable")] == "0");
+      CHECK(row[column(h, "stability")] == "blown_up");
+      CHECK(row[column(h, "exit_code")] == "1");
+      CHECK(ratio > 10.0); // the runaway monitor stops at 10 x the reference
+    }
+  }
+  // scripts/plot_stability.py ran: the map and the markdown table.
+  CHECK(fs::exists(dir / "study_map.png"));
+  CHECK(fs::exists(dir / "study_map.svg"));
+  CHECK(out.find("| base | 0.5 | 3 (blown_up) |") != std::string::npos);
+  // scripts/plot_energy_histories.py reads the /energy series of both result files.
+  std::string printed;
+  CHECK(run_command("/usr/bin/python3 '" OTMPM_SOURCE_DIR "/scripts/plot_energy_histories.py' 'cfl 0.5=" +
+                        (dir / "study_results" / "0.5_n13.h5").string() + "' 'cfl 3=" +
+                        (dir / "study_results" / "3_n13.h5").string() + "' --out '" + (dir / "energy.png").string() +
+                        "'",
+                    printed) == 0);
+  INFO(printed);
+  CHECK(fs::exists(dir / "energy.png"));
+  CHECK(printed.find("cfl 0.5: ") != std::string::npos);
+  CHECK(printed.find("status unstable") != std::string::npos);
+  fs::remove_all(dir);
+}
+
+TEST_CASE("study: a [stability] table without a positive band or with an unswept key is refused") {
+  for (const auto& [table, what] : std::vector<std::pair<std::string, std::string>>{
+           {"[stability]\nband = 0.0\n", "stability.band"},
+           {"[stability]\n", "stability.band"},
+           {"[stability]\nband = 0.05\nkey = \"simulation.gamma\"\n", "'simulation.gamma' is not swept"}}) {
+    const fs::path dir = study_dir("bad_stability", table + "[sweep]\n\"simulation.cfl\" = [0.5]\n" + kMeshN13);
+    std::string out;
+    INFO(table);
+    CHECK(run_study(dir, out) == 2);
+    CHECK(out.find(what) != std::string::npos);
+    CHECK(!fs::exists(dir / "study.csv")); // refused before any run
+    fs::remove_all(dir);
+  }
 }
 
 TEST_CASE("study: a malformed study file is refused with exit status 2 and the line") {

@@ -96,11 +96,20 @@ template <int D> struct NodeSums {
 constexpr int scatter_block = 8192;
 constexpr int max_block_overlap = 2;
 
-/// Energies for the runaway monitor: kinetic, strain, and the work done by
-/// external forces (body force, traction) and reactions since t = 0.
+/// Energies of the runaway monitor and of the energy balance: kinetic and
+/// strain energy E = kinetic + strain, the work W_ext of the external forces
+/// (body force, traction; trapezoidal rule over each step) and the work W_R of
+/// the Dirichlet reactions (sum over constrained node components of
+/// reaction * prescribed velocity * dt: zero for fixed supports) since t = 0,
+/// and E(0).
 struct EnergyBalance {
-  double kinetic = 0, strain = 0, external_work = 0, initial = 0;
+  double kinetic = 0, strain = 0, external_work = 0, reaction_work = 0, initial = 0;
   double total() const { return kinetic + strain; }
+  /// Work done on the body since t = 0: W_ext + W_R.
+  double work() const { return external_work + reaction_work; }
+  /// E(t) - E(0) - W_ext(t) - W_R(t): zero for an exact, energy-conserving
+  /// solution; negative when the scheme dissipates, positive when it creates energy.
+  double balance_error() const { return total() - initial - work(); }
 };
 
 template <int D> class Engine {
@@ -143,7 +152,8 @@ public:
   /// Recomputes the kinetic and strain energy.
   void update_energy();
   /// Throws InstabilityError when kinetic + strain energy exceeds
-  /// energy_limit * (initial energy + |external work|) (runaway).
+  /// energy_limit * (initial energy + |external work| + |reaction work| +
+  /// sum_constrained 1/2 m_I v_prescribed^2) (runaway).
   void check_energy() const;
 
   // ---- stages of the step (spec algorithms.md sect. 3), used by the integrators
@@ -158,7 +168,9 @@ public:
   void solve_mass(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>& y);
   /// Sets fixed components of a nodal velocity-like field to their value.
   void apply_dirichlet_velocity(AlignedVector<Vec<D>>& v) const;
-  /// Zeroes fixed components of f and stores them as reactions.
+  /// Zeroes fixed components of f and stores them as reactions; adds their
+  /// impulse dt R to reaction_impulse() and their work dt R . v_prescribed to
+  /// energy().reaction_work.
   void apply_dirichlet_force(AlignedVector<Vec<D>>& f);
   /// L_p = sum_I v_I (x) grad N_Ip, then the constitutive update (sect. 4).
   void update_stress(const AlignedVector<Vec<D>>& v_nodes, double dt);
@@ -249,6 +261,7 @@ private:
   PhaseTimers timers_;
   EnergyBalance energy_;
   Vec<D> reaction_impulse_ = Vec<D>::Zero();
+  double external_power_ = 0.0; ///< power of the external loads at t_ (trapezoidal work)
 
   template <int E> friend void step_fe(Engine<E>&, bool musl);
   template <int E> friend void step_npc(Engine<E>&);

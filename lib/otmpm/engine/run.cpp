@@ -4,6 +4,7 @@
 #include "otmpm/io/results.hpp"
 #include "otmpm/reference/exact.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -15,6 +16,8 @@ namespace {
 
 /// Relative slack when comparing the simulated time with output times.
 constexpr double time_slack = 1e-9;
+/// Floor of EnergySummary::reference(), so a body at rest with no load has ratio 0, not 0/0.
+constexpr double energy_reference_floor = 1e-300;
 
 /// The particle a probe follows: the leftmost/rightmost by initial position
 /// (ties: lowest index) or the one nearest to a point.
@@ -50,6 +53,13 @@ public:
     writer_ = std::make_unique<ResultWriter>(path_, scene.text, D);
   }
 
+  /// Adds the engine's current energy balance to the run's EnergySummary (every step).
+  void sample_energy() {
+    const EnergyBalance& E = e_.energy();
+    energy_.initial = E.initial;
+    energy_.sample(E.total(), E.work(), E.balance_error());
+  }
+
   /// Writes a frame and probe samples when t reached the next output time.
   void maybe_record(bool force) {
     const double every = scene_.output.every;
@@ -62,6 +72,7 @@ public:
   }
 
   void finish(RunSummary& s) {
+    s.energy = energy_;
     for (const Probe& pr : probes_)
       if (exact_ && pr.samples > 0) s.errors["history_error_" + pr.name] = std::sqrt(pr.sum_sq / pr.samples);
     if (exact_ && s.exit_code == 0) final_errors(s);
@@ -73,6 +84,8 @@ public:
     writer_->set_attribute("particles", static_cast<long long>(s.particles));
     writer_->set_attribute("nodes", static_cast<long long>(s.nodes));
     for (const auto& [name, value] : s.errors) writer_->set_attribute(name, value);
+    writer_->set_attribute("max_energy_ratio", s.energy.max_energy_ratio());
+    writer_->set_attribute("energy_drift", s.energy.energy_drift());
     for (std::size_t i = 0; i < phase_names.size(); ++i)
       writer_->set_attribute("seconds_" + std::string(phase_names[i]), s.timers.seconds[i]);
     writer_->publish();
@@ -109,7 +122,15 @@ private:
         writer_->append_probe(pr.name, t, {{"x", x}, {"v", v}, {"stress", sig}});
       }
     }
-    if (writer_) write_frame(t);
+    if (writer_) {
+      const EnergyBalance& E = e_.energy();
+      writer_->append_series("energy", t,
+                             {{"kinetic", E.kinetic},
+                              {"strain", E.strain},
+                              {"external_work", E.external_work},
+                              {"reaction_work", E.reaction_work}});
+      write_frame(t);
+    }
   }
 
   void write_frame(double t) {
@@ -160,6 +181,7 @@ private:
   std::string path_;
   std::unique_ptr<ResultWriter> writer_;
   double next_ = 0.0;
+  EnergySummary energy_;
 };
 
 template <int D> RunSummary run_dim(const Scene& scene, const RunOptions& opt) {
@@ -174,14 +196,17 @@ template <int D> RunSummary run_dim(const Scene& scene, const RunOptions& opt) {
   s.particles = e.particles().size();
   s.nodes = e.basis().nodes().size();
   const double t_end = scene.simulation.t_end;
+  rec.sample_energy();
   rec.maybe_record(true);
   try {
     while (e.time() < t_end * (1.0 - time_slack)) {
       e.step();
+      rec.sample_energy();
       rec.maybe_record(e.time() >= t_end * (1.0 - time_slack));
       if (opt.progress) opt.progress(e.time(), t_end, e.steps());
     }
   } catch (const InstabilityError& err) {
+    rec.sample_energy(); // a runaway stop has the energy that tripped the monitor
     s.status = std::string("unstable: ") + err.what();
     s.exit_code = 1;
     rec.set_status(s.status);
@@ -195,6 +220,17 @@ template <int D> RunSummary run_dim(const Scene& scene, const RunOptions& opt) {
 }
 
 } // namespace
+
+void EnergySummary::sample(double energy, double work, double balance_error) {
+  if (!std::isfinite(energy) || !std::isfinite(work) || !std::isfinite(balance_error)) return;
+  max_energy = std::max(max_energy, energy);
+  max_work = std::max(max_work, std::abs(work));
+  max_balance_error = std::max(max_balance_error, std::abs(balance_error));
+}
+
+double EnergySummary::reference() const { return std::max(initial + max_work, energy_reference_floor); }
+double EnergySummary::max_energy_ratio() const { return max_energy / reference(); }
+double EnergySummary::energy_drift() const { return max_balance_error / reference(); }
 
 RunSummary run_scene(const Scene& scene, const RunOptions& options) {
   switch (scene.simulation.dimension) {
@@ -217,7 +253,9 @@ std::string summary_line(const RunSummary& s) {
     std::snprintf(buf, sizeof buf, ", %s = %.4g", name.c_str(), value);
     line += buf;
   }
-  return line;
+  std::snprintf(buf, sizeof buf, ", max_energy_ratio = %.4g, energy_drift = %.3g", s.energy.max_energy_ratio(),
+                s.energy.energy_drift());
+  return line + buf;
 }
 
 } // namespace otmpm

@@ -19,6 +19,24 @@ struct RunOptions {
   std::function<void(double, double, long)> progress;
 };
 
+/// The energy balance of a run, sampled after every step: E = kinetic +
+/// strain energy, W = work of the external loads and of the Dirichlet
+/// reactions since t = 0 (Engine's EnergyBalance).
+struct EnergySummary {
+  double initial = 0.0;           ///< E(0)
+  double max_energy = 0.0;        ///< max_t E(t)
+  double max_work = 0.0;          ///< max_t |W(t)|
+  double max_balance_error = 0.0; ///< max_t |E(t) - E(0) - W(t)|
+  /// Takes one sample; non-finite values are ignored (the run stops on them anyway).
+  void sample(double energy, double work, double balance_error);
+  /// E(0) + max_t |W(t)|: the most energy the body can hold without a spurious source.
+  double reference() const;
+  /// max_t E(t) / reference(): at most 1 when the scheme creates no energy.
+  double max_energy_ratio() const;
+  /// max_t |E(t) - E(0) - W(t)| / reference(): the relative energy error.
+  double energy_drift() const;
+};
+
 /// What a run reports (spec algorithms.md sect. 6).
 struct RunSummary {
   std::string status = "ok"; ///< "ok" or the diagnosis
@@ -29,6 +47,7 @@ struct RunSummary {
   double wall_seconds = 0.0;
   long particles = 0, nodes = 0;
   std::map<std::string, double> errors; ///< rms_velocity_error, history_error_A, ...
+  EnergySummary energy;                 ///< max_energy_ratio, energy_drift
   PhaseTimers timers;
   std::string out_file;
   double particle_steps_per_second() const { return wall_seconds > 0 ? particles * steps / wall_seconds : 0.0; }

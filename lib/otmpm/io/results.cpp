@@ -1,8 +1,9 @@
 // HDF5 result file and XDMF sidecar (interfaces.md "Result file (HDF5)").
 // Layout: root attributes; /frames/NNNNNN groups (attribute `time`, one
 // rows x cols double dataset per particle field); /probes/<name>/time and
-// /probes/<name>/<field> extendible histories. The file is flushed after every
-// frame and probe sample and the sidecar is replaced atomically afterwards, so
+// /probes/<name>/<field> extendible histories; root-level series such as
+// /energy/time and /energy/<field>. The file is flushed after every frame and
+// history sample and the sidecar is replaced atomically afterwards, so
 // a run killed between two writes leaves a consistent pair of files.
 #include "otmpm/io/results.hpp"
 
@@ -208,7 +209,7 @@ struct FrameInfo {
   std::vector<std::pair<std::string, int>> attributes; ///< other fields with `points` rows: name, cols
 };
 
-/// One probe's histories: number of samples and components of each field.
+/// One history group's samples and the components of each field (0: rank-1 scalar).
 struct ProbeInfo {
   hsize_t samples = 0;
   std::vector<std::pair<std::string, hsize_t>> fields;
@@ -225,7 +226,15 @@ struct ResultWriter::Impl {
   std::string h5_name; ///< the .h5 file name as the sidecar refers to it (same directory)
   int dimension = 0;
   std::vector<FrameInfo> frame_infos;
-  std::map<std::string, ProbeInfo> probe_infos;
+  std::map<std::string, ProbeInfo> probe_infos; ///< by path: "probes/<name>" or a root series name
+
+  /// Appends one sample to the histories of group `name` under `parent`
+  /// (created with its datasets on the first sample; later samples must have
+  /// the same fields). `scalars`: every field has one value and is stored as a
+  /// rank-1 dataset, like `time`. `key` names the group in probe_infos.
+  void append_sample(hid_t parent, const std::string& key, const std::string& name, double time,
+                     const std::vector<std::pair<std::string, std::vector<double>>>& values, bool scalars,
+                     const std::string& where);
 
   void write_xdmf() const;
   /// Rewrites the sidecar if `force` or if the last rewrite is older than
@@ -330,39 +339,59 @@ void ResultWriter::write_frame(double time, const std::vector<FieldView>& fields
   m.publish_xdmf(false);
 }
 
-void ResultWriter::append_probe(const std::string& probe, double time,
-                                const std::vector<std::pair<std::string, std::vector<double>>>& values) {
-  Impl& m = *impl_;
-  check_name(probe, "probe");
-  const std::string where = path_ + ": probe '" + probe + "' at t = " + format_double(time);
+void ResultWriter::Impl::append_sample(hid_t parent, const std::string& key, const std::string& name, double time,
+                                       const std::vector<std::pair<std::string, std::vector<double>>>& values,
+                                       bool scalars, const std::string& where) {
   check_finite(&time, 1, where + ", time");
   for (const auto& [field, v] : values) {
-    check_name(field, "probe field");
-    if (field == "time") throw std::invalid_argument(where + ": a probe field may not be called 'time'");
+    check_name(field, "history field");
+    if (field == "time") throw std::invalid_argument(where + ": a history field may not be called 'time'");
+    if (scalars && v.size() != 1) throw std::invalid_argument(where + ": field '" + field + "' is not a scalar");
     check_finite(v.data(), v.size(), where + ", field '" + field + "'");
   }
-  auto it = m.probe_infos.find(probe);
-  if (it == m.probe_infos.end()) {
-    Handle g = group(m.probes.get(), probe, path_);
+  auto it = probe_infos.find(key);
+  if (it == probe_infos.end()) {
+    Handle g = group(parent, name, path);
     ProbeInfo info;
-    create_history(g.get(), "time", 0, path_);
+    create_history(g.get(), "time", 0, path);
     for (const auto& [field, v] : values) {
       if (v.empty()) throw std::invalid_argument(where + ": field '" + field + "' has no components");
-      create_history(g.get(), field, v.size(), path_);
-      info.fields.emplace_back(field, v.size());
+      const hsize_t cols = scalars ? 0 : v.size();
+      create_history(g.get(), field, cols, path);
+      info.fields.emplace_back(field, cols);
     }
-    it = m.probe_infos.emplace(probe, std::move(info)).first;
+    it = probe_infos.emplace(key, std::move(info)).first;
   }
   ProbeInfo& info = it->second;
   if (values.size() != info.fields.size())
-    throw std::invalid_argument(where + ": the fields differ from the probe's first sample");
+    throw std::invalid_argument(where + ": the fields differ from the first sample");
   for (std::size_t i = 0; i < values.size(); ++i)
-    if (values[i].first != info.fields[i].first || values[i].second.size() != info.fields[i].second)
-      throw std::invalid_argument(where + ": field '" + values[i].first + "' differs from the probe's first sample");
-  Handle g(checked(H5Gopen2(m.probes.get(), probe.c_str(), H5P_DEFAULT), path_, "open probe " + probe), H5Gclose);
-  append_row(g.get(), "time", info.samples, 0, &time, path_);
-  for (const auto& [field, v] : values) append_row(g.get(), field, info.samples, v.size(), v.data(), path_);
+    if (values[i].first != info.fields[i].first || std::max<hsize_t>(info.fields[i].second, 1) != values[i].second.size())
+      throw std::invalid_argument(where + ": field '" + values[i].first + "' differs from the first sample");
+  Handle g(checked(H5Gopen2(parent, name.c_str(), H5P_DEFAULT), path, "open " + key), H5Gclose);
+  append_row(g.get(), "time", info.samples, 0, &time, path);
+  for (std::size_t i = 0; i < values.size(); ++i)
+    append_row(g.get(), values[i].first, info.samples, info.fields[i].second, values[i].second.data(), path);
   ++info.samples;
+}
+
+void ResultWriter::append_probe(const std::string& probe, double time,
+                                const std::vector<std::pair<std::string, std::vector<double>>>& values) {
+  check_name(probe, "probe");
+  impl_->append_sample(impl_->probes.get(), "probes/" + probe, probe, time, values, false,
+                       path_ + ": probe '" + probe + "' at t = " + format_double(time));
+  flush();
+}
+
+void ResultWriter::append_series(const std::string& series, double time,
+                                 const std::vector<std::pair<std::string, double>>& values) {
+  check_name(series, "series");
+  if (series == "frames" || series == "probes")
+    throw std::invalid_argument(path_ + ": series name '" + series + "' is reserved");
+  std::vector<std::pair<std::string, std::vector<double>>> rows;
+  for (const auto& [field, v] : values) rows.emplace_back(field, std::vector<double>{v});
+  impl_->append_sample(impl_->file.get(), series, series, time, rows, true,
+                       path_ + ": series '" + series + "' at t = " + format_double(time));
   flush();
 }
 

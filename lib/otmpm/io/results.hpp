@@ -1,7 +1,8 @@
 #pragma once
 /// \file results.hpp
 /// The HDF5 result file of interfaces.md: root attributes, /frames/NNNNNN/
-/// groups of particle datasets, /probes/<name>/ histories, and an .xdmf
+/// groups of particle datasets, /probes/<name>/ histories, root-level time
+/// series (/energy/), and an .xdmf
 /// sidecar that ParaView opens. Every frame is flushed to disk before the
 /// sidecar names it, so a run killed at any moment leaves a readable file
 /// (the sidecar may lag the .h5 file by at most 0.25 s of wall time).
@@ -38,6 +39,11 @@ public:
   /// (extendible datasets, `values` components per sample).
   void append_probe(const std::string& probe, double time,
                     const std::vector<std::pair<std::string, std::vector<double>>>& values);
+  /// Appends one sample to the root-level time series /<series>/time and
+  /// /<series>/<field> (extendible rank-1 datasets, one scalar per field per
+  /// sample; e.g. /energy/kinetic). Flushed like a probe sample.
+  void append_series(const std::string& series, double time,
+                     const std::vector<std::pair<std::string, double>>& values);
   void set_attribute(const std::string& name, double value);
   void set_attribute(const std::string& name, long long value);
   void set_attribute(const std::string& name, const std::string& value);

@@ -46,7 +46,7 @@ struct SimulationSection {
   double cfl = 0.1;
   std::optional<double> dt;        ///< fixed step instead of cfl
   double mass_tolerance = 1e-12;   ///< nodes with m_I < tol * max m are inactive
-  double energy_limit = 10.0;      ///< runaway: kinetic + strain energy > limit * (initial energy + |external work|) stops the run
+  double energy_limit = 10.0;      ///< runaway: kinetic + strain energy > limit * (initial energy + |external work| + |reaction work|) stops the run
   SourceRef where;
 };
 
