@@ -5,8 +5,10 @@
 
 #include "otmpm/basis/basis.hpp"
 
+#include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <limits>
 #include <memory>
 
 namespace otmpm::cli {
@@ -34,8 +36,17 @@ double to_double(const std::string& opt, const std::string& v) {
 
 int to_int(const std::string& opt, const std::string& v) {
   const double d = to_double(opt, v);
-  if (d != static_cast<int>(d)) throw InputError("option " + opt + ": '" + v + "' is not an integer");
+  // Range first: converting a double outside the int range is undefined.
+  const bool in_range = d >= std::numeric_limits<int>::min() && d <= std::numeric_limits<int>::max();
+  if (!in_range || d != std::trunc(d)) throw InputError("option " + opt + ": '" + v + "' is not an int");
   return static_cast<int>(d);
+}
+
+/// A non-negative --seed (a negative one would wrap to a different seed).
+unsigned to_seed(const std::string& opt, const std::string& v) {
+  const int seed = to_int(opt, v);
+  if (seed < 0) throw InputError("option " + opt + ": '" + v + "' must be >= 0");
+  return static_cast<unsigned>(seed);
 }
 
 BasisArgs parse(const std::vector<std::string>& args) {
@@ -50,7 +61,7 @@ BasisArgs parse(const std::vector<std::string>& args) {
     else if (s == "--upper") a.upper = to_double(s, v);
     else if (s == "--cells") a.cells = to_int(s, v);
     else if (s == "--perturb") a.perturb = to_double(s, v);
-    else if (s == "--seed") a.seed = static_cast<unsigned>(to_int(s, v));
+    else if (s == "--seed") a.seed = to_seed(s, v);
     else if (s == "--gamma-lme") a.opt.gamma_lme = to_double(s, v);
     else if (s == "--tolerance") a.opt.tolerance = to_double(s, v);
     else if (s == "--d-max") a.opt.d_max = to_double(s, v);

@@ -5,6 +5,7 @@
 #include <doctest/doctest.h>
 
 #include <random>
+#include <stdexcept>
 #include <string>
 
 #ifdef OTMPM_HAVE_OPENMP
@@ -135,9 +136,9 @@ TEST_CASE("basis table: empty input and mismatched side arrays") {
   CHECK(t.entries() == 0u);
   const AlignedVector<Vec<2>> x = random_points(5, 7u);
   AlignedVector<Vec<2>> lambda(3);
-  CHECK_THROWS_AS(fill_basis_table(*b, x, &lambda, nullptr, t), InputError);
+  CHECK_THROWS_AS(fill_basis_table(*b, x, &lambda, nullptr, t), std::invalid_argument);
   std::vector<Index<2>> hint(2);
-  CHECK_THROWS_AS(fill_basis_table(*b, x, nullptr, &hint, t), InputError);
+  CHECK_THROWS_AS(fill_basis_table(*b, x, nullptr, &hint, t), std::invalid_argument);
   // Empty side arrays mean "none".
   AlignedVector<Vec<2>> no_lambda;
   std::vector<Index<2>> no_hint;

@@ -196,3 +196,18 @@ TEST_CASE("cli: an unknown command or no command exits with 2") {
   CHECK(run_cli(dir, {}).status == 2);
   CHECK(run_cli(dir, {"--help"}).status == 0);
 }
+
+TEST_CASE("cli: basis options that are not an int (out of range, fractional, negative seed) exit with 2") {
+  TempDir dir;
+  const std::string out = (dir.path() / "basis.csv").string();
+  for (const char* bad : {"--cells=1e20", "--cells=2.5", "--samples=-1e300", "--seed=-3"}) {
+    INFO(bad);
+    const std::string arg(bad);
+    const std::string opt = arg.substr(0, arg.find('='));
+    const CliResult r = run_cli(dir, {"basis", "--kind", "linear", opt, arg.substr(arg.find('=') + 1), "--out", out});
+    INFO("stderr: " << r.err);
+    CHECK(r.status == 2);
+    CHECK(r.err.find(opt) != std::string::npos);
+  }
+  CHECK(run_cli(dir, {"basis", "--kind", "linear", "--cells", "4", "--samples", "3", "--out", out}).status == 0);
+}

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <limits>
 #include <random>
+#include <stdexcept>
 #include <type_traits>
 
 using namespace otmpm;
@@ -328,7 +329,7 @@ TEST_CASE("node set input errors") {
   bad[2][1] = std::nan("");
   CHECK_THROWS_AS(NodeSet<2>::cloud(bad, 0.1), InputError);
   NodeSet<2> s = NodeSet<2>::cartesian(test_grid<2>());
-  CHECK_THROWS_AS(s.set_positions(AlignedVector<Vec<2>>(3)), InputError);
-  CHECK_THROWS_AS(s.advect(AlignedVector<Vec<2>>(3)), InputError);
+  CHECK_THROWS_AS(s.set_positions(AlignedVector<Vec<2>>(3)), std::invalid_argument);
+  CHECK_THROWS_AS(s.advect(AlignedVector<Vec<2>>(3)), std::invalid_argument);
   CHECK(s.on_lattice()); // a rejected move leaves the set untouched
 }

@@ -1,16 +1,32 @@
 #pragma once
 /// \file core.hpp
 /// Types shared by every part of otmpm: fixed-size Eigen vectors templated on
-/// the spatial dimension D (1, 2, 3), and the three kinds of error that the
-/// command line turns into exit statuses (InputError -> 2, InstabilityError -> 1).
+/// the spatial dimension D (1, 2, 3), the three kinds of error that the
+/// command line turns into exit statuses (InputError -> 2, InstabilityError -> 1),
+/// and require(), the one-line argument check that throws them with context.
+///
+/// Which exception means what (docs/architecture.md, "Errors and argument checks"):
+///  - InputError: a value that cannot be used (a scene value, an option, a
+///    physical parameter, a non-finite coordinate given to a factory), whether
+///    it came from a file or from code.
+///  - std::invalid_argument: the calling code broke the interface (arrays
+///    whose sizes must agree do not, a null data pointer, an index out of
+///    range, a call out of order). A bug in the caller, never a user mistake;
+///    the command line reports it as an internal error (exit 3).
+///  - BasisError: a basis cannot be evaluated at a point (also a non-finite one).
+///  - InstabilityError: the state of a run stopped making sense (NaN/Inf,
+///    det F <= 0, an inverted knot vector, runaway energy).
 #include <Eigen/Core>
 #include <Eigen/LU>
 #include <Eigen/StdVector>
 #include <array>
+#include <cmath>
 #include <cstddef>
 #include <cstdio>
 #include <stdexcept>
 #include <string>
+#include <string_view>
+#include <type_traits>
 #include <vector>
 
 namespace otmpm {
@@ -49,16 +65,55 @@ public:
   explicit InstabilityError(const std::string& what) : std::runtime_error(what) {}
 };
 
+/// Formats a number with nine significant digits ("%.9g") for error messages.
+inline std::string format_number(double x) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.9g", x);
+  return buf;
+}
+
 /// Formats a point as "(x, y, z)" for error messages.
 template <int D> std::string format_point(const Vec<D>& x) {
   std::string s = "(";
   for (int k = 0; k < D; ++k) {
     if (k) s += ", ";
-    char buf[32];
-    std::snprintf(buf, sizeof buf, "%.9g", x[k]);
-    s += buf;
+    s += format_number(x[k]);
   }
   return s + ")";
 }
+
+namespace detail {
+inline void append_part(std::string& s, std::string_view part) { s += part; }
+inline void append_part(std::string& s, const char* part) { s += part; }
+inline void append_part(std::string& s, const std::string& part) { s += part; }
+template <class T>
+  requires std::is_arithmetic_v<T>
+void append_part(std::string& s, T value) {
+  if constexpr (std::is_same_v<T, bool>) s += value ? "true" : "false";
+  else if constexpr (std::is_floating_point_v<T>) s += format_number(value);
+  else s += std::to_string(value);
+}
+template <int D> void append_part(std::string& s, const Vec<D>& x) { s += format_point<D>(x); }
+} // namespace detail
+
+/// Concatenates the parts of an error message: strings as they are, numbers
+/// by format_number (integers exactly), points by format_point.
+template <class... Parts> std::string error_message(const Parts&... parts) {
+  std::string s;
+  (detail::append_part(s, parts), ...);
+  return s;
+}
+
+/// Throws Error(error_message(parts...)) unless `ok`. The message is only built
+/// on failure, so a check that passes costs one branch. Usage:
+///   require(h > 0, "NodeSet::cloud: spacing must be > 0, got ", h);
+///   require<std::invalid_argument>(a.size() == b.size(), "f: ", a.size(), " values for ", b.size(), " points");
+template <class Error = InputError, class... Parts> void require(bool ok, const Parts&... parts) {
+  if (!ok) [[unlikely]]
+    throw Error(error_message(parts...));
+}
+
+/// True when `value` is finite and > 0 (false for NaN).
+inline bool finite_positive(double value) { return std::isfinite(value) && value > 0.0; }
 
 } // namespace otmpm

@@ -12,6 +12,7 @@
 #include <atomic>
 #include <exception>
 #include <limits>
+#include <stdexcept>
 #include <utility>
 
 #ifdef OTMPM_HAVE_OPENMP
@@ -52,6 +53,20 @@ std::unique_ptr<Basis<D>> make_basis(const BasisOptions& opt, NodeSet<D> nodes) 
 }
 
 namespace {
+
+/// The argument checks of fill_basis_table (sizes only: the points themselves
+/// are checked by each family's evaluate()).
+template <int D>
+void check_table_arguments(const AlignedVector<Vec<D>>& x, const AlignedVector<Vec<D>>* lambda,
+                           const std::vector<Index<D>>* cell_hint) {
+  require<std::invalid_argument>(x.size() <= static_cast<std::size_t>(std::numeric_limits<int>::max()),
+                                 "fill_basis_table: x has ", x.size(), " points, more than an int can count");
+  require<std::invalid_argument>(!lambda || lambda->empty() || lambda->size() == x.size(), "fill_basis_table: lambda has ",
+                                 lambda ? lambda->size() : 0, " entries for ", x.size(), " points x");
+  require<std::invalid_argument>(!cell_hint || cell_hint->empty() || cell_hint->size() == x.size(),
+                                 "fill_basis_table: cell_hint has ", cell_hint ? cell_hint->size() : 0, " entries for ",
+                                 x.size(), " points x");
+}
 
 /// The rows of a contiguous range of particles, evaluated by one thread.
 template <int D> struct TableChunk {
@@ -210,15 +225,8 @@ template <int D>
 void fill_basis_table(const Basis<D>& basis, const AlignedVector<Vec<D>>& x,
                       std::type_identity_t<AlignedVector<Vec<D>>>* lambda,
                       std::type_identity_t<std::vector<Index<D>>>* cell_hint, BasisTable<D>& table) {
-  if (x.size() > static_cast<std::size_t>(std::numeric_limits<int>::max()))
-    throw InputError("fill_basis_table: too many points");
+  check_table_arguments<D>(x, lambda, cell_hint);
   const int n = static_cast<int>(x.size());
-  if (lambda && !lambda->empty() && lambda->size() != x.size())
-    throw InputError("fill_basis_table: " + std::to_string(lambda->size()) + " lambdas for " +
-                     std::to_string(n) + " points");
-  if (cell_hint && !cell_hint->empty() && cell_hint->size() != x.size())
-    throw InputError("fill_basis_table: " + std::to_string(cell_hint->size()) + " cell hints for " +
-                     std::to_string(n) + " points");
   if (lambda && lambda->empty()) lambda = nullptr;
   if (cell_hint && cell_hint->empty()) cell_hint = nullptr;
 

@@ -45,6 +45,15 @@ template <int D> struct PointQuery {
   Index<D>* cell_hint = nullptr;
 };
 
+/// Throws BasisError "KIND basis: point ID at (x, y): the position is not
+/// finite" unless q.x is finite; the check every family makes first in evaluate().
+template <int D> void require_finite_query(std::string_view kind, const PointQuery<D>& q) {
+  if (q.x.allFinite()) [[likely]]
+    return;
+  throw BasisError(error_message(kind, " basis: point ", q.id >= 0 ? std::to_string(q.id) + " at " : std::string(),
+                                 q.x, ": the position is not finite"));
+}
+
 /// Parameters of every family (only those of the chosen family are used).
 struct BasisOptions {
   std::string kind = "linear"; ///< linear | ugimp | bspline2 | bspline3 | lme | maxent
@@ -75,7 +84,8 @@ public:
   /// B-spline family advects its knot vectors here; others refresh indices.
   virtual void nodes_moved(const AlignedVector<Vec<D>>& dx) = 0;
   /// Fills `out` (cleared first) with the stencil of q.x. Throws BasisError
-  /// naming the point when it cannot.
+  /// naming the point when it cannot, also when q.x is not finite (one check
+  /// per call, require_finite_query).
   virtual void evaluate(const PointQuery<D>& q, Stencil<D>& out) const = 0;
   /// True when sum_I N_I x_I = x holds (linear completeness w.r.t. nodes()).
   virtual bool linearly_complete() const = 0;
@@ -95,8 +105,10 @@ public:
 
 /// Creates the basis family `opt.kind` on `nodes` (for B-splines: on the
 /// lattice `nodes.grid()`, building the control points). Throws InputError on
-/// an unknown kind or a layout the family cannot use (uGIMP off-lattice,
-/// B-splines without a lattice).
+/// an unknown kind, a layout the family cannot use (uGIMP off-lattice,
+/// B-splines without a lattice) or an option of the chosen family out of range
+/// (gamma_lme, d_max, newton_tolerance > 0 and finite, 0 < tolerance < 1,
+/// max_newton_iterations >= 1, 0 < ugimp_half_width[k] <= h_k / 2).
 template <int D>
 std::unique_ptr<Basis<D>> make_basis(const BasisOptions& opt, NodeSet<D> nodes);
 
@@ -136,7 +148,8 @@ template <int D> void transpose_basis_table(const BasisTable<D>& table, int node
 /// the result does not depend on the thread count). lambda (may be empty) is
 /// the per-point warm start of LME/max-ent, updated in place; cell_hint (may be
 /// empty) the per-point cell hint. A BasisError is rethrown with the point's
-/// index prepended. (lambda and cell_hint are non-deduced: D comes from the
+/// index prepended. Throws std::invalid_argument when a non-empty lambda or
+/// cell_hint does not have one entry per point. (lambda and cell_hint are non-deduced: D comes from the
 /// basis, so nullptr may be passed, and std::array's size_t extent need not
 /// deduce the int D.)
 template <int D>

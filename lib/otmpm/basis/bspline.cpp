@@ -7,23 +7,16 @@
 #include <algorithm>
 #include <cmath>
 #include <sstream>
+#include <stdexcept>
 #include <utility>
 
 namespace otmpm {
 
 namespace {
 
-std::string format_number(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.9g", x);
-  return buf;
-}
-
 void check_degree(int degree) {
-  if (degree < kMinBsplineDegree || degree > kMaxBsplineDegree)
-    throw InputError("B-spline degree " + std::to_string(degree) + " not supported (use " +
-                     std::to_string(kMinBsplineDegree) + " .. " +
-                     std::to_string(kMaxBsplineDegree) + ")");
+  require(degree >= kMinBsplineDegree && degree <= kMaxBsplineDegree, "B-spline degree ", degree,
+          " not supported (use ", kMinBsplineDegree, " .. ", kMaxBsplineDegree, ")");
 }
 
 } // namespace
@@ -34,12 +27,11 @@ void check_degree(int degree) {
 
 KnotVector::KnotVector(std::vector<double> vertices, int degree) : v_(std::move(vertices)), p_(degree) {
   check_degree(degree);
-  if (v_.size() < 2) throw InputError("knot vector needs at least two vertices (one cell)");
+  require(v_.size() >= 2, "KnotVector: vertices needs at least two entries (one cell), got ", v_.size());
   for (std::size_t j = 0; j + 1 < v_.size(); ++j)
-    if (!(v_[j] < v_[j + 1]) || !std::isfinite(v_[j]) || !std::isfinite(v_[j + 1]))
-      throw InputError("knot vector vertices must be finite and strictly increasing: v[" +
-                       std::to_string(j) + "] = " + format_number(v_[j]) + ", v[" +
-                       std::to_string(j + 1) + "] = " + format_number(v_[j + 1]));
+    require(v_[j] < v_[j + 1] && std::isfinite(v_[j]) && std::isfinite(v_[j + 1]),
+            "KnotVector: vertices must be finite and strictly increasing: v[", j, "] = ", v_[j], ", v[", j + 1,
+            "] = ", v_[j + 1]);
   t_.reserve(v_.size() + 2 * static_cast<std::size_t>(p_));
   t_.insert(t_.end(), static_cast<std::size_t>(p_), v_.front());
   t_.insert(t_.end(), v_.begin(), v_.end());
@@ -47,8 +39,9 @@ KnotVector::KnotVector(std::vector<double> vertices, int degree) : v_(std::move(
 }
 
 KnotVector KnotVector::uniform(double lower, double upper, int cells, int degree) {
-  if (cells < 1 || !(lower < upper))
-    throw InputError("uniform knot vector needs lower < upper and cells >= 1");
+  require(cells >= 1 && std::isfinite(lower) && std::isfinite(upper) && lower < upper,
+          "KnotVector::uniform: needs finite lower < upper and cells >= 1, got lower = ", lower, ", upper = ", upper,
+          ", cells = ", cells);
   std::vector<double> v(static_cast<std::size_t>(cells) + 1);
   const double h = (upper - lower) / cells;
   for (int j = 0; j <= cells; ++j) v[j] = lower + h * j;
@@ -63,6 +56,8 @@ double KnotVector::min_cell_width() const {
 }
 
 double KnotVector::greville(int i) const {
+  require<std::invalid_argument>(i >= 0 && i < num_basis(), "KnotVector::greville: control point i = ", i,
+                                 " out of range [0, ", num_basis(), ")");
   double s = 0.0;
   for (int j = i + 1; j <= i + p_; ++j) s += t_[j];
   return s / p_;
@@ -99,6 +94,9 @@ int KnotVector::find_cell(double x, int hint) const {
 }
 
 BsplineSpanValues KnotVector::evaluate_on_cell(double x, int cell) const {
+  require<std::invalid_argument>(cell >= 0 && cell < num_cells(), "KnotVector::evaluate_on_cell: cell ", cell,
+                                 " out of range [0, ", num_cells(), ")");
+  require<BasisError>(std::isfinite(x), "KnotVector::evaluate_on_cell: x = ", x, " is not finite");
   x = std::clamp(x, lower(), upper());
   const int s = cell + p_; // knot span index: t_s = v_cell, t_{s+1} = v_{cell+1}
   // B[r] holds N_{s-d+r}^d(x), r = 0..d, while the degree d rises from 0 to p.
@@ -130,9 +128,8 @@ BsplineSpanValues KnotVector::evaluate(double x, int hint) const {
 }
 
 double KnotVector::interpolate(double x, const std::vector<double>& c) const {
-  if (static_cast<int>(c.size()) != num_basis())
-    throw InputError("KnotVector::interpolate: " + std::to_string(c.size()) +
-                     " coefficients for " + std::to_string(num_basis()) + " basis functions");
+  require<std::invalid_argument>(c.size() == static_cast<std::size_t>(num_basis()), "KnotVector::interpolate: c has ",
+                                 c.size(), " coefficients for ", num_basis(), " basis functions");
   const BsplineSpanValues b = evaluate(x);
   double u = 0.0;
   for (int a = 0; a <= p_; ++a) u += b.N[a] * c[b.first + a];
@@ -140,6 +137,11 @@ double KnotVector::interpolate(double x, const std::vector<double>& c) const {
 }
 
 KnotVector KnotVector::advected(const std::vector<double>& d) const {
+  require<std::invalid_argument>(d.size() == static_cast<std::size_t>(num_basis()), "KnotVector::advected: d has ",
+                                 d.size(), " increments for ", num_basis(), " control points");
+  for (std::size_t i = 0; i < d.size(); ++i)
+    require<InstabilityError>(std::isfinite(d[i]), "KnotVector::advected: increment d[", i, "] = ", d[i],
+                              " is not finite");
   std::vector<double> w(v_.size());
   for (std::size_t j = 0; j < v_.size(); ++j) w[j] = v_[j] + interpolate(v_[j], d);
   for (std::size_t j = 0; j + 1 < w.size(); ++j)
@@ -244,9 +246,9 @@ std::vector<double> BsplineBasis<D>::mean_axis_increments(const AlignedVector<Ve
 }
 
 template <int D> void BsplineBasis<D>::nodes_moved(const AlignedVector<Vec<D>>& dx) {
-  if (static_cast<int>(dx.size()) != nodes_.size())
-    throw InputError("B-spline nodes_moved: " + std::to_string(dx.size()) + " increments for " +
-                     std::to_string(nodes_.size()) + " control points");
+  require<std::invalid_argument>(dx.size() == static_cast<std::size_t>(nodes_.size()),
+                                 "BsplineBasis::nodes_moved: dx has ", dx.size(), " increments for ", nodes_.size(),
+                                 " control points");
   std::array<KnotVector, D> moved;
   for (int k = 0; k < D; ++k) moved[k] = knots_[k].advected(mean_axis_increments(dx, k));
   knots_ = std::move(moved); // commit only once every axis succeeded
@@ -260,6 +262,7 @@ template <int D> void BsplineBasis<D>::nodes_moved(const AlignedVector<Vec<D>>& 
 
 template <int D> void BsplineBasis<D>::evaluate(const PointQuery<D>& q, Stencil<D>& out) const {
   out.clear();
+  require_finite_query(kind(), q);
   for (int k = 0; k < D; ++k) {
     if (!knots_[k].contains(q.x[k])) {
       std::ostringstream msg;

@@ -49,7 +49,8 @@ public:
   /// Open knot vector of `degree` on `vertices` (strictly increasing, >= 2).
   /// Throws InputError otherwise.
   KnotVector(std::vector<double> vertices, int degree);
-  /// Uniform vertices: `cells` cells of equal width on [lower, upper].
+  /// Uniform vertices: `cells` cells of equal width on [lower, upper]. Throws
+  /// InputError unless lower < upper are finite and cells >= 1.
   static KnotVector uniform(double lower, double upper, int cells, int degree);
 
   int degree() const { return p_; }
@@ -67,6 +68,7 @@ public:
 
   /// Greville abscissa xi_i = (t_{i+1} + ... + t_{i+p}) / p of control point i;
   /// sum_i N_i(x) xi_i = x holds exactly (linear completeness).
+  /// std::invalid_argument unless 0 <= i < num_basis().
   double greville(int i) const;
   /// All Greville abscissae, i = 0 .. n-1.
   std::vector<double> greville() const;
@@ -80,12 +82,15 @@ public:
   /// !contains(x).
   int find_cell(double x, int hint = -1) const;
   /// Values and derivatives of N_j .. N_{j+p} at x on cell j (x is clamped to
-  /// [lower, upper]). Cox-de Boor; no allocation.
+  /// [lower, upper]). Cox-de Boor; no allocation. Throws std::invalid_argument
+  /// unless 0 <= cell < num_cells(), BasisError for a non-finite x.
   BsplineSpanValues evaluate_on_cell(double x, int cell) const;
   /// find_cell + evaluate_on_cell.
   BsplineSpanValues evaluate(double x, int hint = -1) const;
   /// Value of the B-spline function sum_i N_i(x) c_i with coefficients c
   /// (size num_basis()), e.g. a displacement interpolated from control points.
+  /// Throws std::invalid_argument for another size of c, BasisError for x
+  /// outside the knot vector.
   double interpolate(double x, const std::vector<double>& c) const;
 
   /// The unified-approach knot update along this axis: every vertex v_j moves
@@ -93,7 +98,8 @@ public:
   /// control-point increments d (size num_basis()) with the current basis.
   /// Returns the advected knot vector; *this is unchanged. Throws
   /// InstabilityError (naming the cell and positions) if a cell's width would
-  /// become <= 0 (the grid inverted), InputError if d has the wrong size.
+  /// become <= 0 (the grid inverted) or naming the entry of a non-finite d,
+  /// std::invalid_argument if d has the wrong size.
   KnotVector advected(const std::vector<double>& d) const;
 
   /// Relative distance (to the knot-vector length) within which a point just
@@ -139,13 +145,21 @@ public:
   std::string_view kind() const override;
   const NodeSet<D>& nodes() const override { return nodes_; }
   NodeSet<D>& nodes() override { return nodes_; }
+  /// Advects the knot vectors (class comment). std::invalid_argument when
+  /// dx.size() != nodes().size(); InstabilityError for a non-finite increment
+  /// or an inverted knot vector (then nothing changes).
   void nodes_moved(const AlignedVector<Vec<D>>& dx) override;
   void evaluate(const PointQuery<D>& q, Stencil<D>& out) const override;
   bool linearly_complete() const override { return true; }
   int max_stencil() const override;
 
   int degree() const { return degree_; }
-  const KnotVector& knot_vector(int axis) const { return knots_[axis]; }
+  /// The knot vector of `axis`; std::invalid_argument unless 0 <= axis < D.
+  const KnotVector& knot_vector(int axis) const {
+    require<std::invalid_argument>(axis >= 0 && axis < D, "BsplineBasis::knot_vector: axis ", axis,
+                                   " out of range [0, ", D, ")");
+    return knots_[axis];
+  }
   /// Control points per axis, n_k = cells_k + degree.
   Index<D> control_points_per_axis() const { return n_; }
   /// Flat id of the control point with lattice index ijk (axis 0 fastest).

@@ -8,25 +8,30 @@ namespace otmpm {
 
 /// Tensor-product hat functions on a Cartesian lattice; isoparametric
 /// bilinear/trilinear (Q4/Q8) elements on a perturbed or moved lattice
-/// (inverse map by Newton). Requires nodes.grid().
+/// (inverse map by Newton). Requires nodes.grid() (InputError otherwise).
 template <int D> std::unique_ptr<Basis<D>> make_linear_basis(NodeSet<D> nodes);
 
 /// Uniform GIMP (Bardenhagen & Kober 2004) with particle half-width
-/// `half_width` per axis. Requires an untouched Cartesian lattice.
+/// `half_width` per axis. Requires an untouched Cartesian lattice and
+/// 0 < half_width[k] <= h_k / 2 (InputError otherwise).
 template <int D>
 std::unique_ptr<Basis<D>> make_ugimp_basis(NodeSet<D> nodes, const Vec<D>& half_width);
 
 /// B-splines of degree 2 or 3 by Cox-de Boor on open knot vectors built from
 /// the lattice `grid` (knots at the lattice vertices); the degrees of freedom
 /// are the control points at the Greville abscissae. Knot vectors are
-/// advected in nodes_moved() (unified approach, wobbes Algorithm 3).
+/// advected in nodes_moved() (unified approach, wobbes Algorithm 3). InputError
+/// for an invalid grid or a degree outside [kMinBsplineDegree, kMaxBsplineDegree].
 template <int D>
 std::unique_ptr<Basis<D>> make_bspline_basis(const CartesianGrid<D>& grid, int degree);
 
 /// Local max-ent (Arroyo & Ortiz 2006, molinos sect. 2.3), beta = gamma_lme / h^2.
+/// InputError unless gamma_lme is finite and > 0, 0 < tolerance < 1, and the
+/// Newton options are valid (MaxEntBasis).
 template <int D> std::unique_ptr<Basis<D>> make_lme_basis(NodeSet<D> nodes, const BasisOptions& opt);
 
 /// Max-ent with a cubic-spline prior of radius d_max * h (wobbes sect. 6.3).
+/// InputError unless d_max is finite and > 0 and the Newton options are valid.
 template <int D> std::unique_ptr<Basis<D>> make_maxent_basis(NodeSet<D> nodes, const BasisOptions& opt);
 
 } // namespace otmpm

@@ -258,6 +258,7 @@ public:
 
   void evaluate(const PointQuery<D>& q, Stencil<D>& out) const override {
     out.clear();
+    require_finite_query(kind(), q);
     if (nodes_.on_lattice())
       evaluate_on_lattice(q, out);
     else
@@ -508,6 +509,7 @@ public:
 
   void evaluate(const PointQuery<D>& q, Stencil<D>& out) const override {
     out.clear();
+    require_finite_query(kind(), q);
     if (!nodes_.on_lattice())
       throw BasisError("ugimp: the nodes moved off their Cartesian lattice; cannot evaluate " + point_text(q));
     if (!in_grid(grid_, q.x))

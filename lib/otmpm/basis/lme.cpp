@@ -105,6 +105,7 @@
 #include <limits>
 #include <numbers>
 #include <sstream>
+#include <stdexcept>
 
 namespace otmpm::maxent {
 namespace {
@@ -519,6 +520,7 @@ template <int D> int bucket_bound(const NodeSet<D>& nodes, double R) {
 } // namespace
 
 template <int D> int max_nodes_within(const NodeSet<D>& nodes, double R) {
+  require<std::invalid_argument>(finite_positive(R), "max_nodes_within: radius R must be finite and > 0, got ", R);
   if (nodes.size() == 0) return 0;
   int bound = nodes.size();
   if (nodes.on_lattice() && nodes.grid()) bound = std::min(bound, lattice_bound(*nodes.grid(), R));
@@ -541,6 +543,8 @@ MaxEntBasis<D, Prior>::MaxEntBasis(NodeSet<D> nodes, const BasisOptions& opt, co
   if (opt.max_newton_iterations < 1)
     throw InputError(name + " basis: max_newton_iterations must be >= 1, got " +
                      std::to_string(opt.max_newton_iterations));
+  require(finite_positive(prior_.support_radius()), name, " basis: the prior's support radius must be finite and > 0, got ",
+          prior_.support_radius());
   settings_.h = nodes_.spacing();
   settings_.residual_tolerance = opt.newton_tolerance * settings_.h;
   settings_.max_iterations = opt.max_newton_iterations;

@@ -124,6 +124,9 @@ template <int D> struct NewtonState {
 /// allocation per evaluation once the Stencil buffers have grown.
 template <int D, class Prior> class MaxEntBasis final : public Basis<D> {
 public:
+  /// Throws InputError for fewer than D + 1 nodes, newton_tolerance not finite
+  /// and > 0, max_newton_iterations < 1 or a prior whose support radius is not
+  /// finite and > 0.
   MaxEntBasis(NodeSet<D> nodes, const BasisOptions& opt, const Prior& prior, std::string_view kind);
 
   std::string_view kind() const override { return kind_; }
@@ -155,6 +158,7 @@ private:
 };
 
 /// Sound upper bound on the number of nodes within distance R of any point.
+/// std::invalid_argument unless R is finite and > 0.
 template <int D> int max_nodes_within(const NodeSet<D>& nodes, double R);
 
 extern template struct GaussianPrior<1>;

@@ -2,6 +2,7 @@
 
 #include "otmpm/engine/parallel.hpp"
 #include "otmpm/reference/solutions.hpp"
+#include "otmpm/scene/validate.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -53,6 +54,7 @@ template <int D> void NodalFields<D>::resize(int n) {
 }
 
 template <int D> Engine<D>::Engine(const Scene& scene) : scene_(scene) {
+  validate_scene(scene_, D); // a Scene built in code has not been through parse_scene
   const SimulationSection& sim = scene_.simulation;
   mode_ = sim.mode == "ul" ? NodeMode::ul : NodeMode::mpm;
   integrator_ = parse_integrator(sim.integrator);

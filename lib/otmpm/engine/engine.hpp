@@ -116,8 +116,11 @@ template <int D> class Engine {
 public:
   /// Builds the engine for a validated scene: node set (grid over the scene's
   /// grid in `mpm`; over the bodies' bounding box in `ul`), basis, particles,
-  /// materials, Dirichlet sets, loads. Throws InputError naming the key when
-  /// the combination is not allowed.
+  /// materials, Dirichlet sets, loads. Checks the scene first
+  /// (validate_scene(scene, D): dimension == D, at least one body and
+  /// material, body materials defined, cells >= 1, finite grid bounds, ...)
+  /// and throws InputError naming the key when a value or the combination is
+  /// not allowed, also for a Scene built in code.
   explicit Engine(const Scene& scene);
   ~Engine();
 

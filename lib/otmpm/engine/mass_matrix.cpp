@@ -1,8 +1,12 @@
+/// \file mass_matrix.cpp
+/// Assembly, constraint rows and LDL^T solve of the consistent mass matrix.
 #include "otmpm/engine/mass_matrix.hpp"
 
 #include <Eigen/SparseCholesky>
 
 #include <cmath>
+#include <stdexcept>
+#include <string>
 
 namespace otmpm {
 
@@ -11,6 +15,36 @@ template <int D> struct MassMatrix<D>::Factor {
   Eigen::SparseMatrix<double> A;
 };
 
+namespace {
+
+/// The argument checks of MassMatrix::assemble: consistent sizes, node ids in
+/// range (Eigen only asserts them, and not at all under NDEBUG), finite
+/// non-negative masses. O(entries), once per assembly.
+template <int D>
+void check_assembly(const BasisTable<D>& table, const std::vector<double>& m_p, const std::vector<char>& active,
+                    const std::vector<char>& constrained, int nodes) {
+  const std::string f = "MassMatrix::assemble: ";
+  require<std::invalid_argument>(nodes >= 0, f, "nodes must be >= 0, got ", nodes);
+  require<std::invalid_argument>(!table.offset.empty() && table.offset.front() == 0 &&
+                                     static_cast<std::size_t>(table.offset.back()) == table.node.size() &&
+                                     table.N.size() == table.node.size(),
+                                 f, "the basis table is malformed (offset, node and N do not agree)");
+  require<std::invalid_argument>(m_p.size() == static_cast<std::size_t>(table.rows()), f, "m_p has ", m_p.size(),
+                                 " masses for ", table.rows(), " table rows");
+  require<std::invalid_argument>(active.size() == static_cast<std::size_t>(nodes), f, "active has ", active.size(),
+                                 " flags for ", nodes, " nodes");
+  require<std::invalid_argument>(constrained.size() == static_cast<std::size_t>(nodes) * D, f, "constrained has ",
+                                 constrained.size(), " flags for ", nodes, " nodes x ", D, " components");
+  for (std::size_t a = 0; a < table.node.size(); ++a)
+    require<std::invalid_argument>(table.node[a] >= 0 && table.node[a] < nodes, f, "table entry ", a, " names node ",
+                                   table.node[a], ", outside [0, ", nodes, ")");
+  for (std::size_t p = 0; p < m_p.size(); ++p)
+    require<InputError>(std::isfinite(m_p[p]) && m_p[p] >= 0.0, f, "mass m_p[", p, "] = ", m_p[p],
+                        " is not finite and >= 0");
+}
+
+} // namespace
+
 template <int D> MassMatrix<D>::MassMatrix() = default;
 template <int D> MassMatrix<D>::~MassMatrix() = default;
 
@@ -18,6 +52,7 @@ template <int D>
 void MassMatrix<D>::assemble(const BasisTable<D>& table, const std::vector<double>& m_p,
                              const std::vector<char>& active, const std::vector<char>& constrained,
                              int nodes) {
+  check_assembly<D>(table, m_p, active, constrained, nodes);
   std::vector<Eigen::Triplet<double>> triplets;
   triplets.reserve(table.entries() * 4);
   for (int p = 0; p < table.rows(); ++p)
@@ -54,7 +89,11 @@ void MassMatrix<D>::assemble(const BasisTable<D>& table, const std::vector<doubl
 
 template <int D>
 double MassMatrix<D>::solve(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>& y) const {
+  require<std::invalid_argument>(!factor_.empty(), "MassMatrix::solve: call assemble() first");
   const int n = static_cast<int>(M_.rows());
+  require<std::invalid_argument>(r.size() == static_cast<std::size_t>(n) && y.size() == r.size(),
+                                 "MassMatrix::solve: r has ", r.size(), " and y ", y.size(), " entries for ", n,
+                                 " nodes");
   double worst = 0.0;
   const Factor* f = nullptr;
   for (int k = 0; k < D; ++k) {

@@ -17,13 +17,19 @@ public:
   ~MassMatrix();
   /// Assembles M from the table and the particle masses and factorises it.
   /// constrained[I*D + k] marks a fixed component (identity row for that
-  /// component's solve); inactive[I] marks a node with no mass.
+  /// component's solve); inactive[I] marks a node with no mass. Throws
+  /// std::invalid_argument unless m_p has one mass per table row, active
+  /// `nodes` and constrained nodes * D flags, and every table node id lies in
+  /// [0, nodes); InputError for a mass that is negative or not finite;
+  /// InstabilityError when the factorisation fails.
   void assemble(const BasisTable<D>& table, const std::vector<double>& m_p,
                 const std::vector<char>& active, const std::vector<char>& constrained, int nodes);
   /// y = M^{-1} r per component; constrained components and inactive nodes
   /// take the value already in y (for velocity-like fields: the prescribed
   /// value; zero otherwise) - the caller sets them. Returns the relative
-  /// residual max_k |M y_k - r_k| / |r_k| of the solve.
+  /// residual max_k |M y_k - r_k| / |r_k| of the solve. Throws
+  /// std::invalid_argument before assemble() or unless r and y have one entry
+  /// per node.
   double solve(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>& y) const;
   /// The assembled matrix (before constraints), for tests.
   const Eigen::SparseMatrix<double>& matrix() const { return M_; }

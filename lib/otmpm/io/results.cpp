@@ -156,6 +156,18 @@ void check_name(const std::string& name, const std::string& what) {
     throw std::invalid_argument("result file: invalid " + what + " name '" + name + "'");
 }
 
+/// A field's rows x cols must describe its data: rows >= 0, cols >= 1, data
+/// when rows > 0, and the coordinates "x" one column per dimension (the XDMF
+/// geometry). The length of `data` itself cannot be checked: the caller owns it.
+void check_field_shape(const FieldView& f, int dimension, const std::string& path) {
+  const std::string where = path + ": field '" + f.name + "': ";
+  require<std::invalid_argument>(f.rows >= 0, where, "rows must be >= 0, got ", f.rows);
+  require<std::invalid_argument>(f.cols >= 1, where, "cols must be >= 1, got ", f.cols);
+  require<std::invalid_argument>(f.data || f.rows == 0, where, "data is null for ", f.rows, " x ", f.cols, " values");
+  require<std::invalid_argument>(f.name != "x" || f.cols == dimension, where, "cols = ", f.cols,
+                                 " but the coordinates need one column per dimension (", dimension, ")");
+}
+
 /// NaN or Inf never reach the result file: they mean the run became unstable.
 void check_finite(const double* data, std::size_t n, const std::string& where) {
   for (std::size_t i = 0; i < n; ++i)
@@ -249,8 +261,9 @@ struct ResultWriter::Impl {
 ResultWriter::ResultWriter(const std::string& path, const std::string& scene_text, int dimension)
     : impl_(std::make_unique<Impl>()), path_(path) {
   silence_hdf5();
-  if (dimension < 1 || dimension > kXdmfSpaceDim)
-    throw std::invalid_argument(path + ": result dimension must be 1, 2 or 3");
+  require(!path.empty(), "ResultWriter: the result file path is empty");
+  require<std::invalid_argument>(dimension >= 1 && dimension <= kXdmfSpaceDim, path,
+                                 ": ResultWriter: dimension must be 1, 2 or 3, got ", dimension);
   Impl& m = *impl_;
   m.path = path;
   m.dimension = dimension;
@@ -316,8 +329,7 @@ void ResultWriter::write_frame(double time, const std::vector<FieldView>& fields
     if (f.name == kPaddedX) throw std::invalid_argument(path_ + ": field name 'x3' is reserved for the XDMF geometry");
     if (!seen.insert(f.name).second)
       throw std::invalid_argument(path_ + ": field '" + f.name + "' given twice in one frame");
-    if (f.rows < 0 || f.cols < 1 || (!f.data && f.rows > 0))
-      throw std::invalid_argument(path_ + ": field '" + f.name + "' has an invalid shape or no data");
+    check_field_shape(f, impl_->dimension, path_);
     check_finite(f.data, static_cast<std::size_t>(f.rows) * f.cols,
                  path_ + ": frame at t = " + format_double(time) + ", field '" + f.name + "'");
   }
@@ -396,12 +408,15 @@ void ResultWriter::append_series(const std::string& series, double time,
 }
 
 void ResultWriter::set_attribute(const std::string& name, double value) {
+  check_name(name, "attribute");
   write_attribute(impl_->file.get(), name, H5T_NATIVE_DOUBLE, &value, path_);
 }
 void ResultWriter::set_attribute(const std::string& name, long long value) {
+  check_name(name, "attribute");
   write_attribute(impl_->file.get(), name, H5T_NATIVE_LLONG, &value, path_);
 }
 void ResultWriter::set_attribute(const std::string& name, const std::string& value) {
+  check_name(name, "attribute");
   write_string_attribute(impl_->file.get(), name, value, path_);
 }
 
@@ -457,6 +472,8 @@ namespace {
 /// Opens `path` read-only and the root attribute `name` (InputError if either is absent).
 std::pair<Handle, Handle> open_attribute(const std::string& path, const std::string& name) {
   silence_hdf5();
+  require(!path.empty(), "read attribute '", name, "': the result file path is empty");
+  check_name(name, "attribute");
   const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
   if (file < 0) throw InputError(path + ": cannot open the result file");
   Handle f(file, H5Fclose);

@@ -25,6 +25,13 @@ struct FieldView {
 /// otmpm_version, scene and status = "running"; finish() sets the final
 /// status and the summary attributes. The destructor closes the file
 /// (status stays whatever was last set).
+///
+/// Argument checks: an empty path or a file that cannot be created is an
+/// InputError; a dimension outside 1..3, an empty or duplicate name, a field
+/// shape that does not describe its data (rows < 0, cols < 1, null data, "x"
+/// without one column per dimension) or probe fields that change between
+/// samples is std::invalid_argument; NaN or Inf in a frame or probe sample is
+/// an InstabilityError (nothing of that frame or sample is written).
 class ResultWriter {
 public:
   ResultWriter(const std::string& path, const std::string& scene_text, int dimension);
@@ -62,7 +69,9 @@ private:
   int frames_ = 0;
 };
 
-/// Reads a root attribute back (tests and tools). Throws InputError if absent.
+/// Reads a root attribute back (tests and tools). Throws InputError if the
+/// path is empty, the file cannot be opened or the attribute is absent or of
+/// another type; std::invalid_argument for an empty name.
 std::string read_string_attribute(const std::string& path, const std::string& name);
 double read_double_attribute(const std::string& path, const std::string& name);
 

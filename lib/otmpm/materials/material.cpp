@@ -1,3 +1,5 @@
+/// \file material.cpp
+/// The constitutive models of material.hpp and the checks of their parameters.
 #include "otmpm/materials/material.hpp"
 
 #include <cmath>
@@ -12,6 +14,14 @@ Material::Model Material::parse_model(const std::string& name) {
                    "' (expected linear_elastic, linear_elastic_finite or neo_hookean)");
 }
 
+void Material::validate() const {
+  const std::string what = "material '" + name + "': ";
+  require(finite_positive(density), what, "density must be finite and > 0, got ", density);
+  require(finite_positive(young), what, "young must be finite and > 0, got ", young);
+  require(std::isfinite(poisson) && poisson > -1.0 && poisson < 0.5, what, "poisson must be in (-1, 0.5), got ",
+          poisson);
+}
+
 template <int D> Mat<D> elastic_stress_increment(const Material& mat, const Mat<D>& d_eps) {
   if constexpr (D == 1) {
     return mat.young * d_eps;
@@ -22,6 +32,8 @@ template <int D> Mat<D> elastic_stress_increment(const Material& mat, const Mat<
 
 template <int D> Mat<D> cauchy_stress(const Material& mat, const Mat<D>& F) {
   const double J = F.determinant();
+  require<InstabilityError>(std::isfinite(J) && J > 0.0, "cauchy_stress (material '", mat.name, "'): det F = ", J,
+                            " is not finite and > 0");
   const Mat<D> I = Mat<D>::Identity();
   // 1D: uniaxial modulus lambda + 2 mu -> E (see header).
   const double lambda = D == 1 ? 0.0 : mat.lambda();

@@ -25,6 +25,10 @@ struct Material {
 
   /// Parses "linear_elastic" | "linear_elastic_finite" | "neo_hookean"; InputError otherwise.
   static Model parse_model(const std::string& name);
+  /// Throws InputError naming the material and the field unless density and
+  /// young are finite and > 0 and -1 < poisson < 0.5 (where lambda() and mu()
+  /// are finite and the material is stable). The stress functions assume it.
+  void validate() const;
   double lambda() const { return young * poisson / ((1 + poisson) * (1 - 2 * poisson)); }
   double mu() const { return young / (2 * (1 + poisson)); }
   /// P-wave modulus: E in 1D (uniaxial stress), lambda + 2 mu otherwise.
@@ -37,8 +41,9 @@ struct Material {
 /// (1D: E d_eps; 2D: plane strain; 3D: isotropic).
 template <int D> Mat<D> elastic_stress_increment(const Material& mat, const Mat<D>& d_eps);
 
-/// Cauchy stress of a finite-strain model from F (wobbes eqs. 10, 11).
-/// Precondition det F > 0 (checked by the caller, which names the particle).
+/// Cauchy stress of a finite-strain model from F (wobbes eqs. 10, 11). Throws
+/// InstabilityError unless det F is finite and > 0 (one check per call; the
+/// engine checks first and names the particle).
 template <int D> Mat<D> cauchy_stress(const Material& mat, const Mat<D>& F);
 
 /// Stored elastic energy density (per unit current volume, used only for the

@@ -12,6 +12,7 @@
 #include <cmath>
 #include <limits>
 #include <random>
+#include <stdexcept>
 #include <utility>
 
 namespace otmpm {
@@ -22,6 +23,15 @@ namespace bgi = boost::geometry::index;
 // ---------------------------------------------------------------------------
 // CartesianGrid
 // ---------------------------------------------------------------------------
+
+namespace {
+/// "[4, 5, 6]" for messages.
+template <int D> std::string format_cells(const Index<D>& cells) {
+  std::string s = "[";
+  for (int k = 0; k < D; ++k) s += (k ? ", " : "") + std::to_string(cells[k]);
+  return s + "]";
+}
+} // namespace
 
 template <int D> Vec<D> CartesianGrid<D>::h() const {
   Vec<D> s;
@@ -85,13 +95,16 @@ template <int D> bool CartesianGrid<D>::contains(const Vec<D>& x) const {
 }
 
 template <int D> void CartesianGrid<D>::validate() const {
+  long long nodes = 1;
   for (int k = 0; k < D; ++k) {
-    if (!(std::isfinite(lower[k]) && std::isfinite(upper[k]) && lower[k] < upper[k]))
-      throw InputError("grid: axis " + std::to_string(k) + " needs finite lower < upper, got lower = " +
-                       format_point<D>(lower) + ", upper = " + format_point<D>(upper));
-    if (cells[k] < 1)
-      throw InputError("grid: axis " + std::to_string(k) + " needs at least one cell, got " +
-                       std::to_string(cells[k]));
+    require(std::isfinite(lower[k]) && std::isfinite(upper[k]) && lower[k] < upper[k], "grid: axis ", k,
+            " needs finite lower < upper, got lower = ", lower, ", upper = ", upper);
+    require(cells[k] >= 1, "grid: cells[", k, "] must be >= 1, got ", cells[k]);
+    require(std::isfinite((upper[k] - lower[k]) / cells[k]), "grid: axis ", k, " spacing (upper - lower) / cells = ",
+            (upper[k] - lower[k]) / cells[k], " is not finite");
+    nodes *= cells[k] + 1LL;
+    require(nodes <= std::numeric_limits<int>::max(), "grid: cells = ", format_cells<D>(cells),
+            " gives more nodes than an int can count (", std::numeric_limits<int>::max(), ")");
   }
 }
 
@@ -172,8 +185,8 @@ template <int D>
 NodeSet<D> NodeSet<D>::perturbed(const CartesianGrid<D>& grid, double fraction, unsigned seed) {
   // Beyond half a cell two neighbouring nodes could swap and invert an element.
   constexpr double kMaxFraction = 0.5;
-  if (!(fraction >= 0.0 && fraction < kMaxFraction))
-    throw InputError("perturbed grid: fraction must be in [0, 0.5), got " + std::to_string(fraction));
+  require(fraction >= 0.0 && fraction < kMaxFraction, "NodeSet::perturbed: fraction must be in [0, 0.5), got ",
+          fraction);
   NodeSet s = cartesian(grid);
   std::mt19937 rng(seed);
   const Vec<D> h = grid.h();
@@ -189,13 +202,12 @@ NodeSet<D> NodeSet<D>::perturbed(const CartesianGrid<D>& grid, double fraction, 
 }
 
 template <int D> NodeSet<D> NodeSet<D>::cloud(AlignedVector<Vec<D>> positions, double spacing) {
-  if (positions.empty()) throw InputError("node cloud: no nodes");
-  if (!(spacing > 0.0 && std::isfinite(spacing)))
-    throw InputError("node cloud: spacing must be positive, got " + std::to_string(spacing));
+  require(!positions.empty(), "NodeSet::cloud: positions is empty (no nodes)");
+  require(positions.size() <= static_cast<std::size_t>(std::numeric_limits<int>::max()), "NodeSet::cloud: ",
+          positions.size(), " positions, more than an int can count");
+  require(finite_positive(spacing), "NodeSet::cloud: spacing must be finite and > 0, got ", spacing);
   for (std::size_t i = 0; i < positions.size(); ++i)
-    if (!positions[i].allFinite())
-      throw InputError("node cloud: node " + std::to_string(i) + " has a non-finite position " +
-                       format_point<D>(positions[i]));
+    require(positions[i].allFinite(), "NodeSet::cloud: positions[", i, "] = ", positions[i], " is not finite");
   NodeSet s;
   s.x_ = std::move(positions);
   s.x0_ = s.x_;
@@ -229,18 +241,21 @@ template <int D> NodeSet<D>& NodeSet<D>::operator=(const NodeSet& o) {
 // ---------------------------------------------------------------------------
 
 template <int D> void NodeSet<D>::set_positions(AlignedVector<Vec<D>> x) {
-  if (x.size() != x_.size())
-    throw InputError("NodeSet::set_positions: " + std::to_string(x.size()) + " positions for " +
-                     std::to_string(x_.size()) + " nodes");
+  require<std::invalid_argument>(x.size() == x_.size(), "NodeSet::set_positions: x has ", x.size(),
+                                 " positions for ", x_.size(), " nodes");
+  for (std::size_t i = 0; i < x.size(); ++i)
+    require<InstabilityError>(x[i].allFinite(), "NodeSet::set_positions: x[", i, "] = ", x[i], " is not finite");
   x_ = std::move(x);
   on_lattice_ = false;
   index_stale_ = true;
 }
 
 template <int D> void NodeSet<D>::advect(const AlignedVector<Vec<D>>& dx) {
-  if (dx.size() != x_.size())
-    throw InputError("NodeSet::advect: " + std::to_string(dx.size()) + " increments for " +
-                     std::to_string(x_.size()) + " nodes");
+  require<std::invalid_argument>(dx.size() == x_.size(), "NodeSet::advect: dx has ", dx.size(),
+                                 " increments for ", x_.size(), " nodes");
+  for (std::size_t i = 0; i < dx.size(); ++i)
+    require<InstabilityError>(dx[i].allFinite(), "NodeSet::advect: increment dx[", i, "] = ", dx[i],
+                              " of the node at ", x_[i], " is not finite");
   for (std::size_t i = 0; i < x_.size(); ++i) x_[i] += dx[i];
   on_lattice_ = false;
   index_stale_ = true;
@@ -316,6 +331,7 @@ void lattice_within(const CartesianGrid<D>& g, const AlignedVector<Vec<D>>& pos,
 } // namespace
 
 template <int D> void NodeSet<D>::within(const Vec<D>& x, double radius, std::vector<int>& out) const {
+  require<std::invalid_argument>(radius >= 0.0, "NodeSet::within: radius must be >= 0, got ", radius);
   const std::size_t first = out.size();
   const double r2 = radius * radius;
   if (on_lattice_ && grid_) {

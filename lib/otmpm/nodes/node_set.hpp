@@ -38,7 +38,9 @@ template <int D> struct CartesianGrid {
   Index<D> cell_of(const Vec<D>& x) const;
   /// True when x lies in the closed box [lower, upper].
   bool contains(const Vec<D>& x) const;
-  /// Throws InputError unless lower < upper and cells >= 1 on every axis.
+  /// Throws InputError (naming the axis and the values) unless lower < upper
+  /// are finite, cells >= 1 on every axis, the spacing is finite and the node
+  /// count fits an int.
   void validate() const;
 };
 
@@ -53,14 +55,17 @@ enum class NodeLayout { cartesian, perturbed, cloud };
 /// lazily; rebuilt after the nodes move).
 template <int D> class NodeSet {
 public:
-  /// Nodes on the vertices of a Cartesian grid.
+  /// Nodes on the vertices of a Cartesian grid (grid.validate() first).
   static NodeSet cartesian(const CartesianGrid<D>& grid);
   /// The same topology with every interior node moved by a random vector whose
   /// components are uniform in [-fraction*h, fraction*h] (fixed seed). Boundary
-  /// nodes keep their position, so the domain stays the same box.
+  /// nodes keep their position, so the domain stays the same box. Throws
+  /// InputError unless 0 <= fraction < 0.5 (and the grid is valid).
   static NodeSet perturbed(const CartesianGrid<D>& grid, double fraction, unsigned seed);
   /// An arbitrary cloud; `spacing` is the characteristic nodal spacing h used
-  /// by LME (beta = gamma_lme / h^2) and for the time step.
+  /// by LME (beta = gamma_lme / h^2) and for the time step. Throws InputError
+  /// for no positions, a non-finite position (naming its index) or a spacing
+  /// that is not finite and > 0.
   static NodeSet cloud(AlignedVector<Vec<D>> positions, double spacing);
 
   NodeSet();
@@ -84,14 +89,19 @@ public:
   const AlignedVector<Vec<D>>& initial_positions() const { return x0_; }
 
   /// Replaces node positions (advection in `ul` mode). Marks the set as moved:
-  /// the next neighbour query rebuilds the R-tree.
+  /// the next neighbour query rebuilds the R-tree. Throws std::invalid_argument
+  /// when x.size() != size(), InstabilityError for a non-finite position.
   void set_positions(AlignedVector<Vec<D>> x);
-  /// Adds dx_I to every node (x_I += dx_I) and marks the set as moved.
+  /// Adds dx_I to every node (x_I += dx_I) and marks the set as moved. Throws
+  /// std::invalid_argument when dx.size() != size(), InstabilityError (naming
+  /// the node) for a non-finite increment; the set is unchanged then.
   void advect(const AlignedVector<Vec<D>>& dx);
 
   /// Appends to `out` the ids of all nodes with |x_I - x| <= radius (order
   /// unspecified but deterministic). Thread-safe once the index is built;
-  /// call prepare_search() before querying from several threads.
+  /// call prepare_search() before querying from several threads. A
+  /// non-finite x has no node within any radius; radius < 0 (or NaN) throws
+  /// std::invalid_argument.
   void within(const Vec<D>& x, double radius, std::vector<int>& out) const;
   /// Builds the R-tree now if the layout needs one and it is stale.
   void prepare_search() const;

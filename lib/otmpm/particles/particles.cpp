@@ -1,13 +1,16 @@
 #include "otmpm/particles/particles.hpp"
 
 #include "otmpm/scene/scene.hpp"
+#include "otmpm/scene/validate.hpp"
 
 #include <cmath>
 #include <numbers>
+#include <stdexcept>
 
 namespace otmpm {
 
 template <int D> void Particles<D>::resize(int n) {
+  require<std::invalid_argument>(n >= 0, "Particles::resize: n must be >= 0, got ", n);
   x.assign(n, Vec<D>::Zero());
   X = v = length0 = x;
   m.assign(n, 0.0);
@@ -120,6 +123,7 @@ template <int D> std::size_t seed_count(const Scene& scene, const Vec<D>& h) {
 }
 
 template <int D> Particles<D> seed_particles(const Scene& scene, const Vec<D>& h) {
+  validate_seeding<D>(scene, h);
   Particles<D> P;
   struct Seed { Vec<D> x, len; double V; int mat, body; };
   std::vector<Seed> seeds;

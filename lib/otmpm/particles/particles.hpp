@@ -32,7 +32,8 @@ template <int D> struct Particles {
 
   int size() const { return static_cast<int>(x.size()); }
   /// Resizes the fields every run uses to n particles (all zero) and empties
-  /// the optional ones (a, F, lambda, cell_hint, x_prev).
+  /// the optional ones (a, F, lambda, cell_hint, x_prev); std::invalid_argument
+  /// for n < 0.
   void resize(int n);
   /// Allocates the optional fields a run needs (a = 0, F = I, lambda = 0,
   /// cell_hint = 0), so that a scene pays memory only for what it reads.
@@ -48,6 +49,8 @@ void gauss_legendre(int n, std::vector<double>& points, std::vector<double>& wei
 /// at the Gauss points (volumes = Gauss weights x cell volume) or at the
 /// centres of the sub-cells (equal volumes). Sets m, V, V0, rho, velocity
 /// (body velocity, velocity_profile, then [[initial_velocity]] boxes).
+/// Checks its inputs first (validate_seeding: the bodies, h finite and > 0,
+/// the particle count) and throws InputError naming the scene key.
 template <int D> Particles<D> seed_particles(const Scene& scene, const Vec<D>& h);
 
 extern template struct Particles<1>;

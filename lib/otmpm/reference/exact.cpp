@@ -28,13 +28,8 @@ constexpr double kMmsAmplitude = 0.005;
 /// Name of the built-in traction history of wobbes eq. 103 in a [[traction]] section.
 const char* const kTractionBarFunction = "wobbes_traction_bar";
 
-void require(bool ok, const std::string& what) {
-  if (!ok) throw InputError(what);
-}
-
-void require_finite_positive(double value, const std::string& what) {
-  require(std::isfinite(value) && value > 0.0, what + " must be finite and positive (got " +
-                                                   std::to_string(value) + ")");
+void require_finite_positive(double value, const char* what) {
+  require(finite_positive(value), what, " must be finite and positive (got ", value, ")");
 }
 
 /// x - period * floor(x / period), in [0, period].

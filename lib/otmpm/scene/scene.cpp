@@ -773,6 +773,7 @@ void apply_override(toml::table& root, const std::string& text, Context& ctx) {
 
 std::string SourceRef::describe() const {
   if (line == kCommandLineLine) return "--set " + key;
+  if (file.empty()) return "key '" + key + "'"; // a Scene built in code
   std::string s = file;
   if (line > 0) s += ":" + std::to_string(line);
   return s + ": key '" + key + "'";
@@ -809,6 +810,7 @@ Scene parse_scene(const std::string& text, const std::string& name, const std::v
 }
 
 Scene load_scene(const std::string& path, const std::vector<std::string>& overrides) {
+  if (path.empty()) throw InputError("load_scene: the scene file path is empty");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path + ": cannot open the scene file");
   std::ostringstream buf;

@@ -20,7 +20,8 @@ struct SourceRef {
   std::string file;
   int line = 0;
   std::string key;
-  /// "FILE:LINE: key 'KEY'" (or "--set KEY" for command-line overrides).
+  /// "FILE:LINE: key 'KEY'" ("--set KEY" for command-line overrides, "key 'KEY'"
+  /// without a file: a Scene built in code).
   std::string describe() const;
 };
 
@@ -92,7 +93,7 @@ struct BoundarySection {
   Vec3 lower{0, 0, 0}, upper{0, 0, 0};
   std::array<bool, 3> fix{false, false, false};
   Vec3 value{0, 0, 0};
-  SourceRef where;
+  SourceRef where{"", 0, "boundary"};
 };
 
 /// Body force b(t) = value * g(t) on every particle (e.g. gravity).
@@ -111,7 +112,7 @@ struct TractionSection {
   Vec3 value{0, 0, 0};
   TimeFunction time;
   std::string function;  ///< empty or the name of a built-in traction history
-  SourceRef where;
+  SourceRef where{"", 0, "traction"};
 };
 
 struct ProbeSection {
@@ -141,7 +142,7 @@ struct Scene {
   std::string text;
   SimulationSection simulation;
   BasisOptions basis;
-  SourceRef basis_where;
+  SourceRef basis_where{"", 0, "basis"}; ///< the [basis] table (key "basis" when built in code)
   GridSection grid;
   std::vector<MaterialSection> materials;
   std::vector<BodySection> bodies;
@@ -161,7 +162,7 @@ struct Scene {
 /// --set (KEY is the TOML path; an array of tables is addressed by its name:
 /// material.steel.young). Throws InputError naming file, line and key for
 /// syntax errors, unknown keys, missing required keys, wrong types and
-/// out-of-range values. Nothing partially read is returned.
+/// out-of-range values (also for an empty path). Nothing partially read is returned.
 Scene load_scene(const std::string& path, const std::vector<std::string>& overrides = {});
 /// The same from TOML text (`name` is used as the file name in messages).
 Scene parse_scene(const std::string& text, const std::string& name,

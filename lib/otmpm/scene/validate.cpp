@@ -1,0 +1,206 @@
+/// \file validate.cpp
+/// Checks of a Scene as plain data (see validate.hpp). Each section has one
+/// short function; every failure is an InputError at the scene key.
+#include "otmpm/scene/validate.hpp"
+
+#include "otmpm/materials/material.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <initializer_list>
+#include <limits>
+#include <stdexcept>
+#include <string_view>
+
+namespace otmpm {
+
+namespace {
+
+/// A body edge may lie outside the grid by this fraction of h (as in parse_scene).
+constexpr double kGridTolerance = 1e-9;
+
+/// Throws InputError "<where key>: <parts>" unless `ok`.
+template <class... Parts> void check(const Scene& s, bool ok, const std::string& key, const Parts&... parts) {
+  if (!ok) [[unlikely]]
+    input_error(s.locate(key), error_message(parts...));
+}
+
+bool one_of(const std::string& value, std::initializer_list<std::string_view> allowed) {
+  return std::find(allowed.begin(), allowed.end(), value) != allowed.end();
+}
+
+/// The key of element `index` of an array of tables: "section.NAME", or
+/// "section.INDEX" when it has no name (as parse_scene records them).
+std::string element_key(const std::string& section, const std::string& name, std::size_t index) {
+  return section + "." + (name.empty() ? std::to_string(index) : name);
+}
+
+/// The first `dim` components of every vector are finite.
+void check_finite(const Scene& s, const std::string& key, const Vec3& v, int dim) {
+  for (int k = 0; k < dim; ++k) check(s, std::isfinite(v[k]), key, "component ", k, " is not finite (", v[k], ")");
+}
+
+/// key.lower and key.upper finite, upper > lower (strict) or >= lower.
+void check_box(const Scene& s, const std::string& key, const Vec3& lo, const Vec3& hi, int dim, bool strict) {
+  check_finite(s, key + ".lower", lo, dim);
+  check_finite(s, key + ".upper", hi, dim);
+  for (int k = 0; k < dim; ++k)
+    check(s, strict ? lo[k] < hi[k] : lo[k] <= hi[k], key + ".upper", "must be ", strict ? ">" : ">=",
+          " lower in every component (axis ", k, ": lower ", lo[k], ", upper ", hi[k], ")");
+}
+
+/// kind "constant" or "ramp"; a ramp needs a finite period > 0 (it divides by it).
+void check_time(const Scene& s, const std::string& key, const TimeFunction& g) {
+  check(s, one_of(g.kind, {"constant", "ramp"}), key + ".kind", "must be \"constant\" or \"ramp\" (got \"", g.kind,
+        "\")");
+  check(s, g.kind != "ramp" || finite_positive(g.period), key + ".period", "must be finite and > 0 (got ", g.period,
+        ")");
+}
+
+void check_simulation(const Scene& s, int dim) {
+  const SimulationSection& m = s.simulation;
+  check(s, m.dimension == dim, "simulation.dimension", "the scene is ", m.dimension, "D but the run is ", dim, "D");
+  check(s, one_of(m.mode, {"mpm", "ul"}), "simulation.mode", "must be \"mpm\" or \"ul\" (got \"", m.mode, "\")");
+  check(s, one_of(m.integrator, {"fe", "musl", "npc", "otm", "unified"}), "simulation.integrator",
+        "must be one of \"fe\", \"musl\", \"npc\", \"otm\", \"unified\" (got \"", m.integrator, "\")");
+  check(s, one_of(m.mass, {"lumped", "consistent"}), "simulation.mass", "must be \"lumped\" or \"consistent\" (got \"",
+        m.mass, "\")");
+  check(s, m.gamma > 0.0 && m.gamma <= 1.0, "simulation.gamma", "must be in (0, 1] (got ", m.gamma, ")");
+  check(s, finite_positive(m.t_end), "simulation.t_end", "must be finite and > 0 (got ", m.t_end, ")");
+  if (m.dt) check(s, finite_positive(*m.dt), "simulation.dt", "must be finite and > 0 (got ", *m.dt, ")");
+  else check(s, finite_positive(m.cfl), "simulation.cfl", "must be finite and > 0 (got ", m.cfl, ")");
+  check(s, m.mass_tolerance >= 0.0 && m.mass_tolerance < 1.0, "simulation.mass_tolerance", "must be in [0, 1) (got ",
+        m.mass_tolerance, ")");
+  check(s, m.energy_limit >= 1.0, "simulation.energy_limit", "must be >= 1 (got ", m.energy_limit, ")");
+}
+
+void check_grid(const Scene& s, int dim) {
+  const GridSection& g = s.grid;
+  check(s, one_of(g.kind, {"cartesian", "perturbed"}), "grid.kind", "must be \"cartesian\" or \"perturbed\" (got \"",
+        g.kind, "\")");
+  check_box(s, "grid", g.lower, g.upper, dim, true);
+  for (int k = 0; k < dim; ++k)
+    check(s, g.cells[k] >= 1, "grid.cells", "axis ", k, ": must be >= 1 (got ", g.cells[k], ")");
+  check(s, g.kind != "perturbed" || (g.perturbation >= 0.0 && g.perturbation < 0.5), "grid.perturbation",
+        "must be in [0, 0.5) (got ", g.perturbation, ")");
+}
+
+void check_materials(const Scene& s) {
+  check(s, !s.materials.empty(), "material", "at least one [[material]] is required");
+  for (std::size_t i = 0; i < s.materials.size(); ++i) {
+    const MaterialSection& ms = s.materials[i];
+    const std::string key = element_key("material", ms.name, i);
+    check(s, !ms.name.empty(), key + ".name", "must not be empty");
+    Material m;
+    m.name = ms.name;
+    m.density = ms.density;
+    m.young = ms.young;
+    m.poisson = ms.poisson;
+    try {
+      m.model = Material::parse_model(ms.model);
+      m.validate();
+    } catch (const InputError& e) {
+      input_error(s.locate(key), e.what());
+    }
+  }
+}
+
+/// In `mpm` mode the particles must start on the grid.
+void check_body_in_grid(const Scene& s, const BodySection& b, const std::string& key, int dim) {
+  const GridSection& g = s.grid;
+  for (int k = 0; k < dim; ++k) {
+    const double tol = kGridTolerance * (g.upper[k] - g.lower[k]) / g.cells[k];
+    check(s, b.lower[k] >= g.lower[k] - tol && b.upper[k] <= g.upper[k] + tol, key + ".lower", "body '", b.name,
+          "' [", b.lower[k], ", ", b.upper[k], "] on axis ", k, " is not inside the grid [", g.lower[k], ", ",
+          g.upper[k], "] (mpm mode)");
+  }
+}
+
+void check_loads(const Scene& s, int dim) {
+  for (std::size_t i = 0; i < s.initial_velocities.size(); ++i) {
+    const InitialVelocitySection& iv = s.initial_velocities[i];
+    const std::string key = element_key("initial_velocity", "", i);
+    check_box(s, key, iv.lower, iv.upper, dim, false);
+    check_finite(s, key + ".velocity", iv.velocity, dim);
+  }
+  for (std::size_t i = 0; i < s.boundaries.size(); ++i) {
+    const BoundarySection& b = s.boundaries[i];
+    const std::string key = element_key("boundary", b.name, i);
+    check_box(s, key, b.lower, b.upper, dim, false);
+    check_finite(s, key + ".value", b.value, dim);
+  }
+  if (s.body_force) {
+    check_finite(s, "body_force.value", s.body_force->value, dim);
+    check_time(s, "body_force.time", s.body_force->time);
+  }
+  for (std::size_t i = 0; i < s.tractions.size(); ++i) {
+    const TractionSection& t = s.tractions[i];
+    const std::string key = element_key("traction", "", i);
+    check_box(s, key, t.lower, t.upper, dim, false);
+    check_finite(s, key + ".value", t.value, dim);
+    check_time(s, key + ".time", t.time);
+  }
+}
+
+/// output.every: 0 (first and last frame only) or a finite interval that asks
+/// for at most kMaxOutputTimes output times (a tiny interval never advances).
+void check_output(const Scene& s) {
+  constexpr double kMaxOutputTimes = 1e9;
+  const double every = s.output.every;
+  check(s, every == 0.0 || (finite_positive(every) && s.simulation.t_end / every <= kMaxOutputTimes), "output.every",
+        "must be 0 or finite and > 0 with at most ", kMaxOutputTimes, " output times up to t_end (got ", every, ")");
+}
+
+} // namespace
+
+void validate_bodies(const Scene& s, int dim) {
+  check(s, !s.bodies.empty(), "body", "at least one [[body]] is required");
+  for (std::size_t i = 0; i < s.bodies.size(); ++i) {
+    const BodySection& b = s.bodies[i];
+    const std::string key = element_key("body", b.name, i);
+    const bool known = std::any_of(s.materials.begin(), s.materials.end(),
+                                   [&](const MaterialSection& m) { return m.name == b.material; });
+    check(s, known, key + ".material", "no [[material]] named \"", b.material, "\"");
+    check_box(s, key, b.lower, b.upper, dim, true);
+    check(s, b.particles_per_cell >= 1, key + ".particles_per_cell", "must be >= 1 (got ", b.particles_per_cell, ")");
+    check(s, one_of(b.placement, {"gauss", "cell_centres"}), key + ".placement",
+          "must be \"gauss\" or \"cell_centres\" (got \"", b.placement, "\")");
+    check_finite(s, key + ".velocity", b.velocity, dim);
+    check(s, !b.velocity_profile || *b.velocity_profile == "sin_x", key + ".velocity_profile",
+          "must be \"sin_x\" when set (got \"", b.velocity_profile.value_or(""), "\")");
+    if (s.simulation.mode == "mpm") check_body_in_grid(s, b, key, dim);
+  }
+}
+
+void validate_scene(const Scene& s, int dimension) {
+  require<std::invalid_argument>(dimension >= 1 && dimension <= 3, "validate_scene: dimension must be 1, 2 or 3, got ",
+                                 dimension);
+  check_simulation(s, dimension);
+  check_grid(s, dimension);
+  check_materials(s);
+  validate_bodies(s, dimension);
+  check_loads(s, dimension);
+  check_output(s);
+}
+
+template <int D> void validate_seeding(const Scene& s, const Vec<D>& h) {
+  for (int k = 0; k < D; ++k)
+    require(finite_positive(h[k]), "seed_particles: grid spacing h[", k, "] = ", h[k], " must be finite and > 0");
+  validate_bodies(s, D);
+  double total = 0.0;
+  for (std::size_t i = 0; i < s.bodies.size(); ++i) {
+    const BodySection& b = s.bodies[i];
+    double count = 1.0;
+    for (int k = 0; k < D; ++k)
+      count *= std::max(1.0, std::round((b.upper[k] - b.lower[k]) / h[k])) * b.particles_per_cell;
+    total += count;
+    check(s, total <= std::numeric_limits<int>::max(), element_key("body", b.name, i), "body '", b.name,
+          "' brings the particle count to ", total, " at h = ", h, ", more than an int can count");
+  }
+}
+
+template void validate_seeding<1>(const Scene&, const Vec<1>&);
+template void validate_seeding<2>(const Scene&, const Vec<2>&);
+template void validate_seeding<3>(const Scene&, const Vec<3>&);
+
+} // namespace otmpm

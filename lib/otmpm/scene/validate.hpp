@@ -1,0 +1,35 @@
+#pragma once
+/// \file validate.hpp
+/// Checks of a Scene as plain data. parse_scene() checks every value as it
+/// reads the file (with line numbers); a Scene built or changed in code skips
+/// that, so the library entry points that take a Scene (Engine<D>, and through
+/// it run_scene(), and seed_particles()) call these first. A bad value then
+/// gives an InputError naming the scene key ("FILE:LINE: key 'grid.cells': ..."
+/// when the scene came from a file, "key 'grid.cells': ..." otherwise) instead
+/// of undefined behaviour, a hang or a NaN in the first step.
+#include "otmpm/scene/scene.hpp"
+
+namespace otmpm {
+
+/// Throws InputError naming the key unless the scene can run in `dimension`
+/// dimensions. Checked: simulation (dimension == `dimension`, mode,
+/// integrator, mass, gamma, t_end, cfl, dt, mass_tolerance, energy_limit),
+/// grid (kind, finite lower < upper, cells >= 1, perturbation), at least one
+/// material and body, every material (model, Material::validate), every body
+/// (see validate_bodies), the initial-velocity, boundary and traction boxes
+/// and values, the body force, the time functions and output.every. Options
+/// of the basis family are checked by make_basis().
+void validate_scene(const Scene& scene, int dimension);
+
+/// The bodies alone: at least one; each names a defined material, has a
+/// finite box lower < upper, particles_per_cell >= 1, placement "gauss" or
+/// "cell_centres", a finite velocity and velocity_profile unset or "sin_x";
+/// in `mpm` mode it lies inside the grid. InputError naming the key.
+void validate_bodies(const Scene& scene, int dimension);
+
+/// What seed_particles() relies on: validate_bodies(), a grid spacing h that
+/// is finite and > 0 on every axis, and a particle count per body that fits
+/// an int. InputError naming the body or the axis of h.
+template <int D> void validate_seeding(const Scene& scene, const Vec<D>& h);
+
+} // namespace otmpm
