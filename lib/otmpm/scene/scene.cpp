@@ -773,7 +773,7 @@ void apply_override(toml::table& root, const std::string& text, Context& ctx) {
 
 std::string SourceRef::describe() const {
   if (line == kCommandLineLine) return "--set " + key;
-  if (file.empty()) return "key '" + key + "'"; // a Scene built in code
+  if (file.empty() && line <= 0) return "key '" + key + "'"; // a Scene built in code
   std::string s = file;
   if (line > 0) s += ":" + std::to_string(line);
   return s + ": key '" + key + "'";
