@@ -191,6 +191,7 @@ TEST_CASE("NodeSet::within: a negative radius is refused, a non-finite point has
   std::vector<int> out;
   expect_error<std::invalid_argument>([&] { lattice.within(Vec<2>(0.5, 0.5), -1.0, out); }, {"radius", "-1"});
   expect_error<std::invalid_argument>([&] { cloud.within(Vec<2>(0.5, 0.5), kNaN, out); }, {"radius", "nan"});
+  expect_error<std::invalid_argument>([&] { lattice.within(Vec<2>(0.5, 0.5), kInf, out); }, {"radius", "inf"});
   for (const NodeSet<2>* s : {&lattice, &cloud}) {
     out.clear();
     s->within(Vec<2>(kNaN, 0.5), 0.3, out);

@@ -97,6 +97,7 @@ public:
   /// Fast path of evaluate() for fixed-stencil families: writes the
   /// fixed_stencil() entries of q.x to node/N/dN and returns true, or returns
   /// false (nothing written) when the family must go through evaluate().
+  /// Throws as evaluate() does (BasisError, also for a non-finite q.x).
   virtual bool evaluate_fixed(const PointQuery<D>& q, int* node, double* N, Vec<D>* dN) const {
     (void)q, (void)node, (void)N, (void)dN;
     return false;

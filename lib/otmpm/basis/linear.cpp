@@ -270,6 +270,7 @@ public:
   /// the upper node on axis k. The isoparametric case goes through evaluate().
   bool evaluate_fixed(const PointQuery<D>& q, int* node, double* N, Vec<D>* dN) const override {
     if (!nodes_.on_lattice()) return false;
+    require_finite_query(kind(), q);
     if (!in_grid(grid_, q.x))
       throw BasisError("linear basis: " + point_text(q) + " is outside the grid " + box_text(grid_));
     std::array<double, D> t, inv_h;

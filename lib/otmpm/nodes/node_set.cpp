@@ -331,7 +331,8 @@ void lattice_within(const CartesianGrid<D>& g, const AlignedVector<Vec<D>>& pos,
 } // namespace
 
 template <int D> void NodeSet<D>::within(const Vec<D>& x, double radius, std::vector<int>& out) const {
-  require<std::invalid_argument>(radius >= 0.0, "NodeSet::within: radius must be >= 0, got ", radius);
+  require<std::invalid_argument>(radius >= 0.0 && std::isfinite(radius),
+                                 "NodeSet::within: radius must be finite and >= 0, got ", radius);
   const std::size_t first = out.size();
   const double r2 = radius * radius;
   if (on_lattice_ && grid_) {

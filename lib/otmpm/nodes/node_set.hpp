@@ -100,8 +100,8 @@ public:
   /// Appends to `out` the ids of all nodes with |x_I - x| <= radius (order
   /// unspecified but deterministic). Thread-safe once the index is built;
   /// call prepare_search() before querying from several threads. A
-  /// non-finite x has no node within any radius; radius < 0 (or NaN) throws
-  /// std::invalid_argument.
+  /// non-finite x has no node within any radius; a radius that is negative or
+  /// not finite throws std::invalid_argument.
   void within(const Vec<D>& x, double radius, std::vector<int>& out) const;
   /// Builds the R-tree now if the layout needs one and it is stale.
   void prepare_search() const;
