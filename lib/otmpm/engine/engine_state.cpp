@@ -13,7 +13,9 @@
 #include "otmpm/io/checkpoint.hpp"
 
 #include <algorithm>
+#include <array>
 #include <type_traits>
+#include <utility>
 
 namespace otmpm {
 
@@ -98,19 +100,11 @@ template <int D> Vec<D> restore_vector(const StateGroup& g, const std::string& n
   return v;
 }
 
-void save_energy(StateGroup& g, const EnergyBalance& e) {
-  g.reals["energy_kinetic"] = e.kinetic;
-  g.reals["energy_strain"] = e.strain;
-  g.reals["energy_external_work"] = e.external_work;
-  g.reals["energy_reaction_work"] = e.reaction_work;
-  g.reals["energy_initial"] = e.initial;
-}
-void restore_energy(const StateGroup& g, EnergyBalance& e) {
-  e.kinetic = g.real("energy_kinetic");
-  e.strain = g.real("energy_strain");
-  e.external_work = g.real("energy_external_work");
-  e.reaction_work = g.real("energy_reaction_work");
-  e.initial = g.real("energy_initial");
+/// The members of an EnergyBalance (const or not) by checkpoint name.
+template <class E> auto energy_fields(E& e) {
+  return std::array{std::pair{"energy_kinetic", &e.kinetic}, std::pair{"energy_strain", &e.strain},
+                    std::pair{"energy_external_work", &e.external_work},
+                    std::pair{"energy_reaction_work", &e.reaction_work}, std::pair{"energy_initial", &e.initial}};
 }
 
 void save_timers(StateGroup& g, const PhaseTimers& timers) {
@@ -148,7 +142,7 @@ template <int D> void Engine<D>::save_state(Checkpoint& out) const {
   g.reals["wave_speed"] = wave_speed_;
   g.integers["step"] = step_;
   save_vector<D>(g, "reaction_impulse", reaction_impulse_);
-  save_energy(g, energy_);
+  g.put_reals(energy_fields(energy_));
   save_timers(g, timers_);
   StateGroup& particles = out.group("particles");
   P_.for_each_field([&](const char* name, const auto& field) {
@@ -172,7 +166,7 @@ template <int D> void Engine<D>::restore_state(const Checkpoint& in) {
   wave_speed_ = g.real("wave_speed");
   step_ = static_cast<long>(g.integer("step"));
   reaction_impulse_ = restore_vector<D>(g, "reaction_impulse");
-  restore_energy(g, energy_);
+  g.get_reals(energy_fields(energy_));
   restore_timers(g, timers_);
   const StateGroup& particles = in.group("particles");
   const auto n = static_cast<std::size_t>(P_.size());

@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <array>
 #include <filesystem>
 #include <memory>
 #include <optional>
@@ -49,18 +50,10 @@ template <int D> std::vector<double> row_major(const AlignedVector<Mat<D>>& A) {
 // A member added to EnergySummary must be saved and restored here.
 static_assert(sizeof(EnergySummary) == 4 * sizeof(double), "EnergySummary changed: update the checkpoint");
 
-void save_energy_summary(StateGroup& g, const EnergySummary& s) {
-  g.reals["energy_initial"] = s.initial;
-  g.reals["max_energy"] = s.max_energy;
-  g.reals["max_work"] = s.max_work;
-  g.reals["max_balance_error"] = s.max_balance_error;
-}
-
-void restore_energy_summary(const StateGroup& g, EnergySummary& s) {
-  s.initial = g.real("energy_initial");
-  s.max_energy = g.real("max_energy");
-  s.max_work = g.real("max_work");
-  s.max_balance_error = g.real("max_balance_error");
+/// The members of an EnergySummary (const or not) by checkpoint name.
+template <class S> auto summary_fields(S& s) {
+  return std::array{std::pair{"energy_initial", &s.initial}, std::pair{"max_energy", &s.max_energy},
+                    std::pair{"max_work", &s.max_work}, std::pair{"max_balance_error", &s.max_balance_error}};
 }
 
 template <int D> class Recorder {
@@ -96,7 +89,7 @@ public:
     g.reals["wall_seconds"] = wall_before_ + wall_seconds;
     g.integers["frames"] = writer_->frames();
     g.strings["result_file"] = std::filesystem::absolute(path_).string();
-    save_energy_summary(g, energy_);
+    g.put_reals(summary_fields(energy_));
     StateArray<double>& sum_sq = g.real_arrays["probe_sum_sq"];
     StateArray<std::int64_t>& samples = g.integer_arrays["probe_samples"];
     for (const Probe& pr : probes_) {
@@ -167,7 +160,7 @@ private:
   void restore_accumulators(const StateGroup& g) {
     next_ = g.real("next_output_time");
     wall_before_ = g.real("wall_seconds");
-    restore_energy_summary(g, energy_);
+    g.get_reals(summary_fields(energy_));
     const auto& sum_sq = g.real_array("probe_sum_sq", probes_.size(), 1).values;
     const auto& samples = g.integer_array("probe_samples", probes_.size(), 1).values;
     for (std::size_t i = 0; i < probes_.size(); ++i) {

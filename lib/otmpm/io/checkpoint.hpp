@@ -49,6 +49,16 @@ struct StateGroup {
   const StateArray<std::int64_t>& integer_array(const std::string& name, std::size_t rows, std::size_t cols) const;
   /// True when the group has an array (real or integer) called `name`.
   bool has_array(const std::string& name) const;
+  /// Stores *pointer under each name of `fields`, a range of (name, pointer
+  /// to double) pairs - the named members of a struct, listed once for
+  /// put_reals and get_reals.
+  template <class Fields> void put_reals(const Fields& fields) {
+    for (const auto& [name, pointer] : fields) reals[name] = *pointer;
+  }
+  /// Sets *pointer from each name of `fields` (InputError when one is missing).
+  template <class Fields> void get_reals(const Fields& fields) const {
+    for (const auto& [name, pointer] : fields) *pointer = real(name);
+  }
   /// Throws InputError "WHERE: MESSAGE".
   [[noreturn]] void error(const std::string& message) const;
 };
