@@ -1,6 +1,7 @@
 // otmpm - command line driver.
 //
 //   otmpm run   SCENE.toml [--set KEY=VALUE]... [--out FILE.h5] [--quiet]
+//   otmpm run   --restart CHECKPOINT.h5 [--out FILE.h5] [--quiet]
 //   otmpm pair  SCENE.toml [--set KEY=VALUE]... [--quiet]
 //   otmpm study STUDY.toml
 //   otmpm basis --kind K [options] --out FILE.csv
@@ -21,6 +22,7 @@ namespace {
 void usage(std::FILE* out) {
   std::fputs("usage:\n"
              "  otmpm run   SCENE.toml [--set KEY=VALUE]... [--out FILE.h5] [--quiet]\n"
+             "  otmpm run   --restart CHECKPOINT.h5 [--out FILE.h5] [--quiet]\n"
              "  otmpm pair  SCENE.toml [--set KEY=VALUE]... [--quiet]\n"
              "  otmpm study STUDY.toml\n"
              "  otmpm basis --kind K [--dim D] [--lower X] [--upper X] [--cells N] [--perturb F]\n"

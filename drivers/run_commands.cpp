@@ -2,6 +2,7 @@
 #include "commands.hpp"
 
 #include "otmpm/engine/run.hpp"
+#include "otmpm/io/checkpoint.hpp"
 #include "otmpm/scene/scene.hpp"
 
 #include <algorithm>
@@ -24,9 +25,11 @@ struct SceneArgs {
   std::string scene;
   std::vector<std::string> sets;
   std::string out;
+  std::string restart; ///< checkpoint file to continue (run only)
   bool quiet = false;
 };
 
+/// Reads the arguments of `run` (allow_out: --out and --restart) or `pair`.
 SceneArgs parse_scene_args(const std::vector<std::string>& args, bool allow_out) {
   SceneArgs a;
   for (std::size_t i = 0; i < args.size(); ++i) {
@@ -38,12 +41,17 @@ SceneArgs parse_scene_args(const std::vector<std::string>& args, bool allow_out)
     if (s == "--set") a.sets.push_back(value("--set"));
     else if (s.rfind("--set=", 0) == 0) a.sets.push_back(s.substr(6));
     else if (s == "--out" && allow_out) a.out = value("--out");
+    else if (s == "--restart" && allow_out) a.restart = value("--restart");
     else if (s == "--quiet" || s == "-q") a.quiet = true;
     else if (!s.empty() && s[0] == '-') throw InputError("unknown option '" + s + "'");
     else if (a.scene.empty()) a.scene = s;
     else throw InputError("unexpected argument '" + s + "' (one scene file per run)");
   }
-  if (a.scene.empty()) throw InputError("no scene file given");
+  if (!a.restart.empty() && !a.scene.empty())
+    throw InputError("give either a scene file or --restart CHECKPOINT, not both");
+  if (!a.restart.empty() && !a.sets.empty())
+    throw InputError("--set cannot be combined with --restart: a restart continues the scene stored in the checkpoint");
+  if (a.scene.empty() && a.restart.empty()) throw InputError("no scene file given");
   return a;
 }
 
@@ -76,11 +84,11 @@ void print_phases(const RunSummary& s) {
 
 int run_command(const std::vector<std::string>& args) {
   const SceneArgs a = parse_scene_args(args, true);
-  const Scene scene = load_scene(a.scene, a.sets);
   RunOptions opt;
   opt.out_file = a.out;
   opt.progress = progress_bar(a.quiet);
-  const RunSummary s = run_scene(scene, opt);
+  const RunSummary s = a.restart.empty() ? run_scene(load_scene(a.scene, a.sets), opt)
+                                         : restart_run(read_checkpoint(a.restart), opt);
   if (s.exit_code != 0) std::fprintf(stderr, "otmpm: %s\n", s.status.c_str());
   if (!a.quiet) print_phases(s);
   std::printf("%s\n", summary_line(s).c_str());

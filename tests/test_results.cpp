@@ -8,6 +8,8 @@
 #include "otmpm/core.hpp"
 #include "otmpm/engine/run.hpp"
 
+#include "temp_dir.hpp"
+
 #include <doctest/doctest.h>
 #include <hdf5.h>
 
@@ -19,24 +21,10 @@
 #include <unistd.h>
 
 using namespace otmpm;
+using test::TempDir;
 namespace fs = std::filesystem;
 
 namespace {
-
-/// A fresh directory per test, removed afterwards.
-struct TempDir {
-  fs::path dir;
-  explicit TempDir(const std::string& tag) {
-    dir = fs::temp_directory_path() / ("otmpm_test_results_" + std::to_string(::getpid()) + "_" + tag);
-    fs::remove_all(dir);
-    fs::create_directories(dir);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(dir, ec);
-  }
-  std::string file(const std::string& name) const { return (dir / name).string(); }
-};
 
 /// A dataset read back: its dimensions and values.
 struct Dataset {

@@ -14,6 +14,8 @@
 
 namespace otmpm {
 
+struct StateGroup;
+
 /// The stencil of one point: node ids I with N_I(x) > 0 and grad N_I(x).
 /// Also carries scratch arrays that a family may use during evaluation, so
 /// that evaluating a point allocates nothing once the buffers have grown.
@@ -102,6 +104,13 @@ public:
     (void)q, (void)node, (void)N, (void)dN;
     return false;
   }
+  /// Family state beyond the node positions that evolves during a run (the
+  /// advected B-spline knot vectors), written into a checkpoint group
+  /// (io/checkpoint.hpp). The default: none.
+  virtual void save_state(StateGroup& /*out*/) const {}
+  /// Restores what save_state wrote, called after the node positions were
+  /// restored; also refreshes what the family derives from the nodes.
+  virtual void restore_state(const StateGroup& /*in*/) {}
 };
 
 /// Creates the basis family `opt.kind` on `nodes` (for B-splines: on the

@@ -3,6 +3,7 @@
 /// basis and the unified-approach knot advection (see bspline.hpp).
 #include "otmpm/basis/bspline.hpp"
 #include "otmpm/basis/families.hpp"
+#include "otmpm/io/checkpoint.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -258,6 +259,26 @@ template <int D> void BsplineBasis<D>::nodes_moved(const AlignedVector<Vec<D>>& 
   for (int I = 0; I < nodes_.size(); ++I) dist = std::max(dist, (nodes_.position(I) - xi[I]).norm());
   last_projection_ = dist;
   nodes_.set_positions(xi);
+}
+
+template <int D> void BsplineBasis<D>::save_state(StateGroup& out) const {
+  for (int k = 0; k < D; ++k) out.real_arrays["knots_" + std::to_string(k)].values = knots_[k].vertices();
+  out.reals["last_projection"] = last_projection_;
+}
+
+template <int D> void BsplineBasis<D>::restore_state(const StateGroup& in) {
+  std::array<KnotVector, D> knots;
+  for (int k = 0; k < D; ++k) {
+    const std::string name = "knots_" + std::to_string(k);
+    const auto& v = in.real_array(name, knots_[k].vertices().size(), 1).values;
+    try {
+      knots[k] = KnotVector(v, degree_);
+    } catch (const InputError& e) {
+      in.error(name + ": " + e.what());
+    }
+  }
+  knots_ = std::move(knots);
+  last_projection_ = in.real("last_projection");
 }
 
 template <int D> void BsplineBasis<D>::evaluate(const PointQuery<D>& q, Stencil<D>& out) const {

@@ -152,6 +152,10 @@ public:
   void evaluate(const PointQuery<D>& q, Stencil<D>& out) const override;
   bool linearly_complete() const override { return true; }
   int max_stencil() const override;
+  /// Saves the (advected) vertices of every knot vector, "knots_0", ...
+  void save_state(StateGroup& out) const override;
+  /// Rebuilds the knot vectors from the saved vertices (same cell counts).
+  void restore_state(const StateGroup& in) override;
 
   int degree() const { return degree_; }
   /// The knot vector of `axis`; std::invalid_argument unless 0 <= axis < D.

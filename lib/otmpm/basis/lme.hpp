@@ -136,6 +136,9 @@ public:
   void evaluate(const PointQuery<D>& q, Stencil<D>& out) const override;
   bool linearly_complete() const override { return true; }
   int max_stencil() const override;
+  /// No state of its own: refreshes the search index and stencil bound after
+  /// the node positions were restored from a checkpoint.
+  void restore_state(const StateGroup&) override { nodes_moved({}); }
 
   const Prior& prior() const { return prior_; }
 

@@ -19,6 +19,8 @@
 
 namespace otmpm {
 
+struct Checkpoint;
+
 enum class NodeMode { mpm, ul };
 enum class Integrator { fe, musl, npc, otm, unified };
 
@@ -158,6 +160,17 @@ public:
   /// energy_limit * (initial energy + |external work| + |reaction work| +
   /// sum_constrained 1/2 m_I v_prescribed^2) (runaway).
   void check_energy() const;
+
+  /// Saves the state that evolves from step to step - particles, t, step,
+  /// dt, dt_prev, external power, wave speed, energies, reaction impulse,
+  /// phase timers, node positions and the basis family's own state - into
+  /// groups "engine", "particles", "nodes" and "basis" of a checkpoint
+  /// (engine_state.cpp; state added to the engine must be added there).
+  void save_state(Checkpoint& out) const;
+  /// Restores what save_state wrote into an engine freshly built from the
+  /// same scene: the run then continues bit for bit. Throws InputError naming
+  /// the checkpoint file when its content does not fit this engine.
+  void restore_state(const Checkpoint& in);
 
   // ---- stages of the step (spec algorithms.md sect. 3), used by the integrators
   void evaluate_basis();

@@ -1,6 +1,7 @@
 #include "otmpm/engine/run.hpp"
 
 #include "otmpm/engine/engine.hpp"
+#include "otmpm/io/checkpoint.hpp"
 #include "otmpm/io/results.hpp"
 #include "otmpm/reference/exact.hpp"
 
@@ -8,7 +9,10 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <array>
+#include <filesystem>
 #include <memory>
+#include <optional>
 
 namespace otmpm {
 
@@ -43,15 +47,60 @@ template <int D> std::vector<double> row_major(const AlignedVector<Mat<D>>& A) {
   return out;
 }
 
+// A member added to EnergySummary must be saved and restored here.
+static_assert(sizeof(EnergySummary) == 4 * sizeof(double), "EnergySummary changed: update the checkpoint");
+
+/// The members of an EnergySummary (const or not) by checkpoint name.
+template <class S> auto summary_fields(S& s) {
+  return std::array{std::pair{"energy_initial", &s.initial}, std::pair{"max_energy", &s.max_energy},
+                    std::pair{"max_work", &s.max_work}, std::pair{"max_balance_error", &s.max_balance_error}};
+}
+
 template <int D> class Recorder {
 public:
-  Recorder(const Scene& scene, const RunOptions& opt, Engine<D>& e, const ExactSolution<D>* exact)
+  /// `resume`: the checkpoint a restarted run continues (null for a new run).
+  Recorder(const Scene& scene, const RunOptions& opt, Engine<D>& e, const ExactSolution<D>* exact,
+           const Checkpoint* resume)
       : scene_(scene), e_(e), exact_(exact) {
     for (const ProbeSection& pr : scene.output.probes) probes_.push_back({pr.name, probe_particle(e.particles(), pr), 0.0, 0});
+    if (resume) restore_accumulators(resume->group("recorder"));
     if (!opt.write_results) return;
-    path_ = opt.out_file.empty() ? scene.output.file : opt.out_file;
+    path_ = !opt.out_file.empty() ? opt.out_file
+            : resume           ? resume->group("recorder").string("result_file")
+                               : scene.output.file;
+    checkpoint_path_ = checkpoint_path(scene, path_);
+    std::optional<PreviousResults> previous;
+    if (resume) previous = set_aside_results(resume->group("recorder").string("result_file"), path_);
     writer_ = std::make_unique<ResultWriter>(path_, scene.text, D);
+    if (previous) continue_results(*previous, resume->group("recorder"));
   }
+
+  /// Writes a checkpoint after every output.checkpoint_every steps (not after
+  /// the last step); `wall_seconds` is the wall time of this process so far.
+  void maybe_checkpoint(double wall_seconds, bool last) {
+    const long every = scene_.output.checkpoint_every;
+    if (!writer_ || every <= 0 || last || e_.steps() % every != 0) return;
+    ScopedPhase timer(e_.timers(), Phase::output);
+    Checkpoint ck;
+    ck.scene = scene_.text;
+    e_.save_state(ck);
+    StateGroup& g = ck.group("recorder");
+    g.reals["next_output_time"] = next_;
+    g.reals["wall_seconds"] = wall_before_ + wall_seconds;
+    g.integers["frames"] = writer_->frames();
+    g.strings["result_file"] = std::filesystem::absolute(path_).string();
+    g.put_reals(summary_fields(energy_));
+    StateArray<double>& sum_sq = g.real_arrays["probe_sum_sq"];
+    StateArray<std::int64_t>& samples = g.integer_arrays["probe_samples"];
+    for (const Probe& pr : probes_) {
+      sum_sq.values.push_back(pr.sum_sq);
+      samples.values.push_back(pr.samples);
+    }
+    write_checkpoint(checkpoint_path_, ck);
+  }
+
+  /// Wall time of the interrupted run up to its checkpoint (0 for a new run).
+  double wall_before() const { return wall_before_; }
 
   /// Adds the engine's current energy balance to the run's EnergySummary (every step).
   void sample_energy() {
@@ -107,6 +156,32 @@ private:
     double sum_sq;
     int samples;
   };
+
+  void restore_accumulators(const StateGroup& g) {
+    next_ = g.real("next_output_time");
+    wall_before_ = g.real("wall_seconds");
+    g.get_reals(summary_fields(energy_));
+    const auto& sum_sq = g.real_array("probe_sum_sq", probes_.size(), 1).values;
+    const auto& samples = g.integer_array("probe_samples", probes_.size(), 1).values;
+    for (std::size_t i = 0; i < probes_.size(); ++i) {
+      probes_[i].sum_sq = sum_sq[i];
+      probes_[i].samples = static_cast<int>(samples[i]);
+    }
+  }
+
+  /// The histories record() appends a sample to, in its order.
+  std::vector<HistoryLayout> histories() const {
+    std::vector<HistoryLayout> h;
+    for (const Probe& pr : probes_) h.push_back({pr.name, true, {"x", "v", "stress"}});
+    h.push_back({"energy", false, {"kinetic", "strain", "external_work", "reaction_work"}});
+    return h;
+  }
+
+  /// Copies the frames and history samples written before the checkpoint.
+  void continue_results(const PreviousResults& previous, const StateGroup& g) {
+    copy_results(previous.path, *writer_, static_cast<int>(g.integer("frames")), histories(), scene_.output.fields);
+    release_previous_results(previous);
+  }
 
   void record(double t) {
     const Particles<D>& P = e_.particles();
@@ -182,27 +257,39 @@ private:
   std::unique_ptr<ResultWriter> writer_;
   double next_ = 0.0;
   EnergySummary energy_;
+  std::string checkpoint_path_;
+  double wall_before_ = 0.0;
 };
 
-template <int D> RunSummary run_dim(const Scene& scene, const RunOptions& opt) {
+double seconds_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+/// Runs the scene from t = 0, or from the checkpoint `resume` when not null.
+template <int D> RunSummary run_dim(const Scene& scene, const RunOptions& opt, const Checkpoint* resume) {
   const auto start = std::chrono::steady_clock::now();
   RunSummary s;
   Engine<D> e(scene);
   const auto exact = make_exact_solution<D>(scene);
-  Recorder<D> rec(scene, opt, e, exact.get());
+  if (resume) e.restore_state(*resume);
+  Recorder<D> rec(scene, opt, e, exact.get(), resume);
   s.mode = scene.simulation.mode;
   s.integrator = scene.simulation.integrator;
   s.basis = scene.basis.kind;
   s.particles = e.particles().size();
   s.nodes = e.basis().nodes().size();
   const double t_end = scene.simulation.t_end;
-  rec.sample_energy();
-  rec.maybe_record(true);
+  if (!resume) {
+    rec.sample_energy();
+    rec.maybe_record(true);
+  }
   try {
     while (e.time() < t_end * (1.0 - time_slack)) {
       e.step();
       rec.sample_energy();
-      rec.maybe_record(e.time() >= t_end * (1.0 - time_slack));
+      const bool last = e.time() >= t_end * (1.0 - time_slack);
+      rec.maybe_record(last);
+      rec.maybe_checkpoint(seconds_since(start), last);
       if (opt.progress) opt.progress(e.time(), t_end, e.steps());
     }
   } catch (const InstabilityError& err) {
@@ -214,9 +301,20 @@ template <int D> RunSummary run_dim(const Scene& scene, const RunOptions& opt) {
   s.steps = e.steps();
   s.time = e.time();
   s.timers = e.timers();
-  s.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  s.wall_seconds = rec.wall_before() + seconds_since(start);
   rec.finish(s);
   return s;
+}
+
+RunSummary run_any(const Scene& scene, const RunOptions& options, const Checkpoint* resume) {
+  switch (scene.simulation.dimension) {
+  case 1: return run_dim<1>(scene, options, resume);
+  case 2: return run_dim<2>(scene, options, resume);
+  case 3: return run_dim<3>(scene, options, resume);
+  default:
+    input_error(scene.locate("simulation.dimension"),
+                "dimension must be 1, 2 or 3, got " + std::to_string(scene.simulation.dimension));
+  }
 }
 
 } // namespace
@@ -232,15 +330,11 @@ double EnergySummary::reference() const { return std::max(initial + max_work, en
 double EnergySummary::max_energy_ratio() const { return max_energy / reference(); }
 double EnergySummary::energy_drift() const { return max_balance_error / reference(); }
 
-RunSummary run_scene(const Scene& scene, const RunOptions& options) {
-  switch (scene.simulation.dimension) {
-  case 1: return run_dim<1>(scene, options);
-  case 2: return run_dim<2>(scene, options);
-  case 3: return run_dim<3>(scene, options);
-  default:
-    input_error(scene.locate("simulation.dimension"),
-                "dimension must be 1, 2 or 3, got " + std::to_string(scene.simulation.dimension));
-  }
+RunSummary run_scene(const Scene& scene, const RunOptions& options) { return run_any(scene, options, nullptr); }
+
+RunSummary restart_run(const Checkpoint& checkpoint, const RunOptions& options) {
+  const Scene scene = checkpoint_scene(checkpoint);
+  return run_any(scene, options, &checkpoint);
 }
 
 std::string summary_line(const RunSummary& s) {

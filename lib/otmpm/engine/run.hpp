@@ -12,6 +12,8 @@
 
 namespace otmpm {
 
+struct Checkpoint;
+
 struct RunOptions {
   std::string out_file;  ///< overrides output.file when not empty
   bool write_results = true;
@@ -55,7 +57,18 @@ struct RunSummary {
 
 /// Runs the scene. InputError propagates (exit 2); an instability is caught,
 /// written into the result file's status, and reported with exit_code 1.
+/// With output.checkpoint_every = N a checkpoint (io/checkpoint.hpp) is
+/// written after every N steps of a run that writes a result file.
 RunSummary run_scene(const Scene& scene, const RunOptions& options = {});
+
+/// Continues the run saved in a checkpoint (otmpm run --restart) to t_end:
+/// the checkpoint's own scene, its state restored, and the result file
+/// (options.out_file, else the interrupted run's) holding first the frames
+/// and probe samples written before the checkpoint, copied from the
+/// interrupted run's result file. The result equals, bit for bit, that of
+/// the uninterrupted run. InputError (naming the file) when the checkpoint
+/// does not fit or that result file is missing.
+RunSummary restart_run(const Checkpoint& checkpoint, const RunOptions& options = {});
 
 /// One line: "ok: 1234 steps, 0.52 s wall, rms_velocity_error = 0.01 ...".
 std::string summary_line(const RunSummary& s);

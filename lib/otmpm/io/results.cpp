@@ -8,8 +8,7 @@
 #include "otmpm/io/results.hpp"
 
 #include "otmpm/core.hpp"
-
-#include <hdf5.h>
+#include "otmpm/io/hdf5.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -24,6 +23,13 @@
 
 namespace otmpm {
 
+using h5::checked;
+using h5::checked_status;
+using h5::Handle;
+using h5::write_attribute;
+using h5::write_matrix;
+using h5::write_string_attribute;
+
 namespace {
 
 /// Longest wall time between two rewrites of the XDMF sidecar.
@@ -35,91 +41,6 @@ constexpr hsize_t kProbeChunkRows = 256;
 constexpr int kXdmfSpaceDim = 3;
 /// Name of the zero-padded copy of a 1D `x` that the sidecar uses as XYZ geometry.
 constexpr const char* kPaddedX = "x3";
-
-/// Owns one HDF5 identifier and closes it with the matching H5?close.
-class Handle {
-public:
-  Handle() = default;
-  Handle(hid_t id, herr_t (*close)(hid_t)) : id_(id), close_(close) {}
-  Handle(Handle&& o) noexcept : id_(o.id_), close_(o.close_) { o.id_ = H5I_INVALID_HID; }
-  Handle& operator=(Handle&& o) noexcept {
-    std::swap(id_, o.id_);
-    std::swap(close_, o.close_);
-    return *this;
-  }
-  Handle(const Handle&) = delete;
-  Handle& operator=(const Handle&) = delete;
-  ~Handle() {
-    if (id_ >= 0 && close_) close_(id_);
-  }
-  hid_t get() const { return id_; }
-  bool valid() const { return id_ >= 0; }
-
-private:
-  hid_t id_ = H5I_INVALID_HID;
-  herr_t (*close_)(hid_t) = nullptr;
-};
-
-/// Silences HDF5's default printing of its error stack: errors become
-/// exceptions with context instead.
-void silence_hdf5() { H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr); }
-
-[[noreturn]] void fail(const std::string& path, const std::string& what) {
-  throw std::runtime_error(path + ": HDF5 could not " + what);
-}
-
-hid_t checked(hid_t id, const std::string& path, const std::string& what) {
-  if (id < 0) fail(path, what);
-  return id;
-}
-void checked_status(herr_t status, const std::string& path, const std::string& what) {
-  if (status < 0) fail(path, what);
-}
-
-Handle group(hid_t parent, const std::string& name, const std::string& path) {
-  return Handle(checked(H5Gcreate2(parent, name.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), path,
-                        "create group " + name),
-                H5Gclose);
-}
-
-/// A fixed-length, null-terminated UTF-8 string type of `length` characters.
-Handle string_type(std::size_t length, const std::string& path) {
-  Handle t(checked(H5Tcopy(H5T_C_S1), path, "copy the string type"), H5Tclose);
-  checked_status(H5Tset_size(t.get(), length + 1), path, "size a string type");
-  checked_status(H5Tset_strpad(t.get(), H5T_STR_NULLTERM), path, "pad a string type");
-  checked_status(H5Tset_cset(t.get(), H5T_CSET_UTF8), path, "set a string character set");
-  return t;
-}
-
-/// Writes a scalar attribute of memory type `type` on `object`, replacing an existing one.
-void write_attribute(hid_t object, const std::string& name, hid_t type, const void* value, const std::string& path) {
-  const std::string what = "write attribute " + name;
-  const htri_t exists = H5Aexists(object, name.c_str());
-  checked_status(exists, path, what);
-  if (exists > 0) checked_status(H5Adelete(object, name.c_str()), path, "replace attribute " + name);
-  Handle space(checked(H5Screate(H5S_SCALAR), path, what), H5Sclose);
-  Handle attr(checked(H5Acreate2(object, name.c_str(), type, space.get(), H5P_DEFAULT, H5P_DEFAULT), path, what),
-              H5Aclose);
-  checked_status(H5Awrite(attr.get(), type, value), path, what);
-}
-
-void write_string_attribute(hid_t object, const std::string& name, const std::string& value, const std::string& path) {
-  Handle t = string_type(value.size(), path);
-  write_attribute(object, name, t.get(), value.c_str(), path);
-}
-
-/// Writes a contiguous rows x cols dataset of doubles.
-void write_matrix(hid_t parent, const std::string& name, hsize_t rows, hsize_t cols, const double* data,
-                  const std::string& path) {
-  const std::string what = "write dataset " + name;
-  const hsize_t dims[2] = {rows, cols};
-  Handle space(checked(H5Screate_simple(2, dims, nullptr), path, what), H5Sclose);
-  Handle set(checked(H5Dcreate2(parent, name.c_str(), H5T_IEEE_F64LE, space.get(), H5P_DEFAULT, H5P_DEFAULT,
-                                H5P_DEFAULT),
-                     path, what),
-             H5Dclose);
-  if (rows * cols > 0) checked_status(H5Dwrite(set.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, data), path, what);
-}
 
 /// Creates an extendible dataset of 0 x cols doubles (rank 1 when cols == 0).
 void create_history(hid_t parent, const std::string& name, hsize_t cols, const std::string& path) {
@@ -260,7 +181,7 @@ struct ResultWriter::Impl {
 
 ResultWriter::ResultWriter(const std::string& path, const std::string& scene_text, int dimension)
     : impl_(std::make_unique<Impl>()), path_(path) {
-  silence_hdf5();
+  h5::silence();
   require(!path.empty(), "ResultWriter: the result file path is empty");
   require<std::invalid_argument>(dimension >= 1 && dimension <= kXdmfSpaceDim, path,
                                  ": ResultWriter: dimension must be 1, 2 or 3, got ", dimension);
@@ -276,8 +197,8 @@ ResultWriter::ResultWriter(const std::string& path, const std::string& scene_tex
   const hid_t file = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.get());
   if (file < 0) throw InputError(path + ": cannot create the result file");
   m.file = Handle(file, H5Fclose);
-  m.frames = group(file, "frames", path);
-  m.probes = group(file, "probes", path);
+  m.frames = h5::create_group(file, "frames", path);
+  m.probes = h5::create_group(file, "probes", path);
   write_string_attribute(file, "otmpm_version", OTMPM_VERSION, path);
   write_string_attribute(file, "scene", scene_text, path);
   write_string_attribute(file, "status", "running", path);
@@ -334,7 +255,7 @@ void ResultWriter::write_frame(double time, const std::vector<FieldView>& fields
                  path_ + ": frame at t = " + format_double(time) + ", field '" + f.name + "'");
   }
   if (!std::isfinite(time)) throw InstabilityError(path_ + ": frame time is not finite");
-  Handle g = group(m.frames.get(), name, path_);
+  Handle g = h5::create_group(m.frames.get(), name, path_);
   write_attribute(g.get(), "time", H5T_NATIVE_DOUBLE, &time, path_);
   for (const FieldView& f : fields)
     write_matrix(g.get(), f.name, static_cast<hsize_t>(f.rows), static_cast<hsize_t>(f.cols), f.data, path_);
@@ -363,7 +284,7 @@ void ResultWriter::Impl::append_sample(hid_t parent, const std::string& key, con
   }
   auto it = probe_infos.find(key);
   if (it == probe_infos.end()) {
-    Handle g = group(parent, name, path);
+    Handle g = h5::create_group(parent, name, path);
     ProbeInfo info;
     create_history(g.get(), "time", 0, path);
     for (const auto& [field, v] : values) {
@@ -465,49 +386,122 @@ void ResultWriter::Impl::write_xdmf() const {
     throw std::runtime_error(xdmf_path + ": cannot move the XDMF sidecar into place");
 }
 
+// ---------------------------------------------------------------- copying
+
+namespace {
+
+/// One history read from a result file: its layout, time and each field.
+struct StoredHistory {
+  HistoryLayout layout;
+  h5::Matrix<double> time;
+  std::vector<h5::Matrix<double>> fields;
+};
+
+/// Reads what copy_results needs of a history, checking it has `samples` rows.
+StoredHistory read_history(hid_t file, const HistoryLayout& layout, int samples, const std::string& path) {
+  StoredHistory h;
+  h.layout = layout;
+  Handle g = h5::open_group(file, (layout.probe ? "probes/" : "") + layout.name, path);
+  h.time = h5::read_double_matrix(g.get(), "time", path);
+  for (const std::string& f : layout.fields) h.fields.push_back(h5::read_double_matrix(g.get(), f, path));
+  bool complete = h.time.rows >= static_cast<hsize_t>(samples);
+  for (const auto& m : h.fields) complete = complete && m.rows >= static_cast<hsize_t>(samples);
+  if (!complete) h5::fail(path, "find " + std::to_string(samples) + " samples of history '" + layout.name + "'");
+  return h;
+}
+
+/// Appends row `row` of a stored history to `to` (append_probe or append_series).
+void append_stored_sample(const StoredHistory& h, hsize_t row, ResultWriter& to) {
+  const double t = h.time.values[static_cast<std::size_t>(row)];
+  std::vector<std::pair<std::string, std::vector<double>>> vectors;
+  std::vector<std::pair<std::string, double>> scalars;
+  for (std::size_t i = 0; i < h.fields.size(); ++i) {
+    const auto begin = h.fields[i].values.begin() + static_cast<std::ptrdiff_t>(row * h.fields[i].cols);
+    vectors.emplace_back(h.layout.fields[i],
+                         std::vector<double>(begin, begin + static_cast<std::ptrdiff_t>(h.fields[i].cols)));
+    scalars.emplace_back(h.layout.fields[i], *begin);
+  }
+  if (h.layout.probe) to.append_probe(h.layout.name, t, vectors);
+  else to.append_series(h.layout.name, t, scalars);
+}
+
+/// Frame `index` of a result file: its time and the datasets `fields`.
+struct StoredFrame {
+  double time = 0;
+  std::vector<h5::Matrix<double>> fields;
+};
+
+StoredFrame read_frame(hid_t file, int index, const std::vector<std::string>& fields, const std::string& path) {
+  Handle g = h5::open_group(file, "frames/" + frame_name(index), path);
+  StoredFrame f;
+  f.time = h5::read_double(g.get(), "time", path);
+  for (const std::string& name : fields) f.fields.push_back(h5::read_double_matrix(g.get(), name, path));
+  return f;
+}
+
+/// Runs `read`, turning an HDF5 failure into an InputError naming the file.
+template <class F> auto reading(const std::string& path, F&& read) {
+  try {
+    return read();
+  } catch (const InputError&) {
+    throw;
+  } catch (const std::runtime_error& e) {
+    throw InputError(path + ": cannot copy the results of the interrupted run: " + e.what());
+  }
+}
+
+} // namespace
+
+void copy_results(const std::string& from, ResultWriter& to, int frames, const std::vector<HistoryLayout>& histories,
+                  const std::vector<std::string>& frame_fields) {
+  h5::silence();
+  const hid_t id = H5Fopen(from.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  if (id < 0) throw InputError(from + ": cannot open the result file of the interrupted run");
+  const Handle file(id, H5Fclose);
+  std::vector<StoredHistory> stored;
+  for (const HistoryLayout& layout : histories)
+    stored.push_back(reading(from, [&] { return read_history(file.get(), layout, frames, from); }));
+  for (int i = 0; i < frames; ++i) {
+    for (const StoredHistory& h : stored) append_stored_sample(h, static_cast<hsize_t>(i), to);
+    const StoredFrame frame = reading(from, [&] { return read_frame(file.get(), i, frame_fields, from); });
+    std::vector<FieldView> views;
+    for (std::size_t k = 0; k < frame_fields.size(); ++k)
+      views.push_back({frame_fields[k], static_cast<int>(frame.fields[k].rows),
+                       static_cast<int>(frame.fields[k].cols), frame.fields[k].values.data()});
+    to.write_frame(frame.time, views);
+  }
+}
+
 // ---------------------------------------------------------------- reading
 
 namespace {
 
-/// Opens `path` read-only and the root attribute `name` (InputError if either is absent).
-std::pair<Handle, Handle> open_attribute(const std::string& path, const std::string& name) {
-  silence_hdf5();
+/// Opens `path` read-only and checks that it has a root attribute `name` of
+/// type class `cls` or `alt` (InputError naming the file otherwise).
+Handle open_with_attribute(const std::string& path, const std::string& name, H5T_class_t cls, H5T_class_t alt,
+                           const char* kind) {
+  h5::silence();
   require(!path.empty(), "read attribute '", name, "': the result file path is empty");
   check_name(name, "attribute");
   const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
   if (file < 0) throw InputError(path + ": cannot open the result file");
   Handle f(file, H5Fclose);
-  if (H5Aexists(file, name.c_str()) <= 0) throw InputError(path + ": no root attribute '" + name + "'");
-  Handle a(checked(H5Aopen(file, name.c_str(), H5P_DEFAULT), path, "open attribute " + name), H5Aclose);
-  return {std::move(f), std::move(a)};
+  if (!h5::has_attribute(file, name)) throw InputError(path + ": no root attribute '" + name + "'");
+  const H5T_class_t c = h5::attribute_class(file, name, path);
+  if (c != cls && c != alt) throw InputError(path + ": attribute '" + name + "' is not " + kind);
+  return f;
 }
 
 } // namespace
 
 std::string read_string_attribute(const std::string& path, const std::string& name) {
-  auto [file, attr] = open_attribute(path, name);
-  Handle type(checked(H5Aget_type(attr.get()), path, "read attribute " + name), H5Tclose);
-  if (H5Tget_class(type.get()) != H5T_STRING) throw InputError(path + ": attribute '" + name + "' is not a string");
-  if (H5Tis_variable_str(type.get()) > 0) {
-    char* value = nullptr;
-    checked_status(H5Aread(attr.get(), type.get(), &value), path, "read attribute " + name);
-    std::string out = value ? value : "";
-    H5free_memory(value);
-    return out;
-  }
-  std::string buf(H5Tget_size(type.get()), '\0');
-  checked_status(H5Aread(attr.get(), type.get(), buf.data()), path, "read attribute " + name);
-  return buf.substr(0, buf.find('\0'));
+  const Handle file = open_with_attribute(path, name, H5T_STRING, H5T_STRING, "a string");
+  return h5::read_string(file.get(), name, path);
 }
 
 double read_double_attribute(const std::string& path, const std::string& name) {
-  auto [file, attr] = open_attribute(path, name);
-  Handle type(checked(H5Aget_type(attr.get()), path, "read attribute " + name), H5Tclose);
-  const H5T_class_t cls = H5Tget_class(type.get());
-  if (cls != H5T_FLOAT && cls != H5T_INTEGER) throw InputError(path + ": attribute '" + name + "' is not a number");
-  double value = 0;
-  checked_status(H5Aread(attr.get(), H5T_NATIVE_DOUBLE, &value), path, "read attribute " + name);
-  return value;
+  const Handle file = open_with_attribute(path, name, H5T_FLOAT, H5T_INTEGER, "a number");
+  return h5::read_double(file.get(), name, path);
 }
 
 } // namespace otmpm

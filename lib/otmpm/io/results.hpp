@@ -69,6 +69,24 @@ private:
   int frames_ = 0;
 };
 
+/// One history a run appends a sample to at every output time: a probe
+/// (/probes/NAME, vector fields) or a root-level series (/NAME, scalar fields).
+struct HistoryLayout {
+  std::string name;
+  bool probe = true;
+  std::vector<std::string> fields; ///< the datasets besides time, in the order the run writes them
+};
+
+/// Continues a result file after a restart (checkpoint.hpp): appends to `to`
+/// what the interrupted run wrote to the file `from` before its checkpoint -
+/// frames 0 .. frames-1 (the datasets `frame_fields`, in that order) and the
+/// first `frames` samples of each of `histories`, interleaved as a run writes
+/// them (one sample of each history in the given order, then the frame). The
+/// values are copied bit for bit. Throws InputError naming `from` when it
+/// cannot be read or holds fewer frames or samples.
+void copy_results(const std::string& from, ResultWriter& to, int frames, const std::vector<HistoryLayout>& histories,
+                  const std::vector<std::string>& frame_fields);
+
 /// Reads a root attribute back (tests and tools). Throws InputError if the
 /// path is empty, the file cannot be opened or the attribute is absent or of
 /// another type; std::invalid_argument for an empty name.

@@ -38,6 +38,21 @@ template <int D> struct Particles {
   /// Allocates the optional fields a run needs (a = 0, F = I, lambda = 0,
   /// cell_hint = 0), so that a scene pays memory only for what it reads.
   void allocate_optional(bool with_a, bool with_F, bool with_lambda, bool with_cell_hint);
+
+  /// Calls f(name, field) for every per-particle array above, named as its
+  /// member, so that code handling all fields (the checkpoint) lists them
+  /// here only. A field added to Particles must be added here too.
+  template <class F> void for_each_field(F&& f) { visit_fields(*this, f); }
+  template <class F> void for_each_field(F&& f) const { visit_fields(*this, f); }
+
+private:
+  template <class Self, class F> static void visit_fields(Self& s, F& f) {
+    f("x", s.x); f("X", s.X); f("v", s.v); f("a", s.a); f("x_prev", s.x_prev);
+    f("m", s.m); f("V", s.V); f("V0", s.V0); f("rho", s.rho);
+    f("F", s.F); f("eps", s.eps); f("sigma", s.sigma);
+    f("lambda", s.lambda); f("cell_hint", s.cell_hint); f("length0", s.length0);
+    f("material", s.material); f("body", s.body);
+  }
 };
 
 /// Gauss-Legendre points (in [-1, 1]) and weights (sum 2) of order n >= 1.

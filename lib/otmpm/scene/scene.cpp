@@ -624,11 +624,22 @@ std::vector<std::string> read_fields(const TableReader& t, std::string_view key,
   return out;
 }
 
+/// output.checkpoint_every (steps, >= 0) and output.checkpoint_file.
+void read_checkpoint_keys(const TableReader& t, OutputSection& o) {
+  const std::int64_t every = t.get<std::int64_t>("checkpoint_every", 0);
+  check(every >= 0 && every <= std::numeric_limits<long>::max(), t.ref("checkpoint_every"),
+        "must be an integer >= 0 (steps between checkpoints; 0: none; got " + std::to_string(every) + ")");
+  o.checkpoint_every = static_cast<long>(every);
+  o.checkpoint_file = t.get<std::string>("checkpoint_file", "");
+  check(!t.has("checkpoint_file") || !o.checkpoint_file.empty(), t.ref("checkpoint_file"), "must not be empty");
+  check(o.checkpoint_file != o.file, t.ref("checkpoint_file"), "must differ from output.file");
+}
+
 OutputSection read_output(const TableReader& root, int dim) {
   OutputSection o;
   auto t = root.table("output");
   if (!t) return o;
-  t->only({"file", "every", "fields", "probes"});
+  t->only({"file", "every", "fields", "probes", "checkpoint_every", "checkpoint_file"});
   o.where = t->self();
   o.file = t->get<std::string>("file", o.file);
   check(!o.file.empty(), t->ref("file"), "must not be empty");
@@ -636,6 +647,7 @@ OutputSection read_output(const TableReader& root, int dim) {
   check(o.every >= 0, t->ref("every"), "must be >= 0 (got " + fmt(o.every) + ")");
   o.fields = read_fields(*t, "fields", o.fields);
   o.probes = read_probes(*t, dim);
+  read_checkpoint_keys(*t, o);
   return o;
 }
 

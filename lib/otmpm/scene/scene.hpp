@@ -127,6 +127,8 @@ struct OutputSection {
   double every = 0.0;                 ///< seconds between frames (0: first and last only)
   std::vector<std::string> fields{"x", "v", "stress"};
   std::vector<ProbeSection> probes;
+  long checkpoint_every = 0;          ///< steps between checkpoints (0: none)
+  std::string checkpoint_file;        ///< "" : the result file with .h5 -> .checkpoint.h5
   SourceRef where;
 };
 

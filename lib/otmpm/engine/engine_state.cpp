@@ -1,0 +1,190 @@
+/// \file engine_state.cpp
+/// Engine<D>::save_state / restore_state: the state of a run that evolves
+/// from step to step, as checkpoint groups (io/checkpoint.hpp). What is built
+/// from the scene alone (materials, Dirichlet sets, loads, the initial grid)
+/// is rebuilt by the constructor and not stored. The nodal fields are not
+/// stored either: every integrator recomputes m, q, f, v, a, dx and the
+/// consistent mass matrix from the particles each step before reading them,
+/// and the scatter plan and transposed table are rebuilt with the basis
+/// table. What is carried from one step to the next besides the particles:
+/// t, dt_prev (OTM, unified), the external power at t (trapezoidal work), the
+/// wave speed of the next CFL step and the energy balance.
+#include "otmpm/engine/engine.hpp"
+#include "otmpm/io/checkpoint.hpp"
+
+#include <algorithm>
+#include <array>
+#include <type_traits>
+#include <utility>
+
+namespace otmpm {
+
+namespace {
+
+// A member added to EnergyBalance must be saved and restored below.
+static_assert(sizeof(EnergyBalance) == 5 * sizeof(double), "EnergyBalance changed: update engine_state.cpp");
+
+/// How one element of a particle field is stored: as `cols` values of type
+/// Stored (double, or int64 for integers) starting at begin(element).
+template <class T> struct FieldLayout;
+template <> struct FieldLayout<double> {
+  using Stored = double;
+  static constexpr std::size_t cols = 1;
+  template <class E> static auto* begin(E& e) { return &e; }
+};
+template <> struct FieldLayout<int> {
+  using Stored = std::int64_t;
+  static constexpr std::size_t cols = 1;
+  template <class E> static auto* begin(E& e) { return &e; }
+};
+template <int R, int C, int O, int MR, int MC> struct FieldLayout<Eigen::Matrix<double, R, C, O, MR, MC>> {
+  using Stored = double;
+  static constexpr std::size_t cols = static_cast<std::size_t>(R * C);
+  template <class E> static auto* begin(E& e) { return e.data(); }
+};
+template <std::size_t N> struct FieldLayout<std::array<int, N>> {
+  using Stored = std::int64_t;
+  static constexpr std::size_t cols = N;
+  template <class E> static auto* begin(E& e) { return e.data(); }
+};
+
+/// The array of `g` that holds values of type T (real or integer arrays).
+template <class T> auto& arrays_of(StateGroup& g) {
+  if constexpr (std::is_same_v<T, double>) return g.real_arrays;
+  else return g.integer_arrays;
+}
+template <class T>
+const StateArray<T>& array_of(const StateGroup& g, const std::string& name, std::size_t rows, std::size_t cols) {
+  if constexpr (std::is_same_v<T, double>) return g.real_array(name, rows, cols);
+  else return g.integer_array(name, rows, cols);
+}
+
+/// Stores a per-particle array, element by element in memory order.
+template <class Field> void save_field(StateGroup& g, const std::string& name, const Field& field) {
+  using L = FieldLayout<typename Field::value_type>;
+  StateArray<typename L::Stored>& a = arrays_of<typename L::Stored>(g)[name];
+  a.cols = L::cols;
+  a.values.clear();
+  a.values.reserve(field.size() * L::cols);
+  for (const auto& e : field) a.values.insert(a.values.end(), L::begin(e), L::begin(e) + L::cols);
+}
+
+/// Restores a per-particle array of n elements. A field the checkpoint does
+/// not hold must be one this run leaves empty as well.
+template <class Field> void restore_field(const StateGroup& g, const std::string& name, Field& field, std::size_t n) {
+  using L = FieldLayout<typename Field::value_type>;
+  if (!g.has_array(name)) {
+    if (!field.empty()) g.error("missing particle field '" + name + "'");
+    return;
+  }
+  const auto& values = array_of<typename L::Stored>(g, name, n, L::cols).values;
+  field.resize(n);
+  for (std::size_t p = 0; p < n; ++p) {
+    auto* out = L::begin(field[p]);
+    for (std::size_t c = 0; c < L::cols; ++c) {
+      const auto v = values[p * L::cols + c];
+      out[c] = static_cast<std::remove_reference_t<decltype(*out)>>(v);
+      if constexpr (!std::is_same_v<typename L::Stored, double>)
+        if (out[c] != v) g.error("particle field '" + name + "': integer out of range");
+    }
+  }
+}
+
+template <int D> void save_vector(StateGroup& g, const std::string& name, const Vec<D>& v) {
+  g.real_arrays[name] = {static_cast<std::size_t>(D), std::vector<double>(v.data(), v.data() + D)};
+}
+template <int D> Vec<D> restore_vector(const StateGroup& g, const std::string& name) {
+  const auto& a = g.real_array(name, 1, D).values;
+  Vec<D> v;
+  std::copy(a.begin(), a.end(), v.data());
+  return v;
+}
+
+/// The members of an EnergyBalance (const or not) by checkpoint name.
+template <class E> auto energy_fields(E& e) {
+  return std::array{std::pair{"energy_kinetic", &e.kinetic}, std::pair{"energy_strain", &e.strain},
+                    std::pair{"energy_external_work", &e.external_work},
+                    std::pair{"energy_reaction_work", &e.reaction_work}, std::pair{"energy_initial", &e.initial}};
+}
+
+void save_timers(StateGroup& g, const PhaseTimers& timers) {
+  for (std::size_t i = 0; i < phase_names.size(); ++i)
+    g.reals["seconds_" + std::string(phase_names[i])] = timers.seconds[i];
+}
+void restore_timers(const StateGroup& g, PhaseTimers& timers) {
+  for (std::size_t i = 0; i < phase_names.size(); ++i)
+    timers.seconds[i] = g.real("seconds_" + std::string(phase_names[i]));
+}
+
+/// Node positions, and whether the nodes still sit on their lattice (which
+/// selects the basis evaluation path, so it is part of the state).
+template <int D> void save_nodes(StateGroup& g, const NodeSet<D>& nodes) {
+  save_field(g, "x", nodes.positions());
+  g.integers["on_lattice"] = nodes.on_lattice() ? 1 : 0;
+}
+template <int D> void restore_nodes(const StateGroup& g, NodeSet<D>& nodes) {
+  const bool on_lattice = g.integer("on_lattice") != 0;
+  if (on_lattice && !nodes.on_lattice()) g.error("nodes on their lattice, but this scene's nodes are not");
+  AlignedVector<Vec<D>> x(static_cast<std::size_t>(nodes.size())); // sized: "x" is required
+  restore_field(g, "x", x, x.size());
+  if (!on_lattice) nodes.set_positions(std::move(x));
+}
+
+} // namespace
+
+template <int D> void Engine<D>::save_state(Checkpoint& out) const {
+  out.dimension = D;
+  StateGroup& g = out.group("engine");
+  g.reals["t"] = t_;
+  g.reals["dt"] = dt_;
+  g.reals["dt_prev"] = dt_prev_;
+  g.reals["external_power"] = external_power_;
+  g.reals["wave_speed"] = wave_speed_;
+  g.integers["step"] = step_;
+  save_vector<D>(g, "reaction_impulse", reaction_impulse_);
+  g.put_reals(energy_fields(energy_));
+  save_timers(g, timers_);
+  StateGroup& particles = out.group("particles");
+  P_.for_each_field([&](const char* name, const auto& field) {
+    if (!field.empty()) save_field(particles, name, field);
+  });
+  save_nodes(out.group("nodes"), basis_->nodes());
+  StateGroup& basis = out.group("basis");
+  basis.strings["kind"] = std::string(basis_->kind());
+  basis_->save_state(basis);
+}
+
+template <int D> void Engine<D>::restore_state(const Checkpoint& in) {
+  if (in.dimension != D)
+    throw InputError(in.file + ": checkpoint of a " + std::to_string(in.dimension) + "D run, the scene is " +
+                     std::to_string(D) + "D");
+  const StateGroup& g = in.group("engine");
+  t_ = g.real("t");
+  dt_ = g.real("dt");
+  dt_prev_ = g.real("dt_prev");
+  external_power_ = g.real("external_power");
+  wave_speed_ = g.real("wave_speed");
+  step_ = static_cast<long>(g.integer("step"));
+  reaction_impulse_ = restore_vector<D>(g, "reaction_impulse");
+  g.get_reals(energy_fields(energy_));
+  restore_timers(g, timers_);
+  const StateGroup& particles = in.group("particles");
+  const auto n = static_cast<std::size_t>(P_.size());
+  P_.for_each_field([&](const char* name, auto& field) { restore_field(particles, name, field, n); });
+  for (int m : P_.material)
+    if (m < 0 || m >= static_cast<int>(materials_.size())) particles.error("material index out of range");
+  restore_nodes(in.group("nodes"), basis_->nodes());
+  const StateGroup& basis = in.group("basis");
+  if (basis.string("kind") != basis_->kind())
+    basis.error("basis '" + basis.string("kind") + "', the scene has '" + std::string(basis_->kind()) + "'");
+  basis_->restore_state(basis);
+}
+
+template void Engine<1>::save_state(Checkpoint&) const;
+template void Engine<2>::save_state(Checkpoint&) const;
+template void Engine<3>::save_state(Checkpoint&) const;
+template void Engine<1>::restore_state(const Checkpoint&);
+template void Engine<2>::restore_state(const Checkpoint&);
+template void Engine<3>::restore_state(const Checkpoint&);
+
+} // namespace otmpm

@@ -1,0 +1,201 @@
+// HDF5 C API helpers shared by the result and checkpoint files (see hdf5.hpp).
+#include "otmpm/io/hdf5.hpp"
+
+#include <stdexcept>
+
+namespace otmpm::h5 {
+
+void silence() { H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr); }
+
+void fail(const std::string& path, const std::string& what) {
+  throw std::runtime_error(path + ": HDF5 could not " + what);
+}
+
+hid_t checked(hid_t id, const std::string& path, const std::string& what) {
+  if (id < 0) fail(path, what);
+  return id;
+}
+
+void checked_status(herr_t status, const std::string& path, const std::string& what) {
+  if (status < 0) fail(path, what);
+}
+
+Handle create_group(hid_t parent, const std::string& name, const std::string& path) {
+  return Handle(checked(H5Gcreate2(parent, name.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), path,
+                        "create group " + name),
+                H5Gclose);
+}
+
+Handle open_group(hid_t parent, const std::string& name, const std::string& path) {
+  return Handle(checked(H5Gopen2(parent, name.c_str(), H5P_DEFAULT), path, "open group " + name), H5Gclose);
+}
+
+bool has_link(hid_t parent, const std::string& name) { return H5Lexists(parent, name.c_str(), H5P_DEFAULT) > 0; }
+
+namespace {
+/// Iteration callback of H5Literate / H5Aiterate2: appends the name to a vector.
+template <class Info> herr_t collect_name(hid_t, const char* name, const Info*, void* out) {
+  static_cast<std::vector<std::string>*>(out)->emplace_back(name);
+  return 0;
+}
+
+/// The names an HDF5 iteration in name order visits: `iterate(H5_INDEX_NAME,
+/// H5_ITER_INC, &index, callback, data)` is H5Literate or H5Aiterate2 bound to an object.
+template <class Info, class Iterate>
+std::vector<std::string> iterated_names(Iterate&& iterate, const std::string& path, const std::string& what) {
+  std::vector<std::string> names;
+  hsize_t index = 0;
+  checked_status(iterate(H5_INDEX_NAME, H5_ITER_INC, &index, collect_name<Info>, &names), path, what);
+  return names;
+}
+} // namespace
+
+std::vector<std::string> link_names(hid_t group, const std::string& path) {
+  const auto iterate = [group](auto... args) { return H5Literate(group, args...); };
+  return iterated_names<H5L_info_t>(iterate, path, "list a group");
+}
+
+Handle string_type(std::size_t length, const std::string& path) {
+  Handle t(checked(H5Tcopy(H5T_C_S1), path, "copy the string type"), H5Tclose);
+  checked_status(H5Tset_size(t.get(), length + 1), path, "size a string type");
+  checked_status(H5Tset_strpad(t.get(), H5T_STR_NULLTERM), path, "pad a string type");
+  checked_status(H5Tset_cset(t.get(), H5T_CSET_UTF8), path, "set a string character set");
+  return t;
+}
+
+void write_attribute(hid_t object, const std::string& name, hid_t type, const void* value, const std::string& path) {
+  const std::string what = "write attribute " + name;
+  const htri_t exists = H5Aexists(object, name.c_str());
+  checked_status(exists, path, what);
+  if (exists > 0) checked_status(H5Adelete(object, name.c_str()), path, "replace attribute " + name);
+  Handle space(checked(H5Screate(H5S_SCALAR), path, what), H5Sclose);
+  Handle attr(checked(H5Acreate2(object, name.c_str(), type, space.get(), H5P_DEFAULT, H5P_DEFAULT), path, what),
+              H5Aclose);
+  checked_status(H5Awrite(attr.get(), type, value), path, what);
+}
+
+void write_string_attribute(hid_t object, const std::string& name, const std::string& value,
+                            const std::string& path) {
+  Handle t = string_type(value.size(), path);
+  write_attribute(object, name, t.get(), value.c_str(), path);
+}
+
+namespace {
+/// Writes a contiguous rows x cols dataset stored as `file_type` from memory of type `memory_type`.
+void write_dataset(hid_t parent, const std::string& name, hsize_t rows, hsize_t cols, hid_t file_type,
+                   hid_t memory_type, const void* data, const std::string& path) {
+  const std::string what = "write dataset " + name;
+  const hsize_t dims[2] = {rows, cols};
+  Handle space(checked(H5Screate_simple(2, dims, nullptr), path, what), H5Sclose);
+  Handle set(checked(H5Dcreate2(parent, name.c_str(), file_type, space.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+                     path, what),
+             H5Dclose);
+  if (rows * cols > 0) checked_status(H5Dwrite(set.get(), memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data), path, what);
+}
+} // namespace
+
+void write_matrix(hid_t parent, const std::string& name, hsize_t rows, hsize_t cols, const double* data,
+                  const std::string& path) {
+  write_dataset(parent, name, rows, cols, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, data, path);
+}
+
+void write_matrix(hid_t parent, const std::string& name, hsize_t rows, hsize_t cols, const std::int64_t* data,
+                  const std::string& path) {
+  write_dataset(parent, name, rows, cols, H5T_STD_I64LE, H5T_NATIVE_INT64, data, path);
+}
+
+bool has_attribute(hid_t object, const std::string& name) { return H5Aexists(object, name.c_str()) > 0; }
+
+std::vector<std::string> attribute_names(hid_t object, const std::string& path) {
+  const auto iterate = [object](auto... args) { return H5Aiterate2(object, args...); };
+  return iterated_names<H5A_info_t>(iterate, path, "list attributes");
+}
+
+H5T_class_t attribute_class(hid_t object, const std::string& name, const std::string& path) {
+  Handle attr(checked(H5Aopen(object, name.c_str(), H5P_DEFAULT), path, "open attribute " + name), H5Aclose);
+  Handle type(checked(H5Aget_type(attr.get()), path, "read attribute " + name), H5Tclose);
+  return H5Tget_class(type.get());
+}
+
+H5T_class_t dataset_class(hid_t parent, const std::string& name, const std::string& path) {
+  Handle set(checked(H5Dopen2(parent, name.c_str(), H5P_DEFAULT), path, "open dataset " + name), H5Dclose);
+  Handle type(checked(H5Dget_type(set.get()), path, "read dataset " + name), H5Tclose);
+  return H5Tget_class(type.get());
+}
+
+namespace {
+/// Opens attribute `name` of `object` and checks that its type is of class `cls` (or `alt`).
+Handle open_attribute(hid_t object, const std::string& name, const std::string& path, H5T_class_t cls,
+                      H5T_class_t alt, const char* kind) {
+  if (!has_attribute(object, name)) fail(path, "find attribute '" + name + "'");
+  Handle attr(checked(H5Aopen(object, name.c_str(), H5P_DEFAULT), path, "open attribute " + name), H5Aclose);
+  Handle type(checked(H5Aget_type(attr.get()), path, "read attribute " + name), H5Tclose);
+  const H5T_class_t c = H5Tget_class(type.get());
+  if (c != cls && c != alt) fail(path, std::string("read attribute '") + name + "' as " + kind);
+  return attr;
+}
+} // namespace
+
+double read_double(hid_t object, const std::string& name, const std::string& path) {
+  Handle attr = open_attribute(object, name, path, H5T_FLOAT, H5T_INTEGER, "a number");
+  double value = 0;
+  checked_status(H5Aread(attr.get(), H5T_NATIVE_DOUBLE, &value), path, "read attribute " + name);
+  return value;
+}
+
+std::int64_t read_integer(hid_t object, const std::string& name, const std::string& path) {
+  Handle attr = open_attribute(object, name, path, H5T_INTEGER, H5T_INTEGER, "an integer");
+  std::int64_t value = 0;
+  checked_status(H5Aread(attr.get(), H5T_NATIVE_INT64, &value), path, "read attribute " + name);
+  return value;
+}
+
+std::string read_string(hid_t object, const std::string& name, const std::string& path) {
+  Handle attr = open_attribute(object, name, path, H5T_STRING, H5T_STRING, "a string");
+  Handle type(checked(H5Aget_type(attr.get()), path, "read attribute " + name), H5Tclose);
+  if (H5Tis_variable_str(type.get()) > 0) {
+    char* value = nullptr;
+    checked_status(H5Aread(attr.get(), type.get(), &value), path, "read attribute " + name);
+    std::string out = value ? value : "";
+    H5free_memory(value);
+    return out;
+  }
+  std::string buf(H5Tget_size(type.get()), '\0');
+  checked_status(H5Aread(attr.get(), type.get(), buf.data()), path, "read attribute " + name);
+  return buf.substr(0, buf.find('\0'));
+}
+
+namespace {
+/// Reads a rank-1 or rank-2 dataset whose type is of class `cls` into memory type `memory_type`.
+template <class T>
+Matrix<T> read_matrix(hid_t parent, const std::string& name, const std::string& path, H5T_class_t cls,
+                      hid_t memory_type) {
+  const std::string what = "read dataset " + name;
+  if (!has_link(parent, name)) fail(path, "find dataset '" + name + "'");
+  Handle set(checked(H5Dopen2(parent, name.c_str(), H5P_DEFAULT), path, what), H5Dclose);
+  Handle type(checked(H5Dget_type(set.get()), path, what), H5Tclose);
+  if (H5Tget_class(type.get()) != cls) fail(path, what + " (unexpected element type)");
+  Handle space(checked(H5Dget_space(set.get()), path, what), H5Sclose);
+  const int rank = H5Sget_simple_extent_ndims(space.get());
+  if (rank != 1 && rank != 2) fail(path, what + " (rank " + std::to_string(rank) + ", expected 1 or 2)");
+  hsize_t dims[2] = {0, 1};
+  checked_status(H5Sget_simple_extent_dims(space.get(), dims, nullptr), path, what);
+  Matrix<T> m;
+  m.rows = dims[0];
+  m.cols = dims[1];
+  m.values.resize(static_cast<std::size_t>(m.rows * m.cols));
+  if (!m.values.empty())
+    checked_status(H5Dread(set.get(), memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, m.values.data()), path, what);
+  return m;
+}
+} // namespace
+
+Matrix<double> read_double_matrix(hid_t parent, const std::string& name, const std::string& path) {
+  return read_matrix<double>(parent, name, path, H5T_FLOAT, H5T_NATIVE_DOUBLE);
+}
+
+Matrix<std::int64_t> read_integer_matrix(hid_t parent, const std::string& name, const std::string& path) {
+  return read_matrix<std::int64_t>(parent, name, path, H5T_INTEGER, H5T_NATIVE_INT64);
+}
+
+} // namespace otmpm::h5

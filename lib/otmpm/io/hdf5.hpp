@@ -1,0 +1,108 @@
+#pragma once
+/// \file hdf5.hpp
+/// Internal helpers over the HDF5 C API shared by the result file
+/// (results.cpp) and the checkpoint file (checkpoint.cpp): an owning handle,
+/// checks that turn a failed call into an exception naming the file, groups,
+/// scalar attributes and 2D datasets of doubles or 64-bit integers. Writing
+/// failures throw std::runtime_error ("PATH: HDF5 could not WHAT"); callers
+/// that read user-supplied files turn them into InputError.
+#include <hdf5.h>
+
+#include <cstdint>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace otmpm::h5 {
+
+/// Owns one HDF5 identifier and closes it with the matching H5?close.
+class Handle {
+public:
+  Handle() = default;
+  Handle(hid_t id, herr_t (*close)(hid_t)) : id_(id), close_(close) {}
+  Handle(Handle&& o) noexcept : id_(o.id_), close_(o.close_) { o.id_ = H5I_INVALID_HID; }
+  Handle& operator=(Handle&& o) noexcept {
+    std::swap(id_, o.id_);
+    std::swap(close_, o.close_);
+    return *this;
+  }
+  Handle(const Handle&) = delete;
+  Handle& operator=(const Handle&) = delete;
+  ~Handle() {
+    if (id_ >= 0 && close_) close_(id_);
+  }
+  hid_t get() const { return id_; }
+  bool valid() const { return id_ >= 0; }
+  /// Closes now and reports whether the close succeeded (a file's last flush).
+  bool close() {
+    const hid_t id = id_;
+    id_ = H5I_INVALID_HID;
+    return id < 0 || !close_ || close_(id) >= 0;
+  }
+
+private:
+  hid_t id_ = H5I_INVALID_HID;
+  herr_t (*close_)(hid_t) = nullptr;
+};
+
+/// Silences HDF5's default printing of its error stack: errors become
+/// exceptions with context instead.
+void silence();
+
+/// Throws std::runtime_error "PATH: HDF5 could not WHAT".
+[[noreturn]] void fail(const std::string& path, const std::string& what);
+/// Returns id, or fails when it is negative.
+hid_t checked(hid_t id, const std::string& path, const std::string& what);
+/// Fails when status is negative.
+void checked_status(herr_t status, const std::string& path, const std::string& what);
+
+/// Creates the group `name` below `parent`.
+Handle create_group(hid_t parent, const std::string& name, const std::string& path);
+/// Opens the existing group `name` below `parent`.
+Handle open_group(hid_t parent, const std::string& name, const std::string& path);
+/// True when `parent` has a link called `name`.
+bool has_link(hid_t parent, const std::string& name);
+/// Names of the links in a group, in name order.
+std::vector<std::string> link_names(hid_t group, const std::string& path);
+
+/// A fixed-length, null-terminated UTF-8 string type of `length` characters.
+Handle string_type(std::size_t length, const std::string& path);
+/// Writes a scalar attribute of memory type `type` on `object`, replacing an existing one.
+void write_attribute(hid_t object, const std::string& name, hid_t type, const void* value, const std::string& path);
+/// Writes a string attribute (fixed-length UTF-8).
+void write_string_attribute(hid_t object, const std::string& name, const std::string& value,
+                            const std::string& path);
+
+/// Writes a contiguous rows x cols dataset of doubles.
+void write_matrix(hid_t parent, const std::string& name, hsize_t rows, hsize_t cols, const double* data,
+                  const std::string& path);
+/// Writes a contiguous rows x cols dataset of 64-bit integers.
+void write_matrix(hid_t parent, const std::string& name, hsize_t rows, hsize_t cols, const std::int64_t* data,
+                  const std::string& path);
+
+/// True when `object` has an attribute `name`.
+bool has_attribute(hid_t object, const std::string& name);
+/// Names of the attributes of `object`, in name order.
+std::vector<std::string> attribute_names(hid_t object, const std::string& path);
+/// The type class (H5T_FLOAT, H5T_INTEGER, H5T_STRING, ...) of attribute `name` of `object`.
+H5T_class_t attribute_class(hid_t object, const std::string& name, const std::string& path);
+/// The type class of dataset `name` below `parent`.
+H5T_class_t dataset_class(hid_t parent, const std::string& name, const std::string& path);
+/// A numeric scalar attribute converted to double (fails if absent or not a number).
+double read_double(hid_t object, const std::string& name, const std::string& path);
+/// An integer scalar attribute (fails if absent or not an integer).
+std::int64_t read_integer(hid_t object, const std::string& name, const std::string& path);
+/// A string attribute, fixed or variable length (fails if absent or not a string).
+std::string read_string(hid_t object, const std::string& name, const std::string& path);
+
+/// A dataset read back: rows x cols values (cols = 1 for a rank-1 dataset).
+template <class T> struct Matrix {
+  hsize_t rows = 0, cols = 0;
+  std::vector<T> values;
+};
+/// Reads a rank-1 or rank-2 dataset of numbers as doubles.
+Matrix<double> read_double_matrix(hid_t parent, const std::string& name, const std::string& path);
+/// Reads a rank-1 or rank-2 dataset of integers as 64-bit integers.
+Matrix<std::int64_t> read_integer_matrix(hid_t parent, const std::string& name, const std::string& path);
+
+} // namespace otmpm::h5

@@ -1,0 +1,288 @@
+// `otmpm run --restart` (issue 6): a run with output.checkpoint_every is
+// killed with SIGKILL by the test once a checkpoint exists, restarted from
+// the checkpoint alone, and its result file - every frame dataset, every probe
+// sample, the summary attributes and the errors, everything but wall times -
+// must equal that of an uninterrupted run bit for bit. A completed run
+// restarted from its last checkpoint must reproduce the frames it wrote after
+// that checkpoint. A missing or damaged checkpoint, a missing result file of
+// the interrupted run and wrong options give exit status 2 and a message
+// naming the file.
+#include "otmpm/io/hdf5.hpp"
+
+#include "temp_dir.hpp"
+
+#include <doctest/doctest.h>
+#include <hdf5.h>
+
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+extern char** environ;
+
+namespace fs = std::filesystem;
+using otmpm::test::TempDir;
+
+namespace {
+
+const fs::path kSource = OTMPM_SOURCE_DIR;
+const std::string kBinary = OTMPM_BINARY;
+/// Every particle field a frame can hold, so that the whole final state is compared.
+const std::string kAllFields =
+    "output.fields=[\"x\", \"v\", \"a\", \"stress\", \"strain\", \"F\", \"density\", \"volume\", \"mass\", "
+    "\"displacement\"]";
+
+
+/// Starts `otmpm ARGS` with one OpenMP thread, stdout to /dev/null and stderr
+/// to `err_file`; returns its pid.
+pid_t spawn(const std::vector<std::string>& args, const std::string& err_file) {
+  ::setenv("OMP_NUM_THREADS", "1", 1); // results do not depend on it; a busy machine's timing does
+  std::vector<std::string> argv_s{kBinary};
+  argv_s.insert(argv_s.end(), args.begin(), args.end());
+  std::vector<char*> argv;
+  for (std::string& a : argv_s) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, "/dev/null", O_WRONLY, 0);
+  posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, err_file.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  pid_t pid = -1;
+  const int rc = posix_spawn(&pid, kBinary.c_str(), &actions, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&actions);
+  REQUIRE(rc == 0);
+  return pid;
+}
+
+struct CliResult {
+  int status = -1;
+  std::string err;
+};
+
+/// Runs `otmpm ARGS` to completion: exit status and stderr.
+CliResult run_cli(const TempDir& dir, const std::vector<std::string>& args) {
+  const std::string err_file = dir.file("stderr.txt");
+  const pid_t pid = spawn(args, err_file);
+  int wstatus = 0;
+  REQUIRE(waitpid(pid, &wstatus, 0) == pid);
+  CliResult r;
+  r.status = WIFEXITED(wstatus) ? WEXITSTATUS(wstatus) : -1;
+  std::ifstream in(err_file);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  r.err = ss.str();
+  return r;
+}
+
+/// Everything in an HDF5 file by path ("/frames/000003/x", "/@steps"): the
+/// bytes of each dataset (with its shape) and of each attribute, except the
+/// wall times, which differ between any two runs.
+using Snapshot = std::map<std::string, std::string>;
+
+bool is_wall_time(const std::string& attribute) {
+  return attribute == "wall_seconds" || attribute.rfind("seconds_", 0) == 0;
+}
+
+template <class T> std::string bytes_of(const T* data, std::size_t n) {
+  return std::string(reinterpret_cast<const char*>(data), n * sizeof(T));
+}
+
+void snapshot_attributes(hid_t object, const std::string& path, const std::string& file, Snapshot& s) {
+  for (const std::string& a : otmpm::h5::attribute_names(object, file)) {
+    if (is_wall_time(a)) continue;
+    if (otmpm::h5::attribute_class(object, a, file) == H5T_STRING) {
+      s[path + "@" + a] = otmpm::h5::read_string(object, a, file);
+    } else {
+      const double v = otmpm::h5::read_double(object, a, file);
+      s[path + "@" + a] = bytes_of(&v, 1);
+    }
+  }
+}
+
+void snapshot_group(hid_t group, const std::string& path, const std::string& file, Snapshot& s) {
+  snapshot_attributes(group, path, file, s);
+  for (const std::string& name : otmpm::h5::link_names(group, file)) {
+    const hid_t object = H5Oopen(group, name.c_str(), H5P_DEFAULT);
+    REQUIRE(object >= 0);
+    const std::string child = path + "/" + name;
+    if (H5Iget_type(object) == H5I_GROUP) {
+      snapshot_group(object, child, file, s);
+    } else {
+      snapshot_attributes(object, child, file, s);
+      const auto m = otmpm::h5::read_double_matrix(group, name, file);
+      const hsize_t shape[2] = {m.rows, m.cols};
+      s[child] = bytes_of(shape, 2) + bytes_of(m.values.data(), m.values.size());
+    }
+    H5Oclose(object);
+  }
+}
+
+Snapshot snapshot(const std::string& file) {
+  const hid_t f = H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  REQUIRE_MESSAGE(f >= 0, "cannot open " << file);
+  Snapshot s;
+  snapshot_group(f, "", file, s);
+  H5Fclose(f);
+  return s;
+}
+
+/// The two result files hold the same frames, probes and summary, bit for bit.
+void check_same_results(const std::string& expected_file, const std::string& actual_file) {
+  const Snapshot expected = snapshot(expected_file), actual = snapshot(actual_file);
+  REQUIRE(expected.count("@status") == 1);
+  CHECK(expected.at("@status") == "ok");
+  CHECK(expected.size() == actual.size());
+  for (const auto& [key, bytes] : expected) {
+    INFO(key);
+    REQUIRE(actual.count(key) == 1);
+    CHECK((actual.at(key) == bytes));
+  }
+}
+
+/// Number of frames in a result file, and an integer root attribute of an HDF5 file.
+std::size_t frame_count(const std::string& file) {
+  const hid_t f = H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  REQUIRE(f >= 0);
+  const hid_t g = H5Gopen2(f, "frames", H5P_DEFAULT);
+  const std::size_t n = otmpm::h5::link_names(g, file).size();
+  H5Gclose(g);
+  H5Fclose(f);
+  return n;
+}
+
+std::int64_t checkpoint_integer(const std::string& file, const std::string& group, const std::string& name) {
+  const hid_t f = H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  REQUIRE(f >= 0);
+  const hid_t g = H5Gopen2(f, group.c_str(), H5P_DEFAULT);
+  const std::int64_t v = otmpm::h5::read_integer(g, name, file);
+  H5Gclose(g);
+  H5Fclose(f);
+  return v;
+}
+
+/// Waits until `path` exists; false if the process `pid` ended first or after `limit`.
+bool wait_for_file(const std::string& path, pid_t pid, std::chrono::seconds limit) {
+  const auto end = std::chrono::steady_clock::now() + limit;
+  while (std::chrono::steady_clock::now() < end) {
+    if (fs::exists(path)) return true;
+    int wstatus = 0;
+    if (waitpid(pid, &wstatus, WNOHANG) == pid) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  return false;
+}
+
+std::vector<std::string> with(std::vector<std::string> args, const std::vector<std::string>& more) {
+  args.insert(args.end(), more.begin(), more.end());
+  return args;
+}
+
+} // namespace
+
+TEST_CASE("otmpm run killed by SIGKILL and restarted equals an uninterrupted run, bit for bit") {
+  TempDir dir("kill");
+  // Dyka bar, h = L/133: 5043 steps (about 1 s), a frame every 50 steps, probe A, exact errors.
+  const std::vector<std::string> scene{"run", (kSource / "examples/dyka/dyka_n133.toml").string(), "--quiet",
+                                       "--set", "output.checkpoint_every=500", "--set", kAllFields};
+  const std::string full = dir.file("full.h5"), run = dir.file("run.h5");
+  REQUIRE(run_cli(dir, with(scene, {"--out", full})).status == 0);
+
+  const std::string checkpoint = dir.file("run.checkpoint.h5");
+  const pid_t pid = spawn(with(scene, {"--out", run}), dir.file("killed.txt"));
+  const bool started = wait_for_file(checkpoint, pid, std::chrono::seconds(300));
+  std::this_thread::sleep_for(std::chrono::milliseconds(50)); // let it write frames past the checkpoint
+  ::kill(pid, SIGKILL);
+  int wstatus = 0;
+  REQUIRE(waitpid(pid, &wstatus, 0) == pid);
+  REQUIRE_MESSAGE(started, "the run ended before it wrote a checkpoint");
+  REQUIRE_MESSAGE(WIFSIGNALED(wstatus), "the run finished before the test could kill it");
+  CHECK(WTERMSIG(wstatus) == SIGKILL);
+  const auto step = checkpoint_integer(checkpoint, "engine", "step");
+  const auto frames = checkpoint_integer(checkpoint, "recorder", "frames");
+  const std::size_t written = frame_count(run);
+  INFO("checkpoint at step " << step << " with " << frames << " frames; the killed run wrote " << written);
+  CHECK(step % 500 == 0);
+  CHECK(step < 5043);
+  CHECK(written >= static_cast<std::size_t>(frames));
+
+  // Restart from the checkpoint alone: the result file is continued in place.
+  const CliResult r = run_cli(dir, {"run", "--restart", checkpoint, "--quiet"});
+  INFO(r.err);
+  REQUIRE(r.status == 0);
+  check_same_results(full, run);
+  CHECK_FALSE(fs::exists(run + ".before-restart"));
+}
+
+TEST_CASE("a completed run restarted from its last checkpoint rewrites the later frames identically") {
+  TempDir dir("completed");
+  // The manufactured-solution plate (ul, unified, bspline2, 2D) at 8 x 8 cells:
+  // 35 steps, checkpoints after 10, 20 and 30, frames every 2.5e-4 s.
+  const std::vector<std::string> scene{"run",
+                                       (kSource / "examples/mms_plate.toml").string(),
+                                       "--quiet",
+                                       "--set",
+                                       "grid.cells=[8, 8]",
+                                       "--set",
+                                       "output.every=2.5e-4",
+                                       "--set",
+                                       "output.probes=[{name = \"c\", particle = \"nearest\", at = [0.5, 0.5]}]",
+                                       "--set",
+                                       "output.checkpoint_every=10",
+                                       "--set",
+                                       kAllFields};
+  const std::string full = dir.file("plate.h5"), again = dir.file("again.h5");
+  REQUIRE(run_cli(dir, with(scene, {"--out", full})).status == 0);
+  const std::string checkpoint = dir.file("plate.checkpoint.h5");
+  REQUIRE(checkpoint_integer(checkpoint, "engine", "step") == 30);
+  CHECK(frame_count(full) > static_cast<std::size_t>(checkpoint_integer(checkpoint, "recorder", "frames")));
+  const CliResult r = run_cli(dir, {"run", "--restart", checkpoint, "--out", again, "--quiet"});
+  INFO(r.err);
+  REQUIRE(r.status == 0);
+  check_same_results(full, again);
+  CHECK(fs::exists(full)); // --out elsewhere: the interrupted run's file is left as it was
+}
+
+TEST_CASE("restart errors: exit status 2 and a message naming the file or option") {
+  TempDir dir("errors");
+  const std::string result = dir.file("bar.h5");
+  REQUIRE(run_cli(dir, {"run", (kSource / "examples/dyka.toml").string(), "--quiet", "--out", result, "--set",
+                        "output.checkpoint_every=200"})
+              .status == 0);
+  const std::string checkpoint = dir.file("bar.checkpoint.h5");
+  REQUIRE(fs::exists(checkpoint));
+
+  auto expect_error = [&](const std::vector<std::string>& args, const std::string& text) {
+    const CliResult r = run_cli(dir, args);
+    INFO(r.err);
+    CHECK(r.status == 2);
+    CHECK(r.err.find(text) != std::string::npos);
+  };
+  const std::string missing = dir.file("missing.checkpoint.h5");
+  expect_error({"run", "--restart", missing}, missing);
+
+  const std::string truncated = dir.file("truncated.checkpoint.h5");
+  fs::copy_file(checkpoint, truncated);
+  fs::resize_file(truncated, fs::file_size(checkpoint) / 2);
+  expect_error({"run", "--restart", truncated, "--out", dir.file("t.h5")}, truncated);
+
+  const std::string scene_file = (kSource / "examples/dyka.toml").string();
+  expect_error({"run", "--restart", checkpoint, "--set", "simulation.cfl=0.2"}, "--set cannot be combined");
+  expect_error({"run", scene_file, "--restart", checkpoint}, "not both");
+  expect_error({"pair", "--restart", checkpoint}, "unknown option '--restart'");
+
+  // The interrupted run's result file holds the frames before the checkpoint.
+  fs::remove(result);
+  expect_error({"run", "--restart", checkpoint}, result + ": the result file of the interrupted run is missing");
+}
