@@ -6,6 +6,8 @@
 // decimal literal the test writes, so the doubles are bit-identical.
 #include "otmpm/scene/scene.hpp"
 
+#include "otmpm/engine/engine.hpp"
+
 #include <doctest/doctest.h>
 
 #include <string>
@@ -271,6 +273,28 @@ TEST_CASE("other out-of-range values") {
   check_message(error_of(kGood, {"simulation.mass=diagonal"}), {"--set simulation.mass"});
   check_message(error_of(kGood, {"simulation.dimension=2.0"}), {"--set simulation.dimension", "integer"});
   check_message(error_of(kGood, {"output.fields=[\"x\", \"velocity\"]"}), {"--set output.fields", "velocity"});
+}
+
+TEST_CASE("absurd sizes are rejected before the engine allocates anything") {
+  check_message(error_of(bad("huge_grid")),
+                {"huge_grid.toml:17: key 'grid.cells'", "1e+09 nodes", "at most 100000000"});
+  check_message(error_of(kGood, {"grid.h=1e-12"}), {"--set grid.h", "cells on axis 0"});
+  check_message(error_of(kGood, {"body.bar.particles_per_cell=101"}), {"--set body.bar.particles_per_cell", "[1, 100]"});
+  // ul mode: the body need not lie in the grid, but it is seeded in cells of grid.h.
+  check_message(error_of(kGood, {"simulation.mode=ul", "body.bar.upper=[1e6]"}),
+                {"--set body.bar.upper", "particle count", "at most 100000000"});
+  check_message(error_of(kGood, {"grid.lower=[-1e308]", "grid.upper=[1e308]"}), {"--set grid.upper", "overflows"});
+}
+
+TEST_CASE("scene_size counts the particles and nodes the engine creates") {
+  auto check_size = [](const auto& engine) {
+    const SceneSize n = scene_size(engine.scene());
+    CHECK(n.particles == engine.particles().size());
+    CHECK(n.nodes == engine.basis().nodes().size());
+  };
+  check_size(Engine<1>(load_scene(kGood)));
+  check_size(Engine<1>(load_scene(kGood, {"simulation.mode=ul", "body.bar.particles_per_cell=3"})));
+  check_size(Engine<2>(parse_scene(kPlate2D, "plate.toml")));
 }
 
 TEST_CASE("duplicate names are rejected") {
