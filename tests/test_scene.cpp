@@ -241,6 +241,8 @@ TEST_CASE("an unknown --set key is named as such") {
   check_message(error_of(kGood, {"simulation.modee=ul"}), {"--set simulation.modee", "did you mean 'mode'"});
   check_message(error_of(kGood, {"material.iron.young=1"}), {"--set material.iron.young", "iron"});
   check_message(error_of(kGood, {"nonsense"}), {"--set nonsense", "KEY=VALUE"});
+  // A table given whole on the command line: the message names the key missing inside it.
+  check_message(error_of(kGood, {"grid={}"}), {"--set grid", "missing", "'grid.lower'"});
 }
 
 TEST_CASE("otm in mpm mode is rejected") {

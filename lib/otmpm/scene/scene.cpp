@@ -179,6 +179,8 @@ public:
   [[noreturn]] void missing(std::string_view key, const std::string& what = "required key is missing") const {
     SourceRef r = ctx_->ref(key_path(key), nullptr, self_.line);
     if (r.line == 0) r.line = 1;
+    // A table written by --set: r names the --set KEY, so say which key inside it is missing.
+    if (r.line == kCommandLineLine) input_error(r, what + " ('" + key_path(key) + "')");
     input_error(r, what);
   }
 
