@@ -54,7 +54,7 @@ run() {
   local target=$1 time=$2
   echo "== $target for $time s"
   "$build/fuzz/$target" "$build/corpus/$target" "$seeds/$target" -dict=fuzz/scene.dict \
-    -max_total_time="$time" -timeout=5 -rss_limit_mb=2048 -print_final_stats=1 \
+    -max_total_time="$time" -timeout=5 -rss_limit_mb=2048 -print_final_stats=1 -print_funcs=0 \
     -artifact_prefix="$build/findings/$target-"
 }
 
