@@ -241,6 +241,14 @@ TEST_CASE("an unknown --set key is named as such") {
   check_message(error_of(kGood, {"simulation.modee=ul"}), {"--set simulation.modee", "did you mean 'mode'"});
   check_message(error_of(kGood, {"material.iron.young=1"}), {"--set material.iron.young", "iron"});
   check_message(error_of(kGood, {"nonsense"}), {"--set nonsense", "KEY=VALUE"});
+  // Found with fuzz/fuzz_set.cpp: a bare word that is not UTF-8 used to be kept
+  // as a string that the resolved scene text (written to the result file)
+  // could not reproduce ("a\xffb" came back as "a\u00FFb").
+  check_message(error_of(kGood, {"output.file=a\xff" "b.h5"}), {"--set output.file", "UTF-8"});
+  check_message(error_of(kGood, {"output.file=\xed\xa0\x80.h5"}), {"--set output.file", "UTF-8"});  // a surrogate
+  const Scene utf8 = load_scene(kGood, {"output.file=r\xc3\xa9sultat.h5"});
+  CHECK(utf8.output.file == "r\xc3\xa9sultat.h5");
+  CHECK(parse_scene(utf8.text, "resolved.toml").output.file == utf8.output.file);
   // A table given whole on the command line: the message names the key missing inside it.
   check_message(error_of(kGood, {"grid={}"}), {"--set grid", "missing", "'grid.lower'"});
 }

@@ -771,7 +771,32 @@ std::string trim(const std::string& s) {
   return s.substr(b, s.find_last_not_of(" \t") - b + 1);
 }
 
-/// VALUE as a TOML value; a bare word that is not valid TOML is a string.
+/// True when `s` is well-formed UTF-8 (RFC 3629: shortest form, no surrogates,
+/// at most U+10FFFF), as TOML requires of every string.
+bool valid_utf8(std::string_view s) {
+  constexpr char32_t kMinimum[] = {0, 0x80, 0x800, 0x10000}; // smallest code point per continuation count
+  for (std::size_t i = 0; i < s.size();) {
+    const auto lead = static_cast<unsigned char>(s[i]);
+    std::size_t more = 0;
+    char32_t cp = lead;
+    if (lead >= 0xF0 && lead < 0xF8) more = 3, cp = lead & 0x07u;
+    else if (lead >= 0xE0 && lead < 0xF0) more = 2, cp = lead & 0x0Fu;
+    else if (lead >= 0xC0 && lead < 0xE0) more = 1, cp = lead & 0x1Fu;
+    else if (lead >= 0x80) return false;
+    if (s.size() - i <= more) return false;
+    for (std::size_t j = 1; j <= more; ++j) {
+      const auto byte = static_cast<unsigned char>(s[i + j]);
+      if ((byte & 0xC0u) != 0x80u) return false;
+      cp = (cp << 6) | (byte & 0x3Fu);
+    }
+    if (cp < kMinimum[more] || cp > 0x10FFFF || (cp >= 0xD800 && cp <= 0xDFFF)) return false;
+    i += more + 1;
+  }
+  return true;
+}
+
+/// VALUE as a TOML value; a bare word that is not valid TOML is a string
+/// (if it is valid UTF-8: otherwise the resolved scene text would not read back).
 toml::table parse_value(const std::string& key, const std::string& value) {
   try {
     const std::string doc = "v = " + value + "\n";
@@ -780,6 +805,7 @@ toml::table parse_value(const std::string& key, const std::string& value) {
     const bool bare = !value.empty() && std::string("[{\"'").find(value.front()) == std::string::npos;
     if (!bare) throw InputError("--set " + key + ": cannot read '" + value + "' as a TOML value: " +
                                 std::string(e.description()));
+    if (!valid_utf8(value)) throw InputError("--set " + key + ": the value is not valid UTF-8 text");
     toml::table t;
     t.insert("v", value);
     return t;
