@@ -3,32 +3,24 @@
 #
 #   bash scripts/fuzz.sh [SECONDS]     (default 60)
 #
-# Builds build-fuzz/ (clang-14, OTMPM_FUZZ=ON: only the library and the two
-# targets) and runs fuzz/fuzz_scene.cpp (scene text) for 3/4 of SECONDS and
-# fuzz/fuzz_set.cpp (--set overrides) for the rest, each with the dictionary
-# fuzz/scene.dict. Seeds: every examples/**/*.toml and tests/scenes/**/*.toml
+# Installs clang-14 and libclang-rt-14-dev if missing, builds build-fuzz/
+# (OTMPM_FUZZ=ON: only the library and the two targets) and runs
+# fuzz/fuzz_scene.cpp (scene text) for 3/4 of SECONDS and fuzz/fuzz_set.cpp
+# (--set overrides) for the rest, each with the dictionary fuzz/scene.dict. Seeds: every examples/**/*.toml and tests/scenes/**/*.toml
 # (copied into build-fuzz/seeds/ on each run) and fuzz/set.seeds; what the
 # fuzzer learns is kept in build-fuzz/corpus/ for the next run.
-# A finding - a crash, a sanitizer report, an input taking more than 5 s, more
-# than 2 GB of memory, or an exception other than an InputError naming the
-# file or --set key - makes the script print the saved input and exit 1.
+# A finding - a crash, a sanitizer report, a leak, an input taking more than
+# 5 s or more than 2 GB of memory, an exception other than an InputError, an
+# InputError not starting with FILE:LINE: or --set KEY:, a resolved scene text
+# that does not read back to itself - makes the script print the saved input
+# and exit 1.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 seconds=${1:-60}
 build=${OTMPM_FUZZ_BUILD_DIR:-$root/build-fuzz}
 cd "$root"
 
-pkgs=(clang-14 libclang-rt-14-dev)
-missing=()
-for p in "${pkgs[@]}"; do
-  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
-done
-if [ ${#missing[@]} -gt 0 ]; then
-  SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
-  export DEBIAN_FRONTEND=noninteractive
-  $SUDO apt-get update -qq
-  $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
-fi
+bash "$root/scripts/install-deps.sh" clang-14 libclang-rt-14-dev
 
 # OpenMP off: clang would need libomp, and the reader is serial anyway.
 CC=clang-14 CXX=clang++-14 cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DOTMPM_FUZZ=ON \
@@ -51,23 +43,24 @@ export OMP_NUM_THREADS=1
 
 # run TARGET SECONDS: fuzzes one target; returns libFuzzer's exit status.
 run() {
-  local target=$1 time=$2
-  echo "== $target for $time s"
+  local target=$1 secs=$2
+  echo "== $target for $secs s"
   "$build/fuzz/$target" "$build/corpus/$target" "$seeds/$target" -dict=fuzz/scene.dict \
-    -max_total_time="$time" -timeout=5 -rss_limit_mb=2048 -print_final_stats=1 -print_funcs=0 \
+    -max_total_time="$secs" -timeout=5 -rss_limit_mb=2048 -print_final_stats=1 -print_funcs=0 \
     -artifact_prefix="$build/findings/$target-"
 }
 
 scene_time=$(( seconds * 3 / 4 ))
+set_time=$(( seconds - scene_time ))
 status=0
-run fuzz_scene "$(( scene_time > 0 ? scene_time : 1 ))" || status=$?
-if [ "$status" -eq 0 ]; then
-  run fuzz_set "$(( seconds - scene_time > 0 ? seconds - scene_time : 1 ))" || status=$?
-fi
-if [ "$status" -ne 0 ]; then
-  echo "fuzz: FINDING (libFuzzer exit status $status); saved inputs:" >&2
-  ls -t "$build"/findings/* 2>/dev/null | head -5 >&2
-  echo "reproduce: $build/fuzz/<target> <input>" >&2
-  exit 1
-fi
+for target in fuzz_scene fuzz_set; do
+  if [ "$target" = fuzz_scene ]; then secs=$scene_time; else secs=$set_time; fi
+  run "$target" "$(( secs > 0 ? secs : 1 ))" || status=$?
+  if [ "$status" -ne 0 ]; then
+    input=$(ls -t "$build"/findings/"$target"-* 2>/dev/null | head -1)
+    echo "fuzz: FINDING in $target (libFuzzer exit status $status): ${input:-no input saved}" >&2
+    echo "reproduce: OTMPM_FUZZ_VERBOSE=1 $build/fuzz/$target ${input:-INPUT}" >&2
+    exit 1
+  fi
+done
 echo "fuzz: no finding in $seconds s"
