@@ -60,6 +60,6 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const std::vector<std::string> overrides = split_lines(reinterpret_cast<const char*>(data) + 1, size - 1);
   const std::string name = kBaseFiles[base];
   otmpm::fuzz::expect_input_errors_only(
-      [&] { otmpm::fuzz::check_scene(otmpm::parse_scene(base_text[base], name, overrides)); }, {"--set ", name + ":"});
+      [&] { otmpm::fuzz::check_scene(otmpm::parse_scene(base_text[base], name, overrides)); }, name, true);
   return 0;
 }
