@@ -4,7 +4,7 @@
 /// input is a finding, and what is done with a scene that reads.
 ///
 /// Bad input must end in an otmpm::InputError whose message says where the
-/// mistake is (the scene's file name, or "--set KEY"); any other exception
+/// mistake is ("FILE:LINE: key 'KEY'", or "--set KEY"); any other exception
 /// escaping is a finding, and so is a crash, a hang or a sanitizer report
 /// (those libFuzzer and ASan/UBSan detect on their own). A scene that reads is
 /// then used the way `otmpm run` uses it before the first step (check_scene).
