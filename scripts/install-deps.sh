@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Installs otmpm's build, test and plotting dependencies from Debian packages.
 # Idempotent: safe to run again; does nothing when everything is present.
+# With arguments, installs those packages instead (scripts/fuzz.sh: clang).
 set -euo pipefail
 pkgs=(
   build-essential cmake pkg-config
@@ -8,6 +9,7 @@ pkgs=(
   libtomlplusplus-dev doctest-dev
   python3 python3-matplotlib python3-h5py python3-numpy
 )
+[ $# -gt 0 ] && pkgs=("$@")
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -6,6 +6,8 @@
 // decimal literal the test writes, so the doubles are bit-identical.
 #include "otmpm/scene/scene.hpp"
 
+#include "otmpm/engine/engine.hpp"
+
 #include <doctest/doctest.h>
 
 #include <string>
@@ -239,6 +241,16 @@ TEST_CASE("an unknown --set key is named as such") {
   check_message(error_of(kGood, {"simulation.modee=ul"}), {"--set simulation.modee", "did you mean 'mode'"});
   check_message(error_of(kGood, {"material.iron.young=1"}), {"--set material.iron.young", "iron"});
   check_message(error_of(kGood, {"nonsense"}), {"--set nonsense", "KEY=VALUE"});
+  // Found with fuzz/fuzz_set.cpp: a bare word that is not UTF-8 used to be kept
+  // as a string that the resolved scene text (written to the result file)
+  // could not reproduce ("a\xffb" came back as "a\u00FFb").
+  check_message(error_of(kGood, {"output.file=a\xff" "b.h5"}), {"--set output.file", "UTF-8"});
+  check_message(error_of(kGood, {"output.file=\xed\xa0\x80.h5"}), {"--set output.file", "UTF-8"});  // a surrogate
+  const Scene utf8 = load_scene(kGood, {"output.file=r\xc3\xa9sultat.h5"});
+  CHECK(utf8.output.file == "r\xc3\xa9sultat.h5");
+  CHECK(parse_scene(utf8.text, "resolved.toml").output.file == utf8.output.file);
+  // A table given whole on the command line: the message names the key missing inside it.
+  check_message(error_of(kGood, {"grid={}"}), {"--set grid", "missing", "'grid.lower'"});
 }
 
 TEST_CASE("otm in mpm mode is rejected") {
@@ -271,6 +283,28 @@ TEST_CASE("other out-of-range values") {
   check_message(error_of(kGood, {"simulation.mass=diagonal"}), {"--set simulation.mass"});
   check_message(error_of(kGood, {"simulation.dimension=2.0"}), {"--set simulation.dimension", "integer"});
   check_message(error_of(kGood, {"output.fields=[\"x\", \"velocity\"]"}), {"--set output.fields", "velocity"});
+}
+
+TEST_CASE("absurd sizes are rejected before the engine allocates anything") {
+  check_message(error_of(bad("huge_grid")),
+                {"huge_grid.toml:17: key 'grid.cells'", "1e+09 nodes", "at most 100000000"});
+  check_message(error_of(kGood, {"grid.h=1e-12"}), {"--set grid.h", "cells on axis 0"});
+  check_message(error_of(kGood, {"body.bar.particles_per_cell=101"}), {"--set body.bar.particles_per_cell", "[1, 100]"});
+  // ul mode: the body need not lie in the grid, but it is seeded in cells of grid.h.
+  check_message(error_of(kGood, {"simulation.mode=ul", "body.bar.upper=[1e6]"}),
+                {"--set body.bar.upper", "particle count", "at most 100000000"});
+  check_message(error_of(kGood, {"grid.lower=[-1e308]", "grid.upper=[1e308]"}), {"--set grid.upper", "overflows"});
+}
+
+TEST_CASE("scene_size counts the particles and nodes the engine creates") {
+  auto check_size = [](const auto& engine) {
+    const SceneSize n = scene_size(engine.scene());
+    CHECK(n.particles == engine.particles().size());
+    CHECK(n.nodes == engine.basis().nodes().size());
+  };
+  check_size(Engine<1>(load_scene(kGood)));
+  check_size(Engine<1>(load_scene(kGood, {"simulation.mode=ul", "body.bar.particles_per_cell=3"})));
+  check_size(Engine<2>(parse_scene(kPlate2D, "plate.toml")));
 }
 
 TEST_CASE("duplicate names are rejected") {

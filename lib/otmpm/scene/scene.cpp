@@ -179,6 +179,8 @@ public:
   [[noreturn]] void missing(std::string_view key, const std::string& what = "required key is missing") const {
     SourceRef r = ctx_->ref(key_path(key), nullptr, self_.line);
     if (r.line == 0) r.line = 1;
+    // A table written by --set: r names the --set KEY, so say which key inside it is missing.
+    if (r.line == kCommandLineLine) input_error(r, what + " ('" + key_path(key) + "')");
     input_error(r, what);
   }
 
@@ -377,6 +379,9 @@ std::array<int, 3> read_cells(const TableReader& t, const GridSection& g, int di
     for (int k = 0; k < dim; ++k) {
       check(h[k] > 0, t.ref("h"), "must be > 0 (got " + fmt(h[k]) + ")");
       const double n = (g.upper[k] - g.lower[k]) / h[k];
+      check(n <= kMaxSceneNodes, t.ref("h"),
+            "gives " + fmt(n) + " cells on axis " + std::to_string(k) + "; at most " + fmt(kMaxSceneNodes) +
+                " nodes are allowed");
       cells[k] = static_cast<int>(std::lround(n));
       check(cells[k] >= 1 && std::abs(n - cells[k]) <= kCellsTolerance * n, t.ref("h"),
             "does not divide the grid box into whole cells on axis " + std::to_string(k) + " ((upper - lower) / h = " +
@@ -408,6 +413,10 @@ GridSection read_grid(const TableReader& t, int dim) {
   g.lower = t.require_vec("lower", dim);
   g.upper = t.require_vec("upper", dim);
   check_box(t, g.lower, g.upper, dim, true);
+  for (int k = 0; k < dim; ++k)
+    check(std::isfinite(g.upper[k] - g.lower[k]), t.ref("upper"),
+          "upper - lower overflows on axis " + std::to_string(k) + " (lower " + fmt(g.lower[k]) + ", upper " +
+              fmt(g.upper[k]) + ")");
   g.cells = read_cells(t, g, dim);
   g.perturbation = t.get<double>("perturbation", g.perturbation);
   check(g.perturbation >= 0 && g.perturbation < 0.5, t.ref("perturbation"),
@@ -419,6 +428,39 @@ GridSection read_grid(const TableReader& t, int dim) {
 }
 
 double spacing(const GridSection& g, int k) { return (g.upper[k] - g.lower[k]) / g.cells[k]; }
+
+/// Cells of size h over an extent, rounded as the engine rounds them (at least one).
+double cells_over(double extent, double h) { return std::max(1.0, std::round(extent / h)); }
+
+/// The cells seed_particles fills in body `b` (see SceneSize).
+double body_cells(const BodySection& b, const GridSection& g, int dim) {
+  double n = 1;
+  for (int k = 0; k < dim; ++k) n *= cells_over(b.upper[k] - b.lower[k], spacing(g, k));
+  return n;
+}
+
+/// The particles seed_particles puts into body `b` (see SceneSize).
+double body_particles(const BodySection& b, const GridSection& g, int dim) {
+  return body_cells(b, g, dim) * std::pow(b.particles_per_cell, dim);
+}
+
+/// The nodes of the engine's node set (see SceneSize).
+double node_count(const Scene& s) {
+  double n = 1;
+  for (int k = 0; k < s.simulation.dimension; ++k) {
+    double cells = s.grid.cells[k];
+    if (s.simulation.mode == "ul" && !s.bodies.empty()) {
+      double lo = s.bodies.front().lower[k], hi = s.bodies.front().upper[k];
+      for (const BodySection& b : s.bodies) {
+        lo = std::min(lo, b.lower[k]);
+        hi = std::max(hi, b.upper[k]);
+      }
+      cells = cells_over(hi - lo, spacing(s.grid, k));
+    }
+    n *= cells + 1;
+  }
+  return n;
+}
 
 /// Reads a required non-empty `name` (or returns the default) and checks uniqueness.
 std::string read_name(const TableReader& t, bool required, const std::string& fallback, std::set<std::string>& seen) {
@@ -476,6 +518,7 @@ std::vector<BodySection> read_bodies(const TableReader& root, const Scene& s) {
   const int dim = s.simulation.dimension;
   std::vector<BodySection> out;
   std::set<std::string> names;
+  double particles = 0;
   for (const TableReader& t : tables) {
     t.only({"name", "material", "lower", "upper", "particles_per_cell", "placement", "velocity", "velocity_profile"});
     BodySection b;
@@ -489,12 +532,19 @@ std::vector<BodySection> read_bodies(const TableReader& root, const Scene& s) {
     b.upper = t.require_vec("upper", dim);
     check_box(t, b.lower, b.upper, dim, true);
     b.particles_per_cell = t.get<int>("particles_per_cell", b.particles_per_cell);
-    check(b.particles_per_cell >= 1, t.ref("particles_per_cell"),
-          "must be >= 1 (got " + std::to_string(b.particles_per_cell) + ")");
+    check(b.particles_per_cell >= 1 && b.particles_per_cell <= kMaxParticlesPerCell, t.ref("particles_per_cell"),
+          "must be in [1, " + std::to_string(kMaxParticlesPerCell) + "] (got " +
+              std::to_string(b.particles_per_cell) + ")");
     b.placement = t.choice("placement", b.placement, {"gauss", "cell_centres"});
     b.velocity = t.vec("velocity", dim).value_or(b.velocity);
     if (t.has("velocity_profile")) b.velocity_profile = t.choice("velocity_profile", "", {"sin_x"});
     if (s.simulation.mode == "mpm") check_body_in_grid(t, b, s.grid, dim);
+    particles += body_particles(b, s.grid, dim);
+    check(particles <= kMaxSceneParticles, box_ref(t),
+          "body \"" + b.name + "\" brings the particle count to " + fmt(particles) + " (" +
+              fmt(body_cells(b, s.grid, dim)) + " cells of the grid spacing, " +
+              fmt(std::pow(b.particles_per_cell, dim)) + " particles each); at most " + fmt(kMaxSceneParticles) +
+              " are allowed");
     out.push_back(std::move(b));
   }
   return out;
@@ -661,6 +711,16 @@ ReferenceSection read_reference(const TableReader& root) {
   return r;
 }
 
+/// The node set must stay within kMaxSceneNodes: the grid in mpm mode, the
+/// bodies' bounding box in ul mode (both in cells of grid.h).
+void check_node_count(const TableReader& grid, const Scene& s) {
+  const double n = node_count(s);
+  check(n <= kMaxSceneNodes, grid.ref(grid.has("h") ? "h" : "cells"),
+        "the node set would have " + fmt(n) + " nodes" +
+            (s.simulation.mode == "ul" ? " (the bodies' bounding box in cells of the grid spacing)" : "") +
+            "; at most " + fmt(kMaxSceneNodes) + " are allowed");
+}
+
 /// Checks that involve several sections, and derived basis parameters.
 void finish_basis(Scene& s, const TableReader& basis) {
   if (s.basis.kind != "ugimp") return;
@@ -681,9 +741,13 @@ Scene read_scene(const toml::table& root, Context& ctx) {
   const TableReader basis = r.require_table("basis");
   s.basis = read_basis(basis);
   s.basis_where = basis.self();
-  s.grid = read_grid(r.require_table("grid"), dim);
+  const TableReader grid = r.require_table("grid");
+  s.grid = read_grid(grid, dim);
+  const bool ul = s.simulation.mode == "ul";
+  if (!ul) check_node_count(grid, s);
   s.materials = read_materials(r);
   s.bodies = read_bodies(r, s);
+  if (ul) check_node_count(grid, s);
   s.initial_velocities = read_initial_velocities(r, dim);
   s.boundaries = read_boundaries(r, s.grid, dim);
   s.body_force = read_body_force(r, dim);
@@ -719,7 +783,32 @@ std::string trim(const std::string& s) {
   return s.substr(b, s.find_last_not_of(" \t") - b + 1);
 }
 
-/// VALUE as a TOML value; a bare word that is not valid TOML is a string.
+/// True when `s` is well-formed UTF-8 (RFC 3629: shortest form, no surrogates,
+/// at most U+10FFFF), as TOML requires of every string.
+bool valid_utf8(std::string_view s) {
+  constexpr char32_t kMinimum[] = {0, 0x80, 0x800, 0x10000}; // smallest code point per continuation count
+  for (std::size_t i = 0; i < s.size();) {
+    const auto lead = static_cast<unsigned char>(s[i]);
+    std::size_t more = 0;
+    char32_t cp = lead;
+    if (lead >= 0xF0 && lead < 0xF8) more = 3, cp = lead & 0x07u;
+    else if (lead >= 0xE0 && lead < 0xF0) more = 2, cp = lead & 0x0Fu;
+    else if (lead >= 0xC0 && lead < 0xE0) more = 1, cp = lead & 0x1Fu;
+    else if (lead >= 0x80) return false;
+    if (s.size() - i <= more) return false;
+    for (std::size_t j = 1; j <= more; ++j) {
+      const auto byte = static_cast<unsigned char>(s[i + j]);
+      if ((byte & 0xC0u) != 0x80u) return false;
+      cp = (cp << 6) | (byte & 0x3Fu);
+    }
+    if (cp < kMinimum[more] || cp > 0x10FFFF || (cp >= 0xD800 && cp <= 0xDFFF)) return false;
+    i += more + 1;
+  }
+  return true;
+}
+
+/// VALUE as a TOML value; a bare word that is not valid TOML is a string
+/// (if it is valid UTF-8: otherwise the resolved scene text would not read back).
 toml::table parse_value(const std::string& key, const std::string& value) {
   try {
     const std::string doc = "v = " + value + "\n";
@@ -728,6 +817,7 @@ toml::table parse_value(const std::string& key, const std::string& value) {
     const bool bare = !value.empty() && std::string("[{\"'").find(value.front()) == std::string::npos;
     if (!bare) throw InputError("--set " + key + ": cannot read '" + value + "' as a TOML value: " +
                                 std::string(e.description()));
+    if (!valid_utf8(value)) throw InputError("--set " + key + ": the value is not valid UTF-8 text");
     toml::table t;
     t.insert("v", value);
     return t;
@@ -819,6 +909,13 @@ Scene parse_scene(const std::string& text, const std::string& name, const std::v
   os << root << "\n";
   s.text = os.str();
   return s;
+}
+
+SceneSize scene_size(const Scene& scene) {
+  SceneSize n;
+  for (const BodySection& b : scene.bodies) n.particles += body_particles(b, scene.grid, scene.simulation.dimension);
+  n.nodes = node_count(scene);
+  return n;
 }
 
 Scene load_scene(const std::string& path, const std::vector<std::string>& overrides) {

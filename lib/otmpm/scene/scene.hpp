@@ -160,6 +160,26 @@ struct Scene {
   SourceRef locate(const std::string& key) const;
 };
 
+/// How many particles and nodes Engine<D>(scene) creates, counted the way the
+/// engine counts them but in doubles, so that absurd scenes do not overflow.
+/// Particles: per body, prod_k max(1, round((upper - lower) / h_k)) cells of
+/// particles_per_cell^dimension particles (h = grid spacing). Nodes:
+/// prod_k (cells_k + 1) over the grid (mode mpm) or over the bodies' bounding
+/// box in cells of size h (mode ul).
+struct SceneSize {
+  double particles = 0;
+  double nodes = 0;
+};
+SceneSize scene_size(const Scene& scene);
+
+/// Largest particle count and node count a scene may ask for: beyond them a
+/// run would not fit in memory (about 0.5 kB per particle) and int indices
+/// come close to overflowing. load_scene rejects larger scenes with an InputError.
+inline constexpr double kMaxSceneParticles = 1e8;
+inline constexpr double kMaxSceneNodes = 1e8;
+/// Largest body.particles_per_cell (per axis): the Gauss points cost O(n^2).
+inline constexpr int kMaxParticlesPerCell = 100;
+
 /// Reads and validates a scene file. `overrides` are "KEY=VALUE" strings from
 /// --set (KEY is the TOML path; an array of tables is addressed by its name:
 /// material.steel.young). Throws InputError naming file, line and key for

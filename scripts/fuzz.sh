@@ -1,0 +1,66 @@
+#!/usr/bin/env bash
+# Fuzzes the scene reader with libFuzzer (clang from Debian), ASan and UBSan.
+#
+#   bash scripts/fuzz.sh [SECONDS]     (default 60)
+#
+# Installs clang-14 and libclang-rt-14-dev if missing, builds build-fuzz/
+# (OTMPM_FUZZ=ON: only the library and the two targets) and runs
+# fuzz/fuzz_scene.cpp (scene text) for 3/4 of SECONDS and fuzz/fuzz_set.cpp
+# (--set overrides) for the rest, each with the dictionary fuzz/scene.dict. Seeds: every examples/**/*.toml and tests/scenes/**/*.toml
+# (copied into build-fuzz/seeds/ on each run) and fuzz/set.seeds; what the
+# fuzzer learns is kept in build-fuzz/corpus/ for the next run.
+# A finding - a crash, a sanitizer report, a leak, an input taking more than
+# 5 s or more than 2 GB of memory, an exception other than an InputError, an
+# InputError not starting with FILE:LINE: or --set KEY:, a resolved scene text
+# that does not read back to itself - makes the script print the saved input
+# and exit 1.
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+seconds=${1:-60}
+build=${OTMPM_FUZZ_BUILD_DIR:-$root/build-fuzz}
+cd "$root"
+
+bash "$root/scripts/install-deps.sh" clang-14 libclang-rt-14-dev
+
+# OpenMP off: clang would need libomp, and the reader is serial anyway.
+CC=clang-14 CXX=clang++-14 cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DOTMPM_FUZZ=ON \
+  -DOTMPM_OPENMP=OFF -DOTMPM_WERROR=ON -DOTMPM_BUILD_TESTS=OFF -DOTMPM_BUILD_BENCH=OFF >/dev/null
+cmake --build "$build" -j2 --target fuzz_scene fuzz_set
+
+seeds=$build/seeds
+rm -rf "$seeds"
+mkdir -p "$seeds/fuzz_scene" "$seeds/fuzz_set" "$build/corpus/fuzz_scene" "$build/corpus/fuzz_set" "$build/findings"
+find examples tests/scenes -name '*.toml' | while read -r f; do cp "$f" "$seeds/fuzz_scene/$(echo "$f" | tr / _)"; done
+n=0
+while IFS= read -r line; do
+  printf '%s' "$line" > "$seeds/fuzz_set/seed_$n"
+  n=$((n + 1))
+done < fuzz/set.seeds
+
+export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1}
+export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
+export OMP_NUM_THREADS=1
+
+# run TARGET SECONDS: fuzzes one target; returns libFuzzer's exit status.
+run() {
+  local target=$1 secs=$2
+  echo "== $target for $secs s"
+  "$build/fuzz/$target" "$build/corpus/$target" "$seeds/$target" -dict=fuzz/scene.dict \
+    -max_total_time="$secs" -timeout=5 -rss_limit_mb=2048 -print_final_stats=1 -print_funcs=0 \
+    -artifact_prefix="$build/findings/$target-"
+}
+
+scene_time=$(( seconds * 3 / 4 ))
+set_time=$(( seconds - scene_time ))
+status=0
+for target in fuzz_scene fuzz_set; do
+  if [ "$target" = fuzz_scene ]; then secs=$scene_time; else secs=$set_time; fi
+  run "$target" "$(( secs > 0 ? secs : 1 ))" || status=$?
+  if [ "$status" -ne 0 ]; then
+    input=$(ls -t "$build"/findings/"$target"-* 2>/dev/null | head -1)
+    echo "fuzz: FINDING in $target (libFuzzer exit status $status): ${input:-no input saved}" >&2
+    echo "reproduce: OTMPM_FUZZ_VERBOSE=1 $build/fuzz/$target ${input:-INPUT}" >&2
+    exit 1
+  fi
+done
+echo "fuzz: no finding in $seconds s"
