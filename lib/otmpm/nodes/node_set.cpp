@@ -283,12 +283,12 @@ bool lattice_span(const CartesianGrid<D>& g, int k, double u, double reach, doub
   const double a = (u - reach - g.lower[k]) * inv_h; // lattice coordinates of the span's ends
   const double b = (u + reach - g.lower[k]) * inv_h;
   if (!(a <= g.cells[k] + 1.0 && b >= -1.0)) return false; // misses the grid (or NaN)
-  // a >= b - 2 reach/h >= -1 - 2 reach/h, so a + shift > 0: truncation of
-  // the shifted values is floor, without a libm call. floor(a) <= ceil(a) - 1
-  // + 1 and floor(b) + 1 widen the span by up to one node on each side.
-  const double shift = 2.0 + 2.0 * reach * inv_h; // a + shift >= 1
-  lo = std::max(0, static_cast<int>(a + shift) - static_cast<int>(shift) - 1);
-  hi = std::min(g.cells[k], static_cast<int>(b + shift) - static_cast<int>(shift) + 1);
+  // Clamped to [-1, cells + 1] (any reach: no int overflow), a + 2 > 0 and
+  // b + 2 > 0, so truncation of the shifted values is floor without a libm
+  // call; -1 / +1 widen the span by up to one node on each side.
+  const double ac = std::max(a, -1.0) + 2.0, bc = std::min(b, g.cells[k] + 1.0) + 2.0;
+  lo = std::max(0, static_cast<int>(ac) - 2 - 1);
+  hi = std::min(g.cells[k], static_cast<int>(bc) - 2 + 1);
   return lo <= hi;
 }
 
