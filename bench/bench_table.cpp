@@ -13,6 +13,7 @@
 #include "otmpm/engine/engine.hpp"
 
 #include <sys/resource.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
@@ -178,7 +179,10 @@ int main(int argc, char** argv) {
   double rss = 0, rss_before = 0;
   long mem_particles = 0;
   if (!quick) {
-    const std::string cmd = std::string("/proc/self/exe --memory-child");
+    // The shell popen starts is /proc/self/exe in its own process: resolve ours first.
+    char exe[4096] = {};
+    const ssize_t len = readlink("/proc/self/exe", exe, sizeof exe - 1);
+    const std::string cmd = std::string(len > 0 ? exe : argv[0]) + " --memory-child";
     if (FILE* f = popen(cmd.c_str(), "r")) {
       if (std::fscanf(f, "%ld %lf %lf", &mem_particles, &rss, &rss_before) != 3) mem_particles = 0;
       pclose(f);
