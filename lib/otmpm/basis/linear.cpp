@@ -51,10 +51,10 @@ template <int M> struct AxisWeights {
   }
 };
 
-/// Calls emit(I, N, grad N) for the tensor product of the per-axis weights:
+/// Appends the tensor product of the per-axis weights to `out`:
 /// N = prod_k w_k, (grad N)_k = dw_k prod_{j != k} w_j (axis 0 fastest).
-template <int D, int M, class Emit>
-void tensor_product(const CartesianGrid<D>& g, const std::array<AxisWeights<M>, D>& axes, Emit&& emit) {
+template <int D, int M>
+void push_tensor_product(const CartesianGrid<D>& g, const std::array<AxisWeights<M>, D>& axes, Stencil<D>& out) {
   std::array<int, D> j{};
   for (;;) {
     Index<D> ijk;
@@ -65,7 +65,7 @@ void tensor_product(const CartesianGrid<D>& g, const std::array<AxisWeights<M>, 
       N *= axes[k].w[j[k]];
       for (int m = 0; m < D; ++m) grad[m] *= (m == k ? axes[k].dw[j[k]] : axes[k].w[j[k]]);
     }
-    emit(g.node_id(ijk), N, grad);
+    out.push(g.node_id(ijk), N, grad);
     int k = 0;
     for (; k < D; ++k) {
       if (++j[k] < axes[k].count) break;
@@ -73,12 +73,6 @@ void tensor_product(const CartesianGrid<D>& g, const std::array<AxisWeights<M>, 
     }
     if (k == D) return;
   }
-}
-
-/// Appends the tensor product of the per-axis weights to `out`.
-template <int D, int M>
-void push_tensor_product(const CartesianGrid<D>& g, const std::array<AxisWeights<M>, D>& axes, Stencil<D>& out) {
-  tensor_product<D, M>(g, axes, [&](int I, double N, const Vec<D>& grad) { out.push(I, N, grad); });
 }
 
 /// "(lower) .. (upper)" for messages.
@@ -271,6 +265,26 @@ public:
   bool evaluate_fixed(const PointQuery<D>& q, int* node, double* N, Vec<D>* dN) const override {
     if (!nodes_.on_lattice()) return false;
     require_finite_query(kind(), q);
+    lattice_hats(q, node, N, dN);
+    return true;
+  }
+
+private:
+  /// Hat functions of the cell containing x. A point on an interior cell face
+  /// belongs to the cell above it (the one floor() picks); on the upper grid
+  /// boundary to the last cell. All 2^D vertices are kept, also those with
+  /// N = 0 on a face, because their one-sided gradient is not zero.
+  void evaluate_on_lattice(const PointQuery<D>& q, Stencil<D>& out) const {
+    out.node.resize(kCorners<D>);
+    out.N.resize(kCorners<D>);
+    out.dN.resize(kCorners<D>);
+    lattice_hats(q, out.node.data(), out.N.data(), out.dN.data());
+  }
+
+  /// The 2^D hat functions of the cell containing q.x into node/N/dN: corner
+  /// a has bit k set when it is the upper node on axis k (axis 0 fastest), N
+  /// and each component of grad N formed as products in axis order.
+  void lattice_hats(const PointQuery<D>& q, int* node, double* N, Vec<D>* dN) const {
     if (!in_grid(grid_, q.x))
       throw BasisError("linear basis: " + point_text(q) + " is outside the grid " + box_text(grid_));
     std::array<double, D> t, inv_h;
@@ -297,7 +311,7 @@ public:
       Vec<D> g;
       for (int k = 0; k < D; ++k) {
         n *= w[k];
-        double gk = 1.0; // the product in axis order, as evaluate() forms it
+        double gk = 1.0; // the product in axis order
         for (int j = 0; j < D; ++j) gk *= j != k ? w[j] : (((a >> k) & 1) ? inv_h[k] : -inv_h[k]);
         g[k] = gk;
       }
@@ -305,35 +319,6 @@ public:
       N[a] = n;
       dN[a] = g;
     }
-    if (q.cell_hint) *q.cell_hint = cell;
-    return true;
-  }
-
-private:
-  /// Hat functions of the cell containing x. A point on an interior cell face
-  /// belongs to the cell above it (the one floor() picks); on the upper grid
-  /// boundary to the last cell. All 2^D vertices are kept, also those with
-  /// N = 0 on a face, because their one-sided gradient is not zero.
-  void evaluate_on_lattice(const PointQuery<D>& q, Stencil<D>& out) const {
-    lattice_weights(q, [&](int I, double N, const Vec<D>& grad) { out.push(I, N, grad); });
-  }
-
-  /// The 2^D hat functions of the cell containing q.x, passed to emit(I, N, grad N).
-  template <class Emit> void lattice_weights(const PointQuery<D>& q, Emit&& emit) const {
-    if (!in_grid(grid_, q.x))
-      throw BasisError("linear basis: " + point_text(q) + " is outside the grid " + box_text(grid_));
-    std::array<AxisWeights<2>, D> axes;
-    Index<D> cell;
-    const Vec<D>& h = h_;
-    for (int k = 0; k < D; ++k) {
-      const double s = (q.x[k] - grid_.lower[k]) / h[k];
-      const int i = std::clamp(static_cast<int>(std::floor(s)), 0, grid_.cells[k] - 1);
-      const double t = std::clamp(s - i, 0.0, 1.0);
-      axes[k].push(i, 1.0 - t, -1.0 / h[k]);
-      axes[k].push(i + 1, t, 1.0 / h[k]);
-      cell[k] = i;
-    }
-    tensor_product<D, 2>(grid_, axes, emit);
     if (q.cell_hint) *q.cell_hint = cell;
   }
 

@@ -351,8 +351,7 @@ void Engine<D>::to_nodes_impl(const ToNodes<D>& what) {
   if (Mass) std::fill(nodal_.m.begin(), nodal_.m.end(), 0.0);
   if (Momentum) std::fill(nodal_.q.begin(), nodal_.q.end(), Vec<D>::Zero());
   if (Forces) std::fill(nodal_.f.begin(), nodal_.f.end(), Vec<D>::Zero());
-  const Vec<D> b = uniform_body_force_ ? Vec<D>(body_force_ * (scene_.body_force ? time_function(scene_.body_force->time, what.t) : 1.0))
-                                       : Vec<D>::Zero();
+  const Vec<D> b = uniform_body_force_ ? body_force_at(what.t) : Vec<D>::Zero();
   const bool field = !fext_.empty(), uniform = uniform_body_force_;
   struct Payload { // what particle p carries to each of its nodes
     double m;
@@ -410,7 +409,7 @@ template <int D>
 template <class Visit>
 void Engine<D>::for_each_external_force(double t, Visit&& visit) const {
   if (has_body_force_) {
-    const Vec<D> b = body_force_ * (scene_.body_force ? time_function(scene_.body_force->time, t) : 1.0);
+    const Vec<D> b = body_force_at(t);
     const bool mms = exact_ && exact_->has_body_force();
     for (int p = 0; p < P_.size(); ++p)
       visit(p, Vec<D>(P_.m[p] * (mms ? Vec<D>(b + exact_->body_force(P_.X[p], t)) : b)));
@@ -422,9 +421,13 @@ void Engine<D>::for_each_external_force(double t, Visit&& visit) const {
   }
 }
 
+template <int D> Vec<D> Engine<D>::body_force_at(double t) const {
+  return body_force_ * (scene_.body_force ? time_function(scene_.body_force->time, t) : 1.0);
+}
+
 template <int D> double Engine<D>::external_power(double t) const {
   if (uniform_body_force_) // sum_p m_p b(t) . v_p = b(t) . sum_p m_p v_p
-    return (body_force_ * (scene_.body_force ? time_function(scene_.body_force->time, t) : 1.0)).dot(momentum());
+    return body_force_at(t).dot(momentum());
   double power = 0.0;
   for_each_external_force(t, [&](int p, const Vec<D>& force) { power += force.dot(P_.v[p]); });
   return power;
@@ -600,20 +603,15 @@ template <int D> Vec<D> Engine<D>::momentum() const {
   return blocked_reduce<VecSum<D>>(P_.size(), [&](long long p, VecSum<D>& s) { s.v += P_.m[p] * P_.v[p]; }).v;
 }
 
-template <int D> void Engine<D>::update_energy() {
-  const ParticleSums s = blocked_reduce<ParticleSums>(P_.size(), [&](long long p, ParticleSums& acc) {
-    acc.kinetic += 0.5 * P_.m[p] * P_.v[p].squaredNorm();
-    acc.strain += P_.V[p] * strain_energy_density<D>(P_.sigma[p], P_.eps[p]);
-  });
-  energy_.kinetic = s.kinetic;
-  energy_.strain = s.strain;
-}
+template <int D> void Engine<D>::update_energy() { sum_particles(false); }
 
-template <int D> void Engine<D>::after_step() {
+template <int D> void Engine<D>::after_step() { sum_particles(true); }
+
+template <int D> void Engine<D>::sum_particles(bool check) {
   // Checks in particle order within each chunk: the lowest failing particle
   // is reported, as a serial loop would.
   const ParticleSums s = blocked_reduce<ParticleSums>(P_.size(), [&](long long p, ParticleSums& acc) {
-    check_particle(static_cast<int>(p));
+    if (check) check_particle(static_cast<int>(p));
     const double v2 = P_.v[p].squaredNorm();
     acc.kinetic += 0.5 * P_.m[p] * v2;
     acc.strain += P_.V[p] * strain_energy_density<D>(P_.sigma[p], P_.eps[p]);
@@ -650,10 +648,6 @@ template <int D> void Engine<D>::check_particle(int p) const {
 
 template <int D> void Engine<D>::check_particles_inside() const {
   if (mode_ != NodeMode::mpm) return;
-  for (int p = 0; p < P_.size(); ++p) check_particle(p);
-}
-
-template <int D> void Engine<D>::check_state() const {
   for (int p = 0; p < P_.size(); ++p) check_particle(p);
 }
 

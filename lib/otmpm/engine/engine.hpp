@@ -154,7 +154,7 @@ public:
   bool scatter_blocked() const { return blocks_.compact; }
   /// Total momentum sum_p m_p v_p.
   Vec<D> momentum() const;
-  /// Recomputes the kinetic and strain energy.
+  /// Recomputes the kinetic and strain energy (and the wave speed of the next dt).
   void update_energy();
   /// Throws InstabilityError when kinetic + strain energy exceeds
   /// energy_limit * (initial energy + |external work| + |reaction work| +
@@ -204,20 +204,26 @@ public:
   void interpolate(const AlignedVector<Vec<D>>& y, AlignedVector<Vec<D>>& out) const;
   /// x_I += dx_I in `ul` mode (no-op in `mpm`): the node-mode switch.
   void advect_nodes(const AlignedVector<Vec<D>>& dx);
-  /// Throws InstabilityError if particle p is outside the domain of the basis.
+  /// Throws InstabilityError (check_particle) for the first particle, in
+  /// `mpm` mode, that is not finite, outside the grid or about to leave it.
   void check_particles_inside() const;
 
 private:
   void build_nodes_and_basis();
   void build_dirichlet();
   void build_tractions();
-  void check_state() const;
   /// The checks of particle p: finite position, velocity and stress; in
   /// `mpm` mode inside the grid, and not about to leave it in the next step.
   void check_particle(int p) const;
-  /// One pass after each step: the state checks of check_state(), the
+  /// One pass after each step: check_particle() for every particle, the
   /// energies and the wave speed for the next stable_dt().
   void after_step();
+  /// The pass of after_step() and update_energy(): kinetic and strain energy
+  /// and the wave speed max_p max(c_p, |v_p|), with the particle checks when
+  /// `check` is set.
+  void sum_particles(bool check);
+  /// The uniform body force b g(t) of the scene at time t.
+  Vec<D> body_force_at(double t) const;
   /// The particle-to-node sum: for every basis table entry e (particle p,
   /// node I) add(acc_I, e, prep(p)), then merge(I, acc_I) into the nodal
   /// fields. Particles are cut into fixed blocks of scatter_block; each block
