@@ -90,12 +90,13 @@ template <int D> struct TableChunk {
 /// The query for point p of a table fill.
 template <int D>
 PointQuery<D> point_query(const AlignedVector<Vec<D>>& x, AlignedVector<Vec<D>>* lambda,
-                          std::vector<Index<D>>* cell_hint, int p) {
+                          std::vector<Index<D>>* cell_hint, int p, NeighbourLists<D>* neighbours) {
   PointQuery<D> q;
   q.x = x[p];
   q.id = p;
   q.lambda = lambda ? &(*lambda)[p] : nullptr;
   q.cell_hint = cell_hint ? &(*cell_hint)[p] : nullptr;
+  q.neighbours = neighbours;
   return q;
 }
 
@@ -110,7 +111,7 @@ template <int D> BasisError point_error(const AlignedVector<Vec<D>>& x, int p, c
 /// stencil size; the caller then takes the general path.
 template <int D>
 bool fill_fixed(const Basis<D>& basis, int S, const AlignedVector<Vec<D>>& x, AlignedVector<Vec<D>>* lambda,
-                std::vector<Index<D>>* cell_hint, BasisTable<D>& table) {
+                std::vector<Index<D>>* cell_hint, NeighbourLists<D>* neighbours, BasisTable<D>& table) {
   const int n = static_cast<int>(x.size());
   const std::size_t entries = static_cast<std::size_t>(n) * static_cast<std::size_t>(S);
   table.offset.resize(static_cast<std::size_t>(n) + 1);
@@ -123,7 +124,7 @@ bool fill_fixed(const Basis<D>& basis, int S, const AlignedVector<Vec<D>>& x, Al
     for (int p = static_cast<int>(begin); p < end; ++p) {
       const std::size_t e0 = static_cast<std::size_t>(p) * static_cast<std::size_t>(S);
       table.offset[static_cast<std::size_t>(p)] = static_cast<int>(e0);
-      const PointQuery<D> q = point_query<D>(x, lambda, cell_hint, p);
+      const PointQuery<D> q = point_query<D>(x, lambda, cell_hint, p, neighbours);
       try {
         if (basis.evaluate_fixed(q, &table.node[e0], &table.N[e0], &table.dN[e0])) continue;
         basis.evaluate(q, st);
@@ -146,7 +147,7 @@ bool fill_fixed(const Basis<D>& basis, int S, const AlignedVector<Vec<D>>& x, Al
 /// One thread: every row appended straight to the table (no chunk copy).
 template <int D>
 void fill_serial(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, AlignedVector<Vec<D>>* lambda,
-                 std::vector<Index<D>>* cell_hint, BasisTable<D>& table) {
+                 std::vector<Index<D>>* cell_hint, NeighbourLists<D>* neighbours, BasisTable<D>& table) {
   thread_local Stencil<D> st;
   const int n = static_cast<int>(x.size());
   table.offset.resize(static_cast<std::size_t>(n) + 1);
@@ -156,7 +157,7 @@ void fill_serial(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, AlignedV
   table.dN.clear();
   for (int p = 0; p < n; ++p) {
     try {
-      basis.evaluate(point_query<D>(x, lambda, cell_hint, p), st);
+      basis.evaluate(point_query<D>(x, lambda, cell_hint, p, neighbours), st);
     } catch (const BasisError& e) {
       throw point_error<D>(x, p, e);
     }
@@ -170,12 +171,12 @@ void fill_serial(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, AlignedV
 /// Evaluates particles [begin, end) into `c`; stops at the first error.
 template <int D>
 void fill_chunk(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, AlignedVector<Vec<D>>* lambda,
-                std::vector<Index<D>>* cell_hint, int begin, int end, TableChunk<D>& c) {
+                std::vector<Index<D>>* cell_hint, NeighbourLists<D>* neighbours, int begin, int end, TableChunk<D>& c) {
   c.clear();
   c.count.reserve(static_cast<std::size_t>(end - begin));
   for (int p = begin; p < end; ++p) {
     try {
-      basis.evaluate(point_query<D>(x, lambda, cell_hint, p), c.stencil);
+      basis.evaluate(point_query<D>(x, lambda, cell_hint, p, neighbours), c.stencil);
     } catch (const BasisError& e) {
       c.error = std::make_exception_ptr(point_error<D>(x, p, e));
       return;
@@ -224,17 +225,21 @@ void size_table(std::vector<int>& rows, std::vector<int>& entries, int team, Bas
 template <int D>
 void fill_basis_table(const Basis<D>& basis, const AlignedVector<Vec<D>>& x,
                       std::type_identity_t<AlignedVector<Vec<D>>>* lambda,
-                      std::type_identity_t<std::vector<Index<D>>>* cell_hint, BasisTable<D>& table) {
+                      std::type_identity_t<std::vector<Index<D>>>* cell_hint, BasisTable<D>& table,
+                      std::type_identity_t<NeighbourLists<D>>* neighbours) {
   check_table_arguments<D>(x, lambda, cell_hint);
   const int n = static_cast<int>(x.size());
   if (lambda && lambda->empty()) lambda = nullptr;
   if (cell_hint && cell_hint->empty()) cell_hint = nullptr;
 
   basis.nodes().prepare_search(); // build the R-tree before threads query it
-  if (const int S = basis.fixed_stencil(); S > 0 && fill_fixed<D>(basis, S, x, lambda, cell_hint, table)) return;
+  if (neighbours && basis.search_radius() > 0.0) neighbours->prepare(basis.nodes(), n, basis.search_radius());
+  else neighbours = nullptr;
+  if (const int S = basis.fixed_stencil(); S > 0 && fill_fixed<D>(basis, S, x, lambda, cell_hint, neighbours, table))
+    return;
 
   const int threads = team_size(n);
-  if (threads == 1) return fill_serial<D>(basis, x, lambda, cell_hint, table);
+  if (threads == 1) return fill_serial<D>(basis, x, lambda, cell_hint, neighbours, table);
   std::vector<std::exception_ptr> errors(static_cast<std::size_t>(threads));
   std::vector<int> rows(static_cast<std::size_t>(threads) + 1, 0), entries = rows;
   bool failed = false;
@@ -253,7 +258,7 @@ void fill_basis_table(const Basis<D>& basis, const AlignedVector<Vec<D>>& x,
     // Contiguous static chunk t of `team`, in particle order.
     const long long begin = static_cast<long long>(n) * t / team;
     const long long end = static_cast<long long>(n) * (t + 1) / team;
-    fill_chunk<D>(basis, x, lambda, cell_hint, static_cast<int>(begin), static_cast<int>(end), chunk);
+    fill_chunk<D>(basis, x, lambda, cell_hint, neighbours, static_cast<int>(begin), static_cast<int>(end), chunk);
     errors[t] = chunk.error;
     rows[t + 1] = static_cast<int>(chunk.count.size());
     entries[t + 1] = static_cast<int>(chunk.node.size());
@@ -323,7 +328,7 @@ template <int D> void transpose_basis_table(const BasisTable<D>& table, int node
 #define OTMPM_INSTANTIATE_BASIS(D)                                                                      \
   template std::unique_ptr<Basis<D>> make_basis<D>(const BasisOptions&, NodeSet<D>);                    \
   template void fill_basis_table<D>(const Basis<D>&, const AlignedVector<Vec<D>>&, AlignedVector<Vec<D>>*, \
-                                    std::vector<Index<D>>*, BasisTable<D>&);          \
+                                    std::vector<Index<D>>*, BasisTable<D>&, NeighbourLists<D>*);          \
   template void transpose_basis_table<D>(const BasisTable<D>&, int, NodeColumns&);
 OTMPM_INSTANTIATE_BASIS(1)
 OTMPM_INSTANTIATE_BASIS(2)

@@ -5,6 +5,7 @@
 /// Families: linear, ugimp, bspline2, bspline3, lme, maxent. Every integrator
 /// consumes a BasisTable filled once per step, without knowing the family.
 #include "otmpm/core.hpp"
+#include "otmpm/nodes/neighbour_lists.hpp"
 #include "otmpm/nodes/node_set.hpp"
 
 #include <memory>
@@ -45,6 +46,10 @@ template <int D> struct PointQuery {
   /// Cell hint for structured layouts (lattice index of the containing cell
   /// from the previous step), or null. Updated by families that use it.
   Index<D>* cell_hint = nullptr;
+  /// Verlet lists of the points of a table fill, or null: families that
+  /// search nodes within search_radius() take the candidates of point `id`
+  /// from them (same result as the direct search, less work).
+  NeighbourLists<D>* neighbours = nullptr;
 };
 
 /// Throws BasisError "KIND basis: point ID at (x, y): the position is not
@@ -93,6 +98,9 @@ public:
   virtual bool linearly_complete() const = 0;
   /// Upper bound on the stencil size (for buffer reservation).
   virtual int max_stencil() const = 0;
+  /// Radius of the neighbour search of evaluate() (NodeSet::within) for the
+  /// families that search (LME, max-ent), else 0.
+  virtual double search_radius() const { return 0.0; }
   /// The stencil size when every point has the same one (linear: 2^D,
   /// B-splines: (p+1)^D), else 0. fill_basis_table then writes rows in place.
   virtual int fixed_stencil() const { return 0; }
@@ -157,15 +165,19 @@ template <int D> void transpose_basis_table(const BasisTable<D>& table, int node
 /// Evaluates `basis` at every point x[p] into `table` (OpenMP over particles;
 /// the result does not depend on the thread count). lambda (may be empty) is
 /// the per-point warm start of LME/max-ent, updated in place; cell_hint (may be
-/// empty) the per-point cell hint. A BasisError is rethrown with the point's
-/// index prepended. Throws std::invalid_argument when a non-empty lambda or
-/// cell_hint does not have one entry per point. (lambda and cell_hint are non-deduced: D comes from the
-/// basis, so nullptr may be passed, and std::array's size_t extent need not
-/// deduce the int D.)
+/// empty) the per-point cell hint; neighbours (may be null) the Verlet lists
+/// of the points, used when the family searches nodes (search_radius() > 0)
+/// and kept from call to call - the table is the same with or without them.
+/// A BasisError is rethrown with the point's index prepended. Throws
+/// std::invalid_argument when a non-empty lambda or cell_hint does not have
+/// one entry per point. (lambda, cell_hint and neighbours are non-deduced: D
+/// comes from the basis, so nullptr may be passed, and std::array's size_t
+/// extent need not deduce the int D.)
 template <int D>
 void fill_basis_table(const Basis<D>& basis, const AlignedVector<Vec<D>>& x,
                       std::type_identity_t<AlignedVector<Vec<D>>>* lambda,
                       std::type_identity_t<std::vector<Index<D>>>* cell_hint,
-                      BasisTable<D>& table);
+                      BasisTable<D>& table,
+                      std::type_identity_t<NeighbourLists<D>>* neighbours = nullptr);
 
 } // namespace otmpm

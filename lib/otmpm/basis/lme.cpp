@@ -33,6 +33,20 @@
 //   When every exponent changes by at most kSafeExponentChange = 0.25 the
 //   Armijo condition provably holds (see the constant) and log Z is not
 //   evaluated: the quadratic phase costs no extra exp() pass.
+// * Cost (issue 7). The support is held in structure-of-arrays form (one
+//   array per axis of x - x_I, log w_I, N_I), padded to whole short vectors
+//   (simd.hpp: two lanes with SSE2, four with AVX), and every pass over the
+//   nodes - exponents, exp(), the sums for r and J, the exponent changes of
+//   the line search - runs on those vectors; exp() is a branch-free vector
+//   kernel equal to exp_shifted bit for bit. After the first evaluation of a
+//   solve, an accepted step whose exponent changes u_I = t s.(x - x_I) are
+//   all below kTaylorLarge updates N_I <- N_I e^u_I / sum_J N_J e^u_J with a
+//   short Taylor polynomial for e^u (1 ulp) instead of an exponential per
+//   node; from a warm start that is every step (|u_I| ~ 1e-3). log Z is
+//   only formed when the line search compares two values of it.
+//   The candidates of the neighbour search come from the particle's Verlet
+//   list (nodes/neighbour_lists.hpp) when the engine passes one: the same
+//   nodes in the same order as NodeSet::within, without searching.
 // * Warm start from *q.lambda; if the warm-started solve fails for any reason
 //   it is repeated once from lambda = 0 (a stale multiplier from a far-away
 //   previous position must not turn into an error). The iteration count
@@ -144,53 +158,101 @@ constexpr double kMaxBucketsPerNode = 16.0;  ///< coarsen buckets beyond this ma
 constexpr double kMinBuckets = 4096.0;
 constexpr double kBucketSafety = 1e-9;       ///< relative slack on the bucket distance test
 
-/// The support of one point: offsets dx_I = x - x_I and log-priors
-/// a_I = log w_I; and two buffers for N_I (the current state and a trial
-/// state of the line search; the solver swaps them on acceptance).
-template <int D> struct Support {
-  const Vec<D>* dx;
-  const double* log_w;
-  int n;
-  double* p;     ///< N_I at the current lambda
-  double* trial; ///< scratch of the same length
-};
+/// Largest |u_I| = |s . (x - x_I)| of an accepted Newton step for which the
+/// new N_I are computed from the current ones, N_I exp(u_I) / sum_J N_J
+/// exp(u_J), with exp by a Taylor polynomial (simd::exp_small) instead of a
+/// full exponential per node: degree 5 up to 2^-8, degree 8 up to 2^-4 (both
+/// within 1 ulp); beyond, the exponents are evaluated afresh. In the quadratic
+/// phase of a warm-started solve |u_I| is ~1e-3, so every step after the first
+/// evaluation costs a few multiplications per node.
+constexpr double kTaylorSmall = 0x1p-8;
+constexpr double kTaylorLarge = 0x1p-4;
 
-/// N_I (into p), r, J and log Z at lambda (molinos eqs. 36-40) with shifted
-/// exponents; J is accumulated in the centred form
-/// sum N_I (dx_I - r)(dx_I - r)^T (no cancellation near the hull boundary).
-/// Returns false when not finite.
-template <int D> bool dual_state(const Vec<D>& lambda, const Support<D>& s, double* p, NewtonState<D>& st) {
-  double fmax = -std::numeric_limits<double>::infinity();
-  double fabs_max = 0.0;
-  for (int i = 0; i < s.n; ++i) {
-    p[i] = s.log_w[i] + lambda.dot(s.dx[i]);
-    fmax = std::max(fmax, p[i]);
-    fabs_max = std::max(fabs_max, std::abs(p[i]));
-  }
-  if (!std::isfinite(fmax)) return false;
-  double Z = 0.0;
-  Vec<D> r = Vec<D>::Zero();
-  for (int i = 0; i < s.n; ++i) {
-    p[i] = exp_shifted(p[i] - fmax);
-    Z += p[i];
-    r.noalias() += p[i] * s.dx[i];
-  }
+/// u_i = step . dx_i for the four entries from i.
+template <int D> simd::vd exponent_increment(const Vec<D>& step, const Support<D>& s, int i) {
+  simd::vd u = step[0] * simd::load(s.dx[0] + i);
+  for (int k = 1; k < D; ++k) u += step[k] * simd::load(s.dx[k] + i);
+  return u;
+}
+
+/// From unnormalised weights e_I (in p, with their sum Z and the first
+/// moment sum e_I dx_I in r): N_I = e_I / Z into p, r = sum N_I dx_I, and J
+/// in the centred form sum N_I (dx_I - r)(dx_I - r)^T (no cancellation next
+/// to the hull boundary). Returns false when r or J is not finite.
+template <int D> bool normalise_state(const Support<D>& s, double* p, double Z, Vec<D> r, NewtonState<D>& st) {
+  using simd::vd;
   const double inv_Z = 1.0 / Z;
   r *= inv_Z;
-  Mat<D> J = Mat<D>::Zero();
-  double psum = 0.0;
-  for (int i = 0; i < s.n; ++i) {
-    p[i] *= inv_Z;
-    psum += p[i];
-    const Vec<D> c = s.dx[i] - r;
-    J.noalias() += (p[i] * c) * c.transpose();
+  vd psum = simd::broadcast(0.0), J[D][D] = {};
+  for (int i = 0; i < s.n_pad; i += simd::lanes) {
+    const vd pi = simd::load(p + i) * inv_Z;
+    simd::store(p + i, pi);
+    psum += pi;
+    vd c[D];
+    for (int k = 0; k < D; ++k) c[k] = simd::load(s.dx[k] + i) - r[k];
+    for (int k = 0; k < D; ++k)
+      for (int l = 0; l <= k; ++l) J[k][l] += pi * c[k] * c[l];
   }
+  for (int k = 0; k < D; ++k)
+    for (int l = 0; l <= k; ++l) st.J(k, l) = st.J(l, k) = simd::sum(J[k][l]);
   st.r = r;
-  st.J = J;
-  st.psum = psum;
-  st.log_Z = fmax + std::log(Z);
-  st.log_Z_error = kLogZRoundoff * (1.0 + fabs_max);
-  return r.allFinite() && J.allFinite() && std::isfinite(st.log_Z);
+  st.psum = simd::sum(psum);
+  return r.allFinite() && st.J.allFinite();
+}
+
+/// Sums the weights e_I in p (Z) and their first moment sum e_I dx_I.
+template <int D> void weight_sums(const Support<D>& s, const double* p, double& Z, Vec<D>& moment) {
+  using simd::vd;
+  vd z = simd::broadcast(0.0), m[D] = {};
+  for (int i = 0; i < s.n_pad; i += simd::lanes) {
+    const vd e = simd::load(p + i);
+    z += e;
+    for (int k = 0; k < D; ++k) m[k] += e * simd::load(s.dx[k] + i);
+  }
+  Z = simd::sum(z);
+  for (int k = 0; k < D; ++k) moment[k] = simd::sum(m[k]);
+}
+
+/// N_I (into p), r, J and log Z at lambda (molinos eqs. 36-40), exponents
+/// f_I = log w_I + lambda . dx_I shifted by their maximum before exp().
+/// Returns false when not finite.
+template <int D> bool dual_state(const Vec<D>& lambda, const Support<D>& s, double* p, NewtonState<D>& st) {
+  using simd::vd;
+  vd fmax = simd::broadcast(-std::numeric_limits<double>::infinity());
+  for (int i = 0; i < s.n_pad; i += simd::lanes) {
+    const vd f = simd::load(s.log_w + i) + exponent_increment<D>(lambda, s, i);
+    simd::store(p + i, f);
+    fmax = simd::max(fmax, f);
+  }
+  st.log_base = simd::max_lane(fmax);
+  if (!std::isfinite(st.log_base)) return false;
+  for (int i = 0; i < s.n_pad; i += simd::lanes) simd::store(p + i, simd::exp_shifted(simd::load(p + i) - st.log_base));
+  Vec<D> moment;
+  weight_sums<D>(s, p, st.Z, moment);
+  return normalise_state<D>(s, p, st.Z, moment, st) && std::isfinite(st.log_Z());
+}
+
+/// The state at lambda + step from the state `st` at lambda (N_I in p,
+/// updated in place): N_I exp(u_I) renormalised, u_I = step . dx_I, with
+/// max |u_I| <= u_max <= kTaylorLarge (exp by its Taylor polynomial).
+template <int D> bool shifted_state(const Vec<D>& step, const Support<D>& s, double* p, double u_max, NewtonState<D>& st) {
+  for (int i = 0; i < s.n_pad; i += simd::lanes) {
+    const simd::vd u = exponent_increment<D>(step, s, i);
+    const simd::vd e = u_max <= kTaylorSmall ? simd::exp_small<5>(u) : simd::exp_small<8>(u);
+    simd::store(p + i, simd::load(p + i) * e);
+  }
+  double Z;
+  Vec<D> moment;
+  weight_sums<D>(s, p, Z, moment);
+  st.Z *= Z; // log Z(lambda + step) = log Z(lambda) + log sum_I N_I e^u_I
+  return normalise_state<D>(s, p, Z, moment, st) && std::isfinite(st.log_Z());
+}
+
+/// Bound on the round-off of log Z at lambda: kLogZRoundoff (1 + max_I |f_I|).
+template <int D> double log_Z_error(const Vec<D>& lambda, const Support<D>& s) {
+  double fabs_max = 0.0;
+  for (int i = 0; i < s.n; ++i) fabs_max = std::max(fabs_max, std::abs(s.log_w[i] + lambda.dot(s.offset(i))));
+  return kLogZRoundoff * (1.0 + fabs_max);
 }
 
 /// J^{-1} through the symmetric diagonal scaling Js = S J S, S =
@@ -232,13 +294,15 @@ struct ExponentChange {
 };
 
 template <int D> ExponentChange exponent_change(const Vec<D>& step, const Support<D>& s) {
-  ExponentChange c;
-  c.max = -std::numeric_limits<double>::infinity();
-  for (int i = 0; i < s.n; ++i) {
-    const double u = step.dot(s.dx[i]);
-    c.max = std::max(c.max, u);
-    c.max_abs = std::max(c.max_abs, std::abs(u));
+  simd::vd hi = simd::broadcast(-std::numeric_limits<double>::infinity()), neg = hi; // max u, max -u
+  for (int i = 0; i < s.n_pad; i += simd::lanes) { // padding has u = 0: harmless
+    const simd::vd u = exponent_increment<D>(step, s, i);
+    hi = simd::max(hi, u);
+    neg = simd::max(neg, -u);
   }
+  ExponentChange c;
+  c.max = simd::max_lane(hi);
+  c.max_abs = std::max(c.max, simd::max_lane(neg));
   return c;
 }
 
@@ -250,10 +314,10 @@ template <int D>
 double log_partition_change(const Vec<D>& step, const Support<D>& s, double psum, double umax) {
   double sum = 0.0;
   if (umax <= kPreciseFormMaxExponent) {
-    for (int i = 0; i < s.n; ++i) sum += s.p[i] * std::expm1(step.dot(s.dx[i]));
+    for (int i = 0; i < s.n; ++i) sum += s.p[i] * std::expm1(step.dot(s.offset(i)));
     return std::log1p(sum / psum);
   }
-  for (int i = 0; i < s.n; ++i) sum += s.p[i] * std::exp(step.dot(s.dx[i]) - umax);
+  for (int i = 0; i < s.n; ++i) sum += s.p[i] * std::exp(step.dot(s.offset(i)) - umax);
   return umax + std::log(sum / psum);
 }
 
@@ -262,21 +326,24 @@ enum class LineSearch { accepted, accepted_evaluated, stalled };
 
 /// Armijo backtracking along `step` from the state `st` (see the file
 /// comment). On `accepted_evaluated` the new state (with N_I in s.trial) is
-/// already in `next`; on `accepted` it still has to be computed.
+/// already in `next`; on `accepted` it still has to be computed, and u_max
+/// holds max_I |t step . dx_I| of the accepted step.
 template <int D>
 LineSearch line_search(const Support<D>& s, const Vec<D>& lambda, const Vec<D>& step, const NewtonState<D>& st,
-                       double& t, NewtonState<D>& next) {
+                       double& t, double& u_max, NewtonState<D>& next) {
   const double slope = st.r.dot(step); // = -r^T J^{-1} r < 0
+  double roundoff = -1.0;              // log Z round-off, computed when first needed
   t = 1.0;
   for (int k = 0; k <= kMaxBacktracks; ++k, t *= kBacktrack) {
     const ExponentChange u = exponent_change<D>(t * step, s);
+    u_max = u.max_abs;
     if (u.max_abs <= kSafeExponentChange) return LineSearch::accepted; // Armijo holds
     const double wanted = kArmijo * t * slope;
-    if (-wanted > kResolvableFactor * st.log_Z_error) {
+    if (roundoff < 0.0) roundoff = log_Z_error<D>(lambda, s);
+    if (-wanted > kResolvableFactor * roundoff) {
       // the decrease is far above the round-off of log Z: compare two log Z
       // values, and keep the trial state when it is accepted
-      if (dual_state<D>(lambda + t * step, s, s.trial, next) &&
-          next.log_Z - st.log_Z <= wanted)
+      if (dual_state<D>(lambda + t * step, s, s.trial, next) && next.log_Z() - st.log_Z() <= wanted)
         return LineSearch::accepted_evaluated;
     } else if (log_partition_change<D>(t * step, s, st.psum, u.max) <= wanted) {
       return LineSearch::accepted;
@@ -285,10 +352,20 @@ LineSearch line_search(const Support<D>& s, const Vec<D>& lambda, const Vec<D>& 
   return LineSearch::stalled;
 }
 
+/// The state after an accepted step t * step that the line search did not
+/// evaluate: by shifted_state when every exponent changes by at most
+/// kTaylorLarge, else afresh. False when not finite.
+template <int D>
+bool advance_state(const Vec<D>& lambda, const Vec<D>& step, double u_max, Support<D>& s, NewtonState<D>& st) {
+  if (u_max <= kTaylorLarge) return shifted_state<D>(step, s, s.p, u_max, st);
+  return dual_state<D>(lambda, s, s.p, st);
+}
+
 /// The shared Newton solver for lambda = argmin log Z (spec algorithms.md
 /// sect. 1): Newton steps on r with an Armijo backtracking line search on
 /// log Z. On return s.p holds N_I at the final lambda (the buffers s.p and
-/// s.trial may have been swapped) and the state its r and J.
+/// s.trial may have been swapped) and the state its r, J and, when
+/// converged, J^{-1} (in J_inv).
 template <int D>
 NewtonState<D> solve_lambda(const NewtonSettings& set, Support<D>& s, Vec<D>& lambda) {
   NewtonState<D> st, next;
@@ -303,6 +380,7 @@ NewtonState<D> solve_lambda(const NewtonSettings& set, Support<D>& s, Vec<D>& la
     const bool regular = st.lambda_min > kSingularHessian;
     if (st.r.norm() <= set.residual_tolerance) {
       st.status = regular ? NewtonStatus::converged : NewtonStatus::singular;
+      if (regular) st.J_inv = inv.inverse();
       return st;
     }
     if (!regular) {
@@ -314,8 +392,8 @@ NewtonState<D> solve_lambda(const NewtonSettings& set, Support<D>& s, Vec<D>& la
       return st;
     }
     const Vec<D> step = -inv.solve(st.r);
-    double t = 1.0;
-    const LineSearch ls = line_search<D>(s, lambda, step, st, t, next);
+    double t = 1.0, u_max = 0.0;
+    const LineSearch ls = line_search<D>(s, lambda, step, st, t, u_max, next);
     if (ls == LineSearch::stalled) {
       st.status = NewtonStatus::stalled;
       return st;
@@ -325,7 +403,7 @@ NewtonState<D> solve_lambda(const NewtonSettings& set, Support<D>& s, Vec<D>& la
     if (ls == LineSearch::accepted_evaluated) {
       std::swap(s.p, s.trial);
       st = next;
-    } else if (!dual_state(lambda, s, s.p, st)) {
+    } else if (!advance_state<D>(lambda, Vec<D>(t * step), u_max, s, st)) {
       st.iterations = iterations;
       st.status = NewtonStatus::diverged;
       return st;
@@ -576,18 +654,47 @@ template <int D, class Prior> void MaxEntBasis<D, Prior>::fail(const PointQuery<
 
 template <int D, class Prior>
 void MaxEntBasis<D, Prior>::gather_support(const PointQuery<D>& q, Stencil<D>& out) const {
-  out.scratch_ids.clear();
-  nodes_.within(q.x, settings_.support_radius, out.scratch_ids);
-  out.scratch_dx.clear();
-  out.scratch_w.clear();
-  for (const int I : out.scratch_ids) {
-    const Vec<D> dx = q.x - nodes_.position(I);
-    double log_w = 0.0;
-    if (!prior_.log_weight(dx, log_w)) continue;
-    out.node.push_back(I);
-    out.scratch_dx.push_back(dx);
-    out.scratch_w.push_back(log_w);
+  // Candidates: the point's Verlet list (a superset) or the nodes within R;
+  // the same distance test as NodeSet::within keeps exactly its answer.
+  const double R = settings_.support_radius, R2 = R * R;
+  std::span<const int> candidates;
+  if (q.neighbours) {
+    candidates = q.neighbours->candidates(nodes_, q.id, q.x, out.scratch_ids);
+  } else {
+    out.scratch_ids.clear();
+    nodes_.within(q.x, R, out.scratch_ids);
+    candidates = out.scratch_ids;
   }
+  const int stride = simd::padded(static_cast<int>(candidates.size()));
+  out.scratch_w.resize(static_cast<std::size_t>(D + 3) * static_cast<std::size_t>(stride));
+  double* dx = out.scratch_w.data();
+  double* log_w = dx + D * stride;
+  int n = 0;
+  for (const int I : candidates) {
+    const Vec<D> d = q.x - nodes_.position(I);
+    if (!(d.squaredNorm() <= R2) || !prior_.log_weight(d, log_w[n])) continue;
+    out.node.push_back(I);
+    for (int k = 0; k < D; ++k) dx[k * stride + n] = d[k];
+    ++n;
+  }
+  for (int i = n; i < simd::padded(n); ++i) { // padding: N = 0
+    for (int k = 0; k < D; ++k) dx[k * stride + i] = 0.0;
+    log_w[i] = -std::numeric_limits<double>::infinity();
+  }
+}
+
+template <int D, class Prior> Support<D> MaxEntBasis<D, Prior>::support(Stencil<D>& out) const {
+  const int n = out.size();
+  const int stride = static_cast<int>(out.scratch_w.size()) / (D + 3);
+  double* base = out.scratch_w.data();
+  Support<D> s;
+  for (int k = 0; k < D; ++k) s.dx[k] = base + k * stride;
+  s.log_w = base + D * stride;
+  s.n = n;
+  s.n_pad = simd::padded(n);
+  s.p = base + (D + 1) * stride;
+  s.trial = base + (D + 2) * stride;
+  return s;
 }
 
 template <int D, class Prior> void MaxEntBasis<D, Prior>::evaluate(const PointQuery<D>& q, Stencil<D>& out) const {
@@ -598,10 +705,8 @@ template <int D, class Prior> void MaxEntBasis<D, Prior>::evaluate(const PointQu
   if (n < D + 1)
     fail(q, "outside the convex hull of the nodes: only " + std::to_string(n) + " nodes within the support radius " +
                 format_number(settings_.support_radius) + " (at least " + std::to_string(D + 1) + " needed)");
-  check_extent(q, out);
-  out.N.resize(static_cast<std::size_t>(n));
-  out.scratch_w.resize(2 * static_cast<std::size_t>(n)); // log w_I, then the trial buffer
-  Support<D> s{out.scratch_dx.data(), out.scratch_w.data(), n, out.N.data(), out.scratch_w.data() + n};
+  Support<D> s = support(out);
+  check_extent(q, s);
   const Vec<D> warm = q.lambda && q.lambda->allFinite() ? *q.lambda : Vec<D>::Zero();
   Vec<D> lambda = warm;
   NewtonState<D> st = solve_lambda<D>(settings_, s, lambda);
@@ -615,48 +720,50 @@ template <int D, class Prior> void MaxEntBasis<D, Prior>::evaluate(const PointQu
   if (st.status != NewtonStatus::converged)
     fail(q, describe_failure<D>(st, iterations, settings_.h, settings_.residual_tolerance / settings_.h, n));
   if (q.lambda) *q.lambda = lambda;
-  if (s.p != out.N.data()) std::copy(s.p, s.p + n, out.N.begin());
-  finish_stencil(st, out);
+  finish_stencil(st, s, out);
 }
 
 template <int D, class Prior>
-void MaxEntBasis<D, Prior>::check_extent(const PointQuery<D>& q, const Stencil<D>& out) const {
-  const int n = out.size();
+void MaxEntBasis<D, Prior>::check_extent(const PointQuery<D>& q, const Support<D>& s) const {
   for (int k = 0; k < D; ++k) {
-    double lo = out.scratch_dx[0][k], hi = lo;
-    for (int i = 1; i < n; ++i) {
-      lo = std::min(lo, out.scratch_dx[i][k]);
-      hi = std::max(hi, out.scratch_dx[i][k]);
+    const double* d = s.dx[k];
+    double lo = d[0], hi = lo;
+    for (int i = 1; i < s.n; ++i) {
+      lo = std::min(lo, d[i]);
+      hi = std::max(hi, d[i]);
     }
     // dx = x - x_I: x beyond every support node along axis k.
     if (lo > settings_.residual_tolerance || hi < -settings_.residual_tolerance)
-      fail(q, "outside the convex hull of its " + std::to_string(n) + " support nodes (beyond their extent along axis " +
+      fail(q, "outside the convex hull of its " + std::to_string(s.n) + " support nodes (beyond their extent along axis " +
                   std::to_string(k) + ")");
   }
 }
 
 template <int D, class Prior>
-void MaxEntBasis<D, Prior>::finish_stencil(const NewtonState<D>& st, Stencil<D>& out) const {
-  const int n = out.size();
-  const auto& dx = out.scratch_dx;
-  ScaledInverse<D> inv;
-  inv.compute(st.J);
-  const Mat<D> J_inv = inv.inverse();
+void MaxEntBasis<D, Prior>::finish_stencil(const NewtonState<D>& st, const Support<D>& s, Stencil<D>& out) const {
+  const int n = s.n;
+  const Mat<D>& J_inv = st.J_inv;
+  out.N.assign(s.p, s.p + n);
   out.dN.resize(static_cast<std::size_t>(n));
   if constexpr (Prior::kGaussian) {
-    for (int i = 0; i < n; ++i) out.dN[i] = -out.N[i] * (J_inv * (dx[i] - st.r));
+    for (int i = 0; i < n; ++i) out.dN[i] = -out.N[i] * (J_inv * (s.offset(i) - st.r));
   } else {
     Vec<D> g_bar = Vec<D>::Zero();
     for (int i = 0; i < n; ++i) {
-      out.dN[i] = prior_.grad_log_weight(dx[i]); // g_I, overwritten below
+      out.dN[i] = prior_.grad_log_weight(s.offset(i)); // g_I, overwritten below
       g_bar += out.N[i] * out.dN[i];
     }
     Mat<D> A = Mat<D>::Zero();
-    for (int i = 0; i < n; ++i) A.noalias() += (out.N[i] * (dx[i] - st.r)) * (out.dN[i] - g_bar).transpose();
+    for (int i = 0; i < n; ++i) A.noalias() += (out.N[i] * (s.offset(i) - st.r)) * (out.dN[i] - g_bar).transpose();
     const Mat<D> M = (Mat<D>::Identity() + A.transpose()) * J_inv;
-    for (int i = 0; i < n; ++i) out.dN[i] = out.N[i] * (out.dN[i] - g_bar - M * (dx[i] - st.r));
+    for (int i = 0; i < n; ++i) out.dN[i] = out.N[i] * (out.dN[i] - g_bar - M * (s.offset(i) - st.r));
   }
+  drop_zeros(out);
+}
+
+template <int D, class Prior> void MaxEntBasis<D, Prior>::drop_zeros(Stencil<D>& out) const {
   // Drop nodes whose N_I underflowed to zero (their gradient is zero too).
+  const int n = out.size();
   int kept = 0;
   for (int i = 0; i < n; ++i) {
     if (!(out.N[i] > 0.0)) continue;

@@ -13,6 +13,7 @@
 /// make_lme_basis / make_maxent_basis (families.hpp); this header is for the
 /// implementation and its tests.
 #include "otmpm/basis/basis.hpp"
+#include "otmpm/basis/simd.hpp"
 
 #include <bit>
 #include <cmath>
@@ -23,30 +24,15 @@
 namespace otmpm::maxent {
 
 /// e^x for the shifted exponents x <= 0 of dual_state, within 2 ulp of the
-/// exact value (x >= -708; below, where e^x < 3e-308, libm takes over).
-/// Cody-Waite reduction x = k ln 2 + r, |r| <= ln 2 / 2, the degree-13
-/// Taylor polynomial of e^r (truncation < 5e-18 relative), then 2^k built
-/// in the exponent bits. Inlined and branch-free on the common path, it costs
-/// a fraction of a libm call; the LME Newton solve is dominated by it.
+/// exact value (x >= -708; below, where e^x < 3e-308, libm takes over): one
+/// lane of simd::exp_shifted (Cody-Waite reduction x = k ln 2 + r,
+/// |r| <= ln 2 / 2, the degree-13 Taylor polynomial of e^r, truncation
+/// < 5e-18 relative, then 2^k built in the exponent bits). The solver uses
+/// the four-lane kernel directly.
 inline double exp_shifted(double x) {
-  if (!(x >= -708.0)) return std::exp(x);
-  constexpr double log2e = 1.4426950408889634074;
-  constexpr double ln2_hi = 6.93147180369123816490e-01; // ln 2 to 32 bits: k ln2_hi is exact
-  constexpr double ln2_lo = 1.90821492927058770002e-10;
-  constexpr double round_shift = 6755399441055744.0;    // 1.5 * 2^52: adding it rounds to an integer
-  const double kd = (x * log2e + round_shift) - round_shift;
-  const double r = (x - kd * ln2_hi) - kd * ln2_lo;
-  // Horner form of sum_{n <= 13} r^n / n!
-  double poly = 1.0 / 6227020800.0;
-  constexpr double inv_factorial[13] = {1.0 / 479001600.0, 1.0 / 39916800.0, 1.0 / 3628800.0, 1.0 / 362880.0,
-                                        1.0 / 40320.0,     1.0 / 5040.0,     1.0 / 720.0,      1.0 / 120.0,
-                                        1.0 / 24.0,        1.0 / 6.0,        0.5,              1.0,
-                                        1.0};
-  for (double c : inv_factorial) poly = poly * r + c;
-  const auto k = static_cast<long long>(kd);
-  return poly * std::bit_cast<double>(static_cast<unsigned long long>(k + 1023) << 52);
+  if (!(x >= simd::exp_lowest)) return std::exp(x);
+  return simd::exp_shifted(simd::broadcast(x))[0];
 }
-
 
 /// The LME prior w_I = exp(-beta |x - x_I|^2) (molinos eq. 36), cut off where
 /// w_I < tol, i.e. beyond R = sqrt(-ln(tol) / beta) = h sqrt(-ln(tol) / gamma_lme)
@@ -86,6 +72,26 @@ double cubic_spline(double r);
 /// Its derivative dw/dr.
 double cubic_spline_derivative(double r);
 
+/// The support of one point in structure-of-arrays form (simd kernels):
+/// offsets dx[k][i] = (x - x_I)_k and log-priors log_w[i] = log w_I for the n
+/// support nodes, padded to n_pad = simd::padded(n) entries with dx = 0 and
+/// log_w = -inf (N = 0 there); and two buffers of n_pad values for N_I (the
+/// current state and a trial state of the line search; the solver swaps them
+/// on acceptance).
+template <int D> struct Support {
+  const double* dx[D];
+  const double* log_w;
+  int n;
+  int n_pad;
+  double* p;     ///< N_I at the current lambda
+  double* trial; ///< scratch of the same length
+  Vec<D> offset(int i) const {
+    Vec<D> d;
+    for (int k = 0; k < D; ++k) d[k] = dx[k][i];
+    return d;
+  }
+};
+
 /// Why a Newton solve for lambda stopped.
 enum class NewtonStatus {
   converged,      ///< |r| <= newton_tolerance * h
@@ -109,13 +115,19 @@ template <int D> struct NewtonState {
   Vec<D> r = Vec<D>::Zero();
   Mat<D> J = Mat<D>::Zero();
   double psum = 1.0;          ///< sum of the computed N_I (1 up to round-off)
-  double log_Z = 0.0;         ///< log Z at lambda
-  double log_Z_error = 0.0;   ///< bound on the round-off of log_Z
+  /// log Z at lambda is log_base + log(Z): log_base the largest exponent of
+  /// the last full evaluation, Z the sum of the shifted exponentials times the
+  /// normalisers of the steps taken since (computed only when needed).
+  double log_base = 0.0;
+  double Z = 1.0;
+  /// J^{-1} at a converged lambda (for the gradients).
+  Mat<D> J_inv = Mat<D>::Zero();
   /// 1 / tr(Js^{-1}) of the diagonally scaled Js = S J S (unit diagonal), within
   /// a factor D of its smallest eigenvalue; 0 when J is not positive definite.
   double lambda_min = 0.0;
   int iterations = 0;
   NewtonStatus status = NewtonStatus::max_iterations;
+  double log_Z() const { return log_base + std::log(Z); }
 };
 
 /// A maximum-entropy basis with prior `Prior` bound to a node set (see file
@@ -136,6 +148,7 @@ public:
   void evaluate(const PointQuery<D>& q, Stencil<D>& out) const override;
   bool linearly_complete() const override { return true; }
   int max_stencil() const override;
+  double search_radius() const override { return settings_.support_radius; }
   /// No state of its own: refreshes the search index and stencil bound after
   /// the node positions were restored from a checkpoint.
   void restore_state(const StateGroup&) override { nodes_moved({}); }
@@ -143,12 +156,19 @@ public:
   const Prior& prior() const { return prior_; }
 
 private:
-  /// Gathers the support of x into out.node / scratch_dx / scratch_w (log w_I).
+  /// Gathers the support of x: node ids into out.node, the offsets x - x_I
+  /// and log w_I into out.scratch_w in the layout of support().
   void gather_support(const PointQuery<D>& q, Stencil<D>& out) const;
+  /// The Support view of out.scratch_w after gather_support: D arrays of
+  /// offsets, log w_I, N_I and a trial buffer, each of stride
+  /// simd::padded(candidates) doubles.
+  Support<D> support(Stencil<D>& out) const;
   /// Throws unless x lies within the bounding box of its support nodes.
-  void check_extent(const PointQuery<D>& q, const Stencil<D>& out) const;
-  /// Fills out.dN from the converged state (and removes nodes with N_I = 0).
-  void finish_stencil(const NewtonState<D>& s, Stencil<D>& out) const;
+  void check_extent(const PointQuery<D>& q, const Support<D>& s) const;
+  /// Fills out.N and out.dN from the converged state (and removes nodes with N_I = 0).
+  void finish_stencil(const NewtonState<D>& st, const Support<D>& s, Stencil<D>& out) const;
+  /// Removes the nodes whose N_I underflowed to zero (their gradient is zero too).
+  void drop_zeros(Stencil<D>& out) const;
   [[noreturn]] void fail(const PointQuery<D>& q, const std::string& why) const;
   int compute_stencil_bound() const;
 

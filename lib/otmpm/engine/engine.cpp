@@ -239,7 +239,7 @@ template <int D> void Engine<D>::evaluate_basis() {
   ScopedPhase timer(timers_, Phase::basis);
   try {
     const bool maxent = basis_->kind() == "lme" || basis_->kind() == "maxent";
-    fill_basis_table(*basis_, P_.x, maxent ? &P_.lambda : nullptr, &P_.cell_hint, table_);
+    fill_basis_table(*basis_, P_.x, maxent ? &P_.lambda : nullptr, &P_.cell_hint, table_, &neighbours_);
     columns_valid_ = false;
     blocks_.valid = false;
   } catch (const BasisError& e) {

@@ -259,6 +259,7 @@ private:
   bool any_finite_strain_ = false;
   NodalFields<D> nodal_;
   BasisTable<D> table_;
+  NeighbourLists<D> neighbours_; ///< Verlet lists of the particles (families that search nodes)
   NodeColumns columns_;          ///< transposed table_, for gather_columns
   bool columns_valid_ = false;
   struct ScatterBlocks {
