@@ -159,93 +159,121 @@ constexpr double kMinBuckets = 4096.0;
 constexpr double kBucketSafety = 1e-9;       ///< relative slack on the bucket distance test
 
 /// Largest |u_I| = |s . (x - x_I)| of an accepted Newton step for which the
-/// new N_I are computed from the current ones, N_I exp(u_I) / sum_J N_J
-/// exp(u_J), with exp by a Taylor polynomial (simd::exp_small) instead of a
-/// full exponential per node: degree 5 up to 2^-8, degree 8 up to 2^-4 (both
-/// within 1 ulp); beyond, the exponents are evaluated afresh. In the quadratic
-/// phase of a warm-started solve |u_I| is ~1e-3, so every step after the first
-/// evaluation costs a few multiplications per node.
+/// new weights are computed from the current ones, p_I exp(u_I), with exp by
+/// a Taylor polynomial (simd::exp_small) instead of a full exponential per
+/// node: degree 5 up to 2^-8, degree 8 up to 2^-4 (both within 1 ulp);
+/// beyond, the exponents are evaluated afresh. In the quadratic phase of a
+/// warm-started solve |u_I| is ~1e-3, so every step after the first
+/// evaluation costs a few multiplications per node. |u_I| <= |s| R (R bounds
+/// |x - x_I| on the support) decides it before any pass over the nodes; a
+/// step with |s| R <= kTaylorLarge < kSafeExponentChange also satisfies the
+/// Armijo condition, so it is taken without a line search.
 constexpr double kTaylorSmall = 0x1p-8;
 constexpr double kTaylorLarge = 0x1p-4;
+/// While |lambda| R <= this, every exponent f_I = log w_I + lambda . dx_I lies
+/// in [-ln(1/tol) - 300, 300] and exp(f_I) is taken unshifted (no pass for
+/// the maximum); beyond, the exponents are shifted by their maximum.
+constexpr double kUnshiftedExponent = 300.0;
+/// J = S / Z - m m^T from moments about c (see Moments) is kept when every
+/// m_k^2 <= kShiftedMomentLimit J_kk: the subtraction then costs at most
+/// kShiftedMomentLimit relative accuracy (well below round-off effects that
+/// matter); otherwise J is recomputed in the centred form.
+constexpr double kShiftedMomentLimit = 1e-3;
 
-/// u_i = step . dx_i for the four entries from i.
+/// u_i = step . dx_i for the lanes from i.
 template <int D> simd::vd exponent_increment(const Vec<D>& step, const Support<D>& s, int i) {
   simd::vd u = step[0] * simd::load(s.dx[0] + i);
   for (int k = 1; k < D; ++k) u += step[k] * simd::load(s.dx[k] + i);
   return u;
 }
 
-/// From unnormalised weights e_I (in p, with their sum Z and the first
-/// moment sum e_I dx_I in r): N_I = e_I / Z into p, r = sum N_I dx_I, and J
-/// in the centred form sum N_I (dx_I - r)(dx_I - r)^T (no cancellation next
-/// to the hull boundary). Returns false when r or J is not finite.
-template <int D> bool normalise_state(const Support<D>& s, double* p, double Z, Vec<D> r, NewtonState<D>& st) {
-  using simd::vd;
-  const double inv_Z = 1.0 / Z;
-  r *= inv_Z;
-  vd psum = simd::broadcast(0.0), J[D][D] = {};
-  for (int i = 0; i < s.n_pad; i += simd::lanes) {
-    const vd pi = simd::load(p + i) * inv_Z;
-    simd::store(p + i, pi);
-    psum += pi;
-    vd c[D];
-    for (int k = 0; k < D; ++k) c[k] = simd::load(s.dx[k] + i) - r[k];
+/// Sums of the weights p_I about a centre c: Z = sum p_I, m = sum p_I (dx_I
+/// - c), S = sum p_I (dx_I - c)(dx_I - c)^T, accumulated lane by lane in the
+/// same pass that computes the weights (add(), then finish()).
+template <int D> struct Moments {
+  simd::vd z = simd::broadcast(0.0), m[D] = {}, S[D][D] = {};
+  Vec<D> c = Vec<D>::Zero();
+
+  void add(const Support<D>& s, int i, simd::vd p) {
+    z += p;
+    simd::vd d[D];
+    for (int k = 0; k < D; ++k) d[k] = simd::load(s.dx[k] + i) - c[k];
+    for (int k = 0; k < D; ++k) {
+      const simd::vd pd = p * d[k];
+      m[k] += pd;
+      for (int l = 0; l <= k; ++l) S[k][l] += pd * d[l];
+    }
+  }
+  /// Z, r = c + m / Z and J = S / Z - (m / Z)(m / Z)^T into st; J in the
+  /// centred form (one more pass) when the correction is not small.
+  bool finish(const Support<D>& s, const double* p, NewtonState<D>& st) const {
+    st.Z = simd::sum(z);
+    const double inv_Z = 1.0 / st.Z;
+    Vec<D> mean;
+    for (int k = 0; k < D; ++k) mean[k] = simd::sum(m[k]) * inv_Z;
+    st.r = c + mean;
+    bool small = true;
     for (int k = 0; k < D; ++k)
-      for (int l = 0; l <= k; ++l) J[k][l] += pi * c[k] * c[l];
+      for (int l = 0; l <= k; ++l) {
+        st.J(k, l) = st.J(l, k) = simd::sum(S[k][l]) * inv_Z - mean[k] * mean[l];
+        if (k == l) small = small && mean[k] * mean[k] <= kShiftedMomentLimit * st.J(k, k);
+      }
+    if (!small) centred_J(s, p, inv_Z, st);
+    return st.r.allFinite() && st.J.allFinite() && st.Z > 0.0 && std::isfinite(st.Z);
   }
-  for (int k = 0; k < D; ++k)
-    for (int l = 0; l <= k; ++l) st.J(k, l) = st.J(l, k) = simd::sum(J[k][l]);
-  st.r = r;
-  st.psum = simd::sum(psum);
-  return r.allFinite() && st.J.allFinite();
-}
-
-/// Sums the weights e_I in p (Z) and their first moment sum e_I dx_I.
-template <int D> void weight_sums(const Support<D>& s, const double* p, double& Z, Vec<D>& moment) {
-  using simd::vd;
-  vd z = simd::broadcast(0.0), m[D] = {};
-  for (int i = 0; i < s.n_pad; i += simd::lanes) {
-    const vd e = simd::load(p + i);
-    z += e;
-    for (int k = 0; k < D; ++k) m[k] += e * simd::load(s.dx[k] + i);
+  /// J = sum N_I (dx_I - r)(dx_I - r)^T: sums of non-negative terms, no
+  /// cancellation next to the hull boundary.
+  static void centred_J(const Support<D>& s, const double* p, double inv_Z, NewtonState<D>& st) {
+    Moments<D> centred;
+    centred.c = st.r;
+    for (int i = 0; i < s.n_pad; i += simd::lanes) centred.add(s, i, simd::load(p + i) * inv_Z);
+    for (int k = 0; k < D; ++k)
+      for (int l = 0; l <= k; ++l) st.J(k, l) = st.J(l, k) = simd::sum(centred.S[k][l]);
   }
-  Z = simd::sum(z);
-  for (int k = 0; k < D; ++k) moment[k] = simd::sum(m[k]);
-}
+};
 
-/// N_I (into p), r, J and log Z at lambda (molinos eqs. 36-40), exponents
-/// f_I = log w_I + lambda . dx_I shifted by their maximum before exp().
-/// Returns false when not finite.
-template <int D> bool dual_state(const Vec<D>& lambda, const Support<D>& s, double* p, NewtonState<D>& st) {
+/// The weights p_I = exp(f_I - log_base) (into p), f_I = log w_I + lambda .
+/// dx_I, and the state at lambda (molinos eqs. 36-40): Z = sum p_I, N_I =
+/// p_I / Z, r, J, log Z = log_base + log(Z). log_base = 0 while |lambda| R <=
+/// kUnshiftedExponent, else the largest f_I. Moments about c (the caller's
+/// best guess of r). Returns false when not finite.
+template <int D>
+bool dual_state(const Vec<D>& lambda, const Support<D>& s, double* p, const Vec<D>& c, NewtonState<D>& st) {
   using simd::vd;
-  vd fmax = simd::broadcast(-std::numeric_limits<double>::infinity());
+  st.log_base = 0.0;
+  if (!(lambda.norm() * s.radius <= kUnshiftedExponent)) {
+    vd fmax = simd::broadcast(-std::numeric_limits<double>::infinity());
+    for (int i = 0; i < s.n_pad; i += simd::lanes)
+      fmax = simd::max(fmax, simd::load(s.log_w + i) + exponent_increment<D>(lambda, s, i));
+    st.log_base = simd::max_lane(fmax);
+    if (!std::isfinite(st.log_base)) return false;
+  }
+  Moments<D> mo;
+  mo.c = c;
   for (int i = 0; i < s.n_pad; i += simd::lanes) {
     const vd f = simd::load(s.log_w + i) + exponent_increment<D>(lambda, s, i);
-    simd::store(p + i, f);
-    fmax = simd::max(fmax, f);
+    const vd e = simd::exp_shifted(f - st.log_base);
+    simd::store(p + i, e);
+    mo.add(s, i, e);
   }
-  st.log_base = simd::max_lane(fmax);
-  if (!std::isfinite(st.log_base)) return false;
-  for (int i = 0; i < s.n_pad; i += simd::lanes) simd::store(p + i, simd::exp_shifted(simd::load(p + i) - st.log_base));
-  Vec<D> moment;
-  weight_sums<D>(s, p, st.Z, moment);
-  return normalise_state<D>(s, p, st.Z, moment, st) && std::isfinite(st.log_Z());
+  return mo.finish(s, p, st);
 }
 
-/// The state at lambda + step from the state `st` at lambda (N_I in p,
-/// updated in place): N_I exp(u_I) renormalised, u_I = step . dx_I, with
-/// max |u_I| <= u_max <= kTaylorLarge (exp by its Taylor polynomial).
-template <int D> bool shifted_state(const Vec<D>& step, const Support<D>& s, double* p, double u_max, NewtonState<D>& st) {
+/// The state at lambda + step from the state `st` at lambda (weights in p,
+/// updated in place): p_I exp(u_I), u_I = step . dx_I, with |u_I| <= u_max
+/// <= kTaylorLarge (exp by its Taylor polynomial); log_base is kept.
+template <int D>
+bool shifted_state(const Vec<D>& step, const Support<D>& s, double* p, double u_max, NewtonState<D>& st) {
+  Moments<D> mo;
+  mo.c = st.r;
+  const bool small = u_max <= kTaylorSmall;
   for (int i = 0; i < s.n_pad; i += simd::lanes) {
     const simd::vd u = exponent_increment<D>(step, s, i);
-    const simd::vd e = u_max <= kTaylorSmall ? simd::exp_small<5>(u) : simd::exp_small<8>(u);
-    simd::store(p + i, simd::load(p + i) * e);
+    const simd::vd e = simd::load(p + i) * (small ? simd::exp_small<5>(u) : simd::exp_small<8>(u));
+    simd::store(p + i, e);
+    mo.add(s, i, e);
   }
-  double Z;
-  Vec<D> moment;
-  weight_sums<D>(s, p, Z, moment);
-  st.Z *= Z; // log Z(lambda + step) = log Z(lambda) + log sum_I N_I e^u_I
-  return normalise_state<D>(s, p, Z, moment, st) && std::isfinite(st.log_Z());
+  return mo.finish(s, p, st);
 }
 
 /// Bound on the round-off of log Z at lambda: kLogZRoundoff (1 + max_I |f_I|).
@@ -307,18 +335,18 @@ template <int D> ExponentChange exponent_change(const Vec<D>& step, const Suppor
 }
 
 /// log Z(lambda + step) - log Z(lambda) = log sum_I N_I exp(step . dx_I) from
-/// the current N_I, in the log1p/expm1 form while the exponents are moderate:
-/// resolves decreases far below the round-off of log Z itself.
-/// umax = max_I step . dx_I shifts the exponents in the other form.
+/// the current weights p_I (N_I = p_I / Z), in the log1p/expm1 form while the
+/// exponents are moderate: resolves decreases far below the round-off of
+/// log Z itself. umax = max_I step . dx_I shifts the exponents in the other form.
 template <int D>
-double log_partition_change(const Vec<D>& step, const Support<D>& s, double psum, double umax) {
+double log_partition_change(const Vec<D>& step, const Support<D>& s, double Z, double umax) {
   double sum = 0.0;
   if (umax <= kPreciseFormMaxExponent) {
     for (int i = 0; i < s.n; ++i) sum += s.p[i] * std::expm1(step.dot(s.offset(i)));
-    return std::log1p(sum / psum);
+    return std::log1p(sum / Z);
   }
   for (int i = 0; i < s.n; ++i) sum += s.p[i] * std::exp(step.dot(s.offset(i)) - umax);
-  return umax + std::log(sum / psum);
+  return umax + std::log(sum / Z);
 }
 
 /// Outcome of one backtracking line search.
@@ -343,33 +371,67 @@ LineSearch line_search(const Support<D>& s, const Vec<D>& lambda, const Vec<D>& 
     if (-wanted > kResolvableFactor * roundoff) {
       // the decrease is far above the round-off of log Z: compare two log Z
       // values, and keep the trial state when it is accepted
-      if (dual_state<D>(lambda + t * step, s, s.trial, next) && next.log_Z() - st.log_Z() <= wanted)
+      if (dual_state<D>(lambda + t * step, s, s.trial, st.r, next) && next.log_Z() - st.log_Z() <= wanted)
         return LineSearch::accepted_evaluated;
-    } else if (log_partition_change<D>(t * step, s, st.psum, u.max) <= wanted) {
+    } else if (log_partition_change<D>(t * step, s, st.Z, u.max) <= wanted) {
       return LineSearch::accepted;
     }
   }
   return LineSearch::stalled;
 }
 
-/// The state after an accepted step t * step that the line search did not
-/// evaluate: by shifted_state when every exponent changes by at most
-/// kTaylorLarge, else afresh. False when not finite.
+/// The state after an accepted step (the new lambda and the step taken)
+/// that the line search did not evaluate: by shifted_state when every
+/// exponent changes by at most u_max <= kTaylorLarge, else afresh. False when
+/// not finite.
 template <int D>
 bool advance_state(const Vec<D>& lambda, const Vec<D>& step, double u_max, Support<D>& s, NewtonState<D>& st) {
   if (u_max <= kTaylorLarge) return shifted_state<D>(step, s, s.p, u_max, st);
-  return dual_state<D>(lambda, s, s.p, st);
+  return dual_state<D>(lambda, s, s.p, st.r, st);
+}
+
+/// One Newton step from `st` along `step` (updates lambda, s and st): taken
+/// whole without a line search when |step| R <= kTaylorLarge (then every
+/// |u_I| is that small, Armijo holds and the Taylor update applies), else
+/// after line_search. False when the line search stalled or the new state is
+/// not finite (st.status says which).
+template <int D>
+bool newton_step(const Vec<D>& step, Support<D>& s, Vec<D>& lambda, NewtonState<D>& st, NewtonState<D>& next) {
+  const int iterations = st.iterations + 1;
+  bool finite;
+  if (const double bound = step.norm() * s.radius; bound <= kTaylorLarge) {
+    lambda += step;
+    finite = shifted_state<D>(step, s, s.p, bound, st);
+  } else {
+    double t = 1.0, u_max = 0.0;
+    const LineSearch ls = line_search<D>(s, lambda, step, st, t, u_max, next);
+    if (ls == LineSearch::stalled) {
+      st.status = NewtonStatus::stalled;
+      return false;
+    }
+    lambda += t * step;
+    finite = true;
+    if (ls == LineSearch::accepted_evaluated) {
+      std::swap(s.p, s.trial);
+      st = next;
+    } else {
+      finite = advance_state<D>(lambda, Vec<D>(t * step), u_max, s, st);
+    }
+  }
+  st.iterations = iterations;
+  if (!finite) st.status = NewtonStatus::diverged;
+  return finite;
 }
 
 /// The shared Newton solver for lambda = argmin log Z (spec algorithms.md
 /// sect. 1): Newton steps on r with an Armijo backtracking line search on
-/// log Z. On return s.p holds N_I at the final lambda (the buffers s.p and
-/// s.trial may have been swapped) and the state its r, J and, when
-/// converged, J^{-1} (in J_inv).
+/// log Z. On return s.p holds the weights p_I at the final lambda (N_I =
+/// p_I / Z; the buffers s.p and s.trial may have been swapped) and the state
+/// its Z, r, J and, when converged, J^{-1} (in J_inv).
 template <int D>
 NewtonState<D> solve_lambda(const NewtonSettings& set, Support<D>& s, Vec<D>& lambda) {
   NewtonState<D> st, next;
-  if (!dual_state(lambda, s, s.p, st)) {
+  if (!dual_state(lambda, s, s.p, Vec<D>::Zero().eval(), st)) {
     st.status = NewtonStatus::diverged;
     return st;
   }
@@ -391,24 +453,7 @@ NewtonState<D> solve_lambda(const NewtonSettings& set, Support<D>& s, Vec<D>& la
       st.status = NewtonStatus::max_iterations;
       return st;
     }
-    const Vec<D> step = -inv.solve(st.r);
-    double t = 1.0, u_max = 0.0;
-    const LineSearch ls = line_search<D>(s, lambda, step, st, t, u_max, next);
-    if (ls == LineSearch::stalled) {
-      st.status = NewtonStatus::stalled;
-      return st;
-    }
-    lambda += t * step;
-    const int iterations = st.iterations + 1;
-    if (ls == LineSearch::accepted_evaluated) {
-      std::swap(s.p, s.trial);
-      st = next;
-    } else if (!advance_state<D>(lambda, Vec<D>(t * step), u_max, s, st)) {
-      st.iterations = iterations;
-      st.status = NewtonStatus::diverged;
-      return st;
-    }
-    st.iterations = iterations;
+    if (!newton_step<D>(-inv.solve(st.r), s, lambda, st, next)) return st;
   }
 }
 
@@ -694,6 +739,7 @@ template <int D, class Prior> Support<D> MaxEntBasis<D, Prior>::support(Stencil<
   s.n_pad = simd::padded(n);
   s.p = base + (D + 1) * stride;
   s.trial = base + (D + 2) * stride;
+  s.radius = settings_.support_radius;
   return s;
 }
 
@@ -743,7 +789,9 @@ template <int D, class Prior>
 void MaxEntBasis<D, Prior>::finish_stencil(const NewtonState<D>& st, const Support<D>& s, Stencil<D>& out) const {
   const int n = s.n;
   const Mat<D>& J_inv = st.J_inv;
-  out.N.assign(s.p, s.p + n);
+  const double inv_Z = 1.0 / st.Z;
+  out.N.resize(static_cast<std::size_t>(n));
+  for (int i = 0; i < n; ++i) out.N[i] = s.p[i] * inv_Z;
   out.dN.resize(static_cast<std::size_t>(n));
   if constexpr (Prior::kGaussian) {
     for (int i = 0; i < n; ++i) out.dN[i] = -out.N[i] * (J_inv * (s.offset(i) - st.r));

@@ -75,15 +75,16 @@ double cubic_spline_derivative(double r);
 /// The support of one point in structure-of-arrays form (simd kernels):
 /// offsets dx[k][i] = (x - x_I)_k and log-priors log_w[i] = log w_I for the n
 /// support nodes, padded to n_pad = simd::padded(n) entries with dx = 0 and
-/// log_w = -inf (N = 0 there); and two buffers of n_pad values for N_I (the
-/// current state and a trial state of the line search; the solver swaps them
-/// on acceptance).
+/// log_w = -inf (N = 0 there); and two buffers of n_pad values for the
+/// weights p_I = Z N_I (the current state and a trial state of the line
+/// search; the solver swaps them on acceptance).
 template <int D> struct Support {
   const double* dx[D];
   const double* log_w;
   int n;
   int n_pad;
-  double* p;     ///< N_I at the current lambda
+  double radius; ///< bound on |x - x_I| over the support (the support radius R)
+  double* p;     ///< weights p_I at the current lambda
   double* trial; ///< scratch of the same length
   Vec<D> offset(int i) const {
     Vec<D> d;
@@ -114,10 +115,9 @@ struct NewtonSettings {
 template <int D> struct NewtonState {
   Vec<D> r = Vec<D>::Zero();
   Mat<D> J = Mat<D>::Zero();
-  double psum = 1.0;          ///< sum of the computed N_I (1 up to round-off)
-  /// log Z at lambda is log_base + log(Z): log_base the largest exponent of
-  /// the last full evaluation, Z the sum of the shifted exponentials times the
-  /// normalisers of the steps taken since (computed only when needed).
+  /// The solver keeps unnormalised weights p_I = N_I Z with Z = sum p_I; log Z
+  /// at lambda is log_base + log(Z), log_base the shift of the exponents at
+  /// the last full evaluation (formed only when the line search needs it).
   double log_base = 0.0;
   double Z = 1.0;
   /// J^{-1} at a converged lambda (for the gradients).
