@@ -291,8 +291,8 @@ template <int D> double log_Z_error(const Vec<D>& lambda, const Support<D>& s) {
 /// harmless, whereas a small eigenvalue of Js (degenerate nodes, the iterates
 /// leaving the hull through a slanted face) is not.
 template <int D> struct ScaledInverse {
-  Vec<D> s = Vec<D>::Ones();
-  Mat<D> Js_inv = Mat<D>::Identity();
+  /// J^{-1} (valid when lambda_min > 0).
+  Mat<D> J_inv = Mat<D>::Identity();
   /// 1 / tr(Js^{-1}), within a factor D of the smallest eigenvalue of Js; 0
   /// when J is not positive definite.
   double lambda_min = 0.0;
@@ -301,18 +301,43 @@ template <int D> struct ScaledInverse {
     lambda_min = 0.0;
     const Vec<D> d = J.diagonal();
     if (!(d.minCoeff() > 0.0) || !d.allFinite()) return;
-    s = d.cwiseSqrt().cwiseInverse();
+    if constexpr (D == 1) {
+      J_inv(0, 0) = 1.0 / d[0]; // Js = 1
+      lambda_min = 1.0;
+      return;
+    } else if constexpr (D == 2) {
+      if (compute_2d(J)) return;
+    }
+    const Vec<D> s = d.cwiseSqrt().cwiseInverse();
     const Mat<D> Js = s.asDiagonal() * J * s.asDiagonal();
     const double det = Js.determinant();
     if (!(det > 0.0)) return;
     if constexpr (D == 3) // Sylvester: the leading 2 x 2 minor must be positive too
       if (!(1.0 - Js(0, 1) * Js(0, 1) > 0.0)) return;
-    Js_inv = Js.inverse();
+    const Mat<D> Js_inv = Js.inverse();
     const double trace_inv = Js_inv.trace();
-    if (trace_inv > 0.0 && std::isfinite(trace_inv)) lambda_min = 1.0 / trace_inv;
+    if (!(trace_inv > 0.0 && std::isfinite(trace_inv))) return;
+    lambda_min = 1.0 / trace_inv;
+    J_inv = s.asDiagonal() * Js_inv * s.asDiagonal();
   }
-  Vec<D> solve(const Vec<D>& b) const { return s.asDiagonal() * (Js_inv * (s.asDiagonal() * b)); }
-  Mat<D> inverse() const { return s.asDiagonal() * Js_inv * s.asDiagonal(); }
+  /// 2D without square roots: Js = [1 rho; rho 1] with rho^2 = J01^2 /
+  /// (J00 J11), det Js = 1 - rho^2, 1 / tr(Js^{-1}) = det Js / 2 and
+  /// J^{-1} = adj(J) / (J00 J11 det Js). False (nothing set) when J00 J11 is
+  /// not a normal number, where the general path is safer.
+  bool compute_2d(const Mat<D>& J) {
+    const double ab = J(0, 0) * J(1, 1), c = J(0, 1);
+    if (!(ab >= std::numeric_limits<double>::min() * 1e8 && std::isfinite(ab))) return false;
+    const double det = 1.0 - c * c / ab;
+    if (!(det > 0.0)) return true; // not positive definite: lambda_min stays 0
+    lambda_min = 0.5 * det;
+    const double f = 1.0 / (ab * det);
+    J_inv(0, 0) = J(1, 1) * f;
+    J_inv(1, 1) = J(0, 0) * f;
+    J_inv(0, 1) = J_inv(1, 0) = -c * f;
+    return true;
+  }
+  Vec<D> solve(const Vec<D>& b) const { return J_inv * b; }
+  const Mat<D>& inverse() const { return J_inv; }
 };
 
 /// Largest and largest absolute change u_I = step . dx_I of the exponents.
@@ -698,7 +723,7 @@ template <int D, class Prior> void MaxEntBasis<D, Prior>::fail(const PointQuery<
 }
 
 template <int D, class Prior>
-void MaxEntBasis<D, Prior>::gather_support(const PointQuery<D>& q, Stencil<D>& out) const {
+void MaxEntBasis<D, Prior>::gather_support(const PointQuery<D>& q, Stencil<D>& out, Vec<D>& lo, Vec<D>& hi) const {
   // Candidates: the point's Verlet list (a superset) or the nodes within R;
   // the same distance test as NodeSet::within keeps exactly its answer.
   const double R = settings_.support_radius, R2 = R * R;
@@ -715,13 +740,26 @@ void MaxEntBasis<D, Prior>::gather_support(const PointQuery<D>& q, Stencil<D>& o
   double* dx = out.scratch_w.data();
   double* log_w = dx + D * stride;
   int n = 0;
+  double low[D], high[D]; // locals: not aliased by the stores below
+  for (int k = 0; k < D; ++k) low[k] = std::numeric_limits<double>::infinity(), high[k] = -low[k];
+  out.node.resize(candidates.size());
+  int* node = out.node.data();
+  const Vec<D> x = q.x;
   for (const int I : candidates) {
-    const Vec<D> d = q.x - nodes_.position(I);
-    if (!(d.squaredNorm() <= R2) || !prior_.log_weight(d, log_w[n])) continue;
-    out.node.push_back(I);
-    for (int k = 0; k < D; ++k) dx[k * stride + n] = d[k];
+    const Vec<D> d = x - nodes_.position(I);
+    double w;
+    if (!(d.squaredNorm() <= R2) || !prior_.log_weight(d, w)) continue;
+    node[n] = I;
+    log_w[n] = w;
+    for (int k = 0; k < D; ++k) {
+      dx[k * stride + n] = d[k];
+      low[k] = std::min(low[k], d[k]);
+      high[k] = std::max(high[k], d[k]);
+    }
     ++n;
   }
+  out.node.resize(static_cast<std::size_t>(n));
+  for (int k = 0; k < D; ++k) lo[k] = low[k], hi[k] = high[k];
   for (int i = n; i < simd::padded(n); ++i) { // padding: N = 0
     for (int k = 0; k < D; ++k) dx[k * stride + i] = 0.0;
     log_w[i] = -std::numeric_limits<double>::infinity();
@@ -746,13 +784,14 @@ template <int D, class Prior> Support<D> MaxEntBasis<D, Prior>::support(Stencil<
 template <int D, class Prior> void MaxEntBasis<D, Prior>::evaluate(const PointQuery<D>& q, Stencil<D>& out) const {
   out.clear();
   if (!q.x.allFinite()) fail(q, "the position is not finite");
-  gather_support(q, out);
+  Vec<D> lo, hi;
+  gather_support(q, out, lo, hi);
   const int n = out.size();
   if (n < D + 1)
     fail(q, "outside the convex hull of the nodes: only " + std::to_string(n) + " nodes within the support radius " +
                 format_number(settings_.support_radius) + " (at least " + std::to_string(D + 1) + " needed)");
   Support<D> s = support(out);
-  check_extent(q, s);
+  check_extent(q, n, lo, hi);
   const Vec<D> warm = q.lambda && q.lambda->allFinite() ? *q.lambda : Vec<D>::Zero();
   Vec<D> lambda = warm;
   NewtonState<D> st = solve_lambda<D>(settings_, s, lambda);
@@ -770,19 +809,12 @@ template <int D, class Prior> void MaxEntBasis<D, Prior>::evaluate(const PointQu
 }
 
 template <int D, class Prior>
-void MaxEntBasis<D, Prior>::check_extent(const PointQuery<D>& q, const Support<D>& s) const {
-  for (int k = 0; k < D; ++k) {
-    const double* d = s.dx[k];
-    double lo = d[0], hi = lo;
-    for (int i = 1; i < s.n; ++i) {
-      lo = std::min(lo, d[i]);
-      hi = std::max(hi, d[i]);
-    }
+void MaxEntBasis<D, Prior>::check_extent(const PointQuery<D>& q, int n, const Vec<D>& lo, const Vec<D>& hi) const {
+  for (int k = 0; k < D; ++k)
     // dx = x - x_I: x beyond every support node along axis k.
-    if (lo > settings_.residual_tolerance || hi < -settings_.residual_tolerance)
-      fail(q, "outside the convex hull of its " + std::to_string(s.n) + " support nodes (beyond their extent along axis " +
+    if (lo[k] > settings_.residual_tolerance || hi[k] < -settings_.residual_tolerance)
+      fail(q, "outside the convex hull of its " + std::to_string(n) + " support nodes (beyond their extent along axis " +
                   std::to_string(k) + ")");
-  }
 }
 
 template <int D, class Prior>
@@ -791,10 +823,23 @@ void MaxEntBasis<D, Prior>::finish_stencil(const NewtonState<D>& st, const Suppo
   const Mat<D>& J_inv = st.J_inv;
   const double inv_Z = 1.0 / st.Z;
   out.N.resize(static_cast<std::size_t>(n));
-  for (int i = 0; i < n; ++i) out.N[i] = s.p[i] * inv_Z;
+  bool zeros = false;
+  for (int i = 0; i < n; ++i) {
+    out.N[i] = s.p[i] * inv_Z;
+    zeros = zeros || !(out.N[i] > 0.0);
+  }
   out.dN.resize(static_cast<std::size_t>(n));
   if constexpr (Prior::kGaussian) {
-    for (int i = 0; i < n; ++i) out.dN[i] = -out.N[i] * (J_inv * (s.offset(i) - st.r));
+    // grad N_I = -N_I J^{-1} (xbar - x_I), written out per component
+    for (int i = 0; i < n; ++i) {
+      double c[D];
+      for (int l = 0; l < D; ++l) c[l] = s.dx[l][i] - st.r[l];
+      for (int k = 0; k < D; ++k) {
+        double g = 0.0;
+        for (int l = 0; l < D; ++l) g += J_inv(k, l) * c[l];
+        out.dN[i][k] = -out.N[i] * g;
+      }
+    }
   } else {
     Vec<D> g_bar = Vec<D>::Zero();
     for (int i = 0; i < n; ++i) {
@@ -806,7 +851,7 @@ void MaxEntBasis<D, Prior>::finish_stencil(const NewtonState<D>& st, const Suppo
     const Mat<D> M = (Mat<D>::Identity() + A.transpose()) * J_inv;
     for (int i = 0; i < n; ++i) out.dN[i] = out.N[i] * (out.dN[i] - g_bar - M * (s.offset(i) - st.r));
   }
-  drop_zeros(out);
+  if (zeros) drop_zeros(out);
 }
 
 template <int D, class Prior> void MaxEntBasis<D, Prior>::drop_zeros(Stencil<D>& out) const {

@@ -157,14 +157,16 @@ public:
 
 private:
   /// Gathers the support of x: node ids into out.node, the offsets x - x_I
-  /// and log w_I into out.scratch_w in the layout of support().
-  void gather_support(const PointQuery<D>& q, Stencil<D>& out) const;
+  /// and log w_I into out.scratch_w in the layout of support(), and the
+  /// per-axis extent [lo, hi] of the offsets.
+  void gather_support(const PointQuery<D>& q, Stencil<D>& out, Vec<D>& lo, Vec<D>& hi) const;
   /// The Support view of out.scratch_w after gather_support: D arrays of
   /// offsets, log w_I, N_I and a trial buffer, each of stride
   /// simd::padded(candidates) doubles.
   Support<D> support(Stencil<D>& out) const;
-  /// Throws unless x lies within the bounding box of its support nodes.
-  void check_extent(const PointQuery<D>& q, const Support<D>& s) const;
+  /// Throws unless x lies within the bounding box of its n support nodes
+  /// (offsets x - x_I within [lo, hi] per axis).
+  void check_extent(const PointQuery<D>& q, int n, const Vec<D>& lo, const Vec<D>& hi) const;
   /// Fills out.N and out.dN from the converged state (and removes nodes with N_I = 0).
   void finish_stencil(const NewtonState<D>& st, const Support<D>& s, Stencil<D>& out) const;
   /// Removes the nodes whose N_I underflowed to zero (their gradient is zero too).
