@@ -202,6 +202,12 @@ public:
   double external_power(double t) const;
   /// Interpolates a nodal field to particles: out_p = sum_I N_Ip y_I.
   void interpolate(const AlignedVector<Vec<D>>& y, AlignedVector<Vec<D>>& out) const;
+  /// The nodal field y at particle p: sum_I N_Ip y_I (table order).
+  Vec<D> interpolate(int p, const AlignedVector<Vec<D>>& y) const {
+    Vec<D> s = Vec<D>::Zero();
+    for (int e = table_.begin(p); e < table_.end(p); ++e) s += table_.N[e] * y[table_.node[e]];
+    return s;
+  }
   /// x_I += dx_I in `ul` mode (no-op in `mpm`): the node-mode switch.
   void advect_nodes(const AlignedVector<Vec<D>>& dx);
   /// Throws InstabilityError (check_particle) for the first particle, in
@@ -224,15 +230,21 @@ private:
   void sum_particles(bool check);
   /// The uniform body force b g(t) of the scene at time t.
   Vec<D> body_force_at(double t) const;
-  /// The particle-to-node sum: for every basis table entry e (particle p,
-  /// node I) add(acc_I, e, prep(p)), then merge(I, acc_I) into the nodal
+  /// The particle-to-node sum: clear(I0, I1) zeroes the nodal fields of
+  /// nodes [I0, I1); then for every basis table entry e (particle p, node I)
+  /// add(acc_I, e, prep(p)), and merge(I, acc_I) adds acc_I into the nodal
   /// fields. Particles are cut into fixed blocks of scatter_block; each block
   /// sums in particle order into its own node range, and each node adds the
-  /// block sums in block order - the same bits for any thread count. When the
+  /// block sums in block order - the same bits for any thread count. Threads
+  /// own node ranges for clear and merge, so no node loop is serial. When the
   /// block ranges overlap too much (particles not spatially ordered), a
   /// gather over the transposed table (gather_columns) does it instead.
-  template <class Prep, class Add, class Merge> void scatter(Prep&& prep, Add&& add, Merge&& merge);
-  template <class Prep, class Add, class Merge> void gather_columns(Prep&& prep, Add&& add, Merge&& merge);
+  /// prep(p) is called once per particle, in particle order within a block,
+  /// by the blocked scatter; gather_columns calls it once per table entry.
+  template <class Prep, class Add, class Merge, class Clear>
+  void scatter(Prep&& prep, Add&& add, Merge&& merge, Clear&& clear);
+  template <class Prep, class Add, class Merge, class Clear>
+  void gather_columns(Prep&& prep, Add&& add, Merge&& merge, Clear&& clear);
   /// Node ranges of the scatter blocks for the current basis table.
   void plan_scatter();
   template <bool Mass, bool Momentum, bool Forces> void to_nodes_impl(const ToNodes<D>& what);
@@ -271,6 +283,10 @@ private:
   double wave_speed_ = 0.0;      ///< max_p max(c_p, |v_p|) after the last step
   std::vector<double> p_modulus_; ///< per material: P-wave modulus for D
   Dirichlet<D> dirichlet_;
+  /// The distinct nodes of dirichlet_.node, ascending (reaction bookkeeping).
+  std::vector<int> dirichlet_nodes_;
+  /// constrained[I*D + k]: component k of node I is fixed (consistent mass).
+  std::vector<char> constrained_;
   std::vector<TractionLoad<D>> tractions_;
   Vec<D> body_force_ = Vec<D>::Zero();
   bool has_body_force_ = false;
