@@ -18,6 +18,14 @@ constexpr double box_tolerance = 1e-6;
 /// at rest with no load never trips it.
 constexpr double energy_floor = 1e-300;
 
+/// Gradient of a nodal field at particle p: sum_I y_I (x) grad N_Ip.
+template <int D>
+Mat<D> nodal_gradient(const BasisTable<D>& table, int p, const AlignedVector<Vec<D>>& y) {
+  Mat<D> G = Mat<D>::Zero();
+  for (int e = table.begin(p); e < table.end(p); ++e) G.noalias() += y[table.node[e]] * table.dN[e].transpose();
+  return G;
+}
+
 /// The maximum of a blocked_reduce (exact, so any grouping gives its bits).
 struct MaxOf {
   double value = -std::numeric_limits<double>::infinity();
@@ -290,24 +298,16 @@ template <int D> void Engine<D>::plan_scatter() {
 }
 
 template <int D>
-template <class Prep, class Add, class Merge, class Clear>
-void Engine<D>::scatter(Prep&& prep, Add&& add, Merge&& merge, Clear&& clear) {
+template <class Update, class Prep, class Add, class Merge, class Clear>
+void Engine<D>::scatter(Update&& update, Prep&& prep, Add&& add, Merge&& merge, Clear&& clear) {
   plan_scatter();
   const int n = P_.size(), nodes = static_cast<int>(nodal_.m.size());
-  if (!blocks_.compact) return gather_columns(prep, add, merge, clear);
+  if (!blocks_.compact) return gather_columns(update, prep, add, merge, clear);
   const int count = static_cast<int>(blocks_.lo.size());
   blocks_.buffer.resize(static_cast<std::size_t>(blocks_.offset.back()));
   // 1. every block sums its particles, in particle order, into its own range
   parallel_chunks(count, team_size(n), [&](long long b0, long long b1) {
-    for (long long b = b0; b < b1; ++b) {
-      if (blocks_.hi[b] < blocks_.lo[b]) continue; // no entries
-      NodeSums<D>* buf = blocks_.buffer.data() + blocks_.offset[b] - blocks_.lo[b];
-      std::fill(buf + blocks_.lo[b], buf + blocks_.hi[b] + 1, NodeSums<D>{});
-      for (int p = static_cast<int>(b * scatter_block), end = static_cast<int>(std::min<long long>(n, (b + 1) * scatter_block)); p < end; ++p) {
-        const auto w = prep(p);
-        for (int e = table_.begin(p); e < table_.end(p); ++e) add(buf[table_.node[e]], e, w);
-      }
-    }
+    for (int b = static_cast<int>(b0); b < b1; ++b) scatter_block_sums(b, update, prep, add);
   });
   // 2. every node adds the block sums in block order (threads own node ranges)
   parallel_chunks(nodes, team_size(n), [&](long long I0, long long I1) {
@@ -321,9 +321,24 @@ void Engine<D>::scatter(Prep&& prep, Add&& add, Merge&& merge, Clear&& clear) {
 }
 
 template <int D>
-template <class Prep, class Add, class Merge, class Clear>
-void Engine<D>::gather_columns(Prep&& prep, Add&& add, Merge&& merge, Clear&& clear) {
+template <class Update, class Prep, class Add>
+void Engine<D>::scatter_block_sums(int b, Update& update, Prep& prep, Add& add) {
+  const bool entries = blocks_.hi[b] >= blocks_.lo[b];
+  NodeSums<D>* buf = entries ? blocks_.buffer.data() + blocks_.offset[b] - blocks_.lo[b] : nullptr;
+  if (entries) std::fill(buf + blocks_.lo[b], buf + blocks_.hi[b] + 1, NodeSums<D>{});
+  const int begin = b * scatter_block, end = std::min(P_.size(), begin + scatter_block);
+  update(begin, end);
+  for (int p = begin; p < end; ++p) {
+    const auto w = prep(p);
+    for (int e = table_.begin(p); e < table_.end(p); ++e) add(buf[table_.node[e]], e, w);
+  }
+}
+
+template <int D>
+template <class Update, class Prep, class Add, class Merge, class Clear>
+void Engine<D>::gather_columns(Update&& update, Prep&& prep, Add&& add, Merge&& merge, Clear&& clear) {
   const int nodes = static_cast<int>(nodal_.m.size());
+  parallel_chunks(P_.size(), [&](long long p0, long long p1) { update(static_cast<int>(p0), static_cast<int>(p1)); });
   if (!columns_valid_) transpose_basis_table(table_, nodes, columns_);
   columns_valid_ = true;
   const std::vector<int>& off = columns_.offset;
@@ -370,6 +385,9 @@ void Engine<D>::to_nodes_impl(const ToNodes<D>& what) {
     Vec<D> mw, fext;
     Mat<D> Vs;
   };
+  auto update = [&](int p0, int p1) {
+    if (what.stress_from) update_stress_range(*what.stress_from, what.dt, p0, p1);
+  };
   auto prep = [&](int p) {
     Payload w{};
     w.m = P_.m[p];
@@ -402,7 +420,7 @@ void Engine<D>::to_nodes_impl(const ToNodes<D>& what) {
     if (Momentum) std::fill(nodal_.q.begin() + I0, nodal_.q.begin() + I1, Vec<D>::Zero());
     if (Forces) std::fill(nodal_.f.begin() + I0, nodal_.f.begin() + I1, Vec<D>::Zero());
   };
-  scatter(prep, add, merge, clear);
+  scatter(update, prep, add, merge, clear);
 }
 
 template <int D> void Engine<D>::prepare_external_forces(double t) {
@@ -549,22 +567,17 @@ template <int D> void Engine<D>::advect_nodes(const AlignedVector<Vec<D>>& dx) {
   basis_->nodes_moved(dx);
 }
 
-namespace {
-/// Gradient of a nodal field at particle p: sum_I y_I (x) grad N_Ip.
-template <int D>
-Mat<D> nodal_gradient(const BasisTable<D>& table, int p, const AlignedVector<Vec<D>>& y) {
-  Mat<D> G = Mat<D>::Zero();
-  for (int e = table.begin(p); e < table.end(p); ++e) G.noalias() += y[table.node[e]] * table.dN[e].transpose();
-  return G;
-}
-} // namespace
-
 template <int D>
 void Engine<D>::update_stress(const AlignedVector<Vec<D>>& v_nodes, double dt) {
   ScopedPhase timer(timers_, Phase::constitutive);
   parallel_chunks(P_.size(), [&](long long begin, long long end) {
-    for (int p = static_cast<int>(begin); p < end; ++p) update_particle_stress(p, dt * nodal_gradient(table_, p, v_nodes));
+    update_stress_range(v_nodes, dt, static_cast<int>(begin), static_cast<int>(end));
   });
+}
+
+template <int D>
+void Engine<D>::update_stress_range(const AlignedVector<Vec<D>>& v_nodes, double dt, int p0, int p1) {
+  for (int p = p0; p < p1; ++p) update_particle_stress(p, dt * nodal_gradient(table_, p, v_nodes));
 }
 
 template <int D> void Engine<D>::update_particle_stress(int p, const Mat<D>& H) {

@@ -73,10 +73,10 @@ template <int D> void step_npc(Engine<D>& e) {
   e.solve_mass(n.q, n.v);
   // 3. Dirichlet on the predictor.
   e.apply_dirichlet_velocity(n.v);
-  // 4. L_p from the predictor; strain, density and stress update.
-  e.update_stress(n.v, dt);
+  // 4. L_p from the predictor; strain, density and stress update, and (same
+  //    pass over the basis table, each particle updated before it scatters)
   // 5. f_I with the updated stresses and b(t + dt); fixed components zeroed.
-  e.compute_forces(e.t_ + dt);
+  e.to_nodes({.forces = true, .t = e.t_ + dt, .stress_from = &n.v, .dt = dt});
   e.apply_dirichlet_force(n.f);
   // 6. corrector: v_I = v_I^pred + gamma dt f_I / m_I.
   e.solve_mass(n.f, n.a);
