@@ -117,7 +117,7 @@ template <int D> Engine<D>::Engine(const Scene& scene) : scene_(scene) {
   allocate_fields();
   after_step(); // initial checks, energy and wave speed
   energy_.initial = energy_.total();
-  external_power_ = external_power(0.0);
+  external_power_ = external_power(0.0, momentum_);
 }
 
 template <int D> void Engine<D>::allocate_fields() {
@@ -250,7 +250,7 @@ template <int D> void Engine<D>::step() {
   after_step(); // checks, energies, wave speed
   // Trapezoidal rule: exact for a constant load on a uniformly accelerating
   // body, where the one-sided rule would leave an O(dt) error in the balance.
-  const double power = external_power(t_);
+  const double power = external_power(t_, momentum_);
   energy_.external_work += 0.5 * dt_ * (external_power_ + power);
   external_power_ = power;
   check_energy();
@@ -468,8 +468,12 @@ template <int D> Vec<D> Engine<D>::body_force_at(double t) const {
 }
 
 template <int D> double Engine<D>::external_power(double t) const {
+  return external_power(t, uniform_body_force_ ? momentum() : Vec<D>::Zero());
+}
+
+template <int D> double Engine<D>::external_power(double t, const Vec<D>& momentum) const {
   if (uniform_body_force_) // sum_p m_p b(t) . v_p = b(t) . sum_p m_p v_p
-    return body_force_at(t).dot(momentum());
+    return body_force_at(t).dot(momentum);
   double power = 0.0;
   for_each_external_force(t, [&](int p, const Vec<D>& force) { power += force.dot(P_.v[p]); });
   return power;
@@ -608,13 +612,16 @@ void Engine<D>::update_stress_from_increment(const AlignedVector<Vec<D>>& dx) {
 }
 
 namespace {
-/// Per-particle sums of the after-step pass (added block by block).
-struct ParticleSums {
+/// Per-particle sums of the after-step pass (added block by block; the
+/// momentum as momentum() adds it, so it has its bits).
+template <int D> struct ParticleSums {
   double kinetic = 0.0, strain = 0.0, wave_speed2 = 0.0;
+  Vec<D> momentum = Vec<D>::Zero();
   ParticleSums& operator+=(const ParticleSums& o) {
     kinetic += o.kinetic;
     strain += o.strain;
     wave_speed2 = std::max(wave_speed2, o.wave_speed2);
+    momentum += o.momentum;
     return *this;
   }
 };
@@ -640,10 +647,11 @@ template <int D> void Engine<D>::after_step() { sum_particles(true); }
 template <int D> void Engine<D>::sum_particles(bool check) {
   // Checks in particle order within each chunk: the lowest failing particle
   // is reported, as a serial loop would.
-  const ParticleSums s = blocked_reduce<ParticleSums>(P_.size(), [&](long long p, ParticleSums& acc) {
+  const auto s = blocked_reduce<ParticleSums<D>>(P_.size(), [&](long long p, ParticleSums<D>& acc) {
     if (check) check_particle(static_cast<int>(p));
     const double v2 = P_.v[p].squaredNorm();
     acc.kinetic += 0.5 * P_.m[p] * v2;
+    acc.momentum += P_.m[p] * P_.v[p];
     acc.strain += P_.V[p] * strain_energy_density<D>(P_.sigma[p], P_.eps[p]);
     const double c2 = p_modulus_[P_.material[p]] / P_.rho[p];
     acc.wave_speed2 = std::max({acc.wave_speed2, c2, v2});
@@ -651,6 +659,7 @@ template <int D> void Engine<D>::sum_particles(bool check) {
   energy_.kinetic = s.kinetic;
   energy_.strain = s.strain;
   wave_speed_ = std::sqrt(s.wave_speed2);
+  momentum_ = s.momentum;
 }
 
 template <int D> void Engine<D>::unstable(int p, const std::string& what) const {

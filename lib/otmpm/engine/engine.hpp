@@ -233,10 +233,13 @@ private:
   /// One pass after each step: check_particle() for every particle, the
   /// energies and the wave speed for the next stable_dt().
   void after_step();
-  /// The pass of after_step() and update_energy(): kinetic and strain energy
-  /// and the wave speed max_p max(c_p, |v_p|), with the particle checks when
-  /// `check` is set.
+  /// The pass of after_step() and update_energy(): kinetic and strain energy,
+  /// the wave speed max_p max(c_p, |v_p|) and the momentum sum_p m_p v_p
+  /// (momentum_), with the particle checks when `check` is set.
   void sum_particles(bool check);
+  /// external_power(t) with the particles' momentum sum_p m_p v_p given (it
+  /// is read only for a uniform body force).
+  double external_power(double t, const Vec<D>& momentum) const;
   /// The uniform body force b g(t) of the scene at time t.
   Vec<D> body_force_at(double t) const;
   /// The particle-to-node sum: update(p0, p1) runs a per-particle update
@@ -299,6 +302,7 @@ private:
   AlignedVector<Vec<D>> fext_;   ///< external force per particle (tractions, manufactured body force)
   bool uniform_body_force_ = false;
   double wave_speed_ = 0.0;      ///< max_p max(c_p, |v_p|) after the last step
+  Vec<D> momentum_ = Vec<D>::Zero(); ///< sum_p m_p v_p after the last step (= momentum())
   std::vector<double> p_modulus_; ///< per material: P-wave modulus for D
   Dirichlet<D> dirichlet_;
   /// The distinct nodes of dirichlet_.node, ascending (reaction bookkeeping).
