@@ -1,5 +1,7 @@
 // Results do not depend on the number of OpenMP threads (issue 7): the same
 // scene stepped with 1 and with 2 threads gives bitwise identical particles.
+// Nor on fusing stages into one pass: the NPC stress update inside the force
+// scatter gives the bits of the two separate stages.
 #include <doctest/doctest.h>
 
 #include "otmpm/engine/engine.hpp"
@@ -22,6 +24,8 @@ struct Result {
   Particles<2> particles;
   EnergyBalance energy;
   Vec<2> momentum;
+  Vec<2> reaction_impulse;
+  NodalFields<2> nodal;
 };
 
 /// Reorders every particle field by a fixed random permutation, so that the
@@ -40,6 +44,13 @@ void shuffle_particles(Particles<2>& P) {
   apply(P.material), apply(P.body);
 }
 
+/// The andersen block at h = 0.125 m (25600 particles) with overrides.
+Scene andersen_block(const std::vector<std::string>& sets) {
+  std::vector<std::string> all{"grid.cells=[144, 96]", "output.every=0"};
+  all.insert(all.end(), sets.begin(), sets.end());
+  return load_scene(OTMPM_SOURCE_DIR "/examples/andersen_block.toml", all);
+}
+
 Result run_with_threads(int threads, const std::vector<std::string>& sets, bool shuffled = false) {
 #ifdef OTMPM_HAVE_OPENMP
   const int saved = omp_get_max_threads();
@@ -47,17 +58,38 @@ Result run_with_threads(int threads, const std::vector<std::string>& sets, bool 
 #else
   (void)threads;
 #endif
-  std::vector<std::string> all{"grid.cells=[144, 96]", "output.every=0"};
-  all.insert(all.end(), sets.begin(), sets.end());
-  const Scene scene = load_scene(OTMPM_SOURCE_DIR "/examples/andersen_block.toml", all);
-  Engine<2> e(scene);
+  Engine<2> e(andersen_block(sets));
   if (shuffled) shuffle_particles(e.particles());
   for (int s = 0; s < 5; ++s) e.step();
   CHECK(e.scatter_blocked() == !shuffled);
 #ifdef OTMPM_HAVE_OPENMP
   omp_set_num_threads(saved);
 #endif
-  return {e.particles(), e.energy(), e.momentum()};
+  return {e.particles(), e.energy(), e.momentum(), e.reaction_impulse(), e.nodal()};
+}
+
+/// Every particle and nodal field, the energies, the momentum and the
+/// reaction impulse have the same bits in a and b.
+void check_same(const Result& one, const Result& two) {
+  const Particles<2>& a = one.particles;
+  const Particles<2>& b = two.particles;
+  REQUIRE(a.size() == b.size());
+  bool same = true;
+  for (int p = 0; p < a.size(); ++p)
+    same = same && a.x[p] == b.x[p] && a.v[p] == b.v[p] && a.sigma[p] == b.sigma[p] && a.V[p] == b.V[p];
+  CHECK(same);
+  CHECK(one.energy.kinetic == two.energy.kinetic);
+  CHECK(one.energy.strain == two.energy.strain);
+  CHECK(one.energy.external_work == two.energy.external_work);
+  CHECK(one.energy.reaction_work == two.energy.reaction_work);
+  CHECK(one.momentum == two.momentum);
+  CHECK(one.reaction_impulse == two.reaction_impulse);
+  CHECK(one.nodal.m == two.nodal.m);
+  CHECK(one.nodal.active == two.nodal.active);
+  CHECK(one.nodal.f == two.nodal.f);
+  CHECK(one.nodal.v == two.nodal.v);
+  CHECK(one.nodal.dx == two.nodal.dx);
+  CHECK(one.nodal.reaction == two.nodal.reaction);
 }
 
 } // namespace
@@ -66,8 +98,11 @@ Result run_with_threads(int threads, const std::vector<std::string>& sets, bool 
 // (mass, momentum, forces), the particle updates, and the blocked sums of
 // energy and momentum. Each variant exercises another path.
 TEST_CASE("engine results are bitwise identical with 1 and 2 threads") {
+  // npc (the scene's integrator) runs its stress update inside the force
+  // scatter, in ul mode on moving nodes; unified runs the consistent mass.
   const std::vector<std::vector<std::string>> variants{
       {"basis.kind=\"lme\""},
+      {"basis.kind=\"lme\"", "simulation.mode=\"ul\""},
       {"basis.kind=\"linear\"", "simulation.integrator=\"fe\""},
       {"basis.kind=\"linear\"", "simulation.integrator=\"musl\""},
       {"basis.kind=\"bspline2\"", "simulation.mode=\"ul\"", "simulation.integrator=\"unified\""},
@@ -78,28 +113,45 @@ TEST_CASE("engine results are bitwise identical with 1 and 2 threads") {
     CAPTURE(sets.back());
     const Result one = run_with_threads(1, sets);
     const Result two = run_with_threads(2, sets);
-    const Particles<2>& a = one.particles;
-    const Particles<2>& b = two.particles;
-    REQUIRE(a.size() == 25600); // several scatter blocks (scatter_block = 8192)
-    REQUIRE(a.size() == b.size());
-    bool same = true;
-    for (int p = 0; p < a.size(); ++p)
-      same = same && a.x[p] == b.x[p] && a.v[p] == b.v[p] && a.sigma[p] == b.sigma[p] && a.V[p] == b.V[p];
-    CHECK(same);
-    CHECK(one.energy.kinetic == two.energy.kinetic);
-    CHECK(one.energy.strain == two.energy.strain);
-    CHECK(one.energy.external_work == two.energy.external_work);
-    CHECK(one.momentum == two.momentum);
+    REQUIRE(one.particles.size() == 25600); // several scatter blocks (scatter_block = 8192)
+    check_same(one, two);
   }
 }
 
 TEST_CASE("engine results are bitwise identical with 1 and 2 threads when particles are not spatially ordered") {
-  const std::vector<std::string> sets{"basis.kind=\"linear\"", "simulation.integrator=\"fe\""};
-  const Result one = run_with_threads(1, sets, true);
-  const Result two = run_with_threads(2, sets, true);
-  bool same = true;
-  for (int p = 0; p < one.particles.size(); ++p)
-    same = same && one.particles.x[p] == two.particles.x[p] && one.particles.sigma[p] == two.particles.sigma[p];
-  CHECK(same);
-  CHECK(one.energy.kinetic == two.energy.kinetic);
+  // fe, and npc, whose stress update then runs before the column gather
+  for (const char* integrator : {"\"fe\"", "\"npc\""}) {
+    CAPTURE(integrator);
+    const std::vector<std::string> sets{"basis.kind=\"linear\"", std::string("simulation.integrator=") + integrator};
+    check_same(run_with_threads(1, sets, true), run_with_threads(2, sets, true));
+  }
+}
+
+// molinos Algorithm 1 stages 4-5 in one pass (ToNodes::stress_from, what
+// step_npc runs) against update_stress followed by compute_forces, from the
+// same state: with the blocked scatter and with the column gather.
+TEST_CASE("npc: the stress update inside the force scatter gives the bits of the two separate stages") {
+  for (const char* basis : {"\"linear\"", "\"lme\""})
+    for (const bool shuffled : {false, true}) {
+      CAPTURE(basis);
+      CAPTURE(shuffled);
+      const Scene scene = andersen_block({std::string("basis.kind=") + basis});
+      Engine<2> fused(scene), separate(scene);
+      if (shuffled) shuffle_particles(fused.particles()), shuffle_particles(separate.particles());
+      fused.step(); // a stressed state, the same in both
+      separate.step();
+      const AlignedVector<Vec<2>> v = fused.nodal().v;
+      const double dt = fused.last_dt(), t = fused.time();
+      fused.to_nodes({.forces = true, .t = t, .stress_from = &v, .dt = dt});
+      separate.update_stress(v, dt);
+      separate.compute_forces(t);
+      CHECK(fused.scatter_blocked() == !shuffled);
+      const Particles<2>& a = fused.particles();
+      const Particles<2>& b = separate.particles();
+      bool same = true;
+      for (int p = 0; p < a.size(); ++p)
+        same = same && a.sigma[p] == b.sigma[p] && a.eps[p] == b.eps[p] && a.V[p] == b.V[p] && a.rho[p] == b.rho[p];
+      CHECK(same);
+      CHECK(fused.nodal().f == separate.nodal().f);
+    }
 }

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 namespace otmpm {
@@ -16,6 +17,23 @@ constexpr double box_tolerance = 1e-6;
 /// Floor of the energy reference of the runaway monitor (J), so that a body
 /// at rest with no load never trips it.
 constexpr double energy_floor = 1e-300;
+
+/// Gradient of a nodal field at particle p: sum_I y_I (x) grad N_Ip.
+template <int D>
+Mat<D> nodal_gradient(const BasisTable<D>& table, int p, const AlignedVector<Vec<D>>& y) {
+  Mat<D> G = Mat<D>::Zero();
+  for (int e = table.begin(p); e < table.end(p); ++e) G.noalias() += y[table.node[e]] * table.dN[e].transpose();
+  return G;
+}
+
+/// The maximum of a blocked_reduce (exact, so any grouping gives its bits).
+struct MaxOf {
+  double value = -std::numeric_limits<double>::infinity();
+  MaxOf& operator+=(const MaxOf& o) {
+    value = std::max(value, o.value);
+    return *this;
+  }
+};
 } // namespace
 
 Integrator parse_integrator(const std::string& name) {
@@ -99,7 +117,7 @@ template <int D> Engine<D>::Engine(const Scene& scene) : scene_(scene) {
   allocate_fields();
   after_step(); // initial checks, energy and wave speed
   energy_.initial = energy_.total();
-  external_power_ = external_power(0.0);
+  external_power_ = external_power(0.0, momentum_);
 }
 
 template <int D> void Engine<D>::allocate_fields() {
@@ -170,6 +188,9 @@ template <int D> void Engine<D>::build_dirichlet() {
       input_error(bs.where, "boundary '" + bs.name + "' selects no node of the " +
                                 std::string(mode_ == NodeMode::ul ? "material" : "grid") + " node set");
   }
+  dirichlet_nodes_ = dirichlet_.node;
+  std::sort(dirichlet_nodes_.begin(), dirichlet_nodes_.end());
+  dirichlet_nodes_.erase(std::unique(dirichlet_nodes_.begin(), dirichlet_nodes_.end()), dirichlet_nodes_.end());
 }
 
 template <int D> void Engine<D>::build_tractions() {
@@ -229,7 +250,7 @@ template <int D> void Engine<D>::step() {
   after_step(); // checks, energies, wave speed
   // Trapezoidal rule: exact for a constant load on a uniformly accelerating
   // body, where the one-sided rule would leave an O(dt) error in the balance.
-  const double power = external_power(t_);
+  const double power = external_power(t_, momentum_);
   energy_.external_work += 0.5 * dt_ * (external_power_ + power);
   external_power_ = power;
   check_energy();
@@ -277,27 +298,20 @@ template <int D> void Engine<D>::plan_scatter() {
 }
 
 template <int D>
-template <class Prep, class Add, class Merge>
-void Engine<D>::scatter(Prep&& prep, Add&& add, Merge&& merge) {
+template <class Update, class Prep, class Add, class Merge, class Clear>
+void Engine<D>::scatter(Update&& update, Prep&& prep, Add&& add, Merge&& merge, Clear&& clear) {
   plan_scatter();
   const int n = P_.size(), nodes = static_cast<int>(nodal_.m.size());
-  if (!blocks_.compact) return gather_columns(prep, add, merge);
+  if (!blocks_.compact) return gather_columns(update, prep, add, merge, clear);
   const int count = static_cast<int>(blocks_.lo.size());
   blocks_.buffer.resize(static_cast<std::size_t>(blocks_.offset.back()));
   // 1. every block sums its particles, in particle order, into its own range
   parallel_chunks(count, team_size(n), [&](long long b0, long long b1) {
-    for (long long b = b0; b < b1; ++b) {
-      if (blocks_.hi[b] < blocks_.lo[b]) continue; // no entries
-      NodeSums<D>* buf = blocks_.buffer.data() + blocks_.offset[b] - blocks_.lo[b];
-      std::fill(buf + blocks_.lo[b], buf + blocks_.hi[b] + 1, NodeSums<D>{});
-      for (int p = static_cast<int>(b * scatter_block), end = static_cast<int>(std::min<long long>(n, (b + 1) * scatter_block)); p < end; ++p) {
-        const auto w = prep(p);
-        for (int e = table_.begin(p); e < table_.end(p); ++e) add(buf[table_.node[e]], e, w);
-      }
-    }
+    for (int b = static_cast<int>(b0); b < b1; ++b) scatter_block_sums(b, update, prep, add);
   });
   // 2. every node adds the block sums in block order (threads own node ranges)
   parallel_chunks(nodes, team_size(n), [&](long long I0, long long I1) {
+    clear(static_cast<int>(I0), static_cast<int>(I1));
     for (int b = 0; b < count; ++b) {
       const NodeSums<D>* buf = blocks_.buffer.data() + blocks_.offset[b] - blocks_.lo[b];
       for (int I = std::max<int>(static_cast<int>(I0), blocks_.lo[b]), end = std::min<int>(static_cast<int>(I1) - 1, blocks_.hi[b]); I <= end; ++I)
@@ -307,13 +321,29 @@ void Engine<D>::scatter(Prep&& prep, Add&& add, Merge&& merge) {
 }
 
 template <int D>
-template <class Prep, class Add, class Merge>
-void Engine<D>::gather_columns(Prep&& prep, Add&& add, Merge&& merge) {
+template <class Update, class Prep, class Add>
+void Engine<D>::scatter_block_sums(int b, Update& update, Prep& prep, Add& add) {
+  const bool entries = blocks_.hi[b] >= blocks_.lo[b];
+  NodeSums<D>* buf = entries ? blocks_.buffer.data() + blocks_.offset[b] - blocks_.lo[b] : nullptr;
+  if (entries) std::fill(buf + blocks_.lo[b], buf + blocks_.hi[b] + 1, NodeSums<D>{});
+  const int begin = b * scatter_block, end = std::min(P_.size(), begin + scatter_block);
+  update(begin, end);
+  for (int p = begin; p < end; ++p) {
+    const auto w = prep(p);
+    for (int e = table_.begin(p); e < table_.end(p); ++e) add(buf[table_.node[e]], e, w);
+  }
+}
+
+template <int D>
+template <class Update, class Prep, class Add, class Merge, class Clear>
+void Engine<D>::gather_columns(Update&& update, Prep&& prep, Add&& add, Merge&& merge, Clear&& clear) {
   const int nodes = static_cast<int>(nodal_.m.size());
+  parallel_chunks(P_.size(), [&](long long p0, long long p1) { update(static_cast<int>(p0), static_cast<int>(p1)); });
   if (!columns_valid_) transpose_basis_table(table_, nodes, columns_);
   columns_valid_ = true;
   const std::vector<int>& off = columns_.offset;
   parallel_chunks(nodes, team_size(static_cast<long long>(table_.entries())), [&](long long I0, long long I1) {
+    clear(static_cast<int>(I0), static_cast<int>(I1));
     for (int I = static_cast<int>(I0); I < I1; ++I) {
       NodeSums<D> acc{};
       for (int k = off[I]; k < off[I + 1]; ++k) add(acc, columns_.entry[k], prep(columns_.particle[k]));
@@ -348,15 +378,15 @@ template <int D> void Engine<D>::to_nodes(const ToNodes<D>& what) {
 template <int D>
 template <bool Mass, bool Momentum, bool Forces>
 void Engine<D>::to_nodes_impl(const ToNodes<D>& what) {
-  if (Mass) std::fill(nodal_.m.begin(), nodal_.m.end(), 0.0);
-  if (Momentum) std::fill(nodal_.q.begin(), nodal_.q.end(), Vec<D>::Zero());
-  if (Forces) std::fill(nodal_.f.begin(), nodal_.f.end(), Vec<D>::Zero());
   const Vec<D> b = uniform_body_force_ ? body_force_at(what.t) : Vec<D>::Zero();
   const bool field = !fext_.empty(), uniform = uniform_body_force_;
   struct Payload { // what particle p carries to each of its nodes
     double m;
     Vec<D> mw, fext;
     Mat<D> Vs;
+  };
+  auto update = [&](int p0, int p1) {
+    if (what.stress_from) update_stress_range(*what.stress_from, what.dt, p0, p1);
   };
   auto prep = [&](int p) {
     Payload w{};
@@ -380,11 +410,17 @@ void Engine<D>::to_nodes_impl(const ToNodes<D>& what) {
       acc.f += N * w.fext;
     }
   };
-  scatter(prep, add, [&](int I, const NodeSums<D>& acc) {
+  auto merge = [&](int I, const NodeSums<D>& acc) {
     if (Mass) nodal_.m[I] += acc.m;
     if (Momentum) nodal_.q[I] += acc.q;
     if (Forces) nodal_.f[I] += acc.f;
-  });
+  };
+  auto clear = [&](int I0, int I1) {
+    if (Mass) std::fill(nodal_.m.begin() + I0, nodal_.m.begin() + I1, 0.0);
+    if (Momentum) std::fill(nodal_.q.begin() + I0, nodal_.q.begin() + I1, Vec<D>::Zero());
+    if (Forces) std::fill(nodal_.f.begin() + I0, nodal_.f.begin() + I1, Vec<D>::Zero());
+  };
+  scatter(update, prep, add, merge, clear);
 }
 
 template <int D> void Engine<D>::prepare_external_forces(double t) {
@@ -394,15 +430,21 @@ template <int D> void Engine<D>::prepare_external_forces(double t) {
 }
 
 template <int D> void Engine<D>::finish_mass() {
-  const double m_max = *std::max_element(nodal_.m.begin(), nodal_.m.end());
+  const int nodes = static_cast<int>(nodal_.m.size());
+  // The largest nodal mass: a maximum, exact in any grouping.
+  const double m_max = blocked_reduce<MaxOf>(nodes, [&](long long I, MaxOf& acc) {
+    acc.value = std::max(acc.value, nodal_.m[I]);
+  }).value;
   const double m_min = scene_.simulation.mass_tolerance * m_max;
-  for (std::size_t I = 0; I < nodal_.m.size(); ++I) nodal_.active[I] = nodal_.m[I] > m_min;
+  parallel_for(nodes, [&](long long I) { nodal_.active[I] = nodal_.m[I] > m_min; });
   if (!mass_matrix_) return;
-  std::vector<char> constrained(nodal_.m.size() * D, 0);
-  for (std::size_t i = 0; i < dirichlet_.node.size(); ++i)
-    for (int k = 0; k < D; ++k)
-      if (dirichlet_.fix[i][k]) constrained[dirichlet_.node[i] * D + k] = 1;
-  mass_matrix_->assemble(table_, P_.m, nodal_.active, constrained, static_cast<int>(nodal_.m.size()));
+  if (constrained_.empty()) { // the Dirichlet sets never change
+    constrained_.assign(nodal_.m.size() * D, 0);
+    for (std::size_t i = 0; i < dirichlet_.node.size(); ++i)
+      for (int k = 0; k < D; ++k)
+        if (dirichlet_.fix[i][k]) constrained_[dirichlet_.node[i] * D + k] = 1;
+  }
+  mass_matrix_->assemble(table_, P_.m, nodal_.active, constrained_, nodes);
 }
 
 template <int D>
@@ -426,8 +468,12 @@ template <int D> Vec<D> Engine<D>::body_force_at(double t) const {
 }
 
 template <int D> double Engine<D>::external_power(double t) const {
+  return external_power(t, uniform_body_force_ ? momentum() : Vec<D>::Zero());
+}
+
+template <int D> double Engine<D>::external_power(double t, const Vec<D>& momentum) const {
   if (uniform_body_force_) // sum_p m_p b(t) . v_p = b(t) . sum_p m_p v_p
-    return body_force_at(t).dot(momentum());
+    return body_force_at(t).dot(momentum);
   double power = 0.0;
   for_each_external_force(t, [&](int p, const Vec<D>& force) { power += force.dot(P_.v[p]); });
   return power;
@@ -460,12 +506,9 @@ void Engine<D>::solve_mass(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>
   ScopedPhase timer(timers_, Phase::nodal_update);
   const int n = static_cast<int>(r.size());
   y.resize(n);
-  if (!mass_matrix_) {
-    for (int I = 0; I < n; ++I) y[I] = nodal_.active[I] ? Vec<D>(r[I] / nodal_.m[I]) : Vec<D>::Zero();
-    return;
-  }
-  for (int I = 0; I < n; ++I) y[I].setZero();
-  mass_matrix_->solve(r, y);
+  const bool lumped = !mass_matrix_;
+  parallel_for(n, [&](long long I) { y[I] = lumped && nodal_.active[I] ? Vec<D>(r[I] / nodal_.m[I]) : Vec<D>::Zero(); });
+  if (!lumped) mass_matrix_->solve(r, y);
 }
 
 template <int D> void Engine<D>::apply_dirichlet_velocity(AlignedVector<Vec<D>>& v) const {
@@ -475,7 +518,8 @@ template <int D> void Engine<D>::apply_dirichlet_velocity(AlignedVector<Vec<D>>&
 }
 
 template <int D> void Engine<D>::apply_dirichlet_force(AlignedVector<Vec<D>>& f) {
-  for (auto& r : nodal_.reaction) r.setZero();
+  // Only Dirichlet nodes carry a reaction (it stays zero elsewhere).
+  for (int I : dirichlet_nodes_) nodal_.reaction[I].setZero();
   for (std::size_t i = 0; i < dirichlet_.node.size(); ++i) {
     const int I = dirichlet_.node[i];
     for (int k = 0; k < D; ++k)
@@ -488,19 +532,14 @@ template <int D> void Engine<D>::apply_dirichlet_force(AlignedVector<Vec<D>>& f)
         f[I][k] = 0.0;
       }
   }
-  for (const auto& r : nodal_.reaction) reaction_impulse_ += dt_ * r;
+  // In node order, as a sum over all nodes would add them (the others add zero).
+  for (int I : dirichlet_nodes_) reaction_impulse_ += dt_ * nodal_.reaction[I];
 }
 
 template <int D>
 void Engine<D>::interpolate(const AlignedVector<Vec<D>>& y, AlignedVector<Vec<D>>& out) const {
   out.resize(P_.size());
-  parallel_chunks(P_.size(), [&](long long begin, long long end) {
-    for (int p = static_cast<int>(begin); p < end; ++p) {
-      Vec<D> s = Vec<D>::Zero();
-      for (int e = table_.begin(p); e < table_.end(p); ++e) s += table_.N[e] * y[table_.node[e]];
-      out[p] = s;
-    }
-  });
+  parallel_for(P_.size(), [&](long long p) { out[p] = interpolate(static_cast<int>(p), y); });
 }
 
 template <int D> void Engine<D>::to_particles(const ToParticles<D>& what) {
@@ -532,22 +571,17 @@ template <int D> void Engine<D>::advect_nodes(const AlignedVector<Vec<D>>& dx) {
   basis_->nodes_moved(dx);
 }
 
-namespace {
-/// Gradient of a nodal field at particle p: sum_I y_I (x) grad N_Ip.
-template <int D>
-Mat<D> nodal_gradient(const BasisTable<D>& table, int p, const AlignedVector<Vec<D>>& y) {
-  Mat<D> G = Mat<D>::Zero();
-  for (int e = table.begin(p); e < table.end(p); ++e) G.noalias() += y[table.node[e]] * table.dN[e].transpose();
-  return G;
-}
-} // namespace
-
 template <int D>
 void Engine<D>::update_stress(const AlignedVector<Vec<D>>& v_nodes, double dt) {
   ScopedPhase timer(timers_, Phase::constitutive);
   parallel_chunks(P_.size(), [&](long long begin, long long end) {
-    for (int p = static_cast<int>(begin); p < end; ++p) update_particle_stress(p, dt * nodal_gradient(table_, p, v_nodes));
+    update_stress_range(v_nodes, dt, static_cast<int>(begin), static_cast<int>(end));
   });
+}
+
+template <int D>
+void Engine<D>::update_stress_range(const AlignedVector<Vec<D>>& v_nodes, double dt, int p0, int p1) {
+  for (int p = p0; p < p1; ++p) update_particle_stress(p, dt * nodal_gradient(table_, p, v_nodes));
 }
 
 template <int D> void Engine<D>::update_particle_stress(int p, const Mat<D>& H) {
@@ -578,13 +612,16 @@ void Engine<D>::update_stress_from_increment(const AlignedVector<Vec<D>>& dx) {
 }
 
 namespace {
-/// Per-particle sums of the after-step pass (added block by block).
-struct ParticleSums {
+/// Per-particle sums of the after-step pass (added block by block; the
+/// momentum as momentum() adds it, so it has its bits).
+template <int D> struct ParticleSums {
   double kinetic = 0.0, strain = 0.0, wave_speed2 = 0.0;
+  Vec<D> momentum = Vec<D>::Zero();
   ParticleSums& operator+=(const ParticleSums& o) {
     kinetic += o.kinetic;
     strain += o.strain;
     wave_speed2 = std::max(wave_speed2, o.wave_speed2);
+    momentum += o.momentum;
     return *this;
   }
 };
@@ -610,10 +647,11 @@ template <int D> void Engine<D>::after_step() { sum_particles(true); }
 template <int D> void Engine<D>::sum_particles(bool check) {
   // Checks in particle order within each chunk: the lowest failing particle
   // is reported, as a serial loop would.
-  const ParticleSums s = blocked_reduce<ParticleSums>(P_.size(), [&](long long p, ParticleSums& acc) {
+  const auto s = blocked_reduce<ParticleSums<D>>(P_.size(), [&](long long p, ParticleSums<D>& acc) {
     if (check) check_particle(static_cast<int>(p));
     const double v2 = P_.v[p].squaredNorm();
     acc.kinetic += 0.5 * P_.m[p] * v2;
+    acc.momentum += P_.m[p] * P_.v[p];
     acc.strain += P_.V[p] * strain_energy_density<D>(P_.sigma[p], P_.eps[p]);
     const double c2 = p_modulus_[P_.material[p]] / P_.rho[p];
     acc.wave_speed2 = std::max({acc.wave_speed2, c2, v2});
@@ -621,6 +659,7 @@ template <int D> void Engine<D>::sum_particles(bool check) {
   energy_.kinetic = s.kinetic;
   energy_.strain = s.strain;
   wave_speed_ = std::sqrt(s.wave_speed2);
+  momentum_ = s.momentum;
 }
 
 template <int D> void Engine<D>::unstable(int p, const std::string& what) const {

@@ -60,9 +60,14 @@ template <int D> struct TractionLoad {
 double time_function(const TimeFunction& g, double t);
 
 /// What the fused particle-to-node map carries, all from one pass over the
-/// basis table (molinos Algorithm 1 steps 1-2 and 5, wobbes Algorithm 1 step 1):
-/// m_I = sum_p N_Ip m_p; q_I = sum_p N_Ip m_p (w_p + c a_p); f_I = sum_p
-/// (-V_p sigma_p grad N_Ip + N_Ip f_ext,p(t)). A null `w` skips the momentum.
+/// basis table (molinos Algorithm 1 steps 1-2 and 4-5, wobbes Algorithm 1
+/// step 1): m_I = sum_p N_Ip m_p; q_I = sum_p N_Ip m_p (w_p + c a_p); f_I =
+/// sum_p (-V_p sigma_p grad N_Ip + N_Ip f_ext,p(t)). A null `w` skips the
+/// momentum. With `stress_from` set, each particle first gets its
+/// constitutive update (sect. 4) from dt L_p = dt sum_I v_I (x) grad N_Ip,
+/// v = *stress_from, and then carries its updated V_p sigma_p: the stress
+/// update of NPC in the pass that computes the forces. Its time then counts
+/// in the to_nodes phase, as the fe update counts in to_particles.
 template <int D> struct ToNodes {
   bool mass = false;
   const AlignedVector<Vec<D>>* w = nullptr;
@@ -70,6 +75,8 @@ template <int D> struct ToNodes {
   const AlignedVector<Vec<D>>* a = nullptr;
   bool forces = false;
   double t = 0.0;
+  const AlignedVector<Vec<D>>* stress_from = nullptr;
+  double dt = 0.0;
 };
 
 /// What the fused node-to-particle map does, all from one pass over the basis
@@ -195,6 +202,8 @@ public:
   void update_stress_from_increment(const AlignedVector<Vec<D>>& dx);
   /// The fused particle-to-node map (see ToNodes); mass first sets the
   /// active nodes and assembles the consistent mass matrix when used.
+  /// Throws InstabilityError for the lowest particle whose stress update
+  /// fails (with `stress_from`), as update_stress().
   void to_nodes(const ToNodes<D>& what);
   /// The fused node-to-particle map (see ToParticles).
   void to_particles(const ToParticles<D>& what);
@@ -202,6 +211,12 @@ public:
   double external_power(double t) const;
   /// Interpolates a nodal field to particles: out_p = sum_I N_Ip y_I.
   void interpolate(const AlignedVector<Vec<D>>& y, AlignedVector<Vec<D>>& out) const;
+  /// The nodal field y at particle p: sum_I N_Ip y_I (table order).
+  Vec<D> interpolate(int p, const AlignedVector<Vec<D>>& y) const {
+    Vec<D> s = Vec<D>::Zero();
+    for (int e = table_.begin(p); e < table_.end(p); ++e) s += table_.N[e] * y[table_.node[e]];
+    return s;
+  }
   /// x_I += dx_I in `ul` mode (no-op in `mpm`): the node-mode switch.
   void advect_nodes(const AlignedVector<Vec<D>>& dx);
   /// Throws InstabilityError (check_particle) for the first particle, in
@@ -218,21 +233,36 @@ private:
   /// One pass after each step: check_particle() for every particle, the
   /// energies and the wave speed for the next stable_dt().
   void after_step();
-  /// The pass of after_step() and update_energy(): kinetic and strain energy
-  /// and the wave speed max_p max(c_p, |v_p|), with the particle checks when
-  /// `check` is set.
+  /// The pass of after_step() and update_energy(): kinetic and strain energy,
+  /// the wave speed max_p max(c_p, |v_p|) and the momentum sum_p m_p v_p
+  /// (momentum_), with the particle checks when `check` is set.
   void sum_particles(bool check);
+  /// external_power(t) with the particles' momentum sum_p m_p v_p given (it
+  /// is read only for a uniform body force).
+  double external_power(double t, const Vec<D>& momentum) const;
   /// The uniform body force b g(t) of the scene at time t.
   Vec<D> body_force_at(double t) const;
-  /// The particle-to-node sum: for every basis table entry e (particle p,
-  /// node I) add(acc_I, e, prep(p)), then merge(I, acc_I) into the nodal
-  /// fields. Particles are cut into fixed blocks of scatter_block; each block
-  /// sums in particle order into its own node range, and each node adds the
-  /// block sums in block order - the same bits for any thread count. When the
-  /// block ranges overlap too much (particles not spatially ordered), a
-  /// gather over the transposed table (gather_columns) does it instead.
-  template <class Prep, class Add, class Merge> void scatter(Prep&& prep, Add&& add, Merge&& merge);
-  template <class Prep, class Add, class Merge> void gather_columns(Prep&& prep, Add&& add, Merge&& merge);
+  /// The particle-to-node sum: update(p0, p1) runs a per-particle update
+  /// (or nothing) on particles [p0, p1), each particle once and before its
+  /// prep; clear(I0, I1) zeroes the nodal fields of nodes [I0, I1); then for
+  /// every basis table entry e (particle p, node I) add(acc_I, e, prep(p)),
+  /// and merge(I, acc_I) adds acc_I into the nodal fields. Particles are cut
+  /// into fixed blocks of scatter_block; each block sums in particle order
+  /// into its own node range, and each node adds the block sums in block
+  /// order - the same bits for any thread count. Threads own node ranges for
+  /// clear and merge, so no node loop is serial. When the block ranges
+  /// overlap too much (particles not spatially ordered), a gather over the
+  /// transposed table (gather_columns) does it instead, after updating all
+  /// particles (it calls prep once per entry).
+  template <class Update, class Prep, class Add, class Merge, class Clear>
+  void scatter(Update&& update, Prep&& prep, Add&& add, Merge&& merge, Clear&& clear);
+  /// Phase 1 of scatter() for block b: update() on the block's particles,
+  /// then their sums into the block's buffer (the block's table rows, read
+  /// by both, partly still in cache; measured: updating smaller batches
+  /// between their sums is slower, the two access streams interfere).
+  template <class Update, class Prep, class Add> void scatter_block_sums(int b, Update& update, Prep& prep, Add& add);
+  template <class Update, class Prep, class Add, class Merge, class Clear>
+  void gather_columns(Update&& update, Prep&& prep, Add&& add, Merge&& merge, Clear&& clear);
   /// Node ranges of the scatter blocks for the current basis table.
   void plan_scatter();
   template <bool Mass, bool Momentum, bool Forces> void to_nodes_impl(const ToNodes<D>& what);
@@ -242,6 +272,9 @@ private:
   void finish_mass();
   /// Strain, density, volume and stress update of particle p from H = dt L_p.
   void update_particle_stress(int p, const Mat<D>& H);
+  /// update_particle_stress for particles [p0, p1) with dt L_p = dt sum_I
+  /// v_I (x) grad N_Ip (serial; the callers thread it).
+  void update_stress_range(const AlignedVector<Vec<D>>& v_nodes, double dt, int p0, int p1);
   /// Allocates the optional particle fields this scene reads and drops
   /// length0 when no traction needs it (memory).
   void allocate_fields();
@@ -270,8 +303,13 @@ private:
   AlignedVector<Vec<D>> fext_;   ///< external force per particle (tractions, manufactured body force)
   bool uniform_body_force_ = false;
   double wave_speed_ = 0.0;      ///< max_p max(c_p, |v_p|) after the last step
+  Vec<D> momentum_ = Vec<D>::Zero(); ///< sum_p m_p v_p after the last step (= momentum())
   std::vector<double> p_modulus_; ///< per material: P-wave modulus for D
   Dirichlet<D> dirichlet_;
+  /// The distinct nodes of dirichlet_.node, ascending (reaction bookkeeping).
+  std::vector<int> dirichlet_nodes_;
+  /// constrained[I*D + k]: component k of node I is fixed (consistent mass).
+  std::vector<char> constrained_;
   std::vector<TractionLoad<D>> tractions_;
   Vec<D> body_force_ = Vec<D>::Zero();
   bool has_body_force_ = false;

@@ -62,6 +62,15 @@ template <class Body> void parallel_chunks(long long n, Body&& body) {
   parallel_chunks(n, team_size(n), static_cast<Body&&>(body));
 }
 
+/// Runs body(i) for every i in [0, n), parallel_chunks over team_size(n)
+/// threads: for loops whose iteration i writes only item i (nodal and
+/// particle updates), which are then the same bits for any thread count.
+template <class Body> void parallel_for(long long n, Body&& body) {
+  parallel_chunks(n, [&](long long begin, long long end) {
+    for (long long i = begin; i < end; ++i) body(i);
+  });
+}
+
 /// Items per block of a blocked_reduce: fixed, so that the grouping of the
 /// partial sums (hence the bits of the result) does not depend on threads.
 constexpr int reduction_block = 1024;

@@ -4,23 +4,30 @@
 /// live in the engine and are shared; advect_nodes() is a no-op in `mpm`
 /// mode, which is the only difference between the two node modes.
 #include "otmpm/engine/engine.hpp"
+#include "otmpm/engine/parallel.hpp"
 
 namespace otmpm {
 
 namespace {
-/// a += s * b over nodal or particle arrays.
+/// a += s * b over nodal or particle arrays (threaded, per item).
 template <int D> void axpy(AlignedVector<Vec<D>>& a, double s, const AlignedVector<Vec<D>>& b) {
-  for (std::size_t i = 0; i < a.size(); ++i) a[i] += s * b[i];
+  parallel_for(static_cast<long long>(a.size()), [&](long long i) { a[i] += s * b[i]; });
+}
+/// y = s * x over nodal or particle arrays (threaded, per item).
+template <int D> void scale(AlignedVector<Vec<D>>& y, double s, const AlignedVector<Vec<D>>& x) {
+  y.resize(x.size());
+  parallel_for(static_cast<long long>(x.size()), [&](long long i) { y[i] = s * x[i]; });
 }
 /// The nodal increment of OTM and the unified approach (wobbes eq. 51):
 /// v_I = M^{-1} (q + (dt + dt_prev)/2 f) with Dirichlet values, dx_I = dt v_I.
+/// dx holds the right-hand side q + (dt + dt_prev)/2 f until the solve.
 template <int D> void transport_increment(Engine<D>& e, NodalFields<D>& n, double dt, double dt_prev) {
-  AlignedVector<Vec<D>> rhs(n.q.size());
-  for (std::size_t I = 0; I < rhs.size(); ++I) rhs[I] = n.q[I] + (0.5 * (dt + dt_prev)) * n.f[I];
-  e.solve_mass(rhs, n.v);
+  n.dx.resize(n.q.size());
+  parallel_for(static_cast<long long>(n.q.size()),
+               [&](long long I) { n.dx[I] = n.q[I] + (0.5 * (dt + dt_prev)) * n.f[I]; });
+  e.solve_mass(n.dx, n.v);
   e.apply_dirichlet_velocity(n.v);
-  n.dx.resize(n.v.size());
-  for (std::size_t I = 0; I < n.v.size(); ++I) n.dx[I] = dt * n.v[I];
+  scale(n.dx, dt, n.v);
 }
 } // namespace
 
@@ -42,8 +49,7 @@ template <int D> void step_fe(Engine<D>& e, bool musl) {
   // 4. (usl) L_p = sum v_I (x) grad N_Ip; strain, density and stress update,
   //    in the same pass over the particles.
   e.to_particles({.rate = &n.a, .c_rate = dt, .move = &n.v, .c_move = dt, .grad = musl ? nullptr : &n.v, .c_grad = dt});
-  n.dx.resize(n.v.size());
-  for (std::size_t I = 0; I < n.v.size(); ++I) n.dx[I] = dt * n.v[I];
+  scale(n.dx, dt, n.v);
   e.advect_nodes(n.dx);
   // musl: v_I recomputed from the updated particle momenta, then step 4.
   if (musl) {
@@ -67,17 +73,18 @@ template <int D> void step_npc(Engine<D>& e) {
   e.solve_mass(n.q, n.v);
   // 3. Dirichlet on the predictor.
   e.apply_dirichlet_velocity(n.v);
-  // 4. L_p from the predictor; strain, density and stress update.
-  e.update_stress(n.v, dt);
+  // 4. L_p from the predictor; strain, density and stress update, and (same
+  //    pass over the basis table, each particle updated before it scatters)
   // 5. f_I with the updated stresses and b(t + dt); fixed components zeroed.
-  e.compute_forces(e.t_ + dt);
+  e.to_nodes({.forces = true, .t = e.t_ + dt, .stress_from = &n.v, .dt = dt});
   e.apply_dirichlet_force(n.f);
   // 6. corrector: v_I = v_I^pred + gamma dt f_I / m_I.
   e.solve_mass(n.f, n.a);
   axpy(n.v, gamma * dt, n.a);
   // 7. a_p = sum N_Ip f_I/m_I; v_p += dt a_p; x_p += sum N_Ip (dt v_I + dt^2/2 f_I/m_I).
   n.dx.resize(n.v.size());
-  for (std::size_t I = 0; I < n.v.size(); ++I) n.dx[I] = dt * n.v[I] + (0.5 * dt * dt) * n.a[I];
+  parallel_for(static_cast<long long>(n.v.size()),
+               [&](long long I) { n.dx[I] = dt * n.v[I] + (0.5 * dt * dt) * n.a[I]; });
   e.to_particles({.rate = &n.a, .c_rate = dt, .rate_out = &P.a, .move = &n.dx, .c_move = 1.0});
   e.advect_nodes(n.dx);
 }
@@ -89,20 +96,22 @@ template <int D> void step_otm(Engine<D>& e) {
   const double dt = e.dt_, dt_prev = e.dt_prev_;
   e.evaluate_basis();
   // v_p := (x_p^s - x_p^{s-1}) / dt_s (initially x^{-1} = x^0 - dt v^0).
-  if (e.step_ > 0)
-    for (int p = 0; p < P.size(); ++p) P.v[p] = (P.x[p] - P.x_prev[p]) / dt_prev;
+  if (e.step_ > 0) parallel_for(P.size(), [&](long long p) { P.v[p] = (P.x[p] - P.x_prev[p]) / dt_prev; });
   // 1. q_I = sum N_Ip m_p v_p; dx_I = dt M^{-1} (q + (dt + dt_prev)/2 f).
   e.to_nodes({.mass = true, .w = &P.v, .forces = true, .t = e.t_});
   e.apply_dirichlet_force(n.f);
   transport_increment(e, n, dt, dt_prev);
-  // 2. x_I += dx_I; x_p = sum N_Ip x_I (old N): x_p += sum N_Ip dx_I.
-  P.x_prev = P.x;
+  // 2. x_I += dx_I; x_p = sum N_Ip x_I (old N): x_p += sum N_Ip dx_I, and
+  //    v_p = sum N_Ip dx_I / dt, in one threaded pass.
   {
     ScopedPhase timer(e.timers_, Phase::to_particles);
-    AlignedVector<Vec<D>> tmp;
-    e.interpolate(n.dx, tmp);
-    axpy(P.x, 1.0, tmp);
-    for (int p = 0; p < P.size(); ++p) P.v[p] = tmp[p] / dt;
+    P.x_prev.resize(P.x.size());
+    parallel_for(P.size(), [&](long long p) {
+      const Vec<D> dx = e.interpolate(static_cast<int>(p), n.dx);
+      P.x_prev[p] = P.x[p];
+      P.x[p] += dx;
+      P.v[p] = dx / dt;
+    });
   }
   e.advect_nodes(n.dx);
   // 3. G_p = I + sum dx_I (x) grad N_Ip; F_p = G_p F_p; V_p = det(G_p) V_p; stress.
