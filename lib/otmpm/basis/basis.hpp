@@ -27,7 +27,6 @@ template <int D> struct Stencil {
   // scratch, owned by the caller's thread; contents meaningless between calls
   std::vector<int> scratch_ids;
   std::vector<double> scratch_w;
-  AlignedVector<Vec<D>> scratch_dx;
 
   void clear() { node.clear(); N.clear(); dN.clear(); }
   int size() const { return static_cast<int>(node.size()); }
