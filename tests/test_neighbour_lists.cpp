@@ -98,12 +98,11 @@ TEST_CASE("neighbour lists: exactly the direct search on a fixed lattice, lists 
 }
 
 TEST_CASE("neighbour lists: exactly the direct search on moving nodes (R-tree), 1D to 3D") {
-  CHECK(check_rounds<1>(NodeSet<1>::perturbed(unit_grid<1>(20), 0.3, 2), 0.15, 0.01, true, Vec<1>(0.003),
-                        20) >= 0);
-  CHECK(check_rounds<2>(NodeSet<2>::perturbed(unit_grid<2>(12), 0.3, 3), 0.2, 0.01, true, Vec<2>(0.01, -0.02),
-                        15) >= 0);
-  CHECK(check_rounds<3>(NodeSet<3>::perturbed(unit_grid<3>(6), 0.3, 4), 0.35, 0.02, true,
-                        Vec<3>(0.01, 0.0, 0.02), 8) >= 0);
+  // The assertions are the REQUIREs of check_rounds (every answer equals the
+  // direct search); how many lists get rebuilt is not asserted here.
+  check_rounds<1>(NodeSet<1>::perturbed(unit_grid<1>(20), 0.3, 2), 0.15, 0.01, true, Vec<1>(0.003), 20);
+  check_rounds<2>(NodeSet<2>::perturbed(unit_grid<2>(12), 0.3, 3), 0.2, 0.01, true, Vec<2>(0.01, -0.02), 15);
+  check_rounds<3>(NodeSet<3>::perturbed(unit_grid<3>(6), 0.3, 4), 0.35, 0.02, true, Vec<3>(0.01, 0.0, 0.02), 8);
 }
 
 TEST_CASE("neighbour lists: a rigid translation of nodes and points rebuilds nothing") {
