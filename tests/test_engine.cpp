@@ -4,7 +4,7 @@
 // Dirichlet nodes, the "would leave the grid" diagnosis and 1D/2D/3D agreement of
 // the Dyka bar. Scenes are built from TOML text (otmpm::parse_scene), kept
 // coarse and short so that the executable runs in a few seconds.
-#include "otmpm/engine/engine.hpp"
+#include "otmpm/assembly/assembler.hpp"
 #include "otmpm/engine/run.hpp"
 #include "otmpm/reference/exact.hpp"
 
@@ -174,7 +174,7 @@ constexpr double kMassRoundOff = 1e-12;
 
 template <int D> void check_mass_conservation(const Variant& v) {
   INFO("mode " << v.mode << ", integrator " << v.integrator << ", basis " << v.basis << ", mass " << v.mass);
-  Engine<D> e(scene_of(free_body(D), overrides_of(v)));
+  Engine<D> e = assemble<D>(scene_of(free_body(D), overrides_of(v)));
   const double M = total_particle_mass(e);
   REQUIRE(M > 0.0);
   for (int s = 0; s < kFreeSteps; ++s) {
@@ -201,7 +201,7 @@ constexpr double kMomentumRoundOff = 1e-12;
 
 template <int D> void check_momentum_conservation(const Variant& v) {
   INFO("mode " << v.mode << ", integrator " << v.integrator << ", basis " << v.basis << ", mass " << v.mass);
-  Engine<D> e(scene_of(free_body(D), overrides_of(v)));
+  Engine<D> e = assemble<D>(scene_of(free_body(D), overrides_of(v)));
   const Vec<D> P0 = e.momentum();
   const double scale = momentum_scale(e);
   REQUIRE(scale > 0.0);
@@ -271,7 +271,7 @@ Spec rigid_block(int dim) {
 /// Moves the block three cells in x (h = 0.25) and checks that it stays rigid.
 template <int D> void check_rigid_translation(const std::string& basis, const std::string& integrator) {
   INFO("basis " << basis << ", integrator " << integrator);
-  Engine<D> e(scene_of(rigid_block(D), {"basis.kind=\"" + basis + "\"", "simulation.integrator=\"" + integrator + "\""}));
+  Engine<D> e = assemble<D>(scene_of(rigid_block(D), {"basis.kind=\"" + basis + "\"", "simulation.integrator=\"" + integrator + "\""}));
   const auto& P = e.particles();
   const Vec<D> v0 = P.v.front();
   const double h = 0.25, distance = 3 * h, E = 1.0;
@@ -363,7 +363,7 @@ struct ElementRun {
 };
 
 ElementRun run_single_element(const std::string& mass, double dt, int steps) {
-  Engine<1> e(scene_of(single_element(mass, dt)));
+  Engine<1> e = assemble<1>(scene_of(single_element(mass, dt)));
   const auto& P = e.particles();
   ElementRun r{0, 0, 0, 0, 1.0};
   for (int p = 0; p < P.size(); ++p) { // N_free(x) = x / h on [0, h], h = 1
@@ -464,7 +464,7 @@ template <int D> void check_ul_reproduction(const std::string& basis, const std:
   INFO("basis " << basis << ", integrator " << integrator);
   const Scene scene = scene_of(free_body(D), {"simulation.mode=\"ul\"", "basis.kind=\"" + basis + "\"",
                                               "simulation.integrator=\"" + integrator + "\""});
-  Engine<D> e(scene);
+  Engine<D> e = assemble<D>(scene);
   const double h = 0.25;
   for (int s = 0; s < kFreeSteps; ++s) {
     e.step();
@@ -508,7 +508,8 @@ template <int D> Scene otm_fe_scene(const std::string& basis, const std::string&
 
 template <int D> void check_otm_equals_fe(const std::string& basis, const std::string& mass) {
   INFO("dimension " << D << ", basis " << basis << ", mass " << mass);
-  Engine<D> fe(otm_fe_scene<D>(basis, "fe", mass)), otm(otm_fe_scene<D>(basis, "otm", mass));
+  Engine<D> fe = assemble<D>(otm_fe_scene<D>(basis, "fe", mass));
+  Engine<D> otm = assemble<D>(otm_fe_scene<D>(basis, "otm", mass));
   fe.step();
   otm.step();
   const auto& a = fe.nodal().dx;
@@ -568,7 +569,7 @@ void check_dirichlet(const Variant& v, double left_velocity) {
   INFO("mode " << v.mode << ", integrator " << v.integrator << ", basis " << v.basis << ", value " << left_velocity);
   std::vector<std::string> over = overrides_of(v);
   if (v.integrator == "npc" && v.basis == "linear") over.push_back("simulation.mass=\"consistent\"");
-  Engine<2> e(scene_of(corner_block(left_velocity), over));
+  Engine<2> e = assemble<2>(scene_of(corner_block(left_velocity), over));
   const Dirichlet<2>& bc = e.dirichlet();
   REQUIRE(!bc.node.empty());
   for (int s = 0; s < 8; ++s) {
@@ -622,7 +623,7 @@ Spec escaping_block(const std::string& basis) {
 TEST_CASE("a particle about to leave the grid in mpm mode is an InstabilityError one step before it leaves") {
   for (const char* basis : {"linear", "lme", "bspline2"}) {
     INFO("basis " << basis);
-    Engine<1> e(scene_of(escaping_block(basis)));
+    Engine<1> e = assemble<1>(scene_of(escaping_block(basis)));
     std::string message;
     try {
       for (int s = 0; s < 1000; ++s) e.step(); // the block needs ~0.5 s = ~200 steps to reach the end
@@ -691,7 +692,7 @@ struct DykaHistory {
 
 template <int D> DykaHistory run_dyka(int n, double tol) {
   const Scene scene = parse_scene(dyka_text(D, n, tol), "dyka_" + std::to_string(D) + "d.toml");
-  Engine<D> e(scene);
+  Engine<D> e = assemble<D>(scene);
   const auto exact = make_exact_solution<D>(scene);
   REQUIRE(exact);
   const auto& P = e.particles();

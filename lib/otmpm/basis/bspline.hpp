@@ -152,10 +152,8 @@ public:
   void evaluate(const PointQuery<D>& q, Stencil<D>& out) const override;
   bool linearly_complete() const override { return true; }
   int max_stencil() const override;
-  /// Saves the (advected) vertices of every knot vector, "knots_0", ...
-  void save_state(StateGroup& out) const override;
-  /// Rebuilds the knot vectors from the saved vertices (same cell counts).
-  void restore_state(const StateGroup& in) override;
+  /// The element walk over knot spans starts from each point's last cell.
+  PointStateUse point_state_use(bool) const override { return {.cell_hint = true}; }
 
   int degree() const { return degree_; }
   /// The knot vector of `axis`; std::invalid_argument unless 0 <= axis < D.
@@ -170,6 +168,12 @@ public:
   int control_point_id(const Index<D>& ijk) const;
   /// Largest |x_I + dx_I - xi_I| of the last nodes_moved() (0 before any).
   double last_projection_distance() const { return last_projection_; }
+
+protected:
+  /// Saves the (advected) vertices of every knot vector, "knots_0", ...
+  void save_family_state(StateGroup& out) const override;
+  /// Rebuilds the knot vectors from the saved vertices (same cell counts).
+  void restore_family_state(const StateGroup& in) override;
 
 private:
   void rebuild_nodes(double spacing);

@@ -249,6 +249,11 @@ public:
   bool linearly_complete() const override { return true; }
   int max_stencil() const override { return kCorners<D>; }
   int fixed_stencil() const override { return kCorners<D>; }
+  /// The element walk of the isoparametric map (a perturbed or moving
+  /// lattice) starts from each point's last cell; the lattice hats need none.
+  PointStateUse point_state_use(bool nodes_move) const override {
+    return {.cell_hint = nodes_move || !nodes_.on_lattice()};
+  }
 
   void evaluate(const PointQuery<D>& q, Stencil<D>& out) const override {
     out.clear();

@@ -149,11 +149,15 @@ public:
   bool linearly_complete() const override { return true; }
   int max_stencil() const override;
   double search_radius() const override { return settings_.support_radius; }
-  /// No state of its own: refreshes the search index and stencil bound after
-  /// the node positions were restored from a checkpoint.
-  void restore_state(const StateGroup&) override { nodes_moved({}); }
+  /// The Lagrange multiplier of each point warm-starts its next solve.
+  PointStateUse point_state_use(bool) const override { return {.lambda = true}; }
 
   const Prior& prior() const { return prior_; }
+
+protected:
+  /// No state of its own: refreshes the search index and stencil bound after
+  /// the node positions were restored from a checkpoint.
+  void restore_family_state(const StateGroup&) override { nodes_moved({}); }
 
 private:
   /// Gathers the support of x: node ids into out.node, the offsets x - x_I

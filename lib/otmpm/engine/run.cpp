@@ -1,6 +1,7 @@
 #include "otmpm/engine/run.hpp"
 
-#include "otmpm/engine/engine.hpp"
+#include "otmpm/assembly/assembler.hpp"
+#include "otmpm/particles/output_fields.hpp"
 #include "otmpm/io/checkpoint.hpp"
 #include "otmpm/io/results.hpp"
 #include "otmpm/reference/exact.hpp"
@@ -36,15 +37,6 @@ template <int D> int probe_particle(const Particles<D>& P, const ProbeSection& p
       best = p;
   }
   return best;
-}
-
-/// Copies DxD matrices into row-major rows of D*D doubles.
-template <int D> std::vector<double> row_major(const AlignedVector<Mat<D>>& A) {
-  std::vector<double> out(A.size() * D * D);
-  for (std::size_t p = 0; p < A.size(); ++p)
-    for (int i = 0; i < D; ++i)
-      for (int j = 0; j < D; ++j) out[p * D * D + i * D + j] = A[p](i, j);
-  return out;
 }
 
 // A member added to EnergySummary must be saved and restored here.
@@ -173,8 +165,18 @@ private:
   std::vector<HistoryLayout> histories() const {
     std::vector<HistoryLayout> h;
     for (const Probe& pr : probes_) h.push_back({pr.name, true, {"x", "v", "stress"}});
-    h.push_back({"energy", false, {"kinetic", "strain", "external_work", "reaction_work"}});
+    std::vector<std::string> energy{"kinetic", "strain", "external_work", "reaction_work"};
+    if (dissipative()) energy.push_back("dissipated");
+    h.push_back({"energy", false, energy});
     return h;
+  }
+
+  /// True when a material of the run has internal variables (and so may
+  /// dissipate energy): the energy series then has a "dissipated" column.
+  bool dissipative() const {
+    for (int i = 0; i < e_.material_count(); ++i)
+      if (!e_.material(i).state().empty()) return true;
+    return false;
   }
 
   /// Copies the frames and history samples written before the checkpoint.
@@ -199,38 +201,22 @@ private:
     }
     if (writer_) {
       const EnergyBalance& E = e_.energy();
-      writer_->append_series("energy", t,
-                             {{"kinetic", E.kinetic},
-                              {"strain", E.strain},
-                              {"external_work", E.external_work},
-                              {"reaction_work", E.reaction_work}});
+      std::vector<std::pair<std::string, double>> energy{
+          {"kinetic", E.kinetic}, {"strain", E.strain}, {"external_work", E.external_work}, {"reaction_work", E.reaction_work}};
+      if (dissipative()) energy.emplace_back("dissipated", E.dissipated);
+      writer_->append_series("energy", t, energy);
       write_frame(t);
     }
   }
 
   void write_frame(double t) {
     const Particles<D>& P = e_.particles();
-    const int n = P.size();
     std::vector<FieldView> fields;
-    std::vector<std::vector<double>> buffers;
-    buffers.reserve(8);
-    for (const std::string& f : scene_.output.fields) {
-      if (f == "x") fields.push_back({"x", n, D, P.x.front().data()});
-      else if (f == "v") fields.push_back({"v", n, D, P.v.front().data()});
-      else if (f == "a") fields.push_back({"a", n, D, P.a.front().data()});
-      else if (f == "stress") fields.push_back({"stress", n, D * D, (buffers.push_back(row_major<D>(P.sigma)), buffers.back().data())});
-      else if (f == "strain") fields.push_back({"strain", n, D * D, (buffers.push_back(row_major<D>(P.eps)), buffers.back().data())});
-      else if (f == "F") fields.push_back({"F", n, D * D, (buffers.push_back(row_major<D>(P.F)), buffers.back().data())});
-      else if (f == "density") fields.push_back({"density", n, 1, P.rho.data()});
-      else if (f == "volume") fields.push_back({"volume", n, 1, P.V.data()});
-      else if (f == "mass") fields.push_back({"mass", n, 1, P.m.data()});
-      else if (f == "displacement") {
-        std::vector<double> u(static_cast<std::size_t>(n) * D);
-        for (int p = 0; p < n; ++p)
-          for (int k = 0; k < D; ++k) u[p * D + k] = P.x[p][k] - P.X[p][k];
-        buffers.push_back(std::move(u));
-        fields.push_back({"displacement", n, D, buffers.back().data()});
-      }
+    std::vector<std::vector<double>> buffers(scene_.output.fields.size());
+    for (std::size_t i = 0; i < scene_.output.fields.size(); ++i) {
+      const std::string& name = scene_.output.fields[i];
+      const FieldData d = output_field_data<D>(name, P, buffers[i]);
+      fields.push_back({name, P.size(), d.cols, d.data});
     }
     writer_->write_frame(t, fields);
   }
@@ -269,7 +255,7 @@ double seconds_since(std::chrono::steady_clock::time_point start) {
 template <int D> RunSummary run_dim(const Scene& scene, const RunOptions& opt, const Checkpoint* resume) {
   const auto start = std::chrono::steady_clock::now();
   RunSummary s;
-  Engine<D> e(scene);
+  Engine<D> e = assemble<D>(scene);
   const auto exact = make_exact_solution<D>(scene);
   if (resume) e.restore_state(*resume);
   Recorder<D> rec(scene, opt, e, exact.get(), resume);

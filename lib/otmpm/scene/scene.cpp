@@ -4,6 +4,11 @@
 // read and checked, so that overrides meet exactly the same checks as the file.
 #include "otmpm/scene/scene.hpp"
 
+#include "otmpm/basis/kinds.hpp"
+#include "otmpm/integrators/integrator.hpp"
+#include "otmpm/particles/output_fields.hpp"
+#include "otmpm/scene/validate.hpp"
+
 #include <toml++/toml.h>
 
 #include <algorithm>
@@ -21,8 +26,6 @@ namespace {
 
 /// SourceRef::line of a value that came from a --set override.
 constexpr int kCommandLineLine = -1;
-/// A grid node lies in a box when it is inside up to this fraction of h.
-constexpr double kNodeTolerance = 1e-9;
 /// grid.h must divide (upper - lower) into an integer to this relative accuracy.
 constexpr double kCellsTolerance = 1e-6;
 /// Largest edit distance for which an unknown key gets a "did you mean".
@@ -39,10 +42,17 @@ std::string fmt(double x) {
   return buf;
 }
 
-std::string quoted_list(Names names) {
+std::string quoted_list(std::span<const std::string_view> names) {
   std::string s;
   for (auto n : names) s += (s.empty() ? "\"" : ", \"") + std::string(n) + "\"";
   return s;
+}
+
+/// The names of a table of kinds (basis_kinds(), integrator_kinds(), ...).
+template <class Table, class Name> std::vector<std::string_view> names_of(const Table& table, Name name) {
+  std::vector<std::string_view> out;
+  for (const auto& row : table) out.push_back(name(row));
+  return out;
 }
 
 std::string join_path(const std::string& prefix, std::string_view key) {
@@ -77,7 +87,7 @@ std::size_t edit_distance(std::string_view a, std::string_view b) {
   return row[b.size()];
 }
 
-std::string suggestion(std::string_view key, Names allowed) {
+std::string suggestion(std::string_view key, std::span<const std::string_view> allowed) {
   std::string_view best;
   std::size_t best_d = kSuggestDistance + 1;
   for (auto a : allowed) {
@@ -87,6 +97,7 @@ std::string suggestion(std::string_view key, Names allowed) {
   if (!best.empty() && best_d < key.size()) return " (did you mean '" + std::string(best) + "'?)";
   return " (allowed: " + quoted_list(allowed) + ")";
 }
+
 
 /// State shared by all readers of one scene: file name, which paths --set
 /// wrote (dotted path -> the KEY typed on the command line) and every key read.
@@ -166,7 +177,8 @@ public:
   }
 
   /// Unknown keys are errors; the first one in file order (or from --set) is reported.
-  void only(Names allowed) const {
+  void only(Names allowed) const { only(std::span<const std::string_view>(allowed.begin(), allowed.size())); }
+  void only(std::span<const std::string_view> allowed) const {
     if (!table_) return;
     const toml::key* first = nullptr;
     for (auto&& [k, v] : *table_) {
@@ -201,6 +213,9 @@ public:
 
   /// A string that must be one of `allowed`.
   std::string choice(std::string_view key, std::string fallback, Names allowed) const {
+    return choice(key, std::move(fallback), std::span<const std::string_view>(allowed.begin(), allowed.size()));
+  }
+  std::string choice(std::string_view key, std::string fallback, std::span<const std::string_view> allowed) const {
     std::string v = get<std::string>(key, fallback);
     if (std::find(allowed.begin(), allowed.end(), v) == allowed.end())
       input_error(ref(key), "must be one of " + quoted_list(allowed) + " (got \"" + v + "\")");
@@ -328,17 +343,13 @@ SimulationSection read_simulation(const TableReader& t) {
   check(s.dimension >= 1 && s.dimension <= 3, t.ref("dimension"),
         "must be 1, 2 or 3 (got " + std::to_string(s.dimension) + ")");
   s.mode = t.choice("mode", s.mode, {"mpm", "ul"});
-  s.integrator = t.choice("integrator", s.integrator, {"fe", "musl", "npc", "otm", "unified"});
-  check(!(s.mode == "mpm" && (s.integrator == "otm" || s.integrator == "unified")), t.ref("integrator"),
-        "integrator \"" + s.integrator + "\" needs advected nodes: use simulation.mode = \"ul\"");
+  const auto integrators = names_of(integrator_kinds(), [](const IntegratorKind& k) { return k.name; });
+  s.integrator = t.choice("integrator", s.integrator, integrators);
   s.gamma = t.get<double>("gamma", s.gamma);
   check(s.gamma > 0 && s.gamma <= 1, t.ref("gamma"), "must be in (0, 1] (got " + fmt(s.gamma) + ")");
-  // Default: the mass matrix of each algorithm's listing - lumped for fe, musl
-  // and npc; consistent for otm (wobbes eq. 48) and unified (Algorithm 3).
-  const bool consistent_default = s.integrator == "otm" || s.integrator == "unified";
+  // Default: the mass matrix of each algorithm's listing (IntegratorKind).
+  const bool consistent_default = integrator_kind(s.integrator).consistent_by_default;
   s.mass = t.choice("mass", consistent_default ? "consistent" : "lumped", {"lumped", "consistent"});
-  check(!(s.integrator == "unified" && s.mass == "lumped"), t.ref("mass"),
-        "integrator \"unified\" uses the consistent mass matrix (wobbes Algorithm 3): remove mass = \"lumped\"");
   s.t_end = t.require<double>("t_end");
   check(s.t_end > 0, t.ref("t_end"), "must be > 0 (got " + fmt(s.t_end) + ")");
   check(!(t.has("cfl") && t.has("dt")), t.ref("dt"), "give either simulation.cfl or simulation.dt, not both");
@@ -357,7 +368,7 @@ BasisOptions read_basis(const TableReader& t) {
   t.only({"kind", "gamma_lme", "tolerance", "d_max", "newton_tolerance", "max_newton_iterations"});
   BasisOptions b;
   if (!t.has("kind")) t.missing("kind");
-  b.kind = t.choice("kind", b.kind, {"linear", "ugimp", "bspline2", "bspline3", "lme", "maxent"});
+  b.kind = t.choice("kind", b.kind, names_of(basis_kinds(), [](const BasisKind& k) { return k.name; }));
   b.gamma_lme = positive(t, "gamma_lme", b.gamma_lme);
   b.tolerance = t.get<double>("tolerance", b.tolerance);
   check(b.tolerance > 0 && b.tolerance < 1, t.ref("tolerance"), "must be in (0, 1) (got " + fmt(b.tolerance) + ")");
@@ -446,19 +457,9 @@ double body_particles(const BodySection& b, const GridSection& g, int dim) {
 
 /// The nodes of the engine's node set (see SceneSize).
 double node_count(const Scene& s) {
+  const LatticeBox box = node_lattice_box(s);
   double n = 1;
-  for (int k = 0; k < s.simulation.dimension; ++k) {
-    double cells = s.grid.cells[k];
-    if (s.simulation.mode == "ul" && !s.bodies.empty()) {
-      double lo = s.bodies.front().lower[k], hi = s.bodies.front().upper[k];
-      for (const BodySection& b : s.bodies) {
-        lo = std::min(lo, b.lower[k]);
-        hi = std::max(hi, b.upper[k]);
-      }
-      cells = cells_over(hi - lo, spacing(s.grid, k));
-    }
-    n *= cells + 1;
-  }
+  for (int k = 0; k < s.simulation.dimension; ++k) n *= box.cells[k] + 1;
   return n;
 }
 
@@ -470,27 +471,86 @@ std::string read_name(const TableReader& t, bool required, const std::string& fa
   return name;
 }
 
+/// The part of a parameter key before the dot ("johnson_cook" of
+/// "johnson_cook.B"), "" for a key of the material table itself.
+std::string_view sub_table(std::string_view key) {
+  const auto dot = key.find('.');
+  return dot == std::string_view::npos ? std::string_view() : key.substr(0, dot);
+}
+
+/// Reads the parameter `spec` of a model from `t` (the material table, or
+/// the sub-table the key names) into m.extra, with its range check.
+void read_parameter(const TableReader& t, std::string_view key, const ParameterSpec& spec, MaterialSection& m) {
+  const auto value = t.get<double>(key);
+  if (!value) {
+    if (!spec.fallback) t.missing(key);
+    return;
+  }
+  const std::string why = spec.check(*value);
+  check(why.empty(), t.ref(key), why);
+  m.extra[std::string(spec.key)] = *value;
+}
+
+/// The keys of a model in the material table: the common ones, its
+/// top-level parameters and the names of its sub-tables.
+std::vector<std::string_view> material_keys(const MaterialModel& model) {
+  std::vector<std::string_view> keys{"name", "model", "density", "young", "poisson"};
+  for (const ParameterSpec& p : model.parameters) {
+    const std::string_view table = sub_table(p.key);
+    const std::string_view key = table.empty() ? p.key : table;
+    if (std::find(keys.begin(), keys.end(), key) == keys.end()) keys.push_back(key);
+  }
+  return keys;
+}
+
+/// The model's parameters: top-level keys, and the keys of each sub-table
+/// the scene gives (an absent sub-table is an absent option).
+void read_model_parameters(const TableReader& t, const MaterialModel& model, MaterialSection& m) {
+  for (const ParameterSpec& p : model.parameters)
+    if (sub_table(p.key).empty()) read_parameter(t, p.key, p, m);
+  for (const std::string_view key : material_keys(model)) {
+    std::vector<std::string_view> inner;
+    for (const ParameterSpec& p : model.parameters)
+      if (sub_table(p.key) == key) inner.push_back(p.key.substr(key.size() + 1));
+    if (inner.empty()) continue;
+    const auto sub = t.table(key);
+    if (!sub) continue;
+    sub->only(inner);
+    for (const ParameterSpec& p : model.parameters)
+      if (sub_table(p.key) == key) read_parameter(*sub, p.key.substr(key.size() + 1), p, m);
+  }
+}
+
+MaterialSection read_material(const TableReader& t, std::set<std::string>& names) {
+  MaterialSection m;
+  m.where = t.self();
+  if (!t.has("model")) t.missing("model");
+  const auto models = names_of(material_models(), [](const MaterialModel* k) { return k->name; });
+  m.model = t.choice("model", m.model, models);
+  const MaterialModel& model = *find_material_model(m.model);
+  t.only(material_keys(model));
+  m.name = read_name(t, true, "", names);
+  m.density = t.require<double>("density");
+  check(m.density > 0, t.ref("density"), "must be > 0 (got " + fmt(m.density) + ")");
+  m.young = t.require<double>("young");
+  check(m.young > 0, t.ref("young"), "must be > 0 (got " + fmt(m.young) + ")");
+  m.poisson = t.require<double>("poisson");
+  check(m.poisson > -1 && m.poisson < 0.5, t.ref("poisson"), "must be in (-1, 0.5) (got " + fmt(m.poisson) + ")");
+  read_model_parameters(t, model, m);
+  try {
+    validate_material(m); // the model's own cross-checks
+  } catch (const InputError& e) {
+    input_error(t.self(), e.what());
+  }
+  return m;
+}
+
 std::vector<MaterialSection> read_materials(const TableReader& root) {
   auto tables = root.tables("material");
   if (tables.empty()) root.missing("material", "at least one [[material]] is required");
   std::vector<MaterialSection> out;
   std::set<std::string> names;
-  for (const TableReader& t : tables) {
-    t.only({"name", "model", "density", "young", "poisson"});
-    MaterialSection m;
-    m.where = t.self();
-    m.name = read_name(t, true, "", names);
-    if (!t.has("model")) t.missing("model");
-    m.model = t.choice("model", m.model, {"linear_elastic", "linear_elastic_finite", "neo_hookean"});
-    m.density = t.require<double>("density");
-    check(m.density > 0, t.ref("density"), "must be > 0 (got " + fmt(m.density) + ")");
-    m.young = t.require<double>("young");
-    check(m.young > 0, t.ref("young"), "must be > 0 (got " + fmt(m.young) + ")");
-    m.poisson = t.require<double>("poisson");
-    check(m.poisson > -1 && m.poisson < 0.5, t.ref("poisson"),
-          "must be in (-1, 0.5) (got " + fmt(m.poisson) + ")");
-    out.push_back(std::move(m));
-  }
+  for (const TableReader& t : tables) out.push_back(read_material(t, names));
   return out;
 }
 
@@ -501,15 +561,6 @@ SourceRef box_ref(const TableReader& t) {
     if (r.line == kCommandLineLine) return r;
   }
   return t.self();
-}
-
-void check_body_in_grid(const TableReader& t, const BodySection& b, const GridSection& g, int dim) {
-  for (int k = 0; k < dim; ++k) {
-    const double tol = kNodeTolerance * spacing(g, k);
-    check(b.lower[k] >= g.lower[k] - tol && b.upper[k] <= g.upper[k] + tol, box_ref(t),
-          "body \"" + b.name + "\" [" + fmt(b.lower[k]) + ", " + fmt(b.upper[k]) + "] on axis " + std::to_string(k) +
-              " is not inside the grid [" + fmt(g.lower[k]) + ", " + fmt(g.upper[k]) + "] (mpm mode)");
-  }
 }
 
 std::vector<BodySection> read_bodies(const TableReader& root, const Scene& s) {
@@ -538,7 +589,6 @@ std::vector<BodySection> read_bodies(const TableReader& root, const Scene& s) {
     b.placement = t.choice("placement", b.placement, {"gauss", "cell_centres"});
     b.velocity = t.vec("velocity", dim).value_or(b.velocity);
     if (t.has("velocity_profile")) b.velocity_profile = t.choice("velocity_profile", "", {"sin_x"});
-    if (s.simulation.mode == "mpm") check_body_in_grid(t, b, s.grid, dim);
     particles += body_particles(b, s.grid, dim);
     check(particles <= kMaxSceneParticles, box_ref(t),
           "body \"" + b.name + "\" brings the particle count to " + fmt(particles) + " (" +
@@ -565,18 +615,7 @@ std::vector<InitialVelocitySection> read_initial_velocities(const TableReader& r
   return out;
 }
 
-/// True when some node of the Cartesian grid lies in [lo, hi] (tolerance 1e-9 h).
-bool box_selects_node(const GridSection& g, const Vec3& lo, const Vec3& hi, int dim) {
-  for (int k = 0; k < dim; ++k) {
-    const double h = spacing(g, k), tol = kNodeTolerance * h;
-    const double first = std::max(0.0, std::ceil((lo[k] - tol - g.lower[k]) / h));
-    const double last = std::min(static_cast<double>(g.cells[k]), std::floor((hi[k] + tol - g.lower[k]) / h));
-    if (first > last) return false;
-  }
-  return true;
-}
-
-std::vector<BoundarySection> read_boundaries(const TableReader& root, const GridSection& g, int dim) {
+std::vector<BoundarySection> read_boundaries(const TableReader& root, int dim) {
   std::vector<BoundarySection> out;
   std::set<std::string> names;
   for (const TableReader& t : root.tables("boundary")) {
@@ -591,8 +630,6 @@ std::vector<BoundarySection> read_boundaries(const TableReader& root, const Grid
     if (!fix) t.missing("fix");
     b.fix = *fix;
     b.value = t.vec("value", dim).value_or(b.value);
-    check(box_selects_node(g, b.lower, b.upper, dim), box_ref(t),
-          "boundary \"" + b.name + "\" selects no grid node (nodes are at grid.lower + i h)");
     out.push_back(std::move(b));
   }
   return out;
@@ -654,21 +691,21 @@ std::vector<ProbeSection> read_probes(const TableReader& out_table, int dim) {
   return out;
 }
 
-/// Particle fields a frame can hold (what the engine's recorder writes).
-const Names kOutputFields = {"x", "v", "a", "stress", "strain", "F", "density", "volume", "mass", "displacement"};
-
-/// output.fields: known, distinct particle field names.
-std::vector<std::string> read_fields(const TableReader& t, std::string_view key, std::vector<std::string> fallback) {
+/// output.fields: known, distinct particle field names - the built-in
+/// fields (output_fields()) and the state of the scene's material models.
+std::vector<std::string> read_fields(const TableReader& t, std::string_view key, std::vector<std::string> fallback,
+                                     const Scene& s) {
   const toml::node* n = t.node(key);
   if (!n) return fallback;
   const SourceRef r = t.ref(key);
   const toml::array* a = n->as_array();
   if (!a) input_error(r, "expected an array of strings, got " + type_name(*n));
+  const std::vector<std::string_view> known = output_field_names(s);
   std::vector<std::string> out;
   for (const toml::node& el : *a) {
     out.push_back(convert<std::string>(el, r));
-    check(std::find(kOutputFields.begin(), kOutputFields.end(), out.back()) != kOutputFields.end(), r,
-          "unknown field \"" + out.back() + "\"" + suggestion(out.back(), kOutputFields));
+    check(std::find(known.begin(), known.end(), out.back()) != known.end(), r,
+          "unknown field \"" + out.back() + "\"" + suggestion(out.back(), known));
     check(std::count(out.begin(), out.end(), out.back()) == 1, r, "names \"" + out.back() + "\" twice");
   }
   return out;
@@ -685,7 +722,8 @@ void read_checkpoint_keys(const TableReader& t, OutputSection& o) {
   check(o.checkpoint_file != o.file, t.ref("checkpoint_file"), "must differ from output.file");
 }
 
-OutputSection read_output(const TableReader& root, int dim) {
+OutputSection read_output(const TableReader& root, const Scene& s) {
+  const int dim = s.simulation.dimension;
   OutputSection o;
   auto t = root.table("output");
   if (!t) return o;
@@ -695,7 +733,7 @@ OutputSection read_output(const TableReader& root, int dim) {
   check(!o.file.empty(), t->ref("file"), "must not be empty");
   o.every = t->get<double>("every", o.every);
   check(o.every >= 0, t->ref("every"), "must be >= 0 (got " + fmt(o.every) + ")");
-  o.fields = read_fields(*t, "fields", o.fields);
+  o.fields = read_fields(*t, "fields", o.fields, s);
   o.probes = read_probes(*t, dim);
   read_checkpoint_keys(*t, o);
   return o;
@@ -721,15 +759,6 @@ void check_node_count(const TableReader& grid, const Scene& s) {
             "; at most " + fmt(kMaxSceneNodes) + " are allowed");
 }
 
-/// Checks that involve several sections, and derived basis parameters.
-void finish_basis(Scene& s, const TableReader& basis) {
-  if (s.basis.kind != "ugimp") return;
-  check(s.grid.kind == "cartesian", basis.ref("kind"),
-        "uGIMP needs an unperturbed Cartesian grid; this scene has grid.kind = \"" + s.grid.kind + "\"");
-  const int ppc = s.bodies.front().particles_per_cell;
-  for (int k = 0; k < s.simulation.dimension; ++k) s.basis.ugimp_half_width[k] = spacing(s.grid, k) / (2.0 * ppc);
-}
-
 Scene read_scene(const toml::table& root, Context& ctx) {
   TableReader r(ctx, &root, "", SourceRef{ctx.file, 1, ""});
   r.only({"simulation", "basis", "grid", "material", "body", "initial_velocity", "boundary", "body_force", "traction",
@@ -743,18 +772,18 @@ Scene read_scene(const toml::table& root, Context& ctx) {
   s.basis_where = basis.self();
   const TableReader grid = r.require_table("grid");
   s.grid = read_grid(grid, dim);
-  const bool ul = s.simulation.mode == "ul";
-  if (!ul) check_node_count(grid, s);
+  // The node count before the bodies (their particle count assumes a sane
+  // grid) - except in ul mode, where the bodies make the node lattice.
+  if (!s.simulation.nodes_move()) check_node_count(grid, s);
   s.materials = read_materials(r);
   s.bodies = read_bodies(r, s);
-  if (ul) check_node_count(grid, s);
+  if (s.simulation.nodes_move()) check_node_count(grid, s);
   s.initial_velocities = read_initial_velocities(r, dim);
-  s.boundaries = read_boundaries(r, s.grid, dim);
+  s.boundaries = read_boundaries(r, dim);
   s.body_force = read_body_force(r, dim);
   s.tractions = read_tractions(r, dim);
-  s.output = read_output(r, dim);
+  s.output = read_output(r, s);
   s.reference = read_reference(r);
-  finish_basis(s, basis);
   return s;
 }
 
@@ -905,10 +934,31 @@ Scene parse_scene(const std::string& text, const std::string& name, const std::v
   for (const std::string& o : overrides) apply_override(root, o, ctx);
   Scene s = read_scene(root, ctx);
   s.where = std::move(ctx.where);
+  validate_scene(s, s.simulation.dimension); // checks across sections, with the lines recorded above
   std::ostringstream os;
   os << root << "\n";
   s.text = os.str();
   return s;
+}
+
+LatticeBox node_lattice_box(const Scene& s) {
+  LatticeBox box;
+  box.lower = s.grid.lower;
+  box.upper = s.grid.upper;
+  for (int k = 0; k < s.simulation.dimension; ++k) {
+    box.cells[k] = s.grid.cells[k];
+    if (!s.simulation.nodes_move() || s.bodies.empty()) continue;
+    // ul: the nodes discretise only the material, in cells of the grid spacing
+    const double h = (s.grid.upper[k] - s.grid.lower[k]) / s.grid.cells[k];
+    box.lower[k] = s.bodies.front().lower[k];
+    box.upper[k] = s.bodies.front().upper[k];
+    for (const BodySection& b : s.bodies) {
+      box.lower[k] = std::min(box.lower[k], b.lower[k]);
+      box.upper[k] = std::max(box.upper[k], b.upper[k]);
+    }
+    box.cells[k] = cells_over(box.upper[k] - box.lower[k], h);
+  }
+  return box;
 }
 
 SceneSize scene_size(const Scene& scene) {

@@ -6,6 +6,8 @@
 /// from (SourceRef) so that later consistency checks (a body outside the grid,
 /// a boundary box selecting no node) can still name file, line and key.
 #include "otmpm/basis/basis.hpp"
+#include "otmpm/materials/material.hpp"
+#include "otmpm/time_function.hpp"
 
 #include <array>
 #include <map>
@@ -30,13 +32,6 @@ struct SourceRef {
 
 using Vec3 = std::array<double, 3>;
 
-/// A time function multiplying a load: constant 1, or the ramp of molinos
-/// eq. 45, g(t) = 0.5 (sin(2 pi t / T - pi/2) + 1), rising to 1 at T/2 and constant after.
-struct TimeFunction {
-  std::string kind = "constant"; ///< constant | ramp
-  double period = 0.0;           ///< T of molinos eq. 45
-};
-
 struct SimulationSection {
   int dimension = 1;
   std::string mode = "mpm";        ///< mpm | ul
@@ -49,6 +44,8 @@ struct SimulationSection {
   double mass_tolerance = 1e-12;   ///< nodes with m_I < tol * max m are inactive
   double energy_limit = 10.0;      ///< runaway: kinetic + strain energy > limit * (initial energy + |external work| + |reaction work|) stops the run
   SourceRef where;
+  /// True in `ul` mode (nodes advected with the material).
+  bool nodes_move() const { return mode == "ul"; }
 };
 
 struct GridSection {
@@ -60,10 +57,9 @@ struct GridSection {
   SourceRef where;
 };
 
-struct MaterialSection {
-  std::string name;
-  std::string model = "linear_elastic"; ///< linear_elastic | linear_elastic_finite | neo_hookean
-  double density = 0, young = 0, poisson = 0;
+/// A [[material]]: name, model (a MaterialModel of materials/), density,
+/// young, poisson and the model's own parameters (MaterialParameters::extra).
+struct MaterialSection : MaterialParameters {
   SourceRef where;
 };
 
@@ -86,8 +82,8 @@ struct InitialVelocitySection {
   SourceRef where;
 };
 
-/// Dirichlet node set: nodes inside the closed box [lower, upper] (with a
-/// tolerance of 1e-9 h) get the fixed velocity components held at `value`.
+/// Dirichlet node set: nodes inside the closed box [lower, upper] (within
+/// kBoxTolerance h) get the fixed velocity components held at `value`.
 struct BoundarySection {
   std::string name;
   Vec3 lower{0, 0, 0}, upper{0, 0, 0};
@@ -160,7 +156,21 @@ struct Scene {
   SourceRef locate(const std::string& key) const;
 };
 
-/// How many particles and nodes Engine<D>(scene) creates, counted the way the
+/// Fraction of the grid spacing h within which a node counts as inside a
+/// box (boundary boxes) and a body edge as inside the grid.
+inline constexpr double kBoxTolerance = 1e-6;
+
+/// The node lattice of a scene: the grid in `mpm` mode; in `ul` mode the
+/// bodies' bounding box cut into cells of the grid spacing (round(extent /
+/// h), at least one per axis). Cell counts as doubles, so that absurd
+/// scenes do not overflow before they are refused.
+struct LatticeBox {
+  Vec3 lower{0, 0, 0}, upper{0, 0, 0};
+  std::array<double, 3> cells{1, 1, 1};
+};
+LatticeBox node_lattice_box(const Scene& scene);
+
+/// How many particles and nodes the engine of a scene has, counted the way the
 /// engine counts them but in doubles, so that absurd scenes do not overflow.
 /// Particles: per body, prod_k max(1, round((upper - lower) / h_k)) cells of
 /// particles_per_cell^dimension particles (h = grid spacing). Nodes:

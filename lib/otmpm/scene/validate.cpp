@@ -3,7 +3,10 @@
 /// short function; every failure is an InputError at the scene key.
 #include "otmpm/scene/validate.hpp"
 
+#include "otmpm/basis/kinds.hpp"
+#include "otmpm/integrators/integrator.hpp"
 #include "otmpm/materials/material.hpp"
+#include "otmpm/particles/output_fields.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -15,9 +18,6 @@
 namespace otmpm {
 
 namespace {
-
-/// A body edge may lie outside the grid by this fraction of h (as in parse_scene).
-constexpr double kGridTolerance = 1e-9;
 
 /// Throws InputError "<where key>: <parts>" unless `ok`.
 template <class... Parts> void check(const Scene& s, bool ok, const std::string& key, const Parts&... parts) {
@@ -61,10 +61,15 @@ void check_simulation(const Scene& s, int dim) {
   const SimulationSection& m = s.simulation;
   check(s, m.dimension == dim, "simulation.dimension", "the scene is ", m.dimension, "D but the run is ", dim, "D");
   check(s, one_of(m.mode, {"mpm", "ul"}), "simulation.mode", "must be \"mpm\" or \"ul\" (got \"", m.mode, "\")");
-  check(s, one_of(m.integrator, {"fe", "musl", "npc", "otm", "unified"}), "simulation.integrator",
-        "must be one of \"fe\", \"musl\", \"npc\", \"otm\", \"unified\" (got \"", m.integrator, "\")");
+  const IntegratorKind* integrator = find_integrator(m.integrator);
+  check(s, integrator != nullptr, "simulation.integrator", "must be one of ", integrator_list(), " (got \"",
+        m.integrator, "\")");
   check(s, one_of(m.mass, {"lumped", "consistent"}), "simulation.mass", "must be \"lumped\" or \"consistent\" (got \"",
         m.mass, "\")");
+  check(s, !integrator->needs_ul || m.nodes_move(), "simulation.integrator", "integrator \"", m.integrator,
+        "\" needs advected nodes: use simulation.mode = \"ul\"");
+  check(s, !integrator->needs_consistent_mass || m.mass == "consistent", "simulation.mass", "integrator \"",
+        m.integrator, "\" uses the consistent mass matrix (wobbes et al. Algorithm 3): set mass = \"consistent\"");
   check(s, m.gamma > 0.0 && m.gamma <= 1.0, "simulation.gamma", "must be in (0, 1] (got ", m.gamma, ")");
   check(s, finite_positive(m.t_end), "simulation.t_end", "must be finite and > 0 (got ", m.t_end, ")");
   if (m.dt) check(s, finite_positive(*m.dt), "simulation.dt", "must be finite and > 0 (got ", *m.dt, ")");
@@ -85,34 +90,51 @@ void check_grid(const Scene& s, int dim) {
         "must be in [0, 0.5) (got ", g.perturbation, ")");
 }
 
+void check_basis(const Scene& s) {
+  const BasisKind* kind = find_basis_kind(s.basis.kind);
+  if (!kind) input_error(s.basis_where, "kind must be one of " + basis_kind_list() + " (got \"" + s.basis.kind + "\")");
+  const IntegratorKind* integrator = find_integrator(s.simulation.integrator);
+  check(s, !integrator->needs_bspline || kind->bspline, "basis.kind", "integrator \"", s.simulation.integrator,
+        "\" needs a B-spline basis (bspline2 or bspline3), got \"", s.basis.kind, "\"");
+  check(s, !kind->cartesian_only || s.grid.kind == "cartesian", "basis.kind", s.basis.kind,
+        " needs an unperturbed Cartesian grid; this scene has grid.kind = \"", s.grid.kind, "\"");
+  check(s, !kind->cartesian_only || !s.simulation.nodes_move(), "basis.kind", s.basis.kind,
+        " needs a fixed Cartesian grid: its nodes cannot move (use simulation.mode = \"mpm\")");
+}
+
 void check_materials(const Scene& s) {
   check(s, !s.materials.empty(), "material", "at least one [[material]] is required");
   for (std::size_t i = 0; i < s.materials.size(); ++i) {
     const MaterialSection& ms = s.materials[i];
     const std::string key = element_key("material", ms.name, i);
     check(s, !ms.name.empty(), key + ".name", "must not be empty");
-    Material m;
-    m.name = ms.name;
-    m.density = ms.density;
-    m.young = ms.young;
-    m.poisson = ms.poisson;
     try {
-      m.model = Material::parse_model(ms.model);
-      m.validate();
+      validate_material(ms);
     } catch (const InputError& e) {
       input_error(s.locate(key), e.what());
     }
   }
 }
 
+/// Where a box of `key` came from: the --set that changed its lower or
+/// upper corner, else the table itself.
+SourceRef box_where(const Scene& s, const std::string& key) {
+  for (const char* corner : {".lower", ".upper"}) {
+    const SourceRef r = s.locate(key + corner);
+    if (r.line < 0) return r;
+  }
+  return s.locate(key);
+}
+
 /// In `mpm` mode the particles must start on the grid.
 void check_body_in_grid(const Scene& s, const BodySection& b, const std::string& key, int dim) {
   const GridSection& g = s.grid;
   for (int k = 0; k < dim; ++k) {
-    const double tol = kGridTolerance * (g.upper[k] - g.lower[k]) / g.cells[k];
-    check(s, b.lower[k] >= g.lower[k] - tol && b.upper[k] <= g.upper[k] + tol, key + ".lower", "body '", b.name,
-          "' [", b.lower[k], ", ", b.upper[k], "] on axis ", k, " is not inside the grid [", g.lower[k], ", ",
-          g.upper[k], "] (mpm mode)");
+    const double tol = kBoxTolerance * (g.upper[k] - g.lower[k]) / g.cells[k];
+    if (b.lower[k] >= g.lower[k] - tol && b.upper[k] <= g.upper[k] + tol) continue;
+    input_error(box_where(s, key), error_message("body '", b.name, "' [", b.lower[k], ", ", b.upper[k], "] on axis ", k,
+                                                 " is not inside the grid [", g.lower[k], ", ", g.upper[k],
+                                                 "] (mpm mode)"));
   }
 }
 
@@ -149,6 +171,9 @@ void check_output(const Scene& s) {
   const double every = s.output.every;
   check(s, every == 0.0 || (finite_positive(every) && s.simulation.t_end / every <= kMaxOutputTimes), "output.every",
         "must be 0 or finite and > 0 with at most ", kMaxOutputTimes, " output times up to t_end (got ", every, ")");
+  const std::vector<std::string_view> known = output_field_names(s);
+  for (const std::string& f : s.output.fields)
+    check(s, std::find(known.begin(), known.end(), f) != known.end(), "output.fields", "unknown field \"", f, "\"");
 }
 
 } // namespace
@@ -177,10 +202,21 @@ void validate_scene(const Scene& s, int dimension) {
                                  dimension);
   check_simulation(s, dimension);
   check_grid(s, dimension);
+  check_basis(s);
   check_materials(s);
   validate_bodies(s, dimension);
   check_loads(s, dimension);
   check_output(s);
+}
+
+std::vector<std::string_view> output_field_names(const Scene& s) {
+  std::vector<std::string_view> names;
+  for (const OutputField& f : output_fields()) names.push_back(f.name);
+  for (const MaterialSection& m : s.materials)
+    if (const MaterialModel* model = find_material_model(m.model))
+      for (const StateSpec& st : model->state)
+        if (std::find(names.begin(), names.end(), st.name) == names.end()) names.push_back(st.name);
+  return names;
 }
 
 template <int D> void validate_seeding(const Scene& s, const Vec<D>& h) {

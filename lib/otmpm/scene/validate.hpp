@@ -27,6 +27,10 @@ void validate_scene(const Scene& scene, int dimension);
 /// in `mpm` mode it lies inside the grid. InputError naming the key.
 void validate_bodies(const Scene& scene, int dimension);
 
+/// The names output.fields may use in this scene: the built-in particle
+/// fields (output_fields()) and the internal variables of its material models.
+std::vector<std::string_view> output_field_names(const Scene& scene);
+
 /// What seed_particles() relies on: validate_bodies(), a grid spacing h that
 /// is finite and > 0 on every axis, and a particle count per body that fits
 /// an int. InputError naming the body or the axis of h.

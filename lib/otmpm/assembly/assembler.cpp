@@ -1,0 +1,282 @@
+/// \file assembler.cpp
+/// Scene -> engine parts (assembler.hpp). Each part has one short function.
+#include "otmpm/assembly/assembler.hpp"
+
+#include "otmpm/basis/kinds.hpp"
+#include "otmpm/integrators/integrator.hpp"
+#include "otmpm/reference/exact.hpp"
+#include "otmpm/reference/solutions.hpp"
+#include "otmpm/scene/validate.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+namespace otmpm {
+
+namespace {
+
+template <int D> Vec<D> vec(const Vec3& v) {
+  Vec<D> out;
+  for (int k = 0; k < D; ++k) out[k] = v[k];
+  return out;
+}
+
+/// The grid spacing of the scene's grid per axis.
+template <int D> Vec<D> grid_spacing(const Scene& scene) {
+  Vec<D> h;
+  for (int k = 0; k < D; ++k) h[k] = (scene.grid.upper[k] - scene.grid.lower[k]) / scene.grid.cells[k];
+  return h;
+}
+
+/// The node lattice of the scene (node_lattice_box) as a grid.
+template <int D> CartesianGrid<D> node_grid(const Scene& scene) {
+  const LatticeBox box = node_lattice_box(scene);
+  CartesianGrid<D> grid;
+  for (int k = 0; k < D; ++k) {
+    grid.lower[k] = box.lower[k];
+    grid.upper[k] = box.upper[k];
+    grid.cells[k] = static_cast<int>(box.cells[k]);
+  }
+  grid.validate();
+  return grid;
+}
+
+template <int D> bool inside_box(const Vec<D>& x, const Vec3& lo, const Vec3& hi, double tol = 0.0) {
+  for (int k = 0; k < D; ++k)
+    if (x[k] < lo[k] - tol || x[k] > hi[k] + tol) return false;
+  return true;
+}
+
+/// Cells of the grid spacing h that tile a body box along each axis.
+template <int D> Index<D> body_cells(const BodySection& body, const Vec<D>& h) {
+  Index<D> cells;
+  for (int k = 0; k < D; ++k)
+    cells[k] = std::max(1, static_cast<int>(std::lround((body.upper[k] - body.lower[k]) / h[k])));
+  return cells;
+}
+
+template <int D> Vec<D> initial_body_velocity(const BodySection& body, const Vec<D>& x) {
+  Vec<D> v = vec<D>(body.velocity);
+  if (body.velocity_profile && *body.velocity_profile == "sin_x") {
+    const double s = (x[0] - body.lower[0]) / (body.upper[0] - body.lower[0]);
+    v *= std::sin(std::numbers::pi * s);
+  }
+  return v;
+}
+
+int material_index(const Scene& scene, const BodySection& body) {
+  for (std::size_t i = 0; i < scene.materials.size(); ++i)
+    if (scene.materials[i].name == body.material) return static_cast<int>(i);
+  input_error(scene.locate("body." + body.name + ".material"),
+              "body '" + body.name + "' uses undefined material '" + body.material + "'");
+}
+
+/// True when output.fields names `field`.
+bool output_wants(const Scene& scene, const char* field) {
+  const auto& f = scene.output.fields;
+  return std::find(f.begin(), f.end(), field) != f.end();
+}
+
+/// The optional particle fields the integrator, the materials, the mode and
+/// the output read (a scene pays memory only for what it uses).
+template <int D>
+void allocate_fields(const Scene& scene, const IntegratorKind& integrator, const EngineParts<D>& parts,
+                     Particles<D>& P) {
+  bool finite = false;
+  for (const auto& m : parts.materials) finite = finite || m->needs_deformation_gradient();
+  P.allocate_optional(integrator.needs_acceleration || output_wants(scene, "a"),
+                      finite || parts.mode.nodes_move() || output_wants(scene, "F"));
+  if (integrator.needs_previous_position) P.x_prev = P.x;
+  if (scene.tractions.empty()) AlignedVector<Vec<D>>().swap(P.length0);
+  for (const auto& m : parts.materials)
+    for (const StateSpec& s : m->state()) P.add_state(std::string(s.name), s.width, s.initial);
+}
+
+/// The basis of the scene on the node lattice (uGIMP: with the particles'
+/// half-width h / (2 n_ppc) of the first body).
+template <int D> std::unique_ptr<Basis<D>> build_basis(const Scene& scene, const CartesianGrid<D>& grid) {
+  NodeSet<D> nodes = scene.grid.kind == "perturbed" ? NodeSet<D>::perturbed(grid, scene.grid.perturbation, scene.grid.seed)
+                                                    : NodeSet<D>::cartesian(grid);
+  BasisOptions opt = scene.basis;
+  if (basis_kind(opt.kind).particle_size) {
+    const Vec<D> h = grid_spacing<D>(scene);
+    for (int k = 0; k < D; ++k) opt.ugimp_half_width[k] = h[k] / (2.0 * scene.bodies.front().particles_per_cell);
+  }
+  try {
+    return make_basis<D>(opt, std::move(nodes));
+  } catch (const InputError& e) {
+    input_error(scene.basis_where, e.what());
+  }
+}
+
+/// The nodes of `nodes` inside each boundary box (within kBoxTolerance h).
+template <int D> Dirichlet<D> build_dirichlet(const Scene& scene, const NodeSet<D>& nodes, double h, bool ul) {
+  Dirichlet<D> d;
+  const double tol = kBoxTolerance * h;
+  for (const BoundarySection& bs : scene.boundaries) {
+    int selected = 0;
+    for (int I = 0; I < nodes.size(); ++I) {
+      if (!inside_box<D>(nodes.position(I), bs.lower, bs.upper, tol)) continue;
+      d.node.push_back(I);
+      d.fix.push_back(bs.fix);
+      d.value.push_back(bs.value);
+      ++selected;
+    }
+    if (selected == 0)
+      input_error(bs.where, "boundary '" + bs.name + "' selects no node of the " +
+                                std::string(ul ? "material" : "grid") + " node set");
+  }
+  return d;
+}
+
+/// Tractions on the particles inside each traction box; the built-in
+/// history of wobbes et al. eq. 103 comes from the traction bar's solution
+/// (which the history keeps alive).
+template <int D>
+std::vector<Traction<D>> build_tractions(const Scene& scene, const Particles<D>& P,
+                                         const std::shared_ptr<const ExactSolution<D>>& exact) {
+  std::vector<Traction<D>> out;
+  for (const TractionSection& ts : scene.tractions) {
+    Traction<D> load;
+    load.value = vec<D>(ts.value);
+    load.time = ts.time;
+    load.value.cwiseAbs().maxCoeff(&load.axis);
+    for (int p = 0; p < P.size(); ++p)
+      if (inside_box<D>(P.x[p], ts.lower, ts.upper)) load.particle.push_back(p);
+    if (load.particle.empty()) input_error(ts.where, "traction box selects no particle");
+    if (ts.function == "wobbes_traction_bar") {
+      const auto* bar = dynamic_cast<const TractionBar<D>*>(exact.get());
+      if (!bar)
+        input_error(ts.where, "traction function 'wobbes_traction_bar' needs reference.solution = \"traction_bar\"");
+      load.axis = 0;
+      load.history = [exact, bar](double t) { return bar->traction(t); };
+    } else if (!ts.function.empty()) {
+      input_error(ts.where, "unknown traction function '" + ts.function + "' (expected wobbes_traction_bar)");
+    }
+    out.push_back(std::move(load));
+  }
+  return out;
+}
+
+/// Body force of the scene and, for a manufactured solution, its body force
+/// field b(X, t) (the engine holds the solution through the function).
+template <int D>
+std::optional<BodyForce<D>> build_body_force(const Scene& scene, std::shared_ptr<const ExactSolution<D>> exact) {
+  const bool mms = exact && exact->has_body_force();
+  if (!scene.body_force && !mms) return std::nullopt;
+  BodyForce<D> b;
+  if (scene.body_force) {
+    b.value = vec<D>(scene.body_force->value);
+    b.time = scene.body_force->time;
+  }
+  if (mms) b.field = [exact](const Vec<D>& X, double t) { return exact->body_force(X, t); };
+  return b;
+}
+
+template <int D> StepSettings<D> build_settings(const Scene& scene, const IntegratorKind& integrator, double h) {
+  const SimulationSection& sim = scene.simulation;
+  StepSettings<D> s;
+  s.step = integrator.step<D>();
+  s.parameters.gamma = sim.gamma;
+  s.t_end = sim.t_end;
+  s.cfl = sim.cfl;
+  s.dt = sim.dt;
+  s.h = h;
+  s.consistent_mass = sim.mass == "consistent" || integrator.needs_consistent_mass;
+  s.mass_tolerance = sim.mass_tolerance;
+  s.energy_limit = sim.energy_limit;
+  return s;
+}
+
+} // namespace
+
+template <int D> Particles<D> seed_particles(const Scene& scene, const Vec<D>& h) {
+  validate_seeding<D>(scene, h);
+  struct Seed {
+    Vec<D> x, len;
+    double V;
+    int body;
+  };
+  std::vector<Seed> seeds;
+  std::vector<int> material; // per body
+  std::size_t count = 0;
+  for (const BodySection& body : scene.bodies) {
+    material.push_back(material_index(scene, body));
+    std::size_t n = 1;
+    const Index<D> cells = body_cells<D>(body, h);
+    for (int k = 0; k < D; ++k) n *= static_cast<std::size_t>(cells[k]) * static_cast<std::size_t>(body.particles_per_cell);
+    count += n;
+  }
+  seeds.reserve(count); // no growth by doubling: peak memory
+  for (std::size_t b = 0; b < scene.bodies.size(); ++b) {
+    const BodySection& body = scene.bodies[b];
+    seed_box_cells<D>(vec<D>(body.lower), vec<D>(body.upper), body_cells<D>(body, h), body.particles_per_cell,
+                      body.placement, [&](const Vec<D>& x, double V, const Vec<D>& len) {
+                        seeds.push_back({x, len, V, static_cast<int>(b)});
+                      });
+  }
+  Particles<D> P;
+  P.resize(static_cast<int>(seeds.size()));
+  for (int p = 0; p < P.size(); ++p) {
+    const Seed& sd = seeds[static_cast<std::size_t>(p)];
+    const BodySection& body = scene.bodies[static_cast<std::size_t>(sd.body)];
+    const int mat = material[static_cast<std::size_t>(sd.body)];
+    const double density = scene.materials[static_cast<std::size_t>(mat)].density;
+    P.x[p] = P.X[p] = sd.x;
+    P.V[p] = P.V0[p] = sd.V;
+    P.rho[p] = density;
+    P.m[p] = density * sd.V;
+    P.material[p] = mat;
+    P.body[p] = sd.body;
+    P.length0[p] = sd.len;
+    P.v[p] = initial_body_velocity<D>(body, sd.x);
+    for (const InitialVelocitySection& iv : scene.initial_velocities)
+      if (inside_box<D>(sd.x, iv.lower, iv.upper)) P.v[p] = vec<D>(iv.velocity);
+  }
+  return P;
+}
+
+template <int D> EngineParts<D> assemble_parts(const Scene& scene) {
+  validate_scene(scene, D);
+  const IntegratorKind& integrator = integrator_kind(scene.simulation.integrator);
+  const bool ul = scene.simulation.nodes_move();
+  EngineParts<D> parts;
+  const CartesianGrid<D> grid = node_grid<D>(scene);
+  parts.mode = ul ? NodeMode<D>::advected() : NodeMode<D>::fixed_grid(grid.lower, grid.upper);
+  for (const MaterialSection& ms : scene.materials) {
+    try {
+      parts.materials.push_back(make_material<D>(ms));
+    } catch (const InputError& e) {
+      input_error(ms.where, e.what());
+    }
+  }
+  parts.particles = seed_particles<D>(scene, grid_spacing<D>(scene));
+  Particles<D>& P = parts.particles;
+  std::shared_ptr<const ExactSolution<D>> exact = make_exact_solution<D>(scene);
+  // A manufactured solution starts from its own velocity field (wobbes et al.
+  // sect. 8.3: u = 0 but v != 0 at t = 0).
+  if (exact && exact->has_body_force())
+    for (int p = 0; p < P.size(); ++p) P.v[p] = exact->velocity(P.X[p], 0.0);
+  parts.basis = build_basis<D>(scene, grid);
+  const double h = grid.h().minCoeff();
+  parts.dirichlet = build_dirichlet<D>(scene, parts.basis->nodes(), h, ul);
+  parts.loads.body_force = build_body_force<D>(scene, exact);
+  parts.loads.tractions = build_tractions<D>(scene, P, exact);
+  allocate_fields(scene, integrator, parts, P);
+  parts.settings = build_settings<D>(scene, integrator, h);
+  return parts;
+}
+
+template <int D> Engine<D> assemble(const Scene& scene) { return Engine<D>(assemble_parts<D>(scene)); }
+
+#define OTMPM_INSTANTIATE(D)                                                       \
+  template EngineParts<D> assemble_parts<D>(const Scene&);                        \
+  template Engine<D> assemble<D>(const Scene&);                                   \
+  template Particles<D> seed_particles<D>(const Scene&, const Vec<D>&);
+OTMPM_INSTANTIATE(1)
+OTMPM_INSTANTIATE(2)
+OTMPM_INSTANTIATE(3)
+#undef OTMPM_INSTANTIATE
+
+} // namespace otmpm
