@@ -1,7 +1,7 @@
 // `otmpm run` and `otmpm pair`.
 #include "commands.hpp"
 
-#include "otmpm/engine/run.hpp"
+#include "otmpm/run/run.hpp"
 #include "otmpm/io/checkpoint.hpp"
 #include "otmpm/scene/scene.hpp"
 

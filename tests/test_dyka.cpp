@@ -2,7 +2,7 @@
 // (gamma_lme = 4): the NPC run stays below a velocity error bound, and NPC
 // beats forward Euler in both the final RMS velocity error and the history
 // error of point A (the paper's claim for every mesh size).
-#include "otmpm/engine/run.hpp"
+#include "otmpm/run/run.hpp"
 #include "otmpm/scene/scene.hpp"
 
 #include <doctest/doctest.h>

@@ -4,7 +4,7 @@
 // [0, 1] with h = 1/8 and two particles per cell. Each run takes well under a
 // second.
 #include "otmpm/assembly/assembler.hpp"
-#include "otmpm/engine/run.hpp"
+#include "otmpm/run/run.hpp"
 
 #include <doctest/doctest.h>
 

@@ -5,7 +5,7 @@
 // the Dyka bar. Scenes are built from TOML text (otmpm::parse_scene), kept
 // coarse and short so that the executable runs in a few seconds.
 #include "otmpm/assembly/assembler.hpp"
-#include "otmpm/engine/run.hpp"
+#include "otmpm/run/run.hpp"
 #include "otmpm/reference/exact.hpp"
 
 #include <Eigen/Cholesky>

@@ -5,7 +5,7 @@
 // The bounds are set from measurements of this implementation (Release build,
 // OMP_NUM_THREADS=1), with the measured values quoted next to each check.
 #include "otmpm/assembly/assembler.hpp"
-#include "otmpm/engine/run.hpp"
+#include "otmpm/run/run.hpp"
 #include "otmpm/scene/scene.hpp"
 
 #include <doctest/doctest.h>

@@ -6,7 +6,7 @@
 #include "otmpm/io/results.hpp"
 
 #include "otmpm/core.hpp"
-#include "otmpm/engine/run.hpp"
+#include "otmpm/run/run.hpp"
 
 #include "temp_dir.hpp"
 

@@ -1,4 +1,4 @@
-#include "otmpm/engine/run.hpp"
+#include "otmpm/run/run.hpp"
 
 #include "otmpm/assembly/assembler.hpp"
 #include "otmpm/particles/output_fields.hpp"
