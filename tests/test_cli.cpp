@@ -1,4 +1,4 @@
-// The `otmpm` command (interfaces.md "Command line"): exit status 2 with a
+// The `otmpm` command (docs/user-guide.md, "Command line"): exit status 2 with a
 // message naming file and line for every malformed scene, 0 and a readable
 // HDF5 file with status "ok" for a good one, 1 and a diagnosis for a run that
 // becomes unstable, 2 for an unknown --set key or an unknown command.
@@ -148,7 +148,7 @@ TEST_CASE("cli: a good scene exits with 0 and writes an HDF5 file with status ok
   REQUIRE(fs::exists(out));
   CHECK(H5Fis_hdf5(out.c_str()) > 0);
   CHECK(root_string_attribute(out, "status") == "ok");
-  // The resolved scene is stored too (interfaces.md "Result file").
+  // The resolved scene is stored too (docs/user-guide.md, "Result file").
   CHECK(root_string_attribute(out, "scene").find("[simulation]") != std::string::npos);
 }
 

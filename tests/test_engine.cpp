@@ -53,7 +53,7 @@ struct Spec {
   int dim = 1;
   std::string mode = "mpm", integrator = "npc", basis = "linear";
   std::string mass;               ///< "" (the integrator's default), "lumped" or "consistent"
-  std::string step = "cfl = 0.1"; ///< the spec default, or "dt = ..."
+  std::string step = "cfl = 0.1"; ///< the default, or "dt = ..."
   double t_end = 100.0;           ///< long: the tests step by hand
   std::vector<double> grid_lower{-1.5}, grid_upper{1.5};
   std::vector<int> cells{12};
@@ -683,7 +683,7 @@ std::string dyka_text(int dim, int n, double tol) {
 }
 
 /// Velocity of point A (leftmost particle) after every step, and the RMS
-/// velocity error over all particles at t_end (spec sect. 6).
+/// velocity error over all particles at t_end (docs/theory.md, "Errors against exact solutions").
 struct DykaHistory {
   std::vector<double> t, vA;
   double rms = 0.0;

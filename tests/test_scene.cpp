@@ -1,6 +1,6 @@
 // Scene reader tests: a valid scene gives the right values, --set overrides
 // reach every kind of key, and each class of mistake is an InputError that
-// names the file, the line and the key (interfaces.md "Scene file").
+// names the file, the line and the key (docs/user-guide.md, "Scene file").
 //
 // Values read from the file are compared with ==: the reader converts the same
 // decimal literal the test writes, so the doubles are bit-identical.

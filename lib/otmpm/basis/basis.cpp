@@ -1,6 +1,6 @@
 /// \file basis.cpp
 /// The basis factory (make_basis: scene name -> family) and the per-step
-/// basis table (design.md point 2): every particle's stencil evaluated once,
+/// basis table (docs/architecture.md): every particle's stencil evaluated once,
 /// stored in compressed rows, independent of the OpenMP thread count.
 #include "otmpm/basis/basis.hpp"
 

@@ -1,7 +1,7 @@
 #pragma once
 /// \file basis.hpp
-/// The one question every basis family answers (spec algorithms.md sect. 1,
-/// design.md point 2): "for this point, which nodes, with what N and grad N?"
+/// The one question every basis family answers (docs/theory.md, "Basis functions",
+/// docs/architecture.md): "for this point, which nodes, with what N and grad N?"
 /// Families: linear, ugimp, bspline2, bspline3, lme, maxent. Every integrator
 /// consumes a BasisTable filled once per step, without knowing the family.
 #include "otmpm/core.hpp"
@@ -180,7 +180,7 @@ private:
 template <int D>
 std::unique_ptr<Basis<D>> make_basis(const BasisOptions& opt, NodeSet<D> nodes);
 
-/// Per-particle basis table in compressed rows (design.md point 2): row p holds
+/// Per-particle basis table in compressed rows (docs/architecture.md): row p holds
 /// the stencil of particle p, entries offset[p] .. offset[p+1]-1. Filled once
 /// per step and reused by every stage of that step.
 template <int D> struct BasisTable {

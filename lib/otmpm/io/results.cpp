@@ -1,4 +1,4 @@
-// HDF5 result file and XDMF sidecar (interfaces.md "Result file (HDF5)").
+// HDF5 result file and XDMF sidecar (docs/user-guide.md, "Result file (HDF5)").
 // Layout: root attributes; /frames/NNNNNN groups (attribute `time`, one
 // rows x cols double dataset per particle field); /probes/<name>/time and
 // /probes/<name>/<field> extendible histories; root-level series such as

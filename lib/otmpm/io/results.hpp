@@ -1,6 +1,6 @@
 #pragma once
 /// \file results.hpp
-/// The HDF5 result file of interfaces.md: root attributes, /frames/NNNNNN/
+/// The HDF5 result file (docs/user-guide.md, "Result file"): root attributes, /frames/NNNNNN/
 /// groups of particle datasets, /probes/<name>/ histories, root-level time
 /// series (/energy/), and an .xdmf
 /// sidecar that ParaView opens. Every frame is flushed to disk before the

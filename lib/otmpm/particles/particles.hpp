@@ -1,8 +1,8 @@
 #pragma once
 /// \file particles.hpp
 /// Particle (material point) storage: contiguous per-field arrays of
-/// fixed-size Eigen types (design.md point 5). Fields follow the notation of
-/// spec algorithms.md: x_p, v_p, a_p, m_p, V_p, V0_p, rho_p, F_p, eps_p, sigma_p.
+/// fixed-size Eigen types (docs/architecture.md). Fields follow the notation of
+/// docs/theory.md: x_p, v_p, a_p, m_p, V_p, V0_p, rho_p, F_p, eps_p, sigma_p.
 #include "otmpm/core.hpp"
 
 #include <string>

@@ -1,5 +1,5 @@
 // Scene file reader: TOML text -> Scene, with errors that name file, line and
-// key (interfaces.md "Scene file"). The TOML is parsed with toml++, --set
+// key (docs/user-guide.md, "Scene file"). The TOML is parsed with toml++, --set
 // overrides are applied to the parsed table, and only then is every value
 // read and checked, so that overrides meet exactly the same checks as the file.
 #include "otmpm/scene/scene.hpp"

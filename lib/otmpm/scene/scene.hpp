@@ -1,7 +1,7 @@
 #pragma once
 /// \file scene.hpp
 /// A scene: everything a run needs, as plain data read from a TOML file
-/// (interfaces.md "Scene file"). Vectors are stored with 3 components; only
+/// (docs/user-guide.md, "Scene file"). Vectors are stored with 3 components; only
 /// the first `dimension` are meaningful. Every value remembers where it came
 /// from (SourceRef) so that later consistency checks (a body outside the grid,
 /// a boundary box selecting no node) can still name file, line and key.
