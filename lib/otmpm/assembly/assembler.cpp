@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <numbers>
 
 namespace otmpm {
@@ -88,7 +89,7 @@ void allocate_fields(const Scene& scene, const IntegratorKind& integrator, const
   P.allocate_optional(integrator.needs_acceleration || output_wants(scene, "a"),
                       finite || parts.mode.nodes_move() || output_wants(scene, "F"));
   if (integrator.needs_previous_position) P.x_prev = P.x;
-  if (scene.tractions.empty()) AlignedVector<Vec<D>>().swap(P.length0);
+  AlignedVector<Vec<D>>().swap(P.length0); // the traction areas are taken (memory)
   for (const auto& m : parts.materials)
     for (const StateSpec& s : m->state()) P.add_state(std::string(s.name), s.width, s.initial);
 }
@@ -130,11 +131,37 @@ template <int D> Dirichlet<D> build_dirichlet(const Scene& scene, const NodeSet<
   return d;
 }
 
-/// Tractions on the particles inside each traction box; the built-in
-/// history of wobbes et al. eq. 103 comes from the traction bar's solution
-/// (which the history keeps alive).
+/// The transverse position of particle p across `axis` (its column), in
+/// units of tol so that particles seeded on one lattice line share it.
+template <int D> std::array<long long, 2> column_of(const Vec<D>& X, int axis, double tol) {
+  std::array<long long, 2> key{0, 0};
+  for (int k = 0, j = 0; k < D; ++k)
+    if (k != axis) key[static_cast<std::size_t>(j++)] = std::llround(X[k] / tol);
+  return key;
+}
+
+/// For each particle, whether it is the first or the last of its column
+/// along `axis` (the particles that carry the body's surface there).
+template <int D> std::vector<char> surface_particles(const Particles<D>& P, int axis, double tol) {
+  std::map<std::array<long long, 2>, std::pair<int, int>> ends; // column -> (first, last) particle
+  for (int p = 0; p < P.size(); ++p) {
+    auto [it, fresh] = ends.try_emplace(column_of<D>(P.X[p], axis, tol), p, p);
+    if (fresh) continue;
+    auto& [first, last] = it->second;
+    if (P.X[p][axis] < P.X[first][axis]) first = p;
+    if (P.X[p][axis] > P.X[last][axis]) last = p;
+  }
+  std::vector<char> surface(static_cast<std::size_t>(P.size()), 0);
+  for (const auto& [column, e] : ends) surface[static_cast<std::size_t>(e.first)] = surface[static_cast<std::size_t>(e.second)] = 1;
+  return surface;
+}
+
+/// Tractions on the body surface inside each traction box (TractionSection):
+/// the surface particles in the box, each over its face area V0_p /
+/// l_p[axis]. The built-in history of wobbes et al. eq. 103 comes from the
+/// traction bar's solution (which the history keeps alive).
 template <int D>
-std::vector<Traction<D>> build_tractions(const Scene& scene, const Particles<D>& P,
+std::vector<Traction<D>> build_tractions(const Scene& scene, const Particles<D>& P, double h,
                                          const std::shared_ptr<const ExactSolution<D>>& exact) {
   std::vector<Traction<D>> out;
   for (const TractionSection& ts : scene.tractions) {
@@ -142,14 +169,21 @@ std::vector<Traction<D>> build_tractions(const Scene& scene, const Particles<D>&
     load.value = vec<D>(ts.value);
     load.time = ts.time;
     load.value.cwiseAbs().maxCoeff(&load.axis);
+    if (ts.function == "wobbes_traction_bar") load.axis = 0;
+    if (ts.axis) load.axis = *ts.axis;
+    const std::vector<char> surface = surface_particles<D>(P, load.axis, kBoxTolerance * h);
     for (int p = 0; p < P.size(); ++p)
-      if (inside_box<D>(P.x[p], ts.lower, ts.upper)) load.particle.push_back(p);
-    if (load.particle.empty()) input_error(ts.where, "traction box selects no particle");
+      if (surface[static_cast<std::size_t>(p)] && inside_box<D>(P.x[p], ts.lower, ts.upper)) {
+        load.particle.push_back(p);
+        load.area.push_back(P.V0[p] / P.length0[p][load.axis]);
+      }
+    if (load.particle.empty())
+      input_error(ts.where, "traction box selects no surface particle (the first or last particle of a column "
+                            "along axis " + std::to_string(load.axis) + ")");
     if (ts.function == "wobbes_traction_bar") {
       const auto* bar = dynamic_cast<const TractionBar<D>*>(exact.get());
       if (!bar)
         input_error(ts.where, "traction function 'wobbes_traction_bar' needs reference.solution = \"traction_bar\"");
-      load.axis = 0;
       load.history = [exact, bar](double t) { return bar->traction(t); };
     } else if (!ts.function.empty()) {
       input_error(ts.where, "unknown traction function '" + ts.function + "' (expected wobbes_traction_bar)");
@@ -254,15 +288,22 @@ template <int D> EngineParts<D> assemble_parts(const Scene& scene) {
   parts.particles = seed_particles<D>(scene, grid_spacing<D>(scene));
   Particles<D>& P = parts.particles;
   std::shared_ptr<const ExactSolution<D>> exact = make_exact_solution<D>(scene);
-  // A manufactured solution starts from its own velocity field (wobbes et al.
-  // sect. 8.3: u = 0 but v != 0 at t = 0).
   if (exact && exact->has_body_force())
-    for (int p = 0; p < P.size(); ++p) P.v[p] = exact->velocity(P.X[p], 0.0);
+    for (const BodySection& b : scene.bodies)
+      if (b.velocity_profile.value_or("") != "reference")
+        input_error(b.where, "reference.solution = \"" + scene.reference.solution +
+                                 "\" drives the bodies with its manufactured body force, which assumes its own "
+                                 "initial velocity: set velocity_profile = \"reference\" on body '" + b.name + "'");
+  // velocity_profile = "reference": the reference solution's own initial
+  // velocity (a manufactured solution: wobbes et al. sect. 8.3, u = 0 but v != 0 at t = 0).
+  for (int p = 0; p < P.size(); ++p)
+    if (scene.bodies[static_cast<std::size_t>(P.body[p])].velocity_profile.value_or("") == "reference")
+      P.v[p] = exact->velocity(P.X[p], 0.0);
   parts.basis = build_basis<D>(scene, grid);
   const double h = grid.h().minCoeff();
   parts.dirichlet = build_dirichlet<D>(scene, parts.basis->nodes(), h, ul);
   parts.loads.body_force = build_body_force<D>(scene, exact);
-  parts.loads.tractions = build_tractions<D>(scene, P, exact);
+  parts.loads.tractions = build_tractions<D>(scene, P, h, exact);
   allocate_fields(scene, integrator, parts, P);
   parts.settings = build_settings<D>(scene, integrator, h);
   return parts;

@@ -90,7 +90,6 @@ template <int D> void Engine<D>::check_parts() const {
                "Engine: particle ", p, " has material ", P_.material[p], " but there are ", materials_.size(),
                " materials");
   loads_.check(P_.size());
-  require<E>(loads_.tractions.empty() || P_.length0.size() == n, "Engine: tractions need Particles::length0");
 }
 
 template <int D> double Engine<D>::stable_dt() const {

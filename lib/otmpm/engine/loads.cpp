@@ -2,6 +2,7 @@
 /// External loads (loads.hpp).
 #include "otmpm/engine/loads.hpp"
 
+#include <cmath>
 #include <stdexcept>
 
 namespace otmpm {
@@ -21,7 +22,7 @@ void Loads<D>::for_each_force(double t, const Particles<D>& P, Visit&& visit) co
   for (const Traction<D>& load : tractions) {
     Vec<D> traction = load.value * time_function(load.time, t);
     if (load.history) traction[load.axis] = load.history(t);
-    for (int p : load.particle) visit(p, Vec<D>(traction * (P.V0[p] / P.length0[p][load.axis])));
+    for (std::size_t i = 0; i < load.particle.size(); ++i) visit(load.particle[i], Vec<D>(traction * load.area[i]));
   }
 }
 
@@ -47,9 +48,15 @@ template <int D> void Loads<D>::check(int n) const {
     require<std::invalid_argument>(tr.axis >= 0 && tr.axis < D, "Loads: traction ", i, ": axis ", tr.axis,
                                    " out of range");
     require<std::invalid_argument>(tr.value.allFinite(), "Loads: traction ", i, ": value is not finite");
-    for (int p : tr.particle)
+    require<std::invalid_argument>(tr.area.size() == tr.particle.size(), "Loads: traction ", i, ": ",
+                                   tr.particle.size(), " particles but ", tr.area.size(), " areas");
+    for (std::size_t j = 0; j < tr.particle.size(); ++j) {
+      const int p = tr.particle[j];
       require<std::invalid_argument>(p >= 0 && p < n, "Loads: traction ", i, ": particle ", p, " out of range [0, ",
                                      n, ")");
+      require<std::invalid_argument>(std::isfinite(tr.area[j]) && tr.area[j] >= 0.0, "Loads: traction ", i,
+                                     ": particle ", p, ": area ", tr.area[j], " is not finite and >= 0");
+    }
   }
 }
 

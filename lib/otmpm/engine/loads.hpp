@@ -24,11 +24,14 @@ template <int D> struct BodyForce {
   std::function<Vec<D>(const Vec<D>& X, double t)> field;
 };
 
-/// A traction on a set of particles: force per unit reference area
-/// value g(t) (component `axis` replaced by history(t) when a history is
-/// given), applied to particle p over its face A_p = V0_p / l_p[axis].
+/// A traction on a surface: force per unit reference area value g(t)
+/// (component `axis` replaced by history(t) when a history is given),
+/// applied to the particles that carry the surface, particle[i] over its
+/// share area[i] of the loaded area (the areas add up to the loaded area, so
+/// the total force does not depend on how many particles carry it).
 template <int D> struct Traction {
   std::vector<int> particle;
+  std::vector<double> area;
   Vec<D> value = Vec<D>::Zero();
   TimeFunction time;
   std::function<double(double)> history;
@@ -55,7 +58,7 @@ public:
   /// (read only when uniform(): then the power is b(t) . momentum).
   double power(double t, const Particles<D>& P, const Vec<D>& momentum) const;
   /// std::invalid_argument naming the load unless every particle index is in
-  /// [0, n), the values are finite and the axis is in [0, D).
+  /// [0, n) with a finite area >= 0, the values are finite and the axis is in [0, D).
   void check(int n) const;
 
 private:

@@ -34,8 +34,10 @@ template <int D> struct Particles {
   AlignedVector<Vec<D>> x, X, v, a, x_prev;
   std::vector<double> m, V, V0, rho;
   AlignedVector<Mat<D>> F, eps, sigma;
-  /// Initial particle length per axis (cell size / particles per cell), used
-  /// for traction areas A_p = V0_p / l_p[axis] and uGIMP.
+  /// Initial extent of the particle per axis, V0_p = prod_k l_p[k] (the
+  /// share of its cell along each axis): its face normal to axis k has the
+  /// area V0_p / l_p[k] (traction areas). Filled by the seeding; the
+  /// assembler frees it once the traction areas are taken.
   AlignedVector<Vec<D>> length0;
   std::vector<int> material;
   std::vector<int> body;
@@ -84,21 +86,20 @@ void gauss_legendre(int n, std::vector<double>& points, std::vector<double>& wei
 /// ("cell_centres", equal weights).
 void cell_pattern(std::string_view placement, int n, std::vector<double>& s, std::vector<double>& w);
 
-/// Calls seed(x, V, length) for the particles of a box [lower, upper] cut into
-/// `cells` cells per axis, n^D particles per cell placed by cell_pattern
-/// (cells in lattice order, axis 0 fastest, then the particles of each cell
-/// likewise): x the position, V = prod of weights x cell volume, length the
-/// cell size / n per axis.
+/// Calls seed(x, V, extent) for the particles of a box [lower, upper] cut
+/// into `cells` cells per axis, n^D particles per cell placed by
+/// cell_pattern (cells in lattice order, axis 0 fastest, then the particles
+/// of each cell likewise): x the position, V = prod of weights x cell
+/// volume, extent per axis the particle's share of the cell (weight x cell
+/// size; cell size / n for equal shares), so that V = prod extent.
 template <int D, class Seed>
 void seed_box_cells(const Vec<D>& lower, const Vec<D>& upper, const Index<D>& cells, int n, std::string_view placement,
                     Seed&& seed) {
   std::vector<double> s, w;
   cell_pattern(placement, n, s, w);
+  const bool equal = placement != "gauss";
   Vec<D> size, len;
-  for (int k = 0; k < D; ++k) {
-    size[k] = (upper[k] - lower[k]) / cells[k];
-    len[k] = size[k] / n;
-  }
+  for (int k = 0; k < D; ++k) size[k] = (upper[k] - lower[k]) / cells[k];
   Index<D> c{};
   while (true) {
     Index<D> q{};
@@ -108,6 +109,7 @@ void seed_box_cells(const Vec<D>& lower, const Vec<D>& upper, const Index<D>& ce
       for (int k = 0; k < D; ++k) {
         x[k] = lower[k] + (c[k] + s[q[k]]) * size[k];
         V *= w[q[k]] * size[k];
+        len[k] = equal ? size[k] / n : w[q[k]] * size[k];
       }
       seed(x, V, len);
       int k = 0;

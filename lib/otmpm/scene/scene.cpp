@@ -588,7 +588,7 @@ std::vector<BodySection> read_bodies(const TableReader& root, const Scene& s) {
               std::to_string(b.particles_per_cell) + ")");
     b.placement = t.choice("placement", b.placement, {"gauss", "cell_centres"});
     b.velocity = t.vec("velocity", dim).value_or(b.velocity);
-    if (t.has("velocity_profile")) b.velocity_profile = t.choice("velocity_profile", "", {"sin_x"});
+    if (t.has("velocity_profile")) b.velocity_profile = t.choice("velocity_profile", "", {"sin_x", "reference"});
     particles += body_particles(b, s.grid, dim);
     check(particles <= kMaxSceneParticles, box_ref(t),
           "body \"" + b.name + "\" brings the particle count to " + fmt(particles) + " (" +
@@ -660,7 +660,7 @@ std::optional<BodyForceSection> read_body_force(const TableReader& root, int dim
 std::vector<TractionSection> read_tractions(const TableReader& root, int dim) {
   std::vector<TractionSection> out;
   for (const TableReader& t : root.tables("traction")) {
-    t.only({"lower", "upper", "value", "time", "function"});
+    t.only({"lower", "upper", "value", "time", "function", "axis"});
     TractionSection tr;
     tr.where = t.self();
     tr.lower = t.require_vec("lower", dim);
@@ -670,6 +670,11 @@ std::vector<TractionSection> read_tractions(const TableReader& root, int dim) {
     if (tr.function.empty()) tr.value = t.require_vec("value", dim);
     else tr.value = t.vec("value", dim).value_or(tr.value);
     tr.time = read_time(t);
+    if (t.has("axis")) {
+      tr.axis = t.get<int>("axis", 0);
+      check(*tr.axis >= 0 && *tr.axis < dim, t.ref("axis"),
+            "must be an axis index in [0, " + std::to_string(dim) + ") (got " + std::to_string(*tr.axis) + ")");
+    }
     out.push_back(tr);
   }
   return out;

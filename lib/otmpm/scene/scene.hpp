@@ -70,7 +70,9 @@ struct BodySection {
   int particles_per_cell = 2;           ///< per axis
   std::string placement = "gauss";      ///< gauss | cell_centres
   Vec3 velocity{0, 0, 0};
-  /// "sin_x": initial velocity amplitude * sin(pi (x - lower)/(upper-lower)) per component (fixed bar)
+  /// "sin_x": initial velocity amplitude * sin(pi (x - lower)/(upper-lower))
+  /// per component (fixed bar); "reference": the velocity of the reference
+  /// solution at t = 0 (a manufactured solution's own initial state).
   std::optional<std::string> velocity_profile;
   SourceRef where;
 };
@@ -99,15 +101,20 @@ struct BodyForceSection {
   SourceRef where;
 };
 
-/// Traction on the particles inside a box: a force per unit area `value` times
-/// the time function, applied as f_I += N_Ip t A_p with A_p = V_p / h_p along
-/// `normal_axis` (the particle's face area). `function = "wobbes_traction_bar"`
-/// uses wobbes eq. 103 instead of value * g(t).
+/// A traction on the body surface inside a box: a force per unit area
+/// `value` times the time function, on the faces normal to `axis` (default:
+/// the axis of the largest component of value). The surface particles in
+/// the box - the first and last particle of each column of particles along
+/// the axis - carry it, each over its face area V0_p / l_p[axis], so the
+/// total force is traction x loaded area whatever the particles per cell.
+/// `function = "wobbes_traction_bar"` uses wobbes et al. eq. 103 instead of
+/// value * g(t).
 struct TractionSection {
   Vec3 lower{0, 0, 0}, upper{0, 0, 0};
   Vec3 value{0, 0, 0};
   TimeFunction time;
   std::string function;  ///< empty or the name of a built-in traction history
+  std::optional<int> axis; ///< normal of the loaded faces (default: largest component of value)
   SourceRef where{"", 0, "traction"};
 };
 

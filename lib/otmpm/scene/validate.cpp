@@ -161,6 +161,8 @@ void check_loads(const Scene& s, int dim) {
     check_box(s, key, t.lower, t.upper, dim, false);
     check_finite(s, key + ".value", t.value, dim);
     check_time(s, key + ".time", t.time);
+    check(s, !t.axis || (*t.axis >= 0 && *t.axis < dim), key + ".axis", "must be an axis index in [0, ", dim,
+          ") (got ", t.axis.value_or(0), ")");
   }
 }
 
@@ -191,8 +193,10 @@ void validate_bodies(const Scene& s, int dim) {
     check(s, one_of(b.placement, {"gauss", "cell_centres"}), key + ".placement",
           "must be \"gauss\" or \"cell_centres\" (got \"", b.placement, "\")");
     check_finite(s, key + ".velocity", b.velocity, dim);
-    check(s, !b.velocity_profile || *b.velocity_profile == "sin_x", key + ".velocity_profile",
-          "must be \"sin_x\" when set (got \"", b.velocity_profile.value_or(""), "\")");
+    check(s, !b.velocity_profile || one_of(*b.velocity_profile, {"sin_x", "reference"}), key + ".velocity_profile",
+          "must be \"sin_x\" or \"reference\" when set (got \"", b.velocity_profile.value_or(""), "\")");
+    check(s, b.velocity_profile.value_or("") != "reference" || !s.reference.solution.empty(), key + ".velocity_profile",
+          "\"reference\" takes the initial velocity of the reference solution, but the scene has no reference.solution");
     if (s.simulation.mode == "mpm") check_body_in_grid(s, b, key, dim);
   }
 }
