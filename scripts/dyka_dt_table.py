@@ -52,29 +52,30 @@ def main():
     combos = list(dict.fromkeys((r["basis.kind"], r["simulation.integrator"]) for r in rows))
     pick = {(r["mesh"], r["basis.kind"], r["simulation.integrator"], float(r["simulation.cfl"])): r for r in rows}
     for mesh in meshes:
-        print(f"\n### {mesh}: RMS velocity error at t_end / history error A [m/s] / energy lost by t_end [% of E(0)]\n")
-        print("| basis, integrator | " + " | ".join(f"cfl {c:g}" for c in cfls) + " |")
-        print("|---|" + "---|" * len(cfls))
-        for b, i in combos:
-            cells = []
-            for c in cfls:
-                r = pick.get((mesh, b, i, c))
-                if r is None or r["status"] != "ok":
-                    cells.append(r["status"] if r else "-")
-                    continue
-                cells.append(f"{float(r['rms_velocity_error']):.4f} / {float(r['history_error']):.4f} / "
-                             f"{100 * r['loss']:.2f}")
-            print(f"| {b}, {i} | " + " | ".join(cells) + " |")
-        print(f"\n{mesh}: steps / wall time [s]\n")
-        print("| basis, integrator | " + " | ".join(f"cfl {c:g}" for c in cfls) + " |")
-        print("|---|" + "---|" * len(cfls))
-        for b, i in combos:
-            cells = []
-            for c in cfls:
-                r = pick.get((mesh, b, i, c))
-                cells.append(f"{r['steps']} / {float(r['wall_seconds']):.2f}" if r else "-")
-            print(f"| {b}, {i} | " + " | ".join(cells) + " |")
+        print_table(f"### {mesh}: RMS velocity error at t_end / history error A [m/s] / "
+                    "energy lost by t_end [% of E(0)]", combos, cfls,
+                    lambda b, i, c: error_cell(pick.get((mesh, b, i, c))))
+        print_table(f"{mesh}: steps / wall time [s]", combos, cfls,
+                    lambda b, i, c: time_cell(pick.get((mesh, b, i, c))))
 
+
+def error_cell(r):
+    if r is None or r["status"] != "ok":
+        return r["status"] if r else "-"
+    return f"{float(r['rms_velocity_error']):.4f} / {float(r['history_error']):.4f} / {100 * r['loss']:.2f}"
+
+
+def time_cell(r):
+    return f"{r['steps']} / {float(r['wall_seconds']):.2f}" if r else "-"
+
+
+def print_table(title, combos, cfls, cell):
+    """A markdown table: one row per (basis, integrator), one column per cfl."""
+    print(f"\n{title}\n")
+    print("| basis, integrator | " + " | ".join(f"cfl {c:g}" for c in cfls) + " |")
+    print("|---|" + "---|" * len(cfls))
+    for b, i in combos:
+        print(f"| {b}, {i} | " + " | ".join(cell(b, i, c) for c in cfls) + " |")
 
 if __name__ == "__main__":
     main()

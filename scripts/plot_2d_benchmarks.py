@@ -214,34 +214,14 @@ def plate(args):
             continue
         res[key] = dict(label=label, rc=rc, **load_plate(out))
     vmax = max(float(nearest(res[k]["snaps"], t)[2].max()) for k in res for t in PLATE_TIMES)
-    fig, axes = plt.subplots(3, len(PLATE_TIMES), figsize=(13, 12.5), sharex=True, sharey=True)
-    for row, key in enumerate(["npc", "fe"]):
-        for col, t in enumerate(PLATE_TIMES):
-            sc = scatter(axes[row, col], nearest(res[key]["snaps"], t), res[key]["label"], vmax)
-    fig.colorbar(sc, ax=axes[:2, :], label="|v| [m/s]", shrink=0.8)
-    diffs = [difference(res, "fe", "npc", t) for t in PLATE_TIMES]
-    dmax = max(float(d[2].max()) for d in diffs)
-    for col, d in enumerate(diffs):
-        sd = scatter(axes[2, col], d, "|v_FE - v_NPC| (same particle)", dmax)
-    fig.colorbar(sd, ax=axes[2, :], label="|v_FE - v_NPC| [m/s]", shrink=0.8)
-    fig.suptitle("Plate impact on a wall at x = 0 (molinos revised sect. 3.3): "
-                 "NPC (top), FE (middle), their difference (bottom)")
-    fig.savefig(os.path.join(FIGURES, "plate_fe_npc.png"), dpi=100)
-    plt.close(fig)
-
-    fig, axes = plt.subplots(3, len(PLATE_TIMES), figsize=(13, 12.5), sharex=True, sharey=True)
-    for row, key in enumerate(["npc", "npc_stick"]):
-        for col, t in enumerate(PLATE_TIMES):
-            sc = scatter(axes[row, col], nearest(res[key]["snaps"], t), res[key]["label"], vmax)
-    fig.colorbar(sc, ax=axes[:2, :], label="|v| [m/s]", shrink=0.8)
-    diffs = [difference(res, "npc_stick", "npc", t) for t in PLATE_TIMES]
-    for col, d in enumerate(diffs):
-        sd = scatter(axes[2, col], d, "|v_both - v_normal| (same particle)", dmax)
-    fig.colorbar(sd, ax=axes[2, :], label="|v_both - v_normal| [m/s]", shrink=0.8)
-    fig.suptitle("Plate impact, NPC: wall holding the normal velocity only (top, the scene), "
-                 "both components (middle), their difference (bottom, same scale as FE - NPC)")
-    fig.savefig(os.path.join(FIGURES, "plate_wall_tangential.png"), dpi=100)
-    plt.close(fig)
+    dmax = max(float(difference(res, "fe", "npc", t)[2].max()) for t in PLATE_TIMES)
+    comparison_figure(res, "fe", "npc", vmax, dmax, "|v_FE - v_NPC|",
+                      "Plate impact on a wall at x = 0 (molinos revised sect. 3.3): "
+                      "NPC (top), FE (middle), their difference (bottom)", "plate_fe_npc.png")
+    comparison_figure(res, "npc_stick", "npc", vmax, dmax, "|v_both - v_normal|",
+                      "Plate impact, NPC: wall holding the normal velocity only (top, the scene), "
+                      "both components (middle), their difference (bottom, same scale as FE - NPC)",
+                      "plate_wall_tangential.png")
 
     fig, axes = plt.subplots(2, 2, figsize=(11, 10), sharex=True, sharey=True)
     order = [("npc", "LME gamma 3, structured grid"), ("lme_pert", "LME gamma 3, perturbed grid (0.2 h)"),
@@ -259,6 +239,21 @@ def plate(args):
     fig.savefig(os.path.join(FIGURES, "plate_lme_perturbed.png"), dpi=100)
     plt.close(fig)
     return res, refusal
+
+
+def comparison_figure(res, a, b, vmax, dmax, diff_label, title, name):
+    """Runs b (top row) and a (middle row) at PLATE_TIMES, |v_a - v_b| (bottom row, colour scale dmax)."""
+    fig, axes = plt.subplots(3, len(PLATE_TIMES), figsize=(13, 12.5), sharex=True, sharey=True)
+    for row, key in enumerate([b, a]):
+        for col, t in enumerate(PLATE_TIMES):
+            sc = scatter(axes[row, col], nearest(res[key]["snaps"], t), res[key]["label"], vmax)
+    fig.colorbar(sc, ax=axes[:2, :], label="|v| [m/s]", shrink=0.8)
+    for col, t in enumerate(PLATE_TIMES):
+        sd = scatter(axes[2, col], difference(res, a, b, t), diff_label + " (same particle)", dmax)
+    fig.colorbar(sd, ax=axes[2, :], label=diff_label + " [m/s]", shrink=0.8)
+    fig.suptitle(title)
+    fig.savefig(os.path.join(FIGURES, name), dpi=100)
+    plt.close(fig)
 
 
 def difference(res, a, b, t):
