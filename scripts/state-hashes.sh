@@ -41,7 +41,7 @@ cases=(
   "traction_bar_ul_unified|$ex/traction_bar.toml|simulation.t_end=0.05 simulation.mode=ul simulation.integrator=unified basis.kind=bspline2 $finite"
   "mms_plate_ul_otm_maxent|$ex/mms_plate.toml|simulation.t_end=5e-4 basis.kind=maxent simulation.integrator=otm $finite"
   "andersen_mpm_npc_lme_ramp|$ex/andersen_block.toml|simulation.t_end=1.0"
-  "plate_impact_mpm_fe_perturbed|$ex/plate_impact.toml|simulation.t_end=0.2 simulation.integrator=fe grid.kind=perturbed grid.perturbation=0.2"
+  "plate_impact_mpm_fe_perturbed|$ex/plate_impact.toml|simulation.t_end=0.2 simulation.integrator=fe grid.kind=perturbed grid.perturbation=0.2 grid.upper=[56.0,52.0] grid.cells=[56,54] body.plate.lower=[1.0,0.0] body.plate.upper=[51.0,50.0]"
   "andersen_ul_musl_bspline2|$ex/andersen_block.toml|simulation.t_end=1.0 simulation.mode=ul simulation.integrator=musl basis.kind=bspline2"
 )
 

@@ -683,7 +683,7 @@ std::string dyka_text(int dim, int n, double tol) {
 }
 
 /// Velocity of point A (leftmost particle) after every step, and the RMS
-/// velocity error over all particles at t_end (docs/theory.md, "Errors against exact solutions").
+/// velocity error over all particles at t_end (docs/theory.md sect. 12).
 struct DykaHistory {
   std::vector<double> t, vA;
   double rms = 0.0;

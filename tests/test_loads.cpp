@@ -1,4 +1,4 @@
-// External loads (engine/loads.hpp, docs/theory.md "Loads"): a traction is a
+// External loads (engine/loads.hpp, docs/theory.md sect. 7): a traction is a
 // force per unit area of the loaded surface, carried by the surface
 // particles in its box, so the total force is traction x area whatever the
 // particles per cell, their placement or the depth of the box; a box with no

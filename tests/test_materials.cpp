@@ -1,4 +1,4 @@
-// Constitutive models (docs/theory.md, "Constitutive models"): the
+// Constitutive models (docs/theory.md sect. 9): the
 // small-strain increment, the two finite-strain models of wobbes eqs. 10 and
 // 11, their small-deformation limit, a hand computation and objectivity; the
 // Material interface (batch update, energies, failures) and the model table.

@@ -1,6 +1,6 @@
 #pragma once
 /// \file time_function.hpp
-/// A time function g(t) that multiplies a load (docs/theory.md, "Loads").
+/// A time function g(t) that multiplies a load (docs/theory.md sect. 7).
 #include <string>
 
 namespace otmpm {

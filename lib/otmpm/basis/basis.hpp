@@ -1,6 +1,6 @@
 #pragma once
 /// \file basis.hpp
-/// The one question every basis family answers (docs/theory.md, "Basis functions",
+/// The one question every basis family answers (docs/theory.md sect. 4,
 /// docs/architecture.md): "for this point, which nodes, with what N and grad N?"
 /// Families: linear, ugimp, bspline2, bspline3, lme, maxent. Every integrator
 /// consumes a BasisTable filled once per step, without knowing the family.

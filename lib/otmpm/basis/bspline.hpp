@@ -1,9 +1,9 @@
 #pragma once
 /// \file bspline.hpp
-/// B-spline basis functions (wobbes sect. 6.2, docs/theory.md, "Basis functions") on
+/// B-spline basis functions (wobbes sect. 6.2, docs/theory.md sect. 4) on
 /// open, possibly non-uniform knot vectors, and their tensor product in 2D/3D
 /// with knot vectors that are advected in the `unified` mode (wobbes sect. 7,
-/// Algorithm 3; docs/theory.md, "Time integrators" `unified`).
+/// Algorithm 3; docs/theory.md sect. 8 `unified`).
 ///
 /// Vocabulary: the *vertices* v_0 < ... < v_m of one axis are the distinct
 /// knots (the lattice coordinates, m cells); the *knot vector* of degree p is
@@ -113,7 +113,7 @@ private:
 };
 
 /// B-spline basis of degree p on a D-dimensional tensor product of open knot
-/// vectors (docs/theory.md, "Basis functions", families `bspline2`/`bspline3`):
+/// vectors (docs/theory.md sect. 4, families `bspline2`/`bspline3`):
 /// N_I(x) = prod_k N^k_{i_k}(x_k), grad N_I = (dN^0 N^1 N^2, N^0 dN^1 N^2, ...).
 /// The degrees of freedom are the control points on an n_0 x .. x n_{D-1}
 /// lattice, n_k = cells_k + p, ids lexicographic with axis 0 fastest, placed at

@@ -2,7 +2,7 @@
 /// The `linear` family (tensor-product hat functions on an untouched Cartesian
 /// lattice; isoparametric multilinear elements - 2-node segments, Q4, Q8 - on a
 /// perturbed or moved lattice) and the `ugimp` family (uniform GIMP,
-/// Bardenhagen & Kober 2004), docs/theory.md, "Basis functions".
+/// Bardenhagen & Kober 2004), docs/theory.md sect. 4.
 #include "otmpm/basis/linear.hpp"
 
 #include "otmpm/basis/families.hpp"

@@ -1,7 +1,7 @@
 #pragma once
 /// \file lme.hpp
-/// Internal declarations of the two maximum-entropy families (docs/theory.md,
-/// "Basis functions"): local max-ent (LME, Arroyo & Ortiz 2006, molinos
+/// Internal declarations of the two maximum-entropy families (docs/theory.md
+/// sect. 4): local max-ent (LME, Arroyo & Ortiz 2006, molinos
 /// sect. 2.3) and max-ent with a cubic-spline prior (wobbes sect. 6.3). Both are
 ///
 ///     N_I(x) = w_I(x) exp(lambda . (x - x_I)) / Z(x, lambda),
@@ -102,7 +102,7 @@ enum class NewtonStatus {
   max_iterations, ///< not converged within max_newton_iterations
 };
 
-/// Settings of the Newton solve for lambda (docs/theory.md, "Basis functions").
+/// Settings of the Newton solve for lambda (docs/theory.md sect. 4).
 struct NewtonSettings {
   double h = 1.0;                  ///< the nodal spacing h of beta = gamma_lme / h^2
   double residual_tolerance = 0.0; ///< converged when |r| <= residual_tolerance (= tol * h)

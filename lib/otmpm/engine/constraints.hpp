@@ -1,7 +1,7 @@
 #pragma once
 /// \file constraints.hpp
-/// Dirichlet constraints on node velocities (docs/theory.md, "Boundary
-/// conditions"): listed node components are held at a prescribed velocity;
+/// Dirichlet constraints on node velocities (docs/theory.md sect.
+/// 6): listed node components are held at a prescribed velocity;
 /// their force components are removed from the nodal forces and kept as
 /// reactions, whose impulse and work enter the energy balance.
 #include "otmpm/core.hpp"

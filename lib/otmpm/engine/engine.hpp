@@ -40,8 +40,8 @@ template <int D> struct NodalFields {
 };
 
 /// How the engine steps: the integrator's step function and parameters,
-/// the time step rule (CFL with the P-wave speed, docs/theory.md "Time
-/// step", or a fixed dt), the mass matrix and the run's limits.
+/// the time step rule (CFL with the P-wave speed, docs/theory.md
+/// sect. 10, or a fixed dt), the mass matrix and the run's limits.
 template <int D> struct StepSettings {
   StepFunction<D> step = nullptr;
   IntegratorParameters parameters;
@@ -179,8 +179,8 @@ public:
   /// The fused particle-to-node map (ToNodes); with `mass` also the active
   /// nodes and, with the consistent mass, M_IJ assembled and factorised.
   void to_nodes(const ToNodes<D>& what);
-  /// The constitutive update from `g` (docs/theory.md, "Constitutive
-  /// models") in the same pass as to_nodes(what): each block of particles
+  /// The constitutive update from `g` (docs/theory.md
+  /// sect. 9) in the same pass as to_nodes(what): each block of particles
   /// is updated, then scatters its new V_p sigma_p (molinos et al. Algorithm
   /// 1 stages 4-5 in one pass). InstabilityError for the lowest failing particle.
   void update_stress_and_to_nodes(const Gradient<D>& g, const ToNodes<D>& what);

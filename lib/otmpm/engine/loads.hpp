@@ -1,6 +1,6 @@
 #pragma once
 /// \file loads.hpp
-/// The external loads on the particles (docs/theory.md, "Loads"): a body
+/// The external loads on the particles (docs/theory.md sect. 7): a body
 /// force per unit mass b(X, t) = b g(t) + b_field(X, t) (gravity, or the body
 /// force of a manufactured solution) and tractions on sets of particles.
 /// The engine adds them to the nodal forces, f_I += sum_p N_Ip f_ext,p(t),

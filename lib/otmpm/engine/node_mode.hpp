@@ -1,7 +1,7 @@
 #pragma once
 /// \file node_mode.hpp
-/// The one place where the two node modes differ (docs/theory.md, "The two
-/// node modes"). `mpm`: the nodes are a fixed Eulerian grid; particles must
+/// The one place where the two node modes differ (docs/theory.md
+/// sect. 3). `mpm`: the nodes are a fixed Eulerian grid; particles must
 /// stay inside it. `ul`: the nodes discretise the material and are advected
 /// with the increment that moves the particles (x_I += dx_I); the time step
 /// follows their current spacing. Everything else - basis table, transfers,

@@ -2,7 +2,7 @@
 /// fe and musl: forward Euler with the stress updated last (USL; wobbes et
 /// al. Algorithm 1, lumped mass), and its modified variant (MUSL) that
 /// recomputes the nodal velocities from the updated particle momenta before
-/// the stress update (docs/theory.md, "fe and musl").
+/// the stress update (docs/theory.md sect. 8.1-8.2).
 #include "otmpm/integrators/nodal_ops.hpp"
 
 namespace otmpm {

@@ -5,7 +5,7 @@
 /// validator its checks, the assembler which particle fields and mass matrix
 /// to prepare and which step function the engine calls. Each integrator is
 /// one function, in its own file, that reads like its algorithm listing
-/// (docs/theory.md, "Time integrators") and drives the engine through its
+/// (docs/theory.md sect. 8) and drives the engine through its
 /// public stages. Adding one (docs/architecture.md, "Adding a part"): its
 /// file and one row in integrators/table.cpp.
 #include "otmpm/engine/step.hpp"

@@ -1,6 +1,6 @@
 /// \file npc.cpp
 /// npc: the explicit Newmark predictor-corrector of molinos et al.
-/// (Algorithm 1; docs/theory.md, "npc"). gamma is the Newmark parameter.
+/// (Algorithm 1; docs/theory.md sect. 8.3). gamma is the Newmark parameter.
 #include "otmpm/integrators/nodal_ops.hpp"
 
 namespace otmpm {

@@ -1,6 +1,6 @@
 /// \file otm.cpp
 /// otm: the optimal transportation meshfree update of wobbes et al.
-/// (Algorithm 2; docs/theory.md, "otm"), with advected nodes only.
+/// (Algorithm 2; docs/theory.md sect. 8.4), with advected nodes only.
 #include "otmpm/integrators/nodal_ops.hpp"
 
 namespace otmpm {

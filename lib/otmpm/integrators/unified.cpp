@@ -1,6 +1,6 @@
 /// \file unified.cpp
 /// unified: B-spline basis on advected knots with the consistent mass
-/// (wobbes et al. Algorithm 3; docs/theory.md, "unified"), advected nodes only.
+/// (wobbes et al. Algorithm 3; docs/theory.md sect. 8.5), advected nodes only.
 #include "otmpm/integrators/nodal_ops.hpp"
 
 namespace otmpm {

@@ -1,7 +1,7 @@
 #pragma once
 /// \file elasticity.hpp
-/// Isotropic elasticity shared by every material model (docs/theory.md,
-/// "Constitutive models"): the constants E, nu, rho_0 with their Lame
+/// Isotropic elasticity shared by every material model (docs/theory.md
+/// sect. 9): the constants E, nu, rho_0 with their Lame
 /// parameters, and the stress laws of the three elastic models -
 ///  - linear_elastic: small strain, sigma += C : d_eps (molinos et al.), 1D
 ///    uniaxial stress (E), 2D plane strain, 3D;

@@ -1,6 +1,6 @@
 #pragma once
 /// \file material.hpp
-/// The constitutive update of docs/theory.md ("Constitutive models") behind
+/// The constitutive update of docs/theory.md (sect. 9) behind
 /// one interface, Material<D>, and the closed set of models (MaterialModel)
 /// that the scene reader, the validator and the assembler read.
 ///

@@ -39,7 +39,7 @@ struct EnergySummary {
   double energy_drift() const;
 };
 
-/// What a run reports (docs/theory.md, "Errors against exact solutions").
+/// What a run reports (docs/theory.md sect. 12).
 struct RunSummary {
   std::string status = "ok"; ///< "ok" or the diagnosis
   int exit_code = 0;         ///< 0 ok, 1 unstable
