@@ -1,4 +1,11 @@
+/// \file run.cpp
+/// A run of a scene (run.hpp, simulation.hpp): the engine built by the
+/// assembler, stepped to t_end, with the Recorder that writes the result
+/// file (frames, probes, energy series, final errors and status) and the
+/// checkpoints.
 #include "otmpm/run/run.hpp"
+
+#include "otmpm/run/simulation.hpp"
 
 #include "otmpm/assembly/assembler.hpp"
 #include "otmpm/particles/output_fields.hpp"
@@ -251,59 +258,87 @@ double seconds_since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-/// Runs the scene from t = 0, or from the checkpoint `resume` when not null.
-template <int D> RunSummary run_dim(const Scene& scene, const RunOptions& opt, const Checkpoint* resume) {
-  const auto start = std::chrono::steady_clock::now();
-  RunSummary s;
-  Engine<D> e = assemble<D>(scene);
-  const auto exact = make_exact_solution<D>(scene);
-  if (resume) e.restore_state(*resume);
-  Recorder<D> rec(scene, opt, e, exact.get(), resume);
-  s.mode = scene.simulation.mode;
-  s.integrator = scene.simulation.integrator;
-  s.basis = scene.basis.kind;
-  s.particles = e.particles().size();
-  s.nodes = e.basis().nodes().size();
-  const double t_end = scene.simulation.t_end;
-  if (!resume) {
+} // namespace
+
+/// The dimension-independent face of a simulation.
+struct Simulation::Runner {
+  virtual ~Runner() = default;
+  Scene scene;
+  RunSummary summary;
+  bool finished = false;
+  virtual int dimension() const = 0;
+  virtual double time() const = 0;
+  virtual long steps() const = 0;
+  virtual void step() = 0;
+  virtual void write_frame() = 0;
+  virtual void finish() = 0;
+};
+
+/// A simulation in D dimensions: the engine, its exact solution (if any)
+/// and the recorder of its result file.
+template <int D> struct Simulation::DimRunner final : Simulation::Runner {
+  std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now();
+  RunOptions options;
+  Engine<D> e;
+  std::unique_ptr<ExactSolution<D>> exact;
+  Recorder<D> rec;
+
+  DimRunner(const Scene& s, const RunOptions& opt, const Checkpoint* resume)
+      : options(opt), e(assemble<D>(s)), exact(make_exact_solution<D>(s)), rec(init(s, resume), opt, e, exact.get(), resume) {
+    summary.mode = scene.simulation.mode;
+    summary.integrator = scene.simulation.integrator;
+    summary.basis = scene.basis.kind;
+    summary.particles = e.particles().size();
+    summary.nodes = e.basis().nodes().size();
+    summary.status = "running";
+    if (resume) return;
     rec.sample_energy();
     rec.maybe_record(true);
   }
-  try {
-    while (e.time() < t_end * (1.0 - time_slack)) {
+
+  /// Stores the scene and restores the checkpoint before the recorder is built.
+  const Scene& init(const Scene& s, const Checkpoint* resume) {
+    scene = s;
+    if (resume) e.restore_state(*resume);
+    return scene;
+  }
+
+  int dimension() const override { return D; }
+  double time() const override { return e.time(); }
+  long steps() const override { return e.steps(); }
+
+  void step() override {
+    const double t_end = scene.simulation.t_end;
+    try {
       e.step();
-      rec.sample_energy();
-      const bool last = e.time() >= t_end * (1.0 - time_slack);
-      rec.maybe_record(last);
-      rec.maybe_checkpoint(seconds_since(start), last);
-      if (opt.progress) opt.progress(e.time(), t_end, e.steps());
+    } catch (const InstabilityError& err) {
+      rec.sample_energy(); // a runaway stop has the energy that tripped the monitor
+      summary.status = std::string("unstable: ") + err.what();
+      summary.exit_code = 1;
+      rec.set_status(summary.status);
+      finished = true;
+      throw;
     }
-  } catch (const InstabilityError& err) {
-    rec.sample_energy(); // a runaway stop has the energy that tripped the monitor
-    s.status = std::string("unstable: ") + err.what();
-    s.exit_code = 1;
-    rec.set_status(s.status);
+    rec.sample_energy();
+    const bool last = e.time() >= t_end * (1.0 - time_slack);
+    rec.maybe_record(last);
+    rec.maybe_checkpoint(seconds_since(start), last);
+    finished = last;
+    if (options.progress) options.progress(e.time(), t_end, e.steps());
   }
-  s.steps = e.steps();
-  s.time = e.time();
-  s.timers = e.timers();
-  s.wall_seconds = rec.wall_before() + seconds_since(start);
-  rec.finish(s);
-  return s;
-}
 
-RunSummary run_any(const Scene& scene, const RunOptions& options, const Checkpoint* resume) {
-  switch (scene.simulation.dimension) {
-  case 1: return run_dim<1>(scene, options, resume);
-  case 2: return run_dim<2>(scene, options, resume);
-  case 3: return run_dim<3>(scene, options, resume);
-  default:
-    input_error(scene.locate("simulation.dimension"),
-                "dimension must be 1, 2 or 3, got " + std::to_string(scene.simulation.dimension));
+  void write_frame() override { rec.maybe_record(true); }
+
+  void finish() override {
+    if (summary.exit_code == 0) summary.status = "ok";
+    summary.steps = e.steps();
+    summary.time = e.time();
+    summary.timers = e.timers();
+    summary.wall_seconds = rec.wall_before() + seconds_since(start);
+    rec.finish(summary);
+    finished = true;
   }
-}
-
-} // namespace
+};
 
 void EnergySummary::sample(double energy, double work, double balance_error) {
   if (!std::isfinite(energy) || !std::isfinite(work) || !std::isfinite(balance_error)) return;
@@ -316,11 +351,83 @@ double EnergySummary::reference() const { return std::max(initial + max_work, en
 double EnergySummary::max_energy_ratio() const { return max_energy / reference(); }
 double EnergySummary::energy_drift() const { return max_balance_error / reference(); }
 
-RunSummary run_scene(const Scene& scene, const RunOptions& options) { return run_any(scene, options, nullptr); }
+std::unique_ptr<Simulation::Runner> Simulation::make(const Scene& scene, const RunOptions& options,
+                                                     const Checkpoint* resume) {
+  switch (scene.simulation.dimension) {
+  case 1: return std::make_unique<DimRunner<1>>(scene, options, resume);
+  case 2: return std::make_unique<DimRunner<2>>(scene, options, resume);
+  case 3: return std::make_unique<DimRunner<3>>(scene, options, resume);
+  default:
+    input_error(scene.locate("simulation.dimension"),
+                "dimension must be 1, 2 or 3, got " + std::to_string(scene.simulation.dimension));
+  }
+}
+
+Simulation::Simulation(const Scene& scene, const RunOptions& options) : run_(make(scene, options, nullptr)) {}
+Simulation::Simulation(const Checkpoint& checkpoint, const RunOptions& options)
+    : run_(make(checkpoint_scene(checkpoint), options, &checkpoint)) {}
+Simulation::Simulation(Simulation&&) noexcept = default;
+Simulation& Simulation::operator=(Simulation&&) noexcept = default;
+Simulation::~Simulation() = default;
+
+const Scene& Simulation::scene() const { return run_->scene; }
+int Simulation::dimension() const { return run_->dimension(); }
+double Simulation::time() const { return run_->time(); }
+double Simulation::t_end() const { return run_->scene.simulation.t_end; }
+long Simulation::steps() const { return run_->steps(); }
+bool Simulation::finished() const { return run_->finished || time() >= t_end() * (1.0 - time_slack); }
+bool Simulation::unstable() const { return run_->summary.exit_code == 1; }
+const std::string& Simulation::status() const { return run_->summary.status; }
+
+void Simulation::step() {
+  if (finished()) throw std::logic_error("Simulation::step: the run is finished (" + status() + ")");
+  run_->step();
+}
+
+void Simulation::advance_to(double t) {
+  while (!finished() && time() < t * (1.0 - time_slack)) step();
+}
+
+void Simulation::write_frame() { run_->write_frame(); }
+
+RunSummary Simulation::finish() {
+  run_->finish();
+  return run_->summary;
+}
+
+template <int D> Engine<D>& Simulation::engine() {
+  auto* r = dynamic_cast<DimRunner<D>*>(run_.get());
+  require<std::invalid_argument>(r != nullptr, "Simulation::engine<", D, ">: the run is ", dimension(), "D");
+  return r->e;
+}
+template <int D> const Engine<D>& Simulation::engine() const { return const_cast<Simulation*>(this)->engine<D>(); }
+
+template Engine<1>& Simulation::engine<1>();
+template Engine<2>& Simulation::engine<2>();
+template Engine<3>& Simulation::engine<3>();
+template const Engine<1>& Simulation::engine<1>() const;
+template const Engine<2>& Simulation::engine<2>() const;
+template const Engine<3>& Simulation::engine<3>() const;
+
+namespace {
+/// Steps a simulation to t_end; an instability ends it with its status.
+RunSummary run_to_end(Simulation& sim) {
+  try {
+    while (!sim.finished()) sim.step();
+  } catch (const InstabilityError&) { // the status is in the summary
+  }
+  return sim.finish();
+}
+} // namespace
+
+RunSummary run_scene(const Scene& scene, const RunOptions& options) {
+  Simulation sim(scene, options);
+  return run_to_end(sim);
+}
 
 RunSummary restart_run(const Checkpoint& checkpoint, const RunOptions& options) {
-  const Scene scene = checkpoint_scene(checkpoint);
-  return run_any(scene, options, &checkpoint);
+  Simulation sim(checkpoint, options);
+  return run_to_end(sim);
 }
 
 std::string summary_line(const RunSummary& s) {
