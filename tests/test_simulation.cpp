@@ -10,6 +10,7 @@
 #include <hdf5.h>
 
 #include <cstring>
+#include <filesystem>
 #include <stdexcept>
 #include <string>
 
@@ -103,4 +104,20 @@ TEST_CASE("Simulation: engine<D> of another dimension is an interface error") {
   Simulation sim(short_dyka(), RunOptions{.out_file = "", .write_results = false, .progress = {}});
   CHECK(sim.dimension() == 1);
   CHECK_THROWS_AS(sim.engine<2>(), std::invalid_argument);
+}
+
+TEST_CASE("Simulation: interrupt() leaves a valid file with status interrupted and a last checkpoint") {
+  TempDir tmp("interrupt");
+  RunOptions opt;
+  opt.out_file = tmp.file("r.h5");
+  Simulation sim(short_dyka({"output.checkpoint_every=1000"}), opt);
+  for (int s = 0; s < 7; ++s) sim.step();
+  sim.interrupt();
+  CHECK(sim.finished());
+  const RunSummary s = sim.finish();
+  CHECK(s.status == "interrupted");
+  CHECK(s.exit_code == kInterruptedExit);
+  CHECK(read_string_attribute(opt.out_file, "status") == "interrupted");
+  CHECK(read_double_attribute(opt.out_file, "steps") == 7.0);
+  CHECK(std::filesystem::exists(tmp.file("r.checkpoint.h5"))); // taken at the interruption, not at step 1000
 }

@@ -79,6 +79,12 @@ public:
   void maybe_checkpoint(double wall_seconds, bool last) {
     const long every = scene_.output.checkpoint_every;
     if (!writer_ || every <= 0 || last || e_.steps() % every != 0) return;
+    checkpoint(wall_seconds);
+  }
+
+  /// Writes a checkpoint of the current state now (when checkpoints are on).
+  void checkpoint(double wall_seconds) {
+    if (!writer_ || scene_.output.checkpoint_every <= 0) return;
     ScopedPhase timer(e_.timers(), Phase::output);
     Checkpoint ck;
     ck.scene = scene_.text;
@@ -271,6 +277,7 @@ struct Simulation::Runner {
   virtual long steps() const = 0;
   virtual void step() = 0;
   virtual void write_frame() = 0;
+  virtual void interrupt() = 0;
   virtual void finish() = 0;
 };
 
@@ -328,6 +335,14 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
   }
 
   void write_frame() override { rec.maybe_record(true); }
+
+  void interrupt() override {
+    rec.checkpoint(seconds_since(start));
+    summary.status = "interrupted";
+    summary.exit_code = kInterruptedExit;
+    rec.set_status(summary.status);
+    finished = true;
+  }
 
   void finish() override {
     if (summary.exit_code == 0) summary.status = "ok";
@@ -389,6 +404,8 @@ void Simulation::advance_to(double t) {
 }
 
 void Simulation::write_frame() { run_->write_frame(); }
+
+void Simulation::interrupt() { run_->interrupt(); }
 
 RunSummary Simulation::finish() {
   run_->finish();

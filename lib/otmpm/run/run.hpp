@@ -39,10 +39,13 @@ struct EnergySummary {
   double energy_drift() const;
 };
 
+/// RunSummary::exit_code of a run stopped at the user's request (128 + SIGINT).
+inline constexpr int kInterruptedExit = 130;
+
 /// What a run reports (docs/theory.md sect. 12).
 struct RunSummary {
   std::string status = "ok"; ///< "ok" or the diagnosis
-  int exit_code = 0;         ///< 0 ok, 1 unstable
+  int exit_code = 0;         ///< 0 ok, 1 unstable, kInterruptedExit interrupted
   std::string mode, integrator, basis;
   long steps = 0;
   double time = 0.0;         ///< simulated time reached

@@ -50,8 +50,13 @@ public:
   void advance_to(double t);
   /// Writes a frame (and probe samples) of the current state into the result file now.
   void write_frame();
+  /// Stops the run before t_end at the user's request: a last checkpoint
+  /// when checkpoints are on, status "interrupted" (exit code
+  /// kInterruptedExit) in the result file; finish() then completes it.
+  void interrupt();
   /// The final errors, attributes and status of the result file, and the
-  /// summary. Call once, after the last step (also after an instability).
+  /// summary. Call once, after the last step (also after an instability or
+  /// an interruption).
   RunSummary finish();
 
   /// The engine; D must be dimension() (std::invalid_argument otherwise).
