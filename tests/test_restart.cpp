@@ -10,7 +10,7 @@
 // keys output.checkpoint_every / checkpoint_file are checked like the others.
 #include "otmpm/basis/bspline.hpp"
 #include "otmpm/assembly/assembler.hpp"
-#include "otmpm/io/checkpoint.hpp"
+#include "otmpm/run/restart.hpp"
 
 #include "temp_dir.hpp"
 

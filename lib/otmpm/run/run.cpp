@@ -9,7 +9,7 @@
 
 #include "otmpm/assembly/assembler.hpp"
 #include "otmpm/particles/output_fields.hpp"
-#include "otmpm/io/checkpoint.hpp"
+#include "otmpm/run/restart.hpp"
 #include "otmpm/io/results.hpp"
 #include "otmpm/reference/exact.hpp"
 
