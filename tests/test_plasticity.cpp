@@ -4,10 +4,11 @@
 // the general 3D path, the J2 and Drucker-Prager return mappings, the energy
 // bookkeeping and the parameter checks. No engine.
 //
-// Round-off scale used below: log strains are computed to a few ulp of O(1)
-// numbers (absolute error ~1e-16 per step), so a stress carries an absolute
-// error ~ (K + G) * 1e-16 per step; paths of <= 400 steps stay below
-// kRound = 1e-12 (K + G) with a margin of ~20.
+// Round-off scale used below: b_e and the log strains are O(1) numbers
+// computed to a few ulp, so each step adds an absolute strain error of a few
+// 1e-16 and a stress error of (K + G) times that; over n steps two ways of
+// computing the same path may drift apart by round_off(n) = 5e-16 n (K + G)
+// (measured: below a third of it).
 #include "otmpm/materials/hencky_plasticity.hpp"
 #include "otmpm/materials/material.hpp"
 
@@ -51,6 +52,8 @@ DruckerPragerParameters dp_params(double phi, double psi, double c, double T = 0
 }
 
 double moduli_scale(const ElasticModuli& m) { return m.bulk + m.shear; }
+/// Stress round-off accumulated over `steps` steps (see the top of the file).
+double round_off(const ElasticModuli& m, int steps) { return 5e-16 * steps * moduli_scale(m); }
 
 Mat3 dev(const Mat3& t) { return t - t.trace() / 3.0 * Mat3::Identity(); }
 double von_mises(const Mat3& t) { return std::sqrt(1.5 * dev(t).squaredNorm()); }
@@ -222,8 +225,8 @@ TEST_CASE("symmetric_eigen: orthonormal Q, A = Q diag(w) Q^T to round-off, also 
 TEST_CASE("large elastic range equals the Hencky hyperelastic response (1D, 2D, 3D)") {
   J2Parameters p = j2();
   p.yield_stress = 1e30; // never yields
-  const double tol = 1e-12 * moduli_scale(p.elastic);
   const int n = 200;
+  const double tol = round_off(p.elastic, n);
   // 3D: a general deformation with stretches up to ~1.6 and large rotation.
   const Mat3 H3 = random_matrix(0.4);
   HenckyState s3, s2, s1;
@@ -286,9 +289,9 @@ TEST_CASE("simple shear in the elastic range: exact Hencky closed form (2D and 3
   // cos 2a = g / sqrt(g^2 + 4), sin 2a = 2 / sqrt(g^2 + 4); tau = 2 G ln V.
   J2Parameters p = j2();
   p.yield_stress = 1e30;
-  const double G = p.elastic.shear, tol = 1e-12 * moduli_scale(p.elastic);
-  HenckyState s2, s3;
   const int n = 100;
+  const double G = p.elastic.shear, tol = round_off(p.elastic, n);
+  HenckyState s2, s3;
   const double g_end = 2.0;
   for (int k = 1; k <= n; ++k) {
     const double dg = g_end / n, g = k * dg;
@@ -319,13 +322,14 @@ TEST_CASE("J2, linear hardening: exact Kirchhoff stress vs log strain") {
       double l0 = -0.3 * d, l1 = -0.5 * d;
       HenckyState st0 = s, st1 = s;
       double r0 = step(l0, st0).kirchhoff(1, 1), r1 = step(l1, st1).kirchhoff(1, 1);
-      for (int it = 0; it < 50 && std::abs(r1) > 1e-13 * kSy; ++it) {
+      // Stop 10x above the round-off of tau_yy ((K + G) 1e-16 = 8e-14 sigma_y).
+      for (int it = 0; it < 50 && std::abs(r1) > 1e-12 * kSy && r1 != r0; ++it) {
         const double l2 = l1 - r1 * (l1 - l0) / (r1 - r0);
         l0 = l1, r0 = r1, l1 = l2;
         st1 = s;
         r1 = step(l1, st1).kirchhoff(1, 1);
       }
-      REQUIRE(std::abs(r1) <= 1e-13 * kSy);
+      REQUIRE(std::abs(r1) <= 1e-12 * kSy);
       HenckyState st = s;
       const PointUpdate u = step(l1, st);
       s = st;
@@ -334,7 +338,7 @@ TEST_CASE("J2, linear hardening: exact Kirchhoff stress vs log strain") {
       const double eps_p = std::max(0.0, (E * eps - kSy) / (E + H));
       const double tau = eps_p > 0 ? kSy + H * eps_p : E * eps;
       CHECK(std::abs(u.kirchhoff(0, 0) - tau) <= 1e-10 * kSy);
-      CHECK(std::abs(u.kirchhoff(2, 2)) <= 1e-12 * kSy);
+      CHECK(std::abs(u.kirchhoff(2, 2)) <= 1e-11 * kSy);
       CHECK(std::abs(s.eps_p - eps_p) <= 1e-12 * eps);
       // Lateral strain: elastic -nu tau / E, plastic -eps_p / 2 (isochoric flow).
       CHECK(std::abs(lateral - (-kNu * tau / E - eps_p / 2)) <= 1e-12 * eps);
@@ -408,8 +412,12 @@ TEST_CASE("J2 perfect plasticity: simple shear stays on the yield surface (|f| <
       }
     }
     CHECK(plastic == 400); // the first step (gamma = 2.5e-3) already yields
-    // eps_p under simple shear: close to gamma / sqrt(3) minus the elastic part.
-    CHECK(s3.eps_p == doctest::Approx(1.0 / std::sqrt(3.0)).epsilon(0.05));
+    CHECK(std::abs(s2.eps_p - s3.eps_p) <= 1e-12 * s3.eps_p);
+    // In steady plastic flow d_p = d, so eps_p = int sqrt(2/3) |d| dt = gamma / sqrt(3)
+    // less the elastic shear strain (~ sigma_y / (3 G) for H = 0); the rest is
+    // the first-order splitting error (~1e-5 here) and, for H > 0, the growth of
+    // the elastic part (< 1%).
+    CHECK(s3.eps_p == doctest::Approx(1.0 / std::sqrt(3.0) - kSy / (3 * p.elastic.shear)).epsilon(H == 0 ? 1e-4 : 1e-2));
   }
 }
 
@@ -427,7 +435,7 @@ TEST_CASE("J2 simple shear beyond yield: the update is first-order accurate in t
   };
   const Mat3 a = run(100), b = run(200), c = run(400);
   const double ratio = (a - b).norm() / (b - c).norm();
-  CHECK(ratio == doctest::Approx(2.0).epsilon(0.15));
+  CHECK(ratio == doctest::Approx(2.0).epsilon(0.05)); // measured 1.99998
   CHECK((b - c).norm() <= 1e-2 * kSy);
 }
 
@@ -495,7 +503,7 @@ struct Model {
   std::function<PointUpdate(const Mat3&, HenckyState&)> step3;
   std::function<PointUpdate(const Mat<2>&, HenckyState&)> step2;
   std::function<PointUpdate(const Mat<1>&, HenckyState&)> step1;
-  double stress_scale;
+  ElasticModuli elastic;
   Mat3 start; // initial b_e (a pre-stress for the soils)
 };
 
@@ -504,7 +512,7 @@ std::vector<Model> models() {
   auto add_j2 = [&](const std::string& name, J2Parameters p) {
     out.push_back({name, [p](const Mat3& d, HenckyState& s) { return j2_update<3>(p, d, 1e-5, s); },
                    [p](const Mat<2>& d, HenckyState& s) { return j2_update<2>(p, d, 1e-5, s); },
-                   [p](const Mat<1>& d, HenckyState& s) { return j2_update<1>(p, d, 1e-5, s); }, kSy,
+                   [p](const Mat<1>& d, HenckyState& s) { return j2_update<1>(p, d, 1e-5, s); }, p.elastic,
                    Mat3::Identity()});
   };
   add_j2("j2 linear", j2());
@@ -512,14 +520,21 @@ std::vector<Model> models() {
   J2Parameters jc = j2();
   jc.johnson_cook = JohnsonCook{500e6, 0.3, 0.02, 1.0};
   add_j2("j2 johnson-cook", jc);
+  // Yield strain 0.1: elastic deviators beyond the 3D series radius, so the
+  // 3D path runs its eigen-decomposition branch, elastic and plastic.
+  J2Parameters soft;
+  soft.elastic = ElasticModuli::from_young_poisson(1e6, 0.3);
+  soft.yield_stress = 1e5;
+  soft.hardening_modulus = 1e5;
+  add_j2("j2 soft", soft);
   auto add_dp = [&](const std::string& name, const DruckerPragerParameters& p) {
     const DruckerPrager m(p);
     // Isotropic pre-compression p0 = -50 kPa: b_e = exp(2 p0 / (3 K)) I.
     const double b0 = std::exp(2.0 * -50e3 / (3.0 * m.elastic().bulk));
     out.push_back({name, [m](const Mat3& d, HenckyState& s) { return drucker_prager_update<3>(m, d, s); },
                    [m](const Mat<2>& d, HenckyState& s) { return drucker_prager_update<2>(m, d, s); },
-                   [m](const Mat<1>& d, HenckyState& s) { return drucker_prager_update<1>(m, d, s); }, 50e3,
-                   b0 * Mat3::Identity()});
+                   [m](const Mat<1>& d, HenckyState& s) { return drucker_prager_update<1>(m, d, s); },
+                   m.elastic(), b0 * Mat3::Identity()});
   };
   add_dp("dp cohesive", dp_params(30.0, 10.0, 10e3, 2e3));
   add_dp("dp cohesionless", dp_params(35.0, 5.0, 0.0));
@@ -557,7 +572,7 @@ TEST_CASE("objectivity: a superposed rigid rotation rotates tau and b_e and leav
       F_prev = F;
       Q_prev = Q;
       plastic += u.plastic;
-      CHECK((v.kirchhoff - Q * u.kirchhoff * Q.transpose()).norm() <= 1e-12 * (m.stress_scale + u.kirchhoff.norm()));
+      CHECK((v.kirchhoff - Q * u.kirchhoff * Q.transpose()).norm() <= round_off(m.elastic, n));
       CHECK((r.be - Q * s.be * Q.transpose()).norm() <= 1e-12 * s.be.norm());
       CHECK(std::abs(r.eps_p - s.eps_p) <= 1e-12 * std::max(s.eps_p, 1e-3));
       CHECK(std::abs(r.eps_v - s.eps_v) <= 1e-12 * std::max(std::abs(s.eps_v), 1e-3));
@@ -583,11 +598,12 @@ TEST_CASE("fast paths: plane strain (2D) and uniaxial strain (1D) give the gener
       const PointUpdate u2 = m.step2(dF, s2), u3 = m.step3(embed(dF), s3);
       plastic2 += u2.plastic;
       CHECK(u2.plastic == u3.plastic);
-      CHECK((u2.kirchhoff - u3.kirchhoff).norm() <= 1e-12 * (m.stress_scale + u3.kirchhoff.norm()));
+      CHECK((u2.kirchhoff - u3.kirchhoff).norm() <= round_off(m.elastic, n));
       CHECK((s2.be - s3.be).norm() <= 1e-13 * s3.be.norm());
       CHECK(std::abs(s2.eps_p - s3.eps_p) <= 1e-12 * std::max(s3.eps_p, 1e-3));
       CHECK(std::abs(s2.eps_v - s3.eps_v) <= 1e-12 * std::max(std::abs(s3.eps_v), 1e-3));
-      CHECK(std::abs(u2.plastic_work - u3.plastic_work) <= 1e-10 * std::max(u3.plastic_work, 1e-6 * m.stress_scale));
+      // The work of a step is tau : delta e_p; its round-off is |tau| times the strain round-off.
+      CHECK(std::abs(u2.plastic_work - u3.plastic_work) <= 1e-12 * u3.plastic_work + round_off(m.elastic, n) * 1e-3);
       // 1D: stretch to 1.2 and back to 0.85.
       const double f = t < 0.5 ? 1 + 0.4 * t : 1.2 - 0.7 * (t - 0.5);
       const Mat<1> d1 = mat1(f / f_prev);
@@ -595,7 +611,7 @@ TEST_CASE("fast paths: plane strain (2D) and uniaxial strain (1D) give the gener
       const PointUpdate u1 = m.step1(d1, s1), v3 = m.step3(embed(d1), t3);
       plastic1 += u1.plastic;
       CHECK(u1.plastic == v3.plastic);
-      CHECK((u1.kirchhoff - v3.kirchhoff).norm() <= 1e-12 * (m.stress_scale + v3.kirchhoff.norm()));
+      CHECK((u1.kirchhoff - v3.kirchhoff).norm() <= round_off(m.elastic, n));
       CHECK((s1.be - t3.be).norm() <= 1e-13 * t3.be.norm());
       CHECK(std::abs(s1.eps_p - t3.eps_p) <= 1e-12 * std::max(t3.eps_p, 1e-3));
     }
@@ -614,7 +630,35 @@ TEST_CASE("plane strain: the 2x2 closed form is exact near repeated in-plane eig
     const PointUpdate u2 = j2_update<2>(p, dF, 1.0, s2), u3 = j2_update<3>(p, embed(dF), 1.0, s3);
     INFO("a = " << a);
     CHECK((u2.kirchhoff - u3.kirchhoff).norm() <= 1e-14 * moduli_scale(p.elastic));
-    CHECK((s2.be - s3.be).norm() <= 1e-15);
+    CHECK((s2.be - s3.be).norm() <= 4e-16 * 10); // b_e ~ I: 10 ulp
+  }
+}
+
+TEST_CASE("3D: the series branch (b_e_trial near m I) and the eigen-decomposition branch agree across the switch") {
+  // update3 uses the Cayley-Hamilton series when the eigenvalues of
+  // b_e_trial / m are within 0.05 of 1, Jacobi otherwise; the result must not
+  // jump there. Reference: Eigen's iterative eigensolver.
+  J2Parameters p = j2();
+  p.yield_stress = 1e30;
+  for (double z : {0.0, 1e-8, 1e-4, 0.01, 0.0499, 0.05, 0.0501, 0.2}) {
+    for (int k = 0; k < 20; ++k) {
+      const Mat3 R = rotation(uniform(0, 6.3), Eigen::Vector3d(uniform(-1, 1), uniform(-1, 1), uniform(-1, 1)));
+      const double a = uniform(-1, 1);
+      // Traceless z_i with max |z_i| ~ z (two equal ones for k even: repeated eigenvalues).
+      const Eigen::Vector3d zi = k % 2 ? Eigen::Vector3d(z, -z * (1 + a) / 2, -z * (1 - a) / 2) : Eigen::Vector3d(z, -z / 2, -z / 2);
+      const Mat3 be = uniform(0.8, 1.2) * R * (Eigen::Vector3d::Ones() + zi).asDiagonal() * R.transpose();
+      HenckyState s;
+      s.be = be;
+      const PointUpdate u = j2_update<3>(p, Mat3::Identity(), 1.0, s);
+      Eigen::SelfAdjointEigenSolver<Mat3> es(be);
+      const Eigen::Vector3d e = 0.5 * es.eigenvalues().array().log();
+      const Mat3 E = es.eigenvectors() * e.asDiagonal() * es.eigenvectors().transpose();
+      const Mat3 ref = p.elastic.bulk * E.trace() * Mat3::Identity() + 2.0 * p.elastic.shear * dev(E);
+      INFO("z = " << z);
+      // Each side has a few 1e-16 (K + G) of its own (measured up to 1.2e-15 (K + G) apart).
+      CHECK((u.kirchhoff - ref).norm() <= round_off(p.elastic, 10));
+      CHECK((u.kirchhoff - hencky_kirchhoff(p.elastic, be)).norm() <= round_off(p.elastic, 10));
+    }
   }
 }
 
@@ -659,9 +703,9 @@ TEST_CASE("Drucker-Prager: the returned stress lies on the cone or on the cutoff
       }
     });
     INFO("phi = " << q.friction_angle << ", c = " << q.cohesion << ", T = " << q.tension_cutoff);
-    CHECK(cone > 20);
-    CHECK(cutoff > 20);
-    CHECK(elastic > 20);
+    CHECK(cone > 10); // each region sampled
+    CHECK(cutoff > 10);
+    CHECK(elastic > 10);
   }
 }
 
@@ -807,7 +851,8 @@ TEST_CASE("plastic_work = psi(trial) - psi(new) >= 0, elastic_energy = psi(b_e),
       const Mat3 btr = trial(dF, s.be);
       const PointUpdate u = step(dF, s);
       const double psi_trial = hencky_energy(el, btr), psi_new = hencky_energy(el, s.be);
-      const double tol = 1e-12 * psi_trial + 1e-20 * moduli_scale(el);
+      // psi = 1/2 tau : e carries the strain round-off (~1e-16) times |tau|.
+      const double tol = 1e-12 * psi_trial + 1e-15 * std::sqrt(2.0 * psi_trial * moduli_scale(el));
       CHECK(std::abs(u.elastic_energy - psi_new) <= tol);
       CHECK(std::abs(u.plastic_work - (psi_trial - psi_new)) <= tol);
       CHECK(psi_trial - psi_new >= -tol); // the return never adds elastic energy

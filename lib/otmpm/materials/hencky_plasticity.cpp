@@ -168,7 +168,9 @@ void symmetric_eigen(const Mat3& A, Eigen::Vector3d& w, Mat3& Q) {
   // Quadratic convergence: 4-5 sweeps reach round-off from any start.
   for (int sweep = 0; sweep < 12; ++sweep) {
     const double off = a[0][1] * a[0][1] + a[0][2] * a[0][2] + a[1][2] * a[1][2];
-    if (!(off > 1e-36 * norm2)) break; // also ends on NaN
+    // Off-diagonal entries below 1e-15 |A - m I| are round-off (they move the
+    // eigenvalues by their square and b_e by their size): done.
+    if (!(off > 1e-30 * norm2)) break; // also ends on NaN
     jacobi_rotate(a, Q, 0, 1);
     jacobi_rotate(a, Q, 0, 2);
     jacobi_rotate(a, Q, 1, 2);
@@ -196,7 +198,7 @@ constexpr double kNewtonTol = 1e-12;
 /// Johnson-Cook return: solves r(x) = q - 3 G x - sigma_y(eps_n + x, x / dt) = 0
 /// for x = delta eps_p in [0, q / (3 G)] (r decreasing, r(0) > 0 > r(q/3G))
 /// by Newton steps kept inside a shrinking bracket (bisection when a step
-/// leaves it or does not halve |r|).
+/// leaves it or stalls). Converged when |r| <= kNewtonTol sigma_y.
 double johnson_cook_return(const J2Parameters& p, double q, double eps_n, double dt, int& iterations) {
   const JohnsonCook& jc = *p.johnson_cook;
   const bool rate_dependent = jc.C > 0.0;
@@ -207,7 +209,7 @@ double johnson_cook_return(const J2Parameters& p, double q, double eps_n, double
   double lo = 0.0, hi = q / G3;
   const Hardening h0 = static_flow_stress(p, eps_n);
   double x = std::clamp((q - h0.value) / (G3 + p.hardening_modulus), 0.0, hi);
-  double r_prev = std::numeric_limits<double>::infinity();
+  double dx = hi - lo, dx_old = dx; // the last two steps (bisection when Newton stalls)
   double r = 0.0, sigma = 0.0;
   for (int it = 1; it <= kMaxNewton; ++it) {
     const Hardening h = static_flow_stress(p, eps_n + x);
@@ -231,10 +233,18 @@ double johnson_cook_return(const J2Parameters& p, double q, double eps_n, double
       }
       break;
     }
-    double next = x + r / (G3 + h.slope * factor + h.value * dfactor);
-    if (!(next > lo && next < hi) || std::abs(r) > 0.5 * r_prev) next = 0.5 * (lo + hi);
-    r_prev = std::abs(r);
-    x = next;
+    // Newton (r' = -slope) unless it leaves the bracket or would not halve the
+    // step before last (Numerical Recipes' rtsafe rule); bisection then.
+    const double slope = G3 + h.slope * factor + h.value * dfactor;
+    const double next = x + r / slope;
+    dx_old = dx;
+    if (!(next > lo && next < hi) || std::abs(2.0 * r) > std::abs(dx_old * slope)) {
+      dx = 0.5 * (hi - lo);
+      x = lo + dx;
+    } else {
+      dx = r / slope;
+      x = next;
+    }
   }
   throw InstabilityError("j2_update: the Johnson-Cook return mapping did not converge in " +
                          std::to_string(kMaxNewton) + " iterations (trial von Mises stress " + format_number(q) +
@@ -243,21 +253,24 @@ double johnson_cook_return(const J2Parameters& p, double q, double eps_n, double
 }
 
 /// J2 radial return in invariants (ev, dev2 = |dev e|^2): q = sqrt(6) G |dev e|.
-Return j2_return(const J2Parameters& p, double ev, double dev2, double dt, HenckyState& s) {
+[[gnu::always_inline]] inline Return j2_return(const J2Parameters& p, double ev, double dev2, double dt, HenckyState& s) {
   const double G = p.elastic.shear;
   const double sy = static_flow_stress(p, s.eps_p).value; // rate factor is 1 at delta eps_p = 0
   const double q2 = 6.0 * G * G * dev2;
   if (q2 <= sy * sy) return {ev, 1.0, false, 0};
   const double q = std::sqrt(q2);
   Return r{ev, 1.0, true, 0};
-  double dgamma;
   if (p.johnson_cook) {
-    dgamma = johnson_cook_return(p, q, s.eps_p, dt, r.iterations);
-  } else {
-    dgamma = (q - sy) / (3.0 * G + p.hardening_modulus); // closed form: linear hardening
+    const double dgamma = johnson_cook_return(p, q, s.eps_p, dt, r.iterations);
+    r.beta = 1.0 - 3.0 * G * dgamma / q;
+    s.eps_p += dgamma;
+    return r;
   }
-  r.beta = 1.0 - 3.0 * G * dgamma / q;
-  s.eps_p += dgamma;
+  // Closed form (linear hardening): delta eps_p = (q - sigma_y) / (3 G + H) and
+  // beta = q_new / q = (3 G sigma_y + H q) / ((3 G + H) q), with one division.
+  const double H = p.hardening_modulus, inv = 1.0 / ((3.0 * G + H) * q);
+  s.eps_p += (q - sy) * q * inv;
+  r.beta = (3.0 * G * sy + H * q) * inv;
   return r;
 }
 
@@ -265,7 +278,7 @@ Return j2_return(const J2Parameters& p, double ev, double dev2, double dt, Henck
 /// Regions (T = tension cutoff <= apex): elastic; cap (p -> T, s kept); cone
 /// (closed form, p_new <= T); corner (p = T and sqrt(J2) = xi c - eta T; the
 /// apex when T = apex).
-Return dp_return(const DruckerPrager& m, double ev, double dev2, HenckyState& s) {
+[[gnu::always_inline]] inline Return dp_return(const DruckerPrager& m, double ev, double dev2, HenckyState& s) {
   const double K = m.elastic().bulk, G = m.elastic().shear;
   const double c = m.parameters().cohesion, T = m.tension_cutoff();
   const double eta = m.eta(), xi = m.xi(), eta_bar = m.eta_bar();
@@ -295,6 +308,33 @@ Return dp_return(const DruckerPrager& m, double ev, double dev2, HenckyState& s)
 }
 
 // ------------------------------------------------------------ kinematics
+
+/// e^d. A return changes the log strains by little per step, so b_e_new is
+/// formed as b_e_trial e^(2 (e_new - e_trial)) in the common eigenbasis with
+/// a small argument: Taylor polynomial of degree 7 for |d| <= 1/64
+/// (truncation < (1/64)^8 / 8! = 9e-20 relative), std::exp beyond.
+inline double exp_small(double d) {
+  if (!(std::abs(d) <= 1.0 / 64)) return std::exp(d);
+  // Estrin's scheme: three levels of multiplications instead of a chain of seven.
+  const double d2 = d * d, d4 = d2 * d2;
+  const double lo = (1.0 + d) + d2 * (1.0 / 2 + d * (1.0 / 6));
+  const double hi = (1.0 / 24 + d * (1.0 / 120)) + d2 * (1.0 / 720 + d * (1.0 / 5040));
+  return lo + d4 * hi;
+}
+
+/// cosh(y) and sinh(y)/y from y^2: Taylor series for y^2 <= 1/256
+/// (truncation y^10/10! < 3e-19), the library functions beyond.
+inline void cosh_shc(double y2, double& ch, double& shc) {
+  if (!(y2 <= 1.0 / 256)) {
+    const double y = std::sqrt(y2);
+    ch = std::cosh(y);
+    shc = std::sinh(y) / y;
+    return;
+  }
+  const double y4 = y2 * y2;
+  ch = (1.0 + y2 * (1.0 / 2)) + y4 * ((1.0 / 24 + y2 * (1.0 / 720)) + y4 * (1.0 / 40320));
+  shc = (1.0 + y2 * (1.0 / 6)) + y4 * ((1.0 / 120 + y2 * (1.0 / 5040)) + y4 * (1.0 / 362880));
+}
 
 /// psi(ev, dev2) = K/2 ev^2 + G dev2.
 inline double energy(const ElasticModuli& el, double ev, double dev2) {
@@ -345,11 +385,10 @@ Mat3 spectral(const Mat3& Q, const Eigen::Vector3d& d) {
   return R;
 }
 
-/// General 3D point update around a return mapping `ret(ev, dev2) -> Return`.
+/// 3D, b_e_trial far from a multiple of I: Jacobi eigen-decomposition,
+/// e_i = 1/2 ln lambda_i, tau and b_e_new assembled in the eigenbasis.
 template <class ReturnMap>
-PointUpdate update3(const char* who, const ElasticModuli& el, const Mat3& dF, HenckyState& st, ReturnMap&& ret) {
-  check_increment(who, dF.determinant());
-  const Mat3 btr = push_forward(dF, st.be);
+PointUpdate update3_eigen(const char* who, const ElasticModuli& el, const Mat3& btr, HenckyState& st, ReturnMap&& ret) {
   Eigen::Vector3d lambda;
   Mat3 Q;
   symmetric_eigen(btr, lambda, Q);
@@ -363,9 +402,10 @@ PointUpdate update3(const char* who, const ElasticModuli& el, const Mat3& dF, He
   const double K = el.bulk, G2b = 2.0 * el.shear * r.beta;
   out.kirchhoff = spectral(Q, (K * r.ev + G2b * dev.array()).matrix());
   if (r.plastic) {
-    const double ev3 = r.ev / 3.0;
-    st.be = spectral(Q, Eigen::Vector3d(std::exp(2.0 * (ev3 + r.beta * dev[0])), std::exp(2.0 * (ev3 + r.beta * dev[1])),
-                                        std::exp(2.0 * (ev3 + r.beta * dev[2]))));
+    // lambda_i e^(2 (e_new,i - e_i)), e_new - e = (e_v_new - e_v)/3 + (beta - 1) dev e.
+    const double dv = 2.0 * (r.ev - ev) / 3.0, db = 2.0 * (r.beta - 1.0);
+    st.be = spectral(Q, Eigen::Vector3d(lambda[0] * exp_small(dv + db * dev[0]), lambda[1] * exp_small(dv + db * dev[1]),
+                                        lambda[2] * exp_small(dv + db * dev[2])));
   } else {
     st.be = btr;
   }
@@ -373,12 +413,125 @@ PointUpdate update3(const char* who, const ElasticModuli& el, const Mat3& dF, He
   return out;
 }
 
+/// Spectral radius bound up to which update3_series is used: b_e_trial / m
+/// has eigenvalues 1 + z_i with |z_i| <= 0.05 (deviatoric elastic log
+/// strains up to ~2.5%, every metal and most soils); 13 terms at most.
+constexpr double kSeriesRadius = 0.05;
+constexpr int kMaxTerms = 14;
+/// 1 / (k + 1), k = 0 .. kMaxTerms - 1 (no division inside the series loops).
+constexpr double kInverse[kMaxTerms] = {1.0,       1.0 / 2,  1.0 / 3,  1.0 / 4,  1.0 / 5,  1.0 / 6,  1.0 / 7,
+                                        1.0 / 8,   1.0 / 9,  1.0 / 10, 1.0 / 11, 1.0 / 12, 1.0 / 13, 1.0 / 14};
+/// 2^-56: truncation of the series below the round-off of Z itself.
+constexpr double kSeriesTolerance = 1.3877787807814457e-17;
+
+/// 3D, b_e_trial = m (I + Z) near a multiple of I (Z traceless, |z_i| <=
+/// kSeriesRadius): no eigen-decomposition. Every power of Z reduces by
+/// Cayley-Hamilton, Z^3 = J2 Z + J3 I (J2 = tr(Z^2)/2, J3 = det Z), to
+/// Z^k = p_k I + q_k Z + r_k Z^2 with p_{k+1} = r_k J3, q_{k+1} = p_k + r_k J2,
+/// r_{k+1} = q_k, so the series
+///   ln(I + Z)  = sum (-1)^(k+1) Z^k / k         = c0 I + c1 Z + c2 Z^2,
+///   (I + Z)^beta = I + sum binom(beta, k) Z^k   = d0 I + d1 Z + d2 Z^2
+/// cost a few scalar operations per term. Then e = 1/2 (ln m I + ln(I + Z)),
+/// S = tr ln(I + Z) = 3 c0 + 2 J2 c2, e_v = 1/2 (3 ln m + S),
+/// 2 dev e = c1 Z + c2 (Z^2 - 2 J2/3 I), |2 dev e|^2 = 2 J2 c1^2 + 6 J3 c1 c2 + 2/3 J2^2 c2^2,
+/// and b_e_new = exp(2 e_new) = exp(2 e_v_new / 3 - beta S / 3) (I + Z)^beta.
+/// The power series of (I + Z)^beta uses the same p_k, q_k, r_k.
+template <class ReturnMap>
+PointUpdate update3_series(const char* who, const ElasticModuli& el, const double z[6], const double y[6], double m,
+                           double J2, double J3, double rho, HenckyState& st, ReturnMap&& ret) {
+  // z, y: Z and Z^2 as (00, 11, 22, 01, 02, 12).
+  int n = 1;
+  for (double t = rho; t > kSeriesTolerance && n < kMaxTerms; t *= rho) ++n;
+  double p[kMaxTerms], q[kMaxTerms], r[kMaxTerms]; // Z^(k+1) = p[k] I + q[k] Z + r[k] Z^2
+  p[0] = 0.0, q[0] = 1.0, r[0] = 0.0;
+  double c0 = 0.0, c1 = 1.0, c2 = 0.0;
+  for (int k = 1; k < n; ++k) {
+    p[k] = r[k - 1] * J3;
+    q[k] = p[k - 1] + r[k - 1] * J2;
+    r[k] = q[k - 1];
+    const double s = k % 2 ? -kInverse[k] : kInverse[k];
+    c0 += s * p[k];
+    c1 += s * q[k];
+    c2 += s * r[k];
+  }
+  const double S = 3.0 * c0 + 2.0 * J2 * c2;
+  const double ev = 0.5 * (3.0 * std::log(m) + S);
+  const double dev2 = 0.25 * (2.0 * J2 * c1 * c1 + 6.0 * J3 * c1 * c2 + (2.0 / 3.0) * J2 * J2 * c2 * c2);
+  check_strain(who, ev, dev2);
+  const Return ret_ = ret(ev, dev2);
+  PointUpdate out;
+  // tau = K e_v_new I + 2 G beta dev e = (K e_v_new - 2/3 G beta c2 J2) I + G beta (c1 Z + c2 Z^2).
+  const double Gb = el.shear * ret_.beta;
+  const double t0 = el.bulk * ret_.ev - (2.0 / 3.0) * Gb * c2 * J2, t1 = Gb * c1, t2 = Gb * c2;
+  Mat3& tau = out.kirchhoff;
+  tau(0, 0) = t0 + t1 * z[0] + t2 * y[0];
+  tau(1, 1) = t0 + t1 * z[1] + t2 * y[1];
+  tau(2, 2) = t0 + t1 * z[2] + t2 * y[2];
+  tau(0, 1) = tau(1, 0) = t1 * z[3] + t2 * y[3];
+  tau(0, 2) = tau(2, 0) = t1 * z[4] + t2 * y[4];
+  tau(1, 2) = tau(2, 1) = t1 * z[5] + t2 * y[5];
+  if (ret_.plastic) {
+    double d0 = 1.0, d1 = 0.0, d2 = 0.0, binom = 1.0;
+    for (int k = 0; k < n; ++k) {
+      binom *= (ret_.beta - k) * kInverse[k];
+      d0 += binom * p[k];
+      d1 += binom * q[k];
+      d2 += binom * r[k];
+    }
+    // exp((2 e_v_new - beta S) / 3) = m exp((2 (e_v_new - e_v) - (beta - 1) S) / 3), a small argument.
+    const double scale = m * exp_small((2.0 * (ret_.ev - ev) - (ret_.beta - 1.0) * S) / 3.0);
+    const double b0 = scale * d0, b1 = scale * d1, b2 = scale * d2;
+    st.be(0, 0) = b0 + b1 * z[0] + b2 * y[0];
+    st.be(1, 1) = b0 + b1 * z[1] + b2 * y[1];
+    st.be(2, 2) = b0 + b1 * z[2] + b2 * y[2];
+    st.be(0, 1) = st.be(1, 0) = b1 * z[3] + b2 * y[3];
+    st.be(0, 2) = st.be(2, 0) = b1 * z[4] + b2 * y[4];
+    st.be(1, 2) = st.be(2, 1) = b1 * z[5] + b2 * y[5];
+  }
+  fill_energies(out, el, ev, dev2, ret_);
+  return out;
+}
+
+/// General 3D point update around a return mapping `ret(ev, dev2) -> Return`:
+/// the series path when b_e_trial is close to a multiple of I, the
+/// eigen-decomposition otherwise.
+template <class ReturnMap>
+PointUpdate update3(const char* who, const ElasticModuli& el, const Mat3& dF, HenckyState& st, ReturnMap&& ret) {
+  check_increment(who, dF.determinant());
+  const Mat3 btr = push_forward(dF, st.be);
+  const double m = (btr(0, 0) + btr(1, 1) + btr(2, 2)) / 3.0, inv_m = 1.0 / m;
+  // Z = b / m - I with its trace removed exactly.
+  double z[6] = {btr(0, 0) * inv_m, btr(1, 1) * inv_m, btr(2, 2) * inv_m,
+                 btr(0, 1) * inv_m, btr(0, 2) * inv_m, btr(1, 2) * inv_m};
+  const double shift = (z[0] + z[1] + z[2]) / 3.0;
+  z[0] -= shift, z[1] -= shift, z[2] -= shift;
+  const double y[6] = {z[0] * z[0] + z[3] * z[3] + z[4] * z[4], z[3] * z[3] + z[1] * z[1] + z[5] * z[5],
+                       z[4] * z[4] + z[5] * z[5] + z[2] * z[2], z[0] * z[3] + z[3] * z[1] + z[4] * z[5],
+                       z[0] * z[4] + z[3] * z[5] + z[4] * z[2], z[3] * z[4] + z[1] * z[5] + z[5] * z[2]};
+  const double J2 = 0.5 * (y[0] + y[1] + y[2]);
+  // Largest |z_i| <= sqrt(2/3 tr Z^2) = sqrt(4/3 J2).
+  const double rho = std::sqrt(4.0 / 3.0 * J2);
+  if (!(rho <= kSeriesRadius && m > 0.0)) return update3_eigen(who, el, btr, st, ret);
+  const double J3 = z[0] * (z[1] * z[2] - z[5] * z[5]) - z[3] * (z[3] * z[2] - z[5] * z[4]) +
+                    z[4] * (z[3] * z[5] - z[1] * z[4]);
+  PointUpdate out = update3_series(who, el, z, y, m, J2, J3, rho, st, ret);
+  if (!out.plastic) st.be = btr;
+  return out;
+}
+
 /// atanh(x) / x as a function of x2 = x^2 in [0, 1): series below 1e-2
 /// (truncation x^20/21 < 1e-21), the library function above.
 inline double atanh_over_x(double x2) {
-  if (x2 < 1e-4) return 1.0 + x2 * (1.0 / 3 + x2 * (1.0 / 5 + x2 * (1.0 / 7 + x2 * (1.0 / 9))));
-  if (x2 < 1e-2)
-    return 1.0 + x2 * (1.0 / 3 + x2 * (1.0 / 5 + x2 * (1.0 / 7 + x2 * (1.0 / 9 + x2 * (1.0 / 11 + x2 * (1.0 / 13 + x2 * (1.0 / 15 + x2 * (1.0 / 17 + x2 * (1.0 / 19)))))))));
+  // Sum of x^(2k) / (2k + 1) by Estrin's scheme.
+  const double x4 = x2 * x2;
+  if (x2 < 1e-4) return (1.0 + x2 * (1.0 / 3)) + x4 * ((1.0 / 5 + x2 * (1.0 / 7)) + x4 * (1.0 / 9));
+  if (x2 < 1e-2) {
+    const double x8 = x4 * x4;
+    const double lo = (1.0 + x2 * (1.0 / 3)) + x4 * (1.0 / 5 + x2 * (1.0 / 7));
+    const double mid = (1.0 / 9 + x2 * (1.0 / 11)) + x4 * (1.0 / 13 + x2 * (1.0 / 15));
+    const double hi = 1.0 / 17 + x2 * (1.0 / 19);
+    return lo + x8 * (mid + x8 * hi);
+  }
   const double x = std::sqrt(x2);
   return std::atanh(x) / x;
 }
@@ -418,14 +571,21 @@ PointUpdate update2(const char* who, const ElasticModuli& el, const Mat<2>& dF, 
   tau(0, 1) = tau(1, 0) = k * d2;
   tau(2, 2) = K * r.ev - 2.0 * G2b * a0;
   if (r.plastic) {
-    const double ev3 = r.ev / 3.0, x = std::sqrt(x2), bh = 0.5 * r.beta * x * g;
-    const double mu1 = std::exp(2.0 * (ev3 + r.beta * a0 + bh)), mu2 = std::exp(2.0 * (ev3 + r.beta * a0 - bh));
-    const double rr = x * m;
-    const double coef = rr > 0.0 ? (mu1 - mu2) / (2.0 * rr) : 0.0, mean = 0.5 * (mu1 + mu2);
+    // mu_i = lambda_i e^(delta_i), delta_i = 2 (e_new,i - e_i) = c +- y with
+    // c = 2 (e_v_new - e_v)/3 + 2 (beta - 1) a0, y = 2 (beta - 1) h, lambda_1,2 = m +- r, r = x m:
+    //   (mu1 + mu2)/2      = m e^c (cosh y + x^2 (beta - 1) g shc(y)),  shc(y) = sinh(y)/y,
+    //   (mu1 - mu2)/(2 r)  = e^c (cosh y + (beta - 1) g shc(y))          (y / x = (beta - 1) g),
+    // with cosh and shc even in y: no square root, no division, no 0/0 at r = 0.
+    const double dv = 2.0 * (r.ev - ev) / 3.0, db = 2.0 * (r.beta - 1.0);
+    const double c = dv + db * a0, y2 = 0.25 * db * db * x2 * g * g;
+    double ch, shc;
+    cosh_shc(y2, ch, shc);
+    const double E = exp_small(c), bg = 0.5 * db * g * shc;
+    const double mean = m * E * (ch + x2 * bg), coef = E * (ch + bg);
     st.be(0, 0) = mean + coef * d1;
     st.be(1, 1) = mean - coef * d1;
     st.be(0, 1) = st.be(1, 0) = coef * d2;
-    st.be(2, 2) = std::exp(2.0 * (ev3 - 2.0 * r.beta * a0));
+    st.be(2, 2) = bzz * exp_small(dv - 2.0 * db * a0);
   } else {
     st.be(0, 0) = a;
     st.be(1, 1) = c;
@@ -453,10 +613,10 @@ PointUpdate update1(const char* who, const ElasticModuli& el, const Mat<1>& dF, 
   out.kirchhoff(1, 1) = K * r.ev + G2b * d1;
   out.kirchhoff(2, 2) = K * r.ev + G2b * d2;
   if (r.plastic) {
-    const double ev3 = r.ev / 3.0;
-    st.be(0, 0) = std::exp(2.0 * (ev3 + r.beta * d0));
-    st.be(1, 1) = std::exp(2.0 * (ev3 + r.beta * d1));
-    st.be(2, 2) = b2 == b1 ? st.be(1, 1) : std::exp(2.0 * (ev3 + r.beta * d2));
+    const double dv = 2.0 * (r.ev - ev) / 3.0, db = 2.0 * (r.beta - 1.0);
+    st.be(0, 0) = b0 * exp_small(dv + db * d0);
+    st.be(1, 1) = b1 * exp_small(dv + db * d1);
+    st.be(2, 2) = b2 == b1 ? st.be(1, 1) : b2 * exp_small(dv + db * d2);
   } else {
     st.be(0, 0) = b0;
   }
