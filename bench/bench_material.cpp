@@ -64,7 +64,7 @@ template <int D> Mat<D> random_increment(std::mt19937_64& rng, double size, bool
   Mat<D> H;
   for (int i = 0; i < D; ++i)
     for (int j = 0; j < D; ++j) H(i, j) = u(rng);
-  if (isochoric) H -= H.trace() / 3.0 * Mat<D>::Identity().eval();
+  if (isochoric) H -= H.trace() / D * Mat<D>::Identity().eval();
   return Mat<D>::Identity() + H;
 }
 
@@ -87,10 +87,10 @@ Points<D> prepare(int n, std::mt19937_64& rng, double size, bool plastic, const 
     p.state0[i].be = be0;
     p.dF[i] = random_increment<D>(rng, size, plastic);
     if (plastic) {
-      // Load along dF until the point flows plastically, then one step more.
-      for (int k = 0; k < 10000; ++k) {
+      // Load along dF until the point has flowed plastically in 3 steps in a row.
+      for (int k = 0, run = 0; k < 10000 && run < 3; ++k) {
         p.F0[i] = p.dF[i] * p.F0[i];
-        if (step(p.dF[i], p.state0[i]).plastic && k > 2) break;
+        run = step(p.dF[i], p.state0[i]).plastic ? run + 1 : 0;
       }
     } else {
       for (int k = 0; k < 3; ++k) {

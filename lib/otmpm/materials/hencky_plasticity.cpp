@@ -2,7 +2,7 @@
 /// The point updates of hencky_plasticity.hpp. Structure of a step:
 ///  1. kinematics (per dimension): b_e_trial = dF b_e dF^T and its spectral
 ///     form, reduced to the two invariants the return mappings need,
-///     e_v = tr(e) and |dev e|^2 (Trial1/2/3 below);
+///     e_v = tr(e) and |dev e|^2 (update1, update2, update3_series / _eigen);
 ///  2. the return mapping in those invariants (j2_return, dp_return): the new
 ///     e_v and the factor beta of the deviator, e_new = e_v_new/3 I + beta dev e;
 ///  3. reconstruction (per dimension): tau and, after a plastic return,
@@ -165,7 +165,7 @@ void symmetric_eigen(const Mat3& A, Eigen::Vector3d& w, Mat3& Q) {
   Q.setIdentity();
   const double norm2 = a[0][0] * a[0][0] + a[1][1] * a[1][1] + a[2][2] * a[2][2] +
                        2.0 * (a[0][1] * a[0][1] + a[0][2] * a[0][2] + a[1][2] * a[1][2]);
-  // Quadratic convergence: 4-5 sweeps reach round-off from any start.
+  // Cyclic sweeps converge quadratically; 12 is a safety bound.
   for (int sweep = 0; sweep < 12; ++sweep) {
     const double off = a[0][1] * a[0][1] + a[0][2] * a[0][2] + a[1][2] * a[1][2];
     // Off-diagonal entries below 1e-15 |A - m I| are round-off (they move the
@@ -348,13 +348,22 @@ inline double removed_energy(const ElasticModuli& el, double ev, double dev2, co
   return std::max(0.0, 0.5 * el.bulk * (ev - r.ev) * (ev + r.ev) + el.shear * dev2 * (1.0 - r.beta) * (1.0 + r.beta));
 }
 
-void check_increment(const char* who, double det) {
-  require<InstabilityError>(std::isfinite(det) && det > 0.0, who, ": det dF = ", det, " is not finite and > 0");
+// The checks of every update: one inline comparison; the message is built in
+// a cold function, only on failure.
+[[noreturn, gnu::cold, gnu::noinline]] void throw_increment(const char* who, double det) {
+  throw InstabilityError(error_message(who, ": det dF = ", det, " is not finite and > 0"));
 }
-
-void check_strain(const char* who, double ev, double dev2) {
-  require<InstabilityError>(std::isfinite(ev + dev2), who,
-                            ": the elastic log strain is not finite (b_e trial not positive definite or overflowed)");
+[[noreturn, gnu::cold, gnu::noinline]] void throw_strain(const char* who) {
+  throw InstabilityError(
+      error_message(who, ": the elastic log strain is not finite (b_e trial not positive definite or overflowed)"));
+}
+inline void check_increment(const char* who, double det) {
+  if (!(det > 0.0 && det <= std::numeric_limits<double>::max())) [[unlikely]]
+    throw_increment(who, det);
+}
+inline void check_strain(const char* who, double ev, double dev2) {
+  if (!std::isfinite(ev + dev2)) [[unlikely]]
+    throw_strain(who);
 }
 
 inline void fill_energies(PointUpdate& out, const ElasticModuli& el, double ev, double dev2, const Return& r) {
