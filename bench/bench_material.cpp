@@ -17,13 +17,13 @@
 // thread's CPU time (CLOCK_THREAD_CPUTIME_ID), so that time the thread spends
 // descheduled on a shared machine does not count. Prints the median over R
 // repetitions and the ratio to neo_hookean of the same dimension.
+#include "bench_util.hpp"
 #include "otmpm/materials/hencky_plasticity.hpp"
 #include "otmpm/materials/material.hpp"
 
 #include <algorithm>
 #include <cstdio>
 #include <cstring>
-#include <ctime>
 #include <functional>
 #include <memory>
 #include <random>
@@ -32,20 +32,10 @@
 
 using namespace otmpm;
 using namespace otmpm::plasticity;
+using otmpm::bench::median;
+using otmpm::bench::thread_ns;
 
 namespace {
-
-/// CPU time of the calling thread in nanoseconds.
-double thread_ns() {
-  timespec t;
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
-  return 1e9 * double(t.tv_sec) + double(t.tv_nsec);
-}
-
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
-}
 
 /// One benchmark case: `reset` restores the inputs (untimed), `run` does the
 /// N point updates and returns a checksum (keeps the work alive).

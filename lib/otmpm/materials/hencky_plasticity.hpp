@@ -21,8 +21,9 @@
 /// return) and optional Johnson-Cook rate hardening (safeguarded scalar
 /// Newton); Drucker-Prager, a smooth cone matched to Mohr-Coulomb in plane
 /// strain, non-associated (dilation angle), with cohesion, apex and a tension
-/// cutoff on the mean stress (closed-form returns). Both are perfectly
-/// explicit point functions: no particles, no scene.
+/// cutoff on the mean stress (closed-form returns). Both are pure point
+/// functions (no particles, no scene, no allocation; thread-safe on distinct
+/// states).
 ///
 /// Dimensions: the state b_e is 3x3 in every dimension. `D` selects the
 /// kinematics of dF (and a fast path):
@@ -166,8 +167,10 @@ struct PointUpdate {
 /// `dt` (> 0) is only read with Johnson-Cook C > 0 (the plastic strain rate).
 /// Assumes p.validate() passed. Throws InstabilityError when det dF is not
 /// finite and > 0 or the elastic strain is not finite, and when the
-/// Johnson-Cook Newton solve does not reach |f| <= 1e-12 sigma_y in 100
-/// iterations; std::invalid_argument when Johnson-Cook needs dt and dt <= 0.
+/// Johnson-Cook Newton solve reaches neither |f| <= 1e-12 sigma_y nor, once
+/// its bracket has shrunk to round-off, |f| <= 1e-10 sigma_y within 100
+/// iterations; std::invalid_argument when Johnson-Cook with C > 0 gets a
+/// dt that is not finite and > 0. The state is unchanged when it throws.
 template <int D> PointUpdate j2_update(const J2Parameters& p, const Mat<D>& dF, double dt, HenckyState& state);
 
 /// One Drucker-Prager step: trial b_e from dF, return to the cone, the
