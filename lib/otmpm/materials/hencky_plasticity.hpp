@@ -101,7 +101,8 @@ struct DruckerPragerParameters {
 };
 
 /// A validated Drucker-Prager material with the derived cone constants
-/// (de Souza Neto et al., sect. 6.4.6 and 8.3): yield function
+/// (de Souza Neto et al., ch. 6 for the cone and its Mohr-Coulomb matches,
+/// ch. 8 for the return mapping): yield function
 ///   Phi(tau) = sqrt(J2(s)) + eta p - xi c,  p = tr(tau)/3,  s = dev(tau),
 /// plastic potential sqrt(J2(s)) + eta_bar p, and the tension cutoff p <= T.
 /// eta, xi match the cone to Mohr-Coulomb in plane strain:
