@@ -4,7 +4,7 @@
 //
 // Each case runs the constitutive work of one particle as the engine would do
 // it for that model, over N points (fixed seed), timed once per repetition:
-//  - neo_hookean:   F <- dF F; sigma = cauchy_stress<D>(F)   (materials/material.hpp)
+//  - neo_hookean:   F <- dF F; sigma = neo_hookean_stress<D>(F)   (materials/elasticity.hpp)
 //  - j2, drucker_prager (hencky_plasticity.hpp):
 //                   F <- dF F; tau = *_update<D>(dF, state); sigma = tau / det F
 // "elastic": every point stays inside the yield surface; "plastic": every
@@ -19,7 +19,7 @@
 // repetitions and the ratio to neo_hookean of the same dimension.
 #include "bench_util.hpp"
 #include "otmpm/materials/hencky_plasticity.hpp"
-#include "otmpm/materials/material.hpp"
+#include "otmpm/materials/elasticity.hpp"
 
 #include <algorithm>
 #include <cstdio>
@@ -136,11 +136,7 @@ void add_plastic_case(std::vector<Case>& cases, const std::string& label, int n,
 template <int D> void add_cases(std::vector<Case>& cases, int n, std::mt19937_64& rng) {
   const std::string dim = std::to_string(D) + "D ";
   // Neo-Hookean with the same elastic constants as j2.
-  Material nh;
-  nh.name = "nh";
-  nh.model = Material::Model::neo_hookean;
-  nh.young = 200e9;
-  nh.poisson = 0.3;
+  const ElasticConstants nh{1.0, 200e9, 0.3};
   {
     auto pts = std::make_shared<Points<D>>();
     pts->dF.resize(n);
@@ -156,7 +152,7 @@ template <int D> void add_cases(std::vector<Case>& cases, int n, std::mt19937_64
                        double sum = 0.0;
                        for (int i = 0; i < n; ++i) {
                          pts->F[i] = pts->dF[i] * pts->F[i];
-                         pts->sigma[i] = cauchy_stress<D>(nh, pts->F[i]);
+                         pts->sigma[i] = neo_hookean_stress<D>(nh, pts->F[i]);
                          sum += pts->sigma[i](0, 0);
                        }
                        return sum;

@@ -10,7 +10,7 @@
 // computing the same path may drift apart by round_off(n) = 5e-16 n (K + G)
 // (measured: below a third of it).
 #include "otmpm/materials/hencky_plasticity.hpp"
-#include "otmpm/materials/material.hpp"
+#include "otmpm/materials/elasticity.hpp"
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
@@ -279,10 +279,7 @@ TEST_CASE("large elastic range equals the Hencky hyperelastic response (1D, 2D, 
 TEST_CASE("small-strain limit equals linear_elastic below yield (2D plane strain, 3D)") {
   reseed();
   const J2Parameters p = j2();
-  Material lin;
-  lin.name = "lin";
-  lin.young = kE;
-  lin.poisson = kNu;
+  const ElasticConstants lin{1.0, kE, kNu};
   for (double size : {1e-4, 1e-5}) {
     const Mat3 H = random_matrix(size);
     HenckyState s3, s2;

@@ -46,7 +46,7 @@ using Mat3 = Mat<3>;
 /// Isotropic Hencky elasticity: psi(e) = K/2 tr(e)^2 + G |dev e|^2 per unit
 /// reference volume, tau = K tr(e) I + 2 G dev(e). In 1D (uniaxial strain)
 /// the axial modulus is K + 4G/3 = lambda + 2 mu, as for the other
-/// finite-strain models of material.hpp.
+/// finite-strain models of elasticity.hpp.
 struct ElasticModuli {
   double bulk = 0.0;  ///< K
   double shear = 0.0; ///< G
