@@ -91,7 +91,7 @@ void allocate_fields(const Scene& scene, const IntegratorKind& integrator, const
   if (integrator.needs_previous_position) P.x_prev = P.x;
   AlignedVector<Vec<D>>().swap(P.length0); // the traction areas are taken (memory)
   for (const auto& m : parts.materials)
-    for (const StateSpec& s : m->state()) P.add_state(std::string(s.name), s.width, s.initial);
+    for (const StateSpec& s : m->state()) P.add_state(std::string(s.name), s.width, s.initial.data());
 }
 
 /// The basis of the scene on the node lattice (uGIMP: with the particles'

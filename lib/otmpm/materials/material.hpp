@@ -19,6 +19,7 @@
 #include "otmpm/materials/elasticity.hpp"
 #include "otmpm/particles/particles.hpp"
 
+#include <array>
 #include <map>
 #include <memory>
 #include <optional>
@@ -44,13 +45,13 @@ struct MaterialParameters {
   bool has(const std::string& key) const { return extra.count(key) > 0; }
 };
 
-/// A per-particle internal variable of a model: `width` doubles per particle
-/// named `name` (Particles::state), initially `initial` in every component;
-/// output.fields writes it under that name.
+/// A per-particle internal variable of a model: `width` (at most 9)
+/// doubles per particle named `name` (Particles::state), initially the
+/// first `width` values of `initial`; output.fields writes it under that name.
 struct StateSpec {
   std::string_view name;
   int width = 1;
-  double initial = 0.0;
+  std::array<double, 9> initial{};
   std::string_view description;
 };
 

@@ -11,8 +11,8 @@ namespace otmpm {
 
 namespace {
 
-const std::array<const MaterialModel*, 3> kModels{&linear_elastic_model(), &linear_elastic_finite_model(),
-                                                  &neo_hookean_model()};
+const std::array<const MaterialModel*, 5> kModels{&linear_elastic_model(), &linear_elastic_finite_model(),
+                                                  &neo_hookean_model(), &j2_model(), &drucker_prager_model()};
 
 /// The sub-table of a parameter key "table.key" ("" for a top-level key).
 std::string_view table_of(std::string_view key) {
@@ -82,6 +82,7 @@ void validate_material(const MaterialParameters& p) {
     require(!expected || p.has(std::string(s.key)), "material '", p.name, "': model '", p.model, "' needs ",
             std::string(s.key));
   }
+  (void)model.make3(p); // the model's own checks across its parameters
 }
 
 template <int D> std::unique_ptr<Material<D>> make_material(const MaterialParameters& p) {
