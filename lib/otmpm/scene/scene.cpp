@@ -6,6 +6,7 @@
 
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/integrators/integrator.hpp"
+#include "otmpm/io/particle_file.hpp"
 #include "otmpm/particles/output_fields.hpp"
 #include "otmpm/scene/validate.hpp"
 
@@ -15,6 +16,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <limits>
 #include <set>
@@ -452,6 +454,7 @@ double body_cells(const BodySection& b, const GridSection& g, int dim) {
 
 /// The particles seed_particles puts into body `b` (see SceneSize).
 double body_particles(const BodySection& b, const GridSection& g, int dim) {
+  if (b.shape == "file") return b.file_particles;
   return body_cells(b, g, dim) * std::pow(b.particles_per_cell, dim);
 }
 
@@ -563,6 +566,106 @@ SourceRef box_ref(const TableReader& t) {
   return t.self();
 }
 
+/// The keys of each body shape beyond the common ones.
+const std::map<std::string, std::vector<std::string_view>, std::less<>> kShapeKeys = {
+    {"box", {"lower", "upper"}},
+    {"sphere", {"center", "radius"}},
+    {"cylinder", {"center", "axis", "radius", "length"}},
+    {"polygon", {"vertices"}},
+    {"file", {"file"}}};
+
+/// A value > 0 that the shape needs.
+double positive_required(const TableReader& t, std::string_view key) {
+  const double v = t.require<double>(key);
+  check(v > 0, t.ref(key), "must be > 0 (got " + fmt(v) + ")");
+  return v;
+}
+
+/// polygon: vertices = [[x, y], ...] (2D, at least 3).
+std::vector<std::array<double, 2>> read_vertices(const TableReader& t, int dim) {
+  check(dim == 2, t.ref("shape"), "shape \"polygon\" is two-dimensional (simulation.dimension = " +
+                                      std::to_string(dim) + ")");
+  const toml::node* n = t.node("vertices");
+  if (!n) t.missing("vertices");
+  const SourceRef r = t.ref("vertices");
+  const toml::array* a = n->as_array();
+  check(a && a->size() >= 3, r, "expected an array of at least 3 vertices [[x, y], ...]");
+  std::vector<std::array<double, 2>> out;
+  for (const toml::node& v : *a) {
+    const toml::array* xy = v.as_array();
+    check(xy && xy->size() == 2, r, "every vertex is an array of 2 numbers [x, y]");
+    out.push_back({convert<double>((*xy)[0], r), convert<double>((*xy)[1], r)});
+  }
+  return out;
+}
+
+/// The bounding box of a cylinder body (center of one end, axis, radius, length).
+void cylinder_bounds(BodySection& b) {
+  const double n = std::sqrt(b.axis[0] * b.axis[0] + b.axis[1] * b.axis[1] + b.axis[2] * b.axis[2]);
+  for (int k = 0; k < 3; ++k) {
+    const double a = b.axis[k] / n, top = b.center[k] + b.length * a;
+    const double e = b.radius * std::sqrt(std::max(0.0, 1.0 - a * a));
+    b.lower[k] = std::min(b.center[k], top) - e;
+    b.upper[k] = std::max(b.center[k], top) + e;
+  }
+}
+
+/// file: the path (relative to the scene file), read now for its bounds and
+/// particle count, so that a bad file is reported with the scene's line.
+void read_particle_file_body(const TableReader& t, BodySection& b, const Scene& s) {
+  const std::string name = t.require<std::string>("file");
+  check(!name.empty(), t.ref("file"), "must not be empty");
+  namespace fs = std::filesystem;
+  const fs::path given(name);
+  b.file = (given.is_absolute() || s.file.empty() ? given : fs::path(s.file).parent_path() / given).string();
+  ParticleFile f;
+  try {
+    f = read_particle_file(b.file, s.simulation.dimension);
+  } catch (const InputError& e) {
+    input_error(t.ref("file"), e.what());
+  }
+  const int D = s.simulation.dimension;
+  b.file_particles = f.size();
+  for (int k = 0; k < D; ++k) {
+    b.lower[k] = b.upper[k] = f.x[static_cast<std::size_t>(k)];
+    for (int p = 0; p < f.size(); ++p) {
+      const double x = f.x[static_cast<std::size_t>(p) * D + k], half = 0.5 * std::pow(f.volume[static_cast<std::size_t>(p)], 1.0 / D);
+      b.lower[k] = std::min(b.lower[k], x - half);
+      b.upper[k] = std::max(b.upper[k], x + half);
+    }
+  }
+}
+
+/// The shape's own keys, and lower/upper = its bounding box.
+void read_shape(const TableReader& t, BodySection& b, const Scene& s) {
+  const int dim = s.simulation.dimension;
+  if (b.shape == "box") {
+    b.lower = t.require_vec("lower", dim);
+    b.upper = t.require_vec("upper", dim);
+    check_box(t, b.lower, b.upper, dim, true);
+  } else if (b.shape == "sphere") {
+    b.center = t.require_vec("center", dim);
+    b.radius = positive_required(t, "radius");
+    for (int k = 0; k < dim; ++k) b.lower[k] = b.center[k] - b.radius, b.upper[k] = b.center[k] + b.radius;
+  } else if (b.shape == "cylinder") {
+    check(dim == 3, t.ref("shape"), "shape \"cylinder\" is three-dimensional (use \"sphere\" for a disk in 2D)");
+    b.center = t.require_vec("center", dim);
+    b.axis = t.require_vec("axis", dim);
+    check(b.axis[0] != 0 || b.axis[1] != 0 || b.axis[2] != 0, t.ref("axis"), "must not be zero");
+    b.radius = positive_required(t, "radius");
+    b.length = positive_required(t, "length");
+    cylinder_bounds(b);
+  } else if (b.shape == "polygon") {
+    b.vertices = read_vertices(t, dim);
+    b.lower = {b.vertices[0][0], b.vertices[0][1], 0};
+    b.upper = b.lower;
+    for (const auto& v : b.vertices)
+      for (int k = 0; k < 2; ++k) b.lower[k] = std::min(b.lower[k], v[k]), b.upper[k] = std::max(b.upper[k], v[k]);
+  } else {
+    read_particle_file_body(t, b, s);
+  }
+}
+
 std::vector<BodySection> read_bodies(const TableReader& root, const Scene& s) {
   auto tables = root.tables("body");
   if (tables.empty()) root.missing("body", "at least one [[body]] is required");
@@ -570,18 +673,23 @@ std::vector<BodySection> read_bodies(const TableReader& root, const Scene& s) {
   std::vector<BodySection> out;
   std::set<std::string> names;
   double particles = 0;
+  std::vector<std::string_view> shapes;
+  for (const auto& [name, keys] : kShapeKeys) shapes.push_back(name);
   for (const TableReader& t : tables) {
-    t.only({"name", "material", "lower", "upper", "particles_per_cell", "placement", "velocity", "velocity_profile"});
     BodySection b;
     b.where = t.self();
+    b.shape = t.choice("shape", b.shape, shapes);
+    std::vector<std::string_view> allowed{"name", "material", "shape", "particles_per_cell", "placement", "velocity",
+                                          "velocity_profile", "overlap"};
+    const auto& own = kShapeKeys.find(b.shape)->second;
+    allowed.insert(allowed.end(), own.begin(), own.end());
+    t.only(allowed);
     b.name = read_name(t, false, "body" + std::to_string(out.size()), names);
     b.material = t.require<std::string>("material");
     const bool known = std::any_of(s.materials.begin(), s.materials.end(),
                                    [&](const MaterialSection& m) { return m.name == b.material; });
     check(known, t.ref("material"), "no [[material]] named \"" + b.material + "\"");
-    b.lower = t.require_vec("lower", dim);
-    b.upper = t.require_vec("upper", dim);
-    check_box(t, b.lower, b.upper, dim, true);
+    read_shape(t, b, s);
     b.particles_per_cell = t.get<int>("particles_per_cell", b.particles_per_cell);
     check(b.particles_per_cell >= 1 && b.particles_per_cell <= kMaxParticlesPerCell, t.ref("particles_per_cell"),
           "must be in [1, " + std::to_string(kMaxParticlesPerCell) + "] (got " +
@@ -589,6 +697,7 @@ std::vector<BodySection> read_bodies(const TableReader& root, const Scene& s) {
     b.placement = t.choice("placement", b.placement, {"gauss", "cell_centres"});
     b.velocity = t.vec("velocity", dim).value_or(b.velocity);
     if (t.has("velocity_profile")) b.velocity_profile = t.choice("velocity_profile", "", {"sin_x", "reference"});
+    b.overlap = t.choice("overlap", b.overlap, {"error", "first"});
     particles += body_particles(b, s.grid, dim);
     check(particles <= kMaxSceneParticles, box_ref(t),
           "body \"" + b.name + "\" brings the particle count to " + fmt(particles) + " (" +

@@ -63,10 +63,25 @@ struct MaterialSection : MaterialParameters {
   SourceRef where;
 };
 
+/// A body: a region (shape) filled with particles of one material.
+/// Particles are seeded on the background lattice (the node lattice),
+/// particles_per_cell^D per cell at the Gauss points or cell centres, and
+/// kept where they lie in the shape; a box is cut into cells of the grid
+/// spacing of its own; a "file" body takes its particles from a file.
+/// `lower`/`upper` are the box corners, or the shape's bounding box.
 struct BodySection {
   std::string name;
   std::string material;
-  Vec3 lower{0, 0, 0}, upper{0, 0, 0};
+  std::string shape = "box";           ///< box | sphere | cylinder | polygon | file
+  Vec3 lower{0, 0, 0}, upper{0, 0, 0}; ///< box corners; the bounds of other shapes
+  Vec3 center{0, 0, 0};                ///< sphere: centre; cylinder: centre of one end
+  double radius = 0.0;                 ///< sphere, cylinder
+  Vec3 axis{0, 0, 1};                  ///< cylinder
+  double length = 0.0;                 ///< cylinder
+  std::vector<std::array<double, 2>> vertices; ///< polygon (2D)
+  std::string file;                    ///< file: particle file (CSV or HDF5), resolved path
+  int file_particles = 0;              ///< file: the number of particles it holds
+  std::string overlap = "error";       ///< "first": particles inside an earlier body are dropped
   int particles_per_cell = 2;           ///< per axis
   std::string placement = "gauss";      ///< gauss | cell_centres
   Vec3 velocity{0, 0, 0};
