@@ -95,6 +95,10 @@ public:
     g.integers["frames"] = writer_->frames();
     g.strings["result_file"] = std::filesystem::absolute(path_).string();
     g.put_reals(summary_fields(energy_));
+    g.reals["wall_time"] = wall_time_;
+    StateArray<double>& walls = g.real_arrays["wall_last_impulse"];
+    walls.cols = D;
+    for (const Vec<D>& J : wall_last_) walls.values.insert(walls.values.end(), J.data(), J.data() + D);
     StateArray<double>& sum_sq = g.real_arrays["probe_sum_sq"];
     StateArray<std::int64_t>& samples = g.integer_arrays["probe_samples"];
     for (const Probe& pr : probes_) {
@@ -166,6 +170,11 @@ private:
     next_ = g.real("next_output_time");
     wall_before_ = g.real("wall_seconds");
     g.get_reals(summary_fields(energy_));
+    wall_time_ = g.real("wall_time");
+    const auto& walls = g.real_array("wall_last_impulse", e_.walls().size(), D).values;
+    wall_last_.assign(e_.walls().size(), Vec<D>::Zero());
+    for (std::size_t w = 0; w < wall_last_.size(); ++w)
+      for (int k = 0; k < D; ++k) wall_last_[w][k] = walls[w * D + static_cast<std::size_t>(k)];
     const auto& sum_sq = g.real_array("probe_sum_sq", probes_.size(), 1).values;
     const auto& samples = g.integer_array("probe_samples", probes_.size(), 1).values;
     for (std::size_t i = 0; i < probes_.size(); ++i) {
@@ -181,6 +190,7 @@ private:
     std::vector<std::string> energy{"kinetic", "strain", "external_work", "reaction_work"};
     if (dissipative()) energy.push_back("dissipated");
     h.push_back({"energy", false, energy});
+    for (const Wall<D>& w : e_.walls()) h.push_back({w.name, true, {"force", "impulse"}, "walls"});
     return h;
   }
 
@@ -196,6 +206,22 @@ private:
   void continue_results(const PreviousResults& previous, const StateGroup& g) {
     copy_results(previous.path, *writer_, static_cast<int>(g.integer("frames")), histories(), scene_.output.fields);
     release_previous_results(previous);
+  }
+
+  /// /walls/NAME: the impulse the wall gave the body since t = 0 and the
+  /// mean force over the time since the previous sample (zero at the first).
+  void record_walls(double t) {
+    const auto& walls = e_.walls();
+    wall_last_.resize(walls.size(), Vec<D>::Zero());
+    for (std::size_t w = 0; w < walls.size(); ++w) {
+      const Vec<D>& J = e_.wall_impulse()[w];
+      const Vec<D> F = t > wall_time_ ? Vec<D>((J - wall_last_[w]) / (t - wall_time_)) : Vec<D>::Zero();
+      writer_->append_group_sample("walls", walls[w].name, t,
+                                   {{"force", std::vector<double>(F.data(), F.data() + D)},
+                                    {"impulse", std::vector<double>(J.data(), J.data() + D)}});
+      wall_last_[w] = J;
+    }
+    wall_time_ = t;
   }
 
   void record(double t) {
@@ -218,6 +244,7 @@ private:
           {"kinetic", E.kinetic}, {"strain", E.strain}, {"external_work", E.external_work}, {"reaction_work", E.reaction_work}};
       if (dissipative()) energy.emplace_back("dissipated", E.dissipated);
       writer_->append_series("energy", t, energy);
+      record_walls(t);
       write_frame(t);
     }
   }
@@ -258,6 +285,8 @@ private:
   EnergySummary energy_;
   std::string checkpoint_path_;
   double wall_before_ = 0.0;
+  AlignedVector<Vec<D>> wall_last_; ///< wall impulses at the previous sample
+  double wall_time_ = 0.0;          ///< time of the previous sample
 };
 
 double seconds_since(std::chrono::steady_clock::time_point start) {

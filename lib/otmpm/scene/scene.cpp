@@ -36,7 +36,7 @@ constexpr std::size_t kSuggestDistance = 3;
 using Names = std::initializer_list<std::string_view>;
 
 const std::set<std::string, std::less<>> kTableArrays = {"material", "body", "initial_velocity", "boundary",
-                                                         "traction", "probes"};
+                                                         "wall", "traction", "probes"};
 
 std::string fmt(double x) {
   char buf[32];
@@ -744,6 +744,27 @@ std::vector<BoundarySection> read_boundaries(const TableReader& root, int dim) {
   return out;
 }
 
+std::vector<WallSection> read_walls(const TableReader& root, int dim) {
+  std::vector<WallSection> out;
+  std::set<std::string> names;
+  for (const TableReader& t : root.tables("wall")) {
+    t.only({"name", "point", "normal", "velocity", "friction"});
+    WallSection w;
+    w.where = t.self();
+    w.name = read_name(t, false, "wall" + std::to_string(out.size()), names);
+    w.point = t.require_vec("point", dim);
+    w.normal = t.require_vec("normal", dim);
+    double n2 = 0.0;
+    for (int k = 0; k < dim; ++k) n2 += w.normal[k] * w.normal[k];
+    check(n2 > 0.0, t.ref("normal"), "must not be zero (it points to the material's side of the wall)");
+    w.velocity = t.vec("velocity", dim).value_or(w.velocity);
+    w.friction = t.get<double>("friction", 0.0);
+    check(w.friction >= 0.0, t.ref("friction"), "must be >= 0 (the Coulomb coefficient; got " + fmt(w.friction) + ")");
+    out.push_back(std::move(w));
+  }
+  return out;
+}
+
 TimeFunction read_time(const TableReader& parent) {
   TimeFunction f;
   auto t = parent.table("time");
@@ -875,8 +896,8 @@ void check_node_count(const TableReader& grid, const Scene& s) {
 
 Scene read_scene(const toml::table& root, Context& ctx) {
   TableReader r(ctx, &root, "", SourceRef{ctx.file, 1, ""});
-  r.only({"simulation", "basis", "grid", "material", "body", "initial_velocity", "boundary", "body_force", "traction",
-          "output", "reference"});
+  r.only({"simulation", "basis", "grid", "material", "body", "initial_velocity", "boundary", "wall", "body_force",
+          "traction", "output", "reference"});
   Scene s;
   s.file = ctx.file;
   s.simulation = read_simulation(r.require_table("simulation"));
@@ -894,6 +915,7 @@ Scene read_scene(const toml::table& root, Context& ctx) {
   if (s.simulation.nodes_move()) check_node_count(grid, s);
   s.initial_velocities = read_initial_velocities(r, dim);
   s.boundaries = read_boundaries(r, dim);
+  s.walls = read_walls(r, dim);
   s.body_force = read_body_force(r, dim);
   s.tractions = read_tractions(r, dim);
   s.output = read_output(r, s);

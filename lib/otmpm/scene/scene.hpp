@@ -109,6 +109,17 @@ struct BoundarySection {
   SourceRef where{"", 0, "boundary"};
 };
 
+/// A rigid wall: the plane through `point` with `normal` pointing to the
+/// material's side, moving at `velocity`, with Coulomb `friction`. It acts
+/// on the nodal velocities (and, in ul mode, keeps the advected nodes from
+/// crossing it); its force on the body is written as /walls/NAME/force.
+struct WallSection {
+  std::string name;
+  Vec3 point{0, 0, 0}, normal{0, 0, 0}, velocity{0, 0, 0};
+  double friction = 0.0;
+  SourceRef where{"", 0, "wall"};
+};
+
 /// Body force b(t) = value * g(t) on every particle (e.g. gravity).
 struct BodyForceSection {
   Vec3 value{0, 0, 0};
@@ -168,6 +179,7 @@ struct Scene {
   std::vector<BodySection> bodies;
   std::vector<InitialVelocitySection> initial_velocities;
   std::vector<BoundarySection> boundaries;
+  std::vector<WallSection> walls;
   std::optional<BodyForceSection> body_force;
   std::vector<TractionSection> tractions;
   OutputSection output;

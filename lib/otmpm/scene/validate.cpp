@@ -173,6 +173,18 @@ void check_loads(const Scene& s, int dim) {
     check_box(s, key, b.lower, b.upper, dim, false);
     check_finite(s, key + ".value", b.value, dim);
   }
+  for (std::size_t i = 0; i < s.walls.size(); ++i) {
+    const WallSection& w = s.walls[i];
+    const std::string key = element_key("wall", w.name, i);
+    check_finite(s, key + ".point", w.point, dim);
+    check_finite(s, key + ".normal", w.normal, dim);
+    check_finite(s, key + ".velocity", w.velocity, dim);
+    double n2 = 0.0;
+    for (int k = 0; k < dim; ++k) n2 += w.normal[k] * w.normal[k];
+    check(s, n2 > 0.0, key + ".normal", "must not be zero");
+    check(s, std::isfinite(w.friction) && w.friction >= 0.0, key + ".friction", "must be finite and >= 0 (got ",
+          w.friction, ")");
+  }
   if (s.body_force) {
     check_finite(s, "body_force.value", s.body_force->value, dim);
     check_time(s, "body_force.time", s.body_force->time);
