@@ -40,17 +40,6 @@ double MaterialParameters::get(const std::string& key, double fallback) const {
   return it == extra.end() ? fallback : it->second;
 }
 
-std::string ParameterSpec::check(double value) const {
-  if (!std::isfinite(value)) return "must be a finite number (got " + format_number(value) + ")";
-  if (lower_open ? !(value > lower) : !(value >= lower))
-    return std::string("must be ") + (lower_open ? "> " : ">= ") + format_number(lower) + " (got " +
-           format_number(value) + ")";
-  if (upper_open ? !(value < upper) : !(value <= upper))
-    return std::string("must be ") + (upper_open ? "< " : "<= ") + format_number(upper) + " (got " +
-           format_number(value) + ")";
-  return "";
-}
-
 std::span<const MaterialModel* const> material_models() { return kModels; }
 
 const MaterialModel* find_material_model(std::string_view name) {

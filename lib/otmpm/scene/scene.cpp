@@ -337,8 +337,11 @@ void check_box(const TableReader& t, const Vec3& lo, const Vec3& hi, int dim, bo
 // ---------------------------------------------------------------- sections
 
 SimulationSection read_simulation(const TableReader& t) {
-  t.only({"dimension", "mode", "integrator", "gamma", "mass", "t_end", "cfl", "dt", "mass_tolerance",
-          "energy_limit"});
+  std::vector<std::string_view> keys{"dimension", "mode",          "integrator",  "mass",
+                                     "t_end",     "cfl",           "dt",          "mass_tolerance",
+                                     "energy_limit"};
+  for (const ParameterSpec* p : integrator_parameters()) keys.push_back(p->key);
+  t.only(keys);
   SimulationSection s;
   s.where = t.self();
   s.dimension = t.require<int>("dimension");
@@ -347,8 +350,13 @@ SimulationSection read_simulation(const TableReader& t) {
   s.mode = t.choice("mode", s.mode, {"mpm", "ul"});
   const auto integrators = names_of(integrator_kinds(), [](const IntegratorKind& k) { return k.name; });
   s.integrator = t.choice("integrator", s.integrator, integrators);
-  s.gamma = t.get<double>("gamma", s.gamma);
-  check(s.gamma > 0 && s.gamma <= 1, t.ref("gamma"), "must be in (0, 1] (got " + fmt(s.gamma) + ")");
+  for (const ParameterSpec* p : integrator_parameters()) {
+    const auto value = t.get<double>(p->key);
+    if (!value) continue;
+    const std::string why = p->check(*value);
+    check(why.empty(), t.ref(p->key), why);
+    s.parameters[std::string(p->key)] = *value;
+  }
   // Default: the mass matrix of each algorithm's listing (IntegratorKind).
   const bool consistent_default = integrator_kind(s.integrator).consistent_by_default;
   s.mass = t.choice("mass", consistent_default ? "consistent" : "lumped", {"lumped", "consistent"});

@@ -35,8 +35,10 @@ using Vec3 = std::array<double, 3>;
 struct SimulationSection {
   int dimension = 1;
   std::string mode = "mpm";        ///< mpm | ul
-  std::string integrator = "npc";  ///< fe | musl | npc | otm | unified
-  double gamma = 0.5;              ///< Newmark parameter of NPC
+  std::string integrator = "npc";  ///< a name of integrator_kinds() (integrators/integrator.hpp)
+  /// Integrator parameters given in the scene (gamma of npc, rho_inf of
+  /// explicit_alpha, ...: IntegratorKind::parameters); the rest take their defaults.
+  std::map<std::string, double> parameters;
   std::string mass = "lumped";     ///< lumped | consistent (default: consistent for otm and unified)
   double t_end = 0.0;
   double cfl = 0.1;
