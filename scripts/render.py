@@ -1,0 +1,251 @@
+#!/usr/bin/env python3
+"""otmpm render: the particles of an otmpm result file coloured by a field.
+
+Run through `otmpm render RESULT.h5 --field NAME [--frame K | --all] --out
+FILE.png|.gif` (the binary finds this script in PREFIX/share/otmpm); it can
+also be run directly with the same arguments.
+
+What is drawn:
+  1D  the field against the particle position x (one point per particle,
+      coloured by the same value);
+  2D  the particles in the x-y plane as squares of the particle spacing;
+  3D  the particles projected on a plane (--view xy: seen from +z, the
+      particles with the largest z drawn last, i.e. on top; xz, yz likewise).
+A vector field is shown by its Euclidean norm, a tensor field (stress,
+strain, F: D*D components, row-major) by its Frobenius norm, unless
+--component picks one (x, y, z; xx, xy, ...; or the column index). The
+colour limits are those of all frames drawn (a GIF keeps one scale); a field
+that takes both signs gets a diverging map centred on 0. Axes are in metres,
+the title gives the time.
+
+Exit status: 0 ok, 2 bad input (missing or unreadable file, unknown field -
+the message lists the fields -, frame out of range, missing numpy, h5py or
+matplotlib).
+"""
+
+import argparse
+import os
+import sys
+
+
+def fail(message):
+    print(f"otmpm render: error: {message}", file=sys.stderr)
+    sys.exit(2)
+
+
+# Reading never takes HDF5's file lock, so a run that is still writing can be
+# looked at (the frames it has flushed are complete).
+os.environ.setdefault("HDF5_USE_FILE_LOCKING", "FALSE")
+try:
+    import numpy as np
+    import h5py
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.animation import PillowWriter
+    from matplotlib.colors import Normalize
+except ImportError as e:
+    fail(f"needs Python 3 with numpy, h5py and matplotlib ({e}); on Debian: "
+         "apt-get install python3-matplotlib python3-h5py")
+
+UNITS = {"x": "m", "displacement": "m", "v": "m/s", "a": "m/s^2", "stress": "Pa", "strain": "1", "F": "1",
+         "density": "kg/m^3", "mass": "kg"}
+AXES = "xyz"
+
+
+def text(value):
+    return value.decode() if isinstance(value, bytes) else str(value)
+
+
+class Result:
+    """The frames of a result file: times, positions and one field."""
+
+    def __init__(self, path):
+        try:
+            self.file = h5py.File(path, "r")
+        except OSError as e:
+            fail(f"{path}: cannot read it as an otmpm result file ({e})")
+        if "frames" not in self.file or len(self.file["frames"]) == 0:
+            fail(f"{path}: no frames (not an otmpm result file, or the run wrote none)")
+        self.path = path
+        self.names = sorted(self.file["frames"])
+        self.dim = int(self.file.attrs.get("dimension", self.file["frames"][self.names[0]]["x"].shape[1]))
+        self.status = text(self.file.attrs.get("status", ""))
+
+    def fields(self):
+        first = self.file["frames"][self.names[0]]
+        return [name for name in first if name != "x3"]
+
+    def frame(self, k):
+        return self.file["frames"][self.names[k]]
+
+    def time(self, k):
+        return float(self.frame(k).attrs["time"])
+
+
+def component_of(field, cols, dim, component):
+    """(column index or None for the norm, label) of --component for a field of `cols` columns."""
+    if cols == 1:
+        return 0, field
+    names = list(AXES[:dim]) if cols == dim else [a + b for a in AXES[:dim] for b in AXES[:dim]]
+    if cols not in (dim, dim * dim):
+        names = [str(i) for i in range(cols)]
+    if component == "norm":
+        return None, f"|{field}|"
+    if component in names:
+        return names.index(component), f"{field}_{component}"
+    if component.isdigit() and int(component) < cols:
+        return int(component), f"{field}_{names[int(component)]}"
+    fail(f"--component {component}: {field} has {cols} components ({', '.join(names)}) or norm")
+
+
+def values(result, k, field, column):
+    data = np.asarray(result.frame(k)[field][:], dtype=float)
+    if data.ndim == 1:
+        data = data[:, None]
+    return np.linalg.norm(data, axis=1) if column is None else data[:, column]
+
+
+def positions(result, k):
+    return np.asarray(result.frame(k)["x"][:], dtype=float).reshape(-1, result.dim)
+
+
+def colour_scale(lo, hi):
+    """A Normalize and a colour map: diverging and centred on 0 when the values take both signs."""
+    if lo < 0 < hi:
+        m = max(-lo, hi)
+        return Normalize(-m, m), "coolwarm"
+    if lo == hi:
+        pad = abs(lo) * 1e-3 or 1.0
+        lo, hi = lo - pad, hi + pad
+    return Normalize(lo, hi), "viridis"
+
+
+def plane(dim, view):
+    """Axis indices (horizontal, vertical, depth) of the picture."""
+    if dim < 3:
+        return 0, 1, None
+    a, b = AXES.index(view[0]), AXES.index(view[1])
+    return a, b, 3 - a - b
+
+
+def particle_spacing(x):
+    """Median distance from a particle to its nearest neighbour (over at most 200 particles)."""
+    if len(x) < 2:
+        return 0.0
+    sample = x[np.linspace(0, len(x) - 1, min(200, len(x))).astype(int)]
+    nearest = []
+    for p in sample:
+        d = np.sqrt(((x - p) ** 2).sum(axis=1))
+        d = d[d > 0]
+        if d.size:
+            nearest.append(d.min())
+    return float(np.median(nearest)) if nearest else 0.0
+
+
+def limits(result, frames, axes):
+    xs = np.concatenate([positions(result, k) for k in frames])
+    out = []
+    for a in axes:
+        lo, hi = xs[:, a].min(), xs[:, a].max()
+        pad = 0.05 * (hi - lo) if hi > lo else (abs(lo) * 0.05 or 1.0)
+        out.append((lo - pad, hi + pad))
+    return out
+
+
+def draw(ax, result, k, field, column, label, norm, cmap, frame_limits, view):
+    x = positions(result, k)
+    c = values(result, k, field, column)
+    unit = UNITS.get(field, "")
+    if result.dim == 1:
+        ax.scatter(x[:, 0], c, c=c, cmap=cmap, norm=norm, s=12)
+        ax.set_xlim(*frame_limits[0])
+        lo, hi = norm.vmin, norm.vmax
+        pad = 0.05 * (hi - lo)
+        ax.set_ylim(lo - pad, hi + pad)
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel(f"{label} [{unit}]" if unit else label)
+        ax.grid(True, alpha=0.3)
+    else:
+        h, v, depth = plane(result.dim, view)
+        order = np.argsort(x[:, depth], kind="stable") if depth is not None else np.arange(len(x))
+        ax.set_xlim(*frame_limits[0])
+        ax.set_ylim(*frame_limits[1])
+        ax.set_aspect("equal")
+        # Squares of the particle spacing (the median nearest-neighbour distance), in points.
+        x0, x1 = frame_limits[0]
+        spacing = particle_spacing(x)
+        fig = ax.figure
+        fig.canvas.draw()
+        width_pts = ax.get_window_extent().width * 72 / fig.dpi
+        size = (spacing * width_pts / (x1 - x0)) ** 2
+        ax.scatter(x[order, h], x[order, v], c=c[order], cmap=cmap, norm=norm, s=max(size, 1.0), marker="s",
+                   linewidths=0)
+        ax.set_xlabel(f"{AXES[h]} [m]")
+        ax.set_ylabel(f"{AXES[v]} [m]")
+    status = "" if result.status in ("ok", "") else f", status {result.status}"
+    ax.set_title(f"{label} at t = {result.time(k):.4g} s (frame {k} of {len(result.names) - 1}{status})",
+                 fontsize=10)
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("result")
+    p.add_argument("--field", required=True)
+    p.add_argument("--out", required=True)
+    p.add_argument("--frame", type=int, default=-1)
+    p.add_argument("--all", action="store_true")
+    p.add_argument("--component", default="norm")
+    p.add_argument("--view", default="xy", choices=["xy", "xz", "yz"])
+    p.add_argument("--fps", type=float, default=10.0)
+    a = p.parse_args()
+    ext = os.path.splitext(a.out)[1].lower()
+    if ext not in (".png", ".gif"):
+        fail(f"--out {a.out}: the picture must be a .png or a .gif")
+    if a.all and ext != ".gif":
+        fail("--all draws every frame: use --out FILE.gif")
+    if not os.path.isfile(a.result):
+        fail(f"{a.result}: no such result file")
+    result = Result(a.result)
+    fields = result.fields()
+    if a.field not in fields:
+        fail(f"{a.result}: no field '{a.field}' in the frames; fields: {', '.join(fields)}")
+    if "x" not in fields:
+        fail(f"{a.result}: the frames hold no positions (add \"x\" to output.fields)")
+    n = len(result.names)
+    if a.all:
+        frames = list(range(n))
+    else:
+        if not -n <= a.frame < n:
+            fail(f"frame {a.frame} out of range: {a.result} has {n} frames (0 to {n - 1}, or -1 to -{n})")
+        frames = [a.frame % n]
+    if result.dim == 3 and a.view not in ("xy", "xz", "yz"):
+        fail(f"--view {a.view}")
+    cols = result.frame(0)[a.field].shape[1] if result.frame(0)[a.field].ndim == 2 else 1
+    column, label = component_of(a.field, cols, result.dim, a.component)
+    all_values = np.concatenate([values(result, k, a.field, column) for k in frames])
+    finite = all_values[np.isfinite(all_values)]
+    norm, cmap = colour_scale(finite.min(), finite.max()) if finite.size else colour_scale(0.0, 0.0)
+    h, v, _ = plane(result.dim, a.view)
+    frame_limits = limits(result, frames, [h] if result.dim == 1 else [h, v])
+    fig, ax = plt.subplots(figsize=(7, 4.5) if result.dim == 1 else (7, 5.5), dpi=100, layout="constrained")
+    bar = fig.colorbar(plt.cm.ScalarMappable(norm=norm, cmap=cmap), ax=ax)
+    unit = UNITS.get(a.field, "")
+    bar.set_label(f"{label} [{unit}]" if unit else label)
+    fig.suptitle(os.path.basename(a.result), fontsize=9, color="0.35")
+    if ext == ".png":
+        draw(ax, result, frames[0], a.field, column, label, norm, cmap, frame_limits, a.view)
+        fig.savefig(a.out)
+    else:
+        writer = PillowWriter(fps=a.fps)
+        with writer.saving(fig, a.out, dpi=fig.dpi):
+            for k in frames:
+                ax.clear()
+                draw(ax, result, k, a.field, column, label, norm, cmap, frame_limits, a.view)
+                writer.grab_frame()
+    print(f"wrote {a.out} ({len(frames)} frame{'s' if len(frames) > 1 else ''}, {label})")
+
+
+if __name__ == "__main__":
+    main()
