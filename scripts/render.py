@@ -8,7 +8,8 @@ also be run directly with the same arguments.
 What is drawn:
   1D  the field against the particle position x (one point per particle,
       coloured by the same value);
-  2D  the particles in the x-y plane as squares of the particle spacing;
+  2D  the particles in the x-y plane as squares of the mean particle spacing,
+      to scale (a body more than 6 times longer than high: "not to scale");
   3D  the particles projected on a plane (--view xy: seen from +z, the
       particles with the largest z drawn last, i.e. on top; xz, yz likewise).
 A vector field is shown by its Euclidean norm, a tensor field (stress,
@@ -86,7 +87,9 @@ class Result:
 
 def component_of(field, cols, dim, component):
     """(column index or None for the norm, label) of --component for a field of `cols` columns."""
-    if cols == 1:
+    if cols == 1:  # a scalar, or a 1D vector or tensor: its one component, with its sign
+        if component not in ("norm", "0", "x", "xx"):
+            fail(f"--component {component}: {field} has one component here (x, or norm)")
         return 0, field
     names = list(AXES[:dim]) if cols == dim else [a + b for a in AXES[:dim] for b in AXES[:dim]]
     if cols not in (dim, dim * dim):
@@ -131,17 +134,27 @@ def plane(dim, view):
 
 
 def particle_spacing(x):
-    """Median distance from a particle to its nearest neighbour (over at most 200 particles)."""
-    if len(x) < 2:
+    """Mean particle spacing: (extent volume / count)^(1/D) over the axes the particles span."""
+    ext = np.ptp(x, axis=0)
+    ext = ext[ext > 0]
+    if len(x) < 2 or ext.size == 0:
         return 0.0
-    sample = x[np.linspace(0, len(x) - 1, min(200, len(x))).astype(int)]
-    nearest = []
-    for p in sample:
-        d = np.sqrt(((x - p) ** 2).sum(axis=1))
-        d = d[d > 0]
-        if d.size:
-            nearest.append(d.min())
-    return float(np.median(nearest)) if nearest else 0.0
+    return float((np.prod(ext) / len(x)) ** (1.0 / ext.size))
+
+
+def stretched(frame_limits):
+    """True when the picture is too flat (or tall) to draw to scale: a 2D bar 40 times longer than high."""
+    (x0, x1), (y0, y1) = frame_limits
+    aspect = (y1 - y0) / (x1 - x0)
+    return not 0.15 <= aspect <= 6.0
+
+
+def figure_size(dim, frame_limits):
+    """Width 7 in; in 2D/3D the height that keeps the axes to scale (when not stretched)."""
+    if dim == 1 or stretched(frame_limits):
+        return 7.0, 4.5
+    (x0, x1), (y0, y1) = frame_limits
+    return 7.0, float(np.clip(0.72 * 7.0 * (y1 - y0) / (x1 - x0) + 1.3, 2.5, 9.0))
 
 
 def limits(result, frames, axes):
@@ -170,20 +183,21 @@ def draw(ax, result, k, field, column, label, norm, cmap, frame_limits, view):
     else:
         h, v, depth = plane(result.dim, view)
         order = np.argsort(x[:, depth], kind="stable") if depth is not None else np.arange(len(x))
-        ax.set_xlim(*frame_limits[0])
-        ax.set_ylim(*frame_limits[1])
-        ax.set_aspect("equal")
-        # Squares of the particle spacing (the median nearest-neighbour distance), in points.
-        x0, x1 = frame_limits[0]
-        spacing = particle_spacing(x)
+        (x0, x1), (y0, y1) = frame_limits
+        ax.set_xlim(x0, x1)
+        ax.set_ylim(y0, y1)
+        flat = stretched(frame_limits)
+        ax.set_aspect("auto" if flat else "equal")
+        # Squares of the mean particle spacing, in points (the smaller scale of the two axes).
         fig = ax.figure
         fig.canvas.draw()
-        width_pts = ax.get_window_extent().width * 72 / fig.dpi
-        size = (spacing * width_pts / (x1 - x0)) ** 2
-        ax.scatter(x[order, h], x[order, v], c=c[order], cmap=cmap, norm=norm, s=max(size, 1.0), marker="s",
+        box = ax.get_window_extent()
+        per_metre = min(box.width / (x1 - x0), box.height / (y1 - y0)) * 72 / fig.dpi
+        side = 1.15 * particle_spacing(x) * per_metre  # a little overlap: no pixel gaps between squares
+        ax.scatter(x[order, h], x[order, v], c=c[order], cmap=cmap, norm=norm, s=max(side * side, 1.0), marker="s",
                    linewidths=0)
         ax.set_xlabel(f"{AXES[h]} [m]")
-        ax.set_ylabel(f"{AXES[v]} [m]")
+        ax.set_ylabel(f"{AXES[v]} [m]" + (" (not to scale)" if flat else ""))
     status = "" if result.status in ("ok", "") else f", status {result.status}"
     ax.set_title(f"{label} at t = {result.time(k):.4g} s (frame {k} of {len(result.names) - 1}{status})",
                  fontsize=10)
@@ -229,7 +243,7 @@ def main():
     norm, cmap = colour_scale(finite.min(), finite.max()) if finite.size else colour_scale(0.0, 0.0)
     h, v, _ = plane(result.dim, a.view)
     frame_limits = limits(result, frames, [h] if result.dim == 1 else [h, v])
-    fig, ax = plt.subplots(figsize=(7, 4.5) if result.dim == 1 else (7, 5.5), dpi=100, layout="constrained")
+    fig, ax = plt.subplots(figsize=figure_size(result.dim, frame_limits), dpi=100, layout="constrained")
     bar = fig.colorbar(plt.cm.ScalarMappable(norm=norm, cmap=cmap), ax=ax)
     unit = UNITS.get(a.field, "")
     bar.set_label(f"{label} [{unit}]" if unit else label)
