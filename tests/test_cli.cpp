@@ -2,6 +2,8 @@
 // message naming file and line for every malformed scene, 0 and a readable
 // HDF5 file with status "ok" for a good one, 1 and a diagnosis for a run that
 // becomes unstable, 2 for an unknown --set key or an unknown command.
+#include "cli_support.hpp"
+
 #include <doctest/doctest.h>
 #include <hdf5.h>
 
@@ -18,6 +20,8 @@
 #include <vector>
 
 namespace fs = std::filesystem;
+using otmpm::test::quote;
+using otmpm::test::read_text;
 
 namespace {
 
@@ -44,24 +48,11 @@ private:
   fs::path path_;
 };
 
-std::string quote(const std::string& s) {
-  std::string q = "'";
-  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
-
 struct CliResult {
   int status = -1;
   std::string err;
   std::string out;
 };
-
-std::string read_text(const fs::path& file) {
-  std::ifstream in(file);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
 
 /// Runs `otmpm ARGS` (one thread, so the run does not depend on how busy the
 /// machine is), returning the exit status and what it wrote to stdout and stderr.

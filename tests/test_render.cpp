@@ -3,6 +3,7 @@
 // status 2 with a clear message for a missing file, an unknown field (the
 // message lists the fields), a frame out of range, no Python and a Python
 // without matplotlib.
+#include "cli_support.hpp"
 #include "temp_dir.hpp"
 
 #include <doctest/doctest.h>
@@ -19,18 +20,13 @@
 #include <vector>
 
 namespace fs = std::filesystem;
+using otmpm::test::quote;
 using otmpm::test::TempDir;
 
 namespace {
 
 const fs::path kSource = OTMPM_SOURCE_DIR;
 const std::string kBinary = OTMPM_BINARY;
-
-std::string quote(const std::string& s) {
-  std::string q = "'";
-  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
 
 struct Result {
   int status = -1;

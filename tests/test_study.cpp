@@ -6,6 +6,8 @@
 // redoes the interrupted runs (D9); colliding names (D10), a results path
 // that is a file (D14), a malformed common set (D15) and a directory as
 // study or scene file (D20) are refused; a cut-off CSV row is redone (D16).
+#include "cli_support.hpp"
+
 #include <doctest/doctest.h>
 
 #include <cstdio>
@@ -25,6 +27,7 @@
 #include <thread>
 
 namespace fs = std::filesystem;
+using otmpm::test::read_text;
 
 namespace {
 
@@ -345,13 +348,6 @@ bool all_stopped(const std::vector<pid_t>& pids) {
   return false;
 }
 
-std::string read_file(const fs::path& file) {
-  std::ifstream in(file);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
 std::string status_attribute(const fs::path& h5) {
   std::string out;
   run_command("/usr/bin/python3 -c 'import sys, h5py; a = h5py.File(sys.argv[1], \"r\").attrs[\"status\"]; "
@@ -383,7 +379,7 @@ TEST_CASE("study (D9): SIGTERM or SIGKILL of the study stops its children; the r
     for (const fs::path& r : results) CHECK(status_attribute(r) == "interrupted");
     // Nothing recorded: only the header.
     CHECK(read_csv(dir / "study.csv").size() == 1);
-    if (sig == SIGTERM) CHECK(read_file(dir / "study.out").find("study interrupted by SIGTERM") != std::string::npos);
+    if (sig == SIGTERM) CHECK(read_text(dir / "study.out").find("study interrupted by SIGTERM") != std::string::npos);
   }
   // Resume with short runs: both are done again, and both succeed (the
   // interrupted result files are replaced, nothing is an input error).
@@ -406,7 +402,7 @@ TEST_CASE("study (D9): a child killed by a signal is not recorded, and the next 
   REQUIRE(kids.size() == 1);
   ::kill(kids.front(), SIGKILL);
   CHECK(wait_exit(study) == 0); // the study goes on with b
-  const std::string printed = read_file(dir / "study.out");
+  const std::string printed = read_text(dir / "study.out");
   INFO(printed);
   CHECK(printed.find("a n13: stopped (exit 137), not recorded") != std::string::npos);
   auto rows = read_csv(dir / "study.csv");
@@ -448,7 +444,7 @@ TEST_CASE("study (D14): a results path that is an existing file is refused with 
   INFO(out);
   CHECK(out.find("study.toml:3: key 'results'") != std::string::npos);
   CHECK(out.find("exists and is not a directory") != std::string::npos);
-  CHECK(read_file(dir / "taken.txt") == "not a folder\n");
+  CHECK(read_text(dir / "taken.txt") == "not a folder\n");
   fs::remove_all(dir);
 }
 
@@ -464,7 +460,7 @@ TEST_CASE("study (D16): a cut-off last CSV row is dropped and redone, and the ne
   const fs::path dir = make_study_dir("d16");
   std::string out;
   REQUIRE(run_study(dir, out) == 0);
-  const std::string full = read_file(dir / "study.csv");
+  const std::string full = read_text(dir / "study.csv");
   // A study killed while writing its last row: half of that row, no newline.
   const std::size_t last = full.rfind('\n', full.size() - 2) + 1;
   std::ofstream(dir / "study.csv", std::ios::trunc) << full.substr(0, last + (full.size() - last) / 2);
