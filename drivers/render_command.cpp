@@ -21,6 +21,7 @@ struct RenderArgs {
   std::string result, field, out, component = "norm", view = "xy";
   int frame = -1;
   bool all = false;
+  int stride = 1;
   double fps = 10;
   std::string scripts, python;
 };
@@ -38,7 +39,7 @@ int render(const RenderArgs& a) {
     throw std::runtime_error(script.string() + " not found: otmpm is not installed completely (give --scripts DIR)");
   std::vector<std::string> argv{python,      script.string(), a.result, "--field", a.field, "--out", a.out,
                                 "--component", a.component, "--view", a.view};
-  if (a.all) argv.push_back("--all");
+  if (a.all) argv.insert(argv.end(), {"--all", "--stride", std::to_string(a.stride)});
   else argv.insert(argv.end(), {"--frame", std::to_string(a.frame)});
   char fps[32];
   std::snprintf(fps, sizeof fps, "%g", a.fps);
@@ -70,7 +71,12 @@ Command add_render_command(CLI::App& app) {
   CLI::Option* frame = sub->add_option("--frame", a->frame, "Frame to draw, from 0; negative counts from the end")
                            ->type_name("K")
                            ->capture_default_str();
-  sub->add_flag("--all", a->all, "Every frame, as an animated GIF")->excludes(frame);
+  CLI::Option* all = sub->add_flag("--all", a->all, "Every frame, as an animated GIF")->excludes(frame);
+  sub->add_option("--stride", a->stride, "With --all: every K-th frame (and the last)")
+      ->type_name("K")
+      ->check(CLI::PositiveNumber)
+      ->needs(all)
+      ->capture_default_str();
   sub->add_option("--component", a->component,
                   "For a vector or tensor field: norm (Euclidean / Frobenius), a component (x, y, z; xx, xy, ...) "
                   "or its index")

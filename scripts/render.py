@@ -134,12 +134,16 @@ def plane(dim, view):
 
 
 def particle_spacing(x):
-    """Mean particle spacing: (extent volume / count)^(1/D) over the axes the particles span."""
+    """Mean particle spacing s: the body's extent per axis is the particles' range plus one s (half a
+    spacing beyond the outermost particle on each side), and (product of the extents / count)^(1/D) = s."""
     ext = np.ptp(x, axis=0)
     ext = ext[ext > 0]
     if len(x) < 2 or ext.size == 0:
         return 0.0
-    return float((np.prod(ext) / len(x)) ** (1.0 / ext.size))
+    s = float((np.prod(ext) / len(x)) ** (1.0 / ext.size))
+    for _ in range(20):  # a fixed point, reached in a few steps
+        s = float((np.prod(ext + s) / len(x)) ** (1.0 / ext.size))
+    return s
 
 
 def stretched(frame_limits):
@@ -213,6 +217,7 @@ def main():
     p.add_argument("--component", default="norm")
     p.add_argument("--view", default="xy", choices=["xy", "xz", "yz"])
     p.add_argument("--fps", type=float, default=10.0)
+    p.add_argument("--stride", type=int, default=1)
     a = p.parse_args()
     ext = os.path.splitext(a.out)[1].lower()
     if ext not in (".png", ".gif"):
@@ -228,8 +233,12 @@ def main():
     if "x" not in fields:
         fail(f"{a.result}: the frames hold no positions (add \"x\" to output.fields)")
     n = len(result.names)
+    if a.stride < 1:
+        fail(f"--stride {a.stride}: must be >= 1")
     if a.all:
-        frames = list(range(n))
+        frames = list(range(0, n, a.stride))
+        if frames[-1] != n - 1:
+            frames.append(n - 1)  # always end on the last frame
     else:
         if not -n <= a.frame < n:
             fail(f"frame {a.frame} out of range: {a.result} has {n} frames (0 to {n - 1}, or -1 to -{n})")

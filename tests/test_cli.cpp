@@ -10,6 +10,7 @@
 #include <sys/wait.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -238,7 +239,8 @@ TEST_CASE("cli: --help and -h work on otmpm and every command, and list the real
       {"study", {"--threads", "--scripts", "--python"}},
       {"basis", {"--kind", "--dim", "--lower", "--upper", "--cells", "--perturb", "--seed", "--gamma-lme",
                  "--tolerance", "--d-max", "--ppc", "--samples", "--out", "--threads"}},
-      {"render", {"--field", "--frame", "--all", "--out", "--component", "--view", "--fps", "--scripts", "--python"}}};
+      {"render", {"--field", "--frame", "--all", "--stride", "--out", "--component", "--view", "--fps", "--scripts",
+                  "--python"}}};
   for (const auto& [command, options] : commands)
     for (const char* help : {"--help", "-h"}) {
       INFO("otmpm " << command << " " << help);
@@ -398,4 +400,25 @@ TEST_CASE("cli: progress lines every interval with step, t, elapsed and ETA when
   const CliResult q = run_cli(dir, {"run", scene, "--out", out.string(), "--progress-interval", "0.02", "--quiet",
                                     "--force"});
   CHECK(q.err.find("otmpm: step") == std::string::npos);
+}
+
+TEST_CASE("cli: every option that --help prints is documented in docs/user-guide.md") {
+  TempDir dir;
+  const std::string guide = read_text(kSource / "docs" / "user-guide.md");
+  REQUIRE(guide.size() > 10000);
+  std::size_t options = 0;
+  for (const char* command : {"run", "pair", "study", "basis", "render"}) {
+    const CliResult r = run_cli(dir, {command, "--help"});
+    REQUIRE(r.status == 0);
+    std::stringstream words(r.out);
+    for (std::string w; words >> w;) {
+      if (w.rfind("--", 0) != 0 || w.size() < 3 || !std::isalpha(static_cast<unsigned char>(w[2]))) continue;
+      const std::string option = w.substr(0, w.find_first_not_of("abcdefghijklmnopqrstuvwxyz-", 2));
+      if (option == "--help") continue;
+      ++options;
+      INFO("otmpm " << command << " " << option);
+      CHECK(guide.find("`" + option) != std::string::npos);
+    }
+  }
+  CHECK(options >= 30);
 }

@@ -110,6 +110,12 @@ TEST_CASE("render: a PNG of one frame and a GIF of all frames, in 1D, 2D and 3D"
     REQUIRE(g.status == 0);
     CHECK(gif_frames(gif) == 5);
   }
+  // --stride 2 of 5 frames: 0, 2, 4.
+  const fs::path gif = dir.dir / "stride.gif";
+  REQUIRE(run_otmpm({"render", (dir.dir / "dyka.h5").string(), "--field", "v", "--all", "--stride", "2", "--out",
+                     gif.string()})
+              .status == 0);
+  CHECK(gif_frames(gif) == 3);
   // A square plate is drawn to scale: the figure is taller than for a bar.
   const fs::path plate = short_run(dir, "plate_impact.toml", "0.02", "0.01");
   const fs::path png = dir.dir / "plate.png";
