@@ -2,6 +2,7 @@
 #include "cli.hpp"
 #include "interrupt.hpp"
 #include "progress.hpp"
+#include "system.hpp"
 
 #include "otmpm/engine/run.hpp"
 #include "otmpm/io/checkpoint.hpp"
@@ -110,6 +111,7 @@ int run_command(const SceneArgs& a) {
     scene = std::make_unique<Scene>(load_scene(a.scene, a.sets));
     s = run_scene(*scene, opt);
   } else {
+    require_file(a.restart, "checkpoint file");
     const Checkpoint ck = read_checkpoint(a.restart);
     scene = std::make_unique<Scene>(checkpoint_scene(ck));
     s = restart_run(ck, opt);

@@ -365,7 +365,7 @@ TEST_CASE("cli: run --check validates, prints the size, dt, steps and memory, an
   CHECK(bad.status == 2);
 }
 
-TEST_CASE("cli: a directory given as the scene file gets a clear message (run, pair, check)") {
+TEST_CASE("cli: a directory given as the scene or checkpoint file gets a clear message (run, pair, check, restart)") {
   TempDir dir;
   for (const auto& args : std::vector<std::vector<std::string>>{{"run", dir.path().string()},
                                                                 {"run", "--check", dir.path().string()},
@@ -375,6 +375,9 @@ TEST_CASE("cli: a directory given as the scene file gets a clear message (run, p
     CHECK(r.status == 2);
     CHECK(r.err.find("is a directory, not a scene file") != std::string::npos);
   }
+  const CliResult r = run_cli(dir, {"run", "--restart", dir.path().string()});
+  CHECK(r.status == 2);
+  CHECK(r.err.find("is a directory, not a checkpoint file") != std::string::npos);
 }
 
 TEST_CASE("cli: progress lines every interval with step, t, elapsed and ETA when stderr is not a terminal") {
