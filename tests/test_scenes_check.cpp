@@ -1,7 +1,7 @@
 // check_scene() and estimate_memory_bytes() (otmpm run --check): the sizes and
 // the first time step are those of the run, the estimated step count is the
 // run's when dt does not change, a scene that only the engine refuses is
-// refused, and the memory estimate is within a factor 1.6 of the peak
+// refused, and the memory estimate is within a factor 2 of the peak
 // resident memory a run really adds (measured with /proc/self/clear_refs and
 // VmHWM; runs with one thread).
 #include "otmpm/engine/engine.hpp"
@@ -101,7 +101,7 @@ TEST_CASE("check_scene: a scene only the engine refuses is refused, naming the k
   CHECK_THROWS_WITH_AS(check_scene(scene), doctest::Contains("selects no node"), InputError);
 }
 
-TEST_CASE("estimate_memory_bytes: within a factor 1.6 of the measured peak, per basis family and mass") {
+TEST_CASE("estimate_memory_bytes: within a factor 2 of the measured peak, per basis family and mass") {
 #ifdef OTMPM_HAVE_OPENMP
   const int threads = omp_get_max_threads();
   omp_set_num_threads(1);
@@ -116,8 +116,8 @@ TEST_CASE("estimate_memory_bytes: within a factor 1.6 of the measured peak, per 
     INFO(sets.front() << (sets.size() > 1 ? " " + sets[1] : "") << ": estimate " << estimate / 1e6 << " MB, measured "
                       << peak / 1e6 << " MB");
     CHECK(peak > 20e6); // large enough that the run's own arrays dominate
-    CHECK(estimate / peak > 1 / 1.6);
-    CHECK(estimate / peak < 1.6);
+    CHECK(estimate / peak > 0.5); // measured: 0.71 (bspline2) to 1.22 (linear)
+    CHECK(estimate / peak < 2.0);
   }
 #ifdef OTMPM_HAVE_OPENMP
   omp_set_num_threads(threads);
