@@ -365,7 +365,7 @@ std::string two_variants(const std::string& t_end_a, const std::string& t_end_b,
 
 } // namespace
 
-TEST_CASE("study (D9): SIGTERM or SIGKILL of the study stops its children; the resume redoes those runs") {
+TEST_CASE("study (D9): SIGTERM or SIGKILL of the study stops its children, and the resume redoes those runs") {
   const fs::path dir = study_dir("d9", two_variants("1.0", "1.0", 2));
   const std::vector<fs::path> results{dir / "study_results" / "a_n13.h5", dir / "study_results" / "b_n13.h5"};
   for (int sig : {SIGTERM, SIGKILL}) {
