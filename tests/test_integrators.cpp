@@ -161,7 +161,7 @@ TEST_CASE("central_difference keeps the energy of the vibrating bar: bounded err
   CHECK(std::abs(d.final_ratio - 1.0) < 1e-3);
 }
 
-TEST_CASE("explicit_alpha: rho_inf < 1 damps the high modes of the Dyka bar; rho_inf = 1 barely dissipates") {
+TEST_CASE("explicit_alpha: rho_inf < 1 damps the high modes of the Dyka bar, rho_inf = 1 barely dissipates") {
   const Overrides linear = {"basis.kind=linear", "simulation.cfl=0.5", "grid.lower=[-0.006665]", "grid.cells=[42]"};
   const double cd = dyka_energy_ratio(linear + Overrides{"simulation.integrator=central_difference"});
   const double one = dyka_energy_ratio(linear + Overrides{"simulation.integrator=explicit_alpha", "simulation.rho_inf=1"});

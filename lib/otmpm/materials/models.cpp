@@ -57,7 +57,9 @@ std::string material_model_list() {
 void validate_material(const MaterialParameters& p) {
   p.elastic().validate(p.name);
   const MaterialModel& model = model_of(p);
-  for (const auto& [key, value] : p.extra) {
+  for (const auto& entry : p.extra) {
+    const std::string& key = entry.first; // named, not a structured binding: lambdas capture it (clang)
+    const double value = entry.second;
     const auto spec = std::find_if(model.parameters.begin(), model.parameters.end(),
                                    [&](const ParameterSpec& s) { return s.key == key; });
     require(spec != model.parameters.end(), "material '", p.name, "': model '", p.model, "' has no parameter '", key,

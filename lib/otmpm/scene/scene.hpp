@@ -236,4 +236,13 @@ Scene load_scene(const std::string& path, const std::vector<std::string>& overri
 Scene parse_scene(const std::string& text, const std::string& name,
                   const std::vector<std::string>& overrides = {});
 
+/// The scene as TOML text (scene_toml.cpp) that parse_scene() reads back to
+/// the same values: every key is written, defaults included, vectors with
+/// simulation.dimension components, grid.cells rather than grid.h, and
+/// simulation.cfl only when simulation.dt is unset (the reader takes one of
+/// the two). `file`, `where` and the derived basis.ugimp_half_width are not
+/// written. run_scene() stores this text when Scene::text is empty (a scene
+/// built in code), so its result file and checkpoints hold the scene.
+std::string to_toml(const Scene& scene);
+
 } // namespace otmpm
