@@ -63,18 +63,21 @@ def study(path):
     """Runs `otmpm study PATH` (the command line: each run is a child process, `jobs` at a
     time; rows already in the CSV are skipped) and returns a StudyResult with the CSV's rows.
 
-    The command's output goes to this process's stdout. Bad input (exit status 2) raises
+    The command's output is copied to sys.stdout as it comes. Bad input (exit status 2) raises
     otmpm.InputError with the command's message; another failure RuntimeError.
     The command is $OTMPM_CLI, else the otmpm built or installed with this package.
     """
     cli = _config.cli_path()
-    sys.stdout.flush()
-    done = subprocess.run([cli, "study", os.fspath(path)], stderr=subprocess.PIPE, text=True)
-    sys.stderr.write(done.stderr)
-    if done.returncode == 2:
-        raise _otmpm.InputError(done.stderr.strip().removeprefix("otmpm: error: "))
-    if done.returncode != 0:
-        raise RuntimeError(f"{cli} study {path}: exit status {done.returncode}: {done.stderr.strip()}")
+    with subprocess.Popen([cli, "study", os.fspath(path)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                          text=True, bufsize=1) as child:
+        for line in child.stdout:  # through sys.stdout, so that notebooks and doctest see it
+            sys.stdout.write(line)
+        stderr = child.stderr.read()
+    sys.stderr.write(stderr)
+    if child.returncode == 2:
+        raise _otmpm.InputError(stderr.strip().removeprefix("otmpm: error: "))
+    if child.returncode != 0:
+        raise RuntimeError(f"{cli} study {path}: exit status {child.returncode}: {stderr.strip()}")
     csv_path = study_csv(path)
     with open(csv_path, newline="") as f:
         rows = [{k: _number(v) for k, v in row.items()} for row in csv.DictReader(f)]
