@@ -7,8 +7,10 @@
    machine's speed hits both alike. Two figures per run: the run's own wall
    time (the `wall_seconds` it reports: stepping and writing, the same code)
    and the end-to-end time (the CLI process from start to exit, against
-   Scene.from_toml + otmpm.run in this process). Ratios are medians of the
-   per-pair ratios.
+   Scene.from_toml + otmpm.run in this process), as wall time and as CPU
+   time (user + system: the CLI process's, this process's during the call;
+   CPU time does not count the time a loaded machine leaves a process
+   waiting). Ratios are medians of the per-pair ratios.
 2. The overhead of sim.step() called from Python: a one-particle scene
    (linear basis, fe, fixed dt; a step is mostly the fixed cost of the step
    loop), STEPS steps as `for _ in range(STEPS): sim.step()`, against
@@ -22,6 +24,7 @@
 import argparse
 import os
 import platform
+import resource
 import statistics
 import subprocess
 import sys
@@ -52,22 +55,29 @@ def wall_attribute(path):
         return float(f.attrs["wall_seconds"])
 
 
+def children_cpu():
+    """CPU seconds (user + system) of the finished child processes so far."""
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
 def run_vs_cli(cli, scene_path, repeat, work):
-    """Interleaved runs; returns lists of (cli_wall, py_wall, cli_total, py_total)."""
+    """Interleaved runs; returns lists of (cli_wall, py_wall, cli_total, py_total, cli_cpu, py_cpu)."""
     rows = []
     for r in range(repeat):
         out_cli, out_py = os.path.join(work, f"cli{r}.h5"), os.path.join(work, f"py{r}.h5")
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), children_cpu()
         done = subprocess.run([cli, "run", scene_path, "--out", out_cli, "--quiet"], capture_output=True, text=True)
-        cli_total = time.perf_counter() - t0
+        cli_total, cli_cpu = time.perf_counter() - t0, children_cpu() - c0
         if done.returncode != 0:
             sys.exit(f"bench_python: {cli} failed: {done.stderr}")
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         s = otmpm.run(otmpm.Scene.from_toml(scene_path), out=out_py)
-        py_total = time.perf_counter() - t0
-        rows.append((wall_attribute(out_cli), s.wall_seconds, cli_total, py_total))
+        py_total, py_cpu = time.perf_counter() - t0, time.process_time() - c0
+        rows.append((wall_attribute(out_cli), s.wall_seconds, cli_total, py_total, cli_cpu, py_cpu))
         print(f"  repetition {r + 1}: run wall CLI {rows[-1][0]:.4f} s, Python {rows[-1][1]:.4f} s; "
-              f"end to end CLI {cli_total:.4f} s, Python {py_total:.4f} s", flush=True)
+              f"end to end CLI {cli_total:.4f} s, Python {py_total:.4f} s; "
+              f"CPU CLI {cli_cpu:.4f} s, Python {py_cpu:.4f} s", flush=True)
     return rows
 
 
@@ -134,12 +144,19 @@ def main():
               f"Python/CLI {run_ratio:.4f} ({100 * (run_ratio - 1):+.2f} %)")
         print(f"end to end (median): CLI {median(rows, 2):.4f} s, Python {median(rows, 3):.4f} s, "
               f"Python/CLI {total_ratio:.4f} ({100 * (total_ratio - 1):+.2f} %)")
+        cpu_ratio = statistics.median(r[5] / r[4] for r in rows)
+        print(f"CPU time end to end (median): CLI {median(rows, 4):.4f} s, Python {median(rows, 5):.4f} s, "
+              f"Python/CLI {cpu_ratio:.4f} ({100 * (cpu_ratio - 1):+.2f} %)")
         print(f"2. sim.step() overhead: one-particle scene, {args.steps} steps, {args.repeat} interleaved repetitions")
         rows = step_overhead(args.build, args.steps, args.repeat, work)
         py, mod, cxx = median(rows, 0), median(rows, 1), median(rows, 2)
-        print(f"ns per step (median): Python loop {py:.0f}, sim.step(n) {mod:.0f}, C++ program {cxx:.0f}")
-        print(f"overhead of a Python call per step: {(py - mod) / 1000:.2f} us (vs sim.step(n)), "
-              f"{(py - cxx) / 1000:.2f} us (vs the C++ program)")
+        print(f"ns per step (median): Python loop {py:.0f}, sim.step(n) {mod:.0f}, C++ program {cxx:.0f}; "
+              f"(min): {min(r[0] for r in rows):.0f}, {min(r[1] for r in rows):.0f}, {min(r[2] for r in rows):.0f}")
+        for name, i in (("sim.step(n)", 1), ("the C++ program", 2)):
+            diff = [(r[0] - r[i]) / 1000 for r in rows]
+            print(f"overhead of a Python call per step vs {name}: median {statistics.median(diff):.3f} us "
+                  f"(per-repetition differences from {min(diff):.3f} to {max(diff):.3f} us); "
+                  f"difference of the minima {(min(r[0] for r in rows) - min(r[i] for r in rows)) / 1000:.3f} us")
 
 
 if __name__ == "__main__":

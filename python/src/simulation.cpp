@@ -70,24 +70,31 @@ public:
   PySimulation(const Scene& scene, const py::object& out, bool write_results, std::optional<int> threads)
       : threads_(checked_threads(threads)), sim_(build(scene, run_options(out, write_results), threads_)) {}
 
-  Simulation& sim() { return sim_; }
+  /// The simulation; RuntimeError while another Python thread is stepping it
+  /// (its steps run with the GIL released).
+  Simulation& sim() {
+    if (busy_) throw std::runtime_error("Simulation: another thread is stepping this simulation");
+    return sim_;
+  }
   py::object callback = py::none();
 
-  /// Steps while more() holds (more() must not touch Python). Without a
+  /// Steps while more(simulation) holds (more must not touch Python). Without a
   /// callback the steps run with the GIL released, which is taken back
   /// every kSignalPoll for Ctrl-C; with one, the callback runs after every
   /// step (GIL held) and the signals are checked after it. An
   /// InstabilityError or a Python exception (KeyboardInterrupt, the
   /// callback's) leaves the run between two steps.
   template <class More> void steps_while(py::handle self, More&& more) {
+    sim(); // RuntimeError while another thread steps it
     auto next_poll = Clock::now() + kSignalPoll;
-    while (more()) {
+    while (more(sim_)) {
       if (callback.is_none()) {
         bool poll = false;
         {
+          Busy busy(busy_);
           py::gil_scoped_release nogil;
           ThreadScope scope(threads_);
-          while (!poll && more()) {
+          while (!poll && more(sim_)) {
             sim_.step();
             poll = Clock::now() >= next_poll;
           }
@@ -98,6 +105,7 @@ public:
         }
       } else {
         {
+          Busy busy(busy_);
           py::gil_scoped_release nogil;
           ThreadScope scope(threads_);
           sim_.step();
@@ -111,7 +119,7 @@ public:
   /// Steps to t_end; an instability ends the run (its status is in the summary).
   void run_to_end(py::handle self) {
     try {
-      steps_while(self, [&] { return !sim_.finished(); });
+      steps_while(self, [](const Simulation& s) { return !s.finished(); });
     } catch (const InstabilityError&) { // run_scene's rule: the diagnosis is the status
     }
   }
@@ -119,21 +127,22 @@ public:
   /// Simulation::interrupt() (status "interrupted"); RuntimeError once finished.
   void interrupt() {
     require_running("interrupt");
-    sim_.interrupt();
+    sim().interrupt();
   }
 
   /// Simulation::finish() as an otmpm.Summary; RuntimeError the second time.
   py::object finish() {
     if (finish_called_) throw std::runtime_error("Simulation.finish: already called");
+    Simulation& s = sim();
     finish_called_ = true;
-    return summary_object(sim_.finish());
+    return summary_object(s.finish());
   }
   bool finish_called() const { return finish_called_; }
 
   /// Finishes a run left by an exception (`with` block, KeyboardInterrupt in
   /// run()): interrupted when it had not reached t_end, then finish().
   py::object abandon() {
-    if (!sim_.finished()) sim_.interrupt();
+    if (!sim().finished()) sim_.interrupt();
     return finish();
   }
 
@@ -148,9 +157,23 @@ private:
       throw std::runtime_error(std::string("Simulation.") + what + ": the run is finished (" + sim_.status() + ")");
   }
 
+  /// Marks the simulation busy (set and cleared with the GIL held) while its
+  /// steps run without the GIL.
+  class Busy {
+  public:
+    explicit Busy(bool& flag) : flag_(flag) { flag_ = true; }
+    ~Busy() { flag_ = false; }
+    Busy(const Busy&) = delete;
+    Busy& operator=(const Busy&) = delete;
+
+  private:
+    bool& flag_;
+  };
+
   std::optional<int> threads_;
   Simulation sim_;
   bool finish_called_ = false;
+  bool busy_ = false;
 };
 
 /// Calls f(engine) with the engine of the simulation's dimension.
@@ -346,7 +369,7 @@ void register_simulation(py::module_& m) {
             PySimulation& s = cast(self);
             if (s.sim().finished()) s.sim().step(); // raises: the run is finished
             const long target = s.sim().steps() + n;
-            s.steps_while(self, [&] { return s.sim().steps() < target && !s.sim().finished(); });
+            s.steps_while(self, [&](const Simulation& m) { return m.steps() < target && !m.finished(); });
           },
           py::arg("n") = 1,
           "Takes n steps (fewer if the run reaches t_end). Raises InstabilityError when the run becomes\n"
@@ -356,7 +379,7 @@ void register_simulation(py::module_& m) {
           "advance_to",
           [](const py::object& self, double t) {
             PySimulation& s = cast(self);
-            s.steps_while(self, [&] { return !s.sim().finished() && s.sim().time() < t * (1.0 - kTimeSlack); });
+            s.steps_while(self, [&](const Simulation& m) { return !m.finished() && m.time() < t * (1.0 - kTimeSlack); });
           },
           py::arg("t"), "Steps until sim.t >= t (at most to t_end): the first step at or past t.")
       .def(

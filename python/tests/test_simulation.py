@@ -198,3 +198,21 @@ def test_three_dimensional_views():
     assert sim.particles.stress.shape == (n, 3, 3) and sim.particles.stress.strides == (72, 8, 24)
     assert np.array_equal(sim.particles.stress, np.transpose(sim.particles.stress, (0, 2, 1)))  # symmetric
     assert sim.nodes.x.shape == (len(sim.nodes), 3)
+
+
+def test_a_simulation_stepped_in_another_thread_refuses_other_calls():
+    import threading
+    import time
+    sim = otmpm.Simulation(otmpm.Scene.from_toml(example("dyka/dyka_n1333.toml"), {"simulation.t_end": 4e-6}),
+                           write_results=False)
+    worker = threading.Thread(target=sim.advance_to, args=(sim.t_end,))
+    worker.start()
+    refused = 0
+    while worker.is_alive():
+        try:
+            sim.step()
+        except RuntimeError as e:
+            refused += "another thread is stepping" in str(e)
+        time.sleep(0.002)
+    worker.join()
+    assert refused > 0 and sim.finished  # the other thread stepped alone to t_end
