@@ -10,7 +10,10 @@
    Scene.from_toml + otmpm.run in this process), as wall time and as CPU
    time (user + system: the CLI process's, this process's during the call;
    CPU time does not count the time a loaded machine leaves a process
-   waiting). Ratios are medians of the per-pair ratios.
+   waiting). A third run per repetition calls otmpm.run in a new Python
+   process, so that both sides start cold (a process that already ran the
+   scene runs it again a little faster). Ratios are medians of the
+   per-repetition ratios.
 2. The overhead of sim.step() called from Python: a one-particle scene
    (linear basis, fe, fixed dt; a step is mostly the fixed cost of the step
    loop), STEPS steps as `for _ in range(STEPS): sim.step()`, against
@@ -61,6 +64,29 @@ def children_cpu():
     return r.ru_utime + r.ru_stime
 
 
+FRESH = """
+import sys, otmpm
+s = otmpm.run(otmpm.Scene.from_toml(sys.argv[1]), out=sys.argv[2])
+print(s.wall_seconds)
+"""
+
+
+def fresh_python(scene_path, out):
+    """otmpm.run in a new Python process (as the CLI runs in a new process): its run wall time."""
+    done = subprocess.run([sys.executable, "-c", FRESH, scene_path, out], capture_output=True, text=True, check=True)
+    return float(done.stdout)
+
+
+def startup_cpu(cli, repeat):
+    """Median CPU seconds of `otmpm --version`: loading the command and its libraries."""
+    cpu = []
+    for _ in range(repeat):
+        c0 = children_cpu()
+        subprocess.run([cli, "--version"], capture_output=True, check=True)
+        cpu.append(children_cpu() - c0)
+    return statistics.median(cpu)
+
+
 def run_vs_cli(cli, scene_path, repeat, work):
     """Interleaved runs; returns lists of (cli_wall, py_wall, cli_total, py_total, cli_cpu, py_cpu)."""
     rows = []
@@ -74,9 +100,10 @@ def run_vs_cli(cli, scene_path, repeat, work):
         t0, c0 = time.perf_counter(), time.process_time()
         s = otmpm.run(otmpm.Scene.from_toml(scene_path), out=out_py)
         py_total, py_cpu = time.perf_counter() - t0, time.process_time() - c0
-        rows.append((wall_attribute(out_cli), s.wall_seconds, cli_total, py_total, cli_cpu, py_cpu))
-        print(f"  repetition {r + 1}: run wall CLI {rows[-1][0]:.4f} s, Python {rows[-1][1]:.4f} s; "
-              f"end to end CLI {cli_total:.4f} s, Python {py_total:.4f} s; "
+        fresh = fresh_python(scene_path, os.path.join(work, f"fresh{r}.h5"))
+        rows.append((wall_attribute(out_cli), s.wall_seconds, cli_total, py_total, cli_cpu, py_cpu, fresh))
+        print(f"  repetition {r + 1}: run wall CLI {rows[-1][0]:.4f} s, Python {rows[-1][1]:.4f} s, "
+              f"Python in a new process {fresh:.4f} s; end to end CLI {cli_total:.4f} s, Python {py_total:.4f} s; "
               f"CPU CLI {cli_cpu:.4f} s, Python {py_cpu:.4f} s", flush=True)
     return rows
 
@@ -142,11 +169,18 @@ def main():
         total_ratio = statistics.median(r[3] / r[2] for r in rows)
         print(f"run wall (median): CLI {median(rows, 0):.4f} s, Python {median(rows, 1):.4f} s, "
               f"Python/CLI {run_ratio:.4f} ({100 * (run_ratio - 1):+.2f} %)")
+        fresh_ratio = statistics.median(r[6] / r[0] for r in rows)
+        print(f"run wall, each in a new process (median): CLI {median(rows, 0):.4f} s, Python {median(rows, 6):.4f} s, "
+              f"Python/CLI {fresh_ratio:.4f} ({100 * (fresh_ratio - 1):+.2f} %)")
         print(f"end to end (median): CLI {median(rows, 2):.4f} s, Python {median(rows, 3):.4f} s, "
               f"Python/CLI {total_ratio:.4f} ({100 * (total_ratio - 1):+.2f} %)")
         cpu_ratio = statistics.median(r[5] / r[4] for r in rows)
         print(f"CPU time end to end (median): CLI {median(rows, 4):.4f} s, Python {median(rows, 5):.4f} s, "
               f"Python/CLI {cpu_ratio:.4f} ({100 * (cpu_ratio - 1):+.2f} %)")
+        start = startup_cpu(cli, args.repeat)
+        net = statistics.median(r[5] / (r[4] - start) for r in rows)
+        print(f"CPU of starting the command (`otmpm --version`, median): {start:.4f} s; "
+              f"Python / (CLI - start) {net:.4f} ({100 * (net - 1):+.2f} %)")
         print(f"2. sim.step() overhead: one-particle scene, {args.steps} steps, {args.repeat} interleaved repetitions")
         rows = step_overhead(args.build, args.steps, args.repeat, work)
         py, mod, cxx = median(rows, 0), median(rows, 1), median(rows, 2)

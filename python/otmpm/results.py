@@ -12,7 +12,6 @@ Works on any otmpm result file, written by `otmpm run`, `otmpm pair`,
 import collections.abc
 import tomllib
 
-import h5py
 import numpy as np
 
 #: Fields stored as D*D components per particle (row-major), returned as (n, D, D).
@@ -79,6 +78,8 @@ class Results:
     """
 
     def __init__(self, path):
+        import h5py  # here, not at the top: `import otmpm` stays quick for those who never read a file
+
         self.path = str(path)
         self._file = h5py.File(self.path, "r")
         self.attrs = {k: _value(v) for k, v in self._file.attrs.items()}
