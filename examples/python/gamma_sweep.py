@@ -47,12 +47,14 @@ def plot(table, path):
     colours = plt.cm.viridis([i / (len(table) - 1) for i in range(len(table))])
     for (gamma, rows), colour in zip(table.items(), colours):
         ax.loglog([r[1] for r in rows], [r[2] for r in rows], "o-", color=colour, label=f"gamma_lme = {gamma:g}")
-    for mesh, wall, error in table[GAMMAS[-1]]:
-        ax.annotate(f"L/{mesh}", (wall, error), textcoords="offset points", xytext=(6, 4), fontsize=8)
+    for i, mesh in enumerate(MESHES):  # the mesh size above the left end of its group of points
+        wall = min(rows[i][1] for rows in table.values())
+        error = max(rows[i][2] for rows in table.values())
+        ax.annotate(f"h = L/{mesh}", (wall, error), textcoords="offset points", xytext=(0, 10), fontsize=9)
     ax.set(xlabel="wall time [s] (one thread)", ylabel=f"{ERROR} [m/s]",
            title="Dyka bar, MPM + LME + NPC: work-precision over gamma_lme")
     ax.grid(which="both", alpha=0.3)
-    ax.margins(x=0.15)
+    ax.margins(x=0.15, y=0.15)
     ax.legend()
     fig.tight_layout()
     fig.savefig(path, dpi=120)
