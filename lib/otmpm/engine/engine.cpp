@@ -50,7 +50,7 @@ Engine<D>::Engine(EngineParts<D> parts)
       materials_(std::move(parts.materials)), loads_(std::move(parts.loads)), settings_(parts.settings) {
   check_parts();
   const int nodes = basis_->nodes().size();
-  constraints_ = Constraints<D>(std::move(parts.dirichlet), nodes);
+  constraints_ = Constraints<D>(std::move(parts.dirichlet), std::move(parts.walls), nodes);
   bool needs_F = false;
   for (const auto& m : materials_) {
     needs_F = needs_F || m->needs_deformation_gradient();
@@ -225,6 +225,18 @@ void Engine<D>::solve_mass(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>
   const bool lumped = !mass_matrix_;
   parallel_for(n, [&](long long I) { y[I] = lumped && nodal_.active[I] ? Vec<D>(r[I] / nodal_.m[I]) : Vec<D>::Zero(); });
   if (!lumped) mass_matrix_->solve(r, y);
+}
+
+template <int D> void Engine<D>::constrain_velocity(AlignedVector<Vec<D>>& v, const WallEffect<D>& effect) {
+  constraints_.apply_velocity(v);
+  if (constraints_.walls().empty()) return;
+  constraints_.apply_walls(v, {basis_->nodes().positions(), nodal_.m, nodal_.active}, t_, dt_, effect,
+                           energy_.reaction_work);
+}
+
+template <int D> void Engine<D>::constrain_increment(AlignedVector<Vec<D>>& dx) const {
+  if (constraints_.walls().empty()) return;
+  constraints_.apply_walls_to_increment(dx, {basis_->nodes().positions(), nodal_.m, nodal_.active}, t_, dt_);
 }
 
 template <int D> void Engine<D>::apply_dirichlet_force(AlignedVector<Vec<D>>& f) {
