@@ -17,18 +17,20 @@ def pair_out_file(out, mode):
     return (out if i < 0 else out[:i]) + "_" + mode + ".h5"
 
 
-def pair(scene, threads=None):
+def pair(scene, threads=None, force=False):
     """Runs the scene with simulation.mode = "mpm" and "ul" (same basis and integrator), as `otmpm pair`.
 
     Returns {"mpm": Summary, "ul": Summary}. The result files are the scene's
     output.file with _mpm and _ul before .h5. Each run goes through otmpm.run
     (the library, GIL released, Ctrl-C -> KeyboardInterrupt), so the results
-    are those of the command line, bit for bit.
+    are those of the command line, bit for bit. force=True replaces existing
+    result files (`otmpm pair --force`).
     """
     runs = {}
     for mode in MODES:
         s = scene.with_overrides({"simulation.mode": mode})
-        runs[mode] = _otmpm.run(s, out=pair_out_file(s.output_file, mode), threads=threads)
+        runs[mode] = _otmpm.run(s, out=pair_out_file(s.output_file, mode), threads=threads,
+                                 force=force)
     return runs
 
 

@@ -6,7 +6,8 @@ class Summary(collections.abc.Mapping):
     """What a run reports, as a read-only dict (also readable as attributes).
 
     Keys: status ("ok", "interrupted" or "unstable: <diagnosis>"), exit_code
-    (the command line's: 0 ok, 1 unstable, 130 interrupted), mode, integrator,
+    (the command line's: 0 ok, 1 unstable, 130 interrupted), interrupted
+    (True when the run was stopped before t_end: Ctrl-C, interrupt()), mode, integrator,
     basis, steps, time (simulated time reached [s]), wall_seconds,
     particles, nodes, particle_steps_per_second, errors (dict: the errors
     against the exact solution of the scene's [reference], e.g.

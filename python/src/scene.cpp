@@ -11,8 +11,10 @@
 #include <pybind11/stl/filesystem.h>
 #include <toml++/toml.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <sstream>
+#include <stdexcept>
 #include <variant>
 
 namespace otmpm::python {
@@ -99,6 +101,37 @@ std::vector<std::string> override_strings(const py::object& overrides) {
   return sets;
 }
 
+/// The scene's TOML text (Scene::text: the file after the overrides) with
+/// the path of every particle-file body made absolute, so that the text
+/// reads back to the same scene from any directory (the reader takes a
+/// relative path relative to the scene file, which a dict has not).
+std::string portable_text(const Scene& s) {
+  const bool has_file = std::any_of(s.bodies.begin(), s.bodies.end(), [](const BodySection& b) { return b.shape == "file"; });
+  if (!has_file) return s.text;
+  toml::table root = toml::parse(std::string_view(s.text), std::string_view(s.file));
+  toml::array* bodies = root["body"].as_array();
+  if (!bodies || bodies->size() != s.bodies.size()) throw std::logic_error("Scene.to_toml: [[body]] does not match the scene");
+  for (std::size_t i = 0; i < s.bodies.size(); ++i)
+    if (s.bodies[i].shape == "file")
+      bodies->get(i)->as_table()->insert_or_assign("file", std::filesystem::absolute(s.bodies[i].file).string());
+  std::ostringstream os;
+  os << root << "\n";
+  return os.str();
+}
+
+/// to_toml(full): the scene's own text, or with full every value (the
+/// defaults too) as otmpm::to_toml() writes it.
+std::string scene_text(const Scene& s, bool full) { return full ? to_toml(s) : portable_text(s); }
+
+const char* kToTomlDoc = R"doc(The resolved scene (after overrides) as TOML text.
+
+full=False: the keys the file or dict gave, as the result file stores them in
+its `scene` attribute (a particle-file body's path made absolute, so that
+the text reads back from any directory). full=True: every value, the
+defaults included (integrator parameters, basis tolerances, body shapes,
+walls, output), as otmpm::to_toml writes a scene built in code; it reads
+back to the same scene and runs to the same bits.)doc";
+
 const char* kSceneDoc = R"doc(A scene: everything a run needs (docs/user-guide.md, "The scene file").
 
 Build one with Scene.from_toml(path, overrides) or Scene.from_dict(d). Every
@@ -147,11 +180,13 @@ void register_scene(py::module_& m) {
           py::arg("overrides"),
           "A new scene: this one with the overrides applied (as Scene.from_toml's overrides).")
       .def(
-          "to_toml", [](const Scene& s) { return s.text; },
-          "The resolved scene (after overrides) as TOML text: what the result file stores as its `scene` attribute.")
+          "to_toml", [](const Scene& s, bool full) { return scene_text(s, full); }, py::arg("full") = false, kToTomlDoc)
       .def(
-          "to_dict", [](const Scene& s) { return py::module_::import("tomllib").attr("loads")(s.text); },
-          "The resolved scene as a dict (tomllib.loads(to_toml())); Scene.from_dict(scene.to_dict()) gives the same scene.")
+          "to_dict",
+          [](const Scene& s, bool full) { return py::module_::import("tomllib").attr("loads")(scene_text(s, full)); },
+          py::arg("full") = false,
+          "The resolved scene as a dict: tomllib.loads(to_toml(full)); Scene.from_dict(scene.to_dict()) gives\n"
+          "the same scene.")
       .def_property_readonly(
           "file", [](const Scene& s) { return s.file; }, "The file the scene was read from (or the name given to from_dict).")
       .def_property_readonly(

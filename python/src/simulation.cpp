@@ -26,10 +26,12 @@ constexpr auto kSignalPoll = std::chrono::milliseconds(10);
 /// Relative slack of advance_to(t), as Simulation::advance_to.
 constexpr double kTimeSlack = 1e-9;
 
-/// RunOptions from the Python arguments: out None = the scene's output.file.
-RunOptions run_options(const py::object& out, bool write_results) {
+/// RunOptions from the Python arguments: out None = the scene's output.file;
+/// force as `otmpm run --force`.
+RunOptions run_options(const py::object& out, bool write_results, bool force) {
   RunOptions opt;
   opt.write_results = write_results;
+  opt.force = force;
   if (!out.is_none()) opt.out_file = py::cast<std::filesystem::path>(out).string();
   return opt;
 }
@@ -47,6 +49,7 @@ py::object summary_object(const RunSummary& s) {
   py::dict d;
   d["status"] = s.status;
   d["exit_code"] = s.exit_code;
+  d["interrupted"] = s.interrupted;
   d["mode"] = s.mode;
   d["integrator"] = s.integrator;
   d["basis"] = s.basis;
@@ -67,8 +70,8 @@ py::object summary_object(const RunSummary& s) {
 /// A run in progress, owned by the Python Simulation object.
 class PySimulation {
 public:
-  PySimulation(const Scene& scene, const py::object& out, bool write_results, std::optional<int> threads)
-      : threads_(checked_threads(threads)), sim_(build(scene, run_options(out, write_results), threads_)) {}
+  PySimulation(const Scene& scene, const py::object& out, bool write_results, bool force, std::optional<int> threads)
+      : threads_(checked_threads(threads)), sim_(build(scene, run_options(out, write_results, force), threads_)) {}
 
   /// The simulation; RuntimeError while another Python thread is stepping it
   /// (its steps run with the GIL released).
@@ -266,10 +269,10 @@ PySimulation& cast(const py::object& self) { return self.cast<PySimulation&>(); 
 
 const char* kSimulationDoc = R"doc(A run of a scene stepped by hand (the engine behind `otmpm run`).
 
-Simulation(scene, out=None, write_results=True, threads=None, callback=None)
+Simulation(scene, out=None, write_results=True, threads=None, callback=None, force=False)
 
 out: the result file (None: the scene's output.file); write_results=False
-writes none. threads: OpenMP threads for the steps (None: OMP_NUM_THREADS).
+writes none; force=True replaces an existing result file (otmpm run --force). threads: OpenMP threads for the steps (None: OMP_NUM_THREADS).
 callback: called as callback(sim) after every step (see `callback`).
 
 The frame at t = 0 is written on construction; frames at the scene's output
@@ -356,13 +359,13 @@ void register_simulation(py::module_& m) {
   register_views(m);
   py::class_<PySimulation>(m, "Simulation", kSimulationDoc)
       .def(py::init([](const Scene& scene, const py::object& out, bool write_results, std::optional<int> threads,
-                       const py::object& callback) {
-             auto s = std::make_unique<PySimulation>(scene, out, write_results, threads);
+                       const py::object& callback, bool force) {
+             auto s = std::make_unique<PySimulation>(scene, out, write_results, force, threads);
              s->callback = callback;
              return s;
            }),
            py::arg("scene"), py::arg("out") = py::none(), py::arg("write_results") = true,
-           py::arg("threads") = py::none(), py::arg("callback") = py::none())
+           py::arg("threads") = py::none(), py::arg("callback") = py::none(), py::arg("force") = false)
       .def(
           "step",
           [](const py::object& self, long n) {
@@ -440,8 +443,8 @@ void register_simulation(py::module_& m) {
 
   m.def(
       "run",
-      [](const Scene& scene, const py::object& out, std::optional<int> threads, bool write_results) {
-        PySimulation s(scene, out, write_results, threads);
+      [](const Scene& scene, const py::object& out, std::optional<int> threads, bool write_results, bool force) {
+        PySimulation s(scene, out, write_results, force, threads);
         try {
           s.run_to_end(py::none());
         } catch (py::error_already_set&) { // KeyboardInterrupt: a valid file with status "interrupted"
@@ -451,10 +454,12 @@ void register_simulation(py::module_& m) {
         return s.finish();
       },
       py::arg("scene"), py::arg("out") = py::none(), py::arg("threads") = py::none(), py::arg("write_results") = true,
+      py::arg("force") = false,
       R"doc(Runs a scene to t_end, as `otmpm run` does, and returns its otmpm.Summary.
 
 out: the result file (None: the scene's output.file). threads: OpenMP threads
-(None: OMP_NUM_THREADS). The GIL is released while it runs. An instability
+(None: OMP_NUM_THREADS). force=True replaces an existing result file, as
+`otmpm run --force` (RunOptions::force). The GIL is released while it runs. An instability
 ends the run with exit_code 1 and the diagnosis as status (no exception, as
 the command line). Ctrl-C raises KeyboardInterrupt after the current step and
 leaves the result file valid with status "interrupted".)doc");

@@ -118,3 +118,17 @@ def test_ctrl_c_raises_keyboard_interrupt_and_leaves_a_valid_file(tmp_path):
         assert r.status == "interrupted"
         assert 0 < r.attrs["steps"] and 0 < r.attrs["t_end"] < 100.0
         assert len(r.frames) >= 1 and np.isfinite(r.frames[-1]["x"]).all()
+
+
+def test_force_replaces_an_existing_result_file(tmp_path):
+    out = tmp_path / "again.h5"
+    out.write_text("not a result file\n")  # a stale file in the way
+    scene = otmpm.Scene.from_toml(DYKA, {"simulation.t_end": 1e-5})
+    s = otmpm.run(scene, out=str(out), force=True)
+    assert s.status == "ok" and not s.interrupted
+    assert attrs(out)["status"] == "ok" and attrs(out)["steps"] == s.steps
+    with otmpm.Simulation(scene, out=str(out), force=True) as sim:  # the same option when stepping by hand
+        sim.step(2)
+    assert attrs(out)["steps"] == 2
+    runs = otmpm.pair(scene.with_overrides({"output.file": str(tmp_path / "p.h5")}), force=True)
+    assert {m: r.status for m, r in runs.items()} == {"mpm": "ok", "ul": "ok"}

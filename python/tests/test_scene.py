@@ -3,7 +3,9 @@ from Python, with the same messages, lines and keys."""
 import glob
 import math
 import os
+import tomllib
 
+import numpy as np
 import pytest
 
 import otmpm
@@ -109,3 +111,117 @@ def test_with_overrides_returns_a_changed_copy():
     ul = scene.with_overrides({"simulation.mode": "ul"})
     assert (scene.mode, ul.mode) == ("mpm", "ul")
     assert math.isclose(ul.t_end, scene.t_end)
+
+
+# A 2D scene with what the scene format gained with plasticity, shapes and
+# walls: a j2 material with a [material.johnson_cook] table, an
+# explicit_alpha integrator with its rho_inf, bodies of every 2D shape (box,
+# sphere, polygon, a particle file) and a moving rigid wall with friction.
+NEW_CONTENT = """
+[simulation]
+dimension = 2
+integrator = "explicit_alpha"
+rho_inf = 0.5
+t_end = 1e-4
+cfl = 0.2
+[basis]
+kind = "linear"
+[grid]
+lower = [-1.0, -1.0]
+upper = [1.0, 1.0]
+cells = [20, 20]
+[[material]]
+name = "m"
+model = "j2"
+density = 2000.0
+young = 1e7
+poisson = 0.3
+yield_stress = 1e5
+hardening_modulus = 1e5
+[material.johnson_cook]
+B = 1e5
+n = 0.5
+C = 0.01
+reference_strain_rate = 1.0
+[[body]]
+name = "plate"
+material = "m"
+lower = [-0.5, -0.8]
+upper = [0.5, -0.5]
+[[body]]
+name = "ball"
+material = "m"
+shape = "sphere"
+center = [0.0, -0.2]
+radius = 0.25
+velocity = [0.0, -1.0]
+[[body]]
+name = "wedge"
+material = "m"
+shape = "polygon"
+vertices = [[0.3, 0.2], [0.8, 0.2], [0.3, 0.7]]
+[[body]]
+name = "cloud"
+material = "m"
+shape = "file"
+file = "cloud.csv"
+[[wall]]
+name = "floor"
+point = [0.0, -0.8]
+normal = [0.0, 1.0]
+friction = 0.2
+[[wall]]
+name = "piston"
+point = [-0.9, 0.0]
+normal = [1.0, 0.0]
+velocity = [0.5, 0.0]
+[body_force]
+value = [0.0, -9.81]
+"""
+
+CLOUD = "x, y, volume, vx, vy\n-0.6, 0.45, 0.0025, 0.0, 0.0\n-0.5, 0.45, 0.0025, 1.0, 0.0\n-0.4, 0.45, 0.0025, 0.0, -1.0\n"
+
+
+def positions_after_steps(scene, n=20):
+    with otmpm.Simulation(scene, write_results=False) as sim:
+        sim.step(n)
+        return sim.particles.x.copy()
+
+
+def test_new_scene_content_round_trips_through_to_dict_and_to_toml(tmp_path, monkeypatch):
+    folder = tmp_path / "scenes"
+    folder.mkdir()
+    (folder / "cloud.csv").write_text(CLOUD)
+    (folder / "impact.toml").write_text(NEW_CONTENT)
+    scene = otmpm.Scene.from_toml(folder / "impact.toml")
+    monkeypatch.chdir(tmp_path)  # the particle file is not where a dict's relative path would point
+    d = scene.to_dict()
+    assert d["simulation"]["rho_inf"] == 0.5 and d["material"][0]["johnson_cook"]["n"] == 0.5
+    assert [b.get("shape", "box") for b in d["body"]] == ["box", "sphere", "polygon", "file"]
+    assert d["body"][3]["file"] == str(folder / "cloud.csv")  # absolute: reads back from anywhere
+    assert [w["name"] for w in d["wall"]] == ["floor", "piston"] and d["wall"][1]["velocity"] == [0.5, 0.0]
+    full = scene.to_dict(full=True)  # every value, defaults included
+    assert full["simulation"]["rho_inf"] == 0.5 and full["wall"][0]["velocity"] == [0.0, 0.0]
+    assert full["body"][0]["shape"] == "box" and full["body"][1]["radius"] == 0.25
+    assert full["body"][3]["file"] == str(folder / "cloud.csv")
+    for as_full in (False, True):
+        again = otmpm.Scene.from_dict(scene.to_dict(full=as_full))
+        assert again.to_dict(full=as_full) == scene.to_dict(full=as_full)
+        assert again.to_toml(full=True) == scene.to_toml(full=True)
+        assert tomllib.loads(scene.to_toml(full=as_full)) == scene.to_dict(full=as_full)
+    # Read back, the scene runs to the same bits (the walls, shapes and rho_inf took part).
+    x = positions_after_steps(scene)
+    assert len(x) > 100
+    for as_full in (False, True):
+        np.testing.assert_array_equal(positions_after_steps(otmpm.Scene.from_dict(scene.to_dict(full=as_full))), x)
+    without_walls = {k: v for k, v in d.items() if k != "wall"}
+    assert not np.array_equal(positions_after_steps(otmpm.Scene.from_dict(without_walls)), x)
+
+
+@pytest.mark.parametrize("name", ["dyka/dyka_n40.toml", "dyka_2d.toml", "dyka_3d.toml", "fixed_bar.toml",
+                                  "traction_bar.toml", "mms_plate.toml", "andersen_block.toml", "plate_impact.toml"])
+def test_full_dict_of_every_example_reads_back_to_the_same_scene(name):
+    scene = otmpm.Scene.from_toml(example(name))
+    full = otmpm.Scene.from_dict(scene.to_dict(full=True), name=name)
+    assert full.to_toml(full=True) == scene.to_toml(full=True)
+    assert set(scene.to_dict()) <= set(scene.to_dict(full=True))  # full adds defaults, drops nothing

@@ -216,3 +216,72 @@ def test_a_simulation_stepped_in_another_thread_refuses_other_calls():
         time.sleep(0.002)
     worker.join()
     assert refused > 0 and sim.finished  # the other thread stepped alone to t_end
+
+
+def j2_strip(**overrides):
+    """A 2D plane-strain steel strip whose left quarter hits the fixed right
+    end at 5 m/s: the impact stress (about 100 MPa) exceeds the j2 yield
+    stress (50 MPa), so the material yields (tests/test_plastic_runs.cpp)."""
+    d = {
+        "simulation": {"dimension": 2, "mode": "mpm", "integrator": "musl", "t_end": 2e-5, "cfl": 0.1},
+        "basis": {"kind": "linear"},
+        "grid": {"lower": [-0.01, 0.0], "upper": [0.1, 0.005], "cells": [22, 1]},
+        "material": [{"name": "m", "model": "j2", "density": 7833.0, "young": 200e9, "poisson": 0.3,
+                      "yield_stress": 5e7, "hardening_modulus": 1e9}],
+        "body": [{"name": "bar", "material": "m", "lower": [0.0, 0.0], "upper": [0.1, 0.005]}],
+        "initial_velocity": [{"lower": [0.0, 0.0], "upper": [0.025, 0.005], "velocity": [-5.0, 0.0]}],
+        "boundary": [
+            {"name": "end", "lower": [0.1, 0.0], "upper": [0.1, 0.005], "fix": [True, False]},
+            {"name": "bottom", "lower": [-0.01, 0.0], "upper": [0.1, 0.0], "fix": [False, True]},
+            {"name": "top", "lower": [-0.01, 0.005], "upper": [0.1, 0.005], "fix": [False, True]},
+        ],
+        "output": {"fields": ["x", "v", "plastic_strain"], "every": 1e-5},
+    }
+    return otmpm.Scene.from_dict(d, overrides)
+
+
+HENCKY_STATE = {"elastic_left_cauchy_green": 6, "plastic_strain": 1, "volumetric_plastic_strain": 1,
+                "elastic_energy": 1, "plastic_work": 1}
+
+
+def test_j2_state_arrays_are_views_that_follow_the_steps(tmp_path):
+    out = tmp_path / "j2.h5"
+    with otmpm.Simulation(j2_strip(), out=str(out)) as sim:
+        state = sim.particles.state
+        n = len(sim.particles)
+        assert {k: (v.shape[1] if v.ndim == 2 else 1) for k, v in state.items()} == HENCKY_STATE
+        assert all(v.shape[0] == n and not v.flags.writeable for v in state.values())
+        eps_p = state["plastic_strain"]
+        assert not eps_p.any()  # no plastic flow before the first step
+        np.testing.assert_array_equal(state["elastic_left_cauchy_green"], np.tile([1, 1, 1, 0, 0, 0], (n, 1)))
+        sim.advance_to(sim.t_end)
+        # The view taken before the run shows the state at t_end: the engine's memory.
+        assert np.shares_memory(eps_p, sim.particles.state["plastic_strain"])
+        assert eps_p.max() > 1e-4 and eps_p.min() >= 0.0  # the impact yielded the struck end, nothing unloads to < 0
+        # The energy balance sums the same arrays: dissipated = sum of the
+        # particles' plastic work, strain = sum of their elastic energy
+        # (summed in chunks: equal to rounding).
+        E = sim.energy()
+        assert E["dissipated"] > 0.05 * E["initial"]
+        assert np.isclose(state["plastic_work"].sum(), E["dissipated"], rtol=1e-12, atol=0)
+        assert np.isclose(state["elastic_energy"].sum(), E["strain"], rtol=1e-12, atol=0)
+        final = eps_p.copy()
+    # The result file's plastic_strain field at t_end is the same array, bit for bit.
+    np.testing.assert_array_equal(final_frame(out)["plastic_strain"].reshape(-1), final)
+
+
+def test_interrupt_ends_the_run_with_status_interrupted(tmp_path):
+    out = tmp_path / "stopped.h5"
+    sim = otmpm.Simulation(short_dyka(), out=str(out))
+    sim.step(4)
+    sim.interrupt()
+    assert sim.finished and sim.status == "interrupted"
+    with pytest.raises(RuntimeError, match="finished"):
+        sim.interrupt()
+    s = sim.finish()
+    assert s.interrupted and s.exit_code == 130 and s.steps == 4 and str(s).startswith("INTERRUPTED: ")
+    assert s.errors == {} or "rms_velocity_error" not in s.errors  # no final errors for a run cut short
+    with otmpm.results.open(out) as r:
+        assert r.status == "interrupted" and r.attrs["steps"] == 4
+    done = otmpm.run(short_dyka(), write_results=False)
+    assert not done.interrupted and done.exit_code == 0
