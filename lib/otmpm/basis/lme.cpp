@@ -110,6 +110,7 @@
 
 #include "otmpm/basis/families.hpp"
 #include "otmpm/basis/kinds.hpp"
+#include "otmpm/parallel.hpp"
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
@@ -892,12 +893,11 @@ void MaxEntBasis<D, Prior>::update_beta_by_spacing()
     nodes_.prepare_search();
     std::vector<double> h_I(static_cast<std::size_t>(N));
     // each node its own entry: the result does not depend on the threads
-#pragma omp parallel
-    {
+    parallel_chunks(N, [&](long long begin, long long end) {
       std::vector<int> near;
-#pragma omp for schedule(static)
-      for (int I = 0; I < N; ++I) h_I[static_cast<std::size_t>(I)] = nearest_distance(nodes_, I, h, near);
-    }
+      for (auto I = static_cast<int>(begin); I < end; ++I)
+        h_I[static_cast<std::size_t>(I)] = nearest_distance(nodes_, I, h, near);
+    });
     R_max = 0.0;
     for (int I = 0; I < N; ++I) {
       const double hI = h_I[static_cast<std::size_t>(I)];
