@@ -57,6 +57,7 @@ void check_same(const Scene& a, const Scene& b) {
   CHECK(a.basis.newton_tolerance == b.basis.newton_tolerance);
   CHECK(a.basis.max_newton_iterations == b.basis.max_newton_iterations);
   CHECK(a.basis.d_max == b.basis.d_max);
+  CHECK(a.basis.metric == b.basis.metric);
   CHECK(std::equal(a.basis.ugimp_half_width, a.basis.ugimp_half_width + 3, b.basis.ugimp_half_width));
   CHECK(a.grid.kind == b.grid.kind);
   CHECK(a.grid.lower == b.grid.lower);

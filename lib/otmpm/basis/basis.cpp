@@ -26,10 +26,22 @@ template <int D> void Basis<D>::bind_points(int n, bool nodes_move) {
   points_.lambda.assign(use.lambda ? static_cast<std::size_t>(n) : 0, Vec<D>::Zero());
   points_.cell_hint.assign(use.cell_hint ? static_cast<std::size_t>(n) : 0, Index<D>{});
   points_.neighbours = NeighbourLists<D>();
+  deformation_ = use.deformation;
 }
 
-template <int D> void Basis<D>::evaluate_points(const AlignedVector<Vec<D>>& x, BasisTable<D>& table) {
-  fill_basis_table(*this, x, &points_.lambda, &points_.cell_hint, table, &points_.neighbours);
+template <int D>
+void Basis<D>::evaluate_points(const AlignedVector<Vec<D>>& x, BasisTable<D>& table,
+                               const AlignedVector<Mat<D>>* deformation) {
+  require<std::invalid_argument>(!deformation_ || (deformation && deformation->size() == x.size()),
+                                 "Basis::evaluate_points: the ", kind(),
+                                 " basis with metric 'deformation' needs the deformation gradient of each of the ",
+                                 x.size(), " points, got ", deformation ? deformation->size() : 0);
+  PointArrays<D> a;
+  a.lambda = &points_.lambda;
+  a.cell_hint = &points_.cell_hint;
+  a.neighbours = &points_.neighbours;
+  a.deformation = deformation_ ? deformation : nullptr;
+  fill_basis_table(*this, x, a, table);
 }
 
 namespace {
@@ -71,16 +83,27 @@ namespace {
 
 /// The argument checks of fill_basis_table (sizes only: the points themselves
 /// are checked by each family's evaluate()).
-template <int D>
-void check_table_arguments(const AlignedVector<Vec<D>>& x, const AlignedVector<Vec<D>>* lambda,
-                           const std::vector<Index<D>>* cell_hint) {
+template <int D> void check_table_arguments(const AlignedVector<Vec<D>>& x, const PointArrays<D>& a) {
   require<std::invalid_argument>(x.size() <= static_cast<std::size_t>(std::numeric_limits<int>::max()),
                                  "fill_basis_table: x has ", x.size(), " points, more than an int can count");
-  require<std::invalid_argument>(!lambda || lambda->empty() || lambda->size() == x.size(), "fill_basis_table: lambda has ",
-                                 lambda ? lambda->size() : 0, " entries for ", x.size(), " points x");
-  require<std::invalid_argument>(!cell_hint || cell_hint->empty() || cell_hint->size() == x.size(),
-                                 "fill_basis_table: cell_hint has ", cell_hint ? cell_hint->size() : 0, " entries for ",
-                                 x.size(), " points x");
+  auto check = [&](const char* name, const auto* array) {
+    require<std::invalid_argument>(!array || array->empty() || array->size() == x.size(), "fill_basis_table: ", name,
+                                   " has ", array ? array->size() : 0, " entries for ", x.size(), " points x");
+  };
+  check("lambda", a.lambda);
+  check("cell_hint", a.cell_hint);
+  check("deformation", a.deformation);
+}
+
+/// `a` with the empty arrays replaced by null.
+template <int D> PointArrays<D> used_arrays(PointArrays<D> a) {
+  auto drop_empty = [](auto*& array) {
+    if (array && array->empty()) array = nullptr;
+  };
+  drop_empty(a.lambda);
+  drop_empty(a.cell_hint);
+  drop_empty(a.deformation);
+  return a;
 }
 
 /// The rows of a contiguous range of particles, evaluated by one thread.
@@ -103,15 +126,14 @@ template <int D> struct TableChunk {
 };
 
 /// The query for point p of a table fill.
-template <int D>
-PointQuery<D> point_query(const AlignedVector<Vec<D>>& x, AlignedVector<Vec<D>>* lambda,
-                          std::vector<Index<D>>* cell_hint, int p, NeighbourLists<D>* neighbours) {
+template <int D> PointQuery<D> point_query(const AlignedVector<Vec<D>>& x, const PointArrays<D>& a, int p) {
   PointQuery<D> q;
   q.x = x[p];
   q.id = p;
-  q.lambda = lambda ? &(*lambda)[p] : nullptr;
-  q.cell_hint = cell_hint ? &(*cell_hint)[p] : nullptr;
-  q.neighbours = neighbours;
+  q.lambda = a.lambda ? &(*a.lambda)[p] : nullptr;
+  q.cell_hint = a.cell_hint ? &(*a.cell_hint)[p] : nullptr;
+  q.neighbours = a.neighbours;
+  q.deformation = a.deformation ? &(*a.deformation)[p] : nullptr;
   return q;
 }
 
@@ -120,13 +142,21 @@ template <int D> BasisError point_error(const AlignedVector<Vec<D>>& x, int p, c
   return BasisError("particle " + std::to_string(p) + " at " + format_point<D>(x[p]) + ": " + e.what());
 }
 
+/// Appends the stencil `s` to the arrays of a table (or chunk).
+template <int D>
+void append_row(const Stencil<D>& s, std::vector<int>& node, std::vector<double>& N, AlignedVector<Vec<D>>& dN) {
+  node.insert(node.end(), s.node.begin(), s.node.end());
+  N.insert(N.end(), s.N.begin(), s.N.end());
+  dN.insert(dN.end(), s.dN.begin(), s.dN.end());
+}
+
 /// Fills the table of a family whose stencils all have S entries: row p is
 /// entries p S .. (p+1) S - 1, written in place by the thread owning p (no
 /// per-thread buffer, no copy). Returns false when some point gave another
 /// stencil size; the caller then takes the general path.
 template <int D>
-bool fill_fixed(const Basis<D>& basis, int S, const AlignedVector<Vec<D>>& x, AlignedVector<Vec<D>>* lambda,
-                std::vector<Index<D>>* cell_hint, NeighbourLists<D>* neighbours, BasisTable<D>& table) {
+bool fill_fixed(const Basis<D>& basis, int S, const AlignedVector<Vec<D>>& x, const PointArrays<D>& a,
+                BasisTable<D>& table) {
   const int n = static_cast<int>(x.size());
   const std::size_t entries = static_cast<std::size_t>(n) * static_cast<std::size_t>(S);
   table.offset.resize(static_cast<std::size_t>(n) + 1);
@@ -139,7 +169,7 @@ bool fill_fixed(const Basis<D>& basis, int S, const AlignedVector<Vec<D>>& x, Al
     for (int p = static_cast<int>(begin); p < end; ++p) {
       const std::size_t e0 = static_cast<std::size_t>(p) * static_cast<std::size_t>(S);
       table.offset[static_cast<std::size_t>(p)] = static_cast<int>(e0);
-      const PointQuery<D> q = point_query<D>(x, lambda, cell_hint, p, neighbours);
+      const PointQuery<D> q = point_query<D>(x, a, p);
       try {
         if (basis.evaluate_fixed(q, &table.node[e0], &table.N[e0], &table.dN[e0])) continue;
         basis.evaluate(q, st);
@@ -161,8 +191,8 @@ bool fill_fixed(const Basis<D>& basis, int S, const AlignedVector<Vec<D>>& x, Al
 
 /// One thread: every row appended straight to the table (no chunk copy).
 template <int D>
-void fill_serial(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, AlignedVector<Vec<D>>* lambda,
-                 std::vector<Index<D>>* cell_hint, NeighbourLists<D>* neighbours, BasisTable<D>& table) {
+void fill_serial(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, const PointArrays<D>& a,
+                 BasisTable<D>& table) {
   thread_local Stencil<D> st;
   const int n = static_cast<int>(x.size());
   table.offset.resize(static_cast<std::size_t>(n) + 1);
@@ -172,26 +202,24 @@ void fill_serial(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, AlignedV
   table.dN.clear();
   for (int p = 0; p < n; ++p) {
     try {
-      basis.evaluate(point_query<D>(x, lambda, cell_hint, p, neighbours), st);
+      basis.evaluate(point_query<D>(x, a, p), st);
     } catch (const BasisError& e) {
       throw point_error<D>(x, p, e);
     }
-    table.node.insert(table.node.end(), st.node.begin(), st.node.end());
-    table.N.insert(table.N.end(), st.N.begin(), st.N.end());
-    table.dN.insert(table.dN.end(), st.dN.begin(), st.dN.end());
+    append_row<D>(st, table.node, table.N, table.dN);
     table.offset[static_cast<std::size_t>(p) + 1] = static_cast<int>(table.node.size());
   }
 }
 
 /// Evaluates particles [begin, end) into `c`; stops at the first error.
 template <int D>
-void fill_chunk(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, AlignedVector<Vec<D>>* lambda,
-                std::vector<Index<D>>* cell_hint, NeighbourLists<D>* neighbours, int begin, int end, TableChunk<D>& c) {
+void fill_chunk(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, const PointArrays<D>& a, int begin, int end,
+                TableChunk<D>& c) {
   c.clear();
   c.count.reserve(static_cast<std::size_t>(end - begin));
   for (int p = begin; p < end; ++p) {
     try {
-      basis.evaluate(point_query<D>(x, lambda, cell_hint, p, neighbours), c.stencil);
+      basis.evaluate(point_query<D>(x, a, p), c.stencil);
     } catch (const BasisError& e) {
       c.error = std::make_exception_ptr(point_error<D>(x, p, e));
       return;
@@ -199,11 +227,8 @@ void fill_chunk(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, AlignedVe
       c.error = std::current_exception();
       return;
     }
-    const Stencil<D>& s = c.stencil;
-    c.count.push_back(s.size());
-    c.node.insert(c.node.end(), s.node.begin(), s.node.end());
-    c.N.insert(c.N.end(), s.N.begin(), s.N.end());
-    c.dN.insert(c.dN.end(), s.dN.begin(), s.dN.end());
+    c.count.push_back(c.stencil.size());
+    append_row<D>(c.stencil, c.node, c.N, c.dN);
   }
 }
 
@@ -238,23 +263,19 @@ void size_table(std::vector<int>& rows, std::vector<int>& entries, int team, Bas
 } // namespace
 
 template <int D>
-void fill_basis_table(const Basis<D>& basis, const AlignedVector<Vec<D>>& x,
-                      std::type_identity_t<AlignedVector<Vec<D>>>* lambda,
-                      std::type_identity_t<std::vector<Index<D>>>* cell_hint, BasisTable<D>& table,
-                      std::type_identity_t<NeighbourLists<D>>* neighbours) {
-  check_table_arguments<D>(x, lambda, cell_hint);
+void fill_basis_table(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, const PointArrays<D>& arrays,
+                      BasisTable<D>& table) {
+  check_table_arguments<D>(x, arrays);
   const int n = static_cast<int>(x.size());
-  if (lambda && lambda->empty()) lambda = nullptr;
-  if (cell_hint && cell_hint->empty()) cell_hint = nullptr;
+  PointArrays<D> a = used_arrays<D>(arrays);
 
   basis.nodes().prepare_search(); // build the R-tree before threads query it
-  if (neighbours && basis.search_radius() > 0.0) neighbours->prepare(basis.nodes(), n, basis.search_radius());
-  else neighbours = nullptr;
-  if (const int S = basis.fixed_stencil(); S > 0 && fill_fixed<D>(basis, S, x, lambda, cell_hint, neighbours, table))
-    return;
+  if (a.neighbours && basis.search_radius() > 0.0) a.neighbours->prepare(basis.nodes(), n, basis.search_radius());
+  else a.neighbours = nullptr;
+  if (const int S = basis.fixed_stencil(); S > 0 && fill_fixed<D>(basis, S, x, a, table)) return;
 
   const int threads = team_size(n);
-  if (threads == 1) return fill_serial<D>(basis, x, lambda, cell_hint, neighbours, table);
+  if (threads == 1) return fill_serial<D>(basis, x, a, table);
   std::vector<std::exception_ptr> errors(static_cast<std::size_t>(threads));
   std::vector<int> rows(static_cast<std::size_t>(threads) + 1, 0), entries = rows;
   bool failed = false;
@@ -273,7 +294,7 @@ void fill_basis_table(const Basis<D>& basis, const AlignedVector<Vec<D>>& x,
     // Contiguous static chunk t of `team`, in particle order.
     const long long begin = static_cast<long long>(n) * t / team;
     const long long end = static_cast<long long>(n) * (t + 1) / team;
-    fill_chunk<D>(basis, x, lambda, cell_hint, neighbours, static_cast<int>(begin), static_cast<int>(end), chunk);
+    fill_chunk<D>(basis, x, a, static_cast<int>(begin), static_cast<int>(end), chunk);
     errors[t] = chunk.error;
     rows[t + 1] = static_cast<int>(chunk.count.size());
     entries[t + 1] = static_cast<int>(chunk.node.size());
@@ -290,6 +311,18 @@ void fill_basis_table(const Basis<D>& basis, const AlignedVector<Vec<D>>& x,
   }
   for (const std::exception_ptr& e : errors)
     if (e) std::rethrow_exception(e); // the failing particle with the lowest index
+}
+
+template <int D>
+void fill_basis_table(const Basis<D>& basis, const AlignedVector<Vec<D>>& x,
+                      std::type_identity_t<AlignedVector<Vec<D>>>* lambda,
+                      std::type_identity_t<std::vector<Index<D>>>* cell_hint, BasisTable<D>& table,
+                      std::type_identity_t<NeighbourLists<D>>* neighbours) {
+  PointArrays<D> a;
+  a.lambda = lambda;
+  a.cell_hint = cell_hint;
+  a.neighbours = neighbours;
+  fill_basis_table<D>(basis, x, a, table);
 }
 
 template <int D> void transpose_basis_table(const BasisTable<D>& table, int nodes, NodeColumns& columns) {
@@ -344,6 +377,8 @@ template <int D> void transpose_basis_table(const BasisTable<D>& table, int node
   template class Basis<D>;                                                                              \
   template void fill_basis_table<D>(const Basis<D>&, const AlignedVector<Vec<D>>&, AlignedVector<Vec<D>>*, \
                                     std::vector<Index<D>>*, BasisTable<D>&, NeighbourLists<D>*);          \
+  template void fill_basis_table<D>(const Basis<D>&, const AlignedVector<Vec<D>>&, const PointArrays<D>&,  \
+                                    BasisTable<D>&);                                                      \
   template void transpose_basis_table<D>(const BasisTable<D>&, int, NodeColumns&);
 OTMPM_INSTANTIATE_BASIS(1)
 OTMPM_INSTANTIATE_BASIS(2)

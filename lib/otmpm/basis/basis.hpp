@@ -50,6 +50,9 @@ template <int D> struct PointQuery {
   /// search nodes within search_radius() take the candidates of point `id`
   /// from them (same result as the direct search, less work).
   NeighbourLists<D>* neighbours = nullptr;
+  /// Deformation gradient F of the point, for LME with `metric =
+  /// "deformation"` (BasisOptions::metric); null: F = I.
+  const Mat<D>* deformation = nullptr;
 };
 
 /// Throws BasisError "KIND basis: point ID at (x, y): the position is not
@@ -69,6 +72,12 @@ struct BasisOptions {
   double newton_tolerance = 1e-12; ///< LME/max-ent: converged when |r| <= newton_tolerance * h
   int max_newton_iterations = 100;
   double d_max = 2.0;          ///< max-ent: support radius d_max * h of the cubic-spline prior
+  /// LME locality (docs/theory.md, "Adapted locality"): "isotropic" (beta =
+  /// gamma_lme / h^2), "deformation" (beta_p = gamma_lme / h^2 M_p, M_p =
+  /// (F_p F_p^T)^-1 scaled to det 1, F_p from PointQuery::deformation) or
+  /// "node_spacing" (beta_I = gamma_lme / h_I^2, h_I the distance from node
+  /// I to its nearest node). basis_metrics() lists them.
+  std::string metric = "isotropic";
   /// uGIMP particle half-width per axis (l_p = h / (2 n_ppc_axis)).
   double ugimp_half_width[3] = {0.0, 0.0, 0.0};
 };
@@ -77,6 +86,9 @@ struct BasisOptions {
 struct PointStateUse {
   bool lambda = false;    ///< max-ent families: the Lagrange multiplier (warm start)
   bool cell_hint = false; ///< element walk / B-splines: the cell of the last evaluation
+  /// Reads the points' deformation gradients (LME, metric = "deformation"):
+  /// evaluate_points needs them.
+  bool deformation = false;
 };
 
 /// The per-point state of the points a family evaluates step after step (the
@@ -145,8 +157,11 @@ public:
   void bind_points(int n, bool nodes_move);
   /// Evaluates the bound points at their positions x (one per bound point)
   /// into `table` (fill_basis_table with the per-point state and the Verlet
-  /// lists). std::invalid_argument when x has another size than bound.
-  void evaluate_points(const AlignedVector<Vec<D>>& x, BasisTable<D>& table);
+  /// lists). `deformation`: the points' deformation gradients, read only
+  /// when point_state_use().deformation. std::invalid_argument when x (or a
+  /// needed `deformation`) has another size than bound.
+  void evaluate_points(const AlignedVector<Vec<D>>& x, BasisTable<D>& table,
+                       const AlignedVector<Mat<D>>* deformation = nullptr);
   /// The per-point state of the bound points.
   PointState<D>& point_state() { return points_; }
   const PointState<D>& point_state() const { return points_; }
@@ -169,6 +184,7 @@ protected:
 
 private:
   PointState<D> points_;
+  bool deformation_ = false; ///< point_state_use().deformation at bind_points
 };
 
 /// Creates the basis family `opt.kind` on `nodes` (for B-splines: on the
@@ -211,6 +227,26 @@ struct NodeColumns {
 /// Builds `columns` for `table` over `nodes` nodes (OpenMP; the result does
 /// not depend on the thread count).
 template <int D> void transpose_basis_table(const BasisTable<D>& table, int nodes, NodeColumns& columns);
+
+/// The per-point arrays of a table fill, one entry per point each (a null or
+/// empty array: not used). `lambda` and `cell_hint` are read and updated (PointQuery); `neighbours` are the Verlet lists of the
+/// points, kept from call to call; `deformation` the points' deformation
+/// gradients (PointQuery::deformation).
+template <int D> struct PointArrays {
+  AlignedVector<Vec<D>>* lambda = nullptr;
+  std::vector<Index<D>>* cell_hint = nullptr;
+  NeighbourLists<D>* neighbours = nullptr;
+  const AlignedVector<Mat<D>>* deformation = nullptr;
+};
+
+/// Evaluates `basis` at every point x[p] into `table` with the per-point
+/// arrays `a` (OpenMP over particles; the result does not depend on the
+/// thread count). A BasisError is rethrown with the point's index prepended.
+/// Throws std::invalid_argument when a non-empty array does not have one
+/// entry per point.
+template <int D>
+void fill_basis_table(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, const PointArrays<D>& a,
+                      BasisTable<D>& table);
 
 /// Evaluates `basis` at every point x[p] into `table` (OpenMP over particles;
 /// the result does not depend on the thread count). lambda (may be empty) is

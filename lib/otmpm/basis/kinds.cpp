@@ -87,6 +87,7 @@ const std::array kKinds{
               .description = "local max-ent (Arroyo & Ortiz 2006)",
               .needs_lattice = false,
               .searches_nodes = true,
+              .adapts_metric = true,
               .stencil_nodes = lme_stencil,
               OTMPM_FACTORIES(lme)},
     BasisKind{.name = "maxent",
@@ -98,7 +99,23 @@ const std::array kKinds{
 };
 #undef OTMPM_FACTORIES
 
+constexpr std::array<std::string_view, 3> kMetrics{"isotropic", "deformation", "node_spacing"};
+
+/// "a, b or c" of the names in `list`.
+template <class List, class Name> std::string name_list(const List& list, Name name) {
+  std::string s;
+  for (std::size_t i = 0; i < list.size(); ++i)
+    s += std::string(i == 0 ? "" : i + 1 == list.size() ? " or " : ", ") + std::string(name(list[i]));
+  return s;
+}
+
 } // namespace
+
+std::span<const std::string_view> basis_metrics() { return kMetrics; }
+
+std::string basis_metric_list() {
+  return name_list(kMetrics, [](std::string_view m) { return m; });
+}
 
 std::span<const BasisKind> basis_kinds() { return kKinds; }
 
@@ -108,10 +125,7 @@ const BasisKind* find_basis_kind(std::string_view name) {
 }
 
 std::string basis_kind_list() {
-  std::string s;
-  for (std::size_t i = 0; i < kKinds.size(); ++i)
-    s += std::string(i == 0 ? "" : i + 1 == kKinds.size() ? " or " : ", ") + std::string(kKinds[i].name);
-  return s;
+  return name_list(kKinds, [](const BasisKind& k) { return k.name; });
 }
 
 const BasisKind& basis_kind(std::string_view name) {

@@ -32,6 +32,9 @@ struct BasisKind {
   /// Searches the nodes within a radius (Verlet lists) and keeps a Lagrange
   /// multiplier per particle (the max-ent families).
   bool searches_nodes = false;
+  /// Adapts the locality of its prior to the deformation or the node
+  /// spacing (`basis.metric` other than "isotropic"; LME).
+  bool adapts_metric = false;
   /// Expected nodes in one particle's stencil on a uniform lattice (for the
   /// memory estimate of `otmpm run --check`).
   double (*stencil_nodes)(const BasisOptions&, int dim) = nullptr;
@@ -48,5 +51,10 @@ const BasisKind* find_basis_kind(std::string_view name);
 const BasisKind& basis_kind(std::string_view name);
 /// "linear, ugimp, bspline2, bspline3, lme or maxent", for messages.
 std::string basis_kind_list();
+
+/// The values of `basis.metric` (BasisOptions::metric), "isotropic" first.
+std::span<const std::string_view> basis_metrics();
+/// "isotropic, deformation or node_spacing", for messages.
+std::string basis_metric_list();
 
 } // namespace otmpm

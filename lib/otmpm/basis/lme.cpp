@@ -109,7 +109,10 @@
 #include "otmpm/basis/lme.hpp"
 
 #include "otmpm/basis/families.hpp"
+#include "otmpm/basis/kinds.hpp"
+#include "otmpm/parallel.hpp"
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 
 #include <algorithm>
@@ -151,6 +154,16 @@ constexpr double kResolvableFactor = 1e4;
 constexpr double kSplineInner = 0.5;            ///< r where the two cubic pieces meet
 constexpr double kSplineCentre = 2.0 / 3.0;     ///< w(0)
 constexpr double kSplineOuterFactor = 4.0 / 3.0; ///< w = 4/3 (1 - r)^3 for 1/2 < r < 1
+
+// ---- adapted locality (Metric) ----------------------------------------------
+/// Relative slack on the radius within which the ellipse of a deformed
+/// point's prior is searched (the exact test dx^T B dx <= -ln(tol) decides;
+/// this only covers the round-off of the eigenvalues of F F^T).
+constexpr double kMetricRadiusSlack = 1e-6;
+/// Metric::node_spacing: the search radius is max_I R_I rounded up to a
+/// multiple of R / kRadiusSteps (R the isotropic radius), so that the Verlet
+/// lists of moving nodes are rebuilt only when it crosses a step.
+constexpr double kRadiusSteps = 8.0;
 
 // ---- stencil bound ---------------------------------------------------------
 constexpr double kBucketsPerRadius = 2.0;    ///< bucket side R / 2
@@ -482,6 +495,20 @@ NewtonState<D> solve_lambda(const NewtonSettings& set, Support<D>& s, Vec<D>& la
   }
 }
 
+/// Distance from node I to its nearest other node (the nodes within a
+/// radius doubled from h until one is found; `near` is scratch).
+template <int D> double nearest_distance(const NodeSet<D>& nodes, int I, double h, std::vector<int>& near) {
+  const Vec<D> x = nodes.position(I);
+  for (double r = h;; r *= 2.0) {
+    near.clear();
+    nodes.within(x, r, near);
+    double d2 = std::numeric_limits<double>::infinity();
+    for (const int J : near)
+      if (J != I) d2 = std::min(d2, (nodes.position(J) - x).squaredNorm());
+    if (d2 <= r * r || !std::isfinite(r)) return std::sqrt(d2);
+  }
+}
+
 std::string format_number(double v) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.3g", v);
@@ -523,6 +550,13 @@ std::string describe_failure(const NewtonState<D>& st, int total, double h, doub
 } // namespace
 
 // ---- priors ------------------------------------------------------------------
+
+Metric parse_metric(const std::string& name, std::string_view kind) {
+  if (name == "isotropic") return Metric::isotropic;
+  if (name == "deformation") return Metric::deformation;
+  if (name == "node_spacing") return Metric::node_spacing;
+  throw InputError(std::string(kind) + " basis: unknown metric '" + name + "' (expected " + basis_metric_list() + ")");
+}
 
 double cubic_spline(double r) {
   if (r <= kSplineInner) return kSplineCentre - 4.0 * r * r + 4.0 * r * r * r;
@@ -680,8 +714,8 @@ template <int D> int max_nodes_within(const NodeSet<D>& nodes, double R) {
 
 template <int D, class Prior>
 MaxEntBasis<D, Prior>::MaxEntBasis(NodeSet<D> nodes, const BasisOptions& opt, const Prior& prior,
-                                   std::string_view kind)
-    : nodes_(std::move(nodes)), prior_(prior), kind_(kind) {
+                                   std::string_view kind, Metric metric)
+    : nodes_(std::move(nodes)), prior_(prior), kind_(kind), metric_(metric) {
   const std::string name(kind);
   if (nodes_.size() < D + 1)
     throw InputError(name + " basis needs at least " + std::to_string(D + 1) + " nodes, got " +
@@ -697,13 +731,17 @@ MaxEntBasis<D, Prior>::MaxEntBasis(NodeSet<D> nodes, const BasisOptions& opt, co
   settings_.residual_tolerance = opt.newton_tolerance * settings_.h;
   settings_.max_iterations = opt.max_newton_iterations;
   settings_.support_radius = prior_.support_radius();
+  radius0_ = settings_.support_radius;
+  require(Prior::kGaussian || metric_ == Metric::isotropic, name, " basis: only the Gaussian prior adapts its metric");
   nodes_.prepare_search();
+  if (metric_ == Metric::node_spacing) update_node_spacing();
 }
 
 template <int D, class Prior> void MaxEntBasis<D, Prior>::nodes_moved(const AlignedVector<Vec<D>>&) {
   // NodeSet marked itself moved; rebuild its search index now so that
   // evaluate() may run from several threads. The stencil bound is stale.
   nodes_.prepare_search();
+  if (metric_ == Metric::node_spacing) update_node_spacing();
   std::lock_guard lock(bound_mutex_);
   bound_ = -1;
 }
@@ -723,12 +761,15 @@ template <int D, class Prior> void MaxEntBasis<D, Prior>::fail(const PointQuery<
 }
 
 template <int D, class Prior>
-void MaxEntBasis<D, Prior>::gather_support(const PointQuery<D>& q, Stencil<D>& out, Vec<D>& lo, Vec<D>& hi) const {
-  // Candidates: the point's Verlet list (a superset) or the nodes within R;
-  // the same distance test as NodeSet::within keeps exactly its answer.
-  const double R = settings_.support_radius, R2 = R * R;
+template <class LogWeight>
+void MaxEntBasis<D, Prior>::gather_support(const PointQuery<D>& q, double R, const LogWeight& log_weight,
+                                           Stencil<D>& out, Vec<D>& lo, Vec<D>& hi) const {
+  // Candidates: the point's Verlet list (a superset within the search
+  // radius) or the nodes within R; the same distance test as
+  // NodeSet::within keeps exactly its answer.
+  const double R2 = R * R;
   std::span<const int> candidates;
-  if (q.neighbours) {
+  if (q.neighbours && R <= settings_.support_radius) {
     candidates = q.neighbours->candidates(nodes_, q.id, q.x, out.scratch_ids);
   } else {
     out.scratch_ids.clear();
@@ -748,7 +789,7 @@ void MaxEntBasis<D, Prior>::gather_support(const PointQuery<D>& q, Stencil<D>& o
   for (const int I : candidates) {
     const Vec<D> d = x - nodes_.position(I);
     double w;
-    if (!(d.squaredNorm() <= R2) || !prior_.log_weight(d, w)) continue;
+    if (!(d.squaredNorm() <= R2) || !log_weight(I, d, w)) continue;
     node[n] = I;
     log_w[n] = w;
     for (int k = 0; k < D; ++k) {
@@ -764,6 +805,110 @@ void MaxEntBasis<D, Prior>::gather_support(const PointQuery<D>& q, Stencil<D>& o
     for (int k = 0; k < D; ++k) dx[k * stride + i] = 0.0;
     log_w[i] = -std::numeric_limits<double>::infinity();
   }
+}
+
+template <int D, class Prior>
+void MaxEntBasis<D, Prior>::gather_metric_support(const PointQuery<D>& q, const PointMetric<D>& pm, Stencil<D>& out,
+                                                  Vec<D>& lo, Vec<D>& hi) const {
+  const double R = settings_.support_radius;
+  if (metric_ == Metric::node_spacing) {
+    if constexpr (Prior::kGaussian) {
+      // node I kept while beta_I |dx|^2 <= -ln(tol), i.e. within R_I = h_I sqrt(-ln(tol) / gamma_lme)
+      const double max_exponent = prior_.max_exponent;
+      const auto weight = [&](int I, const Vec<D>& d, double& w) {
+        const double e = node_beta_[static_cast<std::size_t>(I)] * d.squaredNorm();
+        w = -e;
+        return e <= max_exponent;
+      };
+      return gather_support(q, R, weight, out, lo, hi);
+    }
+  }
+  if (!pm.isotropic) {
+    if constexpr (Prior::kGaussian) {
+      const double max_exponent = prior_.max_exponent;
+      const Mat<D> B = pm.B;
+      const auto weight = [&](int, const Vec<D>& d, double& w) {
+        const double e = d.dot(B * d);
+        w = -e;
+        return e <= max_exponent;
+      };
+      return gather_support(q, pm.radius, weight, out, lo, hi);
+    }
+  }
+  const auto weight = [this](int, const Vec<D>& d, double& w) { return prior_.log_weight(d, w); };
+  gather_support(q, R, weight, out, lo, hi);
+}
+
+template <int D, class Prior>
+PointMetric<D> MaxEntBasis<D, Prior>::point_metric(const PointQuery<D>& q, const Mat<D>& F) const {
+  PointMetric<D> pm;
+  pm.radius = settings_.support_radius;
+  if constexpr (D > 1 && Prior::kGaussian) {
+    // M = (F F^T)^-1 det(F F^T)^(1/D) (det M = 1); the ellipse dx^T beta M dx
+    // <= -ln(tol) reaches R sqrt(lambda_max(M^-1)) from the point.
+    const Mat<D> b = F * F.transpose();
+    const double det_b = b.determinant();
+    if (!(det_b > 0.0) || !std::isfinite(det_b) || !b.allFinite())
+      fail(q, "metric 'deformation': F F^T is not positive definite (det F F^T = " + format_number(det_b) + ")");
+    const double scale = std::pow(det_b, 1.0 / D);
+    const Mat<D> M = b.inverse() * scale;
+    if (M == Mat<D>::Identity()) return pm; // F orthogonal: the isotropic prior, bit for bit
+    Eigen::SelfAdjointEigenSolver<Mat<D>> eig;
+    eig.computeDirect(b, Eigen::EigenvaluesOnly);
+    const double stretch2 = eig.eigenvalues()[D - 1] / scale; // lambda_max(M^-1) >= 1
+    if (!(stretch2 > 0.0) || !std::isfinite(stretch2))
+      fail(q, "metric 'deformation': the eigenvalues of F F^T are not finite and positive");
+    pm.isotropic = false;
+    pm.B = prior_.beta * M;
+    pm.radius = radius0_ * std::sqrt(std::max(1.0, stretch2)) * (1.0 + kMetricRadiusSlack);
+  } else {
+    (void)q;
+    (void)F;
+  }
+  return pm;
+}
+
+template <int D, class Prior> bool MaxEntBasis<D, Prior>::uniform_beta(const Stencil<D>& out) const {
+  if (metric_ != Metric::node_spacing) return true;
+  const int n = out.size();
+  for (int i = 1; i < n; ++i)
+    if (node_beta_[static_cast<std::size_t>(out.node[i])] != node_beta_[static_cast<std::size_t>(out.node[0])])
+      return false;
+  return true;
+}
+
+template <int D, class Prior> void MaxEntBasis<D, Prior>::update_node_spacing() {
+  if constexpr (Prior::kGaussian) update_beta_by_spacing();
+}
+
+template <int D, class Prior>
+void MaxEntBasis<D, Prior>::update_beta_by_spacing()
+  requires Prior::kGaussian
+{
+  const int N = nodes_.size();
+  const double h = nodes_.spacing();
+  node_beta_.assign(static_cast<std::size_t>(N), prior_.beta);
+  double R_max = radius0_;
+  if (!nodes_.on_lattice()) {
+    nodes_.prepare_search();
+    std::vector<double> h_I(static_cast<std::size_t>(N));
+    // each node its own entry: the result does not depend on the threads
+    parallel_chunks(N, [&](long long begin, long long end) {
+      std::vector<int> near;
+      for (auto I = static_cast<int>(begin); I < end; ++I)
+        h_I[static_cast<std::size_t>(I)] = nearest_distance(nodes_, I, h, near);
+    });
+    R_max = 0.0;
+    for (int I = 0; I < N; ++I) {
+      const double hI = h_I[static_cast<std::size_t>(I)];
+      double& beta = node_beta_[static_cast<std::size_t>(I)];
+      if (hI != h) beta = prior_.beta * (h / hI) * (h / hI);
+      R_max = std::max(R_max, std::sqrt(prior_.max_exponent / beta));
+    }
+  }
+  // The search radius (Verlet lists) in steps of R / 8, so that the lists
+  // are rebuilt only when the largest R_I crosses a step.
+  settings_.support_radius = radius0_ * std::ceil(kRadiusSteps * R_max / radius0_) / kRadiusSteps;
 }
 
 template <int D, class Prior> Support<D> MaxEntBasis<D, Prior>::support(Stencil<D>& out) const {
@@ -784,13 +929,17 @@ template <int D, class Prior> Support<D> MaxEntBasis<D, Prior>::support(Stencil<
 template <int D, class Prior> void MaxEntBasis<D, Prior>::evaluate(const PointQuery<D>& q, Stencil<D>& out) const {
   out.clear();
   if (!q.x.allFinite()) fail(q, "the position is not finite");
+  PointMetric<D> pm;
+  pm.radius = settings_.support_radius;
+  if (metric_ == Metric::deformation && q.deformation) pm = point_metric(q, *q.deformation);
   Vec<D> lo, hi;
-  gather_support(q, out, lo, hi);
+  gather_metric_support(q, pm, out, lo, hi);
   const int n = out.size();
   if (n < D + 1)
     fail(q, "outside the convex hull of the nodes: only " + std::to_string(n) + " nodes within the support radius " +
-                format_number(settings_.support_radius) + " (at least " + std::to_string(D + 1) + " needed)");
+                format_number(pm.radius) + " (at least " + std::to_string(D + 1) + " needed)");
   Support<D> s = support(out);
+  s.radius = pm.radius;
   check_extent(q, n, lo, hi);
   const Vec<D> warm = q.lambda && q.lambda->allFinite() ? *q.lambda : Vec<D>::Zero();
   Vec<D> lambda = warm;
@@ -805,7 +954,7 @@ template <int D, class Prior> void MaxEntBasis<D, Prior>::evaluate(const PointQu
   if (st.status != NewtonStatus::converged)
     fail(q, describe_failure<D>(st, iterations, settings_.h, settings_.residual_tolerance / settings_.h, n));
   if (q.lambda) *q.lambda = lambda;
-  finish_stencil(st, s, out);
+  finish_stencil(st, s, Prior::kGaussian && uniform_beta(out), out);
 }
 
 template <int D, class Prior>
@@ -818,40 +967,63 @@ void MaxEntBasis<D, Prior>::check_extent(const PointQuery<D>& q, int n, const Ve
 }
 
 template <int D, class Prior>
-void MaxEntBasis<D, Prior>::finish_stencil(const NewtonState<D>& st, const Support<D>& s, Stencil<D>& out) const {
+void MaxEntBasis<D, Prior>::finish_stencil(const NewtonState<D>& st, const Support<D>& s, bool closed_form,
+                                           Stencil<D>& out) const {
   const int n = s.n;
-  const Mat<D>& J_inv = st.J_inv;
   const double inv_Z = 1.0 / st.Z;
-  out.N.resize(static_cast<std::size_t>(n));
-  bool zeros = false;
-  for (int i = 0; i < n; ++i) {
-    out.N[i] = s.p[i] * inv_Z;
-    zeros = zeros || !(out.N[i] > 0.0);
-  }
-  out.dN.resize(static_cast<std::size_t>(n));
-  if constexpr (Prior::kGaussian) {
-    // grad N_I = -N_I J^{-1} (xbar - x_I), written out per component
-    for (int i = 0; i < n; ++i) {
-      double c[D];
-      for (int l = 0; l < D; ++l) c[l] = s.dx[l][i] - st.r[l];
+  if (closed_form) {
+    // grad N_I = -N_I J^{-1} (xbar - x_I) = -N_I J^{-1} (dx_I - r), on whole
+    // vectors (the padding lanes, N = 0, are written and cut off)
+    out.N.resize(static_cast<std::size_t>(s.n_pad));
+    out.dN.resize(static_cast<std::size_t>(s.n_pad));
+    double* dN = out.dN.data()->data(); // D doubles per entry
+    const simd::vd scale = simd::broadcast(inv_Z);
+    for (int i = 0; i < s.n_pad; i += simd::lanes) {
+      const simd::vd N = simd::load(s.p + i) * scale;
+      simd::store(out.N.data() + i, N);
+      simd::vd c[D];
+      for (int l = 0; l < D; ++l) c[l] = simd::load(s.dx[l] + i) - st.r[l];
       for (int k = 0; k < D; ++k) {
-        double g = 0.0;
-        for (int l = 0; l < D; ++l) g += J_inv(k, l) * c[l];
-        out.dN[i][k] = -out.N[i] * g;
+        simd::vd g = st.J_inv(k, 0) * c[0];
+        for (int l = 1; l < D; ++l) g += st.J_inv(k, l) * c[l];
+        g = -N * g;
+        for (int j = 0; j < simd::lanes; ++j) dN[(i + j) * D + k] = g[j];
       }
     }
+    out.N.resize(static_cast<std::size_t>(n));
+    out.dN.resize(static_cast<std::size_t>(n));
   } else {
-    Vec<D> g_bar = Vec<D>::Zero();
-    for (int i = 0; i < n; ++i) {
-      out.dN[i] = prior_.grad_log_weight(s.offset(i)); // g_I, overwritten below
-      g_bar += out.N[i] * out.dN[i];
+    out.N.resize(static_cast<std::size_t>(n));
+    for (int i = 0; i < n; ++i) out.N[i] = s.p[i] * inv_Z;
+    if constexpr (Prior::kGaussian) { // beta_I of each node (Metric::node_spacing)
+      const auto grad_log = [&](int i) {
+        return Vec<D>(-2.0 * node_beta_[static_cast<std::size_t>(out.node[i])] * s.offset(i));
+      };
+      general_gradient(st, s, grad_log, out);
+    } else {
+      general_gradient(st, s, [&](int i) { return prior_.grad_log_weight(s.offset(i)); }, out);
     }
-    Mat<D> A = Mat<D>::Zero();
-    for (int i = 0; i < n; ++i) A.noalias() += (out.N[i] * (s.offset(i) - st.r)) * (out.dN[i] - g_bar).transpose();
-    const Mat<D> M = (Mat<D>::Identity() + A.transpose()) * J_inv;
-    for (int i = 0; i < n; ++i) out.dN[i] = out.N[i] * (out.dN[i] - g_bar - M * (s.offset(i) - st.r));
   }
+  bool zeros = false;
+  for (int i = 0; i < n; ++i) zeros = zeros || !(out.N[i] > 0.0);
   if (zeros) drop_zeros(out);
+}
+
+template <int D, class Prior>
+template <class GradLog>
+void MaxEntBasis<D, Prior>::general_gradient(const NewtonState<D>& st, const Support<D>& s, const GradLog& grad_log,
+                                             Stencil<D>& out) const {
+  const int n = s.n;
+  out.dN.resize(static_cast<std::size_t>(n));
+  Vec<D> g_bar = Vec<D>::Zero();
+  for (int i = 0; i < n; ++i) {
+    out.dN[i] = grad_log(i); // g_I, overwritten below
+    g_bar += out.N[i] * out.dN[i];
+  }
+  Mat<D> A = Mat<D>::Zero();
+  for (int i = 0; i < n; ++i) A.noalias() += (out.N[i] * (s.offset(i) - st.r)) * (out.dN[i] - g_bar).transpose();
+  const Mat<D> M = (Mat<D>::Identity() + A.transpose()) * st.J_inv;
+  for (int i = 0; i < n; ++i) out.dN[i] = out.N[i] * (out.dN[i] - g_bar - M * (s.offset(i) - st.r));
 }
 
 template <int D, class Prior> void MaxEntBasis<D, Prior>::drop_zeros(Stencil<D>& out) const {
@@ -898,10 +1070,12 @@ template <int D> std::unique_ptr<Basis<D>> make_lme_basis(NodeSet<D> nodes, cons
   const double h = nodes.spacing();
   if (!(h > 0.0) || !std::isfinite(h))
     throw InputError("lme basis: the nodal spacing must be > 0, got " + maxent::format_number(h));
+  const maxent::Metric metric = maxent::parse_metric(opt.metric, "lme");
   maxent::GaussianPrior<D> prior;
   prior.beta = opt.gamma_lme / (h * h);
   prior.max_exponent = -std::log(opt.tolerance);
-  return std::make_unique<maxent::MaxEntBasis<D, maxent::GaussianPrior<D>>>(std::move(nodes), opt, prior, "lme");
+  return std::make_unique<maxent::MaxEntBasis<D, maxent::GaussianPrior<D>>>(std::move(nodes), opt, prior, "lme",
+                                                                             metric);
 }
 
 template <int D> std::unique_ptr<Basis<D>> make_maxent_basis(NodeSet<D> nodes, const BasisOptions& opt) {
@@ -910,6 +1084,9 @@ template <int D> std::unique_ptr<Basis<D>> make_maxent_basis(NodeSet<D> nodes, c
   const double h = nodes.spacing();
   if (!(h > 0.0) || !std::isfinite(h))
     throw InputError("maxent basis: the nodal spacing must be > 0, got " + maxent::format_number(h));
+  if (maxent::parse_metric(opt.metric, "maxent") != maxent::Metric::isotropic)
+    throw InputError("maxent basis: metric '" + opt.metric + "' is not available (only lme adapts its metric; use "
+                     "metric = \"isotropic\")");
   maxent::CubicSplinePrior<D> prior;
   prior.d = opt.d_max * h;
   return std::make_unique<maxent::MaxEntBasis<D, maxent::CubicSplinePrior<D>>>(std::move(nodes), opt, prior,

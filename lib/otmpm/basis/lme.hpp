@@ -19,7 +19,9 @@
 #include <cmath>
 
 #include <mutex>
+#include <string>
 #include <string_view>
+#include <vector>
 
 namespace otmpm::maxent {
 
@@ -130,6 +132,28 @@ template <int D> struct NewtonState {
   double log_Z() const { return log_base + std::log(Z); }
 };
 
+/// How the locality of the LME prior adapts (BasisOptions::metric,
+/// docs/theory.md sect. 4.6).
+enum class Metric {
+  isotropic,    ///< beta = gamma_lme / h^2 for every point and node
+  deformation,  ///< beta_p = gamma_lme / h^2 M_p, M_p = (F_p F_p^T)^-1 scaled to det 1
+  node_spacing, ///< beta_I = gamma_lme / h_I^2, h_I = distance from node I to its nearest node
+};
+
+/// The metric named `name` ("isotropic", "deformation", "node_spacing");
+/// InputError naming `kind` and the choices otherwise.
+Metric parse_metric(const std::string& name, std::string_view kind);
+
+/// The prior of one point under Metric::deformation: w_I = exp(-dx^T B dx),
+/// B = beta M_p, nodes kept while dx^T B dx <= -ln(tol); every such node lies
+/// within `radius` of the point. `isotropic` when M_p = I exactly (the
+/// isotropic code path, bit for bit).
+template <int D> struct PointMetric {
+  bool isotropic = true;
+  Mat<D> B = Mat<D>::Identity();
+  double radius = 0.0;
+};
+
 /// A maximum-entropy basis with prior `Prior` bound to a node set (see file
 /// comment). evaluate() finds the support by NodeSet::within, solves for lambda
 /// by the shared Newton solver and returns N_I and grad N_I. Thread-safe; no
@@ -139,7 +163,9 @@ public:
   /// Throws InputError for fewer than D + 1 nodes, newton_tolerance not finite
   /// and > 0, max_newton_iterations < 1 or a prior whose support radius is not
   /// finite and > 0.
-  MaxEntBasis(NodeSet<D> nodes, const BasisOptions& opt, const Prior& prior, std::string_view kind);
+  /// A metric other than isotropic needs the Gaussian prior (LME).
+  MaxEntBasis(NodeSet<D> nodes, const BasisOptions& opt, const Prior& prior, std::string_view kind,
+              Metric metric = Metric::isotropic);
 
   std::string_view kind() const override { return kind_; }
   const NodeSet<D>& nodes() const override { return nodes_; }
@@ -149,10 +175,19 @@ public:
   bool linearly_complete() const override { return true; }
   int max_stencil() const override;
   double search_radius() const override { return settings_.support_radius; }
-  /// The Lagrange multiplier of each point warm-starts its next solve.
-  PointStateUse point_state_use(bool) const override { return {.lambda = true}; }
+  /// The Lagrange multiplier of each point warm-starts its next solve; the
+  /// deformation metric reads the points' deformation gradients.
+  PointStateUse point_state_use(bool) const override {
+    return {.lambda = true, .deformation = metric_ == Metric::deformation};
+  }
 
   const Prior& prior() const { return prior_; }
+  Metric metric() const { return metric_; }
+  /// Metric::node_spacing: beta_I of each node (empty otherwise).
+  const std::vector<double>& node_beta() const { return node_beta_; }
+  /// The prior of the point with deformation gradient F (Metric::deformation);
+  /// BasisError naming `q` when F F^T is not finite and positive definite.
+  PointMetric<D> point_metric(const PointQuery<D>& q, const Mat<D>& F) const;
 
 protected:
   /// No state of its own: refreshes the search index and stencil bound after
@@ -163,7 +198,23 @@ private:
   /// Gathers the support of x: node ids into out.node, the offsets x - x_I
   /// and log w_I into out.scratch_w in the layout of support(), and the
   /// per-axis extent [lo, hi] of the offsets.
-  void gather_support(const PointQuery<D>& q, Stencil<D>& out, Vec<D>& lo, Vec<D>& hi) const;
+  /// `radius`: every support node lies within it; `log_weight(I, dx, w)` sets
+  /// w = log w_I and says whether node I is in the support.
+  template <class LogWeight>
+  void gather_support(const PointQuery<D>& q, double radius, const LogWeight& log_weight, Stencil<D>& out, Vec<D>& lo,
+                      Vec<D>& hi) const;
+  /// gather_support with the prior of the metric (pm: Metric::deformation).
+  void gather_metric_support(const PointQuery<D>& q, const PointMetric<D>& pm, Stencil<D>& out, Vec<D>& lo,
+                             Vec<D>& hi) const;
+  /// Metric::node_spacing: h_I, beta_I and the search radius of the current
+  /// node positions (on an untouched lattice h_I = h for every node).
+  void update_node_spacing();
+  /// The Gaussian prior's part of update_node_spacing.
+  void update_beta_by_spacing()
+    requires Prior::kGaussian;
+  /// True when every support node of `out` has the same beta_I (or the
+  /// metric does not vary beta by node): the closed-form LME gradient holds.
+  bool uniform_beta(const Stencil<D>& out) const;
   /// The Support view of out.scratch_w after gather_support: D arrays of
   /// offsets, log w_I, N_I and a trial buffer, each of stride
   /// simd::padded(candidates) doubles.
@@ -171,8 +222,14 @@ private:
   /// Throws unless x lies within the bounding box of its n support nodes
   /// (offsets x - x_I within [lo, hi] per axis).
   void check_extent(const PointQuery<D>& q, int n, const Vec<D>& lo, const Vec<D>& hi) const;
-  /// Fills out.N and out.dN from the converged state (and removes nodes with N_I = 0).
-  void finish_stencil(const NewtonState<D>& st, const Support<D>& s, Stencil<D>& out) const;
+  /// Fills out.N and out.dN from the converged state (and removes nodes with
+  /// N_I = 0); `closed_form`: the Gaussian prior with one beta (matrix) for
+  /// the whole support, grad N_I = -N_I J^{-1} (xbar - x_I).
+  void finish_stencil(const NewtonState<D>& st, const Support<D>& s, bool closed_form, Stencil<D>& out) const;
+  /// grad N_I = N_I (g_I - gbar - (I + A^T) J^{-1} (xbar - x_I)) with g_I =
+  /// grad_log(i) (see the file comment), after out.N was filled.
+  template <class GradLog>
+  void general_gradient(const NewtonState<D>& st, const Support<D>& s, const GradLog& grad_log, Stencil<D>& out) const;
   /// Removes the nodes whose N_I underflowed to zero (their gradient is zero too).
   void drop_zeros(Stencil<D>& out) const;
   [[noreturn]] void fail(const PointQuery<D>& q, const std::string& why) const;
@@ -182,6 +239,9 @@ private:
   Prior prior_;
   NewtonSettings settings_;
   std::string_view kind_;
+  Metric metric_ = Metric::isotropic;
+  double radius0_ = 0.0;          ///< the isotropic support radius R = h sqrt(-ln(tol) / gamma_lme)
+  std::vector<double> node_beta_; ///< Metric::node_spacing: beta_I
   mutable std::mutex bound_mutex_;
   mutable int bound_ = -1; ///< cached max_stencil(), -1 when stale
 };

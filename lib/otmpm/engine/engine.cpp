@@ -56,6 +56,7 @@ Engine<D>::Engine(EngineParts<D> parts)
     needs_F = needs_F || m->needs_deformation_gradient();
     p_modulus_.push_back(m->p_modulus());
   }
+  needs_F = needs_F || basis_->point_state_use(mode_.nodes_move()).deformation; // basis.metric = "deformation"
   if (needs_F && P_.F.empty()) P_.F.assign(static_cast<std::size_t>(P_.size()), Mat<D>::Identity());
   for (const auto& m : materials_) m->bind(P_);
   basis_->bind_points(P_.size(), mode_.nodes_move());
@@ -128,7 +129,7 @@ template <int D> void Engine<D>::step() {
 template <int D> void Engine<D>::evaluate_basis() {
   ScopedPhase timer(timers_, Phase::basis);
   try {
-    basis_->evaluate_points(P_.x, table_);
+    basis_->evaluate_points(P_.x, table_, P_.F.empty() ? nullptr : &P_.F);
     scatter_.invalidate();
   } catch (const BasisError& e) {
     unstable(std::string("basis evaluation failed: ") + e.what());

@@ -109,7 +109,7 @@ SimulationSection read_simulation(const TableReader& t) {
 }
 
 BasisOptions read_basis(const TableReader& t) {
-  t.only({"kind", "gamma_lme", "tolerance", "d_max", "newton_tolerance", "max_newton_iterations"});
+  t.only({"kind", "gamma_lme", "tolerance", "d_max", "newton_tolerance", "max_newton_iterations", "metric"});
   BasisOptions b;
   if (!t.has("kind")) t.missing("kind");
   b.kind = t.choice("kind", b.kind, names_of(basis_kinds(), [](const BasisKind& k) { return k.name; }));
@@ -122,6 +122,7 @@ BasisOptions read_basis(const TableReader& t) {
         "must be in (0, 1) (got " + fmt(b.newton_tolerance) + ")");
   b.max_newton_iterations = t.get<int>("max_newton_iterations", b.max_newton_iterations);
   check(b.max_newton_iterations >= 1, t.ref("max_newton_iterations"), "must be >= 1");
+  b.metric = t.choice("metric", b.metric, basis_metrics());
   return b;
 }
 

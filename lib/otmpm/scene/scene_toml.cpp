@@ -44,7 +44,8 @@ toml::table basis(const BasisOptions& b) {
                      {"tolerance", b.tolerance},
                      {"d_max", b.d_max},
                      {"newton_tolerance", b.newton_tolerance},
-                     {"max_newton_iterations", b.max_newton_iterations}};
+                     {"max_newton_iterations", b.max_newton_iterations},
+                     {"metric", b.metric}};
 }
 
 toml::table grid(const GridSection& g, int dim) {

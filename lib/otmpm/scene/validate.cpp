@@ -107,6 +107,12 @@ void check_basis(const Scene& s) {
         " needs an unperturbed Cartesian grid; this scene has grid.kind = \"", s.grid.kind, "\"");
   check(s, !kind->cartesian_only || !s.simulation.nodes_move(), "basis.kind", s.basis.kind,
         " needs a fixed Cartesian grid: its nodes cannot move (use simulation.mode = \"mpm\")");
+  const auto metrics = basis_metrics();
+  check(s, std::find(metrics.begin(), metrics.end(), s.basis.metric) != metrics.end(), "basis.metric",
+        "must be one of ", basis_metric_list(), " (got \"", s.basis.metric, "\")");
+  check(s, s.basis.metric == metrics.front() || kind->adapts_metric, "basis.metric", "\"", s.basis.metric,
+        "\" needs a basis that adapts its locality; basis.kind = \"", s.basis.kind, "\" has only \"",
+        metrics.front(), "\"");
 }
 
 void check_materials(const Scene& s) {
