@@ -8,9 +8,13 @@
 //
 // Exit status: 0 success, 1 the simulation became unstable (diagnosis
 // printed), 2 bad input (the message names file, line and key), 3 internal error.
+//
+// Under mpirun (or srun) `run` and `pair` run distributed over the ranks;
+// every rank ends with the same status and one rank prints the diagnosis.
 #include "commands.hpp"
 
 #include "otmpm/core.hpp"
+#include "otmpm/distributed/comm.hpp"
 
 #include <cstdio>
 #include <exception>
@@ -31,18 +35,14 @@ void usage(std::FILE* out) {
              out);
 }
 
-} // namespace
-
-int main(int argc, char** argv) {
-  const std::vector<std::string> args(argv + 1, argv + argc);
-  if (args.empty() || args[0] == "--help" || args[0] == "-h") {
-    usage(args.empty() ? stderr : stdout);
-    return args.empty() ? 2 : 0;
-  }
+/// Runs the command; returns its exit status, and in `message` the diagnosis of an error.
+int dispatch(const std::vector<std::string>& args, std::string& message) {
   const std::vector<std::string> rest(args.begin() + 1, args.end());
   try {
     if (args[0] == "run") return otmpm::cli::run_command(rest);
     if (args[0] == "pair") return otmpm::cli::pair_command(rest);
+    if (otmpm::distributed::Comm::world().size() > 1)
+      throw otmpm::InputError("'" + args[0] + "' runs in one process: start it without mpirun");
     if (args[0] == "basis") return otmpm::cli::basis_command(rest);
     if (args[0] == "study") return otmpm::cli::study_command(rest);
     if (args[0] == "--version") {
@@ -53,16 +53,30 @@ int main(int argc, char** argv) {
     usage(stderr);
     return 2;
   } catch (const otmpm::InputError& e) {
-    std::fprintf(stderr, "otmpm: error: %s\n", e.what());
+    message = std::string("otmpm: error: ") + e.what();
     return 2;
   } catch (const otmpm::InstabilityError& e) {
-    std::fprintf(stderr, "otmpm: unstable: %s\n", e.what());
+    message = std::string("otmpm: unstable: ") + e.what();
     return 1;
   } catch (const otmpm::BasisError& e) {
-    std::fprintf(stderr, "otmpm: error: %s\n", e.what());
+    message = std::string("otmpm: error: ") + e.what();
     return 2;
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "otmpm: internal error: %s\n", e.what());
+    message = std::string("otmpm: internal error: ") + e.what();
     return 3;
   }
+}
+
+} // namespace
+
+int main(int argc, char** argv) {
+  otmpm::distributed::Session mpi(argc, argv);
+  const std::vector<std::string> args(argv + 1, argv + argc);
+  if (args.empty() || args[0] == "--help" || args[0] == "-h") {
+    if (otmpm::distributed::Comm::world().root()) usage(args.empty() ? stderr : stdout);
+    return mpi.finish(args.empty() ? 2 : 0, "");
+  }
+  std::string message;
+  const int status = dispatch(args, message);
+  return mpi.finish(status, message);
 }

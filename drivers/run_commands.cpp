@@ -1,6 +1,7 @@
 // `otmpm run` and `otmpm pair`.
 #include "commands.hpp"
 
+#include "otmpm/distributed/comm.hpp"
 #include "otmpm/run/run.hpp"
 #include "otmpm/io/checkpoint.hpp"
 #include "otmpm/scene/scene.hpp"
@@ -55,9 +56,12 @@ SceneArgs parse_scene_args(const std::vector<std::string>& args, bool allow_out)
   return a;
 }
 
+/// True on the rank that prints (rank 0; the only rank of a serial run).
+bool prints() { return distributed::Comm::world().root(); }
+
 /// A progress bar on stderr when it is a terminal, redrawn at most 10 times a second.
 std::function<void(double, double, long)> progress_bar(bool quiet) {
-  if (quiet || !isatty(STDERR_FILENO)) return {};
+  if (quiet || !isatty(STDERR_FILENO) || !prints()) return {};
   auto last = std::make_shared<std::chrono::steady_clock::time_point>();
   return [last](double t, double t_end, long steps) {
     const auto now = std::chrono::steady_clock::now();
@@ -89,6 +93,7 @@ int run_command(const std::vector<std::string>& args) {
   opt.progress = progress_bar(a.quiet);
   const RunSummary s = a.restart.empty() ? run_scene(load_scene(a.scene, a.sets), opt)
                                          : restart_run(read_checkpoint(a.restart), opt);
+  if (!prints()) return s.exit_code;
   if (s.exit_code != 0) std::fprintf(stderr, "otmpm: %s\n", s.status.c_str());
   if (!a.quiet) print_phases(s);
   std::printf("%s\n", summary_line(s).c_str());
@@ -110,6 +115,7 @@ int pair_command(const std::vector<std::string>& args) {
     opt.progress = progress_bar(a.quiet);
     runs.push_back(run_scene(scene, opt));
   }
+  if (!prints()) return std::max(runs[0].exit_code, runs[1].exit_code);
   std::vector<std::string> names;
   for (const auto& r : runs)
     for (const auto& [n, v] : r.errors)

@@ -39,11 +39,18 @@ public:
                    double& work) const;
   /// sum over fixed components of 1/2 m_I v_prescribed^2 (zero for fixed supports).
   double prescribed_kinetic_energy(const std::vector<double>& m) const;
+  /// Only the nodes with counted[I] != 0 add to the impulse, the work and
+  /// the prescribed kinetic energy (a rank of a distributed run counts the
+  /// nodes it owns; its ghost nodes are constrained all the same). Default:
+  /// every node counts.
+  void count_only(std::vector<char> counted) { counted_ = std::move(counted); }
 
 private:
   Dirichlet<D> d_;
   std::vector<int> nodes_;       ///< the distinct nodes of d_.node, ascending
   std::vector<char> constrained_;
+  std::vector<char> counted_; ///< empty: every node counts
+  bool counts(int I) const { return counted_.empty() || counted_[static_cast<std::size_t>(I)]; }
 };
 
 extern template class Constraints<1>;

@@ -7,6 +7,7 @@
 #include "otmpm/parallel.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <limits>
 
@@ -47,10 +48,12 @@ template <int D> void NodalFields<D>::resize(int n) {
 template <int D>
 Engine<D>::Engine(EngineParts<D> parts)
     : basis_(std::move(parts.basis)), mode_(parts.mode), P_(std::move(parts.particles)),
-      materials_(std::move(parts.materials)), loads_(std::move(parts.loads)), settings_(parts.settings) {
+      materials_(std::move(parts.materials)), loads_(std::move(parts.loads)), settings_(parts.settings),
+      dist_(std::move(parts.distribution)) {
   check_parts();
   const int nodes = basis_->nodes().size();
   constraints_ = Constraints<D>(std::move(parts.dirichlet), nodes);
+  if (dist_) constraints_.count_only(dist_->owned_nodes());
   bool needs_F = false;
   for (const auto& m : materials_) {
     needs_F = needs_F || m->needs_deformation_gradient();
@@ -61,10 +64,11 @@ Engine<D>::Engine(EngineParts<D> parts)
   basis_->bind_points(P_.size(), mode_.nodes_move());
   nodal_.resize(nodes);
   node_spacing0_ = basis_->nodes().min_spacing();
-  if (settings_.consistent_mass) mass_matrix_ = std::make_unique<MassMatrix<D>>();
+  if (dist_) dist_->min({&node_spacing0_, 1});
+  if (settings_.consistent_mass && !dist_) mass_matrix_ = std::make_unique<MassMatrix<D>>();
   sum_particles(true); // initial checks, energy and wave speed
   energy_.initial = energy_.total();
-  external_power_ = loads_.power(0.0, P_, momentum_);
+  external_power_ = global_power(0.0, momentum_);
 }
 
 template <int D> Engine<D>::Engine(Engine&&) noexcept = default;
@@ -78,7 +82,7 @@ template <int D> void Engine<D>::check_parts() const {
   require<E>(finite_positive(settings_.h), "Engine: h = ", settings_.h, " must be finite and > 0");
   require<E>(settings_.dt ? finite_positive(*settings_.dt) : finite_positive(settings_.cfl), "Engine: the time step (",
              settings_.dt ? "dt" : "cfl", ") must be finite and > 0");
-  require<E>(P_.size() > 0, "Engine: no particles");
+  require<E>(P_.size() > 0 || dist_, "Engine: no particles");
   const std::size_t n = static_cast<std::size_t>(P_.size());
   const bool sized = P_.X.size() == n && P_.v.size() == n && P_.m.size() == n && P_.V.size() == n &&
                      P_.V0.size() == n && P_.rho.size() == n && P_.eps.size() == n && P_.sigma.size() == n &&
@@ -98,12 +102,15 @@ template <int D> double Engine<D>::stable_dt() const {
     dt = *settings_.dt;
   } else {
     const double c = wave_speed_; // max_p max(c_p, |v_p|), from the last sum_particles()
-    dt = settings_.cfl * mode_.cfl_spacing(*basis_, settings_.h, node_spacing0_) / c;
+    double h = mode_.cfl_spacing(*basis_, settings_.h, node_spacing0_);
+    if (dist_ && mode_.nodes_move()) dist_->min({&h, 1}); // the ranks' smallest (monotone in the spacing)
+    dt = settings_.cfl * h / c;
   }
   return std::min(dt, settings_.t_end - t_);
 }
 
 template <int D> void Engine<D>::step() {
+  if (dist_) dist_->before_step(*this);
   dt_ = stable_dt();
   if (!(dt_ > 0.0) || !std::isfinite(dt_))
     unstable("time step " + format_number(dt_) + " is not positive and finite");
@@ -119,7 +126,7 @@ template <int D> void Engine<D>::step() {
   sum_particles(true); // checks, energies, wave speed
   // Trapezoidal rule: exact for a constant load on a uniformly accelerating
   // body, where the one-sided rule would leave an O(dt) error in the balance.
-  const double power = loads_.power(t_, P_, momentum_);
+  const double power = global_power(t_, momentum_);
   energy_.external_work += 0.5 * dt_ * (external_power_ + power);
   external_power_ = power;
   check_energy();
@@ -127,12 +134,15 @@ template <int D> void Engine<D>::step() {
 
 template <int D> void Engine<D>::evaluate_basis() {
   ScopedPhase timer(timers_, Phase::basis);
-  try {
-    basis_->evaluate_points(P_.x, table_);
-    scatter_.invalidate();
-  } catch (const BasisError& e) {
-    unstable(std::string("basis evaluation failed: ") + e.what());
-  }
+  fallible([&] {
+    try {
+      basis_->evaluate_points(P_.x, table_);
+      scatter_.invalidate();
+    } catch (const BasisError& e) {
+      if (dist_) throw; // fallible() names the particle by its global id
+      unstable(std::string("basis evaluation failed: ") + e.what());
+    }
+  });
 }
 
 template <int D> void Engine<D>::to_nodes(const ToNodes<D>& what) {
@@ -146,6 +156,7 @@ template <int D> void Engine<D>::to_nodes(const ToNodes<D>& what) {
   else if (q && what.forces) to_nodes_impl<false, true, true>(what, nullptr);
   else if (q) to_nodes_impl<false, true, false>(what, nullptr);
   else if (what.forces) to_nodes_impl<false, false, true>(what, nullptr);
+  exchange_sums(what.mass, q, what.forces);
   if (what.mass) finish_mass();
 }
 
@@ -155,7 +166,17 @@ template <int D> void Engine<D>::update_stress_and_to_nodes(const Gradient<D>& g
   require<std::invalid_argument>(what.forces && !what.mass && !what.w,
                                  "Engine::update_stress_and_to_nodes: only the forces follow a stress update");
   if (!loads_.uniform() && loads_.any()) loads_.particle_forces(what.t, P_, fext_);
-  to_nodes_impl<false, false, true>(what, &g);
+  fallible([&] { to_nodes_impl<false, false, true>(what, &g); });
+  exchange_sums(false, false, true);
+}
+
+template <int D> void Engine<D>::exchange_sums(bool mass, bool momentum, bool forces) {
+  if (!dist_) return;
+  std::vector<NodalArray> fields;
+  if (mass) fields.push_back({nodal_.m.data(), 1});
+  if (momentum) fields.push_back({nodal_.q.data()->data(), D});
+  if (forces) fields.push_back({nodal_.f.data()->data(), D});
+  dist_->sum_nodal(fields);
 }
 
 template <int D>
@@ -209,9 +230,10 @@ void Engine<D>::to_nodes_impl(const ToNodes<D>& what, const Gradient<D>* g) {
 template <int D> void Engine<D>::finish_mass() {
   const int nodes = static_cast<int>(nodal_.m.size());
   // The largest nodal mass: a maximum, exact in any grouping.
-  const double m_max = blocked_reduce<MaxOf>(nodes, [&](long long I, MaxOf& acc) {
+  double m_max = blocked_reduce<MaxOf>(nodes, [&](long long I, MaxOf& acc) {
     acc.value = std::max(acc.value, nodal_.m[I]);
   }).value;
+  if (dist_) dist_->max({&m_max, 1});
   const double m_min = settings_.mass_tolerance * m_max;
   parallel_for(nodes, [&](long long I) { nodal_.active[I] = nodal_.m[I] > m_min; });
   if (mass_matrix_) mass_matrix_->assemble(table_, P_.m, nodal_.active, constraints_.constrained(), nodes);
@@ -222,13 +244,23 @@ void Engine<D>::solve_mass(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>
   ScopedPhase timer(timers_, Phase::nodal_update);
   const int n = static_cast<int>(r.size());
   y.resize(n);
-  const bool lumped = !mass_matrix_;
+  const bool lumped = !settings_.consistent_mass;
   parallel_for(n, [&](long long I) { y[I] = lumped && nodal_.active[I] ? Vec<D>(r[I] / nodal_.m[I]) : Vec<D>::Zero(); });
-  if (!lumped) mass_matrix_->solve(r, y);
+  if (lumped) return;
+  if (dist_) dist_->solve_consistent_mass(table_, P_.m, nodal_.m, nodal_.active, constraints_.constrained(), r, y);
+  else mass_matrix_->solve(r, y);
 }
 
 template <int D> void Engine<D>::apply_dirichlet_force(AlignedVector<Vec<D>>& f) {
-  constraints_.apply_force(f, nodal_.reaction, dt_, reaction_impulse_, energy_.reaction_work);
+  if (!dist_) return constraints_.apply_force(f, nodal_.reaction, dt_, reaction_impulse_, energy_.reaction_work);
+  // This rank's owned nodes only, summed over the ranks: impulse, then work.
+  Vec<D> impulse = Vec<D>::Zero();
+  double sums[D + 1] = {};
+  constraints_.apply_force(f, nodal_.reaction, dt_, impulse, sums[D]);
+  for (int k = 0; k < D; ++k) sums[k] = impulse[k];
+  dist_->sum(sums);
+  for (int k = 0; k < D; ++k) reaction_impulse_[k] += sums[k];
+  energy_.reaction_work += sums[D];
 }
 
 template <int D> void Engine<D>::to_particles(const ToParticles<D>& what) {
@@ -238,7 +270,7 @@ template <int D> void Engine<D>::to_particles(const ToParticles<D>& what) {
 template <int D>
 void Engine<D>::to_particles_and_update_stress(const ToParticles<D>& what, const Gradient<D>& g) {
   ScopedPhase timer(timers_, Phase::to_particles);
-  parallel_chunks(P_.size(), [&](long long begin, long long end) {
+  fallible([&] { parallel_chunks(P_.size(), [&](long long begin, long long end) {
     Mat<D> H[kStressBatch];
     for (int p0 = static_cast<int>(begin); p0 < end; p0 += kStressBatch) {
       const int p1 = std::min(static_cast<int>(end), p0 + kStressBatch);
@@ -260,13 +292,15 @@ void Engine<D>::to_particles_and_update_stress(const ToParticles<D>& what, const
       }
       if (g.field) update_materials(p0, p1, H);
     }
-  });
+  }); });
 }
 
 template <int D> void Engine<D>::update_stress(const Gradient<D>& g) {
   ScopedPhase timer(timers_, Phase::constitutive);
-  parallel_chunks(P_.size(), [&](long long begin, long long end) {
-    update_stress_range(g, static_cast<int>(begin), static_cast<int>(end));
+  fallible([&] {
+    parallel_chunks(P_.size(), [&](long long begin, long long end) {
+      update_stress_range(g, static_cast<int>(begin), static_cast<int>(end));
+    });
   });
 }
 
@@ -292,11 +326,64 @@ template <int D> void Engine<D>::update_materials(int p0, int p1, const Mat<D>* 
 template <int D> void Engine<D>::advect_nodes(const AlignedVector<Vec<D>>& dx) {
   if (!mode_.nodes_move()) return;
   ScopedPhase timer(timers_, Phase::nodal_update);
+  // Ranks agree on the increments first: a family may meet the other ranks
+  // while it advects (the B-spline knots are global).
+  if (dist_)
+    fallible([&] {
+      for (std::size_t I = 0; I < dx.size(); ++I)
+        if (!dx[I].allFinite()) unstable("the increment of node " + std::to_string(I) + " is not finite");
+    });
   mode_.advect(*basis_, dx);
 }
 
+template <int D> double Engine<D>::global_power(double t, const Vec<D>& momentum) const {
+  double power = loads_.power(t, P_, momentum); // uniform: b . momentum, already global
+  if (dist_ && !loads_.uniform()) dist_->sum({&power, 1});
+  return power;
+}
+
+template <int D> double Engine<D>::external_power(double t) const { return global_power(t, momentum()); }
+
+/// A leading "particle P at " of a basis error: P, and where the rest starts.
+static bool leading_particle(const std::string& what, int& p, std::size_t& rest) {
+  const std::string prefix = "particle ";
+  if (what.rfind(prefix, 0) != 0) return false;
+  std::size_t i = prefix.size(), j = i;
+  while (j < what.size() && std::isdigit(static_cast<unsigned char>(what[j]))) ++j;
+  if (j == i || j > i + 9 || what.compare(j, 4, " at ") != 0) return false;
+  p = std::stoi(what.substr(i, j - i));
+  rest = j;
+  return true;
+}
+
+template <int D> template <class Stage> void Engine<D>::fallible(Stage&& stage) {
+  if (!dist_) return stage();
+  LocalFailure failure;
+  bool failed = true;
+  const std::string when = "step " + std::to_string(step_) + ", t = " + format_number(t_) + " s: ";
+  try {
+    stage();
+    failed = false;
+  } catch (const ParticleFailure& f) {
+    failure.key = particle_id(f.particle);
+    failure.message = when + "particle " + std::to_string(failure.key) + " at " + format_point<D>(P_.x[f.particle]) +
+                      ": " + f.what;
+  } catch (const BasisError& e) {
+    const std::string what = e.what();
+    int p = -1;
+    std::size_t rest = 0;
+    const bool named = leading_particle(what, p, rest) && p >= 0 && p < P_.size();
+    if (named) failure.key = particle_id(p);
+    failure.message = when + "basis evaluation failed: " +
+                      (named ? "particle " + std::to_string(failure.key) + what.substr(rest) : what);
+  } catch (const InstabilityError& e) {
+    failure.message = e.what();
+  }
+  dist_->agree(failed ? &failure : nullptr);
+}
+
 template <int D> void Engine<D>::unstable(int p, const std::string& what) const {
-  unstable("particle " + std::to_string(p) + " at " + format_point<D>(P_.x[p]) + ": " + what);
+  unstable("particle " + std::to_string(particle_id(p)) + " at " + format_point<D>(P_.x[p]) + ": " + what);
 }
 
 template <int D> void Engine<D>::unstable(const std::string& what) const {

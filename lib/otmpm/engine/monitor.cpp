@@ -8,6 +8,7 @@
 #include "otmpm/parallel.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 
 namespace otmpm {
@@ -45,17 +46,26 @@ template <int D> struct VecSum {
 } // namespace
 
 template <int D> Vec<D> Engine<D>::momentum() const {
-  return blocked_reduce<VecSum<D>>(P_.size(), [&](long long p, VecSum<D>& s) { s.v += P_.m[p] * P_.v[p]; }).v;
+  Vec<D> m = blocked_reduce<VecSum<D>>(P_.size(), [&](long long p, VecSum<D>& s) { s.v += P_.m[p] * P_.v[p]; }).v;
+  if (dist_) dist_->sum({m.data(), D});
+  return m;
 }
 
 template <int D> void Engine<D>::update_energy() { sum_particles(false); }
 
 template <int D> void Engine<D>::sum_particles(bool check) {
   // Checks in particle order within each block: the lowest failing particle
-  // is reported, as a serial loop would.
-  const auto s = blocked_reduce_ranges<ParticleSums<D>>(P_.size(), [&](long long b0, long long b1, ParticleSums<D>& acc) {
+  // is reported, as a serial loop would. A rank of a distributed run notes
+  // a failure and looks for its lowest global id afterwards (agree_checks).
+  std::atomic<bool> failed{false};
+  auto s = blocked_reduce_ranges<ParticleSums<D>>(P_.size(), [&](long long b0, long long b1, ParticleSums<D>& acc) {
     for (int p = static_cast<int>(b0); p < b1; ++p) {
-      if (check) check_particle(p);
+      if (check && !dist_) check_particle(p);
+      else if (check) try {
+          check_particle(p);
+        } catch (const InstabilityError&) {
+          failed.store(true, std::memory_order_relaxed);
+        }
       const double v2 = P_.v[p].squaredNorm();
       acc.kinetic += 0.5 * P_.m[p] * v2;
       acc.momentum += P_.m[p] * P_.v[p];
@@ -70,6 +80,15 @@ template <int D> void Engine<D>::sum_particles(bool check) {
       r0 = r1;
     }
   });
+  if (dist_) {
+    if (check) agree_checks(failed.load());
+    double sums[3 + D] = {s.kinetic, s.strain, s.dissipated};
+    for (int k = 0; k < D; ++k) sums[3 + k] = s.momentum[k];
+    dist_->sum(sums);
+    dist_->max({&s.wave_speed2, 1});
+    s.kinetic = sums[0], s.strain = sums[1], s.dissipated = sums[2];
+    for (int k = 0; k < D; ++k) s.momentum[k] = sums[3 + k];
+  }
   energy_.kinetic = s.kinetic;
   energy_.strain = s.strain;
   energy_.dissipated = s.dissipated;
@@ -83,6 +102,18 @@ template <int D> void Engine<D>::check_particle(int p) const {
   if (!mode_.keeps_inside(P_.x[p], P_.v[p], dt_)) unstable(p, mode_.leaving(P_.x[p], P_.v[p]));
 }
 
+template <int D> void Engine<D>::agree_checks(bool failed) const {
+  LocalFailure first;
+  for (int p = 0; failed && p < P_.size(); ++p) {
+    try {
+      check_particle(p);
+    } catch (const InstabilityError& e) {
+      if (particle_id(p) < first.key) first = {particle_id(p), e.what(), true};
+    }
+  }
+  dist_->agree(failed ? &first : nullptr);
+}
+
 template <int D> void Engine<D>::check_particles_inside() const {
   for (int p = 0; p < P_.size(); ++p) check_particle(p);
 }
@@ -93,7 +124,8 @@ template <int D> void Engine<D>::check_energy() const {
   // start of the step in fe/musl/otm/unified) has done any work: the kinetic
   // energy of the prescribed nodal motion, sum 1/2 m_I v_Ik^2, covers that
   // (zero for fixed supports).
-  const double boundary_kinetic = constraints_.prescribed_kinetic_energy(nodal_.m);
+  double boundary_kinetic = constraints_.prescribed_kinetic_energy(nodal_.m);
+  if (dist_) dist_->sum({&boundary_kinetic, 1});
   const double reference =
       std::max(energy_.initial + std::abs(energy_.external_work) + std::abs(energy_.reaction_work) + boundary_kinetic,
                energy_floor);
@@ -111,6 +143,7 @@ template <int D> void Engine<D>::check_energy() const {
   template void Engine<D>::sum_particles(bool);              \
   template void Engine<D>::check_particle(int) const;        \
   template void Engine<D>::check_particles_inside() const;   \
+  template void Engine<D>::agree_checks(bool) const;        \
   template void Engine<D>::check_energy() const;
 OTMPM_INSTANTIATE(1)
 OTMPM_INSTANTIATE(2)

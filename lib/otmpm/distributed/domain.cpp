@@ -1,0 +1,213 @@
+/// \file domain.cpp
+/// One rank's share of a distributed run (domain.hpp): migration, failure
+/// agreement and the consistent mass solve by conjugate gradients.
+#include "otmpm/distributed/domain.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <limits>
+
+namespace otmpm::distributed {
+
+template <int D>
+Domain<D>::Domain(const Comm& comm, Setup s)
+    : comm_(comm), lattice_(std::move(s.lattice)), decomposition_(std::move(s.decomposition)),
+      exchange_(lattice_, decomposition_, comm.rank()), nodes_move_(s.nodes_move), gid_(std::move(s.global_ids)),
+      global_particles_(s.global_particles), hint_offset_(s.hint_offset), traction_area_(std::move(s.traction_area)) {
+  IndexBox<D> near = decomposition_.box(comm_.rank());
+  for (int k = 0; k < D; ++k) --near.lo[k], ++near.hi[k];
+  for (int q = 0; q < decomposition_.ranks(); ++q)
+    if (q != comm_.rank() && !near.intersect(decomposition_.box(q)).empty()) neighbours_.push_back(q);
+}
+
+template <int D> void Domain<D>::before_step(Engine<D>& e) {
+  ++stats_.steps;
+  if (!nodes_move_) migrate(e);
+}
+
+template <int D> std::vector<Column> Domain<D>::columns(Engine<D>& e) {
+  std::vector<Column> c = particle_columns(e.particles(), e.basis().point_state());
+  c.push_back(column_of(gid_));
+  for (auto& a : traction_area_) c.push_back(column_of(a));
+  return c;
+}
+
+template <int D> void Domain<D>::migrate(Engine<D>& e) {
+  Particles<D>& P = e.particles();
+  const std::size_t n = static_cast<std::size_t>(P.size());
+  const IndexBox<D>& mine = decomposition_.box(comm_.rank());
+  std::vector<int> dest(n, -1);
+  double flags[2] = {0.0, 0.0}; // some particle leaves; some goes to a rank that is not a neighbour
+  for (std::size_t p = 0; p < n; ++p) {
+    const Index<D> c = home_cell(P.x[p], P.X[p]);
+    if (mine.contains(c)) continue;
+    dest[p] = decomposition_.owner(c);
+    flags[0] = 1.0;
+    if (!std::binary_search(neighbours_.begin(), neighbours_.end(), dest[p])) flags[1] = 1.0;
+  }
+  comm_.max(flags);
+  if (flags[0] == 0.0) return;
+  std::vector<Index<D>>& hints = e.basis().point_state().cell_hint;
+  for (Index<D>& h : hints)
+    for (int k = 0; k < D; ++k) h[k] += hint_offset_[k]; // hints travel as global cells
+  const std::vector<Column> cols = columns(e);
+  std::vector<char> keep(n, 1);
+  std::vector<Bytes> received;
+  const bool far = flags[1] != 0.0;
+  std::vector<Bytes> out(far ? static_cast<std::size_t>(comm_.size()) : neighbours_.size());
+  for (std::size_t p = 0; p < n; ++p) {
+    if (dest[p] < 0) continue;
+    keep[p] = 0;
+    ++stats_.migrated;
+    const std::size_t to = far ? static_cast<std::size_t>(dest[p])
+                               : static_cast<std::size_t>(std::lower_bound(neighbours_.begin(), neighbours_.end(),
+                                                                           dest[p]) - neighbours_.begin());
+    pack_row(cols, p, out[to]);
+  }
+  received = far ? comm_.alltoall(out) : comm_.exchange(neighbours_, out, neighbours_);
+  keep_rows(cols, keep, n);
+  std::size_t count = 0;
+  for (std::size_t p = 0; p < n; ++p) count += keep[p];
+  for (const Bytes& in : received) count = append_rows(cols, in, count);
+  for (Index<D>& h : hints)
+    for (int k = 0; k < D; ++k) h[k] -= hint_offset_[k];
+  // The Verlet lists belong to particle indices that changed: start afresh
+  // (they change the cost of the next basis evaluation, never its result).
+  e.basis().point_state().neighbours = NeighbourLists<D>();
+  rebuild_tractions(e);
+}
+
+template <int D> void Domain<D>::rebuild_tractions(Engine<D>& e) const {
+  auto& loads = e.loads().tractions;
+  for (std::size_t i = 0; i < loads.size() && i < traction_area_.size(); ++i) {
+    loads[i].particle.clear();
+    loads[i].area.clear();
+    for (std::size_t p = 0; p < traction_area_[i].size(); ++p)
+      if (traction_area_[i][p] >= 0.0) {
+        loads[i].particle.push_back(static_cast<int>(p));
+        loads[i].area.push_back(traction_area_[i][p]);
+      }
+  }
+}
+
+template <int D> void Domain<D>::agree(const LocalFailure* failure) {
+  constexpr long long none = std::numeric_limits<long long>::max();
+  long long key = none;
+  if (failure) key = failure->key >= LocalFailure::kNoParticle ? LocalFailure::kNoParticle + comm_.rank() : failure->key;
+  const long long best = comm_.min(static_cast<std::int64_t>(key));
+  if (best == none) return;
+  const int winner = static_cast<int>(comm_.min(static_cast<std::int64_t>(key == best ? comm_.rank() : comm_.size())));
+  const bool mine = comm_.rank() == winner;
+  std::string message = comm_.broadcast(mine ? std::string(failure->instability ? "I" : "B") + failure->message : "",
+                                        winner);
+  const bool instability = message.front() == 'I';
+  message.erase(0, 1);
+  if (instability) throw InstabilityError(message);
+  throw InputError(message);
+}
+
+// ---------------------------------------------------------------- consistent mass
+
+namespace {
+
+/// q = M p on this rank's particles (partial sums; the caller sums them over
+/// the ranks): q_I = sum_p N_Ip m_p sum_J N_Jp p_J.
+template <int D>
+void mass_times(const BasisTable<D>& table, const std::vector<double>& m_p, const AlignedVector<Vec<D>>& p,
+                AlignedVector<Vec<D>>& q) {
+  std::fill(q.begin(), q.end(), Vec<D>::Zero());
+  for (int a = 0; a < table.rows(); ++a) {
+    Vec<D> s = Vec<D>::Zero();
+    for (int e = table.begin(a); e < table.end(a); ++e) s += table.N[e] * p[table.node[e]];
+    s *= m_p[static_cast<std::size_t>(a)];
+    for (int e = table.begin(a); e < table.end(a); ++e) q[table.node[e]] += table.N[e] * s;
+  }
+}
+
+} // namespace
+
+template <int D>
+void Domain<D>::solve_consistent_mass(const BasisTable<D>& table, const std::vector<double>& m_p,
+                                      const std::vector<double>& m_lumped, const std::vector<char>& active,
+                                      const std::vector<char>& constrained, const AlignedVector<Vec<D>>& r,
+                                      AlignedVector<Vec<D>>& y) {
+  // Conjugate gradients on the free components, preconditioned by the
+  // lumped mass (the row sums of M), all D components in one pass per
+  // iteration; dot products over the owned nodes, summed over the ranks.
+  const std::size_t n = r.size();
+  const std::vector<char>& owned = exchange_.owned();
+  std::vector<Vec<D>> mask(n, Vec<D>::Zero());
+  for (std::size_t I = 0; I < n; ++I)
+    for (int k = 0; k < D; ++k) mask[I][k] = active[I] && !constrained[I * D + static_cast<std::size_t>(k)] ? 1.0 : 0.0;
+  AlignedVector<Vec<D>> x(n, Vec<D>::Zero()), res(n), z(n), p(n), q(n);
+  auto precondition = [&] {
+    for (std::size_t I = 0; I < n; ++I) z[I] = active[I] ? Vec<D>(res[I] / m_lumped[I]) : Vec<D>::Zero();
+  };
+  // dot(a, b) and dot(c, d) over the owned nodes, per component, summed over the ranks
+  auto dots = [&](const AlignedVector<Vec<D>>& a, const AlignedVector<Vec<D>>& b, const AlignedVector<Vec<D>>& c,
+                  const AlignedVector<Vec<D>>& d, Vec<D>& ab, Vec<D>& cd) {
+    double s[2 * D] = {};
+    for (std::size_t I = 0; I < n; ++I)
+      if (owned[I])
+        for (int k = 0; k < D; ++k) s[k] += a[I][k] * b[I][k], s[D + k] += c[I][k] * d[I][k];
+    comm_.sum(s);
+    for (int k = 0; k < D; ++k) ab[k] = s[k], cd[k] = s[D + k];
+  };
+  for (std::size_t I = 0; I < n; ++I) res[I] = r[I].cwiseProduct(mask[I]);
+  precondition();
+  p = z;
+  Vec<D> rz, bb;
+  dots(res, z, res, res, rz, bb);
+  std::array<bool, D> done{};
+  for (int k = 0; k < D; ++k) done[static_cast<std::size_t>(k)] = bb[k] == 0.0;
+  int it = 0;
+  double worst = 0.0;
+  for (; it < kMassMaxIterations && !std::all_of(done.begin(), done.end(), [](bool b) { return b; }); ++it) {
+    mass_times(table, m_p, p, q);
+    NodalArray field{q.data()->data(), D};
+    exchange_.sum(comm_, {&field, 1});
+    for (std::size_t I = 0; I < n; ++I) q[I] = q[I].cwiseProduct(mask[I]);
+    Vec<D> pq, unused;
+    dots(p, q, p, q, pq, unused);
+    Vec<D> alpha = Vec<D>::Zero();
+    for (int k = 0; k < D; ++k)
+      if (!done[static_cast<std::size_t>(k)]) alpha[k] = rz[k] / pq[k];
+    for (std::size_t I = 0; I < n; ++I) {
+      x[I] += alpha.cwiseProduct(p[I]);
+      res[I] -= alpha.cwiseProduct(q[I]);
+    }
+    precondition();
+    Vec<D> rz_new, rr;
+    dots(res, z, res, res, rz_new, rr);
+    worst = 0.0;
+    for (int k = 0; k < D; ++k) {
+      const std::size_t kk = static_cast<std::size_t>(k);
+      if (done[kk]) continue;
+      const double rel = std::sqrt(rr[k] / bb[k]);
+      worst = std::max(worst, rel);
+      if (!(rel > kMassTolerance)) done[kk] = true;
+    }
+    Vec<D> beta = Vec<D>::Zero();
+    for (int k = 0; k < D; ++k)
+      if (!done[static_cast<std::size_t>(k)]) beta[k] = rz_new[k] / rz[k];
+    for (std::size_t I = 0; I < n; ++I) p[I] = z[I] + beta.cwiseProduct(p[I]);
+    rz = rz_new;
+  }
+  if (std::getenv("OTMPM_DEBUG_CG") && comm_.root()) std::fprintf(stderr, "cg %d it, rel %.3e\n", it, worst);
+  ++stats_.cg_solves;
+  stats_.cg_iterations += it;
+  stats_.cg_worst_residual = std::max(stats_.cg_worst_residual, worst);
+  if (!std::all_of(done.begin(), done.end(), [](bool b) { return b; }))
+    throw InstabilityError("consistent mass: conjugate gradients did not converge in " +
+                           std::to_string(kMassMaxIterations) + " iterations (relative residual " +
+                           format_number(worst) + ")");
+  y.resize(n);
+  for (std::size_t I = 0; I < n; ++I) y[I] = x[I].cwiseProduct(mask[I]);
+}
+
+template class Domain<1>;
+template class Domain<2>;
+template class Domain<3>;
+
+} // namespace otmpm::distributed
