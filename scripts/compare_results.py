@@ -23,6 +23,18 @@ def frames(f):
     return sorted(f["frames"].keys())
 
 
+def histories(f):
+    """Paths of the history datasets: probes and root-level series."""
+    out = []
+    for name, g in f.items():
+        if name == "frames" or not isinstance(g, h5py.Group):
+            continue
+        groups = g.values() if name == "probes" else [g]
+        for h in groups:
+            out += [h.name + "/" + k for k in h.keys()]
+    return sorted(out)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("a")
@@ -61,13 +73,30 @@ def main():
                 diff = np.max(np.abs(a - b)) if a.size else 0.0
                 rel = diff / scale if scale > 0 else diff
                 worst[field] = max(worst.get(field, 0.0), rel)
+        # histories: /probes/<name>/<field> and root-level series (/energy/<field>)
+        for path in histories(fa):
+            if wanted:
+                break
+            if path not in fb:
+                print(f"history {path} missing in {args.b}")
+                return 1
+            a, b = fa[path][()], fb[path][()]
+            if a.shape != b.shape:
+                print(f"history {path}: shape {a.shape} vs {b.shape}")
+                return 1
+            if args.bitwise and a.tobytes() != b.tobytes():
+                print(f"history {path}: not the same bits")
+                return 1
+            scale = np.max(np.abs(a)) if a.size else 0.0
+            rel = (np.max(np.abs(a - b)) / scale if scale > 0 else np.max(np.abs(a - b))) if a.size else 0.0
+            worst[path] = max(worst.get(path, 0.0), rel)
     status = 0
     for field, rel in sorted(worst.items()):
         flag = ""
         if rel > args.tol:
             flag = f"  > {args.tol:g}"
             status = 1
-        print(f"{field:14s} {rel:.3e}{flag}")
+        print(f"{field:24s} {rel:.3e}{flag}")
     return status
 
 

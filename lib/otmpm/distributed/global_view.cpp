@@ -126,6 +126,72 @@ template <int D> void GlobalView<D>::on_writer(const std::function<void()>& writ
   }
 }
 
+template <int D> void GlobalView<D>::collectively(const std::function<void()>& write) const {
+  if (!d_) return write();
+  const Comm& comm = d_->comm();
+  std::string outcome = "o";
+  try {
+    write();
+  } catch (const InputError& e) {
+    outcome = std::string("i") + e.what();
+  } catch (const InstabilityError& e) {
+    outcome = std::string("u") + e.what();
+  } catch (const std::exception& e) {
+    outcome = std::string("x") + e.what();
+  }
+  const auto first = comm.min(static_cast<std::int64_t>(outcome != "o" ? comm.rank() : comm.size()));
+  if (first == comm.size()) return;
+  outcome = comm.broadcast(outcome, static_cast<int>(first));
+  const std::string message = outcome.substr(1);
+  if (outcome.front() == 'i') throw InputError(message);
+  if (outcome.front() == 'u') throw InstabilityError(message);
+  throw std::runtime_error(message);
+}
+
+template <int D> ParallelIo GlobalView<D>::parallel_io() const {
+  ParallelIo io;
+  if (!d_) return io;
+  const Comm& comm = d_->comm();
+  io.mpi_comm = comm.mpi_comm();
+  io.root = comm.root();
+  io.all = [&comm](bool ok) { return comm.min(static_cast<std::int64_t>(ok)) != 0; };
+  return io;
+}
+
+template <int D> typename GlobalView<D>::Block GlobalView<D>::block(const double* local, int cols) const {
+  const std::size_t n = static_cast<std::size_t>(e_.particles().size()), c = static_cast<std::size_t>(cols);
+  Block b;
+  if (!d_) {
+    b.values.assign(local, local + n * c);
+    b.count = static_cast<long long>(n);
+    return b;
+  }
+  const Comm& comm = d_->comm();
+  const long long N = d_->global_particles(), P = comm.size();
+  auto first_of = [&](long long r) { return N * r / P; };
+  std::vector<Bytes> out(static_cast<std::size_t>(P));
+  for (std::size_t p = 0; p < n; ++p) {
+    const long long g = d_->global_id(static_cast<int>(p));
+    long long r = std::min(P - 1, g * P / std::max(N, 1LL));
+    while (first_of(r) > g) --r;
+    while (first_of(r + 1) <= g) ++r;
+    put(out[static_cast<std::size_t>(r)], static_cast<std::int64_t>(g));
+    put_bytes(out[static_cast<std::size_t>(r)], local + p * c, c * sizeof(double));
+  }
+  const std::vector<Bytes> in = comm.alltoall(out);
+  b.first = first_of(comm.rank());
+  b.count = first_of(comm.rank() + 1) - b.first;
+  b.values.assign(static_cast<std::size_t>(b.count) * c, 0.0);
+  for (const Bytes& msg : in) {
+    Reader r(msg);
+    while (!r.done()) {
+      const long long g = r.get<std::int64_t>();
+      r.get_bytes(b.values.data() + static_cast<std::size_t>(g - b.first) * c, c * sizeof(double));
+    }
+  }
+  return b;
+}
+
 template <int D> long long GlobalView<D>::nodes() const {
   if (!d_) return e_.basis().nodes().size();
   long long n = 1;

@@ -7,6 +7,7 @@
 /// number of ranks). For a serial engine every operation is the plain
 /// serial one.
 #include "otmpm/distributed/local_parts.hpp"
+#include "otmpm/io/results.hpp"
 #include "otmpm/state.hpp"
 
 #include <functional>
@@ -25,6 +26,15 @@ public:
   /// the same (InputError, InstabilityError, else std::runtime_error) with
   /// its message (collective in a distributed run).
   void on_writer(const std::function<void()>& write) const;
+  /// Runs `write` on every rank (the calls of a parallel result file); when
+  /// it throws on any rank, every rank throws what the lowest such rank threw.
+  void collectively(const std::function<void()>& write) const;
+  /// How the ranks write one result file together (a serial file: none).
+  ParallelIo parallel_io() const;
+  /// The writing rank's `text` on every rank.
+  std::string share(const std::string& text) const { return d_ ? d_->comm().broadcast(text, 0) : text; }
+  /// The largest `value` of all ranks.
+  double max(double value) const { return d_ ? d_->comm().max(value) : value; }
   /// Particles of all ranks.
   long long particles() const { return d_ ? d_->global_particles() : e_.particles().size(); }
   /// Nodes (lattice points) of all ranks.
@@ -42,6 +52,14 @@ public:
   /// rows in global order (empty elsewhere; the local rows themselves in a
   /// serial run).
   std::vector<double> gather(const double* local, int cols) const;
+  /// This rank's block of a frame in global order: rows [first, first +
+  /// count) of all particles' `cols` values (the ranks' blocks tile the
+  /// frame; a serial run's block is the whole frame).
+  struct Block {
+    std::vector<double> values;
+    long long first = 0, count = 0;
+  };
+  Block block(const double* local, int cols) const;
   /// sqrt(sum of all ranks' squared errors / particles) (rms_error in a serial run).
   double rms(const std::vector<double>& squared) const;
   /// The checkpoint of a rank's engine (Engine::save_state) as a serial

@@ -67,12 +67,18 @@ public:
                                : scene.output.file;
     checkpoint_path_ = checkpoint_path(scene, path_);
     if (resume) frames_ = static_cast<int>(resume->group("recorder").integer("frames"));
-    view_.on_writer([&] {
-      std::optional<PreviousResults> previous;
-      if (resume) previous = set_aside_results(resume->group("recorder").string("result_file"), path_);
-      writer_ = std::make_unique<ResultWriter>(path_, scene.text, D);
-      if (previous) continue_results(*previous, resume->group("recorder"));
-    });
+    std::optional<PreviousResults> previous;
+    if (resume) previous = set_aside(resume->group("recorder").string("result_file"));
+    view_.collectively([&] { writer_ = std::make_unique<ResultWriter>(path_, scene.text, D, view_.parallel_io()); });
+    if (previous) continue_results(*previous, resume->group("recorder"));
+  }
+
+  /// set_aside_results by the writing rank, its answer on every rank.
+  PreviousResults set_aside(const std::string& previous_file) {
+    PreviousResults p;
+    view_.on_writer([&] { p = set_aside_results(previous_file, path_); });
+    const std::string shared = view_.share((p.set_aside ? "1" : "0") + p.path);
+    return {shared.substr(1), shared.front() == '1'};
   }
 
   /// Writes a checkpoint after every output.checkpoint_every steps (not after
@@ -133,7 +139,7 @@ public:
       if (exact_ && pr.samples > 0) s.errors["history_error_" + pr.name] = std::sqrt(pr.sum_sq / pr.samples);
     if (exact_ && s.exit_code == 0) final_errors(s);
     if (results_) s.out_file = path_;
-    view_.on_writer([&] { write_summary(s); });
+    view_.collectively([&] { write_summary(s); });
   }
 
   /// The final attributes and status of the result file.
@@ -155,7 +161,7 @@ public:
 
   /// Marks the file with a diagnosis (the file stays valid).
   void set_status(const std::string& status) {
-    view_.on_writer([&] {
+    view_.collectively([&] {
       if (!writer_) return;
       writer_->set_attribute("status", status);
       writer_->publish();
@@ -202,8 +208,10 @@ private:
 
   /// Copies the frames and history samples written before the checkpoint.
   void continue_results(const PreviousResults& previous, const StateGroup& g) {
-    copy_results(previous.path, *writer_, static_cast<int>(g.integer("frames")), histories(), scene_.output.fields);
-    release_previous_results(previous);
+    view_.collectively([&] {
+      copy_results(previous.path, *writer_, static_cast<int>(g.integer("frames")), histories(), scene_.output.fields);
+    });
+    view_.on_writer([&] { release_previous_results(previous); });
   }
 
   void record(double t) {
@@ -222,7 +230,7 @@ private:
     std::vector<std::vector<double>> buffers(scene_.output.fields.size());
     const std::vector<FieldView> fields = frame_fields(buffers);
     ++frames_;
-    view_.on_writer([&] {
+    view_.collectively([&] {
       for (const auto& [name, values] : samples) writer_->append_probe(name, t, values);
       const EnergyBalance& E = e_.energy();
       std::vector<std::pair<std::string, double>> energy{
@@ -245,8 +253,9 @@ private:
         fields.push_back({name, P.size(), d.cols, d.data});
         continue;
       }
-      buffers[i] = view_.gather(d.data, d.cols);
-      fields.push_back({name, static_cast<int>(view_.particles()), d.cols, buffers[i].data()});
+      auto block = view_.block(d.data, d.cols); // this rank's rows of the frame, in global order
+      buffers[i] = std::move(block.values);
+      fields.push_back({name, static_cast<int>(block.count), d.cols, buffers[i].data(), view_.particles(), block.first});
     }
     return fields;
   }
@@ -381,6 +390,9 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
     summary.time = e.time();
     summary.timers = e.timers();
     summary.wall_seconds = rec.wall_before() + seconds_since(start);
+    const distributed::GlobalView<D> view(e); // the slowest rank's times (the same on every rank)
+    summary.wall_seconds = view.max(summary.wall_seconds);
+    for (double& t : summary.timers.seconds) t = view.max(t);
     rec.finish(summary);
     finished = true;
   }
