@@ -53,7 +53,8 @@ def main():
             return 1
         for name in na[-1:] if args.last else na:
             ga, gb = fa["frames"][name], fb["frames"][name]
-            if ga.attrs["time"] != gb.attrs["time"]:
+            ta, tb = ga.attrs["time"], gb.attrs["time"]
+            if abs(ta - tb) > args.tol * max(abs(ta), abs(tb)) or (args.bitwise and ta != tb):
                 print(f"frame {name}: time {ga.attrs['time']!r} vs {gb.attrs['time']!r}")
                 return 1
             if sorted(ga.keys()) != sorted(gb.keys()):

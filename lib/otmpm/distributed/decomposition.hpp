@@ -69,6 +69,7 @@ inline constexpr double kEmptyCellWeight = 0.125;
 /// The RCB decomposition of a lattice of `cells` cells over `ranks` ranks.
 template <int D> class Decomposition {
 public:
+  static constexpr int dimension = D;
   Decomposition() = default;
   /// One rank owning everything.
   explicit Decomposition(const Index<D>& cells);

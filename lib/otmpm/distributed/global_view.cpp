@@ -192,6 +192,18 @@ template <int D> typename GlobalView<D>::Block GlobalView<D>::block(const double
   return b;
 }
 
+template <int D> std::vector<std::pair<std::string, double>> GlobalView<D>::run_attributes() const {
+  if (!d_) return {};
+  const DomainStats& st = d_->stats();
+  std::int64_t sums[] = {st.migrated, d_->exchange().bytes_sent(), st.cg_iterations, st.cg_solves};
+  d_->comm().sum(sums);
+  return {{"ranks", static_cast<double>(d_->comm().size())},
+          {"migrated_particles", static_cast<double>(sums[0])},
+          {"halo_bytes", static_cast<double>(sums[1])},
+          {"cg_iterations", static_cast<double>(sums[2])},
+          {"cg_solves", static_cast<double>(sums[3] / d_->comm().size())}};
+}
+
 template <int D> long long GlobalView<D>::nodes() const {
   if (!d_) return e_.basis().nodes().size();
   long long n = 1;

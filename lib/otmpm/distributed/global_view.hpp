@@ -33,6 +33,11 @@ public:
   ParallelIo parallel_io() const;
   /// The writing rank's `text` on every rank.
   std::string share(const std::string& text) const { return d_ ? d_->comm().broadcast(text, 0) : text; }
+  /// Facts of a distributed run for the result file's root attributes
+  /// (collective; none for a serial run): ranks, particles sent to another
+  /// rank, bytes of the nodal exchanges, consistent-mass CG iterations and
+  /// solves, all summed over the ranks.
+  std::vector<std::pair<std::string, double>> run_attributes() const;
   /// The largest `value` of all ranks.
   double max(double value) const { return d_ ? d_->comm().max(value) : value; }
   /// Particles of all ranks.

@@ -33,8 +33,12 @@ public:
   void sum(const Comm& comm, std::span<const NodalArray> fields);
   /// Bytes this rank sent in exchanges since construction.
   long long bytes_sent() const { return bytes_sent_; }
-  /// Ranks this rank exchanges nodal values with.
+  /// Ranks this rank exchanges nodal values with, ascending.
   const std::vector<int>& neighbours() const { return ranks_; }
+  /// Per neighbour: the local ids of its points in this window (ghosts),
+  /// and of this rank's points in its window, in lattice order.
+  const std::vector<std::vector<int>>& ghosts() const { return ghosts_; }
+  const std::vector<std::vector<int>>& shared() const { return shared_; }
   /// Local ids of this rank's ghost points (owned by another rank).
   int ghost_count() const;
 

@@ -139,7 +139,12 @@ public:
       if (exact_ && pr.samples > 0) s.errors["history_error_" + pr.name] = std::sqrt(pr.sum_sq / pr.samples);
     if (exact_ && s.exit_code == 0) final_errors(s);
     if (results_) s.out_file = path_;
-    view_.collectively([&] { write_summary(s); });
+    const auto distributed = view_.run_attributes();
+    view_.collectively([&] {
+      write_summary(s);
+      for (const auto& [name, value] : distributed)
+        if (writer_) writer_->set_attribute(name, value);
+    });
   }
 
   /// The final attributes and status of the result file.

@@ -1,0 +1,324 @@
+// Distributed runs (label mpi): `mpirun -np N otmpm run` against the serial
+// run of the same scene (docs/user-guide.md, "Distributed runs"). The bound:
+// positions, velocities and stresses of every frame agree with the serial
+// run to kAgreement relative to the field's largest magnitude (OTM: positions
+// only, see kOtmStress). Also: -np 1 gives the serial bits; a fixed rank
+// count gives the same bits run to run; particles migrate through every
+// subdomain; a checkpoint restarts on another rank count; a bad scene and an
+// unstable scene end every rank with exit status 2 and 1 and one message.
+#include "otmpm/io/hdf5.hpp"
+
+#include "temp_dir.hpp"
+
+#include <doctest/doctest.h>
+#include <hdf5.h>
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace fs = std::filesystem;
+using otmpm::test::TempDir;
+namespace h5 = otmpm::h5;
+
+namespace {
+
+const fs::path kExamples = fs::path(OTMPM_SOURCE_DIR) / "examples";
+const std::string kBinary = OTMPM_BINARY;
+const std::string kMpiexec = OTMPM_MPIEXEC;
+
+/// Largest difference from the serial run relative to the field's largest
+/// magnitude, for positions, velocities and stresses at every output time.
+/// The runs differ in the order of the nodal sums (each rank sums its own
+/// particles, the owner adds the ranks' partial sums) and, with the
+/// consistent mass, in the solver (conjugate gradients to a relative residual
+/// of 1e-15 instead of the serial LDL^T); measured: below 1e-12 everywhere
+/// but OTM (docs/user-guide.md).
+constexpr double kAgreement = 1e-12;
+/// OTM takes the particle velocity from the difference of two positions,
+/// v = (x - x_prev) / dt, so one unit in the last place of x becomes
+/// eps |x| / dt in v and, through the next step's increments, in the stress:
+/// with the consistent mass (whose solve differs in the last bits) the
+/// velocities and stresses of an OTM run agree with the serial run only to
+/// that level (measured 1e-10 .. 5e-10 on the 1D Dyka bar with LME, where
+/// eps |x| / (dt max|v|) ~ 1e-10). Its positions agree to kAgreement.
+constexpr double kOtmStress = 1e-9;
+
+struct Result {
+  int status = -1;
+  std::string err;
+};
+
+/// Runs `otmpm ARGS` (with `ranks` > 0: under mpirun -np ranks) in `dir`;
+/// stdout discarded, stderr kept. One OpenMP thread per process.
+Result run_otmpm(const TempDir& dir, int ranks, const std::vector<std::string>& args) {
+  std::string cmd = "cd '" + dir.dir.string() + "' && OMP_NUM_THREADS=1 ";
+  if (ranks > 0) cmd += kMpiexec + " -q --oversubscribe -np " + std::to_string(ranks) + " ";
+  cmd += "'" + kBinary + "'";
+  for (const std::string& a : args) cmd += " '" + a + "'";
+  cmd += " > /dev/null 2> stderr.txt < /dev/null";
+  const int raw = std::system(cmd.c_str());
+  Result r;
+  r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+  std::ifstream in(dir.file("stderr.txt"));
+  std::stringstream s;
+  s << in.rdbuf();
+  r.err = s.str();
+  return r;
+}
+
+/// mpirun as root needs these (CI containers run as root).
+struct RootMpi {
+  RootMpi() {
+    ::setenv("OMPI_ALLOW_RUN_AS_ROOT", "1", 1);
+    ::setenv("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1", 1);
+  }
+} const root_mpi;
+
+/// The frames of a result file: per frame its time and datasets.
+struct Frames {
+  std::vector<double> time;
+  std::vector<std::map<std::string, h5::Matrix<double>>> data;
+};
+
+Frames read_frames(const std::string& path) {
+  h5::silence();
+  const hid_t id = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  REQUIRE_MESSAGE(id >= 0, "cannot open " << path);
+  const h5::Handle file(id, H5Fclose);
+  const h5::Handle frames = h5::open_group(file.get(), "frames", path);
+  Frames f;
+  for (const std::string& name : h5::link_names(frames.get(), path)) {
+    const h5::Handle g = h5::open_group(frames.get(), name, path);
+    f.time.push_back(h5::read_double(g.get(), "time", path));
+    f.data.emplace_back();
+    for (const std::string& ds : h5::link_names(g.get(), path))
+      f.data.back()[ds] = h5::read_double_matrix(g.get(), ds, path);
+  }
+  return f;
+}
+
+/// Per field: max over frames of max_p |a - b| / max_p |a| (or / scale[field]
+/// when given). Requires the same frames (times within kAgreement) and
+/// datasets of the same shape.
+std::map<std::string, double> differences(const std::string& a_path, const std::string& b_path,
+                                          const std::map<std::string, double>& scales = {}) {
+  const Frames a = read_frames(a_path), b = read_frames(b_path);
+  REQUIRE(a.time.size() == b.time.size());
+  REQUIRE(!a.time.empty());
+  std::map<std::string, double> worst;
+  for (std::size_t i = 0; i < a.time.size(); ++i) {
+    CHECK(std::abs(a.time[i] - b.time[i]) <= kAgreement * std::abs(a.time[i]));
+    REQUIRE(a.data[i].size() == b.data[i].size());
+    for (const auto& [name, ma] : a.data[i]) {
+      const auto& mb = b.data[i].at(name);
+      REQUIRE(ma.values.size() == mb.values.size());
+      double scale = 0.0, diff = 0.0;
+      for (std::size_t k = 0; k < ma.values.size(); ++k) {
+        scale = std::max(scale, std::abs(ma.values[k]));
+        diff = std::max(diff, std::abs(ma.values[k] - mb.values[k]));
+      }
+      if (scales.count(name)) scale = scales.at(name);
+      worst[name] = std::max(worst[name], scale > 0.0 ? diff / scale : diff);
+    }
+  }
+  return worst;
+}
+
+/// True when every dataset of both files' frames holds the same bits.
+bool same_bits(const std::string& a_path, const std::string& b_path) {
+  const Frames a = read_frames(a_path), b = read_frames(b_path);
+  if (a.time != b.time || a.data.size() != b.data.size()) return false;
+  for (std::size_t i = 0; i < a.data.size(); ++i)
+    for (const auto& [name, ma] : a.data[i]) {
+      const auto it = b.data[i].find(name);
+      if (it == b.data[i].end() || ma.values != it->second.values) return false;
+    }
+  return true;
+}
+
+double attribute(const std::string& path, const std::string& name) {
+  const hid_t id = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  REQUIRE(id >= 0);
+  const h5::Handle file(id, H5Fclose);
+  return h5::read_double(file.get(), name, path);
+}
+
+std::string string_attribute(const std::string& path, const std::string& name) {
+  const hid_t id = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  REQUIRE(id >= 0);
+  const h5::Handle file(id, H5Fclose);
+  return h5::read_string(file.get(), name, path);
+}
+
+/// A scene file of examples/ with --set overrides.
+struct Case {
+  std::string name;
+  std::string scene;
+  std::vector<std::string> sets;
+  bool otm = false;
+  /// The stress the differences are relative to (0: the largest stress of
+  /// the serial run; a body without stress compares with its rho c v).
+  double stress_scale = 0.0;
+};
+
+std::vector<std::string> arguments(const Case& c, const std::string& out) {
+  std::vector<std::string> a{"run", (kExamples / c.scene).string(), "--quiet", "--out", out};
+  for (const std::string& s : c.sets) a.insert(a.end(), {"--set", s});
+  return a;
+}
+
+/// Runs the case serially and on each rank count; checks the agreement.
+void check_agreement(const Case& c, const std::vector<int>& ranks) {
+  TempDir dir("mpi_" + c.name);
+  const Result serial = run_otmpm(dir, 0, arguments(c, "serial.h5"));
+  REQUIRE_MESSAGE(serial.status == 0, serial.err);
+  for (int n : ranks) {
+    CAPTURE(n);
+    const std::string out = "np" + std::to_string(n) + ".h5";
+    const Result r = run_otmpm(dir, n, arguments(c, out));
+    REQUIRE_MESSAGE(r.status == 0, r.err);
+    CHECK(r.err.empty());
+    std::map<std::string, double> scales;
+    if (c.stress_scale > 0.0) scales["stress"] = c.stress_scale;
+    const auto d = differences(dir.file("serial.h5"), dir.file(out), scales);
+    for (const std::string field : {"x", "v", "stress"}) {
+      CAPTURE(field);
+      REQUIRE(d.count(field));
+      const bool positions = field == "x";
+      CHECK(d.at(field) <= (c.otm && !positions ? kOtmStress : kAgreement));
+    }
+    CHECK(attribute(dir.file(out), "ranks") == n);
+  }
+}
+
+const std::string kFields = "output.fields=[\"x\",\"v\",\"stress\"]";
+
+} // namespace
+
+TEST_CASE("mpi: the 2D Dyka strip (mpm, npc, LME, lumped) agrees with the serial run on 2, 3 and 4 ranks") {
+  check_agreement({"dyka2d", "dyka_2d.toml", {"simulation.t_end=2e-5", "output.every=5e-6", kFields}}, {2, 3, 4});
+}
+
+TEST_CASE("mpi: the block under gravity (mpm, fe, linear; Dirichlet base) agrees on 2, 3 and 4 ranks") {
+  check_agreement({"block", "andersen_block.toml", {"simulation.t_end=0.3", "output.every=0.1", kFields,
+                                                   "simulation.integrator=fe", "basis.kind=linear"}},
+                  {2, 3, 4});
+}
+
+TEST_CASE("mpi: ul otm with the consistent mass (CG across ranks) agrees on 2, 3 and 4 ranks") {
+  check_agreement({"fixed_bar_otm", "fixed_bar.toml", {"simulation.t_end=3e-4", "simulation.mode=ul",
+                                                      "simulation.integrator=otm", "output.every=1e-4", kFields},
+                   true},
+                  {2, 3, 4});
+  check_agreement({"dyka_otm_lme", "dyka.toml", {"simulation.t_end=3e-5", "simulation.mode=ul",
+                                                "simulation.integrator=otm", "output.every=1e-5", kFields},
+                   true},
+                  {3});
+}
+
+TEST_CASE("mpi: B-splines with the consistent mass, mpm and ul (unified, advected knots)") {
+  check_agreement({"bspline_mpm", "dyka.toml", {"simulation.t_end=2e-5", "simulation.mass=consistent",
+                                               "basis.kind=bspline2", "output.every=1e-5", kFields}},
+                  {3});
+  check_agreement({"bspline_unified", "traction_bar.toml", {"simulation.t_end=0.05", "simulation.mode=ul",
+                                                           "simulation.integrator=unified", "basis.kind=bspline2",
+                                                           "output.every=0.025", kFields}},
+                  {2, 4});
+}
+
+TEST_CASE("mpi: LME in ul mode, uGIMP and a 3D run") {
+  check_agreement({"lme_ul", "dyka.toml", {"simulation.t_end=3e-5", "simulation.mode=ul", "output.every=1e-5",
+                                          kFields}},
+                  {2});
+  check_agreement({"ugimp", "dyka.toml", {"simulation.t_end=3e-5", "simulation.integrator=musl", "basis.kind=ugimp",
+                                         "body.bar.placement=cell_centres", "output.every=1e-5", kFields}},
+                  {3});
+  check_agreement({"dyka3d", "dyka_3d.toml", {"simulation.t_end=1e-5", "simulation.mode=ul", "basis.kind=linear",
+                                             "output.every=5e-6", kFields}},
+                  {3});
+}
+
+TEST_CASE("mpi: one rank gives the serial bits; a rank count gives the same bits run to run") {
+  TempDir dir("mpi_bits");
+  const Case c{"bits", "dyka_2d.toml", {"simulation.t_end=1e-5", "output.every=5e-6", kFields}};
+  REQUIRE(run_otmpm(dir, 0, arguments(c, "serial.h5")).status == 0);
+  REQUIRE(run_otmpm(dir, 1, arguments(c, "np1.h5")).status == 0);
+  REQUIRE(run_otmpm(dir, 3, arguments(c, "a.h5")).status == 0);
+  REQUIRE(run_otmpm(dir, 3, arguments(c, "b.h5")).status == 0);
+  CHECK(same_bits(dir.file("serial.h5"), dir.file("np1.h5")));
+  CHECK(same_bits(dir.file("a.h5"), dir.file("b.h5")));
+  CHECK(!same_bits(dir.file("serial.h5"), dir.file("a.h5"))); // the sums are added in another order
+}
+
+TEST_CASE("mpi: a bar translating through every subdomain: particles migrate, results agree") {
+  for (const std::string basis : {"lme", "linear"}) {
+    CAPTURE(basis);
+    // The bar moves rigidly: its stress is round-off, compared with rho c v = 100 x 100 x 50 Pa.
+    const Case c{"translating_" + basis, "extreme/translating_bar.toml",
+                 {"basis.kind=" + basis, "output.every=0.01", kFields}, false, 5e5};
+    check_agreement(c, {4});
+    TempDir dir("mpi_migrate");
+    REQUIRE(run_otmpm(dir, 4, arguments(c, "np4.h5")).status == 0);
+    // 40 particles, 2.5 m of travel through 4 subdomains of a 3.9 m grid
+    CHECK(attribute(dir.file("np4.h5"), "migrated_particles") >= 40);
+  }
+}
+
+TEST_CASE("mpi: a checkpoint of 2 ranks restarts on 3 ranks and on one process") {
+  for (const std::string mode : {"mpm", "ul"}) {
+    CAPTURE(mode);
+    TempDir dir("mpi_restart_" + mode);
+    const Case c{"restart", "dyka.toml", {"simulation.t_end=3e-5", "simulation.mode=" + mode,
+                                         "output.every=5e-6", "output.checkpoint_every=150", kFields}};
+    REQUIRE(run_otmpm(dir, 2, arguments(c, "np2.h5")).status == 0);
+    REQUIRE(fs::exists(dir.file("np2.checkpoint.h5")));
+    fs::copy_file(dir.file("np2.h5"), dir.file("full.h5"));
+    const Result r3 = run_otmpm(dir, 3, {"run", "--restart", "np2.checkpoint.h5", "--out", "np3.h5", "--quiet"});
+    REQUIRE_MESSAGE(r3.status == 0, r3.err);
+    const Result r1 = run_otmpm(dir, 0, {"run", "--restart", "np2.checkpoint.h5", "--out", "np1.h5", "--quiet"});
+    REQUIRE_MESSAGE(r1.status == 0, r1.err);
+    for (const std::string out : {"np3.h5", "np1.h5"}) {
+      CAPTURE(out);
+      const auto d = differences(dir.file("full.h5"), dir.file(out));
+      for (const std::string field : {"x", "v", "stress"}) {
+        CAPTURE(field);
+        CHECK(d.at(field) <= kAgreement);
+      }
+    }
+  }
+}
+
+TEST_CASE("mpi: a bad scene ends every rank with status 2 and one message") {
+  TempDir dir("mpi_bad");
+  const Result r = run_otmpm(dir, 3, {"run", (kExamples / "dyka.toml").string(), "--quiet", "--set", "simulation.cfl=-1"});
+  CHECK(r.status == 2);
+  CHECK(r.err == "otmpm: error: --set simulation.cfl: must be > 0 (got -1)\n");
+}
+
+TEST_CASE("mpi: an unstable scene ends every rank with status 1, the serial diagnosis, once") {
+  TempDir dir("mpi_unstable");
+  const std::vector<std::string> args{"run", (kExamples / "extreme" / "edge_approach.toml").string(), "--quiet",
+                                      "--set", kFields};
+  auto with_out = [&](const std::string& out) {
+    auto a = args;
+    a.insert(a.end(), {"--out", out});
+    return a;
+  };
+  const Result serial = run_otmpm(dir, 0, with_out("serial.h5"));
+  const Result mpi = run_otmpm(dir, 3, with_out("np3.h5"));
+  REQUIRE(serial.status == 1);
+  CHECK(mpi.status == 1);
+  CHECK(mpi.err == serial.err);
+  CHECK(std::count(mpi.err.begin(), mpi.err.end(), '\n') == 1);
+  CHECK(string_attribute(dir.file("np3.h5"), "status") == string_attribute(dir.file("serial.h5"), "status"));
+}
