@@ -14,7 +14,13 @@ template <int D>
 Domain<D>::Domain(const Comm& comm, Setup s)
     : comm_(comm), lattice_(std::move(s.lattice)), decomposition_(std::move(s.decomposition)),
       exchange_(lattice_, decomposition_, comm.rank()), nodes_move_(s.nodes_move), gid_(std::move(s.global_ids)),
-      global_particles_(s.global_particles), hint_offset_(s.hint_offset), traction_area_(std::move(s.traction_area)) {
+      global_particles_(s.global_particles), hint_offset_(s.hint_offset), traction_area_(std::move(s.traction_area)),
+      window_basis_(std::move(s.window_basis)), dirichlet_(std::move(s.dirichlet)) {
+  find_neighbours();
+}
+
+template <int D> void Domain<D>::find_neighbours() {
+  neighbours_.clear();
   IndexBox<D> near = decomposition_.box(comm_.rank());
   for (int k = 0; k < D; ++k) --near.lo[k], ++near.hi[k];
   for (int q = 0; q < decomposition_.ranks(); ++q)
@@ -23,7 +29,30 @@ Domain<D>::Domain(const Comm& comm, Setup s)
 
 template <int D> void Domain<D>::before_step(Engine<D>& e) {
   ++stats_.steps;
-  if (!nodes_move_) migrate(e);
+  if (nodes_move_) return;
+  migrate(e);
+  if (window_basis_ && stats_.steps % kRebalanceCheck == 0) rebalance(e);
+}
+
+template <int D> void Domain<D>::shift_hints(Engine<D>& e, int sign) const {
+  for (Index<D>& h : e.basis().point_state().cell_hint)
+    for (int k = 0; k < D; ++k) h[k] += sign * hint_offset_[k];
+}
+
+template <int D> void Domain<D>::rebalance(Engine<D>& e) {
+  const Particles<D>& P = e.particles();
+  std::vector<Index<D>> home(static_cast<std::size_t>(P.size()));
+  for (int p = 0; p < P.size(); ++p) home[static_cast<std::size_t>(p)] = home_cell(P.x[p], P.X[p]);
+  if (decomposition_.imbalance(home, comm_) <= kImbalanceThreshold) return;
+  ++stats_.rebalances;
+  decomposition_ = Decomposition<D>::rcb(lattice_.grid.cells, comm_.size(), home, comm_);
+  find_neighbours();
+  migrate(e); // to the new owners (cell hints local to the old window)
+  shift_hints(e, +1);
+  exchange_ = NodeExchange<D>(lattice_, decomposition_, comm_.rank());
+  const Window<D>& w = exchange_.window();
+  e.repartition(window_basis_(w, hint_offset_), window_dirichlet(dirichlet_, lattice_, w));
+  shift_hints(e, -1); // local to the new window
 }
 
 template <int D> std::vector<Column> Domain<D>::columns(Engine<D>& e) {
@@ -48,9 +77,7 @@ template <int D> void Domain<D>::migrate(Engine<D>& e) {
   }
   comm_.max(flags);
   if (flags[0] == 0.0) return;
-  std::vector<Index<D>>& hints = e.basis().point_state().cell_hint;
-  for (Index<D>& h : hints)
-    for (int k = 0; k < D; ++k) h[k] += hint_offset_[k]; // hints travel as global cells
+  shift_hints(e, +1); // hints travel as global cells
   const std::vector<Column> cols = columns(e);
   std::vector<char> keep(n, 1);
   std::vector<Bytes> received;
@@ -70,8 +97,7 @@ template <int D> void Domain<D>::migrate(Engine<D>& e) {
   std::size_t count = 0;
   for (std::size_t p = 0; p < n; ++p) count += keep[p];
   for (const Bytes& in : received) count = append_rows(cols, in, count);
-  for (Index<D>& h : hints)
-    for (int k = 0; k < D; ++k) h[k] -= hint_offset_[k];
+  shift_hints(e, -1);
   // The Verlet lists belong to particle indices that changed: start afresh
   // (they change the cost of the next basis evaluation, never its result).
   e.basis().point_state().neighbours = NeighbourLists<D>();
@@ -166,7 +192,7 @@ void Domain<D>::solve_consistent_mass(const BasisTable<D>& table, const std::vec
   for (; it < kMassMaxIterations && !std::all_of(done.begin(), done.end(), [](bool b) { return b; }); ++it) {
     mass_times(table, m_p, p, q);
     NodalArray field{q.data()->data(), D};
-    exchange_.sum(comm_, {&field, 1});
+    stats_.halo_bytes += exchange_.sum(comm_, {&field, 1});
     for (std::size_t I = 0; I < n; ++I) q[I] = q[I].cwiseProduct(mask[I]);
     Vec<D> pq, unused;
     dots(p, q, p, q, pq, unused);
@@ -206,6 +232,21 @@ void Domain<D>::solve_consistent_mass(const BasisTable<D>& table, const std::vec
   for (std::size_t I = 0; I < n; ++I) y[I] = x[I].cwiseProduct(mask[I]);
 }
 
+template <int D> Dirichlet<D> window_dirichlet(const Dirichlet<D>& all, const PointLattice<D>& L, const Window<D>& w) {
+  Dirichlet<D> d;
+  for (std::size_t i = 0; i < all.node.size(); ++i) {
+    const Index<D> ijk = L.point_index(all.node[i]);
+    if (!w.box.contains(ijk)) continue;
+    d.node.push_back(w.local_id(ijk));
+    d.fix.push_back(all.fix[i]);
+    d.value.push_back(all.value[i]);
+  }
+  return d;
+}
+
+template Dirichlet<1> window_dirichlet<1>(const Dirichlet<1>&, const PointLattice<1>&, const Window<1>&);
+template Dirichlet<2> window_dirichlet<2>(const Dirichlet<2>&, const PointLattice<2>&, const Window<2>&);
+template Dirichlet<3> window_dirichlet<3>(const Dirichlet<3>&, const PointLattice<3>&, const Window<3>&);
 template class Domain<1>;
 template class Domain<2>;
 template class Domain<3>;

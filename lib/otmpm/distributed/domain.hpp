@@ -11,6 +11,7 @@
 #include "otmpm/distributed/particle_rows.hpp"
 #include "otmpm/engine/engine.hpp"
 
+#include <functional>
 #include <memory>
 
 namespace otmpm::distributed {
@@ -19,6 +20,8 @@ namespace otmpm::distributed {
 struct DomainStats {
   long long steps = 0;
   long long migrated = 0;      ///< particles sent to another rank
+  long long rebalances = 0;    ///< times the cells were bisected afresh
+  long long halo_bytes = 0;    ///< bytes this rank sent in nodal exchanges
   long long cg_iterations = 0; ///< consistent mass: CG iterations, all solves
   long long cg_solves = 0;
   double cg_worst_residual = 0.0; ///< largest final relative residual
@@ -30,6 +33,17 @@ struct DomainStats {
 inline constexpr double kMassTolerance = 1e-15;
 /// CG iterations after which the consistent-mass solve gives up (InstabilityError).
 inline constexpr int kMassMaxIterations = 1000;
+/// Rebalancing (`mpm` mode): every kRebalanceCheck steps the ranks compare
+/// their loads (particles + kEmptyCellWeight per cell); when the largest is
+/// more than kImbalanceThreshold times the mean, the cells are bisected
+/// afresh from the particles' current cells. (`ul` mode never needs it: the
+/// particles keep their cells while the lattice moves.)
+inline constexpr int kRebalanceCheck = 10;
+inline constexpr double kImbalanceThreshold = 1.2;
+
+/// The entries of a Dirichlet set (global point ids) on the points of a
+/// window, renumbered to the window's local ids.
+template <int D> Dirichlet<D> window_dirichlet(const Dirichlet<D>& all, const PointLattice<D>& L, const Window<D>& w);
 
 template <int D> class Domain final : public Distribution<D> {
 public:
@@ -43,13 +57,17 @@ public:
     Index<D> hint_offset{};             ///< global cell index of the basis' local cell 0
     /// Per traction load, per local particle: its share of the loaded area, < 0: not loaded.
     std::vector<std::vector<double>> traction_area;
+    /// The basis on a window (rebalancing), and the global offset of its cell hints.
+    std::function<std::unique_ptr<Basis<D>>(const Window<D>&, Index<D>& hint_offset)> window_basis;
+    /// The Dirichlet entries of the whole lattice (global point ids).
+    Dirichlet<D> dirichlet;
   };
 
   Domain(const Comm& comm, Setup setup);
 
   // ---- Distribution
   void before_step(Engine<D>& e) override;
-  void sum_nodal(std::span<const NodalArray> fields) override { exchange_.sum(comm_, fields); }
+  void sum_nodal(std::span<const NodalArray> fields) override { stats_.halo_bytes += exchange_.sum(comm_, fields); }
   void sum(std::span<double> values) override { comm_.sum(values); }
   void max(std::span<double> values) override { comm_.max(values); }
   void min(std::span<double> values) override { comm_.min(values); }
@@ -83,6 +101,12 @@ private:
   std::vector<Column> columns(Engine<D>& e);
   /// Rebuilds the traction loads' particle lists from the shares.
   void rebuild_tractions(Engine<D>& e) const;
+  /// Bisects the cells afresh when the loads drifted apart (kImbalanceThreshold).
+  void rebalance(Engine<D>& e);
+  /// The ranks whose cells touch this rank's cells.
+  void find_neighbours();
+  /// Adds `sign` times the hint offset to the basis' cell hints.
+  void shift_hints(Engine<D>& e, int sign) const;
 
   const Comm& comm_;
   PointLattice<D> lattice_;
@@ -94,6 +118,8 @@ private:
   Index<D> hint_offset_{};
   std::vector<std::vector<double>> traction_area_;
   std::vector<int> neighbours_; ///< ranks whose cells touch this rank's cells (migration)
+  std::function<std::unique_ptr<Basis<D>>(const Window<D>&, Index<D>&)> window_basis_;
+  Dirichlet<D> dirichlet_;
   DomainStats stats_;
 };
 

@@ -195,13 +195,15 @@ template <int D> typename GlobalView<D>::Block GlobalView<D>::block(const double
 template <int D> std::vector<std::pair<std::string, double>> GlobalView<D>::run_attributes() const {
   if (!d_) return {};
   const DomainStats& st = d_->stats();
-  std::int64_t sums[] = {st.migrated, d_->exchange().bytes_sent(), st.cg_iterations, st.cg_solves};
+  std::int64_t sums[] = {st.migrated, st.halo_bytes, st.cg_iterations, st.cg_solves, st.rebalances};
   d_->comm().sum(sums);
-  return {{"ranks", static_cast<double>(d_->comm().size())},
+  const std::int64_t P = d_->comm().size();
+  return {{"ranks", static_cast<double>(P)},
           {"migrated_particles", static_cast<double>(sums[0])},
           {"halo_bytes", static_cast<double>(sums[1])},
-          {"cg_iterations", static_cast<double>(sums[2])},
-          {"cg_solves", static_cast<double>(sums[3] / d_->comm().size())}};
+          {"cg_iterations", static_cast<double>(sums[2] / P)},
+          {"cg_solves", static_cast<double>(sums[3] / P)},
+          {"rebalances", static_cast<double>(sums[4] / P)}};
 }
 
 template <int D> long long GlobalView<D>::nodes() const {

@@ -77,8 +77,9 @@ template <int D> int NodeExchange<D>::ghost_count() const {
   return n;
 }
 
-template <int D> void NodeExchange<D>::sum(const Comm& comm, std::span<const NodalArray> fields) {
-  if (comm.size() == 1) return;
+template <int D> long long NodeExchange<D>::sum(const Comm& comm, std::span<const NodalArray> fields) {
+  if (comm.size() == 1) return 0;
+  const long long before = bytes_sent_;
   // 1. partial sums of the ghosts to their owners; owners add them in rank order
   std::vector<int> to, from;
   std::vector<Bytes> out;
@@ -105,6 +106,7 @@ template <int D> void NodeExchange<D>::sum(const Comm& comm, std::span<const Nod
   }
   in = comm.exchange(to, out, from);
   for (std::size_t j = 0; j < from.size(); ++j) unpack(fields, ghosts_[from_index[j]], in[j], false);
+  return bytes_sent_ - before;
 }
 
 template class NodeExchange<1>;

@@ -29,8 +29,9 @@ public:
   /// Per local point: 1 when this rank owns it.
   const std::vector<char>& owned() const { return owned_; }
   /// Sums the partial nodal sums over the ranks and copies the totals to
-  /// the ghosts (collective over the ranks of `comm`).
-  void sum(const Comm& comm, std::span<const NodalArray> fields);
+  /// the ghosts (collective over the ranks of `comm`); returns the bytes
+  /// this rank sent.
+  long long sum(const Comm& comm, std::span<const NodalArray> fields);
   /// Bytes this rank sent in exchanges since construction.
   long long bytes_sent() const { return bytes_sent_; }
   /// Ranks this rank exchanges nodal values with, ascending.

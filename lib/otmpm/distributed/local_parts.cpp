@@ -46,43 +46,40 @@ PointLattice<D> point_lattice(const Scene& scene, const Basis<D>& basis, const C
   return L;
 }
 
-/// The basis of the scene on this rank's window: B-splines on the whole
-/// lattice's knots with the window's control points; the lattice families
-/// on the window's part of the lattice (perturbed positions copied).
+/// The basis of the scene on a window: B-splines on the whole lattice's
+/// knots with the window's control points; the lattice families on the
+/// window's part of the lattice (a perturbed lattice's positions copied from
+/// the whole lattice, which the factory keeps). Also gives the global cell
+/// of the basis' local cell 0 (its cell hints are local to it).
 template <int D>
-std::unique_ptr<Basis<D>> window_basis(const Scene& scene, const Basis<D>& global, const PointLattice<D>& L,
-                                       const Window<D>& w, Index<D>& hint_offset) {
+std::function<std::unique_ptr<Basis<D>>(const Window<D>&, Index<D>&)>
+window_basis_factory(const Scene& scene, const Basis<D>& global, const PointLattice<D>& L) {
+  const CartesianGrid<D> grid = L.grid;
   if (basis_kind(scene.basis.kind).bspline) {
-    hint_offset = {};
-    return std::make_unique<BsplineBasis<D>>(L.grid, dynamic_cast<const BsplineBasis<D>&>(global).degree(), w.box.lo,
-                                             w.box.hi);
+    const int degree = dynamic_cast<const BsplineBasis<D>&>(global).degree();
+    return [grid, degree](const Window<D>& w, Index<D>& hint_offset) -> std::unique_ptr<Basis<D>> {
+      hint_offset = {};
+      return std::make_unique<BsplineBasis<D>>(grid, degree, w.box.lo, w.box.hi);
+    };
   }
-  hint_offset = w.box.lo;
-  CartesianGrid<D> g;
-  Index<D> last;
-  for (int k = 0; k < D; ++k) last[k] = w.box.hi[k] - 1, g.cells[k] = w.box.extent(k) - 1;
-  g.lower = L.grid.node_position(w.box.lo);
-  g.upper = L.grid.node_position(last);
-  NodeSet<D> nodes = NodeSet<D>::cartesian(g);
-  if (!global.nodes().on_lattice()) {
-    AlignedVector<Vec<D>> x(static_cast<std::size_t>(w.size()));
-    for (int i = 0; i < w.size(); ++i) x[static_cast<std::size_t>(i)] = global.nodes().position(static_cast<int>(L.point_id(w.index(i))));
-    nodes.set_positions(std::move(x));
-  }
-  return make_basis<D>(basis_options<D>(scene), std::move(nodes));
-}
-
-/// The Dirichlet entries on window points, renumbered to local ids.
-template <int D> Dirichlet<D> window_dirichlet(const Dirichlet<D>& all, const PointLattice<D>& L, const Window<D>& w) {
-  Dirichlet<D> d;
-  for (std::size_t i = 0; i < all.node.size(); ++i) {
-    const Index<D> ijk = L.point_index(all.node[i]);
-    if (!w.box.contains(ijk)) continue;
-    d.node.push_back(w.local_id(ijk));
-    d.fix.push_back(all.fix[i]);
-    d.value.push_back(all.value[i]);
-  }
-  return d;
+  std::shared_ptr<const AlignedVector<Vec<D>>> moved;
+  if (!global.nodes().on_lattice()) moved = std::make_shared<AlignedVector<Vec<D>>>(global.nodes().positions());
+  const BasisOptions options = basis_options<D>(scene);
+  return [grid, moved, options, L](const Window<D>& w, Index<D>& hint_offset) -> std::unique_ptr<Basis<D>> {
+    hint_offset = w.box.lo;
+    CartesianGrid<D> g;
+    Index<D> last;
+    for (int k = 0; k < D; ++k) last[k] = w.box.hi[k] - 1, g.cells[k] = w.box.extent(k) - 1;
+    g.lower = grid.node_position(w.box.lo);
+    g.upper = grid.node_position(last);
+    NodeSet<D> nodes = NodeSet<D>::cartesian(g);
+    if (moved) {
+      AlignedVector<Vec<D>> x(static_cast<std::size_t>(w.size()));
+      for (int i = 0; i < w.size(); ++i) x[static_cast<std::size_t>(i)] = (*moved)[static_cast<std::size_t>(L.point_id(w.index(i)))];
+      nodes.set_positions(std::move(x));
+    }
+    return make_basis<D>(options, std::move(nodes));
+  };
 }
 
 } // namespace
@@ -133,9 +130,10 @@ EngineParts<D> rank_parts(const Scene& scene, const Comm& comm, const AlignedVec
   // The basis and constraints on this rank's window of the point lattice.
   Window<D> w;
   w.box = setup.lattice.window(setup.decomposition.box(comm.rank()));
-  std::unique_ptr<Basis<D>> basis = window_basis<D>(scene, *parts.basis, setup.lattice, w, setup.hint_offset);
-  parts.dirichlet = window_dirichlet<D>(parts.dirichlet, setup.lattice, w);
-  parts.basis = std::move(basis);
+  setup.window_basis = window_basis_factory<D>(scene, *parts.basis, setup.lattice);
+  parts.basis = setup.window_basis(w, setup.hint_offset);
+  setup.dirichlet = std::move(parts.dirichlet);
+  parts.dirichlet = window_dirichlet<D>(setup.dirichlet, setup.lattice, w);
   auto domain = std::make_shared<Domain<D>>(comm, std::move(setup));
   if (auto* b = dynamic_cast<BsplineBasis<D>*>(parts.basis.get()))
     b->distribute(domain->owned_nodes(), [&comm](std::span<double> v) { comm.sum(v); });

@@ -74,6 +74,21 @@ Engine<D>::Engine(EngineParts<D> parts)
 template <int D> Engine<D>::Engine(Engine&&) noexcept = default;
 template <int D> Engine<D>::~Engine() = default;
 
+template <int D> void Engine<D>::repartition(std::unique_ptr<Basis<D>> basis, Dirichlet<D> dirichlet) {
+  require<std::invalid_argument>(basis && dist_, "Engine::repartition: needs a basis and a distributed run");
+  PointState<D> state = std::move(basis_->point_state());
+  basis_ = std::move(basis);
+  basis_->bind_points(P_.size(), mode_.nodes_move());
+  PointState<D>& fresh = basis_->point_state();
+  if (fresh.lambda.size() == state.lambda.size()) fresh.lambda = std::move(state.lambda);
+  if (fresh.cell_hint.size() == state.cell_hint.size()) fresh.cell_hint = std::move(state.cell_hint);
+  const int nodes = basis_->nodes().size();
+  constraints_ = Constraints<D>(std::move(dirichlet), nodes);
+  constraints_.count_only(dist_->owned_nodes());
+  nodal_.resize(nodes);
+  scatter_.invalidate();
+}
+
 template <int D> void Engine<D>::check_parts() const {
   using E = std::invalid_argument;
   require<E>(basis_ != nullptr, "Engine: no basis");

@@ -219,6 +219,15 @@ public:
 
 private:
   void check_parts() const;
+
+public:
+  /// A distributed run rebalanced its cells: this rank's window of the node
+  /// lattice changed. The basis on the new window and its Dirichlet entries
+  /// replace the old ones; the per-point state of the basis (which moved
+  /// with the particles) is handed over as it is. Only between steps.
+  void repartition(std::unique_ptr<Basis<D>> basis, Dirichlet<D> dirichlet);
+
+private:
   /// The checks of particle p: finite position, velocity and stress; on the
   /// fixed grid inside it and not about to leave it.
   void check_particle(int p) const;
