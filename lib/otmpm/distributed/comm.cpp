@@ -41,9 +41,10 @@ int checked_count(std::size_t n) {
   return static_cast<int>(n);
 }
 
-/// Sums `values` of every rank into rank 0 along a binomial tree (children
-/// added in increasing rank order), then broadcasts the result.
-void tree_sum(double* values, int n, int rank, int size) {
+/// Combines `values` of every rank into rank 0 along a binomial tree
+/// (children combined in increasing rank order): the first `sums` entries
+/// added, the rest by maximum; then broadcasts the result.
+void tree_reduce(double* values, int n, int sums, int rank, int size) {
   std::vector<double> child(static_cast<std::size_t>(n));
   for (int mask = 1; mask < size; mask <<= 1) {
     if (rank & mask) {
@@ -52,7 +53,10 @@ void tree_sum(double* values, int n, int rank, int size) {
     }
     if (rank + mask < size) {
       MPI_Recv(child.data(), n, MPI_DOUBLE, rank + mask, kTreeTag, world_comm(), MPI_STATUS_IGNORE);
-      for (int i = 0; i < n; ++i) values[i] += child[static_cast<std::size_t>(i)];
+      for (int i = 0; i < n; ++i) {
+        const double c = child[static_cast<std::size_t>(i)];
+        values[i] = i < sums ? values[i] + c : std::max(values[i], c);
+      }
     }
   }
   MPI_Bcast(values, n, MPI_DOUBLE, 0, world_comm());
@@ -89,11 +93,18 @@ const Comm& Comm::world() {
   return self();
 }
 
-void Comm::sum(std::span<double> values) const {
+void Comm::sum(std::span<double> values) const { reduce(values, {}); }
+
+void Comm::reduce(std::span<double> sums, std::span<double> maxima) const {
 #ifdef OTMPM_HAVE_MPI
-  if (mpi_ && size_ > 1) tree_sum(values.data(), checked_count(values.size()), rank_, size_);
+  if (!mpi_ || size_ == 1) return;
+  std::vector<double> v(sums.begin(), sums.end());
+  v.insert(v.end(), maxima.begin(), maxima.end());
+  tree_reduce(v.data(), checked_count(v.size()), static_cast<int>(sums.size()), rank_, size_);
+  std::copy(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(sums.size()), sums.begin());
+  std::copy(v.begin() + static_cast<std::ptrdiff_t>(sums.size()), v.end(), maxima.begin());
 #else
-  (void)values;
+  (void)sums, (void)maxima;
 #endif
 }
 

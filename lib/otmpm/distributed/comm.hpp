@@ -36,6 +36,8 @@ public:
 
   /// Ordered sum over the ranks of each entry (identical bits on every rank).
   void sum(std::span<double> values) const;
+  /// Ordered sums of `sums` and maxima of `maxima` in one reduction.
+  void reduce(std::span<double> sums, std::span<double> maxima) const;
   double sum(double value) const;
   /// Exact integer sums, maxima and minima of each entry over the ranks.
   void sum(std::span<std::int64_t> values) const;

@@ -30,6 +30,7 @@ template <int D> void Domain<D>::find_neighbours() {
 template <int D> void Domain<D>::before_step(Engine<D>& e) {
   ++stats_.steps;
   if (nodes_move_) return;
+  const Clock clock(stats_);
   migrate(e);
   if (window_basis_ && stats_.steps % kRebalanceCheck == 0) rebalance(e);
 }
@@ -76,6 +77,7 @@ template <int D> void Domain<D>::migrate(Engine<D>& e) {
     if (!std::binary_search(neighbours_.begin(), neighbours_.end(), dest[p])) flags[1] = 1.0;
   }
   comm_.max(flags);
+  ++stats_.reductions;
   if (flags[0] == 0.0) return;
   shift_hints(e, +1); // hints travel as global cells
   const std::vector<Column> cols = columns(e);
@@ -117,19 +119,42 @@ template <int D> void Domain<D>::rebuild_tractions(Engine<D>& e) const {
   }
 }
 
-template <int D> void Domain<D>::agree(const LocalFailure* failure) {
+template <int D> void Domain<D>::reduce(std::span<double> sums, std::span<double> maxima) {
+  const Clock clock(stats_);
+  ++stats_.reductions;
+  std::vector<double> m(maxima.begin(), maxima.end());
+  m.push_back(pending_ ? 1.0 : 0.0); // a deferred failure anywhere
+  comm_.reduce(sums, m);
+  std::copy(m.begin(), m.end() - 1, maxima.begin());
+  if (m.back() > 0.0) agree(nullptr);
+}
+
+template <int D> void Domain<D>::defer(const LocalFailure& failure) {
+  const long long key = failure.key >= LocalFailure::kNoParticle ? LocalFailure::kNoParticle + comm_.rank() : failure.key;
+  if (!pending_ || key < pending_->key) {
+    pending_ = failure;
+    pending_->key = key;
+  }
+}
+
+template <int D> void Domain<D>::agree(const LocalFailure* given) {
+  const Clock clock(stats_);
+  ++stats_.reductions;
+  if (given) defer(*given);
+  const LocalFailure* failure = pending_ ? &*pending_ : nullptr;
   constexpr long long none = std::numeric_limits<long long>::max();
-  long long key = none;
-  if (failure) key = failure->key >= LocalFailure::kNoParticle ? LocalFailure::kNoParticle + comm_.rank() : failure->key;
+  const long long key = failure ? failure->key : none;
   const long long best = comm_.min(static_cast<std::int64_t>(key));
   if (best == none) return;
   const int winner = static_cast<int>(comm_.min(static_cast<std::int64_t>(key == best ? comm_.rank() : comm_.size())));
   const bool mine = comm_.rank() == winner;
-  std::string message = comm_.broadcast(mine ? std::string(failure->instability ? "I" : "B") + failure->message : "",
-                                        winner);
-  const bool instability = message.front() == 'I';
+  std::string message = comm_.broadcast(
+      mine ? std::string(failure->deferred ? "D" : failure->instability ? "I" : "B") + failure->message : "", winner);
+  const char kind = message.front();
   message.erase(0, 1);
-  if (instability) throw InstabilityError(message);
+  pending_.reset();
+  if (kind == 'D') throw DeferredInstability(message);
+  if (kind == 'I') throw InstabilityError(message);
   throw InputError(message);
 }
 

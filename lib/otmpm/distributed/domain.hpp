@@ -11,8 +11,10 @@
 #include "otmpm/distributed/particle_rows.hpp"
 #include "otmpm/engine/engine.hpp"
 
+#include <chrono>
 #include <functional>
 #include <memory>
+#include <optional>
 
 namespace otmpm::distributed {
 
@@ -22,6 +24,9 @@ struct DomainStats {
   long long migrated = 0;      ///< particles sent to another rank
   long long rebalances = 0;    ///< times the cells were bisected afresh
   long long halo_bytes = 0;    ///< bytes this rank sent in nodal exchanges
+  long long halo_exchanges = 0; ///< nodal exchanges (two rounds of messages with the neighbours each)
+  long long reductions = 0;     ///< global reductions and failure agreements
+  double communication_seconds = 0.0; ///< wall time in the exchanges, reductions and migration
   long long cg_iterations = 0; ///< consistent mass: CG iterations, all solves
   long long cg_solves = 0;
   double cg_worst_residual = 0.0; ///< largest final relative residual
@@ -67,10 +72,13 @@ public:
 
   // ---- Distribution
   void before_step(Engine<D>& e) override;
-  void sum_nodal(std::span<const NodalArray> fields) override { stats_.halo_bytes += exchange_.sum(comm_, fields); }
-  void sum(std::span<double> values) override { comm_.sum(values); }
-  void max(std::span<double> values) override { comm_.max(values); }
-  void min(std::span<double> values) override { comm_.min(values); }
+  void sum_nodal(std::span<const NodalArray> fields) override {
+    const Clock clock(stats_);
+    ++stats_.halo_exchanges;
+    stats_.halo_bytes += exchange_.sum(comm_, fields);
+  }
+  void reduce(std::span<double> sums, std::span<double> maxima) override;
+  void defer(const LocalFailure& failure) override;
   void agree(const LocalFailure* failure) override;
   long long global_id(int p) const override { return gid_[static_cast<std::size_t>(p)]; }
   const std::vector<char>& owned_nodes() const override { return exchange_.owned(); }
@@ -95,6 +103,13 @@ public:
   }
 
 private:
+  /// Adds the wall time of its lifetime to the communication time.
+  struct Clock {
+    explicit Clock(DomainStats& s) : stats(s), start(std::chrono::steady_clock::now()) {}
+    ~Clock() { stats.communication_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(); }
+    DomainStats& stats;
+    std::chrono::steady_clock::time_point start;
+  };
   /// Sends the particles whose home cell another rank owns to that rank.
   void migrate(Engine<D>& e);
   /// The columns that move with the particles (particle_rows.hpp plus the global ids and traction shares).
@@ -118,6 +133,7 @@ private:
   Index<D> hint_offset_{};
   std::vector<std::vector<double>> traction_area_;
   std::vector<int> neighbours_; ///< ranks whose cells touch this rank's cells (migration)
+  std::optional<LocalFailure> pending_; ///< deferred failure of this rank (the lowest key)
   std::function<std::unique_ptr<Basis<D>>(const Window<D>&, Index<D>&)> window_basis_;
   Dirichlet<D> dirichlet_;
   DomainStats stats_;

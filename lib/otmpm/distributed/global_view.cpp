@@ -195,15 +195,21 @@ template <int D> typename GlobalView<D>::Block GlobalView<D>::block(const double
 template <int D> std::vector<std::pair<std::string, double>> GlobalView<D>::run_attributes() const {
   if (!d_) return {};
   const DomainStats& st = d_->stats();
-  std::int64_t sums[] = {st.migrated, st.halo_bytes, st.cg_iterations, st.cg_solves, st.rebalances};
+  std::int64_t sums[] = {st.migrated, st.halo_bytes, st.cg_iterations, st.cg_solves, st.rebalances,
+                         st.halo_exchanges, st.reductions};
   d_->comm().sum(sums);
-  const std::int64_t P = d_->comm().size();
-  return {{"ranks", static_cast<double>(P)},
+  const Comm& comm = d_->comm();
+  const double P = comm.size();
+  return {{"ranks", P},
           {"migrated_particles", static_cast<double>(sums[0])},
           {"halo_bytes", static_cast<double>(sums[1])},
-          {"cg_iterations", static_cast<double>(sums[2] / P)},
-          {"cg_solves", static_cast<double>(sums[3] / P)},
-          {"rebalances", static_cast<double>(sums[4] / P)}};
+          {"cg_iterations", static_cast<double>(sums[2]) / P},
+          {"cg_solves", static_cast<double>(sums[3]) / P},
+          {"rebalances", static_cast<double>(sums[4]) / P},
+          {"halo_exchanges", static_cast<double>(sums[5]) / P},
+          {"reductions", static_cast<double>(sums[6]) / P},
+          {"communication_seconds_mean", comm.sum(st.communication_seconds) / P},
+          {"communication_seconds_max", comm.max(st.communication_seconds)}};
 }
 
 template <int D> long long GlobalView<D>::nodes() const {

@@ -34,6 +34,16 @@ struct LocalFailure {
   long long key = kNoParticle;
   std::string message;
   bool instability = true;
+  bool deferred = false; ///< a stage failure passed to defer(): thrown as DeferredInstability
+};
+
+/// The InstabilityError of a stage failure that a rank deferred (defer()),
+/// thrown on every rank by the reduction that found it - possibly the one
+/// after the step, which the engine then takes back (as a serial run stops
+/// inside the step).
+class DeferredInstability : public InstabilityError {
+public:
+  using InstabilityError::InstabilityError;
 };
 
 template <int D> class Distribution {
@@ -46,12 +56,25 @@ public:
   /// each node adds the partial sums of the other ranks, and every rank then
   /// holds the totals on all its local nodes (owned and ghost).
   virtual void sum_nodal(std::span<const NodalArray> fields) = 0;
-  /// Global sums (ordered: the same bits on every rank), maxima, minima.
-  virtual void sum(std::span<double> values) = 0;
-  virtual void max(std::span<double> values) = 0;
-  virtual void min(std::span<double> values) = 0;
-  /// Collective: when any rank passes a failure, every rank throws the one
-  /// with the lowest key (InstabilityError or InputError with its message).
+  /// Global sums (ordered: the same bits on every rank) of `sums` and
+  /// maxima of `maxima`, in one reduction. When a rank deferred a failure
+  /// (defer), every rank throws it afterwards instead of returning.
+  virtual void reduce(std::span<double> sums, std::span<double> maxima) = 0;
+  void sum(std::span<double> values) { reduce(values, {}); }
+  void max(std::span<double> values) { reduce({}, values); }
+  void min(std::span<double> values) {
+    for (double& v : values) v = -v;
+    reduce({}, values);
+    for (double& v : values) v = -v;
+  }
+  /// Notes a failure of this rank (the lowest key is kept) without meeting
+  /// the other ranks: the rank goes on with the step, and every rank throws
+  /// the failure with the lowest key at the next reduction - so none waits
+  /// for a rank that stopped, and a step costs no extra reduction.
+  virtual void defer(const LocalFailure& failure) = 0;
+  /// Collective now: when any rank passes (or deferred) a failure, every
+  /// rank throws the one with the lowest key (InstabilityError or InputError
+  /// with its message).
   virtual void agree(const LocalFailure* failure) = 0;
   /// The global id of local particle p (its index in a serial run).
   virtual long long global_id(int p) const = 0;

@@ -135,10 +135,16 @@ template <int D> void Engine<D>::step() {
   } catch (const ParticleFailure& f) {
     unstable(f.particle, f.what);
   }
+  const double t0 = t_, dt_prev0 = dt_prev_;
   t_ += dt_;
   ++step_;
   dt_prev_ = dt_;
-  sum_particles(true); // checks, energies, wave speed
+  try {
+    sum_particles(true); // checks, energies, wave speed
+  } catch (const DeferredInstability&) { // a rank failed inside the step: stop there, as a serial run does
+    t_ = t0, dt_prev_ = dt_prev0, --step_;
+    throw;
+  }
   // Trapezoidal rule: exact for a constant load on a uniformly accelerating
   // body, where the one-sided rule would leave an O(dt) error in the balance.
   const double power = global_power(t_, momentum_);
@@ -154,8 +160,13 @@ template <int D> void Engine<D>::evaluate_basis() {
       basis_->evaluate_points(P_.x, table_);
       scatter_.invalidate();
     } catch (const BasisError& e) {
-      if (dist_) throw; // fallible() names the particle by its global id
-      unstable(std::string("basis evaluation failed: ") + e.what());
+      if (!dist_) unstable(std::string("basis evaluation failed: ") + e.what());
+      // Every particle gets an empty row until the ranks stop on the failure
+      // (fallible() names the particle by its global id).
+      table_ = BasisTable<D>{};
+      table_.offset.assign(static_cast<std::size_t>(P_.size()) + 1, 0);
+      scatter_.invalidate();
+      throw;
     }
   });
 }
@@ -267,15 +278,9 @@ void Engine<D>::solve_mass(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>
 }
 
 template <int D> void Engine<D>::apply_dirichlet_force(AlignedVector<Vec<D>>& f) {
-  if (!dist_) return constraints_.apply_force(f, nodal_.reaction, dt_, reaction_impulse_, energy_.reaction_work);
-  // This rank's owned nodes only, summed over the ranks: impulse, then work.
-  Vec<D> impulse = Vec<D>::Zero();
-  double sums[D + 1] = {};
-  constraints_.apply_force(f, nodal_.reaction, dt_, impulse, sums[D]);
-  for (int k = 0; k < D; ++k) sums[k] = impulse[k];
-  dist_->sum(sums);
-  for (int k = 0; k < D; ++k) reaction_impulse_[k] += sums[k];
-  energy_.reaction_work += sums[D];
+  // A distributed run: this rank's owned nodes, summed over the ranks after the step (sum_particles).
+  if (!dist_) constraints_.apply_force(f, nodal_.reaction, dt_, reaction_impulse_, energy_.reaction_work);
+  else constraints_.apply_force(f, nodal_.reaction, dt_, rank_reaction_.impulse, rank_reaction_.work);
 }
 
 template <int D> void Engine<D>::to_particles(const ToParticles<D>& what) {
@@ -343,11 +348,14 @@ template <int D> void Engine<D>::advect_nodes(const AlignedVector<Vec<D>>& dx) {
   ScopedPhase timer(timers_, Phase::nodal_update);
   // Ranks agree on the increments first: a family may meet the other ranks
   // while it advects (the B-spline knots are global).
-  if (dist_)
-    fallible([&] {
-      for (std::size_t I = 0; I < dx.size(); ++I)
-        if (!dx[I].allFinite()) unstable("the increment of node " + std::to_string(I) + " is not finite");
-    });
+  if (dist_) {
+    LocalFailure bad;
+    const auto it = std::find_if(dx.begin(), dx.end(), [](const Vec<D>& d) { return !d.allFinite(); });
+    if (it != dx.end())
+      bad.message = "step " + std::to_string(step_) + ", t = " + format_number(t_) + " s: the increment of node " +
+                    std::to_string(it - dx.begin()) + " is not finite";
+    dist_->agree(it != dx.end() ? &bad : nullptr);
+  }
   mode_.advect(*basis_, dx);
 }
 
@@ -374,6 +382,7 @@ static bool leading_particle(const std::string& what, int& p, std::size_t& rest)
 template <int D> template <class Stage> void Engine<D>::fallible(Stage&& stage) {
   if (!dist_) return stage();
   LocalFailure failure;
+  failure.deferred = true;
   bool failed = true;
   const std::string when = "step " + std::to_string(step_) + ", t = " + format_number(t_) + " s: ";
   try {
@@ -394,7 +403,7 @@ template <int D> template <class Stage> void Engine<D>::fallible(Stage&& stage) 
   } catch (const InstabilityError& e) {
     failure.message = e.what();
   }
-  dist_->agree(failed ? &failure : nullptr);
+  if (failed) dist_->defer(failure); // every rank stops on it at the next reduction
 }
 
 template <int D> void Engine<D>::unstable(int p, const std::string& what) const {

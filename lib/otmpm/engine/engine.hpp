@@ -247,9 +247,10 @@ private:
   void update_materials(int p0, int p1, const Mat<D>* H);
   [[noreturn]] void unstable(int p, const std::string& what) const;
   [[noreturn]] void unstable(const std::string& what) const;
-  /// A stage that may fail for a particle: in a distributed run every rank
-  /// runs it, then all agree on the failure (the lowest global particle id)
-  /// before any of them goes on, so none waits for a rank that stopped.
+  /// A stage that may fail for a particle: in a distributed run a rank that
+  /// fails defers its failure and goes on with the step; every rank stops on
+  /// the failure with the lowest global particle id at the next reduction,
+  /// so none waits for a rank that stopped.
   template <class Stage> void fallible(Stage&& stage);
   /// Sends the partial nodal sums of the last to_nodes to their owners and the totals back (distributed runs).
   void exchange_sums(bool mass, bool momentum, bool forces);
@@ -281,6 +282,14 @@ private:
   Vec<D> reaction_impulse_ = Vec<D>::Zero();
   double external_power_ = 0.0; ///< power of the loads at t_ (trapezoidal work)
   std::shared_ptr<Distribution<D>> dist_;
+  /// A distributed run: this rank's Dirichlet impulse and work of the step
+  /// (summed over the ranks with the energies), and the ranks' kinetic
+  /// energy of the prescribed nodal velocities (check_energy).
+  struct {
+    Vec<D> impulse = Vec<D>::Zero();
+    double work = 0.0;
+  } rank_reaction_;
+  double boundary_kinetic_ = 0.0;
 };
 
 extern template class Engine<1>;

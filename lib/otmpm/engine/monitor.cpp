@@ -81,13 +81,20 @@ template <int D> void Engine<D>::sum_particles(bool check) {
     }
   });
   if (dist_) {
-    if (check) agree_checks(failed.load());
-    double sums[3 + D] = {s.kinetic, s.strain, s.dissipated};
-    for (int k = 0; k < D; ++k) sums[3 + k] = s.momentum[k];
-    dist_->sum(sums);
-    dist_->max({&s.wave_speed2, 1});
-    s.kinetic = sums[0], s.strain = sums[1], s.dissipated = sums[2];
-    for (int k = 0; k < D; ++k) s.momentum[k] = sums[3 + k];
+    // One reduction per step: energies, momentum, this step's reaction
+    // impulse and work, the prescribed kinetic energy; the wave speed and
+    // whether any rank's checks failed (a deferred failure throws in it).
+    double sums[5 + 2 * D] = {s.kinetic, s.strain, s.dissipated, rank_reaction_.work,
+                              constraints_.prescribed_kinetic_energy(nodal_.m)};
+    for (int k = 0; k < D; ++k) sums[5 + k] = s.momentum[k], sums[5 + D + k] = rank_reaction_.impulse[k];
+    double maxima[2] = {s.wave_speed2, failed.load() ? 1.0 : 0.0};
+    dist_->reduce(sums, maxima);
+    if (maxima[1] > 0.0) agree_checks(failed.load());
+    s.kinetic = sums[0], s.strain = sums[1], s.dissipated = sums[2], s.wave_speed2 = maxima[0];
+    energy_.reaction_work += sums[3];
+    boundary_kinetic_ = sums[4];
+    for (int k = 0; k < D; ++k) s.momentum[k] = sums[5 + k], reaction_impulse_[k] += sums[5 + D + k];
+    rank_reaction_ = {};
   }
   energy_.kinetic = s.kinetic;
   energy_.strain = s.strain;
@@ -124,8 +131,7 @@ template <int D> void Engine<D>::check_energy() const {
   // start of the step in fe/musl/otm/unified) has done any work: the kinetic
   // energy of the prescribed nodal motion, sum 1/2 m_I v_Ik^2, covers that
   // (zero for fixed supports).
-  double boundary_kinetic = constraints_.prescribed_kinetic_energy(nodal_.m);
-  if (dist_) dist_->sum({&boundary_kinetic, 1});
+  const double boundary_kinetic = dist_ ? boundary_kinetic_ : constraints_.prescribed_kinetic_energy(nodal_.m);
   const double reference =
       std::max(energy_.initial + std::abs(energy_.external_work) + std::abs(energy_.reaction_work) + boundary_kinetic,
                energy_floor);
