@@ -4,7 +4,7 @@
 // tile the point lattice (nodes and B-spline control points); a window holds
 // every point its particles reach; the exchange lists of two ranks name the
 // same points in the same order.
-#include "otmpm/distributed/halo.hpp"
+#include "otmpm/distributed/domain.hpp"
 
 #include <doctest/doctest.h>
 
@@ -185,4 +185,45 @@ TEST_CASE("node exchange: one rank alone leaves the sums as they are") {
   x.sum(Comm::self(), {&f, 1});
   CHECK(m == std::vector<double>(9, 1.5));
   CHECK(x.neighbours().empty());
+}
+
+TEST_CASE("domain: in ul mode a stencil that reaches the outer layer of a rank's nodes stops the run") {
+  // 1D lattice of 20 cells on 2 ranks; rank 0 owns cells [0, 10): with a
+  // reach of 1 below, 2 above and one guard layer its window is points
+  // [0, 13) and point 12 is the guard layer (point 0 is the lattice's end).
+  PointLattice<1> L;
+  L.grid.cells = {20};
+  L.points = {21};
+  L.below = {1};
+  L.above = {2};
+  L.guard = 1;
+  std::vector<Index<1>> home;
+  for (int c = 0; c < 20; ++c) home.push_back({c});
+  Domain<1>::Setup setup;
+  setup.lattice = L;
+  setup.decomposition = Decomposition<1>::rcb({20}, 2, home, Comm::self());
+  setup.nodes_move = true;
+  REQUIRE(setup.decomposition.box(0).hi[0] == 10);
+  const Domain<1> d(Comm::self(), setup);
+  REQUIRE(d.exchange().window().box.hi[0] == 13);
+  BasisTable<1> table;
+  auto row = [&](std::vector<int> nodes) {
+    for (int I : nodes) {
+      table.node.push_back(I);
+      table.N.push_back(1.0 / static_cast<double>(nodes.size()));
+      table.dN.push_back(Vec<1>::Zero());
+    }
+    table.offset.push_back(static_cast<int>(table.node.size()));
+  };
+  row({0, 1});   // at the lattice's end: no guard there
+  row({10, 11}); // inside
+  CHECK_NOTHROW(d.check_support(table));
+  row({11, 12}); // particle 2 reaches point 12
+  try {
+    d.check_support(table);
+    FAIL("no ParticleFailure");
+  } catch (const ParticleFailure& f) {
+    CHECK(f.particle == 2);
+    CHECK(f.what.find("outer layer") != std::string::npos);
+  }
 }

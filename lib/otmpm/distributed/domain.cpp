@@ -17,6 +17,32 @@ Domain<D>::Domain(const Comm& comm, Setup s)
       global_particles_(s.global_particles), hint_offset_(s.hint_offset), traction_area_(std::move(s.traction_area)),
       window_basis_(std::move(s.window_basis)), dirichlet_(std::move(s.dirichlet)) {
   find_neighbours();
+  find_guard();
+}
+
+template <int D> void Domain<D>::find_guard() {
+  const Window<D>& w = exchange_.window();
+  guard_.assign(static_cast<std::size_t>(w.size()), 0);
+  if (lattice_.guard == 0) return;
+  for (int i = 0; i < w.size(); ++i) {
+    const Index<D> ijk = w.index(i);
+    for (int k = 0; k < D; ++k) {
+      const bool low = w.box.lo[k] > 0 && ijk[k] < w.box.lo[k] + lattice_.guard;
+      const bool high = w.box.hi[k] < lattice_.points[k] && ijk[k] >= w.box.hi[k] - lattice_.guard;
+      if (low || high) guard_[static_cast<std::size_t>(i)] = 1;
+    }
+  }
+}
+
+template <int D> void Domain<D>::check_support(const BasisTable<D>& table) const {
+  if (lattice_.guard == 0) return;
+  for (int p = 0; p < table.rows(); ++p)
+    for (int e = table.begin(p); e < table.end(p); ++e)
+      if (guard_[static_cast<std::size_t>(table.node[e])])
+        throw ParticleFailure{p, "its basis support reaches the outer layer of the nodes rank " +
+                                     std::to_string(comm_.rank()) +
+                                     " holds: in ul mode a particle keeps the cell it was seeded in while the lattice "
+                                     "moves, and this one drifted too far from it (run with fewer ranks)"};
 }
 
 template <int D> void Domain<D>::find_neighbours() {
@@ -51,6 +77,7 @@ template <int D> void Domain<D>::rebalance(Engine<D>& e) {
   migrate(e); // to the new owners (cell hints local to the old window)
   shift_hints(e, +1);
   exchange_ = NodeExchange<D>(lattice_, decomposition_, comm_.rank());
+  find_guard();
   const Window<D>& w = exchange_.window();
   e.repartition(window_basis_(w, hint_offset_), window_dirichlet(dirichlet_, lattice_, w));
   shift_hints(e, -1); // local to the new window

@@ -80,6 +80,7 @@ public:
   void reduce(std::span<double> sums, std::span<double> maxima) override;
   void defer(const LocalFailure& failure) override;
   void agree(const LocalFailure* failure) override;
+  void check_support(const BasisTable<D>& table) const override;
   long long global_id(int p) const override { return gid_[static_cast<std::size_t>(p)]; }
   const std::vector<char>& owned_nodes() const override { return exchange_.owned(); }
   void solve_consistent_mass(const BasisTable<D>& table, const std::vector<double>& m_p,
@@ -134,6 +135,9 @@ private:
   std::vector<std::vector<double>> traction_area_;
   std::vector<int> neighbours_; ///< ranks whose cells touch this rank's cells (migration)
   std::optional<LocalFailure> pending_; ///< deferred failure of this rank (the lowest key)
+  std::vector<char> guard_;            ///< per local point: in the guard layer (PointLattice::guard)
+  /// Marks the guard layer of the current window.
+  void find_guard();
   std::function<std::unique_ptr<Basis<D>>(const Window<D>&, Index<D>&)> window_basis_;
   Dirichlet<D> dirichlet_;
   DomainStats stats_;

@@ -17,6 +17,9 @@ template <int D> struct PointLattice {
   int shift = 0;         ///< point i belongs to cell clamp(i - shift) on each axis
   /// A particle in cell c reaches the points c - below[k] .. c + above[k] on axis k.
   Index<D> below{}, above{};
+  /// Layers of points around that reach whose use by a stencil stops the
+  /// run (`ul` mode: a support that reaches them may go further).
+  int guard = 0;
 
   /// The cell point index i belongs to on axis k.
   int cell_of_point(int i, int k) const { return std::clamp(i - shift, 0, grid.cells[k] - 1); }
@@ -74,8 +77,8 @@ template <int D> IndexBox<D> PointLattice<D>::window(const IndexBox<D>& cells) c
   const IndexBox<D> own = owned_points(cells);
   IndexBox<D> b;
   for (int k = 0; k < D; ++k) {
-    b.lo[k] = std::min(own.lo[k], std::max(0, cells.lo[k] - below[k]));
-    b.hi[k] = std::max(own.hi[k], std::min(points[k], cells.hi[k] + above[k]));
+    b.lo[k] = std::min(own.lo[k], std::max(0, cells.lo[k] - below[k] - guard));
+    b.hi[k] = std::max(own.hi[k], std::min(points[k], cells.hi[k] + above[k] + guard));
   }
   return b;
 }

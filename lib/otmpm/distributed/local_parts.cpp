@@ -41,8 +41,10 @@ PointLattice<D> point_lattice(const Scene& scene, const Basis<D>& basis, const C
       L.below[k] = r, L.above[k] = r + 1;
     }
   }
-  if (ul)
+  if (ul) {
     for (int k = 0; k < D; ++k) L.below[k] += kAdvectedSlack, L.above[k] += kAdvectedSlack;
+    L.guard = 1;
+  }
   return L;
 }
 

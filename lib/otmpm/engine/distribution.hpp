@@ -76,6 +76,11 @@ public:
   /// rank throws the one with the lowest key (InstabilityError or InputError
   /// with its message).
   virtual void agree(const LocalFailure* failure) = 0;
+  /// After each basis evaluation: throws ParticleFailure for a particle
+  /// whose stencil reaches the outer edge of this rank's ghost layer (its
+  /// support might go beyond the nodes this rank holds: `ul` mode, where
+  /// particles keep their cell while the lattice moves).
+  virtual void check_support(const BasisTable<D>& table) const = 0;
   /// The global id of local particle p (its index in a serial run).
   virtual long long global_id(int p) const = 0;
   /// Per local node: 1 where this rank owns the node.

@@ -159,6 +159,7 @@ template <int D> void Engine<D>::evaluate_basis() {
     try {
       basis_->evaluate_points(P_.x, table_);
       scatter_.invalidate();
+      if (dist_) dist_->check_support(table_);
     } catch (const BasisError& e) {
       if (!dist_) unstable(std::string("basis evaluation failed: ") + e.what());
       // Every particle gets an empty row until the ranks stop on the failure
