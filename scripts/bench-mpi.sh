@@ -14,11 +14,14 @@
 # the speed-up over serial 1 thread, and from the result file's attributes
 # the halo bytes and communication seconds per step and rank.
 #
-#   bash scripts/bench-mpi.sh [--repeat R] [--cells N] [--ranks MAX] [--basis linear] [--integrator fe]
+# With --dim 3 the block is the 3D cube of N^3 cells, 2 x 2 x 2 particles per
+# cell, under gravity along z with its base fixed.
+#
+#   bash scripts/bench-mpi.sh [--repeat R] [--cells N] [--ranks MAX] [--basis linear] [--integrator fe] [--dim 2|3]
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 bin=${OTMPM_BIN:-$root/build/bin/otmpm}
-repeat=5 cells=200 ranks=2 basis=linear integrator=fe short=10 long=60
+repeat=5 cells=200 ranks=2 basis=linear integrator=fe short=10 long=60 dim=2
 while [ $# -gt 0 ]; do
   case "$1" in
     --repeat) repeat=$2; shift 2 ;;
@@ -27,6 +30,7 @@ while [ $# -gt 0 ]; do
     --basis) basis=$2; shift 2 ;;
     --integrator) integrator=$2; shift 2 ;;
     --steps) short=$2; long=$3; shift 3 ;;
+    --dim) dim=$2; shift 2 ;;
     *) echo "usage: bash scripts/bench-mpi.sh [--repeat R] [--cells N] [--ranks MAX] [--basis B] [--integrator I] [--steps SHORT LONG]" >&2; exit 2 ;;
   esac
 done
@@ -34,9 +38,35 @@ work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMP_WAIT_POLICY=passive
 h=$(/usr/bin/python3 -c "print(repr(1.0/$cells))")
+lo=$(/usr/bin/python3 -c "print(-2*$h)") hi=$(/usr/bin/python3 -c "print(1+2*$h)")
+if [ "$dim" = 3 ]; then
+  grid="lower = [$lo, $lo, 0.0]
+upper = [$hi, $hi, $hi]
+cells = [$((cells + 4)), $((cells + 4)), $((cells + 2))]"
+  body="lower = [0.0, 0.0, 0.0]
+upper = [1.0, 1.0, 1.0]
+particles_per_cell = 2
+velocity = [0.0, 0.0, 0.0]"
+  base="lower = [$lo, $lo, 0.0]
+upper = [$hi, $hi, 0.0]
+fix = [true, true, true]"
+  gravity="[0.0, 0.0, -9.81]"
+else
+  grid="lower = [$lo, 0.0]
+upper = [$hi, $hi]
+cells = [$((cells + 4)), $((cells + 2))]"
+  body="lower = [0.0, 0.0]
+upper = [1.0, 1.0]
+particles_per_cell = 2
+velocity = [0.0, 0.0]"
+  base="lower = [$lo, 0.0]
+upper = [$hi, 0.0]
+fix = [true, true]"
+  gravity="[0.0, -9.81]"
+fi
 cat > "$work/block.toml" <<EOF
 [simulation]
-dimension = 2
+dimension = $dim
 mode = "mpm"
 integrator = "$integrator"
 t_end = 1.0
@@ -45,9 +75,7 @@ cfl = 0.3
 kind = "$basis"
 gamma_lme = 3.0
 [grid]
-lower = [$(/usr/bin/python3 -c "print(-2*$h)"), 0.0]
-upper = [$(/usr/bin/python3 -c "print(1+2*$h)"), $(/usr/bin/python3 -c "print(1+2*$h)")]
-cells = [$((cells + 4)), $((cells + 2))]
+$grid
 [[material]]
 name = "m"
 model = "linear_elastic"
@@ -57,17 +85,12 @@ poisson = 0.3
 [[body]]
 name = "block"
 material = "m"
-lower = [0.0, 0.0]
-upper = [1.0, 1.0]
-particles_per_cell = 2
-velocity = [0.0, 0.0]
+$body
 [[boundary]]
 name = "base"
-lower = [$(/usr/bin/python3 -c "print(-2*$h)"), 0.0]
-upper = [$(/usr/bin/python3 -c "print(1+2*$h)"), 0.0]
-fix = [true, true]
+$base
 [body_force]
-value = [0.0, -9.81]
+value = $gravity
 [output]
 every = 0.0
 fields = ["x"]
@@ -90,7 +113,7 @@ run() { # config steps out -> wall seconds
   esac | sed -n 's/.* \([0-9.]*\) s wall.*/\1/p'
 }
 echo "machine: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg)"
-echo "block ${cells}x${cells} cells, $((4 * cells * cells)) particles, $basis $integrator mpm; steps $short and $long; $repeat rounds"
+echo "block ${dim}D, $cells cells per side, $(( (dim == 3 ? 8 * cells : 4) * cells * cells)) particles, $basis $integrator mpm; steps $short and $long; $repeat rounds"
 declare -A per_step
 for r in $(seq 1 "$repeat"); do
   for cfg in "${configs[@]}"; do

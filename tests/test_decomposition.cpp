@@ -79,7 +79,7 @@ TEST_CASE("rcb: the boxes tile the lattice and balance uniform particles within 
   }
 }
 
-TEST_CASE("rcb: the same home cells give the same boxes; too many ranks is an input error") {
+TEST_CASE("rcb: the same home cells give the same boxes, too many ranks is an input error") {
   std::mt19937 rng(5);
   std::vector<Index<3>> home;
   for (int i = 0; i < 2000; ++i)
@@ -139,7 +139,7 @@ TEST_CASE("point lattice: owned points tile the points, windows hold every point
   }
 }
 
-TEST_CASE("node exchange: two ranks list the same points in the same order; each ghost has one owner") {
+TEST_CASE("node exchange: two ranks list the same points in the same order, each ghost has one owner") {
   const PointLattice<2> L = lattice(17, 11, 1, 0, 2, 3);
   std::vector<Index<2>> home = particles_in<2>({{1, 1}, {15, 10}}, 2);
   const auto d = Decomposition<2>::rcb(L.grid.cells, 5, home, Comm::self());

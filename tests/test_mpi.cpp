@@ -209,7 +209,7 @@ TEST_CASE("mpi: the 2D Dyka strip (mpm, npc, LME, lumped) agrees with the serial
   check_agreement({"dyka2d", "dyka_2d.toml", {"simulation.t_end=2e-5", "output.every=5e-6", kFields}}, {2, 3, 4});
 }
 
-TEST_CASE("mpi: the block under gravity (mpm, fe, linear; Dirichlet base) agrees on 2, 3 and 4 ranks") {
+TEST_CASE("mpi: the block under gravity (mpm, fe, linear, Dirichlet base) agrees on 2, 3 and 4 ranks") {
   check_agreement({"block", "andersen_block.toml", {"simulation.t_end=0.3", "output.every=0.1", kFields,
                                                    "simulation.integrator=fe", "basis.kind=linear"}},
                   {2, 3, 4});
@@ -248,7 +248,7 @@ TEST_CASE("mpi: LME in ul mode, uGIMP and a 3D run") {
                   {3});
 }
 
-TEST_CASE("mpi: one rank gives the serial bits; a rank count gives the same bits run to run") {
+TEST_CASE("mpi: one rank gives the serial bits, a rank count gives the same bits run to run") {
   TempDir dir("mpi_bits");
   const Case c{"bits", "dyka_2d.toml", {"simulation.t_end=1e-5", "output.every=5e-6", kFields}};
   REQUIRE(run_otmpm(dir, 0, arguments(c, "serial.h5")).status == 0);

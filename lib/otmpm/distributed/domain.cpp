@@ -4,8 +4,6 @@
 #include "otmpm/distributed/domain.hpp"
 
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
 #include <limits>
 
 namespace otmpm::distributed {
@@ -238,6 +236,9 @@ void Domain<D>::solve_consistent_mass(const BasisTable<D>& table, const std::vec
   Vec<D> rz, bb;
   dots(res, z, res, res, rz, bb);
   std::array<bool, D> done{};
+  std::array<double, D> best;    // smallest relative residual so far
+  std::array<int, D> since{};    // iterations since it last halved
+  best.fill(std::numeric_limits<double>::infinity());
   for (int k = 0; k < D; ++k) done[static_cast<std::size_t>(k)] = bb[k] == 0.0;
   int it = 0;
   double worst = 0.0;
@@ -263,8 +264,14 @@ void Domain<D>::solve_consistent_mass(const BasisTable<D>& table, const std::vec
       const std::size_t kk = static_cast<std::size_t>(k);
       if (done[kk]) continue;
       const double rel = std::sqrt(rr[k] / bb[k]);
+      if (!std::isfinite(rel))
+        throw InstabilityError("consistent mass: conjugate gradients met a non-finite residual (component " +
+                               std::to_string(k) + ")");
       worst = std::max(worst, rel);
-      if (!(rel > kMassTolerance)) done[kk] = true;
+      if (rel < 0.5 * best[kk]) best[kk] = rel, since[kk] = 0;
+      else ++since[kk];
+      // converged, or stalled at round-off (the recursive residual no longer falls)
+      if (rel <= kMassTolerance || (rel <= kMassStall && since[kk] >= kMassStallIterations)) done[kk] = true;
     }
     Vec<D> beta = Vec<D>::Zero();
     for (int k = 0; k < D; ++k)
@@ -272,7 +279,6 @@ void Domain<D>::solve_consistent_mass(const BasisTable<D>& table, const std::vec
     for (std::size_t I = 0; I < n; ++I) p[I] = z[I] + beta.cwiseProduct(p[I]);
     rz = rz_new;
   }
-  if (std::getenv("OTMPM_DEBUG_CG") && comm_.root()) std::fprintf(stderr, "cg %d it, rel %.3e\n", it, worst);
   ++stats_.cg_solves;
   stats_.cg_iterations += it;
   stats_.cg_worst_residual = std::max(stats_.cg_worst_residual, worst);

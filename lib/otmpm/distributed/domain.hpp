@@ -32,12 +32,17 @@ struct DomainStats {
   double cg_worst_residual = 0.0; ///< largest final relative residual
 };
 
-/// Relative residual |r - M y|_2 / |r|_2 (per component) at which the
-/// consistent-mass CG stops; results then agree with the direct solve of a
-/// serial run to about 1e-13 relative (tests/test_mpi.cpp).
+/// Relative residual |r - M y|_2 / |r|_2 (per component, the recursive CG
+/// residual) at which the consistent-mass CG stops; results then agree with
+/// the direct solve of a serial run to about 1e-13 relative
+/// (tests/test_mpi.cpp; OTM runs: docs/user-guide.md, "Distributed runs").
 inline constexpr double kMassTolerance = 1e-15;
 /// CG iterations after which the consistent-mass solve gives up (InstabilityError).
 inline constexpr int kMassMaxIterations = 1000;
+/// A CG whose relative residual is below kMassStall and has not halved for
+/// kMassStallIterations iterations has reached round-off: it stops there.
+inline constexpr double kMassStall = 1e-13;
+inline constexpr int kMassStallIterations = 20;
 /// Rebalancing (`mpm` mode): every kRebalanceCheck steps the ranks compare
 /// their loads (particles + kEmptyCellWeight per cell); when the largest is
 /// more than kImbalanceThreshold times the mean, the cells are bisected
