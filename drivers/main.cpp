@@ -1,68 +1,87 @@
-// otmpm - command line driver.
-//
-//   otmpm run   SCENE.toml [--set KEY=VALUE]... [--out FILE.h5] [--quiet]
-//   otmpm run   --restart CHECKPOINT.h5 [--out FILE.h5] [--quiet]
-//   otmpm pair  SCENE.toml [--set KEY=VALUE]... [--quiet]
-//   otmpm study STUDY.toml
-//   otmpm basis --kind K [options] --out FILE.csv
+// otmpm - command line driver. `otmpm --help` and `otmpm COMMAND --help`
+// print the usage, generated from the options (CLI11).
 //
 // Exit status: 0 success, 1 the simulation became unstable (diagnosis
-// printed), 2 bad input (the message names file, line and key), 3 internal error.
+// printed), 2 bad input (the message names file, line and key; a bad option
+// gets CLI11's message), 3 internal error, 130/143 interrupted by
+// SIGINT/SIGTERM (the result file stays valid, status "interrupted").
 //
 // Under mpirun (or srun) `run` and `pair` run distributed over the ranks;
 // every rank ends with the same status and one rank prints the diagnosis.
-#include "commands.hpp"
+#include "cli.hpp"
+#include "progress.hpp"
 
 #include "otmpm/core.hpp"
 #include "otmpm/distributed/comm.hpp"
 
 #include <cstdio>
+#include <cstring>
 #include <exception>
 #include <string>
 #include <vector>
 
 namespace {
 
-void usage(std::FILE* out) {
-  std::fputs("usage:\n"
-             "  otmpm run   SCENE.toml [--set KEY=VALUE]... [--out FILE.h5] [--quiet]\n"
-             "  otmpm run   --restart CHECKPOINT.h5 [--out FILE.h5] [--quiet]\n"
-             "  otmpm pair  SCENE.toml [--set KEY=VALUE]... [--quiet]\n"
-             "  otmpm study STUDY.toml\n"
-             "  otmpm basis --kind K [--dim D] [--lower X] [--upper X] [--cells N] [--perturb F]\n"
-             "              [--gamma-lme G] [--tolerance T] [--d-max D] [--samples N] --out FILE.csv\n"
-             "exit status: 0 ok, 1 unstable, 2 bad input, 3 internal error\n",
-             out);
+constexpr int kBadInput = 2;
+
+const char* const kFooter =
+    "Exit status: 0 ok, 1 the simulation became unstable, 2 bad input, 3 internal error,\n"
+    "130/143 interrupted by SIGINT/SIGTERM. OMP_WAIT_POLICY defaults to passive (see the user guide).\n"
+    "Each command has its own help: otmpm run --help, ...";
+
+/// An unknown first word would otherwise get CLI11's "A subcommand is required".
+bool unknown_command(int argc, char** argv, const CLI::App& app) {
+  if (argc < 2 || argv[1][0] == '-') return false;
+  for (const CLI::App* sub : app.get_subcommands([](const CLI::App*) { return true; }))
+    if (sub->get_name() == argv[1]) return false;
+  if (!otmpm::distributed::Comm::world().root()) return true;
+  std::fprintf(stderr, "otmpm: unknown command '%s' (commands: run, pair, study, basis, render)\n%s\n", argv[1],
+               "Run with --help for more information.");
+  return true;
 }
 
-/// Runs the command; returns its exit status, and in `message` the diagnosis of an error.
-int dispatch(const std::vector<std::string>& args, std::string& message) {
-  const std::vector<std::string> rest(args.begin() + 1, args.end());
+/// The diagnosis line of an error, ended progress line first.
+std::string diagnosis(const char* kind, const char* what) {
+  otmpm::cli::end_progress_line();
+  return std::string("otmpm: ") + kind + ": " + what;
+}
+
+/// Only `run` and `pair` run distributed; the other commands in one process.
+void refuse_under_mpirun(const CLI::App& command) {
+  const std::string& name = command.get_name();
+  if (otmpm::distributed::Comm::world().size() > 1 && name != "run" && name != "pair")
+    throw otmpm::InputError("'" + name + "' runs in one process: start it without mpirun");
+}
+
+/// Parses the command line and runs the chosen command; returns the exit
+/// status, and in `message` the diagnosis of an error (printed by one rank).
+int dispatch(CLI::App& app, const std::vector<otmpm::cli::Command>& commands, int argc, char** argv,
+             std::string& message) {
   try {
-    if (args[0] == "run") return otmpm::cli::run_command(rest);
-    if (args[0] == "pair") return otmpm::cli::pair_command(rest);
-    if (otmpm::distributed::Comm::world().size() > 1)
-      throw otmpm::InputError("'" + args[0] + "' runs in one process: start it without mpirun");
-    if (args[0] == "basis") return otmpm::cli::basis_command(rest);
-    if (args[0] == "study") return otmpm::cli::study_command(rest);
-    if (args[0] == "--version") {
-      std::puts(otmpm::cli::version());
-      return 0;
-    }
-    std::fprintf(stderr, "otmpm: unknown command '%s'\n", args[0].c_str());
-    usage(stderr);
-    return 2;
+    app.parse(argc, argv);
+    const std::vector<CLI::App*> chosen = app.get_subcommands();
+    const std::vector<CLI::App*> all = app.get_subcommands([](const CLI::App*) { return true; });
+    for (std::size_t i = 0; i < all.size(); ++i)
+      if (!chosen.empty() && all[i] == chosen.front()) {
+        refuse_under_mpirun(*all[i]);
+        return commands[i]();
+      }
+    return kBadInput;
+  } catch (const CLI::ParseError& e) {
+    // Help, --version and CLI11's messages from one rank only.
+    const int code = otmpm::distributed::Comm::world().root() ? app.exit(e) : e.get_exit_code();
+    return code == 0 ? 0 : kBadInput;
   } catch (const otmpm::InputError& e) {
-    message = std::string("otmpm: error: ") + e.what();
-    return 2;
+    message = diagnosis("error", e.what());
+    return kBadInput;
   } catch (const otmpm::InstabilityError& e) {
-    message = std::string("otmpm: unstable: ") + e.what();
+    message = diagnosis("unstable", e.what());
     return 1;
   } catch (const otmpm::BasisError& e) {
-    message = std::string("otmpm: error: ") + e.what();
-    return 2;
+    message = diagnosis("error", e.what());
+    return kBadInput;
   } catch (const std::exception& e) {
-    message = std::string("otmpm: internal error: ") + e.what();
+    message = diagnosis("internal error", e.what());
     return 3;
   }
 }
@@ -70,13 +89,23 @@ int dispatch(const std::vector<std::string>& args, std::string& message) {
 } // namespace
 
 int main(int argc, char** argv) {
+  // Before MPI starts: it may execute the process again.
+  otmpm::cli::default_passive_wait_policy(argv);
   otmpm::distributed::Session mpi(argc, argv);
-  const std::vector<std::string> args(argv + 1, argv + argc);
-  if (args.empty() || args[0] == "--help" || args[0] == "-h") {
-    if (otmpm::distributed::Comm::world().root()) usage(args.empty() ? stderr : stdout);
-    return mpi.finish(args.empty() ? 2 : 0, "");
-  }
+  CLI::App app{"otmpm: explicit solid dynamics with the Material Point Method and an OTM-style "
+               "updated-Lagrangian scheme",
+               "otmpm"};
+  app.set_version_flag("--version", otmpm::cli::version(), "Print the version and exit");
+  app.require_subcommand(1);
+  app.footer(kFooter);
+  app.get_formatter()->column_width(34);
+  // One entry per subcommand, in the order they are added (get_subcommands' order).
+  std::vector<otmpm::cli::Command> commands;
+  for (auto add : {otmpm::cli::add_run_command, otmpm::cli::add_pair_command, otmpm::cli::add_study_command,
+                   otmpm::cli::add_basis_command, otmpm::cli::add_render_command})
+    commands.push_back(add(app));
+  if (unknown_command(argc, argv, app)) return mpi.finish(kBadInput, "");
   std::string message;
-  const int status = dispatch(args, message);
+  const int status = dispatch(app, commands, argc, argv, message);
   return mpi.finish(status, message);
 }

@@ -5,7 +5,9 @@
 // only, see kOtmStress). Also: -np 1 gives the serial bits; a fixed rank
 // count gives the same bits run to run; particles migrate through every
 // subdomain; a checkpoint restarts on another rank count; a bad scene and an
-// unstable scene end every rank with exit status 2 and 1 and one message.
+// unstable scene end every rank with exit status 2 and 1 and one message; a
+// j2 strip (plastic state) and a block sliding on a wall (its force summed
+// over the ranks) agree with the serial run and restart on another rank count.
 #include "otmpm/io/hdf5.hpp"
 
 #include "temp_dir.hpp"
@@ -169,10 +171,17 @@ struct Case {
   /// The stress the differences are relative to (0: the largest stress of
   /// the serial run; a body without stress compares with its rho c v).
   double stress_scale = 0.0;
+  /// Further output fields compared to kAgreement (e.g. plastic_strain).
+  std::vector<std::string> more_fields = {};
 };
 
+/// The scene file of a case: an example, or a file of the test's directory.
+std::string scene_path(const std::string& scene) {
+  return fs::path(scene).is_absolute() ? scene : (kExamples / scene).string();
+}
+
 std::vector<std::string> arguments(const Case& c, const std::string& out) {
-  std::vector<std::string> a{"run", (kExamples / c.scene).string(), "--quiet", "--out", out};
+  std::vector<std::string> a{"run", scene_path(c.scene), "--quiet", "--out", out};
   for (const std::string& s : c.sets) a.insert(a.end(), {"--set", s});
   return a;
 }
@@ -197,8 +206,72 @@ void check_agreement(const Case& c, const std::vector<int>& ranks) {
       const bool positions = field == "x";
       CHECK(d.at(field) <= (c.otm && !positions ? kOtmStress : kAgreement));
     }
+    for (const std::string& field : c.more_fields) {
+      CAPTURE(field);
+      REQUIRE(d.count(field));
+      CHECK(d.at(field) <= kAgreement);
+    }
     CHECK(attribute(dir.file(out), "ranks") == n);
   }
+}
+
+/// A history of a result file (e.g. "walls/floor/impulse"): its rows.
+h5::Matrix<double> history(const std::string& path, const std::string& group, const std::string& name,
+                           const std::string& dataset) {
+  const hid_t id = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  REQUIRE(id >= 0);
+  const h5::Handle file(id, H5Fclose);
+  const h5::Handle g = h5::open_group(file.get(), group, path);
+  const h5::Handle h = h5::open_group(g.get(), name, path);
+  return h5::read_double_matrix(h.get(), dataset, path);
+}
+
+/// max |a - b| / max |a| over two histories of the same shape.
+double history_difference(const h5::Matrix<double>& a, const h5::Matrix<double>& b) {
+  REQUIRE(a.values.size() == b.values.size());
+  REQUIRE(!a.values.empty());
+  double scale = 0.0, diff = 0.0;
+  for (std::size_t k = 0; k < a.values.size(); ++k) {
+    scale = std::max(scale, std::abs(a.values[k]));
+    diff = std::max(diff, std::abs(a.values[k] - b.values[k]));
+  }
+  return scale > 0.0 ? diff / scale : diff;
+}
+
+/// Writes `text` as NAME.toml in `dir`; returns its absolute path.
+std::string write_scene(const TempDir& dir, const std::string& name, const std::string& text) {
+  const std::string path = fs::absolute(dir.file(name + ".toml")).string();
+  std::ofstream(path) << text;
+  return path;
+}
+
+/// A 2D plane-strain steel strip 0.1 m x 5 mm of j2 material (yield stress
+/// 50 MPa) whose left quarter hits the fixed right end at 5 m/s: the impact
+/// stress (~100 MPa) yields it (tests/test_plastic_runs.cpp).
+std::string j2_strip(const std::string& mode, const std::string& integrator) {
+  return "[simulation]\ndimension = 2\nmode = \"" + mode + "\"\nintegrator = \"" + integrator +
+         "\"\nt_end = 2.0e-5\ncfl = 0.1\n[basis]\nkind = \"linear\"\n"
+         "[grid]\nlower = [-0.01, 0.0]\nupper = [0.1, 0.005]\ncells = [22, 1]\n"
+         "[[material]]\nname = \"m\"\nmodel = \"j2\"\ndensity = 7833.0\nyoung = 200.0e9\n"
+         "poisson = 0.3\nyield_stress = 5.0e7\nhardening_modulus = 1.0e9\n"
+         "[[body]]\nname = \"bar\"\nmaterial = \"m\"\nlower = [0.0, 0.0]\nupper = [0.1, 0.005]\n"
+         "[[initial_velocity]]\nlower = [0.0, 0.0]\nupper = [0.025, 0.005]\nvelocity = [-5.0, 0.0]\n"
+         "[[boundary]]\nname = \"end\"\nlower = [0.1, 0.0]\nupper = [0.1, 0.005]\nfix = [true, false]\n"
+         "[output]\nevery = 5.0e-6\nfields = [\"x\", \"v\", \"stress\", \"plastic_strain\"]\n";
+}
+
+/// A 1 m x 0.5 m elastic block on a frictional wall (friction 0.3) at y = 0,
+/// with gravity tilted by 30 degrees: it slides along the wall
+/// (tests/test_walls.cpp).
+std::string wall_slide(const std::string& mode, const std::string& integrator) {
+  return "[simulation]\ndimension = 2\nmode = \"" + mode + "\"\nintegrator = \"" + integrator +
+         "\"\nt_end = 0.05\ncfl = 0.2\n[basis]\nkind = \"linear\"\n"
+         "[grid]\nlower = [-0.5, -0.5]\nupper = [4.0, 1.0]\nh = 0.125\n"
+         "[[material]]\nname = \"m\"\nmodel = \"linear_elastic\"\ndensity = 1000.0\nyoung = 1.0e7\npoisson = 0.3\n"
+         "[[body]]\nname = \"block\"\nmaterial = \"m\"\nlower = [0.0, 0.0]\nupper = [1.0, 0.5]\n"
+         "[[wall]]\nname = \"floor\"\npoint = [0.0, 0.0]\nnormal = [0.0, 1.0]\nfriction = 0.3\n"
+         "[body_force]\nvalue = [4.905, -8.4957202519214436]\n"
+         "[output]\nevery = 0.0125\nfields = [\"x\", \"v\", \"stress\"]\n";
 }
 
 const std::string kFields = "output.fields=[\"x\",\"v\",\"stress\"]";
@@ -332,4 +405,103 @@ TEST_CASE("mpi: an unstable scene ends every rank with status 1, the serial diag
   CHECK(string_attribute(dir.file("np3.h5"), "status") == string_attribute(dir.file("serial.h5"), "status"));
   CHECK(attribute(dir.file("np3.h5"), "steps") == attribute(dir.file("serial.h5"), "steps"));
   }
+}
+
+TEST_CASE("mpi: a j2 strip (plastic state migrates and restarts) agrees with the serial run") {
+  TempDir scenes("mpi_j2_scenes");
+  const std::string cd = write_scene(scenes, "j2_cd", j2_strip("mpm", "central_difference"));
+  const std::string alpha = write_scene(scenes, "j2_alpha", j2_strip("ul", "explicit_alpha"));
+  check_agreement({"j2_cd", cd, {}, false, 0.0, {"plastic_strain"}}, {3});
+  check_agreement({"j2_alpha", alpha, {}, false, 0.0, {"plastic_strain"}}, {2});
+  // The plastic state is in the checkpoint of 2 ranks and restarts on 3.
+  TempDir dir("mpi_j2_restart");
+  const Case c{"j2_restart", cd, {"output.checkpoint_every=40"}};
+  REQUIRE(run_otmpm(dir, 2, arguments(c, "np2.h5")).status == 0);
+  REQUIRE(fs::exists(dir.file("np2.checkpoint.h5")));
+  fs::copy_file(dir.file("np2.h5"), dir.file("full.h5"));
+  const Result r3 = run_otmpm(dir, 3, {"run", "--restart", "np2.checkpoint.h5", "--out", "np3.h5", "--quiet"});
+  REQUIRE_MESSAGE(r3.status == 0, r3.err);
+  const auto d = differences(dir.file("full.h5"), dir.file("np3.h5"));
+  for (const std::string field : {"x", "v", "stress", "plastic_strain"}) {
+    CAPTURE(field);
+    CHECK(d.at(field) <= kAgreement);
+  }
+  CHECK(attribute(dir.file("np3.h5"), "t_end") == doctest::Approx(2e-5));
+}
+
+TEST_CASE("mpi: a block sliding on a wall agrees with the serial run, the wall force summed over the ranks") {
+  TempDir scenes("mpi_wall_scenes");
+  for (const std::string mode : {"mpm", "ul"}) {
+    CAPTURE(mode);
+    const std::string scene = write_scene(scenes, "slide_" + mode, wall_slide(mode, mode == "mpm" ? "npc" : "fe"));
+    const Case c{"wall_" + mode, scene, {}};
+    TempDir dir("mpi_wall_" + mode);
+    const Result serial = run_otmpm(dir, 0, arguments(c, "serial.h5"));
+    REQUIRE_MESSAGE(serial.status == 0, serial.err);
+    const Result r = run_otmpm(dir, 3, arguments(c, "np3.h5"));
+    REQUIRE_MESSAGE(r.status == 0, r.err);
+    const auto d = differences(dir.file("serial.h5"), dir.file("np3.h5"));
+    for (const std::string field : {"x", "v", "stress"}) {
+      CAPTURE(field);
+      CHECK(d.at(field) <= kAgreement);
+    }
+    for (const std::string dataset : {"impulse", "force"}) {
+      CAPTURE(dataset);
+      const auto a = history(dir.file("serial.h5"), "walls", "floor", dataset);
+      const auto b = history(dir.file("np3.h5"), "walls", "floor", dataset);
+      CHECK(history_difference(a, b) <= kAgreement);
+    }
+    // The wall carries the block: its normal impulse is about m g cos(theta) t
+    // (500 kg x 8.496 m/s^2 x 0.05 s = 212.4 N s; the elastic transient
+    // and the start of contact within 5%).
+    const auto J = history(dir.file("np3.h5"), "walls", "floor", "impulse");
+    CHECK(J.values.back() == doctest::Approx(212.4).epsilon(0.05));
+  }
+  // The walls' held nodes are in the checkpoint of 2 ranks and restart on 3.
+  const std::string scene = write_scene(scenes, "slide_restart", wall_slide("mpm", "npc"));
+  TempDir dir("mpi_wall_restart");
+  const Case c{"wall_restart", scene, {"output.checkpoint_every=100"}};
+  REQUIRE(run_otmpm(dir, 2, arguments(c, "np2.h5")).status == 0);
+  REQUIRE(fs::exists(dir.file("np2.checkpoint.h5")));
+  fs::copy_file(dir.file("np2.h5"), dir.file("full.h5"));
+  const Result r3 = run_otmpm(dir, 3, {"run", "--restart", "np2.checkpoint.h5", "--out", "np3.h5", "--quiet"});
+  REQUIRE_MESSAGE(r3.status == 0, r3.err);
+  const auto d = differences(dir.file("full.h5"), dir.file("np3.h5"));
+  for (const std::string field : {"x", "v", "stress"}) {
+    CAPTURE(field);
+    CHECK(d.at(field) <= kAgreement);
+  }
+  CHECK(history_difference(history(dir.file("full.h5"), "walls", "floor", "impulse"),
+                           history(dir.file("np3.h5"), "walls", "floor", "impulse")) <= kAgreement);
+}
+
+TEST_CASE("mpi: a j2 bar moving through the ranks into a wall: plastic state migrates, the wall force is summed") {
+  // 1D, 40 particles at 50 m/s hit a wall at x = 3 at t = 0.01 s; the
+  // impact stress rho c v = 5e5 Pa yields the j2 material (2e5 Pa).
+  const std::string text =
+      "[simulation]\ndimension = 1\nmode = \"mpm\"\nintegrator = \"npc\"\nt_end = 0.02\ncfl = 0.1\n"
+      "[basis]\nkind = \"linear\"\n[grid]\nlower = [-0.2]\nupper = [3.7]\ncells = [78]\n"
+      "[[material]]\nname = \"soft\"\nmodel = \"j2\"\ndensity = 100.0\nyoung = 1.0e6\npoisson = 0.0\n"
+      "yield_stress = 2.0e5\nhardening_modulus = 1.0e5\n"
+      "[[body]]\nname = \"bar\"\nmaterial = \"soft\"\nlower = [1.5]\nupper = [2.5]\nparticles_per_cell = 2\n"
+      "velocity = [50.0]\n[[wall]]\nname = \"stop\"\npoint = [3.0]\nnormal = [-1.0]\n"
+      "[output]\nevery = 0.005\nfields = [\"x\", \"v\", \"stress\", \"plastic_strain\"]\n";
+  TempDir dir("mpi_j2_wall");
+  const Case c{"j2_wall", write_scene(dir, "bar", text), {}};
+  REQUIRE(run_otmpm(dir, 0, arguments(c, "serial.h5")).status == 0);
+  const Result r = run_otmpm(dir, 3, arguments(c, "np3.h5"));
+  REQUIRE_MESSAGE(r.status == 0, r.err);
+  const auto d = differences(dir.file("serial.h5"), dir.file("np3.h5"));
+  for (const std::string field : {"x", "v", "stress", "plastic_strain"}) {
+    CAPTURE(field);
+    CHECK(d.at(field) <= kAgreement);
+  }
+  CHECK(history_difference(history(dir.file("serial.h5"), "walls", "stop", "impulse"),
+                           history(dir.file("np3.h5"), "walls", "stop", "impulse")) <= kAgreement);
+  CHECK(attribute(dir.file("np3.h5"), "migrated_particles") >= 20);
+  CHECK(attribute(dir.file("np3.h5"), "rebalances") == 0); // a run with walls keeps its division
+  const Frames f = read_frames(dir.file("np3.h5"));
+  double yielded = 0.0;
+  for (double e : f.data.back().at("plastic_strain").values) yielded = std::max(yielded, e);
+  CHECK(yielded > 0.01);
 }

@@ -2,6 +2,7 @@
 /// Scene -> engine parts (assembler.hpp). Each part has one short function.
 #include "otmpm/assembly/assembler.hpp"
 
+#include "otmpm/assembly/seeding.hpp"
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/integrators/integrator.hpp"
 #include "otmpm/reference/exact.hpp"
@@ -36,30 +37,6 @@ template <int D> bool inside_box(const Vec<D>& x, const Vec3& lo, const Vec3& hi
   return true;
 }
 
-/// Cells of the grid spacing h that tile a body box along each axis.
-template <int D> Index<D> body_cells(const BodySection& body, const Vec<D>& h) {
-  Index<D> cells;
-  for (int k = 0; k < D; ++k)
-    cells[k] = std::max(1, static_cast<int>(std::lround((body.upper[k] - body.lower[k]) / h[k])));
-  return cells;
-}
-
-template <int D> Vec<D> initial_body_velocity(const BodySection& body, const Vec<D>& x) {
-  Vec<D> v = vec<D>(body.velocity);
-  if (body.velocity_profile && *body.velocity_profile == "sin_x") {
-    const double s = (x[0] - body.lower[0]) / (body.upper[0] - body.lower[0]);
-    v *= std::sin(std::numbers::pi * s);
-  }
-  return v;
-}
-
-int material_index(const Scene& scene, const BodySection& body) {
-  for (std::size_t i = 0; i < scene.materials.size(); ++i)
-    if (scene.materials[i].name == body.material) return static_cast<int>(i);
-  input_error(scene.locate("body." + body.name + ".material"),
-              "body '" + body.name + "' uses undefined material '" + body.material + "'");
-}
-
 /// True when output.fields names `field`.
 bool output_wants(const Scene& scene, const char* field) {
   const auto& f = scene.output.fields;
@@ -78,7 +55,7 @@ void allocate_fields(const Scene& scene, const IntegratorKind& integrator, const
   if (integrator.needs_previous_position) P.x_prev = P.x;
   AlignedVector<Vec<D>>().swap(P.length0); // the traction areas are taken (memory)
   for (const auto& m : parts.materials)
-    for (const StateSpec& s : m->state()) P.add_state(std::string(s.name), s.width, s.initial);
+    for (const StateSpec& s : m->state()) P.add_state(std::string(s.name), s.width, s.initial.data());
 }
 
 /// The basis of the scene on the node lattice.
@@ -193,7 +170,9 @@ template <int D> StepSettings<D> build_settings(const Scene& scene, const Integr
   const SimulationSection& sim = scene.simulation;
   StepSettings<D> s;
   s.step = integrator.step<D>();
-  s.parameters.gamma = sim.gamma;
+  s.parameters = integrator.default_parameters();
+  for (auto& [key, value] : s.parameters.values)
+    if (const auto given = sim.parameters.find(key); given != sim.parameters.end()) value = given->second;
   s.t_end = sim.t_end;
   s.cfl = sim.cfl;
   s.dt = sim.dt;
@@ -202,6 +181,20 @@ template <int D> StepSettings<D> build_settings(const Scene& scene, const Integr
   s.mass_tolerance = sim.mass_tolerance;
   s.energy_limit = sim.energy_limit;
   return s;
+}
+
+/// The initial values of material state variables given by particle files.
+template <int D> void set_file_state(const Scene& scene, const SeededBodies<D>& seeded, Particles<D>& P) {
+  for (const FileState& f : seeded.file_state) {
+    const BodySection& body = scene.bodies[static_cast<std::size_t>(f.body)];
+    StateField* field = P.find_state(f.name);
+    if (!field || field->width != 1)
+      input_error(scene.locate("body." + body.name + ".file"),
+                  body.file + ": column '" + f.name + "' is neither x, y, z, volume, vx, vy, vz, density nor a "
+                  "scalar state variable of the scene's materials (e.g. plastic_strain)");
+    for (int p = 0; p < P.size(); ++p)
+      if (P.body[p] == f.body) field->values[static_cast<std::size_t>(p)] = f.values[static_cast<std::size_t>(seeded.file_row[static_cast<std::size_t>(p)])];
+  }
 }
 
 } // namespace
@@ -228,49 +221,7 @@ template <int D> BasisOptions basis_options(const Scene& scene) {
 }
 
 template <int D> Particles<D> seed_particles(const Scene& scene, const Vec<D>& h) {
-  validate_seeding<D>(scene, h);
-  struct Seed {
-    Vec<D> x, len;
-    double V;
-    int body;
-  };
-  std::vector<Seed> seeds;
-  std::vector<int> material; // per body
-  std::size_t count = 0;
-  for (const BodySection& body : scene.bodies) {
-    material.push_back(material_index(scene, body));
-    std::size_t n = 1;
-    const Index<D> cells = body_cells<D>(body, h);
-    for (int k = 0; k < D; ++k) n *= static_cast<std::size_t>(cells[k]) * static_cast<std::size_t>(body.particles_per_cell);
-    count += n;
-  }
-  seeds.reserve(count); // no growth by doubling: peak memory
-  for (std::size_t b = 0; b < scene.bodies.size(); ++b) {
-    const BodySection& body = scene.bodies[b];
-    seed_box_cells<D>(vec<D>(body.lower), vec<D>(body.upper), body_cells<D>(body, h), body.particles_per_cell,
-                      body.placement, [&](const Vec<D>& x, double V, const Vec<D>& len) {
-                        seeds.push_back({x, len, V, static_cast<int>(b)});
-                      });
-  }
-  Particles<D> P;
-  P.resize(static_cast<int>(seeds.size()));
-  for (int p = 0; p < P.size(); ++p) {
-    const Seed& sd = seeds[static_cast<std::size_t>(p)];
-    const BodySection& body = scene.bodies[static_cast<std::size_t>(sd.body)];
-    const int mat = material[static_cast<std::size_t>(sd.body)];
-    const double density = scene.materials[static_cast<std::size_t>(mat)].density;
-    P.x[p] = P.X[p] = sd.x;
-    P.V[p] = P.V0[p] = sd.V;
-    P.rho[p] = density;
-    P.m[p] = density * sd.V;
-    P.material[p] = mat;
-    P.body[p] = sd.body;
-    P.length0[p] = sd.len;
-    P.v[p] = initial_body_velocity<D>(body, sd.x);
-    for (const InitialVelocitySection& iv : scene.initial_velocities)
-      if (inside_box<D>(sd.x, iv.lower, iv.upper)) P.v[p] = vec<D>(iv.velocity);
-  }
-  return P;
+  return seed_bodies<D>(scene, h, node_grid<D>(scene)).particles;
 }
 
 template <int D> EngineParts<D> assemble_parts(const Scene& scene) {
@@ -287,7 +238,8 @@ template <int D> EngineParts<D> assemble_parts(const Scene& scene) {
       input_error(ms.where, e.what());
     }
   }
-  parts.particles = seed_particles<D>(scene, grid_spacing<D>(scene));
+  SeededBodies<D> seeded = seed_bodies<D>(scene, grid_spacing<D>(scene), grid);
+  parts.particles = std::move(seeded.particles);
   Particles<D>& P = parts.particles;
   std::shared_ptr<const ExactSolution<D>> exact = make_exact_solution<D>(scene);
   if (exact && exact->has_body_force())
@@ -304,9 +256,12 @@ template <int D> EngineParts<D> assemble_parts(const Scene& scene) {
   parts.basis = build_basis<D>(scene, grid);
   const double h = grid.h().minCoeff();
   parts.dirichlet = build_dirichlet<D>(scene, parts.basis->nodes(), h, ul);
+  for (const WallSection& w : scene.walls)
+    parts.walls.push_back({w.name, vec<D>(w.point), vec<D>(w.normal), vec<D>(w.velocity), w.friction});
   parts.loads.body_force = build_body_force<D>(scene, exact);
   parts.loads.tractions = build_tractions<D>(scene, P, h, exact);
   allocate_fields(scene, integrator, parts, P);
+  set_file_state<D>(scene, seeded, P);
   parts.settings = build_settings<D>(scene, integrator, h);
   return parts;
 }

@@ -14,6 +14,8 @@ namespace {
 /// Per-particle arrays of a checkpoint besides the group "particles": the
 /// basis' per-point state (Basis::save_state).
 constexpr const char* kPointStateArrays[] = {"lambda", "cell_hint"};
+/// The walls' held nodes (Engine::save_state: one per-node array per wall).
+constexpr const char* kWallHeld = "wall_held_";
 /// The cell hints, which are local to a rank's basis and travel as global cells.
 constexpr const char* kCellHints = "cell_hint";
 
@@ -89,10 +91,14 @@ template <int D> std::vector<long long> point_ids(const Domain<D>& d, bool owned
 /// array name, array, per_point) with per_point false for particle rows.
 template <class F> void for_each_row_array(Checkpoint& ck, F&& f) {
   for (auto& [gname, g] : ck.groups) {
-    const bool particles = gname == "particles", basis = gname == "basis", nodes = gname == "nodes";
+    const bool particles = gname == "particles", basis = gname == "basis", nodes = gname == "nodes",
+               engine = gname == "engine";
     auto visit = [&](auto& arrays) {
-      for (auto& [aname, a] : arrays)
-        if (particles || (basis && is_point_state(aname)) || (nodes && aname == "x")) f(g, aname, a, nodes);
+      for (auto& [aname, a] : arrays) {
+        const bool held = engine && aname.rfind(kWallHeld, 0) == 0; // per node, per wall
+        if (particles || (basis && is_point_state(aname)) || (nodes && aname == "x") || held)
+          f(g, aname, a, nodes || held);
+      }
     };
     visit(g.real_arrays);
     visit(g.integer_arrays);

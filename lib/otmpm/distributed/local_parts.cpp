@@ -134,6 +134,9 @@ EngineParts<D> rank_parts(const Scene& scene, const Comm& comm, const AlignedVec
   w.box = setup.lattice.window(setup.decomposition.box(comm.rank()));
   setup.window_basis = window_basis_factory<D>(scene, *parts.basis, setup.lattice);
   parts.basis = setup.window_basis(w, setup.hint_offset);
+  // No rebalancing with walls: a wall's held nodes (its contact state, per
+  // node of the window) stay where they are; particles still migrate.
+  if (!parts.walls.empty()) setup.window_basis = nullptr;
   setup.dirichlet = std::move(parts.dirichlet);
   parts.dirichlet = window_dirichlet<D>(setup.dirichlet, setup.lattice, w);
   auto domain = std::make_shared<Domain<D>>(comm, std::move(setup));

@@ -52,7 +52,7 @@ Engine<D>::Engine(EngineParts<D> parts)
       dist_(std::move(parts.distribution)) {
   check_parts();
   const int nodes = basis_->nodes().size();
-  constraints_ = Constraints<D>(std::move(parts.dirichlet), nodes);
+  constraints_ = Constraints<D>(std::move(parts.dirichlet), std::move(parts.walls), nodes);
   if (dist_) constraints_.count_only(dist_->owned_nodes());
   bool needs_F = false;
   for (const auto& m : materials_) {
@@ -83,7 +83,11 @@ template <int D> void Engine<D>::repartition(std::unique_ptr<Basis<D>> basis, Di
   if (fresh.lambda.size() == state.lambda.size()) fresh.lambda = std::move(state.lambda);
   if (fresh.cell_hint.size() == state.cell_hint.size()) fresh.cell_hint = std::move(state.cell_hint);
   const int nodes = basis_->nodes().size();
-  constraints_ = Constraints<D>(std::move(dirichlet), nodes);
+  // The walls' impulses carry over; their held nodes do not (a run with
+  // walls is not rebalanced: distributed/local_parts.cpp).
+  const AlignedVector<Vec<D>> wall_impulse = constraints_.wall_impulse();
+  constraints_ = Constraints<D>(std::move(dirichlet), constraints_.walls(), nodes);
+  constraints_.wall_impulse() = wall_impulse;
   constraints_.count_only(dist_->owned_nodes());
   nodal_.resize(nodes);
   scatter_.invalidate();
@@ -276,6 +280,19 @@ void Engine<D>::solve_mass(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>
   if (lumped) return;
   if (dist_) dist_->solve_consistent_mass(table_, P_.m, nodal_.m, nodal_.active, constraints_.constrained(), r, y);
   else mass_matrix_->solve(r, y);
+}
+
+template <int D> void Engine<D>::constrain_velocity(AlignedVector<Vec<D>>& v, const WallEffect<D>& effect) {
+  constraints_.apply_velocity(v);
+  if (constraints_.walls().empty()) return;
+  // A distributed run: the work of this rank's owned nodes, summed over the ranks after the step.
+  constraints_.apply_walls(v, {basis_->nodes().positions(), nodal_.m, nodal_.active}, t_, dt_, effect,
+                           dist_ ? rank_reaction_.work : energy_.reaction_work);
+}
+
+template <int D> void Engine<D>::constrain_increment(AlignedVector<Vec<D>>& dx) const {
+  if (constraints_.walls().empty()) return;
+  constraints_.apply_walls_to_increment(dx, {basis_->nodes().positions(), nodal_.m, nodal_.active}, t_, dt_);
 }
 
 template <int D> void Engine<D>::apply_dirichlet_force(AlignedVector<Vec<D>>& f) {

@@ -62,6 +62,7 @@ template <int D> struct EngineParts {
   Particles<D> particles;
   std::vector<std::unique_ptr<Material<D>>> materials; ///< indexed by Particles::material
   Dirichlet<D> dirichlet;
+  std::vector<Wall<D>> walls;
   Loads<D> loads;
   StepSettings<D> settings;
   /// This rank's part in a distributed run (distributed/domain.hpp); null
@@ -144,6 +145,9 @@ public:
   const Material<D>& material(int i) const { return *materials_[static_cast<std::size_t>(i)]; }
   int material_count() const { return static_cast<int>(materials_.size()); }
   const Dirichlet<D>& dirichlet() const { return constraints_.dirichlet(); }
+  const std::vector<Wall<D>>& walls() const { return constraints_.walls(); }
+  /// The impulse each wall gave the body since t = 0.
+  const AlignedVector<Vec<D>>& wall_impulse() const { return constraints_.wall_impulse(); }
   const Loads<D>& loads() const { return loads_; }
   Loads<D>& loads() { return loads_; }
   /// This rank's part in a distributed run, or null.
@@ -195,8 +199,14 @@ public:
   /// Solves M y = r (lumped: division by m_I; consistent: sparse solve) on
   /// active nodes; inactive nodes get zero.
   void solve_mass(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>& y);
-  /// Sets fixed components of a nodal velocity-like field to their value.
-  void apply_dirichlet_velocity(AlignedVector<Vec<D>>& v) const { constraints_.apply_velocity(v); }
+  /// Sets the fixed components of a nodal velocity-like field to their value
+  /// and applies the rigid walls (Constraints::apply_walls) at the nodes'
+  /// current positions; `effect` says how a wall's change reaches the particles.
+  void constrain_velocity(AlignedVector<Vec<D>>& v, const WallEffect<D>& effect = {});
+  /// Sets the fixed components of a nodal acceleration-like field to zero.
+  void constrain_rate(AlignedVector<Vec<D>>& r) const { constraints_.zero_fixed(r); }
+  /// The walls' rule on the node increments dx of this step.
+  void constrain_increment(AlignedVector<Vec<D>>& dx) const;
   /// Zeroes fixed components of f, stores them as reactions, adds their
   /// impulse and work (energy().reaction_work).
   void apply_dirichlet_force(AlignedVector<Vec<D>>& f);

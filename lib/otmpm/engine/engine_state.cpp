@@ -143,6 +143,11 @@ template <int D> void Engine<D>::save_state(Checkpoint& out) const {
   g.reals["wave_speed"] = wave_speed_;
   g.integers["step"] = step_;
   save_vector<D>(g, "reaction_impulse", reaction_impulse_);
+  save_field(g, "wall_impulse", constraints_.wall_impulse());
+  for (std::size_t w = 0; w < constraints_.held().size(); ++w) {
+    const std::vector<char>& held = constraints_.held()[w];
+    g.integer_arrays["wall_held_" + std::to_string(w)] = {1, std::vector<std::int64_t>(held.begin(), held.end())};
+  }
   g.put_reals(energy_fields(energy_));
   save_timers(g, timers_);
   StateGroup& particles = out.group("particles");
@@ -169,6 +174,13 @@ template <int D> void Engine<D>::restore_state(const Checkpoint& in) {
   wave_speed_ = g.real("wave_speed");
   step_ = static_cast<long>(g.integer("step"));
   reaction_impulse_ = restore_vector<D>(g, "reaction_impulse");
+  restore_field(g, "wall_impulse", constraints_.wall_impulse(), constraints_.walls().size());
+  constraints_.held().clear();
+  for (std::size_t w = 0; g.has_array("wall_held_" + std::to_string(w)); ++w) {
+    const std::string name = "wall_held_" + std::to_string(w);
+    const auto& held = g.integer_array(name, static_cast<std::size_t>(basis_->nodes().size()), 1).values;
+    constraints_.held().emplace_back(held.begin(), held.end());
+  }
   g.get_reals(energy_fields(energy_));
   restore_timers(g, timers_);
   const StateGroup& particles = in.group("particles");

@@ -84,9 +84,14 @@ template <int D> void Engine<D>::sum_particles(bool check) {
     // One reduction per step: energies, momentum, this step's reaction
     // impulse and work, the prescribed kinetic energy; the wave speed and
     // whether any rank's checks failed (a deferred failure throws in it).
-    double sums[5 + 2 * D] = {s.kinetic, s.strain, s.dissipated, rank_reaction_.work,
-                              constraints_.prescribed_kinetic_energy(nodal_.m)};
+    // The walls' impulses of this step follow.
+    AlignedVector<Vec<D>>& wall = constraints_.rank_wall_impulse();
+    std::vector<double> sums(5 + 2 * D + wall.size() * D);
+    sums[0] = s.kinetic, sums[1] = s.strain, sums[2] = s.dissipated, sums[3] = rank_reaction_.work;
+    sums[4] = constraints_.prescribed_kinetic_energy(nodal_.m);
     for (int k = 0; k < D; ++k) sums[5 + k] = s.momentum[k], sums[5 + D + k] = rank_reaction_.impulse[k];
+    for (std::size_t w = 0; w < wall.size(); ++w)
+      for (int k = 0; k < D; ++k) sums[5 + 2 * D + w * D + static_cast<std::size_t>(k)] = wall[w][k];
     double maxima[2] = {s.wave_speed2, failed.load() ? 1.0 : 0.0};
     dist_->reduce(sums, maxima);
     if (maxima[1] > 0.0) agree_checks(failed.load());
@@ -94,6 +99,10 @@ template <int D> void Engine<D>::sum_particles(bool check) {
     energy_.reaction_work += sums[3];
     boundary_kinetic_ = sums[4];
     for (int k = 0; k < D; ++k) s.momentum[k] = sums[5 + k], reaction_impulse_[k] += sums[5 + D + k];
+    for (std::size_t w = 0; w < wall.size(); ++w) {
+      for (int k = 0; k < D; ++k) constraints_.wall_impulse()[w][k] += sums[5 + 2 * D + w * D + static_cast<std::size_t>(k)];
+      wall[w] = Vec<D>::Zero();
+    }
     rank_reaction_ = {};
   }
   energy_.kinetic = s.kinetic;

@@ -17,11 +17,12 @@ template <int D> void step_usl(Engine<D>& e, const StepContext<D>& s, bool musl)
   // 1. m_I, q_I = sum N_Ip m_p v_p and f_I in one pass; Dirichlet on f_I.
   e.to_nodes({.mass = true, .w = &P.v, .forces = true, .t = s.t});
   e.apply_dirichlet_force(n.f);
-  // 2. a_I = f_I / m_I; v_I = q_I / m_I + dt a_I.
+  // 2. a_I = f_I / m_I; v_I = q_I / m_I + dt a_I; constraints (a wall's
+  //    change of v_I also enters a_I, which updates the particle velocities).
   e.solve_mass(n.f, n.a);
   e.solve_mass(n.q, n.v);
   axpy(n.v, dt, n.a);
-  e.apply_dirichlet_velocity(n.v);
+  e.constrain_velocity(n.v, {.rate = &n.a, .c = dt});
   // 3. v_p += dt sum N_Ip a_I; x_p += dt sum N_Ip v_I; x_I += dt v_I in ul.
   const ToParticles<D> move{.rate = &n.a, .c_rate = dt, .move = &n.v, .c_move = dt};
   // 4. (usl) L_p = sum v_I (x) grad N_Ip; strain, density and stress
@@ -34,7 +35,7 @@ template <int D> void step_usl(Engine<D>& e, const StepContext<D>& s, bool musl)
   // musl: v_I recomputed from the updated particle momenta, then step 4.
   e.to_nodes({.w = &P.v});
   e.solve_mass(n.q, n.v);
-  e.apply_dirichlet_velocity(n.v);
+  e.constrain_velocity(n.v, {.impulse = false});
   e.update_stress({&n.v, dt});
 }
 

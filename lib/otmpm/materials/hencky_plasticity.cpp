@@ -341,11 +341,17 @@ inline double energy(const ElasticModuli& el, double ev, double dev2) {
   return 0.5 * el.bulk * ev * ev + el.shear * dev2;
 }
 
-/// psi(trial) - psi(new) in factored form (no cancellation of the two
-/// energies); >= 0 in exact arithmetic for both models (theory doc), rounding
-/// clamped.
-inline double removed_energy(const ElasticModuli& el, double ev, double dev2, const Return& r) {
-  return std::max(0.0, 0.5 * el.bulk * (ev - r.ev) * (ev + r.ev) + el.shear * dev2 * (1.0 - r.beta) * (1.0 + r.beta));
+/// The material dissipation of a return, tau_new : delta e_p with
+/// delta e_p = e_trial - e_new = (e_v - e_v_new)/3 I + (1 - beta) dev e_trial:
+/// K e_v_new (e_v - e_v_new) + 2 G beta (1 - beta) |dev e_trial|^2, >= 0 in
+/// exact arithmetic for both models (theory doc), rounding clamped.
+inline double dissipated_energy(const ElasticModuli& el, double ev, double dev2, const Return& r) {
+  return std::max(0.0, el.bulk * r.ev * (ev - r.ev) + 2.0 * el.shear * r.beta * (1.0 - r.beta) * dev2);
+}
+
+/// The algorithmic part of psi(trial) - psi(new), 1/2 delta e_p : C : delta e_p.
+inline double return_energy(const ElasticModuli& el, double ev, double dev2, const Return& r) {
+  return 0.5 * el.bulk * (ev - r.ev) * (ev - r.ev) + el.shear * (1.0 - r.beta) * (1.0 - r.beta) * dev2;
 }
 
 // The checks of every update: one inline comparison; the message is built in
@@ -370,7 +376,9 @@ inline void fill_energies(PointUpdate& out, const ElasticModuli& el, double ev, 
   out.elastic_energy = energy(el, r.ev, r.beta * r.beta * dev2);
   out.plastic = r.plastic;
   out.iterations = r.iterations;
-  if (r.plastic) out.plastic_work = removed_energy(el, ev, dev2, r);
+  if (!r.plastic) return;
+  out.plastic_work = dissipated_energy(el, ev, dev2, r);
+  out.return_work = return_energy(el, ev, dev2, r);
 }
 
 /// Symmetric A M A^T for symmetric M (upper triangle of the product formed,

@@ -148,16 +148,16 @@ struct PointUpdate {
   Mat3 kirchhoff = Mat3::Zero();
   /// Stored elastic energy psi(b_e) after the step, per unit reference volume.
   double elastic_energy = 0.0;
-  /// Energy taken out of the elastic store by the return mapping in this step,
-  /// per unit reference volume: psi(e_trial) - psi(e_new) >= 0 (0 for an
-  /// elastic step). The engine adds V0 * plastic_work to W_plastic; then
-  /// E_kin + E_elastic + W_plastic - W_ext - W_R behaves exactly as
-  /// E_kin + E_elastic - W_ext - W_R of the hyperelastic (Hencky) model, whose
-  /// stored energy at the end of the step would be psi(e_trial). It is the
-  /// material dissipation tau_new : delta e_p plus the algorithmic part
-  /// 1/2 delta e_p : C : delta e_p = O(dt^2) of the backward-Euler return
+  /// The material dissipation of the step, tau_new : delta e_p per unit
+  /// reference volume, delta e_p = e_trial - e_new (0 for an elastic step),
+  /// >= 0. The engine adds V0 * plastic_work to W_plastic: the stress work of
+  /// the next step uses tau_new, so this - and not the whole drop of the
+  /// stored energy - is what the body loses to plastic flow
   /// (docs/theory-plasticity.md, "Energy").
   double plastic_work = 0.0;
+  /// The algorithmic part of the return, 1/2 delta e_p : C : delta e_p =
+  /// O(dt^2) per step: psi(e_trial) - psi(e_new) = plastic_work + return_work.
+  double return_work = 0.0;
   /// Newton iterations of the return (0: elastic step or closed-form return).
   int iterations = 0;
   /// True when the return mapping was active.

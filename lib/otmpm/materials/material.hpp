@@ -17,8 +17,10 @@
 /// class and its MaterialModel row (parameters, state, factories), and one
 /// line in materials/models.cpp.
 #include "otmpm/materials/elasticity.hpp"
+#include "otmpm/parameters.hpp"
 #include "otmpm/particles/particles.hpp"
 
+#include <array>
 #include <map>
 #include <memory>
 #include <optional>
@@ -44,30 +46,19 @@ struct MaterialParameters {
   bool has(const std::string& key) const { return extra.count(key) > 0; }
 };
 
-/// A per-particle internal variable of a model: `width` doubles per particle
-/// named `name` (Particles::state), initially `initial` in every component;
-/// output.fields writes it under that name.
+/// A per-particle internal variable of a model: `width` (at most 9)
+/// doubles per particle named `name` (Particles::state), initially the
+/// first `width` values of `initial`; output.fields writes it under that name.
 struct StateSpec {
   std::string_view name;
   int width = 1;
-  double initial = 0.0;
+  std::array<double, 9> initial{};
   std::string_view description;
 };
 
-/// A model parameter beyond density, young and poisson. A key "table.key"
-/// lives in the optional sub-table [material.table]; when the scene gives
-/// that table, its required keys must be there.
-struct ParameterSpec {
-  std::string_view key;
-  std::string_view description;
-  std::optional<double> fallback; ///< nullopt: required
-  double lower = 0.0;             ///< smallest allowed value
-  bool lower_open = false;        ///< lower itself excluded
-  double upper = 1e300;           ///< largest allowed value
-  bool upper_open = false;
-  /// "" when `value` is allowed, else the reason ("must be >= 0 (got -1)").
-  std::string check(double value) const;
-};
+/// A model parameter beyond density, young and poisson (ParameterSpec). A
+/// key "table.key" lives in the optional sub-table [material.table]; when
+/// the scene gives that table, its required keys must be there.
 
 /// Thrown by a constitutive update for the first particle whose state stops
 /// making sense (det F <= 0, a volume change <= 0); the engine names the

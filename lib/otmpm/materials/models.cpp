@@ -11,8 +11,8 @@ namespace otmpm {
 
 namespace {
 
-const std::array<const MaterialModel*, 3> kModels{&linear_elastic_model(), &linear_elastic_finite_model(),
-                                                  &neo_hookean_model()};
+const std::array<const MaterialModel*, 5> kModels{&linear_elastic_model(), &linear_elastic_finite_model(),
+                                                  &neo_hookean_model(), &j2_model(), &drucker_prager_model()};
 
 /// The sub-table of a parameter key "table.key" ("" for a top-level key).
 std::string_view table_of(std::string_view key) {
@@ -40,17 +40,6 @@ double MaterialParameters::get(const std::string& key, double fallback) const {
   return it == extra.end() ? fallback : it->second;
 }
 
-std::string ParameterSpec::check(double value) const {
-  if (!std::isfinite(value)) return "must be a finite number (got " + format_number(value) + ")";
-  if (lower_open ? !(value > lower) : !(value >= lower))
-    return std::string("must be ") + (lower_open ? "> " : ">= ") + format_number(lower) + " (got " +
-           format_number(value) + ")";
-  if (upper_open ? !(value < upper) : !(value <= upper))
-    return std::string("must be ") + (upper_open ? "< " : "<= ") + format_number(upper) + " (got " +
-           format_number(value) + ")";
-  return "";
-}
-
 std::span<const MaterialModel* const> material_models() { return kModels; }
 
 const MaterialModel* find_material_model(std::string_view name) {
@@ -68,7 +57,9 @@ std::string material_model_list() {
 void validate_material(const MaterialParameters& p) {
   p.elastic().validate(p.name);
   const MaterialModel& model = model_of(p);
-  for (const auto& [key, value] : p.extra) {
+  for (const auto& entry : p.extra) {
+    const std::string& key = entry.first; // named, not a structured binding: lambdas capture it (clang)
+    const double value = entry.second;
     const auto spec = std::find_if(model.parameters.begin(), model.parameters.end(),
                                    [&](const ParameterSpec& s) { return s.key == key; });
     require(spec != model.parameters.end(), "material '", p.name, "': model '", p.model, "' has no parameter '", key,
@@ -82,6 +73,7 @@ void validate_material(const MaterialParameters& p) {
     require(!expected || p.has(std::string(s.key)), "material '", p.name, "': model '", p.model, "' needs ",
             std::string(s.key));
   }
+  (void)model.make3(p); // the model's own checks across its parameters
 }
 
 template <int D> std::unique_ptr<Material<D>> make_material(const MaterialParameters& p) {

@@ -10,5 +10,7 @@ namespace otmpm {
 const MaterialModel& linear_elastic_model();
 const MaterialModel& linear_elastic_finite_model();
 const MaterialModel& neo_hookean_model();
+const MaterialModel& j2_model();
+const MaterialModel& drucker_prager_model();
 
 } // namespace otmpm

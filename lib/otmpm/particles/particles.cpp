@@ -28,14 +28,16 @@ template <int D> void Particles<D>::allocate_optional(bool with_a, bool with_F) 
   if (with_F) F.assign(n, Mat<D>::Identity());
 }
 
-template <int D> StateField& Particles<D>::add_state(const std::string& name, int width, double initial) {
+template <int D> StateField& Particles<D>::add_state(const std::string& name, int width, const double* initial) {
   require<std::invalid_argument>(width >= 1, "Particles::add_state: '", name, "' needs width >= 1, got ", width);
   if (StateField* f = find_state(name)) {
     require<std::invalid_argument>(f->width == width, "Particles::add_state: '", name, "' exists with width ",
                                    f->width, ", asked for ", width);
     return *f;
   }
-  state.push_back({name, width, std::vector<double>(static_cast<std::size_t>(size()) * width, initial)});
+  StateField f{name, width, std::vector<double>(static_cast<std::size_t>(size()) * width)};
+  for (int p = 0; p < size(); ++p) std::copy(initial, initial + width, f.row(p));
+  state.push_back(std::move(f));
   return state.back();
 }
 

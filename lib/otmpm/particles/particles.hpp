@@ -51,10 +51,10 @@ template <int D> struct Particles {
   /// Allocates the optional fields a run needs (a = 0, F = I), so that a
   /// scene pays memory only for what it reads.
   void allocate_optional(bool with_a, bool with_F);
-  /// The state field `name`, added with `width` values per particle all equal
-  /// to `initial` when absent. std::invalid_argument when it exists with
-  /// another width.
-  StateField& add_state(const std::string& name, int width, double initial);
+  /// The state field `name`, added with `width` values per particle, each
+  /// particle's row equal to `initial` (width values), when absent.
+  /// std::invalid_argument when it exists with another width.
+  StateField& add_state(const std::string& name, int width, const double* initial);
   /// The state field `name`, or null.
   StateField* find_state(std::string_view name);
   const StateField* find_state(std::string_view name) const;

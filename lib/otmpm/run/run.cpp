@@ -57,7 +57,8 @@ public:
   /// `resume`: the checkpoint a restarted run continues (null for a new run).
   Recorder(const Scene& scene, const RunOptions& opt, Engine<D>& e, const ExactSolution<D>* exact,
            const Checkpoint* resume)
-      : scene_(scene), e_(e), exact_(exact), view_(e), results_(opt.write_results) {
+      : scene_(scene), text_(scene.text.empty() ? to_toml(scene) : scene.text), e_(e), exact_(exact), view_(e),
+        results_(opt.write_results) {
     for (const ProbeSection& pr : scene.output.probes)
       probes_.push_back({pr.name, probe_particle(view_, e.particles(), pr), 0.0, 0});
     if (resume) restore_accumulators(resume->group("recorder"));
@@ -69,7 +70,7 @@ public:
     if (resume) frames_ = static_cast<int>(resume->group("recorder").integer("frames"));
     std::optional<PreviousResults> previous;
     if (resume) previous = set_aside(resume->group("recorder").string("result_file"));
-    view_.collectively([&] { writer_ = std::make_unique<ResultWriter>(path_, scene.text, D, view_.parallel_io()); });
+    view_.collectively([&] { writer_ = std::make_unique<ResultWriter>(path_, text_, D, view_.parallel_io()); });
     if (previous) continue_results(*previous, resume->group("recorder"));
   }
 
@@ -82,7 +83,8 @@ public:
   }
 
   /// Writes a checkpoint after every output.checkpoint_every steps (not after
-  /// the last step); `wall_seconds` is the wall time of this process so far.
+  /// the last step) when checkpoints are on; `wall_seconds` is the wall time
+  /// of this process so far.
   void maybe_checkpoint(double wall_seconds, bool last) {
     const long every = scene_.output.checkpoint_every;
     if (!results_ || every <= 0 || last || e_.steps() % every != 0) return;
@@ -94,7 +96,7 @@ public:
     if (!results_ || scene_.output.checkpoint_every <= 0) return;
     ScopedPhase timer(e_.timers(), Phase::output);
     Checkpoint ck;
-    ck.scene = scene_.text;
+    ck.scene = text_;
     e_.save_state(ck);
     StateGroup& g = ck.group("recorder");
     g.reals["next_output_time"] = next_;
@@ -102,6 +104,10 @@ public:
     g.integers["frames"] = frames_;
     g.strings["result_file"] = std::filesystem::absolute(path_).string();
     g.put_reals(summary_fields(energy_));
+    g.reals["wall_time"] = wall_time_;
+    StateArray<double>& walls = g.real_arrays["wall_last_impulse"];
+    walls.cols = D;
+    for (const Vec<D>& J : wall_last_) walls.values.insert(walls.values.end(), J.data(), J.data() + D);
     StateArray<double>& sum_sq = g.real_arrays["probe_sum_sq"];
     StateArray<std::int64_t>& samples = g.integer_arrays["probe_samples"];
     for (const Probe& pr : probes_) {
@@ -137,7 +143,7 @@ public:
     s.energy = energy_;
     for (const Probe& pr : probes_)
       if (exact_ && pr.samples > 0) s.errors["history_error_" + pr.name] = std::sqrt(pr.sum_sq / pr.samples);
-    if (exact_ && s.exit_code == 0) final_errors(s);
+    if (exact_ && s.exit_code == 0 && !s.interrupted) final_errors(s);
     if (results_) s.out_file = path_;
     const auto distributed = view_.run_attributes();
     view_.collectively([&] {
@@ -185,6 +191,11 @@ private:
     next_ = g.real("next_output_time");
     wall_before_ = g.real("wall_seconds");
     g.get_reals(summary_fields(energy_));
+    wall_time_ = g.real("wall_time");
+    const auto& walls = g.real_array("wall_last_impulse", e_.walls().size(), D).values;
+    wall_last_.assign(e_.walls().size(), Vec<D>::Zero());
+    for (std::size_t w = 0; w < wall_last_.size(); ++w)
+      for (int k = 0; k < D; ++k) wall_last_[w][k] = walls[w * D + static_cast<std::size_t>(k)];
     const auto& sum_sq = g.real_array("probe_sum_sq", probes_.size(), 1).values;
     const auto& samples = g.integer_array("probe_samples", probes_.size(), 1).values;
     for (std::size_t i = 0; i < probes_.size(); ++i) {
@@ -200,6 +211,7 @@ private:
     std::vector<std::string> energy{"kinetic", "strain", "external_work", "reaction_work"};
     if (dissipative()) energy.push_back("dissipated");
     h.push_back({"energy", false, energy});
+    for (const Wall<D>& w : e_.walls()) h.push_back({w.name, true, {"force", "impulse"}, "walls"});
     return h;
   }
 
@@ -217,6 +229,22 @@ private:
       copy_results(previous.path, *writer_, static_cast<int>(g.integer("frames")), histories(), scene_.output.fields);
     });
     view_.on_writer([&] { release_previous_results(previous); });
+  }
+
+  /// /walls/NAME: the impulse the wall gave the body since t = 0 and the
+  /// mean force over the time since the previous sample (zero at the first).
+  void record_walls(double t) {
+    const auto& walls = e_.walls();
+    wall_last_.resize(walls.size(), Vec<D>::Zero());
+    for (std::size_t w = 0; w < walls.size(); ++w) {
+      const Vec<D>& J = e_.wall_impulse()[w];
+      const Vec<D> F = t > wall_time_ ? Vec<D>((J - wall_last_[w]) / (t - wall_time_)) : Vec<D>::Zero();
+      writer_->append_group_sample("walls", walls[w].name, t,
+                                   {{"force", std::vector<double>(F.data(), F.data() + D)},
+                                    {"impulse", std::vector<double>(J.data(), J.data() + D)}});
+      wall_last_[w] = J;
+    }
+    wall_time_ = t;
   }
 
   void record(double t) {
@@ -242,6 +270,7 @@ private:
           {"kinetic", E.kinetic}, {"strain", E.strain}, {"external_work", E.external_work}, {"reaction_work", E.reaction_work}};
       if (dissipative()) energy.emplace_back("dissipated", E.dissipated);
       writer_->append_series("energy", t, energy);
+      record_walls(t);
       writer_->write_frame(t, fields);
     });
   }
@@ -280,6 +309,7 @@ private:
   }
 
   const Scene& scene_;
+  std::string text_; ///< the scene as TOML: Scene::text, or to_toml() for a scene built in code
   Engine<D>& e_;
   const ExactSolution<D>* exact_;
   distributed::GlobalView<D> view_;
@@ -292,6 +322,8 @@ private:
   EnergySummary energy_;
   std::string checkpoint_path_;
   double wall_before_ = 0.0;
+  AlignedVector<Vec<D>> wall_last_; ///< wall impulses at the previous sample
+  double wall_time_ = 0.0;          ///< time of the previous sample
 };
 
 double seconds_since(std::chrono::steady_clock::time_point start) {
@@ -385,6 +417,7 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
     rec.checkpoint(seconds_since(start));
     summary.status = "interrupted";
     summary.exit_code = kInterruptedExit;
+    summary.interrupted = true;
     rec.set_status(summary.status);
     finished = true;
   }
@@ -475,10 +508,27 @@ template const Engine<2>& Simulation::engine<2>() const;
 template const Engine<3>& Simulation::engine<3>() const;
 
 namespace {
-/// Steps a simulation to t_end; an instability ends it with its status.
-RunSummary run_to_end(Simulation& sim) {
+/// True when options.interrupt asks to stop; the ranks of a distributed run
+/// agree (one of them got the signal: all stop after the same step).
+bool interrupt_requested(const RunOptions& options) {
+  if (!options.interrupt) return false;
+  const auto& comm = distributed::Comm::world();
+  const std::int64_t flag = options.interrupt->load() ? 1 : 0;
+  return (comm.size() > 1 ? comm.max(flag) : flag) != 0;
+}
+
+/// Steps a simulation to t_end; an instability ends it with its status, a
+/// request through options.interrupt (checked before each step) with status
+/// "interrupted" and a last checkpoint.
+RunSummary run_to_end(Simulation& sim, const RunOptions& options) {
   try {
-    while (!sim.finished()) sim.step();
+    while (!sim.finished()) {
+      if (interrupt_requested(options)) {
+        sim.interrupt();
+        break;
+      }
+      sim.step();
+    }
   } catch (const InstabilityError&) { // the status is in the summary
   }
   return sim.finish();
@@ -487,12 +537,12 @@ RunSummary run_to_end(Simulation& sim) {
 
 RunSummary run_scene(const Scene& scene, const RunOptions& options) {
   Simulation sim(scene, options);
-  return run_to_end(sim);
+  return run_to_end(sim, options);
 }
 
 RunSummary restart_run(const Checkpoint& checkpoint, const RunOptions& options) {
   Simulation sim(checkpoint, options);
-  return run_to_end(sim);
+  return run_to_end(sim, options);
 }
 
 std::string summary_line(const RunSummary& s) {
@@ -500,7 +550,8 @@ std::string summary_line(const RunSummary& s) {
   std::snprintf(buf, sizeof buf, "%s %s %s: %ld steps, t = %.6g s, %.3f s wall, %.3g particle-steps/s",
                 s.mode.c_str(), s.integrator.c_str(), s.basis.c_str(), s.steps, s.time, s.wall_seconds,
                 s.particle_steps_per_second());
-  std::string line = (s.exit_code == 0 ? "ok: " : "UNSTABLE: ") + std::string(buf);
+  const char* head = s.interrupted ? "INTERRUPTED: " : s.exit_code != 0 ? "UNSTABLE: " : "ok: ";
+  std::string line = head + std::string(buf);
   for (const auto& [name, value] : s.errors) {
     std::snprintf(buf, sizeof buf, ", %s = %.4g", name.c_str(), value);
     line += buf;

@@ -35,8 +35,10 @@ using Vec3 = std::array<double, 3>;
 struct SimulationSection {
   int dimension = 1;
   std::string mode = "mpm";        ///< mpm | ul
-  std::string integrator = "npc";  ///< fe | musl | npc | otm | unified
-  double gamma = 0.5;              ///< Newmark parameter of NPC
+  std::string integrator = "npc";  ///< a name of integrator_kinds() (integrators/integrator.hpp)
+  /// Integrator parameters given in the scene (gamma of npc, rho_inf of
+  /// explicit_alpha, ...: IntegratorKind::parameters); the rest take their defaults.
+  std::map<std::string, double> parameters;
   std::string mass = "lumped";     ///< lumped | consistent (default: consistent for otm and unified)
   double t_end = 0.0;
   double cfl = 0.1;
@@ -63,10 +65,25 @@ struct MaterialSection : MaterialParameters {
   SourceRef where;
 };
 
+/// A body: a region (shape) filled with particles of one material.
+/// Particles are seeded on the background lattice (the node lattice),
+/// particles_per_cell^D per cell at the Gauss points or cell centres, and
+/// kept where they lie in the shape; a box is cut into cells of the grid
+/// spacing of its own; a "file" body takes its particles from a file.
+/// `lower`/`upper` are the box corners, or the shape's bounding box.
 struct BodySection {
   std::string name;
   std::string material;
-  Vec3 lower{0, 0, 0}, upper{0, 0, 0};
+  std::string shape = "box";           ///< box | sphere | cylinder | polygon | file
+  Vec3 lower{0, 0, 0}, upper{0, 0, 0}; ///< box corners; the bounds of other shapes
+  Vec3 center{0, 0, 0};                ///< sphere: centre; cylinder: centre of one end
+  double radius = 0.0;                 ///< sphere, cylinder
+  Vec3 axis{0, 0, 1};                  ///< cylinder
+  double length = 0.0;                 ///< cylinder
+  std::vector<std::array<double, 2>> vertices; ///< polygon (2D)
+  std::string file;                    ///< file: particle file (CSV or HDF5), resolved path
+  int file_particles = 0;              ///< file: the number of particles it holds
+  std::string overlap = "error";       ///< "first": particles inside an earlier body are dropped
   int particles_per_cell = 2;           ///< per axis
   std::string placement = "gauss";      ///< gauss | cell_centres
   Vec3 velocity{0, 0, 0};
@@ -92,6 +109,17 @@ struct BoundarySection {
   std::array<bool, 3> fix{false, false, false};
   Vec3 value{0, 0, 0};
   SourceRef where{"", 0, "boundary"};
+};
+
+/// A rigid wall: the plane through `point` with `normal` pointing to the
+/// material's side, moving at `velocity`, with Coulomb `friction`. It acts
+/// on the nodal velocities (and, in ul mode, keeps the advected nodes from
+/// crossing it); its force on the body is written as /walls/NAME/force.
+struct WallSection {
+  std::string name;
+  Vec3 point{0, 0, 0}, normal{0, 0, 0}, velocity{0, 0, 0};
+  double friction = 0.0;
+  SourceRef where{"", 0, "wall"};
 };
 
 /// Body force b(t) = value * g(t) on every particle (e.g. gravity).
@@ -153,6 +181,7 @@ struct Scene {
   std::vector<BodySection> bodies;
   std::vector<InitialVelocitySection> initial_velocities;
   std::vector<BoundarySection> boundaries;
+  std::vector<WallSection> walls;
   std::optional<BodyForceSection> body_force;
   std::vector<TractionSection> tractions;
   OutputSection output;
@@ -206,5 +235,14 @@ Scene load_scene(const std::string& path, const std::vector<std::string>& overri
 /// The same from TOML text (`name` is used as the file name in messages).
 Scene parse_scene(const std::string& text, const std::string& name,
                   const std::vector<std::string>& overrides = {});
+
+/// The scene as TOML text (scene_toml.cpp) that parse_scene() reads back to
+/// the same values: every key is written, defaults included, vectors with
+/// simulation.dimension components, grid.cells rather than grid.h, and
+/// simulation.cfl only when simulation.dt is unset (the reader takes one of
+/// the two). `file`, `where` and the derived basis.ugimp_half_width are not
+/// written. run_scene() stores this text when Scene::text is empty (a scene
+/// built in code), so its result file and checkpoints hold the scene.
+std::string to_toml(const Scene& scene);
 
 } // namespace otmpm

@@ -70,7 +70,13 @@ void check_simulation(const Scene& s, int dim) {
         "\" needs advected nodes: use simulation.mode = \"ul\"");
   check(s, !integrator->needs_consistent_mass || m.mass == "consistent", "simulation.mass", "integrator \"",
         m.integrator, "\" uses the consistent mass matrix (wobbes et al. Algorithm 3): set mass = \"consistent\"");
-  check(s, m.gamma > 0.0 && m.gamma <= 1.0, "simulation.gamma", "must be in (0, 1] (got ", m.gamma, ")");
+  for (const auto& [key, value] : m.parameters) {
+    const auto spec = std::find_if(integrator_parameters().begin(), integrator_parameters().end(),
+                                   [&](const ParameterSpec* p) { return p->key == key; });
+    check(s, spec != integrator_parameters().end(), "simulation." + key, "is not a parameter of any integrator");
+    const std::string why = (*spec)->check(value);
+    check(s, why.empty(), "simulation." + key, why);
+  }
   check(s, finite_positive(m.t_end), "simulation.t_end", "must be finite and > 0 (got ", m.t_end, ")");
   if (m.dt) check(s, finite_positive(*m.dt), "simulation.dt", "must be finite and > 0 (got ", *m.dt, ")");
   else check(s, finite_positive(m.cfl), "simulation.cfl", "must be finite and > 0 (got ", m.cfl, ")");
@@ -116,6 +122,28 @@ void check_materials(const Scene& s) {
   }
 }
 
+/// The shape of a body: known, with the values it needs (its bounds are
+/// lower/upper for every shape).
+void check_shape(const Scene& s, const BodySection& b, const std::string& key, int dim) {
+  check(s, one_of(b.shape, {"box", "sphere", "cylinder", "polygon", "file"}), key + ".shape",
+        "must be one of \"box\", \"sphere\", \"cylinder\", \"polygon\", \"file\" (got \"", b.shape, "\")");
+  check_box(s, key, b.lower, b.upper, dim, true);
+  if (b.shape == "sphere" || b.shape == "cylinder") {
+    check_finite(s, key + ".center", b.center, dim);
+    check(s, finite_positive(b.radius), key + ".radius", "must be finite and > 0 (got ", b.radius, ")");
+  }
+  if (b.shape == "cylinder") {
+    check(s, dim == 3, key + ".shape", "\"cylinder\" is three-dimensional");
+    check_finite(s, key + ".axis", b.axis, dim);
+    check(s, finite_positive(b.length), key + ".length", "must be finite and > 0 (got ", b.length, ")");
+  }
+  if (b.shape == "polygon") {
+    check(s, dim == 2, key + ".shape", "\"polygon\" is two-dimensional");
+    check(s, b.vertices.size() >= 3, key + ".vertices", "needs at least 3 vertices (got ", b.vertices.size(), ")");
+  }
+  if (b.shape == "file") check(s, !b.file.empty(), key + ".file", "must name a particle file");
+}
+
 /// Where a box of `key` came from: the --set that changed its lower or
 /// upper corner, else the table itself.
 SourceRef box_where(const Scene& s, const std::string& key) {
@@ -150,6 +178,18 @@ void check_loads(const Scene& s, int dim) {
     const std::string key = element_key("boundary", b.name, i);
     check_box(s, key, b.lower, b.upper, dim, false);
     check_finite(s, key + ".value", b.value, dim);
+  }
+  for (std::size_t i = 0; i < s.walls.size(); ++i) {
+    const WallSection& w = s.walls[i];
+    const std::string key = element_key("wall", w.name, i);
+    check_finite(s, key + ".point", w.point, dim);
+    check_finite(s, key + ".normal", w.normal, dim);
+    check_finite(s, key + ".velocity", w.velocity, dim);
+    double n2 = 0.0;
+    for (int k = 0; k < dim; ++k) n2 += w.normal[k] * w.normal[k];
+    check(s, n2 > 0.0, key + ".normal", "must not be zero");
+    check(s, std::isfinite(w.friction) && w.friction >= 0.0, key + ".friction", "must be finite and >= 0 (got ",
+          w.friction, ")");
   }
   if (s.body_force) {
     check_finite(s, "body_force.value", s.body_force->value, dim);
@@ -188,8 +228,11 @@ void validate_bodies(const Scene& s, int dim) {
     const bool known = std::any_of(s.materials.begin(), s.materials.end(),
                                    [&](const MaterialSection& m) { return m.name == b.material; });
     check(s, known, key + ".material", "no [[material]] named \"", b.material, "\"");
-    check_box(s, key, b.lower, b.upper, dim, true);
-    check(s, b.particles_per_cell >= 1, key + ".particles_per_cell", "must be >= 1 (got ", b.particles_per_cell, ")");
+    check_shape(s, b, key, dim);
+    check(s, b.particles_per_cell >= 1 && b.particles_per_cell <= kMaxParticlesPerCell, key + ".particles_per_cell",
+          "must be in [1, ", kMaxParticlesPerCell, "] (got ", b.particles_per_cell, ")");
+    check(s, one_of(b.overlap, {"error", "first"}), key + ".overlap", "must be \"error\" or \"first\" (got \"",
+          b.overlap, "\")");
     check(s, one_of(b.placement, {"gauss", "cell_centres"}), key + ".placement",
           "must be \"gauss\" or \"cell_centres\" (got \"", b.placement, "\")");
     check_finite(s, key + ".velocity", b.velocity, dim);
@@ -197,7 +240,7 @@ void validate_bodies(const Scene& s, int dim) {
           "must be \"sin_x\" or \"reference\" when set (got \"", b.velocity_profile.value_or(""), "\")");
     check(s, b.velocity_profile.value_or("") != "reference" || !s.reference.solution.empty(), key + ".velocity_profile",
           "\"reference\" takes the initial velocity of the reference solution, but the scene has no reference.solution");
-    if (s.simulation.mode == "mpm") check_body_in_grid(s, b, key, dim);
+    if (!s.simulation.nodes_move()) check_body_in_grid(s, b, key, dim);
   }
 }
 
