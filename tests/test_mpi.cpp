@@ -238,6 +238,22 @@ double history_difference(const h5::Matrix<double>& a, const h5::Matrix<double>&
   return scale > 0.0 ? diff / scale : diff;
 }
 
+/// Runs case `c` (which sets output.checkpoint_every) on 2 ranks (np2.h5,
+/// kept as full.h5) and restarts its last checkpoint on 3 ranks into
+/// np3.h5; checks `fields` of the two agree to kAgreement.
+void restart_on_three(const TempDir& dir, const Case& c, const std::vector<std::string>& fields) {
+  REQUIRE(run_otmpm(dir, 2, arguments(c, "np2.h5")).status == 0);
+  REQUIRE(fs::exists(dir.file("np2.checkpoint.h5")));
+  fs::copy_file(dir.file("np2.h5"), dir.file("full.h5"));
+  const Result r3 = run_otmpm(dir, 3, {"run", "--restart", "np2.checkpoint.h5", "--out", "np3.h5", "--quiet"});
+  REQUIRE_MESSAGE(r3.status == 0, r3.err);
+  const auto d = differences(dir.file("full.h5"), dir.file("np3.h5"));
+  for (const std::string& field : fields) {
+    CAPTURE(field);
+    CHECK(d.at(field) <= kAgreement);
+  }
+}
+
 /// Writes `text` as NAME.toml in `dir`; returns its absolute path.
 std::string write_scene(const TempDir& dir, const std::string& name, const std::string& text) {
   const std::string path = fs::absolute(dir.file(name + ".toml")).string();
@@ -415,17 +431,7 @@ TEST_CASE("mpi: a j2 strip (plastic state migrates and restarts) agrees with the
   check_agreement({"j2_alpha", alpha, {}, false, 0.0, {"plastic_strain"}}, {2});
   // The plastic state is in the checkpoint of 2 ranks and restarts on 3.
   TempDir dir("mpi_j2_restart");
-  const Case c{"j2_restart", cd, {"output.checkpoint_every=40"}};
-  REQUIRE(run_otmpm(dir, 2, arguments(c, "np2.h5")).status == 0);
-  REQUIRE(fs::exists(dir.file("np2.checkpoint.h5")));
-  fs::copy_file(dir.file("np2.h5"), dir.file("full.h5"));
-  const Result r3 = run_otmpm(dir, 3, {"run", "--restart", "np2.checkpoint.h5", "--out", "np3.h5", "--quiet"});
-  REQUIRE_MESSAGE(r3.status == 0, r3.err);
-  const auto d = differences(dir.file("full.h5"), dir.file("np3.h5"));
-  for (const std::string field : {"x", "v", "stress", "plastic_strain"}) {
-    CAPTURE(field);
-    CHECK(d.at(field) <= kAgreement);
-  }
+  restart_on_three(dir, {"j2_restart", cd, {"output.checkpoint_every=40"}}, {"x", "v", "stress", "plastic_strain"});
   CHECK(attribute(dir.file("np3.h5"), "t_end") == doctest::Approx(2e-5));
 }
 
@@ -460,17 +466,7 @@ TEST_CASE("mpi: a block sliding on a wall agrees with the serial run, the wall f
   // The walls' held nodes are in the checkpoint of 2 ranks and restart on 3.
   const std::string scene = write_scene(scenes, "slide_restart", wall_slide("mpm", "npc"));
   TempDir dir("mpi_wall_restart");
-  const Case c{"wall_restart", scene, {"output.checkpoint_every=100"}};
-  REQUIRE(run_otmpm(dir, 2, arguments(c, "np2.h5")).status == 0);
-  REQUIRE(fs::exists(dir.file("np2.checkpoint.h5")));
-  fs::copy_file(dir.file("np2.h5"), dir.file("full.h5"));
-  const Result r3 = run_otmpm(dir, 3, {"run", "--restart", "np2.checkpoint.h5", "--out", "np3.h5", "--quiet"});
-  REQUIRE_MESSAGE(r3.status == 0, r3.err);
-  const auto d = differences(dir.file("full.h5"), dir.file("np3.h5"));
-  for (const std::string field : {"x", "v", "stress"}) {
-    CAPTURE(field);
-    CHECK(d.at(field) <= kAgreement);
-  }
+  restart_on_three(dir, {"wall_restart", scene, {"output.checkpoint_every=100"}}, {"x", "v", "stress"});
   CHECK(history_difference(history(dir.file("full.h5"), "walls", "floor", "impulse"),
                            history(dir.file("np3.h5"), "walls", "floor", "impulse")) <= kAgreement);
 }

@@ -90,7 +90,9 @@ template <int D> std::vector<long long> point_ids(const Domain<D>& d, bool owned
 /// Applies f(rows) to every per-row array of a checkpoint: f(group name,
 /// array name, array, per_point) with per_point false for particle rows.
 template <class F> void for_each_row_array(Checkpoint& ck, F&& f) {
-  for (auto& [gname, g] : ck.groups) {
+  for (auto& entry : ck.groups) { // no structured binding: clang does not capture one in a lambda
+    const std::string& gname = entry.first;
+    StateGroup& g = entry.second;
     const bool particles = gname == "particles", basis = gname == "basis", nodes = gname == "nodes",
                engine = gname == "engine";
     auto visit = [&](auto& arrays) {
