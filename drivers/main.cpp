@@ -5,10 +5,14 @@
 // printed), 2 bad input (the message names file, line and key; a bad option
 // gets CLI11's message), 3 internal error, 130/143 interrupted by
 // SIGINT/SIGTERM (the result file stays valid, status "interrupted").
+//
+// Under mpirun (or srun) `run` and `pair` run distributed over the ranks;
+// every rank ends with the same status and one rank prints the diagnosis.
 #include "cli.hpp"
 #include "progress.hpp"
 
 #include "otmpm/core.hpp"
+#include "otmpm/distributed/comm.hpp"
 
 #include <cstdio>
 #include <cstring>
@@ -30,21 +34,64 @@ bool unknown_command(int argc, char** argv, const CLI::App& app) {
   if (argc < 2 || argv[1][0] == '-') return false;
   for (const CLI::App* sub : app.get_subcommands([](const CLI::App*) { return true; }))
     if (sub->get_name() == argv[1]) return false;
+  if (!otmpm::distributed::Comm::world().root()) return true;
   std::fprintf(stderr, "otmpm: unknown command '%s' (commands: run, pair, study, basis, render)\n%s\n", argv[1],
                "Run with --help for more information.");
   return true;
 }
 
-int report(const char* kind, const char* what, int status) {
+/// The diagnosis line of an error, ended progress line first.
+std::string diagnosis(const char* kind, const char* what) {
   otmpm::cli::end_progress_line();
-  std::fprintf(stderr, "otmpm: %s: %s\n", kind, what);
-  return status;
+  return std::string("otmpm: ") + kind + ": " + what;
+}
+
+/// Only `run` and `pair` run distributed; the other commands in one process.
+void refuse_under_mpirun(const CLI::App& command) {
+  const std::string& name = command.get_name();
+  if (otmpm::distributed::Comm::world().size() > 1 && name != "run" && name != "pair")
+    throw otmpm::InputError("'" + name + "' runs in one process: start it without mpirun");
+}
+
+/// Parses the command line and runs the chosen command; returns the exit
+/// status, and in `message` the diagnosis of an error (printed by one rank).
+int dispatch(CLI::App& app, const std::vector<otmpm::cli::Command>& commands, int argc, char** argv,
+             std::string& message) {
+  try {
+    app.parse(argc, argv);
+    const std::vector<CLI::App*> chosen = app.get_subcommands();
+    const std::vector<CLI::App*> all = app.get_subcommands([](const CLI::App*) { return true; });
+    for (std::size_t i = 0; i < all.size(); ++i)
+      if (!chosen.empty() && all[i] == chosen.front()) {
+        refuse_under_mpirun(*all[i]);
+        return commands[i]();
+      }
+    return kBadInput;
+  } catch (const CLI::ParseError& e) {
+    // Help, --version and CLI11's messages from one rank only.
+    const int code = otmpm::distributed::Comm::world().root() ? app.exit(e) : e.get_exit_code();
+    return code == 0 ? 0 : kBadInput;
+  } catch (const otmpm::InputError& e) {
+    message = diagnosis("error", e.what());
+    return kBadInput;
+  } catch (const otmpm::InstabilityError& e) {
+    message = diagnosis("unstable", e.what());
+    return 1;
+  } catch (const otmpm::BasisError& e) {
+    message = diagnosis("error", e.what());
+    return kBadInput;
+  } catch (const std::exception& e) {
+    message = diagnosis("internal error", e.what());
+    return 3;
+  }
 }
 
 } // namespace
 
 int main(int argc, char** argv) {
+  // Before MPI starts: it may execute the process again.
   otmpm::cli::default_passive_wait_policy(argv);
+  otmpm::distributed::Session mpi(argc, argv);
   CLI::App app{"otmpm: explicit solid dynamics with the Material Point Method and an OTM-style "
                "updated-Lagrangian scheme",
                "otmpm"};
@@ -57,24 +104,8 @@ int main(int argc, char** argv) {
   for (auto add : {otmpm::cli::add_run_command, otmpm::cli::add_pair_command, otmpm::cli::add_study_command,
                    otmpm::cli::add_basis_command, otmpm::cli::add_render_command})
     commands.push_back(add(app));
-  if (unknown_command(argc, argv, app)) return kBadInput;
-  try {
-    app.parse(argc, argv);
-    const std::vector<CLI::App*> chosen = app.get_subcommands();
-    const std::vector<CLI::App*> all = app.get_subcommands([](const CLI::App*) { return true; });
-    for (std::size_t i = 0; i < all.size(); ++i)
-      if (!chosen.empty() && all[i] == chosen.front()) return commands[i]();
-    return kBadInput;
-  } catch (const CLI::ParseError& e) {
-    const int code = app.exit(e);
-    return code == 0 ? 0 : kBadInput;
-  } catch (const otmpm::InputError& e) {
-    return report("error", e.what(), kBadInput);
-  } catch (const otmpm::InstabilityError& e) {
-    return report("unstable", e.what(), 1);
-  } catch (const otmpm::BasisError& e) {
-    return report("error", e.what(), kBadInput);
-  } catch (const std::exception& e) {
-    return report("internal error", e.what(), 3);
-  }
+  if (unknown_command(argc, argv, app)) return mpi.finish(kBadInput, "");
+  std::string message;
+  const int status = dispatch(app, commands, argc, argv, message);
+  return mpi.finish(status, message);
 }

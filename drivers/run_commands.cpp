@@ -4,6 +4,7 @@
 #include "progress.hpp"
 #include "system.hpp"
 
+#include "otmpm/distributed/comm.hpp"
 #include "otmpm/run/restart.hpp"
 #include "otmpm/run/run.hpp"
 #include "otmpm/io/checkpoint.hpp"
@@ -62,6 +63,15 @@ void print_phases(const RunSummary& s) {
                 i + 1 < phase_names.size() ? "," : "\n");
 }
 
+/// True on the rank that prints (rank 0; the only rank of a serial run).
+bool prints() { return distributed::Comm::world().root(); }
+
+/// The progress callback of a run: on the printing rank only.
+std::function<void(double, double, long)> progress(const SceneArgs& a) {
+  if (!prints()) return {};
+  return make_progress(a.quiet, a.progress_interval);
+}
+
 /// "1.23 MB" etc.
 std::string bytes_text(double bytes) {
   const char* units[] = {"B", "kB", "MB", "GB", "TB"};
@@ -76,6 +86,7 @@ std::string bytes_text(double bytes) {
 int check_command(const SceneArgs& a) {
   const Scene scene = load_scene(a.scene, a.sets);
   const SceneCheck c = check_scene(scene);
+  if (!prints()) return 0;
   std::printf("%s: ok (the scene reads and the run can be set up)\n", a.scene.c_str());
   std::printf("  %dD, mode %s, integrator %s, basis %s\n", c.dimension, c.mode.c_str(), c.integrator.c_str(),
               c.basis.c_str());
@@ -105,7 +116,7 @@ int run_command(const SceneArgs& a) {
   opt.out_file = a.out;
   opt.force = a.force;
   opt.interrupt = &interrupt_flag();
-  opt.progress = make_progress(a.quiet, a.progress_interval);
+  opt.progress = progress(a);
   std::unique_ptr<Scene> scene;
   RunSummary s;
   if (a.restart.empty()) {
@@ -117,6 +128,7 @@ int run_command(const SceneArgs& a) {
     scene = std::make_unique<Scene>(checkpoint_scene(ck));
     s = restart_run(ck, opt);
   }
+  if (!prints()) return s.interrupted ? interrupted_exit_status() : s.exit_code;
   end_progress_line();
   if (s.interrupted) report_interrupt(s, scene.get());
   else if (s.exit_code != 0) std::fprintf(stderr, "otmpm: %s\n", s.status.c_str());
@@ -167,7 +179,7 @@ int pair_command(const SceneArgs& a) {
   InterruptHandlers handlers;
   std::vector<RunSummary> runs;
   for (const char* mode : {"mpm", "ul"}) {
-    if (interrupt_flag().load()) break;
+    if (distributed::Comm::world().size() == 1 && interrupt_flag().load()) break; // ranks agree in the run
     std::vector<std::string> sets = a.sets;
     sets.push_back(std::string("simulation.mode=") + mode);
     const Scene scene = load_scene(a.scene, sets);
@@ -177,15 +189,17 @@ int pair_command(const SceneArgs& a) {
     opt.out_file = (dot == std::string::npos ? out : out.substr(0, dot)) + "_" + mode + ".h5";
     opt.force = a.force;
     opt.interrupt = &interrupt_flag();
-    opt.progress = make_progress(a.quiet, a.progress_interval);
+    opt.progress = progress(a);
     runs.push_back(run_scene(scene, opt));
     end_progress_line();
-    if (runs.back().interrupted) report_interrupt(runs.back(), &scene);
+    if (runs.back().interrupted && prints()) report_interrupt(runs.back(), &scene);
+    if (runs.back().interrupted) break;
   }
-  if (!runs.empty()) print_pair_table(runs);
+  if (!runs.empty() && prints()) print_pair_table(runs);
   int status = 0;
   for (const auto& r : runs) {
-    if (r.exit_code != 0 && !r.interrupted) std::fprintf(stderr, "otmpm: %s run: %s\n", r.mode.c_str(), r.status.c_str());
+    if (r.exit_code != 0 && !r.interrupted && prints())
+      std::fprintf(stderr, "otmpm: %s run: %s\n", r.mode.c_str(), r.status.c_str());
     status = std::max(status, r.exit_code);
   }
   return interrupt_flag().load() ? interrupted_exit_status() : status;

@@ -3,10 +3,20 @@
 # (with pybind11, the Python headers and pytest for the Python package).
 # Idempotent: safe to run again; does nothing when everything is present.
 # With arguments, installs those packages instead (scripts/fuzz.sh: clang).
+#
+# Both HDF5 flavours are installed side by side: the serial libhdf5-dev (a
+# build with -DOTMPM_MPI=OFF) and, for distributed runs, OpenMPI with the
+# parallel libhdf5-openmpi-dev. They do not conflict (headers and libraries
+# in /usr/include/hdf5/{serial,openmpi}, /usr/lib/*/hdf5/{serial,openmpi});
+# CMake finds the serial one through h5cc and the parallel one through h5pcc
+# (HDF5_PREFER_PARALLEL, set when OTMPM_MPI is on). Installing the parallel
+# flavour makes it the default of pkg-config's hdf5.pc (an alternative),
+# which otmpm does not use.
 set -euo pipefail
 pkgs=(
   build-essential cmake pkg-config
   libeigen3-dev libboost-dev libhdf5-dev hdf5-tools
+  libopenmpi-dev openmpi-bin libhdf5-openmpi-dev
   libtomlplusplus-dev doctest-dev libcli11-dev doxygen
   python3 python3-matplotlib python3-h5py python3-numpy
   python3-dev pybind11-dev python3-pytest

@@ -25,19 +25,6 @@ template <int D> Vec<D> grid_spacing(const Scene& scene) {
   return h;
 }
 
-/// The node lattice of the scene (node_lattice_box) as a grid.
-template <int D> CartesianGrid<D> node_grid(const Scene& scene) {
-  const LatticeBox box = node_lattice_box(scene);
-  CartesianGrid<D> grid;
-  for (int k = 0; k < D; ++k) {
-    grid.lower[k] = box.lower[k];
-    grid.upper[k] = box.upper[k];
-    grid.cells[k] = static_cast<int>(box.cells[k]);
-  }
-  grid.validate();
-  return grid;
-}
-
 template <int D> bool inside_box(const Vec<D>& x, const Vec3& lo, const Vec3& hi, double tol = 0.0) {
   for (int k = 0; k < D; ++k)
     if (x[k] < lo[k] - tol || x[k] > hi[k] + tol) return false;
@@ -65,18 +52,12 @@ void allocate_fields(const Scene& scene, const IntegratorKind& integrator, const
     for (const StateSpec& s : m->state()) P.add_state(std::string(s.name), s.width, s.initial.data());
 }
 
-/// The basis of the scene on the node lattice (uGIMP: with the particles'
-/// half-width h / (2 n_ppc) of the first body).
+/// The basis of the scene on the node lattice.
 template <int D> std::unique_ptr<Basis<D>> build_basis(const Scene& scene, const CartesianGrid<D>& grid) {
   NodeSet<D> nodes = scene.grid.kind == "perturbed" ? NodeSet<D>::perturbed(grid, scene.grid.perturbation, scene.grid.seed)
                                                     : NodeSet<D>::cartesian(grid);
-  BasisOptions opt = scene.basis;
-  if (basis_kind(opt.kind).particle_size) {
-    const Vec<D> h = grid_spacing<D>(scene);
-    for (int k = 0; k < D; ++k) opt.ugimp_half_width[k] = h[k] / (2.0 * scene.bodies.front().particles_per_cell);
-  }
   try {
-    return make_basis<D>(opt, std::move(nodes));
+    return make_basis<D>(basis_options<D>(scene), std::move(nodes));
   } catch (const InputError& e) {
     input_error(scene.basis_where, e.what());
   }
@@ -212,6 +193,27 @@ template <int D> void set_file_state(const Scene& scene, const SeededBodies<D>& 
 
 } // namespace
 
+template <int D> CartesianGrid<D> node_grid(const Scene& scene) {
+  const LatticeBox box = node_lattice_box(scene);
+  CartesianGrid<D> grid;
+  for (int k = 0; k < D; ++k) {
+    grid.lower[k] = box.lower[k];
+    grid.upper[k] = box.upper[k];
+    grid.cells[k] = static_cast<int>(box.cells[k]);
+  }
+  grid.validate();
+  return grid;
+}
+
+template <int D> BasisOptions basis_options(const Scene& scene) {
+  BasisOptions opt = scene.basis;
+  if (basis_kind(opt.kind).particle_size) {
+    const Vec<D> h = grid_spacing<D>(scene);
+    for (int k = 0; k < D; ++k) opt.ugimp_half_width[k] = h[k] / (2.0 * scene.bodies.front().particles_per_cell);
+  }
+  return opt;
+}
+
 template <int D> Particles<D> seed_particles(const Scene& scene, const Vec<D>& h) {
   return seed_bodies<D>(scene, h, node_grid<D>(scene)).particles;
 }
@@ -263,7 +265,9 @@ template <int D> Engine<D> assemble(const Scene& scene) { return Engine<D>(assem
 #define OTMPM_INSTANTIATE(D)                                                       \
   template EngineParts<D> assemble_parts<D>(const Scene&);                        \
   template Engine<D> assemble<D>(const Scene&);                                   \
-  template Particles<D> seed_particles<D>(const Scene&, const Vec<D>&);
+  template Particles<D> seed_particles<D>(const Scene&, const Vec<D>&);   \
+  template CartesianGrid<D> node_grid<D>(const Scene&);                    \
+  template BasisOptions basis_options<D>(const Scene&);
 OTMPM_INSTANTIATE(1)
 OTMPM_INSTANTIATE(2)
 OTMPM_INSTANTIATE(3)

@@ -22,6 +22,14 @@ namespace otmpm {
 /// particle, a basis that cannot be built on the node set.
 template <int D> EngineParts<D> assemble_parts(const Scene& scene);
 
+/// The node lattice of the scene (node_lattice_box: the grid in `mpm`
+/// mode, the bodies' bounding box in `ul` mode) as a grid.
+template <int D> CartesianGrid<D> node_grid(const Scene& scene);
+
+/// The basis options of the scene (uGIMP: with the particles' half-width
+/// h / (2 n_ppc) of the first body).
+template <int D> BasisOptions basis_options(const Scene& scene);
+
 /// Engine<D>(assemble_parts<D>(scene)).
 template <int D> Engine<D> assemble(const Scene& scene);
 

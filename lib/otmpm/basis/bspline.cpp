@@ -185,11 +185,32 @@ BsplineBasis<D>::BsplineBasis(const std::array<std::vector<double>, D>& vertices
   double spacing = 0.0;
   for (int k = 0; k < D; ++k) {
     knots_[k] = KnotVector(vertices[k], degree);
-    n_[k] = knots_[k].num_basis();
+    n_[k] = window_[k] = knots_[k].num_basis();
     const double w = knots_[k].min_cell_width();
     spacing = k == 0 ? w : std::min(spacing, w);
   }
   rebuild_nodes(spacing);
+}
+
+template <int D>
+BsplineBasis<D>::BsplineBasis(const CartesianGrid<D>& grid, int degree, const Index<D>& lo, const Index<D>& hi)
+    : BsplineBasis(grid, degree) {
+  for (int k = 0; k < D; ++k) {
+    require<std::invalid_argument>(0 <= lo[k] && lo[k] < hi[k] && hi[k] <= n_[k], "BsplineBasis: window [", lo[k],
+                                   ", ", hi[k], ") of axis ", k, " outside [0, ", n_[k], ")");
+    lo_[k] = lo[k];
+    window_[k] = hi[k] - lo[k];
+  }
+  rebuild_nodes(nodes_.spacing());
+}
+
+template <int D>
+void BsplineBasis<D>::distribute(std::vector<char> counted, std::function<void(std::span<double>)> sum) {
+  require<std::invalid_argument>(counted.size() == static_cast<std::size_t>(nodes_.size()),
+                                 "BsplineBasis::distribute: ", counted.size(), " flags for ", nodes_.size(),
+                                 " control points");
+  counted_ = std::move(counted);
+  sum_ = std::move(sum);
 }
 
 template <int D> std::string_view BsplineBasis<D>::kind() const {
@@ -205,7 +226,7 @@ template <int D> int BsplineBasis<D>::max_stencil() const {
 
 template <int D> int BsplineBasis<D>::control_point_id(const Index<D>& ijk) const {
   int id = 0;
-  for (int k = D - 1; k >= 0; --k) id = id * n_[k] + ijk[k];
+  for (int k = D - 1; k >= 0; --k) id = id * window_[k] + (ijk[k] - lo_[k]);
   return id;
 }
 
@@ -214,14 +235,14 @@ template <int D> AlignedVector<Vec<D>> BsplineBasis<D>::greville_points() const 
   int total = 1;
   for (int k = 0; k < D; ++k) {
     xi[k] = knots_[k].greville();
-    total *= n_[k];
+    total *= window_[k];
   }
   AlignedVector<Vec<D>> x(static_cast<std::size_t>(total));
   for (int id = 0; id < total; ++id) {
     int rest = id;
     for (int k = 0; k < D; ++k) {
-      x[id][k] = xi[k][rest % n_[k]];
-      rest /= n_[k];
+      x[id][k] = xi[k][lo_[k] + rest % window_[k]];
+      rest /= window_[k];
     }
   }
   return x;
@@ -233,17 +254,22 @@ template <int D> void BsplineBasis<D>::rebuild_nodes(double spacing) {
 
 template <int D>
 std::vector<double> BsplineBasis<D>::mean_axis_increments(const AlignedVector<Vec<D>>& dx, int axis) const {
-  std::vector<double> sum(static_cast<std::size_t>(n_[axis]), 0.0);
-  std::vector<int> count(static_cast<std::size_t>(n_[axis]), 0);
+  const std::size_t n = static_cast<std::size_t>(n_[axis]);
+  // sum and count of the increments of each index along the axis, in one
+  // array so that a distributed run adds both over the ranks in one go
+  std::vector<double> sums(2 * n, 0.0);
   int stride = 1;
-  for (int k = 0; k < axis; ++k) stride *= n_[k];
+  for (int k = 0; k < axis; ++k) stride *= window_[k];
   for (std::size_t id = 0; id < dx.size(); ++id) {
-    const int i = (static_cast<int>(id) / stride) % n_[axis];
-    sum[i] += dx[id][axis];
-    ++count[i];
+    if (!counted_.empty() && !counted_[id]) continue;
+    const std::size_t i = static_cast<std::size_t>(lo_[axis] + (static_cast<int>(id) / stride) % window_[axis]);
+    sums[i] += dx[id][axis];
+    sums[n + i] += 1.0;
   }
-  for (std::size_t i = 0; i < sum.size(); ++i) sum[i] /= count[i];
-  return sum;
+  if (sum_) sum_(sums);
+  for (std::size_t i = 0; i < n; ++i) sums[i] /= sums[n + i];
+  sums.resize(n);
+  return sums;
 }
 
 template <int D> void BsplineBasis<D>::nodes_moved(const AlignedVector<Vec<D>>& dx) {
@@ -301,6 +327,12 @@ template <int D> void BsplineBasis<D>::evaluate(const PointQuery<D>& q, Stencil<
     if (q.cell_hint) (*q.cell_hint)[k] = cell;
     b[k] = knots_[k].evaluate_on_cell(q.x[k], cell);
   }
+  for (int k = 0; k < D; ++k)
+    if (b[k].first < lo_[k] || b[k].first + degree_ >= lo_[k] + window_[k])
+      throw BasisError("B-spline basis: point " + format_point<D>(q.x) + " needs control points " +
+                       std::to_string(b[k].first) + " .. " + std::to_string(b[k].first + degree_) + " of axis " +
+                       std::to_string(k) + ", outside this rank's window [" + std::to_string(lo_[k]) + ", " +
+                       std::to_string(lo_[k] + window_[k]) + ")");
   const int per_axis = degree_ + 1;
   const int count = max_stencil();
   out.node.reserve(static_cast<std::size_t>(count));

@@ -13,6 +13,8 @@
 #include "otmpm/basis/basis.hpp"
 
 #include <array>
+#include <functional>
+#include <span>
 #include <string_view>
 #include <vector>
 
@@ -141,6 +143,12 @@ public:
   BsplineBasis(const CartesianGrid<D>& grid, int degree);
   /// Knot vectors from arbitrary strictly increasing vertices per axis.
   BsplineBasis(const std::array<std::vector<double>, D>& vertices, int degree);
+  /// The basis of `grid` whose degrees of freedom are only the control
+  /// points with lattice index in [lo, hi) (a window of a distributed run,
+  /// distributed/local_parts.hpp): the knot vectors are those of the whole
+  /// lattice, nodes() holds the window's control points (local ids, axis 0
+  /// fastest), and a point whose stencil leaves the window is a BasisError.
+  BsplineBasis(const CartesianGrid<D>& grid, int degree, const Index<D>& lo, const Index<D>& hi);
 
   std::string_view kind() const override;
   const NodeSet<D>& nodes() const override { return nodes_; }
@@ -164,8 +172,15 @@ public:
   }
   /// Control points per axis, n_k = cells_k + degree.
   Index<D> control_points_per_axis() const { return n_; }
-  /// Flat id of the control point with lattice index ijk (axis 0 fastest).
+  /// Flat id of the control point with lattice index ijk (axis 0 fastest),
+  /// local to the window.
   int control_point_id(const Index<D>& ijk) const;
+  /// First lattice index of the window on each axis (0 without one).
+  const Index<D>& window_lower() const { return lo_; }
+  /// A distributed run: only the control points with counted[I] != 0 (this
+  /// rank's own) enter the mean increments of the knot advection, and
+  /// `sum` adds the per-axis sums and counts of all ranks (in place).
+  void distribute(std::vector<char> counted, std::function<void(std::span<double>)> sum);
   /// Largest |x_I + dx_I - xi_I| of the last nodes_moved() (0 before any).
   double last_projection_distance() const { return last_projection_; }
 
@@ -182,6 +197,9 @@ private:
 
   std::array<KnotVector, D> knots_;
   Index<D> n_{};
+  Index<D> lo_{}, window_{}; ///< the window: first index and control points per axis
+  std::vector<char> counted_;
+  std::function<void(std::span<double>)> sum_;
   int degree_ = 2;
   NodeSet<D> nodes_;
   double last_projection_ = 0.0;

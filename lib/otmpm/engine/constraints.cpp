@@ -62,19 +62,20 @@ void Constraints<D>::apply_force(AlignedVector<Vec<D>>& f, AlignedVector<Vec<D>>
         // the second time); the work uses the prescribed velocity, which is
         // what every integrator sets on this component during the step.
         reaction[I][k] -= f[I][k];
-        work -= dt * f[I][k] * d_.value[i][k];
+        if (counts(I)) work -= dt * f[I][k] * d_.value[i][k];
         f[I][k] = 0.0;
       }
   }
   // In node order, as a sum over all nodes would add them (the others add zero).
-  for (int I : nodes_) impulse += dt * reaction[I];
+  for (int I : nodes_)
+    if (counts(I)) impulse += dt * reaction[I];
 }
 
 template <int D> double Constraints<D>::prescribed_kinetic_energy(const std::vector<double>& m) const {
   double e = 0.0;
   for (std::size_t i = 0; i < d_.node.size(); ++i)
     for (int k = 0; k < D; ++k)
-      if (d_.fix[i][k]) e += 0.5 * m[d_.node[i]] * d_.value[i][k] * d_.value[i][k];
+      if (d_.fix[i][k] && counts(d_.node[i])) e += 0.5 * m[d_.node[i]] * d_.value[i][k] * d_.value[i][k];
   return e;
 }
 
@@ -127,11 +128,12 @@ void Constraints<D>::apply_walls(AlignedVector<Vec<D>>& v, const NodeView<D>& no
       const Vec<D> dv = wall_change<D>(u, wall.normal, dn, wall.friction);
       v[I] += dv;
       if (effect.rate) (*effect.rate)[I] += dv / effect.c;
-      impulse += nodes.m[I] * dv; // the particles' momentum changes by m dv dt / c through the rate
+      if (counts(static_cast<int>(I)))
+        impulse += nodes.m[I] * dv; // the particles' momentum changes by m dv dt / c through the rate
     }
     if (!effect.impulse) continue;
     if (effect.rate) impulse *= dt / effect.c;
-    impulse_[w] += impulse;
+    (counted_.empty() ? impulse_ : rank_impulse_)[w] += impulse;
     work += impulse.dot(wall.velocity);
   }
 }

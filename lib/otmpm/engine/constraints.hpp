@@ -83,6 +83,16 @@ public:
                    double& work) const;
   /// sum over fixed components of 1/2 m_I v_prescribed^2 (zero for fixed supports).
   double prescribed_kinetic_energy(const std::vector<double>& m) const;
+  /// Only the nodes with counted[I] != 0 add to the impulse, the work and
+  /// the prescribed kinetic energy (a rank of a distributed run counts the
+  /// nodes it owns; its ghost nodes are constrained all the same). Default:
+  /// every node counts. With count_only, a wall's impulse goes to
+  /// rank_wall_impulse() (the caller sums it over the ranks into
+  /// wall_impulse()).
+  void count_only(std::vector<char> counted) {
+    counted_ = std::move(counted);
+    rank_impulse_.assign(walls_.size(), Vec<D>::Zero());
+  }
 
   const std::vector<Wall<D>>& walls() const { return walls_; }
   /// Applies the walls at time t to the nodal velocities v of a step dt:
@@ -105,14 +115,19 @@ public:
   /// The impulse each wall gave the body since t = 0 (sum of m_I dv_I).
   const AlignedVector<Vec<D>>& wall_impulse() const { return impulse_; }
   AlignedVector<Vec<D>>& wall_impulse() { return impulse_; }
+  /// After count_only: the impulse of the counted nodes not yet summed over the ranks.
+  AlignedVector<Vec<D>>& rank_wall_impulse() { return rank_impulse_; }
 
 private:
   Dirichlet<D> d_;
   std::vector<Wall<D>> walls_;
   AlignedVector<Vec<D>> impulse_; ///< per wall
+  AlignedVector<Vec<D>> rank_impulse_; ///< per wall, after count_only
   std::vector<std::vector<char>> held_; ///< per wall and node: held by the wall
   std::vector<int> nodes_;       ///< the distinct nodes of d_.node, ascending
   std::vector<char> constrained_;
+  std::vector<char> counted_; ///< empty: every node counts
+  bool counts(int I) const { return counted_.empty() || counted_[static_cast<std::size_t>(I)]; }
 };
 
 extern template class Constraints<1>;

@@ -7,6 +7,7 @@
 #include "otmpm/parallel.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <limits>
 
@@ -47,10 +48,12 @@ template <int D> void NodalFields<D>::resize(int n) {
 template <int D>
 Engine<D>::Engine(EngineParts<D> parts)
     : basis_(std::move(parts.basis)), mode_(parts.mode), P_(std::move(parts.particles)),
-      materials_(std::move(parts.materials)), loads_(std::move(parts.loads)), settings_(parts.settings) {
+      materials_(std::move(parts.materials)), loads_(std::move(parts.loads)), settings_(parts.settings),
+      dist_(std::move(parts.distribution)) {
   check_parts();
   const int nodes = basis_->nodes().size();
   constraints_ = Constraints<D>(std::move(parts.dirichlet), std::move(parts.walls), nodes);
+  if (dist_) constraints_.count_only(dist_->owned_nodes());
   bool needs_F = false;
   for (const auto& m : materials_) {
     needs_F = needs_F || m->needs_deformation_gradient();
@@ -62,14 +65,34 @@ Engine<D>::Engine(EngineParts<D> parts)
   basis_->bind_points(P_.size(), mode_.nodes_move());
   nodal_.resize(nodes);
   node_spacing0_ = basis_->nodes().min_spacing();
-  if (settings_.consistent_mass) mass_matrix_ = std::make_unique<MassMatrix<D>>();
+  if (dist_) dist_->min({&node_spacing0_, 1});
+  if (settings_.consistent_mass && !dist_) mass_matrix_ = std::make_unique<MassMatrix<D>>();
   sum_particles(true); // initial checks, energy and wave speed
   energy_.initial = energy_.total();
-  external_power_ = loads_.power(0.0, P_, momentum_);
+  external_power_ = global_power(0.0, momentum_);
 }
 
 template <int D> Engine<D>::Engine(Engine&&) noexcept = default;
 template <int D> Engine<D>::~Engine() = default;
+
+template <int D> void Engine<D>::repartition(std::unique_ptr<Basis<D>> basis, Dirichlet<D> dirichlet) {
+  require<std::invalid_argument>(basis && dist_, "Engine::repartition: needs a basis and a distributed run");
+  PointState<D> state = std::move(basis_->point_state());
+  basis_ = std::move(basis);
+  basis_->bind_points(P_.size(), mode_.nodes_move());
+  PointState<D>& fresh = basis_->point_state();
+  if (fresh.lambda.size() == state.lambda.size()) fresh.lambda = std::move(state.lambda);
+  if (fresh.cell_hint.size() == state.cell_hint.size()) fresh.cell_hint = std::move(state.cell_hint);
+  const int nodes = basis_->nodes().size();
+  // The walls' impulses carry over; their held nodes do not (a run with
+  // walls is not rebalanced: distributed/local_parts.cpp).
+  const AlignedVector<Vec<D>> wall_impulse = constraints_.wall_impulse();
+  constraints_ = Constraints<D>(std::move(dirichlet), constraints_.walls(), nodes);
+  constraints_.wall_impulse() = wall_impulse;
+  constraints_.count_only(dist_->owned_nodes());
+  nodal_.resize(nodes);
+  scatter_.invalidate();
+}
 
 template <int D> void Engine<D>::check_parts() const {
   using E = std::invalid_argument;
@@ -79,7 +102,7 @@ template <int D> void Engine<D>::check_parts() const {
   require<E>(finite_positive(settings_.h), "Engine: h = ", settings_.h, " must be finite and > 0");
   require<E>(settings_.dt ? finite_positive(*settings_.dt) : finite_positive(settings_.cfl), "Engine: the time step (",
              settings_.dt ? "dt" : "cfl", ") must be finite and > 0");
-  require<E>(P_.size() > 0, "Engine: no particles");
+  require<E>(P_.size() > 0 || dist_, "Engine: no particles");
   const std::size_t n = static_cast<std::size_t>(P_.size());
   const bool sized = P_.X.size() == n && P_.v.size() == n && P_.m.size() == n && P_.V.size() == n &&
                      P_.V0.size() == n && P_.rho.size() == n && P_.eps.size() == n && P_.sigma.size() == n &&
@@ -99,12 +122,15 @@ template <int D> double Engine<D>::stable_dt() const {
     dt = *settings_.dt;
   } else {
     const double c = wave_speed_; // max_p max(c_p, |v_p|), from the last sum_particles()
-    dt = settings_.cfl * mode_.cfl_spacing(*basis_, settings_.h, node_spacing0_) / c;
+    double h = mode_.cfl_spacing(*basis_, settings_.h, node_spacing0_);
+    if (dist_ && mode_.nodes_move()) dist_->min({&h, 1}); // the ranks' smallest (monotone in the spacing)
+    dt = settings_.cfl * h / c;
   }
   return std::min(dt, settings_.t_end - t_);
 }
 
 template <int D> void Engine<D>::step() {
+  if (dist_) dist_->before_step(*this);
   dt_ = stable_dt();
   if (!(dt_ > 0.0) || !std::isfinite(dt_))
     unstable("time step " + format_number(dt_) + " is not positive and finite");
@@ -114,13 +140,19 @@ template <int D> void Engine<D>::step() {
   } catch (const ParticleFailure& f) {
     unstable(f.particle, f.what);
   }
+  const double t0 = t_, dt_prev0 = dt_prev_;
   t_ += dt_;
   ++step_;
   dt_prev_ = dt_;
-  sum_particles(true); // checks, energies, wave speed
+  try {
+    sum_particles(true); // checks, energies, wave speed
+  } catch (const DeferredInstability&) { // a rank failed inside the step: stop there, as a serial run does
+    t_ = t0, dt_prev_ = dt_prev0, --step_;
+    throw;
+  }
   // Trapezoidal rule: exact for a constant load on a uniformly accelerating
   // body, where the one-sided rule would leave an O(dt) error in the balance.
-  const double power = loads_.power(t_, P_, momentum_);
+  const double power = global_power(t_, momentum_);
   energy_.external_work += 0.5 * dt_ * (external_power_ + power);
   external_power_ = power;
   check_energy();
@@ -128,12 +160,21 @@ template <int D> void Engine<D>::step() {
 
 template <int D> void Engine<D>::evaluate_basis() {
   ScopedPhase timer(timers_, Phase::basis);
-  try {
-    basis_->evaluate_points(P_.x, table_, P_.F.empty() ? nullptr : &P_.F);
-    scatter_.invalidate();
-  } catch (const BasisError& e) {
-    unstable(std::string("basis evaluation failed: ") + e.what());
-  }
+  fallible([&] {
+    try {
+      basis_->evaluate_points(P_.x, table_, P_.F.empty() ? nullptr : &P_.F);
+      scatter_.invalidate();
+      if (dist_) dist_->check_support(table_);
+    } catch (const BasisError& e) {
+      if (!dist_) unstable(std::string("basis evaluation failed: ") + e.what());
+      // Every particle gets an empty row until the ranks stop on the failure
+      // (fallible() names the particle by its global id).
+      table_ = BasisTable<D>{};
+      table_.offset.assign(static_cast<std::size_t>(P_.size()) + 1, 0);
+      scatter_.invalidate();
+      throw;
+    }
+  });
 }
 
 template <int D> void Engine<D>::to_nodes(const ToNodes<D>& what) {
@@ -147,6 +188,7 @@ template <int D> void Engine<D>::to_nodes(const ToNodes<D>& what) {
   else if (q && what.forces) to_nodes_impl<false, true, true>(what, nullptr);
   else if (q) to_nodes_impl<false, true, false>(what, nullptr);
   else if (what.forces) to_nodes_impl<false, false, true>(what, nullptr);
+  exchange_sums(what.mass, q, what.forces);
   if (what.mass) finish_mass();
 }
 
@@ -156,7 +198,17 @@ template <int D> void Engine<D>::update_stress_and_to_nodes(const Gradient<D>& g
   require<std::invalid_argument>(what.forces && !what.mass && !what.w,
                                  "Engine::update_stress_and_to_nodes: only the forces follow a stress update");
   if (!loads_.uniform() && loads_.any()) loads_.particle_forces(what.t, P_, fext_);
-  to_nodes_impl<false, false, true>(what, &g);
+  fallible([&] { to_nodes_impl<false, false, true>(what, &g); });
+  exchange_sums(false, false, true);
+}
+
+template <int D> void Engine<D>::exchange_sums(bool mass, bool momentum, bool forces) {
+  if (!dist_) return;
+  std::vector<NodalArray> fields;
+  if (mass) fields.push_back({nodal_.m.data(), 1});
+  if (momentum) fields.push_back({nodal_.q.data()->data(), D});
+  if (forces) fields.push_back({nodal_.f.data()->data(), D});
+  dist_->sum_nodal(fields);
 }
 
 template <int D>
@@ -210,9 +262,10 @@ void Engine<D>::to_nodes_impl(const ToNodes<D>& what, const Gradient<D>* g) {
 template <int D> void Engine<D>::finish_mass() {
   const int nodes = static_cast<int>(nodal_.m.size());
   // The largest nodal mass: a maximum, exact in any grouping.
-  const double m_max = blocked_reduce<MaxOf>(nodes, [&](long long I, MaxOf& acc) {
+  double m_max = blocked_reduce<MaxOf>(nodes, [&](long long I, MaxOf& acc) {
     acc.value = std::max(acc.value, nodal_.m[I]);
   }).value;
+  if (dist_) dist_->max({&m_max, 1});
   const double m_min = settings_.mass_tolerance * m_max;
   parallel_for(nodes, [&](long long I) { nodal_.active[I] = nodal_.m[I] > m_min; });
   if (mass_matrix_) mass_matrix_->assemble(table_, P_.m, nodal_.active, constraints_.constrained(), nodes);
@@ -223,16 +276,19 @@ void Engine<D>::solve_mass(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>
   ScopedPhase timer(timers_, Phase::nodal_update);
   const int n = static_cast<int>(r.size());
   y.resize(n);
-  const bool lumped = !mass_matrix_;
+  const bool lumped = !settings_.consistent_mass;
   parallel_for(n, [&](long long I) { y[I] = lumped && nodal_.active[I] ? Vec<D>(r[I] / nodal_.m[I]) : Vec<D>::Zero(); });
-  if (!lumped) mass_matrix_->solve(r, y);
+  if (lumped) return;
+  if (dist_) dist_->solve_consistent_mass(table_, P_.m, nodal_.m, nodal_.active, constraints_.constrained(), r, y);
+  else mass_matrix_->solve(r, y);
 }
 
 template <int D> void Engine<D>::constrain_velocity(AlignedVector<Vec<D>>& v, const WallEffect<D>& effect) {
   constraints_.apply_velocity(v);
   if (constraints_.walls().empty()) return;
+  // A distributed run: the work of this rank's owned nodes, summed over the ranks after the step.
   constraints_.apply_walls(v, {basis_->nodes().positions(), nodal_.m, nodal_.active}, t_, dt_, effect,
-                           energy_.reaction_work);
+                           dist_ ? rank_reaction_.work : energy_.reaction_work);
 }
 
 template <int D> void Engine<D>::constrain_increment(AlignedVector<Vec<D>>& dx) const {
@@ -241,7 +297,9 @@ template <int D> void Engine<D>::constrain_increment(AlignedVector<Vec<D>>& dx) 
 }
 
 template <int D> void Engine<D>::apply_dirichlet_force(AlignedVector<Vec<D>>& f) {
-  constraints_.apply_force(f, nodal_.reaction, dt_, reaction_impulse_, energy_.reaction_work);
+  // A distributed run: this rank's owned nodes, summed over the ranks after the step (sum_particles).
+  if (!dist_) constraints_.apply_force(f, nodal_.reaction, dt_, reaction_impulse_, energy_.reaction_work);
+  else constraints_.apply_force(f, nodal_.reaction, dt_, rank_reaction_.impulse, rank_reaction_.work);
 }
 
 template <int D> void Engine<D>::to_particles(const ToParticles<D>& what) {
@@ -251,7 +309,7 @@ template <int D> void Engine<D>::to_particles(const ToParticles<D>& what) {
 template <int D>
 void Engine<D>::to_particles_and_update_stress(const ToParticles<D>& what, const Gradient<D>& g) {
   ScopedPhase timer(timers_, Phase::to_particles);
-  parallel_chunks(P_.size(), [&](long long begin, long long end) {
+  fallible([&] { parallel_chunks(P_.size(), [&](long long begin, long long end) {
     Mat<D> H[kStressBatch];
     for (int p0 = static_cast<int>(begin); p0 < end; p0 += kStressBatch) {
       const int p1 = std::min(static_cast<int>(end), p0 + kStressBatch);
@@ -273,13 +331,15 @@ void Engine<D>::to_particles_and_update_stress(const ToParticles<D>& what, const
       }
       if (g.field) update_materials(p0, p1, H);
     }
-  });
+  }); });
 }
 
 template <int D> void Engine<D>::update_stress(const Gradient<D>& g) {
   ScopedPhase timer(timers_, Phase::constitutive);
-  parallel_chunks(P_.size(), [&](long long begin, long long end) {
-    update_stress_range(g, static_cast<int>(begin), static_cast<int>(end));
+  fallible([&] {
+    parallel_chunks(P_.size(), [&](long long begin, long long end) {
+      update_stress_range(g, static_cast<int>(begin), static_cast<int>(end));
+    });
   });
 }
 
@@ -305,11 +365,68 @@ template <int D> void Engine<D>::update_materials(int p0, int p1, const Mat<D>* 
 template <int D> void Engine<D>::advect_nodes(const AlignedVector<Vec<D>>& dx) {
   if (!mode_.nodes_move()) return;
   ScopedPhase timer(timers_, Phase::nodal_update);
+  // Ranks agree on the increments first: a family may meet the other ranks
+  // while it advects (the B-spline knots are global).
+  if (dist_) {
+    LocalFailure bad;
+    const auto it = std::find_if(dx.begin(), dx.end(), [](const Vec<D>& d) { return !d.allFinite(); });
+    if (it != dx.end())
+      bad.message = "step " + std::to_string(step_) + ", t = " + format_number(t_) + " s: the increment of node " +
+                    std::to_string(it - dx.begin()) + " is not finite";
+    dist_->agree(it != dx.end() ? &bad : nullptr);
+  }
   mode_.advect(*basis_, dx);
 }
 
+template <int D> double Engine<D>::global_power(double t, const Vec<D>& momentum) const {
+  double power = loads_.power(t, P_, momentum); // uniform: b . momentum, already global
+  if (dist_ && !loads_.uniform()) dist_->sum({&power, 1});
+  return power;
+}
+
+template <int D> double Engine<D>::external_power(double t) const { return global_power(t, momentum()); }
+
+/// A leading "particle P at " of a basis error: P, and where the rest starts.
+static bool leading_particle(const std::string& what, int& p, std::size_t& rest) {
+  const std::string prefix = "particle ";
+  if (what.rfind(prefix, 0) != 0) return false;
+  std::size_t i = prefix.size(), j = i;
+  while (j < what.size() && std::isdigit(static_cast<unsigned char>(what[j]))) ++j;
+  if (j == i || j > i + 9 || what.compare(j, 4, " at ") != 0) return false;
+  p = std::stoi(what.substr(i, j - i));
+  rest = j;
+  return true;
+}
+
+template <int D> template <class Stage> void Engine<D>::fallible(Stage&& stage) {
+  if (!dist_) return stage();
+  LocalFailure failure;
+  failure.deferred = true;
+  bool failed = true;
+  const std::string when = "step " + std::to_string(step_) + ", t = " + format_number(t_) + " s: ";
+  try {
+    stage();
+    failed = false;
+  } catch (const ParticleFailure& f) {
+    failure.key = particle_id(f.particle);
+    failure.message = when + "particle " + std::to_string(failure.key) + " at " + format_point<D>(P_.x[f.particle]) +
+                      ": " + f.what;
+  } catch (const BasisError& e) {
+    const std::string what = e.what();
+    int p = -1;
+    std::size_t rest = 0;
+    const bool named = leading_particle(what, p, rest) && p >= 0 && p < P_.size();
+    if (named) failure.key = particle_id(p);
+    failure.message = when + "basis evaluation failed: " +
+                      (named ? "particle " + std::to_string(failure.key) + what.substr(rest) : what);
+  } catch (const InstabilityError& e) {
+    failure.message = e.what();
+  }
+  if (failed) dist_->defer(failure); // every rank stops on it at the next reduction
+}
+
 template <int D> void Engine<D>::unstable(int p, const std::string& what) const {
-  unstable("particle " + std::to_string(p) + " at " + format_point<D>(P_.x[p]) + ": " + what);
+  unstable("particle " + std::to_string(particle_id(p)) + " at " + format_point<D>(P_.x[p]) + ": " + what);
 }
 
 template <int D> void Engine<D>::unstable(const std::string& what) const {

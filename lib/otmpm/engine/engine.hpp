@@ -10,6 +10,7 @@
 /// The engine knows no scene, no benchmark and no integrator by name.
 #include "otmpm/basis/basis.hpp"
 #include "otmpm/engine/constraints.hpp"
+#include "otmpm/engine/distribution.hpp"
 #include "otmpm/engine/loads.hpp"
 #include "otmpm/engine/mass_matrix.hpp"
 #include "otmpm/engine/node_mode.hpp"
@@ -64,6 +65,10 @@ template <int D> struct EngineParts {
   std::vector<Wall<D>> walls;
   Loads<D> loads;
   StepSettings<D> settings;
+  /// This rank's part in a distributed run (distributed/domain.hpp); null
+  /// in a serial run. The other parts are then this rank's share: the
+  /// particles of its cells and the nodes of its window.
+  std::shared_ptr<Distribution<D>> distribution;
 };
 
 /// The energies of the runaway monitor and of the energy balance: kinetic
@@ -144,6 +149,9 @@ public:
   /// The impulse each wall gave the body since t = 0.
   const AlignedVector<Vec<D>>& wall_impulse() const { return constraints_.wall_impulse(); }
   const Loads<D>& loads() const { return loads_; }
+  Loads<D>& loads() { return loads_; }
+  /// This rank's part in a distributed run, or null.
+  Distribution<D>* distribution() const { return dist_.get(); }
   const NodeMode<D>& mode() const { return mode_; }
   const StepSettings<D>& settings() const { return settings_; }
   double time() const { return t_; }
@@ -217,10 +225,19 @@ public:
   /// x_I += dx_I in `ul` mode, nothing on the fixed grid (NodeMode::advect).
   void advect_nodes(const AlignedVector<Vec<D>>& dx);
   /// Power of the external loads sum_p f_ext,p(t) . v_p.
-  double external_power(double t) const { return loads_.power(t, P_, momentum()); }
+  double external_power(double t) const;
 
 private:
   void check_parts() const;
+
+public:
+  /// A distributed run rebalanced its cells: this rank's window of the node
+  /// lattice changed. The basis on the new window and its Dirichlet entries
+  /// replace the old ones; the per-point state of the basis (which moved
+  /// with the particles) is handed over as it is. Only between steps.
+  void repartition(std::unique_ptr<Basis<D>> basis, Dirichlet<D> dirichlet);
+
+private:
   /// The checks of particle p: finite position, velocity and stress; on the
   /// fixed grid inside it and not about to leave it.
   void check_particle(int p) const;
@@ -228,6 +245,9 @@ private:
   /// the wave speed for the next stable_dt() and the momentum, in one pass
   /// (no checks when `check` is false).
   void sum_particles(bool check);
+  /// Distributed runs: every rank stops on the failing particle with the
+  /// lowest global id when any rank's checks failed (`failed`).
+  void agree_checks(bool failed) const;
   template <bool Mass, bool Momentum, bool Forces> void to_nodes_impl(const ToNodes<D>& what, const Gradient<D>* g);
   void finish_mass();
   /// The constitutive update of particles [p0, p1) from H_p = c sum_I g_I (x)
@@ -237,6 +257,17 @@ private:
   void update_materials(int p0, int p1, const Mat<D>* H);
   [[noreturn]] void unstable(int p, const std::string& what) const;
   [[noreturn]] void unstable(const std::string& what) const;
+  /// A stage that may fail for a particle: in a distributed run a rank that
+  /// fails defers its failure and goes on with the step; every rank stops on
+  /// the failure with the lowest global particle id at the next reduction,
+  /// so none waits for a rank that stopped.
+  template <class Stage> void fallible(Stage&& stage);
+  /// Sends the partial nodal sums of the last to_nodes to their owners and the totals back (distributed runs).
+  void exchange_sums(bool mass, bool momentum, bool forces);
+  /// Power of the loads at t over all ranks (`momentum`: the global sum_p m_p v_p).
+  double global_power(double t, const Vec<D>& momentum) const;
+  /// The particle's id in messages: its global id in a distributed run.
+  long long particle_id(int p) const { return dist_ ? dist_->global_id(p) : p; }
 
   std::unique_ptr<Basis<D>> basis_;
   NodeMode<D> mode_;
@@ -260,6 +291,15 @@ private:
   Vec<D> momentum_ = Vec<D>::Zero(); ///< sum_p m_p v_p after the last step
   Vec<D> reaction_impulse_ = Vec<D>::Zero();
   double external_power_ = 0.0; ///< power of the loads at t_ (trapezoidal work)
+  std::shared_ptr<Distribution<D>> dist_;
+  /// A distributed run: this rank's Dirichlet impulse and work of the step
+  /// (summed over the ranks with the energies), and the ranks' kinetic
+  /// energy of the prescribed nodal velocities (check_energy).
+  struct {
+    Vec<D> impulse = Vec<D>::Zero();
+    double work = 0.0;
+  } rank_reaction_;
+  double boundary_kinetic_ = 0.0;
 };
 
 extern template class Engine<1>;

@@ -8,6 +8,7 @@
 #include "otmpm/parallel.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 
 namespace otmpm {
@@ -45,17 +46,26 @@ template <int D> struct VecSum {
 } // namespace
 
 template <int D> Vec<D> Engine<D>::momentum() const {
-  return blocked_reduce<VecSum<D>>(P_.size(), [&](long long p, VecSum<D>& s) { s.v += P_.m[p] * P_.v[p]; }).v;
+  Vec<D> m = blocked_reduce<VecSum<D>>(P_.size(), [&](long long p, VecSum<D>& s) { s.v += P_.m[p] * P_.v[p]; }).v;
+  if (dist_) dist_->sum({m.data(), D});
+  return m;
 }
 
 template <int D> void Engine<D>::update_energy() { sum_particles(false); }
 
 template <int D> void Engine<D>::sum_particles(bool check) {
   // Checks in particle order within each block: the lowest failing particle
-  // is reported, as a serial loop would.
-  const auto s = blocked_reduce_ranges<ParticleSums<D>>(P_.size(), [&](long long b0, long long b1, ParticleSums<D>& acc) {
+  // is reported, as a serial loop would. A rank of a distributed run notes
+  // a failure and looks for its lowest global id afterwards (agree_checks).
+  std::atomic<bool> failed{false};
+  auto s = blocked_reduce_ranges<ParticleSums<D>>(P_.size(), [&](long long b0, long long b1, ParticleSums<D>& acc) {
     for (int p = static_cast<int>(b0); p < b1; ++p) {
-      if (check) check_particle(p);
+      if (check && !dist_) check_particle(p);
+      else if (check) try {
+          check_particle(p);
+        } catch (const InstabilityError&) {
+          failed.store(true, std::memory_order_relaxed);
+        }
       const double v2 = P_.v[p].squaredNorm();
       acc.kinetic += 0.5 * P_.m[p] * v2;
       acc.momentum += P_.m[p] * P_.v[p];
@@ -70,6 +80,31 @@ template <int D> void Engine<D>::sum_particles(bool check) {
       r0 = r1;
     }
   });
+  if (dist_) {
+    // One reduction per step: energies, momentum, this step's reaction
+    // impulse and work, the prescribed kinetic energy; the wave speed and
+    // whether any rank's checks failed (a deferred failure throws in it).
+    // The walls' impulses of this step follow.
+    AlignedVector<Vec<D>>& wall = constraints_.rank_wall_impulse();
+    std::vector<double> sums(5 + 2 * D + wall.size() * D);
+    sums[0] = s.kinetic, sums[1] = s.strain, sums[2] = s.dissipated, sums[3] = rank_reaction_.work;
+    sums[4] = constraints_.prescribed_kinetic_energy(nodal_.m);
+    for (int k = 0; k < D; ++k) sums[5 + k] = s.momentum[k], sums[5 + D + k] = rank_reaction_.impulse[k];
+    for (std::size_t w = 0; w < wall.size(); ++w)
+      for (int k = 0; k < D; ++k) sums[5 + 2 * D + w * D + static_cast<std::size_t>(k)] = wall[w][k];
+    double maxima[2] = {s.wave_speed2, failed.load() ? 1.0 : 0.0};
+    dist_->reduce(sums, maxima);
+    if (maxima[1] > 0.0) agree_checks(failed.load());
+    s.kinetic = sums[0], s.strain = sums[1], s.dissipated = sums[2], s.wave_speed2 = maxima[0];
+    energy_.reaction_work += sums[3];
+    boundary_kinetic_ = sums[4];
+    for (int k = 0; k < D; ++k) s.momentum[k] = sums[5 + k], reaction_impulse_[k] += sums[5 + D + k];
+    for (std::size_t w = 0; w < wall.size(); ++w) {
+      for (int k = 0; k < D; ++k) constraints_.wall_impulse()[w][k] += sums[5 + 2 * D + w * D + static_cast<std::size_t>(k)];
+      wall[w] = Vec<D>::Zero();
+    }
+    rank_reaction_ = {};
+  }
   energy_.kinetic = s.kinetic;
   energy_.strain = s.strain;
   energy_.dissipated = s.dissipated;
@@ -83,6 +118,18 @@ template <int D> void Engine<D>::check_particle(int p) const {
   if (!mode_.keeps_inside(P_.x[p], P_.v[p], dt_)) unstable(p, mode_.leaving(P_.x[p], P_.v[p]));
 }
 
+template <int D> void Engine<D>::agree_checks(bool failed) const {
+  LocalFailure first;
+  for (int p = 0; failed && p < P_.size(); ++p) {
+    try {
+      check_particle(p);
+    } catch (const InstabilityError& e) {
+      if (particle_id(p) < first.key) first = {particle_id(p), e.what(), true};
+    }
+  }
+  dist_->agree(failed ? &first : nullptr);
+}
+
 template <int D> void Engine<D>::check_particles_inside() const {
   for (int p = 0; p < P_.size(); ++p) check_particle(p);
 }
@@ -93,7 +140,7 @@ template <int D> void Engine<D>::check_energy() const {
   // start of the step in fe/musl/otm/unified) has done any work: the kinetic
   // energy of the prescribed nodal motion, sum 1/2 m_I v_Ik^2, covers that
   // (zero for fixed supports).
-  const double boundary_kinetic = constraints_.prescribed_kinetic_energy(nodal_.m);
+  const double boundary_kinetic = dist_ ? boundary_kinetic_ : constraints_.prescribed_kinetic_energy(nodal_.m);
   const double reference =
       std::max(energy_.initial + std::abs(energy_.external_work) + std::abs(energy_.reaction_work) + boundary_kinetic,
                energy_floor);
@@ -111,6 +158,7 @@ template <int D> void Engine<D>::check_energy() const {
   template void Engine<D>::sum_particles(bool);              \
   template void Engine<D>::check_particle(int) const;        \
   template void Engine<D>::check_particles_inside() const;   \
+  template void Engine<D>::agree_checks(bool) const;        \
   template void Engine<D>::check_energy() const;
 OTMPM_INSTANTIATE(1)
 OTMPM_INSTANTIATE(2)

@@ -94,6 +94,45 @@ void write_dataset(hid_t parent, const std::string& name, hsize_t rows, hsize_t 
 }
 } // namespace
 
+Handle parallel_access(hid_t fapl, const void* mpi_comm, const std::string& path) {
+#ifdef H5_HAVE_PARALLEL
+  const MPI_Comm comm = *static_cast<const MPI_Comm*>(mpi_comm);
+  checked_status(H5Pset_fapl_mpio(fapl, comm, MPI_INFO_NULL), path, "open the file with MPI-IO");
+  Handle transfer(checked(H5Pcreate(H5P_DATASET_XFER), path, "create a data transfer list"), H5Pclose);
+  checked_status(H5Pset_dxpl_mpio(transfer.get(), H5FD_MPIO_COLLECTIVE), path, "set collective transfers");
+  return transfer;
+#else
+  (void)fapl, (void)mpi_comm;
+  throw std::runtime_error(path + ": this otmpm is built with the serial HDF5 (a parallel file needs OTMPM_MPI)");
+#endif
+}
+
+/// The buffer of a rank that writes no rows (HDF5 wants a pointer).
+const double kNoData = 0.0;
+
+void write_rows(hid_t parent, const std::string& name, hsize_t total_rows, hsize_t cols, hsize_t first, hsize_t rows,
+                const double* data, hid_t transfer, const std::string& path) {
+  const std::string what = "write dataset " + name;
+  const hsize_t dims[2] = {total_rows, cols}, start[2] = {first, 0}, count[2] = {rows, cols};
+  Handle space(checked(H5Screate_simple(2, dims, nullptr), path, what), H5Sclose);
+  Handle set(checked(H5Dcreate2(parent, name.c_str(), H5T_IEEE_F64LE, space.get(), H5P_DEFAULT, H5P_DEFAULT,
+                                H5P_DEFAULT),
+                     path, what),
+             H5Dclose);
+  Handle file_space(checked(H5Dget_space(set.get()), path, what), H5Sclose);
+  Handle memory(checked(H5Screate_simple(2, count, nullptr), path, what), H5Sclose);
+  if (rows * cols > 0)
+    checked_status(H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr), path, what);
+  else {
+    checked_status(H5Sselect_none(file_space.get()), path, what);
+    checked_status(H5Sselect_none(memory.get()), path, what);
+  }
+  if (total_rows * cols > 0)
+    checked_status(H5Dwrite(set.get(), H5T_NATIVE_DOUBLE, memory.get(), file_space.get(), transfer,
+                            data ? data : &kNoData),
+                   path, what);
+}
+
 void write_matrix(hid_t parent, const std::string& name, hsize_t rows, hsize_t cols, const double* data,
                   const std::string& path) {
   write_dataset(parent, name, rows, cols, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, data, path);

@@ -80,6 +80,18 @@ void write_matrix(hid_t parent, const std::string& name, hsize_t rows, hsize_t c
 void write_matrix(hid_t parent, const std::string& name, hsize_t rows, hsize_t cols, const std::int64_t* data,
                   const std::string& path);
 
+/// Makes `fapl` open the file with MPI-IO over the ranks of `mpi_comm` (an
+/// MPI_Comm*) and returns a data transfer list for collective writes.
+/// std::runtime_error when this HDF5 is not the parallel one.
+Handle parallel_access(hid_t fapl, const void* mpi_comm, const std::string& path);
+
+/// Writes rows [first, first + rows) of a new total_rows x cols dataset of
+/// doubles; with a parallel file every rank creates the dataset and writes
+/// its rows in one collective call (`transfer`: the data transfer list;
+/// H5P_DEFAULT for a serial file, which writes all rows).
+void write_rows(hid_t parent, const std::string& name, hsize_t total_rows, hsize_t cols, hsize_t first, hsize_t rows,
+                const double* data, hid_t transfer, const std::string& path);
+
 /// True when `object` has an attribute `name`.
 bool has_attribute(hid_t object, const std::string& name);
 /// Names of the attributes of `object`, in name order.

@@ -58,7 +58,7 @@ void create_history(hid_t parent, const std::string& name, hsize_t cols, const s
 
 /// Appends row `row` (cols values; rank 1 when cols == 0) to an extendible dataset.
 void append_row(hid_t parent, const std::string& name, hsize_t row, hsize_t cols, const double* values,
-                const std::string& path) {
+                const std::string& path, bool writes, hid_t transfer) {
   const std::string what = "append to probe dataset " + name;
   const int rank = cols == 0 ? 1 : 2;
   const hsize_t width = cols == 0 ? 1 : cols;
@@ -68,7 +68,11 @@ void append_row(hid_t parent, const std::string& name, hsize_t row, hsize_t cols
   Handle file_space(checked(H5Dget_space(set.get()), path, what), H5Sclose);
   checked_status(H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr), path, what);
   Handle mem_space(checked(H5Screate_simple(rank, count, nullptr), path, what), H5Sclose);
-  checked_status(H5Dwrite(set.get(), H5T_NATIVE_DOUBLE, mem_space.get(), file_space.get(), H5P_DEFAULT, values), path,
+  if (!writes) {
+    checked_status(H5Sselect_none(file_space.get()), path, what);
+    checked_status(H5Sselect_none(mem_space.get()), path, what);
+  }
+  checked_status(H5Dwrite(set.get(), H5T_NATIVE_DOUBLE, mem_space.get(), file_space.get(), transfer, values), path,
                  what);
 }
 
@@ -151,6 +155,10 @@ struct ProbeInfo {
 } // namespace
 
 struct ResultWriter::Impl {
+  ParallelIo parallel;
+  Handle transfer; ///< collective data transfer (parallel files)
+  hid_t dxpl() const { return transfer.valid() ? transfer.get() : H5P_DEFAULT; }
+  bool root() const { return parallel.root; }
   Handle file;
   Handle frames;
   Handle probes;
@@ -171,6 +179,16 @@ struct ResultWriter::Impl {
                      const std::string& where);
 
   void write_xdmf() const;
+  /// Writes field f (its rows of the frame) with `data` as dataset `name` of group g.
+  void write_field(hid_t g, const std::string& name, const FieldView& f, const double* data) const {
+    if (!parallel.mpi_comm)
+      return write_matrix(g, name, static_cast<hsize_t>(f.rows), static_cast<hsize_t>(f.cols), data, path);
+    const bool whole = f.total_rows < 0; // the root writes a whole frame alone
+    const auto total = static_cast<hsize_t>(whole ? f.rows : f.total_rows);
+    const auto rows = static_cast<hsize_t>(whole && !root() ? 0 : f.rows);
+    h5::write_rows(g, name, total, static_cast<hsize_t>(f.cols), whole ? 0 : static_cast<hsize_t>(f.first_row), rows,
+                   data, dxpl(), path);
+  }
   /// Rewrites the sidecar if `force` or if the last rewrite is older than
   /// kXdmfInterval: the sidecar is O(frames) long, so rewriting it for every
   /// frame would cost O(frames^2). It only ever names flushed frames.
@@ -180,13 +198,14 @@ struct ResultWriter::Impl {
   FrameInfo describe_frame(const std::string& group, double time, const std::vector<FieldView>& fields) const;
 };
 
-ResultWriter::ResultWriter(const std::string& path, const std::string& scene_text, int dimension)
+ResultWriter::ResultWriter(const std::string& path, const std::string& scene_text, int dimension, ParallelIo parallel)
     : impl_(std::make_unique<Impl>()), path_(path) {
   h5::silence();
   require(!path.empty(), "ResultWriter: the result file path is empty");
   require<std::invalid_argument>(dimension >= 1 && dimension <= kXdmfSpaceDim, path,
                                  ": ResultWriter: dimension must be 1, 2 or 3, got ", dimension);
   Impl& m = *impl_;
+  m.parallel = std::move(parallel);
   m.path = path;
   m.dimension = dimension;
   m.xdmf_path = std::filesystem::path(path).replace_extension(".xdmf").string();
@@ -195,6 +214,7 @@ ResultWriter::ResultWriter(const std::string& path, const std::string& scene_tex
   // above 64 KiB (a long scene text) in dense storage.
   Handle fapl(checked(H5Pcreate(H5P_FILE_ACCESS), path, "create a file access list"), H5Pclose);
   checked_status(H5Pset_libver_bounds(fapl.get(), H5F_LIBVER_V18, H5F_LIBVER_V18), path, "set the file format");
+  if (m.parallel.mpi_comm) m.transfer = h5::parallel_access(fapl.get(), m.parallel.mpi_comm, path);
   const hid_t file = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.get());
   if (file < 0) throw InputError(path + ": cannot create the result file");
   m.file = Handle(file, H5Fclose);
@@ -205,7 +225,7 @@ ResultWriter::ResultWriter(const std::string& path, const std::string& scene_tex
   write_string_attribute(file, "status", "running", path);
   set_attribute("dimension", static_cast<long long>(dimension));
   flush();
-  m.write_xdmf();
+  if (m.root()) m.write_xdmf();
 }
 
 ResultWriter::~ResultWriter() {
@@ -218,7 +238,7 @@ ResultWriter::~ResultWriter() {
 
 void ResultWriter::Impl::publish_xdmf(bool force) {
   const auto now = std::chrono::steady_clock::now();
-  if (!force && now - xdmf_written < kXdmfInterval) return;
+  if (!root() || (!force && now - xdmf_written < kXdmfInterval)) return;
   if (force && xdmf_frames == frame_infos.size()) return;
   write_xdmf();
   xdmf_written = now;
@@ -234,11 +254,12 @@ FrameInfo ResultWriter::Impl::describe_frame(const std::string& group_path, doub
   for (const FieldView& f : fields)
     if (f.name == "x") x = &f;
   if (!x) return info; // no coordinates: the frame is in the .h5 file only
-  info.points = x->rows;
+  const auto total = [](const FieldView& f) { return f.total_rows >= 0 ? f.total_rows : f.rows; };
+  info.points = static_cast<int>(total(*x));
   info.geometry = x->cols == 1 ? kPaddedX : "x";
   info.geometry_cols = x->cols == 1 ? kXdmfSpaceDim : x->cols;
   for (const FieldView& f : fields)
-    if (f.name != "x" && f.rows == x->rows) info.attributes.emplace_back(f.name, f.cols);
+    if (f.name != "x" && total(f) == total(*x)) info.attributes.emplace_back(f.name, f.cols);
   return info;
 }
 
@@ -246,26 +267,37 @@ void ResultWriter::write_frame(double time, const std::vector<FieldView>& fields
   Impl& m = *impl_;
   const std::string name = frame_name(frames_);
   std::set<std::string> seen;
+  std::string bad; // the first non-finite entry of this rank's rows
   for (const FieldView& f : fields) {
     check_name(f.name, "field");
     if (f.name == kPaddedX) throw std::invalid_argument(path_ + ": field name 'x3' is reserved for the XDMF geometry");
     if (!seen.insert(f.name).second)
       throw std::invalid_argument(path_ + ": field '" + f.name + "' given twice in one frame");
     check_field_shape(f, impl_->dimension, path_);
-    check_finite(f.data, static_cast<std::size_t>(f.rows) * f.cols,
-                 path_ + ": frame at t = " + format_double(time) + ", field '" + f.name + "'");
+    try {
+      check_finite(f.data, static_cast<std::size_t>(f.rows) * f.cols,
+                   path_ + ": frame at t = " + format_double(time) + ", field '" + f.name + "'");
+    } catch (const InstabilityError& e) {
+      if (!m.parallel.mpi_comm) throw;
+      if (bad.empty()) bad = e.what();
+    }
   }
+  if (m.parallel.all && !m.parallel.all(bad.empty()))
+    throw InstabilityError(bad.empty() ? path_ + ": frame at t = " + format_double(time) +
+                                             ": a field is not finite on another rank; it is not written to the result file"
+                                       : bad);
   if (!std::isfinite(time)) throw InstabilityError(path_ + ": frame time is not finite");
   Handle g = h5::create_group(m.frames.get(), name, path_);
   write_attribute(g.get(), "time", H5T_NATIVE_DOUBLE, &time, path_);
-  for (const FieldView& f : fields)
-    write_matrix(g.get(), f.name, static_cast<hsize_t>(f.rows), static_cast<hsize_t>(f.cols), f.data, path_);
+  for (const FieldView& f : fields) m.write_field(g.get(), f.name, f, f.data);
   FrameInfo info = m.describe_frame("/frames/" + name, time, fields);
   if (info.geometry == kPaddedX) {
     const auto& x = *std::find_if(fields.begin(), fields.end(), [](const FieldView& f) { return f.name == "x"; });
     std::vector<double> padded(static_cast<std::size_t>(x.rows) * kXdmfSpaceDim, 0.0);
     for (int p = 0; p < x.rows; ++p) padded[static_cast<std::size_t>(p) * kXdmfSpaceDim] = x.data[p];
-    write_matrix(g.get(), kPaddedX, static_cast<hsize_t>(x.rows), kXdmfSpaceDim, padded.data(), path_);
+    FieldView x3 = x;
+    x3.cols = kXdmfSpaceDim;
+    m.write_field(g.get(), kPaddedX, x3, padded.data());
   }
   ++frames_;
   flush();
@@ -303,9 +335,11 @@ void ResultWriter::Impl::append_sample(hid_t parent, const std::string& key, con
     if (values[i].first != info.fields[i].first || std::max<hsize_t>(info.fields[i].second, 1) != values[i].second.size())
       throw std::invalid_argument(where + ": field '" + values[i].first + "' differs from the first sample");
   Handle g(checked(H5Gopen2(parent, name.c_str(), H5P_DEFAULT), path, "open " + key), H5Gclose);
-  append_row(g.get(), "time", info.samples, 0, &time, path);
+  const bool writes = root(); // in a parallel file the root writes the row, the others select none
+  append_row(g.get(), "time", info.samples, 0, &time, path, writes, dxpl());
   for (std::size_t i = 0; i < values.size(); ++i)
-    append_row(g.get(), values[i].first, info.samples, info.fields[i].second, values[i].second.data(), path);
+    append_row(g.get(), values[i].first, info.samples, info.fields[i].second, values[i].second.data(), path, writes,
+               dxpl());
   ++info.samples;
 }
 
@@ -327,7 +361,13 @@ void ResultWriter::append_group_sample(const std::string& group, const std::stri
   }
   m.append_sample(it->second.get(), group + "/" + name, name, time, values, false,
                   path_ + ": " + group + " '" + name + "' at t = " + format_double(time));
-  flush();
+  flush_sample();
+}
+
+void ResultWriter::flush_sample() {
+  // A parallel file flushes with MPI_File_sync, which costs a disk sync: its
+  // samples are flushed with the frame that a run writes after them.
+  if (!impl_->parallel.mpi_comm) flush();
 }
 
 void ResultWriter::append_series(const std::string& series, double time,
@@ -339,7 +379,7 @@ void ResultWriter::append_series(const std::string& series, double time,
   for (const auto& [field, v] : values) rows.emplace_back(field, std::vector<double>{v});
   impl_->append_sample(impl_->file.get(), series, series, time, rows, true,
                        path_ + ": series '" + series + "' at t = " + format_double(time));
-  flush();
+  flush_sample();
 }
 
 void ResultWriter::set_attribute(const std::string& name, double value) {

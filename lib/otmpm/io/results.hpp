@@ -6,6 +6,7 @@
 /// sidecar that ParaView opens. Every frame is flushed to disk before the
 /// sidecar names it, so a run killed at any moment leaves a readable file
 /// (the sidecar may lag the .h5 file by at most 0.25 s of wall time).
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -19,6 +20,23 @@ struct FieldView {
   int rows = 0;
   int cols = 0;
   const double* data = nullptr;
+  /// A parallel file: the frame has `total_rows` rows, of which this view
+  /// holds rows [first_row, first_row + rows). -1: the view is the whole
+  /// frame (in a parallel file, written by the root rank).
+  long long total_rows = -1;
+  long long first_row = 0;
+};
+
+/// A result file that all ranks of a distributed run write together with
+/// the parallel HDF5 (MPI-IO): every rank makes every call of the
+/// ResultWriter, with the same arguments except the rows of a frame; the
+/// root rank writes the history samples and the XDMF sidecar.
+struct ParallelIo {
+  const void* mpi_comm = nullptr; ///< the MPI_Comm* of the ranks (null: a serial file)
+  bool root = true;
+  /// Whether every rank's `ok` holds (collective): a frame is written only
+  /// when all ranks' rows are finite.
+  std::function<bool(bool)> all;
 };
 
 /// Writes one result file. Creating it writes the root attributes
@@ -34,7 +52,7 @@ struct FieldView {
 /// an InstabilityError (nothing of that frame or sample is written).
 class ResultWriter {
 public:
-  ResultWriter(const std::string& path, const std::string& scene_text, int dimension);
+  ResultWriter(const std::string& path, const std::string& scene_text, int dimension, ParallelIo parallel = {});
   ~ResultWriter();
   ResultWriter(const ResultWriter&) = delete;
   ResultWriter& operator=(const ResultWriter&) = delete;
@@ -68,6 +86,7 @@ public:
   int frames() const { return frames_; }
 
 private:
+  void flush_sample();
   struct Impl;
   std::unique_ptr<Impl> impl_;
   std::string path_;

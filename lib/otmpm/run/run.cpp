@@ -8,6 +8,7 @@
 #include "otmpm/run/simulation.hpp"
 
 #include "otmpm/assembly/assembler.hpp"
+#include "otmpm/distributed/global_view.hpp"
 #include "otmpm/particles/output_fields.hpp"
 #include "otmpm/run/restart.hpp"
 #include "otmpm/io/results.hpp"
@@ -31,19 +32,15 @@ constexpr double time_slack = 1e-9;
 /// Floor of EnergySummary::reference(), so a body at rest with no load has ratio 0, not 0/0.
 constexpr double energy_reference_floor = 1e-300;
 
-/// The particle a probe follows: the leftmost/rightmost by initial position
-/// (ties: lowest index) or the one nearest to a point.
-template <int D> int probe_particle(const Particles<D>& P, const ProbeSection& probe) {
-  int best = 0;
+/// The (global) particle a probe follows: the leftmost/rightmost by initial
+/// position (ties: lowest index) or the one nearest to a point.
+template <int D>
+long long probe_particle(const distributed::GlobalView<D>& view, const Particles<D>& P, const ProbeSection& probe) {
   Vec<D> at;
   for (int k = 0; k < D; ++k) at[k] = probe.at[k];
-  for (int p = 1; p < P.size(); ++p) {
-    if (probe.particle == "leftmost" ? P.X[p][0] < P.X[best][0]
-        : probe.particle == "rightmost" ? P.X[p][0] > P.X[best][0]
-                                        : (P.X[p] - at).norm() < (P.X[best] - at).norm())
-      best = p;
-  }
-  return best;
+  return view.best([&](int p) {
+    return probe.particle == "leftmost" ? P.X[p][0] : probe.particle == "rightmost" ? -P.X[p][0] : (P.X[p] - at).norm();
+  });
 }
 
 // A member added to EnergySummary must be saved and restored here.
@@ -60,18 +57,29 @@ public:
   /// `resume`: the checkpoint a restarted run continues (null for a new run).
   Recorder(const Scene& scene, const RunOptions& opt, Engine<D>& e, const ExactSolution<D>* exact,
            const Checkpoint* resume)
-      : scene_(scene), text_(scene.text.empty() ? to_toml(scene) : scene.text), e_(e), exact_(exact) {
-    for (const ProbeSection& pr : scene.output.probes) probes_.push_back({pr.name, probe_particle(e.particles(), pr), 0.0, 0});
+      : scene_(scene), text_(scene.text.empty() ? to_toml(scene) : scene.text), e_(e), exact_(exact), view_(e),
+        results_(opt.write_results) {
+    for (const ProbeSection& pr : scene.output.probes)
+      probes_.push_back({pr.name, probe_particle(view_, e.particles(), pr), 0.0, 0});
     if (resume) restore_accumulators(resume->group("recorder"));
     if (!opt.write_results) return;
     path_ = !opt.out_file.empty() ? opt.out_file
             : resume           ? resume->group("recorder").string("result_file")
                                : scene.output.file;
     checkpoint_path_ = checkpoint_path(scene, path_);
+    if (resume) frames_ = static_cast<int>(resume->group("recorder").integer("frames"));
     std::optional<PreviousResults> previous;
-    if (resume) previous = set_aside_results(resume->group("recorder").string("result_file"), path_);
-    writer_ = std::make_unique<ResultWriter>(path_, text_, D);
+    if (resume) previous = set_aside(resume->group("recorder").string("result_file"));
+    view_.collectively([&] { writer_ = std::make_unique<ResultWriter>(path_, text_, D, view_.parallel_io()); });
     if (previous) continue_results(*previous, resume->group("recorder"));
+  }
+
+  /// set_aside_results by the writing rank, its answer on every rank.
+  PreviousResults set_aside(const std::string& previous_file) {
+    PreviousResults p;
+    view_.on_writer([&] { p = set_aside_results(previous_file, path_); });
+    const std::string shared = view_.share((p.set_aside ? "1" : "0") + p.path);
+    return {shared.substr(1), shared.front() == '1'};
   }
 
   /// Writes a checkpoint after every output.checkpoint_every steps (not after
@@ -79,13 +87,13 @@ public:
   /// of this process so far.
   void maybe_checkpoint(double wall_seconds, bool last) {
     const long every = scene_.output.checkpoint_every;
-    if (!writer_ || every <= 0 || last || e_.steps() % every != 0) return;
+    if (!results_ || every <= 0 || last || e_.steps() % every != 0) return;
     checkpoint(wall_seconds);
   }
 
   /// Writes a checkpoint of the current state now (when checkpoints are on).
   void checkpoint(double wall_seconds) {
-    if (!writer_ || scene_.output.checkpoint_every <= 0) return;
+    if (!results_ || scene_.output.checkpoint_every <= 0) return;
     ScopedPhase timer(e_.timers(), Phase::output);
     Checkpoint ck;
     ck.scene = text_;
@@ -93,7 +101,7 @@ public:
     StateGroup& g = ck.group("recorder");
     g.reals["next_output_time"] = next_;
     g.reals["wall_seconds"] = wall_before_ + wall_seconds;
-    g.integers["frames"] = writer_->frames();
+    g.integers["frames"] = frames_;
     g.strings["result_file"] = std::filesystem::absolute(path_).string();
     g.put_reals(summary_fields(energy_));
     g.reals["wall_time"] = wall_time_;
@@ -106,7 +114,8 @@ public:
       sum_sq.values.push_back(pr.sum_sq);
       samples.values.push_back(pr.samples);
     }
-    write_checkpoint(checkpoint_path_, ck);
+    const Checkpoint all = view_.gather(ck); // the serial layout: any rank count can restart from it
+    view_.on_writer([&] { write_checkpoint(checkpoint_path_, all); });
   }
 
   /// Wall time of the interrupted run up to its checkpoint (0 for a new run).
@@ -135,6 +144,17 @@ public:
     for (const Probe& pr : probes_)
       if (exact_ && pr.samples > 0) s.errors["history_error_" + pr.name] = std::sqrt(pr.sum_sq / pr.samples);
     if (exact_ && s.exit_code == 0 && !s.interrupted) final_errors(s);
+    if (results_) s.out_file = path_;
+    const auto distributed = view_.run_attributes();
+    view_.collectively([&] {
+      write_summary(s);
+      for (const auto& [name, value] : distributed)
+        if (writer_) writer_->set_attribute(name, value);
+    });
+  }
+
+  /// The final attributes and status of the result file.
+  void write_summary(const RunSummary& s) {
     if (!writer_) return;
     writer_->set_attribute("status", s.status);
     writer_->set_attribute("steps", static_cast<long long>(s.steps));
@@ -148,21 +168,21 @@ public:
     for (std::size_t i = 0; i < phase_names.size(); ++i)
       writer_->set_attribute("seconds_" + std::string(phase_names[i]), s.timers.seconds[i]);
     writer_->publish();
-    s.out_file = path_;
   }
 
   /// Marks the file with a diagnosis (the file stays valid).
   void set_status(const std::string& status) {
-    if (writer_) {
+    view_.collectively([&] {
+      if (!writer_) return;
       writer_->set_attribute("status", status);
       writer_->publish();
-    }
+    });
   }
 
 private:
   struct Probe {
     std::string name;
-    int particle;
+    long long particle; ///< global id
     double sum_sq;
     int samples;
   };
@@ -205,8 +225,10 @@ private:
 
   /// Copies the frames and history samples written before the checkpoint.
   void continue_results(const PreviousResults& previous, const StateGroup& g) {
-    copy_results(previous.path, *writer_, static_cast<int>(g.integer("frames")), histories(), scene_.output.fields);
-    release_previous_results(previous);
+    view_.collectively([&] {
+      copy_results(previous.path, *writer_, static_cast<int>(g.integer("frames")), histories(), scene_.output.fields);
+    });
+    view_.on_writer([&] { release_previous_results(previous); });
   }
 
   /// /walls/NAME: the impulse the wall gave the body since t = 0 and the
@@ -226,40 +248,50 @@ private:
   }
 
   void record(double t) {
-    const Particles<D>& P = e_.particles();
+    std::vector<std::pair<std::string, std::vector<std::pair<std::string, std::vector<double>>>>> samples;
     for (Probe& pr : probes_) {
-      const int p = pr.particle;
+      const auto r = view_.row(pr.particle); // its values on every rank
       if (exact_) {
-        pr.sum_sq += (P.v[p] - exact_->velocity(P.X[p], t)).squaredNorm();
+        pr.sum_sq += (r.v - exact_->velocity(r.X, t)).squaredNorm();
         ++pr.samples;
       }
-      if (writer_) {
-        std::vector<double> x(P.x[p].data(), P.x[p].data() + D), v(P.v[p].data(), P.v[p].data() + D);
-        std::vector<double> sig(P.sigma[p].data(), P.sigma[p].data() + D * D);
-        writer_->append_probe(pr.name, t, {{"x", x}, {"v", v}, {"stress", sig}});
-      }
+      std::vector<double> x(r.x.data(), r.x.data() + D), v(r.v.data(), r.v.data() + D);
+      std::vector<double> sig(r.sigma.data(), r.sigma.data() + D * D);
+      samples.push_back({pr.name, {{"x", x}, {"v", v}, {"stress", sig}}});
     }
-    if (writer_) {
+    if (!results_) return;
+    std::vector<std::vector<double>> buffers(scene_.output.fields.size());
+    const std::vector<FieldView> fields = frame_fields(buffers);
+    ++frames_;
+    view_.collectively([&] {
+      for (const auto& [name, values] : samples) writer_->append_probe(name, t, values);
       const EnergyBalance& E = e_.energy();
       std::vector<std::pair<std::string, double>> energy{
           {"kinetic", E.kinetic}, {"strain", E.strain}, {"external_work", E.external_work}, {"reaction_work", E.reaction_work}};
       if (dissipative()) energy.emplace_back("dissipated", E.dissipated);
       writer_->append_series("energy", t, energy);
       record_walls(t);
-      write_frame(t);
-    }
+      writer_->write_frame(t, fields);
+    });
   }
 
-  void write_frame(double t) {
+  /// The output fields of all particles in global order (buffers hold the
+  /// values that are not stored as they are written, and the gathered ones).
+  std::vector<FieldView> frame_fields(std::vector<std::vector<double>>& buffers) const {
     const Particles<D>& P = e_.particles();
     std::vector<FieldView> fields;
-    std::vector<std::vector<double>> buffers(scene_.output.fields.size());
     for (std::size_t i = 0; i < scene_.output.fields.size(); ++i) {
       const std::string& name = scene_.output.fields[i];
       const FieldData d = output_field_data<D>(name, P, buffers[i]);
-      fields.push_back({name, P.size(), d.cols, d.data});
+      if (!view_.distributed()) {
+        fields.push_back({name, P.size(), d.cols, d.data});
+        continue;
+      }
+      auto block = view_.block(d.data, d.cols); // this rank's rows of the frame, in global order
+      buffers[i] = std::move(block.values);
+      fields.push_back({name, static_cast<int>(block.count), d.cols, buffers[i].data(), view_.particles(), block.first});
     }
-    writer_->write_frame(t, fields);
+    return fields;
   }
 
   void final_errors(RunSummary& s) const {
@@ -271,15 +303,18 @@ private:
       eu.push_back((P.x[p] - P.X[p] - exact_->displacement(P.X[p], t)).squaredNorm());
       es.push_back((P.sigma[p] - exact_->stress(P.X[p], t)).squaredNorm());
     }
-    s.errors["rms_velocity_error"] = rms_error(ev);
-    s.errors["rms_displacement_error"] = rms_error(eu);
-    s.errors["rms_stress_error"] = rms_error(es);
+    s.errors["rms_velocity_error"] = view_.rms(ev);
+    s.errors["rms_displacement_error"] = view_.rms(eu);
+    s.errors["rms_stress_error"] = view_.rms(es);
   }
 
   const Scene& scene_;
   std::string text_; ///< the scene as TOML: Scene::text, or to_toml() for a scene built in code
   Engine<D>& e_;
   const ExactSolution<D>* exact_;
+  distributed::GlobalView<D> view_;
+  bool results_ = true; ///< the run writes a result file (writer_ lives on the writing rank only)
+  int frames_ = 0;      ///< frames written so far (every rank counts them)
   std::vector<Probe> probes_;
   std::string path_;
   std::unique_ptr<ResultWriter> writer_;
@@ -322,22 +357,33 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
   Recorder<D> rec;
 
   DimRunner(const Scene& s, const RunOptions& opt, const Checkpoint* resume)
-      : options(opt), e(assemble<D>(s)), exact(make_exact_solution<D>(s)), rec(init(s, resume), opt, e, exact.get(), resume) {
+      : options(opt), e(build(s, resume)), exact(make_exact_solution<D>(s)),
+        rec(init(s, resume), opt, e, exact.get(), resume) {
+    const distributed::GlobalView<D> view(e);
     summary.mode = scene.simulation.mode;
     summary.integrator = scene.simulation.integrator;
     summary.basis = scene.basis.kind;
-    summary.particles = e.particles().size();
-    summary.nodes = e.basis().nodes().size();
+    summary.particles = view.particles();
+    summary.nodes = view.nodes();
     summary.status = "running";
     if (resume) return;
     rec.sample_energy();
     rec.maybe_record(true);
   }
 
+  /// This rank's engine of the scene (the whole scene in a serial run); a
+  /// restart decides the ranks' particles from the checkpoint's positions.
+  static Engine<D> build(const Scene& s, const Checkpoint* resume) {
+    const auto& comm = distributed::Comm::world();
+    if (!resume || comm.size() == 1) return Engine<D>(distributed::rank_parts<D>(s, comm));
+    const AlignedVector<Vec<D>> x = distributed::checkpoint_positions<D>(*resume);
+    return Engine<D>(distributed::rank_parts<D>(s, comm, &x));
+  }
+
   /// Stores the scene and restores the checkpoint before the recorder is built.
   const Scene& init(const Scene& s, const Checkpoint* resume) {
     scene = s;
-    if (resume) e.restore_state(*resume);
+    if (resume) e.restore_state(distributed::local_checkpoint(e, *resume));
     return scene;
   }
 
@@ -382,6 +428,9 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
     summary.time = e.time();
     summary.timers = e.timers();
     summary.wall_seconds = rec.wall_before() + seconds_since(start);
+    const distributed::GlobalView<D> view(e); // the slowest rank's times (the same on every rank)
+    summary.wall_seconds = view.max(summary.wall_seconds);
+    for (double& t : summary.timers.seconds) t = view.max(t);
     rec.finish(summary);
     finished = true;
   }
@@ -459,13 +508,22 @@ template const Engine<2>& Simulation::engine<2>() const;
 template const Engine<3>& Simulation::engine<3>() const;
 
 namespace {
+/// True when options.interrupt asks to stop; the ranks of a distributed run
+/// agree (one of them got the signal: all stop after the same step).
+bool interrupt_requested(const RunOptions& options) {
+  if (!options.interrupt) return false;
+  const auto& comm = distributed::Comm::world();
+  const std::int64_t flag = options.interrupt->load() ? 1 : 0;
+  return (comm.size() > 1 ? comm.max(flag) : flag) != 0;
+}
+
 /// Steps a simulation to t_end; an instability ends it with its status, a
 /// request through options.interrupt (checked before each step) with status
 /// "interrupted" and a last checkpoint.
 RunSummary run_to_end(Simulation& sim, const RunOptions& options) {
   try {
     while (!sim.finished()) {
-      if (options.interrupt && options.interrupt->load()) {
+      if (interrupt_requested(options)) {
         sim.interrupt();
         break;
       }

@@ -1,0 +1,338 @@
+/// \file comm.cpp
+/// The MPI layer (comm.hpp): ordered reductions along a binomial tree,
+/// point-to-point and all-to-all byte exchanges, the MPI session. Without
+/// MPI (no OTMPM_HAVE_MPI) every operation is that of a single rank.
+#include "otmpm/distributed/comm.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <thread>
+#include <cstring>
+#include <limits>
+#include <stdexcept>
+
+#ifdef OTMPM_HAVE_MPI
+#include <mpi.h>
+#endif
+
+namespace otmpm::distributed {
+
+namespace {
+
+#ifdef OTMPM_HAVE_MPI
+/// Tags of the point-to-point messages (reductions, exchanges).
+constexpr int kTreeTag = 7101;
+constexpr int kExchangeTag = 7102;
+
+MPI_Comm world_comm() { return MPI_COMM_WORLD; }
+
+bool mpi_running() {
+  int init = 0, fin = 0;
+  MPI_Initialized(&init);
+  MPI_Finalized(&fin);
+  return init && !fin;
+}
+
+int checked_count(std::size_t n) {
+  if (n > static_cast<std::size_t>(std::numeric_limits<int>::max()))
+    throw std::length_error("distributed: a message of " + std::to_string(n) + " bytes is too long for MPI");
+  return static_cast<int>(n);
+}
+
+/// Combines `values` of every rank into rank 0 along a binomial tree
+/// (children combined in increasing rank order): the first `sums` entries
+/// added, the rest by maximum; then broadcasts the result.
+void tree_reduce(double* values, int n, int sums, int rank, int size) {
+  std::vector<double> child(static_cast<std::size_t>(n));
+  for (int mask = 1; mask < size; mask <<= 1) {
+    if (rank & mask) {
+      MPI_Send(values, n, MPI_DOUBLE, rank - mask, kTreeTag, world_comm());
+      break;
+    }
+    if (rank + mask < size) {
+      MPI_Recv(child.data(), n, MPI_DOUBLE, rank + mask, kTreeTag, world_comm(), MPI_STATUS_IGNORE);
+      for (int i = 0; i < n; ++i) {
+        const double c = child[static_cast<std::size_t>(i)];
+        values[i] = i < sums ? values[i] + c : std::max(values[i], c);
+      }
+    }
+  }
+  MPI_Bcast(values, n, MPI_DOUBLE, 0, world_comm());
+}
+#endif
+
+/// Environment variables set by the launchers (OpenMPI's mpirun, PMI/PMIx, srun).
+bool started_by_launcher() {
+  for (const char* v : {"OMPI_COMM_WORLD_SIZE", "PMIX_RANK", "PMI_SIZE", "PMI_RANK"})
+    if (std::getenv(v)) return true;
+  return false;
+}
+
+} // namespace
+
+const Comm& Comm::self() {
+  static const Comm one;
+  return one;
+}
+
+const Comm& Comm::world() {
+#ifdef OTMPM_HAVE_MPI
+  if (mpi_running()) {
+    static const Comm w = [] {
+      Comm c;
+      c.mpi_ = true;
+      MPI_Comm_rank(world_comm(), &c.rank_);
+      MPI_Comm_size(world_comm(), &c.size_);
+      return c;
+    }();
+    return w;
+  }
+#endif
+  return self();
+}
+
+void Comm::sum(std::span<double> values) const { reduce(values, {}); }
+
+void Comm::reduce(std::span<double> sums, std::span<double> maxima) const {
+#ifdef OTMPM_HAVE_MPI
+  if (!mpi_ || size_ == 1) return;
+  std::vector<double> v(sums.begin(), sums.end());
+  v.insert(v.end(), maxima.begin(), maxima.end());
+  tree_reduce(v.data(), checked_count(v.size()), static_cast<int>(sums.size()), rank_, size_);
+  std::copy(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(sums.size()), sums.begin());
+  std::copy(v.begin() + static_cast<std::ptrdiff_t>(sums.size()), v.end(), maxima.begin());
+#else
+  (void)sums, (void)maxima;
+#endif
+}
+
+double Comm::sum(double value) const {
+  sum(std::span<double>(&value, 1));
+  return value;
+}
+
+void Comm::sum(std::span<std::int64_t> values) const {
+#ifdef OTMPM_HAVE_MPI
+  if (mpi_ && size_ > 1)
+    MPI_Allreduce(MPI_IN_PLACE, values.data(), checked_count(values.size()), MPI_INT64_T, MPI_SUM, world_comm());
+#else
+  (void)values;
+#endif
+}
+
+std::int64_t Comm::sum(std::int64_t value) const {
+  sum(std::span<std::int64_t>(&value, 1));
+  return value;
+}
+
+void Comm::max(std::span<double> values) const {
+#ifdef OTMPM_HAVE_MPI
+  if (mpi_ && size_ > 1)
+    MPI_Allreduce(MPI_IN_PLACE, values.data(), checked_count(values.size()), MPI_DOUBLE, MPI_MAX, world_comm());
+#else
+  (void)values;
+#endif
+}
+
+void Comm::min(std::span<double> values) const {
+#ifdef OTMPM_HAVE_MPI
+  if (mpi_ && size_ > 1)
+    MPI_Allreduce(MPI_IN_PLACE, values.data(), checked_count(values.size()), MPI_DOUBLE, MPI_MIN, world_comm());
+#else
+  (void)values;
+#endif
+}
+
+double Comm::max(double value) const {
+  max(std::span<double>(&value, 1));
+  return value;
+}
+
+double Comm::min(double value) const {
+  min(std::span<double>(&value, 1));
+  return value;
+}
+
+std::int64_t Comm::min(std::int64_t value) const {
+#ifdef OTMPM_HAVE_MPI
+  if (mpi_ && size_ > 1) MPI_Allreduce(MPI_IN_PLACE, &value, 1, MPI_INT64_T, MPI_MIN, world_comm());
+#endif
+  return value;
+}
+
+std::int64_t Comm::max(std::int64_t value) const {
+#ifdef OTMPM_HAVE_MPI
+  if (mpi_ && size_ > 1) MPI_Allreduce(MPI_IN_PLACE, &value, 1, MPI_INT64_T, MPI_MAX, world_comm());
+#endif
+  return value;
+}
+
+std::vector<std::int64_t> Comm::allgather(std::int64_t value) const {
+  std::vector<std::int64_t> all(static_cast<std::size_t>(size_), value);
+#ifdef OTMPM_HAVE_MPI
+  if (mpi_ && size_ > 1) MPI_Allgather(&value, 1, MPI_INT64_T, all.data(), 1, MPI_INT64_T, world_comm());
+#endif
+  return all;
+}
+
+std::string Comm::broadcast(const std::string& text, int from) const {
+  if (size_ == 1) return text;
+  std::int64_t n = static_cast<std::int64_t>(text.size());
+  broadcast(&n, sizeof n, from);
+  std::string out = rank_ == from ? text : std::string(static_cast<std::size_t>(n), '\0');
+  broadcast(out.data(), out.size(), from);
+  return out;
+}
+
+void Comm::broadcast(void* data, std::size_t bytes, int from) const {
+#ifdef OTMPM_HAVE_MPI
+  if (mpi_ && size_ > 1 && bytes > 0) MPI_Bcast(data, checked_count(bytes), MPI_BYTE, from, world_comm());
+#else
+  (void)data, (void)bytes, (void)from;
+#endif
+}
+
+std::vector<Bytes> Comm::exchange(const std::vector<int>& to, const std::vector<Bytes>& send,
+                                  const std::vector<int>& from) const {
+  std::vector<Bytes> received(from.size());
+#ifdef OTMPM_HAVE_MPI
+  if (!mpi_) return received;
+  std::vector<MPI_Request> requests(to.size());
+  for (std::size_t i = 0; i < to.size(); ++i)
+    MPI_Isend(send[i].data(), checked_count(send[i].size()), MPI_BYTE, to[i], kExchangeTag, world_comm(), &requests[i]);
+  for (std::size_t i = 0; i < from.size(); ++i) {
+    MPI_Status status;
+    MPI_Probe(from[i], kExchangeTag, world_comm(), &status);
+    int count = 0;
+    MPI_Get_count(&status, MPI_BYTE, &count);
+    received[i].resize(static_cast<std::size_t>(count));
+    MPI_Recv(received[i].data(), count, MPI_BYTE, from[i], kExchangeTag, world_comm(), MPI_STATUS_IGNORE);
+  }
+  MPI_Waitall(static_cast<int>(requests.size()), requests.data(), MPI_STATUSES_IGNORE);
+#else
+  (void)to, (void)send;
+#endif
+  return received;
+}
+
+std::vector<Bytes> Comm::alltoall(const std::vector<Bytes>& send) const {
+  if (send.size() != static_cast<std::size_t>(size_))
+    throw std::invalid_argument("Comm::alltoall: " + std::to_string(send.size()) + " buffers for " +
+                                std::to_string(size_) + " ranks");
+  if (size_ == 1) return send;
+  std::vector<Bytes> received(static_cast<std::size_t>(size_));
+#ifdef OTMPM_HAVE_MPI
+  const std::size_t P = static_cast<std::size_t>(size_);
+  std::vector<int> send_count(P), recv_count(P), send_at(P), recv_at(P);
+  for (std::size_t q = 0; q < P; ++q) send_count[q] = checked_count(send[q].size());
+  MPI_Alltoall(send_count.data(), 1, MPI_INT, recv_count.data(), 1, MPI_INT, world_comm());
+  std::size_t s = 0, r = 0;
+  for (std::size_t q = 0; q < P; ++q) {
+    send_at[q] = checked_count(s);
+    recv_at[q] = checked_count(r);
+    s += static_cast<std::size_t>(send_count[q]);
+    r += static_cast<std::size_t>(recv_count[q]);
+  }
+  Bytes out(s), in(r);
+  for (std::size_t q = 0; q < P; ++q) std::copy(send[q].begin(), send[q].end(), out.begin() + send_at[q]);
+  MPI_Alltoallv(out.data(), send_count.data(), send_at.data(), MPI_BYTE, in.data(), recv_count.data(),
+                recv_at.data(), MPI_BYTE, world_comm());
+  for (std::size_t q = 0; q < P; ++q)
+    received[q].assign(in.begin() + recv_at[q], in.begin() + recv_at[q] + recv_count[q]);
+#endif
+  return received;
+}
+
+void Comm::barrier() const {
+#ifdef OTMPM_HAVE_MPI
+  if (mpi_ && size_ > 1) MPI_Barrier(world_comm());
+#endif
+}
+
+const void* Comm::mpi_comm() const {
+#ifdef OTMPM_HAVE_MPI
+  static const MPI_Comm world = MPI_COMM_WORLD;
+  if (mpi_) return &world;
+#endif
+  return nullptr;
+}
+
+Session::Session(int& argc, char**& argv) {
+#ifdef OTMPM_HAVE_MPI
+  if (!started_by_launcher() || mpi_running()) return;
+  int provided = 0;
+  MPI_Init_thread(&argc, &argv, MPI_THREAD_FUNNELED, &provided);
+  initialised_ = true;
+#else
+  (void)argc, (void)argv, (void)started_by_launcher;
+#endif
+}
+
+Session::~Session() {
+#ifdef OTMPM_HAVE_MPI
+  if (initialised_ && mpi_running()) MPI_Finalize();
+#endif
+}
+
+int Session::finish(int status, const std::string& message) {
+  const Comm& comm = Comm::world();
+  auto print = [&] {
+    if (!message.empty()) std::fprintf(stderr, "%s\n", message.c_str());
+    std::fflush(stderr);
+  };
+  if (comm.size() == 1) {
+    print();
+    return status;
+  }
+#ifdef OTMPM_HAVE_MPI
+  MPI_Request barrier;
+  MPI_Ibarrier(world_comm(), &barrier);
+  const auto start = std::chrono::steady_clock::now();
+  for (int done = 0;;) {
+    MPI_Test(&barrier, &done, MPI_STATUS_IGNORE);
+    if (done) break;
+    const double waited = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (status != 0 && waited > kExitWait) {
+      print();
+      abort(status);
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  const std::int64_t worst = comm.max(static_cast<std::int64_t>(status));
+  const std::int64_t speaker = comm.min(static_cast<std::int64_t>(status == worst ? comm.rank() : comm.size()));
+  if (comm.rank() == speaker) print();
+  return static_cast<int>(worst);
+#else
+  return status;
+#endif
+}
+
+void Session::abort(int status) {
+#ifdef OTMPM_HAVE_MPI
+  if (mpi_running() && Comm::world().size() > 1) MPI_Abort(world_comm(), status);
+#endif
+  std::exit(status);
+}
+
+bool built_with_mpi() {
+#ifdef OTMPM_HAVE_MPI
+  return true;
+#else
+  return false;
+#endif
+}
+
+void put_bytes(Bytes& out, const void* data, std::size_t n) {
+  const char* p = static_cast<const char*>(data);
+  out.insert(out.end(), p, p + n);
+}
+
+void Reader::get_bytes(void* data, std::size_t n) {
+  if (at_ + n > in_.size()) throw std::logic_error("distributed::Reader: message shorter than expected");
+  std::memcpy(data, in_.data() + at_, n);
+  at_ += n;
+}
+
+} // namespace otmpm::distributed

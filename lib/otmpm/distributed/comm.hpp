@@ -1,0 +1,131 @@
+#pragma once
+/// \file comm.hpp
+/// The ranks of a distributed run: a thin layer over MPI that the rest of
+/// otmpm calls, the same code with or without MPI (docs/architecture.md,
+/// "Distributed runs"). In a build without MPI, in a process that mpirun did
+/// not start, or with one rank, Comm is that one rank and every operation is
+/// trivial, so a serial run never depends on MPI.
+///
+/// Floating-point sums are ordered: the ranks' values are added along a fixed
+/// binomial tree towards rank 0 (children in increasing rank order) and the
+/// result is broadcast, so every rank holds the same bits and a run with the
+/// same rank count gives the same bits again. Maxima, minima and integer
+/// sums are exact in any order.
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace otmpm::distributed {
+
+/// Bytes of one message.
+using Bytes = std::vector<char>;
+
+/// A group of ranks (all ranks of the program: world()).
+class Comm {
+public:
+  /// All ranks of the program: MPI_COMM_WORLD when MPI was initialised by a
+  /// Session, else one rank.
+  static const Comm& world();
+  /// One rank (a serial run inside a distributed program, tests).
+  static const Comm& self();
+
+  int rank() const { return rank_; }
+  int size() const { return size_; }
+  bool root() const { return rank_ == 0; }
+
+  /// Ordered sum over the ranks of each entry (identical bits on every rank).
+  void sum(std::span<double> values) const;
+  /// Ordered sums of `sums` and maxima of `maxima` in one reduction.
+  void reduce(std::span<double> sums, std::span<double> maxima) const;
+  double sum(double value) const;
+  /// Exact integer sums, maxima and minima of each entry over the ranks.
+  void sum(std::span<std::int64_t> values) const;
+  std::int64_t sum(std::int64_t value) const;
+  void max(std::span<double> values) const;
+  void min(std::span<double> values) const;
+  double max(double value) const;
+  double min(double value) const;
+  std::int64_t min(std::int64_t value) const;
+  std::int64_t max(std::int64_t value) const;
+  /// Every rank's value, in rank order, on every rank.
+  std::vector<std::int64_t> allgather(std::int64_t value) const;
+  /// `text` of rank `from` on every rank.
+  std::string broadcast(const std::string& text, int from) const;
+  /// Broadcast of raw bytes from rank `from` (sizes must agree).
+  void broadcast(void* data, std::size_t bytes, int from) const;
+  /// Point-to-point exchange: send[i] goes to rank to[i]; one message is
+  /// received from each rank of `from` (any size), returned in that order.
+  std::vector<Bytes> exchange(const std::vector<int>& to, const std::vector<Bytes>& send,
+                              const std::vector<int>& from) const;
+  /// Every rank sends send[q] to rank q (send.size() == size()); returns what
+  /// each rank q sent to this one.
+  std::vector<Bytes> alltoall(const std::vector<Bytes>& send) const;
+  void barrier() const;
+  /// The MPI communicator (an MPI_Comm*) for the parallel HDF5; null when
+  /// this is not an MPI communicator.
+  const void* mpi_comm() const;
+
+private:
+  Comm() = default;
+  int rank_ = 0, size_ = 1;
+  bool mpi_ = false;
+};
+
+/// MPI for the lifetime of a program (its main): initialises MPI (threads
+/// funnelled through the main thread, OpenMP inside each rank) when the
+/// process was started by mpirun or srun, finalises it at the end. Without
+/// MPI, or when the process was started directly, it does nothing: the
+/// program then runs as one rank.
+class Session {
+public:
+  Session(int& argc, char**& argv);
+  ~Session();
+  Session(const Session&) = delete;
+  Session& operator=(const Session&) = delete;
+  /// Ends every rank now with `status` (the last resort for an error that
+  /// the ranks could not agree on: MPI_Abort).
+  [[noreturn]] static void abort(int status);
+  /// The end of the program on this rank, with its exit `status` and
+  /// diagnosis (`message`, "" for none); returns the exit status. Serial:
+  /// prints the message to stderr. Distributed: the ranks meet; the highest
+  /// status wins, and the lowest rank with it prints its message - one
+  /// message, not one per rank. A rank with an error that its peers did not
+  /// share (they are not coming: an internal error on one rank) waits
+  /// kExitWait seconds, prints its message and ends all ranks (MPI_Abort),
+  /// so a run never hangs.
+  int finish(int status, const std::string& message);
+  /// Seconds a failed rank waits for the others at the end before it aborts them.
+  static constexpr double kExitWait = 30.0;
+
+private:
+  bool initialised_ = false;
+};
+
+/// True when this otmpm was built with MPI (OTMPM_MPI).
+bool built_with_mpi();
+
+// ---- packing of trivially copyable values into byte buffers
+
+/// Appends the bytes of `n` values at `data`.
+void put_bytes(Bytes& out, const void* data, std::size_t n);
+template <class T> void put(Bytes& out, const T& value) { put_bytes(out, &value, sizeof(T)); }
+
+/// Reads values back from a buffer in the order they were put.
+class Reader {
+public:
+  explicit Reader(const Bytes& in) : in_(in) {}
+  void get_bytes(void* data, std::size_t n);
+  template <class T> T get() {
+    T v;
+    get_bytes(&v, sizeof(T));
+    return v;
+  }
+  bool done() const { return at_ == in_.size(); }
+
+private:
+  const Bytes& in_;
+  std::size_t at_ = 0;
+};
+
+} // namespace otmpm::distributed

@@ -1,0 +1,156 @@
+/// \file decomposition.cpp
+/// Recursive coordinate bisection of the cell lattice (decomposition.hpp).
+#include "otmpm/distributed/decomposition.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace otmpm::distributed {
+
+namespace {
+
+/// The cut of a box along one axis: position (cells below) and how far its
+/// weight below is from the target (infinite: no cut is allowed).
+struct Cut {
+  int at = 0;
+  double miss = std::numeric_limits<double>::infinity();
+  int particle_extent = 0; ///< slices between the first and last with particles
+};
+
+/// The best cut of `box` along axis k from the per-slice particle counts,
+/// giving `below` of `ranks` ranks to the lower part.
+template <int D> Cut best_cut(const IndexBox<D>& box, int k, const std::int64_t* counts, int below, int ranks) {
+  Cut cut;
+  const int E = box.extent(k);
+  const long long slab = box.count() / E;
+  int first = E, last = -1;
+  double total = 0.0;
+  for (int i = 0; i < E; ++i) {
+    total += static_cast<double>(counts[i]) + kEmptyCellWeight * static_cast<double>(slab);
+    if (counts[i] > 0) first = std::min(first, i), last = i;
+  }
+  cut.particle_extent = last >= first ? last - first + 1 : 0;
+  const long long above = ranks - below;
+  const int c_min = static_cast<int>((below + slab - 1) / slab);
+  const int c_max = E - static_cast<int>((above + slab - 1) / slab);
+  const double target = total * below / ranks;
+  double prefix = 0.0;
+  for (int c = 1; c < E; ++c) {
+    prefix += static_cast<double>(counts[c - 1]) + kEmptyCellWeight * static_cast<double>(slab);
+    if (c < c_min || c > c_max) continue;
+    const double miss = std::abs(prefix - target);
+    if (miss < cut.miss) cut = {c, miss, cut.particle_extent};
+  }
+  return cut;
+}
+
+} // namespace
+
+template <int D> Decomposition<D>::Decomposition(const Index<D>& cells) : cells_(cells) {
+  IndexBox<D> all;
+  all.hi = cells;
+  tree_.push_back({-1, 0, -1, -1, 0, 1, all});
+  boxes_.push_back(all);
+}
+
+template <int D>
+Decomposition<D> Decomposition<D>::rcb(const Index<D>& cells, int ranks, std::span<const Index<D>> home,
+                                       const Comm& comm) {
+  Decomposition d(cells);
+  const long long total_cells = d.tree_[0].box.count();
+  require(ranks >= 1 && total_cells >= ranks, "the node lattice has ", total_cells,
+          " cells, fewer than the ", ranks, " ranks: run with fewer ranks or a finer grid");
+  d.tree_[0].count = ranks;
+  d.boxes_.assign(static_cast<std::size_t>(ranks), IndexBox<D>{});
+  std::vector<int> pending;
+  if (ranks > 1) pending.push_back(0);
+  else d.boxes_[0] = d.tree_[0].box;
+  while (!pending.empty()) {
+    // Per-slice particle counts of every pending box along every axis.
+    std::vector<long long> offset(d.tree_.size(), -1);
+    long long size = 0;
+    for (int n : pending) {
+      offset[static_cast<std::size_t>(n)] = size;
+      for (int k = 0; k < D; ++k) size += d.tree_[static_cast<std::size_t>(n)].box.extent(k);
+    }
+    std::vector<std::int64_t> counts(static_cast<std::size_t>(size), 0);
+    for (const Index<D>& c : home) {
+      int n = 0;
+      while (d.tree_[static_cast<std::size_t>(n)].axis >= 0) {
+        const Node& node = d.tree_[static_cast<std::size_t>(n)];
+        n = c[node.axis] < node.cut ? node.below : node.above;
+      }
+      const long long at = offset[static_cast<std::size_t>(n)];
+      if (at < 0) continue;
+      const IndexBox<D>& box = d.tree_[static_cast<std::size_t>(n)].box;
+      if (!box.contains(c)) continue;
+      long long axis_at = at;
+      for (int k = 0; k < D; ++k) {
+        ++counts[static_cast<std::size_t>(axis_at + c[k] - box.lo[k])];
+        axis_at += box.extent(k);
+      }
+    }
+    comm.sum(counts);
+    std::vector<int> next;
+    for (int n : pending) {
+      const Node node = d.tree_[static_cast<std::size_t>(n)];
+      const int below = node.count / 2;
+      int axis = -1;
+      Cut chosen;
+      long long at = offset[static_cast<std::size_t>(n)];
+      for (int k = 0; k < D; ++k) {
+        const Cut c = best_cut<D>(node.box, k, counts.data() + at, below, node.count);
+        at += node.box.extent(k);
+        if (!std::isfinite(c.miss)) continue;
+        const bool longer = axis < 0 || c.particle_extent > chosen.particle_extent ||
+                            (c.particle_extent == chosen.particle_extent && c.particle_extent == 0 &&
+                             node.box.extent(k) > node.box.extent(axis));
+        if (longer) axis = k, chosen = c;
+      }
+      require(axis >= 0, "the node lattice cannot be split over ", ranks, " ranks (a box of ", node.box.count(),
+              " cells for ", node.count, " ranks): run with fewer ranks or a finer grid");
+      Node lo{-1, 0, -1, -1, node.first, below, node.box}, hi{-1, 0, -1, -1, node.first + below, node.count - below,
+                                                              node.box};
+      lo.box.hi[axis] = node.box.lo[axis] + chosen.at;
+      hi.box.lo[axis] = lo.box.hi[axis];
+      Node& parent = d.tree_[static_cast<std::size_t>(n)];
+      parent.axis = axis;
+      parent.cut = lo.box.hi[axis];
+      parent.below = static_cast<int>(d.tree_.size());
+      parent.above = parent.below + 1;
+      d.tree_.push_back(lo);
+      d.tree_.push_back(hi);
+      for (int child : {d.tree_.size() - 2, d.tree_.size() - 1}) {
+        const Node& c = d.tree_[static_cast<std::size_t>(child)];
+        if (c.count > 1) next.push_back(child);
+        else d.boxes_[static_cast<std::size_t>(c.first)] = c.box;
+      }
+    }
+    pending = std::move(next);
+  }
+  return d;
+}
+
+template <int D> int Decomposition<D>::owner(const Index<D>& c) const {
+  int n = 0;
+  while (tree_[static_cast<std::size_t>(n)].axis >= 0) {
+    const Node& node = tree_[static_cast<std::size_t>(n)];
+    n = c[node.axis] < node.cut ? node.below : node.above;
+  }
+  return tree_[static_cast<std::size_t>(n)].first;
+}
+
+template <int D> double Decomposition<D>::imbalance(std::span<const Index<D>> home, const Comm& comm) const {
+  (void)home;
+  const double mine =
+      static_cast<double>(home.size()) + kEmptyCellWeight * static_cast<double>(box(comm.rank()).count());
+  const double total = comm.sum(mine), largest = comm.max(mine);
+  return total > 0.0 ? largest * ranks() / total : 1.0;
+}
+
+template class Decomposition<1>;
+template class Decomposition<2>;
+template class Decomposition<3>;
+
+} // namespace otmpm::distributed

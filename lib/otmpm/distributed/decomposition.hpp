@@ -1,0 +1,114 @@
+#pragma once
+/// \file decomposition.hpp
+/// Which rank owns which cells of the node lattice: recursive coordinate
+/// bisection (RCB) of the lattice's cells by lattice index, weighted by the
+/// particles in each cell (docs/architecture.md, "Distributed runs"). Every
+/// rank owns one box of cells, the particles whose home cell lies in it and
+/// the lattice points (nodes or B-spline control points) assigned to its
+/// cells. The boxes tile the lattice; all ranks hold the same tree, so
+/// each can tell the owner of any cell without asking.
+#include "otmpm/core.hpp"
+#include "otmpm/distributed/comm.hpp"
+
+#include <span>
+#include <vector>
+
+namespace otmpm::distributed {
+
+/// A box of lattice indices [lo, hi) per axis.
+template <int D> struct IndexBox {
+  Index<D> lo{}, hi{};
+
+  bool contains(const Index<D>& i) const {
+    for (int k = 0; k < D; ++k)
+      if (i[k] < lo[k] || i[k] >= hi[k]) return false;
+    return true;
+  }
+  bool empty() const {
+    for (int k = 0; k < D; ++k)
+      if (hi[k] <= lo[k]) return true;
+    return false;
+  }
+  long long count() const {
+    long long n = 1;
+    for (int k = 0; k < D; ++k) n *= std::max(0, hi[k] - lo[k]);
+    return n;
+  }
+  int extent(int k) const { return hi[k] - lo[k]; }
+  /// The common part of two boxes (empty when they do not meet).
+  IndexBox intersect(const IndexBox& o) const {
+    IndexBox r;
+    for (int k = 0; k < D; ++k) {
+      r.lo[k] = std::max(lo[k], o.lo[k]);
+      r.hi[k] = std::min(hi[k], o.hi[k]);
+    }
+    return r;
+  }
+  /// Calls f(index) for every index of the box, axis 0 fastest (the
+  /// lexicographic order of the lattice ids).
+  template <class F> void for_each(F&& f) const {
+    if (empty()) return;
+    Index<D> i = lo;
+    for (;;) {
+      f(static_cast<const Index<D>&>(i));
+      int k = 0;
+      for (; k < D; ++k) {
+        if (++i[k] < hi[k]) break;
+        i[k] = lo[k];
+      }
+      if (k == D) return;
+    }
+  }
+  bool operator==(const IndexBox&) const = default;
+};
+
+/// Weight of an empty cell relative to one particle in the bisection, for
+/// the nodal work of cells without particles.
+inline constexpr double kEmptyCellWeight = 0.125;
+
+/// The RCB decomposition of a lattice of `cells` cells over `ranks` ranks.
+template <int D> class Decomposition {
+public:
+  static constexpr int dimension = D;
+  Decomposition() = default;
+  /// One rank owning everything.
+  explicit Decomposition(const Index<D>& cells);
+  /// Bisects the lattice recursively: each box's ranks are split in halves
+  /// (lower half floor(n/2)), the box along the axis where the particles
+  /// extend furthest (in cells; ties: the lower axis), at the cut whose
+  /// weight below is nearest to the lower half's share (weight of a cell:
+  /// its particles + kEmptyCellWeight), keeping at least one cell per rank
+  /// on each side. `home` holds the home cells of this rank's particles;
+  /// the counts are summed over `comm` (collective, exact), so every rank
+  /// builds the same tree. InputError when the lattice has fewer cells than
+  /// ranks.
+  static Decomposition rcb(const Index<D>& cells, int ranks, std::span<const Index<D>> home, const Comm& comm);
+
+  int ranks() const { return static_cast<int>(boxes_.size()); }
+  const Index<D>& cells() const { return cells_; }
+  /// The cells of rank r.
+  const IndexBox<D>& box(int r) const { return boxes_[static_cast<std::size_t>(r)]; }
+  /// The rank owning cell c (c inside the lattice).
+  int owner(const Index<D>& c) const;
+  /// max over ranks of (weight of the rank / mean weight) for home cells
+  /// `home` of this rank's particles (collective): 1 is perfect balance.
+  double imbalance(std::span<const Index<D>> home, const Comm& comm) const;
+
+private:
+  struct Node {
+    int axis = -1;           ///< -1: a leaf (rank = first)
+    int cut = 0;             ///< cells with index < cut on `axis` go below
+    int below = -1, above = -1;
+    int first = 0, count = 1; ///< ranks [first, first + count)
+    IndexBox<D> box;
+  };
+  Index<D> cells_{};
+  std::vector<Node> tree_;
+  std::vector<IndexBox<D>> boxes_;
+};
+
+extern template class Decomposition<1>;
+extern template class Decomposition<2>;
+extern template class Decomposition<3>;
+
+} // namespace otmpm::distributed

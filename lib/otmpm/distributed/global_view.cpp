@@ -1,0 +1,324 @@
+/// \file global_view.cpp
+/// The particles of all ranks as the recorder sees them (global_view.hpp).
+#include "otmpm/distributed/global_view.hpp"
+
+#include "otmpm/reference/exact.hpp"
+
+#include <cmath>
+#include <limits>
+
+namespace otmpm::distributed {
+
+namespace {
+
+/// Per-particle arrays of a checkpoint besides the group "particles": the
+/// basis' per-point state (Basis::save_state).
+constexpr const char* kPointStateArrays[] = {"lambda", "cell_hint"};
+/// The walls' held nodes (Engine::save_state: one per-node array per wall).
+constexpr const char* kWallHeld = "wall_held_";
+/// The cell hints, which are local to a rank's basis and travel as global cells.
+constexpr const char* kCellHints = "cell_hint";
+
+bool is_point_state(const std::string& name) {
+  for (const char* n : kPointStateArrays)
+    if (name == n) return true;
+  return false;
+}
+
+/// Rows `ids` (cols values each, ids[i] the global row of local row i) of
+/// every rank, assembled in global row order on rank 0 (`total` rows).
+template <class T>
+std::vector<T> gather_rows(const Comm& comm, const std::vector<long long>& ids, const std::vector<T>& values,
+                           std::size_t cols, long long total) {
+  Bytes mine;
+  for (std::size_t i = 0; i < ids.size(); ++i) {
+    put(mine, static_cast<std::int64_t>(ids[i]));
+    put_bytes(mine, values.data() + i * cols, cols * sizeof(T));
+  }
+  std::vector<int> to, from;
+  std::vector<Bytes> out;
+  if (!comm.root()) to.push_back(0), out.push_back(std::move(mine));
+  else
+    for (int q = 1; q < comm.size(); ++q) from.push_back(q);
+  std::vector<Bytes> in = comm.exchange(to, out, from);
+  if (!comm.root()) return {};
+  in.push_back(std::move(mine));
+  std::vector<T> all(static_cast<std::size_t>(total) * cols);
+  for (const Bytes& b : in) {
+    Reader r(b);
+    while (!r.done()) {
+      const auto g = static_cast<std::size_t>(r.get<std::int64_t>());
+      r.get_bytes(all.data() + g * cols, cols * sizeof(T));
+    }
+  }
+  return all;
+}
+
+/// Rows `ids` of a serial-layout array (InputError naming the group when it is too short).
+template <class T>
+StateArray<T> select_rows(const StateGroup& g, const std::string& name, const StateArray<T>& a,
+                          const std::vector<long long>& ids) {
+  StateArray<T> out;
+  out.cols = a.cols;
+  out.values.reserve(ids.size() * a.cols);
+  for (long long id : ids) {
+    const std::size_t at = static_cast<std::size_t>(id) * a.cols;
+    if (id < 0 || at + a.cols > a.values.size()) g.error("array '" + name + "' has no row " + std::to_string(id));
+    out.values.insert(out.values.end(), a.values.begin() + static_cast<std::ptrdiff_t>(at),
+                      a.values.begin() + static_cast<std::ptrdiff_t>(at + a.cols));
+  }
+  return out;
+}
+
+/// Adds `sign` times the hint offset to every cell hint of a basis group.
+template <int D> void shift_hints(StateGroup& basis, const Index<D>& offset, int sign) {
+  const auto it = basis.integer_arrays.find(kCellHints);
+  if (it == basis.integer_arrays.end()) return;
+  std::vector<std::int64_t>& v = it->second.values;
+  for (std::size_t i = 0; i < v.size(); ++i) v[i] += sign * offset[i % D];
+}
+
+/// The global point ids of a window's points (all of them, or only the owned ones).
+template <int D> std::vector<long long> point_ids(const Domain<D>& d, bool owned_only) {
+  const Window<D>& w = d.exchange().window();
+  std::vector<long long> ids;
+  for (int i = 0; i < w.size(); ++i)
+    if (!owned_only || d.owned_nodes()[static_cast<std::size_t>(i)]) ids.push_back(d.lattice().point_id(w.index(i)));
+  return ids;
+}
+
+/// Applies f(rows) to every per-row array of a checkpoint: f(group name,
+/// array name, array, per_point) with per_point false for particle rows.
+template <class F> void for_each_row_array(Checkpoint& ck, F&& f) {
+  for (auto& entry : ck.groups) { // no structured binding: clang does not capture one in a lambda
+    const std::string& gname = entry.first;
+    StateGroup& g = entry.second;
+    const bool particles = gname == "particles", basis = gname == "basis", nodes = gname == "nodes",
+               engine = gname == "engine";
+    auto visit = [&](auto& arrays) {
+      for (auto& [aname, a] : arrays) {
+        const bool held = engine && aname.rfind(kWallHeld, 0) == 0; // per node, per wall
+        if (particles || (basis && is_point_state(aname)) || (nodes && aname == "x") || held)
+          f(g, aname, a, nodes || held);
+      }
+    };
+    visit(g.real_arrays);
+    visit(g.integer_arrays);
+  }
+}
+
+} // namespace
+
+template <int D> void GlobalView<D>::on_writer(const std::function<void()>& write) const {
+  if (!d_) return write();
+  enum Kind : char { ok = 'o', input = 'i', unstable = 'u', other = 'x' };
+  std::string outcome(1, ok);
+  if (writes()) {
+    try {
+      write();
+    } catch (const InputError& e) {
+      outcome = std::string(1, input) + e.what();
+    } catch (const InstabilityError& e) {
+      outcome = std::string(1, unstable) + e.what();
+    } catch (const std::exception& e) {
+      outcome = std::string(1, other) + e.what();
+    }
+  }
+  outcome = d_->comm().broadcast(outcome, 0);
+  const std::string message = outcome.substr(1);
+  switch (outcome.front()) {
+  case input: throw InputError(message);
+  case unstable: throw InstabilityError(message);
+  case other: throw std::runtime_error(message);
+  default: return;
+  }
+}
+
+template <int D> void GlobalView<D>::collectively(const std::function<void()>& write) const {
+  if (!d_) return write();
+  const Comm& comm = d_->comm();
+  std::string outcome = "o";
+  try {
+    write();
+  } catch (const InputError& e) {
+    outcome = std::string("i") + e.what();
+  } catch (const InstabilityError& e) {
+    outcome = std::string("u") + e.what();
+  } catch (const std::exception& e) {
+    outcome = std::string("x") + e.what();
+  }
+  const auto first = comm.min(static_cast<std::int64_t>(outcome != "o" ? comm.rank() : comm.size()));
+  if (first == comm.size()) return;
+  outcome = comm.broadcast(outcome, static_cast<int>(first));
+  const std::string message = outcome.substr(1);
+  if (outcome.front() == 'i') throw InputError(message);
+  if (outcome.front() == 'u') throw InstabilityError(message);
+  throw std::runtime_error(message);
+}
+
+template <int D> ParallelIo GlobalView<D>::parallel_io() const {
+  ParallelIo io;
+  if (!d_) return io;
+  const Comm& comm = d_->comm();
+  io.mpi_comm = comm.mpi_comm();
+  io.root = comm.root();
+  io.all = [&comm](bool ok) { return comm.min(static_cast<std::int64_t>(ok)) != 0; };
+  return io;
+}
+
+template <int D> typename GlobalView<D>::Block GlobalView<D>::block(const double* local, int cols) const {
+  const std::size_t n = static_cast<std::size_t>(e_.particles().size()), c = static_cast<std::size_t>(cols);
+  Block b;
+  if (!d_) {
+    b.values.assign(local, local + n * c);
+    b.count = static_cast<long long>(n);
+    return b;
+  }
+  const Comm& comm = d_->comm();
+  const long long N = d_->global_particles(), P = comm.size();
+  auto first_of = [&](long long r) { return N * r / P; };
+  std::vector<Bytes> out(static_cast<std::size_t>(P));
+  for (std::size_t p = 0; p < n; ++p) {
+    const long long g = d_->global_id(static_cast<int>(p));
+    long long r = std::min(P - 1, g * P / std::max(N, 1LL));
+    while (first_of(r) > g) --r;
+    while (first_of(r + 1) <= g) ++r;
+    put(out[static_cast<std::size_t>(r)], static_cast<std::int64_t>(g));
+    put_bytes(out[static_cast<std::size_t>(r)], local + p * c, c * sizeof(double));
+  }
+  const std::vector<Bytes> in = comm.alltoall(out);
+  b.first = first_of(comm.rank());
+  b.count = first_of(comm.rank() + 1) - b.first;
+  b.values.assign(static_cast<std::size_t>(b.count) * c, 0.0);
+  for (const Bytes& msg : in) {
+    Reader r(msg);
+    while (!r.done()) {
+      const long long g = r.get<std::int64_t>();
+      r.get_bytes(b.values.data() + static_cast<std::size_t>(g - b.first) * c, c * sizeof(double));
+    }
+  }
+  return b;
+}
+
+template <int D> std::vector<std::pair<std::string, double>> GlobalView<D>::run_attributes() const {
+  if (!d_) return {};
+  const DomainStats& st = d_->stats();
+  std::int64_t sums[] = {st.migrated, st.halo_bytes, st.cg_iterations, st.cg_solves, st.rebalances,
+                         st.halo_exchanges, st.reductions};
+  d_->comm().sum(sums);
+  const Comm& comm = d_->comm();
+  const double P = comm.size();
+  return {{"ranks", P},
+          {"migrated_particles", static_cast<double>(sums[0])},
+          {"halo_bytes", static_cast<double>(sums[1])},
+          {"cg_iterations", static_cast<double>(sums[2]) / P},
+          {"cg_solves", static_cast<double>(sums[3]) / P},
+          {"rebalances", static_cast<double>(sums[4]) / P},
+          {"halo_exchanges", static_cast<double>(sums[5]) / P},
+          {"reductions", static_cast<double>(sums[6]) / P},
+          {"communication_seconds_mean", comm.sum(st.communication_seconds) / P},
+          {"communication_seconds_max", comm.max(st.communication_seconds)}};
+}
+
+template <int D> long long GlobalView<D>::nodes() const {
+  if (!d_) return e_.basis().nodes().size();
+  long long n = 1;
+  for (int k = 0; k < D; ++k) n *= d_->lattice().points[k];
+  return n;
+}
+
+template <int D> long long GlobalView<D>::best(const std::function<double(int)>& score) const {
+  const int n = e_.particles().size();
+  int best = n > 0 ? 0 : -1;
+  for (int p = 1; p < n; ++p)
+    if (score(p) < score(best) || (d_ && score(p) == score(best) && d_->global_id(p) < d_->global_id(best))) best = p;
+  if (!d_) return best;
+  const double s = best >= 0 ? score(best) : std::numeric_limits<double>::infinity();
+  const double smallest = d_->comm().min(s);
+  const std::int64_t none = std::numeric_limits<std::int64_t>::max();
+  return d_->comm().min(best >= 0 && s == smallest ? static_cast<std::int64_t>(d_->global_id(best)) : none);
+}
+
+template <int D> typename GlobalView<D>::Row GlobalView<D>::row(long long g) const {
+  const Particles<D>& P = e_.particles();
+  auto local_row = [&](int p) { return Row{P.x[p], P.X[p], P.v[p], P.sigma[p]}; };
+  if (!d_) return local_row(static_cast<int>(g));
+  const auto& ids = d_->global_ids();
+  const auto it = std::find(ids.begin(), ids.end(), g);
+  const Comm& comm = d_->comm();
+  const int owner = static_cast<int>(comm.min(static_cast<std::int64_t>(it != ids.end() ? comm.rank() : comm.size())));
+  Row r = it != ids.end() ? local_row(static_cast<int>(it - ids.begin())) : Row{};
+  comm.broadcast(&r, sizeof r, owner);
+  return r;
+}
+
+template <int D> std::vector<double> GlobalView<D>::gather(const double* local, int cols) const {
+  const std::size_t n = static_cast<std::size_t>(e_.particles().size()) * static_cast<std::size_t>(cols);
+  std::vector<double> mine(local, local + n);
+  if (!d_) return mine;
+  return gather_rows(d_->comm(), d_->global_ids(), mine, static_cast<std::size_t>(cols), d_->global_particles());
+}
+
+template <int D> double GlobalView<D>::rms(const std::vector<double>& squared) const {
+  if (!d_) return rms_error(squared);
+  double sum = 0.0;
+  for (double e : squared) sum += e;
+  return std::sqrt(d_->comm().sum(sum) / static_cast<double>(d_->global_particles()));
+}
+
+template <int D> Checkpoint GlobalView<D>::gather(const Checkpoint& local) const {
+  if (!d_) return local;
+  Checkpoint ck = local;
+  shift_hints<D>(ck.group("basis"), d_->hint_offset(), +1);
+  const std::vector<long long> particles = d_->global_ids(), points = point_ids(*d_, true);
+  std::vector<long long> window = point_ids(*d_, false);
+  const long long total_points = nodes();
+  for_each_row_array(ck, [&](StateGroup&, const std::string&, auto& a, bool per_point) {
+    if (!per_point) {
+      a.values = gather_rows(d_->comm(), particles, a.values, a.cols, d_->global_particles());
+      return;
+    }
+    // owned points only: each point once
+    std::remove_reference_t<decltype(a.values)> own;
+    for (std::size_t i = 0; i < window.size(); ++i)
+      if (d_->owned_nodes()[i]) own.insert(own.end(), a.values.begin() + static_cast<std::ptrdiff_t>(i * a.cols),
+                                           a.values.begin() + static_cast<std::ptrdiff_t>((i + 1) * a.cols));
+    a.values = gather_rows(d_->comm(), points, own, a.cols, total_points);
+  });
+  return ck;
+}
+
+template <int D> AlignedVector<Vec<D>> checkpoint_positions(const Checkpoint& ck) {
+  const StateGroup& g = ck.group("particles");
+  const auto it = g.real_arrays.find("x");
+  if (it == g.real_arrays.end() || it->second.cols != D) g.error("missing particle positions 'x'");
+  AlignedVector<Vec<D>> x(it->second.rows());
+  for (std::size_t p = 0; p < x.size(); ++p)
+    for (int k = 0; k < D; ++k) x[p][k] = it->second.values[p * D + static_cast<std::size_t>(k)];
+  return x;
+}
+
+template <int D> Checkpoint local_checkpoint(const Engine<D>& e, const Checkpoint& ck) {
+  const Domain<D>* d = domain_of(e);
+  if (!d) return ck;
+  Checkpoint out = ck;
+  const std::vector<long long> window = point_ids(*d, false);
+  for_each_row_array(out, [&](StateGroup& g, const std::string& name, auto& a, bool per_point) {
+    a = select_rows(g, name, a, per_point ? window : d->global_ids());
+  });
+  shift_hints<D>(out.group("basis"), d->hint_offset(), -1);
+  return out;
+}
+
+template class GlobalView<1>;
+template class GlobalView<2>;
+template class GlobalView<3>;
+#define OTMPM_INSTANTIATE(D)                                                  \
+  template AlignedVector<Vec<D>> checkpoint_positions<D>(const Checkpoint&); \
+  template Checkpoint local_checkpoint<D>(const Engine<D>&, const Checkpoint&);
+OTMPM_INSTANTIATE(1)
+OTMPM_INSTANTIATE(2)
+OTMPM_INSTANTIATE(3)
+#undef OTMPM_INSTANTIATE
+
+} // namespace otmpm::distributed

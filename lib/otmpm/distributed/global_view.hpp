@@ -1,0 +1,92 @@
+#pragma once
+/// \file global_view.hpp
+/// What a run's recorder needs of the particles of all ranks: the probe
+/// particles by global id, one particle's values on every rank, particle
+/// fields in global order for the result file, global sums, and
+/// checkpoints in the layout of a serial run (so that a restart may use any
+/// number of ranks). For a serial engine every operation is the plain
+/// serial one.
+#include "otmpm/distributed/local_parts.hpp"
+#include "otmpm/io/results.hpp"
+#include "otmpm/state.hpp"
+
+#include <functional>
+
+namespace otmpm::distributed {
+
+template <int D> class GlobalView {
+public:
+  explicit GlobalView(const Engine<D>& e) : e_(e), d_(domain_of(e)) {}
+
+  /// True on the rank that writes files (rank 0; the only rank of a serial run).
+  bool writes() const { return !d_ || d_->comm().root(); }
+  /// True for the engine of one rank of several.
+  bool distributed() const { return d_ != nullptr; }
+  /// Runs `write` on the writing rank; when it throws, every rank throws
+  /// the same (InputError, InstabilityError, else std::runtime_error) with
+  /// its message (collective in a distributed run).
+  void on_writer(const std::function<void()>& write) const;
+  /// Runs `write` on every rank (the calls of a parallel result file); when
+  /// it throws on any rank, every rank throws what the lowest such rank threw.
+  void collectively(const std::function<void()>& write) const;
+  /// How the ranks write one result file together (a serial file: none).
+  ParallelIo parallel_io() const;
+  /// The writing rank's `text` on every rank.
+  std::string share(const std::string& text) const { return d_ ? d_->comm().broadcast(text, 0) : text; }
+  /// Facts of a distributed run for the result file's root attributes
+  /// (collective; none for a serial run): ranks, particles sent to another
+  /// rank, bytes of the nodal exchanges, consistent-mass CG iterations and
+  /// solves, all summed over the ranks.
+  std::vector<std::pair<std::string, double>> run_attributes() const;
+  /// The largest `value` of all ranks.
+  double max(double value) const { return d_ ? d_->comm().max(value) : value; }
+  /// Particles of all ranks.
+  long long particles() const { return d_ ? d_->global_particles() : e_.particles().size(); }
+  /// Nodes (lattice points) of all ranks.
+  long long nodes() const;
+  /// The global id of the particle a probe follows: the smallest `score`
+  /// (ties: the lowest id), as a serial loop keeping the first best would.
+  long long best(const std::function<double(int)>& score) const;
+  /// The values of global particle g, on every rank.
+  struct Row {
+    Vec<D> x, X, v;
+    Mat<D> sigma;
+  };
+  Row row(long long g) const;
+  /// `cols` doubles per local particle -> on the writing rank, all particles'
+  /// rows in global order (empty elsewhere; the local rows themselves in a
+  /// serial run).
+  std::vector<double> gather(const double* local, int cols) const;
+  /// This rank's block of a frame in global order: rows [first, first +
+  /// count) of all particles' `cols` values (the ranks' blocks tile the
+  /// frame; a serial run's block is the whole frame).
+  struct Block {
+    std::vector<double> values;
+    long long first = 0, count = 0;
+  };
+  Block block(const double* local, int cols) const;
+  /// sqrt(sum of all ranks' squared errors / particles) (rms_error in a serial run).
+  double rms(const std::vector<double>& squared) const;
+  /// The checkpoint of a rank's engine (Engine::save_state) as a serial
+  /// run would write it, on the writing rank: particle rows in global order,
+  /// node positions of the whole lattice, cell hints global (collective).
+  Checkpoint gather(const Checkpoint& local) const;
+
+private:
+  const Engine<D>& e_;
+  const Domain<D>* d_;
+};
+
+/// The particle positions of a checkpoint (rank_parts decides the home cells from them).
+template <int D> AlignedVector<Vec<D>> checkpoint_positions(const Checkpoint& ck);
+
+/// The part of a serial-layout checkpoint that the engine of this rank
+/// restores (its particles' rows, its window's node positions, local cell
+/// hints); `ck` itself for a serial engine.
+template <int D> Checkpoint local_checkpoint(const Engine<D>& e, const Checkpoint& ck);
+
+extern template class GlobalView<1>;
+extern template class GlobalView<2>;
+extern template class GlobalView<3>;
+
+} // namespace otmpm::distributed

@@ -1,0 +1,86 @@
+#pragma once
+/// \file lattice.hpp
+/// The points of a basis (lattice nodes, or B-spline control points) over
+/// the cells of the node lattice, as a distributed run divides them: which
+/// cell each point belongs to (its owner is that cell's owner), which
+/// points the particles of a cell reach (the support), and from that each
+/// rank's window of points - its own points and the ghost layer its
+/// particles need (docs/architecture.md, "Distributed runs").
+#include "otmpm/distributed/decomposition.hpp"
+#include "otmpm/nodes/node_set.hpp"
+
+namespace otmpm::distributed {
+
+template <int D> struct PointLattice {
+  CartesianGrid<D> grid; ///< the node lattice: its cells are what the ranks divide
+  Index<D> points{};     ///< points per axis: cells + 1 (nodes) or cells + degree (B-splines)
+  int shift = 0;         ///< point i belongs to cell clamp(i - shift) on each axis
+  /// A particle in cell c reaches the points c - below[k] .. c + above[k] on axis k.
+  Index<D> below{}, above{};
+  /// Layers of points around that reach whose use by a stencil stops the
+  /// run (`ul` mode: a support that reaches them may go further).
+  int guard = 0;
+
+  /// The cell point index i belongs to on axis k.
+  int cell_of_point(int i, int k) const { return std::clamp(i - shift, 0, grid.cells[k] - 1); }
+  /// The points that belong to the cells of `cells` (the points a rank owns).
+  IndexBox<D> owned_points(const IndexBox<D>& cells) const;
+  /// The points the particles of `cells` reach, with the owned points: a
+  /// rank's window (owned and ghost points).
+  IndexBox<D> window(const IndexBox<D>& cells) const;
+  /// Global id of a point (axis 0 fastest, as the families number them).
+  long long point_id(const Index<D>& i) const {
+    long long id = 0;
+    for (int k = D - 1; k >= 0; --k) id = id * points[k] + i[k];
+    return id;
+  }
+  /// Lattice index of global point id.
+  Index<D> point_index(long long id) const {
+    Index<D> i;
+    for (int k = 0; k < D; ++k) {
+      i[k] = static_cast<int>(id % points[k]);
+      id /= points[k];
+    }
+    return i;
+  }
+};
+
+/// Local ids of the points of a window box (axis 0 fastest) and back.
+template <int D> struct Window {
+  IndexBox<D> box;
+  int size() const { return static_cast<int>(box.count()); }
+  int local_id(const Index<D>& i) const {
+    int id = 0;
+    for (int k = D - 1; k >= 0; --k) id = id * box.extent(k) + (i[k] - box.lo[k]);
+    return id;
+  }
+  Index<D> index(int id) const {
+    Index<D> i;
+    for (int k = 0; k < D; ++k) {
+      i[k] = box.lo[k] + id % box.extent(k);
+      id /= box.extent(k);
+    }
+    return i;
+  }
+};
+
+template <int D> IndexBox<D> PointLattice<D>::owned_points(const IndexBox<D>& cells) const {
+  IndexBox<D> b;
+  for (int k = 0; k < D; ++k) {
+    b.lo[k] = cells.lo[k] == 0 ? 0 : cells.lo[k] + shift;
+    b.hi[k] = cells.hi[k] == grid.cells[k] ? points[k] : cells.hi[k] + shift;
+  }
+  return b;
+}
+
+template <int D> IndexBox<D> PointLattice<D>::window(const IndexBox<D>& cells) const {
+  const IndexBox<D> own = owned_points(cells);
+  IndexBox<D> b;
+  for (int k = 0; k < D; ++k) {
+    b.lo[k] = std::min(own.lo[k], std::max(0, cells.lo[k] - below[k] - guard));
+    b.hi[k] = std::max(own.hi[k], std::min(points[k], cells.hi[k] + above[k] + guard));
+  }
+  return b;
+}
+
+} // namespace otmpm::distributed
