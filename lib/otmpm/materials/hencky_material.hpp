@@ -56,6 +56,9 @@ public:
     double* const eps_v = row(P, 2, 0);
     double* const energy = row(P, 3, 0);
     double* const work = row(P, 4, 0);
+    // A local copy: the stores of the loop cannot alias its parameters, so
+    // they stay in registers and the derived constants are hoisted.
+    const Model model = model_;
     for (int p = p0; p < p1; ++p) {
       const Mat<D> dF = Mat<D>::Identity() + H[p - p0];
       const Mat<D> F = dF * P.F[p];
@@ -69,7 +72,7 @@ public:
       s.eps_v = eps_v[p];
       plasticity::PointUpdate u;
       try {
-        u = model_.update(dF, dt, s);
+        u = model.update(dF, dt, s);
       } catch (const InstabilityError& e) {
         throw ParticleFailure{p, e.what()};
       }

@@ -113,9 +113,12 @@ double johnson_cook_return(const J2Parameters& p, double q, double eps_n, double
 
 /// e^d. A return changes the log strains by little per step, so b_e_new is
 /// formed as b_e_trial e^(2 (e_new - e_trial)) in the common eigenbasis with
-/// a small argument: Taylor polynomial of degree 7 for |d| <= 1/64
-/// (truncation < (1/64)^8 / 8! = 9e-20 relative), std::exp beyond.
+/// a small argument: Taylor polynomial of degree 3 for |d| <= 2^-17 (the
+/// usual plastic increment of a step; truncation < d^4 / 4! < 2e-22
+/// relative), of degree 7 for |d| <= 1/64 (truncation < (1/64)^8 / 8! =
+/// 9e-20), std::exp beyond.
 inline double exp_small(double d) {
+  if (std::abs(d) <= 0x1p-17) return (1.0 + d) + d * d * (1.0 / 2 + d * (1.0 / 6));
   if (!(std::abs(d) <= 1.0 / 64)) return std::exp(d);
   // Estrin's scheme: three levels of multiplications instead of a chain of seven.
   const double d2 = d * d, d4 = d2 * d2;
@@ -140,9 +143,15 @@ inline double log_near1(double x) {
   return u - u2 * ((a + u4 * b) + u8 * c);
 }
 
-/// cosh(y) and sinh(y)/y from y^2: Taylor series for y^2 <= 1/256
-/// (truncation y^10/10! < 3e-19), the library functions beyond.
+/// cosh(y) and sinh(y)/y from y^2: Taylor series to y^4 for y^2 <= 2^-20
+/// (truncation y^6/6! < 2e-21), to y^8 for y^2 <= 1/256 (truncation
+/// y^10/10! < 3e-19), the library functions beyond.
 inline void cosh_shc(double y2, double& ch, double& shc) {
+  if (y2 <= 0x1p-20) {
+    ch = 1.0 + y2 * (1.0 / 2 + y2 * (1.0 / 24));
+    shc = 1.0 + y2 * (1.0 / 6 + y2 * (1.0 / 120));
+    return;
+  }
   if (!(y2 <= 1.0 / 256)) {
     const double y = std::sqrt(y2);
     ch = std::cosh(y);
