@@ -2,7 +2,7 @@
 // a j2 step must cost at most 1.3x the same step with neo_hookean).
 //
 //   OMP_NUM_THREADS=1 build/bench/bench_models [--cells N] [--warmup W] [--steps S] [--repeat R]
-//       [--basis linear|lme|...] [--integrator fe|npc|...] [--mode mpm|ul]
+//       [--basis linear|lme|...] [--integrator fe|npc|...] [--mode mpm|ul] [--case SUBSTRING]
 //
 // The block of bench_step (2D plane strain, E = 10 MPa, rho = 1000, nu = 0.3,
 // N x N cells, 2 x 2 particles per cell, under gravity with its base fixed)
@@ -20,6 +20,8 @@
 // alike), in process CPU time. Prints the median over R repetitions of the
 // time per particle-step, the ratio of each model to neo_hookean, and the
 // share of the particles whose plastic strain grew in the timed steps.
+// --case keeps only the models whose label contains SUBSTRING (and
+// neo_hookean, the reference), e.g. to profile one of them.
 #include "bench_scenes.hpp"
 #include "bench_util.hpp"
 #include "otmpm/assembly/assembler.hpp"
@@ -71,7 +73,7 @@ double grown_share(const std::vector<double>& before, const std::vector<double>&
 
 int main(int argc, char** argv) {
   int cells = 50, warmup = 200, steps = 50, repeat = 5;
-  std::string basis = "linear", integrator = "fe", mode = "mpm";
+  std::string basis = "linear", integrator = "fe", mode = "mpm", only;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i], v = argv[i + 1];
     if (a == "--cells") cells = std::stoi(v);
@@ -81,15 +83,19 @@ int main(int argc, char** argv) {
     else if (a == "--basis") basis = v;
     else if (a == "--integrator") integrator = v;
     else if (a == "--mode") mode = v;
+    else if (a == "--case") only = v;
   }
-  std::vector<Scene> scenes;
+  std::vector<ModelCase> cases;
   for (const ModelCase& c : kCases)
+    if (cases.empty() || std::string(c.label).find(only) != std::string::npos) cases.push_back(c);
+  std::vector<Scene> scenes;
+  for (const ModelCase& c : cases)
     scenes.push_back(parse_scene(block_scene(cells, basis, integrator, mode, 3.0, c.material), "bench_models.toml"));
-  std::vector<std::vector<double>> us(kCases.size());
-  std::vector<double> plastic_fraction(kCases.size(), 0.0);
+  std::vector<std::vector<double>> us(cases.size());
+  std::vector<double> plastic_fraction(cases.size(), 0.0);
   long particles = 0;
   for (int r = 0; r < repeat; ++r)
-    for (std::size_t c = 0; c < kCases.size(); ++c) {
+    for (std::size_t c = 0; c < cases.size(); ++c) {
       Engine<2> e = assemble<2>(scenes[c]);
       for (int s = 0; s < warmup; ++s) e.step();
       particles = e.particles().size();
@@ -102,8 +108,8 @@ int main(int argc, char** argv) {
   std::printf("block %dx%d cells, %ld particles, %s %s %s, %d steps, median of %d:\n", cells, cells, particles,
               mode.c_str(), basis.c_str(), integrator.c_str(), steps, repeat);
   const double ref = median(us[0]);
-  for (std::size_t c = 0; c < kCases.size(); ++c)
+  for (std::size_t c = 0; c < cases.size(); ++c)
     std::printf("  %-16s %.3f us/particle-step  ratio %.2f  plastic flow in %.0f%% of the particles\n",
-                kCases[c].label, median(us[c]), median(us[c]) / ref, 100 * plastic_fraction[c]);
+                cases[c].label, median(us[c]), median(us[c]) / ref, 100 * plastic_fraction[c]);
   return 0;
 }

@@ -21,8 +21,9 @@ const std::array<ParameterSpec, 4> kParameters{{
 struct DruckerPragerModel {
   plasticity::DruckerPrager cone;
   const plasticity::ElasticModuli& elastic() const { return cone.elastic(); }
-  template <int D> plasticity::PointUpdate update(const Mat<D>& dF, double, plasticity::HenckyState& s) const {
-    return plasticity::drucker_prager_update<D>(cone, dF, s);
+  template <int D>
+  [[gnu::always_inline]] plasticity::PointUpdate update(const Mat<D>& dF, double, plasticity::HenckyState& s) const {
+    return plasticity::point::drucker_prager<D>(cone, dF, s);
   }
 };
 

@@ -7,7 +7,7 @@
 /// work of each particle (J), and the particle update around a model's point
 /// update. Internal to materials/: a model (j2.cpp, drucker_prager.cpp)
 /// supplies `Model::update(dF, dt, state)` and its parameters.
-#include "otmpm/materials/hencky_plasticity.hpp"
+#include "otmpm/materials/hencky_point.hpp"
 #include "otmpm/materials/material.hpp"
 
 #include <array>
@@ -47,27 +47,46 @@ public:
     }
   }
 
+  /// The point update of each particle inlined (Model::update), sigma =
+  /// tau / J with one division, the state read and written through the
+  /// arrays' base pointers.
   void update(Particles<D>& P, int p0, int p1, const Mat<D>* H, double dt) const override {
+    double* const be = row(P, 0, 0);
+    double* const eps_p = row(P, 1, 0);
+    double* const eps_v = row(P, 2, 0);
+    double* const energy = row(P, 3, 0);
+    double* const work = row(P, 4, 0);
+    // A local copy: the stores of the loop cannot alias its parameters, so
+    // they stay in registers and the derived constants are hoisted.
+    const Model model = model_;
     for (int p = p0; p < p1; ++p) {
       const Mat<D> dF = Mat<D>::Identity() + H[p - p0];
       const Mat<D> F = dF * P.F[p];
       const double J = F.determinant();
-      if (!(J > 0.0)) throw ParticleFailure{p, "det F = " + format_number(J) + " <= 0"};
-      plasticity::HenckyState s = load(P, p);
+      if (!(J > 0.0)) [[unlikely]]
+        fail_det(p, J);
+      plasticity::HenckyState s;
+      double* const b = be + 6 * static_cast<std::ptrdiff_t>(p);
+      s.be << b[0], b[3], b[5], b[3], b[1], b[4], b[5], b[4], b[2];
+      s.eps_p = eps_p[p];
+      s.eps_v = eps_v[p];
       plasticity::PointUpdate u;
       try {
-        u = model_.update(dF, dt, s);
+        u = model.update(dF, dt, s);
       } catch (const InstabilityError& e) {
         throw ParticleFailure{p, e.what()};
       }
       P.F[p] = F;
       P.V[p] = J * P.V0[p];
       P.rho[p] = P.m[p] / P.V[p];
-      P.sigma[p] = u.kirchhoff.template topLeftCorner<D, D>() / J;
+      P.sigma[p] = u.kirchhoff.template topLeftCorner<D, D>() * (1.0 / J);
       P.eps[p] = 0.5 * (F + F.transpose()) - Mat<D>::Identity();
-      store(P, p, s);
-      row(P, 3, p)[0] = P.V0[p] * u.elastic_energy;
-      row(P, 4, p)[0] += P.V0[p] * u.plastic_work;
+      b[0] = s.be(0, 0), b[1] = s.be(1, 1), b[2] = s.be(2, 2);
+      b[3] = s.be(0, 1), b[4] = s.be(1, 2), b[5] = s.be(0, 2);
+      eps_p[p] = s.eps_p;
+      eps_v[p] = s.eps_v;
+      energy[p] = P.V0[p] * u.elastic_energy;
+      work[p] += P.V0[p] * u.plastic_work;
     }
   }
 
@@ -85,20 +104,8 @@ private:
   const double* row(const Particles<D>& P, int i, int p) const {
     return P.state[static_cast<std::size_t>(field_[i])].row(p);
   }
-  plasticity::HenckyState load(const Particles<D>& P, int p) const {
-    const double* b = row(P, 0, p);
-    plasticity::HenckyState s;
-    s.be << b[0], b[3], b[5], b[3], b[1], b[4], b[5], b[4], b[2];
-    s.eps_p = row(P, 1, p)[0];
-    s.eps_v = row(P, 2, p)[0];
-    return s;
-  }
-  void store(Particles<D>& P, int p, const plasticity::HenckyState& s) const {
-    double* b = row(P, 0, p);
-    b[0] = s.be(0, 0), b[1] = s.be(1, 1), b[2] = s.be(2, 2);
-    b[3] = s.be(0, 1), b[4] = s.be(1, 2), b[5] = s.be(0, 2);
-    row(P, 1, p)[0] = s.eps_p;
-    row(P, 2, p)[0] = s.eps_v;
+  [[noreturn, gnu::cold, gnu::noinline]] static void fail_det(int p, double J) {
+    throw ParticleFailure{p, "det F = " + format_number(J) + " <= 0"};
   }
 
   Model model_;

@@ -22,8 +22,9 @@ const std::array<ParameterSpec, 6> kParameters{{
 struct J2Model {
   plasticity::J2Parameters p;
   const plasticity::ElasticModuli& elastic() const { return p.elastic; }
-  template <int D> plasticity::PointUpdate update(const Mat<D>& dF, double dt, plasticity::HenckyState& s) const {
-    return plasticity::j2_update<D>(p, dF, dt, s);
+  template <int D>
+  [[gnu::always_inline]] plasticity::PointUpdate update(const Mat<D>& dF, double dt, plasticity::HenckyState& s) const {
+    return plasticity::point::j2<D>(p, dF, dt, s);
   }
 };
 
