@@ -84,23 +84,25 @@ def cmd_plot(a):
 
     ms = [measure(p) for p in a.files]
     labels = a.labels.split(";") if a.labels else [f"a = {m['a']:.3g}" for m in ms]
-    fig = plt.figure(figsize=(11, 1.7 * len(ms) + 2.5))
+    fig = plt.figure(figsize=(12, 2.0 * len(ms) + 1.0), layout="constrained")
     gs = fig.add_gridspec(len(ms), 2, width_ratios=[3, 1.2])
+    left = []
     for i, (m, label) in enumerate(zip(ms, labels)):
         ax = fig.add_subplot(gs[i, 0])
+        left.append(ax)
         sc = ax.scatter(m["x"][:, 0], m["x"][:, 1], c=m["eps"], s=1.5, cmap="viridis", vmin=0, vmax=a.vmax,
                         rasterized=True)
         ax.plot([0, m["L0"], m["L0"]], [m["H0"], m["H0"], 0], "k:", lw=0.8)
         ax.axvline(m["L0"] * (1 + float(scaling(m["a"]))), color="tab:red", ls="--", lw=0.8)
         ax.set_xlim(-0.02, 1.6)
-        ax.set_ylim(-0.02, 0.82)
+        ax.set_ylim(-0.02, 0.82 if m["H0"] > 0.3 else 0.3)
         ax.set_aspect("equal")
         ax.axvline(m["Lh"], color="tab:blue", ls=":", lw=0.8)
         ax.set_title(f"{label}: tip (L_f - L0)/L0 = {(m['Lf'] - m['L0']) / m['L0']:.2f}, "
-                     f"front (L_h - L0)/L0 = {(m['Lh'] - m['L0']) / m['L0']:.2f} (dotted) "
-                     f"(scaling {float(scaling(m['a'])):.2f}, dashed)", fontsize=8)
+                     f"front (L_h - L0)/L0 = {(m['Lh'] - m['L0']) / m['L0']:.2f} (dotted), "
+                     f"scaling {float(scaling(m['a'])):.2f} (dashed)", fontsize=7)
         ax.tick_params(labelsize=7)
-    fig.colorbar(sc, ax=fig.axes, label="equivalent plastic strain", shrink=0.6, location="left")
+    fig.colorbar(sc, ax=left, label="equivalent plastic strain", shrink=0.5, location="left")
     ax = fig.add_subplot(gs[:, 1])
     aa = np.linspace(0.3, 4.5, 100)
     ax.plot(aa, scaling(aa), "k-", label="Lube et al. 2005 (2D)")

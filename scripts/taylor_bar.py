@@ -85,6 +85,8 @@ def measure(path):
         names = sorted(f["frames"])
         first, last = f["frames"][names[0]], f["frames"][names[-1]]
         X, x = first["x"][:], last["x"][:]
+        if len(names) < 2:  # a run that stopped before its last frame: no final shape
+            x = np.full_like(X, np.nan)
         eps = last["plastic_strain"][:] if "plastic_strain" in last else np.full(len(x), np.nan)
         e = f["energy"]
         ek, es = e["kinetic"][:], e["strain"][:]
@@ -106,7 +108,7 @@ def measure(path):
             "steps": int(a["steps"]),
             "wall_seconds": float(a["wall_seconds"]),
             "length_mm": 1e3 * (x[:, 2].max() + L - X[:, 2].max()),
-            "footprint_mm": 1e3 * (np.hypot(x[bottom, 0], x[bottom, 1]).max() + R - r0.max()),
+            "footprint_mm": 1e3 * (np.hypot(x[bottom, 0], x[bottom, 1]).max() + R - r0.max()) if bottom.any() else np.nan,
             "max_plastic_strain": float(np.nanmax(eps)),
             "E0": E0,
             "kinetic_end": ek[-1] / E0,
