@@ -45,7 +45,7 @@ def measure(path):
         X = f["frames"][names[0]]["x"][:]
         last = f["frames"][names[-1]]
         x = last["x"][:]
-        eps = last["plastic_strain"][:]
+        eps = last["plastic_strain"][:].ravel()
         e = f["energy"]
         s = scene["simulation"]
         g = scene["grid"]

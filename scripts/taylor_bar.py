@@ -87,7 +87,7 @@ def measure(path):
         X, x = first["x"][:], last["x"][:]
         if len(names) < 2:  # a run that stopped before its last frame: no final shape
             x = np.full_like(X, np.nan)
-        eps = last["plastic_strain"][:] if "plastic_strain" in last else np.full(len(x), np.nan)
+        eps = last["plastic_strain"][:].ravel() if "plastic_strain" in last else np.full(len(x), np.nan)
         e = f["energy"]
         ek, es = e["kinetic"][:], e["strain"][:]
         wd = e["dissipated"][:] if "dissipated" in e else np.zeros_like(ek)
@@ -150,7 +150,7 @@ def cmd_plot(a):
             names = sorted(f["frames"])
             last = f["frames"][names[-1]]
             x = last["x"][:]
-            eps = last["plastic_strain"][:]
+            eps = last["plastic_strain"][:].ravel()
         m = measure(path)
         r = np.hypot(x[:, 0], x[:, 1])
         order = np.argsort(eps)
@@ -162,7 +162,7 @@ def cmd_plot(a):
         for xr in (7.0, 7.2):
             ax.axvline(xr, color="tab:red", lw=0.6, ls="--")
         ax.set_title(f"{label}\nL_f {m['length_mm']:.2f}, r_f {m['footprint_mm']:.2f} mm", fontsize=8)
-        ax.set_xlabel("r = sqrt(x^2 + y^2) [mm]")
+        ax.set_xlabel("r [mm]")
         ax.set_xlim(0, 9)
         ax.set_ylim(-0.5, 33.5)
         ax.set_aspect("equal")
