@@ -143,7 +143,7 @@ def cmd_plot(a):
     import matplotlib.pyplot as plt
 
     n = len(a.files)
-    fig, axes = plt.subplots(1, n, figsize=(2.6 * n + 0.8, 5.2), sharey=True, squeeze=False)
+    fig, axes = plt.subplots(1, n, figsize=(3.4 * n + 0.8, 5.2), sharey=True, squeeze=False)
     labels = a.labels.split(";") if a.labels else a.files
     for ax, path, label in zip(axes[0], a.files, labels):
         with h5py.File(path, "r") as f:
@@ -163,7 +163,7 @@ def cmd_plot(a):
             ax.axvline(xr, color="tab:red", lw=0.6, ls="--")
         ax.set_title(f"{label}\nL_f {m['length_mm']:.2f}, r_f {m['footprint_mm']:.2f} mm", fontsize=8)
         ax.set_xlabel("r [mm]")
-        ax.set_xlim(0, 9)
+        ax.set_xlim(0, 13.5)
         ax.set_ylim(-0.5, 33.5)
         ax.set_aspect("equal")
     axes[0][0].set_ylabel("z [mm]")
