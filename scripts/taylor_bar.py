@@ -13,9 +13,11 @@
 The bar: copper, L = 32.4 mm, R = 3.2 mm, along z from the wall z = 0. The
 particles sit at the centres of sub-cells of size h/2 across (x, y) and
 L / round(2 L / h) along z (2 per cell and axis), kept where the centre lies
-in the quarter disk; their volumes are scaled so that the particles carry
-the exact quarter-bar volume pi R^2 L / 4 (the staircase of kept sub-cells
-misses it by a few per cent).
+in the quarter disk; the particles carry the exact quarter-bar mass
+rho pi R^2 L / 4 (the staircase of kept sub-cells misses the volume by a few
+per cent): by smaller volumes where the staircase is larger than the
+disk, else by a `density` column (a volume above the sub-cell's would put
+the particle's extent across the symmetry planes, outside the grid).
 
 Measures (docs/benchmarks.md): the final length is the largest particle z
 plus the gap L - max Z the particles start with (the half sub-cell between
@@ -26,6 +28,7 @@ bar; the largest plastic strain is the max over particles of the
 `plastic_strain` field.
 """
 import argparse
+import csv
 import math
 import sys
 import tomllib
@@ -48,24 +51,30 @@ def quarter_particles(h):
     xy = np.column_stack([X[keep], Y[keep]])
     z = (np.arange(nz) + 0.5) * dz
     pos = np.column_stack([np.repeat(xy, nz, axis=0), np.tile(z, len(xy))])
-    V = np.full(len(pos), math.pi * R * R * L / 4 / len(pos))
-    return pos, V
+    scale = math.pi * R * R * L / 4 / (len(pos) * s * s * dz)
+    if scale <= 1:  # the staircase holds more than the quarter disk: smaller volumes
+        return pos, np.full(len(pos), scale * s * s * dz), None
+    # A volume above s^2 dz would put the particle's extent across the
+    # symmetry planes (outside the grid): a denser copper instead.
+    return pos, np.full(len(pos), s * s * dz), np.full(len(pos), 8930.0 * scale)
 
 
 def grid_keys(h):
-    """lower, cells of a grid of spacing h from -2h, to 14 mm across and L + 2h along z."""
+    """lower, cells of a grid of spacing h: from the symmetry planes x = 0 and
+    y = 0 to 14 mm across, from -2h to L + 2h along z."""
     lower = -2 * h
-    cx = math.ceil((14e-3 - lower) / h - 1e-9)
+    cx = math.ceil(14e-3 / h - 1e-9)
     cz = math.ceil((L + 2 * h - lower) / h - 1e-9)
-    return [lower] * 3, [cx, cx, cz]
+    return [0.0, 0.0, lower], [cx, cx, cz]
 
 
 def cmd_particles(a):
-    pos, V = quarter_particles(a.h)
+    pos, V, rho = quarter_particles(a.h)
     with open(a.out, "w") as f:
-        f.write("x,y,z,volume\n")
-        for p, v in zip(pos, V):
-            f.write(f"{p[0]:.9g},{p[1]:.9g},{p[2]:.9g},{v:.9g}\n")
+        f.write("x,y,z,volume" + (",density" if rho is not None else "") + "\n")
+        for i, (p, v) in enumerate(zip(pos, V)):
+            extra = f",{rho[i]:.9g}" if rho is not None else ""
+            f.write(f"{p[0]:.9g},{p[1]:.9g},{p[2]:.9g},{v:.9g}{extra}\n")
     lower, cells = grid_keys(a.h)
     upper = [lo + n * a.h for lo, n in zip(lower, cells)]
     print(f"# {len(pos)} particles in {a.out}")
@@ -123,12 +132,13 @@ COLUMNS = ["mode", "integrator", "basis", "status", "particles", "steps", "wall_
 
 
 def cmd_measure(a):
+    out = csv.writer(sys.stdout, lineterminator="\n")
     if a.csv:
-        print("file," + ",".join(COLUMNS))
+        out.writerow(["file"] + COLUMNS)
     for path in a.files:
         m = measure(path)
         if a.csv:
-            print(path + "," + ",".join(f"{m[c]:.6g}" if isinstance(m[c], float) else str(m[c]) for c in COLUMNS))
+            out.writerow([path] + [f"{m[c]:.6g}" if isinstance(m[c], float) else str(m[c]) for c in COLUMNS])
         else:
             print(f"{path}: {m['status']} t = {m['t'] * 1e6:.1f} us, {m['particles']} particles, {m['steps']} steps, "
                   f"{m['wall_seconds']:.1f} s | L_f = {m['length_mm']:.2f} mm, footprint = {m['footprint_mm']:.2f} mm, "
@@ -143,7 +153,7 @@ def cmd_plot(a):
     import matplotlib.pyplot as plt
 
     n = len(a.files)
-    fig, axes = plt.subplots(1, n, figsize=(3.4 * n + 0.8, 5.2), sharey=True, squeeze=False)
+    fig, axes = plt.subplots(1, n, figsize=(2.6 * n + 0.8, 5.2), sharey=True, squeeze=False)
     labels = a.labels.split(";") if a.labels else a.files
     for ax, path, label in zip(axes[0], a.files, labels):
         with h5py.File(path, "r") as f:
@@ -163,7 +173,7 @@ def cmd_plot(a):
             ax.axvline(xr, color="tab:red", lw=0.6, ls="--")
         ax.set_title(f"{label}\nL_f {m['length_mm']:.2f}, r_f {m['footprint_mm']:.2f} mm", fontsize=8)
         ax.set_xlabel("r [mm]")
-        ax.set_xlim(0, 13.5)
+        ax.set_xlim(0, 9)
         ax.set_ylim(-0.5, 33.5)
         ax.set_aspect("equal")
     axes[0][0].set_ylabel("z [mm]")
