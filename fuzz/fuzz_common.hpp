@@ -9,7 +9,7 @@
 /// (those libFuzzer and ASan/UBSan detect on their own). A scene that reads is
 /// then used the way `otmpm run` uses it before the first step (check_scene).
 #include "otmpm/core.hpp"
-#include "otmpm/engine/engine.hpp"
+#include "otmpm/assembly/assembler.hpp"
 #include "otmpm/scene/scene.hpp"
 
 #include <cxxabi.h>
@@ -102,9 +102,9 @@ inline void check_scene(const Scene& scene) {
                  small ? "" : " (too many to build the engine)");
   if (!small) return;
   switch (scene.simulation.dimension) {
-  case 1: Engine<1>{scene}; break;
-  case 2: Engine<2>{scene}; break;
-  case 3: Engine<3>{scene}; break;
+  case 1: (void)assemble<1>(scene); break;
+  case 2: (void)assemble<2>(scene); break;
+  case 3: (void)assemble<3>(scene); break;
   default: finding("the reader accepted dimension " + std::to_string(scene.simulation.dimension));
   }
 }

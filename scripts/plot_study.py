@@ -2,12 +2,15 @@
 """Work-precision and convergence plots of an `otmpm study` CSV.
 
     /usr/bin/python3 scripts/plot_study.py STUDY.csv [--error rms_velocity_error] [--out PREFIX]
-        [--variants REGEX] [--title TEXT]
+        [--variants REGEX] [--title TEXT] [--table]
 
 Writes PREFIX_work_precision.{png,svg} (error against wall time, log-log, one
 line per variant through its mesh sizes) and PREFIX_convergence.{png,svg}
 (error against h). Runs that did not finish ok (unstable, refused) are drawn as
 red crosses at the top of the axes, at their wall time / h, not left out.
+With --table it also prints a markdown table on stdout: one row per variant,
+one column per mesh, each cell "error / wall time" (or the status of a run
+that did not finish ok).
 """
 import argparse
 import csv
@@ -43,6 +46,7 @@ def load(path, error, pattern):
                     "error": number(row.get(error)),
                     "ok": row["status"] == "ok",
                     "mesh": row["mesh"],
+                    "status": row["status"],
                 }
             )
     for runs in series.values():
@@ -79,6 +83,25 @@ def draw(series, xkey, xlabel, error, title, prefix, suffix):
     print(f"wrote {prefix}_{suffix}.png and .svg")
 
 
+def print_table(series):
+    """Markdown table: variants down, meshes (coarse to fine) across, "error / wall s" per cell."""
+    meshes = list(dict.fromkeys(r["mesh"] for runs in series.values() for r in runs))
+    print("| variant | " + " | ".join(meshes) + " |")
+    print("|---|" + "---|" * len(meshes))
+    for variant, runs in sorted(series.items()):
+        by_mesh = {r["mesh"]: r for r in runs}
+        cells = []
+        for m in meshes:
+            r = by_mesh.get(m)
+            if r is None:
+                cells.append("-")
+            elif r["ok"]:
+                cells.append(f"{r['error']:.3f} / {r['wall']:.2f} s")
+            else:
+                cells.append(r["status"].split(":")[0] + f" ({r['wall']:.2f} s)")
+        print(f"| {variant} | " + " | ".join(cells) + " |")
+
+
 def main(argv):
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("csv")
@@ -86,6 +109,7 @@ def main(argv):
     p.add_argument("--out", default=None, help="output prefix (default: the CSV path without .csv)")
     p.add_argument("--variants", default=None, help="regular expression selecting variants")
     p.add_argument("--title", default=None)
+    p.add_argument("--table", action="store_true", help="print the markdown table of error / wall time")
     a = p.parse_args(argv)
     prefix = a.out or re.sub(r"\.csv$", "", a.csv)
     series = load(a.csv, a.error, a.variants)
@@ -95,6 +119,8 @@ def main(argv):
     draw(series, "wall", "wall time [s] (one core per run)", a.error, title + ": work-precision", prefix,
          "work_precision")
     draw(series, "h", "mesh size h [m]", a.error, title + ": convergence", prefix, "convergence")
+    if a.table:
+        print_table(series)
 
 
 if __name__ == "__main__":

@@ -70,11 +70,12 @@ void check_simulation(const Scene& s, int dim) {
         "\" needs advected nodes: use simulation.mode = \"ul\"");
   check(s, !integrator->needs_consistent_mass || m.mass == "consistent", "simulation.mass", "integrator \"",
         m.integrator, "\" uses the consistent mass matrix (wobbes et al. Algorithm 3): set mass = \"consistent\"");
-  for (const auto& [key, value] : m.parameters) {
-    const auto spec = std::find_if(integrator_parameters().begin(), integrator_parameters().end(),
-                                   [&](const ParameterSpec* p) { return p->key == key; });
-    check(s, spec != integrator_parameters().end(), "simulation." + key, "is not a parameter of any integrator");
-    const std::string why = (*spec)->check(value);
+  const auto known = integrator_parameters();
+  for (const auto& entry : m.parameters) {
+    const std::string& key = entry.first; // named, not a structured binding: the lambda captures it (clang)
+    const auto spec = std::find_if(known.begin(), known.end(), [&](const ParameterSpec* p) { return p->key == key; });
+    check(s, spec != known.end(), "simulation." + key, "is not a parameter of any integrator");
+    const std::string why = (*spec)->check(entry.second);
     check(s, why.empty(), "simulation." + key, why);
   }
   check(s, finite_positive(m.t_end), "simulation.t_end", "must be finite and > 0 (got ", m.t_end, ")");
