@@ -5,7 +5,8 @@
 #      installed header on its own - and runs;
 #   3. the source tree (which holds the build tree) is moved away, and the
 #      installed binary runs: --version, --help, a short run, `otmpm render`,
-#      and a study whose plots come from PREFIX/share/otmpm;
+#      a study whose plots come from PREFIX/share/otmpm, and (when built with
+#      OTMPM_PYTHON) the installed Python package: import, a run, a study;
 #   4. the source tree is moved back (also when a step fails).
 # Usage: bash scripts/check-install.sh     (after scripts/test.sh; OTMPM_BUILD_DIR as there)
 set -euo pipefail
@@ -55,6 +56,9 @@ h = 0.010253846
 set = ["grid.cells=[15]", "grid.lower=[-0.020507692]"]
 EOF
 
+python_built=0
+if grep -q '^OTMPM_PYTHON:BOOL=ON' "$build/CMakeCache.txt"; then python_built=1; fi
+
 echo "== source tree moved away: $root -> $moved"
 mv "$root" "$moved"
 otmpm=$prefix/bin/otmpm
@@ -67,6 +71,18 @@ test -s run.png
 "$otmpm" study study.toml
 test -s study.csv
 test -s study_work_precision.png
+if [ "$python_built" = 1 ]; then
+  echo "== installed Python package (docs/python.md: PREFIX/lib/pythonX.Y/dist-packages)"
+  pyver=$(/usr/bin/python3 -c 'import sys; print("python%d.%d" % sys.version_info[:2])')
+  env -u OTMPM_CLI PYTHONPATH="$prefix/lib/$pyver/dist-packages" /usr/bin/python3 -c '
+import os, sys, otmpm
+assert otmpm.__file__.startswith(sys.argv[1]), otmpm.__file__
+s = otmpm.run(otmpm.Scene.from_toml("dyka.toml", overrides={"simulation.t_end": 2e-5}), out="py.h5")
+print(otmpm.__file__, s, sep="\n")
+r = otmpm.study("study.toml")
+assert len(r.rows) == 2, r.rows
+sys.exit(s.exit_code)' "$prefix"
+fi
 echo "== moving the source tree back"
 mv "$moved" "$root"
 echo "installed otmpm OK (prefix $prefix, removed on exit)"

@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Installs otmpm's build, test and plotting dependencies from Debian packages.
+# Installs otmpm's build, test and plotting dependencies from Debian packages
+# (with pybind11, the Python headers and pytest for the Python package).
 # Idempotent: safe to run again; does nothing when everything is present.
 # With arguments, installs those packages instead (scripts/fuzz.sh: clang).
 set -euo pipefail
@@ -8,6 +9,7 @@ pkgs=(
   libeigen3-dev libboost-dev libhdf5-dev hdf5-tools
   libtomlplusplus-dev doctest-dev libcli11-dev doxygen
   python3 python3-matplotlib python3-h5py python3-numpy
+  python3-dev pybind11-dev python3-pytest
 )
 [ $# -gt 0 ] && pkgs=("$@")
 missing=()

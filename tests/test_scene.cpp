@@ -348,3 +348,31 @@ poisson = 0.3
 TEST_CASE("a missing file is an InputError naming it") {
   check_message(error_of(kScenes + "does_not_exist.toml"), {"does_not_exist.toml", "cannot open"});
 }
+
+/// The InputSource of the InputError that reading `path` (with overrides) throws.
+InputSource source_of(const std::string& path, const std::vector<std::string>& overrides = {}) {
+  try {
+    load_scene(path, overrides);
+  } catch (const InputError& e) {
+    REQUIRE(e.source() != nullptr);
+    return *e.source();
+  }
+  FAIL("no InputError");
+  return {};
+}
+
+TEST_CASE("InputError carries file, line and key of the bad value (InputError::source)") {
+  const InputSource key = source_of(bad("unknown_key"));
+  CHECK(key.file == bad("unknown_key"));
+  CHECK(key.line == 22);
+  CHECK(key.key == "material.steel.yuong");
+  const InputSource syntax = source_of(bad("syntax"));
+  CHECK(syntax.line == 21);
+  CHECK(syntax.key.empty());
+  const InputSource set = source_of(kGood, {"simulation.modee=ul"});
+  CHECK(set.line < 0); // from an override, not from a line of the file
+  CHECK(set.key == "simulation.modee");
+  CHECK(source_of(kGood, {"nonsense"}).key == "nonsense");
+  CHECK(source_of("no_such_scene.toml").file == "no_such_scene.toml");
+  CHECK(InputError("plain").source() == nullptr);
+}

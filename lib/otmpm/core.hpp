@@ -23,6 +23,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdio>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -41,12 +42,30 @@ template <class T> using AlignedVector = std::vector<T, Eigen::aligned_allocator
 /// Integer index triple/pair/single of a structured node set.
 template <int D> using Index = std::array<int, D>;
 
+/// Where a bad input value came from: the file ("" when not from a file),
+/// the line (> 0 in a file, -1 for a --set override, 0 unknown) and the key
+/// ("" when the error concerns no single key, e.g. a TOML syntax error).
+struct InputSource {
+  std::string file;
+  int line = 0;
+  std::string key;
+};
+
 /// Bad input: a scene value, a command-line option or a library argument that
-/// cannot be used. Carries where it came from (file, line, key) when known.
-/// The command line reports it and exits with status 2.
+/// cannot be used. Carries where it came from (file, line, key) when known:
+/// in the message ("FILE:LINE: key 'KEY': ...") and, for the errors of the
+/// scene reader, as an InputSource (the Python package's InputError.file,
+/// .line, .key). The command line reports it and exits with status 2.
 class InputError : public std::runtime_error {
 public:
   explicit InputError(const std::string& what) : std::runtime_error(what) {}
+  InputError(const std::string& what, InputSource source)
+      : std::runtime_error(what), source_(std::make_shared<const InputSource>(std::move(source))) {}
+  /// The source of the bad value, or null when the thrower did not give one.
+  const InputSource* source() const { return source_.get(); }
+
+private:
+  std::shared_ptr<const InputSource> source_; ///< shared: copying an exception must not throw
 };
 
 /// A basis function that cannot be evaluated at a point (outside the convex

@@ -672,13 +672,18 @@ const std::map<std::string, std::string> kExclusive = {
     {"grid.h", "grid.cells"}, {"grid.cells", "grid.h"}, {"simulation.dt", "simulation.cfl"},
     {"simulation.cfl", "simulation.dt"}};
 
+/// Throws InputError "--set KEY: message" (source: the override's key).
+[[noreturn]] void override_error(const std::string& key, const std::string& message) {
+  throw InputError("--set " + key + ": " + message, {"", kCommandLineLine, key});
+}
+
 std::vector<std::string> split_key(const std::string& key, const std::string& what) {
   std::vector<std::string> segs;
   std::size_t start = 0;
   for (;;) {
     const std::size_t dot = key.find('.', start);
     segs.push_back(key.substr(start, dot - start));
-    if (segs.back().empty()) throw InputError("--set " + what + ": empty key segment");
+    if (segs.back().empty()) override_error(what, "empty key segment");
     if (dot == std::string::npos) return segs;
     start = dot + 1;
   }
@@ -722,9 +727,8 @@ toml::table parse_value(const std::string& key, const std::string& value) {
     return toml::parse(std::string_view(doc), std::string_view("--set"));
   } catch (const toml::parse_error& e) {
     const bool bare = !value.empty() && std::string("[{\"'").find(value.front()) == std::string::npos;
-    if (!bare) throw InputError("--set " + key + ": cannot read '" + value + "' as a TOML value: " +
-                                std::string(e.description()));
-    if (!valid_utf8(value)) throw InputError("--set " + key + ": the value is not valid UTF-8 text");
+    if (!bare) override_error(key, "cannot read '" + value + "' as a TOML value: " + std::string(e.description()));
+    if (!valid_utf8(value)) override_error(key, "the value is not valid UTF-8 text");
     toml::table t;
     t.insert("v", value);
     return t;
@@ -746,7 +750,7 @@ toml::table* find_element(toml::array& a, const std::string& seg, std::string& c
 
 void apply_override(toml::table& root, const std::string& text, Context& ctx) {
   const std::size_t eq = text.find('=');
-  if (eq == std::string::npos) throw InputError("--set " + text + ": expected KEY=VALUE");
+  if (eq == std::string::npos) override_error(text, "expected KEY=VALUE");
   const std::string key = trim(text.substr(0, eq));
   const std::vector<std::string> segs = split_key(key, text);
   toml::table parsed = parse_value(key, trim(text.substr(eq + 1)));
@@ -756,17 +760,17 @@ void apply_override(toml::table& root, const std::string& text, Context& ctx) {
     toml::node* n = cur->get(segs[i]);
     path = join_path(path, segs[i]);
     if (!n) {
-      if (kTableArrays.count(segs[i])) throw InputError("--set " + key + ": the scene has no [[" + path + "]]");
+      if (kTableArrays.count(segs[i])) override_error(key, "the scene has no [[" + path + "]]");
       n = &cur->insert(segs[i], toml::table{}).first->second;
       ctx.overridden.emplace(path, key);
     }
     if (toml::array* a = n->as_array(); a && i + 2 < segs.size()) {
       std::string name;
       cur = find_element(*a, segs[++i], name);
-      if (!cur) throw InputError("--set " + key + ": no element '" + segs[i] + "' in [[" + path + "]]");
+      if (!cur) override_error(key, "no element '" + segs[i] + "' in [[" + path + "]]");
       path += "." + name;
     } else if (!(cur = n->as_table())) {
-      throw InputError("--set " + key + ": '" + path + "' is not a table");
+      override_error(key, "'" + path + "' is not a table");
     }
   }
   path = join_path(path, segs.back());
@@ -789,7 +793,7 @@ std::string SourceRef::describe() const {
 }
 
 void input_error(const SourceRef& where, const std::string& message) {
-  throw InputError(where.describe() + ": " + message);
+  throw InputError(where.describe() + ": " + message, {where.file, where.line, where.key});
 }
 
 SourceRef Scene::locate(const std::string& key) const {

@@ -12,7 +12,8 @@ toml::table parse_toml_text(const std::string& text, const std::string& name) {
   } catch (const toml::parse_error& e) {
     const auto& pos = e.source().begin;
     throw InputError(name + ":" + std::to_string(pos.line) + ":" + std::to_string(pos.column) +
-                     ": syntax error: " + std::string(e.description()));
+                         ": syntax error: " + std::string(e.description()),
+                     {name, static_cast<int>(pos.line), ""});
   }
 }
 
@@ -20,12 +21,14 @@ std::string read_text_file(const std::string& path, const std::string& what) {
   if (path.empty()) throw InputError("the " + what + " path is empty");
   std::error_code ec;
   if (std::filesystem::is_directory(path, ec))
-    throw InputError(path + ": is a directory, not a " + what + " (give the .toml file inside it)");
+    throw InputError(path + ": is a directory, not a " + what + " (give the .toml file inside it)", {path, 0, ""});
   std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path + ": cannot open the " + what + (std::filesystem::exists(path, ec) ? "" : " (no such file)"));
+  if (!in)
+    throw InputError(path + ": cannot open the " + what + (std::filesystem::exists(path, ec) ? "" : " (no such file)"),
+                     {path, 0, ""});
   std::ostringstream buf;
   buf << in.rdbuf();
-  if (in.bad()) throw InputError(path + ": cannot read the " + what);
+  if (in.bad()) throw InputError(path + ": cannot read the " + what, {path, 0, ""});
   return buf.str();
 }
 

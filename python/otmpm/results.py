@@ -1,0 +1,136 @@
+"""otmpm.results: reading a result file (docs/user-guide.md, "The result file").
+
+    with otmpm.results.open("dyka.h5") as r:
+        print(r.status, r.attrs["steps"], r.errors)
+        v = r.field("v")            # (frames, particles, D)
+        A = r.probes["A"]           # time, x, v, stress
+        E = r.energy                # time, kinetic, strain, external_work, reaction_work
+
+Works on any otmpm result file, written by `otmpm run`, `otmpm pair`,
+`otmpm study` or the Python package. Uses h5py (Debian: python3-h5py).
+"""
+import collections.abc
+import tomllib
+
+import numpy as np
+
+#: Fields stored as D*D components per particle (row-major), returned as (n, D, D).
+TENSOR_FIELDS = ("stress", "strain", "F")
+#: Fields with one value per particle, returned as (n,).
+SCALAR_FIELDS = ("volume", "mass", "density")
+
+
+def _value(v):
+    """An HDF5 attribute as a Python value: bytes -> str, NumPy scalars -> int/float."""
+    if isinstance(v, bytes):
+        return v.decode()
+    if isinstance(v, np.generic):
+        return v.item()
+    return v
+
+
+def _array(name, data, dimension):
+    """A dataset as an array; tensors (n, D*D) become (n, D, D), scalars (n, 1) become (n,)."""
+    a = data[()]
+    if name in TENSOR_FIELDS and a.ndim == 2 and a.shape[1] == dimension * dimension:
+        return a.reshape(a.shape[0], dimension, dimension)
+    if name in SCALAR_FIELDS and a.ndim == 2 and a.shape[1] == 1:
+        return a[:, 0]
+    return a
+
+
+class Frame(collections.abc.Mapping):
+    """One frame: time (attribute) and its particle fields by name, read on access.
+
+    frame["x"] is (particles, D); tensors (stress, strain, F) are (particles, D, D)
+    with [p, i, j] = component ij, as Simulation.particles; scalars (volume, mass,
+    density) are (particles,); other fields (a material's state) as stored.
+    """
+
+    def __init__(self, group, dimension):
+        self._group = group
+        self._dimension = dimension
+        self.name = group.name.rsplit("/", 1)[-1]
+        self.time = float(group.attrs["time"])
+
+    def __getitem__(self, field):
+        return _array(field, self._group[field], self._dimension)
+
+    def __iter__(self):
+        return iter(self._group)
+
+    def __len__(self):
+        return len(self._group)
+
+    def __repr__(self):
+        return f"<Frame {self.name} t={self.time:.6g}: {', '.join(self)}>"
+
+
+class Results:
+    """An open result file (read-only); use as a context manager or call close().
+
+    attrs: every root attribute (strings decoded); status, dimension, scene
+    (the resolved scene as a dict), scene_text (as TOML), errors (the
+    rms_*/history_error_* attributes), frames (a list of Frame), times (the
+    frames' times), probes (dict: name -> dict of arrays time, x, v, stress),
+    energy (dict of arrays: time, kinetic, strain, external_work,
+    reaction_work[, dissipated]). field(name) stacks a field over all frames.
+    """
+
+    def __init__(self, path):
+        import h5py  # here, not at the top: `import otmpm` stays quick for those who never read a file
+
+        self.path = str(path)
+        self._file = h5py.File(self.path, "r")
+        self.attrs = {k: _value(v) for k, v in self._file.attrs.items()}
+        self.status = self.attrs.get("status")
+        self.dimension = int(self.attrs["dimension"])
+        self.scene_text = self.attrs.get("scene", "")
+        frames = self._file.get("frames", {})
+        self.frames = [Frame(frames[name], self.dimension) for name in sorted(frames)]
+        self.times = np.array([f.time for f in self.frames])
+        self.probes = {name: self._series(g) for name, g in self._file.get("probes", {}).items()}
+        self.energy = self._series(self._file["energy"]) if "energy" in self._file else {}
+
+    def _series(self, group):
+        return {name: _array(name, group[name], self.dimension) for name in group}
+
+    @property
+    def scene(self):
+        """The resolved scene (after overrides) as a dict, read from the `scene` attribute."""
+        return tomllib.loads(self.scene_text)
+
+    @property
+    def errors(self):
+        """The errors against the exact solution stored in the file (rms_*_error, history_error_*)."""
+        return {k: v for k, v in self.attrs.items() if k.startswith(("rms_", "history_error_"))}
+
+    def field(self, name):
+        """Field `name` of every frame stacked: (frames, particles, ...). KeyError if a frame lacks it."""
+        return np.stack([f[name] for f in self.frames])
+
+    def close(self):
+        """Closes the file (the frames can no longer be read)."""
+        self._file.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+        return False
+
+    def __repr__(self):
+        return f"<otmpm.results.Results '{self.path}': status {self.status!r}, {len(self.frames)} frames>"
+
+
+def open(path):  # noqa: A001 - the module's one entry point, as in h5py.File / builtins.open
+    """Opens the result file `path` (an .h5 written by otmpm) for reading: a Results.
+
+    While a run still writes the file, HDF5's file locking refuses it
+    (BlockingIOError); set HDF5_USE_FILE_LOCKING=FALSE to peek at a running result.
+    """
+    return Results(path)
+
+
+__all__ = ["open", "Results", "Frame", "TENSOR_FIELDS", "SCALAR_FIELDS"]

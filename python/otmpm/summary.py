@@ -1,0 +1,44 @@
+"""otmpm.Summary: what a run reports (otmpm.run, Simulation.finish)."""
+import collections.abc
+
+
+class Summary(collections.abc.Mapping):
+    """What a run reports, as a read-only dict (also readable as attributes).
+
+    Keys: status ("ok", "interrupted" or "unstable: <diagnosis>"), exit_code
+    (the command line's: 0 ok, 1 unstable, 130 interrupted), interrupted
+    (True when the run was stopped before t_end: Ctrl-C, interrupt()), mode, integrator,
+    basis, steps, time (simulated time reached [s]), wall_seconds,
+    particles, nodes, particle_steps_per_second, errors (dict: the errors
+    against the exact solution of the scene's [reference], e.g.
+    rms_velocity_error, history_error_A), max_energy_ratio, energy_drift,
+    phases (dict: wall seconds per phase), out_file (None without a result
+    file). The values are those the result file stores as root attributes.
+    str(summary) is the command line's summary line.
+    """
+
+    def __init__(self, values, line=""):
+        self._values = dict(values)
+        self._line = line
+
+    def __getitem__(self, key):
+        return self._values[key]
+
+    def __iter__(self):
+        return iter(self._values)
+
+    def __len__(self):
+        return len(self._values)
+
+    def __getattr__(self, name):
+        try:
+            return self.__dict__["_values"][name]
+        except KeyError:
+            raise AttributeError(f"Summary has no key '{name}'") from None
+
+    def __str__(self):
+        return self._line
+
+    def __repr__(self):
+        keys = ("status", "steps", "time", "wall_seconds", "errors")
+        return "Summary(" + ", ".join(f"{k}={self._values[k]!r}" for k in keys) + ", ...)"

@@ -1,0 +1,468 @@
+/// \file simulation.cpp
+/// otmpm.Simulation and otmpm.run: a run of a scene (run/simulation.hpp)
+/// stepped from Python with the GIL released, NumPy views of the engine's
+/// particle and node arrays, a per-step Python callback, and Ctrl-C
+/// (KeyboardInterrupt) between steps.
+#include "bindings.hpp"
+
+#include "otmpm/run/simulation.hpp"
+
+#include <pybind11/numpy.h>
+#include <pybind11/stl.h>
+#include <pybind11/stl/filesystem.h>
+
+#include <chrono>
+#include <filesystem>
+
+namespace otmpm::python {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+/// How often a loop of steps (step(n), advance_to, run) takes the GIL back
+/// to run Python's signal handlers: Ctrl-C is seen within this time plus one step.
+constexpr auto kSignalPoll = std::chrono::milliseconds(10);
+/// Relative slack of advance_to(t), as Simulation::advance_to.
+constexpr double kTimeSlack = 1e-9;
+
+/// RunOptions from the Python arguments: out None = the scene's output.file;
+/// force as `otmpm run --force`.
+RunOptions run_options(const py::object& out, bool write_results, bool force) {
+  RunOptions opt;
+  opt.write_results = write_results;
+  opt.force = force;
+  if (!out.is_none()) opt.out_file = py::cast<std::filesystem::path>(out).string();
+  return opt;
+}
+
+/// Runs Python's signal handlers (Ctrl-C raises KeyboardInterrupt); the GIL must be held.
+void check_signals() {
+  if (PyErr_CheckSignals() != 0) throw py::error_already_set();
+}
+
+/// The otmpm.Summary (a dict-like object, otmpm/summary.py) of a finished run.
+py::object summary_object(const RunSummary& s) {
+  py::dict errors, phases;
+  for (const auto& [name, value] : s.errors) errors[py::str(name)] = value;
+  for (std::size_t i = 0; i < phase_names.size(); ++i) phases[py::str(std::string(phase_names[i]))] = s.timers.seconds[i];
+  py::dict d;
+  d["status"] = s.status;
+  d["exit_code"] = s.exit_code;
+  d["interrupted"] = s.interrupted;
+  d["mode"] = s.mode;
+  d["integrator"] = s.integrator;
+  d["basis"] = s.basis;
+  d["steps"] = s.steps;
+  d["time"] = s.time;
+  d["wall_seconds"] = s.wall_seconds;
+  d["particles"] = s.particles;
+  d["nodes"] = s.nodes;
+  d["particle_steps_per_second"] = s.particle_steps_per_second();
+  d["errors"] = errors;
+  d["max_energy_ratio"] = s.energy.max_energy_ratio();
+  d["energy_drift"] = s.energy.energy_drift();
+  d["phases"] = phases;
+  d["out_file"] = s.out_file.empty() ? py::object(py::none()) : py::object(py::str(s.out_file));
+  return py::module_::import("otmpm.summary").attr("Summary")(d, summary_line(s));
+}
+
+/// A run in progress, owned by the Python Simulation object.
+class PySimulation {
+public:
+  PySimulation(const Scene& scene, const py::object& out, bool write_results, bool force, std::optional<int> threads)
+      : threads_(checked_threads(threads)), sim_(build(scene, run_options(out, write_results, force), threads_)) {}
+
+  /// The simulation; RuntimeError while another Python thread is stepping it
+  /// (its steps run with the GIL released).
+  Simulation& sim() {
+    if (busy_) throw std::runtime_error("Simulation: another thread is stepping this simulation");
+    return sim_;
+  }
+  py::object callback = py::none();
+
+  /// Steps while more(simulation) holds (more must not touch Python). Without a
+  /// callback the steps run with the GIL released, which is taken back
+  /// every kSignalPoll for Ctrl-C; with one, the callback runs after every
+  /// step (GIL held) and the signals are checked after it. An
+  /// InstabilityError or a Python exception (KeyboardInterrupt, the
+  /// callback's) leaves the run between two steps.
+  template <class More> void steps_while(py::handle self, More&& more) {
+    sim(); // RuntimeError while another thread steps it
+    auto next_poll = Clock::now() + kSignalPoll;
+    while (more(sim_)) {
+      if (callback.is_none()) {
+        bool poll = false;
+        {
+          Busy busy(busy_);
+          py::gil_scoped_release nogil;
+          ThreadScope scope(threads_);
+          while (!poll && more(sim_)) {
+            sim_.step();
+            poll = Clock::now() >= next_poll;
+          }
+        }
+        if (poll) {
+          check_signals();
+          next_poll = Clock::now() + kSignalPoll;
+        }
+      } else {
+        {
+          Busy busy(busy_);
+          py::gil_scoped_release nogil;
+          ThreadScope scope(threads_);
+          sim_.step();
+        }
+        callback(self);
+        check_signals();
+      }
+    }
+  }
+
+  /// Steps to t_end; an instability ends the run (its status is in the summary).
+  void run_to_end(py::handle self) {
+    try {
+      steps_while(self, [](const Simulation& s) { return !s.finished(); });
+    } catch (const InstabilityError&) { // run_scene's rule: the diagnosis is the status
+    }
+  }
+
+  /// Simulation::interrupt() (status "interrupted"); RuntimeError once finished.
+  void interrupt() {
+    require_running("interrupt");
+    sim().interrupt();
+  }
+
+  /// Simulation::finish() as an otmpm.Summary; RuntimeError the second time.
+  py::object finish() {
+    if (finish_called_) throw std::runtime_error("Simulation.finish: already called");
+    Simulation& s = sim();
+    finish_called_ = true;
+    return summary_object(s.finish());
+  }
+  bool finish_called() const { return finish_called_; }
+
+  /// Finishes a run left by an exception (`with` block, KeyboardInterrupt in
+  /// run()): interrupted when it had not reached t_end, then finish().
+  py::object abandon() {
+    if (!sim().finished()) sim_.interrupt();
+    return finish();
+  }
+
+private:
+  static Simulation build(const Scene& scene, const RunOptions& options, std::optional<int> threads) {
+    py::gil_scoped_release nogil;
+    ThreadScope scope(threads);
+    return Simulation(scene, options);
+  }
+  void require_running(const char* what) const {
+    if (finish_called_ || sim_.finished())
+      throw std::runtime_error(std::string("Simulation.") + what + ": the run is finished (" + sim_.status() + ")");
+  }
+
+  /// Marks the simulation busy (set and cleared with the GIL held) while its
+  /// steps run without the GIL.
+  class Busy {
+  public:
+    explicit Busy(bool& flag) : flag_(flag) { flag_ = true; }
+    ~Busy() { flag_ = false; }
+    Busy(const Busy&) = delete;
+    Busy& operator=(const Busy&) = delete;
+
+  private:
+    bool& flag_;
+  };
+
+  std::optional<int> threads_;
+  Simulation sim_;
+  bool finish_called_ = false;
+  bool busy_ = false;
+};
+
+/// Calls f(engine) with the engine of the simulation's dimension.
+template <class F> py::object visit_engine(Simulation& sim, F&& f) {
+  switch (sim.dimension()) {
+  case 1: return f(sim.engine<1>());
+  case 2: return f(sim.engine<2>());
+  default: return f(sim.engine<3>());
+  }
+}
+
+/// A NumPy array over `data` (no copy) with the given shape and byte
+/// strides whose base is `owner` (the Python Simulation, kept alive by the
+/// array); read-only unless `writable`. None for a field not allocated.
+template <class T>
+py::object view(const T* data, std::vector<py::ssize_t> shape, std::vector<py::ssize_t> strides, py::handle owner,
+                bool writable = false) {
+  if (data == nullptr) return py::none();
+  py::array a(py::dtype::of<T>(), std::move(shape), std::move(strides), data, owner);
+  if (!writable) a.attr("setflags")(py::arg("write") = false);
+  return a;
+}
+
+/// (n, D) view of an array of Vec<D>.
+template <int D> py::object vectors(const AlignedVector<Vec<D>>& v, py::handle owner, bool writable = false) {
+  static_assert(sizeof(Vec<D>) == D * sizeof(double), "Vec<D> must be D contiguous doubles");
+  const auto n = static_cast<py::ssize_t>(v.size());
+  return view(v.empty() ? nullptr : v.data()->data(), {n, D}, {sizeof(Vec<D>), sizeof(double)}, owner, writable);
+}
+
+/// (n, D, D) view of an array of Mat<D>: [p, i, j] = A_p(i, j) (column-major inside each particle).
+template <int D> py::object tensors(const AlignedVector<Mat<D>>& A, py::handle owner) {
+  static_assert(sizeof(Mat<D>) == D * D * sizeof(double), "Mat<D> must be D*D contiguous doubles");
+  const auto n = static_cast<py::ssize_t>(A.size());
+  return view(A.empty() ? nullptr : A.data()->data(), {n, D, D},
+              {sizeof(Mat<D>), sizeof(double), D * static_cast<py::ssize_t>(sizeof(double))}, owner);
+}
+
+/// (n,) view of a per-particle or per-node scalar array.
+template <class T> py::object scalars(const std::vector<T>& v, py::handle owner) {
+  return view(v.empty() ? nullptr : v.data(), {static_cast<py::ssize_t>(v.size())}, {sizeof(T)}, owner);
+}
+
+/// sim.particles: views of the engine's particle arrays.
+struct ParticleViews {
+  py::object owner; ///< the Python Simulation
+  Simulation& sim() { return owner.cast<PySimulation&>().sim(); }
+  template <class F> py::object get(F&& f) {
+    return visit_engine(sim(), [&](auto& e) { return f(e.particles()); });
+  }
+};
+
+/// sim.nodes: views of the node positions and the nodal fields of the last step.
+struct NodeViews {
+  py::object owner;
+  Simulation& sim() { return owner.cast<PySimulation&>().sim(); }
+  template <class F> py::object get(F&& f) {
+    return visit_engine(sim(), [&](auto& e) { return f(e); });
+  }
+};
+
+/// The material state arrays by name: (n,) for one value per particle, (n, width) otherwise.
+template <int D> py::dict state_views(const Particles<D>& P, py::handle owner) {
+  py::dict d;
+  for (const StateField& s : P.state) {
+    const auto n = static_cast<py::ssize_t>(P.size());
+    const auto w = static_cast<py::ssize_t>(s.width);
+    const auto row = w * static_cast<py::ssize_t>(sizeof(double));
+    d[py::str(s.name)] = s.width == 1 ? view(s.values.data(), {n}, {row}, owner)
+                                      : view(s.values.data(), {n, w}, {row, sizeof(double)}, owner);
+  }
+  return d;
+}
+
+py::dict energy_dict(const EnergyBalance& E) {
+  py::dict d;
+  d["kinetic"] = E.kinetic;
+  d["strain"] = E.strain;
+  d["dissipated"] = E.dissipated;
+  d["external_work"] = E.external_work;
+  d["reaction_work"] = E.reaction_work;
+  d["initial"] = E.initial;
+  d["total"] = E.total();
+  d["work"] = E.work();
+  d["balance_error"] = E.balance_error();
+  return d;
+}
+
+PySimulation& cast(const py::object& self) { return self.cast<PySimulation&>(); }
+
+const char* kSimulationDoc = R"doc(A run of a scene stepped by hand (the engine behind `otmpm run`).
+
+Simulation(scene, out=None, write_results=True, threads=None, callback=None, force=False)
+
+out: the result file (None: the scene's output.file); write_results=False
+writes none; force=True replaces an existing result file (otmpm run --force). threads: OpenMP threads for the steps (None: OMP_NUM_THREADS).
+callback: called as callback(sim) after every step (see `callback`).
+
+The frame at t = 0 is written on construction; frames at the scene's output
+times, probes, energy series and checkpoints follow as in `otmpm run`. Use
+it as a context manager (or call finish()) so that the result file gets its
+final status and summary attributes:
+
+    with otmpm.Simulation(scene) as sim:
+        sim.advance_to(5e-5)
+        print(sim.particles.v[:3])
+
+particles and nodes give NumPy views of the engine's arrays (no copy);
+stepping changes what they show. Steps run with the GIL released; Ctrl-C
+stops a loop of steps between two steps with KeyboardInterrupt.)doc";
+
+void register_views(py::module_& m) {
+  py::class_<ParticleViews>(m, "ParticleViews",
+                            "NumPy views of the engine's particle arrays (no copy): each stays valid and shows\n"
+                            "the current state for the life of its Simulation (the arrays are never\n"
+                            "reallocated during a run). All are read-only except v. None for a field the\n"
+                            "run does not allocate (a: npc only; F: finite strain, ul mode or output).")
+      .def("__len__", [](ParticleViews& p) { return p.get([](auto& P) -> py::object { return py::int_(P.size()); }); })
+      .def_property_readonly(
+          "x", [](ParticleViews& p) { return p.get([&](auto& P) { return vectors(P.x, p.owner); }); },
+          "Positions x_p, (n, D).")
+      .def_property_readonly(
+          "X", [](ParticleViews& p) { return p.get([&](auto& P) { return vectors(P.X, p.owner); }); },
+          "Initial positions X_p (the material coordinates of the exact solutions), (n, D).")
+      .def_property_readonly(
+          "v", [](ParticleViews& p) { return p.get([&](auto& P) { return vectors(P.v, p.owner, true); }); },
+          "Velocities v_p, (n, D) - WRITABLE between steps: the next step starts from what you write\n"
+          "(fe, musl, npc, unified; otm recomputes v_p from the positions at every step after its first).\n"
+          "NaN or Inf written here is reported by the next step as an InstabilityError.")
+      .def_property_readonly(
+          "a", [](ParticleViews& p) { return p.get([&](auto& P) { return vectors(P.a, p.owner); }); },
+          "Accelerations a_p (npc), (n, D), or None.")
+      .def_property_readonly(
+          "stress", [](ParticleViews& p) { return p.get([&](auto& P) { return tensors(P.sigma, p.owner); }); },
+          "Cauchy stress sigma_p, (n, D, D): stress[p, i, j] = sigma_ij.")
+      .def_property_readonly(
+          "strain", [](ParticleViews& p) { return p.get([&](auto& P) { return tensors(P.eps, p.owner); }); },
+          "Strain eps_p (small strain, or sym(F_p) - I for finite strain), (n, D, D).")
+      .def_property_readonly(
+          "F", [](ParticleViews& p) { return p.get([&](auto& P) { return tensors(P.F, p.owner); }); },
+          "Deformation gradient F_p, (n, D, D), or None.")
+      .def_property_readonly(
+          "volume", [](ParticleViews& p) { return p.get([&](auto& P) { return scalars(P.V, p.owner); }); },
+          "Volumes V_p, (n,).")
+      .def_property_readonly(
+          "mass", [](ParticleViews& p) { return p.get([&](auto& P) { return scalars(P.m, p.owner); }); },
+          "Masses m_p, (n,).")
+      .def_property_readonly(
+          "density", [](ParticleViews& p) { return p.get([&](auto& P) { return scalars(P.rho, p.owner); }); },
+          "Densities rho_p, (n,).")
+      .def_property_readonly(
+          "material", [](ParticleViews& p) { return p.get([&](auto& P) { return scalars(P.material, p.owner); }); },
+          "Material index of each particle (order of the scene's [[material]]), (n,) int32.")
+      .def_property_readonly(
+          "body", [](ParticleViews& p) { return p.get([&](auto& P) { return scalars(P.body, p.owner); }); },
+          "Body index of each particle (order of the scene's [[body]]), (n,) int32.")
+      .def_property_readonly(
+          "state",
+          [](ParticleViews& p) { return p.get([&](auto& P) -> py::object { return state_views(P, p.owner); }); },
+          "The materials' internal variables by name: a dict of read-only views, (n,) or (n, width).");
+
+  py::class_<NodeViews>(m, "NodeViews",
+                        "NumPy views of the nodes (no copy), read-only: positions x_I (advected in ul\n"
+                        "mode; B-splines: the control points) and the nodal fields of the last step.")
+      .def("__len__", [](NodeViews& n) { return n.get([](auto& e) -> py::object { return py::int_(e.basis().nodes().size()); }); })
+      .def_property_readonly(
+          "x", [](NodeViews& n) { return n.get([&](auto& e) { return vectors(e.basis().nodes().positions(), n.owner); }); },
+          "Node positions x_I, (m, D).")
+      .def_property_readonly(
+          "v", [](NodeViews& n) { return n.get([&](auto& e) { return vectors(e.nodal().v, n.owner); }); },
+          "Nodal velocities v_I of the last step, (m, D).")
+      .def_property_readonly(
+          "m", [](NodeViews& n) { return n.get([&](auto& e) { return scalars(e.nodal().m, n.owner); }); },
+          "Lumped nodal masses m_I of the last step, (m,).");
+}
+
+} // namespace
+
+void register_simulation(py::module_& m) {
+  register_views(m);
+  py::class_<PySimulation>(m, "Simulation", kSimulationDoc)
+      .def(py::init([](const Scene& scene, const py::object& out, bool write_results, std::optional<int> threads,
+                       const py::object& callback, bool force) {
+             auto s = std::make_unique<PySimulation>(scene, out, write_results, force, threads);
+             s->callback = callback;
+             return s;
+           }),
+           py::arg("scene"), py::arg("out") = py::none(), py::arg("write_results") = true,
+           py::arg("threads") = py::none(), py::arg("callback") = py::none(), py::arg("force") = false)
+      .def(
+          "step",
+          [](const py::object& self, long n) {
+            PySimulation& s = cast(self);
+            if (s.sim().finished()) s.sim().step(); // raises: the run is finished
+            const long target = s.sim().steps() + n;
+            s.steps_while(self, [&](const Simulation& m) { return m.steps() < target && !m.finished(); });
+          },
+          py::arg("n") = 1,
+          "Takes n steps (fewer if the run reaches t_end). Raises InstabilityError when the run becomes\n"
+          "unstable (the result file gets the diagnosis as its status; the run is then finished) and\n"
+          "RuntimeError when the run is already finished.")
+      .def(
+          "advance_to",
+          [](const py::object& self, double t) {
+            PySimulation& s = cast(self);
+            s.steps_while(self, [&](const Simulation& m) { return !m.finished() && m.time() < t * (1.0 - kTimeSlack); });
+          },
+          py::arg("t"), "Steps until sim.t >= t (at most to t_end): the first step at or past t.")
+      .def(
+          "write_frame", [](PySimulation& s) { s.sim().write_frame(); },
+          "Writes a frame (and probe and energy samples) of the current state into the result file now.")
+      .def(
+          "interrupt", [](PySimulation& s) { s.interrupt(); },
+          "Stops the run before t_end: a last checkpoint (when output.checkpoint_every is set) and status\n"
+          "\"interrupted\" in the result file; finish() then completes it.")
+      .def(
+          "finish", [](PySimulation& s) { return s.finish(); },
+          "Completes the result file (final status, errors against the exact solution, summary\n"
+          "attributes) and returns the otmpm.Summary. Call once, after the last step.")
+      .def(
+          "energy", [](PySimulation& s) { return visit_engine(s.sim(), [](auto& e) -> py::object { return energy_dict(e.energy()); }); },
+          "The energy balance after the last step [J]: kinetic, strain, dissipated, external_work,\n"
+          "reaction_work, initial (E(0)), total (kinetic + strain), work, balance_error.")
+      .def_property_readonly(
+          "particles", [](const py::object& self) { return ParticleViews{self}; }, "The particles (ParticleViews).")
+      .def_property_readonly(
+          "nodes", [](const py::object& self) { return NodeViews{self}; }, "The nodes (NodeViews).")
+      .def_property_readonly(
+          "t", [](PySimulation& s) { return s.sim().time(); }, "Simulated time [s].")
+      .def_property_readonly(
+          "dt", [](PySimulation& s) { return visit_engine(s.sim(), [](auto& e) { return py::float_(e.last_dt()); }); },
+          "Size of the last step [s] (0 before the first).")
+      .def_property_readonly(
+          "next_dt", [](PySimulation& s) { return visit_engine(s.sim(), [](auto& e) { return py::float_(e.stable_dt()); }); },
+          "Size of the next step [s] (CFL rule or the fixed dt, at most t_end - t).")
+      .def_property_readonly(
+          "steps", [](PySimulation& s) { return s.sim().steps(); }, "Steps taken.")
+      .def_property_readonly(
+          "t_end", [](PySimulation& s) { return s.sim().t_end(); }, "simulation.t_end [s].")
+      .def_property_readonly(
+          "dimension", [](PySimulation& s) { return s.sim().dimension(); }, "1, 2 or 3.")
+      .def_property_readonly(
+          "finished", [](PySimulation& s) { return s.sim().finished(); },
+          "True once t_end is reached, the run became unstable or was interrupted.")
+      .def_property_readonly(
+          "status", [](PySimulation& s) { return s.sim().status(); },
+          "\"running\", \"ok\" after finish(), \"interrupted\" or \"unstable: ...\" (the result file's status).")
+      .def_property_readonly(
+          "scene", [](PySimulation& s) { return s.sim().scene(); }, "The scene (a copy).")
+      .def_readwrite("callback", &PySimulation::callback,
+                     "Called as callback(sim) after every step taken by step(), advance_to() (None: no\n"
+                     "callback). It may read the views; an exception it raises stops the loop and\n"
+                     "propagates. Loops with a callback hold the GIL between steps.")
+      .def("__enter__", [](const py::object& self) { return self; })
+      .def(
+          "__exit__",
+          [](PySimulation& s, const py::object& type, const py::object&, const py::object&) {
+            if (s.finish_called()) return false;
+            if (type.is_none()) s.finish();
+            else s.abandon();
+            return false;
+          },
+          "Finishes the run (status \"interrupted\" when an exception left the block before t_end).");
+
+  m.def(
+      "run",
+      [](const Scene& scene, const py::object& out, std::optional<int> threads, bool write_results, bool force) {
+        PySimulation s(scene, out, write_results, force, threads);
+        try {
+          s.run_to_end(py::none());
+        } catch (py::error_already_set&) { // KeyboardInterrupt: a valid file with status "interrupted"
+          s.abandon();
+          throw;
+        }
+        return s.finish();
+      },
+      py::arg("scene"), py::arg("out") = py::none(), py::arg("threads") = py::none(), py::arg("write_results") = true,
+      py::arg("force") = false,
+      R"doc(Runs a scene to t_end, as `otmpm run` does, and returns its otmpm.Summary.
+
+out: the result file (None: the scene's output.file). threads: OpenMP threads
+(None: OMP_NUM_THREADS). force=True replaces an existing result file, as
+`otmpm run --force` (RunOptions::force). The GIL is released while it runs. An instability
+ends the run with exit_code 1 and the diagnosis as status (no exception, as
+the command line). Ctrl-C raises KeyboardInterrupt after the current step and
+leaves the result file valid with status "interrupted".)doc");
+}
+
+} // namespace otmpm::python
