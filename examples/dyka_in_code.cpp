@@ -94,9 +94,11 @@ int main(int argc, char** argv) {
     }
 
   // 5. The step settings: the integrator's step function from the table,
-  //    CFL 0.1 on the nodal spacing h, and the particle fields it keeps.
+  //    its parameters at their defaults, CFL 0.1 on the nodal spacing h, and
+  //    the particle fields it keeps.
   const IntegratorKind& kind = integrator_kind(integrator);
   parts.settings.step = kind.step<1>();
+  parts.settings.parameters = kind.default_parameters(); // gamma = 0.5 for npc
   parts.settings.t_end = t_end;
   parts.settings.cfl = 0.1;
   parts.settings.h = h;

@@ -145,9 +145,9 @@ struct Variant {
 /// 3 steps (stable at cfl 0.01): a time-step limit, not a conservation matter.
 std::vector<Variant> all_variants() {
   std::vector<Variant> out;
-  for (const char* integ : {"fe", "musl", "npc"})
+  for (const char* integ : {"fe", "musl", "npc", "central_difference", "explicit_alpha"})
     for (const auto& b : kAllBases) out.push_back({"mpm", integ, b});
-  for (const char* integ : {"fe", "musl", "npc", "otm"})
+  for (const char* integ : {"fe", "musl", "npc", "otm", "central_difference", "explicit_alpha"})
     for (const auto& b : kUlBases) out.push_back({"ul", integ, b});
   for (const char* b : {"bspline2", "bspline3"}) out.push_back({"ul", "unified", b});
   for (const auto& b : kUlBases) out.push_back({"ul", "otm", b, "lumped"});
@@ -319,9 +319,9 @@ namespace {
 /// One 1D linear element [0, h] (2 nodes), node 0 fixed, two Gauss particles,
 /// E = rho = A = h = 1, a tiny uniform initial velocity (displacements ~1e-8 h,
 /// so the geometric changes of N_Ip and V_p are ~1e-8) and a fixed dt.
-Spec single_element(const std::string& mass, double dt) {
+Spec single_element(const std::string& mass, double dt, const std::string& integrator = "fe") {
   Spec s;
-  s.integrator = "fe";
+  s.integrator = integrator;
   s.mass = mass;
   s.step = "dt = " + num(dt);
   s.grid_lower = {0.0};
@@ -362,8 +362,8 @@ struct ElementRun {
   double k;         ///< E A / h
 };
 
-ElementRun run_single_element(const std::string& mass, double dt, int steps) {
-  Engine<1> e = assemble<1>(scene_of(single_element(mass, dt)));
+ElementRun run_single_element(const std::string& mass, double dt, int steps, const std::string& integrator = "fe") {
+  Engine<1> e = assemble<1>(scene_of(single_element(mass, dt, integrator)));
   const auto& P = e.particles();
   ElementRun r{0, 0, 0, 0, 1.0};
   for (int p = 0; p < P.size(); ++p) { // N_free(x) = x / h on [0, h], h = 1
@@ -407,6 +407,18 @@ TEST_CASE("single element, consistent mass, fe: period of the discrete oscillato
   CHECK(std::abs(T - T_exact) <= kPeriodTolerance * T_exact);
   // The discrete correction is resolved: the continuous period 2 pi / omega is off.
   CHECK(std::abs(T - 2.0 * std::numbers::pi / omega) > 100 * kPeriodTolerance * T_exact);
+}
+
+TEST_CASE("single element, consistent mass, central_difference: velocity Verlet has the same period, no damping") {
+  // v^{n+1} = v^n + dt/2 (a^n + a^{n+1}), u^{n+1} = u^n + dt v^n + dt^2/2 a^n with
+  // a = -omega^2 u: step map of trace 2 - x^2 and determinant 1, as above.
+  const ElementRun r = run_single_element("consistent", kElementDt, kElementSteps, "central_difference");
+  const double omega = std::sqrt(r.k / r.M_ff);
+  const double omega_d = 2.0 / kElementDt * std::asin(omega * kElementDt / 2.0);
+  CHECK(std::abs(r.det - 1.0) <= kPeriodTolerance);
+  CHECK(std::abs(r.tr - (2.0 - omega * omega * kElementDt * kElementDt)) <= kPeriodTolerance);
+  const double T_exact = 2.0 * std::numbers::pi / omega_d;
+  CHECK(std::abs(map_period(r.tr, r.det, kElementDt) - T_exact) <= kPeriodTolerance * T_exact);
 }
 
 TEST_CASE("single element, lumped mass, fe: period of the discrete FLIP cycle") {

@@ -126,7 +126,7 @@ TEST_CASE("j2 runs in every node mode and integrator without creating energy") {
   }
 }
 
-TEST_CASE("plastic_strain is an output field; it grows only where the bar yields") {
+TEST_CASE("plastic_strain is an output field: only where the bar yields does it grow") {
   const Engine<2> e = run(strip(kJ2, "mpm", "npc", "linear"));
   const StateField* eps_p = e.particles().find_state("plastic_strain");
   REQUIRE(eps_p != nullptr);

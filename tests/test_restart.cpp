@@ -3,7 +3,8 @@
 // checkpoint's own scene text and restored from the file, M steps; every
 // particle field, the node positions, the B-spline knots, time, step sizes,
 // energies and reaction impulse must then be equal bit for bit (memcmp), for
-// every integrator (fe, musl, npc in mpm; npc, otm, unified in ul) and the
+// every integrator (fe, musl, npc, central_difference, explicit_alpha in mpm;
+// npc, otm, central_difference, explicit_alpha, unified in ul) and the
 // linear, bspline2 and lme bases in 1D and 2D. Also: a damaged, truncated or
 // missing checkpoint is an InputError naming the file; a checkpoint write
 // killed before its rename leaves the previous checkpoint readable; the scene
@@ -150,8 +151,10 @@ TEST_CASE("restart continues bit for bit: every integrator, linear / bspline2 / 
   TempDir tmp("matrix");
   std::vector<Config> configs;
   for (const char* basis : {"linear", "bspline2", "lme"}) {
-    for (const char* integrator : {"fe", "musl", "npc"}) configs.push_back({1, "mpm", integrator, basis});
-    for (const char* integrator : {"npc", "otm"}) configs.push_back({1, "ul", integrator, basis});
+    for (const char* integrator : {"fe", "musl", "npc", "central_difference", "explicit_alpha"})
+      configs.push_back({1, "mpm", integrator, basis});
+    for (const char* integrator : {"npc", "otm", "central_difference", "explicit_alpha"})
+      configs.push_back({1, "ul", integrator, basis});
   }
   configs.push_back({1, "ul", "unified", "bspline2"});
   configs.push_back({2, "mpm", "npc", "lme"});

@@ -64,7 +64,7 @@ TEST_CASE("Simulation: stepping by hand to t_end gives run_scene's summary and s
   CHECK(std::memcmp(again.engine<1>().particles().x.data(), x.data(), x.size() * sizeof(x[0])) == 0);
 }
 
-TEST_CASE("Simulation: advance_to stops at the first step at or past t; write_frame adds a frame") {
+TEST_CASE("Simulation: advance_to stops at the first step at or past t, write_frame adds a frame") {
   TempDir tmp("advance");
   RunOptions opt;
   opt.out_file = tmp.file("r.h5");

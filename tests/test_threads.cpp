@@ -107,6 +107,8 @@ TEST_CASE("engine results are bitwise identical with 1 and 2 threads") {
       {"basis.kind=\"linear\"", "simulation.integrator=\"musl\""},
       {"basis.kind=\"bspline2\"", "simulation.mode=\"ul\"", "simulation.integrator=\"unified\""},
       {"basis.kind=\"linear\"", "simulation.mode=\"ul\"", "simulation.integrator=\"otm\""},
+      {"basis.kind=\"bspline2\"", "simulation.integrator=\"central_difference\""},
+      {"basis.kind=\"lme\"", "simulation.integrator=\"explicit_alpha\""},
   };
   for (const auto& sets : variants) {
     CAPTURE(sets.front());

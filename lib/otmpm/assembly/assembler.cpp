@@ -189,7 +189,9 @@ template <int D> StepSettings<D> build_settings(const Scene& scene, const Integr
   const SimulationSection& sim = scene.simulation;
   StepSettings<D> s;
   s.step = integrator.step<D>();
-  s.parameters.gamma = sim.gamma;
+  s.parameters = integrator.default_parameters();
+  for (auto& [key, value] : s.parameters.values)
+    if (const auto given = sim.parameters.find(key); given != sim.parameters.end()) value = given->second;
   s.t_end = sim.t_end;
   s.cfl = sim.cfl;
   s.dt = sim.dt;

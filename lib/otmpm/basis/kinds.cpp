@@ -7,6 +7,8 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
+#include <numbers>
 
 namespace otmpm {
 
@@ -40,18 +42,59 @@ template <int D> std::unique_ptr<Basis<D>> maxent(const BasisOptions& opt, NodeS
   return make_maxent_basis<D>(std::move(nodes), opt);
 }
 
+/// Stencil sizes: (degree + 1)^dim for the tensor-product families; for
+/// the max-ent families the lattice nodes in the ball of the support radius
+/// (in units of h): LME's cut-off exp(-gamma_lme r^2) >= tolerance, max-ent's d_max.
+double ball_volume(int dim, double r) {
+  if (dim == 1) return 2.0 * r;
+  if (dim == 2) return std::numbers::pi * r * r;
+  return 4.0 / 3.0 * std::numbers::pi * r * r * r;
+}
+template <int Width> double tensor_stencil(const BasisOptions&, int dim) { return std::pow(Width, dim); }
+double lme_stencil(const BasisOptions& o, int dim) {
+  return std::max(std::pow(2.0, dim), ball_volume(dim, std::sqrt(-std::log(o.tolerance) / o.gamma_lme)));
+}
+double maxent_stencil(const BasisOptions& o, int dim) { return std::max(std::pow(2.0, dim), ball_volume(dim, o.d_max)); }
+
 /// The row of a family whose constructor is F<D> for D = 1, 2, 3.
-#define OTMPM_FACTORIES(F) F<1>, F<2>, F<3>
+#define OTMPM_FACTORIES(F) .make1 = F<1>, .make2 = F<2>, .make3 = F<3>
 const std::array kKinds{
-    BasisKind{"linear", "tensor-product hat functions; isoparametric Q4/Q8 on a perturbed or moving lattice", true,
-              false, false, false, OTMPM_FACTORIES(linear)},
-    BasisKind{"ugimp", "uniform GIMP (Bardenhagen & Kober 2004)", true, true, false, true, OTMPM_FACTORIES(ugimp)},
-    BasisKind{"bspline2", "quadratic B-splines on open knot vectors", true, false, true, false,
-              bspline<1, kQuadraticDegree>, bspline<2, kQuadraticDegree>, bspline<3, kQuadraticDegree>},
-    BasisKind{"bspline3", "cubic B-splines on open knot vectors", true, false, true, false, bspline<1, kCubicDegree>,
-              bspline<2, kCubicDegree>, bspline<3, kCubicDegree>},
-    BasisKind{"lme", "local max-ent (Arroyo & Ortiz 2006)", false, false, false, false, OTMPM_FACTORIES(lme)},
-    BasisKind{"maxent", "max-ent with a cubic-spline prior", false, false, false, false, OTMPM_FACTORIES(maxent)},
+    BasisKind{.name = "linear",
+              .description = "tensor-product hat functions; isoparametric Q4/Q8 on a perturbed or moving lattice",
+              .stencil_nodes = tensor_stencil<2>,
+              OTMPM_FACTORIES(linear)},
+    BasisKind{.name = "ugimp",
+              .description = "uniform GIMP (Bardenhagen & Kober 2004)",
+              .cartesian_only = true,
+              .particle_size = true,
+              .stencil_nodes = tensor_stencil<3>,
+              OTMPM_FACTORIES(ugimp)},
+    BasisKind{.name = "bspline2",
+              .description = "quadratic B-splines on open knot vectors",
+              .bspline = true,
+              .stencil_nodes = tensor_stencil<kQuadraticDegree + 1>,
+              .make1 = bspline<1, kQuadraticDegree>,
+              .make2 = bspline<2, kQuadraticDegree>,
+              .make3 = bspline<3, kQuadraticDegree>},
+    BasisKind{.name = "bspline3",
+              .description = "cubic B-splines on open knot vectors",
+              .bspline = true,
+              .stencil_nodes = tensor_stencil<kCubicDegree + 1>,
+              .make1 = bspline<1, kCubicDegree>,
+              .make2 = bspline<2, kCubicDegree>,
+              .make3 = bspline<3, kCubicDegree>},
+    BasisKind{.name = "lme",
+              .description = "local max-ent (Arroyo & Ortiz 2006)",
+              .needs_lattice = false,
+              .searches_nodes = true,
+              .stencil_nodes = lme_stencil,
+              OTMPM_FACTORIES(lme)},
+    BasisKind{.name = "maxent",
+              .description = "max-ent with a cubic-spline prior",
+              .needs_lattice = false,
+              .searches_nodes = true,
+              .stencil_nodes = maxent_stencil,
+              OTMPM_FACTORIES(maxent)},
 };
 #undef OTMPM_FACTORIES
 

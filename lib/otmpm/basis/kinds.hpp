@@ -29,6 +29,12 @@ struct BasisKind {
   bool bspline = false;
   /// Uses the size of the particles (uGIMP: half-width l_p = h / (2 n_ppc) per axis).
   bool particle_size = false;
+  /// Searches the nodes within a radius (Verlet lists) and keeps a Lagrange
+  /// multiplier per particle (the max-ent families).
+  bool searches_nodes = false;
+  /// Expected nodes in one particle's stencil on a uniform lattice (for the
+  /// memory estimate of `otmpm run --check`).
+  double (*stencil_nodes)(const BasisOptions&, int dim) = nullptr;
   BasisFactory<1> make1 = nullptr;
   BasisFactory<2> make2 = nullptr;
   BasisFactory<3> make3 = nullptr;

@@ -43,6 +43,12 @@ template <int D> void Constraints<D>::apply_velocity(AlignedVector<Vec<D>>& v) c
       if (d_.fix[i][k]) v[d_.node[i]][k] = d_.value[i][k];
 }
 
+template <int D> void Constraints<D>::zero_fixed(AlignedVector<Vec<D>>& r) const {
+  for (std::size_t i = 0; i < d_.node.size(); ++i)
+    for (int k = 0; k < D; ++k)
+      if (d_.fix[i][k]) r[d_.node[i]][k] = 0.0;
+}
+
 template <int D>
 void Constraints<D>::apply_force(AlignedVector<Vec<D>>& f, AlignedVector<Vec<D>>& reaction, double dt,
                                  Vec<D>& impulse, double& work) const {

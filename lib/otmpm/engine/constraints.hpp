@@ -87,6 +87,8 @@ public:
   const std::vector<char>& constrained() const { return constrained_; }
   /// Sets the fixed components of a nodal velocity-like field to their value.
   void apply_velocity(AlignedVector<Vec<D>>& v) const;
+  /// Sets the fixed components of a nodal rate field (an acceleration) to zero.
+  void zero_fixed(AlignedVector<Vec<D>>& r) const;
   /// Moves the fixed components of f into `reaction` (zeroing them in f),
   /// adds their impulse dt R to `impulse` and their work dt R . v_prescribed
   /// to `work`.

@@ -205,6 +205,8 @@ public:
   /// applies the rigid walls (Constraints::apply_walls) at the nodes'
   /// current positions; `effect` says how a change reaches the particles.
   void constrain_velocity(AlignedVector<Vec<D>>& v, const WallEffect<D>& effect = {});
+  /// Sets the fixed components of a nodal acceleration-like field to zero.
+  void constrain_rate(AlignedVector<Vec<D>>& r) const { constraints_.zero_fixed(r); }
   /// The contact's and the walls' rules on the node increments dx of this step.
   void constrain_increment(AlignedVector<Vec<D>>& dx) const;
   /// Zeroes fixed components of f, stores them as reactions, adds their

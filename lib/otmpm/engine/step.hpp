@@ -4,15 +4,23 @@
 /// clock, the integrator's parameters and the particle and nodal fields.
 #include "otmpm/core.hpp"
 
+#include <map>
+#include <string>
+#include <string_view>
+
 namespace otmpm {
 
 template <int D> class Engine;
 template <int D> struct Particles;
 template <int D> struct NodalFields;
 
-/// The parameters of the integrators that have any (scene keys under [simulation]).
+/// The parameters of the integrator by key (scene keys under [simulation],
+/// declared by each integrator: IntegratorKind::parameters), with their
+/// defaults filled in.
 struct IntegratorParameters {
-  double gamma = 0.5; ///< Newmark parameter of npc (molinos et al. Algorithm 1)
+  std::map<std::string, double, std::less<>> values;
+  /// The parameter `key`; std::invalid_argument when the integrator has none.
+  double get(std::string_view key) const;
 };
 
 /// What a step function is given: the clock, the parameters, and the

@@ -9,6 +9,7 @@
 /// public stages. Adding one (docs/architecture.md, "Adding a part"): its
 /// file and one row in integrators/table.cpp.
 #include "otmpm/engine/step.hpp"
+#include "otmpm/parameters.hpp"
 
 #include <span>
 #include <string>
@@ -32,6 +33,10 @@ struct IntegratorKind {
   bool needs_acceleration = false;
   /// Keeps the previous particle position x_p^{s-1}.
   bool needs_previous_position = false;
+  /// Its parameters (scene keys under [simulation]).
+  std::span<const ParameterSpec> parameters{};
+  /// Its parameters at their defaults (what a run built in code starts from).
+  IntegratorParameters default_parameters() const;
   StepFunction<1> step1 = nullptr;
   StepFunction<2> step2 = nullptr;
   StepFunction<3> step3 = nullptr;
@@ -50,7 +55,10 @@ std::span<const IntegratorKind> integrator_kinds();
 const IntegratorKind* find_integrator(std::string_view name);
 /// The integrator named `name`; InputError listing the integrators otherwise.
 const IntegratorKind& integrator_kind(std::string_view name);
-/// "fe, musl, npc, otm or unified", for messages.
+/// "fe, musl, npc, otm, unified, central_difference or explicit_alpha", for messages.
 std::string integrator_list();
+/// The parameter keys of every integrator (the scene accepts each of them
+/// whatever the integrator, so that switching integrators with --set works).
+std::span<const ParameterSpec* const> integrator_parameters();
 
 } // namespace otmpm

@@ -9,7 +9,7 @@ template <int D> void step_npc(Engine<D>& e, const StepContext<D>& s) {
   auto& P = s.particles;
   auto& n = s.nodes;
   const double dt = s.dt;
-  const double gamma = s.parameters.gamma;
+  const double gamma = s.parameters.get("gamma");
   e.evaluate_basis();
   // 1. m_I = sum N_Ip m_p, and (same pass)
   // 2. predictor: v_I^pred = sum N_Ip m_p (v_p + (1-gamma) dt a_p) / m_I.

@@ -14,23 +14,49 @@ template <int D> void step_musl(Engine<D>&, const StepContext<D>&);
 template <int D> void step_npc(Engine<D>&, const StepContext<D>&);
 template <int D> void step_otm(Engine<D>&, const StepContext<D>&);
 template <int D> void step_unified(Engine<D>&, const StepContext<D>&);
+template <int D> void step_central_difference(Engine<D>&, const StepContext<D>&);
+template <int D> void step_explicit_alpha(Engine<D>&, const StepContext<D>&);
 
 namespace {
 
-#define OTMPM_STEPS(F) F<1>, F<2>, F<3>
-// name, description, needs_ul, needs_bspline, consistent_by_default, needs_consistent_mass,
-// needs_acceleration, needs_previous_position, step functions
+const ParameterSpec kGamma{"gamma", "Newmark parameter of npc (molinos et al. Algorithm 1)", 0.5, 0.0, true, 1.0};
+const ParameterSpec kRhoInf{"rho_inf", "spectral radius at the bifurcation limit of explicit_alpha (Hulbert & Chung rho_b)",
+                            0.5, 0.0, false, 1.0};
+const std::array kNpcParameters{kGamma};
+const std::array kAlphaParameters{kRhoInf};
+const std::array kAllParameters{&kGamma, &kRhoInf};
+
+#define OTMPM_STEPS(F) .step1 = F<1>, .step2 = F<2>, .step3 = F<3>
 const std::array kIntegrators{
-    IntegratorKind{"fe", "forward Euler, stress updated last (USL)", false, false, false, false, false, false,
-                   OTMPM_STEPS(step_fe)},
-    IntegratorKind{"musl", "forward Euler with the modified update-stress-last", false, false, false, false, false,
-                   false, OTMPM_STEPS(step_musl)},
-    IntegratorKind{"npc", "explicit Newmark predictor-corrector (molinos et al. Algorithm 1)", false, false, false,
-                   false, true, false, OTMPM_STEPS(step_npc)},
-    IntegratorKind{"otm", "optimal transportation meshfree update (wobbes et al. Algorithm 2)", true, false, true,
-                   false, false, true, OTMPM_STEPS(step_otm)},
-    IntegratorKind{"unified", "B-splines on advected knots (wobbes et al. Algorithm 3)", true, true, true, true,
-                   false, false, OTMPM_STEPS(step_unified)},
+    IntegratorKind{.name = "fe", .description = "forward Euler, stress updated last (USL)", OTMPM_STEPS(step_fe)},
+    IntegratorKind{.name = "musl", .description = "forward Euler with the modified update-stress-last",
+                   OTMPM_STEPS(step_musl)},
+    IntegratorKind{.name = "npc",
+                   .description = "explicit Newmark predictor-corrector (molinos et al. Algorithm 1)",
+                   .needs_acceleration = true,
+                   .parameters = kNpcParameters,
+                   OTMPM_STEPS(step_npc)},
+    IntegratorKind{.name = "otm",
+                   .description = "optimal transportation meshfree update (wobbes et al. Algorithm 2)",
+                   .needs_ul = true,
+                   .consistent_by_default = true,
+                   .needs_previous_position = true,
+                   OTMPM_STEPS(step_otm)},
+    IntegratorKind{.name = "unified",
+                   .description = "B-splines on advected knots (wobbes et al. Algorithm 3)",
+                   .needs_ul = true,
+                   .needs_bspline = true,
+                   .consistent_by_default = true,
+                   .needs_consistent_mass = true,
+                   OTMPM_STEPS(step_unified)},
+    IntegratorKind{.name = "central_difference",
+                   .description = "central difference in velocity-Verlet form (kick, drift, kick)",
+                   OTMPM_STEPS(step_central_difference)},
+    IntegratorKind{.name = "explicit_alpha",
+                   .description = "explicit generalised-alpha (Hulbert & Chung 1996)",
+                   .needs_acceleration = true,
+                   .parameters = kAlphaParameters,
+                   OTMPM_STEPS(step_explicit_alpha)},
 };
 #undef OTMPM_STEPS
 
@@ -42,6 +68,14 @@ const IntegratorKind* find_integrator(std::string_view name) {
   const auto it =
       std::find_if(kIntegrators.begin(), kIntegrators.end(), [&](const IntegratorKind& k) { return k.name == name; });
   return it == kIntegrators.end() ? nullptr : &*it;
+}
+
+std::span<const ParameterSpec* const> integrator_parameters() { return kAllParameters; }
+
+IntegratorParameters IntegratorKind::default_parameters() const {
+  IntegratorParameters out;
+  for (const ParameterSpec& p : parameters) out.values[std::string(p.key)] = p.fallback.value_or(0.0);
+  return out;
 }
 
 std::string integrator_list() {

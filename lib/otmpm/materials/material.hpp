@@ -17,6 +17,7 @@
 /// class and its MaterialModel row (parameters, state, factories), and one
 /// line in materials/models.cpp.
 #include "otmpm/materials/elasticity.hpp"
+#include "otmpm/parameters.hpp"
 #include "otmpm/particles/particles.hpp"
 
 #include <array>
@@ -55,20 +56,9 @@ struct StateSpec {
   std::string_view description;
 };
 
-/// A model parameter beyond density, young and poisson. A key "table.key"
-/// lives in the optional sub-table [material.table]; when the scene gives
-/// that table, its required keys must be there.
-struct ParameterSpec {
-  std::string_view key;
-  std::string_view description;
-  std::optional<double> fallback; ///< nullopt: required
-  double lower = 0.0;             ///< smallest allowed value
-  bool lower_open = false;        ///< lower itself excluded
-  double upper = 1e300;           ///< largest allowed value
-  bool upper_open = false;
-  /// "" when `value` is allowed, else the reason ("must be >= 0 (got -1)").
-  std::string check(double value) const;
-};
+/// A model parameter beyond density, young and poisson (ParameterSpec). A
+/// key "table.key" lives in the optional sub-table [material.table]; when
+/// the scene gives that table, its required keys must be there.
 
 /// Thrown by a constitutive update for the first particle whose state stops
 /// making sense (det F <= 0, a volume change <= 0); the engine names the

@@ -40,17 +40,6 @@ double MaterialParameters::get(const std::string& key, double fallback) const {
   return it == extra.end() ? fallback : it->second;
 }
 
-std::string ParameterSpec::check(double value) const {
-  if (!std::isfinite(value)) return "must be a finite number (got " + format_number(value) + ")";
-  if (lower_open ? !(value > lower) : !(value >= lower))
-    return std::string("must be ") + (lower_open ? "> " : ">= ") + format_number(lower) + " (got " +
-           format_number(value) + ")";
-  if (upper_open ? !(value < upper) : !(value <= upper))
-    return std::string("must be ") + (upper_open ? "< " : "<= ") + format_number(upper) + " (got " +
-           format_number(value) + ")";
-  return "";
-}
-
 std::span<const MaterialModel* const> material_models() { return kModels; }
 
 const MaterialModel* find_material_model(std::string_view name) {
@@ -68,7 +57,9 @@ std::string material_model_list() {
 void validate_material(const MaterialParameters& p) {
   p.elastic().validate(p.name);
   const MaterialModel& model = model_of(p);
-  for (const auto& [key, value] : p.extra) {
+  for (const auto& entry : p.extra) {
+    const std::string& key = entry.first; // named, not a structured binding: lambdas capture it (clang)
+    const double value = entry.second;
     const auto spec = std::find_if(model.parameters.begin(), model.parameters.end(),
                                    [&](const ParameterSpec& s) { return s.key == key; });
     require(spec != model.parameters.end(), "material '", p.name, "': model '", p.model, "' has no parameter '", key,

@@ -60,7 +60,7 @@ public:
   /// `resume`: the checkpoint a restarted run continues (null for a new run).
   Recorder(const Scene& scene, const RunOptions& opt, Engine<D>& e, const ExactSolution<D>* exact,
            const Checkpoint* resume)
-      : scene_(scene), e_(e), exact_(exact) {
+      : scene_(scene), text_(scene.text.empty() ? to_toml(scene) : scene.text), e_(e), exact_(exact) {
     for (const ProbeSection& pr : scene.output.probes) probes_.push_back({pr.name, probe_particle(e.particles(), pr), 0.0, 0});
     if (resume) restore_accumulators(resume->group("recorder"));
     if (!opt.write_results) return;
@@ -70,12 +70,13 @@ public:
     checkpoint_path_ = checkpoint_path(scene, path_);
     std::optional<PreviousResults> previous;
     if (resume) previous = set_aside_results(resume->group("recorder").string("result_file"), path_);
-    writer_ = std::make_unique<ResultWriter>(path_, scene.text, D);
+    writer_ = std::make_unique<ResultWriter>(path_, text_, D);
     if (previous) continue_results(*previous, resume->group("recorder"));
   }
 
   /// Writes a checkpoint after every output.checkpoint_every steps (not after
-  /// the last step); `wall_seconds` is the wall time of this process so far.
+  /// the last step) when checkpoints are on; `wall_seconds` is the wall time
+  /// of this process so far.
   void maybe_checkpoint(double wall_seconds, bool last) {
     const long every = scene_.output.checkpoint_every;
     if (!writer_ || every <= 0 || last || e_.steps() % every != 0) return;
@@ -87,7 +88,7 @@ public:
     if (!writer_ || scene_.output.checkpoint_every <= 0) return;
     ScopedPhase timer(e_.timers(), Phase::output);
     Checkpoint ck;
-    ck.scene = scene_.text;
+    ck.scene = text_;
     e_.save_state(ck);
     StateGroup& g = ck.group("recorder");
     g.reals["next_output_time"] = next_;
@@ -133,7 +134,7 @@ public:
     s.energy = energy_;
     for (const Probe& pr : probes_)
       if (exact_ && pr.samples > 0) s.errors["history_error_" + pr.name] = std::sqrt(pr.sum_sq / pr.samples);
-    if (exact_ && s.exit_code == 0) final_errors(s);
+    if (exact_ && s.exit_code == 0 && !s.interrupted) final_errors(s);
     if (!writer_) return;
     writer_->set_attribute("status", s.status);
     writer_->set_attribute("steps", static_cast<long long>(s.steps));
@@ -276,6 +277,7 @@ private:
   }
 
   const Scene& scene_;
+  std::string text_; ///< the scene as TOML: Scene::text, or to_toml() for a scene built in code
   Engine<D>& e_;
   const ExactSolution<D>* exact_;
   std::vector<Probe> probes_;
@@ -369,6 +371,7 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
     rec.checkpoint(seconds_since(start));
     summary.status = "interrupted";
     summary.exit_code = kInterruptedExit;
+    summary.interrupted = true;
     rec.set_status(summary.status);
     finished = true;
   }
@@ -456,10 +459,18 @@ template const Engine<2>& Simulation::engine<2>() const;
 template const Engine<3>& Simulation::engine<3>() const;
 
 namespace {
-/// Steps a simulation to t_end; an instability ends it with its status.
-RunSummary run_to_end(Simulation& sim) {
+/// Steps a simulation to t_end; an instability ends it with its status, a
+/// request through options.interrupt (checked before each step) with status
+/// "interrupted" and a last checkpoint.
+RunSummary run_to_end(Simulation& sim, const RunOptions& options) {
   try {
-    while (!sim.finished()) sim.step();
+    while (!sim.finished()) {
+      if (options.interrupt && options.interrupt->load()) {
+        sim.interrupt();
+        break;
+      }
+      sim.step();
+    }
   } catch (const InstabilityError&) { // the status is in the summary
   }
   return sim.finish();
@@ -468,12 +479,12 @@ RunSummary run_to_end(Simulation& sim) {
 
 RunSummary run_scene(const Scene& scene, const RunOptions& options) {
   Simulation sim(scene, options);
-  return run_to_end(sim);
+  return run_to_end(sim, options);
 }
 
 RunSummary restart_run(const Checkpoint& checkpoint, const RunOptions& options) {
   Simulation sim(checkpoint, options);
-  return run_to_end(sim);
+  return run_to_end(sim, options);
 }
 
 std::string summary_line(const RunSummary& s) {
@@ -481,7 +492,8 @@ std::string summary_line(const RunSummary& s) {
   std::snprintf(buf, sizeof buf, "%s %s %s: %ld steps, t = %.6g s, %.3f s wall, %.3g particle-steps/s",
                 s.mode.c_str(), s.integrator.c_str(), s.basis.c_str(), s.steps, s.time, s.wall_seconds,
                 s.particle_steps_per_second());
-  std::string line = (s.exit_code == 0 ? "ok: " : "UNSTABLE: ") + std::string(buf);
+  const char* head = s.interrupted ? "INTERRUPTED: " : s.exit_code != 0 ? "UNSTABLE: " : "ok: ";
+  std::string line = head + std::string(buf);
   for (const auto& [name, value] : s.errors) {
     std::snprintf(buf, sizeof buf, ", %s = %.4g", name.c_str(), value);
     line += buf;

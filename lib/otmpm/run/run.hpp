@@ -6,6 +6,7 @@
 #include "otmpm/engine/timers.hpp"
 #include "otmpm/scene/scene.hpp"
 
+#include <atomic>
 #include <functional>
 #include <map>
 #include <string>
@@ -19,6 +20,15 @@ struct RunOptions {
   bool write_results = true;
   /// Called after every step with (t, t_end, steps) - e.g. a progress bar.
   std::function<void(double, double, long)> progress;
+  /// Replace an existing result file (otmpm run --force); without it an
+  /// existing result file is kept as the io layer's rule says.
+  bool force = false;
+  /// When not null, read once per step: once true, the run stops after the
+  /// current step, writes a last checkpoint (if output.checkpoint_every > 0),
+  /// sets the result file's status to "interrupted" and returns a summary
+  /// with interrupted = true (otmpm run on SIGINT/SIGTERM). The result file
+  /// stays valid and the checkpoint can be continued with restart_run().
+  const std::atomic<bool>* interrupt = nullptr;
 };
 
 /// The energy balance of a run, sampled after every step: E = kinetic +
@@ -46,6 +56,7 @@ inline constexpr int kInterruptedExit = 130;
 struct RunSummary {
   std::string status = "ok"; ///< "ok" or the diagnosis
   int exit_code = 0;         ///< 0 ok, 1 unstable, kInterruptedExit interrupted
+  bool interrupted = false;  ///< stopped early (Simulation::interrupt, RunOptions::interrupt); status "interrupted"
   std::string mode, integrator, basis;
   long steps = 0;
   double time = 0.0;         ///< simulated time reached
@@ -73,7 +84,37 @@ RunSummary run_scene(const Scene& scene, const RunOptions& options = {});
 /// does not fit or that result file is missing.
 RunSummary restart_run(const Checkpoint& checkpoint, const RunOptions& options = {});
 
-/// One line: "ok: 1234 steps, 0.52 s wall, rms_velocity_error = 0.01 ...".
+/// One line: "ok: 1234 steps, 0.52 s wall, rms_velocity_error = 0.01 ..."
+/// ("INTERRUPTED: ..." or "UNSTABLE: ..." for a run that did not finish).
 std::string summary_line(const RunSummary& s);
+
+/// What `otmpm run --check` prints about a scene without running it.
+struct SceneCheck {
+  int dimension = 1;
+  std::string mode, integrator, basis;
+  long particles = 0, nodes = 0;
+  double dt = 0.0;           ///< the first time step (cfl rule at t = 0, or simulation.dt)
+  double t_end = 0.0;
+  /// t_end / dt, rounded up: the step count if dt stayed as at t = 0 (with
+  /// the cfl rule dt follows the wave and particle speeds, so it is an estimate).
+  double estimated_steps = 0.0;
+  double memory_bytes = 0.0; ///< estimate_memory_bytes(scene)
+  std::string out_file;      ///< output.file
+};
+
+/// Validates the scene as a run would (the scene checks and the engine's
+/// construction: particles seeded, nodes and basis built, Dirichlet boxes
+/// and tractions matched) and reports its size, first time step and
+/// estimated steps and memory, without stepping. InputError as run_scene().
+SceneCheck check_scene(const Scene& scene);
+
+/// Estimated peak memory of a run of the scene, in bytes, from the scene
+/// alone (nothing allocated): per particle the fields the run allocates and
+/// its basis-table row (the stencil size of the family: 2^D linear, 3^D ugimp
+/// and bspline2, 4^D bspline3, the nodes inside the support radius for lme
+/// and maxent), per node the nodal fields, and the consistent mass matrix
+/// when used. Meant for refusing runs that cannot fit, not for accounting:
+/// docs/user-guide.md gives the measured ratio to the real peak.
+double estimate_memory_bytes(const Scene& scene);
 
 } // namespace otmpm

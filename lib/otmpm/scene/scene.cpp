@@ -2,12 +2,14 @@
 // key (docs/user-guide.md, "Scene file"). The TOML is parsed with toml++, --set
 // overrides are applied to the parsed table, and only then is every value
 // read and checked, so that overrides meet exactly the same checks as the file.
+// The reading idiom (TableReader, Context) is in scene/toml_reader.hpp.
 #include "otmpm/scene/scene.hpp"
 
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/integrators/integrator.hpp"
 #include "otmpm/io/particle_file.hpp"
 #include "otmpm/particles/output_fields.hpp"
+#include "otmpm/scene/toml_reader.hpp"
 #include "otmpm/scene/validate.hpp"
 
 #include <toml++/toml.h>
@@ -17,7 +19,6 @@
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <limits>
 #include <set>
 #include <sstream>
@@ -26,14 +27,10 @@ namespace otmpm {
 
 namespace {
 
-/// SourceRef::line of a value that came from a --set override.
-constexpr int kCommandLineLine = -1;
+using namespace toml_input;
+
 /// grid.h must divide (upper - lower) into an integer to this relative accuracy.
 constexpr double kCellsTolerance = 1e-6;
-/// Largest edit distance for which an unknown key gets a "did you mean".
-constexpr std::size_t kSuggestDistance = 3;
-
-using Names = std::initializer_list<std::string_view>;
 
 const std::set<std::string, std::less<>> kTableArrays = {"material", "body", "initial_velocity", "boundary",
                                                          "wall", "traction", "probes"};
@@ -44,275 +41,12 @@ std::string fmt(double x) {
   return buf;
 }
 
-std::string quoted_list(std::span<const std::string_view> names) {
-  std::string s;
-  for (auto n : names) s += (s.empty() ? "\"" : ", \"") + std::string(n) + "\"";
-  return s;
-}
-
 /// The names of a table of kinds (basis_kinds(), integrator_kinds(), ...).
 template <class Table, class Name> std::vector<std::string_view> names_of(const Table& table, Name name) {
   std::vector<std::string_view> out;
   for (const auto& row : table) out.push_back(name(row));
   return out;
 }
-
-std::string join_path(const std::string& prefix, std::string_view key) {
-  return prefix.empty() ? std::string(key) : prefix + "." + std::string(key);
-}
-
-std::string type_name(const toml::node& n) {
-  switch (n.type()) {
-  case toml::node_type::table: return "a table";
-  case toml::node_type::array: return "an array";
-  case toml::node_type::string: return "a string";
-  case toml::node_type::integer: return "an integer";
-  case toml::node_type::floating_point: return "a float";
-  case toml::node_type::boolean: return "a boolean";
-  default: return "a date/time";
-  }
-}
-
-/// Levenshtein distance, for "did you mean" suggestions.
-std::size_t edit_distance(std::string_view a, std::string_view b) {
-  std::vector<std::size_t> row(b.size() + 1);
-  for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
-  for (std::size_t i = 1; i <= a.size(); ++i) {
-    std::size_t diag = row[0];
-    row[0] = i;
-    for (std::size_t j = 1; j <= b.size(); ++j) {
-      const std::size_t up = row[j];
-      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diag + (a[i - 1] == b[j - 1] ? 0 : 1)});
-      diag = up;
-    }
-  }
-  return row[b.size()];
-}
-
-std::string suggestion(std::string_view key, std::span<const std::string_view> allowed) {
-  std::string_view best;
-  std::size_t best_d = kSuggestDistance + 1;
-  for (auto a : allowed) {
-    const std::size_t d = edit_distance(key, a);
-    if (d < best_d) { best_d = d; best = a; }
-  }
-  if (!best.empty() && best_d < key.size()) return " (did you mean '" + std::string(best) + "'?)";
-  return " (allowed: " + quoted_list(allowed) + ")";
-}
-
-
-/// State shared by all readers of one scene: file name, which paths --set
-/// wrote (dotted path -> the KEY typed on the command line) and every key read.
-struct Context {
-  std::string file;
-  std::map<std::string, std::string> overridden;
-  std::map<std::string, SourceRef> where;
-
-  /// Where `path` came from: the --set that wrote it (or a table above it),
-  /// else the node's line in the file, else `fallback_line`.
-  SourceRef ref(const std::string& path, const toml::node* node, int fallback_line) const {
-    for (std::size_t pos = 0; pos != std::string::npos;) {
-      pos = path.find('.', pos + 1);
-      auto it = overridden.find(path.substr(0, pos));
-      if (it != overridden.end()) return SourceRef{file, kCommandLineLine, it->second};
-    }
-    int line = node ? static_cast<int>(node->source().begin.line) : 0;
-    return SourceRef{file, line > 0 ? line : fallback_line, path};
-  }
-};
-
-template <class T> T convert(const toml::node& n, const SourceRef& r);
-
-template <> double convert<double>(const toml::node& n, const SourceRef& r) {
-  double v = 0;
-  if (auto i = n.as_integer()) v = static_cast<double>(i->get());
-  else if (auto f = n.as_floating_point()) v = f->get();
-  else input_error(r, "expected a number, got " + type_name(n));
-  if (!std::isfinite(v)) input_error(r, "must be a finite number");
-  return v;
-}
-template <> int convert<int>(const toml::node& n, const SourceRef& r) {
-  auto i = n.as_integer();
-  if (!i) input_error(r, "expected an integer, got " + type_name(n));
-  const std::int64_t v = i->get();
-  if (v < std::numeric_limits<int>::min() || v > std::numeric_limits<int>::max())
-    input_error(r, "integer out of range");
-  return static_cast<int>(v);
-}
-template <> std::int64_t convert<std::int64_t>(const toml::node& n, const SourceRef& r) {
-  auto i = n.as_integer();
-  if (!i) input_error(r, "expected an integer, got " + type_name(n));
-  return i->get();
-}
-template <> std::string convert<std::string>(const toml::node& n, const SourceRef& r) {
-  auto s = n.as_string();
-  if (!s) input_error(r, "expected a string, got " + type_name(n));
-  return s->get();
-}
-template <> bool convert<bool>(const toml::node& n, const SourceRef& r) {
-  auto b = n.as_boolean();
-  if (!b) input_error(r, "expected a boolean, got " + type_name(n));
-  return b->get();
-}
-
-/// Reads the keys of one TOML table, checking names, types and presence.
-/// Every key read is recorded in Context::where under its dotted path.
-class TableReader {
-public:
-  TableReader(Context& ctx, const toml::table* table, std::string path, SourceRef self)
-      : ctx_(&ctx), table_(table), path_(std::move(path)), self_(std::move(self)) {
-    if (!path_.empty()) ctx_->where[path_] = self_;
-  }
-
-  const SourceRef& self() const { return self_; }
-  const std::string& path() const { return path_; }
-  std::string key_path(std::string_view key) const { return join_path(path_, key); }
-  bool has(std::string_view key) const { return node(key) != nullptr; }
-  const toml::node* node(std::string_view key) const { return table_ ? table_->get(key) : nullptr; }
-
-  /// The SourceRef of `key` (its own line, or the table's line when absent).
-  SourceRef ref(std::string_view key) const {
-    const std::string p = key_path(key);
-    SourceRef r = ctx_->ref(p, node(key), self_.line);
-    if (r.line == kCommandLineLine || node(key)) ctx_->where[p] = r;
-    return r;
-  }
-
-  /// Unknown keys are errors; the first one in file order (or from --set) is reported.
-  void only(Names allowed) const { only(std::span<const std::string_view>(allowed.begin(), allowed.size())); }
-  void only(std::span<const std::string_view> allowed) const {
-    if (!table_) return;
-    const toml::key* first = nullptr;
-    for (auto&& [k, v] : *table_) {
-      if (std::find(allowed.begin(), allowed.end(), k.str()) != allowed.end()) continue;
-      if (!first || k.source().begin.line < first->source().begin.line) first = &k;
-    }
-    if (first) input_error(ref(first->str()), "unknown key" + suggestion(first->str(), allowed));
-  }
-
-  [[noreturn]] void missing(std::string_view key, const std::string& what = "required key is missing") const {
-    SourceRef r = ctx_->ref(key_path(key), nullptr, self_.line);
-    if (r.line == 0) r.line = 1;
-    // A table written by --set: r names the --set KEY, so say which key inside it is missing.
-    if (r.line == kCommandLineLine) input_error(r, what + " ('" + key_path(key) + "')");
-    input_error(r, what);
-  }
-
-  template <class T> std::optional<T> get(std::string_view key) const {
-    const toml::node* n = node(key);
-    if (!n) return std::nullopt;
-    return convert<T>(*n, ref(key));
-  }
-  template <class T> T get(std::string_view key, T fallback) const {
-    auto v = get<T>(key);
-    return v ? *v : fallback;
-  }
-  template <class T> T require(std::string_view key) const {
-    auto v = get<T>(key);
-    if (!v) missing(key);
-    return *v;
-  }
-
-  /// A string that must be one of `allowed`.
-  std::string choice(std::string_view key, std::string fallback, Names allowed) const {
-    return choice(key, std::move(fallback), std::span<const std::string_view>(allowed.begin(), allowed.size()));
-  }
-  std::string choice(std::string_view key, std::string fallback, std::span<const std::string_view> allowed) const {
-    std::string v = get<std::string>(key, fallback);
-    if (std::find(allowed.begin(), allowed.end(), v) == allowed.end())
-      input_error(ref(key), "must be one of " + quoted_list(allowed) + " (got \"" + v + "\")");
-    return v;
-  }
-
-  /// An array of `dim` numbers (or, if `scalar_ok`, one number for all axes).
-  std::optional<Vec3> vec(std::string_view key, int dim, bool scalar_ok = false) const {
-    const toml::node* n = node(key);
-    if (!n) return std::nullopt;
-    const SourceRef r = ref(key);
-    Vec3 out{0, 0, 0};
-    if (scalar_ok && !n->is_array()) {
-      const double s = convert<double>(*n, r);
-      for (int k = 0; k < dim; ++k) out[k] = s;
-      return out;
-    }
-    const toml::array& a = array_of_length(*n, r, dim, "numbers");
-    for (int k = 0; k < dim; ++k) out[k] = convert<double>(a[static_cast<std::size_t>(k)], r);
-    return out;
-  }
-  Vec3 require_vec(std::string_view key, int dim) const {
-    auto v = vec(key, dim);
-    if (!v) missing(key);
-    return *v;
-  }
-
-  std::optional<std::array<bool, 3>> bools(std::string_view key, int dim) const {
-    const toml::node* n = node(key);
-    if (!n) return std::nullopt;
-    const SourceRef r = ref(key);
-    const toml::array& a = array_of_length(*n, r, dim, "booleans");
-    std::array<bool, 3> out{false, false, false};
-    for (int k = 0; k < dim; ++k) out[k] = convert<bool>(a[static_cast<std::size_t>(k)], r);
-    return out;
-  }
-
-  /// A sub-table (a [header] table or an inline table), if present.
-  std::optional<TableReader> table(std::string_view key) const {
-    const toml::node* n = node(key);
-    if (!n) return std::nullopt;
-    const SourceRef r = ref(key);
-    if (!n->is_table()) input_error(r, "expected a table, got " + type_name(*n));
-    return TableReader(*ctx_, n->as_table(), key_path(key), with_line(r));
-  }
-  TableReader require_table(std::string_view key) const {
-    auto t = table(key);
-    if (!t) missing(key, "required table [" + key_path(key) + "] is missing");
-    return *t;
-  }
-
-  /// The elements of an array of tables ([[key]] or key = [{...}]). Each is
-  /// named "key.NAME" when it has a string `name`, else "key.INDEX".
-  std::vector<TableReader> tables(std::string_view key) const {
-    std::vector<TableReader> out;
-    const toml::node* n = node(key);
-    if (!n) return out;
-    const SourceRef r = ref(key);
-    if (!n->is_array()) input_error(r, "expected an array of tables ([[" + key_path(key) + "]]), got " + type_name(*n));
-    std::size_t i = 0;
-    for (const toml::node& el : *n->as_array()) {
-      const std::string p = key_path(key) + "." + element_name(el, i++);
-      const SourceRef er = ctx_->ref(p, &el, r.line);
-      if (!el.is_table()) input_error(er, "expected a table, got " + type_name(el));
-      out.emplace_back(*ctx_, el.as_table(), p, er);
-    }
-    return out;
-  }
-
-  static std::string element_name(const toml::node& el, std::size_t index) {
-    if (const toml::table* t = el.as_table())
-      if (auto name = t->get_as<std::string>("name")) return name->get();
-    return std::to_string(index);
-  }
-
-private:
-  SourceRef with_line(SourceRef r) const {
-    if (r.line == 0) r.line = self_.line;
-    return r;
-  }
-  static const toml::array& array_of_length(const toml::node& n, const SourceRef& r, int dim,
-                                            const char* what) {
-    const toml::array* a = n.as_array();
-    if (!a) input_error(r, "expected an array of " + std::to_string(dim) + " " + what + ", got " + type_name(n));
-    if (static_cast<int>(a->size()) != dim)
-      input_error(r, "has " + std::to_string(a->size()) + " components but simulation.dimension = " +
-                         std::to_string(dim));
-    return *a;
-  }
-
-  Context* ctx_;
-  const toml::table* table_;
-  std::string path_;
-  SourceRef self_;
-};
 
 void check(bool ok, const SourceRef& r, const std::string& message) {
   if (!ok) input_error(r, message);
@@ -337,8 +71,11 @@ void check_box(const TableReader& t, const Vec3& lo, const Vec3& hi, int dim, bo
 // ---------------------------------------------------------------- sections
 
 SimulationSection read_simulation(const TableReader& t) {
-  t.only({"dimension", "mode", "integrator", "gamma", "mass", "t_end", "cfl", "dt", "mass_tolerance",
-          "energy_limit"});
+  std::vector<std::string_view> keys{"dimension", "mode",          "integrator",  "mass",
+                                     "t_end",     "cfl",           "dt",          "mass_tolerance",
+                                     "energy_limit"};
+  for (const ParameterSpec* p : integrator_parameters()) keys.push_back(p->key);
+  t.only(keys);
   SimulationSection s;
   s.where = t.self();
   s.dimension = t.require<int>("dimension");
@@ -347,8 +84,13 @@ SimulationSection read_simulation(const TableReader& t) {
   s.mode = t.choice("mode", s.mode, {"mpm", "ul"});
   const auto integrators = names_of(integrator_kinds(), [](const IntegratorKind& k) { return k.name; });
   s.integrator = t.choice("integrator", s.integrator, integrators);
-  s.gamma = t.get<double>("gamma", s.gamma);
-  check(s.gamma > 0 && s.gamma <= 1, t.ref("gamma"), "must be in (0, 1] (got " + fmt(s.gamma) + ")");
+  for (const ParameterSpec* p : integrator_parameters()) {
+    const auto value = t.get<double>(p->key);
+    if (!value) continue;
+    const std::string why = p->check(*value);
+    check(why.empty(), t.ref(p->key), why);
+    s.parameters[std::string(p->key)] = *value;
+  }
   // Default: the mass matrix of each algorithm's listing (IntegratorKind).
   const bool consistent_default = integrator_kind(s.integrator).consistent_by_default;
   s.mass = t.choice("mass", consistent_default ? "consistent" : "lumped", {"lumped", "consistent"});
@@ -1070,14 +812,7 @@ SourceRef Scene::locate(const std::string& key) const {
 }
 
 Scene parse_scene(const std::string& text, const std::string& name, const std::vector<std::string>& overrides) {
-  toml::table root;
-  try {
-    root = toml::parse(std::string_view(text), std::string_view(name));
-  } catch (const toml::parse_error& e) {
-    const auto& pos = e.source().begin;
-    throw InputError(name + ":" + std::to_string(pos.line) + ":" + std::to_string(pos.column) +
-                     ": syntax error: " + std::string(e.description()));
-  }
+  toml::table root = parse_toml_text(text, name);
   Context ctx;
   ctx.file = name;
   for (const std::string& o : overrides) apply_override(root, o, ctx);
@@ -1119,11 +854,7 @@ SceneSize scene_size(const Scene& scene) {
 
 Scene load_scene(const std::string& path, const std::vector<std::string>& overrides) {
   if (path.empty()) throw InputError("load_scene: the scene file path is empty");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path + ": cannot open the scene file");
-  std::ostringstream buf;
-  buf << in.rdbuf();
-  return parse_scene(buf.str(), path, overrides);
+  return parse_scene(read_text_file(path, "scene file"), path, overrides);
 }
 
 } // namespace otmpm

@@ -35,8 +35,10 @@ using Vec3 = std::array<double, 3>;
 struct SimulationSection {
   int dimension = 1;
   std::string mode = "mpm";        ///< mpm | ul
-  std::string integrator = "npc";  ///< fe | musl | npc | otm | unified
-  double gamma = 0.5;              ///< Newmark parameter of NPC
+  std::string integrator = "npc";  ///< a name of integrator_kinds() (integrators/integrator.hpp)
+  /// Integrator parameters given in the scene (gamma of npc, rho_inf of
+  /// explicit_alpha, ...: IntegratorKind::parameters); the rest take their defaults.
+  std::map<std::string, double> parameters;
   std::string mass = "lumped";     ///< lumped | consistent (default: consistent for otm and unified)
   double t_end = 0.0;
   double cfl = 0.1;
@@ -244,5 +246,14 @@ Scene load_scene(const std::string& path, const std::vector<std::string>& overri
 /// The same from TOML text (`name` is used as the file name in messages).
 Scene parse_scene(const std::string& text, const std::string& name,
                   const std::vector<std::string>& overrides = {});
+
+/// The scene as TOML text (scene_toml.cpp) that parse_scene() reads back to
+/// the same values: every key is written, defaults included, vectors with
+/// simulation.dimension components, grid.cells rather than grid.h, and
+/// simulation.cfl only when simulation.dt is unset (the reader takes one of
+/// the two). `file`, `where` and the derived basis.ugimp_half_width are not
+/// written. run_scene() stores this text when Scene::text is empty (a scene
+/// built in code), so its result file and checkpoints hold the scene.
+std::string to_toml(const Scene& scene);
 
 } // namespace otmpm

@@ -70,7 +70,13 @@ void check_simulation(const Scene& s, int dim) {
         "\" needs advected nodes: use simulation.mode = \"ul\"");
   check(s, !integrator->needs_consistent_mass || m.mass == "consistent", "simulation.mass", "integrator \"",
         m.integrator, "\" uses the consistent mass matrix (wobbes et al. Algorithm 3): set mass = \"consistent\"");
-  check(s, m.gamma > 0.0 && m.gamma <= 1.0, "simulation.gamma", "must be in (0, 1] (got ", m.gamma, ")");
+  for (const auto& [key, value] : m.parameters) {
+    const auto spec = std::find_if(integrator_parameters().begin(), integrator_parameters().end(),
+                                   [&](const ParameterSpec* p) { return p->key == key; });
+    check(s, spec != integrator_parameters().end(), "simulation." + key, "is not a parameter of any integrator");
+    const std::string why = (*spec)->check(value);
+    check(s, why.empty(), "simulation." + key, why);
+  }
   check(s, finite_positive(m.t_end), "simulation.t_end", "must be finite and > 0 (got ", m.t_end, ")");
   if (m.dt) check(s, finite_positive(*m.dt), "simulation.dt", "must be finite and > 0 (got ", *m.dt, ")");
   else check(s, finite_positive(m.cfl), "simulation.cfl", "must be finite and > 0 (got ", m.cfl, ")");
