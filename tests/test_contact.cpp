@@ -1,4 +1,4 @@
-// Body-body contact (engine/contact.hpp, docs/theory.md sect. 6.1): two
+// Body-body contact (engine/contact.hpp, docs/theory.md sect. 6.2): two
 // elastic disks meeting head on separate again with [contact], with
 // momentum conserved to round-off and no energy gained, with fe, musl,
 // npc and central_difference; in an oblique impact the shared grid (no [contact]) holds the
@@ -71,7 +71,7 @@ DiskRun run_disks(const std::vector<std::string>& sets, double t_end) {
 /// block's leading edge (contact.hpp: the larger mass gradient wins; with
 /// equal densities the edge ties with the face, the normal tilts and the
 /// edge drags: measured 0.12 m/s^2 on a frictionless slide, docs/theory.md
-/// sect. 6.1).
+/// sect. 6.2).
 std::string slide(double mu) {
   return "[simulation]\ndimension = 2\nintegrator = \"musl\"\nt_end = 0.3\ncfl = 0.2\n[basis]\nkind = \"linear\"\n"
          "[grid]\nlower = [-0.5, -0.25]\nupper = [3.5, 1.0]\nh = 0.0625\n"

@@ -1,6 +1,6 @@
 #pragma once
 /// \file contact.hpp
-/// Body-body contact on the fixed grid (docs/theory.md sect. 6.1), after
+/// Body-body contact on the fixed grid (docs/theory.md sect. 6.2), after
 /// Bardenhagen, Brackbill & Sulsky (2000): every body carries its own copy
 /// of the nodal fields, and where two bodies have mass at one node and
 /// approach each other along the contact normal, their nodal velocities are

@@ -125,7 +125,7 @@ struct WallSection {
 /// Body-body contact on the fixed grid: each body gets its own nodal
 /// velocity field, and bodies that approach each other at a node are
 /// stopped along the contact normal, with Coulomb `friction` on the slip
-/// (docs/theory.md sect. 6.1). Without it the bodies share one field
+/// (docs/theory.md sect. 6.2). Without it the bodies share one field
 /// (no-slip, they stick). `mpm` mode with the lumped mass only.
 struct ContactSection {
   double friction = 0.0;
