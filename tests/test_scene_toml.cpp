@@ -119,6 +119,8 @@ void check_same(const Scene& a, const Scene& b) {
     CHECK(p.velocity == q.velocity);
     CHECK(p.friction == q.friction);
   }
+  REQUIRE(a.contact.has_value() == b.contact.has_value());
+  if (a.contact) CHECK(a.contact->friction == b.contact->friction);
   REQUIRE(a.body_force.has_value() == b.body_force.has_value());
   if (a.body_force) {
     CHECK(a.body_force->value == b.body_force->value);
@@ -180,11 +182,11 @@ TEST_CASE("to_toml: the keys a file may leave out or set in rarer forms read bac
   check_same(a, b);
 }
 
-TEST_CASE("to_toml: plastic materials, body shapes, walls and integrator parameters read back") {
+TEST_CASE("to_toml: plastic materials, body shapes, walls, contact and integrator parameters read back") {
   // What the example scenes do not use yet: a j2 material with a
   // [material.johnson_cook] sub-table, Drucker-Prager, sphere and polygon
-  // bodies with overlap = "first", a moving wall with friction, a traction
-  // with an explicit axis, and explicit_alpha's rho_inf.
+  // bodies with overlap = "first", a moving wall with friction, body contact
+  // with friction, a traction with an explicit axis, and explicit_alpha's rho_inf.
   const std::string text = R"(
 [simulation]
 dimension = 2
@@ -237,6 +239,8 @@ point = [0.0, 0.05]
 normal = [0.0, 1.0]
 velocity = [0.0, 0.1]
 friction = 0.25
+[contact]
+friction = 0.35
 [[traction]]
 lower = [0.85, 0.1]
 upper = [0.95, 0.6]
@@ -250,6 +254,7 @@ file = "shapes.h5"
   REQUIRE(a.materials[0].extra.count("johnson_cook.B") == 1);
   REQUIRE(a.simulation.parameters.count("rho_inf") == 1);
   REQUIRE(a.walls.size() == 1);
+  REQUIRE(a.contact.has_value());
   REQUIRE(a.tractions.at(0).axis.has_value());
   const std::string written = to_toml(a);
   INFO(written);

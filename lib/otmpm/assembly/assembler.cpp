@@ -252,6 +252,7 @@ template <int D> EngineParts<D> assemble_parts(const Scene& scene) {
   parts.dirichlet = build_dirichlet<D>(scene, parts.basis->nodes(), h, ul);
   for (const WallSection& w : scene.walls)
     parts.walls.push_back({w.name, scene_vec<D>(w.point), scene_vec<D>(w.normal), scene_vec<D>(w.velocity), w.friction});
+  if (scene.contact) parts.contact = ContactLaw{scene.contact->friction};
   parts.loads.body_force = build_body_force<D>(scene, exact);
   parts.loads.tractions = build_tractions<D>(scene, P, h, exact);
   allocate_fields(scene, integrator, parts, P);

@@ -79,21 +79,6 @@ template <int D> double Constraints<D>::prescribed_kinetic_energy(const std::vec
   return e;
 }
 
-namespace {
-
-/// The change of u (velocity or increment relative to a wall with normal
-/// n) that adds `dn` to its normal part, with Coulomb friction mu reducing
-/// the tangential part by mu dn when the wall pushes (dn > 0), not below zero.
-template <int D> Vec<D> wall_change(const Vec<D>& u, const Vec<D>& n, double dn, double mu) {
-  Vec<D> change = dn * n;
-  const Vec<D> ut = u - u.dot(n) * n;
-  const double t = ut.norm();
-  if (mu > 0.0 && dn > 0.0 && t > 0.0) change -= std::min(1.0, mu * dn / t) * ut;
-  return change;
-}
-
-} // namespace
-
 template <int D>
 void Constraints<D>::apply_walls(AlignedVector<Vec<D>>& v, const NodeView<D>& nodes, double t, double dt,
                                  const WallEffect<D>& effect, double& work) {

@@ -14,6 +14,7 @@
 ///    contact ends when the body's own force takes it off the wall.
 #include "otmpm/core.hpp"
 
+#include <algorithm>
 #include <array>
 #include <string>
 #include <vector>
@@ -53,6 +54,18 @@ template <int D> struct WallEffect {
   bool impulse = true;
   bool hold_rate = false;
 };
+
+/// The change of u (velocity or increment relative to a wall or another
+/// body, with unit normal n pointing to u's side) that adds `dn` to its
+/// normal part, with Coulomb friction mu reducing the tangential part by
+/// mu dn when the contact pushes (dn > 0), not below zero.
+template <int D> Vec<D> wall_change(const Vec<D>& u, const Vec<D>& n, double dn, double mu) {
+  Vec<D> change = dn * n;
+  const Vec<D> ut = u - u.dot(n) * n;
+  const double t = ut.norm();
+  if (mu > 0.0 && dn > 0.0 && t > 0.0) change -= std::min(1.0, mu * dn / t) * ut;
+  return change;
+}
 
 /// The nodes a velocity constraint acts on: positions, lumped masses, active flags.
 template <int D> struct NodeView {

@@ -27,6 +27,17 @@ Mat<D> nodal_gradient(const BasisTable<D>& table, int p, const AlignedVector<Vec
   return G;
 }
 
+/// The Dirichlet set repeated on every one of `fields` copies of `nodes` nodes.
+template <int D> Dirichlet<D> repeat_per_field(const Dirichlet<D>& d, int nodes, int fields) {
+  Dirichlet<D> out;
+  for (int b = 0; b < fields; ++b) {
+    for (int I : d.node) out.node.push_back(I + b * nodes);
+    out.fix.insert(out.fix.end(), d.fix.begin(), d.fix.end());
+    out.value.insert(out.value.end(), d.value.begin(), d.value.end());
+  }
+  return out;
+}
+
 /// The maximum of a blocked_reduce (exact, so any grouping gives its bits).
 struct MaxOf {
   double value = -std::numeric_limits<double>::infinity();
@@ -52,7 +63,22 @@ Engine<D>::Engine(EngineParts<D> parts)
       dist_(std::move(parts.distribution)) {
   check_parts();
   const int nodes = basis_->nodes().size();
-  constraints_ = Constraints<D>(std::move(parts.dirichlet), std::move(parts.walls), nodes);
+  const int bodies = P_.body.empty() ? 1 : 1 + *std::max_element(P_.body.begin(), P_.body.end());
+  require<InputError>(!(parts.contact && dist_), "[contact]: body-body contact is not available in distributed "
+                                                 "runs (MPI); run the scene on one process");
+  if (parts.contact && bodies > 1) {
+    using E = std::invalid_argument;
+    require<E>(!mode_.nodes_move(), "Engine: body contact needs the fixed grid (mode mpm): in ul mode each body "
+                                    "would need its own advected nodes");
+    require<E>(!settings_.consistent_mass, "Engine: body contact needs the lumped mass");
+    contact_ = std::make_unique<BodyContact<D>>(nodes, bodies, *parts.contact);
+    parts.dirichlet = repeat_per_field(parts.dirichlet, nodes, bodies);
+    for (int b = 0; b < bodies; ++b)
+      field_positions_.insert(field_positions_.end(), basis_->nodes().positions().begin(),
+                              basis_->nodes().positions().end());
+  }
+  const int field_nodes = contact_ ? nodes * contact_->fields() : nodes;
+  constraints_ = Constraints<D>(std::move(parts.dirichlet), std::move(parts.walls), field_nodes);
   if (dist_) constraints_.count_only(dist_->owned_nodes());
   bool needs_F = false;
   for (const auto& m : materials_) {
@@ -63,7 +89,7 @@ Engine<D>::Engine(EngineParts<D> parts)
   if (needs_F && P_.F.empty()) P_.F.assign(static_cast<std::size_t>(P_.size()), Mat<D>::Identity());
   for (const auto& m : materials_) m->bind(P_);
   basis_->bind_points(P_.size(), mode_.nodes_move());
-  nodal_.resize(nodes);
+  nodal_.resize(field_nodes);
   node_spacing0_ = basis_->nodes().min_spacing();
   if (dist_) dist_->min({&node_spacing0_, 1});
   if (settings_.consistent_mass && !dist_) mass_matrix_ = std::make_unique<MassMatrix<D>>();
@@ -113,6 +139,8 @@ template <int D> void Engine<D>::check_parts() const {
                    materials_[static_cast<std::size_t>(P_.material[p])],
                "Engine: particle ", p, " has material ", P_.material[p], " but there are ", materials_.size(),
                " materials");
+  for (int p = 0; p < P_.size(); ++p)
+    require<E>(P_.body[p] >= 0, "Engine: particle ", p, " has body ", P_.body[p], " (must be >= 0)");
   loads_.check(P_.size());
 }
 
@@ -163,6 +191,7 @@ template <int D> void Engine<D>::evaluate_basis() {
   fallible([&] {
     try {
       basis_->evaluate_points(P_.x, table_, P_.F.empty() ? nullptr : &P_.F);
+      if (contact_) contact_->remap(table_, P_.body);
       scatter_.invalidate();
       if (dist_) dist_->check_support(table_);
     } catch (const BasisError& e) {
@@ -269,6 +298,21 @@ template <int D> void Engine<D>::finish_mass() {
   const double m_min = settings_.mass_tolerance * m_max;
   parallel_for(nodes, [&](long long I) { nodal_.active[I] = nodal_.m[I] > m_min; });
   if (mass_matrix_) mass_matrix_->assemble(table_, P_.m, nodal_.active, constraints_.constrained(), nodes);
+  if (contact_) contact_mass_gradient();
+}
+
+template <int D> void Engine<D>::contact_mass_gradient() {
+  AlignedVector<Vec<D>>& g = contact_->mass_gradient();
+  auto update = [](int, int) {};
+  auto prep = [&](int p) { return P_.m[p]; };
+  auto add = [&](NodeSums<D>& acc, int e, double m) { acc.q += m * table_.dN[e]; };
+  auto merge = [&](int I, const NodeSums<D>& acc) { g[I] += acc.q; };
+  auto clear = [&](int I0, int I1) { std::fill(g.begin() + I0, g.begin() + I1, Vec<D>::Zero()); };
+  scatter_.run(table_, static_cast<int>(g.size()), update, prep, add, merge, clear);
+}
+
+template <int D> const AlignedVector<Vec<D>>& Engine<D>::field_positions() const {
+  return contact_ ? field_positions_ : basis_->nodes().positions();
 }
 
 template <int D>
@@ -285,15 +329,17 @@ void Engine<D>::solve_mass(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>
 
 template <int D> void Engine<D>::constrain_velocity(AlignedVector<Vec<D>>& v, const WallEffect<D>& effect) {
   constraints_.apply_velocity(v);
+  if (contact_) contact_->apply(v, {nodal_.m, nodal_.active, constraints_.constrained()}, effect);
   if (constraints_.walls().empty()) return;
   // A distributed run: the work of this rank's owned nodes, summed over the ranks after the step.
-  constraints_.apply_walls(v, {basis_->nodes().positions(), nodal_.m, nodal_.active}, t_, dt_, effect,
+  constraints_.apply_walls(v, {field_positions(), nodal_.m, nodal_.active}, t_, dt_, effect,
                            dist_ ? rank_reaction_.work : energy_.reaction_work);
 }
 
 template <int D> void Engine<D>::constrain_increment(AlignedVector<Vec<D>>& dx) const {
+  if (contact_) contact_->apply_to_increment(dx, {nodal_.m, nodal_.active, constraints_.constrained()});
   if (constraints_.walls().empty()) return;
-  constraints_.apply_walls_to_increment(dx, {basis_->nodes().positions(), nodal_.m, nodal_.active}, t_, dt_);
+  constraints_.apply_walls_to_increment(dx, {field_positions(), nodal_.m, nodal_.active}, t_, dt_);
 }
 
 template <int D> void Engine<D>::apply_dirichlet_force(AlignedVector<Vec<D>>& f) {

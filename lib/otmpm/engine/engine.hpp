@@ -11,6 +11,7 @@
 #include "otmpm/basis/basis.hpp"
 #include "otmpm/engine/constraints.hpp"
 #include "otmpm/engine/distribution.hpp"
+#include "otmpm/engine/contact.hpp"
 #include "otmpm/engine/loads.hpp"
 #include "otmpm/engine/mass_matrix.hpp"
 #include "otmpm/engine/node_mode.hpp"
@@ -32,7 +33,8 @@ struct Checkpoint;
 /// (after the nodal update); f: force f_I (internal + external); a:
 /// acceleration; dx: the increment that moves the particles (and the nodes
 /// in `ul` mode); reaction: Dirichlet reaction forces; active: m_I above the
-/// mass tolerance.
+/// mass tolerance. With body contact every body has its own copy: entry
+/// I + b N is node I of body b's field (contact.hpp).
 template <int D> struct NodalFields {
   std::vector<double> m;
   AlignedVector<Vec<D>> q, v, f, a, dx, reaction;
@@ -69,6 +71,9 @@ template <int D> struct EngineParts {
   /// in a serial run. The other parts are then this rank's share: the
   /// particles of its cells and the nodes of its window.
   std::shared_ptr<Distribution<D>> distribution;
+  /// Body-body contact (fixed grid, lumped mass); without it the bodies
+  /// share one nodal field. Ignored when the particles belong to one body.
+  std::optional<ContactLaw> contact;
 };
 
 /// The energies of the runaway monitor and of the energy balance: kinetic
@@ -141,7 +146,11 @@ public:
   const Basis<D>& basis() const { return *basis_; }
   NodalFields<D>& nodal() { return nodal_; }
   const NodalFields<D>& nodal() const { return nodal_; }
+  /// The basis table of the step; with body contact its node ids are field
+  /// nodes, I + body_p N (contact.hpp).
   const BasisTable<D>& table() const { return table_; }
+  /// The body contact, or null when the bodies share one nodal field.
+  const BodyContact<D>* contact() const { return contact_.get(); }
   const Material<D>& material(int i) const { return *materials_[static_cast<std::size_t>(i)]; }
   int material_count() const { return static_cast<int>(materials_.size()); }
   const Dirichlet<D>& dirichlet() const { return constraints_.dirichlet(); }
@@ -199,13 +208,14 @@ public:
   /// Solves M y = r (lumped: division by m_I; consistent: sparse solve) on
   /// active nodes; inactive nodes get zero.
   void solve_mass(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>& y);
-  /// Sets the fixed components of a nodal velocity-like field to their value
-  /// and applies the rigid walls (Constraints::apply_walls) at the nodes'
-  /// current positions; `effect` says how a wall's change reaches the particles.
+  /// Sets the fixed components of a nodal velocity-like field to their value,
+  /// corrects the velocities of bodies in contact (BodyContact::apply) and
+  /// applies the rigid walls (Constraints::apply_walls) at the nodes'
+  /// current positions; `effect` says how a change reaches the particles.
   void constrain_velocity(AlignedVector<Vec<D>>& v, const WallEffect<D>& effect = {});
   /// Sets the fixed components of a nodal acceleration-like field to zero.
   void constrain_rate(AlignedVector<Vec<D>>& r) const { constraints_.zero_fixed(r); }
-  /// The walls' rule on the node increments dx of this step.
+  /// The contact's and the walls' rules on the node increments dx of this step.
   void constrain_increment(AlignedVector<Vec<D>>& dx) const;
   /// Zeroes fixed components of f, stores them as reactions, adds their
   /// impulse and work (energy().reaction_work).
@@ -250,6 +260,10 @@ private:
   void agree_checks(bool failed) const;
   template <bool Mass, bool Momentum, bool Forces> void to_nodes_impl(const ToNodes<D>& what, const Gradient<D>* g);
   void finish_mass();
+  /// The mass gradients of the bodies' fields for the contact normals.
+  void contact_mass_gradient();
+  /// Node positions per field node (the nodes' own without contact).
+  const AlignedVector<Vec<D>>& field_positions() const;
   /// The constitutive update of particles [p0, p1) from H_p = c sum_I g_I (x)
   /// grad N_Ip, in batches handed to each particle's material.
   void update_stress_range(const Gradient<D>& g, int p0, int p1);
@@ -275,6 +289,8 @@ private:
   std::vector<std::unique_ptr<Material<D>>> materials_;
   std::vector<double> p_modulus_; ///< per material, for the wave speed
   Constraints<D> constraints_;
+  std::unique_ptr<BodyContact<D>> contact_;
+  AlignedVector<Vec<D>> field_positions_; ///< with contact: x_I repeated per field (fixed grid)
   Loads<D> loads_;
   StepSettings<D> settings_;
   std::unique_ptr<MassMatrix<D>> mass_matrix_;

@@ -148,6 +148,7 @@ template <int D> void Engine<D>::save_state(Checkpoint& out) const {
     const std::vector<char>& held = constraints_.held()[w];
     g.integer_arrays["wall_held_" + std::to_string(w)] = {1, std::vector<std::int64_t>(held.begin(), held.end())};
   }
+  if (contact_) g.integer_arrays["contact_held"] = {1, std::vector<std::int64_t>(contact_->held().begin(), contact_->held().end())};
   g.put_reals(energy_fields(energy_));
   save_timers(g, timers_);
   StateGroup& particles = out.group("particles");
@@ -178,8 +179,14 @@ template <int D> void Engine<D>::restore_state(const Checkpoint& in) {
   constraints_.held().clear();
   for (std::size_t w = 0; g.has_array("wall_held_" + std::to_string(w)); ++w) {
     const std::string name = "wall_held_" + std::to_string(w);
-    const auto& held = g.integer_array(name, static_cast<std::size_t>(basis_->nodes().size()), 1).values;
+    const auto& held = g.integer_array(name, nodal_.m.size(), 1).values;
     constraints_.held().emplace_back(held.begin(), held.end());
+  }
+  if (g.has_array("contact_held") != (contact_ != nullptr))
+    g.error(contact_ ? "no contact state, but this scene has body contact" : "contact state, but this scene has no body contact");
+  if (contact_) {
+    const auto& held = g.integer_array("contact_held", contact_->held().size(), 1).values;
+    contact_->held().assign(held.begin(), held.end());
   }
   g.get_reals(energy_fields(energy_));
   restore_timers(g, timers_);

@@ -508,6 +508,18 @@ std::vector<WallSection> read_walls(const TableReader& root, int dim) {
   return out;
 }
 
+std::optional<ContactSection> read_contact(const TableReader& root) {
+  auto t = root.table("contact");
+  if (!t) return std::nullopt;
+  t->only({"friction"});
+  ContactSection c;
+  c.where = t->self();
+  c.friction = t->get<double>("friction", 0.0);
+  check(std::isfinite(c.friction) && c.friction >= 0.0, t->ref("friction"),
+        "must be finite and >= 0 (the Coulomb coefficient between bodies; got " + fmt(c.friction) + ")");
+  return c;
+}
+
 TimeFunction read_time(const TableReader& parent) {
   TimeFunction f;
   auto t = parent.table("time");
@@ -639,8 +651,8 @@ void check_node_count(const TableReader& grid, const Scene& s) {
 
 Scene read_scene(const toml::table& root, Context& ctx) {
   TableReader r(ctx, &root, "", SourceRef{ctx.file, 1, ""});
-  r.only({"simulation", "basis", "grid", "material", "body", "initial_velocity", "boundary", "wall", "body_force",
-          "traction", "output", "reference"});
+  r.only({"simulation", "basis", "grid", "material", "body", "initial_velocity", "boundary", "wall", "contact",
+          "body_force", "traction", "output", "reference"});
   Scene s;
   s.file = ctx.file;
   s.simulation = read_simulation(r.require_table("simulation"));
@@ -659,6 +671,7 @@ Scene read_scene(const toml::table& root, Context& ctx) {
   s.initial_velocities = read_initial_velocities(r, dim);
   s.boundaries = read_boundaries(r, dim);
   s.walls = read_walls(r, dim);
+  s.contact = read_contact(r);
   s.body_force = read_body_force(r, dim);
   s.tractions = read_tractions(r, dim);
   s.output = read_output(r, s);

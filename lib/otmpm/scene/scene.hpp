@@ -122,6 +122,16 @@ struct WallSection {
   SourceRef where{"", 0, "wall"};
 };
 
+/// Body-body contact on the fixed grid: each body gets its own nodal
+/// velocity field, and bodies that approach each other at a node are
+/// stopped along the contact normal, with Coulomb `friction` on the slip
+/// (docs/theory.md sect. 6.2). Without it the bodies share one field
+/// (no-slip, they stick). `mpm` mode with the lumped mass only.
+struct ContactSection {
+  double friction = 0.0;
+  SourceRef where{"", 0, "contact"};
+};
+
 /// Body force b(t) = value * g(t) on every particle (e.g. gravity).
 struct BodyForceSection {
   Vec3 value{0, 0, 0};
@@ -182,6 +192,7 @@ struct Scene {
   std::vector<InitialVelocitySection> initial_velocities;
   std::vector<BoundarySection> boundaries;
   std::vector<WallSection> walls;
+  std::optional<ContactSection> contact;
   std::optional<BodyForceSection> body_force;
   std::vector<TractionSection> tractions;
   OutputSection output;

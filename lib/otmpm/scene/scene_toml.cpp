@@ -196,6 +196,7 @@ std::string to_toml(const Scene& scene) {
   if (!scene.initial_velocities.empty()) root.insert("initial_velocity", initial_velocities(scene.initial_velocities, dim));
   if (!scene.boundaries.empty()) root.insert("boundary", boundaries(scene.boundaries, dim));
   if (!scene.walls.empty()) root.insert("wall", walls(scene.walls, dim));
+  if (scene.contact) root.insert("contact", toml::table{{"friction", scene.contact->friction}});
   if (scene.body_force)
     root.insert("body_force",
                 toml::table{{"value", first(scene.body_force->value, dim)}, {"time", time_function(scene.body_force->time)}});

@@ -173,6 +173,25 @@ void check_body_in_grid(const Scene& s, const BodySection& b, const std::string&
   }
 }
 
+/// [contact]: friction >= 0; the fixed grid with the lumped mass (each body
+/// is given its own copy of the grid's nodal fields).
+void check_contact(const Scene& s) {
+  if (!s.contact) return;
+  const ContactSection& c = *s.contact;
+  if (!(std::isfinite(c.friction) && c.friction >= 0.0))
+    input_error(s.locate("contact.friction"), error_message("must be finite and >= 0 (got ", c.friction, ")"));
+  if (s.simulation.nodes_move())
+    input_error(c.where, "body-body contact needs simulation.mode = \"mpm\": it gives each body its own copy of "
+                         "the fixed grid's nodal fields, and in \"ul\" mode, where the nodes move with the "
+                         "material, contact between bodies is not implemented (remove [contact] or use mode = "
+                         "\"mpm\"; rigid [[wall]]s work in both modes)");
+  const IntegratorKind* integrator = find_integrator(s.simulation.integrator);
+  const bool consistent = s.simulation.mass == "consistent" || (integrator && integrator->needs_consistent_mass);
+  if (consistent)
+    input_error(c.where, "body-body contact needs the lumped mass (simulation.mass = \"lumped\"): the "
+                         "correction acts node by node on each body's velocity field");
+}
+
 void check_loads(const Scene& s, int dim) {
   for (std::size_t i = 0; i < s.initial_velocities.size(); ++i) {
     const InitialVelocitySection& iv = s.initial_velocities[i];
@@ -260,6 +279,7 @@ void validate_scene(const Scene& s, int dimension) {
   check_materials(s);
   validate_bodies(s, dimension);
   check_loads(s, dimension);
+  check_contact(s);
   check_output(s);
 }
 
