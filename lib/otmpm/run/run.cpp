@@ -150,6 +150,7 @@ public:
       write_summary(s);
       for (const auto& [name, value] : distributed)
         if (writer_) writer_->set_attribute(name, value);
+      writer_.reset(); // closed now: the run is over, and readers may open the file at once
     });
   }
 
