@@ -881,10 +881,10 @@ template <int D, class Prior> void MaxEntBasis<D, Prior>::update_node_spacing() 
   if constexpr (Prior::kGaussian) update_beta_by_spacing();
 }
 
-template <int D, class Prior>
-void MaxEntBasis<D, Prior>::update_beta_by_spacing()
-  requires Prior::kGaussian
-{
+template <int D, class Prior> void MaxEntBasis<D, Prior>::update_beta_by_spacing() {
+  // Defined for every prior (clang 14 instantiates constrained members with
+  // the class); only the Gaussian (LME) prior has a beta to adapt.
+  if constexpr (Prior::kGaussian) {
   const int N = nodes_.size();
   const double h = nodes_.spacing();
   node_beta_.assign(static_cast<std::size_t>(N), prior_.beta);
@@ -909,6 +909,7 @@ void MaxEntBasis<D, Prior>::update_beta_by_spacing()
   // The search radius (Verlet lists) in steps of R / 8, so that the lists
   // are rebuilt only when the largest R_I crosses a step.
   settings_.support_radius = radius0_ * std::ceil(kRadiusSteps * R_max / radius0_) / kRadiusSteps;
+  }
 }
 
 template <int D, class Prior> Support<D> MaxEntBasis<D, Prior>::support(Stencil<D>& out) const {

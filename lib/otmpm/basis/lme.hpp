@@ -209,9 +209,8 @@ private:
   /// Metric::node_spacing: h_I, beta_I and the search radius of the current
   /// node positions (on an untouched lattice h_I = h for every node).
   void update_node_spacing();
-  /// The Gaussian prior's part of update_node_spacing.
-  void update_beta_by_spacing()
-    requires Prior::kGaussian;
+  /// The Gaussian prior's part of update_node_spacing (nothing for another prior).
+  void update_beta_by_spacing();
   /// True when every support node of `out` has the same beta_I (or the
   /// metric does not vary beta by node): the closed-form LME gradient holds.
   bool uniform_beta(const Stencil<D>& out) const;

@@ -3,6 +3,7 @@
 /// (engine.hpp); the after-step checks and energies are in monitor.cpp, the
 /// checkpoint state in engine_state.cpp.
 #include "otmpm/engine/engine.hpp"
+#include "otmpm/engine/scatter.hpp"
 
 #include "otmpm/parallel.hpp"
 
@@ -61,6 +62,7 @@ Engine<D>::Engine(EngineParts<D> parts)
     : basis_(std::move(parts.basis)), mode_(parts.mode), P_(std::move(parts.particles)),
       materials_(std::move(parts.materials)), loads_(std::move(parts.loads)), settings_(parts.settings),
       dist_(std::move(parts.distribution)) {
+  scatter_ = std::make_unique<ParticleToNodes<D>>();
   check_parts();
   const int nodes = basis_->nodes().size();
   const int bodies = P_.body.empty() ? 1 : 1 + *std::max_element(P_.body.begin(), P_.body.end());
@@ -101,6 +103,8 @@ Engine<D>::Engine(EngineParts<D> parts)
 template <int D> Engine<D>::Engine(Engine&&) noexcept = default;
 template <int D> Engine<D>::~Engine() = default;
 
+template <int D> bool Engine<D>::scatter_blocked() const { return scatter_->blocked(); }
+
 template <int D> void Engine<D>::repartition(std::unique_ptr<Basis<D>> basis, Dirichlet<D> dirichlet) {
   require<std::invalid_argument>(basis && dist_, "Engine::repartition: needs a basis and a distributed run");
   PointState<D> state = std::move(basis_->point_state());
@@ -117,7 +121,7 @@ template <int D> void Engine<D>::repartition(std::unique_ptr<Basis<D>> basis, Di
   constraints_.wall_impulse() = wall_impulse;
   constraints_.count_only(dist_->owned_nodes());
   nodal_.resize(nodes);
-  scatter_.invalidate();
+  scatter_->invalidate();
 }
 
 template <int D> void Engine<D>::check_parts() const {
@@ -192,7 +196,7 @@ template <int D> void Engine<D>::evaluate_basis() {
     try {
       basis_->evaluate_points(P_.x, table_, P_.F.empty() ? nullptr : &P_.F);
       if (contact_) contact_->remap(table_, P_.body);
-      scatter_.invalidate();
+      scatter_->invalidate();
       if (dist_) dist_->check_support(table_);
     } catch (const BasisError& e) {
       if (!dist_) unstable(std::string("basis evaluation failed: ") + e.what());
@@ -200,7 +204,7 @@ template <int D> void Engine<D>::evaluate_basis() {
       // (fallible() names the particle by its global id).
       table_ = BasisTable<D>{};
       table_.offset.assign(static_cast<std::size_t>(P_.size()) + 1, 0);
-      scatter_.invalidate();
+      scatter_->invalidate();
       throw;
     }
   });
@@ -285,7 +289,7 @@ void Engine<D>::to_nodes_impl(const ToNodes<D>& what, const Gradient<D>* g) {
     if (Momentum) std::fill(nodal_.q.begin() + I0, nodal_.q.begin() + I1, Vec<D>::Zero());
     if (Forces) std::fill(nodal_.f.begin() + I0, nodal_.f.begin() + I1, Vec<D>::Zero());
   };
-  scatter_.run(table_, static_cast<int>(nodal_.m.size()), update, prep, add, merge, clear);
+  scatter_->run(table_, static_cast<int>(nodal_.m.size()), update, prep, add, merge, clear);
 }
 
 template <int D> void Engine<D>::finish_mass() {
@@ -308,7 +312,7 @@ template <int D> void Engine<D>::contact_mass_gradient() {
   auto add = [&](NodeSums<D>& acc, int e, double m) { acc.q += m * table_.dN[e]; };
   auto merge = [&](int I, const NodeSums<D>& acc) { g[I] += acc.q; };
   auto clear = [&](int I0, int I1) { std::fill(g.begin() + I0, g.begin() + I1, Vec<D>::Zero()); };
-  scatter_.run(table_, static_cast<int>(g.size()), update, prep, add, merge, clear);
+  scatter_->run(table_, static_cast<int>(g.size()), update, prep, add, merge, clear);
 }
 
 template <int D> const AlignedVector<Vec<D>>& Engine<D>::field_positions() const {

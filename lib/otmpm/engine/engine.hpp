@@ -15,7 +15,6 @@
 #include "otmpm/engine/loads.hpp"
 #include "otmpm/engine/mass_matrix.hpp"
 #include "otmpm/engine/node_mode.hpp"
-#include "otmpm/engine/scatter.hpp"
 #include "otmpm/engine/timers.hpp"
 #include "otmpm/engine/step.hpp"
 #include "otmpm/materials/material.hpp"
@@ -28,6 +27,8 @@
 namespace otmpm {
 
 struct Checkpoint;
+
+template <int D> class ParticleToNodes; // the particle-to-node map, engine/scatter.hpp
 
 /// Nodal fields of one step. m: lumped mass m_I; q: momentum; v: velocity
 /// (after the nodal update); f: force f_I (internal + external); a:
@@ -172,7 +173,7 @@ public:
   const Vec<D>& reaction_impulse() const { return reaction_impulse_; }
   /// True when the last particle-to-node map used the blocked scatter, false
   /// when it gathered over node columns (ParticleToNodes).
-  bool scatter_blocked() const { return scatter_.blocked(); }
+  bool scatter_blocked() const;
   /// Total momentum sum_p m_p v_p.
   Vec<D> momentum() const;
   /// Recomputes the energies (and the wave speed of the next dt).
@@ -296,7 +297,7 @@ private:
   std::unique_ptr<MassMatrix<D>> mass_matrix_;
   NodalFields<D> nodal_;
   BasisTable<D> table_;
-  ParticleToNodes<D> scatter_;
+  std::unique_ptr<ParticleToNodes<D>> scatter_; ///< engine/scatter.hpp (internal: needs parallel.hpp)
   AlignedVector<Vec<D>> fext_; ///< external force per particle when not uniform
   double node_spacing0_ = 1.0; ///< the nodes' smallest spacing at t = 0
   double t_ = 0.0, dt_ = 0.0, dt_prev_ = 0.0;

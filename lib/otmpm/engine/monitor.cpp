@@ -144,9 +144,12 @@ template <int D> void Engine<D>::check_energy() const {
   const double reference =
       std::max(energy_.initial + std::abs(energy_.external_work) + std::abs(energy_.reaction_work) + boundary_kinetic,
                energy_floor);
-  const double total = energy_.total();
+  // The energy the materials dissipated counts: E + W_p cannot exceed what
+  // the body was given, so a spurious jump shows in a plastic run too.
+  const double total = energy_.total() + energy_.dissipated;
   if (total > settings_.energy_limit * reference)
-    unstable("runaway energy: kinetic + strain = " + format_number(total) + " J exceeds " +
+    unstable(std::string("runaway energy: kinetic + strain") + (energy_.dissipated > 0 ? " + dissipated" : "") +
+             " = " + format_number(total) + " J exceeds " +
              format_number(settings_.energy_limit) +
              " x (initial energy + |external work| + |reaction work| + boundary kinetic energy) = " +
              format_number(reference) + " J");

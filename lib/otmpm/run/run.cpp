@@ -125,7 +125,7 @@ public:
   void sample_energy() {
     const EnergyBalance& E = e_.energy();
     energy_.initial = E.initial;
-    energy_.sample(E.total(), E.work(), E.balance_error());
+    energy_.sample(E.total() + E.dissipated, E.work(), E.balance_error()); // plastic work counts as spent energy
   }
 
   /// Writes a frame and probe samples when t reached the next output time.

@@ -36,7 +36,7 @@ struct RunOptions {
 /// reactions since t = 0 (Engine's EnergyBalance).
 struct EnergySummary {
   double initial = 0.0;           ///< E(0)
-  double max_energy = 0.0;        ///< max_t E(t)
+  double max_energy = 0.0;        ///< max_t E(t) + W_p(t) (W_p: plastic dissipation)
   double max_work = 0.0;          ///< max_t |W(t)|
   double max_balance_error = 0.0; ///< max_t |E(t) - E(0) - W(t)|
   /// Takes one sample; non-finite values are ignored (the run stops on them anyway).
