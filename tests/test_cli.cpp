@@ -3,6 +3,7 @@
 // HDF5 file with status "ok" for a good one, 1 and a diagnosis for a run that
 // becomes unstable, 2 for an unknown --set key or an unknown command.
 #include "cli_support.hpp"
+#include "temp_dir.hpp"
 
 #include <doctest/doctest.h>
 #include <hdf5.h>
@@ -23,31 +24,12 @@
 namespace fs = std::filesystem;
 using otmpm::test::quote;
 using otmpm::test::read_text;
+using otmpm::test::TempDir;
 
 namespace {
 
 const fs::path kSource = OTMPM_SOURCE_DIR;
 const std::string kBinary = OTMPM_BINARY;
-
-/// A fresh temporary directory, removed when the object goes out of scope.
-class TempDir {
-public:
-  TempDir() {
-    std::string pattern = (fs::temp_directory_path() / "otmpm_test_cli_XXXXXX").string();
-    REQUIRE(mkdtemp(pattern.data()) != nullptr);
-    path_ = pattern;
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-  const fs::path& path() const { return path_; }
-
-private:
-  fs::path path_;
-};
 
 struct CliResult {
   int status = -1;
@@ -58,7 +40,7 @@ struct CliResult {
 /// Runs `otmpm ARGS` (one thread, so the run does not depend on how busy the
 /// machine is), returning the exit status and what it wrote to stdout and stderr.
 CliResult run_cli(const TempDir& dir, const std::vector<std::string>& args) {
-  const fs::path err_file = dir.path() / "stderr.txt", out_file = dir.path() / "stdout.txt";
+  const fs::path err_file = dir.dir / "stderr.txt", out_file = dir.dir / "stdout.txt";
   // Appended piece by piece: g++ 12 at -O3 warns (-Wrestrict, a known false
   // positive) on `"literal" + std::string`.
   std::string cmd = "OMP_NUM_THREADS=1 ";
@@ -138,12 +120,12 @@ std::vector<fs::path> bad_scenes() {
 } // namespace
 
 TEST_CASE("cli: every malformed scene exits with 2 and names file and line") {
-  TempDir dir;
+  TempDir dir("cli");
   const std::vector<fs::path> scenes = bad_scenes();
   REQUIRE(scenes.size() >= 10); // the directory is really there
   for (const fs::path& scene : scenes) {
     INFO("scene " << scene.filename().string());
-    const fs::path out = dir.path() / (scene.stem().string() + ".h5");
+    const fs::path out = dir.dir / (scene.stem().string() + ".h5");
     const CliResult r = run_cli(dir, {"run", scene.string(), "--out", out.string(), "--quiet"});
     INFO("stderr: " << r.err);
     CHECK(r.status == 2);
@@ -155,8 +137,8 @@ TEST_CASE("cli: every malformed scene exits with 2 and names file and line") {
 }
 
 TEST_CASE("cli: a good scene exits with 0 and writes an HDF5 file with status ok") {
-  TempDir dir;
-  const fs::path out = dir.path() / "good.h5";
+  TempDir dir("cli");
+  const fs::path out = dir.dir / "good.h5";
   const CliResult r =
       run_cli(dir, {"run", (kSource / "tests" / "scenes" / "good_minimal.toml").string(), "--out", out.string(), "--quiet"});
   INFO("stderr: " << r.err);
@@ -169,8 +151,8 @@ TEST_CASE("cli: a good scene exits with 0 and writes an HDF5 file with status ok
 }
 
 TEST_CASE("cli: a run that leaves the grid exits with 1 and leaves a valid file with the diagnosis") {
-  TempDir dir;
-  const fs::path out = dir.path() / "unstable.h5";
+  TempDir dir("cli");
+  const fs::path out = dir.dir / "unstable.h5";
   const CliResult r = run_cli(
       dir, {"run", (kSource / "tests" / "scenes" / "engine" / "leaves_grid.toml").string(), "--out", out.string(), "--quiet"});
   INFO("stderr: " << r.err);
@@ -183,11 +165,11 @@ TEST_CASE("cli: a run that leaves the grid exits with 1 and leaves a valid file 
 }
 
 TEST_CASE("cli: --set of an unknown key exits with 2 and names the key") {
-  TempDir dir;
+  TempDir dir("cli");
   const std::string good = (kSource / "tests" / "scenes" / "good_minimal.toml").string();
   for (const char* key : {"simulation.no_such_key=1", "no_such_table.value=1", "material.steel.yuong=1e9"}) {
     INFO("--set " << key);
-    const fs::path out = dir.path() / "set.h5";
+    const fs::path out = dir.dir / "set.h5";
     const CliResult r = run_cli(dir, {"run", good, "--set", key, "--out", out.string(), "--quiet"});
     INFO("stderr: " << r.err);
     CHECK(r.status == 2);
@@ -205,7 +187,7 @@ TEST_CASE("cli: the line-number detector used above") {
 }
 
 TEST_CASE("cli: an unknown command or no command exits with 2") {
-  TempDir dir;
+  TempDir dir("cli");
   const CliResult r = run_cli(dir, {"frobnicate"});
   CHECK(r.status == 2);
   CHECK(r.err.find("frobnicate") != std::string::npos);
@@ -214,8 +196,8 @@ TEST_CASE("cli: an unknown command or no command exits with 2") {
 }
 
 TEST_CASE("cli: basis options that are not an int (out of range, fractional, negative seed) exit with 2") {
-  TempDir dir;
-  const std::string out = (dir.path() / "basis.csv").string();
+  TempDir dir("cli");
+  const std::string out = (dir.dir / "basis.csv").string();
   for (const char* bad : {"--cells=1e20", "--cells=2.5", "--samples=-1e300", "--seed=-3"}) {
     INFO(bad);
     const std::string arg(bad);
@@ -231,7 +213,7 @@ TEST_CASE("cli: basis options that are not an int (out of range, fractional, neg
 // ---------------------------------------------------------------- CLI11 front end
 
 TEST_CASE("cli: --help and -h work on otmpm and every command, and list the real options") {
-  TempDir dir;
+  TempDir dir("cli");
   const std::vector<std::pair<std::string, std::vector<std::string>>> commands{
       {"", {"run", "pair", "study", "basis", "render", "--version"}},
       {"run", {"--set", "--out", "--restart", "--check", "--threads", "--force", "--quiet", "--progress-interval"}},
@@ -255,14 +237,14 @@ TEST_CASE("cli: --help and -h work on otmpm and every command, and list the real
 }
 
 TEST_CASE("cli: --version prints the version") {
-  TempDir dir;
+  TempDir dir("cli");
   const CliResult r = run_cli(dir, {"--version"});
   CHECK(r.status == 0);
   CHECK(r.out.rfind("otmpm 0.", 0) == 0);
 }
 
 TEST_CASE("cli: a bad option exits with 2 and CLI11's message, in every command") {
-  TempDir dir;
+  TempDir dir("cli");
   const std::string good = (kSource / "tests" / "scenes" / "good_minimal.toml").string();
   for (const auto& args : std::vector<std::vector<std::string>>{{"run", good, "--frobnicate"},
                                                                 {"run", good, "--threads", "0"},
@@ -292,15 +274,15 @@ TEST_CASE("cli: a bad option exits with 2 and CLI11's message, in every command"
 }
 
 TEST_CASE("cli: --opt=value and --opt value are the same in every command") {
-  TempDir dir;
+  TempDir dir("cli");
   const std::string good = (kSource / "tests" / "scenes" / "good_minimal.toml").string();
-  const fs::path a = dir.path() / "a.h5", b = dir.path() / "b.h5";
+  const fs::path a = dir.dir / "a.h5", b = dir.dir / "b.h5";
   CHECK(run_cli(dir, {"run", good, "--out", a.string(), "--set", "simulation.t_end=1e-6", "--threads", "1", "-q"})
             .status == 0);
   CHECK(run_cli(dir, {"run", good, "--out=" + b.string(), "--set=simulation.t_end=1e-6", "--threads=1", "--quiet"})
             .status == 0);
   CHECK(root_string_attribute(a, "scene") == root_string_attribute(b, "scene"));
-  const fs::path c1 = dir.path() / "c1.csv", c2 = dir.path() / "c2.csv";
+  const fs::path c1 = dir.dir / "c1.csv", c2 = dir.dir / "c2.csv";
   CHECK(run_cli(dir, {"basis", "--kind", "ugimp", "--ppc", "3", "--cells", "4", "--seed", "2", "--out", c1.string()})
             .status == 0);
   CHECK(run_cli(dir, {"basis", "--kind=ugimp", "--ppc=3", "--cells=4", "--seed=2", "--out=" + c2.string()}).status ==
@@ -310,9 +292,9 @@ TEST_CASE("cli: --opt=value and --opt value are the same in every command") {
 }
 
 TEST_CASE("cli: --threads does not change the result") {
-  TempDir dir;
+  TempDir dir("cli");
   const std::string scene = (kSource / "examples" / "dyka_2d.toml").string();
-  const fs::path one = dir.path() / "one.h5", two = dir.path() / "two.h5";
+  const fs::path one = dir.dir / "one.h5", two = dir.dir / "two.h5";
   for (const auto& [file, threads] : {std::pair{one, "1"}, std::pair{two, "2"}}) {
     const CliResult r = run_cli(dir, {"run", scene, "--set", "simulation.t_end=2e-5", "--threads", threads, "--out",
                                       file.string(), "-q"});
@@ -328,8 +310,8 @@ TEST_CASE("cli: --threads does not change the result") {
 TEST_CASE("cli: OMP_WAIT_POLICY defaults to passive, and a user's own setting is kept") {
   // libgomp prints its settings at start-up with OMP_DISPLAY_ENV=true; the
   // otmpm process that does the work is the last one to print them.
-  TempDir dir;
-  const fs::path err = dir.path() / "env.txt";
+  TempDir dir("cli");
+  const fs::path err = dir.dir / "env.txt";
   auto last_policy = [&](const std::string& env) {
     const std::string cmd = env + " OMP_DISPLAY_ENV=true " + quote(kBinary) + " --version >/dev/null 2>" +
                             quote(err.string());
@@ -344,8 +326,8 @@ TEST_CASE("cli: OMP_WAIT_POLICY defaults to passive, and a user's own setting is
 }
 
 TEST_CASE("cli: run --check validates, prints the size, dt, steps and memory, and runs nothing") {
-  TempDir dir;
-  const fs::path out = dir.path() / "checked.h5";
+  TempDir dir("cli");
+  const fs::path out = dir.dir / "checked.h5";
   const CliResult r =
       run_cli(dir, {"run", "--check", (kSource / "examples" / "dyka" / "dyka_n40.toml").string(), "--out", out.string()});
   INFO(r.out << r.err);
@@ -366,24 +348,24 @@ TEST_CASE("cli: run --check validates, prints the size, dt, steps and memory, an
 }
 
 TEST_CASE("cli: a directory given as the scene or checkpoint file gets a clear message (run, pair, check, restart)") {
-  TempDir dir;
-  for (const auto& args : std::vector<std::vector<std::string>>{{"run", dir.path().string()},
-                                                                {"run", "--check", dir.path().string()},
-                                                                {"pair", dir.path().string()}}) {
+  TempDir dir("cli");
+  for (const auto& args : std::vector<std::vector<std::string>>{{"run", dir.dir.string()},
+                                                                {"run", "--check", dir.dir.string()},
+                                                                {"pair", dir.dir.string()}}) {
     const CliResult r = run_cli(dir, args);
     INFO(args[0] << ": " << r.err);
     CHECK(r.status == 2);
     CHECK(r.err.find("is a directory, not a scene file") != std::string::npos);
   }
-  const CliResult r = run_cli(dir, {"run", "--restart", dir.path().string()});
+  const CliResult r = run_cli(dir, {"run", "--restart", dir.dir.string()});
   CHECK(r.status == 2);
   CHECK(r.err.find("is a directory, not a checkpoint file") != std::string::npos);
 }
 
 TEST_CASE("cli: progress lines every interval with step, t, elapsed and ETA when stderr is not a terminal") {
-  TempDir dir;
+  TempDir dir("cli");
   const std::string scene = (kSource / "examples" / "dyka" / "dyka_n133.toml").string();
-  const fs::path out = dir.path() / "p.h5";
+  const fs::path out = dir.dir / "p.h5";
   const CliResult r = run_cli(dir, {"run", scene, "--out", out.string(), "--progress-interval", "0.02", "--set",
                                     "output.every=0"});
   INFO(r.err);
@@ -406,7 +388,7 @@ TEST_CASE("cli: progress lines every interval with step, t, elapsed and ETA when
 }
 
 TEST_CASE("cli: every option that --help prints is documented in docs/user-guide.md") {
-  TempDir dir;
+  TempDir dir("cli");
   const std::string guide = read_text(kSource / "docs" / "user-guide.md");
   REQUIRE(guide.size() > 10000);
   std::size_t options = 0;

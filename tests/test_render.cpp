@@ -21,29 +21,14 @@
 
 namespace fs = std::filesystem;
 using otmpm::test::quote;
+using otmpm::test::shell;
+using Result = otmpm::test::ShellResult;
 using otmpm::test::TempDir;
 
 namespace {
 
 const fs::path kSource = OTMPM_SOURCE_DIR;
 const std::string kBinary = OTMPM_BINARY;
-
-struct Result {
-  int status = -1;
-  std::string output; ///< stdout and stderr
-};
-
-/// Runs a shell command line.
-Result shell(const std::string& cmd) {
-  std::FILE* p = ::popen((cmd + " 2>&1").c_str(), "r");
-  REQUIRE(p != nullptr);
-  Result r;
-  char buf[512];
-  while (std::fgets(buf, sizeof buf, p)) r.output += buf;
-  const int status = ::pclose(p);
-  r.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
 
 /// Runs `otmpm ARGS` with one thread.
 Result run_otmpm(const std::vector<std::string>& args) {

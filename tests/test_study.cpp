@@ -58,13 +58,9 @@ fs::path make_study_dir(const std::string& name) {
 
 /// Runs a shell command; returns its exit status and fills `out` with its stdout and stderr.
 int run_command(const std::string& cmd, std::string& out) {
-  std::FILE* p = ::popen((cmd + " 2>&1").c_str(), "r");
-  REQUIRE(p != nullptr);
-  char buf[512];
-  out.clear();
-  while (std::fgets(buf, sizeof buf, p)) out += buf;
-  const int status = ::pclose(p);
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  otmpm::test::ShellResult r = otmpm::test::shell(cmd);
+  out = std::move(r.output);
+  return r.status;
 }
 
 /// Runs `otmpm study` in dir; returns the exit status and fills `out` with stdout.
