@@ -878,7 +878,7 @@ template <int D, class Prior> bool MaxEntBasis<D, Prior>::uniform_beta(const Ste
 }
 
 template <int D, class Prior> void MaxEntBasis<D, Prior>::update_node_spacing() {
-  if constexpr (Prior::kGaussian) update_beta_by_spacing();
+  update_beta_by_spacing(); // nothing for a prior without a beta
 }
 
 template <int D, class Prior> void MaxEntBasis<D, Prior>::update_beta_by_spacing() {
