@@ -7,6 +7,12 @@
 /// closed, synced, renamed over FILE - so that a process killed while writing
 /// leaves the previous checkpoint intact.
 ///
+/// Integrity: the file starts with a 512-byte header (the HDF5 user block)
+/// holding the format, the run id, the file size and a CRC-64 of the whole
+/// file. read_checkpoint() verifies size and checksum before the HDF5 library
+/// parses a single byte, so a damaged file is an InputError, never a crash
+/// inside HDF5.
+///
 /// File layout: root attributes `format` ("otmpm checkpoint"),
 /// `format_version`, `otmpm_version`, `dimension` and `scene` (the effective
 /// scene text after --set, so that a restart needs nothing but this file); one
@@ -67,6 +73,7 @@ struct StateGroup {
 struct Checkpoint {
   std::string file;  ///< where it was read from (messages)
   std::string scene; ///< the effective scene text (after --set)
+  std::string run_id; ///< the run's id (output_files.hpp), also in its result file; "" : write_checkpoint draws one
   int dimension = 0;
   std::map<std::string, StateGroup> groups;
 
@@ -77,35 +84,31 @@ struct Checkpoint {
 };
 
 /// Writes `ck` to `path` atomically: to path.tmp, flushed, closed and synced,
-/// then renamed over `path`. A failure leaves any previous file at `path`.
+/// then renamed over `path`. A failure leaves any previous file at `path`:
+/// OutputError when the space is missing (checked before writing, see
+/// h5::reserve_space) or a write fails.
 void write_checkpoint(const std::string& path, const Checkpoint& ck);
 /// Writes `ck` to `path` directly (the first half of write_checkpoint).
 void write_checkpoint_file(const std::string& path, const Checkpoint& ck);
 /// Reads a checkpoint file. Throws InputError naming `path` when it is
-/// missing, not HDF5, truncated, not an otmpm checkpoint or incomplete.
+/// missing, not an otmpm checkpoint (of this format version), truncated,
+/// damaged (its checksum does not match: checked before HDF5 reads it) or incomplete.
 Checkpoint read_checkpoint(const std::string& path);
 /// The scene stored in a checkpoint, parsed and validated like a scene file
 /// (named "PATH (checkpoint scene)" in messages); its text is the stored text.
 Scene checkpoint_scene(const Checkpoint& ck);
 
 /// Where checkpoints of a run writing `result_file` go: output.checkpoint_file
-/// when set, else the result file with ".h5" replaced by ".checkpoint.h5".
-/// Throws InputError naming the key when checkpoints are on and the
-/// directory of output.checkpoint_file does not exist (before the first step).
+/// when set, else default_checkpoint_path(result_file) (the result file with
+/// ".h5" replaced by ".checkpoint.h5"). When checkpoints are on, the location
+/// is tried at once (its temporary created and removed), so a directory that
+/// does not exist or cannot be written is an InputError naming the key (or
+/// the default) before the first step, not at the first checkpoint.
 std::string checkpoint_path(const Scene& scene, const std::string& result_file);
 
-/// The result file a restarted run copies the frames written before its
-/// checkpoint from (copy_results in results.hpp).
-struct PreviousResults {
-  std::string path;       ///< the file to copy from
-  bool set_aside = false; ///< a renamed copy of the output file, removed once copied
-};
-/// Finds the interrupted run's result file `previous`. When the restarted run
-/// writes to the same path `out`, it is first renamed to previous +
-/// ".before-restart" (and a file of that name left by a restart that was
-/// itself killed while copying is used as it is). InputError when missing.
-PreviousResults set_aside_results(const std::string& previous, const std::string& out);
-/// Removes the set-aside file once everything was copied from it.
-void release_previous_results(const PreviousResults& previous);
+/// The run id stored in the header of an otmpm checkpoint file, read without
+/// the HDF5 library; "" when `path` is not a readable otmpm checkpoint of
+/// the current format.
+std::string checkpoint_run_id(const std::string& path);
 
 } // namespace otmpm
