@@ -4,6 +4,8 @@
 #include "commands.hpp"
 
 #include "otmpm/basis/basis.hpp"
+#include "otmpm/scene/resources.hpp"
+#include "otmpm/scene/scene.hpp"
 
 #include <cmath>
 #include <cstdio>
@@ -78,6 +80,15 @@ BasisArgs parse(const std::vector<std::string>& args) {
 }
 
 template <int D> int evaluate(BasisArgs a) {
+  // The node set must fit as a scene's would (kMaxSceneNodes) and in memory
+  // (about 1 kB per node with the basis' neighbour search, generously).
+  constexpr double kBytesPerNode = 1000;
+  const double node_count = std::pow(a.cells + 1.0, D);
+  if (node_count > kMaxSceneNodes || node_count * kBytesPerNode > available_memory())
+    throw InputError("--cells " + std::to_string(a.cells) + " gives " + format_number(node_count) + " nodes in " +
+                     std::to_string(D) + "D (about " + format_bytes(node_count * kBytesPerNode) + "); at most " +
+                     format_number(kMaxSceneNodes) + " nodes and " + format_bytes(available_memory()) +
+                     " of memory are available");
   CartesianGrid<D> grid;
   grid.lower.setConstant(a.lower);
   grid.upper.setConstant(a.upper);

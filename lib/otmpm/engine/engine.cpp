@@ -234,8 +234,8 @@ template <int D> double Engine<D>::stable_dt() const {
 template <int D> void Engine<D>::step() {
   dt_ = stable_dt();
   if (!(dt_ > 0.0) || !std::isfinite(dt_))
-    throw InstabilityError("step " + std::to_string(step_) + ", t = " + std::to_string(t_) +
-                           ": time step " + std::to_string(dt_) + " is not positive and finite");
+    throw InstabilityError("step " + std::to_string(step_) + ", t = " + format_number(t_) +
+                           ": time step " + format_number(dt_) + " is not positive and finite");
   if (dt_prev_ == 0.0) dt_prev_ = dt_;
   switch (integrator_) {
   case Integrator::fe: step_fe(*this, false); break;
@@ -264,7 +264,7 @@ template <int D> void Engine<D>::evaluate_basis() {
     columns_valid_ = false;
     blocks_.valid = false;
   } catch (const BasisError& e) {
-    throw InstabilityError("step " + std::to_string(step_) + ", t = " + std::to_string(t_) +
+    throw InstabilityError("step " + std::to_string(step_) + ", t = " + format_number(t_) +
                            ": basis evaluation failed: " + e.what());
   }
 }
@@ -495,10 +495,10 @@ template <int D> void Engine<D>::check_energy() const {
                energy_floor);
   const double total = energy_.total();
   if (total > scene_.simulation.energy_limit * reference)
-    throw InstabilityError("step " + std::to_string(step_) + ", t = " + std::to_string(t_) +
-                           ": runaway energy: kinetic + strain = " + std::to_string(total) +
-                           " J exceeds " + std::to_string(scene_.simulation.energy_limit) +
-                           " x (initial energy + |external work| + |reaction work| + boundary kinetic energy) = " + std::to_string(reference) + " J");
+    throw InstabilityError("step " + std::to_string(step_) + ", t = " + format_number(t_) +
+                           ": runaway energy: kinetic + strain = " + format_number(total) +
+                           " J exceeds " + format_number(scene_.simulation.energy_limit) +
+                           " x (initial energy + |external work| + |reaction work| + boundary kinetic energy) = " + format_number(reference) + " J");
 }
 
 template <int D>
@@ -592,13 +592,13 @@ template <int D> void Engine<D>::update_particle_stress(int p, const Mat<D>& H) 
     P_.eps[p] += d_eps;
     P_.sigma[p] += elastic_stress_increment<D>(mat, d_eps);
     const double dilation = 1.0 + d_eps.trace();
-    if (!(dilation > 0.0)) unstable(p, "volume change 1 + tr(d_eps) = " + std::to_string(dilation) + " <= 0");
+    if (!(dilation > 0.0)) unstable(p, "volume change 1 + tr(d_eps) = " + format_number(dilation) + " <= 0");
     P_.rho[p] /= dilation;
     P_.V[p] = P_.m[p] / P_.rho[p];
     return;
   }
   const double J = P_.F[p].determinant();
-  if (!(J > 0.0)) unstable(p, "det F = " + std::to_string(J) + " <= 0");
+  if (!(J > 0.0)) unstable(p, "det F = " + format_number(J) + " <= 0");
   P_.V[p] = J * P_.V0[p];
   P_.rho[p] = P_.m[p] / P_.V[p];
   P_.sigma[p] = cauchy_stress<D>(mat, P_.F[p]);
@@ -663,7 +663,7 @@ template <int D> void Engine<D>::sum_particles(bool check) {
 }
 
 template <int D> void Engine<D>::unstable(int p, const std::string& what) const {
-  throw InstabilityError("step " + std::to_string(step_) + ", t = " + std::to_string(t_) +
+  throw InstabilityError("step " + std::to_string(step_) + ", t = " + format_number(t_) +
                          ": particle " + std::to_string(p) + " at " + format_point<D>(P_.x[p]) + ": " + what);
 }
 

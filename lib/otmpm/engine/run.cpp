@@ -2,8 +2,11 @@
 
 #include "otmpm/engine/engine.hpp"
 #include "otmpm/io/checkpoint.hpp"
+#include "otmpm/io/output_files.hpp"
 #include "otmpm/io/results.hpp"
 #include "otmpm/reference/exact.hpp"
+#include "otmpm/scene/resources.hpp"
+#include "otmpm/scene/validate.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -22,6 +25,36 @@ namespace {
 constexpr double time_slack = 1e-9;
 /// Floor of EnergySummary::reference(), so a body at rest with no load has ratio 0, not 0/0.
 constexpr double energy_reference_floor = 1e-300;
+
+/// What the run's output files are and where their names came from (prepare_outputs).
+OutputRequest output_request(const Scene& scene, const RunOptions& opt, const Checkpoint* resume) {
+  OutputRequest r;
+  const std::string previous = resume ? resume->group("recorder").string("result_file") : "";
+  if (!opt.out_file.empty()) {
+    r.result = opt.out_file;
+    r.result_origin = "RunOptions::out_file, otmpm run --out";
+  } else if (resume) {
+    r.result = previous;
+    r.result_origin = "the interrupted run's result file, from " + resume->file;
+  } else {
+    r.result = scene.output.file;
+    r.result_origin = scene.locate("output.file").describe();
+  }
+  if (scene.output.checkpoint_every > 0) {
+    r.checkpoint = checkpoint_path(scene, r.result);
+    r.checkpoint_origin = scene.output.checkpoint_file.empty() ? "the default beside the result file"
+                                                               : scene.locate("output.checkpoint_file").describe();
+  }
+  r.vtk_format = vtk_format(scene.output);
+  r.scene_text = scene.text;
+  r.force = opt.force;
+  if (resume) {
+    r.continued_run = resume->run_id;
+    r.previous_result = previous;
+    r.previous_frames = static_cast<int>(resume->group("recorder").integer("frames"));
+  }
+  return r;
+}
 
 /// The particle a probe follows: the leftmost/rightmost by initial position
 /// (ties: lowest index) or the one nearest to a point.
@@ -65,14 +98,12 @@ public:
     for (const ProbeSection& pr : scene.output.probes) probes_.push_back({pr.name, probe_particle(e.particles(), pr), 0.0, 0});
     if (resume) restore_accumulators(resume->group("recorder"));
     if (!opt.write_results) return;
-    path_ = !opt.out_file.empty() ? opt.out_file
-            : resume           ? resume->group("recorder").string("result_file")
-                               : scene.output.file;
-    checkpoint_path_ = checkpoint_path(scene, path_);
-    std::optional<PreviousResults> previous;
-    if (resume) previous = set_aside_results(resume->group("recorder").string("result_file"), path_);
-    writer_ = std::make_unique<ResultWriter>(path_, scene.text, D);
-    if (previous) continue_results(*previous, resume->group("recorder"));
+    outputs_ = prepare_outputs(output_request(scene, opt, resume));
+    path_ = outputs_.files.result;
+    checkpoint_path_ = outputs_.files.checkpoint;
+    writer_ = std::make_unique<ResultWriter>(path_, scene.text, D,
+                                             ResultOptions{outputs_.run_id, outputs_.files.vtk_extension});
+    if (outputs_.previous) continue_results(*outputs_.previous, resume->group("recorder"));
   }
 
   /// Writes a checkpoint after every output.checkpoint_every steps (not after
@@ -83,6 +114,7 @@ public:
     ScopedPhase timer(e_.timers(), Phase::output);
     Checkpoint ck;
     ck.scene = scene_.text;
+    ck.run_id = writer_->run_id();
     e_.save_state(ck);
     StateGroup& g = ck.group("recorder");
     g.reals["next_output_time"] = next_;
@@ -126,6 +158,37 @@ public:
       if (exact_ && pr.samples > 0) s.errors["history_error_" + pr.name] = std::sqrt(pr.sum_sq / pr.samples);
     if (exact_ && s.exit_code == 0) final_errors(s);
     if (!writer_) return;
+    s.out_file = path_;
+    if (!writer_->writable()) return; // an HDF5 write failed: the file is left as it is
+    try {
+      write_summary(s);
+    } catch (const OutputError& err) {
+      s.status = std::string("output error: ") + err.what();
+      s.exit_code = kExitOutputError;
+    }
+  }
+
+  /// Marks the file with a diagnosis (the file stays valid). An output error
+  /// here changes nothing more: the diagnosis is in the summary anyway.
+  void set_status(const std::string& status) {
+    if (!writer_ || !writer_->writable()) return;
+    try {
+      writer_->set_attribute("status", status);
+      writer_->publish();
+    } catch (const OutputError&) {
+    }
+  }
+
+private:
+  struct Probe {
+    std::string name;
+    int particle;
+    double sum_sq;
+    int samples;
+  };
+
+  /// The final status and summary attributes.
+  void write_summary(const RunSummary& s) {
     writer_->set_attribute("status", s.status);
     writer_->set_attribute("steps", static_cast<long long>(s.steps));
     writer_->set_attribute("t_end", s.time);
@@ -138,24 +201,7 @@ public:
     for (std::size_t i = 0; i < phase_names.size(); ++i)
       writer_->set_attribute("seconds_" + std::string(phase_names[i]), s.timers.seconds[i]);
     writer_->publish();
-    s.out_file = path_;
   }
-
-  /// Marks the file with a diagnosis (the file stays valid).
-  void set_status(const std::string& status) {
-    if (writer_) {
-      writer_->set_attribute("status", status);
-      writer_->publish();
-    }
-  }
-
-private:
-  struct Probe {
-    std::string name;
-    int particle;
-    double sum_sq;
-    int samples;
-  };
 
   void restore_accumulators(const StateGroup& g) {
     next_ = g.real("next_output_time");
@@ -253,6 +299,7 @@ private:
   Engine<D>& e_;
   const ExactSolution<D>* exact_;
   std::vector<Probe> probes_;
+  PreparedOutputs outputs_; ///< paths and otmpm's locks, held for the whole run
   std::string path_;
   std::unique_ptr<ResultWriter> writer_;
   double next_ = 0.0;
@@ -260,6 +307,13 @@ private:
   std::string checkpoint_path_;
   double wall_before_ = 0.0;
 };
+
+/// A diagnosis that names step and time: `what` as it is when it does (the
+/// engine's start with "step N, t = T"), else prefixed with them.
+std::string diagnosis(const std::string& what, long step, double t) {
+  if (what.rfind("step ", 0) == 0) return what;
+  return "step " + std::to_string(step) + ", t = " + format_number(t) + ": " + what;
+}
 
 double seconds_since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -272,18 +326,26 @@ template <int D> RunSummary run_dim(const Scene& scene, const RunOptions& opt, c
   Engine<D> e(scene);
   const auto exact = make_exact_solution<D>(scene);
   if (resume) e.restore_state(*resume);
-  Recorder<D> rec(scene, opt, e, exact.get(), resume);
   s.mode = scene.simulation.mode;
   s.integrator = scene.simulation.integrator;
   s.basis = scene.basis.kind;
   s.particles = e.particles().size();
   s.nodes = e.basis().nodes().size();
-  const double t_end = scene.simulation.t_end;
-  if (!resume) {
-    rec.sample_energy();
-    rec.maybe_record(true);
-  }
+  std::optional<Recorder<D>> recorder;
   try {
+    recorder.emplace(scene, opt, e, exact.get(), resume);
+  } catch (const OutputError& err) { // no room for the result file's first bytes
+    s.status = "output error: " + diagnosis(err.what(), e.steps(), e.time());
+    s.exit_code = kExitOutputError;
+    return s;
+  }
+  Recorder<D>& rec = *recorder;
+  const double t_end = scene.simulation.t_end;
+  try {
+    if (!resume) {
+      rec.sample_energy();
+      rec.maybe_record(true); // inside: an initial state that cannot be written is a diagnosis too
+    }
     while (e.time() < t_end * (1.0 - time_slack)) {
       e.step();
       rec.sample_energy();
@@ -294,8 +356,12 @@ template <int D> RunSummary run_dim(const Scene& scene, const RunOptions& opt, c
     }
   } catch (const InstabilityError& err) {
     rec.sample_energy(); // a runaway stop has the energy that tripped the monitor
-    s.status = std::string("unstable: ") + err.what();
+    s.status = "unstable: " + diagnosis(err.what(), e.steps(), e.time());
     s.exit_code = 1;
+    rec.set_status(s.status);
+  } catch (const OutputError& err) {
+    s.status = "output error: " + diagnosis(err.what(), e.steps(), e.time());
+    s.exit_code = kExitOutputError;
     rec.set_status(s.status);
   }
   s.steps = e.steps();
@@ -307,6 +373,11 @@ template <int D> RunSummary run_dim(const Scene& scene, const RunOptions& opt, c
 }
 
 RunSummary run_any(const Scene& scene, const RunOptions& options, const Checkpoint* resume) {
+  const int dim = scene.simulation.dimension;
+  if (dim >= 1 && dim <= 3) {
+    validate_scene(scene, dim); // a Scene built in code: every check of the reader, before the estimates
+    check_resources(scene);     // before anything is allocated
+  }
   switch (scene.simulation.dimension) {
   case 1: return run_dim<1>(scene, options, resume);
   case 2: return run_dim<2>(scene, options, resume);
@@ -342,7 +413,8 @@ std::string summary_line(const RunSummary& s) {
   std::snprintf(buf, sizeof buf, "%s %s %s: %ld steps, t = %.6g s, %.3f s wall, %.3g particle-steps/s",
                 s.mode.c_str(), s.integrator.c_str(), s.basis.c_str(), s.steps, s.time, s.wall_seconds,
                 s.particle_steps_per_second());
-  std::string line = (s.exit_code == 0 ? "ok: " : "UNSTABLE: ") + std::string(buf);
+  const char* prefix = s.exit_code == 0 ? "ok: " : s.exit_code == kExitOutputError ? "OUTPUT FAILED: " : "UNSTABLE: ";
+  std::string line = prefix + std::string(buf);
   for (const auto& [name, value] : s.errors) {
     std::snprintf(buf, sizeof buf, ", %s = %.4g", name.c_str(), value);
     line += buf;
