@@ -8,6 +8,7 @@
 // max-ent run twice per repetition: cold (lambda = 0) and warm (lambda from
 // the previous fill of the same points moved by 1e-3 h, as between two time
 // steps). Prints the median over R repetitions and the mean stencil size.
+#include "bench_util.hpp"
 #include "otmpm/basis/basis.hpp"
 
 #include <algorithm>
@@ -19,13 +20,9 @@
 #include <vector>
 
 using namespace otmpm;
+using otmpm::bench::median;
 
 namespace {
-
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
-}
 
 struct Case {
   std::string label;

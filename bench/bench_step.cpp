@@ -9,7 +9,7 @@
 // step runs. Prints the median over R repetitions of particle-steps per second
 // and the share of each phase.
 #include "bench_scenes.hpp"
-#include "otmpm/engine/engine.hpp"
+#include "otmpm/assembly/assembler.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -40,7 +40,7 @@ int main(int argc, char** argv) {
   PhaseTimers last;
   long particles = 0;
   for (int r = 0; r < repeat; ++r) {
-    Engine<2> e(scene);
+    Engine<2> e = assemble<2>(scene);
     e.step(); // warm-up: first basis evaluation (cold LME start), buffers grow
     e.timers() = PhaseTimers{};
     particles = e.particles().size();

@@ -10,7 +10,7 @@
 // of each case, and (with --scaling-csv) the time per step against the
 // particle count for the scaling plot.
 #include "bench_scenes.hpp"
-#include "otmpm/engine/engine.hpp"
+#include "otmpm/assembly/assembler.hpp"
 
 #include <sys/resource.h>
 #include <unistd.h>
@@ -54,7 +54,7 @@ void set_threads(int threads) {
 /// LME start, buffers grow), then times `steps` steps (0: up to t_end).
 Timing time_run(const Scene& scene, long steps, int threads) {
   set_threads(threads);
-  Engine<2> e(scene);
+  Engine<2> e = assemble<2>(scene);
   e.step();
   e.timers() = PhaseTimers{};
   const auto t0 = std::chrono::steady_clock::now();

@@ -1,7 +1,7 @@
 // `otmpm basis`: evaluates one basis family on a node layout at sample points
 // along the first axis and writes N and grad N per (point, node) as CSV, so
 // shape functions can be plotted (molinos Fig. 4/5) and checked.
-#include "commands.hpp"
+#include "cli.hpp"
 
 #include "otmpm/basis/basis.hpp"
 #include "otmpm/scene/resources.hpp"
@@ -22,73 +22,44 @@ struct BasisArgs {
   int dim = 1;
   double lower = 0.0, upper = 1.0, perturb = 0.0;
   int cells = 10, samples = 201;
-  unsigned seed = 1;
+  int seed = 1;
+  double ppc = 0.0; ///< uGIMP particles per cell (0: the default 2)
+  int threads = 0;
   std::string out;
 };
 
-double to_double(const std::string& opt, const std::string& v) {
-  try {
-    std::size_t used = 0;
-    const double d = std::stod(v, &used);
-    if (used == v.size()) return d;
-  } catch (const std::exception&) {
-  }
-  throw InputError("option " + opt + ": '" + v + "' is not a number");
+/// Adds an integer option that also accepts a whole number written as a
+/// float (--cells 1e3), as the scene file does not but shell scripts often do.
+CLI::Option* add_int_option(CLI::App& sub, const std::string& name, int& target, const std::string& help) {
+  return sub
+      .add_option_function<double>(
+          name,
+          [&target, name](const double& v) {
+            // Range first: converting a double outside the int range is undefined.
+            if (!(v >= std::numeric_limits<int>::min() && v <= std::numeric_limits<int>::max()) || v != std::trunc(v))
+              throw CLI::ValidationError(name, "'" + std::to_string(v) + "' is not an int");
+            target = static_cast<int>(v);
+          },
+          help)
+      ->type_name("INT")
+      ->default_str(std::to_string(target));
 }
 
-int to_int(const std::string& opt, const std::string& v) {
-  const double d = to_double(opt, v);
-  // Range first: converting a double outside the int range is undefined.
-  const bool in_range = d >= std::numeric_limits<int>::min() && d <= std::numeric_limits<int>::max();
-  if (!in_range || d != std::trunc(d)) throw InputError("option " + opt + ": '" + v + "' is not an int");
-  return static_cast<int>(d);
-}
-
-/// A non-negative --seed (a negative one would wrap to a different seed).
-unsigned to_seed(const std::string& opt, const std::string& v) {
-  const int seed = to_int(opt, v);
-  if (seed < 0) throw InputError("option " + opt + ": '" + v + "' must be >= 0");
-  return static_cast<unsigned>(seed);
-}
-
-BasisArgs parse(const std::vector<std::string>& args) {
-  BasisArgs a;
-  for (std::size_t i = 0; i < args.size(); ++i) {
-    const std::string& s = args[i];
-    if (i + 1 >= args.size()) throw InputError("option " + s + " needs a value");
-    const std::string& v = args[++i];
-    if (s == "--kind") a.opt.kind = v;
-    else if (s == "--dim") a.dim = to_int(s, v);
-    else if (s == "--lower") a.lower = to_double(s, v);
-    else if (s == "--upper") a.upper = to_double(s, v);
-    else if (s == "--cells") a.cells = to_int(s, v);
-    else if (s == "--perturb") a.perturb = to_double(s, v);
-    else if (s == "--seed") a.seed = to_seed(s, v);
-    else if (s == "--gamma-lme") a.opt.gamma_lme = to_double(s, v);
-    else if (s == "--tolerance") a.opt.tolerance = to_double(s, v);
-    else if (s == "--d-max") a.opt.d_max = to_double(s, v);
-    else if (s == "--ppc") a.opt.ugimp_half_width[0] = a.opt.ugimp_half_width[1] = a.opt.ugimp_half_width[2] = 0.5 / to_double(s, v);
-    else if (s == "--samples") a.samples = to_int(s, v);
-    else if (s == "--out") a.out = v;
-    else throw InputError("unknown option '" + s + "'");
-  }
-  if (a.out.empty()) throw InputError("--out FILE.csv is required");
-  if (a.dim < 1 || a.dim > 3) throw InputError("--dim must be 1, 2 or 3");
-  if (a.cells < 1 || a.samples < 1 || !(a.lower < a.upper)) throw InputError("need lower < upper, cells >= 1, samples >= 1");
+void check(const BasisArgs& a) {
+  if (!(a.lower < a.upper)) throw InputError("need --lower < --upper");
   if (!(a.opt.gamma_lme > 0)) throw InputError("--gamma-lme must be > 0");
-  return a;
+  if (std::pow(a.cells + 1.0, a.dim) > kMaxSceneNodes)
+    throw InputError("--cells " + std::to_string(a.cells) + " in " + std::to_string(a.dim) + "D gives more than " +
+                     std::to_string(static_cast<long long>(kMaxSceneNodes)) + " nodes");
+  // The node set must also fit in memory (about 1 kB per node with the basis' neighbour search, generously).
+  constexpr double kBytesPerNode = 1000;
+  const double bytes = std::pow(a.cells + 1.0, a.dim) * kBytesPerNode;
+  if (bytes > available_memory())
+    throw InputError("--cells " + std::to_string(a.cells) + " in " + std::to_string(a.dim) + "D needs about " +
+                     format_bytes(bytes) + " of memory; " + format_bytes(available_memory()) + " are available");
 }
 
 template <int D> int evaluate(BasisArgs a) {
-  // The node set must fit as a scene's would (kMaxSceneNodes) and in memory
-  // (about 1 kB per node with the basis' neighbour search, generously).
-  constexpr double kBytesPerNode = 1000;
-  const double node_count = std::pow(a.cells + 1.0, D);
-  if (node_count > kMaxSceneNodes || node_count * kBytesPerNode > available_memory())
-    throw InputError("--cells " + std::to_string(a.cells) + " gives " + format_number(node_count) + " nodes in " +
-                     std::to_string(D) + "D (about " + format_bytes(node_count * kBytesPerNode) + "); at most " +
-                     format_number(kMaxSceneNodes) + " nodes and " + format_bytes(available_memory()) +
-                     " of memory are available");
   CartesianGrid<D> grid;
   grid.lower.setConstant(a.lower);
   grid.upper.setConstant(a.upper);
@@ -96,8 +67,9 @@ template <int D> int evaluate(BasisArgs a) {
   grid.validate();
   const double h = (a.upper - a.lower) / a.cells;
   // uGIMP half-width: --ppc gives 1/(2 ppc) in cells; default 2 particles per cell.
-  for (double& w : a.opt.ugimp_half_width) w = (w > 0 ? w : 0.25) * h;
-  NodeSet<D> nodes = a.perturb > 0 ? NodeSet<D>::perturbed(grid, a.perturb, a.seed) : NodeSet<D>::cartesian(grid);
+  for (double& w : a.opt.ugimp_half_width) w = (a.ppc > 0 ? 0.5 / a.ppc : 0.25) * h;
+  NodeSet<D> nodes = a.perturb > 0 ? NodeSet<D>::perturbed(grid, a.perturb, static_cast<unsigned>(a.seed))
+                                   : NodeSet<D>::cartesian(grid);
   const auto basis = make_basis<D>(a.opt, std::move(nodes));
   std::ofstream out(a.out);
   if (!out) throw InputError("cannot write '" + a.out + "'");
@@ -131,15 +103,47 @@ template <int D> int evaluate(BasisArgs a) {
   return 0;
 }
 
-} // namespace
-
-int basis_command(const std::vector<std::string>& args) {
-  const BasisArgs a = parse(args);
+int basis_command(const BasisArgs& a) {
+  check(a);
+  set_threads(a.threads);
   switch (a.dim) {
   case 1: return evaluate<1>(a);
   case 2: return evaluate<2>(a);
   default: return evaluate<3>(a);
   }
+}
+
+} // namespace
+
+Command add_basis_command(CLI::App& app) {
+  auto a = std::make_shared<BasisArgs>();
+  CLI::App* sub = app.add_subcommand(
+      "basis", "Evaluate a basis family on a Cartesian node layout and write N and grad N at sample points as CSV");
+  sub->add_option("--kind", a->opt.kind, "Basis family")
+      ->check(CLI::IsMember({"linear", "ugimp", "bspline2", "bspline3", "lme", "maxent"}))
+      ->capture_default_str();
+  add_int_option(*sub, "--dim", a->dim, "Dimension; in 2D/3D the samples run along x at the centre of the other axes")
+      ->check(CLI::Range(1, 3));
+  sub->add_option("--lower", a->lower, "Lower end of the box, the same on every axis")->capture_default_str();
+  sub->add_option("--upper", a->upper, "Upper end of the box")->capture_default_str();
+  add_int_option(*sub, "--cells", a->cells, "Cells per axis")->check(CLI::PositiveNumber);
+  sub->add_option("--perturb", a->perturb, "Move interior nodes randomly by up to F h (a fraction of h)")
+      ->type_name("F")
+      ->capture_default_str();
+  add_int_option(*sub, "--seed", a->seed, "Random seed of --perturb")->check(CLI::NonNegativeNumber);
+  sub->add_option("--gamma-lme", a->opt.gamma_lme, "LME gamma: beta = G / h^2")->type_name("G")->capture_default_str();
+  sub->add_option("--tolerance", a->opt.tolerance, "LME support cut-off exp(-beta r^2) >= T")
+      ->type_name("T")
+      ->capture_default_str();
+  sub->add_option("--d-max", a->opt.d_max, "max-ent support radius in units of h")->capture_default_str();
+  sub->add_option("--ppc", a->ppc, "uGIMP particles per cell (half-width h / (2 P)); default 2")
+      ->type_name("P")
+      ->check(CLI::PositiveNumber);
+  add_int_option(*sub, "--samples", a->samples, "Sample points on [lower, upper], end points included")
+      ->check(CLI::PositiveNumber);
+  sub->add_option("--out", a->out, "Output file")->type_name("FILE.csv")->required();
+  add_threads_option(*sub, a->threads);
+  return [a] { return basis_command(*a); };
 }
 
 } // namespace otmpm::cli

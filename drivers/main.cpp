@@ -1,68 +1,80 @@
-// otmpm - command line driver.
-//
-//   otmpm run   SCENE.toml [--set KEY=VALUE]... [--out FILE.h5] [--quiet]
-//   otmpm run   --restart CHECKPOINT.h5 [--out FILE.h5] [--quiet]
-//   otmpm pair  SCENE.toml [--set KEY=VALUE]... [--quiet]
-//   otmpm study STUDY.toml
-//   otmpm basis --kind K [options] --out FILE.csv
+// otmpm - command line driver. `otmpm --help` and `otmpm COMMAND --help`
+// print the usage, generated from the options (CLI11).
 //
 // Exit status: 0 success, 1 the simulation became unstable (diagnosis
-// printed), 2 bad input (the message names file, line and key), 3 internal error.
-#include "commands.hpp"
+// printed), 2 bad input (the message names file, line and key; a bad option
+// gets CLI11's message), 3 internal error, 130/143 interrupted by
+// SIGINT/SIGTERM (the result file stays valid, status "interrupted").
+#include "cli.hpp"
+#include "progress.hpp"
 
 #include "otmpm/core.hpp"
 
 #include <cstdio>
+#include <cstring>
 #include <exception>
 #include <string>
 #include <vector>
 
 namespace {
 
-void usage(std::FILE* out) {
-  std::fputs("usage:\n"
-             "  otmpm run   SCENE.toml [--set KEY=VALUE]... [--out FILE.h5] [--quiet]\n"
-             "  otmpm run   --restart CHECKPOINT.h5 [--out FILE.h5] [--quiet]\n"
-             "  otmpm pair  SCENE.toml [--set KEY=VALUE]... [--quiet]\n"
-             "  otmpm study STUDY.toml\n"
-             "  otmpm basis --kind K [--dim D] [--lower X] [--upper X] [--cells N] [--perturb F]\n"
-             "              [--gamma-lme G] [--tolerance T] [--d-max D] [--samples N] --out FILE.csv\n"
-             "exit status: 0 ok, 1 unstable, 2 bad input, 3 internal error\n",
-             out);
+constexpr int kBadInput = 2;
+
+const char* const kFooter =
+    "Exit status: 0 ok, 1 the simulation became unstable, 2 bad input, 3 internal error,\n"
+    "130/143 interrupted by SIGINT/SIGTERM. OMP_WAIT_POLICY defaults to passive (see the user guide).\n"
+    "Each command has its own help: otmpm run --help, ...";
+
+/// An unknown first word would otherwise get CLI11's "A subcommand is required".
+bool unknown_command(int argc, char** argv, const CLI::App& app) {
+  if (argc < 2 || argv[1][0] == '-') return false;
+  for (const CLI::App* sub : app.get_subcommands([](const CLI::App*) { return true; }))
+    if (sub->get_name() == argv[1]) return false;
+  std::fprintf(stderr, "otmpm: unknown command '%s' (commands: run, pair, study, basis, render)\n%s\n", argv[1],
+               "Run with --help for more information.");
+  return true;
+}
+
+int report(const char* kind, const char* what, int status) {
+  otmpm::cli::end_progress_line();
+  std::fprintf(stderr, "otmpm: %s: %s\n", kind, what);
+  return status;
 }
 
 } // namespace
 
 int main(int argc, char** argv) {
-  const std::vector<std::string> args(argv + 1, argv + argc);
-  if (args.empty() || args[0] == "--help" || args[0] == "-h") {
-    usage(args.empty() ? stderr : stdout);
-    return args.empty() ? 2 : 0;
-  }
-  const std::vector<std::string> rest(args.begin() + 1, args.end());
+  otmpm::cli::default_passive_wait_policy(argv);
+  CLI::App app{"otmpm: explicit solid dynamics with the Material Point Method and an OTM-style "
+               "updated-Lagrangian scheme",
+               "otmpm"};
+  app.set_version_flag("--version", otmpm::cli::version(), "Print the version and exit");
+  app.require_subcommand(1);
+  app.footer(kFooter);
+  app.get_formatter()->column_width(34);
+  // One entry per subcommand, in the order they are added (get_subcommands' order).
+  std::vector<otmpm::cli::Command> commands;
+  for (auto add : {otmpm::cli::add_run_command, otmpm::cli::add_pair_command, otmpm::cli::add_study_command,
+                   otmpm::cli::add_basis_command, otmpm::cli::add_render_command})
+    commands.push_back(add(app));
+  if (unknown_command(argc, argv, app)) return kBadInput;
   try {
-    if (args[0] == "run") return otmpm::cli::run_command(rest);
-    if (args[0] == "pair") return otmpm::cli::pair_command(rest);
-    if (args[0] == "basis") return otmpm::cli::basis_command(rest);
-    if (args[0] == "study") return otmpm::cli::study_command(rest);
-    if (args[0] == "--version") {
-      std::puts(otmpm::cli::version());
-      return 0;
-    }
-    std::fprintf(stderr, "otmpm: unknown command '%s'\n", args[0].c_str());
-    usage(stderr);
-    return 2;
+    app.parse(argc, argv);
+    const std::vector<CLI::App*> chosen = app.get_subcommands();
+    const std::vector<CLI::App*> all = app.get_subcommands([](const CLI::App*) { return true; });
+    for (std::size_t i = 0; i < all.size(); ++i)
+      if (!chosen.empty() && all[i] == chosen.front()) return commands[i]();
+    return kBadInput;
+  } catch (const CLI::ParseError& e) {
+    const int code = app.exit(e);
+    return code == 0 ? 0 : kBadInput;
   } catch (const otmpm::InputError& e) {
-    std::fprintf(stderr, "otmpm: error: %s\n", e.what());
-    return 2;
+    return report("error", e.what(), kBadInput);
   } catch (const otmpm::InstabilityError& e) {
-    std::fprintf(stderr, "otmpm: unstable: %s\n", e.what());
-    return 1;
+    return report("unstable", e.what(), 1);
   } catch (const otmpm::BasisError& e) {
-    std::fprintf(stderr, "otmpm: error: %s\n", e.what());
-    return 2;
+    return report("error", e.what(), kBadInput);
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "otmpm: internal error: %s\n", e.what());
-    return 3;
+    return report("internal error", e.what(), 3);
   }
 }

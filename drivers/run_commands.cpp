@@ -1,16 +1,17 @@
 // `otmpm run` and `otmpm pair`.
-#include "commands.hpp"
+#include "cli.hpp"
+#include "interrupt.hpp"
+#include "progress.hpp"
+#include "system.hpp"
 
-#include "otmpm/engine/run.hpp"
+#include "otmpm/run/restart.hpp"
+#include "otmpm/run/run.hpp"
 #include "otmpm/io/checkpoint.hpp"
 #include "otmpm/scene/scene.hpp"
 
 #include <algorithm>
-#include <chrono>
-#include <functional>
-#include <memory>
 #include <cstdio>
-#include <unistd.h>
+#include <memory>
 
 namespace otmpm::cli {
 
@@ -21,56 +22,37 @@ const char* version() { return "otmpm " OTMPM_CLI_VERSION; }
 
 namespace {
 
+/// Seconds between two progress lines when stderr is not a terminal.
+constexpr double kProgressInterval = 5.0;
+
+/// The options of `run` and `pair`.
 struct SceneArgs {
   std::string scene;
   std::vector<std::string> sets;
   std::string out;
   std::string restart; ///< checkpoint file to continue (run only)
+  bool check = false;  ///< run only: validate and report, do not run
   bool quiet = false;
+  bool force = false;
+  int threads = 0;
+  double progress_interval = kProgressInterval;
 };
 
-/// Reads the arguments of `run` (allow_out: --out and --restart) or `pair`.
-SceneArgs parse_scene_args(const std::vector<std::string>& args, bool allow_out) {
-  SceneArgs a;
-  for (std::size_t i = 0; i < args.size(); ++i) {
-    const std::string& s = args[i];
-    auto value = [&](const char* opt) {
-      if (i + 1 >= args.size()) throw InputError(std::string("option ") + opt + " needs a value");
-      return args[++i];
-    };
-    if (s == "--set") a.sets.push_back(value("--set"));
-    else if (s.rfind("--set=", 0) == 0) a.sets.push_back(s.substr(6));
-    else if (s == "--out" && allow_out) a.out = value("--out");
-    else if (s == "--restart" && allow_out) a.restart = value("--restart");
-    else if (s == "--quiet" || s == "-q") a.quiet = true;
-    else if (!s.empty() && s[0] == '-') throw InputError("unknown option '" + s + "'");
-    else if (a.scene.empty()) a.scene = s;
-    else throw InputError("unexpected argument '" + s + "' (one scene file per run)");
-  }
-  if (!a.restart.empty() && !a.scene.empty())
-    throw InputError("give either a scene file or --restart CHECKPOINT, not both");
-  if (!a.restart.empty() && !a.sets.empty())
-    throw InputError("--set cannot be combined with --restart: a restart continues the scene stored in the checkpoint");
-  if (a.scene.empty() && a.restart.empty()) throw InputError("no scene file given");
-  return a;
-}
-
-/// A progress bar on stderr when it is a terminal, redrawn at most 10 times a second.
-std::function<void(double, double, long)> progress_bar(bool quiet) {
-  if (quiet || !isatty(STDERR_FILENO)) return {};
-  auto last = std::make_shared<std::chrono::steady_clock::time_point>();
-  return [last](double t, double t_end, long steps) {
-    const auto now = std::chrono::steady_clock::now();
-    if (now - *last < std::chrono::milliseconds(100) && t < t_end) return;
-    *last = now;
-    constexpr int width = 40;
-    const double frac = t_end > 0 ? std::min(1.0, t / t_end) : 1.0;
-    const int filled = static_cast<int>(frac * width);
-    std::fprintf(stderr, "\r[%s%s] %5.1f%%  step %ld  t = %.4g s", std::string(filled, '#').c_str(),
-                 std::string(width - filled, ' ').c_str(), 100.0 * frac, steps, t);
-    if (t >= t_end) std::fputc('\n', stderr);
-    std::fflush(stderr);
-  };
+/// The options `run` and `pair` share; returns the scene positional.
+CLI::Option* add_scene_options(CLI::App& sub, SceneArgs& a) {
+  CLI::Option* scene = sub.add_option("scene", a.scene, "Scene file (TOML)")->type_name("SCENE.toml");
+  sub.add_option("--set", a.sets, "Override a scene value before it is checked (repeatable), e.g. --set grid.cells=[135]")
+      ->type_name("KEY=VALUE")
+      ->allow_extra_args(false);
+  add_threads_option(sub, a.threads);
+  sub.add_flag("--force", a.force, "Replace an existing result file");
+  sub.add_flag("-q,--quiet", a.quiet, "No progress, no phase times, no 'results:' line (the summary line stays)");
+  sub.add_option("--progress-interval", a.progress_interval,
+                 "Seconds between progress lines when stderr is not a terminal")
+      ->check(CLI::PositiveNumber)
+      ->type_name("S")
+      ->capture_default_str();
+  return scene;
 }
 
 void print_phases(const RunSummary& s) {
@@ -80,64 +62,166 @@ void print_phases(const RunSummary& s) {
                 i + 1 < phase_names.size() ? "," : "\n");
 }
 
-} // namespace
+/// "1.23 MB" etc.
+std::string bytes_text(double bytes) {
+  const char* units[] = {"B", "kB", "MB", "GB", "TB"};
+  int u = 0;
+  while (bytes >= 1000 && u < 4) bytes /= 1000, ++u;
+  char b[32];
+  std::snprintf(b, sizeof b, "%.3g %s", bytes, units[u]);
+  return b;
+}
 
-int run_command(const std::vector<std::string>& args) {
-  const SceneArgs a = parse_scene_args(args, true);
+/// `otmpm run --check`: what a run of the scene would be, without running it.
+int check_command(const SceneArgs& a) {
+  const Scene scene = load_scene(a.scene, a.sets);
+  const SceneCheck c = check_scene(scene);
+  std::printf("%s: ok (the scene reads and the run can be set up)\n", a.scene.c_str());
+  std::printf("  %dD, mode %s, integrator %s, basis %s\n", c.dimension, c.mode.c_str(), c.integrator.c_str(),
+              c.basis.c_str());
+  std::printf("  particles  %ld\n  nodes      %ld\n", c.particles, c.nodes);
+  std::printf("  dt         %.6g s (first step%s)\n", c.dt, scene.simulation.dt ? ", fixed" : ", cfl rule");
+  std::printf("  steps      about %.0f (t_end = %.6g s)\n", c.estimated_steps, c.t_end);
+  std::printf("  memory     about %s (estimate)\n", bytes_text(c.memory_bytes).c_str());
+  std::printf("  results    %s\n", (a.out.empty() ? c.out_file : a.out).c_str());
+  return 0;
+}
+
+/// Tells why the run stopped early and how to continue it.
+void report_interrupt(const RunSummary& s, const Scene* scene) {
+  std::fprintf(stderr, "otmpm: interrupted by %s at t = %.6g s (step %ld)", interrupt_signal_name(), s.time, s.steps);
+  if (!s.out_file.empty()) std::fprintf(stderr, "; %s is valid, status \"interrupted\"", s.out_file.c_str());
+  if (scene && scene->output.checkpoint_every > 0 && !s.out_file.empty())
+    std::fprintf(stderr, "; continue with: otmpm run --restart %s",
+                 checkpoint_path(*scene, s.out_file).c_str());
+  std::fputc('\n', stderr);
+}
+
+int run_command(const SceneArgs& a) {
+  if (a.check) return check_command(a);
+  set_threads(a.threads);
+  InterruptHandlers handlers;
   RunOptions opt;
   opt.out_file = a.out;
-  opt.progress = progress_bar(a.quiet);
-  const RunSummary s = a.restart.empty() ? run_scene(load_scene(a.scene, a.sets), opt)
-                                         : restart_run(read_checkpoint(a.restart), opt);
-  if (s.exit_code != 0) std::fprintf(stderr, "otmpm: %s\n", s.status.c_str());
+  opt.force = a.force;
+  opt.interrupt = &interrupt_flag();
+  opt.progress = make_progress(a.quiet, a.progress_interval);
+  std::unique_ptr<Scene> scene;
+  RunSummary s;
+  if (a.restart.empty()) {
+    scene = std::make_unique<Scene>(load_scene(a.scene, a.sets));
+    s = run_scene(*scene, opt);
+  } else {
+    require_file(a.restart, "checkpoint file");
+    const Checkpoint ck = read_checkpoint(a.restart);
+    scene = std::make_unique<Scene>(checkpoint_scene(ck));
+    s = restart_run(ck, opt);
+  }
+  end_progress_line();
+  if (s.interrupted) report_interrupt(s, scene.get());
+  else if (s.exit_code != 0) std::fprintf(stderr, "otmpm: %s\n", s.status.c_str());
   if (!a.quiet) print_phases(s);
   std::printf("%s\n", summary_line(s).c_str());
   if (!s.out_file.empty() && !a.quiet) std::printf("results: %s\n", s.out_file.c_str());
-  return s.exit_code;
+  return s.interrupted ? interrupted_exit_status() : s.exit_code;
 }
 
-int pair_command(const std::vector<std::string>& args) {
-  const SceneArgs a = parse_scene_args(args, false);
-  std::vector<RunSummary> runs;
-  for (const char* mode : {"mpm", "ul"}) {
-    std::vector<std::string> sets = a.sets;
-    sets.push_back(std::string("simulation.mode=") + mode);
-    const Scene scene = load_scene(a.scene, sets);
-    RunOptions opt;
-    std::string out = scene.output.file;
-    const auto dot = out.rfind(".h5");
-    opt.out_file = (dot == std::string::npos ? out : out.substr(0, dot)) + "_" + mode + ".h5";
-    opt.progress = progress_bar(a.quiet);
-    runs.push_back(run_scene(scene, opt));
-  }
+std::string fmt(const char* f, double v) {
+  char b[64];
+  std::snprintf(b, sizeof b, f, v);
+  return b;
+}
+
+/// The side-by-side table of `pair` (one column per finished run).
+void print_pair_table(const std::vector<RunSummary>& runs) {
   std::vector<std::string> names;
   for (const auto& r : runs)
     for (const auto& [n, v] : r.errors)
       if (std::find(names.begin(), names.end(), n) == names.end()) names.push_back(n);
-  std::printf("%-26s %16s %16s\n", "", "mpm", "ul");
-  auto row_s = [&](const char* label, auto get) {
-    std::printf("%-26s %16s %16s\n", label, get(runs[0]).c_str(), get(runs[1]).c_str());
+  std::printf("%-26s", "");
+  for (const auto& r : runs) std::printf(" %16s", r.mode.c_str());
+  std::printf("\n");
+  auto row = [&](const std::string& label, auto get) {
+    std::printf("%-26s", label.c_str());
+    for (const auto& r : runs) std::printf(" %16s", get(r).c_str());
+    std::printf("\n");
   };
-  auto fmt = [](const char* f, double v) {
-    char b[64];
-    std::snprintf(b, sizeof b, f, v);
-    return std::string(b);
-  };
-  row_s("status", [](const RunSummary& r) { return r.exit_code == 0 ? std::string("ok") : std::string("unstable"); });
-  row_s("basis / integrator", [](const RunSummary& r) { return r.basis + "/" + r.integrator; });
+  row("status", [](const RunSummary& r) {
+    return std::string(r.interrupted ? "interrupted" : r.exit_code != 0 ? "unstable" : "ok");
+  });
+  row("basis / integrator", [](const RunSummary& r) { return r.basis + "/" + r.integrator; });
   for (const std::string& n : names)
-    row_s(n.c_str(), [&](const RunSummary& r) {
+    row(n, [&](const RunSummary& r) {
       auto it = r.errors.find(n);
       return it == r.errors.end() ? std::string("-") : fmt("%.4e", it->second);
     });
-  row_s("wall time [s]", [&](const RunSummary& r) { return fmt("%.3f", r.wall_seconds); });
-  row_s("steps", [&](const RunSummary& r) { return fmt("%.0f", static_cast<double>(r.steps)); });
-  row_s("particles", [&](const RunSummary& r) { return fmt("%.0f", static_cast<double>(r.particles)); });
-  row_s("nodes", [&](const RunSummary& r) { return fmt("%.0f", static_cast<double>(r.nodes)); });
-  row_s("particle-steps per second", [&](const RunSummary& r) { return fmt("%.3e", r.particle_steps_per_second()); });
-  for (const auto& r : runs)
-    if (r.exit_code != 0) std::fprintf(stderr, "otmpm: %s run: %s\n", r.mode.c_str(), r.status.c_str());
-  return std::max(runs[0].exit_code, runs[1].exit_code);
+  row("wall time [s]", [](const RunSummary& r) { return fmt("%.3f", r.wall_seconds); });
+  row("steps", [](const RunSummary& r) { return fmt("%.0f", static_cast<double>(r.steps)); });
+  row("particles", [](const RunSummary& r) { return fmt("%.0f", static_cast<double>(r.particles)); });
+  row("nodes", [](const RunSummary& r) { return fmt("%.0f", static_cast<double>(r.nodes)); });
+  row("particle-steps per second", [](const RunSummary& r) { return fmt("%.3e", r.particle_steps_per_second()); });
+}
+
+int pair_command(const SceneArgs& a) {
+  set_threads(a.threads);
+  InterruptHandlers handlers;
+  std::vector<RunSummary> runs;
+  for (const char* mode : {"mpm", "ul"}) {
+    if (interrupt_flag().load()) break;
+    std::vector<std::string> sets = a.sets;
+    sets.push_back(std::string("simulation.mode=") + mode);
+    const Scene scene = load_scene(a.scene, sets);
+    RunOptions opt;
+    const std::string& out = scene.output.file;
+    const auto dot = out.rfind(".h5");
+    opt.out_file = (dot == std::string::npos ? out : out.substr(0, dot)) + "_" + mode + ".h5";
+    opt.force = a.force;
+    opt.interrupt = &interrupt_flag();
+    opt.progress = make_progress(a.quiet, a.progress_interval);
+    runs.push_back(run_scene(scene, opt));
+    end_progress_line();
+    if (runs.back().interrupted) report_interrupt(runs.back(), &scene);
+  }
+  if (!runs.empty()) print_pair_table(runs);
+  int status = 0;
+  for (const auto& r : runs) {
+    if (r.exit_code != 0 && !r.interrupted) std::fprintf(stderr, "otmpm: %s run: %s\n", r.mode.c_str(), r.status.c_str());
+    status = std::max(status, r.exit_code);
+  }
+  return interrupt_flag().load() ? interrupted_exit_status() : status;
+}
+
+} // namespace
+
+Command add_run_command(CLI::App& app) {
+  auto a = std::make_shared<SceneArgs>();
+  CLI::App* sub = app.add_subcommand("run", "Run one scene to t_end and write the result file (HDF5 + XDMF)");
+  CLI::Option* scene = add_scene_options(*sub, *a);
+  CLI::Option* restart = sub->add_option("--restart", a->restart,
+                                         "Continue the run saved in a checkpoint (output.checkpoint_every); "
+                                         "takes no scene and no --set")
+                             ->type_name("CHECKPOINT.h5");
+  sub->add_option("--out", a->out, "Result file (default: output.file of the scene)")->type_name("FILE.h5");
+  CLI::Option* check = sub->add_flag("--check", a->check,
+                                     "Validate the scene and print particles, nodes, dt, estimated steps and "
+                                     "memory; do not run");
+  restart->excludes(scene)->excludes("--set")->excludes(check);
+  sub->footer("One of SCENE.toml and --restart is required. SIGINT/SIGTERM stop the run after the current step: "
+              "the result file keeps status \"interrupted\" (and a last checkpoint is written if checkpointing is "
+              "on); exit status 130/143.");
+  return [a, sub] {
+    if (a->scene.empty() && a->restart.empty())
+      throw InputError("give a scene file (otmpm run SCENE.toml) or --restart CHECKPOINT.h5");
+    return run_command(*a);
+  };
+}
+
+Command add_pair_command(CLI::App& app) {
+  auto a = std::make_shared<SceneArgs>();
+  CLI::App* sub = app.add_subcommand("pair", "Run a scene in mpm and in ul mode and print them side by side");
+  add_scene_options(*sub, *a)->required();
+  sub->footer("Result files: output.file with _mpm and _ul before .h5.");
+  return [a] { return pair_command(*a); };
 }
 
 } // namespace otmpm::cli

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Grid options of the Dyka bar at mesh size h = L/n (spec benchmarks.md).
+"""Grid options of the Dyka bar at mesh size h = L/n (docs/benchmarks.md).
 
 The mpm grid ends at x = L and reaches two cells left of x = 0:
 grid.lower = -2h, grid.cells = n + 2.
@@ -45,7 +45,7 @@ def scene_text(template, n):
     body = re.sub(r"\A(?:#[^\n]*\n|\n)*", "", template)
     every = FINE_EVERY if n >= FINE_MESH else None
     header = (
-        f"# Dyka bar (molinos et al., sect. 3.1; spec benchmarks.md) at mesh size\n"
+        f"# Dyka bar (molinos et al., sect. 3.1; docs/benchmarks.md) at mesh size\n"
         f"# h = L/{n} = {L / n * 1e3:.4g} mm, L = 0.1333 m: examples/dyka.toml with the grid\n"
         f"# reaching two cells left of x = 0 (lower = -2h, cells = n + 2 = {cells})"
         + (f"\n# and a frame every {FINE_EVERY:g} s to keep the result file small" if every else "")

@@ -9,7 +9,7 @@ its neighbours:
     docs/figures/basis_derivatives.png  dN_I/dx
 
 Families: linear, uGIMP (2 particles per cell, half-width h/4), LME with
-gamma_lme = 0.8, 1.5, 3, 4, 10 (beta = gamma_lme / h^2, the spec's convention)
+gamma_lme = 0.8, 1.5, 3, 4, 10 (beta = gamma_lme / h^2, our convention, docs/theory.md)
 and B-splines of degree 2 and 3 (their control points sit at the Greville
 abscissae, so degree 2 has no control point at 0.5: the two nearest are shown).
 

@@ -10,8 +10,8 @@
    (characteristics) solution:
        docs/figures/dyka_history_n133.png
    It also runs both integrators on the scene exactly as shipped (frames
-   every 1 us) and with gamma_lme = 2.8 (about the paper's gamma = 4, spec
-   benchmarks.md), and prints markdown tables of the errors, wall time and
+   every 1 us) and with gamma_lme = 2.8 (about the paper's gamma = 4, see
+   docs/benchmarks.md), and prints markdown tables of the errors, wall time and
    steps, and of the ringing after each jump.
 2. Runs the same bar at h = L/40 in 1D (examples/dyka/dyka_n40.toml), 2D
    (examples/dyka_2d.toml) and 3D (examples/dyka_3d.toml) with npc, frames
@@ -52,7 +52,7 @@ import numpy as np  # noqa: E402
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 
-# Dyka bar (spec benchmarks.md, molinos sect. 3.1)
+# Dyka bar (docs/benchmarks.md, molinos sect. 3.1)
 L = 0.1333         # bar length [m]
 RHO = 7833.0       # density [kg/m3]
 E = 200.0e9        # Young's modulus [Pa]
@@ -69,7 +69,7 @@ OSC_WINDOWS_US = ((2.0, 10.0), (10.0, 20.0))
 PROBE = "A"
 HISTORY_MESH = 133                               # h = L/133 = 1 mm, molinos Fig. 7
 PAPER_MESHES = (13, 20, 40, 133, 267, 401, 1333)  # examples/dyka/dyka_nN.toml
-# The paper's gamma = 4 is about 0.7 * 4 in beta = gamma_lme / h^2 (spec benchmarks.md).
+# The paper's gamma = 4 is about 0.7 * 4 in beta = gamma_lme / h^2 (docs/benchmarks.md).
 PAPER_GAMMA_LME = 2.8
 INTEGRATORS = ("fe", "npc")
 LABELS = {"fe": "FE (forward Euler)", "npc": "NPC (Newmark predictor-corrector)"}

@@ -25,7 +25,7 @@ cases=(
   "dyka_mpm_npc_lme|$ex/dyka.toml|simulation.t_end=3e-5"
   "dyka_mpm_fe_linear|$ex/dyka.toml|simulation.t_end=3e-5 simulation.integrator=fe basis.kind=linear"
   "dyka_mpm_musl_ugimp|$ex/dyka.toml|simulation.t_end=3e-5 simulation.integrator=musl basis.kind=ugimp body.bar.placement=cell_centres"
-  "dyka_mpm_npc_lme_consistent|$ex/dyka.toml|simulation.t_end=2e-5 simulation.mass=consistent"
+  "dyka_mpm_npc_bspline2_consistent|$ex/dyka.toml|simulation.t_end=2e-5 simulation.mass=consistent basis.kind=bspline2"
   "dyka_mpm_fe_maxent|$ex/dyka.toml|simulation.t_end=2e-5 simulation.integrator=fe basis.kind=maxent"
   "dyka_ul_npc_lme|$ex/dyka.toml|simulation.t_end=3e-5 simulation.mode=ul"
   "dyka_ul_otm_lme|$ex/dyka.toml|simulation.t_end=3e-5 simulation.mode=ul simulation.integrator=otm"
@@ -39,10 +39,10 @@ cases=(
   "fixed_bar_mpm_npc_bspline3_consistent|$ex/fixed_bar.toml|simulation.t_end=3e-4 simulation.integrator=npc basis.kind=bspline3 simulation.mass=consistent"
   "traction_bar_mpm_neohooke|$ex/traction_bar.toml|simulation.t_end=0.05 $finite"
   "traction_bar_ul_unified|$ex/traction_bar.toml|simulation.t_end=0.05 simulation.mode=ul simulation.integrator=unified basis.kind=bspline2 $finite"
-  "mms_plate_ul_otm_maxent|$ex/mms_plate.toml|simulation.t_end=5e-4 basis.kind=maxent $finite"
+  "mms_plate_ul_otm_maxent|$ex/mms_plate.toml|simulation.t_end=5e-4 basis.kind=maxent simulation.integrator=otm $finite"
   "andersen_mpm_npc_lme_ramp|$ex/andersen_block.toml|simulation.t_end=1.0"
-  "plate_impact_mpm_fe_perturbed|$ex/plate_impact.toml|simulation.t_end=0.2 simulation.integrator=fe grid.kind=perturbed grid.perturbation=0.2"
-  "plate_impact_ul_musl_bspline2|$ex/plate_impact.toml|simulation.t_end=0.2 simulation.mode=ul simulation.integrator=musl basis.kind=bspline2"
+  "plate_impact_mpm_fe_perturbed|$ex/plate_impact.toml|simulation.t_end=0.2 simulation.integrator=fe grid.kind=perturbed grid.perturbation=0.2 grid.upper=[56.0,52.0] grid.cells=[56,54] body.plate.lower=[1.0,0.0] body.plate.upper=[51.0,50.0]"
+  "andersen_ul_musl_bspline2|$ex/andersen_block.toml|simulation.t_end=1.0 simulation.mode=ul simulation.integrator=musl basis.kind=bspline2"
 )
 
 for c in "${cases[@]}"; do

@@ -1,7 +1,7 @@
-// Running the `otmpm` command from a test: spawned with posix_spawn (or
-// through /bin/sh for shell limits such as `ulimit -f`), with one OpenMP
-// thread, stdout and stderr captured, and the exit status or the signal that
-// ended it. Shared by the command-line tests of restarts and output files.
+// Helpers of the tests that drive the otmpm command: through a shell
+// (quote), or spawned with posix_spawn (or through /bin/sh for shell limits
+// such as `ulimit -f`) with one OpenMP thread, stdout and stderr captured,
+// and the exit status or the signal that ended it.
 #pragma once
 
 #include <doctest/doctest.h>
@@ -31,9 +31,16 @@ struct CliResult {
   std::string out, err;
 };
 
-/// The whole content of a file ("" when it cannot be read).
-inline std::string slurp_file(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
+/// `s` as one word for /bin/sh (single quotes).
+inline std::string quote(const std::string& s) {
+  std::string q = "'";
+  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+/// The whole content of a file ("" if it cannot be read).
+inline std::string read_text(const std::filesystem::path& file) {
+  std::ifstream in(file);
   std::stringstream ss;
   ss << in.rdbuf();
   return ss.str();
@@ -74,8 +81,8 @@ inline CliResult wait_process(pid_t pid, const std::string& out_file, const std:
   CliResult r;
   r.status = WIFEXITED(wstatus) ? WEXITSTATUS(wstatus) : -1;
   r.signal = WIFSIGNALED(wstatus) ? WTERMSIG(wstatus) : 0;
-  r.out = slurp_file(out_file);
-  r.err = slurp_file(err_file);
+  r.out = read_text(out_file);
+  r.err = read_text(err_file);
   return r;
 }
 

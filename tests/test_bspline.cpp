@@ -1,5 +1,5 @@
 /// \file test_bspline.cpp
-/// B-spline basis (wobbes sect. 6.2, spec algorithms.md sect. 1): Cox-de Boor
+/// B-spline basis (wobbes sect. 6.2, docs/theory.md sect. 4): Cox-de Boor
 /// against closed forms, partition of unity, linear completeness with respect
 /// to the Greville abscissae, derivatives, degree 1 = hats, and the knot
 /// advection of the unified approach (wobbes sect. 7).

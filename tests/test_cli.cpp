@@ -1,13 +1,17 @@
-// The `otmpm` command (interfaces.md "Command line"): exit status 2 with a
+// The `otmpm` command (docs/user-guide.md, "Command line"): exit status 2 with a
 // message naming file and line for every malformed scene, 0 and a readable
 // HDF5 file with status "ok" for a good one, 1 and a diagnosis for a run that
 // becomes unstable, 2 for an unknown --set key or an unknown command.
+#include "cli_support.hpp"
+
 #include <doctest/doctest.h>
 #include <hdf5.h>
 
 #include <sys/wait.h>
 
 #include <algorithm>
+#include <cctype>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -17,6 +21,8 @@
 #include <vector>
 
 namespace fs = std::filesystem;
+using otmpm::test::quote;
+using otmpm::test::read_text;
 
 namespace {
 
@@ -43,21 +49,16 @@ private:
   fs::path path_;
 };
 
-std::string quote(const std::string& s) {
-  std::string q = "'";
-  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
-
 struct CliResult {
   int status = -1;
   std::string err;
+  std::string out;
 };
 
 /// Runs `otmpm ARGS` (one thread, so the run does not depend on how busy the
-/// machine is), returning the exit status and what it wrote to stderr.
+/// machine is), returning the exit status and what it wrote to stdout and stderr.
 CliResult run_cli(const TempDir& dir, const std::vector<std::string>& args) {
-  const fs::path err_file = dir.path() / "stderr.txt";
+  const fs::path err_file = dir.path() / "stderr.txt", out_file = dir.path() / "stdout.txt";
   // Appended piece by piece: g++ 12 at -O3 warns (-Wrestrict, a known false
   // positive) on `"literal" + std::string`.
   std::string cmd = "OMP_NUM_THREADS=1 ";
@@ -66,15 +67,15 @@ CliResult run_cli(const TempDir& dir, const std::vector<std::string>& args) {
     cmd += ' ';
     cmd += quote(a);
   }
-  cmd += " >/dev/null 2>";
+  cmd += " >";
+  cmd += quote(out_file.string());
+  cmd += " 2>";
   cmd += quote(err_file.string());
   const int rc = std::system(cmd.c_str());
   CliResult r;
   r.status = rc != -1 && WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
-  std::ifstream in(err_file);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  r.err = ss.str();
+  r.err = read_text(err_file);
+  r.out = read_text(out_file);
   return r;
 }
 
@@ -94,6 +95,21 @@ std::string root_string_attribute(const fs::path& file, const std::string& name)
     CHECK(H5Aread(attr, type, buf.data()) >= 0);
     value = buf.data();
     H5Tclose(type);
+    H5Aclose(attr);
+  }
+  H5Fclose(f);
+  return value;
+}
+
+/// A double attribute of the root group of an HDF5 file (NaN when it cannot be read).
+double root_double_attribute(const fs::path& file, const std::string& name) {
+  double value = std::nan("");
+  const hid_t f = H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  REQUIRE(f >= 0);
+  const hid_t attr = H5Aopen_by_name(f, "/", name.c_str(), H5P_DEFAULT, H5P_DEFAULT);
+  CHECK(attr >= 0);
+  if (attr >= 0) {
+    CHECK(H5Aread(attr, H5T_NATIVE_DOUBLE, &value) >= 0);
     H5Aclose(attr);
   }
   H5Fclose(f);
@@ -148,7 +164,7 @@ TEST_CASE("cli: a good scene exits with 0 and writes an HDF5 file with status ok
   REQUIRE(fs::exists(out));
   CHECK(H5Fis_hdf5(out.c_str()) > 0);
   CHECK(root_string_attribute(out, "status") == "ok");
-  // The resolved scene is stored too (interfaces.md "Result file").
+  // The resolved scene is stored too (docs/user-guide.md, "Result file").
   CHECK(root_string_attribute(out, "scene").find("[simulation]") != std::string::npos);
 }
 
@@ -210,4 +226,202 @@ TEST_CASE("cli: basis options that are not an int (out of range, fractional, neg
     CHECK(r.err.find(opt) != std::string::npos);
   }
   CHECK(run_cli(dir, {"basis", "--kind", "linear", "--cells", "4", "--samples", "3", "--out", out}).status == 0);
+}
+
+// ---------------------------------------------------------------- CLI11 front end
+
+TEST_CASE("cli: --help and -h work on otmpm and every command, and list the real options") {
+  TempDir dir;
+  const std::vector<std::pair<std::string, std::vector<std::string>>> commands{
+      {"", {"run", "pair", "study", "basis", "render", "--version"}},
+      {"run", {"--set", "--out", "--restart", "--check", "--threads", "--force", "--quiet", "--progress-interval"}},
+      {"pair", {"--set", "--threads", "--force", "--quiet"}},
+      {"study", {"--threads", "--scripts", "--python"}},
+      {"basis", {"--kind", "--dim", "--lower", "--upper", "--cells", "--perturb", "--seed", "--gamma-lme",
+                 "--tolerance", "--d-max", "--ppc", "--samples", "--out", "--threads"}},
+      {"render", {"--field", "--frame", "--all", "--stride", "--out", "--component", "--view", "--fps", "--scripts",
+                  "--python"}}};
+  for (const auto& [command, options] : commands)
+    for (const char* help : {"--help", "-h"}) {
+      INFO("otmpm " << command << " " << help);
+      const CliResult r = command.empty() ? run_cli(dir, {help}) : run_cli(dir, {command, help});
+      CHECK(r.status == 0);
+      CHECK(r.out.find("Usage: otmpm") != std::string::npos);
+      for (const std::string& o : options) {
+        INFO(o);
+        CHECK(r.out.find(o) != std::string::npos);
+      }
+    }
+}
+
+TEST_CASE("cli: --version prints the version") {
+  TempDir dir;
+  const CliResult r = run_cli(dir, {"--version"});
+  CHECK(r.status == 0);
+  CHECK(r.out.rfind("otmpm 0.", 0) == 0);
+}
+
+TEST_CASE("cli: a bad option exits with 2 and CLI11's message, in every command") {
+  TempDir dir;
+  const std::string good = (kSource / "tests" / "scenes" / "good_minimal.toml").string();
+  for (const auto& args : std::vector<std::vector<std::string>>{{"run", good, "--frobnicate"},
+                                                                {"run", good, "--threads", "0"},
+                                                                {"run", good, "--threads=two"},
+                                                                {"run", good, "--out"},
+                                                                {"run", "--restart", "c.h5", good},
+                                                                {"run", "--restart", "c.h5", "--set", "a=1"},
+                                                                {"pair"},
+                                                                {"pair", good, "--out", "x.h5"},
+                                                                {"study", "--frobnicate", "s.toml"},
+                                                                {"study"},
+                                                                {"basis", "--kind", "cubic", "--out", "b.csv"},
+                                                                {"basis", "--kind", "linear"},
+                                                                {"basis", "--dim=4", "--out", "b.csv"},
+                                                                {"render", "r.h5", "--field", "v", "--out", "r.jpg"},
+                                                                {"render", "r.h5", "--out", "r.png"},
+                                                                {"render", "r.h5", "--field", "v", "--out", "r.gif",
+                                                                 "--all", "--frame", "2"}}) {
+    std::string line;
+    for (const auto& a : args) line += a + " ";
+    INFO("otmpm " << line);
+    const CliResult r = run_cli(dir, args);
+    INFO("stderr: " << r.err);
+    CHECK(r.status == 2);
+    CHECK(r.err.find("--help") != std::string::npos); // CLI11: "Run with --help for more information."
+  }
+}
+
+TEST_CASE("cli: --opt=value and --opt value are the same in every command") {
+  TempDir dir;
+  const std::string good = (kSource / "tests" / "scenes" / "good_minimal.toml").string();
+  const fs::path a = dir.path() / "a.h5", b = dir.path() / "b.h5";
+  CHECK(run_cli(dir, {"run", good, "--out", a.string(), "--set", "simulation.t_end=1e-6", "--threads", "1", "-q"})
+            .status == 0);
+  CHECK(run_cli(dir, {"run", good, "--out=" + b.string(), "--set=simulation.t_end=1e-6", "--threads=1", "--quiet"})
+            .status == 0);
+  CHECK(root_string_attribute(a, "scene") == root_string_attribute(b, "scene"));
+  const fs::path c1 = dir.path() / "c1.csv", c2 = dir.path() / "c2.csv";
+  CHECK(run_cli(dir, {"basis", "--kind", "ugimp", "--ppc", "3", "--cells", "4", "--seed", "2", "--out", c1.string()})
+            .status == 0);
+  CHECK(run_cli(dir, {"basis", "--kind=ugimp", "--ppc=3", "--cells=4", "--seed=2", "--out=" + c2.string()}).status ==
+        0);
+  CHECK(read_text(c1) == read_text(c2));
+  CHECK(!read_text(c1).empty());
+}
+
+TEST_CASE("cli: --threads does not change the result") {
+  TempDir dir;
+  const std::string scene = (kSource / "examples" / "dyka_2d.toml").string();
+  const fs::path one = dir.path() / "one.h5", two = dir.path() / "two.h5";
+  for (const auto& [file, threads] : {std::pair{one, "1"}, std::pair{two, "2"}}) {
+    const CliResult r = run_cli(dir, {"run", scene, "--set", "simulation.t_end=2e-5", "--threads", threads, "--out",
+                                      file.string(), "-q"});
+    REQUIRE(r.status == 0);
+  }
+  CHECK(root_string_attribute(one, "status") == "ok");
+  for (const char* attr : {"rms_velocity_error", "rms_stress_error", "max_energy_ratio"}) {
+    INFO(attr);
+    CHECK(root_double_attribute(one, attr) == root_double_attribute(two, attr)); // bitwise, for any thread count
+  }
+}
+
+TEST_CASE("cli: OMP_WAIT_POLICY defaults to passive, and a user's own setting is kept") {
+  // libgomp prints its settings at start-up with OMP_DISPLAY_ENV=true; the
+  // otmpm process that does the work is the last one to print them.
+  TempDir dir;
+  const fs::path err = dir.path() / "env.txt";
+  auto last_policy = [&](const std::string& env) {
+    const std::string cmd = env + " OMP_DISPLAY_ENV=true " + quote(kBinary) + " --version >/dev/null 2>" +
+                            quote(err.string());
+    CHECK(std::system(cmd.c_str()) == 0);
+    const std::string text = read_text(err);
+    const auto at = text.rfind("OMP_WAIT_POLICY = '");
+    REQUIRE(at != std::string::npos);
+    return text.substr(at + 19, text.find('\'', at + 19) - at - 19);
+  };
+  CHECK(last_policy("env -u OMP_WAIT_POLICY") == "PASSIVE");
+  CHECK(last_policy("env OMP_WAIT_POLICY=active") == "ACTIVE");
+}
+
+TEST_CASE("cli: run --check validates, prints the size, dt, steps and memory, and runs nothing") {
+  TempDir dir;
+  const fs::path out = dir.path() / "checked.h5";
+  const CliResult r =
+      run_cli(dir, {"run", "--check", (kSource / "examples" / "dyka" / "dyka_n40.toml").string(), "--out", out.string()});
+  INFO(r.out << r.err);
+  CHECK(r.status == 0);
+  CHECK(r.out.find("particles  80\n") != std::string::npos); // 40 cells of h = L/40, 2 particles each
+  CHECK(r.out.find("nodes      43\n") != std::string::npos);
+  CHECK(r.out.find("about 1517 (t_end = 0.0001 s)") != std::string::npos); // the run takes 1517 steps
+  CHECK(r.out.find("memory     about") != std::string::npos);
+  CHECK(r.out.find("dt         6.595") != std::string::npos);
+  CHECK(!fs::exists(out));
+  // A scene only the engine refuses (in ul mode the nodes cover the body
+  // alone, so the boundary at the grid's end selects none) is refused by --check too.
+  const CliResult bad = run_cli(dir, {"run", "--check", (kSource / "tests" / "scenes" / "good_minimal.toml").string(),
+                                      "--set", "simulation.mode=ul", "--set", "boundary.0.lower=[-0.0067]", "--set",
+                                      "boundary.0.upper=[-0.0067]"});
+  INFO(bad.err);
+  CHECK(bad.status == 2);
+}
+
+TEST_CASE("cli: a directory given as the scene or checkpoint file gets a clear message (run, pair, check, restart)") {
+  TempDir dir;
+  for (const auto& args : std::vector<std::vector<std::string>>{{"run", dir.path().string()},
+                                                                {"run", "--check", dir.path().string()},
+                                                                {"pair", dir.path().string()}}) {
+    const CliResult r = run_cli(dir, args);
+    INFO(args[0] << ": " << r.err);
+    CHECK(r.status == 2);
+    CHECK(r.err.find("is a directory, not a scene file") != std::string::npos);
+  }
+  const CliResult r = run_cli(dir, {"run", "--restart", dir.path().string()});
+  CHECK(r.status == 2);
+  CHECK(r.err.find("is a directory, not a checkpoint file") != std::string::npos);
+}
+
+TEST_CASE("cli: progress lines every interval with step, t, elapsed and ETA when stderr is not a terminal") {
+  TempDir dir;
+  const std::string scene = (kSource / "examples" / "dyka" / "dyka_n133.toml").string();
+  const fs::path out = dir.path() / "p.h5";
+  const CliResult r = run_cli(dir, {"run", scene, "--out", out.string(), "--progress-interval", "0.02", "--set",
+                                    "output.every=0"});
+  INFO(r.err);
+  REQUIRE(r.status == 0);
+  std::size_t lines = 0;
+  std::stringstream ss(r.err);
+  for (std::string line; std::getline(ss, line);) {
+    if (line.rfind("otmpm: step ", 0) != 0) continue;
+    ++lines;
+    CHECK(line.find(" t = ") != std::string::npos);
+    CHECK(line.find("elapsed ") != std::string::npos);
+    CHECK(line.find("ETA ") != std::string::npos);
+  }
+  CHECK(lines >= 1); // the run takes 5043 steps, far more than 0.02 s
+  CHECK(r.err.find('\r') == std::string::npos); // no terminal bar in a log
+  // --quiet: no progress at all.
+  const CliResult q = run_cli(dir, {"run", scene, "--out", out.string(), "--progress-interval", "0.02", "--quiet",
+                                    "--force"});
+  CHECK(q.err.find("otmpm: step") == std::string::npos);
+}
+
+TEST_CASE("cli: every option that --help prints is documented in docs/user-guide.md") {
+  TempDir dir;
+  const std::string guide = read_text(kSource / "docs" / "user-guide.md");
+  REQUIRE(guide.size() > 10000);
+  std::size_t options = 0;
+  for (const char* command : {"run", "pair", "study", "basis", "render"}) {
+    const CliResult r = run_cli(dir, {command, "--help"});
+    REQUIRE(r.status == 0);
+    std::stringstream words(r.out);
+    for (std::string w; words >> w;) {
+      if (w.rfind("--", 0) != 0 || w.size() < 3 || !std::isalpha(static_cast<unsigned char>(w[2]))) continue;
+      const std::string option = w.substr(0, w.find_first_not_of("abcdefghijklmnopqrstuvwxyz-", 2));
+      if (option == "--help") continue;
+      ++options;
+      INFO("otmpm " << command << " " << option);
+      CHECK(guide.find("`" + option) != std::string::npos);
+    }
+  }
+  CHECK(options >= 30);
 }

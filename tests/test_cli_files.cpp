@@ -107,13 +107,13 @@ TEST_CASE("D2: a checkpoint resolving to the result file exits 2 naming both, be
 TEST_CASE("issue 15.4: another scene's result and another run's sidecar survive; the same scene is re-run") {
   TempDir t("cli_replace");
   expect_exit(otmpm_in(t, {"run", kDyka, "--quiet", "--out", "x.h5"}), 0);
-  const std::string h5 = otmpm::test::slurp_file(t.file("x.h5")), xdmf = otmpm::test::slurp_file(t.file("x.xdmf"));
+  const std::string h5 = otmpm::test::read_text(t.file("x.h5")), xdmf = otmpm::test::read_text(t.file("x.xdmf"));
   const CliResult other = otmpm_in(t, {"run", kDyka, "--quiet", "--out", "x.h5", "--set", "simulation.cfl=0.2"});
   expect_exit(other, 2);
   CHECK(has(other.err, "x.h5: the result file holds the results of another scene"));
-  CHECK(otmpm::test::slurp_file(t.file("x.h5")) == h5);
+  CHECK(otmpm::test::read_text(t.file("x.h5")) == h5);
   expect_exit(otmpm_in(t, {"run", kDyka, "--quiet", "--out", "x.txt"}), 0);
-  CHECK(otmpm::test::slurp_file(t.file("x.xdmf")) == xdmf); // x.txt's sidecar is x.txt.xdmf
+  CHECK(otmpm::test::read_text(t.file("x.xdmf")) == xdmf); // x.txt's sidecar is x.txt.xdmf
   expect_exit(otmpm_in(t, {"run", kDyka, "--quiet", "--out", "x.h5"}), 0); // identical scene: replaced
 }
 
@@ -165,11 +165,11 @@ TEST_CASE("D3: --restart refuses a result file of another run at the recorded pa
   expect_exit(otmpm_in(t, {"run", kDyka, "--quiet", "--out", "run.h5", "--set", "output.checkpoint_every=500"}), 0);
   expect_exit(otmpm_in(t, {"run", kDyka, "--quiet", "--out", "other.h5", "--set", "output.checkpoint_every=500"}), 0);
   fs::copy_file(t.file("other.h5"), t.file("run.h5"), fs::copy_options::overwrite_existing);
-  const std::string before = otmpm::test::slurp_file(t.file("run.h5"));
+  const std::string before = otmpm::test::read_text(t.file("run.h5"));
   const CliResult r = otmpm_in(t, {"run", "--restart", t.file("run.checkpoint.h5"), "--quiet"});
   expect_exit(r, 2);
   CHECK(has(r.err, "is not the result file of the checkpoint's run"));
-  CHECK(otmpm::test::slurp_file(t.file("run.h5")) == before);
+  CHECK(otmpm::test::read_text(t.file("run.h5")) == before);
 }
 
 TEST_CASE("D5: a file size limit (ulimit -f, SIGXFSZ ignored: EFBIG) ends with exit 4 and a valid shorter file") {
@@ -192,7 +192,7 @@ TEST_CASE("D5: a file size limit (ulimit -f, SIGXFSZ ignored: EFBIG) ends with e
   CHECK(frames > 1);
   CHECK(frames < 101);
   CHECK(status.rfind("output error: step ", 0) == 0);
-  CHECK(count(otmpm::test::slurp_file(t.file("limited.xdmf")), "<Time ") == frames);
+  CHECK(count(otmpm::test::read_text(t.file("limited.xdmf")), "<Time ") == frames);
 }
 
 TEST_CASE("D5: a full file system (a 300 kB tmpfs in a user namespace: ENOSPC) ends with exit 4 and a valid file") {
@@ -217,13 +217,13 @@ TEST_CASE("D5: a full file system (a 300 kB tmpfs in a user namespace: ENOSPC) e
   const auto [frames, status] = frames_and_status(t.file("full.h5"));
   CHECK(frames > 1);
   CHECK(status.rfind("output error: ", 0) == 0);
-  CHECK(count(otmpm::test::slurp_file(t.file("full.xdmf")), "<Time ") == frames);
+  CHECK(count(otmpm::test::read_text(t.file("full.xdmf")), "<Time ") == frames);
 }
 
 TEST_CASE("D6: 300 single-bit flips of a checkpoint: --restart exits 2 every time, never a signal") {
   TempDir t("cli_d6");
   expect_exit(otmpm_in(t, {"run", kDyka, "--quiet", "--out", "run.h5", "--set", "output.checkpoint_every=500"}), 0);
-  const std::string good = otmpm::test::slurp_file(t.file("run.checkpoint.h5"));
+  const std::string good = otmpm::test::read_text(t.file("run.checkpoint.h5"));
   std::mt19937 rng(20);
   std::uniform_int_distribution<std::size_t> byte(0, good.size() - 1);
   int exit2 = 0;

@@ -1,8 +1,8 @@
-// The Dyka bar (molinos sect. 3.1, spec benchmarks.md) at h = L/40 with LME
+// The Dyka bar (molinos sect. 3.1, docs/benchmarks.md) at h = L/40 with LME
 // (gamma_lme = 4): the NPC run stays below a velocity error bound, and NPC
 // beats forward Euler in both the final RMS velocity error and the history
 // error of point A (the paper's claim for every mesh size).
-#include "otmpm/engine/run.hpp"
+#include "otmpm/run/run.hpp"
 #include "otmpm/scene/scene.hpp"
 
 #include <doctest/doctest.h>

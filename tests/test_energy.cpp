@@ -3,8 +3,8 @@
 // work of the Dirichlet reactions. Units: E = rho = 1, so c = 1; the bar is
 // [0, 1] with h = 1/8 and two particles per cell. Each run takes well under a
 // second.
-#include "otmpm/engine/engine.hpp"
-#include "otmpm/engine/run.hpp"
+#include "otmpm/assembly/assembler.hpp"
+#include "otmpm/run/run.hpp"
 
 #include <doctest/doctest.h>
 
@@ -41,7 +41,7 @@ const std::string kMode = "velocity = [0.01]\nvelocity_profile = \"sin_x\"\n";
 /// leaves the engine at t_end.
 double run_balance(Engine<1>& e) {
   double max_error = 0.0, max_work = 0.0;
-  while (e.time() < e.scene().simulation.t_end * (1.0 - 1e-12)) {
+  while (e.time() < e.settings().t_end * (1.0 - 1e-12)) {
     e.step();
     max_error = std::max(max_error, std::abs(e.energy().balance_error()));
     max_work = std::max(max_work, std::abs(e.energy().work()));
@@ -73,7 +73,7 @@ TEST_CASE("energy balance: a bar with fixed ends and no load loses energy at O(d
     double drift[2] = {0, 0};
     const double cfls[2] = {0.1, 0.05};
     for (int k = 0; k < 2; ++k) {
-      Engine<1> e(parse_scene(bar_scene(c.mode, c.integrator, c.basis, cfls[k], 4.0, kMode + kFixedEnds),
+      Engine<1> e = assemble<1>(parse_scene(bar_scene(c.mode, c.integrator, c.basis, cfls[k], 4.0, kMode + kFixedEnds),
                               "bar.toml"));
       REQUIRE(e.energy().initial > 0.0);
       drift[k] = run_balance(e);
@@ -95,7 +95,7 @@ TEST_CASE("energy balance: the work of a constant body force equals the change o
     // rigidly, E(t) = M (b t)^2 / 2; the trapezoidal rule integrates the
     // linear power M b^2 t exactly, so the balance holds to round-off.
     for (const char* integrator : {"fe", "npc"}) {
-      Engine<1> e(parse_scene(
+      Engine<1> e = assemble<1>(parse_scene(
           bar_scene("mpm", integrator, "linear", 0.1, 0.5, "[body_force]\nvalue = [-0.01]\n"), "fall.toml"));
       const double drift = run_balance(e);
       INFO(std::string(integrator) << ": W_ext = " << e.energy().external_work
@@ -112,7 +112,7 @@ TEST_CASE("energy balance: the work of a constant body force equals the change o
     const std::string extra = "[body_force]\nvalue = [-0.01]\n[[boundary]]\nname = \"top\"\nlower = "
                               "[1.0]\nupper = [1.0]\nfix = [true]\n";
     for (const char* integrator : {"fe", "npc"}) {
-      Engine<1> e(parse_scene(bar_scene("mpm", integrator, "linear", 0.1, 4.0, extra), "hang.toml"));
+      Engine<1> e = assemble<1>(parse_scene(bar_scene("mpm", integrator, "linear", 0.1, 4.0, extra), "hang.toml"));
       const double drift = run_balance(e);
       MESSAGE("hanging bar, " << std::string(integrator) << ": W_ext = " << e.energy().external_work
                               << ", E = " << e.energy().total() << ", drift " << drift);
@@ -139,7 +139,7 @@ TEST_CASE("energy balance: a moving boundary does the work rho c v0^2 t of a pis
       "[[boundary]]\nname = \"piston\"\nlower = [0.0]\nupper = [0.0]\nfix = [true]\nvalue = [" +
       std::to_string(v0) + "]\n";
   for (const char* integrator : {"fe", "npc", "musl"}) {
-    Engine<1> e(parse_scene(bar_scene("ul", integrator, "linear", 0.1, t_end, extra), "piston.toml"));
+    Engine<1> e = assemble<1>(parse_scene(bar_scene("ul", integrator, "linear", 0.1, t_end, extra), "piston.toml"));
     const double drift = run_balance(e);
     const double exact = v0 * v0 * t_end;
     MESSAGE("piston, " << std::string(integrator) << ": W_R = " << e.energy().reaction_work << " (exact "

@@ -4,8 +4,8 @@
 // Dirichlet nodes, the "would leave the grid" diagnosis and 1D/2D/3D agreement of
 // the Dyka bar. Scenes are built from TOML text (otmpm::parse_scene), kept
 // coarse and short so that the executable runs in a few seconds.
-#include "otmpm/engine/engine.hpp"
-#include "otmpm/engine/run.hpp"
+#include "otmpm/assembly/assembler.hpp"
+#include "otmpm/run/run.hpp"
 #include "otmpm/reference/exact.hpp"
 
 #include <Eigen/Cholesky>
@@ -53,7 +53,7 @@ struct Spec {
   int dim = 1;
   std::string mode = "mpm", integrator = "npc", basis = "linear";
   std::string mass;               ///< "" (the integrator's default), "lumped" or "consistent"
-  std::string step = "cfl = 0.1"; ///< the spec default, or "dt = ..."
+  std::string step = "cfl = 0.1"; ///< the default, or "dt = ..."
   double t_end = 100.0;           ///< long: the tests step by hand
   std::vector<double> grid_lower{-1.5}, grid_upper{1.5};
   std::vector<int> cells{12};
@@ -145,9 +145,9 @@ struct Variant {
 /// 3 steps (stable at cfl 0.01): a time-step limit, not a conservation matter.
 std::vector<Variant> all_variants() {
   std::vector<Variant> out;
-  for (const char* integ : {"fe", "musl", "npc"})
+  for (const char* integ : {"fe", "musl", "npc", "central_difference", "explicit_alpha"})
     for (const auto& b : kAllBases) out.push_back({"mpm", integ, b});
-  for (const char* integ : {"fe", "musl", "npc", "otm"})
+  for (const char* integ : {"fe", "musl", "npc", "otm", "central_difference", "explicit_alpha"})
     for (const auto& b : kUlBases) out.push_back({"ul", integ, b});
   for (const char* b : {"bspline2", "bspline3"}) out.push_back({"ul", "unified", b});
   for (const auto& b : kUlBases) out.push_back({"ul", "otm", b, "lumped"});
@@ -174,7 +174,7 @@ constexpr double kMassRoundOff = 1e-12;
 
 template <int D> void check_mass_conservation(const Variant& v) {
   INFO("mode " << v.mode << ", integrator " << v.integrator << ", basis " << v.basis << ", mass " << v.mass);
-  Engine<D> e(scene_of(free_body(D), overrides_of(v)));
+  Engine<D> e = assemble<D>(scene_of(free_body(D), overrides_of(v)));
   const double M = total_particle_mass(e);
   REQUIRE(M > 0.0);
   for (int s = 0; s < kFreeSteps; ++s) {
@@ -201,7 +201,7 @@ constexpr double kMomentumRoundOff = 1e-12;
 
 template <int D> void check_momentum_conservation(const Variant& v) {
   INFO("mode " << v.mode << ", integrator " << v.integrator << ", basis " << v.basis << ", mass " << v.mass);
-  Engine<D> e(scene_of(free_body(D), overrides_of(v)));
+  Engine<D> e = assemble<D>(scene_of(free_body(D), overrides_of(v)));
   const Vec<D> P0 = e.momentum();
   const double scale = momentum_scale(e);
   REQUIRE(scale > 0.0);
@@ -271,7 +271,7 @@ Spec rigid_block(int dim) {
 /// Moves the block three cells in x (h = 0.25) and checks that it stays rigid.
 template <int D> void check_rigid_translation(const std::string& basis, const std::string& integrator) {
   INFO("basis " << basis << ", integrator " << integrator);
-  Engine<D> e(scene_of(rigid_block(D), {"basis.kind=\"" + basis + "\"", "simulation.integrator=\"" + integrator + "\""}));
+  Engine<D> e = assemble<D>(scene_of(rigid_block(D), {"basis.kind=\"" + basis + "\"", "simulation.integrator=\"" + integrator + "\""}));
   const auto& P = e.particles();
   const Vec<D> v0 = P.v.front();
   const double h = 0.25, distance = 3 * h, E = 1.0;
@@ -319,9 +319,9 @@ namespace {
 /// One 1D linear element [0, h] (2 nodes), node 0 fixed, two Gauss particles,
 /// E = rho = A = h = 1, a tiny uniform initial velocity (displacements ~1e-8 h,
 /// so the geometric changes of N_Ip and V_p are ~1e-8) and a fixed dt.
-Spec single_element(const std::string& mass, double dt) {
+Spec single_element(const std::string& mass, double dt, const std::string& integrator = "fe") {
   Spec s;
-  s.integrator = "fe";
+  s.integrator = integrator;
   s.mass = mass;
   s.step = "dt = " + num(dt);
   s.grid_lower = {0.0};
@@ -362,8 +362,8 @@ struct ElementRun {
   double k;         ///< E A / h
 };
 
-ElementRun run_single_element(const std::string& mass, double dt, int steps) {
-  Engine<1> e(scene_of(single_element(mass, dt)));
+ElementRun run_single_element(const std::string& mass, double dt, int steps, const std::string& integrator = "fe") {
+  Engine<1> e = assemble<1>(scene_of(single_element(mass, dt, integrator)));
   const auto& P = e.particles();
   ElementRun r{0, 0, 0, 0, 1.0};
   for (int p = 0; p < P.size(); ++p) { // N_free(x) = x / h on [0, h], h = 1
@@ -407,6 +407,18 @@ TEST_CASE("single element, consistent mass, fe: period of the discrete oscillato
   CHECK(std::abs(T - T_exact) <= kPeriodTolerance * T_exact);
   // The discrete correction is resolved: the continuous period 2 pi / omega is off.
   CHECK(std::abs(T - 2.0 * std::numbers::pi / omega) > 100 * kPeriodTolerance * T_exact);
+}
+
+TEST_CASE("single element, consistent mass, central_difference: velocity Verlet has the same period, no damping") {
+  // v^{n+1} = v^n + dt/2 (a^n + a^{n+1}), u^{n+1} = u^n + dt v^n + dt^2/2 a^n with
+  // a = -omega^2 u: step map of trace 2 - x^2 and determinant 1, as above.
+  const ElementRun r = run_single_element("consistent", kElementDt, kElementSteps, "central_difference");
+  const double omega = std::sqrt(r.k / r.M_ff);
+  const double omega_d = 2.0 / kElementDt * std::asin(omega * kElementDt / 2.0);
+  CHECK(std::abs(r.det - 1.0) <= kPeriodTolerance);
+  CHECK(std::abs(r.tr - (2.0 - omega * omega * kElementDt * kElementDt)) <= kPeriodTolerance);
+  const double T_exact = 2.0 * std::numbers::pi / omega_d;
+  CHECK(std::abs(map_period(r.tr, r.det, kElementDt) - T_exact) <= kPeriodTolerance * T_exact);
 }
 
 TEST_CASE("single element, lumped mass, fe: period of the discrete FLIP cycle") {
@@ -464,7 +476,7 @@ template <int D> void check_ul_reproduction(const std::string& basis, const std:
   INFO("basis " << basis << ", integrator " << integrator);
   const Scene scene = scene_of(free_body(D), {"simulation.mode=\"ul\"", "basis.kind=\"" + basis + "\"",
                                               "simulation.integrator=\"" + integrator + "\""});
-  Engine<D> e(scene);
+  Engine<D> e = assemble<D>(scene);
   const double h = 0.25;
   for (int s = 0; s < kFreeSteps; ++s) {
     e.step();
@@ -508,7 +520,8 @@ template <int D> Scene otm_fe_scene(const std::string& basis, const std::string&
 
 template <int D> void check_otm_equals_fe(const std::string& basis, const std::string& mass) {
   INFO("dimension " << D << ", basis " << basis << ", mass " << mass);
-  Engine<D> fe(otm_fe_scene<D>(basis, "fe", mass)), otm(otm_fe_scene<D>(basis, "otm", mass));
+  Engine<D> fe = assemble<D>(otm_fe_scene<D>(basis, "fe", mass));
+  Engine<D> otm = assemble<D>(otm_fe_scene<D>(basis, "otm", mass));
   fe.step();
   otm.step();
   const auto& a = fe.nodal().dx;
@@ -568,7 +581,7 @@ void check_dirichlet(const Variant& v, double left_velocity) {
   INFO("mode " << v.mode << ", integrator " << v.integrator << ", basis " << v.basis << ", value " << left_velocity);
   std::vector<std::string> over = overrides_of(v);
   if (v.integrator == "npc" && v.basis == "linear") over.push_back("simulation.mass=\"consistent\"");
-  Engine<2> e(scene_of(corner_block(left_velocity), over));
+  Engine<2> e = assemble<2>(scene_of(corner_block(left_velocity), over));
   const Dirichlet<2>& bc = e.dirichlet();
   REQUIRE(!bc.node.empty());
   for (int s = 0; s < 8; ++s) {
@@ -622,7 +635,7 @@ Spec escaping_block(const std::string& basis) {
 TEST_CASE("a particle about to leave the grid in mpm mode is an InstabilityError one step before it leaves") {
   for (const char* basis : {"linear", "lme", "bspline2"}) {
     INFO("basis " << basis);
-    Engine<1> e(scene_of(escaping_block(basis)));
+    Engine<1> e = assemble<1>(scene_of(escaping_block(basis)));
     std::string message;
     try {
       for (int s = 0; s < 1000; ++s) e.step(); // the block needs ~0.5 s = ~200 steps to reach the end
@@ -682,7 +695,7 @@ std::string dyka_text(int dim, int n, double tol) {
 }
 
 /// Velocity of point A (leftmost particle) after every step, and the RMS
-/// velocity error over all particles at t_end (spec sect. 6).
+/// velocity error over all particles at t_end (docs/theory.md sect. 12).
 struct DykaHistory {
   std::vector<double> t, vA;
   double rms = 0.0;
@@ -691,7 +704,7 @@ struct DykaHistory {
 
 template <int D> DykaHistory run_dyka(int n, double tol) {
   const Scene scene = parse_scene(dyka_text(D, n, tol), "dyka_" + std::to_string(D) + "d.toml");
-  Engine<D> e(scene);
+  Engine<D> e = assemble<D>(scene);
   const auto exact = make_exact_solution<D>(scene);
   REQUIRE(exact);
   const auto& P = e.particles();

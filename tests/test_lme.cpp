@@ -1,4 +1,4 @@
-// Tests of the local max-ent basis (spec algorithms.md sect. 1, molinos sect. 2.3).
+// Tests of the local max-ent basis (docs/theory.md sect. 4, molinos sect. 2.3).
 //
 // Tolerances used throughout (h = nodal spacing):
 // * partition of unity |sum N - 1| <= 1e-12: N_I are normalised explicitly, so

@@ -1,5 +1,5 @@
-// The consistent mass matrix M_IJ = sum_p N_Ip m_p N_Jp (spec algorithms.md
-// sect. 3) assembled from a basis table: row sums are the lumped masses, it
+// The consistent mass matrix M_IJ = sum_p N_Ip m_p N_Jp (docs/theory.md
+// sect. 8) assembled from a basis table: row sums are the lumped masses, it
 // is symmetric, the sparse solve is accurate, and constrained components and
 // inactive nodes return the value the caller put there.
 #include "otmpm/basis/basis.hpp"

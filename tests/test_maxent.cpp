@@ -1,5 +1,5 @@
 // Tests of the max-ent basis with a cubic-spline prior (wobbes sect. 6.3,
-// spec algorithms.md sect. 1).
+// docs/theory.md sect. 4).
 //
 // Tolerances (h = nodal spacing):
 // * partition of unity |sum N - 1| <= 1e-12 and |sum grad N| <= 1e-12 sum |grad N|:

@@ -114,7 +114,7 @@ TEST_CASE("neighbour lists: a rigid translation of nodes and points rebuilds not
   CHECK(check_rounds<2>(nodes, 2.0 * h, 0.0, true, Vec<2>(0.2 * h, 0.1 * h), 10, 0.002) == 0);
 }
 
-TEST_CASE("neighbour lists: capacity grows after the first round; bad arguments throw") {
+TEST_CASE("neighbour lists: capacity grows after the first round, bad arguments throw") {
   const auto nodes = NodeSet<2>::cartesian(unit_grid<2>(10));
   NeighbourLists<2> lists;
   CHECK(lists.capacity() == 0);

@@ -3,14 +3,15 @@
 // checkpoint's own scene text and restored from the file, M steps; every
 // particle field, the node positions, the B-spline knots, time, step sizes,
 // energies and reaction impulse must then be equal bit for bit (memcmp), for
-// every integrator (fe, musl, npc in mpm; npc, otm, unified in ul) and the
+// every integrator (fe, musl, npc, central_difference, explicit_alpha in mpm;
+// npc, otm, central_difference, explicit_alpha, unified in ul) and the
 // linear, bspline2 and lme bases in 1D and 2D. Also: a damaged, truncated or
 // missing checkpoint is an InputError naming the file; a checkpoint write
 // killed before its rename leaves the previous checkpoint readable; the scene
 // keys output.checkpoint_every / checkpoint_file are checked like the others.
 #include "otmpm/basis/bspline.hpp"
-#include "otmpm/engine/engine.hpp"
-#include "otmpm/io/checkpoint.hpp"
+#include "otmpm/assembly/assembler.hpp"
+#include "otmpm/run/restart.hpp"
 
 #include "temp_dir.hpp"
 
@@ -77,6 +78,9 @@ template <class T> std::string bytes_of(const T* data, std::size_t n) {
 template <int D> std::map<std::string, std::string> state_bytes(const Engine<D>& e) {
   std::map<std::string, std::string> s;
   e.particles().for_each_field([&](const char* name, const auto& f) { s[name] = bytes_of(f.data(), f.size()); });
+  const PointState<D>& points = e.basis().point_state();
+  s["lambda"] = bytes_of(points.lambda.data(), points.lambda.size());
+  s["cell_hint"] = bytes_of(points.cell_hint.data(), points.cell_hint.size());
   const auto& x = e.basis().nodes().positions();
   s["nodes"] = bytes_of(x.data(), x.size());
   const double t = e.time(), dt = e.last_dt();
@@ -95,9 +99,9 @@ template <int D> void run_steps(Engine<D>& e, int n) {
   for (int i = 0; i < n; ++i) e.step();
 }
 
-template <int D> Checkpoint checkpoint_of(const Engine<D>& e) {
+template <int D> Checkpoint checkpoint_of(const Engine<D>& e, const Scene& scene) {
   Checkpoint ck;
-  ck.scene = e.scene().text;
+  ck.scene = scene.text;
   e.save_state(ck);
   return ck;
 }
@@ -107,16 +111,16 @@ constexpr int kAfter = 15;  ///< steps after it
 
 /// Runs kBefore steps, checkpoints to `path`, runs kAfter more; returns the state then.
 template <int D> std::map<std::string, std::string> uninterrupted(const Scene& scene, const std::string& path) {
-  Engine<D> e(scene);
+  Engine<D> e = assemble<D>(scene);
   run_steps(e, kBefore);
-  write_checkpoint(path, checkpoint_of(e));
+  write_checkpoint(path, checkpoint_of(e, scene));
   run_steps(e, kAfter);
   return state_bytes(e);
 }
 
 /// A fresh engine from the checkpoint file (its own scene), restored, kAfter steps.
 template <int D> std::map<std::string, std::string> restarted(const Checkpoint& ck) {
-  Engine<D> e(checkpoint_scene(ck));
+  Engine<D> e = assemble<D>(checkpoint_scene(ck));
   e.restore_state(ck);
   CHECK(e.steps() == kBefore);
   run_steps(e, kAfter);
@@ -147,8 +151,10 @@ TEST_CASE("restart continues bit for bit: every integrator, linear / bspline2 / 
   TempDir tmp("matrix");
   std::vector<Config> configs;
   for (const char* basis : {"linear", "bspline2", "lme"}) {
-    for (const char* integrator : {"fe", "musl", "npc"}) configs.push_back({1, "mpm", integrator, basis});
-    for (const char* integrator : {"npc", "otm"}) configs.push_back({1, "ul", integrator, basis});
+    for (const char* integrator : {"fe", "musl", "npc", "central_difference", "explicit_alpha"})
+      configs.push_back({1, "mpm", integrator, basis});
+    for (const char* integrator : {"npc", "otm", "central_difference", "explicit_alpha"})
+      configs.push_back({1, "ul", integrator, basis});
   }
   configs.push_back({1, "ul", "unified", "bspline2"});
   configs.push_back({2, "mpm", "npc", "lme"});
@@ -170,7 +176,7 @@ TEST_CASE("the LME warm start is part of the state: a restart without it differs
   const std::string path = tmp.file("ck.h5");
   const auto expected = uninterrupted<1>(scene, path);
   Checkpoint ck = read_checkpoint(path);
-  for (double& l : ck.groups.at("particles").real_arrays.at("lambda").values) l = 0.0;
+  for (double& l : ck.groups.at("basis").real_arrays.at("lambda").values) l = 0.0;
   const auto cold = restarted<1>(ck);
   CHECK(cold.at("lambda") != expected.at("lambda"));
   CHECK(cold.at("x") != expected.at("x"));
@@ -179,14 +185,14 @@ TEST_CASE("the LME warm start is part of the state: a restart without it differs
 TEST_CASE("B-spline knots are part of the state: restored, not rebuilt from the scene") {
   TempDir tmp("knots");
   const Scene scene = parse_scene(scene_text({1, "ul", "unified", "bspline2"}), "restart.toml");
-  Engine<1> e(scene);
+  Engine<1> e = assemble<1>(scene);
   run_steps(e, kBefore);
-  const Checkpoint ck = checkpoint_of(e);
+  const Checkpoint ck = checkpoint_of(e, scene);
   const auto& saved = ck.group("basis").real_arrays.at("knots_0").values;
   const std::vector<double> initial = KnotVector::uniform(0.0, 1.0, 10, 2).vertices();
   REQUIRE(saved.size() == initial.size());
   CHECK(saved != initial); // advected
-  Engine<1> fresh(scene);
+  Engine<1> fresh = assemble<1>(scene);
   fresh.restore_state(ck);
   CHECK(dynamic_cast<const BsplineBasis<1>&>(fresh.basis()).knot_vector(0).vertices() == saved);
 }
@@ -194,16 +200,16 @@ TEST_CASE("B-spline knots are part of the state: restored, not rebuilt from the 
 TEST_CASE("restoring into an engine of another scene is an InputError naming the checkpoint") {
   TempDir tmp("mismatch");
   const Scene scene = parse_scene(scene_text({1, "mpm", "npc", "linear"}), "restart.toml");
-  Engine<1> e(scene);
+  Engine<1> e = assemble<1>(scene);
   run_steps(e, 3);
   const std::string path = tmp.file("ck.h5");
-  write_checkpoint(path, checkpoint_of(e));
+  write_checkpoint(path, checkpoint_of(e, scene));
   const Checkpoint ck = read_checkpoint(path);
   std::string other = scene_text({1, "mpm", "npc", "linear"});
   other.replace(other.find("particles_per_cell = 2"), 22, "particles_per_cell = 3");
-  Engine<1> wrong(parse_scene(other, "other.toml"));
+  Engine<1> wrong = assemble<1>(parse_scene(other, "other.toml"));
   CHECK_THROWS_WITH_AS(wrong.restore_state(ck), contains(path), InputError);
-  Engine<2> wrong_dim(parse_scene(scene_text({2, "mpm", "npc", "linear"}), "other.toml"));
+  Engine<2> wrong_dim = assemble<2>(parse_scene(scene_text({2, "mpm", "npc", "linear"}), "other.toml"));
   CHECK_THROWS_WITH_AS(wrong_dim.restore_state(ck), contains("1D run"), InputError);
 }
 
@@ -211,9 +217,10 @@ namespace {
 
 /// A checkpoint of a few steps of a small run, written to `path`.
 void small_checkpoint(const std::string& path, int steps) {
-  Engine<1> e(parse_scene(scene_text({1, "mpm", "npc", "lme"}), "restart.toml"));
+  const Scene scene = parse_scene(scene_text({1, "mpm", "npc", "lme"}), "restart.toml");
+  Engine<1> e = assemble<1>(scene);
   run_steps(e, steps);
-  write_checkpoint(path, checkpoint_of(e));
+  write_checkpoint(path, checkpoint_of(e, scene));
 }
 
 /// The file offset of the raw data of a (contiguous) dataset.
@@ -280,15 +287,16 @@ TEST_CASE("a checkpoint write killed before its rename leaves the previous check
   const std::string path = tmp.file("run.checkpoint.h5");
   small_checkpoint(path, 3);
   // The next checkpoint was being written when the process died: a partial .tmp.
-  Engine<1> e(parse_scene(scene_text({1, "mpm", "npc", "lme"}), "restart.toml"));
+  const Scene scene = parse_scene(scene_text({1, "mpm", "npc", "lme"}), "restart.toml");
+  Engine<1> e = assemble<1>(scene);
   run_steps(e, 6);
-  write_checkpoint_file(path + ".tmp", checkpoint_of(e));
+  write_checkpoint_file(path + ".tmp", checkpoint_of(e, scene));
   fs::resize_file(path + ".tmp", fs::file_size(path + ".tmp") / 3);
   const Checkpoint previous = read_checkpoint(path);
   CHECK(previous.group("engine").integer("step") == 3);
   // The stale .tmp does not stop the next checkpoint.
   run_steps(e, 3);
-  write_checkpoint(path, checkpoint_of(e));
+  write_checkpoint(path, checkpoint_of(e, scene));
   CHECK(read_checkpoint(path).group("engine").integer("step") == 9);
   CHECK_FALSE(fs::exists(path + ".tmp"));
 }

@@ -6,8 +6,12 @@
 // restarted from its last checkpoint must reproduce the frames it wrote after
 // that checkpoint. A missing or damaged checkpoint, a missing result file of
 // the interrupted run and wrong options give exit status 2 and a message
-// naming the file.
+// naming the file. SIGINT and SIGTERM stop a run (and a pair) cleanly: exit
+// status 130/143, a valid result file with status "interrupted", a last
+// checkpoint when checkpointing is on, from which the restart equals the
+// uninterrupted run.
 #include "otmpm/io/hdf5.hpp"
+#include "otmpm/io/results.hpp"
 
 #include "cli_support.hpp"
 #include "temp_dir.hpp"
@@ -246,11 +250,87 @@ TEST_CASE("restart errors: exit status 2 and a message naming the file or option
   expect_error({"run", "--restart", truncated, "--out", dir.file("t.h5")}, truncated);
 
   const std::string scene_file = (kSource / "examples/dyka.toml").string();
-  expect_error({"run", "--restart", checkpoint, "--set", "simulation.cfl=0.2"}, "--set cannot be combined");
-  expect_error({"run", scene_file, "--restart", checkpoint}, "not both");
-  expect_error({"pair", "--restart", checkpoint}, "unknown option '--restart'");
+  // CLI11's messages: a restart takes neither a scene nor --set.
+  expect_error({"run", "--restart", checkpoint, "--set", "simulation.cfl=0.2"}, "excludes");
+  expect_error({"run", scene_file, "--restart", checkpoint}, "excludes");
+  expect_error({"pair", "--restart", checkpoint}, "--restart");
 
   // The interrupted run's result file holds the frames before the checkpoint.
   fs::remove(result);
   expect_error({"run", "--restart", checkpoint}, result + ": the result file of the interrupted run is missing");
+}
+
+namespace {
+
+/// Status attribute of a result file, read while nothing else has it open.
+std::string status_of(const std::string& file) {
+  const hid_t f = H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  REQUIRE_MESSAGE(f >= 0, "cannot open " << file);
+  const std::string status = otmpm::h5::read_string(f, "status", file);
+  H5Fclose(f);
+  return status;
+}
+
+/// Starts `otmpm ARGS`, waits until `file` exists, sends `sig`; returns the exit status.
+int interrupt_when(const TempDir& dir, const std::vector<std::string>& args, const std::string& file, int sig) {
+  const pid_t pid = spawn(args, dir.file("interrupted.txt"));
+  const bool started = wait_for_file(file, pid, std::chrono::seconds(300));
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  ::kill(pid, sig);
+  int wstatus = 0;
+  REQUIRE(waitpid(pid, &wstatus, 0) == pid);
+  REQUIRE_MESSAGE(started, "the run ended before " << file << " appeared");
+  REQUIRE(WIFEXITED(wstatus));
+  return WEXITSTATUS(wstatus);
+}
+
+} // namespace
+
+TEST_CASE("SIGINT: exit 130, status interrupted, a last checkpoint, and the restart equals an uninterrupted run") {
+  TempDir dir("sigint");
+  const std::vector<std::string> scene{"run", (kSource / "examples/dyka/dyka_n133.toml").string(), "--quiet",
+                                       "--set", "output.checkpoint_every=500", "--set", kAllFields};
+  const std::string full = dir.file("full.h5"), run = dir.file("run.h5");
+  REQUIRE(run_cli(dir, with(scene, {"--out", full})).status == 0);
+  const std::string checkpoint = dir.file("run.checkpoint.h5");
+  const int status = interrupt_when(dir, with(scene, {"--out", run}), checkpoint, SIGINT);
+  CHECK(status == 130);
+  CHECK(status_of(run) == "interrupted");
+  // The last checkpoint is the state at the interruption, not the last multiple of 500.
+  const auto step = checkpoint_integer(checkpoint, "engine", "step");
+  CHECK(static_cast<double>(step) == otmpm::read_double_attribute(run, "steps"));
+  CHECK(step < 5043);
+  CHECK(frame_count(run) == static_cast<std::size_t>(checkpoint_integer(checkpoint, "recorder", "frames")));
+  const CliResult r = run_cli(dir, {"run", "--restart", checkpoint, "--quiet"});
+  INFO(r.err);
+  REQUIRE(r.status == 0);
+  check_same_results(full, run);
+}
+
+TEST_CASE("SIGTERM without checkpoints: exit 143, a readable result file with status interrupted and its frames") {
+  TempDir dir("sigterm");
+  const std::string run = dir.file("run.h5");
+  const int status = interrupt_when(
+      dir, {"run", (kSource / "examples/dyka/dyka_n133.toml").string(), "--out", run}, run, SIGTERM);
+  CHECK(status == 143);
+  CHECK(status_of(run) == "interrupted");
+  CHECK(frame_count(run) >= 1);
+  CHECK_FALSE(fs::exists(dir.file("run.checkpoint.h5")));
+  std::ifstream err(dir.file("interrupted.txt"));
+  std::stringstream text;
+  text << err.rdbuf();
+  CHECK(text.str().find("interrupted by SIGTERM") != std::string::npos);
+  CHECK(text.str().find("status \"interrupted\"") != std::string::npos);
+}
+
+TEST_CASE("SIGINT during otmpm pair: the running half stops (status interrupted), the other is not started") {
+  TempDir dir("pair");
+  const std::string scene = dir.file("bar.toml");
+  fs::copy_file(kSource / "examples/dyka/dyka_n133.toml", scene);
+  const std::string mpm = dir.file("bar_mpm.h5");
+  const int status = interrupt_when(dir, {"pair", scene, "--set", "output.file=\"" + dir.file("bar.h5") + "\""}, mpm,
+                                    SIGINT);
+  CHECK(status == 130);
+  CHECK(status_of(mpm) == "interrupted");
+  CHECK_FALSE(fs::exists(dir.file("bar_ul.h5")));
 }

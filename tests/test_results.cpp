@@ -6,7 +6,7 @@
 #include "otmpm/io/results.hpp"
 
 #include "otmpm/core.hpp"
-#include "otmpm/engine/run.hpp"
+#include "otmpm/run/run.hpp"
 
 #include "temp_dir.hpp"
 
@@ -140,7 +140,7 @@ TEST_CASE("probe histories grow by one row per sample") {
   CHECK(read_dataset(path, "/probes/B/v").dims == std::vector<hsize_t>{1, 2});
 }
 
-TEST_CASE("a root-level series grows by one rank-1 row per sample; reserved names are refused") {
+TEST_CASE("a root-level series grows by one rank-1 row per sample, reserved names are refused") {
   TempDir t("series");
   const std::string path = t.file("run.h5");
   {

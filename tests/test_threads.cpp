@@ -4,7 +4,7 @@
 // scatter gives the bits of the two separate stages.
 #include <doctest/doctest.h>
 
-#include "otmpm/engine/engine.hpp"
+#include "otmpm/assembly/assembler.hpp"
 
 #include <algorithm>
 #include <numeric>
@@ -40,7 +40,7 @@ void shuffle_particles(Particles<2>& P) {
     for (std::size_t i = 0; i < perm.size(); ++i) field[i] = copy[static_cast<std::size_t>(perm[i])];
   };
   apply(P.x), apply(P.X), apply(P.v), apply(P.a), apply(P.m), apply(P.V), apply(P.V0), apply(P.rho);
-  apply(P.F), apply(P.eps), apply(P.sigma), apply(P.lambda), apply(P.cell_hint), apply(P.length0);
+  apply(P.F), apply(P.eps), apply(P.sigma), apply(P.length0);
   apply(P.material), apply(P.body);
 }
 
@@ -58,7 +58,7 @@ Result run_with_threads(int threads, const std::vector<std::string>& sets, bool 
 #else
   (void)threads;
 #endif
-  Engine<2> e(andersen_block(sets));
+  Engine<2> e = assemble<2>(andersen_block(sets));
   if (shuffled) shuffle_particles(e.particles());
   for (int s = 0; s < 5; ++s) e.step();
   CHECK(e.scatter_blocked() == !shuffled);
@@ -107,6 +107,8 @@ TEST_CASE("engine results are bitwise identical with 1 and 2 threads") {
       {"basis.kind=\"linear\"", "simulation.integrator=\"musl\""},
       {"basis.kind=\"bspline2\"", "simulation.mode=\"ul\"", "simulation.integrator=\"unified\""},
       {"basis.kind=\"linear\"", "simulation.mode=\"ul\"", "simulation.integrator=\"otm\""},
+      {"basis.kind=\"bspline2\"", "simulation.integrator=\"central_difference\""},
+      {"basis.kind=\"lme\"", "simulation.integrator=\"explicit_alpha\""},
   };
   for (const auto& sets : variants) {
     CAPTURE(sets.front());
@@ -127,7 +129,7 @@ TEST_CASE("engine results are bitwise identical with 1 and 2 threads when partic
   }
 }
 
-// molinos Algorithm 1 stages 4-5 in one pass (ToNodes::stress_from, what
+// molinos Algorithm 1 stages 4-5 in one pass (update_stress_and_to_nodes, what
 // step_npc runs) against update_stress followed by compute_forces, from the
 // same state: with the blocked scatter and with the column gather.
 TEST_CASE("npc: the stress update inside the force scatter gives the bits of the two separate stages") {
@@ -136,15 +138,15 @@ TEST_CASE("npc: the stress update inside the force scatter gives the bits of the
       CAPTURE(basis);
       CAPTURE(shuffled);
       const Scene scene = andersen_block({std::string("basis.kind=") + basis});
-      Engine<2> fused(scene), separate(scene);
+      Engine<2> fused = assemble<2>(scene), separate = assemble<2>(scene);
       if (shuffled) shuffle_particles(fused.particles()), shuffle_particles(separate.particles());
       fused.step(); // a stressed state, the same in both
       separate.step();
       const AlignedVector<Vec<2>> v = fused.nodal().v;
       const double dt = fused.last_dt(), t = fused.time();
-      fused.to_nodes({.forces = true, .t = t, .stress_from = &v, .dt = dt});
-      separate.update_stress(v, dt);
-      separate.compute_forces(t);
+      fused.update_stress_and_to_nodes({&v, dt}, {.forces = true, .t = t});
+      separate.update_stress({&v, dt});
+      separate.to_nodes({.forces = true, .t = t});
       CHECK(fused.scatter_blocked() == !shuffled);
       const Particles<2>& a = fused.particles();
       const Particles<2>& b = separate.particles();

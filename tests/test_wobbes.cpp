@@ -6,8 +6,8 @@
 // the stress of the manufactured plate. Every bound below was set from a
 // measured value (quoted next to it, Release build) with the stated margin;
 // docs/benchmarks.md (Wobbes section) has the full tables and the figures.
-#include "otmpm/engine/engine.hpp"
-#include "otmpm/engine/run.hpp"
+#include "otmpm/assembly/assembler.hpp"
+#include "otmpm/run/run.hpp"
 #include "otmpm/reference/exact.hpp"
 
 #include <doctest/doctest.h>
@@ -113,7 +113,7 @@ struct EndHistory {
 
 EndHistory traction_bar_end(const Overrides& method) {
   const Scene scene = load_scene(traction_bar_file, method);
-  Engine<1> e(scene);
+  Engine<1> e = assemble<1>(scene);
   const auto exact = make_exact_solution<1>(scene);
   REQUIRE(exact);
   const Particles<1>& P = e.particles();

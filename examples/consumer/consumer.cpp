@@ -8,7 +8,7 @@
 // of unity and linear completeness, and (2) runs a short 1D Dyka bar from a
 // scene given as text and prints its summary line. Exit status 0 on success.
 #include <otmpm/basis/basis.hpp>
-#include <otmpm/engine/run.hpp>
+#include <otmpm/run/run.hpp>
 #include <otmpm/scene/scene.hpp>
 
 #include <cmath>

@@ -1,12 +1,11 @@
 /// \file basis.cpp
 /// The basis factory (make_basis: scene name -> family) and the per-step
-/// basis table (design.md point 2): every particle's stencil evaluated once,
+/// basis table (docs/architecture.md): every particle's stencil evaluated once,
 /// stored in compressed rows, independent of the OpenMP thread count.
 #include "otmpm/basis/basis.hpp"
 
-#include "otmpm/basis/families.hpp"
-
-#include "otmpm/engine/parallel.hpp"
+#include "otmpm/parallel.hpp"
+#include "otmpm/state.hpp"
 
 #include <algorithm>
 #include <atomic>
@@ -21,35 +20,51 @@
 
 namespace otmpm {
 
+template <int D> void Basis<D>::bind_points(int n, bool nodes_move) {
+  require<std::invalid_argument>(n >= 0, "Basis::bind_points: n must be >= 0, got ", n);
+  const PointStateUse use = point_state_use(nodes_move);
+  points_.lambda.assign(use.lambda ? static_cast<std::size_t>(n) : 0, Vec<D>::Zero());
+  points_.cell_hint.assign(use.cell_hint ? static_cast<std::size_t>(n) : 0, Index<D>{});
+  points_.neighbours = NeighbourLists<D>();
+}
+
+template <int D> void Basis<D>::evaluate_points(const AlignedVector<Vec<D>>& x, BasisTable<D>& table) {
+  fill_basis_table(*this, x, &points_.lambda, &points_.cell_hint, table, &points_.neighbours);
+}
+
 namespace {
-
-template <int D> Vec<D> ugimp_half_width(const BasisOptions& opt) {
-  Vec<D> l;
-  for (int k = 0; k < D; ++k) l[k] = opt.ugimp_half_width[k];
-  return l;
+/// Stores an array of fixed-size items (Vec<D> or Index<D>) as rows of D values.
+template <class Array, class Out> void put_rows(Out& out, const Array& a, std::size_t cols) {
+  out.cols = cols;
+  out.values.clear();
+  for (const auto& item : a)
+    for (std::size_t k = 0; k < cols; ++k) out.values.push_back(item[static_cast<int>(k)]);
 }
-
-template <int D> const CartesianGrid<D>& require_grid(const NodeSet<D>& nodes, const std::string& kind) {
-  if (!nodes.grid())
-    throw InputError("basis '" + kind + "' needs a structured grid (cartesian or perturbed), not a node cloud");
-  return *nodes.grid();
+/// Restores what put_rows stored into `a`, which has its size already
+/// (an empty `a`: the family keeps no such state, nor may the checkpoint).
+template <class Array, class In> void get_rows(const In& in, Array& a, std::size_t cols) {
+  for (std::size_t i = 0; i < a.size(); ++i)
+    for (std::size_t k = 0; k < cols; ++k)
+      a[i][static_cast<int>(k)] = static_cast<std::remove_reference_t<decltype(a[i][0])>>(in.values[i * cols + k]);
 }
-
-constexpr int kQuadraticDegree = 2;
-constexpr int kCubicDegree = 3;
-
 } // namespace
 
-template <int D>
-std::unique_ptr<Basis<D>> make_basis(const BasisOptions& opt, NodeSet<D> nodes) {
-  const std::string& k = opt.kind;
-  if (k == "linear") return make_linear_basis<D>(std::move(nodes));
-  if (k == "ugimp") return make_ugimp_basis<D>(std::move(nodes), ugimp_half_width<D>(opt));
-  if (k == "bspline2") return make_bspline_basis<D>(require_grid(nodes, k), kQuadraticDegree);
-  if (k == "bspline3") return make_bspline_basis<D>(require_grid(nodes, k), kCubicDegree);
-  if (k == "lme") return make_lme_basis<D>(std::move(nodes), opt);
-  if (k == "maxent") return make_maxent_basis<D>(std::move(nodes), opt);
-  throw InputError("unknown basis kind '" + k + "' (expected linear, ugimp, bspline2, bspline3, lme or maxent)");
+template <int D> void Basis<D>::save_state(StateGroup& out) const {
+  if (!points_.lambda.empty()) put_rows(out.real_arrays["lambda"], points_.lambda, D);
+  if (!points_.cell_hint.empty()) put_rows(out.integer_arrays["cell_hint"], points_.cell_hint, D);
+  save_family_state(out);
+}
+
+template <int D> void Basis<D>::restore_state(const StateGroup& in) {
+  auto expect = [&](const char* name, bool kept) {
+    if (in.has_array(name) != kept) in.error(std::string("per-point state '") + name + "' does not fit this basis");
+  };
+  expect("lambda", !points_.lambda.empty());
+  expect("cell_hint", !points_.cell_hint.empty());
+  if (!points_.lambda.empty()) get_rows(in.real_array("lambda", points_.lambda.size(), D), points_.lambda, D);
+  if (!points_.cell_hint.empty())
+    get_rows(in.integer_array("cell_hint", points_.cell_hint.size(), D), points_.cell_hint, D);
+  restore_family_state(in);
 }
 
 namespace {
@@ -326,7 +341,7 @@ template <int D> void transpose_basis_table(const BasisTable<D>& table, int node
 }
 
 #define OTMPM_INSTANTIATE_BASIS(D)                                                                      \
-  template std::unique_ptr<Basis<D>> make_basis<D>(const BasisOptions&, NodeSet<D>);                    \
+  template class Basis<D>;                                                                              \
   template void fill_basis_table<D>(const Basis<D>&, const AlignedVector<Vec<D>>&, AlignedVector<Vec<D>>*, \
                                     std::vector<Index<D>>*, BasisTable<D>&, NeighbourLists<D>*);          \
   template void transpose_basis_table<D>(const BasisTable<D>&, int, NodeColumns&);

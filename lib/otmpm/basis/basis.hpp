@@ -1,7 +1,7 @@
 #pragma once
 /// \file basis.hpp
-/// The one question every basis family answers (spec algorithms.md sect. 1,
-/// design.md point 2): "for this point, which nodes, with what N and grad N?"
+/// The one question every basis family answers (docs/theory.md sect. 4,
+/// docs/architecture.md): "for this point, which nodes, with what N and grad N?"
 /// Families: linear, ugimp, bspline2, bspline3, lme, maxent. Every integrator
 /// consumes a BasisTable filled once per step, without knowing the family.
 #include "otmpm/core.hpp"
@@ -16,6 +16,7 @@
 namespace otmpm {
 
 struct StateGroup;
+template <int D> struct BasisTable;
 
 /// The stencil of one point: node ids I with N_I(x) > 0 and grad N_I(x).
 /// Also carries scratch arrays that a family may use during evaluation, so
@@ -72,6 +73,22 @@ struct BasisOptions {
   double ugimp_half_width[3] = {0.0, 0.0, 0.0};
 };
 
+/// Which per-point state a family keeps between evaluations of the same point.
+struct PointStateUse {
+  bool lambda = false;    ///< max-ent families: the Lagrange multiplier (warm start)
+  bool cell_hint = false; ///< element walk / B-splines: the cell of the last evaluation
+};
+
+/// The per-point state of the points a family evaluates step after step (the
+/// particles): what PointStateUse asks for (empty arrays otherwise), and the
+/// Verlet lists of the families that search nodes (search_radius() > 0).
+/// Owned by the basis (Basis::bind_points); saved in checkpoints.
+template <int D> struct PointState {
+  AlignedVector<Vec<D>> lambda;
+  std::vector<Index<D>> cell_hint;
+  NeighbourLists<D> neighbours;
+};
+
 /// A basis family bound to a node set. `evaluate` is const and thread-safe
 /// (all scratch lives in the Stencil). Implementations: see make_basis().
 template <int D> class Basis {
@@ -111,13 +128,47 @@ public:
     (void)q, (void)node, (void)N, (void)dN;
     return false;
   }
-  /// Family state beyond the node positions that evolves during a run (the
-  /// advected B-spline knot vectors), written into a checkpoint group
-  /// (io/checkpoint.hpp). The default: none.
-  virtual void save_state(StateGroup& /*out*/) const {}
+  /// Which per-point state the family keeps when it evaluates the same points
+  /// step after step (the particles, bind_points): the Lagrange multiplier
+  /// of the max-ent families (warm start) and the cell hint of the element
+  /// walk (linear on a perturbed or moving lattice) and of the B-splines.
+  /// `nodes_move`: the nodes will be advected (`ul` mode).
+  virtual PointStateUse point_state_use(bool nodes_move) const {
+    (void)nodes_move;
+    return {};
+  }
+
+  /// Binds the family to `n` points evaluated every step (the particles):
+  /// allocates the per-point state point_state_use(nodes_move) asks for
+  /// (lambda = 0, cell hints = 0) and the Verlet lists of the families that
+  /// search nodes. std::invalid_argument for n < 0.
+  void bind_points(int n, bool nodes_move);
+  /// Evaluates the bound points at their positions x (one per bound point)
+  /// into `table` (fill_basis_table with the per-point state and the Verlet
+  /// lists). std::invalid_argument when x has another size than bound.
+  void evaluate_points(const AlignedVector<Vec<D>>& x, BasisTable<D>& table);
+  /// The per-point state of the bound points.
+  PointState<D>& point_state() { return points_; }
+  const PointState<D>& point_state() const { return points_; }
+
+  /// Writes the state that evolves during a run - the per-point state of the
+  /// bound points and the family's own (save_family_state) - into a
+  /// checkpoint group (state.hpp).
+  void save_state(StateGroup& out) const;
   /// Restores what save_state wrote, called after the node positions were
-  /// restored; also refreshes what the family derives from the nodes.
-  virtual void restore_state(const StateGroup& /*in*/) {}
+  /// restored. InputError (StateGroup::error) when it does not fit.
+  void restore_state(const StateGroup& in);
+
+protected:
+  /// Family state beyond the node positions that evolves during a run (the
+  /// advected B-spline knot vectors). The default: none.
+  virtual void save_family_state(StateGroup& /*out*/) const {}
+  /// Restores what save_family_state wrote; also refreshes what the family
+  /// derives from the nodes.
+  virtual void restore_family_state(const StateGroup& /*in*/) {}
+
+private:
+  PointState<D> points_;
 };
 
 /// Creates the basis family `opt.kind` on `nodes` (for B-splines: on the
@@ -129,7 +180,7 @@ public:
 template <int D>
 std::unique_ptr<Basis<D>> make_basis(const BasisOptions& opt, NodeSet<D> nodes);
 
-/// Per-particle basis table in compressed rows (design.md point 2): row p holds
+/// Per-particle basis table in compressed rows (docs/architecture.md): row p holds
 /// the stencil of particle p, entries offset[p] .. offset[p+1]-1. Filled once
 /// per step and reused by every stage of that step.
 template <int D> struct BasisTable {

@@ -3,7 +3,7 @@
 /// basis and the unified-approach knot advection (see bspline.hpp).
 #include "otmpm/basis/bspline.hpp"
 #include "otmpm/basis/families.hpp"
-#include "otmpm/io/checkpoint.hpp"
+#include "otmpm/state.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -261,12 +261,12 @@ template <int D> void BsplineBasis<D>::nodes_moved(const AlignedVector<Vec<D>>& 
   nodes_.set_positions(xi);
 }
 
-template <int D> void BsplineBasis<D>::save_state(StateGroup& out) const {
+template <int D> void BsplineBasis<D>::save_family_state(StateGroup& out) const {
   for (int k = 0; k < D; ++k) out.real_arrays["knots_" + std::to_string(k)].values = knots_[k].vertices();
   out.reals["last_projection"] = last_projection_;
 }
 
-template <int D> void BsplineBasis<D>::restore_state(const StateGroup& in) {
+template <int D> void BsplineBasis<D>::restore_family_state(const StateGroup& in) {
   std::array<KnotVector, D> knots;
   for (int k = 0; k < D; ++k) {
     const std::string name = "knots_" + std::to_string(k);

@@ -1,9 +1,9 @@
 #pragma once
 /// \file bspline.hpp
-/// B-spline basis functions (wobbes sect. 6.2, spec algorithms.md sect. 1) on
+/// B-spline basis functions (wobbes sect. 6.2, docs/theory.md sect. 4) on
 /// open, possibly non-uniform knot vectors, and their tensor product in 2D/3D
 /// with knot vectors that are advected in the `unified` mode (wobbes sect. 7,
-/// Algorithm 3; spec algorithms.md sect. 3 `unified`).
+/// Algorithm 3; docs/theory.md sect. 8 `unified`).
 ///
 /// Vocabulary: the *vertices* v_0 < ... < v_m of one axis are the distinct
 /// knots (the lattice coordinates, m cells); the *knot vector* of degree p is
@@ -113,7 +113,7 @@ private:
 };
 
 /// B-spline basis of degree p on a D-dimensional tensor product of open knot
-/// vectors (spec algorithms.md sect. 1, families `bspline2`/`bspline3`):
+/// vectors (docs/theory.md sect. 4, families `bspline2`/`bspline3`):
 /// N_I(x) = prod_k N^k_{i_k}(x_k), grad N_I = (dN^0 N^1 N^2, N^0 dN^1 N^2, ...).
 /// The degrees of freedom are the control points on an n_0 x .. x n_{D-1}
 /// lattice, n_k = cells_k + p, ids lexicographic with axis 0 fastest, placed at
@@ -152,10 +152,8 @@ public:
   void evaluate(const PointQuery<D>& q, Stencil<D>& out) const override;
   bool linearly_complete() const override { return true; }
   int max_stencil() const override;
-  /// Saves the (advected) vertices of every knot vector, "knots_0", ...
-  void save_state(StateGroup& out) const override;
-  /// Rebuilds the knot vectors from the saved vertices (same cell counts).
-  void restore_state(const StateGroup& in) override;
+  /// The element walk over knot spans starts from each point's last cell.
+  PointStateUse point_state_use(bool) const override { return {.cell_hint = true}; }
 
   int degree() const { return degree_; }
   /// The knot vector of `axis`; std::invalid_argument unless 0 <= axis < D.
@@ -170,6 +168,12 @@ public:
   int control_point_id(const Index<D>& ijk) const;
   /// Largest |x_I + dx_I - xi_I| of the last nodes_moved() (0 before any).
   double last_projection_distance() const { return last_projection_; }
+
+protected:
+  /// Saves the (advected) vertices of every knot vector, "knots_0", ...
+  void save_family_state(StateGroup& out) const override;
+  /// Rebuilds the knot vectors from the saved vertices (same cell counts).
+  void restore_family_state(const StateGroup& in) override;
 
 private:
   void rebuild_nodes(double spacing);

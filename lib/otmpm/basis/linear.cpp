@@ -2,7 +2,7 @@
 /// The `linear` family (tensor-product hat functions on an untouched Cartesian
 /// lattice; isoparametric multilinear elements - 2-node segments, Q4, Q8 - on a
 /// perturbed or moved lattice) and the `ugimp` family (uniform GIMP,
-/// Bardenhagen & Kober 2004), spec algorithms.md sect. 1.
+/// Bardenhagen & Kober 2004), docs/theory.md sect. 4.
 #include "otmpm/basis/linear.hpp"
 
 #include "otmpm/basis/families.hpp"
@@ -249,6 +249,11 @@ public:
   bool linearly_complete() const override { return true; }
   int max_stencil() const override { return kCorners<D>; }
   int fixed_stencil() const override { return kCorners<D>; }
+  /// The element walk of the isoparametric map (a perturbed or moving
+  /// lattice) starts from each point's last cell; the lattice hats need none.
+  PointStateUse point_state_use(bool nodes_move) const override {
+    return {.cell_hint = nodes_move || !nodes_.on_lattice()};
+  }
 
   void evaluate(const PointQuery<D>& q, Stencil<D>& out) const override {
     out.clear();

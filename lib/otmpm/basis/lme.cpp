@@ -1,5 +1,5 @@
-// Local max-ent (LME) and max-ent with a cubic-spline prior (spec algorithms.md
-// sect. 1; molinos sect. 2.3; wobbes sect. 6.3).
+// Local max-ent (LME) and max-ent with a cubic-spline prior (docs/theory.md
+// sect. 4; molinos sect. 2.3; wobbes sect. 6.3).
 //
 // Choices made here (the papers leave them open)
 // ----------------------------------------------
@@ -448,8 +448,8 @@ bool newton_step(const Vec<D>& step, Support<D>& s, Vec<D>& lambda, NewtonState<
   return finite;
 }
 
-/// The shared Newton solver for lambda = argmin log Z (spec algorithms.md
-/// sect. 1): Newton steps on r with an Armijo backtracking line search on
+/// The shared Newton solver for lambda = argmin log Z (docs/theory.md
+/// sect. 4): Newton steps on r with an Armijo backtracking line search on
 /// log Z. On return s.p holds the weights p_I at the final lambda (N_I =
 /// p_I / Z; the buffers s.p and s.trial may have been swapped) and the state
 /// its Z, r, J and, when converged, J^{-1} (in J_inv).

@@ -1,7 +1,7 @@
 #pragma once
 /// \file lme.hpp
-/// Internal declarations of the two maximum-entropy families (spec
-/// algorithms.md sect. 1): local max-ent (LME, Arroyo & Ortiz 2006, molinos
+/// Internal declarations of the two maximum-entropy families (docs/theory.md
+/// sect. 4): local max-ent (LME, Arroyo & Ortiz 2006, molinos
 /// sect. 2.3) and max-ent with a cubic-spline prior (wobbes sect. 6.3). Both are
 ///
 ///     N_I(x) = w_I(x) exp(lambda . (x - x_I)) / Z(x, lambda),
@@ -102,7 +102,7 @@ enum class NewtonStatus {
   max_iterations, ///< not converged within max_newton_iterations
 };
 
-/// Settings of the Newton solve for lambda (spec algorithms.md sect. 1).
+/// Settings of the Newton solve for lambda (docs/theory.md sect. 4).
 struct NewtonSettings {
   double h = 1.0;                  ///< the nodal spacing h of beta = gamma_lme / h^2
   double residual_tolerance = 0.0; ///< converged when |r| <= residual_tolerance (= tol * h)
@@ -149,11 +149,15 @@ public:
   bool linearly_complete() const override { return true; }
   int max_stencil() const override;
   double search_radius() const override { return settings_.support_radius; }
-  /// No state of its own: refreshes the search index and stencil bound after
-  /// the node positions were restored from a checkpoint.
-  void restore_state(const StateGroup&) override { nodes_moved({}); }
+  /// The Lagrange multiplier of each point warm-starts its next solve.
+  PointStateUse point_state_use(bool) const override { return {.lambda = true}; }
 
   const Prior& prior() const { return prior_; }
+
+protected:
+  /// No state of its own: refreshes the search index and stencil bound after
+  /// the node positions were restored from a checkpoint.
+  void restore_family_state(const StateGroup&) override { nodes_moved({}); }
 
 private:
   /// Gathers the support of x: node ids into out.node, the offsets x - x_I

@@ -1,7 +1,7 @@
 /// \file engine_state.cpp
 /// Engine<D>::save_state / restore_state: the state of a run that evolves
 /// from step to step, as checkpoint groups (io/checkpoint.hpp). What is built
-/// from the scene alone (materials, Dirichlet sets, loads, the initial grid)
+/// from the parts alone (materials, Dirichlet sets, loads, the initial grid)
 /// is rebuilt by the constructor and not stored. The nodal fields are not
 /// stored either: every integrator recomputes m, q, f, v, a, dx and the
 /// consistent mass matrix from the particles each step before reading them,
@@ -10,7 +10,7 @@
 /// t, dt_prev (OTM, unified), the external power at t (trapezoidal work), the
 /// wave speed of the next CFL step and the energy balance.
 #include "otmpm/engine/engine.hpp"
-#include "otmpm/io/checkpoint.hpp"
+#include "otmpm/state.hpp"
 
 #include <algorithm>
 #include <array>
@@ -22,7 +22,7 @@ namespace otmpm {
 namespace {
 
 // A member added to EnergyBalance must be saved and restored below.
-static_assert(sizeof(EnergyBalance) == 5 * sizeof(double), "EnergyBalance changed: update engine_state.cpp");
+static_assert(sizeof(EnergyBalance) == 6 * sizeof(double), "EnergyBalance changed: update engine_state.cpp");
 
 /// How one element of a particle field is stored: as `cols` values of type
 /// Stored (double, or int64 for integers) starting at begin(element).
@@ -103,6 +103,7 @@ template <int D> Vec<D> restore_vector(const StateGroup& g, const std::string& n
 /// The members of an EnergyBalance (const or not) by checkpoint name.
 template <class E> auto energy_fields(E& e) {
   return std::array{std::pair{"energy_kinetic", &e.kinetic}, std::pair{"energy_strain", &e.strain},
+                    std::pair{"energy_dissipated", &e.dissipated},
                     std::pair{"energy_external_work", &e.external_work},
                     std::pair{"energy_reaction_work", &e.reaction_work}, std::pair{"energy_initial", &e.initial}};
 }
@@ -142,12 +143,19 @@ template <int D> void Engine<D>::save_state(Checkpoint& out) const {
   g.reals["wave_speed"] = wave_speed_;
   g.integers["step"] = step_;
   save_vector<D>(g, "reaction_impulse", reaction_impulse_);
+  save_field(g, "wall_impulse", constraints_.wall_impulse());
+  for (std::size_t w = 0; w < constraints_.held().size(); ++w) {
+    const std::vector<char>& held = constraints_.held()[w];
+    g.integer_arrays["wall_held_" + std::to_string(w)] = {1, std::vector<std::int64_t>(held.begin(), held.end())};
+  }
   g.put_reals(energy_fields(energy_));
   save_timers(g, timers_);
   StateGroup& particles = out.group("particles");
   P_.for_each_field([&](const char* name, const auto& field) {
     if (!field.empty()) save_field(particles, name, field);
   });
+  for (const StateField& f : P_.state)
+    particles.real_arrays["state_" + f.name] = {static_cast<std::size_t>(f.width), f.values};
   save_nodes(out.group("nodes"), basis_->nodes());
   StateGroup& basis = out.group("basis");
   basis.strings["kind"] = std::string(basis_->kind());
@@ -166,6 +174,13 @@ template <int D> void Engine<D>::restore_state(const Checkpoint& in) {
   wave_speed_ = g.real("wave_speed");
   step_ = static_cast<long>(g.integer("step"));
   reaction_impulse_ = restore_vector<D>(g, "reaction_impulse");
+  restore_field(g, "wall_impulse", constraints_.wall_impulse(), constraints_.walls().size());
+  constraints_.held().clear();
+  for (std::size_t w = 0; g.has_array("wall_held_" + std::to_string(w)); ++w) {
+    const std::string name = "wall_held_" + std::to_string(w);
+    const auto& held = g.integer_array(name, static_cast<std::size_t>(basis_->nodes().size()), 1).values;
+    constraints_.held().emplace_back(held.begin(), held.end());
+  }
   g.get_reals(energy_fields(energy_));
   restore_timers(g, timers_);
   const StateGroup& particles = in.group("particles");
@@ -173,6 +188,8 @@ template <int D> void Engine<D>::restore_state(const Checkpoint& in) {
   P_.for_each_field([&](const char* name, auto& field) { restore_field(particles, name, field, n); });
   for (int m : P_.material)
     if (m < 0 || m >= static_cast<int>(materials_.size())) particles.error("material index out of range");
+  for (StateField& f : P_.state)
+    f.values = particles.real_array("state_" + f.name, n, static_cast<std::size_t>(f.width)).values;
   restore_nodes(in.group("nodes"), basis_->nodes());
   const StateGroup& basis = in.group("basis");
   if (basis.string("kind") != basis_->kind())

@@ -1,7 +1,7 @@
 #pragma once
 /// \file mass_matrix.hpp
-/// The consistent mass matrix M_IJ = sum_p N_Ip m_p N_Jp (spec algorithms.md
-/// sect. 3), assembled from the basis table into a sparse matrix and solved
+/// The consistent mass matrix M_IJ = sum_p N_Ip m_p N_Jp (docs/theory.md
+/// sect. 8), assembled from the basis table into a sparse matrix and solved
 /// with a sparse Cholesky (LDL^T) factorisation, once per step. Rows of
 /// inactive nodes and of Dirichlet components are replaced by identity rows, so
 /// the solve returns the prescribed value there.

@@ -1,6 +1,6 @@
 #pragma once
 /// \file timers.hpp
-/// Wall time spent in each phase of a step (spec algorithms.md sect. 6).
+/// Wall time spent in each phase of a step (docs/theory.md sect. 12).
 #include <array>
 #include <chrono>
 #include <string_view>

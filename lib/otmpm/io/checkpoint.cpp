@@ -99,23 +99,6 @@ std::int64_t checksum(const Checkpoint& ck) {
   return d.value();
 }
 
-template <class Map>
-const typename Map::mapped_type& lookup(const StateGroup& g, const Map& map, const std::string& name,
-                                        const char* kind) {
-  const auto it = map.find(name);
-  if (it == map.end()) g.error("missing " + std::string(kind) + " '" + name + "'");
-  return it->second;
-}
-
-template <class T>
-const StateArray<T>& shaped(const StateGroup& g, const StateArray<T>& a, const std::string& name, std::size_t rows,
-                            std::size_t cols) {
-  if (a.cols != cols || a.values.size() != rows * cols)
-    g.error("array '" + name + "' holds " + std::to_string(a.values.size()) + " values in rows of " +
-            std::to_string(a.cols) + ", expected " + std::to_string(rows) + " x " + std::to_string(cols));
-  return a;
-}
-
 // ---------------------------------------------------------------- header
 
 /// The values the header of a checkpoint file holds.
@@ -314,43 +297,6 @@ Checkpoint read_root(hid_t file, const std::string& path) {
 
 } // namespace
 
-// ---------------------------------------------------------------- StateGroup
-
-double StateGroup::real(const std::string& name) const { return lookup(*this, reals, name, "value"); }
-
-std::int64_t StateGroup::integer(const std::string& name) const { return lookup(*this, integers, name, "integer"); }
-
-const std::string& StateGroup::string(const std::string& name) const {
-  return lookup(*this, strings, name, "string");
-}
-
-const StateArray<double>& StateGroup::real_array(const std::string& name, std::size_t rows, std::size_t cols) const {
-  return shaped(*this, lookup(*this, real_arrays, name, "array"), name, rows, cols);
-}
-
-const StateArray<std::int64_t>& StateGroup::integer_array(const std::string& name, std::size_t rows,
-                                                          std::size_t cols) const {
-  return shaped(*this, lookup(*this, integer_arrays, name, "integer array"), name, rows, cols);
-}
-
-bool StateGroup::has_array(const std::string& name) const {
-  return real_arrays.count(name) > 0 || integer_arrays.count(name) > 0;
-}
-
-void StateGroup::error(const std::string& message) const { throw InputError(where + ": " + message); }
-
-StateGroup& Checkpoint::group(const std::string& name) {
-  StateGroup& g = groups[name];
-  if (g.where.empty()) g.where = (file.empty() ? std::string("checkpoint") : file) + ": group '" + name + "'";
-  return g;
-}
-
-const StateGroup& Checkpoint::group(const std::string& name) const {
-  const auto it = groups.find(name);
-  if (it == groups.end()) throw InputError(file + ": incomplete checkpoint: no group '" + name + "'");
-  return it->second;
-}
-
 // ---------------------------------------------------------------- files
 
 void write_checkpoint_file(const std::string& path, const Checkpoint& ck) {
@@ -425,50 +371,6 @@ std::string checkpoint_run_id(const std::string& path) {
   in.read(text.data(), static_cast<std::streamsize>(text.size()));
   Header h;
   return in.gcount() == static_cast<std::streamsize>(kHeaderBytes) && parse_header(text, h) ? h.run_id : "";
-}
-
-Scene checkpoint_scene(const Checkpoint& ck) {
-  Scene scene = parse_scene(ck.scene, ck.file + " (checkpoint scene)");
-  scene.text = ck.scene;
-  if (scene.simulation.dimension != ck.dimension)
-    throw InputError(ck.file + ": the stored scene has dimension " + std::to_string(scene.simulation.dimension) +
-                     " but the state dimension " + std::to_string(ck.dimension));
-  return scene;
-}
-
-namespace {
-
-/// Creates and removes a file of a name unique to this process beside
-/// `path` (never touching a file another run may be writing); the reason it
-/// cannot, or "" when the location takes files.
-std::string try_to_write(const std::string& path) {
-  const std::string probe = path + ".otmpm-probe-" + std::to_string(::getpid());
-  const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
-  if (fd < 0) return std::strerror(errno);
-  ::close(fd);
-  ::unlink(probe.c_str());
-  return "";
-}
-
-} // namespace
-
-std::string checkpoint_path(const Scene& scene, const std::string& result_file) {
-  const std::string& file = scene.output.checkpoint_file;
-  const bool on = scene.output.checkpoint_every > 0;
-  const std::string path = file.empty() ? default_checkpoint_path(result_file) : file;
-  if (!on) return path;
-  const fs::path dir = fs::path(path).parent_path();
-  std::error_code ec;
-  const std::string where = file.empty() ? "the checkpoint file '" + path + "' (beside the result file)" : "";
-  auto refuse = [&](const std::string& why) {
-    if (file.empty()) throw InputError(scene.locate("output.checkpoint_every").describe() + ": " + where + ": " + why);
-    input_error(scene.locate("output.checkpoint_file"), why);
-  };
-  if (!dir.empty() && !fs::is_directory(dir, ec)) refuse("directory '" + dir.string() + "' does not exist");
-  if (fs::is_directory(path, ec)) refuse("'" + path + "' is a directory");
-  const std::string why = try_to_write(path);
-  if (!why.empty()) refuse("cannot write checkpoints to '" + path + "': " + why);
-  return path;
 }
 
 } // namespace otmpm

@@ -1,4 +1,4 @@
-// HDF5 result file and XDMF sidecar (interfaces.md "Result file (HDF5)").
+// HDF5 result file and XDMF sidecar (docs/user-guide.md, "Result file (HDF5)").
 // Layout: root attributes; /frames/NNNNNN groups (attribute `time`, one
 // rows x cols double dataset per particle field); /probes/<name>/time and
 // /probes/<name>/<field> extendible histories; root-level series such as
@@ -179,6 +179,7 @@ struct ResultWriter::Impl {
   Handle frames;
   Handle probes;
   Handle xdmf_group;
+  std::map<std::string, Handle> groups; ///< groups of histories (probes, walls), created on first use
   std::string path;
   std::string xdmf_path;
   std::string h5_name; ///< the .h5 file name as the sidecar refers to it (same directory)
@@ -442,9 +443,23 @@ void ResultWriter::Impl::append_sample(hid_t parent, const std::string& key, con
 
 void ResultWriter::append_probe(const std::string& probe, double time,
                                 const std::vector<std::pair<std::string, std::vector<double>>>& values) {
-  check_name(probe, "probe");
-  impl_->append_sample(impl_->probes.get(), "probes/" + probe, probe, time, values, false,
-                       path_ + ": probe '" + probe + "' at t = " + format_number(time));
+  append_group_sample("probes", probe, time, values);
+}
+
+void ResultWriter::append_group_sample(const std::string& group, const std::string& name, double time,
+                                       const std::vector<std::pair<std::string, std::vector<double>>>& values) {
+  check_name(group, "history group");
+  check_name(name, "history");
+  if (group == "frames" || group == kXdmfGroup)
+    throw std::invalid_argument(path_ + ": group name '" + group + "' is reserved");
+  Impl& m = *impl_;
+  auto it = m.groups.find(group);
+  if (it == m.groups.end()) {
+    Handle g = group == "probes" ? std::move(m.probes) : h5::create_group(m.file.get(), group, path_);
+    it = m.groups.emplace(group, std::move(g)).first;
+  }
+  m.append_sample(it->second.get(), group + "/" + name, name, time, values, false,
+                  path_ + ": " + group + " '" + name + "' at t = " + format_number(time));
   flush();
 }
 
@@ -540,7 +555,7 @@ struct StoredHistory {
 StoredHistory read_history(hid_t file, const HistoryLayout& layout, int samples, const std::string& path) {
   StoredHistory h;
   h.layout = layout;
-  Handle g = h5::open_group(file, (layout.probe ? "probes/" : "") + layout.name, path);
+  Handle g = h5::open_group(file, (layout.probe ? layout.group + "/" : "") + layout.name, path);
   h.time = h5::read_double_matrix(g.get(), "time", path);
   for (const std::string& f : layout.fields) h.fields.push_back(h5::read_double_matrix(g.get(), f, path));
   bool complete = h.time.rows >= static_cast<hsize_t>(samples);
@@ -560,7 +575,7 @@ void append_stored_sample(const StoredHistory& h, hsize_t row, ResultWriter& to)
                          std::vector<double>(begin, begin + static_cast<std::ptrdiff_t>(h.fields[i].cols)));
     scalars.emplace_back(h.layout.fields[i], *begin);
   }
-  if (h.layout.probe) to.append_probe(h.layout.name, t, vectors);
+  if (h.layout.probe) to.append_group_sample(h.layout.group, h.layout.name, t, vectors);
   else to.append_series(h.layout.name, t, scalars);
 }
 

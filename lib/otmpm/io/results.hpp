@@ -1,6 +1,6 @@
 #pragma once
 /// \file results.hpp
-/// The HDF5 result file of interfaces.md: root attributes, /frames/NNNNNN/
+/// The HDF5 result file (docs/user-guide.md, "Result file"): root attributes, /frames/NNNNNN/
 /// groups of particle datasets, /probes/<name>/ histories, root-level time
 /// series (/energy/), and an .xdmf sidecar that ParaView opens (optionally
 /// also VTK files, vtk.hpp). Every frame is flushed to disk before the
@@ -75,6 +75,11 @@ public:
   /// (extendible datasets, `values` components per sample).
   void append_probe(const std::string& probe, double time,
                     const std::vector<std::pair<std::string, std::vector<double>>>& values);
+  /// Appends one sample to the history /<group>/<name>/time and
+  /// /<group>/<name>/<field> (vector fields, as a probe; `group` is created
+  /// on first use, e.g. "walls"). append_probe is the group "probes".
+  void append_group_sample(const std::string& group, const std::string& name, double time,
+                           const std::vector<std::pair<std::string, std::vector<double>>>& values);
   /// Appends one sample to the root-level time series /<series>/time and
   /// /<series>/<field> (extendible rank-1 datasets, one scalar per field per
   /// sample; e.g. /energy/kinetic). Flushed like a probe sample.
@@ -106,8 +111,9 @@ private:
 /// (/probes/NAME, vector fields) or a root-level series (/NAME, scalar fields).
 struct HistoryLayout {
   std::string name;
-  bool probe = true;
+  bool probe = true;           ///< a history of vector fields under `group`; false: a root-level series
   std::vector<std::string> fields; ///< the datasets besides time, in the order the run writes them
+  std::string group = "probes";
 };
 
 /// Continues a result file after a restart (checkpoint.hpp): appends to `to`

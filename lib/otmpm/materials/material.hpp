@@ -1,53 +1,131 @@
 #pragma once
 /// \file material.hpp
-/// Constitutive models of spec algorithms.md sect. 4.
-///  - linear_elastic: small strain, sigma += C : d_eps (molinos paper), 1D
-///    uniaxial stress (E), 2D plane strain, 3D.
-///  - linear_elastic_finite: wobbes eq. 10,
-///    sigma = lambda/J tr(E_s) F + 2 mu / J F E_s,  E_s = sym(F) - I.
-///  - neo_hookean: wobbes eq. 11, sigma = lambda ln J / J I + mu / J (F F^T - I).
-/// In 1D the uniaxial modulus of the finite-strain models is lambda + 2 mu,
-/// which equals E for nu = 0 (the value every 1D benchmark uses).
-#include "otmpm/core.hpp"
+/// The constitutive update of docs/theory.md (sect. 9) behind
+/// one interface, Material<D>, and the closed set of models (MaterialModel)
+/// that the scene reader, the validator and the assembler read.
+///
+/// A material updates the particles that are made of it from their velocity
+/// gradient increment H = dt L_p (or G_p - I for the integrators that move
+/// by increments): strain or deformation gradient, density, volume and
+/// Cauchy stress. A model with internal variables declares them (StateSpec):
+/// they become per-particle arrays (Particles::state), allocated only when a
+/// scene uses the model, saved in checkpoints and written to results on
+/// request (output.fields names them). It also says how much energy it
+/// stores and how much it dissipated, for the energy balance.
+///
+/// Adding a model (docs/architecture.md, "Adding a part"): a file with the
+/// class and its MaterialModel row (parameters, state, factories), and one
+/// line in materials/models.cpp.
+#include "otmpm/materials/elasticity.hpp"
+#include "otmpm/parameters.hpp"
+#include "otmpm/particles/particles.hpp"
 
+#include <array>
+#include <map>
+#include <memory>
+#include <optional>
+#include <span>
 #include <string>
+#include <string_view>
 
 namespace otmpm {
 
-/// One material: model and elastic constants (Lame parameters derived once).
-struct Material {
-  enum class Model { linear_elastic, linear_elastic_finite, neo_hookean };
+/// What a scene gives a material: its name, model, the constants every model
+/// has, and the model's own parameters by key (e.g. "yield_stress",
+/// "johnson_cook.B"), as listed in its MaterialModel::parameters.
+struct MaterialParameters {
   std::string name;
-  Model model = Model::linear_elastic;
-  double density = 1.0; ///< reference density rho_0
-  double young = 1.0;
-  double poisson = 0.0;
-
-  /// Parses "linear_elastic" | "linear_elastic_finite" | "neo_hookean"; InputError otherwise.
-  static Model parse_model(const std::string& name);
-  /// Throws InputError naming the material and the field unless density and
-  /// young are finite and > 0 and -1 < poisson < 0.5 (where lambda() and mu()
-  /// are finite and the material is stable). The stress functions assume it.
-  void validate() const;
-  double lambda() const { return young * poisson / ((1 + poisson) * (1 - 2 * poisson)); }
-  double mu() const { return young / (2 * (1 + poisson)); }
-  /// P-wave modulus: E in 1D (uniaxial stress), lambda + 2 mu otherwise.
-  double p_modulus(int dimension) const { return dimension == 1 ? young : lambda() + 2 * mu(); }
-  /// True for the models that need the deformation gradient F.
-  bool finite_strain() const { return model != Model::linear_elastic; }
+  std::string model = "linear_elastic";
+  double density = 0, young = 0, poisson = 0;
+  std::map<std::string, double> extra;
+  /// rho_0, E and nu.
+  ElasticConstants elastic() const { return {density, young, poisson}; }
+  /// The parameter `key`: extra[key], or `fallback` when absent.
+  double get(const std::string& key, double fallback) const;
+  /// True when the scene gave `key`.
+  bool has(const std::string& key) const { return extra.count(key) > 0; }
 };
 
-/// Small-strain stress increment C : d_eps for the dimension's elasticity
-/// (1D: E d_eps; 2D: plane strain; 3D: isotropic).
-template <int D> Mat<D> elastic_stress_increment(const Material& mat, const Mat<D>& d_eps);
+/// A per-particle internal variable of a model: `width` (at most 9)
+/// doubles per particle named `name` (Particles::state), initially the
+/// first `width` values of `initial`; output.fields writes it under that name.
+struct StateSpec {
+  std::string_view name;
+  int width = 1;
+  std::array<double, 9> initial{};
+  std::string_view description;
+};
 
-/// Cauchy stress of a finite-strain model from F (wobbes eqs. 10, 11). Throws
-/// InstabilityError unless det F is finite and > 0 (one check per call; the
-/// engine checks first and names the particle).
-template <int D> Mat<D> cauchy_stress(const Material& mat, const Mat<D>& F);
+/// A model parameter beyond density, young and poisson (ParameterSpec). A
+/// key "table.key" lives in the optional sub-table [material.table]; when
+/// the scene gives that table, its required keys must be there.
 
-/// Stored elastic energy density (per unit current volume, used only for the
-/// energy monitor): 1/2 sigma : eps with eps the small strain or sym(F) - I.
-template <int D> double strain_energy_density(const Mat<D>& sigma, const Mat<D>& eps);
+/// Thrown by a constitutive update for the first particle whose state stops
+/// making sense (det F <= 0, a volume change <= 0); the engine names the
+/// step, time and position and stops the run (InstabilityError).
+struct ParticleFailure {
+  int particle;
+  std::string what;
+};
+
+/// A constitutive model bound to its parameters (one per [[material]]).
+template <int D> class Material {
+public:
+  explicit Material(MaterialParameters p) : params_(std::move(p)) {}
+  virtual ~Material() = default;
+  const std::string& name() const { return params_.name; }
+  const MaterialParameters& parameters() const { return params_; }
+  /// P-wave modulus M of the wave speed c_p = sqrt(M / rho_p) of the CFL
+  /// condition: the elastic E in 1D, lambda + 2 mu otherwise.
+  virtual double p_modulus() const { return params_.elastic().p_modulus(D); }
+  /// True when the model needs the deformation gradient F_p.
+  virtual bool needs_deformation_gradient() const = 0;
+  /// The internal variables of the model (none for the elastic models).
+  virtual std::span<const StateSpec> state() const { return {}; }
+  /// Finds this model's state arrays in P (allocated by the assembler) and
+  /// sets the initial state of the particles of this material. Called once,
+  /// before the first step.
+  virtual void bind(Particles<D>& P) { (void)P; }
+  /// The constitutive update of particles p0 .. p1-1, all of this material:
+  /// H[i] = dt L_p (or G_p - I) of particle p0 + i, dt the step. Updates F_p
+  /// when P.F is allocated, eps_p, rho_p, V_p, sigma_p and the state. Throws
+  /// ParticleFailure for the first particle that fails.
+  virtual void update(Particles<D>& P, int p0, int p1, const Mat<D>* H, double dt) const = 0;
+  /// Adds, in particle order, the stored elastic energy (J) of particles
+  /// p0 .. p1-1 to `stored` and the energy they dissipated since t = 0 to
+  /// `dissipated` (the order matters: the sums are bit-reproducible).
+  virtual void add_energies(const Particles<D>& P, int p0, int p1, double& stored, double& dissipated) const = 0;
+
+private:
+  MaterialParameters params_;
+};
+
+/// Builds a material of one model in D dimensions (parameters validated).
+template <int D> using MaterialFactory = std::unique_ptr<Material<D>> (*)(const MaterialParameters&);
+
+/// One material model as the scene names it (`model`) with its parameters,
+/// internal variables and constructors.
+struct MaterialModel {
+  std::string_view name;
+  std::string_view description;
+  std::span<const ParameterSpec> parameters;
+  std::span<const StateSpec> state;
+  MaterialFactory<1> make1 = nullptr;
+  MaterialFactory<2> make2 = nullptr;
+  MaterialFactory<3> make3 = nullptr;
+};
+
+/// Every model, in the order the docs list them.
+std::span<const MaterialModel* const> material_models();
+/// The model named `name`, or null.
+const MaterialModel* find_material_model(std::string_view name);
+/// "linear_elastic, linear_elastic_finite or neo_hookean", for messages.
+std::string material_model_list();
+/// The material `p.model` in D dimensions. Throws InputError naming the
+/// material and the parameter when the model is unknown, a required
+/// parameter is missing or a value is out of range.
+template <int D> std::unique_ptr<Material<D>> make_material(const MaterialParameters& p);
+/// The checks of make_material without building anything (any dimension).
+void validate_material(const MaterialParameters& p);
 
 } // namespace otmpm

@@ -1,5 +1,5 @@
 /// \file node_set.cpp
-/// Node sets (spec algorithms.md sect. 2): Cartesian lattice arithmetic, the
+/// Node sets (docs/theory.md sect. 3): Cartesian lattice arithmetic, the
 /// perturbed lattice, clouds, and the neighbour search (index arithmetic on an
 /// untouched lattice, a packed Boost.Geometry R-tree otherwise).
 #include "otmpm/nodes/node_set.hpp"

@@ -1,7 +1,7 @@
 #pragma once
 /// \file node_set.hpp
-/// Node sets: the points x_I that carry the nodal unknowns (spec algorithms.md
-/// sect. 2). A Cartesian grid, a perturbed grid of the same topology, or an
+/// Node sets: the points x_I that carry the nodal unknowns (docs/theory.md
+/// sect. 3). A Cartesian grid, a perturbed grid of the same topology, or an
 /// arbitrary cloud. In `ul` mode the nodes are advected every step.
 #include "otmpm/core.hpp"
 

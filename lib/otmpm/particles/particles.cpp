@@ -1,8 +1,8 @@
+/// \file particles.cpp
+/// Particle storage (particles.hpp) and the particle patterns of a cell.
 #include "otmpm/particles/particles.hpp"
 
-#include "otmpm/scene/scene.hpp"
-#include "otmpm/scene/validate.hpp"
-
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <stdexcept>
@@ -19,15 +19,35 @@ template <int D> void Particles<D>::resize(int n) {
   sigma = eps;
   material.assign(n, 0);
   body.assign(n, 0);
-  a.clear(), F.clear(), lambda.clear(), cell_hint.clear(), x_prev.clear();
+  a.clear(), F.clear(), x_prev.clear(), state.clear();
 }
 
-template <int D> void Particles<D>::allocate_optional(bool with_a, bool with_F, bool with_lambda, bool with_cell_hint) {
+template <int D> void Particles<D>::allocate_optional(bool with_a, bool with_F) {
   const auto n = static_cast<std::size_t>(size());
   if (with_a) a.assign(n, Vec<D>::Zero());
   if (with_F) F.assign(n, Mat<D>::Identity());
-  if (with_lambda) lambda.assign(n, Vec<D>::Zero());
-  if (with_cell_hint) cell_hint.assign(n, Index<D>{});
+}
+
+template <int D> StateField& Particles<D>::add_state(const std::string& name, int width, const double* initial) {
+  require<std::invalid_argument>(width >= 1, "Particles::add_state: '", name, "' needs width >= 1, got ", width);
+  if (StateField* f = find_state(name)) {
+    require<std::invalid_argument>(f->width == width, "Particles::add_state: '", name, "' exists with width ",
+                                   f->width, ", asked for ", width);
+    return *f;
+  }
+  StateField f{name, width, std::vector<double>(static_cast<std::size_t>(size()) * width)};
+  for (int p = 0; p < size(); ++p) std::copy(initial, initial + width, f.row(p));
+  state.push_back(std::move(f));
+  return state.back();
+}
+
+template <int D> StateField* Particles<D>::find_state(std::string_view name) {
+  const auto it = std::find_if(state.begin(), state.end(), [&](const StateField& f) { return f.name == name; });
+  return it == state.end() ? nullptr : &*it;
+}
+
+template <int D> const StateField* Particles<D>::find_state(std::string_view name) const {
+  return const_cast<Particles*>(this)->find_state(name);
 }
 
 void gauss_legendre(int n, std::vector<double>& points, std::vector<double>& weights) {
@@ -58,11 +78,7 @@ void gauss_legendre(int n, std::vector<double>& points, std::vector<double>& wei
   }
 }
 
-namespace {
-
-/// Particle positions (in [0,1] of a cell) and volume fractions per axis.
-void cell_pattern(const std::string& placement, int n, std::vector<double>& s,
-                  std::vector<double>& w) {
+void cell_pattern(std::string_view placement, int n, std::vector<double>& s, std::vector<double>& w) {
   if (placement == "gauss") {
     gauss_legendre(n, s, w);
     for (int i = 0; i < n; ++i) {
@@ -76,116 +92,8 @@ void cell_pattern(const std::string& placement, int n, std::vector<double>& s,
   for (int i = 0; i < n; ++i) s[i] = (i + 0.5) / n;
 }
 
-int material_index(const Scene& scene, const BodySection& body) {
-  for (std::size_t i = 0; i < scene.materials.size(); ++i)
-    if (scene.materials[i].name == body.material) return static_cast<int>(i);
-  input_error(scene.locate("body." + body.name + ".material"),
-              "body '" + body.name + "' uses undefined material '" + body.material + "'");
-}
-
-template <int D> bool inside_box(const Vec<D>& x, const Vec3& lo, const Vec3& hi) {
-  for (int k = 0; k < D; ++k)
-    if (x[k] < lo[k] || x[k] > hi[k]) return false;
-  return true;
-}
-
-template <int D>
-Vec<D> initial_body_velocity(const BodySection& body, const Vec<D>& x) {
-  Vec<D> v;
-  for (int k = 0; k < D; ++k) v[k] = body.velocity[k];
-  if (body.velocity_profile && *body.velocity_profile == "sin_x") {
-    const double s = (x[0] - body.lower[0]) / (body.upper[0] - body.lower[0]);
-    v *= std::sin(std::numbers::pi * s);
-  }
-  return v;
-}
-
-} // namespace
-
-/// Cells of the grid spacing h that tile a body box along each axis.
-template <int D> Index<D> body_cells(const BodySection& body, const Vec<D>& h) {
-  Index<D> cells;
-  for (int k = 0; k < D; ++k)
-    cells[k] = std::max(1, static_cast<int>(std::lround((body.upper[k] - body.lower[k]) / h[k])));
-  return cells;
-}
-
-/// The number of particles seed_particles creates.
-template <int D> std::size_t seed_count(const Scene& scene, const Vec<D>& h) {
-  std::size_t total = 0;
-  for (const BodySection& body : scene.bodies) {
-    std::size_t n = 1;
-    const Index<D> cells = body_cells<D>(body, h);
-    for (int k = 0; k < D; ++k) n *= static_cast<std::size_t>(cells[k]) * static_cast<std::size_t>(body.particles_per_cell);
-    total += n;
-  }
-  return total;
-}
-
-template <int D> Particles<D> seed_particles(const Scene& scene, const Vec<D>& h) {
-  validate_seeding<D>(scene, h);
-  Particles<D> P;
-  struct Seed { Vec<D> x, len; double V; int mat, body; };
-  std::vector<Seed> seeds;
-  seeds.reserve(seed_count<D>(scene, h)); // no growth by doubling: peak memory
-  for (std::size_t b = 0; b < scene.bodies.size(); ++b) {
-    const BodySection& body = scene.bodies[b];
-    const int mat = material_index(scene, body);
-    const int n = body.particles_per_cell;
-    std::vector<double> s, w;
-    cell_pattern(body.placement, n, s, w);
-    const Index<D> cells = body_cells<D>(body, h);
-    Vec<D> size;
-    for (int k = 0; k < D; ++k) size[k] = (body.upper[k] - body.lower[k]) / cells[k];
-    Index<D> c{};
-    // Iterate cells (axis 0 fastest), then particles inside each cell.
-    while (true) {
-      Index<D> q{};
-      while (true) {
-        Seed sd;
-        sd.V = 1.0;
-        for (int k = 0; k < D; ++k) {
-          sd.x[k] = body.lower[k] + (c[k] + s[q[k]]) * size[k];
-          sd.V *= w[q[k]] * size[k];
-          sd.len[k] = size[k] / n;
-        }
-        sd.mat = mat;
-        sd.body = static_cast<int>(b);
-        seeds.push_back(sd);
-        int k = 0;
-        while (k < D && ++q[k] == n) q[k++] = 0;
-        if (k == D) break;
-      }
-      int k = 0;
-      while (k < D && ++c[k] == cells[k]) c[k++] = 0;
-      if (k == D) break;
-    }
-  }
-  P.resize(static_cast<int>(seeds.size()));
-  for (int p = 0; p < P.size(); ++p) {
-    const Seed& sd = seeds[p];
-    const MaterialSection& mat = scene.materials[sd.mat];
-    const BodySection& body = scene.bodies[sd.body];
-    P.x[p] = P.X[p] = sd.x;
-    P.V[p] = P.V0[p] = sd.V;
-    P.rho[p] = mat.density;
-    P.m[p] = mat.density * sd.V;
-    P.material[p] = sd.mat;
-    P.body[p] = sd.body;
-    P.length0[p] = sd.len;
-    P.v[p] = initial_body_velocity<D>(body, sd.x);
-    for (const InitialVelocitySection& iv : scene.initial_velocities)
-      if (inside_box<D>(sd.x, iv.lower, iv.upper))
-        for (int k = 0; k < D; ++k) P.v[p][k] = iv.velocity[k];
-  }
-  return P;
-}
-
 template struct Particles<1>;
 template struct Particles<2>;
 template struct Particles<3>;
-template Particles<1> seed_particles<1>(const Scene&, const Vec<1>&);
-template Particles<2> seed_particles<2>(const Scene&, const Vec<2>&);
-template Particles<3> seed_particles<3>(const Scene&, const Vec<3>&);
 
 } // namespace otmpm

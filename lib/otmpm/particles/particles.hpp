@@ -1,47 +1,68 @@
 #pragma once
 /// \file particles.hpp
 /// Particle (material point) storage: contiguous per-field arrays of
-/// fixed-size Eigen types (design.md point 5). Fields follow the notation of
-/// spec algorithms.md: x_p, v_p, a_p, m_p, V_p, V0_p, rho_p, F_p, eps_p, sigma_p.
+/// fixed-size Eigen types (docs/architecture.md). Fields follow the notation of
+/// docs/theory.md: x_p, v_p, a_p, m_p, V_p, V0_p, rho_p, F_p, eps_p, sigma_p.
 #include "otmpm/core.hpp"
+
+#include <string>
+#include <string_view>
+#include <vector>
 
 namespace otmpm {
 
-struct Scene;
-template <int D> struct CartesianGrid;
+/// A per-particle internal variable (a material's state, Material::state()):
+/// `width` doubles per particle, particle p at values[p * width ...].
+struct StateField {
+  std::string name;
+  int width = 1;
+  std::vector<double> values;
+  double* row(int p) { return values.data() + static_cast<std::size_t>(p) * static_cast<std::size_t>(width); }
+  const double* row(int p) const {
+    return values.data() + static_cast<std::size_t>(p) * static_cast<std::size_t>(width);
+  }
+};
 
 /// All particles of a run. `X` is the initial position (the material
-/// coordinate used by exact solutions), `x_prev` the previous position used
-/// by the OTM velocity (only filled for `otm`), `F` only when a finite-strain
-/// model or the `ul` mode needs it (has_F), `lambda` the LME warm start.
-/// Optional fields are empty when the run does not use them (a: NPC;
-/// lambda: LME/max-ent; cell_hint: element walk and B-splines; length0:
-/// tractions); see Engine::allocate_fields.
+/// coordinate used by exact solutions), `x_prev` the previous position (the
+/// OTM velocity), `F` the deformation gradient (finite-strain models, `ul`
+/// mode, or asked for as output), `a` the acceleration (NPC). Optional
+/// fields are empty when the run does not use them; the assembler allocates
+/// what the scene's integrator, materials and output need. The per-point
+/// state of the basis (LME multipliers, cell hints) lives in the basis.
 template <int D> struct Particles {
   AlignedVector<Vec<D>> x, X, v, a, x_prev;
   std::vector<double> m, V, V0, rho;
   AlignedVector<Mat<D>> F, eps, sigma;
-  AlignedVector<Vec<D>> lambda;
-  std::vector<Index<D>> cell_hint;
-  /// Initial particle length per axis (cell size / particles per cell), used
-  /// for traction areas A_p = V0_p / l_p[axis] and uGIMP.
+  /// Initial extent of the particle per axis, V0_p = prod_k l_p[k] (the
+  /// share of its cell along each axis): its face normal to axis k has the
+  /// area V0_p / l_p[k] (traction areas). Filled by the seeding; the
+  /// assembler frees it once the traction areas are taken.
   AlignedVector<Vec<D>> length0;
   std::vector<int> material;
   std::vector<int> body;
-  bool has_F = false;
+  /// Internal variables of the materials, by name (Material::state()).
+  std::vector<StateField> state;
 
   int size() const { return static_cast<int>(x.size()); }
   /// Resizes the fields every run uses to n particles (all zero) and empties
-  /// the optional ones (a, F, lambda, cell_hint, x_prev); std::invalid_argument
-  /// for n < 0.
+  /// the optional ones (a, F, x_prev, state); std::invalid_argument for n < 0.
   void resize(int n);
-  /// Allocates the optional fields a run needs (a = 0, F = I, lambda = 0,
-  /// cell_hint = 0), so that a scene pays memory only for what it reads.
-  void allocate_optional(bool with_a, bool with_F, bool with_lambda, bool with_cell_hint);
+  /// Allocates the optional fields a run needs (a = 0, F = I), so that a
+  /// scene pays memory only for what it reads.
+  void allocate_optional(bool with_a, bool with_F);
+  /// The state field `name`, added with `width` values per particle, each
+  /// particle's row equal to `initial` (width values), when absent.
+  /// std::invalid_argument when it exists with another width.
+  StateField& add_state(const std::string& name, int width, const double* initial);
+  /// The state field `name`, or null.
+  StateField* find_state(std::string_view name);
+  const StateField* find_state(std::string_view name) const;
 
-  /// Calls f(name, field) for every per-particle array above, named as its
-  /// member, so that code handling all fields (the checkpoint) lists them
-  /// here only. A field added to Particles must be added here too.
+  /// Calls f(name, field) for every per-particle array above except the
+  /// state fields, named as its member, so that code handling all fields
+  /// (the checkpoint) lists them here only. A field added to Particles must
+  /// be added here too.
   template <class F> void for_each_field(F&& f) { visit_fields(*this, f); }
   template <class F> void for_each_field(F&& f) const { visit_fields(*this, f); }
 
@@ -50,7 +71,7 @@ private:
     f("x", s.x); f("X", s.X); f("v", s.v); f("a", s.a); f("x_prev", s.x_prev);
     f("m", s.m); f("V", s.V); f("V0", s.V0); f("rho", s.rho);
     f("F", s.F); f("eps", s.eps); f("sigma", s.sigma);
-    f("lambda", s.lambda); f("cell_hint", s.cell_hint); f("length0", s.length0);
+    f("length0", s.length0);
     f("material", s.material); f("body", s.body);
   }
 };
@@ -58,15 +79,48 @@ private:
 /// Gauss-Legendre points (in [-1, 1]) and weights (sum 2) of order n >= 1.
 void gauss_legendre(int n, std::vector<double>& points, std::vector<double>& weights);
 
-/// Seeds the particles of every [[body]] of the scene: the body box is cut
-/// into cells of the grid spacing `h` (per axis; the last cell size adjusted so
-/// the cells tile the box exactly), each with particles_per_cell^D particles
-/// at the Gauss points (volumes = Gauss weights x cell volume) or at the
-/// centres of the sub-cells (equal volumes). Sets m, V, V0, rho, velocity
-/// (body velocity, velocity_profile, then [[initial_velocity]] boxes).
-/// Checks its inputs first (validate_seeding: the bodies, h finite and > 0,
-/// the particle count) and throws InputError naming the scene key.
-template <int D> Particles<D> seed_particles(const Scene& scene, const Vec<D>& h);
+/// Where particles sit in a cell along one axis and what share of the cell
+/// each gets: `s` in [0, 1] (fractions of the cell) and weights `w` summing
+/// to 1, for n particles per axis - at the Gauss-Legendre points ("gauss",
+/// weights = Gauss weights) or at the centres of n equal sub-cells
+/// ("cell_centres", equal weights).
+void cell_pattern(std::string_view placement, int n, std::vector<double>& s, std::vector<double>& w);
+
+/// Calls seed(x, V, extent) for the particles of a box [lower, upper] cut
+/// into `cells` cells per axis, n^D particles per cell placed by
+/// cell_pattern (cells in lattice order, axis 0 fastest, then the particles
+/// of each cell likewise): x the position, V = prod of weights x cell
+/// volume, extent per axis the particle's share of the cell (weight x cell
+/// size; cell size / n for equal shares), so that V = prod extent.
+template <int D, class Seed>
+void seed_box_cells(const Vec<D>& lower, const Vec<D>& upper, const Index<D>& cells, int n, std::string_view placement,
+                    Seed&& seed) {
+  std::vector<double> s, w;
+  cell_pattern(placement, n, s, w);
+  const bool equal = placement != "gauss";
+  Vec<D> size, len;
+  for (int k = 0; k < D; ++k) size[k] = (upper[k] - lower[k]) / cells[k];
+  Index<D> c{};
+  while (true) {
+    Index<D> q{};
+    while (true) {
+      Vec<D> x;
+      double V = 1.0;
+      for (int k = 0; k < D; ++k) {
+        x[k] = lower[k] + (c[k] + s[q[k]]) * size[k];
+        V *= w[q[k]] * size[k];
+        len[k] = equal ? size[k] / n : w[q[k]] * size[k];
+      }
+      seed(x, V, len);
+      int k = 0;
+      while (k < D && ++q[k] == n) q[k++] = 0;
+      if (k == D) break;
+    }
+    int k = 0;
+    while (k < D && ++c[k] == cells[k]) c[k++] = 0;
+    if (k == D) break;
+  }
+}
 
 extern template struct Particles<1>;
 extern template struct Particles<2>;

@@ -1,5 +1,5 @@
-// Exact solutions of the benchmark scenes (spec benchmarks.md), the factory
-// that builds them from a scene, and the RMS error of spec algorithms.md sect. 6.
+// Exact solutions of the benchmark scenes (docs/benchmarks.md), the factory
+// that builds them from a scene, and the RMS error of docs/theory.md sect. 12.
 #include "otmpm/reference/exact.hpp"
 
 #include "otmpm/reference/solutions.hpp"

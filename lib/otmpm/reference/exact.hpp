@@ -1,7 +1,7 @@
 #pragma once
 /// \file exact.hpp
 /// Exact solutions of the benchmark scenes (benchmarks.md) and the error
-/// norms of spec algorithms.md sect. 6. All fields are functions of the
+/// norms of docs/theory.md sect. 12. All fields are functions of the
 /// initial (material) position X and time t.
 #include "otmpm/core.hpp"
 
@@ -34,7 +34,7 @@ public:
 /// materials, "mms_plate" in 1D).
 template <int D> std::unique_ptr<ExactSolution<D>> make_exact_solution(const Scene& scene);
 
-/// RMS over particles (spec sect. 6, molinos eq. 44):
+/// RMS over particles (docs/theory.md sect. 12, molinos eq. 44):
 /// sqrt((1/N) sum_p |q_p - q_exact(X_p, t)|^2).
 double rms_error(const std::vector<double>& squared_errors);
 

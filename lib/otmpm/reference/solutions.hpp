@@ -1,6 +1,6 @@
 #pragma once
 /// \file solutions.hpp
-/// The concrete exact solutions of the benchmark scenes (spec benchmarks.md):
+/// The concrete exact solutions of the benchmark scenes (docs/benchmarks.md):
 /// the Dyka bar (molinos appendix A), the fixed-end vibrating bar (wobbes
 /// sect. 8.1), the bar with a dynamic traction (wobbes sect. 8.2, eq. 103) and
 /// the plate with an axis-aligned manufactured displacement (wobbes sect. 8.3,

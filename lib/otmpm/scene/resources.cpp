@@ -2,7 +2,8 @@
 // before it allocates anything (see resources.hpp).
 #include "otmpm/scene/resources.hpp"
 
-#include "otmpm/materials/material.hpp"
+#include "otmpm/basis/kinds.hpp"
+#include "otmpm/materials/elasticity.hpp"
 
 #include <sys/resource.h>
 #include <unistd.h>
@@ -34,22 +35,15 @@ constexpr double kBaseBytes = 30e6;
 /// Factor on the fitted costs: the estimate stays above what was measured.
 constexpr double kSafety = 1.25;
 
-/// Lattice nodes within `radius` (in units of h) of a point: the volume of
-/// the D-ball, at least the 2^D corners of the point's cell.
-double ball_nodes(double radius, int dim) {
-  const double volume = dim == 1 ? 2 * radius
-                        : dim == 2 ? std::numbers::pi * radius * radius
-                                   : 4.0 / 3.0 * std::numbers::pi * radius * radius * radius;
-  return std::max(volume, std::pow(2.0, dim));
-}
-
-/// The support radius of a basis family in units of h.
-double support_radius(const BasisOptions& b) {
-  if (b.kind == "linear") return 1;
-  if (b.kind == "ugimp" || b.kind == "bspline2") return 1.5;
-  if (b.kind == "bspline3") return 2;
-  if (b.kind == "lme") return std::sqrt(-std::log(b.tolerance) / b.gamma_lme);
-  return b.d_max; // maxent
+/// The support radius, in units of h, of a basis family whose particles
+/// see `stencil` lattice nodes: half the width of the cube of a tensor-product
+/// family (1 linear, 1.5 quadratic, 2 cubic), the radius of the D-ball of a
+/// family that searches the nodes within a radius (lme, maxent).
+double support_radius(const BasisKind& kind, double stencil, int dim) {
+  if (!kind.searches_nodes) return 0.5 * std::pow(stencil, 1.0 / dim);
+  return dim == 1 ? 0.5 * stencil
+         : dim == 2 ? std::sqrt(stencil / std::numbers::pi)
+                    : std::cbrt(3.0 * stencil / (4.0 * std::numbers::pi));
 }
 
 /// Entries of the LDL^T factor of the consistent mass matrix: n nodes times
@@ -58,15 +52,6 @@ double support_radius(const BasisOptions& b) {
 double factor_entries(double nodes, double radius, int dim) {
   const double band = std::pow(nodes, 1.0 - 1.0 / dim) * (2 * radius + 1);
   return nodes * std::min(nodes, band);
-}
-
-/// Nodes per particle of a basis family (its support), in D dimensions.
-double stencil_nodes(const BasisOptions& b, int dim) {
-  const double d = dim;
-  if (b.kind == "linear") return std::pow(2.0, d);
-  if (b.kind == "ugimp" || b.kind == "bspline2") return std::pow(3.0, d);
-  if (b.kind == "bspline3") return std::pow(4.0, d);
-  return ball_nodes(support_radius(b), dim);
 }
 
 /// Smallest grid spacing over the scene's axes.
@@ -83,10 +68,7 @@ double max_wave_speed(const Scene& s) {
   const int dim = s.simulation.dimension;
   double c2 = 0;
   for (const MaterialSection& ms : s.materials) {
-    Material m;
-    m.density = ms.density;
-    m.young = ms.young;
-    m.poisson = ms.poisson;
+    const ElasticConstants m = ms.elastic();
     c2 = std::max(c2, m.p_modulus(dim) / m.density);
   }
   auto speed2 = [dim](const Vec3& v) {
@@ -120,11 +102,12 @@ ResourceEstimate estimate_resources(const Scene& scene) {
   const SceneSize n = scene_size(scene);
   e.particles = n.particles;
   e.nodes = n.nodes;
-  e.stencil = stencil_nodes(scene.basis, dim);
+  const BasisKind& kind = basis_kind(scene.basis.kind);
+  e.stencil = kind.stencil_nodes(scene.basis, dim);
   e.bytes_per_particle = kSafety * (kParticleBytes[d] + e.stencil * kStencilEntryBytes);
   e.bytes_per_node = kSafety * kNodeBytes;
   if (scene.simulation.mass == "consistent" && e.nodes > 0)
-    e.bytes_per_node += kFactorEntryBytes * factor_entries(e.nodes, support_radius(scene.basis), dim) / e.nodes;
+    e.bytes_per_node += kFactorEntryBytes * factor_entries(e.nodes, support_radius(kind, e.stencil, dim), dim) / e.nodes;
   e.bytes = kBaseBytes + e.particles * e.bytes_per_particle + e.nodes * e.bytes_per_node;
   const double c = max_wave_speed(scene);
   e.dt = scene.simulation.dt ? *scene.simulation.dt : scene.simulation.cfl * min_spacing(scene) / c;

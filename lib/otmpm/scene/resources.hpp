@@ -8,6 +8,11 @@
 /// the estimate, the limit and the key that raises it, instead of running out
 /// of memory (std::bad_alloc) or running for ever at 0 % progress.
 ///
+/// The memory estimate here is an upper bound, fitted to measured peaks and
+/// kept above them (docs/stability.md, "What a run may cost"), because it
+/// refuses runs; estimate_memory_bytes() (run/run.hpp), which `otmpm run
+/// --check` prints, is a point estimate within a factor 2 either way.
+///
 /// Limits: memory - simulation.memory_limit in bytes when set, else the
 /// memory this process may use (physical memory, lowered by a cgroup limit
 /// or RLIMIT_AS when there is one); steps - simulation.max_steps

@@ -1,18 +1,26 @@
 // Scene file reader: TOML text -> Scene, with errors that name file, line and
-// key (interfaces.md "Scene file"). The TOML is parsed with toml++, --set
+// key (docs/user-guide.md, "Scene file"). The TOML is parsed with toml++, --set
 // overrides are applied to the parsed table, and only then is every value
 // read and checked, so that overrides meet exactly the same checks as the file.
+// The reading idiom (TableReader, Context) is in scene/toml_reader.hpp.
 #include "otmpm/scene/scene.hpp"
 
 #include "otmpm/io/results.hpp"
+#include "otmpm/basis/kinds.hpp"
+#include "otmpm/integrators/integrator.hpp"
+#include "otmpm/io/particle_file.hpp"
+#include "otmpm/particles/output_fields.hpp"
+#include "otmpm/scene/toml_reader.hpp"
+#include "otmpm/scene/validate.hpp"
 
 #include <toml++/toml.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
-#include <fstream>
+#include <filesystem>
 #include <limits>
 #include <set>
 #include <sstream>
@@ -21,19 +29,13 @@ namespace otmpm {
 
 namespace {
 
-/// SourceRef::line of a value that came from a --set override.
-constexpr int kCommandLineLine = -1;
-/// A grid node lies in a box when it is inside up to this fraction of h.
-constexpr double kNodeTolerance = 1e-9;
+using namespace toml_input;
+
 /// grid.h must divide (upper - lower) into an integer to this relative accuracy.
 constexpr double kCellsTolerance = 1e-6;
-/// Largest edit distance for which an unknown key gets a "did you mean".
-constexpr std::size_t kSuggestDistance = 3;
-
-using Names = std::initializer_list<std::string_view>;
 
 const std::set<std::string, std::less<>> kTableArrays = {"material", "body", "initial_velocity", "boundary",
-                                                         "traction", "probes"};
+                                                         "wall", "traction", "probes"};
 
 std::string fmt(double x) {
   char buf[32];
@@ -41,279 +43,12 @@ std::string fmt(double x) {
   return buf;
 }
 
-std::string quoted_list(Names names) {
-  std::string s;
-  for (auto n : names) s += (s.empty() ? "\"" : ", \"") + std::string(n) + "\"";
-  return s;
+/// The names of a table of kinds (basis_kinds(), integrator_kinds(), ...).
+template <class Table, class Name> std::vector<std::string_view> names_of(const Table& table, Name name) {
+  std::vector<std::string_view> out;
+  for (const auto& row : table) out.push_back(name(row));
+  return out;
 }
-
-std::string join_path(const std::string& prefix, std::string_view key) {
-  return prefix.empty() ? std::string(key) : prefix + "." + std::string(key);
-}
-
-std::string type_name(const toml::node& n) {
-  switch (n.type()) {
-  case toml::node_type::table: return "a table";
-  case toml::node_type::array: return "an array";
-  case toml::node_type::string: return "a string";
-  case toml::node_type::integer: return "an integer";
-  case toml::node_type::floating_point: return "a float";
-  case toml::node_type::boolean: return "a boolean";
-  default: return "a date/time";
-  }
-}
-
-/// Levenshtein distance, for "did you mean" suggestions.
-std::size_t edit_distance(std::string_view a, std::string_view b) {
-  std::vector<std::size_t> row(b.size() + 1);
-  for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
-  for (std::size_t i = 1; i <= a.size(); ++i) {
-    std::size_t diag = row[0];
-    row[0] = i;
-    for (std::size_t j = 1; j <= b.size(); ++j) {
-      const std::size_t up = row[j];
-      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diag + (a[i - 1] == b[j - 1] ? 0 : 1)});
-      diag = up;
-    }
-  }
-  return row[b.size()];
-}
-
-std::string suggestion(std::string_view key, Names allowed) {
-  std::string_view best;
-  std::size_t best_d = kSuggestDistance + 1;
-  for (auto a : allowed) {
-    const std::size_t d = edit_distance(key, a);
-    if (d < best_d) { best_d = d; best = a; }
-  }
-  if (!best.empty() && best_d < key.size()) return " (did you mean '" + std::string(best) + "'?)";
-  return " (allowed: " + quoted_list(allowed) + ")";
-}
-
-/// State shared by all readers of one scene: file name, which paths --set
-/// wrote (dotted path -> the KEY typed on the command line) and every key read.
-struct Context {
-  std::string file;
-  std::map<std::string, std::string> overridden;
-  std::map<std::string, SourceRef> where;
-
-  /// Where `path` came from: the --set that wrote it (or a table above it),
-  /// else the node's line in the file, else `fallback_line`.
-  SourceRef ref(const std::string& path, const toml::node* node, int fallback_line) const {
-    for (std::size_t pos = 0; pos != std::string::npos;) {
-      pos = path.find('.', pos + 1);
-      auto it = overridden.find(path.substr(0, pos));
-      if (it != overridden.end()) return SourceRef{file, kCommandLineLine, it->second};
-    }
-    int line = node ? static_cast<int>(node->source().begin.line) : 0;
-    return SourceRef{file, line > 0 ? line : fallback_line, path};
-  }
-};
-
-template <class T> T convert(const toml::node& n, const SourceRef& r);
-
-template <> double convert<double>(const toml::node& n, const SourceRef& r) {
-  double v = 0;
-  if (auto i = n.as_integer()) v = static_cast<double>(i->get());
-  else if (auto f = n.as_floating_point()) v = f->get();
-  else input_error(r, "expected a number, got " + type_name(n));
-  if (!std::isfinite(v)) input_error(r, "must be a finite number");
-  return v;
-}
-template <> int convert<int>(const toml::node& n, const SourceRef& r) {
-  auto i = n.as_integer();
-  if (!i) input_error(r, "expected an integer, got " + type_name(n));
-  const std::int64_t v = i->get();
-  if (v < std::numeric_limits<int>::min() || v > std::numeric_limits<int>::max())
-    input_error(r, "integer out of range");
-  return static_cast<int>(v);
-}
-template <> std::int64_t convert<std::int64_t>(const toml::node& n, const SourceRef& r) {
-  auto i = n.as_integer();
-  if (!i) input_error(r, "expected an integer, got " + type_name(n));
-  return i->get();
-}
-template <> std::string convert<std::string>(const toml::node& n, const SourceRef& r) {
-  auto s = n.as_string();
-  if (!s) input_error(r, "expected a string, got " + type_name(n));
-  return s->get();
-}
-template <> bool convert<bool>(const toml::node& n, const SourceRef& r) {
-  auto b = n.as_boolean();
-  if (!b) input_error(r, "expected a boolean, got " + type_name(n));
-  return b->get();
-}
-
-/// Reads the keys of one TOML table, checking names, types and presence.
-/// Every key read is recorded in Context::where under its dotted path.
-class TableReader {
-public:
-  TableReader(Context& ctx, const toml::table* table, std::string path, SourceRef self)
-      : ctx_(&ctx), table_(table), path_(std::move(path)), self_(std::move(self)) {
-    if (!path_.empty()) ctx_->where[path_] = self_;
-  }
-
-  const SourceRef& self() const { return self_; }
-  const std::string& path() const { return path_; }
-  std::string key_path(std::string_view key) const { return join_path(path_, key); }
-  bool has(std::string_view key) const { return node(key) != nullptr; }
-  const toml::node* node(std::string_view key) const { return table_ ? table_->get(key) : nullptr; }
-
-  /// The SourceRef of `key` (its own line, or the table's line when absent).
-  SourceRef ref(std::string_view key) const {
-    const std::string p = key_path(key);
-    SourceRef r = ctx_->ref(p, node(key), self_.line);
-    if (r.line == kCommandLineLine || node(key)) ctx_->where[p] = r;
-    return r;
-  }
-
-  /// Unknown keys are errors; the first one in file order (or from --set) is reported.
-  void only(Names allowed) const {
-    if (!table_) return;
-    const toml::key* first = nullptr;
-    for (auto&& [k, v] : *table_) {
-      if (std::find(allowed.begin(), allowed.end(), k.str()) != allowed.end()) continue;
-      if (!first || k.source().begin.line < first->source().begin.line) first = &k;
-    }
-    if (first) input_error(ref(first->str()), "unknown key" + suggestion(first->str(), allowed));
-  }
-
-  [[noreturn]] void missing(std::string_view key, const std::string& what = "required key is missing") const {
-    SourceRef r = ctx_->ref(key_path(key), nullptr, self_.line);
-    if (r.line == 0) r.line = 1;
-    // A table written by --set: r names the --set KEY, so say which key inside it is missing.
-    if (r.line == kCommandLineLine) input_error(r, what + " ('" + key_path(key) + "')");
-    input_error(r, what);
-  }
-
-  template <class T> std::optional<T> get(std::string_view key) const {
-    const toml::node* n = node(key);
-    if (!n) return std::nullopt;
-    return convert<T>(*n, ref(key));
-  }
-  template <class T> T get(std::string_view key, T fallback) const {
-    auto v = get<T>(key);
-    return v ? *v : fallback;
-  }
-  template <class T> T require(std::string_view key) const {
-    auto v = get<T>(key);
-    if (!v) missing(key);
-    return *v;
-  }
-
-  /// A string that must be one of `allowed`.
-  std::string choice(std::string_view key, std::string fallback, Names allowed) const {
-    std::string v = get<std::string>(key, fallback);
-    if (std::find(allowed.begin(), allowed.end(), v) == allowed.end())
-      input_error(ref(key), "must be one of " + quoted_list(allowed) + " (got \"" + v + "\")");
-    return v;
-  }
-
-  /// An array of `dim` numbers (or, if `scalar_ok`, one number for all axes).
-  std::optional<Vec3> vec(std::string_view key, int dim, bool scalar_ok = false) const {
-    const toml::node* n = node(key);
-    if (!n) return std::nullopt;
-    const SourceRef r = ref(key);
-    Vec3 out{0, 0, 0};
-    if (scalar_ok && !n->is_array()) {
-      const double s = convert<double>(*n, r);
-      for (int k = 0; k < dim; ++k) out[k] = s;
-      return out;
-    }
-    const toml::array& a = array_of_length(*n, r, dim, "numbers");
-    for (int k = 0; k < dim; ++k) out[k] = convert<double>(a[static_cast<std::size_t>(k)], r);
-    return out;
-  }
-  Vec3 require_vec(std::string_view key, int dim) const {
-    auto v = vec(key, dim);
-    if (!v) missing(key);
-    return *v;
-  }
-
-  std::optional<std::array<bool, 3>> bools(std::string_view key, int dim) const {
-    const toml::node* n = node(key);
-    if (!n) return std::nullopt;
-    const SourceRef r = ref(key);
-    const toml::array& a = array_of_length(*n, r, dim, "booleans");
-    std::array<bool, 3> out{false, false, false};
-    for (int k = 0; k < dim; ++k) out[k] = convert<bool>(a[static_cast<std::size_t>(k)], r);
-    return out;
-  }
-
-  /// A sub-table (a [header] table or an inline table), if present.
-  std::optional<TableReader> table(std::string_view key) const {
-    const toml::node* n = node(key);
-    if (!n) return std::nullopt;
-    const SourceRef r = ref(key);
-    if (!n->is_table()) input_error(r, "expected a table, got " + type_name(*n));
-    return TableReader(*ctx_, n->as_table(), key_path(key), with_line(r));
-  }
-  TableReader require_table(std::string_view key) const {
-    auto t = table(key);
-    if (!t) missing(key, "required table [" + key_path(key) + "] is missing");
-    return *t;
-  }
-
-  /// The elements of an array of tables ([[key]] or key = [{...}]). Each is
-  /// named "key.NAME" when it has a string `name`, else "key.INDEX".
-  std::vector<TableReader> tables(std::string_view key) const {
-    std::vector<TableReader> out;
-    const toml::node* n = node(key);
-    if (!n) return out;
-    const SourceRef r = ref(key);
-    if (!n->is_array()) input_error(r, "expected an array of tables ([[" + key_path(key) + "]]), got " + type_name(*n));
-    std::size_t i = 0;
-    for (const toml::node& el : *n->as_array()) {
-      const std::string p = key_path(key) + "." + element_name(el, i++);
-      const SourceRef er = ctx_->ref(p, &el, r.line);
-      if (!el.is_table()) input_error(er, "expected a table, got " + type_name(el));
-      out.emplace_back(*ctx_, el.as_table(), p, er);
-    }
-    return out;
-  }
-
-  /// The name an element is addressed by; control characters (which no
-  /// valid name has) are shown as \\xHH so that messages stay printable.
-  static std::string element_name(const toml::node& el, std::size_t index) {
-    if (const toml::table* t = el.as_table())
-      if (auto name = t->get_as<std::string>("name")) return printable(name->get());
-    return std::to_string(index);
-  }
-
-  static std::string printable(const std::string& s) {
-    std::string out;
-    for (unsigned char c : s) {
-      if (c >= 0x20 && c != 0x7f) {
-        out += static_cast<char>(c);
-        continue;
-      }
-      char buf[8];
-      std::snprintf(buf, sizeof buf, "\\x%02x", c);
-      out += buf;
-    }
-    return out;
-  }
-
-private:
-  SourceRef with_line(SourceRef r) const {
-    if (r.line == 0) r.line = self_.line;
-    return r;
-  }
-  static const toml::array& array_of_length(const toml::node& n, const SourceRef& r, int dim,
-                                            const char* what) {
-    const toml::array* a = n.as_array();
-    if (!a) input_error(r, "expected an array of " + std::to_string(dim) + " " + what + ", got " + type_name(n));
-    if (static_cast<int>(a->size()) != dim)
-      input_error(r, "has " + std::to_string(a->size()) + " components but simulation.dimension = " +
-                         std::to_string(dim));
-    return *a;
-  }
-
-  Context* ctx_;
-  const toml::table* table_;
-  std::string path_;
-  SourceRef self_;
-};
 
 void check(bool ok, const SourceRef& r, const std::string& message) {
   if (!ok) input_error(r, message);
@@ -346,17 +81,18 @@ SimulationSection read_simulation(const TableReader& t) {
   check(s.dimension >= 1 && s.dimension <= 3, t.ref("dimension"),
         "must be 1, 2 or 3 (got " + std::to_string(s.dimension) + ")");
   s.mode = t.choice("mode", s.mode, {"mpm", "ul"});
-  s.integrator = t.choice("integrator", s.integrator, {"fe", "musl", "npc", "otm", "unified"});
-  check(!(s.mode == "mpm" && (s.integrator == "otm" || s.integrator == "unified")), t.ref("integrator"),
-        "integrator \"" + s.integrator + "\" needs advected nodes: use simulation.mode = \"ul\"");
-  s.gamma = t.get<double>("gamma", s.gamma);
-  check(s.gamma > 0 && s.gamma <= 1, t.ref("gamma"), "must be in (0, 1] (got " + fmt(s.gamma) + ")");
-  // Default: the mass matrix of each algorithm's listing - lumped for fe, musl
-  // and npc; consistent for otm (wobbes eq. 48) and unified (Algorithm 3).
-  const bool consistent_default = s.integrator == "otm" || s.integrator == "unified";
+  const auto integrators = names_of(integrator_kinds(), [](const IntegratorKind& k) { return k.name; });
+  s.integrator = t.choice("integrator", s.integrator, integrators);
+  for (const ParameterSpec* p : integrator_parameters()) {
+    const auto value = t.get<double>(p->key);
+    if (!value) continue;
+    const std::string why = p->check(*value);
+    check(why.empty(), t.ref(p->key), why);
+    s.parameters[std::string(p->key)] = *value;
+  }
+  // Default: the mass matrix of each algorithm's listing (IntegratorKind).
+  const bool consistent_default = integrator_kind(s.integrator).consistent_by_default;
   s.mass = t.choice("mass", consistent_default ? "consistent" : "lumped", {"lumped", "consistent"});
-  check(!(s.integrator == "unified" && s.mass == "lumped"), t.ref("mass"),
-        "integrator \"unified\" uses the consistent mass matrix (wobbes Algorithm 3): remove mass = \"lumped\"");
   s.t_end = t.require<double>("t_end");
   check(s.t_end > 0, t.ref("t_end"), "must be > 0 (got " + fmt(s.t_end) + ")");
   check(!(t.has("cfl") && t.has("dt")), t.ref("dt"), "give either simulation.cfl or simulation.dt, not both");
@@ -380,7 +116,7 @@ BasisOptions read_basis(const TableReader& t) {
   t.only({"kind", "gamma_lme", "tolerance", "d_max", "newton_tolerance", "max_newton_iterations"});
   BasisOptions b;
   if (!t.has("kind")) t.missing("kind");
-  b.kind = t.choice("kind", b.kind, {"linear", "ugimp", "bspline2", "bspline3", "lme", "maxent"});
+  b.kind = t.choice("kind", b.kind, names_of(basis_kinds(), [](const BasisKind& k) { return k.name; }));
   b.gamma_lme = positive(t, "gamma_lme", b.gamma_lme);
   b.tolerance = t.get<double>("tolerance", b.tolerance);
   check(b.tolerance > 0 && b.tolerance < 1, t.ref("tolerance"), "must be in (0, 1) (got " + fmt(b.tolerance) + ")");
@@ -464,24 +200,15 @@ double body_cells(const BodySection& b, const GridSection& g, int dim) {
 
 /// The particles seed_particles puts into body `b` (see SceneSize).
 double body_particles(const BodySection& b, const GridSection& g, int dim) {
+  if (b.shape == "file") return b.file_particles;
   return body_cells(b, g, dim) * std::pow(b.particles_per_cell, dim);
 }
 
 /// The nodes of the engine's node set (see SceneSize).
 double node_count(const Scene& s) {
+  const LatticeBox box = node_lattice_box(s);
   double n = 1;
-  for (int k = 0; k < s.simulation.dimension; ++k) {
-    double cells = s.grid.cells[k];
-    if (s.simulation.mode == "ul" && !s.bodies.empty()) {
-      double lo = s.bodies.front().lower[k], hi = s.bodies.front().upper[k];
-      for (const BodySection& b : s.bodies) {
-        lo = std::min(lo, b.lower[k]);
-        hi = std::max(hi, b.upper[k]);
-      }
-      cells = cells_over(hi - lo, spacing(s.grid, k));
-    }
-    n *= cells + 1;
-  }
+  for (int k = 0; k < s.simulation.dimension; ++k) n *= box.cells[k] + 1;
   return n;
 }
 
@@ -493,27 +220,86 @@ std::string read_name(const TableReader& t, bool required, const std::string& fa
   return name;
 }
 
+/// The part of a parameter key before the dot ("johnson_cook" of
+/// "johnson_cook.B"), "" for a key of the material table itself.
+std::string_view sub_table(std::string_view key) {
+  const auto dot = key.find('.');
+  return dot == std::string_view::npos ? std::string_view() : key.substr(0, dot);
+}
+
+/// Reads the parameter `spec` of a model from `t` (the material table, or
+/// the sub-table the key names) into m.extra, with its range check.
+void read_parameter(const TableReader& t, std::string_view key, const ParameterSpec& spec, MaterialSection& m) {
+  const auto value = t.get<double>(key);
+  if (!value) {
+    if (!spec.fallback) t.missing(key);
+    return;
+  }
+  const std::string why = spec.check(*value);
+  check(why.empty(), t.ref(key), why);
+  m.extra[std::string(spec.key)] = *value;
+}
+
+/// The keys of a model in the material table: the common ones, its
+/// top-level parameters and the names of its sub-tables.
+std::vector<std::string_view> material_keys(const MaterialModel& model) {
+  std::vector<std::string_view> keys{"name", "model", "density", "young", "poisson"};
+  for (const ParameterSpec& p : model.parameters) {
+    const std::string_view table = sub_table(p.key);
+    const std::string_view key = table.empty() ? p.key : table;
+    if (std::find(keys.begin(), keys.end(), key) == keys.end()) keys.push_back(key);
+  }
+  return keys;
+}
+
+/// The model's parameters: top-level keys, and the keys of each sub-table
+/// the scene gives (an absent sub-table is an absent option).
+void read_model_parameters(const TableReader& t, const MaterialModel& model, MaterialSection& m) {
+  for (const ParameterSpec& p : model.parameters)
+    if (sub_table(p.key).empty()) read_parameter(t, p.key, p, m);
+  for (const std::string_view key : material_keys(model)) {
+    std::vector<std::string_view> inner;
+    for (const ParameterSpec& p : model.parameters)
+      if (sub_table(p.key) == key) inner.push_back(p.key.substr(key.size() + 1));
+    if (inner.empty()) continue;
+    const auto sub = t.table(key);
+    if (!sub) continue;
+    sub->only(inner);
+    for (const ParameterSpec& p : model.parameters)
+      if (sub_table(p.key) == key) read_parameter(*sub, p.key.substr(key.size() + 1), p, m);
+  }
+}
+
+MaterialSection read_material(const TableReader& t, std::set<std::string>& names) {
+  MaterialSection m;
+  m.where = t.self();
+  if (!t.has("model")) t.missing("model");
+  const auto models = names_of(material_models(), [](const MaterialModel* k) { return k->name; });
+  m.model = t.choice("model", m.model, models);
+  const MaterialModel& model = *find_material_model(m.model);
+  t.only(material_keys(model));
+  m.name = read_name(t, true, "", names);
+  m.density = t.require<double>("density");
+  check(m.density > 0, t.ref("density"), "must be > 0 (got " + fmt(m.density) + ")");
+  m.young = t.require<double>("young");
+  check(m.young > 0, t.ref("young"), "must be > 0 (got " + fmt(m.young) + ")");
+  m.poisson = t.require<double>("poisson");
+  check(m.poisson > -1 && m.poisson < 0.5, t.ref("poisson"), "must be in (-1, 0.5) (got " + fmt(m.poisson) + ")");
+  read_model_parameters(t, model, m);
+  try {
+    validate_material(m); // the model's own cross-checks
+  } catch (const InputError& e) {
+    input_error(t.self(), e.what());
+  }
+  return m;
+}
+
 std::vector<MaterialSection> read_materials(const TableReader& root) {
   auto tables = root.tables("material");
   if (tables.empty()) root.missing("material", "at least one [[material]] is required");
   std::vector<MaterialSection> out;
   std::set<std::string> names;
-  for (const TableReader& t : tables) {
-    t.only({"name", "model", "density", "young", "poisson"});
-    MaterialSection m;
-    m.where = t.self();
-    m.name = read_name(t, true, "", names);
-    if (!t.has("model")) t.missing("model");
-    m.model = t.choice("model", m.model, {"linear_elastic", "linear_elastic_finite", "neo_hookean"});
-    m.density = t.require<double>("density");
-    check(m.density > 0, t.ref("density"), "must be > 0 (got " + fmt(m.density) + ")");
-    m.young = t.require<double>("young");
-    check(m.young > 0, t.ref("young"), "must be > 0 (got " + fmt(m.young) + ")");
-    m.poisson = t.require<double>("poisson");
-    check(m.poisson > -1 && m.poisson < 0.5, t.ref("poisson"),
-          "must be in (-1, 0.5) (got " + fmt(m.poisson) + ")");
-    out.push_back(std::move(m));
-  }
+  for (const TableReader& t : tables) out.push_back(read_material(t, names));
   return out;
 }
 
@@ -526,12 +312,103 @@ SourceRef box_ref(const TableReader& t) {
   return t.self();
 }
 
-void check_body_in_grid(const TableReader& t, const BodySection& b, const GridSection& g, int dim) {
-  for (int k = 0; k < dim; ++k) {
-    const double tol = kNodeTolerance * spacing(g, k);
-    check(b.lower[k] >= g.lower[k] - tol && b.upper[k] <= g.upper[k] + tol, box_ref(t),
-          "body \"" + b.name + "\" [" + fmt(b.lower[k]) + ", " + fmt(b.upper[k]) + "] on axis " + std::to_string(k) +
-              " is not inside the grid [" + fmt(g.lower[k]) + ", " + fmt(g.upper[k]) + "] (mpm mode)");
+/// The keys of each body shape beyond the common ones.
+const std::map<std::string, std::vector<std::string_view>, std::less<>> kShapeKeys = {
+    {"box", {"lower", "upper"}},
+    {"sphere", {"center", "radius"}},
+    {"cylinder", {"center", "axis", "radius", "length"}},
+    {"polygon", {"vertices"}},
+    {"file", {"file"}}};
+
+/// A value > 0 that the shape needs.
+double positive_required(const TableReader& t, std::string_view key) {
+  const double v = t.require<double>(key);
+  check(v > 0, t.ref(key), "must be > 0 (got " + fmt(v) + ")");
+  return v;
+}
+
+/// polygon: vertices = [[x, y], ...] (2D, at least 3).
+std::vector<std::array<double, 2>> read_vertices(const TableReader& t, int dim) {
+  check(dim == 2, t.ref("shape"), "shape \"polygon\" is two-dimensional (simulation.dimension = " +
+                                      std::to_string(dim) + ")");
+  const toml::node* n = t.node("vertices");
+  if (!n) t.missing("vertices");
+  const SourceRef r = t.ref("vertices");
+  const toml::array* a = n->as_array();
+  check(a && a->size() >= 3, r, "expected an array of at least 3 vertices [[x, y], ...]");
+  std::vector<std::array<double, 2>> out;
+  for (const toml::node& v : *a) {
+    const toml::array* xy = v.as_array();
+    check(xy && xy->size() == 2, r, "every vertex is an array of 2 numbers [x, y]");
+    out.push_back({convert<double>((*xy)[0], r), convert<double>((*xy)[1], r)});
+  }
+  return out;
+}
+
+/// The bounding box of a cylinder body (center of one end, axis, radius, length).
+void cylinder_bounds(BodySection& b) {
+  const double n = std::sqrt(b.axis[0] * b.axis[0] + b.axis[1] * b.axis[1] + b.axis[2] * b.axis[2]);
+  for (int k = 0; k < 3; ++k) {
+    const double a = b.axis[k] / n, top = b.center[k] + b.length * a;
+    const double e = b.radius * std::sqrt(std::max(0.0, 1.0 - a * a));
+    b.lower[k] = std::min(b.center[k], top) - e;
+    b.upper[k] = std::max(b.center[k], top) + e;
+  }
+}
+
+/// file: the path (relative to the scene file), read now for its bounds and
+/// particle count, so that a bad file is reported with the scene's line.
+void read_particle_file_body(const TableReader& t, BodySection& b, const Scene& s) {
+  const std::string name = t.require<std::string>("file");
+  check(!name.empty(), t.ref("file"), "must not be empty");
+  namespace fs = std::filesystem;
+  const fs::path given(name);
+  b.file = (given.is_absolute() || s.file.empty() ? given : fs::path(s.file).parent_path() / given).string();
+  ParticleFile f;
+  try {
+    f = read_particle_file(b.file, s.simulation.dimension);
+  } catch (const InputError& e) {
+    input_error(t.ref("file"), e.what());
+  }
+  const int D = s.simulation.dimension;
+  b.file_particles = f.size();
+  for (int k = 0; k < D; ++k) {
+    b.lower[k] = b.upper[k] = f.x[static_cast<std::size_t>(k)];
+    for (int p = 0; p < f.size(); ++p) {
+      const double x = f.x[static_cast<std::size_t>(p) * D + k], half = 0.5 * std::pow(f.volume[static_cast<std::size_t>(p)], 1.0 / D);
+      b.lower[k] = std::min(b.lower[k], x - half);
+      b.upper[k] = std::max(b.upper[k], x + half);
+    }
+  }
+}
+
+/// The shape's own keys, and lower/upper = its bounding box.
+void read_shape(const TableReader& t, BodySection& b, const Scene& s) {
+  const int dim = s.simulation.dimension;
+  if (b.shape == "box") {
+    b.lower = t.require_vec("lower", dim);
+    b.upper = t.require_vec("upper", dim);
+    check_box(t, b.lower, b.upper, dim, true);
+  } else if (b.shape == "sphere") {
+    b.center = t.require_vec("center", dim);
+    b.radius = positive_required(t, "radius");
+    for (int k = 0; k < dim; ++k) b.lower[k] = b.center[k] - b.radius, b.upper[k] = b.center[k] + b.radius;
+  } else if (b.shape == "cylinder") {
+    check(dim == 3, t.ref("shape"), "shape \"cylinder\" is three-dimensional (use \"sphere\" for a disk in 2D)");
+    b.center = t.require_vec("center", dim);
+    b.axis = t.require_vec("axis", dim);
+    check(b.axis[0] != 0 || b.axis[1] != 0 || b.axis[2] != 0, t.ref("axis"), "must not be zero");
+    b.radius = positive_required(t, "radius");
+    b.length = positive_required(t, "length");
+    cylinder_bounds(b);
+  } else if (b.shape == "polygon") {
+    b.vertices = read_vertices(t, dim);
+    b.lower = {b.vertices[0][0], b.vertices[0][1], 0};
+    b.upper = b.lower;
+    for (const auto& v : b.vertices)
+      for (int k = 0; k < 2; ++k) b.lower[k] = std::min(b.lower[k], v[k]), b.upper[k] = std::max(b.upper[k], v[k]);
+  } else {
+    read_particle_file_body(t, b, s);
   }
 }
 
@@ -542,26 +419,31 @@ std::vector<BodySection> read_bodies(const TableReader& root, const Scene& s) {
   std::vector<BodySection> out;
   std::set<std::string> names;
   double particles = 0;
+  std::vector<std::string_view> shapes;
+  for (const auto& [name, keys] : kShapeKeys) shapes.push_back(name);
   for (const TableReader& t : tables) {
-    t.only({"name", "material", "lower", "upper", "particles_per_cell", "placement", "velocity", "velocity_profile"});
     BodySection b;
     b.where = t.self();
+    b.shape = t.choice("shape", b.shape, shapes);
+    std::vector<std::string_view> allowed{"name", "material", "shape", "particles_per_cell", "placement", "velocity",
+                                          "velocity_profile", "overlap"};
+    const auto& own = kShapeKeys.find(b.shape)->second;
+    allowed.insert(allowed.end(), own.begin(), own.end());
+    t.only(allowed);
     b.name = read_name(t, false, "body" + std::to_string(out.size()), names);
     b.material = t.require<std::string>("material");
     const bool known = std::any_of(s.materials.begin(), s.materials.end(),
                                    [&](const MaterialSection& m) { return m.name == b.material; });
     check(known, t.ref("material"), "no [[material]] named \"" + b.material + "\"");
-    b.lower = t.require_vec("lower", dim);
-    b.upper = t.require_vec("upper", dim);
-    check_box(t, b.lower, b.upper, dim, true);
+    read_shape(t, b, s);
     b.particles_per_cell = t.get<int>("particles_per_cell", b.particles_per_cell);
     check(b.particles_per_cell >= 1 && b.particles_per_cell <= kMaxParticlesPerCell, t.ref("particles_per_cell"),
           "must be in [1, " + std::to_string(kMaxParticlesPerCell) + "] (got " +
               std::to_string(b.particles_per_cell) + ")");
     b.placement = t.choice("placement", b.placement, {"gauss", "cell_centres"});
     b.velocity = t.vec("velocity", dim).value_or(b.velocity);
-    if (t.has("velocity_profile")) b.velocity_profile = t.choice("velocity_profile", "", {"sin_x"});
-    if (s.simulation.mode == "mpm") check_body_in_grid(t, b, s.grid, dim);
+    if (t.has("velocity_profile")) b.velocity_profile = t.choice("velocity_profile", "", {"sin_x", "reference"});
+    b.overlap = t.choice("overlap", b.overlap, {"error", "first"});
     particles += body_particles(b, s.grid, dim);
     check(particles <= kMaxSceneParticles, box_ref(t),
           "body \"" + b.name + "\" brings the particle count to " + fmt(particles) + " (" +
@@ -588,18 +470,7 @@ std::vector<InitialVelocitySection> read_initial_velocities(const TableReader& r
   return out;
 }
 
-/// True when some node of the Cartesian grid lies in [lo, hi] (tolerance 1e-9 h).
-bool box_selects_node(const GridSection& g, const Vec3& lo, const Vec3& hi, int dim) {
-  for (int k = 0; k < dim; ++k) {
-    const double h = spacing(g, k), tol = kNodeTolerance * h;
-    const double first = std::max(0.0, std::ceil((lo[k] - tol - g.lower[k]) / h));
-    const double last = std::min(static_cast<double>(g.cells[k]), std::floor((hi[k] + tol - g.lower[k]) / h));
-    if (first > last) return false;
-  }
-  return true;
-}
-
-std::vector<BoundarySection> read_boundaries(const TableReader& root, const GridSection& g, int dim) {
+std::vector<BoundarySection> read_boundaries(const TableReader& root, int dim) {
   std::vector<BoundarySection> out;
   std::set<std::string> names;
   for (const TableReader& t : root.tables("boundary")) {
@@ -614,9 +485,28 @@ std::vector<BoundarySection> read_boundaries(const TableReader& root, const Grid
     if (!fix) t.missing("fix");
     b.fix = *fix;
     b.value = t.vec("value", dim).value_or(b.value);
-    check(box_selects_node(g, b.lower, b.upper, dim), box_ref(t),
-          "boundary \"" + b.name + "\" selects no grid node (nodes are at grid.lower + i h)");
     out.push_back(std::move(b));
+  }
+  return out;
+}
+
+std::vector<WallSection> read_walls(const TableReader& root, int dim) {
+  std::vector<WallSection> out;
+  std::set<std::string> names;
+  for (const TableReader& t : root.tables("wall")) {
+    t.only({"name", "point", "normal", "velocity", "friction"});
+    WallSection w;
+    w.where = t.self();
+    w.name = read_name(t, false, "wall" + std::to_string(out.size()), names);
+    w.point = t.require_vec("point", dim);
+    w.normal = t.require_vec("normal", dim);
+    double n2 = 0.0;
+    for (int k = 0; k < dim; ++k) n2 += w.normal[k] * w.normal[k];
+    check(n2 > 0.0, t.ref("normal"), "must not be zero (it points to the material's side of the wall)");
+    w.velocity = t.vec("velocity", dim).value_or(w.velocity);
+    w.friction = t.get<double>("friction", 0.0);
+    check(w.friction >= 0.0, t.ref("friction"), "must be >= 0 (the Coulomb coefficient; got " + fmt(w.friction) + ")");
+    out.push_back(std::move(w));
   }
   return out;
 }
@@ -646,7 +536,7 @@ std::optional<BodyForceSection> read_body_force(const TableReader& root, int dim
 std::vector<TractionSection> read_tractions(const TableReader& root, int dim) {
   std::vector<TractionSection> out;
   for (const TableReader& t : root.tables("traction")) {
-    t.only({"lower", "upper", "value", "time", "function"});
+    t.only({"lower", "upper", "value", "time", "function", "axis"});
     TractionSection tr;
     tr.where = t.self();
     tr.lower = t.require_vec("lower", dim);
@@ -656,6 +546,11 @@ std::vector<TractionSection> read_tractions(const TableReader& root, int dim) {
     if (tr.function.empty()) tr.value = t.require_vec("value", dim);
     else tr.value = t.vec("value", dim).value_or(tr.value);
     tr.time = read_time(t);
+    if (t.has("axis")) {
+      tr.axis = t.get<int>("axis", 0);
+      check(*tr.axis >= 0 && *tr.axis < dim, t.ref("axis"),
+            "must be an axis index in [0, " + std::to_string(dim) + ") (got " + std::to_string(*tr.axis) + ")");
+    }
     out.push_back(tr);
   }
   return out;
@@ -680,28 +575,28 @@ std::vector<ProbeSection> read_probes(const TableReader& out_table, int dim) {
   return out;
 }
 
-/// Particle fields a frame can hold (what the engine's recorder writes).
-const Names kOutputFields = {"x", "v", "a", "stress", "strain", "F", "density", "volume", "mass", "displacement"};
-
-/// output.fields: known, distinct particle field names.
-std::vector<std::string> read_fields(const TableReader& t, std::string_view key, std::vector<std::string> fallback) {
+/// output.fields: known, distinct particle field names - the built-in
+/// fields (output_fields()) and the state of the scene's material models.
+std::vector<std::string> read_fields(const TableReader& t, std::string_view key, std::vector<std::string> fallback,
+                                     const Scene& s) {
   const toml::node* n = t.node(key);
   if (!n) return fallback;
   const SourceRef r = t.ref(key);
   const toml::array* a = n->as_array();
   if (!a) input_error(r, "expected an array of strings, got " + type_name(*n));
+  const std::vector<std::string_view> known = output_field_names(s);
   std::vector<std::string> out;
   for (const toml::node& el : *a) {
     out.push_back(convert<std::string>(el, r));
-    check(std::find(kOutputFields.begin(), kOutputFields.end(), out.back()) != kOutputFields.end(), r,
-          "unknown field \"" + out.back() + "\"" + suggestion(out.back(), kOutputFields));
+    check(std::find(known.begin(), known.end(), out.back()) != known.end(), r,
+          "unknown field \"" + out.back() + "\"" + suggestion(out.back(), known));
     check(std::count(out.begin(), out.end(), out.back()) == 1, r, "names \"" + out.back() + "\" twice");
   }
   return out;
 }
 
 /// Values of output.format.
-const Names kOutputFormats = {"hdf5", "vtp", "vtu"};
+constexpr std::array<std::string_view, 3> kOutputFormats = {"hdf5", "vtp", "vtu"};
 
 /// output.format: "hdf5" (required) and at most one of "vtp", "vtu"; a
 /// string is a list of one.
@@ -714,10 +609,9 @@ std::vector<std::string> read_formats(const TableReader& t) {
   else if (const toml::array* a = n->as_array())
     for (const toml::node& el : *a) out.push_back(convert<std::string>(el, r));
   else input_error(r, "expected an array of strings, got " + type_name(*n));
-  const Names known = kOutputFormats;
   for (const std::string& f : out) {
-    check(std::find(known.begin(), known.end(), f) != known.end(), r,
-          "unknown format \"" + f + "\"" + suggestion(f, known));
+    check(std::find(kOutputFormats.begin(), kOutputFormats.end(), f) != kOutputFormats.end(), r,
+          "unknown format \"" + f + "\"" + suggestion(f, kOutputFormats));
     check(std::count(out.begin(), out.end(), f) == 1, r, "names \"" + f + "\" twice");
   }
   check(std::count(out.begin(), out.end(), "hdf5") == 1, r,
@@ -738,7 +632,8 @@ void read_checkpoint_keys(const TableReader& t, OutputSection& o) {
   check(o.checkpoint_file != o.file, t.ref("checkpoint_file"), "must differ from output.file");
 }
 
-OutputSection read_output(const TableReader& root, int dim) {
+OutputSection read_output(const TableReader& root, const Scene& s) {
+  const int dim = s.simulation.dimension;
   OutputSection o;
   auto t = root.table("output");
   if (!t) return o;
@@ -748,7 +643,7 @@ OutputSection read_output(const TableReader& root, int dim) {
   check(!o.file.empty(), t->ref("file"), "must not be empty");
   o.every = t->get<double>("every", o.every);
   check(o.every >= 0, t->ref("every"), "must be >= 0 (got " + fmt(o.every) + ")");
-  o.fields = read_fields(*t, "fields", o.fields);
+  o.fields = read_fields(*t, "fields", o.fields, s);
   o.probes = read_probes(*t, dim);
   read_checkpoint_keys(*t, o);
   o.formats = read_formats(*t);
@@ -775,19 +670,10 @@ void check_node_count(const TableReader& grid, const Scene& s) {
             "; at most " + fmt(kMaxSceneNodes) + " are allowed");
 }
 
-/// Checks that involve several sections, and derived basis parameters.
-void finish_basis(Scene& s, const TableReader& basis) {
-  if (s.basis.kind != "ugimp") return;
-  check(s.grid.kind == "cartesian", basis.ref("kind"),
-        "uGIMP needs an unperturbed Cartesian grid; this scene has grid.kind = \"" + s.grid.kind + "\"");
-  const int ppc = s.bodies.front().particles_per_cell;
-  for (int k = 0; k < s.simulation.dimension; ++k) s.basis.ugimp_half_width[k] = spacing(s.grid, k) / (2.0 * ppc);
-}
-
 Scene read_scene(const toml::table& root, Context& ctx) {
   TableReader r(ctx, &root, "", SourceRef{ctx.file, 1, ""});
-  r.only({"simulation", "basis", "grid", "material", "body", "initial_velocity", "boundary", "body_force", "traction",
-          "output", "reference"});
+  r.only({"simulation", "basis", "grid", "material", "body", "initial_velocity", "boundary", "wall", "body_force",
+          "traction", "output", "reference"});
   Scene s;
   s.file = ctx.file;
   s.simulation = read_simulation(r.require_table("simulation"));
@@ -797,18 +683,19 @@ Scene read_scene(const toml::table& root, Context& ctx) {
   s.basis_where = basis.self();
   const TableReader grid = r.require_table("grid");
   s.grid = read_grid(grid, dim);
-  const bool ul = s.simulation.mode == "ul";
-  if (!ul) check_node_count(grid, s);
+  // The node count before the bodies (their particle count assumes a sane
+  // grid) - except in ul mode, where the bodies make the node lattice.
+  if (!s.simulation.nodes_move()) check_node_count(grid, s);
   s.materials = read_materials(r);
   s.bodies = read_bodies(r, s);
-  if (ul) check_node_count(grid, s);
+  if (s.simulation.nodes_move()) check_node_count(grid, s);
   s.initial_velocities = read_initial_velocities(r, dim);
-  s.boundaries = read_boundaries(r, s.grid, dim);
+  s.boundaries = read_boundaries(r, dim);
+  s.walls = read_walls(r, dim);
   s.body_force = read_body_force(r, dim);
   s.tractions = read_tractions(r, dim);
-  s.output = read_output(r, dim);
+  s.output = read_output(r, s);
   s.reference = read_reference(r);
-  finish_basis(s, basis);
   return s;
 }
 
@@ -946,27 +833,17 @@ SourceRef Scene::locate(const std::string& key) const {
 }
 
 Scene parse_scene(const std::string& text, const std::string& name, const std::vector<std::string>& overrides) {
-  toml::table root;
-  try {
-    root = toml::parse(std::string_view(text), std::string_view(name));
-  } catch (const toml::parse_error& e) {
-    const auto& pos = e.source().begin;
-    throw InputError(name + ":" + std::to_string(pos.line) + ":" + std::to_string(pos.column) +
-                     ": syntax error: " + std::string(e.description()));
-  }
+  toml::table root = parse_toml_text(text, name);
   Context ctx;
   ctx.file = name;
   for (const std::string& o : overrides) apply_override(root, o, ctx);
   Scene s = read_scene(root, ctx);
   s.where = std::move(ctx.where);
+  validate_scene(s, s.simulation.dimension); // checks across sections, with the lines recorded above
   std::ostringstream os;
   os << root << "\n";
   s.text = os.str();
   return s;
-}
-
-bool is_output_field(const std::string& name) {
-  return std::find(kOutputFields.begin(), kOutputFields.end(), name) != kOutputFields.end();
 }
 
 bool is_output_format(const std::string& format) {
@@ -979,6 +856,26 @@ std::string vtk_format(const OutputSection& output) {
   return "";
 }
 
+LatticeBox node_lattice_box(const Scene& s) {
+  LatticeBox box;
+  box.lower = s.grid.lower;
+  box.upper = s.grid.upper;
+  for (int k = 0; k < s.simulation.dimension; ++k) {
+    box.cells[k] = s.grid.cells[k];
+    if (!s.simulation.nodes_move() || s.bodies.empty()) continue;
+    // ul: the nodes discretise only the material, in cells of the grid spacing
+    const double h = (s.grid.upper[k] - s.grid.lower[k]) / s.grid.cells[k];
+    box.lower[k] = s.bodies.front().lower[k];
+    box.upper[k] = s.bodies.front().upper[k];
+    for (const BodySection& b : s.bodies) {
+      box.lower[k] = std::min(box.lower[k], b.lower[k]);
+      box.upper[k] = std::max(box.upper[k], b.upper[k]);
+    }
+    box.cells[k] = cells_over(box.upper[k] - box.lower[k], h);
+  }
+  return box;
+}
+
 SceneSize scene_size(const Scene& scene) {
   SceneSize n;
   for (const BodySection& b : scene.bodies) n.particles += body_particles(b, scene.grid, scene.simulation.dimension);
@@ -988,11 +885,7 @@ SceneSize scene_size(const Scene& scene) {
 
 Scene load_scene(const std::string& path, const std::vector<std::string>& overrides) {
   if (path.empty()) throw InputError("load_scene: the scene file path is empty");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path + ": cannot open the scene file");
-  std::ostringstream buf;
-  buf << in.rdbuf();
-  return parse_scene(buf.str(), path, overrides);
+  return parse_scene(read_text_file(path, "scene file"), path, overrides);
 }
 
 } // namespace otmpm

@@ -1,11 +1,13 @@
 #pragma once
 /// \file scene.hpp
 /// A scene: everything a run needs, as plain data read from a TOML file
-/// (interfaces.md "Scene file"). Vectors are stored with 3 components; only
+/// (docs/user-guide.md, "Scene file"). Vectors are stored with 3 components; only
 /// the first `dimension` are meaningful. Every value remembers where it came
 /// from (SourceRef) so that later consistency checks (a body outside the grid,
 /// a boundary box selecting no node) can still name file, line and key.
 #include "otmpm/basis/basis.hpp"
+#include "otmpm/materials/material.hpp"
+#include "otmpm/time_function.hpp"
 
 #include <array>
 #include <map>
@@ -30,18 +32,13 @@ struct SourceRef {
 
 using Vec3 = std::array<double, 3>;
 
-/// A time function multiplying a load: constant 1, or the ramp of molinos
-/// eq. 45, g(t) = 0.5 (sin(2 pi t / T - pi/2) + 1), rising to 1 at T/2 and constant after.
-struct TimeFunction {
-  std::string kind = "constant"; ///< constant | ramp
-  double period = 0.0;           ///< T of molinos eq. 45
-};
-
 struct SimulationSection {
   int dimension = 1;
   std::string mode = "mpm";        ///< mpm | ul
-  std::string integrator = "npc";  ///< fe | musl | npc | otm | unified
-  double gamma = 0.5;              ///< Newmark parameter of NPC
+  std::string integrator = "npc";  ///< a name of integrator_kinds() (integrators/integrator.hpp)
+  /// Integrator parameters given in the scene (gamma of npc, rho_inf of
+  /// explicit_alpha, ...: IntegratorKind::parameters); the rest take their defaults.
+  std::map<std::string, double> parameters;
   std::string mass = "lumped";     ///< lumped | consistent (default: consistent for otm and unified)
   double t_end = 0.0;
   double cfl = 0.1;
@@ -55,6 +52,8 @@ struct SimulationSection {
   /// may use (scene/resources.hpp available_memory()).
   double memory_limit = 0.0;
   SourceRef where;
+  /// True in `ul` mode (nodes advected with the material).
+  bool nodes_move() const { return mode == "ul"; }
 };
 
 struct GridSection {
@@ -66,21 +65,37 @@ struct GridSection {
   SourceRef where;
 };
 
-struct MaterialSection {
-  std::string name;
-  std::string model = "linear_elastic"; ///< linear_elastic | linear_elastic_finite | neo_hookean
-  double density = 0, young = 0, poisson = 0;
+/// A [[material]]: name, model (a MaterialModel of materials/), density,
+/// young, poisson and the model's own parameters (MaterialParameters::extra).
+struct MaterialSection : MaterialParameters {
   SourceRef where;
 };
 
+/// A body: a region (shape) filled with particles of one material.
+/// Particles are seeded on the background lattice (the node lattice),
+/// particles_per_cell^D per cell at the Gauss points or cell centres, and
+/// kept where they lie in the shape; a box is cut into cells of the grid
+/// spacing of its own; a "file" body takes its particles from a file.
+/// `lower`/`upper` are the box corners, or the shape's bounding box.
 struct BodySection {
   std::string name;
   std::string material;
-  Vec3 lower{0, 0, 0}, upper{0, 0, 0};
+  std::string shape = "box";           ///< box | sphere | cylinder | polygon | file
+  Vec3 lower{0, 0, 0}, upper{0, 0, 0}; ///< box corners; the bounds of other shapes
+  Vec3 center{0, 0, 0};                ///< sphere: centre; cylinder: centre of one end
+  double radius = 0.0;                 ///< sphere, cylinder
+  Vec3 axis{0, 0, 1};                  ///< cylinder
+  double length = 0.0;                 ///< cylinder
+  std::vector<std::array<double, 2>> vertices; ///< polygon (2D)
+  std::string file;                    ///< file: particle file (CSV or HDF5), resolved path
+  int file_particles = 0;              ///< file: the number of particles it holds
+  std::string overlap = "error";       ///< "first": particles inside an earlier body are dropped
   int particles_per_cell = 2;           ///< per axis
   std::string placement = "gauss";      ///< gauss | cell_centres
   Vec3 velocity{0, 0, 0};
-  /// "sin_x": initial velocity amplitude * sin(pi (x - lower)/(upper-lower)) per component (fixed bar)
+  /// "sin_x": initial velocity amplitude * sin(pi (x - lower)/(upper-lower))
+  /// per component (fixed bar); "reference": the velocity of the reference
+  /// solution at t = 0 (a manufactured solution's own initial state).
   std::optional<std::string> velocity_profile;
   SourceRef where;
 };
@@ -92,14 +107,25 @@ struct InitialVelocitySection {
   SourceRef where;
 };
 
-/// Dirichlet node set: nodes inside the closed box [lower, upper] (with a
-/// tolerance of 1e-9 h) get the fixed velocity components held at `value`.
+/// Dirichlet node set: nodes inside the closed box [lower, upper] (within
+/// kBoxTolerance h) get the fixed velocity components held at `value`.
 struct BoundarySection {
   std::string name;
   Vec3 lower{0, 0, 0}, upper{0, 0, 0};
   std::array<bool, 3> fix{false, false, false};
   Vec3 value{0, 0, 0};
   SourceRef where{"", 0, "boundary"};
+};
+
+/// A rigid wall: the plane through `point` with `normal` pointing to the
+/// material's side, moving at `velocity`, with Coulomb `friction`. It acts
+/// on the nodal velocities (and, in ul mode, keeps the advected nodes from
+/// crossing it); its force on the body is written as /walls/NAME/force.
+struct WallSection {
+  std::string name;
+  Vec3 point{0, 0, 0}, normal{0, 0, 0}, velocity{0, 0, 0};
+  double friction = 0.0;
+  SourceRef where{"", 0, "wall"};
 };
 
 /// Body force b(t) = value * g(t) on every particle (e.g. gravity).
@@ -109,15 +135,20 @@ struct BodyForceSection {
   SourceRef where;
 };
 
-/// Traction on the particles inside a box: a force per unit area `value` times
-/// the time function, applied as f_I += N_Ip t A_p with A_p = V_p / h_p along
-/// `normal_axis` (the particle's face area). `function = "wobbes_traction_bar"`
-/// uses wobbes eq. 103 instead of value * g(t).
+/// A traction on the body surface inside a box: a force per unit area
+/// `value` times the time function, on the faces normal to `axis` (default:
+/// the axis of the largest component of value). The surface particles in
+/// the box - the first and last particle of each column of particles along
+/// the axis - carry it, each over its face area V0_p / l_p[axis], so the
+/// total force is traction x loaded area whatever the particles per cell.
+/// `function = "wobbes_traction_bar"` uses wobbes et al. eq. 103 instead of
+/// value * g(t).
 struct TractionSection {
   Vec3 lower{0, 0, 0}, upper{0, 0, 0};
   Vec3 value{0, 0, 0};
   TimeFunction time;
   std::string function;  ///< empty or the name of a built-in traction history
+  std::optional<int> axis; ///< normal of the loaded faces (default: largest component of value)
   SourceRef where{"", 0, "traction"};
 };
 
@@ -144,8 +175,6 @@ struct OutputSection {
 /// The VTK format an output section asks for: "vtp", "vtu" or "" (none).
 std::string vtk_format(const OutputSection& output);
 
-/// True when `name` is a particle field a frame can hold (output.fields).
-bool is_output_field(const std::string& name);
 /// True when `format` is a value output.format accepts ("hdf5", "vtp", "vtu").
 bool is_output_format(const std::string& format);
 
@@ -167,6 +196,7 @@ struct Scene {
   std::vector<BodySection> bodies;
   std::vector<InitialVelocitySection> initial_velocities;
   std::vector<BoundarySection> boundaries;
+  std::vector<WallSection> walls;
   std::optional<BodyForceSection> body_force;
   std::vector<TractionSection> tractions;
   OutputSection output;
@@ -177,7 +207,21 @@ struct Scene {
   SourceRef locate(const std::string& key) const;
 };
 
-/// How many particles and nodes Engine<D>(scene) creates, counted the way the
+/// Fraction of the grid spacing h within which a node counts as inside a
+/// box (boundary boxes) and a body edge as inside the grid.
+inline constexpr double kBoxTolerance = 1e-6;
+
+/// The node lattice of a scene: the grid in `mpm` mode; in `ul` mode the
+/// bodies' bounding box cut into cells of the grid spacing (round(extent /
+/// h), at least one per axis). Cell counts as doubles, so that absurd
+/// scenes do not overflow before they are refused.
+struct LatticeBox {
+  Vec3 lower{0, 0, 0}, upper{0, 0, 0};
+  std::array<double, 3> cells{1, 1, 1};
+};
+LatticeBox node_lattice_box(const Scene& scene);
+
+/// How many particles and nodes the engine of a scene has, counted the way the
 /// engine counts them but in doubles, so that absurd scenes do not overflow.
 /// Particles: per body, prod_k max(1, round((upper - lower) / h_k)) cells of
 /// particles_per_cell^dimension particles (h = grid spacing). Nodes:
@@ -206,5 +250,14 @@ Scene load_scene(const std::string& path, const std::vector<std::string>& overri
 /// The same from TOML text (`name` is used as the file name in messages).
 Scene parse_scene(const std::string& text, const std::string& name,
                   const std::vector<std::string>& overrides = {});
+
+/// The scene as TOML text (scene_toml.cpp) that parse_scene() reads back to
+/// the same values: every key is written, defaults included, vectors with
+/// simulation.dimension components, grid.cells rather than grid.h, and
+/// simulation.cfl only when simulation.dt is unset (the reader takes one of
+/// the two). `file`, `where` and the derived basis.ugimp_half_width are not
+/// written. run_scene() stores this text when Scene::text is empty (a scene
+/// built in code), so its result file and checkpoints hold the scene.
+std::string to_toml(const Scene& scene);
 
 } // namespace otmpm

@@ -4,7 +4,10 @@
 #include "otmpm/scene/validate.hpp"
 
 #include "otmpm/io/results.hpp"
+#include "otmpm/basis/kinds.hpp"
+#include "otmpm/integrators/integrator.hpp"
 #include "otmpm/materials/material.hpp"
+#include "otmpm/particles/output_fields.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -17,9 +20,6 @@
 namespace otmpm {
 
 namespace {
-
-/// A body edge may lie outside the grid by this fraction of h (as in parse_scene).
-constexpr double kGridTolerance = 1e-9;
 
 /// Throws InputError "<where key>: <parts>" unless `ok`.
 template <class... Parts> void check(const Scene& s, bool ok, const std::string& key, const Parts&... parts) {
@@ -63,15 +63,22 @@ void check_simulation(const Scene& s, int dim) {
   const SimulationSection& m = s.simulation;
   check(s, m.dimension == dim, "simulation.dimension", "the scene is ", m.dimension, "D but the run is ", dim, "D");
   check(s, one_of(m.mode, {"mpm", "ul"}), "simulation.mode", "must be \"mpm\" or \"ul\" (got \"", m.mode, "\")");
-  check(s, one_of(m.integrator, {"fe", "musl", "npc", "otm", "unified"}), "simulation.integrator",
-        "must be one of \"fe\", \"musl\", \"npc\", \"otm\", \"unified\" (got \"", m.integrator, "\")");
+  const IntegratorKind* integrator = find_integrator(m.integrator);
+  check(s, integrator != nullptr, "simulation.integrator", "must be one of ", integrator_list(), " (got \"",
+        m.integrator, "\")");
   check(s, one_of(m.mass, {"lumped", "consistent"}), "simulation.mass", "must be \"lumped\" or \"consistent\" (got \"",
         m.mass, "\")");
-  check(s, !(m.mode == "mpm" && (m.integrator == "otm" || m.integrator == "unified")), "simulation.integrator",
-        "integrator \"", m.integrator, "\" needs advected nodes: use simulation.mode = \"ul\"");
-  check(s, !(m.integrator == "unified" && m.mass == "lumped"), "simulation.mass",
-        "integrator \"unified\" uses the consistent mass matrix (wobbes Algorithm 3)");
-  check(s, m.gamma > 0.0 && m.gamma <= 1.0, "simulation.gamma", "must be in (0, 1] (got ", m.gamma, ")");
+  check(s, !integrator->needs_ul || m.nodes_move(), "simulation.integrator", "integrator \"", m.integrator,
+        "\" needs advected nodes: use simulation.mode = \"ul\"");
+  check(s, !integrator->needs_consistent_mass || m.mass == "consistent", "simulation.mass", "integrator \"",
+        m.integrator, "\" uses the consistent mass matrix (wobbes et al. Algorithm 3): set mass = \"consistent\"");
+  for (const auto& [key, value] : m.parameters) {
+    const auto spec = std::find_if(integrator_parameters().begin(), integrator_parameters().end(),
+                                   [&](const ParameterSpec* p) { return p->key == key; });
+    check(s, spec != integrator_parameters().end(), "simulation." + key, "is not a parameter of any integrator");
+    const std::string why = (*spec)->check(value);
+    check(s, why.empty(), "simulation." + key, why);
+  }
   check(s, finite_positive(m.t_end), "simulation.t_end", "must be finite and > 0 (got ", m.t_end, ")");
   if (m.dt) check(s, finite_positive(*m.dt), "simulation.dt", "must be finite and > 0 (got ", *m.dt, ")");
   else check(s, finite_positive(m.cfl), "simulation.cfl", "must be finite and > 0 (got ", m.cfl, ")");
@@ -98,6 +105,18 @@ void check_grid(const Scene& s, int dim) {
         "must be in [0, 0.5) (got ", g.perturbation, ")");
 }
 
+void check_basis(const Scene& s) {
+  const BasisKind* kind = find_basis_kind(s.basis.kind);
+  if (!kind) input_error(s.basis_where, "kind must be one of " + basis_kind_list() + " (got \"" + s.basis.kind + "\")");
+  const IntegratorKind* integrator = find_integrator(s.simulation.integrator);
+  check(s, !integrator->needs_bspline || kind->bspline, "basis.kind", "integrator \"", s.simulation.integrator,
+        "\" needs a B-spline basis (bspline2 or bspline3), got \"", s.basis.kind, "\"");
+  check(s, !kind->cartesian_only || s.grid.kind == "cartesian", "basis.kind", s.basis.kind,
+        " needs an unperturbed Cartesian grid; this scene has grid.kind = \"", s.grid.kind, "\"");
+  check(s, !kind->cartesian_only || !s.simulation.nodes_move(), "basis.kind", s.basis.kind,
+        " needs a fixed Cartesian grid: its nodes cannot move (use simulation.mode = \"mpm\")");
+}
+
 void check_materials(const Scene& s) {
   check(s, !s.materials.empty(), "material", "at least one [[material]] is required");
   std::set<std::string> names;
@@ -106,28 +125,55 @@ void check_materials(const Scene& s) {
     const std::string key = element_key("material", ms.name, i);
     check(s, !ms.name.empty(), key + ".name", "must not be empty");
     check(s, names.insert(ms.name).second, key + ".name", "duplicate name \"", ms.name, "\"");
-    Material m;
-    m.name = ms.name;
-    m.density = ms.density;
-    m.young = ms.young;
-    m.poisson = ms.poisson;
     try {
-      m.model = Material::parse_model(ms.model);
-      m.validate();
+      validate_material(ms);
     } catch (const InputError& e) {
       input_error(s.locate(key), e.what());
     }
   }
 }
 
+/// The shape of a body: known, with the values it needs (its bounds are
+/// lower/upper for every shape).
+void check_shape(const Scene& s, const BodySection& b, const std::string& key, int dim) {
+  check(s, one_of(b.shape, {"box", "sphere", "cylinder", "polygon", "file"}), key + ".shape",
+        "must be one of \"box\", \"sphere\", \"cylinder\", \"polygon\", \"file\" (got \"", b.shape, "\")");
+  check_box(s, key, b.lower, b.upper, dim, true);
+  if (b.shape == "sphere" || b.shape == "cylinder") {
+    check_finite(s, key + ".center", b.center, dim);
+    check(s, finite_positive(b.radius), key + ".radius", "must be finite and > 0 (got ", b.radius, ")");
+  }
+  if (b.shape == "cylinder") {
+    check(s, dim == 3, key + ".shape", "\"cylinder\" is three-dimensional");
+    check_finite(s, key + ".axis", b.axis, dim);
+    check(s, finite_positive(b.length), key + ".length", "must be finite and > 0 (got ", b.length, ")");
+  }
+  if (b.shape == "polygon") {
+    check(s, dim == 2, key + ".shape", "\"polygon\" is two-dimensional");
+    check(s, b.vertices.size() >= 3, key + ".vertices", "needs at least 3 vertices (got ", b.vertices.size(), ")");
+  }
+  if (b.shape == "file") check(s, !b.file.empty(), key + ".file", "must name a particle file");
+}
+
+/// Where a box of `key` came from: the --set that changed its lower or
+/// upper corner, else the table itself.
+SourceRef box_where(const Scene& s, const std::string& key) {
+  for (const char* corner : {".lower", ".upper"}) {
+    const SourceRef r = s.locate(key + corner);
+    if (r.line < 0) return r;
+  }
+  return s.locate(key);
+}
+
 /// In `mpm` mode the particles must start on the grid.
 void check_body_in_grid(const Scene& s, const BodySection& b, const std::string& key, int dim) {
   const GridSection& g = s.grid;
   for (int k = 0; k < dim; ++k) {
-    const double tol = kGridTolerance * (g.upper[k] - g.lower[k]) / g.cells[k];
-    check(s, b.lower[k] >= g.lower[k] - tol && b.upper[k] <= g.upper[k] + tol, key + ".lower", "body '", b.name,
-          "' [", b.lower[k], ", ", b.upper[k], "] on axis ", k, " is not inside the grid [", g.lower[k], ", ",
-          g.upper[k], "] (mpm mode)");
+    const double tol = kBoxTolerance * (g.upper[k] - g.lower[k]) / g.cells[k];
+    if (b.lower[k] >= g.lower[k] - tol && b.upper[k] <= g.upper[k] + tol) continue;
+    input_error(box_where(s, key), error_message("body '", b.name, "' [", b.lower[k], ", ", b.upper[k], "] on axis ", k,
+                                                 " is not inside the grid [", g.lower[k], ", ", g.upper[k],
+                                                 "] (mpm mode)"));
   }
 }
 
@@ -144,6 +190,18 @@ void check_loads(const Scene& s, int dim) {
     check_box(s, key, b.lower, b.upper, dim, false);
     check_finite(s, key + ".value", b.value, dim);
   }
+  for (std::size_t i = 0; i < s.walls.size(); ++i) {
+    const WallSection& w = s.walls[i];
+    const std::string key = element_key("wall", w.name, i);
+    check_finite(s, key + ".point", w.point, dim);
+    check_finite(s, key + ".normal", w.normal, dim);
+    check_finite(s, key + ".velocity", w.velocity, dim);
+    double n2 = 0.0;
+    for (int k = 0; k < dim; ++k) n2 += w.normal[k] * w.normal[k];
+    check(s, n2 > 0.0, key + ".normal", "must not be zero");
+    check(s, std::isfinite(w.friction) && w.friction >= 0.0, key + ".friction", "must be finite and >= 0 (got ",
+          w.friction, ")");
+  }
   if (s.body_force) {
     check_finite(s, "body_force.value", s.body_force->value, dim);
     check_time(s, "body_force.time", s.body_force->time);
@@ -156,6 +214,8 @@ void check_loads(const Scene& s, int dim) {
     check_time(s, key + ".time", t.time);
     check(s, t.function.empty() || t.function == "wobbes_traction_bar", key + ".function",
           "must be \"wobbes_traction_bar\" when set (got \"", t.function, "\")");
+    check(s, !t.axis || (*t.axis >= 0 && *t.axis < dim), key + ".axis", "must be an axis index in [0, ", dim,
+          ") (got ", t.axis.value_or(0), ")");
   }
 }
 
@@ -166,6 +226,9 @@ void check_output_every(const Scene& s) {
   const double every = s.output.every;
   check(s, every == 0.0 || (finite_positive(every) && s.simulation.t_end / every <= kMaxOutputTimes), "output.every",
         "must be 0 or finite and > 0 with at most ", kMaxOutputTimes, " output times up to t_end (got ", every, ")");
+  const std::vector<std::string_view> known = output_field_names(s);
+  for (const std::string& f : s.output.fields)
+    check(s, std::find(known.begin(), known.end(), f) != known.end(), "output.fields", "unknown field \"", f, "\"");
 }
 
 /// Each probe: a unique name the result file can hold (invalid_name_reason),
@@ -190,10 +253,8 @@ void check_output(const Scene& s, int dim) {
   check(s, !o.file.empty(), "output.file", "must not be empty");
   check_output_every(s);
   std::set<std::string> fields;
-  for (const std::string& f : o.fields) {
-    check(s, is_output_field(f), "output.fields", "unknown field \"", f, "\"");
+  for (const std::string& f : o.fields)
     check(s, fields.insert(f).second, "output.fields", "names \"", f, "\" twice");
-  }
   check_probes(s, dim);
   check(s, o.checkpoint_every >= 0, "output.checkpoint_every", "must be >= 0 (got ", o.checkpoint_every, ")");
   check(s, o.checkpoint_file != o.file, "output.checkpoint_file", "must differ from output.file");
@@ -207,15 +268,13 @@ void check_output(const Scene& s, int dim) {
 }
 
 /// The caps of parse_scene: particles and nodes (kMaxSceneParticles,
-/// kMaxSceneNodes), and uGIMP only on a Cartesian grid.
+/// kMaxSceneNodes).
 void check_size(const Scene& s) {
   const SceneSize n = scene_size(s);
   check(s, n.nodes <= kMaxSceneNodes, "grid.cells", "the node set would have ", n.nodes, " nodes; at most ",
         kMaxSceneNodes, " are allowed");
   check(s, n.particles <= kMaxSceneParticles, "body", "the bodies would have ", n.particles,
         " particles; at most ", kMaxSceneParticles, " are allowed");
-  check(s, s.basis.kind != "ugimp" || s.grid.kind == "cartesian", "basis.kind",
-        "uGIMP needs an unperturbed Cartesian grid; this scene has grid.kind = \"", s.grid.kind, "\"");
 }
 
 } // namespace
@@ -230,15 +289,19 @@ void validate_bodies(const Scene& s, int dim) {
     const bool known = std::any_of(s.materials.begin(), s.materials.end(),
                                    [&](const MaterialSection& m) { return m.name == b.material; });
     check(s, known, key + ".material", "no [[material]] named \"", b.material, "\"");
-    check_box(s, key, b.lower, b.upper, dim, true);
+    check_shape(s, b, key, dim);
     check(s, b.particles_per_cell >= 1 && b.particles_per_cell <= kMaxParticlesPerCell, key + ".particles_per_cell",
           "must be in [1, ", kMaxParticlesPerCell, "] (got ", b.particles_per_cell, ")");
+    check(s, one_of(b.overlap, {"error", "first"}), key + ".overlap", "must be \"error\" or \"first\" (got \"",
+          b.overlap, "\")");
     check(s, one_of(b.placement, {"gauss", "cell_centres"}), key + ".placement",
           "must be \"gauss\" or \"cell_centres\" (got \"", b.placement, "\")");
     check_finite(s, key + ".velocity", b.velocity, dim);
-    check(s, !b.velocity_profile || *b.velocity_profile == "sin_x", key + ".velocity_profile",
-          "must be \"sin_x\" when set (got \"", b.velocity_profile.value_or(""), "\")");
-    if (s.simulation.mode == "mpm") check_body_in_grid(s, b, key, dim);
+    check(s, !b.velocity_profile || one_of(*b.velocity_profile, {"sin_x", "reference"}), key + ".velocity_profile",
+          "must be \"sin_x\" or \"reference\" when set (got \"", b.velocity_profile.value_or(""), "\")");
+    check(s, b.velocity_profile.value_or("") != "reference" || !s.reference.solution.empty(), key + ".velocity_profile",
+          "\"reference\" takes the initial velocity of the reference solution, but the scene has no reference.solution");
+    if (!s.simulation.nodes_move()) check_body_in_grid(s, b, key, dim);
   }
 }
 
@@ -247,11 +310,22 @@ void validate_scene(const Scene& s, int dimension) {
                                  dimension);
   check_simulation(s, dimension);
   check_grid(s, dimension);
+  check_basis(s);
   check_materials(s);
   validate_bodies(s, dimension);
   check_size(s);
   check_loads(s, dimension);
   check_output(s, dimension);
+}
+
+std::vector<std::string_view> output_field_names(const Scene& s) {
+  std::vector<std::string_view> names;
+  for (const OutputField& f : output_fields()) names.push_back(f.name);
+  for (const MaterialSection& m : s.materials)
+    if (const MaterialModel* model = find_material_model(m.model))
+      for (const StateSpec& st : model->state)
+        if (std::find(names.begin(), names.end(), st.name) == names.end()) names.push_back(st.name);
+  return names;
 }
 
 template <int D> void validate_seeding(const Scene& s, const Vec<D>& h) {

@@ -13,27 +13,32 @@ namespace otmpm {
 
 /// Throws InputError naming the key unless the scene can run in `dimension`
 /// dimensions: every check parse_scene makes of the values it reads.
-/// Checked: simulation (dimension == `dimension`, mode, integrator and the
-/// mode it needs, mass (consistent for unified), gamma, t_end, cfl, dt,
+/// Checked: simulation (dimension == `dimension`, mode, integrator, its
+/// parameters and the mode and mass matrix it needs, t_end, cfl, dt,
 /// mass_tolerance, finite energy_limit >= 1, max_steps, memory_limit), grid
 /// (kind, finite lower < upper and upper - lower, cells >= 1, perturbation),
-/// at least one material and body, every material (unique name, model,
-/// Material::validate), every body (see validate_bodies), the particle and
-/// node caps (kMaxSceneParticles, kMaxSceneNodes), uGIMP only on a Cartesian
-/// grid, the initial-velocity, boundary and traction boxes, values and
-/// functions, the body force, the time functions, and the output section
-/// (file, every, known and distinct fields and formats, probes with valid
-/// unique names (invalid_name_reason), a known particle choice and a finite
-/// point, checkpoint_every >= 0, checkpoint_file != file). Options of the
-/// basis family are checked by make_basis().
+/// the basis kind and the grid and mode it needs, at least one material and
+/// body, every material (unique name, model and its parameters), every body
+/// (see validate_bodies), the particle and node caps (kMaxSceneParticles,
+/// kMaxSceneNodes), the initial-velocity, boundary, wall and traction boxes,
+/// values, axes and functions, the body force, the time functions, and the
+/// output section (file, every, known and distinct fields and formats,
+/// probes with valid unique names (invalid_name_reason), a known particle
+/// choice and a finite point, checkpoint_every >= 0, checkpoint_file !=
+/// file). Options of the basis family are checked by make_basis().
 void validate_scene(const Scene& scene, int dimension);
 
 /// The bodies alone: at least one; each has a unique name (or none), names a
-/// defined material, has a finite box lower < upper, particles_per_cell in
-/// [1, kMaxParticlesPerCell], placement "gauss" or
+/// defined material, has a known shape with the values it needs (a finite
+/// box lower < upper), particles_per_cell in [1, kMaxParticlesPerCell],
+/// overlap "error" or "first", placement "gauss" or
 /// "cell_centres", a finite velocity and velocity_profile unset or "sin_x";
 /// in `mpm` mode it lies inside the grid. InputError naming the key.
 void validate_bodies(const Scene& scene, int dimension);
+
+/// The names output.fields may use in this scene: the built-in particle
+/// fields (output_fields()) and the internal variables of its material models.
+std::vector<std::string_view> output_field_names(const Scene& scene);
 
 /// What seed_particles() relies on: validate_bodies(), a grid spacing h that
 /// is finite and > 0 on every axis, and a particle count per body that fits

@@ -6,6 +6,7 @@
 #include "otmpm/engine/timers.hpp"
 #include "otmpm/scene/scene.hpp"
 
+#include <atomic>
 #include <functional>
 #include <map>
 #include <string>
@@ -16,7 +17,7 @@ struct Checkpoint;
 
 /// RunSummary::exit_code of a run whose results could not be written (disk
 /// full, file size limit, quota, I/O error): the `otmpm` exit status 4.
-inline constexpr int kExitOutputError = 4;
+inline constexpr int kOutputErrorExit = 4;
 
 struct RunOptions {
   std::string out_file;  ///< overrides output.file when not empty
@@ -29,6 +30,12 @@ struct RunOptions {
   bool force = false;
   /// Called after every step with (t, t_end, steps) - e.g. a progress bar.
   std::function<void(double, double, long)> progress;
+  /// When not null, read once per step: once true, the run stops after the
+  /// current step, writes a last checkpoint (if output.checkpoint_every > 0),
+  /// sets the result file's status to "interrupted" and returns a summary
+  /// with interrupted = true (otmpm run on SIGINT/SIGTERM). The result file
+  /// stays valid and the checkpoint can be continued with restart_run().
+  const std::atomic<bool>* interrupt = nullptr;
 };
 
 /// The energy balance of a run, sampled after every step: E = kinetic +
@@ -49,10 +56,14 @@ struct EnergySummary {
   double energy_drift() const;
 };
 
-/// What a run reports (spec algorithms.md sect. 6).
+/// RunSummary::exit_code of a run stopped at the user's request (128 + SIGINT).
+inline constexpr int kInterruptedExit = 130;
+
+/// What a run reports (docs/theory.md sect. 12).
 struct RunSummary {
-  std::string status = "ok"; ///< "ok", "unstable: DIAGNOSIS" or "output error: MESSAGE"
-  int exit_code = 0;         ///< 0 ok, 1 unstable, kExitOutputError (4) the results could not be written
+  std::string status = "ok"; ///< "ok", "unstable: DIAGNOSIS", "output error: MESSAGE" or "interrupted"
+  int exit_code = 0;         ///< 0 ok, 1 unstable, kOutputErrorExit the results could not be written, kInterruptedExit interrupted
+  bool interrupted = false;  ///< stopped early (Simulation::interrupt, RunOptions::interrupt); status "interrupted"
   std::string mode, integrator, basis;
   long steps = 0;
   double time = 0.0;         ///< simulated time reached
@@ -71,7 +82,7 @@ struct RunSummary {
 /// collide, are locked by another run, or hold files the run may not replace
 /// (io/output_files.hpp). An instability (also at t = 0) is caught, written
 /// into the result file's status, and reported with exit_code 1; an output
-/// that cannot be written (OutputError) likewise with kExitOutputError, the
+/// that cannot be written (OutputError) likewise with kOutputErrorExit, the
 /// file keeping every frame written before. The status and step and time of
 /// every diagnosis are in RunSummary::status.
 /// With output.checkpoint_every = N a checkpoint (io/checkpoint.hpp) is
@@ -88,7 +99,37 @@ RunSummary run_scene(const Scene& scene, const RunOptions& options = {});
 /// (its run id differs).
 RunSummary restart_run(const Checkpoint& checkpoint, const RunOptions& options = {});
 
-/// One line: "ok: 1234 steps, 0.52 s wall, rms_velocity_error = 0.01 ...".
+/// One line: "ok: 1234 steps, 0.52 s wall, rms_velocity_error = 0.01 ..."
+/// ("INTERRUPTED: ...", "UNSTABLE: ..." or "OUTPUT FAILED: ..." for a run that did not finish).
 std::string summary_line(const RunSummary& s);
+
+/// What `otmpm run --check` prints about a scene without running it.
+struct SceneCheck {
+  int dimension = 1;
+  std::string mode, integrator, basis;
+  long particles = 0, nodes = 0;
+  double dt = 0.0;           ///< the first time step (cfl rule at t = 0, or simulation.dt)
+  double t_end = 0.0;
+  /// t_end / dt, rounded up: the step count if dt stayed as at t = 0 (with
+  /// the cfl rule dt follows the wave and particle speeds, so it is an estimate).
+  double estimated_steps = 0.0;
+  double memory_bytes = 0.0; ///< estimate_memory_bytes(scene)
+  std::string out_file;      ///< output.file
+};
+
+/// Validates the scene as a run would (the scene checks and the engine's
+/// construction: particles seeded, nodes and basis built, Dirichlet boxes
+/// and tractions matched) and reports its size, first time step and
+/// estimated steps and memory, without stepping. InputError as run_scene().
+SceneCheck check_scene(const Scene& scene);
+
+/// Estimated peak memory of a run of the scene, in bytes, from the scene
+/// alone (nothing allocated): per particle the fields the run allocates and
+/// its basis-table row (the stencil size of the family: 2^D linear, 3^D ugimp
+/// and bspline2, 4^D bspline3, the nodes inside the support radius for lme
+/// and maxent), per node the nodal fields, and the consistent mass matrix
+/// when used. Meant for refusing runs that cannot fit, not for accounting:
+/// docs/user-guide.md gives the measured ratio to the real peak.
+double estimate_memory_bytes(const Scene& scene);
 
 } // namespace otmpm

@@ -75,24 +75,31 @@ template <class Body> void parallel_for(long long n, Body&& body) {
 /// partial sums (hence the bits of the result) does not depend on threads.
 constexpr int reduction_block = 1024;
 
-/// Sums per item into an accumulator `Acc` (default-constructed = zero, with
-/// `a += b`): term(i, acc) adds item i to acc. Items are summed in blocks of
-/// reduction_block in index order, and the block sums are added in block
-/// order - the same bits for any thread count.
-template <class Acc, class Term> Acc blocked_reduce(long long n, Term&& term) {
+/// Sums over [0, n) into an accumulator `Acc` (default-constructed = zero,
+/// with `a += b`) block by block: term(begin, end, acc) adds items
+/// [begin, end) to acc, in index order. The blocks are the fixed ranges of
+/// reduction_block items, and their sums are added in block order - the
+/// same bits for any thread count.
+template <class Acc, class Term> Acc blocked_reduce_ranges(long long n, Term&& term) {
   const long long blocks = (n + reduction_block - 1) / reduction_block;
   std::vector<Acc> partial(static_cast<std::size_t>(blocks));
   parallel_chunks(blocks, team_size(n), [&](long long b0, long long b1) {
     for (long long b = b0; b < b1; ++b) {
       Acc acc{};
-      const long long end = std::min(n, (b + 1) * reduction_block);
-      for (long long i = b * reduction_block; i < end; ++i) term(i, acc);
+      term(b * reduction_block, std::min(n, (b + 1) * reduction_block), acc);
       partial[static_cast<std::size_t>(b)] = acc;
     }
   });
   Acc total{};
   for (const Acc& a : partial) total += a;
   return total;
+}
+
+/// blocked_reduce_ranges with a term per item: term(i, acc) adds item i.
+template <class Acc, class Term> Acc blocked_reduce(long long n, Term&& term) {
+  return blocked_reduce_ranges<Acc>(n, [&](long long begin, long long end, Acc& acc) {
+    for (long long i = begin; i < end; ++i) term(i, acc);
+  });
 }
 
 } // namespace otmpm

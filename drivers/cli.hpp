@@ -1,0 +1,38 @@
+#pragma once
+/// \file cli.hpp
+/// The pieces of the `otmpm` command. Each subcommand registers its options
+/// on the CLI11 application (so `--help` and the usage text are generated
+/// from the options themselves) and returns the function that runs it once
+/// the command line is parsed; that function returns the exit status
+/// (0 ok, 1 unstable, 2 bad input, 3 internal error, 128 + signal when
+/// interrupted).
+#include <CLI/CLI.hpp>
+
+#include <functional>
+#include <string>
+
+namespace otmpm::cli {
+
+using Command = std::function<int()>;
+
+Command add_run_command(CLI::App& app);    ///< run_commands.cpp
+Command add_pair_command(CLI::App& app);   ///< run_commands.cpp
+Command add_basis_command(CLI::App& app);  ///< basis_command.cpp
+Command add_render_command(CLI::App& app); ///< render_command.cpp
+Command add_study_command(CLI::App& app);  ///< study/study_command.cpp
+
+/// "otmpm 0.1.0".
+const char* version();
+
+/// Adds `--threads N` (OpenMP threads of this process; 0 or absent: the
+/// OpenMP default, OMP_NUM_THREADS or one per core) to a subcommand.
+CLI::Option* add_threads_option(CLI::App& sub, int& threads, const std::string& what = "");
+/// Applies --threads (nothing for 0).
+void set_threads(int threads);
+/// Makes OMP_WAIT_POLICY=passive the default: libgomp reads the variable
+/// once, when it is loaded, so when it is unset the process sets it and
+/// executes itself again (argv unchanged). A user's own OMP_WAIT_POLICY is
+/// kept. See docs/user-guide.md, "Threads".
+void default_passive_wait_policy(char** argv);
+
+} // namespace otmpm::cli

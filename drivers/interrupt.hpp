@@ -1,0 +1,31 @@
+#pragma once
+/// \file interrupt.hpp
+/// SIGINT and SIGTERM while otmpm works: the first one sets a flag that the
+/// run loop reads once per step (RunOptions::interrupt) and the study loop
+/// reads while it waits for its children; the run then stops cleanly (status
+/// "interrupted", a last checkpoint if checkpointing is on). A second signal
+/// of the same kind takes its default action (the process ends at once).
+#include <atomic>
+
+namespace otmpm::cli {
+
+/// Installs the handlers for the lifetime of the object (not nested).
+class InterruptHandlers {
+public:
+  InterruptHandlers();
+  ~InterruptHandlers();
+  InterruptHandlers(const InterruptHandlers&) = delete;
+  InterruptHandlers& operator=(const InterruptHandlers&) = delete;
+};
+
+/// The flag the handlers set (false until a signal arrives).
+const std::atomic<bool>& interrupt_flag();
+/// The signal that set the flag (0 if none).
+int interrupt_signal();
+/// 128 + the signal (130 for SIGINT, 143 for SIGTERM): the exit status of an
+/// interrupted command, as a shell reports a process killed by that signal.
+int interrupted_exit_status();
+/// "SIGINT", "SIGTERM" or "signal N".
+const char* interrupt_signal_name();
+
+} // namespace otmpm::cli

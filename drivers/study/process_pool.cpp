@@ -1,0 +1,83 @@
+#include "process_pool.hpp"
+
+#include <algorithm>
+#include <cerrno>
+#include <csignal>
+#include <cstring>
+#include <fcntl.h>
+#include <stdexcept>
+#include <sys/prctl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+extern char** environ;
+
+namespace otmpm::study {
+
+ProcessPool::~ProcessPool() {
+  terminate_all();
+  for (pid_t pid : children_) {
+    int status = 0;
+    while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+    }
+  }
+}
+
+pid_t ProcessPool::start(const std::vector<std::string>& argv, const std::filesystem::path& log,
+                         const std::vector<std::string>& env) {
+  // Everything the child needs is prepared before fork: after it, only
+  // async-signal-safe calls.
+  std::vector<std::string> args = argv, vars = env;
+  std::vector<char*> cargv, cenv;
+  for (std::string& a : args) cargv.push_back(a.data());
+  cargv.push_back(nullptr);
+  for (char** e = environ; *e; ++e) {
+    const std::string entry(*e);
+    const std::string name = entry.substr(0, entry.find('='));
+    const bool overridden = std::any_of(vars.begin(), vars.end(), [&](const std::string& v) {
+      return v.compare(0, name.size() + 1, name + "=") == 0;
+    });
+    if (!overridden) cenv.push_back(*e);
+  }
+  for (std::string& v : vars) cenv.push_back(v.data());
+  cenv.push_back(nullptr);
+  const std::string log_path = log.string();
+  const pid_t parent = getpid();
+  const pid_t pid = fork();
+  if (pid < 0) throw std::runtime_error(std::string("fork failed: ") + std::strerror(errno));
+  if (pid == 0) {
+    prctl(PR_SET_PDEATHSIG, SIGTERM);
+    if (getppid() != parent) _exit(128 + SIGTERM); // the study died before prctl took effect
+    const int fd = open(log_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+    if (fd >= 0) {
+      dup2(fd, STDOUT_FILENO);
+      dup2(fd, STDERR_FILENO);
+    }
+    execve(cargv[0], cargv.data(), cenv.data());
+    _exit(127);
+  }
+  children_.push_back(pid);
+  return pid;
+}
+
+ChildExit ProcessPool::wait_any() {
+  ChildExit c;
+  if (children_.empty()) return c;
+  int status = 0;
+  const pid_t pid = waitpid(-1, &status, 0);
+  if (pid < 0) {
+    if (errno == EINTR) return c;
+    throw std::runtime_error(std::string("waitpid failed: ") + std::strerror(errno));
+  }
+  children_.erase(std::remove(children_.begin(), children_.end(), pid), children_.end());
+  c.pid = pid;
+  c.signalled = WIFSIGNALED(status);
+  c.status = c.signalled ? 128 + WTERMSIG(status) : WEXITSTATUS(status);
+  return c;
+}
+
+void ProcessPool::terminate_all() {
+  for (pid_t pid : children_) kill(pid, SIGTERM);
+}
+
+} // namespace otmpm::study

@@ -1,0 +1,46 @@
+#pragma once
+/// \file process_pool.hpp
+/// The child processes of a study: started with fork/exec, their stdout and
+/// stderr going to a log file, each one bound to the study's life (Linux
+/// PR_SET_PDEATHSIG: if the study dies, even by SIGKILL, its children get
+/// SIGTERM, which makes an `otmpm run` stop cleanly with status
+/// "interrupted"), so no run is left holding a result file.
+#include <filesystem>
+#include <map>
+#include <string>
+#include <sys/types.h>
+#include <vector>
+
+namespace otmpm::study {
+
+/// How a child ended.
+struct ChildExit {
+  pid_t pid = -1;
+  int status = 0;       ///< exit status, or 128 + signal
+  bool signalled = false; ///< killed by a signal (not a normal exit)
+};
+
+class ProcessPool {
+public:
+  ProcessPool() = default;
+  /// Sends SIGTERM to the children still running and waits for them.
+  ~ProcessPool();
+  ProcessPool(const ProcessPool&) = delete;
+  ProcessPool& operator=(const ProcessPool&) = delete;
+
+  /// Starts argv (argv[0] a path) with stdout and stderr to `log` and the
+  /// extra environment `env` ("NAME=VALUE"); returns its pid.
+  pid_t start(const std::vector<std::string>& argv, const std::filesystem::path& log,
+              const std::vector<std::string>& env);
+  /// Waits for the next child to end. Returns pid -1 when none is running or
+  /// when the wait was interrupted by a signal (the caller checks its flag).
+  ChildExit wait_any();
+  /// Sends SIGTERM to every running child.
+  void terminate_all();
+  std::size_t running() const { return children_.size(); }
+
+private:
+  std::vector<pid_t> children_;
+};
+
+} // namespace otmpm::study

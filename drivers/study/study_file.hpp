@@ -1,0 +1,73 @@
+#pragma once
+/// \file study_file.hpp
+/// The study file of `otmpm study` and its reader. A study sweeps a base
+/// scene over mesh sizes and variants; every (variant, mesh) pair is one run.
+///
+///   scene = "../dyka.toml"            # base scene, relative to the study file
+///   csv = "dyka_study.csv"            # relative to the study file (default: STEM.csv)
+///   results = "dyka_study"            # folder for the .h5 files (default: CSVSTEM_results)
+///   jobs = 2                          # runs at a time (default: number of cores)
+///   error = "rms_velocity_error"      # the error drawn in the plots
+///   set = ["output.every=2e-6"]       # overrides applied to every run
+///   [sweep]                           # cartesian product of --set values
+///   "simulation.integrator" = ["fe", "npc"]
+///   [[variant]]                       # and/or explicit variants
+///   name = "ul-lme4-npc"
+///   set = ["simulation.mode=ul", "basis.kind=lme"]
+///   [[mesh]]
+///   name = "n13"
+///   h = 0.010254
+///   set = ["grid.cells=[15]", "grid.lower=[-0.020508]"]
+///   [stability]                       # optional: a stability study
+///   band = 0.05                       # stable: exit 0 and max_energy_ratio <= 1 + band
+///   key = "simulation.cfl"            # the swept parameter on the map's x axis (default)
+///
+/// The file is read with the scene reader's idiom (toml_reader.hpp): every
+/// mistake is an InputError "FILE:LINE: key 'K': message". Variant names, mesh
+/// names and the result files they map to must be distinct.
+#include "otmpm/scene/scene.hpp"
+
+#include <filesystem>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace otmpm::study {
+
+/// One run of the study: a variant at a mesh size.
+struct StudyRun {
+  std::string variant, mesh;
+  double h = 0.0;
+  std::vector<std::string> sets;                           ///< all overrides, in order: common, mesh, variant
+  std::vector<std::pair<std::string, std::string>> params; ///< variant parameters (for CSV columns)
+  std::string file_stem;                                   ///< result and log file name, without extension
+};
+
+/// The [stability] section: a run is stable when it exits 0 and its
+/// max_energy_ratio is at most 1 + band.
+struct StabilityCriterion {
+  bool enabled = false;
+  double band = 0.0;
+  std::string key = "simulation.cfl";
+  SourceRef where; ///< stability.key (or the table): where an unswept key is reported
+};
+
+struct Study {
+  std::filesystem::path file, scene, csv, results;
+  int jobs = 1;
+  std::string error = "rms_velocity_error";
+  StabilityCriterion stability;
+  std::vector<StudyRun> runs;
+  std::vector<std::string> param_keys; ///< the swept keys, in order of first appearance
+};
+
+/// Reads and checks a study file (InputError naming file, line and key;
+/// also for a directory, a missing file, a scene or results path that is not
+/// what it should be).
+Study read_study(const std::filesystem::path& file);
+
+/// The file name a run's result and log get: variant and mesh joined by '_',
+/// every character other than letters, digits, '-' and '.' replaced by '_'.
+std::string file_stem(const std::string& variant, const std::string& mesh);
+
+} // namespace otmpm::study

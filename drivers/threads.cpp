@@ -1,0 +1,46 @@
+// --threads and the default OpenMP wait policy of the otmpm command.
+#include "cli.hpp"
+
+#include <cstdlib>
+#include <unistd.h>
+
+#ifdef OTMPM_HAVE_OPENMP
+#include <omp.h>
+#endif
+
+namespace otmpm::cli {
+
+namespace {
+/// Upper bound of --threads: far above any machine's cores, low enough that a
+/// typo (--threads 1000000) is refused instead of creating a million threads.
+constexpr int kMaxThreads = 4096;
+} // namespace
+
+CLI::Option* add_threads_option(CLI::App& sub, int& threads, const std::string& what) {
+  return sub
+      .add_option("--threads", threads,
+                  what.empty() ? "OpenMP threads (default: OMP_NUM_THREADS, else one per core)" : what)
+      ->check(CLI::Range(1, kMaxThreads))
+      ->type_name("N");
+}
+
+void set_threads(int threads) {
+#ifdef OTMPM_HAVE_OPENMP
+  if (threads > 0) omp_set_num_threads(threads);
+#else
+  (void)threads;
+#endif
+}
+
+void default_passive_wait_policy(char** argv) {
+#ifdef OTMPM_HAVE_OPENMP
+  if (std::getenv("OMP_WAIT_POLICY")) return;
+  if (setenv("OMP_WAIT_POLICY", "passive", 1) != 0) return;
+  execv("/proc/self/exe", argv);
+  // exec failed (no /proc): go on with libgomp's default policy.
+#else
+  (void)argv;
+#endif
+}
+
+} // namespace otmpm::cli

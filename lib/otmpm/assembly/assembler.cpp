@@ -1,0 +1,278 @@
+/// \file assembler.cpp
+/// Scene -> engine parts (assembler.hpp). Each part has one short function.
+#include "otmpm/assembly/assembler.hpp"
+
+#include "otmpm/assembly/seeding.hpp"
+#include "otmpm/basis/kinds.hpp"
+#include "otmpm/integrators/integrator.hpp"
+#include "otmpm/reference/exact.hpp"
+#include "otmpm/reference/solutions.hpp"
+#include "otmpm/scene/validate.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <numbers>
+
+namespace otmpm {
+
+namespace {
+
+template <int D> Vec<D> vec(const Vec3& v) {
+  Vec<D> out;
+  for (int k = 0; k < D; ++k) out[k] = v[k];
+  return out;
+}
+
+/// The grid spacing of the scene's grid per axis.
+template <int D> Vec<D> grid_spacing(const Scene& scene) {
+  Vec<D> h;
+  for (int k = 0; k < D; ++k) h[k] = (scene.grid.upper[k] - scene.grid.lower[k]) / scene.grid.cells[k];
+  return h;
+}
+
+/// The node lattice of the scene (node_lattice_box) as a grid.
+template <int D> CartesianGrid<D> node_grid(const Scene& scene) {
+  const LatticeBox box = node_lattice_box(scene);
+  CartesianGrid<D> grid;
+  for (int k = 0; k < D; ++k) {
+    grid.lower[k] = box.lower[k];
+    grid.upper[k] = box.upper[k];
+    grid.cells[k] = static_cast<int>(box.cells[k]);
+  }
+  grid.validate();
+  return grid;
+}
+
+template <int D> bool inside_box(const Vec<D>& x, const Vec3& lo, const Vec3& hi, double tol = 0.0) {
+  for (int k = 0; k < D; ++k)
+    if (x[k] < lo[k] - tol || x[k] > hi[k] + tol) return false;
+  return true;
+}
+
+/// True when output.fields names `field`.
+bool output_wants(const Scene& scene, const char* field) {
+  const auto& f = scene.output.fields;
+  return std::find(f.begin(), f.end(), field) != f.end();
+}
+
+/// The optional particle fields the integrator, the materials, the mode and
+/// the output read (a scene pays memory only for what it uses).
+template <int D>
+void allocate_fields(const Scene& scene, const IntegratorKind& integrator, const EngineParts<D>& parts,
+                     Particles<D>& P) {
+  bool finite = false;
+  for (const auto& m : parts.materials) finite = finite || m->needs_deformation_gradient();
+  P.allocate_optional(integrator.needs_acceleration || output_wants(scene, "a"),
+                      finite || parts.mode.nodes_move() || output_wants(scene, "F"));
+  if (integrator.needs_previous_position) P.x_prev = P.x;
+  AlignedVector<Vec<D>>().swap(P.length0); // the traction areas are taken (memory)
+  for (const auto& m : parts.materials)
+    for (const StateSpec& s : m->state()) P.add_state(std::string(s.name), s.width, s.initial.data());
+}
+
+/// The basis of the scene on the node lattice (uGIMP: with the particles'
+/// half-width h / (2 n_ppc) of the first body).
+template <int D> std::unique_ptr<Basis<D>> build_basis(const Scene& scene, const CartesianGrid<D>& grid) {
+  NodeSet<D> nodes = scene.grid.kind == "perturbed" ? NodeSet<D>::perturbed(grid, scene.grid.perturbation, scene.grid.seed)
+                                                    : NodeSet<D>::cartesian(grid);
+  BasisOptions opt = scene.basis;
+  if (basis_kind(opt.kind).particle_size) {
+    const Vec<D> h = grid_spacing<D>(scene);
+    for (int k = 0; k < D; ++k) opt.ugimp_half_width[k] = h[k] / (2.0 * scene.bodies.front().particles_per_cell);
+  }
+  try {
+    return make_basis<D>(opt, std::move(nodes));
+  } catch (const InputError& e) {
+    input_error(scene.basis_where, e.what());
+  }
+}
+
+/// The nodes of `nodes` inside each boundary box (within kBoxTolerance h).
+template <int D> Dirichlet<D> build_dirichlet(const Scene& scene, const NodeSet<D>& nodes, double h, bool ul) {
+  Dirichlet<D> d;
+  const double tol = kBoxTolerance * h;
+  for (const BoundarySection& bs : scene.boundaries) {
+    int selected = 0;
+    for (int I = 0; I < nodes.size(); ++I) {
+      if (!inside_box<D>(nodes.position(I), bs.lower, bs.upper, tol)) continue;
+      d.node.push_back(I);
+      d.fix.push_back(bs.fix);
+      d.value.push_back(bs.value);
+      ++selected;
+    }
+    if (selected == 0)
+      input_error(bs.where, "boundary '" + bs.name + "' selects no node of the " +
+                                std::string(ul ? "material" : "grid") + " node set");
+  }
+  return d;
+}
+
+/// The transverse position of particle p across `axis` (its column), in
+/// units of tol so that particles seeded on one lattice line share it.
+template <int D> std::array<long long, 2> column_of(const Vec<D>& X, int axis, double tol) {
+  std::array<long long, 2> key{0, 0};
+  for (int k = 0, j = 0; k < D; ++k)
+    if (k != axis) key[static_cast<std::size_t>(j++)] = std::llround(X[k] / tol);
+  return key;
+}
+
+/// For each particle, whether it is the first or the last of its column
+/// along `axis` (the particles that carry the body's surface there).
+template <int D> std::vector<char> surface_particles(const Particles<D>& P, int axis, double tol) {
+  std::map<std::array<long long, 2>, std::pair<int, int>> ends; // column -> (first, last) particle
+  for (int p = 0; p < P.size(); ++p) {
+    auto [it, fresh] = ends.try_emplace(column_of<D>(P.X[p], axis, tol), p, p);
+    if (fresh) continue;
+    auto& [first, last] = it->second;
+    if (P.X[p][axis] < P.X[first][axis]) first = p;
+    if (P.X[p][axis] > P.X[last][axis]) last = p;
+  }
+  std::vector<char> surface(static_cast<std::size_t>(P.size()), 0);
+  for (const auto& [column, e] : ends) surface[static_cast<std::size_t>(e.first)] = surface[static_cast<std::size_t>(e.second)] = 1;
+  return surface;
+}
+
+/// Tractions on the body surface inside each traction box (TractionSection):
+/// the surface particles in the box, each over its face area V0_p /
+/// l_p[axis]. The built-in history of wobbes et al. eq. 103 comes from the
+/// traction bar's solution (which the history keeps alive).
+template <int D>
+std::vector<Traction<D>> build_tractions(const Scene& scene, const Particles<D>& P, double h,
+                                         const std::shared_ptr<const ExactSolution<D>>& exact) {
+  std::vector<Traction<D>> out;
+  for (const TractionSection& ts : scene.tractions) {
+    Traction<D> load;
+    load.value = vec<D>(ts.value);
+    load.time = ts.time;
+    load.value.cwiseAbs().maxCoeff(&load.axis);
+    if (ts.function == "wobbes_traction_bar") load.axis = 0;
+    if (ts.axis) load.axis = *ts.axis;
+    const std::vector<char> surface = surface_particles<D>(P, load.axis, kBoxTolerance * h);
+    for (int p = 0; p < P.size(); ++p)
+      if (surface[static_cast<std::size_t>(p)] && inside_box<D>(P.x[p], ts.lower, ts.upper)) {
+        load.particle.push_back(p);
+        load.area.push_back(P.V0[p] / P.length0[p][load.axis]);
+      }
+    if (load.particle.empty())
+      input_error(ts.where, "traction box selects no surface particle (the first or last particle of a column "
+                            "along axis " + std::to_string(load.axis) + ")");
+    if (ts.function == "wobbes_traction_bar") {
+      const auto* bar = dynamic_cast<const TractionBar<D>*>(exact.get());
+      if (!bar)
+        input_error(ts.where, "traction function 'wobbes_traction_bar' needs reference.solution = \"traction_bar\"");
+      load.history = [exact, bar](double t) { return bar->traction(t); };
+    } else if (!ts.function.empty()) {
+      input_error(ts.where, "unknown traction function '" + ts.function + "' (expected wobbes_traction_bar)");
+    }
+    out.push_back(std::move(load));
+  }
+  return out;
+}
+
+/// Body force of the scene and, for a manufactured solution, its body force
+/// field b(X, t) (the engine holds the solution through the function).
+template <int D>
+std::optional<BodyForce<D>> build_body_force(const Scene& scene, std::shared_ptr<const ExactSolution<D>> exact) {
+  const bool mms = exact && exact->has_body_force();
+  if (!scene.body_force && !mms) return std::nullopt;
+  BodyForce<D> b;
+  if (scene.body_force) {
+    b.value = vec<D>(scene.body_force->value);
+    b.time = scene.body_force->time;
+  }
+  if (mms) b.field = [exact](const Vec<D>& X, double t) { return exact->body_force(X, t); };
+  return b;
+}
+
+template <int D> StepSettings<D> build_settings(const Scene& scene, const IntegratorKind& integrator, double h) {
+  const SimulationSection& sim = scene.simulation;
+  StepSettings<D> s;
+  s.step = integrator.step<D>();
+  s.parameters = integrator.default_parameters();
+  for (auto& [key, value] : s.parameters.values)
+    if (const auto given = sim.parameters.find(key); given != sim.parameters.end()) value = given->second;
+  s.t_end = sim.t_end;
+  s.cfl = sim.cfl;
+  s.dt = sim.dt;
+  s.h = h;
+  s.consistent_mass = sim.mass == "consistent" || integrator.needs_consistent_mass;
+  s.mass_tolerance = sim.mass_tolerance;
+  s.energy_limit = sim.energy_limit;
+  return s;
+}
+
+/// The initial values of material state variables given by particle files.
+template <int D> void set_file_state(const Scene& scene, const SeededBodies<D>& seeded, Particles<D>& P) {
+  for (const FileState& f : seeded.file_state) {
+    const BodySection& body = scene.bodies[static_cast<std::size_t>(f.body)];
+    StateField* field = P.find_state(f.name);
+    if (!field || field->width != 1)
+      input_error(scene.locate("body." + body.name + ".file"),
+                  body.file + ": column '" + f.name + "' is neither x, y, z, volume, vx, vy, vz, density nor a "
+                  "scalar state variable of the scene's materials (e.g. plastic_strain)");
+    for (int p = 0; p < P.size(); ++p)
+      if (P.body[p] == f.body) field->values[static_cast<std::size_t>(p)] = f.values[static_cast<std::size_t>(seeded.file_row[static_cast<std::size_t>(p)])];
+  }
+}
+
+} // namespace
+
+template <int D> Particles<D> seed_particles(const Scene& scene, const Vec<D>& h) {
+  return seed_bodies<D>(scene, h, node_grid<D>(scene)).particles;
+}
+
+template <int D> EngineParts<D> assemble_parts(const Scene& scene) {
+  validate_scene(scene, D);
+  const IntegratorKind& integrator = integrator_kind(scene.simulation.integrator);
+  const bool ul = scene.simulation.nodes_move();
+  EngineParts<D> parts;
+  const CartesianGrid<D> grid = node_grid<D>(scene);
+  parts.mode = ul ? NodeMode<D>::advected() : NodeMode<D>::fixed_grid(grid.lower, grid.upper);
+  for (const MaterialSection& ms : scene.materials) {
+    try {
+      parts.materials.push_back(make_material<D>(ms));
+    } catch (const InputError& e) {
+      input_error(ms.where, e.what());
+    }
+  }
+  SeededBodies<D> seeded = seed_bodies<D>(scene, grid_spacing<D>(scene), grid);
+  parts.particles = std::move(seeded.particles);
+  Particles<D>& P = parts.particles;
+  std::shared_ptr<const ExactSolution<D>> exact = make_exact_solution<D>(scene);
+  if (exact && exact->has_body_force())
+    for (const BodySection& b : scene.bodies)
+      if (b.velocity_profile.value_or("") != "reference")
+        input_error(b.where, "reference.solution = \"" + scene.reference.solution +
+                                 "\" drives the bodies with its manufactured body force, which assumes its own "
+                                 "initial velocity: set velocity_profile = \"reference\" on body '" + b.name + "'");
+  // velocity_profile = "reference": the reference solution's own initial
+  // velocity (a manufactured solution: wobbes et al. sect. 8.3, u = 0 but v != 0 at t = 0).
+  for (int p = 0; p < P.size(); ++p)
+    if (scene.bodies[static_cast<std::size_t>(P.body[p])].velocity_profile.value_or("") == "reference")
+      P.v[p] = exact->velocity(P.X[p], 0.0);
+  parts.basis = build_basis<D>(scene, grid);
+  const double h = grid.h().minCoeff();
+  parts.dirichlet = build_dirichlet<D>(scene, parts.basis->nodes(), h, ul);
+  for (const WallSection& w : scene.walls)
+    parts.walls.push_back({w.name, vec<D>(w.point), vec<D>(w.normal), vec<D>(w.velocity), w.friction});
+  parts.loads.body_force = build_body_force<D>(scene, exact);
+  parts.loads.tractions = build_tractions<D>(scene, P, h, exact);
+  allocate_fields(scene, integrator, parts, P);
+  set_file_state<D>(scene, seeded, P);
+  parts.settings = build_settings<D>(scene, integrator, h);
+  return parts;
+}
+
+template <int D> Engine<D> assemble(const Scene& scene) { return Engine<D>(assemble_parts<D>(scene)); }
+
+#define OTMPM_INSTANTIATE(D)                                                       \
+  template EngineParts<D> assemble_parts<D>(const Scene&);                        \
+  template Engine<D> assemble<D>(const Scene&);                                   \
+  template Particles<D> seed_particles<D>(const Scene&, const Vec<D>&);
+OTMPM_INSTANTIATE(1)
+OTMPM_INSTANTIATE(2)
+OTMPM_INSTANTIATE(3)
+#undef OTMPM_INSTANTIATE
+
+} // namespace otmpm

@@ -1,0 +1,37 @@
+#pragma once
+/// \file assembler.hpp
+/// From a scene to an engine: the only engine-side code that reads a Scene
+/// and the reference solutions. It validates the scene (validate_scene),
+/// then turns it into typed parts (EngineParts): the node lattice and the
+/// basis on it, the node mode, the particles seeded in the bodies with the
+/// fields the integrator, the materials and the output need, the materials,
+/// the Dirichlet sets, the loads (body force, tractions, and what a
+/// benchmark brings: the traction history of wobbes et al. eq. 103, the
+/// body force and initial velocity of a manufactured solution) and the step
+/// settings. A C++ program can build the same parts by hand
+/// (examples/dyka_in_code.cpp).
+#include "otmpm/engine/engine.hpp"
+#include "otmpm/scene/scene.hpp"
+
+namespace otmpm {
+
+/// The parts of an engine for `scene` in D dimensions. Throws InputError
+/// naming the scene key (FILE:LINE when it came from a file) when the scene
+/// cannot run: a value or a combination that validate_scene refuses, a
+/// boundary box that selects no node, a traction box that selects no
+/// particle, a basis that cannot be built on the node set.
+template <int D> EngineParts<D> assemble_parts(const Scene& scene);
+
+/// Engine<D>(assemble_parts<D>(scene)).
+template <int D> Engine<D> assemble(const Scene& scene);
+
+/// Seeds the particles of every [[body]] of the scene on cells of the grid
+/// spacing `h` (per axis; the last cell size adjusted so the cells tile the
+/// body box exactly), particles_per_cell^D per cell at the Gauss points
+/// (volumes = Gauss weights x cell volume) or at the sub-cell centres (equal
+/// volumes); sets m, V, V0, rho, length0, material, body and the initial
+/// velocity (body velocity, velocity_profile, then the [[initial_velocity]]
+/// boxes). InputError naming the key when the bodies do not validate.
+template <int D> Particles<D> seed_particles(const Scene& scene, const Vec<D>& h);
+
+} // namespace otmpm

@@ -1,0 +1,242 @@
+/// \file seeding.cpp
+/// The particles of the scene's bodies (assembler.hpp, seed_particles): a
+/// box cut into cells of the grid spacing of its own; a sphere, cylinder or
+/// polygon seeded on the cells of the node lattice and kept where the
+/// particles lie in the shape; a file body read from its file. A particle
+/// of a body inside an earlier body is an input error naming both, unless
+/// the later body says overlap = "first" (it is then dropped).
+#include "otmpm/assembly/seeding.hpp"
+
+#include "otmpm/geometry/shapes.hpp"
+#include "otmpm/io/particle_file.hpp"
+#include "otmpm/scene/validate.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+#include <optional>
+
+namespace otmpm {
+
+namespace {
+
+template <int D> Vec<D> vec(const Vec3& v) {
+  Vec<D> out;
+  for (int k = 0; k < D; ++k) out[k] = v[k];
+  return out;
+}
+
+template <int D> bool inside_box(const Vec<D>& x, const Vec3& lo, const Vec3& hi) {
+  for (int k = 0; k < D; ++k)
+    if (x[k] < lo[k] || x[k] > hi[k]) return false;
+  return true;
+}
+
+/// One particle before it is stored: position, volume, extent per axis, and
+/// what a particle file may give (velocity, density; NaN when not given).
+template <int D> struct Seed {
+  Vec<D> x, extent;
+  double V;
+  int body;
+  Vec<D> v = Vec<D>::Constant(std::numeric_limits<double>::quiet_NaN());
+  double density = std::numeric_limits<double>::quiet_NaN();
+  int row = -1; ///< its row in the body's particle file
+};
+
+/// Cells of the grid spacing h that tile a body box along each axis.
+template <int D> Index<D> box_cells(const BodySection& body, const Vec<D>& h) {
+  Index<D> cells;
+  for (int k = 0; k < D; ++k)
+    cells[k] = std::max(1, static_cast<int>(std::lround((body.upper[k] - body.lower[k]) / h[k])));
+  return cells;
+}
+
+/// The shape of a body (a file body: the cells of its particles).
+template <int D> std::unique_ptr<Shape<D>> body_shape(const BodySection& b, const ParticleFile* file) {
+  if (b.shape == "sphere") return make_sphere<D>(vec<D>(b.center), b.radius);
+  if constexpr (D == 3)
+    if (b.shape == "cylinder") return make_cylinder(vec<3>(b.center), vec<3>(b.axis), b.radius, b.length);
+  if constexpr (D == 2)
+    if (b.shape == "polygon") {
+      std::vector<Vec<2>> v;
+      for (const auto& p : b.vertices) v.emplace_back(p[0], p[1]);
+      return make_polygon(v);
+    }
+  if (file) {
+    AlignedVector<Vec<D>> x(static_cast<std::size_t>(file->size()));
+    for (int p = 0; p < file->size(); ++p)
+      for (int k = 0; k < D; ++k) x[p][k] = file->x[static_cast<std::size_t>(p) * D + k];
+    return std::make_unique<ParticleCells<D>>(x, file->volume);
+  }
+  return make_box<D>(vec<D>(b.lower), vec<D>(b.upper));
+}
+
+/// The particles of a shape on the cells of `lattice` that meet its bounds,
+/// kept where they lie in the shape.
+template <int D>
+void seed_on_lattice(const Shape<D>& shape, const BodySection& b, int body, const CartesianGrid<D>& lattice,
+                     std::vector<Seed<D>>& out) {
+  Vec<D> lo, hi;
+  shape.bounds(lo, hi);
+  const Vec<D> h = lattice.h();
+  Index<D> first, count;
+  for (int k = 0; k < D; ++k) {
+    first[k] = std::clamp(static_cast<int>(std::floor((lo[k] - lattice.lower[k]) / h[k])), 0, lattice.cells[k] - 1);
+    const int last = std::clamp(static_cast<int>(std::ceil((hi[k] - lattice.lower[k]) / h[k])), first[k] + 1,
+                                lattice.cells[k]);
+    count[k] = last - first[k];
+  }
+  Vec<D> lower, upper;
+  for (int k = 0; k < D; ++k) {
+    lower[k] = lattice.lower[k] + first[k] * h[k];
+    upper[k] = lattice.lower[k] + (first[k] + count[k]) * h[k];
+  }
+  seed_box_cells<D>(lower, upper, count, b.particles_per_cell, b.placement,
+                    [&](const Vec<D>& x, double V, const Vec<D>& extent) {
+                      if (shape.contains(x)) out.push_back({x, extent, V, body});
+                    });
+}
+
+/// The particles of a file body.
+template <int D> void seed_from_file(const ParticleFile& f, int body, std::vector<Seed<D>>& out) {
+  const bool v = !f.v.empty();
+  const auto density = f.fields.find("density");
+  for (int p = 0; p < f.size(); ++p) {
+    Seed<D> s;
+    const std::size_t i = static_cast<std::size_t>(p);
+    for (int k = 0; k < D; ++k) s.x[k] = f.x[i * D + k];
+    s.V = f.volume[i];
+    s.extent = Vec<D>::Constant(std::pow(s.V, 1.0 / D));
+    s.body = body;
+    s.row = p;
+    if (v)
+      for (int k = 0; k < D; ++k) s.v[k] = f.v[i * D + k];
+    if (density != f.fields.end()) s.density = density->second[i];
+    out.push_back(s);
+  }
+}
+
+/// Drops or refuses the seeds of body b that lie in an earlier body.
+template <int D>
+void resolve_overlap(const Scene& scene, int b, const std::vector<std::unique_ptr<Shape<D>>>& shapes,
+                     std::vector<Seed<D>>& seeds) {
+  const BodySection& body = scene.bodies[static_cast<std::size_t>(b)];
+  std::erase_if(seeds, [&](const Seed<D>& s) {
+    for (int a = 0; a < b; ++a) {
+      if (!shapes[static_cast<std::size_t>(a)]->contains(s.x)) continue;
+      if (body.overlap == "first") return true;
+      input_error(body.where, "body '" + body.name + "' overlaps body '" +
+                                  scene.bodies[static_cast<std::size_t>(a)].name + "': its particle at " +
+                                  format_point<D>(s.x) + " lies inside '" +
+                                  scene.bodies[static_cast<std::size_t>(a)].name +
+                                  "' (set overlap = \"first\" on body '" + body.name +
+                                  "' to let the earlier body keep the shared region)");
+    }
+    return false;
+  });
+}
+
+/// The particles of body b (and its shape, for the overlap of later bodies).
+template <int D>
+std::vector<Seed<D>> seed_body(const Scene& scene, int b, const Vec<D>& h, const CartesianGrid<D>& lattice,
+                               std::vector<std::unique_ptr<Shape<D>>>& shapes, SeededBodies<D>& result) {
+  const BodySection& body = scene.bodies[static_cast<std::size_t>(b)];
+  std::vector<Seed<D>> seeds;
+  std::optional<ParticleFile> file;
+  if (body.shape == "file") {
+    try {
+      file = read_particle_file(body.file, D);
+    } catch (const InputError& e) {
+      input_error(scene.locate("body." + body.name + ".file"), e.what());
+    }
+  }
+  try {
+    shapes.push_back(body_shape<D>(body, file ? &*file : nullptr));
+  } catch (const InputError& e) {
+    input_error(body.where, "body '" + body.name + "': " + e.what());
+  }
+  if (body.shape == "box") {
+    std::size_t n = 1;
+    const Index<D> cells = box_cells<D>(body, h);
+    for (int k = 0; k < D; ++k) n *= static_cast<std::size_t>(cells[k]) * static_cast<std::size_t>(body.particles_per_cell);
+    seeds.reserve(n); // no growth by doubling: peak memory
+    seed_box_cells<D>(vec<D>(body.lower), vec<D>(body.upper), box_cells<D>(body, h), body.particles_per_cell,
+                      body.placement, [&](const Vec<D>& x, double V, const Vec<D>& extent) {
+                        seeds.push_back({x, extent, V, b});
+                      });
+  } else if (file) {
+    seed_from_file<D>(*file, b, seeds);
+    for (const auto& [name, values] : file->fields)
+      if (name != "density") result.file_state.push_back({name, b, values});
+  } else {
+    seed_on_lattice<D>(*shapes.back(), body, b, lattice, seeds);
+  }
+  if (seeds.empty()) input_error(body.where, "body '" + body.name + "' holds no particle (is it smaller than a cell?)");
+  resolve_overlap<D>(scene, b, shapes, seeds);
+  return seeds;
+}
+
+int material_index(const Scene& scene, const BodySection& body) {
+  for (std::size_t i = 0; i < scene.materials.size(); ++i)
+    if (scene.materials[i].name == body.material) return static_cast<int>(i);
+  input_error(scene.locate("body." + body.name + ".material"),
+              "body '" + body.name + "' uses undefined material '" + body.material + "'");
+}
+
+template <int D> Vec<D> initial_body_velocity(const BodySection& body, const Vec<D>& x) {
+  Vec<D> v = vec<D>(body.velocity);
+  if (body.velocity_profile && *body.velocity_profile == "sin_x") {
+    const double s = (x[0] - body.lower[0]) / (body.upper[0] - body.lower[0]);
+    v *= std::sin(std::numbers::pi * s);
+  }
+  return v;
+}
+
+/// Stores the seeds as particles with mass, material and initial velocity.
+template <int D> void store(const Scene& scene, const std::vector<Seed<D>>& seeds, Particles<D>& P) {
+  std::vector<int> material; // per body
+  for (const BodySection& body : scene.bodies) material.push_back(material_index(scene, body));
+  P.resize(static_cast<int>(seeds.size()));
+  for (int p = 0; p < P.size(); ++p) {
+    const Seed<D>& sd = seeds[static_cast<std::size_t>(p)];
+    const BodySection& body = scene.bodies[static_cast<std::size_t>(sd.body)];
+    const int mat = material[static_cast<std::size_t>(sd.body)];
+    const double density = std::isnan(sd.density) ? scene.materials[static_cast<std::size_t>(mat)].density : sd.density;
+    P.x[p] = P.X[p] = sd.x;
+    P.V[p] = P.V0[p] = sd.V;
+    P.rho[p] = density;
+    P.m[p] = density * sd.V;
+    P.material[p] = mat;
+    P.body[p] = sd.body;
+    P.length0[p] = sd.extent;
+    P.v[p] = std::isnan(sd.v[0]) ? initial_body_velocity<D>(body, sd.x) : sd.v;
+    for (const InitialVelocitySection& iv : scene.initial_velocities)
+      if (inside_box<D>(sd.x, iv.lower, iv.upper)) P.v[p] = vec<D>(iv.velocity);
+  }
+}
+
+} // namespace
+
+template <int D>
+SeededBodies<D> seed_bodies(const Scene& scene, const Vec<D>& h, const CartesianGrid<D>& lattice) {
+  validate_seeding<D>(scene, h);
+  SeededBodies<D> result;
+  std::vector<std::unique_ptr<Shape<D>>> shapes;
+  std::vector<Seed<D>> seeds;
+  for (int b = 0; b < static_cast<int>(scene.bodies.size()); ++b) {
+    std::vector<Seed<D>> body = seed_body<D>(scene, b, h, lattice, shapes, result);
+    if (seeds.empty()) seeds = std::move(body); // no copy of the common single body (peak memory)
+    else seeds.insert(seeds.end(), body.begin(), body.end());
+  }
+  store<D>(scene, seeds, result.particles);
+  result.file_row.resize(seeds.size());
+  for (std::size_t p = 0; p < seeds.size(); ++p) result.file_row[p] = seeds[p].row;
+  return result;
+}
+
+template SeededBodies<1> seed_bodies<1>(const Scene&, const Vec<1>&, const CartesianGrid<1>&);
+template SeededBodies<2> seed_bodies<2>(const Scene&, const Vec<2>&, const CartesianGrid<2>&);
+template SeededBodies<3> seed_bodies<3>(const Scene&, const Vec<3>&, const CartesianGrid<3>&);
+
+} // namespace otmpm

@@ -1,0 +1,43 @@
+/// \file node_mode.cpp
+/// The node modes (node_mode.hpp).
+#include "otmpm/engine/node_mode.hpp"
+
+namespace otmpm {
+
+template <int D> NodeMode<D> NodeMode<D>::fixed_grid(const Vec<D>& lower, const Vec<D>& upper) {
+  NodeMode m;
+  m.lower_ = lower;
+  m.upper_ = upper;
+  return m;
+}
+
+template <int D> NodeMode<D> NodeMode<D>::advected() {
+  NodeMode m;
+  m.advected_ = true;
+  return m;
+}
+
+template <int D> void NodeMode<D>::advect(Basis<D>& basis, const AlignedVector<Vec<D>>& dx) const {
+  if (!advected_) return;
+  basis.nodes().advect(dx);
+  basis.nodes_moved(dx);
+}
+
+template <int D> double NodeMode<D>::cfl_spacing(const Basis<D>& basis, double h0, double spacing0) const {
+  return advected_ ? h0 * (basis.nodes().min_spacing() / spacing0) : h0;
+}
+
+template <int D> std::string NodeMode<D>::leaving(const Vec<D>& x, const Vec<D>& v) const {
+  const std::string grid = "grid [" + format_point<D>(lower_) + ", " + format_point<D>(upper_) + "]";
+  if (!inside(x)) return "left the " + grid + " (enlarge the grid or shorten t_end)";
+  // Warned one step ahead: at the last step's size and the particle's
+  // velocity, the next step would carry it out of the grid.
+  return "moving at " + format_point<D>(v) + ", it would leave the grid in the next step (" + grid +
+         "; enlarge the grid or shorten t_end)";
+}
+
+template class NodeMode<1>;
+template class NodeMode<2>;
+template class NodeMode<3>;
+
+} // namespace otmpm

@@ -1,0 +1,56 @@
+#pragma once
+/// \file node_mode.hpp
+/// The one place where the two node modes differ (docs/theory.md
+/// sect. 3). `mpm`: the nodes are a fixed Eulerian grid; particles must
+/// stay inside it. `ul`: the nodes discretise the material and are advected
+/// with the increment that moves the particles (x_I += dx_I); the time step
+/// follows their current spacing. Everything else - basis table, transfers,
+/// integrators - is shared.
+#include "otmpm/basis/basis.hpp"
+
+#include <string>
+
+namespace otmpm {
+
+template <int D> class NodeMode {
+public:
+  /// `mpm`: nodes fixed; particles must stay inside the open box (lower, upper).
+  static NodeMode fixed_grid(const Vec<D>& lower, const Vec<D>& upper);
+  /// `ul`: nodes advected with the material.
+  static NodeMode advected();
+
+  bool nodes_move() const { return advected_; }
+  /// "mpm" or "ul".
+  const char* name() const { return advected_ ? "ul" : "mpm"; }
+  /// x_I += dx_I (and the family's own advection, e.g. of B-spline knots) in
+  /// `ul`; nothing on the fixed grid.
+  void advect(Basis<D>& basis, const AlignedVector<Vec<D>>& dx) const;
+  /// The nodal spacing h of the CFL condition: h0 on the fixed grid; in `ul`
+  /// h0 scaled by how much the smallest node spacing changed since the start
+  /// (`spacing0`).
+  double cfl_spacing(const Basis<D>& basis, double h0, double spacing0) const;
+  /// True unless, on the fixed grid, a particle at x moving at v left the
+  /// grid or would leave it in a step dt (always true in `ul`). Inline: it
+  /// runs for every particle after every step.
+  bool keeps_inside(const Vec<D>& x, const Vec<D>& v, double dt) const {
+    return advected_ || (inside(x) && inside(Vec<D>(x + dt * v)));
+  }
+  /// Why keeps_inside(x, v, dt) is false, for the diagnosis.
+  std::string leaving(const Vec<D>& x, const Vec<D>& v) const;
+
+private:
+  bool inside(const Vec<D>& y) const {
+    for (int k = 0; k < D; ++k)
+      if (!(y[k] > lower_[k] && y[k] < upper_[k])) return false;
+    return true;
+  }
+
+  bool advected_ = false;
+  Vec<D> lower_ = Vec<D>::Zero(), upper_ = Vec<D>::Zero();
+};
+
+extern template class NodeMode<1>;
+extern template class NodeMode<2>;
+extern template class NodeMode<3>;
+
+} // namespace otmpm

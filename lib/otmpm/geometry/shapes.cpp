@@ -1,0 +1,209 @@
+/// \file shapes.cpp
+/// The shapes of shapes.hpp. The polygon uses Boost.Geometry (validity,
+/// area, perimeter, point in polygon).
+#include "otmpm/geometry/shapes.hpp"
+
+#include <boost/geometry.hpp>
+#include <boost/geometry/geometries/point_xy.hpp>
+#include <boost/geometry/geometries/polygon.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+namespace otmpm {
+
+namespace {
+
+namespace bg = boost::geometry;
+
+/// Measure of the unit ball and of the unit sphere in D dimensions.
+constexpr double unit_ball(int D) { return D == 1 ? 2.0 : D == 2 ? std::numbers::pi : 4.0 / 3.0 * std::numbers::pi; }
+constexpr double unit_sphere(int D) { return D == 1 ? 2.0 : D == 2 ? 2.0 * std::numbers::pi : 4.0 * std::numbers::pi; }
+
+template <int D> class BoxShape final : public Shape<D> {
+public:
+  BoxShape(const Vec<D>& lower, const Vec<D>& upper) : lower_(lower), upper_(upper) {
+    for (int k = 0; k < D; ++k)
+      require(std::isfinite(lower[k]) && std::isfinite(upper[k]) && lower[k] < upper[k], "box: axis ", k,
+              ": lower ", lower[k], " must be below upper ", upper[k], " (both finite)");
+  }
+  bool contains(const Vec<D>& x) const override {
+    for (int k = 0; k < D; ++k)
+      if (!(x[k] >= lower_[k] && x[k] <= upper_[k])) return false;
+    return true;
+  }
+  void bounds(Vec<D>& lower, Vec<D>& upper) const override {
+    lower = lower_;
+    upper = upper_;
+  }
+  double measure() const override { return (upper_ - lower_).prod(); }
+  double boundary_measure() const override {
+    if constexpr (D == 1) return 2.0;
+    const Vec<D> e = upper_ - lower_;
+    if constexpr (D == 2) return 2.0 * (e[0] + e[1]);
+    else return 2.0 * (e[0] * e[1] + e[1] * e[2] + e[0] * e[2]);
+  }
+
+private:
+  Vec<D> lower_, upper_;
+};
+
+template <int D> class SphereShape final : public Shape<D> {
+public:
+  SphereShape(const Vec<D>& center, double radius) : c_(center), r_(radius) {
+    require(center.allFinite(), "sphere: center ", center, " is not finite");
+    require(finite_positive(radius), "sphere: radius must be finite and > 0, got ", radius);
+  }
+  bool contains(const Vec<D>& x) const override { return (x - c_).squaredNorm() <= r_ * r_; }
+  void bounds(Vec<D>& lower, Vec<D>& upper) const override {
+    lower = c_.array() - r_;
+    upper = c_.array() + r_;
+  }
+  double measure() const override { return unit_ball(D) * std::pow(r_, D); }
+  double boundary_measure() const override { return unit_sphere(D) * std::pow(r_, D - 1); }
+
+private:
+  Vec<D> c_;
+  double r_;
+};
+
+class CylinderShape final : public Shape<3> {
+public:
+  CylinderShape(const Vec<3>& base, const Vec<3>& axis, double radius, double length)
+      : base_(base), radius_(radius), length_(length) {
+    require(base.allFinite(), "cylinder: center ", base, " is not finite");
+    require(axis.allFinite() && axis.norm() > 0.0, "cylinder: axis ", axis, " must be a finite, non-zero vector");
+    require(finite_positive(radius), "cylinder: radius must be finite and > 0, got ", radius);
+    require(finite_positive(length), "cylinder: length must be finite and > 0, got ", length);
+    axis_ = axis.normalized();
+  }
+  bool contains(const Vec<3>& x) const override {
+    const Vec<3> d = x - base_;
+    const double s = d.dot(axis_);
+    return s >= 0.0 && s <= length_ && (d - s * axis_).squaredNorm() <= radius_ * radius_;
+  }
+  void bounds(Vec<3>& lower, Vec<3>& upper) const override {
+    // Each end disk extends radius * sqrt(1 - a_k^2) along axis k.
+    const Vec<3> top = base_ + length_ * axis_;
+    for (int k = 0; k < 3; ++k) {
+      const double e = radius_ * std::sqrt(std::max(0.0, 1.0 - axis_[k] * axis_[k]));
+      lower[k] = std::min(base_[k], top[k]) - e;
+      upper[k] = std::max(base_[k], top[k]) + e;
+    }
+  }
+  double measure() const override { return std::numbers::pi * radius_ * radius_ * length_; }
+  double boundary_measure() const override {
+    return 2.0 * std::numbers::pi * radius_ * (radius_ + length_);
+  }
+
+private:
+  Vec<3> base_, axis_;
+  double radius_, length_;
+};
+
+class PolygonShape final : public Shape<2> {
+public:
+  using Point = bg::model::d2::point_xy<double>;
+  using Polygon = bg::model::polygon<Point>;
+
+  explicit PolygonShape(const std::vector<Vec<2>>& vertices) {
+    require(vertices.size() >= 3, "polygon: needs at least 3 vertices, got ", vertices.size());
+    for (std::size_t i = 0; i < vertices.size(); ++i) {
+      require(vertices[i].allFinite(), "polygon: vertex ", i, " ", vertices[i], " is not finite");
+      bg::append(poly_.outer(), Point(vertices[i][0], vertices[i][1]));
+    }
+    bg::append(poly_.outer(), Point(vertices[0][0], vertices[0][1]));
+    bg::correct(poly_); // orientation and closure as Boost.Geometry expects
+    std::string why;
+    require(bg::is_valid(poly_, why), "polygon: the vertices do not make a simple polygon (", why, ")");
+    require(bg::area(poly_) > 0.0, "polygon: the area is zero");
+    bg::envelope(poly_, box_);
+  }
+  bool contains(const Vec<2>& x) const override { return bg::covered_by(Point(x[0], x[1]), poly_); }
+  void bounds(Vec<2>& lower, Vec<2>& upper) const override {
+    lower = Vec<2>(box_.min_corner().x(), box_.min_corner().y());
+    upper = Vec<2>(box_.max_corner().x(), box_.max_corner().y());
+  }
+  double measure() const override { return bg::area(poly_); }
+  double boundary_measure() const override { return bg::perimeter(poly_); }
+
+private:
+  Polygon poly_;
+  bg::model::box<Point> box_;
+};
+
+} // namespace
+
+template <int D> std::unique_ptr<Shape<D>> make_box(const Vec<D>& lower, const Vec<D>& upper) {
+  return std::make_unique<BoxShape<D>>(lower, upper);
+}
+
+template <int D> std::unique_ptr<Shape<D>> make_sphere(const Vec<D>& center, double radius) {
+  return std::make_unique<SphereShape<D>>(center, radius);
+}
+
+std::unique_ptr<Shape<3>> make_cylinder(const Vec<3>& base, const Vec<3>& axis, double radius, double length) {
+  return std::make_unique<CylinderShape>(base, axis, radius, length);
+}
+
+std::unique_ptr<Shape<2>> make_polygon(const std::vector<Vec<2>>& vertices) {
+  return std::make_unique<PolygonShape>(vertices);
+}
+
+template <int D>
+ParticleCells<D>::ParticleCells(const AlignedVector<Vec<D>>& x, const std::vector<double>& volume) : x_(x) {
+  require(!x.empty(), "particle file: no particles");
+  require<std::invalid_argument>(volume.size() == x.size(), "ParticleCells: ", x.size(), " positions, ",
+                                 volume.size(), " volumes");
+  lower_ = upper_ = x.front();
+  for (std::size_t p = 0; p < x.size(); ++p) {
+    require(x[p].allFinite(), "particle file: particle ", p, ": position ", x[p], " is not finite");
+    require(finite_positive(volume[p]), "particle file: particle ", p, ": volume must be finite and > 0, got ",
+            volume[p]);
+    half_.push_back(0.5 * std::pow(volume[p], 1.0 / D));
+    cell_ = p == 0 ? 2 * half_[p] : std::max(cell_, 2 * half_[p]);
+    lower_ = lower_.cwiseMin(Vec<D>(x[p].array() - half_[p]));
+    upper_ = upper_.cwiseMax(Vec<D>(x[p].array() + half_[p]));
+    total_ += volume[p];
+  }
+  for (std::size_t p = 0; p < x.size(); ++p) buckets_.emplace(key(x[p]), static_cast<int>(p));
+}
+
+template <int D> long long ParticleCells<D>::key(const Vec<D>& x) const {
+  long long k = 0;
+  for (int d = 0; d < D; ++d) k = k * 2000003LL + static_cast<long long>(std::floor((x[d] - lower_[d]) / cell_));
+  return k;
+}
+
+template <int D> bool ParticleCells<D>::contains(const Vec<D>& x) const {
+  // A cube of half side <= cell / 2 around a centre in bucket c reaches at
+  // most the neighbouring buckets: look in the 3^D buckets around x.
+  Vec<D> probe;
+  for (int n = 0; n < (D == 1 ? 3 : D == 2 ? 9 : 27); ++n) {
+    for (int d = 0, m = n; d < D; ++d, m /= 3) probe[d] = x[d] + ((m % 3) - 1) * cell_;
+    const auto [first, last] = buckets_.equal_range(key(probe));
+    for (auto it = first; it != last; ++it) {
+      const int p = it->second;
+      if (((x - x_[p]).cwiseAbs().array() <= half_[p]).all()) return true;
+    }
+  }
+  return false;
+}
+
+template <int D> void ParticleCells<D>::bounds(Vec<D>& lower, Vec<D>& upper) const {
+  lower = lower_;
+  upper = upper_;
+}
+
+template class ParticleCells<1>;
+template class ParticleCells<2>;
+template class ParticleCells<3>;
+template std::unique_ptr<Shape<1>> make_box<1>(const Vec<1>&, const Vec<1>&);
+template std::unique_ptr<Shape<2>> make_box<2>(const Vec<2>&, const Vec<2>&);
+template std::unique_ptr<Shape<3>> make_box<3>(const Vec<3>&, const Vec<3>&);
+template std::unique_ptr<Shape<1>> make_sphere<1>(const Vec<1>&, double);
+template std::unique_ptr<Shape<2>> make_sphere<2>(const Vec<2>&, double);
+template std::unique_ptr<Shape<3>> make_sphere<3>(const Vec<3>&, double);
+
+} // namespace otmpm

@@ -1,0 +1,68 @@
+#pragma once
+/// \file shapes.hpp
+/// The regions bodies fill (docs/theory.md sect. 7, "Bodies"): a box, a
+/// sphere (a disk in 2D, an interval in 1D), a cylinder (3D), a polygon
+/// (2D), or the union of the cells of particles read from a file. Particles
+/// are seeded on the background lattice and kept where their point lies in
+/// the shape; overlapping bodies are found with contains().
+#include "otmpm/core.hpp"
+
+#include <memory>
+#include <unordered_map>
+#include <vector>
+
+namespace otmpm {
+
+/// A region of space in D dimensions.
+template <int D> class Shape {
+public:
+  virtual ~Shape() = default;
+  /// True when x lies in the closed region.
+  virtual bool contains(const Vec<D>& x) const = 0;
+  /// The smallest axis-aligned box [lower, upper] holding the region.
+  virtual void bounds(Vec<D>& lower, Vec<D>& upper) const = 0;
+  /// The exact measure of the region (volume; area in 2D; length in 1D).
+  virtual double measure() const = 0;
+  /// The measure of its boundary (surface; perimeter in 2D; 2 in 1D).
+  virtual double boundary_measure() const = 0;
+};
+
+/// The box [lower, upper]. InputError unless lower < upper, finite.
+template <int D> std::unique_ptr<Shape<D>> make_box(const Vec<D>& lower, const Vec<D>& upper);
+/// The ball |x - center| <= radius. InputError unless radius > 0, finite.
+template <int D> std::unique_ptr<Shape<D>> make_sphere(const Vec<D>& center, double radius);
+/// The cylinder with one end centred at `base`, unit-free `axis` (normalised
+/// here), `radius` and `length` (3D). InputError for a zero axis or a
+/// radius or length that is not finite and > 0.
+std::unique_ptr<Shape<3>> make_cylinder(const Vec<3>& base, const Vec<3>& axis, double radius, double length);
+/// The simple polygon with these vertices (2D, either orientation, not
+/// closed: the last vertex joins the first). InputError for fewer than 3
+/// vertices, a non-finite vertex, self-intersecting edges or zero area.
+std::unique_ptr<Shape<2>> make_polygon(const std::vector<Vec<2>>& vertices);
+
+/// The union of the cubes of side V_p^(1/D) centred at a set of particles
+/// (a body read from a file).
+template <int D> class ParticleCells final : public Shape<D> {
+public:
+  /// InputError for no particles, a position that is not finite or a
+  /// volume that is not finite and > 0 (naming the particle).
+  ParticleCells(const AlignedVector<Vec<D>>& x, const std::vector<double>& volume);
+  bool contains(const Vec<D>& x) const override;
+  void bounds(Vec<D>& lower, Vec<D>& upper) const override;
+  double measure() const override { return total_; }
+  double boundary_measure() const override { return 0.0; }
+
+private:
+  long long key(const Vec<D>& x) const;
+  AlignedVector<Vec<D>> x_;
+  std::vector<double> half_;
+  Vec<D> lower_, upper_;
+  double cell_ = 1.0, total_ = 0.0;
+  std::unordered_multimap<long long, int> buckets_;
+};
+
+extern template class ParticleCells<1>;
+extern template class ParticleCells<2>;
+extern template class ParticleCells<3>;
+
+} // namespace otmpm

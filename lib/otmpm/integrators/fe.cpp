@@ -1,0 +1,55 @@
+/// \file fe.cpp
+/// fe and musl: forward Euler with the stress updated last (USL; wobbes et
+/// al. Algorithm 1, lumped mass), and its modified variant (MUSL) that
+/// recomputes the nodal velocities from the updated particle momenta before
+/// the stress update (docs/theory.md sect. 8.1-8.2).
+#include "otmpm/integrators/nodal_ops.hpp"
+
+namespace otmpm {
+
+namespace {
+
+template <int D> void step_usl(Engine<D>& e, const StepContext<D>& s, bool musl) {
+  auto& P = s.particles;
+  auto& n = s.nodes;
+  const double dt = s.dt;
+  e.evaluate_basis();
+  // 1. m_I, q_I = sum N_Ip m_p v_p and f_I in one pass; Dirichlet on f_I.
+  e.to_nodes({.mass = true, .w = &P.v, .forces = true, .t = s.t});
+  e.apply_dirichlet_force(n.f);
+  // 2. a_I = f_I / m_I; v_I = q_I / m_I + dt a_I; constraints (a wall's
+  //    change of v_I also enters a_I, which updates the particle velocities).
+  e.solve_mass(n.f, n.a);
+  e.solve_mass(n.q, n.v);
+  axpy(n.v, dt, n.a);
+  e.constrain_velocity(n.v, {.rate = &n.a, .c = dt});
+  // 3. v_p += dt sum N_Ip a_I; x_p += dt sum N_Ip v_I; x_I += dt v_I in ul.
+  const ToParticles<D> move{.rate = &n.a, .c_rate = dt, .move = &n.v, .c_move = dt};
+  // 4. (usl) L_p = sum v_I (x) grad N_Ip; strain, density and stress
+  //    update, in the same pass over the particles.
+  if (musl) e.to_particles(move);
+  else e.to_particles_and_update_stress(move, {&n.v, dt});
+  scale(n.dx, dt, n.v);
+  e.advect_nodes(n.dx);
+  if (!musl) return;
+  // musl: v_I recomputed from the updated particle momenta, then step 4.
+  e.to_nodes({.w = &P.v});
+  e.solve_mass(n.q, n.v);
+  e.constrain_velocity(n.v, {.impulse = false});
+  e.update_stress({&n.v, dt});
+}
+
+} // namespace
+
+template <int D> void step_fe(Engine<D>& e, const StepContext<D>& s) { step_usl(e, s, false); }
+template <int D> void step_musl(Engine<D>& e, const StepContext<D>& s) { step_usl(e, s, true); }
+
+#define OTMPM_INSTANTIATE(D)                                                   \
+  template void step_fe<D>(Engine<D>&, const StepContext<D>&);                \
+  template void step_musl<D>(Engine<D>&, const StepContext<D>&);
+OTMPM_INSTANTIATE(1)
+OTMPM_INSTANTIATE(2)
+OTMPM_INSTANTIATE(3)
+#undef OTMPM_INSTANTIATE
+
+} // namespace otmpm

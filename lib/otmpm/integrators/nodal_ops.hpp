@@ -1,0 +1,36 @@
+#pragma once
+/// \file nodal_ops.hpp
+/// Small threaded operations on nodal (or particle) arrays shared by the
+/// integrators, each item written only by its own thread (the same bits for
+/// any thread count). Internal to integrators/.
+#include "otmpm/engine/engine.hpp"
+#include "otmpm/parallel.hpp"
+
+namespace otmpm {
+
+/// a += s * b.
+template <int D> void axpy(AlignedVector<Vec<D>>& a, double s, const AlignedVector<Vec<D>>& b) {
+  parallel_for(static_cast<long long>(a.size()), [&](long long i) { a[i] += s * b[i]; });
+}
+
+/// y = s * x.
+template <int D> void scale(AlignedVector<Vec<D>>& y, double s, const AlignedVector<Vec<D>>& x) {
+  y.resize(x.size());
+  parallel_for(static_cast<long long>(x.size()), [&](long long i) { y[i] = s * x[i]; });
+}
+
+/// The nodal increment of OTM and the unified approach (wobbes et al. eq. 51):
+/// v_I = M^{-1} (q + (dt + dt_prev)/2 f) with the constraints (`effect`: how
+/// a wall's change reaches the particles), dx_I = dt v_I. n.dx holds the
+/// right-hand side until the solve.
+template <int D>
+void transport_increment(Engine<D>& e, NodalFields<D>& n, double dt, double dt_prev, const WallEffect<D>& effect) {
+  n.dx.resize(n.q.size());
+  parallel_for(static_cast<long long>(n.q.size()),
+               [&](long long I) { n.dx[I] = n.q[I] + (0.5 * (dt + dt_prev)) * n.f[I]; });
+  e.solve_mass(n.dx, n.v);
+  e.constrain_velocity(n.v, effect);
+  scale(n.dx, dt, n.v);
+}
+
+} // namespace otmpm

@@ -1,0 +1,43 @@
+/// \file npc.cpp
+/// npc: the explicit Newmark predictor-corrector of molinos et al.
+/// (Algorithm 1; docs/theory.md sect. 8.3). gamma is the Newmark parameter.
+#include "otmpm/integrators/nodal_ops.hpp"
+
+namespace otmpm {
+
+template <int D> void step_npc(Engine<D>& e, const StepContext<D>& s) {
+  auto& P = s.particles;
+  auto& n = s.nodes;
+  const double dt = s.dt;
+  const double gamma = s.parameters.get("gamma");
+  e.evaluate_basis();
+  // 1. m_I = sum N_Ip m_p, and (same pass)
+  // 2. predictor: v_I^pred = sum N_Ip m_p (v_p + (1-gamma) dt a_p) / m_I.
+  e.to_nodes({.mass = true, .w = &P.v, .c = (1.0 - gamma) * dt, .a = &P.a});
+  e.solve_mass(n.q, n.v);
+  // 3. Constraints on the predictor (it drives only the stress update).
+  e.constrain_velocity(n.v, {.impulse = false});
+  // 4. L_p from the predictor; strain, density and stress update, and (same
+  //    pass over the basis table, each particle updated before it scatters)
+  // 5. f_I with the updated stresses and b(t + dt); fixed components zeroed.
+  e.update_stress_and_to_nodes({&n.v, dt}, {.forces = true, .t = s.t + dt});
+  e.apply_dirichlet_force(n.f);
+  // 6. corrector: v_I = v_I^pred + gamma dt f_I / m_I; a wall holds a node
+  //    by zeroing its normal acceleration, as a Dirichlet set zeroes f_I.
+  e.solve_mass(n.f, n.a);
+  axpy(n.v, gamma * dt, n.a);
+  e.constrain_velocity(n.v, {.rate = &n.a, .c = gamma * dt, .hold_rate = true});
+  // 7. a_p = sum N_Ip f_I/m_I; v_p += dt a_p; x_p += sum N_Ip (dt v_I + dt^2/2 f_I/m_I).
+  n.dx.resize(n.v.size());
+  parallel_for(static_cast<long long>(n.v.size()),
+               [&](long long I) { n.dx[I] = dt * n.v[I] + (0.5 * dt * dt) * n.a[I]; });
+  e.constrain_increment(n.dx);
+  e.to_particles({.rate = &n.a, .c_rate = dt, .rate_out = &P.a, .move = &n.dx, .c_move = 1.0});
+  e.advect_nodes(n.dx);
+}
+
+template void step_npc<1>(Engine<1>&, const StepContext<1>&);
+template void step_npc<2>(Engine<2>&, const StepContext<2>&);
+template void step_npc<3>(Engine<3>&, const StepContext<3>&);
+
+} // namespace otmpm

@@ -1,0 +1,94 @@
+/// \file table.cpp
+/// The table of integrators (integrator.hpp). A new integrator declares its
+/// step function below and adds one row.
+#include "otmpm/integrators/integrator.hpp"
+
+#include <algorithm>
+#include <array>
+
+namespace otmpm {
+
+// The step functions, each in its own file.
+template <int D> void step_fe(Engine<D>&, const StepContext<D>&);
+template <int D> void step_musl(Engine<D>&, const StepContext<D>&);
+template <int D> void step_npc(Engine<D>&, const StepContext<D>&);
+template <int D> void step_otm(Engine<D>&, const StepContext<D>&);
+template <int D> void step_unified(Engine<D>&, const StepContext<D>&);
+template <int D> void step_central_difference(Engine<D>&, const StepContext<D>&);
+template <int D> void step_explicit_alpha(Engine<D>&, const StepContext<D>&);
+
+namespace {
+
+const ParameterSpec kGamma{"gamma", "Newmark parameter of npc (molinos et al. Algorithm 1)", 0.5, 0.0, true, 1.0};
+const ParameterSpec kRhoInf{"rho_inf", "spectral radius at the bifurcation limit of explicit_alpha (Hulbert & Chung rho_b)",
+                            0.5, 0.0, false, 1.0};
+const std::array kNpcParameters{kGamma};
+const std::array kAlphaParameters{kRhoInf};
+const std::array kAllParameters{&kGamma, &kRhoInf};
+
+#define OTMPM_STEPS(F) .step1 = F<1>, .step2 = F<2>, .step3 = F<3>
+const std::array kIntegrators{
+    IntegratorKind{.name = "fe", .description = "forward Euler, stress updated last (USL)", OTMPM_STEPS(step_fe)},
+    IntegratorKind{.name = "musl", .description = "forward Euler with the modified update-stress-last",
+                   OTMPM_STEPS(step_musl)},
+    IntegratorKind{.name = "npc",
+                   .description = "explicit Newmark predictor-corrector (molinos et al. Algorithm 1)",
+                   .needs_acceleration = true,
+                   .parameters = kNpcParameters,
+                   OTMPM_STEPS(step_npc)},
+    IntegratorKind{.name = "otm",
+                   .description = "optimal transportation meshfree update (wobbes et al. Algorithm 2)",
+                   .needs_ul = true,
+                   .consistent_by_default = true,
+                   .needs_previous_position = true,
+                   OTMPM_STEPS(step_otm)},
+    IntegratorKind{.name = "unified",
+                   .description = "B-splines on advected knots (wobbes et al. Algorithm 3)",
+                   .needs_ul = true,
+                   .needs_bspline = true,
+                   .consistent_by_default = true,
+                   .needs_consistent_mass = true,
+                   OTMPM_STEPS(step_unified)},
+    IntegratorKind{.name = "central_difference",
+                   .description = "central difference in velocity-Verlet form (kick, drift, kick)",
+                   OTMPM_STEPS(step_central_difference)},
+    IntegratorKind{.name = "explicit_alpha",
+                   .description = "explicit generalised-alpha (Hulbert & Chung 1996)",
+                   .needs_acceleration = true,
+                   .parameters = kAlphaParameters,
+                   OTMPM_STEPS(step_explicit_alpha)},
+};
+#undef OTMPM_STEPS
+
+} // namespace
+
+std::span<const IntegratorKind> integrator_kinds() { return kIntegrators; }
+
+const IntegratorKind* find_integrator(std::string_view name) {
+  const auto it =
+      std::find_if(kIntegrators.begin(), kIntegrators.end(), [&](const IntegratorKind& k) { return k.name == name; });
+  return it == kIntegrators.end() ? nullptr : &*it;
+}
+
+std::span<const ParameterSpec* const> integrator_parameters() { return kAllParameters; }
+
+IntegratorParameters IntegratorKind::default_parameters() const {
+  IntegratorParameters out;
+  for (const ParameterSpec& p : parameters) out.values[std::string(p.key)] = p.fallback.value_or(0.0);
+  return out;
+}
+
+std::string integrator_list() {
+  std::string s;
+  for (std::size_t i = 0; i < kIntegrators.size(); ++i)
+    s += std::string(i == 0 ? "" : i + 1 == kIntegrators.size() ? " or " : ", ") + std::string(kIntegrators[i].name);
+  return s;
+}
+
+const IntegratorKind& integrator_kind(std::string_view name) {
+  const IntegratorKind* k = find_integrator(name);
+  if (!k) throw InputError("unknown integrator '" + std::string(name) + "' (expected " + integrator_list() + ")");
+  return *k;
+}
+
+} // namespace otmpm

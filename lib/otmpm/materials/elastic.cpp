@@ -1,0 +1,104 @@
+/// \file elastic.cpp
+/// The three elastic models (elasticity.hpp) as Material<D>:
+/// linear_elastic (small strain; molinos et al.), linear_elastic_finite
+/// (wobbes et al. eq. 10) and neo_hookean (wobbes et al. eq. 11). None has
+/// internal variables; the stored energy is 1/2 sigma : eps V_p.
+#include "otmpm/materials/models.hpp"
+
+namespace otmpm {
+
+namespace {
+
+/// The energy of the elastic models as the monitor counts it: V_p 1/2 sigma : eps.
+template <int D> void add_elastic_energies(const Particles<D>& P, int p0, int p1, double& stored) {
+  for (int p = p0; p < p1; ++p) stored += P.V[p] * strain_energy_density<D>(P.sigma[p], P.eps[p]);
+}
+
+/// Small strain (docs/theory.md): d_eps = sym(H), eps += d_eps,
+/// sigma += C : d_eps, rho /= 1 + tr d_eps, V = m / rho; F_p = (I + H) F_p
+/// when F is kept (ul mode, or asked for as output).
+template <int D> class LinearElastic final : public Material<D> {
+public:
+  explicit LinearElastic(const MaterialParameters& p) : Material<D>(p), c_(p.elastic()) {}
+  bool needs_deformation_gradient() const override { return false; }
+  void update(Particles<D>& P, int p0, int p1, const Mat<D>* H, double) const override {
+    const bool with_F = !P.F.empty();
+    for (int p = p0; p < p1; ++p) {
+      const Mat<D>& h = H[p - p0];
+      if (with_F) P.F[p] = (Mat<D>::Identity() + h) * P.F[p];
+      const Mat<D> d_eps = 0.5 * (h + h.transpose());
+      P.eps[p] += d_eps;
+      P.sigma[p] += elastic_stress_increment<D>(c_, d_eps);
+      const double dilation = 1.0 + d_eps.trace();
+      if (!(dilation > 0.0))
+        throw ParticleFailure{p, "volume change 1 + tr(d_eps) = " + format_number(dilation) + " <= 0"};
+      P.rho[p] /= dilation;
+      P.V[p] = P.m[p] / P.rho[p];
+    }
+  }
+  void add_energies(const Particles<D>& P, int p0, int p1, double& stored, double&) const override {
+    add_elastic_energies(P, p0, p1, stored);
+  }
+
+private:
+  ElasticConstants c_;
+};
+
+/// Finite strain: F_p = (I + H) F_p, V_p = det F_p V0_p, rho_p = m_p / V_p,
+/// sigma_p = Law(F_p), eps_p = sym(F_p) - I (for the energy monitor).
+template <int D, Mat<D> (*Law)(const ElasticConstants&, const Mat<D>&)>
+class FiniteElastic final : public Material<D> {
+public:
+  explicit FiniteElastic(const MaterialParameters& p) : Material<D>(p), c_(p.elastic()) {}
+  bool needs_deformation_gradient() const override { return true; }
+  void update(Particles<D>& P, int p0, int p1, const Mat<D>* H, double) const override {
+    for (int p = p0; p < p1; ++p) {
+      P.F[p] = (Mat<D>::Identity() + H[p - p0]) * P.F[p];
+      const double J = P.F[p].determinant();
+      if (!(J > 0.0)) throw ParticleFailure{p, "det F = " + format_number(J) + " <= 0"};
+      P.V[p] = J * P.V0[p];
+      P.rho[p] = P.m[p] / P.V[p];
+      P.sigma[p] = Law(c_, P.F[p]);
+      P.eps[p] = 0.5 * (P.F[p] + P.F[p].transpose()) - Mat<D>::Identity();
+    }
+  }
+  void add_energies(const Particles<D>& P, int p0, int p1, double& stored, double&) const override {
+    add_elastic_energies(P, p0, p1, stored);
+  }
+
+private:
+  ElasticConstants c_;
+};
+
+template <int D> std::unique_ptr<Material<D>> make_linear_elastic(const MaterialParameters& p) {
+  return std::make_unique<LinearElastic<D>>(p);
+}
+template <int D> std::unique_ptr<Material<D>> make_linear_elastic_finite(const MaterialParameters& p) {
+  return std::make_unique<FiniteElastic<D, linear_elastic_finite_stress<D>>>(p);
+}
+template <int D> std::unique_ptr<Material<D>> make_neo_hookean(const MaterialParameters& p) {
+  return std::make_unique<FiniteElastic<D, neo_hookean_stress<D>>>(p);
+}
+
+} // namespace
+
+const MaterialModel& linear_elastic_model() {
+  static const MaterialModel m{"linear_elastic", "small-strain isotropic elasticity (molinos et al.)", {}, {},
+                               make_linear_elastic<1>, make_linear_elastic<2>, make_linear_elastic<3>};
+  return m;
+}
+
+const MaterialModel& linear_elastic_finite_model() {
+  static const MaterialModel m{"linear_elastic_finite", "St. Venant-like law of wobbes et al. eq. 10 (not objective)",
+                               {}, {}, make_linear_elastic_finite<1>, make_linear_elastic_finite<2>,
+                               make_linear_elastic_finite<3>};
+  return m;
+}
+
+const MaterialModel& neo_hookean_model() {
+  static const MaterialModel m{"neo_hookean", "compressible neo-Hookean (wobbes et al. eq. 11)", {}, {},
+                               make_neo_hookean<1>, make_neo_hookean<2>, make_neo_hookean<3>};
+  return m;
+}
+
+} // namespace otmpm

@@ -1,0 +1,63 @@
+/// \file elasticity.cpp
+/// The elastic stress laws of elasticity.hpp and the checks of the constants.
+#include "otmpm/materials/elasticity.hpp"
+
+#include <cmath>
+
+namespace otmpm {
+
+void ElasticConstants::validate(const std::string& name) const {
+  const std::string what = "material '" + name + "': ";
+  require(finite_positive(density), what, "density must be finite and > 0, got ", density);
+  require(finite_positive(young), what, "young must be finite and > 0, got ", young);
+  require(std::isfinite(poisson) && poisson > -1.0 && poisson < 0.5, what, "poisson must be in (-1, 0.5), got ",
+          poisson);
+}
+
+template <int D> Mat<D> elastic_stress_increment(const ElasticConstants& c, const Mat<D>& d_eps) {
+  if constexpr (D == 1) {
+    return c.young * d_eps;
+  } else {
+    return c.lambda() * d_eps.trace() * Mat<D>::Identity() + 2.0 * c.mu() * d_eps;
+  }
+}
+
+namespace {
+/// det F, checked finite and > 0 (the finite-strain laws divide by it and take its log).
+template <int D> double checked_det(const Mat<D>& F, const char* law) {
+  const double J = F.determinant();
+  require<InstabilityError>(std::isfinite(J) && J > 0.0, law, ": det F = ", J, " is not finite and > 0");
+  return J;
+}
+/// Lame parameters of a finite-strain law; 1D: uniaxial modulus lambda + 2 mu -> E.
+double lame_lambda(const ElasticConstants& c, int D) { return D == 1 ? 0.0 : c.lambda(); }
+double lame_mu(const ElasticConstants& c, int D) { return D == 1 ? 0.5 * c.young : c.mu(); }
+} // namespace
+
+template <int D> Mat<D> linear_elastic_finite_stress(const ElasticConstants& c, const Mat<D>& F) {
+  const double J = checked_det<D>(F, "linear_elastic_finite");
+  const Mat<D> Es = 0.5 * (F + F.transpose()) - Mat<D>::Identity();
+  return (lame_lambda(c, D) / J) * Es.trace() * F + (2.0 * lame_mu(c, D) / J) * F * Es;
+}
+
+template <int D> Mat<D> neo_hookean_stress(const ElasticConstants& c, const Mat<D>& F) {
+  const double J = checked_det<D>(F, "neo_hookean");
+  const Mat<D> I = Mat<D>::Identity();
+  return (lame_lambda(c, D) * std::log(J) / J) * I + (lame_mu(c, D) / J) * (F * F.transpose() - I);
+}
+
+template <int D> double strain_energy_density(const Mat<D>& sigma, const Mat<D>& eps) {
+  return 0.5 * sigma.cwiseProduct(eps).sum();
+}
+
+#define OTMPM_INSTANTIATE(D)                                                                 \
+  template Mat<D> elastic_stress_increment<D>(const ElasticConstants&, const Mat<D>&);      \
+  template Mat<D> linear_elastic_finite_stress<D>(const ElasticConstants&, const Mat<D>&);  \
+  template Mat<D> neo_hookean_stress<D>(const ElasticConstants&, const Mat<D>&);            \
+  template double strain_energy_density<D>(const Mat<D>&, const Mat<D>&);
+OTMPM_INSTANTIATE(1)
+OTMPM_INSTANTIATE(2)
+OTMPM_INSTANTIATE(3)
+#undef OTMPM_INSTANTIATE
+
+} // namespace otmpm

@@ -1,0 +1,52 @@
+#pragma once
+/// \file elasticity.hpp
+/// Isotropic elasticity shared by every material model (docs/theory.md
+/// sect. 9): the constants E, nu, rho_0 with their Lame
+/// parameters, and the stress laws of the three elastic models -
+///  - linear_elastic: small strain, sigma += C : d_eps (molinos et al.), 1D
+///    uniaxial stress (E), 2D plane strain, 3D;
+///  - linear_elastic_finite: wobbes et al. eq. 10,
+///    sigma = lambda/J tr(E_s) F + 2 mu / J F E_s,  E_s = sym(F) - I;
+///  - neo_hookean: wobbes et al. eq. 11, sigma = lambda ln J / J I + mu / J (F F^T - I).
+/// In 1D the uniaxial modulus of the finite-strain models is lambda + 2 mu,
+/// which equals E for nu = 0 (the value every 1D benchmark uses).
+#include "otmpm/core.hpp"
+
+#include <string>
+
+namespace otmpm {
+
+/// Density and isotropic elastic constants of a material.
+struct ElasticConstants {
+  double density = 1.0; ///< reference density rho_0
+  double young = 1.0;
+  double poisson = 0.0;
+
+  /// Throws InputError "material 'NAME': FIELD must be ..." unless density
+  /// and young are finite and > 0 and -1 < poisson < 0.5 (where lambda() and
+  /// mu() are finite and the material is stable).
+  void validate(const std::string& name) const;
+  double lambda() const { return young * poisson / ((1 + poisson) * (1 - 2 * poisson)); }
+  double mu() const { return young / (2 * (1 + poisson)); }
+  /// P-wave modulus: E in 1D (uniaxial stress), lambda + 2 mu otherwise.
+  double p_modulus(int dimension) const { return dimension == 1 ? young : lambda() + 2 * mu(); }
+};
+
+/// Small-strain stress increment C : d_eps for the dimension's elasticity
+/// (1D: E d_eps; 2D: plane strain; 3D: isotropic).
+template <int D> Mat<D> elastic_stress_increment(const ElasticConstants& c, const Mat<D>& d_eps);
+
+/// Cauchy stress of linear_elastic_finite (wobbes eq. 10) from F. Throws
+/// InstabilityError unless det F is finite and > 0 (one check per call).
+template <int D> Mat<D> linear_elastic_finite_stress(const ElasticConstants& c, const Mat<D>& F);
+
+/// Cauchy stress of neo_hookean (wobbes eq. 11) from F. Throws
+/// InstabilityError unless det F is finite and > 0 (one check per call).
+template <int D> Mat<D> neo_hookean_stress(const ElasticConstants& c, const Mat<D>& F);
+
+/// Stored energy density of the elastic models as the energy monitor counts
+/// it (per unit current volume): 1/2 sigma : eps, with eps the small strain
+/// or sym(F) - I.
+template <int D> double strain_energy_density(const Mat<D>& sigma, const Mat<D>& eps);
+
+} // namespace otmpm

@@ -1,0 +1,43 @@
+#pragma once
+/// \file output_fields.hpp
+/// The particle fields a result frame can hold (`output.fields`), listed
+/// once: the scene reader takes the names from here and the result writer
+/// the data. A material's internal variables (Particles::state) can be
+/// written too, under their own names.
+#include "otmpm/particles/particles.hpp"
+
+#include <span>
+#include <string_view>
+#include <vector>
+
+namespace otmpm {
+
+/// The values of one particle field for a frame: `cols` doubles per
+/// particle, row-major (tensors: D*D components, row by row), pointing
+/// either into the particle arrays or into a buffer the caller owns.
+struct FieldData {
+  const double* data = nullptr;
+  int cols = 0;
+};
+
+/// Reads field `name` of the particles; `buffer` holds the values when they
+/// are not stored as they are written (tensors, the displacement).
+template <int D> using FieldGetter = FieldData (*)(const Particles<D>&, std::vector<double>& buffer);
+
+/// One built-in output field.
+struct OutputField {
+  std::string_view name;
+  std::string_view description;
+  FieldGetter<1> get1 = nullptr;
+  FieldGetter<2> get2 = nullptr;
+  FieldGetter<3> get3 = nullptr;
+};
+
+/// The built-in fields, in the order the docs list them.
+std::span<const OutputField> output_fields();
+
+/// The values of field `name` (a built-in field or a state field of P).
+/// std::invalid_argument when P has no such field (or it is not allocated).
+template <int D> FieldData output_field_data(std::string_view name, const Particles<D>& P, std::vector<double>& buffer);
+
+} // namespace otmpm

@@ -1,0 +1,627 @@
+/// \file run.cpp
+/// A run of a scene (run.hpp, simulation.hpp): the engine built by the
+/// assembler, stepped to t_end, with the Recorder that writes the result
+/// file (frames, probes, energy series, final errors and status) and the
+/// checkpoints.
+#include "otmpm/run/run.hpp"
+
+#include "otmpm/run/simulation.hpp"
+
+#include "otmpm/assembly/assembler.hpp"
+#include "otmpm/io/output_files.hpp"
+#include "otmpm/particles/output_fields.hpp"
+#include "otmpm/run/restart.hpp"
+#include "otmpm/io/results.hpp"
+#include "otmpm/reference/exact.hpp"
+#include "otmpm/scene/resources.hpp"
+#include "otmpm/scene/validate.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <array>
+#include <filesystem>
+#include <memory>
+#include <optional>
+
+namespace otmpm {
+
+namespace {
+
+/// Relative slack when comparing the simulated time with output times.
+constexpr double time_slack = 1e-9;
+/// Floor of EnergySummary::reference(), so a body at rest with no load has ratio 0, not 0/0.
+constexpr double energy_reference_floor = 1e-300;
+
+/// What the run's output files are and where their names came from
+/// (prepare_outputs); `text` is the scene as TOML (the identical-scene rule).
+OutputRequest output_request(const Scene& scene, const std::string& text, const RunOptions& opt,
+                             const Checkpoint* resume) {
+  OutputRequest r;
+  const std::string previous = resume ? resume->group("recorder").string("result_file") : "";
+  if (!opt.out_file.empty()) {
+    r.result = opt.out_file;
+    r.result_origin = "RunOptions::out_file, otmpm run --out";
+  } else if (resume) {
+    r.result = previous;
+    r.result_origin = "the interrupted run's result file, from " + resume->file;
+  } else {
+    r.result = scene.output.file;
+    r.result_origin = scene.locate("output.file").describe();
+  }
+  if (scene.output.checkpoint_every > 0) {
+    r.checkpoint = checkpoint_path(scene, r.result);
+    r.checkpoint_origin = scene.output.checkpoint_file.empty() ? "the default beside the result file"
+                                                               : scene.locate("output.checkpoint_file").describe();
+  }
+  r.vtk_format = vtk_format(scene.output);
+  r.scene_text = text;
+  r.force = opt.force;
+  if (resume) {
+    r.continued_run = resume->run_id;
+    r.previous_result = previous;
+    r.previous_frames = static_cast<int>(resume->group("recorder").integer("frames"));
+  }
+  return r;
+}
+
+/// The particle a probe follows: the leftmost/rightmost by initial position
+/// (ties: lowest index) or the one nearest to a point.
+template <int D> int probe_particle(const Particles<D>& P, const ProbeSection& probe) {
+  int best = 0;
+  Vec<D> at;
+  for (int k = 0; k < D; ++k) at[k] = probe.at[k];
+  for (int p = 1; p < P.size(); ++p) {
+    if (probe.particle == "leftmost" ? P.X[p][0] < P.X[best][0]
+        : probe.particle == "rightmost" ? P.X[p][0] > P.X[best][0]
+                                        : (P.X[p] - at).norm() < (P.X[best] - at).norm())
+      best = p;
+  }
+  return best;
+}
+
+// A member added to EnergySummary must be saved and restored here.
+static_assert(sizeof(EnergySummary) == 4 * sizeof(double), "EnergySummary changed: update the checkpoint");
+
+/// The members of an EnergySummary (const or not) by checkpoint name.
+template <class S> auto summary_fields(S& s) {
+  return std::array{std::pair{"energy_initial", &s.initial}, std::pair{"max_energy", &s.max_energy},
+                    std::pair{"max_work", &s.max_work}, std::pair{"max_balance_error", &s.max_balance_error}};
+}
+
+template <int D> class Recorder {
+public:
+  /// `resume`: the checkpoint a restarted run continues (null for a new run).
+  Recorder(const Scene& scene, const RunOptions& opt, Engine<D>& e, const ExactSolution<D>* exact,
+           const Checkpoint* resume)
+      : scene_(scene), text_(scene.text.empty() ? to_toml(scene) : scene.text), e_(e), exact_(exact) {
+    for (const ProbeSection& pr : scene.output.probes) probes_.push_back({pr.name, probe_particle(e.particles(), pr), 0.0, 0});
+    if (resume) restore_accumulators(resume->group("recorder"));
+    if (!opt.write_results) return;
+    outputs_ = prepare_outputs(output_request(scene, text_, opt, resume));
+    path_ = outputs_.files.result;
+    checkpoint_path_ = outputs_.files.checkpoint;
+    writer_ = std::make_unique<ResultWriter>(path_, text_, D,
+                                             ResultOptions{outputs_.run_id, outputs_.files.vtk_extension});
+    if (outputs_.previous) continue_results(*outputs_.previous, resume->group("recorder"));
+  }
+
+  /// Writes a checkpoint after every output.checkpoint_every steps (not after
+  /// the last step) when checkpoints are on; `wall_seconds` is the wall time
+  /// of this process so far.
+  void maybe_checkpoint(double wall_seconds, bool last) {
+    const long every = scene_.output.checkpoint_every;
+    if (!writer_ || every <= 0 || last || e_.steps() % every != 0) return;
+    checkpoint(wall_seconds);
+  }
+
+  /// Writes a checkpoint of the current state now (when checkpoints are on).
+  void checkpoint(double wall_seconds) {
+    if (!writer_ || scene_.output.checkpoint_every <= 0) return;
+    ScopedPhase timer(e_.timers(), Phase::output);
+    Checkpoint ck;
+    ck.scene = text_;
+    ck.run_id = writer_->run_id();
+    e_.save_state(ck);
+    StateGroup& g = ck.group("recorder");
+    g.reals["next_output_time"] = next_;
+    g.reals["wall_seconds"] = wall_before_ + wall_seconds;
+    g.integers["frames"] = writer_->frames();
+    g.strings["result_file"] = std::filesystem::absolute(path_).string();
+    g.put_reals(summary_fields(energy_));
+    g.reals["wall_time"] = wall_time_;
+    StateArray<double>& walls = g.real_arrays["wall_last_impulse"];
+    walls.cols = D;
+    for (const Vec<D>& J : wall_last_) walls.values.insert(walls.values.end(), J.data(), J.data() + D);
+    StateArray<double>& sum_sq = g.real_arrays["probe_sum_sq"];
+    StateArray<std::int64_t>& samples = g.integer_arrays["probe_samples"];
+    for (const Probe& pr : probes_) {
+      sum_sq.values.push_back(pr.sum_sq);
+      samples.values.push_back(pr.samples);
+    }
+    write_checkpoint(checkpoint_path_, ck);
+  }
+
+  /// Wall time of the interrupted run up to its checkpoint (0 for a new run).
+  double wall_before() const { return wall_before_; }
+
+  /// Adds the engine's current energy balance to the run's EnergySummary (every step).
+  void sample_energy() {
+    const EnergyBalance& E = e_.energy();
+    energy_.initial = E.initial;
+    energy_.sample(E.total(), E.work(), E.balance_error());
+  }
+
+  /// Writes a frame and probe samples when t reached the next output time.
+  void maybe_record(bool force) {
+    const double every = scene_.output.every;
+    const double t = e_.time();
+    if (!force && !(every > 0.0 && t >= next_ * (1.0 - time_slack))) return;
+    ScopedPhase timer(e_.timers(), Phase::output);
+    record(t);
+    if (every > 0.0)
+      while (next_ <= t * (1.0 + time_slack)) next_ += every;
+  }
+
+  void finish(RunSummary& s) {
+    s.energy = energy_;
+    for (const Probe& pr : probes_)
+      if (exact_ && pr.samples > 0) s.errors["history_error_" + pr.name] = std::sqrt(pr.sum_sq / pr.samples);
+    if (exact_ && s.exit_code == 0 && !s.interrupted) final_errors(s);
+    if (!writer_) return;
+    s.out_file = path_;
+    if (!writer_->writable()) return; // an HDF5 write failed: the file is left as it is
+    try {
+      write_summary(s);
+    } catch (const OutputError& err) {
+      s.status = std::string("output error: ") + err.what();
+      s.exit_code = kOutputErrorExit;
+    }
+  }
+
+  /// Marks the file with a diagnosis (the file stays valid). An output error
+  /// here changes nothing more: the diagnosis is in the summary anyway.
+  void set_status(const std::string& status) {
+    if (!writer_ || !writer_->writable()) return;
+    try {
+      writer_->set_attribute("status", status);
+      writer_->publish();
+    } catch (const OutputError&) {
+    }
+  }
+
+private:
+  struct Probe {
+    std::string name;
+    int particle;
+    double sum_sq;
+    int samples;
+  };
+
+  /// The final status and summary attributes.
+  void write_summary(const RunSummary& s) {
+    writer_->set_attribute("status", s.status);
+    writer_->set_attribute("steps", static_cast<long long>(s.steps));
+    writer_->set_attribute("t_end", s.time);
+    writer_->set_attribute("wall_seconds", s.wall_seconds);
+    writer_->set_attribute("particles", static_cast<long long>(s.particles));
+    writer_->set_attribute("nodes", static_cast<long long>(s.nodes));
+    for (const auto& [name, value] : s.errors) writer_->set_attribute(name, value);
+    writer_->set_attribute("max_energy_ratio", s.energy.max_energy_ratio());
+    writer_->set_attribute("energy_drift", s.energy.energy_drift());
+    for (std::size_t i = 0; i < phase_names.size(); ++i)
+      writer_->set_attribute("seconds_" + std::string(phase_names[i]), s.timers.seconds[i]);
+    writer_->publish();
+  }
+
+  void restore_accumulators(const StateGroup& g) {
+    next_ = g.real("next_output_time");
+    wall_before_ = g.real("wall_seconds");
+    g.get_reals(summary_fields(energy_));
+    wall_time_ = g.real("wall_time");
+    const auto& walls = g.real_array("wall_last_impulse", e_.walls().size(), D).values;
+    wall_last_.assign(e_.walls().size(), Vec<D>::Zero());
+    for (std::size_t w = 0; w < wall_last_.size(); ++w)
+      for (int k = 0; k < D; ++k) wall_last_[w][k] = walls[w * D + static_cast<std::size_t>(k)];
+    const auto& sum_sq = g.real_array("probe_sum_sq", probes_.size(), 1).values;
+    const auto& samples = g.integer_array("probe_samples", probes_.size(), 1).values;
+    for (std::size_t i = 0; i < probes_.size(); ++i) {
+      probes_[i].sum_sq = sum_sq[i];
+      probes_[i].samples = static_cast<int>(samples[i]);
+    }
+  }
+
+  /// The histories record() appends a sample to, in its order.
+  std::vector<HistoryLayout> histories() const {
+    std::vector<HistoryLayout> h;
+    for (const Probe& pr : probes_) h.push_back({pr.name, true, {"x", "v", "stress"}});
+    std::vector<std::string> energy{"kinetic", "strain", "external_work", "reaction_work"};
+    if (dissipative()) energy.push_back("dissipated");
+    h.push_back({"energy", false, energy});
+    for (const Wall<D>& w : e_.walls()) h.push_back({w.name, true, {"force", "impulse"}, "walls"});
+    return h;
+  }
+
+  /// True when a material of the run has internal variables (and so may
+  /// dissipate energy): the energy series then has a "dissipated" column.
+  bool dissipative() const {
+    for (int i = 0; i < e_.material_count(); ++i)
+      if (!e_.material(i).state().empty()) return true;
+    return false;
+  }
+
+  /// Copies the frames and history samples written before the checkpoint.
+  void continue_results(const PreviousResults& previous, const StateGroup& g) {
+    copy_results(previous.path, *writer_, static_cast<int>(g.integer("frames")), histories(), scene_.output.fields);
+    release_previous_results(previous);
+  }
+
+  /// /walls/NAME: the impulse the wall gave the body since t = 0 and the
+  /// mean force over the time since the previous sample (zero at the first).
+  void record_walls(double t) {
+    const auto& walls = e_.walls();
+    wall_last_.resize(walls.size(), Vec<D>::Zero());
+    for (std::size_t w = 0; w < walls.size(); ++w) {
+      const Vec<D>& J = e_.wall_impulse()[w];
+      const Vec<D> F = t > wall_time_ ? Vec<D>((J - wall_last_[w]) / (t - wall_time_)) : Vec<D>::Zero();
+      writer_->append_group_sample("walls", walls[w].name, t,
+                                   {{"force", std::vector<double>(F.data(), F.data() + D)},
+                                    {"impulse", std::vector<double>(J.data(), J.data() + D)}});
+      wall_last_[w] = J;
+    }
+    wall_time_ = t;
+  }
+
+  void record(double t) {
+    const Particles<D>& P = e_.particles();
+    for (Probe& pr : probes_) {
+      const int p = pr.particle;
+      if (exact_) {
+        pr.sum_sq += (P.v[p] - exact_->velocity(P.X[p], t)).squaredNorm();
+        ++pr.samples;
+      }
+      if (writer_) {
+        std::vector<double> x(P.x[p].data(), P.x[p].data() + D), v(P.v[p].data(), P.v[p].data() + D);
+        std::vector<double> sig(P.sigma[p].data(), P.sigma[p].data() + D * D);
+        writer_->append_probe(pr.name, t, {{"x", x}, {"v", v}, {"stress", sig}});
+      }
+    }
+    if (writer_) {
+      const EnergyBalance& E = e_.energy();
+      std::vector<std::pair<std::string, double>> energy{
+          {"kinetic", E.kinetic}, {"strain", E.strain}, {"external_work", E.external_work}, {"reaction_work", E.reaction_work}};
+      if (dissipative()) energy.emplace_back("dissipated", E.dissipated);
+      writer_->append_series("energy", t, energy);
+      record_walls(t);
+      write_frame(t);
+    }
+  }
+
+  void write_frame(double t) {
+    const Particles<D>& P = e_.particles();
+    std::vector<FieldView> fields;
+    std::vector<std::vector<double>> buffers(scene_.output.fields.size());
+    for (std::size_t i = 0; i < scene_.output.fields.size(); ++i) {
+      const std::string& name = scene_.output.fields[i];
+      const FieldData d = output_field_data<D>(name, P, buffers[i]);
+      fields.push_back({name, P.size(), d.cols, d.data});
+    }
+    writer_->write_frame(t, fields);
+  }
+
+  void final_errors(RunSummary& s) const {
+    const Particles<D>& P = e_.particles();
+    const double t = e_.time();
+    std::vector<double> ev, eu, es;
+    for (int p = 0; p < P.size(); ++p) {
+      ev.push_back((P.v[p] - exact_->velocity(P.X[p], t)).squaredNorm());
+      eu.push_back((P.x[p] - P.X[p] - exact_->displacement(P.X[p], t)).squaredNorm());
+      es.push_back((P.sigma[p] - exact_->stress(P.X[p], t)).squaredNorm());
+    }
+    s.errors["rms_velocity_error"] = rms_error(ev);
+    s.errors["rms_displacement_error"] = rms_error(eu);
+    s.errors["rms_stress_error"] = rms_error(es);
+  }
+
+  const Scene& scene_;
+  std::string text_; ///< the scene as TOML: Scene::text, or to_toml() for a scene built in code
+  Engine<D>& e_;
+  const ExactSolution<D>* exact_;
+  std::vector<Probe> probes_;
+  PreparedOutputs outputs_; ///< paths and otmpm's locks, held for the whole run
+  std::string path_;
+  std::unique_ptr<ResultWriter> writer_;
+  double next_ = 0.0;
+  EnergySummary energy_;
+  std::string checkpoint_path_;
+  double wall_before_ = 0.0;
+  AlignedVector<Vec<D>> wall_last_; ///< wall impulses at the previous sample
+  double wall_time_ = 0.0;          ///< time of the previous sample
+};
+
+/// A diagnosis that names step and time: `what` as it is when it does (the
+/// engine's start with "step N, t = T"), else prefixed with them.
+std::string diagnosis(const std::string& what, long step, double t) {
+  if (what.rfind("step ", 0) == 0) return what;
+  return "step " + std::to_string(step) + ", t = " + format_number(t) + ": " + what;
+}
+
+double seconds_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+} // namespace
+
+/// The dimension-independent face of a simulation.
+struct Simulation::Runner {
+  virtual ~Runner() = default;
+  Scene scene;
+  RunSummary summary;
+  bool finished = false;
+  virtual int dimension() const = 0;
+  virtual double time() const = 0;
+  virtual long steps() const = 0;
+  virtual void step() = 0;
+  virtual void write_frame() = 0;
+  virtual void interrupt() = 0;
+  virtual void finish() = 0;
+};
+
+/// A simulation in D dimensions: the engine, its exact solution (if any)
+/// and the recorder of its result file.
+template <int D> struct Simulation::DimRunner final : Simulation::Runner {
+  std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now();
+  RunOptions options;
+  Engine<D> e;
+  std::unique_ptr<ExactSolution<D>> exact;
+  Recorder<D> rec;
+
+  DimRunner(const Scene& s, const RunOptions& opt, const Checkpoint* resume)
+      : options(opt), e(assemble<D>(s)), exact(make_exact_solution<D>(s)), rec(init(s, resume), opt, e, exact.get(), resume) {
+    summary.mode = scene.simulation.mode;
+    summary.integrator = scene.simulation.integrator;
+    summary.basis = scene.basis.kind;
+    summary.particles = e.particles().size();
+    summary.nodes = e.basis().nodes().size();
+    summary.status = "running";
+    if (resume) return;
+    try { // an initial state that is not finite or cannot be written is a diagnosis too
+      rec.sample_energy();
+      rec.maybe_record(true);
+    } catch (const InstabilityError& err) {
+      stop_unstable(err);
+    } catch (const OutputError& err) {
+      stop_output_error(err);
+    }
+  }
+
+  /// Stores the scene and restores the checkpoint before the recorder is built.
+  const Scene& init(const Scene& s, const Checkpoint* resume) {
+    scene = s;
+    if (resume) e.restore_state(*resume);
+    return scene;
+  }
+
+  int dimension() const override { return D; }
+  double time() const override { return e.time(); }
+  long steps() const override { return e.steps(); }
+
+  void step() override {
+    const double t_end = scene.simulation.t_end;
+    try {
+      e.step();
+      rec.sample_energy();
+      const bool last = e.time() >= t_end * (1.0 - time_slack);
+      rec.maybe_record(last);
+      rec.maybe_checkpoint(seconds_since(start), last);
+      finished = last;
+    } catch (const InstabilityError& err) {
+      stop_unstable(err);
+      throw;
+    } catch (const OutputError& err) {
+      stop_output_error(err);
+      throw;
+    }
+    if (options.progress) options.progress(e.time(), t_end, e.steps());
+  }
+
+  /// Ends the run on an instability: status "unstable: step N, t = T: ...", exit code 1.
+  void stop_unstable(const InstabilityError& err) {
+    rec.sample_energy(); // a runaway stop has the energy that tripped the monitor
+    stop("unstable: " + diagnosis(err.what(), e.steps(), e.time()), 1);
+  }
+
+  /// Ends the run on a result or checkpoint that could not be written: status
+  /// "output error: step N, t = T: ...", exit code kOutputErrorExit; the
+  /// result file keeps what was written before.
+  void stop_output_error(const OutputError& err) {
+    stop("output error: " + diagnosis(err.what(), e.steps(), e.time()), kOutputErrorExit);
+  }
+
+  void stop(const std::string& status, int exit_code) {
+    summary.status = status;
+    summary.exit_code = exit_code;
+    rec.set_status(summary.status);
+    finished = true;
+  }
+
+  void write_frame() override { rec.maybe_record(true); }
+
+  void interrupt() override {
+    try {
+      rec.checkpoint(seconds_since(start));
+    } catch (const OutputError& err) {
+      stop_output_error(err);
+      return;
+    }
+    summary.status = "interrupted";
+    summary.exit_code = kInterruptedExit;
+    summary.interrupted = true;
+    rec.set_status(summary.status);
+    finished = true;
+  }
+
+  void finish() override {
+    if (summary.exit_code == 0) summary.status = "ok";
+    summary.steps = e.steps();
+    summary.time = e.time();
+    summary.timers = e.timers();
+    summary.wall_seconds = rec.wall_before() + seconds_since(start);
+    rec.finish(summary);
+    finished = true;
+  }
+};
+
+void EnergySummary::sample(double energy, double work, double balance_error) {
+  if (!std::isfinite(energy) || !std::isfinite(work) || !std::isfinite(balance_error)) return;
+  max_energy = std::max(max_energy, energy);
+  max_work = std::max(max_work, std::abs(work));
+  max_balance_error = std::max(max_balance_error, std::abs(balance_error));
+}
+
+double EnergySummary::reference() const { return std::max(initial + max_work, energy_reference_floor); }
+double EnergySummary::max_energy_ratio() const { return max_energy / reference(); }
+double EnergySummary::energy_drift() const { return max_balance_error / reference(); }
+
+std::unique_ptr<Simulation::Runner> Simulation::make(const Scene& scene, const RunOptions& options,
+                                                     const Checkpoint* resume) {
+  const int dim = scene.simulation.dimension;
+  if (dim >= 1 && dim <= 3) {
+    validate_scene(scene, dim); // a Scene built in code: every check of the reader, before the estimates
+    check_resources(scene);     // before anything is allocated
+  }
+  switch (scene.simulation.dimension) {
+  case 1: return std::make_unique<DimRunner<1>>(scene, options, resume);
+  case 2: return std::make_unique<DimRunner<2>>(scene, options, resume);
+  case 3: return std::make_unique<DimRunner<3>>(scene, options, resume);
+  default:
+    input_error(scene.locate("simulation.dimension"),
+                "dimension must be 1, 2 or 3, got " + std::to_string(scene.simulation.dimension));
+  }
+}
+
+Simulation::Simulation(const Scene& scene, const RunOptions& options) : run_(make(scene, options, nullptr)) {}
+Simulation::Simulation(const Checkpoint& checkpoint, const RunOptions& options)
+    : run_(make(checkpoint_scene(checkpoint), options, &checkpoint)) {}
+Simulation::Simulation(Simulation&&) noexcept = default;
+Simulation& Simulation::operator=(Simulation&&) noexcept = default;
+Simulation::~Simulation() = default;
+
+const Scene& Simulation::scene() const { return run_->scene; }
+int Simulation::dimension() const { return run_->dimension(); }
+double Simulation::time() const { return run_->time(); }
+double Simulation::t_end() const { return run_->scene.simulation.t_end; }
+long Simulation::steps() const { return run_->steps(); }
+bool Simulation::finished() const { return run_->finished || time() >= t_end() * (1.0 - time_slack); }
+bool Simulation::unstable() const { return run_->summary.exit_code == 1; }
+const std::string& Simulation::status() const { return run_->summary.status; }
+
+void Simulation::step() {
+  if (finished()) throw std::logic_error("Simulation::step: the run is finished (" + status() + ")");
+  run_->step();
+}
+
+void Simulation::advance_to(double t) {
+  while (!finished() && time() < t * (1.0 - time_slack)) step();
+}
+
+void Simulation::write_frame() { run_->write_frame(); }
+
+void Simulation::interrupt() { run_->interrupt(); }
+
+RunSummary Simulation::finish() {
+  run_->finish();
+  return run_->summary;
+}
+
+template <int D> Engine<D>& Simulation::engine() {
+  auto* r = dynamic_cast<DimRunner<D>*>(run_.get());
+  require<std::invalid_argument>(r != nullptr, "Simulation::engine<", D, ">: the run is ", dimension(), "D");
+  return r->e;
+}
+template <int D> const Engine<D>& Simulation::engine() const { return const_cast<Simulation*>(this)->engine<D>(); }
+
+template Engine<1>& Simulation::engine<1>();
+template Engine<2>& Simulation::engine<2>();
+template Engine<3>& Simulation::engine<3>();
+template const Engine<1>& Simulation::engine<1>() const;
+template const Engine<2>& Simulation::engine<2>() const;
+template const Engine<3>& Simulation::engine<3>() const;
+
+namespace {
+/// Steps a simulation to t_end; an instability ends it with its status, a
+/// request through options.interrupt (checked before each step) with status
+/// "interrupted" and a last checkpoint.
+RunSummary run_to_end(Simulation& sim, const RunOptions& options) {
+  try {
+    while (!sim.finished()) {
+      if (options.interrupt && options.interrupt->load()) {
+        sim.interrupt();
+        break;
+      }
+      sim.step();
+    }
+  } catch (const InstabilityError&) { // the status is in the summary
+  } catch (const OutputError&) {
+  }
+  return sim.finish();
+}
+
+/// The summary of a run whose result file could not even be created (no
+/// room for its first bytes) at step `step`, time `t` (0 for a new run, the
+/// checkpoint's for a restart): status "output error: ...", kOutputErrorExit.
+RunSummary not_started(const Scene& scene, const OutputError& err, long step, double t) {
+  RunSummary s;
+  s.mode = scene.simulation.mode;
+  s.integrator = scene.simulation.integrator;
+  s.basis = scene.basis.kind;
+  s.steps = step;
+  s.time = t;
+  s.status = "output error: " + diagnosis(err.what(), step, t);
+  s.exit_code = kOutputErrorExit;
+  return s;
+}
+} // namespace
+
+RunSummary run_scene(const Scene& scene, const RunOptions& options) {
+  std::optional<Simulation> sim;
+  try {
+    sim.emplace(scene, options);
+  } catch (const OutputError& err) {
+    return not_started(scene, err, 0, 0.0);
+  }
+  return run_to_end(*sim, options);
+}
+
+RunSummary restart_run(const Checkpoint& checkpoint, const RunOptions& options) {
+  std::optional<Simulation> sim;
+  try {
+    sim.emplace(checkpoint, options);
+  } catch (const OutputError& err) {
+    const StateGroup& g = checkpoint.group("engine");
+    return not_started(checkpoint_scene(checkpoint), err, static_cast<long>(g.integer("step")), g.real("t"));
+  }
+  return run_to_end(*sim, options);
+}
+
+std::string summary_line(const RunSummary& s) {
+  char buf[256];
+  std::snprintf(buf, sizeof buf, "%s %s %s: %ld steps, t = %.6g s, %.3f s wall, %.3g particle-steps/s",
+                s.mode.c_str(), s.integrator.c_str(), s.basis.c_str(), s.steps, s.time, s.wall_seconds,
+                s.particle_steps_per_second());
+  const char* head = s.interrupted                     ? "INTERRUPTED: "
+                     : s.exit_code == kOutputErrorExit ? "OUTPUT FAILED: "
+                     : s.exit_code != 0                ? "UNSTABLE: "
+                                                       : "ok: ";
+  std::string line = head + std::string(buf);
+  for (const auto& [name, value] : s.errors) {
+    std::snprintf(buf, sizeof buf, ", %s = %.4g", name.c_str(), value);
+    line += buf;
+  }
+  std::snprintf(buf, sizeof buf, ", max_energy_ratio = %.4g, energy_drift = %.3g", s.energy.max_energy_ratio(),
+                s.energy.energy_drift());
+  return line + buf;
+}
+
+} // namespace otmpm
