@@ -5,12 +5,17 @@
 
 namespace otmpm::bench {
 
+/// The material of the block: the model line and the model's own keys.
+inline const std::string kBlockLinearElastic = "model = \"linear_elastic\"";
+
 /// A 2D elastic block (plane strain, E = 10 MPa, rho = 1000, nu = 0.3) of
 /// `cells` x `cells` cells of the unit square with 2 x 2 particles per cell,
 /// inside a grid with two spare cells on each side, falling under gravity with
-/// its base fixed - every stage of a step runs.
+/// its base fixed - every stage of a step runs. `material`: the model line
+/// and its keys (default linear_elastic).
 inline std::string block_scene(int cells, const std::string& basis, const std::string& integrator,
-                               const std::string& mode, double gamma_lme) {
+                               const std::string& mode, double gamma_lme,
+                               const std::string& material = kBlockLinearElastic) {
   const double h = 1.0 / cells;
   char buf[2048];
   std::snprintf(buf, sizeof buf, R"(
@@ -29,7 +34,7 @@ upper = [%.17g, %.17g]
 cells = [%d, %d]
 [[material]]
 name = "m"
-model = "linear_elastic"
+%s
 density = 1000.0
 young = 1.0e7
 poisson = 0.3
@@ -49,7 +54,7 @@ fix = [true, true]
 value = [0.0, -9.81]
 )",
                 mode.c_str(), integrator.c_str(), basis.c_str(), gamma_lme, -2 * h, 0.0, 1 + 2 * h, 1 + 2 * h,
-                cells + 4, cells + 2, -2 * h, 1 + 2 * h);
+                cells + 4, cells + 2, material.c_str(), -2 * h, 1 + 2 * h);
   return buf;
 }
 

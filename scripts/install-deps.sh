@@ -12,7 +12,7 @@ set -euo pipefail
 pkgs=(
   build-essential cmake pkg-config
   libeigen3-dev libboost-dev libhdf5-dev hdf5-tools
-  libtomlplusplus-dev doctest-dev libcli11-dev
+  libtomlplusplus-dev doctest-dev libcli11-dev doxygen
   python3 python3-matplotlib python3-h5py python3-numpy python3-meshio
 )
 if [ -z "${OTMPM_NO_PARAVIEW:-}" ]; then

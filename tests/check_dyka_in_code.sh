@@ -3,6 +3,7 @@
 # velocity error of the same run from its scene file (examples/dyka.toml,
 # h = L/40), in mpm and ul mode: usage check_dyka_in_code.sh EXAMPLE OTMPM SOURCE_DIR
 set -euo pipefail
+export OMP_WAIT_POLICY=${OMP_WAIT_POLICY:-passive} # the examples do not set it as otmpm does (busy machines)
 example=$1 otmpm=$2 src=$3
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT

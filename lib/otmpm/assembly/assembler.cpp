@@ -18,12 +18,6 @@ namespace otmpm {
 
 namespace {
 
-template <int D> Vec<D> vec(const Vec3& v) {
-  Vec<D> out;
-  for (int k = 0; k < D; ++k) out[k] = v[k];
-  return out;
-}
-
 /// The grid spacing of the scene's grid per axis.
 template <int D> Vec<D> grid_spacing(const Scene& scene) {
   Vec<D> h;
@@ -143,7 +137,7 @@ std::vector<Traction<D>> build_tractions(const Scene& scene, const Particles<D>&
   std::vector<Traction<D>> out;
   for (const TractionSection& ts : scene.tractions) {
     Traction<D> load;
-    load.value = vec<D>(ts.value);
+    load.value = scene_vec<D>(ts.value);
     load.time = ts.time;
     load.value.cwiseAbs().maxCoeff(&load.axis);
     if (ts.function == "wobbes_traction_bar") load.axis = 0;
@@ -178,7 +172,7 @@ std::optional<BodyForce<D>> build_body_force(const Scene& scene, std::shared_ptr
   if (!scene.body_force && !mms) return std::nullopt;
   BodyForce<D> b;
   if (scene.body_force) {
-    b.value = vec<D>(scene.body_force->value);
+    b.value = scene_vec<D>(scene.body_force->value);
     b.time = scene.body_force->time;
   }
   if (mms) b.field = [exact](const Vec<D>& X, double t) { return exact->body_force(X, t); };
@@ -255,7 +249,7 @@ template <int D> EngineParts<D> assemble_parts(const Scene& scene) {
   const double h = grid.h().minCoeff();
   parts.dirichlet = build_dirichlet<D>(scene, parts.basis->nodes(), h, ul);
   for (const WallSection& w : scene.walls)
-    parts.walls.push_back({w.name, vec<D>(w.point), vec<D>(w.normal), vec<D>(w.velocity), w.friction});
+    parts.walls.push_back({w.name, scene_vec<D>(w.point), scene_vec<D>(w.normal), scene_vec<D>(w.velocity), w.friction});
   parts.loads.body_force = build_body_force<D>(scene, exact);
   parts.loads.tractions = build_tractions<D>(scene, P, h, exact);
   allocate_fields(scene, integrator, parts, P);

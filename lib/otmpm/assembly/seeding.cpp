@@ -21,12 +21,6 @@ namespace otmpm {
 
 namespace {
 
-template <int D> Vec<D> vec(const Vec3& v) {
-  Vec<D> out;
-  for (int k = 0; k < D; ++k) out[k] = v[k];
-  return out;
-}
-
 template <int D> bool inside_box(const Vec<D>& x, const Vec3& lo, const Vec3& hi) {
   for (int k = 0; k < D; ++k)
     if (x[k] < lo[k] || x[k] > hi[k]) return false;
@@ -54,9 +48,9 @@ template <int D> Index<D> box_cells(const BodySection& body, const Vec<D>& h) {
 
 /// The shape of a body (a file body: the cells of its particles).
 template <int D> std::unique_ptr<Shape<D>> body_shape(const BodySection& b, const ParticleFile* file) {
-  if (b.shape == "sphere") return make_sphere<D>(vec<D>(b.center), b.radius);
+  if (b.shape == "sphere") return make_sphere<D>(scene_vec<D>(b.center), b.radius);
   if constexpr (D == 3)
-    if (b.shape == "cylinder") return make_cylinder(vec<3>(b.center), vec<3>(b.axis), b.radius, b.length);
+    if (b.shape == "cylinder") return make_cylinder(scene_vec<3>(b.center), scene_vec<3>(b.axis), b.radius, b.length);
   if constexpr (D == 2)
     if (b.shape == "polygon") {
       std::vector<Vec<2>> v;
@@ -69,7 +63,7 @@ template <int D> std::unique_ptr<Shape<D>> body_shape(const BodySection& b, cons
       for (int k = 0; k < D; ++k) x[p][k] = file->x[static_cast<std::size_t>(p) * D + k];
     return std::make_unique<ParticleCells<D>>(x, file->volume);
   }
-  return make_box<D>(vec<D>(b.lower), vec<D>(b.upper));
+  return make_box<D>(scene_vec<D>(b.lower), scene_vec<D>(b.upper));
 }
 
 /// The particles of a shape on the cells of `lattice` that meet its bounds,
@@ -161,7 +155,7 @@ std::vector<Seed<D>> seed_body(const Scene& scene, int b, const Vec<D>& h, const
     const Index<D> cells = box_cells<D>(body, h);
     for (int k = 0; k < D; ++k) n *= static_cast<std::size_t>(cells[k]) * static_cast<std::size_t>(body.particles_per_cell);
     seeds.reserve(n); // no growth by doubling: peak memory
-    seed_box_cells<D>(vec<D>(body.lower), vec<D>(body.upper), box_cells<D>(body, h), body.particles_per_cell,
+    seed_box_cells<D>(scene_vec<D>(body.lower), scene_vec<D>(body.upper), box_cells<D>(body, h), body.particles_per_cell,
                       body.placement, [&](const Vec<D>& x, double V, const Vec<D>& extent) {
                         seeds.push_back({x, extent, V, b});
                       });
@@ -185,7 +179,7 @@ int material_index(const Scene& scene, const BodySection& body) {
 }
 
 template <int D> Vec<D> initial_body_velocity(const BodySection& body, const Vec<D>& x) {
-  Vec<D> v = vec<D>(body.velocity);
+  Vec<D> v = scene_vec<D>(body.velocity);
   if (body.velocity_profile && *body.velocity_profile == "sin_x") {
     const double s = (x[0] - body.lower[0]) / (body.upper[0] - body.lower[0]);
     v *= std::sin(std::numbers::pi * s);
@@ -212,7 +206,7 @@ template <int D> void store(const Scene& scene, const std::vector<Seed<D>>& seed
     P.length0[p] = sd.extent;
     P.v[p] = std::isnan(sd.v[0]) ? initial_body_velocity<D>(body, sd.x) : sd.v;
     for (const InitialVelocitySection& iv : scene.initial_velocities)
-      if (inside_box<D>(sd.x, iv.lower, iv.upper)) P.v[p] = vec<D>(iv.velocity);
+      if (inside_box<D>(sd.x, iv.lower, iv.upper)) P.v[p] = scene_vec<D>(iv.velocity);
   }
 }
 

@@ -10,6 +10,13 @@
 
 namespace otmpm {
 
+/// The first D components of a scene vector (scene values are stored with 3).
+template <int D> Vec<D> scene_vec(const Vec3& v) {
+  Vec<D> out;
+  for (int k = 0; k < D; ++k) out[k] = v[k];
+  return out;
+}
+
 /// Per-particle values of a particle file's column that is not a position,
 /// volume, velocity or density: the initial value of a material state
 /// variable of that name, for the particles of `body` (row = file_row[p]).

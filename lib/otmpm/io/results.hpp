@@ -1,7 +1,7 @@
 #pragma once
 /// \file results.hpp
 /// The HDF5 result file (docs/user-guide.md, "Result file"): root attributes, /frames/NNNNNN/
-/// groups of particle datasets, /probes/<name>/ histories, root-level time
+/// groups of particle datasets, `/probes/NAME/` histories, root-level time
 /// series (/energy/), and an .xdmf sidecar that ParaView opens (optionally
 /// also VTK files, vtk.hpp). Every frame is flushed to disk before the
 /// sidecar names it, so a run killed at any moment leaves a readable file
@@ -71,17 +71,17 @@ public:
   /// Appends /frames/NNNNNN with attribute time and the given fields; the
   /// field named "x" gives the point coordinates in the XDMF sidecar.
   void write_frame(double time, const std::vector<FieldView>& fields);
-  /// Appends one sample to /probes/<probe>/time and /probes/<probe>/<field>
+  /// Appends one sample to `/probes/PROBE/time` and `/probes/PROBE/FIELD`
   /// (extendible datasets, `values` components per sample).
   void append_probe(const std::string& probe, double time,
                     const std::vector<std::pair<std::string, std::vector<double>>>& values);
-  /// Appends one sample to the history /<group>/<name>/time and
-  /// /<group>/<name>/<field> (vector fields, as a probe; `group` is created
+  /// Appends one sample to the history `/GROUP/NAME/time` and
+  /// `/GROUP/NAME/FIELD` (vector fields, as a probe; `group` is created
   /// on first use, e.g. "walls"). append_probe is the group "probes".
   void append_group_sample(const std::string& group, const std::string& name, double time,
                            const std::vector<std::pair<std::string, std::vector<double>>>& values);
-  /// Appends one sample to the root-level time series /<series>/time and
-  /// /<series>/<field> (extendible rank-1 datasets, one scalar per field per
+  /// Appends one sample to the root-level time series `/SERIES/time` and
+  /// `/SERIES/FIELD` (extendible rank-1 datasets, one scalar per field per
   /// sample; e.g. /energy/kinetic). Flushed like a probe sample.
   void append_series(const std::string& series, double time,
                      const std::vector<std::pair<std::string, double>>& values);
