@@ -7,7 +7,7 @@
 // location found at start (D13), an instability at t = 0 (D7), names that
 // become HDF5 paths (D8), memory and step estimates (D11, D12), diagnosis
 // format (D18) and validate_scene for scenes built in code (D19).
-#include "otmpm/engine/run.hpp"
+#include "otmpm/run/run.hpp"
 #include "otmpm/io/checkpoint.hpp"
 #include "otmpm/io/output_files.hpp"
 #include "otmpm/io/results.hpp"
