@@ -245,7 +245,7 @@ TEST_CASE("D7: an instability at t = 0 prints the summary line, exits 1 and sets
   const CliResult r = otmpm_in(t, {"run", kDyka, "--quiet", "--out", "d7.h5", "--set", "body.bar.velocity=[1e300]"});
   expect_exit(r, 1);
   CHECK(has(r.out, "UNSTABLE: mpm npc lme: 0 steps, t = 0 s"));
-  CHECK(otmpm::read_string_attribute(t.file("d7.h5"), "status").rfind("unstable: step 0, t = 0: ", 0) == 0);
+  CHECK(otmpm::read_string_attribute(t.file("d7.h5"), "status").rfind("unstable: step 0, t = 0 s: ", 0) == 0);
 }
 
 TEST_CASE("D8: a probe name with '/', '.' or NUL exits 2 naming the key") {

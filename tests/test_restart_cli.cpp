@@ -38,6 +38,7 @@
 
 
 namespace fs = std::filesystem;
+using otmpm::test::CliResult;
 using otmpm::test::TempDir;
 
 namespace {

@@ -341,10 +341,10 @@ private:
 };
 
 /// A diagnosis that names step and time: `what` as it is when it does (the
-/// engine's start with "step N, t = T"), else prefixed with them.
+/// engine's start with "step N, t = T s"), else prefixed with them.
 std::string diagnosis(const std::string& what, long step, double t) {
   if (what.rfind("step ", 0) == 0) return what;
-  return "step " + std::to_string(step) + ", t = " + format_number(t) + ": " + what;
+  return "step " + std::to_string(step) + ", t = " + format_number(t) + " s: " + what;
 }
 
 double seconds_since(std::chrono::steady_clock::time_point start) {
