@@ -4,6 +4,7 @@
 #include "cli.hpp"
 
 #include "otmpm/basis/basis.hpp"
+#include "otmpm/scene/resources.hpp"
 #include "otmpm/scene/scene.hpp"
 
 #include <cmath>
@@ -50,6 +51,12 @@ void check(const BasisArgs& a) {
   if (std::pow(a.cells + 1.0, a.dim) > kMaxSceneNodes)
     throw InputError("--cells " + std::to_string(a.cells) + " in " + std::to_string(a.dim) + "D gives more than " +
                      std::to_string(static_cast<long long>(kMaxSceneNodes)) + " nodes");
+  // The node set must also fit in memory (about 1 kB per node with the basis' neighbour search, generously).
+  constexpr double kBytesPerNode = 1000;
+  const double bytes = std::pow(a.cells + 1.0, a.dim) * kBytesPerNode;
+  if (bytes > available_memory())
+    throw InputError("--cells " + std::to_string(a.cells) + " in " + std::to_string(a.dim) + "D needs about " +
+                     format_bytes(bytes) + " of memory; " + format_bytes(available_memory()) + " are available");
 }
 
 template <int D> int evaluate(BasisArgs a) {

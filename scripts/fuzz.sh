@@ -1,22 +1,31 @@
 #!/usr/bin/env bash
-# Fuzzes the scene reader with libFuzzer (clang from Debian), ASan and UBSan.
+# Fuzzes the scene reader and whole runs with libFuzzer (clang from Debian),
+# ASan and UBSan.
 #
-#   bash scripts/fuzz.sh [SECONDS]     (default 60)
+#   bash scripts/fuzz.sh [SECONDS] [RUN_SECONDS]     (defaults 60 and 30)
 #
 # Installs clang-14 and libclang-rt-14-dev if missing, builds build-fuzz/
-# (OTMPM_FUZZ=ON: only the library and the two targets) and runs
-# fuzz/fuzz_scene.cpp (scene text) for 3/4 of SECONDS and fuzz/fuzz_set.cpp
-# (--set overrides) for the rest, each with the dictionary fuzz/scene.dict. Seeds: every examples/**/*.toml and tests/scenes/**/*.toml
-# (copied into build-fuzz/seeds/ on each run) and fuzz/set.seeds; what the
-# fuzzer learns is kept in build-fuzz/corpus/ for the next run.
+# (OTMPM_FUZZ=ON: the library, the otmpm command and the three targets) and
+# runs fuzz/fuzz_scene.cpp (scene text) for 3/4 of SECONDS and
+# fuzz/fuzz_set.cpp (--set overrides) for the rest, each with the dictionary
+# fuzz/scene.dict, then fuzz/fuzz_run.cpp (short scenes run end to end by the
+# instrumented otmpm in a temporary directory, with fuzzed output, checkpoint
+# and probe settings) for RUN_SECONDS. Seeds: every examples/**/*.toml and
+# tests/scenes/**/*.toml (copied into build-fuzz/seeds/ on each run) and
+# fuzz/set.seeds; what the fuzzer learns is kept in build-fuzz/corpus/ for the
+# next run.
 # A finding - a crash, a sanitizer report, a leak, an input taking more than
-# 5 s or more than 2 GB of memory, an exception other than an InputError, an
-# InputError not starting with FILE:LINE: or --set KEY:, a resolved scene text
-# that does not read back to itself - makes the script print the saved input
-# and exit 1.
+# 5 s (60 s for fuzz_run) or more than 2 GB of memory, an exception other than
+# an InputError, an InputError not starting with FILE:LINE: or --set KEY:, a
+# resolved scene text that does not read back to itself; for fuzz_run an exit
+# status outside {0, 1, 2}, a signal, a result file unreadable or still
+# "running", a file otmpm was not told to replace changed, a lock file left
+# behind or a file outside the temporary directory touched - makes the script
+# print the saved input and exit 1.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 seconds=${1:-60}
+run_seconds=${2:-30}
 build=${OTMPM_FUZZ_BUILD_DIR:-$root/build-fuzz}
 cd "$root"
 
@@ -25,11 +34,13 @@ bash "$root/scripts/install-deps.sh" clang-14 libclang-rt-14-dev
 # OpenMP off: clang would need libomp, and the reader is serial anyway.
 CC=clang-14 CXX=clang++-14 cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DOTMPM_FUZZ=ON \
   -DOTMPM_OPENMP=OFF -DOTMPM_WERROR=ON -DOTMPM_BUILD_TESTS=OFF -DOTMPM_BUILD_BENCH=OFF >/dev/null
-cmake --build "$build" -j2 --target fuzz_scene fuzz_set
+cmake --build "$build" -j2 --target fuzz_scene fuzz_set fuzz_run otmpm_cli
 
 seeds=$build/seeds
 rm -rf "$seeds"
-mkdir -p "$seeds/fuzz_scene" "$seeds/fuzz_set" "$build/corpus/fuzz_scene" "$build/corpus/fuzz_set" "$build/findings"
+mkdir -p "$seeds/fuzz_scene" "$seeds/fuzz_set" "$seeds/fuzz_run" "$build/corpus/fuzz_scene" "$build/corpus/fuzz_set" \
+  "$build/corpus/fuzz_run" "$build/findings"
+for n in 0 1 2 3 4 5 6 7; do head -c 64 /dev/urandom > "$seeds/fuzz_run/seed_$n"; done
 find examples tests/scenes -name '*.toml' | while read -r f; do cp "$f" "$seeds/fuzz_scene/$(echo "$f" | tr / _)"; done
 n=0
 while IFS= read -r line; do
@@ -43,18 +54,23 @@ export OMP_NUM_THREADS=1
 
 # run TARGET SECONDS: fuzzes one target; returns libFuzzer's exit status.
 run() {
-  local target=$1 secs=$2
+  local target=$1 secs=$2 options=(-dict=fuzz/scene.dict -timeout=5)
+  [ "$target" = fuzz_run ] && options=(-timeout=60 -max_len=256)
   echo "== $target for $secs s"
-  "$build/fuzz/$target" "$build/corpus/$target" "$seeds/$target" -dict=fuzz/scene.dict \
-    -max_total_time="$secs" -timeout=5 -rss_limit_mb=2048 -print_final_stats=1 -print_funcs=0 \
+  "$build/fuzz/$target" "$build/corpus/$target" "$seeds/$target" "${options[@]}" \
+    -max_total_time="$secs" -rss_limit_mb=2048 -print_final_stats=1 -print_funcs=0 \
     -artifact_prefix="$build/findings/$target-"
 }
 
 scene_time=$(( seconds * 3 / 4 ))
 set_time=$(( seconds - scene_time ))
 status=0
-for target in fuzz_scene fuzz_set; do
-  if [ "$target" = fuzz_scene ]; then secs=$scene_time; else secs=$set_time; fi
+for target in fuzz_scene fuzz_set fuzz_run; do
+  case $target in
+    fuzz_scene) secs=$scene_time ;;
+    fuzz_set) secs=$set_time ;;
+    *) secs=$run_seconds ;;
+  esac
   run "$target" "$(( secs > 0 ? secs : 1 ))" || status=$?
   if [ "$status" -ne 0 ]; then
     input=$(ls -t "$build"/findings/"$target"-* 2>/dev/null | head -1)
@@ -63,4 +79,4 @@ for target in fuzz_scene fuzz_set; do
     exit 1
   fi
 done
-echo "fuzz: no finding in $seconds s"
+echo "fuzz: no finding in $seconds s of the scene reader and $run_seconds s of whole runs"

@@ -501,3 +501,23 @@ TEST_CASE("mpi: a j2 bar moving through the ranks into a wall: plastic state mig
   for (double e : f.data.back().at("plastic_strain").values) yielded = std::max(yielded, e);
   CHECK(yielded > 0.01);
 }
+
+TEST_CASE("mpi: output files are claimed once for all ranks: another scene's result file is refused, --force replaces it") {
+  TempDir dir("mpi_claim");
+  const std::string scene = (kExamples / "dyka.toml").string();
+  REQUIRE(run_otmpm(dir, 2, {"run", scene, "--quiet", "--out", "r.h5"}).status == 0);
+  const std::string id = string_attribute(dir.file("r.h5"), "run_id");
+  const Result other = run_otmpm(dir, 3, {"run", scene, "--quiet", "--out", "r.h5", "--set", "simulation.cfl=0.3"});
+  CHECK(other.status == 2);
+  CHECK(other.err ==
+        "otmpm: error: r.h5: the result file holds the results of another scene; otmpm replaces it only when told to "
+        "(otmpm run --force, RunOptions::force) - or move it away\n");
+  CHECK(string_attribute(dir.file("r.h5"), "run_id") == id); // untouched
+  const Result forced =
+      run_otmpm(dir, 3, {"run", scene, "--quiet", "--out", "r.h5", "--set", "simulation.cfl=0.3", "--force"});
+  REQUIRE_MESSAGE(forced.status == 0, forced.err);
+  CHECK(string_attribute(dir.file("r.h5"), "run_id") != id);
+  CHECK(string_attribute(dir.file("r.h5"), "status") == "ok");
+  for (const fs::directory_entry& f : fs::directory_iterator(dir.dir)) // no lock or probe file left
+    CHECK(f.path().filename().string().find("otmpm-") == std::string::npos);
+}

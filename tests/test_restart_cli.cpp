@@ -13,6 +13,7 @@
 #include "otmpm/io/hdf5.hpp"
 #include "otmpm/io/results.hpp"
 
+#include "cli_support.hpp"
 #include "temp_dir.hpp"
 
 #include <doctest/doctest.h>
@@ -35,9 +36,9 @@
 #include <thread>
 #include <vector>
 
-extern char** environ;
 
 namespace fs = std::filesystem;
+using otmpm::test::CliResult;
 using otmpm::test::TempDir;
 
 namespace {
@@ -50,44 +51,14 @@ const std::string kAllFields =
     "\"displacement\"]";
 
 
-/// Starts `otmpm ARGS` with one OpenMP thread, stdout to /dev/null and stderr
-/// to `err_file`; returns its pid.
+/// Starts `otmpm ARGS` (one OpenMP thread), stdout to /dev/null and stderr to `err_file`; returns its pid.
 pid_t spawn(const std::vector<std::string>& args, const std::string& err_file) {
-  ::setenv("OMP_NUM_THREADS", "1", 1); // results do not depend on it; a busy machine's timing does
-  std::vector<std::string> argv_s{kBinary};
-  argv_s.insert(argv_s.end(), args.begin(), args.end());
-  std::vector<char*> argv;
-  for (std::string& a : argv_s) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  posix_spawn_file_actions_t actions;
-  posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, "/dev/null", O_WRONLY, 0);
-  posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, err_file.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  pid_t pid = -1;
-  const int rc = posix_spawn(&pid, kBinary.c_str(), &actions, nullptr, argv.data(), environ);
-  posix_spawn_file_actions_destroy(&actions);
-  REQUIRE(rc == 0);
-  return pid;
+  return otmpm::test::spawn_process(kBinary, args, "/dev/null", err_file);
 }
 
-struct CliResult {
-  int status = -1;
-  std::string err;
-};
-
 /// Runs `otmpm ARGS` to completion: exit status and stderr.
-CliResult run_cli(const TempDir& dir, const std::vector<std::string>& args) {
-  const std::string err_file = dir.file("stderr.txt");
-  const pid_t pid = spawn(args, err_file);
-  int wstatus = 0;
-  REQUIRE(waitpid(pid, &wstatus, 0) == pid);
-  CliResult r;
-  r.status = WIFEXITED(wstatus) ? WEXITSTATUS(wstatus) : -1;
-  std::ifstream in(err_file);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  r.err = ss.str();
-  return r;
+otmpm::test::CliResult run_cli(const TempDir& dir, const std::vector<std::string>& args) {
+  return otmpm::test::run_process(kBinary, args, dir.dir);
 }
 
 /// Everything in an HDF5 file by path ("/frames/000003/x", "/@steps"): the
@@ -95,8 +66,10 @@ CliResult run_cli(const TempDir& dir, const std::vector<std::string>& args) {
 /// wall times, which differ between any two runs.
 using Snapshot = std::map<std::string, std::string>;
 
+/// Attributes that differ between any two runs: wall times, and the run id
+/// (an interrupted and restarted run keeps its id; the uninterrupted run has its own).
 bool is_wall_time(const std::string& attribute) {
-  return attribute == "wall_seconds" || attribute.rfind("seconds_", 0) == 0;
+  return attribute == "wall_seconds" || attribute.rfind("seconds_", 0) == 0 || attribute == "run_id";
 }
 
 template <class T> std::string bytes_of(const T* data, std::size_t n) {
@@ -125,9 +98,15 @@ void snapshot_group(hid_t group, const std::string& path, const std::string& fil
       snapshot_group(object, child, file, s);
     } else {
       snapshot_attributes(object, child, file, s);
-      const auto m = otmpm::h5::read_double_matrix(group, name, file);
-      const hsize_t shape[2] = {m.rows, m.cols};
-      s[child] = bytes_of(shape, 2) + bytes_of(m.values.data(), m.values.size());
+      if (otmpm::h5::dataset_class(group, name, file) == H5T_INTEGER) { // the sidecar's vertex ids
+        const auto m = otmpm::h5::read_integer_matrix(group, name, file);
+        const hsize_t shape[2] = {m.rows, m.cols};
+        s[child] = bytes_of(shape, 2) + bytes_of(m.values.data(), m.values.size());
+      } else {
+        const auto m = otmpm::h5::read_double_matrix(group, name, file);
+        const hsize_t shape[2] = {m.rows, m.cols};
+        s[child] = bytes_of(shape, 2) + bytes_of(m.values.data(), m.values.size());
+      }
     }
     H5Oclose(object);
   }
@@ -176,17 +155,7 @@ std::int64_t checkpoint_integer(const std::string& file, const std::string& grou
   return v;
 }
 
-/// Waits until `path` exists; false if the process `pid` ended first or after `limit`.
-bool wait_for_file(const std::string& path, pid_t pid, std::chrono::seconds limit) {
-  const auto end = std::chrono::steady_clock::now() + limit;
-  while (std::chrono::steady_clock::now() < end) {
-    if (fs::exists(path)) return true;
-    int wstatus = 0;
-    if (waitpid(pid, &wstatus, WNOHANG) == pid) return false;
-    std::this_thread::sleep_for(std::chrono::milliseconds(1));
-  }
-  return false;
-}
+using otmpm::test::wait_for_file;
 
 std::vector<std::string> with(std::vector<std::string> args, const std::vector<std::string>& more) {
   args.insert(args.end(), more.begin(), more.end());
@@ -222,7 +191,7 @@ TEST_CASE("otmpm run killed by SIGKILL and restarted equals an uninterrupted run
   CHECK(written >= static_cast<std::size_t>(frames));
 
   // Restart from the checkpoint alone: the result file is continued in place.
-  const CliResult r = run_cli(dir, {"run", "--restart", checkpoint, "--quiet"});
+  const otmpm::test::CliResult r = run_cli(dir, {"run", "--restart", checkpoint, "--quiet"});
   INFO(r.err);
   REQUIRE(r.status == 0);
   check_same_results(full, run);
@@ -251,7 +220,7 @@ TEST_CASE("a completed run restarted from its last checkpoint rewrites the later
   const std::string checkpoint = dir.file("plate.checkpoint.h5");
   REQUIRE(checkpoint_integer(checkpoint, "engine", "step") == 30);
   CHECK(frame_count(full) > static_cast<std::size_t>(checkpoint_integer(checkpoint, "recorder", "frames")));
-  const CliResult r = run_cli(dir, {"run", "--restart", checkpoint, "--out", again, "--quiet"});
+  const otmpm::test::CliResult r = run_cli(dir, {"run", "--restart", checkpoint, "--out", again, "--quiet"});
   INFO(r.err);
   REQUIRE(r.status == 0);
   check_same_results(full, again);
@@ -268,7 +237,7 @@ TEST_CASE("restart errors: exit status 2 and a message naming the file or option
   REQUIRE(fs::exists(checkpoint));
 
   auto expect_error = [&](const std::vector<std::string>& args, const std::string& text) {
-    const CliResult r = run_cli(dir, args);
+    const otmpm::test::CliResult r = run_cli(dir, args);
     INFO(r.err);
     CHECK(r.status == 2);
     CHECK(r.err.find(text) != std::string::npos);

@@ -51,6 +51,9 @@ void check_same(const Scene& a, const Scene& b) {
   if (!s.dt) CHECK(s.cfl == t.cfl);
   CHECK(s.mass_tolerance == t.mass_tolerance);
   CHECK(s.energy_limit == t.energy_limit);
+  CHECK(s.max_steps == t.max_steps);
+  CHECK(s.memory_limit == t.memory_limit);
+  CHECK(a.output.formats == b.output.formats);
   CHECK(a.basis.kind == b.basis.kind);
   CHECK(a.basis.gamma_lme == b.basis.gamma_lme);
   CHECK(a.basis.tolerance == b.basis.tolerance);
@@ -175,9 +178,12 @@ TEST_CASE("to_toml: the keys a file may leave out or set in rarer forms read bac
                               "body_force={value = [0.0, -9.81], time = {kind = \"ramp\", period = 1e-5}}",
                               "output.probes=[{name = \"P\", particle = \"nearest\", at = [0.01, 0.002]}]",
                               "output.checkpoint_every=10", "output.checkpoint_file=c.h5",
-                              "simulation.mass=consistent", "body.0.velocity_profile=sin_x"});
+                              "simulation.mass=consistent", "body.0.velocity_profile=sin_x",
+                              "simulation.max_steps=5e5", "simulation.memory_limit=2e9",
+                              "output.format=[\"hdf5\", \"vtu\"]"});
   REQUIRE(a.simulation.dt.has_value());
   REQUIRE(a.body_force.has_value());
+  REQUIRE(a.output.formats.size() == 2);
   const Scene b = parse_scene(to_toml(a), "to_toml.toml");
   check_same(a, b);
 }

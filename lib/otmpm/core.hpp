@@ -1,8 +1,9 @@
 #pragma once
 /// \file core.hpp
 /// Types shared by every part of otmpm: fixed-size Eigen vectors templated on
-/// the spatial dimension D (1, 2, 3), the three kinds of error that the
-/// command line turns into exit statuses (InputError -> 2, InstabilityError -> 1),
+/// the spatial dimension D (1, 2, 3), the kinds of error that the command
+/// line turns into exit statuses (InputError -> 2, InstabilityError -> 1,
+/// OutputError -> 4),
 /// and require(), the one-line argument check that throws them with context.
 ///
 /// Which exception means what (docs/architecture.md, "Errors and argument checks"):
@@ -16,6 +17,8 @@
 ///  - BasisError: a basis cannot be evaluated at a point (also a non-finite one).
 ///  - InstabilityError: the state of a run stopped making sense (NaN/Inf,
 ///    det F <= 0, an inverted knot vector, runaway energy).
+///  - OutputError: a result or checkpoint file could not be written (disk
+///    full, file size limit, quota, I/O error); a run stops with exit code 4.
 #include <Eigen/Core>
 #include <Eigen/LU>
 #include <Eigen/StdVector>
@@ -82,6 +85,15 @@ public:
 class InstabilityError : public std::runtime_error {
 public:
   explicit InstabilityError(const std::string& what) : std::runtime_error(what) {}
+};
+
+/// The results could not be written: no space left on the device, a file
+/// size limit (`ulimit -f`), a disk quota or an I/O error. The message names
+/// the file and the cause. A run stops at the output that failed and reports
+/// exit code 4 (RunSummary::exit_code); everything written before is kept.
+class OutputError : public std::runtime_error {
+public:
+  explicit OutputError(const std::string& what) : std::runtime_error(what) {}
 };
 
 /// Formats a number with nine significant digits ("%.9g") for error messages.

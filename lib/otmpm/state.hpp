@@ -56,6 +56,7 @@ struct StateGroup {
 struct Checkpoint {
   std::string file;  ///< where it was read from (messages)
   std::string scene; ///< the effective scene text (after --set)
+  std::string run_id; ///< the run's id (io/output_files.hpp), also in its result file; "": write_checkpoint draws one
   int dimension = 0;
   std::map<std::string, StateGroup> groups;
 

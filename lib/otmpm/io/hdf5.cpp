@@ -1,14 +1,143 @@
 // HDF5 C API helpers shared by the result and checkpoint files (see hdf5.hpp).
 #include "otmpm/io/hdf5.hpp"
 
+#include "otmpm/core.hpp"
+
+#include <fcntl.h>
+#include <sys/resource.h>
+#include <sys/stat.h>
+#include <sys/statvfs.h>
+
+#include <atomic>
+#include <cerrno>
+#include <cstdlib>
+#include <cstring>
 #include <stdexcept>
 
 namespace otmpm::h5 {
 
+namespace {
+
+/// Set once HDF5 failed to write a file (see hdf5.hpp).
+std::atomic<bool> write_failure{false};
+
+/// The library's replacement of HDF5's own exit handler: H5close() unless a
+/// write failed, after which HDF5 1.10 crashes closing the damaged file.
+void close_library_at_exit() {
+  if (!write_failure.load()) H5close();
+}
+
+/// Installs close_library_at_exit() when libotmpm is loaded. H5dont_atexit()
+/// only takes effect before HDF5 initialises itself; if something already
+/// did, HDF5 keeps its own handler and nothing changes.
+[[maybe_unused]] const bool exit_handler_installed = [] {
+  if (H5dont_atexit() < 0) return false;
+  return std::atexit(close_library_at_exit) == 0;
+}();
+
+/// H5Ewalk2 callback: keeps the text after "error message = '" of the
+/// innermost error that has one (the system error of a failed read or write).
+herr_t find_system_error(unsigned, const H5E_error2_t* error, void* out) {
+  const std::string desc = error && error->desc ? error->desc : "";
+  const std::string key = "error message = '";
+  const auto at = desc.find(key);
+  if (at != std::string::npos) {
+    const auto start = at + key.size();
+    *static_cast<std::string*>(out) = desc.substr(start, desc.find('\'', start) - start);
+  }
+  return 0;
+}
+
+} // namespace
+
 void silence() { H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr); }
 
+std::string system_error() {
+  std::string text;
+  H5Ewalk2(H5E_DEFAULT, H5E_WALK_UPWARD, find_system_error, &text);
+  return text;
+}
+
+void note_write_failure() { write_failure.store(true); }
+
+bool write_failed() { return write_failure.load(); }
+
+void output_failure(const std::string& path, const std::string& what) {
+  const std::string cause = system_error();
+  note_write_failure();
+  throw OutputError(path + ": cannot " + what + ": " + (cause.empty() ? "HDF5 reported a write error" : cause) +
+                    " (the disk may be full or a file size limit reached)");
+}
+
+int file_descriptor(hid_t file, const std::string& path) {
+  void* handle = nullptr;
+  checked_status(H5Fget_vfd_handle(file, H5P_DEFAULT, &handle), path, "find the file descriptor");
+  if (!handle) fail(path, "find the file descriptor");
+  return *static_cast<int*>(handle);
+}
+
+namespace {
+
+/// OutputError for a reservation that failed: the file, its size, the request and the cause.
+[[noreturn]] void no_room(const std::string& path, std::uint64_t size, std::uint64_t bytes, const std::string& cause) {
+  throw OutputError(path + ": " + cause + ": the next output needs about " + std::to_string(bytes) + " bytes" +
+                    (size > 0 ? " beyond the file's " + std::to_string(size) : std::string()) +
+                    "; the files keep everything written before");
+}
+
+/// Bytes free for this process on the file system of `vfs`.
+std::uint64_t available(const struct statvfs& vfs) { return static_cast<std::uint64_t>(vfs.f_bavail) * vfs.f_frsize; }
+
+/// The statvfs fallback of reserve_space for file systems without fallocate.
+void check_free_space(int fd, std::uint64_t size, std::uint64_t bytes, const std::string& path) {
+  struct statvfs vfs {};
+  if (::fstatvfs(fd, &vfs) != 0) return; // nothing known: let the write report it
+  if (available(vfs) < bytes)
+    no_room(path, size, bytes, "only " + std::to_string(available(vfs)) + " bytes are free on its file system");
+}
+
+/// no_room when a file of `size` + `bytes` bytes would exceed RLIMIT_FSIZE.
+void check_file_size_limit(std::uint64_t size, std::uint64_t bytes, const std::string& path) {
+  struct rlimit limit {};
+  if (::getrlimit(RLIMIT_FSIZE, &limit) == 0 && limit.rlim_cur != RLIM_INFINITY &&
+      size + bytes > static_cast<std::uint64_t>(limit.rlim_cur))
+    no_room(path, size, bytes,
+            "the file size limit of this process (RLIMIT_FSIZE, ulimit -f) is " + std::to_string(limit.rlim_cur) +
+                " bytes");
+}
+
+} // namespace
+
+void require_room(const std::string& path, std::uint64_t bytes, std::uint64_t largest) {
+  check_file_size_limit(0, largest, path);
+  std::string dir = path.substr(0, path.rfind('/') == std::string::npos ? 0 : path.rfind('/') + 1);
+  if (dir.empty()) dir = ".";
+  struct statvfs vfs {};
+  if (::statvfs(dir.c_str(), &vfs) == 0 && available(vfs) < bytes)
+    no_room(path, 0, bytes, "only " + std::to_string(available(vfs)) + " bytes are free on its file system");
+}
+
+void check_room(int fd, std::uint64_t bytes, const std::string& path) {
+  struct stat st {};
+  if (::fstat(fd, &st) != 0) return;
+  const auto size = static_cast<std::uint64_t>(st.st_size);
+  check_file_size_limit(size, bytes, path);
+  check_free_space(fd, size, bytes, path);
+}
+
+void reserve_space(int fd, std::uint64_t bytes, const std::string& path) {
+  check_room(fd, bytes, path);
+  struct stat st {};
+  if (::fstat(fd, &st) != 0) return;
+  if (::fallocate(fd, FALLOC_FL_KEEP_SIZE, st.st_size, static_cast<off_t>(bytes)) == 0) return;
+  const int err = errno;
+  if (err == ENOSPC || err == EDQUOT || err == EFBIG)
+    no_room(path, static_cast<std::uint64_t>(st.st_size), bytes, std::strerror(err));
+  // EOPNOTSUPP, ENOSYS, EINVAL: no fallocate on this file system; check_room was all we could do.
+}
+
 void fail(const std::string& path, const std::string& what) {
-  throw std::runtime_error(path + ": HDF5 could not " + what);
+  throw Failure(path + ": HDF5 could not " + what);
 }
 
 hid_t checked(hid_t id, const std::string& path, const std::string& what) {

@@ -4,11 +4,19 @@
 /// (results.cpp) and the checkpoint file (checkpoint.cpp): an owning handle,
 /// checks that turn a failed call into an exception naming the file, groups,
 /// scalar attributes and 2D datasets of doubles or 64-bit integers. Writing
-/// failures throw std::runtime_error ("PATH: HDF5 could not WHAT"); callers
+/// failures throw h5::Failure, a std::runtime_error ("PATH: HDF5 could not WHAT"); callers
 /// that read user-supplied files turn them into InputError.
+///
+/// Output that cannot be written (no space left, a file size limit) is an
+/// OutputError (core.hpp): reserve_space() finds it before HDF5 writes, and a
+/// write HDF5 reports as failed afterwards is turned into one by
+/// output_failure(). After such a failure HDF5 1.10 crashes when it closes the
+/// file again at exit (H5close from its atexit handler), so the library
+/// replaces that handler by one that skips H5close once a write failed.
 #include <hdf5.h>
 
 #include <cstdint>
+#include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
@@ -33,6 +41,9 @@ public:
   }
   hid_t get() const { return id_; }
   bool valid() const { return id_ >= 0; }
+  /// Gives up ownership without closing (a file HDF5 failed to write, which
+  /// closing would only try to write again).
+  void release() { id_ = H5I_INVALID_HID; }
   /// Closes now and reports whether the close succeeded (a file's last flush).
   bool close() {
     const hid_t id = id_;
@@ -45,11 +56,57 @@ private:
   herr_t (*close_)(hid_t) = nullptr;
 };
 
+/// A failed HDF5 call (thrown by fail() and the checks below).
+class Failure : public std::runtime_error {
+public:
+  explicit Failure(const std::string& what) : std::runtime_error(what) {}
+};
+
 /// Silences HDF5's default printing of its error stack: errors become
 /// exceptions with context instead.
 void silence();
 
-/// Throws std::runtime_error "PATH: HDF5 could not WHAT".
+/// The system error HDF5 recorded for the last failed call ("No space left on
+/// device", "File too large", ...), or "" when its error stack has none.
+std::string system_error();
+
+/// Records that HDF5 failed to write a file (after which closing it again
+/// may crash HDF5): the library's exit handler then skips H5close.
+void note_write_failure();
+/// True after note_write_failure().
+bool write_failed();
+
+/// Throws OutputError "PATH: cannot WHAT: SYSTEM ERROR (...)" for a failed
+/// write, after note_write_failure().
+[[noreturn]] void output_failure(const std::string& path, const std::string& what);
+
+/// The POSIX file descriptor of a file opened with HDF5's default (sec2) driver.
+int file_descriptor(hid_t file, const std::string& path);
+
+/// Makes sure `bytes` more bytes can be written to the open file `fd`
+/// (named `path` in messages) before anything is: the file must stay under
+/// the file size limit (RLIMIT_FSIZE, `ulimit -f`) and the bytes must be free
+/// on its file system (statvfs, as available to this user). Space another
+/// process takes meanwhile, or a disk quota, is not foreseen: the write then
+/// fails and output_failure() reports it. Throws OutputError naming the
+/// file, the limit and the sizes when the bytes do not fit.
+void check_room(int fd, std::uint64_t bytes, const std::string& path);
+
+/// Allocates the first `bytes` bytes beyond the end of the open file `fd` on
+/// the device (fallocate with FALLOC_FL_KEEP_SIZE: quota and free space are
+/// taken now, so the writes that follow cannot fail for lack of either),
+/// after check_room(). For a file written once and closed (a checkpoint's
+/// temporary): HDF5 truncates files to its end of allocation at every flush,
+/// which for a file kept open makes the flush slower. OutputError like check_room.
+void reserve_space(int fd, std::uint64_t bytes, const std::string& path);
+
+/// Makes sure the files written beside one (the XDMF sidecar, the VTK files)
+/// will fit: `bytes` in all must be free on the file system of `path`, and
+/// the largest of them, `largest`, must fit under RLIMIT_FSIZE. OutputError
+/// naming `path` otherwise.
+void require_room(const std::string& path, std::uint64_t bytes, std::uint64_t largest);
+
+/// Throws Failure "PATH: HDF5 could not WHAT".
 [[noreturn]] void fail(const std::string& path, const std::string& what);
 /// Returns id, or fails when it is negative.
 hid_t checked(hid_t id, const std::string& path, const std::string& what);

@@ -2,21 +2,27 @@
 // Layout: root attributes; /frames/NNNNNN groups (attribute `time`, one
 // rows x cols double dataset per particle field); /probes/<name>/time and
 // /probes/<name>/<field> extendible histories; root-level series such as
-// /energy/time and /energy/<field>. The file is flushed after every frame and
-// history sample and the sidecar is replaced atomically afterwards, so
-// a run killed between two writes leaves a consistent pair of files.
+// /energy/time and /energy/<field>; /xdmf/vertices_N, the connectivity of the
+// sidecar's Polyvertex topology. The file is flushed after every frame and
+// history sample and the sidecar is replaced atomically afterwards, so a run
+// killed between two writes leaves a consistent pair of files. Space for
+// each write is reserved before HDF5 writes it (h5::reserve_space), so a full
+// disk or a file size limit stops the output cleanly.
 #include "otmpm/io/results.hpp"
 
 #include "otmpm/core.hpp"
 #include "otmpm/io/hdf5.hpp"
+#include "otmpm/io/output_files.hpp"
+#include "otmpm/io/text_files.hpp"
+#include "otmpm/io/vtk.hpp"
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <map>
+#include <numeric>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -29,10 +35,11 @@ using h5::Handle;
 using h5::write_attribute;
 using h5::write_matrix;
 using h5::write_string_attribute;
+using text::xml_escape;
 
 namespace {
 
-/// Longest wall time between two rewrites of the XDMF sidecar.
+/// Longest wall time between two rewrites of the XDMF sidecar (and the .pvd).
 constexpr std::chrono::milliseconds kXdmfInterval{250};
 
 /// Rows per chunk of the extendible probe datasets (one row per sample).
@@ -41,6 +48,16 @@ constexpr hsize_t kProbeChunkRows = 256;
 constexpr int kXdmfSpaceDim = 3;
 /// Name of the zero-padded copy of a 1D `x` that the sidecar uses as XYZ geometry.
 constexpr const char* kPaddedX = "x3";
+/// The group of the sidecar's connectivity datasets (vertices_N: 0 .. N-1).
+constexpr const char* kXdmfGroup = "xdmf";
+/// Bytes of HDF5 metadata allowed per dataset or group written (object
+/// header, link, B-tree and heap growth) when reserving space.
+constexpr std::uint64_t kMetadataBytes = 4096;
+/// Bytes always kept in reserve beyond the next write, so that the final
+/// status and summary attributes fit after an output was refused.
+constexpr std::uint64_t kFinalReserve = 64 * 1024;
+/// Longest name of a field, probe or series.
+constexpr std::size_t kMaxNameBytes = 255;
 
 /// Creates an extendible dataset of 0 x cols doubles (rank 1 when cols == 0).
 void create_history(hid_t parent, const std::string& name, hsize_t cols, const std::string& path) {
@@ -77,8 +94,8 @@ void append_row(hid_t parent, const std::string& name, hsize_t row, hsize_t cols
 }
 
 void check_name(const std::string& name, const std::string& what) {
-  if (name.empty() || name.find('/') != std::string::npos || name == ".")
-    throw std::invalid_argument("result file: invalid " + what + " name '" + name + "'");
+  const std::string why = invalid_name_reason(name);
+  if (!why.empty()) throw std::invalid_argument("result file: invalid " + what + " name '" + name + "': " + why);
 }
 
 /// A field's rows x cols must describe its data: rows >= 0, cols >= 1, data
@@ -97,28 +114,8 @@ void check_field_shape(const FieldView& f, int dimension, const std::string& pat
 void check_finite(const double* data, std::size_t n, const std::string& where) {
   for (std::size_t i = 0; i < n; ++i)
     if (!std::isfinite(data[i]))
-      throw InstabilityError(where + ": entry " + std::to_string(i) + " is not finite (" + std::to_string(data[i]) +
+      throw InstabilityError(where + ": entry " + std::to_string(i) + " is not finite (" + format_number(data[i]) +
                              "); it is not written to the result file");
-}
-
-std::string xml_escape(const std::string& s) {
-  std::string out;
-  for (char c : s) {
-    switch (c) {
-    case '&': out += "&amp;"; break;
-    case '<': out += "&lt;"; break;
-    case '>': out += "&gt;"; break;
-    case '"': out += "&quot;"; break;
-    default: out += c;
-    }
-  }
-  return out;
-}
-
-std::string format_double(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.17g", x);
-  return buf;
 }
 
 std::string frame_name(int index) {
@@ -136,6 +133,9 @@ const char* xdmf_attribute_type(int cols, int dimension) {
   return "Matrix";
 }
 
+/// The dataset holding the connectivity 0 .. points-1 of a Polyvertex topology.
+std::string vertices_name(int points) { return "vertices_" + std::to_string(points); }
+
 /// What the sidecar needs to know about one written frame.
 struct FrameInfo {
   std::string group;      ///< "/frames/000012"
@@ -152,7 +152,31 @@ struct ProbeInfo {
   std::vector<std::pair<std::string, hsize_t>> fields;
 };
 
+/// The bytes a frame's datasets hold, with their metadata.
+std::uint64_t frame_bytes(const std::vector<FieldView>& fields, int dimension) {
+  std::uint64_t bytes = 2 * kMetadataBytes; // the group, the sidecar's vertices
+  for (const FieldView& f : fields) {
+    const std::uint64_t values = static_cast<std::uint64_t>(f.rows) * static_cast<std::uint64_t>(f.cols);
+    bytes += values * sizeof(double) + kMetadataBytes;
+    if (f.name == "x" && dimension == 1) bytes += values * kXdmfSpaceDim * sizeof(double) + kMetadataBytes;
+    if (f.name == "x") bytes += static_cast<std::uint64_t>(f.rows) * sizeof(std::int64_t);
+  }
+  return bytes;
+}
+
 } // namespace
+
+std::string invalid_name_reason(const std::string& name) {
+  if (name.empty()) return "it is empty";
+  if (name.size() > kMaxNameBytes) return "it is longer than " + std::to_string(kMaxNameBytes) + " bytes";
+  for (unsigned char c : name) {
+    if (c == '/') return "it contains '/' (an HDF5 path separator)";
+    if (c == '.') return "it contains '.' (a --set key separator; '.' and '..' are HDF5 path components)";
+    if (c < 0x20 || c == 0x7f) return "it contains a control character (code " + std::to_string(c) + ")";
+  }
+  if (name.front() == ' ' || name.back() == ' ') return "it starts or ends with a space";
+  return "";
+}
 
 struct ResultWriter::Impl {
   ParallelIo parallel;
@@ -162,13 +186,19 @@ struct ResultWriter::Impl {
   Handle file;
   Handle frames;
   Handle probes;
+  Handle xdmf_group;
   std::map<std::string, Handle> groups; ///< groups of histories (probes, walls), created on first use
   std::string path;
   std::string xdmf_path;
   std::string h5_name; ///< the .h5 file name as the sidecar refers to it (same directory)
+  std::string run_id;
   int dimension = 0;
+  int fd = -1;          ///< the file's descriptor (space reservations)
+  bool broken = false;  ///< an HDF5 write failed: the file is left alone from then on
   std::vector<FrameInfo> frame_infos;
   std::map<std::string, ProbeInfo> probe_infos; ///< by path: "probes/<name>" or a root series name
+  std::set<int> vertex_counts;                  ///< the vertices_N datasets written
+  std::unique_ptr<VtkSeriesWriter> vtk;
 
   /// Appends one sample to the histories of group `name` under `parent`
   /// (created with its datasets on the first sample; later samples must have
@@ -189,58 +219,128 @@ struct ResultWriter::Impl {
     h5::write_rows(g, name, total, static_cast<hsize_t>(f.cols), whole ? 0 : static_cast<hsize_t>(f.first_row), rows,
                    data, dxpl(), path);
   }
-  /// Rewrites the sidecar if `force` or if the last rewrite is older than
-  /// kXdmfInterval: the sidecar is O(frames) long, so rewriting it for every
-  /// frame would cost O(frames^2). It only ever names flushed frames.
+  /// Rewrites the sidecar (and the .pvd) if `force` or if the last rewrite is
+  /// older than kXdmfInterval: the sidecar is O(frames) long, so rewriting it
+  /// for every frame would cost O(frames^2). It only ever names flushed frames.
   void publish_xdmf(bool force);
   std::chrono::steady_clock::time_point xdmf_written{};
   std::size_t xdmf_frames = 0;
   FrameInfo describe_frame(const std::string& group, double time, const std::vector<FieldView>& fields) const;
+  /// Writes /xdmf/vertices_N unless it exists.
+  void write_vertices(int points);
+
+  /// Size of the last sidecar written and the frames it named (its growth per frame).
+  mutable std::uint64_t xdmf_bytes = 0, xdmf_bytes_frames = 0;
+
+  /// Checks that `bytes` (plus kFinalReserve) fit beyond the end of the file
+  /// before they are written (h5::check_room), and that the sidecars
+  /// (written as a temporary beside the old one) and `beside` bytes of VTK
+  /// frame fit too: OutputError when they do not. (The result file's space
+  /// is not allocated ahead with fallocate: HDF5 truncates the file at every
+  /// flush, and freeing preallocated blocks there widened the moment in which
+  /// a killed run leaves a "truncated file" from microseconds to milliseconds.)
+  void reserve(std::uint64_t bytes, std::uint64_t beside = 0) const {
+    if (fd < 0) return;
+    h5::check_room(fd, bytes + kFinalReserve, path);
+    const std::uint64_t per_frame = xdmf_bytes_frames > 0 ? xdmf_bytes / xdmf_bytes_frames + 1 : kMetadataBytes;
+    const std::uint64_t sidecar = kMetadataBytes + (frame_infos.size() + 2) * per_frame;
+    h5::require_room(xdmf_path, 2 * sidecar * (vtk ? 2 : 1) + beside, std::max(sidecar, beside));
+  }
+
+  /// Runs `write`, which writes to the HDF5 file. An HDF5 failure marks the
+  /// file broken and becomes an OutputError (h5::output_failure); a broken
+  /// file is not written again.
+  template <class Write> void guarded(const std::string& what, Write&& write) {
+    if (broken) throw OutputError(path + ": cannot " + what + ": an earlier write to the file failed");
+    try {
+      write();
+    } catch (const h5::Failure& e) {
+      broken = true;
+      h5::output_failure(path, what + " (" + e.what() + ")");
+    }
+  }
 };
 
-ResultWriter::ResultWriter(const std::string& path, const std::string& scene_text, int dimension, ParallelIo parallel)
+ResultWriter::ResultWriter(const std::string& path, const std::string& scene_text, int dimension,
+                           const ResultOptions& options, ParallelIo parallel)
     : impl_(std::make_unique<Impl>()), path_(path) {
   h5::silence();
   require(!path.empty(), "ResultWriter: the result file path is empty");
   require<std::invalid_argument>(dimension >= 1 && dimension <= kXdmfSpaceDim, path,
                                  ": ResultWriter: dimension must be 1, 2 or 3, got ", dimension);
+  const OutputFiles files = output_files(path, "", options.vtk_format);
+  check_distinct(files); // the sidecar is never the result file, even through a link
   Impl& m = *impl_;
   m.parallel = std::move(parallel);
   m.path = path;
   m.dimension = dimension;
-  m.xdmf_path = std::filesystem::path(path).replace_extension(".xdmf").string();
+  m.run_id = options.run_id.empty() ? new_run_id() : options.run_id;
+  m.xdmf_path = files.xdmf;
   m.h5_name = std::filesystem::path(path).filename().string();
+  // Replaced by a new file, not truncated: a reader holding the old one open
+  // (ParaView, h5py) keeps reading it and does not block the run.
+  std::error_code ec;
+  if (m.root() && (std::filesystem::symlink_status(path, ec).type() == std::filesystem::file_type::regular ||
+                   std::filesystem::is_symlink(path, ec)))
+    std::filesystem::remove(path, ec);
+  if (m.parallel.all) m.parallel.all(true); // the other ranks create the file after the root removed the old one
   // The 1.8 file format: readable by every current HDF5 and allows attributes
   // above 64 KiB (a long scene text) in dense storage.
   Handle fapl(checked(H5Pcreate(H5P_FILE_ACCESS), path, "create a file access list"), H5Pclose);
   checked_status(H5Pset_libver_bounds(fapl.get(), H5F_LIBVER_V18, H5F_LIBVER_V18), path, "set the file format");
   if (m.parallel.mpi_comm) m.transfer = h5::parallel_access(fapl.get(), m.parallel.mpi_comm, path);
-  const hid_t file = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.get());
-  if (file < 0) throw InputError(path + ": cannot create the result file");
+  const hid_t file = H5Fcreate(path.c_str(), H5F_ACC_EXCL, H5P_DEFAULT, fapl.get());
+  if (file < 0) {
+    const std::string cause = h5::system_error();
+    throw InputError(path + ": cannot create the result file" + (cause.empty() ? "" : ": " + cause));
+  }
   m.file = Handle(file, H5Fclose);
-  m.frames = h5::create_group(file, "frames", path);
-  m.probes = h5::create_group(file, "probes", path);
-  write_string_attribute(file, "otmpm_version", OTMPM_VERSION, path);
-  write_string_attribute(file, "scene", scene_text, path);
-  write_string_attribute(file, "status", "running", path);
+  // A parallel file's driver handle is an MPI_File, not a descriptor: its
+  // writes are not reserved ahead (a full disk is an HDF5 write failure).
+  if (!m.parallel.mpi_comm) m.fd = h5::file_descriptor(file, path);
+  m.reserve(scene_text.size() + 8 * kMetadataBytes);
+  m.guarded("write the root attributes", [&] {
+    m.frames = h5::create_group(file, "frames", path);
+    m.probes = h5::create_group(file, "probes", path);
+    m.xdmf_group = h5::create_group(file, kXdmfGroup, path);
+    write_string_attribute(file, "otmpm_version", OTMPM_VERSION, path);
+    write_string_attribute(file, "run_id", m.run_id, path);
+    write_string_attribute(file, "scene", scene_text, path);
+    write_string_attribute(file, "status", "running", path);
+  });
   set_attribute("dimension", static_cast<long long>(dimension));
   flush();
+  if (!options.vtk_format.empty() && m.root())
+    m.vtk = std::make_unique<VtkSeriesWriter>(files.pvd, files.vtk_dir, files.vtk_extension, dimension, m.run_id,
+                                              m.h5_name);
   if (m.root()) m.write_xdmf();
+  if (m.vtk) m.vtk->publish();
 }
 
 ResultWriter::~ResultWriter() {
-  if (impl_ && impl_->file.valid()) H5Fflush(impl_->file.get(), H5F_SCOPE_GLOBAL);
+  if (!impl_) return;
+  if (impl_->broken) {
+    // HDF5 could not write the file: closing it would only fail again.
+    for (Handle* h : {&impl_->xdmf_group, &impl_->probes, &impl_->frames, &impl_->file}) h->release();
+    return;
+  }
   try {
-    if (impl_) impl_->publish_xdmf(true);
+    if (impl_->file.valid()) H5Fflush(impl_->file.get(), H5F_SCOPE_GLOBAL);
+    impl_->publish_xdmf(true);
   } catch (...) { // a destructor must not throw; the .h5 file is complete anyway
   }
 }
 
+const std::string& ResultWriter::run_id() const { return impl_->run_id; }
+
+bool ResultWriter::writable() const { return !impl_->broken; }
+
 void ResultWriter::Impl::publish_xdmf(bool force) {
   const auto now = std::chrono::steady_clock::now();
   if (!root() || (!force && now - xdmf_written < kXdmfInterval)) return;
-  if (force && xdmf_frames == frame_infos.size()) return;
+  if (force && xdmf_frames == frame_infos.size() && (!vtk || xdmf_frames == vtk->frames())) return;
   write_xdmf();
+  if (vtk) vtk->publish();
   xdmf_written = now;
   xdmf_frames = frame_infos.size();
 }
@@ -263,7 +363,34 @@ FrameInfo ResultWriter::Impl::describe_frame(const std::string& group_path, doub
   return info;
 }
 
-void ResultWriter::write_frame(double time, const std::vector<FieldView>& fields) {
+void ResultWriter::Impl::write_vertices(int points) {
+  if (!vertex_counts.insert(points).second) return;
+  std::vector<std::int64_t> ids(static_cast<std::size_t>(points));
+  std::iota(ids.begin(), ids.end(), std::int64_t{0});
+  const hsize_t dims[1] = {static_cast<hsize_t>(points)};
+  const std::string name = vertices_name(points);
+  Handle space(checked(H5Screate_simple(1, dims, nullptr), path, "write " + name), H5Sclose);
+  Handle set(checked(H5Dcreate2(xdmf_group.get(), name.c_str(), H5T_STD_I64LE, space.get(), H5P_DEFAULT, H5P_DEFAULT,
+                                H5P_DEFAULT),
+                     path, "write " + name),
+             H5Dclose);
+  if (points == 0) return;
+  if (!parallel.mpi_comm)
+    return checked_status(H5Dwrite(set.get(), H5T_NATIVE_INT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, ids.data()), path,
+                          "write " + name);
+  // Every rank takes part in the collective write; the root writes the ids.
+  Handle file_space(checked(H5Dget_space(set.get()), path, "write " + name), H5Sclose);
+  Handle mem_space(checked(H5Screate_simple(1, dims, nullptr), path, "write " + name), H5Sclose);
+  if (!root()) {
+    checked_status(H5Sselect_none(file_space.get()), path, "write " + name);
+    checked_status(H5Sselect_none(mem_space.get()), path, "write " + name);
+  }
+  checked_status(H5Dwrite(set.get(), H5T_NATIVE_INT64, mem_space.get(), file_space.get(), dxpl(), ids.data()), path,
+                 "write " + name);
+}
+
+void ResultWriter::write_frame(double time, const std::vector<FieldView>& fields,
+                               const std::vector<FieldView>* whole) {
   Impl& m = *impl_;
   const std::string name = frame_name(frames_);
   std::set<std::string> seen;
@@ -276,32 +403,42 @@ void ResultWriter::write_frame(double time, const std::vector<FieldView>& fields
     check_field_shape(f, impl_->dimension, path_);
     try {
       check_finite(f.data, static_cast<std::size_t>(f.rows) * f.cols,
-                   path_ + ": frame at t = " + format_double(time) + ", field '" + f.name + "'");
+                   path_ + ": frame at t = " + format_number(time) + ", field '" + f.name + "'");
     } catch (const InstabilityError& e) {
       if (!m.parallel.mpi_comm) throw;
       if (bad.empty()) bad = e.what();
     }
   }
   if (m.parallel.all && !m.parallel.all(bad.empty()))
-    throw InstabilityError(bad.empty() ? path_ + ": frame at t = " + format_double(time) +
+    throw InstabilityError(bad.empty() ? path_ + ": frame at t = " + format_number(time) +
                                              ": a field is not finite on another rank; it is not written to the result file"
                                        : bad);
   if (!std::isfinite(time)) throw InstabilityError(path_ + ": frame time is not finite");
-  Handle g = h5::create_group(m.frames.get(), name, path_);
-  write_attribute(g.get(), "time", H5T_NATIVE_DOUBLE, &time, path_);
-  for (const FieldView& f : fields) m.write_field(g.get(), f.name, f, f.data);
+  const std::uint64_t bytes = frame_bytes(fields, m.dimension);
+  m.reserve(bytes, m.vtk ? bytes : 0);
   FrameInfo info = m.describe_frame("/frames/" + name, time, fields);
-  if (info.geometry == kPaddedX) {
-    const auto& x = *std::find_if(fields.begin(), fields.end(), [](const FieldView& f) { return f.name == "x"; });
-    std::vector<double> padded(static_cast<std::size_t>(x.rows) * kXdmfSpaceDim, 0.0);
-    for (int p = 0; p < x.rows; ++p) padded[static_cast<std::size_t>(p) * kXdmfSpaceDim] = x.data[p];
-    FieldView x3 = x;
-    x3.cols = kXdmfSpaceDim;
-    m.write_field(g.get(), kPaddedX, x3, padded.data());
-  }
+  m.guarded("write frame " + name, [&] {
+    Handle g = h5::create_group(m.frames.get(), name, path_);
+    write_attribute(g.get(), "time", H5T_NATIVE_DOUBLE, &time, path_);
+    for (const FieldView& f : fields) m.write_field(g.get(), f.name, f, f.data);
+    if (info.geometry == kPaddedX) {
+      const auto& x = *std::find_if(fields.begin(), fields.end(), [](const FieldView& f) { return f.name == "x"; });
+      std::vector<double> padded(static_cast<std::size_t>(x.rows) * kXdmfSpaceDim, 0.0);
+      for (int p = 0; p < x.rows; ++p) padded[static_cast<std::size_t>(p) * kXdmfSpaceDim] = x.data[p];
+      FieldView x3 = x;
+      x3.cols = kXdmfSpaceDim;
+      m.write_field(g.get(), kPaddedX, x3, padded.data());
+    }
+    if (!info.geometry.empty()) m.write_vertices(info.points);
+  });
   ++frames_;
   flush();
-  if (!info.geometry.empty()) m.frame_infos.push_back(std::move(info));
+  if (!info.geometry.empty()) {
+    if (m.vtk && m.parallel.mpi_comm && !whole)
+      throw std::invalid_argument(path_ + ": the VTK files of a parallel result file need the whole frame");
+    if (m.vtk) m.vtk->write_frame(frames_ - 1, time, whole ? *whole : fields);
+    m.frame_infos.push_back(std::move(info));
+  }
   m.publish_xdmf(false);
 }
 
@@ -309,38 +446,49 @@ void ResultWriter::Impl::append_sample(hid_t parent, const std::string& key, con
                                        const std::vector<std::pair<std::string, std::vector<double>>>& values,
                                        bool scalars, const std::string& where) {
   check_finite(&time, 1, where + ", time");
+  std::uint64_t bytes = kMetadataBytes;
   for (const auto& [field, v] : values) {
     check_name(field, "history field");
     if (field == "time") throw std::invalid_argument(where + ": a history field may not be called 'time'");
     if (scalars && v.size() != 1) throw std::invalid_argument(where + ": field '" + field + "' is not a scalar");
     check_finite(v.data(), v.size(), where + ", field '" + field + "'");
+    bytes += kProbeChunkRows * v.size() * sizeof(double) + kMetadataBytes; // at most a new chunk
   }
   auto it = probe_infos.find(key);
-  if (it == probe_infos.end()) {
-    Handle g = h5::create_group(parent, name, path);
-    ProbeInfo info;
-    create_history(g.get(), "time", 0, path);
-    for (const auto& [field, v] : values) {
+  if (it != probe_infos.end()) {
+    const ProbeInfo& info = it->second;
+    if (values.size() != info.fields.size())
+      throw std::invalid_argument(where + ": the fields differ from the first sample");
+    for (std::size_t i = 0; i < values.size(); ++i)
+      if (values[i].first != info.fields[i].first ||
+          std::max<hsize_t>(info.fields[i].second, 1) != values[i].second.size())
+        throw std::invalid_argument(where + ": field '" + values[i].first + "' differs from the first sample");
+  } else {
+    for (const auto& [field, v] : values)
       if (v.empty()) throw std::invalid_argument(where + ": field '" + field + "' has no components");
-      const hsize_t cols = scalars ? 0 : v.size();
-      create_history(g.get(), field, cols, path);
-      info.fields.emplace_back(field, cols);
-    }
-    it = probe_infos.emplace(key, std::move(info)).first;
   }
-  ProbeInfo& info = it->second;
-  if (values.size() != info.fields.size())
-    throw std::invalid_argument(where + ": the fields differ from the first sample");
-  for (std::size_t i = 0; i < values.size(); ++i)
-    if (values[i].first != info.fields[i].first || std::max<hsize_t>(info.fields[i].second, 1) != values[i].second.size())
-      throw std::invalid_argument(where + ": field '" + values[i].first + "' differs from the first sample");
-  Handle g(checked(H5Gopen2(parent, name.c_str(), H5P_DEFAULT), path, "open " + key), H5Gclose);
-  const bool writes = root(); // in a parallel file the root writes the row, the others select none
-  append_row(g.get(), "time", info.samples, 0, &time, path, writes, dxpl());
-  for (std::size_t i = 0; i < values.size(); ++i)
-    append_row(g.get(), values[i].first, info.samples, info.fields[i].second, values[i].second.data(), path, writes,
-               dxpl());
-  ++info.samples;
+  reserve(bytes + kProbeChunkRows * sizeof(double));
+  guarded("append to " + key, [&] {
+    if (it == probe_infos.end()) {
+      Handle g = h5::create_group(parent, name, path);
+      ProbeInfo info;
+      create_history(g.get(), "time", 0, path);
+      for (const auto& [field, v] : values) {
+        const hsize_t cols = scalars ? 0 : v.size();
+        create_history(g.get(), field, cols, path);
+        info.fields.emplace_back(field, cols);
+      }
+      it = probe_infos.emplace(key, std::move(info)).first;
+    }
+    ProbeInfo& info = it->second;
+    Handle g(checked(H5Gopen2(parent, name.c_str(), H5P_DEFAULT), path, "open " + key), H5Gclose);
+    const bool writes = root(); // in a parallel file the root writes the row, the others select none
+    append_row(g.get(), "time", info.samples, 0, &time, path, writes, dxpl());
+    for (std::size_t i = 0; i < values.size(); ++i)
+      append_row(g.get(), values[i].first, info.samples, info.fields[i].second, values[i].second.data(), path, writes,
+                 dxpl());
+    ++info.samples;
+  });
 }
 
 void ResultWriter::append_probe(const std::string& probe, double time,
@@ -352,7 +500,8 @@ void ResultWriter::append_group_sample(const std::string& group, const std::stri
                                        const std::vector<std::pair<std::string, std::vector<double>>>& values) {
   check_name(group, "history group");
   check_name(name, "history");
-  if (group == "frames") throw std::invalid_argument(path_ + ": group name 'frames' is reserved");
+  if (group == "frames" || group == kXdmfGroup)
+    throw std::invalid_argument(path_ + ": group name '" + group + "' is reserved");
   Impl& m = *impl_;
   auto it = m.groups.find(group);
   if (it == m.groups.end()) {
@@ -360,7 +509,7 @@ void ResultWriter::append_group_sample(const std::string& group, const std::stri
     it = m.groups.emplace(group, std::move(g)).first;
   }
   m.append_sample(it->second.get(), group + "/" + name, name, time, values, false,
-                  path_ + ": " + group + " '" + name + "' at t = " + format_double(time));
+                  path_ + ": " + group + " '" + name + "' at t = " + format_number(time));
   flush_sample();
 }
 
@@ -373,30 +522,34 @@ void ResultWriter::flush_sample() {
 void ResultWriter::append_series(const std::string& series, double time,
                                  const std::vector<std::pair<std::string, double>>& values) {
   check_name(series, "series");
-  if (series == "frames" || series == "probes")
+  if (series == "frames" || series == "probes" || series == kXdmfGroup)
     throw std::invalid_argument(path_ + ": series name '" + series + "' is reserved");
   std::vector<std::pair<std::string, std::vector<double>>> rows;
   for (const auto& [field, v] : values) rows.emplace_back(field, std::vector<double>{v});
   impl_->append_sample(impl_->file.get(), series, series, time, rows, true,
-                       path_ + ": series '" + series + "' at t = " + format_double(time));
+                       path_ + ": series '" + series + "' at t = " + format_number(time));
   flush_sample();
 }
 
 void ResultWriter::set_attribute(const std::string& name, double value) {
   check_name(name, "attribute");
-  write_attribute(impl_->file.get(), name, H5T_NATIVE_DOUBLE, &value, path_);
+  impl_->guarded("write attribute " + name,
+                 [&] { write_attribute(impl_->file.get(), name, H5T_NATIVE_DOUBLE, &value, path_); });
 }
 void ResultWriter::set_attribute(const std::string& name, long long value) {
   check_name(name, "attribute");
-  write_attribute(impl_->file.get(), name, H5T_NATIVE_LLONG, &value, path_);
+  impl_->guarded("write attribute " + name,
+                 [&] { write_attribute(impl_->file.get(), name, H5T_NATIVE_LLONG, &value, path_); });
 }
 void ResultWriter::set_attribute(const std::string& name, const std::string& value) {
   check_name(name, "attribute");
-  write_string_attribute(impl_->file.get(), name, value, path_);
+  impl_->guarded("write attribute " + name,
+                 [&] { write_string_attribute(impl_->file.get(), name, value, path_); });
 }
 
 void ResultWriter::flush() {
-  checked_status(H5Fflush(impl_->file.get(), H5F_SCOPE_GLOBAL), path_, "flush the file");
+  impl_->guarded("flush the file",
+                 [&] { checked_status(H5Fflush(impl_->file.get(), H5F_SCOPE_GLOBAL), path_, "flush the file"); });
 }
 
 void ResultWriter::publish() {
@@ -404,40 +557,43 @@ void ResultWriter::publish() {
   impl_->publish_xdmf(true);
 }
 
-/// Writes the sidecar: a temporal collection of Polyvertex grids whose
-/// geometry and attributes point into the .h5 datasets. Written to a
-/// temporary file and renamed into place, so readers never see half a file.
+/// Writes the sidecar: a temporal collection of Polyvertex grids (one vertex
+/// cell per particle, with explicit connectivity: ParaView's Xdmf3 readers
+/// show no cells without it) whose geometry and attributes point into the .h5
+/// datasets. Written to a temporary file and renamed into place, so readers
+/// never see half a file.
 void ResultWriter::Impl::write_xdmf() const {
   std::ostringstream os;
   os << "<?xml version=\"1.0\" ?>\n<!DOCTYPE Xdmf SYSTEM \"Xdmf.dtd\" []>\n<Xdmf Version=\"3.0\">\n  <Domain>\n"
+     << "    <Information Name=\"otmpm_run_id\" Value=\"" << xml_escape(run_id) << "\"/>\n"
+     << "    <Information Name=\"otmpm_result\" Value=\"" << xml_escape(h5_name) << "\"/>\n"
      << "    <Grid Name=\"particles\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
   const std::string h5 = xml_escape(h5_name);
-  auto data_item = [&](const std::string& dataset, int rows, int cols) {
-    return "<DataItem Dimensions=\"" + std::to_string(rows) + " " + std::to_string(cols) +
-           "\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">" + h5 + ":" + xml_escape(dataset) + "</DataItem>";
+  auto data_item = [&](const std::string& dataset, const std::string& dims, const char* type) {
+    return "<DataItem Dimensions=\"" + dims + "\" NumberType=\"" + type + "\" Precision=\"8\" Format=\"HDF\">" + h5 +
+           ":" + xml_escape(dataset) + "</DataItem>";
   };
+  auto matrix = [](int rows, int cols) { return std::to_string(rows) + " " + std::to_string(cols); };
   for (const FrameInfo& f : frame_infos) {
     os << "      <Grid Name=\"frame " << f.group.substr(f.group.rfind('/') + 1) << "\" GridType=\"Uniform\">\n"
-       << "        <Time Value=\"" << format_double(f.time) << "\"/>\n"
+       << "        <Time Value=\"" << text::exact(f.time) << "\"/>\n"
        << "        <Topology TopologyType=\"Polyvertex\" NumberOfElements=\"" << f.points
-       << "\" NodesPerElement=\"1\"/>\n"
+       << "\" NodesPerElement=\"1\">\n          "
+       << data_item(std::string("/") + kXdmfGroup + "/" + vertices_name(f.points), std::to_string(f.points), "Int")
+       << "\n        </Topology>\n"
        << "        <Geometry GeometryType=\"" << (f.geometry_cols == 2 ? "XY" : "XYZ") << "\">\n          "
-       << data_item(f.group + "/" + f.geometry, f.points, f.geometry_cols) << "\n        </Geometry>\n";
+       << data_item(f.group + "/" + f.geometry, matrix(f.points, f.geometry_cols), "Float") << "\n        </Geometry>\n";
     for (const auto& [name, cols] : f.attributes)
       os << "        <Attribute Name=\"" << xml_escape(name) << "\" AttributeType=\""
          << xdmf_attribute_type(cols, dimension) << "\" Center=\"Node\">\n          "
-         << data_item(f.group + "/" + name, f.points, cols) << "\n        </Attribute>\n";
+         << data_item(f.group + "/" + name, matrix(f.points, cols), "Float") << "\n        </Attribute>\n";
     os << "      </Grid>\n";
   }
   os << "    </Grid>\n  </Domain>\n</Xdmf>\n";
-  const std::string tmp = xdmf_path + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    out << os.str();
-    if (!out.flush()) throw std::runtime_error(tmp + ": cannot write the XDMF sidecar");
-  }
-  if (std::rename(tmp.c_str(), xdmf_path.c_str()) != 0)
-    throw std::runtime_error(xdmf_path + ": cannot move the XDMF sidecar into place");
+  const std::string content = os.str();
+  text::replace_file(xdmf_path, content, "XDMF sidecar");
+  xdmf_bytes = content.size();
+  xdmf_bytes_frames = frame_infos.size();
 }
 
 // ---------------------------------------------------------------- copying

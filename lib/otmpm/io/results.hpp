@@ -2,10 +2,12 @@
 /// \file results.hpp
 /// The HDF5 result file (docs/user-guide.md, "Result file"): root attributes, /frames/NNNNNN/
 /// groups of particle datasets, `/probes/NAME/` histories, root-level time
-/// series (/energy/), and an .xdmf
-/// sidecar that ParaView opens. Every frame is flushed to disk before the
+/// series (/energy/), and an .xdmf sidecar that ParaView opens (optionally
+/// also VTK files, vtk.hpp). Every frame is flushed to disk before the
 /// sidecar names it, so a run killed at any moment leaves a readable file
-/// (the sidecar may lag the .h5 file by at most 0.25 s of wall time).
+/// (the sidecar may lag the .h5 file by at most 0.25 s of wall time). Space
+/// for every write is reserved first, so a full disk or a file size limit
+/// ends the output with an OutputError and a valid, shorter file.
 #include <functional>
 #include <memory>
 #include <string>
@@ -39,27 +41,57 @@ struct ParallelIo {
   std::function<bool(bool)> all;
 };
 
+/// Why `name` cannot name a field, probe, series or attribute in the result
+/// file, or "" when it can: it must be non-empty, at most 255 bytes, without
+/// '/' (an HDF5 path separator), '.' ('.' and '..' are HDF5 path components,
+/// and '.' separates the parts of a --set key), control characters (NUL
+/// included), and without a leading or trailing space. The scene reader and
+/// validate_scene apply the same rule to probe names.
+std::string invalid_name_reason(const std::string& name);
+
+/// Options of a ResultWriter.
+struct ResultOptions {
+  /// Root attribute `run_id`, also recorded in the sidecars and checkpoints
+  /// (output_files.hpp); "" draws a new one.
+  std::string run_id;
+  /// "" (HDF5 and XDMF only), "vtp" or "vtu": also one VTK file per frame and
+  /// a .pvd collection (vtk.hpp), named as in output_files().
+  std::string vtk_format;
+};
+
 /// Writes one result file. Creating it writes the root attributes
-/// otmpm_version, scene and status = "running"; finish() sets the final
+/// otmpm_version, run_id, scene and status = "running"; finish() sets the final
 /// status and the summary attributes. The destructor closes the file
-/// (status stays whatever was last set).
+/// (status stays whatever was last set). An existing file at `path` is
+/// replaced (removed, then created anew: a reader holding it open keeps the
+/// old one); whether it may be replaced is decided before (claim_outputs in
+/// output_files.hpp, which run_scene applies).
 ///
-/// Argument checks: an empty path or a file that cannot be created is an
-/// InputError; a dimension outside 1..3, an empty or duplicate name, a field
+/// Argument checks: an empty path, a path with an extension reserved for the
+/// files beside it (.xdmf, ...), a sidecar that resolves to the result file
+/// or a file that cannot be created is an
+/// InputError; a dimension outside 1..3, an invalid (invalid_name_reason) or duplicate name, a field
 /// shape that does not describe its data (rows < 0, cols < 1, null data, "x"
 /// without one column per dimension) or probe fields that change between
 /// samples is std::invalid_argument; NaN or Inf in a frame or probe sample is
-/// an InstabilityError (nothing of that frame or sample is written).
+/// an InstabilityError (nothing of that frame or sample is written). An
+/// output that does not fit (no space, file size limit) or a write HDF5
+/// reports as failed is an OutputError; after a failed HDF5 write the file
+/// is not touched again (writable() is false).
 class ResultWriter {
 public:
-  ResultWriter(const std::string& path, const std::string& scene_text, int dimension, ParallelIo parallel = {});
+  ResultWriter(const std::string& path, const std::string& scene_text, int dimension,
+               const ResultOptions& options = {}, ParallelIo parallel = {});
   ~ResultWriter();
   ResultWriter(const ResultWriter&) = delete;
   ResultWriter& operator=(const ResultWriter&) = delete;
 
   /// Appends /frames/NNNNNN with attribute time and the given fields; the
   /// field named "x" gives the point coordinates in the XDMF sidecar.
-  void write_frame(double time, const std::vector<FieldView>& fields);
+  /// `whole`: for a parallel file with VTK output, every row of the frame
+  /// on the root rank, which writes the VTK files alone (null otherwise).
+  void write_frame(double time, const std::vector<FieldView>& fields,
+                   const std::vector<FieldView>* whole = nullptr);
   /// Appends one sample to `/probes/PROBE/time` and `/probes/PROBE/FIELD`
   /// (extendible datasets, `values` components per sample).
   void append_probe(const std::string& probe, double time,
@@ -84,6 +116,10 @@ public:
   void publish();
   const std::string& path() const { return path_; }
   int frames() const { return frames_; }
+  /// The run id written into the file.
+  const std::string& run_id() const;
+  /// False once an HDF5 write to the file failed (nothing more is written to it).
+  bool writable() const;
 
 private:
   void flush_sample();

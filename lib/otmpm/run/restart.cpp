@@ -1,8 +1,14 @@
 /// \file restart.cpp
-/// The scene of a checkpoint, checkpoint paths and the set-aside result
-/// file of a restart (restart.hpp).
+/// The scene of a checkpoint and checkpoint paths (restart.hpp).
 #include "otmpm/run/restart.hpp"
 
+#include "otmpm/io/output_files.hpp"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
 
 namespace otmpm {
@@ -18,46 +24,39 @@ Scene checkpoint_scene(const Checkpoint& ck) {
   return scene;
 }
 
-std::string checkpoint_path(const Scene& scene, const std::string& result_file) {
-  const std::string& file = scene.output.checkpoint_file;
-  if (!file.empty()) {
-    const fs::path dir = fs::path(file).parent_path();
-    std::error_code ec;
-    if (scene.output.checkpoint_every > 0 && !dir.empty() && !fs::is_directory(dir, ec))
-      input_error(scene.locate("output.checkpoint_file"), "directory '" + dir.string() + "' does not exist");
-    return file;
-  }
-  const std::string ext = ".h5";
-  const bool h5 = result_file.size() > ext.size() && result_file.ends_with(ext);
-  return (h5 ? result_file.substr(0, result_file.size() - ext.size()) : result_file) + ".checkpoint.h5";
+namespace {
+
+/// Creates and removes a file of a name unique to this process beside
+/// `path` (never touching a file another run may be writing); the reason it
+/// cannot, or "" when the location takes files.
+std::string try_to_write(const std::string& path) {
+  const std::string probe = path + ".otmpm-probe-" + std::to_string(::getpid());
+  const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+  if (fd < 0) return std::strerror(errno);
+  ::close(fd);
+  ::unlink(probe.c_str());
+  return "";
 }
 
-namespace {
-/// True when the two paths name the same file (after resolving links and dots).
-bool same_file(const std::string& a, const std::string& b) {
-  std::error_code ea, eb;
-  const fs::path ca = fs::weakly_canonical(a, ea), cb = fs::weakly_canonical(b, eb);
-  return ea || eb ? a == b : ca == cb;
-}
 } // namespace
 
-PreviousResults set_aside_results(const std::string& previous, const std::string& out) {
-  const std::string aside = previous + ".before-restart";
+std::string checkpoint_path(const Scene& scene, const std::string& result_file) {
+  const std::string& file = scene.output.checkpoint_file;
+  const bool on = scene.output.checkpoint_every > 0;
+  const std::string path = file.empty() ? default_checkpoint_path(result_file) : file;
+  if (!on) return path;
+  const fs::path dir = fs::path(path).parent_path();
   std::error_code ec;
-  if (fs::exists(aside, ec)) return {aside, true};
-  if (!fs::exists(previous, ec))
-    throw InputError(previous + ": the result file of the interrupted run is missing (it holds the frames written "
-                                "before the checkpoint)");
-  if (!same_file(previous, out)) return {previous, false};
-  fs::rename(previous, aside, ec);
-  if (ec) throw InputError(previous + ": cannot rename it to " + aside + ": " + ec.message());
-  return {aside, true};
-}
-
-void release_previous_results(const PreviousResults& previous) {
-  std::error_code ec;
-  if (previous.set_aside && !fs::remove(previous.path, ec))
-    throw InputError(previous.path + ": cannot remove it after copying its frames: " + ec.message());
+  const std::string where = file.empty() ? "the checkpoint file '" + path + "' (beside the result file)" : "";
+  auto refuse = [&](const std::string& why) {
+    if (file.empty()) throw InputError(scene.locate("output.checkpoint_every").describe() + ": " + where + ": " + why);
+    input_error(scene.locate("output.checkpoint_file"), why);
+  };
+  if (!dir.empty() && !fs::is_directory(dir, ec)) refuse("directory '" + dir.string() + "' does not exist");
+  if (fs::is_directory(path, ec)) refuse("'" + path + "' is a directory");
+  const std::string why = try_to_write(path);
+  if (!why.empty()) refuse("cannot write checkpoints to '" + path + "': " + why);
+  return path;
 }
 
 } // namespace otmpm

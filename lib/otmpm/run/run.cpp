@@ -9,10 +9,13 @@
 
 #include "otmpm/assembly/assembler.hpp"
 #include "otmpm/distributed/global_view.hpp"
+#include "otmpm/io/output_files.hpp"
 #include "otmpm/particles/output_fields.hpp"
 #include "otmpm/run/restart.hpp"
 #include "otmpm/io/results.hpp"
 #include "otmpm/reference/exact.hpp"
+#include "otmpm/scene/resources.hpp"
+#include "otmpm/scene/validate.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -31,6 +34,38 @@ namespace {
 constexpr double time_slack = 1e-9;
 /// Floor of EnergySummary::reference(), so a body at rest with no load has ratio 0, not 0/0.
 constexpr double energy_reference_floor = 1e-300;
+
+/// What the run's output files are and where their names came from
+/// (prepare_outputs); `text` is the scene as TOML (the identical-scene rule).
+OutputRequest output_request(const Scene& scene, const std::string& text, const RunOptions& opt,
+                             const Checkpoint* resume) {
+  OutputRequest r;
+  const std::string previous = resume ? resume->group("recorder").string("result_file") : "";
+  if (!opt.out_file.empty()) {
+    r.result = opt.out_file;
+    r.result_origin = "RunOptions::out_file, otmpm run --out";
+  } else if (resume) {
+    r.result = previous;
+    r.result_origin = "the interrupted run's result file, from " + resume->file;
+  } else {
+    r.result = scene.output.file;
+    r.result_origin = scene.locate("output.file").describe();
+  }
+  if (scene.output.checkpoint_every > 0) {
+    r.checkpoint = checkpoint_path(scene, r.result);
+    r.checkpoint_origin = scene.output.checkpoint_file.empty() ? "the default beside the result file"
+                                                               : scene.locate("output.checkpoint_file").describe();
+  }
+  r.vtk_format = vtk_format(scene.output);
+  r.scene_text = text;
+  r.force = opt.force;
+  if (resume) {
+    r.continued_run = resume->run_id;
+    r.previous_result = previous;
+    r.previous_frames = static_cast<int>(resume->group("recorder").integer("frames"));
+  }
+  return r;
+}
 
 /// The (global) particle a probe follows: the leftmost/rightmost by initial
 /// position (ties: lowest index) or the one nearest to a point.
@@ -63,23 +98,36 @@ public:
       probes_.push_back({pr.name, probe_particle(view_, e.particles(), pr), 0.0, 0});
     if (resume) restore_accumulators(resume->group("recorder"));
     if (!opt.write_results) return;
-    path_ = !opt.out_file.empty() ? opt.out_file
-            : resume           ? resume->group("recorder").string("result_file")
-                               : scene.output.file;
-    checkpoint_path_ = checkpoint_path(scene, path_);
     if (resume) frames_ = static_cast<int>(resume->group("recorder").integer("frames"));
-    std::optional<PreviousResults> previous;
-    if (resume) previous = set_aside(resume->group("recorder").string("result_file"));
-    view_.collectively([&] { writer_ = std::make_unique<ResultWriter>(path_, text_, D, view_.parallel_io()); });
-    if (previous) continue_results(*previous, resume->group("recorder"));
+    prepare(output_request(scene, text_, opt, resume));
+    view_.collectively([&] {
+      writer_ = std::make_unique<ResultWriter>(path_, text_, D, ResultOptions{run_id_, vtk_extension_},
+                                               view_.parallel_io());
+    });
+    if (previous_) continue_results(*previous_, resume->group("recorder"));
   }
 
-  /// set_aside_results by the writing rank, its answer on every rank.
-  PreviousResults set_aside(const std::string& previous_file) {
-    PreviousResults p;
-    view_.on_writer([&] { p = set_aside_results(previous_file, path_); });
-    const std::string shared = view_.share((p.set_aside ? "1" : "0") + p.path);
-    return {shared.substr(1), shared.front() == '1'};
+  /// Decides the output files on the writing rank (prepare_outputs: paths,
+  /// collisions, otmpm's locks, what may be replaced, a restart's previous
+  /// results; an InputError there is thrown on every rank) and shares the
+  /// answer with every rank.
+  void prepare(const OutputRequest& request) {
+    view_.on_writer([&] { outputs_ = prepare_outputs(request); });
+    const PreviousResults p = outputs_.previous.value_or(PreviousResults{});
+    const char sep = '\0'; // never part of a path
+    const std::string mine = outputs_.files.result + sep + outputs_.files.checkpoint + sep +
+                             outputs_.files.vtk_extension + sep + outputs_.run_id + sep +
+                             (outputs_.previous ? "1" : "0") + (p.set_aside ? "1" : "0") + sep + p.path;
+    std::vector<std::string> parts{""};
+    for (char c : view_.share(mine))
+      if (c == sep) parts.emplace_back();
+      else parts.back() += c;
+    require(parts.size() == 6, "Recorder: the output files shared by the writing rank are incomplete");
+    path_ = parts[0];
+    checkpoint_path_ = parts[1];
+    vtk_extension_ = parts[2];
+    run_id_ = parts[3];
+    if (parts[4][0] == '1') previous_ = PreviousResults{parts[5], parts[4][1] == '1', ""};
   }
 
   /// Writes a checkpoint after every output.checkpoint_every steps (not after
@@ -97,6 +145,7 @@ public:
     ScopedPhase timer(e_.timers(), Phase::output);
     Checkpoint ck;
     ck.scene = text_;
+    ck.run_id = run_id_;
     e_.save_state(ck);
     StateGroup& g = ck.group("recorder");
     g.reals["next_output_time"] = next_;
@@ -147,16 +196,41 @@ public:
     if (results_) s.out_file = path_;
     const auto distributed = view_.run_attributes();
     view_.collectively([&] {
-      write_summary(s);
-      for (const auto& [name, value] : distributed)
-        if (writer_) writer_->set_attribute(name, value);
+      if (writer_ && writer_->writable()) { // after a failed HDF5 write the file is left as it is
+        try {
+          write_summary(s, distributed);
+        } catch (const OutputError& err) {
+          s.status = std::string("output error: ") + err.what();
+          s.exit_code = kOutputErrorExit;
+        }
+      }
       writer_.reset(); // closed now: the run is over, and readers may open the file at once
     });
   }
 
-  /// The final attributes and status of the result file.
-  void write_summary(const RunSummary& s) {
-    if (!writer_) return;
+  /// Marks the file with a diagnosis (the file stays valid). An output error
+  /// here changes nothing more: the diagnosis is in the summary anyway.
+  void set_status(const std::string& status) {
+    view_.collectively([&] {
+      if (!writer_ || !writer_->writable()) return;
+      try {
+        writer_->set_attribute("status", status);
+        writer_->publish();
+      } catch (const OutputError&) {
+      }
+    });
+  }
+
+private:
+  struct Probe {
+    std::string name;
+    long long particle; ///< global id
+    double sum_sq;
+    int samples;
+  };
+
+  /// The final status and summary attributes (and those of a distributed run).
+  void write_summary(const RunSummary& s, const std::vector<std::pair<std::string, double>>& distributed) {
     writer_->set_attribute("status", s.status);
     writer_->set_attribute("steps", static_cast<long long>(s.steps));
     writer_->set_attribute("t_end", s.time);
@@ -168,25 +242,9 @@ public:
     writer_->set_attribute("energy_drift", s.energy.energy_drift());
     for (std::size_t i = 0; i < phase_names.size(); ++i)
       writer_->set_attribute("seconds_" + std::string(phase_names[i]), s.timers.seconds[i]);
+    for (const auto& [name, value] : distributed) writer_->set_attribute(name, value);
     writer_->publish();
   }
-
-  /// Marks the file with a diagnosis (the file stays valid).
-  void set_status(const std::string& status) {
-    view_.collectively([&] {
-      if (!writer_) return;
-      writer_->set_attribute("status", status);
-      writer_->publish();
-    });
-  }
-
-private:
-  struct Probe {
-    std::string name;
-    long long particle; ///< global id
-    double sum_sq;
-    int samples;
-  };
 
   void restore_accumulators(const StateGroup& g) {
     next_ = g.real("next_output_time");
@@ -263,6 +321,8 @@ private:
     if (!results_) return;
     std::vector<std::vector<double>> buffers(scene_.output.fields.size());
     const std::vector<FieldView> fields = frame_fields(buffers);
+    std::vector<std::vector<double>> gathered;
+    const std::vector<FieldView> whole = vtk_fields(gathered);
     ++frames_;
     view_.collectively([&] {
       for (const auto& [name, values] : samples) writer_->append_probe(name, t, values);
@@ -272,8 +332,26 @@ private:
       if (dissipative()) energy.emplace_back("dissipated", E.dissipated);
       writer_->append_series("energy", t, energy);
       record_walls(t);
-      writer_->write_frame(t, fields);
+      writer_->write_frame(t, fields, whole.empty() ? nullptr : &whole);
     });
+  }
+
+  /// A distributed run with VTK output: every output field of all particles
+  /// on the writing rank (which writes the VTK files alone), in global order;
+  /// empty otherwise (collective).
+  std::vector<FieldView> vtk_fields(std::vector<std::vector<double>>& gathered) const {
+    if (!view_.distributed() || vtk_extension_.empty()) return {};
+    const Particles<D>& P = e_.particles();
+    std::vector<FieldView> fields;
+    gathered.resize(scene_.output.fields.size());
+    for (std::size_t i = 0; i < scene_.output.fields.size(); ++i) {
+      std::vector<double> buffer;
+      const FieldData d = output_field_data<D>(scene_.output.fields[i], P, buffer);
+      gathered[i] = view_.gather(d.data, d.cols);
+      const int rows = view_.writes() ? static_cast<int>(view_.particles()) : 0;
+      fields.push_back({scene_.output.fields[i], rows, d.cols, gathered[i].data()});
+    }
+    return fields;
   }
 
   /// The output fields of all particles in global order (buffers hold the
@@ -317,7 +395,11 @@ private:
   bool results_ = true; ///< the run writes a result file (writer_ lives on the writing rank only)
   int frames_ = 0;      ///< frames written so far (every rank counts them)
   std::vector<Probe> probes_;
+  PreparedOutputs outputs_; ///< paths and otmpm's locks (on the writing rank), held for the whole run
   std::string path_;
+  std::string vtk_extension_;               ///< "", "vtp" or "vtu"
+  std::string run_id_;                      ///< this run's id (a restart: the continued run's)
+  std::optional<PreviousResults> previous_; ///< a restart: where the frames before the checkpoint come from
   std::unique_ptr<ResultWriter> writer_;
   double next_ = 0.0;
   EnergySummary energy_;
@@ -326,6 +408,13 @@ private:
   AlignedVector<Vec<D>> wall_last_; ///< wall impulses at the previous sample
   double wall_time_ = 0.0;          ///< time of the previous sample
 };
+
+/// A diagnosis that names step and time: `what` as it is when it does (the
+/// engine's start with "step N, t = T s"), else prefixed with them.
+std::string diagnosis(const std::string& what, long step, double t) {
+  if (what.rfind("step ", 0) == 0) return what;
+  return "step " + std::to_string(step) + ", t = " + format_number(t) + " s: " + what;
+}
 
 double seconds_since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -368,8 +457,14 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
     summary.nodes = view.nodes();
     summary.status = "running";
     if (resume) return;
-    rec.sample_energy();
-    rec.maybe_record(true);
+    try { // an initial state that is not finite or cannot be written is a diagnosis too
+      rec.sample_energy();
+      rec.maybe_record(true);
+    } catch (const InstabilityError& err) {
+      stop_unstable(err);
+    } catch (const OutputError& err) {
+      stop_output_error(err);
+    }
   }
 
   /// This rank's engine of the scene (the whole scene in a serial run); a
@@ -396,26 +491,50 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
     const double t_end = scene.simulation.t_end;
     try {
       e.step();
+      rec.sample_energy();
+      const bool last = e.time() >= t_end * (1.0 - time_slack);
+      rec.maybe_record(last);
+      rec.maybe_checkpoint(seconds_since(start), last);
+      finished = last;
     } catch (const InstabilityError& err) {
-      rec.sample_energy(); // a runaway stop has the energy that tripped the monitor
-      summary.status = std::string("unstable: ") + err.what();
-      summary.exit_code = 1;
-      rec.set_status(summary.status);
-      finished = true;
+      stop_unstable(err);
+      throw;
+    } catch (const OutputError& err) {
+      stop_output_error(err);
       throw;
     }
-    rec.sample_energy();
-    const bool last = e.time() >= t_end * (1.0 - time_slack);
-    rec.maybe_record(last);
-    rec.maybe_checkpoint(seconds_since(start), last);
-    finished = last;
     if (options.progress) options.progress(e.time(), t_end, e.steps());
+  }
+
+  /// Ends the run on an instability: status "unstable: step N, t = T: ...", exit code 1.
+  void stop_unstable(const InstabilityError& err) {
+    rec.sample_energy(); // a runaway stop has the energy that tripped the monitor
+    stop("unstable: " + diagnosis(err.what(), e.steps(), e.time()), 1);
+  }
+
+  /// Ends the run on a result or checkpoint that could not be written: status
+  /// "output error: step N, t = T: ...", exit code kOutputErrorExit; the
+  /// result file keeps what was written before.
+  void stop_output_error(const OutputError& err) {
+    stop("output error: " + diagnosis(err.what(), e.steps(), e.time()), kOutputErrorExit);
+  }
+
+  void stop(const std::string& status, int exit_code) {
+    summary.status = status;
+    summary.exit_code = exit_code;
+    rec.set_status(summary.status);
+    finished = true;
   }
 
   void write_frame() override { rec.maybe_record(true); }
 
   void interrupt() override {
-    rec.checkpoint(seconds_since(start));
+    try {
+      rec.checkpoint(seconds_since(start));
+    } catch (const OutputError& err) {
+      stop_output_error(err);
+      return;
+    }
     summary.status = "interrupted";
     summary.exit_code = kInterruptedExit;
     summary.interrupted = true;
@@ -450,6 +569,11 @@ double EnergySummary::energy_drift() const { return max_balance_error / referenc
 
 std::unique_ptr<Simulation::Runner> Simulation::make(const Scene& scene, const RunOptions& options,
                                                      const Checkpoint* resume) {
+  const int dim = scene.simulation.dimension;
+  if (dim >= 1 && dim <= 3) {
+    validate_scene(scene, dim); // a Scene built in code: every check of the reader, before the estimates
+    check_resources(scene);     // before anything is allocated
+  }
   switch (scene.simulation.dimension) {
   case 1: return std::make_unique<DimRunner<1>>(scene, options, resume);
   case 2: return std::make_unique<DimRunner<2>>(scene, options, resume);
@@ -531,19 +655,46 @@ RunSummary run_to_end(Simulation& sim, const RunOptions& options) {
       sim.step();
     }
   } catch (const InstabilityError&) { // the status is in the summary
+  } catch (const OutputError&) {
   }
   return sim.finish();
+}
+
+/// The summary of a run whose result file could not even be created (no
+/// room for its first bytes) at step `step`, time `t` (0 for a new run, the
+/// checkpoint's for a restart): status "output error: ...", kOutputErrorExit.
+RunSummary not_started(const Scene& scene, const OutputError& err, long step, double t) {
+  RunSummary s;
+  s.mode = scene.simulation.mode;
+  s.integrator = scene.simulation.integrator;
+  s.basis = scene.basis.kind;
+  s.steps = step;
+  s.time = t;
+  s.status = "output error: " + diagnosis(err.what(), step, t);
+  s.exit_code = kOutputErrorExit;
+  return s;
 }
 } // namespace
 
 RunSummary run_scene(const Scene& scene, const RunOptions& options) {
-  Simulation sim(scene, options);
-  return run_to_end(sim, options);
+  std::optional<Simulation> sim;
+  try {
+    sim.emplace(scene, options);
+  } catch (const OutputError& err) {
+    return not_started(scene, err, 0, 0.0);
+  }
+  return run_to_end(*sim, options);
 }
 
 RunSummary restart_run(const Checkpoint& checkpoint, const RunOptions& options) {
-  Simulation sim(checkpoint, options);
-  return run_to_end(sim, options);
+  std::optional<Simulation> sim;
+  try {
+    sim.emplace(checkpoint, options);
+  } catch (const OutputError& err) {
+    const StateGroup& g = checkpoint.group("engine");
+    return not_started(checkpoint_scene(checkpoint), err, static_cast<long>(g.integer("step")), g.real("t"));
+  }
+  return run_to_end(*sim, options);
 }
 
 std::string summary_line(const RunSummary& s) {
@@ -551,7 +702,10 @@ std::string summary_line(const RunSummary& s) {
   std::snprintf(buf, sizeof buf, "%s %s %s: %ld steps, t = %.6g s, %.3f s wall, %.3g particle-steps/s",
                 s.mode.c_str(), s.integrator.c_str(), s.basis.c_str(), s.steps, s.time, s.wall_seconds,
                 s.particle_steps_per_second());
-  const char* head = s.interrupted ? "INTERRUPTED: " : s.exit_code != 0 ? "UNSTABLE: " : "ok: ";
+  const char* head = s.interrupted                     ? "INTERRUPTED: "
+                     : s.exit_code == kOutputErrorExit ? "OUTPUT FAILED: "
+                     : s.exit_code != 0                ? "UNSTABLE: "
+                                                       : "ok: ";
   std::string line = head + std::string(buf);
   for (const auto& [name, value] : s.errors) {
     std::snprintf(buf, sizeof buf, ", %s = %.4g", name.c_str(), value);

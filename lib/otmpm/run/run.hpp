@@ -15,14 +15,21 @@ namespace otmpm {
 
 struct Checkpoint;
 
+/// RunSummary::exit_code of a run whose results could not be written (disk
+/// full, file size limit, quota, I/O error): the `otmpm` exit status 4.
+inline constexpr int kOutputErrorExit = 4;
+
 struct RunOptions {
   std::string out_file;  ///< overrides output.file when not empty
   bool write_results = true;
+  /// Replace existing output files that do not belong to this run (see
+  /// io/output_files.hpp claim_outputs; `otmpm run --force`). Without it an
+  /// existing result file is replaced only when it holds the results of the
+  /// identical scene from the same otmpm version, and its sidecar,
+  /// checkpoint and VTK files only when they belong to it (same run id).
+  bool force = false;
   /// Called after every step with (t, t_end, steps) - e.g. a progress bar.
   std::function<void(double, double, long)> progress;
-  /// Replace an existing result file (otmpm run --force); without it an
-  /// existing result file is kept as the io layer's rule says.
-  bool force = false;
   /// When not null, read once per step: once true, the run stops after the
   /// current step, writes a last checkpoint (if output.checkpoint_every > 0),
   /// sets the result file's status to "interrupted" and returns a summary
@@ -54,8 +61,8 @@ inline constexpr int kInterruptedExit = 130;
 
 /// What a run reports (docs/theory.md sect. 12).
 struct RunSummary {
-  std::string status = "ok"; ///< "ok" or the diagnosis
-  int exit_code = 0;         ///< 0 ok, 1 unstable, kInterruptedExit interrupted
+  std::string status = "ok"; ///< "ok", "unstable: DIAGNOSIS", "output error: MESSAGE" or "interrupted"
+  int exit_code = 0;         ///< 0 ok, 1 unstable, kOutputErrorExit the results could not be written, kInterruptedExit interrupted
   bool interrupted = false;  ///< stopped early (Simulation::interrupt, RunOptions::interrupt); status "interrupted"
   std::string mode, integrator, basis;
   long steps = 0;
@@ -69,8 +76,15 @@ struct RunSummary {
   double particle_steps_per_second() const { return wall_seconds > 0 ? particles * steps / wall_seconds : 0.0; }
 };
 
-/// Runs the scene. InputError propagates (exit 2); an instability is caught,
-/// written into the result file's status, and reported with exit_code 1.
+/// Runs the scene. InputError propagates (exit 2): among others, before
+/// anything is allocated or written, a scene whose memory or step count
+/// estimate exceeds its limits (scene/resources.hpp), output paths that
+/// collide, are locked by another run, or hold files the run may not replace
+/// (io/output_files.hpp). An instability (also at t = 0) is caught, written
+/// into the result file's status, and reported with exit_code 1; an output
+/// that cannot be written (OutputError) likewise with kOutputErrorExit, the
+/// file keeping every frame written before. The status and step and time of
+/// every diagnosis are in RunSummary::status.
 /// With output.checkpoint_every = N a checkpoint (io/checkpoint.hpp) is
 /// written after every N steps of a run that writes a result file.
 RunSummary run_scene(const Scene& scene, const RunOptions& options = {});
@@ -81,11 +95,12 @@ RunSummary run_scene(const Scene& scene, const RunOptions& options = {});
 /// and probe samples written before the checkpoint, copied from the
 /// interrupted run's result file. The result equals, bit for bit, that of
 /// the uninterrupted run. InputError (naming the file) when the checkpoint
-/// does not fit or that result file is missing.
+/// does not fit or that result file is missing or not the checkpoint's run's
+/// (its run id differs).
 RunSummary restart_run(const Checkpoint& checkpoint, const RunOptions& options = {});
 
 /// One line: "ok: 1234 steps, 0.52 s wall, rms_velocity_error = 0.01 ..."
-/// ("INTERRUPTED: ..." or "UNSTABLE: ..." for a run that did not finish).
+/// ("INTERRUPTED: ...", "UNSTABLE: ..." or "OUTPUT FAILED: ..." for a run that did not finish).
 std::string summary_line(const RunSummary& s);
 
 /// What `otmpm run --check` prints about a scene without running it.

@@ -18,7 +18,10 @@ class Simulation {
 public:
   /// Builds the engine of `scene` (assemble) and, unless
   /// options.write_results is false, opens the result file and writes the
-  /// frame at t = 0. InputError (exit 2) for a scene that cannot run.
+  /// frame at t = 0. InputError (exit 2) for a scene that cannot run or
+  /// output files it may not write (io/output_files.hpp); OutputError when
+  /// the result file cannot even be created. An instability or an output
+  /// error at t = 0 finishes the simulation at once (status() says why).
   explicit Simulation(const Scene& scene, const RunOptions& options = {});
   /// Continues the run saved in a checkpoint: its own scene, its state, and
   /// the frames written before it copied into the result file (restart_run).
@@ -36,14 +39,17 @@ public:
   bool finished() const;
   /// True when the run stopped on an instability (status() says why).
   bool unstable() const;
-  /// "running", "ok" after finish(), or "unstable: ..." (the result file's status).
+  /// "running", "ok" after finish(), "unstable: ...", "output error: ..." or
+  /// "interrupted" (the result file's status).
   const std::string& status() const;
 
   /// One step, then what a run does after it: the energy sample, a frame at
   /// an output time (and at t_end), a checkpoint every
   /// output.checkpoint_every steps, the progress callback. An instability
   /// is written into the result file's status and rethrown
-  /// (InstabilityError); the simulation is then finished. std::logic_error
+  /// (InstabilityError), and so is a result or checkpoint that cannot be
+  /// written (OutputError, status "output error: ...", exit code
+  /// kOutputErrorExit); the simulation is then finished. std::logic_error
   /// when finished() already.
   void step();
   /// Steps until time() >= t (at most to t_end).

@@ -5,6 +5,7 @@
 // The reading idiom (TableReader, Context) is in scene/toml_reader.hpp.
 #include "otmpm/scene/scene.hpp"
 
+#include "otmpm/io/results.hpp"
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/integrators/integrator.hpp"
 #include "otmpm/io/particle_file.hpp"
@@ -15,6 +16,7 @@
 #include <toml++/toml.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -73,7 +75,7 @@ void check_box(const TableReader& t, const Vec3& lo, const Vec3& hi, int dim, bo
 SimulationSection read_simulation(const TableReader& t) {
   std::vector<std::string_view> keys{"dimension", "mode",          "integrator",  "mass",
                                      "t_end",     "cfl",           "dt",          "mass_tolerance",
-                                     "energy_limit"};
+                                     "energy_limit", "max_steps",  "memory_limit"};
   for (const ParameterSpec* p : integrator_parameters()) keys.push_back(p->key);
   t.only(keys);
   SimulationSection s;
@@ -105,6 +107,11 @@ SimulationSection read_simulation(const TableReader& t) {
   s.energy_limit = t.get<double>("energy_limit", s.energy_limit);
   check(s.energy_limit >= 1, t.ref("energy_limit"),
         "must be >= 1 (a multiple of the larger of initial energy and work; got " + fmt(s.energy_limit) + ")");
+  s.max_steps = t.get<double>("max_steps", s.max_steps);
+  check(s.max_steps >= 1, t.ref("max_steps"), "must be >= 1 (the most steps a run may take; got " + fmt(s.max_steps) + ")");
+  s.memory_limit = t.get<double>("memory_limit", s.memory_limit);
+  check(s.memory_limit >= 0, t.ref("memory_limit"),
+        "must be >= 0 (bytes; 0: the memory this process may use; got " + fmt(s.memory_limit) + ")");
   return s;
 }
 
@@ -573,6 +580,9 @@ std::vector<ProbeSection> read_probes(const TableReader& out_table, int dim) {
     ProbeSection p;
     p.where = t.self();
     p.name = read_name(t, true, "", names);
+    const std::string why = invalid_name_reason(p.name);
+    check(why.empty(), t.ref("name"),
+          "\"" + TableReader::printable(p.name) + "\" cannot name a probe in the result file: " + why);
     p.particle = t.choice("particle", p.particle, {"leftmost", "rightmost", "nearest"});
     if (p.particle == "nearest" && !t.has("at")) t.missing("at", "required key is missing (particle = \"nearest\")");
     p.at = t.vec("at", dim).value_or(p.at);
@@ -601,6 +611,32 @@ std::vector<std::string> read_fields(const TableReader& t, std::string_view key,
   return out;
 }
 
+/// Values of output.format.
+constexpr std::array<std::string_view, 3> kOutputFormats = {"hdf5", "vtp", "vtu"};
+
+/// output.format: "hdf5" (required) and at most one of "vtp", "vtu"; a
+/// string is a list of one.
+std::vector<std::string> read_formats(const TableReader& t) {
+  const toml::node* n = t.node("format");
+  if (!n) return {"hdf5"};
+  const SourceRef r = t.ref("format");
+  std::vector<std::string> out;
+  if (n->is_string()) out.push_back(convert<std::string>(*n, r));
+  else if (const toml::array* a = n->as_array())
+    for (const toml::node& el : *a) out.push_back(convert<std::string>(el, r));
+  else input_error(r, "expected an array of strings, got " + type_name(*n));
+  for (const std::string& f : out) {
+    check(std::find(kOutputFormats.begin(), kOutputFormats.end(), f) != kOutputFormats.end(), r,
+          "unknown format \"" + f + "\"" + suggestion(f, kOutputFormats));
+    check(std::count(out.begin(), out.end(), f) == 1, r, "names \"" + f + "\" twice");
+  }
+  check(std::count(out.begin(), out.end(), "hdf5") == 1, r,
+        "must contain \"hdf5\": the HDF5 result file is always written (e.g. [\"hdf5\", \"vtp\"])");
+  check(!(std::count(out.begin(), out.end(), "vtp") && std::count(out.begin(), out.end(), "vtu")), r,
+        "choose one of \"vtp\" and \"vtu\" (both would be listed by the same .pvd)");
+  return out;
+}
+
 /// output.checkpoint_every (steps, >= 0) and output.checkpoint_file.
 void read_checkpoint_keys(const TableReader& t, OutputSection& o) {
   const std::int64_t every = t.get<std::int64_t>("checkpoint_every", 0);
@@ -617,7 +653,7 @@ OutputSection read_output(const TableReader& root, const Scene& s) {
   OutputSection o;
   auto t = root.table("output");
   if (!t) return o;
-  t->only({"file", "every", "fields", "probes", "checkpoint_every", "checkpoint_file"});
+  t->only({"file", "every", "fields", "probes", "checkpoint_every", "checkpoint_file", "format"});
   o.where = t->self();
   o.file = t->get<std::string>("file", o.file);
   check(!o.file.empty(), t->ref("file"), "must not be empty");
@@ -626,6 +662,7 @@ OutputSection read_output(const TableReader& root, const Scene& s) {
   o.fields = read_fields(*t, "fields", o.fields, s);
   o.probes = read_probes(*t, dim);
   read_checkpoint_keys(*t, o);
+  o.formats = read_formats(*t);
   return o;
 }
 
@@ -828,6 +865,16 @@ Scene parse_scene(const std::string& text, const std::string& name, const std::v
   os << root << "\n";
   s.text = os.str();
   return s;
+}
+
+bool is_output_format(const std::string& format) {
+  return std::find(kOutputFormats.begin(), kOutputFormats.end(), format) != kOutputFormats.end();
+}
+
+std::string vtk_format(const OutputSection& output) {
+  for (const std::string& f : output.formats)
+    if (f == "vtp" || f == "vtu") return f;
+  return "";
 }
 
 LatticeBox node_lattice_box(const Scene& s) {

@@ -45,6 +45,12 @@ struct SimulationSection {
   std::optional<double> dt;        ///< fixed step instead of cfl
   double mass_tolerance = 1e-12;   ///< nodes with m_I < tol * max m are inactive
   double energy_limit = 10.0;      ///< runaway: kinetic + strain energy > limit * (initial energy + |external work| + |reaction work|) stops the run
+  /// Largest estimated number of steps (t_end / first dt) a run may take
+  /// (scene/resources.hpp); a larger estimate is refused before the run.
+  double max_steps = 1e8;
+  /// Largest estimated memory of a run in bytes; 0: the memory this process
+  /// may use (scene/resources.hpp available_memory()).
+  double memory_limit = 0.0;
   SourceRef where;
   /// True in `ul` mode (nodes advected with the material).
   bool nodes_move() const { return mode == "ul"; }
@@ -170,8 +176,17 @@ struct OutputSection {
   std::vector<ProbeSection> probes;
   long checkpoint_every = 0;          ///< steps between checkpoints (0: none)
   std::string checkpoint_file;        ///< "" : the result file with .h5 -> .checkpoint.h5
+  /// What is written: "hdf5" (always: the result file and its XDMF sidecar)
+  /// and at most one of "vtp", "vtu" (VTK frame files and a .pvd, io/vtk.hpp).
+  std::vector<std::string> formats{"hdf5"};
   SourceRef where;
 };
+
+/// The VTK format an output section asks for: "vtp", "vtu" or "" (none).
+std::string vtk_format(const OutputSection& output);
+
+/// True when `format` is a value output.format accepts ("hdf5", "vtp", "vtu").
+bool is_output_format(const std::string& format);
 
 struct ReferenceSection {
   std::string solution; ///< "" | dyka | fixed_bar | traction_bar | mms_plate

@@ -29,7 +29,7 @@ toml::table time_function(const TimeFunction& f) {
 toml::table simulation(const SimulationSection& s) {
   toml::table t{{"dimension", s.dimension}, {"mode", s.mode},          {"integrator", s.integrator},
                 {"mass", s.mass},           {"t_end", s.t_end},        {"mass_tolerance", s.mass_tolerance},
-                {"energy_limit", s.energy_limit}};
+                {"energy_limit", s.energy_limit}, {"max_steps", s.max_steps}, {"memory_limit", s.memory_limit}};
   for (const auto& [key, value] : s.parameters) t.insert(key, value); // the integrator's own (gamma, rho_inf)
   // The reader takes one of cfl and dt: a fixed dt makes cfl irrelevant.
   if (s.dt) t.insert("dt", *s.dt);
@@ -171,6 +171,9 @@ toml::table output(const OutputSection& o, int dim) {
                 {"fields", std::move(fields)},
                 {"checkpoint_every", static_cast<std::int64_t>(o.checkpoint_every)}};
   if (!o.checkpoint_file.empty()) t.insert("checkpoint_file", o.checkpoint_file);
+  toml::array formats;
+  for (const std::string& f : o.formats) formats.push_back(f);
+  t.insert("format", std::move(formats));
   if (!o.probes.empty()) {
     toml::array probes;
     for (const ProbeSection& p : o.probes) {

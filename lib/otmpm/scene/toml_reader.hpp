@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <functional>
 #include <limits>
 #include <map>
@@ -290,10 +291,27 @@ public:
     for (const auto& [k, v] : keys) visit(k, *v, ref(k));
   }
 
+  /// The name an element is addressed by; control characters (which no
+  /// valid name has) are shown as \\xHH so that messages stay printable.
   static std::string element_name(const toml::node& el, std::size_t index) {
     if (const toml::table* t = el.as_table())
-      if (auto name = t->get_as<std::string>("name")) return name->get();
+      if (auto name = t->get_as<std::string>("name")) return printable(name->get());
     return std::to_string(index);
+  }
+
+  /// `s` with control characters shown as \\xHH.
+  static std::string printable(const std::string& s) {
+    std::string out;
+    for (unsigned char c : s) {
+      if (c >= 0x20 && c != 0x7f) {
+        out += static_cast<char>(c);
+        continue;
+      }
+      char buf[8];
+      std::snprintf(buf, sizeof buf, "\\x%02x", c);
+      out += buf;
+    }
+    return out;
   }
 
 private:

@@ -3,6 +3,7 @@
 /// short function; every failure is an InputError at the scene key.
 #include "otmpm/scene/validate.hpp"
 
+#include "otmpm/io/results.hpp"
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/integrators/integrator.hpp"
 #include "otmpm/materials/material.hpp"
@@ -12,6 +13,7 @@
 #include <cmath>
 #include <initializer_list>
 #include <limits>
+#include <set>
 #include <stdexcept>
 #include <string_view>
 
@@ -83,7 +85,12 @@ void check_simulation(const Scene& s, int dim) {
   else check(s, finite_positive(m.cfl), "simulation.cfl", "must be finite and > 0 (got ", m.cfl, ")");
   check(s, m.mass_tolerance >= 0.0 && m.mass_tolerance < 1.0, "simulation.mass_tolerance", "must be in [0, 1) (got ",
         m.mass_tolerance, ")");
-  check(s, m.energy_limit >= 1.0, "simulation.energy_limit", "must be >= 1 (got ", m.energy_limit, ")");
+  check(s, m.energy_limit >= 1.0 && std::isfinite(m.energy_limit), "simulation.energy_limit",
+        "must be finite and >= 1 (got ", m.energy_limit, ")");
+  check(s, m.max_steps >= 1.0 && std::isfinite(m.max_steps), "simulation.max_steps", "must be finite and >= 1 (got ",
+        m.max_steps, ")");
+  check(s, m.memory_limit >= 0.0 && std::isfinite(m.memory_limit), "simulation.memory_limit",
+        "must be finite and >= 0 (bytes; got ", m.memory_limit, ")");
 }
 
 void check_grid(const Scene& s, int dim) {
@@ -91,8 +98,10 @@ void check_grid(const Scene& s, int dim) {
   check(s, one_of(g.kind, {"cartesian", "perturbed"}), "grid.kind", "must be \"cartesian\" or \"perturbed\" (got \"",
         g.kind, "\")");
   check_box(s, "grid", g.lower, g.upper, dim, true);
-  for (int k = 0; k < dim; ++k)
+  for (int k = 0; k < dim; ++k) {
+    check(s, std::isfinite(g.upper[k] - g.lower[k]), "grid.upper", "upper - lower overflows on axis ", k);
     check(s, g.cells[k] >= 1, "grid.cells", "axis ", k, ": must be >= 1 (got ", g.cells[k], ")");
+  }
   check(s, g.kind != "perturbed" || (g.perturbation >= 0.0 && g.perturbation < 0.5), "grid.perturbation",
         "must be in [0, 0.5) (got ", g.perturbation, ")");
 }
@@ -117,10 +126,12 @@ void check_basis(const Scene& s) {
 
 void check_materials(const Scene& s) {
   check(s, !s.materials.empty(), "material", "at least one [[material]] is required");
+  std::set<std::string> names;
   for (std::size_t i = 0; i < s.materials.size(); ++i) {
     const MaterialSection& ms = s.materials[i];
     const std::string key = element_key("material", ms.name, i);
     check(s, !ms.name.empty(), key + ".name", "must not be empty");
+    check(s, names.insert(ms.name).second, key + ".name", "duplicate name \"", ms.name, "\"");
     try {
       validate_material(ms);
     } catch (const InputError& e) {
@@ -227,6 +238,8 @@ void check_loads(const Scene& s, int dim) {
     check_box(s, key, t.lower, t.upper, dim, false);
     check_finite(s, key + ".value", t.value, dim);
     check_time(s, key + ".time", t.time);
+    check(s, t.function.empty() || t.function == "wobbes_traction_bar", key + ".function",
+          "must be \"wobbes_traction_bar\" when set (got \"", t.function, "\")");
     check(s, !t.axis || (*t.axis >= 0 && *t.axis < dim), key + ".axis", "must be an axis index in [0, ", dim,
           ") (got ", t.axis.value_or(0), ")");
   }
@@ -234,7 +247,7 @@ void check_loads(const Scene& s, int dim) {
 
 /// output.every: 0 (first and last frame only) or a finite interval that asks
 /// for at most kMaxOutputTimes output times (a tiny interval never advances).
-void check_output(const Scene& s) {
+void check_output_every(const Scene& s) {
   constexpr double kMaxOutputTimes = 1e9;
   const double every = s.output.every;
   check(s, every == 0.0 || (finite_positive(every) && s.simulation.t_end / every <= kMaxOutputTimes), "output.every",
@@ -244,13 +257,61 @@ void check_output(const Scene& s) {
     check(s, std::find(known.begin(), known.end(), f) != known.end(), "output.fields", "unknown field \"", f, "\"");
 }
 
+/// Each probe: a unique name the result file can hold (invalid_name_reason),
+/// a known particle choice, a finite point for "nearest".
+void check_probes(const Scene& s, int dim) {
+  std::set<std::string> names;
+  for (std::size_t i = 0; i < s.output.probes.size(); ++i) {
+    const ProbeSection& p = s.output.probes[i];
+    const std::string key = element_key("output.probes", p.name, i);
+    const std::string why = invalid_name_reason(p.name);
+    check(s, why.empty(), key + ".name", "\"", p.name, "\" cannot name a probe in the result file: ", why);
+    check(s, names.insert(p.name).second, key + ".name", "duplicate name \"", p.name, "\"");
+    check(s, one_of(p.particle, {"leftmost", "rightmost", "nearest"}), key + ".particle",
+          "must be one of \"leftmost\", \"rightmost\", \"nearest\" (got \"", p.particle, "\")");
+    if (p.particle == "nearest") check_finite(s, key + ".at", p.at, dim);
+  }
+}
+
+/// output.file, fields, format and the checkpoint keys, as parse_scene reads them.
+void check_output(const Scene& s, int dim) {
+  const OutputSection& o = s.output;
+  check(s, !o.file.empty(), "output.file", "must not be empty");
+  check_output_every(s);
+  std::set<std::string> fields;
+  for (const std::string& f : o.fields)
+    check(s, fields.insert(f).second, "output.fields", "names \"", f, "\" twice");
+  check_probes(s, dim);
+  check(s, o.checkpoint_every >= 0, "output.checkpoint_every", "must be >= 0 (got ", o.checkpoint_every, ")");
+  check(s, o.checkpoint_file != o.file, "output.checkpoint_file", "must differ from output.file");
+  std::set<std::string> formats;
+  for (const std::string& f : o.formats) {
+    check(s, is_output_format(f), "output.format", "unknown format \"", f, "\"");
+    check(s, formats.insert(f).second, "output.format", "names \"", f, "\" twice");
+  }
+  check(s, formats.count("hdf5") == 1, "output.format", "must contain \"hdf5\"");
+  check(s, !(formats.count("vtp") && formats.count("vtu")), "output.format", "choose one of \"vtp\" and \"vtu\"");
+}
+
+/// The caps of parse_scene: particles and nodes (kMaxSceneParticles,
+/// kMaxSceneNodes).
+void check_size(const Scene& s) {
+  const SceneSize n = scene_size(s);
+  check(s, n.nodes <= kMaxSceneNodes, "grid.cells", "the node set would have ", n.nodes, " nodes; at most ",
+        kMaxSceneNodes, " are allowed");
+  check(s, n.particles <= kMaxSceneParticles, "body", "the bodies would have ", n.particles,
+        " particles; at most ", kMaxSceneParticles, " are allowed");
+}
+
 } // namespace
 
 void validate_bodies(const Scene& s, int dim) {
   check(s, !s.bodies.empty(), "body", "at least one [[body]] is required");
+  std::set<std::string> names;
   for (std::size_t i = 0; i < s.bodies.size(); ++i) {
     const BodySection& b = s.bodies[i];
     const std::string key = element_key("body", b.name, i);
+    check(s, b.name.empty() || names.insert(b.name).second, key + ".name", "duplicate name \"", b.name, "\"");
     const bool known = std::any_of(s.materials.begin(), s.materials.end(),
                                    [&](const MaterialSection& m) { return m.name == b.material; });
     check(s, known, key + ".material", "no [[material]] named \"", b.material, "\"");
@@ -278,9 +339,10 @@ void validate_scene(const Scene& s, int dimension) {
   check_basis(s);
   check_materials(s);
   validate_bodies(s, dimension);
+  check_size(s);
   check_loads(s, dimension);
   check_contact(s);
-  check_output(s);
+  check_output(s, dimension);
 }
 
 std::vector<std::string_view> output_field_names(const Scene& s) {

@@ -12,17 +12,26 @@
 namespace otmpm {
 
 /// Throws InputError naming the key unless the scene can run in `dimension`
-/// dimensions. Checked: simulation (dimension == `dimension`, mode,
-/// integrator, mass, gamma, t_end, cfl, dt, mass_tolerance, energy_limit),
-/// grid (kind, finite lower < upper, cells >= 1, perturbation), at least one
-/// material and body, every material (model, Material::validate), every body
-/// (see validate_bodies), the initial-velocity, boundary and traction boxes
-/// and values, the body force, the time functions and output.every. Options
-/// of the basis family are checked by make_basis().
+/// dimensions: every check parse_scene makes of the values it reads.
+/// Checked: simulation (dimension == `dimension`, mode, integrator, its
+/// parameters and the mode and mass matrix it needs, t_end, cfl, dt,
+/// mass_tolerance, finite energy_limit >= 1, max_steps, memory_limit), grid
+/// (kind, finite lower < upper and upper - lower, cells >= 1, perturbation),
+/// the basis kind and the grid and mode it needs, at least one material and
+/// body, every material (unique name, model and its parameters), every body
+/// (see validate_bodies), the particle and node caps (kMaxSceneParticles,
+/// kMaxSceneNodes), the initial-velocity, boundary, wall and traction boxes,
+/// values, axes and functions, the body force, the time functions, and the
+/// output section (file, every, known and distinct fields and formats,
+/// probes with valid unique names (invalid_name_reason), a known particle
+/// choice and a finite point, checkpoint_every >= 0, checkpoint_file !=
+/// file). Options of the basis family are checked by make_basis().
 void validate_scene(const Scene& scene, int dimension);
 
-/// The bodies alone: at least one; each names a defined material, has a
-/// finite box lower < upper, particles_per_cell >= 1, placement "gauss" or
+/// The bodies alone: at least one; each has a unique name (or none), names a
+/// defined material, has a known shape with the values it needs (a finite
+/// box lower < upper), particles_per_cell in [1, kMaxParticlesPerCell],
+/// overlap "error" or "first", placement "gauss" or
 /// "cell_centres", a finite velocity and velocity_profile unset or "sin_x";
 /// in `mpm` mode it lies inside the grid. InputError naming the key.
 void validate_bodies(const Scene& scene, int dimension);

@@ -1,0 +1,143 @@
+// VTK XML frame files (.vtp / .vtu) and their .pvd collection (see vtk.hpp).
+#include "otmpm/io/vtk.hpp"
+
+#include "otmpm/core.hpp"
+#include "otmpm/io/text_files.hpp"
+
+#include <bit>
+#include <cerrno>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+namespace otmpm {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+/// Components of a VTK point.
+constexpr int kPointComponents = 3;
+/// VTK_VERTEX, the cell type of one particle in a .vtu file.
+constexpr std::uint8_t kVtkVertex = 1;
+
+constexpr const char* byte_order() { return std::endian::native == std::endian::little ? "LittleEndian" : "BigEndian"; }
+
+/// The raw appended data of one VTK XML file: blocks of a UInt64 byte count
+/// followed by the bytes, addressed by their offset from the start.
+class Appended {
+public:
+  /// Appends an array and returns its offset.
+  template <class T> std::size_t add(const std::vector<T>& values) {
+    const std::size_t offset = bytes_.size();
+    const std::uint64_t n = values.size() * sizeof(T);
+    put(&n, sizeof n);
+    put(values.data(), n);
+    return offset;
+  }
+  const std::string& bytes() const { return bytes_; }
+
+private:
+  void put(const void* data, std::size_t n) { bytes_.append(static_cast<const char*>(data), n); }
+  std::string bytes_;
+};
+
+/// `<DataArray .../>` naming an appended array.
+std::string data_array(const char* type, const std::string& name, int components, std::size_t offset) {
+  return "<DataArray type=\"" + std::string(type) + "\" Name=\"" + text::xml_escape(name) +
+         "\" NumberOfComponents=\"" + std::to_string(components) + "\" format=\"appended\" offset=\"" +
+         std::to_string(offset) + "\"/>";
+}
+
+std::string frame_file_name(int index, const std::string& extension) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "frame_%06d.", index);
+  return buf + extension;
+}
+
+} // namespace
+
+VtkSeriesWriter::VtkSeriesWriter(std::string pvd, std::string dir, std::string extension, int dimension,
+                                 std::string run_id, std::string result_name)
+    : pvd_(std::move(pvd)), dir_(std::move(dir)), extension_(std::move(extension)), run_id_(std::move(run_id)),
+      result_name_(std::move(result_name)), dimension_(dimension) {
+  require<std::invalid_argument>(extension_ == "vtp" || extension_ == "vtu", "VtkSeriesWriter: extension '",
+                                 extension_, "' is not vtp or vtu");
+  require<std::invalid_argument>(dimension_ >= 1 && dimension_ <= kPointComponents,
+                                 "VtkSeriesWriter: dimension must be 1, 2 or 3, got ", dimension_);
+  std::error_code ec;
+  fs::create_directories(dir_, ec);
+  if (ec) throw OutputError(dir_ + ": cannot create the directory of the VTK frames: " + ec.message());
+}
+
+void VtkSeriesWriter::write_frame(int index, double time, const std::vector<FieldView>& fields) {
+  const FieldView* x = nullptr;
+  for (const FieldView& f : fields)
+    if (f.name == "x") x = &f;
+  require<std::invalid_argument>(x != nullptr, "VtkSeriesWriter: a frame needs the field x");
+  const int n = x->rows;
+  Appended data;
+  const std::size_t time_offset = data.add(std::vector<double>{time});
+  std::vector<double> points(static_cast<std::size_t>(n) * kPointComponents, 0.0);
+  for (int p = 0; p < n; ++p)
+    for (int k = 0; k < dimension_; ++k) points[static_cast<std::size_t>(p) * kPointComponents + k] = x->data[p * dimension_ + k];
+  const std::size_t points_offset = data.add(points);
+  std::ostringstream point_data;
+  for (const FieldView& f : fields) {
+    if (f.name == "x" || f.rows != n) continue;
+    const std::vector<double> values(f.data, f.data + static_cast<std::size_t>(f.rows) * f.cols);
+    point_data << "        " << data_array("Float64", f.name, f.cols, data.add(values)) << "\n";
+  }
+  std::vector<std::int64_t> connectivity(static_cast<std::size_t>(n)), offsets(static_cast<std::size_t>(n));
+  for (int p = 0; p < n; ++p) {
+    connectivity[static_cast<std::size_t>(p)] = p;
+    offsets[static_cast<std::size_t>(p)] = p + 1;
+  }
+  const std::size_t connectivity_offset = data.add(connectivity), offsets_offset = data.add(offsets);
+  const bool poly = extension_ == "vtp";
+  const std::string type = poly ? "PolyData" : "UnstructuredGrid";
+  std::ostringstream os;
+  os << "<?xml version=\"1.0\"?>\n" << text::run_id_comment(run_id_, result_name_) << "\n"
+     << "<VTKFile type=\"" << type << "\" version=\"1.0\" byte_order=\"" << byte_order()
+     << "\" header_type=\"UInt64\">\n  <" << type << ">\n    <FieldData>\n      "
+     << "<DataArray type=\"Float64\" Name=\"TimeValue\" NumberOfTuples=\"1\" format=\"appended\" offset=\""
+     << time_offset << "\"/>\n    </FieldData>\n";
+  if (poly)
+    os << "    <Piece NumberOfPoints=\"" << n << "\" NumberOfVerts=\"" << n
+       << "\" NumberOfLines=\"0\" NumberOfStrips=\"0\" NumberOfPolys=\"0\">\n";
+  else os << "    <Piece NumberOfPoints=\"" << n << "\" NumberOfCells=\"" << n << "\">\n";
+  os << "      <PointData>\n" << point_data.str() << "      </PointData>\n      <Points>\n        "
+     << data_array("Float64", "Points", kPointComponents, points_offset) << "\n      </Points>\n      <"
+     << (poly ? "Verts" : "Cells") << ">\n        " << data_array("Int64", "connectivity", 1, connectivity_offset)
+     << "\n        " << data_array("Int64", "offsets", 1, offsets_offset) << "\n";
+  if (!poly)
+    os << "        "
+       << data_array("UInt8", "types", 1, data.add(std::vector<std::uint8_t>(static_cast<std::size_t>(n), kVtkVertex)))
+       << "\n";
+  os << "      </" << (poly ? "Verts" : "Cells") << ">\n    </Piece>\n  </" << type
+     << ">\n  <AppendedData encoding=\"raw\">\n   _" << data.bytes() << "\n  </AppendedData>\n</VTKFile>\n";
+  const std::string name = frame_file_name(index, extension_);
+  const std::string path = (fs::path(dir_) / name).string();
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out << os.str();
+  if (!out.flush()) throw OutputError(path + ": cannot write the VTK frame: " + std::strerror(errno));
+  frames_.emplace_back(time, (fs::path(dir_).filename() / name).string());
+}
+
+void VtkSeriesWriter::publish() {
+  if (published_ == frames_.size() && published_ > 0) return;
+  std::ostringstream os;
+  os << "<?xml version=\"1.0\"?>\n" << text::run_id_comment(run_id_, result_name_) << "\n"
+     << "<VTKFile type=\"Collection\" version=\"0.1\" byte_order=\"" << byte_order() << "\">\n  <Collection>\n";
+  for (const auto& [time, file] : frames_)
+    os << "    <DataSet timestep=\"" << text::exact(time) << "\" group=\"\" part=\"0\" file=\""
+       << text::xml_escape(file) << "\"/>\n";
+  os << "  </Collection>\n</VTKFile>\n";
+  text::replace_file(pvd_, os.str(), "VTK collection");
+  published_ = frames_.size();
+}
+
+} // namespace otmpm

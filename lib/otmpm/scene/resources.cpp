@@ -1,0 +1,170 @@
+// Memory and step-count estimates of a scene, and the limits a run checks
+// before it allocates anything (see resources.hpp).
+#include "otmpm/scene/resources.hpp"
+
+#include "otmpm/basis/kinds.hpp"
+#include "otmpm/materials/elasticity.hpp"
+
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <numbers>
+#include <string>
+
+namespace otmpm {
+
+namespace {
+
+/// Bytes per particle (kParticleBytes, per dimension D - 1) and per entry of
+/// its stencil (kStencilEntryBytes), and per node, fitted to the peak
+/// resident memory of `otmpm run` with the linear and LME bases, 1e5 to 4e6
+/// particles and 1e4 to 1e6 nodes (docs/stability.md, "What a run may
+/// cost"); the estimate multiplies them by kSafety.
+constexpr std::array<double, 3> kParticleBytes = {70, 115, 245};
+constexpr double kStencilEntryBytes = 60;
+constexpr double kNodeBytes = 260;
+/// Bytes per entry of the LDL^T factor of the consistent mass matrix.
+constexpr double kFactorEntryBytes = 12;
+/// The footprint of the process before the scene (libraries, HDF5, buffers).
+constexpr double kBaseBytes = 30e6;
+/// Factor on the fitted costs: the estimate stays above what was measured.
+constexpr double kSafety = 1.25;
+
+/// The support radius, in units of h, of a basis family whose particles
+/// see `stencil` lattice nodes: half the width of the cube of a tensor-product
+/// family (1 linear, 1.5 quadratic, 2 cubic), the radius of the D-ball of a
+/// family that searches the nodes within a radius (lme, maxent).
+double support_radius(const BasisKind& kind, double stencil, int dim) {
+  if (!kind.searches_nodes) return 0.5 * std::pow(stencil, 1.0 / dim);
+  return dim == 1 ? 0.5 * stencil
+         : dim == 2 ? std::sqrt(stencil / std::numbers::pi)
+                    : std::cbrt(3.0 * stencil / (4.0 * std::numbers::pi));
+}
+
+/// Entries of the LDL^T factor of the consistent mass matrix: n nodes times
+/// the profile of a lattice ordered row by row (n^(1 - 1/D) nodes per layer
+/// times the 2 r + 1 layers a node couples to). Measured fill stays below it.
+double factor_entries(double nodes, double radius, int dim) {
+  const double band = std::pow(nodes, 1.0 - 1.0 / dim) * (2 * radius + 1);
+  return nodes * std::min(nodes, band);
+}
+
+/// Smallest grid spacing over the scene's axes.
+double min_spacing(const Scene& s) {
+  double h = INFINITY;
+  for (int k = 0; k < s.simulation.dimension; ++k) h = std::min(h, (s.grid.upper[k] - s.grid.lower[k]) / s.grid.cells[k]);
+  return h;
+}
+
+/// The fastest signal at t = 0: P-wave speed of every material, speed of
+/// every initial velocity. A velocity whose square overflows is left out: such
+/// a state is not a long run but an instability at t = 0, which the run reports.
+double max_wave_speed(const Scene& s) {
+  const int dim = s.simulation.dimension;
+  double c2 = 0;
+  for (const MaterialSection& ms : s.materials) {
+    const ElasticConstants m = ms.elastic();
+    c2 = std::max(c2, m.p_modulus(dim) / m.density);
+  }
+  auto speed2 = [dim](const Vec3& v) {
+    double v2 = 0;
+    for (int k = 0; k < dim; ++k) v2 += v[k] * v[k];
+    return std::isfinite(v2) ? v2 : 0.0;
+  };
+  for (const BodySection& b : s.bodies) c2 = std::max(c2, speed2(b.velocity));
+  for (const InitialVelocitySection& iv : s.initial_velocities) c2 = std::max(c2, speed2(iv.velocity));
+  return std::sqrt(c2);
+}
+
+/// The cgroup v2 memory limit of this process in bytes, or INFINITY.
+double cgroup_limit() {
+  std::ifstream in("/sys/fs/cgroup/memory.max");
+  std::string value;
+  if (!(in >> value) || value == "max") return INFINITY;
+  try {
+    return std::stod(value);
+  } catch (const std::exception&) {
+    return INFINITY;
+  }
+}
+
+} // namespace
+
+ResourceEstimate estimate_resources(const Scene& scene) {
+  const int dim = scene.simulation.dimension;
+  const std::size_t d = static_cast<std::size_t>(std::clamp(dim, 1, 3) - 1);
+  ResourceEstimate e;
+  const SceneSize n = scene_size(scene);
+  e.particles = n.particles;
+  e.nodes = n.nodes;
+  const BasisKind& kind = basis_kind(scene.basis.kind);
+  e.stencil = kind.stencil_nodes(scene.basis, dim);
+  e.bytes_per_particle = kSafety * (kParticleBytes[d] + e.stencil * kStencilEntryBytes);
+  e.bytes_per_node = kSafety * kNodeBytes;
+  if (scene.simulation.mass == "consistent" && e.nodes > 0)
+    e.bytes_per_node += kFactorEntryBytes * factor_entries(e.nodes, support_radius(kind, e.stencil, dim), dim) / e.nodes;
+  e.bytes = kBaseBytes + e.particles * e.bytes_per_particle + e.nodes * e.bytes_per_node;
+  const double c = max_wave_speed(scene);
+  e.dt = scene.simulation.dt ? *scene.simulation.dt : scene.simulation.cfl * min_spacing(scene) / c;
+  e.steps = std::ceil(scene.simulation.t_end / e.dt);
+  if (!std::isfinite(e.steps) || std::isnan(e.steps)) e.steps = INFINITY; // c = inf or dt = 0 after underflow
+  return e;
+}
+
+double available_memory() {
+  const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGE_SIZE);
+  double limit = pages > 0 && page > 0 ? static_cast<double>(pages) * static_cast<double>(page) : INFINITY;
+  limit = std::min(limit, cgroup_limit());
+  struct rlimit as {};
+  if (::getrlimit(RLIMIT_AS, &as) == 0 && as.rlim_cur != RLIM_INFINITY)
+    limit = std::min(limit, static_cast<double>(as.rlim_cur));
+  return limit;
+}
+
+double memory_limit(const Scene& scene) {
+  return scene.simulation.memory_limit > 0 ? scene.simulation.memory_limit : available_memory();
+}
+
+std::string format_bytes(double bytes) {
+  const char* units[] = {"B", "kB", "MB", "GB", "TB", "PB"};
+  int u = 0;
+  while (bytes >= 1000 && u < 5) {
+    bytes /= 1000;
+    ++u;
+  }
+  char buf[48];
+  std::snprintf(buf, sizeof buf, "%.3g %s", bytes, units[u]);
+  return buf;
+}
+
+void check_resources(const Scene& scene) {
+  const ResourceEstimate e = estimate_resources(scene);
+  const double limit = memory_limit(scene);
+  if (e.bytes > limit) {
+    const bool set = scene.simulation.memory_limit > 0;
+    input_error(scene.locate("simulation.memory_limit"),
+                "the run would need about " + format_bytes(e.bytes) + " of memory (" + format_number(e.particles) +
+                    " particles x " + format_bytes(e.bytes_per_particle) + " with the " + scene.basis.kind +
+                    " basis, " + format_number(e.nodes) + " nodes x " + format_bytes(e.bytes_per_node) +
+                    "), more than the limit of " + format_bytes(limit) +
+                    (set ? " set by simulation.memory_limit"
+                         : " this process may use (physical memory; set simulation.memory_limit in bytes to override)"));
+  }
+  if (!(e.steps <= scene.simulation.max_steps)) {
+    const bool fixed = scene.simulation.dt.has_value();
+    input_error(scene.locate(fixed ? "simulation.dt" : "simulation.cfl"),
+                "the run would take about " + format_number(e.steps) + " steps (t_end = " +
+                    format_number(scene.simulation.t_end) + " s over a " + (fixed ? "fixed" : "first CFL") +
+                    " step dt = " + format_number(e.dt) + " s" +
+                    (fixed ? "" : ", from the fastest wave speed " + format_number(max_wave_speed(scene)) + " m/s") +
+                    "), more than simulation.max_steps = " + format_number(scene.simulation.max_steps) +
+                    " (set it higher to run anyway)");
+  }
+}
+
+} // namespace otmpm

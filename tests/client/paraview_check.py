@@ -1,0 +1,79 @@
+"""Opens otmpm result files in ParaView (run with pvpython) and checks what
+a user sees: for each result file, its XDMF sidecar through both XDMF readers
+(Xdmf3ReaderS, the recommended one, and the legacy XDMFReader) and its .pvd
+collection (PVDReader) must give one time step per frame of the HDF5 file and,
+at the last time step, one point and one vertex cell per particle and every
+particle field as point data, with the values of the HDF5 file bit for bit.
+
+    pvpython paraview_check.py RESULT.h5...
+
+Prints one line per file and reader; exits 1 on the first mismatch.
+"""
+import os
+import sys
+
+import h5py
+import numpy as np
+from paraview import servermanager
+from paraview.simple import PVDReader, XDMFReader, Xdmf3ReaderS
+from vtk.util.numpy_support import vtk_to_numpy
+
+
+def fail(message):
+    print("FAIL: " + message)
+    sys.exit(1)
+
+
+def expected(path):
+    """Times, particle count and fields (name -> values at the last frame) of a result file."""
+    with h5py.File(path, "r") as f:
+        names = sorted(f["frames"])
+        times = [float(f["frames"][n].attrs["time"]) for n in names]
+        last = f["frames"][names[-1]]
+        fields = {k: last[k][:] for k in last if k not in ("x", "x3")}
+        return times, last["x"].shape[0], int(f.attrs["dimension"]), fields
+
+
+def fetch(reader, time):
+    """The dataset a reader produces at `time`, as a flat vtkDataSet."""
+    reader.UpdatePipeline(time)
+    data = servermanager.Fetch(reader)
+    if data.IsA("vtkMultiBlockDataSet"):
+        data = data.GetBlock(0)
+    return data
+
+
+def check(path, name, reader, times, particles, dimension, fields):
+    got_times = list(reader.TimestepValues) if hasattr(reader.TimestepValues, "__len__") else [reader.TimestepValues]
+    if len(got_times) != len(times) or not np.allclose(got_times, times, rtol=1e-12, atol=0):
+        fail(f"{path} {name}: time steps {got_times} != frames at {times}")
+    data = fetch(reader, times[-1])
+    if data.GetNumberOfPoints() != particles or data.GetNumberOfCells() != particles:
+        fail(f"{path} {name}: {data.GetNumberOfPoints()} points, {data.GetNumberOfCells()} cells; "
+             f"expected {particles} of each (one vertex per particle)")
+    point_data = data.GetPointData()
+    got = {point_data.GetArrayName(i) for i in range(point_data.GetNumberOfArrays())}
+    if got != set(fields):
+        fail(f"{path} {name}: point data {sorted(got)} != fields {sorted(fields)}")
+    for field, values in fields.items():
+        array = vtk_to_numpy(point_data.GetArray(field)).reshape(particles, -1)
+        cols = values.shape[1]
+        # The legacy reader pads a D-component vector to 3 components with zeros.
+        if array.shape[1] != cols and not (name == "XDMFReader" and cols == dimension and array.shape[1] == 3):
+            fail(f"{path} {name}: field {field} has {array.shape[1]} components, the HDF5 file {cols}")
+        if not np.array_equal(array[:, :cols], values) or np.any(array[:, cols:] != 0):
+            fail(f"{path} {name}: field {field} differs from the HDF5 file")
+    print(f"ok: {os.path.basename(path)} {name}: {len(times)} time steps, {particles} points and vertex cells, "
+          f"point data {sorted(fields)}")
+
+
+def main():
+    for path in sys.argv[1:]:
+        times, particles, dimension, fields = expected(path)
+        stem = path[: -len(".h5")]
+        check(path, "Xdmf3ReaderS", Xdmf3ReaderS(FileName=[stem + ".xdmf"]), times, particles, dimension, fields)
+        check(path, "XDMFReader", XDMFReader(FileNames=[stem + ".xdmf"]), times, particles, dimension, fields)
+        check(path, "PVDReader", PVDReader(FileName=stem + ".pvd"), times, particles, dimension, fields)
+
+
+main()
