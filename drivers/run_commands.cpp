@@ -223,7 +223,7 @@ Command add_run_command(CLI::App& app) {
   sub->footer("One of SCENE.toml and --restart is required. SIGINT/SIGTERM stop the run after the current step: "
               "the result file keeps status \"interrupted\" (and a last checkpoint is written if checkpointing is "
               "on); exit status 130/143.");
-  return [a, sub] {
+  return [a] {
     if (a->scene.empty() && a->restart.empty())
       throw InputError("give a scene file (otmpm run SCENE.toml) or --restart CHECKPOINT.h5");
     return run_command(*a);
