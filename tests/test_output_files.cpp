@@ -20,6 +20,7 @@
 #include <doctest/doctest.h>
 #include <hdf5.h>
 
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -190,6 +191,29 @@ TEST_CASE("D4, D17: otmpm's lock refuses a second holder, names it, and does not
   }
   ::unsetenv("HDF5_USE_FILE_LOCKING");
   CHECK_FALSE(fs::exists(lock_path(res))); // released and removed
+  CHECK_NOTHROW(OutputLock({res}));
+}
+
+TEST_CASE("D9: a lock whose holder died is free: lock_holder_of says so and the next holder takes it") {
+  TempDir t("lockdead");
+  const std::string res = t.file("run.h5");
+  CHECK(lock_holder_of(res).empty()); // no lock file
+  {
+    OutputLock mine({res});
+    CHECK(lock_holder_of(res).rfind("process " + std::to_string(::getpid()) + " on host ", 0) == 0);
+  }
+  // A holder killed while it holds the lock: its lock file stays, unlocked.
+  const pid_t child = ::fork();
+  REQUIRE(child >= 0);
+  if (child == 0) {
+    OutputLock held({res});
+    ::_exit(0); // no destructor: the lock file is left behind, as by SIGKILL
+  }
+  int status = 0;
+  REQUIRE(::waitpid(child, &status, 0) == child);
+  REQUIRE(WIFEXITED(status));
+  CHECK(fs::exists(lock_path(res)));
+  CHECK(lock_holder_of(res).empty());
   CHECK_NOTHROW(OutputLock({res}));
 }
 

@@ -6,6 +6,7 @@
 #include <cstring>
 #include <fcntl.h>
 #include <stdexcept>
+#include <thread>
 #include <sys/prctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -60,19 +61,24 @@ pid_t ProcessPool::start(const std::vector<std::string>& argv, const std::filesy
   return pid;
 }
 
-ChildExit ProcessPool::wait_any() {
+ChildExit ProcessPool::wait_any(std::chrono::milliseconds limit) {
+  constexpr std::chrono::milliseconds poll{20};
   ChildExit c;
-  if (children_.empty()) return c;
   int status = 0;
-  const pid_t pid = waitpid(-1, &status, 0);
-  if (pid < 0) {
-    if (errno == EINTR) return c;
-    throw std::runtime_error(std::string("waitpid failed: ") + std::strerror(errno));
+  for (auto waited = std::chrono::milliseconds(0); !children_.empty(); waited += poll) {
+    const pid_t pid = waitpid(-1, &status, WNOHANG);
+    if (pid < 0 && errno != EINTR)
+      throw std::runtime_error(std::string("waitpid failed: ") + std::strerror(errno));
+    if (pid > 0) {
+      children_.erase(std::remove(children_.begin(), children_.end(), pid), children_.end());
+      c.pid = pid;
+      c.signalled = WIFSIGNALED(status);
+      c.status = c.signalled ? 128 + WTERMSIG(status) : WEXITSTATUS(status);
+      return c;
+    }
+    if (waited >= limit) break;
+    std::this_thread::sleep_for(poll);
   }
-  children_.erase(std::remove(children_.begin(), children_.end(), pid), children_.end());
-  c.pid = pid;
-  c.signalled = WIFSIGNALED(status);
-  c.status = c.signalled ? 128 + WTERMSIG(status) : WEXITSTATUS(status);
   return c;
 }
 

@@ -5,8 +5,8 @@
 /// PR_SET_PDEATHSIG: if the study dies, even by SIGKILL, its children get
 /// SIGTERM, which makes an `otmpm run` stop cleanly with status
 /// "interrupted"), so no run is left holding a result file.
+#include <chrono>
 #include <filesystem>
-#include <map>
 #include <string>
 #include <sys/types.h>
 #include <vector>
@@ -32,9 +32,11 @@ public:
   /// extra environment `env` ("NAME=VALUE"); returns its pid.
   pid_t start(const std::vector<std::string>& argv, const std::filesystem::path& log,
               const std::vector<std::string>& env);
-  /// Waits for the next child to end. Returns pid -1 when none is running or
-  /// when the wait was interrupted by a signal (the caller checks its flag).
-  ChildExit wait_any();
+  /// Waits up to `limit` for the next child to end. Returns pid -1 when none
+  /// is running or none ended in time: the caller checks its interrupt flag
+  /// between waits, so a signal that arrives just before a wait is seen
+  /// within `limit` (a blocking waitpid would miss it until a child ends).
+  ChildExit wait_any(std::chrono::milliseconds limit);
   /// Sends SIGTERM to every running child.
   void terminate_all();
   std::size_t running() const { return children_.size(); }

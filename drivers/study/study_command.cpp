@@ -10,7 +10,10 @@
 // exits 130/143; runs that did not finish are not recorded, so the next
 // `otmpm study` runs them again. A child killed by a signal is not recorded
 // either (retried next time); a study killed by SIGKILL takes its children
-// with it (PR_SET_PDEATHSIG).
+// with it (PR_SET_PDEATHSIG). A run whose result file is still locked by
+// another process (a child of a killed study that is still stopping) waits
+// for it instead of failing; the study holds otmpm's lock on its CSV, so a
+// second study on the same CSV is refused.
 #include "../cli.hpp"
 #include "../interrupt.hpp"
 #include "../system.hpp"
@@ -19,10 +22,14 @@
 #include "study_file.hpp"
 
 #include "otmpm/core.hpp"
+#include "otmpm/io/output_files.hpp"
 
+#include <chrono>
 #include <cstdio>
 #include <map>
 #include <memory>
+#include <optional>
+#include <thread>
 
 namespace fs = std::filesystem;
 
@@ -80,9 +87,146 @@ void draw_plots(const Study& s, const StudyArgs& a) {
 /// `otmpm run` that stopped on SIGINT/SIGTERM (exit 130/143).
 bool cut_short(const study::ChildExit& c) { return c.signalled || c.status == 130 || c.status == 143; }
 
+/// How long a run waits for another process (the child of a killed study,
+/// still stopping) to release otmpm's lock on its result file.
+constexpr std::chrono::seconds kLockWait{300};
+/// How often the study looks at its children, its interrupt flag and a lock it waits for.
+constexpr std::chrono::milliseconds kPoll{200};
+
+/// The runs of one `otmpm study` that are not in the CSV: started `jobs` at a
+/// time, each recorded in the CSV when its child ends - except a child that
+/// was cut short (killed by a signal or interrupted), which is left for the
+/// next `otmpm study`. On SIGINT/SIGTERM it starts no more runs, sends
+/// SIGTERM to the children and waits for them.
+class StudyRunner {
+public:
+  StudyRunner(const Study& s, const StudyArgs& a, std::vector<const StudyRun*> todo)
+      : s_(s), a_(a), todo_(std::move(todo)) {}
+  /// Runs until every run ended or the study was interrupted; returns 0 or
+  /// the interrupted exit status (130/143).
+  int run();
+
+private:
+  fs::path result_path(const StudyRun& r) const { return s_.results / (r.file_stem + ".h5"); }
+  fs::path log_path(const StudyRun& r) const { return s_.results / (r.file_stem + ".log"); }
+  void start_runs();
+  bool may_start(const StudyRun& r);
+  void finish(const study::ChildExit& c);
+  int report() const;
+
+  const Study& s_;
+  const StudyArgs& a_;
+  std::vector<const StudyRun*> todo_;
+  study::ProcessPool pool_;
+  std::map<pid_t, const StudyRun*> running_;
+  std::size_t next_ = 0, recorded_ = 0, not_recorded_ = 0, skipped_ = 0;
+  bool stopping_ = false;
+  std::optional<std::chrono::steady_clock::time_point> lock_wait_since_;
+};
+
+int StudyRunner::run() {
+  for (;;) {
+    if (interrupt_flag().load() && !stopping_) {
+      stopping_ = true;
+      pool_.terminate_all();
+    }
+    if (!stopping_) start_runs();
+    const bool more = !stopping_ && next_ < todo_.size();
+    if (pool_.running() == 0 && !more) break;
+    if (pool_.running() == 0) std::this_thread::sleep_for(kPoll); // waiting for a lock
+    else if (const study::ChildExit c = pool_.wait_any(kPoll); c.pid >= 0) finish(c);
+  }
+  return report();
+}
+
+void StudyRunner::start_runs() {
+  while (next_ < todo_.size() && static_cast<int>(pool_.running()) < s_.jobs) {
+    const StudyRun& r = *todo_[next_];
+    if (!may_start(r)) return;
+    running_[pool_.start(run_argv(s_, r, a_, result_path(r)), log_path(r), {})] = &r;
+    ++next_;
+  }
+}
+
+/// False while another process holds otmpm's lock on the run's result file
+/// (flock: a killed child holds none, so only a live one delays the run);
+/// after kLockWait the run is skipped, not recorded.
+bool StudyRunner::may_start(const StudyRun& r) {
+  const std::string out = result_path(r).string(), holder = lock_holder_of(out);
+  if (holder.empty()) {
+    lock_wait_since_.reset();
+    return true;
+  }
+  const auto now = std::chrono::steady_clock::now();
+  if (!lock_wait_since_) {
+    lock_wait_since_ = now;
+    std::printf("[~] %s %s: %s is being written by %s: waiting for it to end (at most %lld s)\n",
+                r.variant.c_str(), r.mesh.c_str(), out.c_str(), holder.c_str(),
+                static_cast<long long>(kLockWait.count()));
+  } else if (now - *lock_wait_since_ > kLockWait) {
+    std::printf("[-] %s %s: %s is still being written by %s: not started, not recorded\n", r.variant.c_str(),
+                r.mesh.c_str(), out.c_str(), holder.c_str());
+    ++skipped_;
+    ++next_;
+    lock_wait_since_.reset();
+  }
+  std::fflush(stdout);
+  return false;
+}
+
+void StudyRunner::finish(const study::ChildExit& c) {
+  const StudyRun* r = running_.at(c.pid);
+  running_.erase(c.pid);
+  if (cut_short(c)) {
+    ++not_recorded_;
+    std::printf("[-] %s %s: stopped (exit %d), not recorded: the next `otmpm study` runs it again\n",
+                r->variant.c_str(), r->mesh.c_str(), c.status);
+  } else {
+    study::append_row(s_, study::result_row(s_, *r, c.status, result_path(*r), log_path(*r)));
+    std::printf("[%zu/%zu] %s %s: exit %d\n", ++recorded_, todo_.size(), r->variant.c_str(), r->mesh.c_str(),
+                c.status);
+  }
+  std::fflush(stdout);
+}
+
+int StudyRunner::report() const {
+  if (stopping_) {
+    std::printf("study interrupted by %s: %zu runs recorded, %zu stopped and %zu not started (not recorded); run "
+                "`otmpm study %s` again to continue\n",
+                interrupt_signal_name(), recorded_, not_recorded_, todo_.size() - next_ + skipped_,
+                a_.file.c_str());
+    return interrupted_exit_status();
+  }
+  if (not_recorded_ + skipped_ > 0)
+    std::printf("%zu runs were stopped by a signal or not started and are not in the CSV: run the study again to "
+                "retry them\n",
+                not_recorded_ + skipped_);
+  return 0;
+}
+
+/// Creates the results folder (InputError naming the study file's `results` key when it cannot).
+void create_results_folder(const Study& s) {
+  std::error_code ec;
+  fs::create_directories(s.results, ec);
+  if (ec)
+    throw InputError(s.results_where.describe() + ": cannot create the folder " + s.results.string() + ": " +
+                     ec.message());
+}
+
+/// otmpm's lock on the study's CSV: one study per CSV at a time (flock:
+/// released when the study ends or dies).
+OutputLock lock_csv(const Study& s) {
+  try {
+    return OutputLock({s.csv.string()});
+  } catch (const InputError& e) {
+    throw InputError("study " + s.file.string() + ": another otmpm study is running on its CSV: " + e.what());
+  }
+}
+
 int study_command(const StudyArgs& a) {
   const Study s = study::read_study(a.file);
-  fs::create_directories(s.results);
+  create_results_folder(s);
+  const OutputLock csv_lock = lock_csv(s);
   const study::DoneRuns done = study::prepare_csv(s);
   std::vector<const StudyRun*> todo;
   for (const StudyRun& r : s.runs)
@@ -91,49 +235,7 @@ int study_command(const StudyArgs& a) {
               s.runs.size() - todo.size(), s.csv.c_str(), todo.size(), s.jobs);
   std::fflush(stdout);
   InterruptHandlers handlers;
-  study::ProcessPool pool;
-  std::map<pid_t, const StudyRun*> running;
-  std::size_t next = 0, recorded = 0, not_recorded = 0;
-  bool stopping = false;
-  auto paths = [&](const StudyRun& r) {
-    return std::make_pair(s.results / (r.file_stem + ".h5"), s.results / (r.file_stem + ".log"));
-  };
-  for (;;) {
-    if (interrupt_flag().load() && !stopping) {
-      stopping = true;
-      pool.terminate_all();
-    }
-    while (!stopping && next < todo.size() && static_cast<int>(pool.running()) < s.jobs) {
-      const auto [out, log] = paths(*todo[next]);
-      running[pool.start(run_argv(s, *todo[next], a, out), log, {})] = todo[next];
-      ++next;
-    }
-    if (pool.running() == 0) break;
-    const study::ChildExit c = pool.wait_any();
-    if (c.pid < 0) continue; // a signal interrupted the wait
-    const StudyRun* r = running.at(c.pid);
-    running.erase(c.pid);
-    if (cut_short(c)) {
-      ++not_recorded;
-      std::printf("[-] %s %s: stopped (exit %d), not recorded: the next `otmpm study` runs it again\n",
-                  r->variant.c_str(), r->mesh.c_str(), c.status);
-    } else {
-      const auto [out, log] = paths(*r);
-      study::append_row(s, study::result_row(s, *r, c.status, out, log));
-      std::printf("[%zu/%zu] %s %s: exit %d\n", ++recorded, todo.size(), r->variant.c_str(), r->mesh.c_str(),
-                  c.status);
-    }
-    std::fflush(stdout);
-  }
-  if (stopping) {
-    std::printf("study interrupted by %s: %zu runs recorded, %zu stopped and %zu not started (not recorded); run "
-                "`otmpm study %s` again to continue\n",
-                interrupt_signal_name(), recorded, not_recorded, todo.size() - next, a.file.c_str());
-    return interrupted_exit_status();
-  }
-  if (not_recorded > 0)
-    std::printf("%zu runs were stopped by a signal and are not in the CSV: run the study again to retry them\n",
-                not_recorded);
+  if (const int status = StudyRunner(s, a, std::move(todo)).run(); status != 0) return status;
   draw_plots(s, a);
   return 0;
 }

@@ -31,15 +31,19 @@ struct Mesh {
   std::string name;
   double h = 0.0;
   std::vector<std::string> sets;
-  SourceRef where;
+  SourceRef where, set_where; ///< the [[mesh]] table, its `set`
 };
+
+/// `s` without leading and trailing blanks (as --set reads a key).
+std::string trim(const std::string& s) {
+  const auto b = s.find_first_not_of(" \t");
+  return b == std::string::npos ? "" : s.substr(b, s.find_last_not_of(" \t") - b + 1);
+}
 
 /// True when `key` is a dotted path of non-empty segments (what --set accepts).
 bool valid_key(const std::string& key) {
-  const auto b = key.find_first_not_of(" \t"), e = key.find_last_not_of(" \t");
-  if (b == std::string::npos) return false;
-  const std::string k = key.substr(b, e - b + 1);
-  return k.front() != '.' && k.back() != '.' && k.find("..") == std::string::npos;
+  const std::string k = trim(key);
+  return !k.empty() && k.front() != '.' && k.back() != '.' && k.find("..") == std::string::npos;
 }
 
 /// A list of "KEY=VALUE" overrides (the common `set`, a mesh's or a
@@ -131,6 +135,7 @@ std::vector<Mesh> read_meshes(const TableReader& root) {
     m.name = t.get<std::string>("name", "h" + std::to_string(m.h));
     if (m.name.empty()) input_error(t.ref("name"), "must not be empty");
     m.sets = overrides(t, "set");
+    m.set_where = t.has("set") ? t.ref("set") : t.self();
     meshes.push_back(std::move(m));
   }
   if (meshes.empty()) root.missing("mesh", "at least one [[mesh]] table is required");
@@ -161,16 +166,139 @@ StabilityCriterion read_stability(const TableReader& root) {
   return c;
 }
 
-/// The scene must be a file; results a directory (or absent); csv a file (or absent).
+/// The nearest existing one of `p` and its parent folders ("" if none exists).
+fs::path existing_ancestor(fs::path p) {
+  std::error_code ec;
+  while (!p.empty() && !fs::exists(fs::symlink_status(p, ec))) {
+    if (p == p.parent_path()) return {};
+    p = p.parent_path();
+  }
+  return p;
+}
+
+/// InputError at `where` unless `path` is a directory or can be created as one.
+void check_folder(const SourceRef& where, const fs::path& path, const std::string& what) {
+  std::error_code ec;
+  const fs::path ancestor = existing_ancestor(path);
+  if (ancestor.empty() || fs::is_directory(ancestor, ec)) return;
+  if (ancestor == path)
+    input_error(where, path.string() + " exists and is not a directory (" + what + ")");
+  input_error(where, path.string() + " cannot be created: " + ancestor.string() + " is a file, not a directory (" +
+                         what + ")");
+}
+
+/// The scene must be a file; results a directory (or one that can be
+/// created); csv a file (or absent) in an existing folder.
 void check_paths(const TableReader& root, const Study& s) {
   std::error_code ec;
   if (fs::is_directory(s.scene, ec)) input_error(root.ref("scene"), s.scene.string() + " is a directory, not a scene file");
   if (!fs::exists(s.scene, ec)) input_error(root.ref("scene"), "no such file " + s.scene.string());
-  if (fs::exists(s.results, ec) && !fs::is_directory(s.results, ec))
-    input_error(root.has("results") ? root.ref("results") : root.self(),
-                s.results.string() + " exists and is not a directory (the folder for the result files)");
-  if (fs::is_directory(s.csv, ec))
-    input_error(root.has("csv") ? root.ref("csv") : root.self(), s.csv.string() + " is a directory, not a CSV file");
+  check_folder(s.results_where, s.results, "the folder for the result files");
+  const SourceRef csv = root.has("csv") ? root.ref("csv") : root.self();
+  if (fs::is_directory(s.csv, ec)) input_error(csv, s.csv.string() + " is a directory, not a CSV file");
+  const fs::path folder = s.csv.parent_path().empty() ? fs::path(".") : s.csv.parent_path();
+  if (!fs::is_directory(folder, ec))
+    input_error(csv, "the folder of the CSV file " + s.csv.string() + " does not exist (create it first)");
+}
+
+/// A `set` list of the study file and where it is.
+struct Overrides {
+  std::vector<std::string> sets;
+  SourceRef where;
+};
+
+/// The entry of `o` (the last one: it wins) that sets `key`, or nullptr.
+const std::string* entry_setting(const Overrides& o, const std::string& key) {
+  for (auto it = o.sets.rbegin(); it != o.sets.rend(); ++it)
+    if (trim(it->substr(0, it->find('='))) == key) return &*it;
+  return nullptr;
+}
+
+/// Applies the common `set` and each mesh's `set` to the base scene, before
+/// any run starts: an entry the scene reader refuses (an unknown key, a value
+/// of the wrong type or out of range) is an InputError at that entry.
+/// Errors of the base scene itself are left to the runs (a variant may be
+/// what makes the scene valid, and a refused variant is a result of a
+/// stability study).
+void check_overrides(const fs::path& scene, const Overrides& common, const std::vector<Mesh>& meshes) {
+  for (const Mesh& m : meshes) {
+    const Overrides mesh{m.sets, m.set_where};
+    std::vector<std::string> sets = common.sets;
+    sets.insert(sets.end(), m.sets.begin(), m.sets.end());
+    try {
+      (void)load_scene(scene.string(), sets);
+    } catch (const InputError& e) {
+      const InputSource* from = e.source();
+      if (!from || from->line != kCommandLineLine) continue;
+      for (const Overrides* o : {&mesh, &common})
+        if (const std::string* entry = entry_setting(*o, from->key))
+          input_error(o->where, "\"" + *entry + "\" does not apply to the scene " + scene.string() + ": " + e.what());
+    }
+  }
+}
+
+/// Longest result file stem: the lock file of NAME.xdmf, `.NAME.xdmf.otmpm-lock`,
+/// must fit in the 255 bytes of a file name.
+constexpr std::size_t kMaxStemBytes = 200;
+
+/// `variant "NAME"` or `mesh "NAME"`, with where it is when `with_where`.
+std::string named(const std::string& what, const std::string& name, const SourceRef& where, bool with_where) {
+  return what + " \"" + name + "\"" + (with_where ? " (" + where.describe() + ")" : "");
+}
+
+/// InputError: run (v, m) has the result file of the earlier run (v0, m0),
+/// reported at the variant or mesh that differs and naming both.
+[[noreturn]] void collision(const std::string& file, const Variant& v, const Mesh& m, const Variant& v0,
+                            const Mesh& m0) {
+  const std::string why = " map to the same result file " + file +
+                          " (names are compared as file names: characters other than letters, digits, '-' and "
+                          "'.' become '_', and case does not count): rename one of them";
+  if (&v == &v0)
+    input_error(m.where, named("mesh", m.name, m.where, false) + " and " + named("mesh", m0.name, m0.where, true) +
+                             why);
+  const std::string at = &m == &m0 ? "" : " at mesh \"" + m.name + "\"";
+  const std::string at0 = &m == &m0 ? "" : " at mesh \"" + m0.name + "\"";
+  input_error(v.where, named("variant", v.name, v.where, false) + at + " and " +
+                           named("variant", v0.name, v0.where, true) + at0 + why);
+}
+
+/// Refuses a run whose result file is another run's (compared without case,
+/// as on the case-insensitive file systems of macOS and Windows) or whose
+/// name is too long for a file name. `stems` holds the runs made so far.
+void check_result_file(const Study& s, const StudyRun& r, const Variant& v, const Mesh& m,
+                       std::map<std::string, std::pair<const Variant*, const Mesh*>>& stems) {
+  if (r.file_stem.size() > kMaxStemBytes)
+    input_error(v.where, named("variant", r.variant, v.where, false) + " at mesh \"" + m.name +
+                             "\" gives a result file name of " + std::to_string(r.file_stem.size() + 3) +
+                             " bytes; at most " + std::to_string(kMaxStemBytes + 3) + ": shorten the names");
+  std::string key = r.file_stem;
+  std::transform(key.begin(), key.end(), key.begin(), [](unsigned char c) { return std::tolower(c); });
+  const auto [it, fresh] = stems.emplace(key, std::make_pair(&v, &m));
+  if (!fresh) collision((s.results / (r.file_stem + ".h5")).string(), v, m, *it->second.first, *it->second.second);
+}
+
+/// The runs: every mesh with every variant, its overrides in the order
+/// common, mesh, variant.
+void make_runs(Study& s, const std::vector<std::string>& common, const std::vector<Variant>& variants,
+               const std::vector<Mesh>& meshes) {
+  std::map<std::string, std::pair<const Variant*, const Mesh*>> stems;
+  for (const Mesh& m : meshes)
+    for (const Variant& v : variants) {
+      StudyRun r;
+      r.variant = v.name.empty() ? "base" : v.name;
+      r.mesh = m.name;
+      r.h = m.h;
+      r.sets = common;
+      r.sets.insert(r.sets.end(), m.sets.begin(), m.sets.end());
+      r.sets.insert(r.sets.end(), v.sets.begin(), v.sets.end());
+      r.params = v.params;
+      r.file_stem = file_stem(r.variant, r.mesh);
+      check_result_file(s, r, v, m, stems);
+      for (const auto& kv : v.params)
+        if (std::find(s.param_keys.begin(), s.param_keys.end(), kv.first) == s.param_keys.end())
+          s.param_keys.push_back(kv.first);
+      s.runs.push_back(std::move(r));
+    }
 }
 
 } // namespace
@@ -195,6 +323,7 @@ Study read_study(const fs::path& file) {
   s.csv = dir / root.get<std::string>("csv", file.stem().string() + ".csv");
   s.results = root.has("results") ? dir / root.require<std::string>("results")
                                   : s.csv.parent_path() / (s.csv.stem().string() + "_results");
+  s.results_where = root.has("results") ? root.ref("results") : root.self();
   check_paths(root, s);
   s.error = root.choice("error", s.error,
                         {"rms_velocity_error", "rms_displacement_error", "rms_stress_error", "history_error"});
@@ -202,7 +331,7 @@ Study read_study(const fs::path& file) {
   s.jobs = root.get<int>("jobs", s.jobs);
   if (s.jobs < 1) input_error(root.ref("jobs"), "must be an integer >= 1");
   s.stability = read_stability(root);
-  const std::vector<std::string> common = overrides(root, "set");
+  const Overrides common{overrides(root, "set"), root.has("set") ? root.ref("set") : root.self()};
   const std::vector<Variant> variants = read_variants(root);
   const std::vector<Mesh> meshes = read_meshes(root);
   std::vector<std::pair<std::string, SourceRef>> names;
@@ -211,32 +340,8 @@ Study read_study(const fs::path& file) {
   names.clear();
   for (const Mesh& m : meshes) names.emplace_back(m.name, m.where);
   check_distinct(names, "mesh");
-  std::map<std::string, std::pair<const Variant*, const Mesh*>> stems;
-  for (const Mesh& m : meshes)
-    for (const Variant& v : variants) {
-      StudyRun r;
-      r.variant = v.name.empty() ? "base" : v.name;
-      r.mesh = m.name;
-      r.h = m.h;
-      r.sets = common;
-      r.sets.insert(r.sets.end(), m.sets.begin(), m.sets.end());
-      r.sets.insert(r.sets.end(), v.sets.begin(), v.sets.end());
-      r.params = v.params;
-      r.file_stem = file_stem(r.variant, r.mesh);
-      auto [it, fresh] = stems.emplace(r.file_stem, std::make_pair(&v, &m));
-      if (!fresh) {
-        const bool same_variant = it->second.first == &v;
-        const SourceRef& other = same_variant ? it->second.second->where : it->second.first->where;
-        input_error(same_variant ? m.where : v.where,
-                    std::string(same_variant ? "mesh \"" + m.name : "variant \"" + v.name) +
-                        "\" and the one at " + other.describe() + " map to the same result file " +
-                        (s.results / (r.file_stem + ".h5")).string() + ": rename one of them");
-      }
-      for (const auto& kv : v.params)
-        if (std::find(s.param_keys.begin(), s.param_keys.end(), kv.first) == s.param_keys.end())
-          s.param_keys.push_back(kv.first);
-      s.runs.push_back(std::move(r));
-    }
+  check_overrides(s.scene, common, meshes);
+  make_runs(s, common.sets, variants, meshes);
   if (s.stability.enabled &&
       std::find(s.param_keys.begin(), s.param_keys.end(), s.stability.key) == s.param_keys.end())
     input_error(s.stability.where,

@@ -24,7 +24,10 @@
 ///
 /// The file is read with the scene reader's idiom (toml_reader.hpp): every
 /// mistake is an InputError "FILE:LINE: key 'K': message". Variant names, mesh
-/// names and the result files they map to must be distinct.
+/// names and the result files they map to must be distinct (also ignoring
+/// case); the common and the mesh `set` entries are applied to the base
+/// scene when the file is read, so a bad key or value there stops the study
+/// before any run.
 #include "otmpm/scene/scene.hpp"
 
 #include <filesystem>
@@ -52,8 +55,11 @@ struct StabilityCriterion {
   SourceRef where; ///< stability.key (or the table): where an unswept key is reported
 };
 
+/// A study as read from its file: paths resolved against the study file's
+/// folder, every (variant, mesh) run with its overrides.
 struct Study {
   std::filesystem::path file, scene, csv, results;
+  SourceRef results_where; ///< the `results` key (or the file): where a results folder problem is reported
   int jobs = 1;
   std::string error = "rms_velocity_error";
   StabilityCriterion stability;
@@ -63,7 +69,8 @@ struct Study {
 
 /// Reads and checks a study file (InputError naming file, line and key;
 /// also for a directory, a missing file, a scene or results path that is not
-/// what it should be).
+/// what it should be, colliding result files, and a common or mesh `set`
+/// entry the base scene refuses).
 Study read_study(const std::filesystem::path& file);
 
 /// The file name a run's result and log get: variant and mesh joined by '_',

@@ -238,6 +238,15 @@ int take_lock(const std::string& path) {
 
 } // namespace
 
+std::string lock_holder_of(const std::string& path) {
+  const int fd = ::open(lock_path(path).c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return "";
+  const bool held = ::flock(fd, LOCK_SH | LOCK_NB) != 0 && errno == EWOULDBLOCK;
+  const std::string holder = held ? lock_holder(fd) : "";
+  ::close(fd); // also ends the shared lock taken to test it
+  return holder;
+}
+
 OutputLock::OutputLock(const std::vector<std::string>& paths) {
   try {
     for (const std::string& p : paths) {

@@ -70,6 +70,12 @@ void check_distinct(const OutputFiles& files);
 /// The hidden lock file otmpm uses for `path`: DIR/.NAME.otmpm-lock.
 std::string lock_path(const std::string& path);
 
+/// Who holds otmpm's lock on `path` now: "process PID on host HOST" (or
+/// "another process" when the lock file does not say), or "" when no process
+/// holds it - no lock file, or one a killed run left behind unlocked (flock
+/// locks end with their process). Changes nothing.
+std::string lock_holder_of(const std::string& path);
+
 /// otmpm's exclusive lock on a set of paths, held for the lifetime of the
 /// object: flock(LOCK_EX | LOCK_NB) on lock_path() of each, which records the
 /// holder's process id and host name. The constructor takes every lock or
