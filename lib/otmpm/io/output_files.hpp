@@ -5,7 +5,7 @@
 ///
 ///  - Every path is derived from the result file (OutputFiles) and all of
 ///    them - with their temporaries and lock files - must be different files
-///    once resolved (symbolic links, `.`/`..`, hard links): check_distinct().
+///    once resolved (symbolic links, "." and "..", hard links): check_distinct().
 ///  - A run holds otmpm's own lock on each of its paths (OutputLock: flock on
 ///    a hidden lock file beside each, independent of HDF5's file locking), so
 ///    a second process writing the same files is refused before it changes
@@ -59,7 +59,7 @@ OutputFiles output_files(const std::string& result, const std::string& checkpoin
 std::vector<std::pair<std::string, std::string>> written_paths(const OutputFiles& files);
 
 /// True when `a` and `b` name the same file: equal after
-/// std::filesystem::weakly_canonical (links, `.` and `..` resolved), or the
+/// std::filesystem::weakly_canonical (links, "." and ".." resolved), or the
 /// same device and inode when both exist.
 bool same_file(const std::string& a, const std::string& b);
 
