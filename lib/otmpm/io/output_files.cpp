@@ -19,7 +19,7 @@
 #include <filesystem>
 #include <fstream>
 #include <random>
-#include <regex>
+#include <string_view>
 
 namespace otmpm {
 
@@ -299,24 +299,42 @@ std::string new_run_id() {
 
 namespace {
 
-/// The value of `<Information Name="KEY" Value="V"/>` or `KEY Value="V"` in
-/// the first kRunIdSearchBytes of an XML file matched by `value` ("" when absent).
-std::string xml_mark(const std::string& path, const std::string& key, const std::string& value) {
+/// The first value V of `<Information Name="KEY" Value="V"/>` or
+/// `KEY Value="V"` in the first kRunIdSearchBytes of an XML file for which
+/// `accept(V)` holds ("" when there is none). (Plain string search: GCC 12's
+/// std::regex does not compile warning-free under the sanitizers.)
+std::string xml_mark(const std::string& path, const std::string& key, bool (*accept)(std::string_view)) {
   std::ifstream in(path, std::ios::binary);
   std::string head(kRunIdSearchBytes, '\0');
   in.read(head.data(), static_cast<std::streamsize>(head.size()));
   head.resize(static_cast<std::size_t>(in.gcount()));
-  const std::regex pattern(key + "\"? Value=\"(" + value + ")\"");
-  std::smatch m;
-  return std::regex_search(head, m, pattern) ? m[1].str() : "";
+  const std::string_view text = head, marker = " Value=\"";
+  for (std::size_t at = text.find(key); at != std::string_view::npos; at = text.find(key, at + 1)) {
+    std::size_t v = at + key.size();
+    if (v < text.size() && text[v] == '"') ++v;
+    if (text.substr(v, marker.size()) != marker) continue;
+    v += marker.size();
+    const std::size_t end = text.find('"', v);
+    if (end == std::string_view::npos) break;
+    if (accept(text.substr(v, end - v))) return std::string(text.substr(v, end - v));
+  }
+  return "";
 }
+
+/// A run id: 32 lowercase hexadecimal digits (new_run_id).
+bool is_run_id(std::string_view s) {
+  return s.size() == 32 && s.find_first_not_of("0123456789abcdef") == std::string_view::npos;
+}
+
+/// A file name without a directory part.
+bool is_file_name(std::string_view s) { return !s.empty() && s.find('/') == std::string_view::npos; }
 
 } // namespace
 
-std::string xml_run_id(const std::string& path) { return xml_mark(path, "otmpm_run_id", "[0-9a-f]{32}"); }
+std::string xml_run_id(const std::string& path) { return xml_mark(path, "otmpm_run_id", is_run_id); }
 
 std::string xml_result(const std::string& path) {
-  const std::string name = xml_mark(path, "otmpm_result", "[^\"/]+");
+  const std::string name = xml_mark(path, "otmpm_result", is_file_name);
   return name.empty() ? "" : (fs::path(path).parent_path() / name).string();
 }
 
@@ -409,8 +427,10 @@ bool orphan_checkpoint(const std::string& path) {
 
 /// VTK frame files written by otmpm: frame_NNNNNN.vtp / .vtu.
 bool is_vtk_frame(const std::string& name) {
-  static const std::regex pattern("frame_[0-9]{6,}\\.vt[pu]");
-  return std::regex_match(name, pattern);
+  const std::string_view n = name, prefix = "frame_";
+  if (n.size() < prefix.size() + 6 + 4 || n.substr(0, prefix.size()) != prefix) return false;
+  const std::string_view digits = n.substr(prefix.size(), n.size() - prefix.size() - 4), ext = n.substr(n.size() - 4);
+  return digits.find_first_not_of("0123456789") == std::string_view::npos && (ext == ".vtp" || ext == ".vtu");
 }
 
 } // namespace
