@@ -320,9 +320,9 @@ private:
     }
     if (!results_) return;
     std::vector<std::vector<double>> buffers(scene_.output.fields.size());
-    const std::vector<FieldView> fields = frame_fields(buffers);
-    std::vector<std::vector<double>> gathered;
-    const std::vector<FieldView> whole = vtk_fields(gathered);
+    std::vector<std::vector<double>> gathered(buffers.size());
+    std::vector<FieldView> whole;
+    const std::vector<FieldView> fields = frame_fields(buffers, gathered, whole);
     ++frames_;
     view_.collectively([&] {
       for (const auto& [name, values] : samples) writer_->append_probe(name, t, values);
@@ -336,27 +336,14 @@ private:
     });
   }
 
-  /// A distributed run with VTK output: every output field of all particles
-  /// on the writing rank (which writes the VTK files alone), in global order;
-  /// empty otherwise (collective).
-  std::vector<FieldView> vtk_fields(std::vector<std::vector<double>>& gathered) const {
-    if (!view_.distributed() || vtk_extension_.empty()) return {};
-    const Particles<D>& P = e_.particles();
-    std::vector<FieldView> fields;
-    gathered.resize(scene_.output.fields.size());
-    for (std::size_t i = 0; i < scene_.output.fields.size(); ++i) {
-      std::vector<double> buffer;
-      const FieldData d = output_field_data<D>(scene_.output.fields[i], P, buffer);
-      gathered[i] = view_.gather(d.data, d.cols);
-      const int rows = view_.writes() ? static_cast<int>(view_.particles()) : 0;
-      fields.push_back({scene_.output.fields[i], rows, d.cols, gathered[i].data()});
-    }
-    return fields;
-  }
-
   /// The output fields of all particles in global order (buffers hold the
   /// values that are not stored as they are written, and the gathered ones).
-  std::vector<FieldView> frame_fields(std::vector<std::vector<double>>& buffers) const {
+  /// A distributed run with VTK output also gathers every field of all
+  /// particles on the writing rank into `gathered` and `whole` (that rank
+  /// writes the VTK files alone; collective).
+  std::vector<FieldView> frame_fields(std::vector<std::vector<double>>& buffers,
+                                      std::vector<std::vector<double>>& gathered,
+                                      std::vector<FieldView>& whole) const {
     const Particles<D>& P = e_.particles();
     std::vector<FieldView> fields;
     for (std::size_t i = 0; i < scene_.output.fields.size(); ++i) {
@@ -365,6 +352,10 @@ private:
       if (!view_.distributed()) {
         fields.push_back({name, P.size(), d.cols, d.data});
         continue;
+      }
+      if (!vtk_extension_.empty()) {
+        gathered[i] = view_.gather(d.data, d.cols);
+        whole.push_back({name, view_.writes() ? static_cast<int>(view_.particles()) : 0, d.cols, gathered[i].data()});
       }
       auto block = view_.block(d.data, d.cols); // this rank's rows of the frame, in global order
       buffers[i] = std::move(block.values);
