@@ -14,14 +14,6 @@ void ElasticConstants::validate(const std::string& name) const {
           poisson);
 }
 
-template <int D> Mat<D> elastic_stress_increment(const ElasticConstants& c, const Mat<D>& d_eps) {
-  if constexpr (D == 1) {
-    return c.young * d_eps;
-  } else {
-    return c.lambda() * d_eps.trace() * Mat<D>::Identity() + 2.0 * c.mu() * d_eps;
-  }
-}
-
 namespace {
 /// det F, checked finite and > 0 (the finite-strain laws divide by it and take its log).
 template <int D> double checked_det(const Mat<D>& F, const char* law) {
@@ -46,15 +38,9 @@ template <int D> Mat<D> neo_hookean_stress(const ElasticConstants& c, const Mat<
   return (lame_lambda(c, D) * std::log(J) / J) * I + (lame_mu(c, D) / J) * (F * F.transpose() - I);
 }
 
-template <int D> double strain_energy_density(const Mat<D>& sigma, const Mat<D>& eps) {
-  return 0.5 * sigma.cwiseProduct(eps).sum();
-}
-
 #define OTMPM_INSTANTIATE(D)                                                                 \
-  template Mat<D> elastic_stress_increment<D>(const ElasticConstants&, const Mat<D>&);      \
   template Mat<D> linear_elastic_finite_stress<D>(const ElasticConstants&, const Mat<D>&);  \
-  template Mat<D> neo_hookean_stress<D>(const ElasticConstants&, const Mat<D>&);            \
-  template double strain_energy_density<D>(const Mat<D>&, const Mat<D>&);
+  template Mat<D> neo_hookean_stress<D>(const ElasticConstants&, const Mat<D>&);
 OTMPM_INSTANTIATE(1)
 OTMPM_INSTANTIATE(2)
 OTMPM_INSTANTIATE(3)

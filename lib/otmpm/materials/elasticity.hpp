@@ -34,7 +34,14 @@ struct ElasticConstants {
 
 /// Small-strain stress increment C : d_eps for the dimension's elasticity
 /// (1D: E d_eps; 2D: plane strain; 3D: isotropic).
-template <int D> Mat<D> elastic_stress_increment(const ElasticConstants& c, const Mat<D>& d_eps);
+/// Inline: called once per particle and step by the small-strain models.
+template <int D> inline Mat<D> elastic_stress_increment(const ElasticConstants& c, const Mat<D>& d_eps) {
+  if constexpr (D == 1) {
+    return c.young * d_eps;
+  } else {
+    return c.lambda() * d_eps.trace() * Mat<D>::Identity() + 2.0 * c.mu() * d_eps;
+  }
+}
 
 /// Cauchy stress of linear_elastic_finite (wobbes eq. 10) from F. Throws
 /// InstabilityError unless det F is finite and > 0 (one check per call).
@@ -47,6 +54,8 @@ template <int D> Mat<D> neo_hookean_stress(const ElasticConstants& c, const Mat<
 /// Stored energy density of the elastic models as the energy monitor counts
 /// it (per unit current volume): 1/2 sigma : eps, with eps the small strain
 /// or sym(F) - I.
-template <int D> double strain_energy_density(const Mat<D>& sigma, const Mat<D>& eps);
+template <int D> inline double strain_energy_density(const Mat<D>& sigma, const Mat<D>& eps) {
+  return 0.5 * sigma.cwiseProduct(eps).sum();
+}
 
 } // namespace otmpm
