@@ -7,6 +7,9 @@
   measure:   final length, footprint radius, largest plastic strain and the
              energies of result files (one line per file; --csv for a table):
       /usr/bin/python3 scripts/taylor_bar.py measure RUN.h5 [RUN.h5 ...]
+  work-precision: error of L_f and footprint against wall time, one line per
+             variant (study result names VARIANT_MESH.h5; runs that failed left out):
+      /usr/bin/python3 scripts/taylor_bar.py work-precision --reference REF.h5 --out WP.png RUN.h5 ...
   plot:      the deformed profiles (r, z) of result files, one panel each:
       /usr/bin/python3 scripts/taylor_bar.py plot --out docs/figures/taylor_bar.png A.h5 B.h5 ...
 
@@ -28,6 +31,7 @@ bar; the largest plastic strain is the max over particles of the
 `plastic_strain` field.
 """
 import argparse
+import os
 import csv
 import math
 import sys
@@ -184,6 +188,49 @@ def cmd_plot(a):
     print("wrote", a.out)
 
 
+def variant_of(path):
+    """'mpm-lme-npc' and 'R3' from a study result name such as mpm-lme-npc_R3.h5."""
+    stem = os.path.basename(path).rsplit(".", 1)[0]
+    name, _, mesh = stem.rpartition("_")
+    return (name, mesh) if name else (stem, "")
+
+
+def cmd_work_precision(a):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    ref = measure(a.reference)
+    runs = {}
+    for path in a.files:
+        m = measure(path)
+        name, _ = variant_of(path)
+        if m["status"] == "ok" and os.path.abspath(path) != os.path.abspath(a.reference):
+            runs.setdefault(name, []).append(m)
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.6), sharex=True)
+    markers = {"fe": "o", "musl": "s", "npc": "^"}
+    for name in sorted(runs):
+        ms = sorted(runs[name], key=lambda m: m["wall_seconds"])
+        mode, basis, integ = ms[0]["mode"], ms[0]["basis"], ms[0]["integrator"]
+        style = dict(marker=markers.get(integ, "x"), ls="-" if mode == "mpm" else "--",
+                     color={"linear": "tab:blue", "lme": "tab:orange"}.get(basis, "k"),
+                     alpha=0.55 + 0.15 * list(markers).index(integ) if integ in markers else 1.0, label=name)
+        t = [m["wall_seconds"] for m in ms]
+        axes[0].loglog(t, [max(abs(m["length_mm"] - ref["length_mm"]), 1e-3) for m in ms], **style)
+        axes[1].loglog(t, [max(abs(m["footprint_mm"] - ref["footprint_mm"]), 1e-3) for m in ms], **style)
+    axes[0].set_ylabel(f"|L_f - L_ref| [mm] (L_ref = {ref['length_mm']:.2f} mm)")
+    axes[1].set_ylabel(f"|r_f - r_ref| [mm] (r_ref = {ref['footprint_mm']:.2f} mm)")
+    for ax in axes:
+        ax.set_xlabel("wall time [s] (one core per run)")
+        ax.grid(True, which="both", alpha=0.3)
+    axes[1].legend(fontsize=7, ncol=2, loc="lower left")
+    fig.suptitle(f"Taylor bar: error against run time (h = R/2, R/3, R/4; reference {os.path.basename(a.reference)}; "
+                 "solid mpm, dashed ul)", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(a.out, dpi=130)
+    print("wrote", a.out)
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = p.add_subparsers(dest="cmd", required=True)
@@ -201,6 +248,11 @@ def main():
     g.add_argument("--labels", help="panel titles separated by ';'")
     g.add_argument("--vmax", type=float, default=3.0)
     g.set_defaults(func=cmd_plot)
+    w = sub.add_parser("work-precision")
+    w.add_argument("files", nargs="+")
+    w.add_argument("--reference", required=True, help="the result file whose L_f and footprint are the reference")
+    w.add_argument("--out", required=True)
+    w.set_defaults(func=cmd_work_precision)
     a = p.parse_args()
     a.func(a)
 
