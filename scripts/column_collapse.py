@@ -87,6 +87,7 @@ def cmd_plot(a):
     fig = plt.figure(figsize=(12, 2.0 * len(ms) + 1.0), layout="constrained")
     gs = fig.add_gridspec(len(ms), 2, width_ratios=[3, 1.2])
     left = []
+    x_max = max(1.6, 1.05 * max(m["Lf"] for m in ms))  # every tip in view
     for i, (m, label) in enumerate(zip(ms, labels)):
         ax = fig.add_subplot(gs[i, 0])
         left.append(ax)
@@ -94,7 +95,7 @@ def cmd_plot(a):
                         rasterized=True)
         ax.plot([0, m["L0"], m["L0"]], [m["H0"], m["H0"], 0], "k:", lw=0.8)
         ax.axvline(m["L0"] * (1 + float(scaling(m["a"]))), color="tab:red", ls="--", lw=0.8)
-        ax.set_xlim(-0.02, 1.6)
+        ax.set_xlim(-0.02, x_max)
         ax.set_ylim(-0.02, 0.82 if m["H0"] > 0.3 else 0.3)
         ax.set_aspect("equal")
         ax.axvline(m["Lh"], color="tab:blue", ls=":", lw=0.8)
