@@ -31,6 +31,13 @@ def expected(path):
         times = [float(f["frames"][n].attrs["time"]) for n in names]
         last = f["frames"][names[-1]]
         fields = {k: last[k][:] for k in last if k not in ("x", "x3")}
+        # A symmetric tensor stored by its components must reach ParaView with exactly those.
+        for k in fields:
+            if "components" in last[k].attrs:
+                names = last[k].attrs["components"]
+                names = (names.decode() if isinstance(names, bytes) else names).split()
+                if fields[k].shape[1] != len(names):
+                    fail(f"{path}: field {k} has {fields[k].shape[1]} columns for components {names}")
         return times, last["x"].shape[0], int(f.attrs["dimension"]), fields
 
 
@@ -61,10 +68,13 @@ def check(path, name, reader, times, particles, dimension, fields):
         # The legacy reader pads a D-component vector to 3 components with zeros.
         if array.shape[1] != cols and not (name == "XDMFReader" and cols == dimension and array.shape[1] == 3):
             fail(f"{path} {name}: field {field} has {array.shape[1]} components, the HDF5 file {cols}")
+        if array.dtype != values.dtype:
+            fail(f"{path} {name}: field {field} is {array.dtype}, the HDF5 file {values.dtype}")
         if not np.array_equal(array[:, :cols], values) or np.any(array[:, cols:] != 0):
             fail(f"{path} {name}: field {field} differs from the HDF5 file")
+    shapes = ", ".join(f"{k}: {v.shape[1]} x {v.dtype}" for k, v in sorted(fields.items()))
     print(f"ok: {os.path.basename(path)} {name}: {len(times)} time steps, {particles} points and vertex cells, "
-          f"point data {sorted(fields)}")
+          f"point data {shapes}")
 
 
 def main():

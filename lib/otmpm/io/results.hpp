@@ -27,6 +27,11 @@ struct FieldView {
   /// frame (in a parallel file, written by the root rank).
   long long total_rows = -1;
   long long first_row = 0;
+  /// The names of the columns, separated by single spaces, when they are not
+  /// the plain layout (a symmetric tensor stored by its independent
+  /// components: "xx xy xz yy yz zz"); written as the dataset's string
+  /// attribute `components`. "" : no attribute.
+  std::string components{};
 };
 
 /// A result file that all ranks of a distributed run write together with
@@ -57,6 +62,10 @@ struct ResultOptions {
   /// "" (HDF5 and XDMF only), "vtp" or "vtu": also one VTK file per frame and
   /// a .pvd collection (vtk.hpp), named as in output_files().
   std::string vtk_format;
+  /// Store the frames' particle datasets as 32-bit IEEE floats (each value
+  /// rounded to nearest; also Float32 in the VTK files) instead of doubles.
+  /// Times, attributes, histories and series stay double.
+  bool single_precision = false;
 };
 
 /// Writes one result file. Creating it writes the root attributes

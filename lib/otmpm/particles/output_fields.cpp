@@ -60,6 +60,25 @@ const std::array kFields{
 
 std::span<const OutputField> output_fields() { return kFields; }
 
+bool is_symmetric_tensor_field(std::string_view name) { return name == "stress" || name == "strain"; }
+
+std::string_view symmetric_components(int D) {
+  require<std::invalid_argument>(D >= 1 && D <= 3, "symmetric_components: dimension must be 1, 2 or 3, got ", D);
+  return D == 3 ? "xx xy xz yy yz zz" : D == 2 ? "xx xy yy" : "xx";
+}
+
+void pack_symmetric(const double* full, std::size_t rows, int D, std::vector<double>& out) {
+  require<std::invalid_argument>(D >= 1 && D <= 3, "pack_symmetric: dimension must be 1, 2 or 3, got ", D);
+  const auto d = static_cast<std::size_t>(D);
+  const std::size_t cols = d * (d + 1) / 2;
+  out.resize(rows * cols);
+  for (std::size_t p = 0; p < rows; ++p) {
+    std::size_t c = 0;
+    for (std::size_t i = 0; i < d; ++i)
+      for (std::size_t j = i; j < d; ++j) out[p * cols + c++] = full[p * d * d + i * d + j];
+  }
+}
+
 template <int D> FieldData output_field_data(std::string_view name, const Particles<D>& P, std::vector<double>& buffer) {
   FieldData d;
   const auto it = std::find_if(kFields.begin(), kFields.end(), [&](const OutputField& f) { return f.name == name; });

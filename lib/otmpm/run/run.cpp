@@ -101,7 +101,7 @@ public:
     if (resume) frames_ = static_cast<int>(resume->group("recorder").integer("frames"));
     prepare(output_request(scene, text_, opt, resume));
     view_.collectively([&] {
-      writer_ = std::make_unique<ResultWriter>(path_, text_, D, ResultOptions{run_id_, vtk_extension_},
+      writer_ = std::make_unique<ResultWriter>(path_, text_, D, ResultOptions{run_id_, vtk_extension_, scene.output.precision == "single"},
                                                view_.parallel_io());
     });
     if (previous_) continue_results(*previous_, resume->group("recorder"));
@@ -348,18 +348,28 @@ private:
     std::vector<FieldView> fields;
     for (std::size_t i = 0; i < scene_.output.fields.size(); ++i) {
       const std::string& name = scene_.output.fields[i];
-      const FieldData d = output_field_data<D>(name, P, buffers[i]);
+      FieldData d = output_field_data<D>(name, P, buffers[i]);
+      std::string components;
+      if (scene_.output.symmetric_tensors && is_symmetric_tensor_field(name)) { // output.symmetric_tensors
+        std::vector<double> packed;
+        pack_symmetric(d.data, static_cast<std::size_t>(P.size()), D, packed);
+        buffers[i] = std::move(packed);
+        d = {buffers[i].data(), D * (D + 1) / 2};
+        components = symmetric_components(D);
+      }
       if (!view_.distributed()) {
-        fields.push_back({name, P.size(), d.cols, d.data});
+        fields.push_back({name, P.size(), d.cols, d.data, -1, 0, components});
         continue;
       }
       if (!vtk_extension_.empty()) {
         gathered[i] = view_.gather(d.data, d.cols);
-        whole.push_back({name, view_.writes() ? static_cast<int>(view_.particles()) : 0, d.cols, gathered[i].data()});
+        whole.push_back({name, view_.writes() ? static_cast<int>(view_.particles()) : 0, d.cols, gathered[i].data(),
+                         -1, 0, components});
       }
       auto block = view_.block(d.data, d.cols); // this rank's rows of the frame, in global order
       buffers[i] = std::move(block.values);
-      fields.push_back({name, static_cast<int>(block.count), d.cols, buffers[i].data(), view_.particles(), block.first});
+      fields.push_back({name, static_cast<int>(block.count), d.cols, buffers[i].data(), view_.particles(), block.first,
+                        components});
     }
     return fields;
   }
