@@ -430,6 +430,23 @@ void ResultWriter::Impl::write_vertices(int points) {
                  "write " + name);
 }
 
+void ResultWriter::check_field(const FieldView& f, double time, std::set<std::string>& seen) const {
+  check_name(f.name, "field");
+  if (f.name == kPaddedX) throw std::invalid_argument(path_ + ": field name 'x3' is reserved for the XDMF geometry");
+  if (!seen.insert(f.name).second)
+    throw std::invalid_argument(path_ + ": field '" + f.name + "' given twice in one frame");
+  check_field_shape(f, impl_->dimension, path_);
+  const std::string where = path_ + ": frame at t = " + format_number(time) + ", field '" + f.name + "'";
+  check_finite(f.data, static_cast<std::size_t>(f.rows) * f.cols, where);
+  if (impl_->single) check_float_range(f.data, static_cast<std::size_t>(f.rows) * f.cols, where);
+}
+
+void ResultWriter::check_frame(double time, const std::vector<FieldView>& fields) const {
+  std::set<std::string> seen;
+  for (const FieldView& f : fields) check_field(f, time, seen);
+  if (!std::isfinite(time)) throw InstabilityError(path_ + ": frame time is not finite");
+}
+
 void ResultWriter::write_frame(double time, const std::vector<FieldView>& fields,
                                const std::vector<FieldView>* whole) {
   Impl& m = *impl_;
@@ -437,15 +454,8 @@ void ResultWriter::write_frame(double time, const std::vector<FieldView>& fields
   std::set<std::string> seen;
   std::string bad; // the first non-finite entry of this rank's rows
   for (const FieldView& f : fields) {
-    check_name(f.name, "field");
-    if (f.name == kPaddedX) throw std::invalid_argument(path_ + ": field name 'x3' is reserved for the XDMF geometry");
-    if (!seen.insert(f.name).second)
-      throw std::invalid_argument(path_ + ": field '" + f.name + "' given twice in one frame");
-    check_field_shape(f, impl_->dimension, path_);
     try {
-      const std::string where = path_ + ": frame at t = " + format_number(time) + ", field '" + f.name + "'";
-      check_finite(f.data, static_cast<std::size_t>(f.rows) * f.cols, where);
-      if (m.single) check_float_range(f.data, static_cast<std::size_t>(f.rows) * f.cols, where);
+      check_field(f, time, seen);
     } catch (const InstabilityError& e) {
       if (!m.parallel.mpi_comm) throw;
       if (bad.empty()) bad = e.what();

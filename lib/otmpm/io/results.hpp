@@ -10,6 +10,7 @@
 /// ends the output with an OutputError and a valid, shorter file.
 #include <functional>
 #include <memory>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -101,6 +102,12 @@ public:
   /// on the root rank, which writes the VTK files alone (null otherwise).
   void write_frame(double time, const std::vector<FieldView>& fields,
                    const std::vector<FieldView>* whole = nullptr);
+  /// The checks write_frame makes of a serial frame before it writes
+  /// anything (names, shapes, NaN or Inf, the range of a single-precision
+  /// file), with the same exceptions, and nothing written. Reads only the
+  /// writer's fixed settings: it may run while another thread writes
+  /// through this writer (RunOptions::background_output).
+  void check_frame(double time, const std::vector<FieldView>& fields) const;
   /// Appends one sample to `/probes/PROBE/time` and `/probes/PROBE/FIELD`
   /// (extendible datasets, `values` components per sample).
   void append_probe(const std::string& probe, double time,
@@ -132,6 +139,8 @@ public:
 
 private:
   void flush_sample();
+  /// One field's checks (check_frame); `seen`: the names so far.
+  void check_field(const FieldView& f, double time, std::set<std::string>& seen) const;
   struct Impl;
   std::unique_ptr<Impl> impl_;
   std::string path_;
