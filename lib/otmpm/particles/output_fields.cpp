@@ -2,6 +2,8 @@
 /// The table of output fields (output_fields.hpp).
 #include "otmpm/particles/output_fields.hpp"
 
+#include "otmpm/parallel.hpp"
+
 #include <algorithm>
 #include <array>
 #include <stdexcept>
@@ -17,11 +19,14 @@ template <int D, class Field> FieldData direct(const Field& f, int cols) {
 }
 
 /// D x D tensors copied row by row into the buffer.
+/// (Threads copy contiguous chunks: the same values for any thread count.)
 template <int D> FieldData row_major(const AlignedVector<Mat<D>>& A, std::vector<double>& buf) {
   buf.resize(A.size() * D * D);
-  for (std::size_t p = 0; p < A.size(); ++p)
-    for (int i = 0; i < D; ++i)
-      for (int j = 0; j < D; ++j) buf[p * D * D + i * D + j] = A[p](i, j);
+  parallel_chunks(static_cast<long long>(A.size()), [&](long long begin, long long end) {
+    for (auto p = static_cast<std::size_t>(begin); p < static_cast<std::size_t>(end); ++p)
+      for (int i = 0; i < D; ++i)
+        for (int j = 0; j < D; ++j) buf[p * D * D + i * D + j] = A[p](i, j);
+  });
   return {A.empty() ? nullptr : buf.data(), D * D};
 }
 
@@ -72,11 +77,13 @@ void pack_symmetric(const double* full, std::size_t rows, int D, std::vector<dou
   const auto d = static_cast<std::size_t>(D);
   const std::size_t cols = d * (d + 1) / 2;
   out.resize(rows * cols);
-  for (std::size_t p = 0; p < rows; ++p) {
-    std::size_t c = 0;
-    for (std::size_t i = 0; i < d; ++i)
-      for (std::size_t j = i; j < d; ++j) out[p * cols + c++] = full[p * d * d + i * d + j];
-  }
+  parallel_chunks(static_cast<long long>(rows), [&](long long begin, long long end) {
+    for (auto p = static_cast<std::size_t>(begin); p < static_cast<std::size_t>(end); ++p) {
+      std::size_t c = 0;
+      for (std::size_t i = 0; i < d; ++i)
+        for (std::size_t j = i; j < d; ++j) out[p * cols + c++] = full[p * d * d + i * d + j];
+    }
+  });
 }
 
 template <int D> FieldData output_field_data(std::string_view name, const Particles<D>& P, std::vector<double>& buffer) {

@@ -10,6 +10,7 @@
 #include "otmpm/assembly/assembler.hpp"
 #include "otmpm/distributed/global_view.hpp"
 #include "otmpm/io/output_files.hpp"
+#include "otmpm/parallel.hpp"
 #include "otmpm/particles/output_fields.hpp"
 #include "otmpm/run/restart.hpp"
 #include "otmpm/io/results.hpp"
@@ -399,7 +400,7 @@ private:
     Samples probes; ///< per probe: x, v, stress
     std::vector<std::pair<std::string, double>> energy;
     Samples walls; ///< per wall: force, impulse
-    std::vector<std::vector<double>> buffers, gathered;
+    std::vector<std::vector<double>> buffers, packed, gathered;
     std::vector<FieldView> fields, whole;
   };
 
@@ -434,11 +435,14 @@ private:
   static void own_fields(Output& o) {
     for (std::size_t i = 0; i < o.fields.size(); ++i) {
       FieldView& f = o.fields[i];
+      if (!f.data || f.data == o.buffers[i].data() || f.data == o.packed[i].data()) continue;
       std::vector<double>& b = o.buffers[i];
-      if (f.data && f.data != b.data()) {
-        b.assign(f.data, f.data + static_cast<std::size_t>(f.rows) * static_cast<std::size_t>(f.cols));
-        f.data = b.data();
-      }
+      const double* from = f.data;
+      b.resize(static_cast<std::size_t>(f.rows) * static_cast<std::size_t>(f.cols));
+      parallel_chunks(static_cast<long long>(b.size()), [&](long long begin, long long end) {
+        std::copy(from + begin, from + end, b.begin() + begin);
+      });
+      f.data = b.data();
     }
   }
 
@@ -455,7 +459,12 @@ private:
       samples.push_back({pr.name, {{"x", x}, {"v", v}, {"stress", sig}}});
     }
     if (!results_) return;
-    auto o = std::make_shared<Output>();
+    std::shared_ptr<Output> o;
+    if (background_) {
+      background_->wait(); // the previous output time is written: its buffers (already allocated) can be reused
+      o = std::exchange(spare_, nullptr);
+    }
+    if (!o) o = std::make_shared<Output>();
     o->t = t;
     o->probes = std::move(samples);
     const EnergyBalance& E = e_.energy();
@@ -464,13 +473,16 @@ private:
     if (dissipative()) o->energy.emplace_back("dissipated", E.dissipated);
     o->walls = wall_samples(t);
     o->buffers.resize(scene_.output.fields.size());
+    o->packed.resize(o->buffers.size());
     o->gathered.resize(o->buffers.size());
-    o->fields = frame_fields(o->buffers, o->gathered, o->whole);
+    o->whole.clear();
+    o->fields = frame_fields(o->buffers, o->packed, o->gathered, o->whole);
     ++frames_;
     if (background_) {
       own_fields(*o);
       writer_->check_frame(t, o->fields); // an instability stops the run here, as without the thread
       background_->submit([this, o] { write_output(*o); });
+      spare_ = o; // its buffers are reused by the next output time, once the thread is done with it
       return;
     }
     view_.collectively([&] { write_output(*o); });
@@ -482,6 +494,7 @@ private:
   /// particles on the writing rank into `gathered` and `whole` (that rank
   /// writes the VTK files alone; collective).
   std::vector<FieldView> frame_fields(std::vector<std::vector<double>>& buffers,
+                                      std::vector<std::vector<double>>& packed,
                                       std::vector<std::vector<double>>& gathered,
                                       std::vector<FieldView>& whole) const {
     const Particles<D>& P = e_.particles();
@@ -491,10 +504,8 @@ private:
       FieldData d = output_field_data<D>(name, P, buffers[i]);
       std::string components;
       if (scene_.output.symmetric_tensors && is_symmetric_tensor_field(name)) { // output.symmetric_tensors
-        std::vector<double> packed;
-        pack_symmetric(d.data, static_cast<std::size_t>(P.size()), D, packed);
-        buffers[i] = std::move(packed);
-        d = {buffers[i].data(), D * (D + 1) / 2};
+        pack_symmetric(d.data, static_cast<std::size_t>(P.size()), D, packed[i]);
+        d = {packed[i].data(), D * (D + 1) / 2};
         components = symmetric_components(D);
       }
       if (!view_.distributed()) {
@@ -545,6 +556,7 @@ private:
   /// The writer thread (RunOptions::background_output, serial runs); declared
   /// after writer_, so it is joined before the writer is closed.
   std::unique_ptr<BackgroundWriter> background_;
+  std::shared_ptr<Output> spare_; ///< the output time last handed to the thread (its buffers are reused)
   double next_ = 0.0;
   EnergySummary energy_;
   std::string checkpoint_path_;
