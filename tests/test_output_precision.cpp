@@ -17,9 +17,11 @@
 #include <doctest/doctest.h>
 #include <hdf5.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <map>
 #include <sstream>
 
 using namespace otmpm;
@@ -260,4 +262,92 @@ TEST_CASE("the output keys are read, validated and kept in the stored scene only
   Scene bad = d;
   bad.output.precision = "float";
   CHECK_THROWS_AS(validate_scene(bad, 1), InputError);
+}
+
+namespace {
+
+/// Every dataset of a result file (path -> shape and values read as doubles)
+/// and every attribute of the frames; root attributes are wall times or
+/// summaries that a writer thread does not touch.
+std::map<std::string, std::vector<double>> datasets(const std::string& path) {
+  std::map<std::string, std::vector<double>> out;
+  const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  REQUIRE(file >= 0);
+  struct Visit {
+    static herr_t call(hid_t, const char* name, const H5O_info_t* info, void* data) {
+      if (info->type == H5O_TYPE_DATASET) static_cast<std::vector<std::string>*>(data)->push_back(name);
+      return 0;
+    }
+  };
+  std::vector<std::string> names;
+  H5Ovisit2(file, H5_INDEX_NAME, H5_ITER_INC, Visit::call, &names, H5O_INFO_BASIC);
+  H5Fclose(file);
+  for (const std::string& n : names) {
+    const Stored s = read_stored(path, "/" + n);
+    std::vector<double> v(s.dims.begin(), s.dims.end());
+    v.push_back(static_cast<double>(s.element_bytes));
+    v.insert(v.end(), s.values.begin(), s.values.end());
+    out[n] = std::move(v);
+  }
+  for (std::size_t k = 0;; ++k) {
+    char frame[32];
+    std::snprintf(frame, sizeof frame, "frames/%06zu", k);
+    if (!out.count(std::string(frame) + "/x")) break;
+    const hid_t f = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+    const hid_t attr = H5Aopen_by_name(f, frame, "time", H5P_DEFAULT, H5P_DEFAULT);
+    double t = 0;
+    H5Aread(attr, H5T_NATIVE_DOUBLE, &t);
+    H5Aclose(attr);
+    H5Fclose(f);
+    out[std::string(frame) + "@time"] = {t};
+  }
+  return out;
+}
+
+} // namespace
+
+TEST_CASE("background output (the writer thread of otmpm run) writes the same file as writing on the stepping thread") {
+  TempDir t("background");
+  struct Case {
+    const char* scene;
+    std::vector<std::string> sets;
+  };
+  const std::vector<Case> cases{
+      {"/examples/dyka_3d.toml", {"simulation.t_end=4e-6", "output.every=1e-6", "output.symmetric_tensors=true",
+                                  "output.precision=\"single\"", "output.format=[\"hdf5\",\"vtp\"]"}},
+      {"/examples/sliding_block.toml", {"simulation.t_end=0.1", "output.every=0.01"}}, // walls, energy, probes
+  };
+  int index = 0;
+  for (const Case& c : cases) {
+    INFO(std::string(c.scene));
+    ++index;
+    std::map<std::string, std::vector<double>> files[2];
+    for (int background = 0; background < 2; ++background) {
+      RunOptions opt;
+      opt.out_file = t.file("run" + std::to_string(index) + "_" + std::to_string(background) + ".h5");
+      opt.background_output = background == 1;
+      const RunSummary s = run_scene(load_scene(std::string(OTMPM_SOURCE_DIR) + c.scene, c.sets), opt);
+      REQUIRE(s.exit_code == 0);
+      files[background] = datasets(opt.out_file);
+      CHECK(read_string_attribute(opt.out_file, "status") == "ok");
+    }
+    CHECK(files[0].size() > 5);
+    CHECK(files[0] == files[1]);
+  }
+}
+
+TEST_CASE("check_frame throws what write_frame would, and writes nothing") {
+  // The writer thread's run checks each frame with check_frame on the
+  // stepping thread, so that an instability stops the run at that output time.
+  TempDir t("check_frame");
+  ResultOptions o;
+  o.single_precision = true;
+  ResultWriter w(t.file("run.h5"), "", 1, o);
+  const std::vector<double> x = {0.5, 1.5}, big = {1.0, -1e39}, nan = {1.0, std::nan("")};
+  CHECK_THROWS_AS(w.check_frame(0.0, {{"x", 2, 1, x.data()}, {"stress", 2, 1, big.data()}}), InstabilityError);
+  CHECK_THROWS_AS(w.check_frame(0.0, {{"x", 2, 1, x.data()}, {"v", 2, 1, nan.data()}}), InstabilityError);
+  CHECK_THROWS_AS(w.check_frame(0.0, {{"x", 2, 1, x.data()}, {"x", 2, 1, x.data()}}), std::invalid_argument);
+  CHECK_THROWS_AS(w.check_frame(std::nan(""), {{"x", 2, 1, x.data()}}), InstabilityError);
+  CHECK_NOTHROW(w.check_frame(0.0, {{"x", 2, 1, x.data()}}));
+  CHECK(w.frames() == 0);
 }
