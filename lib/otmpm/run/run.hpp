@@ -43,7 +43,9 @@ struct RunOptions {
   /// steps on; the writing of one output time overlaps the steps to the next,
   /// which waits for it first. The file is the same as without the thread; a
   /// write error is reported at the next output time, checkpoint or the end
-  /// (OutputError, exit 4). `otmpm run` and `otmpm pair` turn it on.
+  /// (OutputError, exit 4). `otmpm run` and `otmpm pair` turn it on when
+  /// the OpenMP threads leave a core free (a writer thread that shares a
+  /// core with the OpenMP team slows each parallel loop more than it saves).
   bool background_output = false;
 };
 
