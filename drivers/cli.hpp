@@ -29,6 +29,11 @@ const char* version();
 CLI::Option* add_threads_option(CLI::App& sub, int& threads, const std::string& what = "");
 /// Applies --threads (nothing for 0).
 void set_threads(int threads);
+/// True when the OpenMP threads leave at least one of the cores this process
+/// may run on free (sched_getaffinity) for the result file's writer thread
+/// (RunOptions::background_output): a writer sharing a core with the OpenMP
+/// team slows each of its parallel loops (docs/performance.md).
+bool core_free_for_writer();
 /// Makes OMP_WAIT_POLICY=passive the default: libgomp reads the variable
 /// once, when it is loaded, so when it is unset the process sets it and
 /// executes itself again (argv unchanged). A user's own OMP_WAIT_POLICY is

@@ -115,6 +115,7 @@ int run_command(const SceneArgs& a) {
   RunOptions opt;
   opt.out_file = a.out;
   opt.force = a.force;
+  opt.background_output = core_free_for_writer();
   opt.interrupt = &interrupt_flag();
   opt.progress = progress(a);
   std::unique_ptr<Scene> scene;
@@ -188,6 +189,7 @@ int pair_command(const SceneArgs& a) {
     const auto dot = out.rfind(".h5");
     opt.out_file = (dot == std::string::npos ? out : out.substr(0, dot)) + "_" + mode + ".h5";
     opt.force = a.force;
+    opt.background_output = core_free_for_writer();
     opt.interrupt = &interrupt_flag();
     opt.progress = progress(a);
     runs.push_back(run_scene(scene, opt));

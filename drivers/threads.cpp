@@ -2,6 +2,8 @@
 #include "cli.hpp"
 
 #include <cstdlib>
+#include <sched.h>
+#include <thread>
 #include <unistd.h>
 
 #ifdef OTMPM_HAVE_OPENMP
@@ -30,6 +32,21 @@ void set_threads(int threads) {
 #else
   (void)threads;
 #endif
+}
+
+bool core_free_for_writer() {
+  int cores = static_cast<int>(std::thread::hardware_concurrency());
+#ifdef __linux__
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  if (sched_getaffinity(0, sizeof set, &set) == 0) cores = CPU_COUNT(&set); // taskset, cgroups' cpusets
+#endif
+#ifdef OTMPM_HAVE_OPENMP
+  const int threads = omp_get_max_threads();
+#else
+  const int threads = 1;
+#endif
+  return cores > threads;
 }
 
 void default_passive_wait_policy(char** argv) {

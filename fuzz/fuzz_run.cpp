@@ -203,6 +203,8 @@ std::vector<std::string> fuzzed_settings(FuzzedDataProvider& in, const fs::path&
   sets.push_back(std::string("output.every=") + frames[in.ConsumeIntegralInRange<std::size_t>(0, 2)]);
   const std::array<const char*, 4> formats = {"[\"hdf5\"]", "[\"hdf5\", \"vtp\"]", "[\"hdf5\", \"vtu\"]", "[\"vtp\"]"};
   sets.push_back(std::string("output.format=") + formats[in.ConsumeIntegralInRange<std::size_t>(0, 3)]);
+  if (in.ConsumeBool()) sets.push_back("output.precision=\"single\"");
+  if (in.ConsumeBool()) sets.push_back("output.symmetric_tensors=true");
   const std::array<const char*, 4> fields = {"[\"x\", \"v\"]", "[\"v\", \"stress\"]", "[\"x\", \"F\", \"mass\"]",
                                              "[\"x\", \"displacement\", \"density\", \"strain\"]"};
   if (in.ConsumeBool()) sets.push_back(std::string("output.fields=") + fields[in.ConsumeIntegralInRange<std::size_t>(0, 3)]);

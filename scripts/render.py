@@ -103,10 +103,31 @@ def component_of(field, cols, dim, component):
     fail(f"--component {component}: {field} has {cols} components ({', '.join(names)}) or norm")
 
 
-def values(result, k, field, column):
-    data = np.asarray(result.frame(k)[field][:], dtype=float)
+def unpack_symmetric(data, components, dim):
+    """A symmetric tensor stored by its independent components (dataset
+    attribute `components`, output.symmetric_tensors) as row-major D*D rows."""
+    names = components.split()
+    full = np.empty((data.shape[0], dim * dim))
+    for c, name in enumerate(names):
+        i, j = AXES.index(name[0]), AXES.index(name[1])
+        full[:, i * dim + j] = full[:, j * dim + i] = data[:, c]
+    return full
+
+
+def read_field(result, k, field):
+    """Field `field` of frame k as doubles, (n, cols); a symmetric tensor's components expanded to D*D."""
+    dataset = result.frame(k)[field]
+    data = np.asarray(dataset[:], dtype=float)
     if data.ndim == 1:
         data = data[:, None]
+    components = dataset.attrs.get("components")
+    if components is not None:
+        data = unpack_symmetric(data, text(components), result.dim)
+    return data
+
+
+def values(result, k, field, column):
+    data = read_field(result, k, field)
     return np.linalg.norm(data, axis=1) if column is None else data[:, column]
 
 
@@ -245,7 +266,7 @@ def main():
         frames = [a.frame % n]
     if result.dim == 3 and a.view not in ("xy", "xz", "yz"):
         fail(f"--view {a.view}")
-    cols = result.frame(0)[a.field].shape[1] if result.frame(0)[a.field].ndim == 2 else 1
+    cols = read_field(result, 0, a.field).shape[1]
     column, label = component_of(a.field, cols, result.dim, a.component)
     all_values = np.concatenate([values(result, k, a.field, column) for k in frames])
     finite = all_values[np.isfinite(all_values)]

@@ -521,3 +521,35 @@ TEST_CASE("mpi: output files are claimed once for all ranks: another scene's res
   for (const fs::directory_entry& f : fs::directory_iterator(dir.dir)) // no lock or probe file left
     CHECK(f.path().filename().string().find("otmpm-") == std::string::npos);
 }
+
+TEST_CASE("mpi: output.precision = single and symmetric tensors, written collectively, agree with the serial file") {
+  // The float values of 2 ranks equal the serial ones up to the rounding of
+  // the doubles (which agree to kAgreement): within 2 float ulps (2.4e-7).
+  const Case c{"single_sym", "dyka_3d.toml",
+               {"simulation.t_end=1e-5", "output.every=2.5e-6", "output.precision=single",
+                "output.symmetric_tensors=true", "output.fields=[\"x\",\"v\",\"stress\",\"strain\"]",
+                "output.format=[\"hdf5\",\"vtp\"]"}};
+  TempDir dir("mpi_single_sym");
+  REQUIRE(run_otmpm(dir, 0, arguments(c, "serial.h5")).status == 0);
+  const Result r = run_otmpm(dir, 2, arguments(c, "np2.h5"));
+  REQUIRE_MESSAGE(r.status == 0, r.err);
+  const auto d = differences(dir.file("serial.h5"), dir.file("np2.h5"));
+  for (const std::string field : {"x", "v", "stress", "strain"}) {
+    CAPTURE(field);
+    REQUIRE(d.count(field));
+    CHECK(d.at(field) <= 2.4e-7);
+  }
+  const hid_t id = H5Fopen(dir.file("np2.h5").c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  REQUIRE(id >= 0);
+  const h5::Handle file(id, H5Fclose);
+  const h5::Handle g = h5::open_group(file.get(), "frames/000001", "np2.h5");
+  const h5::Matrix<double> stress = h5::read_double_matrix(g.get(), "stress", "np2.h5");
+  CHECK(stress.cols == 6);
+  const hid_t set = H5Dopen2(g.get(), "stress", H5P_DEFAULT);
+  REQUIRE(set >= 0);
+  const hid_t type = H5Dget_type(set);
+  CHECK(H5Tget_size(type) == 4);
+  CHECK(h5::read_string(set, "components", "np2.h5") == "xx xy xz yy yz zz");
+  H5Tclose(type);
+  H5Dclose(set);
+}

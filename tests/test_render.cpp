@@ -140,3 +140,33 @@ TEST_CASE("render: bad input exits with 2 and says what is wrong") {
   expect({"render", result.string(), "--field", "v", "--out", png.string(), "--python", python.string()},
          {"needs Python 3 with numpy, h5py and matplotlib"});
 }
+
+TEST_CASE("render: a file with symmetric tensors (output.symmetric_tensors) gives the same picture as the full tensor") {
+  // The same scene written with 4 and with 3 stress components, under the
+  // same file name in two folders (the name is in the picture's title).
+  TempDir dir("render_symmetric");
+  for (const char* layout : {"full", "symmetric"}) {
+    fs::create_directories(dir.dir / layout);
+    const Result r = run_otmpm({"run", (kSource / "examples" / "mms_plate.toml").string(), "--set", "grid.cells=[8, 8]",
+                                "--set", std::string("output.symmetric_tensors=") + (layout[0] == 's' ? "true" : "false"),
+                                "--out", (dir.dir / layout / "plate.h5").string(), "--quiet"});
+    INFO(r.output);
+    REQUIRE(r.status == 0);
+  }
+  for (const char* component : {"xy", "yx", "yy", "norm"}) {
+    INFO(component);
+    std::string png[2];
+    int k = 0;
+    for (const char* layout : {"full", "symmetric"}) {
+      const fs::path out = dir.dir / layout / (std::string(component) + ".png");
+      const Result r = run_otmpm({"render", (dir.dir / layout / "plate.h5").string(), "--field", "stress", "--component",
+                                  component, "--out", out.string()});
+      INFO(r.output);
+      REQUIRE(r.status == 0);
+      std::ifstream in(out, std::ios::binary);
+      png[k++] = std::string(std::istreambuf_iterator<char>(in), {});
+    }
+    CHECK(png[0].size() > 10000);
+    CHECK(png[0] == png[1]);
+  }
+}

@@ -227,6 +227,46 @@ TEST_CASE("a completed run restarted from its last checkpoint rewrites the later
   CHECK(fs::exists(full)); // --out elsewhere: the interrupted run's file is left as it was
 }
 
+TEST_CASE("a single-precision file with symmetric tensors is continued by a restart with the same layout and bits") {
+  TempDir dir("completed_single");
+  // As above, with output.precision = "single" and output.symmetric_tensors:
+  // the frames copied from the first file keep their float values and the
+  // components attribute (check_same_results compares attributes too).
+  const std::vector<std::string> scene{"run",
+                                       (kSource / "examples/mms_plate.toml").string(),
+                                       "--quiet",
+                                       "--set",
+                                       "grid.cells=[8, 8]",
+                                       "--set",
+                                       "output.every=2.5e-4",
+                                       "--set",
+                                       "output.checkpoint_every=10",
+                                       "--set",
+                                       "output.precision=single",
+                                       "--set",
+                                       "output.symmetric_tensors=true",
+                                       "--set",
+                                       kAllFields};
+  const std::string full = dir.file("plate.h5"), again = dir.file("again.h5");
+  REQUIRE(run_cli(dir, with(scene, {"--out", full})).status == 0);
+  const std::string checkpoint = dir.file("plate.checkpoint.h5");
+  REQUIRE(checkpoint_integer(checkpoint, "recorder", "frames") > 0);
+  const otmpm::test::CliResult r = run_cli(dir, {"run", "--restart", checkpoint, "--out", again, "--quiet"});
+  INFO(r.err);
+  REQUIRE(r.status == 0);
+  check_same_results(full, again);
+  const hid_t file = H5Fopen(again.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  REQUIRE(file >= 0);
+  const hid_t set = H5Dopen2(file, "/frames/000000/stress", H5P_DEFAULT); // a copied frame
+  REQUIRE(set >= 0);
+  const hid_t type = H5Dget_type(set);
+  CHECK(H5Tget_size(type) == 4);
+  CHECK(otmpm::h5::read_string(set, "components", again) == "xx xy yy");
+  H5Tclose(type);
+  H5Dclose(set);
+  H5Fclose(file);
+}
+
 TEST_CASE("restart errors: exit status 2 and a message naming the file or option") {
   TempDir dir("errors");
   const std::string result = dir.file("bar.h5");

@@ -29,9 +29,33 @@ def _value(v):
     return v
 
 
+def unpack_symmetric(a, components, dimension):
+    """Rows of a symmetric tensor stored by its independent components (the
+    dataset attribute `components`, e.g. "xx xy xz yy yz zz") as (n, D*D)
+    row-major rows, the layout of a file written without
+    output.symmetric_tensors. Values keep their type (float32 stays float32)."""
+    names = _value(components).split()
+    axes = "xyz"[:dimension]
+    if a.ndim != 2 or a.shape[1] != len(names):
+        raise ValueError(f"a symmetric tensor dataset of shape {a.shape} does not match its components {components!r}")
+    full = np.empty((a.shape[0], dimension * dimension), dtype=a.dtype)
+    for c, name in enumerate(names):
+        i, j = axes.index(name[0]), axes.index(name[1])
+        full[:, i * dimension + j] = a[:, c]
+        full[:, j * dimension + i] = a[:, c]
+    return full
+
+
 def _array(name, data, dimension):
-    """A dataset as an array; tensors (n, D*D) become (n, D, D), scalars (n, 1) become (n,)."""
+    """A dataset as an array; tensors (n, D*D) become (n, D, D), scalars (n, 1) become (n,).
+
+    A symmetric tensor stored by its independent components (attribute
+    `components`, output.symmetric_tensors) is expanded to the full tensor first.
+    """
     a = data[()]
+    components = data.attrs.get("components")
+    if components is not None:
+        a = unpack_symmetric(a, _value(components), dimension)
     if name in TENSOR_FIELDS and a.ndim == 2 and a.shape[1] == dimension * dimension:
         return a.reshape(a.shape[0], dimension, dimension)
     if name in SCALAR_FIELDS and a.ndim == 2 and a.shape[1] == 1:
@@ -43,7 +67,8 @@ class Frame(collections.abc.Mapping):
     """One frame: time (attribute) and its particle fields by name, read on access.
 
     frame["x"] is (particles, D); tensors (stress, strain, F) are (particles, D, D)
-    with [p, i, j] = component ij, as Simulation.particles; scalars (volume, mass,
+    with [p, i, j] = component ij, as Simulation.particles (also when the file
+    stores only a symmetric tensor's independent components); scalars (volume, mass,
     density) are (particles,); other fields (a material's state) as stored.
     """
 
@@ -133,4 +158,4 @@ def open(path):  # noqa: A001 - the module's one entry point, as in h5py.File / 
     return Results(path)
 
 
-__all__ = ["open", "Results", "Frame", "TENSOR_FIELDS", "SCALAR_FIELDS"]
+__all__ = ["open", "Results", "Frame", "TENSOR_FIELDS", "SCALAR_FIELDS", "unpack_symmetric"]

@@ -8,6 +8,8 @@
 # (one result file written collectively; the VTK files by rank 0 from the
 # gathered frames) and its files go through the same checks.
 #
+#  - a 3D run with output.precision = "single" and symmetric tensors goes
+#    through every check too (stress and strain must arrive as 6 components);
 #  - pvpython (tests/client/paraview_check.py): each run's .xdmf through
 #    Xdmf3ReaderS and the legacy XDMFReader, and its .pvd through PVDReader:
 #    time steps, one point and one vertex cell per particle, point data equal
@@ -52,7 +54,12 @@ exec 3>&1 >runs.log # the runs' summary lines go to the log
   --set 'output.fields=["x", "v", "stress", "displacement", "density"]' --set 'output.format=["hdf5", "vtu"]'
 "$otmpm" run "$src/examples/dyka_3d.toml" --quiet --out bar_3d.h5 \
   --set output.every=2e-5 --set 'output.format=["hdf5", "vtp"]'
-results=("$work/bar_1d.h5" "$work/plate_2d.h5" "$work/bar_3d.h5")
+# output.precision = "single" and output.symmetric_tensors: float32 datasets
+# (XDMF Precision="4", VTK Float32) and stress, strain as 6 components (Tensor6).
+"$otmpm" run "$src/examples/dyka_3d.toml" --quiet --out bar_3d_single.h5 \
+  --set output.every=2e-5 --set 'output.format=["hdf5", "vtp"]' --set output.precision=single \
+  --set output.symmetric_tensors=true --set 'output.fields=["x", "v", "stress", "strain", "F"]'
+results=("$work/bar_1d.h5" "$work/plate_2d.h5" "$work/bar_3d.h5" "$work/bar_3d_single.h5")
 if [ -n "$mpiexec" ]; then
   OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 "$mpiexec" -q --oversubscribe -np 2 \
     "$otmpm" run "$src/examples/mms_plate.toml" --quiet --out plate_2d_np2.h5 --set 'grid.cells=[8, 8]' \

@@ -31,7 +31,16 @@ def expected(path):
         times = [float(f["frames"][n].attrs["time"]) for n in names]
         last = f["frames"][names[-1]]
         fields = {k: last[k][:] for k in last if k not in ("x", "x3")}
-        return times, last["x"].shape[0], int(f.attrs["dimension"]), fields
+        # A symmetric tensor stored by its components (output.symmetric_tensors) must
+        # reach ParaView with exactly those (the legacy reader: as the full tensor).
+        symmetric = {}
+        for k in fields:
+            if "components" in last[k].attrs:
+                names = last[k].attrs["components"]
+                symmetric[k] = (names.decode() if isinstance(names, bytes) else names).split()
+                if fields[k].shape[1] != len(symmetric[k]):
+                    fail(f"{path}: field {k} has {fields[k].shape[1]} columns for components {symmetric[k]}")
+        return times, last["x"].shape[0], int(f.attrs["dimension"]), fields, symmetric
 
 
 def fetch(reader, time):
@@ -43,7 +52,17 @@ def fetch(reader, time):
     return data
 
 
-def check(path, name, reader, times, particles, dimension, fields):
+def full_tensor(values, components, dimension):
+    """Rows of a symmetric tensor's components (names like "xy") as row-major D*D rows."""
+    axes = "xyz"
+    full = np.empty((values.shape[0], dimension * dimension), dtype=values.dtype)
+    for c, comp in enumerate(components):
+        i, j = axes.index(comp[0]), axes.index(comp[1])
+        full[:, i * dimension + j] = full[:, j * dimension + i] = values[:, c]
+    return full
+
+
+def check(path, name, reader, times, particles, dimension, fields, symmetric):
     got_times = list(reader.TimestepValues) if hasattr(reader.TimestepValues, "__len__") else [reader.TimestepValues]
     if len(got_times) != len(times) or not np.allclose(got_times, times, rtol=1e-12, atol=0):
         fail(f"{path} {name}: time steps {got_times} != frames at {times}")
@@ -57,23 +76,32 @@ def check(path, name, reader, times, particles, dimension, fields):
         fail(f"{path} {name}: point data {sorted(got)} != fields {sorted(fields)}")
     for field, values in fields.items():
         array = vtk_to_numpy(point_data.GetArray(field)).reshape(particles, -1)
+        if name == "XDMFReader" and field in symmetric and array.shape[1] == dimension * dimension:
+            # The legacy reader expands an XDMF Tensor6 to the full 3 x 3 tensor.
+            values = full_tensor(values, symmetric[field], dimension)
         cols = values.shape[1]
         # The legacy reader pads a D-component vector to 3 components with zeros.
         if array.shape[1] != cols and not (name == "XDMFReader" and cols == dimension and array.shape[1] == 3):
             fail(f"{path} {name}: field {field} has {array.shape[1]} components, the HDF5 file {cols}")
+        if array.dtype != values.dtype:
+            fail(f"{path} {name}: field {field} is {array.dtype}, the HDF5 file {values.dtype}")
         if not np.array_equal(array[:, :cols], values) or np.any(array[:, cols:] != 0):
             fail(f"{path} {name}: field {field} differs from the HDF5 file")
+    shapes = ", ".join(f"{k}: {point_data.GetArray(k).GetNumberOfComponents()} x {v.dtype}"
+                       for k, v in sorted(fields.items()))
     print(f"ok: {os.path.basename(path)} {name}: {len(times)} time steps, {particles} points and vertex cells, "
-          f"point data {sorted(fields)}")
+          f"point data {shapes}")
 
 
 def main():
     for path in sys.argv[1:]:
-        times, particles, dimension, fields = expected(path)
+        times, particles, dimension, fields, symmetric = expected(path)
         stem = path[: -len(".h5")]
-        check(path, "Xdmf3ReaderS", Xdmf3ReaderS(FileName=[stem + ".xdmf"]), times, particles, dimension, fields)
-        check(path, "XDMFReader", XDMFReader(FileNames=[stem + ".xdmf"]), times, particles, dimension, fields)
-        check(path, "PVDReader", PVDReader(FileName=stem + ".pvd"), times, particles, dimension, fields)
+        check(path, "Xdmf3ReaderS", Xdmf3ReaderS(FileName=[stem + ".xdmf"]), times, particles, dimension, fields,
+              symmetric)
+        check(path, "XDMFReader", XDMFReader(FileNames=[stem + ".xdmf"]), times, particles, dimension, fields,
+              symmetric)
+        check(path, "PVDReader", PVDReader(FileName=stem + ".pvd"), times, particles, dimension, fields, symmetric)
 
 
 main()

@@ -15,7 +15,7 @@ import h5py
 import meshio
 import numpy as np
 
-TYPES = {"Float64": np.float64, "Int64": np.int64, "UInt8": np.uint8}
+TYPES = {"Float64": np.float64, "Float32": np.float32, "Int64": np.int64, "UInt8": np.uint8}
 
 
 def fail(message):

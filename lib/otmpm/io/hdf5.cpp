@@ -236,16 +236,18 @@ Handle parallel_access(hid_t fapl, const void* mpi_comm, const std::string& path
 #endif
 }
 
+namespace {
 /// The buffer of a rank that writes no rows (HDF5 wants a pointer).
 const double kNoData = 0.0;
 
-void write_rows(hid_t parent, const std::string& name, hsize_t total_rows, hsize_t cols, hsize_t first, hsize_t rows,
-                const double* data, hid_t transfer, const std::string& path) {
+/// write_rows for elements stored as `file_type` from memory of type `memory_type`.
+void write_rows_as(hid_t parent, const std::string& name, hsize_t total_rows, hsize_t cols, hsize_t first,
+                   hsize_t rows, hid_t file_type, hid_t memory_type, const void* data, hid_t transfer,
+                   const std::string& path) {
   const std::string what = "write dataset " + name;
   const hsize_t dims[2] = {total_rows, cols}, start[2] = {first, 0}, count[2] = {rows, cols};
   Handle space(checked(H5Screate_simple(2, dims, nullptr), path, what), H5Sclose);
-  Handle set(checked(H5Dcreate2(parent, name.c_str(), H5T_IEEE_F64LE, space.get(), H5P_DEFAULT, H5P_DEFAULT,
-                                H5P_DEFAULT),
+  Handle set(checked(H5Dcreate2(parent, name.c_str(), file_type, space.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
                      path, what),
              H5Dclose);
   Handle file_space(checked(H5Dget_space(set.get()), path, what), H5Sclose);
@@ -257,9 +259,24 @@ void write_rows(hid_t parent, const std::string& name, hsize_t total_rows, hsize
     checked_status(H5Sselect_none(memory.get()), path, what);
   }
   if (total_rows * cols > 0)
-    checked_status(H5Dwrite(set.get(), H5T_NATIVE_DOUBLE, memory.get(), file_space.get(), transfer,
-                            data ? data : &kNoData),
-                   path, what);
+    checked_status(
+        H5Dwrite(set.get(), memory_type, memory.get(), file_space.get(), transfer, data ? data : &kNoData), path, what);
+}
+} // namespace
+
+void write_rows(hid_t parent, const std::string& name, hsize_t total_rows, hsize_t cols, hsize_t first, hsize_t rows,
+                const double* data, hid_t transfer, const std::string& path) {
+  write_rows_as(parent, name, total_rows, cols, first, rows, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, data, transfer, path);
+}
+
+void write_rows(hid_t parent, const std::string& name, hsize_t total_rows, hsize_t cols, hsize_t first, hsize_t rows,
+                const float* data, hid_t transfer, const std::string& path) {
+  write_rows_as(parent, name, total_rows, cols, first, rows, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, data, transfer, path);
+}
+
+void write_matrix(hid_t parent, const std::string& name, hsize_t rows, hsize_t cols, const float* data,
+                  const std::string& path) {
+  write_dataset(parent, name, rows, cols, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, data, path);
 }
 
 void write_matrix(hid_t parent, const std::string& name, hsize_t rows, hsize_t cols, const double* data,

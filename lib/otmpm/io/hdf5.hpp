@@ -133,6 +133,9 @@ void write_string_attribute(hid_t object, const std::string& name, const std::st
 /// Writes a contiguous rows x cols dataset of doubles.
 void write_matrix(hid_t parent, const std::string& name, hsize_t rows, hsize_t cols, const double* data,
                   const std::string& path);
+/// Writes a contiguous rows x cols dataset of 32-bit IEEE floats.
+void write_matrix(hid_t parent, const std::string& name, hsize_t rows, hsize_t cols, const float* data,
+                  const std::string& path);
 /// Writes a contiguous rows x cols dataset of 64-bit integers.
 void write_matrix(hid_t parent, const std::string& name, hsize_t rows, hsize_t cols, const std::int64_t* data,
                   const std::string& path);
@@ -148,6 +151,9 @@ Handle parallel_access(hid_t fapl, const void* mpi_comm, const std::string& path
 /// H5P_DEFAULT for a serial file, which writes all rows).
 void write_rows(hid_t parent, const std::string& name, hsize_t total_rows, hsize_t cols, hsize_t first, hsize_t rows,
                 const double* data, hid_t transfer, const std::string& path);
+/// write_rows of 32-bit IEEE floats.
+void write_rows(hid_t parent, const std::string& name, hsize_t total_rows, hsize_t cols, hsize_t first, hsize_t rows,
+                const float* data, hid_t transfer, const std::string& path);
 
 /// True when `object` has an attribute `name`.
 bool has_attribute(hid_t object, const std::string& name);

@@ -21,11 +21,13 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <map>
 #include <numeric>
 #include <set>
 #include <sstream>
 #include <stdexcept>
+#include <tuple>
 
 namespace otmpm {
 
@@ -108,6 +110,24 @@ void check_field_shape(const FieldView& f, int dimension, const std::string& pat
   require<std::invalid_argument>(f.data || f.rows == 0, where, "data is null for ", f.rows, " x ", f.cols, " values");
   require<std::invalid_argument>(f.name != "x" || f.cols == dimension, where, "cols = ", f.cols,
                                  " but the coordinates need one column per dimension (", dimension, ")");
+  if (!f.components.empty()) {
+    const auto names = 1 + std::count(f.components.begin(), f.components.end(), ' ');
+    require<std::invalid_argument>(names == f.cols, where, "cols = ", f.cols, " but the components \"", f.components,
+                                   "\" name ", names);
+  }
+}
+
+/// The largest magnitude a 32-bit float holds (FLT_MAX).
+constexpr double kFloatMax = static_cast<double>(std::numeric_limits<float>::max());
+
+/// In a single-precision file every value must fit in a float (beyond
+/// FLT_MAX it would become Inf): a larger one means the run became unstable.
+void check_float_range(const double* data, std::size_t n, const std::string& where) {
+  for (std::size_t i = 0; i < n; ++i)
+    if (std::abs(data[i]) > kFloatMax)
+      throw InstabilityError(where + ": entry " + std::to_string(i) + " (" + format_number(data[i]) +
+                             ") exceeds the range of single precision (output.precision = \"single\"); it is not "
+                             "written to the result file");
 }
 
 /// NaN or Inf never reach the result file: they mean the run became unstable.
@@ -124,9 +144,11 @@ std::string frame_name(int index) {
   return buf;
 }
 
-/// The XDMF AttributeType of a field with `cols` components in D dimensions.
-const char* xdmf_attribute_type(int cols, int dimension) {
+/// The XDMF AttributeType of a field with `cols` components in D dimensions
+/// (`symmetric`: a symmetric tensor by its independent components).
+const char* xdmf_attribute_type(int cols, int dimension, bool symmetric) {
   if (cols == 1) return "Scalar";
+  if (symmetric) return cols == 6 ? "Tensor6" : "Matrix";
   if (cols == dimension || cols == kXdmfSpaceDim) return "Vector";
   if (cols == kXdmfSpaceDim * kXdmfSpaceDim) return "Tensor";
   if (cols == 6) return "Tensor6";
@@ -143,7 +165,9 @@ struct FrameInfo {
   int points = 0;         ///< rows of x
   std::string geometry;   ///< dataset used as geometry ("x" or the padded copy)
   int geometry_cols = 0;
-  std::vector<std::pair<std::string, int>> attributes; ///< other fields with `points` rows: name, cols
+  /// Other fields with `points` rows: name, cols, whether a symmetric tensor's components.
+  std::vector<std::tuple<std::string, int, bool>> attributes;
+  int precision = 8; ///< bytes per value of the frame's datasets (XDMF Precision)
 };
 
 /// One history group's samples and the components of each field (0: rank-1 scalar).
@@ -153,12 +177,12 @@ struct ProbeInfo {
 };
 
 /// The bytes a frame's datasets hold, with their metadata.
-std::uint64_t frame_bytes(const std::vector<FieldView>& fields, int dimension) {
+std::uint64_t frame_bytes(const std::vector<FieldView>& fields, int dimension, std::uint64_t value_bytes) {
   std::uint64_t bytes = 2 * kMetadataBytes; // the group, the sidecar's vertices
   for (const FieldView& f : fields) {
     const std::uint64_t values = static_cast<std::uint64_t>(f.rows) * static_cast<std::uint64_t>(f.cols);
-    bytes += values * sizeof(double) + kMetadataBytes;
-    if (f.name == "x" && dimension == 1) bytes += values * kXdmfSpaceDim * sizeof(double) + kMetadataBytes;
+    bytes += values * value_bytes + kMetadataBytes;
+    if (f.name == "x" && dimension == 1) bytes += values * kXdmfSpaceDim * value_bytes + kMetadataBytes;
     if (f.name == "x") bytes += static_cast<std::uint64_t>(f.rows) * sizeof(std::int64_t);
   }
   return bytes;
@@ -193,6 +217,7 @@ struct ResultWriter::Impl {
   std::string h5_name; ///< the .h5 file name as the sidecar refers to it (same directory)
   std::string run_id;
   int dimension = 0;
+  bool single = false;  ///< frames' particle datasets as 32-bit floats
   int fd = -1;          ///< the file's descriptor (space reservations)
   bool broken = false;  ///< an HDF5 write failed: the file is left alone from then on
   std::vector<FrameInfo> frame_infos;
@@ -210,14 +235,28 @@ struct ResultWriter::Impl {
 
   void write_xdmf() const;
   /// Writes field f (its rows of the frame) with `data` as dataset `name` of group g.
+  /// In a single-precision file the values are rounded to float first.
   void write_field(hid_t g, const std::string& name, const FieldView& f, const double* data) const {
-    if (!parallel.mpi_comm)
-      return write_matrix(g, name, static_cast<hsize_t>(f.rows), static_cast<hsize_t>(f.cols), data, path);
-    const bool whole = f.total_rows < 0; // the root writes a whole frame alone
-    const auto total = static_cast<hsize_t>(whole ? f.rows : f.total_rows);
-    const auto rows = static_cast<hsize_t>(whole && !root() ? 0 : f.rows);
-    h5::write_rows(g, name, total, static_cast<hsize_t>(f.cols), whole ? 0 : static_cast<hsize_t>(f.first_row), rows,
-                   data, dxpl(), path);
+    std::vector<float> rounded;
+    if (single) {
+      rounded.resize(static_cast<std::size_t>(f.rows) * static_cast<std::size_t>(f.cols));
+      for (std::size_t i = 0; i < rounded.size(); ++i) rounded[i] = static_cast<float>(data[i]);
+    }
+    const auto write = [&](const auto* values) {
+      if (!parallel.mpi_comm)
+        return write_matrix(g, name, static_cast<hsize_t>(f.rows), static_cast<hsize_t>(f.cols), values, path);
+      const bool whole = f.total_rows < 0; // the root writes a whole frame alone
+      const auto total = static_cast<hsize_t>(whole ? f.rows : f.total_rows);
+      const auto rows = static_cast<hsize_t>(whole && !root() ? 0 : f.rows);
+      h5::write_rows(g, name, total, static_cast<hsize_t>(f.cols), whole ? 0 : static_cast<hsize_t>(f.first_row),
+                     rows, values, dxpl(), path);
+    };
+    if (single) write(rounded.data());
+    else write(data);
+    if (!f.components.empty()) {
+      Handle set(checked(H5Dopen2(g, name.c_str(), H5P_DEFAULT), path, "open dataset " + name), H5Dclose);
+      write_string_attribute(set.get(), "components", f.components, path);
+    }
   }
   /// Rewrites the sidecar (and the .pvd) if `force` or if the last rewrite is
   /// older than kXdmfInterval: the sidecar is O(frames) long, so rewriting it
@@ -274,6 +313,7 @@ ResultWriter::ResultWriter(const std::string& path, const std::string& scene_tex
   m.parallel = std::move(parallel);
   m.path = path;
   m.dimension = dimension;
+  m.single = options.single_precision;
   m.run_id = options.run_id.empty() ? new_run_id() : options.run_id;
   m.xdmf_path = files.xdmf;
   m.h5_name = std::filesystem::path(path).filename().string();
@@ -312,7 +352,7 @@ ResultWriter::ResultWriter(const std::string& path, const std::string& scene_tex
   flush();
   if (!options.vtk_format.empty() && m.root())
     m.vtk = std::make_unique<VtkSeriesWriter>(files.pvd, files.vtk_dir, files.vtk_extension, dimension, m.run_id,
-                                              m.h5_name);
+                                              m.h5_name, m.single);
   if (m.root()) m.write_xdmf();
   if (m.vtk) m.vtk->publish();
 }
@@ -358,8 +398,9 @@ FrameInfo ResultWriter::Impl::describe_frame(const std::string& group_path, doub
   info.points = static_cast<int>(total(*x));
   info.geometry = x->cols == 1 ? kPaddedX : "x";
   info.geometry_cols = x->cols == 1 ? kXdmfSpaceDim : x->cols;
+  info.precision = single ? 4 : 8;
   for (const FieldView& f : fields)
-    if (f.name != "x" && total(f) == total(*x)) info.attributes.emplace_back(f.name, f.cols);
+    if (f.name != "x" && total(f) == total(*x)) info.attributes.emplace_back(f.name, f.cols, !f.components.empty());
   return info;
 }
 
@@ -389,6 +430,23 @@ void ResultWriter::Impl::write_vertices(int points) {
                  "write " + name);
 }
 
+void ResultWriter::check_field(const FieldView& f, double time, std::set<std::string>& seen) const {
+  check_name(f.name, "field");
+  if (f.name == kPaddedX) throw std::invalid_argument(path_ + ": field name 'x3' is reserved for the XDMF geometry");
+  if (!seen.insert(f.name).second)
+    throw std::invalid_argument(path_ + ": field '" + f.name + "' given twice in one frame");
+  check_field_shape(f, impl_->dimension, path_);
+  const std::string where = path_ + ": frame at t = " + format_number(time) + ", field '" + f.name + "'";
+  check_finite(f.data, static_cast<std::size_t>(f.rows) * f.cols, where);
+  if (impl_->single) check_float_range(f.data, static_cast<std::size_t>(f.rows) * f.cols, where);
+}
+
+void ResultWriter::check_frame(double time, const std::vector<FieldView>& fields) const {
+  std::set<std::string> seen;
+  for (const FieldView& f : fields) check_field(f, time, seen);
+  if (!std::isfinite(time)) throw InstabilityError(path_ + ": frame time is not finite");
+}
+
 void ResultWriter::write_frame(double time, const std::vector<FieldView>& fields,
                                const std::vector<FieldView>* whole) {
   Impl& m = *impl_;
@@ -396,14 +454,8 @@ void ResultWriter::write_frame(double time, const std::vector<FieldView>& fields
   std::set<std::string> seen;
   std::string bad; // the first non-finite entry of this rank's rows
   for (const FieldView& f : fields) {
-    check_name(f.name, "field");
-    if (f.name == kPaddedX) throw std::invalid_argument(path_ + ": field name 'x3' is reserved for the XDMF geometry");
-    if (!seen.insert(f.name).second)
-      throw std::invalid_argument(path_ + ": field '" + f.name + "' given twice in one frame");
-    check_field_shape(f, impl_->dimension, path_);
     try {
-      check_finite(f.data, static_cast<std::size_t>(f.rows) * f.cols,
-                   path_ + ": frame at t = " + format_number(time) + ", field '" + f.name + "'");
+      check_field(f, time, seen);
     } catch (const InstabilityError& e) {
       if (!m.parallel.mpi_comm) throw;
       if (bad.empty()) bad = e.what();
@@ -414,7 +466,7 @@ void ResultWriter::write_frame(double time, const std::vector<FieldView>& fields
                                              ": a field is not finite on another rank; it is not written to the result file"
                                        : bad);
   if (!std::isfinite(time)) throw InstabilityError(path_ + ": frame time is not finite");
-  const std::uint64_t bytes = frame_bytes(fields, m.dimension);
+  const std::uint64_t bytes = frame_bytes(fields, m.dimension, m.single ? sizeof(float) : sizeof(double));
   m.reserve(bytes, m.vtk ? bytes : 0);
   FrameInfo info = m.describe_frame("/frames/" + name, time, fields);
   m.guarded("write frame " + name, [&] {
@@ -569,9 +621,9 @@ void ResultWriter::Impl::write_xdmf() const {
      << "    <Information Name=\"otmpm_result\" Value=\"" << xml_escape(h5_name) << "\"/>\n"
      << "    <Grid Name=\"particles\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
   const std::string h5 = xml_escape(h5_name);
-  auto data_item = [&](const std::string& dataset, const std::string& dims, const char* type) {
-    return "<DataItem Dimensions=\"" + dims + "\" NumberType=\"" + type + "\" Precision=\"8\" Format=\"HDF\">" + h5 +
-           ":" + xml_escape(dataset) + "</DataItem>";
+  auto data_item = [&](const std::string& dataset, const std::string& dims, const char* type, int precision) {
+    return "<DataItem Dimensions=\"" + dims + "\" NumberType=\"" + type + "\" Precision=\"" +
+           std::to_string(precision) + "\" Format=\"HDF\">" + h5 + ":" + xml_escape(dataset) + "</DataItem>";
   };
   auto matrix = [](int rows, int cols) { return std::to_string(rows) + " " + std::to_string(cols); };
   for (const FrameInfo& f : frame_infos) {
@@ -579,14 +631,14 @@ void ResultWriter::Impl::write_xdmf() const {
        << "        <Time Value=\"" << text::exact(f.time) << "\"/>\n"
        << "        <Topology TopologyType=\"Polyvertex\" NumberOfElements=\"" << f.points
        << "\" NodesPerElement=\"1\">\n          "
-       << data_item(std::string("/") + kXdmfGroup + "/" + vertices_name(f.points), std::to_string(f.points), "Int")
+       << data_item(std::string("/") + kXdmfGroup + "/" + vertices_name(f.points), std::to_string(f.points), "Int", 8)
        << "\n        </Topology>\n"
        << "        <Geometry GeometryType=\"" << (f.geometry_cols == 2 ? "XY" : "XYZ") << "\">\n          "
-       << data_item(f.group + "/" + f.geometry, matrix(f.points, f.geometry_cols), "Float") << "\n        </Geometry>\n";
-    for (const auto& [name, cols] : f.attributes)
+       << data_item(f.group + "/" + f.geometry, matrix(f.points, f.geometry_cols), "Float", f.precision) << "\n        </Geometry>\n";
+    for (const auto& [name, cols, symmetric] : f.attributes)
       os << "        <Attribute Name=\"" << xml_escape(name) << "\" AttributeType=\""
-         << xdmf_attribute_type(cols, dimension) << "\" Center=\"Node\">\n          "
-         << data_item(f.group + "/" + name, matrix(f.points, cols), "Float") << "\n        </Attribute>\n";
+         << xdmf_attribute_type(cols, dimension, symmetric) << "\" Center=\"Node\">\n          "
+         << data_item(f.group + "/" + name, matrix(f.points, cols), "Float", f.precision) << "\n        </Attribute>\n";
     os << "      </Grid>\n";
   }
   os << "    </Grid>\n  </Domain>\n</Xdmf>\n";
@@ -639,13 +691,23 @@ void append_stored_sample(const StoredHistory& h, hsize_t row, ResultWriter& to)
 struct StoredFrame {
   double time = 0;
   std::vector<h5::Matrix<double>> fields;
+  std::vector<std::string> components; ///< each field's attribute `components` ("" when absent)
 };
+
+/// The string attribute `components` of dataset `name` below `g`, or "".
+std::string stored_components(hid_t g, const std::string& name, const std::string& path) {
+  Handle set(checked(H5Dopen2(g, name.c_str(), H5P_DEFAULT), path, "open dataset " + name), H5Dclose);
+  return h5::has_attribute(set.get(), "components") ? h5::read_string(set.get(), "components", path) : "";
+}
 
 StoredFrame read_frame(hid_t file, int index, const std::vector<std::string>& fields, const std::string& path) {
   Handle g = h5::open_group(file, "frames/" + frame_name(index), path);
   StoredFrame f;
   f.time = h5::read_double(g.get(), "time", path);
-  for (const std::string& name : fields) f.fields.push_back(h5::read_double_matrix(g.get(), name, path));
+  for (const std::string& name : fields) {
+    f.fields.push_back(h5::read_double_matrix(g.get(), name, path));
+    f.components.push_back(stored_components(g.get(), name, path));
+  }
   return f;
 }
 
@@ -677,7 +739,8 @@ void copy_results(const std::string& from, ResultWriter& to, int frames, const s
     std::vector<FieldView> views;
     for (std::size_t k = 0; k < frame_fields.size(); ++k)
       views.push_back({frame_fields[k], static_cast<int>(frame.fields[k].rows),
-                       static_cast<int>(frame.fields[k].cols), frame.fields[k].values.data()});
+                       static_cast<int>(frame.fields[k].cols), frame.fields[k].values.data(), -1, 0,
+                       frame.components[k]});
     to.write_frame(frame.time, views);
   }
 }

@@ -10,6 +10,7 @@
 /// ends the output with an OutputError and a valid, shorter file.
 #include <functional>
 #include <memory>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -27,6 +28,11 @@ struct FieldView {
   /// frame (in a parallel file, written by the root rank).
   long long total_rows = -1;
   long long first_row = 0;
+  /// The names of the columns, separated by single spaces, when they are not
+  /// the plain layout (a symmetric tensor stored by its independent
+  /// components: "xx xy xz yy yz zz"); written as the dataset's string
+  /// attribute `components`. "" : no attribute.
+  std::string components{};
 };
 
 /// A result file that all ranks of a distributed run write together with
@@ -57,6 +63,10 @@ struct ResultOptions {
   /// "" (HDF5 and XDMF only), "vtp" or "vtu": also one VTK file per frame and
   /// a .pvd collection (vtk.hpp), named as in output_files().
   std::string vtk_format;
+  /// Store the frames' particle datasets as 32-bit IEEE floats (each value
+  /// rounded to nearest; also Float32 in the VTK files) instead of doubles.
+  /// Times, attributes, histories and series stay double.
+  bool single_precision = false;
 };
 
 /// Writes one result file. Creating it writes the root attributes
@@ -92,6 +102,12 @@ public:
   /// on the root rank, which writes the VTK files alone (null otherwise).
   void write_frame(double time, const std::vector<FieldView>& fields,
                    const std::vector<FieldView>* whole = nullptr);
+  /// The checks write_frame makes of a serial frame before it writes
+  /// anything (names, shapes, NaN or Inf, the range of a single-precision
+  /// file), with the same exceptions, and nothing written. Reads only the
+  /// writer's fixed settings: it may run while another thread writes
+  /// through this writer (RunOptions::background_output).
+  void check_frame(double time, const std::vector<FieldView>& fields) const;
   /// Appends one sample to `/probes/PROBE/time` and `/probes/PROBE/FIELD`
   /// (extendible datasets, `values` components per sample).
   void append_probe(const std::string& probe, double time,
@@ -123,6 +139,8 @@ public:
 
 private:
   void flush_sample();
+  /// One field's checks (check_frame); `seen`: the names so far.
+  void check_field(const FieldView& f, double time, std::set<std::string>& seen) const;
   struct Impl;
   std::unique_ptr<Impl> impl_;
   std::string path_;

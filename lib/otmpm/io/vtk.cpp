@@ -4,6 +4,7 @@
 #include "otmpm/core.hpp"
 #include "otmpm/io/text_files.hpp"
 
+#include <algorithm>
 #include <bit>
 #include <cerrno>
 #include <cstdint>
@@ -12,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <utility>
 
 namespace otmpm {
 
@@ -45,11 +47,27 @@ private:
   std::string bytes_;
 };
 
-/// `<DataArray .../>` naming an appended array.
-std::string data_array(const char* type, const std::string& name, int components, std::size_t offset) {
+/// `<DataArray .../>` naming an appended array; `names`: the components'
+/// names separated by spaces (ComponentName0, ...), or "".
+std::string data_array(const char* type, const std::string& name, int components, std::size_t offset,
+                       const std::string& names = "") {
+  std::string labels;
+  std::size_t start = 0;
+  for (int i = 0; !names.empty() && start <= names.size(); ++i) {
+    const std::size_t end = std::min(names.find(' ', start), names.size());
+    labels += " ComponentName" + std::to_string(i) + "=\"" + text::xml_escape(names.substr(start, end - start)) + "\"";
+    start = end + 1;
+  }
   return "<DataArray type=\"" + std::string(type) + "\" Name=\"" + text::xml_escape(name) +
-         "\" NumberOfComponents=\"" + std::to_string(components) + "\" format=\"appended\" offset=\"" +
+         "\" NumberOfComponents=\"" + std::to_string(components) + "\"" + labels + " format=\"appended\" offset=\"" +
          std::to_string(offset) + "\"/>";
+}
+
+/// Appends `values` as doubles, or rounded to float when `single`; returns
+/// the offset and the VTK type.
+std::pair<std::size_t, const char*> add_real(Appended& data, const double* values, std::size_t n, bool single) {
+  if (single) return {data.add(std::vector<float>(values, values + n)), "Float32"};
+  return {data.add(std::vector<double>(values, values + n)), "Float64"};
 }
 
 std::string frame_file_name(int index, const std::string& extension) {
@@ -61,9 +79,9 @@ std::string frame_file_name(int index, const std::string& extension) {
 } // namespace
 
 VtkSeriesWriter::VtkSeriesWriter(std::string pvd, std::string dir, std::string extension, int dimension,
-                                 std::string run_id, std::string result_name)
+                                 std::string run_id, std::string result_name, bool single)
     : pvd_(std::move(pvd)), dir_(std::move(dir)), extension_(std::move(extension)), run_id_(std::move(run_id)),
-      result_name_(std::move(result_name)), dimension_(dimension) {
+      result_name_(std::move(result_name)), dimension_(dimension), single_(single) {
   require<std::invalid_argument>(extension_ == "vtp" || extension_ == "vtu", "VtkSeriesWriter: extension '",
                                  extension_, "' is not vtp or vtu");
   require<std::invalid_argument>(dimension_ >= 1 && dimension_ <= kPointComponents,
@@ -84,12 +102,12 @@ void VtkSeriesWriter::write_frame(int index, double time, const std::vector<Fiel
   std::vector<double> points(static_cast<std::size_t>(n) * kPointComponents, 0.0);
   for (int p = 0; p < n; ++p)
     for (int k = 0; k < dimension_; ++k) points[static_cast<std::size_t>(p) * kPointComponents + k] = x->data[p * dimension_ + k];
-  const std::size_t points_offset = data.add(points);
+  const auto [points_offset, points_type] = add_real(data, points.data(), points.size(), single_);
   std::ostringstream point_data;
   for (const FieldView& f : fields) {
     if (f.name == "x" || f.rows != n) continue;
-    const std::vector<double> values(f.data, f.data + static_cast<std::size_t>(f.rows) * f.cols);
-    point_data << "        " << data_array("Float64", f.name, f.cols, data.add(values)) << "\n";
+    const auto [offset, type] = add_real(data, f.data, static_cast<std::size_t>(f.rows) * f.cols, single_);
+    point_data << "        " << data_array(type, f.name, f.cols, offset, f.components) << "\n";
   }
   std::vector<std::int64_t> connectivity(static_cast<std::size_t>(n)), offsets(static_cast<std::size_t>(n));
   for (int p = 0; p < n; ++p) {
@@ -110,7 +128,7 @@ void VtkSeriesWriter::write_frame(int index, double time, const std::vector<Fiel
        << "\" NumberOfLines=\"0\" NumberOfStrips=\"0\" NumberOfPolys=\"0\">\n";
   else os << "    <Piece NumberOfPoints=\"" << n << "\" NumberOfCells=\"" << n << "\">\n";
   os << "      <PointData>\n" << point_data.str() << "      </PointData>\n      <Points>\n        "
-     << data_array("Float64", "Points", kPointComponents, points_offset) << "\n      </Points>\n      <"
+     << data_array(points_type, "Points", kPointComponents, points_offset) << "\n      </Points>\n      <"
      << (poly ? "Verts" : "Cells") << ">\n        " << data_array("Int64", "connectivity", 1, connectivity_offset)
      << "\n        " << data_array("Int64", "offsets", 1, offsets_offset) << "\n";
   if (!poly)

@@ -9,7 +9,9 @@
 ///
 /// Each frame file holds the points (x padded with zeros to 3 components),
 /// the vertex cells, every other field with one row per particle as point
-/// data (as many components as in the HDF5 file: stress in 2D has 4), and the
+/// data (as many components as in the HDF5 file: stress in 2D has 4; a field
+/// with named components, FieldView::components, names them with the
+/// DataArray attributes ComponentName0, ...), and the
 /// time as field data `TimeValue`. Arrays are stored as raw appended binary
 /// (header_type UInt64, the machine's byte order), so every bit of the
 /// doubles is kept. Every file carries the run id and the result file's
@@ -27,9 +29,11 @@ namespace otmpm {
 class VtkSeriesWriter {
 public:
   /// `extension`: "vtp" or "vtu"; `dimension`: 1, 2 or 3; `result_name`: the
-  /// HDF5 result file's name, recorded with the run id. Creates `dir` if needed.
+  /// HDF5 result file's name, recorded with the run id; `single`: points and
+  /// point data as Float32 (output.precision = "single"; the time stays
+  /// Float64). Creates `dir` if needed.
   VtkSeriesWriter(std::string pvd, std::string dir, std::string extension, int dimension, std::string run_id,
-                  std::string result_name);
+                  std::string result_name, bool single = false);
 
   /// Writes DIR/frame_NNNNNN.EXT (NNNNNN = `index`) from the fields of one
   /// frame; `fields` must contain "x" (rows x dimension). OutputError when
@@ -44,6 +48,7 @@ public:
 private:
   std::string pvd_, dir_, extension_, run_id_, result_name_;
   int dimension_;
+  bool single_;
   std::vector<std::pair<double, std::string>> frames_; ///< time, file name relative to the .pvd
   std::size_t published_ = 0;
 };

@@ -2,6 +2,8 @@
 /// The table of output fields (output_fields.hpp).
 #include "otmpm/particles/output_fields.hpp"
 
+#include "otmpm/parallel.hpp"
+
 #include <algorithm>
 #include <array>
 #include <stdexcept>
@@ -17,11 +19,14 @@ template <int D, class Field> FieldData direct(const Field& f, int cols) {
 }
 
 /// D x D tensors copied row by row into the buffer.
+/// (Threads copy contiguous chunks: the same values for any thread count.)
 template <int D> FieldData row_major(const AlignedVector<Mat<D>>& A, std::vector<double>& buf) {
   buf.resize(A.size() * D * D);
-  for (std::size_t p = 0; p < A.size(); ++p)
-    for (int i = 0; i < D; ++i)
-      for (int j = 0; j < D; ++j) buf[p * D * D + i * D + j] = A[p](i, j);
+  parallel_chunks(static_cast<long long>(A.size()), [&](long long begin, long long end) {
+    for (auto p = static_cast<std::size_t>(begin); p < static_cast<std::size_t>(end); ++p)
+      for (int i = 0; i < D; ++i)
+        for (int j = 0; j < D; ++j) buf[p * D * D + i * D + j] = A[p](i, j);
+  });
   return {A.empty() ? nullptr : buf.data(), D * D};
 }
 
@@ -59,6 +64,27 @@ const std::array kFields{
 } // namespace
 
 std::span<const OutputField> output_fields() { return kFields; }
+
+bool is_symmetric_tensor_field(std::string_view name) { return name == "stress" || name == "strain"; }
+
+std::string_view symmetric_components(int D) {
+  require<std::invalid_argument>(D >= 1 && D <= 3, "symmetric_components: dimension must be 1, 2 or 3, got ", D);
+  return D == 3 ? "xx xy xz yy yz zz" : D == 2 ? "xx xy yy" : "xx";
+}
+
+void pack_symmetric(const double* full, std::size_t rows, int D, std::vector<double>& out) {
+  require<std::invalid_argument>(D >= 1 && D <= 3, "pack_symmetric: dimension must be 1, 2 or 3, got ", D);
+  const auto d = static_cast<std::size_t>(D);
+  const std::size_t cols = d * (d + 1) / 2;
+  out.resize(rows * cols);
+  parallel_chunks(static_cast<long long>(rows), [&](long long begin, long long end) {
+    for (auto p = static_cast<std::size_t>(begin); p < static_cast<std::size_t>(end); ++p) {
+      std::size_t c = 0;
+      for (std::size_t i = 0; i < d; ++i)
+        for (std::size_t j = i; j < d; ++j) out[p * cols + c++] = full[p * d * d + i * d + j];
+    }
+  });
+}
 
 template <int D> FieldData output_field_data(std::string_view name, const Particles<D>& P, std::vector<double>& buffer) {
   FieldData d;

@@ -36,6 +36,21 @@ struct OutputField {
 /// The built-in fields, in the order the docs list them.
 std::span<const OutputField> output_fields();
 
+/// True for the built-in fields that are symmetric D x D tensors (stress,
+/// strain; not F), which output.symmetric_tensors stores by their
+/// independent components.
+bool is_symmetric_tensor_field(std::string_view name);
+
+/// The names of a symmetric tensor's independent components in D
+/// dimensions, in the order pack_symmetric writes them (the upper triangle
+/// row by row; in 3D the XDMF Tensor6 order): "xx xy xz yy yz zz",
+/// "xx xy yy" or "xx".
+std::string_view symmetric_components(int D);
+
+/// Packs `rows` row-major D x D tensors (`full`) into their D (D + 1) / 2
+/// upper-triangle components each (symmetric_components), into `out`.
+void pack_symmetric(const double* full, std::size_t rows, int D, std::vector<double>& out);
+
 /// The values of field `name` (a built-in field or a state field of P).
 /// std::invalid_argument when P has no such field (or it is not allocated).
 template <int D> FieldData output_field_data(std::string_view name, const Particles<D>& P, std::vector<double>& buffer);

@@ -10,6 +10,7 @@
 #include "otmpm/assembly/assembler.hpp"
 #include "otmpm/distributed/global_view.hpp"
 #include "otmpm/io/output_files.hpp"
+#include "otmpm/parallel.hpp"
 #include "otmpm/particles/output_fields.hpp"
 #include "otmpm/run/restart.hpp"
 #include "otmpm/io/results.hpp"
@@ -22,9 +23,15 @@
 #include <cmath>
 #include <cstdio>
 #include <array>
+#include <condition_variable>
+#include <exception>
 #include <filesystem>
+#include <functional>
 #include <memory>
+#include <mutex>
 #include <optional>
+#include <thread>
+#include <utility>
 
 namespace otmpm {
 
@@ -87,6 +94,80 @@ template <class S> auto summary_fields(S& s) {
                     std::pair{"max_work", &s.max_work}, std::pair{"max_balance_error", &s.max_balance_error}};
 }
 
+/// One writer thread that runs one job at a time (RunOptions::background_output):
+/// submit() waits for the job in flight, rethrows what it threw, and hands
+/// the thread the next one, so at most one output time is in flight and its
+/// writes happen in the order they were submitted. The first exception of a
+/// job is kept and rethrown by the next submit() or wait() (once).
+class BackgroundWriter {
+public:
+  BackgroundWriter() : thread_([this] { loop(); }) {}
+  ~BackgroundWriter() {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      stop_ = true;
+    }
+    wake_.notify_all();
+    thread_.join(); // the job in flight finishes first
+  }
+  BackgroundWriter(const BackgroundWriter&) = delete;
+  BackgroundWriter& operator=(const BackgroundWriter&) = delete;
+
+  /// Waits for the job in flight, rethrows its exception, then starts `job`.
+  void submit(std::function<void()> job) {
+    wait();
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      job_ = std::move(job);
+    }
+    wake_.notify_all();
+  }
+
+  /// Waits until no job is in flight; rethrows the exception of the last one (once).
+  void wait() {
+    std::unique_lock<std::mutex> lock(mutex_);
+    done_.wait(lock, [this] { return !job_; });
+    if (error_) std::rethrow_exception(std::exchange(error_, nullptr));
+  }
+
+  /// Wall seconds the thread spent in jobs.
+  double busy_seconds() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return busy_;
+  }
+
+private:
+  void loop() {
+    std::unique_lock<std::mutex> lock(mutex_);
+    for (;;) {
+      wake_.wait(lock, [this] { return stop_ || job_; });
+      if (!job_) return; // stopped with nothing left to do
+      lock.unlock();
+      const auto start = std::chrono::steady_clock::now();
+      std::exception_ptr error;
+      try {
+        job_(); // only this thread touches job_ while it is set
+      } catch (...) {
+        error = std::current_exception();
+      }
+      const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      lock.lock();
+      busy_ += seconds;
+      if (error && !error_) error_ = error;
+      job_ = nullptr;
+      done_.notify_all();
+    }
+  }
+
+  std::mutex mutex_;
+  std::condition_variable wake_, done_;
+  std::function<void()> job_;
+  std::exception_ptr error_;
+  bool stop_ = false;
+  double busy_ = 0.0;
+  std::thread thread_; ///< last: started once the members above exist
+};
+
 template <int D> class Recorder {
 public:
   /// `resume`: the checkpoint a restarted run continues (null for a new run).
@@ -101,10 +182,17 @@ public:
     if (resume) frames_ = static_cast<int>(resume->group("recorder").integer("frames"));
     prepare(output_request(scene, text_, opt, resume));
     view_.collectively([&] {
-      writer_ = std::make_unique<ResultWriter>(path_, text_, D, ResultOptions{run_id_, vtk_extension_},
+      writer_ = std::make_unique<ResultWriter>(path_, text_, D, ResultOptions{run_id_, vtk_extension_, scene.output.precision == "single"},
                                                view_.parallel_io());
     });
     if (previous_) continue_results(*previous_, resume->group("recorder"));
+    if (opt.background_output && !view_.distributed()) background_ = std::make_unique<BackgroundWriter>();
+  }
+
+  /// Waits for the output time in flight on the writer thread (background
+  /// output) and rethrows what its writing threw.
+  void wait_for_output() {
+    if (background_) background_->wait();
   }
 
   /// Decides the output files on the writing rank (prepare_outputs: paths,
@@ -143,6 +231,7 @@ public:
   void checkpoint(double wall_seconds) {
     if (!results_ || scene_.output.checkpoint_every <= 0) return;
     ScopedPhase timer(e_.timers(), Phase::output);
+    wait_for_output(); // a restart copies the frames before the checkpoint from the result file
     Checkpoint ck;
     ck.scene = text_;
     ck.run_id = run_id_;
@@ -194,7 +283,15 @@ public:
       if (exact_ && pr.samples > 0) s.errors["history_error_" + pr.name] = std::sqrt(pr.sum_sq / pr.samples);
     if (exact_ && s.exit_code == 0 && !s.interrupted) final_errors(s);
     if (results_) s.out_file = path_;
-    const auto distributed = view_.run_attributes();
+    auto distributed = view_.run_attributes();
+    if (background_) {
+      try {
+        background_->wait();
+      } catch (const std::exception&) { // reported by the runner's wait_for_output() before
+      }
+      distributed.emplace_back("seconds_output_thread", background_->busy_seconds());
+      background_.reset();
+    }
     view_.collectively([&] {
       if (writer_ && writer_->writable()) { // after a failed HDF5 write the file is left as it is
         try {
@@ -211,6 +308,10 @@ public:
   /// Marks the file with a diagnosis (the file stays valid). An output error
   /// here changes nothing more: the diagnosis is in the summary anyway.
   void set_status(const std::string& status) {
+    try {
+      wait_for_output();
+    } catch (const std::exception&) { // the status says what went wrong already
+    }
     view_.collectively([&] {
       if (!writer_ || !writer_->writable()) return;
       try {
@@ -290,24 +391,63 @@ private:
     view_.on_writer([&] { release_previous_results(previous); });
   }
 
+  using Samples = std::vector<std::pair<std::string, std::vector<std::pair<std::string, std::vector<double>>>>>;
+
+  /// What one output time writes, owned (the writer thread may write it
+  /// while the engine steps on).
+  struct Output {
+    double t = 0.0;
+    Samples probes; ///< per probe: x, v, stress
+    std::vector<std::pair<std::string, double>> energy;
+    Samples walls; ///< per wall: force, impulse
+    std::vector<std::vector<double>> buffers, packed, gathered;
+    std::vector<FieldView> fields, whole;
+  };
+
   /// /walls/NAME: the impulse the wall gave the body since t = 0 and the
   /// mean force over the time since the previous sample (zero at the first).
-  void record_walls(double t) {
+  Samples wall_samples(double t) {
     const auto& walls = e_.walls();
+    Samples out;
     wall_last_.resize(walls.size(), Vec<D>::Zero());
     for (std::size_t w = 0; w < walls.size(); ++w) {
       const Vec<D>& J = e_.wall_impulse()[w];
       const Vec<D> F = t > wall_time_ ? Vec<D>((J - wall_last_[w]) / (t - wall_time_)) : Vec<D>::Zero();
-      writer_->append_group_sample("walls", walls[w].name, t,
-                                   {{"force", std::vector<double>(F.data(), F.data() + D)},
-                                    {"impulse", std::vector<double>(J.data(), J.data() + D)}});
+      out.push_back({walls[w].name,
+                     {{"force", std::vector<double>(F.data(), F.data() + D)},
+                      {"impulse", std::vector<double>(J.data(), J.data() + D)}}});
       wall_last_[w] = J;
     }
     wall_time_ = t;
+    return out;
+  }
+
+  /// Writes one output time: the probe, energy and wall samples, then the frame.
+  void write_output(const Output& o) {
+    for (const auto& [name, values] : o.probes) writer_->append_probe(name, o.t, values);
+    writer_->append_series("energy", o.t, o.energy);
+    for (const auto& [name, values] : o.walls) writer_->append_group_sample("walls", name, o.t, values);
+    writer_->write_frame(o.t, o.fields, o.whole.empty() ? nullptr : &o.whole);
+  }
+
+  /// Makes the frame's fields own their values (background output): the
+  /// fields that point into the particle arrays are copied into their buffers.
+  static void own_fields(Output& o) {
+    for (std::size_t i = 0; i < o.fields.size(); ++i) {
+      FieldView& f = o.fields[i];
+      if (!f.data || f.data == o.buffers[i].data() || f.data == o.packed[i].data()) continue;
+      std::vector<double>& b = o.buffers[i];
+      const double* from = f.data;
+      b.resize(static_cast<std::size_t>(f.rows) * static_cast<std::size_t>(f.cols));
+      parallel_chunks(static_cast<long long>(b.size()), [&](long long begin, long long end) {
+        std::copy(from + begin, from + end, b.begin() + begin);
+      });
+      f.data = b.data();
+    }
   }
 
   void record(double t) {
-    std::vector<std::pair<std::string, std::vector<std::pair<std::string, std::vector<double>>>>> samples;
+    Samples samples;
     for (Probe& pr : probes_) {
       const auto r = view_.row(pr.particle); // its values on every rank
       if (exact_) {
@@ -319,21 +459,33 @@ private:
       samples.push_back({pr.name, {{"x", x}, {"v", v}, {"stress", sig}}});
     }
     if (!results_) return;
-    std::vector<std::vector<double>> buffers(scene_.output.fields.size());
-    std::vector<std::vector<double>> gathered(buffers.size());
-    std::vector<FieldView> whole;
-    const std::vector<FieldView> fields = frame_fields(buffers, gathered, whole);
+    std::shared_ptr<Output> o;
+    if (background_) {
+      background_->wait(); // the previous output time is written: its buffers (already allocated) can be reused
+      o = std::exchange(spare_, nullptr);
+    }
+    if (!o) o = std::make_shared<Output>();
+    o->t = t;
+    o->probes = std::move(samples);
+    const EnergyBalance& E = e_.energy();
+    o->energy = {{"kinetic", E.kinetic}, {"strain", E.strain}, {"external_work", E.external_work},
+                 {"reaction_work", E.reaction_work}};
+    if (dissipative()) o->energy.emplace_back("dissipated", E.dissipated);
+    o->walls = wall_samples(t);
+    o->buffers.resize(scene_.output.fields.size());
+    o->packed.resize(o->buffers.size());
+    o->gathered.resize(o->buffers.size());
+    o->whole.clear();
+    o->fields = frame_fields(o->buffers, o->packed, o->gathered, o->whole);
     ++frames_;
-    view_.collectively([&] {
-      for (const auto& [name, values] : samples) writer_->append_probe(name, t, values);
-      const EnergyBalance& E = e_.energy();
-      std::vector<std::pair<std::string, double>> energy{
-          {"kinetic", E.kinetic}, {"strain", E.strain}, {"external_work", E.external_work}, {"reaction_work", E.reaction_work}};
-      if (dissipative()) energy.emplace_back("dissipated", E.dissipated);
-      writer_->append_series("energy", t, energy);
-      record_walls(t);
-      writer_->write_frame(t, fields, whole.empty() ? nullptr : &whole);
-    });
+    if (background_) {
+      own_fields(*o);
+      writer_->check_frame(t, o->fields); // an instability stops the run here, as without the thread
+      background_->submit([this, o] { write_output(*o); });
+      spare_ = o; // its buffers are reused by the next output time, once the thread is done with it
+      return;
+    }
+    view_.collectively([&] { write_output(*o); });
   }
 
   /// The output fields of all particles in global order (buffers hold the
@@ -342,24 +494,33 @@ private:
   /// particles on the writing rank into `gathered` and `whole` (that rank
   /// writes the VTK files alone; collective).
   std::vector<FieldView> frame_fields(std::vector<std::vector<double>>& buffers,
+                                      std::vector<std::vector<double>>& packed,
                                       std::vector<std::vector<double>>& gathered,
                                       std::vector<FieldView>& whole) const {
     const Particles<D>& P = e_.particles();
     std::vector<FieldView> fields;
     for (std::size_t i = 0; i < scene_.output.fields.size(); ++i) {
       const std::string& name = scene_.output.fields[i];
-      const FieldData d = output_field_data<D>(name, P, buffers[i]);
+      FieldData d = output_field_data<D>(name, P, buffers[i]);
+      std::string components;
+      if (scene_.output.symmetric_tensors && is_symmetric_tensor_field(name)) { // output.symmetric_tensors
+        pack_symmetric(d.data, static_cast<std::size_t>(P.size()), D, packed[i]);
+        d = {packed[i].data(), D * (D + 1) / 2};
+        components = symmetric_components(D);
+      }
       if (!view_.distributed()) {
-        fields.push_back({name, P.size(), d.cols, d.data});
+        fields.push_back({name, P.size(), d.cols, d.data, -1, 0, components});
         continue;
       }
       if (!vtk_extension_.empty()) {
         gathered[i] = view_.gather(d.data, d.cols);
-        whole.push_back({name, view_.writes() ? static_cast<int>(view_.particles()) : 0, d.cols, gathered[i].data()});
+        whole.push_back({name, view_.writes() ? static_cast<int>(view_.particles()) : 0, d.cols, gathered[i].data(),
+                         -1, 0, components});
       }
       auto block = view_.block(d.data, d.cols); // this rank's rows of the frame, in global order
       buffers[i] = std::move(block.values);
-      fields.push_back({name, static_cast<int>(block.count), d.cols, buffers[i].data(), view_.particles(), block.first});
+      fields.push_back({name, static_cast<int>(block.count), d.cols, buffers[i].data(), view_.particles(), block.first,
+                        components});
     }
     return fields;
   }
@@ -392,6 +553,10 @@ private:
   std::string run_id_;                      ///< this run's id (a restart: the continued run's)
   std::optional<PreviousResults> previous_; ///< a restart: where the frames before the checkpoint come from
   std::unique_ptr<ResultWriter> writer_;
+  /// The writer thread (RunOptions::background_output, serial runs); declared
+  /// after writer_, so it is joined before the writer is closed.
+  std::unique_ptr<BackgroundWriter> background_;
+  std::shared_ptr<Output> spare_; ///< the output time last handed to the thread (its buffers are reused)
   double next_ = 0.0;
   EnergySummary energy_;
   std::string checkpoint_path_;
@@ -525,6 +690,9 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
     } catch (const OutputError& err) {
       stop_output_error(err);
       return;
+    } catch (const InstabilityError& err) { // reported by the writer thread
+      stop_unstable(err);
+      return;
     }
     summary.status = "interrupted";
     summary.exit_code = kInterruptedExit;
@@ -534,6 +702,13 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
   }
 
   void finish() override {
+    try { // the last output time may still be in flight on the writer thread
+      rec.wait_for_output();
+    } catch (const InstabilityError& err) {
+      if (summary.exit_code == 0) stop_unstable(err);
+    } catch (const OutputError& err) {
+      if (summary.exit_code == 0) stop_output_error(err);
+    }
     if (summary.exit_code == 0) summary.status = "ok";
     summary.steps = e.steps();
     summary.time = e.time();

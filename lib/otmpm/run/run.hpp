@@ -36,6 +36,17 @@ struct RunOptions {
   /// with interrupted = true (otmpm run on SIGINT/SIGTERM). The result file
   /// stays valid and the checkpoint can be continued with restart_run().
   const std::atomic<bool>* interrupt = nullptr;
+  /// Write the frames and history samples on a writer thread while the
+  /// engine steps on (serial runs only; a distributed run writes its file
+  /// collectively on the stepping thread). Each output time's values are
+  /// copied and checked (NaN, Inf, the single-precision range) before the run
+  /// steps on; the writing of one output time overlaps the steps to the next,
+  /// which waits for it first. The file is the same as without the thread; a
+  /// write error is reported at the next output time, checkpoint or the end
+  /// (OutputError, exit 4). `otmpm run` and `otmpm pair` turn it on when
+  /// the OpenMP threads leave a core free (a writer thread that shares a
+  /// core with the OpenMP team slows each parallel loop more than it saves).
+  bool background_output = false;
 };
 
 /// The energy balance of a run, sampled after every step: E = kinetic +

@@ -653,7 +653,8 @@ OutputSection read_output(const TableReader& root, const Scene& s) {
   OutputSection o;
   auto t = root.table("output");
   if (!t) return o;
-  t->only({"file", "every", "fields", "probes", "checkpoint_every", "checkpoint_file", "format"});
+  t->only({"file", "every", "fields", "probes", "checkpoint_every", "checkpoint_file", "format", "precision",
+            "symmetric_tensors"});
   o.where = t->self();
   o.file = t->get<std::string>("file", o.file);
   check(!o.file.empty(), t->ref("file"), "must not be empty");
@@ -663,6 +664,8 @@ OutputSection read_output(const TableReader& root, const Scene& s) {
   o.probes = read_probes(*t, dim);
   read_checkpoint_keys(*t, o);
   o.formats = read_formats(*t);
+  o.precision = t->choice("precision", o.precision, {"double", "single"});
+  o.symmetric_tensors = t->get<bool>("symmetric_tensors", o.symmetric_tensors);
   return o;
 }
 

@@ -179,6 +179,15 @@ struct OutputSection {
   /// What is written: "hdf5" (always: the result file and its XDMF sidecar)
   /// and at most one of "vtp", "vtu" (VTK frame files and a .pvd, io/vtk.hpp).
   std::vector<std::string> formats{"hdf5"};
+  /// Floating-point width of the frames' particle datasets: "double"
+  /// (64-bit IEEE) or "single" (32-bit IEEE, also in the VTK files); times,
+  /// attributes, histories and checkpoints are always double.
+  std::string precision = "double";
+  /// Symmetric tensor fields (stress, strain) stored with their independent
+  /// components only: 6 in 3D (xx, xy, xz, yy, yz, zz; XDMF Tensor6), 3 in
+  /// 2D (xx, xy, yy), 1 in 1D; each such dataset names its components in the
+  /// attribute `components`. False: D*D components, row-major.
+  bool symmetric_tensors = false;
   SourceRef where;
 };
 

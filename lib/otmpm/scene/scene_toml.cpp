@@ -174,6 +174,9 @@ toml::table output(const OutputSection& o, int dim) {
   toml::array formats;
   for (const std::string& f : o.formats) formats.push_back(f);
   t.insert("format", std::move(formats));
+  // Only when not the default: the scene text of a default run stays as it was.
+  if (o.precision != "double") t.insert("precision", o.precision);
+  if (o.symmetric_tensors) t.insert("symmetric_tensors", true);
   if (!o.probes.empty()) {
     toml::array probes;
     for (const ProbeSection& p : o.probes) {

@@ -291,6 +291,8 @@ void check_output(const Scene& s, int dim) {
   }
   check(s, formats.count("hdf5") == 1, "output.format", "must contain \"hdf5\"");
   check(s, !(formats.count("vtp") && formats.count("vtu")), "output.format", "choose one of \"vtp\" and \"vtu\"");
+  check(s, one_of(o.precision, {"double", "single"}), "output.precision",
+        "must be one of \"double\", \"single\" (got \"", o.precision, "\")");
 }
 
 /// The caps of parse_scene: particles and nodes (kMaxSceneParticles,
