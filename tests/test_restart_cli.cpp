@@ -162,6 +162,15 @@ std::vector<std::string> with(std::vector<std::string> args, const std::vector<s
   return args;
 }
 
+/// The manufactured-solution plate (ul, unified, bspline2, 2D) at 8 x 8
+/// cells: 35 steps, checkpoints after 10, 20 and 30, frames every 2.5e-4 s,
+/// every output field, and the `more` arguments.
+std::vector<std::string> checkpointed_plate(const std::vector<std::string>& more) {
+  return with({"run", (kSource / "examples/mms_plate.toml").string(), "--quiet", "--set", "grid.cells=[8, 8]", "--set",
+               "output.every=2.5e-4", "--set", "output.checkpoint_every=10", "--set", kAllFields},
+              more);
+}
+
 } // namespace
 
 TEST_CASE("otmpm run killed by SIGKILL and restarted equals an uninterrupted run, bit for bit") {
@@ -202,19 +211,8 @@ TEST_CASE("a completed run restarted from its last checkpoint rewrites the later
   TempDir dir("completed");
   // The manufactured-solution plate (ul, unified, bspline2, 2D) at 8 x 8 cells:
   // 35 steps, checkpoints after 10, 20 and 30, frames every 2.5e-4 s.
-  const std::vector<std::string> scene{"run",
-                                       (kSource / "examples/mms_plate.toml").string(),
-                                       "--quiet",
-                                       "--set",
-                                       "grid.cells=[8, 8]",
-                                       "--set",
-                                       "output.every=2.5e-4",
-                                       "--set",
-                                       "output.probes=[{name = \"c\", particle = \"nearest\", at = [0.5, 0.5]}]",
-                                       "--set",
-                                       "output.checkpoint_every=10",
-                                       "--set",
-                                       kAllFields};
+  const std::vector<std::string> scene =
+      checkpointed_plate({"--set", "output.probes=[{name = \"c\", particle = \"nearest\", at = [0.5, 0.5]}]"});
   const std::string full = dir.file("plate.h5"), again = dir.file("again.h5");
   REQUIRE(run_cli(dir, with(scene, {"--out", full})).status == 0);
   const std::string checkpoint = dir.file("plate.checkpoint.h5");
@@ -232,21 +230,8 @@ TEST_CASE("a single-precision file with symmetric tensors is continued by a rest
   // As above, with output.precision = "single" and output.symmetric_tensors:
   // the frames copied from the first file keep their float values and the
   // components attribute (check_same_results compares attributes too).
-  const std::vector<std::string> scene{"run",
-                                       (kSource / "examples/mms_plate.toml").string(),
-                                       "--quiet",
-                                       "--set",
-                                       "grid.cells=[8, 8]",
-                                       "--set",
-                                       "output.every=2.5e-4",
-                                       "--set",
-                                       "output.checkpoint_every=10",
-                                       "--set",
-                                       "output.precision=single",
-                                       "--set",
-                                       "output.symmetric_tensors=true",
-                                       "--set",
-                                       kAllFields};
+  const std::vector<std::string> scene =
+      checkpointed_plate({"--set", "output.precision=single", "--set", "output.symmetric_tensors=true"});
   const std::string full = dir.file("plate.h5"), again = dir.file("again.h5");
   REQUIRE(run_cli(dir, with(scene, {"--out", full})).status == 0);
   const std::string checkpoint = dir.file("plate.checkpoint.h5");
