@@ -189,10 +189,9 @@ def cmd_plot(a):
 
 
 def variant_of(path):
-    """'mpm-lme-npc' and 'R3' from a study result name such as mpm-lme-npc_R3.h5."""
+    """'mpm-lme-npc' from a study result name such as mpm-lme-npc_R3.h5."""
     stem = os.path.basename(path).rsplit(".", 1)[0]
-    name, _, mesh = stem.rpartition("_")
-    return (name, mesh) if name else (stem, "")
+    return stem.rpartition("_")[0] or stem
 
 
 def cmd_work_precision(a):
@@ -204,7 +203,7 @@ def cmd_work_precision(a):
     runs = {}
     for path in a.files:
         m = measure(path)
-        name, _ = variant_of(path)
+        name = variant_of(path)
         if m["status"] == "ok" and os.path.abspath(path) != os.path.abspath(a.reference):
             runs.setdefault(name, []).append(m)
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.6), sharex=True)

@@ -144,7 +144,8 @@ template <int D> BasisError point_error(const AlignedVector<Vec<D>>& x, int p, c
 
 /// Appends the stencil `s` to the arrays of a table (or chunk).
 template <int D>
-[[gnu::always_inline]] inline void append_row(const Stencil<D>& s, std::vector<int>& node, std::vector<double>& N, AlignedVector<Vec<D>>& dN) {
+[[gnu::always_inline]] inline void append_row(const Stencil<D>& s, std::vector<int>& node,
+                                              std::vector<double>& N, AlignedVector<Vec<D>>& dN) {
   node.insert(node.end(), s.node.begin(), s.node.end());
   N.insert(N.end(), s.N.begin(), s.N.end());
   dN.insert(dN.end(), s.dN.begin(), s.dN.end());

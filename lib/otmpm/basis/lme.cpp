@@ -127,13 +127,6 @@
 namespace otmpm::maxent {
 namespace {
 
-/// v.resize(n) only when the size changes: the stencil's arrays usually keep
-/// their size from one point to the next, and the call itself (not inlined
-/// by GCC 12 here) cost about 2% of an LME step.
-template <class V> inline void set_size(V& v, std::size_t n) {
-  if (v.size() != n) v.resize(n);
-}
-
 // ---- Newton / line search constants (see the file comment) -----------------
 constexpr double kArmijo = 1e-4;           ///< sufficient-decrease factor of the line search
 constexpr double kBacktrack = 0.5;         ///< step reduction per backtracking step
@@ -784,13 +777,13 @@ void MaxEntBasis<D, Prior>::gather_support(const PointQuery<D>& q, double R, con
     candidates = out.scratch_ids;
   }
   const int stride = simd::padded(static_cast<int>(candidates.size()));
-  set_size(out.scratch_w, static_cast<std::size_t>(D + 3) * static_cast<std::size_t>(stride));
+  out.scratch_w.resize(static_cast<std::size_t>(D + 3) * static_cast<std::size_t>(stride));
   double* dx = out.scratch_w.data();
   double* log_w = dx + D * stride;
   int n = 0;
   double low[D], high[D]; // locals: not aliased by the stores below
   for (int k = 0; k < D; ++k) low[k] = std::numeric_limits<double>::infinity(), high[k] = -low[k];
-  set_size(out.node, candidates.size());
+  out.node.resize(candidates.size());
   int* node = out.node.data();
   const Vec<D> x = q.x;
   for (const int I : candidates) {
@@ -806,7 +799,7 @@ void MaxEntBasis<D, Prior>::gather_support(const PointQuery<D>& q, double R, con
     }
     ++n;
   }
-  set_size(out.node, static_cast<std::size_t>(n));
+  out.node.resize(static_cast<std::size_t>(n));
   for (int k = 0; k < D; ++k) lo[k] = low[k], hi[k] = high[k];
   for (int i = n; i < simd::padded(n); ++i) { // padding: N = 0
     for (int k = 0; k < D; ++k) dx[k * stride + i] = 0.0;
@@ -983,13 +976,14 @@ void MaxEntBasis<D, Prior>::finish_stencil(const NewtonState<D>& st, const Suppo
     // grad N_I = -N_I J^{-1} (xbar - x_I) = -N_I J^{-1} (dx_I - r), on whole
     // vectors (the padding lanes of the last vector are computed, not stored:
     // growing the stencil to the padded size and back cost a call per point)
-    set_size(out.N, static_cast<std::size_t>(n));
-    set_size(out.dN, static_cast<std::size_t>(n));
+    out.N.resize(static_cast<std::size_t>(n));
+    out.dN.resize(static_cast<std::size_t>(n));
     double* dN = out.dN.data()->data(); // D doubles per entry
     const simd::vd scale = simd::broadcast(inv_Z);
     const auto entries = [&](int i, int m) { // nodes i .. i + m - 1, m <= lanes
       const simd::vd N = simd::load(s.p + i) * scale;
-      if (m == simd::lanes) simd::store(out.N.data() + i, N);
+      if (m == simd::lanes)
+        simd::store(out.N.data() + i, N);
       else
         for (int j = 0; j < m; ++j) out.N[static_cast<std::size_t>(i + j)] = N[j];
       simd::vd c[D];
@@ -1005,7 +999,7 @@ void MaxEntBasis<D, Prior>::finish_stencil(const NewtonState<D>& st, const Suppo
     for (; i + simd::lanes <= n; i += simd::lanes) entries(i, simd::lanes);
     if (i < n) entries(i, n - i);
   } else {
-    set_size(out.N, static_cast<std::size_t>(n));
+    out.N.resize(static_cast<std::size_t>(n));
     for (int i = 0; i < n; ++i) out.N[i] = s.p[i] * inv_Z;
     if constexpr (Prior::kGaussian) { // beta_I of each node (Metric::node_spacing)
       const auto grad_log = [&](int i) {
@@ -1026,7 +1020,7 @@ template <class GradLog>
 void MaxEntBasis<D, Prior>::general_gradient(const NewtonState<D>& st, const Support<D>& s, const GradLog& grad_log,
                                              Stencil<D>& out) const {
   const int n = s.n;
-  set_size(out.dN, static_cast<std::size_t>(n));
+  out.dN.resize(static_cast<std::size_t>(n));
   Vec<D> g_bar = Vec<D>::Zero();
   for (int i = 0; i < n; ++i) {
     out.dN[i] = grad_log(i); // g_I, overwritten below

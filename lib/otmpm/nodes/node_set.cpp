@@ -279,7 +279,8 @@ namespace {
 /// rounding cannot lose one (the exact distance test decides). False when
 /// the range misses the grid.
 template <int D>
-[[gnu::always_inline]] inline bool lattice_span(const CartesianGrid<D>& g, int k, double u, double reach, double inv_h, int& lo, int& hi) {
+[[gnu::always_inline]] inline bool lattice_span(const CartesianGrid<D>& g, int k, double u, double reach,
+                                                double inv_h, int& lo, int& hi) {
   const double a = (u - reach - g.lower[k]) * inv_h; // lattice coordinates of the span's ends
   const double b = (u + reach - g.lower[k]) * inv_h;
   if (!(a <= g.cells[k] + 1.0 && b >= -1.0)) return false; // misses the grid (or NaN)
