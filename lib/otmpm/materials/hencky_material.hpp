@@ -7,7 +7,7 @@
 /// work of each particle (J), and the particle update around a model's point
 /// update. Internal to materials/: a model (j2.cpp, drucker_prager.cpp)
 /// supplies `Model::update(dF, dt, state)` and its parameters.
-#include "otmpm/materials/hencky_point.hpp"
+#include "otmpm/materials/hencky_plane_j2.hpp"
 #include "otmpm/materials/material.hpp"
 
 #include <array>
@@ -49,45 +49,18 @@ public:
 
   /// The point update of each particle inlined (Model::update), sigma =
   /// tau / J with one division, the state read and written through the
-  /// arrays' base pointers.
+  /// arrays' base pointers. In plane strain a model with `lanes()` (J2)
+  /// updates two particles at a time where its plane form covers both.
   void update(Particles<D>& P, int p0, int p1, const Mat<D>* H, double dt) const override {
-    double* const be = row(P, 0, 0);
-    double* const eps_p = row(P, 1, 0);
-    double* const eps_v = row(P, 2, 0);
-    double* const energy = row(P, 3, 0);
-    double* const work = row(P, 4, 0);
     // A local copy: the stores of the loop cannot alias its parameters, so
     // they stay in registers and the derived constants are hoisted.
     const Model model = model_;
-    for (int p = p0; p < p1; ++p) {
-      const Mat<D> dF = Mat<D>::Identity() + H[p - p0];
-      const Mat<D> F = dF * P.F[p];
-      const double J = F.determinant();
-      if (!(J > 0.0)) [[unlikely]]
-        fail_det(p, J);
-      plasticity::HenckyState s;
-      double* const b = be + 6 * static_cast<std::ptrdiff_t>(p);
-      s.be << b[0], b[3], b[5], b[3], b[1], b[4], b[5], b[4], b[2];
-      s.eps_p = eps_p[p];
-      s.eps_v = eps_v[p];
-      plasticity::PointUpdate u;
-      try {
-        u = model.update(dF, dt, s);
-      } catch (const InstabilityError& e) {
-        throw ParticleFailure{p, e.what()};
-      }
-      P.F[p] = F;
-      P.V[p] = J * P.V0[p];
-      P.rho[p] = P.m[p] / P.V[p];
-      P.sigma[p] = u.kirchhoff.template topLeftCorner<D, D>() * (1.0 / J);
-      P.eps[p] = 0.5 * (F + F.transpose()) - Mat<D>::Identity();
-      b[0] = s.be(0, 0), b[1] = s.be(1, 1), b[2] = s.be(2, 2);
-      b[3] = s.be(0, 1), b[4] = s.be(1, 2), b[5] = s.be(0, 2);
-      eps_p[p] = s.eps_p;
-      eps_v[p] = s.eps_v;
-      energy[p] = P.V0[p] * u.elastic_energy;
-      work[p] += P.V0[p] * u.plastic_work;
-    }
+    const Rows r = rows(P);
+    int p = p0;
+    if constexpr (D == 2 && requires { model.lanes(); })
+      if (model.lanes())
+        for (; p + 1 < p1; p += 2) update_pair(P, r, model, p, H + (p - p0), dt);
+    for (; p < p1; ++p) update_one(P, r, model, p, H[p - p0], dt);
   }
 
   void add_energies(const Particles<D>& P, int p0, int p1, double& stored, double& dissipated) const override {
@@ -100,6 +73,105 @@ public:
   }
 
 private:
+  /// Base pointers of the state rows.
+  struct Rows {
+    double *be, *eps_p, *eps_v, *energy, *work;
+  };
+  Rows rows(Particles<D>& P) const { return {row(P, 0, 0), row(P, 1, 0), row(P, 2, 0), row(P, 3, 0), row(P, 4, 0)}; }
+
+  /// F = dF F_n and J = det F of particle p; ParticleFailure when J <= 0.
+  static Mat<D> advanced_F(const Particles<D>& P, int p, const Mat<D>& dF, double& J) {
+    const Mat<D> F = dF * P.F[p];
+    J = F.determinant();
+    if (!(J > 0.0)) [[unlikely]]
+      fail_det(p, J);
+    return F;
+  }
+
+  /// The kinematic fields and the stress of particle p after its step.
+  static void commit(Particles<D>& P, const Rows& r, int p, const Mat<D>& F, double J, const Mat<D>& tau, double energy,
+                     double work) {
+    P.F[p] = F;
+    P.V[p] = J * P.V0[p];
+    P.rho[p] = P.m[p] / P.V[p];
+    P.sigma[p] = tau * (1.0 / J);
+    P.eps[p] = 0.5 * (F + F.transpose()) - Mat<D>::Identity();
+    r.energy[p] = P.V0[p] * energy;
+    r.work[p] += P.V0[p] * work;
+  }
+
+  /// One particle through Model::update.
+  static void update_one(Particles<D>& P, const Rows& r, const Model& model, int p, const Mat<D>& Hp, double dt) {
+    const Mat<D> dF = Mat<D>::Identity() + Hp;
+    double J;
+    const Mat<D> F = advanced_F(P, p, dF, J);
+    plasticity::HenckyState s;
+    double* const b = r.be + 6 * static_cast<std::ptrdiff_t>(p);
+    s.be << b[0], b[3], b[5], b[3], b[1], b[4], b[5], b[4], b[2];
+    s.eps_p = r.eps_p[p];
+    s.eps_v = r.eps_v[p];
+    plasticity::PointUpdate u;
+    try {
+      u = model.update(dF, dt, s);
+    } catch (const InstabilityError& e) {
+      throw ParticleFailure{p, e.what()};
+    }
+    b[0] = s.be(0, 0), b[1] = s.be(1, 1), b[2] = s.be(2, 2);
+    b[3] = s.be(0, 1), b[4] = s.be(1, 2), b[5] = s.be(0, 2);
+    r.eps_p[p] = s.eps_p;
+    r.eps_v[p] = s.eps_v;
+    commit(P, r, p, F, J, u.kirchhoff.template topLeftCorner<D, D>(), u.elastic_energy, u.plastic_work);
+  }
+
+  /// Particles p and p + 1 (plane strain) in the two lanes of Model::plane,
+  /// the kinematics and the stress of update_one lane by lane with the same
+  /// operations (Eigen's 2x2 product, determinant and sums); both by
+  /// update_one where the plane form does not cover both or a J <= 0.
+  static void update_pair(Particles<D>& P, const Rows& r, const Model& model, int p, const Mat<D>* Hp, double dt)
+    requires(D == 2)
+  {
+    using L = plasticity::point::Lanes2;
+    const auto lanes = [](double a, double b) { return L{a, b}; };
+    const double* b0 = r.be + 6 * static_cast<std::ptrdiff_t>(p);
+    const double* b1 = b0 + 6;
+    const Mat<2>&H0 = Hp[0], &H1 = Hp[1];
+    plasticity::point::PlaneJ2<L> x{};
+    x.f00 = 1.0 + lanes(H0(0, 0), H1(0, 0)), x.f01 = 0.0 + lanes(H0(0, 1), H1(0, 1));
+    x.f10 = 0.0 + lanes(H0(1, 0), H1(1, 0)), x.f11 = 1.0 + lanes(H0(1, 1), H1(1, 1));
+    x.b00 = lanes(b0[0], b1[0]), x.b01 = lanes(b0[3], b1[3]), x.b11 = lanes(b0[1], b1[1]), x.bzz = lanes(b0[2], b1[2]);
+    x.eps_p = lanes(r.eps_p[p], r.eps_p[p + 1]);
+    const auto covered = model.plane(x);
+    // F = dF F_n and J = det F (Eigen: F00 F11 - F10 F01).
+    const Mat<2>&Fa = P.F[p], &Fb = P.F[p + 1];
+    const L n00 = lanes(Fa(0, 0), Fb(0, 0)), n01 = lanes(Fa(0, 1), Fb(0, 1));
+    const L n10 = lanes(Fa(1, 0), Fb(1, 0)), n11 = lanes(Fa(1, 1), Fb(1, 1));
+    const L F00 = x.f00 * n00 + x.f01 * n10, F01 = x.f00 * n01 + x.f01 * n11;
+    const L F10 = x.f10 * n00 + x.f11 * n10, F11 = x.f10 * n01 + x.f11 * n11;
+    const L J = F00 * F11 - F10 * F01;
+    if (!(covered[0] && covered[1] && J[0] > 0.0 && J[1] > 0.0)) {
+      update_one(P, r, model, p, Hp[0], dt);
+      update_one(P, r, model, p + 1, Hp[1], dt);
+      return;
+    }
+    const L V = J * lanes(P.V0[p], P.V0[p + 1]), rho = lanes(P.m[p], P.m[p + 1]) / V, inv_J = 1.0 / J;
+    const L s00 = x.tau00 * inv_J, s01 = x.tau01 * inv_J, s11 = x.tau11 * inv_J;
+    const L e00 = 0.5 * (F00 + F00) - 1.0, e01 = 0.5 * (F01 + F10), e11 = 0.5 * (F11 + F11) - 1.0;
+    const L energy = lanes(P.V0[p], P.V0[p + 1]) * x.energy, work = lanes(P.V0[p], P.V0[p + 1]) * x.work;
+    for (int l = 0; l < 2; ++l) {
+      const int q = p + l;
+      P.F[q] << F00[l], F01[l], F10[l], F11[l];
+      P.V[q] = V[l];
+      P.rho[q] = rho[l];
+      P.sigma[q] << s00[l], s01[l], s01[l], s11[l];
+      P.eps[q] << e00[l], e01[l], e01[l], e11[l];
+      double* const b = r.be + 6 * static_cast<std::ptrdiff_t>(q);
+      b[0] = x.be00[l], b[1] = x.be11[l], b[2] = x.bezz[l], b[3] = x.be01[l];
+      r.eps_p[q] = x.eps_p_new[l];
+      r.energy[q] = energy[l];
+      r.work[q] += work[l];
+    }
+  }
+
   double* row(Particles<D>& P, int i, int p) const { return P.state[static_cast<std::size_t>(field_[i])].row(p); }
   const double* row(const Particles<D>& P, int i, int p) const {
     return P.state[static_cast<std::size_t>(field_[i])].row(p);

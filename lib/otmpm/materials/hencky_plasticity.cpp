@@ -3,7 +3,7 @@
 /// Jacobi eigen-solver, the Johnson-Cook Newton return and the point updates
 /// of hencky_plasticity.hpp (instances of the inline templates of
 /// hencky_point.hpp).
-#include "otmpm/materials/hencky_point.hpp"
+#include "otmpm/materials/hencky_plane_j2.hpp"
 
 #include <algorithm>
 #include <cmath>

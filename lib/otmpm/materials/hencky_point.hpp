@@ -111,6 +111,49 @@ double johnson_cook_return(const J2Parameters& p, double q, double eps_n, double
 }
 // ------------------------------------------------------------ kinematics
 
+// The series of the point updates as templates on the number type: T is
+// double (one particle) or Lanes2 (two particles, hencky_plane_j2.hpp), the
+// same operations in the same order either way.
+
+/// e^d by its Taylor polynomial of degree 7 for |d| <= 1/64 (truncation
+/// < (1/64)^8 / 8! = 9e-20 relative), by Estrin's scheme: three levels of
+/// multiplications instead of a chain of seven.
+template <class T> inline T exp_series(T d) {
+  const T d2 = d * d, d4 = d2 * d2;
+  const T lo = (1.0 + d) + d2 * (1.0 / 2 + d * (1.0 / 6));
+  const T hi = (1.0 / 24 + d * (1.0 / 120)) + d2 * (1.0 / 720 + d * (1.0 / 5040));
+  return lo + d4 * hi;
+}
+
+/// ln(1 + u) = u - u^2 (1/2 - u/3 + ... - u^9/11) for |u| <= 1/32
+/// (truncation u^11/12 < 3e-18 relative; the leading u is exact, so the
+/// error is that of std::log, ~0.5 ulp).
+template <class T> inline T log1p_series(T u) {
+  const T u2 = u * u, u4 = u2 * u2, u8 = u4 * u4;
+  const T a = (1.0 / 2 - u * (1.0 / 3)) + u2 * (1.0 / 4 - u * (1.0 / 5));
+  const T b = (1.0 / 6 - u * (1.0 / 7)) + u2 * (1.0 / 8 - u * (1.0 / 9));
+  const T c = 1.0 / 10 - u * (1.0 / 11);
+  return u - u2 * ((a + u4 * b) + u8 * c);
+}
+
+/// atanh(x) / x = sum x^(2k) / (2k + 1) as a function of x2 = x^2 < 1e-2, to
+/// x^18 (truncation x^20/21 < 1e-21), by Estrin's scheme.
+template <class T> inline T atanh_series(T x2) {
+  const T x4 = x2 * x2, x8 = x4 * x4;
+  const T lo = (1.0 + x2 * (1.0 / 3)) + x4 * (1.0 / 5 + x2 * (1.0 / 7));
+  const T mid = (1.0 / 9 + x2 * (1.0 / 11)) + x4 * (1.0 / 13 + x2 * (1.0 / 15));
+  const T hi = 1.0 / 17 + x2 * (1.0 / 19);
+  return lo + x8 * (mid + x8 * hi);
+}
+
+/// cosh(y) and sinh(y)/y from y2 = y^2 <= 1/256 by their series to y^8
+/// (truncation y^10/10! < 3e-19).
+template <class T> inline void cosh_shc_series(T y2, T& ch, T& shc) {
+  const T y4 = y2 * y2;
+  ch = (1.0 + y2 * (1.0 / 2)) + y4 * ((1.0 / 24 + y2 * (1.0 / 720)) + y4 * (1.0 / 40320));
+  shc = (1.0 + y2 * (1.0 / 6)) + y4 * ((1.0 / 120 + y2 * (1.0 / 5040)) + y4 * (1.0 / 362880));
+}
+
 /// e^d. A return changes the log strains by little per step, so b_e_new is
 /// formed as b_e_trial e^(2 (e_new - e_trial)) in the common eigenbasis with
 /// a small argument: Taylor polynomial of degree 3 for |d| <= 2^-17 (the
@@ -120,11 +163,7 @@ double johnson_cook_return(const J2Parameters& p, double q, double eps_n, double
 inline double exp_small(double d) {
   if (std::abs(d) <= 0x1p-17) return (1.0 + d) + d * d * (1.0 / 2 + d * (1.0 / 6));
   if (!(std::abs(d) <= 1.0 / 64)) return std::exp(d);
-  // Estrin's scheme: three levels of multiplications instead of a chain of seven.
-  const double d2 = d * d, d4 = d2 * d2;
-  const double lo = (1.0 + d) + d2 * (1.0 / 2 + d * (1.0 / 6));
-  const double hi = (1.0 / 24 + d * (1.0 / 120)) + d2 * (1.0 / 720 + d * (1.0 / 5040));
-  return lo + d4 * hi;
+  return exp_series(d);
 }
 
 /// ln(x) for x > 0: the series ln(1 + u) = u - u^2 (1/2 - u/3 + ... - u^9/11)
@@ -136,11 +175,7 @@ inline double exp_small(double d) {
 inline double log_near1(double x) {
   const double u = x - 1.0;
   if (!(std::abs(u) <= 1.0 / 32)) return std::log(x);
-  const double u2 = u * u, u4 = u2 * u2, u8 = u4 * u4;
-  const double a = (1.0 / 2 - u * (1.0 / 3)) + u2 * (1.0 / 4 - u * (1.0 / 5));
-  const double b = (1.0 / 6 - u * (1.0 / 7)) + u2 * (1.0 / 8 - u * (1.0 / 9));
-  const double c = 1.0 / 10 - u * (1.0 / 11);
-  return u - u2 * ((a + u4 * b) + u8 * c);
+  return log1p_series(u);
 }
 
 /// cosh(y) and sinh(y)/y from y^2: Taylor series to y^4 for y^2 <= 2^-20
@@ -158,9 +193,7 @@ inline void cosh_shc(double y2, double& ch, double& shc) {
     shc = std::sinh(y) / y;
     return;
   }
-  const double y4 = y2 * y2;
-  ch = (1.0 + y2 * (1.0 / 2)) + y4 * ((1.0 / 24 + y2 * (1.0 / 720)) + y4 * (1.0 / 40320));
-  shc = (1.0 + y2 * (1.0 / 6)) + y4 * ((1.0 / 120 + y2 * (1.0 / 5040)) + y4 * (1.0 / 362880));
+  cosh_shc_series(y2, ch, shc);
 }
 
 /// psi(ev, dev2) = K/2 ev^2 + G dev2.
@@ -361,16 +394,12 @@ template <class ReturnMap>
 /// atanh(x) / x as a function of x2 = x^2 in [0, 1): series below 1e-2
 /// (truncation x^20/21 < 1e-21), the library function above.
 inline double atanh_over_x(double x2) {
-  // Sum of x^(2k) / (2k + 1) by Estrin's scheme.
-  const double x4 = x2 * x2;
-  if (x2 < 1e-4) return (1.0 + x2 * (1.0 / 3)) + x4 * ((1.0 / 5 + x2 * (1.0 / 7)) + x4 * (1.0 / 9));
-  if (x2 < 1e-2) {
-    const double x8 = x4 * x4;
-    const double lo = (1.0 + x2 * (1.0 / 3)) + x4 * (1.0 / 5 + x2 * (1.0 / 7));
-    const double mid = (1.0 / 9 + x2 * (1.0 / 11)) + x4 * (1.0 / 13 + x2 * (1.0 / 15));
-    const double hi = 1.0 / 17 + x2 * (1.0 / 19);
-    return lo + x8 * (mid + x8 * hi);
+  if (x2 < 1e-4) {
+    // Sum of x^(2k) / (2k + 1) to x^8 (truncation x^10/11 < 1e-21).
+    const double x4 = x2 * x2;
+    return (1.0 + x2 * (1.0 / 3)) + x4 * ((1.0 / 5 + x2 * (1.0 / 7)) + x4 * (1.0 / 9));
   }
+  if (x2 < 1e-2) return atanh_series(x2);
   const double x = std::sqrt(x2);
   return std::atanh(x) / x;
 }
@@ -470,9 +499,10 @@ template <int D, class ReturnMap>
   else return update3(who, el, dF, st, ret);
 }
 
-/// One J2 step (j2_update of hencky_plasticity.hpp), inlined.
+/// One J2 step by the general path (every dimension, Johnson-Cook, any
+/// strain); j2 of hencky_plane_j2.hpp takes the plane-strain steps it covers.
 template <int D>
-[[gnu::always_inline]] inline PointUpdate j2(const J2Parameters& p, const Mat<D>& dF, double dt, HenckyState& state) {
+[[gnu::always_inline]] inline PointUpdate j2_general(const J2Parameters& p, const Mat<D>& dF, double dt, HenckyState& state) {
   return update<D>("j2_update", p.elastic, dF, state,
                    [&](double ev, double dev2) { return j2_return(p, ev, dev2, dt, state); });
 }
