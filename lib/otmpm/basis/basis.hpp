@@ -55,13 +55,17 @@ template <int D> struct PointQuery {
   const Mat<D>* deformation = nullptr;
 };
 
-/// Throws BasisError "KIND basis: point ID at (x, y): the position is not
-/// finite" unless q.x is finite; the check every family makes first in evaluate().
-template <int D> void require_finite_query(std::string_view kind, const PointQuery<D>& q) {
-  if (q.x.allFinite()) [[likely]]
-    return;
+/// Throws the BasisError of require_finite_query (out of line, so that the
+/// check stays two comparisons in the callers' loops).
+template <int D> [[noreturn, gnu::cold, gnu::noinline]] void throw_non_finite_query(std::string_view kind, const PointQuery<D>& q) {
   throw BasisError(error_message(kind, " basis: point ", q.id >= 0 ? std::to_string(q.id) + " at " : std::string(),
                                  q.x, ": the position is not finite"));
+}
+/// Throws BasisError "KIND basis: point ID at (x, y): the position is not
+/// finite" unless q.x is finite; the check every family makes first in evaluate().
+template <int D> inline void require_finite_query(std::string_view kind, const PointQuery<D>& q) {
+  if (!q.x.allFinite()) [[unlikely]]
+    throw_non_finite_query(kind, q);
 }
 
 /// Parameters of every family (only those of the chosen family are used).

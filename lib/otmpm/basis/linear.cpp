@@ -86,13 +86,22 @@ template <int D> std::string box_text(const CartesianGrid<D>& g) {
 /// `ugimp` the weights are defined there anyway (ghost weight merged).
 constexpr double kInsideTolerance = 1e-12;
 
-/// True when x lies in the grid box widened by kInsideTolerance cells.
-template <int D> bool in_grid(const CartesianGrid<D>& g, const Vec<D>& x) {
-  const Vec<D> slack = kInsideTolerance * g.h();
-  for (int k = 0; k < D; ++k)
-    if (!(x[k] >= g.lower[k] - slack[k] && x[k] <= g.upper[k] + slack[k])) return false;
-  return true;
-}
+/// The grid box widened by kInsideTolerance cells, its bounds formed once
+/// (a basis tests every point against it).
+template <int D> struct WidenedBox {
+  Vec<D> lo = Vec<D>::Zero(), hi = Vec<D>::Zero();
+  WidenedBox() = default;
+  explicit WidenedBox(const CartesianGrid<D>& g) {
+    const Vec<D> slack = kInsideTolerance * g.h();
+    for (int k = 0; k < D; ++k) lo[k] = g.lower[k] - slack[k], hi[k] = g.upper[k] + slack[k];
+  }
+  /// True when x lies in the box (false for NaN).
+  bool contains(const Vec<D>& x) const {
+    for (int k = 0; k < D; ++k)
+      if (!(x[k] >= lo[k] && x[k] <= hi[k])) return false;
+    return true;
+  }
+};
 
 template <int D> std::string point_text(const PointQuery<D>& q) {
   return "point " + format_point<D>(q.x) + (q.id >= 0 ? " (id " + std::to_string(q.id) + ")" : std::string());
@@ -238,6 +247,7 @@ public:
       throw InputError("linear basis needs a structured grid (cartesian or perturbed), not a node cloud");
     grid_ = *nodes_.grid();
     h_ = grid_.h();
+    box_ = WidenedBox<D>(grid_);
   }
 
   std::string_view kind() const override { return "linear"; }
@@ -290,14 +300,14 @@ private:
   /// a has bit k set when it is the upper node on axis k (axis 0 fastest), N
   /// and each component of grad N formed as products in axis order.
   void lattice_hats(const PointQuery<D>& q, int* node, double* N, Vec<D>* dN) const {
-    if (!in_grid(grid_, q.x))
+    if (!box_.contains(q.x))
       throw BasisError("linear basis: " + point_text(q) + " is outside the grid " + box_text(grid_));
     std::array<double, D> t, inv_h;
     Index<D> cell;
     int base = 0, stride[D];
     for (int k = 0, s = 1; k < D; s *= grid_.cells[k] + 1, ++k) {
       const double u = (q.x[k] - grid_.lower[k]) / h_[k];
-      // u >= -1e-12 here (in_grid), so truncation, clamped, is floor, clamped
+      // u >= -1e-12 here (box_), so truncation, clamped, is floor, clamped
       cell[k] = std::clamp(static_cast<int>(u), 0, grid_.cells[k] - 1);
       t[k] = std::clamp(u - cell[k], 0.0, 1.0);
       inv_h[k] = 1.0 / h_[k];
@@ -445,6 +455,7 @@ private:
   NodeSet<D> nodes_;
   CartesianGrid<D> grid_;
   Vec<D> h_; ///< lattice spacing per axis
+  WidenedBox<D> box_;
 };
 
 // ---------------------------------------------------------------------------
@@ -476,6 +487,7 @@ public:
       throw InputError("ugimp needs an unperturbed Cartesian grid (got a " + layout_text() + " node set)");
     grid_ = *nodes_.grid();
     h_ = grid_.h();
+    box_ = WidenedBox<D>(grid_);
     for (int k = 0; k < D; ++k)
       if (!(lp_[k] > 0.0 && lp_[k] <= 0.5 * h_[k] * (1.0 + kHalfCellMargin)))
         throw InputError("ugimp: particle half-width on axis " + std::to_string(k) + " must be in (0, h/2] = (0, " +
@@ -503,7 +515,7 @@ public:
     require_finite_query(kind(), q);
     if (!nodes_.on_lattice())
       throw BasisError("ugimp: the nodes moved off their Cartesian lattice; cannot evaluate " + point_text(q));
-    if (!in_grid(grid_, q.x))
+    if (!box_.contains(q.x))
       throw BasisError("ugimp: " + point_text(q) + " is outside the grid " + box_text(grid_));
     std::array<AxisWeights<kUgimpAxisCapacity>, D> axes;
     for (int k = 0; k < D; ++k) axis_weights(k, q.x[k], axes[k]);
@@ -541,6 +553,7 @@ private:
   CartesianGrid<D> grid_;
   Vec<D> h_;
   Vec<D> lp_;
+  WidenedBox<D> box_;
 };
 
 } // namespace

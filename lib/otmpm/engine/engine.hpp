@@ -252,6 +252,17 @@ private:
   /// The checks of particle p: finite position, velocity and stress; on the
   /// fixed grid inside it and not about to leave it.
   void check_particle(int p) const;
+  /// True when particle p passes check_particle (inline, no message: x - x
+  /// is 0 for a finite x and NaN otherwise, so one sum tests every value).
+  bool particle_ok(int p) const {
+    const Vec<D>& x = P_.x[p];
+    const Vec<D>& v = P_.v[p];
+    const Mat<D>& s = P_.sigma[p];
+    double z = 0.0;
+    for (int k = 0; k < D; ++k) z += (x[k] - x[k]) + (v[k] - v[k]);
+    for (int k = 0; k < D * D; ++k) z += s(k) - s(k);
+    return z == 0.0 && mode_.keeps_inside(x, v, dt_);
+  }
   /// After each step: check_particle() for every particle, the energies,
   /// the wave speed for the next stable_dt() and the momentum, in one pass
   /// (no checks when `check` is false).

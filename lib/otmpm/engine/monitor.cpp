@@ -66,12 +66,14 @@ template <int D> void Engine<D>::sum_particles(bool check) {
   std::atomic<bool> failed{false};
   const auto kinematics = [&](int p0, int p1, ParticleSums<D>& acc) {
     for (int p = p0; p < p1; ++p) {
-      if (check && !dist_) check_particle(p);
-      else if (check) try {
-          check_particle(p);
-        } catch (const InstabilityError&) {
-          failed.store(true, std::memory_order_relaxed);
-        }
+      if (check && !particle_ok(p)) [[unlikely]] {
+        if (!dist_) check_particle(p);
+        else try {
+            check_particle(p);
+          } catch (const InstabilityError&) {
+            failed.store(true, std::memory_order_relaxed);
+          }
+      }
       const double v2 = P_.v[p].squaredNorm();
       acc.kinetic += 0.5 * P_.m[p] * v2;
       acc.momentum += P_.m[p] * P_.v[p];
