@@ -4,6 +4,7 @@
 
 #include <Eigen/SparseCholesky>
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -13,9 +14,18 @@ namespace otmpm {
 template <int D> struct MassMatrix<D>::Factor {
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt;
   Eigen::SparseMatrix<double> A;
+  bool analysed = false; ///< ldlt holds the ordering and analysis of A's pattern
 };
 
 namespace {
+
+/// True when the compressed matrices a and b have the same nonzero pattern.
+bool same_pattern(const Eigen::SparseMatrix<double>& a, const Eigen::SparseMatrix<double>& b) {
+  if (a.rows() != b.rows() || a.cols() != b.cols() || a.nonZeros() != b.nonZeros()) return false;
+  const auto n = static_cast<std::size_t>(a.outerSize()) + 1, nnz = static_cast<std::size_t>(a.nonZeros());
+  return std::equal(a.outerIndexPtr(), a.outerIndexPtr() + n, b.outerIndexPtr()) &&
+         std::equal(a.innerIndexPtr(), a.innerIndexPtr() + nnz, b.innerIndexPtr());
+}
 
 /// The argument checks of MassMatrix::assemble: consistent sizes, node ids in
 /// range (Eigen only asserts them, and not at all under NDEBUG), finite
@@ -53,14 +63,8 @@ void MassMatrix<D>::assemble(const BasisTable<D>& table, const std::vector<doubl
                              const std::vector<char>& active, const std::vector<char>& constrained,
                              int nodes) {
   check_assembly<D>(table, m_p, active, constrained, nodes);
-  std::vector<Eigen::Triplet<double>> triplets;
-  triplets.reserve(table.entries() * 4);
-  for (int p = 0; p < table.rows(); ++p)
-    for (int a = table.begin(p); a < table.end(p); ++a)
-      for (int b = table.begin(p); b < table.end(p); ++b)
-        triplets.emplace_back(table.node[a], table.node[b], m_p[p] * table.N[a] * table.N[b]);
-  M_.resize(nodes, nodes);
-  M_.setFromTriplets(triplets.begin(), triplets.end());
+  assemble_values(table, m_p, nodes);
+  std::vector<std::unique_ptr<Factor>> old = std::move(factor_);
   factor_.clear();
   fixed_.clear();
   for (int k = 0; k < D; ++k) {
@@ -71,20 +75,86 @@ void MassMatrix<D>::assemble(const BasisTable<D>& table, const std::vector<doubl
       factor_.push_back(nullptr);
       continue;
     }
-    auto f = std::make_unique<Factor>();
-    f->A = M_;
-    for (int col = 0; col < f->A.outerSize(); ++col)
-      for (Eigen::SparseMatrix<double>::InnerIterator it(f->A, col); it; ++it)
-        if (fixed[it.row()] || fixed[it.col()]) it.valueRef() = it.row() == it.col() ? 1.0 : 0.0;
-    for (int I = 0; I < nodes; ++I)
-      if (fixed[I]) f->A.coeffRef(I, I) = 1.0;
-    f->A.prune(0.0);
-    f->ldlt.compute(f->A);
-    if (f->ldlt.info() != Eigen::Success)
-      throw InstabilityError("consistent mass matrix: factorisation failed (singular matrix)");
+    factorise(k, fixed, old);
     fixed_.push_back(std::move(fixed));
-    factor_.push_back(std::move(f));
   }
+}
+
+/// M_ from the table: by Eigen's triplet assembly when the node lists
+/// changed (then the place of every product in M_ is recorded), otherwise
+/// by summing the products into those places in the same order - setFromTriplets
+/// sums the duplicates of an entry in triplet order, starting from the first.
+template <int D>
+void MassMatrix<D>::assemble_values(const BasisTable<D>& table, const std::vector<double>& m_p, int nodes) {
+  const bool same = M_.rows() == nodes && table.offset == offset_ && table.node == node_;
+  if (same) {
+    ++pattern_reuses_;
+    double* value = M_.valuePtr();
+    std::size_t t = 0;
+    for (int p = 0; p < table.rows(); ++p)
+      for (int a = table.begin(p); a < table.end(p); ++a)
+        for (int b = table.begin(p); b < table.end(p); ++b, ++t) {
+          const double v = m_p[p] * table.N[a] * table.N[b];
+          const int s = slot_[t];
+          if (s < 0) value[-s - 1] = v;
+          else value[s] += v;
+        }
+    return;
+  }
+  std::vector<Eigen::Triplet<double>> triplets;
+  triplets.reserve(table.entries() * 4);
+  for (int p = 0; p < table.rows(); ++p)
+    for (int a = table.begin(p); a < table.end(p); ++a)
+      for (int b = table.begin(p); b < table.end(p); ++b)
+        triplets.emplace_back(table.node[a], table.node[b], m_p[p] * table.N[a] * table.N[b]);
+  M_.resize(nodes, nodes);
+  M_.setFromTriplets(triplets.begin(), triplets.end());
+  M_.makeCompressed();
+  // The place of each product in M_ (binary search in its column), the first
+  // product of each place marked.
+  slot_.resize(triplets.size());
+  std::vector<char> seen(static_cast<std::size_t>(M_.nonZeros()), 0);
+  const int* outer = M_.outerIndexPtr();
+  const int* inner = M_.innerIndexPtr();
+  for (std::size_t t = 0; t < triplets.size(); ++t) {
+    const int col = triplets[t].col(), row = triplets[t].row();
+    const int s = static_cast<int>(std::lower_bound(inner + outer[col], inner + outer[col + 1], row) - inner);
+    slot_[t] = seen[static_cast<std::size_t>(s)] ? s : -s - 1;
+    seen[static_cast<std::size_t>(s)] = 1;
+  }
+  offset_ = table.offset;
+  node_ = table.node;
+}
+
+/// The factor of component k: M_ with identity rows at `fixed`, factorised;
+/// the symbolic analysis of the last step's factor (in `old`) is kept when
+/// the pattern is the same.
+template <int D>
+void MassMatrix<D>::factorise(int k, const std::vector<char>& fixed, std::vector<std::unique_ptr<Factor>>& old) {
+  const std::size_t kk = static_cast<std::size_t>(k);
+  std::unique_ptr<Factor> f = kk < old.size() && old[kk] ? std::move(old[kk]) : std::make_unique<Factor>();
+  Eigen::SparseMatrix<double> A = M_;
+  for (int col = 0; col < A.outerSize(); ++col)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(A, col); it; ++it)
+      if (fixed[it.row()] || fixed[it.col()]) it.valueRef() = it.row() == it.col() ? 1.0 : 0.0;
+  for (int I = 0; I < A.rows(); ++I)
+    if (fixed[I]) A.coeffRef(I, I) = 1.0;
+  A.prune(0.0);
+  A.makeCompressed();
+  const bool same = f->analysed && same_pattern(f->A, A);
+  f->A = std::move(A);
+  if (same) {
+    ++analysis_reuses_;
+    f->ldlt.factorize(f->A); // the ordering and analysis depend on the pattern only
+  } else {
+    f->ldlt.compute(f->A);
+    f->analysed = true;
+  }
+  if (f->ldlt.info() != Eigen::Success) {
+    f->analysed = false;
+    throw InstabilityError("consistent mass matrix: factorisation failed (singular matrix)");
+  }
+  factor_.push_back(std::move(f));
 }
 
 template <int D>

@@ -4,7 +4,12 @@
 /// sect. 8), assembled from the basis table into a sparse matrix and solved
 /// with a sparse Cholesky (LDL^T) factorisation, once per step. Rows of
 /// inactive nodes and of Dirichlet components are replaced by identity rows, so
-/// the solve returns the prescribed value there.
+/// the solve returns the prescribed value there. Work that depends only on
+/// the sparsity is kept between steps: while the table's node lists are
+/// unchanged the products are summed straight into the last step's matrix
+/// (in the order the triplet assembly sums them: the same bits), and while
+/// a component's pattern is unchanged its factorisation skips the ordering
+/// and symbolic analysis (again the same bits).
 #include "otmpm/basis/basis.hpp"
 
 #include <Eigen/SparseCore>
@@ -34,11 +39,22 @@ public:
   /// The assembled matrix (before constraints), for tests.
   const Eigen::SparseMatrix<double>& matrix() const { return M_; }
 
+  /// Assemblies of the last calls that reused the table's pattern, and
+  /// factorisations that reused the symbolic analysis (for tests).
+  int pattern_reuses() const { return pattern_reuses_; }
+  int analysis_reuses() const { return analysis_reuses_; }
+
 private:
   struct Factor;
+  void assemble_values(const BasisTable<D>& table, const std::vector<double>& m_p, int nodes);
+  void factorise(int k, const std::vector<char>& fixed, std::vector<std::unique_ptr<Factor>>& old);
   Eigen::SparseMatrix<double> M_;
   std::vector<std::unique_ptr<Factor>> factor_; // one per component
   std::vector<std::vector<char>> fixed_;        // per component: identity rows
+  // The table's node lists of the last assembly and, per product of that
+  // order, its place in M_'s values (negative - 1: the first product there).
+  std::vector<int> offset_, node_, slot_;
+  int pattern_reuses_ = 0, analysis_reuses_ = 0;
 };
 
 extern template class MassMatrix<1>;
