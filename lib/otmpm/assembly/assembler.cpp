@@ -218,7 +218,11 @@ template <int D> Particles<D> seed_particles(const Scene& scene, const Vec<D>& h
   return seed_bodies<D>(scene, h, node_grid<D>(scene)).particles;
 }
 
-template <int D> EngineParts<D> assemble_parts(const Scene& scene) {
+template <int D>
+EngineParts<D> assemble_parts(const Scene& scene,
+                              const std::function<SeededBodies<D>(const Vec<D>&, const CartesianGrid<D>&)>& seed) {
+  require<std::logic_error>(!seed || scene.tractions.empty(),
+                            "assemble_parts: traction loads need every particle (their surface), not a share");
   validate_scene(scene, D);
   const IntegratorKind& integrator = integrator_kind(scene.simulation.integrator);
   const bool ul = scene.simulation.nodes_move();
@@ -232,7 +236,7 @@ template <int D> EngineParts<D> assemble_parts(const Scene& scene) {
       input_error(ms.where, e.what());
     }
   }
-  SeededBodies<D> seeded = seed_bodies<D>(scene, grid_spacing<D>(scene), grid);
+  SeededBodies<D> seeded = seed ? seed(grid_spacing<D>(scene), grid) : seed_bodies<D>(scene, grid_spacing<D>(scene), grid);
   parts.particles = std::move(seeded.particles);
   Particles<D>& P = parts.particles;
   std::shared_ptr<const ExactSolution<D>> exact = make_exact_solution<D>(scene);
@@ -261,10 +265,14 @@ template <int D> EngineParts<D> assemble_parts(const Scene& scene) {
   return parts;
 }
 
+template <int D> EngineParts<D> assemble_parts(const Scene& scene) { return assemble_parts<D>(scene, nullptr); }
+
 template <int D> Engine<D> assemble(const Scene& scene) { return Engine<D>(assemble_parts<D>(scene)); }
 
 #define OTMPM_INSTANTIATE(D)                                                       \
   template EngineParts<D> assemble_parts<D>(const Scene&);                        \
+  template EngineParts<D> assemble_parts<D>(                                      \
+      const Scene&, const std::function<SeededBodies<D>(const Vec<D>&, const CartesianGrid<D>&)>&); \
   template Engine<D> assemble<D>(const Scene&);                                   \
   template Particles<D> seed_particles<D>(const Scene&, const Vec<D>&);   \
   template CartesianGrid<D> node_grid<D>(const Scene&);                    \

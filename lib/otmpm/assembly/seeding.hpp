@@ -5,6 +5,7 @@
 #include "otmpm/particles/particles.hpp"
 #include "otmpm/scene/scene.hpp"
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -31,10 +32,25 @@ template <int D> struct SeededBodies {
   Particles<D> particles;
   std::vector<int> file_row; ///< per particle: its row in its body's file, or -1
   std::vector<FileState> file_state;
+  /// seed_bodies_where: per particle, its index in seed_bodies' order (its global id)
+  std::vector<long long> ids;
 };
 
 /// Seeds every body of the scene (assembler.hpp, seed_particles): boxes on
 /// cells of the spacing `h`, other shapes on the cells of `lattice`.
 template <int D> SeededBodies<D> seed_bodies(const Scene& scene, const Vec<D>& h, const CartesianGrid<D>& lattice);
+
+/// Some of the particles of seed_bodies, without ever holding the others
+/// (a rank's share in a distributed run, distributed/local_parts.cpp): the
+/// bodies are seeded in the same order, one particle at a time, with the
+/// same checks and errors, and keep(id, x) is asked for every particle (id:
+/// its index in seed_bodies' order, x: its position). With `result`, the
+/// particles it keeps are stored there, in that order, with their ids in
+/// result->ids; particle files are still read whole (their extra columns go
+/// to result->file_state whole). Returns the number of particles of the
+/// scene. Without `result`, a counting pass: nothing is stored.
+template <int D>
+long long seed_bodies_where(const Scene& scene, const Vec<D>& h, const CartesianGrid<D>& lattice,
+                            const std::function<bool(long long, const Vec<D>&)>& keep, SeededBodies<D>* result);
 
 } // namespace otmpm

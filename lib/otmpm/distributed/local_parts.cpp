@@ -3,10 +3,12 @@
 #include "otmpm/distributed/local_parts.hpp"
 
 #include "otmpm/assembly/assembler.hpp"
+#include "otmpm/assembly/seeding.hpp"
 #include "otmpm/basis/bspline.hpp"
 #include "otmpm/basis/kinds.hpp"
 
 #include <cmath>
+#include <exception>
 
 namespace otmpm::distributed {
 
@@ -84,12 +86,34 @@ window_basis_factory(const Scene& scene, const Basis<D>& global, const PointLatt
   };
 }
 
-} // namespace
-
+/// The basis, the constraints and the Domain of a rank whose particles
+/// (parts.particles, setup.global_ids) and decomposition are chosen.
 template <int D>
-EngineParts<D> rank_parts(const Scene& scene, const Comm& comm, const AlignedVector<Vec<D>>* positions) {
+EngineParts<D> finish_parts(const Scene& scene, const Comm& comm, EngineParts<D> parts,
+                            typename Domain<D>::Setup setup) {
+  // The basis and constraints on this rank's window of the point lattice.
+  Window<D> w;
+  w.box = setup.lattice.window(setup.decomposition.box(comm.rank()));
+  setup.window_basis = window_basis_factory<D>(scene, *parts.basis, setup.lattice);
+  parts.basis = setup.window_basis(w, setup.hint_offset);
+  // No rebalancing with walls: a wall's held nodes (its contact state, per
+  // node of the window) stay where they are; particles still migrate.
+  if (!parts.walls.empty()) setup.window_basis = nullptr;
+  setup.dirichlet = std::move(parts.dirichlet);
+  parts.dirichlet = window_dirichlet<D>(setup.dirichlet, setup.lattice, w);
+  auto domain = std::make_shared<Domain<D>>(comm, std::move(setup));
+  if (auto* b = dynamic_cast<BsplineBasis<D>*>(parts.basis.get()))
+    b->distribute(domain->owned_nodes(), [&comm](std::span<double> v) { comm.sum(v); });
+  parts.distribution = std::move(domain);
+  return parts;
+}
+
+/// A rank's parts cut from the whole scene's (every particle seeded on
+/// every rank): the path of scenes with traction loads, whose surface
+/// particles are found among all particles.
+template <int D>
+EngineParts<D> cut_parts(const Scene& scene, const Comm& comm, const AlignedVector<Vec<D>>* positions) {
   EngineParts<D> parts = assemble_parts<D>(scene);
-  if (comm.size() == 1) return parts;
   Particles<D>& P = parts.particles;
   const std::size_t n = static_cast<std::size_t>(P.size());
   const bool ul = parts.mode.nodes_move();
@@ -98,6 +122,7 @@ EngineParts<D> rank_parts(const Scene& scene, const Comm& comm, const AlignedVec
   setup.lattice = point_lattice<D>(scene, *parts.basis, grid, ul);
   setup.nodes_move = ul;
   setup.global_particles = static_cast<long long>(n);
+  setup.setup_particles = static_cast<long long>(n);
   // Home cells of all particles (every rank has them); each rank counts a
   // share for the bisection, so that the sums count every particle once.
   const AlignedVector<Vec<D>>& x = positions ? *positions : P.x;
@@ -129,21 +154,82 @@ EngineParts<D> rank_parts(const Scene& scene, const Comm& comm, const AlignedVec
     for (std::size_t p = 0; p < setup.traction_area[i].size(); ++p)
       if (setup.traction_area[i][p] >= 0.0) t.particle.push_back(static_cast<int>(p)), t.area.push_back(setup.traction_area[i][p]);
   }
-  // The basis and constraints on this rank's window of the point lattice.
-  Window<D> w;
-  w.box = setup.lattice.window(setup.decomposition.box(comm.rank()));
-  setup.window_basis = window_basis_factory<D>(scene, *parts.basis, setup.lattice);
-  parts.basis = setup.window_basis(w, setup.hint_offset);
-  // No rebalancing with walls: a wall's held nodes (its contact state, per
-  // node of the window) stay where they are; particles still migrate.
-  if (!parts.walls.empty()) setup.window_basis = nullptr;
-  setup.dirichlet = std::move(parts.dirichlet);
-  parts.dirichlet = window_dirichlet<D>(setup.dirichlet, setup.lattice, w);
-  auto domain = std::make_shared<Domain<D>>(comm, std::move(setup));
-  if (auto* b = dynamic_cast<BsplineBasis<D>*>(parts.basis.get()))
-    b->distribute(domain->owned_nodes(), [&comm](std::span<double> v) { comm.sum(v); });
-  parts.distribution = std::move(domain);
-  return parts;
+  return finish_parts<D>(scene, comm, std::move(parts), std::move(setup));
+}
+
+/// Seeding particles counted per rank in runs of this many global ids
+/// (rank r counts the runs r, r + N, ...): each rank's list of (cell, count)
+/// stays short, as particles of one cell are seeded together.
+constexpr long long kCountRun = 4096;
+
+/// A rank's parts seeded for its own cells only (local_parts.hpp): a
+/// counting pass over the seeding (no particle stored) gives the particles
+/// per cell for the bisection, a second pass stores the particles of this
+/// rank's cells. Every rank runs both passes over every body alike, so a bad
+/// scene fails on every rank alike.
+template <int D>
+EngineParts<D> seeded_parts(const Scene& scene, const Comm& comm, const AlignedVector<Vec<D>>* positions) {
+  typename Domain<D>::Setup setup;
+  const bool ul = scene.simulation.nodes_move();
+  long long n = 0;
+  // An error of the decomposition (too few cells) is raised after the rest
+  // of the assembly, as when the whole scene was assembled first.
+  std::exception_ptr deferred;
+  auto seed = [&](const Vec<D>& h, const CartesianGrid<D>& grid) {
+    SeededBodies<D> mine;
+    // The home cell: of the checkpoint's position (a restart in `mpm` mode) or of the seeded one.
+    auto home = [&](long long id, const Vec<D>& x) {
+      return grid.cell_of(!ul && positions && id < static_cast<long long>(positions->size())
+                              ? (*positions)[static_cast<std::size_t>(id)]
+                              : x);
+    };
+    std::vector<Index<D>> cells;
+    std::vector<std::int64_t> weight;
+    n = seed_bodies_where<D>(
+        scene, h, grid,
+        [&](long long id, const Vec<D>& x) {
+          if ((id / kCountRun) % comm.size() != comm.rank()) return false;
+          const Index<D> c = home(id, x);
+          if (!cells.empty() && cells.back() == c) ++weight.back();
+          else cells.push_back(c), weight.push_back(1);
+          return false;
+        },
+        nullptr);
+    try {
+      if (positions)
+        require<std::invalid_argument>(static_cast<long long>(positions->size()) == n, "rank_parts: ",
+                                       positions->size(), " positions for ", n, " particles");
+      setup.decomposition = Decomposition<D>::rcb(grid.cells, comm.size(), cells, weight, comm);
+    } catch (...) {
+      deferred = std::current_exception();
+      return mine;
+    }
+    std::vector<Index<D>>().swap(cells);
+    std::vector<std::int64_t>().swap(weight);
+    seed_bodies_where<D>(
+        scene, h, grid,
+        [&](long long id, const Vec<D>& x) { return setup.decomposition.owner(home(id, x)) == comm.rank(); },
+        &mine);
+    setup.global_ids = std::move(mine.ids);
+    return mine;
+  };
+  EngineParts<D> parts = assemble_parts<D>(scene, seed);
+  if (deferred) std::rethrow_exception(deferred);
+  const CartesianGrid<D> grid = node_grid<D>(scene);
+  setup.lattice = point_lattice<D>(scene, *parts.basis, grid, ul);
+  setup.nodes_move = ul;
+  setup.global_particles = n;
+  setup.setup_particles = parts.particles.size();
+  return finish_parts<D>(scene, comm, std::move(parts), std::move(setup));
+}
+
+} // namespace
+
+template <int D>
+EngineParts<D> rank_parts(const Scene& scene, const Comm& comm, const AlignedVector<Vec<D>>* positions) {
+  if (comm.size() == 1) return assemble_parts<D>(scene);
+  if (!scene.tractions.empty()) return cut_parts<D>(scene, comm, positions);
+  return seeded_parts<D>(scene, comm, positions);
 }
 
 #define OTMPM_INSTANTIATE(D)                                                                                      \
