@@ -1,6 +1,7 @@
 #pragma once
 /// \file seeding.hpp
-/// The particles of a scene's bodies (seeding.cpp). Internal to assembly/.
+/// The particles of a scene's bodies (seeding.cpp). Internal to assembly/ and
+/// the distributed set-up (distributed/local_parts.cpp, which seeds a rank's share).
 #include "otmpm/nodes/node_set.hpp"
 #include "otmpm/particles/particles.hpp"
 #include "otmpm/scene/scene.hpp"
