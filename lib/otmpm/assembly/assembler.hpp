@@ -30,9 +30,9 @@ template <int D> struct SeededBodies;
 /// grid spacing and the node lattice of the scene) instead of every body's:
 /// a rank of a distributed run seeds only the particles of its own cells
 /// (distributed/local_parts.cpp; assembly/seeding.hpp, seed_bodies_where).
-/// Null `seed`: assemble_parts(scene). A scene with traction loads needs
-/// every particle (the loads act on the body's surface) and is refused
-/// (std::logic_error: a caller's mistake).
+/// Null `seed`: assemble_parts(scene). With traction loads the seeding
+/// must give their surface particles among all (SeededBodies::surfaces:
+/// the loads act on the body's surface), else std::logic_error.
 template <int D>
 EngineParts<D> assemble_parts(const Scene& scene,
                               const std::function<SeededBodies<D>(const Vec<D>&, const CartesianGrid<D>&)>& seed);

@@ -296,6 +296,45 @@ long long seed_bodies_where(const Scene& scene, const Vec<D>& h, const Cartesian
 template SeededBodies<1> seed_bodies<1>(const Scene&, const Vec<1>&, const CartesianGrid<1>&);
 template SeededBodies<2> seed_bodies<2>(const Scene&, const Vec<2>&, const CartesianGrid<2>&);
 template SeededBodies<3> seed_bodies<3>(const Scene&, const Vec<3>&, const CartesianGrid<3>&);
+template <int D>
+TractionSurfaces<D>::TractionSurfaces(const Scene& scene, double tol)
+    : loads_(scene.tractions), tol_(tol), ends_(scene.tractions.size()) {
+  for (const TractionSection& ts : loads_) axis_.push_back(traction_axis<D>(ts));
+}
+
+template <int D> void TractionSurfaces<D>::visit(long long id, const Vec<D>& X) {
+  for (std::size_t i = 0; i < loads_.size(); ++i) {
+    const int axis = axis_[i];
+    auto [it, fresh] = ends_[i].try_emplace(column_key<D>(X, axis, tol_), End{id, id, X, X});
+    if (fresh) continue;
+    End& e = it->second;
+    if (X[axis] < e.x_first[axis]) e.first = id, e.x_first = X;
+    if (X[axis] > e.x_last[axis]) e.last = id, e.x_last = X;
+  }
+}
+
+template <int D> void TractionSurfaces<D>::finish() {
+  ids_.assign(loads_.size(), {});
+  selects_.assign(loads_.size(), 0);
+  for (std::size_t i = 0; i < loads_.size(); ++i) {
+    for (const auto& [column, e] : ends_[i]) {
+      ids_[i].push_back(e.first), ids_[i].push_back(e.last);
+      for (const Vec<D>* x : {&e.x_first, &e.x_last})
+        if (inside_box<D>(*x, loads_[i].lower, loads_[i].upper)) selects_[i] = 1;
+    }
+    std::sort(ids_[i].begin(), ids_[i].end());
+    ends_[i].clear(); // the columns are not needed any more
+  }
+}
+
+template <int D> bool TractionSurfaces<D>::surface(std::size_t load, long long id) const {
+  return std::binary_search(ids_[load].begin(), ids_[load].end(), id);
+}
+
+template class TractionSurfaces<1>;
+template class TractionSurfaces<2>;
+template class TractionSurfaces<3>;
+
 #define OTMPM_INSTANTIATE(D)                                                                                 \
   template long long seed_bodies_where<D>(const Scene&, const Vec<D>&, const CartesianGrid<D>&,              \
                                           const std::function<bool(long long, const Vec<D>&)>&, SeededBodies<D>*);

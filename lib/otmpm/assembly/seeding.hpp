@@ -6,7 +6,11 @@
 #include "otmpm/particles/particles.hpp"
 #include "otmpm/scene/scene.hpp"
 
+#include <array>
+#include <cmath>
 #include <functional>
+#include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -28,6 +32,57 @@ struct FileState {
   std::vector<double> values;
 };
 
+/// The axis a traction load acts along (its faces' normal): `axis` when
+/// given, 0 for wobbes_traction_bar, else the largest component of `value`.
+template <int D> int traction_axis(const TractionSection& ts) {
+  int axis = 0;
+  scene_vec<D>(ts.value).cwiseAbs().maxCoeff(&axis);
+  if (ts.function == "wobbes_traction_bar") axis = 0;
+  if (ts.axis) axis = *ts.axis;
+  return axis;
+}
+
+/// The column of a particle at X across `axis`: its other coordinates in
+/// units of tol, so that particles seeded on one lattice line share it.
+template <int D> std::array<long long, 2> column_key(const Vec<D>& X, int axis, double tol) {
+  std::array<long long, 2> key{0, 0};
+  for (int k = 0, j = 0; k < D; ++k)
+    if (k != axis) key[static_cast<std::size_t>(j++)] = std::llround(X[k] / tol);
+  return key;
+}
+
+/// The surface particles of the scene's traction loads - per load, the
+/// first and the last particle of each column along its axis (the serial
+/// rule of the assembler: smallest and largest coordinate, the earlier
+/// particle on ties) - found one particle at a time in seeding order, so
+/// that a rank that stores only a share of the particles knows which of
+/// them are loaded. Holds one entry per column and load.
+template <int D> class TractionSurfaces {
+public:
+  /// For the loads of `scene`, columns told apart at `tol`.
+  TractionSurfaces(const Scene& scene, double tol);
+  /// Particle `id` (the next in seeding order) at X.
+  void visit(long long id, const Vec<D>& X);
+  /// After every visit: per load, the ids of its surface particles, sorted.
+  void finish();
+  /// Whether particle `id` is a surface particle of `load` (after finish).
+  bool surface(std::size_t load, long long id) const;
+  /// Whether some surface particle of `load` lies in the load's box.
+  bool selects(std::size_t load) const { return selects_[load] != 0; }
+
+private:
+  struct End {
+    long long first = 0, last = 0;
+    Vec<D> x_first, x_last;
+  };
+  std::vector<TractionSection> loads_;
+  std::vector<int> axis_;
+  double tol_;
+  std::vector<std::map<std::array<long long, 2>, End>> ends_;
+  std::vector<std::vector<long long>> ids_;
+  std::vector<char> selects_;
+};
+
 /// The seeded particles and what their particle files give beyond them.
 template <int D> struct SeededBodies {
   Particles<D> particles;
@@ -35,6 +90,8 @@ template <int D> struct SeededBodies {
   std::vector<FileState> file_state;
   /// seed_bodies_where: per particle, its index in seed_bodies' order (its global id)
   std::vector<long long> ids;
+  /// seed_bodies_where with traction loads: their surface particles among all
+  std::shared_ptr<const TractionSurfaces<D>> surfaces;
 };
 
 /// Seeds every body of the scene (assembler.hpp, seed_particles): boxes on

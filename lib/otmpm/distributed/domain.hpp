@@ -30,9 +30,8 @@ struct DomainStats {
   long long cg_iterations = 0; ///< consistent mass: CG iterations, all solves
   long long cg_solves = 0;
   double cg_worst_residual = 0.0; ///< largest final relative residual
-  /// Particles this rank held at once during set-up: its own share when it
-  /// seeded only its cells, every particle when it assembled the whole scene
-  /// (a scene with traction loads, local_parts.hpp).
+  /// Particles this rank held at once during set-up: its own share (it
+  /// seeds only the particles of its cells, local_parts.hpp).
   long long setup_particles = 0;
 };
 

@@ -7,10 +7,9 @@
 /// particles of this rank's cells, in global order (their index in the
 /// serial seeding) - then the basis is built on its window of the point
 /// lattice and the Dirichlet entries are cut to it, with the Domain that
-/// ties the ranks together. A scene with traction loads is seeded whole on
-/// every rank and cut (its loads act on surface particles found among all
-/// particles). With one rank the scene's parts are returned unchanged (a
-/// serial run, bit for bit).
+/// ties the ranks together. Traction loads act on surface particles found
+/// among all particles in the counting pass. With one rank the scene's
+/// parts are returned unchanged (a serial run, bit for bit).
 #include "otmpm/distributed/domain.hpp"
 #include "otmpm/scene/scene.hpp"
 
