@@ -8,6 +8,7 @@
 
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <map>
 #include <random>
 #include <set>
@@ -90,6 +91,30 @@ TEST_CASE("rcb: the same home cells give the same boxes, too many ranks is an in
   check_tiling(a);
   for (int r = 0; r < 6; ++r) CHECK(a.box(r) == b.box(r));
   CHECK_THROWS_AS(Decomposition<1>::rcb({3}, 4, std::vector<Index<1>>{}, Comm::self()), InputError);
+}
+
+TEST_CASE("rcb: (cell, count) runs give the same boxes as the cells repeated") {
+  // What a rank's seeding gives the bisection (local_parts.cpp): runs of
+  // one cell's particles, a cell in several runs and in any order.
+  std::mt19937 rng(11);
+  std::vector<Index<3>> home, cells;
+  std::vector<std::int64_t> weight;
+  for (int i = 0; i < 400; ++i) {
+    const Index<3> c{static_cast<int>(rng() % 12), static_cast<int>(rng() % 7), static_cast<int>(rng() % 5)};
+    const int w = static_cast<int>(rng() % 9) + 1;
+    cells.push_back(c), weight.push_back(w);
+    for (int k = 0; k < w; ++k) home.push_back(c);
+  }
+  std::shuffle(home.begin(), home.end(), rng);
+  for (int ranks : {2, 3, 5, 8}) {
+    CAPTURE(ranks);
+    const auto a = Decomposition<3>::rcb({12, 7, 5}, ranks, home, Comm::self());
+    const auto b = Decomposition<3>::rcb({12, 7, 5}, ranks, cells, weight, Comm::self());
+    check_tiling(b);
+    for (int r = 0; r < ranks; ++r) CHECK(a.box(r) == b.box(r));
+  }
+  CHECK_THROWS_AS(Decomposition<3>::rcb({12, 7, 5}, 4, cells, std::vector<std::int64_t>(3, 1), Comm::self()),
+                  std::invalid_argument);
 }
 
 TEST_CASE("rcb: the cut follows the particles, not the empty lattice") {

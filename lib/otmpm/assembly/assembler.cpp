@@ -83,21 +83,12 @@ template <int D> Dirichlet<D> build_dirichlet(const Scene& scene, const NodeSet<
   return d;
 }
 
-/// The transverse position of particle p across `axis` (its column), in
-/// units of tol so that particles seeded on one lattice line share it.
-template <int D> std::array<long long, 2> column_of(const Vec<D>& X, int axis, double tol) {
-  std::array<long long, 2> key{0, 0};
-  for (int k = 0, j = 0; k < D; ++k)
-    if (k != axis) key[static_cast<std::size_t>(j++)] = std::llround(X[k] / tol);
-  return key;
-}
-
 /// For each particle, whether it is the first or the last of its column
 /// along `axis` (the particles that carry the body's surface there).
 template <int D> std::vector<char> surface_particles(const Particles<D>& P, int axis, double tol) {
   std::map<std::array<long long, 2>, std::pair<int, int>> ends; // column -> (first, last) particle
   for (int p = 0; p < P.size(); ++p) {
-    auto [it, fresh] = ends.try_emplace(column_of<D>(P.X[p], axis, tol), p, p);
+    auto [it, fresh] = ends.try_emplace(column_key<D>(P.X[p], axis, tol), p, p);
     if (fresh) continue;
     auto& [first, last] = it->second;
     if (P.X[p][axis] < P.X[first][axis]) first = p;
@@ -112,24 +103,36 @@ template <int D> std::vector<char> surface_particles(const Particles<D>& P, int 
 /// the surface particles in the box, each over its face area V0_p /
 /// l_p[axis]. The built-in history of wobbes et al. eq. 103 comes from the
 /// traction bar's solution (which the history keeps alive).
+///
+/// A share of the particles (`seeded.surfaces`: a rank of a distributed
+/// run) takes its surface particles from there, found among all particles
+/// while seeding; the box must select one of all particles.
 template <int D>
 std::vector<Traction<D>> build_tractions(const Scene& scene, const Particles<D>& P, double h,
-                                         const std::shared_ptr<const ExactSolution<D>>& exact) {
+                                         const std::shared_ptr<const ExactSolution<D>>& exact,
+                                         const SeededBodies<D>& seeded) {
   std::vector<Traction<D>> out;
-  for (const TractionSection& ts : scene.tractions) {
+  for (std::size_t i = 0; i < scene.tractions.size(); ++i) {
+    const TractionSection& ts = scene.tractions[i];
     Traction<D> load;
     load.value = scene_vec<D>(ts.value);
     load.time = ts.time;
-    load.value.cwiseAbs().maxCoeff(&load.axis);
-    if (ts.function == "wobbes_traction_bar") load.axis = 0;
-    if (ts.axis) load.axis = *ts.axis;
-    const std::vector<char> surface = surface_particles<D>(P, load.axis, kBoxTolerance * h);
+    load.axis = traction_axis<D>(ts);
+    std::vector<char> surface;
+    if (seeded.surfaces) {
+      require<std::logic_error>(seeded.ids.size() == static_cast<std::size_t>(P.size()),
+                                "build_tractions: a share of the particles without their global ids");
+      surface.resize(static_cast<std::size_t>(P.size()));
+      for (std::size_t p = 0; p < surface.size(); ++p) surface[p] = seeded.surfaces->surface(i, seeded.ids[p]);
+    } else {
+      surface = surface_particles<D>(P, load.axis, kBoxTolerance * h);
+    }
     for (int p = 0; p < P.size(); ++p)
       if (surface[static_cast<std::size_t>(p)] && inside_box<D>(P.x[p], ts.lower, ts.upper)) {
         load.particle.push_back(p);
         load.area.push_back(P.V0[p] / P.length0[p][load.axis]);
       }
-    if (load.particle.empty())
+    if (seeded.surfaces ? !seeded.surfaces->selects(i) : load.particle.empty())
       input_error(ts.where, "traction box selects no surface particle (the first or last particle of a column "
                             "along axis " + std::to_string(load.axis) + ")");
     if (ts.function == "wobbes_traction_bar") {
@@ -218,7 +221,9 @@ template <int D> Particles<D> seed_particles(const Scene& scene, const Vec<D>& h
   return seed_bodies<D>(scene, h, node_grid<D>(scene)).particles;
 }
 
-template <int D> EngineParts<D> assemble_parts(const Scene& scene) {
+template <int D>
+EngineParts<D> assemble_parts(const Scene& scene,
+                              const std::function<SeededBodies<D>(const Vec<D>&, const CartesianGrid<D>&)>& seed) {
   validate_scene(scene, D);
   const IntegratorKind& integrator = integrator_kind(scene.simulation.integrator);
   const bool ul = scene.simulation.nodes_move();
@@ -232,7 +237,7 @@ template <int D> EngineParts<D> assemble_parts(const Scene& scene) {
       input_error(ms.where, e.what());
     }
   }
-  SeededBodies<D> seeded = seed_bodies<D>(scene, grid_spacing<D>(scene), grid);
+  SeededBodies<D> seeded = seed ? seed(grid_spacing<D>(scene), grid) : seed_bodies<D>(scene, grid_spacing<D>(scene), grid);
   parts.particles = std::move(seeded.particles);
   Particles<D>& P = parts.particles;
   std::shared_ptr<const ExactSolution<D>> exact = make_exact_solution<D>(scene);
@@ -254,17 +259,23 @@ template <int D> EngineParts<D> assemble_parts(const Scene& scene) {
     parts.walls.push_back({w.name, scene_vec<D>(w.point), scene_vec<D>(w.normal), scene_vec<D>(w.velocity), w.friction});
   if (scene.contact) parts.contact = ContactLaw{scene.contact->friction};
   parts.loads.body_force = build_body_force<D>(scene, exact);
-  parts.loads.tractions = build_tractions<D>(scene, P, h, exact);
+  require<std::logic_error>(!seed || scene.tractions.empty() || seeded.surfaces,
+                            "assemble_parts: a share of the particles needs its traction loads' surface particles");
+  parts.loads.tractions = build_tractions<D>(scene, P, h, exact, seeded);
   allocate_fields(scene, integrator, parts, P);
   set_file_state<D>(scene, seeded, P);
   parts.settings = build_settings<D>(scene, integrator, h);
   return parts;
 }
 
+template <int D> EngineParts<D> assemble_parts(const Scene& scene) { return assemble_parts<D>(scene, nullptr); }
+
 template <int D> Engine<D> assemble(const Scene& scene) { return Engine<D>(assemble_parts<D>(scene)); }
 
 #define OTMPM_INSTANTIATE(D)                                                       \
   template EngineParts<D> assemble_parts<D>(const Scene&);                        \
+  template EngineParts<D> assemble_parts<D>(                                      \
+      const Scene&, const std::function<SeededBodies<D>(const Vec<D>&, const CartesianGrid<D>&)>&); \
   template Engine<D> assemble<D>(const Scene&);                                   \
   template Particles<D> seed_particles<D>(const Scene&, const Vec<D>&);   \
   template CartesianGrid<D> node_grid<D>(const Scene&);                    \

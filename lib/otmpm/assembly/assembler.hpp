@@ -13,6 +13,8 @@
 #include "otmpm/engine/engine.hpp"
 #include "otmpm/scene/scene.hpp"
 
+#include <functional>
+
 namespace otmpm {
 
 /// The parts of an engine for `scene` in D dimensions. Throws InputError
@@ -21,6 +23,19 @@ namespace otmpm {
 /// boundary box that selects no node, a traction box that selects no
 /// particle, a basis that cannot be built on the node set.
 template <int D> EngineParts<D> assemble_parts(const Scene& scene);
+
+template <int D> struct SeededBodies;
+
+/// assemble_parts with the particles that `seed(h, lattice)` gives (the
+/// grid spacing and the node lattice of the scene) instead of every body's:
+/// a rank of a distributed run seeds only the particles of its own cells
+/// (distributed/local_parts.cpp; assembly/seeding.hpp, seed_bodies_where).
+/// Null `seed`: assemble_parts(scene). With traction loads the seeding
+/// must give their surface particles among all (SeededBodies::surfaces:
+/// the loads act on the body's surface), else std::logic_error.
+template <int D>
+EngineParts<D> assemble_parts(const Scene& scene,
+                              const std::function<SeededBodies<D>(const Vec<D>&, const CartesianGrid<D>&)>& seed);
 
 /// The node lattice of the scene (node_lattice_box: the grid in `mpm`
 /// mode, the bodies' bounding box in `ul` mode) as a grid.

@@ -68,9 +68,9 @@ template <int D> std::unique_ptr<Shape<D>> body_shape(const BodySection& b, cons
 
 /// The particles of a shape on the cells of `lattice` that meet its bounds,
 /// kept where they lie in the shape.
-template <int D>
+template <int D, class Emit>
 void seed_on_lattice(const Shape<D>& shape, const BodySection& b, int body, const CartesianGrid<D>& lattice,
-                     std::vector<Seed<D>>& out) {
+                     Emit&& emit) {
   Vec<D> lo, hi;
   shape.bounds(lo, hi);
   const Vec<D> h = lattice.h();
@@ -88,12 +88,12 @@ void seed_on_lattice(const Shape<D>& shape, const BodySection& b, int body, cons
   }
   seed_box_cells<D>(lower, upper, count, b.particles_per_cell, b.placement,
                     [&](const Vec<D>& x, double V, const Vec<D>& extent) {
-                      if (shape.contains(x)) out.push_back({x, extent, V, body});
+                      if (shape.contains(x)) emit(Seed<D>{x, extent, V, body});
                     });
 }
 
 /// The particles of a file body.
-template <int D> void seed_from_file(const ParticleFile& f, int body, std::vector<Seed<D>>& out) {
+template <int D, class Emit> void seed_from_file(const ParticleFile& f, int body, Emit&& emit) {
   const bool v = !f.v.empty();
   const auto density = f.fields.find("density");
   for (int p = 0; p < f.size(); ++p) {
@@ -107,36 +107,40 @@ template <int D> void seed_from_file(const ParticleFile& f, int body, std::vecto
     if (v)
       for (int k = 0; k < D; ++k) s.v[k] = f.v[i * D + k];
     if (density != f.fields.end()) s.density = density->second[i];
-    out.push_back(s);
+    emit(s);
   }
+}
+
+/// True when seed s of body b lies in an earlier body and is dropped
+/// (overlap = "first"); an input error naming both bodies otherwise.
+template <int D>
+bool overlapped(const Scene& scene, int b, const std::vector<std::unique_ptr<Shape<D>>>& shapes, const Seed<D>& s) {
+  const BodySection& body = scene.bodies[static_cast<std::size_t>(b)];
+  for (int a = 0; a < b; ++a) {
+    if (!shapes[static_cast<std::size_t>(a)]->contains(s.x)) continue;
+    if (body.overlap == "first") return true;
+    input_error(body.where, "body '" + body.name + "' overlaps body '" +
+                                scene.bodies[static_cast<std::size_t>(a)].name + "': its particle at " +
+                                format_point<D>(s.x) + " lies inside '" +
+                                scene.bodies[static_cast<std::size_t>(a)].name +
+                                "' (set overlap = \"first\" on body '" + body.name +
+                                "' to let the earlier body keep the shared region)");
+  }
+  return false;
 }
 
 /// Drops or refuses the seeds of body b that lie in an earlier body.
 template <int D>
 void resolve_overlap(const Scene& scene, int b, const std::vector<std::unique_ptr<Shape<D>>>& shapes,
                      std::vector<Seed<D>>& seeds) {
-  const BodySection& body = scene.bodies[static_cast<std::size_t>(b)];
-  std::erase_if(seeds, [&](const Seed<D>& s) {
-    for (int a = 0; a < b; ++a) {
-      if (!shapes[static_cast<std::size_t>(a)]->contains(s.x)) continue;
-      if (body.overlap == "first") return true;
-      input_error(body.where, "body '" + body.name + "' overlaps body '" +
-                                  scene.bodies[static_cast<std::size_t>(a)].name + "': its particle at " +
-                                  format_point<D>(s.x) + " lies inside '" +
-                                  scene.bodies[static_cast<std::size_t>(a)].name +
-                                  "' (set overlap = \"first\" on body '" + body.name +
-                                  "' to let the earlier body keep the shared region)");
-    }
-    return false;
-  });
+  std::erase_if(seeds, [&](const Seed<D>& s) { return overlapped<D>(scene, b, shapes, s); });
 }
 
-/// The particles of body b (and its shape, for the overlap of later bodies).
+/// Reads body b's particle file (a file body) and adds its shape to
+/// `shapes` (for the overlap of later bodies).
 template <int D>
-std::vector<Seed<D>> seed_body(const Scene& scene, int b, const Vec<D>& h, const CartesianGrid<D>& lattice,
-                               std::vector<std::unique_ptr<Shape<D>>>& shapes, SeededBodies<D>& result) {
+std::optional<ParticleFile> open_body(const Scene& scene, int b, std::vector<std::unique_ptr<Shape<D>>>& shapes) {
   const BodySection& body = scene.bodies[static_cast<std::size_t>(b)];
-  std::vector<Seed<D>> seeds;
   std::optional<ParticleFile> file;
   if (body.shape == "file") {
     try {
@@ -150,23 +154,50 @@ std::vector<Seed<D>> seed_body(const Scene& scene, int b, const Vec<D>& h, const
   } catch (const InputError& e) {
     input_error(body.where, "body '" + body.name + "': " + e.what());
   }
+  return file;
+}
+
+/// Calls emit(seed) for every particle of body b in seeding order (before
+/// the overlap with earlier bodies is resolved); its file's extra columns
+/// go to result.file_state.
+template <int D, class Emit>
+void generate_body(const Scene& scene, int b, const Vec<D>& h, const CartesianGrid<D>& lattice, const Shape<D>& shape,
+                   const ParticleFile* file, SeededBodies<D>& result, Emit&& emit) {
+  const BodySection& body = scene.bodies[static_cast<std::size_t>(b)];
+  if (body.shape == "box") {
+    seed_box_cells<D>(scene_vec<D>(body.lower), scene_vec<D>(body.upper), box_cells<D>(body, h), body.particles_per_cell,
+                      body.placement, [&](const Vec<D>& x, double V, const Vec<D>& extent) {
+                        emit(Seed<D>{x, extent, V, b});
+                      });
+  } else if (file) {
+    seed_from_file<D>(*file, b, emit);
+    for (const auto& [name, values] : file->fields)
+      if (name != "density") result.file_state.push_back({name, b, values});
+  } else {
+    seed_on_lattice<D>(shape, body, b, lattice, emit);
+  }
+}
+
+[[noreturn]] void no_particle(const BodySection& body) {
+  input_error(body.where, "body '" + body.name + "' holds no particle (is it smaller than a cell?)");
+}
+
+/// The particles of body b (and its shape, for the overlap of later bodies).
+template <int D>
+std::vector<Seed<D>> seed_body(const Scene& scene, int b, const Vec<D>& h, const CartesianGrid<D>& lattice,
+                               std::vector<std::unique_ptr<Shape<D>>>& shapes, SeededBodies<D>& result) {
+  const BodySection& body = scene.bodies[static_cast<std::size_t>(b)];
+  std::vector<Seed<D>> seeds;
+  const std::optional<ParticleFile> file = open_body<D>(scene, b, shapes);
   if (body.shape == "box") {
     std::size_t n = 1;
     const Index<D> cells = box_cells<D>(body, h);
     for (int k = 0; k < D; ++k) n *= static_cast<std::size_t>(cells[k]) * static_cast<std::size_t>(body.particles_per_cell);
     seeds.reserve(n); // no growth by doubling: peak memory
-    seed_box_cells<D>(scene_vec<D>(body.lower), scene_vec<D>(body.upper), box_cells<D>(body, h), body.particles_per_cell,
-                      body.placement, [&](const Vec<D>& x, double V, const Vec<D>& extent) {
-                        seeds.push_back({x, extent, V, b});
-                      });
-  } else if (file) {
-    seed_from_file<D>(*file, b, seeds);
-    for (const auto& [name, values] : file->fields)
-      if (name != "density") result.file_state.push_back({name, b, values});
-  } else {
-    seed_on_lattice<D>(*shapes.back(), body, b, lattice, seeds);
   }
-  if (seeds.empty()) input_error(body.where, "body '" + body.name + "' holds no particle (is it smaller than a cell?)");
+  generate_body<D>(scene, b, h, lattice, *shapes.back(), file ? &*file : nullptr, result,
+                   [&seeds](const Seed<D>& s) { seeds.push_back(s); });
+  if (seeds.empty()) no_particle(body);
   resolve_overlap<D>(scene, b, shapes, seeds);
   return seeds;
 }
@@ -229,8 +260,87 @@ SeededBodies<D> seed_bodies(const Scene& scene, const Vec<D>& h, const Cartesian
   return result;
 }
 
+template <int D>
+long long seed_bodies_where(const Scene& scene, const Vec<D>& h, const CartesianGrid<D>& lattice,
+                            const std::function<bool(long long, const Vec<D>&)>& keep, SeededBodies<D>* result) {
+  validate_seeding<D>(scene, h);
+  SeededBodies<D> unused;
+  SeededBodies<D>& out = result ? *result : unused;
+  std::vector<std::unique_ptr<Shape<D>>> shapes;
+  std::vector<Seed<D>> kept;
+  long long id = 0;
+  for (int b = 0; b < static_cast<int>(scene.bodies.size()); ++b) {
+    const std::optional<ParticleFile> file = open_body<D>(scene, b, shapes);
+    // A seed inside an earlier body is refused or dropped as it comes (the
+    // serial seeding's first such seed is the one named in the error).
+    long long generated = 0;
+    generate_body<D>(scene, b, h, lattice, *shapes.back(), file ? &*file : nullptr, out, [&](const Seed<D>& s) {
+      ++generated;
+      if (overlapped<D>(scene, b, shapes, s)) return;
+      if (keep(id, s.x) && result) {
+        kept.push_back(s);
+        out.ids.push_back(id);
+      }
+      ++id;
+    });
+    if (generated == 0) no_particle(scene.bodies[static_cast<std::size_t>(b)]);
+  }
+  if (result) {
+    store<D>(scene, kept, out.particles);
+    out.file_row.resize(kept.size());
+    for (std::size_t p = 0; p < kept.size(); ++p) out.file_row[p] = kept[p].row;
+  }
+  return id;
+}
+
 template SeededBodies<1> seed_bodies<1>(const Scene&, const Vec<1>&, const CartesianGrid<1>&);
 template SeededBodies<2> seed_bodies<2>(const Scene&, const Vec<2>&, const CartesianGrid<2>&);
 template SeededBodies<3> seed_bodies<3>(const Scene&, const Vec<3>&, const CartesianGrid<3>&);
+template <int D>
+TractionSurfaces<D>::TractionSurfaces(const Scene& scene, double tol)
+    : loads_(scene.tractions), tol_(tol), ends_(scene.tractions.size()) {
+  for (const TractionSection& ts : loads_) axis_.push_back(traction_axis<D>(ts));
+}
+
+template <int D> void TractionSurfaces<D>::visit(long long id, const Vec<D>& X) {
+  for (std::size_t i = 0; i < loads_.size(); ++i) {
+    const int axis = axis_[i];
+    auto [it, fresh] = ends_[i].try_emplace(column_key<D>(X, axis, tol_), End{id, id, X, X});
+    if (fresh) continue;
+    End& e = it->second;
+    if (X[axis] < e.x_first[axis]) e.first = id, e.x_first = X;
+    if (X[axis] > e.x_last[axis]) e.last = id, e.x_last = X;
+  }
+}
+
+template <int D> void TractionSurfaces<D>::finish() {
+  ids_.assign(loads_.size(), {});
+  selects_.assign(loads_.size(), 0);
+  for (std::size_t i = 0; i < loads_.size(); ++i) {
+    for (const auto& [column, e] : ends_[i]) {
+      ids_[i].push_back(e.first), ids_[i].push_back(e.last);
+      for (const Vec<D>* x : {&e.x_first, &e.x_last})
+        if (inside_box<D>(*x, loads_[i].lower, loads_[i].upper)) selects_[i] = 1;
+    }
+    std::sort(ids_[i].begin(), ids_[i].end());
+    ends_[i].clear(); // the columns are not needed any more
+  }
+}
+
+template <int D> bool TractionSurfaces<D>::surface(std::size_t load, long long id) const {
+  return std::binary_search(ids_[load].begin(), ids_[load].end(), id);
+}
+
+template class TractionSurfaces<1>;
+template class TractionSurfaces<2>;
+template class TractionSurfaces<3>;
+
+#define OTMPM_INSTANTIATE(D)                                                                                 \
+  template long long seed_bodies_where<D>(const Scene&, const Vec<D>&, const CartesianGrid<D>&,              \
+                                          const std::function<bool(long long, const Vec<D>&)>&, SeededBodies<D>*);
+OTMPM_INSTANTIATE(1)
+OTMPM_INSTANTIATE(2)
+OTMPM_INSTANTIATE(3)
+#undef OTMPM_INSTANTIATE
 
 } // namespace otmpm

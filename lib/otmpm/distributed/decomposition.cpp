@@ -57,6 +57,14 @@ template <int D> Decomposition<D>::Decomposition(const Index<D>& cells) : cells_
 template <int D>
 Decomposition<D> Decomposition<D>::rcb(const Index<D>& cells, int ranks, std::span<const Index<D>> home,
                                        const Comm& comm) {
+  return rcb(cells, ranks, home, {}, comm);
+}
+
+template <int D>
+Decomposition<D> Decomposition<D>::rcb(const Index<D>& cells, int ranks, std::span<const Index<D>> home,
+                                       std::span<const std::int64_t> weight, const Comm& comm) {
+  require<std::invalid_argument>(weight.empty() || weight.size() == home.size(), "Decomposition::rcb: ",
+                                 weight.size(), " weights for ", home.size(), " cells");
   Decomposition d(cells);
   const long long total_cells = d.tree_[0].box.count();
   require(ranks >= 1 && total_cells >= ranks, "the node lattice has ", total_cells,
@@ -75,7 +83,9 @@ Decomposition<D> Decomposition<D>::rcb(const Index<D>& cells, int ranks, std::sp
       for (int k = 0; k < D; ++k) size += d.tree_[static_cast<std::size_t>(n)].box.extent(k);
     }
     std::vector<std::int64_t> counts(static_cast<std::size_t>(size), 0);
-    for (const Index<D>& c : home) {
+    for (std::size_t i = 0; i < home.size(); ++i) {
+      const Index<D>& c = home[i];
+      const std::int64_t w = weight.empty() ? 1 : weight[i];
       int n = 0;
       while (d.tree_[static_cast<std::size_t>(n)].axis >= 0) {
         const Node& node = d.tree_[static_cast<std::size_t>(n)];
@@ -87,7 +97,7 @@ Decomposition<D> Decomposition<D>::rcb(const Index<D>& cells, int ranks, std::sp
       if (!box.contains(c)) continue;
       long long axis_at = at;
       for (int k = 0; k < D; ++k) {
-        ++counts[static_cast<std::size_t>(axis_at + c[k] - box.lo[k])];
+        counts[static_cast<std::size_t>(axis_at + c[k] - box.lo[k])] += w;
         axis_at += box.extent(k);
       }
     }

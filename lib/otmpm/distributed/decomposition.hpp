@@ -83,6 +83,11 @@ public:
   /// builds the same tree. InputError when the lattice has fewer cells than
   /// ranks.
   static Decomposition rcb(const Index<D>& cells, int ranks, std::span<const Index<D>> home, const Comm& comm);
+  /// The same with `weight[i]` particles in cell home[i] (a rank's
+  /// particle count per cell, e.g. counted while seeding without storing
+  /// the particles): the same tree as rcb over the cells repeated.
+  static Decomposition rcb(const Index<D>& cells, int ranks, std::span<const Index<D>> home,
+                           std::span<const std::int64_t> weight, const Comm& comm);
 
   int ranks() const { return static_cast<int>(boxes_.size()); }
   const Index<D>& cells() const { return cells_; }

@@ -14,6 +14,7 @@ Domain<D>::Domain(const Comm& comm, Setup s)
       exchange_(lattice_, decomposition_, comm.rank()), nodes_move_(s.nodes_move), gid_(std::move(s.global_ids)),
       global_particles_(s.global_particles), hint_offset_(s.hint_offset), traction_area_(std::move(s.traction_area)),
       window_basis_(std::move(s.window_basis)), dirichlet_(std::move(s.dirichlet)) {
+  stats_.setup_particles = s.setup_particles;
   find_neighbours();
   find_guard();
 }

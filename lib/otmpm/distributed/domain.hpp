@@ -30,6 +30,9 @@ struct DomainStats {
   long long cg_iterations = 0; ///< consistent mass: CG iterations, all solves
   long long cg_solves = 0;
   double cg_worst_residual = 0.0; ///< largest final relative residual
+  /// Particles this rank held at once during set-up: its own share (it
+  /// seeds only the particles of its cells, local_parts.hpp).
+  long long setup_particles = 0;
 };
 
 /// Relative residual |r - M y|_2 / |r|_2 (per component, the recursive CG
@@ -71,6 +74,8 @@ public:
     std::function<std::unique_ptr<Basis<D>>(const Window<D>&, Index<D>& hint_offset)> window_basis;
     /// The Dirichlet entries of the whole lattice (global point ids).
     Dirichlet<D> dirichlet;
+    /// Particles this rank held at once during set-up (DomainStats::setup_particles).
+    long long setup_particles = 0;
   };
 
   Domain(const Comm& comm, Setup setup);

@@ -217,7 +217,9 @@ template <int D> std::vector<std::pair<std::string, double>> GlobalView<D>::run_
           {"halo_exchanges", static_cast<double>(sums[5]) / P},
           {"reductions", static_cast<double>(sums[6]) / P},
           {"communication_seconds_mean", comm.sum(st.communication_seconds) / P},
-          {"communication_seconds_max", comm.max(st.communication_seconds)}};
+          {"communication_seconds_max", comm.max(st.communication_seconds)},
+          {"setup_particles_max", comm.max(static_cast<double>(st.setup_particles))},
+          {"setup_particles_sum", comm.sum(static_cast<double>(st.setup_particles))}};
 }
 
 template <int D> long long GlobalView<D>::nodes() const {

@@ -3,10 +3,12 @@
 #include "otmpm/distributed/local_parts.hpp"
 
 #include "otmpm/assembly/assembler.hpp"
+#include "otmpm/assembly/seeding.hpp"
 #include "otmpm/basis/bspline.hpp"
 #include "otmpm/basis/kinds.hpp"
 
 #include <cmath>
+#include <exception>
 
 namespace otmpm::distributed {
 
@@ -84,51 +86,11 @@ window_basis_factory(const Scene& scene, const Basis<D>& global, const PointLatt
   };
 }
 
-} // namespace
-
+/// The basis, the constraints and the Domain of a rank whose particles
+/// (parts.particles, setup.global_ids) and decomposition are chosen.
 template <int D>
-EngineParts<D> rank_parts(const Scene& scene, const Comm& comm, const AlignedVector<Vec<D>>* positions) {
-  EngineParts<D> parts = assemble_parts<D>(scene);
-  if (comm.size() == 1) return parts;
-  Particles<D>& P = parts.particles;
-  const std::size_t n = static_cast<std::size_t>(P.size());
-  const bool ul = parts.mode.nodes_move();
-  const CartesianGrid<D> grid = node_grid<D>(scene);
-  typename Domain<D>::Setup setup;
-  setup.lattice = point_lattice<D>(scene, *parts.basis, grid, ul);
-  setup.nodes_move = ul;
-  setup.global_particles = static_cast<long long>(n);
-  // Home cells of all particles (every rank has them); each rank counts a
-  // share for the bisection, so that the sums count every particle once.
-  const AlignedVector<Vec<D>>& x = positions ? *positions : P.x;
-  require<std::invalid_argument>(x.size() == n, "rank_parts: ", x.size(), " positions for ", n, " particles");
-  std::vector<Index<D>> home(n), share;
-  for (std::size_t p = 0; p < n; ++p) {
-    home[p] = grid.cell_of(ul ? P.X[p] : x[p]);
-    if (static_cast<int>(p % static_cast<std::size_t>(comm.size())) == comm.rank()) share.push_back(home[p]);
-  }
-  setup.decomposition = Decomposition<D>::rcb(grid.cells, comm.size(), share, comm);
-  // This rank's particles, in global order, with their traction shares.
-  std::vector<char> keep(n, 0);
-  for (std::size_t p = 0; p < n; ++p) {
-    keep[p] = setup.decomposition.owner(home[p]) == comm.rank();
-    if (keep[p]) setup.global_ids.push_back(static_cast<long long>(p));
-  }
-  for (const Traction<D>& t : parts.loads.tractions) {
-    std::vector<double> area(n, -1.0);
-    for (std::size_t i = 0; i < t.particle.size(); ++i) area[static_cast<std::size_t>(t.particle[i])] = t.area[i];
-    setup.traction_area.push_back(std::move(area));
-  }
-  PointState<D> no_state;
-  std::vector<Column> columns = particle_columns(P, no_state);
-  for (auto& a : setup.traction_area) columns.push_back(column_of(a));
-  keep_rows(columns, keep, n);
-  for (std::size_t i = 0; i < parts.loads.tractions.size(); ++i) {
-    Traction<D>& t = parts.loads.tractions[i];
-    t.particle.clear(), t.area.clear();
-    for (std::size_t p = 0; p < setup.traction_area[i].size(); ++p)
-      if (setup.traction_area[i][p] >= 0.0) t.particle.push_back(static_cast<int>(p)), t.area.push_back(setup.traction_area[i][p]);
-  }
+EngineParts<D> finish_parts(const Scene& scene, const Comm& comm, EngineParts<D> parts,
+                            typename Domain<D>::Setup setup) {
   // The basis and constraints on this rank's window of the point lattice.
   Window<D> w;
   w.box = setup.lattice.window(setup.decomposition.box(comm.rank()));
@@ -144,6 +106,93 @@ EngineParts<D> rank_parts(const Scene& scene, const Comm& comm, const AlignedVec
     b->distribute(domain->owned_nodes(), [&comm](std::span<double> v) { comm.sum(v); });
   parts.distribution = std::move(domain);
   return parts;
+}
+
+/// Seeding particles counted per rank in runs of this many global ids
+/// (rank r counts the runs r, r + N, ...): each rank's list of (cell, count)
+/// stays short, as particles of one cell are seeded together.
+constexpr long long kCountRun = 4096;
+
+/// A rank's parts seeded for its own cells only (local_parts.hpp): a
+/// counting pass over the seeding (no particle stored) gives the particles
+/// per cell for the bisection, a second pass stores the particles of this
+/// rank's cells. Every rank runs both passes over every body alike, so a bad
+/// scene fails on every rank alike. Traction loads find their surface
+/// particles in the counting pass (TractionSurfaces: one entry per column).
+template <int D>
+EngineParts<D> seeded_parts(const Scene& scene, const Comm& comm, const AlignedVector<Vec<D>>* positions) {
+  typename Domain<D>::Setup setup;
+  const bool ul = scene.simulation.nodes_move();
+  long long n = 0;
+  // An error of the decomposition (too few cells) is raised after the rest
+  // of the assembly, as when the whole scene was assembled first.
+  std::exception_ptr deferred;
+  auto seed = [&](const Vec<D>& h, const CartesianGrid<D>& grid) {
+    SeededBodies<D> mine;
+    // The home cell: of the checkpoint's position (a restart in `mpm` mode) or of the seeded one.
+    auto home = [&](long long id, const Vec<D>& x) {
+      return grid.cell_of(!ul && positions && id < static_cast<long long>(positions->size())
+                              ? (*positions)[static_cast<std::size_t>(id)]
+                              : x);
+    };
+    std::vector<Index<D>> cells;
+    std::vector<std::int64_t> weight;
+    // Traction loads: their surface particles among all (every rank sees every seed here).
+    std::shared_ptr<TractionSurfaces<D>> surfaces;
+    if (!scene.tractions.empty()) surfaces = std::make_shared<TractionSurfaces<D>>(scene, kBoxTolerance * grid.h().minCoeff());
+    n = seed_bodies_where<D>(
+        scene, h, grid,
+        [&](long long id, const Vec<D>& x) {
+          if (surfaces) surfaces->visit(id, x);
+          if ((id / kCountRun) % comm.size() != comm.rank()) return false;
+          const Index<D> c = home(id, x);
+          if (!cells.empty() && cells.back() == c) ++weight.back();
+          else cells.push_back(c), weight.push_back(1);
+          return false;
+        },
+        nullptr);
+    if (surfaces) surfaces->finish();
+    mine.surfaces = surfaces;
+    try {
+      if (positions)
+        require<std::invalid_argument>(static_cast<long long>(positions->size()) == n, "rank_parts: ",
+                                       positions->size(), " positions for ", n, " particles");
+      setup.decomposition = Decomposition<D>::rcb(grid.cells, comm.size(), cells, weight, comm);
+    } catch (...) {
+      deferred = std::current_exception();
+      return mine;
+    }
+    std::vector<Index<D>>().swap(cells);
+    std::vector<std::int64_t>().swap(weight);
+    seed_bodies_where<D>(
+        scene, h, grid,
+        [&](long long id, const Vec<D>& x) { return setup.decomposition.owner(home(id, x)) == comm.rank(); },
+        &mine);
+    setup.global_ids = mine.ids; // a copy: the assembler reads mine.ids (traction surfaces)
+    return mine;
+  };
+  EngineParts<D> parts = assemble_parts<D>(scene, seed);
+  if (deferred) std::rethrow_exception(deferred);
+  // The traction loads' shares of this rank's particles (they move with them).
+  for (const Traction<D>& t : parts.loads.tractions) {
+    std::vector<double> area(static_cast<std::size_t>(parts.particles.size()), -1.0);
+    for (std::size_t i = 0; i < t.particle.size(); ++i) area[static_cast<std::size_t>(t.particle[i])] = t.area[i];
+    setup.traction_area.push_back(std::move(area));
+  }
+  const CartesianGrid<D> grid = node_grid<D>(scene);
+  setup.lattice = point_lattice<D>(scene, *parts.basis, grid, ul);
+  setup.nodes_move = ul;
+  setup.global_particles = n;
+  setup.setup_particles = parts.particles.size();
+  return finish_parts<D>(scene, comm, std::move(parts), std::move(setup));
+}
+
+} // namespace
+
+template <int D>
+EngineParts<D> rank_parts(const Scene& scene, const Comm& comm, const AlignedVector<Vec<D>>* positions) {
+  if (comm.size() == 1) return assemble_parts<D>(scene);
+  return seeded_parts<D>(scene, comm, positions);
 }
 
 #define OTMPM_INSTANTIATE(D)                                                                                      \

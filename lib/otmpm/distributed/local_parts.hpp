@@ -1,13 +1,15 @@
 #pragma once
 /// \file local_parts.hpp
-/// The engine parts of one rank of a distributed run: the scene is
-/// assembled as a whole on every rank (the same parts everywhere, so a bad
-/// scene fails on every rank alike), the cells are decomposed by RCB over
-/// the particles' home cells, and the parts are cut to this rank's share -
-/// the particles of its cells in global order, the basis on its window of
-/// the point lattice, the Dirichlet entries and traction particles inside
-/// it - with the Domain that ties the ranks together. With one rank the
-/// scene's parts are returned unchanged (a serial run, bit for bit).
+/// The engine parts of one rank of a distributed run: every rank runs the
+/// assembler (so a bad scene fails on every rank alike) but seeds only the
+/// particles of its own cells - a counting pass over the seeding gives the
+/// particles per cell for the RCB of the cells, a second pass keeps the
+/// particles of this rank's cells, in global order (their index in the
+/// serial seeding) - then the basis is built on its window of the point
+/// lattice and the Dirichlet entries are cut to it, with the Domain that
+/// ties the ranks together. Traction loads act on surface particles found
+/// among all particles in the counting pass. With one rank the scene's
+/// parts are returned unchanged (a serial run, bit for bit).
 #include "otmpm/distributed/domain.hpp"
 #include "otmpm/scene/scene.hpp"
 
