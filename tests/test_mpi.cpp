@@ -55,6 +55,14 @@ constexpr double kAgreement = 1e-12;
 /// that level (measured 1e-10 .. 5e-10 on the 1D Dyka bar with LME, where
 /// eps |x| / (dt max|v|) ~ 1e-10). Its positions agree to kAgreement.
 constexpr double kOtmStress = 1e-9;
+/// Plastic flow (the j2 strip) amplifies the round-off differences of the
+/// nodal sums more than elastic runs do: the radial return rescales the
+/// trial deviator by beta(q) = sigma_y / q, so near the onset of yield a
+/// difference in q carries into tau with the elastic modulus over the
+/// hardening one. Measured over 235 steps (velocity, stress relative to
+/// their largest values): 1.0e-12 .. 2.1e-12 on 2 and 3 ranks, depending on
+/// the split and on the rounding of the return formulas; 1e-11 bounds it.
+constexpr double kPlasticAgreement = 1e-11;
 
 struct Result {
   int status = -1;
@@ -172,8 +180,10 @@ struct Case {
   /// The stress the differences are relative to (0: the largest stress of
   /// the serial run; a body without stress compares with its rho c v).
   double stress_scale = 0.0;
-  /// Further output fields compared to kAgreement (e.g. plastic_strain).
+  /// Further output fields compared to the agreement bound (e.g. plastic_strain).
   std::vector<std::string> more_fields = {};
+  /// The agreement bound (kPlasticAgreement for plastic flow).
+  double agreement = kAgreement;
 };
 
 /// The scene file of a case: an example, or a file of the test's directory.
@@ -205,12 +215,12 @@ void check_agreement(const Case& c, const std::vector<int>& ranks) {
       CAPTURE(field);
       REQUIRE(d.count(field));
       const bool positions = field == "x";
-      CHECK(d.at(field) <= (c.otm && !positions ? kOtmStress : kAgreement));
+      CHECK(d.at(field) <= (c.otm && !positions ? kOtmStress : c.agreement));
     }
     for (const std::string& field : c.more_fields) {
       CAPTURE(field);
       REQUIRE(d.count(field));
-      CHECK(d.at(field) <= kAgreement);
+      CHECK(d.at(field) <= c.agreement);
     }
     CHECK(attribute(dir.file(out), "ranks") == n);
   }
@@ -251,7 +261,7 @@ void restart_on_three(const TempDir& dir, const Case& c, const std::vector<std::
   const auto d = differences(dir.file("full.h5"), dir.file("np3.h5"));
   for (const std::string& field : fields) {
     CAPTURE(field);
-    CHECK(d.at(field) <= kAgreement);
+    CHECK(d.at(field) <= c.agreement);
   }
 }
 
@@ -475,11 +485,12 @@ TEST_CASE("mpi: a j2 strip (plastic state migrates and restarts) agrees with the
   TempDir scenes("mpi_j2_scenes");
   const std::string cd = write_scene(scenes, "j2_cd", j2_strip("mpm", "central_difference"));
   const std::string alpha = write_scene(scenes, "j2_alpha", j2_strip("ul", "explicit_alpha"));
-  check_agreement({"j2_cd", cd, {}, false, 0.0, {"plastic_strain"}}, {3});
-  check_agreement({"j2_alpha", alpha, {}, false, 0.0, {"plastic_strain"}}, {2});
+  check_agreement({"j2_cd", cd, {}, false, 0.0, {"plastic_strain"}, kPlasticAgreement}, {3});
+  check_agreement({"j2_alpha", alpha, {}, false, 0.0, {"plastic_strain"}, kPlasticAgreement}, {2});
   // The plastic state is in the checkpoint of 2 ranks and restarts on 3.
   TempDir dir("mpi_j2_restart");
-  restart_on_three(dir, {"j2_restart", cd, {"output.checkpoint_every=40"}}, {"x", "v", "stress", "plastic_strain"});
+  restart_on_three(dir, {"j2_restart", cd, {"output.checkpoint_every=40"}, false, 0.0, {}, kPlasticAgreement},
+                   {"x", "v", "stress", "plastic_strain"});
   CHECK(attribute(dir.file("np3.h5"), "t_end") == doctest::Approx(2e-5));
 }
 

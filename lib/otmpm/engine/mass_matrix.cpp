@@ -45,12 +45,14 @@ void check_assembly(const BasisTable<D>& table, const std::vector<double>& m_p, 
                                  " flags for ", nodes, " nodes");
   require<std::invalid_argument>(constrained.size() == static_cast<std::size_t>(nodes) * D, f, "constrained has ",
                                  constrained.size(), " flags for ", nodes, " nodes x ", D, " components");
+  // The message is formed only for a failing entry (the loops run every step).
   for (std::size_t a = 0; a < table.node.size(); ++a)
-    require<std::invalid_argument>(table.node[a] >= 0 && table.node[a] < nodes, f, "table entry ", a, " names node ",
-                                   table.node[a], ", outside [0, ", nodes, ")");
+    if (!(table.node[a] >= 0 && table.node[a] < nodes)) [[unlikely]]
+      require<std::invalid_argument>(false, f, "table entry ", a, " names node ", table.node[a], ", outside [0, ",
+                                     nodes, ")");
   for (std::size_t p = 0; p < m_p.size(); ++p)
-    require<InputError>(std::isfinite(m_p[p]) && m_p[p] >= 0.0, f, "mass m_p[", p, "] = ", m_p[p],
-                        " is not finite and >= 0");
+    if (!(std::isfinite(m_p[p]) && m_p[p] >= 0.0)) [[unlikely]]
+      require<InputError>(false, f, "mass m_p[", p, "] = ", m_p[p], " is not finite and >= 0");
 }
 
 } // namespace
