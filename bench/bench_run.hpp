@@ -24,20 +24,22 @@ struct Timing {
   double wall = 0.0; ///< seconds of the whole timed stretch
   long particles = 0;
   long steps = 0;
+  double nodes_per_particle = 0.0; ///< mean basis-table row length (0: not known, whole runs)
   PhaseTimers phases;
 };
 
-/// The OpenMP thread count of the following parallel loops.
+/// The OpenMP thread count of the following parallel loops (0: leave it,
+/// e.g. as OMP_NUM_THREADS set it).
 inline void set_threads(int threads) {
 #ifdef OTMPM_HAVE_OPENMP
-  omp_set_num_threads(threads);
+  if (threads > 0) omp_set_num_threads(threads);
 #else
   (void)threads;
 #endif
 }
 
-/// Times `steps` steps of the engine (0: up to t_end) on `threads` threads,
-/// its phase timers reset first.
+/// Times `steps` steps of the engine (0: up to t_end) on `threads` threads
+/// (set_threads), its phase timers reset first.
 template <int D> Timing time_steps(Engine<D>& e, long steps, int threads, double t_end) {
   set_threads(threads);
   e.timers() = PhaseTimers{};
@@ -49,6 +51,7 @@ template <int D> Timing time_steps(Engine<D>& e, long steps, int threads, double
   t.per_step = t.wall / double(done);
   t.particles = e.particles().size();
   t.steps = done;
+  t.nodes_per_particle = double(e.table().entries()) / double(std::max(1, e.table().rows()));
   t.phases = e.timers();
   return t;
 }

@@ -84,8 +84,10 @@ void print_cases(const std::vector<const Case*>& cases) {
   for (const Case* c : cases) std::printf("  %-40s %s\n", c->name.c_str(), phase_shares(c->last.phases).c_str());
   std::printf("\nmedian time per particle-step:\n");
   for (const Case* c : cases)
-    std::printf("  %-40s %.3f us (%ld particles, %ld steps)\n", c->name.c_str(),
-                1e6 * median(c->per_step) / double(c->last.particles), c->last.particles, c->last.steps);
+    std::printf("  %-40s %.3f us (%ld particles, %ld steps%s)\n", c->name.c_str(),
+                1e6 * median(c->per_step) / double(c->last.particles), c->last.particles, c->last.steps,
+                c->last.nodes_per_particle > 0 ? fmt(", %.1f nodes per particle", c->last.nodes_per_particle).c_str()
+                                               : "");
 }
 
 /// Peak RSS in bytes of this process so far.
