@@ -36,7 +36,7 @@ def main(argv):
     ax.loglog(n, t[0] * n / n[0], ":", color="grey", label="linear (k = 1)")
     ax.set_xlabel("particles")
     ax.set_ylabel("wall time per step (s)")
-    ax.set_title(argv[3] if len(argv) == 4 else "2D block, linear basis, fe, mpm, one thread")
+    ax.set_title(argv[3] if len(argv) == 4 else "2D block, linear basis, fe, mpm, one thread", fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend()
     fig.tight_layout()
