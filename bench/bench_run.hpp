@@ -22,6 +22,9 @@ namespace otmpm::bench {
 struct Timing {
   double per_step = 0.0;
   double wall = 0.0; ///< seconds of the whole timed stretch
+  /// CPU seconds of the calling thread over the stretch: on one thread, the
+  /// time without the moments the thread was descheduled (a busy host)
+  double cpu = 0.0;
   long particles = 0;
   long steps = 0;
   double nodes_per_particle = 0.0; ///< mean basis-table row length (0: not known, whole runs)
@@ -43,11 +46,13 @@ inline void set_threads(int threads) {
 template <int D> Timing time_steps(Engine<D>& e, long steps, int threads, double t_end) {
   set_threads(threads);
   e.timers() = PhaseTimers{};
+  const double c0 = thread_ns();
   const auto t0 = std::chrono::steady_clock::now();
   long done = 0;
   for (; steps > 0 ? done < steps : e.time() < t_end; ++done) e.step();
   Timing t;
   t.wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  t.cpu = 1e-9 * (thread_ns() - c0);
   t.per_step = t.wall / double(done);
   t.particles = e.particles().size();
   t.steps = done;
@@ -73,7 +78,9 @@ inline Timing time_whole_run(const Scene& scene, int threads) {
   set_threads(threads);
   RunOptions options;
   options.write_results = false;
+  const double c0 = thread_ns();
   const RunSummary s = run_scene(scene, options);
+  const double cpu = 1e-9 * (thread_ns() - c0);
   if (s.exit_code != 0) {
     std::fprintf(stderr, "bench: %s %s %s run failed: %s\n", s.mode.c_str(), s.basis.c_str(), s.integrator.c_str(),
                  s.status.c_str());
@@ -81,6 +88,7 @@ inline Timing time_whole_run(const Scene& scene, int threads) {
   }
   Timing t;
   t.wall = s.wall_seconds;
+  t.cpu = cpu;
   t.per_step = s.wall_seconds / double(s.steps);
   t.particles = s.particles;
   t.steps = s.steps;

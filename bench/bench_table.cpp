@@ -26,6 +26,7 @@
 #include <fstream>
 #include <functional>
 #include <string>
+#include <utility>
 #include <vector>
 
 using namespace otmpm;
@@ -35,9 +36,12 @@ namespace {
 
 /// A named case of an interleaved comparison: `run` times one repetition.
 struct Case {
+  Case() = default;
+  Case(std::string n, std::function<Timing()> r) : name(std::move(n)), run(std::move(r)) {}
   std::string name;
   std::function<Timing()> run;
   std::vector<double> per_step; ///< per repetition
+  std::vector<double> cpu_per_step; ///< the calling thread's CPU time per step, per repetition
   Timing last;
 };
 
@@ -47,6 +51,7 @@ void interleave(std::vector<Case*> cases, int repeat) {
     for (Case* c : cases) {
       c->last = c->run();
       c->per_step.push_back(c->last.per_step);
+      c->cpu_per_step.push_back(c->last.cpu / double(c->last.steps));
     }
 }
 
@@ -79,13 +84,17 @@ void print_table(const char* title, const std::vector<Row>& rows) {
                 r.met ? "met" : "**not met**");
 }
 
-void print_cases(const std::vector<const Case*>& cases) {
+/// The phase shares and median times of the cases that ran (--table leaves some out).
+void print_cases(std::vector<const Case*> cases) {
+  std::erase_if(cases, [](const Case* c) { return c->per_step.empty(); });
   std::printf("\nphase shares (last repetition):\n");
   for (const Case* c : cases) std::printf("  %-40s %s\n", c->name.c_str(), phase_shares(c->last.phases).c_str());
-  std::printf("\nmedian time per particle-step:\n");
+  std::printf("\nmedian time per particle-step (wall; the calling thread's CPU time, which on one thread leaves out "
+              "the moments it waited for a core):\n");
   for (const Case* c : cases)
-    std::printf("  %-40s %.3f us (%ld particles, %ld steps%s)\n", c->name.c_str(),
-                1e6 * median(c->per_step) / double(c->last.particles), c->last.particles, c->last.steps,
+    std::printf("  %-40s %.3f us, CPU %.3f us (%ld particles, %ld steps%s)\n", c->name.c_str(),
+                1e6 * median(c->per_step) / double(c->last.particles),
+                1e6 * median(c->cpu_per_step) / double(c->last.particles), c->last.particles, c->last.steps,
                 c->last.nodes_per_particle > 0 ? fmt(", %.1f nodes per particle", c->last.nodes_per_particle).c_str()
                                                : "");
 }
@@ -196,12 +205,11 @@ int main(int argc, char** argv) {
     return parse_scene(block_scene(cells, basis, integrator, mode, 3.0), "block.toml");
   };
   auto stepped = [](const Scene& s, long n, int threads) { return [s, n, threads] { return time_run<2>(s, n, threads); }; };
-  Case lin{"2D block linear fe mpm, 1 thread", stepped(block("linear", "fe", "mpm"), steps, 1), {}, {}};
-  Case lme{"2D block lme npc mpm, 1 thread", stepped(block("lme", "npc", "mpm"), steps / 2, 1), {}, {}};
-  Case lme_ul{"2D block lme npc ul, 1 thread", stepped(block("lme", "npc", "ul"), steps / 2, 1), {}, {}};
-  Case lin2{"2D block linear fe mpm, 2 threads", stepped(block("linear", "fe", "mpm"), steps, 2), {}, {}};
-  Case dyka{"dyka strip 160 lme npc, 1 thread", stepped(dyka_strip(160, {"basis.gamma_lme=3.0"}), quick ? 200 : 0, 1),
-            {}, {}};
+  Case lin{"2D block linear fe mpm, 1 thread", stepped(block("linear", "fe", "mpm"), steps, 1)};
+  Case lme{"2D block lme npc mpm, 1 thread", stepped(block("lme", "npc", "mpm"), steps / 2, 1)};
+  Case lme_ul{"2D block lme npc ul, 1 thread", stepped(block("lme", "npc", "ul"), steps / 2, 1)};
+  Case lin2{"2D block linear fe mpm, 2 threads", stepped(block("linear", "fe", "mpm"), steps, 2)};
+  Case dyka{"dyka strip 160 lme npc, 1 thread", stepped(dyka_strip(160, {"basis.gamma_lme=3.0"}), quick ? 200 : 0, 1)};
   std::vector<Case*> block_cases{&lin, &lme};
   if (t7) block_cases.insert(block_cases.end(), {&lme_ul, &lin2});
   block_cases.push_back(&dyka);
@@ -259,19 +267,17 @@ int main(int argc, char** argv) {
     a.insert(a.end(), b.begin(), b.end());
     return a;
   };
-  Case fb_mpm{"fixed bar 512 MPM-linear", whole(fixed_bar(with(mpm, {"basis.kind=linear"}))), {}, {}};
-  Case fb_otm{"fixed bar 512 OTM-maxent", whole(fixed_bar(with(otm, {"basis.kind=maxent", "basis.d_max=2"}))), {}, {}};
+  Case fb_mpm{"fixed bar 512 MPM-linear", whole(fixed_bar(with(mpm, {"basis.kind=linear"})))};
+  Case fb_otm{"fixed bar 512 OTM-maxent", whole(fixed_bar(with(otm, {"basis.kind=maxent", "basis.d_max=2"})))};
   Case fb_uni{"fixed bar 512 unified", whole(fixed_bar({"simulation.mode=ul", "simulation.integrator=unified",
-                                                        "simulation.mass=consistent", "basis.kind=bspline2"})),
-              {}, {}};
+                                                        "simulation.mass=consistent", "basis.kind=bspline2"}))};
   interleave({&fb_mpm, &fb_otm, &fb_uni}, quick ? 1 : 3 * repeat);
 
   // The 2D Dyka strip of 1332 cells, linear musl, whole run to t_end.
   Case dyka_big{"dyka strip 1332 linear musl, 1 thread",
                 whole(dyka_strip(1332, quick ? std::vector<std::string>{"basis.kind=linear", "simulation.integrator=musl",
                                                                         "simulation.t_end=2e-6"}
-                                             : std::vector<std::string>{"basis.kind=linear", "simulation.integrator=musl"})),
-                {}, {}};
+                                             : std::vector<std::string>{"basis.kind=linear", "simulation.integrator=musl"}))};
   interleave({&dyka_big}, repeat);
 
   // The 3D block: one engine per basis, built once and stepped on by each repetition.
@@ -288,9 +294,9 @@ int main(int argc, char** argv) {
     e_lme.step();
     const double t_end = s3_lin.simulation.t_end;
     const long n_lin = quick ? 2 : 4, n_lme = quick ? 1 : 2;
-    lin3 = {"3D block linear fe mpm, 1 thread", [&] { return time_steps(e_lin, n_lin, 1, t_end); }, {}, {}};
-    lme3 = {"3D block lme npc mpm, 1 thread", [&] { return time_steps(e_lme, n_lme, 1, t_end); }, {}, {}};
-    lin3_2 = {"3D block linear fe mpm, 2 threads", [&] { return time_steps(e_lin, n_lin, 2, t_end); }, {}, {}};
+    lin3 = Case{"3D block linear fe mpm, 1 thread", [&] { return time_steps(e_lin, n_lin, 1, t_end); }};
+    lme3 = Case{"3D block lme npc mpm, 1 thread", [&] { return time_steps(e_lme, n_lme, 1, t_end); }};
+    lin3_2 = Case{"3D block linear fe mpm, 2 threads", [&] { return time_steps(e_lin, n_lin, 2, t_end); }};
     interleave({&lin3, &lme3, &lin3_2}, repeat);
   }
   const auto [n3, t3] = scaling<3>(quick ? std::vector<int>{6, 9, 12} : std::vector<int>{16, 20, 25, 32, 40, 50, 64},
