@@ -1,61 +1,82 @@
 #pragma once
-// The scenes of the issue-7 benchmarks (bench_step, bench_table).
+// The scenes of the benchmarks (bench_step, bench_models, bench_table): the
+// elastic block of issue 7 in 2D and 3D, and the Dyka strip of
+// examples/dyka_2d.toml at any cell count.
 #include <cstdio>
 #include <string>
+#include <vector>
 
 namespace otmpm::bench {
 
 /// The material of the block: the model line and the model's own keys.
 inline const std::string kBlockLinearElastic = "model = \"linear_elastic\"";
 
-/// A 2D elastic block (plane strain, E = 10 MPa, rho = 1000, nu = 0.3) of
-/// `cells` x `cells` cells of the unit square with 2 x 2 particles per cell,
-/// inside a grid with two spare cells on each side, falling under gravity with
-/// its base fixed - every stage of a step runs. `material`: the model line
-/// and its keys (default linear_elastic).
+/// A TOML array of `dim` numbers: the first `dim - 1` are `horizontal`, the
+/// last `vertical` (full precision, so the scene reads back the same doubles).
+inline std::string toml_vector(int dim, double horizontal, double vertical) {
+  std::string out = "[";
+  char buf[40];
+  for (int i = 0; i < dim; ++i) {
+    std::snprintf(buf, sizeof buf, "%.17g", i + 1 < dim ? horizontal : vertical);
+    out += buf;
+    out += i + 1 < dim ? ", " : "]";
+  }
+  return out;
+}
+
+/// An elastic block (E = 10 MPa, rho = 1000, nu = 0.3; plane strain in 2D)
+/// filling the unit square (2D) or cube (3D) with `cells` cells along each
+/// axis and 2 particles per cell along each axis, inside a grid with two
+/// spare cells on each side (at the top only along the vertical, last, axis),
+/// falling under gravity with its base fixed - every stage of a step runs.
+/// `material`: the model line and its keys (default linear_elastic).
+inline std::string block_scene(int dim, int cells, const std::string& basis, const std::string& integrator,
+                               const std::string& mode, double gamma_lme,
+                               const std::string& material = kBlockLinearElastic) {
+  const double h = 1.0 / cells, lo = -2 * h, hi = 1 + 2 * h;
+  const std::string grid_cells = dim == 3 ? "[" + std::to_string(cells + 4) + ", " + std::to_string(cells + 4) +
+                                                ", " + std::to_string(cells + 2) + "]"
+                                          : "[" + std::to_string(cells + 4) + ", " + std::to_string(cells + 2) + "]";
+  char gamma[40];
+  std::snprintf(gamma, sizeof gamma, "%g", gamma_lme);
+  return "\n[simulation]\ndimension = " + std::to_string(dim) + "\nmode = \"" + mode + "\"\nintegrator = \"" +
+         integrator + "\"\nt_end = 1.0\ncfl = 0.3\n[basis]\nkind = \"" + basis + "\"\ngamma_lme = " + gamma +
+         "\n[grid]\nlower = " + toml_vector(dim, lo, 0.0) + "\nupper = " + toml_vector(dim, hi, hi) +
+         "\ncells = " + grid_cells + "\n[[material]]\nname = \"m\"\n" + material +
+         "\ndensity = 1000.0\nyoung = 1.0e7\npoisson = 0.3\n[[body]]\nname = \"block\"\nmaterial = \"m\"\nlower = " +
+         toml_vector(dim, 0.0, 0.0) + "\nupper = " + toml_vector(dim, 1.0, 1.0) +
+         "\nparticles_per_cell = 2\nvelocity = " + toml_vector(dim, 0.0, 0.0) +
+         "\n[[boundary]]\nname = \"base\"\nlower = " + toml_vector(dim, lo, 0.0) + "\nupper = " +
+         toml_vector(dim, hi, 0.0) + "\nfix = " + (dim == 3 ? "[true, true, true]" : "[true, true]") +
+         "\n[body_force]\nvalue = " + toml_vector(dim, 0.0, -9.81) + "\n";
+}
+
+/// The 2D block of issue 7 (block_scene in two dimensions).
 inline std::string block_scene(int cells, const std::string& basis, const std::string& integrator,
                                const std::string& mode, double gamma_lme,
                                const std::string& material = kBlockLinearElastic) {
-  const double h = 1.0 / cells;
-  char buf[2048];
-  std::snprintf(buf, sizeof buf, R"(
-[simulation]
-dimension = 2
-mode = "%s"
-integrator = "%s"
-t_end = 1.0
-cfl = 0.3
-[basis]
-kind = "%s"
-gamma_lme = %g
-[grid]
-lower = [%.17g, %.17g]
-upper = [%.17g, %.17g]
-cells = [%d, %d]
-[[material]]
-name = "m"
-%s
-density = 1000.0
-young = 1.0e7
-poisson = 0.3
-[[body]]
-name = "block"
-material = "m"
-lower = [0.0, 0.0]
-upper = [1.0, 1.0]
-particles_per_cell = 2
-velocity = [0.0, 0.0]
-[[boundary]]
-name = "base"
-lower = [%.17g, 0.0]
-upper = [%.17g, 0.0]
-fix = [true, true]
-[body_force]
-value = [0.0, -9.81]
-)",
-                mode.c_str(), integrator.c_str(), basis.c_str(), gamma_lme, -2 * h, 0.0, 1 + 2 * h, 1 + 2 * h,
-                cells + 4, cells + 2, material.c_str(), -2 * h, 1 + 2 * h);
-  return buf;
+  return block_scene(2, cells, basis, integrator, mode, gamma_lme, material);
+}
+
+/// The overrides that turn examples/dyka_2d.toml (L = 0.1333 m) into a strip
+/// of `cells` square cells along the bar (h = L / cells, one row, 2 x 2
+/// particles per cell) with two spare cells on the left, without output
+/// frames; `extra` overrides are appended.
+inline std::vector<std::string> dyka_strip_overrides(int cells, const std::vector<std::string>& extra = {}) {
+  const double L = 0.1333, h = L / cells;
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.17g", h);
+  const std::string y = buf;
+  std::snprintf(buf, sizeof buf, "%.17g", -2 * h);
+  std::vector<std::string> o{"grid.lower=[" + std::string(buf) + ", 0.0]",
+                             "grid.upper=[0.1333, " + y + "]",
+                             "grid.cells=[" + std::to_string(cells + 2) + ", 1]",
+                             "body.bar.upper=[0.1333, " + y + "]",
+                             "initial_velocity.0.upper=[0.033325, " + y + "]",
+                             "boundary.right_end.upper=[0.1333, " + y + "]",
+                             "output.every=0"};
+  o.insert(o.end(), extra.begin(), extra.end());
+  return o;
 }
 
 } // namespace otmpm::bench

@@ -8,18 +8,15 @@
 // on each side, falling under gravity with its base fixed - every stage of a
 // step runs. Prints the median over R repetitions of particle-steps per second
 // and the share of each phase.
+#include "bench_run.hpp"
 #include "bench_scenes.hpp"
-#include "otmpm/assembly/assembler.hpp"
 
-#include <algorithm>
-#include <chrono>
 #include <cstdio>
-#include <cstring>
 #include <string>
+#include <vector>
 
 using namespace otmpm;
-using otmpm::bench::block_scene;
-
+using namespace otmpm::bench;
 
 int main(int argc, char** argv) {
   int cells = 200, steps = 100, repeat = 5;
@@ -37,28 +34,14 @@ int main(int argc, char** argv) {
   }
   const Scene scene = parse_scene(block_scene(cells, basis, integrator, mode, gamma_lme), "bench_step.toml");
   std::vector<double> rates;
-  PhaseTimers last;
-  long particles = 0;
+  Timing last;
   for (int r = 0; r < repeat; ++r) {
-    Engine<2> e = assemble<2>(scene);
-    e.step(); // warm-up: first basis evaluation (cold LME start), buffers grow
-    e.timers() = PhaseTimers{};
-    particles = e.particles().size();
-    const auto t0 = std::chrono::steady_clock::now();
-    for (int s = 0; s < steps; ++s) e.step();
-    const double sec = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    rates.push_back(double(particles) * steps / sec);
-    last = e.timers();
+    last = time_run<2>(scene, steps, 0); // threads: OMP_NUM_THREADS
+    rates.push_back(double(last.particles) / last.per_step);
   }
-  std::sort(rates.begin(), rates.end());
-  double total = 0;
-  for (double s : last.seconds) total += s;
+  const double rate = median(rates);
   std::printf("block %dx%d cells, %ld particles, %s %s %s: median %.3e particle-steps/s (of %d runs), %.3f us/step/particle\n",
-              cells, cells, particles, mode.c_str(), basis.c_str(), integrator.c_str(), rates[rates.size() / 2], repeat,
-              1e6 / rates[rates.size() / 2]);
-  std::printf("phases:");
-  for (std::size_t i = 0; i < phase_names.size(); ++i)
-    std::printf(" %s %.0f%%", std::string(phase_names[i]).c_str(), total > 0 ? 100 * last.seconds[i] / total : 0.0);
-  std::printf("\n");
+              cells, cells, last.particles, mode.c_str(), basis.c_str(), integrator.c_str(), rate, repeat, 1e6 / rate);
+  std::printf("phases: %s\n", phase_shares(last.phases).c_str());
   return 0;
 }

@@ -1,101 +1,103 @@
-// bench_table: every row of the issue-7 performance table in one run.
+// bench_table: every row of the performance tables of issue 7 and issue 19
+// (docs/performance.md) in one run.
 //
-//   OMP_NUM_THREADS=2 build-rel/bench/bench_table [--repeat R] [--scaling-csv FILE] [--quick]
+//   OMP_NUM_THREADS=2 build-bench/bench/bench_table [--repeat R] [--table 7|19|all] [--quick]
+//       [--scaling-csv FILE] [--scaling3d-csv FILE]
 //
-// Cases that are compared (linear vs LME, ul vs mpm, 2 threads vs 1) run
-// interleaved, one repetition of each in turn, so that a change of machine
-// load hits all of them alike; ratios are medians of the per-repetition
-// ratios. The memory row runs in a child process (peak RSS of a process that
-// does only the linear block run). Prints a markdown table, the phase shares
-// of each case, and (with --scaling-csv) the time per step against the
-// particle count for the scaling plot.
+// Cases that are compared (linear vs LME, ul vs mpm, 2 threads vs 1, the
+// fixed bar's methods) run interleaved, one repetition of each in turn, so
+// that a change of machine load hits all of them alike; ratios are medians of
+// the per-repetition ratios, rates use the median time. The memory row runs in
+// a child process (peak RSS of a process that does only the linear block
+// run). Prints each table in markdown (target, measured, met or not), the
+// phase shares of each case, and the time per step against the particle count
+// for the scaling plots (2D block with --scaling-csv, 3D block with
+// --scaling3d-csv). --quick: small sizes, short runs and one repetition, to
+// check that every row runs (its figures mean nothing). The output row of
+// issue 19 (result file bytes and write share) is scripts/bench-output.sh.
+#include "bench_run.hpp"
 #include "bench_scenes.hpp"
-#include "otmpm/assembly/assembler.hpp"
 
 #include <sys/resource.h>
 #include <unistd.h>
 
-#include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <fstream>
-#include <map>
+#include <functional>
 #include <string>
+#include <utility>
 #include <vector>
 
-#ifdef OTMPM_HAVE_OPENMP
-#include <omp.h>
-#endif
-
 using namespace otmpm;
-using otmpm::bench::block_scene;
+using namespace otmpm::bench;
 
 namespace {
 
-/// Seconds per step and phase times of one timed run.
-struct Timing {
-  double per_step = 0.0;
-  long particles = 0;
-  long steps = 0;
-  PhaseTimers phases;
-};
-
-void set_threads(int threads) {
-#ifdef OTMPM_HAVE_OPENMP
-  omp_set_num_threads(threads);
-#else
-  (void)threads;
-#endif
-}
-
-/// Builds the engine, takes one untimed step (first basis evaluation, cold
-/// LME start, buffers grow), then times `steps` steps (0: up to t_end).
-Timing time_run(const Scene& scene, long steps, int threads) {
-  set_threads(threads);
-  Engine<2> e = assemble<2>(scene);
-  e.step();
-  e.timers() = PhaseTimers{};
-  const auto t0 = std::chrono::steady_clock::now();
-  long done = 0;
-  for (; steps > 0 ? done < steps : e.time() < scene.simulation.t_end; ++done) e.step();
-  Timing t;
-  t.per_step = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() / double(done);
-  t.particles = e.particles().size();
-  t.steps = done;
-  t.phases = e.timers();
-  return t;
-}
-
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
-std::string phase_shares(const PhaseTimers& p) {
-  double total = 0;
-  for (double s : p.seconds) total += s;
-  std::string out;
-  char buf[64];
-  for (std::size_t i = 0; i < phase_names.size(); ++i) {
-    std::snprintf(buf, sizeof buf, "%s %.0f%%%s", std::string(phase_names[i]).c_str(),
-                  total > 0 ? 100 * p.seconds[i] / total : 0.0, i + 1 < phase_names.size() ? ", " : "");
-    out += buf;
-  }
-  return out;
-}
-
-/// A named case of the interleaved comparison.
+/// A named case of an interleaved comparison: `run` times one repetition.
 struct Case {
+  Case() = default;
+  Case(std::string n, std::function<Timing()> r) : name(std::move(n)), run(std::move(r)) {}
   std::string name;
-  Scene scene;
-  long steps;
-  int threads;
-  std::vector<double> per_step;
+  std::function<Timing()> run;
+  std::vector<double> per_step; ///< per repetition
+  std::vector<double> cpu_per_step; ///< the calling thread's CPU time per step, per repetition
   Timing last;
 };
+
+/// Runs `repeat` rounds of the cases, one repetition of each in turn.
+void interleave(std::vector<Case*> cases, int repeat) {
+  for (int r = 0; r < repeat; ++r)
+    for (Case* c : cases) {
+      c->last = c->run();
+      c->per_step.push_back(c->last.per_step);
+      c->cpu_per_step.push_back(c->last.cpu / double(c->last.steps));
+    }
+}
+
+/// Median over the repetitions of a's time per step / b's.
+double ratio(const Case& a, const Case& b) {
+  std::vector<double> q;
+  for (std::size_t r = 0; r < a.per_step.size(); ++r) q.push_back(a.per_step[r] / b.per_step[r]);
+  return median(q);
+}
+
+/// Particle-steps per second at the median time per step.
+double rate(const Case& c) { return double(c.last.particles) / median(c.per_step); }
+
+/// One row of a printed table.
+struct Row {
+  std::string figure, target, measured;
+  bool met;
+};
+
+std::string fmt(const char* format, double v) {
+  char buf[128];
+  std::snprintf(buf, sizeof buf, format, v);
+  return buf;
+}
+
+void print_table(const char* title, const std::vector<Row>& rows) {
+  std::printf("| %s | target | measured | met |\n|---|---|---|---|\n", title);
+  for (const Row& r : rows)
+    std::printf("| %s | %s | %s | %s |\n", r.figure.c_str(), r.target.c_str(), r.measured.c_str(),
+                r.met ? "met" : "**not met**");
+}
+
+/// The phase shares and median times of the cases that ran (--table leaves some out).
+void print_cases(std::vector<const Case*> cases) {
+  std::erase_if(cases, [](const Case* c) { return c->per_step.empty(); });
+  std::printf("\nphase shares (last repetition):\n");
+  for (const Case* c : cases) std::printf("  %-40s %s\n", c->name.c_str(), phase_shares(c->last.phases).c_str());
+  std::printf("\nmedian time per particle-step (wall; the calling thread's CPU time, which on one thread leaves out "
+              "the moments it waited for a core):\n");
+  for (const Case* c : cases)
+    std::printf("  %-40s %.3f us, CPU %.3f us (%ld particles, %ld steps%s)\n", c->name.c_str(),
+                1e6 * median(c->per_step) / double(c->last.particles),
+                1e6 * median(c->cpu_per_step) / double(c->last.particles), c->last.particles, c->last.steps,
+                c->last.nodes_per_particle > 0 ? fmt(", %.1f nodes per particle", c->last.nodes_per_particle).c_str()
+                                               : "");
+}
 
 /// Peak RSS in bytes of this process so far.
 double peak_rss_bytes() {
@@ -108,21 +110,14 @@ double peak_rss_bytes() {
 int memory_child() {
   const double before = peak_rss_bytes();
   const Scene scene = parse_scene(block_scene(200, "linear", "fe", "mpm", 3.0), "block.toml");
-  const Timing t = time_run(scene, 100, 1);
+  const Timing t = time_run<2>(scene, 100, 1);
   std::printf("%ld %.0f %.0f\n", t.particles, peak_rss_bytes(), before);
   return 0;
 }
 
-/// The 2D Dyka strip of issue 7: examples/dyka_2d.toml with 160 cells along
-/// the bar (plus two spare cells on the left), LME gamma_lme = 3, NPC.
-Scene dyka_strip() {
-  const double L = 0.1333, h = L / 160;
-  return load_scene(OTMPM_SOURCE_DIR "/examples/dyka_2d.toml",
-                    {"grid.lower=[" + std::to_string(-2 * h) + ", 0.0]", "grid.upper=[0.1333, " + std::to_string(h) + "]",
-                     "grid.cells=[162, 1]", "body.bar.upper=[0.1333, " + std::to_string(h) + "]",
-                     "initial_velocity.0.upper=[0.033325, " + std::to_string(h) + "]",
-                     "boundary.right_end.upper=[0.1333, " + std::to_string(h) + "]", "basis.gamma_lme=3.0",
-                     "output.every=0"});
+/// The 2D Dyka strip (examples/dyka_2d.toml) of `cells` cells along the bar.
+Scene dyka_strip(int cells, const std::vector<std::string>& extra) {
+  return load_scene(OTMPM_SOURCE_DIR "/examples/dyka_2d.toml", dyka_strip_overrides(cells, extra));
 }
 
 /// Least-squares slope of log(y) against log(x).
@@ -136,98 +131,197 @@ double loglog_slope(const std::vector<double>& x, const std::vector<double>& y) 
   return (n * sxy - sx * sy) / (n * sxx - sx * sx);
 }
 
+/// Time per step of the linear fe mpm block, one thread, at each size (cells
+/// per axis): median of `rounds` timings of about `particle_steps` each
+/// (3 to 200 steps).
+/// Writes particles,seconds_per_step to `csv` when not empty; returns the
+/// particle counts and times.
+template <int D>
+std::pair<std::vector<double>, std::vector<double>> scaling(const std::vector<int>& sizes, int rounds,
+                                                            long particle_steps, const std::string& csv) {
+  std::vector<double> n_p, t_step;
+  for (int c : sizes) {
+    const Scene s = parse_scene(block_scene(D, c, "linear", "fe", "mpm", 3.0), "block.toml");
+    set_threads(1);
+    Engine<D> e = assemble<D>(s);
+    e.step();
+    std::vector<double> per;
+    const long steps = std::clamp(particle_steps / long(e.particles().size()), 3L, 200L); // the block falls: not too far
+    for (int r = 0; r < rounds; ++r) per.push_back(time_steps(e, steps, 1, s.simulation.t_end).per_step);
+    n_p.push_back(double(e.particles().size()));
+    t_step.push_back(median(per));
+  }
+  if (!csv.empty()) {
+    std::ofstream out(csv);
+    out << "particles,seconds_per_step\n";
+    for (std::size_t i = 0; i < n_p.size(); ++i) out << n_p[i] << ',' << t_step[i] << '\n';
+  }
+  return {n_p, t_step};
+}
+
+/// The fixed bar of wobbes et al. (examples/fixed_bar.toml) on 512 nodes with
+/// the method's overrides (scripts/wobbes_figures.py, METHODS).
+Scene fixed_bar(const std::vector<std::string>& method) {
+  std::vector<std::string> o = method;
+  o.push_back("grid.cells=[511]");
+  o.push_back("output.every=0");
+  return load_scene(OTMPM_SOURCE_DIR "/examples/fixed_bar.toml", o);
+}
+
 } // namespace
 
 int main(int argc, char** argv) {
   int repeat = 5;
   bool quick = false;
-  std::string scaling_csv;
+  std::string scaling_csv, scaling3d_csv, table = "all";
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--memory-child") return memory_child();
     if (a == "--repeat" && i + 1 < argc) repeat = std::stoi(argv[++i]);
     else if (a == "--scaling-csv" && i + 1 < argc) scaling_csv = argv[++i];
+    else if (a == "--scaling3d-csv" && i + 1 < argc) scaling3d_csv = argv[++i];
+    else if (a == "--table" && i + 1 < argc) table = argv[++i];
     else if (a == "--quick") quick = true;
     else {
-      std::fprintf(stderr, "usage: bench_table [--repeat R] [--scaling-csv FILE] [--quick]\n");
+      std::fprintf(stderr, "usage: bench_table [--repeat R] [--table 7|19|all] [--quick] [--scaling-csv FILE] "
+                           "[--scaling3d-csv FILE]\n");
       return 2;
     }
   }
+  if (table != "7" && table != "19" && table != "all") {
+    std::fprintf(stderr, "bench_table: --table must be 7, 19 or all, not '%s'\n", table.c_str());
+    return 2;
+  }
+  if (repeat < 1) {
+    std::fprintf(stderr, "bench_table: --repeat must be at least 1\n");
+    return 2;
+  }
+  const bool t7 = table != "19", t19 = table != "7";
+
+  // The 2D block and the Dyka strip of issue 7: rows of both tables.
   const int cells = quick ? 60 : 200;
   const long steps = quick ? 5 : 20;
   auto block = [&](const char* basis, const char* integrator, const char* mode) {
     return parse_scene(block_scene(cells, basis, integrator, mode, 3.0), "block.toml");
   };
-  std::vector<Case> cases{{"linear fe mpm, 1 thread", block("linear", "fe", "mpm"), steps, 1, {}, {}},
-                          {"lme npc mpm, 1 thread", block("lme", "npc", "mpm"), steps / 2, 1, {}, {}},
-                          {"lme npc ul, 1 thread", block("lme", "npc", "ul"), steps / 2, 1, {}, {}},
-                          {"linear fe mpm, 2 threads", block("linear", "fe", "mpm"), steps, 2, {}, {}},
-                          {"dyka strip lme npc, 1 thread", dyka_strip(), quick ? 200 : 0, 1, {}, {}}};
-  for (int r = 0; r < repeat; ++r)
-    for (Case& c : cases) {
-      c.last = time_run(c.scene, c.steps, c.threads);
-      c.per_step.push_back(c.last.per_step);
+  auto stepped = [](const Scene& s, long n, int threads) { return [s, n, threads] { return time_run<2>(s, n, threads); }; };
+  Case lin{"2D block linear fe mpm, 1 thread", stepped(block("linear", "fe", "mpm"), steps, 1)};
+  Case lme{"2D block lme npc mpm, 1 thread", stepped(block("lme", "npc", "mpm"), steps / 2, 1)};
+  Case lme_ul{"2D block lme npc ul, 1 thread", stepped(block("lme", "npc", "ul"), steps / 2, 1)};
+  Case lin2{"2D block linear fe mpm, 2 threads", stepped(block("linear", "fe", "mpm"), steps, 2)};
+  Case dyka{"dyka strip 160 lme npc, 1 thread", stepped(dyka_strip(160, {"basis.gamma_lme=3.0"}), quick ? 200 : 0, 1)};
+  std::vector<Case*> block_cases{&lin, &lme};
+  if (t7) block_cases.insert(block_cases.end(), {&lme_ul, &lin2});
+  block_cases.push_back(&dyka);
+  interleave(block_cases, repeat);
+  std::printf("2D block %dx%d cells (%ld particles), %d interleaved repetitions; medians\n\n", cells, cells,
+              lin.last.particles, repeat);
+
+  if (t7) {
+    // memory: a child process that runs only the linear block
+    double rss = 0, rss_before = 0;
+    long mem_particles = 0;
+    if (!quick) {
+      // The shell popen starts is /proc/self/exe in its own process: resolve ours first.
+      char exe[4096] = {};
+      const ssize_t len = readlink("/proc/self/exe", exe, sizeof exe - 1);
+      const std::string cmd = std::string(len > 0 ? exe : argv[0]) + " --memory-child";
+      if (FILE* f = popen(cmd.c_str(), "r")) {
+        if (std::fscanf(f, "%ld %lf %lf", &mem_particles, &rss, &rss_before) != 3) mem_particles = 0;
+        pclose(f);
+      }
     }
-  auto ratio = [&](int a, int b) {
-    std::vector<double> q;
-    for (int r = 0; r < repeat; ++r) q.push_back(cases[a].per_step[r] / cases[b].per_step[r]);
-    return median(q);
+    // scaling: time per step of the linear block from 1e4 to 1e6 particles
+    const auto [n_p, t_step] = scaling<2>(quick ? std::vector<int>{20, 40, 60} : std::vector<int>{50, 100, 158, 250, 354, 500},
+                                          std::max(3, repeat / 2), 2000000L, scaling_csv);
+    const double slope = loglog_slope(n_p, t_step);
+    std::vector<Row> rows{
+        {"block, linear, fe, mpm: particle-steps/s, one core", ">= 1e7", fmt("%.3g", rate(lin)), rate(lin) >= 1e7},
+        {"block, LME gamma_lme = 3, npc: time per step / linear fe", "<= 1.5", fmt("%.2f", ratio(lme, lin)),
+         ratio(lme, lin) <= 1.5},
+        {"2D Dyka strip, 160 cells, LME npc to t_end: particle-steps/s", ">= 3e6", fmt("%.3g", rate(dyka)),
+         rate(dyka) >= 3e6},
+        {"block, ul / mpm (LME npc)", "<= 1.3", fmt("%.2f", ratio(lme_ul, lme)), ratio(lme_ul, lme) <= 1.3},
+        {"block, linear fe, speed-up 2 threads vs 1", ">= 1.8", fmt("%.2f", 1.0 / ratio(lin2, lin)),
+         1.0 / ratio(lin2, lin) >= 1.8}};
+    if (mem_particles > 0)
+      rows.push_back({"linear block run: peak RSS / particle (whole process)", "<= 400 B",
+                      fmt("%.0f B", rss / double(mem_particles)) + fmt(" (%.1f MB peak, ", rss / 1e6) +
+                          fmt("%.1f MB before the scene)", rss_before / 1e6),
+                      rss / double(mem_particles) <= 400});
+    rows.push_back({fmt("scaling exponent, %.0e", n_p.front()) + fmt("..%.0e particles (linear fe)", n_p.back()),
+                    "<= 1.05", fmt("%.3f", slope), slope <= 1.05});
+    print_table("issue 7 figure", rows);
+    std::printf("\n");
+  }
+  if (!t19) {
+    print_cases({&lin, &lme, &lme_ul, &lin2, &dyka});
+    return 0;
+  }
+
+  // The fixed bar, 512 nodes, whole runs on one thread (scripts/wobbes_figures.py's timing).
+  auto whole = [](const Scene& s) { return [s] { return time_whole_run(s, 1); }; };
+  const std::vector<std::string> mpm = {"simulation.mode=mpm", "simulation.integrator=fe", "simulation.mass=lumped"};
+  const std::vector<std::string> otm = {"simulation.mode=ul", "simulation.integrator=otm", "simulation.mass=consistent"};
+  auto with = [](std::vector<std::string> a, const std::vector<std::string>& b) {
+    a.insert(a.end(), b.begin(), b.end());
+    return a;
   };
-  auto rate = [&](int a) { return double(cases[a].last.particles) / median(cases[a].per_step); };
+  Case fb_mpm{"fixed bar 512 MPM-linear", whole(fixed_bar(with(mpm, {"basis.kind=linear"})))};
+  Case fb_otm{"fixed bar 512 OTM-maxent", whole(fixed_bar(with(otm, {"basis.kind=maxent", "basis.d_max=2"})))};
+  Case fb_uni{"fixed bar 512 unified", whole(fixed_bar({"simulation.mode=ul", "simulation.integrator=unified",
+                                                        "simulation.mass=consistent", "basis.kind=bspline2"}))};
+  interleave({&fb_mpm, &fb_otm, &fb_uni}, quick ? 1 : 3 * repeat);
 
-  // memory: a child process that runs only the linear block
-  double rss = 0, rss_before = 0;
-  long mem_particles = 0;
-  if (!quick) {
-    // The shell popen starts is /proc/self/exe in its own process: resolve ours first.
-    char exe[4096] = {};
-    const ssize_t len = readlink("/proc/self/exe", exe, sizeof exe - 1);
-    const std::string cmd = std::string(len > 0 ? exe : argv[0]) + " --memory-child";
-    if (FILE* f = popen(cmd.c_str(), "r")) {
-      if (std::fscanf(f, "%ld %lf %lf", &mem_particles, &rss, &rss_before) != 3) mem_particles = 0;
-      pclose(f);
-    }
-  }
+  // The 2D Dyka strip of 1332 cells, linear musl, whole run to t_end.
+  Case dyka_big{"dyka strip 1332 linear musl, 1 thread",
+                whole(dyka_strip(1332, quick ? std::vector<std::string>{"basis.kind=linear", "simulation.integrator=musl",
+                                                                        "simulation.t_end=2e-6"}
+                                             : std::vector<std::string>{"basis.kind=linear", "simulation.integrator=musl"}))};
+  interleave({&dyka_big}, repeat);
 
-  // scaling: time per step of the linear block from 1e4 to 1e6 particles
-  std::vector<double> n_p, t_step;
-  const std::vector<int> sizes = quick ? std::vector<int>{20, 40, 60} : std::vector<int>{50, 100, 158, 250, 354, 500};
-  for (int c : sizes) {
-    const Scene s = parse_scene(block_scene(c, "linear", "fe", "mpm", 3.0), "block.toml");
-    std::vector<double> per;
-    long np = 0;
-    for (int r = 0; r < std::max(3, repeat / 2); ++r) {
-      const Timing t = time_run(s, std::max(3L, 2000000L / (4L * c * c)), 1);
-      per.push_back(t.per_step);
-      np = t.particles;
-    }
-    n_p.push_back(double(np));
-    t_step.push_back(median(per));
+  // The 3D block: one engine per basis, built once and stepped on by each repetition.
+  const int cells3 = quick ? 12 : 64;
+  const Scene s3_lin = parse_scene(block_scene(3, cells3, "linear", "fe", "mpm", 3.0), "block3d.toml");
+  const Scene s3_lme = parse_scene(block_scene(3, cells3, "lme", "npc", "mpm", 3.0), "block3d.toml");
+  std::vector<double> rows3d;
+  Case lin3, lme3, lin3_2;
+  {
+    set_threads(2);
+    Engine<3> e_lin = assemble<3>(s3_lin);
+    Engine<3> e_lme = assemble<3>(s3_lme);
+    e_lin.step();
+    e_lme.step();
+    const double t_end = s3_lin.simulation.t_end;
+    const long n_lin = quick ? 2 : 4, n_lme = quick ? 1 : 2;
+    lin3 = Case{"3D block linear fe mpm, 1 thread", [&] { return time_steps(e_lin, n_lin, 1, t_end); }};
+    lme3 = Case{"3D block lme npc mpm, 1 thread", [&] { return time_steps(e_lme, n_lme, 1, t_end); }};
+    lin3_2 = Case{"3D block linear fe mpm, 2 threads", [&] { return time_steps(e_lin, n_lin, 2, t_end); }};
+    interleave({&lin3, &lme3, &lin3_2}, repeat);
   }
-  if (!scaling_csv.empty()) {
-    std::ofstream out(scaling_csv);
-    out << "particles,seconds_per_step\n";
-    for (std::size_t i = 0; i < n_p.size(); ++i) out << n_p[i] << ',' << t_step[i] << '\n';
-  }
+  const auto [n3, t3] = scaling<3>(quick ? std::vector<int>{6, 9, 12} : std::vector<int>{16, 20, 25, 32, 40, 50, 64},
+                                   std::max(3, repeat / 2), 8000000L, scaling3d_csv);
 
-  std::printf("block %dx%d cells (%ld particles), %d interleaved repetitions; medians\n\n", cells, cells,
-              cases[0].last.particles, repeat);
-  std::printf("| issue 7 figure | target | measured |\n|---|---|---|\n");
-  std::printf("| block, linear, fe, mpm: particle-steps/s, one core | >= 1e7 | %.3g |\n", rate(0));
-  std::printf("| block, LME gamma_lme = 3, npc: time per step / linear fe | <= 1.5 | %.2f |\n", ratio(1, 0));
-  std::printf("| 2D Dyka strip, 160 cells, LME npc to t_end: particle-steps/s | >= 3e6 | %.3g (%ld particles, %ld steps) |\n",
-              rate(4), cases[4].last.particles, cases[4].last.steps);
-  std::printf("| block, ul / mpm (LME npc) | <= 1.3 | %.2f |\n", ratio(2, 1));
-  std::printf("| block, linear fe, speed-up 2 threads vs 1 | >= 1.8 | %.2f |\n", 1.0 / ratio(3, 0));
-  if (mem_particles > 0)
-    std::printf("| linear block run: peak RSS / particle (whole process) | <= 400 B | %.0f B (%.1f MB peak, %.1f MB before the scene) |\n",
-                rss / double(mem_particles), rss / 1e6, rss_before / 1e6);
-  std::printf("| scaling exponent, %.0e..%.0e particles (linear fe) | <= 1.05 | %.3f |\n", n_p.front(), n_p.back(),
-              loglog_slope(n_p, t_step));
-  std::printf("\nphase shares (last repetition):\n");
-  for (const Case& c : cases) std::printf("  %-30s %s\n", c.name.c_str(), phase_shares(c.last.phases).c_str());
-  std::printf("\nmedian time per particle-step:\n");
-  for (const Case& c : cases)
-    std::printf("  %-30s %.3f us\n", c.name.c_str(), 1e6 * median(c.per_step) / double(c.last.particles));
+  const double lme_lin = ratio(lme, lin), fb_otm_r = ratio(fb_otm, fb_mpm), fb_uni_r = ratio(fb_uni, fb_mpm);
+  const double lme3_r = ratio(lme3, lin3), speedup3 = 1.0 / ratio(lin3_2, lin3);
+  char block3[64];
+  std::snprintf(block3, sizeof block3, "3D block %d^3 cells (%ld particles)", cells3, lin3.last.particles);
+  print_table(
+      "issue 19 figure",
+      {{"2D block, LME gamma_lme = 3, npc: time per step / linear fe", "<= 4.0", fmt("%.2f", lme_lin), lme_lin <= 4.0},
+       {"2D Dyka strip, 160 cells, LME npc: particle-steps/s", ">= 5e6", fmt("%.3g", rate(dyka)), rate(dyka) >= 5e6},
+       {"fixed bar, 512 nodes: OTM-maxent / MPM-linear wall time", "<= 2.5", fmt("%.2f", fb_otm_r), fb_otm_r <= 2.5},
+       {"fixed bar, 512 nodes: unified / MPM-linear wall time", "<= 1.5", fmt("%.2f", fb_uni_r), fb_uni_r <= 1.5},
+       {fmt("2D Dyka strip, 1332 cells (%.0f particles), linear musl, to t_end: particle-steps/s, whole run",
+            double(dyka_big.last.particles)),
+        ">= 1.5e7", fmt("%.3g", rate(dyka_big)), rate(dyka_big) >= 1.5e7},
+       {std::string(block3) + ", linear fe: particle-steps/s, one core", ">= 6e6", fmt("%.3g", rate(lin3)),
+        rate(lin3) >= 6e6},
+       {"same, LME gamma_lme = 3, npc: time per step / linear", "<= 5", fmt("%.2f", lme3_r), lme3_r <= 5},
+       {"same, linear fe, speed-up 2 threads vs 1", ">= 1.8", fmt("%.2f", speedup3), speedup3 >= 1.8}});
+  std::printf("(3D scaling, linear fe, one thread: t ~ n^%.3f over %.0f..%.0f particles; the output row: "
+              "scripts/bench-output.sh)\n",
+              loglog_slope(n3, t3), n3.front(), n3.back());
+  print_cases({&lin, &lme, &lme_ul, &lin2, &dyka, &fb_mpm, &fb_otm, &fb_uni, &dyka_big, &lin3, &lme3, &lin3_2});
   return 0;
 }

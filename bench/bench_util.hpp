@@ -7,10 +7,11 @@
 
 namespace otmpm::bench {
 
-/// Median of the values (the upper one of the middle two for an even count).
+/// Median of the values (the mean of the middle two for an even count).
 inline double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
+  const std::size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
 /// CPU time of the calling thread in nanoseconds (time spent descheduled on a

@@ -7,7 +7,10 @@
 # output.symmetric_tensors = true. Prints per configuration the result file's
 # bytes, the wall time, the stepping thread's output phase (seconds_output:
 # what the run waits for) and the writer thread's busy time
-# (seconds_output_thread), and the output share of the wall time.
+# (seconds_output_thread), and the output share of the wall time; last, the
+# two rows of the issue-19 table (bytes single/symmetric over default; the
+# output share of the wall time of the single/symmetric run) with target,
+# measured value and met or not.
 #
 #   bash scripts/bench-output.sh BUILD/bin/otmpm [--cells 64] [--every 5] [--threads 2]
 #
@@ -86,7 +89,22 @@ with h5py.File(path, "r") as f:
     print(f"{cfg:7s} frames {len(f['frames'])} steps {a['steps']} particles {a['particles']} bytes {os.path.getsize(path)} "
           f"wall {a['wall_seconds']:.1f} s output {a['seconds_output']:.2f} s ({100 * a['seconds_output'] / a['wall_seconds']:.1f} %) "
           f"writer thread {thread:.1f} s")
+    with open(os.path.join(os.path.dirname(path), "summary.csv"), "a") as out:
+        out.write(f"{cfg},{os.path.getsize(path)},{a['wall_seconds']!r},{a['seconds_output']!r}\n")
 PY
   rm -f "$work/$cfg.h5" "$work/$cfg.xdmf"
 done
 echo "load after: $(cut -d' ' -f1-3 /proc/loadavg)"
+/usr/bin/python3 - "$work/summary.csv" "$cells" "$threads" <<'PY'
+import sys
+rows = {r[0]: r[1:] for r in (line.strip().split(",") for line in open(sys.argv[1]))}
+n, threads = sys.argv[2], sys.argv[3]
+ratio = int(rows["single"][0]) / int(rows["double"][0])
+share = float(rows["single"][2]) / float(rows["single"][1])
+met = lambda ok: "met" if ok else "**not met**"
+print(f"\n| issue 19 figure | target | measured | met |\n|---|---|---|---|")
+print(f"| result file of the 3D block ({n}^3 cells), 20 frames: bytes with precision single + symmetric tensors "
+      f"/ default | <= 0.5 | {ratio:.3f} | {met(ratio <= 0.5)} |")
+print(f"| same, single + symmetric, {threads} OpenMP thread(s): output time of the stepping thread / wall time "
+      f"| < 5% | {100 * share:.1f}% | {met(share < 0.05)} |")
+PY

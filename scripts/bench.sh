@@ -1,31 +1,62 @@
 #!/usr/bin/env bash
-# Runs every row of the issue-7 performance table and prints it (see
-# docs/performance.md):  bash scripts/bench.sh [--repeat R] [--native]
+# Runs every row of the performance tables of issue 7 and issue 19 and prints
+# them with target, measured value and met or not (see docs/performance.md):
+#
+#   bash scripts/bench.sh [--repeat R] [--native] [--table 7|19|all] [--quick] [--no-output]
 #
 # Builds build-bench (Release, benchmarks, no tests, the portable default
 # flags; with --native build-bench-native with -march=native), runs
 # bench/bench_table with OMP_NUM_THREADS=2 (the single-thread rows set one
-# thread themselves) and draws the scaling plot into out/scaling.png
-# (out/scaling-native.png with --native).
+# thread themselves), draws the scaling plots into out/scaling.png (2D block)
+# and out/scaling3d.png (3D block) (out/scaling-native.png ... with --native),
+# and for the issue-19 output row runs scripts/bench-output.sh on the 64^3
+# block with one OpenMP thread (the writer thread; it writes 5 GB and 2 GB
+# into a temporary folder; --no-output skips it). --quick: small sizes,
+# short runs, one repetition - a smoke test of every row in about a minute,
+# whose figures mean nothing.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
 repeat=5
 native=OFF
+table=all
+quick=0
+output=1
+usage="usage: bash scripts/bench.sh [--repeat R] [--native] [--table 7|19|all] [--quick] [--no-output]"
 while [ $# -gt 0 ]; do
   case "$1" in
     --repeat) repeat="$2"; shift 2 ;;
     --native) native=ON; shift ;;
-    *) echo "usage: bash scripts/bench.sh [--repeat R] [--native]" >&2; exit 2 ;;
+    --table) table="$2"; shift 2 ;;
+    --quick) quick=1; shift ;;
+    --no-output) output=0; shift ;;
+    *) echo "$usage" >&2; exit 2 ;;
   esac
 done
+case "$table" in 7|19|all) ;; *) echo "$usage" >&2; exit 2 ;; esac
 bash scripts/install-deps.sh >/dev/null
 build=build-bench suffix=""
 [ "$native" = ON ] && build=build-bench-native suffix="-native"
 cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release -DOTMPM_BUILD_TESTS=OFF -DOTMPM_BUILD_BENCH=ON \
   -DOTMPM_NATIVE="$native" >/dev/null
-cmake --build "$build" -j"$(nproc)" --target bench_table bench_step bench_basis >/dev/null
+cmake --build "$build" -j"$(nproc)" --target bench_table bench_step bench_basis otmpm_cli >/dev/null
 mkdir -p out
-echo "machine: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg); build $build (OTMPM_NATIVE=$native)"
-OMP_NUM_THREADS=2 OMP_WAIT_POLICY=passive "$build"/bench/bench_table --repeat "$repeat" --scaling-csv "out/scaling$suffix.csv"
-/usr/bin/python3 scripts/plot_scaling.py "out/scaling$suffix.csv" "out/scaling$suffix.png"
+args=(--repeat "$repeat" --table "$table" --scaling-csv "out/scaling$suffix.csv" --scaling3d-csv "out/scaling3d$suffix.csv")
+cells3=64
+if [ "$quick" = 1 ]; then
+  args=(--quick --repeat 1 --table "$table" --scaling-csv "out/scaling$suffix.csv" --scaling3d-csv "out/scaling3d$suffix.csv")
+  cells3=12
+fi
+echo "machine: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg); build $build (OTMPM_NATIVE=$native); $(date -u '+%Y-%m-%d %H:%M UTC')"
+OMP_NUM_THREADS=2 OMP_WAIT_POLICY=passive "$build"/bench/bench_table "${args[@]}"
+[ "$table" != 19 ] && /usr/bin/python3 scripts/plot_scaling.py "out/scaling$suffix.csv" "out/scaling$suffix.png"
+if [ "$table" != 7 ]; then
+  /usr/bin/python3 scripts/plot_scaling.py "out/scaling3d$suffix.csv" "out/scaling3d$suffix.png" \
+    "3D block, 8 particles per cell, linear basis, fe, mpm, one thread"
+  if [ "$output" = 1 ]; then
+    echo
+    echo "issue 19, output row (scripts/bench-output.sh --cells $cells3 --threads 1):"
+    bash scripts/bench-output.sh "$build/bin/otmpm" --cells "$cells3" --threads 1
+  fi
+fi
+echo "load at the end: $(cut -d' ' -f1-3 /proc/loadavg)"

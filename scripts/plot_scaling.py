@@ -1,10 +1,11 @@
 #!/usr/bin/env python3
-"""Scaling plot of issue 7: time per step against particle count (log-log).
+"""Scaling plots of issues 7 and 19: time per step against particle count (log-log).
 
-    /usr/bin/python3 scripts/plot_scaling.py SCALING.csv OUT.png
+    /usr/bin/python3 scripts/plot_scaling.py SCALING.csv OUT.png [TITLE]
 
-SCALING.csv is written by `bench_table --scaling-csv` (columns particles,
-seconds_per_step). The plot shows the measured points, the least-squares
+SCALING.csv is written by `bench_table --scaling-csv` (2D block) or
+`--scaling3d-csv` (3D block) (columns particles, seconds_per_step); TITLE
+defaults to the 2D block's. The plot shows the measured points, the least-squares
 power law t = c n^k (k printed in the legend) and the linear reference k = 1.
 """
 import csv
@@ -18,7 +19,7 @@ import numpy as np  # noqa: E402
 
 
 def main(argv):
-    if len(argv) != 3:
+    if len(argv) not in (3, 4):
         sys.stderr.write(__doc__)
         return 2
     with open(argv[1], newline="") as f:
@@ -35,7 +36,7 @@ def main(argv):
     ax.loglog(n, t[0] * n / n[0], ":", color="grey", label="linear (k = 1)")
     ax.set_xlabel("particles")
     ax.set_ylabel("wall time per step (s)")
-    ax.set_title("2D block, linear basis, fe, mpm, one thread")
+    ax.set_title(argv[3] if len(argv) == 4 else "2D block, linear basis, fe, mpm, one thread", fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend()
     fig.tight_layout()

@@ -1,0 +1,63 @@
+#!/usr/bin/env python3
+"""Smoke test of bench/bench_table (scripts/bench.sh): every row of the issue-7
+and issue-19 tables runs and prints a finite positive figure, its met column
+agrees with its target, and every case prints phase shares that add up to
+100%. Timings are not checked (--quick sizes, one repetition).
+
+    check_bench_table.py BENCH_TABLE
+"""
+import math
+import re
+import subprocess
+import sys
+
+
+def main(argv):
+    out = subprocess.run([argv[1], "--quick", "--repeat", "1"], check=True, capture_output=True, text=True,
+                         env={"OMP_NUM_THREADS": "2", "OMP_WAIT_POLICY": "passive"}).stdout
+    failures = []
+    tables = {}
+    title = None
+    for line in out.splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")] if line.startswith("|") else None
+        if cells is None:
+            title = None
+        elif cells[1:] == ["target", "measured", "met"]:
+            title = cells[0]
+            tables[title] = []
+        elif title and not cells[0].startswith("---"):
+            tables[title].append(cells)
+    expected = {"issue 7 figure": 6, "issue 19 figure": 8}
+    for name, count in expected.items():
+        rows = tables.get(name, [])
+        if len(rows) != count:
+            failures.append(f"{name}: {len(rows)} rows, expected {count}")
+        for figure, target, measured, met in rows:
+            m = re.match(r"([<>]=?)\s*([0-9.e+-]+)", target)
+            v = re.match(r"[0-9.e+-]+", measured)
+            if not m or not v:
+                failures.append(f"{figure}: cannot read target '{target}' or measured '{measured}'")
+                continue
+            value, bound = float(v.group(0)), float(m.group(2))
+            if not (math.isfinite(value) and value > 0):
+                failures.append(f"{figure}: measured {value} is not finite and positive")
+            ok = {"<=": value <= bound, "<": value < bound, ">=": value >= bound, ">": value > bound}[m.group(1)]
+            if met != ("met" if ok else "**not met**"):
+                failures.append(f"{figure}: measured {value}, target {target}, but the row says '{met}'")
+    shares = re.findall(r"^  (\S.*?)\s{2,}(basis .*)$", out, re.M)
+    if len(shares) != 12:
+        failures.append(f"phase shares of {len(shares)} cases, expected 12")
+    for case, text in shares:
+        total = sum(float(p) for p in re.findall(r"([0-9.]+)%", text))
+        if not 97 <= total <= 103:  # each share rounded to 1%: 6 phases
+            failures.append(f"{case}: phase shares add up to {total}%")
+    if failures:
+        print(out)
+        print("\n".join(failures))
+        return 1
+    print(f"ok: {sum(len(r) for r in tables.values())} rows, {len(shares)} cases with phase shares")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv))
