@@ -217,7 +217,8 @@ TEST_CASE("j2 material in plane strain: a particle's result does not depend on w
   CHECK(same_particles(whole.P, single.P));
   // Plastic flow happened and every stress is finite.
   const std::vector<double>& eps_p = whole.P.find_state("plastic_strain")->values;
-  const std::vector<double>& eps_p0 = make_batch(n).P.find_state("plastic_strain")->values;
+  const Batch before = make_batch(n);
+  const std::vector<double>& eps_p0 = before.P.find_state("plastic_strain")->values;
   int grown = 0;
   for (int p = 0; p < n; ++p) {
     grown += eps_p[static_cast<std::size_t>(p)] > eps_p0[static_cast<std::size_t>(p)];
