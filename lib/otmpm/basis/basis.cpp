@@ -24,6 +24,7 @@ template <int D> void Basis<D>::bind_points(int n, bool nodes_move) {
   require<std::invalid_argument>(n >= 0, "Basis::bind_points: n must be >= 0, got ", n);
   const PointStateUse use = point_state_use(nodes_move);
   points_.lambda.assign(use.lambda ? static_cast<std::size_t>(n) : 0, Vec<D>::Zero());
+  points_.slope.assign(use.slope ? static_cast<std::size_t>(n) : 0, MultiplierSlope<D>{});
   points_.cell_hint.assign(use.cell_hint ? static_cast<std::size_t>(n) : 0, Index<D>{});
   points_.neighbours = NeighbourLists<D>();
   deformation_ = use.deformation;
@@ -38,6 +39,7 @@ void Basis<D>::evaluate_points(const AlignedVector<Vec<D>>& x, BasisTable<D>& ta
                                  x.size(), " points, got ", deformation ? deformation->size() : 0);
   PointArrays<D> a;
   a.lambda = &points_.lambda;
+  a.slope = &points_.slope;
   a.cell_hint = &points_.cell_hint;
   a.neighbours = &points_.neighbours;
   a.deformation = deformation_ ? deformation : nullptr;
@@ -59,10 +61,30 @@ template <class Array, class In> void get_rows(const In& in, Array& a, std::size
     for (std::size_t k = 0; k < cols; ++k)
       a[i][static_cast<int>(k)] = static_cast<std::remove_reference_t<decltype(a[i][0])>>(in.values[i * cols + k]);
 }
+/// Stores the multiplier slopes as rows of D + D * D values: x0, then G by rows.
+template <int D, class Out> void put_slopes(Out& out, const AlignedVector<MultiplierSlope<D>>& a) {
+  out.cols = D + D * D;
+  out.values.clear();
+  for (const MultiplierSlope<D>& m : a) {
+    for (int k = 0; k < D; ++k) out.values.push_back(m.x0[k]);
+    for (int k = 0; k < D; ++k)
+      for (int l = 0; l < D; ++l) out.values.push_back(m.G(k, l));
+  }
+}
+/// Restores what put_slopes stored into `a`, which has its size already.
+template <int D, class In> void get_slopes(const In& in, AlignedVector<MultiplierSlope<D>>& a) {
+  std::size_t v = 0;
+  for (MultiplierSlope<D>& m : a) {
+    for (int k = 0; k < D; ++k) m.x0[k] = in.values[v++];
+    for (int k = 0; k < D; ++k)
+      for (int l = 0; l < D; ++l) m.G(k, l) = in.values[v++];
+  }
+}
 } // namespace
 
 template <int D> void Basis<D>::save_state(StateGroup& out) const {
   if (!points_.lambda.empty()) put_rows(out.real_arrays["lambda"], points_.lambda, D);
+  if (!points_.slope.empty()) put_slopes(out.real_arrays["lambda_slope"], points_.slope);
   if (!points_.cell_hint.empty()) put_rows(out.integer_arrays["cell_hint"], points_.cell_hint, D);
   save_family_state(out);
 }
@@ -74,6 +96,10 @@ template <int D> void Basis<D>::restore_state(const StateGroup& in) {
   expect("lambda", !points_.lambda.empty());
   expect("cell_hint", !points_.cell_hint.empty());
   if (!points_.lambda.empty()) get_rows(in.real_array("lambda", points_.lambda.size(), D), points_.lambda, D);
+  // A checkpoint without slopes (an older otmpm, or one written in `ul`
+  // mode) restarts from the plain warm start: G = 0.
+  if (!points_.slope.empty() && in.has_array("lambda_slope"))
+    get_slopes(in.real_array("lambda_slope", points_.slope.size(), D + D * D), points_.slope);
   if (!points_.cell_hint.empty())
     get_rows(in.integer_array("cell_hint", points_.cell_hint.size(), D), points_.cell_hint, D);
   restore_family_state(in);
@@ -91,6 +117,7 @@ template <int D> void check_table_arguments(const AlignedVector<Vec<D>>& x, cons
                                    " has ", array ? array->size() : 0, " entries for ", x.size(), " points x");
   };
   check("lambda", a.lambda);
+  check("slope", a.slope);
   check("cell_hint", a.cell_hint);
   check("deformation", a.deformation);
 }
@@ -101,6 +128,7 @@ template <int D> PointArrays<D> used_arrays(PointArrays<D> a) {
     if (array && array->empty()) array = nullptr;
   };
   drop_empty(a.lambda);
+  drop_empty(a.slope);
   drop_empty(a.cell_hint);
   drop_empty(a.deformation);
   return a;
@@ -131,6 +159,7 @@ template <int D> PointQuery<D> point_query(const AlignedVector<Vec<D>>& x, const
   q.x = x[p];
   q.id = p;
   q.lambda = a.lambda ? &(*a.lambda)[p] : nullptr;
+  q.slope = a.slope ? &(*a.slope)[p] : nullptr;
   q.cell_hint = a.cell_hint ? &(*a.cell_hint)[p] : nullptr;
   q.neighbours = a.neighbours;
   q.deformation = a.deformation ? &(*a.deformation)[p] : nullptr;

@@ -34,6 +34,18 @@ template <int D> struct Stencil {
   void push(int I, double n, const Vec<D>& g) { node.push_back(I); N.push_back(n); dN.push_back(g); }
 };
 
+/// How a point's max-ent Lagrange multiplier changes with its position: the
+/// solve of the last evaluation converged at x0, and G = d lambda / d x there
+/// (docs/theory.md sect. 4.4, eq. 4.7a: G = 2 beta I - J^{-1} for LME,
+/// -J^{-1} (I + A) in general), so the next solve at x starts from the Taylor
+/// prediction lambda + G (x - x0) instead of lambda. Kept per particle while
+/// the nodes stay fixed (`mpm` mode); G = 0 (the plain warm start) before the
+/// first solve.
+template <int D> struct MultiplierSlope {
+  Vec<D> x0 = Vec<D>::Zero();
+  Mat<D> G = Mat<D>::Zero();
+};
+
 /// One evaluation request. `id` names the point in error messages (a particle
 /// index, or -1). `lambda` is the LME/max-ent Lagrange multiplier used as a
 /// warm start and overwritten with the converged value (may be null: cold
@@ -42,6 +54,10 @@ template <int D> struct PointQuery {
   Vec<D> x = Vec<D>::Zero();
   int id = -1;
   Vec<D>* lambda = nullptr;
+  /// The first-order model of *lambda about the position of its last solve
+  /// (MultiplierSlope), or null: the solve then starts from *lambda itself.
+  /// Read and updated together with `lambda`.
+  MultiplierSlope<D>* slope = nullptr;
   int* iterations = nullptr;
   /// Cell hint for structured layouts (lattice index of the containing cell
   /// from the previous step), or null. Updated by families that use it.
@@ -89,6 +105,9 @@ struct BasisOptions {
 /// Which per-point state a family keeps between evaluations of the same point.
 struct PointStateUse {
   bool lambda = false;    ///< max-ent families: the Lagrange multiplier (warm start)
+  /// max-ent families with fixed nodes: the slope of the multiplier
+  /// (MultiplierSlope, the Taylor-predicted warm start).
+  bool slope = false;
   bool cell_hint = false; ///< element walk / B-splines: the cell of the last evaluation
   /// Reads the points' deformation gradients (LME, metric = "deformation"):
   /// evaluate_points needs them.
@@ -101,6 +120,7 @@ struct PointStateUse {
 /// Owned by the basis (Basis::bind_points); saved in checkpoints.
 template <int D> struct PointState {
   AlignedVector<Vec<D>> lambda;
+  AlignedVector<MultiplierSlope<D>> slope;
   std::vector<Index<D>> cell_hint;
   NeighbourLists<D> neighbours;
 };
@@ -233,11 +253,13 @@ struct NodeColumns {
 template <int D> void transpose_basis_table(const BasisTable<D>& table, int nodes, NodeColumns& columns);
 
 /// The per-point arrays of a table fill, one entry per point each (a null or
-/// empty array: not used). `lambda` and `cell_hint` are read and updated (PointQuery); `neighbours` are the Verlet lists of the
+/// empty array: not used). `lambda`, `slope` and `cell_hint` are read and
+/// updated (PointQuery); `neighbours` are the Verlet lists of the
 /// points, kept from call to call; `deformation` the points' deformation
 /// gradients (PointQuery::deformation).
 template <int D> struct PointArrays {
   AlignedVector<Vec<D>>* lambda = nullptr;
+  AlignedVector<MultiplierSlope<D>>* slope = nullptr;
   std::vector<Index<D>>* cell_hint = nullptr;
   NeighbourLists<D>* neighbours = nullptr;
   const AlignedVector<Mat<D>>* deformation = nullptr;

@@ -175,10 +175,12 @@ public:
   bool linearly_complete() const override { return true; }
   int max_stencil() const override;
   double search_radius() const override { return settings_.support_radius; }
-  /// The Lagrange multiplier of each point warm-starts its next solve; the
-  /// deformation metric reads the points' deformation gradients.
-  PointStateUse point_state_use(bool) const override {
-    return {.lambda = true, .deformation = metric_ == Metric::deformation};
+  /// The Lagrange multiplier of each point warm-starts its next solve, and
+  /// while the nodes stay fixed its slope (MultiplierSlope) turns that into
+  /// the Taylor prediction for the point's new position; the deformation
+  /// metric reads the points' deformation gradients.
+  PointStateUse point_state_use(bool nodes_move) const override {
+    return {.lambda = true, .slope = !nodes_move, .deformation = metric_ == Metric::deformation};
   }
 
   const Prior& prior() const { return prior_; }
@@ -223,12 +225,24 @@ private:
   void check_extent(const PointQuery<D>& q, int n, const Vec<D>& lo, const Vec<D>& hi) const;
   /// Fills out.N and out.dN from the converged state (and removes nodes with
   /// N_I = 0); `closed_form`: the Gaussian prior with one beta (matrix) for
-  /// the whole support, grad N_I = -N_I J^{-1} (xbar - x_I).
-  void finish_stencil(const NewtonState<D>& st, const Support<D>& s, bool closed_form, Stencil<D>& out) const;
+  /// the whole support, grad N_I = -N_I J^{-1} (xbar - x_I). Returns
+  /// J^{-1} (I + A) (see general_gradient; A = -2 B J in the closed form,
+  /// where it is not formed and J^{-1} is returned): the multiplier's slope
+  /// is its negative (MultiplierSlope).
+  Mat<D> finish_stencil(const NewtonState<D>& st, const Support<D>& s, bool closed_form, Stencil<D>& out) const;
   /// grad N_I = N_I (g_I - gbar - (I + A^T) J^{-1} (xbar - x_I)) with g_I =
-  /// grad_log(i) (see the file comment), after out.N was filled.
+  /// grad_log(i) (see the file comment), after out.N was filled. Returns
+  /// J^{-1} (I + A) = -d lambda / d x.
   template <class GradLog>
-  void general_gradient(const NewtonState<D>& st, const Support<D>& s, const GradLog& grad_log, Stencil<D>& out) const;
+  Mat<D> general_gradient(const NewtonState<D>& st, const Support<D>& s, const GradLog& grad_log,
+                          Stencil<D>& out) const;
+  /// 2 B, the Hessian of -log w_I of the Gaussian prior on the support of
+  /// `out` (B = beta I, pm.B under Metric::deformation, beta_I I under
+  /// Metric::node_spacing); call only where the closed form holds.
+  Mat<D> prior_hessian(const PointMetric<D>& pm, const Stencil<D>& out) const;
+  /// The start of the solve at q.x: the Taylor prediction *q.lambda + G (x -
+  /// x0) when q carries a slope, else *q.lambda (zero when absent or not finite).
+  Vec<D> warm_start(const PointQuery<D>& q) const;
   /// Removes the nodes whose N_I underflowed to zero (their gradient is zero too).
   void drop_zeros(Stencil<D>& out) const;
   [[noreturn]] void fail(const PointQuery<D>& q, const std::string& why) const;

@@ -1,0 +1,187 @@
+// Tests of the Taylor-predicted warm start of the max-ent solve
+// (MultiplierSlope, docs/theory.md sect. 4.4, eq. 4.7a): the slope G = d lambda / d x
+// stored at each converged solve, and the prediction lambda + G (x - x0).
+//
+// Tolerances (h = nodal spacing; lambda ~ 1/h, G ~ beta ~ 1/h^2):
+// * G against central differences of lambda with step 2e-5 h, lambda solved
+//   to |r| <= 1e-14 h: the truncation error (step^2) was measured at up to
+//   1.6e-6 |G| with step 1e-4 h (deformation metric), 6.5e-6 with 2e-4 h,
+//   so ~7e-8 here; Newton noise ~ (1e-14 h / J) / (4e-5 h) ~ 1e-9 relative.
+//   Bound 1e-6 |G|.
+// * The prediction error is second order: halving the displacement divides
+//   it by 4 (asserted between 3 and 5, displacements 1e-2 h and 5e-3 h,
+//   where the third-order term is ~1% of the second).
+// * N from the predicted start agree with a cold solve to 1e-11: both
+//   converge to |r| <= 1e-12 h, and J^{-1} r moves N by less than ~1e-11.
+#include "otmpm/basis/families.hpp"
+#include "otmpm/basis/lme.hpp"
+#include "otmpm/state.hpp"
+#include "support.hpp"
+
+#include <doctest/doctest.h>
+
+#include <cmath>
+#include <random>
+#include <string>
+
+using namespace otmpm;
+using namespace otmpm::test;
+
+namespace {
+
+BasisOptions options(const std::string& kind, const std::string& metric = "isotropic") {
+  BasisOptions opt;
+  opt.kind = kind;
+  opt.gamma_lme = 3.0;
+  opt.metric = metric;
+  opt.newton_tolerance = 1e-14;
+  return opt;
+}
+
+/// The converged multiplier at x from a cold start; G of that solve into *G.
+template <int D>
+Vec<D> converged_lambda(const Basis<D>& b, const Vec<D>& x, const Mat<D>* F = nullptr, Mat<D>* G = nullptr) {
+  Vec<D> lambda = Vec<D>::Zero();
+  MultiplierSlope<D> slope;
+  PointQuery<D> q;
+  q.x = x;
+  q.lambda = &lambda;
+  q.slope = &slope;
+  q.deformation = F;
+  Stencil<D> st;
+  b.evaluate(q, st);
+  if (G) *G = slope.G;
+  CHECK(slope.x0 == x);
+  return lambda;
+}
+
+/// max over the axes of |G e_k - (lambda(x + d e_k) - lambda(x - d e_k)) / 2d| / |G|.
+template <int D> double slope_fd_error(const Basis<D>& b, const Vec<D>& x, const Mat<D>* F = nullptr) {
+  Mat<D> G;
+  converged_lambda<D>(b, x, F, &G);
+  const double d = 2e-5 * b.nodes().spacing();
+  double err = 0.0;
+  for (int k = 0; k < D; ++k) {
+    const Vec<D> e = Vec<D>::Unit(k) * d;
+    const Vec<D> fd = (converged_lambda<D>(b, x + e, F) - converged_lambda<D>(b, x - e, F)) / (2 * d);
+    err = std::max(err, (G.col(k) - fd).norm() / G.norm());
+  }
+  return err;
+}
+
+/// `count` random points of [0.2, 0.8]^D (inside the unit box, away from its
+/// boundary, where lambda grows without bound).
+template <int D> AlignedVector<Vec<D>> interior_points(int count, unsigned seed) {
+  std::mt19937 rng(seed);
+  AlignedVector<Vec<D>> x;
+  for (int i = 0; i < count; ++i) x.push_back(random_in_box<D>(rng, Vec<D>::Constant(0.2), Vec<D>::Constant(0.8)));
+  return x;
+}
+
+template <int D> void check_slopes(const Basis<D>& b, unsigned seed, const Mat<D>* F = nullptr) {
+  for (const Vec<D>& x : interior_points<D>(8, seed)) {
+    CAPTURE(x.transpose());
+    CHECK(slope_fd_error<D>(b, x, F) <= 1e-6);
+  }
+}
+
+} // namespace
+
+TEST_CASE("lme slope: G = d lambda / d x against central differences, every prior and metric") {
+  const auto g2 = unit_grid<2>(8);
+  SUBCASE("lme on a lattice (closed form 2 beta I - J^-1)") {
+    check_slopes<2>(*make_basis<2>(options("lme"), NodeSet<2>::cartesian(g2)), 3);
+  }
+  SUBCASE("lme on perturbed nodes, 3D") {
+    check_slopes<3>(*make_basis<3>(options("lme"), NodeSet<3>::perturbed(unit_grid<3>(5), 0.3, 2)), 4);
+  }
+  SUBCASE("lme, metric node_spacing on perturbed nodes (general form, beta_I by node)") {
+    check_slopes<2>(*make_basis<2>(options("lme", "node_spacing"), NodeSet<2>::perturbed(g2, 0.3, 5)), 5);
+  }
+  SUBCASE("lme, metric deformation (closed form with B = beta M)") {
+    Mat<2> F;
+    F << 1.3, 0.2, -0.1, 0.8;
+    check_slopes<2>(*make_basis<2>(options("lme", "deformation"), NodeSet<2>::cartesian(g2)), 6, &F);
+  }
+  SUBCASE("max-ent, cubic spline prior (general form)") {
+    check_slopes<2>(*make_basis<2>(options("maxent"), NodeSet<2>::perturbed(g2, 0.2, 7)), 7);
+  }
+}
+
+TEST_CASE("lme slope: the predicted start is second-order accurate and saves Newton iterations") {
+  const auto b = make_basis<2>(options("lme"), NodeSet<2>::perturbed(unit_grid<2>(8), 0.3, 12));
+  const double h = b->nodes().spacing();
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<double> angle(0.0, 6.283185307179586);
+  int plain_total = 0, predicted_total = 0;
+  double worst_N = 0.0;
+  for (const Vec<2>& x : interior_points<2>(20, 21)) {
+    const double a = angle(rng);
+    const Vec<2> dir(std::cos(a), std::sin(a));
+    Mat<2> G;
+    const Vec<2> lambda0 = converged_lambda<2>(*b, x, nullptr, &G);
+    // second order: the error of lambda0 + G dx falls 4-fold per halving of dx
+    double err[2];
+    for (int i = 0; i < 2; ++i) {
+      const Vec<2> dx = dir * (i == 0 ? 1e-2 : 5e-3) * h;
+      err[i] = (lambda0 + G * dx - converged_lambda<2>(*b, Vec<2>(x + dx))).norm();
+    }
+    CAPTURE(x.transpose());
+    CHECK(err[0] / err[1] >= 3.0);
+    CHECK(err[0] / err[1] <= 5.0);
+    // one step of a particle (1e-3 h): the plain and the predicted warm start
+    const Vec<2> x1 = x + dir * 1e-3 * h;
+    Stencil<2> cold, plain, predicted;
+    evaluate_at<2>(*b, x1, cold);
+    for (const bool with_slope : {false, true}) {
+      Vec<2> lambda = lambda0;
+      MultiplierSlope<2> slope{x, G};
+      int it = -1;
+      PointQuery<2> q;
+      q.x = x1;
+      q.lambda = &lambda;
+      q.slope = with_slope ? &slope : nullptr;
+      q.iterations = &it;
+      b->evaluate(q, with_slope ? predicted : plain);
+      (with_slope ? predicted_total : plain_total) += it;
+    }
+    REQUIRE(predicted.node == cold.node);
+    for (int i = 0; i < cold.size(); ++i) worst_N = std::max(worst_N, std::abs(predicted.N[i] - cold.N[i]));
+  }
+  CHECK(predicted_total < plain_total);
+  CHECK(worst_N <= 1e-11);
+}
+
+TEST_CASE("lme slope: kept per point only while the nodes stay fixed, and saved in checkpoints") {
+  const auto b = make_basis<2>(options("lme"), NodeSet<2>::cartesian(unit_grid<2>(8)));
+  CHECK(b->point_state_use(false).slope);
+  CHECK_FALSE(b->point_state_use(true).slope);
+  CHECK_FALSE(make_basis<2>(options("linear"), NodeSet<2>::cartesian(unit_grid<2>(8)))->point_state_use(false).slope);
+  b->bind_points(3, true);
+  CHECK(b->point_state().slope.empty());
+  b->bind_points(3, false);
+  REQUIRE(b->point_state().slope.size() == 3);
+  const AlignedVector<Vec<2>> x{Vec<2>(0.31, 0.42), Vec<2>(0.55, 0.61), Vec<2>(0.72, 0.27)};
+  BasisTable<2> table;
+  b->evaluate_points(x, table);
+  for (int p = 0; p < 3; ++p) {
+    CHECK(b->point_state().slope[p].x0 == x[p]);
+    CHECK(b->point_state().slope[p].G.norm() > 0.0);
+  }
+  StateGroup saved;
+  b->save_state(saved);
+  const auto restored = make_basis<2>(options("lme"), NodeSet<2>::cartesian(unit_grid<2>(8)));
+  restored->bind_points(3, false);
+  restored->restore_state(saved);
+  for (int p = 0; p < 3; ++p) {
+    CHECK(restored->point_state().slope[p].x0 == x[p]);
+    CHECK(restored->point_state().slope[p].G == b->point_state().slope[p].G);
+    CHECK(restored->point_state().lambda[p] == b->point_state().lambda[p]);
+  }
+  // a checkpoint without slopes (older otmpm): the plain warm start, G = 0
+  saved.real_arrays.erase("lambda_slope");
+  restored->bind_points(3, false);
+  restored->restore_state(saved);
+  CHECK(restored->point_state().slope[0].G.isZero(0.0));
+  CHECK(restored->point_state().lambda[0] == b->point_state().lambda[0]);
+}
