@@ -159,11 +159,6 @@ constexpr double kLogZRoundoff = 8.0 * std::numeric_limits<double>::epsilon();
 /// exceeds this multiple of their round-off; below, it uses the expm1 form.
 constexpr double kResolvableFactor = 1e4;
 
-// ---- cubic spline (wobbes eq. 89) -----------------------------------------
-constexpr double kSplineInner = 0.5;            ///< r where the two cubic pieces meet
-constexpr double kSplineCentre = 2.0 / 3.0;     ///< w(0)
-constexpr double kSplineOuterFactor = 4.0 / 3.0; ///< w = 4/3 (1 - r)^3 for 1/2 < r < 1
-
 // ---- adapted locality (Metric) ----------------------------------------------
 /// Relative slack on the radius within which the ellipse of a deformed
 /// point's prior is searched (the exact test dx^T B dx <= -ln(tol) decides;
@@ -567,42 +562,7 @@ Metric parse_metric(const std::string& name, std::string_view kind) {
   throw InputError(std::string(kind) + " basis: unknown metric '" + name + "' (expected " + basis_metric_list() + ")");
 }
 
-double cubic_spline(double r) {
-  if (r <= kSplineInner) return kSplineCentre - 4.0 * r * r + 4.0 * r * r * r;
-  if (r < 1.0) return kSplineOuterFactor * (1.0 - r) * (1.0 - r) * (1.0 - r);
-  return 0.0;
-}
-
-double cubic_spline_derivative(double r) {
-  if (r <= kSplineInner) return -8.0 * r + 12.0 * r * r;
-  if (r < 1.0) return -4.0 * (1.0 - r) * (1.0 - r);
-  return 0.0;
-}
-
 template <int D> double GaussianPrior<D>::support_radius() const { return std::sqrt(max_exponent / beta); }
-
-template <int D> bool GaussianPrior<D>::log_weight(const Vec<D>& dx, double& log_w) const {
-  const double e = beta * dx.squaredNorm();
-  if (!(e <= max_exponent)) return false;
-  log_w = -e;
-  return true;
-}
-
-template <int D> bool CubicSplinePrior<D>::log_weight(const Vec<D>& dx, double& log_w) const {
-  const double r = dx.norm() / d;
-  if (!(r < 1.0)) return false;
-  const double w = cubic_spline(r);
-  if (!(w > 0.0)) return false;
-  log_w = std::log(w);
-  return true;
-}
-
-template <int D> Vec<D> CubicSplinePrior<D>::grad_log_weight(const Vec<D>& dx) const {
-  const double r = dx.norm() / d;
-  // d log w / dr / r, written so that r -> 0 is regular (w'(r)/r = -8 + 12 r).
-  const double factor = r <= kSplineInner ? (-8.0 + 12.0 * r) / cubic_spline(r) : -3.0 / ((1.0 - r) * r);
-  return (factor / (d * d)) * dx;
-}
 
 // ---- stencil bound -------------------------------------------------------------
 

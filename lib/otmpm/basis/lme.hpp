@@ -69,10 +69,47 @@ template <int D> struct CubicSplinePrior {
   Vec<D> grad_log_weight(const Vec<D>& dx) const;
 };
 
-/// The cubic spline of wobbes eq. 89 at normalised radius r >= 0 (zero for r >= 1).
-double cubic_spline(double r);
+constexpr double kSplineInner = 0.5;            ///< r where the two cubic pieces meet
+constexpr double kSplineCentre = 2.0 / 3.0;     ///< w(0)
+constexpr double kSplineOuterFactor = 4.0 / 3.0; ///< w = 4/3 (1 - r)^3 for 1/2 < r < 1
+
+/// The cubic spline of wobbes eq. 89 at normalised radius r >= 0 (zero for r
+/// >= 1). Inline, as the prior's functions below: they run once per support
+/// node of every evaluation.
+inline double cubic_spline(double r) {
+  if (r <= kSplineInner) return kSplineCentre - 4.0 * r * r + 4.0 * r * r * r;
+  if (r < 1.0) return kSplineOuterFactor * (1.0 - r) * (1.0 - r) * (1.0 - r);
+  return 0.0;
+}
 /// Its derivative dw/dr.
-double cubic_spline_derivative(double r);
+inline double cubic_spline_derivative(double r) {
+  if (r <= kSplineInner) return -8.0 * r + 12.0 * r * r;
+  if (r < 1.0) return -4.0 * (1.0 - r) * (1.0 - r);
+  return 0.0;
+}
+
+template <int D> inline bool CubicSplinePrior<D>::log_weight(const Vec<D>& dx, double& log_w) const {
+  const double r = dx.norm() / d;
+  if (!(r < 1.0)) return false;
+  const double w = cubic_spline(r);
+  if (!(w > 0.0)) return false;
+  log_w = std::log(w);
+  return true;
+}
+
+template <int D> inline Vec<D> CubicSplinePrior<D>::grad_log_weight(const Vec<D>& dx) const {
+  const double r = dx.norm() / d;
+  // d log w / dr / r, written so that r -> 0 is regular (w'(r)/r = -8 + 12 r).
+  const double factor = r <= kSplineInner ? (-8.0 + 12.0 * r) / cubic_spline(r) : -3.0 / ((1.0 - r) * r);
+  return (factor / (d * d)) * dx;
+}
+
+template <int D> inline bool GaussianPrior<D>::log_weight(const Vec<D>& dx, double& log_w) const {
+  const double e = beta * dx.squaredNorm();
+  if (!(e <= max_exponent)) return false;
+  log_w = -e;
+  return true;
+}
 
 /// The support of one point in structure-of-arrays form (simd kernels):
 /// offsets dx[k][i] = (x - x_I)_k and log-priors log_w[i] = log w_I for the n
