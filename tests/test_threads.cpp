@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <numeric>
 #include <random>
+#include <string>
 
 #ifdef OTMPM_HAVE_OPENMP
 #include <omp.h>
@@ -29,7 +30,8 @@ struct Result {
 };
 
 /// Reorders every particle field by a fixed random permutation, so that the
-/// particle order is no longer spatial (the scatter then gathers by columns).
+/// particle order is no longer spatial (the scatter then takes its sparse
+/// blocked path, or on a wide grid the gather by columns).
 void shuffle_particles(Particles<2>& P) {
   std::vector<int> perm(static_cast<std::size_t>(P.size()));
   std::iota(perm.begin(), perm.end(), 0);
@@ -51,7 +53,14 @@ Scene andersen_block(const std::vector<std::string>& sets) {
   return load_scene(OTMPM_SOURCE_DIR "/examples/andersen_block.toml", all);
 }
 
-Result run_with_threads(int threads, const std::vector<std::string>& sets, bool shuffled = false) {
+/// Overrides that widen the andersen grid to 800 x 96 cells (same h, the
+/// block where it was): shuffled, its scatter blocks' node ranges then add up
+/// to more than max_sparse_ranges times the linear table's entries, and the
+/// scatter gathers by columns.
+const std::vector<std::string> wide_grid{"grid.upper=[96.0, 12.0]", "grid.cells=[800, 96]"};
+
+Result run_with_threads(int threads, const std::vector<std::string>& sets, bool shuffled = false,
+                        bool blocked = true) {
 #ifdef OTMPM_HAVE_OPENMP
   const int saved = omp_get_max_threads();
   omp_set_num_threads(threads);
@@ -61,7 +70,7 @@ Result run_with_threads(int threads, const std::vector<std::string>& sets, bool 
   Engine<2> e = assemble<2>(andersen_block(sets));
   if (shuffled) shuffle_particles(e.particles());
   for (int s = 0; s < 5; ++s) e.step();
-  CHECK(e.scatter_blocked() == !shuffled);
+  CHECK(e.scatter_blocked() == blocked);
 #ifdef OTMPM_HAVE_OPENMP
   omp_set_num_threads(saved);
 #endif
@@ -121,12 +130,16 @@ TEST_CASE("engine results are bitwise identical with 1 and 2 threads") {
 }
 
 TEST_CASE("engine results are bitwise identical with 1 and 2 threads when particles are not spatially ordered") {
-  // fe, and npc, whose stress update then runs before the column gather
-  for (const char* integrator : {"\"fe\"", "\"npc\""}) {
-    CAPTURE(integrator);
-    const std::vector<std::string> sets{"basis.kind=\"linear\"", std::string("simulation.integrator=") + integrator};
-    check_same(run_with_threads(1, sets, true), run_with_threads(2, sets, true));
-  }
+  // fe, and npc, whose stress update runs inside the sparse blocked scatter
+  // and, on the wide grid, before the column gather
+  for (const char* integrator : {"\"fe\"", "\"npc\""})
+    for (const bool wide : {false, true}) {
+      CAPTURE(integrator);
+      CAPTURE(wide);
+      std::vector<std::string> sets{"basis.kind=\"linear\"", std::string("simulation.integrator=") + integrator};
+      if (wide) sets.insert(sets.end(), wide_grid.begin(), wide_grid.end());
+      check_same(run_with_threads(1, sets, true, !wide), run_with_threads(2, sets, true, !wide));
+    }
 }
 
 // The plane-strain j2 update runs two particles per vector register; a
@@ -153,13 +166,18 @@ TEST_CASE("j2 plastic flow: bitwise identical with 1 and 2 threads, plastic stat
 
 // molinos Algorithm 1 stages 4-5 in one pass (update_stress_and_to_nodes, what
 // step_npc runs) against update_stress followed by compute_forces, from the
-// same state: with the blocked scatter and with the column gather.
+// same state: with the dense and the sparse blocked scatter (spatial and
+// shuffled order) and with the column gather (linear, shuffled, wide grid).
 TEST_CASE("npc: the stress update inside the force scatter gives the bits of the two separate stages") {
   for (const char* basis : {"\"linear\"", "\"lme\""})
-    for (const bool shuffled : {false, true}) {
+    for (const int order : {0, 1, 2}) { // spatial, shuffled, shuffled on the wide grid
+      const bool shuffled = order > 0, wide = order == 2;
+      if (wide && std::string(basis) != "\"linear\"") continue;
       CAPTURE(basis);
-      CAPTURE(shuffled);
-      const Scene scene = andersen_block({std::string("basis.kind=") + basis});
+      CAPTURE(order);
+      std::vector<std::string> sets{std::string("basis.kind=") + basis};
+      if (wide) sets.insert(sets.end(), wide_grid.begin(), wide_grid.end());
+      const Scene scene = andersen_block(sets);
       Engine<2> fused = assemble<2>(scene), separate = assemble<2>(scene);
       if (shuffled) shuffle_particles(fused.particles()), shuffle_particles(separate.particles());
       fused.step(); // a stressed state, the same in both
@@ -169,7 +187,7 @@ TEST_CASE("npc: the stress update inside the force scatter gives the bits of the
       fused.update_stress_and_to_nodes({&v, dt}, {.forces = true, .t = t});
       separate.update_stress({&v, dt});
       separate.to_nodes({.forces = true, .t = t});
-      CHECK(fused.scatter_blocked() == !shuffled);
+      CHECK(fused.scatter_blocked() == !wide);
       const Particles<2>& a = fused.particles();
       const Particles<2>& b = separate.particles();
       bool same = true;
