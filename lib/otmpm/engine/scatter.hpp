@@ -191,7 +191,7 @@ private:
   void sparse_block_sums(const BasisTable<D>& table, int b, Update& update, Prep& prep, Add& add) {
     NodeSums<D>* buf = buffer_.data() + offset_[b];
     std::fill(buf, buffer_.data() + offset_[b + 1], NodeSums<D>{});
-    const int* slot = slot_.data() + range_start_[b] - lo_[b];
+    const int* slot = hi_[b] >= lo_[b] ? slot_.data() + range_start_[b] - lo_[b] : nullptr;
     block_sums(table, b, [buf, slot](int I) -> NodeSums<D>& { return buf[slot[I]]; }, update, prep, add);
   }
 
@@ -209,12 +209,14 @@ private:
 
   /// Phase 2, dense: block b's sums into nodes [first, last].
   template <class Merge> void merge_dense(int b, int first, int last, Merge& merge) const {
+    if (first > last) return;
     const NodeSums<D>* buf = buffer_.data() + offset_[b] - lo_[b];
     for (int I = first; I <= last; ++I) merge(I, buf[I]);
   }
 
   /// Phase 2, sparse: block b's sums into the nodes of [first, last] it touches.
   template <class Merge> void merge_sparse(int b, int first, int last, Merge& merge) const {
+    if (first > last) return;
     const NodeSums<D>* buf = buffer_.data() + offset_[b];
     const int* slot = slot_.data() + range_start_[b] - lo_[b];
     for (int I = first; I <= last; ++I)
