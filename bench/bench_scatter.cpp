@@ -10,8 +10,9 @@
 // and shuffled. Each pass forgets the plan first (as in mpm mode, where the
 // table is rebuilt every step), so the plan, or the transposition, is in the
 // time; the payload is the force pass's (mass, momentum, V sigma grad N).
-// Per round: the median time of a set of passes with each path; prints the
-// median over the rounds of the per-round ratio chosen path / column gather.
+// Per round: the median time of a set of passes with the plan's path and
+// with each path forced; prints the median over the rounds of the per-round
+// ratios to the column gather.
 #include "bench_scenes.hpp"
 
 #include "otmpm/assembly/assembler.hpp"
@@ -21,6 +22,7 @@
 #include <chrono>
 #include <cstdio>
 #include <numeric>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
@@ -45,8 +47,9 @@ template <int D> void shuffle_particles(Particles<D>& P) {
 }
 
 /// Median seconds of `passes` particle-to-node passes over the engine's
-/// table (columns: the column gather forced); `path` receives the path taken.
-template <int D> double pass_seconds(const Engine<D>& e, bool columns, int passes, ScatterPath& path) {
+/// table (`forced`: the path forced, or the plan's); `path` receives the path taken.
+template <int D>
+double pass_seconds(const Engine<D>& e, std::optional<ScatterPath> forced, int passes, ScatterPath& path) {
   const BasisTable<D>& T = e.table();
   const Particles<D>& P = e.particles();
   const int nodes = static_cast<int>(e.nodal().m.size());
@@ -58,7 +61,7 @@ template <int D> double pass_seconds(const Engine<D>& e, bool columns, int passe
     Mat<D> Vs;
   };
   ParticleToNodes<D> scatter;
-  scatter.allow_blocks(!columns);
+  scatter.force(forced);
   std::vector<double> t;
   for (int r = 0; r < passes; ++r) {
     scatter.invalidate();
@@ -85,26 +88,33 @@ template <int D> double pass_seconds(const Engine<D>& e, bool columns, int passe
   return t[t.size() / 2];
 }
 
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
 const char* path_name(ScatterPath p) {
   return p == ScatterPath::dense ? "dense" : p == ScatterPath::sparse ? "sparse" : "columns";
 }
 
-/// One line: the chosen path's and the column gather's time per particle
-/// (last round) and the median of the per-round ratios.
+/// One line: the time per particle of the plan's path, and of each path
+/// forced, with the median over the rounds of the per-round ratios to the
+/// column gather.
 template <int D> void compare(const std::string& name, const Engine<D>& e, int passes, int rounds) {
-  ScatterPath chosen = ScatterPath::columns, gather = ScatterPath::columns;
-  double t_chosen = 0.0, t_gather = 0.0;
-  std::vector<double> ratio;
+  const std::optional<ScatterPath> paths[4] = {std::nullopt, ScatterPath::dense, ScatterPath::sparse,
+                                               ScatterPath::columns};
+  ScatterPath chosen = ScatterPath::columns, taken = ScatterPath::columns;
+  double t[4] = {};
+  std::vector<double> ratio[3];
   for (int k = 0; k < rounds; ++k) {
-    t_chosen = pass_seconds(e, false, passes, chosen);
-    t_gather = pass_seconds(e, true, passes, gather);
-    ratio.push_back(t_chosen / t_gather);
+    for (int i = 0; i < 4; ++i) t[i] = pass_seconds(e, paths[i], passes, i == 0 ? chosen : taken);
+    for (int i = 0; i < 3; ++i) ratio[i].push_back(t[i] / t[3]);
   }
-  std::sort(ratio.begin(), ratio.end());
   const double n = e.table().rows();
-  std::printf("%-28s %7.0f particles %5.1f entries/particle: %-7s %.3f us/particle, columns %.3f; median ratio %.3f\n",
-              name.c_str(), n, double(e.table().entries()) / n, path_name(chosen), 1e6 * t_chosen / n,
-              1e6 * t_gather / n, ratio[ratio.size() / 2]);
+  std::printf("%-28s %7.0f particles %5.1f entries/particle, plan: %-7s | us/particle (last round): plan %.3f, dense "
+              "%.3f, sparse %.3f, columns %.3f | median / columns: plan %.3f, dense %.3f, sparse %.3f\n",
+              name.c_str(), n, double(e.table().entries()) / n, path_name(chosen), 1e6 * t[0] / n, 1e6 * t[1] / n,
+              1e6 * t[2] / n, 1e6 * t[3] / n, median(ratio[0]), median(ratio[1]), median(ratio[2]));
 }
 
 } // namespace

@@ -1,14 +1,17 @@
-// The particle-to-node pass (engine/scatter.hpp) on a 3D table in the seeded
-// particle order, whose scatter blocks are partial slabs: their node ranges
-// overlap too much for the dense blocked scatter, so the sparse one sums them.
-// It gives the same bits with 1 and 2 threads and the sums of the column
-// gather to round-off.
+// The particle-to-node pass (engine/scatter.hpp) on 3D tables whose scatter
+// blocks' node ranges overlap (more than max_block_overlap times the nodes):
+// in the seeded particle order the blocks are partial slabs and the dense
+// blocked scatter sums them; with the particles shuffled the sparse one does.
+// Both give the same bits with 1 and 2 threads, the same bits as each other
+// on one table, and the sums of the column gather to round-off.
 #include <doctest/doctest.h>
 
 #include "otmpm/engine/scatter.hpp"
 
 #include <algorithm>
 #include <cmath>
+#include <numeric>
+#include <optional>
 #include <random>
 #include <string>
 
@@ -69,7 +72,8 @@ struct Sums {
   std::vector<int> updates;
 };
 
-Sums sums(const BasisTable<3>& table, int nodes, const Carried& c, int threads, bool blocks) {
+Sums sums(const BasisTable<3>& table, int nodes, const Carried& c, int threads,
+          std::optional<ScatterPath> forced = std::nullopt) {
 #ifdef OTMPM_HAVE_OPENMP
   const int saved = omp_get_max_threads();
   omp_set_num_threads(threads);
@@ -85,7 +89,7 @@ Sums sums(const BasisTable<3>& table, int nodes, const Carried& c, int threads, 
     Vec<3> mv;
   };
   ParticleToNodes<3> scatter;
-  scatter.allow_blocks(blocks);
+  scatter.force(forced);
   scatter.run(
       table, nodes,
       [&](int p0, int p1) {
@@ -122,43 +126,78 @@ long long block_ranges(const BasisTable<3>& table) {
   return total;
 }
 
+/// The table with its rows (particles) in a fixed random order.
+BasisTable<3> shuffled(const BasisTable<3>& t) {
+  std::vector<int> perm(static_cast<std::size_t>(t.rows()));
+  std::iota(perm.begin(), perm.end(), 0);
+  std::shuffle(perm.begin(), perm.end(), std::mt19937(42));
+  BasisTable<3> out;
+  for (const int p : perm) {
+    out.node.insert(out.node.end(), t.node.begin() + t.begin(p), t.node.begin() + t.end(p));
+    out.N.insert(out.N.end(), t.N.begin() + t.begin(p), t.N.begin() + t.end(p));
+    out.offset.push_back(static_cast<int>(out.node.size()));
+  }
+  return out;
+}
+
+/// The largest difference of a and b per node, relative to the nodal mass
+/// of b (mass and each momentum component).
+double largest_difference(const Sums& a, const Sums& b) {
+  double worst = 0.0;
+  for (std::size_t I = 0; I < b.m.size(); ++I) {
+    worst = std::max(worst, std::abs(a.m[I] - b.m[I]) / b.m[I]);
+    worst = std::max(worst, (a.q[I] - b.q[I]).cwiseAbs().maxCoeff() / b.m[I]);
+  }
+  return worst;
+}
+
 } // namespace
 
-TEST_CASE("scatter: a 3D slab order takes the sparse blocked path, bitwise identical with 1 and 2 threads") {
+TEST_CASE("scatter: 3D tables whose block ranges overlap take a blocked path, bitwise identical with 1 and 2 threads") {
+  const int n = 40, nodes = (n + 1) * (n + 1) * (n + 1);
+  const BasisTable<3> seeded = seeded_table(n), mixed = shuffled(seeded);
+  REQUIRE(seeded.rows() == 8 * n * n * n); // 512 000 particles, 63 blocks
+  const Carried c = carried(seeded.rows());
+  for (const bool shuffle : {false, true}) {
+    CAPTURE(shuffle);
+    const BasisTable<3>& table = shuffle ? mixed : seeded;
+    // the property that rules out the dense path's first test: the ranges overlap
+    CHECK(block_ranges(table) > static_cast<long long>(max_block_overlap) * nodes);
+    const Sums one = sums(table, nodes, c, 1), two = sums(table, nodes, c, 2);
+    CHECK(one.path == (shuffle ? ScatterPath::sparse : ScatterPath::dense));
+    CHECK(two.path == one.path);
+    CHECK(std::all_of(one.updates.begin(), one.updates.end(), [](int u) { return u == 1; }));
+    CHECK(std::all_of(two.updates.begin(), two.updates.end(), [](int u) { return u == 1; }));
+    CHECK(one.m == two.m);
+    CHECK(one.q == two.q);
+    // Against the column gather (each node's serial sum in particle order):
+    // up to 64 terms per node, so any order of the sums is within 64 x 2^-53
+    // of the sum of the terms' magnitudes, which is at most the nodal mass
+    // (m >= 1, |v| <= 1). 1e-13 of it leaves a margin of 14.
+    const Sums cols = sums(table, nodes, c, 2, ScatterPath::columns), cols1 = sums(table, nodes, c, 1, ScatterPath::columns);
+    CHECK(cols.path == ScatterPath::columns);
+    CHECK(std::all_of(cols.updates.begin(), cols.updates.end(), [](int u) { return u == 1; }));
+    CHECK(cols1.m == cols.m);
+    CHECK(cols1.q == cols.q);
+    REQUIRE(*std::min_element(cols.m.begin(), cols.m.end()) > 0.0); // the bound is relative to the mass
+    const double worst = largest_difference(one, cols);
+    CHECK(worst <= 1e-13);
+    MESSAGE("largest difference blocked - columns, relative to the nodal mass: " << worst);
+  }
+}
+
+// On one table the sparse path adds, per node, the same block sums in the same
+// order as the dense path (a node a block does not touch only gets +0 there).
+TEST_CASE("scatter: the sparse and the dense blocked path give the same bits on one table") {
   const int n = 40, nodes = (n + 1) * (n + 1) * (n + 1);
   const BasisTable<3> table = seeded_table(n);
-  REQUIRE(table.rows() == 8 * n * n * n); // 512 000 particles, 63 blocks
-  // the property that rules out the dense path: the ranges overlap
-  CHECK(block_ranges(table) > static_cast<long long>(max_block_overlap) * nodes);
   const Carried c = carried(table.rows());
-  const Sums one = sums(table, nodes, c, 1, true), two = sums(table, nodes, c, 2, true);
-  CHECK(one.path == ScatterPath::sparse);
-  CHECK(two.path == ScatterPath::sparse);
-  CHECK(std::all_of(one.updates.begin(), one.updates.end(), [](int u) { return u == 1; }));
-  CHECK(std::all_of(two.updates.begin(), two.updates.end(), [](int u) { return u == 1; }));
-  CHECK(one.m == two.m);
-  CHECK(one.q == two.q);
-  // Against the column gather (each node's serial sum in particle order): up
-  // to 64 terms per node, so any order of the sums is within 64 x 2^-53 of
-  // the sum of the terms' magnitudes, which is at most the nodal mass
-  // (m >= 1, |v| <= 1). 1e-13 of it leaves a margin of 14.
-  const Sums cols = sums(table, nodes, c, 2, false);
-  CHECK(cols.path == ScatterPath::columns);
-  const Sums cols1 = sums(table, nodes, c, 1, false);
-  CHECK(cols1.m == cols.m);
-  CHECK(cols1.q == cols.q);
-  CHECK(std::all_of(cols.updates.begin(), cols.updates.end(), [](int u) { return u == 1; }));
-  REQUIRE(*std::min_element(cols.m.begin(), cols.m.end()) > 0.0); // every node carries mass: the bound is relative to it
-  double worst = 0.0;
-  bool differs = false;
-  for (int I = 0; I < nodes; ++I) {
-    worst = std::max(worst, std::abs(one.m[I] - cols.m[I]) / cols.m[I]);
-    worst = std::max(worst, (one.q[I] - cols.q[I]).cwiseAbs().maxCoeff() / cols.m[I]);
-    differs = differs || one.m[I] != cols.m[I];
-  }
-  CHECK(worst <= 1e-13);
-  MESSAGE("largest difference sparse - columns, relative to the nodal mass: " << worst << "; masses "
-                                                                               << std::string(differs ? "differ" : "all equal"));
+  const Sums dense = sums(table, nodes, c, 2, ScatterPath::dense), sparse = sums(table, nodes, c, 2, ScatterPath::sparse);
+  CHECK(dense.path == ScatterPath::dense);
+  CHECK(sparse.path == ScatterPath::sparse);
+  CHECK(std::all_of(sparse.updates.begin(), sparse.updates.end(), [](int u) { return u == 1; }));
+  CHECK(dense.m == sparse.m);
+  CHECK(dense.q == sparse.q);
 }
 
 TEST_CASE("scatter: a spatially ordered 3D table below the overlap limit keeps the dense blocked path") {
@@ -166,7 +205,7 @@ TEST_CASE("scatter: a spatially ordered 3D table below the overlap limit keeps t
   const BasisTable<3> table = seeded_table(n);
   CHECK(block_ranges(table) <= static_cast<long long>(max_block_overlap) * nodes);
   const Carried c = carried(table.rows());
-  const Sums one = sums(table, nodes, c, 1, true), two = sums(table, nodes, c, 2, true);
+  const Sums one = sums(table, nodes, c, 1), two = sums(table, nodes, c, 2);
   CHECK(one.path == ScatterPath::dense);
   CHECK(one.m == two.m);
   CHECK(one.q == two.q);

@@ -31,8 +31,9 @@ struct Result {
 };
 
 /// Reorders every particle field by a fixed random permutation, so that the
-/// particle order is no longer spatial (the scatter then takes its sparse
-/// blocked path, or on a wide grid the gather by columns).
+/// particle order is no longer spatial (the scatter then takes a blocked
+/// path over overlapping node ranges - the sparse one for the linear basis -
+/// or on a wide grid the gather by columns).
 void shuffle_particles(Particles<2>& P) {
   std::vector<int> perm(static_cast<std::size_t>(P.size()));
   std::iota(perm.begin(), perm.end(), 0);
@@ -201,11 +202,12 @@ TEST_CASE("npc: the stress update inside the force scatter gives the bits of the
 
 // The 3D block in the seeded particle order with 3 x 3 x 3 particles per cell
 // (20^3 cells, 216 000 particles): a scatter block of 8 192 particles is
-// three quarters of a cell layer, the blocks' node ranges overlap, and the
-// particle-to-node pass takes the sparse blocked path (tests/test_scatter.cpp
-// checks the path on such a table). The step gives the same bits on 1 and 2
-// threads.
-TEST_CASE("3D block (sparse blocked scatter): bitwise identical with 1 and 2 threads") {
+// three quarters of a cell layer, and the blocks' node ranges overlap (more
+// than max_block_overlap times the nodes: the column gather before the
+// sparse path and the relaxed dense limit); the particle-to-node pass takes
+// the dense blocked path (tests/test_scatter.cpp checks both blocked paths
+// on such tables). The step gives the same bits on 1 and 2 threads.
+TEST_CASE("3D block with overlapping scatter blocks: bitwise identical with 1 and 2 threads") {
   const std::string toml = R"(
 [simulation]
 dimension = 3
@@ -256,10 +258,19 @@ value = [0.0, 0.0, -9.81]
   const Engine<3> one = run(1), two = run(2);
   REQUIRE(one.particles().size() == 216000);
   CHECK(one.scatter_blocked());
-  ParticleToNodes<3> probe; // the plan the engine made on this table: sparse, not dense
-  probe.run(one.table(), static_cast<int>(one.nodal().m.size()), [](int, int) {}, [](int) { return 0; },
-            [](NodeSums<3>&, int, int) {}, [](int, const NodeSums<3>&) {}, [](int, int) {});
-  CHECK(probe.path() == ScatterPath::sparse);
+  const BasisTable<3>& table = one.table();
+  const int nodes = static_cast<int>(one.nodal().m.size());
+  long long ranges = 0; // the blocks' node ranges overlap
+  for (int p0 = 0; p0 < table.rows(); p0 += scatter_block) {
+    const int e0 = table.begin(p0), e1 = table.end(std::min(table.rows(), p0 + scatter_block) - 1);
+    const auto [lo, hi] = std::minmax_element(table.node.begin() + e0, table.node.begin() + e1);
+    ranges += *hi - *lo + 1;
+  }
+  CHECK(ranges > static_cast<long long>(max_block_overlap) * nodes);
+  ParticleToNodes<3> probe; // the plan the engine made on this table
+  probe.run(table, nodes, [](int, int) {}, [](int) { return 0; }, [](NodeSums<3>&, int, int) {},
+            [](int, const NodeSums<3>&) {}, [](int, int) {});
+  CHECK(probe.path() == ScatterPath::dense);
   const Particles<3>& a = one.particles();
   const Particles<3>& b = two.particles();
   bool same = true;

@@ -6,16 +6,17 @@
 /// particle order, into a buffer of its own, and each node then adds the
 /// block sums in block order. Threads own blocks in the first half and node
 /// ranges in the second, so nothing is shared and nothing depends on the
-/// thread count. The buffer covers the block's whole node-index range when
-/// the ranges overlap little (dense), else only the nodes the block touches
-/// (sparse: a 3D slab, whose range spans two node layers, or particles in no
-/// spatial order). When even that would need more memory than the
-/// transposed table, a gather over the transposed table does it.
+/// thread count. The buffer covers the block's whole node-index range while
+/// those buffers stay small (dense), else only the nodes the block touches
+/// (sparse: large 3D grids, whose slab blocks span two node layers each, or
+/// particles in no spatial order). When even that would need more memory
+/// than the transposed table, a gather over the transposed table does it.
 /// Internal to the engine.
 #include "otmpm/basis/basis.hpp"
 #include "otmpm/parallel.hpp"
 
 #include <algorithm>
+#include <optional>
 #include <vector>
 
 namespace otmpm {
@@ -27,10 +28,15 @@ template <int D> struct NodeSums {
   Vec<D> f = Vec<D>::Zero();
 };
 
-/// Particles per scatter block, and the largest total of block node ranges
-/// (in units of the node count) for which the dense blocked scatter is used.
+/// Particles per scatter block, and a total of block node ranges (in units
+/// of the node count) up to which the dense blocked scatter is used.
 constexpr int scatter_block = 8192;
 constexpr int max_block_overlap = 2;
+/// The dense blocked scatter is also used while the ranges add up to at
+/// most the table's entries over this: its buffers then take at most 14
+/// bytes per entry in 3D (the table itself 36), and it was measured faster
+/// than the sparse path (docs/performance.md).
+constexpr int dense_entries_per_slot = 4;
 /// The largest total of block node ranges, in table entries, for which the
 /// sparse blocked scatter is used: its per-block slot maps (one int per node
 /// of a block's range) then take at most the memory of the transposed table
@@ -61,10 +67,10 @@ public:
   bool blocked() const { return path_ != ScatterPath::columns; }
   /// The path of the last plan.
   ScatterPath path() const { return path_; }
-  /// With false, every later plan takes the column gather (for tests and
-  /// measurements that compare the paths on one table).
-  void allow_blocks(bool allow) {
-    blocks_allowed_ = allow;
+  /// Makes every later plan take `path` (tests and measurements that compare
+  /// the paths on one table); std::nullopt: the plan chooses.
+  void force(std::optional<ScatterPath> path) {
+    forced_ = path;
     valid_ = false;
   }
 
@@ -100,24 +106,25 @@ public:
 
 private:
   /// Chooses the path for the current basis table: dense when the block
-  /// ranges add up to at most max_block_overlap times the node count, else
-  /// sparse when they add up to at most max_sparse_ranges times the table's
-  /// entries, else the column gather (measured: sparse is faster than the
-  /// column gather also for shuffled particles, docs/performance.md).
+  /// ranges add up to at most max_block_overlap times the node count or to
+  /// at most the entries over dense_entries_per_slot, else sparse when they
+  /// add up to at most max_sparse_ranges times the entries, else the column
+  /// gather (measured: both blocked paths are faster than the column gather,
+  /// also for shuffled particles, docs/performance.md).
   void plan(const BasisTable<D>& table, int nodes) {
     if (valid_) return;
     valid_ = true;
     const long long ranges = node_ranges(table, nodes);
     const auto entries = static_cast<long long>(table.entries());
     path_ = ScatterPath::columns;
-    if (!blocks_allowed_) return;
-    if (ranges <= static_cast<long long>(max_block_overlap) * std::max(nodes, 1)) {
+    if (ranges <= static_cast<long long>(max_block_overlap) * std::max(nodes, 1) ||
+        ranges * dense_entries_per_slot <= entries)
       path_ = ScatterPath::dense;
-      offset_ = range_start_;
-    } else if (ranges <= max_sparse_ranges * entries) {
+    else if (ranges <= max_sparse_ranges * entries)
       path_ = ScatterPath::sparse;
-      sparse_slots(table);
-    }
+    if (forced_) path_ = *forced_;
+    if (path_ == ScatterPath::dense) offset_ = range_start_;
+    if (path_ == ScatterPath::sparse) sparse_slots(table);
   }
 
   /// The node range [lo_, hi_] of every block and their prefix sums
@@ -247,7 +254,8 @@ private:
   std::vector<long long> offset_;    ///< start of each block's buffer
   std::vector<int> slot_;            ///< sparse: each block's slot per node of its range, or -1
   AlignedVector<NodeSums<D>> buffer_;
-  bool valid_ = false, blocks_allowed_ = true;
+  bool valid_ = false;
+  std::optional<ScatterPath> forced_;
   ScatterPath path_ = ScatterPath::columns;
   NodeColumns columns_; ///< the transposed table, for gather_columns
   bool columns_valid_ = false;
