@@ -1,12 +1,13 @@
 // bench_step: whole-step throughput of the engine (issue 7 table).
 //
 //   OMP_NUM_THREADS=1 build/bench/bench_step [--cells N] [--steps S] [--repeat R]
-//       [--basis linear|lme|...] [--integrator fe|npc] [--mode mpm|ul] [--gamma-lme G]
+//       [--basis linear|lme|...] [--integrator fe|npc] [--mode mpm|ul] [--gamma-lme G] [--dim 2|3]
 //
 // A 2D elastic block (plane strain, E = 10 MPa, rho = 1000, nu = 0.3) of
 // N x N cells with 2 x 2 particles per cell, inside a grid with two spare cells
 // on each side, falling under gravity with its base fixed - every stage of a
-// step runs. Prints the median over R repetitions of particle-steps per second
+// step runs. With --dim 3 the 3D block of the issue-19 table (N^3 cells,
+// 2 x 2 x 2 particles per cell). Prints the median over R repetitions of particle-steps per second
 // and the share of each phase.
 #include "bench_run.hpp"
 #include "bench_scenes.hpp"
@@ -22,6 +23,7 @@ int main(int argc, char** argv) {
   int cells = 200, steps = 100, repeat = 5;
   std::string basis = "linear", integrator = "fe", mode = "mpm";
   double gamma_lme = 3.0;
+  int dim = 2;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i], v = argv[i + 1];
     if (a == "--cells") cells = std::stoi(v);
@@ -31,17 +33,22 @@ int main(int argc, char** argv) {
     else if (a == "--integrator") integrator = v;
     else if (a == "--mode") mode = v;
     else if (a == "--gamma-lme") gamma_lme = std::stod(v);
+    else if (a == "--dim") dim = std::stoi(v);
   }
-  const Scene scene = parse_scene(block_scene(cells, basis, integrator, mode, gamma_lme), "bench_step.toml");
+  if (dim != 2 && dim != 3) {
+    std::fprintf(stderr, "bench_step: --dim must be 2 or 3\n");
+    return 2;
+  }
+  const Scene scene = parse_scene(block_scene(dim, cells, basis, integrator, mode, gamma_lme), "bench_step.toml");
   std::vector<double> rates;
   Timing last;
   for (int r = 0; r < repeat; ++r) {
-    last = time_run<2>(scene, steps, 0); // threads: OMP_NUM_THREADS
+    last = dim == 3 ? time_run<3>(scene, steps, 0) : time_run<2>(scene, steps, 0); // threads: OMP_NUM_THREADS
     rates.push_back(double(last.particles) / last.per_step);
   }
   const double rate = median(rates);
-  std::printf("block %dx%d cells, %ld particles, %s %s %s: median %.3e particle-steps/s (of %d runs), %.3f us/step/particle\n",
-              cells, cells, last.particles, mode.c_str(), basis.c_str(), integrator.c_str(), rate, repeat, 1e6 / rate);
+  std::printf("block %d^%d cells, %ld particles, %s %s %s: median %.3e particle-steps/s (of %d runs), %.3f us/step/particle\n",
+              cells, dim, last.particles, mode.c_str(), basis.c_str(), integrator.c_str(), rate, repeat, 1e6 / rate);
   std::printf("phases: %s\n", phase_shares(last.phases).c_str());
   return 0;
 }

@@ -5,10 +5,12 @@
 #include <doctest/doctest.h>
 
 #include "otmpm/assembly/assembler.hpp"
+#include "otmpm/engine/scatter.hpp"
 
 #include <algorithm>
 #include <numeric>
 #include <random>
+#include <string>
 
 #ifdef OTMPM_HAVE_OPENMP
 #include <omp.h>
@@ -29,7 +31,9 @@ struct Result {
 };
 
 /// Reorders every particle field by a fixed random permutation, so that the
-/// particle order is no longer spatial (the scatter then gathers by columns).
+/// particle order is no longer spatial (the scatter then takes a blocked
+/// path over overlapping node ranges - the sparse one for the linear basis -
+/// or on a wide grid the gather by columns).
 void shuffle_particles(Particles<2>& P) {
   std::vector<int> perm(static_cast<std::size_t>(P.size()));
   std::iota(perm.begin(), perm.end(), 0);
@@ -51,7 +55,14 @@ Scene andersen_block(const std::vector<std::string>& sets) {
   return load_scene(OTMPM_SOURCE_DIR "/examples/andersen_block.toml", all);
 }
 
-Result run_with_threads(int threads, const std::vector<std::string>& sets, bool shuffled = false) {
+/// Overrides that widen the andersen grid to 800 x 96 cells (same h, the
+/// block where it was): shuffled, its scatter blocks' node ranges then add up
+/// to more than max_sparse_ranges times the linear table's entries, and the
+/// scatter gathers by columns.
+const std::vector<std::string> wide_grid{"grid.upper=[96.0, 12.0]", "grid.cells=[800, 96]"};
+
+Result run_with_threads(int threads, const std::vector<std::string>& sets, bool shuffled = false,
+                        bool blocked = true) {
 #ifdef OTMPM_HAVE_OPENMP
   const int saved = omp_get_max_threads();
   omp_set_num_threads(threads);
@@ -61,7 +72,7 @@ Result run_with_threads(int threads, const std::vector<std::string>& sets, bool 
   Engine<2> e = assemble<2>(andersen_block(sets));
   if (shuffled) shuffle_particles(e.particles());
   for (int s = 0; s < 5; ++s) e.step();
-  CHECK(e.scatter_blocked() == !shuffled);
+  CHECK(e.scatter_blocked() == blocked);
 #ifdef OTMPM_HAVE_OPENMP
   omp_set_num_threads(saved);
 #endif
@@ -121,12 +132,16 @@ TEST_CASE("engine results are bitwise identical with 1 and 2 threads") {
 }
 
 TEST_CASE("engine results are bitwise identical with 1 and 2 threads when particles are not spatially ordered") {
-  // fe, and npc, whose stress update then runs before the column gather
-  for (const char* integrator : {"\"fe\"", "\"npc\""}) {
-    CAPTURE(integrator);
-    const std::vector<std::string> sets{"basis.kind=\"linear\"", std::string("simulation.integrator=") + integrator};
-    check_same(run_with_threads(1, sets, true), run_with_threads(2, sets, true));
-  }
+  // fe, and npc, whose stress update runs inside the sparse blocked scatter
+  // and, on the wide grid, before the column gather
+  for (const char* integrator : {"\"fe\"", "\"npc\""})
+    for (const bool wide : {false, true}) {
+      CAPTURE(integrator);
+      CAPTURE(wide);
+      std::vector<std::string> sets{"basis.kind=\"linear\"", std::string("simulation.integrator=") + integrator};
+      if (wide) sets.insert(sets.end(), wide_grid.begin(), wide_grid.end());
+      check_same(run_with_threads(1, sets, true, !wide), run_with_threads(2, sets, true, !wide));
+    }
 }
 
 // The plane-strain j2 update runs two particles per vector register; a
@@ -153,13 +168,18 @@ TEST_CASE("j2 plastic flow: bitwise identical with 1 and 2 threads, plastic stat
 
 // molinos Algorithm 1 stages 4-5 in one pass (update_stress_and_to_nodes, what
 // step_npc runs) against update_stress followed by compute_forces, from the
-// same state: with the blocked scatter and with the column gather.
+// same state: with the dense and the sparse blocked scatter (spatial and
+// shuffled order) and with the column gather (linear, shuffled, wide grid).
 TEST_CASE("npc: the stress update inside the force scatter gives the bits of the two separate stages") {
   for (const char* basis : {"\"linear\"", "\"lme\""})
-    for (const bool shuffled : {false, true}) {
+    for (const int order : {0, 1, 2}) { // spatial, shuffled, shuffled on the wide grid
+      const bool shuffled = order > 0, wide = order == 2;
+      if (wide && std::string(basis) != "\"linear\"") continue;
       CAPTURE(basis);
-      CAPTURE(shuffled);
-      const Scene scene = andersen_block({std::string("basis.kind=") + basis});
+      CAPTURE(order);
+      std::vector<std::string> sets{std::string("basis.kind=") + basis};
+      if (wide) sets.insert(sets.end(), wide_grid.begin(), wide_grid.end());
+      const Scene scene = andersen_block(sets);
       Engine<2> fused = assemble<2>(scene), separate = assemble<2>(scene);
       if (shuffled) shuffle_particles(fused.particles()), shuffle_particles(separate.particles());
       fused.step(); // a stressed state, the same in both
@@ -169,7 +189,7 @@ TEST_CASE("npc: the stress update inside the force scatter gives the bits of the
       fused.update_stress_and_to_nodes({&v, dt}, {.forces = true, .t = t});
       separate.update_stress({&v, dt});
       separate.to_nodes({.forces = true, .t = t});
-      CHECK(fused.scatter_blocked() == !shuffled);
+      CHECK(fused.scatter_blocked() == !wide);
       const Particles<2>& a = fused.particles();
       const Particles<2>& b = separate.particles();
       bool same = true;
@@ -178,4 +198,88 @@ TEST_CASE("npc: the stress update inside the force scatter gives the bits of the
       CHECK(same);
       CHECK(fused.nodal().f == separate.nodal().f);
     }
+}
+
+// The 3D block in the seeded particle order with 3 x 3 x 3 particles per cell
+// (20^3 cells, 216 000 particles): a scatter block of 8 192 particles is
+// three quarters of a cell layer, and the blocks' node ranges overlap (more
+// than max_block_overlap times the nodes: the column gather before the
+// sparse path and the relaxed dense limit); the particle-to-node pass takes
+// the dense blocked path (tests/test_scatter.cpp checks both blocked paths
+// on such tables). The step gives the same bits on 1 and 2 threads.
+TEST_CASE("3D block with overlapping scatter blocks: bitwise identical with 1 and 2 threads") {
+  const std::string toml = R"(
+[simulation]
+dimension = 3
+integrator = "fe"
+t_end = 1.0
+cfl = 0.3
+[basis]
+kind = "linear"
+[grid]
+lower = [-0.1, -0.1, 0.0]
+upper = [1.1, 1.1, 1.05]
+cells = [24, 24, 21]
+[[material]]
+name = "m"
+model = "linear_elastic"
+density = 1000.0
+young = 1.0e7
+poisson = 0.3
+[[body]]
+name = "block"
+material = "m"
+lower = [0.0, 0.0, 0.0]
+upper = [1.0, 1.0, 1.0]
+particles_per_cell = 3
+[[boundary]]
+name = "base"
+lower = [-0.1, -0.1, 0.0]
+upper = [1.1, 1.1, 0.0]
+fix = [true, true, true]
+[body_force]
+value = [0.0, 0.0, -9.81]
+)";
+  const Scene scene = parse_scene(toml, "block3d.toml");
+  auto run = [&](int threads) {
+#ifdef OTMPM_HAVE_OPENMP
+    const int saved = omp_get_max_threads();
+    omp_set_num_threads(threads);
+#else
+    (void)threads;
+#endif
+    Engine<3> e = assemble<3>(scene);
+    for (int s = 0; s < 2; ++s) e.step();
+#ifdef OTMPM_HAVE_OPENMP
+    omp_set_num_threads(saved);
+#endif
+    return e;
+  };
+  const Engine<3> one = run(1), two = run(2);
+  REQUIRE(one.particles().size() == 216000);
+  CHECK(one.scatter_blocked());
+  const BasisTable<3>& table = one.table();
+  const int nodes = static_cast<int>(one.nodal().m.size());
+  long long ranges = 0; // the blocks' node ranges overlap
+  for (int p0 = 0; p0 < table.rows(); p0 += scatter_block) {
+    const int e0 = table.begin(p0), e1 = table.end(std::min(table.rows(), p0 + scatter_block) - 1);
+    const auto [lo, hi] = std::minmax_element(table.node.begin() + e0, table.node.begin() + e1);
+    ranges += *hi - *lo + 1;
+  }
+  CHECK(ranges > static_cast<long long>(max_block_overlap) * nodes);
+  ParticleToNodes<3> probe; // the plan the engine made on this table
+  probe.run(table, nodes, [](int, int) {}, [](int) { return 0; }, [](NodeSums<3>&, int, int) {},
+            [](int, const NodeSums<3>&) {}, [](int, int) {});
+  CHECK(probe.path() == ScatterPath::dense);
+  const Particles<3>& a = one.particles();
+  const Particles<3>& b = two.particles();
+  bool same = true;
+  for (int p = 0; p < a.size(); ++p)
+    same = same && a.x[p] == b.x[p] && a.v[p] == b.v[p] && a.sigma[p] == b.sigma[p] && a.V[p] == b.V[p];
+  CHECK(same);
+  CHECK(one.nodal().m == two.nodal().m);
+  CHECK(one.nodal().f == two.nodal().f);
+  CHECK(one.nodal().v == two.nodal().v);
+  CHECK(one.energy().strain == two.energy().strain);
+  CHECK(one.energy().kinetic == two.energy().kinetic);
 }

@@ -3,16 +3,20 @@
 /// The particle-to-node sum of the engine, with the same bits for any
 /// thread count (docs/architecture.md, "Threads and identical results").
 /// Particles are cut into fixed blocks of scatter_block; each block sums, in
-/// particle order, into a buffer over its own node range, and each node then
-/// adds the block sums in block order. Threads own blocks in the first half
-/// and node ranges in the second, so nothing is shared and nothing depends
-/// on the thread count. When the block ranges overlap too much (particles
-/// not spatially ordered), a gather over the transposed table does it instead.
+/// particle order, into a buffer of its own, and each node then adds the
+/// block sums in block order. Threads own blocks in the first half and node
+/// ranges in the second, so nothing is shared and nothing depends on the
+/// thread count. The buffer covers the block's whole node-index range while
+/// those buffers stay small (dense), else only the nodes the block touches
+/// (sparse: large 3D grids, whose slab blocks span two node layers each, or
+/// particles in no spatial order). When even that would need more memory
+/// than the transposed table, a gather over the transposed table does it.
 /// Internal to the engine.
 #include "otmpm/basis/basis.hpp"
 #include "otmpm/parallel.hpp"
 
 #include <algorithm>
+#include <optional>
 #include <vector>
 
 namespace otmpm {
@@ -24,11 +28,34 @@ template <int D> struct NodeSums {
   Vec<D> f = Vec<D>::Zero();
 };
 
-/// Particles per scatter block, and the largest total of block node ranges
-/// (in units of the node count) for which the blocked scatter is used.
+/// Particles per scatter block, and a total of block node ranges (in units
+/// of the node count) up to which the dense blocked scatter is used.
 constexpr int scatter_block = 8192;
 constexpr int max_block_overlap = 2;
+/// The dense blocked scatter is also used while the ranges add up to at
+/// most the table's entries over this: its buffers then take at most 14
+/// bytes per entry in 3D (the table itself 36), and it was measured faster
+/// than the sparse path (docs/performance.md).
+constexpr int dense_entries_per_slot = 4;
+/// The largest total of block node ranges, in table entries, for which the
+/// sparse blocked scatter is used: its per-block slot maps (one int per node
+/// of a block's range) then take at most the memory of the transposed table
+/// (two ints per entry), and planning costs about a pass over the table.
+/// Above it (particles in no spatial order on a large grid) the column gather.
+constexpr int max_sparse_ranges = 2;
 
+/// How ParticleToNodes sums for the current basis table.
+enum class ScatterPath {
+  dense,   ///< each block sums into a buffer over its whole node-index range
+  sparse,  ///< each block sums into a buffer over the nodes it touches only
+  columns, ///< a gather over the transposed table
+};
+
+/// The particle-to-node sum with the same bits for any thread count. In
+/// both blocked paths each block of scatter_block particles sums, in
+/// particle order, into its own buffer, and each node then adds the block
+/// sums in block order (dense and sparse give the same bits: a node a block
+/// does not touch receives +0 in the dense path, which changes no sum).
 template <int D> class ParticleToNodes {
 public:
   /// Forgets the plan and the transposed table: the basis table changed.
@@ -36,8 +63,16 @@ public:
     valid_ = false;
     columns_valid_ = false;
   }
-  /// True when the last plan used the blocked scatter (false: column gather).
-  bool blocked() const { return compact_; }
+  /// True when the last plan used a blocked scatter (false: column gather).
+  bool blocked() const { return path_ != ScatterPath::columns; }
+  /// The path of the last plan.
+  ScatterPath path() const { return path_; }
+  /// Makes every later plan take `path` (tests and measurements that compare
+  /// the paths on one table); std::nullopt: the plan chooses.
+  void force(std::optional<ScatterPath> path) {
+    forced_ = path;
+    valid_ = false;
+  }
 
   /// The particle-to-node sum over `table` (rows: particles, `nodes` nodes):
   /// update(p0, p1) runs a per-particle update (or nothing) on particles
@@ -49,40 +84,60 @@ public:
   void run(const BasisTable<D>& table, int nodes, Update&& update, Prep&& prep, Add&& add, Merge&& merge,
            Clear&& clear) {
     plan(table, nodes);
-    if (!compact_) return gather_columns(table, nodes, update, prep, add, merge, clear);
+    if (path_ == ScatterPath::columns) return gather_columns(table, nodes, update, prep, add, merge, clear);
     const int n = table.rows(), count = static_cast<int>(lo_.size());
+    const bool dense = path_ == ScatterPath::dense;
     buffer_.resize(static_cast<std::size_t>(offset_.back()));
-    // 1. every block sums its particles, in particle order, into its own range
+    // 1. every block sums its particles, in particle order, into its own buffer
     parallel_chunks(count, team_size(n), [&](long long b0, long long b1) {
-      for (int b = static_cast<int>(b0); b < b1; ++b) block_sums(table, b, update, prep, add);
+      for (int b = static_cast<int>(b0); b < b1; ++b)
+        dense ? dense_block_sums(table, b, update, prep, add) : sparse_block_sums(table, b, update, prep, add);
     });
     // 2. every node adds the block sums in block order (threads own node ranges)
     parallel_chunks(nodes, team_size(n), [&](long long I0, long long I1) {
       clear(static_cast<int>(I0), static_cast<int>(I1));
       for (int b = 0; b < count; ++b) {
-        const NodeSums<D>* buf = buffer_.data() + offset_[b] - lo_[b];
         const int first = std::max<int>(static_cast<int>(I0), lo_[b]);
         const int last = std::min<int>(static_cast<int>(I1) - 1, hi_[b]);
-        for (int I = first; I <= last; ++I) merge(I, buf[I]);
+        dense ? merge_dense(b, first, last, merge) : merge_sparse(b, first, last, merge);
       }
     });
   }
 
 private:
-  /// Node ranges of the scatter blocks for the current basis table.
+  /// Chooses the path for the current basis table: dense when the block
+  /// ranges add up to at most max_block_overlap times the node count or to
+  /// at most the entries over dense_entries_per_slot, else sparse when they
+  /// add up to at most max_sparse_ranges times the entries, else the column
+  /// gather (measured: both blocked paths are faster than the column gather,
+  /// also for shuffled particles, docs/performance.md).
   void plan(const BasisTable<D>& table, int nodes) {
     if (valid_) return;
     valid_ = true;
+    const long long ranges = node_ranges(table, nodes);
+    const auto entries = static_cast<long long>(table.entries());
+    path_ = ScatterPath::columns;
+    if (ranges <= static_cast<long long>(max_block_overlap) * std::max(nodes, 1) ||
+        ranges * dense_entries_per_slot <= entries)
+      path_ = ScatterPath::dense;
+    else if (ranges <= max_sparse_ranges * entries)
+      path_ = ScatterPath::sparse;
+    if (forced_) path_ = *forced_;
+    if (path_ == ScatterPath::dense) offset_ = range_start_;
+    if (path_ == ScatterPath::sparse) sparse_slots(table);
+  }
+
+  /// The node range [lo_, hi_] of every block and their prefix sums
+  /// (range_start_); returns the total of the ranges.
+  long long node_ranges(const BasisTable<D>& table, int nodes) {
     const int n = table.rows();
     const int count = (n + scatter_block - 1) / scatter_block;
     lo_.assign(static_cast<std::size_t>(count), nodes);
     hi_.assign(static_cast<std::size_t>(count), -1);
     parallel_chunks(count, team_size(n), [&](long long b0, long long b1) {
-      for (long long b = b0; b < b1; ++b) {
-        const int e0 = table.begin(static_cast<int>(b * scatter_block));
-        const int e1 = table.end(static_cast<int>(std::min<long long>(n, (b + 1) * scatter_block)) - 1);
+      for (int b = static_cast<int>(b0); b < b1; ++b) {
         int lo = nodes, hi = -1; // locals: the loop vectorises
-        for (int e = e0; e < e1; ++e) {
+        for (int e = entry_begin(table, b); e < entry_end(table, b); ++e) {
           lo = std::min(lo, table.node[e]);
           hi = std::max(hi, table.node[e]);
         }
@@ -90,28 +145,89 @@ private:
         hi_[b] = hi;
       }
     });
-    offset_.assign(static_cast<std::size_t>(count) + 1, 0);
-    for (int b = 0; b < count; ++b) offset_[b + 1] = offset_[b] + std::max(0, hi_[b] - lo_[b] + 1);
-    // Spatially coherent particle order (as seeded): each node lies in the
-    // range of one or two blocks. Otherwise the gather over node columns.
-    compact_ = offset_.back() <= max_block_overlap * std::max(nodes, 1);
+    range_start_.assign(static_cast<std::size_t>(count) + 1, 0);
+    for (int b = 0; b < count; ++b) range_start_[b + 1] = range_start_[b] + std::max(0, hi_[b] - lo_[b] + 1);
+    return range_start_.back();
   }
 
-  /// Phase 1 for block b: update() on the block's particles, then their
-  /// sums into the block's buffer (the block's table rows, read by both,
-  /// partly still in cache; measured: updating smaller batches between their
-  /// sums is slower, the two access streams interfere).
+  /// The sparse plan: for every block, over its node range, the slot of each
+  /// node it touches (in node order) or -1 (slot_), and the start of its
+  /// slots in the buffer (offset_).
+  void sparse_slots(const BasisTable<D>& table) {
+    const int count = static_cast<int>(lo_.size());
+    slot_.resize(static_cast<std::size_t>(range_start_.back()));
+    std::vector<long long> used(static_cast<std::size_t>(count));
+    parallel_chunks(count, team_size(table.rows()), [&](long long b0, long long b1) {
+      for (int b = static_cast<int>(b0); b < b1; ++b) used[b] = number_slots(table, b);
+    });
+    offset_.assign(static_cast<std::size_t>(count) + 1, 0);
+    for (int b = 0; b < count; ++b) offset_[b + 1] = offset_[b] + used[b];
+  }
+
+  /// Marks the nodes block b touches in its part of slot_, then numbers
+  /// them in node order; returns how many there are.
+  int number_slots(const BasisTable<D>& table, int b) {
+    int* slot = slot_.data() + range_start_[b];
+    std::fill(slot, slot + (range_start_[b + 1] - range_start_[b]), -1);
+    for (int e = entry_begin(table, b); e < entry_end(table, b); ++e) slot[table.node[e] - lo_[b]] = 0;
+    int used = 0;
+    for (long long i = 0; i < range_start_[b + 1] - range_start_[b]; ++i)
+      if (slot[i] == 0) slot[i] = used++;
+    return used;
+  }
+
+  static int entry_begin(const BasisTable<D>& table, int b) { return table.begin(b * scatter_block); }
+  static int entry_end(const BasisTable<D>& table, int b) {
+    return table.end(std::min(table.rows(), (b + 1) * scatter_block) - 1);
+  }
+
+  /// Phase 1 for block b, dense: update() on the block's particles, then
+  /// their sums into the block's buffer (the block's table rows, read by
+  /// both, partly still in cache; measured: updating smaller batches between
+  /// their sums is slower, the two access streams interfere).
   template <class Update, class Prep, class Add>
-  void block_sums(const BasisTable<D>& table, int b, Update& update, Prep& prep, Add& add) {
+  void dense_block_sums(const BasisTable<D>& table, int b, Update& update, Prep& prep, Add& add) {
     const bool entries = hi_[b] >= lo_[b];
     NodeSums<D>* buf = entries ? buffer_.data() + offset_[b] - lo_[b] : nullptr;
     if (entries) std::fill(buf + lo_[b], buf + hi_[b] + 1, NodeSums<D>{});
+    block_sums(table, b, [buf](int I) -> NodeSums<D>& { return buf[I]; }, update, prep, add);
+  }
+
+  /// Phase 1 for block b, sparse: as dense_block_sums into the block's slots.
+  template <class Update, class Prep, class Add>
+  void sparse_block_sums(const BasisTable<D>& table, int b, Update& update, Prep& prep, Add& add) {
+    NodeSums<D>* buf = buffer_.data() + offset_[b];
+    std::fill(buf, buffer_.data() + offset_[b + 1], NodeSums<D>{});
+    const int* slot = hi_[b] >= lo_[b] ? slot_.data() + range_start_[b] - lo_[b] : nullptr;
+    block_sums(table, b, [buf, slot](int I) -> NodeSums<D>& { return buf[slot[I]]; }, update, prep, add);
+  }
+
+  /// update() on block b's particles, then add() of each of their entries
+  /// into at(node), in particle order.
+  template <class At, class Update, class Prep, class Add>
+  void block_sums(const BasisTable<D>& table, int b, At at, Update& update, Prep& prep, Add& add) {
     const int begin = b * scatter_block, end = std::min(table.rows(), begin + scatter_block);
     update(begin, end);
     for (int p = begin; p < end; ++p) {
       const auto w = prep(p);
-      for (int e = table.begin(p); e < table.end(p); ++e) add(buf[table.node[e]], e, w);
+      for (int e = table.begin(p); e < table.end(p); ++e) add(at(table.node[e]), e, w);
     }
+  }
+
+  /// Phase 2, dense: block b's sums into nodes [first, last].
+  template <class Merge> void merge_dense(int b, int first, int last, Merge& merge) const {
+    if (first > last) return;
+    const NodeSums<D>* buf = buffer_.data() + offset_[b] - lo_[b];
+    for (int I = first; I <= last; ++I) merge(I, buf[I]);
+  }
+
+  /// Phase 2, sparse: block b's sums into the nodes of [first, last] it touches.
+  template <class Merge> void merge_sparse(int b, int first, int last, Merge& merge) const {
+    if (first > last) return;
+    const NodeSums<D>* buf = buffer_.data() + offset_[b];
+    const int* slot = slot_.data() + range_start_[b] - lo_[b];
+    for (int I = first; I <= last; ++I)
+      if (slot[I] >= 0) merge(I, buf[slot[I]]);
   }
 
   /// The same sums as run() by a gather over the transposed table, after
@@ -133,9 +249,14 @@ private:
     });
   }
 
-  std::vector<int> lo_, hi_, offset_; ///< node range of each block, its start in the buffer
+  std::vector<int> lo_, hi_;         ///< node range of each block
+  std::vector<long long> range_start_; ///< start of each block's range in slot_ (prefix of the ranges)
+  std::vector<long long> offset_;    ///< start of each block's buffer
+  std::vector<int> slot_;            ///< sparse: each block's slot per node of its range, or -1
   AlignedVector<NodeSums<D>> buffer_;
-  bool valid_ = false, compact_ = false;
+  bool valid_ = false;
+  std::optional<ScatterPath> forced_;
+  ScatterPath path_ = ScatterPath::columns;
   NodeColumns columns_; ///< the transposed table, for gather_columns
   bool columns_valid_ = false;
 };

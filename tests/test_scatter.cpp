@@ -1,0 +1,212 @@
+// The particle-to-node pass (engine/scatter.hpp) on 3D tables whose scatter
+// blocks' node ranges overlap (more than max_block_overlap times the nodes):
+// in the seeded particle order the blocks are partial slabs and the dense
+// blocked scatter sums them; with the particles shuffled the sparse one does.
+// Both give the same bits with 1 and 2 threads, the same bits as each other
+// on one table, and the sums of the column gather to round-off.
+#include <doctest/doctest.h>
+
+#include "otmpm/engine/scatter.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <optional>
+#include <random>
+#include <string>
+
+#ifdef OTMPM_HAVE_OPENMP
+#include <omp.h>
+#endif
+
+using namespace otmpm;
+
+namespace {
+
+/// The trilinear basis table of an n^3-cell unit lattice ((n + 1)^3 nodes,
+/// x fastest) with 2 x 2 x 2 particles per cell, seeded in the order of the
+/// bench's 3D block: x fastest over the whole block, then y, then z. Only
+/// node ids and weights (the sums below use no gradients).
+BasisTable<3> seeded_table(int n) {
+  BasisTable<3> t;
+  const int rows = 2 * n, nn = n + 1;
+  for (int k = 0; k < rows; ++k)
+    for (int j = 0; j < rows; ++j)
+      for (int i = 0; i < rows; ++i) {
+        const int c[3] = {i / 2, j / 2, k / 2};
+        const double f[3] = {0.5 * i + 0.25 - c[0], 0.5 * j + 0.25 - c[1], 0.5 * k + 0.25 - c[2]};
+        for (int dz = 0; dz < 2; ++dz)
+          for (int dy = 0; dy < 2; ++dy)
+            for (int dx = 0; dx < 2; ++dx) {
+              t.node.push_back((c[0] + dx) + nn * ((c[1] + dy) + nn * (c[2] + dz)));
+              t.N.push_back((dx ? f[0] : 1 - f[0]) * (dy ? f[1] : 1 - f[1]) * (dz ? f[2] : 1 - f[2]));
+            }
+        t.offset.push_back(static_cast<int>(t.node.size()));
+      }
+  return t;
+}
+
+/// Per-particle mass in [1, 2) and velocity in [-1, 1]^3 (fixed seed).
+struct Carried {
+  std::vector<double> m;
+  std::vector<Vec<3>> v;
+};
+
+Carried carried(int particles) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> mass(1.0, 2.0), vel(-1.0, 1.0);
+  Carried c;
+  for (int p = 0; p < particles; ++p) {
+    c.m.push_back(mass(rng));
+    c.v.push_back(Vec<3>(vel(rng), vel(rng), vel(rng)));
+  }
+  return c;
+}
+
+/// Nodal mass and momentum from one ParticleToNodes pass, the path it took,
+/// and how often each particle was updated.
+struct Sums {
+  std::vector<double> m;
+  std::vector<Vec<3>> q;
+  ScatterPath path = ScatterPath::columns;
+  std::vector<int> updates;
+};
+
+Sums sums(const BasisTable<3>& table, int nodes, const Carried& c, int threads,
+          std::optional<ScatterPath> forced = std::nullopt) {
+#ifdef OTMPM_HAVE_OPENMP
+  const int saved = omp_get_max_threads();
+  omp_set_num_threads(threads);
+#else
+  (void)threads;
+#endif
+  Sums s;
+  s.m.assign(static_cast<std::size_t>(nodes), -1.0); // clear() must overwrite
+  s.q.assign(static_cast<std::size_t>(nodes), Vec<3>::Constant(-1.0));
+  s.updates.assign(static_cast<std::size_t>(table.rows()), 0);
+  struct Payload {
+    double m;
+    Vec<3> mv;
+  };
+  ParticleToNodes<3> scatter;
+  scatter.force(forced);
+  scatter.run(
+      table, nodes,
+      [&](int p0, int p1) {
+        for (int p = p0; p < p1; ++p) ++s.updates[p];
+      },
+      [&](int p) { return Payload{c.m[p], c.m[p] * c.v[p]}; },
+      [&](NodeSums<3>& acc, int e, const Payload& w) {
+        acc.m += table.N[e] * w.m;
+        acc.q += table.N[e] * w.mv;
+      },
+      [&](int I, const NodeSums<3>& acc) {
+        s.m[I] += acc.m;
+        s.q[I] += acc.q;
+      },
+      [&](int I0, int I1) {
+        for (int I = I0; I < I1; ++I) s.m[I] = 0.0, s.q[I] = Vec<3>::Zero();
+      });
+  s.path = scatter.path();
+#ifdef OTMPM_HAVE_OPENMP
+  omp_set_num_threads(saved);
+#endif
+  return s;
+}
+
+/// The total of the blocks' node-index ranges (what the dense path would
+/// allocate), from the table.
+long long block_ranges(const BasisTable<3>& table) {
+  long long total = 0;
+  for (int p0 = 0; p0 < table.rows(); p0 += scatter_block) {
+    const int e0 = table.begin(p0), e1 = table.end(std::min(table.rows(), p0 + scatter_block) - 1);
+    const auto [lo, hi] = std::minmax_element(table.node.begin() + e0, table.node.begin() + e1);
+    total += *hi - *lo + 1;
+  }
+  return total;
+}
+
+/// The table with its rows (particles) in a fixed random order.
+BasisTable<3> shuffled(const BasisTable<3>& t) {
+  std::vector<int> perm(static_cast<std::size_t>(t.rows()));
+  std::iota(perm.begin(), perm.end(), 0);
+  std::shuffle(perm.begin(), perm.end(), std::mt19937(42));
+  BasisTable<3> out;
+  for (const int p : perm) {
+    out.node.insert(out.node.end(), t.node.begin() + t.begin(p), t.node.begin() + t.end(p));
+    out.N.insert(out.N.end(), t.N.begin() + t.begin(p), t.N.begin() + t.end(p));
+    out.offset.push_back(static_cast<int>(out.node.size()));
+  }
+  return out;
+}
+
+/// The largest difference of a and b per node, relative to the nodal mass
+/// of b (mass and each momentum component).
+double largest_difference(const Sums& a, const Sums& b) {
+  double worst = 0.0;
+  for (std::size_t I = 0; I < b.m.size(); ++I) {
+    worst = std::max(worst, std::abs(a.m[I] - b.m[I]) / b.m[I]);
+    worst = std::max(worst, (a.q[I] - b.q[I]).cwiseAbs().maxCoeff() / b.m[I]);
+  }
+  return worst;
+}
+
+} // namespace
+
+TEST_CASE("scatter: 3D tables whose block ranges overlap take a blocked path, bitwise identical with 1 and 2 threads") {
+  const int n = 40, nodes = (n + 1) * (n + 1) * (n + 1);
+  const BasisTable<3> seeded = seeded_table(n), mixed = shuffled(seeded);
+  REQUIRE(seeded.rows() == 8 * n * n * n); // 512 000 particles, 63 blocks
+  const Carried c = carried(seeded.rows());
+  for (const bool shuffle : {false, true}) {
+    CAPTURE(shuffle);
+    const BasisTable<3>& table = shuffle ? mixed : seeded;
+    // the property that rules out the dense path's first test: the ranges overlap
+    CHECK(block_ranges(table) > static_cast<long long>(max_block_overlap) * nodes);
+    const Sums one = sums(table, nodes, c, 1), two = sums(table, nodes, c, 2);
+    CHECK(one.path == (shuffle ? ScatterPath::sparse : ScatterPath::dense));
+    CHECK(two.path == one.path);
+    CHECK(std::all_of(one.updates.begin(), one.updates.end(), [](int u) { return u == 1; }));
+    CHECK(std::all_of(two.updates.begin(), two.updates.end(), [](int u) { return u == 1; }));
+    CHECK(one.m == two.m);
+    CHECK(one.q == two.q);
+    // Against the column gather (each node's serial sum in particle order):
+    // up to 64 terms per node, so any order of the sums is within 64 x 2^-53
+    // of the sum of the terms' magnitudes, which is at most the nodal mass
+    // (m >= 1, |v| <= 1). 1e-13 of it leaves a margin of 14.
+    const Sums cols = sums(table, nodes, c, 2, ScatterPath::columns), cols1 = sums(table, nodes, c, 1, ScatterPath::columns);
+    CHECK(cols.path == ScatterPath::columns);
+    CHECK(std::all_of(cols.updates.begin(), cols.updates.end(), [](int u) { return u == 1; }));
+    CHECK(cols1.m == cols.m);
+    CHECK(cols1.q == cols.q);
+    REQUIRE(*std::min_element(cols.m.begin(), cols.m.end()) > 0.0); // the bound is relative to the mass
+    const double worst = largest_difference(one, cols);
+    CHECK(worst <= 1e-13);
+    MESSAGE("largest difference blocked - columns, relative to the nodal mass: " << worst);
+  }
+}
+
+// On one table the sparse path adds, per node, the same block sums in the same
+// order as the dense path (a node a block does not touch only gets +0 there).
+TEST_CASE("scatter: the sparse and the dense blocked path give the same bits on one table") {
+  const int n = 40, nodes = (n + 1) * (n + 1) * (n + 1);
+  const BasisTable<3> table = seeded_table(n);
+  const Carried c = carried(table.rows());
+  const Sums dense = sums(table, nodes, c, 2, ScatterPath::dense), sparse = sums(table, nodes, c, 2, ScatterPath::sparse);
+  CHECK(dense.path == ScatterPath::dense);
+  CHECK(sparse.path == ScatterPath::sparse);
+  CHECK(std::all_of(sparse.updates.begin(), sparse.updates.end(), [](int u) { return u == 1; }));
+  CHECK(dense.m == sparse.m);
+  CHECK(dense.q == sparse.q);
+}
+
+TEST_CASE("scatter: a spatially ordered 3D table below the overlap limit keeps the dense blocked path") {
+  const int n = 16, nodes = (n + 1) * (n + 1) * (n + 1);
+  const BasisTable<3> table = seeded_table(n);
+  CHECK(block_ranges(table) <= static_cast<long long>(max_block_overlap) * nodes);
+  const Carried c = carried(table.rows());
+  const Sums one = sums(table, nodes, c, 1), two = sums(table, nodes, c, 2);
+  CHECK(one.path == ScatterPath::dense);
+  CHECK(one.m == two.m);
+  CHECK(one.q == two.q);
+}
