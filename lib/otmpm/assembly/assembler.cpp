@@ -66,7 +66,8 @@ template <int D> std::unique_ptr<Basis<D>> build_basis(const Scene& scene, const
 /// The nodes of `nodes` inside each boundary box (within kBoxTolerance h).
 template <int D> Dirichlet<D> build_dirichlet(const Scene& scene, const NodeSet<D>& nodes, double h) {
   std::vector<long long> selected;
-  Dirichlet<D> d = boundary_entries<D>(scene.boundaries, nodes.positions(), h, nullptr, &selected);
+  Dirichlet<D> d = boundary_entries<D>(
+      scene.boundaries, nodes.size(), [&nodes](int I) { return nodes.position(I); }, h, nullptr, &selected);
   require_boundary_nodes(scene, selected);
   return d;
 }
@@ -185,19 +186,20 @@ template <int D> void set_file_state(const Scene& scene, const SeededBodies<D>& 
 } // namespace
 
 template <int D>
-Dirichlet<D> boundary_entries(const std::vector<BoundarySection>& boundaries, const AlignedVector<Vec<D>>& positions,
-                              double h, const std::vector<char>* counted, std::vector<long long>* selected) {
+Dirichlet<D> boundary_entries(const std::vector<BoundarySection>& boundaries, int count,
+                              const std::function<Vec<D>(int)>& position, double h,
+                              const std::vector<char>* counted, std::vector<long long>* selected) {
   Dirichlet<D> d;
   const double tol = kBoxTolerance * h;
   if (selected) selected->assign(boundaries.size(), 0);
   for (std::size_t b = 0; b < boundaries.size(); ++b) {
     const BoundarySection& bs = boundaries[b];
-    for (std::size_t I = 0; I < positions.size(); ++I) {
-      if (!inside_box<D>(positions[I], bs.lower, bs.upper, tol)) continue;
-      d.node.push_back(static_cast<int>(I));
+    for (int I = 0; I < count; ++I) {
+      if (!inside_box<D>(position(I), bs.lower, bs.upper, tol)) continue;
+      d.node.push_back(I);
       d.fix.push_back(bs.fix);
       d.value.push_back(bs.value);
-      if (selected && (!counted || (*counted)[I])) ++(*selected)[b];
+      if (selected && (!counted || (*counted)[static_cast<std::size_t>(I)])) ++(*selected)[b];
     }
   }
   return d;
@@ -309,8 +311,9 @@ template <int D> Engine<D> assemble(const Scene& scene) { return Engine<D>(assem
   template EngineParts<D> assemble_parts<D>(                                      \
       const Scene&, const std::function<SeededBodies<D>(const Vec<D>&, const CartesianGrid<D>&)>&, \
       const std::function<LatticePart<D>(const CartesianGrid<D>&)>&);             \
-  template Dirichlet<D> boundary_entries<D>(const std::vector<BoundarySection>&, const AlignedVector<Vec<D>>&, \
-                                            double, const std::vector<char>*, std::vector<long long>*); \
+  template Dirichlet<D> boundary_entries<D>(const std::vector<BoundarySection>&, int,                   \
+                                            const std::function<Vec<D>(int)>&, double, const std::vector<char>*, \
+                                            std::vector<long long>*);                                          \
   template Engine<D> assemble<D>(const Scene&);                                   \
   template Particles<D> seed_particles<D>(const Scene&, const Vec<D>&);   \
   template CartesianGrid<D> node_grid<D>(const Scene&);                    \

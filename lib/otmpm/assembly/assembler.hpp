@@ -53,15 +53,15 @@ EngineParts<D> assemble_parts(const Scene& scene,
                               const std::function<SeededBodies<D>(const Vec<D>&, const CartesianGrid<D>&)>& seed,
                               const std::function<LatticePart<D>(const CartesianGrid<D>&)>& lattice);
 
-/// The Dirichlet entries of the boundary boxes among the points at
-/// `positions` (entry node = index into positions): per box in the order of
-/// `boundaries`, the points within kBoxTolerance h of it in the order of
-/// `positions`. `selected`, when given, gets per box how many of its points
-/// have counted[i] != 0 (every point when `counted` is null).
+/// The Dirichlet entries of the boundary boxes among `count` points, point
+/// i at position(i) (entry node = i): per box in the order of `boundaries`,
+/// the points within kBoxTolerance h of it in the order of i. `selected`,
+/// when given, gets per box how many of its points have counted[i] != 0
+/// (every point when `counted` is null).
 template <int D>
-Dirichlet<D> boundary_entries(const std::vector<BoundarySection>& boundaries, const AlignedVector<Vec<D>>& positions,
-                              double h, const std::vector<char>* counted = nullptr,
-                              std::vector<long long>* selected = nullptr);
+Dirichlet<D> boundary_entries(const std::vector<BoundarySection>& boundaries, int count,
+                              const std::function<Vec<D>(int)>& position, double h,
+                              const std::vector<char>* counted = nullptr, std::vector<long long>* selected = nullptr);
 
 /// InputError naming the first boundary of the scene whose count in
 /// `selected` (boundary_entries) is 0: it selects no node.

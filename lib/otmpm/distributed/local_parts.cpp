@@ -126,10 +126,13 @@ Dirichlet<D> window_boundaries(const std::vector<BoundarySection>& boundaries, c
                                bool from_basis, const Window<D>& w, const Basis<D>& basis,
                                const std::vector<char>* counted = nullptr, std::vector<long long>* selected = nullptr) {
   const double h = grid.h().minCoeff();
-  if (from_basis) return boundary_entries<D>(boundaries, basis.nodes().positions(), h, counted, selected);
-  AlignedVector<Vec<D>> x(static_cast<std::size_t>(w.size()));
-  for (int i = 0; i < w.size(); ++i) x[static_cast<std::size_t>(i)] = grid.node_position(w.index(i));
-  return boundary_entries<D>(boundaries, x, h, counted, selected);
+  if (from_basis) {
+    const NodeSet<D>& nodes = basis.nodes();
+    return boundary_entries<D>(
+        boundaries, nodes.size(), [&nodes](int i) { return nodes.position(i); }, h, counted, selected);
+  }
+  return boundary_entries<D>(
+      boundaries, w.size(), [&grid, &w](int i) { return grid.node_position(w.index(i)); }, h, counted, selected);
 }
 
 /// The lattice part of a rank (assemble_parts' `lattice`): the basis on its
