@@ -6,6 +6,7 @@
 #include "otmpm/assembly/seeding.hpp"
 #include "otmpm/basis/bspline.hpp"
 #include "otmpm/basis/kinds.hpp"
+#include "otmpm/basis/lme.hpp"
 
 #include <cmath>
 #include <exception>
@@ -26,16 +27,11 @@ constexpr int kProbeCells = 4;
 /// with the whole lattice's spacing: what the point lattice needs to know of
 /// the family (the B-spline degree, the search radius, which depends on the
 /// spacing only) and the errors of the scene's basis options, without the
-/// whole lattice. One exception: the LME `node_spacing` metric on a
-/// perturbed grid takes its search radius from every node's nearest
-/// neighbour, a maximum over the whole lattice; there the probe is the
-/// whole perturbed lattice, as before (its count shows in setup_points).
+/// whole lattice. (The LME `node_spacing` metric on a perturbed grid takes
+/// its search radius from every node: perturbed_search_radius.)
 template <int D> std::unique_ptr<Basis<D>> probe_basis(const Scene& scene, const CartesianGrid<D>& grid) {
   const BasisOptions options = basis_options<D>(scene);
-  const bool perturbed = scene.grid.kind == "perturbed";
   try {
-    if (perturbed && options.metric == "node_spacing" && !basis_kind(options.kind).bspline)
-      return make_basis<D>(options, NodeSet<D>::perturbed(grid, scene.grid.perturbation, scene.grid.seed));
     CartesianGrid<D> g;
     Index<D> corner;
     for (int k = 0; k < D; ++k) corner[k] = g.cells[k] = std::min(grid.cells[k], kProbeCells);
@@ -47,10 +43,50 @@ template <int D> std::unique_ptr<Basis<D>> probe_basis(const Scene& scene, const
   }
 }
 
-/// The point lattice of the scene's basis (`probe`: probe_basis): which
+/// True when the scene's basis takes its search radius from every node's
+/// nearest neighbour: LME with the node_spacing metric on a perturbed grid.
+inline bool radius_from_nodes(const Scene& scene) {
+  return scene.grid.kind == "perturbed" && scene.basis.kind == "lme" && scene.basis.metric == "node_spacing";
+}
+
+/// Layers of nodes around a rank's own nodes that hold every node within 4 h
+/// of them (a perturbed node moves less than h / 2 on each axis, so nodes m
+/// layers apart are more than (m - 1) h apart), and every nearest-node
+/// search ends within 4 h (the next node along an axis is nearer than
+/// sqrt(4 + (D - 1)) h).
+constexpr int kNearestLayers = 5;
+
+/// The search radius of LME with the node_spacing metric on a perturbed
+/// grid, as the basis on the whole lattice has it (maxent::
+/// node_spacing_search_radius of the largest nearest-node distance): each
+/// rank searches the nearest node of each of its own nodes among its nodes
+/// and kNearestLayers more, then the ranks take the largest.
+template <int D>
+double perturbed_search_radius(const Scene& scene, const Comm& comm, const CartesianGrid<D>& grid,
+                               const IndexBox<D>& own) {
+  IndexBox<D> box;
+  for (int k = 0; k < D; ++k) {
+    box.lo[k] = std::max(0, own.lo[k] - kNearestLayers);
+    box.hi[k] = std::min(grid.cells[k] + 1, own.hi[k] + kNearestLayers);
+  }
+  const double h = grid.h().minCoeff();
+  const NodeSet<D> nodes = NodeSet<D>::cloud(
+      NodeSet<D>::perturbed_positions(grid, scene.grid.perturbation, scene.grid.seed, box.lo, box.hi), h);
+  nodes.prepare_search();
+  Window<D> w;
+  w.box = box;
+  double largest = 0.0;
+  for (int i = 0; i < w.size(); ++i)
+    if (own.contains(w.index(i))) largest = std::max(largest, maxent::nearest_node_distance(nodes, i, h));
+  return maxent::node_spacing_search_radius(basis_options<D>(scene), h, comm.max(largest));
+}
+
+/// The point lattice of the scene's basis (`probe`: probe_basis; `radius`:
+/// its search radius, or the whole lattice's when that differs): which
 /// points, which cell each belongs to, and how far the particles of a cell reach.
 template <int D>
-PointLattice<D> point_lattice(const Scene& scene, const Basis<D>& probe, const CartesianGrid<D>& grid, bool ul) {
+PointLattice<D> point_lattice(const Scene& scene, const Basis<D>& probe, double radius, const CartesianGrid<D>& grid,
+                              bool ul) {
   PointLattice<D> L;
   L.grid = grid;
   const BasisKind& kind = basis_kind(scene.basis.kind);
@@ -67,9 +103,9 @@ PointLattice<D> point_lattice(const Scene& scene, const Basis<D>& probe, const C
     for (int k = 0; k < D; ++k) L.above[k] = degree; // cell c: control points c .. c + p
   } else if (kind.particle_size) {
     for (int k = 0; k < D; ++k) L.below[k] = 1, L.above[k] = 2; // uGIMP: |x - x_I| < h + l_p
-  } else if (probe.search_radius() > 0.0) {
+  } else if (radius > 0.0) {
     for (int k = 0; k < D; ++k) {
-      const int r = static_cast<int>(std::ceil(probe.search_radius() / h[k]));
+      const int r = static_cast<int>(std::ceil(radius / h[k]));
       L.below[k] = r, L.above[k] = r + 1;
     }
   }
@@ -148,14 +184,21 @@ LatticePart<D> rank_lattice(const Scene& scene, const Comm& comm, const Cartesia
   const bool ul = scene.simulation.nodes_move();
   LatticePart<D> part;
   std::unique_ptr<Basis<D>> probe = probe_basis<D>(scene, grid);
-  setup.lattice = point_lattice<D>(scene, *probe, grid, ul);
   setup.setup_points = probe->nodes().size();
+  double radius = probe->search_radius();
   if (!decomposed) {
+    setup.lattice = point_lattice<D>(scene, *probe, radius, grid, ul);
     part.basis = std::move(probe);
     return part;
   }
-  const PointLattice<D>& L = setup.lattice;
   const IndexBox<D> cells = setup.decomposition.box(comm.rank());
+  if (radius_from_nodes(scene)) {
+    // the owned nodes do not depend on the radius (only the ghost layers do)
+    const IndexBox<D> own = point_lattice<D>(scene, *probe, radius, grid, ul).owned_points(cells);
+    radius = perturbed_search_radius<D>(scene, comm, grid, own);
+  }
+  setup.lattice = point_lattice<D>(scene, *probe, radius, grid, ul);
+  const PointLattice<D>& L = setup.lattice;
   Window<D> w;
   w.box = L.window(cells);
   setup.window_basis = window_basis_factory<D>(scene, *probe, L);
