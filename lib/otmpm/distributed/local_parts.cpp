@@ -44,9 +44,11 @@ template <int D> std::unique_ptr<Basis<D>> probe_basis(const Scene& scene, const
 }
 
 /// True when the scene's basis takes its search radius from every node's
-/// nearest neighbour: LME with the node_spacing metric on a perturbed grid.
-inline bool radius_from_nodes(const Scene& scene) {
-  return scene.grid.kind == "perturbed" && scene.basis.kind == "lme" && scene.basis.metric == "node_spacing";
+/// nearest neighbour: the node_spacing metric (LME, the family that adapts
+/// its metric) on a perturbed grid.
+bool radius_from_nodes(const Scene& scene) {
+  return scene.grid.kind == "perturbed" && basis_kind(scene.basis.kind).adapts_metric &&
+         scene.basis.metric == "node_spacing";
 }
 
 /// Layers of nodes around a rank's own nodes that hold every node within 4 h
