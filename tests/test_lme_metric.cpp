@@ -267,6 +267,31 @@ TEST_CASE("lme metric node_spacing: beta_I = gamma_lme / h_I^2 with h_I the near
   CHECK(b->search_radius() >= R_max);
 }
 
+TEST_CASE("lme metric node_spacing: the search radius from the largest nearest-node distance, bit for bit") {
+  // A distributed run finds the whole lattice's search radius from each
+  // rank's largest h_I (distributed/local_parts.cpp): the same bits as the
+  // basis built on every node, for several perturbations, seeds and gammas.
+  for (const unsigned seed : {21u, 22u, 23u})
+    for (const double fraction : {0.1, 0.3, 0.45})
+      for (const double gamma : {0.8, 2.0, 4.0}) {
+        CAPTURE(seed);
+        CAPTURE(fraction);
+        CAPTURE(gamma);
+        const auto nodes = NodeSet<2>::perturbed(unit_grid<2>(9), fraction, seed);
+        const BasisOptions opt = lme_options("node_spacing", gamma);
+        const auto b = make_lme_basis<2>(nodes, opt);
+        const double h = nodes.spacing();
+        double largest = 0.0;
+        for (int I = 0; I < nodes.size(); ++I) largest = std::max(largest, maxent::nearest_node_distance(nodes, I, h));
+        CHECK(maxent::node_spacing_search_radius(opt, h, largest) == b->search_radius());
+      }
+  // On the lattice itself (every h_I = h): the isotropic radius.
+  const auto lattice = NodeSet<2>::cartesian(unit_grid<2>(9));
+  const BasisOptions opt = lme_options("node_spacing");
+  CHECK(maxent::node_spacing_search_radius(opt, lattice.spacing(), lattice.spacing()) ==
+        make_lme_basis<2>(lattice, opt)->search_radius());
+}
+
 TEST_CASE("lme metric node_spacing: identities and gradients on perturbed grids") {
   // gamma_lme = 2: h_I (the nearest distance) falls to ~0.4 h on these
   // layouts, and R_I = 2.6 h_I must still leave D + 1 nodes around every point

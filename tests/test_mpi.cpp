@@ -447,6 +447,67 @@ TEST_CASE("mpi: each rank seeds only the particles of its own cells") {
   check_agreement({"stretch", "stretch_bar.toml", {"simulation.t_end=1e-3", "output.every=5e-4", kFields}}, {3});
 }
 
+TEST_CASE("mpi: each rank builds only its window of the node lattice at set-up") {
+  // setup_points_max / _sum: the lattice points (nodes, control points) the
+  // ranks built node sets on during set-up - each its window (owned points
+  // and the ghost layer of its particles' supports) and a probe of at most
+  // 5^D (7^D for B-splines) points - against `nodes`, the whole lattice.
+  // Before, every rank built the whole lattice (setup_points = nodes).
+  const std::string cube =
+      "[simulation]\ndimension = 3\nmode = \"mpm\"\nintegrator = \"fe\"\nt_end = 1.0e-4\ncfl = 0.3\n"
+      "[basis]\nkind = \"linear\"\n[grid]\nlower = [-0.05, -0.05, -0.05]\nupper = [1.05, 1.05, 1.05]\n"
+      "cells = [22, 22, 22]\n"
+      "[[material]]\nname = \"m\"\nmodel = \"linear_elastic\"\ndensity = 1000.0\nyoung = 1.0e6\npoisson = 0.3\n"
+      "[[body]]\nname = \"block\"\nmaterial = \"m\"\nlower = [0.0, 0.0, 0.0]\nupper = [1.0, 1.0, 1.0]\n"
+      "particles_per_cell = 1\n[output]\nevery = 1.0e-4\nfields = [\"x\"]\n";
+  const auto square = [](const std::string& basis) {
+    return "[simulation]\ndimension = 2\nmode = \"mpm\"\nintegrator = \"fe\"\nt_end = 1.0e-4\ncfl = 0.3\n"
+           "[basis]\nkind = \"" + basis + "\"\n[grid]\nlower = [-0.04, -0.04]\nupper = [1.04, 1.04]\ncells = [54, 54]\n"
+           "[[material]]\nname = \"m\"\nmodel = \"linear_elastic\"\ndensity = 1000.0\nyoung = 1.0e6\npoisson = 0.3\n"
+           "[[body]]\nname = \"block\"\nmaterial = \"m\"\nlower = [0.0, 0.0]\nupper = [1.0, 1.0]\n"
+           "[[boundary]]\nname = \"base\"\nlower = [-0.04, -0.04]\nupper = [1.04, -0.04]\nfix = [true, true]\n"
+           "[body_force]\nvalue = [0.0, -9.81]\n[output]\nevery = 1.0e-4\nfields = [\"x\"]\n";
+  };
+  struct LatticeCase {
+    std::string name, scene;
+    std::vector<std::string> set;
+    int ranks;
+    double bound; ///< largest share of the lattice one rank may build
+  };
+  TempDir dir("mpi_lattice");
+  // The bound: 1 / ranks of the lattice (the bisection balances the
+  // square's and the cube's particles) plus the ghost layers (linear 1, LME
+  // 5, B-spline 2 points per cut: 2 % to 9 % of the square's 55 points per
+  // axis, 4 % of the cube's 23) and slack for the cut's place and the probe
+  // (25-49 points, 1.6 % of the square's 3025; 125 of the cube's 12167).
+  const std::vector<LatticeCase> cases{
+      {"linear2", write_scene(dir, "linear", square("linear")), {}, 2, 0.6},
+      {"linear4", write_scene(dir, "linear", square("linear")), {}, 4, 0.35},
+      {"lme2", write_scene(dir, "lme", square("lme")), {}, 2, 0.65},
+      {"lme4", write_scene(dir, "lme", square("lme")), {}, 4, 0.4},
+      {"bspline4", write_scene(dir, "bspline", square("bspline2")), {}, 4, 0.35},
+      {"cube4", write_scene(dir, "cube", cube), {}, 4, 0.35}};
+  for (const LatticeCase& c : cases) {
+    CAPTURE(c.name);
+    std::vector<std::string> args{"run", c.scene, "--quiet", "--out", c.name + ".h5"};
+    for (const std::string& kv : c.set) args.push_back("--set"), args.push_back(kv);
+    const Result r = run_otmpm(dir, c.ranks, args);
+    REQUIRE_MESSAGE(r.status == 0, r.err);
+    const std::string out = dir.file(c.name + ".h5");
+    const double lattice = attribute(out, "nodes");
+    const double most = attribute(out, "setup_points_max"), sum = attribute(out, "setup_points_sum");
+    CAPTURE(lattice);
+    CAPTURE(most);
+    CAPTURE(sum);
+    REQUIRE(lattice > 100.0);
+    CHECK(most <= c.bound * lattice);
+    MESSAGE(c.name << ": largest " << most << ", sum " << sum << " of " << lattice << " points");
+    // the windows cover the lattice (the owned points divide it) and overlap by the ghost layers only
+    CHECK(sum >= lattice);
+    CHECK(sum <= 1.5 * lattice);
+  }
+}
+
 TEST_CASE("mpi: a bad scene ends every rank with status 2 and one message") {
   TempDir dir("mpi_bad");
   const Result r = run_otmpm(dir, 3, {"run", (kExamples / "dyka.toml").string(), "--quiet", "--set", "simulation.cfl=-1"});

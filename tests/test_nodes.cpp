@@ -207,6 +207,31 @@ TEST_CASE_TEMPLATE("perturbed grid keeps boundary nodes and moves interior nodes
   CHECK(s.initial_positions() == s.positions());
 }
 
+TEST_CASE_TEMPLATE("perturbed_positions gives a box of the perturbed lattice bit for bit", T,
+                   std::integral_constant<int, 1>, std::integral_constant<int, 2>, std::integral_constant<int, 3>) {
+  // A rank's window of a distributed run draws its nodes' positions without the others'.
+  constexpr int D = T::value;
+  const CartesianGrid<D> g = test_grid<D>();
+  const NodeSet<D> s = NodeSet<D>::perturbed(g, 0.3, 42u);
+  Index<D> lo, hi;
+  for (int k = 0; k < D; ++k) lo[k] = 1, hi[k] = g.cells[k]; // an inner box touching no face but the last
+  hi[0] = g.cells[0] + 1;                                   // and one that reaches the last face on axis 0
+  const AlignedVector<Vec<D>> x = NodeSet<D>::perturbed_positions(g, 0.3, 42u, lo, hi);
+  std::size_t n = 0;
+  for (int I = 0; I < s.size(); ++I) {
+    const Index<D> ijk = g.node_index(I);
+    bool inside = true;
+    for (int k = 0; k < D; ++k) inside = inside && ijk[k] >= lo[k] && ijk[k] < hi[k];
+    if (!inside) continue;
+    CHECK(x.at(n) == s.position(I)); // in the box's order (axis 0 fastest), the same bits
+    ++n;
+  }
+  CHECK(n == x.size());
+  CHECK(n > 0);
+  hi[0] = g.cells[0] + 2;
+  CHECK_THROWS_AS(NodeSet<D>::perturbed_positions(g, 0.3, 42u, lo, hi), std::invalid_argument);
+}
+
 TEST_CASE("perturbed grid rejects a fraction that could invert elements") {
   const CartesianGrid<2> g = test_grid<2>();
   CHECK_THROWS_AS(NodeSet<2>::perturbed(g, 0.5, 1u), InputError);

@@ -64,22 +64,11 @@ template <int D> std::unique_ptr<Basis<D>> build_basis(const Scene& scene, const
 }
 
 /// The nodes of `nodes` inside each boundary box (within kBoxTolerance h).
-template <int D> Dirichlet<D> build_dirichlet(const Scene& scene, const NodeSet<D>& nodes, double h, bool ul) {
-  Dirichlet<D> d;
-  const double tol = kBoxTolerance * h;
-  for (const BoundarySection& bs : scene.boundaries) {
-    int selected = 0;
-    for (int I = 0; I < nodes.size(); ++I) {
-      if (!inside_box<D>(nodes.position(I), bs.lower, bs.upper, tol)) continue;
-      d.node.push_back(I);
-      d.fix.push_back(bs.fix);
-      d.value.push_back(bs.value);
-      ++selected;
-    }
-    if (selected == 0)
-      input_error(bs.where, "boundary '" + bs.name + "' selects no node of the " +
-                                std::string(ul ? "material" : "grid") + " node set");
-  }
+template <int D> Dirichlet<D> build_dirichlet(const Scene& scene, const NodeSet<D>& nodes, double h) {
+  std::vector<long long> selected;
+  Dirichlet<D> d = boundary_entries<D>(
+      scene.boundaries, nodes.size(), [&nodes](int I) { return nodes.position(I); }, h, nullptr, &selected);
+  require_boundary_nodes(scene, selected);
   return d;
 }
 
@@ -196,6 +185,36 @@ template <int D> void set_file_state(const Scene& scene, const SeededBodies<D>& 
 
 } // namespace
 
+template <int D>
+Dirichlet<D> boundary_entries(const std::vector<BoundarySection>& boundaries, int count,
+                              const std::function<Vec<D>(int)>& position, double h,
+                              const std::vector<char>* counted, std::vector<long long>* selected) {
+  Dirichlet<D> d;
+  const double tol = kBoxTolerance * h;
+  if (selected) selected->assign(boundaries.size(), 0);
+  for (std::size_t b = 0; b < boundaries.size(); ++b) {
+    const BoundarySection& bs = boundaries[b];
+    for (int I = 0; I < count; ++I) {
+      if (!inside_box<D>(position(I), bs.lower, bs.upper, tol)) continue;
+      d.node.push_back(I);
+      d.fix.push_back(bs.fix);
+      d.value.push_back(bs.value);
+      if (selected && (!counted || (*counted)[static_cast<std::size_t>(I)])) ++(*selected)[b];
+    }
+  }
+  return d;
+}
+
+void require_boundary_nodes(const Scene& scene, const std::vector<long long>& selected) {
+  const bool ul = scene.simulation.nodes_move();
+  for (std::size_t b = 0; b < scene.boundaries.size() && b < selected.size(); ++b)
+    if (selected[b] == 0) {
+      const BoundarySection& bs = scene.boundaries[b];
+      input_error(bs.where, "boundary '" + bs.name + "' selects no node of the " +
+                                std::string(ul ? "material" : "grid") + " node set");
+    }
+}
+
 template <int D> CartesianGrid<D> node_grid(const Scene& scene) {
   const LatticeBox box = node_lattice_box(scene);
   CartesianGrid<D> grid;
@@ -224,6 +243,13 @@ template <int D> Particles<D> seed_particles(const Scene& scene, const Vec<D>& h
 template <int D>
 EngineParts<D> assemble_parts(const Scene& scene,
                               const std::function<SeededBodies<D>(const Vec<D>&, const CartesianGrid<D>&)>& seed) {
+  return assemble_parts<D>(scene, seed, nullptr);
+}
+
+template <int D>
+EngineParts<D> assemble_parts(const Scene& scene,
+                              const std::function<SeededBodies<D>(const Vec<D>&, const CartesianGrid<D>&)>& seed,
+                              const std::function<LatticePart<D>(const CartesianGrid<D>&)>& lattice) {
   validate_scene(scene, D);
   const IntegratorKind& integrator = integrator_kind(scene.simulation.integrator);
   const bool ul = scene.simulation.nodes_move();
@@ -252,9 +278,15 @@ EngineParts<D> assemble_parts(const Scene& scene,
   for (int p = 0; p < P.size(); ++p)
     if (scene.bodies[static_cast<std::size_t>(P.body[p])].velocity_profile.value_or("") == "reference")
       P.v[p] = exact->velocity(P.X[p], 0.0);
-  parts.basis = build_basis<D>(scene, grid);
   const double h = grid.h().minCoeff();
-  parts.dirichlet = build_dirichlet<D>(scene, parts.basis->nodes(), h, ul);
+  if (lattice) {
+    LatticePart<D> part = lattice(grid);
+    parts.basis = std::move(part.basis);
+    parts.dirichlet = std::move(part.dirichlet);
+  } else {
+    parts.basis = build_basis<D>(scene, grid);
+    parts.dirichlet = build_dirichlet<D>(scene, parts.basis->nodes(), h);
+  }
   for (const WallSection& w : scene.walls)
     parts.walls.push_back({w.name, scene_vec<D>(w.point), scene_vec<D>(w.normal), scene_vec<D>(w.velocity), w.friction});
   if (scene.contact) parts.contact = ContactLaw{scene.contact->friction};
@@ -276,6 +308,12 @@ template <int D> Engine<D> assemble(const Scene& scene) { return Engine<D>(assem
   template EngineParts<D> assemble_parts<D>(const Scene&);                        \
   template EngineParts<D> assemble_parts<D>(                                      \
       const Scene&, const std::function<SeededBodies<D>(const Vec<D>&, const CartesianGrid<D>&)>&); \
+  template EngineParts<D> assemble_parts<D>(                                      \
+      const Scene&, const std::function<SeededBodies<D>(const Vec<D>&, const CartesianGrid<D>&)>&, \
+      const std::function<LatticePart<D>(const CartesianGrid<D>&)>&);             \
+  template Dirichlet<D> boundary_entries<D>(const std::vector<BoundarySection>&, int,                   \
+                                            const std::function<Vec<D>(int)>&, double, const std::vector<char>*, \
+                                            std::vector<long long>*);                                          \
   template Engine<D> assemble<D>(const Scene&);                                   \
   template Particles<D> seed_particles<D>(const Scene&, const Vec<D>&);   \
   template CartesianGrid<D> node_grid<D>(const Scene&);                    \

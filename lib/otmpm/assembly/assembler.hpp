@@ -37,6 +37,36 @@ template <int D>
 EngineParts<D> assemble_parts(const Scene& scene,
                               const std::function<SeededBodies<D>(const Vec<D>&, const CartesianGrid<D>&)>& seed);
 
+/// A share's basis and Dirichlet sets, built by the share itself (a rank of
+/// a distributed run: on its window of the lattice only).
+template <int D> struct LatticePart {
+  std::unique_ptr<Basis<D>> basis;
+  Dirichlet<D> dirichlet;
+};
+
+/// assemble_parts(scene, seed) whose basis and Dirichlet sets come from
+/// `lattice(node lattice)`, called where the whole lattice's would be built
+/// (after the seeding), instead of the whole lattice's. Null `lattice`:
+/// assemble_parts(scene, seed).
+template <int D>
+EngineParts<D> assemble_parts(const Scene& scene,
+                              const std::function<SeededBodies<D>(const Vec<D>&, const CartesianGrid<D>&)>& seed,
+                              const std::function<LatticePart<D>(const CartesianGrid<D>&)>& lattice);
+
+/// The Dirichlet entries of the boundary boxes among `count` points, point
+/// i at position(i) (entry node = i): per box in the order of `boundaries`,
+/// the points within kBoxTolerance h of it in the order of i. `selected`,
+/// when given, gets per box how many of its points have counted[i] != 0
+/// (every point when `counted` is null).
+template <int D>
+Dirichlet<D> boundary_entries(const std::vector<BoundarySection>& boundaries, int count,
+                              const std::function<Vec<D>(int)>& position, double h,
+                              const std::vector<char>* counted = nullptr, std::vector<long long>* selected = nullptr);
+
+/// InputError naming the first boundary of the scene whose count in
+/// `selected` (boundary_entries) is 0: it selects no node.
+void require_boundary_nodes(const Scene& scene, const std::vector<long long>& selected);
+
 /// The node lattice of the scene (node_lattice_box: the grid in `mpm`
 /// mode, the bodies' bounding box in `ul` mode) as a grid.
 template <int D> CartesianGrid<D> node_grid(const Scene& scene);

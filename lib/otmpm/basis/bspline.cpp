@@ -181,27 +181,33 @@ template <int D> BsplineBasis<D>::BsplineBasis(const CartesianGrid<D>& grid, int
 template <int D>
 BsplineBasis<D>::BsplineBasis(const std::array<std::vector<double>, D>& vertices, int degree)
     : degree_(degree) {
-  check_degree(degree);
+  rebuild_nodes(set_knots(vertices));
+}
+
+template <int D> double BsplineBasis<D>::set_knots(const std::array<std::vector<double>, D>& vertices) {
+  check_degree(degree_);
   double spacing = 0.0;
   for (int k = 0; k < D; ++k) {
-    knots_[k] = KnotVector(vertices[k], degree);
+    knots_[k] = KnotVector(vertices[k], degree_);
     n_[k] = window_[k] = knots_[k].num_basis();
     const double w = knots_[k].min_cell_width();
     spacing = k == 0 ? w : std::min(spacing, w);
   }
-  rebuild_nodes(spacing);
+  return spacing;
 }
 
 template <int D>
 BsplineBasis<D>::BsplineBasis(const CartesianGrid<D>& grid, int degree, const Index<D>& lo, const Index<D>& hi)
-    : BsplineBasis(grid, degree) {
+    : degree_(degree) {
+  // The whole lattice's knots, the window's control points only (never the whole lattice's).
+  const double spacing = set_knots(lattice_vertices(grid));
   for (int k = 0; k < D; ++k) {
     require<std::invalid_argument>(0 <= lo[k] && lo[k] < hi[k] && hi[k] <= n_[k], "BsplineBasis: window [", lo[k],
                                    ", ", hi[k], ") of axis ", k, " outside [0, ", n_[k], ")");
     lo_[k] = lo[k];
     window_[k] = hi[k] - lo[k];
   }
-  rebuild_nodes(nodes_.spacing());
+  rebuild_nodes(spacing);
 }
 
 template <int D>

@@ -192,6 +192,8 @@ protected:
 
 private:
   void rebuild_nodes(double spacing);
+  /// The knot vectors on `vertices` (the whole lattice, n_ = window_); returns the smallest cell width.
+  double set_knots(const std::array<std::vector<double>, D>& vertices);
   AlignedVector<Vec<D>> greville_points() const;
   std::vector<double> mean_axis_increments(const AlignedVector<Vec<D>>& dx, int axis) const;
 

@@ -1046,6 +1046,25 @@ template <int D, class Prior> void MaxEntBasis<D, Prior>::drop_zeros(Stencil<D>&
   out.dN.resize(static_cast<std::size_t>(kept));
 }
 
+template <int D> double nearest_node_distance(const NodeSet<D>& nodes, int I, double h) {
+  std::vector<int> near;
+  return nearest_distance(nodes, I, h, near);
+}
+
+double node_spacing_search_radius(const BasisOptions& opt, double h, double nearest_max) {
+  // The arithmetic of make_lme_basis, GaussianPrior::support_radius and
+  // update_beta_by_spacing for the node with the largest h_I (R_I =
+  // sqrt(max_exponent / beta_I) does not decrease as h_I grows, each
+  // rounded operation being monotone).
+  const double beta = opt.gamma_lme / (h * h);
+  const double max_exponent = -std::log(opt.tolerance);
+  const double radius0 = std::sqrt(max_exponent / beta);
+  double beta_I = beta;
+  if (nearest_max != h) beta_I = beta * (h / nearest_max) * (h / nearest_max);
+  const double R_max = std::max(0.0, std::sqrt(max_exponent / beta_I));
+  return radius0 * std::ceil(kRadiusSteps * R_max / radius0) / kRadiusSteps;
+}
+
 template struct GaussianPrior<1>;
 template struct GaussianPrior<2>;
 template struct GaussianPrior<3>;
@@ -1061,6 +1080,9 @@ template class MaxEntBasis<3, CubicSplinePrior<3>>;
 template int max_nodes_within<1>(const NodeSet<1>&, double);
 template int max_nodes_within<2>(const NodeSet<2>&, double);
 template int max_nodes_within<3>(const NodeSet<3>&, double);
+template double nearest_node_distance<1>(const NodeSet<1>&, int, double);
+template double nearest_node_distance<2>(const NodeSet<2>&, int, double);
+template double nearest_node_distance<3>(const NodeSet<3>&, int, double);
 
 } // namespace otmpm::maxent
 

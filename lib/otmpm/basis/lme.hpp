@@ -300,6 +300,17 @@ private:
 /// std::invalid_argument unless R is finite and > 0.
 template <int D> int max_nodes_within(const NodeSet<D>& nodes, double R);
 
+/// The distance from node I to its nearest other node (h_I of the
+/// node_spacing metric), searched within h, 2h, 4h, ... as the basis does.
+template <int D> double nearest_node_distance(const NodeSet<D>& nodes, int I, double h);
+
+/// The search radius of an lme basis with metric node_spacing on nodes of
+/// spacing h that are off their lattice (perturbed), whose largest
+/// nearest-node distance is `nearest_max`: the basis' own figure (its R_I
+/// grows with h_I), so that a distributed run finds it from the largest
+/// h_I of each rank's nodes without the whole lattice.
+double node_spacing_search_radius(const BasisOptions& opt, double h, double nearest_max);
+
 extern template struct GaussianPrior<1>;
 extern template struct GaussianPrior<2>;
 extern template struct GaussianPrior<3>;

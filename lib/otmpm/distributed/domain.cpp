@@ -13,8 +13,9 @@ Domain<D>::Domain(const Comm& comm, Setup s)
     : comm_(comm), lattice_(std::move(s.lattice)), decomposition_(std::move(s.decomposition)),
       exchange_(lattice_, decomposition_, comm.rank()), nodes_move_(s.nodes_move), gid_(std::move(s.global_ids)),
       global_particles_(s.global_particles), hint_offset_(s.hint_offset), traction_area_(std::move(s.traction_area)),
-      window_basis_(std::move(s.window_basis)), dirichlet_(std::move(s.dirichlet)) {
+      window_basis_(std::move(s.window_basis)), window_dirichlet_(std::move(s.window_dirichlet)) {
   stats_.setup_particles = s.setup_particles;
+  stats_.setup_points = s.setup_points;
   find_neighbours();
   find_guard();
 }
@@ -78,7 +79,9 @@ template <int D> void Domain<D>::rebalance(Engine<D>& e) {
   exchange_ = NodeExchange<D>(lattice_, decomposition_, comm_.rank());
   find_guard();
   const Window<D>& w = exchange_.window();
-  e.repartition(window_basis_(w, hint_offset_), window_dirichlet(dirichlet_, lattice_, w));
+  std::unique_ptr<Basis<D>> basis = window_basis_(w, hint_offset_);
+  Dirichlet<D> dirichlet = window_dirichlet_(w, *basis);
+  e.repartition(std::move(basis), std::move(dirichlet));
   shift_hints(e, -1); // local to the new window
 }
 
@@ -291,21 +294,6 @@ void Domain<D>::solve_consistent_mass(const BasisTable<D>& table, const std::vec
   for (std::size_t I = 0; I < n; ++I) y[I] = x[I].cwiseProduct(mask[I]);
 }
 
-template <int D> Dirichlet<D> window_dirichlet(const Dirichlet<D>& all, const PointLattice<D>& L, const Window<D>& w) {
-  Dirichlet<D> d;
-  for (std::size_t i = 0; i < all.node.size(); ++i) {
-    const Index<D> ijk = L.point_index(all.node[i]);
-    if (!w.box.contains(ijk)) continue;
-    d.node.push_back(w.local_id(ijk));
-    d.fix.push_back(all.fix[i]);
-    d.value.push_back(all.value[i]);
-  }
-  return d;
-}
-
-template Dirichlet<1> window_dirichlet<1>(const Dirichlet<1>&, const PointLattice<1>&, const Window<1>&);
-template Dirichlet<2> window_dirichlet<2>(const Dirichlet<2>&, const PointLattice<2>&, const Window<2>&);
-template Dirichlet<3> window_dirichlet<3>(const Dirichlet<3>&, const PointLattice<3>&, const Window<3>&);
 template class Domain<1>;
 template class Domain<2>;
 template class Domain<3>;

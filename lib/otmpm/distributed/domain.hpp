@@ -33,6 +33,10 @@ struct DomainStats {
   /// Particles this rank held at once during set-up: its own share (it
   /// seeds only the particles of its cells, local_parts.hpp).
   long long setup_particles = 0;
+  /// Lattice points (nodes or control points) this rank built node sets on
+  /// during set-up: its window, and the few points of the basis probe
+  /// (local_parts.hpp); never the whole lattice.
+  long long setup_points = 0;
 };
 
 /// Relative residual |r - M y|_2 / |r|_2 (per component, the recursive CG
@@ -54,10 +58,6 @@ inline constexpr int kMassStallIterations = 20;
 inline constexpr int kRebalanceCheck = 10;
 inline constexpr double kImbalanceThreshold = 1.2;
 
-/// The entries of a Dirichlet set (global point ids) on the points of a
-/// window, renumbered to the window's local ids.
-template <int D> Dirichlet<D> window_dirichlet(const Dirichlet<D>& all, const PointLattice<D>& L, const Window<D>& w);
-
 template <int D> class Domain final : public Distribution<D> {
 public:
   /// What a rank's share is made of (local_parts.hpp builds it).
@@ -72,10 +72,13 @@ public:
     std::vector<std::vector<double>> traction_area;
     /// The basis on a window (rebalancing), and the global offset of its cell hints.
     std::function<std::unique_ptr<Basis<D>>(const Window<D>&, Index<D>& hint_offset)> window_basis;
-    /// The Dirichlet entries of the whole lattice (global point ids).
-    Dirichlet<D> dirichlet;
+    /// The Dirichlet entries on a window with the basis built on it
+    /// (rebalancing): found on the window's points from the scene's boxes.
+    std::function<Dirichlet<D>(const Window<D>&, const Basis<D>&)> window_dirichlet;
     /// Particles this rank held at once during set-up (DomainStats::setup_particles).
     long long setup_particles = 0;
+    /// Lattice points this rank built node sets on during set-up (DomainStats::setup_points).
+    long long setup_points = 0;
   };
 
   Domain(const Comm& comm, Setup setup);
@@ -149,7 +152,7 @@ private:
   /// Marks the guard layer of the current window.
   void find_guard();
   std::function<std::unique_ptr<Basis<D>>(const Window<D>&, Index<D>&)> window_basis_;
-  Dirichlet<D> dirichlet_;
+  std::function<Dirichlet<D>(const Window<D>&, const Basis<D>&)> window_dirichlet_;
   DomainStats stats_;
 };
 

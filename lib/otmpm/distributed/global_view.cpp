@@ -219,7 +219,9 @@ template <int D> std::vector<std::pair<std::string, double>> GlobalView<D>::run_
           {"communication_seconds_mean", comm.sum(st.communication_seconds) / P},
           {"communication_seconds_max", comm.max(st.communication_seconds)},
           {"setup_particles_max", comm.max(static_cast<double>(st.setup_particles))},
-          {"setup_particles_sum", comm.sum(static_cast<double>(st.setup_particles))}};
+          {"setup_particles_sum", comm.sum(static_cast<double>(st.setup_particles))},
+          {"setup_points_max", comm.max(static_cast<double>(st.setup_points))},
+          {"setup_points_sum", comm.sum(static_cast<double>(st.setup_points))}};
 }
 
 template <int D> long long GlobalView<D>::nodes() const {

@@ -6,6 +6,7 @@
 #include "otmpm/assembly/seeding.hpp"
 #include "otmpm/basis/bspline.hpp"
 #include "otmpm/basis/kinds.hpp"
+#include "otmpm/basis/lme.hpp"
 
 #include <cmath>
 #include <exception>
@@ -18,10 +19,76 @@ namespace {
 /// cell they were seeded in while the lattice moves, and may drift from it.
 constexpr int kAdvectedSlack = 2;
 
-/// The point lattice of the scene's basis: which points, which cell each
-/// belongs to, and how far the particles of a cell reach.
+/// Cells per axis of the basis probe (at most: the lattice's when fewer),
+/// enough for every family (a cubic B-spline, an LME stencil).
+constexpr int kProbeCells = 4;
+
+/// The scene's basis on a few cells at the lower corner of the node lattice,
+/// with the whole lattice's spacing: what the point lattice needs to know of
+/// the family (the B-spline degree, the search radius, which depends on the
+/// spacing only) and the errors of the scene's basis options, without the
+/// whole lattice. (The LME `node_spacing` metric on a perturbed grid takes
+/// its search radius from every node: perturbed_search_radius.)
+template <int D> std::unique_ptr<Basis<D>> probe_basis(const Scene& scene, const CartesianGrid<D>& grid) {
+  const BasisOptions options = basis_options<D>(scene);
+  try {
+    CartesianGrid<D> g;
+    Index<D> corner;
+    for (int k = 0; k < D; ++k) corner[k] = g.cells[k] = std::min(grid.cells[k], kProbeCells);
+    g.lower = grid.lower;
+    g.upper = grid.node_position(corner);
+    return make_basis<D>(options, NodeSet<D>::cartesian(g, grid.h().minCoeff()));
+  } catch (const InputError& e) {
+    input_error(scene.basis_where, e.what());
+  }
+}
+
+/// True when the scene's basis takes its search radius from every node's
+/// nearest neighbour: the node_spacing metric (LME, the family that adapts
+/// its metric) on a perturbed grid.
+bool radius_from_nodes(const Scene& scene) {
+  return scene.grid.kind == "perturbed" && basis_kind(scene.basis.kind).adapts_metric &&
+         scene.basis.metric == "node_spacing";
+}
+
+/// Layers of nodes around a rank's own nodes that hold every node within 4 h
+/// of them (a perturbed node moves less than h / 2 on each axis, so nodes m
+/// layers apart are more than (m - 1) h apart), and every nearest-node
+/// search ends within 4 h (the next node along an axis is nearer than
+/// sqrt(4 + (D - 1)) h).
+constexpr int kNearestLayers = 5;
+
+/// The search radius of LME with the node_spacing metric on a perturbed
+/// grid, as the basis on the whole lattice has it (maxent::
+/// node_spacing_search_radius of the largest nearest-node distance): each
+/// rank searches the nearest node of each of its own nodes among its nodes
+/// and kNearestLayers more, then the ranks take the largest.
 template <int D>
-PointLattice<D> point_lattice(const Scene& scene, const Basis<D>& basis, const CartesianGrid<D>& grid, bool ul) {
+double perturbed_search_radius(const Scene& scene, const Comm& comm, const CartesianGrid<D>& grid,
+                               const IndexBox<D>& own) {
+  IndexBox<D> box;
+  for (int k = 0; k < D; ++k) {
+    box.lo[k] = std::max(0, own.lo[k] - kNearestLayers);
+    box.hi[k] = std::min(grid.cells[k] + 1, own.hi[k] + kNearestLayers);
+  }
+  const double h = grid.h().minCoeff();
+  const NodeSet<D> nodes = NodeSet<D>::cloud(
+      NodeSet<D>::perturbed_positions(grid, scene.grid.perturbation, scene.grid.seed, box.lo, box.hi), h);
+  nodes.prepare_search();
+  Window<D> w;
+  w.box = box;
+  double largest = 0.0;
+  for (int i = 0; i < w.size(); ++i)
+    if (own.contains(w.index(i))) largest = std::max(largest, maxent::nearest_node_distance(nodes, i, h));
+  return maxent::node_spacing_search_radius(basis_options<D>(scene), h, comm.max(largest));
+}
+
+/// The point lattice of the scene's basis (`probe`: probe_basis; `radius`:
+/// its search radius, or the whole lattice's when that differs): which
+/// points, which cell each belongs to, and how far the particles of a cell reach.
+template <int D>
+PointLattice<D> point_lattice(const Scene& scene, const Basis<D>& probe, double radius, const CartesianGrid<D>& grid,
+                              bool ul) {
   PointLattice<D> L;
   L.grid = grid;
   const BasisKind& kind = basis_kind(scene.basis.kind);
@@ -31,15 +98,16 @@ PointLattice<D> point_lattice(const Scene& scene, const Basis<D>& basis, const C
     L.below[k] = 0, L.above[k] = 1; // linear: the cell's corners
   }
   if (kind.bspline) {
-    const auto& b = dynamic_cast<const BsplineBasis<D>&>(basis);
-    L.points = b.control_points_per_axis();
-    L.shift = b.degree() / 2;
-    for (int k = 0; k < D; ++k) L.above[k] = b.degree(); // cell c: control points c .. c + p
+    const int degree = dynamic_cast<const BsplineBasis<D>&>(probe).degree();
+    // an open uniform knot vector over the cells: cells + degree control points per axis
+    for (int k = 0; k < D; ++k) L.points[k] = grid.cells[k] + degree;
+    L.shift = degree / 2;
+    for (int k = 0; k < D; ++k) L.above[k] = degree; // cell c: control points c .. c + p
   } else if (kind.particle_size) {
     for (int k = 0; k < D; ++k) L.below[k] = 1, L.above[k] = 2; // uGIMP: |x - x_I| < h + l_p
-  } else if (basis.search_radius() > 0.0) {
+  } else if (radius > 0.0) {
     for (int k = 0; k < D; ++k) {
-      const int r = static_cast<int>(std::ceil(basis.search_radius() / h[k]));
+      const int r = static_cast<int>(std::ceil(radius / h[k]));
       L.below[k] = r, L.above[k] = r + 1;
     }
   }
@@ -52,24 +120,27 @@ PointLattice<D> point_lattice(const Scene& scene, const Basis<D>& basis, const C
 
 /// The basis of the scene on a window: B-splines on the whole lattice's
 /// knots with the window's control points; the lattice families on the
-/// window's part of the lattice (a perturbed lattice's positions copied from
-/// the whole lattice, which the factory keeps). Also gives the global cell
-/// of the basis' local cell 0 (its cell hints are local to it).
+/// window's part of the lattice (a perturbed lattice's positions drawn for
+/// the window from the grid's random stream, NodeSet::perturbed_positions).
+/// Also gives the global cell of the basis' local cell 0 (its cell hints
+/// are local to it). Never builds the whole lattice.
 template <int D>
 std::function<std::unique_ptr<Basis<D>>(const Window<D>&, Index<D>&)>
-window_basis_factory(const Scene& scene, const Basis<D>& global, const PointLattice<D>& L) {
+window_basis_factory(const Scene& scene, const Basis<D>& probe, const PointLattice<D>& L) {
   const CartesianGrid<D> grid = L.grid;
   if (basis_kind(scene.basis.kind).bspline) {
-    const int degree = dynamic_cast<const BsplineBasis<D>&>(global).degree();
+    const int degree = dynamic_cast<const BsplineBasis<D>&>(probe).degree();
     return [grid, degree](const Window<D>& w, Index<D>& hint_offset) -> std::unique_ptr<Basis<D>> {
       hint_offset = {};
       return std::make_unique<BsplineBasis<D>>(grid, degree, w.box.lo, w.box.hi);
     };
   }
-  std::shared_ptr<const AlignedVector<Vec<D>>> moved;
-  if (!global.nodes().on_lattice()) moved = std::make_shared<AlignedVector<Vec<D>>>(global.nodes().positions());
+  const bool perturbed = scene.grid.kind == "perturbed";
+  const double fraction = scene.grid.perturbation;
+  const unsigned seed = scene.grid.seed;
   const BasisOptions options = basis_options<D>(scene);
-  return [grid, moved, options, L](const Window<D>& w, Index<D>& hint_offset) -> std::unique_ptr<Basis<D>> {
+  return [grid, perturbed, fraction, seed, options](const Window<D>& w,
+                                                    Index<D>& hint_offset) -> std::unique_ptr<Basis<D>> {
     hint_offset = w.box.lo;
     CartesianGrid<D> g;
     Index<D> last;
@@ -77,30 +148,87 @@ window_basis_factory(const Scene& scene, const Basis<D>& global, const PointLatt
     g.lower = grid.node_position(w.box.lo);
     g.upper = grid.node_position(last);
     NodeSet<D> nodes = NodeSet<D>::cartesian(g);
-    if (moved) {
-      AlignedVector<Vec<D>> x(static_cast<std::size_t>(w.size()));
-      for (int i = 0; i < w.size(); ++i) x[static_cast<std::size_t>(i)] = (*moved)[static_cast<std::size_t>(L.point_id(w.index(i)))];
-      nodes.set_positions(std::move(x));
-    }
+    if (perturbed) nodes.set_positions(NodeSet<D>::perturbed_positions(grid, fraction, seed, w.box.lo, w.box.hi));
     return make_basis<D>(options, std::move(nodes));
   };
 }
 
-/// The basis, the constraints and the Domain of a rank whose particles
-/// (parts.particles, setup.global_ids) and decomposition are chosen.
+/// The Dirichlet entries of the scene's boundary boxes on a window (local
+/// ids), found on the positions the whole lattice gives its points there: a
+/// B-spline's control points and a perturbed lattice's nodes as the window
+/// basis has them (the same bits), a Cartesian lattice's from the grid
+/// (the window basis' own grid may round them differently). `counted` and
+/// `selected`: boundary_entries.
 template <int D>
-EngineParts<D> finish_parts(const Scene& scene, const Comm& comm, EngineParts<D> parts,
-                            typename Domain<D>::Setup setup) {
-  // The basis and constraints on this rank's window of the point lattice.
+Dirichlet<D> window_boundaries(const std::vector<BoundarySection>& boundaries, const CartesianGrid<D>& grid,
+                               bool from_basis, const Window<D>& w, const Basis<D>& basis,
+                               const std::vector<char>* counted = nullptr, std::vector<long long>* selected = nullptr) {
+  const double h = grid.h().minCoeff();
+  if (from_basis) {
+    const NodeSet<D>& nodes = basis.nodes();
+    return boundary_entries<D>(
+        boundaries, nodes.size(), [&nodes](int i) { return nodes.position(i); }, h, counted, selected);
+  }
+  return boundary_entries<D>(
+      boundaries, w.size(), [&grid, &w](int i) { return grid.node_position(w.index(i)); }, h, counted, selected);
+}
+
+/// The lattice part of a rank (assemble_parts' `lattice`): the basis on its
+/// window and the Dirichlet entries found there; the Domain's set-up gets
+/// the point lattice and the factories of both (rebalancing). The check
+/// that each boundary box selects a node counts the points each rank owns,
+/// summed over the ranks (a boundary is found once, on the whole lattice).
+/// `decomposed` false: the bisection failed (its error is raised after the
+/// assembly), only the probe is built.
+template <int D>
+LatticePart<D> rank_lattice(const Scene& scene, const Comm& comm, const CartesianGrid<D>& grid, bool decomposed,
+                            typename Domain<D>::Setup& setup) {
+  const bool ul = scene.simulation.nodes_move();
+  LatticePart<D> part;
+  std::unique_ptr<Basis<D>> probe = probe_basis<D>(scene, grid);
+  setup.setup_points = probe->nodes().size();
+  double radius = probe->search_radius();
+  if (!decomposed) {
+    setup.lattice = point_lattice<D>(scene, *probe, radius, grid, ul);
+    part.basis = std::move(probe);
+    return part;
+  }
+  const IndexBox<D> cells = setup.decomposition.box(comm.rank());
+  if (radius_from_nodes(scene)) {
+    // the owned nodes do not depend on the radius (only the ghost layers do)
+    const IndexBox<D> own = point_lattice<D>(scene, *probe, radius, grid, ul).owned_points(cells);
+    radius = perturbed_search_radius<D>(scene, comm, grid, own);
+  }
+  setup.lattice = point_lattice<D>(scene, *probe, radius, grid, ul);
+  const PointLattice<D>& L = setup.lattice;
   Window<D> w;
-  w.box = setup.lattice.window(setup.decomposition.box(comm.rank()));
-  setup.window_basis = window_basis_factory<D>(scene, *parts.basis, setup.lattice);
-  parts.basis = setup.window_basis(w, setup.hint_offset);
+  w.box = L.window(cells);
+  setup.window_basis = window_basis_factory<D>(scene, *probe, L);
+  probe.reset();
+  part.basis = setup.window_basis(w, setup.hint_offset);
+  setup.setup_points += w.size();
+  const bool from_basis = basis_kind(scene.basis.kind).bspline || scene.grid.kind == "perturbed";
+  const IndexBox<D> own = L.owned_points(cells);
+  std::vector<char> owned(static_cast<std::size_t>(w.size()));
+  for (int i = 0; i < w.size(); ++i) owned[static_cast<std::size_t>(i)] = own.contains(w.index(i)) ? 1 : 0;
+  std::vector<long long> selected;
+  part.dirichlet = window_boundaries<D>(scene.boundaries, grid, from_basis, w, *part.basis, &owned, &selected);
+  std::vector<std::int64_t> total(selected.begin(), selected.end());
+  comm.sum(total);
+  require_boundary_nodes(scene, std::vector<long long>(total.begin(), total.end()));
+  setup.window_dirichlet = [boundaries = scene.boundaries, grid, from_basis](const Window<D>& v, const Basis<D>& b) {
+    return window_boundaries<D>(boundaries, grid, from_basis, v, b);
+  };
+  return part;
+}
+
+/// The Domain of a rank whose particles (parts.particles, setup.global_ids),
+/// decomposition and window basis (rank_lattice) are chosen.
+template <int D>
+EngineParts<D> finish_parts(const Comm& comm, EngineParts<D> parts, typename Domain<D>::Setup setup) {
   // No rebalancing with walls: a wall's held nodes (its contact state, per
   // node of the window) stay where they are; particles still migrate.
   if (!parts.walls.empty()) setup.window_basis = nullptr;
-  setup.dirichlet = std::move(parts.dirichlet);
-  parts.dirichlet = window_dirichlet<D>(setup.dirichlet, setup.lattice, w);
   auto domain = std::make_shared<Domain<D>>(comm, std::move(setup));
   if (auto* b = dynamic_cast<BsplineBasis<D>*>(parts.basis.get()))
     b->distribute(domain->owned_nodes(), [&comm](std::span<double> v) { comm.sum(v); });
@@ -171,7 +299,10 @@ EngineParts<D> seeded_parts(const Scene& scene, const Comm& comm, const AlignedV
     setup.global_ids = mine.ids; // a copy: the assembler reads mine.ids (traction surfaces)
     return mine;
   };
-  EngineParts<D> parts = assemble_parts<D>(scene, seed);
+  auto lattice = [&](const CartesianGrid<D>& grid) {
+    return rank_lattice<D>(scene, comm, grid, !deferred, setup);
+  };
+  EngineParts<D> parts = assemble_parts<D>(scene, seed, lattice);
   if (deferred) std::rethrow_exception(deferred);
   // The traction loads' shares of this rank's particles (they move with them).
   for (const Traction<D>& t : parts.loads.tractions) {
@@ -179,12 +310,10 @@ EngineParts<D> seeded_parts(const Scene& scene, const Comm& comm, const AlignedV
     for (std::size_t i = 0; i < t.particle.size(); ++i) area[static_cast<std::size_t>(t.particle[i])] = t.area[i];
     setup.traction_area.push_back(std::move(area));
   }
-  const CartesianGrid<D> grid = node_grid<D>(scene);
-  setup.lattice = point_lattice<D>(scene, *parts.basis, grid, ul);
   setup.nodes_move = ul;
   setup.global_particles = n;
   setup.setup_particles = parts.particles.size();
-  return finish_parts<D>(scene, comm, std::move(parts), std::move(setup));
+  return finish_parts<D>(comm, std::move(parts), std::move(setup));
 }
 
 } // namespace

@@ -6,8 +6,9 @@
 /// particles per cell for the RCB of the cells, a second pass keeps the
 /// particles of this rank's cells, in global order (their index in the
 /// serial seeding) - then the basis is built on its window of the point
-/// lattice and the Dirichlet entries are cut to it, with the Domain that
-/// ties the ranks together. Traction loads act on surface particles found
+/// lattice only (never the whole lattice: a probe on a few cells tells the
+/// family's reach) with the Dirichlet entries found on the window's points,
+/// and the Domain that ties the ranks together. Traction loads act on surface particles found
 /// among all particles in the counting pass. With one rank the scene's
 /// parts are returned unchanged (a serial run, bit for bit).
 #include "otmpm/distributed/domain.hpp"

@@ -201,6 +201,52 @@ NodeSet<D> NodeSet<D>::perturbed(const CartesianGrid<D>& grid, double fraction, 
   return s;
 }
 
+template <int D>
+AlignedVector<Vec<D>> NodeSet<D>::perturbed_positions(const CartesianGrid<D>& grid, double fraction, unsigned seed,
+                                                      const Index<D>& lo, const Index<D>& hi) {
+  // The same stream and arithmetic as perturbed(): D draws per node id.
+  constexpr double kMaxFraction = 0.5;
+  require(fraction >= 0.0 && fraction < kMaxFraction, "NodeSet::perturbed: fraction must be in [0, 0.5), got ",
+          fraction);
+  grid.validate();
+  Index<D> last;
+  long long count = 1;
+  for (int k = 0; k < D; ++k) {
+    require<std::invalid_argument>(0 <= lo[k] && lo[k] < hi[k] && hi[k] <= grid.cells[k] + 1,
+                                   "NodeSet::perturbed_positions: box [", lo[k], ", ", hi[k], ") of axis ", k,
+                                   " outside [0, ", grid.cells[k] + 1, ")");
+    last[k] = hi[k] - 1;
+    count *= hi[k] - lo[k];
+  }
+  AlignedVector<Vec<D>> x(static_cast<std::size_t>(count));
+  std::mt19937 rng(seed);
+  const Vec<D> h = grid.h();
+  const int end = grid.node_id(last) + 1;
+  for (int id = 0; id < end; ++id) {
+    Vec<D> d;
+    for (int k = 0; k < D; ++k) d[k] = fraction * h[k] * symmetric_unit(rng);
+    const Index<D> ijk = grid.node_index(id);
+    long long local = 0;
+    bool inside = true;
+    for (int k = D - 1; k >= 0; --k) {
+      inside = inside && ijk[k] >= lo[k] && ijk[k] < hi[k];
+      local = local * (hi[k] - lo[k]) + (ijk[k] - lo[k]);
+    }
+    if (!inside) continue;
+    Vec<D>& p = x[static_cast<std::size_t>(local)];
+    p = grid.node_position(ijk);
+    if (!on_boundary<D>(grid, ijk)) p += d;
+  }
+  return x;
+}
+
+template <int D> NodeSet<D> NodeSet<D>::cartesian(const CartesianGrid<D>& grid, double spacing) {
+  require(finite_positive(spacing), "NodeSet::cartesian: spacing must be finite and > 0, got ", spacing);
+  NodeSet s = cartesian(grid);
+  s.spacing_ = spacing;
+  return s;
+}
+
 template <int D> NodeSet<D> NodeSet<D>::cloud(AlignedVector<Vec<D>> positions, double spacing) {
   require(!positions.empty(), "NodeSet::cloud: positions is empty (no nodes)");
   require(positions.size() <= static_cast<std::size_t>(std::numeric_limits<int>::max()), "NodeSet::cloud: ",

@@ -62,6 +62,16 @@ public:
   /// nodes keep their position, so the domain stays the same box. Throws
   /// InputError unless 0 <= fraction < 0.5 (and the grid is valid).
   static NodeSet perturbed(const CartesianGrid<D>& grid, double fraction, unsigned seed);
+  /// The positions perturbed(grid, fraction, seed) gives the nodes with
+  /// lattice index in [lo, hi) (axis 0 fastest), bit for bit, without
+  /// storing the others: the random stream is drawn up to the box's last
+  /// node (a rank's window of a distributed run). Same errors as perturbed().
+  static AlignedVector<Vec<D>> perturbed_positions(const CartesianGrid<D>& grid, double fraction, unsigned seed,
+                                                   const Index<D>& lo, const Index<D>& hi);
+  /// cartesian(grid) with `spacing` as its characteristic spacing: a few
+  /// cells of a larger lattice that stand for it (the basis probe of a
+  /// distributed run's set-up, distributed/local_parts.cpp).
+  static NodeSet cartesian(const CartesianGrid<D>& grid, double spacing);
   /// An arbitrary cloud; `spacing` is the characteristic nodal spacing h used
   /// by LME (beta = gamma_lme / h^2) and for the time step. Throws InputError
   /// for no positions, a non-finite position (naming its index) or a spacing
