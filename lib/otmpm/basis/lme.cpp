@@ -513,6 +513,26 @@ template <int D> double nearest_distance(const NodeSet<D>& nodes, int I, double 
   }
 }
 
+/// beta_I of the node_spacing metric for a node whose nearest node is h_I
+/// away: beta (h / h_I)^2 (beta itself at h_I = h).
+double spacing_beta(double beta, double h, double h_I) { return h_I != h ? beta * (h / h_I) * (h / h_I) : beta; }
+
+/// The search radius (Verlet lists) of the node_spacing metric for the
+/// largest support radius R_max: R_max rounded up to a multiple of
+/// radius0 / kRadiusSteps, so that the lists are rebuilt only when the
+/// largest R_I crosses a step.
+double stepped_radius(double radius0, double R_max) {
+  return radius0 * std::ceil(kRadiusSteps * R_max / radius0) / kRadiusSteps;
+}
+
+/// The Gaussian prior of an lme basis with options `opt` on nodes of spacing h.
+template <int D> GaussianPrior<D> lme_prior(const BasisOptions& opt, double h) {
+  GaussianPrior<D> prior;
+  prior.beta = opt.gamma_lme / (h * h);
+  prior.max_exponent = -std::log(opt.tolerance);
+  return prior;
+}
+
 std::string format_number(double v) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.3g", v);
@@ -870,14 +890,11 @@ template <int D, class Prior> void MaxEntBasis<D, Prior>::update_beta_by_spacing
     R_max = 0.0;
     for (int I = 0; I < N; ++I) {
       const double hI = h_I[static_cast<std::size_t>(I)];
-      double& beta = node_beta_[static_cast<std::size_t>(I)];
-      if (hI != h) beta = prior_.beta * (h / hI) * (h / hI);
+      const double beta = node_beta_[static_cast<std::size_t>(I)] = spacing_beta(prior_.beta, h, hI);
       R_max = std::max(R_max, std::sqrt(prior_.max_exponent / beta));
     }
   }
-  // The search radius (Verlet lists) in steps of R / 8, so that the lists
-  // are rebuilt only when the largest R_I crosses a step.
-  settings_.support_radius = radius0_ * std::ceil(kRadiusSteps * R_max / radius0_) / kRadiusSteps;
+  settings_.support_radius = stepped_radius(radius0_, R_max);
   }
 }
 
@@ -1052,17 +1069,12 @@ template <int D> double nearest_node_distance(const NodeSet<D>& nodes, int I, do
 }
 
 double node_spacing_search_radius(const BasisOptions& opt, double h, double nearest_max) {
-  // The arithmetic of make_lme_basis, GaussianPrior::support_radius and
-  // update_beta_by_spacing for the node with the largest h_I (R_I =
-  // sqrt(max_exponent / beta_I) does not decrease as h_I grows, each
-  // rounded operation being monotone).
-  const double beta = opt.gamma_lme / (h * h);
-  const double max_exponent = -std::log(opt.tolerance);
-  const double radius0 = std::sqrt(max_exponent / beta);
-  double beta_I = beta;
-  if (nearest_max != h) beta_I = beta * (h / nearest_max) * (h / nearest_max);
-  const double R_max = std::max(0.0, std::sqrt(max_exponent / beta_I));
-  return radius0 * std::ceil(kRadiusSteps * R_max / radius0) / kRadiusSteps;
+  // make_lme_basis' prior and update_beta_by_spacing's radius for the node
+  // with the largest h_I (R_I = sqrt(max_exponent / beta_I) does not
+  // decrease as h_I grows, each rounded operation being monotone).
+  const GaussianPrior<1> prior = lme_prior<1>(opt, h);
+  const double R_max = std::max(0.0, std::sqrt(prior.max_exponent / spacing_beta(prior.beta, h, nearest_max)));
+  return stepped_radius(prior.support_radius(), R_max);
 }
 
 template struct GaussianPrior<1>;
@@ -1097,9 +1109,7 @@ template <int D> std::unique_ptr<Basis<D>> make_lme_basis(NodeSet<D> nodes, cons
   if (!(h > 0.0) || !std::isfinite(h))
     throw InputError("lme basis: the nodal spacing must be > 0, got " + maxent::format_number(h));
   const maxent::Metric metric = maxent::parse_metric(opt.metric, "lme");
-  maxent::GaussianPrior<D> prior;
-  prior.beta = opt.gamma_lme / (h * h);
-  prior.max_exponent = -std::log(opt.tolerance);
+  const maxent::GaussianPrior<D> prior = maxent::lme_prior<D>(opt, h);
   return std::make_unique<maxent::MaxEntBasis<D, maxent::GaussianPrior<D>>>(std::move(nodes), opt, prior, "lme",
                                                                              metric);
 }
