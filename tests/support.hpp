@@ -1,7 +1,8 @@
 // Helpers shared by the basis and node-set tests: test grids and node clouds,
 // random and awkward sample points, dense evaluation, finite-difference
 // gradient errors and the basis identities (partition of unity, sum grad N = 0,
-// linear completeness, gradient consistency). Tolerances stay in each test file.
+// linear completeness, gradient consistency), and the thread count of a scope.
+// Tolerances stay in each test file.
 #pragma once
 
 #include "otmpm/basis/basis.hpp"
@@ -16,7 +17,37 @@
 #include <random>
 #include <vector>
 
+#ifdef OTMPM_HAVE_OPENMP
+#include <omp.h>
+#endif
+
 namespace otmpm::test {
+
+/// Runs the OpenMP regions with `threads` threads while it lives and restores
+/// the count it found (without OpenMP: one thread, nothing to set).
+class ScopedThreads {
+public:
+  explicit ScopedThreads(int threads) {
+#ifdef OTMPM_HAVE_OPENMP
+    saved_ = omp_get_max_threads();
+    omp_set_num_threads(threads);
+#else
+    (void)threads;
+#endif
+  }
+  ~ScopedThreads() {
+#ifdef OTMPM_HAVE_OPENMP
+    omp_set_num_threads(saved_);
+#endif
+  }
+  ScopedThreads(const ScopedThreads&) = delete;
+  ScopedThreads& operator=(const ScopedThreads&) = delete;
+
+private:
+#ifdef OTMPM_HAVE_OPENMP
+  int saved_ = 1;
+#endif
+};
 
 /// The unit box [0, 1]^D with `cells` cells per axis.
 template <int D> CartesianGrid<D> unit_grid(int cells) {

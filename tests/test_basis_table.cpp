@@ -1,6 +1,7 @@
 // The per-step basis table (fill_basis_table) and the basis factory
 // (make_basis).
 #include "otmpm/basis/basis.hpp"
+#include "support.hpp"
 
 #include <doctest/doctest.h>
 
@@ -8,11 +9,9 @@
 #include <stdexcept>
 #include <string>
 
-#ifdef OTMPM_HAVE_OPENMP
-#include <omp.h>
-#endif
 
 using namespace otmpm;
+using otmpm::test::ScopedThreads;
 
 namespace {
 
@@ -48,15 +47,8 @@ bool same_table(const BasisTable<2>& a, const BasisTable<2>& b) {
 /// Runs fill_basis_table with `threads` OpenMP threads (1 without OpenMP).
 void fill_with_threads(int threads, const Basis<2>& b, const AlignedVector<Vec<2>>& x,
                        std::vector<Index<2>>* hint, BasisTable<2>& t) {
-#ifdef OTMPM_HAVE_OPENMP
-  const int saved = omp_get_max_threads();
-  omp_set_num_threads(threads);
+  const ScopedThreads scope(threads);
   fill_basis_table(b, x, nullptr, hint, t);
-  omp_set_num_threads(saved);
-#else
-  (void)threads;
-  fill_basis_table(b, x, nullptr, hint, t);
-#endif
 }
 
 } // namespace

@@ -7,6 +7,7 @@
 #include <doctest/doctest.h>
 
 #include "otmpm/engine/scatter.hpp"
+#include "support.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -15,11 +16,9 @@
 #include <random>
 #include <string>
 
-#ifdef OTMPM_HAVE_OPENMP
-#include <omp.h>
-#endif
 
 using namespace otmpm;
+using otmpm::test::ScopedThreads;
 
 namespace {
 
@@ -74,12 +73,7 @@ struct Sums {
 
 Sums sums(const BasisTable<3>& table, int nodes, const Carried& c, int threads,
           std::optional<ScatterPath> forced = std::nullopt) {
-#ifdef OTMPM_HAVE_OPENMP
-  const int saved = omp_get_max_threads();
-  omp_set_num_threads(threads);
-#else
-  (void)threads;
-#endif
+  const ScopedThreads scope(threads);
   Sums s;
   s.m.assign(static_cast<std::size_t>(nodes), -1.0); // clear() must overwrite
   s.q.assign(static_cast<std::size_t>(nodes), Vec<3>::Constant(-1.0));
@@ -108,9 +102,6 @@ Sums sums(const BasisTable<3>& table, int nodes, const Carried& c, int threads,
         for (int I = I0; I < I1; ++I) s.m[I] = 0.0, s.q[I] = Vec<3>::Zero();
       });
   s.path = scatter.path();
-#ifdef OTMPM_HAVE_OPENMP
-  omp_set_num_threads(saved);
-#endif
   return s;
 }
 

@@ -6,17 +6,16 @@
 
 #include "otmpm/assembly/assembler.hpp"
 #include "otmpm/engine/scatter.hpp"
+#include "support.hpp"
 
 #include <algorithm>
 #include <numeric>
 #include <random>
 #include <string>
 
-#ifdef OTMPM_HAVE_OPENMP
-#include <omp.h>
-#endif
 
 using namespace otmpm;
+using otmpm::test::ScopedThreads;
 
 namespace {
 
@@ -63,19 +62,11 @@ const std::vector<std::string> wide_grid{"grid.upper=[96.0, 12.0]", "grid.cells=
 
 Result run_with_threads(int threads, const std::vector<std::string>& sets, bool shuffled = false,
                         bool blocked = true) {
-#ifdef OTMPM_HAVE_OPENMP
-  const int saved = omp_get_max_threads();
-  omp_set_num_threads(threads);
-#else
-  (void)threads;
-#endif
+  const ScopedThreads scope(threads);
   Engine<2> e = assemble<2>(andersen_block(sets));
   if (shuffled) shuffle_particles(e.particles());
   for (int s = 0; s < 5; ++s) e.step();
   CHECK(e.scatter_blocked() == blocked);
-#ifdef OTMPM_HAVE_OPENMP
-  omp_set_num_threads(saved);
-#endif
   return {e.particles(), e.energy(), e.momentum(), e.reaction_impulse(), e.nodal()};
 }
 
@@ -242,17 +233,9 @@ value = [0.0, 0.0, -9.81]
 )";
   const Scene scene = parse_scene(toml, "block3d.toml");
   auto run = [&](int threads) {
-#ifdef OTMPM_HAVE_OPENMP
-    const int saved = omp_get_max_threads();
-    omp_set_num_threads(threads);
-#else
-    (void)threads;
-#endif
+    const ScopedThreads scope(threads);
     Engine<3> e = assemble<3>(scene);
     for (int s = 0; s < 2; ++s) e.step();
-#ifdef OTMPM_HAVE_OPENMP
-    omp_set_num_threads(saved);
-#endif
     return e;
   };
   const Engine<3> one = run(1), two = run(2);
