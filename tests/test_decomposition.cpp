@@ -164,6 +164,41 @@ TEST_CASE("point lattice: owned points tile the points, windows hold every point
   }
 }
 
+TEST_CASE("interior box: a position it holds has its cell in the box, far from the faces it has too") {
+  // Grids with an offset origin, an awkward spacing and one far from 0 (the
+  // margin's part proportional to the coordinates), and a box at the edge.
+  std::mt19937_64 rng(7);
+  for (const auto& [lower, upper] : {std::pair{-0.0123, 0.987}, std::pair{1e6, 1e6 + 3.3}, std::pair{-1.0, 1.0}}) {
+    CAPTURE(lower);
+    CartesianGrid<2> g;
+    g.lower = Vec<2>(lower, lower), g.upper = Vec<2>(upper, upper), g.cells = {33, 17};
+    for (const IndexBox<2>& box : {IndexBox<2>{{4, 3}, {20, 11}}, IndexBox<2>{{0, 0}, {33, 17}}, IndexBox<2>{{30, 0}, {33, 5}}}) {
+      const InteriorBox<2> in(g, box);
+      const Vec<2> h = (g.upper - g.lower).cwiseQuotient(Vec<2>(33, 17));
+      int inside = 0, far_inside = 0;
+      std::uniform_real_distribution<double> u(-2.0, 35.0), tiny(-1e-9, 1e-9);
+      for (int i = 0; i < 20000; ++i) {
+        // Uniform positions, and positions on a cell face up to rounding.
+        Vec<2> s(u(rng), u(rng));
+        if (i % 2) s = Vec<2>(std::round(s[0]) + tiny(rng), std::round(s[1]) + tiny(rng));
+        const Vec<2> x = g.lower + s.cwiseProduct(h);
+        if (!in.contains(x)) continue;
+        ++inside;
+        REQUIRE(box.contains(g.cell_of(x)));
+      }
+      // Positions 1e-4 of a cell inside the box's faces are all held.
+      std::uniform_real_distribution<double> v0(box.lo[0] + 1e-4, box.hi[0] - 1e-4), v1(box.lo[1] + 1e-4, box.hi[1] - 1e-4);
+      for (int i = 0; i < 2000; ++i) far_inside += in.contains(g.lower + Vec<2>(v0(rng), v1(rng)).cwiseProduct(h));
+      CHECK(inside > 300); // the smallest box holds about 2% of the positions
+      CHECK(far_inside == 2000);
+    }
+  }
+  // NaN is never inside: cell_of() decides it.
+  CartesianGrid<2> g;
+  g.cells = {4, 4};
+  CHECK(!InteriorBox<2>(g, {{0, 0}, {4, 4}}).contains(Vec<2>(std::nan(""), 0.5)));
+}
+
 TEST_CASE("node exchange: two ranks list the same points in the same order, each ghost has one owner") {
   const PointLattice<2> L = lattice(17, 11, 1, 0, 2, 3);
   std::vector<Index<2>> home = particles_in<2>({{1, 1}, {15, 10}}, 2);

@@ -151,10 +151,8 @@ template <int D> int Decomposition<D>::owner(const Index<D>& c) const {
   return tree_[static_cast<std::size_t>(n)].first;
 }
 
-template <int D> double Decomposition<D>::imbalance(std::span<const Index<D>> home, const Comm& comm) const {
-  (void)home;
-  const double mine =
-      static_cast<double>(home.size()) + kEmptyCellWeight * static_cast<double>(box(comm.rank()).count());
+template <int D> double Decomposition<D>::imbalance(long long particles, const Comm& comm) const {
+  const double mine = static_cast<double>(particles) + kEmptyCellWeight * static_cast<double>(box(comm.rank()).count());
   const double total = comm.sum(mine), largest = comm.max(mine);
   return total > 0.0 ? largest * ranks() / total : 1.0;
 }

@@ -95,9 +95,10 @@ public:
   const IndexBox<D>& box(int r) const { return boxes_[static_cast<std::size_t>(r)]; }
   /// The rank owning cell c (c inside the lattice).
   int owner(const Index<D>& c) const;
-  /// max over ranks of (weight of the rank / mean weight) for home cells
-  /// `home` of this rank's particles (collective): 1 is perfect balance.
-  double imbalance(std::span<const Index<D>> home, const Comm& comm) const;
+  /// max over ranks of (weight of the rank / mean weight) when this rank
+  /// holds `particles` particles, all with home cells in its box
+  /// (collective): 1 is perfect balance. The weight is that of rcb().
+  double imbalance(long long particles, const Comm& comm) const;
 
 private:
   struct Node {
