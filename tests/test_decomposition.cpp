@@ -173,7 +173,7 @@ TEST_CASE("interior box: a position it holds has its cell in the box, far from t
     CartesianGrid<2> g;
     g.lower = Vec<2>(lower, lower), g.upper = Vec<2>(upper, upper), g.cells = {33, 17};
     for (const IndexBox<2>& box : {IndexBox<2>{{4, 3}, {20, 11}}, IndexBox<2>{{0, 0}, {33, 17}}, IndexBox<2>{{30, 0}, {33, 5}}}) {
-      const InteriorBox<2> in(g, box);
+      const PositionBox<2> in = interior_box(g, box);
       const Vec<2> h = (g.upper - g.lower).cwiseQuotient(Vec<2>(33, 17));
       int inside = 0, far_inside = 0;
       std::uniform_real_distribution<double> u(-2.0, 35.0), tiny(-1e-9, 1e-9);
@@ -196,7 +196,7 @@ TEST_CASE("interior box: a position it holds has its cell in the box, far from t
   // NaN is never inside: cell_of() decides it.
   CartesianGrid<2> g;
   g.cells = {4, 4};
-  CHECK(!InteriorBox<2>(g, {{0, 0}, {4, 4}}).contains(Vec<2>(std::nan(""), 0.5)));
+  CHECK(!interior_box(g, IndexBox<2>{{0, 0}, {4, 4}}).contains(Vec<2>(std::nan(""), 0.5)));
 }
 
 TEST_CASE("node exchange: two ranks list the same points in the same order, each ghost has one owner") {

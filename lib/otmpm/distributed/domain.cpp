@@ -16,6 +16,7 @@ Domain<D>::Domain(const Comm& comm, Setup s)
       window_basis_(std::move(s.window_basis)), window_dirichlet_(std::move(s.window_dirichlet)) {
   stats_.setup_particles = s.setup_particles;
   stats_.setup_points = s.setup_points;
+  staying_ = interior_box(lattice_.grid, decomposition_.box(comm_.rank()));
   find_neighbours();
   find_guard();
 }
@@ -57,7 +58,8 @@ template <int D> void Domain<D>::before_step(Engine<D>& e) {
   ++stats_.steps;
   if (nodes_move_) return;
   const Clock clock(stats_);
-  migrate(e);
+  if (departures_) migrate(e);
+  departures_ = true; // until the next after-step reduction says otherwise
   if (window_basis_ && stats_.steps % kRebalanceCheck == 0) rebalance(e);
 }
 
@@ -74,6 +76,7 @@ template <int D> void Domain<D>::rebalance(Engine<D>& e) {
   std::vector<Index<D>> home(static_cast<std::size_t>(P.size()));
   for (int p = 0; p < P.size(); ++p) home[static_cast<std::size_t>(p)] = home_cell(P.x[p], P.X[p]);
   decomposition_ = Decomposition<D>::rcb(lattice_.grid.cells, comm_.size(), home, comm_);
+  staying_ = interior_box(lattice_.grid, decomposition_.box(comm_.rank()));
   find_neighbours();
   migrate(e); // to the new owners (cell hints local to the old window)
   shift_hints(e, +1);
@@ -97,11 +100,10 @@ template <int D> void Domain<D>::migrate(Engine<D>& e) {
   Particles<D>& P = e.particles();
   const std::size_t n = static_cast<std::size_t>(P.size());
   const IndexBox<D>& mine = decomposition_.box(comm_.rank());
-  const InteriorBox<D> inside(lattice_.grid, mine);
   std::vector<int> dest; // the rank each particle goes to, or -1 (filled when one leaves)
   double flags[2] = {0.0, 0.0}; // some particle leaves; some goes to a rank that is not a neighbour
   for (std::size_t p = 0; p < n; ++p) {
-    if (!nodes_move_ && inside.contains(P.x[p])) continue; // home cell: the cell of x
+    if (!nodes_move_ && staying_.contains(P.x[p])) continue; // home cell: the cell of x
     const Index<D> c = home_cell(P.x[p], P.X[p]);
     if (mine.contains(c)) continue;
     if (dest.empty()) dest.assign(n, -1);

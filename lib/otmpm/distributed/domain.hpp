@@ -85,6 +85,8 @@ public:
 
   // ---- Distribution
   void before_step(Engine<D>& e) override;
+  const PositionBox<D>* staying() const override { return nodes_move_ ? nullptr : &staying_; }
+  void departures(bool any) override { departures_ = any; }
   void sum_nodal(std::span<const NodalArray> fields) override {
     const Clock clock(stats_);
     ++stats_.halo_exchanges;
@@ -149,6 +151,10 @@ private:
   std::vector<int> neighbours_; ///< ranks whose cells touch this rank's cells (migration)
   std::optional<LocalFailure> pending_; ///< deferred failure of this rank (the lowest key)
   std::vector<char> guard_;            ///< per local point: in the guard layer (PointLattice::guard)
+  PositionBox<D> staying_{};           ///< interior_box() of this rank's cells (mpm mode)
+  /// Whether migrate() must look at the particles: false only when the last
+  /// after-step reduction found none outside staying_ on any rank.
+  bool departures_ = true;
   /// Marks the guard layer of the current window.
   void find_guard();
   std::function<std::unique_ptr<Basis<D>>(const Window<D>&, Index<D>&)> window_basis_;

@@ -7,6 +7,7 @@
 /// rank's window of points - its own points and the ghost layer its
 /// particles need (docs/architecture.md, "Distributed runs").
 #include "otmpm/distributed/decomposition.hpp"
+#include "otmpm/engine/distribution.hpp"
 #include "otmpm/nodes/node_set.hpp"
 
 #include <cmath>
@@ -55,23 +56,17 @@ template <int D> struct PointLattice {
 /// clamps there). A position inside has its cell_of() in `box`; one outside
 /// (or NaN) must be decided by cell_of() itself. Migration tests every
 /// particle with it per step: a division and a floor() per axis fewer.
-template <int D> struct InteriorBox {
-  Vec<D> lo, hi;
-  InteriorBox(const CartesianGrid<D>& grid, const IndexBox<D>& box) {
-    constexpr double inf = std::numeric_limits<double>::infinity();
-    for (int k = 0; k < D; ++k) {
-      const double h = (grid.upper[k] - grid.lower[k]) / grid.cells[k];
-      const double margin = 1e-6 * h + 1e-13 * (std::abs(grid.lower[k]) + std::abs(grid.upper[k]));
-      lo[k] = box.lo[k] <= 0 ? -inf : grid.lower[k] + box.lo[k] * h + margin;
-      hi[k] = box.hi[k] >= grid.cells[k] ? inf : grid.lower[k] + box.hi[k] * h - margin;
-    }
+template <int D> PositionBox<D> interior_box(const CartesianGrid<D>& grid, const IndexBox<D>& box) {
+  constexpr double inf = std::numeric_limits<double>::infinity();
+  PositionBox<D> in;
+  for (int k = 0; k < D; ++k) {
+    const double h = (grid.upper[k] - grid.lower[k]) / grid.cells[k];
+    const double margin = 1e-6 * h + 1e-13 * (std::abs(grid.lower[k]) + std::abs(grid.upper[k]));
+    in.lo[k] = box.lo[k] <= 0 ? -inf : grid.lower[k] + box.lo[k] * h + margin;
+    in.hi[k] = box.hi[k] >= grid.cells[k] ? inf : grid.lower[k] + box.hi[k] * h - margin;
   }
-  bool contains(const Vec<D>& x) const {
-    bool in = true;
-    for (int k = 0; k < D; ++k) in &= (x[k] > lo[k]) & (x[k] < hi[k]);
-    return in;
-  }
-};
+  return in;
+}
 
 /// Local ids of the points of a window box (axis 0 fastest) and back.
 template <int D> struct Window {

@@ -46,12 +46,31 @@ public:
   using InstabilityError::InstabilityError;
 };
 
+/// An open box of positions: lo < x < hi on every axis (bounds may be infinite).
+template <int D> struct PositionBox {
+  Vec<D> lo, hi;
+  bool contains(const Vec<D>& x) const {
+    bool in = true;
+    for (int k = 0; k < D; ++k) in &= (x[k] > lo[k]) & (x[k] < hi[k]);
+    return in;
+  }
+};
+
 template <int D> class Distribution {
 public:
   virtual ~Distribution() = default;
   /// Before every step: particles that left this rank's cells go to their
   /// owners (and the cells are rebalanced when needed).
   virtual void before_step(Engine<D>& e) = 0;
+  /// Positions whose particles certainly stay on this rank at the next
+  /// before_step(), or nullptr. The engine's after-step pass tests every
+  /// particle against it and tells departures() whether any rank has one
+  /// outside (in the after-step reduction): when none has, before_step()
+  /// skips the migration pass and its reduction.
+  virtual const PositionBox<D>* staying() const { return nullptr; }
+  /// After the after-step reduction: whether any rank has a particle
+  /// outside staying() (the same on every rank).
+  virtual void departures(bool any) { (void)any; }
   /// Every rank has summed its particles into its local nodes: the owner of
   /// each node adds the partial sums of the other ranks, and every rank then
   /// holds the totals on all its local nodes (owned and ghost).

@@ -29,12 +29,14 @@ constexpr int monitor_sub_block = 64;
 /// momentum as momentum() adds it, so it has its bits).
 template <int D> struct ParticleSums {
   double kinetic = 0.0, strain = 0.0, dissipated = 0.0, wave_speed2 = 0.0;
+  bool outside = false; ///< a particle outside the rank's staying() box
   Vec<D> momentum = Vec<D>::Zero();
   ParticleSums& operator+=(const ParticleSums& o) {
     kinetic += o.kinetic;
     strain += o.strain;
     dissipated += o.dissipated;
     wave_speed2 = std::max(wave_speed2, o.wave_speed2);
+    outside |= o.outside;
     momentum += o.momentum;
     return *this;
   }
@@ -64,7 +66,10 @@ template <int D> void Engine<D>::sum_particles(bool check) {
   // is reported, as a serial loop would. A rank of a distributed run notes
   // a failure and looks for its lowest global id afterwards (agree_checks).
   std::atomic<bool> failed{false};
+  const PositionBox<D>* stay = dist_ ? dist_->staying() : nullptr;
   const auto kinematics = [&](int p0, int p1, ParticleSums<D>& acc) {
+    if (stay)
+      for (int p = p0; p < p1; ++p) acc.outside |= !stay->contains(P_.x[p]);
     for (int p = p0; p < p1; ++p) {
       if (check && !particle_ok(p)) [[unlikely]] {
         if (!dist_) check_particle(p);
@@ -98,8 +103,9 @@ template <int D> void Engine<D>::sum_particles(bool check) {
   });
   if (dist_) {
     // One reduction per step: energies, momentum, this step's reaction
-    // impulse and work, the prescribed kinetic energy; the wave speed and
-    // whether any rank's checks failed (a deferred failure throws in it).
+    // impulse and work, the prescribed kinetic energy; the wave speed,
+    // whether any rank's checks failed (a deferred failure throws in it) and
+    // whether any particle may leave its rank before the next step.
     // The walls' impulses of this step follow.
     AlignedVector<Vec<D>>& wall = constraints_.rank_wall_impulse();
     std::vector<double> sums(5 + 2 * D + wall.size() * D);
@@ -108,9 +114,10 @@ template <int D> void Engine<D>::sum_particles(bool check) {
     for (int k = 0; k < D; ++k) sums[5 + k] = s.momentum[k], sums[5 + D + k] = rank_reaction_.impulse[k];
     for (std::size_t w = 0; w < wall.size(); ++w)
       for (int k = 0; k < D; ++k) sums[5 + 2 * D + w * D + static_cast<std::size_t>(k)] = wall[w][k];
-    double maxima[2] = {s.wave_speed2, failed.load() ? 1.0 : 0.0};
+    double maxima[3] = {s.wave_speed2, failed.load() ? 1.0 : 0.0, s.outside ? 1.0 : 0.0};
     dist_->reduce(sums, maxima);
     if (maxima[1] > 0.0) agree_checks(failed.load());
+    dist_->departures(maxima[2] > 0.0);
     s.kinetic = sums[0], s.strain = sums[1], s.dissipated = sums[2], s.wave_speed2 = maxima[0];
     energy_.reaction_work += sums[3];
     boundary_kinetic_ = sums[4];
