@@ -20,14 +20,6 @@ namespace {
 /// update them (a batch on the stack, one virtual call per run of a material).
 constexpr int kStressBatch = 64;
 
-/// Gradient of a nodal field at particle p: sum_I y_I (x) grad N_Ip.
-template <int D>
-Mat<D> nodal_gradient(const BasisTable<D>& table, int p, const AlignedVector<Vec<D>>& y) {
-  Mat<D> G = Mat<D>::Zero();
-  for (int e = table.begin(p); e < table.end(p); ++e) G.noalias() += y[table.node[e]] * table.dN[e].transpose();
-  return G;
-}
-
 /// The Dirichlet set repeated on every one of `fields` copies of `nodes` nodes.
 template <int D> Dirichlet<D> repeat_per_field(const Dirichlet<D>& d, int nodes, int fields) {
   Dirichlet<D> out;
@@ -214,16 +206,22 @@ template <int D> void Engine<D>::evaluate_basis() {
 template <int D> void Engine<D>::to_nodes(const ToNodes<D>& what) {
   ScopedPhase timer(timers_, Phase::to_nodes);
   if (what.forces && !loads_.uniform() && loads_.any()) loads_.particle_forces(what.t, P_, fext_);
-  const bool q = what.w != nullptr;
-  if (what.mass && q && what.forces) to_nodes_impl<true, true, true>(what, nullptr);
-  else if (what.mass && q) to_nodes_impl<true, true, false>(what, nullptr);
-  else if (what.mass && what.forces) to_nodes_impl<true, false, true>(what, nullptr);
-  else if (what.mass) to_nodes_impl<true, false, false>(what, nullptr);
-  else if (q && what.forces) to_nodes_impl<false, true, true>(what, nullptr);
-  else if (q) to_nodes_impl<false, true, false>(what, nullptr);
-  else if (what.forces) to_nodes_impl<false, false, true>(what, nullptr);
-  exchange_sums(what.mass, q, what.forces);
+  to_nodes_with(what, [](int, int) {});
+  exchange_sums(what.mass, what.w != nullptr, what.forces);
   if (what.mass) finish_mass();
+}
+
+template <int D>
+template <class Update>
+void Engine<D>::to_nodes_with(const ToNodes<D>& what, Update&& update) {
+  const bool q = what.w != nullptr;
+  if (what.mass && q && what.forces) to_nodes_impl<true, true, true>(what, update);
+  else if (what.mass && q) to_nodes_impl<true, true, false>(what, update);
+  else if (what.mass && what.forces) to_nodes_impl<true, false, true>(what, update);
+  else if (what.mass) to_nodes_impl<true, false, false>(what, update);
+  else if (q && what.forces) to_nodes_impl<false, true, true>(what, update);
+  else if (q) to_nodes_impl<false, true, false>(what, update);
+  else if (what.forces) to_nodes_impl<false, false, true>(what, update);
 }
 
 template <int D> void Engine<D>::update_stress_and_to_nodes(const Gradient<D>& g, const ToNodes<D>& what) {
@@ -232,8 +230,17 @@ template <int D> void Engine<D>::update_stress_and_to_nodes(const Gradient<D>& g
   require<std::invalid_argument>(what.forces && !what.mass && !what.w,
                                  "Engine::update_stress_and_to_nodes: only the forces follow a stress update");
   if (!loads_.uniform() && loads_.any()) loads_.particle_forces(what.t, P_, fext_);
-  fallible([&] { to_nodes_impl<false, false, true>(what, &g); });
+  fallible([&] { to_nodes_impl<false, false, true>(what, [&](int p0, int p1) { update_stress_range(g, p0, p1); }); });
   exchange_sums(false, false, true);
+}
+
+template <int D> void Engine<D>::to_particles_then_to_nodes(const ToParticles<D>& move, const ToNodes<D>& what) {
+  // Its time counts in the to_nodes phase.
+  ScopedPhase timer(timers_, Phase::to_nodes);
+  require<std::invalid_argument>(!what.mass, "Engine::to_particles_then_to_nodes: the mass does not follow a move");
+  if (what.forces && !loads_.uniform() && loads_.any()) loads_.particle_forces(what.t, P_, fext_);
+  to_nodes_with(what, [&](int p0, int p1) { to_particles_on(move, {}, p0, p1); });
+  exchange_sums(false, what.w != nullptr, what.forces);
 }
 
 template <int D> void Engine<D>::exchange_sums(bool mass, bool momentum, bool forces) {
@@ -246,17 +253,14 @@ template <int D> void Engine<D>::exchange_sums(bool mass, bool momentum, bool fo
 }
 
 template <int D>
-template <bool Mass, bool Momentum, bool Forces>
-void Engine<D>::to_nodes_impl(const ToNodes<D>& what, const Gradient<D>* g) {
+template <bool Mass, bool Momentum, bool Forces, class Update>
+void Engine<D>::to_nodes_impl(const ToNodes<D>& what, Update&& update) {
   const Vec<D> b = loads_.uniform() ? loads_.body_force_at(what.t) : Vec<D>::Zero();
   const bool field = !fext_.empty() && loads_.any() && !loads_.uniform(), uniform = loads_.uniform();
   struct Payload { // what particle p carries to each of its nodes
     double m;
     Vec<D> mw, fext;
     Mat<D> Vs;
-  };
-  auto update = [&](int p0, int p1) {
-    if (g) update_stress_range(*g, p0, p1);
   };
   auto prep = [&](int p) {
     Payload w{};
@@ -360,29 +364,62 @@ template <int D> void Engine<D>::to_particles(const ToParticles<D>& what) {
 template <int D>
 void Engine<D>::to_particles_and_update_stress(const ToParticles<D>& what, const Gradient<D>& g) {
   ScopedPhase timer(timers_, Phase::to_particles);
-  fallible([&] { parallel_chunks(P_.size(), [&](long long begin, long long end) {
-    Mat<D> H[kStressBatch];
-    for (int p0 = static_cast<int>(begin); p0 < end; p0 += kStressBatch) {
-      const int p1 = std::min(static_cast<int>(end), p0 + kStressBatch);
-      for (int p = p0; p < p1; ++p) {
-        Vec<D> r = Vec<D>::Zero(), u = Vec<D>::Zero();
-        Mat<D> G = Mat<D>::Zero();
-        for (int e = table_.begin(p); e < table_.end(p); ++e) {
-          const int I = table_.node[e];
-          if (what.rate) r += table_.N[e] * (*what.rate)[I];
-          if (what.move) u += table_.N[e] * (*what.move)[I];
-          if (g.field) G.noalias() += (*g.field)[I] * table_.dN[e].transpose();
-        }
-        if (what.rate) {
-          if (what.rate_out) (*what.rate_out)[p] = r;
-          P_.v[p] += what.c_rate * r;
-        }
-        if (what.move) P_.x[p] += what.c_move * u;
-        if (g.field) H[p - p0] = g.c * G;
+  fallible([&] {
+    parallel_chunks(P_.size(), [&](long long begin, long long end) {
+      to_particles_on(what, g, static_cast<int>(begin), static_cast<int>(end));
+    });
+  });
+}
+
+template <int D>
+void Engine<D>::to_particles_on(const ToParticles<D>& what, const Gradient<D>& g, int begin, int end) {
+  const bool rate = what.rate != nullptr, move = what.move != nullptr, field = g.field != nullptr;
+  if (rate && move && field) to_particles_range<true, true, true>(what, g, begin, end);
+  else if (rate && move) to_particles_range<true, true, false>(what, g, begin, end);
+  else if (rate && field) to_particles_range<true, false, true>(what, g, begin, end);
+  else if (rate) to_particles_range<true, false, false>(what, g, begin, end);
+  else if (move && field) to_particles_range<false, true, true>(what, g, begin, end);
+  else if (move) to_particles_range<false, true, false>(what, g, begin, end);
+  else if (field) to_particles_range<false, false, true>(what, g, begin, end);
+}
+
+template <int D>
+template <bool Rate, bool Move, bool Field>
+void Engine<D>::to_particles_range(const ToParticles<D>& what, const Gradient<D>& g, int begin, int end) {
+  // Plain pointers and factors in locals: the stores to the particles below
+  // cannot alias them, so the loops keep them in registers.
+  const Vec<D>* rate = Rate ? what.rate->data() : nullptr;
+  const Vec<D>* move = Move ? what.move->data() : nullptr;
+  const Vec<D>* field = Field ? g.field->data() : nullptr;
+  Vec<D>* rate_out = what.rate_out ? what.rate_out->data() : nullptr;
+  const double c_rate = what.c_rate, c_move = what.c_move, c = g.c;
+  const int* offset = table_.offset.data();
+  const int* node = table_.node.data();
+  const double* N = table_.N.data();
+  const Vec<D>* dN = table_.dN.data();
+  Vec<D>* v = P_.v.data();
+  Vec<D>* x = P_.x.data();
+  Mat<D> H[kStressBatch];
+  for (int p0 = begin; p0 < end; p0 += kStressBatch) {
+    const int p1 = std::min(end, p0 + kStressBatch);
+    for (int p = p0; p < p1; ++p) {
+      Vec<D> r = Vec<D>::Zero(), u = Vec<D>::Zero();
+      Mat<D> G = Mat<D>::Zero();
+      for (int e = offset[p]; e < offset[p + 1]; ++e) {
+        const int I = node[e];
+        if constexpr (Rate) r += N[e] * rate[I];
+        if constexpr (Move) u += N[e] * move[I];
+        if constexpr (Field) G.noalias() += field[I] * dN[e].transpose();
       }
-      if (g.field) update_materials(p0, p1, H);
+      if constexpr (Rate) {
+        if (rate_out) rate_out[p] = r;
+        v[p] += c_rate * r;
+      }
+      if constexpr (Move) x[p] += c_move * u;
+      if constexpr (Field) H[p - p0] = c * G;
     }
-  }); });
+    if constexpr (Field) update_materials(p0, p1, H);
+  }
 }
 
 template <int D> void Engine<D>::update_stress(const Gradient<D>& g) {
@@ -395,12 +432,7 @@ template <int D> void Engine<D>::update_stress(const Gradient<D>& g) {
 }
 
 template <int D> void Engine<D>::update_stress_range(const Gradient<D>& g, int p0, int p1) {
-  Mat<D> H[kStressBatch];
-  for (int b0 = p0; b0 < p1; b0 += kStressBatch) {
-    const int b1 = std::min(p1, b0 + kStressBatch);
-    for (int p = b0; p < b1; ++p) H[p - b0] = g.c * nodal_gradient(table_, p, *g.field);
-    update_materials(b0, b1, H);
-  }
+  to_particles_range<false, false, true>({}, g, p0, p1);
 }
 
 template <int D> void Engine<D>::update_materials(int p0, int p1, const Mat<D>* H) {

@@ -223,6 +223,11 @@ public:
   void apply_dirichlet_force(AlignedVector<Vec<D>>& f);
   /// The fused node-to-particle map (ToParticles).
   void to_particles(const ToParticles<D>& what);
+  /// to_particles(move), then to_nodes(what) from the updated particles, in
+  /// one pass over the table (each block of particles is moved, then
+  /// scattered): the musl remap of the new momenta. `what` may not ask for
+  /// the mass. The same bits as the two calls.
+  void to_particles_then_to_nodes(const ToParticles<D>& move, const ToNodes<D>& what);
   /// to_particles(what) and, in the same pass, the constitutive update from `g`.
   void to_particles_and_update_stress(const ToParticles<D>& what, const Gradient<D>& g);
   /// The constitutive update from `g` alone (its own pass).
@@ -270,7 +275,18 @@ private:
   /// Distributed runs: every rank stops on the failing particle with the
   /// lowest global id when any rank's checks failed (`failed`).
   void agree_checks(bool failed) const;
-  template <bool Mass, bool Momentum, bool Forces> void to_nodes_impl(const ToNodes<D>& what, const Gradient<D>* g);
+  /// The particle-to-node pass; update(p0, p1) runs on each block of
+  /// particles before it is scattered.
+  template <bool Mass, bool Momentum, bool Forces, class Update>
+  void to_nodes_impl(const ToNodes<D>& what, Update&& update);
+  /// Dispatches to_nodes_impl on what `what` asks for.
+  template <class Update> void to_nodes_with(const ToNodes<D>& what, Update&& update);
+  /// The node-to-particle map of `what` (and the constitutive update from
+  /// `g` when Field) on particles [begin, end).
+  template <bool Rate, bool Move, bool Field>
+  void to_particles_range(const ToParticles<D>& what, const Gradient<D>& g, int begin, int end);
+  /// Dispatches to_particles_range on what `what` and `g` hold.
+  void to_particles_on(const ToParticles<D>& what, const Gradient<D>& g, int begin, int end);
   void finish_mass();
   /// The mass gradients of the bodies' fields for the contact normals.
   void contact_mass_gradient();

@@ -27,13 +27,13 @@ template <int D> void step_usl(Engine<D>& e, const StepContext<D>& s, bool musl)
   const ToParticles<D> move{.rate = &n.a, .c_rate = dt, .move = &n.v, .c_move = dt};
   // 4. (usl) L_p = sum v_I (x) grad N_Ip; strain, density and stress
   //    update, in the same pass over the particles.
-  if (musl) e.to_particles(move);
+  // musl: v_I recomputed from the updated particle momenta (each block of
+  // particles moved, then scattered, in one pass), then step 4.
+  if (musl) e.to_particles_then_to_nodes(move, {.w = &P.v});
   else e.to_particles_and_update_stress(move, {&n.v, dt});
-  scale(n.dx, dt, n.v);
+  scale(n.dx, dt, n.v); // also in mpm mode: the step's nodal increments (Engine::nodal)
   e.advect_nodes(n.dx);
   if (!musl) return;
-  // musl: v_I recomputed from the updated particle momenta, then step 4.
-  e.to_nodes({.w = &P.v});
   e.solve_mass(n.q, n.v);
   e.constrain_velocity(n.v, {.impulse = false});
   e.update_stress({&n.v, dt});
