@@ -259,14 +259,24 @@ private:
   void check_particle(int p) const;
   /// True when particle p passes check_particle (inline, no message: x - x
   /// is 0 for a finite x and NaN otherwise, so one sum tests every value).
-  bool particle_ok(int p) const {
+  bool particle_ok(int p) const { return finite_state(p) && mode_.keeps_inside(P_.x[p], P_.v[p], dt_); }
+  /// True when particles [p0, p1) all pass check_particle: particle_ok
+  /// without a branch per particle (the after-step pass's fast test).
+  bool particles_ok(int p0, int p1) const {
+    bool ok = true;
+    for (int p = p0; p < p1; ++p) ok &= finite_state(p) & mode_.keeps_inside_bits(P_.x[p], P_.v[p], dt_);
+    return ok;
+  }
+  /// x - x is 0 for a finite x and NaN otherwise, so one sum tests every
+  /// value of particle p's position, velocity and stress.
+  bool finite_state(int p) const {
     const Vec<D>& x = P_.x[p];
     const Vec<D>& v = P_.v[p];
     const Mat<D>& s = P_.sigma[p];
     double z = 0.0;
     for (int k = 0; k < D; ++k) z += (x[k] - x[k]) + (v[k] - v[k]);
     for (int k = 0; k < D * D; ++k) z += s(k) - s(k);
-    return z == 0.0 && mode_.keeps_inside(x, v, dt_);
+    return z == 0.0;
   }
   /// After each step: check_particle() for every particle, the energies,
   /// the wave speed for the next stable_dt() and the momentum, in one pass

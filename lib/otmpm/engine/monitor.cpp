@@ -70,21 +70,33 @@ template <int D> void Engine<D>::sum_particles(bool check) {
   const auto kinematics = [&](int p0, int p1, ParticleSums<D>& acc) {
     if (stay)
       for (int p = p0; p < p1; ++p) acc.outside |= !stay->contains(P_.x[p]);
-    for (int p = p0; p < p1; ++p) {
-      if (check && !particle_ok(p)) [[unlikely]] {
-        if (!dist_) check_particle(p);
-        else try {
-            check_particle(p);
-          } catch (const InstabilityError&) {
-            failed.store(true, std::memory_order_relaxed);
-          }
-      }
-      const double v2 = P_.v[p].squaredNorm();
-      acc.kinetic += 0.5 * P_.m[p] * v2;
-      acc.momentum += P_.m[p] * P_.v[p];
-      const double c2 = p_modulus_[static_cast<std::size_t>(P_.material[p])] / P_.rho[p];
-      acc.wave_speed2 = std::max({acc.wave_speed2, c2, v2});
+    const bool all_ok = !check || particles_ok(p0, p1);
+    for (int p = p0; !all_ok && p < p1; ++p) {
+      if (particle_ok(p)) continue;
+      if (!dist_) check_particle(p);
+      else try {
+          check_particle(p);
+        } catch (const InstabilityError&) {
+          failed.store(true, std::memory_order_relaxed);
+        }
     }
+    // The sums in locals (acc is memory the particle arrays might alias, as
+    // far as the compiler knows), in particle order.
+    const Vec<D>* v = P_.v.data();
+    const double* m = P_.m.data();
+    const double* rho = P_.rho.data();
+    const int* material = P_.material.data();
+    const double* modulus = p_modulus_.data();
+    double kinetic = acc.kinetic, wave_speed2 = acc.wave_speed2;
+    Vec<D> momentum = acc.momentum;
+    for (int p = p0; p < p1; ++p) {
+      const double v2 = v[p].squaredNorm();
+      kinetic += 0.5 * m[p] * v2;
+      momentum += m[p] * v[p];
+      const double c2 = modulus[material[p]] / rho[p];
+      wave_speed2 = std::max({wave_speed2, c2, v2});
+    }
+    acc.kinetic = kinetic, acc.wave_speed2 = wave_speed2, acc.momentum = momentum;
   };
   auto s = blocked_reduce_ranges<ParticleSums<D>>(P_.size(), [&](long long b0, long long b1, ParticleSums<D>& acc) {
     // Sub-blocks small enough that the material's energy pass finds the
