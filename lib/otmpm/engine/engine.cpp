@@ -262,25 +262,35 @@ void Engine<D>::to_nodes_impl(const ToNodes<D>& what, Update&& update) {
     Vec<D> mw, fext;
     Mat<D> Vs;
   };
-  auto prep = [&](int p) {
-    Payload w{};
-    w.m = P_.m[p];
+  // The arrays by value in the lambdas: the sums' stores cannot alias them.
+  const double* m = P_.m.data();
+  const double* V = P_.V.data();
+  const Mat<D>* sigma = P_.sigma.data();
+  const Vec<D>* vw = Momentum ? what.w->data() : nullptr;
+  const Vec<D>* va = Momentum && what.a ? what.a->data() : nullptr;
+  const Vec<D>* fext = field ? fext_.data() : nullptr;
+  const double c = what.c;
+  auto prep = [=](int p) {
+    Payload w;
+    w.m = m[p];
     if (Momentum) {
-      w.mw = P_.m[p] * (*what.w)[p];
-      if (what.a) w.mw += (P_.m[p] * what.c) * (*what.a)[p];
+      w.mw = m[p] * vw[p];
+      if (va) w.mw += (m[p] * c) * va[p];
     }
     if (Forces) {
-      w.Vs = P_.V[p] * P_.sigma[p];
-      w.fext = uniform ? Vec<D>(P_.m[p] * b) : field ? fext_[p] : Vec<D>::Zero();
+      w.Vs = V[p] * sigma[p];
+      w.fext = uniform ? Vec<D>(m[p] * b) : fext ? fext[p] : Vec<D>::Zero();
     }
     return w;
   };
-  auto add = [&](NodeSums<D>& acc, int e, const Payload& w) {
-    const double N = table_.N[e];
+  const double* Ne = table_.N.data(); // by value in the lambda: the sums' stores cannot alias it
+  const Vec<D>* dNe = table_.dN.data();
+  auto add = [Ne, dNe](NodeSums<D>& acc, int e, const Payload& w) {
+    const double N = Ne[e];
     if (Mass) acc.m += N * w.m;
     if (Momentum) acc.q += N * w.mw;
     if (Forces) {
-      acc.f -= w.Vs * table_.dN[e];
+      acc.f -= w.Vs * dNe[e];
       acc.f += N * w.fext;
     }
   };
