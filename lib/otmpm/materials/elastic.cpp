@@ -22,18 +22,25 @@ public:
   explicit LinearElastic(const MaterialParameters& p) : Material<D>(p), c_(p.elastic()) {}
   bool needs_deformation_gradient() const override { return false; }
   void update(Particles<D>& P, int p0, int p1, const Mat<D>* H, double) const override {
-    const bool with_F = !P.F.empty();
+    // Locals: the stores below cannot alias them (the constants are doubles too).
+    const ElasticConstants c = c_;
+    Mat<D>* F = P.F.empty() ? nullptr : P.F.data();
+    Mat<D>* eps = P.eps.data();
+    Mat<D>* sigma = P.sigma.data();
+    double* rho = P.rho.data();
+    double* V = P.V.data();
+    const double* m = P.m.data();
     for (int p = p0; p < p1; ++p) {
       const Mat<D>& h = H[p - p0];
-      if (with_F) P.F[p] = (Mat<D>::Identity() + h) * P.F[p];
+      if (F) F[p] = (Mat<D>::Identity() + h) * F[p];
       const Mat<D> d_eps = 0.5 * (h + h.transpose());
-      P.eps[p] += d_eps;
-      P.sigma[p] += elastic_stress_increment<D>(c_, d_eps);
+      eps[p] += d_eps;
+      sigma[p] += elastic_stress_increment<D>(c, d_eps);
       const double dilation = 1.0 + d_eps.trace();
-      if (!(dilation > 0.0))
+      if (!(dilation > 0.0)) [[unlikely]]
         throw ParticleFailure{p, "volume change 1 + tr(d_eps) = " + format_number(dilation) + " <= 0"};
-      P.rho[p] /= dilation;
-      P.V[p] = P.m[p] / P.rho[p];
+      rho[p] /= dilation;
+      V[p] = m[p] / rho[p];
     }
   }
   void add_energies(const Particles<D>& P, int p0, int p1, double& stored, double&) const override {
@@ -52,13 +59,15 @@ public:
   explicit FiniteElastic(const MaterialParameters& p) : Material<D>(p), c_(p.elastic()) {}
   bool needs_deformation_gradient() const override { return true; }
   void update(Particles<D>& P, int p0, int p1, const Mat<D>* H, double) const override {
+    const ElasticConstants c = c_; // a local: the stores below cannot alias it
     for (int p = p0; p < p1; ++p) {
       P.F[p] = (Mat<D>::Identity() + H[p - p0]) * P.F[p];
       const double J = P.F[p].determinant();
-      if (!(J > 0.0)) throw ParticleFailure{p, "det F = " + format_number(J) + " <= 0"};
+      if (!(J > 0.0)) [[unlikely]]
+        throw ParticleFailure{p, "det F = " + format_number(J) + " <= 0"};
       P.V[p] = J * P.V0[p];
       P.rho[p] = P.m[p] / P.V[p];
-      P.sigma[p] = Law(c_, P.F[p]);
+      P.sigma[p] = Law(c, P.F[p]);
       P.eps[p] = 0.5 * (P.F[p] + P.F[p].transpose()) - Mat<D>::Identity();
     }
   }
