@@ -168,7 +168,8 @@ TEST_CASE("interior box: a position it holds has its cell in the box, far from t
   // Grids with an offset origin, an awkward spacing and one far from 0 (the
   // margin's part proportional to the coordinates), and a box at the edge.
   std::mt19937_64 rng(7);
-  for (const auto& [lower, upper] : {std::pair{-0.0123, 0.987}, std::pair{1e6, 1e6 + 3.3}, std::pair{-1.0, 1.0}}) {
+  for (const std::pair<double, double>& range : {std::pair{-0.0123, 0.987}, std::pair{1e6, 1e6 + 3.3}, std::pair{-1.0, 1.0}}) {
+    const double lower = range.first, upper = range.second;
     CAPTURE(lower);
     CartesianGrid<2> g;
     g.lower = Vec<2>(lower, lower), g.upper = Vec<2>(upper, upper), g.cells = {33, 17};

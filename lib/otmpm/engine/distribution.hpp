@@ -51,7 +51,10 @@ template <int D> struct PositionBox {
   Vec<D> lo, hi;
   bool contains(const Vec<D>& x) const {
     bool in = true;
-    for (int k = 0; k < D; ++k) in &= (x[k] > lo[k]) & (x[k] < hi[k]);
+    for (int k = 0; k < D; ++k) {
+      in &= x[k] > lo[k];
+      in &= x[k] < hi[k];
+    }
     return in;
   }
 };

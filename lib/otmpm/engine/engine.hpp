@@ -264,7 +264,10 @@ private:
   /// without a branch per particle (the after-step pass's fast test).
   bool particles_ok(int p0, int p1) const {
     bool ok = true;
-    for (int p = p0; p < p1; ++p) ok &= finite_state(p) & mode_.keeps_inside_bits(P_.x[p], P_.v[p], dt_);
+    for (int p = p0; p < p1; ++p) {
+      ok &= finite_state(p);
+      ok &= mode_.keeps_inside_bits(P_.x[p], P_.v[p], dt_);
+    }
     return ok;
   }
   /// x - x is 0 for a finite x and NaN otherwise, so one sum tests every

@@ -39,8 +39,13 @@ public:
   bool keeps_inside_bits(const Vec<D>& x, const Vec<D>& v, double dt) const {
     const Vec<D> y = x + dt * v;
     bool in = true;
-    for (int k = 0; k < D; ++k) in &= (x[k] > lower_[k]) & (x[k] < upper_[k]) & (y[k] > lower_[k]) & (y[k] < upper_[k]);
-    return advected_ | in;
+    for (int k = 0; k < D; ++k) {
+      in &= x[k] > lower_[k];
+      in &= x[k] < upper_[k];
+      in &= y[k] > lower_[k];
+      in &= y[k] < upper_[k];
+    }
+    return advected_ || in;
   }
   /// Why keeps_inside(x, v, dt) is false, for the diagnosis.
   std::string leaving(const Vec<D>& x, const Vec<D>& v) const;
