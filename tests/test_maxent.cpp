@@ -21,6 +21,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
 #include <string>
 #include <vector>
@@ -111,6 +112,97 @@ TEST_CASE("maxent: gradient of the log-prior matches finite differences") {
   double a = 0;
   CHECK_FALSE(prior.log_weight(Vec<2>(0.3, 0.0), a)); // r = 1: w = 0, not in the support
   CHECK(prior.grad_log_weight(Vec<2>::Zero()).norm() == 0.0); // regular at the node
+}
+
+namespace {
+
+/// CubicSplinePrior::weight against cubic_spline, log_weight and
+/// grad_log_weight: the basis uses it in place of them, so it must give
+/// their bits (same r, same w, same factor).
+template <int D> void weight_matches_log_form(unsigned seed) {
+  maxent::CubicSplinePrior<D> prior;
+  prior.d = 0.3;
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-0.3, 0.3);
+  int inside = 0;
+  for (int i = 0; i < 2000; ++i) {
+    Vec<D> dx;
+    for (int k = 0; k < D; ++k) dx[k] = u(rng);
+    if (i == 0) dx.setZero(); // at the node
+    double log_w = 0, w = 0, c = 0;
+    const bool in = prior.log_weight(dx, log_w);
+    REQUIRE(prior.weight(dx, w, c) == in);
+    if (!in) continue;
+    ++inside;
+    CHECK(w == maxent::cubic_spline(dx.norm() / prior.d));
+    CHECK(std::log(w) == log_w);
+    const Vec<D> g = prior.grad_log_weight(dx);
+    for (int k = 0; k < D; ++k) CHECK(c * dx[k] == g[k]);
+  }
+  CHECK(inside > 100);
+}
+
+/// N_I against the log form exp(log w_I + lambda . dx_I - max) / sum at the
+/// basis' own converged lambda, and linear completeness. Returns |lambda| R.
+template <int D>
+double check_log_form(const Basis<D>& basis, double d, const Vec<D>& x, double tol_N, double tol_completeness) {
+  Stencil<D> st;
+  Vec<D> lambda = Vec<D>::Zero();
+  PointQuery<D> q;
+  q.x = x;
+  q.lambda = &lambda;
+  basis.evaluate(q, st);
+  std::vector<double> f;
+  double f_max = -std::numeric_limits<double>::infinity();
+  for (int a = 0; a < st.size(); ++a) {
+    const Vec<D> dx = x - basis.nodes().position(st.node[a]);
+    f.push_back(std::log(maxent::cubic_spline(dx.norm() / d)) + lambda.dot(dx));
+    f_max = std::max(f_max, f.back());
+  }
+  double Z = 0;
+  for (const double v : f) Z += std::exp(v - f_max);
+  double err = 0, sum = 0;
+  Vec<D> xbar = Vec<D>::Zero();
+  for (int a = 0; a < st.size(); ++a) {
+    err = std::max(err, std::abs(st.N[a] - std::exp(f[a] - f_max) / Z));
+    sum += st.N[a];
+    xbar += st.N[a] * basis.nodes().position(st.node[a]);
+  }
+  INFO("x = " << x.transpose() << ", lambda = " << lambda.transpose());
+  CHECK(err <= tol_N);
+  CHECK(std::abs(sum - 1.0) <= kPartitionTol);
+  CHECK((xbar - x).norm() <= tol_completeness);
+  return lambda.norm() * d;
+}
+
+} // namespace
+
+TEST_CASE("maxent: the prior's weight and gradient factor are the bits of the log form") {
+  weight_matches_log_form<1>(3);
+  weight_matches_log_form<2>(4);
+  weight_matches_log_form<3>(5);
+}
+
+TEST_CASE("maxent: N from w_I exp(lambda . dx_I) equals the log form, also with shifted exponents") {
+  // The solver forms p_I = w_I exp(lambda . dx_I) (no log per node); the
+  // reference is exp(log w_I + lambda . dx_I) normalised, at the same lambda:
+  // they differ by round-off of the exponents, |lambda . dx| eps <~ 1e-13.
+  const auto b2 = make_maxent_basis<2>(NodeSet<2>::perturbed(unit_grid<2>(6), 0.3, 8), maxent_options());
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<double> u(0.1, 0.9);
+  const double h2 = b2->nodes().spacing();
+  for (int i = 0; i < 20; ++i)
+    check_log_form<2>(*b2, 2.0 * h2, Vec<2>(u(rng), u(rng)), 1e-13, kCompletenessTol * h2);
+  // 1D, two nodes 1e-3 apart next to a lattice of spacing 0.1: at x = 1e-4
+  // lambda ~ ln(9) / 1e-3 ~ 2e3, |lambda| R > 300, so the exponents are
+  // shifted by their maximum (log w_I formed there) and the line search
+  // compares log Z values (its round-off bound needs log w_I too).
+  AlignedVector<Vec<1>> x{Vec<1>(0.0), Vec<1>(1e-3)};
+  for (int I = 1; I <= 10; ++I) x.push_back(Vec<1>(0.1 * I));
+  const auto b1 = make_maxent_basis<1>(NodeSet<1>::cloud(x, 0.1), maxent_options());
+  // exponents up to |lambda| R ~ 440: their round-off ~1e-13 relative in N
+  const double lambda_R = check_log_form<1>(*b1, 0.2, Vec<1>(1e-4), 1e-12, kCompletenessTol * 0.1);
+  CHECK(lambda_R > 300.0);
 }
 
 TEST_CASE("maxent: kind, flags and option checks") {

@@ -12,7 +12,12 @@
 //   radius is one number known in advance (neighbour search by
 //   NodeSet::within) and does not change when nodes are advected; on a
 //   Cartesian grid the two are the same. The Newton solver only sees
-//   log w_I, so both families share it (MaxEntBasis<D, Prior>).
+//   the priors, so both families share it (MaxEntBasis<D, Prior>): log w_I
+//   for the Gaussian (its exponent, free), w_I itself for the cubic spline,
+//   whose weights are p_I = w_I exp(lambda . (x - x_I)) with no logarithm
+//   per node (log w_I is formed only on the rare paths that need it: the
+//   shifted exponents beyond kUnshiftedExponent and the round-off bound of
+//   the line search).
 // * Support: LME keeps node I when beta |x - x_I|^2 <= -ln(tol), i.e.
 //   exp(-beta r^2) >= tol, radius R = h sqrt(-ln(tol) / gamma_lme); max-ent
 //   keeps nodes with |x - x_I| < d_max h (w_I > 0).
@@ -34,7 +39,7 @@
 //   Armijo condition provably holds (see the constant) and log Z is not
 //   evaluated: the quadratic phase costs no extra exp() pass.
 // * Cost (issue 7). The support is held in structure-of-arrays form (one
-//   array per axis of x - x_I, log w_I, N_I), padded to whole short vectors
+//   array per axis of x - x_I, log w_I or w_I, N_I), padded to whole short vectors
 //   (simd.hpp: two lanes with SSE2, four with AVX), and every pass over the
 //   nodes - exponents, exp(), the sums for r and J, the exponent changes of
 //   the line search - runs on those vectors; exp() is a branch-free vector
@@ -250,30 +255,58 @@ template <int D> struct Moments {
 };
 
 /// The weights p_I = exp(f_I - log_base) (into p), f_I = log w_I + lambda .
-/// dx_I, and the state at lambda (molinos eqs. 36-40): Z = sum p_I, N_I =
+/// dx_I (formed as w_I exp(lambda . dx_I - log_base) when kWeights), and the state at lambda (molinos eqs. 36-40): Z = sum p_I, N_I =
 /// p_I / Z, r, J, log Z = log_base + log(Z). log_base = 0 while |lambda| R <=
 /// kUnshiftedExponent, else the largest f_I. Moments about c (the caller's
-/// best guess of r). Returns false when not finite.
-template <int D>
-bool dual_state(const Vec<D>& lambda, const Support<D>& s, double* p, const Vec<D>& c, NewtonState<D>& st) {
+/// best guess of r). Returns false when not finite. kWeights: the priors
+/// are held as w_I (Support::w), else as log w_I.
+template <int D, bool kWeights>
+bool dual_state_impl(const Vec<D>& lambda, const Support<D>& s, double* p, const Vec<D>& c, NewtonState<D>& st) {
   using simd::vd;
   st.log_base = 0.0;
   if (!(lambda.norm() * s.radius <= kUnshiftedExponent)) {
-    vd fmax = simd::broadcast(-std::numeric_limits<double>::infinity());
-    for (int i = 0; i < s.n_pad; i += simd::lanes)
-      fmax = simd::max(fmax, simd::load(s.log_w + i) + exponent_increment<D>(lambda, s, i));
-    st.log_base = simd::max_lane(fmax);
+    if constexpr (!kWeights) {
+      vd fmax = simd::broadcast(-std::numeric_limits<double>::infinity());
+      for (int i = 0; i < s.n_pad; i += simd::lanes)
+        fmax = simd::max(fmax, simd::load(s.log_w + i) + exponent_increment<D>(lambda, s, i));
+      st.log_base = simd::max_lane(fmax);
+    } else { // w_I held directly: log w_I only here (|lambda| R > kUnshiftedExponent is rare)
+      st.log_base = -std::numeric_limits<double>::infinity();
+      for (int i = 0; i < s.n; ++i) st.log_base = std::max(st.log_base, std::log(s.w[i]) + lambda.dot(s.offset(i)));
+    }
     if (!std::isfinite(st.log_base)) return false;
   }
   Moments<D> mo;
   mo.c = c;
-  for (int i = 0; i < s.n_pad; i += simd::lanes) {
-    const vd f = simd::load(s.log_w + i) + exponent_increment<D>(lambda, s, i);
-    const vd e = simd::exp_shifted(f - st.log_base);
-    simd::store(p + i, e);
-    mo.add(s, i, e);
+  if constexpr (!kWeights) {
+    for (int i = 0; i < s.n_pad; i += simd::lanes) {
+      const vd f = simd::load(s.log_w + i) + exponent_increment<D>(lambda, s, i);
+      const vd e = simd::exp_shifted(f - st.log_base);
+      simd::store(p + i, e);
+      mo.add(s, i, e);
+    }
+  } else { // p_I = w_I exp(lambda . dx_I - log_base): no logarithm per node
+    for (int i = 0; i < s.n_pad; i += simd::lanes) {
+      const vd e = simd::load(s.w + i) * simd::exp_shifted(exponent_increment<D>(lambda, s, i) - st.log_base);
+      simd::store(p + i, e);
+      mo.add(s, i, e);
+    }
   }
   return mo.finish(s, p, st);
+}
+
+/// dual_state_impl for priors held as w_I, compiled on its own: inlined
+/// next to the log-prior pass, the moments of both passes went to memory.
+template <int D>
+[[gnu::noinline]] bool dual_state_weights(const Vec<D>& lambda, const Support<D>& s, double* p, const Vec<D>& c,
+                                          NewtonState<D>& st) {
+  return dual_state_impl<D, true>(lambda, s, p, c, st);
+}
+
+/// dual_state_impl for the priors `s` holds.
+template <int D>
+bool dual_state(const Vec<D>& lambda, const Support<D>& s, double* p, const Vec<D>& c, NewtonState<D>& st) {
+  return s.w ? dual_state_weights<D>(lambda, s, p, c, st) : dual_state_impl<D, false>(lambda, s, p, c, st);
 }
 
 /// The state at lambda + step from the state `st` at lambda (weights in p,
@@ -296,7 +329,10 @@ bool shifted_state(const Vec<D>& step, const Support<D>& s, double* p, double u_
 /// Bound on the round-off of log Z at lambda: kLogZRoundoff (1 + max_I |f_I|).
 template <int D> double log_Z_error(const Vec<D>& lambda, const Support<D>& s) {
   double fabs_max = 0.0;
-  for (int i = 0; i < s.n; ++i) fabs_max = std::max(fabs_max, std::abs(s.log_w[i] + lambda.dot(s.offset(i))));
+  for (int i = 0; i < s.n; ++i) {
+    const double log_w = s.log_w ? s.log_w[i] : std::log(s.w[i]);
+    fabs_max = std::max(fabs_max, std::abs(log_w + lambda.dot(s.offset(i))));
+  }
   return kLogZRoundoff * (1.0 + fabs_max);
 }
 
@@ -750,8 +786,8 @@ template <int D, class Prior> void MaxEntBasis<D, Prior>::fail(const PointQuery<
 }
 
 template <int D, class Prior>
-template <class LogWeight>
-void MaxEntBasis<D, Prior>::gather_support(const PointQuery<D>& q, double R, const LogWeight& log_weight,
+template <class PriorValue>
+void MaxEntBasis<D, Prior>::gather_support(const PointQuery<D>& q, double R, const PriorValue& prior_value,
                                            Stencil<D>& out, Vec<D>& lo, Vec<D>& hi) const {
   // Candidates: the point's Verlet list (a superset within the search
   // radius) or the nodes within R; the same distance test as
@@ -766,9 +802,10 @@ void MaxEntBasis<D, Prior>::gather_support(const PointQuery<D>& q, double R, con
     candidates = out.scratch_ids;
   }
   const int stride = simd::padded(static_cast<int>(candidates.size()));
-  out.scratch_w.resize(static_cast<std::size_t>(D + 3) * static_cast<std::size_t>(stride));
+  out.scratch_w.resize(static_cast<std::size_t>(kScratchArrays) * static_cast<std::size_t>(stride));
   double* dx = out.scratch_w.data();
-  double* log_w = dx + D * stride;
+  double* value = dx + D * stride; // log w_I (Gaussian prior) or w_I
+  double* grad_factor = value + stride;
   int n = 0;
   double low[D], high[D]; // locals: not aliased by the stores below
   for (int k = 0; k < D; ++k) low[k] = std::numeric_limits<double>::infinity(), high[k] = -low[k];
@@ -777,10 +814,11 @@ void MaxEntBasis<D, Prior>::gather_support(const PointQuery<D>& q, double R, con
   const Vec<D> x = q.x;
   for (const int I : candidates) {
     const Vec<D> d = x - nodes_.position(I);
-    double w;
-    if (!(d.squaredNorm() <= R2) || !log_weight(I, d, w)) continue;
+    double v, c;
+    if (!(d.squaredNorm() <= R2) || !prior_value(I, d, v, c)) continue;
     node[n] = I;
-    log_w[n] = w;
+    value[n] = v;
+    if constexpr (!Prior::kGaussian) grad_factor[n] = c;
     for (int k = 0; k < D; ++k) {
       dx[k * stride + n] = d[k];
       low[k] = std::min(low[k], d[k]);
@@ -792,7 +830,7 @@ void MaxEntBasis<D, Prior>::gather_support(const PointQuery<D>& q, double R, con
   for (int k = 0; k < D; ++k) lo[k] = low[k], hi[k] = high[k];
   for (int i = n; i < simd::padded(n); ++i) { // padding: N = 0
     for (int k = 0; k < D; ++k) dx[k * stride + i] = 0.0;
-    log_w[i] = -std::numeric_limits<double>::infinity();
+    value[i] = Prior::kGaussian ? -std::numeric_limits<double>::infinity() : 0.0;
   }
 }
 
@@ -804,7 +842,7 @@ void MaxEntBasis<D, Prior>::gather_metric_support(const PointQuery<D>& q, const 
     if constexpr (Prior::kGaussian) {
       // node I kept while beta_I |dx|^2 <= -ln(tol), i.e. within R_I = h_I sqrt(-ln(tol) / gamma_lme)
       const double max_exponent = prior_.max_exponent;
-      const auto weight = [&](int I, const Vec<D>& d, double& w) {
+      const auto weight = [&](int I, const Vec<D>& d, double& w, double&) {
         const double e = node_beta_[static_cast<std::size_t>(I)] * d.squaredNorm();
         w = -e;
         return e <= max_exponent;
@@ -816,7 +854,7 @@ void MaxEntBasis<D, Prior>::gather_metric_support(const PointQuery<D>& q, const 
     if constexpr (Prior::kGaussian) {
       const double max_exponent = prior_.max_exponent;
       const Mat<D> B = pm.B;
-      const auto weight = [&](int, const Vec<D>& d, double& w) {
+      const auto weight = [&](int, const Vec<D>& d, double& w, double&) {
         const double e = d.dot(B * d);
         w = -e;
         return e <= max_exponent;
@@ -824,7 +862,14 @@ void MaxEntBasis<D, Prior>::gather_metric_support(const PointQuery<D>& q, const 
       return gather_support(q, pm.radius, weight, out, lo, hi);
     }
   }
-  const auto weight = [this](int, const Vec<D>& d, double& w) { return prior_.log_weight(d, w); };
+  const auto weight = [this](int, const Vec<D>& d, double& w, double& c) {
+    if constexpr (Prior::kGaussian) {
+      (void)c;
+      return prior_.log_weight(d, w);
+    } else {
+      return prior_.weight(d, w, c);
+    }
+  };
   gather_support(q, R, weight, out, lo, hi);
 }
 
@@ -900,15 +945,17 @@ template <int D, class Prior> void MaxEntBasis<D, Prior>::update_beta_by_spacing
 
 template <int D, class Prior> Support<D> MaxEntBasis<D, Prior>::support(Stencil<D>& out) const {
   const int n = out.size();
-  const int stride = static_cast<int>(out.scratch_w.size()) / (D + 3);
+  const int stride = static_cast<int>(out.scratch_w.size()) / kScratchArrays;
   double* base = out.scratch_w.data();
   Support<D> s;
   for (int k = 0; k < D; ++k) s.dx[k] = base + k * stride;
-  s.log_w = base + D * stride;
+  s.log_w = Prior::kGaussian ? base + D * stride : nullptr;
+  s.w = Prior::kGaussian ? nullptr : base + D * stride;
+  s.grad_factor = base + (D + 1) * stride;
   s.n = n;
   s.n_pad = simd::padded(n);
-  s.p = base + (D + 1) * stride;
-  s.trial = base + (D + 2) * stride;
+  s.p = base + (D + 2) * stride;
+  s.trial = base + (D + 3) * stride;
   s.radius = settings_.support_radius;
   return s;
 }
@@ -1020,7 +1067,8 @@ Mat<D> MaxEntBasis<D, Prior>::finish_stencil(const NewtonState<D>& st, const Sup
       };
       JA = general_gradient(st, s, grad_log, out);
     } else {
-      JA = general_gradient(st, s, [&](int i) { return prior_.grad_log_weight(s.offset(i)); }, out);
+      // c_I from gather_support: c_I dx_I is prior_.grad_log_weight(dx_I), bit for bit
+      JA = general_gradient(st, s, [&](int i) { return Vec<D>(s.grad_factor[i] * s.offset(i)); }, out);
     }
   }
   bool zeros = false;

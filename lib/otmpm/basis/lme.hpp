@@ -65,6 +65,11 @@ template <int D> struct CubicSplinePrior {
   double support_radius() const { return d; }
   /// log w_I for dx = x - x_I; false when |dx| >= d (w_I = 0).
   bool log_weight(const Vec<D>& dx, double& log_w) const;
+  /// w_I itself (no logarithm) and the factor c_I of grad_x log w_I = c_I dx,
+  /// from one r and one w(r): w the bits of cubic_spline(r), c_I dx the bits
+  /// of grad_log_weight(dx). False when |dx| >= d (w_I = 0). The basis forms
+  /// both while gathering the support.
+  bool weight(const Vec<D>& dx, double& w, double& grad_factor) const;
   /// grad_x log w_I = w'(r) / (w(r) r) dx / d^2, r = |dx| / d < 1.
   Vec<D> grad_log_weight(const Vec<D>& dx) const;
 };
@@ -97,6 +102,17 @@ template <int D> inline bool CubicSplinePrior<D>::log_weight(const Vec<D>& dx, d
   return true;
 }
 
+template <int D> inline bool CubicSplinePrior<D>::weight(const Vec<D>& dx, double& w, double& grad_factor) const {
+  const double r = dx.norm() / d;
+  if (!(r < 1.0)) return false;
+  w = cubic_spline(r);
+  if (!(w > 0.0)) return false;
+  // as in grad_log_weight, with the w(r) already formed
+  const double factor = r <= kSplineInner ? (-8.0 + 12.0 * r) / w : -3.0 / ((1.0 - r) * r);
+  grad_factor = factor / (d * d);
+  return true;
+}
+
 template <int D> inline Vec<D> CubicSplinePrior<D>::grad_log_weight(const Vec<D>& dx) const {
   const double r = dx.norm() / d;
   // d log w / dr / r, written so that r -> 0 is regular (w'(r)/r = -8 + 12 r).
@@ -116,10 +132,16 @@ template <int D> inline bool GaussianPrior<D>::log_weight(const Vec<D>& dx, doub
 /// support nodes, padded to n_pad = simd::padded(n) entries with dx = 0 and
 /// log_w = -inf (N = 0 there); and two buffers of n_pad values for the
 /// weights p_I = Z N_I (the current state and a trial state of the line
-/// search; the solver swaps them on acceptance).
+/// search; the solver swaps them on acceptance). For a prior other than the
+/// Gaussian the priors are held as w[i] = w_I itself (padding 0) and log_w is
+/// null: p_I = w_I exp(lambda . dx_I) needs no logarithm per node (formed
+/// where the rare shifted or line-search paths need log w_I); and
+/// grad_factor[i] = c_I, grad_x log w_I = c_I dx_I (CubicSplinePrior::weight).
 template <int D> struct Support {
   const double* dx[D];
-  const double* log_w;
+  const double* log_w; ///< log w_I (Gaussian prior), else null
+  const double* w;     ///< w_I (other priors), else null
+  const double* grad_factor;
   int n;
   int n_pad;
   double radius; ///< bound on |x - x_I| over the support (the support radius R)
@@ -234,14 +256,16 @@ protected:
   void restore_family_state(const StateGroup&) override { nodes_moved({}); }
 
 private:
-  /// Gathers the support of x: node ids into out.node, the offsets x - x_I
-  /// and log w_I into out.scratch_w in the layout of support(), and the
-  /// per-axis extent [lo, hi] of the offsets.
-  /// `radius`: every support node lies within it; `log_weight(I, dx, w)` sets
-  /// w = log w_I and says whether node I is in the support.
-  template <class LogWeight>
-  void gather_support(const PointQuery<D>& q, double radius, const LogWeight& log_weight, Stencil<D>& out, Vec<D>& lo,
-                      Vec<D>& hi) const;
+  /// Gathers the support of x: node ids into out.node, the offsets x - x_I,
+  /// log w_I (Gaussian prior) or w_I and the gradient factors c_I (other
+  /// priors) into out.scratch_w in the layout of support(), and the per-axis
+  /// extent [lo, hi] of the offsets.
+  /// `radius`: every support node lies within it; `prior_value(I, dx, v, c)`
+  /// sets v = log w_I (Gaussian) or v = w_I and c = c_I, grad log w_I = c_I
+  /// dx (other priors), and says whether node I is in the support.
+  template <class PriorValue>
+  void gather_support(const PointQuery<D>& q, double radius, const PriorValue& prior_value, Stencil<D>& out,
+                      Vec<D>& lo, Vec<D>& hi) const;
   /// gather_support with the prior of the metric (pm: Metric::deformation).
   void gather_metric_support(const PointQuery<D>& q, const PointMetric<D>& pm, Stencil<D>& out, Vec<D>& lo,
                              Vec<D>& hi) const;
@@ -254,8 +278,8 @@ private:
   /// metric does not vary beta by node): the closed-form LME gradient holds.
   bool uniform_beta(const Stencil<D>& out) const;
   /// The Support view of out.scratch_w after gather_support: D arrays of
-  /// offsets, log w_I, N_I and a trial buffer, each of stride
-  /// simd::padded(candidates) doubles.
+  /// offsets, log w_I or w_I, the gradient factors c_I, N_I and a trial buffer,
+  /// each of stride simd::padded(candidates) doubles (kScratchArrays in all).
   Support<D> support(Stencil<D>& out) const;
   /// Throws unless x lies within the bounding box of its n support nodes
   /// (offsets x - x_I within [lo, hi] per axis).
@@ -284,6 +308,9 @@ private:
   void drop_zeros(Stencil<D>& out) const;
   [[noreturn]] void fail(const PointQuery<D>& q, const std::string& why) const;
   int compute_stencil_bound() const;
+
+  /// Arrays of out.scratch_w (see support()).
+  static constexpr int kScratchArrays = D + 4;
 
   NodeSet<D> nodes_;
   Prior prior_;
