@@ -13,6 +13,7 @@
 #include <bit>
 #include <cmath>
 #include <limits>
+#include <type_traits>
 #include <utility>
 
 namespace otmpm {
@@ -247,14 +248,20 @@ public:
       throw InputError("linear basis needs a structured grid (cartesian or perturbed), not a node cloud");
     grid_ = *nodes_.grid();
     h_ = grid_.h();
-    box_ = WidenedBox<D>(grid_);
+    const WidenedBox<D> box(grid_);
     for (int k = 0, s = 1; k < D; s *= grid_.cells[k] + 1, ++k) {
-      inv_h_[k] = 1.0 / h_[k];
-      stride_[k] = s;
+      lattice_.lo[k] = box.lo[k];
+      lattice_.hi[k] = box.hi[k];
+      lattice_.lower[k] = grid_.lower[k];
+      lattice_.h[k] = h_[k];
+      lattice_.d[k][1] = 1.0 / h_[k];
+      lattice_.d[k][0] = -lattice_.d[k][1];
+      lattice_.last_cell[k] = grid_.cells[k] - 1;
+      lattice_.stride[k] = s;
     }
     for (int a = 0; a < kCorners<D>; ++a) {
-      corner_offset_[a] = 0;
-      for (int k = 0; k < D; ++k) corner_offset_[a] += ((a >> k) & 1) * stride_[k];
+      lattice_.corner_offset[a] = 0;
+      for (int k = 0; k < D; ++k) lattice_.corner_offset[a] += ((a >> k) & 1) * lattice_.stride[k];
     }
   }
 
@@ -303,11 +310,26 @@ public:
   }
 
 private:
+  /// What the lattice hats read, in one place (in 1D and 2D copied to a
+  /// local before a batch, so that the compiler need not reload it after
+  /// every store to the output arrays, which could alias a member).
+  struct Lattice {
+    double lo[D], hi[D];  ///< the grid box widened by kInsideTolerance cells (WidenedBox)
+    double lower[D], h[D];
+    double d[D][2];       ///< d N / d x_k of the lower / upper 1D hat: -1/h_k, 1/h_k
+    int last_cell[D];     ///< cells - 1 per axis
+    int stride[D];        ///< node-id stride per axis
+    int corner_offset[kCorners<D>]; ///< node id of corner a minus that of corner 0
+  };
+
   template <bool Hint>
   int hats_run(const Vec<D>* x, int count, Index<D>* cell_hint, int* node, double* N, Vec<D>* dN) const {
     constexpr int S = kCorners<D>;
+    // A local copy stays in registers in 1D and 2D; in 3D it spills and
+    // costs more instructions than reading the member (callgrind).
+    std::conditional_t<(D < 3), const Lattice, const Lattice&> L = lattice_;
     for (int i = 0; i < count; ++i)
-      if (!hats(x[i], node + i * S, N + i * S, dN + i * S, Hint ? cell_hint + i : nullptr)) return i;
+      if (!hats(L, x[i], node + i * S, N + i * S, dN + i * S, Hint ? cell_hint + i : nullptr)) return i;
     return count;
   }
 
@@ -325,7 +347,7 @@ private:
   /// The 2^D hat functions of the cell containing q.x into node/N/dN
   /// (hats()); BasisError when q.x is outside the widened grid box.
   void lattice_hats(const PointQuery<D>& q, int* node, double* N, Vec<D>* dN) const {
-    if (!hats(q.x, node, N, dN, q.cell_hint))
+    if (!hats(lattice_, q.x, node, N, dN, q.cell_hint))
       throw BasisError("linear basis: " + point_text(q) + " is outside the grid " + box_text(grid_));
   }
 
@@ -336,23 +358,24 @@ private:
   /// t_k lower, t_k upper) and d_k (-1/h_k, 1/h_k): N = w_0 w_1 w_2 and
   /// (grad N)_k the same product with d_k in place of w_k, multiplied left
   /// to right in axis order (the bits of the tests and state hashes).
-  [[gnu::always_inline]] inline bool hats(const Vec<D>& x, int* node, double* N, Vec<D>* dN, Index<D>* cell) const {
-    if (!box_.contains(x)) return false;
-    double w[D][2], d[D][2];
+  [[gnu::always_inline]] static inline bool hats(const Lattice& L, const Vec<D>& x, int* node, double* N, Vec<D>* dN,
+                                                 Index<D>* cell) {
+    for (int k = 0; k < D; ++k)
+      if (!(x[k] >= L.lo[k] && x[k] <= L.hi[k])) return false; // also for NaN
+    double w[D][2];
+    const auto& d = L.d;
     int base = 0;
     for (int k = 0; k < D; ++k) {
-      const double u = (x[k] - grid_.lower[k]) / h_[k];
-      // u >= -1e-12 here (box_), so truncation, clamped, is floor, clamped
-      const int c = std::clamp(static_cast<int>(u), 0, grid_.cells[k] - 1);
+      const double u = (x[k] - L.lower[k]) / L.h[k];
+      // u >= -1e-12 here (the box), so truncation, clamped, is floor, clamped
+      const int c = std::clamp(static_cast<int>(u), 0, L.last_cell[k]);
       const double t = std::clamp(u - c, 0.0, 1.0);
       w[k][0] = 1.0 - t;
       w[k][1] = t;
-      d[k][0] = -inv_h_[k];
-      d[k][1] = inv_h_[k];
-      base += stride_[k] * c;
+      base += L.stride[k] * c;
       if (cell) (*cell)[k] = c;
     }
-    for (int a = 0; a < kCorners<D>; ++a) node[a] = base + corner_offset_[a];
+    for (int a = 0; a < kCorners<D>; ++a) node[a] = base + L.corner_offset[a];
     if constexpr (D == 1) {
       for (int a = 0; a < 2; ++a) {
         N[a] = w[0][a];
@@ -500,10 +523,7 @@ private:
   NodeSet<D> nodes_;
   CartesianGrid<D> grid_;
   Vec<D> h_; ///< lattice spacing per axis
-  Vec<D> inv_h_; ///< 1 / h_ per axis
-  std::array<int, D> stride_{}; ///< node-id stride per axis
-  std::array<int, kCorners<D>> corner_offset_{}; ///< node id of corner a minus that of corner 0
-  WidenedBox<D> box_;
+  Lattice lattice_{}; ///< the widened grid box, grid_ and h_ as the lattice hats read them
 };
 
 // ---------------------------------------------------------------------------
