@@ -120,6 +120,57 @@ TEST_CASE("basis table error names the particle with the lowest index") {
   }
 }
 
+TEST_CASE("basis table of linear: the batched fill equals per-point evaluation, also around a refused point") {
+  // The lattice family fills rows in batches (evaluate_fixed_points); a point
+  // just beyond the round-off slack stops the batch and is reported by the
+  // per-point path with the message evaluate() gives.
+  const CartesianGrid<2> g = test_grid();
+  const auto b = basis("linear", NodeSet<2>::cartesian(g));
+  AlignedVector<Vec<2>> x = random_points(3001, 12u);
+  x[5] = g.upper; // on the boundary: last cell
+  x[6] = g.lower;
+  BasisTable<2> t;
+  std::vector<Index<2>> hint(x.size(), Index<2>{-1, -1});
+  for (int threads : {1, 2}) {
+    fill_with_threads(threads, *b, x, &hint, t);
+    REQUIRE(t.rows() == static_cast<int>(x.size()));
+    int bad = 0;
+    for (int p = 0; p < t.rows(); ++p) {
+      Stencil<2> st;
+      Index<2> cell{-1, -1};
+      PointQuery<2> q;
+      q.x = x[p];
+      q.cell_hint = &cell;
+      b->evaluate(q, st);
+      bad += t.end(p) - t.begin(p) != st.size() || hint[p] != cell;
+      for (int a = 0; a < st.size(); ++a)
+        bad += t.node[t.begin(p) + a] != st.node[a] || t.N[t.begin(p) + a] != st.N[a] ||
+               t.dN[t.begin(p) + a] != st.dN[a];
+    }
+    CHECK(bad == 0);
+  }
+  x[1700] = Vec<2>(g.upper[0], g.upper[1] + 1e-9 * g.h()[1]);
+  std::string expected;
+  try {
+    PointQuery<2> q;
+    q.x = x[1700];
+    q.id = 1700;
+    Stencil<2> st;
+    b->evaluate(q, st);
+  } catch (const BasisError& e) {
+    expected = "particle 1700 at " + format_point<2>(x[1700]) + ": " + e.what();
+  }
+  REQUIRE(!expected.empty());
+  for (int threads : {1, 2}) {
+    try {
+      fill_with_threads(threads, *b, x, nullptr, t);
+      FAIL("no BasisError");
+    } catch (const BasisError& e) {
+      CHECK(std::string(e.what()) == expected);
+    }
+  }
+}
+
 TEST_CASE("basis table: empty input and mismatched side arrays") {
   const auto b = basis("linear", NodeSet<2>::cartesian(test_grid()));
   BasisTable<2> t;

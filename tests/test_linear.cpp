@@ -6,7 +6,9 @@
 
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <map>
 #include <random>
 #include <type_traits>
@@ -126,7 +128,140 @@ template <int D> void check_outside_names_point(const Basis<D>& b, const Vec<D>&
   }
 }
 
+/// The lattice hats by the generic formula of the first implementation (one
+/// loop over corners, N and each component of grad N formed as products in
+/// axis order starting from 1): the bits every faster form must keep.
+template <int D> void reference_hats(const CartesianGrid<D>& g, const Vec<D>& x, int* node, double* N, Vec<D>* dN) {
+  const Vec<D> h = g.h();
+  std::array<double, D> t, inv_h;
+  int base = 0, stride[D];
+  for (int k = 0, s = 1; k < D; s *= g.cells[k] + 1, ++k) {
+    const double u = (x[k] - g.lower[k]) / h[k];
+    const int c = std::clamp(static_cast<int>(u), 0, g.cells[k] - 1);
+    t[k] = std::clamp(u - c, 0.0, 1.0);
+    inv_h[k] = 1.0 / h[k];
+    stride[k] = s;
+    base += s * c;
+  }
+  for (int a = 0; a < (1 << D); ++a) {
+    double w[D];
+    int id = base;
+    for (int k = 0; k < D; ++k) {
+      const bool upper = (a >> k) & 1;
+      w[k] = upper ? t[k] : 1.0 - t[k];
+      id += upper ? stride[k] : 0;
+    }
+    double n = 1.0;
+    Vec<D> grad;
+    for (int k = 0; k < D; ++k) {
+      n *= w[k];
+      double gk = 1.0;
+      for (int j = 0; j < D; ++j) gk *= j != k ? w[j] : (((a >> k) & 1) ? inv_h[k] : -inv_h[k]);
+      grad[k] = gk;
+    }
+    node[a] = id;
+    N[a] = n;
+    dN[a] = grad;
+  }
+}
+
+/// Same bits (memcmp, so that 0 and -0 differ too).
+template <class T> bool same_bits(const T& a, const T& b) { return std::memcmp(&a, &b, sizeof(T)) == 0; }
+
 } // namespace
+
+TEST_CASE_TEMPLATE_DEFINE("linear on a lattice: evaluate, evaluate_fixed and the batch give the reference bits", T,
+                          batch_id) {
+  constexpr int D = T::value;
+  constexpr int S = 1 << D;
+  const CartesianGrid<D> g = test_grid<D>();
+  const auto b = make_linear_basis<D>(NodeSet<D>::cartesian(g));
+  REQUIRE(b->fixed_stencil() == S);
+  AlignedVector<Vec<D>> x = sample_points(g, 11u);
+  // within the 1e-12-cell slack outside the boundary: clamped onto it
+  Vec<D> slack = g.upper;
+  slack[0] += 1e-14 * g.h()[0];
+  x.push_back(slack);
+  const int n = static_cast<int>(x.size());
+  std::vector<int> node(static_cast<std::size_t>(n * S), -1);
+  std::vector<double> N(node.size(), -1.0);
+  AlignedVector<Vec<D>> dN(node.size(), Vec<D>::Constant(-1.0));
+  std::vector<Index<D>> hint(static_cast<std::size_t>(n));
+  for (Index<D>& c : hint) c.fill(-7);
+  REQUIRE(b->evaluate_fixed_points(x.data(), n, hint.data(), node.data(), N.data(), dN.data()) == n);
+  int mismatches = 0;
+  for (int p = 0; p < n; ++p) {
+    int rn[S];
+    double rN[S];
+    Vec<D> rdN[S];
+    reference_hats<D>(g, x[p], rn, rN, rdN);
+    Stencil<D> st;
+    Index<D> cell;
+    cell.fill(-7);
+    PointQuery<D> q;
+    q.x = x[p];
+    q.cell_hint = &cell;
+    b->evaluate(q, st);
+    REQUIRE(st.size() == S);
+    int fn[S];
+    double fN[S];
+    Vec<D> fdN[S];
+    REQUIRE(b->evaluate_fixed(q, fn, fN, fdN));
+    CHECK(hint[static_cast<std::size_t>(p)] == cell);
+    CHECK(cell == g.cell_of(x[p]));
+    for (int a = 0; a < S; ++a) {
+      const std::size_t e = static_cast<std::size_t>(p * S + a);
+      const bool ok = node[e] == rn[a] && st.node[a] == rn[a] && fn[a] == rn[a] && same_bits(N[e], rN[a]) &&
+                      same_bits(st.N[a], rN[a]) && same_bits(fN[a], rN[a]) && same_bits(dN[e], rdN[a]) &&
+                      same_bits(st.dN[a], rdN[a]) && same_bits(fdN[a], rdN[a]);
+      if (!ok) ++mismatches;
+    }
+  }
+  CHECK(mismatches == 0);
+  // Without hints: the same rows.
+  std::vector<int> node2(node.size());
+  std::vector<double> N2(N.size());
+  AlignedVector<Vec<D>> dN2(dN.size());
+  REQUIRE(b->evaluate_fixed_points(x.data(), n, nullptr, node2.data(), N2.data(), dN2.data()) == n);
+  CHECK(node2 == node);
+  CHECK(std::memcmp(N2.data(), N.data(), N.size() * sizeof(double)) == 0);
+  CHECK(std::memcmp(dN2.data(), dN.data(), dN.size() * sizeof(Vec<D>)) == 0);
+}
+TEST_CASE_TEMPLATE_APPLY(batch_id, Dims);
+
+TEST_CASE_TEMPLATE_DEFINE("linear batch stops before a point it cannot evaluate and off the lattice", T, stop_id) {
+  constexpr int D = T::value;
+  constexpr int S = 1 << D;
+  const CartesianGrid<D> g = test_grid<D>();
+  auto b = make_linear_basis<D>(NodeSet<D>::cartesian(g));
+  AlignedVector<Vec<D>> x(6, 0.5 * (g.lower + g.upper));
+  std::vector<int> node(x.size() * S, -1);
+  std::vector<double> N(node.size(), -1.0);
+  AlignedVector<Vec<D>> dN(node.size(), Vec<D>::Zero());
+  Vec<D> out = g.upper;
+  out[D - 1] += 1e-9 * g.h()[D - 1]; // beyond the round-off slack
+  for (const Vec<D>& bad : {out, Vec<D>(Vec<D>::Constant(std::nan(""))), Vec<D>(Vec<D>::Constant(-INFINITY))}) {
+    x[3] = bad;
+    std::fill(N.begin(), N.end(), -1.0);
+    CHECK(b->evaluate_fixed_points(x.data(), 6, nullptr, node.data(), N.data(), dN.data()) == 3);
+    CHECK(N[3 * S - 1] >= 0.0);  // rows 0..2 written
+    CHECK(N[3 * S] == -1.0);     // row 3 not
+    CHECK(b->evaluate_fixed_points(x.data(), 3, nullptr, node.data(), N.data(), dN.data()) == 3);
+    CHECK(b->evaluate_fixed_points(x.data() + 4, 2, nullptr, node.data(), N.data(), dN.data()) == 2);
+    // The per-point path reports it (the error the table fill prefixes).
+    PointQuery<D> q;
+    q.x = bad;
+    CHECK_THROWS_AS(b->evaluate_fixed(q, node.data(), N.data(), dN.data()), BasisError);
+  }
+  CHECK(b->evaluate_fixed_points(x.data(), 0, nullptr, node.data(), N.data(), dN.data()) == 0);
+  // Once the nodes moved: nothing (the isoparametric map goes through evaluate()).
+  AlignedVector<Vec<D>> dx(static_cast<std::size_t>(b->nodes().size()), Vec<D>::Constant(1e-3 * g.h()[0]));
+  b->nodes().advect(dx);
+  b->nodes_moved(dx);
+  x[3] = x[0];
+  CHECK(b->evaluate_fixed_points(x.data(), 6, nullptr, node.data(), N.data(), dN.data()) == 0);
+}
+TEST_CASE_TEMPLATE_APPLY(stop_id, Dims);
 
 TEST_CASE_TEMPLATE_DEFINE("linear on a Cartesian grid: partition of unity and linear completeness", T, cart_id) {
   constexpr int D = T::value;

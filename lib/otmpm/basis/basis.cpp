@@ -196,9 +196,22 @@ bool fill_fixed(const Basis<D>& basis, int S, const AlignedVector<Vec<D>>& x, co
   std::atomic<bool> irregular{false};
   parallel_chunks(n, [&](long long begin, long long end) {
     thread_local Stencil<D> st;
+    for (long long p = begin; p < end; ++p) table.offset[static_cast<std::size_t>(p)] = static_cast<int>(p * S);
+    // The batched path (evaluate_fixed_points) while it makes progress; a
+    // point it stops at goes through evaluate_fixed()/evaluate(), then the
+    // batch resumes after it.
+    bool batch = true;
     for (int p = static_cast<int>(begin); p < end; ++p) {
+      if (batch) {
+        const std::size_t b0 = static_cast<std::size_t>(p) * static_cast<std::size_t>(S);
+        const int done = basis.evaluate_fixed_points(&x[static_cast<std::size_t>(p)], static_cast<int>(end - p),
+                                                     a.cell_hint ? &(*a.cell_hint)[static_cast<std::size_t>(p)] : nullptr,
+                                                     &table.node[b0], &table.N[b0], &table.dN[b0]);
+        batch = done > 0;
+        p += done;
+        if (p == end) break;
+      }
       const std::size_t e0 = static_cast<std::size_t>(p) * static_cast<std::size_t>(S);
-      table.offset[static_cast<std::size_t>(p)] = static_cast<int>(e0);
       const PointQuery<D> q = point_query<D>(x, a, p);
       try {
         if (basis.evaluate_fixed(q, &table.node[e0], &table.N[e0], &table.dN[e0])) continue;

@@ -13,6 +13,7 @@
 #include <bit>
 #include <cmath>
 #include <limits>
+#include <type_traits>
 #include <utility>
 
 namespace otmpm {
@@ -247,7 +248,21 @@ public:
       throw InputError("linear basis needs a structured grid (cartesian or perturbed), not a node cloud");
     grid_ = *nodes_.grid();
     h_ = grid_.h();
-    box_ = WidenedBox<D>(grid_);
+    const WidenedBox<D> box(grid_);
+    for (int k = 0, s = 1; k < D; s *= grid_.cells[k] + 1, ++k) {
+      lattice_.lo[k] = box.lo[k];
+      lattice_.hi[k] = box.hi[k];
+      lattice_.lower[k] = grid_.lower[k];
+      lattice_.h[k] = h_[k];
+      lattice_.d[k][1] = 1.0 / h_[k];
+      lattice_.d[k][0] = -lattice_.d[k][1];
+      lattice_.last_cell[k] = grid_.cells[k] - 1;
+      lattice_.stride[k] = s;
+    }
+    for (int a = 0; a < kCorners<D>; ++a) {
+      lattice_.corner_offset[a] = 0;
+      for (int k = 0; k < D; ++k) lattice_.corner_offset[a] += ((a >> k) & 1) * lattice_.stride[k];
+    }
   }
 
   std::string_view kind() const override { return "linear"; }
@@ -284,7 +299,40 @@ public:
     return true;
   }
 
+  /// The lattice hats of consecutive points in one loop (no per-point query,
+  /// no virtual call), the same bits as evaluate_fixed(). Stops before the
+  /// first point outside the widened grid box (or not finite); 0 once the
+  /// nodes left their lattice.
+  int evaluate_fixed_points(const Vec<D>* x, int count, Index<D>* cell_hint, int* node, double* N,
+                            Vec<D>* dN) const override {
+    if (!nodes_.on_lattice()) return 0;
+    return cell_hint ? hats_run<true>(x, count, cell_hint, node, N, dN) : hats_run<false>(x, count, nullptr, node, N, dN);
+  }
+
 private:
+  /// What the lattice hats read, in one place (in 1D and 2D copied to a
+  /// local before a batch, so that the compiler need not reload it after
+  /// every store to the output arrays, which could alias a member).
+  struct Lattice {
+    double lo[D], hi[D];  ///< the grid box widened by kInsideTolerance cells (WidenedBox)
+    double lower[D], h[D];
+    double d[D][2];       ///< d N / d x_k of the lower / upper 1D hat: -1/h_k, 1/h_k
+    int last_cell[D];     ///< cells - 1 per axis
+    int stride[D];        ///< node-id stride per axis
+    int corner_offset[kCorners<D>]; ///< node id of corner a minus that of corner 0
+  };
+
+  template <bool Hint>
+  int hats_run(const Vec<D>* x, int count, Index<D>* cell_hint, int* node, double* N, Vec<D>* dN) const {
+    constexpr int S = kCorners<D>;
+    // A local copy stays in registers in 1D and 2D; in 3D it spills and
+    // costs more instructions than reading the member (callgrind).
+    std::conditional_t<(D < 3), const Lattice, const Lattice&> L = lattice_;
+    for (int i = 0; i < count; ++i)
+      if (!hats(L, x[i], node + i * S, N + i * S, dN + i * S, Hint ? cell_hint + i : nullptr)) return i;
+    return count;
+  }
+
   /// Hat functions of the cell containing x. A point on an interior cell face
   /// belongs to the cell above it (the one floor() picks); on the upper grid
   /// boundary to the last cell. All 2^D vertices are kept, also those with
@@ -296,45 +344,65 @@ private:
     lattice_hats(q, out.node.data(), out.N.data(), out.dN.data());
   }
 
-  /// The 2^D hat functions of the cell containing q.x into node/N/dN: corner
-  /// a has bit k set when it is the upper node on axis k (axis 0 fastest), N
-  /// and each component of grad N formed as products in axis order.
+  /// The 2^D hat functions of the cell containing q.x into node/N/dN
+  /// (hats()); BasisError when q.x is outside the widened grid box.
   void lattice_hats(const PointQuery<D>& q, int* node, double* N, Vec<D>* dN) const {
-    if (!box_.contains(q.x))
+    if (!hats(lattice_, q.x, node, N, dN, q.cell_hint))
       throw BasisError("linear basis: " + point_text(q) + " is outside the grid " + box_text(grid_));
-    std::array<double, D> t, inv_h;
-    Index<D> cell;
-    int base = 0, stride[D];
-    for (int k = 0, s = 1; k < D; s *= grid_.cells[k] + 1, ++k) {
-      const double u = (q.x[k] - grid_.lower[k]) / h_[k];
-      // u >= -1e-12 here (box_), so truncation, clamped, is floor, clamped
-      cell[k] = std::clamp(static_cast<int>(u), 0, grid_.cells[k] - 1);
-      t[k] = std::clamp(u - cell[k], 0.0, 1.0);
-      inv_h[k] = 1.0 / h_[k];
-      stride[k] = s;
-      base += s * cell[k];
+  }
+
+  /// The 2^D hat functions of the cell containing x into node/N/dN, and that
+  /// cell into *cell when not null; false (nothing written) when x is outside
+  /// the widened grid box or not finite. Corner a has bit k set when it is
+  /// the upper node on axis k (axis 0 fastest). With the 1D factors w_k (1 -
+  /// t_k lower, t_k upper) and d_k (-1/h_k, 1/h_k): N = w_0 w_1 w_2 and
+  /// (grad N)_k the same product with d_k in place of w_k, multiplied left
+  /// to right in axis order (the bits of the tests and state hashes).
+  [[gnu::always_inline]] static inline bool hats(const Lattice& L, const Vec<D>& x, int* node, double* N, Vec<D>* dN,
+                                                 Index<D>* cell) {
+    for (int k = 0; k < D; ++k)
+      if (!(x[k] >= L.lo[k] && x[k] <= L.hi[k])) return false; // also for NaN
+    double w[D][2];
+    const auto& d = L.d;
+    int base = 0;
+    for (int k = 0; k < D; ++k) {
+      const double u = (x[k] - L.lower[k]) / L.h[k];
+      // u >= -1e-12 here (the box), so truncation, clamped, is floor, clamped
+      const int c = std::clamp(static_cast<int>(u), 0, L.last_cell[k]);
+      const double t = std::clamp(u - c, 0.0, 1.0);
+      w[k][0] = 1.0 - t;
+      w[k][1] = t;
+      base += L.stride[k] * c;
+      if (cell) (*cell)[k] = c;
     }
-    for (int a = 0; a < kCorners<D>; ++a) {
-      double w[D];
-      int id = base;
-      for (int k = 0; k < D; ++k) {
-        const bool upper = (a >> k) & 1;
-        w[k] = upper ? t[k] : 1.0 - t[k];
-        id += upper ? stride[k] : 0;
+    for (int a = 0; a < kCorners<D>; ++a) node[a] = base + L.corner_offset[a];
+    if constexpr (D == 1) {
+      for (int a = 0; a < 2; ++a) {
+        N[a] = w[0][a];
+        dN[a][0] = d[0][a];
       }
-      double n = 1.0;
-      Vec<D> g;
-      for (int k = 0; k < D; ++k) {
-        n *= w[k];
-        double gk = 1.0; // the product in axis order
-        for (int j = 0; j < D; ++j) gk *= j != k ? w[j] : (((a >> k) & 1) ? inv_h[k] : -inv_h[k]);
-        g[k] = gk;
-      }
-      node[a] = id;
-      N[a] = n;
-      dN[a] = g;
+    } else if constexpr (D == 2) {
+      for (int a1 = 0; a1 < 2; ++a1)
+        for (int a0 = 0; a0 < 2; ++a0) {
+          const int a = a0 + 2 * a1;
+          N[a] = w[0][a0] * w[1][a1];
+          dN[a][0] = d[0][a0] * w[1][a1];
+          dN[a][1] = w[0][a0] * d[1][a1];
+        }
+    } else {
+      for (int a1 = 0; a1 < 2; ++a1)
+        for (int a0 = 0; a0 < 2; ++a0) {
+          const double ww = w[0][a0] * w[1][a1], dw = d[0][a0] * w[1][a1], wd = w[0][a0] * d[1][a1];
+          for (int a2 = 0; a2 < 2; ++a2) {
+            const int a = a0 + 2 * a1 + 4 * a2;
+            N[a] = ww * w[2][a2];
+            dN[a][0] = dw * w[2][a2];
+            dN[a][1] = wd * w[2][a2];
+            dN[a][2] = ww * d[2][a2];
+          }
+        }
     }
-    if (q.cell_hint) *q.cell_hint = cell;
+    return true;
   }
 
   /// Finds the element containing x and evaluates its shape functions there.
@@ -455,7 +523,7 @@ private:
   NodeSet<D> nodes_;
   CartesianGrid<D> grid_;
   Vec<D> h_; ///< lattice spacing per axis
-  WidenedBox<D> box_;
+  Lattice lattice_{}; ///< the widened grid box, grid_ and h_ as the lattice hats read them
 };
 
 // ---------------------------------------------------------------------------
