@@ -45,6 +45,22 @@ template <class T> using AlignedVector = std::vector<T, Eigen::aligned_allocator
 /// Integer index triple/pair/single of a structured node set.
 template <int D> using Index = std::array<int, D>;
 
+/// An open box of positions: lo < x < hi on every axis (bounds may be
+/// infinite; NaN is never inside). Tested without a branch per axis: it
+/// runs for every particle after every step (NodeMode, the staying box of
+/// a distributed run).
+template <int D> struct PositionBox {
+  Vec<D> lo = Vec<D>::Zero(), hi = Vec<D>::Zero();
+  bool contains(const Vec<D>& x) const {
+    bool in = true;
+    for (int k = 0; k < D; ++k) {
+      in &= x[k] > lo[k];
+      in &= x[k] < hi[k];
+    }
+    return in;
+  }
+};
+
 /// Where a bad input value came from: the file ("" when not from a file),
 /// the line (> 0 in a file, -1 for a --set override, 0 unknown) and the key
 /// ("" when the error concerns no single key, e.g. a TOML syntax error).

@@ -70,7 +70,8 @@ template <int D> void Domain<D>::shift_hints(Engine<D>& e, int sign) const {
 
 template <int D> void Domain<D>::rebalance(Engine<D>& e) {
   const Particles<D>& P = e.particles();
-  // After migrate(): every particle's home cell is in this rank's box.
+  // After before_step's migration (or a step that needed none), every
+  // particle's home cell is in this rank's box.
   if (decomposition_.imbalance(P.size(), comm_) <= kImbalanceThreshold) return;
   ++stats_.rebalances;
   std::vector<Index<D>> home(static_cast<std::size_t>(P.size()));
@@ -100,13 +101,12 @@ template <int D> void Domain<D>::migrate(Engine<D>& e) {
   Particles<D>& P = e.particles();
   const std::size_t n = static_cast<std::size_t>(P.size());
   const IndexBox<D>& mine = decomposition_.box(comm_.rank());
-  std::vector<int> dest; // the rank each particle goes to, or -1 (filled when one leaves)
+  std::vector<int> dest(n, -1);
   double flags[2] = {0.0, 0.0}; // some particle leaves; some goes to a rank that is not a neighbour
   for (std::size_t p = 0; p < n; ++p) {
     if (!nodes_move_ && staying_.contains(P.x[p])) continue; // home cell: the cell of x
     const Index<D> c = home_cell(P.x[p], P.X[p]);
     if (mine.contains(c)) continue;
-    if (dest.empty()) dest.assign(n, -1);
     dest[p] = decomposition_.owner(c);
     flags[0] = 1.0;
     if (!std::binary_search(neighbours_.begin(), neighbours_.end(), dest[p])) flags[1] = 1.0;
@@ -114,7 +114,6 @@ template <int D> void Domain<D>::migrate(Engine<D>& e) {
   comm_.max(flags);
   ++stats_.reductions;
   if (flags[0] == 0.0) return;
-  if (dest.empty()) dest.assign(n, -1); // none of this rank's particles leaves
   shift_hints(e, +1); // hints travel as global cells
   const std::vector<Column> cols = columns(e);
   std::vector<char> keep(n, 1);

@@ -46,19 +46,6 @@ public:
   using InstabilityError::InstabilityError;
 };
 
-/// An open box of positions: lo < x < hi on every axis (bounds may be infinite).
-template <int D> struct PositionBox {
-  Vec<D> lo, hi;
-  bool contains(const Vec<D>& x) const {
-    bool in = true;
-    for (int k = 0; k < D; ++k) {
-      in &= x[k] > lo[k];
-      in &= x[k] < hi[k];
-    }
-    return in;
-  }
-};
-
 template <int D> class Distribution {
 public:
   virtual ~Distribution() = default;

@@ -266,7 +266,7 @@ private:
     bool ok = true;
     for (int p = p0; p < p1; ++p) {
       ok &= finite_state(p);
-      ok &= mode_.keeps_inside_bits(P_.x[p], P_.v[p], dt_);
+      ok &= mode_.keeps_inside(P_.x[p], P_.v[p], dt_);
     }
     return ok;
   }

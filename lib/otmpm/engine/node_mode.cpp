@@ -6,8 +6,7 @@ namespace otmpm {
 
 template <int D> NodeMode<D> NodeMode<D>::fixed_grid(const Vec<D>& lower, const Vec<D>& upper) {
   NodeMode m;
-  m.lower_ = lower;
-  m.upper_ = upper;
+  m.grid_ = {lower, upper};
   return m;
 }
 
@@ -28,8 +27,8 @@ template <int D> double NodeMode<D>::cfl_spacing(const Basis<D>& basis, double h
 }
 
 template <int D> std::string NodeMode<D>::leaving(const Vec<D>& x, const Vec<D>& v) const {
-  const std::string grid = "grid [" + format_point<D>(lower_) + ", " + format_point<D>(upper_) + "]";
-  if (!inside(x)) return "left the " + grid + " (enlarge the grid or shorten t_end)";
+  const std::string grid = "grid [" + format_point<D>(grid_.lo) + ", " + format_point<D>(grid_.hi) + "]";
+  if (!grid_.contains(x)) return "left the " + grid + " (enlarge the grid or shorten t_end)";
   // Warned one step ahead: at the last step's size and the particle's
   // velocity, the next step would carry it out of the grid.
   return "moving at " + format_point<D>(v) + ", it would leave the grid in the next step (" + grid +

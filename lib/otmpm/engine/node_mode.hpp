@@ -30,35 +30,21 @@ public:
   /// (`spacing0`).
   double cfl_spacing(const Basis<D>& basis, double h0, double spacing0) const;
   /// True unless, on the fixed grid, a particle at x moving at v left the
-  /// grid or would leave it in a step dt (always true in `ul`). Inline: it
-  /// runs for every particle after every step.
+  /// grid or would leave it in a step dt (always true in `ul`). Inline and
+  /// without a branch per particle: it runs for every particle after every
+  /// step.
   bool keeps_inside(const Vec<D>& x, const Vec<D>& v, double dt) const {
-    return advected_ || (inside(x) && inside(Vec<D>(x + dt * v)));
-  }
-  /// keeps_inside(x, v, dt) evaluated without branches (the same tests).
-  bool keeps_inside_bits(const Vec<D>& x, const Vec<D>& v, double dt) const {
-    const Vec<D> y = x + dt * v;
-    bool in = true;
-    for (int k = 0; k < D; ++k) {
-      in &= x[k] > lower_[k];
-      in &= x[k] < upper_[k];
-      in &= y[k] > lower_[k];
-      in &= y[k] < upper_[k];
-    }
-    return advected_ || in;
+    if (advected_) return true;
+    bool in = grid_.contains(x);
+    in &= grid_.contains(Vec<D>(x + dt * v));
+    return in;
   }
   /// Why keeps_inside(x, v, dt) is false, for the diagnosis.
   std::string leaving(const Vec<D>& x, const Vec<D>& v) const;
 
 private:
-  bool inside(const Vec<D>& y) const {
-    for (int k = 0; k < D; ++k)
-      if (!(y[k] > lower_[k] && y[k] < upper_[k])) return false;
-    return true;
-  }
-
   bool advected_ = false;
-  Vec<D> lower_ = Vec<D>::Zero(), upper_ = Vec<D>::Zero();
+  PositionBox<D> grid_; ///< the fixed grid's open box (mpm)
 };
 
 extern template class NodeMode<1>;
