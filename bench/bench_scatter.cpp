@@ -64,7 +64,7 @@ double pass_seconds(const Engine<D>& e, std::optional<ScatterPath> forced, int p
   scatter.force(forced);
   std::vector<double> t;
   for (int r = 0; r < passes; ++r) {
-    scatter.invalidate();
+    scatter.invalidate(linear_row_width(T));
     const auto t0 = std::chrono::steady_clock::now();
     scatter.run(
         T, nodes, [](int, int) {}, [&](int p) { return Payload{P.m[p], P.m[p] * P.v[p], P.V[p] * P.sigma[p]}; },

@@ -204,3 +204,33 @@ TEST_CASE("make_basis rejects unknown kinds and layouts a family cannot use") {
   for (const char* kind : {"linear", "ugimp", "bspline2", "bspline3"})
     CHECK_THROWS_AS(basis(kind, NodeSet<2>::cloud(x, 1.0)), InputError);
 }
+
+TEST_CASE("linear_row_width: 2^D only when every row holds the linear stencil, and row_entries agrees with the offsets") {
+  // The linear basis on its grid: every point inside a cell has 4 entries.
+  const auto lin = basis("linear", NodeSet<2>::cartesian(test_grid()));
+  BasisTable<2> t;
+  fill_basis_table(*lin, random_points(57, 3u), nullptr, nullptr, t);
+  REQUIRE(linear_row_width(t) == 4);
+  for (int p = 0; p < t.rows(); ++p) {
+    const auto [e0, e1] = row_entries<4>(t.offset.data(), p);
+    const auto [f0, f1] = row_entries<0>(t.offset.data(), p);
+    CHECK(e0 == t.begin(p));
+    CHECK(e1 == t.end(p));
+    CHECK(f0 == t.begin(p));
+    CHECK(f1 == t.end(p));
+  }
+  // uGIMP rows differ in length: no fixed width.
+  const auto ugimp = basis("ugimp", NodeSet<2>::cartesian(test_grid()));
+  BasisTable<2> u;
+  fill_basis_table(*ugimp, random_points(57, 3u), nullptr, nullptr, u);
+  CHECK(linear_row_width(u) == 0);
+  // Equal row lengths other than 2^D, and one short row among linear ones.
+  BasisTable<2> three;
+  three.offset = {0, 3, 6, 9};
+  CHECK(linear_row_width(three) == 0);
+  BasisTable<2> ragged;
+  ragged.offset = {0, 4, 8, 11, 15};
+  CHECK(linear_row_width(ragged) == 0);
+  BasisTable<2> empty; // no particle: trivially fixed
+  CHECK(linear_row_width(empty) == 4);
+}

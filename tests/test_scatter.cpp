@@ -72,7 +72,7 @@ struct Sums {
 };
 
 Sums sums(const BasisTable<3>& table, int nodes, const Carried& c, int threads,
-          std::optional<ScatterPath> forced = std::nullopt) {
+          std::optional<ScatterPath> forced = std::nullopt, int row_width = 0) {
   const ScopedThreads scope(threads);
   Sums s;
   s.m.assign(static_cast<std::size_t>(nodes), -1.0); // clear() must overwrite
@@ -84,6 +84,7 @@ Sums sums(const BasisTable<3>& table, int nodes, const Carried& c, int threads,
   };
   ParticleToNodes<3> scatter;
   scatter.force(forced);
+  scatter.invalidate(row_width);
   scatter.run(
       table, nodes,
       [&](int p0, int p1) {
@@ -200,4 +201,17 @@ TEST_CASE("scatter: a spatially ordered 3D table below the overlap limit keeps t
   CHECK(one.path == ScatterPath::dense);
   CHECK(one.m == two.m);
   CHECK(one.q == two.q);
+}
+
+TEST_CASE("scatter: rows of the fixed linear width give the bits of rows read from the offsets, on both blocked paths") {
+  const int n = 12, nodes = (n + 1) * (n + 1) * (n + 1);
+  const BasisTable<3> table = seeded_table(n);
+  REQUIRE(linear_row_width(table) == 8);
+  const Carried c = carried(table.rows());
+  for (const ScatterPath path : {ScatterPath::dense, ScatterPath::sparse}) {
+    const Sums any = sums(table, nodes, c, 2, path, 0), fixed = sums(table, nodes, c, 2, path, 8);
+    CHECK(any.m == fixed.m);
+    CHECK(any.q == fixed.q);
+    CHECK(fixed.updates == std::vector<int>(static_cast<std::size_t>(table.rows()), 1));
+  }
 }

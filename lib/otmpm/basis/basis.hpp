@@ -12,6 +12,7 @@
 #include <string>
 #include <string_view>
 #include <type_traits>
+#include <utility>
 
 namespace otmpm {
 
@@ -248,6 +249,24 @@ template <int D> struct BasisTable {
   int end(int p) const { return offset[p + 1]; }
   std::size_t entries() const { return node.size(); }
 };
+
+/// 2^D when every row of `table` holds the 2^D entries of the linear
+/// stencil (row p is then entries [p 2^D, (p + 1) 2^D)), else 0. The passes
+/// over the table take the fixed width as a compile-time trip count
+/// (row_entries): the same operations in the same order, fewer loop tests.
+template <int D> int linear_row_width(const BasisTable<D>& table) {
+  constexpr int W = 1 << D;
+  const int* offset = table.offset.data();
+  int differ = 0; // an OR of the differences (vectorises): 0 when all are 0
+  for (int p = 0; p <= table.rows(); ++p) differ |= offset[p] - p * W;
+  return differ == 0 ? W : 0;
+}
+
+/// Entries [first, second) of row p: W > 0 is a fixed row width.
+template <int W> std::pair<int, int> row_entries(const int* offset, int p) {
+  if constexpr (W > 0) return {p * W, p * W + W};
+  else return {offset[p], offset[p + 1]};
+}
 
 /// The node-ordered (transposed) view of a BasisTable: column I lists the
 /// table entries e (and their particles p) whose node is I, entries

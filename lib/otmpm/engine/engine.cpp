@@ -114,7 +114,7 @@ template <int D> void Engine<D>::repartition(std::unique_ptr<Basis<D>> basis, Di
   constraints_.wall_impulse() = wall_impulse;
   constraints_.count_only(dist_->owned_nodes());
   nodal_.resize(nodes);
-  scatter_->invalidate();
+  scatter_->invalidate(0); // the table is evaluated anew before it is used
 }
 
 template <int D> void Engine<D>::check_parts() const {
@@ -189,7 +189,8 @@ template <int D> void Engine<D>::evaluate_basis() {
     try {
       basis_->evaluate_points(P_.x, table_, P_.F.empty() ? nullptr : &P_.F);
       if (contact_) contact_->remap(table_, P_.body);
-      scatter_->invalidate();
+      row_width_ = linear_row_width(table_);
+      scatter_->invalidate(row_width_);
       if (dist_) dist_->check_support(table_);
     } catch (const BasisError& e) {
       if (!dist_) unstable(std::string("basis evaluation failed: ") + e.what());
@@ -197,7 +198,8 @@ template <int D> void Engine<D>::evaluate_basis() {
       // (fallible() names the particle by its global id).
       table_ = BasisTable<D>{};
       table_.offset.assign(static_cast<std::size_t>(P_.size()) + 1, 0);
-      scatter_->invalidate();
+      row_width_ = 0;
+      scatter_->invalidate(row_width_);
       throw;
     }
   });
@@ -396,6 +398,13 @@ void Engine<D>::to_particles_on(const ToParticles<D>& what, const Gradient<D>& g
 template <int D>
 template <bool Rate, bool Move, bool Field>
 void Engine<D>::to_particles_range(const ToParticles<D>& what, const Gradient<D>& g, int begin, int end) {
+  if (row_width_ == (1 << D)) to_particles_rows<Rate, Move, Field, (1 << D)>(what, g, begin, end);
+  else to_particles_rows<Rate, Move, Field, 0>(what, g, begin, end);
+}
+
+template <int D>
+template <bool Rate, bool Move, bool Field, int W>
+void Engine<D>::to_particles_rows(const ToParticles<D>& what, const Gradient<D>& g, int begin, int end) {
   // Plain pointers and factors in locals: the stores to the particles below
   // cannot alias them, so the loops keep them in registers.
   const Vec<D>* rate = Rate ? what.rate->data() : nullptr;
@@ -415,7 +424,8 @@ void Engine<D>::to_particles_range(const ToParticles<D>& what, const Gradient<D>
     for (int p = p0; p < p1; ++p) {
       Vec<D> r = Vec<D>::Zero(), u = Vec<D>::Zero();
       Mat<D> G = Mat<D>::Zero();
-      for (int e = offset[p]; e < offset[p + 1]; ++e) {
+      const auto [e0, e1] = row_entries<W>(offset, p);
+      for (int e = e0; e < e1; ++e) {
         const int I = node[e];
         if constexpr (Rate) r += N[e] * rate[I];
         if constexpr (Move) u += N[e] * move[I];

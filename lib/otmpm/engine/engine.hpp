@@ -298,6 +298,10 @@ private:
   /// `g` when Field) on particles [begin, end).
   template <bool Rate, bool Move, bool Field>
   void to_particles_range(const ToParticles<D>& what, const Gradient<D>& g, int begin, int end);
+  /// to_particles_range with rows of W entries each (W = 0: any length,
+  /// from the table's offsets; row_entries).
+  template <bool Rate, bool Move, bool Field, int W>
+  void to_particles_rows(const ToParticles<D>& what, const Gradient<D>& g, int begin, int end);
   /// Dispatches to_particles_range on what `what` and `g` hold.
   void to_particles_on(const ToParticles<D>& what, const Gradient<D>& g, int begin, int end);
   void finish_mass();
@@ -337,6 +341,7 @@ private:
   std::unique_ptr<MassMatrix<D>> mass_matrix_;
   NodalFields<D> nodal_;
   BasisTable<D> table_;
+  int row_width_ = 0; ///< linear_row_width(table_), set with the table
   std::unique_ptr<ParticleToNodes<D>> scatter_; ///< engine/scatter.hpp (internal: needs parallel.hpp)
   AlignedVector<Vec<D>> fext_; ///< external force per particle when not uniform
   double node_spacing0_ = 1.0; ///< the nodes' smallest spacing at t = 0

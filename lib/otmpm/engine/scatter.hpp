@@ -58,10 +58,12 @@ enum class ScatterPath {
 /// does not touch receives +0 in the dense path, which changes no sum).
 template <int D> class ParticleToNodes {
 public:
-  /// Forgets the plan and the transposed table: the basis table changed.
-  void invalidate() {
+  /// Forgets the plan and the transposed table: the basis table changed;
+  /// `row_width` is the new table's linear_row_width (0: rows of any length).
+  void invalidate(int row_width) {
     valid_ = false;
     columns_valid_ = false;
+    width_ = row_width;
   }
   /// True when the last plan used a blocked scatter (false: column gather).
   bool blocked() const { return path_ != ScatterPath::columns; }
@@ -208,9 +210,20 @@ private:
   void block_sums(const BasisTable<D>& table, int b, At at, Update& update, Prep& prep, Add& add) {
     const int begin = b * scatter_block, end = std::min(table.rows(), begin + scatter_block);
     update(begin, end);
+    if (width_ == (1 << D)) rows_sums<(1 << D)>(table, begin, end, at, prep, add);
+    else rows_sums<0>(table, begin, end, at, prep, add);
+  }
+
+  /// add() of each entry of particles [begin, end) into at(node), in
+  /// particle order; rows of W entries (W = 0: any length).
+  template <int W, class At, class Prep, class Add>
+  static void rows_sums(const BasisTable<D>& table, int begin, int end, At at, Prep& prep, Add& add) {
+    const int* offset = table.offset.data();
+    const int* node = table.node.data();
     for (int p = begin; p < end; ++p) {
       const auto w = prep(p);
-      for (int e = table.begin(p); e < table.end(p); ++e) add(at(table.node[e]), e, w);
+      const auto [e0, e1] = row_entries<W>(offset, p);
+      for (int e = e0; e < e1; ++e) add(at(node[e]), e, w);
     }
   }
 
@@ -255,6 +268,7 @@ private:
   std::vector<int> slot_;            ///< sparse: each block's slot per node of its range, or -1
   AlignedVector<NodeSums<D>> buffer_;
   bool valid_ = false;
+  int width_ = 0; ///< linear_row_width of the table (0: rows of any length)
   std::optional<ScatterPath> forced_;
   ScatterPath path_ = ScatterPath::columns;
   NodeColumns columns_; ///< the transposed table, for gather_columns
