@@ -498,13 +498,27 @@ private:
                                       std::vector<std::vector<double>>& gathered,
                                       std::vector<FieldView>& whole) const {
     const Particles<D>& P = e_.particles();
+    const auto n = static_cast<std::size_t>(P.size());
+    std::vector<double> zz; // plane strain's sigma_zz, when a field of the frame holds it
     std::vector<FieldView> fields;
     for (std::size_t i = 0; i < scene_.output.fields.size(); ++i) {
       const std::string& name = scene_.output.fields[i];
-      FieldData d = output_field_data<D>(name, P, buffers[i]);
+      const bool symmetric = scene_.output.symmetric_tensors && is_symmetric_tensor_field(name);
+      if (D == 2 && zz.empty() && (name == kStressZzField || (symmetric && name == "stress"))) zz = out_of_plane_stress();
+      FieldData d;
+      if (name == kStressZzField) {
+        buffers[i] = zz;
+        d = {buffers[i].data(), 1};
+      } else {
+        d = output_field_data<D>(name, P, buffers[i]);
+      }
       std::string components;
-      if (scene_.output.symmetric_tensors && is_symmetric_tensor_field(name)) { // output.symmetric_tensors
-        pack_symmetric(d.data, static_cast<std::size_t>(P.size()), D, packed[i]);
+      if (symmetric && D == 2 && name == "stress") { // output.symmetric_tensors: and sigma_zz
+        pack_plane_stress(d.data, zz.data(), n, packed[i]);
+        d = {packed[i].data(), 4};
+        components = plane_stress_components();
+      } else if (symmetric) { // output.symmetric_tensors
+        pack_symmetric(d.data, n, D, packed[i]);
         d = {packed[i].data(), D * (D + 1) / 2};
         components = symmetric_components(D);
       }
@@ -523,6 +537,21 @@ private:
                         components});
     }
     return fields;
+  }
+
+  /// Plane strain's sigma_zz of every particle (2D), from each run of
+  /// particles of one material (Material::out_of_plane_stress).
+  std::vector<double> out_of_plane_stress() const {
+    const Particles<D>& P = e_.particles();
+    std::vector<double> zz(static_cast<std::size_t>(P.size()));
+    for (int p0 = 0; p0 < P.size();) {
+      const int id = P.material[p0];
+      int p1 = p0 + 1;
+      while (p1 < P.size() && P.material[p1] == id) ++p1;
+      e_.material(id).out_of_plane_stress(P, p0, p1, zz.data() + p0);
+      p0 = p1;
+    }
+    return zz;
   }
 
   void final_errors(RunSummary& s) const {
