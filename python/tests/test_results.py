@@ -66,8 +66,62 @@ def test_symmetric_and_single_layouts_read_as_the_full_tensor(tmp_path):
                 assert b.dtype == np.float64 and np.array_equal(a, b)
                 assert c.dtype == np.float32 and np.array_equal(c, a.astype(np.float32))
                 stored = sym.frames[-1]._group[field]
-                assert stored.shape[1] == dim * (dim + 1) // 2
+                # 2D stress: and plane strain's sigma_zz ("xx xy yy zz"), read as frame["stress_zz"]
+                assert stored.shape[1] == dim * (dim + 1) // 2 + (dim == 2 and field == "stress")
                 assert otmpm.results.unpack_symmetric(stored[()], stored.attrs["components"], dim).shape[1] == dim * dim
             assert np.array_equal(full.field("F"), sym.field("F"))  # not symmetric: stored whole
             assert np.array_equal(full.probes["A"]["stress"] if "A" in full.probes else 0,
                                   sym.probes["A"]["stress"] if "A" in sym.probes else 0)
+
+
+def test_plane_strain_stress_zz_from_either_layout_and_old_files(tmp_path):
+    """2D: frame["stress_zz"] is sigma_zz from the symmetric stress's "zz"
+    column or from the field stress_zz (the same bits); frame["stress"] stays
+    (particles, 2, 2) in every layout; a file of the old 3-component layout
+    still reads (no stress_zz). The values meet the plane-strain relation of
+    the Hencky models, tr(tau) = 3/2 K ln det b_e, with the stored in-plane
+    stress, b_e and F (column collapse, drucker_prager, yielding)."""
+    import h5py
+    import shutil
+
+    scene = example("column_collapse.toml")
+    fields = '["x", "stress", "F", "elastic_left_cauchy_green", "plastic_strain", "stress_zz"]'
+    sets = ["simulation.t_end=0.05", "output.every=0.025", f"output.fields={fields}"]
+    files = {}
+    for name, extra in {"full": [], "sym": ["output.symmetric_tensors=true"]}.items():
+        out = tmp_path / f"{name}.h5"
+        args = ["run", scene, "--out", out, "--quiet"]
+        for s in sets + extra:
+            args += ["--set", s]
+        done = run_cli(*args)
+        assert done.returncode == 0, done.stderr
+        files[name] = out
+    old = tmp_path / "old.h5"  # the layout of otmpm before sigma_zz: stress "xx xy yy", no stress_zz
+    shutil.copy(files["sym"], old)
+    with h5py.File(old, "r+") as f:
+        for g in f["frames"].values():
+            three = g["stress"][:, :3]
+            del g["stress"], g["stress_zz"]
+            g["stress"] = three
+            g["stress"].attrs["components"] = "xx xy yy"
+    with otmpm.results.open(files["full"]) as full, otmpm.results.open(files["sym"]) as sym, \
+            otmpm.results.open(old) as before:
+        young, nu = full.scene["material"][0]["young"], full.scene["material"][0]["poisson"]
+        K = young / (3 * (1 - 2 * nu))
+        for a, b, c in zip(full.frames, sym.frames, before.frames):
+            assert "stress_zz" in a and "stress_zz" in b and "stress_zz" not in c
+            assert b._group["stress"].shape[1] == 4 and otmpm.results._value(b._group["stress"].attrs["components"]) == "xx xy yy zz"
+            assert np.array_equal(b["stress_zz"], b._group["stress"][:, 3])
+            assert np.array_equal(a["stress_zz"], b["stress_zz"]) and a["stress_zz"].shape == (len(a["x"]),)
+            assert a["stress"].shape == b["stress"].shape == c["stress"].shape == (len(a["x"]), 2, 2)
+            assert np.array_equal(a["stress"], b["stress"]) and np.array_equal(a["stress"], c["stress"])
+            with np.testing.assert_raises(KeyError):
+                c["stress_zz"]
+            s, F, be = b["stress"], b["F"], b["elastic_left_cauchy_green"]  # b_e: xx yy zz xy yz xz
+            J = F[:, 0, 0] * F[:, 1, 1] - F[:, 0, 1] * F[:, 1, 0]
+            det_b = (be[:, 0] * be[:, 1] - be[:, 3] ** 2) * be[:, 2]
+            zz = 1.5 * K * np.log(det_b) / J - s[:, 0, 0] - s[:, 1, 1]
+            assert np.max(np.abs(b["stress_zz"] - zz)) <= 1e-13 * K
+        assert np.max(np.abs(sym.frames[-1]["stress_zz"])) > 1e3  # gravity loads the column
+        assert np.max(sym.frames[-1]["plastic_strain"]) > 0  # and it yields
+        assert sym.field("stress_zz").shape == (len(sym.frames), len(sym.frames[0]["x"]))
