@@ -9,6 +9,7 @@
 
 #include "otmpm/assembly/assembler.hpp"
 #include "otmpm/distributed/global_view.hpp"
+#include "otmpm/io/hdf5.hpp"
 #include "otmpm/io/output_files.hpp"
 #include "otmpm/parallel.hpp"
 #include "otmpm/particles/output_fields.hpp"
@@ -383,8 +384,28 @@ private:
     return false;
   }
 
+  /// True when the first frame of the result file `path` stores the 2D
+  /// stress as "xx xy yy", as otmpm did before it stored plane strain's
+  /// sigma_zz (false when there is no such frame or attribute).
+  static bool legacy_plane_stress(const std::string& path) {
+    h5::silence();
+    const hid_t id = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+    if (id < 0) return false; // copy_results says why
+    const h5::Handle file(id, H5Fclose);
+    if (!h5::has_link(file.get(), "frames") || !h5::has_link(file.get(), "frames/000000") ||
+        !h5::has_link(file.get(), "frames/000000/stress"))
+      return false;
+    const h5::Handle set(h5::checked(H5Dopen2(file.get(), "frames/000000/stress", H5P_DEFAULT), path, "open stress"),
+                         H5Dclose);
+    return h5::has_attribute(set.get(), "components") && h5::read_string(set.get(), "components", path) == "xx xy yy";
+  }
+
   /// Copies the frames and history samples written before the checkpoint.
+  /// A 2D file whose symmetric stress has 3 columns (an otmpm before
+  /// sigma_zz) goes on with 3: the file stays what the interrupted run wrote.
   void continue_results(const PreviousResults& previous, const StateGroup& g) {
+    if (D == 2 && scene_.output.symmetric_tensors && g.integer("frames") > 0)
+      plane_zz_ = !legacy_plane_stress(previous.path);
     view_.collectively([&] {
       copy_results(previous.path, *writer_, static_cast<int>(g.integer("frames")), histories(), scene_.output.fields);
     });
@@ -504,7 +525,8 @@ private:
     for (std::size_t i = 0; i < scene_.output.fields.size(); ++i) {
       const std::string& name = scene_.output.fields[i];
       const bool symmetric = scene_.output.symmetric_tensors && is_symmetric_tensor_field(name);
-      if (D == 2 && zz.empty() && (name == kStressZzField || (symmetric && name == "stress"))) zz = out_of_plane_stress();
+      const bool packed_zz = D == 2 && symmetric && name == "stress" && plane_zz_;
+      if (D == 2 && zz.empty() && (name == kStressZzField || packed_zz)) zz = out_of_plane_stress();
       FieldData d;
       if (name == kStressZzField) {
         buffers[i] = zz;
@@ -513,7 +535,7 @@ private:
         d = output_field_data<D>(name, P, buffers[i]);
       }
       std::string components;
-      if (symmetric && D == 2 && name == "stress") { // output.symmetric_tensors: and sigma_zz
+      if (packed_zz) { // output.symmetric_tensors: and sigma_zz
         pack_plane_stress(d.data, zz.data(), n, packed[i]);
         d = {packed[i].data(), 4};
         components = plane_stress_components();
@@ -581,6 +603,7 @@ private:
   std::string vtk_extension_;               ///< "", "vtp" or "vtu"
   std::string run_id_;                      ///< this run's id (a restart: the continued run's)
   std::optional<PreviousResults> previous_; ///< a restart: where the frames before the checkpoint come from
+  bool plane_zz_ = true; ///< 2D symmetric stress with sigma_zz (false: a restart of a file without it)
   std::unique_ptr<ResultWriter> writer_;
   /// The writer thread (RunOptions::background_output, serial runs); declared
   /// after writer_, so it is joined before the writer is closed.
