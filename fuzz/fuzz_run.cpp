@@ -205,9 +205,10 @@ std::vector<std::string> fuzzed_settings(FuzzedDataProvider& in, const fs::path&
   sets.push_back(std::string("output.format=") + formats[in.ConsumeIntegralInRange<std::size_t>(0, 3)]);
   if (in.ConsumeBool()) sets.push_back("output.precision=\"single\"");
   if (in.ConsumeBool()) sets.push_back("output.symmetric_tensors=true");
-  const std::array<const char*, 4> fields = {"[\"x\", \"v\"]", "[\"v\", \"stress\"]", "[\"x\", \"F\", \"mass\"]",
-                                             "[\"x\", \"displacement\", \"density\", \"strain\"]"};
-  if (in.ConsumeBool()) sets.push_back(std::string("output.fields=") + fields[in.ConsumeIntegralInRange<std::size_t>(0, 3)]);
+  const std::array<const char*, 5> fields = {"[\"x\", \"v\"]", "[\"v\", \"stress\"]", "[\"x\", \"F\", \"mass\"]",
+                                             "[\"x\", \"displacement\", \"density\", \"strain\"]",
+                                             "[\"x\", \"stress\", \"stress_zz\"]"}; // stress_zz: 2D only (else refused)
+  if (in.ConsumeBool()) sets.push_back(std::string("output.fields=") + fields[in.ConsumeIntegralInRange<std::size_t>(0, 4)]);
   if (in.ConsumeBool()) {
     std::string probes = "output.probes=[";
     const int n = in.ConsumeIntegralInRange(0, 3);

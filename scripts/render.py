@@ -14,7 +14,10 @@ What is drawn:
       particles with the largest z drawn last, i.e. on top; xz, yz likewise).
 A vector field is shown by its Euclidean norm, a tensor field (stress,
 strain, F: D*D components, row-major) by its Frobenius norm, unless
---component picks one (x, y, z; xx, xy, ...; or the column index). The
+--component picks one (x, y, z; xx, xy, ...; or the column index). In 2D,
+--field stress --component zz is plane strain's sigma_zz (the "zz" column of
+a symmetric stress, output.symmetric_tensors, or the field stress_zz); the
+norm stays that of the in-plane D*D tensor. The
 colour limits are those of all frames drawn (a GIF keeps one scale); a field
 that takes both signs gets a diverging map centred on 0. Axes are in metres,
 the title gives the time.
@@ -50,7 +53,7 @@ except ImportError as e:
     fail(f"needs Python 3 with numpy, h5py and matplotlib ({e}); on Debian: "
          "apt-get install python3-matplotlib python3-h5py")
 
-UNITS = {"x": "m", "displacement": "m", "v": "m/s", "a": "m/s^2", "stress": "Pa", "strain": "1", "F": "1",
+UNITS = {"x": "m", "displacement": "m", "v": "m/s", "a": "m/s^2", "stress": "Pa", "stress_zz": "Pa", "strain": "1", "F": "1",
          "density": "kg/m^3", "mass": "kg"}
 AXES = "xyz"
 
@@ -109,6 +112,8 @@ def unpack_symmetric(data, components, dim):
     names = components.split()
     full = np.empty((data.shape[0], dim * dim))
     for c, name in enumerate(names):
+        if max(AXES.index(name[0]), AXES.index(name[1])) >= dim:
+            continue  # out of plane: the "zz" of a 2D stress (out_of_plane)
         i, j = AXES.index(name[0]), AXES.index(name[1])
         full[:, i * dim + j] = full[:, j * dim + i] = data[:, c]
     return full
@@ -126,7 +131,22 @@ def read_field(result, k, field):
     return data
 
 
+def out_of_plane(result, k):
+    """Plane strain's sigma_zz of frame k (2D): the "zz" column of a symmetric
+    stress, else the field stress_zz; None when the frame has neither."""
+    frame = result.frame(k)
+    if "stress" in frame:
+        names = text(frame["stress"].attrs.get("components", "")).split()
+        if "zz" in names:
+            return np.asarray(frame["stress"][:, names.index("zz")], dtype=float)
+    if "stress_zz" in frame:
+        return np.asarray(frame["stress_zz"][:], dtype=float).reshape(-1)
+    return None
+
+
 def values(result, k, field, column):
+    if column == "zz":
+        return out_of_plane(result, k)
     data = read_field(result, k, field)
     return np.linalg.norm(data, axis=1) if column is None else data[:, column]
 
@@ -267,7 +287,13 @@ def main():
     if result.dim == 3 and a.view not in ("xy", "xz", "yz"):
         fail(f"--view {a.view}")
     cols = read_field(result, 0, a.field).shape[1]
-    column, label = component_of(a.field, cols, result.dim, a.component)
+    if result.dim == 2 and a.field == "stress" and a.component == "zz":
+        if any(out_of_plane(result, k) is None for k in frames):
+            fail(f"{a.result}: --component zz: the frames hold no sigma_zz (run with output.symmetric_tensors = true "
+                 "or \"stress_zz\" in output.fields)")
+        column, label = "zz", "stress_zz"
+    else:
+        column, label = component_of(a.field, cols, result.dim, a.component)
     all_values = np.concatenate([values(result, k, a.field, column) for k in frames])
     finite = all_values[np.isfinite(all_values)]
     norm, cmap = colour_scale(finite.min(), finite.max()) if finite.size else colour_scale(0.0, 0.0)

@@ -642,6 +642,43 @@ TEST_CASE("mpi: output files are claimed once for all ranks: another scene's res
     CHECK(f.path().filename().string().find("otmpm-") == std::string::npos);
 }
 
+TEST_CASE("mpi: plane strain's sigma_zz (2D symmetric stress xx xy yy zz, stress_zz), written collectively, agrees") {
+  // The materials derive sigma_zz from the state of each rank's particles;
+  // the 4-column stress and the field stress_zz of 2 ranks agree with the
+  // serial file to kAgreement.
+  const Case c{"plane_zz", "dyka_2d.toml",
+               {"simulation.t_end=2e-5", "output.every=1e-5", "material.steel.poisson=0.3",
+                "output.symmetric_tensors=true",
+                "output.fields=[\"x\",\"v\",\"stress\",\"strain\",\"stress_zz\"]"}};
+  TempDir dir("mpi_plane_zz");
+  REQUIRE(run_otmpm(dir, 0, arguments(c, "serial.h5")).status == 0);
+  const Result r = run_otmpm(dir, 2, arguments(c, "np2.h5"));
+  REQUIRE_MESSAGE(r.status == 0, r.err);
+  const auto d = differences(dir.file("serial.h5"), dir.file("np2.h5"));
+  for (const std::string field : {"x", "v", "stress", "strain", "stress_zz"}) {
+    CAPTURE(field);
+    REQUIRE(d.count(field));
+    CHECK(d.at(field) <= kAgreement);
+  }
+  const hid_t id = H5Fopen(dir.file("np2.h5").c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  REQUIRE(id >= 0);
+  const h5::Handle file(id, H5Fclose);
+  const h5::Handle g = h5::open_group(file.get(), "frames/000001", "np2.h5");
+  const h5::Matrix<double> stress = h5::read_double_matrix(g.get(), "stress", "np2.h5");
+  const h5::Matrix<double> zz = h5::read_double_matrix(g.get(), "stress_zz", "np2.h5");
+  REQUIRE(stress.cols == 4);
+  REQUIRE(zz.rows == stress.rows);
+  bool same = true, loaded = false;
+  for (std::size_t p = 0; p < zz.rows; ++p) {
+    same = same && stress.values[p * 4 + 3] == zz.values[p];
+    loaded = loaded || zz.values[p] != 0.0;
+  }
+  CHECK(same);
+  CHECK(loaded);
+  const h5::Handle set(H5Dopen2(g.get(), "stress", H5P_DEFAULT), H5Dclose);
+  CHECK(h5::read_string(set.get(), "components", "np2.h5") == "xx xy yy zz");
+}
+
 TEST_CASE("mpi: output.precision = single and symmetric tensors, written collectively, agree with the serial file") {
   // The float values of 2 ranks equal the serial ones up to the rounding of
   // the doubles (which agree to kAgreement): within 2 float ulps (2.4e-7).

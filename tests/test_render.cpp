@@ -17,6 +17,8 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <tuple>
+#include <utility>
 #include <vector>
 
 namespace fs = std::filesystem;
@@ -169,4 +171,39 @@ TEST_CASE("render: a file with symmetric tensors (output.symmetric_tensors) give
     CHECK(png[0].size() > 10000);
     CHECK(png[0] == png[1]);
   }
+}
+
+TEST_CASE("render: plane strain's sigma_zz as --component zz of a symmetric 2D stress or as the field stress_zz") {
+  // The same scene written with output.symmetric_tensors (stress "xx xy yy
+  // zz") and with the field stress_zz, under the same file name in two
+  // folders: the two pictures are the same bytes. Without either, zz is refused.
+  TempDir dir("render_zz");
+  const std::vector<std::pair<const char*, const char*>> layouts{
+      {"symmetric", "output.symmetric_tensors=true"},
+      {"field", "output.fields=[\"x\", \"v\", \"stress\", \"stress_zz\"]"},
+      {"full", "output.symmetric_tensors=false"}};
+  for (const auto& [layout, set] : layouts) {
+    fs::create_directories(dir.dir / layout);
+    const Result r = run_otmpm({"run", (kSource / "examples" / "mms_plate.toml").string(), "--set", "grid.cells=[8, 8]",
+                                "--set", set, "--out", (dir.dir / layout / "plate.h5").string(), "--quiet"});
+    INFO(r.output);
+    REQUIRE(r.status == 0);
+  }
+  std::string png[2];
+  int k = 0;
+  for (const auto& [layout, field, component] : {std::tuple{"symmetric", "stress", "zz"}, std::tuple{"field", "stress_zz", "norm"}}) {
+    const fs::path out = dir.dir / layout / "zz.png";
+    const Result r = run_otmpm({"render", (dir.dir / layout / "plate.h5").string(), "--field", field, "--component",
+                                component, "--out", out.string()});
+    INFO(r.output);
+    REQUIRE(r.status == 0);
+    std::ifstream in(out, std::ios::binary);
+    png[k++] = std::string(std::istreambuf_iterator<char>(in), {});
+  }
+  CHECK(png[0].size() > 10000);
+  CHECK(png[0] == png[1]);
+  const Result r = run_otmpm({"render", (dir.dir / "full" / "plate.h5").string(), "--field", "stress", "--component",
+                              "zz", "--out", (dir.dir / "full" / "zz.png").string()});
+  CHECK(r.status == 2);
+  CHECK(r.output.find("stress_zz") != std::string::npos);
 }

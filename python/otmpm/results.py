@@ -17,7 +17,10 @@ import numpy as np
 #: Fields stored as D*D components per particle (row-major), returned as (n, D, D).
 TENSOR_FIELDS = ("stress", "strain", "F")
 #: Fields with one value per particle, returned as (n,).
-SCALAR_FIELDS = ("volume", "mass", "density")
+SCALAR_FIELDS = ("volume", "mass", "density", "stress_zz")
+#: 2D: plane strain's out-of-plane stress sigma_zz, (n,): the dataset of that
+#: name (output.fields) or the "zz" column of a symmetric 2D stress.
+OUT_OF_PLANE_STRESS = "stress_zz"
 
 
 def _value(v):
@@ -33,13 +36,17 @@ def unpack_symmetric(a, components, dimension):
     """Rows of a symmetric tensor stored by its independent components (the
     dataset attribute `components`, e.g. "xx xy xz yy yz zz") as (n, D*D)
     row-major rows, the layout of a file written without
-    output.symmetric_tensors. Values keep their type (float32 stays float32)."""
+    output.symmetric_tensors. Values keep their type (float32 stays float32).
+    A component outside the D x D tensor - the "zz" (plane strain's sigma_zz)
+    of a 2D stress, "xx xy yy zz" - is left out: Frame["stress_zz"] gives it."""
     names = _value(components).split()
     axes = "xyz"[:dimension]
     if a.ndim != 2 or a.shape[1] != len(names):
         raise ValueError(f"a symmetric tensor dataset of shape {a.shape} does not match its components {components!r}")
     full = np.empty((a.shape[0], dimension * dimension), dtype=a.dtype)
     for c, name in enumerate(names):
+        if name[0] not in axes or name[1] not in axes:
+            continue  # out of plane (2D "zz")
         i, j = axes.index(name[0]), axes.index(name[1])
         full[:, i * dimension + j] = a[:, c]
         full[:, j * dimension + i] = a[:, c]
@@ -70,6 +77,10 @@ class Frame(collections.abc.Mapping):
     with [p, i, j] = component ij, as Simulation.particles (also when the file
     stores only a symmetric tensor's independent components); scalars (volume, mass,
     density) are (particles,); other fields (a material's state) as stored.
+    In 2D, frame["stress_zz"] is plane strain's out-of-plane stress sigma_zz,
+    (particles,): the dataset stress_zz (output.fields) or the "zz" column of a
+    symmetric stress ("xx xy yy zz", output.symmetric_tensors); a frame holding
+    neither has no key "stress_zz" (files of otmpm before it, or other fields).
     """
 
     def __init__(self, group, dimension):
@@ -78,14 +89,33 @@ class Frame(collections.abc.Mapping):
         self.name = group.name.rsplit("/", 1)[-1]
         self.time = float(group.attrs["time"])
 
+    def _zz_column(self):
+        """The column of sigma_zz in the frame's stress dataset, or None."""
+        if self._dimension != 2 or "stress" not in self._group:
+            return None
+        components = self._group["stress"].attrs.get("components")
+        names = _value(components).split() if components is not None else []
+        return names.index("zz") if "zz" in names else None
+
     def __getitem__(self, field):
+        if field == OUT_OF_PLANE_STRESS and field not in self._group:
+            column = self._zz_column()
+            if column is None:
+                raise KeyError(field)
+            return self._group["stress"][:, column]
         return _array(field, self._group[field], self._dimension)
 
+    def _names(self):
+        names = list(self._group)
+        if OUT_OF_PLANE_STRESS not in names and self._zz_column() is not None:
+            names.append(OUT_OF_PLANE_STRESS)
+        return names
+
     def __iter__(self):
-        return iter(self._group)
+        return iter(self._names())
 
     def __len__(self):
-        return len(self._group)
+        return len(self._names())
 
     def __repr__(self):
         return f"<Frame {self.name} t={self.time:.6g}: {', '.join(self)}>"
@@ -158,4 +188,4 @@ def open(path):  # noqa: A001 - the module's one entry point, as in h5py.File / 
     return Results(path)
 
 
-__all__ = ["open", "Results", "Frame", "TENSOR_FIELDS", "SCALAR_FIELDS", "unpack_symmetric"]
+__all__ = ["open", "Results", "Frame", "TENSOR_FIELDS", "SCALAR_FIELDS", "OUT_OF_PLANE_STRESS", "unpack_symmetric"]

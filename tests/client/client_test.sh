@@ -9,7 +9,8 @@
 # gathered frames) and its files go through the same checks.
 #
 #  - a 3D run with output.precision = "single" and symmetric tensors goes
-#    through every check too (stress and strain must arrive as 6 components);
+#    through every check too (stress and strain must arrive as 6 components),
+#    and a 2D one (stress as 4: "xx xy yy zz", strain as 3, and stress_zz);
 #  - pvpython (tests/client/paraview_check.py): each run's .xdmf through
 #    Xdmf3ReaderS and the legacy XDMFReader, and its .pvd through PVDReader:
 #    time steps, one point and one vertex cell per particle, point data equal
@@ -60,6 +61,12 @@ exec 3>&1 >runs.log # the runs' summary lines go to the log
   --set output.every=2e-5 --set 'output.format=["hdf5", "vtp"]' --set output.precision=single \
   --set output.symmetric_tensors=true --set 'output.fields=["x", "v", "stress", "strain", "F"]'
 results=("$work/bar_1d.h5" "$work/plate_2d.h5" "$work/bar_3d.h5" "$work/bar_3d_single.h5")
+# 2D symmetric tensors: stress as 4 components "xx xy yy zz" (plane strain's
+# sigma_zz; an XDMF Matrix of 4 columns), strain as 3, and the field stress_zz.
+"$otmpm" run "$src/examples/mms_plate.toml" --quiet --out plate_2d_sym.h5 --set 'grid.cells=[8, 8]' \
+  --set output.symmetric_tensors=true --set 'output.fields=["x", "v", "stress", "strain", "stress_zz"]' \
+  --set 'output.format=["hdf5", "vtp"]'
+results+=("$work/plate_2d_sym.h5")
 if [ -n "$mpiexec" ]; then
   OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 "$mpiexec" -q --oversubscribe -np 2 \
     "$otmpm" run "$src/examples/mms_plate.toml" --quiet --out plate_2d_np2.h5 --set 'grid.cells=[8, 8]' \

@@ -46,6 +46,16 @@ public:
   void add_energies(const Particles<D>& P, int p0, int p1, double& stored, double&) const override {
     add_elastic_energies(P, p0, p1, stored);
   }
+  /// sigma_zz = lambda tr(eps_p): eps_p and sigma_p start at 0 and take the
+  /// same increments d_eps (d_eps_zz = 0), so sigma_zz = lambda sum tr(d_eps).
+  void out_of_plane_stress(const Particles<D>& P, int p0, int p1, double* out) const override {
+    if constexpr (D != 2) {
+      Material<D>::out_of_plane_stress(P, p0, p1, out);
+    } else {
+      const double lambda = c_.lambda();
+      for (int p = p0; p < p1; ++p) out[p - p0] = lambda * (P.eps[p](0, 0) + P.eps[p](1, 1));
+    }
+  }
 
 private:
   ElasticConstants c_;
@@ -53,7 +63,10 @@ private:
 
 /// Finite strain: F_p = (I + H) F_p, V_p = det F_p V0_p, rho_p = m_p / V_p,
 /// sigma_p = Law(F_p), eps_p = sym(F_p) - I (for the energy monitor).
-template <int D, Mat<D> (*Law)(const ElasticConstants&, const Mat<D>&)>
+/// ZzLaw: sigma_zz of the law in plane strain from the in-plane F_p
+/// (out_of_plane_stress).
+template <int D, Mat<D> (*Law)(const ElasticConstants&, const Mat<D>&),
+          double (*ZzLaw)(const ElasticConstants&, const Mat<2>&)>
 class FiniteElastic final : public Material<D> {
 public:
   explicit FiniteElastic(const MaterialParameters& p) : Material<D>(p), c_(p.elastic()) {}
@@ -74,6 +87,14 @@ public:
   void add_energies(const Particles<D>& P, int p0, int p1, double& stored, double&) const override {
     add_elastic_energies(P, p0, p1, stored);
   }
+  /// sigma_zz = ZzLaw(F_p): the law evaluated on the F_p of the last update.
+  void out_of_plane_stress(const Particles<D>& P, int p0, int p1, double* out) const override {
+    if constexpr (D != 2) {
+      Material<D>::out_of_plane_stress(P, p0, p1, out);
+    } else {
+      for (int p = p0; p < p1; ++p) out[p - p0] = ZzLaw(c_, P.F[p]);
+    }
+  }
 
 private:
   ElasticConstants c_;
@@ -83,10 +104,10 @@ template <int D> std::unique_ptr<Material<D>> make_linear_elastic(const Material
   return std::make_unique<LinearElastic<D>>(p);
 }
 template <int D> std::unique_ptr<Material<D>> make_linear_elastic_finite(const MaterialParameters& p) {
-  return std::make_unique<FiniteElastic<D, linear_elastic_finite_stress<D>>>(p);
+  return std::make_unique<FiniteElastic<D, linear_elastic_finite_stress<D>, linear_elastic_finite_out_of_plane>>(p);
 }
 template <int D> std::unique_ptr<Material<D>> make_neo_hookean(const MaterialParameters& p) {
-  return std::make_unique<FiniteElastic<D, neo_hookean_stress<D>>>(p);
+  return std::make_unique<FiniteElastic<D, neo_hookean_stress<D>, neo_hookean_out_of_plane>>(p);
 }
 
 } // namespace

@@ -38,6 +38,16 @@ template <int D> Mat<D> neo_hookean_stress(const ElasticConstants& c, const Mat<
   return (lame_lambda(c, D) * std::log(J) / J) * I + (lame_mu(c, D) / J) * (F * F.transpose() - I);
 }
 
+double linear_elastic_finite_out_of_plane(const ElasticConstants& c, const Mat<2>& F) {
+  const double J = checked_det<2>(F, "linear_elastic_finite");
+  return (c.lambda() / J) * ((F(0, 0) - 1.0) + (F(1, 1) - 1.0));
+}
+
+double neo_hookean_out_of_plane(const ElasticConstants& c, const Mat<2>& F) {
+  const double J = checked_det<2>(F, "neo_hookean");
+  return c.lambda() * std::log(J) / J;
+}
+
 #define OTMPM_INSTANTIATE(D)                                                                 \
   template Mat<D> linear_elastic_finite_stress<D>(const ElasticConstants&, const Mat<D>&);  \
   template Mat<D> neo_hookean_stress<D>(const ElasticConstants&, const Mat<D>&);

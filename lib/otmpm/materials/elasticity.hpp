@@ -51,6 +51,16 @@ template <int D> Mat<D> linear_elastic_finite_stress(const ElasticConstants& c, 
 /// InstabilityError unless det F is finite and > 0 (one check per call).
 template <int D> Mat<D> neo_hookean_stress(const ElasticConstants& c, const Mat<D>& F);
 
+/// Plane strain: the out-of-plane Cauchy stress sigma_zz of
+/// linear_elastic_finite for the in-plane F (F_zz = 1, F_xz = F_yz = 0):
+/// E_s,zz = 0 and (F E_s)_zz = 0 leave lambda tr(E_s) / J, tr(E_s) = F_xx +
+/// F_yy - 2. Throws InstabilityError as linear_elastic_finite_stress.
+double linear_elastic_finite_out_of_plane(const ElasticConstants& c, const Mat<2>& F);
+
+/// Plane strain: sigma_zz of neo_hookean for the in-plane F, lambda ln(J) / J
+/// ((F F^T)_zz = 1). Throws InstabilityError as neo_hookean_stress.
+double neo_hookean_out_of_plane(const ElasticConstants& c, const Mat<2>& F);
+
 /// Stored energy density of the elastic models as the energy monitor counts
 /// it (per unit current volume): 1/2 sigma : eps, with eps the small strain
 /// or sym(F) - I.

@@ -11,6 +11,7 @@
 #include "otmpm/materials/material.hpp"
 
 #include <array>
+#include <cmath>
 
 namespace otmpm {
 
@@ -69,6 +70,26 @@ public:
     for (int p = p0; p < p1; ++p) {
       stored += e[p];
       dissipated += w[p];
+    }
+  }
+
+  /// Plane strain: sigma_zz = tau_zz / J with the Hencky law on the stored
+  /// b_e (block form, b_xz = b_yz = 0): e_m = 1/4 ln det B of the in-plane
+  /// block B, e_z = 1/2 ln b_zz, tau_zz = K (2 e_m + e_z) - 4/3 G (e_m - e_z)
+  /// (update2's tau_zz with beta = 1: after a return b_e is the returned
+  /// state), J = det F_p.
+  void out_of_plane_stress(const Particles<D>& P, int p0, int p1, double* out) const override {
+    if constexpr (D != 2) {
+      Material<D>::out_of_plane_stress(P, p0, p1, out);
+    } else {
+      const double K = model_.elastic().bulk, G = model_.elastic().shear;
+      const double* be = row(P, 0, 0);
+      for (int p = p0; p < p1; ++p) {
+        const double* b = be + 6 * static_cast<std::ptrdiff_t>(p);
+        const double em = 0.25 * std::log(b[0] * b[1] - b[3] * b[3]), ez = 0.5 * std::log(b[2]);
+        const double tau_zz = K * (2.0 * em + ez) - (4.0 / 3.0) * G * (em - ez);
+        out[p - p0] = tau_zz / P.F[p].determinant();
+      }
     }
   }
 

@@ -25,6 +25,7 @@
 #include <memory>
 #include <optional>
 #include <span>
+#include <stdexcept>
 #include <string>
 #include <string_view>
 
@@ -95,6 +96,17 @@ public:
   /// p0 .. p1-1 to `stored` and the energy they dissipated since t = 0 to
   /// `dissipated` (the order matters: the sums are bit-reproducible).
   virtual void add_energies(const Particles<D>& P, int p0, int p1, double& stored, double& dissipated) const = 0;
+  /// Plane strain (D = 2): the out-of-plane Cauchy stress sigma_zz of
+  /// particles p0 .. p1-1, all of this material, into out[0 .. p1-p0),
+  /// derived from what the model keeps (eps_p, F_p or b_e; docs/theory.md,
+  /// sect. 9, "Out-of-plane stress"). Called at output time only: it reads
+  /// the particles and changes nothing. std::logic_error in 1D and 3D (the
+  /// 3D stress holds sigma_zz itself) and for a model that does not say.
+  virtual void out_of_plane_stress(const Particles<D>& P, int p0, int p1, double* out) const {
+    (void)P, (void)p0, (void)p1, (void)out;
+    require<std::logic_error>(false, "material '", name(), "' (model ", params_.model,
+                              "): no out-of-plane stress in ", D, "D");
+  }
 
 private:
   MaterialParameters params_;

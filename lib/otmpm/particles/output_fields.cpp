@@ -86,6 +86,20 @@ void pack_symmetric(const double* full, std::size_t rows, int D, std::vector<dou
   });
 }
 
+std::string_view plane_stress_components() { return "xx xy yy zz"; }
+
+void pack_plane_stress(const double* full, const double* zz, std::size_t rows, std::vector<double>& out) {
+  out.resize(rows * 4);
+  parallel_chunks(static_cast<long long>(rows), [&](long long begin, long long end) {
+    for (auto p = static_cast<std::size_t>(begin); p < static_cast<std::size_t>(end); ++p) {
+      out[p * 4 + 0] = full[p * 4 + 0];
+      out[p * 4 + 1] = full[p * 4 + 1];
+      out[p * 4 + 2] = full[p * 4 + 3];
+      out[p * 4 + 3] = zz[p];
+    }
+  });
+}
+
 template <int D> FieldData output_field_data(std::string_view name, const Particles<D>& P, std::vector<double>& buffer) {
   FieldData d;
   const auto it = std::find_if(kFields.begin(), kFields.end(), [&](const OutputField& f) { return f.name == name; });

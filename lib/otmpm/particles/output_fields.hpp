@@ -44,12 +44,27 @@ bool is_symmetric_tensor_field(std::string_view name);
 /// The names of a symmetric tensor's independent components in D
 /// dimensions, in the order pack_symmetric writes them (the upper triangle
 /// row by row; in 3D the XDMF Tensor6 order): "xx xy xz yy yz zz",
-/// "xx xy yy" or "xx".
+/// "xx xy yy" or "xx". (The 2D stress adds zz: plane_stress_components.)
 std::string_view symmetric_components(int D);
 
 /// Packs `rows` row-major D x D tensors (`full`) into their D (D + 1) / 2
 /// upper-triangle components each (symmetric_components), into `out`.
 void pack_symmetric(const double* full, std::size_t rows, int D, std::vector<double>& out);
+
+/// The output field of plane strain's out-of-plane Cauchy stress sigma_zz
+/// (one column; 2D only). Not a particle array: the materials derive it from
+/// their state when a frame is written (Material::out_of_plane_stress), so
+/// output_field_data does not know it.
+inline constexpr std::string_view kStressZzField = "stress_zz";
+
+/// The components of the 2D stress that output.symmetric_tensors stores: the
+/// in-plane ones (symmetric_components(2)) and plane strain's sigma_zz,
+/// "xx xy yy zz". The 2D strain keeps "xx xy yy" (eps_zz = 0).
+std::string_view plane_stress_components();
+
+/// Packs `rows` row-major 2 x 2 tensors (`full`) as pack_symmetric and
+/// appends zz[p] to row p: rows x 4 values in plane_stress_components order.
+void pack_plane_stress(const double* full, const double* zz, std::size_t rows, std::vector<double>& out);
 
 /// The values of field `name` (a built-in field or a state field of P).
 /// std::invalid_argument when P has no such field (or it is not allocated).

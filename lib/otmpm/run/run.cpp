@@ -9,6 +9,7 @@
 
 #include "otmpm/assembly/assembler.hpp"
 #include "otmpm/distributed/global_view.hpp"
+#include "otmpm/io/hdf5.hpp"
 #include "otmpm/io/output_files.hpp"
 #include "otmpm/parallel.hpp"
 #include "otmpm/particles/output_fields.hpp"
@@ -383,8 +384,28 @@ private:
     return false;
   }
 
+  /// True when the first frame of the result file `path` stores the 2D
+  /// stress as "xx xy yy", as otmpm did before it stored plane strain's
+  /// sigma_zz (false when there is no such frame or attribute).
+  static bool legacy_plane_stress(const std::string& path) {
+    h5::silence();
+    const hid_t id = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+    if (id < 0) return false; // copy_results says why
+    const h5::Handle file(id, H5Fclose);
+    if (!h5::has_link(file.get(), "frames") || !h5::has_link(file.get(), "frames/000000") ||
+        !h5::has_link(file.get(), "frames/000000/stress"))
+      return false;
+    const h5::Handle set(h5::checked(H5Dopen2(file.get(), "frames/000000/stress", H5P_DEFAULT), path, "open stress"),
+                         H5Dclose);
+    return h5::has_attribute(set.get(), "components") && h5::read_string(set.get(), "components", path) == "xx xy yy";
+  }
+
   /// Copies the frames and history samples written before the checkpoint.
+  /// A 2D file whose symmetric stress has 3 columns (an otmpm before
+  /// sigma_zz) goes on with 3: the file stays what the interrupted run wrote.
   void continue_results(const PreviousResults& previous, const StateGroup& g) {
+    if (D == 2 && scene_.output.symmetric_tensors && g.integer("frames") > 0)
+      plane_zz_ = !legacy_plane_stress(previous.path);
     view_.collectively([&] {
       copy_results(previous.path, *writer_, static_cast<int>(g.integer("frames")), histories(), scene_.output.fields);
     });
@@ -498,13 +519,28 @@ private:
                                       std::vector<std::vector<double>>& gathered,
                                       std::vector<FieldView>& whole) const {
     const Particles<D>& P = e_.particles();
+    const auto n = static_cast<std::size_t>(P.size());
+    std::vector<double> zz; // plane strain's sigma_zz, when a field of the frame holds it
     std::vector<FieldView> fields;
     for (std::size_t i = 0; i < scene_.output.fields.size(); ++i) {
       const std::string& name = scene_.output.fields[i];
-      FieldData d = output_field_data<D>(name, P, buffers[i]);
+      const bool symmetric = scene_.output.symmetric_tensors && is_symmetric_tensor_field(name);
+      const bool packed_zz = D == 2 && symmetric && name == "stress" && plane_zz_;
+      if (D == 2 && zz.empty() && (name == kStressZzField || packed_zz)) zz = out_of_plane_stress();
+      FieldData d;
+      if (name == kStressZzField) {
+        buffers[i] = zz;
+        d = {buffers[i].data(), 1};
+      } else {
+        d = output_field_data<D>(name, P, buffers[i]);
+      }
       std::string components;
-      if (scene_.output.symmetric_tensors && is_symmetric_tensor_field(name)) { // output.symmetric_tensors
-        pack_symmetric(d.data, static_cast<std::size_t>(P.size()), D, packed[i]);
+      if (packed_zz) { // output.symmetric_tensors: and sigma_zz
+        pack_plane_stress(d.data, zz.data(), n, packed[i]);
+        d = {packed[i].data(), 4};
+        components = plane_stress_components();
+      } else if (symmetric) { // output.symmetric_tensors
+        pack_symmetric(d.data, n, D, packed[i]);
         d = {packed[i].data(), D * (D + 1) / 2};
         components = symmetric_components(D);
       }
@@ -523,6 +559,21 @@ private:
                         components});
     }
     return fields;
+  }
+
+  /// Plane strain's sigma_zz of every particle (2D), from each run of
+  /// particles of one material (Material::out_of_plane_stress).
+  std::vector<double> out_of_plane_stress() const {
+    const Particles<D>& P = e_.particles();
+    std::vector<double> zz(static_cast<std::size_t>(P.size()));
+    for (int p0 = 0; p0 < P.size();) {
+      const int id = P.material[p0];
+      int p1 = p0 + 1;
+      while (p1 < P.size() && P.material[p1] == id) ++p1;
+      e_.material(id).out_of_plane_stress(P, p0, p1, zz.data() + p0);
+      p0 = p1;
+    }
+    return zz;
   }
 
   void final_errors(RunSummary& s) const {
@@ -552,6 +603,7 @@ private:
   std::string vtk_extension_;               ///< "", "vtp" or "vtu"
   std::string run_id_;                      ///< this run's id (a restart: the continued run's)
   std::optional<PreviousResults> previous_; ///< a restart: where the frames before the checkpoint come from
+  bool plane_zz_ = true; ///< 2D symmetric stress with sigma_zz (false: a restart of a file without it)
   std::unique_ptr<ResultWriter> writer_;
   /// The writer thread (RunOptions::background_output, serial runs); declared
   /// after writer_, so it is joined before the writer is closed.

@@ -607,6 +607,10 @@ std::vector<std::string> read_fields(const TableReader& t, std::string_view key,
     check(std::find(known.begin(), known.end(), out.back()) != known.end(), r,
           "unknown field \"" + out.back() + "\"" + suggestion(out.back(), known));
     check(std::count(out.begin(), out.end(), out.back()) == 1, r, "names \"" + out.back() + "\" twice");
+    check(out.back() != kStressZzField || s.simulation.dimension == 2, r,
+          "\"stress_zz\" (plane strain's out-of-plane stress) needs simulation.dimension = 2 (got " +
+              std::to_string(s.simulation.dimension) +
+              (s.simulation.dimension == 3 ? "; the 3D \"stress\" holds sigma_zz)" : ")"));
   }
   return out;
 }

@@ -184,8 +184,9 @@ struct OutputSection {
   /// attributes, histories and checkpoints are always double.
   std::string precision = "double";
   /// Symmetric tensor fields (stress, strain) stored with their independent
-  /// components only: 6 in 3D (xx, xy, xz, yy, yz, zz; XDMF Tensor6), 3 in
-  /// 2D (xx, xy, yy), 1 in 1D; each such dataset names its components in the
+  /// components only: 6 in 3D (xx, xy, xz, yy, yz, zz; XDMF Tensor6), in 2D
+  /// the stress 4 (xx, xy, yy and plane strain's zz) and the strain 3 (xx,
+  /// xy, yy), 1 in 1D; each such dataset names its components in the
   /// attribute `components`. False: D*D components, row-major.
   bool symmetric_tensors = false;
   SourceRef where;

@@ -253,8 +253,12 @@ void check_output_every(const Scene& s) {
   check(s, every == 0.0 || (finite_positive(every) && s.simulation.t_end / every <= kMaxOutputTimes), "output.every",
         "must be 0 or finite and > 0 with at most ", kMaxOutputTimes, " output times up to t_end (got ", every, ")");
   const std::vector<std::string_view> known = output_field_names(s);
-  for (const std::string& f : s.output.fields)
+  for (const std::string& f : s.output.fields) {
     check(s, std::find(known.begin(), known.end(), f) != known.end(), "output.fields", "unknown field \"", f, "\"");
+    check(s, f != kStressZzField || s.simulation.dimension == 2, "output.fields",
+          "\"stress_zz\" (plane strain's out-of-plane stress) needs simulation.dimension = 2 (got ",
+          s.simulation.dimension, ")");
+  }
 }
 
 /// Each probe: a unique name the result file can hold (invalid_name_reason),
@@ -350,6 +354,7 @@ void validate_scene(const Scene& s, int dimension) {
 std::vector<std::string_view> output_field_names(const Scene& s) {
   std::vector<std::string_view> names;
   for (const OutputField& f : output_fields()) names.push_back(f.name);
+  names.push_back(kStressZzField); // 2D only (read_fields, check_output_every say so)
   for (const MaterialSection& m : s.materials)
     if (const MaterialModel* model = find_material_model(m.model))
       for (const StateSpec& st : model->state)

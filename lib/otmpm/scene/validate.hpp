@@ -37,7 +37,8 @@ void validate_scene(const Scene& scene, int dimension);
 void validate_bodies(const Scene& scene, int dimension);
 
 /// The names output.fields may use in this scene: the built-in particle
-/// fields (output_fields()) and the internal variables of its material models.
+/// fields (output_fields()), stress_zz (kStressZzField; valid in 2D only)
+/// and the internal variables of its material models.
 std::vector<std::string_view> output_field_names(const Scene& scene);
 
 /// What seed_particles() relies on: validate_bodies(), a grid spacing h that
