@@ -263,11 +263,17 @@ private:
   /// True when particles [p0, p1) all pass check_particle: particle_ok
   /// without a branch per particle (the after-step pass's fast test).
   bool particles_ok(int p0, int p1) const {
-    bool ok = true;
+    // A sum of the finite_state terms, as vectors: 0 when every value is finite.
+    Vec<D> z = Vec<D>::Zero();
     for (int p = p0; p < p1; ++p) {
-      ok &= finite_state(p);
-      ok &= mode_.keeps_inside(P_.x[p], P_.v[p], dt_);
+      const Vec<D>& x = P_.x[p];
+      const Vec<D>& v = P_.v[p];
+      Vec<D> t = (x - x) + (v - v);
+      for (int j = 0; j < D; ++j) t += P_.sigma[p].col(j) - P_.sigma[p].col(j);
+      z += t;
     }
+    bool ok = (z.array() == 0.0).all();
+    ok &= mode_.keep_inside(P_.x.data(), P_.v.data(), p0, p1, dt_);
     return ok;
   }
   /// x - x is 0 for a finite x and NaN otherwise, so one sum tests every
