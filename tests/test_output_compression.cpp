@@ -169,7 +169,7 @@ TEST_CASE("chunk_rows: the fewest chunks of at most 1 MiB, equal rows, at least 
       }
 }
 
-TEST_CASE("a compressed writer stores each frame dataset chunked with shuffle + deflate; the values are the same") {
+TEST_CASE("a compressed writer stores each frame dataset chunked with shuffle + deflate, with the same values") {
   TempDir t("writer");
   std::vector<double> x(3 * 50000), s(9 * 50000);
   for (std::size_t i = 0; i < x.size(); ++i) x[i] = 0.001 * static_cast<double>(i / 3) + 1e-7 * static_cast<double>(i % 3);
@@ -336,7 +336,7 @@ fields = ["x", "v", "stress"]
   check_same_contents(t.file("plain.h5"), t.file("level1.h5"));
 }
 
-TEST_CASE("output.compression: read, validated, kept in the stored scene only when set; bad values name the key") {
+TEST_CASE("output.compression: read, validated, kept in the stored scene only when set, bad values name the key") {
   const std::string dyka = OTMPM_SOURCE_DIR "/examples/dyka.toml";
   const Scene d = load_scene(dyka);
   CHECK(d.output.compression == 0);

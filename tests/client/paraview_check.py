@@ -3,7 +3,8 @@ a user sees: for each result file, its XDMF sidecar through both XDMF readers
 (Xdmf3ReaderS, the recommended one, and the legacy XDMFReader) and its .pvd
 collection (PVDReader) must give one time step per frame of the HDF5 file and,
 at the last time step, one point and one vertex cell per particle and every
-particle field as point data, with the values of the HDF5 file bit for bit.
+particle field as point data, with the values of the HDF5 file bit for bit
+(read with h5py, so also for compressed files), and the points equal to x.
 
     pvpython paraview_check.py RESULT.h5...
 
