@@ -205,6 +205,7 @@ std::vector<std::string> fuzzed_settings(FuzzedDataProvider& in, const fs::path&
   sets.push_back(std::string("output.format=") + formats[in.ConsumeIntegralInRange<std::size_t>(0, 3)]);
   if (in.ConsumeBool()) sets.push_back("output.precision=\"single\"");
   if (in.ConsumeBool()) sets.push_back("output.symmetric_tensors=true");
+  if (in.ConsumeBool()) sets.push_back("output.compression=" + std::to_string(in.ConsumeIntegralInRange<int>(0, 9)));
   const std::array<const char*, 5> fields = {"[\"x\", \"v\"]", "[\"v\", \"stress\"]", "[\"x\", \"F\", \"mass\"]",
                                              "[\"x\", \"displacement\", \"density\", \"strain\"]",
                                              "[\"x\", \"stress\", \"stress_zz\"]"}; // stress_zz: 2D only (else refused)

@@ -12,18 +12,23 @@
 # output share of the wall time of the single/symmetric run) with target,
 # measured value and met or not.
 #
-#   bash scripts/bench-output.sh BUILD/bin/otmpm [--cells 64] [--every 5] [--threads 2]
+#   bash scripts/bench-output.sh BUILD/bin/otmpm [--cells 64] [--every 5] [--threads 2] [--compression L]
+#
+# --compression L (1..9): also both configurations with output.compression = L
+# (rows double+zL and single+zL) and, last, their bytes over the uncompressed
+# file's and their output shares.
 #
 # The files (5 GB and 2 GB at 64^3) go to a temporary folder that is removed.
 set -euo pipefail
-bin=$(realpath "${1:?usage: bench-output.sh OTMPM_BINARY [--cells N] [--every STEPS] [--threads T]}")
+bin=$(realpath "${1:?usage: bench-output.sh OTMPM_BINARY [--cells N] [--every STEPS] [--threads T] [--compression L]}")
 shift
-cells=64 every=5 threads=2
+cells=64 every=5 threads=2 compression=0
 while [ $# -gt 0 ]; do
   case $1 in
     --cells) cells=$2; shift 2 ;;
     --every) every=$2; shift 2 ;;
     --threads) threads=$2; shift 2 ;;
+    --compression) compression=$2; shift 2 ;;
     *) echo "unknown option $1" >&2; exit 2 ;;
   esac
 done
@@ -75,9 +80,12 @@ every = {every!r}
 fields = ["x", "v", "stress"]''')
 PY
 echo "machine: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg)"
-for cfg in double single; do
+configs=(double single)
+[ "$compression" -gt 0 ] && configs+=("double+z$compression" "single+z$compression")
+for cfg in "${configs[@]}"; do
   sets=()
-  [ "$cfg" = single ] && sets=(--set output.precision=single --set output.symmetric_tensors=true)
+  case $cfg in single*) sets=(--set output.precision=single --set output.symmetric_tensors=true) ;; esac
+  case $cfg in *+z*) sets+=(--set "output.compression=$compression") ;; esac
   OMP_NUM_THREADS=$threads OMP_WAIT_POLICY=passive "$bin" run "$work/block.toml" --quiet --out "$work/$cfg.h5" "${sets[@]}" >/dev/null
   /usr/bin/python3 - "$work/$cfg.h5" "$cfg" <<'PY'
 import os, sys
@@ -107,4 +115,10 @@ print(f"| result file of the 3D block ({n}^3 cells), 20 frames: bytes with preci
       f"/ default | <= 0.5 | {ratio:.3f} | {met(ratio <= 0.5)} |")
 print(f"| same, single + symmetric, {threads} OpenMP thread(s): output time of the stepping thread / wall time "
       f"| < 5% | {100 * share:.1f}% | {met(share < 0.05)} |")
+for cfg in ("double", "single"):
+    z = [k for k in rows if k.startswith(cfg + "+z")]
+    if z:
+        b, wall, out = int(rows[z[0]][0]), float(rows[z[0]][1]), float(rows[z[0]][2])
+        print(f"| {z[0]}: bytes / {cfg} bytes | {b / int(rows[cfg][0]):.3f} | output share {100 * out / wall:.1f}% "
+              f"(uncompressed {100 * float(rows[cfg][2]) / float(rows[cfg][1]):.1f}%) |")
 PY

@@ -710,3 +710,61 @@ TEST_CASE("mpi: output.precision = single and symmetric tensors, written collect
   H5Tclose(type);
   H5Dclose(set);
 }
+
+TEST_CASE("mpi: output.compression, written collectively, gives the bits of the uncompressed parallel file") {
+  // The parallel HDF5 writes filtered (chunked, shuffle + deflate) datasets
+  // with collective transfers: the 2-rank compressed file must hold the same
+  // frames as the 2-rank uncompressed one bit for bit (a fixed rank count
+  // gives the same bits run to run), in double with full tensors and in
+  // single precision with symmetric ones; and its frame datasets must really
+  // carry the filters. -np 1 and the serial run give the same bits compressed.
+  for (const bool single : {false, true}) {
+    CAPTURE(single);
+    std::vector<std::string> sets{"simulation.t_end=1e-5", "output.every=2.5e-6",
+                                  "output.fields=[\"x\",\"v\",\"stress\",\"strain\"]"};
+    if (single) sets.insert(sets.end(), {"output.precision=single", "output.symmetric_tensors=true"});
+    Case plain{single ? "deflate_single" : "deflate_double", "dyka_3d.toml", sets};
+    Case packed = plain;
+    packed.sets.push_back("output.compression=5");
+    TempDir dir(std::string("mpi_deflate_") + (single ? "single" : "double"));
+    for (const auto& [c, file] : {std::pair{&plain, "plain.h5"}, std::pair{&packed, "packed.h5"}}) {
+      const Result r = run_otmpm(dir, 2, arguments(*c, file));
+      REQUIRE_MESSAGE(r.status == 0, r.err);
+    }
+    REQUIRE(run_otmpm(dir, 0, arguments(packed, "serial_packed.h5")).status == 0);
+    REQUIRE(run_otmpm(dir, 0, arguments(plain, "serial_plain.h5")).status == 0);
+    for (const auto& [a, b] : {std::pair{"plain.h5", "packed.h5"}, std::pair{"serial_plain.h5", "serial_packed.h5"}}) {
+      CAPTURE(a);
+      const Frames fa = read_frames(dir.file(a)), fb = read_frames(dir.file(b));
+      REQUIRE(fa.time.size() == 5);
+      REQUIRE(fb.time == fa.time);
+      for (std::size_t i = 0; i < fa.data.size(); ++i)
+        for (const auto& [name, m] : fa.data[i]) {
+          CAPTURE(name);
+          REQUIRE(fb.data[i].count(name) == 1);
+          CHECK(fb.data[i].at(name).rows == m.rows);
+          CHECK(fb.data[i].at(name).cols == m.cols);
+          CHECK((fb.data[i].at(name).values == m.values));
+        }
+    }
+    const hid_t id = H5Fopen(dir.file("packed.h5").c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+    REQUIRE(id >= 0);
+    const h5::Handle file(id, H5Fclose);
+    for (const char* name : {"/frames/000002/x", "/frames/000002/stress", "/frames/000004/strain"}) {
+      CAPTURE(name);
+      const hid_t set = H5Dopen2(file.get(), name, H5P_DEFAULT);
+      REQUIRE(set >= 0);
+      const hid_t dcpl = H5Dget_create_plist(set);
+      CHECK(H5Pget_layout(dcpl) == H5D_CHUNKED);
+      REQUIRE(H5Pget_nfilters(dcpl) == 2);
+      unsigned flags = 0, level = 0;
+      std::size_t n = 1;
+      CHECK(H5Pget_filter2(dcpl, 0, &flags, &n, &level, 0, nullptr, nullptr) == H5Z_FILTER_SHUFFLE);
+      n = 1;
+      CHECK(H5Pget_filter2(dcpl, 1, &flags, &n, &level, 0, nullptr, nullptr) == H5Z_FILTER_DEFLATE);
+      CHECK(level == 5);
+      H5Pclose(dcpl);
+      H5Dclose(set);
+    }
+  }
+}

@@ -26,6 +26,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -249,6 +250,56 @@ TEST_CASE("a single-precision file with symmetric tensors is continued by a rest
   CHECK(otmpm::h5::read_string(set, "components", again) == "xx xy yy zz"); // 2D: and plane strain's sigma_zz
   H5Tclose(type);
   H5Dclose(set);
+  H5Fclose(file);
+}
+
+TEST_CASE("a compressed result file killed by SIGKILL is readable, and its restart equals the uninterrupted run") {
+  TempDir dir("kill_compressed");
+  // As the first test, with output.compression = 6: the killed run's file
+  // opens with every frame it wrote, the restart copies the chunked, filtered
+  // frames (their values) into a new compressed file, and the result equals
+  // the uninterrupted compressed run bit for bit.
+  const std::vector<std::string> scene{"run", (kSource / "examples/dyka/dyka_n133.toml").string(), "--quiet",
+                                       "--set", "output.checkpoint_every=500", "--set", kAllFields,
+                                       "--set", "output.compression=6"};
+  const std::string full = dir.file("full.h5"), run = dir.file("run.h5");
+  REQUIRE(run_cli(dir, with(scene, {"--out", full})).status == 0);
+  const std::string checkpoint = dir.file("run.checkpoint.h5");
+  const pid_t pid = spawn(with(scene, {"--out", run}), dir.file("killed.txt"));
+  const bool started = wait_for_file(checkpoint, pid, std::chrono::seconds(300));
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  ::kill(pid, SIGKILL);
+  int wstatus = 0;
+  REQUIRE(waitpid(pid, &wstatus, 0) == pid);
+  REQUIRE_MESSAGE(started, "the run ended before it wrote a checkpoint");
+  REQUIRE_MESSAGE(WIFSIGNALED(wstatus), "the run finished before the test could kill it");
+  const auto frames = checkpoint_integer(checkpoint, "recorder", "frames");
+  REQUIRE(frames > 0);
+  CHECK(frame_count(run) >= static_cast<std::size_t>(frames));
+  char last[64];
+  std::snprintf(last, sizeof last, "/frames/%06lld/stress", static_cast<long long>(frames - 1));
+  CHECK(snapshot(run).count(last) == 1); // the killed file reads back, its frames' values included
+  const otmpm::test::CliResult r = run_cli(dir, {"run", "--restart", checkpoint, "--quiet"});
+  INFO(r.err);
+  REQUIRE(r.status == 0);
+  check_same_results(full, run);
+  // A copied frame is stored compressed like the frames the restart computed.
+  const hid_t file = H5Fopen(run.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  REQUIRE(file >= 0);
+  for (const std::string frame : {"000000", "000001"}) {
+    const hid_t set = H5Dopen2(file, ("/frames/" + frame + "/x").c_str(), H5P_DEFAULT);
+    REQUIRE(set >= 0);
+    const hid_t dcpl = H5Dget_create_plist(set);
+    CHECK(H5Pget_layout(dcpl) == H5D_CHUNKED);
+    unsigned flags = 0;
+    std::size_t n = 1;
+    unsigned level = 0;
+    CHECK(H5Pget_nfilters(dcpl) == 2);
+    CHECK(H5Pget_filter_by_id2(dcpl, H5Z_FILTER_DEFLATE, &flags, &n, &level, 0, nullptr, nullptr) >= 0);
+    CHECK(level == 6);
+    H5Pclose(dcpl);
+    H5Dclose(set);
+  }
   H5Fclose(file);
 }
 

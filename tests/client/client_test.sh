@@ -11,6 +11,8 @@
 #  - a 3D run with output.precision = "single" and symmetric tensors goes
 #    through every check too (stress and strain must arrive as 6 components),
 #    and a 2D one (stress as 4: "xx xy yy zz", strain as 3, and stress_zz);
+#  - so do a 3D and a 1D run with output.compression (and a 2-rank one with
+#    MPIEXEC): chunked frame datasets with shuffle + deflate, checked to be so;
 #  - pvpython (tests/client/paraview_check.py): each run's .xdmf through
 #    Xdmf3ReaderS and the legacy XDMFReader, and its .pvd through PVDReader:
 #    time steps, one point and one vertex cell per particle, point data equal
@@ -60,20 +62,47 @@ exec 3>&1 >runs.log # the runs' summary lines go to the log
 "$otmpm" run "$src/examples/dyka_3d.toml" --quiet --out bar_3d_single.h5 \
   --set output.every=2e-5 --set 'output.format=["hdf5", "vtp"]' --set output.precision=single \
   --set output.symmetric_tensors=true --set 'output.fields=["x", "v", "stress", "strain", "F"]'
-results=("$work/bar_1d.h5" "$work/plate_2d.h5" "$work/bar_3d.h5" "$work/bar_3d_single.h5")
+# output.compression: frame datasets chunked with shuffle + deflate, which the
+# XDMF readers must decompress to the same values (1D: the padded x3 too).
+"$otmpm" run "$src/examples/dyka_3d.toml" --quiet --out bar_3d_deflate.h5 \
+  --set output.every=2e-5 --set 'output.format=["hdf5", "vtp"]' --set output.compression=6 \
+  --set output.symmetric_tensors=true --set 'output.fields=["x", "v", "stress", "strain", "F"]'
+"$otmpm" run "$src/examples/dyka.toml" --quiet --out bar_1d_deflate.h5 \
+  --set output.every=2e-5 --set 'output.format=["hdf5", "vtu"]' --set output.compression=1
+results=("$work/bar_1d.h5" "$work/plate_2d.h5" "$work/bar_3d.h5" "$work/bar_3d_single.h5" "$work/bar_3d_deflate.h5"
+         "$work/bar_1d_deflate.h5")
 # 2D symmetric tensors: stress as 4 components "xx xy yy zz" (plane strain's
 # sigma_zz; an XDMF Matrix of 4 columns), strain as 3, and the field stress_zz.
 "$otmpm" run "$src/examples/mms_plate.toml" --quiet --out plate_2d_sym.h5 --set 'grid.cells=[8, 8]' \
   --set output.symmetric_tensors=true --set 'output.fields=["x", "v", "stress", "strain", "stress_zz"]' \
   --set 'output.format=["hdf5", "vtp"]'
 results+=("$work/plate_2d_sym.h5")
+deflated=("$work/bar_3d_deflate.h5" "$work/bar_1d_deflate.h5")
 if [ -n "$mpiexec" ]; then
   OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 "$mpiexec" -q --oversubscribe -np 2 \
     "$otmpm" run "$src/examples/mms_plate.toml" --quiet --out plate_2d_np2.h5 --set 'grid.cells=[8, 8]' \
     --set 'output.fields=["x", "v", "stress", "displacement", "density"]' --set 'output.format=["hdf5", "vtp"]'
-  results+=("$work/plate_2d_np2.h5")
+  OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 "$mpiexec" -q --oversubscribe -np 2 \
+    "$otmpm" run "$src/examples/mms_plate.toml" --quiet --out plate_2d_np2_deflate.h5 --set 'grid.cells=[8, 8]' \
+    --set 'output.fields=["x", "v", "stress", "displacement", "density"]' --set 'output.format=["hdf5", "vtp"]' \
+    --set output.compression=4
+  results+=("$work/plate_2d_np2.h5" "$work/plate_2d_np2_deflate.h5")
+  deflated+=("$work/plate_2d_np2_deflate.h5")
 fi
 exec 1>&3
+# The compressed cases are compressed: every frame dataset gzip + shuffle (h5py).
+$python - "${deflated[@]}" <<'PY'
+import sys
+import h5py
+for path in sys.argv[1:]:
+    with h5py.File(path, "r") as f:
+        sets = [g[k] for g in f["frames"].values() for k in g]
+        bad = [s.name for s in sets if s.compression != "gzip" or not s.shuffle or s.chunks is None]
+        if bad or not sets:
+            print(f"FAIL: {path}: not compressed: {bad[:3]}")
+            sys.exit(1)
+        print(f"ok: {path}: {len(sets)} frame datasets chunked, shuffle + gzip")
+PY
 
 # ParaView prints its own log lines (and HDF5 diagnostics) on stderr; only ours matter.
 pvpython "$here/paraview_check.py" "${results[@]}" 2>pvpython.log || { tail -20 pvpython.log; exit 1; }

@@ -3,7 +3,8 @@ a user sees: for each result file, its XDMF sidecar through both XDMF readers
 (Xdmf3ReaderS, the recommended one, and the legacy XDMFReader) and its .pvd
 collection (PVDReader) must give one time step per frame of the HDF5 file and,
 at the last time step, one point and one vertex cell per particle and every
-particle field as point data, with the values of the HDF5 file bit for bit.
+particle field as point data, with the values of the HDF5 file bit for bit
+(read with h5py, so also for compressed files), and the points equal to x.
 
     pvpython paraview_check.py RESULT.h5...
 
@@ -40,6 +41,9 @@ def expected(path):
                 symmetric[k] = (names.decode() if isinstance(names, bytes) else names).split()
                 if fields[k].shape[1] != len(symmetric[k]):
                     fail(f"{path}: field {k} has {fields[k].shape[1]} columns for components {symmetric[k]}")
+        # The points: the coordinates (the zero-padded copy x3 of a 1D x), read
+        # through h5py like every field, whatever the storage (output.compression).
+        fields[" points"] = last["x3" if "x3" in last else "x"][:]
         return times, last["x"].shape[0], int(f.attrs["dimension"]), fields, symmetric
 
 
@@ -72,24 +76,26 @@ def check(path, name, reader, times, particles, dimension, fields, symmetric):
              f"expected {particles} of each (one vertex per particle)")
     point_data = data.GetPointData()
     got = {point_data.GetArrayName(i) for i in range(point_data.GetNumberOfArrays())}
-    if got != set(fields):
+    if got != set(fields) - {" points"}:
         fail(f"{path} {name}: point data {sorted(got)} != fields {sorted(fields)}")
     for field, values in fields.items():
-        array = vtk_to_numpy(point_data.GetArray(field)).reshape(particles, -1)
+        source = data.GetPoints().GetData() if field == " points" else point_data.GetArray(field)
+        array = vtk_to_numpy(source).reshape(particles, -1)
         if name == "XDMFReader" and len(symmetric.get(field, ())) == 6 and array.shape[1] == 9:
             # The legacy reader expands an XDMF Tensor6 to the full 3 x 3 tensor (a 2D
             # stress "xx xy yy zz" is a 4-column Matrix: it arrives as stored).
             values = full_tensor(values, symmetric[field], dimension)
         cols = values.shape[1]
-        # The legacy reader pads a D-component vector to 3 components with zeros.
-        if array.shape[1] != cols and not (name == "XDMFReader" and cols == dimension and array.shape[1] == 3):
+        # The legacy reader pads a D-component vector to 3 components with zeros (every reader the points).
+        padded = (name == "XDMFReader" or field == " points") and cols == dimension and array.shape[1] == 3
+        if array.shape[1] != cols and not padded:
             fail(f"{path} {name}: field {field} has {array.shape[1]} components, the HDF5 file {cols}")
-        if array.dtype != values.dtype:
+        if array.dtype != values.dtype and field != " points":  # (points: any width holding the same values)
             fail(f"{path} {name}: field {field} is {array.dtype}, the HDF5 file {values.dtype}")
         if not np.array_equal(array[:, :cols], values) or np.any(array[:, cols:] != 0):
             fail(f"{path} {name}: field {field} differs from the HDF5 file")
     shapes = ", ".join(f"{k}: {point_data.GetArray(k).GetNumberOfComponents()} x {v.dtype}"
-                       for k, v in sorted(fields.items()))
+                       for k, v in sorted(fields.items()) if k != " points")
     print(f"ok: {os.path.basename(path)} {name}: {len(times)} time steps, {particles} points and vertex cells, "
           f"point data {shapes}")
 

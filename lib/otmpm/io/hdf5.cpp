@@ -8,6 +8,7 @@
 #include <sys/stat.h>
 #include <sys/statvfs.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <cstdlib>
@@ -209,14 +210,52 @@ void write_string_attribute(hid_t object, const std::string& name, const std::st
   write_attribute(object, name, t.get(), value.c_str(), path);
 }
 
+bool deflate_available() {
+  if (H5Zfilter_avail(H5Z_FILTER_DEFLATE) <= 0 || H5Zfilter_avail(H5Z_FILTER_SHUFFLE) <= 0) return false;
+  unsigned int config = 0;
+  if (H5Zget_filter_info(H5Z_FILTER_DEFLATE, &config) < 0) return false;
+  return (config & H5Z_FILTER_CONFIG_ENCODE_ENABLED) != 0;
+}
+
+hsize_t chunk_rows(hsize_t rows, hsize_t cols, std::size_t value_bytes) {
+  const hsize_t row_bytes = std::max<hsize_t>(cols * value_bytes, 1);
+  const hsize_t most = std::max<hsize_t>(kMaxChunkBytes / row_bytes, 1); // rows in the largest chunk
+  if (rows <= most) return std::max<hsize_t>(rows, 1);
+  const hsize_t chunks = (rows + most - 1) / most;
+  return (rows + chunks - 1) / chunks;
+}
+
+Handle dataset_creation(hsize_t rows, hsize_t cols, std::size_t value_bytes, int deflate, const std::string& path,
+                        int rank) {
+  if (deflate <= 0 || rows * cols == 0) return Handle();
+  if (deflate > kMaxDeflate) fail(path, "compress at deflate level " + std::to_string(deflate) + " (at most 9)");
+  if (!deflate_available()) fail(path, "compress: this HDF5 has no deflate (gzip) encoder");
+  const std::string what = "set up a compressed dataset";
+  Handle plist(checked(H5Pcreate(H5P_DATASET_CREATE), path, what), H5Pclose);
+  const hsize_t chunk[2] = {chunk_rows(rows, cols, value_bytes), cols};
+  checked_status(H5Pset_chunk(plist.get(), rank == 1 ? 1 : 2, chunk), path, what);
+  checked_status(H5Pset_shuffle(plist.get()), path, what);
+  checked_status(H5Pset_deflate(plist.get(), static_cast<unsigned>(deflate)), path, what);
+  // Every value is written: no fill values (the parallel HDF5 allocates the
+  // chunks when it creates the dataset and would otherwise write them).
+  checked_status(H5Pset_fill_time(plist.get(), H5D_FILL_TIME_NEVER), path, what);
+  return plist;
+}
+
 namespace {
-/// Writes a contiguous rows x cols dataset stored as `file_type` from memory of type `memory_type`.
+/// The creation list of `layout`, or H5P_DEFAULT when it is not set.
+hid_t creation(const Handle& layout) { return layout.valid() ? layout.get() : H5P_DEFAULT; }
+
+/// Writes a rows x cols dataset stored as `file_type` from memory of type
+/// `memory_type` (contiguous, or compressed when `deflate` > 0).
 void write_dataset(hid_t parent, const std::string& name, hsize_t rows, hsize_t cols, hid_t file_type,
-                   hid_t memory_type, const void* data, const std::string& path) {
+                   hid_t memory_type, const void* data, const std::string& path, int deflate) {
   const std::string what = "write dataset " + name;
   const hsize_t dims[2] = {rows, cols};
   Handle space(checked(H5Screate_simple(2, dims, nullptr), path, what), H5Sclose);
-  Handle set(checked(H5Dcreate2(parent, name.c_str(), file_type, space.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+  const Handle layout = dataset_creation(rows, cols, H5Tget_size(file_type), deflate, path);
+  Handle set(checked(H5Dcreate2(parent, name.c_str(), file_type, space.get(), H5P_DEFAULT, creation(layout),
+                                H5P_DEFAULT),
                      path, what),
              H5Dclose);
   if (rows * cols > 0) checked_status(H5Dwrite(set.get(), memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data), path, what);
@@ -243,11 +282,13 @@ const double kNoData = 0.0;
 /// write_rows for elements stored as `file_type` from memory of type `memory_type`.
 void write_rows_as(hid_t parent, const std::string& name, hsize_t total_rows, hsize_t cols, hsize_t first,
                    hsize_t rows, hid_t file_type, hid_t memory_type, const void* data, hid_t transfer,
-                   const std::string& path) {
+                   const std::string& path, int deflate) {
   const std::string what = "write dataset " + name;
   const hsize_t dims[2] = {total_rows, cols}, start[2] = {first, 0}, count[2] = {rows, cols};
   Handle space(checked(H5Screate_simple(2, dims, nullptr), path, what), H5Sclose);
-  Handle set(checked(H5Dcreate2(parent, name.c_str(), file_type, space.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+  const Handle layout = dataset_creation(total_rows, cols, H5Tget_size(file_type), deflate, path);
+  Handle set(checked(H5Dcreate2(parent, name.c_str(), file_type, space.get(), H5P_DEFAULT, creation(layout),
+                                H5P_DEFAULT),
                      path, what),
              H5Dclose);
   Handle file_space(checked(H5Dget_space(set.get()), path, what), H5Sclose);
@@ -265,28 +306,30 @@ void write_rows_as(hid_t parent, const std::string& name, hsize_t total_rows, hs
 } // namespace
 
 void write_rows(hid_t parent, const std::string& name, hsize_t total_rows, hsize_t cols, hsize_t first, hsize_t rows,
-                const double* data, hid_t transfer, const std::string& path) {
-  write_rows_as(parent, name, total_rows, cols, first, rows, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, data, transfer, path);
+                const double* data, hid_t transfer, const std::string& path, int deflate) {
+  write_rows_as(parent, name, total_rows, cols, first, rows, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, data, transfer, path,
+                deflate);
 }
 
 void write_rows(hid_t parent, const std::string& name, hsize_t total_rows, hsize_t cols, hsize_t first, hsize_t rows,
-                const float* data, hid_t transfer, const std::string& path) {
-  write_rows_as(parent, name, total_rows, cols, first, rows, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, data, transfer, path);
+                const float* data, hid_t transfer, const std::string& path, int deflate) {
+  write_rows_as(parent, name, total_rows, cols, first, rows, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, data, transfer, path,
+                deflate);
 }
 
 void write_matrix(hid_t parent, const std::string& name, hsize_t rows, hsize_t cols, const float* data,
-                  const std::string& path) {
-  write_dataset(parent, name, rows, cols, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, data, path);
+                  const std::string& path, int deflate) {
+  write_dataset(parent, name, rows, cols, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, data, path, deflate);
 }
 
 void write_matrix(hid_t parent, const std::string& name, hsize_t rows, hsize_t cols, const double* data,
-                  const std::string& path) {
-  write_dataset(parent, name, rows, cols, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, data, path);
+                  const std::string& path, int deflate) {
+  write_dataset(parent, name, rows, cols, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, data, path, deflate);
 }
 
 void write_matrix(hid_t parent, const std::string& name, hsize_t rows, hsize_t cols, const std::int64_t* data,
-                  const std::string& path) {
-  write_dataset(parent, name, rows, cols, H5T_STD_I64LE, H5T_NATIVE_INT64, data, path);
+                  const std::string& path, int deflate) {
+  write_dataset(parent, name, rows, cols, H5T_STD_I64LE, H5T_NATIVE_INT64, data, path, deflate);
 }
 
 bool has_attribute(hid_t object, const std::string& name) { return H5Aexists(object, name.c_str()) > 0; }

@@ -130,15 +130,40 @@ void write_attribute(hid_t object, const std::string& name, hid_t type, const vo
 void write_string_attribute(hid_t object, const std::string& name, const std::string& value,
                             const std::string& path);
 
-/// Writes a contiguous rows x cols dataset of doubles.
+/// Largest chunk of a compressed dataset (dataset_creation), in bytes before compression.
+constexpr std::uint64_t kMaxChunkBytes = std::uint64_t{1} << 20;
+/// Highest deflate (gzip) level.
+constexpr int kMaxDeflate = 9;
+
+/// True when this HDF5 can compress with the deflate (gzip) filter
+/// (H5Zfilter_avail and its encoder enabled, H5Zget_filter_info).
+bool deflate_available();
+
+/// Rows per chunk of a compressed rows x cols dataset of `value_bytes`-byte
+/// values: the dataset is split along its rows into the fewest chunks of at
+/// most kMaxChunkBytes (all columns in each chunk), of equal rows but the
+/// last; at least 1 row.
+hsize_t chunk_rows(hsize_t rows, hsize_t cols, std::size_t value_bytes);
+
+/// The dataset creation list of a rows x cols dataset of `value_bytes`-byte
+/// values compressed at deflate level `deflate` (1..kMaxDeflate): chunked
+/// by chunk_rows(), the shuffle filter then deflate, no fill values written.
+/// An invalid handle (use H5P_DEFAULT: contiguous) when `deflate` is 0 or
+/// the dataset holds no value. Fails when deflate is not available.
+/// `rank` 1: a rank-1 dataset of `rows` values (cols must be 1).
+Handle dataset_creation(hsize_t rows, hsize_t cols, std::size_t value_bytes, int deflate, const std::string& path,
+                        int rank = 2);
+
+/// Writes a rows x cols dataset of doubles: contiguous, or with `deflate` >
+/// 0 chunked and compressed (dataset_creation).
 void write_matrix(hid_t parent, const std::string& name, hsize_t rows, hsize_t cols, const double* data,
-                  const std::string& path);
-/// Writes a contiguous rows x cols dataset of 32-bit IEEE floats.
+                  const std::string& path, int deflate = 0);
+/// Writes a rows x cols dataset of 32-bit IEEE floats (`deflate` as above).
 void write_matrix(hid_t parent, const std::string& name, hsize_t rows, hsize_t cols, const float* data,
-                  const std::string& path);
-/// Writes a contiguous rows x cols dataset of 64-bit integers.
+                  const std::string& path, int deflate = 0);
+/// Writes a rows x cols dataset of 64-bit integers (`deflate` as above).
 void write_matrix(hid_t parent, const std::string& name, hsize_t rows, hsize_t cols, const std::int64_t* data,
-                  const std::string& path);
+                  const std::string& path, int deflate = 0);
 
 /// Makes `fapl` open the file with MPI-IO over the ranks of `mpi_comm` (an
 /// MPI_Comm*) and returns a data transfer list for collective writes.
@@ -148,12 +173,14 @@ Handle parallel_access(hid_t fapl, const void* mpi_comm, const std::string& path
 /// Writes rows [first, first + rows) of a new total_rows x cols dataset of
 /// doubles; with a parallel file every rank creates the dataset and writes
 /// its rows in one collective call (`transfer`: the data transfer list;
-/// H5P_DEFAULT for a serial file, which writes all rows).
+/// H5P_DEFAULT for a serial file, which writes all rows). `deflate` > 0:
+/// chunked and compressed (dataset_creation; the parallel HDF5 writes
+/// filtered datasets with collective transfers only, which `transfer` sets).
 void write_rows(hid_t parent, const std::string& name, hsize_t total_rows, hsize_t cols, hsize_t first, hsize_t rows,
-                const double* data, hid_t transfer, const std::string& path);
+                const double* data, hid_t transfer, const std::string& path, int deflate = 0);
 /// write_rows of 32-bit IEEE floats.
 void write_rows(hid_t parent, const std::string& name, hsize_t total_rows, hsize_t cols, hsize_t first, hsize_t rows,
-                const float* data, hid_t transfer, const std::string& path);
+                const float* data, hid_t transfer, const std::string& path, int deflate = 0);
 
 /// True when `object` has an attribute `name`.
 bool has_attribute(hid_t object, const std::string& name);

@@ -176,14 +176,33 @@ struct ProbeInfo {
   std::vector<std::pair<std::string, hsize_t>> fields;
 };
 
+/// Bytes per chunk a compressed dataset may need beyond its values: deflate
+/// stores at most 0.1% + 12 bytes more than it was given (zlib's bound, and
+/// the filter is optional: a chunk it cannot shrink is stored as is), and
+/// the chunk's entry in the dataset's B-tree index (its key and address)
+/// with a share of the B-tree node, counted generously.
+constexpr std::uint64_t kChunkOverhead = 256;
+
+/// The bytes a dataset of rows x cols values of `value_bytes` bytes may
+/// take, with its metadata: uncompressed (compressed data is bounded by the
+/// uncompressed size plus kChunkOverhead and 0.1% per chunk).
+std::uint64_t dataset_bytes(std::uint64_t rows, std::uint64_t cols, std::uint64_t value_bytes, bool compressed) {
+  const std::uint64_t data = rows * cols * value_bytes;
+  if (!compressed || data == 0) return data + kMetadataBytes;
+  const std::uint64_t chunk = h5::chunk_rows(rows, cols, value_bytes);
+  const std::uint64_t chunks = (rows + chunk - 1) / chunk;
+  return data + data / 1000 + chunks * kChunkOverhead + 2 * kMetadataBytes;
+}
+
 /// The bytes a frame's datasets hold, with their metadata.
-std::uint64_t frame_bytes(const std::vector<FieldView>& fields, int dimension, std::uint64_t value_bytes) {
+std::uint64_t frame_bytes(const std::vector<FieldView>& fields, int dimension, std::uint64_t value_bytes,
+                          bool compressed) {
   std::uint64_t bytes = 2 * kMetadataBytes; // the group, the sidecar's vertices
   for (const FieldView& f : fields) {
-    const std::uint64_t values = static_cast<std::uint64_t>(f.rows) * static_cast<std::uint64_t>(f.cols);
-    bytes += values * value_bytes + kMetadataBytes;
-    if (f.name == "x" && dimension == 1) bytes += values * kXdmfSpaceDim * value_bytes + kMetadataBytes;
-    if (f.name == "x") bytes += static_cast<std::uint64_t>(f.rows) * sizeof(std::int64_t);
+    const auto rows = static_cast<std::uint64_t>(f.rows), cols = static_cast<std::uint64_t>(f.cols);
+    bytes += dataset_bytes(rows, cols, value_bytes, compressed);
+    if (f.name == "x" && dimension == 1) bytes += dataset_bytes(rows, kXdmfSpaceDim, value_bytes, compressed);
+    if (f.name == "x") bytes += dataset_bytes(rows, 1, sizeof(std::int64_t), compressed);
   }
   return bytes;
 }
@@ -218,6 +237,7 @@ struct ResultWriter::Impl {
   std::string run_id;
   int dimension = 0;
   bool single = false;  ///< frames' particle datasets as 32-bit floats
+  int deflate = 0;      ///< ResultOptions::compression
   int fd = -1;          ///< the file's descriptor (space reservations)
   bool broken = false;  ///< an HDF5 write failed: the file is left alone from then on
   std::vector<FrameInfo> frame_infos;
@@ -244,12 +264,13 @@ struct ResultWriter::Impl {
     }
     const auto write = [&](const auto* values) {
       if (!parallel.mpi_comm)
-        return write_matrix(g, name, static_cast<hsize_t>(f.rows), static_cast<hsize_t>(f.cols), values, path);
+        return write_matrix(g, name, static_cast<hsize_t>(f.rows), static_cast<hsize_t>(f.cols), values, path,
+                            deflate);
       const bool whole = f.total_rows < 0; // the root writes a whole frame alone
       const auto total = static_cast<hsize_t>(whole ? f.rows : f.total_rows);
       const auto rows = static_cast<hsize_t>(whole && !root() ? 0 : f.rows);
       h5::write_rows(g, name, total, static_cast<hsize_t>(f.cols), whole ? 0 : static_cast<hsize_t>(f.first_row),
-                     rows, values, dxpl(), path);
+                     rows, values, dxpl(), path, deflate);
     };
     if (single) write(rounded.data());
     else write(data);
@@ -314,6 +335,12 @@ ResultWriter::ResultWriter(const std::string& path, const std::string& scene_tex
   m.path = path;
   m.dimension = dimension;
   m.single = options.single_precision;
+  require<std::invalid_argument>(options.compression >= 0 && options.compression <= h5::kMaxDeflate, path,
+                                 ": ResultWriter: compression must be 0..9, got ", options.compression);
+  if (options.compression > 0 && !h5::deflate_available())
+    throw InputError(path + ": output.compression = " + std::to_string(options.compression) +
+                     " needs HDF5's deflate (gzip) filter, which this HDF5 library does not provide; use 0");
+  m.deflate = options.compression;
   m.run_id = options.run_id.empty() ? new_run_id() : options.run_id;
   m.xdmf_path = files.xdmf;
   m.h5_name = std::filesystem::path(path).filename().string();
@@ -411,8 +438,9 @@ void ResultWriter::Impl::write_vertices(int points) {
   const hsize_t dims[1] = {static_cast<hsize_t>(points)};
   const std::string name = vertices_name(points);
   Handle space(checked(H5Screate_simple(1, dims, nullptr), path, "write " + name), H5Sclose);
-  Handle set(checked(H5Dcreate2(xdmf_group.get(), name.c_str(), H5T_STD_I64LE, space.get(), H5P_DEFAULT, H5P_DEFAULT,
-                                H5P_DEFAULT),
+  const Handle layout = h5::dataset_creation(dims[0], 1, sizeof(std::int64_t), deflate, path, 1); // as the frames
+  Handle set(checked(H5Dcreate2(xdmf_group.get(), name.c_str(), H5T_STD_I64LE, space.get(), H5P_DEFAULT,
+                                layout.valid() ? layout.get() : H5P_DEFAULT, H5P_DEFAULT),
                      path, "write " + name),
              H5Dclose);
   if (points == 0) return;
@@ -466,7 +494,7 @@ void ResultWriter::write_frame(double time, const std::vector<FieldView>& fields
                                              ": a field is not finite on another rank; it is not written to the result file"
                                        : bad);
   if (!std::isfinite(time)) throw InstabilityError(path_ + ": frame time is not finite");
-  const std::uint64_t bytes = frame_bytes(fields, m.dimension, m.single ? sizeof(float) : sizeof(double));
+  const std::uint64_t bytes = frame_bytes(fields, m.dimension, m.single ? sizeof(float) : sizeof(double), m.deflate > 0);
   m.reserve(bytes, m.vtk ? bytes : 0);
   FrameInfo info = m.describe_frame("/frames/" + name, time, fields);
   m.guarded("write frame " + name, [&] {

@@ -7,7 +7,8 @@
 /// sidecar names it, so a run killed at any moment leaves a readable file
 /// (the sidecar may lag the .h5 file by at most 0.25 s of wall time). Space
 /// for every write is reserved first, so a full disk or a file size limit
-/// ends the output with an OutputError and a valid, shorter file.
+/// ends the output with an OutputError and a valid, shorter file (a
+/// compressed frame reserves its uncompressed size and the filters' worst case).
 #include <functional>
 #include <memory>
 #include <set>
@@ -67,6 +68,12 @@ struct ResultOptions {
   /// rounded to nearest; also Float32 in the VTK files) instead of doubles.
   /// Times, attributes, histories and series stay double.
   bool single_precision = false;
+  /// Deflate (gzip) level 0..9 of the frames' particle datasets and the
+  /// sidecar's connectivity (output.compression): 0 stores them contiguous;
+  /// above 0 each is chunked along its rows (chunks of at most 1 MiB
+  /// uncompressed, all columns; h5::chunk_rows) with HDF5's shuffle and
+  /// deflate filters. Readers decompress transparently; the values are the same.
+  int compression = 0;
 };
 
 /// Writes one result file. Creating it writes the root attributes

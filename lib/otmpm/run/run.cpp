@@ -183,8 +183,9 @@ public:
     if (resume) frames_ = static_cast<int>(resume->group("recorder").integer("frames"));
     prepare(output_request(scene, text_, opt, resume));
     view_.collectively([&] {
-      writer_ = std::make_unique<ResultWriter>(path_, text_, D, ResultOptions{run_id_, vtk_extension_, scene.output.precision == "single"},
-                                               view_.parallel_io());
+      const ResultOptions options{run_id_, vtk_extension_, scene.output.precision == "single",
+                                  scene.output.compression};
+      writer_ = std::make_unique<ResultWriter>(path_, text_, D, options, view_.parallel_io());
     });
     if (previous_) continue_results(*previous_, resume->group("recorder"));
     if (opt.background_output && !view_.distributed()) background_ = std::make_unique<BackgroundWriter>();

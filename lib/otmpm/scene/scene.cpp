@@ -658,7 +658,7 @@ OutputSection read_output(const TableReader& root, const Scene& s) {
   auto t = root.table("output");
   if (!t) return o;
   t->only({"file", "every", "fields", "probes", "checkpoint_every", "checkpoint_file", "format", "precision",
-            "symmetric_tensors"});
+            "symmetric_tensors", "compression"});
   o.where = t->self();
   o.file = t->get<std::string>("file", o.file);
   check(!o.file.empty(), t->ref("file"), "must not be empty");
@@ -670,6 +670,10 @@ OutputSection read_output(const TableReader& root, const Scene& s) {
   o.formats = read_formats(*t);
   o.precision = t->choice("precision", o.precision, {"double", "single"});
   o.symmetric_tensors = t->get<bool>("symmetric_tensors", o.symmetric_tensors);
+  const std::int64_t level = t->get<std::int64_t>("compression", o.compression);
+  check(level >= 0 && level <= 9, t->ref("compression"),
+        "must be an integer 0..9 (deflate level; 0: uncompressed; got " + std::to_string(level) + ")");
+  o.compression = static_cast<int>(level);
   return o;
 }
 

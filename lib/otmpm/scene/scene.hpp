@@ -189,6 +189,10 @@ struct OutputSection {
   /// xy, yy), 1 in 1D; each such dataset names its components in the
   /// attribute `components`. False: D*D components, row-major.
   bool symmetric_tensors = false;
+  /// Deflate (gzip) level of the frames' particle datasets, 0..9: 0 stores
+  /// them contiguous; above 0 chunked along the rows (at most 1 MiB per
+  /// chunk) with HDF5's shuffle and deflate filters (ResultOptions::compression).
+  int compression = 0;
   SourceRef where;
 };
 

@@ -177,6 +177,7 @@ toml::table output(const OutputSection& o, int dim) {
   // Only when not the default: the scene text of a default run stays as it was.
   if (o.precision != "double") t.insert("precision", o.precision);
   if (o.symmetric_tensors) t.insert("symmetric_tensors", true);
+  if (o.compression != 0) t.insert("compression", static_cast<std::int64_t>(o.compression));
   if (!o.probes.empty()) {
     toml::array probes;
     for (const ProbeSection& p : o.probes) {

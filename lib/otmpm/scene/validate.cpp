@@ -297,6 +297,8 @@ void check_output(const Scene& s, int dim) {
   check(s, !(formats.count("vtp") && formats.count("vtu")), "output.format", "choose one of \"vtp\" and \"vtu\"");
   check(s, one_of(o.precision, {"double", "single"}), "output.precision",
         "must be one of \"double\", \"single\" (got \"", o.precision, "\")");
+  check(s, o.compression >= 0 && o.compression <= 9, "output.compression", "must be an integer 0..9 (got ",
+        o.compression, ")");
 }
 
 /// The caps of parse_scene: particles and nodes (kMaxSceneParticles,
