@@ -124,10 +124,11 @@ void check_same_contents(const std::string& a_path, const std::string& b_path) {
   const auto a = contents(a_path), b = contents(b_path);
   CHECK(a.size() == b.size());
   REQUIRE(a.count("frames/000001/x") == 1);
-  for (const auto& [name, values] : a) {
+  for (const auto& entry : a) {
+    const std::string& name = entry.first; // not a structured binding: doctest's INFO captures it
     INFO(name);
     REQUIRE(b.count(name) == 1);
-    CHECK((b.at(name) == values));
+    CHECK((b.at(name) == entry.second));
   }
 }
 
