@@ -14,6 +14,7 @@
 #include "otmpm/scene/validate.hpp"
 
 #include "cli_support.hpp"
+#include "h5_support.hpp"
 #include "temp_dir.hpp"
 
 #include <doctest/doctest.h>
@@ -81,14 +82,7 @@ std::map<std::string, std::vector<double>> contents(const std::string& path) {
   std::map<std::string, std::vector<double>> out;
   const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
   REQUIRE(file >= 0);
-  struct Visit {
-    static herr_t call(hid_t, const char* name, const H5O_info_t* info, void* data) {
-      if (info->type == H5O_TYPE_DATASET) static_cast<std::vector<std::string>*>(data)->push_back(name);
-      return 0;
-    }
-  };
-  std::vector<std::string> names;
-  H5Ovisit2(file, H5_INDEX_NAME, H5_ITER_INC, Visit::call, &names, H5O_INFO_BASIC);
+  const std::vector<std::string> names = otmpm::test::dataset_names(file);
   for (const std::string& n : names) {
     const hid_t set = H5Dopen2(file, n.c_str(), H5P_DEFAULT);
     const hid_t space = H5Dget_space(set);

@@ -12,6 +12,7 @@
 #include "otmpm/scene/scene.hpp"
 #include "otmpm/scene/validate.hpp"
 
+#include "h5_support.hpp"
 #include "temp_dir.hpp"
 
 #include <doctest/doctest.h>
@@ -273,14 +274,7 @@ std::map<std::string, std::vector<double>> datasets(const std::string& path) {
   std::map<std::string, std::vector<double>> out;
   const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
   REQUIRE(file >= 0);
-  struct Visit {
-    static herr_t call(hid_t, const char* name, const H5O_info_t* info, void* data) {
-      if (info->type == H5O_TYPE_DATASET) static_cast<std::vector<std::string>*>(data)->push_back(name);
-      return 0;
-    }
-  };
-  std::vector<std::string> names;
-  H5Ovisit2(file, H5_INDEX_NAME, H5_ITER_INC, Visit::call, &names, H5O_INFO_BASIC);
+  const std::vector<std::string> names = otmpm::test::dataset_names(file);
   H5Fclose(file);
   for (const std::string& n : names) {
     const Stored s = read_stored(path, "/" + n);
