@@ -263,30 +263,24 @@ private:
   /// True when particles [p0, p1) all pass check_particle: particle_ok
   /// without a branch per particle (the after-step pass's fast test).
   bool particles_ok(int p0, int p1) const {
-    // A sum of the finite_state terms, as vectors: 0 when every value is finite.
-    Vec<D> z = Vec<D>::Zero();
-    for (int p = p0; p < p1; ++p) {
-      const Vec<D>& x = P_.x[p];
-      const Vec<D>& v = P_.v[p];
-      Vec<D> t = (x - x) + (v - v);
-      for (int j = 0; j < D; ++j) t += P_.sigma[p].col(j) - P_.sigma[p].col(j);
-      z += t;
-    }
+    Vec<D> z = Vec<D>::Zero(); // 0 when every value of every particle is finite
+    for (int p = p0; p < p1; ++p) z += finite_terms(p);
     bool ok = (z.array() == 0.0).all();
     ok &= mode_.keep_inside(P_.x.data(), P_.v.data(), p0, p1, dt_);
     return ok;
   }
-  /// x - x is 0 for a finite x and NaN otherwise, so one sum tests every
-  /// value of particle p's position, velocity and stress.
-  bool finite_state(int p) const {
+  /// x - x is 0 for a finite x and NaN otherwise: the sum of these terms of
+  /// particle p's position, velocity and stress columns, as a D-vector, is 0
+  /// exactly when every value is finite.
+  Vec<D> finite_terms(int p) const {
     const Vec<D>& x = P_.x[p];
     const Vec<D>& v = P_.v[p];
-    const Mat<D>& s = P_.sigma[p];
-    double z = 0.0;
-    for (int k = 0; k < D; ++k) z += (x[k] - x[k]) + (v[k] - v[k]);
-    for (int k = 0; k < D * D; ++k) z += s(k) - s(k);
-    return z == 0.0;
+    Vec<D> t = (x - x) + (v - v);
+    for (int j = 0; j < D; ++j) t += P_.sigma[p].col(j) - P_.sigma[p].col(j);
+    return t;
   }
+  /// True when particle p's position, velocity and stress are finite.
+  bool finite_state(int p) const { return (finite_terms(p).array() == 0.0).all(); }
   /// After each step: check_particle() for every particle, the energies,
   /// the wave speed for the next stable_dt() and the momentum, in one pass
   /// (no checks when `check` is false).
