@@ -1,11 +1,13 @@
 #pragma once
 /// \file parallel.hpp
 /// The OpenMP building blocks of the engine's particle and node loops, all of
-/// them giving the same bits for any thread count (issue 7): static
-/// contiguous chunks (each thread owns a range of particles or nodes),
-/// exceptions rethrown from the lowest chunk (so the reported particle is the
-/// lowest failing index, as in a serial loop), and sums over particles taken
-/// in fixed blocks whose size does not depend on the thread count.
+/// them giving the same bits for any thread count (issue 7): contiguous
+/// chunks of particles or nodes, a few per thread, handed out dynamically (a
+/// thread slowed by other work on its core leaves its share to the others;
+/// no result depends on which thread ran a chunk), exceptions rethrown from
+/// the lowest chunk (so the reported particle is the lowest failing index, as
+/// in a serial loop), and sums over particles taken in fixed blocks whose
+/// size does not depend on the thread count.
 #include <algorithm>
 #include <exception>
 #include <vector>
@@ -32,25 +34,38 @@ inline int team_size(long long n) {
 #endif
 }
 
-/// Runs body(begin, end) on contiguous chunks of [0, n), chunk t of `team`
-/// covering [n t / team, n (t+1) / team). An exception thrown by a body is
-/// rethrown after the loop; if several chunks fail, the lowest chunk's
-/// exception wins (the lowest failing index when each body stops at its first
-/// failure, as a serial loop would).
+/// Chunks per thread of a parallel loop: with one chunk per thread a step
+/// waits for the thread whose core is busiest; with several, taken by
+/// whichever thread is free, the other threads take over its share.
+constexpr int chunks_per_thread = 8;
+
+/// Number of chunks parallel_chunks cuts [0, n) into for `team` threads.
+inline long long chunk_count(long long n, int team) {
+  return std::max(1LL, std::min<long long>(n, static_cast<long long>(team) * chunks_per_thread));
+}
+
+/// Runs body(begin, end) on contiguous chunks of [0, n) with `team` threads:
+/// chunk c of k = chunk_count(n, team) covers [n c / k, n (c+1) / k), and the
+/// chunks are taken in turn by whichever thread is free (so a body must not
+/// depend on which thread runs it, nor on the chunk boundaries). An exception
+/// thrown by a body is rethrown after the loop; if several chunks fail, the
+/// lowest chunk's exception wins (the lowest failing index when each body
+/// stops at its first failure, as a serial loop would).
 template <class Body> void parallel_chunks(long long n, int team, Body&& body) {
   if (team <= 1) {
     body(0LL, n);
     return;
   }
-  std::vector<std::exception_ptr> errors(static_cast<std::size_t>(team));
+  const long long k = chunk_count(n, team);
+  std::vector<std::exception_ptr> errors(static_cast<std::size_t>(k));
 #ifdef OTMPM_HAVE_OPENMP
-#pragma omp parallel for schedule(static, 1) num_threads(team)
+#pragma omp parallel for schedule(dynamic, 1) num_threads(team)
 #endif
-  for (int t = 0; t < team; ++t) {
+  for (long long c = 0; c < k; ++c) {
     try {
-      body(n * t / team, n * (t + 1) / team);
+      body(n * c / k, n * (c + 1) / k);
     } catch (...) {
-      errors[static_cast<std::size_t>(t)] = std::current_exception();
+      errors[static_cast<std::size_t>(c)] = std::current_exception();
     }
   }
   for (const std::exception_ptr& e : errors)

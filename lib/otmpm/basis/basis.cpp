@@ -14,10 +14,6 @@
 #include <stdexcept>
 #include <utility>
 
-#ifdef OTMPM_HAVE_OPENMP
-#include <omp.h>
-#endif
-
 namespace otmpm {
 
 template <int D> void Basis<D>::bind_points(int n, bool nodes_move) {
@@ -181,7 +177,7 @@ template <int D>
 }
 
 /// Fills the table of a family whose stencils all have S entries: row p is
-/// entries p S .. (p+1) S - 1, written in place by the thread owning p (no
+/// entries p S .. (p+1) S - 1, written in place by the thread evaluating p (no
 /// per-thread buffer, no copy). Returns false when some point gave another
 /// stencil size; the caller then takes the general path.
 template <int D>
@@ -303,6 +299,39 @@ void size_table(std::vector<int>& rows, std::vector<int>& entries, int team, Bas
   table.dN.resize(static_cast<std::size_t>(entries[team]));
 }
 
+/// Several threads: the particles cut into parallel_chunks' chunks, each
+/// evaluated into a buffer of its own by whichever thread is free, then the
+/// buffers copied into the table in particle order (the same table for any
+/// thread count). The buffers are kept by the calling thread from call to
+/// call: after the first step filling the table allocates nothing.
+template <int D>
+void fill_chunked(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, const PointArrays<D>& a, int threads,
+                  BasisTable<D>& table) {
+  const int n = static_cast<int>(x.size());
+  thread_local std::vector<TableChunk<D>> buffers;
+  std::vector<TableChunk<D>>& pool = buffers; // the caller's: a worker thread's own would be empty
+  const auto k = static_cast<std::size_t>(chunk_count(n, threads));
+  if (pool.size() < k) pool.resize(k);
+  std::vector<int> first(k + 1); // each chunk's first particle
+  for (std::size_t c = 0; c <= k; ++c) first[c] = static_cast<int>(static_cast<long long>(n) * static_cast<long long>(c) / static_cast<long long>(k));
+  parallel_chunks(static_cast<long long>(k), threads, [&](long long c0, long long c1) {
+    for (auto c = static_cast<std::size_t>(c0); c < static_cast<std::size_t>(c1); ++c)
+      fill_chunk<D>(basis, x, a, first[c], first[c + 1], pool[c]);
+  });
+  std::vector<int> rows(k + 1, 0), entries(k + 1, 0);
+  for (std::size_t c = 0; c < k; ++c) {
+    if (pool[c].error) std::rethrow_exception(pool[c].error); // the failing particle with the lowest index
+    rows[c + 1] = static_cast<int>(pool[c].count.size());
+    entries[c + 1] = static_cast<int>(pool[c].node.size());
+  }
+  size_table<D>(rows, entries, static_cast<int>(k), table);
+  // Rows land in particle order whatever the team size.
+  parallel_chunks(static_cast<long long>(k), threads, [&](long long c0, long long c1) {
+    for (auto c = static_cast<std::size_t>(c0); c < static_cast<std::size_t>(c1); ++c)
+      copy_chunk<D>(pool[c], rows[c], entries[c], table);
+  });
+}
+
 } // namespace
 
 template <int D>
@@ -319,41 +348,7 @@ void fill_basis_table(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, con
 
   const int threads = team_size(n);
   if (threads == 1) return fill_serial<D>(basis, x, a, table);
-  std::vector<std::exception_ptr> errors(static_cast<std::size_t>(threads));
-  std::vector<int> rows(static_cast<std::size_t>(threads) + 1, 0), entries = rows;
-  bool failed = false;
-#ifdef OTMPM_HAVE_OPENMP
-#pragma omp parallel num_threads(threads)
-#endif
-  {
-    int t = 0, team = 1;
-#ifdef OTMPM_HAVE_OPENMP
-    t = omp_get_thread_num();
-    team = omp_get_num_threads();
-#endif
-    // Each thread keeps its buffers from call to call: after the first step
-    // filling the table allocates nothing.
-    thread_local TableChunk<D> chunk;
-    // Contiguous static chunk t of `team`, in particle order.
-    const long long begin = static_cast<long long>(n) * t / team;
-    const long long end = static_cast<long long>(n) * (t + 1) / team;
-    fill_chunk<D>(basis, x, a, static_cast<int>(begin), static_cast<int>(end), chunk);
-    errors[t] = chunk.error;
-    rows[t + 1] = static_cast<int>(chunk.count.size());
-    entries[t + 1] = static_cast<int>(chunk.node.size());
-#ifdef OTMPM_HAVE_OPENMP
-#pragma omp barrier
-#pragma omp single
-#endif
-    {
-      failed = std::any_of(errors.begin(), errors.end(), [](const std::exception_ptr& e) { return bool(e); });
-      if (!failed) size_table<D>(rows, entries, team, table);
-    }
-    // Rows land in particle order whatever the team size.
-    if (!failed) copy_chunk<D>(chunk, rows[t], entries[t], table);
-  }
-  for (const std::exception_ptr& e : errors)
-    if (e) std::rethrow_exception(e); // the failing particle with the lowest index
+  fill_chunked<D>(basis, x, a, threads, table);
 }
 
 template <int D>

@@ -1,0 +1,171 @@
+// The OpenMP building blocks (parallel.hpp): parallel_chunks cuts [0, n)
+// into contiguous chunks, several per thread, taken by whichever thread is
+// free; the lowest failing chunk's exception is the one rethrown; the basis
+// table's general fill (stencils of varying size) buffers those chunks and
+// gives the table of one thread.
+#include "otmpm/basis/basis.hpp"
+#include "otmpm/parallel.hpp"
+#include "support.hpp"
+
+#include <doctest/doctest.h>
+
+#include <chrono>
+#include <mutex>
+#include <random>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+#ifdef OTMPM_HAVE_OPENMP
+#include <omp.h>
+#endif
+
+using namespace otmpm;
+using otmpm::test::ScopedThreads;
+
+namespace {
+
+/// The ranges parallel_chunks hands out for n items and `team` threads, in
+/// chunk order.
+std::vector<std::pair<long long, long long>> chunks_of(long long n, int team) {
+  std::mutex m;
+  std::vector<std::pair<long long, long long>> ranges;
+  parallel_chunks(n, team, [&](long long begin, long long end) {
+    const std::lock_guard lock(m);
+    ranges.emplace_back(begin, end);
+  });
+  std::sort(ranges.begin(), ranges.end());
+  return ranges;
+}
+
+CartesianGrid<2> grid() {
+  CartesianGrid<2> g;
+  g.lower = Vec<2>(0.0, 0.0);
+  g.upper = Vec<2>(1.0, 1.0);
+  g.cells = {10, 10};
+  return g;
+}
+
+AlignedVector<Vec<2>> points_inside(int n, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0.15, 0.85);
+  AlignedVector<Vec<2>> x;
+  for (int i = 0; i < n; ++i) x.emplace_back(u(rng), u(rng));
+  return x;
+}
+
+std::unique_ptr<Basis<2>> lme_basis() {
+  BasisOptions opt;
+  opt.kind = "lme";
+  opt.gamma_lme = 3.0;
+  return make_basis<2>(opt, NodeSet<2>::cartesian(grid()));
+}
+
+void fill(int threads, const Basis<2>& b, const AlignedVector<Vec<2>>& x, BasisTable<2>& t) {
+  const ScopedThreads scope(threads);
+  fill_basis_table(b, x, nullptr, nullptr, t);
+}
+
+} // namespace
+
+TEST_CASE("parallel_chunks covers every item once, in contiguous chunks, several per thread") {
+  for (const long long n : {1LL, 2LL, 7LL, 16LL, 1000LL, 100003LL})
+    for (const int team : {2, 3}) {
+      CAPTURE(n);
+      CAPTURE(team);
+      const auto ranges = chunks_of(n, team);
+      REQUIRE(static_cast<long long>(ranges.size()) == chunk_count(n, team));
+      CHECK(chunk_count(n, team) == std::min<long long>(n, team * chunks_per_thread));
+      long long next = 0;
+      for (const auto& [begin, end] : ranges) {
+        CHECK(begin == next);
+        CHECK(end > begin);
+        next = end;
+      }
+      CHECK(next == n);
+    }
+  // One thread: one call over everything.
+  const auto one = chunks_of(12345, 1);
+  REQUIRE(one.size() == 1);
+  CHECK(one.front() == std::pair<long long, long long>(0, 12345));
+}
+
+TEST_CASE("parallel_chunks rethrows the exception of the lowest failing chunk") {
+  // Items 60000 and 90000 fail (each body stops at its first failure); so does
+  // 3000, in an earlier chunk that may well finish after the others.
+  for (const int team : {1, 2, 3}) {
+    CAPTURE(team);
+    try {
+      parallel_chunks(100000, team, [](long long begin, long long end) {
+        for (long long i = begin; i < end; ++i)
+          if (i == 3000 || i == 60000 || i == 90000) throw std::runtime_error("item " + std::to_string(i));
+      });
+      FAIL("no exception");
+    } catch (const std::runtime_error& e) {
+      CHECK(std::string(e.what()) == "item 3000");
+    }
+  }
+}
+
+#ifdef OTMPM_HAVE_OPENMP
+TEST_CASE("parallel_chunks: a slow chunk does not hold the other chunks back") {
+  // The chunk of item 0 takes 300 ms (a thread whose core is taken by another
+  // process); every other chunk is instant. The chunks are handed out as
+  // threads come free, so the other thread runs all of them: with one chunk
+  // per thread (or a static share) the slow thread would own half of them.
+  std::mutex m;
+  std::vector<int> thread_of(static_cast<std::size_t>(chunk_count(64000, 2)), -1);
+  const long long k = chunk_count(64000, 2);
+  parallel_chunks(64000, 2, [&](long long begin, long long) {
+    const long long c = begin * k / 64000; // begin = 64000 c / k exactly
+    if (c == 0) std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    const std::lock_guard lock(m);
+    thread_of[static_cast<std::size_t>(c)] = omp_get_thread_num();
+  });
+  REQUIRE(k == 2 * chunks_per_thread);
+  for (long long c = 1; c < k; ++c) {
+    CAPTURE(c);
+    CHECK(thread_of[static_cast<std::size_t>(c)] != thread_of[0]);
+  }
+}
+#endif
+
+TEST_CASE("general basis table fill (LME): chunked with 2 and 3 threads = one thread, buffers reused") {
+  const auto b = lme_basis();
+  // Sizes that leave chunks of unequal length; the second call shrinks the
+  // point set and the third grows it again (the chunk buffers are reused).
+  for (const int n : {3001, 1499, 4096}) {
+    CAPTURE(n);
+    const AlignedVector<Vec<2>> x = points_inside(n, static_cast<unsigned>(n));
+    BasisTable<2> one, two, three;
+    fill(1, *b, x, one);
+    fill(2, *b, x, two);
+    fill(3, *b, x, three);
+    REQUIRE(one.rows() == n);
+    CHECK(one.entries() > static_cast<std::size_t>(n) * 9); // LME stencils: many nodes each
+    for (const BasisTable<2>* t : {&two, &three}) {
+      CHECK(t->offset == one.offset);
+      CHECK(t->node == one.node);
+      CHECK(t->N == one.N);
+      CHECK(t->dN == one.dN);
+    }
+  }
+}
+
+TEST_CASE("general basis table fill (LME): the error names the lowest failing particle, whatever the chunks") {
+  const auto b = lme_basis();
+  AlignedVector<Vec<2>> x = points_inside(4000, 9u);
+  x[1234] = Vec<2>(3.0, 0.5); // far outside the nodes
+  x[3900] = Vec<2>(-2.0, 0.5);
+  for (const int threads : {1, 2, 3}) {
+    CAPTURE(threads);
+    BasisTable<2> t;
+    try {
+      fill(threads, *b, x, t);
+      FAIL("no BasisError");
+    } catch (const BasisError& e) {
+      CHECK(std::string(e.what()).find("particle 1234 at ") == 0);
+    }
+  }
+}
