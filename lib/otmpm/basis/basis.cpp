@@ -176,6 +176,15 @@ template <int D>
   dN.insert(dN.end(), s.dN.begin(), s.dN.end());
 }
 
+/// The calling thread's scratch stencil, kept from call to call (no
+/// allocation once it has grown). Out of line on purpose: its address is then
+/// taken once per loop, where a thread_local used in the loop itself is looked
+/// up again (__tls_get_addr) after every call the loop makes.
+template <int D> [[gnu::noinline]] Stencil<D>& thread_stencil() {
+  thread_local Stencil<D> st;
+  return st;
+}
+
 /// Fills the table of a family whose stencils all have S entries: row p is
 /// entries p S .. (p+1) S - 1, written in place by the thread evaluating p (no
 /// per-thread buffer, no copy). Returns false when some point gave another
@@ -191,7 +200,7 @@ bool fill_fixed(const Basis<D>& basis, int S, const AlignedVector<Vec<D>>& x, co
   table.dN.resize(entries);
   std::atomic<bool> irregular{false};
   parallel_chunks(n, [&](long long begin, long long end) {
-    thread_local Stencil<D> st;
+    Stencil<D>& st = thread_stencil<D>();
     for (long long p = begin; p < end; ++p) table.offset[static_cast<std::size_t>(p)] = static_cast<int>(p * S);
     // The batched path (evaluate_fixed_points) while it makes progress; a
     // point it stops at goes through evaluate_fixed()/evaluate(), then the
@@ -232,7 +241,7 @@ bool fill_fixed(const Basis<D>& basis, int S, const AlignedVector<Vec<D>>& x, co
 template <int D>
 void fill_serial(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, const PointArrays<D>& a,
                  BasisTable<D>& table) {
-  thread_local Stencil<D> st;
+  Stencil<D>& st = thread_stencil<D>();
   const int n = static_cast<int>(x.size());
   table.offset.resize(static_cast<std::size_t>(n) + 1);
   table.offset[0] = 0;
