@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -27,6 +28,20 @@ bool same_pattern(const Eigen::SparseMatrix<double>& a, const Eigen::SparseMatri
          std::equal(a.innerIndexPtr(), a.innerIndexPtr() + nnz, b.innerIndexPtr());
 }
 
+/// True when every id lies in [0, nodes) (an unsigned compare per entry).
+bool nodes_in_range(const std::vector<int>& node, int nodes) {
+  unsigned out = 0;
+  for (const int I : node) out |= static_cast<unsigned>(static_cast<unsigned>(I) >= static_cast<unsigned>(nodes));
+  return out == 0;
+}
+
+/// True when every mass is finite and >= 0 (m <= DBL_MAX fails for NaN and +Inf).
+bool masses_valid(const std::vector<double>& m_p) {
+  bool ok = true;
+  for (const double m : m_p) ok = ok & (m >= 0.0) & (m <= std::numeric_limits<double>::max());
+  return ok;
+}
+
 /// The argument checks of MassMatrix::assemble: consistent sizes, node ids in
 /// range (Eigen only asserts them, and not at all under NDEBUG), finite
 /// non-negative masses. O(entries), once per assembly.
@@ -45,14 +60,16 @@ void check_assembly(const BasisTable<D>& table, const std::vector<double>& m_p, 
                                  " flags for ", nodes, " nodes");
   require<std::invalid_argument>(constrained.size() == static_cast<std::size_t>(nodes) * D, f, "constrained has ",
                                  constrained.size(), " flags for ", nodes, " nodes x ", D, " components");
-  // The message is formed only for a failing entry (the loops run every step).
-  for (std::size_t a = 0; a < table.node.size(); ++a)
-    if (!(table.node[a] >= 0 && table.node[a] < nodes)) [[unlikely]]
-      require<std::invalid_argument>(false, f, "table entry ", a, " names node ", table.node[a], ", outside [0, ",
-                                     nodes, ")");
-  for (std::size_t p = 0; p < m_p.size(); ++p)
-    if (!(std::isfinite(m_p[p]) && m_p[p] >= 0.0)) [[unlikely]]
-      require<InputError>(false, f, "mass m_p[", p, "] = ", m_p[p], " is not finite and >= 0");
+  // The loops run every step: one branch-free pass each (vectorised), the
+  // offending entry looked for only when a pass fails.
+  if (!nodes_in_range(table.node, nodes)) [[unlikely]]
+    for (std::size_t a = 0; a < table.node.size(); ++a)
+      require<std::invalid_argument>(table.node[a] >= 0 && table.node[a] < nodes, f, "table entry ", a, " names node ",
+                                     table.node[a], ", outside [0, ", nodes, ")");
+  if (!masses_valid(m_p)) [[unlikely]]
+    for (std::size_t p = 0; p < m_p.size(); ++p)
+      require<InputError>(std::isfinite(m_p[p]) && m_p[p] >= 0.0, f, "mass m_p[", p, "] = ", m_p[p],
+                          " is not finite and >= 0");
 }
 
 } // namespace
@@ -91,16 +108,7 @@ void MassMatrix<D>::assemble_values(const BasisTable<D>& table, const std::vecto
   const bool same = M_.rows() == nodes && table.offset == offset_ && table.node == node_;
   if (same) {
     ++pattern_reuses_;
-    double* value = M_.valuePtr();
-    std::size_t t = 0;
-    for (int p = 0; p < table.rows(); ++p)
-      for (int a = table.begin(p); a < table.end(p); ++a)
-        for (int b = table.begin(p); b < table.end(p); ++b, ++t) {
-          const double v = m_p[p] * table.N[a] * table.N[b];
-          const int s = slot_[t];
-          if (s < 0) value[-s - 1] = v;
-          else value[s] += v;
-        }
+    sum_into_slots(table, m_p);
     return;
   }
   std::vector<Eigen::Triplet<double>> triplets;
@@ -126,6 +134,31 @@ void MassMatrix<D>::assemble_values(const BasisTable<D>& table, const std::vecto
   }
   offset_ = table.offset;
   node_ = table.node;
+}
+
+/// The products m_p N_a N_b of every table row summed into their places in
+/// M_ (slot_: the place, negative for the first product of a place, which is
+/// stored rather than added), in table order - the sums setFromTriplets
+/// formed. m_p N_a is formed once per a: the same bits as m_p * N_a * N_b.
+template <int D> void MassMatrix<D>::sum_into_slots(const BasisTable<D>& table, const std::vector<double>& m_p) {
+  double* __restrict value = M_.valuePtr();
+  const double* __restrict N = table.N.data();
+  const double* __restrict m = m_p.data();
+  const int* __restrict offset = table.offset.data();
+  const int* __restrict slot = slot_.data();
+  const int rows = table.rows();
+  for (int p = 0; p < rows; ++p) {
+    const int b0 = offset[p], b1 = offset[p + 1];
+    for (int a = b0; a < b1; ++a) {
+      const double m_a = m[p] * N[a];
+      for (int b = b0; b < b1; ++b, ++slot) {
+        const double v = m_a * N[b];
+        const int s = *slot;
+        if (s < 0) value[-s - 1] = v;
+        else value[s] += v;
+      }
+    }
+  }
 }
 
 /// The factor of component k: M_ with identity rows at `fixed`, factorised;

@@ -47,6 +47,7 @@ public:
 private:
   struct Factor;
   void assemble_values(const BasisTable<D>& table, const std::vector<double>& m_p, int nodes);
+  void sum_into_slots(const BasisTable<D>& table, const std::vector<double>& m_p);
   void factorise(int k, const std::vector<char>& fixed, std::vector<std::unique_ptr<Factor>>& old);
   Eigen::SparseMatrix<double> M_;
   std::vector<std::unique_ptr<Factor>> factor_; // one per component
