@@ -7,6 +7,7 @@
 /// the shape; overlapping bodies are found with contains().
 #include "otmpm/core.hpp"
 
+#include <functional>
 #include <memory>
 #include <unordered_map>
 #include <vector>
@@ -52,12 +53,40 @@ public:
   double measure() const override { return total_; }
   double boundary_measure() const override { return 0.0; }
 
+  /// Builds the shape one particle at a time (a particle file read in
+  /// blocks), holding only the particles whose cube [lower, upper] `keep`
+  /// accepts (all without it). Its bounds and measure are those of all the
+  /// particles, and contains(x) answers as the shape of all of them
+  /// wherever only accepted cubes can hold x (where the caller asks).
+  class Builder {
+  public:
+    explicit Builder(std::function<bool(const Vec<D>& lower, const Vec<D>& upper)> keep = {});
+    /// Adds the next particle; InputError as the constructor's.
+    void add(const Vec<D>& x, double volume);
+    /// The shape of the particles added (once); InputError when there are none.
+    std::unique_ptr<ParticleCells<D>> finish();
+
+  private:
+    std::function<bool(const Vec<D>&, const Vec<D>&)> keep_;
+    std::unique_ptr<ParticleCells<D>> cells_;
+  };
+
+  /// The particles held (all but those a Builder's filter left out).
+  std::size_t held() const { return x_.size(); }
+
 private:
+  ParticleCells() = default;
+  /// Checks particle `p` and adds it to the bounds and measure (and to the
+  /// held particles when `hold`).
+  void add(const Vec<D>& x, double volume, bool hold);
+  /// Sorts the held particles into their buckets (after the last add).
+  void index();
   long long key(const Vec<D>& x) const;
   AlignedVector<Vec<D>> x_;
   std::vector<double> half_;
   Vec<D> lower_, upper_;
   double cell_ = 1.0, total_ = 0.0;
+  std::size_t count_ = 0; ///< the particles added
   std::unordered_multimap<long long, int> buckets_;
 };
 
