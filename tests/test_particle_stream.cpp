@@ -210,3 +210,14 @@ TEST_CASE("a file body's shape built one particle at a time holds only the parti
     }
   CHECK(error_of([] { ParticleCells<2>::Builder().finish(); }) == "particle file: no particles");
 }
+
+TEST_CASE("particle files: a CSV column named twice is refused (its values would go to one field twice)") {
+  test::TempDir tmp("particle_stream_twice");
+  for (const std::string header : {"x, y, volume, a, a", "x, y, x, volume"}) {
+    CAPTURE(header);
+    const std::string path = tmp.file("p.csv");
+    std::ofstream(path) << "# a comment\n" << header << "\n0, 0, 1, 2, 3\n";
+    const std::string name = header.find("a, a") != std::string::npos ? "a" : "x";
+    CHECK(error_of([&] { read_particle_file(path, 2); }) == path + ":2: column '" + name + "' appears twice");
+  }
+}
