@@ -812,13 +812,16 @@ TEST_CASE("mpi: output.compression, written collectively, gives the bits of the 
     }
     REQUIRE(run_otmpm(dir, 0, arguments(packed, "serial_packed.h5")).status == 0);
     REQUIRE(run_otmpm(dir, 0, arguments(plain, "serial_plain.h5")).status == 0);
-    for (const auto& [a, b] : {std::pair{"plain.h5", "packed.h5"}, std::pair{"serial_plain.h5", "serial_packed.h5"}}) {
+    for (const auto& files : {std::pair{"plain.h5", "packed.h5"}, std::pair{"serial_plain.h5", "serial_packed.h5"}}) {
+      const std::string a = files.first, b = files.second; // not a structured binding: clang refuses one in CAPTURE
       CAPTURE(a);
       const Frames fa = read_frames(dir.file(a)), fb = read_frames(dir.file(b));
       REQUIRE(fa.time.size() == 5);
       REQUIRE(fb.time == fa.time);
       for (std::size_t i = 0; i < fa.data.size(); ++i)
-        for (const auto& [name, m] : fa.data[i]) {
+        for (const auto& entry : fa.data[i]) {
+          const std::string& name = entry.first;
+          const h5::Matrix<double>& m = entry.second;
           CAPTURE(name);
           REQUIRE(fb.data[i].count(name) == 1);
           CHECK(fb.data[i].at(name).rows == m.rows);
