@@ -157,8 +157,7 @@ ParticleCells<D>::ParticleCells(const AlignedVector<Vec<D>>& x, const std::vecto
   require(!x.empty(), "particle file: no particles");
   require<std::invalid_argument>(volume.size() == x.size(), "ParticleCells: ", x.size(), " positions, ",
                                  volume.size(), " volumes");
-  x_.reserve(x.size());
-  half_.reserve(x.size());
+  cubes_.reserve(x.size());
   for (std::size_t p = 0; p < x.size(); ++p) add(x[p], volume[p], true);
   index();
 }
@@ -174,13 +173,12 @@ template <int D> void ParticleCells<D>::add(const Vec<D>& x, double volume, bool
   upper_ = upper_.cwiseMax(Vec<D>(x.array() + half));
   total_ += volume;
   if (!hold) return;
-  x_.push_back(x);
-  half_.push_back(half);
+  cubes_.push_back({0, x, half});
 }
 
 template <int D> void ParticleCells<D>::index() {
-  buckets_.reserve(x_.size());
-  for (std::size_t p = 0; p < x_.size(); ++p) buckets_.emplace(key(x_[p]), static_cast<int>(p));
+  for (Cube& c : cubes_) c.key = key(c.x);
+  std::sort(cubes_.begin(), cubes_.end(), [](const Cube& a, const Cube& b) { return a.key < b.key; });
 }
 
 template <int D>
@@ -214,11 +212,10 @@ template <int D> bool ParticleCells<D>::contains(const Vec<D>& x) const {
   Vec<D> probe;
   for (int n = 0; n < (D == 1 ? 3 : D == 2 ? 9 : 27); ++n) {
     for (int d = 0, m = n; d < D; ++d, m /= 3) probe[d] = x[d] + ((m % 3) - 1) * cell_;
-    const auto [first, last] = buckets_.equal_range(key(probe));
-    for (auto it = first; it != last; ++it) {
-      const int p = it->second;
-      if (((x - x_[p]).cwiseAbs().array() <= half_[p]).all()) return true;
-    }
+    const long long k = key(probe);
+    auto it = std::lower_bound(cubes_.begin(), cubes_.end(), k, [](const Cube& c, long long v) { return c.key < v; });
+    for (; it != cubes_.end() && it->key == k; ++it)
+      if (((x - it->x).cwiseAbs().array() <= it->half).all()) return true;
   }
   return false;
 }

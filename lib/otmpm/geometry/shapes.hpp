@@ -9,7 +9,6 @@
 
 #include <functional>
 #include <memory>
-#include <unordered_map>
 #include <vector>
 
 namespace otmpm {
@@ -72,7 +71,7 @@ public:
   };
 
   /// The particles held (all but those a Builder's filter left out).
-  std::size_t held() const { return x_.size(); }
+  std::size_t held() const { return cubes_.size(); }
 
 private:
   ParticleCells() = default;
@@ -82,12 +81,16 @@ private:
   /// Sorts the held particles into their buckets (after the last add).
   void index();
   long long key(const Vec<D>& x) const;
-  AlignedVector<Vec<D>> x_;
-  std::vector<double> half_;
+  /// A held particle's cube: its bucket's key, centre and half side.
+  struct Cube {
+    long long key;
+    Vec<D> x;
+    double half;
+  };
+  AlignedVector<Cube> cubes_; ///< sorted by key after index() (32 bytes each in 2D, 40 in 3D)
   Vec<D> lower_, upper_;
   double cell_ = 1.0, total_ = 0.0;
   std::size_t count_ = 0; ///< the particles added
-  std::unordered_multimap<long long, int> buckets_;
 };
 
 extern template class ParticleCells<1>;
