@@ -305,6 +305,37 @@ template <int D> std::function<bool(const Vec<D>&, const Vec<D>&)> later_filter(
   };
 }
 
+/// Where the further columns of a file body's rows go: per column of
+/// ParticleColumns::fields its entry of out.file_state (-1 for density,
+/// which is no state variable), and the column of density (-1: none).
+struct FileColumns {
+  std::vector<int> entry;
+  int density = -1;
+};
+
+/// Adds the file_state entries of body b's columns (empty: the kept rows'
+/// values are appended as they come).
+template <int D> FileColumns file_columns(const ParticleColumns& columns, int b, SeededBodies<D>& out) {
+  FileColumns c;
+  for (std::size_t i = 0; i < columns.fields.size(); ++i) {
+    if (columns.fields[i] == "density") {
+      c.density = static_cast<int>(i);
+      c.entry.push_back(-1);
+      continue;
+    }
+    c.entry.push_back(static_cast<int>(out.file_state.size()));
+    out.file_state.push_back({columns.fields[i], b, {}});
+  }
+  return c;
+}
+
+/// The seed of row i of a block of a file body's rows (row: `kept`).
+template <int D> Seed<D> row_seed(const ParticleRows& rows, std::size_t i, const FileColumns& c, int b, int kept) {
+  const double rho = c.density >= 0 ? rows.fields[static_cast<std::size_t>(c.density)][i]
+                                    : std::numeric_limits<double>::quiet_NaN();
+  return file_seed<D>(&rows.x[i * D], rows.volume[i], rows.v.empty() ? nullptr : &rows.v[i * D], rho, b, kept);
+}
+
 /// Streams body b's particle file (a file body of seed_bodies_where):
 /// emit(seed) for every row in file order, which returns whether it keeps
 /// the seed (seed.row: the index of its values in the body's
@@ -316,34 +347,22 @@ void stream_file_body(const Scene& scene, int b, std::vector<std::unique_ptr<Sha
                       SeededBodies<D>& out, Emit&& emit) {
   const BodySection& body = scene.bodies[static_cast<std::size_t>(b)];
   typename ParticleCells<D>::Builder cells(later_filter<D>(scene, b));
-  const std::size_t state = out.file_state.size(); // this body's first entry
-  std::vector<int> field;                           // per file field: its entry of out.file_state, or -1
-  int density = -1, kept = 0;
+  FileColumns columns;
+  int kept = 0;
   std::exception_ptr refused;
-  auto each = [&](const ParticleColumns& columns, const ParticleRows& rows) {
-    if (rows.first == 0)
-      for (std::size_t i = 0; i < columns.fields.size(); ++i) {
-        const bool d = columns.fields[i] == "density";
-        if (d) density = static_cast<int>(i);
-        field.push_back(d ? -1 : static_cast<int>(out.file_state.size() - state));
-        if (!d) out.file_state.push_back({columns.fields[i], b, {}});
-      }
-    for (int p = 0; p < rows.size(); ++p) {
-      const std::size_t i = static_cast<std::size_t>(p);
+  auto each = [&](const ParticleColumns& layout, const ParticleRows& rows) {
+    if (rows.first == 0) columns = file_columns<D>(layout, b, out);
+    for (std::size_t i = 0; i < static_cast<std::size_t>(rows.size()); ++i) {
       cells.add(Vec<D>(Eigen::Map<const Vec<D>>(&rows.x[i * D])), rows.volume[i]);
-      if (refused) continue;
-      const double rho = density >= 0 ? rows.fields[static_cast<std::size_t>(density)][i]
-                                      : std::numeric_limits<double>::quiet_NaN();
       try {
-        if (!emit(file_seed<D>(&rows.x[i * D], rows.volume[i], rows.v.empty() ? nullptr : &rows.v[i * D], rho, b, kept)))
-          continue;
+        if (refused || !emit(row_seed<D>(rows, i, columns, b, kept))) continue;
       } catch (const InputError&) {
         refused = std::current_exception();
         continue;
       }
       ++kept;
-      for (std::size_t f = 0; f < field.size(); ++f)
-        if (field[f] >= 0) out.file_state[state + static_cast<std::size_t>(field[f])].values.push_back(rows.fields[f][i]);
+      for (std::size_t f = 0; f < columns.entry.size(); ++f)
+        if (columns.entry[f] >= 0) out.file_state[static_cast<std::size_t>(columns.entry[f])].values.push_back(rows.fields[f][i]);
     }
   };
   try {
