@@ -526,6 +526,46 @@ TEST_CASE("mpi: file bodies read in blocks: a rank keeps its rows and their stat
   }
 }
 
+TEST_CASE("mpi: a file body's bad row or overlap ends every rank with status 2 and the serial message") {
+  // The blob's first rows lie in the block (no overlap = "first"); with a
+  // bad row after them the file's error comes first, as when it was read
+  // whole before seeding.
+  TempDir dir("mpi_file_errors");
+  const auto rows = [](double x0, int n, int bad) {
+    std::string text = "x, y, volume\n";
+    for (int j = 0, row = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i, ++row)
+        text += std::to_string(x0 + 0.05 * i) + ", " + (row == bad ? "zero" : std::to_string(x0 + 0.05 * j)) +
+                ", 0.0025\n";
+    return text;
+  };
+  std::ofstream(dir.file("block.csv")) << rows(0.025, 10, -1);
+  std::ofstream(dir.file("blob.csv")) << rows(0.425, 6, -1);
+  std::ofstream(dir.file("bad.csv")) << rows(0.425, 6, 20);
+  for (const std::string blob : {"blob.csv", "bad.csv"}) {
+    CAPTURE(blob);
+    const std::string scene = write_scene(
+        dir, "errors",
+        "[simulation]\ndimension = 2\nmode = \"mpm\"\nintegrator = \"fe\"\nt_end = 1.0e-3\ncfl = 0.3\n"
+        "[basis]\nkind = \"linear\"\n[grid]\nlower = [-0.2125, -0.2125]\nupper = [1.0875, 1.0875]\ncells = [26, 26]\n"
+        "[[material]]\nname = \"m\"\nmodel = \"linear_elastic\"\ndensity = 1000.0\nyoung = 1.0e6\npoisson = 0.3\n"
+        "[[body]]\nname = \"block\"\nmaterial = \"m\"\nshape = \"file\"\nfile = \"block.csv\"\n"
+        "[[body]]\nname = \"blob\"\nmaterial = \"m\"\nshape = \"file\"\nfile = \"" + blob + "\"\n"
+        "[output]\nevery = 1.0e-3\nfields = [\"x\"]\n");
+    const Result serial = run_otmpm(dir, 0, {"run", scene, "--quiet", "--out", "e.h5"});
+    CHECK(serial.status == 2);
+    const std::string expected = blob == "bad.csv" ? "bad.csv:22: column 'y': expected a finite number, got 'zero'"
+                                                   : "body 'blob' overlaps body 'block'";
+    CHECK(serial.err.find(expected) != std::string::npos);
+    for (int ranks : {2, 3}) {
+      CAPTURE(ranks);
+      const Result r = run_otmpm(dir, ranks, {"run", scene, "--quiet", "--out", "e.h5"});
+      CHECK(r.status == 2);
+      CHECK(r.err == serial.err);
+    }
+  }
+}
+
 TEST_CASE("mpi: each rank builds only its window of the node lattice at set-up") {
   // setup_points_max / _sum: the lattice points (nodes, control points) the
   // ranks built node sets on during set-up - each its window (owned points
