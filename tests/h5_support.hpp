@@ -1,5 +1,6 @@
 #pragma once
-// HDF5 helpers shared by the tests that read result files directly.
+// HDF5 helpers shared by the tests that read result files directly or write
+// particle files.
 #include <hdf5.h>
 
 #include <string>
@@ -19,6 +20,27 @@ inline std::vector<std::string> dataset_names(hid_t file) {
   std::vector<std::string> names;
   H5Ovisit2(file, H5_INDEX_NAME, H5_ITER_INC, Visit::call, &names, H5O_INFO_BASIC);
   return names;
+}
+
+/// One dataset to write: rows x cols doubles (cols = 0: a rank-1 dataset of rows values).
+struct Dataset {
+  std::string name;
+  hsize_t rows = 0, cols = 0;
+  std::vector<double> values;
+};
+
+/// Writes the datasets (64-bit floats) as a new HDF5 file at `path`.
+inline void write_datasets(const std::string& path, const std::vector<Dataset>& sets) {
+  const hid_t f = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+  for (const Dataset& d : sets) {
+    const hsize_t dims[2] = {d.rows, d.cols};
+    const hid_t space = H5Screate_simple(d.cols == 0 ? 1 : 2, dims, nullptr);
+    const hid_t set = H5Dcreate2(f, d.name.c_str(), H5T_IEEE_F64LE, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    if (!d.values.empty()) H5Dwrite(set, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, d.values.data());
+    H5Dclose(set);
+    H5Sclose(space);
+  }
+  H5Fclose(f);
 }
 
 } // namespace otmpm::test

@@ -16,6 +16,8 @@
 #include <limits>
 #include <numbers>
 #include <optional>
+#include <tuple>
+#include <utility>
 
 namespace otmpm {
 
@@ -92,22 +94,30 @@ void seed_on_lattice(const Shape<D>& shape, const BodySection& b, int body, cons
                     });
 }
 
+/// The seed of a particle file's row: position x (D values), volume V,
+/// velocity v (D values, or null) and density (NaN when not given).
+template <int D> Seed<D> file_seed(const double* x, double V, const double* v, double density, int body, int row) {
+  Seed<D> s;
+  for (int k = 0; k < D; ++k) s.x[k] = x[k];
+  s.V = V;
+  s.extent = Vec<D>::Constant(std::pow(s.V, 1.0 / D));
+  s.body = body;
+  s.row = row;
+  if (v)
+    for (int k = 0; k < D; ++k) s.v[k] = v[k];
+  s.density = density;
+  return s;
+}
+
 /// The particles of a file body.
 template <int D, class Emit> void seed_from_file(const ParticleFile& f, int body, Emit&& emit) {
   const bool v = !f.v.empty();
   const auto density = f.fields.find("density");
   for (int p = 0; p < f.size(); ++p) {
-    Seed<D> s;
     const std::size_t i = static_cast<std::size_t>(p);
-    for (int k = 0; k < D; ++k) s.x[k] = f.x[i * D + k];
-    s.V = f.volume[i];
-    s.extent = Vec<D>::Constant(std::pow(s.V, 1.0 / D));
-    s.body = body;
-    s.row = p;
-    if (v)
-      for (int k = 0; k < D; ++k) s.v[k] = f.v[i * D + k];
-    if (density != f.fields.end()) s.density = density->second[i];
-    emit(s);
+    emit(file_seed<D>(&f.x[i * D], f.volume[i], v ? &f.v[i * D] : nullptr,
+                      density != f.fields.end() ? density->second[i] : std::numeric_limits<double>::quiet_NaN(),
+                      body, p));
   }
 }
 
@@ -241,6 +251,133 @@ template <int D> void store(const Scene& scene, const std::vector<Seed<D>>& seed
   }
 }
 
+/// The box of the positions in a particle file (a pass over it), or none
+/// when it cannot be read (its error comes in turn, when it is seeded).
+template <int D> std::optional<std::pair<Vec<D>, Vec<D>>> file_box(const std::string& path) {
+  Vec<D> lo = Vec<D>::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  try {
+    stream_particle_file(path, D, [&lo, &hi](const ParticleColumns&, const ParticleRows& rows) {
+      for (std::size_t i = 0; i < rows.volume.size(); ++i) {
+        const Vec<D> x(Eigen::Map<const Vec<D>>(&rows.x[i * D]));
+        lo = lo.cwiseMin(x), hi = hi.cwiseMax(x);
+      }
+    });
+  } catch (const InputError&) {
+    return std::nullopt;
+  }
+  return std::pair{lo, hi};
+}
+
+/// The boxes where the seeds of the bodies after b lie (their shapes'
+/// bounds, a file's positions; widened for round-off), or none when that
+/// is not known before they are seeded (a shape or file refused later, in turn).
+template <int D> std::optional<std::vector<std::pair<Vec<D>, Vec<D>>>> later_boxes(const Scene& scene, int b) {
+  std::vector<std::pair<Vec<D>, Vec<D>>> boxes;
+  for (std::size_t a = static_cast<std::size_t>(b) + 1; a < scene.bodies.size(); ++a) {
+    const BodySection& body = scene.bodies[a];
+    Vec<D> lo, hi;
+    if (body.shape == "file") {
+      const auto box = file_box<D>(body.file);
+      if (!box) return std::nullopt;
+      std::tie(lo, hi) = *box;
+    } else {
+      try {
+        body_shape<D>(body, nullptr)->bounds(lo, hi);
+      } catch (const InputError&) {
+        return std::nullopt;
+      }
+    }
+    const Vec<D> margin = 1e-6 * (hi - lo) + 1e-9 * (lo.cwiseAbs() + hi.cwiseAbs());
+    boxes.emplace_back(lo - margin, hi + margin);
+  }
+  return boxes;
+}
+
+/// The filter of a file body's shape (ParticleCells::Builder): only the
+/// cubes that meet a later body's seeds are asked about (the overlap test).
+template <int D> std::function<bool(const Vec<D>&, const Vec<D>&)> later_filter(const Scene& scene, int b) {
+  auto boxes = later_boxes<D>(scene, b);
+  if (!boxes) return {};
+  return [boxes = std::move(*boxes)](const Vec<D>& lo, const Vec<D>& hi) {
+    for (const auto& [blo, bhi] : boxes)
+      if ((lo.array() <= bhi.array()).all() && (hi.array() >= blo.array()).all()) return true;
+    return false;
+  };
+}
+
+/// Where the further columns of a file body's rows go: per column of
+/// ParticleColumns::fields its entry of out.file_state (-1 for density,
+/// which is no state variable), and the column of density (-1: none).
+struct FileColumns {
+  std::vector<int> entry;
+  int density = -1;
+};
+
+/// Adds the file_state entries of body b's columns (empty: the kept rows'
+/// values are appended as they come).
+template <int D> FileColumns file_columns(const ParticleColumns& columns, int b, SeededBodies<D>& out) {
+  FileColumns c;
+  for (std::size_t i = 0; i < columns.fields.size(); ++i) {
+    if (columns.fields[i] == "density") {
+      c.density = static_cast<int>(i);
+      c.entry.push_back(-1);
+      continue;
+    }
+    c.entry.push_back(static_cast<int>(out.file_state.size()));
+    out.file_state.push_back({columns.fields[i], b, {}});
+  }
+  return c;
+}
+
+/// The seed of row i of a block of a file body's rows (row: `kept`).
+template <int D> Seed<D> row_seed(const ParticleRows& rows, std::size_t i, const FileColumns& c, int b, int kept) {
+  const double rho = c.density >= 0 ? rows.fields[static_cast<std::size_t>(c.density)][i]
+                                    : std::numeric_limits<double>::quiet_NaN();
+  return file_seed<D>(&rows.x[i * D], rows.volume[i], rows.v.empty() ? nullptr : &rows.v[i * D], rho, b, kept);
+}
+
+/// Streams body b's particle file (a file body of seed_bodies_where):
+/// emit(seed) for every row in file order, which returns whether it keeps
+/// the seed (seed.row: the index of its values in the body's
+/// out.file_state, which hold the kept rows only), then adds the body's
+/// shape to `shapes`. An error of a seed (overlap) is raised after the file
+/// was read, as when it was read whole before seeding (a bad row first).
+template <int D, class Emit>
+void stream_file_body(const Scene& scene, int b, std::vector<std::unique_ptr<Shape<D>>>& shapes,
+                      SeededBodies<D>& out, Emit&& emit) {
+  const BodySection& body = scene.bodies[static_cast<std::size_t>(b)];
+  typename ParticleCells<D>::Builder cells(later_filter<D>(scene, b));
+  FileColumns columns;
+  int kept = 0;
+  std::exception_ptr refused;
+  auto each = [&](const ParticleColumns& layout, const ParticleRows& rows) {
+    if (rows.first == 0) columns = file_columns<D>(layout, b, out);
+    for (std::size_t i = 0; i < static_cast<std::size_t>(rows.size()); ++i) {
+      cells.add(Vec<D>(Eigen::Map<const Vec<D>>(&rows.x[i * D])), rows.volume[i]);
+      try {
+        if (refused || !emit(row_seed<D>(rows, i, columns, b, kept))) continue;
+      } catch (const InputError&) {
+        refused = std::current_exception();
+        continue;
+      }
+      ++kept;
+      for (std::size_t f = 0; f < columns.entry.size(); ++f)
+        if (columns.entry[f] >= 0) out.file_state[static_cast<std::size_t>(columns.entry[f])].values.push_back(rows.fields[f][i]);
+    }
+  };
+  try {
+    stream_particle_file(body.file, D, each);
+  } catch (const InputError& e) {
+    input_error(scene.locate("body." + body.name + ".file"), e.what());
+  }
+  try {
+    shapes.push_back(cells.finish());
+  } catch (const InputError& e) {
+    input_error(body.where, "body '" + body.name + "': " + e.what());
+  }
+  if (refused) std::rethrow_exception(refused);
+}
+
 } // namespace
 
 template <int D>
@@ -270,19 +407,26 @@ long long seed_bodies_where(const Scene& scene, const Vec<D>& h, const Cartesian
   std::vector<Seed<D>> kept;
   long long id = 0;
   for (int b = 0; b < static_cast<int>(scene.bodies.size()); ++b) {
-    const std::optional<ParticleFile> file = open_body<D>(scene, b, shapes);
     // A seed inside an earlier body is refused or dropped as it comes (the
     // serial seeding's first such seed is the one named in the error).
     long long generated = 0;
-    generate_body<D>(scene, b, h, lattice, *shapes.back(), file ? &*file : nullptr, out, [&](const Seed<D>& s) {
+    auto emit = [&](const Seed<D>& s) {
       ++generated;
-      if (overlapped<D>(scene, b, shapes, s)) return;
-      if (keep(id, s.x) && result) {
+      if (overlapped<D>(scene, b, shapes, s)) return false;
+      const bool keeps = keep(id, s.x) && result;
+      if (keeps) {
         kept.push_back(s);
         out.ids.push_back(id);
       }
       ++id;
-    });
+      return keeps;
+    };
+    if (scene.bodies[static_cast<std::size_t>(b)].shape == "file") {
+      stream_file_body<D>(scene, b, shapes, out, emit); // its rows are not held beyond those kept
+    } else {
+      open_body<D>(scene, b, shapes);
+      generate_body<D>(scene, b, h, lattice, *shapes.back(), nullptr, out, emit);
+    }
     if (generated == 0) no_particle(scene.bodies[static_cast<std::size_t>(b)]);
   }
   if (result) {

@@ -25,7 +25,9 @@ template <int D> Vec<D> scene_vec(const Vec3& v) {
 
 /// Per-particle values of a particle file's column that is not a position,
 /// volume, velocity or density: the initial value of a material state
-/// variable of that name, for the particles of `body` (row = file_row[p]).
+/// variable of that name, for the particles of `body` (particle p's value:
+/// values[file_row[p]]; seed_bodies holds every row of the file,
+/// seed_bodies_where the rows of the particles it keeps only).
 struct FileState {
   std::string name;
   int body = 0;
@@ -86,7 +88,8 @@ private:
 /// The seeded particles and what their particle files give beyond them.
 template <int D> struct SeededBodies {
   Particles<D> particles;
-  std::vector<int> file_row; ///< per particle: its row in its body's file, or -1
+  /// per particle: its index in its body's FileState values (seed_bodies: its row in the file), or -1
+  std::vector<int> file_row;
   std::vector<FileState> file_state;
   /// seed_bodies_where: per particle, its index in seed_bodies' order (its global id)
   std::vector<long long> ids;
@@ -104,8 +107,11 @@ template <int D> SeededBodies<D> seed_bodies(const Scene& scene, const Vec<D>& h
 /// same checks and errors, and keep(id, x) is asked for every particle (id:
 /// its index in seed_bodies' order, x: its position). With `result`, the
 /// particles it keeps are stored there, in that order, with their ids in
-/// result->ids; particle files are still read whole (their extra columns go
-/// to result->file_state whole). Returns the number of particles of the
+/// result->ids. Particle files are read in blocks of rows
+/// (stream_particle_file): of a file, only the rows kept are stored (their
+/// extra columns in result->file_state), and its body's shape (for the
+/// overlap of later bodies) holds only the particles whose cells meet
+/// where later bodies are seeded. Returns the number of particles of the
 /// scene. Without `result`, a counting pass: nothing is stored.
 template <int D>
 long long seed_bodies_where(const Scene& scene, const Vec<D>& h, const CartesianGrid<D>& lattice,

@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <utility>
 
 namespace otmpm {
 
@@ -152,22 +153,51 @@ std::unique_ptr<Shape<2>> make_polygon(const std::vector<Vec<2>>& vertices) {
 }
 
 template <int D>
-ParticleCells<D>::ParticleCells(const AlignedVector<Vec<D>>& x, const std::vector<double>& volume) : x_(x) {
+ParticleCells<D>::ParticleCells(const AlignedVector<Vec<D>>& x, const std::vector<double>& volume) {
   require(!x.empty(), "particle file: no particles");
   require<std::invalid_argument>(volume.size() == x.size(), "ParticleCells: ", x.size(), " positions, ",
                                  volume.size(), " volumes");
-  lower_ = upper_ = x.front();
-  for (std::size_t p = 0; p < x.size(); ++p) {
-    require(x[p].allFinite(), "particle file: particle ", p, ": position ", x[p], " is not finite");
-    require(finite_positive(volume[p]), "particle file: particle ", p, ": volume must be finite and > 0, got ",
-            volume[p]);
-    half_.push_back(0.5 * std::pow(volume[p], 1.0 / D));
-    cell_ = p == 0 ? 2 * half_[p] : std::max(cell_, 2 * half_[p]);
-    lower_ = lower_.cwiseMin(Vec<D>(x[p].array() - half_[p]));
-    upper_ = upper_.cwiseMax(Vec<D>(x[p].array() + half_[p]));
-    total_ += volume[p];
+  cubes_.reserve(x.size());
+  for (std::size_t p = 0; p < x.size(); ++p) add(x[p], volume[p], true);
+  index();
+}
+
+template <int D> void ParticleCells<D>::add(const Vec<D>& x, double volume, bool hold) {
+  const std::size_t p = count_++;
+  require(x.allFinite(), "particle file: particle ", p, ": position ", x, " is not finite");
+  require(finite_positive(volume), "particle file: particle ", p, ": volume must be finite and > 0, got ", volume);
+  const double half = 0.5 * std::pow(volume, 1.0 / D);
+  if (p == 0) lower_ = upper_ = x;
+  cell_ = p == 0 ? 2 * half : std::max(cell_, 2 * half);
+  lower_ = lower_.cwiseMin(Vec<D>(x.array() - half));
+  upper_ = upper_.cwiseMax(Vec<D>(x.array() + half));
+  total_ += volume;
+  if (!hold) return;
+  cubes_.push_back({0, x, half});
+}
+
+template <int D> void ParticleCells<D>::index() {
+  for (Cube& c : cubes_) c.key = key(c.x);
+  std::sort(cubes_.begin(), cubes_.end(), [](const Cube& a, const Cube& b) { return a.key < b.key; });
+}
+
+template <int D>
+ParticleCells<D>::Builder::Builder(std::function<bool(const Vec<D>&, const Vec<D>&)> keep)
+    : keep_(std::move(keep)), cells_(new ParticleCells<D>()) {}
+
+template <int D> void ParticleCells<D>::Builder::add(const Vec<D>& x, double volume) {
+  bool hold = true;
+  if (keep_ && x.allFinite() && finite_positive(volume)) {
+    const double half = 0.5 * std::pow(volume, 1.0 / D);
+    hold = keep_(Vec<D>(x.array() - half), Vec<D>(x.array() + half));
   }
-  for (std::size_t p = 0; p < x.size(); ++p) buckets_.emplace(key(x[p]), static_cast<int>(p));
+  cells_->add(x, volume, hold);
+}
+
+template <int D> std::unique_ptr<ParticleCells<D>> ParticleCells<D>::Builder::finish() {
+  require(cells_->count_ > 0, "particle file: no particles");
+  cells_->index();
+  return std::move(cells_);
 }
 
 template <int D> long long ParticleCells<D>::key(const Vec<D>& x) const {
@@ -182,11 +212,10 @@ template <int D> bool ParticleCells<D>::contains(const Vec<D>& x) const {
   Vec<D> probe;
   for (int n = 0; n < (D == 1 ? 3 : D == 2 ? 9 : 27); ++n) {
     for (int d = 0, m = n; d < D; ++d, m /= 3) probe[d] = x[d] + ((m % 3) - 1) * cell_;
-    const auto [first, last] = buckets_.equal_range(key(probe));
-    for (auto it = first; it != last; ++it) {
-      const int p = it->second;
-      if (((x - x_[p]).cwiseAbs().array() <= half_[p]).all()) return true;
-    }
+    const long long k = key(probe);
+    auto it = std::lower_bound(cubes_.begin(), cubes_.end(), k, [](const Cube& c, long long v) { return c.key < v; });
+    for (; it != cubes_.end() && it->key == k; ++it)
+      if (((x - it->x).cwiseAbs().array() <= it->half).all()) return true;
   }
   return false;
 }

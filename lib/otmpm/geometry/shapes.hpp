@@ -7,8 +7,8 @@
 /// the shape; overlapping bodies are found with contains().
 #include "otmpm/core.hpp"
 
+#include <functional>
 #include <memory>
-#include <unordered_map>
 #include <vector>
 
 namespace otmpm {
@@ -52,13 +52,45 @@ public:
   double measure() const override { return total_; }
   double boundary_measure() const override { return 0.0; }
 
+  /// Builds the shape one particle at a time (a particle file read in
+  /// blocks), holding only the particles whose cube [lower, upper] `keep`
+  /// accepts (all without it). Its bounds and measure are those of all the
+  /// particles, and contains(x) answers as the shape of all of them
+  /// wherever only accepted cubes can hold x (where the caller asks).
+  class Builder {
+  public:
+    explicit Builder(std::function<bool(const Vec<D>& lower, const Vec<D>& upper)> keep = {});
+    /// Adds the next particle; InputError as the constructor's.
+    void add(const Vec<D>& x, double volume);
+    /// The shape of the particles added (once); InputError when there are none.
+    std::unique_ptr<ParticleCells<D>> finish();
+
+  private:
+    std::function<bool(const Vec<D>&, const Vec<D>&)> keep_;
+    std::unique_ptr<ParticleCells<D>> cells_;
+  };
+
+  /// The particles held (all but those a Builder's filter left out).
+  std::size_t held() const { return cubes_.size(); }
+
 private:
+  ParticleCells() = default;
+  /// Checks particle `p` and adds it to the bounds and measure (and to the
+  /// held particles when `hold`).
+  void add(const Vec<D>& x, double volume, bool hold);
+  /// Sorts the held particles into their buckets (after the last add).
+  void index();
   long long key(const Vec<D>& x) const;
-  AlignedVector<Vec<D>> x_;
-  std::vector<double> half_;
+  /// A held particle's cube: its bucket's key, centre and half side.
+  struct Cube {
+    long long key;
+    Vec<D> x;
+    double half;
+  };
+  AlignedVector<Cube> cubes_; ///< sorted by key after index() (32 bytes each in 2D, 40 in 3D)
   Vec<D> lower_, upper_;
   double cell_ = 1.0, total_ = 0.0;
-  std::unordered_multimap<long long, int> buckets_;
+  std::size_t count_ = 0; ///< the particles added
 };
 
 extern template class ParticleCells<1>;

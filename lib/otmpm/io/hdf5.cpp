@@ -394,29 +394,65 @@ std::string read_string(hid_t object, const std::string& name, const std::string
 }
 
 namespace {
-/// Reads a rank-1 or rank-2 dataset whose type is of class `cls` into memory type `memory_type`.
-template <class T>
-Matrix<T> read_matrix(hid_t parent, const std::string& name, const std::string& path, H5T_class_t cls,
-                      hid_t memory_type) {
+/// An open rank-1 or rank-2 dataset whose type is of class `cls` and its size.
+struct OpenMatrix {
+  Handle set;
+  hsize_t rows = 0, cols = 1;
+};
+
+OpenMatrix open_matrix(hid_t parent, const std::string& name, const std::string& path, H5T_class_t cls) {
   const std::string what = "read dataset " + name;
   if (!has_link(parent, name)) fail(path, "find dataset '" + name + "'");
-  Handle set(checked(H5Dopen2(parent, name.c_str(), H5P_DEFAULT), path, what), H5Dclose);
-  Handle type(checked(H5Dget_type(set.get()), path, what), H5Tclose);
+  OpenMatrix m;
+  m.set = Handle(checked(H5Dopen2(parent, name.c_str(), H5P_DEFAULT), path, what), H5Dclose);
+  Handle type(checked(H5Dget_type(m.set.get()), path, what), H5Tclose);
   if (H5Tget_class(type.get()) != cls) fail(path, what + " (unexpected element type)");
-  Handle space(checked(H5Dget_space(set.get()), path, what), H5Sclose);
+  Handle space(checked(H5Dget_space(m.set.get()), path, what), H5Sclose);
   const int rank = H5Sget_simple_extent_ndims(space.get());
   if (rank != 1 && rank != 2) fail(path, what + " (rank " + std::to_string(rank) + ", expected 1 or 2)");
   hsize_t dims[2] = {0, 1};
   checked_status(H5Sget_simple_extent_dims(space.get(), dims, nullptr), path, what);
-  Matrix<T> m;
   m.rows = dims[0];
   m.cols = dims[1];
+  return m;
+}
+
+/// Reads a rank-1 or rank-2 dataset whose type is of class `cls` into memory type `memory_type`.
+template <class T>
+Matrix<T> read_matrix(hid_t parent, const std::string& name, const std::string& path, H5T_class_t cls,
+                      hid_t memory_type) {
+  const OpenMatrix open = open_matrix(parent, name, path, cls);
+  Matrix<T> m;
+  m.rows = open.rows;
+  m.cols = open.cols;
   m.values.resize(static_cast<std::size_t>(m.rows * m.cols));
   if (!m.values.empty())
-    checked_status(H5Dread(set.get(), memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, m.values.data()), path, what);
+    checked_status(H5Dread(open.set.get(), memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, m.values.data()), path,
+                   "read dataset " + name);
   return m;
 }
 } // namespace
+
+DoubleRows::DoubleRows(hid_t parent, const std::string& name, const std::string& path) : name_(name), path_(path) {
+  OpenMatrix m = open_matrix(parent, name, path, H5T_FLOAT);
+  set_ = std::move(m.set);
+  rows_ = m.rows;
+  cols_ = m.cols;
+}
+
+void DoubleRows::read(hsize_t first, hsize_t count, double* out) const {
+  const std::string what = "read dataset " + name_;
+  if (count == 0) return;
+  if (first + count > rows_) fail(path_, what + " (rows " + std::to_string(first) + " + " + std::to_string(count) +
+                                             " beyond " + std::to_string(rows_) + ")");
+  Handle file_space(checked(H5Dget_space(set_.get()), path_, what), H5Sclose);
+  const hsize_t start[2] = {first, 0}, size[2] = {count, cols_};
+  checked_status(H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start, nullptr, size, nullptr), path_, what);
+  const hsize_t values = count * cols_;
+  Handle memory_space(checked(H5Screate_simple(1, &values, nullptr), path_, what), H5Sclose);
+  checked_status(H5Dread(set_.get(), H5T_NATIVE_DOUBLE, memory_space.get(), file_space.get(), H5P_DEFAULT, out), path_,
+                 what);
+}
 
 Matrix<double> read_double_matrix(hid_t parent, const std::string& name, const std::string& path) {
   return read_matrix<double>(parent, name, path, H5T_FLOAT, H5T_NATIVE_DOUBLE);

@@ -204,6 +204,25 @@ template <class T> struct Matrix {
 };
 /// Reads a rank-1 or rank-2 dataset of numbers as doubles.
 Matrix<double> read_double_matrix(hid_t parent, const std::string& name, const std::string& path);
+/// A rank-1 or rank-2 dataset of numbers read a block of rows at a time
+/// (hyperslabs; a rank-1 dataset has one column), as doubles: a dataset
+/// larger than memory can be read in pieces.
+class DoubleRows {
+public:
+  /// Opens dataset `name` below `parent` (of the file `path`); Failure with
+  /// the messages of read_double_matrix when it is missing, not of numbers
+  /// or of rank other than 1 and 2.
+  DoubleRows(hid_t parent, const std::string& name, const std::string& path);
+  hsize_t rows() const { return rows_; }
+  hsize_t cols() const { return cols_; }
+  /// Reads rows [first, first + count) into out (count x cols, row-major).
+  void read(hsize_t first, hsize_t count, double* out) const;
+
+private:
+  Handle set_;
+  std::string name_, path_;
+  hsize_t rows_ = 0, cols_ = 1;
+};
 /// Reads a rank-1 or rank-2 dataset of integers as 64-bit integers.
 Matrix<std::int64_t> read_integer_matrix(hid_t parent, const std::string& name, const std::string& path);
 

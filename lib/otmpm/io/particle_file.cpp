@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <utility>
 
 namespace otmpm {
 
@@ -50,94 +51,215 @@ int column(const std::vector<std::string>& header, const std::string& name) {
   return it == header.end() ? -1 : static_cast<int>(it - header.begin());
 }
 
-ParticleFile read_csv(const std::string& path, int D) {
-  std::ifstream in(path);
-  require(in.good(), path, ": cannot open the particle file");
-  ParticleFile f{path, D, {}, {}, {}, {}};
+using Each = std::function<void(const ParticleColumns&, const ParticleRows&)>;
+
+/// Hands the rows gathered so far to `each` and starts the next block.
+void flush(const ParticleColumns& columns, ParticleRows& rows, const Each& each) {
+  if (rows.size() == 0) return;
+  each(columns, rows);
+  rows.first += rows.size();
+  rows.x.clear();
+  rows.volume.clear();
+  rows.v.clear();
+  for (std::vector<double>& f : rows.fields) f.clear();
+}
+
+/// A CSV header: the columns of the positions, volume, velocities and of
+/// the further fields (field[c]: its index in ParticleColumns::fields, or -1).
+struct CsvHeader {
+  std::vector<std::string> names;
+  int pos[3] = {0, 0, 0}, vel[3] = {-1, -1, -1}, vol = 0;
+  std::vector<int> field;
+};
+
+/// Reads the header line (after comment lines) and checks it.
+CsvHeader read_header(std::istream& in, const std::string& path, int D, int& lineno, ParticleColumns& columns) {
   std::string line;
-  int lineno = 0;
   while (std::getline(in, line) && (line.empty() || line[0] == '#')) ++lineno; // comments before the header
   ++lineno;
-  const std::vector<std::string> header = split_csv(line);
+  CsvHeader h;
+  h.names = split_csv(line);
   const auto need = [&](const std::string& name) {
-    const int c = column(header, name);
+    const int c = column(h.names, name);
     require(c >= 0, path, ":", lineno, ": the header has no column '", name, "'");
     return c;
   };
-  int pos[3] = {0, 0, 0}, vel[3] = {-1, -1, -1};
-  for (int k = 0; k < D; ++k) pos[k] = need(kAxes[k]);
-  const int vol = need("volume");
-  for (int k = 0; k < D; ++k) vel[k] = column(header, kVelocities[k]);
-  const bool has_v = vel[0] >= 0;
+  for (int k = 0; k < D; ++k) h.pos[k] = need(kAxes[k]);
+  h.vol = need("volume");
+  for (int k = 0; k < D; ++k) h.vel[k] = column(h.names, kVelocities[k]);
+  columns.velocity = h.vel[0] >= 0;
   for (int k = 0; k < D; ++k)
-    require((vel[k] >= 0) == has_v, path, ":", lineno, ": give all of vx, vy, vz (the first ", D, ") or none");
-  std::vector<int> extra;
-  for (int c = 0; c < static_cast<int>(header.size()); ++c) {
-    require(!header[c].empty(), path, ":", lineno, ": column ", c + 1, " has no name");
-    const bool known = c == vol || std::find(pos, pos + D, c) != pos + D || std::find(vel, vel + D, c) != vel + D;
-    if (!known) extra.push_back(c);
+    require((h.vel[k] >= 0) == columns.velocity, path, ":", lineno, ": give all of vx, vy, vz (the first ", D,
+            ") or none");
+  for (int c = 0; c < static_cast<int>(h.names.size()); ++c) {
+    require(!h.names[c].empty(), path, ":", lineno, ": column ", c + 1, " has no name");
+    require(column(h.names, h.names[c]) == c, path, ":", lineno, ": column '", h.names[c], "' appears twice");
+    const bool known = c == h.vol || std::find(h.pos, h.pos + D, c) != h.pos + D ||
+                       std::find(h.vel, h.vel + D, c) != h.vel + D;
+    if (!known) columns.fields.push_back(h.names[c]);
   }
+  std::sort(columns.fields.begin(), columns.fields.end());
+  for (const std::string& name : h.names) {
+    const auto it = std::find(columns.fields.begin(), columns.fields.end(), name);
+    h.field.push_back(it == columns.fields.end() ? -1 : static_cast<int>(it - columns.fields.begin()));
+  }
+  return h;
+}
+
+/// Appends one data line's values to `rows` (values checked in the header's order of the kinds).
+void read_line(const std::string& line, const std::string& path, int lineno, const CsvHeader& h, int D,
+               ParticleRows& rows) {
+  const std::vector<std::string> cells = split_csv(line);
+  require(cells.size() == h.names.size(), path, ":", lineno, ": ", cells.size(), " values, the header has ",
+          h.names.size(), " columns");
+  auto value = [&](int c) { return number(cells[c], path + ":" + std::to_string(lineno) + ": column '" + h.names[c] + "'"); };
+  for (int k = 0; k < D; ++k) rows.x.push_back(value(h.pos[k]));
+  rows.volume.push_back(value(h.vol));
+  require(rows.volume.back() > 0.0, path, ":", lineno, ": volume must be > 0, got ", rows.volume.back());
+  if (h.vel[0] >= 0)
+    for (int k = 0; k < D; ++k) rows.v.push_back(value(h.vel[k]));
+  for (std::size_t c = 0; c < h.names.size(); ++c)
+    if (h.field[c] >= 0) rows.fields[static_cast<std::size_t>(h.field[c])].push_back(value(static_cast<int>(c)));
+}
+
+void stream_csv(const std::string& path, int D, const Each& each, std::size_t chunk) {
+  std::ifstream in(path);
+  require(in.good(), path, ": cannot open the particle file");
+  ParticleColumns columns{path, D, false, {}, -1};
+  int lineno = 0;
+  const CsvHeader header = read_header(in, path, D, lineno, columns);
+  ParticleRows rows;
+  rows.fields.resize(columns.fields.size());
+  std::string line;
   while (std::getline(in, line)) {
     ++lineno;
     if (line.empty() || line[0] == '#') continue;
-    const std::vector<std::string> cells = split_csv(line);
-    require(cells.size() == header.size(), path, ":", lineno, ": ", cells.size(), " values, the header has ",
-            header.size(), " columns");
-    auto value = [&](int c) { return number(cells[c], path + ":" + std::to_string(lineno) + ": column '" + header[c] + "'"); };
-    for (int k = 0; k < D; ++k) f.x.push_back(value(pos[k]));
-    f.volume.push_back(value(vol));
-    require(f.volume.back() > 0.0, path, ":", lineno, ": volume must be > 0, got ", f.volume.back());
-    if (has_v)
-      for (int k = 0; k < D; ++k) f.v.push_back(value(vel[k]));
-    for (int c : extra) f.fields[header[c]].push_back(value(c));
+    read_line(line, path, lineno, header, D, rows);
+    if (static_cast<std::size_t>(rows.size()) >= chunk) flush(columns, rows, each);
   }
-  require(f.size() > 0, path, ": no particles");
-  return f;
+  flush(columns, rows, each);
+  require(rows.first > 0, path, ": no particles");
 }
 
-ParticleFile read_hdf5(const std::string& path, int D) {
+/// The datasets of an HDF5 particle file, opened and checked for their
+/// shapes before any row is read.
+struct Hdf5Layout {
+  std::vector<std::string> names; ///< x, volume, then the others in name order
+  std::vector<h5::DoubleRows> sets;
+  hsize_t rows = 0;
+};
+
+/// Opens dataset `name` of `cols` columns.
+h5::DoubleRows open_dataset(hid_t id, const std::string& path, const std::string& name, hsize_t cols) {
+  require(h5::has_link(id, name), path, ": no dataset '", name, "'");
+  try {
+    h5::DoubleRows set(id, name, path);
+    require(set.cols() == cols, path, ": dataset '", name, "' has ", set.cols(), " columns, expected ", cols);
+    return set;
+  } catch (const InputError&) {
+    throw;
+  } catch (const std::exception& e) {
+    throw InputError(path + ": dataset '" + name + "' is not a matrix of numbers (" + e.what() + ")");
+  }
+}
+
+Hdf5Layout open_layout(hid_t id, const std::string& path, int D, ParticleColumns& columns) {
+  Hdf5Layout l;
+  l.names = {"x", "volume"};
+  l.sets.push_back(open_dataset(id, path, "x", static_cast<hsize_t>(D)));
+  l.sets.push_back(open_dataset(id, path, "volume", 1));
+  l.rows = l.sets[0].rows();
+  require(l.sets[1].rows() == l.rows, path, ": ", l.rows, " positions but ", l.sets[1].rows(), " volumes");
+  for (const std::string& name : h5::link_names(id, path)) {
+    if (name == "x" || name == "volume") continue;
+    l.sets.push_back(open_dataset(id, path, name, name == "v" ? static_cast<hsize_t>(D) : 1));
+    require(l.sets.back().rows() == l.rows, path, ": dataset '", name, "' has ", l.sets.back().rows(),
+            " rows, expected ", l.rows);
+    l.names.push_back(name);
+    if (name == "v") columns.velocity = true;
+    else columns.fields.push_back(name);
+  }
+  std::sort(columns.fields.begin(), columns.fields.end());
+  columns.rows = static_cast<long long>(l.rows);
+  return l;
+}
+
+/// Reads rows [first, first + count) of dataset `name` into out and checks they are finite.
+void read_block(const h5::DoubleRows& set, const std::string& path, const std::string& name, hsize_t first,
+                hsize_t count, std::vector<double>& out) {
+  out.resize(static_cast<std::size_t>(count * set.cols()));
+  try {
+    set.read(first, count, out.data());
+  } catch (const std::exception& e) {
+    throw InputError(path + ": dataset '" + name + "' is not a matrix of numbers (" + e.what() + ")");
+  }
+  for (std::size_t i = 0; i < out.size(); ++i)
+    require(std::isfinite(out[i]), path, ": dataset '", name, "' row ", first + i / set.cols(), ": not finite");
+}
+
+/// The rows' vector that dataset `name` goes to.
+std::vector<double>& target(const std::string& name, const ParticleColumns& columns, ParticleRows& rows) {
+  if (name == "x") return rows.x;
+  if (name == "volume") return rows.volume;
+  if (name == "v") return rows.v;
+  const auto it = std::find(columns.fields.begin(), columns.fields.end(), name);
+  return rows.fields[static_cast<std::size_t>(it - columns.fields.begin())];
+}
+
+void stream_hdf5(const std::string& path, int D, const Each& each, std::size_t chunk) {
   h5::silence();
   const hid_t id = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
   require(id >= 0, path, ": cannot open the particle file (not HDF5? CSV files must end in .csv)");
   const h5::Handle file(id, H5Fclose);
-  ParticleFile f{path, D, {}, {}, {}, {}};
-  auto matrix = [&](const std::string& name, hsize_t cols) {
-    require(h5::has_link(id, name), path, ": no dataset '", name, "'");
-    h5::Matrix<double> m;
-    try {
-      m = h5::read_double_matrix(id, name, path);
-    } catch (const std::exception& e) {
-      throw InputError(path + ": dataset '" + name + "' is not a matrix of numbers (" + e.what() + ")");
+  ParticleColumns columns{path, D, false, {}, -1};
+  const Hdf5Layout layout = open_layout(id, path, D, columns);
+  ParticleRows rows;
+  rows.fields.resize(columns.fields.size());
+  for (hsize_t first = 0; first < layout.rows; first += chunk) {
+    const hsize_t count = std::min<hsize_t>(chunk, layout.rows - first);
+    rows.first = static_cast<long long>(first);
+    for (std::size_t s = 0; s < layout.sets.size(); ++s) {
+      std::vector<double>& out = target(layout.names[s], columns, rows);
+      read_block(layout.sets[s], path, layout.names[s], first, count, out);
+      if (s == 1)
+        for (std::size_t p = 0; p < out.size(); ++p)
+          require(out[p] > 0.0, path, ": dataset 'volume' row ", first + p, ": must be > 0, got ", out[p]);
     }
-    require(m.cols == cols, path, ": dataset '", name, "' has ", m.cols, " columns, expected ", cols);
-    for (std::size_t i = 0; i < m.values.size(); ++i)
-      require(std::isfinite(m.values[i]), path, ": dataset '", name, "' row ", i / cols, ": not finite");
-    return m;
-  };
-  const h5::Matrix<double> x = matrix("x", static_cast<hsize_t>(D));
-  f.x = x.values;
-  f.volume = matrix("volume", 1).values;
-  require(f.volume.size() == x.rows, path, ": ", x.rows, " positions but ", f.volume.size(), " volumes");
-  for (std::size_t p = 0; p < f.volume.size(); ++p)
-    require(f.volume[p] > 0.0, path, ": dataset 'volume' row ", p, ": must be > 0, got ", f.volume[p]);
-  for (const std::string& name : h5::link_names(id, path)) {
-    if (name == "x" || name == "volume") continue;
-    const h5::Matrix<double> m = matrix(name, name == "v" ? static_cast<hsize_t>(D) : 1);
-    require(m.rows == x.rows, path, ": dataset '", name, "' has ", m.rows, " rows, expected ", x.rows);
-    if (name == "v") f.v = m.values;
-    else f.fields[name] = m.values;
+    each(columns, rows);
   }
-  require(f.size() > 0, path, ": no particles");
-  return f;
+  require(layout.rows > 0, path, ": no particles");
 }
 
 } // namespace
 
-ParticleFile read_particle_file(const std::string& path, int dimension) {
+void stream_particle_file(const std::string& path, int dimension, const Each& each, std::size_t chunk) {
   require<std::invalid_argument>(dimension >= 1 && dimension <= 3, "read_particle_file: dimension ", dimension);
+  require<std::invalid_argument>(chunk > 0, "stream_particle_file: chunk of 0 rows");
   std::error_code ec;
   require(std::filesystem::is_regular_file(path, ec), path, ": no such particle file");
-  return path.size() > 4 && path.ends_with(".csv") ? read_csv(path, dimension) : read_hdf5(path, dimension);
+  if (path.size() > 4 && path.ends_with(".csv")) stream_csv(path, dimension, each, chunk);
+  else stream_hdf5(path, dimension, each, chunk);
+}
+
+ParticleFile read_particle_file(const std::string& path, int dimension) {
+  ParticleFile f{path, dimension, {}, {}, {}, {}};
+  stream_particle_file(path, dimension, [&f](const ParticleColumns& columns, const ParticleRows& rows) {
+    if (rows.first == 0 && columns.rows > 0) { // no growth by doubling (peak memory)
+      const std::size_t n = static_cast<std::size_t>(columns.rows), D = static_cast<std::size_t>(columns.dimension);
+      f.x.reserve(n * D);
+      f.volume.reserve(n);
+      if (columns.velocity) f.v.reserve(n * D);
+      for (const std::string& name : columns.fields) f.fields[name].reserve(n);
+    }
+    f.x.insert(f.x.end(), rows.x.begin(), rows.x.end());
+    f.volume.insert(f.volume.end(), rows.volume.begin(), rows.volume.end());
+    f.v.insert(f.v.end(), rows.v.begin(), rows.v.end());
+    for (std::size_t i = 0; i < columns.fields.size(); ++i) {
+      std::vector<double>& to = f.fields[columns.fields[i]];
+      to.insert(to.end(), rows.fields[i].begin(), rows.fields[i].end());
+    }
+  });
+  return f;
 }
 
 } // namespace otmpm

@@ -9,6 +9,8 @@
 ///    datasets of n values): `density` (overrides the material's for the
 ///    particle's mass) or the name of a material state variable (its
 ///    initial value, e.g. `plastic_strain`).
+#include <cstddef>
+#include <functional>
 #include <map>
 #include <string>
 #include <vector>
@@ -26,10 +28,46 @@ struct ParticleFile {
   int size() const { return static_cast<int>(volume.size()); }
 };
 
-/// Reads a particle file (CSV when the name ends in .csv, else HDF5).
+/// What a particle file holds besides positions and volumes, known before
+/// its rows (stream_particle_file).
+struct ParticleColumns {
+  std::string path;
+  int dimension = 0;
+  bool velocity = false;           ///< whether it gives velocities
+  std::vector<std::string> fields; ///< its further scalar fields, in name order
+  long long rows = -1;             ///< its number of rows when known before reading them (HDF5), else -1
+};
+
+/// Consecutive rows [first, first + size()) of a particle file, laid out as
+/// in ParticleFile (positions and velocities row-major, size() x D).
+struct ParticleRows {
+  long long first = 0;
+  std::vector<double> x, volume;
+  std::vector<double> v;                   ///< empty when the file has none
+  std::vector<std::vector<double>> fields; ///< per ParticleColumns::fields
+  int size() const { return static_cast<int>(volume.size()); }
+};
+
+/// The rows stream_particle_file hands over at once by default.
+inline constexpr std::size_t kParticleChunk = 65536;
+
+/// Reads a particle file (CSV when the name ends in .csv, else HDF5) `chunk`
+/// rows at a time (CSV line by line, HDF5 in hyperslabs of every dataset),
+/// calling each(columns, rows) for every block of rows in file order: at
+/// most `chunk` rows are held at once. The checks and messages are those of
+/// read_particle_file; rows before a bad one have been handed over when it
+/// throws. The file's layout (columns, datasets and their sizes) is checked
+/// before any row is handed over.
+void stream_particle_file(const std::string& path, int dimension,
+                          const std::function<void(const ParticleColumns&, const ParticleRows&)>& each,
+                          std::size_t chunk = kParticleChunk);
+
+/// Reads a whole particle file (CSV when the name ends in .csv, else HDF5).
 /// Throws InputError naming the file and the line and column (CSV) or the
 /// dataset (HDF5) for a missing column, a value that is not a finite
-/// number, a volume <= 0, ragged rows or no particles.
+/// number, a volume <= 0, ragged rows or no particles. A file with several
+/// such faults is refused for one of them: the first in the file's layout
+/// (header, datasets and their sizes), else the first bad row.
 ParticleFile read_particle_file(const std::string& path, int dimension);
 
 } // namespace otmpm
