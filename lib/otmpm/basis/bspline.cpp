@@ -31,7 +31,17 @@ void check_degree(int degree) {
 /// neither is 0. The quotient B[r] / (t_{s+r+1} - t_{s+r+1-d}) is the right
 /// term of r and the left term of r + 1, formed once; dN_j^P = P (left - right).
 /// The degree as a compile-time constant unrolls the loops; no allocation.
-template <int P>
+///
+/// Exact = false leaves out the absent terms, (x - t_j) 0 at r = 0 and
+/// (t_{j+d+1} - x) 0 at r = d. Adding such a zero to y gives y unless y is
+/// itself a zero (then its sign may change: -0 + +0 = +0), and products,
+/// quotients and sums of values that differ only in the sign of a zero again
+/// differ only so: level by level the two variants differ in signs of zeros
+/// only. A span with every N_r > 0 therefore gets the same bits, dN_r too
+/// (left - right is a zero only when both quotients are, and then N_r = 0).
+/// The batch uses it for such spans only (smallest_entry); evaluate_on_cell,
+/// whose zero values are output, keeps the exact operations.
+template <int P, bool Exact = true>
 [[gnu::always_inline]] inline void cox_de_boor(const double* t, double x, int cell, double* N, double* dN) {
   const int s = cell + P;
   double B[P + 1] = {1.0};
@@ -44,7 +54,10 @@ template <int P>
     for (int r = 0; r <= d; ++r) {
       const double left = r >= 1 ? q[r - 1] : 0.0;
       const double right = r < d ? q[r] : 0.0;
-      B[r] = (x - t[s - d + r]) * left + (t[s + r + 1] - x) * right;
+      if (Exact || (r > 0 && r < d))
+        B[r] = (x - t[s - d + r]) * left + (t[s + r + 1] - x) * right;
+      else
+        B[r] = r == 0 ? (t[s + 1] - x) * right : (x - t[s]) * left;
       if (d == P) dN[r] = d * (left - right);
     }
   }
@@ -410,23 +423,31 @@ struct BatchAxis {
   int stride = 1;              ///< control-point id stride of the axis (window-local)
 };
 
-/// The cell of x on one axis, for an x that KnotVector::contains: the cell
-/// KnotVector::find_cell returns. in_cell holds for at most one cell (none
-/// below v_0, where the answer is cell 0), so the hint only saves the search.
-[[gnu::always_inline]] inline int locate(const BatchAxis& a, double x, int hint) {
-  const double* v = a.v;
-  const int m = a.cells;
-  for (const int j : {hint, hint + 1, hint - 1})
-    if (j >= 0 && j < m && v[j] <= x && (x < v[j + 1] || j == m - 1)) return j;
+/// The cell of x among the m cells of the vertices v, by KnotVector::
+/// find_cell's search (out of line: rare once the hints are set).
+[[gnu::noinline]] int search_cell(const double* v, int m, double x) {
   if (x <= v[0]) return 0;
   if (x >= v[m]) return m - 1;
   return static_cast<int>(std::upper_bound(v, v + m + 1, x) - v) - 1;
 }
 
-/// span_values: evaluate_on_cell's clamp, then the Cox-de Boor recursion.
+/// The cell of x on one axis, for an x that KnotVector::contains: the cell
+/// KnotVector::find_cell returns. Its test (v_j <= x < v_{j+1}, or the last
+/// cell) holds for at most one cell (none below v_0, where the answer is
+/// cell 0), so the hint and its neighbours only save the search.
+[[gnu::always_inline]] inline int locate(const BatchAxis& a, double x, int hint) {
+  const double* v = a.v;
+  const int m = a.cells;
+  for (const int j : {hint, hint + 1, hint - 1})
+    if (j >= 0 && j < m && v[j] <= x && (x < v[j + 1] || j == m - 1)) return j;
+  return search_cell(v, m, x);
+}
+
+/// span_values: evaluate_on_cell's clamp, then the Cox-de Boor recursion
+/// without the absent terms (the same bits for a span with every N_r > 0).
 template <int P>
 [[gnu::always_inline]] inline void span_values(const BatchAxis& a, double x, int cell, double* N, double* dN) {
-  cox_de_boor<P>(a.t, std::clamp(x, a.lower, a.upper), cell, N, dN);
+  cox_de_boor<P, false>(a.t, std::clamp(x, a.lower, a.upper), cell, N, dN);
 }
 
 /// (P + 1)^D, the entries of a stencil.
@@ -502,6 +523,7 @@ int bspline_run(const std::array<BatchAxis, D>& axes, const Vec<D>* x, int count
     double n[D][P + 1], g[D][P + 1];
     Index<D> cell;
     int base = 0;
+#pragma GCC unroll 3
     for (int k = 0; k < D; ++k) {
       const int c = locate(ax[k], xi[k], Hint ? cell_hint[i][k] : last[k]);
       if (c < ax[k].first_lo || c > ax[k].first_hi) return i; // leaves the window
