@@ -165,11 +165,13 @@ public:
   /// N = 0 and grad N = 0 (points on a knot, p >= 2), which gives such a point
   /// fewer entries; the table fill then takes its general path.
   int fixed_stencil() const override { return max_stencil(); }
-  /// The stencils of consecutive points in one loop (Basis::
-  /// evaluate_fixed_points), with the same bits as evaluate(): per axis the
-  /// cell from the point's cell hint (else the previous point's cell, else a
-  /// binary search) and the p+1 values and derivatives by the same Cox-de Boor
-  /// operations as KnotVector::evaluate_on_cell, then the tensor products
+  /// The stencils of consecutive points in one loop
+  /// (Basis::evaluate_fixed_points), with the same bits as evaluate(): per
+  /// axis the cell from the point's cell hint or, without hints, the previous
+  /// point's cell (each with its neighbours; else a binary search), the p+1
+  /// values and derivatives by the Cox-de Boor recursion of
+  /// KnotVector::evaluate_on_cell (less the terms that only add a zero, which
+  /// cannot change a span whose N are all > 0), then the tensor products
   /// N = N^0 N^1 N^2 and grad N multiplied in axis order, as evaluate() does,
   /// with the degree and D as compile-time sizes (no allocation). Stops before
   /// a point outside the knot vectors (KnotVector::contains) or not finite, a
