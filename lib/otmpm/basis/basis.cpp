@@ -202,17 +202,18 @@ bool fill_fixed(const Basis<D>& basis, int S, const AlignedVector<Vec<D>>& x, co
   parallel_chunks(n, [&](long long begin, long long end) {
     Stencil<D>& st = thread_stencil<D>();
     for (long long p = begin; p < end; ++p) table.offset[static_cast<std::size_t>(p)] = static_cast<int>(p * S);
-    // The batched path (evaluate_fixed_points) while it makes progress; a
-    // point it stops at goes through evaluate_fixed()/evaluate(), then the
-    // batch resumes after it.
-    bool batch = true;
+    // The batched path (evaluate_fixed_points); a point it stops at goes
+    // through evaluate_fixed()/evaluate(), then the batch resumes after it.
+    // Two calls in a row that make no progress (a family without a batch, or
+    // one that needs evaluate() now) end it for the chunk.
+    int idle = 0;
     for (int p = static_cast<int>(begin); p < end; ++p) {
-      if (batch) {
+      if (idle < 2) {
         const std::size_t b0 = static_cast<std::size_t>(p) * static_cast<std::size_t>(S);
         const int done = basis.evaluate_fixed_points(&x[static_cast<std::size_t>(p)], static_cast<int>(end - p),
                                                      a.cell_hint ? &(*a.cell_hint)[static_cast<std::size_t>(p)] : nullptr,
                                                      &table.node[b0], &table.N[b0], &table.dN[b0]);
-        batch = done > 0;
+        idle = done > 0 ? 0 : idle + 1;
         p += done;
         if (p == end) break;
       }

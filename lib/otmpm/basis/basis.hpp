@@ -155,7 +155,8 @@ public:
   /// families that search (LME, max-ent), else 0.
   virtual double search_radius() const { return 0.0; }
   /// The stencil size when every point has the same one (linear: 2^D,
-  /// B-splines: (p+1)^D), else 0. fill_basis_table then writes rows in place.
+  /// B-splines: (p+1)^D), else 0. fill_basis_table then writes rows in place
+  /// (and starts again on its general path when a point gives another size).
   virtual int fixed_stencil() const { return 0; }
   /// Fast path of evaluate() for fixed-stencil families: writes the
   /// fixed_stencil() entries of q.x to node/N/dN and returns true, or returns

@@ -20,6 +20,50 @@ void check_degree(int degree) {
           " not supported (use ", kMinBsplineDegree, " .. ", kMaxBsplineDegree, ")");
 }
 
+/// N[r] = N_{cell+r}(x) and dN[r] = dN_{cell+r}/dx, r = 0..P, of the open
+/// knot vector t (degree P) on cell `cell` at x in [v_cell, v_{cell+1}]: the
+/// triangular Cox-de Boor scheme (wobbes eq. after (76)), degree 0 -> P on
+/// the span s = cell + P, t_s = v_cell, t_{s+1} = v_{cell+1}. B[r] holds
+/// N_{s-d+r}^d(x), r = 0..d, while the degree d rises from 0 to P:
+///   N_j^d = (x - t_j)/(t_{j+d} - t_j) N_j^{d-1} + (t_{j+d+1} - x)/(t_{j+d+1} - t_{j+1}) N_{j+1}^{d-1},
+/// j = s - d + r, N_j^{d-1} = B[r-1], N_{j+1}^{d-1} = B[r] (the terms with r - 1 < 0
+/// or r > d - 1 absent: 0). Both denominators contain the non-empty span, so
+/// neither is 0. The quotient B[r] / (t_{s+r+1} - t_{s+r+1-d}) is the right
+/// term of r and the left term of r + 1, formed once; dN_j^P = P (left - right).
+/// The degree as a compile-time constant unrolls the loops; no allocation.
+///
+/// Exact = false leaves out the absent terms, (x - t_j) 0 at r = 0 and
+/// (t_{j+d+1} - x) 0 at r = d. Adding such a zero to y gives y unless y is
+/// itself a zero (then its sign may change: -0 + +0 = +0), and products,
+/// quotients and sums of values that differ only in the sign of a zero again
+/// differ only so: level by level the two variants differ in signs of zeros
+/// only. A span with every N_r > 0 therefore gets the same bits, dN_r too
+/// (left - right is a zero only when both quotients are, and then N_r = 0).
+/// The batch uses it for such spans only (smallest_entry); evaluate_on_cell,
+/// whose zero values are output, keeps the exact operations.
+template <int P, bool Exact = true>
+[[gnu::always_inline]] inline void cox_de_boor(const double* t, double x, int cell, double* N, double* dN) {
+  const int s = cell + P;
+  double B[P + 1] = {1.0};
+#pragma GCC unroll 4
+  for (int d = 1; d <= P; ++d) {
+    double q[P];
+#pragma GCC unroll 4
+    for (int r = 0; r < d; ++r) q[r] = B[r] / (t[s + r + 1] - t[s + r + 1 - d]);
+#pragma GCC unroll 4
+    for (int r = 0; r <= d; ++r) {
+      const double left = r >= 1 ? q[r - 1] : 0.0;
+      const double right = r < d ? q[r] : 0.0;
+      if (Exact || (r > 0 && r < d))
+        B[r] = (x - t[s - d + r]) * left + (t[s + r + 1] - x) * right;
+      else
+        B[r] = r == 0 ? (t[s + 1] - x) * right : (x - t[s]) * left;
+      if (d == P) dN[r] = d * (left - right);
+    }
+  }
+  for (int r = 0; r <= P; ++r) N[r] = B[r];
+}
+
 } // namespace
 
 // ---------------------------------------------------------------------------
@@ -99,28 +143,13 @@ BsplineSpanValues KnotVector::evaluate_on_cell(double x, int cell) const {
                                  " out of range [0, ", num_cells(), ")");
   require<BasisError>(std::isfinite(x), "KnotVector::evaluate_on_cell: x = ", x, " is not finite");
   x = std::clamp(x, lower(), upper());
-  const int s = cell + p_; // knot span index: t_s = v_cell, t_{s+1} = v_{cell+1}
-  // B[r] holds N_{s-d+r}^d(x), r = 0..d, while the degree d rises from 0 to p.
-  std::array<double, kMaxBsplineSpanFunctions> B{};
-  std::array<double, kMaxBsplineSpanFunctions> prev{};
   BsplineSpanValues out;
   out.first = cell;
-  B[0] = 1.0;
-  for (int d = 1; d <= p_; ++d) {
-    prev = B;
-    for (int r = 0; r <= d; ++r) {
-      const int j = s - d + r;
-      // Cox-de Boor: N_j^d = (x - t_j)/(t_{j+d} - t_j) N_j^{d-1}
-      //                    + (t_{j+d+1} - x)/(t_{j+d+1} - t_{j+1}) N_{j+1}^{d-1};
-      // N_j^{d-1} = prev[r-1], N_{j+1}^{d-1} = prev[r]. Both denominators
-      // contain the non-empty span [t_s, t_{s+1}] whenever the term is present.
-      const double left = r >= 1 ? prev[r - 1] / (t_[j + d] - t_[j]) : 0.0;
-      const double right = r <= d - 1 ? prev[r] / (t_[j + d + 1] - t_[j + 1]) : 0.0;
-      B[r] = (x - t_[j]) * left + (t_[j + d + 1] - x) * right;
-      if (d == p_) out.dN[r] = d * (left - right); // dN_j^p = p (N_j^{p-1}/.. - N_{j+1}^{p-1}/..)
-    }
+  switch (p_) {
+  case 1: cox_de_boor<1>(t_.data(), x, cell, out.N.data(), out.dN.data()); break;
+  case 2: cox_de_boor<2>(t_.data(), x, cell, out.N.data(), out.dN.data()); break;
+  default: cox_de_boor<3>(t_.data(), x, cell, out.N.data(), out.dN.data()); break; // p_ <= kMaxBsplineDegree
   }
-  for (int r = 0; r <= p_; ++r) out.N[r] = B[r];
   return out;
 }
 
@@ -143,8 +172,15 @@ KnotVector KnotVector::advected(const std::vector<double>& d) const {
   for (std::size_t i = 0; i < d.size(); ++i)
     require<InstabilityError>(std::isfinite(d[i]), "KnotVector::advected: increment d[", i, "] = ", d[i],
                               " is not finite");
+  // u(v_j) = sum_a N_{j+a}(v_j) d_{j+a} on cell j (find_cell's cell of v_j; the
+  // last cell for the last vertex), the sum of interpolate()
   std::vector<double> w(v_.size());
-  for (std::size_t j = 0; j < v_.size(); ++j) w[j] = v_[j] + interpolate(v_[j], d);
+  for (std::size_t j = 0; j < v_.size(); ++j) {
+    const BsplineSpanValues b = evaluate_on_cell(v_[j], std::min(static_cast<int>(j), num_cells() - 1));
+    double u = 0.0;
+    for (int a = 0; a <= p_; ++a) u += b.N[a] * d[b.first + a];
+    w[j] = v_[j] + u;
+  }
   for (std::size_t j = 0; j + 1 < w.size(); ++j)
     if (!(w[j] < w[j + 1]))
       throw InstabilityError("B-spline knot vector inverted: cell " + std::to_string(j) + " [" +
@@ -362,6 +398,179 @@ template <int D> void BsplineBasis<D>::evaluate(const PointQuery<D>& q, Stencil<
     // sum grad N = 0 holds exactly.
     if (N == 0.0 && g.isZero(0.0)) continue;
     out.push(control_point_id(ijk), N, g);
+  }
+}
+
+// ---------------------------------------------------------------------------
+// The batch (evaluate_fixed_points)
+// ---------------------------------------------------------------------------
+
+namespace {
+
+/// What the batch reads of one axis: the knot vector, the window and the
+/// control-point stride, copied once per batch into a local array (which the
+/// stores to the output arrays cannot alias, so it stays in registers).
+struct BatchAxis {
+  const double* t = nullptr;   ///< the full knot vector t_0 .. t_{n+p}
+  const double* v = nullptr;   ///< the vertices v_0 .. v_m
+  int cells = 0;               ///< m
+  double lower = 0.0;          ///< v_0 (the clamp of evaluate_on_cell)
+  double upper = 0.0;          ///< v_m
+  double inside_lo = 0.0;      ///< KnotVector::contains: x >= inside_lo ...
+  double inside_hi = 0.0;      ///< ... and x <= inside_hi
+  int first_lo = 0;            ///< the window: first control point of a cell >= first_lo ...
+  int first_hi = 0;            ///< ... and <= first_hi
+  int stride = 1;              ///< control-point id stride of the axis (window-local)
+};
+
+/// The cell of x among the m cells of the vertices v, by KnotVector::
+/// find_cell's search (out of line: rare once the hints are set).
+[[gnu::noinline]] int search_cell(const double* v, int m, double x) {
+  if (x <= v[0]) return 0;
+  if (x >= v[m]) return m - 1;
+  return static_cast<int>(std::upper_bound(v, v + m + 1, x) - v) - 1;
+}
+
+/// The cell of x on one axis, for an x that KnotVector::contains: the cell
+/// KnotVector::find_cell returns. Its test (v_j <= x < v_{j+1}, or the last
+/// cell) holds for at most one cell (none below v_0, where the answer is
+/// cell 0), so the hint and its neighbours only save the search.
+[[gnu::always_inline]] inline int locate(const BatchAxis& a, double x, int hint) {
+  const double* v = a.v;
+  const int m = a.cells;
+  for (const int j : {hint, hint + 1, hint - 1})
+    if (j >= 0 && j < m && v[j] <= x && (x < v[j + 1] || j == m - 1)) return j;
+  return search_cell(v, m, x);
+}
+
+/// span_values: evaluate_on_cell's clamp, then the Cox-de Boor recursion
+/// without the absent terms (the same bits for a span with every N_r > 0).
+template <int P>
+[[gnu::always_inline]] inline void span_values(const BatchAxis& a, double x, int cell, double* N, double* dN) {
+  cox_de_boor<P, false>(a.t, std::clamp(x, a.lower, a.upper), cell, N, dN);
+}
+
+/// (P + 1)^D, the entries of a stencil.
+template <int D, int P> constexpr int kSpanEntries = D == 1 ? P + 1 : D == 2 ? (P + 1) * (P + 1) : (P + 1) * (P + 1) * (P + 1);
+
+/// Writes the tensor-product stencil of the per-axis values n, g (entry e =
+/// a0 + (P+1) a1 + (P+1)^2 a2, node base + a0 + a1 stride_1 + a2 stride_2):
+/// N = (n0 n1) n2 and (grad N)_k the same product with g_k in place of n_k,
+/// multiplied left to right in axis order as BsplineBasis::evaluate does.
+template <int D, int P>
+[[gnu::always_inline]] inline void tensor_product(const BatchAxis* ax, const double (&n)[D][P + 1],
+                                                  const double (&g)[D][P + 1], int base, int* node, double* N,
+                                                  Vec<D>* dN) {
+  constexpr int W = P + 1;
+  if constexpr (D == 1) {
+    for (int a = 0; a < W; ++a) {
+      node[a] = base + a;
+      N[a] = n[0][a];
+      dN[a][0] = g[0][a];
+    }
+  } else if constexpr (D == 2) {
+    for (int a1 = 0; a1 < W; ++a1)
+      for (int a0 = 0; a0 < W; ++a0) {
+        const int e = a0 + W * a1;
+        node[e] = base + a0 + a1 * ax[1].stride;
+        N[e] = n[0][a0] * n[1][a1];
+        dN[e][0] = g[0][a0] * n[1][a1];
+        dN[e][1] = n[0][a0] * g[1][a1];
+      }
+  } else {
+    for (int a1 = 0; a1 < W; ++a1)
+      for (int a0 = 0; a0 < W; ++a0) {
+        const double nn = n[0][a0] * n[1][a1], gn = g[0][a0] * n[1][a1], ng = n[0][a0] * g[1][a1];
+        const int id = base + a0 + a1 * ax[1].stride;
+        for (int a2 = 0; a2 < W; ++a2) {
+          const int e = a0 + W * a1 + W * W * a2;
+          node[e] = id + a2 * ax[2].stride;
+          N[e] = nn * n[2][a2];
+          dN[e][0] = gn * n[2][a2];
+          dN[e][1] = ng * n[2][a2];
+          dN[e][2] = nn * g[2][a2];
+        }
+      }
+  }
+}
+
+/// The smallest entry N of the stencil: (min_a n0[a] min_a n1[a]) min_a n2[a],
+/// the product of entry (argmin0, argmin1, ...) itself; every other entry is
+/// at least as large (B-splines are >= 0 and rounded products are monotone).
+template <int D, int P> [[gnu::always_inline]] inline double smallest_entry(const double (&n)[D][P + 1]) {
+  double m = 1.0;
+  for (int k = 0; k < D; ++k) {
+    double mk = n[k][0];
+    for (int a = 1; a <= P; ++a) mk = std::min(mk, n[k][a]);
+    m = k == 0 ? mk : m * mk;
+  }
+  return m;
+}
+
+/// The batch of BsplineBasis<D>::evaluate_fixed_points for degree P; Hint:
+/// cell hints are read from and written to cell_hint (else the previous
+/// point's cells are the hint).
+template <int D, int P, bool Hint>
+int bspline_run(const std::array<BatchAxis, D>& axes, const Vec<D>* x, int count, Index<D>* cell_hint, int* node,
+                double* N, Vec<D>* dN) {
+  constexpr int S = kSpanEntries<D, P>;
+  const std::array<BatchAxis, D> ax = axes;
+  Index<D> last{};
+  for (int i = 0; i < count; ++i) {
+    const Vec<D>& xi = x[i];
+    for (int k = 0; k < D; ++k)
+      if (!(xi[k] >= ax[k].inside_lo && xi[k] <= ax[k].inside_hi)) return i; // also for NaN
+    double n[D][P + 1], g[D][P + 1];
+    Index<D> cell;
+    int base = 0;
+#pragma GCC unroll 3
+    for (int k = 0; k < D; ++k) {
+      const int c = locate(ax[k], xi[k], Hint ? cell_hint[i][k] : last[k]);
+      if (c < ax[k].first_lo || c > ax[k].first_hi) return i; // leaves the window
+      span_values<P>(ax[k], xi[k], c, n[k], g[k]);
+      base += (c - ax[k].first_lo) * ax[k].stride;
+      cell[k] = c;
+    }
+    if (!(smallest_entry<D, P>(n) > 0.0)) return i; // on a knot: evaluate() drops entries
+    tensor_product<D, P>(ax.data(), n, g, base, node + i * S, N + i * S, dN + i * S);
+    if constexpr (Hint) cell_hint[i] = cell;
+    last = cell;
+  }
+  return count;
+}
+
+template <int D, int P>
+int bspline_batch(const std::array<BatchAxis, D>& ax, const Vec<D>* x, int count, Index<D>* cell_hint, int* node,
+                  double* N, Vec<D>* dN) {
+  return cell_hint ? bspline_run<D, P, true>(ax, x, count, cell_hint, node, N, dN)
+                   : bspline_run<D, P, false>(ax, x, count, nullptr, node, N, dN);
+}
+
+} // namespace
+
+template <int D>
+int BsplineBasis<D>::evaluate_fixed_points(const Vec<D>* x, int count, Index<D>* cell_hint, int* node, double* N,
+                                           Vec<D>* dN) const {
+  std::array<BatchAxis, D> ax;
+  for (int k = 0, stride = 1; k < D; stride *= window_[k], ++k) {
+    const KnotVector& kv = knots_[k];
+    const double r = KnotVector::kBoundaryRoundoff * (kv.upper() - kv.lower()); // as in contains()
+    ax[k] = {.t = kv.knots().data(),
+             .v = kv.vertices().data(),
+             .cells = kv.num_cells(),
+             .lower = kv.lower(),
+             .upper = kv.upper(),
+             .inside_lo = kv.lower() - r,
+             .inside_hi = kv.upper() + r,
+             .first_lo = lo_[k],
+             .first_hi = lo_[k] + window_[k] - 1 - degree_,
+             .stride = stride};
+  }
+  switch (degree_) {
+  case 1: return bspline_batch<D, 1>(ax, x, count, cell_hint, node, N, dN);
+  case 2: return bspline_batch<D, 2>(ax, x, count, cell_hint, node, N, dN);
+  case 3: return bspline_batch<D, 3>(ax, x, count, cell_hint, node, N, dN);
+  default: return 0;
   }
 }
 

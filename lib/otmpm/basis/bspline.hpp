@@ -160,6 +160,25 @@ public:
   void evaluate(const PointQuery<D>& q, Stencil<D>& out) const override;
   bool linearly_complete() const override { return true; }
   int max_stencil() const override;
+  /// (p+1)^D, the stencil of every point off the knots, so that
+  /// fill_basis_table writes rows in place. evaluate() drops the entries with
+  /// N = 0 and grad N = 0 (points on a knot, p >= 2), which gives such a point
+  /// fewer entries; the table fill then takes its general path.
+  int fixed_stencil() const override { return max_stencil(); }
+  /// The stencils of consecutive points in one loop
+  /// (Basis::evaluate_fixed_points), with the same bits as evaluate(): per
+  /// axis the cell from the point's cell hint or, without hints, the previous
+  /// point's cell (each with its neighbours; else a binary search), the p+1
+  /// values and derivatives by the Cox-de Boor recursion of
+  /// KnotVector::evaluate_on_cell (less the terms that only add a zero, which
+  /// cannot change a span whose N are all > 0), then the tensor products
+  /// N = N^0 N^1 N^2 and grad N multiplied in axis order, as evaluate() does,
+  /// with the degree and D as compile-time sizes (no allocation). Stops before
+  /// a point outside the knot vectors (KnotVector::contains) or not finite, a
+  /// point whose stencil leaves the window, and a point with an entry N = 0
+  /// (on a knot: evaluate() decides which entries it keeps).
+  int evaluate_fixed_points(const Vec<D>* x, int count, Index<D>* cell_hint, int* node, double* N,
+                            Vec<D>* dN) const override;
   /// The element walk over knot spans starts from each point's last cell.
   PointStateUse point_state_use(bool) const override { return {.cell_hint = true}; }
 
