@@ -9,6 +9,7 @@
 #include "temp_dir.hpp"
 
 #include <doctest/doctest.h>
+#include <hdf5.h>
 
 #include <cmath>
 #include <cstdio>
@@ -219,5 +220,57 @@ TEST_CASE("particle files: a CSV column named twice is refused (its values would
     std::ofstream(path) << "# a comment\n" << header << "\n0, 0, 1, 2, 3\n";
     const std::string name = header.find("a, a") != std::string::npos ? "a" : "x";
     CHECK(error_of([&] { read_particle_file(path, 2); }) == path + ":2: column '" + name + "' appears twice");
+  }
+}
+
+TEST_CASE("particle files in blocks: an HDF5 file whose datasets are each one deflated chunk larger than the "
+          "default chunk cache gives the whole read's values") {
+  // 150 000 rows: x is one 2.4 MB chunk, more than HDF5's default 1 MiB
+  // chunk cache, which the reader enlarges for such a dataset (else every
+  // block re-reads and inflates the whole chunk).
+  test::TempDir tmp("particle_stream_chunked");
+  const std::string path = tmp.file("one_chunk.h5");
+  const hsize_t n = 150000;
+  std::vector<double> x(2 * n), volume(n);
+  for (hsize_t i = 0; i < n; ++i) {
+    x[2 * i] = 1e-3 * static_cast<double>(i % 1000) + 1.0 / 3.0;
+    x[2 * i + 1] = 1e-3 * static_cast<double>(i / 1000);
+    volume[i] = 1e-6 * (1.0 + static_cast<double>(i % 7));
+  }
+  const hid_t file = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+  REQUIRE(file >= 0);
+  for (const bool positions : {true, false}) {
+    const hsize_t dims[2] = {n, 2};
+    const int rank = positions ? 2 : 1;
+    const hid_t space = H5Screate_simple(rank, dims, nullptr);
+    const hid_t create = H5Pcreate(H5P_DATASET_CREATE);
+    REQUIRE(H5Pset_chunk(create, rank, dims) >= 0);
+    REQUIRE(H5Pset_deflate(create, 1) >= 0);
+    const hid_t set = H5Dcreate2(file, positions ? "x" : "volume", H5T_IEEE_F64LE, space, H5P_DEFAULT, create,
+                                 H5P_DEFAULT);
+    REQUIRE(H5Dwrite(set, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, positions ? x.data() : volume.data()) >= 0);
+    H5Dclose(set);
+    H5Pclose(create);
+    H5Sclose(space);
+  }
+  H5Fclose(file);
+  const ParticleFile whole = read_particle_file(path, 2);
+  CHECK(whole.x == x);
+  CHECK(whole.volume == volume);
+  for (const std::size_t chunk : {std::size_t{1000}, kParticleChunk}) {
+    CAPTURE(chunk);
+    std::vector<double> got_x, got_volume;
+    int blocks = 0;
+    stream_particle_file(
+        path, 2,
+        [&](const ParticleColumns&, const ParticleRows& rows) {
+          got_x.insert(got_x.end(), rows.x.begin(), rows.x.end());
+          got_volume.insert(got_volume.end(), rows.volume.begin(), rows.volume.end());
+          ++blocks;
+        },
+        chunk);
+    CHECK(got_x == x);
+    CHECK(got_volume == volume);
+    CHECK(blocks == static_cast<int>((n + chunk - 1) / chunk));
   }
 }

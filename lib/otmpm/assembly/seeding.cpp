@@ -268,13 +268,24 @@ template <int D> std::optional<std::pair<Vec<D>, Vec<D>>> file_box(const std::st
   return std::pair{lo, hi};
 }
 
-/// The boxes where the seeds of the bodies after b lie (their shapes'
-/// bounds, a file's positions; widened for round-off), or none when that
-/// is not known before they are seeded (a shape or file refused later, in turn).
-template <int D> std::optional<std::vector<std::pair<Vec<D>, Vec<D>>>> later_boxes(const Scene& scene, int b) {
-  std::vector<std::pair<Vec<D>, Vec<D>>> boxes;
-  for (std::size_t a = static_cast<std::size_t>(b) + 1; a < scene.bodies.size(); ++a) {
-    const BodySection& body = scene.bodies[a];
+/// The box where the seeds of each body lie (its shape's bounds, a file's
+/// positions; widened for round-off), found when first asked for - a file
+/// body's box is a pass over its file, made once per seeding pass - or none
+/// when that is not known before the body is seeded (a shape or file
+/// refused later, in turn).
+template <int D> class BodyBoxes {
+public:
+  using Box = std::pair<Vec<D>, Vec<D>>;
+  explicit BodyBoxes(const Scene& scene) : scene_(scene), memo_(scene.bodies.size()) {}
+
+  /// The box of body a.
+  const std::optional<Box>& of(std::size_t a) {
+    if (!memo_[a]) memo_[a] = find(scene_.bodies[a]);
+    return *memo_[a];
+  }
+
+private:
+  std::optional<Box> find(const BodySection& body) const {
     Vec<D> lo, hi;
     if (body.shape == "file") {
       const auto box = file_box<D>(body.file);
@@ -288,15 +299,31 @@ template <int D> std::optional<std::vector<std::pair<Vec<D>, Vec<D>>>> later_box
       }
     }
     const Vec<D> margin = 1e-6 * (hi - lo) + 1e-9 * (lo.cwiseAbs() + hi.cwiseAbs());
-    boxes.emplace_back(lo - margin, hi + margin);
+    return Box{lo - margin, hi + margin};
+  }
+
+  const Scene& scene_;
+  std::vector<std::optional<std::optional<Box>>> memo_; // outer: found yet
+};
+
+/// The boxes where the seeds of the bodies after b lie, or none when one of
+/// them is not known before it is seeded.
+template <int D>
+std::optional<std::vector<std::pair<Vec<D>, Vec<D>>>> later_boxes(const Scene& scene, int b, BodyBoxes<D>& known) {
+  std::vector<std::pair<Vec<D>, Vec<D>>> boxes;
+  for (std::size_t a = static_cast<std::size_t>(b) + 1; a < scene.bodies.size(); ++a) {
+    const auto& box = known.of(a);
+    if (!box) return std::nullopt;
+    boxes.push_back(*box);
   }
   return boxes;
 }
 
 /// The filter of a file body's shape (ParticleCells::Builder): only the
 /// cubes that meet a later body's seeds are asked about (the overlap test).
-template <int D> std::function<bool(const Vec<D>&, const Vec<D>&)> later_filter(const Scene& scene, int b) {
-  auto boxes = later_boxes<D>(scene, b);
+template <int D>
+std::function<bool(const Vec<D>&, const Vec<D>&)> later_filter(const Scene& scene, int b, BodyBoxes<D>& known) {
+  auto boxes = later_boxes<D>(scene, b, known);
   if (!boxes) return {};
   return [boxes = std::move(*boxes)](const Vec<D>& lo, const Vec<D>& hi) {
     for (const auto& [blo, bhi] : boxes)
@@ -340,13 +367,14 @@ template <int D> Seed<D> row_seed(const ParticleRows& rows, std::size_t i, const
 /// emit(seed) for every row in file order, which returns whether it keeps
 /// the seed (seed.row: the index of its values in the body's
 /// out.file_state, which hold the kept rows only), then adds the body's
-/// shape to `shapes`. An error of a seed (overlap) is raised after the file
-/// was read, as when it was read whole before seeding (a bad row first).
+/// shape to `shapes` (holding only the cubes near the later bodies' boxes
+/// in `known`). An error of a seed (overlap) is raised after the file was
+/// read, as when it was read whole before seeding (a bad row first).
 template <int D, class Emit>
-void stream_file_body(const Scene& scene, int b, std::vector<std::unique_ptr<Shape<D>>>& shapes,
+void stream_file_body(const Scene& scene, int b, std::vector<std::unique_ptr<Shape<D>>>& shapes, BodyBoxes<D>& known,
                       SeededBodies<D>& out, Emit&& emit) {
   const BodySection& body = scene.bodies[static_cast<std::size_t>(b)];
-  typename ParticleCells<D>::Builder cells(later_filter<D>(scene, b));
+  typename ParticleCells<D>::Builder cells(later_filter<D>(scene, b, known));
   FileColumns columns;
   int kept = 0;
   std::exception_ptr refused;
@@ -405,6 +433,7 @@ long long seed_bodies_where(const Scene& scene, const Vec<D>& h, const Cartesian
   SeededBodies<D>& out = result ? *result : unused;
   std::vector<std::unique_ptr<Shape<D>>> shapes;
   std::vector<Seed<D>> kept;
+  BodyBoxes<D> known(scene); // the later bodies' boxes (file bodies' shapes hold only the cubes near them)
   long long id = 0;
   for (int b = 0; b < static_cast<int>(scene.bodies.size()); ++b) {
     // A seed inside an earlier body is refused or dropped as it comes (the
@@ -422,7 +451,7 @@ long long seed_bodies_where(const Scene& scene, const Vec<D>& h, const Cartesian
       return keeps;
     };
     if (scene.bodies[static_cast<std::size_t>(b)].shape == "file") {
-      stream_file_body<D>(scene, b, shapes, out, emit); // its rows are not held beyond those kept
+      stream_file_body<D>(scene, b, shapes, known, out, emit); // its rows are not held beyond those kept
     } else {
       open_body<D>(scene, b, shapes);
       generate_body<D>(scene, b, h, lattice, *shapes.back(), nullptr, out, emit);

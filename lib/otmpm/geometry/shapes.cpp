@@ -207,6 +207,9 @@ template <int D> long long ParticleCells<D>::key(const Vec<D>& x) const {
 }
 
 template <int D> bool ParticleCells<D>::contains(const Vec<D>& x) const {
+  // Far from every cube (a cell beyond their bounds): no bucket to look in,
+  // and no bucket index of a far point (an integer overflow) is formed.
+  if (!((x.array() >= lower_.array() - cell_).all() && (x.array() <= upper_.array() + cell_).all())) return false;
   // A cube of half side <= cell / 2 around a centre in bucket c reaches at
   // most the neighbouring buckets: look in the 3^D buckets around x.
   Vec<D> probe;

@@ -433,11 +433,37 @@ Matrix<T> read_matrix(hid_t parent, const std::string& name, const std::string& 
 }
 } // namespace
 
+namespace {
+/// Bytes of the chunks a block of rows of the chunked dataset `set` passes
+/// through (one chunk along the rows, all of them across the columns), or 0
+/// when it is not chunked.
+std::size_t chunk_row_bytes(hid_t set, hsize_t cols, const std::string& path, const std::string& what) {
+  Handle create(checked(H5Dget_create_plist(set), path, what), H5Pclose);
+  if (H5Pget_layout(create.get()) != H5D_CHUNKED) return 0;
+  hsize_t chunk[2] = {1, 1};
+  if (H5Pget_chunk(create.get(), 2, chunk) < 1) return 0;
+  Handle type(checked(H5Dget_type(set), path, what), H5Tclose);
+  const hsize_t across = chunk[1] > 0 ? (cols + chunk[1] - 1) / chunk[1] : 1;
+  return static_cast<std::size_t>(chunk[0] * chunk[1] * across * H5Tget_size(type.get()));
+}
+} // namespace
+
 DoubleRows::DoubleRows(hid_t parent, const std::string& name, const std::string& path) : name_(name), path_(path) {
   OpenMatrix m = open_matrix(parent, name, path, H5T_FLOAT);
-  set_ = std::move(m.set);
   rows_ = m.rows;
   cols_ = m.cols;
+  // A chunked (e.g. compressed) dataset read a block of rows at a time: its
+  // chunk cache must hold the chunks a block passes through, or a chunk larger
+  // than the default cache (1 MiB) is read and inflated again for every block
+  // that touches it (a dataset stored as one chunk: once per block).
+  const std::string what = "read dataset " + name;
+  if (const std::size_t bytes = chunk_row_bytes(m.set.get(), cols_, path, what); bytes > (std::size_t{1} << 20)) {
+    Handle access(checked(H5Pcreate(H5P_DATASET_ACCESS), path, what), H5Pclose);
+    checked_status(H5Pset_chunk_cache(access.get(), 12421, 2 * bytes, 1.0), path, what);
+    m.set.close(); // else the reopened dataset shares the open one's cache
+    m.set = Handle(checked(H5Dopen2(parent, name.c_str(), access.get()), path, what), H5Dclose);
+  }
+  set_ = std::move(m.set);
 }
 
 void DoubleRows::read(hsize_t first, hsize_t count, double* out) const {

@@ -55,9 +55,9 @@ inline constexpr std::size_t kParticleChunk = 65536;
 /// rows at a time (CSV line by line, HDF5 in hyperslabs of every dataset),
 /// calling each(columns, rows) for every block of rows in file order: at
 /// most `chunk` rows are held at once. The checks and messages are those of
-/// read_particle_file; rows before a bad one have been handed over when it
-/// throws. The file's layout (columns, datasets and their sizes) is checked
-/// before any row is handed over.
+/// read_particle_file; the blocks before the one holding a bad row have been
+/// handed over when it throws. The file's layout (columns, datasets and
+/// their sizes) is checked before any row is handed over.
 void stream_particle_file(const std::string& path, int dimension,
                           const std::function<void(const ParticleColumns&, const ParticleRows&)>& each,
                           std::size_t chunk = kParticleChunk);
@@ -67,7 +67,10 @@ void stream_particle_file(const std::string& path, int dimension,
 /// dataset (HDF5) for a missing column, a value that is not a finite
 /// number, a volume <= 0, ragged rows or no particles. A file with several
 /// such faults is refused for one of them: the first in the file's layout
-/// (header, datasets and their sizes), else the first bad row.
+/// (header, datasets and their sizes), else a bad row - in a CSV file the
+/// first; in an HDF5 file the first of the first dataset found faulty in the
+/// first block of rows holding a fault (the order of the checks within a
+/// block: positions, volumes, velocities, the further fields).
 ParticleFile read_particle_file(const std::string& path, int dimension);
 
 } // namespace otmpm
