@@ -322,7 +322,7 @@ std::optional<std::vector<std::pair<Vec<D>, Vec<D>>>> later_boxes(const Scene& s
 /// The filter of a file body's shape (ParticleCells::Builder): only the
 /// cubes that meet a later body's seeds are asked about (the overlap test).
 template <int D>
-std::function<bool(const Vec<D>&, const Vec<D>&)> later_filter(const Scene& scene, int b, BodyBoxes<D>& known) {
+typename ParticleCells<D>::Filter later_filter(const Scene& scene, int b, BodyBoxes<D>& known) {
   auto boxes = later_boxes<D>(scene, b, known);
   if (!boxes) return {};
   return [boxes = std::move(*boxes)](const Vec<D>& lo, const Vec<D>& hi) {

@@ -160,7 +160,10 @@ BsplineSpanValues KnotVector::evaluate(double x, int hint) const {
 double KnotVector::interpolate(double x, const std::vector<double>& c) const {
   require<std::invalid_argument>(c.size() == static_cast<std::size_t>(num_basis()), "KnotVector::interpolate: c has ",
                                  c.size(), " coefficients for ", num_basis(), " basis functions");
-  const BsplineSpanValues b = evaluate(x);
+  return span_sum(evaluate(x), c);
+}
+
+double KnotVector::span_sum(const BsplineSpanValues& b, const std::vector<double>& c) const {
   double u = 0.0;
   for (int a = 0; a <= p_; ++a) u += b.N[a] * c[b.first + a];
   return u;
@@ -173,14 +176,10 @@ KnotVector KnotVector::advected(const std::vector<double>& d) const {
     require<InstabilityError>(std::isfinite(d[i]), "KnotVector::advected: increment d[", i, "] = ", d[i],
                               " is not finite");
   // u(v_j) = sum_a N_{j+a}(v_j) d_{j+a} on cell j (find_cell's cell of v_j; the
-  // last cell for the last vertex), the sum of interpolate()
+  // last cell for the last vertex): interpolate() without the search
   std::vector<double> w(v_.size());
-  for (std::size_t j = 0; j < v_.size(); ++j) {
-    const BsplineSpanValues b = evaluate_on_cell(v_[j], std::min(static_cast<int>(j), num_cells() - 1));
-    double u = 0.0;
-    for (int a = 0; a <= p_; ++a) u += b.N[a] * d[b.first + a];
-    w[j] = v_[j] + u;
-  }
+  for (std::size_t j = 0; j < v_.size(); ++j)
+    w[j] = v_[j] + span_sum(evaluate_on_cell(v_[j], std::min(static_cast<int>(j), num_cells() - 1)), d);
   for (std::size_t j = 0; j + 1 < w.size(); ++j)
     if (!(w[j] < w[j + 1]))
       throw InstabilityError("B-spline knot vector inverted: cell " + std::to_string(j) + " [" +

@@ -109,6 +109,8 @@ public:
   static constexpr double kBoundaryRoundoff = 1e-12;
 
 private:
+  /// sum_a N_{first+a} c_{first+a} over the span values b (interpolate()'s sum).
+  double span_sum(const BsplineSpanValues& b, const std::vector<double>& c) const;
   std::vector<double> v_; ///< vertices (distinct knots)
   std::vector<double> t_; ///< full open knot vector
   int p_ = 1;

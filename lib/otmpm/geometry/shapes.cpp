@@ -158,11 +158,11 @@ ParticleCells<D>::ParticleCells(const AlignedVector<Vec<D>>& x, const std::vecto
   require<std::invalid_argument>(volume.size() == x.size(), "ParticleCells: ", x.size(), " positions, ",
                                  volume.size(), " volumes");
   cubes_.reserve(x.size());
-  for (std::size_t p = 0; p < x.size(); ++p) add(x[p], volume[p], true);
+  for (std::size_t p = 0; p < x.size(); ++p) add(x[p], volume[p], {});
   index();
 }
 
-template <int D> void ParticleCells<D>::add(const Vec<D>& x, double volume, bool hold) {
+template <int D> void ParticleCells<D>::add(const Vec<D>& x, double volume, const Filter& keep) {
   const std::size_t p = count_++;
   require(x.allFinite(), "particle file: particle ", p, ": position ", x, " is not finite");
   require(finite_positive(volume), "particle file: particle ", p, ": volume must be finite and > 0, got ", volume);
@@ -172,7 +172,7 @@ template <int D> void ParticleCells<D>::add(const Vec<D>& x, double volume, bool
   lower_ = lower_.cwiseMin(Vec<D>(x.array() - half));
   upper_ = upper_.cwiseMax(Vec<D>(x.array() + half));
   total_ += volume;
-  if (!hold) return;
+  if (keep && !keep(Vec<D>(x.array() - half), Vec<D>(x.array() + half))) return;
   cubes_.push_back({0, x, half});
 }
 
@@ -182,16 +182,10 @@ template <int D> void ParticleCells<D>::index() {
 }
 
 template <int D>
-ParticleCells<D>::Builder::Builder(std::function<bool(const Vec<D>&, const Vec<D>&)> keep)
-    : keep_(std::move(keep)), cells_(new ParticleCells<D>()) {}
+ParticleCells<D>::Builder::Builder(Filter keep) : keep_(std::move(keep)), cells_(new ParticleCells<D>()) {}
 
 template <int D> void ParticleCells<D>::Builder::add(const Vec<D>& x, double volume) {
-  bool hold = true;
-  if (keep_ && x.allFinite() && finite_positive(volume)) {
-    const double half = 0.5 * std::pow(volume, 1.0 / D);
-    hold = keep_(Vec<D>(x.array() - half), Vec<D>(x.array() + half));
-  }
-  cells_->add(x, volume, hold);
+  cells_->add(x, volume, keep_);
 }
 
 template <int D> std::unique_ptr<ParticleCells<D>> ParticleCells<D>::Builder::finish() {

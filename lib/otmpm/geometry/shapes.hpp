@@ -52,6 +52,9 @@ public:
   double measure() const override { return total_; }
   double boundary_measure() const override { return 0.0; }
 
+  /// Which particles' cubes [lower, upper] a shape holds (empty: all).
+  using Filter = std::function<bool(const Vec<D>& lower, const Vec<D>& upper)>;
+
   /// Builds the shape one particle at a time (a particle file read in
   /// blocks), holding only the particles whose cube [lower, upper] `keep`
   /// accepts (all without it). Its bounds and measure are those of all the
@@ -59,14 +62,14 @@ public:
   /// wherever only accepted cubes can hold x (where the caller asks).
   class Builder {
   public:
-    explicit Builder(std::function<bool(const Vec<D>& lower, const Vec<D>& upper)> keep = {});
+    explicit Builder(Filter keep = {});
     /// Adds the next particle; InputError as the constructor's.
     void add(const Vec<D>& x, double volume);
     /// The shape of the particles added (once); InputError when there are none.
     std::unique_ptr<ParticleCells<D>> finish();
 
   private:
-    std::function<bool(const Vec<D>&, const Vec<D>&)> keep_;
+    Filter keep_;
     std::unique_ptr<ParticleCells<D>> cells_;
   };
 
@@ -75,9 +78,9 @@ public:
 
 private:
   ParticleCells() = default;
-  /// Checks particle `p` and adds it to the bounds and measure (and to the
-  /// held particles when `hold`).
-  void add(const Vec<D>& x, double volume, bool hold);
+  /// Checks the next particle and adds it to the bounds and measure, and
+  /// to the held particles unless `keep` refuses its cube.
+  void add(const Vec<D>& x, double volume, const Filter& keep);
   /// Sorts the held particles into their buckets (after the last add).
   void index();
   long long key(const Vec<D>& x) const;

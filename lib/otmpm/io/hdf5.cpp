@@ -431,9 +431,7 @@ Matrix<T> read_matrix(hid_t parent, const std::string& name, const std::string& 
                    "read dataset " + name);
   return m;
 }
-} // namespace
 
-namespace {
 /// Bytes of the chunks a block of rows of the chunked dataset `set` passes
 /// through (one chunk along the rows, all of them across the columns), or 0
 /// when it is not chunked.
