@@ -185,6 +185,12 @@ std::vector<std::string> link_names(hid_t group, const std::string& path) {
   return iterated_names<H5L_info_t>(iterate, path, "list a group");
 }
 
+std::size_t link_count(hid_t group, const std::string& path) {
+  H5G_info_t info;
+  checked_status(H5Gget_info(group, &info), path, "count the links of a group");
+  return static_cast<std::size_t>(info.nlinks);
+}
+
 Handle string_type(std::size_t length, const std::string& path) {
   Handle t(checked(H5Tcopy(H5T_C_S1), path, "copy the string type"), H5Tclose);
   checked_status(H5Tset_size(t.get(), length + 1), path, "size a string type");

@@ -121,6 +121,10 @@ Handle open_group(hid_t parent, const std::string& name, const std::string& path
 bool has_link(hid_t parent, const std::string& name);
 /// Names of the links in a group, in name order.
 std::vector<std::string> link_names(hid_t group, const std::string& path);
+/// The number of links in a group, from its stored count (H5Gget_info): no
+/// iteration over the links, which crashes inside HDF5 on a file whose link
+/// table a killed writer left half-written.
+std::size_t link_count(hid_t group, const std::string& path);
 
 /// A fixed-length, null-terminated UTF-8 string type of `length` characters.
 Handle string_type(std::size_t length, const std::string& path);

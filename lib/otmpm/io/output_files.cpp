@@ -372,7 +372,7 @@ ExistingResult inspect_result(const std::string& path) {
     r.otmpm = !r.version.empty() && h5::has_attribute(id, "status");
     if (h5::has_link(id, "frames")) {
       const h5::Handle frames = h5::open_group(id, "frames", path);
-      r.frames = static_cast<int>(h5::link_names(frames.get(), path).size());
+      r.frames = static_cast<int>(h5::link_count(frames.get(), path)); // a killed run's file: no link iteration
     }
   } catch (const std::runtime_error&) {
     r.otmpm = false;
