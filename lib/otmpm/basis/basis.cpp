@@ -351,9 +351,12 @@ void fill_basis_table(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, con
   const int n = static_cast<int>(x.size());
   PointArrays<D> a = used_arrays<D>(arrays);
 
-  basis.nodes().prepare_search(); // build the R-tree before threads query it
-  if (a.neighbours && basis.search_radius() > 0.0) a.neighbours->prepare(basis.nodes(), n, basis.search_radius());
-  else a.neighbours = nullptr;
+  if (basis.search_radius() > 0.0) {
+    basis.nodes().prepare_search(); // build the R-tree before threads query it
+    if (a.neighbours) a.neighbours->prepare(basis.nodes(), n, basis.search_radius());
+  } else {
+    a.neighbours = nullptr; // a family that does not search (NodeSet::within) needs no index
+  }
   if (const int S = basis.fixed_stencil(); S > 0 && fill_fixed<D>(basis, S, x, a, table)) return;
 
   const int threads = team_size(n);

@@ -5,6 +5,8 @@
 #include <Eigen/SparseCholesky>
 
 #include <algorithm>
+#include <bit>
+#include <cstdint>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -28,18 +30,34 @@ bool same_pattern(const Eigen::SparseMatrix<double>& a, const Eigen::SparseMatri
          std::equal(a.innerIndexPtr(), a.innerIndexPtr() + nnz, b.innerIndexPtr());
 }
 
-/// True when every id lies in [0, nodes) (an unsigned compare per entry).
-bool nodes_in_range(const std::vector<int>& node, int nodes) {
-  unsigned out = 0;
-  for (const int I : node) out |= static_cast<unsigned>(static_cast<unsigned>(I) >= static_cast<unsigned>(nodes));
-  return out == 0;
+/// S when every row of the table has S entries (offset = 0, S, 2S, ...), else 0.
+int uniform_row_size(const std::vector<int>& offset) {
+  if (offset.size() < 2) return 0;
+  const int S = offset[1] - offset[0];
+  for (std::size_t p = 1; p < offset.size(); ++p)
+    if (offset[p] - offset[p - 1] != S) return 0;
+  return S;
 }
 
-/// True when every mass is finite and >= 0 (m <= DBL_MAX fails for NaN and +Inf).
+/// True when every id lies in [0, nodes): the top bit of I | (nodes - 1 - I),
+/// in unsigned arithmetic, is set exactly when I < 0 or I >= nodes (also for
+/// nodes = 0). Adds, ors and one test: the loop vectorises.
+bool nodes_in_range(const std::vector<int>& node, int nodes) {
+  const unsigned last = static_cast<unsigned>(nodes) - 1u;
+  unsigned out = 0;
+  for (const int I : node) out |= static_cast<unsigned>(I) | (last - static_cast<unsigned>(I));
+  return (out >> 31) == 0;
+}
+
+/// True when every mass is finite and >= +0: the sign and exponent bits of
+/// such a double, plus one, stay below 0x800 (+Inf and NaN reach 0x800, a
+/// negative number 0x801 or more). Shifts, adds and ors: the loop vectorises.
+/// A mass of -0.0 is refused here, which only sends the caller to its exact
+/// test (that accepts it).
 bool masses_valid(const std::vector<double>& m_p) {
-  bool ok = true;
-  for (const double m : m_p) ok = ok & (m >= 0.0) & (m <= std::numeric_limits<double>::max());
-  return ok;
+  std::uint64_t out = 0;
+  for (const double m : m_p) out |= (std::bit_cast<std::uint64_t>(m) >> 52) + 1u;
+  return (out & 0x1800u) == 0;
 }
 
 /// The argument checks of MassMatrix::assemble: consistent sizes, node ids in
@@ -120,27 +138,43 @@ void MassMatrix<D>::assemble_values(const BasisTable<D>& table, const std::vecto
   M_.resize(nodes, nodes);
   M_.setFromTriplets(triplets.begin(), triplets.end());
   M_.makeCompressed();
-  // The place of each product in M_ (binary search in its column), the first
-  // product of each place marked.
+  // The place of each product in M_ (binary search in its column).
   slot_.resize(triplets.size());
-  std::vector<char> seen(static_cast<std::size_t>(M_.nonZeros()), 0);
   const int* outer = M_.outerIndexPtr();
   const int* inner = M_.innerIndexPtr();
   for (std::size_t t = 0; t < triplets.size(); ++t) {
     const int col = triplets[t].col(), row = triplets[t].row();
-    const int s = static_cast<int>(std::lower_bound(inner + outer[col], inner + outer[col + 1], row) - inner);
-    slot_[t] = seen[static_cast<std::size_t>(s)] ? s : -s - 1;
-    seen[static_cast<std::size_t>(s)] = 1;
+    slot_[t] = static_cast<int>(std::lower_bound(inner + outer[col], inner + outer[col + 1], row) - inner);
   }
+  row_size_ = uniform_row_size(table.offset);
   offset_ = table.offset;
   node_ = table.node;
 }
 
 /// The products m_p N_a N_b of every table row summed into their places in
-/// M_ (slot_: the place, negative for the first product of a place, which is
-/// stored rather than added), in table order - the sums setFromTriplets
-/// formed. m_p N_a is formed once per a: the same bits as m_p * N_a * N_b.
+/// M_ (slot_), in table order - the sums setFromTriplets formed, which stores
+/// the first product of a place and adds the others: every place starts at
+/// -0.0, and -0.0 + v is v bit for bit (also for v = +0.0). m_p N_a is formed
+/// once per a: the same bits as m_p * N_a * N_b. Rows of one size S known
+/// at compile time (the fixed stencils: 2^D, 3^D, 4^D) get unrolled loops.
 template <int D> void MassMatrix<D>::sum_into_slots(const BasisTable<D>& table, const std::vector<double>& m_p) {
+  std::fill_n(M_.valuePtr(), M_.nonZeros(), -0.0);
+  switch (row_size_) {
+  case 2: return sum_rows<2>(table, m_p);
+  case 3: return sum_rows<3>(table, m_p);
+  case 4: return sum_rows<4>(table, m_p);
+  case 8: return sum_rows<8>(table, m_p);
+  case 9: return sum_rows<9>(table, m_p);
+  case 16: return sum_rows<16>(table, m_p);
+  case 27: return sum_rows<27>(table, m_p);
+  default: return sum_rows<0>(table, m_p);
+  }
+}
+
+/// sum_into_slots' loop: rows of S entries each (S > 0), or of any size (S = 0).
+template <int D>
+template <int S>
+void MassMatrix<D>::sum_rows(const BasisTable<D>& table, const std::vector<double>& m_p) {
   double* __restrict value = M_.valuePtr();
   const double* __restrict N = table.N.data();
   const double* __restrict m = m_p.data();
@@ -148,15 +182,13 @@ template <int D> void MassMatrix<D>::sum_into_slots(const BasisTable<D>& table, 
   const int* __restrict slot = slot_.data();
   const int rows = table.rows();
   for (int p = 0; p < rows; ++p) {
-    const int b0 = offset[p], b1 = offset[p + 1];
-    for (int a = b0; a < b1; ++a) {
-      const double m_a = m[p] * N[a];
-      for (int b = b0; b < b1; ++b, ++slot) {
-        const double v = m_a * N[b];
-        const int s = *slot;
-        if (s < 0) value[-s - 1] = v;
-        else value[s] += v;
-      }
+    const int b0 = S > 0 ? p * S : offset[p];
+    const int n = S > 0 ? S : offset[p + 1] - b0;
+    const double* __restrict Np = N + b0;
+    for (int a = 0; a < n; ++a) {
+      const double m_a = m[p] * Np[a];
+      for (int b = 0; b < n; ++b) value[slot[b]] += m_a * Np[b];
+      slot += n;
     }
   }
 }

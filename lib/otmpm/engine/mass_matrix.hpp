@@ -48,13 +48,16 @@ private:
   struct Factor;
   void assemble_values(const BasisTable<D>& table, const std::vector<double>& m_p, int nodes);
   void sum_into_slots(const BasisTable<D>& table, const std::vector<double>& m_p);
+  template <int S> void sum_rows(const BasisTable<D>& table, const std::vector<double>& m_p);
   void factorise(int k, const std::vector<char>& fixed, std::vector<std::unique_ptr<Factor>>& old);
   Eigen::SparseMatrix<double> M_;
   std::vector<std::unique_ptr<Factor>> factor_; // one per component
   std::vector<std::vector<char>> fixed_;        // per component: identity rows
   // The table's node lists of the last assembly and, per product of that
-  // order, its place in M_'s values (negative - 1: the first product there).
+  // order, its place in M_'s values; row_size_: the size of every row of
+  // that table when they are all equal, else 0.
   std::vector<int> offset_, node_, slot_;
+  int row_size_ = 0;
   int pattern_reuses_ = 0, analysis_reuses_ = 0;
 };
 
