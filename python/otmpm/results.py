@@ -243,6 +243,9 @@ def open(path):  # noqa: A001 - the module's one entry point, as in h5py.File / 
 
     While a run still writes the file, HDF5's file locking refuses it
     (BlockingIOError); set HDF5_USE_FILE_LOCKING=FALSE to peek at a running result.
+    A damaged file raises OSError naming it; the file of a killed run gives
+    the frames it holds, with a RuntimeWarning when its last frame was left
+    half-linked (docs/user-guide.md, "Damaged files").
     """
     return Results(path)
 
