@@ -58,6 +58,19 @@ UNITS = {"x": "m", "displacement": "m", "v": "m/s", "a": "m/s^2", "stress": "Pa"
 AXES = "xyz"
 
 
+def link_names(group):
+    """The names in a group, sorted: its name index walked in native order.
+    h5py's iteration (increasing name order) crashes libhdf5 on a group a
+    killed run left half-written (otmpm.results.link_names); the frames found
+    are drawn, with a warning when the stored link count differs."""
+    names = []
+    group.id.links.iterate(names.append, idx_type=h5py.h5.INDEX_NAME, order=h5py.h5.ITER_NATIVE)
+    if len(names) != len(group):
+        print(f"otmpm render: warning: {group.file.filename}: group {group.name} records {len(group)} links but "
+              f"holds {len(names)} (a damaged file, e.g. left by a killed run)", file=sys.stderr)
+    return sorted(n.decode() for n in names)
+
+
 def text(value):
     return value.decode() if isinstance(value, bytes) else str(value)
 
@@ -73,13 +86,13 @@ class Result:
         if "frames" not in self.file or len(self.file["frames"]) == 0:
             fail(f"{path}: no frames (not an otmpm result file, or the run wrote none)")
         self.path = path
-        self.names = sorted(self.file["frames"])
+        self.names = link_names(self.file["frames"])
         self.dim = int(self.file.attrs.get("dimension", self.file["frames"][self.names[0]]["x"].shape[1]))
         self.status = text(self.file.attrs.get("status", ""))
 
     def fields(self):
         first = self.file["frames"][self.names[0]]
-        return [name for name in first if name != "x3"]
+        return [name for name in link_names(first) if name != "x3"]
 
     def frame(self, k):
         return self.file["frames"][self.names[k]]
@@ -318,4 +331,7 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except (OSError, KeyError, IndexError, ValueError, RuntimeError) as e:  # h5py's errors reading a damaged file
+        fail(f"{sys.argv[1] if len(sys.argv) > 1 else 'the result file'}: cannot read it (a damaged file?): {e}")

@@ -11,6 +11,7 @@ Works on any otmpm result file, written by `otmpm run`, `otmpm pair`,
 """
 import collections.abc
 import tomllib
+import warnings
 
 import numpy as np
 
@@ -30,6 +31,44 @@ def _value(v):
     if isinstance(v, np.generic):
         return v.item()
     return v
+
+
+def link_names(group):
+    """The names in an HDF5 group, sorted. h5py's own iteration (`for name in
+    group`, `sorted(group)`, `group.items()`) asks libhdf5 for the links in
+    increasing name order, which crashes the interpreter (SIGSEGV inside
+    libhdf5) on a group whose link table a killed run left half-written (its
+    stored link count is one more than the links it holds); walking the
+    name index in its native order does not. The links found are returned,
+    with a RuntimeWarning naming the file and group when the stored count
+    differs: a killed run's frames up to the one it was writing stay readable.
+    OSError naming the file and group when HDF5 cannot list it (a damaged file)."""
+    import h5py
+
+    names = []
+    try:
+        group.id.links.iterate(names.append, idx_type=h5py.h5.INDEX_NAME, order=h5py.h5.ITER_NATIVE)
+    except RuntimeError as e:  # h5py's error for a failed iteration, e.g. a metadata checksum mismatch
+        raise OSError(f"{group.file.filename}: cannot list group {group.name}: {e} (the file is damaged)") from e
+    if len(names) != len(group):  # len(): the stored count (H5Gget_info)
+        warnings.warn(f"{group.file.filename}: group {group.name} records {len(group)} links but holds "
+                      f"{len(names)} (a damaged file, e.g. left by a killed run): reading the {len(names)} found",
+                      RuntimeWarning, stacklevel=2)
+    return sorted(n.decode() for n in names)
+
+
+def attribute_names(obj):
+    """The names of the attributes of an HDF5 object, sorted, listed as
+    link_names lists links (h5py's `attrs` iteration sorts a table libhdf5
+    builds from the stored count, which crashes on a damaged file)."""
+    import h5py
+
+    names = []
+    try:
+        h5py.h5a.iterate(obj.id, names.append, index_type=h5py.h5.INDEX_NAME, order=h5py.h5.ITER_NATIVE)
+    except RuntimeError as e:
+        raise OSError(f"{obj.file.filename}: cannot list the attributes of {obj.name}: {e} (the file is damaged)") from e
+    return sorted(n.decode() for n in names)
 
 
 def unpack_symmetric(a, components, dimension):
@@ -103,10 +142,17 @@ class Frame(collections.abc.Mapping):
             if column is None:
                 raise KeyError(field)
             return self._group["stress"][:, column]
-        return _array(field, self._group[field], self._dimension)
+        try:
+            return _array(field, self._group[field], self._dimension)
+        except KeyError:
+            if field not in self._group:
+                raise
+            raise OSError(f"{self._group.file.filename}: cannot read {self._group.name}/{field} (a damaged file?)")
+        except (OSError, RuntimeError) as e:
+            raise OSError(f"{self._group.file.filename}: cannot read {self._group.name}/{field} (a damaged file?): {e}")
 
     def _names(self):
-        names = list(self._group)
+        names = link_names(self._group)
         if OUT_OF_PLANE_STRESS not in names and self._zz_column() is not None:
             names.append(OUT_OF_PLANE_STRESS)
         return names
@@ -136,19 +182,32 @@ class Results:
         import h5py  # here, not at the top: `import otmpm` stays quick for those who never read a file
 
         self.path = str(path)
-        self._file = h5py.File(self.path, "r")
-        self.attrs = {k: _value(v) for k, v in self._file.attrs.items()}
+        try:
+            self._file = h5py.File(self.path, "r")
+        except OSError as e:  # h5py's message does not name the file
+            raise OSError(f"{self.path}: cannot open it as a result file: {e}") from e
+        try:
+            self._read()
+        except (KeyError, RuntimeError, OSError) as e:  # h5py's errors for damaged metadata
+            self._file.close()
+            if str(e).startswith(self.path + ": "):
+                raise
+            raise OSError(f"{self.path}: cannot read it as a result file (a damaged file?): {e}") from e
+
+    def _read(self):
+        self.attrs = {k: _value(self._file.attrs[k]) for k in attribute_names(self._file)}
         self.status = self.attrs.get("status")
         self.dimension = int(self.attrs["dimension"])
         self.scene_text = self.attrs.get("scene", "")
-        frames = self._file.get("frames", {})
-        self.frames = [Frame(frames[name], self.dimension) for name in sorted(frames)]
+        frames = self._file["frames"] if "frames" in self._file else None
+        self.frames = [Frame(frames[name], self.dimension) for name in link_names(frames)] if frames is not None else []
         self.times = np.array([f.time for f in self.frames])
-        self.probes = {name: self._series(g) for name, g in self._file.get("probes", {}).items()}
+        probes = self._file["probes"] if "probes" in self._file else None
+        self.probes = {name: self._series(probes[name]) for name in link_names(probes)} if probes is not None else {}
         self.energy = self._series(self._file["energy"]) if "energy" in self._file else {}
 
     def _series(self, group):
-        return {name: _array(name, group[name], self.dimension) for name in group}
+        return {name: _array(name, group[name], self.dimension) for name in link_names(group)}
 
     @property
     def scene(self):
@@ -184,6 +243,9 @@ def open(path):  # noqa: A001 - the module's one entry point, as in h5py.File / 
 
     While a run still writes the file, HDF5's file locking refuses it
     (BlockingIOError); set HDF5_USE_FILE_LOCKING=FALSE to peek at a running result.
+    A damaged file raises OSError naming it; the file of a killed run gives
+    the frames it holds, with a RuntimeWarning when its last frame was left
+    half-linked (docs/user-guide.md, "Damaged files").
     """
     return Results(path)
 

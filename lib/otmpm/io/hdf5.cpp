@@ -169,20 +169,31 @@ template <class Info> herr_t collect_name(hid_t, const char* name, const Info*, 
   return 0;
 }
 
-/// The names an HDF5 iteration in name order visits: `iterate(H5_INDEX_NAME,
-/// H5_ITER_INC, &index, callback, data)` is H5Literate or H5Aiterate2 bound to an object.
+/// The names an HDF5 iteration visits, sorted: `iterate(H5_INDEX_NAME,
+/// H5_ITER_NATIVE, &index, callback, data)` is H5Literate or H5Aiterate2
+/// bound to an object. The native order walks the name index (a B-tree)
+/// directly; an iteration in increasing order first builds a table of the
+/// stored count of entries and sorts it, and HDF5 crashes (SIGSEGV in the
+/// sort) when that count is larger than the entries the index holds - the
+/// dense link table a killed writer left half-written. `stored`: that count,
+/// checked against the names found (Failure "damaged" when they differ).
 template <class Info, class Iterate>
-std::vector<std::string> iterated_names(Iterate&& iterate, const std::string& path, const std::string& what) {
+std::vector<std::string> iterated_names(Iterate&& iterate, hsize_t stored, const std::string& path,
+                                        const std::string& what) {
   std::vector<std::string> names;
   hsize_t index = 0;
-  checked_status(iterate(H5_INDEX_NAME, H5_ITER_INC, &index, collect_name<Info>, &names), path, what);
+  checked_status(iterate(H5_INDEX_NAME, H5_ITER_NATIVE, &index, collect_name<Info>, &names), path, what);
+  std::sort(names.begin(), names.end()); // byte order, as HDF5's name order (strcmp)
+  if (names.size() != stored)
+    fail(path, what + ": it records " + std::to_string(stored) + " entries but its index holds " +
+                   std::to_string(names.size()) + " (a damaged file, e.g. left by a killed writer)");
   return names;
 }
 } // namespace
 
 std::vector<std::string> link_names(hid_t group, const std::string& path) {
   const auto iterate = [group](auto... args) { return H5Literate(group, args...); };
-  return iterated_names<H5L_info_t>(iterate, path, "list a group");
+  return iterated_names<H5L_info_t>(iterate, link_count(group, path), path, "list a group");
 }
 
 std::size_t link_count(hid_t group, const std::string& path) {
@@ -341,8 +352,10 @@ void write_matrix(hid_t parent, const std::string& name, hsize_t rows, hsize_t c
 bool has_attribute(hid_t object, const std::string& name) { return H5Aexists(object, name.c_str()) > 0; }
 
 std::vector<std::string> attribute_names(hid_t object, const std::string& path) {
+  H5O_info_t info;
+  checked_status(H5Oget_info2(object, &info, H5O_INFO_NUM_ATTRS), path, "count attributes");
   const auto iterate = [object](auto... args) { return H5Aiterate2(object, args...); };
-  return iterated_names<H5A_info_t>(iterate, path, "list attributes");
+  return iterated_names<H5A_info_t>(iterate, info.num_attrs, path, "list attributes");
 }
 
 H5T_class_t attribute_class(hid_t object, const std::string& name, const std::string& path) {

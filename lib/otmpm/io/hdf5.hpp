@@ -119,11 +119,14 @@ Handle create_group(hid_t parent, const std::string& name, const std::string& pa
 Handle open_group(hid_t parent, const std::string& name, const std::string& path);
 /// True when `parent` has a link called `name`.
 bool has_link(hid_t parent, const std::string& name);
-/// Names of the links in a group, in name order.
+/// Names of the links in a group, in name order: its name index walked in
+/// native order and sorted (listing in name order, HDF5 sorts a table of the
+/// stored count of links and crashes when a killed writer left fewer in the
+/// index). Failure naming the file when the count and the index differ (a
+/// damaged file).
 std::vector<std::string> link_names(hid_t group, const std::string& path);
 /// The number of links in a group, from its stored count (H5Gget_info): no
-/// iteration over the links, which crashes inside HDF5 on a file whose link
-/// table a killed writer left half-written.
+/// iteration over the links (a killed writer's group may hold one less).
 std::size_t link_count(hid_t group, const std::string& path);
 
 /// A fixed-length, null-terminated UTF-8 string type of `length` characters.
@@ -188,7 +191,7 @@ void write_rows(hid_t parent, const std::string& name, hsize_t total_rows, hsize
 
 /// True when `object` has an attribute `name`.
 bool has_attribute(hid_t object, const std::string& name);
-/// Names of the attributes of `object`, in name order.
+/// Names of the attributes of `object`, in name order (listed as link_names lists links).
 std::vector<std::string> attribute_names(hid_t object, const std::string& path);
 /// The type class (H5T_FLOAT, H5T_INTEGER, H5T_STRING, ...) of attribute `name` of `object`.
 H5T_class_t attribute_class(hid_t object, const std::string& name, const std::string& path);

@@ -346,7 +346,8 @@ struct ExistingResult {
   bool readable = false; ///< an HDF5 file otmpm could open
   bool otmpm = false;    ///< it has otmpm's root attributes
   std::string run_id, scene, version;
-  int frames = 0; ///< links in /frames
+  int frames = 0;     ///< links in /frames
+  std::string damage; ///< why HDF5 failed to read what it opened ("" when it did not)
 };
 
 /// The root attribute `name` as a string, "" when absent or of another type.
@@ -374,8 +375,9 @@ ExistingResult inspect_result(const std::string& path) {
       const h5::Handle frames = h5::open_group(id, "frames", path);
       r.frames = static_cast<int>(h5::link_count(frames.get(), path)); // a killed run's file: no link iteration
     }
-  } catch (const std::runtime_error&) {
+  } catch (const std::runtime_error& e) {
     r.otmpm = false;
+    r.damage = e.what();
   }
   return r;
 }
@@ -397,7 +399,8 @@ std::string result_refusal(const ExistingResult& r, const ClaimRules& rules, con
   if (!r.readable)
     return locked_by_other(path) ? "is locked by another process (an HDF5 reader or writer such as ParaView or h5py "
                                    "holds it open)"
-                                 : "exists and is not an otmpm result file";
+                                 : "exists and is not an otmpm result file (HDF5 cannot open it: another kind of "
+                                   "file, or one truncated or damaged)";
   if (!r.otmpm) return "exists and is an HDF5 file not written by otmpm";
   if (r.scene != rules.scene_text) return "holds the results of another scene";
   if (r.version != OTMPM_VERSION) return "was written by otmpm " + r.version + ", not by this otmpm " OTMPM_VERSION;
@@ -493,6 +496,9 @@ PreviousResults find_previous_results(const std::string& previous, const std::st
   if (!real_ok && !copy_ok) {
     std::string why;
     if (!real.present) why = "is missing";
+    else if (!real.readable)
+      why = "cannot be opened by HDF5 (truncated or damaged, or not an HDF5 file)";
+    else if (!real.damage.empty()) why = "is damaged (" + real.damage + ")";
     else if (real.run_id != run_id)
       why = "is not the result file of the checkpoint's run (run id " + run_id + ", the file has " +
             (real.run_id.empty() ? std::string("none") : real.run_id) + "): frames are copied only from the same run";

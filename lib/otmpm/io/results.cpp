@@ -687,7 +687,19 @@ struct StoredHistory {
   std::vector<h5::Matrix<double>> fields;
 };
 
-/// Reads what copy_results needs of a history, checking it has `samples` rows.
+/// Fails unless the first `rows` rows of `m` (dataset `name`) are finite:
+/// otmpm never writes a value that is not (ResultWriter refuses it), so one
+/// is damage to the file (HDF5 keeps no checksum of raw data).
+void check_finite(const h5::Matrix<double>& m, hsize_t rows, const std::string& name, const std::string& path) {
+  const std::size_t n = static_cast<std::size_t>(std::min(rows, m.rows) * m.cols);
+  for (std::size_t i = 0; i < n; ++i)
+    if (!std::isfinite(m.values[i]))
+      h5::fail(path, "copy dataset " + name + ": row " + std::to_string(i / m.cols) +
+                         " is not finite, which otmpm never writes (the file is damaged)");
+}
+
+/// Reads what copy_results needs of a history, checking it has `samples`
+/// rows of finite values and increasing times.
 StoredHistory read_history(hid_t file, const HistoryLayout& layout, int samples, const std::string& path) {
   StoredHistory h;
   h.layout = layout;
@@ -697,6 +709,14 @@ StoredHistory read_history(hid_t file, const HistoryLayout& layout, int samples,
   bool complete = h.time.rows >= static_cast<hsize_t>(samples);
   for (const auto& m : h.fields) complete = complete && m.rows >= static_cast<hsize_t>(samples);
   if (!complete) h5::fail(path, "find " + std::to_string(samples) + " samples of history '" + layout.name + "'");
+  const std::string where = (layout.probe ? layout.group + "/" : "") + layout.name;
+  for (std::size_t i = 0; i < h.fields.size(); ++i)
+    check_finite(h.fields[i], static_cast<hsize_t>(samples), where + "/" + layout.fields[i], path);
+  check_finite(h.time, static_cast<hsize_t>(samples), where + "/time", path);
+  for (std::size_t i = 1; i < static_cast<std::size_t>(samples); ++i)
+    if (!(h.time.values[i] > h.time.values[i - 1]))
+      h5::fail(path, "copy dataset " + where + "/time: its times do not increase at row " + std::to_string(i) +
+                         " (the file is damaged)");
   return h;
 }
 
@@ -732,9 +752,12 @@ StoredFrame read_frame(hid_t file, int index, const std::vector<std::string>& fi
   Handle g = h5::open_group(file, "frames/" + frame_name(index), path);
   StoredFrame f;
   f.time = h5::read_double(g.get(), "time", path);
+  if (!std::isfinite(f.time))
+    h5::fail(path, "copy frame " + frame_name(index) + ": its time is not finite (the file is damaged)");
   for (const std::string& name : fields) {
     f.fields.push_back(h5::read_double_matrix(g.get(), name, path));
     f.components.push_back(stored_components(g.get(), name, path));
+    check_finite(f.fields.back(), f.fields.back().rows, "frames/" + frame_name(index) + "/" + name, path);
   }
   return f;
 }
@@ -764,6 +787,12 @@ void copy_results(const std::string& from, ResultWriter& to, int frames, const s
   for (int i = 0; i < frames; ++i) {
     for (const StoredHistory& h : stored) append_stored_sample(h, static_cast<hsize_t>(i), to);
     const StoredFrame frame = reading(from, [&] { return read_frame(file.get(), i, frame_fields, from); });
+    // A run writes each history's sample and the frame at the same output time.
+    for (const StoredHistory& h : stored)
+      if (h.time.values[static_cast<std::size_t>(i)] != frame.time)
+        throw InputError(from + ": cannot copy the results of the interrupted run: frame " + frame_name(i) +
+                         " has time " + std::to_string(frame.time) + " but history '" + h.layout.name + "' " +
+                         std::to_string(h.time.values[static_cast<std::size_t>(i)]) + " (the file is damaged)");
     std::vector<FieldView> views;
     for (std::size_t k = 0; k < frame_fields.size(); ++k)
       views.push_back({frame_fields[k], static_cast<int>(frame.fields[k].rows),

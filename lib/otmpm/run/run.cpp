@@ -187,7 +187,14 @@ public:
                                   scene.output.compression};
       writer_ = std::make_unique<ResultWriter>(path_, text_, D, options, view_.parallel_io());
     });
-    if (previous_) continue_results(*previous_, resume->group("recorder"));
+    if (previous_) {
+      try {
+        continue_results(*previous_, resume->group("recorder"));
+      } catch (const InputError& e) { // a damaged file: the new one says why it holds only part of the frames
+        set_status(std::string("input error: ") + e.what());
+        throw;
+      }
+    }
     if (opt.background_output && !view_.distributed()) background_ = std::make_unique<BackgroundWriter>();
   }
 
@@ -396,9 +403,13 @@ private:
     if (!h5::has_link(file.get(), "frames") || !h5::has_link(file.get(), "frames/000000") ||
         !h5::has_link(file.get(), "frames/000000/stress"))
       return false;
-    const h5::Handle set(h5::checked(H5Dopen2(file.get(), "frames/000000/stress", H5P_DEFAULT), path, "open stress"),
-                         H5Dclose);
-    return h5::has_attribute(set.get(), "components") && h5::read_string(set.get(), "components", path) == "xx xy yy";
+    try {
+      const h5::Handle set(
+          h5::checked(H5Dopen2(file.get(), "frames/000000/stress", H5P_DEFAULT), path, "open stress"), H5Dclose);
+      return h5::has_attribute(set.get(), "components") && h5::read_string(set.get(), "components", path) == "xx xy yy";
+    } catch (const h5::Failure&) {
+      return false; // a damaged file: copy_results says why
+    }
   }
 
   /// Copies the frames and history samples written before the checkpoint.
