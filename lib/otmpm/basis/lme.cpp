@@ -202,11 +202,22 @@ constexpr double kUnshiftedExponent = 300.0;
 /// matter); otherwise J is recomputed in the centred form.
 constexpr double kShiftedMomentLimit = 1e-3;
 
-/// u_i = step . dx_i for the lanes from i.
-template <int D> simd::vd exponent_increment(const Vec<D>& step, const Support<D>& s, int i) {
-  simd::vd u = step[0] * simd::load(s.dx[0] + i);
+/// The components of a D-vector, each broadcast to all lanes once (outside
+/// the loops over the nodes): a * v with a scalar a broadcasts it anyway, so
+/// the products are the same bits.
+template <int D> struct Broadcast {
+  simd::vd v[D];
+  explicit Broadcast(const Vec<D>& a) {
 #pragma GCC unroll 3
-  for (int k = 1; k < D; ++k) u += step[k] * simd::load(s.dx[k] + i);
+    for (int k = 0; k < D; ++k) v[k] = simd::broadcast(a[k]);
+  }
+};
+
+/// u_i = step . dx_i for the lanes from i.
+template <int D> simd::vd exponent_increment(const Broadcast<D>& step, const Support<D>& s, int i) {
+  simd::vd u = step.v[0] * simd::load(s.dx[0] + i);
+#pragma GCC unroll 3
+  for (int k = 1; k < D; ++k) u += step.v[k] * simd::load(s.dx[k] + i);
   return u;
 }
 
@@ -215,13 +226,15 @@ template <int D> simd::vd exponent_increment(const Vec<D>& step, const Support<D
 /// same pass that computes the weights (add(), then finish()).
 template <int D> struct Moments {
   simd::vd z = simd::broadcast(0.0), m[D] = {}, S[D][D] = {};
-  Vec<D> c = Vec<D>::Zero();
+  Vec<D> c;
+  Broadcast<D> c_lanes; ///< c broadcast
 
+  explicit Moments(const Vec<D>& centre) : c(centre), c_lanes(centre) {}
   void add(const Support<D>& s, int i, simd::vd p) {
     z += p;
     simd::vd d[D];
 #pragma GCC unroll 3
-    for (int k = 0; k < D; ++k) d[k] = simd::load(s.dx[k] + i) - c[k];
+    for (int k = 0; k < D; ++k) d[k] = simd::load(s.dx[k] + i) - c_lanes.v[k];
 #pragma GCC unroll 3
     for (int k = 0; k < D; ++k) {
       const simd::vd pd = p * d[k];
@@ -253,8 +266,7 @@ template <int D> struct Moments {
   /// J = sum N_I (dx_I - r)(dx_I - r)^T: sums of non-negative terms, no
   /// cancellation next to the hull boundary.
   static void centred_J(const Support<D>& s, const double* p, double inv_Z, NewtonState<D>& st) {
-    Moments<D> centred;
-    centred.c = st.r;
+    Moments<D> centred(st.r);
     for (int i = 0; i < s.n_pad; i += simd::lanes) centred.add(s, i, simd::load(p + i) * inv_Z);
     for (int k = 0; k < D; ++k)
       for (int l = 0; l <= k; ++l) st.J(k, l) = st.J(l, k) = simd::sum(centred.S[k][l]);
@@ -274,8 +286,9 @@ bool dual_state_impl(const Vec<D>& lambda, const Support<D>& s, double* p, const
   if (!(lambda.norm() * s.radius <= kUnshiftedExponent)) {
     if constexpr (!kWeights) {
       vd fmax = simd::broadcast(-std::numeric_limits<double>::infinity());
+      const Broadcast<D> lambda_lanes(lambda);
       for (int i = 0; i < s.n_pad; i += simd::lanes)
-        fmax = simd::max(fmax, simd::load(s.log_w + i) + exponent_increment<D>(lambda, s, i));
+        fmax = simd::max(fmax, simd::load(s.log_w + i) + exponent_increment<D>(lambda_lanes, s, i));
       st.log_base = simd::max_lane(fmax);
     } else { // w_I held directly: log w_I only here (|lambda| R > kUnshiftedExponent is rare)
       st.log_base = -std::numeric_limits<double>::infinity();
@@ -283,18 +296,18 @@ bool dual_state_impl(const Vec<D>& lambda, const Support<D>& s, double* p, const
     }
     if (!std::isfinite(st.log_base)) return false;
   }
-  Moments<D> mo;
-  mo.c = c;
+  Moments<D> mo(c);
+  const Broadcast<D> lambda_lanes(lambda);
   if constexpr (!kWeights) {
     for (int i = 0; i < s.n_pad; i += simd::lanes) {
-      const vd f = simd::load(s.log_w + i) + exponent_increment<D>(lambda, s, i);
+      const vd f = simd::load(s.log_w + i) + exponent_increment<D>(lambda_lanes, s, i);
       const vd e = simd::exp_shifted(f - st.log_base);
       simd::store(p + i, e);
       mo.add(s, i, e);
     }
   } else { // p_I = w_I exp(lambda . dx_I - log_base): no logarithm per node
     for (int i = 0; i < s.n_pad; i += simd::lanes) {
-      const vd e = simd::load(s.w + i) * simd::exp_shifted(exponent_increment<D>(lambda, s, i) - st.log_base);
+      const vd e = simd::load(s.w + i) * simd::exp_shifted(exponent_increment<D>(lambda_lanes, s, i) - st.log_base);
       simd::store(p + i, e);
       mo.add(s, i, e);
     }
@@ -321,11 +334,11 @@ bool dual_state(const Vec<D>& lambda, const Support<D>& s, double* p, const Vec<
 /// <= kTaylorLarge (exp by its Taylor polynomial); log_base is kept.
 template <int D>
 bool shifted_state(const Vec<D>& step, const Support<D>& s, double* p, double u_max, NewtonState<D>& st) {
-  Moments<D> mo;
-  mo.c = st.r;
+  Moments<D> mo(st.r);
+  const Broadcast<D> step_lanes(step);
   const bool small = u_max <= kTaylorSmall;
   for (int i = 0; i < s.n_pad; i += simd::lanes) {
-    const simd::vd u = exponent_increment<D>(step, s, i);
+    const simd::vd u = exponent_increment<D>(step_lanes, s, i);
     const simd::vd e = simd::load(p + i) * (small ? simd::exp_small<5>(u) : simd::exp_small<8>(u));
     simd::store(p + i, e);
     mo.add(s, i, e);
@@ -408,8 +421,9 @@ struct ExponentChange {
 
 template <int D> ExponentChange exponent_change(const Vec<D>& step, const Support<D>& s) {
   simd::vd hi = simd::broadcast(-std::numeric_limits<double>::infinity()), neg = hi; // max u, max -u
+  const Broadcast<D> step_lanes(step);
   for (int i = 0; i < s.n_pad; i += simd::lanes) { // padding has u = 0: harmless
-    const simd::vd u = exponent_increment<D>(step, s, i);
+    const simd::vd u = exponent_increment<D>(step_lanes, s, i);
     hi = simd::max(hi, u);
     neg = simd::max(neg, -u);
   }
@@ -1064,22 +1078,29 @@ Mat<D> MaxEntBasis<D, Prior>::finish_stencil(const NewtonState<D>& st, const Sup
     double* dN = out.dN.data()->data(); // D doubles per entry
     const simd::vd scale = simd::broadcast(inv_Z);
     simd::vl positive = ~simd::vl{}; // all lanes: N_I > 0 so far
+    const simd::vd zero = simd::broadcast(0.0);
     bool tail_positive = true;
+    const Broadcast<D> r_lanes(st.r);
+    simd::vd J_inv[D][D]; // broadcast once, not per vector of nodes
+#pragma GCC unroll 3
+    for (int k = 0; k < D; ++k)
+#pragma GCC unroll 3
+      for (int l = 0; l < D; ++l) J_inv[k][l] = simd::broadcast(st.J_inv(k, l));
     const auto entries = [&](int i, int m) { // nodes i .. i + m - 1, m <= lanes
       const simd::vd N = simd::load(s.p + i) * scale;
       simd::vd c[D], g[D];
 #pragma GCC unroll 3
-      for (int l = 0; l < D; ++l) c[l] = simd::load(s.dx[l] + i) - st.r[l];
+      for (int l = 0; l < D; ++l) c[l] = simd::load(s.dx[l] + i) - r_lanes.v[l];
 #pragma GCC unroll 3
       for (int k = 0; k < D; ++k) {
-        g[k] = st.J_inv(k, 0) * c[0];
+        g[k] = J_inv[k][0] * c[0];
 #pragma GCC unroll 3
-        for (int l = 1; l < D; ++l) g[k] += st.J_inv(k, l) * c[l];
+        for (int l = 1; l < D; ++l) g[k] += J_inv[k][l] * c[l];
         g[k] = -N * g[k];
       }
       if (m == simd::lanes) { // a whole vector (m is a constant here once inlined)
         simd::store(N_out + i, N);
-        positive &= simd::less(simd::broadcast(0.0), N);
+        positive &= simd::less(zero, N);
 #pragma GCC unroll 4
         for (int j = 0; j < simd::lanes; ++j)
 #pragma GCC unroll 3
