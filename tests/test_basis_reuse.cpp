@@ -122,13 +122,13 @@ template <int D> void both(const NodeSet<D>& nodes) {
 
 } // namespace
 
-TEST_CASE("basis reuse: a reused Stencil gives the bits of a fresh one (lme, maxent; 1D, 2D, 3D)") {
+TEST_CASE("basis reuse: a reused Stencil and table give the bits of fresh ones for lme and maxent on lattices in 1D 2D and 3D") {
   both<1>(NodeSet<1>::cartesian(unit_grid<1>(cells_for<1>())));
   both<2>(NodeSet<2>::cartesian(unit_grid<2>(cells_for<2>())));
   both<3>(NodeSet<3>::cartesian(unit_grid<3>(cells_for<3>())));
 }
 
-TEST_CASE("basis reuse: the same on perturbed nodes and after the nodes moved") {
+TEST_CASE("basis reuse: the same for lme and maxent on perturbed nodes and after the nodes moved") {
   both<2>(NodeSet<2>::perturbed(unit_grid<2>(cells_for<2>()), 0.3, 4));
   auto moved = NodeSet<2>::cartesian(unit_grid<2>(cells_for<2>()));
   AlignedVector<Vec<2>> x = moved.positions();
