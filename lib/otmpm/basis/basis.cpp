@@ -139,14 +139,6 @@ template <int D> struct TableChunk {
   Stencil<D> stencil;
   /// First failure in the chunk (lowest particle index, since rows go in order).
   std::exception_ptr error;
-
-  void clear() {
-    count.clear();
-    node.clear();
-    N.clear();
-    dN.clear();
-    error = nullptr;
-  }
 };
 
 /// The query for point p of a table fill.
@@ -165,15 +157,6 @@ template <int D> PointQuery<D> point_query(const AlignedVector<Vec<D>>& x, const
 /// The BasisError of point p, with the particle index and position prepended.
 template <int D> BasisError point_error(const AlignedVector<Vec<D>>& x, int p, const BasisError& e) {
   return BasisError("particle " + std::to_string(p) + " at " + format_point<D>(x[p]) + ": " + e.what());
-}
-
-/// Appends the stencil `s` to the arrays of a table (or chunk).
-template <int D>
-[[gnu::always_inline]] inline void append_row(const Stencil<D>& s, std::vector<int>& node,
-                                              std::vector<double>& N, AlignedVector<Vec<D>>& dN) {
-  node.insert(node.end(), s.node.begin(), s.node.end());
-  N.insert(N.end(), s.N.begin(), s.N.end());
-  dN.insert(dN.end(), s.dN.begin(), s.dN.end());
 }
 
 /// The calling thread's scratch stencil, kept from call to call (no
@@ -238,6 +221,45 @@ bool fill_fixed(const Basis<D>& basis, int S, const AlignedVector<Vec<D>>& x, co
   return !irregular.load();
 }
 
+/// Appends rows to the entry arrays of a table (or chunk) through a write
+/// cursor: the arrays keep their size from the last fill (about the entries
+/// of this one), are grown ahead of the cursor when a row does not fit and
+/// are cut to the entries written by finish(). A row costs three copies, not
+/// three vector::insert calls, and nothing is value-initialised or allocated
+/// once the arrays have reached their size.
+template <int D> class RowWriter {
+public:
+  RowWriter(std::vector<int>& node, std::vector<double>& N, AlignedVector<Vec<D>>& dN)
+      : node_(node), N_(N), dN_(dN) {}
+  /// Appends the stencil `s`; returns the entries written so far.
+  std::size_t append(const Stencil<D>& s) {
+    const std::size_t m = s.node.size();
+    if (used_ + m > node_.size()) grow(used_ + m);
+    std::copy(s.node.begin(), s.node.end(), node_.begin() + static_cast<std::ptrdiff_t>(used_));
+    std::copy(s.N.begin(), s.N.end(), N_.begin() + static_cast<std::ptrdiff_t>(used_));
+    std::copy(s.dN.begin(), s.dN.end(), dN_.begin() + static_cast<std::ptrdiff_t>(used_));
+    return used_ += m;
+  }
+  /// Cuts the arrays to the entries written.
+  void finish() {
+    node_.resize(used_);
+    N_.resize(used_);
+    dN_.resize(used_);
+  }
+
+private:
+  [[gnu::noinline]] void grow(std::size_t need) {
+    const std::size_t size = std::max(need, node_.size() + node_.size() / 4 + 64);
+    node_.resize(size);
+    N_.resize(size);
+    dN_.resize(size);
+  }
+  std::vector<int>& node_;
+  std::vector<double>& N_;
+  AlignedVector<Vec<D>>& dN_;
+  std::size_t used_ = 0;
+};
+
 /// One thread: every row appended straight to the table (no chunk copy).
 template <int D>
 void fill_serial(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, const PointArrays<D>& a,
@@ -246,39 +268,41 @@ void fill_serial(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, const Po
   const int n = static_cast<int>(x.size());
   table.offset.resize(static_cast<std::size_t>(n) + 1);
   table.offset[0] = 0;
-  table.node.clear();
-  table.N.clear();
-  table.dN.clear();
+  RowWriter<D> rows(table.node, table.N, table.dN);
   for (int p = 0; p < n; ++p) {
     try {
       basis.evaluate(point_query<D>(x, a, p), st);
     } catch (const BasisError& e) {
+      rows.finish();
       throw point_error<D>(x, p, e);
     }
-    append_row<D>(st, table.node, table.N, table.dN);
-    table.offset[static_cast<std::size_t>(p) + 1] = static_cast<int>(table.node.size());
+    table.offset[static_cast<std::size_t>(p) + 1] = static_cast<int>(rows.append(st));
   }
+  rows.finish();
 }
 
 /// Evaluates particles [begin, end) into `c`; stops at the first error.
 template <int D>
 void fill_chunk(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, const PointArrays<D>& a, int begin, int end,
                 TableChunk<D>& c) {
-  c.clear();
+  c.count.clear();
+  c.error = nullptr;
   c.count.reserve(static_cast<std::size_t>(end - begin));
+  RowWriter<D> rows(c.node, c.N, c.dN); // the chunk's arrays keep their size from the last fill
   for (int p = begin; p < end; ++p) {
     try {
       basis.evaluate(point_query<D>(x, a, p), c.stencil);
     } catch (const BasisError& e) {
       c.error = std::make_exception_ptr(point_error<D>(x, p, e));
-      return;
+      break;
     } catch (...) {
       c.error = std::current_exception();
-      return;
+      break;
     }
     c.count.push_back(c.stencil.size());
-    append_row<D>(c.stencil, c.node, c.N, c.dN);
+    rows.append(c.stencil);
   }
+  rows.finish();
 }
 
 /// Copies the rows of chunk `c` into the table, starting at row `row0` and

@@ -202,10 +202,22 @@ constexpr double kUnshiftedExponent = 300.0;
 /// matter); otherwise J is recomputed in the centred form.
 constexpr double kShiftedMomentLimit = 1e-3;
 
+/// The components of a D-vector, each broadcast to all lanes once (outside
+/// the loops over the nodes): a * v with a scalar a broadcasts it anyway, so
+/// the products are the same bits.
+template <int D> struct Broadcast {
+  simd::vd v[D];
+  explicit Broadcast(const Vec<D>& a) {
+#pragma GCC unroll 3
+    for (int k = 0; k < D; ++k) v[k] = simd::broadcast(a[k]);
+  }
+};
+
 /// u_i = step . dx_i for the lanes from i.
-template <int D> simd::vd exponent_increment(const Vec<D>& step, const Support<D>& s, int i) {
-  simd::vd u = step[0] * simd::load(s.dx[0] + i);
-  for (int k = 1; k < D; ++k) u += step[k] * simd::load(s.dx[k] + i);
+template <int D> simd::vd exponent_increment(const Broadcast<D>& step, const Support<D>& s, int i) {
+  simd::vd u = step.v[0] * simd::load(s.dx[0] + i);
+#pragma GCC unroll 3
+  for (int k = 1; k < D; ++k) u += step.v[k] * simd::load(s.dx[k] + i);
   return u;
 }
 
@@ -214,15 +226,20 @@ template <int D> simd::vd exponent_increment(const Vec<D>& step, const Support<D
 /// same pass that computes the weights (add(), then finish()).
 template <int D> struct Moments {
   simd::vd z = simd::broadcast(0.0), m[D] = {}, S[D][D] = {};
-  Vec<D> c = Vec<D>::Zero();
+  Vec<D> c;
+  Broadcast<D> c_lanes; ///< c broadcast
 
+  explicit Moments(const Vec<D>& centre) : c(centre), c_lanes(centre) {}
   void add(const Support<D>& s, int i, simd::vd p) {
     z += p;
     simd::vd d[D];
-    for (int k = 0; k < D; ++k) d[k] = simd::load(s.dx[k] + i) - c[k];
+#pragma GCC unroll 3
+    for (int k = 0; k < D; ++k) d[k] = simd::load(s.dx[k] + i) - c_lanes.v[k];
+#pragma GCC unroll 3
     for (int k = 0; k < D; ++k) {
       const simd::vd pd = p * d[k];
       m[k] += pd;
+#pragma GCC unroll 3
       for (int l = 0; l <= k; ++l) S[k][l] += pd * d[l];
     }
   }
@@ -232,10 +249,13 @@ template <int D> struct Moments {
     st.Z = simd::sum(z);
     const double inv_Z = 1.0 / st.Z;
     Vec<D> mean;
+#pragma GCC unroll 3
     for (int k = 0; k < D; ++k) mean[k] = simd::sum(m[k]) * inv_Z;
     st.r = c + mean;
     bool small = true;
+#pragma GCC unroll 3
     for (int k = 0; k < D; ++k)
+#pragma GCC unroll 3
       for (int l = 0; l <= k; ++l) {
         st.J(k, l) = st.J(l, k) = simd::sum(S[k][l]) * inv_Z - mean[k] * mean[l];
         if (k == l) small = small && mean[k] * mean[k] <= kShiftedMomentLimit * st.J(k, k);
@@ -246,8 +266,7 @@ template <int D> struct Moments {
   /// J = sum N_I (dx_I - r)(dx_I - r)^T: sums of non-negative terms, no
   /// cancellation next to the hull boundary.
   static void centred_J(const Support<D>& s, const double* p, double inv_Z, NewtonState<D>& st) {
-    Moments<D> centred;
-    centred.c = st.r;
+    Moments<D> centred(st.r);
     for (int i = 0; i < s.n_pad; i += simd::lanes) centred.add(s, i, simd::load(p + i) * inv_Z);
     for (int k = 0; k < D; ++k)
       for (int l = 0; l <= k; ++l) st.J(k, l) = st.J(l, k) = simd::sum(centred.S[k][l]);
@@ -267,8 +286,9 @@ bool dual_state_impl(const Vec<D>& lambda, const Support<D>& s, double* p, const
   if (!(lambda.norm() * s.radius <= kUnshiftedExponent)) {
     if constexpr (!kWeights) {
       vd fmax = simd::broadcast(-std::numeric_limits<double>::infinity());
+      const Broadcast<D> lambda_lanes(lambda);
       for (int i = 0; i < s.n_pad; i += simd::lanes)
-        fmax = simd::max(fmax, simd::load(s.log_w + i) + exponent_increment<D>(lambda, s, i));
+        fmax = simd::max(fmax, simd::load(s.log_w + i) + exponent_increment<D>(lambda_lanes, s, i));
       st.log_base = simd::max_lane(fmax);
     } else { // w_I held directly: log w_I only here (|lambda| R > kUnshiftedExponent is rare)
       st.log_base = -std::numeric_limits<double>::infinity();
@@ -276,18 +296,18 @@ bool dual_state_impl(const Vec<D>& lambda, const Support<D>& s, double* p, const
     }
     if (!std::isfinite(st.log_base)) return false;
   }
-  Moments<D> mo;
-  mo.c = c;
+  Moments<D> mo(c);
+  const Broadcast<D> lambda_lanes(lambda);
   if constexpr (!kWeights) {
     for (int i = 0; i < s.n_pad; i += simd::lanes) {
-      const vd f = simd::load(s.log_w + i) + exponent_increment<D>(lambda, s, i);
+      const vd f = simd::load(s.log_w + i) + exponent_increment<D>(lambda_lanes, s, i);
       const vd e = simd::exp_shifted(f - st.log_base);
       simd::store(p + i, e);
       mo.add(s, i, e);
     }
   } else { // p_I = w_I exp(lambda . dx_I - log_base): no logarithm per node
     for (int i = 0; i < s.n_pad; i += simd::lanes) {
-      const vd e = simd::load(s.w + i) * simd::exp_shifted(exponent_increment<D>(lambda, s, i) - st.log_base);
+      const vd e = simd::load(s.w + i) * simd::exp_shifted(exponent_increment<D>(lambda_lanes, s, i) - st.log_base);
       simd::store(p + i, e);
       mo.add(s, i, e);
     }
@@ -314,11 +334,11 @@ bool dual_state(const Vec<D>& lambda, const Support<D>& s, double* p, const Vec<
 /// <= kTaylorLarge (exp by its Taylor polynomial); log_base is kept.
 template <int D>
 bool shifted_state(const Vec<D>& step, const Support<D>& s, double* p, double u_max, NewtonState<D>& st) {
-  Moments<D> mo;
-  mo.c = st.r;
+  Moments<D> mo(st.r);
+  const Broadcast<D> step_lanes(step);
   const bool small = u_max <= kTaylorSmall;
   for (int i = 0; i < s.n_pad; i += simd::lanes) {
-    const simd::vd u = exponent_increment<D>(step, s, i);
+    const simd::vd u = exponent_increment<D>(step_lanes, s, i);
     const simd::vd e = simd::load(p + i) * (small ? simd::exp_small<5>(u) : simd::exp_small<8>(u));
     simd::store(p + i, e);
     mo.add(s, i, e);
@@ -401,8 +421,9 @@ struct ExponentChange {
 
 template <int D> ExponentChange exponent_change(const Vec<D>& step, const Support<D>& s) {
   simd::vd hi = simd::broadcast(-std::numeric_limits<double>::infinity()), neg = hi; // max u, max -u
+  const Broadcast<D> step_lanes(step);
   for (int i = 0; i < s.n_pad; i += simd::lanes) { // padding has u = 0: harmless
-    const simd::vd u = exponent_increment<D>(step, s, i);
+    const simd::vd u = exponent_increment<D>(step_lanes, s, i);
     hi = simd::max(hi, u);
     neg = simd::max(neg, -u);
   }
@@ -787,8 +808,8 @@ template <int D, class Prior> void MaxEntBasis<D, Prior>::fail(const PointQuery<
 
 template <int D, class Prior>
 template <class PriorValue>
-void MaxEntBasis<D, Prior>::gather_support(const PointQuery<D>& q, double R, const PriorValue& prior_value,
-                                           Stencil<D>& out, Vec<D>& lo, Vec<D>& hi) const {
+int MaxEntBasis<D, Prior>::gather_support(const PointQuery<D>& q, double R, const PriorValue& prior_value,
+                                          Stencil<D>& out, Vec<D>& lo, Vec<D>& hi) const {
   // Candidates: the point's Verlet list (a superset within the search
   // radius) or the nodes within R; the same distance test as
   // NodeSet::within keeps exactly its answer.
@@ -801,24 +822,36 @@ void MaxEntBasis<D, Prior>::gather_support(const PointQuery<D>& q, double R, con
     nodes_.within(q.x, R, out.scratch_ids);
     candidates = out.scratch_ids;
   }
-  const int stride = simd::padded(static_cast<int>(candidates.size()));
-  out.scratch_w.resize(static_cast<std::size_t>(kScratchArrays) * static_cast<std::size_t>(stride));
+  const int count = static_cast<int>(candidates.size());
+  const int stride = simd::padded(count);
+  // The scratch arrays only grow (their contents are meaningless between
+  // calls): no value-initialisation when the candidate count changes.
+  if (const auto size = static_cast<std::size_t>(kScratchArrays) * static_cast<std::size_t>(stride);
+      out.scratch_w.size() < size)
+    out.scratch_w.resize(size);
+  // The kept ids go to scratch_ids: compacted in place when the candidates
+  // are held there (kept index <= candidate index), else copied into it.
+  const int* cand = candidates.data();
+  if (cand != out.scratch_ids.data() && out.scratch_ids.size() < candidates.size())
+    out.scratch_ids.resize(candidates.size());
+  int* ids = out.scratch_ids.data();
   double* dx = out.scratch_w.data();
   double* value = dx + D * stride; // log w_I (Gaussian prior) or w_I
   double* grad_factor = value + stride;
   int n = 0;
   double low[D], high[D]; // locals: not aliased by the stores below
   for (int k = 0; k < D; ++k) low[k] = std::numeric_limits<double>::infinity(), high[k] = -low[k];
-  out.node.resize(candidates.size());
-  int* node = out.node.data();
   const Vec<D> x = q.x;
-  for (const int I : candidates) {
-    const Vec<D> d = x - nodes_.position(I);
+  const Vec<D>* pos = nodes_.positions().data();
+  for (int i = 0; i < count; ++i) {
+    const int I = cand[i];
+    const Vec<D> d = x - pos[I];
     double v, c;
     if (!(d.squaredNorm() <= R2) || !prior_value(I, d, v, c)) continue;
-    node[n] = I;
+    ids[n] = I;
     value[n] = v;
     if constexpr (!Prior::kGaussian) grad_factor[n] = c;
+#pragma GCC unroll 3
     for (int k = 0; k < D; ++k) {
       dx[k * stride + n] = d[k];
       low[k] = std::min(low[k], d[k]);
@@ -826,17 +859,19 @@ void MaxEntBasis<D, Prior>::gather_support(const PointQuery<D>& q, double R, con
     }
     ++n;
   }
-  out.node.resize(static_cast<std::size_t>(n));
+  if (out.node.size() != static_cast<std::size_t>(n)) out.node.resize(static_cast<std::size_t>(n));
+  std::copy(ids, ids + n, out.node.data());
   for (int k = 0; k < D; ++k) lo[k] = low[k], hi[k] = high[k];
   for (int i = n; i < simd::padded(n); ++i) { // padding: N = 0
     for (int k = 0; k < D; ++k) dx[k * stride + i] = 0.0;
     value[i] = Prior::kGaussian ? -std::numeric_limits<double>::infinity() : 0.0;
   }
+  return stride;
 }
 
 template <int D, class Prior>
-void MaxEntBasis<D, Prior>::gather_metric_support(const PointQuery<D>& q, const PointMetric<D>& pm, Stencil<D>& out,
-                                                  Vec<D>& lo, Vec<D>& hi) const {
+int MaxEntBasis<D, Prior>::gather_metric_support(const PointQuery<D>& q, const PointMetric<D>& pm, Stencil<D>& out,
+                                                 Vec<D>& lo, Vec<D>& hi) const {
   const double R = settings_.support_radius;
   if (metric_ == Metric::node_spacing) {
     if constexpr (Prior::kGaussian) {
@@ -870,7 +905,7 @@ void MaxEntBasis<D, Prior>::gather_metric_support(const PointQuery<D>& q, const 
       return prior_.weight(d, w, c);
     }
   };
-  gather_support(q, R, weight, out, lo, hi);
+  return gather_support(q, R, weight, out, lo, hi);
 }
 
 template <int D, class Prior>
@@ -943,9 +978,8 @@ template <int D, class Prior> void MaxEntBasis<D, Prior>::update_beta_by_spacing
   }
 }
 
-template <int D, class Prior> Support<D> MaxEntBasis<D, Prior>::support(Stencil<D>& out) const {
+template <int D, class Prior> Support<D> MaxEntBasis<D, Prior>::support(Stencil<D>& out, int stride) const {
   const int n = out.size();
-  const int stride = static_cast<int>(out.scratch_w.size()) / kScratchArrays;
   double* base = out.scratch_w.data();
   Support<D> s;
   for (int k = 0; k < D; ++k) s.dx[k] = base + k * stride;
@@ -961,18 +995,19 @@ template <int D, class Prior> Support<D> MaxEntBasis<D, Prior>::support(Stencil<
 }
 
 template <int D, class Prior> void MaxEntBasis<D, Prior>::evaluate(const PointQuery<D>& q, Stencil<D>& out) const {
-  out.clear();
+  // out is not cleared: gather_support and finish_stencil size its arrays
+  // (kept at their size from the last point, no value-initialisation)
   if (!q.x.allFinite()) fail(q, "the position is not finite");
   PointMetric<D> pm;
   pm.radius = settings_.support_radius;
   if (metric_ == Metric::deformation && q.deformation) pm = point_metric(q, *q.deformation);
   Vec<D> lo, hi;
-  gather_metric_support(q, pm, out, lo, hi);
+  const int stride = gather_metric_support(q, pm, out, lo, hi);
   const int n = out.size();
   if (n < D + 1)
     fail(q, "outside the convex hull of the nodes: only " + std::to_string(n) + " nodes within the support radius " +
                 format_number(pm.radius) + " (at least " + std::to_string(D + 1) + " needed)");
-  Support<D> s = support(out);
+  Support<D> s = support(out, stride);
   s.radius = pm.radius;
   check_extent(q, n, lo, hi);
   const Vec<D> warm = warm_start(q);
@@ -1036,43 +1071,71 @@ Mat<D> MaxEntBasis<D, Prior>::finish_stencil(const NewtonState<D>& st, const Sup
     // grad N_I = -N_I J^{-1} (xbar - x_I) = -N_I J^{-1} (dx_I - r), on whole
     // vectors (the padding lanes of the last vector are computed, not stored:
     // growing the stencil to the padded size and back cost a call per point)
-    out.N.resize(static_cast<std::size_t>(n));
-    out.dN.resize(static_cast<std::size_t>(n));
+    // (sizes kept from the last point when equal: no call)
+    if (out.N.size() != static_cast<std::size_t>(n)) out.N.resize(static_cast<std::size_t>(n));
+    if (out.dN.size() != static_cast<std::size_t>(n)) out.dN.resize(static_cast<std::size_t>(n));
+    double* N_out = out.N.data();
     double* dN = out.dN.data()->data(); // D doubles per entry
     const simd::vd scale = simd::broadcast(inv_Z);
+    simd::vl positive = ~simd::vl{}; // all lanes: N_I > 0 so far
+    const simd::vd zero = simd::broadcast(0.0);
+    bool tail_positive = true;
+    const Broadcast<D> r_lanes(st.r);
+    simd::vd J_inv[D][D]; // broadcast once, not per vector of nodes
+#pragma GCC unroll 3
+    for (int k = 0; k < D; ++k)
+#pragma GCC unroll 3
+      for (int l = 0; l < D; ++l) J_inv[k][l] = simd::broadcast(st.J_inv(k, l));
     const auto entries = [&](int i, int m) { // nodes i .. i + m - 1, m <= lanes
       const simd::vd N = simd::load(s.p + i) * scale;
-      if (m == simd::lanes)
-        simd::store(out.N.data() + i, N);
-      else
-        for (int j = 0; j < m; ++j) out.N[static_cast<std::size_t>(i + j)] = N[j];
-      simd::vd c[D];
-      for (int l = 0; l < D; ++l) c[l] = simd::load(s.dx[l] + i) - st.r[l];
+      simd::vd c[D], g[D];
+#pragma GCC unroll 3
+      for (int l = 0; l < D; ++l) c[l] = simd::load(s.dx[l] + i) - r_lanes.v[l];
+#pragma GCC unroll 3
       for (int k = 0; k < D; ++k) {
-        simd::vd g = st.J_inv(k, 0) * c[0];
-        for (int l = 1; l < D; ++l) g += st.J_inv(k, l) * c[l];
-        g = -N * g;
-        for (int j = 0; j < m; ++j) dN[(i + j) * D + k] = g[j];
+        g[k] = J_inv[k][0] * c[0];
+#pragma GCC unroll 3
+        for (int l = 1; l < D; ++l) g[k] += J_inv[k][l] * c[l];
+        g[k] = -N * g[k];
+      }
+      if (m == simd::lanes) { // a whole vector (m is a constant here once inlined)
+        simd::store(N_out + i, N);
+        positive &= simd::less(zero, N);
+#pragma GCC unroll 4
+        for (int j = 0; j < simd::lanes; ++j)
+#pragma GCC unroll 3
+          for (int k = 0; k < D; ++k) dN[(i + j) * D + k] = g[k][j];
+      } else {
+        for (int j = 0; j < m; ++j) {
+          N_out[i + j] = N[j];
+          tail_positive = tail_positive && N[j] > 0.0;
+#pragma GCC unroll 3
+          for (int k = 0; k < D; ++k) dN[(i + j) * D + k] = g[k][j];
+        }
       }
     };
     int i = 0;
     for (; i + simd::lanes <= n; i += simd::lanes) entries(i, simd::lanes);
     if (i < n) entries(i, n - i);
-  } else {
-    out.N.resize(static_cast<std::size_t>(n));
-    for (int i = 0; i < n; ++i) out.N[i] = s.p[i] * inv_Z;
-    if constexpr (Prior::kGaussian) { // beta_I of each node (Metric::node_spacing)
-      const auto grad_log = [&](int i) {
-        return Vec<D>(-2.0 * node_beta_[static_cast<std::size_t>(out.node[i])] * s.offset(i));
-      };
-      JA = general_gradient(st, s, grad_log, out);
-    } else {
-      // c_I from gather_support: c_I dx_I is prior_.grad_log_weight(dx_I), bit for bit
-      JA = general_gradient(st, s, [&](int i) { return Vec<D>(s.grad_factor[i] * s.offset(i)); }, out);
-    }
+    bool zeros = !tail_positive;
+    for (int j = 0; j < simd::lanes; ++j) zeros = zeros || positive[j] == 0;
+    if (zeros) drop_zeros(out);
+    return JA;
   }
-  bool zeros = false;
-  for (int i = 0; i < n; ++i) zeros = zeros || !(out.N[i] > 0.0);
+  out.N.resize(static_cast<std::size_t>(n));
+  for (int i = 0; i < n; ++i) out.N[i] = s.p[i] * inv_Z;
+  if constexpr (Prior::kGaussian) { // beta_I of each node (Metric::node_spacing)
+    const auto grad_log = [&](int i) {
+      return Vec<D>(-2.0 * node_beta_[static_cast<std::size_t>(out.node[i])] * s.offset(i));
+    };
+    JA = general_gradient(st, s, grad_log, out);
+  } else {
+    // c_I from gather_support: c_I dx_I is prior_.grad_log_weight(dx_I), bit for bit
+    JA = general_gradient(st, s, [&](int i) { return Vec<D>(s.grad_factor[i] * s.offset(i)); }, out);
+  }
+  bool positive = true; // no short cut: one test per node
+  for (int i = 0; i < n; ++i) positive &= out.N[i] > 0.0;
+  const bool zeros = !positive;
   if (zeros) drop_zeros(out);
   return JA;
 }

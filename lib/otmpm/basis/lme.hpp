@@ -259,15 +259,16 @@ private:
   /// Gathers the support of x: node ids into out.node, the offsets x - x_I,
   /// log w_I (Gaussian prior) or w_I and the gradient factors c_I (other
   /// priors) into out.scratch_w in the layout of support(), and the per-axis
-  /// extent [lo, hi] of the offsets.
+  /// extent [lo, hi] of the offsets. Returns the stride of the arrays in
+  /// out.scratch_w (simd::padded(candidates); the buffer may be longer).
   /// `radius`: every support node lies within it; `prior_value(I, dx, v, c)`
   /// sets v = log w_I (Gaussian) or v = w_I and c = c_I, grad log w_I = c_I
   /// dx (other priors), and says whether node I is in the support.
   template <class PriorValue>
-  void gather_support(const PointQuery<D>& q, double radius, const PriorValue& prior_value, Stencil<D>& out,
+  int gather_support(const PointQuery<D>& q, double radius, const PriorValue& prior_value, Stencil<D>& out,
                       Vec<D>& lo, Vec<D>& hi) const;
   /// gather_support with the prior of the metric (pm: Metric::deformation).
-  void gather_metric_support(const PointQuery<D>& q, const PointMetric<D>& pm, Stencil<D>& out, Vec<D>& lo,
+  int gather_metric_support(const PointQuery<D>& q, const PointMetric<D>& pm, Stencil<D>& out, Vec<D>& lo,
                              Vec<D>& hi) const;
   /// Metric::node_spacing: h_I, beta_I and the search radius of the current
   /// node positions (on an untouched lattice h_I = h for every node).
@@ -279,8 +280,8 @@ private:
   bool uniform_beta(const Stencil<D>& out) const;
   /// The Support view of out.scratch_w after gather_support: D arrays of
   /// offsets, log w_I or w_I, the gradient factors c_I, N_I and a trial buffer,
-  /// each of stride simd::padded(candidates) doubles (kScratchArrays in all).
-  Support<D> support(Stencil<D>& out) const;
+  /// each of `stride` doubles (gather_support's; kScratchArrays in all).
+  Support<D> support(Stencil<D>& out, int stride) const;
   /// Throws unless x lies within the bounding box of its n support nodes
   /// (offsets x - x_I within [lo, hi] per axis).
   void check_extent(const PointQuery<D>& q, int n, const Vec<D>& lo, const Vec<D>& hi) const;
