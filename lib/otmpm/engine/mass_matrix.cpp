@@ -90,6 +90,21 @@ void check_assembly(const BasisTable<D>& table, const std::vector<double>& m_p, 
                           " is not finite and >= 0");
 }
 
+/// One table row's products m_p N_a N_b added to their places (slot: the
+/// row's n^2 places in order); S > 0: n = S known at compile time. Returns
+/// the next row's slots.
+template <int S>
+[[gnu::always_inline]] inline const int* sum_row(double* __restrict value, const double* __restrict Np, double m,
+                                                 const int* __restrict slot, int n) {
+  if constexpr (S > 0) n = S;
+  for (int a = 0; a < n; ++a) {
+    const double m_a = m * Np[a];
+    for (int b = 0; b < n; ++b) value[slot[b]] += m_a * Np[b];
+    slot += n;
+  }
+  return slot;
+}
+
 } // namespace
 
 template <int D> MassMatrix<D>::MassMatrix() = default;
@@ -171,24 +186,31 @@ template <int D> void MassMatrix<D>::sum_into_slots(const BasisTable<D>& table, 
   }
 }
 
-/// sum_into_slots' loop: rows of S entries each (S > 0), or of any size (S = 0).
+/// sum_into_slots' loop: rows of S entries each (S > 0), or of any size
+/// (S = 0: the sizes of max-ent and LME stencils up to 16 entries get the
+/// unrolled row, others the general one).
 template <int D>
 template <int S>
 void MassMatrix<D>::sum_rows(const BasisTable<D>& table, const std::vector<double>& m_p) {
-  double* __restrict value = M_.valuePtr();
-  const double* __restrict N = table.N.data();
-  const double* __restrict m = m_p.data();
-  const int* __restrict offset = table.offset.data();
-  const int* __restrict slot = slot_.data();
+  double* const value = M_.valuePtr();
+  const double* const N = table.N.data();
+  const int* const offset = table.offset.data();
+  const int* slot = slot_.data();
   const int rows = table.rows();
   for (int p = 0; p < rows; ++p) {
-    const int b0 = S > 0 ? p * S : offset[p];
-    const int n = S > 0 ? S : offset[p + 1] - b0;
-    const double* __restrict Np = N + b0;
-    for (int a = 0; a < n; ++a) {
-      const double m_a = m[p] * Np[a];
-      for (int b = 0; b < n; ++b) value[slot[b]] += m_a * Np[b];
-      slot += n;
+    if constexpr (S > 0) {
+      slot = sum_row<S>(value, N + p * S, m_p[p], slot, S);
+      continue;
+    }
+    const int b0 = offset[p], n = offset[p + 1] - b0;
+    const double* const Np = N + b0;
+    switch (n) {
+#define OTMPM_ROW(k)                                                                                                     \
+  case k: slot = sum_row<k>(value, Np, m_p[p], slot, k); break;
+      OTMPM_ROW(3) OTMPM_ROW(4) OTMPM_ROW(5) OTMPM_ROW(6) OTMPM_ROW(7) OTMPM_ROW(8) OTMPM_ROW(9) OTMPM_ROW(10)
+      OTMPM_ROW(11) OTMPM_ROW(12) OTMPM_ROW(13) OTMPM_ROW(14) OTMPM_ROW(15) OTMPM_ROW(16)
+#undef OTMPM_ROW
+    default: slot = sum_row<0>(value, Np, m_p[p], slot, n);
     }
   }
 }
