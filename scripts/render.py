@@ -334,4 +334,8 @@ if __name__ == "__main__":
     try:
         main()
     except (OSError, KeyError, IndexError, ValueError, RuntimeError) as e:  # h5py's errors reading a damaged file
-        fail(f"{sys.argv[1] if len(sys.argv) > 1 else 'the result file'}: cannot read it (a damaged file?): {e}")
+        result = sys.argv[1] if len(sys.argv) > 1 else "the result file"
+        other = getattr(e, "filename", None)
+        if isinstance(e, OSError) and other is not None and os.path.abspath(str(other)) != os.path.abspath(result):
+            fail(f"{other}: {e.strerror or e}")  # another file, e.g. --out in a missing directory
+        fail(f"{result}: cannot read it (a damaged file?): {e}")

@@ -193,6 +193,9 @@ class Results:
             if str(e).startswith(self.path + ": "):
                 raise
             raise OSError(f"{self.path}: cannot read it as a result file (a damaged file?): {e}") from e
+        except BaseException:  # e.g. link_names' RuntimeWarning raised under warnings.simplefilter("error")
+            self._file.close()
+            raise
 
     def _read(self):
         self.attrs = {k: _value(self._file.attrs[k]) for k in attribute_names(self._file)}

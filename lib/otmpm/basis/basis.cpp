@@ -229,8 +229,13 @@ bool fill_fixed(const Basis<D>& basis, int S, const AlignedVector<Vec<D>>& x, co
 /// once the arrays have reached their size.
 template <int D> class RowWriter {
 public:
+  /// The three arrays are brought to one size (they have it, unless a
+  /// caller's table did not or an allocation of grow() failed half-way).
   RowWriter(std::vector<int>& node, std::vector<double>& N, AlignedVector<Vec<D>>& dN)
-      : node_(node), N_(N), dN_(dN) {}
+      : node_(node), N_(N), dN_(dN) {
+    N_.resize(node_.size());
+    dN_.resize(node_.size());
+  }
   /// Appends the stencil `s`; returns the entries written so far.
   std::size_t append(const Stencil<D>& s) {
     const std::size_t m = s.node.size();

@@ -143,7 +143,8 @@ public:
   /// Tells the family the nodes moved by dx (already applied to nodes()). The
   /// B-spline family advects its knot vectors here; others refresh indices.
   virtual void nodes_moved(const AlignedVector<Vec<D>>& dx) = 0;
-  /// Fills `out` (cleared first) with the stencil of q.x. Throws BasisError
+  /// Fills `out` with the stencil of q.x (on success it holds exactly that
+  /// stencil; after a throw its contents are unspecified). Throws BasisError
   /// naming the point when it cannot, also when q.x is not finite (one check
   /// per call, require_finite_query).
   virtual void evaluate(const PointQuery<D>& q, Stencil<D>& out) const = 0;

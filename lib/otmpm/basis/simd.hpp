@@ -7,7 +7,8 @@
 /// the GCC/Clang `vector_size` extension: two lanes (one SSE2 register) with
 /// the portable default flags, four lanes (one AVX register) when the build
 /// enables AVX (OTMPM_NATIVE on a machine that has it). Every operation is an
-/// IEEE operation per lane (no FMA contraction in ISO C++ mode) and horizontal
+/// IEEE operation per lane (no FMA contraction: the build passes
+/// -ffp-contract=off, CMakeLists.txt) and horizontal
 /// sums add the lanes in a fixed order, so the results do not depend on the
 /// thread count; they can differ in the last bits between builds with two and
 /// with four lanes (the grouping of the sums differs).

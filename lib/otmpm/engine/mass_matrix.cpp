@@ -182,6 +182,7 @@ template <int D> void MassMatrix<D>::sum_into_slots(const BasisTable<D>& table, 
   case 9: return sum_rows<9>(table, m_p);
   case 16: return sum_rows<16>(table, m_p);
   case 27: return sum_rows<27>(table, m_p);
+  case 64: return sum_rows<64>(table, m_p);
   default: return sum_rows<0>(table, m_p);
   }
 }

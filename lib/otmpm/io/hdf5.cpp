@@ -189,11 +189,21 @@ std::vector<std::string> iterated_names(Iterate&& iterate, hsize_t stored, const
                    std::to_string(names.size()) + " (a damaged file, e.g. left by a killed writer)");
   return names;
 }
+
+/// The object's path in its file ("/frames"), "?" when HDF5 has none.
+std::string object_path(hid_t object) {
+  const ssize_t n = H5Iget_name(object, nullptr, 0);
+  if (n <= 0) return "?";
+  std::string name(static_cast<std::size_t>(n) + 1, '\0');
+  H5Iget_name(object, name.data(), name.size());
+  name.resize(static_cast<std::size_t>(n));
+  return name;
+}
 } // namespace
 
 std::vector<std::string> link_names(hid_t group, const std::string& path) {
   const auto iterate = [group](auto... args) { return H5Literate(group, args...); };
-  return iterated_names<H5L_info_t>(iterate, link_count(group, path), path, "list a group");
+  return iterated_names<H5L_info_t>(iterate, link_count(group, path), path, "list group " + object_path(group));
 }
 
 std::size_t link_count(hid_t group, const std::string& path) {
@@ -352,10 +362,16 @@ void write_matrix(hid_t parent, const std::string& name, hsize_t rows, hsize_t c
 bool has_attribute(hid_t object, const std::string& name) { return H5Aexists(object, name.c_str()) > 0; }
 
 std::vector<std::string> attribute_names(hid_t object, const std::string& path) {
+  const std::string what = "list the attributes of " + object_path(object);
+#if H5_VERSION_GE(1, 12, 0)
+  H5O_info2_t info;
+  checked_status(H5Oget_info3(object, &info, H5O_INFO_NUM_ATTRS), path, what);
+#else
   H5O_info_t info;
-  checked_status(H5Oget_info2(object, &info, H5O_INFO_NUM_ATTRS), path, "count attributes");
+  checked_status(H5Oget_info2(object, &info, H5O_INFO_NUM_ATTRS), path, what);
+#endif
   const auto iterate = [object](auto... args) { return H5Aiterate2(object, args...); };
-  return iterated_names<H5A_info_t>(iterate, info.num_attrs, path, "list attributes");
+  return iterated_names<H5A_info_t>(iterate, info.num_attrs, path, what);
 }
 
 H5T_class_t attribute_class(hid_t object, const std::string& name, const std::string& path) {

@@ -401,6 +401,7 @@ std::string result_refusal(const ExistingResult& r, const ClaimRules& rules, con
                                    "holds it open)"
                                  : "exists and is not an otmpm result file (HDF5 cannot open it: another kind of "
                                    "file, or one truncated or damaged)";
+  if (!r.damage.empty()) return "exists and is damaged (" + r.damage + "); --force replaces it";
   if (!r.otmpm) return "exists and is an HDF5 file not written by otmpm";
   if (r.scene != rules.scene_text) return "holds the results of another scene";
   if (r.version != OTMPM_VERSION) return "was written by otmpm " + r.version + ", not by this otmpm " OTMPM_VERSION;

@@ -714,8 +714,8 @@ StoredHistory read_history(hid_t file, const HistoryLayout& layout, int samples,
     check_finite(h.fields[i], static_cast<hsize_t>(samples), where + "/" + layout.fields[i], path);
   check_finite(h.time, static_cast<hsize_t>(samples), where + "/time", path);
   for (std::size_t i = 1; i < static_cast<std::size_t>(samples); ++i)
-    if (!(h.time.values[i] > h.time.values[i - 1]))
-      h5::fail(path, "copy dataset " + where + "/time: its times do not increase at row " + std::to_string(i) +
+    if (h.time.values[i] < h.time.values[i - 1]) // equal times: Simulation::write_frame() at a recorded time
+      h5::fail(path, "copy dataset " + where + "/time: its times decrease at row " + std::to_string(i) +
                          " (the file is damaged)");
   return h;
 }
@@ -791,8 +791,8 @@ void copy_results(const std::string& from, ResultWriter& to, int frames, const s
     for (const StoredHistory& h : stored)
       if (h.time.values[static_cast<std::size_t>(i)] != frame.time)
         throw InputError(from + ": cannot copy the results of the interrupted run: frame " + frame_name(i) +
-                         " has time " + std::to_string(frame.time) + " but history '" + h.layout.name + "' " +
-                         std::to_string(h.time.values[static_cast<std::size_t>(i)]) + " (the file is damaged)");
+                         " has time " + text::exact(frame.time) + " but history '" + h.layout.name + "' " +
+                         text::exact(h.time.values[static_cast<std::size_t>(i)]) + " (the file is damaged)");
     std::vector<FieldView> views;
     for (std::size_t k = 0; k < frame_fields.size(); ++k)
       views.push_back({frame_fields[k], static_cast<int>(frame.fields[k].rows),
@@ -824,14 +824,24 @@ Handle open_with_attribute(const std::string& path, const std::string& name, H5T
 
 } // namespace
 
+// An HDF5 failure on a file it opened (a damaged file) is an InputError
+// naming the file, as the refusals of open_with_attribute are.
 std::string read_string_attribute(const std::string& path, const std::string& name) {
-  const Handle file = open_with_attribute(path, name, H5T_STRING, H5T_STRING, "a string");
-  return h5::read_string(file.get(), name, path);
+  try {
+    const Handle file = open_with_attribute(path, name, H5T_STRING, H5T_STRING, "a string");
+    return h5::read_string(file.get(), name, path);
+  } catch (const h5::Failure& e) {
+    throw InputError(e.what());
+  }
 }
 
 double read_double_attribute(const std::string& path, const std::string& name) {
-  const Handle file = open_with_attribute(path, name, H5T_FLOAT, H5T_INTEGER, "a number");
-  return h5::read_double(file.get(), name, path);
+  try {
+    const Handle file = open_with_attribute(path, name, H5T_FLOAT, H5T_INTEGER, "a number");
+    return h5::read_double(file.get(), name, path);
+  } catch (const h5::Failure& e) {
+    throw InputError(e.what());
+  }
 }
 
 } // namespace otmpm
