@@ -234,3 +234,16 @@ TEST_CASE("linear_row_width: 2^D only when every row holds the linear stencil, a
   BasisTable<2> empty; // no particle: trivially fixed
   CHECK(linear_row_width(empty) == 4);
 }
+
+TEST_CASE("uniform_row_width: the common row size when every row has it and 0 otherwise") {
+  CHECK(uniform_row_width({0, 3, 6, 9}) == 3);
+  CHECK(uniform_row_width({0, 9}) == 9);
+  CHECK(uniform_row_width({0, 3, 6, 8}) == 0);      // a short last row
+  CHECK(uniform_row_width({0, 2, 5, 8}) == 0);      // a short first row
+  CHECK(uniform_row_width({0, 4, 8, 11, 15}) == 0); // one short row between
+  CHECK(uniform_row_width({0, 0, 0}) == 0);         // rows without entries
+  CHECK(uniform_row_width({0}) == 0);               // no rows
+  CHECK(uniform_row_width({}) == 0);
+  // Offsets that would agree with p S only modulo 2^32 are uneven rows too.
+  CHECK(uniform_row_width({0, 1 << 30, 1 << 30, 1 << 30, 1 << 30, 1 << 30}) == 0);
+}

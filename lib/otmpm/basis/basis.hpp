@@ -13,6 +13,7 @@
 #include <string_view>
 #include <type_traits>
 #include <utility>
+#include <vector>
 
 namespace otmpm {
 
@@ -252,16 +253,29 @@ template <int D> struct BasisTable {
   std::size_t entries() const { return node.size(); }
 };
 
+/// S when every row of a table with these row offsets holds the same number
+/// S >= 1 of entries (offset[p] = p S), else 0 (also for no rows). An OR of
+/// offset[p] - p S in unsigned arithmetic (vectorises); it is 0 exactly when
+/// the rows are even: before the first uneven row offset[p - 1] = (p - 1) S
+/// < 2^31, so p S < 2^32 and the difference there cannot wrap to 0.
+inline int uniform_row_width(const std::vector<int>& offset) {
+  if (offset.size() < 2) return 0;
+  const unsigned S = static_cast<unsigned>(offset[1]) - static_cast<unsigned>(offset[0]);
+  unsigned differ = 0;
+  const int* o = offset.data();
+  const unsigned n = static_cast<unsigned>(offset.size());
+  for (unsigned p = 0; p < n; ++p) differ |= static_cast<unsigned>(o[p]) - p * S;
+  return differ == 0 ? static_cast<int>(S) : 0;
+}
+
 /// 2^D when every row of `table` holds the 2^D entries of the linear
 /// stencil (row p is then entries [p 2^D, (p + 1) 2^D)), else 0. The passes
 /// over the table take the fixed width as a compile-time trip count
 /// (row_entries): the same operations in the same order, fewer loop tests.
 template <int D> int linear_row_width(const BasisTable<D>& table) {
   constexpr int W = 1 << D;
-  const int* offset = table.offset.data();
-  int differ = 0; // an OR of the differences (vectorises): 0 when all are 0
-  for (int p = 0; p <= table.rows(); ++p) differ |= offset[p] - p * W;
-  return differ == 0 ? W : 0;
+  if (table.offset.size() < 2) return W; // no rows: trivially fixed
+  return uniform_row_width(table.offset) == W ? W : 0;
 }
 
 /// Entries [first, second) of row p: W > 0 is a fixed row width.

@@ -15,9 +15,23 @@
 namespace otmpm {
 
 template <int D> struct MassMatrix<D>::Factor {
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt;
+  /// Eigen's LDL^T, with its numeric factorisation of a matrix that is
+  /// already permuted (the step Eigen's factorize() takes after permuting).
+  struct Ldlt : Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> {
+    void factorize_permuted(const Eigen::SparseMatrix<double>& ap) { this->template factorize_preordered<true>(ap); }
+  };
+  Ldlt ldlt;
   Eigen::SparseMatrix<double> A;
   bool analysed = false; ///< ldlt holds the ordering and analysis of A's pattern
+  /// The gather (valid for M_'s pattern `version`, these fixed flags and
+  /// these zero entries of M_): ap is the upper triangle of P A P^T that
+  /// factorize() forms, source[i] the place in M_'s values of ap's value i
+  /// (-1: an identity diagonal, 1.0), zeros the places of M_ that A left out
+  /// as exact zeros.
+  Eigen::SparseMatrix<double> ap;
+  std::vector<int> source, zeros;
+  std::vector<char> fixed;
+  long long version = -1;
 };
 
 namespace {
@@ -28,15 +42,6 @@ bool same_pattern(const Eigen::SparseMatrix<double>& a, const Eigen::SparseMatri
   const auto n = static_cast<std::size_t>(a.outerSize()) + 1, nnz = static_cast<std::size_t>(a.nonZeros());
   return std::equal(a.outerIndexPtr(), a.outerIndexPtr() + n, b.outerIndexPtr()) &&
          std::equal(a.innerIndexPtr(), a.innerIndexPtr() + nnz, b.innerIndexPtr());
-}
-
-/// S when every row of the table has S entries (offset = 0, S, 2S, ...), else 0.
-int uniform_row_size(const std::vector<int>& offset) {
-  if (offset.size() < 2) return 0;
-  const int S = offset[1] - offset[0];
-  for (std::size_t p = 1; p < offset.size(); ++p)
-    if (offset[p] - offset[p - 1] != S) return 0;
-  return S;
 }
 
 /// True when every id lies in [0, nodes): the top bit of I | (nodes - 1 - I),
@@ -58,6 +63,14 @@ bool masses_valid(const std::vector<double>& m_p) {
   std::uint64_t out = 0;
   for (const double m : m_p) out |= (std::bit_cast<std::uint64_t>(m) >> 52) + 1u;
   return (out & 0x1800u) == 0;
+}
+
+/// True when some of the n values has its sign bit set (a negative number,
+/// -0.0 or a NaN with the bit). Shifts and ors: the loop vectorises.
+bool any_sign_bit(const double* v, std::size_t n) {
+  std::uint64_t out = 0;
+  for (std::size_t i = 0; i < n; ++i) out |= std::bit_cast<std::uint64_t>(v[i]);
+  return (out >> 63) != 0;
 }
 
 /// The argument checks of MassMatrix::assemble: consistent sizes, node ids in
@@ -105,6 +118,37 @@ template <int S>
   return slot;
 }
 
+/// The rows of a run (consecutive rows with the same node list, hence the
+/// same S^2 places in `slot`) summed place by place in a register: each
+/// place still adds the run's products in row order, m_p N_a first formed
+/// for each a - the same additions as sum_row's, one load and one store per
+/// place and run instead of per product.
+template <int S>
+inline void sum_run(double* __restrict value, const double* __restrict N, const double* __restrict m, int rows,
+                    const int* __restrict slot) {
+  for (int a = 0; a < S; ++a) {
+    double acc[S];
+    for (int b = 0; b < S; ++b) acc[b] = value[slot[a * S + b]];
+    for (int p = 0; p < rows; ++p) {
+      const double m_a = m[p] * N[p * S + a];
+      for (int b = 0; b < S; ++b) acc[b] += m_a * N[p * S + b];
+    }
+    for (int b = 0; b < S; ++b) value[slot[a * S + b]] = acc[b];
+  }
+}
+
+/// The first row of every run of rows with the same node list in a table
+/// whose rows all hold S entries, and `rows` at the end.
+std::vector<int> row_runs(const std::vector<int>& node, int S, int rows) {
+  std::vector<int> first;
+  for (int p = 0; p < rows; ++p) {
+    const auto row = node.begin() + static_cast<std::ptrdiff_t>(p) * S;
+    if (p == 0 || !std::equal(row, row + S, row - S)) first.push_back(p);
+  }
+  first.push_back(rows);
+  return first;
+}
+
 } // namespace
 
 template <int D> MassMatrix<D>::MassMatrix() = default;
@@ -116,6 +160,7 @@ void MassMatrix<D>::assemble(const BasisTable<D>& table, const std::vector<doubl
                              int nodes) {
   check_assembly<D>(table, m_p, active, constrained, nodes);
   assemble_values(table, m_p, nodes);
+  signed_values_ = any_sign_bit(M_.valuePtr(), static_cast<std::size_t>(M_.nonZeros()));
   std::vector<std::unique_ptr<Factor>> old = std::move(factor_);
   factor_.clear();
   fixed_.clear();
@@ -150,6 +195,7 @@ void MassMatrix<D>::assemble_values(const BasisTable<D>& table, const std::vecto
     for (int a = table.begin(p); a < table.end(p); ++a)
       for (int b = table.begin(p); b < table.end(p); ++b)
         triplets.emplace_back(table.node[a], table.node[b], m_p[p] * table.N[a] * table.N[b]);
+  ++version_;
   M_.resize(nodes, nodes);
   M_.setFromTriplets(triplets.begin(), triplets.end());
   M_.makeCompressed();
@@ -161,7 +207,8 @@ void MassMatrix<D>::assemble_values(const BasisTable<D>& table, const std::vecto
     const int col = triplets[t].col(), row = triplets[t].row();
     slot_[t] = static_cast<int>(std::lower_bound(inner + outer[col], inner + outer[col + 1], row) - inner);
   }
-  row_size_ = uniform_row_size(table.offset);
+  row_size_ = uniform_row_width(table.offset);
+  runs_ = row_size_ > 0 ? row_runs(table.node, row_size_, table.rows()) : std::vector<int>{};
   offset_ = table.offset;
   node_ = table.node;
 }
@@ -198,11 +245,15 @@ void MassMatrix<D>::sum_rows(const BasisTable<D>& table, const std::vector<doubl
   const int* const offset = table.offset.data();
   const int* slot = slot_.data();
   const int rows = table.rows();
-  for (int p = 0; p < rows; ++p) {
-    if constexpr (S > 0) {
-      slot = sum_row<S>(value, N + p * S, m_p[p], slot, S);
-      continue;
+  if constexpr (S > 0) { // runs of rows with the same node list (row_runs)
+    for (std::size_t r = 0; r + 1 < runs_.size(); ++r) {
+      const int p0 = runs_[r], p1 = runs_[r + 1];
+      sum_run<S>(value, N + static_cast<std::ptrdiff_t>(p0) * S, m_p.data() + p0, p1 - p0,
+                 slot_.data() + static_cast<std::ptrdiff_t>(p0) * S * S);
     }
+    return;
+  }
+  for (int p = 0; p < rows; ++p) {
     const int b0 = offset[p], n = offset[p + 1] - b0;
     const double* const Np = N + b0;
     switch (n) {
@@ -216,69 +267,167 @@ void MassMatrix<D>::sum_rows(const BasisTable<D>& table, const std::vector<doubl
   }
 }
 
-/// The factor of component k: M_ with identity rows at `fixed`, factorised;
-/// the symbolic analysis of the last step's factor (in `old`) is kept when
-/// the pattern is the same.
+namespace {
+
+/// M with the rows and columns of `fixed` replaced by identity rows (their
+/// diagonal set to `one`, the rest removed) and its exact zeros removed: the
+/// matrix a component's solve factorises (one = 1.0), or with one = -1.0 and
+/// M's values replaced by their places + 1, the map of its values (gather).
+Eigen::SparseMatrix<double> with_identity_rows(Eigen::SparseMatrix<double> A, const std::vector<char>& fixed,
+                                               double one) {
+  for (int col = 0; col < A.outerSize(); ++col)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(A, col); it; ++it)
+      if (fixed[it.row()] || fixed[it.col()]) it.valueRef() = it.row() == it.col() ? one : 0.0;
+  for (int I = 0; I < A.rows(); ++I)
+    if (fixed[I]) A.coeffRef(I, I) = one;
+  A.prune(0.0);
+  A.makeCompressed();
+  return A;
+}
+
+} // namespace
+
+/// The factor of component k: M_ with identity rows at `fixed`, factorised.
+/// While M_'s pattern, the fixed flags and the zero entries of M_ are the
+/// last step's, the permuted matrix is gathered from M_'s values and only
+/// the numeric factorisation runs; else the matrix is formed and the last
+/// step's symbolic analysis (in `old`) kept when its pattern is the same.
+/// The same bits either way: the same values in the same places go through
+/// Eigen's factorisation.
 template <int D>
 void MassMatrix<D>::factorise(int k, const std::vector<char>& fixed, std::vector<std::unique_ptr<Factor>>& old) {
   const std::size_t kk = static_cast<std::size_t>(k);
   std::unique_ptr<Factor> f = kk < old.size() && old[kk] ? std::move(old[kk]) : std::make_unique<Factor>();
-  Eigen::SparseMatrix<double> A = M_;
-  for (int col = 0; col < A.outerSize(); ++col)
-    for (Eigen::SparseMatrix<double>::InnerIterator it(A, col); it; ++it)
-      if (fixed[it.row()] || fixed[it.col()]) it.valueRef() = it.row() == it.col() ? 1.0 : 0.0;
-  for (int I = 0; I < A.rows(); ++I)
-    if (fixed[I]) A.coeffRef(I, I) = 1.0;
-  A.prune(0.0);
-  A.makeCompressed();
-  const bool same = f->analysed && same_pattern(f->A, A);
-  f->A = std::move(A);
-  if (same) {
+  if (f->version == version_ && f->fixed == fixed && gather(*f)) {
     ++analysis_reuses_;
-    f->ldlt.factorize(f->A); // the ordering and analysis depend on the pattern only
+    f->ldlt.factorize_permuted(f->ap);
   } else {
-    f->ldlt.compute(f->A);
-    f->analysed = true;
+    Eigen::SparseMatrix<double> A = with_identity_rows(M_, fixed, 1.0);
+    const bool same = f->analysed && same_pattern(f->A, A);
+    f->A = std::move(A);
+    if (same) {
+      ++analysis_reuses_;
+      f->ldlt.factorize(f->A); // the ordering and analysis depend on the pattern only
+    } else {
+      f->ldlt.compute(f->A);
+      f->analysed = true;
+    }
+    f->version = -1;
+    if (f->ldlt.info() == Eigen::Success) map_gather(*f, fixed);
   }
   if (f->ldlt.info() != Eigen::Success) {
     f->analysed = false;
+    f->version = -1;
     throw InstabilityError("consistent mass matrix: factorisation failed (singular matrix)");
   }
   factor_.push_back(std::move(f));
 }
 
+/// Records where each value of the permuted matrix that f's factorisation
+/// reads comes from in M_: the same construction (identity rows, pruning,
+/// Eigen's permutation) applied to the places of M_'s values instead of the
+/// values, so that the map follows Eigen's own order.
+template <int D> void MassMatrix<D>::map_gather(Factor& f, const std::vector<char>& fixed) {
+  Eigen::SparseMatrix<double> places = M_;
+  const double* v = M_.valuePtr();
+  for (Eigen::Index i = 0; i < M_.nonZeros(); ++i) places.valuePtr()[i] = v[i] == 0.0 ? 0.0 : static_cast<double>(i + 1);
+  places = with_identity_rows(std::move(places), fixed, -1.0);
+  if (!same_pattern(places, f.A)) return; // cannot happen; the full path then stays in use
+  const int n = static_cast<int>(M_.rows());
+  f.ap.resize(n, n);
+  f.ap.template selfadjointView<Eigen::Upper>() =
+      places.template selfadjointView<Eigen::Lower>().twistedBy(f.ldlt.permutationP());
+  f.ap.makeCompressed();
+  f.source.resize(static_cast<std::size_t>(f.ap.nonZeros()));
+  for (std::size_t i = 0; i < f.source.size(); ++i) {
+    const double place = f.ap.valuePtr()[i];
+    f.source[i] = place > 0.0 ? static_cast<int>(place) - 1 : -1;
+  }
+  f.zeros.clear();
+  for (int col = 0; col < M_.outerSize(); ++col)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(M_, col); it; ++it)
+      if (!fixed[it.row()] && !fixed[col] && it.value() == 0.0) f.zeros.push_back(static_cast<int>(&it.valueRef() - M_.valuePtr()));
+  f.fixed = fixed;
+  f.version = version_;
+}
+
+/// f's permuted matrix from M_'s values by the map of map_gather; false
+/// (f.ap then unusable) when an entry of M_ became zero or a zero entry
+/// nonzero, so that the matrix to factorise has another pattern.
+template <int D> bool MassMatrix<D>::gather(Factor& f) const {
+  const double* v = M_.valuePtr();
+  double* out = f.ap.valuePtr();
+  const int* source = f.source.data();
+  const std::size_t n = f.source.size();
+  bool zero = false;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double x = source[i] >= 0 ? v[source[i]] : 1.0;
+    zero |= x == 0.0;
+    out[i] = x;
+  }
+  for (const int z : f.zeros) zero |= v[z] != 0.0;
+  return !zero;
+}
+
 template <int D>
-double MassMatrix<D>::solve(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>& y) const {
+double MassMatrix<D>::residual(const AlignedVector<Vec<D>>& r, const AlignedVector<Vec<D>>& y) const {
+  require<std::invalid_argument>(!factor_.empty(), "MassMatrix::residual: call assemble() first");
+  const int n = static_cast<int>(M_.rows());
+  require<std::invalid_argument>(r.size() == static_cast<std::size_t>(n) && y.size() == r.size(),
+                                 "MassMatrix::residual: r has ", r.size(), " and y ", y.size(), " entries for ", n,
+                                 " nodes");
+  double worst = 0.0;
+  for (int k = 0; k < D; ++k) {
+    Eigen::VectorXd yk(n), rk(n);
+    for (int I = 0; I < n; ++I) yk[I] = y[I][k], rk[I] = r[I][k];
+    const Eigen::VectorXd res = M_ * yk - rk;
+    double num = 0.0, den = 0.0;
+    for (int I = 0; I < n; ++I) {
+      if (!fixed_[k][I]) num = std::max(num, std::abs(res[I]));
+      den = std::max(den, std::abs(rk[I]));
+    }
+    if (den > 0.0) worst = std::max(worst, num / den);
+  }
+  return worst;
+}
+
+/// b = r_k - M y0 (y0: the prescribed values of the fixed rows, +0 at the
+/// others) as Eigen evaluates it: b = r_k, then column by column b_I +=
+/// M_IJ (-y0_J). A free column adds M_IJ (-(+0)) = -0 when no value of M_
+/// has its sign bit set, which changes nothing: such columns are skipped.
+template <int D>
+void MassMatrix<D>::move_prescribed(int k, const std::vector<char>& fixed, const AlignedVector<Vec<D>>& y,
+                                    Eigen::VectorXd& b) const {
+  const int n = static_cast<int>(M_.rows());
+  const double* v = M_.valuePtr();
+  const int* inner = M_.innerIndexPtr();
+  const int* outer = M_.outerIndexPtr();
+  for (int J = 0; J < n; ++J) {
+    if (!fixed[J] && !signed_values_) continue;
+    const double r_J = fixed[J] ? -y[J][k] : -0.0;
+    for (int e = outer[J]; e < outer[J + 1]; ++e) b[inner[e]] += v[e] * r_J;
+  }
+}
+
+template <int D>
+void MassMatrix<D>::solve(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>& y) const {
   require<std::invalid_argument>(!factor_.empty(), "MassMatrix::solve: call assemble() first");
   const int n = static_cast<int>(M_.rows());
   require<std::invalid_argument>(r.size() == static_cast<std::size_t>(n) && y.size() == r.size(),
                                  "MassMatrix::solve: r has ", r.size(), " and y ", y.size(), " entries for ", n,
                                  " nodes");
-  double worst = 0.0;
   const Factor* f = nullptr;
+  Eigen::VectorXd b(n), sol(n);
   for (int k = 0; k < D; ++k) {
     if (factor_[k]) f = factor_[k].get();
     const std::vector<char>& fixed = fixed_[k];
-    Eigen::VectorXd y0 = Eigen::VectorXd::Zero(n), rk(n);
-    for (int I = 0; I < n; ++I) {
-      rk[I] = r[I][k];
-      if (fixed[I]) y0[I] = y[I][k];
-    }
-    Eigen::VectorXd b = rk - M_ * y0;
+    for (int I = 0; I < n; ++I) b[I] = r[I][k];
+    move_prescribed(k, fixed, y, b);
     for (int I = 0; I < n; ++I)
-      if (fixed[I]) b[I] = y0[I];
-    const Eigen::VectorXd sol = f->ldlt.solve(b);
-    // residual of the free rows of M y = r
-    const Eigen::VectorXd res = M_ * sol - rk;
-    double num = 0.0, den = 0.0;
-    for (int I = 0; I < n; ++I) {
-      if (!fixed[I]) num = std::max(num, std::abs(res[I]));
-      den = std::max(den, std::abs(rk[I]));
-      y[I][k] = sol[I];
-    }
-    if (den > 0.0) worst = std::max(worst, num / den);
+      if (fixed[I]) b[I] = y[I][k];
+    sol = f->ldlt.solve(b);
+    for (int I = 0; I < n; ++I) y[I][k] = sol[I];
   }
-  return worst;
 }
 
 template class MassMatrix<1>;

@@ -12,6 +12,7 @@
 /// and symbolic analysis (again the same bits).
 #include "otmpm/basis/basis.hpp"
 
+#include <Eigen/Core>
 #include <Eigen/SparseCore>
 
 namespace otmpm {
@@ -31,11 +32,13 @@ public:
                 const std::vector<char>& active, const std::vector<char>& constrained, int nodes);
   /// y = M^{-1} r per component; constrained components and inactive nodes
   /// take the value already in y (for velocity-like fields: the prescribed
-  /// value; zero otherwise) - the caller sets them. Returns the relative
-  /// residual max_k |M y_k - r_k| / |r_k| of the solve. Throws
+  /// value; zero otherwise) - the caller sets them. Throws
   /// std::invalid_argument before assemble() or unless r and y have one entry
   /// per node.
-  double solve(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>& y) const;
+  void solve(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>& y) const;
+  /// The relative residual max_k |M y_k - r_k| / |r_k| of the free rows (not
+  /// constrained, active) of a solve's y (for tests; solve() does not form it).
+  double residual(const AlignedVector<Vec<D>>& r, const AlignedVector<Vec<D>>& y) const;
   /// The assembled matrix (before constraints), for tests.
   const Eigen::SparseMatrix<double>& matrix() const { return M_; }
 
@@ -50,6 +53,10 @@ private:
   void sum_into_slots(const BasisTable<D>& table, const std::vector<double>& m_p);
   template <int S> void sum_rows(const BasisTable<D>& table, const std::vector<double>& m_p);
   void factorise(int k, const std::vector<char>& fixed, std::vector<std::unique_ptr<Factor>>& old);
+  void map_gather(Factor& f, const std::vector<char>& fixed);
+  bool gather(Factor& f) const;
+  void move_prescribed(int k, const std::vector<char>& fixed, const AlignedVector<Vec<D>>& y,
+                       Eigen::VectorXd& b) const;
   Eigen::SparseMatrix<double> M_;
   std::vector<std::unique_ptr<Factor>> factor_; // one per component
   std::vector<std::vector<char>> fixed_;        // per component: identity rows
@@ -57,7 +64,10 @@ private:
   // order, its place in M_'s values; row_size_: the size of every row of
   // that table when they are all equal, else 0.
   std::vector<int> offset_, node_, slot_;
+  std::vector<int> runs_; // rows of one size: the first row of each run with one node list, then the row count
   int row_size_ = 0;
+  long long version_ = 0;       // M_'s pattern: counts the triplet assemblies
+  bool signed_values_ = false;  // some value of M_ has its sign bit set (-0 or negative)
   int pattern_reuses_ = 0, analysis_reuses_ = 0;
 };
 
