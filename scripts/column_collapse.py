@@ -24,6 +24,8 @@ import tomllib
 import h5py
 import numpy as np
 
+from tree_results import link_names
+
 
 def text(v):
     return v.decode() if isinstance(v, bytes) else v
@@ -41,7 +43,7 @@ def measure(path):
         body = scene["body"][0]
         L0 = body["upper"][0] - body["lower"][0]
         H0 = body["upper"][1] - body["lower"][1]
-        names = sorted(f["frames"])
+        names = link_names(f["frames"])  # not sorted(f["frames"]): safe on a killed run's file
         X = f["frames"][names[0]]["x"][:]
         last = f["frames"][names[-1]]
         x = last["x"][:]
@@ -61,8 +63,9 @@ def measure(path):
             "a": H0 / L0, "L0": L0, "H0": H0,
             "Lf": x[:, 0].max() + L0 - X[:, 0].max(), "Hf": x[:, 1].max() + H0 - X[:, 1].max(), "Lh": Lh, "h": h,
             "kinetic_end": float(e["kinetic"][-1]), "x": x, "eps": eps,
-            "wall_seconds": float(f.attrs["wall_seconds"]), "particles": int(f.attrs["particles"]),
-            "steps": int(f.attrs["steps"]),
+            # A killed run's file (status "running") has no summary attributes.
+            "wall_seconds": float(f.attrs.get("wall_seconds", np.nan)), "particles": len(x),
+            "steps": int(f.attrs.get("steps", -1)),
         }
 
 

@@ -24,20 +24,28 @@ import sys
 import h5py
 import numpy as np
 
+from tree_results import link_names
+
 
 def frames(f):
-    return sorted(f["frames"].keys())
+    """The frame names, sorted (listed as otmpm.results does: safe on a killed run's file)."""
+    return link_names(f["frames"])
 
 
 def histories(f):
-    """Paths of the history datasets: probes, walls and root-level series (every dataset outside /frames)."""
+    """Paths of the history datasets: probes, walls and root-level series (every dataset outside /frames).
+    Walked with link_names (h5py's visititems lists in name order, which crashes libhdf5 on a killed run's file)."""
     out = []
 
-    def visit(name, obj):
-        if isinstance(obj, h5py.Dataset) and not name.startswith("frames/"):
-            out.append("/" + name)
+    def walk(group):
+        for name in link_names(group):
+            obj = group[name]
+            if isinstance(obj, h5py.Dataset):
+                out.append(obj.name)
+            elif isinstance(obj, h5py.Group) and obj.name != "/frames":
+                walk(obj)
 
-    f.visititems(visit)
+    walk(f["/"])
     return sorted(out)
 
 
@@ -86,10 +94,11 @@ def main():
             if abs(ta - tb) > args.tol * max(abs(ta), abs(tb)) or (args.bitwise and ta != tb):
                 print(f"frame {name}: time {ga.attrs['time']!r} vs {gb.attrs['time']!r}")
                 return 1
-            if sorted(ga.keys()) != sorted(gb.keys()):
-                print(f"frame {name}: datasets {sorted(ga.keys())} vs {sorted(gb.keys())}")
+            fields = link_names(ga)
+            if fields != link_names(gb):
+                print(f"frame {name}: datasets {fields} vs {link_names(gb)}")
                 return 1
-            for field in ga.keys():
+            for field in fields:
                 if wanted and field not in wanted:
                     continue
                 a, b = common_columns(ga[field], gb[field], noted)

@@ -18,12 +18,20 @@ folder, under `timeout`. Each run is classified:
            copied frames which differ from the undamaged file's)
   message  exit 2 without a message that names the file
   status   an exit status other than 0 and 2 (3: an internal error)
+  row      a study that exited 0 but whose CSV row does not say what its
+           run did: `study` must record status ok and exit code 0,
+           `study-refused` exit code 2 and status `input error: ...`
   ok       a clear refusal (exit 2 naming the file) or a correct success
 
 Commands: for a result file `run` (over it, no --force), `run--force`,
 `restart` (from the checkpoint of the run that wrote it, --out another
 file), `python` (otmpm.results.open, then every frame's x and v, the probes
-and the energy series) and with --render `render`; for a checkpoint
+and the energy series), `study` and `study-refused` (`otmpm study` of one
+run whose result file is the damaged one: in `study` the child `otmpm run
+--force` replaces it and the study reads the new file's summary; in
+`study-refused` the child is refused - a variant sets simulation.cfl = -1 -
+before it touches the file, so the study reads the summary of the damaged
+file) and with --render `render`; for a checkpoint
 `restart` and `run` (the same scene over its result file, which looks at the
 checkpoint beside it); for a particle file `run` and `run--check`. `killed`
 also tries tests/scenes/killed_run.h5, the file whose half-written link table
@@ -186,12 +194,60 @@ class Matrix:
             print(self.findings[-1], flush=True)
 
     def table(self):
-        verdicts = ["ok", "crash", "hang", "garbage", "message", "status"]
+        verdicts = ["ok", "crash", "hang", "garbage", "message", "status", "row"]
         lines = [f"{'file':11s} {'damage':7s} {'command':16s} " + " ".join(f"{v:>7s}" for v in verdicts)]
         for key in sorted(self.counts):
             c = self.counts[key]
             lines.append(f"{key[0]:11s} {key[1]:7s} {key[2]:16s} " + " ".join(f"{c[v]:7d}" for v in verdicts))
         return "\n".join(lines)
+
+
+#: The study of the `study` commands: one run, variant {variant}, mesh m,
+#: its result file study_results/{variant}_m.h5 (where the damaged file goes).
+STUDY = """scene = "{scene}"
+csv = "study.csv"
+results = "study_results"
+jobs = 1
+set = ["grid.cells=[15]", "simulation.t_end=2e-5", "output.every=1e-6"]
+[[variant]]
+name = "{variant}"
+set = [{sets}]
+[[mesh]]
+name = "m"
+h = 0.01
+"""
+#: The `study` commands: name -> (variant, its set entries, the CSV row's expected exit code, status prefix).
+STUDIES = {
+    "study": ("v", "", "0", "ok"),
+    "study-refused": ("refused", '"simulation.cfl=-1"', "2", "input error: "),
+}
+
+
+def study_argv(otmpm, name):
+    """The `otmpm study` of the command `name` (its study file: write_study); no plots (--scripts: no such folder)."""
+    return [otmpm, "study", name + ".toml", "--threads", "1", "--scripts", "no-scripts"]
+
+
+def write_study(case, name):
+    """Writes the study file of the command `name` in `case` and puts the damaged res.h5 where its run writes."""
+    variant, sets, _, _ = STUDIES[name]
+    with open(os.path.join(case, name + ".toml"), "w") as f:
+        f.write(STUDY.format(scene=os.path.join(ROOT, "examples", "dyka.toml"), variant=variant, sets=sets))
+    os.makedirs(os.path.join(case, "study_results"), exist_ok=True)
+    shutil.copy(os.path.join(case, "res.h5"), os.path.join(case, "study_results", variant + "_m.h5"))
+
+
+def study_row_verdict(case, name):
+    """'ok' when the study's CSV has the row of its run with the exit code and status it must have, else 'row'."""
+    import csv
+    variant, _, exit_code, status = STUDIES[name]
+    try:
+        with open(os.path.join(case, "study.csv"), newline="") as f:
+            rows = [r for r in csv.DictReader(f) if r["variant"] == variant]
+    except OSError:
+        rows = []
+    ok = len(rows) == 1 and rows[0]["exit_code"] == exit_code and rows[0]["status"].startswith(status)
+    return "ok" if ok else "row", (rows[0]["exit_code"], rows[0]["status"][:80]) if rows else "no row"
 
 
 def result_commands(otmpm, render_python, results_py, scripts=None):
@@ -209,7 +265,7 @@ def result_commands(otmpm, render_python, results_py, scripts=None):
                     "try:\n r = R.open(sys.argv[1]); [r.field(n) for n in ('x','v')]; r.probes; r.energy\n"
                     "except Exception as e: print('otmpm: error: res.h5: ', e, file=sys.stderr); sys.exit(2)\n",
                     "res.h5", results_py], True),
-    ]
+    ] + [(name, study_argv(otmpm, name), True) for name in STUDIES]
     if render_python:
         cmds.append(("render", [otmpm, "render", "res.h5", "--field", "v", "--frame", "-1", "--out", "r.png"] +
                      (["--scripts", scripts] if scripts else []), True))
@@ -228,8 +284,13 @@ def check_result_case(m, otmpm, case, kind, detail, data, args, base, ref_frames
                 f.write(data)
         if name == "restart" and not os.path.exists(os.path.join(case, "res.checkpoint.h5")):
             continue
+        if name in STUDIES:
+            write_study(case, name)
         status, err = run(argv, case, args.timeout)
         verdict = classify(status, err, "res.h5", zero_ok)
+        if verdict == "ok" and name in STUDIES:
+            verdict, row = study_row_verdict(case, name)
+            err += f" (CSV row: {row})"
         if verdict == "ok" and name == "restart" and status == 0 and ref_frames is not None:
             # A restart that succeeded must have copied the frames intact.
             got = frames_of(os.path.join(case, "again.h5"))

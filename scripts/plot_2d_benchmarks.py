@@ -41,6 +41,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from tree_results import link_names  # noqa: E402
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 EXAMPLES = os.path.join(ROOT, "examples")
 FIGURES = os.path.join(ROOT, "docs", "figures")
@@ -98,16 +100,18 @@ def run(otmpm, scene, overrides, out, reuse):
 
 
 def attrs(f):
-    a = dict(f.attrs)
+    """(status, steps, wall_seconds) of a result file, each read by name (not dict(f.attrs): h5py lists
+    attributes in name order, which crashes libhdf5 on a killed run's file)."""
+    a = f.attrs
     status = a.get("status", b"?")
     return (status.decode() if isinstance(status, bytes) else str(status),
             int(a.get("steps", 0)), float(a.get("wall_seconds", float("nan"))))
 
 
 def frames(f):
-    """Frame groups sorted by time."""
+    """Frame groups sorted by time (their names; listed with link_names, safe on a killed run's file)."""
     g = f["frames"]
-    return [g[k] for k in sorted(g.keys())]
+    return [g[k] for k in link_names(g)]
 
 
 # ---------------------------------------------------------------- Andersen

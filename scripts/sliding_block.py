@@ -17,6 +17,8 @@ import tomllib
 import h5py
 import numpy as np
 
+from tree_results import link_names
+
 
 def text(v):
     return v.decode() if isinstance(v, bytes) else v
@@ -30,7 +32,7 @@ def errors(path):
         gn = np.hypot(*g)
         theta = math.atan2(g[0], -g[1])
         acc = gn * (math.sin(theta) - mu * math.cos(theta))
-        names = sorted(f["frames"])
+        names = link_names(f["frames"])  # not sorted(f["frames"]): safe on a killed run's file
         X = f["frames"][names[0]]["x"][:, 0]
         m = f["frames"][names[0]]["mass"][:].ravel()
         rows = []

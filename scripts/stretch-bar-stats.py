@@ -15,12 +15,14 @@ import argparse
 import h5py
 import numpy as np
 
+from tree_results import link_names
+
 H = 0.025
 
 
 def frames(f):
-    names = sorted(f["frames"].keys())
-    return names
+    """The frame names, sorted (link_names: safe on a killed run's file)."""
+    return link_names(f["frames"])
 
 
 def stats(path, times):

@@ -1,8 +1,12 @@
 #pragma once
-// HDF5 helpers shared by the tests that read result files directly or write
-// particle files.
+// HDF5 helpers shared by the tests that read result files directly, write
+// particle files or build HDF5 files of their own in a temporary directory.
+#include "otmpm/io/hdf5.hpp"
+#include "temp_dir.hpp"
+
 #include <hdf5.h>
 
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -41,6 +45,23 @@ inline void write_datasets(const std::string& path, const std::vector<Dataset>& 
     H5Sclose(space);
   }
   H5Fclose(f);
+}
+
+/// A new, empty HDF5 file in a test's temporary directory, open for writing.
+struct NewH5File {
+  std::string path; ///< where it is (inside the TempDir)
+  h5::Handle file;  ///< the open file, closed when this goes out of scope
+};
+
+/// Creates the empty HDF5 file `name` in `dir` (replacing any file of that
+/// name), with HDF5's printing of its error stack silenced as the library
+/// does. Throws std::runtime_error naming the path when HDF5 cannot create it.
+inline NewH5File new_h5_file(const TempDir& dir, const std::string& name) {
+  NewH5File created{dir.file(name), {}};
+  h5::silence();
+  created.file = h5::Handle(H5Fcreate(created.path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
+  if (!created.file.valid()) throw std::runtime_error(created.path + ": HDF5 cannot create the file");
+  return created;
 }
 
 } // namespace otmpm::test

@@ -12,6 +12,7 @@
 #include "otmpm/io/results.hpp"
 
 #include "cli_support.hpp"
+#include "h5_support.hpp"
 #include "temp_dir.hpp"
 
 #include <doctest/doctest.h>
@@ -159,10 +160,7 @@ TEST_CASE("damaged particle file: exit 2 naming it") {
   TempDir dir("cli_damaged_particles");
   const std::string particles = dir.file("particles.h5");
   {
-    otmpm::h5::silence();
-    const otmpm::h5::Handle file(H5Fcreate(particles.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT),
-                                 H5Fclose);
-    REQUIRE(file.valid());
+    const otmpm::h5::Handle file = otmpm::test::new_h5_file(dir, "particles.h5").file;
     std::vector<double> x(40), volume(40, 0.1 / 40);
     for (std::size_t i = 0; i < x.size(); ++i) x[i] = (static_cast<double>(i) + 0.5) * 0.1 / 40;
     otmpm::h5::write_matrix(file.get(), "x", 40, 1, x.data(), particles);

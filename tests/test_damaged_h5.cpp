@@ -10,6 +10,7 @@
 #include "otmpm/core.hpp"
 #include "otmpm/io/hdf5.hpp"
 #include "otmpm/io/results.hpp"
+#include "h5_support.hpp"
 #include "temp_dir.hpp"
 
 #include <doctest/doctest.h>
@@ -99,10 +100,7 @@ TEST_CASE("link_names and attribute_names list dense storage in name order") {
   // Past 8 entries HDF5 stores links and attributes in a dense table, which
   // link_names and attribute_names walk in its native (hash) order and sort.
   test::TempDir tmp("dense_names");
-  const std::string path = tmp.file("dense.h5");
-  h5::silence();
-  const h5::Handle file(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
-  REQUIRE(file.valid());
+  const auto [path, file] = test::new_h5_file(tmp, "dense.h5");
   std::vector<std::string> expected;
   for (int i = 0; i < 30; ++i) {
     const std::string name = "n" + std::to_string(37 * i % 101);

@@ -4,6 +4,7 @@
 // tests/scenes/killed_run.h5 is such a file (left by the study test D9).
 #include "otmpm/io/hdf5.hpp"
 #include "otmpm/io/output_files.hpp"
+#include "h5_support.hpp"
 #include "temp_dir.hpp"
 
 #include <doctest/doctest.h>
@@ -24,10 +25,7 @@ TEST_CASE("a killed run's half-written result file is inspected without iteratin
 
 TEST_CASE("link_count gives the number of links link_names lists") {
   test::TempDir tmp("link_count");
-  const std::string path = tmp.file("g.h5");
-  h5::silence();
-  const h5::Handle file(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
-  REQUIRE(file.valid());
+  const auto [path, file] = test::new_h5_file(tmp, "g.h5");
   const h5::Handle group(H5Gcreate2(file.get(), "frames", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose);
   CHECK(h5::link_count(group.get(), path) == 0);
   for (int i = 0; i < 40; ++i) { // past the compact storage (8 links): the dense link table

@@ -220,6 +220,27 @@ template <class T> py::object scalars(const std::vector<T>& v, py::handle owner)
   return view(v.empty() ? nullptr : v.data(), {static_cast<py::ssize_t>(v.size())}, {sizeof(T)}, owner);
 }
 
+/// Plane strain's out-of-plane Cauchy stress sigma_zz of every particle of a
+/// 2D engine, (n,) read-only - a new array, not a view: the materials derive
+/// it from what they keep (Material::out_of_plane_stress), as the result
+/// file's stress_zz is derived when a frame is written. None in 1D and 3D.
+template <int D> py::object out_of_plane_stress(const Engine<D>& e) {
+  if constexpr (D != 2) {
+    (void)e;
+    return py::none();
+  } else {
+    const Particles<D>& P = e.particles();
+    py::array_t<double> zz(static_cast<py::ssize_t>(P.size()));
+    double* out = zz.mutable_data();
+    for (int first = 0, last = 0; first < P.size(); first = last) { // runs of particles of one material
+      while (last < P.size() && P.material[last] == P.material[first]) ++last;
+      e.material(P.material[first]).out_of_plane_stress(P, first, last, out + first);
+    }
+    zz.attr("setflags")(py::arg("write") = false);
+    return zz;
+  }
+}
+
 /// sim.particles: views of the engine's particle arrays.
 struct ParticleViews {
   py::object owner; ///< the Python Simulation
@@ -293,7 +314,8 @@ void register_views(py::module_& m) {
                             "NumPy views of the engine's particle arrays (no copy): each stays valid and shows\n"
                             "the current state for the life of its Simulation (the arrays are never\n"
                             "reallocated during a run). All are read-only except v. None for a field the\n"
-                            "run does not allocate (a: npc only; F: finite strain, ul mode or output).")
+                            "run does not allocate (a: npc only; F: finite strain, ul mode or output).\n"
+                            "stress_zz (2D) is no view: a new array computed on each access.")
       .def("__len__", [](ParticleViews& p) { return p.get([](auto& P) -> py::object { return py::int_(P.size()); }); })
       .def_property_readonly(
           "x", [](ParticleViews& p) { return p.get([&](auto& P) { return vectors(P.x, p.owner); }); },
@@ -312,6 +334,12 @@ void register_views(py::module_& m) {
       .def_property_readonly(
           "stress", [](ParticleViews& p) { return p.get([&](auto& P) { return tensors(P.sigma, p.owner); }); },
           "Cauchy stress sigma_p, (n, D, D): stress[p, i, j] = sigma_ij.")
+      .def_property_readonly(
+          "stress_zz",
+          [](ParticleViews& p) { return visit_engine(p.sim(), [](auto& e) { return out_of_plane_stress(e); }); },
+          "2D: plane strain's out-of-plane Cauchy stress sigma_zz, (n,) - computed on access from the\n"
+          "materials' state (a new read-only array, not a view), the values the result file's\n"
+          "stress_zz holds at a frame. None in 1D and 3D (3D: stress[:, 2, 2]).")
       .def_property_readonly(
           "strain", [](ParticleViews& p) { return p.get([&](auto& P) { return tensors(P.eps, p.owner); }); },
           "Strain eps_p (small strain, or sym(F_p) - I for finite strain), (n, D, D).")

@@ -93,6 +93,7 @@ def test_views_are_read_only_except_v():
         assert not a.flags.writeable
     assert p.v.flags.writeable
     assert p.F is None  # small strain in mpm mode: no deformation gradient
+    assert p.stress_zz is None  # 1D: no plane strain
     assert p.state == {}  # linear_elastic has no internal variables
 
 
@@ -198,6 +199,7 @@ def test_three_dimensional_views():
     assert sim.particles.stress.shape == (n, 3, 3) and sim.particles.stress.strides == (72, 8, 24)
     assert np.array_equal(sim.particles.stress, np.transpose(sim.particles.stress, (0, 2, 1)))  # symmetric
     assert sim.nodes.x.shape == (len(sim.nodes), 3)
+    assert sim.particles.stress_zz is None  # 3D: sigma_zz is stress[:, 2, 2]
 
 
 def test_a_simulation_stepped_in_another_thread_refuses_other_calls():
@@ -285,3 +287,38 @@ def test_interrupt_ends_the_run_with_status_interrupted(tmp_path):
         assert r.status == "interrupted" and r.attrs["steps"] == 4
     done = otmpm.run(short_dyka(), write_results=False)
     assert not done.interrupted and done.exit_code == 0
+
+
+def test_stress_zz_of_linear_elastic_plane_strain_is_nu_times_the_in_plane_trace():
+    """linear_elastic in plane strain (eps_zz = 0): sigma_zz = lambda tr(eps) =
+    nu (sigma_xx + sigma_yy), to round-off; stress_zz is a new array each time
+    (derived from the strain), not a view that follows the steps."""
+    nu = 0.3
+    scene = otmpm.Scene.from_toml(example("dyka_2d.toml"), {"material.steel.poisson": nu, "simulation.t_end": 2e-5})
+    sim = otmpm.Simulation(scene, write_results=False)
+    p = sim.particles
+    assert p.stress_zz.shape == (len(p),) and not p.stress_zz.any()  # unstrained before the first step
+    sim.advance_to(1e-5)
+    zz, s = p.stress_zz, p.stress
+    assert zz.dtype == np.float64 and zz.flags.owndata and not zz.flags.writeable
+    scale = np.abs(s).max()
+    assert np.abs(zz).max() > 0.1 * scale  # the impact loads it
+    np.testing.assert_allclose(zz, nu * (s[:, 0, 0] + s[:, 1, 1]), rtol=0, atol=1e-12 * scale)
+    before = zz.copy()
+    sim.step(5)
+    assert np.array_equal(zz, before) and not np.array_equal(p.stress_zz, before)
+
+
+def test_stress_zz_is_what_the_result_file_holds(tmp_path):
+    """j2 (sigma_zz from the elastic b_e of the Hencky law): the values at
+    t_end are the final frame's stress_zz (output.fields), bit for bit."""
+    out = tmp_path / "zz.h5"
+    with otmpm.Simulation(j2_strip(**{"output.fields": ["x", "stress", "stress_zz"]}), out=str(out)) as sim:
+        sim.advance_to(sim.t_end)
+        zz = sim.particles.stress_zz
+        assert sim.particles.state["plastic_strain"].max() > 1e-4  # yielded: not the elastic nu (sxx + syy)
+    with otmpm.results.open(out) as r:
+        last = r.frames[-1]
+        assert last.time == sim.t
+        np.testing.assert_array_equal(last["stress_zz"], zz)
+    assert np.abs(zz).max() > 1e6
