@@ -187,6 +187,14 @@ std::string result_row(const Study& s, const StudyRun& r, int exit_code, const f
   } catch (const InputError&) {
     status = exit_code == 2 ? "input error: " + last_line(log) : "failed: " + last_line(log);
   }
+  // A run refused or failed (any status but 0 and 1) that left a file saying
+  // "ok": the file is an earlier run's (the run stopped before writing), so
+  // nothing in it describes this run.
+  if (exit_code != 0 && exit_code != 1 && status == "ok") {
+    status = exit_code == 2 ? "input error: " + last_line(log) : "failed: " + last_line(log);
+    steps = wall = particles = nodes = NAN;
+    errors.clear(), energy.clear();
+  }
   if (exit_code == 1 && status == "ok") status = "unstable";
   const double psps = (wall > 0) ? particles * steps / wall : NAN;
   row += "," + csv_escape(status) + "," + std::to_string(exit_code) + "," + number(steps) + "," + number(wall) + "," +

@@ -261,10 +261,11 @@ template <int D> struct BasisTable {
 inline int uniform_row_width(const std::vector<int>& offset) {
   if (offset.size() < 2) return 0;
   const unsigned S = static_cast<unsigned>(offset[1]) - static_cast<unsigned>(offset[0]);
-  unsigned differ = 0;
-  const int* o = offset.data();
-  const unsigned n = static_cast<unsigned>(offset.size());
-  for (unsigned p = 0; p < n; ++p) differ |= static_cast<unsigned>(o[p]) - p * S;
+  unsigned differ = 0, expected = 0; // expected = p S (mod 2^32)
+  for (const int o : offset) {
+    differ |= static_cast<unsigned>(o) - expected;
+    expected += S;
+  }
   return differ == 0 ? static_cast<int>(S) : 0;
 }
 
