@@ -16,7 +16,6 @@
 #include <limits>
 #include <numbers>
 #include <optional>
-#include <tuple>
 #include <utility>
 
 namespace otmpm {
@@ -154,7 +153,7 @@ std::optional<ParticleFile> open_body(const Scene& scene, int b, std::vector<std
   std::optional<ParticleFile> file;
   if (body.shape == "file") {
     try {
-      file = read_particle_file(body.file, D);
+      file = read_particle_file(body.file, D, body.file_particles); // reserved: the scene reader's count
     } catch (const InputError& e) {
       input_error(scene.locate("body." + body.name + ".file"), e.what());
     }
@@ -204,6 +203,8 @@ std::vector<Seed<D>> seed_body(const Scene& scene, int b, const Vec<D>& h, const
     const Index<D> cells = box_cells<D>(body, h);
     for (int k = 0; k < D; ++k) n *= static_cast<std::size_t>(cells[k]) * static_cast<std::size_t>(body.particles_per_cell);
     seeds.reserve(n); // no growth by doubling: peak memory
+  } else if (file) {
+    seeds.reserve(static_cast<std::size_t>(file->size())); // every row is a seed (before the overlap)
   }
   generate_body<D>(scene, b, h, lattice, *shapes.back(), file ? &*file : nullptr, result,
                    [&seeds](const Seed<D>& s) { seeds.push_back(s); });
@@ -251,32 +252,18 @@ template <int D> void store(const Scene& scene, const std::vector<Seed<D>>& seed
   }
 }
 
-/// The box of the positions in a particle file (a pass over it), or none
-/// when it cannot be read (its error comes in turn, when it is seeded).
-template <int D> std::optional<std::pair<Vec<D>, Vec<D>>> file_box(const std::string& path) {
-  Vec<D> lo = Vec<D>::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
-  try {
-    stream_particle_file(path, D, [&lo, &hi](const ParticleColumns&, const ParticleRows& rows) {
-      for (std::size_t i = 0; i < rows.volume.size(); ++i) {
-        const Vec<D> x(Eigen::Map<const Vec<D>>(&rows.x[i * D]));
-        lo = lo.cwiseMin(x), hi = hi.cwiseMax(x);
-      }
-    });
-  } catch (const InputError&) {
-    return std::nullopt;
-  }
-  return std::pair{lo, hi};
-}
-
-/// The box where the seeds of each body lie (its shape's bounds, a file's
-/// positions; widened for round-off), found when first asked for - a file
-/// body's box is a pass over its file, made once per seeding pass - or none
-/// when that is not known before the body is seeded (a shape or file
-/// refused later, in turn).
+/// The box where the seeds of each body lie (its shape's bounds; a file
+/// body's: the bounds of its particles' cubes that the scene reader found
+/// when it read the file, BodySection::lower/upper - no pass over the file
+/// here; widened for round-off), found when first asked for, or none when
+/// that is not known before the body is seeded (a shape refused later, in
+/// turn, or a file body of a scene built in code, without the reader's
+/// bounds).
 template <int D> class BodyBoxes {
 public:
   using Box = std::pair<Vec<D>, Vec<D>>;
-  explicit BodyBoxes(const Scene& scene) : scene_(scene), memo_(scene.bodies.size()) {}
+  explicit BodyBoxes(const Scene& scene)
+      : scene_(scene), memo_(scene.bodies.size()), relied_(scene.bodies.size(), 0) {}
 
   /// The box of body a.
   const std::optional<Box>& of(std::size_t a) {
@@ -284,13 +271,18 @@ public:
     return *memo_[a];
   }
 
+  /// Notes that an earlier body's shape is built on the box of body a (found).
+  void rely_on(std::size_t a) { relied_[a] = 1; }
+
+  /// The box of body a if an earlier body's shape was built on it, else null.
+  const Box* relied_on(std::size_t a) const { return relied_[a] ? &**memo_[a] : nullptr; }
+
 private:
   std::optional<Box> find(const BodySection& body) const {
     Vec<D> lo, hi;
     if (body.shape == "file") {
-      const auto box = file_box<D>(body.file);
-      if (!box) return std::nullopt;
-      std::tie(lo, hi) = *box;
+      if (body.file_particles <= 0) return std::nullopt; // not read by the scene reader
+      lo = scene_vec<D>(body.lower), hi = scene_vec<D>(body.upper);
     } else {
       try {
         body_shape<D>(body, nullptr)->bounds(lo, hi);
@@ -304,6 +296,7 @@ private:
 
   const Scene& scene_;
   std::vector<std::optional<std::optional<Box>>> memo_; // outer: found yet
+  std::vector<char> relied_;                            // per body: rely_on was called
 };
 
 /// The boxes where the seeds of the bodies after b lie, or none when one of
@@ -321,10 +314,13 @@ std::optional<std::vector<std::pair<Vec<D>, Vec<D>>>> later_boxes(const Scene& s
 
 /// The filter of a file body's shape (ParticleCells::Builder): only the
 /// cubes that meet a later body's seeds are asked about (the overlap test).
+/// With a filter, the later bodies' boxes are noted as relied on
+/// (BodyBoxes::rely_on: a later file body's rows are checked against its box).
 template <int D>
 typename ParticleCells<D>::Filter later_filter(const Scene& scene, int b, BodyBoxes<D>& known) {
   auto boxes = later_boxes<D>(scene, b, known);
   if (!boxes) return {};
+  for (std::size_t a = static_cast<std::size_t>(b) + 1; a < scene.bodies.size(); ++a) known.rely_on(a);
   return [boxes = std::move(*boxes)](const Vec<D>& lo, const Vec<D>& hi) {
     for (const auto& [blo, bhi] : boxes)
       if ((lo.array() <= bhi.array()).all() && (hi.array() >= blo.array()).all()) return true;
@@ -363,13 +359,29 @@ template <int D> Seed<D> row_seed(const ParticleRows& rows, std::size_t i, const
   return file_seed<D>(&rows.x[i * D], rows.volume[i], rows.v.empty() ? nullptr : &rows.v[i * D], rho, b, kept);
 }
 
-/// Streams body b's particle file (a file body of seed_bodies_where):
-/// emit(seed) for every row in file order, which returns whether it keeps
-/// the seed (seed.row: the index of its values in the body's
-/// out.file_state, which hold the kept rows only), then adds the body's
-/// shape to `shapes` (holding only the cubes near the later bodies' boxes
-/// in `known`). An error of a seed (overlap) is raised after the file was
-/// read, as when it was read whole before seeding (a bad row first).
+/// InputError unless the rows' positions lie in `box`, the box an earlier
+/// file body's shape was built on (BodyBoxes: from the scene reader's pass
+/// over the file): else that shape may lack the cubes the overlap test asks
+/// about - the file changed after the scene was read.
+template <int D>
+void require_in_box(const ParticleRows& rows, const typename BodyBoxes<D>::Box* box, const std::string& path) {
+  if (!box) return;
+  for (std::size_t i = 0; i < static_cast<std::size_t>(rows.size()); ++i) {
+    const Vec<D> x(Eigen::Map<const Vec<D>>(&rows.x[i * D]));
+    const bool inside = (x.array() >= box->first.array()).all() && (x.array() <= box->second.array()).all();
+    require(inside, path, ": row ", rows.first + static_cast<long long>(i), ": position ", format_point<D>(x),
+            " lies outside the particles' bounds read with the scene",
+            " (the file changed after the scene was read)");
+  }
+}
+
+/// Streams body b's particle file (a file body of seed_bodies_where), its
+/// one pass over the file: emit(seed) for every row in file order, which
+/// returns whether it keeps the seed (seed.row: the index of its values in
+/// the body's out.file_state, which hold the kept rows only), then adds the
+/// body's shape to `shapes` (holding only the cubes near the later bodies'
+/// boxes in `known`). An error of a seed (overlap) is raised after the file
+/// was read, as when it was read whole before seeding (a bad row first).
 template <int D, class Emit>
 void stream_file_body(const Scene& scene, int b, std::vector<std::unique_ptr<Shape<D>>>& shapes, BodyBoxes<D>& known,
                       SeededBodies<D>& out, Emit&& emit) {
@@ -378,8 +390,10 @@ void stream_file_body(const Scene& scene, int b, std::vector<std::unique_ptr<Sha
   FileColumns columns;
   int kept = 0;
   std::exception_ptr refused;
+  const typename BodyBoxes<D>::Box* box = known.relied_on(static_cast<std::size_t>(b));
   auto each = [&](const ParticleColumns& layout, const ParticleRows& rows) {
     if (rows.first == 0) columns = file_columns<D>(layout, b, out);
+    require_in_box<D>(rows, box, body.file);
     for (std::size_t i = 0; i < static_cast<std::size_t>(rows.size()); ++i) {
       cells.add(Vec<D>(Eigen::Map<const Vec<D>>(&rows.x[i * D])), rows.volume[i]);
       try {

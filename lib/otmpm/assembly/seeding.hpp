@@ -108,7 +108,11 @@ template <int D> SeededBodies<D> seed_bodies(const Scene& scene, const Vec<D>& h
 /// its index in seed_bodies' order, x: its position). With `result`, the
 /// particles it keeps are stored there, in that order, with their ids in
 /// result->ids. Particle files are read in blocks of rows
-/// (stream_particle_file): of a file, only the rows kept are stored (their
+/// (stream_particle_file), each in one pass over its rows per call (the
+/// later bodies' boxes an earlier file body's shape is built on are their
+/// shapes' bounds, a file body's the bounds the scene reader found; a later
+/// file body's row outside them is an InputError: the file changed after
+/// the scene was read): of a file, only the rows kept are stored (their
 /// extra columns in result->file_state), and its body's shape (for the
 /// overlap of later bodies) holds only the particles whose cells meet
 /// where later bodies are seeded. Returns the number of particles of the

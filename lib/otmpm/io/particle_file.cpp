@@ -12,6 +12,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <mutex>
 #include <sstream>
 #include <utility>
 
@@ -230,22 +231,50 @@ void stream_hdf5(const std::string& path, int D, const Each& each, std::size_t c
   require(layout.rows > 0, path, ": no particles");
 }
 
+/// The passes begun per path (particle_file_passes), under their mutex.
+struct PassCount {
+  std::mutex mutex;
+  std::map<std::string, long long> passes;
+};
+
+/// The process's pass counts.
+PassCount& pass_count() {
+  static PassCount count;
+  return count;
+}
+
+/// Counts a pass begun over the file `path`.
+void count_pass(const std::string& path) {
+  PassCount& c = pass_count();
+  const std::lock_guard<std::mutex> lock(c.mutex);
+  ++c.passes[path];
+}
+
 } // namespace
+
+long long particle_file_passes(const std::string& path) {
+  PassCount& c = pass_count();
+  const std::lock_guard<std::mutex> lock(c.mutex);
+  const auto it = c.passes.find(path);
+  return it == c.passes.end() ? 0 : it->second;
+}
 
 void stream_particle_file(const std::string& path, int dimension, const Each& each, std::size_t chunk) {
   require<std::invalid_argument>(dimension >= 1 && dimension <= 3, "read_particle_file: dimension ", dimension);
   require<std::invalid_argument>(chunk > 0, "stream_particle_file: chunk of 0 rows");
   std::error_code ec;
   require(std::filesystem::is_regular_file(path, ec), path, ": no such particle file");
+  count_pass(path);
   if (path.size() > 4 && path.ends_with(".csv")) stream_csv(path, dimension, each, chunk);
   else stream_hdf5(path, dimension, each, chunk);
 }
 
-ParticleFile read_particle_file(const std::string& path, int dimension) {
+ParticleFile read_particle_file(const std::string& path, int dimension, long long expected_rows) {
   ParticleFile f{path, dimension, {}, {}, {}, {}};
-  stream_particle_file(path, dimension, [&f](const ParticleColumns& columns, const ParticleRows& rows) {
-    if (rows.first == 0 && columns.rows > 0) { // no growth by doubling (peak memory)
-      const std::size_t n = static_cast<std::size_t>(columns.rows), D = static_cast<std::size_t>(columns.dimension);
+  const auto each = [&f, expected_rows](const ParticleColumns& columns, const ParticleRows& rows) {
+    const long long known = columns.rows > 0 ? columns.rows : expected_rows;
+    if (rows.first == 0 && known > 0) { // no growth by doubling (peak memory)
+      const std::size_t n = static_cast<std::size_t>(known), D = static_cast<std::size_t>(columns.dimension);
       f.x.reserve(n * D);
       f.volume.reserve(n);
       if (columns.velocity) f.v.reserve(n * D);
@@ -258,7 +287,8 @@ ParticleFile read_particle_file(const std::string& path, int dimension) {
       std::vector<double>& to = f.fields[columns.fields[i]];
       to.insert(to.end(), rows.fields[i].begin(), rows.fields[i].end());
     }
-  });
+  };
+  stream_particle_file(path, dimension, each);
   return f;
 }
 

@@ -70,7 +70,17 @@ void stream_particle_file(const std::string& path, int dimension,
 /// (header, datasets and their sizes), else a bad row - in a CSV file the
 /// first; in an HDF5 file the first of the first dataset found faulty in the
 /// first block of rows holding a fault (the order of the checks within a
-/// block: positions, volumes, velocities, the further fields).
-ParticleFile read_particle_file(const std::string& path, int dimension);
+/// block: positions, volumes, velocities, the further fields). Its vectors
+/// are reserved for the file's rows up front when they are known before
+/// reading them: an HDF5 file's extent, else `expected_rows` when > 0 (a
+/// hint, e.g. the count the scene reader found; a CSV file may hold more).
+ParticleFile read_particle_file(const std::string& path, int dimension, long long expected_rows = -1);
+
+/// How many passes over the particle file `path` (as spelt by the caller)
+/// stream_particle_file - and so read_particle_file - has begun in this
+/// process: a pass is counted when the file exists and its reading starts,
+/// also when a bad row or layout ends it. For tests that check how often
+/// set-up reads a file (once per seeding pass).
+long long particle_file_passes(const std::string& path);
 
 } // namespace otmpm
