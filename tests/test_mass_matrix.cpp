@@ -207,6 +207,9 @@ TEST_CASE("consistent mass: an active node without mass is a singular matrix, re
   const int n = s.nodes();
   const std::vector<char> all_active(n, 1);
   CHECK_THROWS_AS(M.assemble(s.table, s.m, all_active, std::vector<char>(n, 0), n), InstabilityError);
+  // No factor is left behind: a solve is refused until the next assembly.
+  AlignedVector<Vec<1>> r(n, Vec<1>::Ones()), y(n, Vec<1>::Zero());
+  CHECK_THROWS_AS(M.solve(r, y), std::invalid_argument);
 }
 
 namespace {
@@ -431,4 +434,33 @@ TEST_CASE("consistent mass: an entry of M that becomes zero, or nonzero again, c
                                              constrained)));
   }
   CHECK(kept.pattern_reuses() == 3);
+}
+
+TEST_CASE("consistent mass: a row that names a node twice is summed as the triplet assembly sums it") {
+  // Row 1 names node 1 twice: its two weights add into one place.
+  const BasisTable<1> t = runs_table({{0, 1}, {1, 1}, {1, 1}, {1, 2}}, {0.5, 0.3, 0.4, 0.6});
+  const std::vector<double> m = {1.0, 2.0, 0.5, 1.5};
+  const std::vector<char> active(3, 1), constrained(3, 0);
+  MassMatrix<1> kept, fresh;
+  kept.assemble(t, m, active, constrained, 3);
+  kept.assemble(t, m, active, constrained, 3); // the pattern reused
+  fresh.assemble(t, m, active, constrained, 3);
+  REQUIRE(kept.pattern_reuses() == 1);
+  CHECK(same_bits(kept, fresh, 3));
+}
+
+TEST_CASE("consistent mass: a negative entry of M and r = -0 give the signed zeros of the first implementation") {
+  // Weights 1.2 and 0.9 (outside [0, 1]) make M_01 < 0: the first
+  // implementation's b = r - M 0 adds +0 there, turning r's -0 into +0.
+  const BasisTable<1> t = runs_table({{0, 1}, {0, 1}}, {1.2, 0.9});
+  const std::vector<double> m = {1.0, 1.0};
+  const std::vector<char> active(2, 1), constrained(2, 0);
+  MassMatrix<1> M;
+  M.assemble(t, m, active, constrained, 2);
+  REQUIRE(M.matrix().coeff(0, 1) < 0.0);
+  const AlignedVector<Vec<1>> r(2, Vec<1>::Constant(-0.0));
+  AlignedVector<Vec<1>> y(2, Vec<1>::Zero());
+  const AlignedVector<Vec<1>> expected = reference_solve<1>(M.matrix(), r, y, active, constrained);
+  M.solve(r, y);
+  CHECK(same_bits<1>(y, expected));
 }

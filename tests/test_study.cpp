@@ -175,30 +175,36 @@ TEST_CASE("study: a malformed study file is refused with exit status 2 and the l
 
 TEST_CASE("study: a refused run whose result file is an earlier run's records the refusal, not that file") {
   // One variant "v"; the second study gives it a set the run refuses (the
-  // study checks variants' sets only when their run starts).
+  // study checks variants' sets only when their run starts). The earlier
+  // run finished (status ok) or blew up (cfl = 20: unstable).
   const auto body = [](const std::string& sets) {
     return "set = [\"output.every=1e-5\", \"simulation.t_end=2e-5\"]\n[[variant]]\nname = \"v\"\nset = [" + sets +
            "]\n" + std::string(kMeshN13);
   };
-  const fs::path dir = study_dir("stale", body(""));
-  std::string out;
-  REQUIRE(run_study(dir, out) == 0);
-  REQUIRE(read_csv(dir / "study.csv").at(1).at(column(read_csv(dir / "study.csv")[0], "status")) == "ok");
-  // The same run again, now refused before it writes (cfl < 0): its result
-  // file is still the first run's, with status "ok".
-  fs::remove(dir / "study.csv");
-  std::ofstream(dir / "study.toml") << study_head() << body("\"simulation.cfl=-1\"");
-  run_study(dir, out);
-  INFO(out);
-  const auto rows = read_csv(dir / "study.csv");
-  REQUIRE(rows.size() == 2);
-  const auto& h = rows[0];
-  CHECK(rows[1][column(h, "status")].rfind("input error: ", 0) == 0);
-  CHECK(rows[1][column(h, "exit_code")] == "2");
-  // Nothing of the earlier run's file: no steps, wall time or errors.
-  for (const char* c : {"steps", "wall_seconds", "particles", "rms_velocity_error"}) {
-    INFO("column " << c << " = " << rows[1][column(h, c)]);
-    CHECK((rows[1][column(h, c)].empty() || rows[1][column(h, c)] == "nan"));
+  for (const std::string& first : {std::string(), std::string("\"simulation.cfl=20\"")}) {
+    INFO("first run's sets: " << first);
+    const fs::path dir = study_dir("stale", body(first));
+    std::string out;
+    REQUIRE(run_study(dir, out) == 0);
+    const auto earlier = read_csv(dir / "study.csv");
+    REQUIRE(earlier.size() == 2);
+    REQUIRE(earlier[1][column(earlier[0], "status")].rfind(first.empty() ? "ok" : "unstable", 0) == 0);
+    // The same run again, now refused before it writes (cfl < 0): its
+    // result file is still the earlier run's.
+    fs::remove(dir / "study.csv");
+    std::ofstream(dir / "study.toml") << study_head() << body("\"simulation.cfl=-1\"");
+    run_study(dir, out);
+    INFO(out);
+    const auto rows = read_csv(dir / "study.csv");
+    REQUIRE(rows.size() == 2);
+    const auto& h = rows[0];
+    CHECK(rows[1][column(h, "status")].rfind("input error: ", 0) == 0);
+    CHECK(rows[1][column(h, "exit_code")] == "2");
+    // Nothing of the earlier run's file: no steps, wall time, errors or energies.
+    for (const char* c : {"steps", "wall_seconds", "particles", "rms_velocity_error", "max_energy_ratio"}) {
+      INFO("column " << c << " = " << rows[1][column(h, c)]);
+      CHECK((rows[1][column(h, c)].empty() || rows[1][column(h, c)] == "nan"));
+    }
+    fs::remove_all(dir);
   }
-  fs::remove_all(dir);
 }

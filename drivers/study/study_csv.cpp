@@ -171,7 +171,12 @@ std::string result_row(const Study& s, const StudyRun& r, int exit_code, const f
   std::string status = "ok";
   double steps = NAN, wall = NAN, particles = NAN, nodes = NAN;
   std::map<std::string, double> errors, energy;
-  try {
+  const std::string refused = exit_code == 2 ? "input error: " + last_line(log) : "failed: " + last_line(log);
+  // A run refused or failed (any status but 0 and 1) stopped before its
+  // result file or without finishing it: whatever file is at its path may
+  // be an earlier run's, so nothing is read from it.
+  if (exit_code != 0 && exit_code != 1) status = refused;
+  else try {
     status = read_string_attribute(out.string(), "status");
     steps = read_double_attribute(out.string(), "steps");
     wall = read_double_attribute(out.string(), "wall_seconds");
@@ -185,15 +190,7 @@ std::string result_row(const Study& s, const StudyRun& r, int exit_code, const f
     }
     for (const std::string& e : energy_columns) energy[e] = read_double_attribute(out.string(), e);
   } catch (const InputError&) {
-    status = exit_code == 2 ? "input error: " + last_line(log) : "failed: " + last_line(log);
-  }
-  // A run refused or failed (any status but 0 and 1) that left a file saying
-  // "ok": the file is an earlier run's (the run stopped before writing), so
-  // nothing in it describes this run.
-  if (exit_code != 0 && exit_code != 1 && status == "ok") {
-    status = exit_code == 2 ? "input error: " + last_line(log) : "failed: " + last_line(log);
-    steps = wall = particles = nodes = NAN;
-    errors.clear(), energy.clear();
+    status = refused;
   }
   if (exit_code == 1 && status == "ok") status = "unstable";
   const double psps = (wall > 0) ? particles * steps / wall : NAN;

@@ -54,24 +54,19 @@ bool nodes_in_range(const std::vector<int>& node, int nodes) {
   return (out >> 31) == 0;
 }
 
-/// True when every mass is finite and >= +0: the sign and exponent bits of
+/// True when every value is finite and >= +0: the sign and exponent bits of
 /// such a double, plus one, stay below 0x800 (+Inf and NaN reach 0x800, a
 /// negative number 0x801 or more). Shifts, adds and ors: the loop vectorises.
-/// A mass of -0.0 is refused here, which only sends the caller to its exact
-/// test (that accepts it).
-bool masses_valid(const std::vector<double>& m_p) {
+/// -0.0 is refused here (its sign bit is set).
+bool finite_non_negative(const double* v, std::size_t n) {
   std::uint64_t out = 0;
-  for (const double m : m_p) out |= (std::bit_cast<std::uint64_t>(m) >> 52) + 1u;
+  for (std::size_t i = 0; i < n; ++i) out |= (std::bit_cast<std::uint64_t>(v[i]) >> 52) + 1u;
   return (out & 0x1800u) == 0;
 }
 
-/// True when some of the n values has its sign bit set (a negative number,
-/// -0.0 or a NaN with the bit). Shifts and ors: the loop vectorises.
-bool any_sign_bit(const double* v, std::size_t n) {
-  std::uint64_t out = 0;
-  for (std::size_t i = 0; i < n; ++i) out |= std::bit_cast<std::uint64_t>(v[i]);
-  return (out >> 63) != 0;
-}
+/// True when every mass is finite and >= +0 (a mass of -0.0 is refused here,
+/// which only sends the caller to its exact test, which accepts it).
+bool masses_valid(const std::vector<double>& m_p) { return finite_non_negative(m_p.data(), m_p.size()); }
 
 /// The argument checks of MassMatrix::assemble: consistent sizes, node ids in
 /// range (Eigen only asserts them, and not at all under NDEBUG), finite
@@ -138,11 +133,15 @@ inline void sum_run(double* __restrict value, const double* __restrict N, const 
 }
 
 /// The first row of every run of rows with the same node list in a table
-/// whose rows all hold S entries, and `rows` at the end.
+/// whose rows all hold S entries, and `rows` at the end; none (empty) when
+/// a row names a node twice (sum_run would then load one place into two
+/// accumulators).
 std::vector<int> row_runs(const std::vector<int>& node, int S, int rows) {
   std::vector<int> first;
   for (int p = 0; p < rows; ++p) {
     const auto row = node.begin() + static_cast<std::ptrdiff_t>(p) * S;
+    for (int a = 1; a < S; ++a)
+      if (std::find(row, row + a, row[a]) != row + a) return {};
     if (p == 0 || !std::equal(row, row + S, row - S)) first.push_back(p);
   }
   first.push_back(rows);
@@ -160,20 +159,26 @@ void MassMatrix<D>::assemble(const BasisTable<D>& table, const std::vector<doubl
                              int nodes) {
   check_assembly<D>(table, m_p, active, constrained, nodes);
   assemble_values(table, m_p, nodes);
-  signed_values_ = any_sign_bit(M_.valuePtr(), static_cast<std::size_t>(M_.nonZeros()));
+  free_columns_add_nothing_ = finite_non_negative(M_.valuePtr(), static_cast<std::size_t>(M_.nonZeros()));
   std::vector<std::unique_ptr<Factor>> old = std::move(factor_);
   factor_.clear();
   fixed_.clear();
-  for (int k = 0; k < D; ++k) {
-    std::vector<char> fixed(nodes, 0);
-    for (int I = 0; I < nodes; ++I) fixed[I] = !active[I] || constrained[I * D + k];
-    if (k > 0 && fixed == fixed_.back()) { // same constraints: share the factor
-      fixed_.push_back(fixed);
-      factor_.push_back(nullptr);
-      continue;
+  try {
+    for (int k = 0; k < D; ++k) {
+      std::vector<char> fixed(nodes, 0);
+      for (int I = 0; I < nodes; ++I) fixed[I] = !active[I] || constrained[I * D + k];
+      if (k > 0 && fixed == fixed_.back()) { // same constraints: share the factor
+        fixed_.push_back(fixed);
+        factor_.push_back(nullptr);
+        continue;
+      }
+      factorise(k, fixed, old);
+      fixed_.push_back(std::move(fixed));
     }
-    factorise(k, fixed, old);
-    fixed_.push_back(std::move(fixed));
+  } catch (...) { // no factor of some component: solve() refuses until the next assembly
+    factor_.clear();
+    fixed_.clear();
+    throw;
   }
 }
 
@@ -245,7 +250,11 @@ void MassMatrix<D>::sum_rows(const BasisTable<D>& table, const std::vector<doubl
   const int* const offset = table.offset.data();
   const int* slot = slot_.data();
   const int rows = table.rows();
-  if constexpr (S > 0) { // runs of rows with the same node list (row_runs)
+  if constexpr (S > 0) { // runs of rows with the same node list (row_runs), else row by row
+    if (runs_.empty()) {
+      for (int p = 0; p < rows; ++p) slot = sum_row<S>(value, N + static_cast<std::ptrdiff_t>(p) * S, m_p[p], slot, S);
+      return;
+    }
     for (std::size_t r = 0; r + 1 < runs_.size(); ++r) {
       const int p0 = runs_[r], p1 = runs_[r + 1];
       sum_run<S>(value, N + static_cast<std::ptrdiff_t>(p0) * S, m_p.data() + p0, p1 - p0,
@@ -315,11 +324,8 @@ void MassMatrix<D>::factorise(int k, const std::vector<char>& fixed, std::vector
     f->version = -1;
     if (f->ldlt.info() == Eigen::Success) map_gather(*f, fixed);
   }
-  if (f->ldlt.info() != Eigen::Success) {
-    f->analysed = false;
-    f->version = -1;
+  if (f->ldlt.info() != Eigen::Success)
     throw InstabilityError("consistent mass matrix: factorisation failed (singular matrix)");
-  }
   factor_.push_back(std::move(f));
 }
 
@@ -393,8 +399,10 @@ double MassMatrix<D>::residual(const AlignedVector<Vec<D>>& r, const AlignedVect
 
 /// b = r_k - M y0 (y0: the prescribed values of the fixed rows, +0 at the
 /// others) as Eigen evaluates it: b = r_k, then column by column b_I +=
-/// M_IJ (-y0_J). A free column adds M_IJ (-(+0)) = -0 when no value of M_
-/// has its sign bit set, which changes nothing: such columns are skipped.
+/// M_IJ (-y0_J). A free column adds M_IJ (-(+0)) = -0 when every value of
+/// M_ is finite and >= +0 (a negative value or -0 would add +0, which turns
+/// a -0 into +0; an infinite or NaN value would add NaN), and adding -0
+/// changes nothing: then the free columns are skipped.
 template <int D>
 void MassMatrix<D>::move_prescribed(int k, const std::vector<char>& fixed, const AlignedVector<Vec<D>>& y,
                                     Eigen::VectorXd& b) const {
@@ -403,7 +411,7 @@ void MassMatrix<D>::move_prescribed(int k, const std::vector<char>& fixed, const
   const int* inner = M_.innerIndexPtr();
   const int* outer = M_.outerIndexPtr();
   for (int J = 0; J < n; ++J) {
-    if (!fixed[J] && !signed_values_) continue;
+    if (!fixed[J] && free_columns_add_nothing_) continue;
     const double r_J = fixed[J] ? -y[J][k] : -0.0;
     for (int e = outer[J]; e < outer[J + 1]; ++e) b[inner[e]] += v[e] * r_J;
   }

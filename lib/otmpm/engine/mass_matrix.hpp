@@ -67,7 +67,7 @@ private:
   std::vector<int> runs_; // rows of one size: the first row of each run with one node list, then the row count
   int row_size_ = 0;
   long long version_ = 0;       // M_'s pattern: counts the triplet assemblies
-  bool signed_values_ = false;  // some value of M_ has its sign bit set (-0 or negative)
+  bool free_columns_add_nothing_ = false; // every value of M_ finite and >= +0 (move_prescribed)
   int pattern_reuses_ = 0, analysis_reuses_ = 0;
 };
 
