@@ -39,7 +39,7 @@ void write_blob(const std::string& path, int moved = 0, double shift = 0.0) {
 /// A 2D scene of two file bodies (a CSV block, an HDF5 blob overlapping it
 /// with overlap = "first"), then a box and a sphere overlapping them, as in
 /// test_mpi's file-body case; its files in `dir`.
-Scene two_file_bodies(const test::TempDir& dir) {
+Scene two_file_bodies(const test::TempDir& dir, double blob_shift = 0.0) {
   {
     std::ofstream csv(dir.file("block.csv"));
     csv << "x, y, volume, vx, vy, plastic_strain\n";
@@ -47,7 +47,7 @@ Scene two_file_bodies(const test::TempDir& dir) {
       for (int i = 0; i <= 20; ++i, ++row)
         csv << 0.025 + 0.05 * i << ", " << 0.025 + 0.05 * j << ", 0.0025, " << 0.01 * i << ", 0, " << 1e-4 * row << "\n";
   }
-  write_blob(dir.file("blob.h5"));
+  write_blob(dir.file("blob.h5"), blob_shift != 0.0 ? 100 : 0, blob_shift);
   const std::string text =
       "[simulation]\ndimension = 2\nmode = \"mpm\"\nintegrator = \"fe\"\nt_end = 4.0e-3\ncfl = 0.3\n"
       "[basis]\nkind = \"linear\"\n[grid]\nlower = [-0.2125, -0.2125]\nupper = [1.5875, 1.5875]\ncells = [36, 36]\n"
@@ -193,4 +193,20 @@ TEST_CASE("particle files: a CSV file read whole is reserved for the rows the ca
   // a hint below the rows only starts the growth later
   const ParticleFile low = read_particle_file(dir.file("p.csv"), 2, 10);
   CHECK(low.x == grown.x);
+}
+
+TEST_CASE("particle files: a file body pointed at another file in code is seeded from that file, not refused") {
+  // The scene read blob.h5's bounds; the code then names another file whose
+  // rows lie elsewhere (inside the block). Those bounds are not that file's:
+  // the block's shape keeps every cube, and the particles are those of a
+  // scene that names the other file.
+  test::TempDir dir("pfile_once_swapped"), other("pfile_once_other");
+  const Scene moved = two_file_bodies(other, -0.6);
+  Scene scene = two_file_bodies(dir);
+  scene.bodies[1].file = other.file("blob.h5");
+  SeededBodies<2> swapped;
+  CHECK_NOTHROW(swapped = store_pass(scene, [](long long, const Vec<2>&) { return true; }));
+  const CartesianGrid<2> grid = node_grid<2>(moved);
+  CHECK(flat(swapped) == flat(seed_bodies<2>(moved, grid.h(), grid)));
+  CHECK(flat(swapped) == flat(seed_bodies<2>(scene, grid.h(), grid)));
 }

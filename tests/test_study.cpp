@@ -153,7 +153,8 @@ TEST_CASE("study: a [stability] table without a positive band or with an unswept
            {"[stability]\nband = 0.05\nkey = \"simulation.gamma\"\n", "'simulation.gamma' is not swept"}}) {
     const fs::path dir = study_dir("bad_stability", table + "[sweep]\n\"simulation.cfl\" = [0.5]\n" + kMeshN13);
     std::string out;
-    INFO(table);
+    const std::string& study_table = table; // INFO's lambda cannot capture a structured binding (clang, C++20)
+    INFO(study_table);
     CHECK(run_study(dir, out) == 2);
     CHECK(out.find(what) != std::string::npos);
     CHECK(!fs::exists(dir / "study.csv")); // refused before any run

@@ -153,7 +153,8 @@ std::optional<ParticleFile> open_body(const Scene& scene, int b, std::vector<std
   std::optional<ParticleFile> file;
   if (body.shape == "file") {
     try {
-      file = read_particle_file(body.file, D, body.file_particles); // reserved: the scene reader's count
+      // reserved for the scene reader's count when it read this file
+      file = read_particle_file(body.file, D, body.file_read == body.file ? body.file_particles : -1);
     } catch (const InputError& e) {
       input_error(scene.locate("body." + body.name + ".file"), e.what());
     }
@@ -281,7 +282,7 @@ private:
   std::optional<Box> find(const BodySection& body) const {
     Vec<D> lo, hi;
     if (body.shape == "file") {
-      if (body.file_particles <= 0) return std::nullopt; // not read by the scene reader
+      if (body.file_particles <= 0 || body.file_read != body.file) return std::nullopt; // not read by the scene reader
       lo = scene_vec<D>(body.lower), hi = scene_vec<D>(body.upper);
     } else {
       try {

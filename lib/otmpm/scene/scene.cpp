@@ -361,29 +361,37 @@ void cylinder_bounds(BodySection& b) {
 }
 
 /// file: the path (relative to the scene file), read now for its bounds and
-/// particle count, so that a bad file is reported with the scene's line.
+/// particle count, so that a bad file is reported with the scene's line. The
+/// file is streamed (stream_particle_file: a block of rows at a time), so
+/// that every rank of a distributed run holds one block, not the file.
 void read_particle_file_body(const TableReader& t, BodySection& b, const Scene& s) {
   const std::string name = t.require<std::string>("file");
   check(!name.empty(), t.ref("file"), "must not be empty");
   namespace fs = std::filesystem;
   const fs::path given(name);
   b.file = (given.is_absolute() || s.file.empty() ? given : fs::path(s.file).parent_path() / given).string();
-  ParticleFile f;
+  const int D = s.simulation.dimension;
+  long long count = 0;
+  const auto bounds = [&b, &count, D](const ParticleColumns&, const ParticleRows& rows) {
+    for (int p = 0; p < rows.size(); ++p, ++count)
+      for (int k = 0; k < D; ++k) {
+        const double x = rows.x[static_cast<std::size_t>(p) * D + k];
+        const double half = 0.5 * std::pow(rows.volume[static_cast<std::size_t>(p)], 1.0 / D);
+        if (count == 0) b.lower[k] = b.upper[k] = x; // the first position, then min/max as one pass over the file
+        b.lower[k] = std::min(b.lower[k], x - half);
+        b.upper[k] = std::max(b.upper[k], x + half);
+      }
+  };
   try {
-    f = read_particle_file(b.file, s.simulation.dimension);
+    stream_particle_file(b.file, D, bounds);
   } catch (const InputError& e) {
     input_error(t.ref("file"), e.what());
   }
-  const int D = s.simulation.dimension;
-  b.file_particles = f.size();
-  for (int k = 0; k < D; ++k) {
-    b.lower[k] = b.upper[k] = f.x[static_cast<std::size_t>(k)];
-    for (int p = 0; p < f.size(); ++p) {
-      const double x = f.x[static_cast<std::size_t>(p) * D + k], half = 0.5 * std::pow(f.volume[static_cast<std::size_t>(p)], 1.0 / D);
-      b.lower[k] = std::min(b.lower[k], x - half);
-      b.upper[k] = std::max(b.upper[k], x + half);
-    }
-  }
+  check(count <= kMaxSceneParticles, t.ref("file"),
+        "holds " + fmt(static_cast<double>(count)) + " particles; at most " + fmt(kMaxSceneParticles) +
+            " are allowed");
+  b.file_particles = static_cast<int>(count);
+  b.file_read = b.file;
 }
 
 /// The shape's own keys, and lower/upper = its bounding box.

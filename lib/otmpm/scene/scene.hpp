@@ -89,6 +89,7 @@ struct BodySection {
   std::vector<std::array<double, 2>> vertices; ///< polygon (2D)
   std::string file;                    ///< file: particle file (CSV or HDF5), resolved path
   int file_particles = 0;              ///< file: the number of particles it holds
+  std::string file_read;               ///< file: the path file_particles, lower and upper were read from (else empty)
   std::string overlap = "error";       ///< "first": particles inside an earlier body are dropped
   int particles_per_cell = 2;           ///< per axis
   std::string placement = "gauss";      ///< gauss | cell_centres
