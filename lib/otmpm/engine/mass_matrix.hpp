@@ -9,7 +9,8 @@
 /// unchanged the products are summed straight into the last step's matrix
 /// (in the order the triplet assembly sums them: the same bits), and while
 /// a component's pattern is unchanged its factorisation skips the ordering
-/// and symbolic analysis (again the same bits).
+/// and symbolic analysis and the permuted matrix it factorises is gathered
+/// straight from M's values (again the same bits).
 #include "otmpm/basis/basis.hpp"
 
 #include <Eigen/Core>
