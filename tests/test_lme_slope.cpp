@@ -13,6 +13,13 @@
 //   where the third-order term is ~1% of the second).
 // * N from the predicted start agree with a cold solve to 1e-11: both
 //   converge to |r| <= 1e-12 h, and J^{-1} r moves N by less than ~1e-11.
+// * With the second-order term (eq. 4.7b) along a straight path of equal
+//   steps the prediction error is third order: halving the step divides it
+//   by 8 (asserted between 6 and 10, steps 2e-2 h and 1e-2 h; measured
+//   7.9-8.1: the solves' noise, |r| <= 1e-14 h, moves lambda by ~1e-14 / h
+//   against errors above ~1e-8 / h), so its ratio to the first-order
+//   start's error halves with the step (asserted <= 0.6 of the ratio at
+//   twice the step).
 #include "otmpm/basis/families.hpp"
 #include "otmpm/basis/lme.hpp"
 #include "otmpm/state.hpp"
@@ -22,6 +29,7 @@
 
 #include <cmath>
 #include <random>
+#include <vector>
 #include <string>
 
 using namespace otmpm;
@@ -184,4 +192,148 @@ TEST_CASE("lme slope: kept per point only while the nodes stay fixed, and saved 
   restored->restore_state(saved);
   CHECK(restored->point_state().slope[0].G.isZero(0.0));
   CHECK(restored->point_state().lambda[0] == b->point_state().lambda[0]);
+}
+
+namespace {
+
+using Lme2 = maxent::MaxEntBasis<2, maxent::GaussianPrior<2>>;
+
+/// Solves at each of `path` in turn from the state (lambda, slope) of the
+/// solve before (the first from a cold start); Newton iterations of each
+/// solve into *iterations when given.
+void walk(const Basis<2>& b, const std::vector<Vec<2>>& path, Vec<2>& lambda, MultiplierSlope<2>& slope,
+          std::vector<int>* iterations = nullptr) {
+  for (const Vec<2>& x : path) {
+    int it = -1;
+    PointQuery<2> q;
+    q.x = x;
+    q.lambda = &lambda;
+    q.slope = &slope;
+    q.iterations = &it;
+    Stencil<2> st;
+    b.evaluate(q, st);
+    if (iterations) iterations->push_back(it);
+  }
+}
+
+/// The start warm_start predicts at x from (lambda, slope).
+Vec<2> predicted_start(const Basis<2>& b, const Vec<2>& x, Vec<2> lambda, MultiplierSlope<2> slope) {
+  PointQuery<2> q;
+  q.x = x;
+  q.lambda = &lambda;
+  q.slope = &slope;
+  return dynamic_cast<const Lme2&>(b).warm_start(q);
+}
+
+} // namespace
+
+TEST_CASE("lme slope: along a straight path the second-order start is third-order accurate") {
+  const auto b = make_basis<2>(options("lme"), NodeSet<2>::perturbed(unit_grid<2>(8), 0.3, 12));
+  const double h = b->nodes().spacing();
+  std::mt19937 rng(23);
+  std::uniform_real_distribution<double> angle(0.0, 6.283185307179586);
+  for (const Vec<2>& x : interior_points<2>(12, 29)) {
+    const double a = angle(rng);
+    const Vec<2> dir(std::cos(a), std::sin(a));
+    CAPTURE(x.transpose());
+    double err[2], first_order[2];
+    for (int i = 0; i < 2; ++i) {
+      const Vec<2> d = dir * (i == 0 ? 2e-2 : 1e-2) * h;
+      Vec<2> lambda = Vec<2>::Zero();
+      MultiplierSlope<2> slope;
+      walk(*b, {Vec<2>(x - d), x}, lambda, slope);
+      REQUIRE(slope.e.isApprox(d, 1e-12));
+      const Vec<2> exact = converged_lambda<2>(*b, Vec<2>(x + d));
+      err[i] = (predicted_start(*b, x + d, lambda, slope) - exact).norm();
+      first_order[i] = (lambda + slope.G * d - exact).norm();
+    }
+    CHECK(err[0] / err[1] >= 6.0);
+    CHECK(err[0] / err[1] <= 10.0);
+    // and below the first-order start's error, by a factor that halves with the step
+    // (measured 0.016-0.35 at the smaller step over these points)
+    CHECK(err[1] < 0.5 * first_order[1]);
+    CHECK(err[1] / first_order[1] <= 0.6 * (err[0] / first_order[0]));
+  }
+}
+
+TEST_CASE("lme slope: the second-order term only along the last displacement, |alpha| <= 4") {
+  const auto b = make_basis<2>(options("lme"), NodeSet<2>::cartesian(unit_grid<2>(8)));
+  const double h = b->nodes().spacing();
+  const Vec<2> x(0.43, 0.51), d = Vec<2>(1.0, 0.3).normalized() * 1e-2 * h;
+  Vec<2> lambda = Vec<2>::Zero();
+  MultiplierSlope<2> slope;
+  walk(*b, {Vec<2>(x - d)}, lambda, slope);
+  CHECK(slope.e.isZero(0.0)); // one solve: no displacement before it yet
+  walk(*b, {x}, lambda, slope);
+  REQUIRE(slope.e.isApprox(d, 1e-12));
+  REQUIRE((slope.G - slope.G_prev).norm() > 0.0);
+  const auto first_order = [&](const Vec<2>& to) { return Vec<2>(lambda + slope.G * (to - x)); };
+  const Vec<2> turned = x + Vec<2>(-d[1], d[0]);                    // 90 degrees
+  const Vec<2> slightly = x + d + Vec<2>(-d[1], d[0]) * 0.02;        // 0.02 rad
+  CHECK(predicted_start(*b, turned, lambda, slope) == first_order(turned));
+  CHECK(predicted_start(*b, slightly, lambda, slope) == first_order(slightly));
+  CHECK(predicted_start(*b, x + 4.5 * d, lambda, slope) == first_order(x + 4.5 * d));
+  CHECK(predicted_start(*b, x + d, lambda, slope) != first_order(x + d));
+  CHECK(predicted_start(*b, x - 3.0 * d, lambda, slope) != first_order(x - 3.0 * d)); // back along e
+}
+
+TEST_CASE("lme slope: steady motion converges in fewer Newton steps, to the same N") {
+  BasisOptions opt = options("lme");
+  opt.newton_tolerance = 1e-12; // the default
+  const auto b = make_basis<2>(opt, NodeSet<2>::perturbed(unit_grid<2>(8), 0.3, 31));
+  const double h = b->nodes().spacing();
+  int with_total = 0, without_total = 0;
+  for (const Vec<2>& x0 : interior_points<2>(10, 37)) {
+    std::vector<Vec<2>> path;
+    const Vec<2> v = Vec<2>(0.6, -0.8) * 2e-3 * h; // constant velocity, slowly accelerating
+    for (int n = 0; n < 8; ++n) path.push_back(x0 + v * (n + 0.05 * n * n));
+    Vec<2> lambda = Vec<2>::Zero();
+    MultiplierSlope<2> slope;
+    std::vector<int> with;
+    walk(*b, path, lambda, slope, &with);
+    Vec<2> lambda1 = Vec<2>::Zero();
+    MultiplierSlope<2> first;
+    std::vector<int> without;
+    for (const Vec<2>& x : path) { // e cleared before each solve: the first-order start
+      first.e.setZero();
+      walk(*b, {x}, lambda1, first, &without);
+    }
+    for (std::size_t n = 2; n < path.size(); ++n) with_total += with[n], without_total += without[n];
+    Stencil<2> cold, warm;
+    evaluate_at<2>(*b, path.back(), cold);
+    PointQuery<2> q;
+    q.x = path.back();
+    Vec<2> l = lambda;
+    q.lambda = &l;
+    b->evaluate(q, warm);
+    REQUIRE(warm.node == cold.node);
+    for (int i = 0; i < cold.size(); ++i) CHECK(std::abs(warm.N[i] - cold.N[i]) <= 1e-11);
+  }
+  CHECK(with_total < without_total);
+}
+
+TEST_CASE("lme slope: the second-order state is saved in checkpoints") {
+  const auto b = make_basis<2>(options("lme"), NodeSet<2>::cartesian(unit_grid<2>(8)));
+  b->bind_points(2, false);
+  AlignedVector<Vec<2>> x{Vec<2>(0.31, 0.42), Vec<2>(0.55, 0.61)};
+  BasisTable<2> table;
+  b->evaluate_points(x, table);
+  for (Vec<2>& p : x) p += Vec<2>(1e-3, -2e-3);
+  b->evaluate_points(x, table);
+  REQUIRE(b->point_state().slope[1].e.isApprox(Vec<2>(1e-3, -2e-3), 1e-9));
+  StateGroup saved;
+  b->save_state(saved);
+  const auto restored = make_basis<2>(options("lme"), NodeSet<2>::cartesian(unit_grid<2>(8)));
+  restored->bind_points(2, false);
+  restored->restore_state(saved);
+  for (int p = 0; p < 2; ++p) {
+    CHECK(restored->point_state().slope[p].e == b->point_state().slope[p].e);
+    CHECK(restored->point_state().slope[p].G_prev == b->point_state().slope[p].G_prev);
+    CHECK(restored->point_state().slope[p].G == b->point_state().slope[p].G);
+  }
+  // a checkpoint of an otmpm before the second-order term: the first-order start
+  saved.real_arrays.erase("lambda_curvature");
+  restored->restore_state(saved);
+  CHECK(restored->point_state().slope[1].e.isZero(0.0));
+  CHECK(restored->point_state().slope[1].G == b->point_state().slope[1].G);
 }

@@ -76,11 +76,34 @@ template <int D, class In> void get_slopes(const In& in, AlignedVector<Multiplie
       for (int l = 0; l < D; ++l) m.G(k, l) = in.values[v++];
   }
 }
+/// Stores the second-order part of the slopes as rows of D + D * D values:
+/// e, then G_prev by rows.
+template <int D, class Out> void put_curvatures(Out& out, const AlignedVector<MultiplierSlope<D>>& a) {
+  out.cols = D + D * D;
+  out.values.clear();
+  for (const MultiplierSlope<D>& m : a) {
+    for (int k = 0; k < D; ++k) out.values.push_back(m.e[k]);
+    for (int k = 0; k < D; ++k)
+      for (int l = 0; l < D; ++l) out.values.push_back(m.G_prev(k, l));
+  }
+}
+/// Restores what put_curvatures stored into `a`, which has its size already.
+template <int D, class In> void get_curvatures(const In& in, AlignedVector<MultiplierSlope<D>>& a) {
+  std::size_t v = 0;
+  for (MultiplierSlope<D>& m : a) {
+    for (int k = 0; k < D; ++k) m.e[k] = in.values[v++];
+    for (int k = 0; k < D; ++k)
+      for (int l = 0; l < D; ++l) m.G_prev(k, l) = in.values[v++];
+  }
+}
 } // namespace
 
 template <int D> void Basis<D>::save_state(StateGroup& out) const {
   if (!points_.lambda.empty()) put_rows(out.real_arrays["lambda"], points_.lambda, D);
-  if (!points_.slope.empty()) put_slopes(out.real_arrays["lambda_slope"], points_.slope);
+  if (!points_.slope.empty()) {
+    put_slopes(out.real_arrays["lambda_slope"], points_.slope);
+    put_curvatures(out.real_arrays["lambda_curvature"], points_.slope);
+  }
   if (!points_.cell_hint.empty()) put_rows(out.integer_arrays["cell_hint"], points_.cell_hint, D);
   save_family_state(out);
 }
@@ -93,9 +116,15 @@ template <int D> void Basis<D>::restore_state(const StateGroup& in) {
   expect("cell_hint", !points_.cell_hint.empty());
   if (!points_.lambda.empty()) get_rows(in.real_array("lambda", points_.lambda.size(), D), points_.lambda, D);
   // A checkpoint without slopes (an older otmpm, or one written in `ul`
-  // mode) restarts from the plain warm start: G = 0.
-  if (!points_.slope.empty() && in.has_array("lambda_slope"))
+  // mode) restarts from the plain warm start: G = 0; one without the
+  // second-order part from the first-order prediction: e = 0.
+  if (!points_.slope.empty() && in.has_array("lambda_slope")) {
     get_slopes(in.real_array("lambda_slope", points_.slope.size(), D + D * D), points_.slope);
+    if (in.has_array("lambda_curvature"))
+      get_curvatures(in.real_array("lambda_curvature", points_.slope.size(), D + D * D), points_.slope);
+    else
+      for (MultiplierSlope<D>& m : points_.slope) m.e.setZero();
+  }
   if (!points_.cell_hint.empty())
     get_rows(in.integer_array("cell_hint", points_.cell_hint.size(), D), points_.cell_hint, D);
   restore_family_state(in);

@@ -42,10 +42,18 @@ template <int D> struct Stencil {
 /// -J^{-1} (I + A) in general), so the next solve at x starts from the Taylor
 /// prediction lambda + G (x - x0) instead of lambda. Kept per particle while
 /// the nodes stay fixed (`mpm` mode); G = 0 (the plain warm start) before the
-/// first solve.
+/// first solve. The solve before that one (at x0 - e, slope G_prev) adds the
+/// second-order term of eq. 4.7b, 1/2 alpha (G - G_prev)(x - x0), when the
+/// point moves on along e (x - x0 = alpha e within a small angle): a particle
+/// in steady motion then starts with a third-order residual. e = 0 (no
+/// second-order term) until two solves have been made.
 template <int D> struct MultiplierSlope {
   Vec<D> x0 = Vec<D>::Zero();
   Mat<D> G = Mat<D>::Zero();
+  /// G of the solve before, at x0 - e.
+  Mat<D> G_prev = Mat<D>::Zero();
+  /// x0 minus the position of the solve before (0: none).
+  Vec<D> e = Vec<D>::Zero();
 };
 
 /// One evaluation request. `id` names the point in error messages (a particle

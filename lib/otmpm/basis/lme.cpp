@@ -201,6 +201,14 @@ constexpr double kUnshiftedExponent = 300.0;
 /// kShiftedMomentLimit relative accuracy (well below round-off effects that
 /// matter); otherwise J is recomputed in the centred form.
 constexpr double kShiftedMomentLimit = 1e-3;
+/// The second-order term of the warm start (eq. 4.7b) is added when the
+/// displacement d since the last solve is alpha e, e the displacement before
+/// it: within an angle of 0.01 rad (|d - alpha e|^2 <= kCurvatureAngle2
+/// |d|^2), and |alpha| <= kCurvatureMaxRatio (an extrapolation over a few
+/// past steps; beyond, the difference G - G_prev, which carries the Newton
+/// tolerance of both solves, would be amplified by alpha).
+constexpr double kCurvatureAngle2 = 1e-4;
+constexpr double kCurvatureMaxRatio = 4.0;
 
 /// The components of a D-vector, each broadcast to all lanes once (outside
 /// the loops over the nodes): a * v with a scalar a broadcasts it anyway, so
@@ -1027,6 +1035,8 @@ template <int D, class Prior> void MaxEntBasis<D, Prior>::evaluate(const PointQu
   const Mat<D> two_B = closed_form && q.slope ? prior_hessian(pm, out) : Mat<D>::Zero();
   const Mat<D> JA = finish_stencil(st, s, closed_form, out);
   if (q.slope) {
+    q.slope->e = q.slope->G.isZero(0.0) ? Vec<D>::Zero().eval() : Vec<D>(q.x - q.slope->x0);
+    q.slope->G_prev = q.slope->G;
     q.slope->x0 = q.x;
     q.slope->G = two_B - JA;
   }
@@ -1035,7 +1045,16 @@ template <int D, class Prior> void MaxEntBasis<D, Prior>::evaluate(const PointQu
 template <int D, class Prior> Vec<D> MaxEntBasis<D, Prior>::warm_start(const PointQuery<D>& q) const {
   if (!q.lambda || !q.lambda->allFinite()) return Vec<D>::Zero();
   if (!q.slope) return *q.lambda;
-  const Vec<D> predicted = *q.lambda + q.slope->G * (q.x - q.slope->x0);
+  const Vec<D> d = q.x - q.slope->x0;
+  Vec<D> predicted = *q.lambda + q.slope->G * d;
+  // eq. 4.7b: along the last displacement e, (G - G_prev) / |e| is the
+  // derivative of G, so 1/2 alpha (G - G_prev) d is the second-order term
+  const Vec<D>& e = q.slope->e;
+  if (const double ee = e.squaredNorm(); ee > 0.0) {
+    const double alpha = d.dot(e) / ee;
+    if (std::abs(alpha) <= kCurvatureMaxRatio && (d - alpha * e).squaredNorm() <= kCurvatureAngle2 * d.squaredNorm())
+      predicted += (0.5 * alpha) * ((q.slope->G - q.slope->G_prev) * d);
+  }
   return predicted.allFinite() ? predicted : *q.lambda;
 }
 

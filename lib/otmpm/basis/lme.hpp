@@ -242,6 +242,11 @@ public:
     return {.lambda = true, .slope = !nodes_move, .deformation = metric_ == Metric::deformation};
   }
 
+  /// The start of the solve at q.x: the Taylor prediction *q.lambda + G (x -
+  /// x0) (eq. 4.7a), with the second-order term of eq. 4.7b when q.x - x0
+  /// continues the slope's last displacement e, when q carries a slope; else
+  /// *q.lambda (zero when absent or not finite).
+  Vec<D> warm_start(const PointQuery<D>& q) const;
   const Prior& prior() const { return prior_; }
   Metric metric() const { return metric_; }
   /// Metric::node_spacing: beta_I of each node (empty otherwise).
@@ -302,9 +307,6 @@ private:
   /// `out` (B = beta I, pm.B under Metric::deformation, beta_I I under
   /// Metric::node_spacing); call only where the closed form holds.
   Mat<D> prior_hessian(const PointMetric<D>& pm, const Stencil<D>& out) const;
-  /// The start of the solve at q.x: the Taylor prediction *q.lambda + G (x -
-  /// x0) when q carries a slope, else *q.lambda (zero when absent or not finite).
-  Vec<D> warm_start(const PointQuery<D>& q) const;
   /// Removes the nodes whose N_I underflowed to zero (their gradient is zero too).
   void drop_zeros(Stencil<D>& out) const;
   [[noreturn]] void fail(const PointQuery<D>& q, const std::string& why) const;
