@@ -57,52 +57,42 @@ template <class Array, class In> void get_rows(const In& in, Array& a, std::size
     for (std::size_t k = 0; k < cols; ++k)
       a[i][static_cast<int>(k)] = static_cast<std::remove_reference_t<decltype(a[i][0])>>(in.values[i * cols + k]);
 }
-/// Stores the multiplier slopes as rows of D + D * D values: x0, then G by rows.
-template <int D, class Out> void put_slopes(Out& out, const AlignedVector<MultiplierSlope<D>>& a) {
+/// A vector and a matrix member of MultiplierSlope (x0 and G, or e and G_prev).
+template <int D> struct SlopeColumns {
+  Vec<D> MultiplierSlope<D>::*v;
+  Mat<D> MultiplierSlope<D>::*m;
+};
+/// Stores the members `c` of the slopes as rows of D + D * D values: the
+/// vector, then the matrix by rows.
+template <int D, class Out>
+void put_slopes(Out& out, const AlignedVector<MultiplierSlope<D>>& a, SlopeColumns<D> c) {
   out.cols = D + D * D;
   out.values.clear();
-  for (const MultiplierSlope<D>& m : a) {
-    for (int k = 0; k < D; ++k) out.values.push_back(m.x0[k]);
+  for (const MultiplierSlope<D>& s : a) {
+    for (int k = 0; k < D; ++k) out.values.push_back((s.*c.v)[k]);
     for (int k = 0; k < D; ++k)
-      for (int l = 0; l < D; ++l) out.values.push_back(m.G(k, l));
+      for (int l = 0; l < D; ++l) out.values.push_back((s.*c.m)(k, l));
   }
 }
 /// Restores what put_slopes stored into `a`, which has its size already.
-template <int D, class In> void get_slopes(const In& in, AlignedVector<MultiplierSlope<D>>& a) {
-  std::size_t v = 0;
-  for (MultiplierSlope<D>& m : a) {
-    for (int k = 0; k < D; ++k) m.x0[k] = in.values[v++];
+template <int D, class In> void get_slopes(const In& in, AlignedVector<MultiplierSlope<D>>& a, SlopeColumns<D> c) {
+  std::size_t i = 0;
+  for (MultiplierSlope<D>& s : a) {
+    for (int k = 0; k < D; ++k) (s.*c.v)[k] = in.values[i++];
     for (int k = 0; k < D; ++k)
-      for (int l = 0; l < D; ++l) m.G(k, l) = in.values[v++];
+      for (int l = 0; l < D; ++l) (s.*c.m)(k, l) = in.values[i++];
   }
 }
-/// Stores the second-order part of the slopes as rows of D + D * D values:
-/// e, then G_prev by rows.
-template <int D, class Out> void put_curvatures(Out& out, const AlignedVector<MultiplierSlope<D>>& a) {
-  out.cols = D + D * D;
-  out.values.clear();
-  for (const MultiplierSlope<D>& m : a) {
-    for (int k = 0; k < D; ++k) out.values.push_back(m.e[k]);
-    for (int k = 0; k < D; ++k)
-      for (int l = 0; l < D; ++l) out.values.push_back(m.G_prev(k, l));
-  }
-}
-/// Restores what put_curvatures stored into `a`, which has its size already.
-template <int D, class In> void get_curvatures(const In& in, AlignedVector<MultiplierSlope<D>>& a) {
-  std::size_t v = 0;
-  for (MultiplierSlope<D>& m : a) {
-    for (int k = 0; k < D; ++k) m.e[k] = in.values[v++];
-    for (int k = 0; k < D; ++k)
-      for (int l = 0; l < D; ++l) m.G_prev(k, l) = in.values[v++];
-  }
-}
+/// x0 and G ("lambda_slope"); e and G_prev ("lambda_curvature").
+template <int D> constexpr SlopeColumns<D> kSlope{&MultiplierSlope<D>::x0, &MultiplierSlope<D>::G};
+template <int D> constexpr SlopeColumns<D> kCurvature{&MultiplierSlope<D>::e, &MultiplierSlope<D>::G_prev};
 } // namespace
 
 template <int D> void Basis<D>::save_state(StateGroup& out) const {
   if (!points_.lambda.empty()) put_rows(out.real_arrays["lambda"], points_.lambda, D);
   if (!points_.slope.empty()) {
-    put_slopes(out.real_arrays["lambda_slope"], points_.slope);
-    put_curvatures(out.real_arrays["lambda_curvature"], points_.slope);
+    put_slopes(out.real_arrays["lambda_slope"], points_.slope, kSlope<D>);
+    put_slopes(out.real_arrays["lambda_curvature"], points_.slope, kCurvature<D>);
   }
   if (!points_.cell_hint.empty()) put_rows(out.integer_arrays["cell_hint"], points_.cell_hint, D);
   save_family_state(out);
@@ -119,9 +109,9 @@ template <int D> void Basis<D>::restore_state(const StateGroup& in) {
   // mode) restarts from the plain warm start: G = 0; one without the
   // second-order part from the first-order prediction: e = 0.
   if (!points_.slope.empty() && in.has_array("lambda_slope")) {
-    get_slopes(in.real_array("lambda_slope", points_.slope.size(), D + D * D), points_.slope);
+    get_slopes(in.real_array("lambda_slope", points_.slope.size(), D + D * D), points_.slope, kSlope<D>);
     if (in.has_array("lambda_curvature"))
-      get_curvatures(in.real_array("lambda_curvature", points_.slope.size(), D + D * D), points_.slope);
+      get_slopes(in.real_array("lambda_curvature", points_.slope.size(), D + D * D), points_.slope, kCurvature<D>);
     else
       for (MultiplierSlope<D>& m : points_.slope) m.e.setZero();
   }
