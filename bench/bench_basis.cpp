@@ -8,6 +8,7 @@
 // max-ent run twice per repetition: cold (lambda = 0) and warm (lambda from
 // the previous fill of the same points moved by 1e-3 h, as between two time
 // steps). Prints the median over R repetitions and the mean stencil size.
+#include "otmpm/openmp_wait.hpp"
 #include "bench_util.hpp"
 #include "otmpm/basis/basis.hpp"
 
@@ -32,6 +33,7 @@ struct Case {
 } // namespace
 
 int main(int argc, char** argv) {
+  otmpm::default_openmp_wait(argv); // as the otmpm command waits (openmp_wait.hpp)
   int points = 100000, repeat = 5;
   for (int i = 1; i + 1 < argc; i += 2) {
     if (!std::strcmp(argv[i], "--points")) points = std::atoi(argv[i + 1]);

@@ -17,6 +17,7 @@
 // thread's CPU time (CLOCK_THREAD_CPUTIME_ID), so that time the thread spends
 // descheduled on a shared machine does not count. Prints the median over R
 // repetitions and the ratio to neo_hookean of the same dimension.
+#include "otmpm/openmp_wait.hpp"
 #include "bench_util.hpp"
 #include "otmpm/materials/hencky_plasticity.hpp"
 #include "otmpm/materials/elasticity.hpp"
@@ -191,6 +192,7 @@ template <int D> void add_cases(std::vector<Case>& cases, int n, std::mt19937_64
 } // namespace
 
 int main(int argc, char** argv) {
+  otmpm::default_openmp_wait(argv); // as the otmpm command waits (openmp_wait.hpp)
   int points = 20000, repeat = 21;
   for (int i = 1; i + 1 < argc; i += 2) {
     if (!std::strcmp(argv[i], "--points")) points = std::atoi(argv[i + 1]);

@@ -22,6 +22,7 @@
 // share of the particles whose plastic strain grew in the timed steps.
 // --case keeps only the models whose label contains SUBSTRING (and
 // neo_hookean, the reference), e.g. to profile one of them.
+#include "otmpm/openmp_wait.hpp"
 #include "bench_scenes.hpp"
 #include "bench_util.hpp"
 #include "otmpm/assembly/assembler.hpp"
@@ -72,6 +73,7 @@ double grown_share(const std::vector<double>& before, const std::vector<double>&
 } // namespace
 
 int main(int argc, char** argv) {
+  otmpm::default_openmp_wait(argv); // as the otmpm command waits (openmp_wait.hpp)
   int cells = 50, warmup = 200, steps = 50, repeat = 5;
   std::string basis = "linear", integrator = "fe", mode = "mpm", only;
   for (int i = 1; i + 1 < argc; i += 2) {

@@ -9,6 +9,7 @@
 // volume); DIR/block.toml: a scene with that file body, 2 x 2 particles per
 // cell of a linear basis, two steps of `fe` and no output but the last
 // frame. Prints the particle count.
+#include "otmpm/openmp_wait.hpp"
 #include <hdf5.h>
 
 #include <cstdio>
@@ -32,6 +33,7 @@ void write(hid_t file, const char* name, hsize_t rows, hsize_t cols, const std::
 } // namespace
 
 int main(int argc, char** argv) {
+  otmpm::default_openmp_wait(argv); // as the otmpm command waits (openmp_wait.hpp)
   if (argc != 3 || std::atoi(argv[1]) < 2 || std::atoi(argv[1]) % 2 != 0) {
     std::fprintf(stderr, "usage: bench_particle_block N DIR (N even)\n");
     return 2;

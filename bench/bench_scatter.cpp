@@ -13,6 +13,7 @@
 // Per round: the median time of a set of passes with the plan's path and
 // with each path forced; prints the median over the rounds of the per-round
 // ratios to the column gather.
+#include "otmpm/openmp_wait.hpp"
 #include "bench_scenes.hpp"
 
 #include "otmpm/assembly/assembler.hpp"
@@ -120,6 +121,7 @@ template <int D> void compare(const std::string& name, const Engine<D>& e, int p
 } // namespace
 
 int main(int argc, char** argv) {
+  otmpm::default_openmp_wait(argv); // as the otmpm command waits (openmp_wait.hpp)
   int rounds = 5;
   for (int i = 1; i + 1 < argc; i += 2)
     if (std::string(argv[i]) == "--rounds") rounds = std::max(1, std::stoi(argv[i + 1]));

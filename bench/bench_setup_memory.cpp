@@ -11,6 +11,7 @@
 // set-up: wall time of rank_parts; peaks: getrusage ru_maxrss since the
 // process started (the MPI runtime included); rss: VmRSS of
 // /proc/self/status at that moment.
+#include "otmpm/openmp_wait.hpp"
 #include "otmpm/distributed/local_parts.hpp"
 #include "otmpm/scene/scene.hpp"
 
@@ -66,6 +67,7 @@ template <int D> int measure(const otmpm::Scene& scene, long steps) {
 } // namespace
 
 int main(int argc, char** argv) {
+  otmpm::default_openmp_wait(argv); // as the otmpm command waits (openmp_wait.hpp)
   otmpm::distributed::Session mpi(argc, argv);
   if (argc < 2) {
     std::fprintf(stderr, "usage: bench_setup_memory SCENE.toml [STEPS]\n");

@@ -7,6 +7,7 @@
 // calls of step() (R times, each on a fresh simulation after one untimed
 // step) and prints the median time per step in nanoseconds:
 //   cxx_ns_per_step MEDIAN (of R: MIN .. MAX)
+#include "otmpm/openmp_wait.hpp"
 #include "otmpm/run/simulation.hpp"
 
 #include <algorithm>
@@ -16,6 +17,7 @@
 #include <vector>
 
 int main(int argc, char** argv) {
+  otmpm::default_openmp_wait(argv); // as the otmpm command waits (openmp_wait.hpp)
   if (argc < 2) {
     std::fprintf(stderr, "usage: bench_sim_step SCENE.toml [--steps N] [--repeat R]\n");
     return 2;

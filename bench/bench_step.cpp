@@ -9,6 +9,7 @@
 // step runs. With --dim 3 the 3D block of the issue-19 table (N^3 cells,
 // 2 x 2 x 2 particles per cell). Prints the median over R repetitions of particle-steps per second
 // and the share of each phase.
+#include "otmpm/openmp_wait.hpp"
 #include "bench_run.hpp"
 #include "bench_scenes.hpp"
 
@@ -20,6 +21,7 @@ using namespace otmpm;
 using namespace otmpm::bench;
 
 int main(int argc, char** argv) {
+  otmpm::default_openmp_wait(argv); // as the otmpm command waits (openmp_wait.hpp)
   int cells = 200, steps = 100, repeat = 5;
   std::string basis = "linear", integrator = "fe", mode = "mpm";
   double gamma_lme = 3.0;

@@ -15,6 +15,7 @@
 // --scaling3d-csv). --quick: small sizes, short runs and one repetition, to
 // check that every row runs (its figures mean nothing). The output row of
 // issue 19 (result file bytes and write share) is scripts/bench-output.sh.
+#include "otmpm/openmp_wait.hpp"
 #include "bench_run.hpp"
 #include "bench_scenes.hpp"
 
@@ -171,6 +172,7 @@ Scene fixed_bar(const std::vector<std::string>& method) {
 } // namespace
 
 int main(int argc, char** argv) {
+  otmpm::default_openmp_wait(argv); // as the otmpm command waits (openmp_wait.hpp)
   int repeat = 5;
   bool quick = false;
   std::string scaling_csv, scaling3d_csv, table = "all";

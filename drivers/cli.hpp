@@ -34,10 +34,5 @@ void set_threads(int threads);
 /// (RunOptions::background_output): a writer sharing a core with the OpenMP
 /// team slows each of its parallel loops (docs/performance.md).
 bool core_free_for_writer();
-/// Makes OMP_WAIT_POLICY=passive the default: libgomp reads the variable
-/// once, when it is loaded, so when it is unset the process sets it and
-/// executes itself again (argv unchanged). A user's own OMP_WAIT_POLICY is
-/// kept. See docs/user-guide.md, "Threads".
-void default_passive_wait_policy(char** argv);
 
 } // namespace otmpm::cli

@@ -13,6 +13,7 @@
 
 #include "otmpm/core.hpp"
 #include "otmpm/distributed/comm.hpp"
+#include "otmpm/openmp_wait.hpp"
 
 #include <cstdio>
 #include <cstring>
@@ -90,7 +91,7 @@ int dispatch(CLI::App& app, const std::vector<otmpm::cli::Command>& commands, in
 
 int main(int argc, char** argv) {
   // Before MPI starts: it may execute the process again.
-  otmpm::cli::default_passive_wait_policy(argv);
+  otmpm::default_openmp_wait(argv);
   otmpm::distributed::Session mpi(argc, argv);
   CLI::App app{"otmpm: explicit solid dynamics with the Material Point Method and an OTM-style "
                "updated-Lagrangian scheme",

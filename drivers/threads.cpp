@@ -1,4 +1,4 @@
-// --threads and the default OpenMP wait policy of the otmpm command.
+// --threads of the otmpm command (the default OpenMP wait: otmpm/openmp_wait.hpp).
 #include "cli.hpp"
 
 #include <cstdlib>
@@ -47,17 +47,6 @@ bool core_free_for_writer() {
   const int threads = 1;
 #endif
   return cores > threads;
-}
-
-void default_passive_wait_policy(char** argv) {
-#ifdef OTMPM_HAVE_OPENMP
-  if (std::getenv("OMP_WAIT_POLICY")) return;
-  if (setenv("OMP_WAIT_POLICY", "passive", 1) != 0) return;
-  execv("/proc/self/exe", argv);
-  // exec failed (no /proc): go on with libgomp's default policy.
-#else
-  (void)argv;
-#endif
 }
 
 } // namespace otmpm::cli

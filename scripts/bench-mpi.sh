@@ -36,7 +36,8 @@ while [ $# -gt 0 ]; do
 done
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
-export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMP_WAIT_POLICY=passive
+export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+unset OMP_WAIT_POLICY GOMP_SPINCOUNT # otmpm's own OpenMP wait (otmpm/openmp_wait.hpp)
 h=$(/usr/bin/python3 -c "print(repr(1.0/$cells))")
 lo=$(/usr/bin/python3 -c "print(-2*$h)") hi=$(/usr/bin/python3 -c "print(1+2*$h)")
 if [ "$dim" = 3 ]; then

@@ -86,7 +86,7 @@ for cfg in "${configs[@]}"; do
   sets=()
   case $cfg in single*) sets=(--set output.precision=single --set output.symmetric_tensors=true) ;; esac
   case $cfg in *+z*) sets+=(--set "output.compression=$compression") ;; esac
-  OMP_NUM_THREADS=$threads OMP_WAIT_POLICY=passive "$bin" run "$work/block.toml" --quiet --out "$work/$cfg.h5" "${sets[@]}" >/dev/null
+  env -u OMP_WAIT_POLICY -u GOMP_SPINCOUNT OMP_NUM_THREADS=$threads "$bin" run "$work/block.toml" --quiet --out "$work/$cfg.h5" "${sets[@]}" >/dev/null
   /usr/bin/python3 - "$work/$cfg.h5" "$cfg" <<'PY'
 import os, sys
 import h5py

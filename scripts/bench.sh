@@ -48,7 +48,8 @@ if [ "$quick" = 1 ]; then
   cells3=12
 fi
 echo "machine: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg); build $build (OTMPM_NATIVE=$native); $(date -u '+%Y-%m-%d %H:%M UTC')"
-OMP_NUM_THREADS=2 OMP_WAIT_POLICY=passive "$build"/bench/bench_table "${args[@]}"
+# otmpm's own OpenMP wait (otmpm/openmp_wait.hpp), whatever the caller set
+env -u OMP_WAIT_POLICY -u GOMP_SPINCOUNT OMP_NUM_THREADS=2 "$build"/bench/bench_table "${args[@]}"
 [ "$table" != 19 ] && /usr/bin/python3 scripts/plot_scaling.py "out/scaling$suffix.csv" "out/scaling$suffix.png"
 if [ "$table" != 7 ]; then
   /usr/bin/python3 scripts/plot_scaling.py "out/scaling3d$suffix.csv" "out/scaling3d$suffix.png" \

@@ -307,22 +307,32 @@ TEST_CASE("cli: --threads does not change the result") {
   }
 }
 
-TEST_CASE("cli: OMP_WAIT_POLICY defaults to passive, and a user's own setting is kept") {
-  // libgomp prints its settings at start-up with OMP_DISPLAY_ENV=true; the
-  // otmpm process that does the work is the last one to print them.
+TEST_CASE("cli: OpenMP threads wait passively after a short spin by default, and a user's own setting is kept") {
+  // libgomp prints its settings at start-up with OMP_DISPLAY_ENV=verbose;
+  // the otmpm process that does the work is the last one to print them.
   TempDir dir("cli");
   const fs::path err = dir.dir / "env.txt";
-  auto last_policy = [&](const std::string& env) {
-    const std::string cmd = env + " OMP_DISPLAY_ENV=true " + quote(kBinary) + " --version >/dev/null 2>" +
+  auto last_setting = [&](const std::string& env, const std::string& name) {
+    const std::string cmd = env + " OMP_DISPLAY_ENV=verbose " + quote(kBinary) + " --version >/dev/null 2>" +
                             quote(err.string());
     CHECK(std::system(cmd.c_str()) == 0);
     const std::string text = read_text(err);
-    const auto at = text.rfind("OMP_WAIT_POLICY = '");
+    const std::string key = name + " = '";
+    const auto at = text.rfind(key);
     REQUIRE(at != std::string::npos);
-    return text.substr(at + 19, text.find('\'', at + 19) - at - 19);
+    const auto from = at + key.size();
+    return text.substr(from, text.find('\'', from) - from);
   };
-  CHECK(last_policy("env -u OMP_WAIT_POLICY") == "PASSIVE");
-  CHECK(last_policy("env OMP_WAIT_POLICY=active") == "ACTIVE");
+  const std::string neither = "env -u OMP_WAIT_POLICY -u GOMP_SPINCOUNT";
+  CHECK(last_setting(neither, "OMP_WAIT_POLICY") == "PASSIVE");
+  // about 0.2 ms of spinning: 100 to 10^7 spins on any processor (a pause
+  // takes from ~1 to ~100 ns; this machine's: docs/performance.md)
+  const long long spins = std::stoll(last_setting(neither, "GOMP_SPINCOUNT"));
+  CHECK(spins >= 100);
+  CHECK(spins <= 10000000);
+  CHECK(last_setting("env -u GOMP_SPINCOUNT OMP_WAIT_POLICY=active", "OMP_WAIT_POLICY") == "ACTIVE");
+  CHECK(last_setting("env -u GOMP_SPINCOUNT OMP_WAIT_POLICY=passive", "GOMP_SPINCOUNT") == "0"); // libgomp's passive
+  CHECK(last_setting("env -u OMP_WAIT_POLICY GOMP_SPINCOUNT=1234", "GOMP_SPINCOUNT") == "1234");
 }
 
 TEST_CASE("cli: run --check validates, prints the size, dt, steps and memory, and runs nothing") {

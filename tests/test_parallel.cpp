@@ -4,6 +4,7 @@
 // table's general fill (stencils of varying size) buffers those chunks and
 // gives the table of one thread.
 #include "otmpm/basis/basis.hpp"
+#include "otmpm/openmp_wait.hpp"
 #include "otmpm/parallel.hpp"
 #include "support.hpp"
 
@@ -171,4 +172,16 @@ TEST_CASE("general basis table fill (LME): the error names the lowest failing pa
       CHECK(std::string(e.what()).find("particle 1234 at ") == 0);
     }
   }
+}
+
+TEST_CASE("openmp wait: the spin count is clamped to [100, 10^7], the default in between") {
+  // timings of a few microseconds vary with the load, so only what does not:
+  // no time gives the least count, 100 s the most (a spin takes ~1-50 ns,
+  // far below the 10 us that would spin 10^7 times in 100 s, also under a
+  // sanitizer or valgrind), and the default (0.2 ms) lies between
+  CHECK(otmpm::spin_count_for(0.0) == 100);
+  CHECK(otmpm::spin_count_for(100.0) == 10000000);
+  const long long spins = otmpm::spin_count_for(otmpm::kDefaultSpinSeconds);
+  CHECK(spins >= 100);
+  CHECK(spins < 10000000);
 }

@@ -1,0 +1,69 @@
+/// \file openmp_wait.cpp
+/// The default OpenMP wait of otmpm's programs (openmp_wait.hpp).
+#include "otmpm/openmp_wait.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cstdlib>
+#include <string>
+#include <unistd.h>
+
+namespace otmpm {
+
+namespace {
+
+constexpr int kCalibrationSpins = 2048;
+constexpr int kCalibrationRounds = 3;
+constexpr long long kMinSpins = 100;
+constexpr long long kMaxSpins = 10000000;
+
+/// The processor's spin-wait hint, as libgomp's cpu_relax.
+inline void cpu_relax() {
+#if defined(__x86_64__) || defined(__i386__)
+  __builtin_ia32_pause();
+#elif defined(__aarch64__)
+  __asm__ __volatile__("yield" ::: "memory");
+#else
+  __asm__ __volatile__("" ::: "memory");
+#endif
+}
+
+/// Seconds of one spin of libgomp's wait loop: a relaxed load of a flag that
+/// never changes, then the hint.
+double seconds_per_spin() {
+  static std::atomic<int> flag{0};
+  double best = 1.0;
+  for (int round = 0; round < kCalibrationRounds; ++round) {
+    const auto start = std::chrono::steady_clock::now();
+    for (int i = 0; i < kCalibrationSpins; ++i) {
+      if (flag.load(std::memory_order_relaxed) != 0) break;
+      cpu_relax();
+    }
+    const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    best = std::min(best, s / kCalibrationSpins);
+  }
+  return best;
+}
+
+} // namespace
+
+long long spin_count_for(double seconds) {
+  const double per_spin = seconds_per_spin();
+  const double spins = per_spin > 0.0 ? seconds / per_spin : static_cast<double>(kMaxSpins);
+  return std::clamp(static_cast<long long>(spins), kMinSpins, kMaxSpins);
+}
+
+void default_openmp_wait(char** argv) {
+#ifdef OTMPM_HAVE_OPENMP
+  if (std::getenv("OMP_WAIT_POLICY") || std::getenv("GOMP_SPINCOUNT")) return;
+  const std::string spins = std::to_string(spin_count_for(kDefaultSpinSeconds));
+  if (setenv("GOMP_SPINCOUNT", spins.c_str(), 1) != 0 || setenv("OMP_WAIT_POLICY", "passive", 1) != 0) return;
+  execv("/proc/self/exe", argv);
+  // exec failed (no /proc): go on with libgomp's default wait.
+#else
+  (void)argv;
+#endif
+}
+
+} // namespace otmpm

@@ -1,0 +1,34 @@
+#pragma once
+/// \file openmp_wait.hpp
+/// How the OpenMP threads of otmpm's programs wait between parallel loops
+/// (docs/user-guide.md, "Threads"). GNU OpenMP lets a waiting thread spin
+/// GOMP_SPINCOUNT times (a relaxed atomic load and the processor's pause
+/// hint per spin) before it sleeps: 300 000 spins by default, 0 with
+/// OMP_WAIT_POLICY=passive. Spinning that long makes a run on a busy machine
+/// many times slower (a spinning thread holds the core its partner needs);
+/// not spinning at all makes every parallel loop of an idle machine pay a
+/// wake-up. otmpm's default is in between: passive, with a spin of about
+/// kDefaultSpinSeconds, counted for the processor it runs on (a pause takes
+/// from a few to about 50 ns, depending on the processor).
+
+namespace otmpm {
+
+/// Seconds a waiting OpenMP thread spins before it sleeps, by default
+/// (measured: docs/performance.md, "How OpenMP threads wait").
+inline constexpr double kDefaultSpinSeconds = 2e-4;
+
+/// The GOMP_SPINCOUNT that spins for about `seconds` on this processor: the
+/// shortest of three timings of 2 048 spins of libgomp's wait loop (about 50
+/// us each), clamped to [100, 10^7].
+long long spin_count_for(double seconds);
+
+/// When neither OMP_WAIT_POLICY nor GOMP_SPINCOUNT is set, sets
+/// OMP_WAIT_POLICY=passive and GOMP_SPINCOUNT=spin_count_for(
+/// kDefaultSpinSeconds) and executes the program again with the same
+/// arguments (libgomp reads both once, when it is loaded). A user's own
+/// setting of either is kept. Nothing without OpenMP; when the new process
+/// cannot be started, the program goes on with libgomp's defaults. Call it
+/// first in main, before any thread or MPI starts.
+void default_openmp_wait(char** argv);
+
+} // namespace otmpm
