@@ -120,14 +120,20 @@ int run_command(const SceneArgs& a) {
   opt.progress = progress(a);
   std::unique_ptr<Scene> scene;
   RunSummary s;
+  // Each rank reads the scene or checkpoint itself; one that fails (a file
+  // not yet visible on its node) fails all at once (agree_on).
+  const distributed::Comm& world = distributed::Comm::world();
   if (a.restart.empty()) {
-    scene = std::make_unique<Scene>(load_scene(a.scene, a.sets));
+    distributed::agree_on(world, [&] { scene = std::make_unique<Scene>(load_scene(a.scene, a.sets)); });
     s = run_scene(*scene, opt);
   } else {
-    require_file(a.restart, "checkpoint file");
-    const Checkpoint ck = read_checkpoint(a.restart);
-    scene = std::make_unique<Scene>(checkpoint_scene(ck));
-    s = restart_run(ck, opt);
+    std::unique_ptr<Checkpoint> ck;
+    distributed::agree_on(world, [&] {
+      require_file(a.restart, "checkpoint file");
+      ck = std::make_unique<Checkpoint>(read_checkpoint(a.restart));
+      scene = std::make_unique<Scene>(checkpoint_scene(*ck));
+    });
+    s = restart_run(*ck, opt);
   }
   if (!prints()) return s.interrupted ? interrupted_exit_status() : s.exit_code;
   end_progress_line();
@@ -183,7 +189,8 @@ int pair_command(const SceneArgs& a) {
     if (distributed::Comm::world().size() == 1 && interrupt_flag().load()) break; // ranks agree in the run
     std::vector<std::string> sets = a.sets;
     sets.push_back(std::string("simulation.mode=") + mode);
-    const Scene scene = load_scene(a.scene, sets);
+    Scene scene;
+    distributed::agree_on(distributed::Comm::world(), [&] { scene = load_scene(a.scene, sets); });
     RunOptions opt;
     const std::string& out = scene.output.file;
     const auto dot = out.rfind(".h5");

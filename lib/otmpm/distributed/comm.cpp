@@ -4,12 +4,15 @@
 /// MPI (no OTMPM_HAVE_MPI) every operation is that of a single rank.
 #include "otmpm/distributed/comm.hpp"
 
+#include "otmpm/core.hpp"
+
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <thread>
 #include <cstring>
+#include <exception>
 #include <limits>
 #include <stdexcept>
 
@@ -314,6 +317,38 @@ void Session::abort(int status) {
   if (mpi_running() && Comm::world().size() > 1) MPI_Abort(world_comm(), status);
 #endif
   std::exit(status);
+}
+
+void agree_on(const Comm& comm, const std::function<void()>& step) {
+  if (comm.size() == 1) return step();
+  char kind = 0; // 0: no error; else which error to throw (below)
+  std::string message;
+  std::exception_ptr mine;
+  try {
+    step();
+  } catch (const std::exception& e) {
+    mine = std::current_exception();
+    message = e.what();
+    kind = dynamic_cast<const InputError*>(&e)         ? 'I'
+           : dynamic_cast<const BasisError*>(&e)       ? 'B'
+           : dynamic_cast<const InstabilityError*>(&e) ? 'U'
+           : dynamic_cast<const OutputError*>(&e)      ? 'O'
+                                                       : 'E';
+  }
+  const auto none = static_cast<std::int64_t>(comm.size());
+  const std::int64_t first = comm.min(kind ? static_cast<std::int64_t>(comm.rank()) : none);
+  if (first == none) return;
+  const std::string agreed = comm.broadcast(comm.rank() == first ? std::string(1, kind) + message : "",
+                                            static_cast<int>(first));
+  if (comm.rank() == first) std::rethrow_exception(mine); // with all it carries (an InputError's source)
+  const std::string what = agreed.substr(1);
+  switch (agreed.front()) {
+  case 'I': throw InputError(what);
+  case 'B': throw BasisError(what);
+  case 'U': throw InstabilityError(what);
+  case 'O': throw OutputError(what);
+  default: throw std::runtime_error(what);
+  }
 }
 
 bool built_with_mpi() {

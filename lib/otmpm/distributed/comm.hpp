@@ -12,6 +12,7 @@
 /// same rank count gives the same bits again. Maxima, minima and integer
 /// sums are exact in any order.
 #include <cstdint>
+#include <functional>
 #include <span>
 #include <string>
 #include <vector>
@@ -101,6 +102,19 @@ public:
 private:
   bool initialised_ = false;
 };
+
+/// Runs `step` on every rank of `comm` and agrees on how it ended: when it
+/// threw on any rank, every rank throws the error of the lowest rank it threw
+/// on (that rank its own exception; the others an InputError, BasisError,
+/// InstabilityError or OutputError as such, anything else as a
+/// std::runtime_error, with its message), so that no rank goes on into
+/// the collectives after `step` while another one has failed, and the run
+/// ends at once with one message and one exit status. For the set-up steps
+/// that each rank does alone and that can fail on one rank only: reading a
+/// file that one rank sees differently (not yet visible on its node, or
+/// rewritten while the ranks read it). One reduction when no rank failed;
+/// nothing but `step` on one rank.
+void agree_on(const Comm& comm, const std::function<void()>& step);
 
 /// True when this otmpm was built with MPI (OTMPM_MPI).
 bool built_with_mpi();

@@ -268,17 +268,21 @@ EngineParts<D> seeded_parts(const Scene& scene, const Comm& comm, const AlignedV
     // Traction loads: their surface particles among all (every rank sees every seed here).
     std::shared_ptr<TractionSurfaces<D>> surfaces;
     if (!scene.tractions.empty()) surfaces = std::make_shared<TractionSurfaces<D>>(scene, kBoxTolerance * grid.h().minCoeff());
-    n = seed_bodies_where<D>(
-        scene, h, grid,
-        [&](long long id, const Vec<D>& x) {
-          if (surfaces) surfaces->visit(id, x);
-          if ((id / kCountRun) % comm.size() != comm.rank()) return false;
-          const Index<D> c = home(id, x);
-          if (!cells.empty() && cells.back() == c) ++weight.back();
-          else cells.push_back(c), weight.push_back(1);
-          return false;
-        },
-        nullptr);
+    // Every rank reads every particle file in both passes: one that fails
+    // alone (a file rewritten while the ranks read it) fails all (agree_on).
+    agree_on(comm, [&] {
+      n = seed_bodies_where<D>(
+          scene, h, grid,
+          [&](long long id, const Vec<D>& x) {
+            if (surfaces) surfaces->visit(id, x);
+            if ((id / kCountRun) % comm.size() != comm.rank()) return false;
+            const Index<D> c = home(id, x);
+            if (!cells.empty() && cells.back() == c) ++weight.back();
+            else cells.push_back(c), weight.push_back(1);
+            return false;
+          },
+          nullptr);
+    });
     if (surfaces) surfaces->finish();
     mine.surfaces = surfaces;
     try {
@@ -292,10 +296,12 @@ EngineParts<D> seeded_parts(const Scene& scene, const Comm& comm, const AlignedV
     }
     std::vector<Index<D>>().swap(cells);
     std::vector<std::int64_t>().swap(weight);
-    seed_bodies_where<D>(
-        scene, h, grid,
-        [&](long long id, const Vec<D>& x) { return setup.decomposition.owner(home(id, x)) == comm.rank(); },
-        &mine);
+    agree_on(comm, [&] {
+      seed_bodies_where<D>(
+          scene, h, grid,
+          [&](long long id, const Vec<D>& x) { return setup.decomposition.owner(home(id, x)) == comm.rank(); },
+          &mine);
+    });
     setup.global_ids = mine.ids; // a copy: the assembler reads mine.ids (traction surfaces)
     return mine;
   };
