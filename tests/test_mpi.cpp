@@ -71,13 +71,9 @@ struct Result {
   std::string err;
 };
 
-/// Runs `otmpm ARGS` (with `ranks` > 0: under mpirun -np ranks) in `dir`;
-/// stdout discarded, stderr kept. One OpenMP thread per process.
-Result run_otmpm(const TempDir& dir, int ranks, const std::vector<std::string>& args) {
-  std::string cmd = "cd '" + dir.dir.string() + "' && OMP_NUM_THREADS=1 ";
-  if (ranks > 0) cmd += kMpiexec + " -q --oversubscribe -np " + std::to_string(ranks) + " ";
-  cmd += "'" + kBinary + "'";
-  for (const std::string& a : args) cmd += " '" + a + "'";
+/// Runs the shell command `cmd` (which starts with `cd DIR &&`), stdout
+/// discarded, stderr kept.
+Result run_in(const TempDir& dir, std::string cmd) {
   cmd += " > /dev/null 2> stderr.txt < /dev/null";
   const int raw = std::system(cmd.c_str());
   Result r;
@@ -87,6 +83,16 @@ Result run_otmpm(const TempDir& dir, int ranks, const std::vector<std::string>& 
   s << in.rdbuf();
   r.err = s.str();
   return r;
+}
+
+/// Runs `otmpm ARGS` (with `ranks` > 0: under mpirun -np ranks) in `dir`;
+/// stdout discarded, stderr kept. One OpenMP thread per process.
+Result run_otmpm(const TempDir& dir, int ranks, const std::vector<std::string>& args) {
+  std::string cmd = "cd '" + dir.dir.string() + "' && OMP_NUM_THREADS=1 ";
+  if (ranks > 0) cmd += kMpiexec + " -q --oversubscribe -np " + std::to_string(ranks) + " ";
+  cmd += "'" + kBinary + "'";
+  for (const std::string& a : args) cmd += " '" + a + "'";
+  return run_in(dir, cmd);
 }
 
 /// mpirun as root needs these (CI containers run as root).
@@ -650,15 +656,8 @@ TEST_CASE("mpi: a scene or checkpoint that one rank alone cannot read ends every
       cmd += std::string(args == &rank0 ? "" : " :") + " -np 1 '" + kBinary + "'";
       for (const std::string& a : *args) cmd += " '" + a + "'";
     }
-    cmd += " > /dev/null 2> stderr.txt < /dev/null";
     const auto start = std::chrono::steady_clock::now();
-    const int raw = std::system(cmd.c_str());
-    Result r;
-    r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
-    std::ifstream in(dir.file("stderr.txt"));
-    std::stringstream text;
-    text << in.rdbuf();
-    r.err = text.str();
+    const Result r = run_in(dir, cmd);
     return std::pair{r, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count()};
   };
   const std::vector<std::string> common{"--quiet", "--set", "simulation.t_end=2e-6", "--out", "np2.h5"};
