@@ -27,7 +27,8 @@ constexpr int kBadInput = 2;
 
 const char* const kFooter =
     "Exit status: 0 ok, 1 the simulation became unstable, 2 bad input, 3 internal error,\n"
-    "130/143 interrupted by SIGINT/SIGTERM. OMP_WAIT_POLICY defaults to passive (see the user guide).\n"
+    "130/143 interrupted by SIGINT/SIGTERM. OpenMP threads spin about 0.2 ms, then sleep\n"
+    "(OMP_WAIT_POLICY=passive, GOMP_SPINCOUNT for this processor; see the user guide).\n"
     "Each command has its own help: otmpm run --help, ...";
 
 /// An unknown first word would otherwise get CLI11's "A subcommand is required".

@@ -84,7 +84,8 @@ std::string bytes_text(double bytes) {
 
 /// `otmpm run --check`: what a run of the scene would be, without running it.
 int check_command(const SceneArgs& a) {
-  const Scene scene = load_scene(a.scene, a.sets);
+  Scene scene;
+  distributed::agree_on(distributed::Comm::world(), [&] { scene = load_scene(a.scene, a.sets); });
   const SceneCheck c = check_scene(scene);
   if (!prints()) return 0;
   std::printf("%s: ok (the scene reads and the run can be set up)\n", a.scene.c_str());

@@ -17,6 +17,8 @@ constexpr int kCalibrationSpins = 2048;
 constexpr int kCalibrationRounds = 3;
 constexpr long long kMinSpins = 100;
 constexpr long long kMaxSpins = 10000000;
+/// Seconds of a spin on the processors with the slowest pause (about 50 ns).
+constexpr double kSlowestSpin = 5e-8;
 
 /// The processor's spin-wait hint, as libgomp's cpu_relax.
 inline void cpu_relax() {
@@ -49,9 +51,10 @@ double seconds_per_spin() {
 } // namespace
 
 long long spin_count_for(double seconds) {
-  const double per_spin = seconds_per_spin();
-  const double spins = per_spin > 0.0 ? seconds / per_spin : static_cast<double>(kMaxSpins);
-  return std::clamp(static_cast<long long>(spins), kMinSpins, kMaxSpins);
+  double per_spin = seconds_per_spin();
+  // a clock too coarse to see 2048 spins: take the slowest pause known (~50 ns)
+  if (!(per_spin > 0.0)) per_spin = kSlowestSpin;
+  return std::clamp(static_cast<long long>(seconds / per_spin), kMinSpins, kMaxSpins);
 }
 
 void default_openmp_wait(char** argv) {

@@ -19,7 +19,8 @@ inline constexpr double kDefaultSpinSeconds = 2e-4;
 
 /// The GOMP_SPINCOUNT that spins for about `seconds` on this processor: the
 /// shortest of three timings of 2 048 spins of libgomp's wait loop (about 50
-/// us each), clamped to [100, 10^7].
+/// us each; 50 ns per spin when the clock does not see them), clamped to
+/// [100, 10^7].
 long long spin_count_for(double seconds);
 
 /// When neither OMP_WAIT_POLICY nor GOMP_SPINCOUNT is set, sets

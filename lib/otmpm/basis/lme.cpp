@@ -1050,12 +1050,15 @@ template <int D, class Prior> Vec<D> MaxEntBasis<D, Prior>::warm_start(const Poi
   // eq. 4.7b: along the last displacement e, (G - G_prev) / |e| is the
   // derivative of G, so 1/2 alpha (G - G_prev) d is the second-order term
   const Vec<D>& e = q.slope->e;
+  if (!predicted.allFinite()) return *q.lambda;
   if (const double ee = e.squaredNorm(); ee > 0.0) {
     const double alpha = d.dot(e) / ee;
-    if (std::abs(alpha) <= kCurvatureMaxRatio && (d - alpha * e).squaredNorm() <= kCurvatureAngle2 * d.squaredNorm())
-      predicted += (0.5 * alpha) * ((q.slope->G - q.slope->G_prev) * d);
+    if (std::abs(alpha) <= kCurvatureMaxRatio && (d - alpha * e).squaredNorm() <= kCurvatureAngle2 * d.squaredNorm()) {
+      const Vec<D> second = (0.5 * alpha) * ((q.slope->G - q.slope->G_prev) * d);
+      if (second.allFinite()) predicted += second; // else the first-order start
+    }
   }
-  return predicted.allFinite() ? predicted : *q.lambda;
+  return predicted;
 }
 
 template <int D, class Prior>

@@ -334,6 +334,10 @@ void agree_on(const Comm& comm, const std::function<void()>& step) {
            : dynamic_cast<const InstabilityError*>(&e) ? 'U'
            : dynamic_cast<const OutputError*>(&e)      ? 'O'
                                                        : 'E';
+  } catch (...) {
+    mine = std::current_exception();
+    message = "an exception of unknown type";
+    kind = 'E';
   }
   const auto none = static_cast<std::int64_t>(comm.size());
   const std::int64_t first = comm.min(kind ? static_cast<std::int64_t>(comm.rank()) : none);

@@ -111,9 +111,10 @@ private:
 /// the collectives after `step` while another one has failed, and the run
 /// ends at once with one message and one exit status. For the set-up steps
 /// that each rank does alone and that can fail on one rank only: reading a
-/// file that one rank sees differently (not yet visible on its node, or
-/// rewritten while the ranks read it). One reduction when no rank failed;
-/// nothing but `step` on one rank.
+/// file that one rank cannot read (not yet visible on its node, or
+/// rewritten while the ranks read it so that it fails its checks); a file
+/// that reads without an error but differently is for the caller to detect.
+/// One reduction when no rank failed; nothing but `step` on one rank.
 void agree_on(const Comm& comm, const std::function<void()>& step);
 
 /// True when this otmpm was built with MPI (OTMPM_MPI).

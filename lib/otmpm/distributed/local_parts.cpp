@@ -283,6 +283,12 @@ EngineParts<D> seeded_parts(const Scene& scene, const Comm& comm, const AlignedV
           },
           nullptr);
     });
+    // a file that every rank read without an error but not alike
+    if (const auto fewest = comm.min(static_cast<std::int64_t>(n)), most = comm.max(static_cast<std::int64_t>(n));
+        fewest != most)
+      throw InputError("the ranks counted from " + std::to_string(fewest) + " to " + std::to_string(most) +
+                       " particles in the scene's bodies: a particle file read differently by the ranks (rewritten "
+                       "while they read it, or not the same on every node)");
     if (surfaces) surfaces->finish();
     mine.surfaces = surfaces;
     try {
