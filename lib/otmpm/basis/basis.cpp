@@ -24,6 +24,7 @@ template <int D> void Basis<D>::bind_points(int n, bool nodes_move) {
   points_.cell_hint.assign(use.cell_hint ? static_cast<std::size_t>(n) : 0, Index<D>{});
   points_.neighbours = NeighbourLists<D>();
   deformation_ = use.deformation;
+  use_ = use;
 }
 
 template <int D>
@@ -89,12 +90,13 @@ template <int D> constexpr SlopeColumns<D> kCurvature{&MultiplierSlope<D>::e, &M
 } // namespace
 
 template <int D> void Basis<D>::save_state(StateGroup& out) const {
-  if (!points_.lambda.empty()) put_rows(out.real_arrays["lambda"], points_.lambda, D);
-  if (!points_.slope.empty()) {
+  // the arrays the basis keeps, also when empty (a rank without particles)
+  if (use_.lambda) put_rows(out.real_arrays["lambda"], points_.lambda, D);
+  if (use_.slope) {
     put_slopes(out.real_arrays["lambda_slope"], points_.slope, kSlope<D>);
     put_slopes(out.real_arrays["lambda_curvature"], points_.slope, kCurvature<D>);
   }
-  if (!points_.cell_hint.empty()) put_rows(out.integer_arrays["cell_hint"], points_.cell_hint, D);
+  if (use_.cell_hint) put_rows(out.integer_arrays["cell_hint"], points_.cell_hint, D);
   save_family_state(out);
 }
 
@@ -102,21 +104,22 @@ template <int D> void Basis<D>::restore_state(const StateGroup& in) {
   auto expect = [&](const char* name, bool kept) {
     if (in.has_array(name) != kept) in.error(std::string("per-point state '") + name + "' does not fit this basis");
   };
-  expect("lambda", !points_.lambda.empty());
-  expect("cell_hint", !points_.cell_hint.empty());
-  if (!points_.lambda.empty()) get_rows(in.real_array("lambda", points_.lambda.size(), D), points_.lambda, D);
+  // by what the basis keeps, not by the arrays' sizes: a rank without
+  // particles restores empty arrays
+  expect("lambda", use_.lambda);
+  expect("cell_hint", use_.cell_hint);
+  if (use_.lambda) get_rows(in.real_array("lambda", points_.lambda.size(), D), points_.lambda, D);
   // A checkpoint without slopes (an older otmpm, or one written in `ul`
   // mode) restarts from the plain warm start: G = 0; one without the
   // second-order part from the first-order prediction: e = 0.
-  if (!points_.slope.empty() && in.has_array("lambda_slope")) {
+  if (use_.slope && in.has_array("lambda_slope")) {
     get_slopes(in.real_array("lambda_slope", points_.slope.size(), D + D * D), points_.slope, kSlope<D>);
     if (in.has_array("lambda_curvature"))
       get_slopes(in.real_array("lambda_curvature", points_.slope.size(), D + D * D), points_.slope, kCurvature<D>);
     else
       for (MultiplierSlope<D>& m : points_.slope) m.e.setZero();
   }
-  if (!points_.cell_hint.empty())
-    get_rows(in.integer_array("cell_hint", points_.cell_hint.size(), D), points_.cell_hint, D);
+  if (use_.cell_hint) get_rows(in.integer_array("cell_hint", points_.cell_hint.size(), D), points_.cell_hint, D);
   restore_family_state(in);
 }
 

@@ -5,6 +5,8 @@
 #include "otmpm/reference/exact.hpp"
 
 #include <cmath>
+#include <set>
+#include <sstream>
 #include <limits>
 
 namespace otmpm::distributed {
@@ -104,6 +106,51 @@ template <class F> void for_each_row_array(Checkpoint& ck, F&& f) {
     };
     visit(g.real_arrays);
     visit(g.integer_arrays);
+  }
+}
+
+/// Lines "group kind cols name" (kind r: real, i: integer) of the per-particle
+/// arrays of `ck`: the particle fields and the basis' per-point state.
+std::set<std::string> particle_array_lines(const Checkpoint& ck) {
+  std::set<std::string> lines;
+  for (const auto& entry : ck.groups) {
+    const std::string& gname = entry.first;
+    const bool particles = gname == "particles", basis = gname == "basis";
+    if (!particles && !basis) continue;
+    auto add = [&](const auto& arrays, const char* kind) {
+      for (const auto& a : arrays)
+        if (particles || is_point_state(a.first))
+          lines.insert(gname + " " + kind + " " + std::to_string(a.second.cols) + " " + a.first);
+    };
+    add(entry.second.real_arrays, "r");
+    add(entry.second.integer_arrays, "i");
+  }
+  return lines;
+}
+
+/// Makes every rank's checkpoint hold the same per-particle arrays, adding
+/// those it lacks, empty, with the width the others give them: a rank without
+/// particles saves no particle field (every one is empty), and the gathers
+/// that follow are collective, one per array in name order.
+void same_particle_arrays(const Comm& comm, Checkpoint& ck) {
+  std::string mine;
+  for (const std::string& line : particle_array_lines(ck)) mine += line + "\n";
+  std::vector<int> to, from;
+  std::vector<Bytes> out;
+  if (!comm.root()) to.push_back(0), out.emplace_back(mine.begin(), mine.end());
+  else
+    for (int q = 1; q < comm.size(); ++q) from.push_back(q);
+  const std::vector<Bytes> in = comm.exchange(to, out, from);
+  std::string all = mine;
+  for (const Bytes& b : in) all.append(b.begin(), b.end());
+  all = comm.broadcast(all, 0);
+  std::istringstream lines(all);
+  std::string group, kind, name;
+  std::size_t cols = 0;
+  while (lines >> group >> kind >> cols >> name) {
+    StateGroup& g = ck.group(group);
+    if (kind == "r" && !g.real_arrays.count(name)) g.real_arrays[name] = {cols, {}};
+    if (kind == "i" && !g.integer_arrays.count(name)) g.integer_arrays[name] = {cols, {}};
   }
 }
 
@@ -273,6 +320,7 @@ template <int D> double GlobalView<D>::rms(const std::vector<double>& squared) c
 template <int D> Checkpoint GlobalView<D>::gather(const Checkpoint& local) const {
   if (!d_) return local;
   Checkpoint ck = local;
+  same_particle_arrays(d_->comm(), ck);
   shift_hints<D>(ck.group("basis"), d_->hint_offset(), +1);
   const std::vector<long long> particles = d_->global_ids(), points = point_ids(*d_, true);
   std::vector<long long> window = point_ids(*d_, false);
