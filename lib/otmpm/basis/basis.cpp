@@ -23,14 +23,13 @@ template <int D> void Basis<D>::bind_points(int n, bool nodes_move) {
   points_.slope.assign(use.slope ? static_cast<std::size_t>(n) : 0, MultiplierSlope<D>{});
   points_.cell_hint.assign(use.cell_hint ? static_cast<std::size_t>(n) : 0, Index<D>{});
   points_.neighbours = NeighbourLists<D>();
-  deformation_ = use.deformation;
   use_ = use;
 }
 
 template <int D>
 void Basis<D>::evaluate_points(const AlignedVector<Vec<D>>& x, BasisTable<D>& table,
                                const AlignedVector<Mat<D>>* deformation) {
-  require<std::invalid_argument>(!deformation_ || (deformation && deformation->size() == x.size()),
+  require<std::invalid_argument>(!use_.deformation || (deformation && deformation->size() == x.size()),
                                  "Basis::evaluate_points: the ", kind(),
                                  " basis with metric 'deformation' needs the deformation gradient of each of the ",
                                  x.size(), " points, got ", deformation ? deformation->size() : 0);
@@ -39,7 +38,7 @@ void Basis<D>::evaluate_points(const AlignedVector<Vec<D>>& x, BasisTable<D>& ta
   a.slope = &points_.slope;
   a.cell_hint = &points_.cell_hint;
   a.neighbours = &points_.neighbours;
-  a.deformation = deformation_ ? deformation : nullptr;
+  a.deformation = use_.deformation ? deformation : nullptr;
   fill_basis_table(*this, x, a, table);
 }
 

@@ -234,9 +234,9 @@ protected:
 
 private:
   PointState<D> points_;
-  bool deformation_ = false; ///< point_state_use().deformation at bind_points
   /// point_state_use() at bind_points: which per-point arrays a checkpoint
-  /// holds, also for no points (a rank without particles).
+  /// holds, also for no points (a rank without particles), and whether the
+  /// points' deformation gradients are read.
   PointStateUse use_{};
 };
 

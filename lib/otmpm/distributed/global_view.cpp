@@ -27,6 +27,19 @@ bool is_point_state(const std::string& name) {
   return false;
 }
 
+/// Every rank's `mine` on rank 0 (ranks 1, 2, ..., then rank 0's own);
+/// nothing on the other ranks.
+std::vector<Bytes> on_root(const Comm& comm, Bytes mine) {
+  std::vector<int> to, from;
+  std::vector<Bytes> out;
+  if (!comm.root()) to.push_back(0), out.push_back(std::move(mine));
+  else
+    for (int q = 1; q < comm.size(); ++q) from.push_back(q);
+  std::vector<Bytes> in = comm.exchange(to, out, from);
+  if (comm.root()) in.push_back(std::move(mine));
+  return in;
+}
+
 /// Rows `ids` (cols values each, ids[i] the global row of local row i) of
 /// every rank, assembled in global row order on rank 0 (`total` rows).
 template <class T>
@@ -37,14 +50,8 @@ std::vector<T> gather_rows(const Comm& comm, const std::vector<long long>& ids, 
     put(mine, static_cast<std::int64_t>(ids[i]));
     put_bytes(mine, values.data() + i * cols, cols * sizeof(T));
   }
-  std::vector<int> to, from;
-  std::vector<Bytes> out;
-  if (!comm.root()) to.push_back(0), out.push_back(std::move(mine));
-  else
-    for (int q = 1; q < comm.size(); ++q) from.push_back(q);
-  std::vector<Bytes> in = comm.exchange(to, out, from);
+  const std::vector<Bytes> in = on_root(comm, std::move(mine));
   if (!comm.root()) return {};
-  in.push_back(std::move(mine));
   std::vector<T> all(static_cast<std::size_t>(total) * cols);
   for (const Bytes& b : in) {
     Reader r(b);
@@ -135,14 +142,8 @@ std::set<std::string> particle_array_lines(const Checkpoint& ck) {
 void same_particle_arrays(const Comm& comm, Checkpoint& ck) {
   std::string mine;
   for (const std::string& line : particle_array_lines(ck)) mine += line + "\n";
-  std::vector<int> to, from;
-  std::vector<Bytes> out;
-  if (!comm.root()) to.push_back(0), out.emplace_back(mine.begin(), mine.end());
-  else
-    for (int q = 1; q < comm.size(); ++q) from.push_back(q);
-  const std::vector<Bytes> in = comm.exchange(to, out, from);
-  std::string all = mine;
-  for (const Bytes& b : in) all.append(b.begin(), b.end());
+  std::string all;
+  for (const Bytes& b : on_root(comm, Bytes(mine.begin(), mine.end()))) all.append(b.begin(), b.end());
   all = comm.broadcast(all, 0);
   std::istringstream lines(all);
   std::string group, kind, name;
@@ -183,24 +184,7 @@ template <int D> void GlobalView<D>::on_writer(const std::function<void()>& writ
 
 template <int D> void GlobalView<D>::collectively(const std::function<void()>& write) const {
   if (!d_) return write();
-  const Comm& comm = d_->comm();
-  std::string outcome = "o";
-  try {
-    write();
-  } catch (const InputError& e) {
-    outcome = std::string("i") + e.what();
-  } catch (const InstabilityError& e) {
-    outcome = std::string("u") + e.what();
-  } catch (const std::exception& e) {
-    outcome = std::string("x") + e.what();
-  }
-  const auto first = comm.min(static_cast<std::int64_t>(outcome != "o" ? comm.rank() : comm.size()));
-  if (first == comm.size()) return;
-  outcome = comm.broadcast(outcome, static_cast<int>(first));
-  const std::string message = outcome.substr(1);
-  if (outcome.front() == 'i') throw InputError(message);
-  if (outcome.front() == 'u') throw InstabilityError(message);
-  throw std::runtime_error(message);
+  agree_on(d_->comm(), write);
 }
 
 template <int D> ParallelIo GlobalView<D>::parallel_io() const {

@@ -27,7 +27,8 @@ public:
   /// its message (collective in a distributed run).
   void on_writer(const std::function<void()>& write) const;
   /// Runs `write` on every rank (the calls of a parallel result file); when
-  /// it throws on any rank, every rank throws what the lowest such rank threw.
+  /// it throws on any rank, every rank throws what the lowest such rank threw
+  /// (agree_on).
   void collectively(const std::function<void()>& write) const;
   /// How the ranks write one result file together (a serial file: none).
   ParallelIo parallel_io() const;
