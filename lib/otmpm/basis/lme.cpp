@@ -121,6 +121,7 @@
 //   centred in that cell can reach. Computed lazily, cached, invalidated by
 //   nodes_moved().
 #include "otmpm/basis/lme.hpp"
+#include "otmpm/basis/lme_lattice.hpp"
 
 #include "otmpm/basis/families.hpp"
 #include "otmpm/basis/kinds.hpp"
@@ -145,18 +146,9 @@ namespace {
 constexpr double kArmijo = 1e-4;           ///< sufficient-decrease factor of the line search
 constexpr double kBacktrack = 0.5;         ///< step reduction per backtracking step
 constexpr int kMaxBacktracks = 40;         ///< then the line search has stalled
-/// J singular when the smallest eigenvalue of the diagonally scaled J (unit
-/// diagonal) is below this (~500 eps: round-off of a degenerate J is ~D eps).
-constexpr double kSingularHessian = 1e-13;
 constexpr double kHullResidual = 1e-8;     ///< |r| / h above which a singular J means "outside the hull"
 /// Largest exponent for which the expm1 form of the log Z change is used.
 constexpr double kPreciseFormMaxExponent = 500.0;
-/// A Newton step s with max_I |s.(x - x_I)| <= this satisfies the Armijo
-/// condition without evaluating log Z: with u_I = s.(x - x_I), E_N[u] = r.s =
-/// -delta^2 and Var_N[u] = s^T J s = delta^2, so by e^v <= 1 + v + v^2 e^|v| / 2
-/// (v = u - E u, |v| <= 0.5), log Z change <= -delta^2 + delta^2 e^0.5 / 2
-/// = -0.18 delta^2 <= kArmijo r.s. Saves the exp pass in the quadratic phase.
-constexpr double kSafeExponentChange = 0.25;
 /// Relative round-off of log Z = max_I f_I + log sum_I exp(f_I - max f), per
 /// unit of max_I |f_I| (a few eps).
 constexpr double kLogZRoundoff = 8.0 * std::numeric_limits<double>::epsilon();
@@ -196,11 +188,6 @@ constexpr double kTaylorLarge = 0x1p-4;
 /// in [-ln(1/tol) - 300, 300] and exp(f_I) is taken unshifted (no pass for
 /// the maximum); beyond, the exponents are shifted by their maximum.
 constexpr double kUnshiftedExponent = 300.0;
-/// J = S / Z - m m^T from moments about c (see Moments) is kept when every
-/// m_k^2 <= kShiftedMomentLimit J_kk: the subtraction then costs at most
-/// kShiftedMomentLimit relative accuracy (well below round-off effects that
-/// matter); otherwise J is recomputed in the centred form.
-constexpr double kShiftedMomentLimit = 1e-3;
 /// The second-order term of the warm start (eq. 4.7b) is added when the
 /// displacement d since the last solve is alpha e, e the displacement before
 /// it: within an angle of 0.01 rad (|d - alpha e|^2 <= kCurvatureAngle2
@@ -363,63 +350,6 @@ template <int D> double log_Z_error(const Vec<D>& lambda, const Support<D>& s) {
   }
   return kLogZRoundoff * (1.0 + fabs_max);
 }
-
-/// J^{-1} through the symmetric diagonal scaling Js = S J S, S =
-/// diag(J_kk^{-1/2}) (unit diagonal), and the closed-form inverse of the
-/// D x D matrix Js. Js is what decides whether J^{-1} can be computed: J's
-/// entries are sums of non-negative terms (relative accuracy ~ n eps), so a J
-/// that is tiny only along an axis (a point next to a face of a box) is
-/// harmless, whereas a small eigenvalue of Js (degenerate nodes, the iterates
-/// leaving the hull through a slanted face) is not.
-template <int D> struct ScaledInverse {
-  /// J^{-1} (valid when lambda_min > 0).
-  Mat<D> J_inv = Mat<D>::Identity();
-  /// 1 / tr(Js^{-1}), within a factor D of the smallest eigenvalue of Js; 0
-  /// when J is not positive definite.
-  double lambda_min = 0.0;
-
-  void compute(const Mat<D>& J) {
-    lambda_min = 0.0;
-    const Vec<D> d = J.diagonal();
-    if (!(d.minCoeff() > 0.0) || !d.allFinite()) return;
-    if constexpr (D == 1) {
-      J_inv(0, 0) = 1.0 / d[0]; // Js = 1
-      lambda_min = 1.0;
-      return;
-    } else if constexpr (D == 2) {
-      if (compute_2d(J)) return;
-    }
-    const Vec<D> s = d.cwiseSqrt().cwiseInverse();
-    const Mat<D> Js = s.asDiagonal() * J * s.asDiagonal();
-    const double det = Js.determinant();
-    if (!(det > 0.0)) return;
-    if constexpr (D == 3) // Sylvester: the leading 2 x 2 minor must be positive too
-      if (!(1.0 - Js(0, 1) * Js(0, 1) > 0.0)) return;
-    const Mat<D> Js_inv = Js.inverse();
-    const double trace_inv = Js_inv.trace();
-    if (!(trace_inv > 0.0 && std::isfinite(trace_inv))) return;
-    lambda_min = 1.0 / trace_inv;
-    J_inv = s.asDiagonal() * Js_inv * s.asDiagonal();
-  }
-  /// 2D without square roots: Js = [1 rho; rho 1] with rho^2 = J01^2 /
-  /// (J00 J11), det Js = 1 - rho^2, 1 / tr(Js^{-1}) = det Js / 2 and
-  /// J^{-1} = adj(J) / (J00 J11 det Js). False (nothing set) when J00 J11 is
-  /// not a normal number, where the general path is safer.
-  bool compute_2d(const Mat<D>& J) {
-    const double ab = J(0, 0) * J(1, 1), c = J(0, 1);
-    if (!(ab >= std::numeric_limits<double>::min() * 1e8 && std::isfinite(ab))) return false;
-    const double det = 1.0 - c * c / ab;
-    if (!(det > 0.0)) return true; // not positive definite: lambda_min stays 0
-    lambda_min = 0.5 * det;
-    const double f = 1.0 / (ab * det);
-    J_inv(0, 0) = J(1, 1) * f;
-    J_inv(1, 1) = J(0, 0) * f;
-    J_inv(0, 1) = J_inv(1, 0) = -c * f;
-    return true;
-  }
-  Vec<D> solve(const Vec<D>& b) const { return J_inv * b; }
-  const Mat<D>& inverse() const { return J_inv; }
-};
 
 /// Largest and largest absolute change u_I = step . dx_I of the exponents.
 struct ExponentChange {
@@ -789,6 +719,7 @@ MaxEntBasis<D, Prior>::MaxEntBasis(NodeSet<D> nodes, const BasisOptions& opt, co
   require(Prior::kGaussian || metric_ == Metric::isotropic, name, " basis: only the Gaussian prior adapts its metric");
   nodes_.prepare_search();
   if (metric_ == Metric::node_spacing) update_node_spacing();
+  if constexpr (Prior::kGaussian) lattice_ = LatticeAxes<D>::from(nodes_, prior_.beta);
 }
 
 template <int D, class Prior> void MaxEntBasis<D, Prior>::nodes_moved(const AlignedVector<Vec<D>>&) {
@@ -796,6 +727,7 @@ template <int D, class Prior> void MaxEntBasis<D, Prior>::nodes_moved(const Alig
   // evaluate() may run from several threads. The stencil bound is stale.
   nodes_.prepare_search();
   if (metric_ == Metric::node_spacing) update_node_spacing();
+  if constexpr (Prior::kGaussian) lattice_ = LatticeAxes<D>::from(nodes_, prior_.beta);
   std::lock_guard lock(bound_mutex_);
   bound_ = -1;
 }
@@ -1009,6 +941,8 @@ template <int D, class Prior> void MaxEntBasis<D, Prior>::evaluate(const PointQu
   PointMetric<D> pm;
   pm.radius = settings_.support_radius;
   if (metric_ == Metric::deformation && q.deformation) pm = point_metric(q, *q.deformation);
+  const Vec<D> warm = warm_start(q);
+  if (evaluate_on_lattice(q, pm, warm, out)) return;
   Vec<D> lo, hi;
   const int stride = gather_metric_support(q, pm, out, lo, hi);
   const int n = out.size();
@@ -1018,7 +952,6 @@ template <int D, class Prior> void MaxEntBasis<D, Prior>::evaluate(const PointQu
   Support<D> s = support(out, stride);
   s.radius = pm.radius;
   check_extent(q, n, lo, hi);
-  const Vec<D> warm = warm_start(q);
   Vec<D> lambda = warm;
   NewtonState<D> st = solve_lambda<D>(settings_, s, lambda);
   int iterations = st.iterations;
@@ -1030,10 +963,33 @@ template <int D, class Prior> void MaxEntBasis<D, Prior>::evaluate(const PointQu
   if (q.iterations) *q.iterations = iterations;
   if (st.status != NewtonStatus::converged)
     fail(q, describe_failure<D>(st, iterations, settings_.h, settings_.residual_tolerance / settings_.h, n));
-  if (q.lambda) *q.lambda = lambda;
   const bool closed_form = Prior::kGaussian && uniform_beta(out);
   const Mat<D> two_B = closed_form && q.slope ? prior_hessian(pm, out) : Mat<D>::Zero();
   const Mat<D> JA = finish_stencil(st, s, closed_form, out);
+  store_point_state(q, lambda, iterations, two_B, JA);
+}
+
+template <int D, class Prior>
+bool MaxEntBasis<D, Prior>::evaluate_on_lattice(const PointQuery<D>& q, const PointMetric<D>& pm, const Vec<D>& warm,
+                                                Stencil<D>& out) const {
+  if constexpr (Prior::kGaussian) {
+    // on the lattice every beta_I of Metric::node_spacing is the prior's beta
+    if (lattice_.empty() || !pm.isotropic) return false;
+    LatticeSolve<D> res;
+    if (!lattice_solve<D>(lattice_, prior_, settings_, q.x, warm, out, res)) return false;
+    store_point_state(q, res.lambda, res.iterations, Mat<D>::Identity() * (2.0 * prior_.beta), res.J_inv);
+    return true;
+  } else {
+    (void)q, (void)pm, (void)warm, (void)out;
+    return false;
+  }
+}
+
+template <int D, class Prior>
+void MaxEntBasis<D, Prior>::store_point_state(const PointQuery<D>& q, const Vec<D>& lambda, int iterations,
+                                              const Mat<D>& two_B, const Mat<D>& JA) const {
+  if (q.iterations) *q.iterations = iterations;
+  if (q.lambda) *q.lambda = lambda;
   if (q.slope) {
     q.slope->e = q.slope->G.isZero(0.0) ? Vec<D>::Zero().eval() : Vec<D>(q.x - q.slope->x0);
     q.slope->G_prev = q.slope->G;

@@ -15,8 +15,11 @@
 #include "otmpm/basis/basis.hpp"
 #include "otmpm/basis/simd.hpp"
 
+#include <Eigen/LU>
+
 #include <bit>
 #include <cmath>
+#include <limits>
 
 #include <mutex>
 #include <string>
@@ -127,6 +130,78 @@ template <int D> inline bool GaussianPrior<D>::log_weight(const Vec<D>& dx, doub
   return true;
 }
 
+/// J singular when the smallest eigenvalue of the diagonally scaled J (unit
+/// diagonal) is below this (~500 eps: round-off of a degenerate J is ~D eps).
+inline constexpr double kSingularHessian = 1e-13;
+/// A Newton step s with max_I |s.(x - x_I)| <= this satisfies the Armijo
+/// condition without evaluating log Z: with u_I = s.(x - x_I), E_N[u] = r.s =
+/// -delta^2 and Var_N[u] = s^T J s = delta^2, so by e^v <= 1 + v + v^2 e^|v| / 2
+/// (v = u - E u, |v| <= 0.5), log Z change <= -delta^2 + delta^2 e^0.5 / 2
+/// = -0.18 delta^2 <= kArmijo r.s (kArmijo = 1e-4). Saves the exp pass in the quadratic phase.
+inline constexpr double kSafeExponentChange = 0.25;
+/// J = S / Z - m m^T from moments about c (see Moments) is kept when every
+/// m_k^2 <= kShiftedMomentLimit J_kk: the subtraction then costs at most
+/// kShiftedMomentLimit relative accuracy (well below round-off effects that
+/// matter); otherwise J is recomputed in the centred form.
+inline constexpr double kShiftedMomentLimit = 1e-3;
+
+/// J^{-1} through the symmetric diagonal scaling Js = S J S, S =
+/// diag(J_kk^{-1/2}) (unit diagonal), and the closed-form inverse of the
+/// D x D matrix Js. Js is what decides whether J^{-1} can be computed: J's
+/// entries are sums of non-negative terms (relative accuracy ~ n eps), so a J
+/// that is tiny only along an axis (a point next to a face of a box) is
+/// harmless, whereas a small eigenvalue of Js (degenerate nodes, the iterates
+/// leaving the hull through a slanted face) is not.
+template <int D> struct ScaledInverse {
+  /// J^{-1} (valid when lambda_min > 0).
+  Mat<D> J_inv = Mat<D>::Identity();
+  /// 1 / tr(Js^{-1}), within a factor D of the smallest eigenvalue of Js; 0
+  /// when J is not positive definite.
+  double lambda_min = 0.0;
+
+  void compute(const Mat<D>& J) {
+    lambda_min = 0.0;
+    const Vec<D> d = J.diagonal();
+    if (!(d.minCoeff() > 0.0) || !d.allFinite()) return;
+    if constexpr (D == 1) {
+      J_inv(0, 0) = 1.0 / d[0]; // Js = 1
+      lambda_min = 1.0;
+      return;
+    } else if constexpr (D == 2) {
+      if (compute_2d(J)) return;
+    }
+    const Vec<D> s = d.cwiseSqrt().cwiseInverse();
+    const Mat<D> Js = s.asDiagonal() * J * s.asDiagonal();
+    const double det = Js.determinant();
+    if (!(det > 0.0)) return;
+    if constexpr (D == 3) // Sylvester: the leading 2 x 2 minor must be positive too
+      if (!(1.0 - Js(0, 1) * Js(0, 1) > 0.0)) return;
+    const Mat<D> Js_inv = Js.inverse();
+    const double trace_inv = Js_inv.trace();
+    if (!(trace_inv > 0.0 && std::isfinite(trace_inv))) return;
+    lambda_min = 1.0 / trace_inv;
+    J_inv = s.asDiagonal() * Js_inv * s.asDiagonal();
+  }
+  /// 2D without square roots: Js = [1 rho; rho 1] with rho^2 = J01^2 /
+  /// (J00 J11), det Js = 1 - rho^2, 1 / tr(Js^{-1}) = det Js / 2 and
+  /// J^{-1} = adj(J) / (J00 J11 det Js). False (nothing set) when J00 J11 is
+  /// not a normal number, where the general path is safer.
+  bool compute_2d(const Mat<D>& J) {
+    const double ab = J(0, 0) * J(1, 1), c = J(0, 1);
+    if (!(ab >= std::numeric_limits<double>::min() * 1e8 && std::isfinite(ab))) return false;
+    const double det = 1.0 - c * c / ab;
+    if (!(det > 0.0)) return true; // not positive definite: lambda_min stays 0
+    lambda_min = 0.5 * det;
+    const double f = 1.0 / (ab * det);
+    J_inv(0, 0) = J(1, 1) * f;
+    J_inv(1, 1) = J(0, 0) * f;
+    J_inv(0, 1) = J_inv(1, 0) = -c * f;
+    return true;
+  }
+  Vec<D> solve(const Vec<D>& b) const { return J_inv * b; }
+  const Mat<D>& inverse() const { return J_inv; }
+};
+
 /// The support of one point in structure-of-arrays form (simd kernels):
 /// offsets dx[k][i] = (x - x_I)_k and log-priors log_w[i] = log w_I for the n
 /// support nodes, padded to n_pad = simd::padded(n) entries with dx = 0 and
@@ -212,6 +287,29 @@ template <int D> struct PointMetric {
   Mat<D> B = Mat<D>::Identity();
   double radius = 0.0;
 };
+
+/// The nodes of an untouched Cartesian lattice axis by axis: node
+/// (i_0, ..., i_{D-1}) has id sum_k i_k stride[k] and the position
+/// (coord[0][i_0], ..., coord[D-1][i_{D-1}]), read from the stored positions
+/// bit for bit.
+template <int D> struct LatticeAxes {
+  std::vector<double> coord[D];
+  int stride[D] = {};
+  double h[D] = {};     ///< lattice spacing along each axis
+  double inv_h[D] = {}; ///< 1 / h
+  /// exp(-2 beta h^2): the ratio of two successive ratios of the prior
+  /// exp(-beta dx^2) along axis k (the second difference of -beta dx^2 is
+  /// -2 beta h^2).
+  double kappa[D] = {};
+  /// Reads the axes of `nodes` when they sit on their lattice (kappa for
+  /// the prior's `beta`); empty (nothing to factorise) otherwise.
+  static LatticeAxes from(const NodeSet<D>& nodes, double beta);
+  bool empty() const { return coord[0].empty(); }
+};
+
+extern template struct LatticeAxes<1>;
+extern template struct LatticeAxes<2>;
+extern template struct LatticeAxes<3>;
 
 /// A maximum-entropy basis with prior `Prior` bound to a node set (see file
 /// comment). evaluate() finds the support by NodeSet::within, solves for lambda
@@ -307,6 +405,16 @@ private:
   /// `out` (B = beta I, pm.B under Metric::deformation, beta_I I under
   /// Metric::node_spacing); call only where the closed form holds.
   Mat<D> prior_hessian(const PointMetric<D>& pm, const Stencil<D>& out) const;
+  /// The factorised path (lattice_solve) for q from the warm start `warm`,
+  /// when the nodes sit on their lattice, the prior is the isotropic
+  /// Gaussian at q and lattice_solve takes the point; false otherwise
+  /// (nothing of q's state written).
+  bool evaluate_on_lattice(const PointQuery<D>& q, const PointMetric<D>& pm, const Vec<D>& warm,
+                           Stencil<D>& out) const;
+  /// Writes back q's multiplier, Newton count and slope after a converged
+  /// solve (lambda; JA = J^{-1} (I + A), two_B: the prior's Hessian 2 B).
+  void store_point_state(const PointQuery<D>& q, const Vec<D>& lambda, int iterations, const Mat<D>& two_B,
+                         const Mat<D>& JA) const;
   /// Removes the nodes whose N_I underflowed to zero (their gradient is zero too).
   void drop_zeros(Stencil<D>& out) const;
   [[noreturn]] void fail(const PointQuery<D>& q, const std::string& why) const;
@@ -322,6 +430,9 @@ private:
   Metric metric_ = Metric::isotropic;
   double radius0_ = 0.0;          ///< the isotropic support radius R = h sqrt(-ln(tol) / gamma_lme)
   std::vector<double> node_beta_; ///< Metric::node_spacing: beta_I
+  /// The nodes' lattice axis by axis while they sit on it and the prior is
+  /// the Gaussian (the factorised path, lme_lattice.hpp); empty otherwise.
+  LatticeAxes<D> lattice_;
   mutable std::mutex bound_mutex_;
   mutable int bound_ = -1; ///< cached max_stencil(), -1 when stale
 };

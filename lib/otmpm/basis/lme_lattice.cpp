@@ -1,0 +1,346 @@
+// LME on an untouched Cartesian lattice, factorised over the axes
+// (lme_lattice.hpp, docs/theory.md sect. 4.7).
+//
+// Choices made here
+// -----------------
+// * The box. Along axis k the lattice lines within R of x_k: at most
+//   kLatticeMaxSpan lines, else the general path.
+// * The support: node I kept when |x - x_I| <= R, row by row: along a row
+//   of axis 0 the kept nodes are the interval |dx_0| <= sqrt(R^2 - the
+//   other axes' dx^2), its ends found by arithmetic on the lattice
+//   coordinates, not by a test per node (no branch whose outcome varies
+//   from row to row). Only a node at the cut-off itself (weight tol) can
+//   be decided otherwise than by the general gather, by rounding.
+// * Exponents per axis: f_k(i) = -beta dx_k(i)^2 + lambda_k dx_k(i), one
+//   short vector exponential (simd::exp_shifted) per two or four lattice
+//   lines. They are not shifted: |lambda| R <= kLatticeMaxExponent = 100
+//   bounds every factor by e^(lambda_k^2 / 4 beta) <= e^182 from above and,
+//   on the support, by e^(-ln(1/tol) - 100) from below, so the products of D
+//   factors neither overflow nor underflow.
+// * Sums about a centre c: Z, m = sum p (dx - c), S = sum p (dx - c)(dx -
+//   c)^T; over a row of axis 0 (factor w of the other axes, offsets t_l =
+//   dx_l - c_l there) sum p = w sum e_0, sum p t_0 = w sum e_0 t_0, sum p t_0^2
+//   = w sum e_0 t_0^2, and every other moment is one of these times t_l or
+//   t_l t_m. c = 0 first; J = S / Z - (m / Z)(m / Z)^T is kept under the
+//   general solver's kShiftedMomentLimit, else the sums are taken again about
+//   c = r (the centred form).
+// * Newton: full steps while |s| R <= kSafeExponentChange (the Armijo
+//   condition then holds, as in the general solver); anything that needs
+//   the line search, a shifted exponent or a diagnosis goes to the general
+//   path, which starts again from the same warm start.
+#include "otmpm/basis/lme_lattice.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace otmpm::maxent {
+
+template <int D> LatticeAxes<D> LatticeAxes<D>::from(const NodeSet<D>& nodes, double beta) {
+  LatticeAxes axes;
+  if (!nodes.on_lattice() || !nodes.grid()) return axes;
+  const CartesianGrid<D>& grid = *nodes.grid();
+  const Index<D> n = grid.nodes_per_axis();
+  const Vec<D> h = grid.h();
+  int stride = 1;
+  for (int k = 0; k < D; ++k) {
+    axes.stride[k] = stride;
+    axes.h[k] = h[k];
+    axes.inv_h[k] = 1.0 / h[k];
+    axes.kappa[k] = std::exp(-2.0 * beta * h[k] * h[k]);
+    axes.coord[k].resize(static_cast<std::size_t>(n[k]));
+    for (int i = 0; i < n[k]; ++i) axes.coord[k][static_cast<std::size_t>(i)] = nodes.position(i * stride)[k];
+    stride *= n[k];
+  }
+  return axes;
+}
+
+namespace {
+
+/// One axis of a point's lattice box: lines lo .. lo + m - 1, offsets dx =
+/// x_k - X_k(i), their squares, and the factors e = exp(-beta dx^2 +
+/// lambda_k dx).
+struct AxisBox {
+  int lo, m;
+  double dx[kLatticeMaxSpan];
+  double sq[kLatticeMaxSpan];
+  double e[kLatticeMaxSpan];
+};
+
+/// A row of the support: box indices a .. b along axis 0, at box index o[l]
+/// along axis l + 1.
+template <int D> struct Row {
+  int a, b;
+  int o[D > 1 ? D - 1 : 1];
+};
+
+template <int D> constexpr int kMaxRows = D == 1 ? 1 : D == 2 ? kLatticeMaxSpan : kLatticeMaxSpan * kLatticeMaxSpan;
+
+/// The box of one point and the rows of its support (n nodes).
+template <int D> struct Box {
+  AxisBox axis[D];
+  Row<D> row[kMaxRows<D>];
+  int rows;
+  int n;
+};
+
+/// Sets up axis k of the box of coordinate xk (false: the general path).
+template <int D> bool axis_box(const LatticeAxes<D>& axes, int k, double xk, double R, AxisBox& a) {
+  const std::vector<double>& X = axes.coord[k];
+  if (!(xk >= X.front() && xk <= X.back())) return false; // outside the lattice, or NaN
+  const double u = (xk - X.front()) * axes.inv_h[k], reach = R * axes.inv_h[k];
+  if (!(reach < kLatticeMaxSpan)) return false;
+  const int last = static_cast<int>(X.size()) - 1;
+  // the lines within reach of u (u - reach + 2 > 0 after the clamp, so
+  // truncation is floor); a node exactly at distance R may fall outside by
+  // the rounding of u, as it may by that of |dx|^2 in the general gather
+  a.lo = std::max(0, static_cast<int>(std::max(u - reach, -1.0) + 2.0) - 2);
+  const int hi = std::min(last, static_cast<int>(u + reach));
+  a.m = hi - a.lo + 1;
+  if (a.m > kLatticeMaxSpan) return false;
+  for (int i = 0; i < a.m; ++i) {
+    a.dx[i] = xk - X[static_cast<std::size_t>(a.lo + i)];
+    a.sq[i] = a.dx[i] * a.dx[i];
+  }
+  return true;
+}
+
+/// Appends the row at box indices o (axes 1 and 2) whose nodes are kept
+/// while dx_0^2 <= rest (R^2 less the other axes' squares): box indices i
+/// along axis 0 with |dx_0(0) - i h| <= sqrt(rest), dx_0(0) = x_0 - X_0(lo);
+/// an empty row is written and not counted. Branch-free (the row lengths of
+/// neighbouring points differ in no pattern a predictor could learn).
+template <int D> void add_row(Box<D>& box, double v, double inv_h, double rest, int o1, int o2) {
+  const int m = box.axis[0].m;
+  const double w = std::sqrt(std::max(rest, 0.0)) * inv_h;
+  const double lo = std::max(v - w, 0.0), hi = std::max(v + w, 0.0);
+  const int c = static_cast<int>(lo);
+  const int a = c + (c < lo ? 1 : 0);                   // ceil
+  const int b = std::min(static_cast<int>(hi), m - 1); // floor, within the box
+  const int len = rest >= 0.0 ? std::max(0, b - a + 1) : 0;
+  Row<D>& r = box.row[box.rows];
+  r.a = a;
+  r.b = a + len - 1;
+  if constexpr (D > 1) r.o[0] = o1;
+  if constexpr (D > 2) r.o[1] = o2;
+  box.n += len;
+  box.rows += len > 0 ? 1 : 0;
+}
+
+/// The rows of the support of x (whose box is set up): node I kept when
+/// |x - x_I| <= R (the offsets along axis 0 taken on the lattice's own
+/// spacing: which node lies at the cut-off can differ from the general
+/// gather's by the rounding of |dx|^2, a node of weight ~tol).
+template <int D> void gather_rows(Box<D>& box, const LatticeAxes<D>& axes, double R2) {
+  const double v = box.axis[0].dx[0] * axes.inv_h[0], inv_h = axes.inv_h[0];
+  box.rows = 0;
+  box.n = 0;
+  if constexpr (D == 1) {
+    add_row<D>(box, v, inv_h, R2, 0, 0);
+  } else if constexpr (D == 2) {
+    for (int j = 0; j < box.axis[1].m; ++j) add_row<D>(box, v, inv_h, R2 - box.axis[1].sq[j], j, 0);
+  } else {
+    for (int l = 0; l < box.axis[2].m; ++l)
+      for (int j = 0; j < box.axis[1].m; ++j)
+        add_row<D>(box, v, inv_h, R2 - (box.axis[1].sq[j] + box.axis[2].sq[l]), j, l);
+  }
+}
+
+/// The factors e_k(i) = exp(f_k(i)), f_k(i) = -beta dx_k(i)^2 + lambda_k
+/// dx_k(i), of every axis, by the recurrence of a quadratic on the lattice:
+/// e_k(i + 1) = e_k(i) g_i with g_i = exp(f_k(i + 1) - f_k(i)) and g_{i+1} =
+/// g_i kappa_k (the second difference of f_k is -2 beta h_k^2), so two
+/// exponentials per axis. The lattice's own spacing h_k stands for the
+/// differences of the stored coordinates (equal to round-off): the weights
+/// move by a relative ~1e-16 |X| / h, while r and J are summed with the
+/// stored offsets, so the constraint sum N_I (x - x_I) = r holds as solved.
+template <int D> void axis_factors(Box<D>& box, const LatticeAxes<D>& axes, const Vec<D>& lambda, double beta) {
+  double e0[D], g[D];
+#pragma GCC unroll 3
+  for (int k = 0; k < D; ++k) {
+    const AxisBox& a = box.axis[k];
+    const double h = axes.h[k], d = a.dx[0];
+    e0[k] = -beta * a.sq[0] + lambda[k] * d;
+    g[k] = beta * h * (2.0 * d - h) - lambda[k] * h;
+  }
+#pragma GCC unroll 3
+  for (int k = 0; k < D; ++k) {
+    e0[k] = std::exp(e0[k]);
+    g[k] = std::exp(g[k]);
+  }
+#pragma GCC unroll 3
+  for (int k = 0; k < D; ++k) {
+    AxisBox& a = box.axis[k];
+    double e = e0[k], gk = g[k];
+    const double kappa = axes.kappa[k];
+    a.e[0] = e;
+    for (int i = 1; i < a.m; ++i) {
+      e *= gk;
+      gk *= kappa;
+      a.e[i] = e;
+    }
+  }
+}
+
+/// The row's factor of the axes other than 0 and its offsets t_l = dx_l - c_l there.
+template <int D> double row_factor(const Box<D>& box, const Row<D>& r, const Vec<D>& c, double t[D]) {
+  double w = 1.0;
+#pragma GCC unroll 2
+  for (int l = 1; l < D; ++l) {
+    const AxisBox& a = box.axis[l];
+    w *= a.e[r.o[l - 1]];
+    t[l] = a.dx[r.o[l - 1]] - c[l];
+  }
+  return w;
+}
+
+/// Z = sum p_I, m = sum p_I (dx_I - c), S = sum p_I (dx_I - c)(dx_I - c)^T
+/// (lower triangle), row by row (see the file comment); a row's sums along
+/// axis 0 are differences of prefix sums (no loop whose length varies from
+/// row to row).
+template <int D> void moments(const Box<D>& box, const Vec<D>& c, double& Z, Vec<D>& m, Mat<D>& S) {
+  const AxisBox& a0 = box.axis[0];
+  double P0[kLatticeMaxSpan + 1], P1[kLatticeMaxSpan + 1], P2[kLatticeMaxSpan + 1]; // prefix sums of e, e t, e t^2
+  P0[0] = P1[0] = P2[0] = 0.0;
+  for (int i = 0; i < a0.m; ++i) {
+    const double t = a0.dx[i] - c[0], et = a0.e[i] * t;
+    P0[i + 1] = P0[i] + a0.e[i];
+    P1[i + 1] = P1[i] + et;
+    P2[i + 1] = P2[i] + et * t;
+  }
+  Z = 0.0;
+  m.setZero();
+  S.setZero();
+  for (int q = 0; q < box.rows; ++q) {
+    const Row<D>& r = box.row[q];
+    const double z0 = P0[r.b + 1] - P0[r.a], z1 = P1[r.b + 1] - P1[r.a], z2 = P2[r.b + 1] - P2[r.a];
+    double t[D];
+    const double w = row_factor<D>(box, r, c, t);
+    const double w0 = w * z0, w1 = w * z1;
+    Z += w0;
+    m[0] += w1;
+    S(0, 0) += w * z2;
+#pragma GCC unroll 2
+    for (int l = 1; l < D; ++l) {
+      m[l] += w0 * t[l];
+      S(l, 0) += w1 * t[l];
+#pragma GCC unroll 2
+      for (int k = 1; k <= l; ++k) S(l, k) += w0 * t[l] * t[k];
+    }
+  }
+}
+
+/// Z, r and J at the current factors (molinos eqs. 38-40); false when not
+/// finite.
+template <int D> bool dual_sums(const Box<D>& box, double& Z, Vec<D>& r, Mat<D>& J) {
+  Vec<D> m;
+  Mat<D> S;
+  moments<D>(box, Vec<D>::Zero(), Z, m, S);
+  if (!(Z > 0.0 && std::isfinite(Z))) return false;
+  const double inv_Z = 1.0 / Z;
+  r = m * inv_Z;
+  bool small = true;
+  for (int k = 0; k < D; ++k) {
+    for (int l = 0; l <= k; ++l) J(k, l) = J(l, k) = S(k, l) * inv_Z - r[k] * r[l];
+    small = small && r[k] * r[k] <= kShiftedMomentLimit * J(k, k);
+  }
+  if (!small) { // the centred form: sums about c = r
+    double Zc;
+    Vec<D> mc;
+    moments<D>(box, r, Zc, mc, S);
+    const Vec<D> mean = mc / Zc;
+    for (int k = 0; k < D; ++k)
+      for (int l = 0; l <= k; ++l) J(k, l) = J(l, k) = S(k, l) / Zc - mean[k] * mean[l];
+  }
+  return r.allFinite() && J.allFinite();
+}
+
+/// Writes the stencil of the converged state (N_I = p_I / Z, grad N_I =
+/// -N_I J^{-1} (dx_I - r)); false when some N_I is not positive and finite.
+template <int D>
+bool write_stencil(const LatticeAxes<D>& axes, const Box<D>& box, double Z, const Vec<D>& r, const Mat<D>& J_inv,
+                   Stencil<D>& out) {
+  const auto n = static_cast<std::size_t>(box.n);
+  if (out.node.size() != n) out.node.resize(n);
+  if (out.N.size() != n) out.N.resize(n);
+  if (out.dN.size() != n) out.dN.resize(n);
+  const AxisBox& a0 = box.axis[0];
+  const double inv_Z = 1.0 / Z;
+  double N0[kLatticeMaxSpan];
+  Vec<D> g0[kLatticeMaxSpan]; // J^{-1} e_0 (dx_0 - r_0)
+  for (int i = 0; i < a0.m; ++i) {
+    N0[i] = a0.e[i] * inv_Z;
+    g0[i] = J_inv.col(0) * (a0.dx[i] - r[0]);
+  }
+  int* node = out.node.data();
+  double* N = out.N.data();
+  Vec<D>* dN = out.dN.data();
+  int not_positive = 0; // N_I not in (0, 1] (or NaN) somewhere
+  int e = 0;
+  for (int q = 0; q < box.rows; ++q) {
+    const Row<D>& row = box.row[q];
+    double t[D];
+    const double w = row_factor<D>(box, row, r, t);
+    Vec<D> g = Vec<D>::Zero(); // J^{-1} (dx - r) of the axes other than 0
+    int id = a0.lo;
+#pragma GCC unroll 2
+    for (int l = 1; l < D; ++l) {
+      g += J_inv.col(l) * t[l];
+      id += (box.axis[l].lo + row.o[l - 1]) * axes.stride[l];
+    }
+    for (int i = row.a; i <= row.b; ++i, ++e) {
+      const double Ni = N0[i] * w;
+      not_positive |= !(Ni > 0.0) | !(Ni <= 1.0);
+      node[e] = id + i;
+      N[e] = Ni;
+      dN[e] = -Ni * (g0[i] + g);
+    }
+  }
+  return not_positive == 0;
+}
+
+} // namespace
+
+template <int D>
+bool lattice_solve(const LatticeAxes<D>& axes, const GaussianPrior<D>& prior, const NewtonSettings& set,
+                   const Vec<D>& x, const Vec<D>& lambda0, Stencil<D>& out, LatticeSolve<D>& res) {
+  const double R = set.support_radius;
+  Box<D> box; // filled below (no value-initialisation of the arrays)
+  for (int k = 0; k < D; ++k)
+    if (!axis_box<D>(axes, k, x[k], R, box.axis[k])) return false;
+  gather_rows<D>(box, axes, R * R);
+  if (box.n < D + 1) return false;
+  Vec<D> lambda = lambda0;
+  ScaledInverse<D> inv;
+  for (int it = 0;; ++it) {
+    if (!(lambda.norm() * R <= kLatticeMaxExponent)) return false;
+    axis_factors<D>(box, axes, lambda, prior.beta);
+    double Z;
+    Vec<D> r;
+    Mat<D> J;
+    if (!dual_sums<D>(box, Z, r, J)) return false;
+    inv.compute(J);
+    if (!(inv.lambda_min > kSingularHessian)) return false;
+    if (r.norm() <= set.residual_tolerance) {
+      res.lambda = lambda;
+      res.J_inv = inv.inverse();
+      res.iterations = it;
+      return write_stencil<D>(axes, box, Z, r, res.J_inv, out);
+    }
+    if (it >= set.max_iterations) return false;
+    const Vec<D> step = -inv.solve(r);
+    if (!(step.norm() * R <= kSafeExponentChange)) return false;
+    lambda += step;
+  }
+}
+
+template struct LatticeAxes<1>;
+template struct LatticeAxes<2>;
+template struct LatticeAxes<3>;
+template bool lattice_solve<1>(const LatticeAxes<1>&, const GaussianPrior<1>&, const NewtonSettings&, const Vec<1>&,
+                               const Vec<1>&, Stencil<1>&, LatticeSolve<1>&);
+template bool lattice_solve<2>(const LatticeAxes<2>&, const GaussianPrior<2>&, const NewtonSettings&, const Vec<2>&,
+                               const Vec<2>&, Stencil<2>&, LatticeSolve<2>&);
+template bool lattice_solve<3>(const LatticeAxes<3>&, const GaussianPrior<3>&, const NewtonSettings&, const Vec<3>&,
+                               const Vec<3>&, Stencil<3>&, LatticeSolve<3>&);
+
+} // namespace otmpm::maxent

@@ -1,0 +1,60 @@
+#pragma once
+/// \file lme_lattice.hpp
+/// LME on an untouched Cartesian lattice, factorised over the axes
+/// (docs/theory.md sect. 4.7). With the isotropic Gaussian prior the weight
+/// of node I = (i_0, ..., i_{D-1}) is a product of one factor per axis,
+///
+///     p_I = w_I exp(lambda . (x - x_I)) = prod_k exp(-beta dx_k^2 + lambda_k dx_k),
+///     dx_k = x_k - X_k(i_k),
+///
+/// so a Newton evaluation takes the exponentials of the few lattice lines
+/// around x (about 5 per axis) instead of one per support node (13 in 2D,
+/// 41 in 3D at gamma_lme = 3), and the sums Z, r and J of molinos eqs. 38-40
+/// are taken row by row: the support, a ball, cuts every lattice row along
+/// axis 0 in one interval, whose sums of p, p dx_0 and p dx_0^2 carry the
+/// row's factor of the other axes once. The same nodes, the same Newton
+/// criterion and the same closed-form gradient as the general solver
+/// (lme.cpp); only the rounding of p_I differs (a product of D exponentials
+/// instead of the exponential of a sum). Internal to the max-ent basis and
+/// its tests.
+#include "otmpm/basis/lme.hpp"
+
+#include <vector>
+
+namespace otmpm::maxent {
+
+/// Widest box of lattice lines per axis that the factorised path takes:
+/// the lines within R of the point, at most 2 R / h + 1 (gamma_lme = 3 at
+/// tolerance 1e-6: 5; 16 lines reach down to gamma_lme ~ 0.3).
+inline constexpr int kLatticeMaxSpan = 16;
+/// |lambda| R above which the factorised path leaves the point to the
+/// general solver: every factor then stays within e^(+-250) (see
+/// lattice_solve), far from overflow and underflow of their product.
+inline constexpr double kLatticeMaxExponent = 100.0;
+
+/// The converged multiplier of lattice_solve and what the caller needs of it.
+template <int D> struct LatticeSolve {
+  Vec<D> lambda = Vec<D>::Zero();
+  Mat<D> J_inv = Mat<D>::Zero(); ///< J^{-1} at lambda (grad N_I and the multiplier's slope)
+  int iterations = 0;            ///< Newton steps taken
+};
+
+/// LME with the isotropic Gaussian prior `prior` (support radius R =
+/// set.support_radius) at x on the lattice `axes`, warm-started at lambda0:
+/// gathers the support (node I kept when |x - x_I| <= R, the general
+/// path's test up to the rounding of a node at the cut-off), takes full
+/// Newton steps s = -J^{-1} r while |s| R <= kSafeExponentChange (no exponent
+/// changes by more, so the Armijo condition holds without a line search)
+/// until |r| <= set.residual_tolerance, and fills out.node (ascending id),
+/// out.N and out.dN (grad N_I = -N_I J^{-1} (xbar - x_I)). Returns false,
+/// with `out` and `res` unspecified, when the point needs the general
+/// solver: x outside the lattice's box, a support wider than
+/// kLatticeMaxSpan nodes on an axis or of fewer than D + 1 nodes,
+/// |lambda| R > kLatticeMaxExponent, a step that would need the line
+/// search, a singular J (as kSingularHessian), an N_I not positive and
+/// finite, or set.max_iterations reached.
+template <int D>
+bool lattice_solve(const LatticeAxes<D>& axes, const GaussianPrior<D>& prior, const NewtonSettings& set,
+                   const Vec<D>& x, const Vec<D>& lambda0, Stencil<D>& out, LatticeSolve<D>& res);
+
+} // namespace otmpm::maxent

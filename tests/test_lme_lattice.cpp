@@ -1,0 +1,249 @@
+// Tests of the factorised LME path on an untouched Cartesian lattice
+// (lme_lattice.hpp, docs/theory.md sect. 4.7): the same basis as the general
+// solver on the same node positions given as a cloud, and the cases that it
+// leaves to the general solver.
+//
+// Tolerances (h = nodal spacing; newton_tolerance 1e-14, so both solves stop
+// at |r| <= 1e-14 h):
+// * N_I of the two paths agree to 1e-12: the converged multipliers differ
+//   by at most ~J^{-1} (r_1 - r_2) ~ 1e-14 / h (J ~ h^2 / gamma), which
+//   moves N_I by ~1e-14 h |lambda diff| ~ 1e-14 relative; the weights
+//   themselves differ by the rounding of a product of D exponentials
+//   against one exponential of a sum and by the lattice spacing standing
+//   for the stored coordinates' differences (a few 1e-16 relative, D = 3:
+//   up to ~30 roundings of the recurrence, 1e-14).
+// * grad N_I agree to 1e-10 / h: grad N_I = -N_I J^{-1} (dx_I - r), J^{-1}
+//   ~ gamma / h^2 (larger next to the boundary) amplifies the differences
+//   of N_I and r.
+// * The multipliers: J (lambda_1 - lambda_2) <= 1e-12 h (both residuals
+//   are below 1e-14 h; lambda itself is ill-determined next to the hull's
+//   boundary, where J is small along the normal).
+// Measured over the points below: N 1.2e-14, h grad N 1.5e-11 (gamma_lme =
+// 8, 9e-14 otherwise), J (lambda_1 - lambda_2) 1.1e-14 h.
+// * The identities on the lattice path's own stencils: sum N_I = 1 to 1e-13
+//   (normalisation), sum N_I x_I = x to 1e-13 h (|r| <= 1e-14 h plus the
+//   rounding of the sums), sum grad N_I = 0 to 1e-10 / h and sum x_I (x)
+//   grad N_I = I to 1e-10 (the closed form with xbar; round-off of ~15-45
+//   terms of size gamma).
+#include "otmpm/basis/families.hpp"
+#include "otmpm/basis/lme_lattice.hpp"
+#include "support.hpp"
+
+#include <doctest/doctest.h>
+
+#include <cmath>
+#include <random>
+#include <string>
+#include <vector>
+
+using namespace otmpm;
+using namespace otmpm::maxent;
+using namespace otmpm::test;
+
+namespace {
+
+BasisOptions lme_options(double gamma = 3.0) {
+  BasisOptions opt;
+  opt.kind = "lme";
+  opt.gamma_lme = gamma;
+  opt.newton_tolerance = 1e-14;
+  return opt;
+}
+
+/// The lattice path's inputs for an lme basis with options `opt` on `nodes`
+/// (as make_lme_basis sets them up).
+template <int D> struct LatticeSetup {
+  LatticeAxes<D> axes;
+  GaussianPrior<D> prior;
+  NewtonSettings set;
+  LatticeSetup(const NodeSet<D>& nodes, const BasisOptions& opt) {
+    const double h = nodes.spacing();
+    prior.beta = opt.gamma_lme / (h * h);
+    prior.max_exponent = -std::log(opt.tolerance);
+    set.h = h;
+    set.residual_tolerance = opt.newton_tolerance * h;
+    set.max_iterations = opt.max_newton_iterations;
+    set.support_radius = prior.support_radius();
+    axes = LatticeAxes<D>::from(nodes, prior.beta);
+  }
+  bool solve(const Vec<D>& x, const Vec<D>& lambda0, Stencil<D>& out, LatticeSolve<D>& res) const {
+    return lattice_solve<D>(axes, prior, set, x, lambda0, out, res);
+  }
+};
+
+/// The general solver's stencil and multiplier at x (cold start).
+template <int D> Vec<D> general_at(const Basis<D>& b, const Vec<D>& x, Stencil<D>& st) {
+  Vec<D> lambda = Vec<D>::Zero();
+  PointQuery<D> q;
+  q.x = x;
+  q.lambda = &lambda;
+  b.evaluate(q, st);
+  return lambda;
+}
+
+/// Largest differences of N and h grad N between two stencils with the same
+/// nodes (false when the nodes differ).
+template <int D> bool compare(const Stencil<D>& a, const Stencil<D>& b, double h, double& dN, double& dG) {
+  if (a.node != b.node) return false;
+  dN = dG = 0.0;
+  for (int i = 0; i < a.size(); ++i) {
+    dN = std::max(dN, std::abs(a.N[i] - b.N[i]));
+    dG = std::max(dG, (a.dN[i] - b.dN[i]).norm() * h);
+  }
+  return true;
+}
+
+/// The lattice path against the general solver on the same positions as a
+/// cloud, at `count` points of the unit box (uniform and next to faces,
+/// edges and nodes), warm-started from the general solver's multiplier
+/// moved a little (as a step's Taylor start would be). Returns the share of
+/// the points that the lattice path took.
+template <int D> double agreement(int cells, double gamma, int count, unsigned seed) {
+  const NodeSet<D> lattice = NodeSet<D>::cartesian(unit_grid<D>(cells));
+  const NodeSet<D> cloud = NodeSet<D>::cloud(lattice.positions(), lattice.spacing());
+  const BasisOptions opt = lme_options(gamma);
+  const auto general = make_lme_basis<D>(cloud, opt);
+  const LatticeSetup<D> fast(lattice, opt);
+  const double h = lattice.spacing();
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> jitter(-1e-3, 1e-3);
+  int taken = 0;
+  const AlignedVector<Vec<D>> points = unit_box_points<D>(lattice, count, seed);
+  for (const Vec<D>& x : points) {
+    Stencil<D> ref, st;
+    const Vec<D> lambda = general_at<D>(*general, x, ref);
+    Vec<D> start = lambda;
+    for (int k = 0; k < D; ++k) start[k] += jitter(rng) / h;
+    LatticeSolve<D> res;
+    if (!fast.solve(x, start, st, res)) continue;
+    ++taken;
+    double dN = 0, dG = 0;
+    INFO("x = " << x.transpose() << ", support " << st.size() << " against " << ref.size());
+    REQUIRE(compare<D>(st, ref, h, dN, dG));
+    CHECK(dN <= 1e-12);
+    CHECK(dG <= 1e-10);
+    // lambda itself is ill-determined next to the hull's boundary: what
+    // the solve fixes is r, and r moves by J (lambda difference)
+    CHECK((res.J_inv.inverse() * (res.lambda - lambda)).norm() <= 1e-12 * h);
+  }
+  return double(taken) / double(points.size());
+}
+
+} // namespace
+
+TEST_CASE("lme lattice path: the general solver's N and grad N on the same positions (1D, 2D, 3D)") {
+  // most points are taken (measured: all in 1D, 97% in 2D, 89% in 3D; the
+  // rest lie next to the boundary of the box, where this start needs the
+  // line search)
+  CHECK(agreement<1>(20, 3.0, 200, 1) >= 0.8);
+  CHECK(agreement<2>(12, 3.0, 200, 2) >= 0.8);
+  CHECK(agreement<3>(6, 3.0, 120, 3) >= 0.8);
+}
+
+TEST_CASE("lme lattice path: other localities (gamma_lme 1.5 and 8) agree as well") {
+  CHECK(agreement<2>(12, 1.5, 100, 4) >= 0.8);
+  CHECK(agreement<2>(12, 8.0, 100, 5) >= 0.8);
+}
+
+TEST_CASE("lme lattice path: an anisotropic lattice (different spacing per axis) agrees") {
+  const CartesianGrid<2> g = offset_grid<2>({10, 8, 1}); // h = 0.12 and 0.1
+  const NodeSet<2> lattice = NodeSet<2>::cartesian(g);
+  const NodeSet<2> cloud = NodeSet<2>::cloud(lattice.positions(), lattice.spacing());
+  const BasisOptions opt = lme_options();
+  const auto general = make_lme_basis<2>(cloud, opt);
+  const LatticeSetup<2> fast(lattice, opt);
+  std::mt19937 rng(6);
+  int taken = 0;
+  for (int i = 0; i < 100; ++i) {
+    const Vec<2> x = random_in_box<2>(rng, g.lower + 0.05 * (g.upper - g.lower), g.upper - 0.05 * (g.upper - g.lower));
+    Stencil<2> ref, st;
+    const Vec<2> lambda = general_at<2>(*general, x, ref);
+    LatticeSolve<2> res;
+    if (!fast.solve(x, lambda, st, res)) continue;
+    ++taken;
+    double dN = 0, dG = 0;
+    REQUIRE(compare<2>(st, ref, lattice.spacing(), dN, dG));
+    CHECK(dN <= 1e-12);
+    CHECK(dG <= 1e-10);
+  }
+  CHECK(taken >= 90);
+}
+
+TEST_CASE("lme lattice path: its stencils satisfy the basis identities, node ids ascending") {
+  const NodeSet<3> lattice = NodeSet<3>::cartesian(unit_grid<3>(7));
+  const LatticeSetup<3> fast(lattice, lme_options());
+  const auto general = make_lme_basis<3>(lattice, lme_options());
+  const double h = lattice.spacing();
+  std::mt19937 rng(7);
+  int taken = 0;
+  for (int i = 0; i < 60; ++i) {
+    const Vec<3> x = random_in_box<3>(rng, Vec<3>::Constant(0.1), Vec<3>::Constant(0.9));
+    Stencil<3> st;
+    const Vec<3> lambda = general_at<3>(*general, x, st);
+    LatticeSolve<3> res;
+    if (!fast.solve(x, lambda, st, res)) continue;
+    ++taken;
+    double sum = 0;
+    Vec<3> xs = Vec<3>::Zero(), gs = Vec<3>::Zero();
+    Mat<3> xg = Mat<3>::Zero();
+    for (int e = 0; e < st.size(); ++e) {
+      if (e > 0) CHECK(st.node[e] > st.node[e - 1]);
+      const Vec<3> xI = lattice.position(st.node[e]);
+      sum += st.N[e];
+      xs += st.N[e] * xI;
+      gs += st.dN[e];
+      xg += xI * st.dN[e].transpose();
+    }
+    CHECK(std::abs(sum - 1.0) <= 1e-13);
+    CHECK((xs - x).norm() <= 1e-13 * h);
+    CHECK(gs.norm() * h <= 1e-10);
+    CHECK((xg - Mat<3>::Identity()).norm() <= 1e-10);
+  }
+  CHECK(taken == 60);
+}
+
+TEST_CASE("lme lattice path: left to the general solver") {
+  const NodeSet<2> lattice = NodeSet<2>::cartesian(unit_grid<2>(10));
+  const LatticeSetup<2> fast(lattice, lme_options());
+  const double h = lattice.spacing();
+  Stencil<2> st;
+  LatticeSolve<2> res;
+  SUBCASE("outside the lattice's box, or not finite") {
+    CHECK_FALSE(fast.solve(Vec<2>(-1e-9, 0.5), Vec<2>::Zero(), st, res));
+    CHECK_FALSE(fast.solve(Vec<2>(0.5, 1.0 + 1e-9), Vec<2>::Zero(), st, res));
+    CHECK_FALSE(fast.solve(Vec<2>(std::nan(""), 0.5), Vec<2>::Zero(), st, res));
+  }
+  SUBCASE("a start far from the solution (a step that needs the line search)") {
+    CHECK_FALSE(fast.solve(Vec<2>(0.5, 0.5), Vec<2>(3.0 / h, 0.0), st, res));
+  }
+  SUBCASE("|lambda| R beyond kLatticeMaxExponent") {
+    const double R = fast.set.support_radius;
+    CHECK_FALSE(fast.solve(Vec<2>(0.5, 0.5), Vec<2>(1.01 * kLatticeMaxExponent / R, 0.0), st, res));
+  }
+  SUBCASE("a support wider than kLatticeMaxSpan lines") {
+    const NodeSet<2> fine = NodeSet<2>::cartesian(unit_grid<2>(40));
+    const LatticeSetup<2> wide(fine, lme_options(0.2)); // R = h sqrt(13.8 / 0.2) = 8.3 h: 17 lines
+    CHECK_FALSE(wide.solve(Vec<2>(0.5, 0.5), Vec<2>::Zero(), st, res));
+    const LatticeSetup<2> narrower(fine, lme_options(0.3)); // R = 6.8 h: 14 lines
+    CHECK(narrower.solve(Vec<2>(0.5, 0.5), Vec<2>::Zero(), st, res));
+  }
+  SUBCASE("nodes off their lattice: no axes") {
+    NodeSet<2> moved = lattice;
+    AlignedVector<Vec<2>> dx(static_cast<std::size_t>(moved.size()), Vec<2>::Zero());
+    moved.advect(dx);
+    CHECK(LatticeAxes<2>::from(moved, fast.prior.beta).empty());
+    CHECK_FALSE(LatticeAxes<2>::from(lattice, fast.prior.beta).empty());
+  }
+  SUBCASE("the basis itself still evaluates every such point through the general solver") {
+    const auto basis = make_lme_basis<2>(lattice, lme_options());
+    Vec<2> lambda(3.0 / h, 0.0);
+    PointQuery<2> q;
+    q.x = Vec<2>(0.5, 0.5);
+    q.lambda = &lambda;
+    basis->evaluate(q, st);
+    double sum = 0;
+    for (double n : st.N) sum += n;
+    CHECK(std::abs(sum - 1.0) <= 1e-13);
+    CHECK(lambda.norm() * h <= 1e-8); // the symmetric point: lambda = 0
+  }
+}
