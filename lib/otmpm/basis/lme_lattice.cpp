@@ -3,7 +3,8 @@
 //
 // Choices made here
 // -----------------
-// * The box. Along axis k the lattice lines within R of x_k: at most
+// * The box. Along axis k the lattice lines within R of x_k (so every
+//   factor below is bounded as kLatticeMaxExponent says): at most
 //   kLatticeMaxSpan lines, else the general path.
 // * The support: node I kept when |x - x_I| <= R, row by row: along a row
 //   of axis 0 the kept nodes are the interval |dx_0| <= sqrt(R^2 - the
@@ -11,12 +12,10 @@
 //   coordinates, not by a test per node (no branch whose outcome varies
 //   from row to row). Only a node at the cut-off itself (weight tol) can
 //   be decided otherwise than by the general gather, by rounding.
-// * Exponents per axis: f_k(i) = -beta dx_k(i)^2 + lambda_k dx_k(i), one
-//   short vector exponential (simd::exp_shifted) per two or four lattice
-//   lines. They are not shifted: |lambda| R <= kLatticeMaxExponent = 100
-//   bounds every factor by e^(lambda_k^2 / 4 beta) <= e^182 from above and,
-//   on the support, by e^(-ln(1/tol) - 100) from below, so the products of D
-//   factors neither overflow nor underflow.
+// * Exponents per axis: f_k(i) = -beta dx_k(i)^2 + lambda_k dx_k(i), by
+//   the recurrence of axis_factors (two exponentials per axis). They are
+//   not shifted: see kLatticeMaxExponent for the bounds that keep every
+//   weight, Z and N_I positive and finite.
 // * Sums about a centre c: Z, m = sum p (dx - c), S = sum p (dx - c)(dx -
 //   c)^T; over a row of axis 0 (factor w of the other axes, offsets t_l =
 //   dx_l - c_l there) sum p = w sum e_0, sum p t_0 = w sum e_0 t_0, sum p t_0^2
@@ -90,18 +89,33 @@ template <int D> bool axis_box(const LatticeAxes<D>& axes, int k, double xk, dou
   const double u = (xk - X.front()) * axes.inv_h[k], reach = R * axes.inv_h[k];
   if (!(reach < kLatticeMaxSpan)) return false;
   const int last = static_cast<int>(X.size()) - 1;
-  // the lines within reach of u (u - reach + 2 > 0 after the clamp, so
-  // truncation is floor); a node exactly at distance R may fall outside by
-  // the rounding of u, as it may by that of |dx|^2 in the general gather
-  a.lo = std::max(0, static_cast<int>(std::max(u - reach, -1.0) + 2.0) - 2);
+  // the lines within reach of u, ceil(u - reach) .. floor(u + reach) (both
+  // >= 0: truncation is floor), so that every factor of the box obeys the
+  // bounds of kLatticeMaxExponent; a node exactly at distance R may fall
+  // outside by the rounding of u, as it may by that of |dx|^2 in the
+  // general gather
+  const double first = std::max(u - reach, 0.0);
+  const int c = static_cast<int>(first);
+  a.lo = c + (c < first ? 1 : 0);
   const int hi = std::min(last, static_cast<int>(u + reach));
   a.m = hi - a.lo + 1;
-  if (a.m > kLatticeMaxSpan) return false;
+  if (a.m < 1 || a.m > kLatticeMaxSpan) return false;
   for (int i = 0; i < a.m; ++i) {
     a.dx[i] = xk - X[static_cast<std::size_t>(a.lo + i)];
     a.sq[i] = a.dx[i] * a.dx[i];
   }
   return true;
+}
+
+/// The box indices i in [0, m) within w lattice spacings of the point,
+/// |v - i| <= w (v: the point's offset from the box's first line, in
+/// spacings), as [a, a + len); len = 0 when none (or rest < 0).
+inline int lattice_interval(double v, double w, int m, int& a) {
+  const double lo = std::max(v - w, 0.0), hi = std::max(v + w, 0.0);
+  const int c = static_cast<int>(lo);
+  a = c + (c < lo ? 1 : 0);                            // ceil
+  const int b = std::min(static_cast<int>(hi), m - 1); // floor, within the box
+  return std::max(0, b - a + 1);
 }
 
 /// Appends the row at box indices o (axes 1 and 2) whose nodes are kept
@@ -110,16 +124,9 @@ template <int D> bool axis_box(const LatticeAxes<D>& axes, int k, double xk, dou
 /// an empty row is written and not counted. Branch-free (the row lengths of
 /// neighbouring points differ in no pattern a predictor could learn).
 template <int D> void add_row(Box<D>& box, double v, double inv_h, double rest, int o1, int o2) {
-  const int m = box.axis[0].m;
-  const double w = std::sqrt(std::max(rest, 0.0)) * inv_h;
-  const double lo = std::max(v - w, 0.0), hi = std::max(v + w, 0.0);
-  const int c = static_cast<int>(lo);
-  const int a = c + (c < lo ? 1 : 0);                   // ceil
-  const int b = std::min(static_cast<int>(hi), m - 1); // floor, within the box
-  const int len = rest >= 0.0 ? std::max(0, b - a + 1) : 0;
   Row<D>& r = box.row[box.rows];
-  r.a = a;
-  r.b = a + len - 1;
+  const int len = rest >= 0.0 ? lattice_interval(v, std::sqrt(std::max(rest, 0.0)) * inv_h, box.axis[0].m, r.a) : 0;
+  r.b = r.a + len - 1;
   if constexpr (D > 1) r.o[0] = o1;
   if constexpr (D > 2) r.o[1] = o2;
   box.n += len;
@@ -129,7 +136,8 @@ template <int D> void add_row(Box<D>& box, double v, double inv_h, double rest, 
 /// The rows of the support of x (whose box is set up): node I kept when
 /// |x - x_I| <= R (the offsets along axis 0 taken on the lattice's own
 /// spacing: which node lies at the cut-off can differ from the general
-/// gather's by the rounding of |dx|^2, a node of weight ~tol).
+/// gather's by the rounding of |dx|^2, a node of weight ~tol). In 3D each
+/// plane of axis 2 visits only the rows of axis 1 within its disc.
 template <int D> void gather_rows(Box<D>& box, const LatticeAxes<D>& axes, double R2) {
   const double v = box.axis[0].dx[0] * axes.inv_h[0], inv_h = axes.inv_h[0];
   box.rows = 0;
@@ -139,9 +147,14 @@ template <int D> void gather_rows(Box<D>& box, const LatticeAxes<D>& axes, doubl
   } else if constexpr (D == 2) {
     for (int j = 0; j < box.axis[1].m; ++j) add_row<D>(box, v, inv_h, R2 - box.axis[1].sq[j], j, 0);
   } else {
-    for (int l = 0; l < box.axis[2].m; ++l)
-      for (int j = 0; j < box.axis[1].m; ++j)
-        add_row<D>(box, v, inv_h, R2 - (box.axis[1].sq[j] + box.axis[2].sq[l]), j, l);
+    const AxisBox &a1 = box.axis[1], &a2 = box.axis[2];
+    const double v1 = a1.dx[0] * axes.inv_h[1];
+    for (int l = 0; l < a2.m; ++l) {
+      const double rest = R2 - a2.sq[l];
+      int j0 = 0;
+      const int rows = rest >= 0.0 ? lattice_interval(v1, std::sqrt(rest) * axes.inv_h[1], a1.m, j0) : 0;
+      for (int j = j0; j < j0 + rows; ++j) add_row<D>(box, v, inv_h, R2 - (a1.sq[j] + a2.sq[l]), j, l);
+    }
   }
 }
 
@@ -193,6 +206,44 @@ template <int D> double row_factor(const Box<D>& box, const Row<D>& r, const Vec
   return w;
 }
 
+/// The row sums of moments() in 3D, plane by plane of axis 2 (gather_rows
+/// lists the rows so): each plane's rows are summed with the factor and
+/// offset of axis 1 only, and the plane's factor and offset of axis 2 are
+/// applied once to the plane's six sums (S lower triangle, added to Z, m, S).
+template <int D>
+void plane_moments(const Box<D>& box, const Vec<D>& c, const double* P0, const double* P1, const double* P2, double& Z,
+                   Vec<D>& m, Mat<D>& S) {
+  const AxisBox &a1 = box.axis[1], &a2 = box.axis[2];
+  int q = 0;
+  while (q < box.rows) {
+    const int l = box.row[q].o[1];
+    double pz = 0.0, pm0 = 0.0, pm1 = 0.0, ps00 = 0.0, ps10 = 0.0, ps11 = 0.0;
+    for (; q < box.rows && box.row[q].o[1] == l; ++q) {
+      const Row<D>& r = box.row[q];
+      const double z0 = P0[r.b + 1] - P0[r.a], z1 = P1[r.b + 1] - P1[r.a], z2 = P2[r.b + 1] - P2[r.a];
+      const double w = a1.e[r.o[0]], t1 = a1.dx[r.o[0]] - c[1];
+      const double w0 = w * z0, w1 = w * z1;
+      pz += w0;
+      pm0 += w1;
+      ps00 += w * z2;
+      pm1 += w0 * t1;
+      ps10 += w1 * t1;
+      ps11 += w0 * t1 * t1;
+    }
+    const double e2 = a2.e[l], t2 = a2.dx[l] - c[2], e2t = e2 * t2;
+    Z += e2 * pz;
+    m[0] += e2 * pm0;
+    m[1] += e2 * pm1;
+    m[2] += e2t * pz;
+    S(0, 0) += e2 * ps00;
+    S(1, 0) += e2 * ps10;
+    S(1, 1) += e2 * ps11;
+    S(2, 0) += e2t * pm0;
+    S(2, 1) += e2t * pm1;
+    S(2, 2) += e2t * t2 * pz;
+  }
+}
+
 /// Z = sum p_I, m = sum p_I (dx_I - c), S = sum p_I (dx_I - c)(dx_I - c)^T
 /// (lower triangle), row by row (see the file comment); a row's sums along
 /// axis 0 are differences of prefix sums (no loop whose length varies from
@@ -210,6 +261,10 @@ template <int D> void moments(const Box<D>& box, const Vec<D>& c, double& Z, Vec
   Z = 0.0;
   m.setZero();
   S.setZero();
+  if constexpr (D == 3) {
+    plane_moments(box, c, P0, P1, P2, Z, m, S);
+    return;
+  }
   for (int q = 0; q < box.rows; ++q) {
     const Row<D>& r = box.row[q];
     const double z0 = P0[r.b + 1] - P0[r.a], z1 = P1[r.b + 1] - P1[r.a], z2 = P2[r.b + 1] - P2[r.a];
@@ -255,9 +310,10 @@ template <int D> bool dual_sums(const Box<D>& box, double& Z, Vec<D>& r, Mat<D>&
 }
 
 /// Writes the stencil of the converged state (N_I = p_I / Z, grad N_I =
-/// -N_I J^{-1} (dx_I - r)); false when some N_I is not positive and finite.
+/// -N_I J^{-1} (dx_I - r)). Every N_I is positive and finite by the bounds
+/// of lattice_solve (no test per node).
 template <int D>
-bool write_stencil(const LatticeAxes<D>& axes, const Box<D>& box, double Z, const Vec<D>& r, const Mat<D>& J_inv,
+void write_stencil(const LatticeAxes<D>& axes, const Box<D>& box, double Z, const Vec<D>& r, const Mat<D>& J_inv,
                    Stencil<D>& out) {
   const auto n = static_cast<std::size_t>(box.n);
   if (out.node.size() != n) out.node.resize(n);
@@ -271,11 +327,9 @@ bool write_stencil(const LatticeAxes<D>& axes, const Box<D>& box, double Z, cons
     N0[i] = a0.e[i] * inv_Z;
     g0[i] = J_inv.col(0) * (a0.dx[i] - r[0]);
   }
-  int* node = out.node.data();
-  double* N = out.N.data();
-  Vec<D>* dN = out.dN.data();
-  int not_positive = 0; // N_I not in (0, 1] (or NaN) somewhere
-  int e = 0;
+  int* __restrict node = out.node.data();
+  double* __restrict N = out.N.data();
+  Vec<D>* __restrict dN = out.dN.data();
   for (int q = 0; q < box.rows; ++q) {
     const Row<D>& row = box.row[q];
     double t[D];
@@ -287,15 +341,19 @@ bool write_stencil(const LatticeAxes<D>& axes, const Box<D>& box, double Z, cons
       g += J_inv.col(l) * t[l];
       id += (box.axis[l].lo + row.o[l - 1]) * axes.stride[l];
     }
-    for (int i = row.a; i <= row.b; ++i, ++e) {
-      const double Ni = N0[i] * w;
-      not_positive |= !(Ni > 0.0) | !(Ni <= 1.0);
-      node[e] = id + i;
-      N[e] = Ni;
-      dN[e] = -Ni * (g0[i] + g);
+    const int len = row.b - row.a + 1;
+    const double* n0 = N0 + row.a;
+    const Vec<D>* gr = g0 + row.a;
+    for (int i = 0; i < len; ++i) {
+      const double Ni = n0[i] * w;
+      node[i] = id + row.a + i;
+      N[i] = Ni;
+      dN[i] = -Ni * (gr[i] + g);
     }
+    node += len;
+    N += len;
+    dN += len;
   }
-  return not_positive == 0;
 }
 
 } // namespace
@@ -304,6 +362,7 @@ template <int D>
 bool lattice_solve(const LatticeAxes<D>& axes, const GaussianPrior<D>& prior, const NewtonSettings& set,
                    const Vec<D>& x, const Vec<D>& lambda0, Stencil<D>& out, LatticeSolve<D>& res) {
   const double R = set.support_radius;
+  if (!(prior.max_exponent <= kLatticeMaxExponent2)) return false;
   Box<D> box; // filled below (no value-initialisation of the arrays)
   for (int k = 0; k < D; ++k)
     if (!axis_box<D>(axes, k, x[k], R, box.axis[k])) return false;
@@ -312,7 +371,10 @@ bool lattice_solve(const LatticeAxes<D>& axes, const GaussianPrior<D>& prior, co
   Vec<D> lambda = lambda0;
   ScaledInverse<D> inv;
   for (int it = 0;; ++it) {
-    if (!(lambda.norm() * R <= kLatticeMaxExponent)) return false;
+    // the bounds that keep every weight and N_I positive and finite (see
+    // kLatticeMaxExponent)
+    if (!(lambda.norm() * R <= kLatticeMaxExponent && lambda.squaredNorm() <= 4.0 * kLatticeMaxExponent2 * prior.beta))
+      return false;
     axis_factors<D>(box, axes, lambda, prior.beta);
     double Z;
     Vec<D> r;
@@ -324,7 +386,8 @@ bool lattice_solve(const LatticeAxes<D>& axes, const GaussianPrior<D>& prior, co
       res.lambda = lambda;
       res.J_inv = inv.inverse();
       res.iterations = it;
-      return write_stencil<D>(axes, box, Z, r, res.J_inv, out);
+      write_stencil<D>(axes, box, Z, r, res.J_inv, out);
+      return true;
     }
     if (it >= set.max_iterations) return false;
     const Vec<D> step = -inv.solve(r);

@@ -25,12 +25,24 @@ namespace otmpm::maxent {
 
 /// Widest box of lattice lines per axis that the factorised path takes:
 /// the lines within R of the point, at most 2 R / h + 1 (gamma_lme = 3 at
-/// tolerance 1e-6: 5; 16 lines reach down to gamma_lme ~ 0.3).
+/// tolerance 1e-6: 4 or 5; 16 lines reach down to gamma_lme ~ 0.25).
 inline constexpr int kLatticeMaxSpan = 16;
-/// |lambda| R above which the factorised path leaves the point to the
-/// general solver: every factor then stays within e^(+-250) (see
-/// lattice_solve), far from overflow and underflow of their product.
-inline constexpr double kLatticeMaxExponent = 100.0;
+/// The factorised path takes a point while |lambda| R <= kLatticeMaxExponent,
+/// |lambda|^2 / (4 beta) <= kLatticeMaxExponent2 and ln(1/tol) <=
+/// kLatticeMaxExponent2. Every line of the box lies within R of x on its
+/// axis, so a factor e_k(i) lies between exp(-ln(1/tol) - |lambda_k| R) >=
+/// e^-330 and exp(lambda_k^2 / 4 beta) (the maximum over dx of -beta dx^2 +
+/// lambda_k dx) <= e^300 over all axes together; a weight p_I (one factor
+/// per axis, D <= 3, and in the support beta |dx|^2 <= ln(1/tol)) is at
+/// least exp(-ln(1/tol) - |lambda| R) >= e^-330, Z at most 4096 e^300, so
+/// N_I = p_I / Z >= e^-639 > 0 and nothing overflows: no test per node.
+/// The recurrence's ratios g_i are ratios of two such factors, within
+/// e^(+-630); kappa = e^(-2 gamma_lme) enters only where a box has 3 lines
+/// or more, i.e. R >= h, gamma_lme <= ln(1/tol) <= 300.
+/// Interior points have |lambda| R of a few units; beyond, the general
+/// solver (shifted exponents) takes them.
+inline constexpr double kLatticeMaxExponent = 30.0;
+inline constexpr double kLatticeMaxExponent2 = 300.0;
 
 /// The converged multiplier of lattice_solve and what the caller needs of it.
 template <int D> struct LatticeSolve {
@@ -49,10 +61,10 @@ template <int D> struct LatticeSolve {
 /// out.N and out.dN (grad N_I = -N_I J^{-1} (xbar - x_I)). Returns false,
 /// with `out` and `res` unspecified, when the point needs the general
 /// solver: x outside the lattice's box, a support wider than
-/// kLatticeMaxSpan nodes on an axis or of fewer than D + 1 nodes,
-/// |lambda| R > kLatticeMaxExponent, a step that would need the line
-/// search, a singular J (as kSingularHessian), an N_I not positive and
-/// finite, or set.max_iterations reached.
+/// kLatticeMaxSpan nodes on an axis or of fewer than D + 1 nodes, lambda
+/// or tol beyond the bounds of kLatticeMaxExponent, a step that would need
+/// the line search, a singular J (as kSingularHessian) or
+/// set.max_iterations reached.
 template <int D>
 bool lattice_solve(const LatticeAxes<D>& axes, const GaussianPrior<D>& prior, const NewtonSettings& set,
                    const Vec<D>& x, const Vec<D>& lambda0, Stencil<D>& out, LatticeSolve<D>& res);
