@@ -173,7 +173,8 @@ TEST_CASE("lme lattice path: an anisotropic lattice (different spacing per axis)
 TEST_CASE("lme lattice path: its stencils satisfy the basis identities, node ids ascending") {
   const NodeSet<3> lattice = NodeSet<3>::cartesian(unit_grid<3>(7));
   const LatticeSetup<3> fast(lattice, lme_options());
-  const auto general = make_lme_basis<3>(lattice, lme_options());
+  // the warm start from the general solver (the same positions as a cloud)
+  const auto general = make_lme_basis<3>(NodeSet<3>::cloud(lattice.positions(), lattice.spacing()), lme_options());
   const double h = lattice.spacing();
   std::mt19937 rng(7);
   int taken = 0;
@@ -217,9 +218,15 @@ TEST_CASE("lme lattice path: left to the general solver") {
   SUBCASE("a start far from the solution (a step that needs the line search)") {
     CHECK_FALSE(fast.solve(Vec<2>(0.5, 0.5), Vec<2>(3.0 / h, 0.0), st, res));
   }
-  SUBCASE("|lambda| R beyond kLatticeMaxExponent") {
-    const double R = fast.set.support_radius;
-    CHECK_FALSE(fast.solve(Vec<2>(0.5, 0.5), Vec<2>(1.01 * kLatticeMaxExponent / R, 0.0), st, res));
+  SUBCASE("|lambda| R beyond kLatticeMaxExponent, even at the converged lambda") {
+    // next to a face lambda grows without bound; from its own converged
+    // value (no Newton step needed) the bound alone refuses the point
+    const auto general = make_lme_basis<2>(NodeSet<2>::cloud(lattice.positions(), h), lme_options());
+    const Vec<2> x(1e-10 * h, 0.5);
+    Stencil<2> ref;
+    const Vec<2> lambda = general_at<2>(*general, x, ref);
+    REQUIRE(lambda.norm() * fast.set.support_radius > kLatticeMaxExponent);
+    CHECK_FALSE(fast.solve(x, lambda, st, res));
   }
   SUBCASE("a support wider than kLatticeMaxSpan lines") {
     const NodeSet<2> fine = NodeSet<2>::cartesian(unit_grid<2>(40));
@@ -235,16 +242,23 @@ TEST_CASE("lme lattice path: left to the general solver") {
     CHECK(LatticeAxes<2>::from(moved, fast.prior.beta).empty());
     CHECK_FALSE(LatticeAxes<2>::from(lattice, fast.prior.beta).empty());
   }
-  SUBCASE("the basis itself still evaluates every such point through the general solver") {
+  SUBCASE("the basis evaluates such points through the general solver: the cloud's answer") {
     const auto basis = make_lme_basis<2>(lattice, lme_options());
-    Vec<2> lambda(3.0 / h, 0.0);
-    PointQuery<2> q;
-    q.x = Vec<2>(0.5, 0.5);
-    q.lambda = &lambda;
-    basis->evaluate(q, st);
-    double sum = 0;
-    for (double n : st.N) sum += n;
-    CHECK(std::abs(sum - 1.0) <= 1e-13);
-    CHECK(lambda.norm() * h <= 1e-8); // the symmetric point: lambda = 0
+    const auto general = make_lme_basis<2>(NodeSet<2>::cloud(lattice.positions(), h), lme_options());
+    for (const Vec<2>& x : {Vec<2>(0.5, 0.5), Vec<2>(0.37, 0.61), Vec<2>(1e-10 * h, 0.5)}) {
+      Vec<2> far(3.0 / h, -2.0 / h), lambda = far; // a start the factorised path refuses
+      PointQuery<2> q;
+      q.x = x;
+      q.lambda = &lambda;
+      basis->evaluate(q, st);
+      Stencil<2> ref;
+      Vec<2> lambda_ref = far;
+      q.lambda = &lambda_ref;
+      general->evaluate(q, ref);
+      double dN = 0, dG = 0;
+      REQUIRE(compare<2>(st, ref, h, dN, dG));
+      CHECK(dN == 0.0); // the same solver from the same start: the same bits
+      CHECK(dG == 0.0);
+    }
   }
 }

@@ -55,7 +55,9 @@
 // * Warm start from *q.lambda; if the warm-started solve fails for any reason
 //   it is repeated once from lambda = 0 (a stale multiplier from a far-away
 //   previous position must not turn into an error). The iteration count
-//   reported is the total of both solves; lambda is written back only on success.
+//   reported is the total of both solves (not counting the steps of a
+//   factorised attempt on the lattice, lme_lattice.cpp, that handed the
+//   point over); lambda is written back only on success.
 // * Taylor-predicted warm start (q.slope, kept while the nodes are fixed):
 //   differentiating r(x, lambda(x)) = 0 gives d lambda / d x = -J^{-1} (I + A)
 //   (A as for the gradients below; 2 B - J^{-1} for a Gaussian prior with
@@ -974,7 +976,7 @@ bool MaxEntBasis<D, Prior>::evaluate_on_lattice(const PointQuery<D>& q, const Po
                                                 Stencil<D>& out) const {
   if constexpr (Prior::kGaussian) {
     // on the lattice every beta_I of Metric::node_spacing is the prior's beta
-    if (lattice_.empty() || !pm.isotropic) return false;
+    if (lattice_.empty() || !nodes_.on_lattice() || !pm.isotropic) return false;
     LatticeSolve<D> res;
     if (!lattice_solve<D>(lattice_, prior_, settings_, q.x, warm, out, res)) return false;
     store_point_state(q, res.lambda, res.iterations, Mat<D>::Identity() * (2.0 * prior_.beta), res.J_inv);

@@ -312,9 +312,12 @@ extern template struct LatticeAxes<2>;
 extern template struct LatticeAxes<3>;
 
 /// A maximum-entropy basis with prior `Prior` bound to a node set (see file
-/// comment). evaluate() finds the support by NodeSet::within, solves for lambda
-/// by the shared Newton solver and returns N_I and grad N_I. Thread-safe; no
-/// allocation per evaluation once the Stencil buffers have grown.
+/// comment). evaluate() finds the support by NodeSet::within (or the point's
+/// Verlet list), solves for lambda by the shared Newton solver and returns
+/// N_I and grad N_I; with the isotropic Gaussian prior on nodes that sit on
+/// their lattice it first tries the factorised path (lattice_solve,
+/// lme_lattice.hpp). Thread-safe; no allocation per evaluation once the
+/// Stencil buffers have grown.
 template <int D, class Prior> class MaxEntBasis final : public Basis<D> {
 public:
   /// Throws InputError for fewer than D + 1 nodes, newton_tolerance not finite

@@ -109,13 +109,14 @@ template <int D> bool axis_box(const LatticeAxes<D>& axes, int k, double xk, dou
 
 /// The box indices i in [0, m) within w lattice spacings of the point,
 /// |v - i| <= w (v: the point's offset from the box's first line, in
-/// spacings), as [a, a + len); len = 0 when none (or rest < 0).
+/// spacings), as [a, a + len); len = 0 when none (also when v + w < 0,
+/// where the clamp to line 0 would otherwise keep that line).
 inline int lattice_interval(double v, double w, int m, int& a) {
   const double lo = std::max(v - w, 0.0), hi = std::max(v + w, 0.0);
   const int c = static_cast<int>(lo);
   a = c + (c < lo ? 1 : 0);                            // ceil
   const int b = std::min(static_cast<int>(hi), m - 1); // floor, within the box
-  return std::max(0, b - a + 1);
+  return v + w >= 0.0 ? std::max(0, b - a + 1) : 0;
 }
 
 /// Appends the row at box indices o (axes 1 and 2) whose nodes are kept
@@ -125,6 +126,7 @@ inline int lattice_interval(double v, double w, int m, int& a) {
 /// neighbouring points differ in no pattern a predictor could learn).
 template <int D> void add_row(Box<D>& box, double v, double inv_h, double rest, int o1, int o2) {
   Row<D>& r = box.row[box.rows];
+  r.a = 0; // set also for an empty row (Box is not initialised)
   const int len = rest >= 0.0 ? lattice_interval(v, std::sqrt(std::max(rest, 0.0)) * inv_h, box.axis[0].m, r.a) : 0;
   r.b = r.a + len - 1;
   if constexpr (D > 1) r.o[0] = o1;

@@ -12,11 +12,13 @@
 /// 41 in 3D at gamma_lme = 3), and the sums Z, r and J of molinos eqs. 38-40
 /// are taken row by row: the support, a ball, cuts every lattice row along
 /// axis 0 in one interval, whose sums of p, p dx_0 and p dx_0^2 carry the
-/// row's factor of the other axes once. The same nodes, the same Newton
-/// criterion and the same closed-form gradient as the general solver
-/// (lme.cpp); only the rounding of p_I differs (a product of D exponentials
-/// instead of the exponential of a sum). Internal to the max-ent basis and
-/// its tests.
+/// row's factor of the other axes once. The same nodes (up to the rounding
+/// of a node at the cut-off), the same Newton criterion and the same
+/// closed-form gradient as the general solver (lme.cpp); the weights differ
+/// by rounding: a product of D exponentials instead of the exponential of
+/// a sum, and a recurrence that takes the lattice spacing for the
+/// differences of the stored coordinates (relative ~1e-16 |X| / h).
+/// Internal to the max-ent basis and its tests.
 #include "otmpm/basis/lme.hpp"
 
 #include <vector>
@@ -37,8 +39,10 @@ inline constexpr int kLatticeMaxSpan = 16;
 /// least exp(-ln(1/tol) - |lambda| R) >= e^-330, Z at most 4096 e^300, so
 /// N_I = p_I / Z >= e^-639 > 0 and nothing overflows: no test per node.
 /// The recurrence's ratios g_i are ratios of two such factors, within
-/// e^(+-630); kappa = e^(-2 gamma_lme) enters only where a box has 3 lines
-/// or more, i.e. R >= h, gamma_lme <= ln(1/tol) <= 300.
+/// e^(+-630); kappa = exp(-2 beta h_k^2) enters only where a box has 3
+/// lines or more, i.e. R >= h_k, beta h_k^2 <= ln(1/tol) <= 300. (The sums
+/// of p dx^2 also assume lengths in ordinary units: |dx| <= R far below
+/// 1e8.)
 /// Interior points have |lambda| R of a few units; beyond, the general
 /// solver (shifted exponents) takes them.
 inline constexpr double kLatticeMaxExponent = 30.0;
