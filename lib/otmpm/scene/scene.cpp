@@ -70,6 +70,18 @@ void check_box(const TableReader& t, const Vec3& lo, const Vec3& hi, int dim, bo
   }
 }
 
+/// The bounding box a shape derives from its key `from` (a sphere's or
+/// cylinder's center and radius, a polygon's vertices): finite, with lower <
+/// upper on every axis - a center so far out that adding the radius does not
+/// change it, or vertices on one line along an axis, leave no extent, and
+/// the message names the key the box comes from.
+void check_derived_box(const TableReader& t, std::string_view from, const Vec3& lo, const Vec3& hi, int dim) {
+  for (int k = 0; k < dim; ++k)
+    check(std::isfinite(lo[k]) && std::isfinite(hi[k]) && lo[k] < hi[k], t.ref(from),
+          "the body's extent along axis " + std::to_string(k) + " is empty or not finite (lower " + fmt(lo[k]) +
+              ", upper " + fmt(hi[k]) + ")");
+}
+
 // ---------------------------------------------------------------- sections
 
 SimulationSection read_simulation(const TableReader& t) {
@@ -216,10 +228,17 @@ double node_count(const Scene& s) {
   return n;
 }
 
-/// Reads a required non-empty `name` (or returns the default) and checks uniqueness.
-std::string read_name(const TableReader& t, bool required, const std::string& fallback, std::set<std::string>& seen) {
+/// Reads a required non-empty `name` of a `what` ("body", "probe", ...) (or
+/// returns the default) and checks that it can name a group of the result
+/// file and a --set key (invalid_name_reason: no '/', '.', control
+/// character or surrounding space) and is unique.
+std::string read_name(const TableReader& t, bool required, const std::string& fallback, std::set<std::string>& seen,
+                      std::string_view what) {
   std::string name = required ? t.require<std::string>("name") : t.get<std::string>("name", fallback);
   check(!name.empty(), t.ref("name"), "must not be empty");
+  const std::string why = invalid_name_reason(name);
+  check(why.empty(), t.ref("name"),
+        "\"" + TableReader::printable(name) + "\" cannot name a " + std::string(what) + ": " + why);
   check(seen.insert(name).second, t.has("name") ? t.ref("name") : t.self(), "duplicate name \"" + name + "\"");
   return name;
 }
@@ -282,7 +301,7 @@ MaterialSection read_material(const TableReader& t, std::set<std::string>& names
   m.model = t.choice("model", m.model, models);
   const MaterialModel& model = *find_material_model(m.model);
   t.only(material_keys(model));
-  m.name = read_name(t, true, "", names);
+  m.name = read_name(t, true, "", names, "material");
   m.density = t.require<double>("density");
   check(m.density > 0, t.ref("density"), "must be > 0 (got " + fmt(m.density) + ")");
   m.young = t.require<double>("young");
@@ -405,6 +424,7 @@ void read_shape(const TableReader& t, BodySection& b, const Scene& s) {
     b.center = t.require_vec("center", dim);
     b.radius = positive_required(t, "radius");
     for (int k = 0; k < dim; ++k) b.lower[k] = b.center[k] - b.radius, b.upper[k] = b.center[k] + b.radius;
+    check_derived_box(t, "center", b.lower, b.upper, dim);
   } else if (b.shape == "cylinder") {
     check(dim == 3, t.ref("shape"), "shape \"cylinder\" is three-dimensional (use \"sphere\" for a disk in 2D)");
     b.center = t.require_vec("center", dim);
@@ -413,12 +433,14 @@ void read_shape(const TableReader& t, BodySection& b, const Scene& s) {
     b.radius = positive_required(t, "radius");
     b.length = positive_required(t, "length");
     cylinder_bounds(b);
+    check_derived_box(t, "center", b.lower, b.upper, dim);
   } else if (b.shape == "polygon") {
     b.vertices = read_vertices(t, dim);
     b.lower = {b.vertices[0][0], b.vertices[0][1], 0};
     b.upper = b.lower;
     for (const auto& v : b.vertices)
       for (int k = 0; k < 2; ++k) b.lower[k] = std::min(b.lower[k], v[k]), b.upper[k] = std::max(b.upper[k], v[k]);
+    check_derived_box(t, "vertices", b.lower, b.upper, 2);
   } else {
     read_particle_file_body(t, b, s);
   }
@@ -442,7 +464,7 @@ std::vector<BodySection> read_bodies(const TableReader& root, const Scene& s) {
     const auto& own = kShapeKeys.find(b.shape)->second;
     allowed.insert(allowed.end(), own.begin(), own.end());
     t.only(allowed);
-    b.name = read_name(t, false, "body" + std::to_string(out.size()), names);
+    b.name = read_name(t, false, "body" + std::to_string(out.size()), names, "body");
     b.material = t.require<std::string>("material");
     const bool known = std::any_of(s.materials.begin(), s.materials.end(),
                                    [&](const MaterialSection& m) { return m.name == b.material; });
@@ -489,7 +511,7 @@ std::vector<BoundarySection> read_boundaries(const TableReader& root, int dim) {
     t.only({"name", "lower", "upper", "fix", "value"});
     BoundarySection b;
     b.where = t.self();
-    b.name = read_name(t, false, "boundary" + std::to_string(out.size()), names);
+    b.name = read_name(t, false, "boundary" + std::to_string(out.size()), names, "boundary");
     b.lower = t.require_vec("lower", dim);
     b.upper = t.require_vec("upper", dim);
     check_box(t, b.lower, b.upper, dim, false);
@@ -509,7 +531,7 @@ std::vector<WallSection> read_walls(const TableReader& root, int dim) {
     t.only({"name", "point", "normal", "velocity", "friction"});
     WallSection w;
     w.where = t.self();
-    w.name = read_name(t, false, "wall" + std::to_string(out.size()), names);
+    w.name = read_name(t, false, "wall" + std::to_string(out.size()), names, "wall");
     w.point = t.require_vec("point", dim);
     w.normal = t.require_vec("normal", dim);
     double n2 = 0.0;
@@ -587,10 +609,7 @@ std::vector<ProbeSection> read_probes(const TableReader& out_table, int dim) {
     t.only({"name", "particle", "at"});
     ProbeSection p;
     p.where = t.self();
-    p.name = read_name(t, true, "", names);
-    const std::string why = invalid_name_reason(p.name);
-    check(why.empty(), t.ref("name"),
-          "\"" + TableReader::printable(p.name) + "\" cannot name a probe in the result file: " + why);
+    p.name = read_name(t, true, "", names, "probe");
     p.particle = t.choice("particle", p.particle, {"leftmost", "rightmost", "nearest"});
     if (p.particle == "nearest" && !t.has("at")) t.missing("at", "required key is missing (particle = \"nearest\")");
     p.at = t.vec("at", dim).value_or(p.at);
