@@ -979,7 +979,7 @@ bool MaxEntBasis<D, Prior>::evaluate_on_lattice(const PointQuery<D>& q, const Po
     if (lattice_.empty() || !nodes_.on_lattice() || !pm.isotropic) return false;
     LatticeSolve<D> res;
     if (!lattice_solve<D>(lattice_, prior_, settings_, q.x, warm, out, res)) return false;
-    store_point_state(q, res.lambda, res.iterations, Mat<D>::Identity() * (2.0 * prior_.beta), res.J_inv);
+    store_point_state(q, res.lambda, res.iterations, prior_hessian(pm, out), res.J_inv);
     return true;
   } else {
     (void)q, (void)pm, (void)warm, (void)out;
