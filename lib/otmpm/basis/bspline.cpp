@@ -29,8 +29,11 @@ void check_degree(int degree) {
 /// j = s - d + r, N_j^{d-1} = B[r-1], N_{j+1}^{d-1} = B[r] (the terms with r - 1 < 0
 /// or r > d - 1 absent: 0). Both denominators contain the non-empty span, so
 /// neither is 0. The quotient B[r] / (t_{s+r+1} - t_{s+r+1-d}) is the right
-/// term of r and the left term of r + 1, formed once; dN_j^P = P (left - right).
-/// The degree as a compile-time constant unrolls the loops; no allocation.
+/// term of r and the left term of r + 1, formed once, as the product of B[r]
+/// with the knot vector's reciprocal width inv_width[(d-1) knots + s+r+1-d]
+/// (a division per quotient and point would bound the batch's speed: three
+/// per point and axis for bspline2); dN_j^P = P (left - right). The degree as
+/// a compile-time constant unrolls the loops; no allocation.
 ///
 /// Exact = false leaves out the absent terms, (x - t_j) 0 at r = 0 and
 /// (t_{j+d+1} - x) 0 at r = d. Adding such a zero to y gives y unless y is
@@ -42,14 +45,16 @@ void check_degree(int degree) {
 /// The batch uses it for such spans only (smallest_entry); evaluate_on_cell,
 /// whose zero values are output, keeps the exact operations.
 template <int P, bool Exact = true>
-[[gnu::always_inline]] inline void cox_de_boor(const double* t, double x, int cell, double* N, double* dN) {
+[[gnu::always_inline]] inline void cox_de_boor(const double* t, const double* inv_width, std::size_t knots, double x,
+                                               int cell, double* N, double* dN) {
   const int s = cell + P;
   double B[P + 1] = {1.0};
 #pragma GCC unroll 4
   for (int d = 1; d <= P; ++d) {
     double q[P];
+    const double* const w = inv_width + static_cast<std::size_t>(d - 1) * knots + (s + 1 - d);
 #pragma GCC unroll 4
-    for (int r = 0; r < d; ++r) q[r] = B[r] / (t[s + r + 1] - t[s + r + 1 - d]);
+    for (int r = 0; r < d; ++r) q[r] = B[r] * w[r];
 #pragma GCC unroll 4
     for (int r = 0; r <= d; ++r) {
       const double left = r >= 1 ? q[r - 1] : 0.0;
@@ -81,6 +86,10 @@ KnotVector::KnotVector(std::vector<double> vertices, int degree) : v_(std::move(
   t_.insert(t_.end(), static_cast<std::size_t>(p_), v_.front());
   t_.insert(t_.end(), v_.begin(), v_.end());
   t_.insert(t_.end(), static_cast<std::size_t>(p_), v_.back());
+  inv_width_.assign(static_cast<std::size_t>(p_) * t_.size(), 0.0);
+  for (int d = 1; d <= p_; ++d)
+    for (std::size_t j = 0; j + static_cast<std::size_t>(d) < t_.size(); ++j)
+      if (t_[j + d] > t_[j]) inv_width_[static_cast<std::size_t>(d - 1) * t_.size() + j] = 1.0 / (t_[j + d] - t_[j]);
 }
 
 KnotVector KnotVector::uniform(double lower, double upper, int cells, int degree) {
@@ -100,17 +109,43 @@ double KnotVector::min_cell_width() const {
   return w;
 }
 
+namespace {
+
+/// (t_{i+1} + ... + t_{i+p}) / p, summed left to right from 0.0.
+inline double greville_of(const double* t, int i, int p) {
+  double s = 0.0;
+  for (int j = i + 1; j <= i + p; ++j) s += t[j];
+  return s / p;
+}
+
+/// u(v_j) = sum_a N_{j+a}(v_j) d_{j+a} on cell j (the last cell for the last
+/// vertex), added to v_j: the advected vertices, with the operations of
+/// evaluate_on_cell (v_j needs no clamp) and span_sum, degree P unrolled.
+template <int P>
+void advect_vertices(const std::vector<double>& t, const std::vector<double>& inv_width, const std::vector<double>& v,
+                     const std::vector<double>& d, std::vector<double>& w) {
+  const int cells = static_cast<int>(v.size()) - 1;
+  for (int j = 0; j <= cells; ++j) {
+    const int cell = std::min(j, cells - 1);
+    double N[P + 1], dN[P + 1];
+    cox_de_boor<P>(t.data(), inv_width.data(), t.size(), v[j], cell, N, dN);
+    double u = 0.0;
+    for (int a = 0; a <= P; ++a) u += N[a] * d[cell + a];
+    w[j] = v[j] + u;
+  }
+}
+
+} // namespace
+
 double KnotVector::greville(int i) const {
   require<std::invalid_argument>(i >= 0 && i < num_basis(), "KnotVector::greville: control point i = ", i,
                                  " out of range [0, ", num_basis(), ")");
-  double s = 0.0;
-  for (int j = i + 1; j <= i + p_; ++j) s += t_[j];
-  return s / p_;
+  return greville_of(t_.data(), i, p_);
 }
 
 std::vector<double> KnotVector::greville() const {
   std::vector<double> xi(static_cast<std::size_t>(num_basis()));
-  for (int i = 0; i < num_basis(); ++i) xi[i] = greville(i);
+  for (int i = 0; i < num_basis(); ++i) xi[i] = greville_of(t_.data(), i, p_);
   return xi;
 }
 
@@ -146,9 +181,11 @@ BsplineSpanValues KnotVector::evaluate_on_cell(double x, int cell) const {
   BsplineSpanValues out;
   out.first = cell;
   switch (p_) {
-  case 1: cox_de_boor<1>(t_.data(), x, cell, out.N.data(), out.dN.data()); break;
-  case 2: cox_de_boor<2>(t_.data(), x, cell, out.N.data(), out.dN.data()); break;
-  default: cox_de_boor<3>(t_.data(), x, cell, out.N.data(), out.dN.data()); break; // p_ <= kMaxBsplineDegree
+  case 1: cox_de_boor<1>(t_.data(), inv_width_.data(), t_.size(), x, cell, out.N.data(), out.dN.data()); break;
+  case 2: cox_de_boor<2>(t_.data(), inv_width_.data(), t_.size(), x, cell, out.N.data(), out.dN.data()); break;
+  default: // p_ <= kMaxBsplineDegree
+    cox_de_boor<3>(t_.data(), inv_width_.data(), t_.size(), x, cell, out.N.data(), out.dN.data());
+    break;
   }
   return out;
 }
@@ -175,11 +212,13 @@ KnotVector KnotVector::advected(const std::vector<double>& d) const {
   for (std::size_t i = 0; i < d.size(); ++i)
     require<InstabilityError>(std::isfinite(d[i]), "KnotVector::advected: increment d[", i, "] = ", d[i],
                               " is not finite");
-  // u(v_j) = sum_a N_{j+a}(v_j) d_{j+a} on cell j (find_cell's cell of v_j; the
-  // last cell for the last vertex): interpolate() without the search
+  // u(v_j): interpolate() on find_cell's cell of v_j, without the search
   std::vector<double> w(v_.size());
-  for (std::size_t j = 0; j < v_.size(); ++j)
-    w[j] = v_[j] + span_sum(evaluate_on_cell(v_[j], std::min(static_cast<int>(j), num_cells() - 1)), d);
+  switch (p_) {
+  case 1: advect_vertices<1>(t_, inv_width_, v_, d, w); break;
+  case 2: advect_vertices<2>(t_, inv_width_, v_, d, w); break;
+  default: advect_vertices<3>(t_, inv_width_, v_, d, w); break; // p_ <= kMaxBsplineDegree
+  }
   for (std::size_t j = 0; j + 1 < w.size(); ++j)
     if (!(w[j] < w[j + 1]))
       throw InstabilityError("B-spline knot vector inverted: cell " + std::to_string(j) + " [" +
@@ -411,6 +450,8 @@ namespace {
 /// stores to the output arrays cannot alias, so it stays in registers).
 struct BatchAxis {
   const double* t = nullptr;   ///< the full knot vector t_0 .. t_{n+p}
+  const double* inv_width = nullptr; ///< KnotVector's reciprocal widths
+  std::size_t knots = 0;       ///< n + p + 1
   const double* v = nullptr;   ///< the vertices v_0 .. v_m
   int cells = 0;               ///< m
   double lower = 0.0;          ///< v_0 (the clamp of evaluate_on_cell)
@@ -446,7 +487,7 @@ struct BatchAxis {
 /// without the absent terms (the same bits for a span with every N_r > 0).
 template <int P>
 [[gnu::always_inline]] inline void span_values(const BatchAxis& a, double x, int cell, double* N, double* dN) {
-  cox_de_boor<P, false>(a.t, std::clamp(x, a.lower, a.upper), cell, N, dN);
+  cox_de_boor<P, false>(a.t, a.inv_width, a.knots, std::clamp(x, a.lower, a.upper), cell, N, dN);
 }
 
 /// (P + 1)^D, the entries of a stencil.
@@ -555,6 +596,8 @@ int BsplineBasis<D>::evaluate_fixed_points(const Vec<D>* x, int count, Index<D>*
     const KnotVector& kv = knots_[k];
     const double r = KnotVector::kBoundaryRoundoff * (kv.upper() - kv.lower()); // as in contains()
     ax[k] = {.t = kv.knots().data(),
+             .inv_width = kv.inv_width(),
+             .knots = kv.knots().size(),
              .v = kv.vertices().data(),
              .cells = kv.num_cells(),
              .lower = kv.lower(),

@@ -63,6 +63,9 @@ public:
   const std::vector<double>& vertices() const { return v_; }
   /// The full knot vector t_0 .. t_{n+p} (end vertices repeated p+1 times).
   const std::vector<double>& knots() const { return t_; }
+  /// 1 / (t_{j+d} - t_j) at [(d - 1) knots().size() + j], d = 1..p (0 where
+  /// the knots coincide): the factors of the Cox-de Boor quotients.
+  const double* inv_width() const { return inv_width_.data(); }
   double lower() const { return v_.front(); }
   double upper() const { return v_.back(); }
   /// Smallest cell width (min_j v_{j+1} - v_j).
@@ -113,6 +116,7 @@ private:
   double span_sum(const BsplineSpanValues& b, const std::vector<double>& c) const;
   std::vector<double> v_; ///< vertices (distinct knots)
   std::vector<double> t_; ///< full open knot vector
+  std::vector<double> inv_width_; ///< inv_width(), formed once per knot vector
   int p_ = 1;
 };
 

@@ -86,7 +86,8 @@ Engine<D>::Engine(EngineParts<D> parts)
   nodal_.resize(field_nodes);
   node_spacing0_ = basis_->nodes().min_spacing();
   if (dist_) dist_->min({&node_spacing0_, 1});
-  if (settings_.consistent_mass && !dist_) mass_matrix_ = std::make_unique<MassMatrix<D>>();
+  if (settings_.consistent_mass && !dist_) // the band path for the fixed stencils (mass_matrix.hpp)
+    mass_matrix_ = std::make_unique<MassMatrix<D>>(basis_->fixed_stencil() > 0);
   sum_particles(true); // initial checks, energy and wave speed
   energy_.initial = energy_.total();
   external_power_ = global_power(0.0, momentum_);

@@ -11,6 +11,7 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 
 namespace otmpm {
 
@@ -32,6 +33,15 @@ template <int D> struct MassMatrix<D>::Factor {
   std::vector<int> source, zeros;
   std::vector<char> fixed;
   long long version = -1;
+  /// The band path (MassMatrix::band() = b >= 0): row i of the unit lower
+  /// factor L at band[i (b + 1) + t], t = 0..b-1 for the columns i - b + t
+  /// (zero before column 0; place b unused), and the diagonal D in d.
+  /// band_source[s]: the place in M_'s values of the matrix entry at band
+  /// place s, or kIdentity (a fixed row's diagonal, 1.0) or kZero (valid for
+  /// `version` and `fixed`, as the gather of the sparse path).
+  std::vector<double> band, d, inv_d; ///< inv_d = 1 / d, the solve's factors
+  std::vector<int> band_source;
+  static constexpr int kIdentity = -1, kZero = -2;
 };
 
 namespace {
@@ -70,10 +80,12 @@ bool masses_valid(const std::vector<double>& m_p) { return finite_non_negative(m
 
 /// The argument checks of MassMatrix::assemble: consistent sizes, node ids in
 /// range (Eigen only asserts them, and not at all under NDEBUG), finite
-/// non-negative masses. O(entries), once per assembly.
+/// non-negative masses. O(entries), once per assembly; ids_checked: the
+/// table's offsets and node ids are those of the last assembly, checked then
+/// for the same node count (the pass over the ids is left out).
 template <int D>
 void check_assembly(const BasisTable<D>& table, const std::vector<double>& m_p, const std::vector<char>& active,
-                    const std::vector<char>& constrained, int nodes) {
+                    const std::vector<char>& constrained, int nodes, bool ids_checked) {
   const std::string f = "MassMatrix::assemble: ";
   require<std::invalid_argument>(nodes >= 0, f, "nodes must be >= 0, got ", nodes);
   require<std::invalid_argument>(!table.offset.empty() && table.offset.front() == 0 &&
@@ -88,7 +100,7 @@ void check_assembly(const BasisTable<D>& table, const std::vector<double>& m_p, 
                                  constrained.size(), " flags for ", nodes, " nodes x ", D, " components");
   // The loops run every step: one branch-free pass each (vectorised), the
   // offending entry looked for only when a pass fails.
-  if (!nodes_in_range(table.node, nodes)) [[unlikely]]
+  if (!ids_checked && !nodes_in_range(table.node, nodes)) [[unlikely]]
     for (std::size_t a = 0; a < table.node.size(); ++a)
       require<std::invalid_argument>(table.node[a] >= 0 && table.node[a] < nodes, f, "table entry ", a, " names node ",
                                      table.node[a], ", outside [0, ", nodes, ")");
@@ -117,18 +129,23 @@ template <int S>
 /// same S^2 places in `slot`) summed place by place in a register: each
 /// place still adds the run's products in row order, m_p N_a first formed
 /// for each a - the same additions as sum_row's, one load and one store per
-/// place and run instead of per product.
+/// place and run instead of per product. Up to S = 4 all S^2 sums stay in
+/// registers over one pass of the rows; wider rows take one pass per a.
 template <int S>
 inline void sum_run(double* __restrict value, const double* __restrict N, const double* __restrict m, int rows,
                     const int* __restrict slot) {
-  for (int a = 0; a < S; ++a) {
-    double acc[S];
-    for (int b = 0; b < S; ++b) acc[b] = value[slot[a * S + b]];
+  constexpr int A = S <= 4 ? S : 1; // rows of the S x S block summed per pass
+  for (int a0 = 0; a0 < S; a0 += A) {
+    double acc[A * S];
+    for (int i = 0; i < A * S; ++i) acc[i] = value[slot[a0 * S + i]];
     for (int p = 0; p < rows; ++p) {
-      const double m_a = m[p] * N[p * S + a];
-      for (int b = 0; b < S; ++b) acc[b] += m_a * N[p * S + b];
+      const double* const Np = N + static_cast<std::ptrdiff_t>(p) * S;
+      for (int a = 0; a < A; ++a) {
+        const double m_a = m[p] * Np[a0 + a];
+        for (int b = 0; b < S; ++b) acc[a * S + b] += m_a * Np[b];
+      }
     }
-    for (int b = 0; b < S; ++b) value[slot[a * S + b]] = acc[b];
+    for (int i = 0; i < A * S; ++i) value[slot[a0 * S + i]] = acc[i];
   }
 }
 
@@ -148,17 +165,104 @@ std::vector<int> row_runs(const std::vector<int>& node, int S, int rows) {
   return first;
 }
 
+/// max |I - J| over the stored entries of the compressed matrix A.
+int half_bandwidth(const Eigen::SparseMatrix<double>& A) {
+  const int* inner = A.innerIndexPtr();
+  const int* outer = A.outerIndexPtr();
+  int b = 0;
+  for (int J = 0; J < A.outerSize(); ++J)
+    for (int e = outer[J]; e < outer[J + 1]; ++e) b = std::max(b, std::abs(inner[e] - J));
+  return b;
+}
+
+/// L D L^T of a symmetric band matrix of half bandwidth b (B > 0: b = B
+/// known at compile time), row by row in Crout order: on entry band[i (b+1)
+/// + t] holds A_ij for the columns j = i - b + t (t = 0..b; +0 before column
+/// 0), on return L_ij (t < b), and d[i] = D_i. With w_j = L_ij D_j:
+/// w_j = A_ij - sum_{k<j} w_k L_jk, L_ij = w_j / D_j, D_i = A_ii - sum_j w_j L_ij.
+/// Returns the first row whose pivot D_i is zero or not finite, or n.
+template <int B> int band_factorise(double* __restrict band, double* __restrict d, int n, int b) {
+  if constexpr (B > 0) b = B;
+  const int width = b + 1;
+  for (int i = 0; i < n; ++i) {
+    double* const Li = band + static_cast<std::ptrdiff_t>(i) * width;
+    double w[MassMatrix<1>::kMaxBand];
+    double Di = Li[b];
+    for (int t = std::max(0, b - i); t < b; ++t) {
+      const int j = i - b + t;
+      const double* const Lj = band + static_cast<std::ptrdiff_t>(j) * width + (b - t); // Lj[u] = L_jk, k = i - b + u
+      double s = Li[t];
+      for (int u = std::max(0, b - i); u < t; ++u) s -= w[u] * Lj[u];
+      w[t] = s;
+      Li[t] = s / d[j];
+      Di -= s * Li[t];
+    }
+    if (!(std::isfinite(Di) && Di != 0.0)) return i;
+    d[i] = Di;
+  }
+  return n;
+}
+
+/// x = (L D L^T)^{-1} x with band_factorise's factor and inv_d = 1 / D:
+/// L y = x forward, then L^T x = y / D backward, x_i = y_i / D_i - sum_k
+/// L_ki x_k over the b rows k below i. Each sweep keeps the b values it
+/// reads last in registers (`last`), so that a row waits for the one before
+/// it through a multiplication and a subtraction, not through memory. The
+/// band holds +0 before column 0, so the forward sweep needs no test at the
+/// first rows; the backward one tests k < n only in its first b rows.
+template <int B> void band_solve(const double* __restrict band, const double* __restrict inv_d, int n, int b,
+                                 double* __restrict x) {
+  if constexpr (B > 0) b = B;
+  const int width = b + 1;
+  double last[MassMatrix<1>::kMaxBand + 1] = {}; // last[t]: the value of row i - b + t (forward), i + b - t (backward)
+  auto push = [&](double v) {
+    for (int t = 0; t + 1 < b; ++t) last[t] = last[t + 1];
+    if (b > 0) last[b - 1] = v;
+  };
+  for (int i = 0; i < n; ++i) {
+    const double* const Li = band + static_cast<std::ptrdiff_t>(i) * width;
+    double s = x[i];
+    for (int t = 0; t < b; ++t) s -= Li[t] * last[t];
+    push(s);
+    x[i] = s * inv_d[i];
+  }
+  for (int t = 0; t < b; ++t) last[t] = 0.0;
+  auto backward_row = [&](int i, int t0) { // the rows k = i + b - t, t >= t0
+    double s = x[i];
+    for (int t = t0; t < b; ++t) s -= band[static_cast<std::ptrdiff_t>(i + b - t) * width + t] * last[t]; // L_ki
+    push(s);
+    x[i] = s;
+  };
+  int i = n - 1;
+  for (; i >= 0 && i > n - 1 - b; --i) backward_row(i, b - (n - 1 - i));
+  for (; i >= 0; --i) backward_row(i, 0);
+}
+
+/// f(std::integral_constant<int, B>) with B = b for the half bandwidths of
+/// the fixed stencils (linear 1, B-splines 2 and 3), else B = 0 (b at run
+/// time: a diagonal M, b = 0).
+template <class F> decltype(auto) with_band(int b, F&& f) {
+  switch (b) {
+  case 1: return f(std::integral_constant<int, 1>{});
+  case 2: return f(std::integral_constant<int, 2>{});
+  case 3: return f(std::integral_constant<int, 3>{});
+  default: return f(std::integral_constant<int, 0>{});
+  }
+}
+
 } // namespace
 
-template <int D> MassMatrix<D>::MassMatrix() = default;
+template <int D> MassMatrix<D>::MassMatrix(bool band) : band_allowed_(band) {}
 template <int D> MassMatrix<D>::~MassMatrix() = default;
 
 template <int D>
 void MassMatrix<D>::assemble(const BasisTable<D>& table, const std::vector<double>& m_p,
                              const std::vector<char>& active, const std::vector<char>& constrained,
                              int nodes) {
-  check_assembly<D>(table, m_p, active, constrained, nodes);
-  assemble_values(table, m_p, nodes);
+  // offset_ and node_ only ever hold a table that passed check_assembly
+  const bool same = M_.rows() == nodes && table.offset == offset_ && table.node == node_;
+  check_assembly<D>(table, m_p, active, constrained, nodes, same);
+  assemble_values(table, m_p, nodes, same);
   free_columns_add_nothing_ = finite_non_negative(M_.valuePtr(), static_cast<std::size_t>(M_.nonZeros()));
   std::vector<std::unique_ptr<Factor>> old = std::move(factor_);
   factor_.clear();
@@ -184,11 +288,12 @@ void MassMatrix<D>::assemble(const BasisTable<D>& table, const std::vector<doubl
 
 /// M_ from the table: by Eigen's triplet assembly when the node lists
 /// changed (then the place of every product in M_ is recorded), otherwise
-/// by summing the products into those places in the same order - setFromTriplets
-/// sums the duplicates of an entry in triplet order, starting from the first.
+/// (same: the last assembly's node lists) by summing the products into those
+/// places in the same order - setFromTriplets sums the duplicates of an
+/// entry in triplet order, starting from the first.
 template <int D>
-void MassMatrix<D>::assemble_values(const BasisTable<D>& table, const std::vector<double>& m_p, int nodes) {
-  const bool same = M_.rows() == nodes && table.offset == offset_ && table.node == node_;
+void MassMatrix<D>::assemble_values(const BasisTable<D>& table, const std::vector<double>& m_p, int nodes,
+                                    bool same) {
   if (same) {
     ++pattern_reuses_;
     sum_into_slots(table, m_p);
@@ -212,6 +317,8 @@ void MassMatrix<D>::assemble_values(const BasisTable<D>& table, const std::vecto
     const int col = triplets[t].col(), row = triplets[t].row();
     slot_[t] = static_cast<int>(std::lower_bound(inner + outer[col], inner + outer[col + 1], row) - inner);
   }
+  band_ = D == 1 && band_allowed_ ? half_bandwidth(M_) : -1;
+  if (band_ > kMaxBand) band_ = -1;
   row_size_ = uniform_row_width(table.offset);
   runs_ = row_size_ > 0 ? row_runs(table.node, row_size_, table.rows()) : std::vector<int>{};
   offset_ = table.offset;
@@ -307,6 +414,11 @@ template <int D>
 void MassMatrix<D>::factorise(int k, const std::vector<char>& fixed, std::vector<std::unique_ptr<Factor>>& old) {
   const std::size_t kk = static_cast<std::size_t>(k);
   std::unique_ptr<Factor> f = kk < old.size() && old[kk] ? std::move(old[kk]) : std::make_unique<Factor>();
+  if (band_ >= 0) {
+    factorise_band(*f, fixed);
+    factor_.push_back(std::move(f));
+    return;
+  }
   if (f->version == version_ && f->fixed == fixed && gather(*f)) {
     ++analysis_reuses_;
     f->ldlt.factorize_permuted(f->ap);
@@ -327,6 +439,41 @@ void MassMatrix<D>::factorise(int k, const std::vector<char>& fixed, std::vector
   if (f->ldlt.info() != Eigen::Success)
     throw InstabilityError("consistent mass matrix: factorisation failed (singular matrix)");
   factor_.push_back(std::move(f));
+}
+
+/// The band path of factorise(): M_ with identity rows at `fixed` copied into
+/// f's band (lower triangle, row by row; the places of the copy recorded
+/// once per pattern and fixed flags), then L D L^T. Throws
+/// InstabilityError, as the sparse path does, for a pivot D_i that is zero
+/// (a singular matrix, e.g. an active node without mass) or not finite.
+template <int D> void MassMatrix<D>::factorise_band(Factor& f, const std::vector<char>& fixed) const {
+  const int n = static_cast<int>(M_.rows()), b = band_, width = b + 1;
+  const std::size_t places = static_cast<std::size_t>(n) * width;
+  if (f.version != version_ || f.fixed != fixed || f.band_source.size() != places) {
+    f.band_source.assign(places, Factor::kZero);
+    const int* inner = M_.innerIndexPtr();
+    const int* outer = M_.outerIndexPtr();
+    for (int J = 0; J < n; ++J)
+      for (int e = outer[J]; e < outer[J + 1]; ++e) {
+        const int I = inner[e];
+        if (I >= J && !fixed[I] && !fixed[J]) f.band_source[static_cast<std::size_t>(I) * width + (J - I + b)] = e;
+      }
+    for (int I = 0; I < n; ++I)
+      if (fixed[I]) f.band_source[static_cast<std::size_t>(I) * width + b] = Factor::kIdentity;
+    f.fixed = fixed;
+    f.version = version_;
+  }
+  f.band.resize(places);
+  f.d.resize(static_cast<std::size_t>(n));
+  const double* v = M_.valuePtr();
+  for (std::size_t s = 0; s < places; ++s) {
+    const int e = f.band_source[s];
+    f.band[s] = e >= 0 ? v[e] : e == Factor::kIdentity ? 1.0 : 0.0;
+  }
+  if (with_band(b, [&](auto B) { return band_factorise<B()>(f.band.data(), f.d.data(), n, b); }) < n)
+    throw InstabilityError("consistent mass matrix: factorisation failed (singular matrix)");
+  f.inv_d.resize(f.d.size());
+  for (std::size_t i = 0; i < f.d.size(); ++i) f.inv_d[i] = 1.0 / f.d[i];
 }
 
 /// Records where each value of the permuted matrix that f's factorisation
@@ -425,7 +572,7 @@ void MassMatrix<D>::solve(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>&
                                  "MassMatrix::solve: r has ", r.size(), " and y ", y.size(), " entries for ", n,
                                  " nodes");
   const Factor* f = nullptr;
-  Eigen::VectorXd b(n), sol(n);
+  Eigen::VectorXd b(n), sol;
   for (int k = 0; k < D; ++k) {
     if (factor_[k]) f = factor_[k].get();
     const std::vector<char>& fixed = fixed_[k];
@@ -433,8 +580,12 @@ void MassMatrix<D>::solve(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>&
     move_prescribed(k, fixed, y, b);
     for (int I = 0; I < n; ++I)
       if (fixed[I]) b[I] = y[I][k];
-    sol = f->ldlt.solve(b);
-    for (int I = 0; I < n; ++I) y[I][k] = sol[I];
+    if (band_ >= 0)
+      with_band(band_, [&](auto B) { band_solve<B()>(f->band.data(), f->inv_d.data(), n, band_, b.data()); });
+    else
+      sol = f->ldlt.solve(b);
+    const Eigen::VectorXd& x = band_ >= 0 ? b : sol;
+    for (int I = 0; I < n; ++I) y[I][k] = x[I];
   }
 }
 
