@@ -456,6 +456,43 @@ TEST_CASE("Engine: a body's material must be defined") {
   expect_scene_error(s, "body.bar.material", {"no [[material]] named \"wood\""});
 }
 
+TEST_CASE("Engine: names of materials, bodies, boundaries and walls are those the reader accepts") {
+  // A scene built in code is held to read_name's rules: a name must be able
+  // to name a result-file group and a --set key, and be unique in its kind
+  // (a wall's or boundary's name names its history in the result file).
+  Scene s = code_scene();
+  s.materials[0].name = s.bodies[0].material = "steel/hard";
+  expect_scene_error(s, "material.steel/hard.name", {"cannot name a material", "'/'"});
+  s = code_scene();
+  s.bodies[0].name = "bar\tone";
+  expect_scene_error(s, "body.bar\\x09one.name", {"\"bar\\x09one\" cannot name a body", "control character"});
+  s = code_scene();
+  BoundarySection fixed;
+  fixed.name = "left.end";
+  fixed.upper = {0.0, 1.0, 1.0};
+  fixed.fix = {true, true, true};
+  s.boundaries.push_back(fixed);
+  expect_scene_error(s, "boundary.left.end.name", {"cannot name a boundary"});
+  s.boundaries.back().name = "left";
+  s.boundaries.push_back(s.boundaries.back());
+  expect_scene_error(s, "boundary.left.name", {"duplicate name \"left\""});
+  s = code_scene();
+  WallSection w;
+  w.name = " floor";
+  w.normal = {1.0, 0.0, 0.0};
+  s.walls.push_back(w);
+  expect_scene_error(s, "wall. floor.name", {"cannot name a wall", "space"});
+  s.walls.back().name = "floor";
+  s.walls.push_back(s.walls.back());
+  expect_scene_error(s, "wall.floor.name", {"duplicate name \"floor\""});
+  // Left out, as a scene in code may: no name is no error.
+  s = code_scene();
+  s.bodies[0].name.clear();
+  w.name.clear();
+  s.walls = {w, w};
+  CHECK_NOTHROW(assemble<1>(s));
+}
+
 TEST_CASE("Engine: grid cells >= 1 and finite bounds") {
   Scene s = code_scene();
   s.grid.cells[0] = 0;

@@ -8,6 +8,7 @@
 #include "otmpm/integrators/integrator.hpp"
 #include "otmpm/materials/material.hpp"
 #include "otmpm/particles/output_fields.hpp"
+#include "otmpm/scene/toml_reader.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -32,9 +33,23 @@ bool one_of(const std::string& value, std::initializer_list<std::string_view> al
 }
 
 /// The key of element `index` of an array of tables: "section.NAME", or
-/// "section.INDEX" when it has no name (as parse_scene records them).
+/// "section.INDEX" when it has no name (as parse_scene records them); a
+/// control character of the name shown as \\xHH (toml_input::TableReader::printable).
 std::string element_key(const std::string& section, const std::string& name, std::size_t index) {
-  return section + "." + (name.empty() ? std::to_string(index) : name);
+  return section + "." + (name.empty() ? std::to_string(index) : toml_input::TableReader::printable(name));
+}
+
+/// The name of a `what` at key.name as the reader takes it (read_name in
+/// scene.cpp): one a result-file group and a --set key can hold
+/// (invalid_name_reason) and unique among `seen`. An empty name passes
+/// unless `required` (a scene built in code may leave it out).
+void check_name(const Scene& s, const std::string& key, const std::string& name, const char* what, bool required,
+                std::set<std::string>& seen) {
+  check(s, !required || !name.empty(), key + ".name", "must not be empty");
+  if (name.empty()) return;
+  const std::string why = invalid_name_reason(name);
+  check(s, why.empty(), key + ".name", "\"", toml_input::TableReader::printable(name), "\" cannot name a ", what, ": ", why);
+  check(s, seen.insert(name).second, key + ".name", "duplicate name \"", name, "\"");
 }
 
 /// The first `dim` components of every vector are finite.
@@ -130,8 +145,7 @@ void check_materials(const Scene& s) {
   for (std::size_t i = 0; i < s.materials.size(); ++i) {
     const MaterialSection& ms = s.materials[i];
     const std::string key = element_key("material", ms.name, i);
-    check(s, !ms.name.empty(), key + ".name", "must not be empty");
-    check(s, names.insert(ms.name).second, key + ".name", "duplicate name \"", ms.name, "\"");
+    check_name(s, key, ms.name, "material", true, names);
     try {
       validate_material(ms);
     } catch (const InputError& e) {
@@ -204,6 +218,7 @@ void check_contact(const Scene& s) {
 }
 
 void check_loads(const Scene& s, int dim) {
+  std::set<std::string> boundary_names, wall_names;
   for (std::size_t i = 0; i < s.initial_velocities.size(); ++i) {
     const InitialVelocitySection& iv = s.initial_velocities[i];
     const std::string key = element_key("initial_velocity", "", i);
@@ -213,12 +228,14 @@ void check_loads(const Scene& s, int dim) {
   for (std::size_t i = 0; i < s.boundaries.size(); ++i) {
     const BoundarySection& b = s.boundaries[i];
     const std::string key = element_key("boundary", b.name, i);
+    check_name(s, key, b.name, "boundary", false, boundary_names);
     check_box(s, key, b.lower, b.upper, dim, false);
     check_finite(s, key + ".value", b.value, dim);
   }
   for (std::size_t i = 0; i < s.walls.size(); ++i) {
     const WallSection& w = s.walls[i];
     const std::string key = element_key("wall", w.name, i);
+    check_name(s, key, w.name, "wall", false, wall_names);
     check_finite(s, key + ".point", w.point, dim);
     check_finite(s, key + ".normal", w.normal, dim);
     check_finite(s, key + ".velocity", w.velocity, dim);
@@ -268,9 +285,7 @@ void check_probes(const Scene& s, int dim) {
   for (std::size_t i = 0; i < s.output.probes.size(); ++i) {
     const ProbeSection& p = s.output.probes[i];
     const std::string key = element_key("output.probes", p.name, i);
-    const std::string why = invalid_name_reason(p.name);
-    check(s, why.empty(), key + ".name", "\"", p.name, "\" cannot name a probe in the result file: ", why);
-    check(s, names.insert(p.name).second, key + ".name", "duplicate name \"", p.name, "\"");
+    check_name(s, key, p.name, "probe", true, names);
     check(s, one_of(p.particle, {"leftmost", "rightmost", "nearest"}), key + ".particle",
           "must be one of \"leftmost\", \"rightmost\", \"nearest\" (got \"", p.particle, "\")");
     if (p.particle == "nearest") check_finite(s, key + ".at", p.at, dim);
@@ -319,7 +334,7 @@ void validate_bodies(const Scene& s, int dim) {
   for (std::size_t i = 0; i < s.bodies.size(); ++i) {
     const BodySection& b = s.bodies[i];
     const std::string key = element_key("body", b.name, i);
-    check(s, b.name.empty() || names.insert(b.name).second, key + ".name", "duplicate name \"", b.name, "\"");
+    check_name(s, key, b.name, "body", false, names);
     const bool known = std::any_of(s.materials.begin(), s.materials.end(),
                                    [&](const MaterialSection& m) { return m.name == b.material; });
     check(s, known, key + ".material", "no [[material]] named \"", b.material, "\"");
