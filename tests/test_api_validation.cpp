@@ -485,12 +485,25 @@ TEST_CASE("Engine: names of materials, bodies, boundaries and walls are those th
   s.walls.back().name = "floor";
   s.walls.push_back(s.walls.back());
   expect_scene_error(s, "wall.floor.name", {"duplicate name \"floor\""});
-  // Left out, as a scene in code may: no name is no error.
+  // A wall's name names its history in the result file: it is required.
+  s.walls.pop_back();
+  s.walls.back().name.clear();
+  expect_scene_error(s, "wall.0.name", {"must not be empty"});
+  // A body or boundary may be left without a name, as a scene in code may:
+  // it stands for the reader's name of that place ("body0", "boundary1"),
+  // which to_toml leaves to the reader, so the scene reads back (a restart
+  // parses the stored text) with the same names...
   s = code_scene();
   s.bodies[0].name.clear();
-  w.name.clear();
-  s.walls = {w, w};
+  fixed.name.clear();
+  s.boundaries = {fixed, fixed};
   CHECK_NOTHROW(assemble<1>(s));
+  const Scene back = parse_scene(to_toml(s), "code.toml");
+  CHECK(back.bodies[0].name == "body0");
+  CHECK(back.boundaries[1].name == "boundary1");
+  // ... and a given name may not take an unnamed one's place.
+  s.boundaries[0].name = "boundary1";
+  expect_scene_error(s, "boundary.1.name", {"duplicate name \"boundary1\"", "unnamed boundary"});
 }
 
 TEST_CASE("Engine: grid cells >= 1 and finite bounds") {

@@ -299,6 +299,11 @@ void MassMatrix<D>::assemble_values(const BasisTable<D>& table, const std::vecto
     sum_into_slots(table, m_p);
     return;
   }
+  // Forget the last table first: should this assembly throw half-way (an
+  // allocation), M_ may already have the new size, and the next call must
+  // not take the old node lists for this M_'s pattern.
+  offset_.clear();
+  node_.clear();
   std::vector<Eigen::Triplet<double>> triplets;
   triplets.reserve(table.entries() * 4);
   for (int p = 0; p < table.rows(); ++p)
@@ -444,8 +449,12 @@ void MassMatrix<D>::factorise(int k, const std::vector<char>& fixed, std::vector
 /// The band path of factorise(): M_ with identity rows at `fixed` copied into
 /// f's band (lower triangle, row by row; the places of the copy recorded
 /// once per pattern and fixed flags), then L D L^T. Throws
-/// InstabilityError, as the sparse path does, for a pivot D_i that is zero
-/// (a singular matrix, e.g. an active node without mass) or not finite.
+/// InstabilityError, as the sparse path does (Eigen's LDL^T tests D_i == 0),
+/// for a pivot D_i that is exactly zero (an active node whose row is empty:
+/// no mass) or not finite. A matrix that is singular only numerically (rank
+/// deficient, e.g. one particle alone in a cell of nodes all active) leaves
+/// a pivot of round-off size on both paths and is not caught here; the
+/// run's energy monitor reports what its solve does.
 template <int D> void MassMatrix<D>::factorise_band(Factor& f, const std::vector<char>& fixed) const {
   const int n = static_cast<int>(M_.rows()), b = band_, width = b + 1;
   const std::size_t places = static_cast<std::size_t>(n) * width;

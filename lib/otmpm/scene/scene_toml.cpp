@@ -106,12 +106,12 @@ void insert_shape(toml::table& t, const BodySection& b, int dim) {
 toml::array bodies(const std::vector<BodySection>& bs, int dim) {
   toml::array a;
   for (const BodySection& b : bs) {
-    toml::table t{{"name", b.name},
-                  {"material", b.material},
+    toml::table t{{"material", b.material},
                   {"particles_per_cell", b.particles_per_cell},
                   {"placement", b.placement},
                   {"velocity", first(b.velocity, dim)},
                   {"overlap", b.overlap}};
+    if (!b.name.empty()) t.insert("name", b.name); // else the reader's name, "body<index>"
     insert_shape(t, b, dim);
     if (b.velocity_profile) t.insert("velocity_profile", *b.velocity_profile);
     a.push_back(std::move(t));
@@ -129,12 +129,14 @@ toml::array initial_velocities(const std::vector<InitialVelocitySection>& ivs, i
 
 toml::array boundaries(const std::vector<BoundarySection>& bs, int dim) {
   toml::array a;
-  for (const BoundarySection& b : bs)
-    a.push_back(toml::table{{"name", b.name},
-                            {"lower", first(b.lower, dim)},
-                            {"upper", first(b.upper, dim)},
-                            {"fix", first(b.fix, dim)},
-                            {"value", first(b.value, dim)}});
+  for (const BoundarySection& b : bs) {
+    toml::table t{{"lower", first(b.lower, dim)},
+                  {"upper", first(b.upper, dim)},
+                  {"fix", first(b.fix, dim)},
+                  {"value", first(b.value, dim)}};
+    if (!b.name.empty()) t.insert("name", b.name); // else the reader's name, "boundary<index>"
+    a.push_back(std::move(t));
+  }
   return a;
 }
 

@@ -41,15 +41,19 @@ std::string element_key(const std::string& section, const std::string& name, std
 
 /// The name of a `what` at key.name as the reader takes it (read_name in
 /// scene.cpp): one a result-file group and a --set key can hold
-/// (invalid_name_reason) and unique among `seen`. An empty name passes
-/// unless `required` (a scene built in code may leave it out).
+/// (invalid_name_reason), and unique in its kind (`seen`). A name left
+/// empty is an error when `required`, else it stands for `fallback`, the
+/// name the reader gives an unnamed table ("body2"; to_toml leaves the name
+/// out, so a scene built in code reads back with the same names).
 void check_name(const Scene& s, const std::string& key, const std::string& name, const char* what, bool required,
-                std::set<std::string>& seen) {
+                const std::string& fallback, std::set<std::string>& seen) {
   check(s, !required || !name.empty(), key + ".name", "must not be empty");
-  if (name.empty()) return;
   const std::string why = invalid_name_reason(name);
-  check(s, why.empty(), key + ".name", "\"", toml_input::TableReader::printable(name), "\" cannot name a ", what, ": ", why);
-  check(s, seen.insert(name).second, key + ".name", "duplicate name \"", name, "\"");
+  check(s, name.empty() || why.empty(), key + ".name", "\"", toml_input::TableReader::printable(name),
+        "\" cannot name a ", what, ": ", why);
+  const std::string& effective = name.empty() ? fallback : name;
+  check(s, seen.insert(effective).second, key + ".name", "duplicate name \"", effective, "\"",
+        name.empty() ? " (the name of an unnamed " + std::string(what) + " at this place)" : std::string());
 }
 
 /// The first `dim` components of every vector are finite.
@@ -145,7 +149,7 @@ void check_materials(const Scene& s) {
   for (std::size_t i = 0; i < s.materials.size(); ++i) {
     const MaterialSection& ms = s.materials[i];
     const std::string key = element_key("material", ms.name, i);
-    check_name(s, key, ms.name, "material", true, names);
+    check_name(s, key, ms.name, "material", true, "", names);
     try {
       validate_material(ms);
     } catch (const InputError& e) {
@@ -228,14 +232,14 @@ void check_loads(const Scene& s, int dim) {
   for (std::size_t i = 0; i < s.boundaries.size(); ++i) {
     const BoundarySection& b = s.boundaries[i];
     const std::string key = element_key("boundary", b.name, i);
-    check_name(s, key, b.name, "boundary", false, boundary_names);
+    check_name(s, key, b.name, "boundary", false, "boundary" + std::to_string(i), boundary_names);
     check_box(s, key, b.lower, b.upper, dim, false);
     check_finite(s, key + ".value", b.value, dim);
   }
   for (std::size_t i = 0; i < s.walls.size(); ++i) {
     const WallSection& w = s.walls[i];
     const std::string key = element_key("wall", w.name, i);
-    check_name(s, key, w.name, "wall", false, wall_names);
+    check_name(s, key, w.name, "wall", true, "", wall_names); // it names the wall's history in the result file
     check_finite(s, key + ".point", w.point, dim);
     check_finite(s, key + ".normal", w.normal, dim);
     check_finite(s, key + ".velocity", w.velocity, dim);
@@ -285,7 +289,7 @@ void check_probes(const Scene& s, int dim) {
   for (std::size_t i = 0; i < s.output.probes.size(); ++i) {
     const ProbeSection& p = s.output.probes[i];
     const std::string key = element_key("output.probes", p.name, i);
-    check_name(s, key, p.name, "probe", true, names);
+    check_name(s, key, p.name, "probe", true, "", names);
     check(s, one_of(p.particle, {"leftmost", "rightmost", "nearest"}), key + ".particle",
           "must be one of \"leftmost\", \"rightmost\", \"nearest\" (got \"", p.particle, "\")");
     if (p.particle == "nearest") check_finite(s, key + ".at", p.at, dim);
@@ -334,7 +338,7 @@ void validate_bodies(const Scene& s, int dim) {
   for (std::size_t i = 0; i < s.bodies.size(); ++i) {
     const BodySection& b = s.bodies[i];
     const std::string key = element_key("body", b.name, i);
-    check_name(s, key, b.name, "body", false, names);
+    check_name(s, key, b.name, "body", false, "body" + std::to_string(i), names);
     const bool known = std::any_of(s.materials.begin(), s.materials.end(),
                                    [&](const MaterialSection& m) { return m.name == b.material; });
     check(s, known, key + ".material", "no [[material]] named \"", b.material, "\"");

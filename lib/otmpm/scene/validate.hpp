@@ -24,11 +24,12 @@ namespace otmpm {
 /// values, axes and functions, the body force, the time functions, and the
 /// output section (file, every, known and distinct fields and formats,
 /// probes with a known particle choice and a finite point, checkpoint_every
-/// >= 0, checkpoint_file != file). Every name - of a material or probe
-/// (required), of a body, boundary or wall (when given) - is one the reader
-/// accepts: unique among its kind and able to name a result-file group and a
-/// --set key (invalid_name_reason). Options of the basis family are checked
-/// by make_basis().
+/// >= 0, checkpoint_file != file). Every name - of a material, wall or probe
+/// (required: a wall's and a probe's name the histories of the result file),
+/// of a body or boundary (when given) - is one the reader accepts: unique
+/// among its kind and able to name a result-file group and a --set key
+/// (invalid_name_reason). Options of the basis family are checked by
+/// make_basis().
 void validate_scene(const Scene& scene, int dimension);
 
 /// The bodies alone: at least one; each has a unique name (or none), names a
