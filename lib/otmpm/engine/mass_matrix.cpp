@@ -188,11 +188,13 @@ template <int B> int band_factorise(double* __restrict band, double* __restrict 
     double* const Li = band + static_cast<std::ptrdiff_t>(i) * width;
     double w[MassMatrix<1>::kMaxBand];
     double Di = Li[b];
-    for (int t = std::max(0, b - i); t < b; ++t) {
+    const int t0 = std::max(0, b - i); // the first column of row i in the band
+    for (int t = t0; t < b; ++t) {
       const int j = i - b + t;
       const double* const Lj = band + static_cast<std::ptrdiff_t>(j) * width + (b - t); // Lj[u] = L_jk, k = i - b + u
       double s = Li[t];
-      for (int u = std::max(0, b - i); u < t; ++u) s -= w[u] * Lj[u];
+      if constexpr (B != 1) // with b = 1 there is no earlier column (and GCC 12 under ASan sees a w[-1] here)
+        for (int u = t0; u < t; ++u) s -= w[u] * Lj[u];
       w[t] = s;
       Li[t] = s / d[j];
       Di -= s * Li[t];
