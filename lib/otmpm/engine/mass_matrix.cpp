@@ -35,11 +35,12 @@ template <int D> struct MassMatrix<D>::Factor {
   long long version = -1;
   /// The band path (MassMatrix::band() = b >= 0): row i of the unit lower
   /// factor L at band[i (b + 1) + t], t = 0..b-1 for the columns i - b + t
-  /// (zero before column 0; place b unused), and the diagonal D in d.
+  /// (zero before column 0; place b unused), and 1 / D in inv_d (D while
+  /// band_factorise runs).
   /// band_source[s]: the place in M_'s values of the matrix entry at band
   /// place s, or kIdentity (a fixed row's diagonal, 1.0) or kZero (valid for
   /// `version` and `fixed`, as the gather of the sparse path).
-  std::vector<double> band, d, inv_d; ///< inv_d = 1 / d, the solve's factors
+  std::vector<double> band, inv_d;
   std::vector<int> band_source;
   static constexpr int kIdentity = -1, kZero = -2;
 };
@@ -475,16 +476,15 @@ template <int D> void MassMatrix<D>::factorise_band(Factor& f, const std::vector
     f.version = version_;
   }
   f.band.resize(places);
-  f.d.resize(static_cast<std::size_t>(n));
+  f.inv_d.resize(static_cast<std::size_t>(n));
   const double* v = M_.valuePtr();
   for (std::size_t s = 0; s < places; ++s) {
     const int e = f.band_source[s];
     f.band[s] = e >= 0 ? v[e] : e == Factor::kIdentity ? 1.0 : 0.0;
   }
-  if (with_band(b, [&](auto B) { return band_factorise<B()>(f.band.data(), f.d.data(), n, b); }) < n)
+  if (with_band(b, [&](auto B) { return band_factorise<B()>(f.band.data(), f.inv_d.data(), n, b); }) < n)
     throw InstabilityError("consistent mass matrix: factorisation failed (singular matrix)");
-  f.inv_d.resize(f.d.size());
-  for (std::size_t i = 0; i < f.d.size(); ++i) f.inv_d[i] = 1.0 / f.d[i];
+  for (double& D_i : f.inv_d) D_i = 1.0 / D_i; // the solve multiplies
 }
 
 /// Records where each value of the permuted matrix that f's factorisation

@@ -236,9 +236,8 @@ std::string read_name(const TableReader& t, bool required, const std::string& fa
                       std::string_view what) {
   std::string name = required ? t.require<std::string>("name") : t.get<std::string>("name", fallback);
   check(!name.empty(), t.ref("name"), "must not be empty");
-  const std::string why = invalid_name_reason(name);
-  check(why.empty(), t.ref("name"),
-        "\"" + TableReader::printable(name) + "\" cannot name a " + std::string(what) + ": " + why);
+  const std::string why = name_error(name, what);
+  check(why.empty(), t.ref("name"), why);
   check(seen.insert(name).second, t.has("name") ? t.ref("name") : t.self(), "duplicate name \"" + name + "\"");
   return name;
 }
@@ -464,7 +463,7 @@ std::vector<BodySection> read_bodies(const TableReader& root, const Scene& s) {
     const auto& own = kShapeKeys.find(b.shape)->second;
     allowed.insert(allowed.end(), own.begin(), own.end());
     t.only(allowed);
-    b.name = read_name(t, false, "body" + std::to_string(out.size()), names, "body");
+    b.name = read_name(t, false, default_name("body", out.size()), names, "body");
     b.material = t.require<std::string>("material");
     const bool known = std::any_of(s.materials.begin(), s.materials.end(),
                                    [&](const MaterialSection& m) { return m.name == b.material; });
@@ -511,7 +510,7 @@ std::vector<BoundarySection> read_boundaries(const TableReader& root, int dim) {
     t.only({"name", "lower", "upper", "fix", "value"});
     BoundarySection b;
     b.where = t.self();
-    b.name = read_name(t, false, "boundary" + std::to_string(out.size()), names, "boundary");
+    b.name = read_name(t, false, default_name("boundary", out.size()), names, "boundary");
     b.lower = t.require_vec("lower", dim);
     b.upper = t.require_vec("upper", dim);
     check_box(t, b.lower, b.upper, dim, false);
@@ -531,7 +530,7 @@ std::vector<WallSection> read_walls(const TableReader& root, int dim) {
     t.only({"name", "point", "normal", "velocity", "friction"});
     WallSection w;
     w.where = t.self();
-    w.name = read_name(t, false, "wall" + std::to_string(out.size()), names, "wall");
+    w.name = read_name(t, false, default_name("wall", out.size()), names, "wall");
     w.point = t.require_vec("point", dim);
     w.normal = t.require_vec("normal", dim);
     double n2 = 0.0;

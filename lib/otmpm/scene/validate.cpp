@@ -43,14 +43,15 @@ std::string element_key(const std::string& section, const std::string& name, std
 /// scene.cpp): one a result-file group and a --set key can hold
 /// (invalid_name_reason), and unique in its kind (`seen`). A name left
 /// empty is an error when `required`, else it stands for `fallback`, the
-/// name the reader gives an unnamed table ("body2"; to_toml leaves the name
-/// out, so a scene built in code reads back with the same names).
+/// name the reader gives an unnamed table (default_name; to_toml leaves the
+/// name out, so a scene built in code reads back with the same names).
 void check_name(const Scene& s, const std::string& key, const std::string& name, const char* what, bool required,
                 const std::string& fallback, std::set<std::string>& seen) {
   check(s, !required || !name.empty(), key + ".name", "must not be empty");
-  const std::string why = invalid_name_reason(name);
-  check(s, name.empty() || why.empty(), key + ".name", "\"", toml_input::TableReader::printable(name),
-        "\" cannot name a ", what, ": ", why);
+  if (!name.empty()) {
+    const std::string why = name_error(name, what);
+    check(s, why.empty(), key + ".name", why);
+  }
   const std::string& effective = name.empty() ? fallback : name;
   check(s, seen.insert(effective).second, key + ".name", "duplicate name \"", effective, "\"",
         name.empty() ? " (the name of an unnamed " + std::string(what) + " at this place)" : std::string());
@@ -232,7 +233,7 @@ void check_loads(const Scene& s, int dim) {
   for (std::size_t i = 0; i < s.boundaries.size(); ++i) {
     const BoundarySection& b = s.boundaries[i];
     const std::string key = element_key("boundary", b.name, i);
-    check_name(s, key, b.name, "boundary", false, "boundary" + std::to_string(i), boundary_names);
+    check_name(s, key, b.name, "boundary", false, default_name("boundary", i), boundary_names);
     check_box(s, key, b.lower, b.upper, dim, false);
     check_finite(s, key + ".value", b.value, dim);
   }
@@ -338,7 +339,7 @@ void validate_bodies(const Scene& s, int dim) {
   for (std::size_t i = 0; i < s.bodies.size(); ++i) {
     const BodySection& b = s.bodies[i];
     const std::string key = element_key("body", b.name, i);
-    check_name(s, key, b.name, "body", false, "body" + std::to_string(i), names);
+    check_name(s, key, b.name, "body", false, default_name("body", i), names);
     const bool known = std::any_of(s.materials.begin(), s.materials.end(),
                                    [&](const MaterialSection& m) { return m.name == b.material; });
     check(s, known, key + ".material", "no [[material]] named \"", b.material, "\"");
@@ -356,6 +357,16 @@ void validate_bodies(const Scene& s, int dim) {
           "\"reference\" takes the initial velocity of the reference solution, but the scene has no reference.solution");
     if (!s.simulation.nodes_move()) check_body_in_grid(s, b, key, dim);
   }
+}
+
+std::string default_name(std::string_view kind, std::size_t index) {
+  return std::string(kind) + std::to_string(index);
+}
+
+std::string name_error(const std::string& name, std::string_view what) {
+  const std::string why = invalid_name_reason(name);
+  if (why.empty()) return why;
+  return "\"" + toml_input::TableReader::printable(name) + "\" cannot name a " + std::string(what) + ": " + why;
 }
 
 void validate_scene(const Scene& s, int dimension) {

@@ -45,6 +45,16 @@ void validate_bodies(const Scene& scene, int dimension);
 /// and the internal variables of its material models.
 std::vector<std::string_view> output_field_names(const Scene& scene);
 
+/// The name the reader gives the unnamed [[kind]] table at `index` of its
+/// array ("body2", "boundary0", "wall1"); validate_scene takes an unnamed
+/// body or boundary built in code for it, to_toml leaves it to the reader.
+std::string default_name(std::string_view kind, std::size_t index);
+
+/// Why `name` cannot name a `what` ("body", "probe", ...): the reader's and
+/// validate_scene's message (invalid_name_reason, the name printable), or
+/// "" when it can.
+std::string name_error(const std::string& name, std::string_view what);
+
 /// What seed_particles() relies on: validate_bodies(), a grid spacing h that
 /// is finite and > 0 on every axis, and a particle count per body that fits
 /// an int. InputError naming the body or the axis of h.
