@@ -305,6 +305,8 @@ TEST_CASE("bspline batch: the quotients by reciprocal widths agree with the divi
       worst_dN = std::max(worst_dN, std::abs(a.dN[i] - r.dN[i]) / dN_max);
     }
   });
+  MESSAGE("largest difference from the divided form: N " << worst_N / kEps << " eps, dN " << worst_dN / kEps
+                                                         << " eps of the span's largest"); // docs/theory.md 4.3
   CHECK(worst_N <= 8 * kEps);
   CHECK(worst_dN <= 8 * kEps);
   CHECK(worst_N > 0.0); // the two forms do differ: the comparison is not of one formula with itself
