@@ -17,12 +17,14 @@
 #include "otmpm/basis/lme.hpp"
 #include "support.hpp"
 
+#include <Eigen/QR>
 #include <doctest/doctest.h>
 
 #include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstdlib>
+#include <limits>
 #include <new>
 #include <random>
 #include <string>
@@ -559,4 +561,130 @@ TEST_CASE("lme: exp_shifted is within 2 ulp of std::exp on [-708, 0] and exact a
   CHECK(worst_ulp <= 2.0);
   CHECK(maxent::exp_shifted(-800.0) == std::exp(-800.0)); // libm below -708
   CHECK(std::isnan(maxent::exp_shifted(std::nan(""))));
+}
+
+namespace {
+
+/// J^{-1} and 1 / tr(Js^{-1}) (Js = S J S, unit diagonal) in long double,
+/// for the ScaledInverse tests.
+template <int D> void reference_inverse(const Mat<D>& J, Mat<D>& J_inv, double& lambda_min) {
+  using MatL = Eigen::Matrix<long double, D, D>;
+  const MatL JL = J.template cast<long double>();
+  const MatL inv = JL.inverse();
+  long double trace = 0;
+  for (int k = 0; k < D; ++k) trace += JL(k, k) * inv(k, k); // (Js^{-1})_kk = J_kk (J^{-1})_kk
+  J_inv = inv.template cast<double>();
+  lambda_min = static_cast<double>(1.0L / trace);
+}
+
+/// A symmetric positive definite J = S M S: M with unit diagonal and
+/// eigenvalues in [1 / cond, ~D], S = diag(scale_k) over `decades` decades
+/// around `centre`.
+template <int D> Mat<D> random_spd(std::mt19937_64& rng, double cond, double centre, double decades) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  Mat<D> A;
+  for (int i = 0; i < D; ++i)
+    for (int j = 0; j < D; ++j) A(i, j) = u(rng);
+  const Eigen::HouseholderQR<Mat<D>> qr(A);
+  const Mat<D> Q = qr.householderQ();
+  Vec<D> ev;
+  for (int k = 0; k < D; ++k) ev[k] = std::pow(cond, -0.5 * (u(rng) + 1.0)); // in [1 / cond, 1]
+  ev[0] = 1.0;
+  ev[D - 1] = 1.0 / cond;
+  Mat<D> M = Q * ev.asDiagonal() * Q.transpose();
+  const Vec<D> d = M.diagonal().cwiseSqrt().cwiseInverse();
+  M = d.asDiagonal() * M * d.asDiagonal();
+  Vec<D> s;
+  for (int k = 0; k < D; ++k) s[k] = centre * std::pow(10.0, 0.5 * decades * u(rng));
+  Mat<D> J = s.asDiagonal() * M * s.asDiagonal();
+  return 0.5 * (J + J.transpose()).eval(); // exactly symmetric
+}
+
+/// ScaledInverse::compute (the closed forms of 2D and 3D, or the scaled
+/// form where they decline) against the long-double reference on random J
+/// of the given condition and scale, beside compute_scaled (the form with
+/// square roots) on the same J: J^{-1} entries relative to sqrt(ref_kk
+/// ref_ll) and lambda_min relative. The round-off of a closed-form inverse
+/// grows with the condition (measured up to ~cond^1.8 eps for the smallest
+/// eigenvalue in 3D, by both forms), so the bound is the scaled form's own
+/// worst error over the same matrices, times 4, plus 8 eps.
+template <int D> void scaled_inverse_agrees(double cond, double centre, double decades, unsigned seed) {
+  std::mt19937_64 rng(seed);
+  double worst[2][2] = {}; // [closed form, scaled form][J^{-1}, lambda_min]
+  for (int t = 0; t < 2000; ++t) {
+    const Mat<D> J = random_spd<D>(rng, cond, centre, decades);
+    Mat<D> ref;
+    double lambda_ref = 0;
+    reference_inverse<D>(J, ref, lambda_ref);
+    maxent::ScaledInverse<D> inv[2];
+    inv[0].compute(J);
+    inv[1].compute_scaled(J);
+    for (int f = 0; f < 2; ++f) {
+      INFO("J = " << J << ", form " << f);
+      REQUIRE(inv[f].lambda_min > 0.0);
+      for (int k = 0; k < D; ++k)
+        for (int l = 0; l < D; ++l)
+          worst[f][0] = std::max(worst[f][0], std::abs(inv[f].J_inv(k, l) - ref(k, l)) /
+                                                  (std::sqrt(ref(k, k)) * std::sqrt(ref(l, l))));
+      worst[f][1] = std::max(worst[f][1], std::abs(inv[f].lambda_min - lambda_ref) / lambda_ref);
+    }
+  }
+  const double eps = std::numeric_limits<double>::epsilon();
+  MESSAGE("D = " << D << ", cond " << cond << ", J ~ " << centre * centre << " (" << decades
+                 << " decades): J^{-1} within " << worst[0][0] << " (scaled form " << worst[1][0]
+                 << "), lambda_min within " << worst[0][1] << " (scaled form " << worst[1][1] << ")");
+  CHECK(worst[0][0] <= 4.0 * worst[1][0] + 8.0 * eps);
+  CHECK(worst[0][1] <= 4.0 * worst[1][1] + 8.0 * eps);
+  CHECK(worst[1][1] <= 8.0 * cond * cond * eps + 8.0 * eps); // the scaled form itself is sound
+}
+
+} // namespace
+
+TEST_CASE("lme: ScaledInverse gives J^{-1} and lambda_min of the scaled J, without square roots in 2D and 3D") {
+  // the closed forms (compute_2d, compute_3d) for J of ordinary size, and
+  // the scaled form that takes J with diagonal entries beyond [1e-90, 1e90]
+  // (3D) or J00 J11 not a normal number (2D)
+  for (const double cond : {1.0 + 1e-9, 10.0, 1e3, 1e6}) {
+    scaled_inverse_agrees<2>(cond, 1.0, 6.0, 11);
+    scaled_inverse_agrees<3>(cond, 1.0, 6.0, 12);
+    scaled_inverse_agrees<3>(cond, 1e-3, 2.0, 13); // J ~ h^2 on a millimetre grid
+    scaled_inverse_agrees<2>(cond, 1e-78, 2.0, 14); // J00 J11 below the normal range
+    scaled_inverse_agrees<3>(cond, 1e-50, 2.0, 15); // J_kk below 1e-90
+    scaled_inverse_agrees<3>(cond, 1e50, 2.0, 16);  // J_kk above 1e90
+  }
+}
+
+TEST_CASE("lme: ScaledInverse reports J that is not positive definite as lambda_min = 0") {
+  for (const double s : {1.0, 1e-100, 1e100}) {
+    Mat<3> J;
+    J << 2, 1, 0, 1, 2, 1, 0, 1, -0.5; // indefinite: det < 0
+    maxent::ScaledInverse<3> inv;
+    inv.compute(s * J);
+    CHECK(inv.lambda_min == 0.0);
+    J << 1, 2, 0, 2, 1, 0, 0, 0, 1; // the leading 2 x 2 minor negative, det < 0
+    inv.compute(s * J);
+    CHECK(inv.lambda_min == 0.0);
+    J << 1, 2, 0, 2, 1, 0, 0, 0, -1; // det > 0 but the leading 2 x 2 minor negative (Sylvester)
+    inv.compute(s * J);
+    CHECK(inv.lambda_min == 0.0);
+    J << 1, 1, 1, 1, 1, 1, 1, 1, 1; // singular (rank 1): lambda_min is round-off at most
+    inv.compute(s * J);
+    CHECK(inv.lambda_min <= maxent::kSingularHessian);
+  }
+  Mat<3> J;
+  J << 1, 1e200, 0, 1e200, 1, 0, 0, 0, 1; // an off-diagonal entry whose square overflows
+  maxent::ScaledInverse<3> inv;
+  inv.compute(J);
+  CHECK(inv.lambda_min == 0.0);
+  J << 1, 0, 1e200, 0, 1, 0, 1e200, 0, 1;
+  inv.compute(J);
+  CHECK(inv.lambda_min == 0.0);
+  J << 1, 0, 0, 0, 1, 0, 0, 0, std::nan("");
+  inv.compute(J);
+  CHECK(inv.lambda_min == 0.0);
+  Mat<2> J2;
+  J2 << 1, 3, 3, 1;
+  maxent::ScaledInverse<2> inv2;
+  inv2.compute(J2);
+  CHECK(inv2.lambda_min == 0.0);
 }

@@ -169,8 +169,17 @@ template <int D> struct ScaledInverse {
       return;
     } else if constexpr (D == 2) {
       if (compute_2d(J)) return;
+    } else if constexpr (D == 3) {
+      if (compute_3d(J)) return;
     }
-    const Vec<D> s = d.cwiseSqrt().cwiseInverse();
+    compute_scaled(J);
+  }
+  /// The general form: Js formed with the square roots of the diagonal
+  /// (compute takes it where the closed forms below decline; the tests
+  /// compare those with it). Call with J_kk > 0 and finite.
+  void compute_scaled(const Mat<D>& J) {
+    lambda_min = 0.0;
+    const Vec<D> s = J.diagonal().cwiseSqrt().cwiseInverse();
     const Mat<D> Js = s.asDiagonal() * J * s.asDiagonal();
     const double det = Js.determinant();
     if (!(det > 0.0)) return;
@@ -196,6 +205,35 @@ template <int D> struct ScaledInverse {
     J_inv(0, 0) = J(1, 1) * f;
     J_inv(1, 1) = J(0, 0) * f;
     J_inv(0, 1) = J_inv(1, 0) = -c * f;
+    return true;
+  }
+  /// 3D without square roots, from the cofactors C of J: det Js = det J /
+  /// (J00 J11 J22), the leading 2 x 2 minor of Js is C22 / (J00 J11),
+  /// (Js^{-1})_kk = J_kk C_kk / det J, so 1 / tr(Js^{-1}) = det J / sum_k
+  /// J_kk C_kk, and J^{-1} = C / det J (C symmetric). False (nothing set)
+  /// unless every J_kk lies in [1e-90, 1e90], where the general path is
+  /// safer: within it the products of three diagonal entries are normal with
+  /// 38 decades to spare for cancellation, and an off-diagonal entry large
+  /// enough to overflow a product makes J indefinite, which a NaN or
+  /// infinite det reports as such.
+  bool compute_3d(const Mat<D>& J) {
+    const double a00 = J(0, 0), a11 = J(1, 1), a22 = J(2, 2), a01 = J(1, 0), a02 = J(2, 0), a12 = J(2, 1);
+    constexpr double lo = 1e-90, hi = 1e90;
+    if (!(a00 >= lo && a00 <= hi && a11 >= lo && a11 <= hi && a22 >= lo && a22 <= hi)) return false;
+    const double c00 = a11 * a22 - a12 * a12, c11 = a00 * a22 - a02 * a02, c22 = a00 * a11 - a01 * a01;
+    const double c01 = a02 * a12 - a01 * a22, c02 = a01 * a12 - a02 * a11, c12 = a01 * a02 - a00 * a12;
+    const double det = a00 * c00 + a01 * c01 + a02 * c02;
+    if (!(det > 0.0 && c22 > 0.0)) return true; // not positive definite: lambda_min stays 0
+    const double trace = a00 * c00 + a11 * c11 + a22 * c22; // det J tr(Js^{-1})
+    if (!(trace > 0.0 && std::isfinite(trace))) return true;
+    lambda_min = det / trace;
+    const double f = 1.0 / det;
+    J_inv(0, 0) = c00 * f;
+    J_inv(1, 1) = c11 * f;
+    J_inv(2, 2) = c22 * f;
+    J_inv(0, 1) = J_inv(1, 0) = c01 * f;
+    J_inv(0, 2) = J_inv(2, 0) = c02 * f;
+    J_inv(1, 2) = J_inv(2, 1) = c12 * f;
     return true;
   }
   Vec<D> solve(const Vec<D>& b) const { return J_inv * b; }

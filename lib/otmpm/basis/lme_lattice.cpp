@@ -7,11 +7,11 @@
 //   factor below is bounded as kLatticeMaxExponent says): at most
 //   kLatticeMaxSpan lines, else the general path.
 // * The support: node I kept when |x - x_I| <= R, row by row: along a row
-//   of axis 0 the kept nodes are the interval |dx_0| <= sqrt(R^2 - the
-//   other axes' dx^2), its ends found by arithmetic on the lattice
-//   coordinates, not by a test per node (no branch whose outcome varies
-//   from row to row). Only a node at the cut-off itself (weight tol) can
-//   be decided otherwise than by the general gather, by rounding.
+//   of axis 0 the kept nodes are the interval dx_0^2 <= R^2 - (the other
+//   axes' dx^2), counted by comparisons of the box's squared offsets, with
+//   no square root and no branch whose outcome varies from row to row. Only
+//   a node at the cut-off itself (weight tol) can be decided otherwise than
+//   by the general gather, by the rounding of the sum of squares.
 // * Exponents per axis: f_k(i) = -beta dx_k(i)^2 + lambda_k dx_k(i), by
 //   the recurrence of axis_factors (two exponentials per axis). They are
 //   not shifted: see kLatticeMaxExponent for the bounds that keep every
@@ -30,7 +30,9 @@
 #include "otmpm/basis/lme_lattice.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
+#include <limits>
 
 namespace otmpm::maxent {
 
@@ -60,6 +62,7 @@ namespace {
 /// lambda_k dx).
 struct AxisBox {
   int lo, m;
+  int mw; ///< m rounded up to a multiple of 4; sq[m .. mw) = +inf (no node)
   double dx[kLatticeMaxSpan];
   double sq[kLatticeMaxSpan];
   double e[kLatticeMaxSpan];
@@ -104,30 +107,37 @@ template <int D> bool axis_box(const LatticeAxes<D>& axes, int k, double xk, dou
     a.dx[i] = xk - X[static_cast<std::size_t>(a.lo + i)];
     a.sq[i] = a.dx[i] * a.dx[i];
   }
+  a.mw = (a.m + 3) & ~3;
+  for (int i = a.m; i < a.mw; ++i) a.sq[i] = std::numeric_limits<double>::infinity();
   return true;
 }
 
-/// The box indices i in [0, m) within w lattice spacings of the point,
-/// |v - i| <= w (v: the point's offset from the box's first line, in
-/// spacings), as [a, a + len); len = 0 when none (also when v + w < 0,
-/// where the clamp to line 0 would otherwise keep that line).
-inline int lattice_interval(double v, double w, int m, int& a) {
-  const double lo = std::max(v - w, 0.0), hi = std::max(v + w, 0.0);
-  const int c = static_cast<int>(lo);
-  a = c + (c < lo ? 1 : 0);                            // ceil
-  const int b = std::min(static_cast<int>(hi), m - 1); // floor, within the box
-  return v + w >= 0.0 ? std::max(0, b - a + 1) : 0;
+/// The box indices i in [0, m) with sq[i] <= rest (a node of the row kept
+/// when its squared offset along the row's axis fits in what the other axes
+/// leave of R^2), as [a, a + len); len = 0 when none. The squared offsets of
+/// a box fall and then rise along the axis (the stored lattice coordinates
+/// increase, and rounding keeps x - X and its square monotone), so the kept
+/// indices are an interval, read off a bit mask of the comparisons (sq
+/// padded with +inf to mw, a multiple of 4): no square root, no branch
+/// (the row lengths of neighbouring points differ in no pattern a
+/// predictor could learn).
+inline int row_interval(const double* sq, int mw, double rest, int& a) {
+  unsigned mask = 0;
+  for (int i = 0; i < mw; i += 4) {
+    const unsigned four = (sq[i] <= rest ? 1u : 0u) | (sq[i + 1] <= rest ? 2u : 0u) | (sq[i + 2] <= rest ? 4u : 0u) |
+                          (sq[i + 3] <= rest ? 8u : 0u);
+    mask |= four << i;
+  }
+  a = std::countr_zero(mask | (1u << kLatticeMaxSpan)); // kLatticeMaxSpan when none
+  return std::countr_one(mask >> a);
 }
 
 /// Appends the row at box indices o (axes 1 and 2) whose nodes are kept
-/// while dx_0^2 <= rest (R^2 less the other axes' squares): box indices i
-/// along axis 0 with |dx_0(0) - i h| <= sqrt(rest), dx_0(0) = x_0 - X_0(lo);
-/// an empty row is written and not counted. Branch-free (the row lengths of
-/// neighbouring points differ in no pattern a predictor could learn).
-template <int D> void add_row(Box<D>& box, double v, double inv_h, double rest, int o1, int o2) {
+/// while dx_0^2 <= rest (R^2 less the other axes' squares); an empty row is
+/// written and not counted.
+template <int D> void add_row(Box<D>& box, double rest, int o1, int o2) {
   Row<D>& r = box.row[box.rows];
-  r.a = 0; // set also for an empty row (Box is not initialised)
-  const int len = rest >= 0.0 ? lattice_interval(v, std::sqrt(std::max(rest, 0.0)) * inv_h, box.axis[0].m, r.a) : 0;
+  const int len = row_interval(box.axis[0].sq, box.axis[0].mw, rest, r.a);
   r.b = r.a + len - 1;
   if constexpr (D > 1) r.o[0] = o1;
   if constexpr (D > 2) r.o[1] = o2;
@@ -136,26 +146,24 @@ template <int D> void add_row(Box<D>& box, double v, double inv_h, double rest, 
 }
 
 /// The rows of the support of x (whose box is set up): node I kept when
-/// |x - x_I| <= R (the offsets along axis 0 taken on the lattice's own
-/// spacing: which node lies at the cut-off can differ from the general
-/// gather's by the rounding of |dx|^2, a node of weight ~tol). In 3D each
-/// plane of axis 2 visits only the rows of axis 1 within its disc.
-template <int D> void gather_rows(Box<D>& box, const LatticeAxes<D>& axes, double R2) {
-  const double v = box.axis[0].dx[0] * axes.inv_h[0], inv_h = axes.inv_h[0];
+/// |x - x_I|^2 <= R^2, tested as dx_0^2 <= R^2 - (dx_1^2 + dx_2^2) (which
+/// node lies at the cut-off can differ from the general gather's by the
+/// rounding of that sum, a node of weight ~tol). In 3D each plane of axis 2
+/// visits only the rows of axis 1 within its disc.
+template <int D> void gather_rows(Box<D>& box, double R2) {
   box.rows = 0;
   box.n = 0;
   if constexpr (D == 1) {
-    add_row<D>(box, v, inv_h, R2, 0, 0);
+    add_row<D>(box, R2, 0, 0);
   } else if constexpr (D == 2) {
-    for (int j = 0; j < box.axis[1].m; ++j) add_row<D>(box, v, inv_h, R2 - box.axis[1].sq[j], j, 0);
+    for (int j = 0; j < box.axis[1].m; ++j) add_row<D>(box, R2 - box.axis[1].sq[j], j, 0);
   } else {
     const AxisBox &a1 = box.axis[1], &a2 = box.axis[2];
-    const double v1 = a1.dx[0] * axes.inv_h[1];
     for (int l = 0; l < a2.m; ++l) {
       const double rest = R2 - a2.sq[l];
       int j0 = 0;
-      const int rows = rest >= 0.0 ? lattice_interval(v1, std::sqrt(rest) * axes.inv_h[1], a1.m, j0) : 0;
-      for (int j = j0; j < j0 + rows; ++j) add_row<D>(box, v, inv_h, R2 - (a1.sq[j] + a2.sq[l]), j, l);
+      const int rows = row_interval(a1.sq, a1.mw, rest, j0);
+      for (int j = j0; j < j0 + rows; ++j) add_row<D>(box, R2 - (a1.sq[j] + a2.sq[l]), j, l);
     }
   }
 }
@@ -368,14 +376,15 @@ bool lattice_solve(const LatticeAxes<D>& axes, const GaussianPrior<D>& prior, co
   Box<D> box; // filled below (no value-initialisation of the arrays)
   for (int k = 0; k < D; ++k)
     if (!axis_box<D>(axes, k, x[k], R, box.axis[k])) return false;
-  gather_rows<D>(box, axes, R * R);
+  gather_rows<D>(box, R * R);
   if (box.n < D + 1) return false;
   Vec<D> lambda = lambda0;
   ScaledInverse<D> inv;
   for (int it = 0;; ++it) {
     // the bounds that keep every weight and N_I positive and finite (see
-    // kLatticeMaxExponent)
-    if (!(lambda.norm() * R <= kLatticeMaxExponent && lambda.squaredNorm() <= 4.0 * kLatticeMaxExponent2 * prior.beta))
+    // kLatticeMaxExponent; |lambda| R compared squared, without a root)
+    const double l2 = lambda.squaredNorm();
+    if (!(l2 * (R * R) <= kLatticeMaxExponent * kLatticeMaxExponent && l2 <= 4.0 * kLatticeMaxExponent2 * prior.beta))
       return false;
     axis_factors<D>(box, axes, lambda, prior.beta);
     double Z;
