@@ -266,6 +266,19 @@ public:
     std::copy(s.dN.begin(), s.dN.end(), dN_.begin() + static_cast<std::ptrdiff_t>(used_));
     return used_ += m;
   }
+  /// Appends the stencil of q: written in place by basis.evaluate_into()
+  /// while `room` (max_stencil()) entries are left before the arrays' end -
+  /// no copy - else by evaluate() into `st` and copied (the last rows of a
+  /// fill, whose arrays are only grown, never value-initialised ahead).
+  /// Returns the entries written so far.
+  std::size_t append_point(const Basis<D>& basis, const PointQuery<D>& q, int room, Stencil<D>& st) {
+    if (used_ + static_cast<std::size_t>(room) <= node_.size()) {
+      const int m = basis.evaluate_into(q, room, node_.data() + used_, N_.data() + used_, dN_.data() + used_);
+      if (m >= 0) return used_ += static_cast<std::size_t>(m);
+    }
+    basis.evaluate(q, st);
+    return append(st);
+  }
   /// Cuts the arrays to the entries written.
   void finish() {
     node_.resize(used_);
@@ -295,14 +308,16 @@ void fill_serial(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, const Po
   table.offset.resize(static_cast<std::size_t>(n) + 1);
   table.offset[0] = 0;
   RowWriter<D> rows(table.node, table.N, table.dN);
+  const int room = basis.max_stencil();
   for (int p = 0; p < n; ++p) {
+    std::size_t used = 0;
     try {
-      basis.evaluate(point_query<D>(x, a, p), st);
+      used = rows.append_point(basis, point_query<D>(x, a, p), room, st);
     } catch (const BasisError& e) {
       rows.finish();
       throw point_error<D>(x, p, e);
     }
-    table.offset[static_cast<std::size_t>(p) + 1] = static_cast<int>(rows.append(st));
+    table.offset[static_cast<std::size_t>(p) + 1] = static_cast<int>(used);
   }
   rows.finish();
 }
@@ -315,9 +330,13 @@ void fill_chunk(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, const Poi
   c.error = nullptr;
   c.count.reserve(static_cast<std::size_t>(end - begin));
   RowWriter<D> rows(c.node, c.N, c.dN); // the chunk's arrays keep their size from the last fill
+  const int room = basis.max_stencil();
+  std::size_t used = 0;
   for (int p = begin; p < end; ++p) {
     try {
-      basis.evaluate(point_query<D>(x, a, p), c.stencil);
+      const std::size_t now = rows.append_point(basis, point_query<D>(x, a, p), room, c.stencil);
+      c.count.push_back(static_cast<int>(now - used));
+      used = now;
     } catch (const BasisError& e) {
       c.error = std::make_exception_ptr(point_error<D>(x, p, e));
       break;
@@ -325,8 +344,6 @@ void fill_chunk(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, const Poi
       c.error = std::current_exception();
       break;
     }
-    c.count.push_back(c.stencil.size());
-    rows.append(c.stencil);
   }
   rows.finish();
 }

@@ -176,6 +176,16 @@ public:
     (void)q, (void)node, (void)N, (void)dN;
     return false;
   }
+  /// Fast path of a table fill for families of varying stencils: writes the
+  /// stencil of q.x straight to node/N/dN (room for `room` entries, at least
+  /// max_stencil()) and returns its size - the same entries, the same bits
+  /// and the same per-point state as evaluate() - or returns -1 with
+  /// nothing written and no state changed when the point must go through
+  /// evaluate(). Throws as evaluate() does. The default: -1.
+  virtual int evaluate_into(const PointQuery<D>& q, int room, int* node, double* N, Vec<D>* dN) const {
+    (void)q, (void)room, (void)node, (void)N, (void)dN;
+    return -1;
+  }
   /// Batched fast path of a table fill for fixed-stencil families that keep
   /// no per-point state but the cell hint: evaluates the points x[0],
   /// x[1], ... in order, writing the S = fixed_stencil() entries of point i

@@ -944,7 +944,9 @@ template <int D, class Prior> void MaxEntBasis<D, Prior>::evaluate(const PointQu
   pm.radius = settings_.support_radius;
   if (metric_ == Metric::deformation && q.deformation) pm = point_metric(q, *q.deformation);
   const Vec<D> warm = warm_start(q);
-  if (evaluate_on_lattice(q, pm, warm, out)) return;
+  RowTarget<D> target;
+  target.stencil = &out;
+  if (evaluate_on_lattice(q, pm, warm, target)) return;
   Vec<D> lo, hi;
   const int stride = gather_metric_support(q, pm, out, lo, hi);
   const int n = out.size();
@@ -972,14 +974,29 @@ template <int D, class Prior> void MaxEntBasis<D, Prior>::evaluate(const PointQu
 }
 
 template <int D, class Prior>
+int MaxEntBasis<D, Prior>::evaluate_into(const PointQuery<D>& q, int room, int* node, double* N, Vec<D>* dN) const {
+  // the checks of evaluate() that come before its lattice path; a point that
+  // fails them goes through evaluate(), which reports it
+  if (!q.x.allFinite() || metric_ == Metric::deformation) return -1;
+  PointMetric<D> pm;
+  pm.radius = settings_.support_radius;
+  RowTarget<D> target;
+  target.node = node;
+  target.N = N;
+  target.dN = dN;
+  target.room = room;
+  return evaluate_on_lattice(q, pm, warm_start(q), target) ? target.size : -1;
+}
+
+template <int D, class Prior>
 bool MaxEntBasis<D, Prior>::evaluate_on_lattice(const PointQuery<D>& q, const PointMetric<D>& pm, const Vec<D>& warm,
-                                                Stencil<D>& out) const {
+                                                RowTarget<D>& out) const {
   if constexpr (Prior::kGaussian) {
     // on the lattice every beta_I of Metric::node_spacing is the prior's beta
     if (lattice_.empty() || !nodes_.on_lattice() || !pm.isotropic) return false;
     LatticeSolve<D> res;
     if (!lattice_solve<D>(lattice_, prior_, settings_, q.x, warm, out, res)) return false;
-    store_point_state(q, res.lambda, res.iterations, prior_hessian(pm, out), res.J_inv);
+    store_point_state(q, res.lambda, res.iterations, prior_hessian(pm, out.node[0]), res.J_inv);
     return true;
   } else {
     (void)q, (void)pm, (void)warm, (void)out;
@@ -1020,14 +1037,14 @@ template <int D, class Prior> Vec<D> MaxEntBasis<D, Prior>::warm_start(const Poi
 }
 
 template <int D, class Prior>
-Mat<D> MaxEntBasis<D, Prior>::prior_hessian(const PointMetric<D>& pm, const Stencil<D>& out) const {
+Mat<D> MaxEntBasis<D, Prior>::prior_hessian(const PointMetric<D>& pm, int first) const {
   if constexpr (Prior::kGaussian) {
     if (!pm.isotropic) return 2.0 * pm.B;
     const double beta =
-        metric_ == Metric::node_spacing ? node_beta_[static_cast<std::size_t>(out.node[0])] : prior_.beta;
+        metric_ == Metric::node_spacing ? node_beta_[static_cast<std::size_t>(first)] : prior_.beta;
     return Mat<D>::Identity() * (2.0 * beta);
   } else {
-    (void)pm, (void)out;
+    (void)pm, (void)first;
     return Mat<D>::Zero();
   }
 }

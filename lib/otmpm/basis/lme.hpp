@@ -326,6 +326,8 @@ template <int D> struct PointMetric {
   double radius = 0.0;
 };
 
+template <int D> struct RowTarget; // lme_lattice.hpp: where the factorised path writes a stencil
+
 /// The nodes of an untouched Cartesian lattice axis by axis: node
 /// (i_0, ..., i_{D-1}) has id sum_k i_k stride[k] and the position
 /// (coord[0][i_0], ..., coord[D-1][i_{D-1}]), read from the stored positions
@@ -370,6 +372,9 @@ public:
   NodeSet<D>& nodes() override { return nodes_; }
   void nodes_moved(const AlignedVector<Vec<D>>& dx) override;
   void evaluate(const PointQuery<D>& q, Stencil<D>& out) const override;
+  /// The factorised path straight into a table row (see evaluate_on_lattice;
+  /// -1 for the points evaluate() takes otherwise).
+  int evaluate_into(const PointQuery<D>& q, int room, int* node, double* N, Vec<D>* dN) const override;
   bool linearly_complete() const override { return true; }
   int max_stencil() const override;
   double search_radius() const override { return settings_.support_radius; }
@@ -445,13 +450,16 @@ private:
   /// 2 B, the Hessian of -log w_I of the Gaussian prior on the support of
   /// `out` (B = beta I, pm.B under Metric::deformation, beta_I I under
   /// Metric::node_spacing); call only where the closed form holds.
-  Mat<D> prior_hessian(const PointMetric<D>& pm, const Stencil<D>& out) const;
+  Mat<D> prior_hessian(const PointMetric<D>& pm, const Stencil<D>& out) const { return prior_hessian(pm, out.node[0]); }
+  /// prior_hessian for a support whose first node is `first` (the beta_I
+  /// of Metric::node_spacing).
+  Mat<D> prior_hessian(const PointMetric<D>& pm, int first) const;
   /// The factorised path (lattice_solve) for q from the warm start `warm`,
   /// when the nodes sit on their lattice, the prior is the isotropic
   /// Gaussian at q and lattice_solve takes the point; false otherwise
   /// (nothing of q's state written).
   bool evaluate_on_lattice(const PointQuery<D>& q, const PointMetric<D>& pm, const Vec<D>& warm,
-                           Stencil<D>& out) const;
+                           RowTarget<D>& out) const;
   /// Writes back q's multiplier, Newton count and slope after a converged
   /// solve (lambda; JA = J^{-1} (I + A), two_B: the prior's Hessian 2 B).
   void store_point_state(const PointQuery<D>& q, const Vec<D>& lambda, int iterations, const Mat<D>& two_B,

@@ -324,11 +324,18 @@ template <int D> bool dual_sums(const Box<D>& box, double& Z, Vec<D>& r, Mat<D>&
 /// of lattice_solve (no test per node).
 template <int D>
 void write_stencil(const LatticeAxes<D>& axes, const Box<D>& box, double Z, const Vec<D>& r, const Mat<D>& J_inv,
-                   Stencil<D>& out) {
-  const auto n = static_cast<std::size_t>(box.n);
-  if (out.node.size() != n) out.node.resize(n);
-  if (out.N.size() != n) out.N.resize(n);
-  if (out.dN.size() != n) out.dN.resize(n);
+                   RowTarget<D>& out) {
+  if (out.stencil) {
+    Stencil<D>& st = *out.stencil;
+    const auto n = static_cast<std::size_t>(box.n);
+    if (st.node.size() != n) st.node.resize(n);
+    if (st.N.size() != n) st.N.resize(n);
+    if (st.dN.size() != n) st.dN.resize(n);
+    out.node = st.node.data();
+    out.N = st.N.data();
+    out.dN = st.dN.data();
+  }
+  out.size = box.n;
   const AxisBox& a0 = box.axis[0];
   const double inv_Z = 1.0 / Z;
   double N0[kLatticeMaxSpan];
@@ -337,9 +344,9 @@ void write_stencil(const LatticeAxes<D>& axes, const Box<D>& box, double Z, cons
     N0[i] = a0.e[i] * inv_Z;
     g0[i] = J_inv.col(0) * (a0.dx[i] - r[0]);
   }
-  int* __restrict node = out.node.data();
-  double* __restrict N = out.N.data();
-  Vec<D>* __restrict dN = out.dN.data();
+  int* __restrict node = out.node;
+  double* __restrict N = out.N;
+  Vec<D>* __restrict dN = out.dN;
   for (int q = 0; q < box.rows; ++q) {
     const Row<D>& row = box.row[q];
     double t[D];
@@ -370,14 +377,14 @@ void write_stencil(const LatticeAxes<D>& axes, const Box<D>& box, double Z, cons
 
 template <int D>
 bool lattice_solve(const LatticeAxes<D>& axes, const GaussianPrior<D>& prior, const NewtonSettings& set,
-                   const Vec<D>& x, const Vec<D>& lambda0, Stencil<D>& out, LatticeSolve<D>& res) {
+                   const Vec<D>& x, const Vec<D>& lambda0, RowTarget<D>& out, LatticeSolve<D>& res) {
   const double R = set.support_radius;
   if (!(prior.max_exponent <= kLatticeMaxExponent2)) return false;
   Box<D> box; // filled below (no value-initialisation of the arrays)
   for (int k = 0; k < D; ++k)
     if (!axis_box<D>(axes, k, x[k], R, box.axis[k])) return false;
   gather_rows<D>(box, R * R);
-  if (box.n < D + 1) return false;
+  if (box.n < D + 1 || (!out.stencil && box.n > out.room)) return false;
   Vec<D> lambda = lambda0;
   ScaledInverse<D> inv;
   for (int it = 0;; ++it) {
@@ -411,10 +418,10 @@ template struct LatticeAxes<1>;
 template struct LatticeAxes<2>;
 template struct LatticeAxes<3>;
 template bool lattice_solve<1>(const LatticeAxes<1>&, const GaussianPrior<1>&, const NewtonSettings&, const Vec<1>&,
-                               const Vec<1>&, Stencil<1>&, LatticeSolve<1>&);
+                               const Vec<1>&, RowTarget<1>&, LatticeSolve<1>&);
 template bool lattice_solve<2>(const LatticeAxes<2>&, const GaussianPrior<2>&, const NewtonSettings&, const Vec<2>&,
-                               const Vec<2>&, Stencil<2>&, LatticeSolve<2>&);
+                               const Vec<2>&, RowTarget<2>&, LatticeSolve<2>&);
 template bool lattice_solve<3>(const LatticeAxes<3>&, const GaussianPrior<3>&, const NewtonSettings&, const Vec<3>&,
-                               const Vec<3>&, Stencil<3>&, LatticeSolve<3>&);
+                               const Vec<3>&, RowTarget<3>&, LatticeSolve<3>&);
 
 } // namespace otmpm::maxent

@@ -55,22 +55,45 @@ template <int D> struct LatticeSolve {
   int iterations = 0;            ///< Newton steps taken
 };
 
+/// Where lattice_solve writes the stencil: into `stencil` (sized to the
+/// support) when set, else straight to node/N/dN, which have room for
+/// `room` entries (a table row; a support larger than that is left to the
+/// caller). `size`: the entries written.
+template <int D> struct RowTarget {
+  Stencil<D>* stencil = nullptr;
+  int* node = nullptr;
+  double* N = nullptr;
+  Vec<D>* dN = nullptr;
+  int room = 0;
+  int size = 0;
+};
+
 /// LME with the isotropic Gaussian prior `prior` (support radius R =
 /// set.support_radius) at x on the lattice `axes`, warm-started at lambda0:
 /// gathers the support (node I kept when |x - x_I| <= R, the general
 /// path's test up to the rounding of a node at the cut-off), takes full
 /// Newton steps s = -J^{-1} r while |s| R <= kSafeExponentChange (no exponent
 /// changes by more, so the Armijo condition holds without a line search)
-/// until |r| <= set.residual_tolerance, and fills out.node (ascending id),
-/// out.N and out.dN (grad N_I = -N_I J^{-1} (xbar - x_I)). Returns false,
-/// with `out` and `res` unspecified, when the point needs the general
-/// solver: x outside the lattice's box, a support wider than
-/// kLatticeMaxSpan nodes on an axis or of fewer than D + 1 nodes, lambda
+/// until |r| <= set.residual_tolerance, and writes the stencil to `out`
+/// (node ids ascending; grad N_I = -N_I J^{-1} (xbar - x_I)). Returns false,
+/// with `res` unspecified and nothing written to out's arrays but a
+/// Stencil's, when the point needs the general solver: x outside the
+/// lattice's box, a support wider than kLatticeMaxSpan nodes on an axis,
+/// of fewer than D + 1 nodes or of more than out.room (no stencil), lambda
 /// or tol beyond the bounds of kLatticeMaxExponent, a step that would need
 /// the line search, a singular J (as kSingularHessian) or
 /// set.max_iterations reached.
 template <int D>
 bool lattice_solve(const LatticeAxes<D>& axes, const GaussianPrior<D>& prior, const NewtonSettings& set,
-                   const Vec<D>& x, const Vec<D>& lambda0, Stencil<D>& out, LatticeSolve<D>& res);
+                   const Vec<D>& x, const Vec<D>& lambda0, RowTarget<D>& out, LatticeSolve<D>& res);
+
+/// lattice_solve into a Stencil (its node, N and dN sized to the support).
+template <int D>
+bool lattice_solve(const LatticeAxes<D>& axes, const GaussianPrior<D>& prior, const NewtonSettings& set,
+                   const Vec<D>& x, const Vec<D>& lambda0, Stencil<D>& out, LatticeSolve<D>& res) {
+  RowTarget<D> target;
+  target.stencil = &out;
+  return lattice_solve<D>(axes, prior, set, x, lambda0, target, res);
+}
 
 } // namespace otmpm::maxent
