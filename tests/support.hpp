@@ -23,6 +23,18 @@
 
 namespace otmpm::test {
 
+/// A query at x that carries the point's multiplier, slope and Newton count
+/// (the per-point state a step keeps for the max-ent families).
+template <int D>
+PointQuery<D> stateful_query(const Vec<D>& x, Vec<D>* lambda, MultiplierSlope<D>* slope, int* iterations) {
+  PointQuery<D> q;
+  q.x = x;
+  q.lambda = lambda;
+  q.slope = slope;
+  q.iterations = iterations;
+  return q;
+}
+
 /// Runs the OpenMP regions with `threads` threads while it lives and restores
 /// the count it found (without OpenMP: one thread, nothing to set).
 class ScopedThreads {

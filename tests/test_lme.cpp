@@ -654,6 +654,29 @@ TEST_CASE("lme: ScaledInverse gives J^{-1} and lambda_min of the scaled J, witho
   }
 }
 
+TEST_CASE("lme: ScaledInverse in 3D takes the cofactor form for J_kk in [1e-90, 1e90], the scaled one beyond") {
+  std::mt19937_64 rng(17);
+  for (const double size : {1e-90, 1e-20, 1.0, 1e20, 1e90}) {
+    for (int t = 0; t < 200; ++t) {
+      // unit diagonal times size: every J_kk is exactly `size`
+      Mat<3> M = random_spd<3>(rng, 100.0, 1.0, 0.0);
+      for (int k = 0; k < 3; ++k) M(k, k) = 1.0;
+      const Mat<3> J = size * M;
+      maxent::ScaledInverse<3> closed, scaled;
+      REQUIRE(closed.compute_3d(J));
+      scaled.compute_scaled(J);
+      CHECK(closed.lambda_min > 0.0);
+      CHECK(std::abs(closed.lambda_min - scaled.lambda_min) <= 1e-12 * scaled.lambda_min);
+      CHECK((closed.J_inv - scaled.J_inv).norm() <= 1e-12 * scaled.J_inv.norm());
+    }
+  }
+  maxent::ScaledInverse<3> inv;
+  for (const double size : {0.5e-90, 2e90, 1e-300}) CHECK_FALSE(inv.compute_3d(size * Mat<3>::Identity()));
+  inv.compute(1e-300 * Mat<3>::Identity()); // the scaled form takes it
+  CHECK(inv.lambda_min == doctest::Approx(1.0 / 3.0));
+  CHECK(inv.J_inv(1, 1) == doctest::Approx(1e300));
+}
+
 TEST_CASE("lme: ScaledInverse reports J that is not positive definite as lambda_min = 0") {
   for (const double s : {1.0, 1e-100, 1e100}) {
     Mat<3> J;
@@ -681,6 +704,18 @@ TEST_CASE("lme: ScaledInverse reports J that is not positive definite as lambda_
   CHECK(inv.lambda_min == 0.0);
   J << 1, 0, 0, 0, 1, 0, 0, 0, std::nan("");
   inv.compute(J);
+  CHECK(inv.lambda_min == 0.0);
+  // positive diagonal: what the cofactor form itself must refuse
+  J << 1, 2, 2, 2, 1, 2, 2, 2, 1; // det J = 5 > 0, C22 = -3
+  CHECK(inv.compute_3d(J));
+  CHECK(inv.lambda_min == 0.0);
+  J << 1, 0, std::nan(""), 0, 1, 0, std::nan(""), 0, 1; // a NaN off the diagonal
+  CHECK(inv.compute_3d(J));
+  CHECK(inv.lambda_min == 0.0);
+  // det J comes out +inf with C22 > 0; the trace (-inf) refuses it
+  J << 1.96562e-36, -6.52943e-51, -4.51728e167, -6.52943e-51, 5.99342e-64, 1.08381e151, -4.51728e167, 1.08381e151,
+      6.41067e-65;
+  CHECK(inv.compute_3d(J)); // every J_kk within [1e-90, 1e90]
   CHECK(inv.lambda_min == 0.0);
   Mat<2> J2;
   J2 << 1, 3, 3, 1;

@@ -348,3 +348,68 @@ TEST_CASE("lme lattice path: table rows written in place equal evaluate() bit fo
   table_path_agrees<2>(12);
   table_path_agrees<3>(6);
 }
+
+TEST_CASE("lme lattice path: evaluate_into writes in place only what fits, else into the stencil, with evaluate()'s state") {
+  const auto basis = make_lme_basis<2>(NodeSet<2>::cartesian(unit_grid<2>(10)), lme_options());
+  const AlignedVector<Vec<2>> pts = unit_box_points<2>(basis->nodes(), 40, 9u);
+  int in_place = 0;
+  for (const Vec<2>& x : pts) {
+    // evaluate() twice from a slope, as a step would: the reference
+    Vec<2> lambda_ref = Vec<2>::Zero();
+    MultiplierSlope<2> slope_ref;
+    int it_ref = -1;
+    PointQuery<2> q = stateful_query<2>(x, &lambda_ref, &slope_ref, &it_ref);
+    Stencil<2> ref;
+    basis->evaluate(q, ref);
+    const Vec<2> lambda0 = lambda_ref;
+    const MultiplierSlope<2> slope0 = slope_ref;
+    q.x = (x + Vec<2>(1e-3, -2e-3) * basis->nodes().spacing()).cwiseMax(0.0).cwiseMin(1.0);
+    basis->evaluate(q, ref);
+    const int n = ref.size();
+    bool placed[3] = {false, false, false};
+    for (int r = 0; r < 3; ++r) {
+      const int room = n - 1 + (r == 0 ? 0 : r == 1 ? 1 : 4);
+      Vec<2> lambda = lambda0;
+      MultiplierSlope<2> slope = slope0;
+      int it = -1;
+      const PointQuery<2> qi = stateful_query<2>(q.x, &lambda, &slope, &it);
+      std::vector<int> node(static_cast<std::size_t>(n + 3), -7);
+      std::vector<double> N(node.size(), -7.0);
+      AlignedVector<Vec<2>> dN(node.size(), Vec<2>::Constant(-7.0));
+      Stencil<2> st;
+      const int m = basis->evaluate_into(qi, room, node.data(), N.data(), dN.data(), st);
+      INFO("x = " << qi.x.transpose() << ", support " << n << ", room " << room);
+      // the same per-point state as evaluate() whichever way the row went
+      CHECK(lambda == lambda_ref);
+      CHECK(slope.x0 == slope_ref.x0);
+      CHECK(slope.G == slope_ref.G);
+      CHECK(slope.G_prev == slope_ref.G_prev);
+      CHECK(slope.e == slope_ref.e);
+      CHECK(it == it_ref);
+      if (m < 0) { // in the stencil, nothing written to the row
+        CHECK(st.node == ref.node);
+        CHECK(st.N == ref.N);
+        CHECK(st.dN == ref.dN);
+        CHECK(std::all_of(node.begin(), node.end(), [](int v) { return v == -7; }));
+        CHECK(std::all_of(N.begin(), N.end(), [](double v) { return v == -7.0; }));
+        continue;
+      }
+      placed[r] = true;
+      CHECK(room >= n); // a row written in place fits
+      REQUIRE(m == n);
+      for (int e = 0; e < n; ++e) {
+        CHECK(node[static_cast<std::size_t>(e)] == ref.node[static_cast<std::size_t>(e)]);
+        CHECK(N[static_cast<std::size_t>(e)] == ref.N[static_cast<std::size_t>(e)]);
+        CHECK(dN[static_cast<std::size_t>(e)] == ref.dN[static_cast<std::size_t>(e)]);
+      }
+      for (std::size_t e = static_cast<std::size_t>(n); e < node.size(); ++e) CHECK(node[e] == -7); // nothing beyond
+    }
+    // a point the factorised path takes goes in place whenever its row fits
+    CHECK_FALSE(placed[0]);
+    CHECK(placed[1] == placed[2]);
+    in_place += placed[2] ? 1 : 0;
+  }
+  // the others (next to a face) go through the general solver, into the stencil
+  MESSAGE(in_place << " of " << pts.size() << " points written in place");
+  CHECK(3 * in_place >= static_cast<int>(pts.size()));
+}

@@ -145,12 +145,7 @@ TEST_CASE("lme slope: the predicted start is second-order accurate and saves New
       Vec<2> lambda = lambda0;
       MultiplierSlope<2> slope{x, G};
       int it = -1;
-      PointQuery<2> q;
-      q.x = x1;
-      q.lambda = &lambda;
-      q.slope = with_slope ? &slope : nullptr;
-      q.iterations = &it;
-      b->evaluate(q, with_slope ? predicted : plain);
+      b->evaluate(stateful_query<2>(x1, &lambda, with_slope ? &slope : nullptr, &it), with_slope ? predicted : plain);
       (with_slope ? predicted_total : plain_total) += it;
     }
     REQUIRE(predicted.node == cold.node);
@@ -206,12 +201,7 @@ Stencil<2> walk(const Basis<2>& b, const std::vector<Vec<2>>& path, Vec<2>& lamb
   Stencil<2> st;
   for (const Vec<2>& x : path) {
     int it = -1;
-    PointQuery<2> q;
-    q.x = x;
-    q.lambda = &lambda;
-    q.slope = &slope;
-    q.iterations = &it;
-    b.evaluate(q, st);
+    b.evaluate(stateful_query<2>(x, &lambda, &slope, &it), st);
     if (iterations) iterations->push_back(it);
   }
   return st;
@@ -219,11 +209,7 @@ Stencil<2> walk(const Basis<2>& b, const std::vector<Vec<2>>& path, Vec<2>& lamb
 
 /// The start warm_start predicts at x from (lambda, slope).
 Vec<2> predicted_start(const Basis<2>& b, const Vec<2>& x, Vec<2> lambda, MultiplierSlope<2> slope) {
-  PointQuery<2> q;
-  q.x = x;
-  q.lambda = &lambda;
-  q.slope = &slope;
-  return dynamic_cast<const Lme2&>(b).warm_start(q);
+  return dynamic_cast<const Lme2&>(b).warm_start(stateful_query<2>(x, &lambda, &slope, nullptr));
 }
 
 } // namespace

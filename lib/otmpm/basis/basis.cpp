@@ -267,16 +267,14 @@ public:
     return used_ += m;
   }
   /// Appends the stencil of q: written in place by basis.evaluate_into()
-  /// while `room` (max_stencil()) entries are left before the arrays' end -
-  /// no copy - else by evaluate() into `st` and copied (the last rows of a
-  /// fill, whose arrays are only grown, never value-initialised ahead).
-  /// Returns the entries written so far.
-  std::size_t append_point(const Basis<D>& basis, const PointQuery<D>& q, int room, Stencil<D>& st) {
-    if (used_ + static_cast<std::size_t>(room) <= node_.size()) {
-      const int m = basis.evaluate_into(q, room, node_.data() + used_, N_.data() + used_, dN_.data() + used_);
-      if (m >= 0) return used_ += static_cast<std::size_t>(m);
-    }
-    basis.evaluate(q, st);
+  /// into the room left before the arrays' end (nothing is grown or
+  /// value-initialised for it), or evaluated into `st` and copied. Returns
+  /// the entries written so far.
+  std::size_t append_point(const Basis<D>& basis, const PointQuery<D>& q, Stencil<D>& st) {
+    const std::size_t left = node_.size() - used_;
+    const int room = static_cast<int>(std::min<std::size_t>(left, std::numeric_limits<int>::max()));
+    const int m = basis.evaluate_into(q, room, node_.data() + used_, N_.data() + used_, dN_.data() + used_, st);
+    if (m >= 0) return used_ += static_cast<std::size_t>(m);
     return append(st);
   }
   /// Cuts the arrays to the entries written.
@@ -308,11 +306,10 @@ void fill_serial(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, const Po
   table.offset.resize(static_cast<std::size_t>(n) + 1);
   table.offset[0] = 0;
   RowWriter<D> rows(table.node, table.N, table.dN);
-  const int room = basis.max_stencil();
   for (int p = 0; p < n; ++p) {
     std::size_t used = 0;
     try {
-      used = rows.append_point(basis, point_query<D>(x, a, p), room, st);
+      used = rows.append_point(basis, point_query<D>(x, a, p), st);
     } catch (const BasisError& e) {
       rows.finish();
       throw point_error<D>(x, p, e);
@@ -330,11 +327,10 @@ void fill_chunk(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, const Poi
   c.error = nullptr;
   c.count.reserve(static_cast<std::size_t>(end - begin));
   RowWriter<D> rows(c.node, c.N, c.dN); // the chunk's arrays keep their size from the last fill
-  const int room = basis.max_stencil();
   std::size_t used = 0;
   for (int p = begin; p < end; ++p) {
     try {
-      const std::size_t now = rows.append_point(basis, point_query<D>(x, a, p), room, c.stencil);
+      const std::size_t now = rows.append_point(basis, point_query<D>(x, a, p), c.stencil);
       c.count.push_back(static_cast<int>(now - used));
       used = now;
     } catch (const BasisError& e) {

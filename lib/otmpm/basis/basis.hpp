@@ -176,14 +176,16 @@ public:
     (void)q, (void)node, (void)N, (void)dN;
     return false;
   }
-  /// Fast path of a table fill for families of varying stencils: writes the
-  /// stencil of q.x straight to node/N/dN (room for `room` entries, at least
-  /// max_stencil()) and returns its size - the same entries, the same bits
-  /// and the same per-point state as evaluate() - or returns -1 with
-  /// nothing written and no state changed when the point must go through
-  /// evaluate(). Throws as evaluate() does. The default: -1.
-  virtual int evaluate_into(const PointQuery<D>& q, int room, int* node, double* N, Vec<D>* dN) const {
-    (void)q, (void)room, (void)node, (void)N, (void)dN;
+  /// A table fill's form of evaluate() for families of varying stencils:
+  /// writes the stencil of q.x straight to node/N/dN and returns its size
+  /// when the family can and it fits in `room` entries, else evaluates it
+  /// into `st` as evaluate() does and returns -1 (the caller copies it).
+  /// Either way the same entries, bits and per-point state as evaluate(),
+  /// and the same errors. The default: evaluate(q, st), -1.
+  virtual int evaluate_into(const PointQuery<D>& q, int room, int* node, double* N, Vec<D>* dN,
+                            Stencil<D>& st) const {
+    (void)room, (void)node, (void)N, (void)dN;
+    evaluate(q, st);
     return -1;
   }
   /// Batched fast path of a table fill for fixed-stencil families that keep

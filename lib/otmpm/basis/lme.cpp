@@ -937,6 +937,25 @@ template <int D, class Prior> Support<D> MaxEntBasis<D, Prior>::support(Stencil<
 }
 
 template <int D, class Prior> void MaxEntBasis<D, Prior>::evaluate(const PointQuery<D>& q, Stencil<D>& out) const {
+  RowTarget<D> target;
+  target.stencil = &out;
+  evaluate_to(q, target, out);
+}
+
+template <int D, class Prior>
+int MaxEntBasis<D, Prior>::evaluate_into(const PointQuery<D>& q, int room, int* node, double* N, Vec<D>* dN,
+                                         Stencil<D>& st) const {
+  RowTarget<D> target;
+  target.stencil = &st;
+  target.node = node;
+  target.N = N;
+  target.dN = dN;
+  target.room = room;
+  return evaluate_to(q, target, st) && target.in_place ? target.size : -1;
+}
+
+template <int D, class Prior>
+bool MaxEntBasis<D, Prior>::evaluate_to(const PointQuery<D>& q, RowTarget<D>& target, Stencil<D>& out) const {
   // out is not cleared: gather_support and finish_stencil size its arrays
   // (kept at their size from the last point, no value-initialisation)
   if (!q.x.allFinite()) fail(q, "the position is not finite");
@@ -944,9 +963,7 @@ template <int D, class Prior> void MaxEntBasis<D, Prior>::evaluate(const PointQu
   pm.radius = settings_.support_radius;
   if (metric_ == Metric::deformation && q.deformation) pm = point_metric(q, *q.deformation);
   const Vec<D> warm = warm_start(q);
-  RowTarget<D> target;
-  target.stencil = &out;
-  if (evaluate_on_lattice(q, pm, warm, target)) return;
+  if (evaluate_on_lattice(q, pm, warm, target)) return true;
   Vec<D> lo, hi;
   const int stride = gather_metric_support(q, pm, out, lo, hi);
   const int n = out.size();
@@ -971,21 +988,7 @@ template <int D, class Prior> void MaxEntBasis<D, Prior>::evaluate(const PointQu
   const Mat<D> two_B = closed_form && q.slope ? prior_hessian(pm, out) : Mat<D>::Zero();
   const Mat<D> JA = finish_stencil(st, s, closed_form, out);
   store_point_state(q, lambda, iterations, two_B, JA);
-}
-
-template <int D, class Prior>
-int MaxEntBasis<D, Prior>::evaluate_into(const PointQuery<D>& q, int room, int* node, double* N, Vec<D>* dN) const {
-  // the checks of evaluate() that come before its lattice path; a point that
-  // fails them goes through evaluate(), which reports it
-  if (!q.x.allFinite() || metric_ == Metric::deformation) return -1;
-  PointMetric<D> pm;
-  pm.radius = settings_.support_radius;
-  RowTarget<D> target;
-  target.node = node;
-  target.N = N;
-  target.dN = dN;
-  target.room = room;
-  return evaluate_on_lattice(q, pm, warm_start(q), target) ? target.size : -1;
+  return false;
 }
 
 template <int D, class Prior>
@@ -996,7 +999,8 @@ bool MaxEntBasis<D, Prior>::evaluate_on_lattice(const PointQuery<D>& q, const Po
     if (lattice_.empty() || !nodes_.on_lattice() || !pm.isotropic) return false;
     LatticeSolve<D> res;
     if (!lattice_solve<D>(lattice_, prior_, settings_, q.x, warm, out, res)) return false;
-    store_point_state(q, res.lambda, res.iterations, prior_hessian(pm, out.node[0]), res.J_inv);
+    const int first = out.in_place ? out.node[0] : out.stencil->node[0];
+    store_point_state(q, res.lambda, res.iterations, prior_hessian(pm, first), res.J_inv);
     return true;
   } else {
     (void)q, (void)pm, (void)warm, (void)out;

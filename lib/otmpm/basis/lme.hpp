@@ -145,9 +145,11 @@ inline constexpr double kSafeExponentChange = 0.25;
 /// matter); otherwise J is recomputed in the centred form.
 inline constexpr double kShiftedMomentLimit = 1e-3;
 
-/// J^{-1} through the symmetric diagonal scaling Js = S J S, S =
-/// diag(J_kk^{-1/2}) (unit diagonal), and the closed-form inverse of the
-/// D x D matrix Js. Js is what decides whether J^{-1} can be computed: J's
+/// J^{-1} and the smallest eigenvalue of the symmetric diagonal scaling Js
+/// = S J S, S = diag(J_kk^{-1/2}) (unit diagonal): in 2D and 3D from the
+/// adjugate of J over det J, without forming Js (compute_2d, compute_3d),
+/// else (and for J of extreme size) through the closed-form inverse of Js
+/// (compute_scaled). Js is what decides whether J^{-1} can be computed: J's
 /// entries are sums of non-negative terms (relative accuracy ~ n eps), so a J
 /// that is tiny only along an axis (a point next to a face of a box) is
 /// harmless, whereas a small eigenvalue of Js (degenerate nodes, the iterates
@@ -211,11 +213,13 @@ template <int D> struct ScaledInverse {
   /// (J00 J11 J22), the leading 2 x 2 minor of Js is C22 / (J00 J11),
   /// (Js^{-1})_kk = J_kk C_kk / det J, so 1 / tr(Js^{-1}) = det J / sum_k
   /// J_kk C_kk, and J^{-1} = C / det J (C symmetric). False (nothing set)
-  /// unless every J_kk lies in [1e-90, 1e90], where the general path is
+  /// unless every J_kk lies in [1e-90, 1e90], where the scaled form is
   /// safer: within it the products of three diagonal entries are normal with
-  /// 38 decades to spare for cancellation, and an off-diagonal entry large
-  /// enough to overflow a product makes J indefinite, which a NaN or
-  /// infinite det reports as such.
+  /// 38 decades to spare for cancellation. Positive definite (Sylvester):
+  /// J00 > 0 (the caller's test), C22 > 0 and det J > 0; det J may come out
+  /// +inf (an off-diagonal entry whose products overflow), and then the
+  /// test of the trace, finite and > 0, refuses J: a positive trace bounds
+  /// every |J_kl| by sqrt(3 J_kk J_ll), within which nothing overflows.
   bool compute_3d(const Mat<D>& J) {
     const double a00 = J(0, 0), a11 = J(1, 1), a22 = J(2, 2), a01 = J(1, 0), a02 = J(2, 0), a12 = J(2, 1);
     constexpr double lo = 1e-90, hi = 1e90;
@@ -372,9 +376,10 @@ public:
   NodeSet<D>& nodes() override { return nodes_; }
   void nodes_moved(const AlignedVector<Vec<D>>& dx) override;
   void evaluate(const PointQuery<D>& q, Stencil<D>& out) const override;
-  /// The factorised path straight into a table row (see evaluate_on_lattice;
-  /// -1 for the points evaluate() takes otherwise).
-  int evaluate_into(const PointQuery<D>& q, int room, int* node, double* N, Vec<D>* dN) const override;
+  /// evaluate() with the factorised path writing straight into the table
+  /// row when its stencil fits in `room` (see evaluate_on_lattice).
+  int evaluate_into(const PointQuery<D>& q, int room, int* node, double* N, Vec<D>* dN,
+                    Stencil<D>& st) const override;
   bool linearly_complete() const override { return true; }
   int max_stencil() const override;
   double search_radius() const override { return settings_.support_radius; }
@@ -454,6 +459,10 @@ private:
   /// prior_hessian for a support whose first node is `first` (the beta_I
   /// of Metric::node_spacing).
   Mat<D> prior_hessian(const PointMetric<D>& pm, int first) const;
+  /// evaluate() with the factorised path writing to `target` (whose
+  /// fallback stencil is `out`); the general solver fills `out`. True when
+  /// the factorised path took the point.
+  bool evaluate_to(const PointQuery<D>& q, RowTarget<D>& target, Stencil<D>& out) const;
   /// The factorised path (lattice_solve) for q from the warm start `warm`,
   /// when the nodes sit on their lattice, the prior is the isotropic
   /// Gaussian at q and lattice_solve takes the point; false otherwise

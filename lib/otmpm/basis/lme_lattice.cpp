@@ -62,7 +62,7 @@ namespace {
 /// lambda_k dx).
 struct AxisBox {
   int lo, m;
-  int mw; ///< m rounded up to a multiple of 4; sq[m .. mw) = +inf (no node)
+  int mw; ///< m rounded up to a multiple of 4; sq[m .. mw) = NaN (no node: no comparison keeps it)
   double dx[kLatticeMaxSpan];
   double sq[kLatticeMaxSpan];
   double e[kLatticeMaxSpan];
@@ -108,7 +108,7 @@ template <int D> bool axis_box(const LatticeAxes<D>& axes, int k, double xk, dou
     a.sq[i] = a.dx[i] * a.dx[i];
   }
   a.mw = (a.m + 3) & ~3;
-  for (int i = a.m; i < a.mw; ++i) a.sq[i] = std::numeric_limits<double>::infinity();
+  for (int i = a.m; i < a.mw; ++i) a.sq[i] = std::numeric_limits<double>::quiet_NaN(); // never kept
   return true;
 }
 
@@ -118,10 +118,11 @@ template <int D> bool axis_box(const LatticeAxes<D>& axes, int k, double xk, dou
 /// a box fall and then rise along the axis (the stored lattice coordinates
 /// increase, and rounding keeps x - X and its square monotone), so the kept
 /// indices are an interval, read off a bit mask of the comparisons (sq
-/// padded with +inf to mw, a multiple of 4): no square root, no branch
+/// padded with NaN to mw, a multiple of 4): no square root, no branch
 /// (the row lengths of neighbouring points differ in no pattern a
 /// predictor could learn).
 inline int row_interval(const double* sq, int mw, double rest, int& a) {
+  static_assert(kLatticeMaxSpan % 4 == 0 && kLatticeMaxSpan < 32, "the mask: whole groups of 4 in 32 bits");
   unsigned mask = 0;
   for (int i = 0; i < mw; i += 4) {
     const unsigned four = (sq[i] <= rest ? 1u : 0u) | (sq[i + 1] <= rest ? 2u : 0u) | (sq[i + 2] <= rest ? 4u : 0u) |
@@ -325,17 +326,21 @@ template <int D> bool dual_sums(const Box<D>& box, double& Z, Vec<D>& r, Mat<D>&
 template <int D>
 void write_stencil(const LatticeAxes<D>& axes, const Box<D>& box, double Z, const Vec<D>& r, const Mat<D>& J_inv,
                    RowTarget<D>& out) {
-  if (out.stencil) {
+  out.in_place = out.node && box.n <= out.room;
+  out.size = box.n;
+  int* __restrict node = out.node;
+  double* __restrict N = out.N;
+  Vec<D>* __restrict dN = out.dN;
+  if (!out.in_place) {
     Stencil<D>& st = *out.stencil;
     const auto n = static_cast<std::size_t>(box.n);
     if (st.node.size() != n) st.node.resize(n);
     if (st.N.size() != n) st.N.resize(n);
     if (st.dN.size() != n) st.dN.resize(n);
-    out.node = st.node.data();
-    out.N = st.N.data();
-    out.dN = st.dN.data();
+    node = st.node.data();
+    N = st.N.data();
+    dN = st.dN.data();
   }
-  out.size = box.n;
   const AxisBox& a0 = box.axis[0];
   const double inv_Z = 1.0 / Z;
   double N0[kLatticeMaxSpan];
@@ -344,9 +349,6 @@ void write_stencil(const LatticeAxes<D>& axes, const Box<D>& box, double Z, cons
     N0[i] = a0.e[i] * inv_Z;
     g0[i] = J_inv.col(0) * (a0.dx[i] - r[0]);
   }
-  int* __restrict node = out.node;
-  double* __restrict N = out.N;
-  Vec<D>* __restrict dN = out.dN;
   for (int q = 0; q < box.rows; ++q) {
     const Row<D>& row = box.row[q];
     double t[D];
@@ -384,7 +386,7 @@ bool lattice_solve(const LatticeAxes<D>& axes, const GaussianPrior<D>& prior, co
   for (int k = 0; k < D; ++k)
     if (!axis_box<D>(axes, k, x[k], R, box.axis[k])) return false;
   gather_rows<D>(box, R * R);
-  if (box.n < D + 1 || (!out.stencil && box.n > out.room)) return false;
+  if (box.n < D + 1) return false;
   Vec<D> lambda = lambda0;
   ScaledInverse<D> inv;
   for (int it = 0;; ++it) {

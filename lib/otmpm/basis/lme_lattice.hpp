@@ -55,10 +55,10 @@ template <int D> struct LatticeSolve {
   int iterations = 0;            ///< Newton steps taken
 };
 
-/// Where lattice_solve writes the stencil: into `stencil` (sized to the
-/// support) when set, else straight to node/N/dN, which have room for
-/// `room` entries (a table row; a support larger than that is left to the
-/// caller). `size`: the entries written.
+/// Where lattice_solve writes the stencil: straight to node/N/dN when they
+/// are set and the support fits in their `room` entries (a table row), else
+/// into `stencil` (sized to the support). On return `size` is the support's
+/// size and `in_place` says which was written.
 template <int D> struct RowTarget {
   Stencil<D>* stencil = nullptr;
   int* node = nullptr;
@@ -66,6 +66,7 @@ template <int D> struct RowTarget {
   Vec<D>* dN = nullptr;
   int room = 0;
   int size = 0;
+  bool in_place = false;
 };
 
 /// LME with the isotropic Gaussian prior `prior` (support radius R =
@@ -76,10 +77,9 @@ template <int D> struct RowTarget {
 /// changes by more, so the Armijo condition holds without a line search)
 /// until |r| <= set.residual_tolerance, and writes the stencil to `out`
 /// (node ids ascending; grad N_I = -N_I J^{-1} (xbar - x_I)). Returns false,
-/// with `res` unspecified and nothing written to out's arrays but a
-/// Stencil's, when the point needs the general solver: x outside the
-/// lattice's box, a support wider than kLatticeMaxSpan nodes on an axis,
-/// of fewer than D + 1 nodes or of more than out.room (no stencil), lambda
+/// with `res` unspecified and nothing written, when the point needs the
+/// general solver: x outside the lattice's box, a support wider than
+/// kLatticeMaxSpan nodes on an axis or of fewer than D + 1 nodes, lambda
 /// or tol beyond the bounds of kLatticeMaxExponent, a step that would need
 /// the line search, a singular J (as kSingularHessian) or
 /// set.max_iterations reached.
