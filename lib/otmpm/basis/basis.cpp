@@ -268,9 +268,13 @@ public:
   }
   /// Appends the stencil of q: written in place by basis.evaluate_into()
   /// into the room left before the arrays' end (nothing is grown or
-  /// value-initialised for it), or evaluated into `st` and copied. Returns
-  /// the entries written so far.
-  std::size_t append_point(const Basis<D>& basis, const PointQuery<D>& q, Stencil<D>& st) {
+  /// value-initialised for it) when `in_place` (Basis::writes_in_place),
+  /// or evaluated into `st` and copied. Returns the entries written so far.
+  std::size_t append_point(const Basis<D>& basis, const PointQuery<D>& q, bool in_place, Stencil<D>& st) {
+    if (!in_place) {
+      basis.evaluate(q, st);
+      return append(st);
+    }
     const std::size_t left = node_.size() - used_;
     const int room = static_cast<int>(std::min<std::size_t>(left, std::numeric_limits<int>::max()));
     const int m = basis.evaluate_into(q, room, node_.data() + used_, N_.data() + used_, dN_.data() + used_, st);
@@ -306,10 +310,11 @@ void fill_serial(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, const Po
   table.offset.resize(static_cast<std::size_t>(n) + 1);
   table.offset[0] = 0;
   RowWriter<D> rows(table.node, table.N, table.dN);
+  const bool in_place = basis.writes_in_place();
   for (int p = 0; p < n; ++p) {
     std::size_t used = 0;
     try {
-      used = rows.append_point(basis, point_query<D>(x, a, p), st);
+      used = rows.append_point(basis, point_query<D>(x, a, p), in_place, st);
     } catch (const BasisError& e) {
       rows.finish();
       throw point_error<D>(x, p, e);
@@ -327,10 +332,11 @@ void fill_chunk(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, const Poi
   c.error = nullptr;
   c.count.reserve(static_cast<std::size_t>(end - begin));
   RowWriter<D> rows(c.node, c.N, c.dN); // the chunk's arrays keep their size from the last fill
+  const bool in_place = basis.writes_in_place();
   std::size_t used = 0;
   for (int p = begin; p < end; ++p) {
     try {
-      const std::size_t now = rows.append_point(basis, point_query<D>(x, a, p), c.stencil);
+      const std::size_t now = rows.append_point(basis, point_query<D>(x, a, p), in_place, c.stencil);
       c.count.push_back(static_cast<int>(now - used));
       used = now;
     } catch (const BasisError& e) {

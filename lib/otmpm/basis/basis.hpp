@@ -176,6 +176,9 @@ public:
     (void)q, (void)node, (void)N, (void)dN;
     return false;
   }
+  /// True when evaluate_into() may write rows in place now (a table fill
+  /// then calls it; otherwise evaluate() and a copy). The default: false.
+  virtual bool writes_in_place() const { return false; }
   /// A table fill's form of evaluate() for families of varying stencils:
   /// writes the stencil of q.x straight to node/N/dN and returns its size
   /// when the family can and it fits in `room` entries, else evaluates it

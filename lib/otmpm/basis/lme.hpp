@@ -376,6 +376,9 @@ public:
   NodeSet<D>& nodes() override { return nodes_; }
   void nodes_moved(const AlignedVector<Vec<D>>& dx) override;
   void evaluate(const PointQuery<D>& q, Stencil<D>& out) const override;
+  /// While the nodes sit on their lattice and the prior is the Gaussian:
+  /// the factorised path can write rows in place.
+  bool writes_in_place() const override { return Prior::kGaussian && !lattice_.empty() && nodes_.on_lattice(); }
   /// evaluate() with the factorised path writing straight into the table
   /// row when its stencil fits in `room` (see evaluate_on_lattice).
   int evaluate_into(const PointQuery<D>& q, int room, int* node, double* N, Vec<D>* dN,
