@@ -276,6 +276,13 @@ template <int D> struct Fills {
   AlignedVector<MultiplierSlope<D>> slope;
 };
 
+/// The points' move before each fill: 1e-3 h along a pattern that differs
+/// from point to point, kept within the unit box.
+template <int D> void move_points(AlignedVector<Vec<D>>& x, double h) {
+  for (std::size_t p = 0; p < x.size(); ++p)
+    for (int k = 0; k < D; ++k) x[p][k] = std::clamp(x[p][k] + 1e-3 * h * ((p + k) % 3 - 1.0), 0.0, 1.0);
+}
+
 template <int D> Fills<D> three_fills(const Basis<D>& basis, AlignedVector<Vec<D>> x, int threads) {
   const ScopedThreads scope(threads);
   Fills<D> f;
@@ -286,8 +293,7 @@ template <int D> Fills<D> three_fills(const Basis<D>& basis, AlignedVector<Vec<D
   a.slope = &f.slope;
   const double h = basis.nodes().spacing();
   for (int fill = 0; fill < 3; ++fill) {
-    for (std::size_t p = 0; p < x.size(); ++p)
-      for (int k = 0; k < D; ++k) x[p][k] = std::clamp(x[p][k] + 1e-3 * h * ((p + k) % 3 - 1.0), 0.0, 1.0);
+    move_points<D>(x, h);
     fill_basis_table<D>(basis, x, a, f.table);
   }
   return f;
@@ -302,8 +308,8 @@ template <int D> Fills<D> three_evaluations(const Basis<D>& basis, AlignedVector
   for (int fill = 0; fill < 3; ++fill) {
     f.table = BasisTable<D>{};
     f.table.offset.assign(1, 0);
+    move_points<D>(x, h);
     for (std::size_t p = 0; p < x.size(); ++p) {
-      for (int k = 0; k < D; ++k) x[p][k] = std::clamp(x[p][k] + 1e-3 * h * ((p + k) % 3 - 1.0), 0.0, 1.0);
       PointQuery<D> q;
       q.x = x[p];
       q.id = static_cast<int>(p);
@@ -323,7 +329,8 @@ template <int D> Fills<D> three_evaluations(const Basis<D>& basis, AlignedVector
 template <int D> bool same_fills(const Fills<D>& a, const Fills<D>& b) {
   bool slopes = a.slope.size() == b.slope.size();
   for (std::size_t p = 0; slopes && p < a.slope.size(); ++p)
-    slopes = a.slope[p].x0 == b.slope[p].x0 && a.slope[p].G == b.slope[p].G && a.slope[p].e == b.slope[p].e;
+    slopes = a.slope[p].x0 == b.slope[p].x0 && a.slope[p].G == b.slope[p].G && a.slope[p].G_prev == b.slope[p].G_prev &&
+             a.slope[p].e == b.slope[p].e;
   return a.table.offset == b.table.offset && a.table.node == b.table.node && a.table.N == b.table.N &&
          a.table.dN == b.table.dN && a.lambda == b.lambda && slopes;
 }

@@ -939,7 +939,7 @@ template <int D, class Prior> Support<D> MaxEntBasis<D, Prior>::support(Stencil<
 template <int D, class Prior> void MaxEntBasis<D, Prior>::evaluate(const PointQuery<D>& q, Stencil<D>& out) const {
   RowTarget<D> target;
   target.stencil = &out;
-  evaluate_to(q, target, out);
+  evaluate_to(q, target);
 }
 
 template <int D, class Prior>
@@ -951,11 +951,12 @@ int MaxEntBasis<D, Prior>::evaluate_into(const PointQuery<D>& q, int room, int* 
   target.N = N;
   target.dN = dN;
   target.room = room;
-  return evaluate_to(q, target, st) && target.in_place ? target.size : -1;
+  return evaluate_to(q, target) && target.in_place ? target.size : -1;
 }
 
 template <int D, class Prior>
-bool MaxEntBasis<D, Prior>::evaluate_to(const PointQuery<D>& q, RowTarget<D>& target, Stencil<D>& out) const {
+bool MaxEntBasis<D, Prior>::evaluate_to(const PointQuery<D>& q, RowTarget<D>& target) const {
+  Stencil<D>& out = *target.stencil;
   // out is not cleared: gather_support and finish_stencil size its arrays
   // (kept at their size from the last point, no value-initialisation)
   if (!q.x.allFinite()) fail(q, "the position is not finite");

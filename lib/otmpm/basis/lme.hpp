@@ -462,10 +462,10 @@ private:
   /// prior_hessian for a support whose first node is `first` (the beta_I
   /// of Metric::node_spacing).
   Mat<D> prior_hessian(const PointMetric<D>& pm, int first) const;
-  /// evaluate() with the factorised path writing to `target` (whose
-  /// fallback stencil is `out`); the general solver fills `out`. True when
-  /// the factorised path took the point.
-  bool evaluate_to(const PointQuery<D>& q, RowTarget<D>& target, Stencil<D>& out) const;
+  /// evaluate() with the factorised path writing to `target`; the general
+  /// solver fills *target.stencil. True when the factorised path took the
+  /// point.
+  bool evaluate_to(const PointQuery<D>& q, RowTarget<D>& target) const;
   /// The factorised path (lattice_solve) for q from the warm start `warm`,
   /// when the nodes sit on their lattice, the prior is the isotropic
   /// Gaussian at q and lattice_solve takes the point; false otherwise
