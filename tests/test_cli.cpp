@@ -223,8 +223,10 @@ TEST_CASE("cli: --help and -h work on otmpm and every command, and list the real
                  "--tolerance", "--d-max", "--ppc", "--samples", "--out", "--threads"}},
       {"render", {"--field", "--frame", "--all", "--stride", "--out", "--component", "--view", "--fps", "--scripts",
                   "--python"}}};
-  for (const auto& [command, options] : commands)
+  for (const auto& entry : commands)
     for (const char* help : {"--help", "-h"}) {
+      const auto& command = entry.first; // plain references: INFO captures them (clang refuses a binding)
+      const auto& options = entry.second;
       INFO("otmpm " << command << " " << help);
       const CliResult r = command.empty() ? run_cli(dir, {help}) : run_cli(dir, {command, help});
       CHECK(r.status == 0);

@@ -420,3 +420,20 @@ TEST_CASE("lme lattice path: evaluate_into writes in place only what fits, else 
   MESSAGE(in_place << " of " << pts.size() << " points written in place");
   CHECK(3 * in_place >= static_cast<int>(pts.size()));
 }
+
+TEST_CASE("lme lattice path: rows are written in place only while the nodes are on their lattice") {
+  // Basis::writes_in_place, asked once per table fill: the Gaussian prior on
+  // an untouched lattice; false once the nodes moved, for the cubic-spline
+  // prior and for a cloud
+  const NodeSet<2> lattice = NodeSet<2>::cartesian(unit_grid<2>(10));
+  const auto basis = make_lme_basis<2>(lattice, lme_options());
+  CHECK(basis->writes_in_place());
+  AlignedVector<Vec<2>> dx(static_cast<std::size_t>(lattice.size()), Vec<2>(1e-3, 0.0));
+  basis->nodes().advect(dx);
+  basis->nodes_moved(dx);
+  CHECK_FALSE(basis->writes_in_place());
+  BasisOptions spline;
+  spline.kind = "maxent";
+  CHECK_FALSE(make_basis<2>(spline, lattice)->writes_in_place());
+  CHECK_FALSE(make_lme_basis<2>(NodeSet<2>::cloud(lattice.positions(), lattice.spacing()), lme_options())->writes_in_place());
+}

@@ -129,7 +129,8 @@ void check_same_results(const std::string& expected_file, const std::string& act
   CHECK(expected.at("@status") == "ok");
   CHECK(expected.size() == actual.size());
   for (const auto& [key, bytes] : expected) {
-    INFO(key);
+    const std::string& what = key; // INFO captures a variable, not a binding (clang 14)
+    INFO(what);
     REQUIRE(actual.count(key) == 1);
     CHECK((actual.at(key) == bytes));
   }

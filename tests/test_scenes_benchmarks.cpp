@@ -43,7 +43,8 @@ TEST_CASE("sliding block (examples/sliding_block.toml) with LME: x(t_end) within
   const double a = g * (std::sin(theta) - mu * std::cos(theta));
   for (const auto& [mode, integrator] :
        {std::pair{"mpm", "fe"}, std::pair{"mpm", "npc"}, std::pair{"ul", "fe"}, std::pair{"ul", "npc"}}) {
-    INFO(mode << " " << integrator);
+    const std::string what = std::string(mode) + " " + integrator; // not a binding (clang 14)
+    INFO(what);
     const Scene scene = load_scene(examples + "sliding_block.toml",
                                    {std::string("simulation.mode=") + mode, "basis.kind=lme", "output.every=0",
                                     std::string("simulation.integrator=") + integrator});
