@@ -21,6 +21,7 @@ template <int D> void Basis<D>::bind_points(int n, bool nodes_move) {
   const PointStateUse use = point_state_use(nodes_move);
   points_.lambda.assign(use.lambda ? static_cast<std::size_t>(n) : 0, Vec<D>::Zero());
   points_.slope.assign(use.slope ? static_cast<std::size_t>(n) : 0, MultiplierSlope<D>{});
+  points_.history.assign(use.history ? static_cast<std::size_t>(n) : 0, MultiplierHistory<D>{});
   points_.cell_hint.assign(use.cell_hint ? static_cast<std::size_t>(n) : 0, Index<D>{});
   points_.neighbours = NeighbourLists<D>();
   use_ = use;
@@ -36,6 +37,7 @@ void Basis<D>::evaluate_points(const AlignedVector<Vec<D>>& x, BasisTable<D>& ta
   PointArrays<D> a;
   a.lambda = &points_.lambda;
   a.slope = &points_.slope;
+  a.history = &points_.history;
   a.cell_hint = &points_.cell_hint;
   a.neighbours = &points_.neighbours;
   a.deformation = use_.deformation ? deformation : nullptr;
@@ -86,6 +88,34 @@ template <int D, class In> void get_slopes(const In& in, AlignedVector<Multiplie
 /// x0 and G ("lambda_slope"); e and G_prev ("lambda_curvature").
 template <int D> constexpr SlopeColumns<D> kSlope{&MultiplierSlope<D>::x0, &MultiplierSlope<D>::G};
 template <int D> constexpr SlopeColumns<D> kCurvature{&MultiplierSlope<D>::e, &MultiplierSlope<D>::G_prev};
+
+/// Stores the histories as rows of 2 D + 1 values: previous, before, solves.
+template <int D, class Out> void put_histories(Out& out, const AlignedVector<MultiplierHistory<D>>& a) {
+  out.cols = 2 * D + 1;
+  out.values.clear();
+  for (const MultiplierHistory<D>& h : a) {
+    for (int k = 0; k < D; ++k) out.values.push_back(h.previous[k]);
+    for (int k = 0; k < D; ++k) out.values.push_back(h.before[k]);
+    out.values.push_back(h.solves);
+  }
+}
+/// Restores what put_histories stored in the array "lambda_history" of `in`
+/// into `a`, which has its size already; a count of solves other than 0 to
+/// 3 is an error of the checkpoint (InputError naming it).
+template <int D> void get_histories(const StateGroup& in, AlignedVector<MultiplierHistory<D>>& a) {
+  const auto& values = in.real_array("lambda_history", a.size(), 2 * D + 1).values;
+  std::size_t i = 0, p = 0;
+  for (MultiplierHistory<D>& h : a) {
+    for (int k = 0; k < D; ++k) h.previous[k] = values[i++];
+    for (int k = 0; k < D; ++k) h.before[k] = values[i++];
+    const double solves = values[i++];
+    if (!(solves == 0.0 || solves == 1.0 || solves == 2.0 || solves == 3.0))
+      in.error("per-point state 'lambda_history', row " + std::to_string(p) + ": a count of solves of " +
+               std::to_string(solves) + " (0 to 3 expected)");
+    h.solves = static_cast<int>(solves);
+    ++p;
+  }
+}
 } // namespace
 
 template <int D> void Basis<D>::save_state(StateGroup& out) const {
@@ -95,6 +125,7 @@ template <int D> void Basis<D>::save_state(StateGroup& out) const {
     put_slopes(out.real_arrays["lambda_slope"], points_.slope, kSlope<D>);
     put_slopes(out.real_arrays["lambda_curvature"], points_.slope, kCurvature<D>);
   }
+  if (use_.history) put_histories(out.real_arrays["lambda_history"], points_.history);
   if (use_.cell_hint) put_rows(out.integer_arrays["cell_hint"], points_.cell_hint, D);
   save_family_state(out);
 }
@@ -118,6 +149,10 @@ template <int D> void Basis<D>::restore_state(const StateGroup& in) {
     else
       for (MultiplierSlope<D>& m : points_.slope) m.e.setZero();
   }
+  // One without histories (an older otmpm): the plain warm start until
+  // the run has made its own solves.
+  if (use_.history && in.has_array("lambda_history"))
+    get_histories<D>(in, points_.history);
   if (use_.cell_hint) get_rows(in.integer_array("cell_hint", points_.cell_hint.size(), D), points_.cell_hint, D);
   restore_family_state(in);
 }
@@ -135,6 +170,7 @@ template <int D> void check_table_arguments(const AlignedVector<Vec<D>>& x, cons
   };
   check("lambda", a.lambda);
   check("slope", a.slope);
+  check("history", a.history);
   check("cell_hint", a.cell_hint);
   check("deformation", a.deformation);
 }
@@ -146,6 +182,7 @@ template <int D> PointArrays<D> used_arrays(PointArrays<D> a) {
   };
   drop_empty(a.lambda);
   drop_empty(a.slope);
+  drop_empty(a.history);
   drop_empty(a.cell_hint);
   drop_empty(a.deformation);
   return a;
@@ -169,6 +206,7 @@ template <int D> PointQuery<D> point_query(const AlignedVector<Vec<D>>& x, const
   q.id = p;
   q.lambda = a.lambda ? &(*a.lambda)[p] : nullptr;
   q.slope = a.slope ? &(*a.slope)[p] : nullptr;
+  q.history = a.history ? &(*a.history)[p] : nullptr;
   q.cell_hint = a.cell_hint ? &(*a.cell_hint)[p] : nullptr;
   q.neighbours = a.neighbours;
   q.deformation = a.deformation ? &(*a.deformation)[p] : nullptr;

@@ -56,6 +56,19 @@ template <int D> struct MultiplierSlope {
   Vec<D> e = Vec<D>::Zero();
 };
 
+/// The multipliers of a point's solves before its last one, for `ul` mode
+/// (the nodes move with the material, so the slope of MultiplierSlope, taken
+/// with the nodes fixed, does not apply): the next solve starts from the
+/// extrapolation over the steps of the last solves (docs/theory.md eq.
+/// 4.7c): 3 lambda_n - 3 lambda_{n-1} + lambda_{n-2} after three solves,
+/// 2 lambda_n - lambda_{n-1} after two, lambda_n (PointQuery::lambda) after
+/// one. `solves` counts the solves made, at most 3.
+template <int D> struct MultiplierHistory {
+  Vec<D> previous = Vec<D>::Zero(); ///< lambda_{n-1}: the solve before the last (when solves >= 2)
+  Vec<D> before = Vec<D>::Zero();   ///< lambda_{n-2} (when solves == 3)
+  int solves = 0;
+};
+
 /// One evaluation request. `id` names the point in error messages (a particle
 /// index, or -1). `lambda` is the LME/max-ent Lagrange multiplier used as a
 /// warm start and overwritten with the converged value (may be null: cold
@@ -68,6 +81,9 @@ template <int D> struct PointQuery {
   /// (MultiplierSlope), or null: the solve then starts from *lambda itself.
   /// Read and updated together with `lambda`.
   MultiplierSlope<D>* slope = nullptr;
+  /// The multipliers of the solves before (MultiplierHistory, `ul` mode), or
+  /// null. Read and updated together with `lambda`.
+  MultiplierHistory<D>* history = nullptr;
   int* iterations = nullptr;
   /// Cell hint for structured layouts (lattice index of the containing cell
   /// from the previous step), or null. Updated by families that use it.
@@ -118,6 +134,9 @@ struct PointStateUse {
   /// max-ent families with fixed nodes: the slope of the multiplier
   /// (MultiplierSlope, the Taylor-predicted warm start).
   bool slope = false;
+  /// max-ent families with moving nodes: the multipliers of the solves
+  /// before (MultiplierHistory, the extrapolated warm start).
+  bool history = false;
   bool cell_hint = false; ///< element walk / B-splines: the cell of the last evaluation
   /// Reads the points' deformation gradients (LME, metric = "deformation"):
   /// evaluate_points needs them.
@@ -131,6 +150,7 @@ struct PointStateUse {
 template <int D> struct PointState {
   AlignedVector<Vec<D>> lambda;
   AlignedVector<MultiplierSlope<D>> slope;
+  AlignedVector<MultiplierHistory<D>> history;
   std::vector<Index<D>> cell_hint;
   NeighbourLists<D> neighbours;
 };
@@ -329,13 +349,14 @@ struct NodeColumns {
 template <int D> void transpose_basis_table(const BasisTable<D>& table, int nodes, NodeColumns& columns);
 
 /// The per-point arrays of a table fill, one entry per point each (a null or
-/// empty array: not used). `lambda`, `slope` and `cell_hint` are read and
+/// empty array: not used). `lambda`, `slope`, `history` and `cell_hint` are read and
 /// updated (PointQuery); `neighbours` are the Verlet lists of the
 /// points, kept from call to call; `deformation` the points' deformation
 /// gradients (PointQuery::deformation).
 template <int D> struct PointArrays {
   AlignedVector<Vec<D>>* lambda = nullptr;
   AlignedVector<MultiplierSlope<D>>* slope = nullptr;
+  AlignedVector<MultiplierHistory<D>>* history = nullptr;
   std::vector<Index<D>>* cell_hint = nullptr;
   NeighbourLists<D>* neighbours = nullptr;
   const AlignedVector<Mat<D>>* deformation = nullptr;

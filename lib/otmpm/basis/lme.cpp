@@ -199,6 +199,23 @@ constexpr double kUnshiftedExponent = 300.0;
 constexpr double kCurvatureAngle2 = 1e-4;
 constexpr double kCurvatureMaxRatio = 4.0;
 
+/// The start of eq. 4.7c from the last solve's lambda and the history of
+/// the solves before: quadratic over the last three solves, linear over
+/// two, else lambda itself (also when the extrapolation is not finite).
+template <int D> Vec<D> extrapolated_start(const Vec<D>& lambda, const MultiplierHistory<D>& h) {
+  Vec<D> start = lambda;
+  if (h.solves >= 3)
+    start = 3.0 * (lambda - h.previous) + h.before;
+  else if (h.solves == 2)
+    start = 2.0 * lambda - h.previous;
+  return start.allFinite() ? start : lambda;
+}
+
+/// The plain warm start: the last solve's lambda (zero when absent or not finite).
+template <int D> Vec<D> plain_start(const PointQuery<D>& q) {
+  return q.lambda && q.lambda->allFinite() ? *q.lambda : Vec<D>::Zero();
+}
+
 /// The components of a D-vector, each broadcast to all lanes once (outside
 /// the loops over the nodes): a * v with a scalar a broadcasts it anyway, so
 /// the products are the same bits.
@@ -977,8 +994,14 @@ bool MaxEntBasis<D, Prior>::evaluate_to(const PointQuery<D>& q, RowTarget<D>& ta
   Vec<D> lambda = warm;
   NewtonState<D> st = solve_lambda<D>(settings_, s, lambda);
   int iterations = st.iterations;
-  if (st.status != NewtonStatus::converged && !warm.isZero(0.0)) {
-    lambda.setZero();
+  // a failed solve is repeated from the plain warm start *q.lambda when the
+  // prediction was another point, then from zero
+  const Vec<D> retries[2] = {plain_start(q), Vec<D>::Zero()};
+  Vec<D> tried = warm;
+  for (const Vec<D>& start : retries) {
+    if (st.status == NewtonStatus::converged) break;
+    if (start == tried) continue;
+    lambda = tried = start;
     st = solve_lambda<D>(settings_, s, lambda);
     iterations += st.iterations;
   }
@@ -988,7 +1011,10 @@ bool MaxEntBasis<D, Prior>::evaluate_to(const PointQuery<D>& q, RowTarget<D>& ta
   const bool closed_form = Prior::kGaussian && uniform_beta(out);
   const Mat<D> two_B = closed_form && q.slope ? prior_hessian(pm, out) : Mat<D>::Zero();
   const Mat<D> JA = finish_stencil(st, s, closed_form, out);
-  store_point_state(q, lambda, iterations, two_B, JA);
+  // with a history the multiplier kept is polished by the Newton step of the
+  // final state (free: J^{-1} and r are at hand), so that the extrapolation
+  // of eq. 4.7c is not dominated by the solves' own residuals
+  store_point_state(q, q.history ? Vec<D>(lambda - st.J_inv * st.r) : lambda, iterations, two_B, JA);
   return false;
 }
 
@@ -1013,6 +1039,12 @@ template <int D, class Prior>
 void MaxEntBasis<D, Prior>::store_point_state(const PointQuery<D>& q, const Vec<D>& lambda, int iterations,
                                               const Mat<D>& two_B, const Mat<D>& JA) const {
   if (q.iterations) *q.iterations = iterations;
+  if (q.lambda && q.history) { // lambda_n becomes lambda_{n-1}
+    MultiplierHistory<D>& h = *q.history;
+    h.before = h.previous;
+    h.previous = *q.lambda;
+    h.solves = std::min(h.solves + 1, 3);
+  }
   if (q.lambda) *q.lambda = lambda;
   if (q.slope) {
     q.slope->e = q.slope->G.isZero(0.0) ? Vec<D>::Zero().eval() : Vec<D>(q.x - q.slope->x0);
@@ -1024,6 +1056,7 @@ void MaxEntBasis<D, Prior>::store_point_state(const PointQuery<D>& q, const Vec<
 
 template <int D, class Prior> Vec<D> MaxEntBasis<D, Prior>::warm_start(const PointQuery<D>& q) const {
   if (!q.lambda || !q.lambda->allFinite()) return Vec<D>::Zero();
+  if (q.history) return extrapolated_start<D>(*q.lambda, *q.history);
   if (!q.slope) return *q.lambda;
   const Vec<D> d = q.x - q.slope->x0;
   Vec<D> predicted = *q.lambda + q.slope->G * d;

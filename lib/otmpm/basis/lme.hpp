@@ -388,16 +388,22 @@ public:
   double search_radius() const override { return settings_.support_radius; }
   /// The Lagrange multiplier of each point warm-starts its next solve, and
   /// while the nodes stay fixed its slope (MultiplierSlope) turns that into
-  /// the Taylor prediction for the point's new position; the deformation
-  /// metric reads the points' deformation gradients.
+  /// the Taylor prediction for the point's new position; while they move,
+  /// the multipliers of the solves before (MultiplierHistory) into the
+  /// extrapolation over the steps; the deformation metric reads the points'
+  /// deformation gradients.
   PointStateUse point_state_use(bool nodes_move) const override {
-    return {.lambda = true, .slope = !nodes_move, .deformation = metric_ == Metric::deformation};
+    return {.lambda = true,
+            .slope = !nodes_move,
+            .history = nodes_move,
+            .deformation = metric_ == Metric::deformation};
   }
 
   /// The start of the solve at q.x: the Taylor prediction *q.lambda + G (x -
   /// x0) (eq. 4.7a), with the second-order term of eq. 4.7b when q.x - x0
-  /// continues the slope's last displacement e, when q carries a slope; else
-  /// *q.lambda (zero when absent or not finite).
+  /// continues the slope's last displacement e, when q carries a slope; the
+  /// extrapolation of eq. 4.7c when q carries a history; else *q.lambda
+  /// (zero when absent or not finite).
   Vec<D> warm_start(const PointQuery<D>& q) const;
   const Prior& prior() const { return prior_; }
   Metric metric() const { return metric_; }

@@ -15,7 +15,8 @@ namespace {
 
 /// Per-particle arrays of a checkpoint besides the group "particles": the
 /// basis' per-point state (Basis::save_state).
-constexpr const char* kPointStateArrays[] = {"lambda", "lambda_slope", "lambda_curvature", "cell_hint"};
+constexpr const char* kPointStateArrays[] = {"lambda", "lambda_slope", "lambda_curvature", "lambda_history",
+                                                   "cell_hint"};
 /// The walls' held nodes (Engine::save_state: one per-node array per wall).
 constexpr const char* kWallHeld = "wall_held_";
 /// The cell hints, which are local to a rank's basis and travel as global cells.

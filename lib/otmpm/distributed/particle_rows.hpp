@@ -3,8 +3,8 @@
 /// Every per-particle array of a run seen as rows of bytes, so that
 /// particles move between ranks (and into global order for output) without
 /// any code that names a field: the arrays of Particles (for_each_field),
-/// the materials' state arrays, the basis' per-point state (LME multipliers
-/// and their slopes, cell hints) and the arrays of the distributed run itself (global ids,
+/// the materials' state arrays, the basis' per-point state (LME multipliers,
+/// their slopes and histories, cell hints) and the arrays of the distributed run itself (global ids,
 /// traction shares). A field added to any of them moves with the particles.
 #include "otmpm/basis/basis.hpp"
 #include "otmpm/distributed/comm.hpp"
@@ -40,6 +40,7 @@ template <int D> std::vector<Column> particle_columns(Particles<D>& P, PointStat
   for (StateField& f : P.state) c.push_back(column_of(f.values, static_cast<std::size_t>(f.width)));
   if (!basis_state.lambda.empty()) c.push_back(column_of(basis_state.lambda));
   if (!basis_state.slope.empty()) c.push_back(column_of(basis_state.slope));
+  if (!basis_state.history.empty()) c.push_back(column_of(basis_state.history));
   if (!basis_state.cell_hint.empty()) c.push_back(column_of(basis_state.cell_hint));
   return c;
 }

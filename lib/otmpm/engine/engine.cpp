@@ -106,6 +106,7 @@ template <int D> void Engine<D>::repartition(std::unique_ptr<Basis<D>> basis, Di
   PointState<D>& fresh = basis_->point_state();
   if (fresh.lambda.size() == state.lambda.size()) fresh.lambda = std::move(state.lambda);
   if (fresh.slope.size() == state.slope.size()) fresh.slope = std::move(state.slope);
+  if (fresh.history.size() == state.history.size()) fresh.history = std::move(state.history);
   if (fresh.cell_hint.size() == state.cell_hint.size()) fresh.cell_hint = std::move(state.cell_hint);
   const int nodes = basis_->nodes().size();
   // The walls' impulses carry over; their held nodes do not (a run with
