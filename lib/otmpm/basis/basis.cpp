@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cstdio>
 #include <exception>
 #include <limits>
 #include <stdexcept>
@@ -109,9 +110,12 @@ template <int D> void get_histories(const StateGroup& in, AlignedVector<Multipli
     for (int k = 0; k < D; ++k) h.previous[k] = values[i++];
     for (int k = 0; k < D; ++k) h.before[k] = values[i++];
     const double solves = values[i++];
-    if (!(solves == 0.0 || solves == 1.0 || solves == 2.0 || solves == 3.0))
-      in.error("per-point state 'lambda_history', row " + std::to_string(p) + ": a count of solves of " +
-               std::to_string(solves) + " (0 to 3 expected)");
+    if (!(solves == 0.0 || solves == 1.0 || solves == 2.0 || solves == 3.0)) {
+      char value[32];
+      std::snprintf(value, sizeof value, "%.17g", solves);
+      in.error("per-point state 'lambda_history': a count of solves of " + std::string(value) +
+               " (0 to 3 expected) in row " + std::to_string(p) + " of the particles restored here");
+    }
     h.solves = static_cast<int>(solves);
     ++p;
   }
@@ -153,6 +157,8 @@ template <int D> void Basis<D>::restore_state(const StateGroup& in) {
   // the run has made its own solves.
   if (use_.history && in.has_array("lambda_history"))
     get_histories<D>(in, points_.history);
+  else if (use_.history)
+    std::fill(points_.history.begin(), points_.history.end(), MultiplierHistory<D>{});
   if (use_.cell_hint) get_rows(in.integer_array("cell_hint", points_.cell_hint.size(), D), points_.cell_hint, D);
   restore_family_state(in);
 }

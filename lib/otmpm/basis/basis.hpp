@@ -71,8 +71,8 @@ template <int D> struct MultiplierHistory {
 
 /// One evaluation request. `id` names the point in error messages (a particle
 /// index, or -1). `lambda` is the LME/max-ent Lagrange multiplier used as a
-/// warm start and overwritten with the converged value (may be null: cold
-/// start from zero). `iterations`, when not null, receives the Newton count.
+/// warm start and overwritten with the converged value (with a `history`:
+/// polished by the final Newton step) (may be null: cold start from zero). `iterations`, when not null, receives the Newton count.
 template <int D> struct PointQuery {
   Vec<D> x = Vec<D>::Zero();
   int id = -1;
@@ -244,7 +244,10 @@ public:
   /// into `table` (fill_basis_table with the per-point state and the Verlet
   /// lists). `deformation`: the points' deformation gradients, read only
   /// when point_state_use().deformation. std::invalid_argument when x (or a
-  /// needed `deformation`) has another size than bound.
+  /// needed `deformation`) has another size than bound. Once per step: the
+  /// per-point state predicts the next call's solve from this one's (the
+  /// history of `ul` mode counts calls as steps), so a second call at the
+  /// same positions is not free of effect.
   void evaluate_points(const AlignedVector<Vec<D>>& x, BasisTable<D>& table,
                        const AlignedVector<Mat<D>>* deformation = nullptr);
   /// The per-point state of the bound points.

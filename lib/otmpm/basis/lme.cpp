@@ -52,12 +52,14 @@
 //   The candidates of the neighbour search come from the particle's Verlet
 //   list (nodes/neighbour_lists.hpp) when the engine passes one: the same
 //   nodes in the same order as NodeSet::within, without searching.
-// * Warm start from *q.lambda; if the warm-started solve fails for any reason
-//   it is repeated once from lambda = 0 (a stale multiplier from a far-away
-//   previous position must not turn into an error). The iteration count
-//   reported is the total of both solves (not counting the steps of a
-//   factorised attempt on the lattice, lme_lattice.cpp, that handed the
-//   point over); lambda is written back only on success.
+// * Warm start from *q.lambda, or from its prediction (the slope or the
+//   history below); if the solve fails for any reason it is repeated from
+//   *q.lambda when the prediction was another point, then from lambda = 0
+//   (a stale multiplier from a far-away previous position must not turn
+//   into an error). The iteration count reported is the total of the
+//   solves (not counting the steps of a factorised attempt on the lattice,
+//   lme_lattice.cpp, that handed the point over); lambda is written back
+//   only on success.
 // * Taylor-predicted warm start (q.slope, kept while the nodes are fixed):
 //   differentiating r(x, lambda(x)) = 0 gives d lambda / d x = -J^{-1} (I + A)
 //   (A as for the gradients below; 2 B - J^{-1} for a Gaussian prior with
@@ -209,6 +211,16 @@ template <int D> Vec<D> extrapolated_start(const Vec<D>& lambda, const Multiplie
   else if (h.solves == 2)
     start = 2.0 * lambda - h.previous;
   return start.allFinite() ? start : lambda;
+}
+
+/// The multiplier a point keeps after a solve converged at lambda with
+/// residual r: with a history (eq. 4.7c) polished by the Newton step of the
+/// final state, lambda - J^{-1} r (free: J^{-1} and r are at hand), so that
+/// the extrapolation, which multiplies the kept values by up to 7, is not
+/// dominated by the solves' own residuals; else lambda itself.
+template <int D>
+Vec<D> kept_multiplier(const PointQuery<D>& q, const Vec<D>& lambda, const Mat<D>& J_inv, const Vec<D>& r) {
+  return q.history ? Vec<D>(lambda - J_inv * r) : lambda;
 }
 
 /// The plain warm start: the last solve's lambda (zero when absent or not finite).
@@ -1011,10 +1023,7 @@ bool MaxEntBasis<D, Prior>::evaluate_to(const PointQuery<D>& q, RowTarget<D>& ta
   const bool closed_form = Prior::kGaussian && uniform_beta(out);
   const Mat<D> two_B = closed_form && q.slope ? prior_hessian(pm, out) : Mat<D>::Zero();
   const Mat<D> JA = finish_stencil(st, s, closed_form, out);
-  // with a history the multiplier kept is polished by the Newton step of the
-  // final state (free: J^{-1} and r are at hand), so that the extrapolation
-  // of eq. 4.7c is not dominated by the solves' own residuals
-  store_point_state(q, q.history ? Vec<D>(lambda - st.J_inv * st.r) : lambda, iterations, two_B, JA);
+  store_point_state(q, kept_multiplier(q, lambda, st.J_inv, st.r), iterations, two_B, JA);
   return false;
 }
 
@@ -1027,7 +1036,8 @@ bool MaxEntBasis<D, Prior>::evaluate_on_lattice(const PointQuery<D>& q, const Po
     LatticeSolve<D> res;
     if (!lattice_solve<D>(lattice_, prior_, settings_, q.x, warm, out, res)) return false;
     const int first = out.in_place ? out.node[0] : out.stencil->node[0];
-    store_point_state(q, res.lambda, res.iterations, prior_hessian(pm, first), res.J_inv);
+    store_point_state(q, kept_multiplier(q, res.lambda, res.J_inv, res.r), res.iterations, prior_hessian(pm, first),
+                      res.J_inv);
     return true;
   } else {
     (void)q, (void)pm, (void)warm, (void)out;

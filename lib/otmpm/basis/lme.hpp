@@ -478,8 +478,10 @@ private:
   /// (nothing of q's state written).
   bool evaluate_on_lattice(const PointQuery<D>& q, const PointMetric<D>& pm, const Vec<D>& warm,
                            RowTarget<D>& out) const;
-  /// Writes back q's multiplier, Newton count and slope after a converged
-  /// solve (lambda; JA = J^{-1} (I + A), two_B: the prior's Hessian 2 B).
+  /// Writes back q's multiplier, Newton count and slope or history after a
+  /// converged solve (lambda: the multiplier to keep, kept_multiplier; JA =
+  /// J^{-1} (I + A), two_B: the prior's Hessian 2 B); the history takes the
+  /// multiplier q held before.
   void store_point_state(const PointQuery<D>& q, const Vec<D>& lambda, int iterations, const Mat<D>& two_B,
                          const Mat<D>& JA) const;
   /// Removes the nodes whose N_I underflowed to zero (their gradient is zero too).

@@ -405,6 +405,7 @@ bool lattice_solve(const LatticeAxes<D>& axes, const GaussianPrior<D>& prior, co
     if (r.norm() <= set.residual_tolerance) {
       res.lambda = lambda;
       res.J_inv = inv.inverse();
+      res.r = r;
       res.iterations = it;
       write_stencil<D>(axes, box, Z, r, res.J_inv, out);
       return true;

@@ -52,6 +52,7 @@ inline constexpr double kLatticeMaxExponent2 = 300.0;
 template <int D> struct LatticeSolve {
   Vec<D> lambda = Vec<D>::Zero();
   Mat<D> J_inv = Mat<D>::Zero(); ///< J^{-1} at lambda (grad N_I and the multiplier's slope)
+  Vec<D> r = Vec<D>::Zero();     ///< the residual at lambda (|r| <= set.residual_tolerance)
   int iterations = 0;            ///< Newton steps taken
 };
 

@@ -196,7 +196,8 @@ public:
   void restore_state(const Checkpoint& in);
 
   // ---- the stages of a step, driven by the integrators (docs/theory.md)
-  /// The basis at the particles' positions, once per step, into table().
+  /// The basis at the particles' positions, once per step, into table()
+  /// (exactly once: Basis::evaluate_points counts its calls as steps).
   void evaluate_basis();
   /// The fused particle-to-node map (ToNodes); with `mass` also the active
   /// nodes and, with the consistent mass, M_IJ assembled and factorised.

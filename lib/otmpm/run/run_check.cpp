@@ -54,8 +54,12 @@ double estimate_memory_bytes(const Scene& scene) {
       state = std::max(state, width);
     }
   // The max-ent multiplier's slope while the nodes stay fixed (MultiplierSlope: x0, e, G, G_prev),
-  // its history while they move (MultiplierHistory: two multipliers and a count).
-  const double slope = !maxent ? 0.0 : scene.simulation.nodes_move() ? 2.0 * D + 1 : 2.0 * (D + D * D);
+  // its history while they move (MultiplierHistory: two multipliers and a count, with its padding).
+  const std::size_t history_bytes = D == 1   ? sizeof(MultiplierHistory<1>)
+                                    : D == 2 ? sizeof(MultiplierHistory<2>)
+                                             : sizeof(MultiplierHistory<3>);
+  const double history = static_cast<double>(history_bytes) / real;
+  const double slope = !maxent ? 0.0 : scene.simulation.nodes_move() ? history : 2.0 * (D + D * D);
   const double per_particle_fields = real * (vectors * D + 4 + tensors * D * D + state + slope) + index * (2 + D);
   // Basis table row, its transpose (NodeColumns) and, for the families that
   // search nodes, the Verlet list (candidates within R + h/4).
