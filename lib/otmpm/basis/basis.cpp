@@ -104,12 +104,13 @@ template <int D, class Out> void put_histories(Out& out, const AlignedVector<Mul
 /// into `a`, which has its size already; a count of solves other than 0 to
 /// 3 is an error of the checkpoint (InputError naming it).
 template <int D> void get_histories(const StateGroup& in, AlignedVector<MultiplierHistory<D>>& a) {
-  const auto& values = in.real_array("lambda_history", a.size(), 2 * D + 1).values;
-  std::size_t i = 0, p = 0;
-  for (MultiplierHistory<D>& h : a) {
-    for (int k = 0; k < D; ++k) h.previous[k] = values[i++];
-    for (int k = 0; k < D; ++k) h.before[k] = values[i++];
-    const double solves = values[i++];
+  constexpr std::size_t cols = 2 * D + 1;
+  const auto& values = in.real_array("lambda_history", a.size(), cols).values;
+  for (std::size_t p = 0; p < a.size(); ++p) {
+    const double* row = values.data() + p * cols;
+    MultiplierHistory<D>& h = a[p];
+    for (int k = 0; k < D; ++k) h.previous[k] = row[k], h.before[k] = row[D + k];
+    const double solves = row[2 * D];
     if (!(solves == 0.0 || solves == 1.0 || solves == 2.0 || solves == 3.0)) {
       char value[32];
       std::snprintf(value, sizeof value, "%.17g", solves);
@@ -117,7 +118,6 @@ template <int D> void get_histories(const StateGroup& in, AlignedVector<Multipli
                " (0 to 3 expected) in row " + std::to_string(p) + " of the particles restored here");
     }
     h.solves = static_cast<int>(solves);
-    ++p;
   }
 }
 } // namespace
