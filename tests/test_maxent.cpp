@@ -89,8 +89,7 @@ TEST_CASE("maxent: cubic spline prior (wobbes eq. 89)") {
 }
 
 TEST_CASE("maxent: gradient of the log-prior matches finite differences") {
-  maxent::CubicSplinePrior<2> prior;
-  prior.d = 0.3;
+  const maxent::CubicSplinePrior<2> prior(0.3);
   double err = 0;
   std::mt19937 rng(5);
   std::uniform_real_distribution<double> u(-0.2, 0.2);
@@ -120,8 +119,7 @@ namespace {
 /// grad_log_weight: the basis uses it in place of them, so it must give
 /// their bits (same r, same w, same factor).
 template <int D> void weight_matches_log_form(unsigned seed) {
-  maxent::CubicSplinePrior<D> prior;
-  prior.d = 0.3;
+  const maxent::CubicSplinePrior<D> prior(0.3);
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> u(-0.3, 0.3);
   int inside = 0;
@@ -134,7 +132,11 @@ template <int D> void weight_matches_log_form(unsigned seed) {
     REQUIRE(prior.weight(dx, w, c) == in);
     if (!in) continue;
     ++inside;
-    CHECK(w == maxent::cubic_spline(dx.norm() / prior.d));
+    const double r = prior.normalised_radius(dx);
+    CHECK(w == maxent::cubic_spline(r));
+    // |dx| / d as |dx| (1 / d): within an ulp of the quotient (two roundings)
+    CHECK(std::abs(r - dx.norm() / 0.3) <= 2.0 * std::numeric_limits<double>::epsilon() * r);
+    if constexpr (D == 1) CHECK(std::abs(dx[0]) == dx.norm()); // 1D: |dx_0| is sqrt(dx_0^2) exactly
     CHECK(std::log(w) == log_w);
     const Vec<D> g = prior.grad_log_weight(dx);
     for (int k = 0; k < D; ++k) CHECK(c * dx[k] == g[k]);

@@ -1279,8 +1279,7 @@ template <int D> std::unique_ptr<Basis<D>> make_maxent_basis(NodeSet<D> nodes, c
   if (maxent::parse_metric(opt.metric, "maxent") != maxent::Metric::isotropic)
     throw InputError("maxent basis: metric '" + opt.metric + "' is not available (only lme adapts its metric; use "
                      "metric = \"isotropic\")");
-  maxent::CubicSplinePrior<D> prior;
-  prior.d = opt.d_max * h;
+  const maxent::CubicSplinePrior<D> prior(opt.d_max * h);
   return std::make_unique<maxent::MaxEntBasis<D, maxent::CubicSplinePrior<D>>>(std::move(nodes), opt, prior,
                                                                                 "maxent");
 }
