@@ -146,14 +146,23 @@ template <int D> void weight_matches_log_form(unsigned seed) {
 
 /// N_I against the log form exp(log w_I + lambda . dx_I - max) / sum at the
 /// basis' own converged lambda, and linear completeness. Returns |lambda| R.
+/// `warm`: N of a second evaluation started from the converged lambda,
+/// which must end without a Newton step (its N from the start's weights).
 template <int D>
-double check_log_form(const Basis<D>& basis, double d, const Vec<D>& x, double tol_N, double tol_completeness) {
+double check_log_form(const Basis<D>& basis, double d, const Vec<D>& x, double tol_N, double tol_completeness,
+                      bool warm = false) {
   Stencil<D> st;
   Vec<D> lambda = Vec<D>::Zero();
   PointQuery<D> q;
   q.x = x;
   q.lambda = &lambda;
   basis.evaluate(q, st);
+  if (warm) {
+    int iterations = -1;
+    q.iterations = &iterations;
+    basis.evaluate(q, st);
+    REQUIRE(iterations == 0);
+  }
   std::vector<double> f;
   double f_max = -std::numeric_limits<double>::infinity();
   for (int a = 0; a < st.size(); ++a) {
@@ -205,6 +214,28 @@ TEST_CASE("maxent: N from w_I exp(lambda . dx_I) equals the log form, also with 
   // exponents up to |lambda| R ~ 440: their round-off ~1e-13 relative in N
   const double lambda_R = check_log_form<1>(*b1, 0.2, Vec<1>(1e-4), 1e-12, kCompletenessTol * 0.1);
   CHECK(lambda_R > 300.0);
+}
+
+TEST_CASE("maxent: N near lambda = 0 (the Taylor exponential) equals the log form to round-off") {
+  // On evenly spaced nodes the cubic-spline prior reproduces x by itself
+  // (lambda = 0); nodes moved by a smooth stretch of a few 1e-3 h give
+  // |lambda| R up to 2^-8, where the solver takes e^u by its degree-5 Taylor
+  // polynomial (within an ulp). N against exp(log w_I + lambda . dx_I)
+  // normalised with std::exp, at the same lambda, from a start at the
+  // converged lambda (as in `ul` mode, where that start ends the solve): two
+  // ulp of N <= 1 (measured 2.2e-16; a cubic polynomial fails).
+  const double h = 0.1;
+  AlignedVector<Vec<1>> x;
+  for (int I = 0; I <= 20; ++I) x.push_back(Vec<1>(h * I + 0.0025 * h * std::sin(0.9 * I)));
+  const auto b = make_maxent_basis<1>(NodeSet<1>::cloud(x, h), maxent_options());
+  double largest = 0.0;
+  for (int i = 0; i < 40; ++i) {
+    const double xi = 0.5 + 1.0 * i / 40.0; // interior: full supports
+    largest = std::max(largest, check_log_form<1>(*b, 2.0 * h, Vec<1>(xi), 4.5e-16, kCompletenessTol * h, true));
+  }
+  MESSAGE("largest |lambda| R: " << largest);
+  CHECK(largest <= 0x1p-8); // every point on the Taylor path
+  CHECK(largest > 0x1p-10); // and its exponents reach a quarter of its range
 }
 
 TEST_CASE("maxent: kind, flags and option checks") {
