@@ -244,6 +244,21 @@ template <int B> void band_solve(const double* __restrict band, const double* __
 /// f(std::integral_constant<int, B>) with B = b for the half bandwidths of
 /// the fixed stencils (linear 1, B-splines 2 and 3), else B = 0 (b at run
 /// time: a diagonal M, b = 0).
+/// The number of entries of row p.
+template <int D> int row_size(const BasisTable<D>& table, int p) { return table.end(p) - table.begin(p); }
+
+/// True when rows p and q hold the same node list (a loop: the lists are a
+/// few ids, shorter than a call to memcmp).
+template <int D> bool same_list(const BasisTable<D>& table, int p, int q) {
+  const int n = row_size(table, p);
+  if (row_size(table, q) != n) return false;
+  const int* a = table.node.data() + table.begin(p);
+  const int* b = table.node.data() + table.begin(q);
+  bool same = true;
+  for (int i = 0; i < n; ++i) same = same && a[i] == b[i];
+  return same;
+}
+
 template <class F> decltype(auto) with_band(int b, F&& f) {
   switch (b) {
   case 1: return f(std::integral_constant<int, 1>{});
@@ -307,6 +322,12 @@ void MassMatrix<D>::assemble_values(const BasisTable<D>& table, const std::vecto
   // not take the old node lists for this M_'s pattern.
   offset_.clear();
   node_.clear();
+  if (M_.rows() == nodes && slots_on_pattern(table)) {
+    ++pattern_kept_;
+    keep_node_lists(table);
+    sum_into_slots(table, m_p);
+    return;
+  }
   std::vector<Eigen::Triplet<double>> triplets;
   triplets.reserve(table.entries() * 4);
   for (int p = 0; p < table.rows(); ++p)
@@ -327,10 +348,56 @@ void MassMatrix<D>::assemble_values(const BasisTable<D>& table, const std::vecto
   }
   band_ = D == 1 && band_allowed_ ? half_bandwidth(M_) : -1;
   if (band_ > kMaxBand) band_ = -1;
+  keep_node_lists(table);
+}
+
+template <int D> void MassMatrix<D>::keep_node_lists(const BasisTable<D>& table) {
   row_size_ = uniform_row_width(table.offset);
   runs_ = row_size_ > 0 ? row_runs(table.node, row_size_, table.rows()) : std::vector<int>{};
   offset_ = table.offset;
   node_ = table.node;
+}
+
+/// The place in M_ of every product of the table, in the triplet order
+/// (slot_), found in M_'s columns - when every product falls on an entry of
+/// M_ and every entry receives one, M_'s pattern is the one the triplet
+/// assembly would build from this table and summing into the places gives
+/// its values bit for bit (sum_into_slots). A row with the node list of the
+/// row before takes its places. False (slot_ then meaningless) otherwise.
+/// In `mpm` mode the node lists change every step, as particles cross
+/// cells, while the pattern changes only when a pair of nodes gains or
+/// loses its last shared particle.
+template <int D> bool MassMatrix<D>::slots_on_pattern(const BasisTable<D>& table) {
+  const int* outer = M_.outerIndexPtr();
+  const int* inner = M_.innerIndexPtr();
+  const auto entries = static_cast<std::size_t>(M_.nonZeros());
+  hit_.assign(entries, 0);
+  std::size_t covered = 0, products = 0;
+  for (int p = 0; p < table.rows(); ++p) products += static_cast<std::size_t>(row_size(table, p)) * row_size(table, p);
+  slot_.resize(products);
+  std::size_t t = 0;
+  for (int p = 0; p < table.rows(); ++p) {
+    const int b0 = table.begin(p), n = row_size(table, p);
+    const std::size_t n2 = static_cast<std::size_t>(n) * n;
+    if (p > 0 && same_list(table, p - 1, p)) {
+      std::copy_n(slot_.begin() + static_cast<std::ptrdiff_t>(t - n2), n2, slot_.begin() + static_cast<std::ptrdiff_t>(t));
+      t += n2;
+      continue;
+    }
+    for (int a = b0; a < b0 + n; ++a)
+      for (int b = b0; b < b0 + n; ++b) {
+        const int I = table.node[a], J = table.node[b];
+        const int* first = inner + outer[J];
+        const int* last = inner + outer[J + 1];
+        const int* it = std::lower_bound(first, last, I);
+        if (it == last || *it != I) return false;
+        const auto e = static_cast<std::size_t>(it - inner);
+        covered += hit_[e] ? 0 : 1;
+        hit_[e] = 1;
+        slot_[t++] = static_cast<int>(e);
+      }
+  }
+  return covered == entries;
 }
 
 /// The products m_p N_a N_b of every table row summed into their places in

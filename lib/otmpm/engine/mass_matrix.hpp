@@ -7,7 +7,10 @@
 /// the solve returns the prescribed value there. Work that depends only on
 /// the sparsity is kept between steps: while the table's node lists are
 /// unchanged the products are summed straight into the last step's matrix
-/// (in the order the triplet assembly sums them: the same bits), and while
+/// (in the order the triplet assembly sums them: the same bits); when they
+/// changed but their products still fill exactly the last pattern (`mpm`
+/// mode, particles crossing cells) the places are looked up in it and the
+/// same holds; and while
 /// a component's pattern is unchanged its factorisation skips the ordering
 /// and symbolic analysis and the permuted matrix it factorises is gathered
 /// straight from M's values (again the same bits).
@@ -64,6 +67,9 @@ public:
   /// Assemblies of the last calls that reused the table's pattern, and
   /// factorisations that reused the symbolic analysis (for tests).
   int pattern_reuses() const { return pattern_reuses_; }
+  /// Assemblies whose node lists changed but whose products fell on the
+  /// last pattern, every entry of it (slots_on_pattern; for tests).
+  int pattern_kept() const { return pattern_kept_; }
   int analysis_reuses() const { return analysis_reuses_; }
   /// The half bandwidth of the band factorisation in use, or -1 when the
   /// sparse LDL^T is (band path off, 2D, 3D, or a pattern wider than kMaxBand).
@@ -75,6 +81,8 @@ private:
   struct Factor;
   void assemble_values(const BasisTable<D>& table, const std::vector<double>& m_p, int nodes, bool same);
   void sum_into_slots(const BasisTable<D>& table, const std::vector<double>& m_p);
+  bool slots_on_pattern(const BasisTable<D>& table);
+  void keep_node_lists(const BasisTable<D>& table);
   template <int S> void sum_rows(const BasisTable<D>& table, const std::vector<double>& m_p);
   void factorise(int k, const std::vector<char>& fixed, std::vector<std::unique_ptr<Factor>>& old);
   void factorise_band(Factor& f, const std::vector<char>& fixed) const;
@@ -95,7 +103,8 @@ private:
   int band_ = -1;               // half bandwidth of the band path (band()), -1: the sparse LDL^T
   long long version_ = 0;       // M_'s pattern: counts the triplet assemblies
   bool free_columns_add_nothing_ = false; // every value of M_ finite and >= +0 (move_prescribed)
-  int pattern_reuses_ = 0, analysis_reuses_ = 0;
+  int pattern_reuses_ = 0, analysis_reuses_ = 0, pattern_kept_ = 0;
+  std::vector<char> hit_; // slots_on_pattern: the entries of M_ that received a product
 };
 
 extern template class MassMatrix<1>;
