@@ -7,6 +7,8 @@
 #include <doctest/doctest.h>
 
 #include <algorithm>
+#include <bit>
+#include <cstdint>
 #include <cmath>
 #include <cstring>
 #include <map>
@@ -254,12 +256,14 @@ TEST_CASE_TEMPLATE_DEFINE("linear batch stops before a point it cannot evaluate 
     CHECK_THROWS_AS(b->evaluate_fixed(q, node.data(), N.data(), dN.data()), BasisError);
   }
   CHECK(b->evaluate_fixed_points(x.data(), 0, nullptr, node.data(), N.data(), dN.data()) == 0);
-  // Once the nodes moved: nothing (the isoparametric map goes through evaluate()).
+  // Once the nodes moved: nothing in 2D and 3D (the isoparametric map goes
+  // through evaluate()); in 1D the segments of the points' cells (below).
   AlignedVector<Vec<D>> dx(static_cast<std::size_t>(b->nodes().size()), Vec<D>::Constant(1e-3 * g.h()[0]));
   b->nodes().advect(dx);
   b->nodes_moved(dx);
   x[3] = x[0];
-  CHECK(b->evaluate_fixed_points(x.data(), 6, nullptr, node.data(), N.data(), dN.data()) == 0);
+  for (Vec<D>& p : x) p += 0.25 * g.h(); // inside the cells of their Cartesian guess (a node before)
+  CHECK(b->evaluate_fixed_points(x.data(), 6, nullptr, node.data(), N.data(), dN.data()) == (D == 1 ? 6 : 0));
 }
 TEST_CASE_TEMPLATE_APPLY(stop_id, Dims);
 
@@ -355,6 +359,99 @@ TEST_CASE_TEMPLATE_DEFINE("linear after an affine motion of the nodes equals the
 }
 TEST_CASE_TEMPLATE_APPLY(aff_id, Dims);
 
+namespace {
+
+/// A 1D linear basis on the nodes 0, 2.5, 2, 3: the second segment runs backwards.
+std::unique_ptr<Basis<1>> inverted_segment() {
+  CartesianGrid<1> g;
+  g.lower[0] = 0;
+  g.upper[0] = 3;
+  g.cells[0] = 3;
+  auto b = make_linear_basis<1>(NodeSet<1>::cartesian(g));
+  AlignedVector<Vec<1>> dx(4, Vec<1>::Zero());
+  dx[1][0] = 1.5;
+  b->nodes().advect(dx);
+  b->nodes_moved(dx);
+  return b;
+}
+
+/// Rows of points x filled as the table fill does (the batch, and each
+/// point it stops at through evaluate(), then the batch again), against
+/// evaluate() point by point with the same hints: the same bits, the same
+/// hints after. Returns the points the batch wrote.
+int batch_against_evaluate(const Basis<1>& b, const AlignedVector<Vec<1>>& x, const std::vector<Index<1>>& hints) {
+  const int n = static_cast<int>(x.size());
+  std::vector<int> node(2 * x.size());
+  std::vector<double> N(node.size());
+  AlignedVector<Vec<1>> dN(node.size());
+  std::vector<Index<1>> hint_batch = hints, hint_point = hints;
+  int batched = 0;
+  for (int p = 0; p < n; ++p) {
+    const int done = b.evaluate_fixed_points(&x[p], n - p, &hint_batch[p], &node[2 * p], &N[2 * p], &dN[2 * p]);
+    batched += done;
+    p += done;
+    if (p == n) break;
+    Stencil<1> st;
+    PointQuery<1> q;
+    q.x = x[p];
+    q.cell_hint = &hint_batch[p];
+    b.evaluate(q, st);
+    REQUIRE(st.size() == 2);
+    for (int a = 0; a < 2; ++a) node[2 * p + a] = st.node[a], N[2 * p + a] = st.N[a], dN[2 * p + a] = st.dN[a];
+  }
+  for (int p = 0; p < n; ++p) {
+    Stencil<1> st;
+    PointQuery<1> q;
+    q.x = x[p];
+    q.cell_hint = &hint_point[p];
+    b.evaluate(q, st);
+    INFO("point " << p << " at " << x[p][0]);
+    for (int a = 0; a < 2; ++a) {
+      CHECK(node[2 * p + a] == st.node[a]);
+      CHECK(std::bit_cast<std::uint64_t>(N[2 * p + a]) == std::bit_cast<std::uint64_t>(st.N[a]));
+      CHECK(std::bit_cast<std::uint64_t>(dN[2 * p + a][0]) == std::bit_cast<std::uint64_t>(st.dN[a][0]));
+    }
+    CHECK(hint_batch[p] == hint_point[p]);
+  }
+  return batched;
+}
+
+} // namespace
+
+TEST_CASE("linear 1D off the lattice: the batch gives evaluate()'s bits and leaves the walk to it") {
+  const CartesianGrid<1> g = test_grid<1>();
+  const auto b = make_linear_basis<1>(NodeSet<1>::perturbed(g, 0.3, 4u));
+  std::mt19937 rng(21);
+  AlignedVector<Vec<1>> x;
+  std::vector<Index<1>> hints;
+  for (int i = 0; i < 400; ++i) {
+    x.push_back(random_in_box<1>(rng, g.lower, g.upper));
+    // the cell of the Cartesian guess, a neighbour (often not the element:
+    // the walk), an invalid hint (ignored), the last cell
+    const int c = g.cell_of(x.back())[0];
+    const int pick = i % 4;
+    hints.push_back(Index<1>{pick == 0 ? c : pick == 1 ? std::min(c + 1, g.cells[0] - 1) : pick == 2 ? -5 : g.cells[0] - 1});
+  }
+  x[7] = g.lower; // the ends of the node set
+  x[8] = g.upper;
+  const int batched = batch_against_evaluate(*b, x, hints);
+  MESSAGE("points written by the batch: " << batched << " of " << x.size());
+  CHECK(batched > 100);
+  CHECK(batched < static_cast<int>(x.size())); // the walks went through evaluate()
+  // a point that is not finite, and one in an inverted element: the batch
+  // stops before them (evaluate() reports them)
+  std::vector<int> node(4);
+  std::vector<double> N(4);
+  AlignedVector<Vec<1>> dN(4);
+  const AlignedVector<Vec<1>> bad{Vec<1>(std::nan("")), x[0]};
+  CHECK(b->evaluate_fixed_points(bad.data(), 2, nullptr, node.data(), N.data(), dN.data()) == 0);
+  const auto inverted = inverted_segment();
+  Index<1> hint{1};
+  const Vec<1> x_in(2.2);
+  CHECK(inverted->evaluate_fixed_points(&x_in, 1, &hint, node.data(), N.data(), dN.data()) == 0);
+  CHECK(hint[0] == 1);
+}
+
 TEST_CASE("linear uses and updates the cell hint") {
   const CartesianGrid<2> g = test_grid<2>();
   const auto b = make_linear_basis<2>(NodeSet<2>::perturbed(g, 0.3, 8u));
@@ -396,16 +493,7 @@ TEST_CASE_TEMPLATE_DEFINE("linear: a point outside the grid is a BasisError nami
 TEST_CASE_TEMPLATE_APPLY(out_id, Dims);
 
 TEST_CASE("linear: a point in an inverted element is a BasisError") {
-  // Nodes 0, 2.5, 2, 3: the second segment runs backwards.
-  CartesianGrid<1> g;
-  g.lower[0] = 0;
-  g.upper[0] = 3;
-  g.cells[0] = 3;
-  auto b = make_linear_basis<1>(NodeSet<1>::cartesian(g));
-  AlignedVector<Vec<1>> dx(4, Vec<1>::Zero());
-  dx[1][0] = 1.5;
-  b->nodes().advect(dx);
-  b->nodes_moved(dx);
+  const auto b = inverted_segment();
   Stencil<1> st;
   PointQuery<1> q;
   q.x = Vec<1>(2.6);

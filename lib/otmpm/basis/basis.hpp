@@ -215,7 +215,8 @@ public:
   /// no per-point state but the cell hint: evaluates the points x[0],
   /// x[1], ... in order, writing the S = fixed_stencil() entries of point i
   /// to node/N/dN + i S (and its cell to cell_hint[i] when cell_hint is not
-  /// null), the same bits as evaluate_fixed(). Never throws: stops before the
+  /// null), the same bits as evaluate_fixed() (or, where that declines, as
+  /// evaluate()). Never throws: stops before the
   /// first point it cannot evaluate that way (outside the domain, not finite,
   /// or any point once the family needs evaluate()) and returns the number of
   /// points written, at most `count`; the caller takes that point through

@@ -305,7 +305,10 @@ public:
   /// nodes left their lattice.
   int evaluate_fixed_points(const Vec<D>* x, int count, Index<D>* cell_hint, int* node, double* N,
                             Vec<D>* dN) const override {
-    if (!nodes_.on_lattice()) return 0;
+    if (!nodes_.on_lattice()) {
+      if constexpr (D == 1) return segments_run(x, count, cell_hint, node, N, dN);
+      return 0;
+    }
     return cell_hint ? hats_run<true>(x, count, cell_hint, node, N, dN) : hats_run<false>(x, count, nullptr, node, N, dN);
   }
 
@@ -518,6 +521,59 @@ private:
                        " is inverted or degenerate (det J = " + std::to_string(det) + ")");
     const Mat<D> JinvT = J.inverse().transpose();
     for (int a = 0; a < kCorners<D>; ++a) out.push(e.id[a], s.N[a], JinvT * s.dN[a]);
+  }
+
+  /// 1D off the lattice (moved or perturbed nodes), consecutive points each
+  /// in the segment of its start cell (start_cell: the hint, else the
+  /// Cartesian guess), by the operations Element, inverse_map and
+  /// push_element make for D = 1, in the same order - evaluate()'s bits
+  /// without their general loops, the stencil and its copy. Stops before
+  /// the first point that is not finite or not inside that segment (its
+  /// element walk and errors are evaluate()'s).
+  int segments_run(const Vec<D>* x, int count, Index<D>* cell_hint, int* node, double* N, Vec<D>* dN) const
+    requires(D == 1)
+  {
+    const Vec<D>* pos = nodes_.positions().data();
+    for (int p = 0; p < count; ++p) {
+      const double xp = x[p][0];
+      if (!std::isfinite(xp)) return p;
+      const int c = cell_hint && cell_hint[p][0] >= 0 && cell_hint[p][0] < grid_.cells[0] ? cell_hint[p][0]
+                                                                                         : grid_.cell_of(x[p])[0];
+      const int id = grid_.node_id(Index<D>{c});
+      const double x0 = pos[id][0], x1 = pos[id + 1][0];
+      // Element: c_S = 2^-D sum_a +-x_a, summed from zero in corner order
+      const double c0 = ((0.0 + x0) + x1) / 2, c1 = ((0.0 + -x0) + x1) / 2;
+      double xi;
+      if (!segment_inverse(c0, c1, xp, xi)) return p;
+      // push_element: J = c1 (> 0 required), grad N_a = (1 / J) dN_a / dxi
+      const double J = 0.0 + 1.0 * c1;
+      if (!(J > 0.0)) return p;
+      xi = std::min(std::max(xi, -1.0), 1.0);
+      const double inv_J = 1.0 / J;
+      node[2 * p] = id;
+      node[2 * p + 1] = id + 1;
+      N[2 * p] = 0.5 * (1.0 + -xi);
+      N[2 * p + 1] = 0.5 * (1.0 + xi);
+      dN[2 * p][0] = inv_J * (0.5 * -1.0);
+      dN[2 * p + 1][0] = inv_J * (0.5 * 1.0);
+      if (cell_hint) cell_hint[p][0] = c;
+    }
+    return count;
+  }
+
+  /// inverse_map for D = 1 on the segment x(xi) = c0 + xi c1, its Newton
+  /// iterations from xi = 0 operation by operation; true when it ends inside.
+  static bool segment_inverse(double c0, double c1, double x, double& xi) {
+    xi = 0.0;
+    for (int it = 0; it < kMaxNewtonIterations; ++it) {
+      const double pos = c0 + (1.0 * xi) * c1, J = 0.0 + 1.0 * c1;
+      if (!(std::abs(J) > 0.0) || !std::isfinite(J)) return false;
+      const double step = (1.0 / J) * (pos - x);
+      xi -= step;
+      if (!std::isfinite(xi) || std::abs(xi) > kFarOutside) return false;
+      if (std::abs(step) <= kNewtonStepTolerance) return std::abs(xi) <= 1.0 + kInsideTolerance;
+    }
+    return false;
   }
 
   NodeSet<D> nodes_;
