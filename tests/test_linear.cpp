@@ -256,14 +256,14 @@ TEST_CASE_TEMPLATE_DEFINE("linear batch stops before a point it cannot evaluate 
     CHECK_THROWS_AS(b->evaluate_fixed(q, node.data(), N.data(), dN.data()), BasisError);
   }
   CHECK(b->evaluate_fixed_points(x.data(), 0, nullptr, node.data(), N.data(), dN.data()) == 0);
-  // Once the nodes moved: nothing in 2D and 3D (the isoparametric map goes
-  // through evaluate()); in 1D the segments of the points' cells (below).
+  // Once the nodes moved: no batch in 2D and 3D (-1: the isoparametric map
+  // goes through evaluate()); in 1D the segments of the points' cells (below).
   AlignedVector<Vec<D>> dx(static_cast<std::size_t>(b->nodes().size()), Vec<D>::Constant(1e-3 * g.h()[0]));
   b->nodes().advect(dx);
   b->nodes_moved(dx);
   x[3] = x[0];
   for (Vec<D>& p : x) p += 0.25 * g.h(); // inside the cells of their Cartesian guess (a node before)
-  CHECK(b->evaluate_fixed_points(x.data(), 6, nullptr, node.data(), N.data(), dN.data()) == (D == 1 ? 6 : 0));
+  CHECK(b->evaluate_fixed_points(x.data(), 6, nullptr, node.data(), N.data(), dN.data()) == (D == 1 ? 6 : -1));
 }
 TEST_CASE_TEMPLATE_APPLY(stop_id, Dims);
 
@@ -378,8 +378,11 @@ std::unique_ptr<Basis<1>> inverted_segment() {
 /// Rows of points x filled as the table fill does (the batch, and each
 /// point it stops at through evaluate(), then the batch again), against
 /// evaluate() point by point with the same hints: the same bits, the same
-/// hints after. Returns the points the batch wrote.
-int batch_against_evaluate(const Basis<1>& b, const AlignedVector<Vec<1>>& x, const std::vector<Index<1>>& hints) {
+/// hints after, and the batch wrote exactly the points that lie in their
+/// start cell (the hint when valid, else the Cartesian guess). Returns the
+/// points the batch wrote.
+int batch_against_evaluate(const Basis<1>& b, const CartesianGrid<1>& g, const AlignedVector<Vec<1>>& x,
+                           const std::vector<Index<1>>& hints) {
   const int n = static_cast<int>(x.size());
   std::vector<int> node(2 * x.size());
   std::vector<double> N(node.size());
@@ -399,12 +402,16 @@ int batch_against_evaluate(const Basis<1>& b, const AlignedVector<Vec<1>>& x, co
     REQUIRE(st.size() == 2);
     for (int a = 0; a < 2; ++a) node[2 * p + a] = st.node[a], N[2 * p + a] = st.N[a], dN[2 * p + a] = st.dN[a];
   }
+  int in_start_cell = 0;
   for (int p = 0; p < n; ++p) {
+    const int h = hint_point[p][0];
+    const int start = h >= 0 && h < g.cells[0] ? h : g.cell_of(x[p])[0];
     Stencil<1> st;
     PointQuery<1> q;
     q.x = x[p];
     q.cell_hint = &hint_point[p];
     b.evaluate(q, st);
+    in_start_cell += hint_point[p][0] == start ? 1 : 0;
     INFO("point " << p << " at " << x[p][0]);
     for (int a = 0; a < 2; ++a) {
       CHECK(node[2 * p + a] == st.node[a]);
@@ -413,6 +420,7 @@ int batch_against_evaluate(const Basis<1>& b, const AlignedVector<Vec<1>>& x, co
     }
     CHECK(hint_batch[p] == hint_point[p]);
   }
+  CHECK(batched == in_start_cell);
   return batched;
 }
 
@@ -427,14 +435,29 @@ TEST_CASE("linear 1D off the lattice: the batch gives evaluate()'s bits and leav
   for (int i = 0; i < 400; ++i) {
     x.push_back(random_in_box<1>(rng, g.lower, g.upper));
     // the cell of the Cartesian guess, a neighbour (often not the element:
-    // the walk), an invalid hint (ignored), the last cell
+    // the walk), invalid hints (ignored: -5 and one past the last cell), the
+    // last cell
     const int c = g.cell_of(x.back())[0];
-    const int pick = i % 4;
-    hints.push_back(Index<1>{pick == 0 ? c : pick == 1 ? std::min(c + 1, g.cells[0] - 1) : pick == 2 ? -5 : g.cells[0] - 1});
+    const int pick = i % 5;
+    hints.push_back(Index<1>{pick == 0   ? c
+                             : pick == 1 ? std::min(c + 1, g.cells[0] - 1)
+                             : pick == 2 ? -5
+                             : pick == 3 ? g.cells[0]
+                                         : g.cells[0] - 1});
   }
-  x[7] = g.lower; // the ends of the node set
-  x[8] = g.upper;
-  const int batched = batch_against_evaluate(*b, x, hints);
+  // the ends of the node set, and just beyond them within the round-off
+  // slack (|xi| a little above 1: clamped)
+  const double h = g.h()[0];
+  x[7] = g.lower, x[8] = g.upper;
+  x[9] = g.lower - Vec<1>(1e-13 * h), x[10] = g.upper + Vec<1>(1e-13 * h);
+  hints[9] = Index<1>{0}, hints[10] = Index<1>{g.cells[0] - 1};
+  // interior nodes, from the cells on either side (xi = +-1 up to round-off)
+  for (int I = 1; I < g.cells[0]; ++I)
+    for (const int side : {I - 1, I}) {
+      x.push_back(b->nodes().position(I));
+      hints.push_back(Index<1>{side});
+    }
+  const int batched = batch_against_evaluate(*b, g, x, hints);
   MESSAGE("points written by the batch: " << batched << " of " << x.size());
   CHECK(batched > 100);
   CHECK(batched < static_cast<int>(x.size())); // the walks went through evaluate()

@@ -555,6 +555,32 @@ TEST_CASE("consistent mass: a row that names a node twice is summed as the tripl
   fresh.assemble(t, m, active, constrained, 3);
   REQUIRE(kept.pattern_reuses() == 1);
   CHECK(same_bits(kept, fresh, 3));
+  // new node lists on the same pattern, one naming node 1 twice: looked up
+  // (pattern_kept), each product into its place in the triplets' order
+  const BasisTable<1> moved = runs_table({{1, 2}, {0, 1}, {1, 1}, {0, 1}}, {0.7, 0.2, 0.45, 0.35});
+  kept.assemble(moved, m, active, constrained, 3);
+  MassMatrix<1> fresh_moved;
+  fresh_moved.assemble(moved, m, active, constrained, 3);
+  CHECK(kept.pattern_kept() == 1);
+  CHECK(same_bits(kept, fresh_moved, 3));
+}
+
+TEST_CASE("consistent mass: another node count is assembled afresh, not looked up in the last pattern") {
+  const std::vector<double> m = {1.0, 2.0, 0.5, 1.5};
+  const std::vector<char> constrained(4, 0);
+  MassMatrix<1> M;
+  M.assemble(runs_table({{0, 1}, {1, 2}, {0, 1}, {1, 2}}, {0.5, 0.3, 0.4, 0.6}), m, std::vector<char>(3, 1),
+             std::vector<char>(3, 0), 3);
+  // the lists in another order (their products fill the last pattern) with
+  // a fourth node, inactive: M is 4 x 4 now
+  const BasisTable<1> t = runs_table({{1, 2}, {0, 1}, {1, 2}, {0, 1}}, {0.5, 0.3, 0.4, 0.6});
+  const std::vector<char> active = {1, 1, 1, 0};
+  M.assemble(t, m, active, constrained, 4);
+  CHECK(M.pattern_kept() == 0);
+  CHECK(M.matrix().rows() == 4);
+  MassMatrix<1> fresh;
+  fresh.assemble(t, m, active, constrained, 4);
+  CHECK(same_bits(M, fresh, 4));
 }
 
 TEST_CASE("consistent mass: a negative entry of M and r = -0 give the signed zeros of the first implementation") {

@@ -217,25 +217,35 @@ TEST_CASE("maxent: N from w_I exp(lambda . dx_I) equals the log form, also with 
 }
 
 TEST_CASE("maxent: N near lambda = 0 (the Taylor exponential) equals the log form to round-off") {
-  // On evenly spaced nodes the cubic-spline prior reproduces x by itself
-  // (lambda = 0); nodes moved by a smooth stretch of a few 1e-3 h give
-  // |lambda| R up to 2^-8, where the solver takes e^u by its degree-5 Taylor
-  // polynomial (within an ulp). N against exp(log w_I + lambda . dx_I)
-  // normalised with std::exp, at the same lambda, from a start at the
-  // converged lambda (as in `ul` mode, where that start ends the solve): two
-  // ulp of N <= 1 (measured 2.2e-16; a cubic polynomial fails).
+  // On evenly spaced nodes the cubic-spline prior of d_max = 2 (the cubic
+  // B-spline of spacing h) reproduces x by itself (lambda = 0); nodes moved
+  // by a smooth stretch give |lambda| R up to 2^-8 at 0.25% of h, where the
+  // solver takes e^u by its degree-5 Taylor polynomial (within an ulp), and
+  // beyond 2^-8 at 2%, where it takes the full exponential. N against
+  // exp(log w_I + lambda . dx_I) normalised with std::exp, at the same
+  // lambda, from a start at the converged lambda (as in `ul` mode, where
+  // that start ends the solve): two ulp of N <= 1 on both sides of 2^-8
+  // (measured 2.2e-16; a cubic polynomial below 2^-8, or the degree-5 one
+  // up to 2^-4, fails).
   const double h = 0.1;
-  AlignedVector<Vec<1>> x;
-  for (int I = 0; I <= 20; ++I) x.push_back(Vec<1>(h * I + 0.0025 * h * std::sin(0.9 * I)));
-  const auto b = make_maxent_basis<1>(NodeSet<1>::cloud(x, h), maxent_options());
-  double largest = 0.0;
-  for (int i = 0; i < 40; ++i) {
-    const double xi = 0.5 + 1.0 * i / 40.0; // interior: full supports
-    largest = std::max(largest, check_log_form<1>(*b, 2.0 * h, Vec<1>(xi), 4.5e-16, kCompletenessTol * h, true));
-  }
-  MESSAGE("largest |lambda| R: " << largest);
-  CHECK(largest <= 0x1p-8); // every point on the Taylor path
-  CHECK(largest > 0x1p-10); // and its exponents reach a quarter of its range
+  const auto largest_lambda_R = [&](double amplitude) {
+    AlignedVector<Vec<1>> x;
+    for (int I = 0; I <= 20; ++I) x.push_back(Vec<1>(h * I + amplitude * h * std::sin(0.9 * I)));
+    const auto b = make_maxent_basis<1>(NodeSet<1>::cloud(x, h), maxent_options());
+    double largest = 0.0;
+    for (int i = 0; i < 40; ++i) {
+      const double xi = 0.5 + 1.0 * i / 40.0; // interior: full supports
+      largest = std::max(largest, check_log_form<1>(*b, 2.0 * h, Vec<1>(xi), 4.5e-16, kCompletenessTol * h, true));
+    }
+    MESSAGE("stretch " << amplitude << " h: largest |lambda| R " << largest);
+    return largest;
+  };
+  const double taylor = largest_lambda_R(0.0025);
+  CHECK(taylor <= 0x1p-8); // every point on the Taylor path
+  CHECK(taylor > 0x1p-9);  // and its exponents reach half its range
+  const double beyond = largest_lambda_R(0.02);
+  CHECK(beyond > 0x1p-8); // some points past it
+  CHECK(beyond <= 0x1p-4);
 }
 
 TEST_CASE("maxent: kind, flags and option checks") {

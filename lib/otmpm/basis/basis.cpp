@@ -252,17 +252,17 @@ bool fill_fixed(const Basis<D>& basis, int S, const AlignedVector<Vec<D>>& x, co
     for (long long p = begin; p < end; ++p) table.offset[static_cast<std::size_t>(p)] = static_cast<int>(p * S);
     // The batched path (evaluate_fixed_points); a point it stops at goes
     // through evaluate_fixed()/evaluate(), then the batch resumes after it.
-    // Two calls in a row that make no progress (a family without a batch, or
-    // one that needs evaluate() now) end it for the chunk.
-    int idle = 0;
+    // A family without a batch in its present state (-1) is not asked again
+    // in the chunk.
+    bool batch = true;
     for (int p = static_cast<int>(begin); p < end; ++p) {
-      if (idle < 2) {
+      if (batch) {
         const std::size_t b0 = static_cast<std::size_t>(p) * static_cast<std::size_t>(S);
         const int done = basis.evaluate_fixed_points(&x[static_cast<std::size_t>(p)], static_cast<int>(end - p),
                                                      a.cell_hint ? &(*a.cell_hint)[static_cast<std::size_t>(p)] : nullptr,
                                                      &table.node[b0], &table.N[b0], &table.dN[b0]);
-        idle = done > 0 ? 0 : idle + 1;
-        p += done;
+        batch = done >= 0;
+        p += std::max(done, 0);
         if (p == end) break;
       }
       const std::size_t e0 = static_cast<std::size_t>(p) * static_cast<std::size_t>(S);

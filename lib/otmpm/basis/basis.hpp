@@ -216,15 +216,18 @@ public:
   /// x[1], ... in order, writing the S = fixed_stencil() entries of point i
   /// to node/N/dN + i S (and its cell to cell_hint[i] when cell_hint is not
   /// null), the same bits as evaluate_fixed() (or, where that declines, as
-  /// evaluate()). Never throws: stops before the
-  /// first point it cannot evaluate that way (outside the domain, not finite,
-  /// or any point once the family needs evaluate()) and returns the number of
-  /// points written, at most `count`; the caller takes that point through
-  /// evaluate_fixed()/evaluate(), which report its error. The default: 0.
+  /// evaluate()). Never throws: stops before the first point it cannot
+  /// evaluate that way (outside the domain, not finite, or needing
+  /// evaluate()'s search) and returns the number of points written, at most
+  /// `count`; the caller takes that point through
+  /// evaluate_fixed()/evaluate(), which report its error, and calls the
+  /// batch again from the next point. -1: the family has no batch in its
+  /// present state (nothing written; the caller stops asking). The
+  /// default: -1.
   virtual int evaluate_fixed_points(const Vec<D>* x, int count, Index<D>* cell_hint, int* node, double* N,
                                     Vec<D>* dN) const {
     (void)x, (void)count, (void)cell_hint, (void)node, (void)N, (void)dN;
-    return 0;
+    return -1;
   }
   /// Which per-point state the family keeps when it evaluates the same points
   /// step after step (the particles, bind_points): the Lagrange multiplier

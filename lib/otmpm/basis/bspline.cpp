@@ -612,7 +612,7 @@ int BsplineBasis<D>::evaluate_fixed_points(const Vec<D>* x, int count, Index<D>*
   case 1: return bspline_batch<D, 1>(ax, x, count, cell_hint, node, N, dN);
   case 2: return bspline_batch<D, 2>(ax, x, count, cell_hint, node, N, dN);
   case 3: return bspline_batch<D, 3>(ax, x, count, cell_hint, node, N, dN);
-  default: return 0;
+  default: return -1; // no batch for this degree
   }
 }
 

@@ -301,13 +301,14 @@ public:
 
   /// The lattice hats of consecutive points in one loop (no per-point query,
   /// no virtual call), the same bits as evaluate_fixed(). Stops before the
-  /// first point outside the widened grid box (or not finite); 0 once the
-  /// nodes left their lattice.
+  /// first point outside the widened grid box (or not finite). Once the
+  /// nodes left their lattice: in 1D the segments of segments_run, in 2D and
+  /// 3D no batch (-1).
   int evaluate_fixed_points(const Vec<D>* x, int count, Index<D>* cell_hint, int* node, double* N,
                             Vec<D>* dN) const override {
     if (!nodes_.on_lattice()) {
       if constexpr (D == 1) return segments_run(x, count, cell_hint, node, N, dN);
-      return 0;
+      return -1;
     }
     return cell_hint ? hats_run<true>(x, count, cell_hint, node, N, dN) : hats_run<false>(x, count, nullptr, node, N, dN);
   }

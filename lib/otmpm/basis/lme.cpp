@@ -17,7 +17,10 @@
 //   whose weights are p_I = w_I exp(lambda . (x - x_I)) with no logarithm
 //   per node (log w_I is formed only on the rare paths that need it: the
 //   shifted exponents beyond kUnshiftedExponent and the round-off bound of
-//   the line search).
+//   the line search). While |lambda| R <= kTaylorSmall (the spline prior
+//   of d_max = 2 is the cubic B-spline of spacing h and reproduces x by
+//   itself, so lambda stays near 0 on nearly even nodes) exp(lambda . (x -
+//   x_I)) is taken by its degree-5 Taylor polynomial (within an ulp).
 // * Support: LME keeps node I when beta |x - x_I|^2 <= -ln(tol), i.e.
 //   exp(-beta r^2) >= tol, radius R = h sqrt(-ln(tol) / gamma_lme); max-ent
 //   keeps nodes with |x - x_I| < d_max h (w_I > 0).
@@ -185,7 +188,9 @@ constexpr double kBucketSafety = 1e-9;       ///< relative slack on the bucket d
 /// evaluation costs a few multiplications per node. |u_I| <= |s| R (R bounds
 /// |x - x_I| on the support) decides it before any pass over the nodes; a
 /// step with |s| R <= kTaylorLarge < kSafeExponentChange also satisfies the
-/// Armijo condition, so it is taken without a line search.
+/// Armijo condition, so it is taken without a line search. The first pass
+/// of the cubic-spline prior takes degree 5 too while |lambda| R <=
+/// kTaylorSmall (dual_state_impl).
 constexpr double kTaylorSmall = 0x1p-8;
 constexpr double kTaylorLarge = 0x1p-4;
 /// While |lambda| R <= this, every exponent f_I = log w_I + lambda . dx_I lies
@@ -304,7 +309,8 @@ template <int D> struct Moments {
 /// p_I / Z, r, J, log Z = log_base + log(Z). log_base = 0 while |lambda| R <=
 /// kUnshiftedExponent, else the largest f_I. Moments about c (the caller's
 /// best guess of r). Returns false when not finite. kWeights: the priors
-/// are held as w_I (Support::w), else as log w_I.
+/// are held as w_I (Support::w), else as log w_I; with kWeights and |lambda|
+/// R <= kTaylorSmall exp(lambda . dx_I) is its degree-5 Taylor polynomial.
 template <int D, bool kWeights>
 bool dual_state_impl(const Vec<D>& lambda, const Support<D>& s, double* p, const Vec<D>& c, NewtonState<D>& st) {
   using simd::vd;
@@ -334,9 +340,9 @@ bool dual_state_impl(const Vec<D>& lambda, const Support<D>& s, double* p, const
   } else if (lambda.norm() * s.radius <= kTaylorSmall) {
     // every |lambda . dx_I| <= |lambda| R <= 2^-8 (and log_base = 0):
     // e^u by its degree-5 Taylor polynomial, within an ulp and 10 dependent
-    // operations instead of the 15 and the reduction of exp_shifted (a
-    // cubic-spline prior on evenly spaced nodes reproduces x by itself, so
-    // lambda stays near 0 where the nodes are nearly evenly spaced)
+    // operations instead of the 15 and the reduction of exp_shifted (the
+    // cubic-spline prior of d_max = 2 reproduces x by itself on evenly
+    // spaced nodes, so lambda stays near 0 where they are nearly even)
     for (int i = 0; i < s.n_pad; i += simd::lanes) {
       const vd e = simd::load(s.w + i) * simd::exp_small<5>(exponent_increment<D>(lambda_lanes, s, i));
       simd::store(p + i, e);

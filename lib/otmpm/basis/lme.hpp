@@ -68,9 +68,10 @@ template <int D> struct CubicSplinePrior {
   /// The prior of support radius d = d_max * h.
   explicit CubicSplinePrior(double radius) : d(radius), inv_d(1.0 / radius), inv_d2(1.0 / (radius * radius)) {}
   double support_radius() const { return d; }
-  /// r = |dx| / d, formed as |dx| times 1 / d (within an ulp of the
-  /// quotient; a division per node was a fifth of the gather), |dx| as
-  /// |dx_0| in 1D (sqrt(dx_0^2) rounds to it exactly).
+  /// r = |dx| / d, formed as |dx| times 1 / d (one rounding more than the
+  /// quotient: within 1.5 ulp of |dx| / d; a division per node was a fifth
+  /// of the gather), |dx| as |dx_0| in 1D (sqrt(dx_0^2) rounds to it
+  /// exactly while dx_0^2 neither underflows nor overflows).
   double normalised_radius(const Vec<D>& dx) const {
     if constexpr (D == 1) return std::abs(dx[0]) * inv_d;
     return dx.norm() * inv_d;

@@ -241,9 +241,6 @@ template <int B> void band_solve(const double* __restrict band, const double* __
   for (; i >= 0; --i) backward_row(i, 0);
 }
 
-/// f(std::integral_constant<int, B>) with B = b for the half bandwidths of
-/// the fixed stencils (linear 1, B-splines 2 and 3), else B = 0 (b at run
-/// time: a diagonal M, b = 0).
 /// The number of entries of row p.
 template <int D> int row_size(const BasisTable<D>& table, int p) { return table.end(p) - table.begin(p); }
 
@@ -259,6 +256,9 @@ template <int D> bool same_list(const BasisTable<D>& table, int p, int q) {
   return same;
 }
 
+/// f(std::integral_constant<int, B>) with B = b for the half bandwidths of
+/// the fixed stencils (linear 1, B-splines 2 and 3), else B = 0 (b at run
+/// time: a diagonal M, b = 0).
 template <class F> decltype(auto) with_band(int b, F&& f) {
   switch (b) {
   case 1: return f(std::integral_constant<int, 1>{});
