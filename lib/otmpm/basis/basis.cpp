@@ -4,12 +4,12 @@
 /// stored in compressed rows, independent of the OpenMP thread count.
 #include "otmpm/basis/basis.hpp"
 
+#include "otmpm/io/text_files.hpp"
 #include "otmpm/parallel.hpp"
 #include "otmpm/state.hpp"
 
 #include <algorithm>
 #include <atomic>
-#include <cstdio>
 #include <exception>
 #include <limits>
 #include <stdexcept>
@@ -111,12 +111,9 @@ template <int D> void get_histories(const StateGroup& in, AlignedVector<Multipli
     MultiplierHistory<D>& h = a[p];
     for (int k = 0; k < D; ++k) h.previous[k] = row[k], h.before[k] = row[D + k];
     const double solves = row[2 * D];
-    if (!(solves == 0.0 || solves == 1.0 || solves == 2.0 || solves == 3.0)) {
-      char value[32];
-      std::snprintf(value, sizeof value, "%.17g", solves);
-      in.error("per-point state 'lambda_history': a count of solves of " + std::string(value) +
+    if (!(solves == 0.0 || solves == 1.0 || solves == 2.0 || solves == 3.0))
+      in.error("per-point state 'lambda_history': a count of solves of " + text::exact(solves) +
                " (0 to 3 expected) in row " + std::to_string(p) + " of the particles restored here");
-    }
     h.solves = static_cast<int>(solves);
   }
 }

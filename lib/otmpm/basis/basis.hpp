@@ -303,6 +303,7 @@ template <int D> struct BasisTable {
   int rows() const { return static_cast<int>(offset.size()) - 1; }
   int begin(int p) const { return offset[p]; }
   int end(int p) const { return offset[p + 1]; }
+  int size(int p) const { return offset[p + 1] - offset[p]; } ///< entries of row p
   std::size_t entries() const { return node.size(); }
 };
 

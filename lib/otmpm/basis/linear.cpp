@@ -483,13 +483,15 @@ private:
     if (q.cell_hint) *q.cell_hint = c;
   }
 
-  Index<D> start_cell(const PointQuery<D>& q) const {
-    if (q.cell_hint) {
+  Index<D> start_cell(const PointQuery<D>& q) const { return start_cell(q.cell_hint, q.x); }
+  /// The hint when it names a cell of the grid, else the Cartesian guess for x.
+  Index<D> start_cell(const Index<D>* hint, const Vec<D>& x) const {
+    if (hint) {
       bool valid = true;
-      for (int k = 0; k < D; ++k) valid = valid && (*q.cell_hint)[k] >= 0 && (*q.cell_hint)[k] < grid_.cells[k];
-      if (valid) return *q.cell_hint;
+      for (int k = 0; k < D; ++k) valid = valid && (*hint)[k] >= 0 && (*hint)[k] < grid_.cells[k];
+      if (valid) return *hint;
     }
-    return grid_.cell_of(q.x);
+    return grid_.cell_of(x);
   }
 
   /// Moves c one element along the axis where xi lies furthest outside
@@ -538,8 +540,7 @@ private:
     for (int p = 0; p < count; ++p) {
       const double xp = x[p][0];
       if (!std::isfinite(xp)) return p;
-      const int c = cell_hint && cell_hint[p][0] >= 0 && cell_hint[p][0] < grid_.cells[0] ? cell_hint[p][0]
-                                                                                         : grid_.cell_of(x[p])[0];
+      const int c = start_cell(cell_hint ? &cell_hint[p] : nullptr, x[p])[0];
       const int id = grid_.node_id(Index<D>{c});
       const double x0 = pos[id][0], x1 = pos[id + 1][0];
       // Element: c_S = 2^-D sum_a +-x_a, summed from zero in corner order

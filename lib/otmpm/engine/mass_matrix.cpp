@@ -241,14 +241,11 @@ template <int B> void band_solve(const double* __restrict band, const double* __
   for (; i >= 0; --i) backward_row(i, 0);
 }
 
-/// The number of entries of row p.
-template <int D> int row_size(const BasisTable<D>& table, int p) { return table.end(p) - table.begin(p); }
-
 /// True when rows p and q hold the same node list (a loop: the lists are a
 /// few ids, shorter than a call to memcmp).
 template <int D> bool same_list(const BasisTable<D>& table, int p, int q) {
-  const int n = row_size(table, p);
-  if (row_size(table, q) != n) return false;
+  const int n = table.size(p);
+  if (table.size(q) != n) return false;
   const int* a = table.node.data() + table.begin(p);
   const int* b = table.node.data() + table.begin(q);
   bool same = true;
@@ -373,11 +370,11 @@ template <int D> bool MassMatrix<D>::slots_on_pattern(const BasisTable<D>& table
   const auto entries = static_cast<std::size_t>(M_.nonZeros());
   hit_.assign(entries, 0);
   std::size_t covered = 0, products = 0;
-  for (int p = 0; p < table.rows(); ++p) products += static_cast<std::size_t>(row_size(table, p)) * row_size(table, p);
+  for (int p = 0; p < table.rows(); ++p) products += static_cast<std::size_t>(table.size(p)) * table.size(p);
   slot_.resize(products);
   std::size_t t = 0;
   for (int p = 0; p < table.rows(); ++p) {
-    const int b0 = table.begin(p), n = row_size(table, p);
+    const int b0 = table.begin(p), n = table.size(p);
     const std::size_t n2 = static_cast<std::size_t>(n) * n;
     if (p > 0 && same_list(table, p - 1, p)) {
       std::copy_n(slot_.begin() + static_cast<std::ptrdiff_t>(t - n2), n2, slot_.begin() + static_cast<std::ptrdiff_t>(t));
