@@ -96,6 +96,9 @@ int check_command(const SceneArgs& a) {
   std::printf("  steps      about %.0f (t_end = %.6g s)\n", c.estimated_steps, c.t_end);
   std::printf("  memory     about %s (estimate)\n", bytes_text(c.memory_bytes).c_str());
   std::printf("  results    %s\n", (a.out.empty() ? c.out_file : a.out).c_str());
+  for (const SceneCheck::BodyVolume& v : c.volumes)
+    std::printf("  volume     body '%s' (%s): particles %.6g, shape %.6g (error %+.3g %%)\n", v.name.c_str(),
+                v.shape.c_str(), v.seeded, v.exact, 100.0 * (v.seeded - v.exact) / v.exact);
   return 0;
 }
 
