@@ -100,5 +100,5 @@ def test_a_bad_measure_stops_the_study_before_any_run(tmp_path):
     study.write_text(STUDY.format(scene=example("dyka.toml")).replace('kind = "energy"', 'kind = "energie"'))
     r = run_cli("study", study)
     assert r.returncode == 2
-    assert "bad.toml:32: key 'measure.kinetic.kind': must be one of" in r.stderr
+    assert "bad.toml:33: key 'measure.kinetic.kind': must be one of" in r.stderr
     assert not (tmp_path / "bad_results").exists()  # nothing ran
