@@ -3,7 +3,8 @@
 //
 // Exit status: 0 success, 1 the simulation became unstable (diagnosis
 // printed), 2 bad input (the message names file, line and key; a bad option
-// gets CLI11's message), 3 internal error, 130/143 interrupted by
+// gets CLI11's message), 3 internal error, 4 the results could not be
+// written (disk full, file size limit), 130/143 interrupted by
 // SIGINT/SIGTERM (the result file stays valid, status "interrupted").
 //
 // Under mpirun (or srun) `run` and `pair` run distributed over the ranks;
@@ -27,7 +28,9 @@ constexpr int kBadInput = 2;
 
 const char* const kFooter =
     "Exit status: 0 ok, 1 the simulation became unstable, 2 bad input, 3 internal error,\n"
-    "130/143 interrupted by SIGINT/SIGTERM. OpenMP threads spin about 0.2 ms, then sleep\n"
+    "4 the results could not be written (disk full, file size limit), 130/143 interrupted\n"
+    "by SIGINT/SIGTERM. Units: SI (m, s, kg, Pa) or any consistent set. OpenMP threads\n"
+    "spin about 0.2 ms, then sleep\n"
     "(OMP_WAIT_POLICY=passive, GOMP_SPINCOUNT for this processor; see the user guide).\n"
     "Each command has its own help: otmpm run --help, ...";
 

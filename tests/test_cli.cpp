@@ -192,7 +192,11 @@ TEST_CASE("cli: an unknown command or no command exits with 2") {
   CHECK(r.status == 2);
   CHECK(r.err.find("frobnicate") != std::string::npos);
   CHECK(run_cli(dir, {}).status == 2);
-  CHECK(run_cli(dir, {"--help"}).status == 0);
+  const CliResult help = run_cli(dir, {"--help"});
+  CHECK(help.status == 0);
+  // every exit status the command uses is listed
+  for (const char* status : {"0 ok", "1 the simulation", "2 bad input", "3 internal", "4 the results", "130/143"})
+    CHECK_MESSAGE(help.out.find(status) != std::string::npos, status);
 }
 
 TEST_CASE("cli: basis options that are not an int (out of range, fractional, negative seed) exit with 2") {
