@@ -6,7 +6,8 @@ root=$(cd "$(dirname "$0")/.." && pwd)
 bash "$root/scripts/install-deps.sh"
 build=${OTMPM_BUILD_DIR:-$root/build}
 jobs=$(nproc 2>/dev/null || echo 2)
-cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=Release -DOTMPM_WERROR=ON
+echo "== building otmpm and its tests in $build (only what scripts/main-job.sh or an earlier build did not)"
+bash "$root/scripts/configure.sh" "$build"
 cmake --build "$build" -j"$jobs"
 # Tests run side by side (ctest -j): OpenMP threads must sleep, not spin, while waiting.
 export OMP_WAIT_POLICY=${OMP_WAIT_POLICY:-passive}
