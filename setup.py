@@ -46,7 +46,8 @@ class CMakeBuild(build_ext):
         shutil.rmtree(package, ignore_errors=True)
         # the package folder only: not the C++ headers and CMake files (include/, lib/cmake)
         shutil.copytree(os.path.join(staging, "otmpm"), package, symlinks=True,
-                        ignore=lambda folder, names: ["cmake"] if os.path.basename(folder) == "lib" else [])
+                        ignore=lambda folder, names: ["cmake"] if os.path.basename(folder) == "lib" else
+                        ["__pycache__"])
 
 
 setup(ext_modules=[Extension("otmpm._otmpm", sources=[])], cmdclass={"build_ext": CMakeBuild})
