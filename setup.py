@@ -6,9 +6,10 @@ and the scripts the command runs (otmpm/share/otmpm). RPATHs are relative,
 so the package works wherever pip puts it.
 
 Environment:
-  OTMPM_PIP_BUILD_DIR  the CMake build folder (default: build/pip in the
-                       source tree: a second `pip install .` rebuilds only
-                       what changed)
+  OTMPM_PIP_BUILD_DIR  the CMake build folder (default: build-pip in the
+                       source tree, beside build/: a second `pip install .`
+                       rebuilds only what changed, and ccache with a base
+                       folder serves it the files build/ compiled)
   OTMPM_CMAKE_ARGS     further CMake arguments (e.g. -DOTMPM_MPI=OFF)
   CMAKE_BUILD_PARALLEL_LEVEL  compile jobs (default: the number of cores)
 """
@@ -28,7 +29,7 @@ class CMakeBuild(build_ext):
     """Configures, builds and installs the CMake project into the package folder of the wheel."""
 
     def build_extension(self, ext):
-        build = os.environ.get("OTMPM_PIP_BUILD_DIR") or os.path.join(SOURCE, "build", "pip")
+        build = os.environ.get("OTMPM_PIP_BUILD_DIR") or os.path.join(SOURCE, "build-pip")
         staging = os.path.join(os.path.abspath(self.build_temp), "otmpm-install")
         package = os.path.dirname(os.path.abspath(self.get_ext_fullpath(ext.name)))
         # the package's layout: otmpm/{*.py, _otmpm*.so, lib/, bin/, share/otmpm/}

@@ -6,7 +6,7 @@
 # against the installed package (and its own otmpm command); then
 # `pip install --user` into a throw-away home (Debian 12's pip needs
 # --break-system-packages for --user: its Python is "externally managed").
-# The CMake build goes to build/pip in the source tree (setup.py): a second
+# The CMake build goes to build-pip in the source tree (setup.py): a second
 # install rebuilds only what changed. OTMPM_CMAKE_ARGS passes CMake options
 # (CI: the main build's, so that ccache serves the compiled files).
 # Usage: bash scripts/check-pip.sh

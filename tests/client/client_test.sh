@@ -19,7 +19,8 @@
 #    to the HDF5 file;
 #  - pvbatch, offscreen (under xvfb-run when there is no display): the 2D run
 #    rendered as the user guide shows it, WORK_DIR/particles_2d.png, which must
-#    not be blank;
+#    not be blank; and the user guide's own pvbatch line, as written there
+#    (`./dyka_2d.xdmf`: pvbatch 5.11 aborts on a bare file name);
 #  - /usr/bin/python3 (tests/client/vtk_files_check.py): meshio reads the
 #    .vtu frames, an independent decoder the .vtp frames, both equal to the
 #    HDF5 file.
@@ -126,6 +127,17 @@ colours = len(np.unique((image.reshape(-1, 3) * 255).astype(int), axis=0))
 print(f"ok: {sys.argv[1]}: {image.shape[1]} x {image.shape[0]}, {100 * share:.1f} % of the pixels drawn, {colours} colours")
 sys.exit(0 if share > 0.02 and colours > 20 else 1)
 PY
+
+# The user guide's pvbatch line, as written there, in a folder laid out as
+# the source tree (tests/client/), after the guide's run of dyka_2d.toml.
+mkdir -p guide/tests
+ln -s "$here" guide/tests/client
+(cd guide && "$otmpm" run "$src/examples/dyka_2d.toml" --quiet >/dev/null)
+guide=(pvbatch tests/client/paraview_render.py ./dyka_2d.xdmf v dyka_2d.png)
+if [ -z "${DISPLAY:-}" ]; then guide=(xvfb-run -a "${guide[@]}"); fi
+(cd guide && "${guide[@]}" >pvbatch_guide.log 2>&1) || { tail -20 guide/pvbatch_guide.log; exit 1; }
+[ -s guide/dyka_2d.png ] || { echo "FAIL: the user guide's pvbatch line drew no dyka_2d.png"; exit 1; }
+echo "ok: the user guide's line: ${guide[*]}"
 
 $python "$here/vtk_files_check.py" "${results[@]}"
 echo "client test passed"
