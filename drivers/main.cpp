@@ -91,12 +91,29 @@ int dispatch(CLI::App& app, const std::vector<otmpm::cli::Command>& commands, in
   }
 }
 
+/// True (and, from the launcher's first process, a message) when mpirun or
+/// srun started this process among others that it cannot join as a rank.
+bool refuse_lone_ranks() {
+  const int n = otmpm::distributed::launcher_size();
+  if (n <= otmpm::distributed::Comm::world().size()) return false;
+  if (otmpm::distributed::launcher_rank() == 0)
+    std::fprintf(stderr,
+                 "otmpm: error: started by mpirun or srun as one of %d processes, but this otmpm cannot join them "
+                 "as ranks: it was built without MPI (-DOTMPM_MPI=OFF, or OpenMPI and the parallel HDF5 were not "
+                 "installed when it was built), or with another MPI than this launcher's. Each process would run "
+                 "the whole scene alone: run it without mpirun, or with the mpirun of the MPI it was built with "
+                 "(scripts/install-deps.sh installs OpenMPI; then rebuild)\n",
+                 n);
+  return true;
+}
+
 } // namespace
 
 int main(int argc, char** argv) {
   // Before MPI starts: it may execute the process again.
   otmpm::default_openmp_wait(argv);
   otmpm::distributed::Session mpi(argc, argv);
+  if (refuse_lone_ranks()) return kBadInput;
   CLI::App app{"otmpm: explicit solid dynamics with the Material Point Method and an OTM-style "
                "updated-Lagrangian scheme",
                "otmpm"};

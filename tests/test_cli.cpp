@@ -199,6 +199,19 @@ TEST_CASE("cli: an unknown command or no command exits with 2") {
     CHECK_MESSAGE(help.out.find(status) != std::string::npos, status);
 }
 
+TEST_CASE("cli: a process a launcher started among others it cannot join says so and exits with 2") {
+  // PMI_SIZE = 3 without the launcher: this process cannot reach two peers,
+  // as a build without MPI (or with another MPI) under mpirun cannot
+  const otmpm::test::ShellResult r =
+      otmpm::test::shell("PMI_SIZE=3 PMI_RANK=0 OMP_NUM_THREADS=1 " + quote(kBinary) + " --version");
+  CHECK(r.status == 2);
+  CHECK(r.output.find("started by mpirun or srun as one of 3 processes, but this otmpm cannot join them as ranks") !=
+        std::string::npos);
+  const otmpm::test::ShellResult quiet = otmpm::test::shell("PMI_SIZE=3 PMI_RANK=1 " + quote(kBinary) + " --version");
+  CHECK(quiet.status == 2);
+  CHECK(quiet.output.empty()); // one message for all processes: the launcher's first prints it
+}
+
 TEST_CASE("cli: basis options that are not an int (out of range, fractional, negative seed) exit with 2") {
   TempDir dir("cli");
   const std::string out = (dir.dir / "basis.csv").string();
