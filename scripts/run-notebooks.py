@@ -7,13 +7,16 @@ the repository.
 
     /usr/bin/python3 scripts/run-notebooks.py [NOTEBOOK.ipynb ...]
 
-The kernel is this interpreter; the otmpm package must be importable
+The kernel is this interpreter (a kernel spec of its own, found first
+through JUPYTER_PATH); the otmpm package must be importable
 (installed with pip, or PYTHONPATH=build/python). OTMPM_SOURCE_DIR is set to
 this source tree for the notebooks' paths of the examples.
 """
 import glob
+import json
 import os
 import sys
+import tempfile
 import time
 
 import nbclient
@@ -27,6 +30,14 @@ def main(paths):
     if not paths:
         sys.exit("no notebook found")
     os.environ.setdefault("OTMPM_SOURCE_DIR", ROOT)
+    # the kernel: this interpreter (a venv's, with the package it installed),
+    # not the system's kernel spec, which would start /usr/bin/python3
+    specs = tempfile.mkdtemp(prefix="otmpm-kernels-")
+    os.makedirs(os.path.join(specs, "kernels", "python3"))
+    with open(os.path.join(specs, "kernels", "python3", "kernel.json"), "w") as f:
+        json.dump({"argv": [sys.executable, "-m", "ipykernel_launcher", "-f", "{connection_file}"],
+                   "display_name": "Python 3", "language": "python"}, f)
+    os.environ["JUPYTER_PATH"] = specs + os.pathsep + os.environ.get("JUPYTER_PATH", "")
     os.environ.setdefault("MPLBACKEND", "Agg")
     os.environ.setdefault("PYDEVD_DISABLE_FILE_VALIDATION", "1")  # the kernel's debugger notes on stderr
     for path in paths:
