@@ -363,6 +363,23 @@ TEST_CASE("scene: stl and mesh bodies seed particles whose volume matches the sh
     CHECK(P.size() == s.bodies[0].file_particles);
     CHECK(s.bodies[0].lower[1] == 0.5); // translated
   }
+  // a boundary from the mesh's physical group "base", placed as the body
+  const std::string base = "[simulation]\ndimension = 2\nt_end = 1.0\n[basis]\nkind = \"linear\"\n[grid]\n"
+                           "lower = [-1, -1]\nupper = [13, 5]\ncells = [14, 6]\n" + materials +
+                           "[[body]]\nmaterial = \"m\"\nshape = \"mesh\"\nfile = \"" + kExamples +
+                           "embankment.msh\"\n[[boundary]]\nfile = \"" + kExamples + "embankment.msh\"\n";
+  const Scene placed = parse_scene(base + "physical = \"base\"\ntranslate = [0.0, 1.0]\nfix = [true, true]\n", "b.toml");
+  CHECK(placed.boundaries[0].lower[0] == 0.0);
+  CHECK(placed.boundaries[0].upper[0] == 12.0);
+  CHECK(placed.boundaries[0].lower[1] == 1.0);
+  CHECK(placed.boundaries[0].upper[1] == 1.0);
+  try {
+    parse_scene(base + "physical = \"fill\"\nfix = [true, true]\n", "b.toml"); // a group of surfaces
+    FAIL("a boundary needs a group of lines in 2D");
+  } catch (const InputError& e) {
+    CHECK(has(e.what(), "b.toml:"));
+    CHECK(has(e.what(), "no physical group \"fill\" of dimension 1"));
+  }
   // the L prism from a binary STL file, rotated 90 degrees about z and scaled by 2 in z: seeded volume -> 6
   test::TempDir dir("stl_scene");
   write_binary(dir.file("l.stl"), l_prism());

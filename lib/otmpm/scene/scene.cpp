@@ -390,6 +390,19 @@ std::string scene_relative_file(const TableReader& t, const Scene& s) {
   return (given.is_absolute() || s.file.empty() ? given : fs::path(s.file).parent_path() / given).string();
 }
 
+/// The keys that place a geometry file: scale (a number or one per axis,
+/// > 0), rotate (degrees about x, y, z; 2D: one angle about z), translate.
+void read_placement(const TableReader& t, int dim, Vec3& scale, Vec3& rotate, Vec3& translate) {
+  const Vec3 given = t.vec("scale", dim, true).value_or(Vec3{1, 1, 1});
+  for (int k = 0; k < dim; ++k) {
+    check(given[k] > 0, t.ref("scale"), "must be > 0 (got " + fmt(given[k]) + ")");
+    scale[k] = given[k];
+  }
+  if (dim == 3) rotate = t.vec("rotate", 3).value_or(rotate);
+  else rotate[2] = t.get<double>("rotate", 0.0); // about z
+  translate = t.vec("translate", dim).value_or(translate);
+}
+
 /// stl, mesh: the geometry file (relative to the scene file) and its
 /// placement, read now for its bounds, checks and (mesh) particle count, so
 /// that a bad file is reported with the scene's line.
@@ -400,14 +413,7 @@ void read_geometry_file_body(const TableReader& t, BodySection& b, const Scene& 
     b.physical = t.get<std::string>("physical", "");
     b.seeding = t.choice("seeding", b.seeding, {"element", "quadrature"});
   }
-  const Vec3 scale = t.vec("scale", dim, true).value_or(Vec3{1, 1, 1});
-  for (int k = 0; k < dim; ++k) {
-    check(scale[k] > 0, t.ref("scale"), "must be > 0 (got " + fmt(scale[k]) + ")");
-    b.scale[k] = scale[k];
-  }
-  if (dim == 3) b.rotate = t.vec("rotate", 3).value_or(b.rotate);
-  else b.rotate[2] = t.get<double>("rotate", 0.0); // about z
-  b.translate = t.vec("translate", dim).value_or(b.translate);
+  read_placement(t, dim, b.scale, b.rotate, b.translate);
   try {
     read_geometry_file(b, dim);
   } catch (const InputError& e) {
@@ -546,13 +552,15 @@ void read_boundary_group(const TableReader& t, BoundarySection& b, const Scene& 
   const int dim = s.simulation.dimension;
   check(dim >= 2, t.ref("file"), "a boundary from a mesh's physical group needs dimension 2 or 3");
   const std::string file = scene_relative_file(t, s), group = t.require<std::string>("physical");
+  BodySection placed; // the placement keys, as a mesh body's
+  read_placement(t, dim, placed.scale, placed.rotate, placed.translate);
   try {
     Vec<3> lo = Vec<3>::Zero(), hi = Vec<3>::Zero();
     if (dim == 2) {
-      const auto [lo2, hi2] = mesh_group_box<2>(file, group, Placement{});
+      const auto [lo2, hi2] = mesh_group_box<2>(file, group, body_placement(placed));
       lo.head<2>() = lo2, hi.head<2>() = hi2;
     } else {
-      std::tie(lo, hi) = mesh_group_box<3>(file, group, Placement{});
+      std::tie(lo, hi) = mesh_group_box<3>(file, group, body_placement(placed));
     }
     double widest = 0;
     for (int k = 0; k < dim; ++k) widest = std::max(widest, hi[k] - lo[k]);
@@ -572,7 +580,7 @@ std::vector<BoundarySection> read_boundaries(const TableReader& root, const Scen
   std::set<std::string> names;
   for (const TableReader& t : root.tables("boundary")) {
     const bool group = t.has("physical") || t.has("file");
-    if (group) t.only({"name", "file", "physical", "fix", "value"});
+    if (group) t.only({"name", "file", "physical", "scale", "rotate", "translate", "fix", "value"});
     else t.only({"name", "lower", "upper", "fix", "value"});
     BoundarySection b;
     b.where = t.self();
