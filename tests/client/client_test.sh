@@ -110,11 +110,13 @@ pvpython "$here/paraview_check.py" "${results[@]}" 2>pvpython.log || { tail -20 
 
 render=(pvbatch "$here/paraview_render.py" "$work/plate_2d.xdmf" v "$work/particles_2d.png")
 if [ -z "${DISPLAY:-}" ]; then render=(xvfb-run -a -s "-screen 0 1024x768x24" "${render[@]}"); fi
-if ! "${render[@]}" >pvbatch.log 2>&1; then
+# fd 3 (ctest's output) closed for xvfb-run: an Xvfb left behind under load
+# would otherwise hold ctest's pipe open until the test's timeout.
+if ! "${render[@]}" >pvbatch.log 2>&1 3>&-; then
   # Seen once in 10 runs on the development machine: pvbatch aborting while
   # its X connection came up. Said, and tried once more.
   echo "pvbatch failed (log: $work/pvbatch.log); trying once more"
-  "${render[@]}" >pvbatch.log 2>&1 || { tail -20 pvbatch.log; exit 1; }
+  "${render[@]}" >pvbatch.log 2>&1 3>&- || { tail -20 pvbatch.log; exit 1; }
 fi
 $python - "$work/particles_2d.png" <<'PY'
 import sys
@@ -135,7 +137,7 @@ ln -s "$here" guide/tests/client
 (cd guide && "$otmpm" run "$src/examples/dyka_2d.toml" --quiet >/dev/null)
 guide=(pvbatch tests/client/paraview_render.py ./dyka_2d.xdmf v dyka_2d.png)
 if [ -z "${DISPLAY:-}" ]; then guide=(xvfb-run -a "${guide[@]}"); fi
-(cd guide && "${guide[@]}" >pvbatch_guide.log 2>&1) || { tail -20 guide/pvbatch_guide.log; exit 1; }
+(cd guide && "${guide[@]}" >pvbatch_guide.log 2>&1 3>&-) || { tail -20 guide/pvbatch_guide.log; exit 1; }
 [ -s guide/dyka_2d.png ] || { echo "FAIL: the user guide's pvbatch line drew no dyka_2d.png"; exit 1; }
 echo "ok: the user guide's line: ${guide[*]}"
 
