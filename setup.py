@@ -51,4 +51,6 @@ class CMakeBuild(build_ext):
                         ["__pycache__"])
 
 
-setup(ext_modules=[Extension("otmpm._otmpm", sources=[])], cmdclass={"build_ext": CMakeBuild})
+# setuptools' own staging folders go beside the CMake build, not into build/ (scripts/test.sh's)
+setup(ext_modules=[Extension("otmpm._otmpm", sources=[])], cmdclass={"build_ext": CMakeBuild},
+      options={"build": {"build_base": os.path.join(SOURCE, "build-pip", "setuptools")}})
