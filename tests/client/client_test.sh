@@ -108,16 +108,26 @@ PY
 # ParaView prints its own log lines (and HDF5 diagnostics) on stderr; only ours matter.
 pvpython "$here/paraview_check.py" "${results[@]}" 2>pvpython.log || { tail -20 pvpython.log; exit 1; }
 
-render=(pvbatch "$here/paraview_render.py" "$work/plate_2d.xdmf" v "$work/particles_2d.png")
-if [ -z "${DISPLAY:-}" ]; then render=(xvfb-run -a -s "-screen 0 1024x768x24" "${render[@]}"); fi
-# fd 3 (ctest's output) closed for xvfb-run: an Xvfb left behind under load
-# would otherwise hold ctest's pipe open until the test's timeout.
-if ! "${render[@]}" >pvbatch.log 2>&1 3>&-; then
-  # Seen once in 10 runs on the development machine: pvbatch aborting while
-  # its X connection came up. Said, and tried once more.
-  echo "pvbatch failed (log: $work/pvbatch.log); trying once more"
-  "${render[@]}" >pvbatch.log 2>&1 3>&- || { tail -20 pvbatch.log; exit 1; }
-fi
+# Runs a pvbatch command line, under xvfb-run without a display, with its
+# output in the log $1; up to 3 times, saying so: seen once in 10 runs on the
+# development machine, and twice in a row while other builds loaded it,
+# pvbatch aborting while its X connection came up. fd 3 (ctest's output) is
+# closed for it: an Xvfb left behind would hold ctest's pipe open until the
+# test's timeout.
+offscreen() {
+  local log=$1
+  shift
+  local cmd=("$@")
+  [ -n "${DISPLAY:-}" ] || cmd=(xvfb-run -a -s "-screen 0 1024x768x24" "${cmd[@]}")
+  for try in 1 2 3; do
+    "${cmd[@]}" >"$log" 2>&1 3>&- && return 0
+    echo "pvbatch failed (try $try of 3, log: $PWD/$log)"
+  done
+  tail -20 "$log"
+  return 1
+}
+
+offscreen pvbatch.log pvbatch "$here/paraview_render.py" "$work/plate_2d.xdmf" v "$work/particles_2d.png"
 $python - "$work/particles_2d.png" <<'PY'
 import sys
 import matplotlib.image as mpimg
@@ -135,11 +145,9 @@ PY
 mkdir -p guide/tests
 ln -s "$here" guide/tests/client
 (cd guide && "$otmpm" run "$src/examples/dyka_2d.toml" --quiet >/dev/null)
-guide=(pvbatch tests/client/paraview_render.py ./dyka_2d.xdmf v dyka_2d.png)
-if [ -z "${DISPLAY:-}" ]; then guide=(xvfb-run -a "${guide[@]}"); fi
-(cd guide && "${guide[@]}" >pvbatch_guide.log 2>&1 3>&-) || { tail -20 guide/pvbatch_guide.log; exit 1; }
+(cd guide && offscreen pvbatch_guide.log pvbatch tests/client/paraview_render.py ./dyka_2d.xdmf v dyka_2d.png)
 [ -s guide/dyka_2d.png ] || { echo "FAIL: the user guide's pvbatch line drew no dyka_2d.png"; exit 1; }
-echo "ok: the user guide's line: ${guide[*]}"
+echo "ok: the user guide's line: pvbatch tests/client/paraview_render.py ./dyka_2d.xdmf v dyka_2d.png"
 
 $python "$here/vtk_files_check.py" "${results[@]}"
 echo "client test passed"
