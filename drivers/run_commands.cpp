@@ -94,7 +94,8 @@ int check_command(const SceneArgs& a) {
   std::printf("  particles  %ld\n  nodes      %ld\n", c.particles, c.nodes);
   std::printf("  dt         %.6g s (first step%s)\n", c.dt, scene.simulation.dt ? ", fixed" : ", cfl rule");
   std::printf("  steps      about %.0f (t_end = %.6g s)\n", c.estimated_steps, c.t_end);
-  std::printf("  memory     about %s (estimate)\n", bytes_text(c.memory_bytes).c_str());
+  std::printf("  memory     about %s (the run's estimate; limit %s)\n", bytes_text(c.memory_bytes).c_str(),
+              bytes_text(c.memory_limit).c_str());
   std::printf("  results    %s\n", (a.out.empty() ? c.out_file : a.out).c_str());
   return 0;
 }

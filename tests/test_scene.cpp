@@ -294,7 +294,7 @@ TEST_CASE("uGIMP on a perturbed grid is rejected") {
 
 TEST_CASE("other out-of-range values") {
   check_message(error_of(kGood, {"simulation.t_end=0"}), {"--set simulation.t_end", "> 0"});
-  check_message(error_of(kGood, {"simulation.gamma=1.5"}), {"--set simulation.gamma", "must be <= 1"});
+  check_message(error_of(kGood, {"simulation.gamma=1.5"}), {"--set simulation.gamma", "must be in (0, 1] (got 1.5)"});
   check_message(error_of(kGood, {"simulation.cfl=-0.1"}), {"--set simulation.cfl"});
   check_message(error_of(kGood, {"basis.tolerance=1"}), {"--set basis.tolerance"});
   check_message(error_of(kGood, {"basis.kind=quadratic"}), {"--set basis.kind", "\"lme\""});

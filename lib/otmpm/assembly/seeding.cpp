@@ -154,7 +154,8 @@ std::optional<ParticleFile> open_body(const Scene& scene, int b, std::vector<std
   if (body.shape == "file") {
     try {
       // reserved for the scene reader's count when it read this file
-      file = read_particle_file(body.file, D, body.file_read == body.file ? body.file_particles : -1);
+      const ParticleFileRules rules = particle_file_rules(scene, body);
+      file = read_particle_file(body.file, D, body.file_read == body.file ? body.file_particles : -1, &rules);
     } catch (const InputError& e) {
       input_error(scene.locate("body." + body.name + ".file"), e.what());
     }
@@ -408,8 +409,9 @@ void stream_file_body(const Scene& scene, int b, std::vector<std::unique_ptr<Sha
         if (columns.entry[f] >= 0) out.file_state[static_cast<std::size_t>(columns.entry[f])].values.push_back(rows.fields[f][i]);
     }
   };
+  const ParticleFileRules rules = particle_file_rules(scene, body);
   try {
-    stream_particle_file(body.file, D, each);
+    stream_particle_file(body.file, D, each, kParticleChunk, &rules);
   } catch (const InputError& e) {
     input_error(scene.locate("body." + body.name + ".file"), e.what());
   }

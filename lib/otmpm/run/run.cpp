@@ -696,10 +696,13 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
     return Engine<D>(distributed::rank_parts<D>(s, comm, &x));
   }
 
-  /// Stores the scene and restores the checkpoint before the recorder is built.
+  /// Stores the scene and restores the checkpoint - or, for a new run,
+  /// checks the step count on the seeded particles' first step - before
+  /// the recorder is built.
   const Scene& init(const Scene& s, const Checkpoint* resume) {
     scene = s;
     if (resume) e.restore_state(distributed::local_checkpoint(e, *resume));
+    else check_first_step(scene, e.stable_dt(), e.wave_speed());
     return scene;
   }
 
@@ -800,10 +803,7 @@ double EnergySummary::energy_drift() const { return max_balance_error / referenc
 std::unique_ptr<Simulation::Runner> Simulation::make(const Scene& scene, const RunOptions& options,
                                                      const Checkpoint* resume) {
   const int dim = scene.simulation.dimension;
-  if (dim >= 1 && dim <= 3) {
-    validate_scene(scene, dim); // a Scene built in code: every check of the reader, before the estimates
-    check_resources(scene);     // before anything is allocated
-  }
+  if (dim >= 1 && dim <= 3) check_before_allocating(scene, dim); // a Scene built in code meets the reader's checks too
   switch (scene.simulation.dimension) {
   case 1: return std::make_unique<DimRunner<1>>(scene, options, resume);
   case 2: return std::make_unique<DimRunner<2>>(scene, options, resume);

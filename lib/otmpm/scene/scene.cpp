@@ -301,12 +301,11 @@ MaterialSection read_material(const TableReader& t, std::set<std::string>& names
   const MaterialModel& model = *find_material_model(m.model);
   t.only(material_keys(model));
   m.name = read_name(t, true, "", names, "material");
-  m.density = t.require<double>("density");
-  check(m.density > 0, t.ref("density"), "must be > 0 (got " + fmt(m.density) + ")");
-  m.young = t.require<double>("young");
-  check(m.young > 0, t.ref("young"), "must be > 0 (got " + fmt(m.young) + ")");
-  m.poisson = t.require<double>("poisson");
-  check(m.poisson > -1 && m.poisson < 0.5, t.ref("poisson"), "must be in (-1, 0.5) (got " + fmt(m.poisson) + ")");
+  for (auto [spec, value] : {std::pair{&kDensity, &m.density}, {&kYoung, &m.young}, {&kPoisson, &m.poisson}}) {
+    *value = t.require<double>(spec->key);
+    const std::string why = spec->check(*value);
+    check(why.empty(), t.ref(spec->key), why);
+  }
   read_model_parameters(t, model, m);
   try {
     validate_material(m); // the model's own cross-checks
@@ -378,10 +377,13 @@ void cylinder_bounds(BodySection& b) {
   }
 }
 
-/// file: the path (relative to the scene file), read now for its bounds and
-/// particle count, so that a bad file is reported with the scene's line. The
-/// file is streamed (stream_particle_file: a block of rows at a time), so
-/// that every rank of a distributed run holds one block, not the file.
+/// file: the path (relative to the scene file), read now for its bounds,
+/// particle count and the extremes of its density and velocity columns
+/// (the first time step), so that a bad file is reported with the scene's
+/// line. Its rows meet the checks of the scene keys of the same quantities
+/// (particle_file_rules). The file is streamed (stream_particle_file: a
+/// block of rows at a time), so that every rank of a distributed run holds
+/// one block, not the file.
 void read_particle_file_body(const TableReader& t, BodySection& b, const Scene& s) {
   const std::string name = t.require<std::string>("file");
   check(!name.empty(), t.ref("file"), "must not be empty");
@@ -390,24 +392,31 @@ void read_particle_file_body(const TableReader& t, BodySection& b, const Scene& 
   b.file = (given.is_absolute() || s.file.empty() ? given : fs::path(s.file).parent_path() / given).string();
   const int D = s.simulation.dimension;
   long long count = 0;
-  const auto bounds = [&b, &count, D](const ParticleColumns&, const ParticleRows& rows) {
-    for (int p = 0; p < rows.size(); ++p, ++count)
+  const auto bounds = [&b, &count, D](const ParticleColumns& columns, const ParticleRows& rows) {
+    const auto density = std::find(columns.fields.begin(), columns.fields.end(), kDensity.key);
+    for (int p = 0; p < rows.size(); ++p, ++count) {
+      const std::size_t i = static_cast<std::size_t>(p);
       for (int k = 0; k < D; ++k) {
-        const double x = rows.x[static_cast<std::size_t>(p) * D + k];
-        const double half = 0.5 * std::pow(rows.volume[static_cast<std::size_t>(p)], 1.0 / D);
+        const double x = rows.x[i * D + k];
+        const double half = 0.5 * std::pow(rows.volume[i], 1.0 / D);
         if (count == 0) b.lower[k] = b.upper[k] = x; // the first position, then min/max as one pass over the file
         b.lower[k] = std::min(b.lower[k], x - half);
         b.upper[k] = std::max(b.upper[k], x + half);
       }
+      if (density != columns.fields.end()) {
+        const double rho = rows.fields[static_cast<std::size_t>(density - columns.fields.begin())][i];
+        b.file_min_density = count == 0 ? rho : std::min(b.file_min_density, rho);
+      }
+      if (!rows.v.empty())
+        b.file_max_speed = std::max(b.file_max_speed, Eigen::Map<const Eigen::VectorXd>(&rows.v[i * D], D).norm());
+    }
   };
+  const ParticleFileRules rules = particle_file_rules(s, b);
   try {
-    stream_particle_file(b.file, D, bounds);
+    stream_particle_file(b.file, D, bounds, kParticleChunk, &rules);
   } catch (const InputError& e) {
     input_error(t.ref("file"), e.what());
   }
-  check(count <= kMaxSceneParticles, t.ref("file"),
-        "holds " + fmt(static_cast<double>(count)) + " particles; at most " + fmt(kMaxSceneParticles) +
-            " are allowed");
   b.file_particles = static_cast<int>(count);
   b.file_read = b.file;
 }

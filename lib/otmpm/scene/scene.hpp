@@ -90,6 +90,10 @@ struct BodySection {
   std::string file;                    ///< file: particle file (CSV or HDF5), resolved path
   int file_particles = 0;              ///< file: the number of particles it holds
   std::string file_read;               ///< file: the path file_particles, lower and upper were read from (else empty)
+  /// file: the smallest value of its `density` column (0: none), and the
+  /// largest speed of its velocity columns, read with file_particles (the
+  /// first time step of scene/resources.hpp depends on them)
+  double file_min_density = 0.0, file_max_speed = 0.0;
   std::string overlap = "error";       ///< "first": particles inside an earlier body are dropped
   int particles_per_cell = 2;           ///< per axis
   std::string placement = "gauss";      ///< gauss | cell_centres

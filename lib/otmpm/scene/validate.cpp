@@ -394,6 +394,29 @@ std::vector<std::string_view> output_field_names(const Scene& s) {
   return names;
 }
 
+ParticleFileRules particle_file_rules(const Scene& s, const BodySection& body) {
+  ParticleFileRules rules;
+  rules.max_rows = static_cast<long long>(kMaxSceneParticles);
+  const int dim = std::clamp(s.simulation.dimension, 1, 3);
+  const char* axes[] = {"x", "y", "z"};
+  for (const char* prefix : {"", "v"})
+    for (int k = 0; k < dim; ++k) rules.known += prefix + std::string(axes[k]) + ", ";
+  rules.known += "volume, density";
+  rules.columns.emplace(kDensity.key, kDensity);
+  const auto material = std::find_if(s.materials.begin(), s.materials.end(),
+                                     [&](const MaterialSection& m) { return m.name == body.material; });
+  const MaterialModel* model = material == s.materials.end() ? nullptr : find_material_model(material->model);
+  std::string states;
+  for (const StateSpec& st : model ? model->state : std::span<const StateSpec>{})
+    if (st.width == 1) {
+      rules.columns.emplace(st.name, st.range());
+      states += std::string(states.empty() ? "" : ", ") + std::string(st.name);
+    }
+  rules.known += states.empty() ? "; the model of material '" + body.material + "' has no state variable"
+                                : ", or a state variable of model '" + material->model + "': " + states;
+  return rules;
+}
+
 template <int D> void validate_seeding(const Scene& s, const Vec<D>& h) {
   for (int k = 0; k < D; ++k)
     require(finite_positive(h[k]), "seed_particles: grid spacing h[", k, "] = ", h[k], " must be finite and > 0");

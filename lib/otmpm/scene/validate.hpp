@@ -7,6 +7,7 @@
 /// gives an InputError naming the scene key ("FILE:LINE: key 'grid.cells': ..."
 /// when the scene came from a file, "key 'grid.cells': ..." otherwise) instead
 /// of undefined behaviour, a hang or a NaN in the first step.
+#include "otmpm/io/particle_file.hpp"
 #include "otmpm/scene/scene.hpp"
 
 namespace otmpm {
@@ -54,6 +55,14 @@ std::string default_name(std::string_view kind, std::size_t index);
 /// validate_scene's message (invalid_name_reason, the name printable), or
 /// "" when it can.
 std::string name_error(const std::string& name, std::string_view what);
+
+/// What the particle file of file body `body` must satisfy
+/// (ParticleFileRules): a `density` column in the range of
+/// material.NAME.density (kDensity), a column named after a scalar state
+/// variable of its material's model in that variable's range
+/// (StateSpec::range), no other further column, at most kMaxSceneParticles
+/// rows. The scene reader and the seeding read the file with them.
+ParticleFileRules particle_file_rules(const Scene& scene, const BodySection& body);
 
 /// What seed_particles() relies on: validate_bodies(), a grid spacing h that
 /// is finite and > 0 on every axis, and a particle count per body that fits
