@@ -9,8 +9,8 @@
 
 namespace otmpm {
 
-/// A bound of ParameterSpec that bounds nothing: every finite value of
-/// interest lies within (-kUnbounded, kUnbounded).
+/// A bound of ParameterSpec that bounds nothing (lower = -kUnbounded,
+/// upper = kUnbounded: no check at that end).
 inline constexpr double kUnbounded = 1e300;
 
 /// One parameter: `fallback` is the default (nullopt: required); the value

@@ -189,6 +189,7 @@ void check_before_allocating(const Scene& scene, int dimension) {
 }
 
 void check_first_step(const Scene& scene, double dt, double c) {
+  if (!(dt > 0.0) || !std::isfinite(c)) return; // not a long run: the first step reports the instability
   check_steps(scene, step_count(scene, dt), dt,
               c > 0 ? ", from the seeded particles' fastest wave or particle speed " + format_number(c) + " m/s" : "");
 }

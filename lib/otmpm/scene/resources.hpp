@@ -75,7 +75,9 @@ void check_before_allocating(const Scene& scene, int dimension);
 /// dt the engine's first step (Engine::stable_dt: the particles' own
 /// densities and velocities), must not exceed simulation.max_steps. Throws
 /// InputError naming the step, the wave speed `c` it came from (0: a fixed
-/// step) and the key that raises it.
+/// step) and the key that raises it. A step that is not > 0, or a speed
+/// that is not finite, is no long run but an instability the first step
+/// reports (exit status 1): not checked here.
 void check_first_step(const Scene& scene, double dt, double c);
 
 } // namespace otmpm

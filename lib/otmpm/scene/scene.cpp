@@ -368,9 +368,9 @@ std::vector<std::array<double, 2>> read_vertices(const TableReader& t, int dim) 
 
 /// The bounding box of a cylinder body (center of one end, axis, radius, length).
 void cylinder_bounds(BodySection& b) {
-  const double n = std::sqrt(b.axis[0] * b.axis[0] + b.axis[1] * b.axis[1] + b.axis[2] * b.axis[2]);
+  const Vec<3> axis = first_components(b.axis, 3).stableNormalized();
   for (int k = 0; k < 3; ++k) {
-    const double a = b.axis[k] / n, top = b.center[k] + b.length * a;
+    const double a = axis[k], top = b.center[k] + b.length * a;
     const double e = b.radius * std::sqrt(std::max(0.0, 1.0 - a * a));
     b.lower[k] = std::min(b.center[k], top) - e;
     b.upper[k] = std::max(b.center[k], top) + e;
@@ -437,7 +437,7 @@ void read_shape(const TableReader& t, BodySection& b, const Scene& s) {
     check(dim == 3, t.ref("shape"), "shape \"cylinder\" is three-dimensional (use \"sphere\" for a disk in 2D)");
     b.center = t.require_vec("center", dim);
     b.axis = t.require_vec("axis", dim);
-    check(b.axis[0] != 0 || b.axis[1] != 0 || b.axis[2] != 0, t.ref("axis"), "must not be zero");
+    check(is_direction<3>(first_components(b.axis, dim)), t.ref("axis"), "must be finite and not zero");
     b.radius = positive_required(t, "radius");
     b.length = positive_required(t, "length");
     cylinder_bounds(b);
@@ -542,9 +542,8 @@ std::vector<WallSection> read_walls(const TableReader& root, int dim) {
     w.name = read_name(t, false, default_name("wall", out.size()), names, "wall");
     w.point = t.require_vec("point", dim);
     w.normal = t.require_vec("normal", dim);
-    double n2 = 0.0;
-    for (int k = 0; k < dim; ++k) n2 += w.normal[k] * w.normal[k];
-    check(n2 > 0.0, t.ref("normal"), "must not be zero (it points to the material's side of the wall)");
+    check(is_direction<3>(first_components(w.normal, dim)), t.ref("normal"),
+          "must be finite and not zero (it points to the material's side of the wall)");
     w.velocity = t.vec("velocity", dim).value_or(w.velocity);
     w.friction = t.get<double>("friction", 0.0);
     check(w.friction >= 0.0, t.ref("friction"), "must be >= 0 (the Coulomb coefficient; got " + fmt(w.friction) + ")");
@@ -891,6 +890,12 @@ std::string SourceRef::describe() const {
 
 void input_error(const SourceRef& where, const std::string& message) {
   throw InputError(where.describe() + ": " + message, {where.file, where.line, where.key});
+}
+
+Vec<3> first_components(const Vec3& v, int dim) {
+  Vec<3> out = Vec<3>::Zero();
+  for (int k = 0; k < dim; ++k) out[k] = v[static_cast<std::size_t>(k)];
+  return out;
 }
 
 SourceRef Scene::locate(const std::string& key) const {

@@ -32,6 +32,9 @@ struct SourceRef {
 
 using Vec3 = std::array<double, 3>;
 
+/// The first `dim` components of `v` as an Eigen vector (the others zero).
+Vec<3> first_components(const Vec3& v, int dim);
+
 struct SimulationSection {
   int dimension = 1;
   std::string mode = "mpm";        ///< mpm | ul

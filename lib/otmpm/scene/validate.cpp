@@ -172,6 +172,7 @@ void check_shape(const Scene& s, const BodySection& b, const std::string& key, i
   if (b.shape == "cylinder") {
     check(s, dim == 3, key + ".shape", "\"cylinder\" is three-dimensional");
     check_finite(s, key + ".axis", b.axis, dim);
+    check(s, is_direction<3>(first_components(b.axis, dim)), key + ".axis", "must not be zero");
     check(s, finite_positive(b.length), key + ".length", "must be finite and > 0 (got ", b.length, ")");
   }
   if (b.shape == "polygon") {
@@ -244,9 +245,7 @@ void check_loads(const Scene& s, int dim) {
     check_finite(s, key + ".point", w.point, dim);
     check_finite(s, key + ".normal", w.normal, dim);
     check_finite(s, key + ".velocity", w.velocity, dim);
-    double n2 = 0.0;
-    for (int k = 0; k < dim; ++k) n2 += w.normal[k] * w.normal[k];
-    check(s, n2 > 0.0, key + ".normal", "must not be zero");
+    check(s, is_direction<3>(first_components(w.normal, dim)), key + ".normal", "must not be zero");
     check(s, std::isfinite(w.friction) && w.friction >= 0.0, key + ".friction", "must be finite and >= 0 (got ",
           w.friction, ")");
   }
