@@ -137,6 +137,7 @@ int run_command(const SceneArgs& a) {
     });
     s = restart_run(*ck, opt);
   }
+  if (s.interrupted) share_interrupt_signal();
   if (!prints()) return s.interrupted ? interrupted_exit_status() : s.exit_code;
   end_progress_line();
   if (s.interrupted) report_interrupt(s, scene.get());
@@ -202,6 +203,7 @@ int pair_command(const SceneArgs& a) {
     opt.interrupt = &interrupt_flag();
     opt.progress = progress(a);
     runs.push_back(run_scene(scene, opt));
+    if (runs.back().interrupted) share_interrupt_signal();
     end_progress_line();
     if (runs.back().interrupted && prints()) report_interrupt(runs.back(), &scene);
     if (runs.back().interrupted) break;
@@ -213,7 +215,8 @@ int pair_command(const SceneArgs& a) {
       std::fprintf(stderr, "otmpm: %s run: %s\n", r.mode.c_str(), r.status.c_str());
     status = std::max(status, r.exit_code);
   }
-  return interrupt_flag().load() ? interrupted_exit_status() : status;
+  const bool stopped = interrupt_flag().load() || (!runs.empty() && runs.back().interrupted);
+  return stopped ? interrupted_exit_status() : status;
 }
 
 } // namespace

@@ -29,7 +29,8 @@ SceneCheck check_scene(const Scene& scene) {
   const int D = scene.simulation.dimension;
   if (D < 1 || D > 3)
     input_error(scene.locate("simulation.dimension"), "dimension must be 1, 2 or 3, got " + std::to_string(D));
-  check_before_allocating(scene, D); // the run's checks, before anything is allocated
+  // the run's checks, before anything is allocated (the ranks agree, as in the run)
+  distributed::agree_on(distributed::Comm::world(), [&] { check_before_allocating(scene, D); });
   SceneCheck c;
   c.dimension = D;
   c.mode = scene.simulation.mode;
