@@ -667,7 +667,7 @@ void require_same_inputs(const Scene& scene, const RunOptions& opt, const Checkp
                     "nodes, was it rewritten while the job started, or do the ranks' command lines differ?";
   distributed::require_same(comm, "the resolved scene (after --set)", scene.text.empty() ? to_toml(scene) : scene.text,
                             why);
-  distributed::require_same(comm, "the run's options", run_inputs(opt, resume), why);
+  distributed::require_same(comm, "the set of run options", run_inputs(opt, resume), why);
 }
 
 /// True when options.interrupt asks to stop; the ranks of a distributed run
