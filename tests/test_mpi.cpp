@@ -10,6 +10,7 @@
 // over the ranks) agree with the serial run and restart on another rank count;
 // each rank seeds only the particles of its own cells.
 #include "h5_support.hpp"
+#include "mpi_support.hpp"
 #include "otmpm/io/hdf5.hpp"
 
 #include "temp_dir.hpp"
@@ -1015,40 +1016,20 @@ std::map<std::string, double> run_maxima(const std::string& path) {
   return largest;
 }
 
-/// `arguments` quoted for the shell, each in single quotes.
-std::string quoted(const std::vector<std::string>& arguments) {
-  std::string s;
-  for (const std::string& a : arguments) s += " '" + a + "'";
-  return s;
-}
+using otmpm::test::MpiLaunch;
+using otmpm::test::private_mounts;
+using otmpm::test::RankLine;
 
-/// One rank of an MPMD command line: otmpm with `args`, started in `wdir`
-/// ("": the test's directory), inside `unshare -m` after the shell commands
-/// `mount` when given (a file system seen by this rank alone).
-struct RankLine {
-  std::vector<std::string> args;
-  std::string wdir = "";
-  std::string mount = "";
-};
-
-/// mpirun with one rank per line (MPMD) in `dir`; returns the result and
-/// the wall seconds it took.
+/// mpirun with one rank per line (MPMD) in `dir`, ended within 120 s;
+/// returns the result and the wall seconds it took.
 std::pair<Result, double> run_mpmd(const TempDir& dir, const std::vector<RankLine>& ranks) {
-  std::string cmd = "cd '" + dir.dir.string() + "' && OMP_NUM_THREADS=1 " + kMpiexec + " -q --oversubscribe";
-  for (std::size_t r = 0; r < ranks.size(); ++r) {
-    cmd += std::string(r ? " :" : "") + " -np 1";
-    if (!ranks[r].wdir.empty()) cmd += " -wdir '" + ranks[r].wdir + "'";
-    if (!ranks[r].mount.empty()) cmd += " unshare -m sh -c '" + ranks[r].mount + " && exec \"$@\"' sh";
-    cmd += " '" + kBinary + "'" + quoted(ranks[r].args);
-  }
   const auto start = std::chrono::steady_clock::now();
-  const Result r = run_in(dir, cmd);
+  Result r;
+  r.status = MpiLaunch(kMpiexec, kBinary, dir.dir, ranks, dir.file("stderr.txt")).end_within(120.0);
+  std::ifstream in(dir.file("stderr.txt"));
+  r.err.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
   return {r, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count()};
 }
-
-/// True when this process may give one rank a file system of its own
-/// (`unshare -m`: root, as in CI containers).
-bool private_mounts() { return ::geteuid() == 0 && std::system("unshare -m true > /dev/null 2>&1") == 0; }
 
 /// The names in `dir` (and its subdirectories) other than `keep`.
 std::vector<std::string> files_in(const fs::path& dir, const std::vector<std::string>& keep) {
@@ -1170,42 +1151,17 @@ TEST_CASE("mpi: a signal to one rank stops every rank; the message names that si
   const std::string scene = write_scene(dir, "block", block_on_floor(40, 1.0));
   for (const auto& [sig, name] : {std::pair{SIGTERM, "SIGTERM"}, std::pair{SIGINT, "SIGINT"}}) {
     CAPTURE(name);
-    const pid_t mpirun = ::fork();
-    REQUIRE(mpirun >= 0);
-    if (mpirun == 0) {
-      ::setenv("OMP_NUM_THREADS", "1", 1);
-      const std::string err = dir.file("stderr.txt");
-      if (!std::freopen(err.c_str(), "w", stderr) || !std::freopen("/dev/null", "w", stdout) ||
-          ::chdir(dir.dir.c_str()) != 0)
-        std::_Exit(126);
-      ::execl(kMpiexec.c_str(), kMpiexec.c_str(), "-q", "--oversubscribe", "-np", "2", kBinary.c_str(), "run",
-              scene.c_str(), "--quiet", "--out", "sig.h5", "--force", static_cast<char*>(nullptr));
-      std::_Exit(127);
-    }
-    // rank 1: the child of mpirun whose environment says so, once the run has stepped a while
-    pid_t rank1 = 0;
-    for (int tries = 0; tries < 300 && !rank1; ++tries) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(100));
-      for (const auto& p : fs::directory_iterator("/proc")) {
-        std::ifstream stat(p.path() / "stat");
-        std::string pid, comm, state;
-        long ppid = 0;
-        if (!(stat >> pid >> comm >> state >> ppid) || ppid != mpirun) continue;
-        std::ifstream env(p.path() / "environ");
-        const std::string all((std::istreambuf_iterator<char>(env)), std::istreambuf_iterator<char>());
-        if (all.find(std::string("OMPI_COMM_WORLD_RANK=1") + '\0') != std::string::npos) rank1 = std::stoi(pid);
-      }
-    }
+    const std::vector<std::string> args{"run", scene, "--quiet", "--out", "sig.h5", "--force"};
+    MpiLaunch mpirun(kMpiexec, kBinary, dir.dir, {{args}, {args}}, dir.file("stderr.txt"));
+    const pid_t rank1 = mpirun.rank(1);
     REQUIRE(rank1 > 0);
     std::this_thread::sleep_for(std::chrono::seconds(3)); // set up, stepping
     ::kill(rank1, sig);
-    int raw = 0;
-    ::waitpid(mpirun, &raw, 0);
+    const int status = mpirun.end_within(60.0);
     std::ifstream in(dir.file("stderr.txt"));
     const std::string err((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
     CAPTURE(err);
-    CHECK(WIFEXITED(raw));
-    CHECK(WEXITSTATUS(raw) == 128 + sig);
+    CHECK(status == 128 + sig);
     CHECK(err.find(std::string("otmpm: interrupted by ") + name + " at t = ") != std::string::npos);
     CHECK(string_attribute(dir.file("sig.h5"), "status") == "interrupted");
   }
