@@ -15,6 +15,7 @@
 #include "otmpm/materials/material.hpp"
 #include "otmpm/run/run.hpp"
 #include "otmpm/scene/resources.hpp"
+#include "otmpm/scene/validate.hpp"
 
 #include "temp_dir.hpp"
 
@@ -156,6 +157,52 @@ TEST_CASE("an HDF5 particle file declaring more rows than the cap is refused as 
   const std::string why = input_error_of([&] { parse_scene(scene_2d("linear_elastic", "", file_body(path)), "s.toml"); });
   CHECK(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() < 1.0);
   CHECK(why.find("huge.h5: dataset 'x': 2000000000 rows; at most 100000000 particles are allowed") != std::string::npos);
+}
+
+TEST_CASE("each scalar scene key is checked by its row, by the reader and by validate_scene alike") {
+  // A value just outside each row's range: the reader's message (--set) and
+  // validate_scene's on the same value set in code (a Scene built in code or
+  // from a Python dict) both end in the row's reason.
+  using namespace scene_keys;
+  const std::string text =
+      scene_2d("linear_elastic", "",
+               "[[body]]\nname = \"b\"\nmaterial = \"m\"\nlower = [0.3, 0.3]\nupper = [0.6, 0.6]\n"
+               "[[wall]]\nname = \"w\"\npoint = [0.0, 0.1]\nnormal = [0.0, 1.0]\n[contact]\nfriction = 0.1\n");
+  struct Key {
+    std::string key;
+    const ParameterSpec* spec;
+    double* (*field)(Scene&);
+  };
+  const std::vector<Key> keys{
+      {"simulation.t_end", &kTEnd, [](Scene& s) { return &s.simulation.t_end; }},
+      {"simulation.cfl", &kCfl, [](Scene& s) { return &s.simulation.cfl; }},
+      {"simulation.mass_tolerance", &kMassTolerance, [](Scene& s) { return &s.simulation.mass_tolerance; }},
+      {"simulation.energy_limit", &kEnergyLimit, [](Scene& s) { return &s.simulation.energy_limit; }},
+      {"simulation.max_steps", &kMaxSteps, [](Scene& s) { return &s.simulation.max_steps; }},
+      {"simulation.memory_limit", &kMemoryLimit, [](Scene& s) { return &s.simulation.memory_limit; }},
+      {"grid.perturbation", &kPerturbation, [](Scene& s) { return &s.grid.perturbation; }},
+      {"wall.w.friction", &kFriction, [](Scene& s) { return &s.walls[0].friction; }},
+      {"contact.friction", &kFriction, [](Scene& s) { return &s.contact->friction; }},
+      {"material.m.density", &kDensity, [](Scene& s) { return &s.materials[0].density; }},
+      {"material.m.poisson", &kPoisson, [](Scene& s) { return &s.materials[0].poisson; }}};
+  for (const Key& k : keys) {
+    CAPTURE(k.key);
+    for (const double value : {k.spec->lower - 1.0, k.spec->upper < kUnbounded ? k.spec->upper + 1.0 : k.spec->lower - 2.0,
+                               std::numeric_limits<double>::infinity()}) {
+      CAPTURE(value);
+      const std::string why = k.spec->check(value);
+      REQUIRE(!why.empty());
+      std::vector<std::string> sets{k.key + "=" + (std::isinf(value) ? std::string("inf") : format_number(value))};
+      if (k.key == "grid.perturbation") sets.push_back("grid.kind=\"perturbed\"");
+      const std::string read = input_error_of([&] { parse_scene(text, "keys.toml", sets); });
+      CHECK(read.ends_with(why));
+      Scene s = parse_scene(text, "keys.toml", k.key == "grid.perturbation" ? std::vector<std::string>{sets[1]}
+                                                                             : std::vector<std::string>{});
+      *k.field(s) = value;
+      const std::string validated = input_error_of([&] { validate_scene(s, 2); });
+      CHECK(validated.ends_with(why));
+    }
+  }
 }
 
 TEST_CASE("a range with two ends names the interval; one with one end its bound") {

@@ -54,11 +54,18 @@ void check(bool ok, const SourceRef& r, const std::string& message) {
   if (!ok) input_error(r, message);
 }
 
-/// A positive number, or absent (fallback).
-double positive(const TableReader& t, std::string_view key, double fallback) {
-  const double v = t.get<double>(key, fallback);
-  check(v > 0, t.ref(key), "must be > 0 (got " + fmt(v) + ")");
+/// The value of `spec.key` in `t` - `fallback` when absent, or required
+/// without one - checked against its row (ParameterSpec::check).
+double number(const TableReader& t, const ParameterSpec& spec, std::optional<double> fallback = std::nullopt) {
+  const double v = fallback ? t.get<double>(spec.key, *fallback) : t.require<double>(spec.key);
+  const std::string why = spec.check(v);
+  check(why.empty(), t.ref(spec.key), why);
   return v;
+}
+
+/// A number > 0, or absent (fallback).
+double positive(const TableReader& t, std::string_view key, double fallback) {
+  return number(t, {key, "", std::nullopt, 0.0, true}, fallback);
 }
 
 /// Every component of upper strictly (or not) above lower.
@@ -108,22 +115,15 @@ SimulationSection read_simulation(const TableReader& t) {
   // Default: the mass matrix of each algorithm's listing (IntegratorKind).
   const bool consistent_default = integrator_kind(s.integrator).consistent_by_default;
   s.mass = t.choice("mass", consistent_default ? "consistent" : "lumped", {"lumped", "consistent"});
-  s.t_end = t.require<double>("t_end");
-  check(s.t_end > 0, t.ref("t_end"), "must be > 0 (got " + fmt(s.t_end) + ")");
+  using namespace scene_keys;
+  s.t_end = number(t, kTEnd);
   check(!(t.has("cfl") && t.has("dt")), t.ref("dt"), "give either simulation.cfl or simulation.dt, not both");
-  s.cfl = positive(t, "cfl", s.cfl);
-  if (t.has("dt")) s.dt = positive(t, "dt", 1.0);
-  s.mass_tolerance = t.get<double>("mass_tolerance", s.mass_tolerance);
-  check(s.mass_tolerance >= 0 && s.mass_tolerance < 1, t.ref("mass_tolerance"),
-        "must be in [0, 1) (got " + fmt(s.mass_tolerance) + ")");
-  s.energy_limit = t.get<double>("energy_limit", s.energy_limit);
-  check(s.energy_limit >= 1, t.ref("energy_limit"),
-        "must be >= 1 (a multiple of the larger of initial energy and work; got " + fmt(s.energy_limit) + ")");
-  s.max_steps = t.get<double>("max_steps", s.max_steps);
-  check(s.max_steps >= 1, t.ref("max_steps"), "must be >= 1 (the most steps a run may take; got " + fmt(s.max_steps) + ")");
-  s.memory_limit = t.get<double>("memory_limit", s.memory_limit);
-  check(s.memory_limit >= 0, t.ref("memory_limit"),
-        "must be >= 0 (bytes; 0: the memory this process may use; got " + fmt(s.memory_limit) + ")");
+  s.cfl = number(t, kCfl, s.cfl);
+  if (t.has("dt")) s.dt = number(t, kDt);
+  s.mass_tolerance = number(t, kMassTolerance, s.mass_tolerance);
+  s.energy_limit = number(t, kEnergyLimit, s.energy_limit);
+  s.max_steps = number(t, kMaxSteps, s.max_steps);
+  s.memory_limit = number(t, kMemoryLimit, s.memory_limit);
   return s;
 }
 
@@ -193,9 +193,7 @@ GridSection read_grid(const TableReader& t, int dim) {
           "upper - lower overflows on axis " + std::to_string(k) + " (lower " + fmt(g.lower[k]) + ", upper " +
               fmt(g.upper[k]) + ")");
   g.cells = read_cells(t, g, dim);
-  g.perturbation = t.get<double>("perturbation", g.perturbation);
-  check(g.perturbation >= 0 && g.perturbation < 0.5, t.ref("perturbation"),
-        "must be in [0, 0.5) (a fraction of h; got " + fmt(g.perturbation) + ")");
+  g.perturbation = number(t, scene_keys::kPerturbation, g.perturbation);
   const std::int64_t seed = t.get<std::int64_t>("seed", g.seed);
   check(seed >= 0 && seed <= std::numeric_limits<unsigned>::max(), t.ref("seed"), "must be a non-negative 32-bit integer");
   g.seed = static_cast<unsigned>(seed);
@@ -301,11 +299,8 @@ MaterialSection read_material(const TableReader& t, std::set<std::string>& names
   const MaterialModel& model = *find_material_model(m.model);
   t.only(material_keys(model));
   m.name = read_name(t, true, "", names, "material");
-  for (auto [spec, value] : {std::pair{&kDensity, &m.density}, {&kYoung, &m.young}, {&kPoisson, &m.poisson}}) {
-    *value = t.require<double>(spec->key);
-    const std::string why = spec->check(*value);
-    check(why.empty(), t.ref(spec->key), why);
-  }
+  for (auto [spec, value] : {std::pair{&kDensity, &m.density}, {&kYoung, &m.young}, {&kPoisson, &m.poisson}})
+    *value = number(t, *spec);
   read_model_parameters(t, model, m);
   try {
     validate_material(m); // the model's own cross-checks
@@ -545,8 +540,7 @@ std::vector<WallSection> read_walls(const TableReader& root, int dim) {
     check(is_direction<3>(first_components(w.normal, dim)), t.ref("normal"),
           "must be finite and not zero (it points to the material's side of the wall)");
     w.velocity = t.vec("velocity", dim).value_or(w.velocity);
-    w.friction = t.get<double>("friction", 0.0);
-    check(w.friction >= 0.0, t.ref("friction"), "must be >= 0 (the Coulomb coefficient; got " + fmt(w.friction) + ")");
+    w.friction = number(t, scene_keys::kFriction, w.friction);
     out.push_back(std::move(w));
   }
   return out;
@@ -558,9 +552,7 @@ std::optional<ContactSection> read_contact(const TableReader& root) {
   t->only({"friction"});
   ContactSection c;
   c.where = t->self();
-  c.friction = t->get<double>("friction", 0.0);
-  check(std::isfinite(c.friction) && c.friction >= 0.0, t->ref("friction"),
-        "must be finite and >= 0 (the Coulomb coefficient between bodies; got " + fmt(c.friction) + ")");
+  c.friction = number(*t, scene_keys::kFriction, c.friction);
   return c;
 }
 
@@ -571,7 +563,7 @@ TimeFunction read_time(const TableReader& parent) {
   t->only({"kind", "period"});
   f.kind = t->choice("kind", f.kind, {"constant", "ramp"});
   if (f.kind == "ramp" && !t->has("period")) t->missing("period", "required key is missing (kind = \"ramp\")");
-  f.period = t->has("period") ? positive(*t, "period", 1.0) : 0.0;
+  f.period = t->has("period") ? number(*t, scene_keys::kPeriod) : 0.0;
   return f;
 }
 

@@ -71,12 +71,17 @@ void check_box(const Scene& s, const std::string& key, const Vec3& lo, const Vec
           " lower in every component (axis ", k, ": lower ", lo[k], ", upper ", hi[k], ")");
 }
 
+/// `value` of `key` in the range of its row (scene_keys).
+void check_number(const Scene& s, const std::string& key, double value, const ParameterSpec& spec) {
+  const std::string why = spec.check(value);
+  check(s, why.empty(), key, why);
+}
+
 /// kind "constant" or "ramp"; a ramp needs a finite period > 0 (it divides by it).
 void check_time(const Scene& s, const std::string& key, const TimeFunction& g) {
   check(s, one_of(g.kind, {"constant", "ramp"}), key + ".kind", "must be \"constant\" or \"ramp\" (got \"", g.kind,
         "\")");
-  check(s, g.kind != "ramp" || finite_positive(g.period), key + ".period", "must be finite and > 0 (got ", g.period,
-        ")");
+  if (g.kind == "ramp") check_number(s, key + ".period", g.period, scene_keys::kPeriod);
 }
 
 void check_simulation(const Scene& s, int dim) {
@@ -100,17 +105,13 @@ void check_simulation(const Scene& s, int dim) {
     const std::string why = (*spec)->check(entry.second);
     check(s, why.empty(), "simulation." + key, why);
   }
-  check(s, finite_positive(m.t_end), "simulation.t_end", "must be finite and > 0 (got ", m.t_end, ")");
-  if (m.dt) check(s, finite_positive(*m.dt), "simulation.dt", "must be finite and > 0 (got ", *m.dt, ")");
-  else check(s, finite_positive(m.cfl), "simulation.cfl", "must be finite and > 0 (got ", m.cfl, ")");
-  check(s, m.mass_tolerance >= 0.0 && m.mass_tolerance < 1.0, "simulation.mass_tolerance", "must be in [0, 1) (got ",
-        m.mass_tolerance, ")");
-  check(s, m.energy_limit >= 1.0 && std::isfinite(m.energy_limit), "simulation.energy_limit",
-        "must be finite and >= 1 (got ", m.energy_limit, ")");
-  check(s, m.max_steps >= 1.0 && std::isfinite(m.max_steps), "simulation.max_steps", "must be finite and >= 1 (got ",
-        m.max_steps, ")");
-  check(s, m.memory_limit >= 0.0 && std::isfinite(m.memory_limit), "simulation.memory_limit",
-        "must be finite and >= 0 (bytes; got ", m.memory_limit, ")");
+  using namespace scene_keys;
+  check_number(s, "simulation.t_end", m.t_end, kTEnd);
+  if (m.dt) check_number(s, "simulation.dt", *m.dt, kDt);
+  else check_number(s, "simulation.cfl", m.cfl, kCfl);
+  for (const auto& [spec, value] : {std::pair{&kMassTolerance, m.mass_tolerance}, {&kEnergyLimit, m.energy_limit},
+                                   {&kMaxSteps, m.max_steps}, {&kMemoryLimit, m.memory_limit}})
+    check_number(s, "simulation." + std::string(spec->key), value, *spec);
 }
 
 void check_grid(const Scene& s, int dim) {
@@ -122,8 +123,7 @@ void check_grid(const Scene& s, int dim) {
     check(s, std::isfinite(g.upper[k] - g.lower[k]), "grid.upper", "upper - lower overflows on axis ", k);
     check(s, g.cells[k] >= 1, "grid.cells", "axis ", k, ": must be >= 1 (got ", g.cells[k], ")");
   }
-  check(s, g.kind != "perturbed" || (g.perturbation >= 0.0 && g.perturbation < 0.5), "grid.perturbation",
-        "must be in [0, 0.5) (got ", g.perturbation, ")");
+  if (g.kind == "perturbed") check_number(s, "grid.perturbation", g.perturbation, scene_keys::kPerturbation);
 }
 
 void check_basis(const Scene& s) {
@@ -209,8 +209,7 @@ void check_body_in_grid(const Scene& s, const BodySection& b, const std::string&
 void check_contact(const Scene& s) {
   if (!s.contact) return;
   const ContactSection& c = *s.contact;
-  if (!(std::isfinite(c.friction) && c.friction >= 0.0))
-    input_error(s.locate("contact.friction"), error_message("must be finite and >= 0 (got ", c.friction, ")"));
+  check_number(s, "contact.friction", c.friction, scene_keys::kFriction);
   if (s.simulation.nodes_move())
     input_error(c.where, "body-body contact needs simulation.mode = \"mpm\": it gives each body its own copy of "
                          "the fixed grid's nodal fields, and in \"ul\" mode, where the nodes move with the "
@@ -246,8 +245,7 @@ void check_loads(const Scene& s, int dim) {
     check_finite(s, key + ".normal", w.normal, dim);
     check_finite(s, key + ".velocity", w.velocity, dim);
     check(s, is_direction<3>(first_components(w.normal, dim)), key + ".normal", "must not be zero");
-    check(s, std::isfinite(w.friction) && w.friction >= 0.0, key + ".friction", "must be finite and >= 0 (got ",
-          w.friction, ")");
+    check_number(s, key + ".friction", w.friction, scene_keys::kFriction);
   }
   if (s.body_force) {
     check_finite(s, "body_force.value", s.body_force->value, dim);
