@@ -44,6 +44,14 @@ inline bool catches(pid_t pid, int sig, double seconds) {
   return false;
 }
 
+/// mpirun as root needs these (CI containers run as root): set for this process and the ones it starts.
+struct RootMpi {
+  RootMpi() {
+    ::setenv("OMPI_ALLOW_RUN_AS_ROOT", "1", 1);
+    ::setenv("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1", 1);
+  }
+};
+
 /// True when this process may give one rank a file system of its own
 /// (`unshare -m`: root, as in CI containers).
 inline bool private_mounts() { return ::geteuid() == 0 && std::system("unshare -m true > /dev/null 2>&1") == 0; }

@@ -17,6 +17,7 @@
 #include "otmpm/scene/resources.hpp"
 #include "otmpm/scene/validate.hpp"
 
+#include "input_error.hpp"
 #include "temp_dir.hpp"
 
 #include <doctest/doctest.h>
@@ -32,15 +33,7 @@ using namespace otmpm;
 
 namespace {
 
-/// The message of the InputError `f` throws ("" when it throws none).
-template <class F> std::string input_error_of(F&& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "";
-}
+using test::input_error_of;
 
 /// What follows the source of a message ("FILE:LINE: key 'K': " or
 /// "FILE:LINE: column 'C': "): the reason itself.

@@ -98,13 +98,7 @@ Result run_otmpm(const TempDir& dir, int ranks, const std::vector<std::string>& 
   return run_in(dir, cmd);
 }
 
-/// mpirun as root needs these (CI containers run as root).
-struct RootMpi {
-  RootMpi() {
-    ::setenv("OMPI_ALLOW_RUN_AS_ROOT", "1", 1);
-    ::setenv("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1", 1);
-  }
-} const root_mpi;
+const otmpm::test::RootMpi root_mpi;
 
 /// The frames of a result file: per frame its time and datasets.
 struct Frames {

