@@ -2,6 +2,7 @@
 /// The particles of all ranks as the recorder sees them (global_view.hpp).
 #include "otmpm/distributed/global_view.hpp"
 
+#include "otmpm/io/output_files.hpp"
 #include "otmpm/reference/exact.hpp"
 
 #include <fcntl.h>
@@ -205,8 +206,9 @@ template <int D> ParallelIo GlobalView<D>::parallel_io() const {
   return io;
 }
 
-template <int D> void GlobalView<D>::require_shared_file(const std::string& path, const std::string& run_id) const {
+template <int D> void GlobalView<D>::require_shared_file(const std::string& path) const {
   if (!d_) return;
+  const std::string token = share(new_run_id()); // the probe's name and content
   namespace fs = std::filesystem;
   const Comm& comm = d_->comm();
   std::error_code ec;
@@ -214,12 +216,13 @@ template <int D> void GlobalView<D>::require_shared_file(const std::string& path
   require_same(comm, "the absolute path of the result file '" + path + "'", resolved.string(),
                "the ranks write one result file together: give an absolute path, or start every rank in the same "
                "working directory");
-  const std::string probe = (resolved.parent_path() / ("." + resolved.filename().string() + ".otmpm-ranks-" + run_id)).string();
-  on_writer([&] {
-    std::ofstream out(probe);
-    out << run_id;
-    require(out.good(), probe, ": cannot create a file beside the result file: ", std::strerror(errno));
-  });
+  const std::string probe =
+      (resolved.parent_path() / ("." + resolved.filename().string() + ".otmpm-ranks-" + token)).string();
+  bool created = false;
+  if (writes()) created = (std::ofstream(probe) << token).good();
+  // Where the writing rank cannot create a file, the claim of the output
+  // files that follows says why (prepare_outputs: a missing directory, ...).
+  if (share(created ? "1" : "0") != "1") return;
   struct Remove { // by the writing rank, once every rank looked at it
     const std::string& path;
     bool writes;
@@ -232,7 +235,7 @@ template <int D> void GlobalView<D>::require_shared_file(const std::string& path
     const int fd = ::open(probe.c_str(), O_RDWR | O_CLOEXEC);
     const int err = errno;
     char text[64] = {};
-    const bool seen = fd >= 0 && ::read(fd, text, sizeof text - 1) >= 0 && run_id == text;
+    const bool seen = fd >= 0 && ::read(fd, text, sizeof text - 1) >= 0 && token == text;
     if (fd >= 0) ::close(fd);
     require(fd >= 0 || err != ENOENT, rank, " does not see the file rank 0 created beside ", file,
             ": the ranks write one result file together, in a directory that every node shares (not one local to "

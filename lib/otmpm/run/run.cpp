@@ -32,6 +32,7 @@
 #include <mutex>
 #include <optional>
 #include <thread>
+#include <tuple>
 #include <utility>
 
 namespace otmpm {
@@ -43,22 +44,21 @@ constexpr double time_slack = 1e-9;
 /// Floor of EnergySummary::reference(), so a body at rest with no load has ratio 0, not 0/0.
 constexpr double energy_reference_floor = 1e-300;
 
+/// The result file of a run and where its name came from: RunOptions::out_file,
+/// else a restart's interrupted run's file, else output.file.
+std::pair<std::string, std::string> result_file(const Scene& scene, const RunOptions& opt, const Checkpoint* resume) {
+  if (!opt.out_file.empty()) return {opt.out_file, "RunOptions::out_file, otmpm run --out"};
+  if (resume)
+    return {resume->group("recorder").string("result_file"), "the interrupted run's result file, from " + resume->file};
+  return {scene.output.file, scene.locate("output.file").describe()};
+}
+
 /// What the run's output files are and where their names came from
 /// (prepare_outputs); `text` is the scene as TOML (the identical-scene rule).
 OutputRequest output_request(const Scene& scene, const std::string& text, const RunOptions& opt,
                              const Checkpoint* resume) {
   OutputRequest r;
-  const std::string previous = resume ? resume->group("recorder").string("result_file") : "";
-  if (!opt.out_file.empty()) {
-    r.result = opt.out_file;
-    r.result_origin = "RunOptions::out_file, otmpm run --out";
-  } else if (resume) {
-    r.result = previous;
-    r.result_origin = "the interrupted run's result file, from " + resume->file;
-  } else {
-    r.result = scene.output.file;
-    r.result_origin = scene.locate("output.file").describe();
-  }
+  std::tie(r.result, r.result_origin) = result_file(scene, opt, resume);
   if (scene.output.checkpoint_every > 0) {
     r.checkpoint = checkpoint_path(scene, r.result);
     r.checkpoint_origin = scene.output.checkpoint_file.empty() ? "the default beside the result file"
@@ -69,7 +69,7 @@ OutputRequest output_request(const Scene& scene, const std::string& text, const 
   r.force = opt.force;
   if (resume) {
     r.continued_run = resume->run_id;
-    r.previous_result = previous;
+    r.previous_result = resume->group("recorder").string("result_file");
     r.previous_frames = static_cast<int>(resume->group("recorder").integer("frames"));
   }
   return r;
@@ -181,8 +181,10 @@ public:
     if (resume) restore_accumulators(resume->group("recorder"));
     if (!opt.write_results) return;
     if (resume) frames_ = static_cast<int>(resume->group("recorder").integer("frames"));
+    // Before the writing rank claims, replaces or sets aside anything, and
+    // before the collective create: every rank reaches the same result file.
+    view_.require_shared_file(result_file(scene, opt, resume).first);
     prepare([&] { return output_request(scene, text_, opt, resume); });
-    view_.require_shared_file(path_, run_id_); // before the collective create: every rank reaches the same file
     view_.collectively([&] {
       const ResultOptions options{run_id_, vtk_extension_, scene.output.precision == "single",
                                   scene.output.compression};
