@@ -8,11 +8,11 @@
 namespace otmpm {
 
 std::string ParameterSpec::check(double value) const {
-  const std::string got = " (got " + format_number(value) + ")";
-  if (!std::isfinite(value)) return "must be a finite number" + got;
   const bool above = lower <= -kUnbounded || (lower_open ? value > lower : value >= lower);
   const bool below = upper >= kUnbounded || (upper_open ? value < upper : value <= upper);
-  if (above && below) return "";
+  if (above && below && std::isfinite(value)) return ""; // no message built: checked once per particle-file value
+  const std::string got = " (got " + format_number(value) + ")";
+  if (!std::isfinite(value)) return "must be a finite number" + got;
   if (lower > -kUnbounded && upper < kUnbounded) // both ends bound it: the interval
     return std::string("must be in ") + (lower_open ? "(" : "[") + format_number(lower) + ", " + format_number(upper) +
            (upper_open ? ")" : "]") + got;

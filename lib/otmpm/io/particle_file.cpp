@@ -35,11 +35,11 @@ const ParameterSpec* column_rule(const ParticleFileRules* rules, const std::stri
   return &it->second;
 }
 
-/// InputError "`where`: must be > 0 (got -1)" when `value` is out of the range of `spec` (none: any).
-void check_value(const ParameterSpec* spec, double value, const std::string& where) {
+/// InputError "WHERE: must be > 0 (got -1)" when `value` is out of the range
+/// of `spec` (none: any); where() names the value (called on failure only).
+template <class Where> void check_value(const ParameterSpec* spec, double value, Where&& where) {
   if (!spec) return;
-  const std::string why = spec->check(value);
-  require(why.empty(), where, ": ", why);
+  if (const std::string why = spec->check(value); !why.empty()) throw InputError(where() + ": " + why);
 }
 
 /// InputError "`where`: N rows; at most CAP particles are allowed" when a file
@@ -149,7 +149,7 @@ void read_line(const std::string& line, const std::string& path, int lineno, con
   auto value = [&](int c) { return number(cells[c], where(c)); };
   for (int k = 0; k < D; ++k) rows.x.push_back(value(h.pos[k]));
   rows.volume.push_back(value(h.vol));
-  check_value(&kVolume, rows.volume.back(), where(h.vol));
+  check_value(&kVolume, rows.volume.back(), [&] { return where(h.vol); });
   if (h.vel[0] >= 0)
     for (int k = 0; k < D; ++k) rows.v.push_back(value(h.vel[k]));
   for (std::size_t c = 0; c < h.names.size(); ++c) {
@@ -157,7 +157,7 @@ void read_line(const std::string& line, const std::string& path, int lineno, con
     if (f < 0) continue;
     rows.fields[static_cast<std::size_t>(f)].push_back(value(static_cast<int>(c)));
     check_value(h.rule[static_cast<std::size_t>(f)], rows.fields[static_cast<std::size_t>(f)].back(),
-                where(static_cast<int>(c)));
+                [&] { return where(static_cast<int>(c)); });
   }
 }
 
@@ -269,7 +269,7 @@ void stream_hdf5(const std::string& path, int D, const Each& each, std::size_t c
       if (layout.rules[s])
         for (std::size_t p = 0; p < out.size(); ++p)
           check_value(layout.rules[s], out[p],
-                      path + ": dataset '" + layout.names[s] + "' row " + std::to_string(first + p));
+                      [&] { return path + ": dataset '" + layout.names[s] + "' row " + std::to_string(first + p); });
     }
     each(columns, rows);
   }
