@@ -247,12 +247,12 @@ TEST_CASE("a body that starts behind a wall is refused at set-up, naming wall, b
   for (const std::string mode : {"mpm", "ul"}) {
     CAPTURE(mode);
     // The block's 144 particles: a wall through its middle (72 behind it), one above it, one below it facing down.
-    for (const auto& [w, count] : {std::pair{wall("[0.0, 0.45]", "[0.0, 1.0]"), 72},
-                                  std::pair{wall("[0.0, 0.7]", "[0.0, 1.0]"), 144},
-                                  std::pair{wall("[0.0, 0.2]", "[0.0, -1.0]"), 144}}) {
-      const std::string why = input_error_of(
-          [&] { assemble_parts<2>(parse_scene(scene_2d("linear_elastic", "", block + w, mode), "behind.toml")); });
-      CHECK(why.find("body 'b' starts behind wall 'w': " + std::to_string(count) + " of its particles") !=
+    for (const auto& behind : {std::pair{wall("[0.0, 0.45]", "[0.0, 1.0]"), 72},
+                               std::pair{wall("[0.0, 0.7]", "[0.0, 1.0]"), 144},
+                               std::pair{wall("[0.0, 0.2]", "[0.0, -1.0]"), 144}}) {
+      const std::string text = scene_2d("linear_elastic", "", block + behind.first, mode);
+      const std::string why = input_error_of([&] { assemble_parts<2>(parse_scene(text, "behind.toml")); });
+      CHECK(why.find("body 'b' starts behind wall 'w': " + std::to_string(behind.second) + " of its particles") !=
             std::string::npos);
     }
     // A wall through the block's lower face (the particles lie above it): accepted.

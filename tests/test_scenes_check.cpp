@@ -120,7 +120,9 @@ TEST_CASE("check_scene: what the run refuses before it allocates, --check refuse
       {parse_scene(kCube, "cube.toml", {"simulation.dt=1e-30"}), "more than simulation.max_steps"},
       {parse_scene(kCube, "cube.toml", {"simulation.memory_limit=1e3"}), "more than the limit of 1 kB"}};
   CHECK(estimate_resources(refused.front().first).bytes > 1e12);
-  for (const auto& [scene, expected] : refused) {
+  for (const auto& item : refused) { // no structured binding: clang captures none in a lambda
+    const Scene& scene = item.first;
+    const std::string& expected = item.second;
     CAPTURE(expected);
     const auto start = std::chrono::steady_clock::now();
     const std::string check = input_error_of([&] { check_scene(scene); });
