@@ -140,6 +140,8 @@ public:
   void step();
   /// Time step from the CFL condition or the fixed dt, at most t_end - t.
   double stable_dt() const;
+  /// The fastest signal of the CFL condition: max_p max(c_p, |v_p|) of all particles (all ranks).
+  double wave_speed() const { return wave_speed_; }
 
   Particles<D>& particles() { return P_; }
   const Particles<D>& particles() const { return P_; }

@@ -7,11 +7,10 @@
 namespace otmpm {
 
 void ElasticConstants::validate(const std::string& name) const {
-  const std::string what = "material '" + name + "': ";
-  require(finite_positive(density), what, "density must be finite and > 0, got ", density);
-  require(finite_positive(young), what, "young must be finite and > 0, got ", young);
-  require(std::isfinite(poisson) && poisson > -1.0 && poisson < 0.5, what, "poisson must be in (-1, 0.5), got ",
-          poisson);
+  for (const auto& [spec, value] : {std::pair{&kDensity, density}, {&kYoung, young}, {&kPoisson, poisson}}) {
+    const std::string why = spec->check(value);
+    require(why.empty(), "material '", name, "': ", spec->key, " ", why);
+  }
 }
 
 namespace {

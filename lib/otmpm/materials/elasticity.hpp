@@ -11,10 +11,18 @@
 /// In 1D the uniaxial modulus of the finite-strain models is lambda + 2 mu,
 /// which equals E for nu = 0 (the value every 1D benchmark uses).
 #include "otmpm/core.hpp"
+#include "otmpm/parameters.hpp"
 
 #include <string>
 
 namespace otmpm {
+
+/// The ranges of the constants every material has - the scene keys
+/// material.NAME.density, .young and .poisson - read by the scene reader,
+/// validate_material and the density column of a particle file alike.
+inline constexpr ParameterSpec kDensity{"density", "reference mass density rho_0 [kg/m^3]", std::nullopt, 0.0, true};
+inline constexpr ParameterSpec kYoung{"young", "Young's modulus E [Pa]", std::nullopt, 0.0, true};
+inline constexpr ParameterSpec kPoisson{"poisson", "Poisson's ratio nu", std::nullopt, -1.0, true, 0.5, true};
 
 /// Density and isotropic elastic constants of a material.
 struct ElasticConstants {
@@ -22,9 +30,10 @@ struct ElasticConstants {
   double young = 1.0;
   double poisson = 0.0;
 
-  /// Throws InputError "material 'NAME': FIELD must be ..." unless density
-  /// and young are finite and > 0 and -1 < poisson < 0.5 (where lambda() and
-  /// mu() are finite and the material is stable).
+  /// Throws InputError "material 'NAME': FIELD must be ..." unless density,
+  /// young and poisson lie in their ranges (kDensity, kYoung, kPoisson:
+  /// density and young finite and > 0, -1 < poisson < 0.5, where lambda()
+  /// and mu() are finite and the material is stable).
   void validate(const std::string& name) const;
   double lambda() const { return young * poisson / ((1 + poisson) * (1 - 2 * poisson)); }
   double mu() const { return young / (2 * (1 + poisson)); }

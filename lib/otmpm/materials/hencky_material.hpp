@@ -18,10 +18,10 @@ namespace otmpm {
 /// The internal variables every Hencky model keeps (StateSpec rows).
 inline constexpr std::array<StateSpec, 5> kHenckyState{{
     {"elastic_left_cauchy_green", 6, {1, 1, 1, 0, 0, 0}, "b_e = F_e F_e^T (xx, yy, zz, xy, yz, xz)"},
-    {"plastic_strain", 1, {}, "equivalent plastic strain eps_p"},
+    {"plastic_strain", 1, {}, "equivalent plastic strain eps_p", 0.0},
     {"volumetric_plastic_strain", 1, {}, "volumetric plastic strain eps_v (dilation > 0)"},
-    {"elastic_energy", 1, {}, "stored elastic energy V0 psi(b_e) [J]"},
-    {"plastic_work", 1, {}, "energy dissipated by plastic flow since t = 0 [J]"},
+    {"elastic_energy", 1, {}, "stored elastic energy V0 psi(b_e) [J]", 0.0},
+    {"plastic_work", 1, {}, "energy dissipated by plastic flow since t = 0 [J]", 0.0},
 }};
 
 /// A Hencky elastoplastic material: Model has

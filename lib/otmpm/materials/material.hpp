@@ -55,6 +55,12 @@ struct StateSpec {
   int width = 1;
   std::array<double, 9> initial{};
   std::string_view description;
+  /// The smallest value a particle may start with (0 for an equivalent
+  /// plastic strain or an energy; -kUnbounded: any finite value).
+  double lower = -kUnbounded;
+  /// The range of a scalar variable as a ParameterSpec: what a particle
+  /// file's column of its name must satisfy (ParticleFileRules).
+  ParameterSpec range() const { return {name, description, initial[0], lower}; }
 };
 
 /// A model parameter beyond density, young and poisson (ParameterSpec). A
