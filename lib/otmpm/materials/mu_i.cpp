@@ -13,12 +13,14 @@ namespace otmpm {
 
 namespace {
 
-const std::array<ParameterSpec, 5> kParameters{{
+const std::array<ParameterSpec, 6> kParameters{{
     {"mu_s", "static friction coefficient mu_s (sqrt(J2) = mu_s p at the onset of flow)", std::nullopt, 0.0, true},
     {"mu_2", "limiting friction coefficient mu_2 at large I, >= mu_s", std::nullopt, 0.0, true},
     {"I_0", "inertial number I_0 at which mu = (mu_s + mu_2) / 2", std::nullopt, 0.0, true},
     {"grain_diameter", "grain diameter d [m]", std::nullopt, 0.0, true},
     {"grain_density", "grain density rho_s [kg/m3], at least the bulk density", std::nullopt, 0.0, true},
+    {"critical_packing", "packing fraction phi_c below which the grains lose contact, at most density / grain_density",
+     std::nullopt, 0.0, true, 1.0},
 }};
 
 /// x^(1/D).
@@ -39,21 +41,25 @@ struct MuIModel {
 
   plasticity::ElasticModuli moduli;
   double mu_s = 0.0, mu_2 = 0.0, I_0 = 0.0, grain_diameter = 0.0, grain_density = 0.0;
+  /// det F at the critical packing, phi0 / phi_c with phi0 = density /
+  /// grain_density the packing the material is seeded with.
+  double J_c = 1.0;
 
   const plasticity::ElasticModuli& elastic() const { return moduli; }
 
   /// mu(I) = mu_s + (mu_2 - mu_s) / (I_0 / I + 1).
   double friction(double I) const { return mu_s + (mu_2 - mu_s) * I / (I_0 + I); }
 
-  /// One step. J > 1 (rho_p below the critical packing rho0_p): stress-free.
-  /// Else a particle that was stress-free (J_n > 1) takes the step's increment
-  /// scaled by J_n^(1/D), so that its elastic volume strain is ln J, the
-  /// compaction beyond the critical packing, not ln(J / J_n).
+  /// One step. J > J_c (the packing phi0 / J below phi_c): stress-free.
+  /// Else a particle that was stress-free (J_n > J_c) takes the step's
+  /// increment scaled by (J_n / J_c)^(1/D), so that its elastic volume
+  /// strain is ln(J / J_c), the compaction beyond the critical packing, not
+  /// ln(J / J_n).
   template <int D>
   [[gnu::always_inline]] plasticity::PointUpdate update(const Mat<D>& dF, double dt, plasticity::HenckyState& s,
                                                         ModelPoint<2>& point) const {
-    const bool loose = point.J > 1.0;
-    const Mat<D> dF_eff = point.J_n > 1.0 && !loose ? Mat<D>(dF * root<D>(point.J_n)) : dF;
+    const bool loose = point.J > J_c;
+    const Mat<D> dF_eff = point.J_n > J_c && !loose ? Mat<D>(dF * root<D>(point.J_n / J_c)) : dF;
     return plasticity::point::update<D>("mu_i_update", moduli, dF_eff, s, [&](double ev, double dev2) {
       return mu_i_return(ev, dev2, dt, loose, point, s);
     });
@@ -122,6 +128,10 @@ MuIModel mu_i_model(const MaterialParameters& m) {
           model.mu_s);
   require(model.grain_density >= m.density, "material '", m.name, "': grain_density = ", model.grain_density,
           " must be at least the bulk density = ", m.density, " (a packing fraction density / grain_density <= 1)");
+  const double phi0 = m.density / model.grain_density, phi_c = m.get("critical_packing", phi0);
+  require(phi_c <= phi0, "material '", m.name, "': critical_packing = ", phi_c,
+          " must be at most the packing of the seeded material, density / grain_density = ", phi0);
+  model.J_c = phi0 / phi_c;
   return model;
 }
 
