@@ -47,9 +47,6 @@ struct MuIModel {
 
   const plasticity::ElasticModuli& elastic() const { return moduli; }
 
-  /// mu(I) = mu_s + (mu_2 - mu_s) / (I_0 / I + 1).
-  double friction(double I) const { return mu_s + (mu_2 - mu_s) * I / (I_0 + I); }
-
   /// One step. J > J_c (the packing phi0 / J below phi_c): stress-free.
   /// Else a particle that was stress-free (J_n > J_c) takes the step's
   /// increment scaled by (J_n / J_c)^(1/D), so that its elastic volume
@@ -69,7 +66,8 @@ struct MuIModel {
   /// -p the Kirchhoff pressure, S = sqrt(J2)): stress-free (loose, or P <= 0
   /// with a shear: e_v = 0, beta = 0), elastic (S <= mu_s P), or flow at the
   /// fixed P (isochoric): S - G x = mu(I) P with x the plastic shear strain of
-  /// the step and I = x / dt d / sqrt(P / (J rho_s)), the Cauchy pressure.
+  /// the step and I = (x / dt) d / sqrt(P_c / rho_s), P_c = P / J the Cauchy
+  /// pressure (docs/theory-plasticity.md, eqs. 7.2-7.4).
   [[gnu::always_inline]] plasticity::point::Return mu_i_return(double ev, double dev2, double dt, bool loose,
                                                                ModelPoint<2>& point,
                                                                plasticity::HenckyState& s) const {
@@ -111,8 +109,8 @@ struct MuIModel {
     const double G = moduli.shear, S0 = S - mu_s * P, B = (mu_2 - mu_s) * P;
     if (B == 0.0) return S0 / G;
     const double c = S0 * I_0 * t_I, b = G * I_0 * t_I + B - S0;
-    const double root = std::sqrt(b * b + 4.0 * G * c);
-    return b >= 0.0 ? 2.0 * c / (b + root) : (root - b) / (2.0 * G);
+    const double r = std::sqrt(b * b + 4.0 * G * c);
+    return b >= 0.0 ? 2.0 * c / (b + r) : (r - b) / (2.0 * G);
   }
 };
 
