@@ -3,22 +3,17 @@
 // static limit against drucker_prager, the stress-free state below the
 // critical packing and its re-densification, the scene keys; in runs, a pile
 // at rest below the angle of repose, the energy balance with the plastic
-// work, every integrator in both modes, and restarts bit for bit.
+// work and every integrator in both modes (restarts: test_plastic_runs.cpp).
 #include "otmpm/assembly/assembler.hpp"
 #include "otmpm/integrators/integrator.hpp"
-#include "otmpm/io/checkpoint.hpp"
 #include "otmpm/materials/hencky_plasticity.hpp"
 #include "otmpm/materials/material.hpp"
-#include "otmpm/run/restart.hpp"
 #include "otmpm/scene/scene.hpp"
-
-#include "temp_dir.hpp"
 
 #include <doctest/doctest.h>
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <numbers>
 #include <string>
 #include <type_traits>
@@ -393,32 +388,4 @@ TEST_CASE("mu_i runs with every integrator in both node modes without creating e
       CHECK(E.total() + E.dissipated <= 1.05 * (E.initial + E.work()));
     }
   }
-}
-
-TEST_CASE("a mu_i run restarts bit for bit (the flowing state in the checkpoint)") {
-  test::TempDir tmp("mu_i_restart");
-  const std::string text = grains_scene("lower = [0.0, 0.0]\nupper = [0.1, 0.2]\n", 0.6, 0.24, 1.0);
-  const Scene scene = parse_scene(text, "grains.toml");
-  Engine<2> a = assemble<2>(scene);
-  for (int s = 0; s < 300; ++s) a.step();
-  Checkpoint ck;
-  ck.scene = scene.text;
-  a.save_state(ck);
-  write_checkpoint(tmp.file("ck.h5"), ck);
-  for (int s = 0; s < 300; ++s) a.step();
-  const Checkpoint back = read_checkpoint(tmp.file("ck.h5"));
-  Engine<2> b = assemble<2>(checkpoint_scene(back));
-  b.restore_state(back);
-  for (int s = 0; s < 300; ++s) b.step();
-  const StateField* I = a.particles().find_state("inertial_number");
-  REQUIRE(I != nullptr);
-  CHECK(*std::max_element(I->values.begin(), I->values.end()) > 0.0); // it flows
-  REQUIRE(a.particles().state.size() == b.particles().state.size());
-  for (std::size_t i = 0; i < a.particles().state.size(); ++i) {
-    const auto& x = a.particles().state[i].values;
-    const auto& y = b.particles().state[i].values;
-    INFO(a.particles().state[i].name);
-    CHECK(std::memcmp(x.data(), y.data(), x.size() * sizeof(double)) == 0);
-  }
-  CHECK(std::memcmp(a.particles().x.data(), b.particles().x.data(), a.particles().x.size() * sizeof(Vec<2>)) == 0);
 }
