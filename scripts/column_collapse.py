@@ -144,34 +144,37 @@ def study_name(path):
 
 def cmd_table(a):
     ms = [measure(p) for p in a.files]
-    ms.sort(key=lambda m: (m["model"], m["a"], -m["h"]))
-    print("| model | a | h | particles | steps | wall [s] | tip (L_f - L0)/L0 | scaling | error | front | "
+    for m in ms:
+        m["variant"] = f"{m['mode']} {m['model']}"
+    ms.sort(key=lambda m: (m["variant"], m["a"], -m["h"]))
+    print("| variant | a | h | particles | steps | wall [s] | tip (L_f - L0)/L0 | scaling | error | front | "
           "H_f / H0 | scaling | error | t_c / sqrt(H0/g) |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for m in ms:
         h = f"L0/{round(m['L0'] / m['h'])}"
         if m["status"] != "ok":
-            print(f"| {m['model']} | {m['a']:g} | {h} | {m['particles']} | {m['steps']} | {m['wall_seconds']:.1f} | "
+            print(f"| {m['variant']} | {m['a']:g} | {h} | {m['particles']} | {m['steps']} | {m['wall_seconds']:.1f} | "
                   f"{m['status']} at t = {m['t']:.3g} s | | | | | | | |")
             continue
-        print(f"| {m['model']} | {m['a']:g} | {h} | {m['particles']} | {m['steps']} | {m['wall_seconds']:.1f} | "
+        print(f"| {m['variant']} | {m['a']:g} | {h} | {m['particles']} | {m['steps']} | {m['wall_seconds']:.1f} | "
               f"{m['tip']:.2f} | {float(scaling(m['a'])):.2f} | {100 * m['tip_error']:+.0f}% | {m['front']:.2f} | "
               f"{m['height']:.3f} | {float(height_scaling(m['a'])):.3f} | {100 * m['height_error']:+.0f}% | "
               f"{m['t_c_scaled']:.2f} |")
     # The acceptance: at the two finest meshes, each within 15% of the
     # scaling, and their difference smaller than the difference to it.
     print()
-    for model in sorted({m["model"] for m in ms}):
-        for aa in sorted({m["a"] for m in ms if m["model"] == model}):
-            runs = sorted((m for m in ms if m["model"] == model and m["a"] == aa and m["status"] == "ok"),
-                          key=lambda m: m["h"])
-            if len(runs) < 2:
+    finest = min(m["h"] for m in ms)
+    for variant in sorted({m["variant"] for m in ms}):
+        for aa in sorted({m["a"] for m in ms if m["variant"] == variant}):
+            runs = sorted((m for m in ms if m["variant"] == variant and m["a"] == aa), key=lambda m: m["h"])
+            if len(runs) < 2 or any(m["status"] != "ok" for m in runs[:2]) or runs[0]["h"] != finest:
+                print(f"{variant} a = {aa:g}: the two finest meshes did not both finish")
                 continue
             fine, next_ = runs[0], runs[1]
             for q, s in (("tip", scaling(aa)), ("height", height_scaling(aa))):
                 both = max(abs(fine[q + "_error"]), abs(next_[q + "_error"])) <= 0.15
                 converged = abs(fine[q] - next_[q]) < abs(fine[q] - float(s))
-                print(f"{model} a = {aa:g} {q}: L0/{round(fine['L0'] / fine['h'])} {fine[q]:.3f}, "
+                print(f"{variant} a = {aa:g} {q}: L0/{round(fine['L0'] / fine['h'])} {fine[q]:.3f}, "
                       f"L0/{round(next_['L0'] / next_['h'])} {next_[q]:.3f}, scaling {float(s):.3f}: "
                       f"{'within' if both else 'NOT within'} 15% at both, difference between them "
                       f"{abs(fine[q] - next_[q]):.3f} {'<' if converged else '>='} {abs(fine[q] - float(s)):.3f} to the scaling")
@@ -188,7 +191,6 @@ def cmd_plot(a):
     gs = fig.add_gridspec(len(ms), 2, width_ratios=[3, 1.2])
     left = []
     x_max = max(1.6, 1.05 * max(m["Lf"] for m in ms))  # every tip in view
-    y_max = 1.05 * max(m["H0"] for m in ms)
     for i, (m, label) in enumerate(zip(ms, labels)):
         ax = fig.add_subplot(gs[i, 0])
         left.append(ax)
@@ -198,7 +200,7 @@ def cmd_plot(a):
         ax.axvline(m["L0"] * (1 + float(scaling(m["a"]))), color="tab:red", ls="--", lw=0.8)
         ax.axhline(m["H0"] * float(height_scaling(m["a"])), color="tab:red", ls="--", lw=0.8)
         ax.set_xlim(-0.02, x_max)
-        ax.set_ylim(-0.02, y_max)
+        ax.set_ylim(-0.02, max(0.3, 1.05 * m["H0"]))
         ax.set_aspect("equal")
         ax.axvline(m["Lh"], color="tab:blue", ls=":", lw=0.8)
         ax.set_title(f"{label}: tip (L_f - L0)/L0 = {m['tip']:.2f}, front {m['front']:.2f} (dotted), "
@@ -234,7 +236,7 @@ def cmd_work_precision(a):
     for path in a.files:
         variant, mesh = study_name(path)
         m = measure(path)
-        groups.setdefault((m["model"], mesh), []).append(m)
+        groups.setdefault((f"{m['mode']} {m['model']}", mesh), []).append(m)
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.4), sharex=True)
     for model in sorted({k[0] for k in groups}):
         pts = []
@@ -244,7 +246,8 @@ def cmd_work_precision(a):
             pts.append((sum(m["wall_seconds"] for m in ms), max(abs(m["tip_error"]) for m in ms),
                         max(abs(m["height_error"]) for m in ms), mesh))
         pts.sort()
-        style = dict(marker="o", color="tab:blue" if model == "mu_i" else "tab:orange", label=model)
+        style = dict(marker="o", ls="--" if model.startswith("ul") else "-",
+                     color="tab:blue" if model.endswith("mu_i") else "tab:orange", label=model)
         axes[0].loglog([p[0] for p in pts], [p[1] for p in pts], **style)
         axes[1].loglog([p[0] for p in pts], [p[2] for p in pts], **style)
         for p in pts:
