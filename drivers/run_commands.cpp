@@ -96,6 +96,9 @@ int check_command(const SceneArgs& a) {
   std::printf("  steps      about %.0f (t_end = %.6g s)\n", c.estimated_steps, c.t_end);
   std::printf("  memory     about %s (estimate)\n", bytes_text(c.memory_bytes).c_str());
   std::printf("  results    %s\n", (a.out.empty() ? c.out_file : a.out).c_str());
+  for (const SceneCheck::BodyVolume& v : c.volumes)
+    std::printf("  volume     body '%s' (%s): particles %.6g, shape %.6g (error %+.3g %%)\n", v.name.c_str(),
+                v.shape.c_str(), v.seeded, v.exact, 100.0 * (v.seeded - v.exact) / v.exact);
   return 0;
 }
 
@@ -152,17 +155,29 @@ std::string fmt(const char* f, double v) {
   return b;
 }
 
+/// An error's row label with its unit: absolute RMS errors in the
+/// quantity's SI unit (velocity and a probe's velocity history m/s,
+/// displacement m, stress Pa).
+std::string error_label(const std::string& name) {
+  const char* unit = name.rfind("history_error_", 0) == 0 ? "m/s"
+                     : name == "rms_velocity_error"       ? "m/s"
+                     : name == "rms_displacement_error"   ? "m"
+                     : name == "rms_stress_error"         ? "Pa"
+                                                          : "";
+  return *unit ? name + " [" + unit + "]" : name;
+}
+
 /// The side-by-side table of `pair` (one column per finished run).
 void print_pair_table(const std::vector<RunSummary>& runs) {
   std::vector<std::string> names;
   for (const auto& r : runs)
     for (const auto& [n, v] : r.errors)
       if (std::find(names.begin(), names.end(), n) == names.end()) names.push_back(n);
-  std::printf("%-26s", "");
+  std::printf("%-32s", "");
   for (const auto& r : runs) std::printf(" %16s", r.mode.c_str());
   std::printf("\n");
   auto row = [&](const std::string& label, auto get) {
-    std::printf("%-26s", label.c_str());
+    std::printf("%-32s", label.c_str());
     for (const auto& r : runs) std::printf(" %16s", get(r).c_str());
     std::printf("\n");
   };
@@ -171,7 +186,7 @@ void print_pair_table(const std::vector<RunSummary>& runs) {
   });
   row("basis / integrator", [](const RunSummary& r) { return r.basis + "/" + r.integrator; });
   for (const std::string& n : names)
-    row(n, [&](const RunSummary& r) {
+    row(error_label(n), [&](const RunSummary& r) {
       auto it = r.errors.find(n);
       return it == r.errors.end() ? std::string("-") : fmt("%.4e", it->second);
     });

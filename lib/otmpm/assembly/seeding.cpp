@@ -9,6 +9,7 @@
 
 #include "otmpm/geometry/shapes.hpp"
 #include "otmpm/io/particle_file.hpp"
+#include "otmpm/scene/file_bodies.hpp"
 #include "otmpm/scene/validate.hpp"
 
 #include <algorithm>
@@ -52,6 +53,10 @@ template <int D> std::unique_ptr<Shape<D>> body_shape(const BodySection& b, cons
   if (b.shape == "sphere") return make_sphere<D>(scene_vec<D>(b.center), b.radius);
   if constexpr (D == 3)
     if (b.shape == "cylinder") return make_cylinder(scene_vec<3>(b.center), scene_vec<3>(b.axis), b.radius, b.length);
+  if constexpr (D == 3)
+    if (b.shape == "stl") return stl_body_surface(b);
+  if constexpr (D >= 2)
+    if (b.shape == "mesh") return mesh_body_shape<D>(b);
   if constexpr (D == 2)
     if (b.shape == "polygon") {
       std::vector<Vec<2>> v;
@@ -179,6 +184,11 @@ void generate_body(const Scene& scene, int b, const Vec<D>& h, const CartesianGr
                       body.placement, [&](const Vec<D>& x, double V, const Vec<D>& extent) {
                         emit(Seed<D>{x, extent, V, b});
                       });
+  } else if (body.shape == "mesh") {
+    if constexpr (D >= 2)
+      seed_mesh_body<D>(body, dynamic_cast<const ElementUnion<D>&>(shape), [&](const Vec<D>& x, double V) {
+        emit(Seed<D>{x, Vec<D>::Constant(std::pow(V, 1.0 / D)), V, b});
+      });
   } else if (file) {
     seed_from_file<D>(*file, b, emit);
     for (const auto& [name, values] : file->fields)

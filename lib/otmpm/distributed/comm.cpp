@@ -10,6 +10,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <initializer_list>
 #include <thread>
 #include <cstring>
 #include <exception>
@@ -74,6 +75,24 @@ bool started_by_launcher() {
 }
 
 } // namespace
+
+namespace {
+
+/// The first of the environment variables that holds an integer, else `fallback`.
+int launcher_value(std::initializer_list<const char*> names, int fallback) {
+  for (const char* v : names)
+    if (const char* text = std::getenv(v)) {
+      char* end = nullptr;
+      const long n = std::strtol(text, &end, 10);
+      if (end != text && *end == '\0' && n >= 0 && n < (1L << 30)) return static_cast<int>(n);
+    }
+  return fallback;
+}
+
+} // namespace
+
+int launcher_size() { return std::max(1, launcher_value({"OMPI_COMM_WORLD_SIZE", "PMI_SIZE"}, 1)); }
+int launcher_rank() { return launcher_value({"OMPI_COMM_WORLD_RANK", "PMI_RANK"}, 0); }
 
 const Comm& Comm::self() {
   static const Comm one;

@@ -73,6 +73,16 @@ private:
   bool mpi_ = false;
 };
 
+/// How many processes a launcher (OpenMPI's mpirun, a PMI launcher such as
+/// srun) says it started together with this one, from its environment
+/// (OMPI_COMM_WORLD_SIZE, PMI_SIZE); 1 when none did. When it is more than
+/// Comm::world().size(), this process cannot join the others as a rank (a
+/// build without MPI, or another MPI than the launcher's): each would run
+/// the whole program alone.
+int launcher_size();
+/// This process's rank among them (OMPI_COMM_WORLD_RANK, PMI_RANK), 0 when none.
+int launcher_rank();
+
 /// MPI for the lifetime of a program (its main): initialises MPI (threads
 /// funnelled through the main thread, OpenMP inside each rank) when the
 /// process was started by mpirun or srun, finalises it at the end. Without

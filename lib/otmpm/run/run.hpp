@@ -126,6 +126,14 @@ struct SceneCheck {
   double estimated_steps = 0.0;
   double memory_bytes = 0.0; ///< estimate_memory_bytes(scene)
   std::string out_file;      ///< output.file
+  /// A body whose shape a geometry file gives (stl, mesh): the volume of
+  /// its particles against the volume of its shape (the surface's enclosed
+  /// volume; the sum of the mesh's element volumes).
+  struct BodyVolume {
+    std::string name, shape;
+    double seeded = 0.0, exact = 0.0;
+  };
+  std::vector<BodyVolume> volumes;
 };
 
 /// Validates the scene as a run would (the scene checks and the engine's

@@ -5,6 +5,7 @@
 #include "otmpm/integrators/integrator.hpp"
 #include "otmpm/materials/models.hpp"
 #include "otmpm/run/run.hpp"
+#include "otmpm/scene/file_bodies.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -27,6 +28,17 @@ template <int D> SceneCheck check_dim(const Scene& scene) {
   c.estimated_steps = c.dt > 0 ? std::ceil(c.t_end / c.dt * (1.0 - 1e-9)) : 0.0;
   c.memory_bytes = estimate_memory_bytes(scene);
   c.out_file = scene.output.file;
+  for (std::size_t b = 0; b < scene.bodies.size(); ++b)
+    if (const BodySection& body = scene.bodies[b]; geometry_file_body(body)) {
+      const Particles<D>& P = e.particles();
+      double seeded = 0.0;
+      for (int p = 0; p < P.size(); ++p) seeded += P.body[p] == static_cast<int>(b) ? P.V0[p] : 0.0;
+      double exact = 0.0;
+      if constexpr (D == 3)
+        exact = body.shape == "stl" ? stl_body_surface(body)->measure() : mesh_body_shape<3>(body)->measure();
+      if constexpr (D == 2) exact = mesh_body_shape<2>(body)->measure();
+      c.volumes.push_back({body.name, body.shape, seeded, exact});
+    }
   return c;
 }
 

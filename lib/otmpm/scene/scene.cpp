@@ -9,6 +9,7 @@
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/integrators/integrator.hpp"
 #include "otmpm/io/particle_file.hpp"
+#include "otmpm/scene/file_bodies.hpp"
 #include "otmpm/particles/output_fields.hpp"
 #include "otmpm/scene/toml_reader.hpp"
 #include "otmpm/scene/validate.hpp"
@@ -216,7 +217,7 @@ double body_cells(const BodySection& b, const GridSection& g, int dim) {
 
 /// The particles seed_particles puts into body `b` (see SceneSize).
 double body_particles(const BodySection& b, const GridSection& g, int dim) {
-  if (b.shape == "file") return b.file_particles;
+  if (b.shape == "file" || b.shape == "mesh") return b.file_particles;
   return body_cells(b, g, dim) * std::pow(b.particles_per_cell, dim);
 }
 
@@ -340,7 +341,9 @@ const std::map<std::string, std::vector<std::string_view>, std::less<>> kShapeKe
     {"sphere", {"center", "radius"}},
     {"cylinder", {"center", "axis", "radius", "length"}},
     {"polygon", {"vertices"}},
-    {"file", {"file"}}};
+    {"file", {"file"}},
+    {"stl", {"file", "scale", "rotate", "translate"}},
+    {"mesh", {"file", "physical", "seeding", "scale", "rotate", "translate"}}};
 
 /// A value > 0 that the shape needs.
 double positive_required(const TableReader& t, std::string_view key) {
@@ -378,16 +381,53 @@ void cylinder_bounds(BodySection& b) {
   }
 }
 
+/// The path of the body's `file` (relative to the scene file's folder).
+std::string scene_relative_file(const TableReader& t, const Scene& s) {
+  const std::string name = t.require<std::string>("file");
+  check(!name.empty(), t.ref("file"), "must not be empty");
+  namespace fs = std::filesystem;
+  const fs::path given(name);
+  return (given.is_absolute() || s.file.empty() ? given : fs::path(s.file).parent_path() / given).string();
+}
+
+/// The keys that place a geometry file: scale (a number or one per axis,
+/// > 0), rotate (degrees about x, y, z; 2D: one angle about z), translate.
+void read_placement(const TableReader& t, int dim, Vec3& scale, Vec3& rotate, Vec3& translate) {
+  const Vec3 given = t.vec("scale", dim, true).value_or(Vec3{1, 1, 1});
+  for (int k = 0; k < dim; ++k) {
+    check(given[k] > 0, t.ref("scale"), "must be > 0 (got " + fmt(given[k]) + ")");
+    scale[k] = given[k];
+  }
+  if (dim == 3) rotate = t.vec("rotate", 3).value_or(rotate);
+  else rotate[2] = t.get<double>("rotate", 0.0); // about z
+  translate = t.vec("translate", dim).value_or(translate);
+}
+
+/// stl, mesh: the geometry file (relative to the scene file) and its
+/// placement, read now for its bounds, checks and (mesh) particle count, so
+/// that a bad file is reported with the scene's line.
+void read_geometry_file_body(const TableReader& t, BodySection& b, const Scene& s) {
+  const int dim = s.simulation.dimension;
+  b.file = scene_relative_file(t, s);
+  if (b.shape == "mesh") {
+    b.physical = t.get<std::string>("physical", "");
+    b.seeding = t.choice("seeding", b.seeding, {"element", "quadrature"});
+  }
+  read_placement(t, dim, b.scale, b.rotate, b.translate);
+  try {
+    read_geometry_file(b, dim);
+  } catch (const InputError& e) {
+    input_error(t.ref("file"), e.what());
+  }
+  check_derived_box(t, "file", b.lower, b.upper, dim);
+}
+
 /// file: the path (relative to the scene file), read now for its bounds and
 /// particle count, so that a bad file is reported with the scene's line. The
 /// file is streamed (stream_particle_file: a block of rows at a time), so
 /// that every rank of a distributed run holds one block, not the file.
 void read_particle_file_body(const TableReader& t, BodySection& b, const Scene& s) {
-  const std::string name = t.require<std::string>("file");
-  check(!name.empty(), t.ref("file"), "must not be empty");
-  namespace fs = std::filesystem;
-  const fs::path given(name);
-  b.file = (given.is_absolute() || s.file.empty() ? given : fs::path(s.file).parent_path() / given).string();
+  b.file = scene_relative_file(t, s);
   const int D = s.simulation.dimension;
   long long count = 0;
   const auto bounds = [&b, &count, D](const ParticleColumns&, const ParticleRows& rows) {
@@ -440,6 +480,8 @@ void read_shape(const TableReader& t, BodySection& b, const Scene& s) {
     for (const auto& v : b.vertices)
       for (int k = 0; k < 2; ++k) b.lower[k] = std::min(b.lower[k], v[k]), b.upper[k] = std::max(b.upper[k], v[k]);
     check_derived_box(t, "vertices", b.lower, b.upper, 2);
+  } else if (geometry_file_body(b)) {
+    read_geometry_file_body(t, b, s);
   } else {
     read_particle_file_body(t, b, s);
   }
@@ -503,16 +545,52 @@ std::vector<InitialVelocitySection> read_initial_velocities(const TableReader& r
   return out;
 }
 
-std::vector<BoundarySection> read_boundaries(const TableReader& root, int dim) {
+/// A boundary's box from a physical group of a mesh file (`file`,
+/// `physical`): the box of the group's nodes, which must be flat along an
+/// axis (a boundary holds the nodes in a box: a slanted group would give more).
+void read_boundary_group(const TableReader& t, BoundarySection& b, const Scene& s) {
+  const int dim = s.simulation.dimension;
+  check(dim >= 2, t.ref("file"), "a boundary from a mesh's physical group needs dimension 2 or 3");
+  const std::string file = scene_relative_file(t, s), group = t.require<std::string>("physical");
+  BodySection placed; // the placement keys, as a mesh body's
+  read_placement(t, dim, placed.scale, placed.rotate, placed.translate);
+  try {
+    Vec<3> lo = Vec<3>::Zero(), hi = Vec<3>::Zero();
+    if (dim == 2) {
+      const auto [lo2, hi2] = mesh_group_box<2>(file, group, body_placement(placed));
+      lo.head<2>() = lo2, hi.head<2>() = hi2;
+    } else {
+      std::tie(lo, hi) = mesh_group_box<3>(file, group, body_placement(placed));
+    }
+    double widest = 0;
+    for (int k = 0; k < dim; ++k) widest = std::max(widest, hi[k] - lo[k]);
+    bool flat = false;
+    for (int k = 0; k < dim; ++k) flat |= hi[k] - lo[k] <= 1e-9 * widest;
+    require(flat, file, ": physical group \"", group, "\" spans the box ", format_point<3>(lo), " - ",
+            format_point<3>(hi), ", flat along no axis (a boundary is the nodes of a box)");
+    for (int k = 0; k < dim; ++k) b.lower[k] = lo[k], b.upper[k] = hi[k];
+  } catch (const InputError& e) {
+    input_error(t.ref("physical"), e.what());
+  }
+}
+
+std::vector<BoundarySection> read_boundaries(const TableReader& root, const Scene& s) {
+  const int dim = s.simulation.dimension;
   std::vector<BoundarySection> out;
   std::set<std::string> names;
   for (const TableReader& t : root.tables("boundary")) {
-    t.only({"name", "lower", "upper", "fix", "value"});
+    const bool group = t.has("physical") || t.has("file");
+    if (group) t.only({"name", "file", "physical", "scale", "rotate", "translate", "fix", "value"});
+    else t.only({"name", "lower", "upper", "fix", "value"});
     BoundarySection b;
     b.where = t.self();
     b.name = read_name(t, false, default_name("boundary", out.size()), names, "boundary");
-    b.lower = t.require_vec("lower", dim);
-    b.upper = t.require_vec("upper", dim);
+    if (group) {
+      read_boundary_group(t, b, s);
+    } else {
+      b.lower = t.require_vec("lower", dim);
+      b.upper = t.require_vec("upper", dim);
+    }
     check_box(t, b.lower, b.upper, dim, false);
     auto fix = t.bools("fix", dim);
     if (!fix) t.missing("fix");
@@ -743,7 +821,7 @@ Scene read_scene(const toml::table& root, Context& ctx) {
   s.bodies = read_bodies(r, s);
   if (s.simulation.nodes_move()) check_node_count(grid, s);
   s.initial_velocities = read_initial_velocities(r, dim);
-  s.boundaries = read_boundaries(r, dim);
+  s.boundaries = read_boundaries(r, s);
   s.walls = read_walls(r, dim);
   s.contact = read_contact(r);
   s.body_force = read_body_force(r, dim);

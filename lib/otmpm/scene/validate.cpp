@@ -162,8 +162,9 @@ void check_materials(const Scene& s) {
 /// The shape of a body: known, with the values it needs (its bounds are
 /// lower/upper for every shape).
 void check_shape(const Scene& s, const BodySection& b, const std::string& key, int dim) {
-  check(s, one_of(b.shape, {"box", "sphere", "cylinder", "polygon", "file"}), key + ".shape",
-        "must be one of \"box\", \"sphere\", \"cylinder\", \"polygon\", \"file\" (got \"", b.shape, "\")");
+  check(s, one_of(b.shape, {"box", "sphere", "cylinder", "polygon", "file", "stl", "mesh"}), key + ".shape",
+        "must be one of \"box\", \"sphere\", \"cylinder\", \"polygon\", \"file\", \"stl\", \"mesh\" (got \"", b.shape,
+        "\")");
   check_box(s, key, b.lower, b.upper, dim, true);
   if (b.shape == "sphere" || b.shape == "cylinder") {
     check_finite(s, key + ".center", b.center, dim);
@@ -179,6 +180,17 @@ void check_shape(const Scene& s, const BodySection& b, const std::string& key, i
     check(s, b.vertices.size() >= 3, key + ".vertices", "needs at least 3 vertices (got ", b.vertices.size(), ")");
   }
   if (b.shape == "file") check(s, !b.file.empty(), key + ".file", "must name a particle file");
+  if (b.shape == "stl" || b.shape == "mesh") {
+    check(s, !b.file.empty(), key + ".file", "must name a geometry file");
+    check(s, b.shape == "mesh" ? dim >= 2 : dim == 3, key + ".shape", "\"", b.shape, "\" needs dimension ",
+          b.shape == "mesh" ? "2 or 3" : "3");
+    check(s, one_of(b.seeding, {"element", "quadrature"}), key + ".seeding",
+          "must be \"element\" or \"quadrature\" (got \"", b.seeding, "\")");
+    for (int k = 0; k < 3; ++k)
+      check(s, finite_positive(b.scale[static_cast<std::size_t>(k)]) && std::isfinite(b.rotate[static_cast<std::size_t>(k)]) &&
+                   std::isfinite(b.translate[static_cast<std::size_t>(k)]),
+            key + ".scale", "scale must be finite and > 0, rotate and translate finite");
+  }
 }
 
 /// Where a box of `key` came from: the --set that changed its lower or
