@@ -335,7 +335,6 @@ private:
   NodeMode<D> mode_;
   Particles<D> P_;
   std::vector<std::unique_ptr<Material<D>>> materials_;
-  std::vector<double> p_modulus_; ///< per material, for the wave speed
   Constraints<D> constraints_;
   std::unique_ptr<BodyContact<D>> contact_;
   AlignedVector<Vec<D>> field_positions_; ///< with contact: x_I repeated per field (fixed grid)

@@ -60,6 +60,19 @@ template <int D> Mat<D> linear_elastic_finite_stress(const ElasticConstants& c, 
 /// InstabilityError unless det F is finite and > 0 (one check per call).
 template <int D> Mat<D> neo_hookean_stress(const ElasticConstants& c, const Mat<D>& F);
 
+/// rho0 c^2 of the fastest wave of the finite-strain laws at F (the CFL
+/// step, docs/theory.md sect. 10): for a longitudinal wave along a
+/// principal stretch u, the tangent u dtau/du - tau of the Kirchhoff stress
+/// tau = J sigma, the current density being rho0 / J. With b_max >= u^2,
+/// the largest row sum of |F F^T| (exact when the stretches lie along the
+/// axes):
+///  - linear_elastic_finite: (lambda + 2 mu) b_max;
+///  - neo_hookean: lambda (1 - ln J) + mu (b_max + 1), at least 0.
+/// Both are lambda + 2 mu at F = I (E in 1D); neither depends on the volume
+/// change alone as M / rho_p = M J / rho0 would.
+template <int D> double linear_elastic_finite_wave_modulus(const ElasticConstants& c, const Mat<D>& F);
+template <int D> double neo_hookean_wave_modulus(const ElasticConstants& c, const Mat<D>& F);
+
 /// Plane strain: the out-of-plane Cauchy stress sigma_zz of
 /// linear_elastic_finite for the in-plane F (F_zz = 1, F_xz = F_yz = 0):
 /// E_s,zz = 0 and (F E_s)_zz = 0 leave lambda tr(E_s) / J, tr(E_s) = F_xx +
