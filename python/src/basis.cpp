@@ -5,6 +5,7 @@
 #include "bindings.hpp"
 
 #include "otmpm/basis/basis.hpp"
+#include "otmpm/scene/resources.hpp"
 
 #include <pybind11/numpy.h>
 #include <pybind11/stl.h>
@@ -113,13 +114,22 @@ PyBasis on_grid(const FamilyOptions& o, const std::vector<double>& lower, const 
     grid.cells[static_cast<std::size_t>(k)] = cells[static_cast<std::size_t>(k)];
   }
   grid.validate();
+  double count = 1;
+  std::string given;
+  for (int k = 0; k < D; ++k) {
+    count *= grid.cells[k] + 1.0;
+    given += (k ? ", " : "") + std::to_string(grid.cells[k]);
+  }
+  check_node_count(count, "Grid(cells = [" + given + "])");
   BasisOptions opt = o.basis;
   for (int k = 0; k < D; ++k) opt.ugimp_half_width[k] = grid.h()[k] / (2.0 * o.ppc);
-  NodeSet<D> nodes = perturbation > 0 ? NodeSet<D>::perturbed(grid, perturbation, seed) : NodeSet<D>::cartesian(grid);
+  // NaN or a negative fraction is refused by perturbed(), never taken as 0.
+  NodeSet<D> nodes = perturbation != 0.0 ? NodeSet<D>::perturbed(grid, perturbation, seed) : NodeSet<D>::cartesian(grid);
   return PyBasis(make_basis<D>(opt, std::move(nodes)));
 }
 
 template <int D> PyBasis on_cloud(const FamilyOptions& o, const Points& positions, double spacing) {
+  check_node_count(static_cast<double>(positions.shape(0)), "a cloud of " + std::to_string(positions.shape(0)) + " nodes");
   return PyBasis(make_basis<D>(o.basis, NodeSet<D>::cloud(rows_of<D>(positions, "nodes"), spacing)));
 }
 

@@ -13,6 +13,8 @@
 
 #include <chrono>
 #include <filesystem>
+#include <limits>
+#include <set>
 
 namespace otmpm::python {
 
@@ -32,7 +34,13 @@ RunOptions run_options(const py::object& out, bool write_results, bool force) {
   RunOptions opt;
   opt.write_results = write_results;
   opt.force = force;
-  if (!out.is_none()) opt.out_file = py::cast<std::filesystem::path>(out).string();
+  if (out.is_none()) return opt;
+  try {
+    opt.out_file = py::cast<std::filesystem::path>(out).string();
+  } catch (const py::cast_error&) {
+    throw py::type_error("out: expected a path (str or os.PathLike) or None, got a " +
+                         py::str(out.get_type().attr("__name__")).cast<std::string>());
+  }
   return opt;
 }
 
@@ -67,11 +75,41 @@ py::object summary_object(const RunSummary& s) {
   return py::module_::import("otmpm.summary").attr("Summary")(d, summary_line(s));
 }
 
-/// A run in progress, owned by the Python Simulation object.
+/// A run in progress, owned by the Python Simulation object. One dropped
+/// without finish() is completed by ~Simulation (status "interrupted"), and
+/// the ones still alive when the interpreter exits by finish_all() (atexit).
 class PySimulation {
 public:
   PySimulation(const Scene& scene, const py::object& out, bool write_results, bool force, std::optional<int> threads)
-      : threads_(checked_threads(threads)), sim_(build(scene, run_options(out, write_results, force), threads_)) {}
+      : threads_(checked_threads(threads)), sim_(build(scene, run_options(out, write_results, force), threads_)) {
+    live().insert(this);
+  }
+  ~PySimulation() { live().erase(this); }
+  PySimulation(const PySimulation&) = delete;
+  PySimulation& operator=(const PySimulation&) = delete;
+
+  /// Completes every simulation not finished yet (registered with atexit:
+  /// objects the interpreter never frees keep no status "running").
+  static void finish_all() {
+    for (PySimulation* s : std::set<PySimulation*>(live()))
+      if (!s->finish_called_ && !s->busy_) {
+        s->finish_called_ = true;
+        try {
+          if (!s->sim_.finished()) s->sim_.interrupt();
+          s->sim_.finish();
+        } catch (const std::exception&) { // at exit nothing more can be done; the status is what it could be
+        }
+      }
+  }
+
+  /// The simulation for `what`, a method that changes the run: RuntimeError
+  /// once finish() was called (the views and properties stay readable).
+  Simulation& open(const char* what) {
+    if (finish_called_)
+      throw std::runtime_error(std::string("Simulation.") + what + ": the run is finished (finish() was called; status " +
+                               sim_.status() + ")");
+    return sim();
+  }
 
   /// The simulation; RuntimeError while another Python thread is stepping it
   /// (its steps run with the GIL released).
@@ -129,8 +167,9 @@ public:
 
   /// Simulation::interrupt() (status "interrupted"); RuntimeError once finished.
   void interrupt() {
-    require_running("interrupt");
-    sim().interrupt();
+    Simulation& s = open("interrupt");
+    if (s.finished()) throw std::runtime_error("Simulation.interrupt: the run is finished (" + s.status() + ")");
+    s.interrupt();
   }
 
   /// Simulation::finish() as an otmpm.Summary; RuntimeError the second time.
@@ -155,9 +194,9 @@ private:
     ThreadScope scope(threads);
     return Simulation(scene, options);
   }
-  void require_running(const char* what) const {
-    if (finish_called_ || sim_.finished())
-      throw std::runtime_error(std::string("Simulation.") + what + ": the run is finished (" + sim_.status() + ")");
+  static std::set<PySimulation*>& live() {
+    static std::set<PySimulation*> all; // touched with the GIL held only
+    return all;
   }
 
   /// Marks the simulation busy (set and cleared with the GIL held) while its
@@ -385,6 +424,7 @@ void register_views(py::module_& m) {
 
 void register_simulation(py::module_& m) {
   register_views(m);
+  py::module_::import("atexit").attr("register")(py::cpp_function([] { PySimulation::finish_all(); }));
   py::class_<PySimulation>(m, "Simulation", kSimulationDoc)
       .def(py::init([](const Scene& scene, const py::object& out, bool write_results, std::optional<int> threads,
                        const py::object& callback, bool force) {
@@ -398,8 +438,10 @@ void register_simulation(py::module_& m) {
           "step",
           [](const py::object& self, long n) {
             PySimulation& s = cast(self);
-            if (s.sim().finished()) s.sim().step(); // raises: the run is finished
-            const long target = s.sim().steps() + n;
+            if (n < 0) throw py::value_error("Simulation.step: n must be >= 0, got " + std::to_string(n));
+            if (s.open("step").finished()) s.sim().step(); // raises: the run is finished
+            const long done = s.sim().steps();
+            const long target = n > std::numeric_limits<long>::max() - done ? std::numeric_limits<long>::max() : done + n;
             s.steps_while(self, [&](const Simulation& m) { return m.steps() < target && !m.finished(); });
           },
           py::arg("n") = 1,
@@ -410,12 +452,14 @@ void register_simulation(py::module_& m) {
           "advance_to",
           [](const py::object& self, double t) {
             PySimulation& s = cast(self);
+            s.open("advance_to");
             s.steps_while(self, [&](const Simulation& m) { return !m.finished() && m.time() < t * (1.0 - kTimeSlack); });
           },
           py::arg("t"), "Steps until sim.t >= t (at most to t_end): the first step at or past t.")
       .def(
-          "write_frame", [](PySimulation& s) { s.sim().write_frame(); },
-          "Writes a frame (and probe and energy samples) of the current state into the result file now.")
+          "write_frame", [](PySimulation& s) { s.open("write_frame").write_frame(); },
+          "Writes a frame (and probe and energy samples) of the current state into the result file now.\n"
+          "RuntimeError after finish().")
       .def(
           "interrupt", [](PySimulation& s) { s.interrupt(); },
           "Stops the run before t_end: a last checkpoint (when output.checkpoint_every is set) and status\n"

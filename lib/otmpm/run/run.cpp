@@ -30,6 +30,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <new>
 #include <optional>
 #include <thread>
 #include <utility>
@@ -312,6 +313,7 @@ public:
       }
       writer_.reset(); // closed now: the run is over, and readers may open the file at once
     });
+    outputs_.lock = OutputLock(); // the files are free for the next run (otmpm's locks released)
   }
 
   /// Marks the file with a diagnosis (the file stays valid). An output error
@@ -636,6 +638,15 @@ std::string diagnosis(const std::string& what, long step, double t) {
   return "step " + std::to_string(step) + ", t = " + format_number(t) + " s: " + what;
 }
 
+/// What a run that ran out of memory had been told it could use: otmpm's
+/// estimate (scene/resources.hpp) and the limit the estimate passed.
+std::string memory_note(const Scene& scene) {
+  const bool set = scene.simulation.memory_limit > 0;
+  return "otmpm's estimate was about " + format_bytes(estimate_resources(scene).bytes) + " against a limit of " +
+         format_bytes(memory_limit(scene)) +
+         (set ? " set by simulation.memory_limit: more than this process could get" : " this process may use");
+}
+
 double seconds_since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
@@ -648,6 +659,7 @@ struct Simulation::Runner {
   Scene scene;
   RunSummary summary;
   bool finished = false;
+  bool closed = false; ///< finish() has run: the result file is complete and closed
   virtual int dimension() const = 0;
   virtual double time() const = 0;
   virtual long steps() const = 0;
@@ -709,21 +721,37 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
 
   void step() override {
     const double t_end = scene.simulation.t_end;
-    try {
+    stopping_on_failure([&] {
       e.step();
       rec.sample_energy();
       const bool last = e.time() >= t_end * (1.0 - time_slack);
       rec.maybe_record(last);
       rec.maybe_checkpoint(seconds_since(start), last);
       finished = last;
+    });
+    if (options.progress) options.progress(e.time(), t_end, e.steps());
+  }
+
+  /// Runs `f` (a step, a frame); an instability, an output error or memory
+  /// running out ends the run with its status and is rethrown. (A distributed
+  /// run that runs out of memory on one rank cannot agree on a status: the
+  /// error goes up as it is, and the command ends every rank.)
+  template <class F> void stopping_on_failure(F&& f) {
+    try {
+      f();
     } catch (const InstabilityError& err) {
       stop_unstable(err);
       throw;
     } catch (const OutputError& err) {
       stop_output_error(err);
       throw;
+    } catch (const std::bad_alloc&) {
+      if (distributed::Comm::world().size() == 1)
+        stop(kOutOfMemoryStatus + (": " + diagnosis("the run needed more memory than this process could get (" +
+                                               memory_note(scene) + ")", e.steps(), e.time())),
+             kOutputErrorExit);
+      throw;
     }
-    if (options.progress) options.progress(e.time(), t_end, e.steps());
   }
 
   /// Ends the run on an instability: status "unstable: step N, t = T: ...", exit code 1.
@@ -746,7 +774,9 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
     finished = true;
   }
 
-  void write_frame() override { rec.maybe_record(true); }
+  void write_frame() override {
+    stopping_on_failure([&] { rec.maybe_record(true); });
+  }
 
   void interrupt() override {
     try {
@@ -783,6 +813,7 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
     for (double& t : summary.timers.seconds) t = view.max(t);
     rec.finish(summary);
     finished = true;
+    closed = true;
   }
 };
 
@@ -804,14 +835,18 @@ std::unique_ptr<Simulation::Runner> Simulation::make(const Scene& scene, const R
     validate_scene(scene, dim); // a Scene built in code: every check of the reader, before the estimates
     check_resources(scene);     // before anything is allocated
   }
-  switch (scene.simulation.dimension) {
-  case 1: return std::make_unique<DimRunner<1>>(scene, options, resume);
-  case 2: return std::make_unique<DimRunner<2>>(scene, options, resume);
-  case 3: return std::make_unique<DimRunner<3>>(scene, options, resume);
-  default:
-    input_error(scene.locate("simulation.dimension"),
-                "dimension must be 1, 2 or 3, got " + std::to_string(scene.simulation.dimension));
+  try {
+    switch (scene.simulation.dimension) {
+    case 1: return std::make_unique<DimRunner<1>>(scene, options, resume);
+    case 2: return std::make_unique<DimRunner<2>>(scene, options, resume);
+    case 3: return std::make_unique<DimRunner<3>>(scene, options, resume);
+    default: break;
+    }
+  } catch (const std::bad_alloc&) { // the estimate let it start, the machine could not give it
+    throw InputError(shortened(scene.file) + ": out of memory while setting up the run (" + memory_note(scene) + ")");
   }
+  input_error(scene.locate("simulation.dimension"),
+              "dimension must be 1, 2 or 3, got " + std::to_string(scene.simulation.dimension));
 }
 
 Simulation::Simulation(const Scene& scene, const RunOptions& options) : run_(make(scene, options, nullptr)) {}
@@ -819,7 +854,17 @@ Simulation::Simulation(const Checkpoint& checkpoint, const RunOptions& options)
     : run_(make(checkpoint_scene(checkpoint), options, &checkpoint)) {}
 Simulation::Simulation(Simulation&&) noexcept = default;
 Simulation& Simulation::operator=(Simulation&&) noexcept = default;
-Simulation::~Simulation() = default;
+Simulation::~Simulation() {
+  // A run dropped without finish() (an exception, a forgotten call) gets a
+  // final status, as finish() after interrupt() gives it, instead of keeping
+  // "running" for ever. Not in a distributed run: the other ranks may not be here.
+  if (!run_ || run_->closed || distributed::Comm::world().size() > 1) return;
+  try {
+    if (!finished()) run_->interrupt();
+    run_->finish();
+  } catch (const std::exception&) { // nothing can be reported from a destructor; the status is what it could be
+  }
+}
 
 const Scene& Simulation::scene() const { return run_->scene; }
 int Simulation::dimension() const { return run_->dimension(); }
@@ -839,11 +884,23 @@ void Simulation::advance_to(double t) {
   while (!finished() && time() < t * (1.0 - time_slack)) step();
 }
 
-void Simulation::write_frame() { run_->write_frame(); }
+void Simulation::require_open(const char* what) const {
+  if (run_->closed) throw std::logic_error(std::string("Simulation::") + what + ": the run is finished (finish() was called)");
+}
 
-void Simulation::interrupt() { run_->interrupt(); }
+void Simulation::write_frame() {
+  require_open("write_frame");
+  run_->write_frame();
+}
+
+void Simulation::interrupt() {
+  require_open("interrupt");
+  if (finished()) throw std::logic_error("Simulation::interrupt: the run is finished (" + status() + ")");
+  run_->interrupt();
+}
 
 RunSummary Simulation::finish() {
+  require_open("finish");
   run_->finish();
   return run_->summary;
 }
@@ -886,6 +943,8 @@ RunSummary run_to_end(Simulation& sim, const RunOptions& options) {
     }
   } catch (const InstabilityError&) { // the status is in the summary
   } catch (const OutputError&) {
+  } catch (const std::bad_alloc&) {
+    if (!sim.finished()) throw; // a distributed run: no status could be agreed on
   }
   return sim.finish();
 }
@@ -932,7 +991,9 @@ std::string summary_line(const RunSummary& s) {
   std::snprintf(buf, sizeof buf, "%s %s %s: %ld steps, t = %.6g s, %.3f s wall, %.3g particle-steps/s",
                 s.mode.c_str(), s.integrator.c_str(), s.basis.c_str(), s.steps, s.time, s.wall_seconds,
                 s.particle_steps_per_second());
+  const bool memory = s.status.rfind(kOutOfMemoryStatus, 0) == 0;
   const char* head = s.interrupted                     ? "INTERRUPTED: "
+                     : memory                          ? "OUT OF MEMORY: "
                      : s.exit_code == kOutputErrorExit ? "OUTPUT FAILED: "
                      : s.exit_code != 0                ? "UNSTABLE: "
                                                        : "ok: ";

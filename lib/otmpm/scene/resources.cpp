@@ -167,4 +167,13 @@ void check_resources(const Scene& scene) {
   }
 }
 
+void check_node_count(double nodes, const std::string& what) {
+  constexpr double kBytesPerNode = 1000;
+  if (!(nodes <= kMaxSceneNodes))
+    throw InputError(what + " gives " + format_number(nodes) + " nodes, more than " + format_number(kMaxSceneNodes));
+  if (nodes * kBytesPerNode > available_memory())
+    throw InputError(what + " needs about " + format_bytes(nodes * kBytesPerNode) + " of memory; " +
+                     format_bytes(available_memory()) + " are available");
+}
+
 } // namespace otmpm

@@ -53,4 +53,12 @@ std::string format_bytes(double bytes);
 /// exceed simulation.max_steps.
 void check_resources(const Scene& scene);
 
+/// Throws InputError, naming `what` (the option that gives the nodes, e.g.
+/// "--cells 5000 in 3D"), when a node set built outside a scene (`otmpm
+/// basis`, the Python otmpm.basis) would have more than kMaxSceneNodes nodes
+/// or not fit in available_memory() at about 1 kB per node (the nodes with
+/// the basis' neighbour search, generously): the scene's cap, before anything
+/// is allocated.
+void check_node_count(double nodes, const std::string& what);
+
 } // namespace otmpm
