@@ -7,6 +7,7 @@ The families are those of a scene's [basis] (docs/theory.md sect. 4):
 linear, ugimp, bspline2, bspline3, lme, maxent.
 """
 import dataclasses
+import reprlib
 
 import numpy as np
 
@@ -20,9 +21,8 @@ _MAX_INT = 2**31 - 1
 
 
 def _bad(what, value):
-    """An InputError saying that `what` got `value` (its repr cut to 80 characters)."""
-    text = repr(value)
-    return _otmpm.InputError(f"{what}, got {text[:80]}{'...' if len(text) > 80 else ''}")
+    """An InputError saying that `what` got `value` (reprlib's short repr: nesting and length bounded)."""
+    return _otmpm.InputError(f"{what}, got {reprlib.repr(value)}")
 
 
 def _number(name, value):
@@ -102,7 +102,7 @@ class Basis:
                 raise TypeError("Basis: a node cloud needs its nodal spacing h")
             try:
                 positions = np.asarray(nodes, dtype=float)
-            except (TypeError, ValueError) as e:
+            except (TypeError, ValueError, OverflowError) as e:
                 raise _bad(f"Basis: nodes must be a Grid or an (m, D) array of numbers ({e})", nodes) from None
             self._basis = _otmpm.Basis.on_cloud(kind, positions, _number("h", h), **options)
         self.kind = self._basis.kind
@@ -123,7 +123,7 @@ class Basis:
         """
         try:
             points = np.asarray(points, dtype=float)
-        except (TypeError, ValueError) as e:
+        except (TypeError, ValueError, OverflowError) as e:
             raise _bad(f"Basis.evaluate: points must be an (n, D) array of numbers ({e})", points) from None
         return self._basis.evaluate(points)
 

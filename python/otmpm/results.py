@@ -191,15 +191,16 @@ class Results:
             raise OSError(f"{self.path}: cannot open it as a result file: {e}") from e
         try:
             self._read()
-        except Exception as e:  # h5py's errors for damaged metadata; a file of another program
+        except BaseException as e:
             self._file.close()
-            if isinstance(e, OSError) and str(e).startswith(self.path + ": "):
+            # As they are: KeyboardInterrupt, a warning raised under warnings.simplefilter("error")
+            # (link_names' RuntimeWarning), an OSError that names the file already.
+            named = isinstance(e, OSError) and str(e).startswith(self.path + ": ")
+            if not isinstance(e, Exception) or isinstance(e, Warning) or named:
                 raise
+            # h5py's errors for damaged metadata, a file of another program (TypeError, AttributeError, ...)
             raise OSError(f"{self.path}: cannot read it as a result file (a damaged file, or another program's?): "
                           f"{type(e).__name__}: {e}") from e
-        except BaseException:  # e.g. link_names' RuntimeWarning raised under warnings.simplefilter("error")
-            self._file.close()
-            raise
 
     def _read(self):
         self.attrs = {k: _value(self._file.attrs[k]) for k in attribute_names(self._file)}

@@ -30,7 +30,7 @@ struct FamilyOptions {
 template <int D> AlignedVector<Vec<D>> rows_of(const Points& a, const char* what) {
   const bool flat = a.ndim() == 1 && D == 1;
   if (!flat && (a.ndim() != 2 || a.shape(1) != D))
-    throw py::value_error(std::string(what) + ": expected an array of shape (n, " + std::to_string(D) + ")");
+    throw InputError(std::string(what) + ": expected an array of shape (n, " + std::to_string(D) + ")");
   AlignedVector<Vec<D>> x(static_cast<std::size_t>(a.shape(0)));
   const double* p = a.data();
   for (std::size_t i = 0; i < x.size(); ++i)
@@ -137,7 +137,7 @@ template <int D> PyBasis on_cloud(const FamilyOptions& o, const Points& position
 int grid_dimension(const std::vector<double>& lower, const std::vector<double>& upper, const std::vector<int>& cells) {
   const std::size_t d = lower.size();
   if (d < 1 || d > 3 || upper.size() != d || cells.size() != d)
-    throw py::value_error("lower, upper and cells must have the same length 1, 2 or 3");
+    throw InputError("lower, upper and cells must have the same length 1, 2 or 3");
   return static_cast<int>(d);
 }
 
@@ -172,7 +172,7 @@ void register_basis(py::module_& m) {
             case 1: return on_cloud<1>(o, positions, spacing);
             case 2: return on_cloud<2>(o, positions, spacing);
             case 3: return on_cloud<3>(o, positions, spacing);
-            default: throw py::value_error("nodes: expected an array of shape (m, D) with D = 1, 2 or 3");
+            default: throw InputError("nodes: expected an array of shape (m, D) with D = 1, 2 or 3");
             }
           },
           py::arg("kind"), py::arg("positions"), py::arg("spacing"), py::arg("gamma_lme"), py::arg("tolerance"),

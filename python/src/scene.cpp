@@ -26,6 +26,10 @@ std::string child_path(const std::string& parent, const std::string& key) {
   return parent.empty() ? key : parent + "." + key;
 }
 
+/// The name of the type of `o` ("list"): messages never repr() a value,
+/// which may be nested too deep to print or be megabytes long.
+std::string type_name(py::handle o) { return py::str(py::type::handle_of(o).attr("__name__")).cast<std::string>(); }
+
 /// A Python value converted to TOML.
 using TomlValue = std::variant<bool, std::int64_t, double, std::string, toml::array, toml::table>;
 
@@ -68,8 +72,7 @@ toml::table table_from(py::handle dict, Conversion& c, const std::string& path, 
   toml::table t;
   t.is_inline(inline_tables);
   for (auto [k, v] : py::reinterpret_borrow<py::dict>(dict)) {
-    if (!py::isinstance<py::str>(k))
-      input_error({c.file, 0, path}, "keys must be strings, got " + shortened(py::repr(k).cast<std::string>()));
+    if (!py::isinstance<py::str>(k)) input_error({c.file, 0, path}, "keys must be strings, got a " + type_name(k));
     const std::string key = k.cast<std::string>();
     std::visit([&](auto&& x) { t.insert(key, std::move(x)); }, convert(v, c, child_path(path, key), inline_tables));
   }
@@ -87,7 +90,7 @@ TomlValue convert(py::handle v, Conversion& c, const std::string& path, bool inl
   if (py::isinstance<py::int_>(o)) {
     int overflow = 0;
     const long long i = PyLong_AsLongLongAndOverflow(o.ptr(), &overflow);
-    if (overflow != 0) input_error({c.file, 0, path}, "integer " + shortened(py::str(o).cast<std::string>()) + " out of range");
+    if (overflow != 0) input_error({c.file, 0, path}, "integer out of range (more than 64 bits)");
     return static_cast<std::int64_t>(i);
   }
   if (py::isinstance<py::float_>(o)) return o.cast<double>();
@@ -104,15 +107,16 @@ TomlValue convert(py::handle v, Conversion& c, const std::string& path, bool inl
       std::visit([&](auto&& x) { a.push_back(std::move(x)); }, convert(item, c, child_path(path, std::to_string(i++)), nested));
     return a;
   }
-  input_error({c.file, 0, path}, "a " + py::str(o.get_type().attr("__name__")).cast<std::string>() +
-                                     " cannot be a scene value (expected bool, int, float, str, list or dict)");
+  input_error({c.file, 0, path},
+              "a " + type_name(o) + " cannot be a scene value (expected bool, int, float, str, list or dict)");
 }
 
-/// A TOML value written on one line, as --set reads it: strings escaped
-/// (never multi-line), and the line breaks toml++ puts between the elements
-/// of a long array (outside any string) made spaces.
+/// A TOML value written on one line, as --set reads it: strings as basic
+/// strings with escapes (never multi-line or literal: toml++ writes a literal
+/// string with a raw line break), and the line breaks toml++ puts between the
+/// elements of a long array (outside any string) made spaces.
 std::string one_line(const toml::table& t) {
-  constexpr auto flags = toml::format_flags::allow_literal_strings | toml::format_flags::allow_unicode_strings;
+  constexpr auto flags = toml::format_flags::allow_unicode_strings;
   std::ostringstream os;
   os << toml::toml_formatter(t, flags); // "v = VALUE"
   std::string text = os.str().substr(4);
@@ -138,8 +142,8 @@ std::vector<std::string> override_strings(const py::object& overrides) {
   }
   for (py::handle s : overrides) {
     if (!py::isinstance<py::str>(s))
-      throw py::type_error("overrides: expected a dict or a list of \"KEY=VALUE\" strings, got an item " +
-                           shortened(py::repr(s).cast<std::string>()));
+      throw py::type_error("overrides: expected a dict or a list of \"KEY=VALUE\" strings, got an item of type " +
+                           type_name(s));
     sets.push_back(s.cast<std::string>());
   }
   return sets;

@@ -14,6 +14,7 @@
 #include <chrono>
 #include <filesystem>
 #include <limits>
+#include <new>
 #include <set>
 
 namespace otmpm::python {
@@ -117,7 +118,14 @@ public:
     if (busy_) throw std::runtime_error("Simulation: another thread is stepping this simulation");
     return sim_;
   }
-  py::object callback = py::none();
+  /// The per-step callback: None or a callable (TypeError otherwise, when it is set).
+  const py::object& callback() const { return callback_; }
+  void set_callback(const py::object& f) {
+    if (!f.is_none() && !PyCallable_Check(f.ptr()))
+      throw py::type_error("Simulation.callback: expected a callable or None, got a " +
+                           py::str(f.get_type().attr("__name__")).cast<std::string>());
+    callback_ = f;
+  }
 
   /// Steps while more(simulation) holds (more must not touch Python). Without a
   /// callback the steps run with the GIL released, which is taken back
@@ -129,7 +137,7 @@ public:
     sim(); // RuntimeError while another thread steps it
     auto next_poll = Clock::now() + kSignalPoll;
     while (more(sim_)) {
-      if (callback.is_none()) {
+      if (callback_.is_none()) {
         bool poll = false;
         {
           Busy busy(busy_);
@@ -151,17 +159,20 @@ public:
           ThreadScope scope(threads_);
           sim_.step();
         }
-        callback(self);
+        callback_(self);
         check_signals();
       }
     }
   }
 
-  /// Steps to t_end; an instability ends the run (its status is in the summary).
+  /// Steps to t_end; an instability, an output error or memory running out
+  /// ends the run (its status is in the summary, as run_scene's).
   void run_to_end(py::handle self) {
     try {
       steps_while(self, [](const Simulation& s) { return !s.finished(); });
     } catch (const InstabilityError&) { // run_scene's rule: the diagnosis is the status
+    } catch (const OutputError&) {
+    } catch (const std::bad_alloc&) {
     }
   }
 
@@ -212,6 +223,7 @@ private:
     bool& flag_;
   };
 
+  py::object callback_ = py::none();
   std::optional<int> threads_;
   Simulation sim_;
   bool finish_called_ = false;
@@ -429,7 +441,7 @@ void register_simulation(py::module_& m) {
       .def(py::init([](const Scene& scene, const py::object& out, bool write_results, std::optional<int> threads,
                        const py::object& callback, bool force) {
              auto s = std::make_unique<PySimulation>(scene, out, write_results, force, threads);
-             s->callback = callback;
+             s->set_callback(callback);
              return s;
            }),
            py::arg("scene"), py::arg("out") = py::none(), py::arg("write_results") = true,
@@ -498,10 +510,10 @@ void register_simulation(py::module_& m) {
           "\"running\", \"ok\" after finish(), \"interrupted\" or \"unstable: ...\" (the result file's status).")
       .def_property_readonly(
           "scene", [](PySimulation& s) { return s.sim().scene(); }, "The scene (a copy).")
-      .def_readwrite("callback", &PySimulation::callback,
-                     "Called as callback(sim) after every step taken by step(), advance_to() (None: no\n"
-                     "callback). It may read the views; an exception it raises stops the loop and\n"
-                     "propagates. Loops with a callback hold the GIL between steps.")
+      .def_property("callback", &PySimulation::callback, &PySimulation::set_callback,
+                    "Called as callback(sim) after every step taken by step(), advance_to() (None: no\n"
+                    "callback; TypeError for anything not callable). It may read the views; an exception\n"
+                    "it raises stops the loop and propagates. Loops with a callback hold the GIL between steps.")
       .def("__enter__", [](const py::object& self) { return self; })
       .def(
           "__exit__",
