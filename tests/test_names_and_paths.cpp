@@ -12,6 +12,7 @@
 #include "otmpm/run/run.hpp"
 #include "otmpm/scene/validate.hpp"
 
+#include "run_support.hpp"
 #include "temp_dir.hpp"
 
 #include <doctest/doctest.h>
@@ -25,27 +26,11 @@
 
 using namespace otmpm;
 namespace fs = std::filesystem;
+using otmpm::test::input_error_of;
+using otmpm::test::small_scene;
 using otmpm::test::TempDir;
 
 namespace {
-
-const fs::path kSource = OTMPM_SOURCE_DIR;
-
-/// The minimal 1D scene, shortened: 10 us, a frame every 2 us.
-Scene small_scene(std::vector<std::string> sets = {}) {
-  sets.insert(sets.begin(), {"simulation.t_end=1e-5", "output.every=2e-6"});
-  return load_scene((kSource / "tests/scenes/good_minimal.toml").string(), sets);
-}
-
-/// The message of the InputError `f` throws ("" when it throws none).
-template <class F> std::string input_error_of(F&& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "";
-}
 
 bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
 

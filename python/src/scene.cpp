@@ -90,7 +90,13 @@ TomlValue convert(py::handle v, Conversion& c, const std::string& path, bool inl
   if (py::isinstance<py::int_>(o)) {
     int overflow = 0;
     const long long i = PyLong_AsLongLongAndOverflow(o.ptr(), &overflow);
-    if (overflow != 0) input_error({c.file, 0, path}, "integer out of range (more than 64 bits)");
+    if (overflow != 0) {
+      // str() of an int of more than 4300 digits raises: a huge one is told by its size.
+      const auto bits = o.attr("bit_length")().cast<long long>();
+      const std::string value = bits <= 1000 ? shortened(py::str(o).cast<std::string>())
+                                             : "of " + std::to_string(bits) + " bits";
+      input_error({c.file, 0, path}, "integer " + value + " out of range");
+    }
     return static_cast<std::int64_t>(i);
   }
   if (py::isinstance<py::float_>(o)) return o.cast<double>();
