@@ -48,7 +48,8 @@ CLI::Option* add_int_option(CLI::App& sub, const std::string& name, int& target,
 void check(const BasisArgs& a) {
   if (!(a.lower < a.upper)) throw InputError("need --lower < --upper");
   if (!(a.opt.gamma_lme > 0)) throw InputError("--gamma-lme must be > 0");
-  check_node_count(std::pow(a.cells + 1.0, a.dim), "--cells " + std::to_string(a.cells) + " in " + std::to_string(a.dim) + "D");
+  check_node_count(std::pow(a.cells + 1.0, a.dim),
+                   "--cells " + std::to_string(a.cells) + " in " + std::to_string(a.dim) + "D");
 }
 
 template <int D> int evaluate(BasisArgs a) {

@@ -92,7 +92,8 @@ TEST_CASE("E10: result names with --, &, <, quotes and non-ASCII give well-forme
   CHECK(has(b.err, "does not belong to the result file"));
 }
 
-TEST_CASE("E10, E30: a result or checkpoint path with ':' in its name, a control character or non-UTF-8 exits 2, writing nothing") {
+TEST_CASE("E10, E30: a result or checkpoint path with ':' in its name, a control character or non-UTF-8 "
+          "exits 2, writing nothing") {
   TempDir t("cli_e10_refused");
   for (const std::string& out : {std::string("co:lon.h5"), std::string("ctl\x01.h5"), std::string("new\nline.h5"),
                                  std::string("tab\t.h5"), std::string("bad\xff.h5"), std::string("del\x7f.h5")}) {
@@ -134,7 +135,8 @@ TEST_CASE("E11: render --out naming the result file or a link to it exits 2 and 
   CHECK_FALSE(fs::exists(t.dir / "res.png"));
 }
 
-TEST_CASE("E16: render on files of other programs, --fps nan, a Python that fails, --scripts without render.py exit 2") {
+TEST_CASE("E16: render on files of other programs, --fps nan, a Python that fails, --scripts without "
+          "render.py exit 2") {
   TempDir t("cli_e16");
   expect_exit(otmpm_in(t, {"run", kDyka, "--quiet", "--out", "r.h5", "--set", "output.every=5e-5"}), 0);
   // HDF5 files of another program: /frames a dataset; the dimension or a frame's time an array.
@@ -198,7 +200,8 @@ TEST_CASE("E27: a FIFO or a device where otmpm reads or writes a file exits 2 at
     expect_exit(r, 2);
     CHECK((has(r.err, "a FIFO (named pipe)") || has(r.err, "a character device")));
   }
-  CHECK(listing(t.dir) == std::set<std::string>{"ck.fifo", "fifo.h5", "fifo.png", "fifo.toml", "r.h5", "r.xdmf", "side.xdmf"});
+  CHECK(listing(t.dir) ==
+        std::set<std::string>{"ck.fifo", "fifo.h5", "fifo.png", "fifo.toml", "r.h5", "r.xdmf", "side.xdmf"});
 }
 
 TEST_CASE("E29: an output directory removed during a run ends it with exit status 4, not 2") {
@@ -211,7 +214,8 @@ TEST_CASE("E29: an output directory removed during a run ends it with exit statu
   fs::current_path(t.dir);
   const pid_t pid = otmpm::test::spawn_process(kBinary, args, t.file("out.txt"), t.file("err.txt"));
   const bool started = otmpm::test::wait_for_file(t.file("sub/r.checkpoint.h5"), pid, std::chrono::seconds(60));
-  fs::remove_all(t.dir / "sub");
+  std::error_code ec; // the run may be adding a file meanwhile: try again until the folder is gone
+  for (int attempt = 0; attempt < 100 && fs::exists(t.dir / "sub"); ++attempt) fs::remove_all(t.dir / "sub", ec);
   const CliResult r = otmpm::test::wait_process(pid, t.file("out.txt"), t.file("err.txt"));
   fs::current_path(here);
   REQUIRE(started);
@@ -253,8 +257,8 @@ TEST_CASE("E18: a --set value with a line break exits 2 instead of dropping what
 
 TEST_CASE("E21: output.fields without x (frames no viewer can show) exits 2; [] stays for history-only runs") {
   TempDir t("cli_e21");
-  const CliResult vtk = otmpm_in(t, {"run", kDyka, "--quiet", "--out", "a.h5", "--set", "output.fields=[\"v\"]", "--set",
-                                     "output.format=[\"hdf5\", \"vtu\"]"});
+  const CliResult vtk = otmpm_in(t, {"run", kDyka, "--quiet", "--out", "a.h5", "--set",
+                                     "output.fields=[\"v\"]", "--set", "output.format=[\"hdf5\", \"vtu\"]"});
   expect_exit(vtk, 2);
   CHECK(has(vtk.err, "--set output.fields: must include \"x\""));
   const CliResult none = otmpm_in(t, {"run", kDyka, "--quiet", "--out", "a.h5", "--set", "output.fields=[]", "--set",
@@ -287,11 +291,12 @@ TEST_CASE("E26: a CSV particle file with a UTF-8 byte-order mark is read; a UTF-
   write_file(t.dir / "plain.csv", rows);
   write_file(t.dir / "bom.csv", "\xEF\xBB\xBF" + rows);
   write_file(t.dir / "utf16.csv", std::string("\xFF\xFE", 2) + "x\0,\0" + std::string(8, '\0'));
-  write_file(t.dir / "bar.toml", "[simulation]\ndimension = 1\nmode = \"mpm\"\nintegrator = \"musl\"\nt_end = 1e-6\n"
-                                 "cfl = 0.3\n[basis]\nkind = \"linear\"\n[grid]\nlower = [-0.05]\nupper = [0.15]\n"
-                                 "cells = [40]\n[[material]]\nname = \"m\"\nmodel = \"linear_elastic\"\n"
-                                 "density = 1000.0\nyoung = 1.0e6\npoisson = 0.3\n[[body]]\nname = \"f\"\n"
-                                 "material = \"m\"\nshape = \"file\"\nfile = \"plain.csv\"\n[output]\nfile = \"p.h5\"\n");
+  write_file(t.dir / "bar.toml",
+             "[simulation]\ndimension = 1\nmode = \"mpm\"\nintegrator = \"musl\"\nt_end = 1e-6\n"
+             "cfl = 0.3\n[basis]\nkind = \"linear\"\n[grid]\nlower = [-0.05]\nupper = [0.15]\n"
+             "cells = [40]\n[[material]]\nname = \"m\"\nmodel = \"linear_elastic\"\n"
+             "density = 1000.0\nyoung = 1.0e6\npoisson = 0.3\n[[body]]\nname = \"f\"\n"
+             "material = \"m\"\nshape = \"file\"\nfile = \"plain.csv\"\n[output]\nfile = \"p.h5\"\n");
   expect_exit(otmpm_in(t, {"run", "bar.toml", "--quiet"}), 0);
   expect_exit(otmpm_in(t, {"run", "bar.toml", "--quiet", "--out", "b.h5", "--set", "body.f.file=\"bom.csv\""}), 0);
   CHECK(otmpm::read_string_attribute(t.file("b.h5"), "status") == "ok");
@@ -302,7 +307,20 @@ TEST_CASE("E26: a CSV particle file with a UTF-8 byte-order mark is read; a UTF-
       "sys.exit(0 if a.shape == (20, 1) and numpy.array_equal(a, b) else 1)' " +
       quote(t.file("p.h5")) + " " + quote(t.file("b.h5")));
   CHECK(same.status == 0);
-  const CliResult utf16 = otmpm_in(t, {"run", "bar.toml", "--quiet", "--out", "u.h5", "--set", "body.f.file=\"utf16.csv\""});
+  const CliResult utf16 =
+      otmpm_in(t, {"run", "bar.toml", "--quiet", "--out", "u.h5", "--set", "body.f.file=\"utf16.csv\""});
   expect_exit(utf16, 2);
   CHECK(has(utf16.err, "UTF-16"));
+}
+
+TEST_CASE("E19: otmpm basis --perturb NaN or negative exits 2 instead of taking it as 0") {
+  TempDir t("cli_e19");
+  for (const std::string perturb : {"nan", "-1", "0.5"}) {
+    INFO(perturb);
+    const CliResult r = otmpm_in(t, {"basis", "--kind", "linear", "--perturb", perturb, "--out", "b.csv"});
+    expect_exit(r, 2);
+    CHECK(has(r.err, "fraction must be in [0, 0.5)"));
+  }
+  CHECK_FALSE(fs::exists(t.dir / "b.csv"));
+  expect_exit(otmpm_in(t, {"basis", "--kind", "linear", "--perturb", "0.2", "--out", "b.csv"}), 0);
 }

@@ -36,7 +36,8 @@ bool contains(const std::string& text, const std::string& part) { return text.fi
 
 } // namespace
 
-TEST_CASE("E30: shortened() cuts long text at a character boundary and says its length; InputError bounds its message") {
+TEST_CASE("E30: shortened() cuts long text at a character boundary and says its length; InputError bounds "
+          "its message") {
   CHECK(shortened("short") == "short");
   const std::string accents(200, 'e'); // then a two-byte character across the cut
   const std::string text = accents.substr(0, 59) + "\xc3\xa9" + accents;
@@ -66,7 +67,8 @@ TEST_CASE("E10, E30: result paths the XML outputs cannot quote are refused by ou
     CAPTURE(text::printable(bad));
     CHECK_THROWS_AS(output_files(bad, "", "vtp"), InputError);
   }
-  CHECK(contains(input_error_of([] { output_files("a\x01.h5", "", ""); }), "a\\x01.h5: the result path contains a control"));
+  CHECK(contains(input_error_of([] { output_files("a\x01.h5", "", ""); }),
+                 "a\\x01.h5: the result path contains a control"));
   // A Scene built in code meets the reader's rule for output.file and output.checkpoint_file.
   Scene s = small_scene();
   s.output.checkpoint_file = std::string("ck\0.h5", 6);
@@ -99,14 +101,16 @@ TEST_CASE("E27: a FIFO where a run writes or reads a file is refused without ope
   // Every path the run writes (temporaries too), before anything is opened: with force as without.
   CHECK(contains(input_error_of([&] { output_files(t.file("r.h5"), "", ""); }), "the result file is a FIFO"));
   CHECK(contains(input_error_of([&] { output_files(t.file("s.h5"), "", ""); }), "the XDMF sidecar is a FIFO"));
-  CHECK(contains(input_error_of([&] { output_files(t.file("x.h5"), t.file("c.h5"), ""); }), "the checkpoint is a FIFO"));
+  CHECK(contains(input_error_of([&] { output_files(t.file("x.h5"), t.file("c.h5"), ""); }),
+                 "the checkpoint is a FIFO"));
   CHECK(contains(input_error_of([&] { output_files(t.file("t.h5"), "", ""); }), "temporary of the XDMF sidecar"));
   RunOptions force;
   force.out_file = t.file("r.h5");
   force.force = true;
   CHECK(contains(input_error_of([&] { run_scene(small_scene(), force); }), "FIFO"));
   // Reading: the scene, a checkpoint and particle files.
-  CHECK(contains(input_error_of([&] { load_scene(t.file("scene.toml")); }), "is a FIFO (named pipe), not a scene file"));
+  CHECK(contains(input_error_of([&] { load_scene(t.file("scene.toml")); }),
+                 "is a FIFO (named pipe), not a scene file"));
   CHECK(contains(input_error_of([&] { read_checkpoint(t.file("ck.h5")); }), "not a checkpoint file"));
   CHECK(checkpoint_run_id(t.file("ck.h5")).empty());
   for (const std::string f : {"p.csv", "p.h5"})
@@ -115,8 +119,8 @@ TEST_CASE("E27: a FIFO where a run writes or reads a file is refused without ope
 }
 
 TEST_CASE("E18: a --set value with a line break is refused, not cut at it") {
-  for (const std::string& set : {std::string("simulation.t_end=1e-5\nsimulation.cfl=5"), std::string("output.file=a\nb.h5"),
-                                 std::string("simulation.cfl=0.2\r")}) {
+  for (const std::string& set : {std::string("simulation.t_end=1e-5\nsimulation.cfl=5"),
+                                 std::string("output.file=a\nb.h5"), std::string("simulation.cfl=0.2\r")}) {
     CAPTURE(text::printable(set));
     const std::string msg = input_error_of([&] { small_scene({set}); });
     CHECK(contains(msg, "line break"));

@@ -83,7 +83,8 @@ void check_stopped(const RunSummary& s, const std::string& result) {
 
 } // namespace
 
-TEST_CASE("E17: memory running out at any allocation of a step stops the run with status 'out of memory', exit code 4") {
+TEST_CASE("E17: memory running out at any allocation of a step stops the run with status 'out of memory', "
+          "exit code 4") {
   TempDir t("out_of_memory");
   const Scene s = scene();
   long failed = 0;

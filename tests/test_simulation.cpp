@@ -142,7 +142,8 @@ TEST_CASE("E1: after finish() write_frame, interrupt, step and finish throw std:
   CHECK(sim.engine<1>().particles().size() == 80); // the state stays readable
 }
 
-TEST_CASE("E1: write_frame after t_end, an instability or interrupt() still writes; interrupt() of a finished run throws") {
+TEST_CASE("E1: write_frame after t_end, an instability or interrupt() still writes; interrupt() of a "
+          "finished run throws") {
   TempDir tmp("after_end");
   RunOptions opt;
   opt.out_file = tmp.file("r.h5");

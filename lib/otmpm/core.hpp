@@ -112,7 +112,8 @@ class InputError : public std::runtime_error {
 public:
   explicit InputError(const std::string& what) : std::runtime_error(detail::bounded_message(what)) {}
   InputError(const std::string& what, InputSource source)
-      : std::runtime_error(detail::bounded_message(what)), source_(std::make_shared<const InputSource>(std::move(source))) {}
+      : std::runtime_error(detail::bounded_message(what)),
+        source_(std::make_shared<const InputSource>(std::move(source))) {}
   /// The source of the bad value, or null when the thrower did not give one.
   const InputSource* source() const { return source_.get(); }
 

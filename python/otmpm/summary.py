@@ -7,8 +7,9 @@ class Summary(collections.abc.Mapping):
     """What a run reports, as a read-only dict (also readable as attributes; setting or
     deleting an attribute or an item raises, errors and phases are read-only mappings).
 
-    Keys: status ("ok", "interrupted" or "unstable: <diagnosis>"), exit_code
-    (the command line's: 0 ok, 1 unstable, 130 interrupted), interrupted
+    Keys: status ("ok", "interrupted", "unstable: <diagnosis>", "output error: <message>"
+    or "out of memory: <message>"), exit_code (the command line's: 0 ok, 1 unstable,
+    4 the results could not be written or memory ran out, 130 interrupted), interrupted
     (True when the run was stopped before t_end: Ctrl-C, interrupt()), mode, integrator,
     basis, steps, time (simulated time reached [s]), wall_seconds,
     particles, nodes, particle_steps_per_second, errors (dict: the errors

@@ -124,12 +124,14 @@ PyBasis on_grid(const FamilyOptions& o, const std::vector<double>& lower, const 
   BasisOptions opt = o.basis;
   for (int k = 0; k < D; ++k) opt.ugimp_half_width[k] = grid.h()[k] / (2.0 * o.ppc);
   // NaN or a negative fraction is refused by perturbed(), never taken as 0.
-  NodeSet<D> nodes = perturbation != 0.0 ? NodeSet<D>::perturbed(grid, perturbation, seed) : NodeSet<D>::cartesian(grid);
+  NodeSet<D> nodes =
+      perturbation != 0.0 ? NodeSet<D>::perturbed(grid, perturbation, seed) : NodeSet<D>::cartesian(grid);
   return PyBasis(make_basis<D>(opt, std::move(nodes)));
 }
 
 template <int D> PyBasis on_cloud(const FamilyOptions& o, const Points& positions, double spacing) {
-  check_node_count(static_cast<double>(positions.shape(0)), "a cloud of " + std::to_string(positions.shape(0)) + " nodes");
+  check_node_count(static_cast<double>(positions.shape(0)),
+                   "a cloud of " + std::to_string(positions.shape(0)) + " nodes");
   return PyBasis(make_basis<D>(o.basis, NodeSet<D>::cloud(rows_of<D>(positions, "nodes"), spacing)));
 }
 

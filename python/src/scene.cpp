@@ -110,7 +110,8 @@ TomlValue convert(py::handle v, Conversion& c, const std::string& path, bool inl
     toml::array a;
     std::size_t i = 0;
     for (py::handle item : o)
-      std::visit([&](auto&& x) { a.push_back(std::move(x)); }, convert(item, c, child_path(path, std::to_string(i++)), nested));
+      std::visit([&](auto&& x) { a.push_back(std::move(x)); },
+                 convert(item, c, child_path(path, std::to_string(i++)), nested));
     return a;
   }
   input_error({c.file, 0, path},
@@ -138,7 +139,9 @@ std::vector<std::string> override_strings(const py::object& overrides) {
   if (overrides.is_none()) return sets;
   if (py::isinstance<py::dict>(overrides)) {
     for (auto [k, v] : py::reinterpret_borrow<py::dict>(overrides)) {
-      const std::string key = py::str(k).cast<std::string>();
+      if (!py::isinstance<py::str>(k))
+        throw py::type_error("overrides: the keys must be strings (\"material.steel.young\"), got a " + type_name(k));
+      const std::string key = k.cast<std::string>();
       Conversion c;
       toml::table t;
       std::visit([&](auto&& x) { t.insert("v", std::move(x)); }, convert(v, c, key, true));

@@ -107,8 +107,8 @@ public:
   /// once finish() was called (the views and properties stay readable).
   Simulation& open(const char* what) {
     if (finish_called_)
-      throw std::runtime_error(std::string("Simulation.") + what + ": the run is finished (finish() was called; status " +
-                               sim_.status() + ")");
+      throw std::runtime_error(std::string("Simulation.") + what +
+                               ": the run is finished (finish() was called; status " + sim_.status() + ")");
     return sim();
   }
 
@@ -453,7 +453,8 @@ void register_simulation(py::module_& m) {
             if (n < 0) throw py::value_error("Simulation.step: n must be >= 0, got " + std::to_string(n));
             if (s.open("step").finished()) s.sim().step(); // raises: the run is finished
             const long done = s.sim().steps();
-            const long target = n > std::numeric_limits<long>::max() - done ? std::numeric_limits<long>::max() : done + n;
+            const long target =
+                n > std::numeric_limits<long>::max() - done ? std::numeric_limits<long>::max() : done + n;
             s.steps_while(self, [&](const Simulation& m) { return m.steps() < target && !m.finished(); });
           },
           py::arg("n") = 1,

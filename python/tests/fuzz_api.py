@@ -120,7 +120,9 @@ class Fuzzer:
                     for _ in range(self.rng.randrange(3))]
         if self.rng.random() < 0.1:
             return self.value()
-        return {self.key(): self.value() for _ in range(self.rng.randrange(4))}
+        odd_key = self.rng.random() < 0.05  # keys must be strings: TypeError
+        return {(self.rng.choice([5, None, (1, 2)]) if odd_key else self.key()): self.value()
+                for _ in range(self.rng.randrange(4))}
 
     def out_path(self):
         self.counter += 1

@@ -188,7 +188,7 @@ void seal_file(const std::string& path, const std::string& run_id) {
   h.run_id = run_id;
   std::error_code ec;
   h.size = fs::file_size(path, ec);
-  if (ec) throw std::runtime_error(path + ": cannot size the checkpoint: " + ec.message());
+  if (ec) throw OutputError(path + ": cannot size the checkpoint: " + ec.message());
   std::fstream io(path, std::ios::binary | std::ios::in | std::ios::out);
   if (!io) throw OutputError(path + ": cannot reopen the checkpoint to seal it: " + std::strerror(errno));
   h.crc = file_crc(io, h);

@@ -906,7 +906,9 @@ void Simulation::advance_to(double t) {
 }
 
 void Simulation::require_open(const char* what) const {
-  if (run_->closed) throw std::logic_error(std::string("Simulation::") + what + ": the run is finished (finish() was called)");
+  if (run_->closed)
+    throw std::logic_error(std::string("Simulation::") + what +
+                           ": the run is finished (finish() was called)");
 }
 
 void Simulation::write_frame() {

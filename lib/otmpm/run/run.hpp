@@ -79,7 +79,8 @@ inline constexpr int kInterruptedExit = 130;
 struct RunSummary {
   /// "ok", "unstable: DIAGNOSIS", "output error: MESSAGE", "out of memory: MESSAGE" or "interrupted"
   std::string status = "ok";
-  /// 0 ok, 1 unstable, kOutputErrorExit the results could not be written or memory ran out, kInterruptedExit interrupted
+  /// 0 ok, 1 unstable, kOutputErrorExit the results could not be written or memory ran out,
+  /// kInterruptedExit interrupted
   int exit_code = 0;
   bool interrupted = false;  ///< stopped early (Simulation::interrupt, RunOptions::interrupt); status "interrupted"
   std::string mode, integrator, basis;

@@ -239,7 +239,8 @@ std::string read_name(const TableReader& t, bool required, const std::string& fa
   check(!name.empty(), t.ref("name"), "must not be empty");
   const std::string why = name_error(name, what);
   check(why.empty(), t.ref("name"), why);
-  check(seen.insert(name).second, t.has("name") ? t.ref("name") : t.self(), "duplicate name \"" + shortened(name) + "\"");
+  check(seen.insert(name).second, t.has("name") ? t.ref("name") : t.self(),
+        "duplicate name \"" + shortened(name) + "\"");
   return name;
 }
 

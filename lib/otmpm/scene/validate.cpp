@@ -330,7 +330,8 @@ void check_output(const Scene& s, int dim) {
         "shows none of the other fields ([] writes frames without fields, for the histories only)");
   check(s, x || vtk_format(o).empty(), "output.format",
         "\"vtp\" and \"vtu\" need \"x\" in output.fields (a VTK file places the particles at x)");
-  for (const auto& [key, path] : {std::pair{"output.file", &o.file}, std::pair{"output.checkpoint_file", &o.checkpoint_file}}) {
+  for (const auto& [key, path] :
+       {std::pair{"output.file", &o.file}, std::pair{"output.checkpoint_file", &o.checkpoint_file}}) {
     const std::string c = text::control_character(*path);
     check(s, c.empty(), key, "must not contain ", c, " (a file name otmpm writes, also into XML files)");
   }
@@ -381,7 +382,8 @@ std::string default_name(std::string_view kind, std::size_t index) {
 std::string name_error(const std::string& name, std::string_view what) {
   const std::string why = invalid_name_reason(name);
   if (why.empty()) return why;
-  return "\"" + shortened(toml_input::TableReader::printable(name)) + "\" cannot name a " + std::string(what) + ": " + why;
+  return "\"" + shortened(toml_input::TableReader::printable(name)) + "\" cannot name a " +
+         std::string(what) + ": " + why;
 }
 
 void validate_scene(const Scene& s, int dimension) {
