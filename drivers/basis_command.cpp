@@ -4,6 +4,7 @@
 #include "cli.hpp"
 
 #include "otmpm/basis/basis.hpp"
+#include "otmpm/io/output_files.hpp"
 #include "otmpm/scene/resources.hpp"
 #include "otmpm/scene/scene.hpp"
 
@@ -46,6 +47,8 @@ CLI::Option* add_int_option(CLI::App& sub, const std::string& name, int& target,
 }
 
 void check(const BasisArgs& a) {
+  if (const std::string kind = special_file(a.out); !kind.empty())
+    throw InputError("--out " + a.out + " is " + kind + ", not a CSV file");
   if (!(a.lower < a.upper)) throw InputError("need --lower < --upper");
   if (!(a.opt.gamma_lme > 0)) throw InputError("--gamma-lme must be > 0");
   check_node_count(std::pow(a.cells + 1.0, a.dim),

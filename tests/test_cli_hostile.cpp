@@ -177,8 +177,10 @@ TEST_CASE("E16: render on files of other programs, --fps nan, a Python that fail
 TEST_CASE("E27: a FIFO or a device where otmpm reads or writes a file exits 2 at once (with --force too)") {
   TempDir t("cli_e27");
   expect_exit(otmpm_in(t, {"run", kDyka, "--quiet", "--out", "r.h5", "--set", "output.every=5e-5"}), 0);
-  for (const std::string fifo : {"fifo.h5", "fifo.toml", "fifo.png", "side.xdmf", "ck.fifo"})
+  for (const std::string fifo : {"fifo.h5", "fifo.toml", "fifo.png", "side.xdmf", "ck.fifo", "fifo.csv"})
     REQUIRE(::mkfifo(t.file(fifo).c_str(), 0644) == 0);
+  write_file(t.dir / "study.toml", "scene = \"" + kDyka + "\"\ncsv = \"fifo.csv\"\n[[variant]]\nname = \"a\"\n");
+  write_file(t.dir / "scene_fifo.toml", "scene = \"fifo.toml\"\n[[variant]]\nname = \"a\"\n");
   const std::vector<std::vector<std::string>> commands = {
       {"run", kDyka, "--quiet", "--out", "fifo.h5"},
       {"run", kDyka, "--quiet", "--out", "fifo.h5", "--force"},
@@ -191,6 +193,9 @@ TEST_CASE("E27: a FIFO or a device where otmpm reads or writes a file exits 2 at
       {"run", "--check", "fifo.toml"},
       {"render", "fifo.h5", "--field", "v", "--out", "a.png"},
       {"render", "r.h5", "--field", "v", "--out", "fifo.png"},
+      {"basis", "--kind", "linear", "--out", "fifo.csv"},
+      {"study", "study.toml"},
+      {"study", "scene_fifo.toml"},
   };
   for (const auto& args : commands) {
     std::string line;
@@ -200,8 +205,8 @@ TEST_CASE("E27: a FIFO or a device where otmpm reads or writes a file exits 2 at
     expect_exit(r, 2);
     CHECK((has(r.err, "a FIFO (named pipe)") || has(r.err, "a character device")));
   }
-  CHECK(listing(t.dir) ==
-        std::set<std::string>{"ck.fifo", "fifo.h5", "fifo.png", "fifo.toml", "r.h5", "r.xdmf", "side.xdmf"});
+  CHECK(listing(t.dir) == std::set<std::string>{"ck.fifo", "fifo.csv", "fifo.h5", "fifo.png", "fifo.toml", "r.h5",
+                                                 "r.xdmf", "scene_fifo.toml", "side.xdmf", "study.toml"});
 }
 
 TEST_CASE("E29: an output directory removed during a run ends it with exit status 4, not 2") {
