@@ -32,7 +32,7 @@ const std::string kBinary = OTMPM_BINARY;
 const fs::path kExamples = fs::path(OTMPM_SOURCE_DIR) / "examples";
 
 /// `otmpm ARGS` run in `dir`, with the seconds it took.
-std::pair<CliResult, double> otmpm_in(const TempDir& dir, const std::vector<std::string>& args) {
+std::pair<CliResult, double> timed_in(const TempDir& dir, const std::vector<std::string>& args) {
   const fs::path cwd = fs::current_path();
   fs::current_path(dir.dir);
   const auto start = std::chrono::steady_clock::now();
@@ -89,16 +89,16 @@ TEST_CASE("run --check refuses at once what the run refuses, with the run's mess
     std::vector<std::string> check{"run", "--check", "block.toml"}, run{"run", "block.toml", "--quiet"};
     check.insert(check.end(), sets.begin(), sets.end());
     run.insert(run.end(), sets.begin(), sets.end());
-    const auto checked = otmpm_in(dir, check), ran = otmpm_in(dir, run); // no structured bindings: clang captures none
+    const auto checked = timed_in(dir, check), ran = timed_in(dir, run); // no structured bindings: clang captures none
     CHECK(checked.first.status == 2);
     CHECK(checked.second < 1.0); // nothing allocated
     CHECK(ran.first.status == 2);
     CHECK(checked.first.err == ran.first.err); // the run's check, its message
   }
   // The memory --check reports is the run's estimate: the one the run names when it refuses.
-  const auto ok = otmpm_in(dir, {"run", "--check", "block.toml"});
+  const auto ok = timed_in(dir, {"run", "--check", "block.toml"});
   REQUIRE(ok.first.status == 0);
-  const auto low = otmpm_in(dir, {"run", "block.toml", "--set", "simulation.memory_limit=1e3"});
+  const auto low = timed_in(dir, {"run", "block.toml", "--set", "simulation.memory_limit=1e3"});
   CHECK(has(low.first.err, "the run would need about " + about(ok.first.out, "  memory") + " of memory"));
 }
 
@@ -110,7 +110,7 @@ TEST_CASE("a particle file's densities decide the first step: --check and the ru
   write_block(dir.file("tiny.csv"), 12, "density", "1e-300");
   for (const std::vector<std::string>& args : {std::vector<std::string>{"run", "--check", "s.toml"},
                                               std::vector<std::string>{"run", "s.toml", "--quiet"}}) {
-    const auto run = otmpm_in(dir, args);
+    const auto run = timed_in(dir, args);
     const CliResult& r = run.first;
     CAPTURE(r.err);
     CHECK(r.status == 2);
@@ -127,7 +127,7 @@ TEST_CASE("a particle file's densities decide the first step: --check and the ru
     std::vector<std::string> args{"run", "s.toml", "--quiet", "--set", "body.f.file=\"bad.csv\""};
     if (std::string(std::get<2>(bad)) == "j2")
       args.insert(args.end(), {"--set", "material.m.model=\"j2\"", "--set", "material.m.yield_stress=1e5"});
-    const CliResult r = otmpm_in(dir, args).first;
+    const CliResult r = timed_in(dir, args).first;
     CHECK(r.status == 2);
     CHECK(has(r.err, "bad.csv:2: column '" + std::string(column) + "': must be "));
     CHECK(!fs::exists(dir.file("out.h5")));
@@ -165,17 +165,17 @@ TEST_CASE("a restart whose file body's particle file changed or is gone says so,
   TempDir dir("cli_restart_file");
   std::ofstream(dir.file("s.toml")) << block_scene("p.csv");
   write_block(dir.file("p.csv"), 12);
-  REQUIRE(otmpm_in(dir, {"run", "s.toml", "--quiet", "--out", "r.h5", "--set", "output.checkpoint_every=2"})
+  REQUIRE(timed_in(dir, {"run", "s.toml", "--quiet", "--out", "r.h5", "--set", "output.checkpoint_every=2"})
               .first.status == 0);
   // Unchanged: the restart runs.
-  CHECK(otmpm_in(dir, {"run", "--restart", "r.checkpoint.h5", "--quiet", "--out", "a.h5"}).first.status == 0);
+  CHECK(timed_in(dir, {"run", "--restart", "r.checkpoint.h5", "--quiet", "--out", "a.h5"}).first.status == 0);
   write_block(dir.file("p.csv"), 6); // another mesh written over the file
-  const CliResult changed = otmpm_in(dir, {"run", "--restart", "r.checkpoint.h5", "--quiet", "--out", "b.h5"}).first;
+  const CliResult changed = timed_in(dir, {"run", "--restart", "r.checkpoint.h5", "--quiet", "--out", "b.h5"}).first;
   CHECK(changed.status == 2);
   CHECK(has(changed.err, "key 'body.f.file': the particle file changed since the checkpoint was written (the "
                          "interrupted run read 144 particles"));
   fs::remove(dir.file("p.csv"));
-  const CliResult gone = otmpm_in(dir, {"run", "--restart", "r.checkpoint.h5", "--quiet", "--out", "c.h5"}).first;
+  const CliResult gone = timed_in(dir, {"run", "--restart", "r.checkpoint.h5", "--quiet", "--out", "c.h5"}).first;
   CHECK(gone.status == 2);
   CHECK(has(gone.err, "no such particle file - a restart seeds the file bodies from their particle files again"));
 }
