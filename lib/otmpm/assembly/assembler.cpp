@@ -166,6 +166,7 @@ template <int D> StepSettings<D> build_settings(const Scene& scene, const Integr
   s.consistent_mass = sim.mass == "consistent" || integrator.needs_consistent_mass;
   s.mass_tolerance = sim.mass_tolerance;
   s.energy_limit = sim.energy_limit;
+  s.volumetric = sim.volumetric_treatment() == "fbar" ? Volumetric::fbar : Volumetric::none;
   return s;
 }
 

@@ -16,6 +16,7 @@
 #include "otmpm/engine/mass_matrix.hpp"
 #include "otmpm/engine/node_mode.hpp"
 #include "otmpm/engine/timers.hpp"
+#include "otmpm/engine/volumetric.hpp"
 #include "otmpm/engine/step.hpp"
 #include "otmpm/materials/material.hpp"
 #include "otmpm/particles/particles.hpp"
@@ -56,6 +57,8 @@ template <int D> struct StepSettings {
   bool consistent_mass = false;  ///< solve with M_IJ instead of dividing by m_I
   double mass_tolerance = 1e-12; ///< nodes with m_I <= tol max m are inactive
   double energy_limit = 10.0;    ///< runaway monitor factor (check_energy)
+  /// The volumetric part of each particle's dF: its own, or its patch's (F-bar, volumetric.hpp).
+  Volumetric volumetric = Volumetric::none;
 };
 
 /// Everything an engine is built from.
@@ -315,6 +318,22 @@ private:
   void update_stress_range(const Gradient<D>& g, int p0, int p1);
   /// Hands H of particles [p0, p1) to their materials (runs of one material).
   void update_materials(int p0, int p1, const Mat<D>* H);
+  /// F-bar (StepSettings::volumetric): H_p of every particle from `g`, averaged
+  /// over the patches into hbar_, which the updates of this pass then read
+  /// (true); false when the particles' own H_p apply.
+  bool average_volumetric(const Gradient<D>& g);
+  /// The F-bar patch of each particle (volumetric.hpp), from the positions of
+  /// the basis evaluation.
+  void assign_patches();
+  /// gradient_ (and gradient0_ the first time) from the table just evaluated.
+  void measure_gradients();
+  /// Moves the particles the basis evaluated at another position into its
+  /// support's hull (PointQuery::moved) to that position.
+  void move_into_hull();
+  /// `ul` with a family that searches its support: the nodes of the lattice
+  /// cells that hold no particle at t = 0 are taken out of the node set
+  /// (NodeSet::remove): the nodes discretise the body, not its bounding box.
+  void follow_body();
   [[noreturn]] void unstable(int p, const std::string& what) const;
   [[noreturn]] void unstable(const std::string& what) const;
   /// A stage that may fail for a particle: in a distributed run a rank that
@@ -346,6 +365,17 @@ private:
   std::unique_ptr<ParticleToNodes<D>> scatter_; ///< engine/scatter.hpp (internal: needs parallel.hpp)
   AlignedVector<Vec<D>> fext_; ///< external force per particle when not uniform
   double node_spacing0_ = 1.0; ///< the nodes' smallest spacing at t = 0
+  /// ul with a searching family: the largest |grad N_Ip| of the first and of
+  /// the last basis table (NodeMode::cfl_spacing); 0 until the first.
+  double gradient0_ = 0.0, gradient_ = 0.0;
+  AlignedVector<Vec<D>> moved_; ///< ul, searching family: the displacement into the hull (Basis::evaluate_points)
+  struct {
+    std::vector<long long> patch; ///< each particle's patch
+    long long patches = 0;
+    PatchAverage<D> average;
+    AlignedVector<Mat<D>> H; ///< the averaged H_p of the current pass
+    bool ready = false;      ///< the current pass reads H
+  } fbar_;
   double t_ = 0.0, dt_ = 0.0, dt_prev_ = 0.0;
   long step_ = 0;
   PhaseTimers timers_;

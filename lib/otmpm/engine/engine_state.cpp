@@ -141,6 +141,8 @@ template <int D> void Engine<D>::save_state(Checkpoint& out) const {
   g.reals["dt_prev"] = dt_prev_;
   g.reals["external_power"] = external_power_;
   g.reals["wave_speed"] = wave_speed_;
+  g.reals["gradient0"] = gradient0_;
+  g.reals["gradient"] = gradient_;
   g.integers["step"] = step_;
   save_vector<D>(g, "reaction_impulse", reaction_impulse_);
   save_field(g, "wall_impulse", constraints_.wall_impulse());
@@ -173,6 +175,8 @@ template <int D> void Engine<D>::restore_state(const Checkpoint& in) {
   dt_prev_ = g.real("dt_prev");
   external_power_ = g.real("external_power");
   wave_speed_ = g.real("wave_speed");
+  gradient0_ = g.reals.count("gradient0") ? g.real("gradient0") : 0.0;
+  gradient_ = g.reals.count("gradient") ? g.real("gradient") : 0.0;
   step_ = static_cast<long>(g.integer("step"));
   reaction_impulse_ = restore_vector<D>(g, "reaction_impulse");
   restore_field(g, "wall_impulse", constraints_.wall_impulse(), constraints_.walls().size());

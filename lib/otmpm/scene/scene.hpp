@@ -40,6 +40,10 @@ struct SimulationSection {
   /// explicit_alpha, ...: IntegratorKind::parameters); the rest take their defaults.
   std::map<std::string, double> parameters;
   std::string mass = "lumped";     ///< lumped | consistent (default: consistent for otm and unified)
+  /// none | fbar: the volumetric part of each particle's deformation its own,
+  /// or averaged over its cell (F-bar, docs/theory.md sect. 9); empty: the
+  /// mode's default (volumetric_treatment)
+  std::string volumetric;
   double t_end = 0.0;
   double cfl = 0.1;
   std::optional<double> dt;        ///< fixed step instead of cfl
@@ -54,6 +58,10 @@ struct SimulationSection {
   SourceRef where;
   /// True in `ul` mode (nodes advected with the material).
   bool nodes_move() const { return mode == "ul"; }
+  /// `volumetric`, or the default of the mode when it is empty.
+  std::string volumetric_treatment() const { return volumetric.empty() ? default_volumetric(mode) : volumetric; }
+  /// The default of simulation.volumetric in `mode` (docs/user-guide.md).
+  static std::string default_volumetric(const std::string& mode);
 };
 
 struct GridSection {

@@ -28,7 +28,7 @@ toml::table time_function(const TimeFunction& f) {
 
 toml::table simulation(const SimulationSection& s) {
   toml::table t{{"dimension", s.dimension}, {"mode", s.mode},          {"integrator", s.integrator},
-                {"mass", s.mass},           {"t_end", s.t_end},        {"mass_tolerance", s.mass_tolerance},
+                {"mass", s.mass},           {"volumetric", s.volumetric_treatment()}, {"t_end", s.t_end},        {"mass_tolerance", s.mass_tolerance},
                 {"energy_limit", s.energy_limit}, {"max_steps", s.max_steps}, {"memory_limit", s.memory_limit}};
   for (const auto& [key, value] : s.parameters) t.insert(key, value); // the integrator's own (gamma, rho_inf)
   // The reader takes one of cfl and dt: a fixed dt makes cfl irrelevant.

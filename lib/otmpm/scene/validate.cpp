@@ -88,6 +88,8 @@ void check_simulation(const Scene& s, int dim) {
         m.integrator, "\")");
   check(s, one_of(m.mass, {"lumped", "consistent"}), "simulation.mass", "must be \"lumped\" or \"consistent\" (got \"",
         m.mass, "\")");
+  check(s, m.volumetric.empty() || one_of(m.volumetric, {"none", "fbar"}), "simulation.volumetric", "must be \"none\" or \"fbar\" (got \"",
+        m.volumetric, "\")");
   check(s, !integrator->needs_ul || m.nodes_move(), "simulation.integrator", "integrator \"", m.integrator,
         "\" needs advected nodes: use simulation.mode = \"ul\"");
   check(s, !integrator->needs_consistent_mass || m.mass == "consistent", "simulation.mass", "integrator \"",
