@@ -140,8 +140,6 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
-#include <cstdlib>
-#include <cstdio>
 #include <cstdint>
 #include <limits>
 #include <numbers>
