@@ -167,6 +167,7 @@ template <int D> StepSettings<D> build_settings(const Scene& scene, const Integr
   s.mass_tolerance = sim.mass_tolerance;
   s.energy_limit = sim.energy_limit;
   s.volumetric = sim.volumetric_treatment() == "fbar" ? Volumetric::fbar : Volumetric::none;
+  if (s.volumetric == Volumetric::fbar) s.patch_grid = node_grid<D>(scene);
   return s;
 }
 

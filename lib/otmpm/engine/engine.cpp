@@ -11,6 +11,7 @@
 #include <cctype>
 #include <cmath>
 #include <limits>
+#include <unordered_map>
 
 namespace otmpm {
 
@@ -518,19 +519,24 @@ template <int D> void Engine<D>::measure_gradients() {
 }
 
 template <int D> void Engine<D>::assign_patches() {
-  const std::optional<CartesianGrid<D>>& lattice = basis_->nodes().grid();
-  require<std::invalid_argument>(lattice.has_value(), "Engine: volumetric = fbar needs nodes on a lattice (its cells "
-                                                      "are the patches); the node set is a cloud");
+  const bool own = mode_.nodes_move(); // ul: the cell that held the particle at t = 0, fixed for the run
+  if (own && fbar_.patch.size() == static_cast<std::size_t>(P_.size())) return;
+  const std::optional<CartesianGrid<D>>& lattice = settings_.patch_grid ? settings_.patch_grid : basis_->nodes().grid();
+  require<std::invalid_argument>(lattice.has_value(), "Engine: volumetric = fbar needs the lattice of its patches "
+                                                      "(StepSettings::patch_grid); the node set is a cloud");
   const CartesianGrid<D>& grid = *lattice;
-  const long long cells = grid.num_nodes(); // a cell by the id of its lower corner
-  const bool own = mode_.nodes_move();      // ul: the cell of the initial lattice that held the particle at t = 0
-  const int fields = contact_ ? contact_->fields() : 1;
-  fbar_.patches = cells * fields;
+  // A cell's key: its lower corner's lattice index (and the body, with contact),
+  // in 64 bits; the keys are numbered in particle order as they first appear.
+  std::unordered_map<long long, long long> number;
   fbar_.patch.resize(static_cast<std::size_t>(P_.size()));
-  parallel_for(P_.size(), [&](long long p) {
-    const long long cell = grid.node_id(grid.cell_of(own ? P_.X[p] : P_.x[p]));
-    fbar_.patch[p] = contact_ ? cell + cells * P_.body[p] : cell;
-  });
+  for (int p = 0; p < P_.size(); ++p) {
+    const Index<D> c = grid.cell_of(own ? P_.X[p] : P_.x[p]);
+    long long key = contact_ ? P_.body[p] : 0;
+    for (int k = D - 1; k >= 0; --k) key = key * (grid.cells[k] + 1LL) + c[k];
+    fbar_.patch[static_cast<std::size_t>(p)] =
+        number.try_emplace(key, static_cast<long long>(number.size())).first->second;
+  }
+  fbar_.patches = static_cast<long long>(number.size());
 }
 
 template <int D> bool Engine<D>::average_volumetric(const Gradient<D>& g) {

@@ -59,6 +59,9 @@ template <int D> struct StepSettings {
   double energy_limit = 10.0;    ///< runaway monitor factor (check_energy)
   /// The volumetric part of each particle's dF: its own, or its patch's (F-bar, volumetric.hpp).
   Volumetric volumetric = Volumetric::none;
+  /// F-bar: the lattice whose cells are the patches (the scene's node lattice:
+  /// the grid in `mpm`, the initial lattice in `ul`); unset: the nodes' own.
+  std::optional<CartesianGrid<D>> patch_grid;
 };
 
 /// Everything an engine is built from.
