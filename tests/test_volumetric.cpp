@@ -178,7 +178,7 @@ velocity = [1.0, 0.0]
   }
 }
 
-TEST_CASE("simulation.volumetric: fbar by default in ul, none in mpm; an unknown value is refused") {
+TEST_CASE("simulation.volumetric: by default fbar in ul with a plastic material, else none; bad values refused") {
   const std::string body = R"(
 [[body]]
 name = "b"
@@ -186,14 +186,23 @@ material = "m"
 lower = [0.0, 0.0]
 upper = [1.0, 0.5]
 )";
-  CHECK(parse_scene(block_scene(body), "a.toml").simulation.volumetric_treatment() == "fbar");
-  CHECK(parse_scene(block_scene(body), "a.toml", {"simulation.mode=\"mpm\""}).simulation.volumetric_treatment() ==
-        "none");
+  CHECK(volumetric_treatment(parse_scene(block_scene(body), "a.toml")) == "fbar"); // ul, j2
+  CHECK(volumetric_treatment(parse_scene(block_scene(body), "a.toml", {"simulation.mode=\"mpm\""})) == "none");
+  Scene elastic = parse_scene(block_scene(body), "a.toml");
+  elastic.materials.front().model = "neo_hookean";
+  elastic.materials.front().extra.clear();
+  CHECK(volumetric_treatment(elastic) == "none"); // elastic: no locking to treat
+  CHECK(volumetric_treatment(parse_scene(block_scene(body), "a.toml",
+                                         {"simulation.mode=\"mpm\"", "simulation.volumetric=\"fbar\""})) == "fbar");
   CHECK_THROWS_WITH_AS(parse_scene(block_scene(body), "a.toml", {"simulation.volumetric=\"bar\""}),
                        doctest::Contains("volumetric"), InputError);
   Scene s = parse_scene(block_scene(body), "a.toml");
   s.simulation.volumetric = "fbar ";
   CHECK_THROWS_AS(assemble<2>(s), InputError);
+  // the scene written back says what ran
+  const std::string text = to_toml(parse_scene(block_scene(body), "a.toml"));
+  CAPTURE(text);
+  CHECK(text.find("volumetric = 'fbar'") != std::string::npos);
 }
 
 TEST_CASE("F-bar: results are bitwise identical with 1 and 2 threads (ul, j2, npc and fe)") {

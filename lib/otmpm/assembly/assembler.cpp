@@ -166,7 +166,7 @@ template <int D> StepSettings<D> build_settings(const Scene& scene, const Integr
   s.consistent_mass = sim.mass == "consistent" || integrator.needs_consistent_mass;
   s.mass_tolerance = sim.mass_tolerance;
   s.energy_limit = sim.energy_limit;
-  s.volumetric = sim.volumetric_treatment() == "fbar" ? Volumetric::fbar : Volumetric::none;
+  s.volumetric = volumetric_treatment(scene) == "fbar" ? Volumetric::fbar : Volumetric::none;
   if (s.volumetric == Volumetric::fbar) s.patch_grid = node_grid<D>(scene);
   return s;
 }

@@ -108,7 +108,7 @@ SimulationSection read_simulation(const TableReader& t) {
   // Default: the mass matrix of each algorithm's listing (IntegratorKind).
   const bool consistent_default = integrator_kind(s.integrator).consistent_by_default;
   s.mass = t.choice("mass", consistent_default ? "consistent" : "lumped", {"lumped", "consistent"});
-  s.volumetric = t.choice("volumetric", SimulationSection::default_volumetric(s.mode), {"none", "fbar"});
+  if (t.has("volumetric")) s.volumetric = t.choice("volumetric", "none", {"none", "fbar"});
   s.t_end = t.require<double>("t_end");
   check(s.t_end > 0, t.ref("t_end"), "must be > 0 (got " + fmt(s.t_end) + ")");
   check(!(t.has("cfl") && t.has("dt")), t.ref("dt"), "give either simulation.cfl or simulation.dt, not both");
@@ -915,12 +915,18 @@ std::string vtk_format(const OutputSection& output) {
   return "";
 }
 
-std::string SimulationSection::default_volumetric(const std::string& mode) {
+std::string volumetric_treatment(const Scene& scene) {
+  if (!scene.simulation.volumetric.empty()) return scene.simulation.volumetric;
   // ul: the lattice cells move with the material and keep their particles,
-  // whose volume changes would lock isochoric flow; mpm: particles change
-  // cells, and a cell average does not follow them (docs/benchmarks.md, "ul
-  // on large deformation").
-  return mode == "ul" ? "fbar" : "none";
+  // whose own volume changes lock isochoric plastic flow; an elastic body
+  // does not lock, and with a hyperelastic law (whose mean stress depends on
+  // the isochoric part) the average lowers the stable step; mpm: particles
+  // change cells, and a cell's average does not follow them
+  // (docs/benchmarks.md, "ul on large deformation").
+  if (!scene.simulation.nodes_move()) return "none";
+  for (const MaterialSection& m : scene.materials)
+    if (const MaterialModel* model = find_material_model(m.model); model && !model->state.empty()) return "fbar";
+  return "none";
 }
 
 namespace {

@@ -41,8 +41,8 @@ struct SimulationSection {
   std::map<std::string, double> parameters;
   std::string mass = "lumped";     ///< lumped | consistent (default: consistent for otm and unified)
   /// none | fbar: the volumetric part of each particle's deformation its own,
-  /// or averaged over its cell (F-bar, docs/theory.md sect. 9); empty: the
-  /// mode's default (volumetric_treatment)
+  /// or averaged over its cell (F-bar, docs/theory.md sect. 9.8); empty: the
+  /// default (volumetric_treatment)
   std::string volumetric;
   double t_end = 0.0;
   double cfl = 0.1;
@@ -58,10 +58,6 @@ struct SimulationSection {
   SourceRef where;
   /// True in `ul` mode (nodes advected with the material).
   bool nodes_move() const { return mode == "ul"; }
-  /// `volumetric`, or the default of the mode when it is empty.
-  std::string volumetric_treatment() const { return volumetric.empty() ? default_volumetric(mode) : volumetric; }
-  /// The default of simulation.volumetric in `mode` (docs/user-guide.md).
-  static std::string default_volumetric(const std::string& mode);
 };
 
 struct GridSection {
@@ -254,6 +250,11 @@ struct LatticeBox {
   std::array<double, 3> cells{1, 1, 1};
 };
 LatticeBox node_lattice_box(const Scene& scene);
+
+/// simulation.volumetric, or when the scene does not give it the default:
+/// "fbar" in `ul` mode when a material of the scene is plastic (a model with
+/// internal variables), "none" otherwise (docs/theory.md sect. 9.8).
+std::string volumetric_treatment(const Scene& scene);
 
 /// How many particles and nodes the engine of a scene has, counted the way the
 /// engine counts them but in doubles, so that absurd scenes do not overflow.
