@@ -83,7 +83,10 @@ Engine<D>::Engine(EngineParts<D> parts)
   needs_F = needs_F || basis_->point_state_use(mode_.nodes_move()).deformation; // basis.metric = "deformation"
   if (needs_F && P_.F.empty()) P_.F.assign(static_cast<std::size_t>(P_.size()), Mat<D>::Identity());
   for (const auto& m : materials_) m->bind(P_);
-  if (mode_.nodes_move() && basis_->search_radius() > 0.0) follow_body();
+  if (mode_.nodes_move() && basis_->search_radius() > 0.0) follow_body(P_.X);
+  require<InputError>(!(settings_.node_reset.below > 0.0 && (dist_ || !mode_.nodes_move() || !settings_.node_reset.lattice)),
+                      "simulation.node_reset: the nodes are laid out anew only in ul mode, in one process, with the "
+                      "lattice's builder (NodeReset::lattice)");
   basis_->bind_points(P_.size(), mode_.nodes_move());
   nodal_.resize(field_nodes);
   node_spacing0_ = basis_->nodes().min_spacing();
@@ -163,6 +166,7 @@ template <int D> double Engine<D>::stable_dt() const {
 
 template <int D> void Engine<D>::step() {
   if (dist_) dist_->before_step(*this);
+  if (reset_due()) reset_nodes();
   dt_ = stable_dt();
   if (!(dt_ > 0.0) || !std::isfinite(dt_))
     unstable("time step " + format_number(dt_) + " is not positive and finite");
@@ -488,13 +492,13 @@ template <int D> void Engine<D>::move_into_hull() {
   });
 }
 
-template <int D> void Engine<D>::follow_body() {
+template <int D> void Engine<D>::follow_body(const AlignedVector<Vec<D>>& x) {
   NodeSet<D>& nodes = basis_->nodes();
   if (!nodes.grid() || !nodes.on_lattice()) return; // a cloud or a perturbed lattice: every node is the material's
   const CartesianGrid<D>& grid = *nodes.grid();
   std::vector<double> used(static_cast<std::size_t>(nodes.size()), 0.0);
   for (int p = 0; p < P_.size(); ++p) { // the corners of the cell that holds particle p
-    const Index<D> cell = grid.cell_of(P_.X[p]);
+    const Index<D> cell = grid.cell_of(x[p]);
     for (int c = 0; c < (1 << D); ++c) {
       Index<D> corner = cell;
       for (int k = 0; k < D; ++k) corner[k] += (c >> k) & 1;
@@ -509,6 +513,51 @@ template <int D> void Engine<D>::follow_body() {
   basis_->nodes_moved({});
 }
 
+template <int D> bool Engine<D>::reset_due() const {
+  if (!(settings_.node_reset.below > 0.0) || settings_.dt) return false;
+  const double ratio = gradient_ > 0.0 ? gradient0_ / gradient_ : 1.0;
+  return mode_.cfl_spacing(*basis_, settings_.h, node_spacing0_, ratio) < settings_.node_reset.below * settings_.h;
+}
+
+template <int D> void Engine<D>::reset_nodes(const CartesianGrid<D>* given) {
+  CartesianGrid<D> grid;
+  if (given) {
+    grid = *given;
+  } else { // the grid's lines around every particle's extent
+    const CartesianGrid<D>& lines = settings_.node_reset.lines;
+    const Vec<D> h = lines.h();
+    Vec<D> lo = Vec<D>::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+    for (int p = 0; p < P_.size(); ++p) {
+      const double half = 0.5 * std::pow(P_.V[p], 1.0 / D);
+      lo = lo.cwiseMin(P_.x[p] - Vec<D>::Constant(half));
+      hi = hi.cwiseMax(P_.x[p] + Vec<D>::Constant(half));
+    }
+    for (int k = 0; k < D; ++k) {
+      const double a = std::floor((lo[k] - lines.lower[k]) / h[k]), b = std::ceil((hi[k] - lines.lower[k]) / h[k]);
+      grid.lower[k] = lines.lower[k] + a * h[k];
+      grid.upper[k] = lines.lower[k] + b * h[k];
+      grid.cells[k] = static_cast<int>(std::max(1.0, b - a));
+    }
+    grid.validate();
+  }
+  LatticePart<D> part = settings_.node_reset.lattice(grid);
+  const AlignedVector<Vec<D>> wall_impulse = constraints_.wall_impulse(); // the walls keep their impulse
+  basis_ = std::move(part.basis);
+  const int nodes = basis_->nodes().size();
+  constraints_ = Constraints<D>(std::move(part.dirichlet), constraints_.walls(), nodes);
+  constraints_.wall_impulse() = wall_impulse;
+  nodal_.resize(nodes);
+  scatter_->invalidate(0);
+  if (mass_matrix_) mass_matrix_ = std::make_unique<MassMatrix<D>>(basis_->fixed_stencil() > 0);
+  lattice_ = grid;
+  if (!given && basis_->search_radius() > 0.0) follow_body(P_.x); // a restart restores the node set's
+  basis_->bind_points(P_.size(), true); // the multipliers and hints belonged to the old nodes
+  node_spacing0_ = basis_->nodes().min_spacing();
+  gradient_ = gradient0_; // a fresh lattice: the gradients of t = 0 until the next table
+  fbar_.patch.clear();    // the cells of the new lattice
+  if (!given) ++node_resets_;
+}
+
 template <int D> void Engine<D>::measure_gradients() {
   const AlignedVector<Vec<D>>& dN = table_.dN;
   double g2 = blocked_reduce<MaxOf>(static_cast<long long>(dN.size()), [&](long long e, MaxOf& acc) {
@@ -519,9 +568,12 @@ template <int D> void Engine<D>::measure_gradients() {
 }
 
 template <int D> void Engine<D>::assign_patches() {
-  const bool own = mode_.nodes_move(); // ul: the cell that held the particle at t = 0, fixed for the run
+  // ul: the cell of the lattice the nodes were laid out on that held the
+  // particle then (t = 0, or the last node reset), fixed until the next
+  const bool own = mode_.nodes_move();
   if (own && fbar_.patch.size() == static_cast<std::size_t>(P_.size())) return;
-  const std::optional<CartesianGrid<D>>& lattice = settings_.patch_grid ? settings_.patch_grid : basis_->nodes().grid();
+  const std::optional<CartesianGrid<D>>& lattice =
+      lattice_ ? lattice_ : settings_.patch_grid ? settings_.patch_grid : basis_->nodes().grid();
   require<std::invalid_argument>(lattice.has_value(), "Engine: volumetric = fbar needs the lattice of its patches "
                                                       "(StepSettings::patch_grid); the node set is a cloud");
   const CartesianGrid<D>& grid = *lattice;
@@ -530,7 +582,7 @@ template <int D> void Engine<D>::assign_patches() {
   std::unordered_map<long long, long long> number;
   fbar_.patch.resize(static_cast<std::size_t>(P_.size()));
   for (int p = 0; p < P_.size(); ++p) {
-    const Index<D> c = grid.cell_of(own ? P_.X[p] : P_.x[p]);
+    const Index<D> c = grid.cell_of(own && !lattice_ ? P_.X[p] : P_.x[p]);
     long long key = contact_ ? P_.body[p] : 0;
     for (int k = D - 1; k >= 0; --k) key = key * (grid.cells[k] + 1LL) + c[k];
     fbar_.patch[static_cast<std::size_t>(p)] =

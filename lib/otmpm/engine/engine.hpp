@@ -21,6 +21,7 @@
 #include "otmpm/materials/material.hpp"
 #include "otmpm/particles/particles.hpp"
 
+#include <functional>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -44,6 +45,23 @@ template <int D> struct NodalFields {
   void resize(int n);
 };
 
+/// A basis and its Dirichlet sets on a node lattice: a share's, built by the
+/// share itself (a rank of a distributed run: on its window of the lattice
+/// only), or the nodes laid out anew (NodeReset).
+template <int D> struct LatticePart {
+  std::unique_ptr<Basis<D>> basis;
+  Dirichlet<D> dirichlet;
+};
+
+/// `ul` mode: the nodes laid out anew on the scene grid's lattice over the
+/// particles when the CFL spacing has fallen below `below` h (docs/theory.md
+/// sect. 3, "Node reset"); below = 0: never.
+template <int D> struct NodeReset {
+  double below = 0.0;
+  CartesianGrid<D> lines; ///< the scene's grid: the new lattice runs on its lines, with its spacing
+  std::function<LatticePart<D>(const CartesianGrid<D>&)> lattice; ///< the basis and Dirichlet sets on a lattice
+};
+
 /// How the engine steps: the integrator's step function and parameters,
 /// the time step rule (CFL with the P-wave speed, docs/theory.md
 /// sect. 10, or a fixed dt), the mass matrix and the run's limits.
@@ -62,6 +80,7 @@ template <int D> struct StepSettings {
   /// F-bar: the lattice whose cells are the patches (the scene's node lattice:
   /// the grid in `mpm`, the initial lattice in `ul`); unset: the nodes' own.
   std::optional<CartesianGrid<D>> patch_grid;
+  NodeReset<D> node_reset;
 };
 
 /// Everything an engine is built from.
@@ -173,6 +192,8 @@ public:
   double time() const { return t_; }
   long steps() const { return step_; }
   double last_dt() const { return dt_; }
+  /// `ul` mode: how often the nodes were laid out anew (NodeReset) since t = 0.
+  long node_resets() const { return node_resets_; }
   PhaseTimers& timers() { return timers_; }
   const EnergyBalance& energy() const { return energy_; }
   /// Sum of the Dirichlet reaction impulses since t = 0 (per component).
@@ -326,17 +347,23 @@ private:
   /// (true); false when the particles' own H_p apply.
   bool average_volumetric(const Gradient<D>& g);
   /// The F-bar patch of each particle (volumetric.hpp), from the positions of
-  /// the basis evaluation.
+  /// the basis evaluation (`mpm`) or, once, of the lattice's layout (`ul`).
   void assign_patches();
+  /// True when the nodes are to be laid out anew before this step (NodeReset).
+  bool reset_due() const;
+  /// Lays the nodes out anew on the scene grid's lattice over the particles
+  /// (NodeReset), or on `grid` when given (a restart).
+  void reset_nodes(const CartesianGrid<D>* grid = nullptr);
   /// gradient_ (and gradient0_ the first time) from the table just evaluated.
   void measure_gradients();
   /// Moves the particles the basis evaluated at another position into its
   /// support's hull (PointQuery::moved) to that position.
   void move_into_hull();
   /// `ul` with a family that searches its support: the nodes of the lattice
-  /// cells that hold no particle at t = 0 are taken out of the node set
-  /// (NodeSet::remove): the nodes discretise the body, not its bounding box.
-  void follow_body();
+  /// cells that hold no particle at `x` (t = 0, or a node reset) are taken out
+  /// of the node set (NodeSet::remove): the nodes discretise the body, not its
+  /// bounding box.
+  void follow_body(const AlignedVector<Vec<D>>& x);
   [[noreturn]] void unstable(int p, const std::string& what) const;
   [[noreturn]] void unstable(const std::string& what) const;
   /// A stage that may fail for a particle: in a distributed run a rank that
@@ -372,6 +399,8 @@ private:
   /// the last basis table (NodeMode::cfl_spacing); 0 until the first.
   double gradient0_ = 0.0, gradient_ = 0.0;
   AlignedVector<Vec<D>> moved_; ///< ul, searching family: the displacement into the hull (Basis::evaluate_points)
+  long node_resets_ = 0;
+  std::optional<CartesianGrid<D>> lattice_; ///< after a node reset: the lattice the nodes were laid out on
   struct {
     std::vector<long long> patch; ///< each particle's patch
     long long patches = 0;

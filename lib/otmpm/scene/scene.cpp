@@ -85,7 +85,7 @@ void check_derived_box(const TableReader& t, std::string_view from, const Vec3& 
 // ---------------------------------------------------------------- sections
 
 SimulationSection read_simulation(const TableReader& t) {
-  std::vector<std::string_view> keys{"dimension", "mode",          "integrator",  "mass",        "volumetric",
+  std::vector<std::string_view> keys{"dimension", "mode",          "integrator",  "mass",        "volumetric", "node_reset",
                                      "t_end",     "cfl",           "dt",          "mass_tolerance",
                                      "energy_limit", "max_steps",  "memory_limit"};
   for (const ParameterSpec* p : integrator_parameters()) keys.push_back(p->key);
@@ -109,6 +109,11 @@ SimulationSection read_simulation(const TableReader& t) {
   const bool consistent_default = integrator_kind(s.integrator).consistent_by_default;
   s.mass = t.choice("mass", consistent_default ? "consistent" : "lumped", {"lumped", "consistent"});
   if (t.has("volumetric")) s.volumetric = t.choice("volumetric", "none", {"none", "fbar"});
+  s.node_reset = t.get<double>("node_reset", s.node_reset);
+  check(s.node_reset >= 0 && s.node_reset < 1, t.ref("node_reset"),
+        "must be in [0, 1) (a fraction of the grid spacing; 0: never; got " + fmt(s.node_reset) + ")");
+  check(s.node_reset == 0 || s.nodes_move(), t.ref("node_reset"),
+        "lays the advected nodes out anew: it needs simulation.mode = \"ul\"");
   s.t_end = t.require<double>("t_end");
   check(s.t_end > 0, t.ref("t_end"), "must be > 0 (got " + fmt(s.t_end) + ")");
   check(!(t.has("cfl") && t.has("dt")), t.ref("dt"), "give either simulation.cfl or simulation.dt, not both");

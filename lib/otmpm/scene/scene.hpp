@@ -44,6 +44,9 @@ struct SimulationSection {
   /// or averaged over its cell (F-bar, docs/theory.md sect. 9.8); empty: the
   /// default (volumetric_treatment)
   std::string volumetric;
+  /// ul: lay the nodes out anew on the grid's lattice over the particles when
+  /// the CFL spacing falls below node_reset h (0: never; docs/theory.md sect. 3)
+  double node_reset = 0.0;
   double t_end = 0.0;
   double cfl = 0.1;
   std::optional<double> dt;        ///< fixed step instead of cfl
