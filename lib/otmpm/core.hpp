@@ -163,4 +163,10 @@ template <class Error = InputError, class... Parts> void require(bool ok, const 
 /// True when `value` is finite and > 0 (false for NaN).
 inline bool finite_positive(double value) { return std::isfinite(value) && value > 0.0; }
 
+/// True when `v` gives a direction (a wall's normal, a cylinder's axis):
+/// finite and not zero, however large or small its components - its unit
+/// vector is v.stableNormalized(), which scales by the largest component
+/// first (v.normalized() is the zero vector when |v|^2 overflows or underflows).
+template <int D> bool is_direction(const Vec<D>& v) { return v.allFinite() && v.cwiseAbs().maxCoeff() > 0.0; }
+
 } // namespace otmpm

@@ -102,17 +102,17 @@ std::vector<std::string> override_strings(const py::object& overrides) {
 }
 
 /// The scene's TOML text (Scene::text: the file after the overrides) with
-/// the path of every particle-file body made absolute, so that the text
+/// the path of every body's file (particles, STL, mesh) made absolute, so that the text
 /// reads back to the same scene from any directory (the reader takes a
 /// relative path relative to the scene file, which a dict has not).
 std::string portable_text(const Scene& s) {
-  const bool has_file = std::any_of(s.bodies.begin(), s.bodies.end(), [](const BodySection& b) { return b.shape == "file"; });
+  const bool has_file = std::any_of(s.bodies.begin(), s.bodies.end(), [](const BodySection& b) { return !b.file.empty(); });
   if (!has_file) return s.text;
   toml::table root = toml::parse(std::string_view(s.text), std::string_view(s.file));
   toml::array* bodies = root["body"].as_array();
   if (!bodies || bodies->size() != s.bodies.size()) throw std::logic_error("Scene.to_toml: [[body]] does not match the scene");
   for (std::size_t i = 0; i < s.bodies.size(); ++i)
-    if (s.bodies[i].shape == "file")
+    if (!s.bodies[i].file.empty())
       bodies->get(i)->as_table()->insert_or_assign("file", std::filesystem::absolute(s.bodies[i].file).string());
   std::ostringstream os;
   os << root << "\n";

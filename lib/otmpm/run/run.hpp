@@ -121,29 +121,34 @@ std::string summary_line(const RunSummary& s);
 struct SceneCheck {
   int dimension = 1;
   std::string mode, integrator, basis;
-  long particles = 0, nodes = 0;
-  double dt = 0.0;           ///< the first time step (cfl rule at t = 0, or simulation.dt)
+  long particles = 0, nodes = 0; ///< of all ranks
+  double dt = 0.0;           ///< the first time step (cfl rule at t = 0, or simulation.dt), as the engine takes it
   double t_end = 0.0;
   /// t_end / dt, rounded up: the step count if dt stayed as at t = 0 (with
   /// the cfl rule dt follows the wave and particle speeds, so it is an estimate).
   double estimated_steps = 0.0;
-  double memory_bytes = 0.0; ///< estimate_memory_bytes(scene)
+  double memory_bytes = 0.0; ///< the run's own memory estimate (estimate_resources, scene/resources.hpp)
+  double memory_limit = 0.0; ///< what the estimate is checked against (memory_limit(scene))
   std::string out_file;      ///< output.file
+  /// A body whose shape a geometry file gives (stl, mesh): the volume of
+  /// its particles against the volume of its shape (the surface's enclosed
+  /// volume; the sum of the mesh's element volumes).
+  struct BodyVolume {
+    std::string name, shape;
+    double seeded = 0.0, exact = 0.0;
+  };
+  std::vector<BodyVolume> volumes;
 };
 
-/// Validates the scene as a run would (the scene checks and the engine's
-/// construction: particles seeded, nodes and basis built, Dirichlet boxes
-/// and tractions matched) and reports its size, first time step and
-/// estimated steps and memory, without stepping. InputError as run_scene().
+/// Checks the scene as a run does, in the run's order: first, before
+/// anything is allocated, every check of the reader and the run's memory
+/// and step estimates (check_before_allocating: a scene whose estimate
+/// exceeds its limits is refused in a moment, whatever its size); then the
+/// set-up of the engine as the run makes it (particles seeded, nodes and
+/// basis built, Dirichlet boxes and tractions matched; under mpirun each
+/// rank its share) and the step-count check on its first step. Reports the
+/// size, first time step, estimated steps and the run's memory estimate,
+/// without stepping. InputError as run_scene().
 SceneCheck check_scene(const Scene& scene);
-
-/// Estimated peak memory of a run of the scene, in bytes, from the scene
-/// alone (nothing allocated): per particle the fields the run allocates and
-/// its basis-table row (the stencil size of the family: 2^D linear, 3^D ugimp
-/// and bspline2, 4^D bspline3, the nodes inside the support radius for lme
-/// and maxent), per node the nodal fields, and the consistent mass matrix
-/// when used. Meant for refusing runs that cannot fit, not for accounting:
-/// docs/user-guide.md gives the measured ratio to the real peak.
-double estimate_memory_bytes(const Scene& scene);
 
 } // namespace otmpm

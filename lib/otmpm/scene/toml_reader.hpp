@@ -108,7 +108,7 @@ template <> inline double convert<double>(const toml::node& n, const SourceRef& 
   if (auto i = n.as_integer()) v = static_cast<double>(i->get());
   else if (auto f = n.as_floating_point()) v = f->get();
   else input_error(r, "expected a number, got " + type_name(n));
-  if (!std::isfinite(v)) input_error(r, "must be a finite number");
+  if (!std::isfinite(v)) input_error(r, "must be a finite number (got " + format_number(v) + ")"); // as ParameterSpec::check
   return v;
 }
 template <> inline int convert<int>(const toml::node& n, const SourceRef& r) {
