@@ -5,6 +5,7 @@
 
 #include "otmpm/core.hpp"
 #include "otmpm/io/hdf5.hpp"
+#include "otmpm/io/output_files.hpp"
 
 #include <algorithm>
 #include <cerrno>
@@ -161,9 +162,23 @@ void read_line(const std::string& line, const std::string& path, int lineno, con
   }
 }
 
+/// Skips the UTF-8 byte-order mark a CSV file may start with (spreadsheet
+/// programs write one); InputError for a UTF-16 file, which no column name matches.
+void skip_byte_order_mark(std::istream& in, const std::string& path) {
+  std::string start(3, '\0');
+  in.read(start.data(), 3);
+  start.resize(static_cast<std::size_t>(in.gcount()));
+  if (start == "\xEF\xBB\xBF") return;
+  require(!start.starts_with("\xFF\xFE") && !start.starts_with("\xFE\xFF"), path,
+          ": the file is UTF-16 text (it starts with a UTF-16 byte-order mark); save it as UTF-8 or ASCII CSV");
+  in.clear();
+  in.seekg(0);
+}
+
 void stream_csv(const std::string& path, int D, const Each& each, std::size_t chunk, const ParticleFileRules* rules) {
-  std::ifstream in(path);
+  std::ifstream in(path, std::ios::binary);
   require(in.good(), path, ": cannot open the particle file");
+  skip_byte_order_mark(in, path);
   ParticleColumns columns{path, D, false, {}, -1};
   int lineno = 0;
   const CsvHeader header = read_header(in, path, D, lineno, columns, rules);
@@ -309,6 +324,9 @@ void stream_particle_file(const std::string& path, int dimension, const Each& ea
   require<std::invalid_argument>(dimension >= 1 && dimension <= 3, "read_particle_file: dimension ", dimension);
   require<std::invalid_argument>(chunk > 0, "stream_particle_file: chunk of 0 rows");
   std::error_code ec;
+  const std::string kind = special_file(path);
+  require(kind.empty(), path, ": is ", kind, ", not a particle file");
+  require(!std::filesystem::is_directory(path, ec), path, ": is a directory, not a particle file");
   require(std::filesystem::is_regular_file(path, ec), path, ": no such particle file");
   count_pass(path);
   if (path.size() > 4 && path.ends_with(".csv")) stream_csv(path, dimension, each, chunk, rules);

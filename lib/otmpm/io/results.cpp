@@ -215,11 +215,10 @@ std::uint64_t frame_bytes(const std::vector<FieldView>& fields, int dimension, s
 std::string invalid_name_reason(const std::string& name) {
   if (name.empty()) return "it is empty";
   if (name.size() > kMaxNameBytes) return "it is longer than " + std::to_string(kMaxNameBytes) + " bytes";
-  for (unsigned char c : name) {
-    if (c == '/') return "it contains '/' (an HDF5 path separator)";
-    if (c == '.') return "it contains '.' (a --set key separator; '.' and '..' are HDF5 path components)";
-    if (c < 0x20 || c == 0x7f) return "it contains a control character (code " + std::to_string(c) + ")";
-  }
+  if (const std::string c = text::control_character(name); !c.empty()) return "it contains " + c;
+  if (name.find('/') != std::string::npos) return "it contains '/' (an HDF5 path separator)";
+  if (name.find('.') != std::string::npos)
+    return "it contains '.' (a --set key separator; '.' and '..' are HDF5 path components)";
   if (name.front() == ' ' || name.back() == ' ') return "it starts or ends with a space";
   return "";
 }

@@ -30,6 +30,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <new>
 #include <optional>
 #include <thread>
 #include <tuple>
@@ -52,6 +53,7 @@ std::pair<std::string, std::string> result_file(const Scene& scene, const RunOpt
     return {resume->group("recorder").string("result_file"), "the interrupted run's result file, from " + resume->file};
   return {scene.output.file, scene.locate("output.file").describe()};
 }
+std::string diagnosis(const std::string& what, long step, double t);
 
 /// What the run's output files are and where their names came from
 /// (prepare_outputs); `text` is the scene as TOML (the identical-scene rule).
@@ -326,6 +328,7 @@ public:
       }
       writer_.reset(); // closed now: the run is over, and readers may open the file at once
     });
+    outputs_.lock = OutputLock(); // the files are free for the next run (otmpm's locks released)
   }
 
   /// Marks the file with a diagnosis (the file stays valid). An output error
@@ -636,6 +639,18 @@ private:
       eu.push_back((P.x[p] - P.X[p] - exact_->displacement(P.X[p], t)).squaredNorm());
       es.push_back((P.sigma[p] - exact_->stress(P.X[p], t)).squaredNorm());
     }
+    // A finite state that overflows against the exact solution (a value near 1e300 written by hand through
+    // a view after the last step, which checked the state) has no error: it ends the run as unstable.
+    bool overflow = false;
+    for (const std::vector<double>* e : {&ev, &eu, &es})
+      overflow = overflow || !std::all_of(e->begin(), e->end(), [](double x) { return std::isfinite(x); });
+    if (view_.max(overflow ? 1.0 : 0.0) > 0.0) {
+      s.status = "unstable: " + diagnosis("the state is too far from the exact solution for its error to be a "
+                                          "finite number",
+                                          e_.steps(), t);
+      s.exit_code = 1;
+      return;
+    }
     s.errors["rms_velocity_error"] = view_.rms(ev);
     s.errors["rms_displacement_error"] = view_.rms(eu);
     s.errors["rms_stress_error"] = view_.rms(es);
@@ -674,6 +689,15 @@ private:
 std::string diagnosis(const std::string& what, long step, double t) {
   if (what.rfind("step ", 0) == 0) return what;
   return "step " + std::to_string(step) + ", t = " + format_number(t) + " s: " + what;
+}
+
+/// What a run that ran out of memory had been told it could use: otmpm's
+/// estimate (scene/resources.hpp) and the limit the estimate passed.
+std::string memory_note(const Scene& scene) {
+  const bool set = scene.simulation.memory_limit > 0;
+  return "otmpm's estimate was about " + format_bytes(estimate_resources(scene).bytes) + " against a limit of " +
+         format_bytes(memory_limit(scene)) +
+         (set ? " set by simulation.memory_limit: more than this process could get" : " this process may use");
 }
 
 double seconds_since(std::chrono::steady_clock::time_point start) {
@@ -723,6 +747,7 @@ struct Simulation::Runner {
   Scene scene;
   RunSummary summary;
   bool finished = false;
+  bool closed = false; ///< finish() has run: the result file is complete and closed
   virtual int dimension() const = 0;
   virtual double time() const = 0;
   virtual long steps() const = 0;
@@ -791,21 +816,37 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
 
   void step() override {
     const double t_end = scene.simulation.t_end;
-    try {
+    stopping_on_failure([&] {
       e.step();
       rec.sample_energy();
       const bool last = e.time() >= t_end * (1.0 - time_slack);
       rec.maybe_record(last);
       rec.maybe_checkpoint(seconds_since(start), last);
       finished = last;
+    });
+    if (options.progress) options.progress(e.time(), t_end, e.steps());
+  }
+
+  /// Runs `f` (a step, a frame); an instability, an output error or memory
+  /// running out ends the run with its status and is rethrown. (A distributed
+  /// run that runs out of memory on one rank cannot agree on a status: the
+  /// error goes up as it is, and the command ends every rank.)
+  template <class F> void stopping_on_failure(F&& f) {
+    try {
+      f();
     } catch (const InstabilityError& err) {
       stop_unstable(err);
       throw;
     } catch (const OutputError& err) {
       stop_output_error(err);
       throw;
+    } catch (const std::bad_alloc&) {
+      if (distributed::Comm::world().size() == 1)
+        stop(kOutOfMemoryStatus + (": " + diagnosis("the run needed more memory than this process could get (" +
+                                               memory_note(scene) + ")", e.steps(), e.time())),
+             kOutputErrorExit);
+      throw;
     }
-    if (options.progress) options.progress(e.time(), t_end, e.steps());
   }
 
   /// Ends the run on an instability: status "unstable: step N, t = T: ...", exit code 1.
@@ -828,7 +869,9 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
     finished = true;
   }
 
-  void write_frame() override { rec.maybe_record(true); }
+  void write_frame() override {
+    stopping_on_failure([&] { rec.maybe_record(true); });
+  }
 
   void interrupt() override {
     try {
@@ -857,6 +900,13 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
     } catch (const OutputError& err) {
       if (summary.exit_code == 0) stop_output_error(err);
     }
+    if (summary.exit_code == 0 && distributed::Comm::world().size() == 1) {
+      try { // every step ends checked; a state changed by hand since (a writable view) is checked here
+        e.check_particles_inside();
+      } catch (const InstabilityError& err) {
+        stop_unstable(err);
+      }
+    }
     if (summary.exit_code == 0) summary.status = "ok";
     summary.steps = e.steps();
     summary.time = e.time();
@@ -867,6 +917,7 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
     for (double& t : summary.timers.seconds) t = view.max(t);
     rec.finish(summary);
     finished = true;
+    closed = true;
   }
 };
 
@@ -889,14 +940,18 @@ std::unique_ptr<Simulation::Runner> Simulation::make(const Scene& scene, const R
   // (the memory a process may use can differ from node to node).
   if (dim >= 1 && dim <= 3)
     distributed::agree_on(distributed::Comm::world(), [&] { check_before_allocating(scene, dim); });
-  switch (scene.simulation.dimension) {
-  case 1: return std::make_unique<DimRunner<1>>(scene, options, resume);
-  case 2: return std::make_unique<DimRunner<2>>(scene, options, resume);
-  case 3: return std::make_unique<DimRunner<3>>(scene, options, resume);
-  default:
-    input_error(scene.locate("simulation.dimension"),
-                "dimension must be 1, 2 or 3, got " + std::to_string(scene.simulation.dimension));
+  try {
+    switch (scene.simulation.dimension) {
+    case 1: return std::make_unique<DimRunner<1>>(scene, options, resume);
+    case 2: return std::make_unique<DimRunner<2>>(scene, options, resume);
+    case 3: return std::make_unique<DimRunner<3>>(scene, options, resume);
+    default: break;
+    }
+  } catch (const std::bad_alloc&) { // the estimate let it start, the machine could not give it
+    throw InputError(shortened(scene.file) + ": out of memory while setting up the run (" + memory_note(scene) + ")");
   }
+  input_error(scene.locate("simulation.dimension"),
+              "dimension must be 1, 2 or 3, got " + std::to_string(scene.simulation.dimension));
 }
 
 Simulation::Simulation(const Scene& scene, const RunOptions& options) : run_(make(scene, options, nullptr)) {}
@@ -904,7 +959,17 @@ Simulation::Simulation(const Checkpoint& checkpoint, const RunOptions& options)
     : run_(make(checkpoint_scene(checkpoint), options, &checkpoint)) {}
 Simulation::Simulation(Simulation&&) noexcept = default;
 Simulation& Simulation::operator=(Simulation&&) noexcept = default;
-Simulation::~Simulation() = default;
+Simulation::~Simulation() {
+  // A run dropped without finish() (an exception, a forgotten call) gets a
+  // final status, as finish() after interrupt() gives it, instead of keeping
+  // "running" for ever. Not in a distributed run: the other ranks may not be here.
+  if (!run_ || run_->closed || distributed::Comm::world().size() > 1) return;
+  try {
+    if (!finished()) run_->interrupt();
+    run_->finish();
+  } catch (const std::exception&) { // nothing can be reported from a destructor; the status is what it could be
+  }
+}
 
 const Scene& Simulation::scene() const { return run_->scene; }
 int Simulation::dimension() const { return run_->dimension(); }
@@ -924,11 +989,25 @@ void Simulation::advance_to(double t) {
   while (!finished() && time() < t * (1.0 - time_slack)) step();
 }
 
-void Simulation::write_frame() { run_->write_frame(); }
+void Simulation::require_open(const char* what) const {
+  if (run_->closed)
+    throw std::logic_error(std::string("Simulation::") + what +
+                           ": the run is finished (finish() was called)");
+}
 
-void Simulation::interrupt() { run_->interrupt(); }
+void Simulation::write_frame() {
+  require_open("write_frame");
+  run_->write_frame();
+}
+
+void Simulation::interrupt() {
+  require_open("interrupt");
+  if (finished()) throw std::logic_error("Simulation::interrupt: the run is finished (" + status() + ")");
+  run_->interrupt();
+}
 
 RunSummary Simulation::finish() {
+  require_open("finish");
   run_->finish();
   return run_->summary;
 }
@@ -962,6 +1041,8 @@ RunSummary run_to_end(Simulation& sim, const RunOptions& options) {
     }
   } catch (const InstabilityError&) { // the status is in the summary
   } catch (const OutputError&) {
+  } catch (const std::bad_alloc&) {
+    if (!sim.finished()) throw; // a distributed run: no status could be agreed on
   }
   return sim.finish();
 }
@@ -1017,7 +1098,9 @@ std::string summary_line(const RunSummary& s) {
   std::snprintf(buf, sizeof buf, "%s %s %s: %ld steps, t = %.6g s, %.3f s wall, %.3g particle-steps/s",
                 s.mode.c_str(), s.integrator.c_str(), s.basis.c_str(), s.steps, s.time, s.wall_seconds,
                 s.particle_steps_per_second());
+  const bool memory = s.status.rfind(kOutOfMemoryStatus, 0) == 0;
   const char* head = s.interrupted                     ? "INTERRUPTED: "
+                     : memory                          ? "OUT OF MEMORY: "
                      : s.exit_code == kOutputErrorExit ? "OUTPUT FAILED: "
                      : s.exit_code != 0                ? "UNSTABLE: "
                                                        : "ok: ";

@@ -16,8 +16,13 @@ namespace otmpm {
 struct Checkpoint;
 
 /// RunSummary::exit_code of a run whose results could not be written (disk
-/// full, file size limit, quota, I/O error): the `otmpm` exit status 4.
+/// full, file size limit, quota, I/O error) or that ran out of memory while
+/// stepping: the `otmpm` exit status 4 (a resource ran out; the result file
+/// keeps what was written before).
 inline constexpr int kOutputErrorExit = 4;
+/// The start of the status of a run that ran out of memory while stepping
+/// ("out of memory: step N, t = T s: ..."; exit code kOutputErrorExit).
+inline constexpr const char* kOutOfMemoryStatus = "out of memory";
 
 struct RunOptions {
   std::string out_file;  ///< overrides output.file when not empty
@@ -72,8 +77,11 @@ inline constexpr int kInterruptedExit = 130;
 
 /// What a run reports (docs/theory.md sect. 12).
 struct RunSummary {
-  std::string status = "ok"; ///< "ok", "unstable: DIAGNOSIS", "output error: MESSAGE" or "interrupted"
-  int exit_code = 0;         ///< 0 ok, 1 unstable, kOutputErrorExit the results could not be written, kInterruptedExit interrupted
+  /// "ok", "unstable: DIAGNOSIS", "output error: MESSAGE", "out of memory: MESSAGE" or "interrupted"
+  std::string status = "ok";
+  /// 0 ok, 1 unstable, kOutputErrorExit the results could not be written or memory ran out,
+  /// kInterruptedExit interrupted
+  int exit_code = 0;
   bool interrupted = false;  ///< stopped early (Simulation::interrupt, RunOptions::interrupt); status "interrupted"
   std::string mode, integrator, basis;
   long steps = 0;
@@ -114,7 +122,7 @@ RunSummary run_scene(const Scene& scene, const RunOptions& options = {});
 RunSummary restart_run(const Checkpoint& checkpoint, const RunOptions& options = {});
 
 /// One line: "ok: 1234 steps, 0.52 s wall, rms_velocity_error = 0.01 ..."
-/// ("INTERRUPTED: ...", "UNSTABLE: ..." or "OUTPUT FAILED: ..." for a run that did not finish).
+/// ("INTERRUPTED: ...", "UNSTABLE: ...", "OUTPUT FAILED: ..." or "OUT OF MEMORY: ..." for a run that did not finish).
 std::string summary_line(const RunSummary& s);
 
 /// What `otmpm run --check` prints about a scene without running it.

@@ -194,4 +194,13 @@ void check_first_step(const Scene& scene, double dt, double c) {
               c > 0 ? ", from the seeded particles' fastest wave or particle speed " + format_number(c) + " m/s" : "");
 }
 
+void check_node_count(double nodes, const std::string& what) {
+  constexpr double kBytesPerNode = 1000;
+  if (!(nodes <= kMaxSceneNodes))
+    throw InputError(what + " gives " + format_number(nodes) + " nodes, more than " + format_number(kMaxSceneNodes));
+  if (nodes * kBytesPerNode > available_memory())
+    throw InputError(what + " needs about " + format_bytes(nodes * kBytesPerNode) + " of memory; " +
+                     format_bytes(available_memory()) + " are available");
+}
+
 } // namespace otmpm

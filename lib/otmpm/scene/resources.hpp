@@ -80,4 +80,12 @@ void check_before_allocating(const Scene& scene, int dimension);
 /// reports (exit status 1): not checked here.
 void check_first_step(const Scene& scene, double dt, double c);
 
+/// Throws InputError, naming `what` (the option that gives the nodes, e.g.
+/// "--cells 5000 in 3D"), when a node set built outside a scene (`otmpm
+/// basis`, the Python otmpm.basis) would have more than kMaxSceneNodes nodes
+/// or not fit in available_memory() at about 1 kB per node (the nodes with
+/// the basis' neighbour search, generously): the scene's cap, before anything
+/// is allocated.
+void check_node_count(double nodes, const std::string& what);
+
 } // namespace otmpm

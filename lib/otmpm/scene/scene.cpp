@@ -6,6 +6,7 @@
 #include "otmpm/scene/scene.hpp"
 
 #include "otmpm/io/results.hpp"
+#include "otmpm/io/text_files.hpp"
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/integrators/integrator.hpp"
 #include "otmpm/io/particle_file.hpp"
@@ -241,7 +242,8 @@ std::string read_name(const TableReader& t, bool required, const std::string& fa
   check(!name.empty(), t.ref("name"), "must not be empty");
   const std::string why = name_error(name, what);
   check(why.empty(), t.ref("name"), why);
-  check(seen.insert(name).second, t.has("name") ? t.ref("name") : t.self(), "duplicate name \"" + name + "\"");
+  check(seen.insert(name).second, t.has("name") ? t.ref("name") : t.self(),
+        "duplicate name \"" + shortened(name) + "\"");
   return name;
 }
 
@@ -844,7 +846,7 @@ const std::map<std::string, std::string> kExclusive = {
 
 /// Throws InputError "--set KEY: message" (source: the override's key).
 [[noreturn]] void override_error(const std::string& key, const std::string& message) {
-  throw InputError("--set " + key + ": " + message, {"", kCommandLineLine, key});
+  throw InputError("--set " + shortened(key) + ": " + message, {"", kCommandLineLine, key});
 }
 
 std::vector<std::string> split_key(const std::string& key, const std::string& what) {
@@ -865,40 +867,22 @@ std::string trim(const std::string& s) {
   return s.substr(b, s.find_last_not_of(" \t") - b + 1);
 }
 
-/// True when `s` is well-formed UTF-8 (RFC 3629: shortest form, no surrogates,
-/// at most U+10FFFF), as TOML requires of every string.
-bool valid_utf8(std::string_view s) {
-  constexpr char32_t kMinimum[] = {0, 0x80, 0x800, 0x10000}; // smallest code point per continuation count
-  for (std::size_t i = 0; i < s.size();) {
-    const auto lead = static_cast<unsigned char>(s[i]);
-    std::size_t more = 0;
-    char32_t cp = lead;
-    if (lead >= 0xF0 && lead < 0xF8) more = 3, cp = lead & 0x07u;
-    else if (lead >= 0xE0 && lead < 0xF0) more = 2, cp = lead & 0x0Fu;
-    else if (lead >= 0xC0 && lead < 0xE0) more = 1, cp = lead & 0x1Fu;
-    else if (lead >= 0x80) return false;
-    if (s.size() - i <= more) return false;
-    for (std::size_t j = 1; j <= more; ++j) {
-      const auto byte = static_cast<unsigned char>(s[i + j]);
-      if ((byte & 0xC0u) != 0x80u) return false;
-      cp = (cp << 6) | (byte & 0x3Fu);
-    }
-    if (cp < kMinimum[more] || cp > 0x10FFFF || (cp >= 0xD800 && cp <= 0xDFFF)) return false;
-    i += more + 1;
-  }
-  return true;
-}
-
 /// VALUE as a TOML value; a bare word that is not valid TOML is a string
 /// (if it is valid UTF-8: otherwise the resolved scene text would not read back).
 toml::table parse_value(const std::string& key, const std::string& value) {
+  // A line break would let the value end early and the rest of it become
+  // more keys of its own ("1e-5\nsimulation.cfl=5"), silently dropped.
+  if (value.find_first_of("\n\r") != std::string::npos)
+    override_error(key, "cannot read '" + shortened(TableReader::printable(value)) +
+                            "' as a TOML value: it contains a line break (one --set takes one value on one line)");
   try {
     const std::string doc = "v = " + value + "\n";
     return toml::parse(std::string_view(doc), std::string_view("--set"));
   } catch (const toml::parse_error& e) {
     const bool bare = !value.empty() && std::string("[{\"'").find(value.front()) == std::string::npos;
-    if (!bare) override_error(key, "cannot read '" + value + "' as a TOML value: " + std::string(e.description()));
-    if (!valid_utf8(value)) override_error(key, "the value is not valid UTF-8 text");
+    if (!bare)
+      override_error(key, "cannot read '" + shortened(value) + "' as a TOML value: " + std::string(e.description()));
+    if (!text::valid_utf8(value)) override_error(key, "the value is not valid UTF-8 text");
     toml::table t;
     t.insert("v", value);
     return t;
@@ -955,11 +939,12 @@ void apply_override(toml::table& root, const std::string& text, Context& ctx) {
 // ---------------------------------------------------------------- public
 
 std::string SourceRef::describe() const {
-  if (line == kCommandLineLine) return "--set " + key;
-  if (file.empty() && line <= 0) return "key '" + key + "'"; // a Scene built in code
-  std::string s = file;
+  const std::string k = shortened(key);
+  if (line == kCommandLineLine) return "--set " + k;
+  if (file.empty() && line <= 0) return "key '" + k + "'"; // a Scene built in code
+  std::string s = shortened(file);
   if (line > 0) s += ":" + std::to_string(line);
-  return s + ": key '" + key + "'";
+  return s + ": key '" + k + "'";
 }
 
 void input_error(const SourceRef& where, const std::string& message) {

@@ -5,6 +5,7 @@
 /// TableReader reads the keys of one TOML table, checks names, types and
 /// presence, and reports every problem as an InputError "FILE:LINE: key 'K':
 /// message" (SourceRef::describe), also for values written by --set.
+#include "otmpm/io/text_files.hpp"
 #include "otmpm/scene/scene.hpp"
 
 #include <toml++/toml.h>
@@ -299,20 +300,8 @@ public:
     return std::to_string(index);
   }
 
-  /// `s` with control characters shown as \\xHH.
-  static std::string printable(const std::string& s) {
-    std::string out;
-    for (unsigned char c : s) {
-      if (c >= 0x20 && c != 0x7f) {
-        out += static_cast<char>(c);
-        continue;
-      }
-      char buf[8];
-      std::snprintf(buf, sizeof buf, "\\x%02x", c);
-      out += buf;
-    }
-    return out;
-  }
+  /// `s` with control characters shown as \\xHH (text::printable).
+  static std::string printable(const std::string& s) { return text::printable(s); }
 
 private:
   SourceRef with_line(SourceRef r) const {

@@ -4,6 +4,7 @@
 #include "otmpm/scene/validate.hpp"
 
 #include "otmpm/io/results.hpp"
+#include "otmpm/io/text_files.hpp"
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/integrators/integrator.hpp"
 #include "otmpm/materials/material.hpp"
@@ -53,7 +54,7 @@ void check_name(const Scene& s, const std::string& key, const std::string& name,
     check(s, why.empty(), key + ".name", why);
   }
   const std::string& effective = name.empty() ? fallback : name;
-  check(s, seen.insert(effective).second, key + ".name", "duplicate name \"", effective, "\"",
+  check(s, seen.insert(effective).second, key + ".name", "duplicate name \"", shortened(effective), "\"",
         name.empty() ? " (the name of an unnamed " + std::string(what) + " at this place)" : std::string());
 }
 
@@ -190,9 +191,13 @@ void check_shape(const Scene& s, const BodySection& b, const std::string& key, i
     check(s, dim == 2, key + ".shape", "\"polygon\" is two-dimensional");
     check(s, b.vertices.size() >= 3, key + ".vertices", "needs at least 3 vertices (got ", b.vertices.size(), ")");
   }
-  if (b.shape == "file") check(s, !b.file.empty(), key + ".file", "must name a particle file");
+  if (b.shape == "file") {
+    check(s, !b.file.empty(), key + ".file", "must name a particle file");
+    check(s, b.file.find('\0') == std::string::npos, key + ".file", "must not contain NUL (code 0)");
+  }
   if (b.shape == "stl" || b.shape == "mesh") {
     check(s, !b.file.empty(), key + ".file", "must name a geometry file");
+    check(s, b.file.find('\0') == std::string::npos, key + ".file", "must not contain NUL (code 0)");
     check(s, b.shape == "mesh" ? dim >= 2 : dim == 3, key + ".shape", "\"", b.shape, "\" needs dimension ",
           b.shape == "mesh" ? "2 or 3" : "3");
     check(s, one_of(b.seeding, {"element", "quadrature"}), key + ".seeding",
@@ -338,6 +343,18 @@ void check_output(const Scene& s, int dim) {
         "must be one of \"double\", \"single\" (got \"", o.precision, "\")");
   check(s, o.compression >= 0 && o.compression <= 9, "output.compression", "must be an integer 0..9 (got ",
         o.compression, ")");
+  // Frames a viewer can show: the XDMF sidecar and the VTK files place the particles at x.
+  const bool x = fields.count("x") > 0;
+  check(s, x || o.fields.empty(), "output.fields",
+        "must include \"x\": the XDMF sidecar and the VTK files place the particles at x, without which a viewer "
+        "shows none of the other fields ([] writes frames without fields, for the histories only)");
+  check(s, x || vtk_format(o).empty(), "output.format",
+        "\"vtp\" and \"vtu\" need \"x\" in output.fields (a VTK file places the particles at x)");
+  for (const auto& [key, path] :
+       {std::pair{"output.file", &o.file}, std::pair{"output.checkpoint_file", &o.checkpoint_file}}) {
+    const std::string c = text::control_character(*path);
+    check(s, c.empty(), key, "must not contain ", c, " (a file name otmpm writes, also into XML files)");
+  }
 }
 
 /// The caps of parse_scene: particles and nodes (kMaxSceneParticles,
@@ -385,7 +402,8 @@ std::string default_name(std::string_view kind, std::size_t index) {
 std::string name_error(const std::string& name, std::string_view what) {
   const std::string why = invalid_name_reason(name);
   if (why.empty()) return why;
-  return "\"" + toml_input::TableReader::printable(name) + "\" cannot name a " + std::string(what) + ": " + why;
+  return "\"" + shortened(toml_input::TableReader::printable(name)) + "\" cannot name a " +
+         std::string(what) + ": " + why;
 }
 
 void validate_scene(const Scene& s, int dimension) {
