@@ -152,6 +152,29 @@ std::optional<BodyForce<D>> build_body_force(const Scene& scene, std::shared_ptr
   return b;
 }
 
+/// The node reset of a `ul` scene: on the scene grid's lines, the scene's
+/// basis and boundary boxes on the new lattice.
+template <int D> NodeReset<D> node_reset(const Scene& scene) {
+  NodeReset<D> r;
+  r.below = scene.simulation.node_reset;
+  for (int k = 0; k < D; ++k) {
+    r.lines.lower[k] = scene.grid.lower[k];
+    r.lines.upper[k] = scene.grid.upper[k];
+    r.lines.cells[k] = scene.grid.cells[k];
+  }
+  r.lattice = [scene](const CartesianGrid<D>& grid) {
+    LatticePart<D> part;
+    try {
+      part.basis = make_basis<D>(basis_options<D>(scene), NodeSet<D>::cartesian(grid));
+    } catch (const InputError& e) {
+      input_error(scene.basis_where, e.what());
+    }
+    part.dirichlet = build_dirichlet<D>(scene, part.basis->nodes(), grid.h().minCoeff());
+    return part;
+  };
+  return r;
+}
+
 template <int D> StepSettings<D> build_settings(const Scene& scene, const IntegratorKind& integrator, double h) {
   const SimulationSection& sim = scene.simulation;
   StepSettings<D> s;
@@ -166,6 +189,9 @@ template <int D> StepSettings<D> build_settings(const Scene& scene, const Integr
   s.consistent_mass = sim.mass == "consistent" || integrator.needs_consistent_mass;
   s.mass_tolerance = sim.mass_tolerance;
   s.energy_limit = sim.energy_limit;
+  s.volumetric = volumetric_treatment(scene) == "fbar" ? Volumetric::fbar : Volumetric::none;
+  if (s.volumetric == Volumetric::fbar) s.patch_grid = node_grid<D>(scene);
+  if (sim.node_reset > 0) s.node_reset = node_reset<D>(scene);
   return s;
 }
 

@@ -37,13 +37,6 @@ template <int D>
 EngineParts<D> assemble_parts(const Scene& scene,
                               const std::function<SeededBodies<D>(const Vec<D>&, const CartesianGrid<D>&)>& seed);
 
-/// A share's basis and Dirichlet sets, built by the share itself (a rank of
-/// a distributed run: on its window of the lattice only).
-template <int D> struct LatticePart {
-  std::unique_ptr<Basis<D>> basis;
-  Dirichlet<D> dirichlet;
-};
-
 /// assemble_parts(scene, seed) whose basis and Dirichlet sets come from
 /// `lattice(node lattice)`, called where the whole lattice's would be built
 /// (after the seeding), instead of the whole lattice's. Null `lattice`:

@@ -30,7 +30,7 @@ template <int D> void Basis<D>::bind_points(int n, bool nodes_move) {
 
 template <int D>
 void Basis<D>::evaluate_points(const AlignedVector<Vec<D>>& x, BasisTable<D>& table,
-                               const AlignedVector<Mat<D>>* deformation) {
+                               const AlignedVector<Mat<D>>* deformation, AlignedVector<Vec<D>>* moved) {
   require<std::invalid_argument>(!use_.deformation || (deformation && deformation->size() == x.size()),
                                  "Basis::evaluate_points: the ", kind(),
                                  " basis with metric 'deformation' needs the deformation gradient of each of the ",
@@ -42,6 +42,7 @@ void Basis<D>::evaluate_points(const AlignedVector<Vec<D>>& x, BasisTable<D>& ta
   a.cell_hint = &points_.cell_hint;
   a.neighbours = &points_.neighbours;
   a.deformation = use_.deformation ? deformation : nullptr;
+  a.moved = moved;
   fill_basis_table(*this, x, a, table);
 }
 
@@ -176,6 +177,7 @@ template <int D> void check_table_arguments(const AlignedVector<Vec<D>>& x, cons
   check("history", a.history);
   check("cell_hint", a.cell_hint);
   check("deformation", a.deformation);
+  check("moved", a.moved);
 }
 
 /// `a` with the empty arrays replaced by null.
@@ -188,6 +190,7 @@ template <int D> PointArrays<D> used_arrays(PointArrays<D> a) {
   drop_empty(a.history);
   drop_empty(a.cell_hint);
   drop_empty(a.deformation);
+  drop_empty(a.moved);
   return a;
 }
 
@@ -213,6 +216,7 @@ template <int D> PointQuery<D> point_query(const AlignedVector<Vec<D>>& x, const
   q.cell_hint = a.cell_hint ? &(*a.cell_hint)[p] : nullptr;
   q.neighbours = a.neighbours;
   q.deformation = a.deformation ? &(*a.deformation)[p] : nullptr;
+  q.moved = a.moved ? &(*a.moved)[p] : nullptr;
   return q;
 }
 

@@ -95,6 +95,11 @@ template <int D> struct PointQuery {
   /// Deformation gradient F of the point, for LME with `metric =
   /// "deformation"` (BasisOptions::metric); null: F = I.
   const Mat<D>* deformation = nullptr;
+  /// Where a family may move a point that lies outside the hull of every
+  /// node near it back into that hull (max-ent families, docs/theory.md
+  /// sect. 4.8): it then evaluates the point at x + *moved and stores the
+  /// displacement here (left untouched otherwise). Null: such a point fails.
+  Vec<D>* moved = nullptr;
 };
 
 /// Throws the BasisError of require_finite_query (out of line, so that the
@@ -184,6 +189,13 @@ public:
   /// Radius of the neighbour search of evaluate() (NodeSet::within) for the
   /// families that search (LME, max-ent), else 0.
   virtual double search_radius() const { return 0.0; }
+  /// Evaluations since construction whose point was not inside the hull of
+  /// its support within the prior's cut-off and that a wider search carried
+  /// (max-ent families, docs/theory.md sect. 4.8), else 0.
+  virtual long long widened_supports() const { return 0; }
+  /// Evaluations since construction whose point lay outside the hull of every
+  /// node near it and was moved back into it (PointQuery::moved), else 0.
+  virtual long long moved_points() const { return 0; }
   /// The stencil size when every point has the same one (linear: 2^D,
   /// B-splines: (p+1)^D), else 0. fill_basis_table then writes rows in place
   /// (and starts again on its general path when a point gives another size).
@@ -247,13 +259,17 @@ public:
   /// Evaluates the bound points at their positions x (one per bound point)
   /// into `table` (fill_basis_table with the per-point state and the Verlet
   /// lists). `deformation`: the points' deformation gradients, read only
-  /// when point_state_use().deformation. std::invalid_argument when x (or a
+  /// when point_state_use().deformation. `moved` (one entry per point, zero
+  /// on entry, or null): a point the family moved into its support's hull
+  /// gets its displacement there (PointQuery::moved), and its row is that
+  /// of the moved position. std::invalid_argument when x (or a
   /// needed `deformation`) has another size than bound. Once per step: the
   /// per-point state predicts the next call's solve from this one's (the
   /// history of `ul` mode counts calls as steps), so a second call at the
   /// same positions is not free of effect.
   void evaluate_points(const AlignedVector<Vec<D>>& x, BasisTable<D>& table,
-                       const AlignedVector<Mat<D>>* deformation = nullptr);
+                       const AlignedVector<Mat<D>>* deformation = nullptr,
+                       AlignedVector<Vec<D>>* moved = nullptr);
   /// The per-point state of the bound points.
   PointState<D>& point_state() { return points_; }
   const PointState<D>& point_state() const { return points_; }
@@ -368,6 +384,7 @@ template <int D> struct PointArrays {
   std::vector<Index<D>>* cell_hint = nullptr;
   NeighbourLists<D>* neighbours = nullptr;
   const AlignedVector<Mat<D>>* deformation = nullptr;
+  AlignedVector<Vec<D>>* moved = nullptr; ///< PointQuery::moved
 };
 
 /// Evaluates `basis` at every point x[p] into `table` with the per-point

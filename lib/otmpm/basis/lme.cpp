@@ -859,12 +859,13 @@ int MaxEntBasis<D, Prior>::gather_support(const PointQuery<D>& q, double R, cons
 
 template <int D, class Prior>
 int MaxEntBasis<D, Prior>::gather_metric_support(const PointQuery<D>& q, const PointMetric<D>& pm, Stencil<D>& out,
-                                                 Vec<D>& lo, Vec<D>& hi) const {
-  const double R = settings_.support_radius;
-  if (metric_ == Metric::node_spacing) {
-    if constexpr (Prior::kGaussian) {
+                                                 Vec<D>& lo, Vec<D>& hi, double widen) const {
+  const double R = settings_.support_radius * widen;
+  if constexpr (Prior::kGaussian) {
+    // the cut-off exponent -ln(tol) scales with the square of the radius
+    const double max_exponent = prior_.max_exponent * (widen * widen);
+    if (metric_ == Metric::node_spacing) {
       // node I kept while beta_I |dx|^2 <= -ln(tol), i.e. within R_I = h_I sqrt(-ln(tol) / gamma_lme)
-      const double max_exponent = prior_.max_exponent;
       const auto weight = [&](int I, const Vec<D>& d, double& w, double&) {
         const double e = node_beta_[static_cast<std::size_t>(I)] * d.squaredNorm();
         w = -e;
@@ -872,17 +873,23 @@ int MaxEntBasis<D, Prior>::gather_metric_support(const PointQuery<D>& q, const P
       };
       return gather_support(q, R, weight, out, lo, hi);
     }
-  }
-  if (!pm.isotropic) {
-    if constexpr (Prior::kGaussian) {
-      const double max_exponent = prior_.max_exponent;
+    if (!pm.isotropic) {
       const Mat<D> B = pm.B;
       const auto weight = [&](int, const Vec<D>& d, double& w, double&) {
         const double e = d.dot(B * d);
         w = -e;
         return e <= max_exponent;
       };
-      return gather_support(q, pm.radius, weight, out, lo, hi);
+      return gather_support(q, pm.radius * widen, weight, out, lo, hi);
+    }
+    if (widen != 1.0) {
+      const double beta = prior_.beta;
+      const auto weight = [&](int, const Vec<D>& d, double& w, double&) {
+        const double e = beta * d.squaredNorm();
+        w = -e;
+        return e <= max_exponent;
+      };
+      return gather_support(q, R, weight, out, lo, hi);
     }
   }
   const auto weight = [this](int, const Vec<D>& d, double& w, double& c) {
@@ -890,7 +897,7 @@ int MaxEntBasis<D, Prior>::gather_metric_support(const PointQuery<D>& q, const P
       (void)c;
       return prior_.log_weight(d, w);
     } else {
-      return prior_.weight(d, w, c);
+      return prior_.weight(d, w, c); // the cubic spline's support is its own (not widened)
     }
   };
   return gather_support(q, R, weight, out, lo, hi);
@@ -1011,37 +1018,108 @@ bool MaxEntBasis<D, Prior>::evaluate_to(const PointQuery<D>& q, RowTarget<D>& ta
   if (metric_ == Metric::deformation && q.deformation) pm = point_metric(q, *q.deformation);
   const Vec<D> warm = warm_start(q);
   if (evaluate_on_lattice(q, pm, warm, target)) return true;
-  Vec<D> lo, hi;
-  const int stride = gather_metric_support(q, pm, out, lo, hi);
-  const int n = out.size();
-  if (n < D + 1)
-    fail(q, "outside the convex hull of the nodes: only " + std::to_string(n) + " nodes within the support radius " +
-                format_number(pm.radius) + " (at least " + std::to_string(D + 1) + " needed)");
-  Support<D> s = support(out, stride);
-  s.radius = pm.radius;
-  check_extent(q, n, lo, hi);
-  Vec<D> lambda = warm;
-  NewtonState<D> st = solve_lambda<D>(settings_, s, lambda);
-  int iterations = st.iterations;
-  // a failed solve is repeated from the plain warm start *q.lambda when the
-  // prediction was another point, then from zero
-  const Vec<D> retries[2] = {plain_start(q), Vec<D>::Zero()};
-  Vec<D> tried = warm;
-  for (const Vec<D>& start : retries) {
-    if (st.status == NewtonStatus::converged) break;
-    if (start == tried) continue;
-    lambda = tried = start;
+  // The support within the prior's cut-off; where the point is not inside
+  // its hull there (nodes held by a wall, crowded or torn apart), the same
+  // prior over a search kWiden times wider (docs/theory.md sect. 4.8).
+  NewtonState<D> st;
+  Vec<D> lambda;
+  Support<D> s;
+  int n = 0, iterations = 0;
+  for (int attempt = 0;; ++attempt) {
+    const double widen = kWiden[attempt];
+    const bool last = attempt + 1 == (Prior::kGaussian ? static_cast<int>(kWiden.size()) : 1);
+    Vec<D> lo, hi;
+    const int stride = gather_metric_support(q, pm, out, lo, hi, widen);
+    n = out.size();
+    if (n < D + 1) {
+      if (!last) continue;
+      if (q.moved && Prior::kGaussian && n > 0) return evaluate_moved(q, out, target);
+      fail(q, "outside the convex hull of the nodes: only " + std::to_string(n) + " nodes within the support radius " +
+                  format_number(pm.radius * widen) + " (at least " + std::to_string(D + 1) + " needed)");
+    }
+    s = support(out, stride);
+    s.radius = pm.radius * widen;
+    if (!within_extent(n, lo, hi)) {
+      if (!last) continue;
+      if (q.moved && Prior::kGaussian) return evaluate_moved(q, out, target);
+      check_extent(q, n, lo, hi);
+    }
+    lambda = warm;
     st = solve_lambda<D>(settings_, s, lambda);
     iterations += st.iterations;
+    // a failed solve is repeated from the plain warm start *q.lambda when the
+    // prediction was another point, then from zero
+    const Vec<D> retries[2] = {plain_start(q), Vec<D>::Zero()};
+    Vec<D> tried = warm;
+    for (const Vec<D>& start : retries) {
+      if (st.status == NewtonStatus::converged) break;
+      if (start == tried) continue;
+      lambda = tried = start;
+      st = solve_lambda<D>(settings_, s, lambda);
+      iterations += st.iterations;
+    }
+    if (st.status == NewtonStatus::converged) {
+      if (attempt > 0) widened_.fetch_add(1, std::memory_order_relaxed);
+      break;
+    }
+    if (last) {
+      if (q.iterations) *q.iterations = iterations;
+      if (q.moved && Prior::kGaussian && n >= D + 1) return evaluate_moved(q, out, target);
+      fail(q, describe_failure<D>(st, iterations, settings_.h, settings_.residual_tolerance / settings_.h, n));
+    }
   }
   if (q.iterations) *q.iterations = iterations;
-  if (st.status != NewtonStatus::converged)
-    fail(q, describe_failure<D>(st, iterations, settings_.h, settings_.residual_tolerance / settings_.h, n));
   const bool closed_form = Prior::kGaussian && uniform_beta(out);
   const Mat<D> two_B = closed_form && q.slope ? prior_hessian(pm, out) : Mat<D>::Zero();
   const Mat<D> JA = finish_stencil(st, s, closed_form, out);
   store_point_state(q, kept_multiplier(q, lambda, st.J_inv, st.r), iterations, two_B, JA);
   return false;
+}
+
+template <int D, class Prior>
+bool MaxEntBasis<D, Prior>::evaluate_moved(const PointQuery<D>& q, const Stencil<D>& support, RowTarget<D>& target) const {
+  // The centroid c of the widest support tried; the point moves along the
+  // segment from c to x, to the farthest position whose solve converges
+  // (bisection on the fraction s of x - c kept, to 1 / 2^kMoveBisections).
+  Vec<D> c = Vec<D>::Zero();
+  for (const int I : support.node) c += nodes_.position(I);
+  c /= static_cast<double>(support.size());
+  PointQuery<D> trial;
+  trial.id = q.id;
+  trial.deformation = q.deformation;
+  Vec<D> lambda = Vec<D>::Zero();
+  trial.lambda = &lambda;
+  Stencil<D> scratch;
+  const auto converges = [&](double s) {
+    trial.x = c + s * (q.x - c);
+    lambda.setZero();
+    try {
+      evaluate(trial, scratch);
+      return true;
+    } catch (const BasisError&) {
+      return false;
+    }
+  };
+  double inside = 0.0, outside = 1.0;
+  if (!converges(inside))
+    fail(q, "outside the convex hull of every node near it, and the centroid " + format_point<D>(c) +
+                " of its " + std::to_string(support.size()) + " nearest nodes is not inside their hull either");
+  for (int i = 0; i < kMoveBisections; ++i) {
+    const double mid = 0.5 * (inside + outside);
+    (converges(mid) ? inside : outside) = mid;
+  }
+  // The point's own evaluation at the position found, from a cold start:
+  // its multiplier history belongs to the position it left.
+  PointQuery<D> at = q;
+  at.x = c + inside * (q.x - c);
+  at.moved = nullptr;
+  at.slope = nullptr;
+  if (at.lambda) at.lambda->setZero();
+  if (at.history) *at.history = MultiplierHistory<D>{};
+  const bool lattice = evaluate_to(at, target);
+  *q.moved = at.x - q.x;
+  moved_.fetch_add(1, std::memory_order_relaxed);
+  return lattice;
 }
 
 template <int D, class Prior>
@@ -1112,6 +1190,14 @@ Mat<D> MaxEntBasis<D, Prior>::prior_hessian(const PointMetric<D>& pm, int first)
     (void)pm, (void)first;
     return Mat<D>::Zero();
   }
+}
+
+template <int D, class Prior>
+bool MaxEntBasis<D, Prior>::within_extent(int n, const Vec<D>& lo, const Vec<D>& hi) const {
+  (void)n;
+  for (int k = 0; k < D; ++k)
+    if (lo[k] > settings_.residual_tolerance || hi[k] < -settings_.residual_tolerance) return false;
+  return true;
 }
 
 template <int D, class Prior>

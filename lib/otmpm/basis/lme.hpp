@@ -21,6 +21,8 @@
 #include <cmath>
 #include <limits>
 
+#include <array>
+#include <atomic>
 #include <mutex>
 #include <string>
 #include <string_view>
@@ -401,6 +403,8 @@ public:
   bool linearly_complete() const override { return true; }
   int max_stencil() const override;
   double search_radius() const override { return settings_.support_radius; }
+  long long widened_supports() const override { return widened_.load(std::memory_order_relaxed); }
+  long long moved_points() const override { return moved_.load(std::memory_order_relaxed); }
   /// The Lagrange multiplier of each point warm-starts its next solve, and
   /// while the nodes stay fixed its slope (MultiplierSlope) turns that into
   /// the Taylor prediction for the point's new position; while they move,
@@ -445,9 +449,10 @@ private:
   template <class PriorValue>
   int gather_support(const PointQuery<D>& q, double radius, const PriorValue& prior_value, Stencil<D>& out,
                       Vec<D>& lo, Vec<D>& hi) const;
-  /// gather_support with the prior of the metric (pm: Metric::deformation).
+  /// gather_support with the prior of the metric (pm: Metric::deformation),
+  /// over `widen` times the radius of the prior's cut-off.
   int gather_metric_support(const PointQuery<D>& q, const PointMetric<D>& pm, Stencil<D>& out, Vec<D>& lo,
-                             Vec<D>& hi) const;
+                             Vec<D>& hi, double widen = 1.0) const;
   /// Metric::node_spacing: h_I, beta_I and the search radius of the current
   /// node positions (on an untouched lattice h_I = h for every node).
   void update_node_spacing();
@@ -460,8 +465,10 @@ private:
   /// offsets, log w_I or w_I, the gradient factors c_I, N_I and a trial buffer,
   /// each of `stride` doubles (gather_support's; kScratchArrays in all).
   Support<D> support(Stencil<D>& out, int stride) const;
-  /// Throws unless x lies within the bounding box of its n support nodes
+  /// True when x lies within the bounding box of its n support nodes
   /// (offsets x - x_I within [lo, hi] per axis).
+  bool within_extent(int n, const Vec<D>& lo, const Vec<D>& hi) const;
+  /// Throws unless within_extent.
   void check_extent(const PointQuery<D>& q, int n, const Vec<D>& lo, const Vec<D>& hi) const;
   /// Fills out.N and out.dN from the converged state (and removes nodes with
   /// N_I = 0); `closed_form`: the Gaussian prior with one beta (matrix) for
@@ -487,6 +494,12 @@ private:
   /// solver fills *target.stencil. True when the factorised path took the
   /// point.
   bool evaluate_to(const PointQuery<D>& q, RowTarget<D>& target) const;
+  /// A point q outside the hull of the nodes of `support` (the widest support
+  /// tried): evaluated instead at the farthest point towards q on the segment
+  /// from their centroid whose solve converges, into `target`; *q.moved gets
+  /// the displacement (docs/theory.md sect. 4.8). BasisError when even the
+  /// centroid is not inside. Returns evaluate_to's answer for that point.
+  bool evaluate_moved(const PointQuery<D>& q, const Stencil<D>& support, RowTarget<D>& target) const;
   /// The factorised path (lattice_solve) for q from the warm start `warm`,
   /// when the nodes sit on their lattice, the prior is the isotropic
   /// Gaussian at q and lattice_solve takes the point; false otherwise
@@ -517,6 +530,16 @@ private:
   /// The nodes' lattice axis by axis while they sit on it and the prior is
   /// the Gaussian (the factorised path, lme_lattice.hpp); empty otherwise.
   LatticeAxes<D> lattice_;
+  /// The factors of the support radius tried in turn when a point is not
+  /// inside the hull of its support (the first is the prior's cut-off; the
+  /// Gaussian prior only: the cubic spline's support is bounded).
+  static constexpr std::array<double, 3> kWiden{1.0, 2.0, 4.0};
+  /// Evaluations that needed a wider support since construction.
+  mutable std::atomic<long long> widened_{0};
+  /// Points moved into the hull of their support since construction.
+  mutable std::atomic<long long> moved_{0};
+  /// Bisection steps of evaluate_moved (the position to 1/2^12 of the way).
+  static constexpr int kMoveBisections = 12;
   mutable std::mutex bound_mutex_;
   mutable int bound_ = -1; ///< cached max_stencil(), -1 when stale
 };

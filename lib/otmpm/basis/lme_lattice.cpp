@@ -38,7 +38,7 @@ namespace otmpm::maxent {
 
 template <int D> LatticeAxes<D> LatticeAxes<D>::from(const NodeSet<D>& nodes, double beta) {
   LatticeAxes axes;
-  if (!nodes.on_lattice() || !nodes.grid()) return axes;
+  if (!nodes.on_lattice() || !nodes.grid() || nodes.has_absent()) return axes;
   const CartesianGrid<D>& grid = *nodes.grid();
   const Index<D> n = grid.nodes_per_axis();
   const Vec<D> h = grid.h();

@@ -11,6 +11,7 @@
 #include <cctype>
 #include <cmath>
 #include <limits>
+#include <unordered_map>
 
 namespace otmpm {
 
@@ -79,6 +80,10 @@ Engine<D>::Engine(EngineParts<D> parts)
   needs_F = needs_F || basis_->point_state_use(mode_.nodes_move()).deformation; // basis.metric = "deformation"
   if (needs_F && P_.F.empty()) P_.F.assign(static_cast<std::size_t>(P_.size()), Mat<D>::Identity());
   for (const auto& m : materials_) m->bind(P_);
+  if (mode_.nodes_move() && basis_->search_radius() > 0.0) follow_body(P_.X);
+  require<InputError>(!(settings_.node_reset.below > 0.0 && (dist_ || !mode_.nodes_move() || !settings_.node_reset.lattice)),
+                      "simulation.node_reset: the nodes are laid out anew only in ul mode, in one process, with the "
+                      "lattice's builder (NodeReset::lattice)");
   basis_->bind_points(P_.size(), mode_.nodes_move());
   nodal_.resize(field_nodes);
   node_spacing0_ = basis_->nodes().min_spacing();
@@ -146,7 +151,10 @@ template <int D> double Engine<D>::stable_dt() const {
     dt = *settings_.dt;
   } else {
     const double c = wave_speed_; // max_p max(c_p, |v_p|), from the last sum_particles()
-    double h = mode_.cfl_spacing(*basis_, settings_.h, node_spacing0_);
+    double g[2] = {gradient0_, gradient_};
+    if (dist_ && mode_.nodes_move() && basis_->search_radius() > 0.0) dist_->max({g, 2});
+    const double ratio = g[1] > 0.0 ? g[0] / g[1] : 1.0;
+    double h = mode_.cfl_spacing(*basis_, settings_.h, node_spacing0_, ratio);
     if (dist_ && mode_.nodes_move()) dist_->min({&h, 1}); // the ranks' smallest (monotone in the spacing)
     dt = settings_.cfl * h / c;
   }
@@ -155,6 +163,7 @@ template <int D> double Engine<D>::stable_dt() const {
 
 template <int D> void Engine<D>::step() {
   if (dist_) dist_->before_step(*this);
+  if (reset_due()) reset_nodes();
   dt_ = stable_dt();
   if (!(dt_ > 0.0) || !std::isfinite(dt_))
     unstable("time step " + format_number(dt_) + " is not positive and finite");
@@ -184,13 +193,20 @@ template <int D> void Engine<D>::step() {
 
 template <int D> void Engine<D>::evaluate_basis() {
   ScopedPhase timer(timers_, Phase::basis);
+  fbar_.ready = false; // a pass that failed in the last step may have left it set
   fallible([&] {
     try {
-      basis_->evaluate_points(P_.x, table_, P_.F.empty() ? nullptr : &P_.F);
+      const bool may_move = mode_.nodes_move() && basis_->search_radius() > 0.0;
+      if (may_move) moved_.resize(P_.x.size(), Vec<D>::Zero());
+      const long long moved_before = basis_->moved_points();
+      basis_->evaluate_points(P_.x, table_, P_.F.empty() ? nullptr : &P_.F, may_move ? &moved_ : nullptr);
+      if (basis_->moved_points() != moved_before) move_into_hull();
       if (contact_) contact_->remap(table_, P_.body);
       row_width_ = linear_row_width(table_);
       scatter_->invalidate(row_width_);
       if (dist_) dist_->check_support(table_);
+      if (settings_.volumetric == Volumetric::fbar) assign_patches();
+      if (mode_.nodes_move() && basis_->search_radius() > 0.0) measure_gradients();
     } catch (const BasisError& e) {
       if (!dist_) unstable(std::string("basis evaluation failed: ") + e.what());
       // Every particle gets an empty row until the ranks stop on the failure
@@ -231,7 +247,11 @@ template <int D> void Engine<D>::update_stress_and_to_nodes(const Gradient<D>& g
   require<std::invalid_argument>(what.forces && !what.mass && !what.w,
                                  "Engine::update_stress_and_to_nodes: only the forces follow a stress update");
   if (!loads_.uniform() && loads_.any()) loads_.particle_forces(what.t, P_, fext_);
-  fallible([&] { to_nodes_impl<false, false, true>(what, [&](int p0, int p1) { update_stress_range(g, p0, p1); }); });
+  fallible([&] {
+    average_volumetric(g);
+    to_nodes_impl<false, false, true>(what, [&](int p0, int p1) { update_stress_range(g, p0, p1); });
+  });
+  fbar_.ready = false;
   exchange_sums(false, false, true);
 }
 
@@ -376,10 +396,12 @@ template <int D>
 void Engine<D>::to_particles_and_update_stress(const ToParticles<D>& what, const Gradient<D>& g) {
   ScopedPhase timer(timers_, Phase::to_particles);
   fallible([&] {
+    const Gradient<D> own = average_volumetric(g) ? Gradient<D>{} : g;
     parallel_chunks(P_.size(), [&](long long begin, long long end) {
-      to_particles_on(what, g, static_cast<int>(begin), static_cast<int>(end));
+      to_particles_on(what, own, static_cast<int>(begin), static_cast<int>(end));
     });
   });
+  fbar_.ready = false;
 }
 
 template <int D>
@@ -392,6 +414,7 @@ void Engine<D>::to_particles_on(const ToParticles<D>& what, const Gradient<D>& g
   else if (move && field) to_particles_range<false, true, true>(what, g, begin, end);
   else if (move) to_particles_range<false, true, false>(what, g, begin, end);
   else if (field) to_particles_range<false, false, true>(what, g, begin, end);
+  else if (fbar_.ready) update_materials(begin, end, fbar_.H.data() + begin);
 }
 
 template <int D>
@@ -417,6 +440,7 @@ void Engine<D>::to_particles_rows(const ToParticles<D>& what, const Gradient<D>&
   const Vec<D>* dN = table_.dN.data();
   Vec<D>* v = P_.v.data();
   Vec<D>* x = P_.x.data();
+  const Mat<D>* averaged = fbar_.ready ? fbar_.H.data() : nullptr; // F-bar: H_p from average_volumetric
   Mat<D> H[kStressBatch];
   for (int p0 = begin; p0 < end; p0 += kStressBatch) {
     const int p1 = std::min(end, p0 + kStressBatch);
@@ -438,20 +462,146 @@ void Engine<D>::to_particles_rows(const ToParticles<D>& what, const Gradient<D>&
       if constexpr (Field) H[p - p0] = c * G;
     }
     if constexpr (Field) update_materials(p0, p1, H);
+    else if (averaged) update_materials(p0, p1, averaged + p0);
   }
 }
 
 template <int D> void Engine<D>::update_stress(const Gradient<D>& g) {
   ScopedPhase timer(timers_, Phase::constitutive);
   fallible([&] {
+    average_volumetric(g);
     parallel_chunks(P_.size(), [&](long long begin, long long end) {
       update_stress_range(g, static_cast<int>(begin), static_cast<int>(end));
     });
   });
+  fbar_.ready = false;
 }
 
 template <int D> void Engine<D>::update_stress_range(const Gradient<D>& g, int p0, int p1) {
-  to_particles_range<false, false, true>({}, g, p0, p1);
+  if (fbar_.ready) update_materials(p0, p1, fbar_.H.data() + p0);
+  else to_particles_range<false, false, true>({}, g, p0, p1);
+}
+
+template <int D> void Engine<D>::move_into_hull() {
+  parallel_for(P_.size(), [&](long long p) {
+    P_.x[p] += moved_[p];
+    moved_[p].setZero();
+  });
+}
+
+template <int D> void Engine<D>::follow_body(const AlignedVector<Vec<D>>& x) {
+  NodeSet<D>& nodes = basis_->nodes();
+  if (!nodes.grid() || !nodes.on_lattice()) return; // a cloud or a perturbed lattice: every node is the material's
+  const CartesianGrid<D>& grid = *nodes.grid();
+  std::vector<double> used(static_cast<std::size_t>(nodes.size()), 0.0);
+  for (int p = 0; p < P_.size(); ++p) { // the corners of the cell that holds particle p
+    const Index<D> cell = grid.cell_of(x[p]);
+    for (int c = 0; c < (1 << D); ++c) {
+      Index<D> corner = cell;
+      for (int k = 0; k < D; ++k) corner[k] += (c >> k) & 1;
+      used[static_cast<std::size_t>(grid.node_id(corner))] = 1.0;
+    }
+  }
+  if (dist_) dist_->sum_nodal(std::array<NodalArray, 1>{NodalArray{used.data(), 1}}); // cells of other ranks' particles
+  std::vector<char> absent(used.size());
+  for (std::size_t I = 0; I < used.size(); ++I) absent[I] = used[I] == 0.0;
+  if (std::find(absent.begin(), absent.end(), char(0)) == absent.end()) return; // a rank without particles
+  nodes.remove(absent);
+  basis_->nodes_moved({});
+}
+
+template <int D> bool Engine<D>::reset_due() const {
+  if (!(settings_.node_reset.below > 0.0) || settings_.dt) return false;
+  const double ratio = gradient_ > 0.0 ? gradient0_ / gradient_ : 1.0;
+  return mode_.cfl_spacing(*basis_, settings_.h, node_spacing0_, ratio) < settings_.node_reset.below * settings_.h;
+}
+
+template <int D> void Engine<D>::reset_nodes(const CartesianGrid<D>* given) {
+  CartesianGrid<D> grid;
+  if (given) {
+    grid = *given;
+  } else { // the grid's lines around every particle's extent
+    const CartesianGrid<D>& lines = settings_.node_reset.lines;
+    const Vec<D> h = lines.h();
+    Vec<D> lo = Vec<D>::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+    for (int p = 0; p < P_.size(); ++p) {
+      const double half = 0.5 * std::pow(P_.V[p], 1.0 / D);
+      lo = lo.cwiseMin(P_.x[p] - Vec<D>::Constant(half));
+      hi = hi.cwiseMax(P_.x[p] + Vec<D>::Constant(half));
+    }
+    for (int k = 0; k < D; ++k) {
+      const double a = std::floor((lo[k] - lines.lower[k]) / h[k]), b = std::ceil((hi[k] - lines.lower[k]) / h[k]);
+      grid.lower[k] = lines.lower[k] + a * h[k];
+      grid.upper[k] = lines.lower[k] + b * h[k];
+      grid.cells[k] = static_cast<int>(std::max(1.0, b - a));
+    }
+    grid.validate();
+  }
+  LatticePart<D> part = settings_.node_reset.lattice(grid);
+  const AlignedVector<Vec<D>> wall_impulse = constraints_.wall_impulse(); // the walls keep their impulse
+  basis_ = std::move(part.basis);
+  const int nodes = basis_->nodes().size();
+  constraints_ = Constraints<D>(std::move(part.dirichlet), constraints_.walls(), nodes);
+  constraints_.wall_impulse() = wall_impulse;
+  nodal_.resize(nodes);
+  scatter_->invalidate(0);
+  if (mass_matrix_) mass_matrix_ = std::make_unique<MassMatrix<D>>(basis_->fixed_stencil() > 0);
+  lattice_ = grid;
+  if (!given && basis_->search_radius() > 0.0) follow_body(P_.x); // a restart restores the node set's
+  basis_->bind_points(P_.size(), true); // the multipliers and hints belonged to the old nodes
+  node_spacing0_ = basis_->nodes().min_spacing();
+  gradient_ = gradient0_; // a fresh lattice: the gradients of t = 0 until the next table
+  fbar_.patch.clear();    // the cells of the new lattice
+  if (!given) ++node_resets_;
+}
+
+template <int D> void Engine<D>::measure_gradients() {
+  const AlignedVector<Vec<D>>& dN = table_.dN;
+  double g2 = blocked_reduce<MaxOf>(static_cast<long long>(dN.size()), [&](long long e, MaxOf& acc) {
+    acc.value = std::max(acc.value, dN[static_cast<std::size_t>(e)].squaredNorm());
+  }).value;
+  gradient_ = std::sqrt(std::max(g2, 0.0)); // this rank's (stable_dt takes the ranks' largest)
+  if (gradient0_ == 0.0) gradient0_ = gradient_;
+}
+
+template <int D> void Engine<D>::assign_patches() {
+  // ul: the cell of the lattice the nodes were laid out on that held the
+  // particle then (t = 0, or the last node reset), fixed until the next
+  const bool own = mode_.nodes_move();
+  if (own && fbar_.patch.size() == static_cast<std::size_t>(P_.size())) return;
+  const std::optional<CartesianGrid<D>>& lattice =
+      lattice_ ? lattice_ : settings_.patch_grid ? settings_.patch_grid : basis_->nodes().grid();
+  require<std::invalid_argument>(lattice.has_value(), "Engine: volumetric = fbar needs the lattice of its patches "
+                                                      "(StepSettings::patch_grid); the node set is a cloud");
+  const CartesianGrid<D>& grid = *lattice;
+  // A cell's key: its lower corner's lattice index (and the body, with contact),
+  // in 64 bits; the keys are numbered in particle order as they first appear.
+  std::unordered_map<long long, long long> number;
+  fbar_.patch.resize(static_cast<std::size_t>(P_.size()));
+  for (int p = 0; p < P_.size(); ++p) {
+    const Index<D> c = grid.cell_of(own && !lattice_ ? P_.X[p] : P_.x[p]);
+    long long key = contact_ ? P_.body[p] : 0;
+    for (int k = D - 1; k >= 0; --k) key = key * (grid.cells[k] + 1LL) + c[k];
+    fbar_.patch[static_cast<std::size_t>(p)] =
+        number.try_emplace(key, static_cast<long long>(number.size())).first->second;
+  }
+  fbar_.patches = static_cast<long long>(number.size());
+}
+
+template <int D> bool Engine<D>::average_volumetric(const Gradient<D>& g) {
+  if (settings_.volumetric != Volumetric::fbar || D == 1 || !g.field) return false;
+  fbar_.H.resize(static_cast<std::size_t>(P_.size()));
+  const Vec<D>* field = g.field->data();
+  const double c = g.c;
+  parallel_for(P_.size(), [&](long long p) { // the arithmetic of to_particles_rows' gradient
+    Mat<D> G = Mat<D>::Zero();
+    for (int e = table_.begin(static_cast<int>(p)); e < table_.end(static_cast<int>(p)); ++e)
+      G.noalias() += field[table_.node[e]] * table_.dN[e].transpose();
+    fbar_.H[p] = c * G;
+  });
+  fbar_.average.apply(fbar_.patch, fbar_.patches, P_.V.data(), fbar_.H.data(), P_.size());
+  fbar_.ready = true;
+  return true;
 }
 
 template <int D> void Engine<D>::update_materials(int p0, int p1, const Mat<D>* H) {

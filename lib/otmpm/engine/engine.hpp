@@ -16,10 +16,12 @@
 #include "otmpm/engine/mass_matrix.hpp"
 #include "otmpm/engine/node_mode.hpp"
 #include "otmpm/engine/timers.hpp"
+#include "otmpm/engine/volumetric.hpp"
 #include "otmpm/engine/step.hpp"
 #include "otmpm/materials/material.hpp"
 #include "otmpm/particles/particles.hpp"
 
+#include <functional>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -43,6 +45,23 @@ template <int D> struct NodalFields {
   void resize(int n);
 };
 
+/// A basis and its Dirichlet sets on a node lattice: a share's, built by the
+/// share itself (a rank of a distributed run: on its window of the lattice
+/// only), or the nodes laid out anew (NodeReset).
+template <int D> struct LatticePart {
+  std::unique_ptr<Basis<D>> basis;
+  Dirichlet<D> dirichlet;
+};
+
+/// `ul` mode: the nodes laid out anew on the scene grid's lattice over the
+/// particles when the CFL spacing has fallen below `below` h (docs/theory.md
+/// sect. 3, "Node reset"); below = 0: never.
+template <int D> struct NodeReset {
+  double below = 0.0;
+  CartesianGrid<D> lines; ///< the scene's grid: the new lattice runs on its lines, with its spacing
+  std::function<LatticePart<D>(const CartesianGrid<D>&)> lattice; ///< the basis and Dirichlet sets on a lattice
+};
+
 /// How the engine steps: the integrator's step function and parameters,
 /// the time step rule (CFL with the P-wave speed, docs/theory.md
 /// sect. 10, or a fixed dt), the mass matrix and the run's limits.
@@ -56,6 +75,12 @@ template <int D> struct StepSettings {
   bool consistent_mass = false;  ///< solve with M_IJ instead of dividing by m_I
   double mass_tolerance = 1e-12; ///< nodes with m_I <= tol max m are inactive
   double energy_limit = 10.0;    ///< runaway monitor factor (check_energy)
+  /// The volumetric part of each particle's dF: its own, or its patch's (F-bar, volumetric.hpp).
+  Volumetric volumetric = Volumetric::none;
+  /// F-bar: the lattice whose cells are the patches (the scene's node lattice:
+  /// the grid in `mpm`, the initial lattice in `ul`); unset: the nodes' own.
+  std::optional<CartesianGrid<D>> patch_grid;
+  NodeReset<D> node_reset;
 };
 
 /// Everything an engine is built from.
@@ -169,6 +194,8 @@ public:
   double time() const { return t_; }
   long steps() const { return step_; }
   double last_dt() const { return dt_; }
+  /// `ul` mode: how often the nodes were laid out anew (NodeReset) since t = 0.
+  long node_resets() const { return node_resets_; }
   PhaseTimers& timers() { return timers_; }
   const EnergyBalance& energy() const { return energy_; }
   /// Sum of the Dirichlet reaction impulses since t = 0 (per component).
@@ -317,6 +344,28 @@ private:
   void update_stress_range(const Gradient<D>& g, int p0, int p1);
   /// Hands H of particles [p0, p1) to their materials (runs of one material).
   void update_materials(int p0, int p1, const Mat<D>* H);
+  /// F-bar (StepSettings::volumetric): H_p of every particle from `g`, averaged
+  /// over the patches into hbar_, which the updates of this pass then read
+  /// (true); false when the particles' own H_p apply.
+  bool average_volumetric(const Gradient<D>& g);
+  /// The F-bar patch of each particle (volumetric.hpp), from the positions of
+  /// the basis evaluation (`mpm`) or, once, of the lattice's layout (`ul`).
+  void assign_patches();
+  /// True when the nodes are to be laid out anew before this step (NodeReset).
+  bool reset_due() const;
+  /// Lays the nodes out anew on the scene grid's lattice over the particles
+  /// (NodeReset), or on `grid` when given (a restart).
+  void reset_nodes(const CartesianGrid<D>* grid = nullptr);
+  /// gradient_ (and gradient0_ the first time) from the table just evaluated.
+  void measure_gradients();
+  /// Moves the particles the basis evaluated at another position into its
+  /// support's hull (PointQuery::moved) to that position.
+  void move_into_hull();
+  /// `ul` with a family that searches its support: the nodes of the lattice
+  /// cells that hold no particle at `x` (t = 0, or a node reset) are taken out
+  /// of the node set (NodeSet::remove): the nodes discretise the body, not its
+  /// bounding box.
+  void follow_body(const AlignedVector<Vec<D>>& x);
   [[noreturn]] void unstable(int p, const std::string& what) const;
   [[noreturn]] void unstable(const std::string& what) const;
   /// A stage that may fail for a particle: in a distributed run a rank that
@@ -347,6 +396,19 @@ private:
   std::unique_ptr<ParticleToNodes<D>> scatter_; ///< engine/scatter.hpp (internal: needs parallel.hpp)
   AlignedVector<Vec<D>> fext_; ///< external force per particle when not uniform
   double node_spacing0_ = 1.0; ///< the nodes' smallest spacing at t = 0
+  /// ul with a searching family: the largest |grad N_Ip| of the first and of
+  /// the last basis table (NodeMode::cfl_spacing); 0 until the first.
+  double gradient0_ = 0.0, gradient_ = 0.0;
+  AlignedVector<Vec<D>> moved_; ///< ul, searching family: the displacement into the hull (Basis::evaluate_points)
+  long node_resets_ = 0;
+  std::optional<CartesianGrid<D>> lattice_; ///< after a node reset: the lattice the nodes were laid out on
+  struct {
+    std::vector<long long> patch; ///< each particle's patch
+    long long patches = 0;
+    PatchAverage<D> average;
+    AlignedVector<Mat<D>> H; ///< the averaged H_p of the current pass
+    bool ready = false;      ///< the current pass reads H
+  } fbar_;
   double t_ = 0.0, dt_ = 0.0, dt_prev_ = 0.0;
   long step_ = 0;
   PhaseTimers timers_;

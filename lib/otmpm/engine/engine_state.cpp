@@ -141,6 +141,8 @@ template <int D> void Engine<D>::save_state(Checkpoint& out) const {
   g.reals["dt_prev"] = dt_prev_;
   g.reals["external_power"] = external_power_;
   g.reals["wave_speed"] = wave_speed_;
+  g.reals["gradient0"] = gradient0_;
+  g.reals["gradient"] = gradient_;
   g.integers["step"] = step_;
   save_vector<D>(g, "reaction_impulse", reaction_impulse_);
   save_field(g, "wall_impulse", constraints_.wall_impulse());
@@ -157,6 +159,18 @@ template <int D> void Engine<D>::save_state(Checkpoint& out) const {
   });
   for (const StateField& f : P_.state)
     particles.real_arrays["state_" + f.name] = {static_cast<std::size_t>(f.width), f.values};
+  if (lattice_) { // laid out anew (NodeReset): the lattice, and the F-bar patches of its layout
+    StateGroup& n = out.group("nodes");
+    n.integers["resets"] = node_resets_;
+    save_vector<D>(n, "lattice_lower", lattice_->lower);
+    save_vector<D>(n, "lattice_upper", lattice_->upper);
+    n.integer_arrays["lattice_cells"] = {1, std::vector<std::int64_t>(lattice_->cells.begin(), lattice_->cells.end())};
+    if (!fbar_.patch.empty())
+      n.integer_arrays["patch"] = {1, std::vector<std::int64_t>(fbar_.patch.begin(), fbar_.patch.end())};
+    std::vector<std::int64_t> absent(static_cast<std::size_t>(basis_->nodes().size()));
+    for (std::size_t I = 0; I < absent.size(); ++I) absent[I] = !basis_->nodes().present(static_cast<int>(I));
+    n.integer_arrays["absent"] = {1, std::move(absent)};
+  }
   save_nodes(out.group("nodes"), basis_->nodes());
   StateGroup& basis = out.group("basis");
   basis.strings["kind"] = std::string(basis_->kind());
@@ -167,12 +181,42 @@ template <int D> void Engine<D>::restore_state(const Checkpoint& in) {
   if (in.dimension != D)
     throw InputError(in.file + ": checkpoint of a " + std::to_string(in.dimension) + "D run, the scene is " +
                      std::to_string(D) + "D");
+  const StateGroup& nodes = in.group("nodes");
+  if (nodes.integers.count("resets")) { // the lattice of the last node reset, then its positions
+    if (!settings_.node_reset.lattice) nodes.error("nodes laid out anew, but this run cannot lay them out");
+    CartesianGrid<D> grid;
+    grid.lower = restore_vector<D>(nodes, "lattice_lower");
+    grid.upper = restore_vector<D>(nodes, "lattice_upper");
+    const auto& cells = nodes.integer_array("lattice_cells", D, 1).values;
+    for (int k = 0; k < D; ++k) grid.cells[k] = static_cast<int>(cells[static_cast<std::size_t>(k)]);
+    try {
+      grid.validate();
+    } catch (const InputError& e) {
+      nodes.error(std::string("the lattice of the last node reset: ") + e.what());
+    }
+    reset_nodes(&grid);
+    node_resets_ = static_cast<long>(nodes.integer("resets"));
+    const auto& absent = nodes.integer_array("absent", static_cast<std::size_t>(basis_->nodes().size()), 1).values;
+    std::vector<char> marks(absent.begin(), absent.end());
+    if (std::count(marks.begin(), marks.end(), char(0)) == 0) nodes.error("no node present");
+    basis_->nodes().remove(marks);
+    basis_->nodes_moved({});
+    if (nodes.has_array("patch")) {
+      const auto& patch = nodes.integer_array("patch", static_cast<std::size_t>(P_.size()), 1).values;
+      if (std::any_of(patch.begin(), patch.end(), [&](std::int64_t c) { return c < 0 || c >= P_.size(); }))
+        nodes.error("an F-bar patch number out of range");
+      fbar_.patch.assign(patch.begin(), patch.end());
+      fbar_.patches = fbar_.patch.empty() ? 0 : 1 + *std::max_element(fbar_.patch.begin(), fbar_.patch.end());
+    }
+  }
   const StateGroup& g = in.group("engine");
   t_ = g.real("t");
   dt_ = g.real("dt");
   dt_prev_ = g.real("dt_prev");
   external_power_ = g.real("external_power");
   wave_speed_ = g.real("wave_speed");
+  gradient0_ = g.reals.count("gradient0") ? g.real("gradient0") : 0.0;
+  gradient_ = g.reals.count("gradient") ? g.real("gradient") : 0.0;
   step_ = static_cast<long>(g.integer("step"));
   reaction_impulse_ = restore_vector<D>(g, "reaction_impulse");
   restore_field(g, "wall_impulse", constraints_.wall_impulse(), constraints_.walls().size());
@@ -197,7 +241,7 @@ template <int D> void Engine<D>::restore_state(const Checkpoint& in) {
     if (m < 0 || m >= static_cast<int>(materials_.size())) particles.error("material index out of range");
   for (StateField& f : P_.state)
     f.values = particles.real_array("state_" + f.name, n, static_cast<std::size_t>(f.width)).values;
-  restore_nodes(in.group("nodes"), basis_->nodes());
+  restore_nodes(nodes, basis_->nodes());
   const StateGroup& basis = in.group("basis");
   if (basis.string("kind") != basis_->kind())
     basis.error("basis '" + basis.string("kind") + "', the scene has '" + std::string(basis_->kind()) + "'");

@@ -22,8 +22,11 @@ template <int D> void NodeMode<D>::advect(Basis<D>& basis, const AlignedVector<V
   basis.nodes_moved(dx);
 }
 
-template <int D> double NodeMode<D>::cfl_spacing(const Basis<D>& basis, double h0, double spacing0) const {
-  return advected_ ? h0 * (basis.nodes().min_spacing() / spacing0) : h0;
+template <int D>
+double NodeMode<D>::cfl_spacing(const Basis<D>& basis, double h0, double spacing0, double gradient_ratio) const {
+  if (!advected_) return h0;
+  if (basis.search_radius() > 0.0) return h0 * gradient_ratio;
+  return h0 * (basis.nodes().min_spacing() / spacing0);
 }
 
 template <int D> std::string NodeMode<D>::leaving(const Vec<D>& x, const Vec<D>& v) const {

@@ -28,8 +28,13 @@ public:
   void advect(Basis<D>& basis, const AlignedVector<Vec<D>>& dx) const;
   /// The nodal spacing h of the CFL condition: h0 on the fixed grid; in `ul`
   /// h0 scaled by how much the smallest node spacing changed since the start
-  /// (`spacing0`).
-  double cfl_spacing(const Basis<D>& basis, double h0, double spacing0) const;
+  /// (`spacing0`) for the families whose stencils are cells of the lattice,
+  /// and by `gradient_ratio` (the largest |grad N_Ip| of the first basis
+  /// table over that of the last one) for the families that search their
+  /// support (max-ent): their nodes may approach and pass each other without
+  /// the basis' gradients - hence the stiffness - growing (docs/theory.md
+  /// sect. 10).
+  double cfl_spacing(const Basis<D>& basis, double h0, double spacing0, double gradient_ratio) const;
   /// True unless, on the fixed grid, a particle at x moving at v left the
   /// grid or would leave it in a step dt (always true in `ul`). Inline and
   /// without a branch per particle: it runs for every particle after every

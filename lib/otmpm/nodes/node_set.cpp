@@ -132,12 +132,14 @@ template <int D> struct NodeSet<D>::SearchIndex {
     (bg::set<K>(p, x[K]), ...);
   }
 
-  explicit SearchIndex(const AlignedVector<Vec<D>>& x) : tree(make_values(x)) {}
+  /// The tree of the nodes x without those `absent` marks (empty: all).
+  SearchIndex(const AlignedVector<Vec<D>>& x, const std::vector<char>& absent) : tree(make_values(x, absent)) {}
 
-  static std::vector<Value> make_values(const AlignedVector<Vec<D>>& x) {
+  static std::vector<Value> make_values(const AlignedVector<Vec<D>>& x, const std::vector<char>& absent) {
     std::vector<Value> v;
     v.reserve(x.size());
-    for (std::size_t i = 0; i < x.size(); ++i) v.emplace_back(to_point(x[i]), static_cast<int>(i));
+    for (std::size_t i = 0; i < x.size(); ++i)
+      if (absent.empty() || !absent[i]) v.emplace_back(to_point(x[i]), static_cast<int>(i));
     return v;
   }
 };
@@ -272,7 +274,7 @@ template <int D> NodeSet<D>& NodeSet<D>::operator=(NodeSet&&) noexcept = default
 template <int D>
 NodeSet<D>::NodeSet(const NodeSet& o)
     : x_(o.x_), x0_(o.x0_), grid_(o.grid_), layout_(o.layout_), on_lattice_(o.on_lattice_),
-      spacing_(o.spacing_), index_(nullptr), index_stale_(true) {}
+      spacing_(o.spacing_), absent_(o.absent_), index_(nullptr), index_stale_(true) {}
 
 template <int D> NodeSet<D>& NodeSet<D>::operator=(const NodeSet& o) {
   if (this != &o) {
@@ -296,6 +298,20 @@ template <int D> void NodeSet<D>::set_positions(AlignedVector<Vec<D>> x) {
   index_stale_ = true;
 }
 
+template <int D> void NodeSet<D>::remove(const std::vector<char>& absent) {
+  require<std::invalid_argument>(absent.size() == x_.size(), "NodeSet::remove: ", absent.size(), " marks for ",
+                                 x_.size(), " nodes");
+  const auto gone = std::count(absent.begin(), absent.end(), char(1));
+  require<std::invalid_argument>(gone < static_cast<long>(x_.size()), "NodeSet::remove: every node would be absent");
+  if (gone == 0) return absent_.clear();
+  absent_ = absent;
+  index_stale_ = true;
+}
+
+template <int D> int NodeSet<D>::present_count() const {
+  return size() - static_cast<int>(std::count(absent_.begin(), absent_.end(), char(1)));
+}
+
 template <int D> void NodeSet<D>::advect(const AlignedVector<Vec<D>>& dx) {
   require<std::invalid_argument>(dx.size() == x_.size(), "NodeSet::advect: dx has ", dx.size(),
                                  " increments for ", x_.size(), " nodes");
@@ -312,9 +328,9 @@ template <int D> void NodeSet<D>::advect(const AlignedVector<Vec<D>>& dx) {
 // ---------------------------------------------------------------------------
 
 template <int D> void NodeSet<D>::prepare_search() const {
-  if (on_lattice_ && grid_) return; // index arithmetic, nothing to build
+  if (lattice_search()) return; // index arithmetic, nothing to build
   if (index_ && !index_stale_) return;
-  index_ = std::make_unique<SearchIndex>(x_);
+  index_ = std::make_unique<SearchIndex>(x_, absent_);
   index_stale_ = false;
 }
 
@@ -382,7 +398,7 @@ template <int D> void NodeSet<D>::within(const Vec<D>& x, double radius, std::ve
                                  "NodeSet::within: radius must be finite and >= 0, got ", radius);
   const std::size_t first = out.size();
   const double r2 = radius * radius;
-  if (on_lattice_ && grid_) {
+  if (lattice_search()) {
     lattice_within(*grid_, x_, x, radius, out);
     return; // lattice order is already ascending in id
   }
@@ -403,11 +419,12 @@ template <int D> double NodeSet<D>::min_spacing() const {
     const CartesianGrid<D>& g = *grid_;
     for (int id = 0; id < size(); ++id) {
       const Index<D> ijk = g.node_index(id);
+      if (!present(id)) continue;
       for (int k = 0; k < D; ++k) {
         if (ijk[k] == g.cells[k]) continue;
         Index<D> nb = ijk;
         ++nb[k];
-        m = std::min(m, (x_[g.node_id(nb)] - x_[id]).norm());
+        if (present(g.node_id(nb))) m = std::min(m, (x_[g.node_id(nb)] - x_[id]).norm());
       }
     }
     return m;
@@ -416,6 +433,7 @@ template <int D> double NodeSet<D>::min_spacing() const {
   using SI = SearchIndex;
   constexpr unsigned kSelfAndNearest = 2;
   for (int id = 0; id < size(); ++id) {
+    if (!present(id)) continue;
     index_->tree.query(bgi::nearest(SI::to_point(x_[id]), kSelfAndNearest),
                        boost::make_function_output_iterator([&](const typename SI::Value& v) {
                          if (v.second != id) m = std::min(m, (x_[v.second] - x_[id]).norm());

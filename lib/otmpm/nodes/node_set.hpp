@@ -93,6 +93,18 @@ public:
   bool on_lattice() const { return on_lattice_; }
   /// Characteristic initial spacing h (the smallest grid spacing, or the cloud's).
   double spacing() const { return spacing_; }
+  /// Takes the nodes marked in `absent` (one mark per node) out of the set:
+  /// they keep their ids and positions, but no neighbour search finds them
+  /// and min_spacing() leaves them out (`ul` mode: a lattice whose cells the
+  /// body does not fill, docs/theory.md sect. 3). All marks 0: every node is
+  /// present. std::invalid_argument for another size or no node left.
+  void remove(const std::vector<char>& absent);
+  /// True unless node I was taken out by remove().
+  bool present(int I) const { return absent_.empty() || !absent_[static_cast<std::size_t>(I)]; }
+  /// True when remove() took nodes out.
+  bool has_absent() const { return !absent_.empty(); }
+  /// The nodes present.
+  int present_count() const;
 
   const AlignedVector<Vec<D>>& positions() const { return x_; }
   const Vec<D>& position(int I) const { return x_[I]; }
@@ -121,11 +133,14 @@ public:
 
 private:
   struct SearchIndex;
+  /// The search is index arithmetic on the lattice (untouched, every node present).
+  bool lattice_search() const { return on_lattice_ && grid_ && absent_.empty(); }
   AlignedVector<Vec<D>> x_, x0_;
   std::optional<CartesianGrid<D>> grid_;
   NodeLayout layout_ = NodeLayout::cartesian;
   bool on_lattice_ = true;
   double spacing_ = 1.0;
+  std::vector<char> absent_; ///< remove(): 1 for a node taken out (empty: none)
   mutable std::unique_ptr<SearchIndex> index_;
   mutable bool index_stale_ = true;
 };

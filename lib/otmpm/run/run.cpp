@@ -259,6 +259,11 @@ public:
     g.strings["particle_files"] = particle_file_record(scene_);
     g.put_reals(summary_fields(energy_));
     g.reals["wall_time"] = wall_time_;
+    if (support_diagnostics()) {
+      const auto counts = support_counts();
+      g.reals["widened_supports"] = counts[0];
+      g.reals["moved_points"] = counts[1];
+    }
     StateArray<double>& walls = g.real_arrays["wall_last_impulse"];
     walls.cols = D;
     for (const Vec<D>& J : wall_last_) walls.values.insert(walls.values.end(), J.data(), J.data() + D);
@@ -295,6 +300,10 @@ public:
 
   void finish(RunSummary& s) {
     s.energy = energy_;
+    if (support_diagnostics()) {
+      const auto counts = support_counts();
+      s.diagnostics = {{"widened_supports", counts[0]}, {"moved_points", counts[1]}};
+    }
     for (const Probe& pr : probes_)
       if (exact_ && pr.samples > 0) s.errors["history_error_" + pr.name] = std::sqrt(pr.sum_sq / pr.samples);
     if (exact_ && s.exit_code == 0 && !s.interrupted) final_errors(s);
@@ -356,6 +365,7 @@ private:
     writer_->set_attribute("particles", static_cast<long long>(s.particles));
     writer_->set_attribute("nodes", static_cast<long long>(s.nodes));
     for (const auto& [name, value] : s.errors) writer_->set_attribute(name, value);
+    for (const auto& [name, value] : s.diagnostics) writer_->set_attribute(name, value);
     writer_->set_attribute("max_energy_ratio", s.energy.max_energy_ratio());
     writer_->set_attribute("energy_drift", s.energy.energy_drift());
     for (std::size_t i = 0; i < phase_names.size(); ++i)
@@ -369,6 +379,8 @@ private:
     wall_before_ = g.real("wall_seconds");
     g.get_reals(summary_fields(energy_));
     wall_time_ = g.real("wall_time");
+    // The counts before the checkpoint (this process' basis counts from 0).
+    if (g.reals.count("widened_supports")) support_before_ = {g.real("widened_supports"), g.real("moved_points")};
     const auto& walls = g.real_array("wall_last_impulse", e_.walls().size(), D).values;
     wall_last_.assign(e_.walls().size(), Vec<D>::Zero());
     for (std::size_t w = 0; w < wall_last_.size(); ++w)
@@ -389,7 +401,21 @@ private:
     if (dissipative()) energy.push_back("dissipated");
     h.push_back({"energy", false, energy});
     for (const Wall<D>& w : e_.walls()) h.push_back({w.name, true, {"force", "impulse"}, "walls"});
+    if (support_diagnostics()) h.push_back({"diagnostics", false, {"widened_supports", "moved_points"}});
     return h;
+  }
+
+  /// True when the run counts the supports that degenerated (`ul` mode with
+  /// a family that searches its support: docs/theory.md sect. 4.8).
+  bool support_diagnostics() const { return e_.mode().nodes_move() && e_.basis().search_radius() > 0.0; }
+
+  /// The evaluations since t = 0 that needed a wider support, and the points
+  /// moved into their support's hull (over every rank).
+  std::array<double, 2> support_counts() const {
+    std::array<double, 2> c{static_cast<double>(e_.basis().widened_supports()),
+                            static_cast<double>(e_.basis().moved_points())};
+    if (Distribution<D>* d = e_.distribution()) d->sum(c);
+    return {support_before_[0] + c[0], support_before_[1] + c[1]};
   }
 
   /// True when a material of the run has internal variables (and so may
@@ -441,6 +467,7 @@ private:
     double t = 0.0;
     Samples probes; ///< per probe: x, v, stress
     std::vector<std::pair<std::string, double>> energy;
+    std::vector<std::pair<std::string, double>> diagnostics; ///< support_counts (when support_diagnostics)
     Samples walls; ///< per wall: force, impulse
     std::vector<std::vector<double>> buffers, packed, gathered;
     std::vector<FieldView> fields, whole;
@@ -469,6 +496,7 @@ private:
     for (const auto& [name, values] : o.probes) writer_->append_probe(name, o.t, values);
     writer_->append_series("energy", o.t, o.energy);
     for (const auto& [name, values] : o.walls) writer_->append_group_sample("walls", name, o.t, values);
+    if (!o.diagnostics.empty()) writer_->append_series("diagnostics", o.t, o.diagnostics);
     writer_->write_frame(o.t, o.fields, o.whole.empty() ? nullptr : &o.whole);
   }
 
@@ -513,6 +541,11 @@ private:
     o->energy = {{"kinetic", E.kinetic}, {"strain", E.strain}, {"external_work", E.external_work},
                  {"reaction_work", E.reaction_work}};
     if (dissipative()) o->energy.emplace_back("dissipated", E.dissipated);
+    o->diagnostics.clear();
+    if (support_diagnostics()) {
+      const auto counts = support_counts();
+      o->diagnostics = {{"widened_supports", counts[0]}, {"moved_points", counts[1]}};
+    }
     o->walls = wall_samples(t);
     o->buffers.resize(scene_.output.fields.size());
     o->packed.resize(o->buffers.size());
@@ -642,6 +675,7 @@ private:
   /// after writer_, so it is joined before the writer is closed.
   std::unique_ptr<BackgroundWriter> background_;
   std::shared_ptr<Output> spare_; ///< the output time last handed to the thread (its buffers are reused)
+  std::array<double, 2> support_before_{}; ///< support_counts of the run before its checkpoint (a restart)
   double next_ = 0.0;
   EnergySummary energy_;
   std::string checkpoint_path_;
@@ -1077,7 +1111,13 @@ std::string summary_line(const RunSummary& s) {
   }
   std::snprintf(buf, sizeof buf, ", max_energy_ratio = %.4g, energy_drift = %.3g", s.energy.max_energy_ratio(),
                 s.energy.energy_drift());
-  return line + buf;
+  line += buf;
+  for (const auto& [name, value] : s.diagnostics)
+    if (value != 0.0) {
+      std::snprintf(buf, sizeof buf, ", %s = %.0f", name.c_str(), value);
+      line += buf;
+    }
+  return line;
 }
 
 } // namespace otmpm

@@ -89,6 +89,9 @@ struct RunSummary {
   double wall_seconds = 0.0;
   long particles = 0, nodes = 0;
   std::map<std::string, double> errors; ///< rms_velocity_error, history_error_A, ...
+  /// `ul` mode with a max-ent basis: widened_supports and moved_points since
+  /// t = 0 (docs/theory.md sect. 4.8; also the series /diagnostics)
+  std::map<std::string, double> diagnostics;
   EnergySummary energy;                 ///< max_energy_ratio, energy_drift
   PhaseTimers timers;
   std::string out_file;

@@ -94,7 +94,7 @@ void check_derived_box(const TableReader& t, std::string_view from, const Vec3& 
 // ---------------------------------------------------------------- sections
 
 SimulationSection read_simulation(const TableReader& t) {
-  std::vector<std::string_view> keys{"dimension", "mode",          "integrator",  "mass",
+  std::vector<std::string_view> keys{"dimension", "mode",          "integrator",  "mass",        "volumetric", "node_reset",
                                      "t_end",     "cfl",           "dt",          "mass_tolerance",
                                      "energy_limit", "max_steps",  "memory_limit"};
   for (const ParameterSpec* p : integrator_parameters()) keys.push_back(p->key);
@@ -117,7 +117,11 @@ SimulationSection read_simulation(const TableReader& t) {
   // Default: the mass matrix of each algorithm's listing (IntegratorKind).
   const bool consistent_default = integrator_kind(s.integrator).consistent_by_default;
   s.mass = t.choice("mass", consistent_default ? "consistent" : "lumped", {"lumped", "consistent"});
+  if (t.has("volumetric")) s.volumetric = t.choice("volumetric", "none", {"none", "fbar"});
   using namespace scene_keys;
+  s.node_reset = number(t, kNodeReset, s.node_reset);
+  check(s.node_reset == 0 || s.nodes_move(), t.ref("node_reset"),
+        "lays the advected nodes out anew: it needs simulation.mode = \"ul\"");
   s.t_end = number(t, kTEnd);
   check(!(t.has("cfl") && t.has("dt")), t.ref("dt"), "give either simulation.cfl or simulation.dt, not both");
   s.cfl = number(t, kCfl, s.cfl);
@@ -983,6 +987,36 @@ std::string vtk_format(const OutputSection& output) {
   return "";
 }
 
+std::string volumetric_treatment(const Scene& scene) {
+  if (!scene.simulation.volumetric.empty()) return scene.simulation.volumetric;
+  // ul: the lattice cells move with the material and keep their particles,
+  // whose own volume changes lock isochoric plastic flow; an elastic body
+  // does not lock, and with a hyperelastic law (whose mean stress depends on
+  // the isochoric part) the average lowers the stable step; mpm: particles
+  // change cells, and a cell's average does not follow them
+  // (docs/benchmarks.md, "ul on large deformation").
+  if (!scene.simulation.nodes_move()) return "none";
+  for (const MaterialSection& m : scene.materials)
+    if (const MaterialModel* model = find_material_model(m.model); model && !model->state.empty()) return "fbar";
+  return "none";
+}
+
+namespace {
+
+/// The extent along axis k that body `b` gives the `ul` node lattice: a shape
+/// seeded by otmpm is seeded in the lattice's own cells, so its bounds are
+/// the lattice's; a particle file's particles were placed by the user, so the
+/// bounds of their extents are rounded out to the scene grid's lines (origin
+/// `g0`, spacing h): every particle is then inside the nodes' hull by at
+/// least half its size, as in `mpm` mode (docs/theory.md sect. 3).
+std::pair<double, double> lattice_bounds(const BodySection& b, double g0, double h, int k) {
+  if (b.shape != "file") return {b.lower[k], b.upper[k]};
+  constexpr double on_line = 1e-6; // of h: a bound this close to a grid line lies on it
+  return {g0 + std::floor((b.lower[k] - g0) / h + on_line) * h, g0 + std::ceil((b.upper[k] - g0) / h - on_line) * h};
+}
+
+} // namespace
+
 LatticeBox node_lattice_box(const Scene& s) {
   LatticeBox box;
   box.lower = s.grid.lower;
@@ -992,11 +1026,12 @@ LatticeBox node_lattice_box(const Scene& s) {
     if (!s.simulation.nodes_move() || s.bodies.empty()) continue;
     // ul: the nodes discretise only the material, in cells of the grid spacing
     const double h = (s.grid.upper[k] - s.grid.lower[k]) / s.grid.cells[k];
-    box.lower[k] = s.bodies.front().lower[k];
-    box.upper[k] = s.bodies.front().upper[k];
+    box.lower[k] = std::numeric_limits<double>::infinity();
+    box.upper[k] = -box.lower[k];
     for (const BodySection& b : s.bodies) {
-      box.lower[k] = std::min(box.lower[k], b.lower[k]);
-      box.upper[k] = std::max(box.upper[k], b.upper[k]);
+      const auto [lo, hi] = lattice_bounds(b, s.grid.lower[k], h, k);
+      box.lower[k] = std::min(box.lower[k], lo);
+      box.upper[k] = std::max(box.upper[k], hi);
     }
     box.cells[k] = cells_over(box.upper[k] - box.lower[k], h);
   }

@@ -43,6 +43,13 @@ struct SimulationSection {
   /// explicit_alpha, ...: IntegratorKind::parameters); the rest take their defaults.
   std::map<std::string, double> parameters;
   std::string mass = "lumped";     ///< lumped | consistent (default: consistent for otm and unified)
+  /// none | fbar: the volumetric part of each particle's deformation its own,
+  /// or averaged over its cell (F-bar, docs/theory.md sect. 9.8); empty: the
+  /// default (volumetric_treatment)
+  std::string volumetric;
+  /// ul: lay the nodes out anew on the grid's lattice over the particles when
+  /// the CFL spacing falls below node_reset h (0: never; docs/theory.md sect. 3)
+  double node_reset = 0.0;
   double t_end = 0.0;
   double cfl = 0.1;
   std::optional<double> dt;        ///< fixed step instead of cfl
@@ -261,6 +268,11 @@ struct LatticeBox {
   std::array<double, 3> cells{1, 1, 1};
 };
 LatticeBox node_lattice_box(const Scene& scene);
+
+/// simulation.volumetric, or when the scene does not give it the default:
+/// "fbar" in `ul` mode when a material of the scene is plastic (a model with
+/// internal variables), "none" otherwise (docs/theory.md sect. 9.8).
+std::string volumetric_treatment(const Scene& scene);
 
 /// How many particles and nodes the engine of a scene has, counted the way the
 /// engine counts them but in doubles, so that absurd scenes do not overflow.

@@ -26,10 +26,12 @@ toml::table time_function(const TimeFunction& f) {
   return t;
 }
 
-toml::table simulation(const SimulationSection& s) {
+toml::table simulation(const SimulationSection& s, const Scene& scene) {
   toml::table t{{"dimension", s.dimension}, {"mode", s.mode},          {"integrator", s.integrator},
                 {"mass", s.mass},           {"t_end", s.t_end},        {"mass_tolerance", s.mass_tolerance},
                 {"energy_limit", s.energy_limit}, {"max_steps", s.max_steps}, {"memory_limit", s.memory_limit}};
+  t.insert("volumetric", volumetric_treatment(scene)); // the default resolved: the file says what ran
+  if (s.node_reset > 0) t.insert("node_reset", s.node_reset);
   for (const auto& [key, value] : s.parameters) t.insert(key, value); // the integrator's own (gamma, rho_inf)
   // The reader takes one of cfl and dt: a fixed dt makes cfl irrelevant.
   if (s.dt) t.insert("dt", *s.dt);
@@ -206,7 +208,7 @@ toml::table output(const OutputSection& o, int dim) {
 
 std::string to_toml(const Scene& scene) {
   const int dim = scene.simulation.dimension;
-  toml::table root{{"simulation", simulation(scene.simulation)},
+  toml::table root{{"simulation", simulation(scene.simulation, scene)},
                    {"basis", basis(scene.basis)},
                    {"grid", grid(scene.grid, dim)},
                    {"material", materials(scene.materials)},

@@ -94,6 +94,16 @@ void check_simulation(const Scene& s, int dim) {
         m.integrator, "\")");
   check(s, one_of(m.mass, {"lumped", "consistent"}), "simulation.mass", "must be \"lumped\" or \"consistent\" (got \"",
         m.mass, "\")");
+  check(s, m.volumetric.empty() || one_of(m.volumetric, {"none", "fbar"}), "simulation.volumetric", "must be \"none\" or \"fbar\" (got \"",
+        m.volumetric, "\")");
+  check_number(s, "simulation.node_reset", m.node_reset, scene_keys::kNodeReset);
+  check(s, m.node_reset == 0 || m.nodes_move(), "simulation.node_reset",
+        "lays the advected nodes out anew: it needs simulation.mode = \"ul\"");
+  for (const BoundarySection& b : s.boundaries) {
+    const bool moves = (b.fix[0] && b.value[0] != 0) || (b.fix[1] && b.value[1] != 0) || (b.fix[2] && b.value[2] != 0);
+    check(s, m.node_reset == 0 || !moves, "simulation.node_reset", "boundary '", b.name,
+          "' moves its nodes (a non-zero value): after a node reset its box would select other nodes");
+  }
   check(s, !integrator->needs_ul || m.nodes_move(), "simulation.integrator", "integrator \"", m.integrator,
         "\" needs advected nodes: use simulation.mode = \"ul\"");
   check(s, !integrator->needs_consistent_mass || m.mass == "consistent", "simulation.mass", "integrator \"",

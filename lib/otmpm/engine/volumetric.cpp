@@ -1,0 +1,49 @@
+/// \file volumetric.cpp
+/// The F-bar patch average (volumetric.hpp).
+#include "otmpm/engine/volumetric.hpp"
+
+#include "otmpm/parallel.hpp"
+
+#include <cmath>
+
+namespace otmpm {
+
+template <int D>
+void PatchAverage<D>::apply(const std::vector<long long>& patch, long long patches, const double* V, Mat<D>* H,
+                            int n) {
+  if constexpr (D == 1) {
+    return; // one axis: dFbar = dF (the patch volume change is the particle's own)
+  } else {
+    if (static_cast<long long>(weight_.size()) < patches) {
+      weight_.assign(static_cast<std::size_t>(patches), 0.0);
+      weighted_.assign(static_cast<std::size_t>(patches), 0.0);
+      count_.assign(static_cast<std::size_t>(patches), 0);
+    }
+    dJ_.resize(static_cast<std::size_t>(n));
+    parallel_for(n, [&](long long p) { dJ_[p] = (Mat<D>::Identity() + H[p]).determinant(); });
+    for (int p = 0; p < n; ++p) { // in particle order: the sums do not depend on the threads
+      if (!(dJ_[p] > 0.0)) continue;
+      weighted_[patch[p]] += V[p] * dJ_[p];
+      weight_[patch[p]] += V[p];
+      ++count_[patch[p]];
+    }
+    parallel_for(n, [&](long long p) {
+      if (!(dJ_[p] > 0.0) || count_[patch[p]] < 2) return; // a patch of one: its own dF
+      const double ratio = weighted_[patch[p]] / weight_[patch[p]] / dJ_[p];
+      const double s = D == 2 ? std::sqrt(ratio) : std::cbrt(ratio);
+      // s (I + H) - I without forming I + H: exact for s = 1, no cancellation for small H.
+      H[p] = s * H[p];
+      H[p].diagonal().array() += s - 1.0;
+    });
+    for (int p = 0; p < n; ++p) { // zero what was touched
+      weighted_[patch[p]] = weight_[patch[p]] = 0.0;
+      count_[patch[p]] = 0;
+    }
+  }
+}
+
+template class PatchAverage<1>;
+template class PatchAverage<2>;
+template class PatchAverage<3>;
+
+} // namespace otmpm

@@ -1,0 +1,52 @@
+#pragma once
+/// \file volumetric.hpp
+/// The F-bar treatment of volumetric locking (docs/theory.md sect. 9.7):
+/// the volume change of each particle's step is replaced by the volume
+/// change of its patch, so that isochoric (plastic) flow is not resisted by
+/// the many volume constraints of a patch's material points.
+///
+/// In incremental form (the materials advance F_{n+1} = dF F_n with dF = I + H):
+///   dJ_p = det dF_p,   dJbar_c = sum_{p in c} V_p dJ_p / sum_{p in c} V_p,
+///   dFbar_p = (dJbar_c / dJ_p)^{1/D} dF_p,
+/// so det dFbar_p = dJbar_c (the patch's volume ratio V_c^{n+1} / V_c^n) and
+/// the isochoric part of dF_p is kept (de Souza Neto et al. 1996, "Design of
+/// simple low order finite elements for large strain analysis of nearly
+/// incompressible solids"; for material points: Coombs et al. 2018,
+/// "Overcoming volumetric locking in material point methods"). A patch c is a
+/// cell of the node lattice and a body: on the fixed grid the cell that holds
+/// the particle when the basis is evaluated, with advected nodes the cell of
+/// the initial lattice that held it at t = 0 (a Lagrangian patch). Internal to
+/// the engine.
+#include "otmpm/core.hpp"
+
+#include <vector>
+
+namespace otmpm {
+
+/// How the engine treats the volumetric part of the deformation.
+enum class Volumetric {
+  none, ///< every particle's own dF (full integration of the volume change)
+  fbar, ///< dF's volume change averaged over the particle's cell (F-bar)
+};
+
+/// The patch sums of the F-bar average; reused step after step.
+template <int D> class PatchAverage {
+public:
+  /// Replaces H_p by Hbar_p = (dJbar / dJ_p)^{1/D} (I + H_p) - I for particles
+  /// [0, n): patch[p] in [0, patches) is particle p's patch, V[p] its volume at
+  /// the start of the step. The sums run in particle order (the same bits for
+  /// any thread count). A patch of one particle keeps its H_p. A particle whose dJ_p is not positive keeps H_p (its
+  /// material then reports det F <= 0), and adds nothing to its patch.
+  void apply(const std::vector<long long>& patch, long long patches, const double* V, Mat<D>* H, int n);
+
+private:
+  std::vector<double> weighted_, weight_; ///< sum V dJ and sum V per patch (zero between calls)
+  std::vector<int> count_;                ///< particles per patch (zero between calls)
+  std::vector<double> dJ_;                ///< dJ_p of the current call
+};
+
+extern template class PatchAverage<1>;
+extern template class PatchAverage<2>;
+extern template class PatchAverage<3>;
+
+} // namespace otmpm

@@ -1,0 +1,117 @@
+// `ul` mode's node reset (simulation.node_reset, docs/theory.md sect. 3):
+// the nodes laid out anew on the grid's lattice over the particles when the
+// CFL spacing has fallen below a fraction of h.
+#include <doctest/doctest.h>
+
+#include "otmpm/assembly/assembler.hpp"
+#include "otmpm/state.hpp"
+
+#include <string>
+
+using namespace otmpm;
+
+namespace {
+
+/// A j2 block (0.4 x 0.2 m, 2 x 2 particles per cell of 0.05 m) at 60 m/s
+/// onto a rigid wall: its bottom cells flatten within a few hundred steps.
+Scene impact(const std::vector<std::string>& sets) {
+  const std::string text = R"(
+[simulation]
+dimension = 2
+mode = "ul"
+integrator = "npc"
+t_end = 2.0e-3
+cfl = 0.3
+node_reset = 0.5
+[basis]
+kind = "linear"
+[grid]
+lower = [-0.2, 0.0]
+upper = [0.6, 0.3]
+cells = [16, 6]
+[[material]]
+name = "m"
+model = "j2"
+density = 1000.0
+young = 1.0e7
+poisson = 0.3
+yield_stress = 1.0e5
+hardening_modulus = 1.0e5
+[[body]]
+name = "b"
+material = "m"
+lower = [0.0, 0.05]
+upper = [0.4, 0.25]
+velocity = [0.0, -60.0]
+[[wall]]
+name = "floor"
+point = [0.0, 0.05]
+normal = [0.0, 1.0]
+[[boundary]]
+name = "symmetry"
+lower = [0.0, 0.0]
+upper = [0.0, 0.3]
+fix = [true, false]
+[output]
+every = 0.0
+)";
+  return parse_scene(text, "impact.toml", sets);
+}
+
+/// Same bits in every particle field that a step changes.
+template <int D> bool same_particles(const Particles<D>& a, const Particles<D>& b) {
+  if (a.size() != b.size()) return false;
+  for (int p = 0; p < a.size(); ++p)
+    if (a.x[p] != b.x[p] || a.v[p] != b.v[p] || a.sigma[p] != b.sigma[p] || a.F[p] != b.F[p] || a.V[p] != b.V[p])
+      return false;
+  return true;
+}
+
+} // namespace
+
+TEST_CASE("node reset: the nodes are laid out anew when the CFL spacing falls below the fraction") {
+  for (const char* basis : {"linear", "lme"}) {
+    CAPTURE(basis);
+    Engine<2> e = assemble<2>(impact({std::string("basis.kind=\"") + basis + "\""}));
+    const int nodes0 = e.basis().nodes().size();
+    while (e.time() < 2.0e-3) e.step();
+    CHECK(e.node_resets() > 0);
+    CHECK(e.basis().nodes().on_lattice() == false); // they moved on after the last reset
+    // the lattice spans the flattened, widened block now (more nodes along x)
+    CHECK(e.basis().nodes().size() != nodes0);
+    // without resets the same run takes more steps (its step keeps shrinking)
+    Engine<2> plain = assemble<2>(impact({std::string("basis.kind=\"") + basis + "\"", "simulation.node_reset=0"}));
+    while (plain.time() < 2.0e-3) plain.step();
+    CHECK(plain.node_resets() == 0);
+    CHECK(plain.steps() > e.steps());
+  }
+}
+
+TEST_CASE("node reset: a run restarted from a checkpoint after a reset goes on bit for bit") {
+  for (const char* volumetric : {"fbar", "none"}) {
+    CAPTURE(volumetric);
+    const Scene s = impact({std::string("simulation.volumetric=\"") + volumetric + "\""});
+    Engine<2> a = assemble<2>(s);
+    while (a.node_resets() == 0) a.step();
+    for (int k = 0; k < 5; ++k) a.step(); // a few steps on the new lattice
+    Checkpoint ck;
+    a.save_state(ck);
+    Engine<2> b = assemble<2>(s);
+    b.restore_state(ck);
+    CHECK(b.node_resets() == a.node_resets());
+    CHECK(b.basis().nodes().size() == a.basis().nodes().size());
+    for (int k = 0; k < 200 && a.time() < s.simulation.t_end; ++k) {
+      a.step();
+      b.step();
+    }
+    CHECK(a.node_resets() == b.node_resets());
+    CHECK(same_particles(a.particles(), b.particles()));
+    CHECK(a.energy().kinetic == b.energy().kinetic);
+  }
+}
+
+TEST_CASE("node reset: refused in mpm mode, out of [0, 1), and with a boundary that moves its nodes") {
+  CHECK_THROWS_WITH_AS(impact({"simulation.mode=\"mpm\""}), doctest::Contains("node_reset"), InputError);
+  CHECK_THROWS_WITH_AS(impact({"simulation.node_reset=1.0"}), doctest::Contains("node_reset"), InputError);
+  CHECK_THROWS_WITH_AS(impact({"boundary.symmetry.value=[0.1, 0.0]"}), doctest::Contains("moves its nodes"), InputError);
+}

@@ -1,0 +1,367 @@
+// The updated-Lagrangian side on large deformation: the F-bar patch average
+// (engine/volumetric.hpp), nodes that follow the body, particle files on the
+// scene grid's lines, and the rule for a material point whose max-ent support
+// degenerates (a wider search, then a move into the hull, both counted).
+#include <doctest/doctest.h>
+
+#include "otmpm/assembly/assembler.hpp"
+#include "otmpm/engine/volumetric.hpp"
+#include "otmpm/integrators/integrator.hpp"
+#include "support.hpp"
+#include "temp_dir.hpp"
+
+#include <cmath>
+#include <fstream>
+#include <random>
+#include <string>
+
+using namespace otmpm;
+using otmpm::test::ScopedThreads;
+
+namespace {
+
+/// A random velocity-gradient increment H of size `scale`.
+template <int D> Mat<D> random_H(std::mt19937& rng, double scale) {
+  std::uniform_real_distribution<double> u(-scale, scale);
+  Mat<D> H;
+  for (int i = 0; i < D; ++i)
+    for (int j = 0; j < D; ++j) H(i, j) = u(rng);
+  return H;
+}
+
+/// det(I + H) and the isochoric part (I + H) / det(I + H)^(1/D).
+template <int D> std::pair<double, Mat<D>> split(const Mat<D>& H) {
+  const Mat<D> F = Mat<D>::Identity() + H;
+  const double J = F.determinant();
+  return {J, F / std::pow(J, 1.0 / D)};
+}
+
+template <int D> void check_patch_average() {
+  CAPTURE(D);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> vol(0.5, 2.0);
+  const int n = 12; // four patches of 3
+  std::vector<long long> patch(n);
+  std::vector<double> V(n);
+  AlignedVector<Mat<D>> H(n), H0;
+  for (int p = 0; p < n; ++p) {
+    patch[static_cast<std::size_t>(p)] = p % 4 == 3 ? 7 : p % 3; // patches 0, 1, 2 and a patch 7 of three
+    V[static_cast<std::size_t>(p)] = vol(rng);
+    H[static_cast<std::size_t>(p)] = random_H<D>(rng, 0.05);
+  }
+  H0 = H;
+  PatchAverage<D> average;
+  average.apply(patch, 8, V.data(), H.data(), n);
+  for (long long c : {0LL, 1LL, 2LL, 7LL}) {
+    double sum_VJ = 0.0, sum_V = 0.0;
+    for (int p = 0; p < n; ++p)
+      if (patch[static_cast<std::size_t>(p)] == c) {
+        sum_VJ += V[static_cast<std::size_t>(p)] * split<D>(H0[static_cast<std::size_t>(p)]).first;
+        sum_V += V[static_cast<std::size_t>(p)];
+      }
+    for (int p = 0; p < n; ++p) {
+      if (patch[static_cast<std::size_t>(p)] != c) continue;
+      const auto [J0, iso0] = split<D>(H0[static_cast<std::size_t>(p)]);
+      const auto [J, iso] = split<D>(H[static_cast<std::size_t>(p)]);
+      // det dFbar is the patch's volume ratio; the isochoric part is the particle's own
+      CHECK(J == doctest::Approx(sum_VJ / sum_V).epsilon(1e-14));
+      CHECK((iso - iso0).norm() <= 1e-14);
+    }
+  }
+}
+
+/// One particle per patch: H unchanged, bit for bit.
+template <int D> void check_single_particle_patches() {
+  std::mt19937 rng(3);
+  const int n = 5;
+  std::vector<long long> patch{0, 1, 2, 3, 4};
+  std::vector<double> V(n, 1.0);
+  AlignedVector<Mat<D>> H(n);
+  for (auto& h : H) h = random_H<D>(rng, 0.1);
+  const AlignedVector<Mat<D>> H0 = H;
+  PatchAverage<D> average;
+  average.apply(patch, 5, V.data(), H.data(), n);
+  for (int p = 0; p < n; ++p) CHECK(H[static_cast<std::size_t>(p)] == H0[static_cast<std::size_t>(p)]);
+}
+
+/// A homogeneous deformation: every particle of a patch keeps its H to round-off.
+template <int D> void check_homogeneous() {
+  std::mt19937 rng(11);
+  const Mat<D> h = random_H<D>(rng, 0.02);
+  const int n = 9;
+  std::vector<long long> patch(n, 0);
+  std::vector<double> V{0.3, 1.0, 2.5, 0.7, 1.1, 0.9, 1.3, 0.2, 4.0};
+  AlignedVector<Mat<D>> H(n, h);
+  PatchAverage<D> average;
+  average.apply(patch, 1, V.data(), H.data(), n);
+  for (const Mat<D>& Hp : H) CHECK((Hp - h).cwiseAbs().maxCoeff() <= 4e-16 * (1.0 + h.cwiseAbs().maxCoeff()));
+}
+
+/// A 2D ul scene of a j2 block (20 x 10 cells of 0.05 m) with `extra` TOML.
+std::string block_scene(const std::string& extra) {
+  return R"(
+[simulation]
+dimension = 2
+mode = "ul"
+integrator = "npc"
+t_end = 0.01
+cfl = 0.3
+[basis]
+kind = "linear"
+[grid]
+lower = [0.0, 0.0]
+upper = [1.0, 0.5]
+cells = [20, 10]
+[[material]]
+name = "m"
+model = "j2"
+density = 1000.0
+young = 1.0e7
+poisson = 0.45
+yield_stress = 1.0e5
+hardening_modulus = 0.0
+[output]
+every = 0.0
+)" + extra;
+}
+
+} // namespace
+
+TEST_CASE("F-bar: det dFbar is the patch's volume ratio, the isochoric part the particle's own (2D, 3D)") {
+  check_patch_average<2>();
+  check_patch_average<3>();
+}
+
+TEST_CASE("F-bar: a patch of one particle keeps its dF bit for bit; 1D is unchanged") {
+  check_single_particle_patches<2>();
+  check_single_particle_patches<3>();
+  check_single_particle_patches<1>(); // one axis: no volumetric part to average
+}
+
+TEST_CASE("F-bar reduces to F for a homogeneous deformation") {
+  check_homogeneous<2>();
+  check_homogeneous<3>();
+}
+
+TEST_CASE("F-bar in the engine: a homogeneous stretch gives the same F with and without the average") {
+  // Every node moves with v = v0 + L x: every particle's velocity gradient
+  // is L, so the patch average changes nothing but round-off - with every
+  // integrator of the table (each reaches the average by its own stage).
+  for (const IntegratorKind& kind : integrator_kinds()) {
+    const std::string integrator(kind.name);
+    CAPTURE(integrator);
+    AlignedVector<Mat<2>> F[2];
+    for (int fbar = 0; fbar < 2; ++fbar) {
+      Scene s = parse_scene(block_scene(R"(
+[[body]]
+name = "b"
+material = "m"
+lower = [0.0, 0.0]
+upper = [1.0, 0.5]
+velocity = [1.0, 0.0]
+)"),
+                            "stretch.toml",
+                            {"simulation.integrator=\"" + integrator + "\"",
+                             std::string("simulation.volumetric=\"") + (fbar ? "fbar" : "none") + "\"",
+                             std::string("basis.kind=\"") + (kind.needs_bspline ? "bspline2" : "linear") + "\""});
+      Engine<2> e = assemble<2>(s);
+      Mat<2> L;
+      L << 0.3, 0.1, -0.05, -0.2;
+      for (int p = 0; p < e.particles().size(); ++p) e.particles().v[p] += L * e.particles().x[p];
+      e.step();
+      F[fbar] = e.particles().F;
+    }
+    REQUIRE(F[0].size() == F[1].size());
+    double worst = 0.0;
+    for (std::size_t p = 0; p < F[0].size(); ++p) worst = std::max(worst, (F[0][p] - F[1][p]).cwiseAbs().maxCoeff());
+    CHECK(worst <= 1e-14);
+  }
+}
+
+TEST_CASE("simulation.volumetric: by default fbar in ul with a plastic material, else none; bad values refused") {
+  const std::string body = R"(
+[[body]]
+name = "b"
+material = "m"
+lower = [0.0, 0.0]
+upper = [1.0, 0.5]
+)";
+  CHECK(volumetric_treatment(parse_scene(block_scene(body), "a.toml")) == "fbar"); // ul, j2
+  CHECK(volumetric_treatment(parse_scene(block_scene(body), "a.toml", {"simulation.mode=\"mpm\""})) == "none");
+  Scene elastic = parse_scene(block_scene(body), "a.toml");
+  elastic.materials.front().model = "neo_hookean";
+  elastic.materials.front().extra.clear();
+  CHECK(volumetric_treatment(elastic) == "none"); // elastic: no locking to treat
+  CHECK(volumetric_treatment(parse_scene(block_scene(body), "a.toml",
+                                         {"simulation.mode=\"mpm\"", "simulation.volumetric=\"fbar\""})) == "fbar");
+  CHECK_THROWS_WITH_AS(parse_scene(block_scene(body), "a.toml", {"simulation.volumetric=\"bar\""}),
+                       doctest::Contains("volumetric"), InputError);
+  Scene s = parse_scene(block_scene(body), "a.toml");
+  s.simulation.volumetric = "fbar ";
+  CHECK_THROWS_AS(assemble<2>(s), InputError);
+  // the scene written back says what ran
+  const std::string text = to_toml(parse_scene(block_scene(body), "a.toml"));
+  CAPTURE(text);
+  CHECK(text.find("volumetric = 'fbar'") != std::string::npos);
+}
+
+TEST_CASE("F-bar: results are bitwise identical with 1 and 2 threads (ul, j2, npc and fe)") {
+  // 3200 particles, a block pressed onto its base: plastic in the rows there
+  for (const char* integrator : {"npc", "fe"}) {
+    CAPTURE(integrator);
+    Particles<2> P[2];
+    for (int threads = 1; threads <= 2; ++threads) {
+      const ScopedThreads scope(threads);
+      Scene s = parse_scene(block_scene(R"(
+[[body]]
+name = "b"
+material = "m"
+lower = [0.0, 0.0]
+upper = [1.0, 0.5]
+velocity = [0.3, -2.0]
+particles_per_cell = 4
+[[boundary]]
+name = "base"
+lower = [0.0, 0.0]
+upper = [1.0, 0.0]
+fix = [true, true]
+)"),
+                            "fbar.toml", {std::string("simulation.integrator=\"") + integrator + "\""});
+      Engine<2> e = assemble<2>(s);
+      for (int k = 0; k < 8; ++k) e.step();
+      P[threads - 1] = e.particles();
+    }
+    bool same = true;
+    for (int p = 0; p < P[0].size(); ++p)
+      same = same && P[0].x[p] == P[1].x[p] && P[0].v[p] == P[1].v[p] && P[0].sigma[p] == P[1].sigma[p] &&
+             P[0].F[p] == P[1].F[p];
+    CHECK(same);
+    const StateField* eps = P[0].find_state("plastic_strain");
+    REQUIRE(eps != nullptr);
+    CHECK(*std::max_element(eps->values.begin(), eps->values.end()) > 0.0); // the average met plastic flow
+  }
+}
+
+TEST_CASE("ul: the nodes of lattice cells without particles leave the max-ent node set") {
+  // A disk in the box of its bounds: the corner cells hold no particle.
+  Scene s = parse_scene(block_scene(R"(
+[[body]]
+name = "disk"
+material = "m"
+shape = "sphere"
+center = [0.5, 0.25]
+radius = 0.2
+)"),
+                        "disk.toml", {"basis.kind=\"lme\""});
+  Engine<2> e = assemble<2>(s);
+  const NodeSet<2>& nodes = e.basis().nodes();
+  REQUIRE(nodes.grid().has_value());
+  CHECK(nodes.has_absent());
+  CHECK(nodes.present_count() < nodes.size());
+  // a present node is a corner of a cell that holds a particle, an absent one is not
+  const CartesianGrid<2>& g = *nodes.grid();
+  std::vector<char> corner(static_cast<std::size_t>(nodes.size()), 0);
+  for (int p = 0; p < e.particles().size(); ++p) {
+    const Index<2> c = g.cell_of(e.particles().X[p]);
+    for (int i = 0; i < 2; ++i)
+      for (int j = 0; j < 2; ++j) corner[static_cast<std::size_t>(g.node_id({c[0] + i, c[1] + j}))] = 1;
+  }
+  for (int I = 0; I < nodes.size(); ++I) CHECK(nodes.present(I) == (corner[static_cast<std::size_t>(I)] != 0));
+  // no search finds an absent node
+  std::vector<int> found;
+  nodes.within(nodes.position(0), 10.0, found);
+  CHECK(static_cast<int>(found.size()) == nodes.present_count());
+  for (int I : found) CHECK(nodes.present(I));
+  // the linear basis keeps the whole lattice (its cells are its elements)
+  Engine<2> linear = assemble<2>(parse_scene(block_scene(R"(
+[[body]]
+name = "disk"
+material = "m"
+shape = "sphere"
+center = [0.5, 0.25]
+radius = 0.2
+)"),
+                                             "disk.toml"));
+  CHECK_FALSE(linear.basis().nodes().has_absent());
+}
+
+TEST_CASE("ul: a particle file's node lattice runs on the scene grid's lines, every particle strictly inside") {
+  // particles at sub-cell centres of a grid from 0 (h = 0.1), of extent 0.05: the
+  // file's bounds are 0.1 .. 0.3 across and along x up to the last one's 0.525
+  otmpm::test::TempDir dir("volumetric_file");
+  {
+    std::ofstream f(dir.file("p.csv"));
+    f << "x,y,volume\n";
+    for (int i = 0; i < 4; ++i)
+      for (int j = 0; j < 4; ++j) f << 0.125 + 0.05 * i << "," << 0.125 + 0.05 * j << ",0.0025\n";
+    f << "0.5,0.2,0.0025\n";
+  }
+  const std::string scene = block_scene(R"(
+[[body]]
+name = "f"
+material = "m"
+shape = "file"
+file = "p.csv"
+)");
+  {
+    std::ofstream f(dir.file("s.toml"));
+    f << scene;
+  }
+  const Scene s = load_scene(dir.file("s.toml"), {"grid.cells=[10, 5]"});
+  const LatticeBox box = node_lattice_box(s);
+  // the bounds on lines stay there; 0.525 is rounded out to 0.6
+  CHECK(box.lower[0] == doctest::Approx(0.1));
+  CHECK(box.upper[0] == doctest::Approx(0.6));
+  CHECK(box.cells[0] == doctest::Approx(5.0));
+  CHECK(box.lower[1] == doctest::Approx(0.1));
+  CHECK(box.upper[1] == doctest::Approx(0.3));
+}
+
+TEST_CASE("lme: a point outside the hull of its cut-off support is carried by a wider search, counted") {
+  // Nodes on a line y = 0 and one node 2.5 h above: a point just above the
+  // line sees only the line within the cut-off (1.86 h), the node above
+  // only in the search twice as wide.
+  AlignedVector<Vec<2>> x;
+  for (int i = 0; i <= 10; ++i) x.push_back(Vec<2>(0.1 * i, 0.0));
+  x.push_back(Vec<2>(0.5, 0.25));
+  BasisOptions opt;
+  opt.kind = "lme";
+  opt.gamma_lme = 4.0;
+  auto basis = make_basis<2>(opt, NodeSet<2>::cloud(x, 0.1));
+  PointQuery<2> q;
+  q.x = Vec<2>(0.5, 0.02);
+  Stencil<2> st;
+  basis->evaluate(q, st);
+  CHECK(basis->widened_supports() == 1);
+  double sum = 0.0;
+  Vec<2> xbar = Vec<2>::Zero();
+  for (int i = 0; i < st.size(); ++i) sum += st.N[static_cast<std::size_t>(i)], xbar += st.N[static_cast<std::size_t>(i)] * x[static_cast<std::size_t>(st.node[static_cast<std::size_t>(i)])];
+  CHECK(sum == doctest::Approx(1.0).epsilon(1e-12));
+  CHECK((xbar - q.x).norm() <= 1e-10);
+}
+
+TEST_CASE("lme: a point outside the hull of every node near it is moved into it when the caller allows, counted") {
+  AlignedVector<Vec<2>> x;
+  for (int i = 0; i <= 4; ++i)
+    for (int j = 0; j <= 4; ++j) x.push_back(Vec<2>(0.1 * i, 0.1 * j));
+  BasisOptions opt;
+  opt.kind = "lme";
+  auto basis = make_basis<2>(opt, NodeSet<2>::cloud(x, 0.1));
+  PointQuery<2> q;
+  q.x = Vec<2>(0.2, -0.03); // below the lowest row
+  Stencil<2> st;
+  CHECK_THROWS_AS(basis->evaluate(q, st), BasisError); // no `moved`: the point fails as before
+  Vec<2> moved = Vec<2>::Zero();
+  Vec<2> lambda = Vec<2>::Zero();
+  q.moved = &moved;
+  q.lambda = &lambda;
+  basis->evaluate(q, st);
+  CHECK(basis->moved_points() == 1);
+  const Vec<2> y = q.x + moved;
+  CHECK(y[1] >= 0.0);
+  CHECK(y[1] <= 0.02);                                 // to the hull, within the bisection's resolution
+  CHECK(std::abs(y[0] - 0.2) <= 1e-12);                // towards the centroid (0.2, 0.2): straight up
+  Vec<2> xbar = Vec<2>::Zero();
+  for (int i = 0; i < st.size(); ++i) xbar += st.N[static_cast<std::size_t>(i)] * x[static_cast<std::size_t>(st.node[static_cast<std::size_t>(i)])];
+  CHECK((xbar - y).norm() <= 1e-10); // the row is that of the moved position
+}
