@@ -272,7 +272,7 @@ public:
   void sample_energy() {
     const EnergyBalance& E = e_.energy();
     energy_.initial = E.initial;
-    energy_.sample(E.total() + E.dissipated, E.work(), E.balance_error()); // plastic work counts as spent energy
+    energy_.sample(E.total() + E.spent(), E.work(), E.balance_error()); // W_p and W_f count as spent energy
   }
 
   /// Writes a frame and probe samples when t reached the next output time.
@@ -379,6 +379,7 @@ private:
     for (const Probe& pr : probes_) h.push_back({pr.name, true, {"x", "v", "stress"}});
     std::vector<std::string> energy{"kinetic", "strain", "external_work", "reaction_work"};
     if (dissipative()) energy.push_back("dissipated");
+    if (e_.has_friction()) energy.push_back("friction");
     h.push_back({"energy", false, energy});
     for (const Wall<D>& w : e_.walls()) h.push_back({w.name, true, {"force", "impulse"}, "walls"});
     return h;
@@ -504,6 +505,7 @@ private:
     o->energy = {{"kinetic", E.kinetic}, {"strain", E.strain}, {"external_work", E.external_work},
                  {"reaction_work", E.reaction_work}};
     if (dissipative()) o->energy.emplace_back("dissipated", E.dissipated);
+    if (e_.has_friction()) o->energy.emplace_back("friction", E.friction);
     o->walls = wall_samples(t);
     o->buffers.resize(scene_.output.fields.size());
     o->packed.resize(o->buffers.size());

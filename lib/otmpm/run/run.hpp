@@ -49,21 +49,22 @@ struct RunOptions {
   bool background_output = false;
 };
 
-/// The energy balance of a run, sampled after every step: E = kinetic +
-/// strain energy, W = work of the external loads and of the Dirichlet
-/// reactions since t = 0 (Engine's EnergyBalance).
+/// The energy balance of a run, sampled after every step (docs/theory.md
+/// eq. 11.2): E = kinetic + strain energy, W_s = the energy spent (plastic
+/// work and friction), W = work of the external loads, of the
+/// Dirichlet reactions and of the walls since t = 0 (Engine's EnergyBalance).
 struct EnergySummary {
   double initial = 0.0;           ///< E(0)
-  double max_energy = 0.0;        ///< max_t E(t) + W_p(t) (W_p: plastic dissipation)
+  double max_energy = 0.0;        ///< max_t E(t) + W_s(t) (W_s = W_p + W_f: the energy spent, EnergyBalance::spent)
   double max_work = 0.0;          ///< max_t |W(t)|
-  double max_balance_error = 0.0; ///< max_t |E(t) - E(0) - W(t)|
+  double max_balance_error = 0.0; ///< max_t |E(t) + W_s(t) - E(0) - W(t)|
   /// Takes one sample; non-finite values are ignored (the run stops on them anyway).
   void sample(double energy, double work, double balance_error);
   /// E(0) + max_t |W(t)|: the most energy the body can hold without a spurious source.
   double reference() const;
-  /// max_t E(t) / reference(): at most 1 when the scheme creates no energy.
+  /// max_t (E(t) + W_s(t)) / reference(): at most 1 when the scheme creates no energy.
   double max_energy_ratio() const;
-  /// max_t |E(t) - E(0) - W(t)| / reference(): the relative energy error.
+  /// max_t |E(t) + W_s(t) - E(0) - W(t)| / reference(): the relative energy error.
   double energy_drift() const;
 };
 
