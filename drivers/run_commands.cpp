@@ -11,6 +11,7 @@
 #include "otmpm/scene/scene.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <memory>
 
@@ -56,11 +57,18 @@ CLI::Option* add_scene_options(CLI::App& sub, SceneArgs& a) {
   return scene;
 }
 
+/// The phase times of a run; a phase that never ran (zero seconds: the
+/// constitutive update of fe, unified and npc runs in a transfer pass and
+/// counts there) is not printed.
 void print_phases(const RunSummary& s) {
   std::printf("phases:");
-  for (std::size_t i = 0; i < phase_names.size(); ++i)
-    std::printf(" %s %.3f s%s", std::string(phase_names[i]).c_str(), s.timers.seconds[i],
-                i + 1 < phase_names.size() ? "," : "\n");
+  const char* sep = "";
+  for (std::size_t i = 0; i < phase_names.size(); ++i) {
+    if (s.timers.seconds[i] == 0.0) continue;
+    std::printf("%s %s %.3f s", sep, std::string(phase_names[i]).c_str(), s.timers.seconds[i]);
+    sep = ",";
+  }
+  std::printf("\n");
 }
 
 /// True on the rank that prints (rank 0; the only rank of a serial run).
@@ -95,6 +103,13 @@ int check_command(const SceneArgs& a) {
   std::printf("  dt         %.6g s (first step%s)\n", c.dt, scene.simulation.dt ? ", fixed" : ", cfl rule");
   std::printf("  steps      about %.0f (t_end = %.6g s)\n", c.estimated_steps, c.t_end);
   std::printf("  memory     about %s (estimate)\n", bytes_text(c.memory_bytes).c_str());
+  for (const BodyVolume& v : c.volumes) {
+    std::printf("  body '%s'  volume %.6g", v.name.c_str(), v.seeded);
+    if (std::isfinite(v.exact))
+      std::printf(" (its shape's exact volume %.6g: %+.3g %%%s)", v.exact, 100.0 * (v.seeded - v.exact) / v.exact,
+                  std::abs(v.seeded - v.exact) > 1e-12 * v.exact ? "; volume = \"exact\" scales it" : "");
+    std::printf("\n");
+  }
   std::printf("  results    %s\n", (a.out.empty() ? c.out_file : a.out).c_str());
   return 0;
 }

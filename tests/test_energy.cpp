@@ -59,10 +59,14 @@ struct Combination {
 
 TEST_CASE("energy balance: a bar with fixed ends and no load loses energy at O(dt) and never gains it") {
   // The first mode v = 0.01 c sin(pi x) for two periods (t_end = 4 L/c). No
-  // load and fixed supports: W = 0 and the balance error is E(t) - E(0), the
-  // scheme's energy error. Measured drift at cfl 0.1 / 0.05: mpm fe linear
-  // 0.030 / 0.015, mpm npc linear 0.208 / 0.110, mpm npc lme 0.206 / 0.109,
-  // ul npc linear 0.207 / 0.109, ul otm linear 0.020 / 0.010. It halves with dt
+  // load and fixed supports: W_ext = 0, and W_R only takes, in the first
+  // step, the kinetic energy the particles bring to the supports' nodes
+  // (their velocity there jumps to zero, docs/theory.md sect. 6: 0.4 % of
+  // E(0) here; none in otm, whose particle velocity is the nodes' field), so
+  // the balance error is the scheme's energy error. Measured drift at cfl 0.1
+  // / 0.05: mpm fe linear 0.032 / 0.017, mpm npc linear 0.207 / 0.110, mpm
+  // npc lme 0.205 / 0.109, ul npc linear 0.206 / 0.110, ul otm linear 0.020
+  // / 0.010. It halves with dt
   // (a first-order time error, for NPC from v_p += dt a_p^{n+1} of molinos
   // Algorithm 1), so the balance closes as dt -> 0: asserted as a ratio below
   // 0.6 (first order gives 0.5). No energy may appear beyond the scheme's
@@ -77,7 +81,8 @@ TEST_CASE("energy balance: a bar with fixed ends and no load loses energy at O(d
                               "bar.toml"));
       REQUIRE(e.energy().initial > 0.0);
       drift[k] = run_balance(e);
-      CHECK(e.energy().reaction_work == 0.0); // fixed supports do no work, exactly
+      CHECK(e.energy().reaction_work <= 0.0); // fixed supports do no work; they take what comes to them
+      CHECK(e.energy().reaction_work >= -0.01 * e.energy().initial);
       CHECK(e.energy().external_work == 0.0);
       CHECK(e.energy().total() <= 1.01 * e.energy().initial);
     }
@@ -117,6 +122,7 @@ TEST_CASE("energy balance: the work of a constant body force equals the change o
       MESSAGE("hanging bar, " << std::string(integrator) << ": W_ext = " << e.energy().external_work
                               << ", E = " << e.energy().total() << ", drift " << drift);
       CHECK(e.energy().external_work > 0.0);
+      // The support takes what comes to it in the first step: none here (the bar starts at rest).
       CHECK(e.energy().reaction_work == 0.0);
       CHECK(drift < 0.05);
     }
@@ -127,13 +133,14 @@ TEST_CASE("energy balance: a moving boundary does the work rho c v0^2 t of a pis
   // ul mode: the node at x = 0 is driven at v0 = 0.01 c into the bar at rest.
   // Until the wave reaches x = 1 (t = L/c = 1) the exact reaction is the
   // impedance force rho c v0, so W_R(t) = rho c v0^2 t (per unit area) and
-  // E(t) = W_R(t). Measured at t = 0.5, cfl 0.1: W_R / exact = 0.950 (fe),
-  // 0.962 (npc), 0.951 (musl), the reaction lagging by about one step (2.5%
-  // of t) plus the smeared front at h = 1/8; 8% allows that. The balance
-  // E - W_R closes to the drift of the fixed-end bar (measured <= 0.03).
-  // Not otm: its particle velocities are interpolated from the nodal ones
-  // (v_p = sum N_Ip dx_I / dt), so the reset of the driven node's velocity is
-  // an impulse that the stored reaction -f_I does not contain (docs/stability.md).
+  // E(t) = W_R(t). Measured at t = 0.5, cfl 0.1: W_R / exact = 0.947 (fe),
+  // 0.962 (npc), 0.950 (musl): the reaction lags by about one step (2.5% of
+  // t), the front is smeared at h = 1/8, and W_R counts the kinetic energy
+  // the impulsive start takes (the particles at rest jump to v0 at the
+  // driven node); 10% allows that. The balance E - W_R closes to 0.022
+  // (fe), 0.044 (npc), 0.021 (musl). otm (consistent mass) closes to 0.17
+  // (before its driven node's change was booked: 5.14): its free rows do not
+  // see the moving value (docs/theory.md sect. 6), and E ends 16% above W_R.
   const double v0 = 0.01, t_end = 0.5;
   const std::string extra =
       "[[boundary]]\nname = \"piston\"\nlower = [0.0]\nupper = [0.0]\nfix = [true]\nvalue = [" +
@@ -145,13 +152,15 @@ TEST_CASE("energy balance: a moving boundary does the work rho c v0^2 t of a pis
     MESSAGE("piston, " << std::string(integrator) << ": W_R = " << e.energy().reaction_work << " (exact "
                        << exact << "), E = " << e.energy().total() << ", drift " << drift);
     CHECK(e.energy().initial == 0.0);
-    CHECK(e.energy().reaction_work == doctest::Approx(exact).epsilon(0.08));
-    CHECK(drift < 0.05);
+    CHECK(e.energy().reaction_work == doctest::Approx(exact).epsilon(0.1));
+    CHECK(drift < 0.06);
   }
+  Engine<1> otm = assemble<1>(parse_scene(bar_scene("ul", "otm", "linear", 0.1, t_end, extra), "piston.toml"));
+  CHECK(run_balance(otm) < 0.2);
 }
 
 TEST_CASE("energy summary: max_energy_ratio and energy_drift of a run") {
-  // The fixed-end bar of the first test (mpm fe linear, measured drift 0.030)
+  // The fixed-end bar of the first test (mpm fe linear, measured drift 0.032)
   // through run_scene. The ratio is at least 1 (t = 0 is a sample); FE's
   // energy oscillates above E(0) by up to 1.9% (measured 1.0193) on this
   // 8-cell bar: below the stability band of 0.05 used by the studies.
@@ -161,8 +170,8 @@ TEST_CASE("energy summary: max_energy_ratio and energy_drift of a run") {
       run_scene(parse_scene(bar_scene("mpm", "fe", "linear", 0.1, 4.0, kMode + kFixedEnds), "bar.toml"), opt);
   REQUIRE(s.exit_code == 0);
   CHECK(s.energy.initial > 0.0);
-  CHECK(s.energy.max_work == 0.0);
-  CHECK(s.energy.max_energy_ratio() == doctest::Approx(s.energy.max_energy / s.energy.initial));
+  CHECK(s.energy.max_work <= 0.01 * s.energy.initial); // what the supports take at the start (0.4 %)
+  CHECK(s.energy.max_energy_ratio() == doctest::Approx(s.energy.max_energy / (s.energy.initial + s.energy.max_work)));
   CHECK(s.energy.max_energy_ratio() >= 1.0); // the maximum includes t = 0
   CHECK(s.energy.max_energy_ratio() < 1.05);
   CHECK(s.energy.energy_drift() > 0.0);

@@ -49,7 +49,11 @@ void Constraints<D>::book_fixed(std::size_t I, int k, double J, const Ledger<D>&
 
 template <int D>
 void Constraints<D>::apply_velocity(AlignedVector<Vec<D>>& v, const NodeView<D>& nodes, const WallEffect<D>& effect,
-                                    const Ledger<D>& ledger) {
+                                    const Ledger<D>& ledger, bool first) {
+  // Particles that read a rate take up the change of a held component's
+  // value: its jump from what they bring in the first step, nothing later
+  // (the value is constant). Particles that read v itself take every change.
+  const bool jumps = effect.impulse && (first || !effect.rate);
   for (std::size_t i = 0; i < d_.node.size(); ++i) {
     const int I = d_.node[i];
     for (int k = 0; k < D; ++k) {
@@ -58,17 +62,20 @@ void Constraints<D>::apply_velocity(AlignedVector<Vec<D>>& v, const NodeView<D>&
       const auto node = static_cast<std::size_t>(I);
       const double jump = effect.impulse ? vbar - effect.start(v, node)[k] : 0.0;
       v[I][k] = vbar;
-      if (!effect.impulse || !nodes.active[I]) continue;
+      if (!jumps || !nodes.active[I]) continue;
       Vec<D> dv = Vec<D>::Zero();
       dv[k] = vbar - before; // zero the second time a node listed by two sets is met
-      effect.hand_on(node, dv);
+      if (effect.kick) (*effect.kick)[node] += dv;
+      else effect.hand_on(node, dv);
       const double J = nodes.m[I] * dv[k];
       if (effect.booking == Booking::held) continue; // book_held
       // The jump from the start velocity to vbar (zero once the particles
       // carry vbar) takes its kinetic energy: a perfectly plastic impact.
-      if (counts(I) && dv[k] != 0.0) *ledger.work -= 0.5 * nodes.m[I] * jump * jump;
-      if (effect.booking == Booking::now) book_fixed(node, k, J, ledger);
-      if (effect.booking != Booking::carried) continue;
+      // Not where the particles read v itself (otm): their velocity is the
+      // nodes' field, of which the node's start velocity is no part.
+      if (counts(I) && dv[k] != 0.0 && effect.rate) *ledger.work -= 0.5 * nodes.m[I] * jump * jump;
+      if (effect.booking == Booking::now || effect.kick) book_fixed(node, k, J, ledger);
+      if (effect.booking != Booking::carried || effect.kick) continue;
       size_carried(v.size());
       carried_step_[0][node][k] += J; // booked by book_carried
     }
@@ -192,7 +199,7 @@ void Constraints<D>::book_held(const Held<D>& step, AlignedVector<Vec<D>>& q, co
       wall_impulse[w] += m * dv;
       *ledger.work += (m * dv).dot(wall.velocity);
     }
-    for (int k = 0; k < D; ++k) {
+    for (int k = 0; k < D && step.first; ++k) {
       const std::size_t c = I * D + static_cast<std::size_t>(k);
       if (!constrained_[c]) continue;
       held = true;

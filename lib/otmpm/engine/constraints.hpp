@@ -66,6 +66,11 @@ template <int D> struct WallEffect {
   bool impulse = true;
   bool hold_rate = false;
   Booking booking = Booking::now;
+  /// A held component's jump goes here instead of to the rate (kick_I +=
+  /// dv_I): a velocity change the particles take up as it is and do not keep
+  /// as an acceleration (explicit_alpha, whose kept rate would hand part of
+  /// it back later); booked at once.
+  AlignedVector<Vec<D>>* kick = nullptr;
   /// The particles take up reach x dv through the rate (npc's corrector,
   /// whose particles read its rate times dt: 1 / gamma).
   double reach = 1.0;
@@ -123,11 +128,13 @@ template <int D> Vec<D> wall_change(const Vec<D>& u, const Vec<D>& n, double dn,
   return change;
 }
 
-/// What Constraints::book_held reads of npc's step: the time t and step dt,
+/// What Constraints::book_held reads of npc's step: the time t and step dt
+/// (and whether it is the run's first),
 /// the nodal forces f (the fixed components zeroed) and the rate the
 /// particles take up times dt.
 template <int D> struct Held {
   double t, dt;
+  bool first; ///< the run's first step
   const AlignedVector<Vec<D>>& f;
   const AlignedVector<Vec<D>>& rate;
 };
@@ -153,15 +160,18 @@ public:
   /// Sets the fixed components of a nodal velocity-like field to their
   /// value. In a pass whose change is the body's (effect.impulse) the change
   /// dv = vbar - v_Ik of an active node reaches the particles as `effect`
-  /// says (the held velocity is carried by the particles); its impulse J =
-  /// m_I dv is booked (book_fixed) as effect.booking says, and the kinetic
+  /// says - where they read a rate, only in the `first` step of the run (the
+  /// jump from the velocity they bring to the held one; the value is
+  /// constant, so its rate is zero later), where they read v itself (otm)
+  /// every step; its impulse J = m_I dv is booked (book_fixed) as
+  /// effect.booking says, and the kinetic
   /// energy m_I (vbar - s)^2 / 2 that the jump from the component's start
   /// velocity s (WallEffect::start) takes is taken off the work (a
   /// perfectly plastic impact on the set; zero once the particles carry
   /// vbar). With the component's force removed (s = v_Ik) the work is that
   /// at the mean velocity, J (s + vbar) / 2.
   void apply_velocity(AlignedVector<Vec<D>>& v, const NodeView<D>& nodes, const WallEffect<D>& effect,
-                      const Ledger<D>& ledger);
+                      const Ledger<D>& ledger, bool first);
   /// Sets the fixed components of a nodal increment to dt vbar.
   void apply_increment(AlignedVector<Vec<D>>& dx, double dt) const;
   /// Moves the fixed components of f into `reaction` (zeroing them in f)
@@ -179,7 +189,8 @@ public:
   /// + dt f_I / m_I (npc's particle update, from the velocity they brought):
   /// each wall that holds node I applies its rule (6.2-6.3) to u - so
   /// Coulomb's bound holds between the tangential and the normal momentum
-  /// the particles get - and a Dirichlet set's components end at vbar. q
+  /// the particles get - and, in the first step, a Dirichlet set's
+  /// components end at vbar (apply_velocity). q
   /// becomes the kick that adds the difference to dt rate there (zero
   /// elsewhere); the walls' m dv are their impulses (work m dv . w, friction
   /// by friction_loss from the velocity brought), a set's m_I (vbar - q_Ik /

@@ -383,7 +383,7 @@ template <int D> void Engine<D>::constrain_velocity(AlignedVector<Vec<D>>& v, co
   // A distributed run books this rank's owned nodes, summed over the ranks after the step.
   const NodeView<D> nodes{field_positions(), nodal_.m, nodal_.active};
   const Ledger<D> books = ledger();
-  constraints_.apply_velocity(v, nodes, effect, books);
+  constraints_.apply_velocity(v, nodes, effect, books, step_ == 0);
   if (contact_)
     contact_->apply(v, {nodal_.m, nodal_.active, constraints_.constrained()}, effect, *books.friction);
   if (constraints_.walls().empty()) return;
@@ -391,7 +391,8 @@ template <int D> void Engine<D>::constrain_velocity(AlignedVector<Vec<D>>& v, co
 }
 
 template <int D> void Engine<D>::book_held(const AlignedVector<Vec<D>>& rate) {
-  constraints_.book_held({t_, dt_, nodal_.f, rate}, nodal_.q, {field_positions(), nodal_.m, nodal_.active}, ledger());
+  constraints_.book_held({t_, dt_, step_ == 0, nodal_.f, rate}, nodal_.q, {field_positions(), nodal_.m, nodal_.active},
+                         ledger());
 }
 
 template <int D> void Engine<D>::book_carried(double alpha_m, double gamma, bool first) {

@@ -45,8 +45,12 @@ template <int D> void step_explicit_alpha(Engine<D>& e, const StepContext<D>& s)
     n.a[I] = (n.a[I] - am * n.dx[I]) / (1.0 - am);
     n.v[I] += dt * ((1.0 - gamma) * n.dx[I] + gamma * n.a[I]);
   });
-  e.constrain_velocity(n.v, {.rate = &n.a, .c = gamma * dt, .booking = Booking::carried});
-  e.book_carried(am, gamma, s.step == 0);
+  // In the first step the held components jump to their values: a kick (in
+  // q), which a_p does not keep.
+  const bool first = s.step == 0;
+  if (first) scale(n.q, 0.0, n.v);
+  e.constrain_velocity(n.v, {.rate = &n.a, .c = gamma * dt, .booking = Booking::carried, .kick = first ? &n.q : nullptr});
+  e.book_carried(am, gamma, first);
   // 4. dx = dt v_{n+1} + dt^2 ((gamma - 1/2 - beta) a_n + (beta - gamma) a_{n+1})
   //    (= dt v_n + dt^2 ((1/2 - beta) a_n + beta a_{n+1})).
   parallel_for(static_cast<long long>(n.a.size()), [&](long long I) {
@@ -55,7 +59,8 @@ template <int D> void step_explicit_alpha(Engine<D>& e, const StepContext<D>& s)
   e.constrain_increment(n.dx);
   // 5. v_p += dt ((1 - gamma) a_p + gamma sum N a_{n+1}); a_p = sum N a_{n+1}; x_p += sum N dx.
   parallel_for(P.size(), [&](long long p) { P.v[p] += (dt * (1.0 - gamma)) * P.a[p]; });
-  e.to_particles({.rate = &n.a, .c_rate = gamma * dt, .rate_out = &P.a, .move = &n.dx, .c_move = 1.0});
+  e.to_particles({.rate = &n.a, .c_rate = gamma * dt, .rate_out = &P.a, .kick = first ? &n.q : nullptr, .move = &n.dx,
+                  .c_move = 1.0});
   // 6. the stress from the increment, F_p = (I + sum dx_I (x) grad N_Ip) F_p; x_I += dx_I in ul.
   e.update_stress({&n.dx, 1.0});
   e.advect_nodes(n.dx);

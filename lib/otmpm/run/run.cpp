@@ -288,6 +288,7 @@ public:
 
   void finish(RunSummary& s) {
     s.energy = energy_;
+    const std::vector<BodyVolume> volumes = body_volumes<D>(scene_, e_); // every rank
     for (const Probe& pr : probes_)
       if (exact_ && pr.samples > 0) s.errors["history_error_" + pr.name] = std::sqrt(pr.sum_sq / pr.samples);
     if (exact_ && s.exit_code == 0 && !s.interrupted) final_errors(s);
@@ -304,7 +305,7 @@ public:
     view_.collectively([&] {
       if (writer_ && writer_->writable()) { // after a failed HDF5 write the file is left as it is
         try {
-          write_summary(s, distributed);
+          write_summary(s, distributed, volumes);
         } catch (const OutputError& err) {
           s.status = std::string("output error: ") + err.what();
           s.exit_code = kOutputErrorExit;
@@ -339,8 +340,11 @@ private:
     int samples;
   };
 
-  /// The final status and summary attributes (and those of a distributed run).
-  void write_summary(const RunSummary& s, const std::vector<std::pair<std::string, double>>& distributed) {
+  /// The final status and summary attributes (and those of a distributed
+  /// run; the bodies' volumes: volume_NAME as seeded, exact_volume_NAME of
+  /// the shape).
+  void write_summary(const RunSummary& s, const std::vector<std::pair<std::string, double>>& distributed,
+                     const std::vector<BodyVolume>& volumes) {
     writer_->set_attribute("status", s.status);
     writer_->set_attribute("steps", static_cast<long long>(s.steps));
     writer_->set_attribute("t_end", s.time);
@@ -353,6 +357,10 @@ private:
     for (std::size_t i = 0; i < phase_names.size(); ++i)
       writer_->set_attribute("seconds_" + std::string(phase_names[i]), s.timers.seconds[i]);
     for (const auto& [name, value] : distributed) writer_->set_attribute(name, value);
+    for (const BodyVolume& v : volumes) {
+      writer_->set_attribute("volume_" + v.name, v.seeded);
+      if (std::isfinite(v.exact)) writer_->set_attribute("exact_volume_" + v.name, v.exact);
+    }
     writer_->publish();
   }
 

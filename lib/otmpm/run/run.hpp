@@ -116,6 +116,19 @@ RunSummary restart_run(const Checkpoint& checkpoint, const RunOptions& options =
 std::string summary_line(const RunSummary& s);
 
 /// What `otmpm run --check` prints about a scene without running it.
+template <int D> class Engine;
+
+/// A body's volume (area, length) as seeded - the sum of its particles'
+/// volumes at t = 0 - and its shape's exact one (NaN for a file body).
+struct BodyVolume {
+  std::string name;
+  double seeded = 0.0, exact = 0.0;
+};
+
+/// The BodyVolume of every body of the scene, from the particles of an
+/// engine built from it (all ranks' particles: collective in a distributed run).
+template <int D> std::vector<BodyVolume> body_volumes(const Scene& scene, const Engine<D>& e);
+
 struct SceneCheck {
   int dimension = 1;
   std::string mode, integrator, basis;
@@ -127,6 +140,7 @@ struct SceneCheck {
   double estimated_steps = 0.0;
   double memory_bytes = 0.0; ///< estimate_memory_bytes(scene)
   std::string out_file;      ///< output.file
+  std::vector<BodyVolume> volumes; ///< per body
 };
 
 /// Validates the scene as a run would (the scene checks and the engine's

@@ -1,6 +1,7 @@
 // check_scene() and estimate_memory_bytes() (run.hpp): what `otmpm run
 // --check` prints about a scene without running it.
 #include "otmpm/assembly/assembler.hpp"
+#include "otmpm/assembly/seeding.hpp"
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/integrators/integrator.hpp"
 #include "otmpm/materials/models.hpp"
@@ -27,10 +28,26 @@ template <int D> SceneCheck check_dim(const Scene& scene) {
   c.estimated_steps = c.dt > 0 ? std::ceil(c.t_end / c.dt * (1.0 - 1e-9)) : 0.0;
   c.memory_bytes = estimate_memory_bytes(scene);
   c.out_file = scene.output.file;
+  c.volumes = body_volumes<D>(scene, e);
   return c;
 }
 
 } // namespace
+
+template <int D> std::vector<BodyVolume> body_volumes(const Scene& scene, const Engine<D>& e) {
+  std::vector<double> seeded(scene.bodies.size(), 0.0);
+  const Particles<D>& P = e.particles();
+  for (int p = 0; p < P.size(); ++p) seeded[static_cast<std::size_t>(P.body[p])] += P.V0[p];
+  if (Distribution<D>* d = e.distribution()) d->sum(seeded);
+  std::vector<BodyVolume> out;
+  for (std::size_t b = 0; b < scene.bodies.size(); ++b)
+    out.push_back({scene.bodies[b].name, seeded[b], body_measure<D>(scene.bodies[b])});
+  return out;
+}
+
+template std::vector<BodyVolume> body_volumes<1>(const Scene&, const Engine<1>&);
+template std::vector<BodyVolume> body_volumes<2>(const Scene&, const Engine<2>&);
+template std::vector<BodyVolume> body_volumes<3>(const Scene&, const Engine<3>&);
 
 double estimate_memory_bytes(const Scene& scene) {
   const int D = scene.simulation.dimension;

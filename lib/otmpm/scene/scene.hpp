@@ -91,6 +91,10 @@ struct BodySection {
   int file_particles = 0;              ///< file: the number of particles it holds
   std::string file_read;               ///< file: the path file_particles, lower and upper were read from (else empty)
   std::string overlap = "error";       ///< "first": particles inside an earlier body are dropped
+  /// "exact": the particle volumes (and masses) of a shape seeded on the
+  /// lattice are scaled to sum to the shape's exact volume (area, length);
+  /// "seeded": as seeded (the sum approaches it as the cells shrink).
+  std::string volume = "seeded";
   int particles_per_cell = 2;           ///< per axis
   std::string placement = "gauss";      ///< gauss | cell_centres
   Vec3 velocity{0, 0, 0};
