@@ -51,8 +51,9 @@ template <int D>
 void Constraints<D>::apply_velocity(AlignedVector<Vec<D>>& v, const NodeView<D>& nodes, const WallEffect<D>& effect,
                                     const Ledger<D>& ledger, bool first) {
   // Particles that read a rate take up the change of a held component's
-  // value: its jump from what they bring in the first step, nothing later
-  // (the value is constant). Particles that read v itself take every change.
+  // value: in the first step a component held at a velocity jumps from what
+  // they bring to it, nothing later (the value is constant); a support at
+  // rest holds what reaches it. Particles that read v itself take every change.
   const bool jumps = effect.impulse && (first || !effect.rate);
   for (std::size_t i = 0; i < d_.node.size(); ++i) {
     const int I = d_.node[i];
@@ -62,7 +63,7 @@ void Constraints<D>::apply_velocity(AlignedVector<Vec<D>>& v, const NodeView<D>&
       const auto node = static_cast<std::size_t>(I);
       const double jump = effect.impulse ? vbar - effect.start(v, node)[k] : 0.0;
       v[I][k] = vbar;
-      if (!jumps || !nodes.active[I]) continue;
+      if (!jumps || (effect.rate && vbar == 0.0) || !nodes.active[I]) continue;
       Vec<D> dv = Vec<D>::Zero();
       dv[k] = vbar - before; // zero the second time a node listed by two sets is met
       if (effect.kick) (*effect.kick)[node] += dv;
@@ -201,7 +202,7 @@ void Constraints<D>::book_held(const Held<D>& step, AlignedVector<Vec<D>>& q, co
     }
     for (int k = 0; k < D && step.first; ++k) {
       const std::size_t c = I * D + static_cast<std::size_t>(k);
-      if (!constrained_[c]) continue;
+      if (!constrained_[c] || vbar_[c] == 0.0) continue;
       held = true;
       // f is zero here (apply_force booked it); the jump from what the
       // particles brought is the set's.

@@ -160,10 +160,11 @@ public:
   /// Sets the fixed components of a nodal velocity-like field to their
   /// value. In a pass whose change is the body's (effect.impulse) the change
   /// dv = vbar - v_Ik of an active node reaches the particles as `effect`
-  /// says - where they read a rate, only in the `first` step of the run (the
-  /// jump from the velocity they bring to the held one; the value is
-  /// constant, so its rate is zero later), where they read v itself (otm)
-  /// every step; its impulse J = m_I dv is booked (book_fixed) as
+  /// says - where they read a rate, only in the `first` step of the run and
+  /// for a component held at a velocity (vbar != 0: the jump from the
+  /// velocity they bring to the held one; the value is constant, so its rate
+  /// is zero later; a support at rest holds what reaches it), where they
+  /// read v itself (otm) every step; its impulse J = m_I dv is booked (book_fixed) as
   /// effect.booking says, and the kinetic
   /// energy m_I (vbar - s)^2 / 2 that the jump from the component's start
   /// velocity s (WallEffect::start) takes is taken off the work (a
@@ -190,7 +191,7 @@ public:
   /// each wall that holds node I applies its rule (6.2-6.3) to u - so
   /// Coulomb's bound holds between the tangential and the normal momentum
   /// the particles get - and, in the first step, a Dirichlet set's
-  /// components end at vbar (apply_velocity). q
+  /// components held at a velocity end at vbar (apply_velocity). q
   /// becomes the kick that adds the difference to dt rate there (zero
   /// elsewhere); the walls' m dv are their impulses (work m dv . w, friction
   /// by friction_loss from the velocity brought), a set's m_I (vbar - q_Ik /
