@@ -129,9 +129,8 @@ template <int D> Vec<D> wall_change(const Vec<D>& u, const Vec<D>& n, double dn,
 }
 
 /// What Constraints::book_held reads of npc's step: the time t and step dt
-/// (and whether it is the run's first),
-/// the nodal forces f (the fixed components zeroed) and the rate the
-/// particles take up times dt.
+/// (and whether it is the run's first), the nodal forces f (the fixed
+/// components zeroed) and the rate the particles take up times dt.
 template <int D> struct Held {
   double t, dt;
   bool first; ///< the run's first step
@@ -160,17 +159,16 @@ public:
   /// Sets the fixed components of a nodal velocity-like field to their
   /// value. In a pass whose change is the body's (effect.impulse) the change
   /// dv = vbar - v_Ik of an active node reaches the particles as `effect`
-  /// says - where they read a rate, only in the `first` step of the run and
+  /// says: where they read a rate, only in the `first` step of the run and
   /// for a component held at a velocity (vbar != 0: the jump from the
-  /// velocity they bring to the held one; the value is constant, so its rate
-  /// is zero later; a support at rest holds what reaches it), where they
-  /// read v itself (otm) every step; its impulse J = m_I dv is booked (book_fixed) as
-  /// effect.booking says, and the kinetic
-  /// energy m_I (vbar - s)^2 / 2 that the jump from the component's start
-  /// velocity s (WallEffect::start) takes is taken off the work (a
-  /// perfectly plastic impact on the set; zero once the particles carry
-  /// vbar). With the component's force removed (s = v_Ik) the work is that
-  /// at the mean velocity, J (s + vbar) / 2.
+  /// velocity they bring to the held one; the value is constant, so its
+  /// rate is zero later; a support at rest holds what reaches it); where
+  /// they read v itself (otm), every step. Its impulse J = m_I dv is booked
+  /// (book_fixed) as effect.booking says, and the kinetic energy m_I (vbar -
+  /// s)^2 / 2 that the jump from the component's start velocity s
+  /// (WallEffect::start) takes comes off the work (a perfectly plastic
+  /// impact on the set). With the component's force removed (s = v_Ik) the
+  /// work is that at the mean velocity, J (s + vbar) / 2.
   void apply_velocity(AlignedVector<Vec<D>>& v, const NodeView<D>& nodes, const WallEffect<D>& effect,
                       const Ledger<D>& ledger, bool first);
   /// Sets the fixed components of a nodal increment to dt vbar.
@@ -208,8 +206,9 @@ public:
   /// a_p carried from step to step, its part of the new total
   ///   Y = (s - alpha_m (X - z)) / (1 - alpha_m) + W / (gamma dt)
   /// (s: the reaction R = -f removed from the force, z: the momentum
-  /// zero_carried removed, W: the pass's m dv; X = s in the first step, where
-  /// a_n = f / m), of which the particles take up J = dt ((1 - gamma) X +
+  /// zero_carried removed - both on fixed components -, W: a wall's m dv in
+  /// the pass; X = s in the first step, where a_n = f / m), of which the
+  /// particles take up J = dt ((1 - gamma) X +
   /// gamma Y) now; X becomes Y. J is booked as a Dirichlet reaction
   /// (book_fixed) or as the wall's impulse (work J . w).
   void book_carried(double alpha_m, double gamma, double dt, bool first, const AlignedVector<Vec<D>>& reaction,
