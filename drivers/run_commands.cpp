@@ -8,6 +8,7 @@
 #include "otmpm/run/restart.hpp"
 #include "otmpm/run/run.hpp"
 #include "otmpm/io/checkpoint.hpp"
+#include "otmpm/scene/resources.hpp"
 #include "otmpm/scene/scene.hpp"
 
 #include <algorithm>
@@ -80,16 +81,6 @@ std::function<void(double, double, long)> progress(const SceneArgs& a) {
   return make_progress(a.quiet, a.progress_interval);
 }
 
-/// "1.23 MB" etc.
-std::string bytes_text(double bytes) {
-  const char* units[] = {"B", "kB", "MB", "GB", "TB"};
-  int u = 0;
-  while (bytes >= 1000 && u < 4) bytes /= 1000, ++u;
-  char b[32];
-  std::snprintf(b, sizeof b, "%.3g %s", bytes, units[u]);
-  return b;
-}
-
 /// `otmpm run --check`: what a run of the scene would be, without running it.
 int check_command(const SceneArgs& a) {
   Scene scene;
@@ -102,15 +93,16 @@ int check_command(const SceneArgs& a) {
   std::printf("  particles  %ld\n  nodes      %ld\n", c.particles, c.nodes);
   std::printf("  dt         %.6g s (first step%s)\n", c.dt, scene.simulation.dt ? ", fixed" : ", cfl rule");
   std::printf("  steps      about %.0f (t_end = %.6g s)\n", c.estimated_steps, c.t_end);
-  std::printf("  memory     about %s (estimate)\n", bytes_text(c.memory_bytes).c_str());
-  for (const BodyVolume& v : c.volumes) {
-    std::printf("  body '%s'  volume %.6g", v.name.c_str(), v.seeded);
-    if (std::isfinite(v.exact))
-      std::printf(" (its shape's exact volume %.6g: %+.3g %%%s)", v.exact, 100.0 * (v.seeded - v.exact) / v.exact,
-                  std::abs(v.seeded - v.exact) > 1e-12 * v.exact ? "; volume = \"exact\" scales it" : "");
-    std::printf("\n");
-  }
+  std::printf("  memory     about %s (the run's estimate; limit %s)\n", format_bytes(c.memory_bytes).c_str(),
+              format_bytes(c.memory_limit).c_str());
   std::printf("  results    %s\n", (a.out.empty() ? c.out_file : a.out).c_str());
+  for (const BodyVolume& v : c.volumes) {
+    if (!std::isfinite(v.exact)) continue; // a file body: its particles' volumes are its volume
+    const double error = (v.seeded - v.exact) / v.exact;
+    std::printf("  volume     body '%s' (%s): particles %.6g, shape %.6g (error %+.3g %%)%s\n", v.name.c_str(),
+                v.shape.c_str(), v.seeded, v.exact, 100.0 * error,
+                std::abs(error) > 1e-12 ? "; volume = \"exact\" scales the particles to the shape" : "");
+  }
   return 0;
 }
 
@@ -151,6 +143,7 @@ int run_command(const SceneArgs& a) {
     });
     s = restart_run(*ck, opt);
   }
+  if (s.interrupted) share_interrupt_signal();
   if (!prints()) return s.interrupted ? interrupted_exit_status() : s.exit_code;
   end_progress_line();
   if (s.interrupted) report_interrupt(s, scene.get());
@@ -167,17 +160,29 @@ std::string fmt(const char* f, double v) {
   return b;
 }
 
+/// An error's row label with its unit: absolute RMS errors in the
+/// quantity's SI unit (velocity and a probe's velocity history m/s,
+/// displacement m, stress Pa).
+std::string error_label(const std::string& name) {
+  const char* unit = name.rfind("history_error_", 0) == 0 ? "m/s"
+                     : name == "rms_velocity_error"       ? "m/s"
+                     : name == "rms_displacement_error"   ? "m"
+                     : name == "rms_stress_error"         ? "Pa"
+                                                          : "";
+  return *unit ? name + " [" + unit + "]" : name;
+}
+
 /// The side-by-side table of `pair` (one column per finished run).
 void print_pair_table(const std::vector<RunSummary>& runs) {
   std::vector<std::string> names;
   for (const auto& r : runs)
     for (const auto& [n, v] : r.errors)
       if (std::find(names.begin(), names.end(), n) == names.end()) names.push_back(n);
-  std::printf("%-26s", "");
+  std::printf("%-32s", "");
   for (const auto& r : runs) std::printf(" %16s", r.mode.c_str());
   std::printf("\n");
   auto row = [&](const std::string& label, auto get) {
-    std::printf("%-26s", label.c_str());
+    std::printf("%-32s", label.c_str());
     for (const auto& r : runs) std::printf(" %16s", get(r).c_str());
     std::printf("\n");
   };
@@ -186,7 +191,7 @@ void print_pair_table(const std::vector<RunSummary>& runs) {
   });
   row("basis / integrator", [](const RunSummary& r) { return r.basis + "/" + r.integrator; });
   for (const std::string& n : names)
-    row(n, [&](const RunSummary& r) {
+    row(error_label(n), [&](const RunSummary& r) {
       auto it = r.errors.find(n);
       return it == r.errors.end() ? std::string("-") : fmt("%.4e", it->second);
     });
@@ -216,6 +221,7 @@ int pair_command(const SceneArgs& a) {
     opt.interrupt = &interrupt_flag();
     opt.progress = progress(a);
     runs.push_back(run_scene(scene, opt));
+    if (runs.back().interrupted) share_interrupt_signal();
     end_progress_line();
     if (runs.back().interrupted && prints()) report_interrupt(runs.back(), &scene);
     if (runs.back().interrupted) break;
@@ -227,7 +233,8 @@ int pair_command(const SceneArgs& a) {
       std::fprintf(stderr, "otmpm: %s run: %s\n", r.mode.c_str(), r.status.c_str());
     status = std::max(status, r.exit_code);
   }
-  return interrupt_flag().load() ? interrupted_exit_status() : status;
+  const bool stopped = interrupt_flag().load() || (!runs.empty() && runs.back().interrupted);
+  return stopped ? interrupted_exit_status() : status;
 }
 
 } // namespace

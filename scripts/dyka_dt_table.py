@@ -12,7 +12,7 @@ error of point A and the energy lost by t_end,
 in per cent of E(0) (positive: the scheme dissipated energy), and a table of
 wall times. Usage:
 
-    /usr/bin/python3 scripts/dyka_dt_table.py examples/studies/dyka_dt.csv [--results DIR]
+    /usr/bin/python3 scripts/dyka_dt_table.py docs/data/studies/dyka_dt.csv [--results DIR]
 """
 import argparse
 import csv

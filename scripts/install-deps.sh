@@ -1,6 +1,9 @@
 #!/usr/bin/env bash
 # Installs otmpm's build, test and plotting dependencies from Debian packages
-# (with pybind11, the Python headers and pytest for the Python package).
+# (with pybind11, the Python headers and pytest for the Python package; venv,
+# pip, setuptools and wheel for `pip install .`; nbclient and ipykernel to
+# execute the notebooks headless; ccache, which CI uses to compile the pip
+# build's files once).
 # Idempotent: safe to run again; does nothing when everything is present.
 # With arguments, installs those packages instead (scripts/fuzz.sh: clang).
 #
@@ -26,6 +29,9 @@ pkgs=(
   libtomlplusplus-dev doctest-dev libcli11-dev doxygen
   python3 python3-matplotlib python3-h5py python3-numpy python3-meshio
   python3-dev pybind11-dev python3-pytest
+  python3-venv python3-pip python3-setuptools python3-wheel
+  python3-nbclient python3-nbformat python3-ipykernel
+  ccache
 )
 if [ -z "${OTMPM_NO_PARAVIEW:-}" ]; then
   pkgs+=(paraview python3-paraview xvfb xauth)

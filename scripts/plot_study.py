@@ -2,7 +2,7 @@
 """Work-precision and convergence plots of an `otmpm study` CSV.
 
     /usr/bin/python3 scripts/plot_study.py STUDY.csv [--error rms_velocity_error] [--out PREFIX]
-        [--variants REGEX] [--title TEXT] [--table]
+        [--variants REGEX] [--title TEXT] [--table] [--order COLUMN] [--estimate COLUMN]
 
 Writes PREFIX_work_precision.{png,svg} (error against wall time, log-log, one
 line per variant through its mesh sizes) and PREFIX_convergence.{png,svg}
@@ -10,7 +10,11 @@ line per variant through its mesh sizes) and PREFIX_convergence.{png,svg}
 red crosses at the top of the axes, at their wall time / h, not left out.
 With --table it also prints a markdown table on stdout: one row per variant,
 one column per mesh, each cell "error / wall time" (or the status of a run
-that did not finish ok).
+that did not finish ok). With --order COLUMN (an errors CSV of
+otmpm.convergence: the observed order) each variant's label gives its
+observed order between its two finest runs; with --estimate COLUMN a dashed
+line of the variant's colour draws that column too (the Richardson error
+estimate |q - q_Richardson|).
 """
 import argparse
 import csv
@@ -33,7 +37,7 @@ def number(text):
     return value
 
 
-def load(path, error, pattern):
+def load(path, error, pattern, order=None, estimate=None):
     series = defaultdict(list)
     with open(path, newline="") as f:
         for row in csv.DictReader(f):
@@ -47,6 +51,8 @@ def load(path, error, pattern):
                     "ok": row["status"] == "ok",
                     "mesh": row["mesh"],
                     "status": row["status"],
+                    "order": number(row.get(order)) if order else math.nan,
+                    "estimate": number(row.get(estimate)) if estimate else math.nan,
                 }
             )
     for runs in series.values():
@@ -60,10 +66,18 @@ def draw(series, xkey, xlabel, error, title, prefix, suffix):
     top = max(finite) * 3 if finite else 1.0
     markers = "osD^v<>phX*"
     bad_labelled = False
+    estimate_labelled = False
     for i, (variant, runs) in enumerate(sorted(series.items())):
         good = [r for r in runs if r["ok"] and r["error"] > 0 and r[xkey] > 0]
+        orders = [r["order"] for r in good if math.isfinite(r["order"])]
+        label = variant + (f" (observed order {orders[-1]:.2f})" if orders else "")
         line = ax.loglog([r[xkey] for r in good], [r["error"] for r in good], marker=markers[i % len(markers)],
-                         ms=4, lw=1.2, label=variant, color=plt.cm.tab20(i % 20))[0]
+                         ms=4, lw=1.2, label=label, color=plt.cm.tab20(i % 20))[0]
+        rich = [r for r in runs if r["ok"] and r["estimate"] > 0 and r[xkey] > 0]
+        if rich:
+            ax.loglog([r[xkey] for r in rich], [r["estimate"] for r in rich], ls="--", lw=1, color=line.get_color(),
+                      label=None if estimate_labelled else "dashed: Richardson estimate of the error")
+            estimate_labelled = True
         bad = [r for r in runs if not r["ok"] and r[xkey] > 0]
         if bad:
             ax.loglog([r[xkey] for r in bad], [top] * len(bad), "x", color="red", ms=9, mew=2,
@@ -110,9 +124,11 @@ def main(argv):
     p.add_argument("--variants", default=None, help="regular expression selecting variants")
     p.add_argument("--title", default=None)
     p.add_argument("--table", action="store_true", help="print the markdown table of error / wall time")
+    p.add_argument("--order", default=None, help="column of the observed order (shown in the legend)")
+    p.add_argument("--estimate", default=None, help="column of an error estimate (dashed lines)")
     a = p.parse_args(argv)
     prefix = a.out or re.sub(r"\.csv$", "", a.csv)
-    series = load(a.csv, a.error, a.variants)
+    series = load(a.csv, a.error, a.variants, a.order, a.estimate)
     if not series:
         sys.exit(f"{a.csv}: no rows")
     title = a.title or a.csv

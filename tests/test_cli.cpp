@@ -192,7 +192,24 @@ TEST_CASE("cli: an unknown command or no command exits with 2") {
   CHECK(r.status == 2);
   CHECK(r.err.find("frobnicate") != std::string::npos);
   CHECK(run_cli(dir, {}).status == 2);
-  CHECK(run_cli(dir, {"--help"}).status == 0);
+  const CliResult help = run_cli(dir, {"--help"});
+  CHECK(help.status == 0);
+  // every exit status the command uses is listed
+  for (const char* status : {"0 ok", "1 the simulation", "2 bad input", "3 internal", "4 the results", "130/143"})
+    CHECK_MESSAGE(help.out.find(status) != std::string::npos, status);
+}
+
+TEST_CASE("cli: a process a launcher started among others it cannot join says so and exits with 2") {
+  // PMI_SIZE = 3 without the launcher: this process cannot reach two peers,
+  // as a build without MPI (or with another MPI) under mpirun cannot
+  const otmpm::test::ShellResult r =
+      otmpm::test::shell("PMI_SIZE=3 PMI_RANK=0 OMP_NUM_THREADS=1 " + quote(kBinary) + " --version");
+  CHECK(r.status == 2);
+  CHECK(r.output.find("started by mpirun or srun as one of 3 processes, but this otmpm cannot join them as ranks") !=
+        std::string::npos);
+  const otmpm::test::ShellResult quiet = otmpm::test::shell("PMI_SIZE=3 PMI_RANK=1 " + quote(kBinary) + " --version");
+  CHECK(quiet.status == 2);
+  CHECK(quiet.output.empty()); // one message for all processes: the launcher's first prints it
 }
 
 TEST_CASE("cli: basis options that are not an int (out of range, fractional, negative seed) exit with 2") {

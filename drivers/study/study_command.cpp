@@ -57,12 +57,18 @@ std::vector<std::string> run_argv(const Study& s, const StudyRun& r, const Study
   return argv;
 }
 
-/// Draws the plots with the scripts found beside the executable (or --scripts).
+/// Draws the plots with the scripts found beside the executable (or --scripts):
+/// with [[measure]], the errors against the reference run (convergence.py:
+/// STEM_errors.csv and one pair of plots per measure).
 void draw_plots(const Study& s, const StudyArgs& a) {
-  const std::string name = s.stability.enabled ? "plot_stability.py" : "plot_study.py";
+  const std::string name = s.stability.enabled   ? "plot_stability.py"
+                           : !s.measures.empty() ? "convergence.py"
+                                                 : "plot_study.py";
   const fs::path script = scripts_dir(a.scripts) / name;
   std::vector<std::string> args{script.string(), s.csv.string()};
-  if (s.stability.enabled) {
+  if (!s.measures.empty()) {
+    args = {script.string(), s.file.string(), "--plots"};
+  } else if (s.stability.enabled) {
     char band[32];
     std::snprintf(band, sizeof band, "%.8g", s.stability.band);
     args.insert(args.end(), {"--band", band, "--key", s.stability.key});
@@ -80,7 +86,8 @@ void draw_plots(const Study& s, const StudyArgs& a) {
   args.insert(args.begin(), python);
   std::fflush(stdout);
   if (const int rc = run_and_wait(args); rc != 0)
-    std::fprintf(stderr, "otmpm: the plot script %s failed (exit status %d)\n", script.c_str(), rc);
+    std::fprintf(stderr, "otmpm: the %s script %s failed (exit status %d)\n",
+                 s.measures.empty() ? "plot" : "error and plot", script.c_str(), rc);
 }
 
 /// True when a child did not finish its run: killed by a signal, or an
@@ -231,8 +238,13 @@ int study_command(const StudyArgs& a) {
   std::vector<const StudyRun*> todo;
   for (const StudyRun& r : s.runs)
     if (!done.count({r.variant, r.mesh})) todo.push_back(&r);
-  std::printf("study %s: %zu runs, %zu already in %s, %zu to do, %d at a time\n", s.file.c_str(), s.runs.size(),
-              s.runs.size() - todo.size(), s.csv.c_str(), todo.size(), s.jobs);
+  if (todo.empty())
+    std::printf("study %s: nothing to run: all %zu runs are already in %s (delete it, or set another `csv`, to run "
+                "them again); drawing the plots from it\n",
+                s.file.c_str(), s.runs.size(), s.csv.c_str());
+  else
+    std::printf("study %s: %zu runs, %zu already in %s, %zu to do, %d at a time\n", s.file.c_str(), s.runs.size(),
+                s.runs.size() - todo.size(), s.csv.c_str(), todo.size(), s.jobs);
   std::fflush(stdout);
   InterruptHandlers handlers;
   if (const int status = StudyRunner(s, a, std::move(todo)).run(); status != 0) return status;

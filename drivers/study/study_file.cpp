@@ -1,5 +1,6 @@
 #include "study_file.hpp"
 
+#include "otmpm/io/output_files.hpp"
 #include "otmpm/scene/toml_reader.hpp"
 
 #include <algorithm>
@@ -166,6 +167,60 @@ StabilityCriterion read_stability(const TableReader& root) {
   return c;
 }
 
+/// The keys each kind of [[measure]] takes besides name and kind: required, then optional
+/// (otmpm.convergence.KINDS, which computes them).
+const std::map<std::string, std::pair<std::vector<std::string_view>, std::vector<std::string_view>>, std::less<>>
+    kMeasureKinds = {{"extent", {{"axis"}, {"initial"}}},
+                     {"footprint", {{"axis"}, {"layer", "center", "initial"}}},
+                     {"field", {{"field"}, {"points", "grid", "probes"}}},
+                     {"energy", {{"series"}, {}}}};
+
+/// The [[measure]] tables: names distinct, kinds known, their keys present
+/// (a field measure samples at `points`, a `grid` or `probes`: one of them).
+std::vector<Measure> read_measures(const TableReader& root) {
+  std::vector<Measure> out;
+  std::vector<std::pair<std::string, SourceRef>> names;
+  std::vector<std::string_view> kinds;
+  for (const auto& [kind, keys] : kMeasureKinds) kinds.push_back(kind);
+  for (const TableReader& t : root.tables("measure")) {
+    Measure m;
+    m.name = t.require<std::string>("name");
+    if (m.name.empty() || m.name.find_first_of(",\"\n") != std::string::npos)
+      input_error(t.ref("name"), "must be a non-empty name without commas, quotes or newlines (a CSV column)");
+    m.kind = t.choice("kind", "", kinds);
+    const auto& [required, optional] = kMeasureKinds.find(m.kind)->second;
+    std::vector<std::string_view> allowed{"name", "kind"};
+    allowed.insert(allowed.end(), required.begin(), required.end());
+    allowed.insert(allowed.end(), optional.begin(), optional.end());
+    t.only(allowed);
+    for (std::string_view key : required)
+      if (!t.has(key)) t.missing(key);
+    if (m.kind == "field" && t.has("points") + t.has("grid") + t.has("probes") != 1)
+      input_error(t.self(), "measure \"" + m.name + "\": give exactly one of points, grid and probes");
+    if (t.has("axis") && (t.require<int>("axis") < 0 || t.require<int>("axis") > 2))
+      input_error(t.ref("axis"), "must be 0, 1 or 2 (x, y, z)");
+    names.emplace_back(m.name, t.self());
+    out.push_back(m);
+  }
+  check_distinct(names, "measure");
+  return out;
+}
+
+/// The [reference] table: a `variant` of the study or a result `file`.
+void read_reference(const TableReader& root, const fs::path& dir, Study& s) {
+  auto t = root.table("reference");
+  if (!t) return;
+  t->only({"variant", "file"});
+  if (t->has("variant") && t->has("file")) input_error(t->self(), "give a variant or a file, not both");
+  if (t->has("file")) {
+    s.reference = dir / t->require<std::string>("file");
+    if (!fs::is_regular_file(s.reference))
+      input_error(t->ref("file"), "the reference result file " + s.reference.string() + " does not exist");
+  }
+  s.reference_variant = t->get<std::string>("variant", "");
+  if (s.measures.empty()) input_error(t->self(), "a [reference] needs [[measure]] tables: what to compare");
+}
+
 /// The nearest existing one of `p` and its parent folders ("" if none exists).
 fs::path existing_ancestor(fs::path p) {
   std::error_code ec;
@@ -192,10 +247,14 @@ void check_folder(const SourceRef& where, const fs::path& path, const std::strin
 void check_paths(const TableReader& root, const Study& s) {
   std::error_code ec;
   if (fs::is_directory(s.scene, ec)) input_error(root.ref("scene"), s.scene.string() + " is a directory, not a scene file");
+  if (const std::string kind = special_file(s.scene.string()); !kind.empty())
+    input_error(root.ref("scene"), s.scene.string() + " is " + kind + ", not a scene file");
   if (!fs::exists(s.scene, ec)) input_error(root.ref("scene"), "no such file " + s.scene.string());
   check_folder(s.results_where, s.results, "the folder for the result files");
   const SourceRef csv = root.has("csv") ? root.ref("csv") : root.self();
   if (fs::is_directory(s.csv, ec)) input_error(csv, s.csv.string() + " is a directory, not a CSV file");
+  if (const std::string kind = special_file(s.csv.string()); !kind.empty())
+    input_error(csv, s.csv.string() + " is " + kind + ", not a CSV file");
   const fs::path folder = s.csv.parent_path().empty() ? fs::path(".") : s.csv.parent_path();
   if (!fs::is_directory(folder, ec))
     input_error(csv, "the folder of the CSV file " + s.csv.string() + " does not exist (create it first)");
@@ -315,7 +374,8 @@ Study read_study(const fs::path& file) {
   Context ctx;
   ctx.file = file.string();
   const TableReader root(ctx, &table, "", SourceRef{ctx.file, 1, ""});
-  root.only({"scene", "csv", "results", "jobs", "error", "set", "sweep", "variant", "mesh", "stability"});
+  root.only({"scene", "csv", "results", "jobs", "error", "set", "sweep", "variant", "mesh", "stability", "reference",
+             "measure"});
   Study s;
   s.file = file;
   const fs::path dir = file.parent_path();
@@ -331,6 +391,8 @@ Study read_study(const fs::path& file) {
   s.jobs = root.get<int>("jobs", s.jobs);
   if (s.jobs < 1) input_error(root.ref("jobs"), "must be an integer >= 1");
   s.stability = read_stability(root);
+  s.measures = read_measures(root);
+  read_reference(root, dir, s);
   const Overrides common{overrides(root, "set"), root.has("set") ? root.ref("set") : root.self()};
   const std::vector<Variant> variants = read_variants(root);
   const std::vector<Mesh> meshes = read_meshes(root);
@@ -342,6 +404,9 @@ Study read_study(const fs::path& file) {
   check_distinct(names, "mesh");
   check_overrides(s.scene, common, meshes);
   make_runs(s, common.sets, variants, meshes);
+  if (!s.reference_variant.empty() &&
+      std::none_of(s.runs.begin(), s.runs.end(), [&](const StudyRun& r) { return r.variant == s.reference_variant; }))
+    input_error(root.table("reference")->ref("variant"), "no variant \"" + s.reference_variant + "\" in this study");
   if (s.stability.enabled &&
       std::find(s.param_keys.begin(), s.param_keys.end(), s.stability.key) == s.param_keys.end())
     input_error(s.stability.where,

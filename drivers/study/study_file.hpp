@@ -18,6 +18,13 @@
 ///   name = "n13"
 ///   h = 0.010254
 ///   set = ["grid.cells=[15]", "grid.lower=[-0.020508]"]
+///   [reference]                       # optional: errors against a reference run
+///   variant = "mpm-linear-npc"        # its finest run (default: each variant's own finest run)
+///   file = "reference.h5"             # or a given result file (relative to the study file)
+///   [[measure]]                       # what is compared (otmpm.convergence: extent, footprint, field, energy)
+///   name = "length"
+///   kind = "extent"
+///   axis = 2
 ///   [stability]                       # optional: a stability study
 ///   band = 0.05                       # stable: exit 0 and max_energy_ratio <= 1 + band
 ///   key = "simulation.cfl"            # the swept parameter on the map's x axis (default)
@@ -55,6 +62,12 @@ struct StabilityCriterion {
   SourceRef where; ///< stability.key (or the table): where an unswept key is reported
 };
 
+/// One [[measure]] of a study: its name and kind (the other keys are read
+/// by otmpm.convergence, which computes it from the result files).
+struct Measure {
+  std::string name, kind;
+};
+
 /// A study as read from its file: paths resolved against the study file's
 /// folder, every (variant, mesh) run with its overrides.
 struct Study {
@@ -63,6 +76,9 @@ struct Study {
   int jobs = 1;
   std::string error = "rms_velocity_error";
   StabilityCriterion stability;
+  std::vector<Measure> measures;       ///< [[measure]]: errors against the reference run after the runs
+  std::filesystem::path reference;     ///< [reference] file (empty: a run of the study)
+  std::string reference_variant;       ///< [reference] variant (empty: each variant's finest run)
   std::vector<StudyRun> runs;
   std::vector<std::string> param_keys; ///< the swept keys, in order of first appearance
 };

@@ -9,8 +9,9 @@ solution:
     /usr/bin/python3 examples/python/dyka_pair.py [--mesh 133] [--out DIR]
 
 writes DIR/dyka_pair_history.png and the result files DIR/dyka_pair_mpm.h5,
-DIR/dyka_pair_ul.h5. With the package built but not installed, set
-PYTHONPATH=build/python first.
+DIR/dyka_pair_ul.h5 (DIR: the current folder unless --out says another; the
+script prints where). With the package built but not installed, set
+PYTHONPATH=build/python first (or install it: pip install ., docs/python.md).
 """
 import argparse
 import math
@@ -48,6 +49,8 @@ def main():
     ap.add_argument("--out", default=".", help="folder for the plot and the result files")
     args = ap.parse_args()
     os.makedirs(args.out, exist_ok=True)
+    print(f"writing the result files and the plot into {os.path.abspath(args.out)}"
+          + (" (the current folder; --out DIR for another)" if args.out == "." else ""))
     scene = otmpm.Scene.from_toml(os.path.join(EXAMPLES, "dyka", f"dyka_n{args.mesh}.toml"),
                                   {"output.every": 2e-7, "output.fields": ["x", "v"],
                                    "output.file": os.path.join(args.out, "dyka_pair.h5")})
@@ -75,7 +78,8 @@ def main():
     fig.tight_layout()
     path = os.path.join(args.out, "dyka_pair_history.png")
     fig.savefig(path, dpi=120)
-    print("plot:", path)
+    print("plot:", os.path.abspath(path))
+    print("result files:", ", ".join(os.path.abspath(runs[m].out_file) for m in otmpm.drivers.MODES))
 
 
 if __name__ == "__main__":

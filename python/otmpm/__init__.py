@@ -10,13 +10,13 @@ simulations with NumPy views of the engine's arrays (docs/python.md).
         sim.advance_to(5e-5)
         v = sim.particles.v          # a view: no copy, changes with every step
 
-Contents: Scene, run, Simulation, Summary, pair, study, the modules basis
+Contents: Scene, run, Simulation, Summary, pair, study, the modules basis, convergence
 and results, and the errors InputError, InstabilityError, BasisError.
 """
-from . import basis, results
+from . import basis, convergence, results
 from ._otmpm import BasisError, InputError, InstabilityError, Scene, Simulation, __version__, run
 from .drivers import pair, study
 from .summary import Summary
 
-__all__ = ["Scene", "run", "Simulation", "Summary", "pair", "study", "basis", "results",
+__all__ = ["Scene", "run", "Simulation", "Summary", "pair", "study", "basis", "convergence", "results",
            "InputError", "InstabilityError", "BasisError", "__version__"]

@@ -1,5 +1,6 @@
 """Shared fixtures of the Python tests (run by ctest: python/CMakeLists.txt
-sets PYTHONPATH to the built package, OTMPM_SOURCE_DIR and OTMPM_CLI)."""
+sets PYTHONPATH to the built package, OTMPM_SOURCE_DIR and OTMPM_CLI; CI
+runs them against the package installed with pip, and its command)."""
 import os
 import pathlib
 import subprocess
@@ -7,7 +8,16 @@ import subprocess
 import pytest
 
 SOURCE = pathlib.Path(os.environ.get("OTMPM_SOURCE_DIR", pathlib.Path(__file__).resolve().parents[2]))
-CLI = os.environ.get("OTMPM_CLI", str(SOURCE / "build" / "bin" / "otmpm"))
+def _cli():
+    """$OTMPM_CLI, else the command of the package under test (built, or installed with pip)."""
+    if os.environ.get("OTMPM_CLI"):
+        return os.environ["OTMPM_CLI"]
+    from otmpm import _config
+
+    return _config.cli_path()
+
+
+CLI = _cli()
 
 
 def example(name):

@@ -9,6 +9,7 @@
 
 #include "otmpm/geometry/shapes.hpp"
 #include "otmpm/io/particle_file.hpp"
+#include "otmpm/scene/file_bodies.hpp"
 #include "otmpm/scene/validate.hpp"
 
 #include <algorithm>
@@ -52,6 +53,10 @@ template <int D> std::unique_ptr<Shape<D>> body_shape(const BodySection& b, cons
   if (b.shape == "sphere") return make_sphere<D>(scene_vec<D>(b.center), b.radius);
   if constexpr (D == 3)
     if (b.shape == "cylinder") return make_cylinder(scene_vec<3>(b.center), scene_vec<3>(b.axis), b.radius, b.length);
+  if constexpr (D == 3)
+    if (b.shape == "stl") return stl_body_surface(b);
+  if constexpr (D >= 2)
+    if (b.shape == "mesh") return mesh_body_shape<D>(b);
   if constexpr (D == 2)
     if (b.shape == "polygon") {
       std::vector<Vec<2>> v;
@@ -138,6 +143,55 @@ bool overlapped(const Scene& scene, int b, const std::vector<std::unique_ptr<Sha
   return false;
 }
 
+/// The particles that start behind a rigid wall - on the side its normal
+/// points away from (docs/theory.md sect. 6.1: the normal points to the
+/// material's side), by more than round-off (kBoxTolerance h) - counted per
+/// wall and body as the particles are seeded, so that a body the wall would
+/// push or hold from its first step is refused at set-up.
+template <int D> class WallSides {
+public:
+  WallSides(const Scene& scene, const Vec<D>& h) : scene_(scene), tol_(kBoxTolerance * h.minCoeff()) {
+    for (const WallSection& w : scene.walls)
+      walls_.push_back({scene_vec<D>(w.point), Vec<D>(first_components(w.normal, D).template head<D>().stableNormalized())});
+    behind_.assign(walls_.size() * scene.bodies.size(), {0, Vec<D>::Zero()});
+  }
+
+  /// A particle of body `body` at x.
+  void visit(const Vec<D>& x, int body) {
+    for (std::size_t w = 0; w < walls_.size(); ++w) {
+      if ((x - walls_[w].first).dot(walls_[w].second) >= -tol_) continue;
+      Behind& b = behind_[w * scene_.bodies.size() + static_cast<std::size_t>(body)];
+      if (b.count++ == 0) b.first = x;
+    }
+  }
+
+  /// InputError at the first wall with particles behind it, naming the
+  /// wall, the body, their count and the first of them.
+  void refuse() const {
+    for (std::size_t i = 0; i < behind_.size(); ++i) {
+      if (behind_[i].count == 0) continue;
+      const WallSection& w = scene_.walls[i / scene_.bodies.size()];
+      const std::string& body = scene_.bodies[i % scene_.bodies.size()].name;
+      input_error(w.where, "body '" + body + "' starts behind wall '" + w.name + "': " +
+                               std::to_string(behind_[i].count) + " of its particles (the first at " +
+                               format_point<D>(behind_[i].first) +
+                               ") lie on the side the wall's normal points away from, where the wall would push "
+                               "or hold them from the first step (move the wall or the body, or turn the normal "
+                               "to the body's side)");
+    }
+  }
+
+private:
+  struct Behind {
+    long long count;
+    Vec<D> first;
+  };
+  const Scene& scene_;
+  double tol_;
+  std::vector<std::pair<Vec<D>, Vec<D>>> walls_; ///< point, unit normal
+  std::vector<Behind> behind_;                   ///< per wall and body
+};
+
 /// Drops or refuses the seeds of body b that lie in an earlier body.
 template <int D>
 void resolve_overlap(const Scene& scene, int b, const std::vector<std::unique_ptr<Shape<D>>>& shapes,
@@ -154,7 +208,8 @@ std::optional<ParticleFile> open_body(const Scene& scene, int b, std::vector<std
   if (body.shape == "file") {
     try {
       // reserved for the scene reader's count when it read this file
-      file = read_particle_file(body.file, D, body.file_read == body.file ? body.file_particles : -1);
+      const ParticleFileRules rules = particle_file_rules(scene, body);
+      file = read_particle_file(body.file, D, body.file_read == body.file ? body.file_particles : -1, &rules);
     } catch (const InputError& e) {
       input_error(scene.locate("body." + body.name + ".file"), e.what());
     }
@@ -179,6 +234,11 @@ void generate_body(const Scene& scene, int b, const Vec<D>& h, const CartesianGr
                       body.placement, [&](const Vec<D>& x, double V, const Vec<D>& extent) {
                         emit(Seed<D>{x, extent, V, b});
                       });
+  } else if (body.shape == "mesh") {
+    if constexpr (D >= 2)
+      seed_mesh_body<D>(body, dynamic_cast<const ElementUnion<D>&>(shape), [&](const Vec<D>& x, double V) {
+        emit(Seed<D>{x, Vec<D>::Constant(std::pow(V, 1.0 / D)), V, b});
+      });
   } else if (file) {
     seed_from_file<D>(*file, b, emit);
     for (const auto& [name, values] : file->fields)
@@ -426,8 +486,9 @@ void stream_file_body(const Scene& scene, int b, std::vector<std::unique_ptr<Sha
         if (columns.entry[f] >= 0) out.file_state[static_cast<std::size_t>(columns.entry[f])].values.push_back(rows.fields[f][i]);
     }
   };
+  const ParticleFileRules rules = particle_file_rules(scene, body);
   try {
-    stream_particle_file(body.file, D, each);
+    stream_particle_file(body.file, D, each, kParticleChunk, &rules);
   } catch (const InputError& e) {
     input_error(scene.locate("body." + body.name + ".file"), e.what());
   }
@@ -461,6 +522,9 @@ SeededBodies<D> seed_bodies(const Scene& scene, const Vec<D>& h, const Cartesian
     if (seeds.empty()) seeds = std::move(body); // no copy of the common single body (peak memory)
     else seeds.insert(seeds.end(), body.begin(), body.end());
   }
+  WallSides<D> sides(scene, h);
+  for (const Seed<D>& s : seeds) sides.visit(s.x, s.body);
+  sides.refuse();
   store<D>(scene, seeds, result.particles);
   result.file_row.resize(seeds.size());
   for (std::size_t p = 0; p < seeds.size(); ++p) result.file_row[p] = seeds[p].row;
@@ -476,6 +540,7 @@ long long seed_bodies_where(const Scene& scene, const Vec<D>& h, const Cartesian
   std::vector<std::unique_ptr<Shape<D>>> shapes;
   std::vector<Seed<D>> kept;
   BodyBoxes<D> known(scene); // the later bodies' boxes (file bodies' shapes hold only the cubes near them)
+  WallSides<D> sides(scene, h);
   long long id = 0;
   for (int b = 0; b < static_cast<int>(scene.bodies.size()); ++b) {
     // A seed inside an earlier body is refused or dropped as it comes (the
@@ -487,6 +552,7 @@ long long seed_bodies_where(const Scene& scene, const Vec<D>& h, const Cartesian
       ++generated;
       if (overlapped<D>(scene, b, shapes, s)) return false;
       seeded += s.V;
+      sides.visit(s.x, b);
       const bool keeps = keep(id, s.x) && result;
       if (keeps) {
         kept.push_back(s);
@@ -504,6 +570,7 @@ long long seed_bodies_where(const Scene& scene, const Vec<D>& h, const Cartesian
     if (generated == 0) no_particle(scene.bodies[static_cast<std::size_t>(b)]);
     scale_volumes<D>(scene.bodies[static_cast<std::size_t>(b)], *shapes.back(), seeded, kept, first);
   }
+  sides.refuse();
   if (result) {
     store<D>(scene, kept, out.particles);
     out.file_row.resize(kept.size());

@@ -73,6 +73,16 @@ private:
   bool mpi_ = false;
 };
 
+/// How many processes a launcher (OpenMPI's mpirun, a PMI launcher such as
+/// srun) says it started together with this one, from its environment
+/// (OMPI_COMM_WORLD_SIZE, PMI_SIZE); 1 when none did. When it is more than
+/// Comm::world().size(), this process cannot join the others as a rank (a
+/// build without MPI, or another MPI than the launcher's): each would run
+/// the whole program alone.
+int launcher_size();
+/// This process's rank among them (OMPI_COMM_WORLD_RANK, PMI_RANK), 0 when none.
+int launcher_rank();
+
 /// MPI for the lifetime of a program (its main): initialises MPI (threads
 /// funnelled through the main thread, OpenMP inside each rank) when the
 /// process was started by mpirun or srun, finalises it at the end. Without
@@ -116,6 +126,17 @@ private:
 /// that reads without an error but differently is for the caller to detect.
 /// One reduction when no rank failed; nothing but `step` on one rank.
 void agree_on(const Comm& comm, const std::function<void()>& step);
+
+/// Requires that `mine` is the same text on every rank of `comm` - before a
+/// collective operation that a difference would hang or corrupt (ranks that
+/// read different scenes: a scene file rewritten while a job started, a
+/// stale copy on one node, an MPMD command line; a relative path resolved in
+/// working directories that differ per node). Otherwise every rank throws
+/// the same InputError, naming the lowest rank R whose text differs and the
+/// first difference: "rank R: WHAT differs from rank 0's: line N is 'A'
+/// where rank 0 has 'B' (HINT)" ("line N" only for a text of several lines).
+/// One broadcast and one reduction.
+void require_same(const Comm& comm, const std::string& what, const std::string& mine, const std::string& hint);
 
 /// True when this otmpm was built with MPI (OTMPM_MPI).
 bool built_with_mpi();

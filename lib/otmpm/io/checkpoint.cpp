@@ -188,7 +188,7 @@ void seal_file(const std::string& path, const std::string& run_id) {
   h.run_id = run_id;
   std::error_code ec;
   h.size = fs::file_size(path, ec);
-  if (ec) throw std::runtime_error(path + ": cannot size the checkpoint: " + ec.message());
+  if (ec) throw OutputError(path + ": cannot size the checkpoint: " + ec.message());
   std::fstream io(path, std::ios::binary | std::ios::in | std::ios::out);
   if (!io) throw OutputError(path + ": cannot reopen the checkpoint to seal it: " + std::strerror(errno));
   h.crc = file_crc(io, h);
@@ -233,7 +233,7 @@ void sync_file(const std::string& path) {
   const int fd = ::open(path.c_str(), O_RDONLY);
   const bool ok = fd >= 0 && ::fsync(fd) == 0;
   if (fd >= 0) ::close(fd);
-  if (!ok) throw std::runtime_error(path + ": cannot sync the checkpoint to disk: " + std::strerror(errno));
+  if (!ok) throw OutputError(path + ": cannot sync the checkpoint to disk: " + std::strerror(errno));
 }
 
 // ---------------------------------------------------------------- reading
@@ -309,7 +309,9 @@ void write_checkpoint_file(const std::string& path, const Checkpoint& ck) {
   const Handle fcpl(h5::checked(H5Pcreate(H5P_FILE_CREATE), path, "create a file creation list"), H5Pclose);
   h5::checked_status(H5Pset_userblock(fcpl.get(), kHeaderBytes), path, "reserve the checkpoint header");
   const hid_t id = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, fcpl.get(), fapl.get());
-  if (id < 0) throw InputError(path + ": cannot create the checkpoint file");
+  // Its location was checked when the run started: failing now is an I/O
+  // error (a directory removed meanwhile, a file system gone), not bad input.
+  if (id < 0) throw OutputError(path + ": cannot create the checkpoint file: " + std::strerror(errno));
   Handle file(id, H5Fclose);
   h5::reserve_space(h5::file_descriptor(id, path), checkpoint_bytes(ck), path);
   try {
@@ -342,12 +344,15 @@ void write_checkpoint(const std::string& path, const Checkpoint& ck) {
     throw;
   }
   if (std::rename(tmp.c_str(), path.c_str()) != 0)
-    throw std::runtime_error(path + ": cannot move the checkpoint into place: " + std::strerror(errno));
+    throw OutputError(path + ": cannot move the checkpoint into place: " + std::strerror(errno));
 }
 
 Checkpoint read_checkpoint(const std::string& path) {
   h5::silence();
   std::error_code ec;
+  if (const std::string kind = special_file(path); !kind.empty())
+    throw InputError(path + ": is " + kind + ", not a checkpoint file");
+  if (fs::is_directory(path, ec)) throw InputError(path + ": is a directory, not a checkpoint file");
   if (!fs::is_regular_file(path, ec)) throw InputError(path + ": no such checkpoint file");
   const Header header = verify_file(path); // before HDF5 parses anything
   const hid_t id = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
@@ -366,6 +371,7 @@ Checkpoint read_checkpoint(const std::string& path) {
 }
 
 std::string checkpoint_run_id(const std::string& path) {
+  if (!special_file(path).empty()) return ""; // never open a FIFO
   std::ifstream in(path, std::ios::binary);
   std::string text(kHeaderBytes, '\0');
   in.read(text.data(), static_cast<std::streamsize>(text.size()));

@@ -118,9 +118,9 @@ void VtkSeriesWriter::write_frame(int index, double time, const std::vector<Fiel
   const bool poly = extension_ == "vtp";
   const std::string type = poly ? "PolyData" : "UnstructuredGrid";
   std::ostringstream os;
-  os << "<?xml version=\"1.0\"?>\n" << text::run_id_comment(run_id_, result_name_) << "\n"
-     << "<VTKFile type=\"" << type << "\" version=\"1.0\" byte_order=\"" << byte_order()
-     << "\" header_type=\"UInt64\">\n  <" << type << ">\n    <FieldData>\n      "
+  os << "<?xml version=\"1.0\"?>\n<VTKFile type=\"" << type << "\" version=\"1.0\" byte_order=\"" << byte_order()
+     << "\" header_type=\"UInt64\"" << text::run_id_attributes(run_id_, result_name_) << ">\n  <" << type
+     << ">\n    <FieldData>\n      "
      << "<DataArray type=\"Float64\" Name=\"TimeValue\" NumberOfTuples=\"1\" format=\"appended\" offset=\""
      << time_offset << "\"/>\n    </FieldData>\n";
   if (poly)
@@ -148,8 +148,8 @@ void VtkSeriesWriter::write_frame(int index, double time, const std::vector<Fiel
 void VtkSeriesWriter::publish() {
   if (published_ == frames_.size() && published_ > 0) return;
   std::ostringstream os;
-  os << "<?xml version=\"1.0\"?>\n" << text::run_id_comment(run_id_, result_name_) << "\n"
-     << "<VTKFile type=\"Collection\" version=\"0.1\" byte_order=\"" << byte_order() << "\">\n  <Collection>\n";
+  os << "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\" byte_order=\"" << byte_order() << "\""
+     << text::run_id_attributes(run_id_, result_name_) << ">\n  <Collection>\n";
   for (const auto& [time, file] : frames_)
     os << "    <DataSet timestep=\"" << text::exact(time) << "\" group=\"\" part=\"0\" file=\""
        << text::xml_escape(file) << "\"/>\n";

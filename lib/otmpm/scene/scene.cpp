@@ -6,9 +6,11 @@
 #include "otmpm/scene/scene.hpp"
 
 #include "otmpm/io/results.hpp"
+#include "otmpm/io/text_files.hpp"
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/integrators/integrator.hpp"
 #include "otmpm/io/particle_file.hpp"
+#include "otmpm/scene/file_bodies.hpp"
 #include "otmpm/particles/output_fields.hpp"
 #include "otmpm/scene/toml_reader.hpp"
 #include "otmpm/scene/validate.hpp"
@@ -54,11 +56,18 @@ void check(bool ok, const SourceRef& r, const std::string& message) {
   if (!ok) input_error(r, message);
 }
 
-/// A positive number, or absent (fallback).
-double positive(const TableReader& t, std::string_view key, double fallback) {
-  const double v = t.get<double>(key, fallback);
-  check(v > 0, t.ref(key), "must be > 0 (got " + fmt(v) + ")");
+/// The value of `spec.key` in `t` - `fallback` when absent, or required
+/// without one - checked against its row (ParameterSpec::check).
+double number(const TableReader& t, const ParameterSpec& spec, std::optional<double> fallback = std::nullopt) {
+  const double v = fallback ? t.get<double>(spec.key, *fallback) : t.require<double>(spec.key);
+  const std::string why = spec.check(v);
+  check(why.empty(), t.ref(spec.key), why);
   return v;
+}
+
+/// A number > 0, or absent (fallback).
+double positive(const TableReader& t, std::string_view key, double fallback) {
+  return number(t, {key, "", std::nullopt, 0.0, true}, fallback);
 }
 
 /// Every component of upper strictly (or not) above lower.
@@ -108,22 +117,15 @@ SimulationSection read_simulation(const TableReader& t) {
   // Default: the mass matrix of each algorithm's listing (IntegratorKind).
   const bool consistent_default = integrator_kind(s.integrator).consistent_by_default;
   s.mass = t.choice("mass", consistent_default ? "consistent" : "lumped", {"lumped", "consistent"});
-  s.t_end = t.require<double>("t_end");
-  check(s.t_end > 0, t.ref("t_end"), "must be > 0 (got " + fmt(s.t_end) + ")");
+  using namespace scene_keys;
+  s.t_end = number(t, kTEnd);
   check(!(t.has("cfl") && t.has("dt")), t.ref("dt"), "give either simulation.cfl or simulation.dt, not both");
-  s.cfl = positive(t, "cfl", s.cfl);
-  if (t.has("dt")) s.dt = positive(t, "dt", 1.0);
-  s.mass_tolerance = t.get<double>("mass_tolerance", s.mass_tolerance);
-  check(s.mass_tolerance >= 0 && s.mass_tolerance < 1, t.ref("mass_tolerance"),
-        "must be in [0, 1) (got " + fmt(s.mass_tolerance) + ")");
-  s.energy_limit = t.get<double>("energy_limit", s.energy_limit);
-  check(s.energy_limit >= 1, t.ref("energy_limit"),
-        "must be >= 1 (a multiple of the larger of initial energy and work; got " + fmt(s.energy_limit) + ")");
-  s.max_steps = t.get<double>("max_steps", s.max_steps);
-  check(s.max_steps >= 1, t.ref("max_steps"), "must be >= 1 (the most steps a run may take; got " + fmt(s.max_steps) + ")");
-  s.memory_limit = t.get<double>("memory_limit", s.memory_limit);
-  check(s.memory_limit >= 0, t.ref("memory_limit"),
-        "must be >= 0 (bytes; 0: the memory this process may use; got " + fmt(s.memory_limit) + ")");
+  s.cfl = number(t, kCfl, s.cfl);
+  if (t.has("dt")) s.dt = number(t, kDt);
+  s.mass_tolerance = number(t, kMassTolerance, s.mass_tolerance);
+  s.energy_limit = number(t, kEnergyLimit, s.energy_limit);
+  s.max_steps = number(t, kMaxSteps, s.max_steps);
+  s.memory_limit = number(t, kMemoryLimit, s.memory_limit);
   return s;
 }
 
@@ -193,9 +195,7 @@ GridSection read_grid(const TableReader& t, int dim) {
           "upper - lower overflows on axis " + std::to_string(k) + " (lower " + fmt(g.lower[k]) + ", upper " +
               fmt(g.upper[k]) + ")");
   g.cells = read_cells(t, g, dim);
-  g.perturbation = t.get<double>("perturbation", g.perturbation);
-  check(g.perturbation >= 0 && g.perturbation < 0.5, t.ref("perturbation"),
-        "must be in [0, 0.5) (a fraction of h; got " + fmt(g.perturbation) + ")");
+  g.perturbation = number(t, scene_keys::kPerturbation, g.perturbation);
   const std::int64_t seed = t.get<std::int64_t>("seed", g.seed);
   check(seed >= 0 && seed <= std::numeric_limits<unsigned>::max(), t.ref("seed"), "must be a non-negative 32-bit integer");
   g.seed = static_cast<unsigned>(seed);
@@ -216,7 +216,7 @@ double body_cells(const BodySection& b, const GridSection& g, int dim) {
 
 /// The particles seed_particles puts into body `b` (see SceneSize).
 double body_particles(const BodySection& b, const GridSection& g, int dim) {
-  if (b.shape == "file") return b.file_particles;
+  if (b.shape == "file" || b.shape == "mesh") return b.file_particles;
   return body_cells(b, g, dim) * std::pow(b.particles_per_cell, dim);
 }
 
@@ -238,7 +238,8 @@ std::string read_name(const TableReader& t, bool required, const std::string& fa
   check(!name.empty(), t.ref("name"), "must not be empty");
   const std::string why = name_error(name, what);
   check(why.empty(), t.ref("name"), why);
-  check(seen.insert(name).second, t.has("name") ? t.ref("name") : t.self(), "duplicate name \"" + name + "\"");
+  check(seen.insert(name).second, t.has("name") ? t.ref("name") : t.self(),
+        "duplicate name \"" + shortened(name) + "\"");
   return name;
 }
 
@@ -301,12 +302,8 @@ MaterialSection read_material(const TableReader& t, std::set<std::string>& names
   const MaterialModel& model = *find_material_model(m.model);
   t.only(material_keys(model));
   m.name = read_name(t, true, "", names, "material");
-  m.density = t.require<double>("density");
-  check(m.density > 0, t.ref("density"), "must be > 0 (got " + fmt(m.density) + ")");
-  m.young = t.require<double>("young");
-  check(m.young > 0, t.ref("young"), "must be > 0 (got " + fmt(m.young) + ")");
-  m.poisson = t.require<double>("poisson");
-  check(m.poisson > -1 && m.poisson < 0.5, t.ref("poisson"), "must be in (-1, 0.5) (got " + fmt(m.poisson) + ")");
+  for (auto [spec, value] : {std::pair{&kDensity, &m.density}, {&kYoung, &m.young}, {&kPoisson, &m.poisson}})
+    *value = number(t, *spec);
   read_model_parameters(t, model, m);
   try {
     validate_material(m); // the model's own cross-checks
@@ -340,7 +337,9 @@ const std::map<std::string, std::vector<std::string_view>, std::less<>> kShapeKe
     {"sphere", {"center", "radius"}},
     {"cylinder", {"center", "axis", "radius", "length"}},
     {"polygon", {"vertices"}},
-    {"file", {"file"}}};
+    {"file", {"file"}},
+    {"stl", {"file", "scale", "rotate", "translate"}},
+    {"mesh", {"file", "physical", "seeding", "scale", "rotate", "translate"}}};
 
 /// A value > 0 that the shape needs.
 double positive_required(const TableReader& t, std::string_view key) {
@@ -369,45 +368,92 @@ std::vector<std::array<double, 2>> read_vertices(const TableReader& t, int dim) 
 
 /// The bounding box of a cylinder body (center of one end, axis, radius, length).
 void cylinder_bounds(BodySection& b) {
-  const double n = std::sqrt(b.axis[0] * b.axis[0] + b.axis[1] * b.axis[1] + b.axis[2] * b.axis[2]);
+  const Vec<3> axis = first_components(b.axis, 3).stableNormalized();
   for (int k = 0; k < 3; ++k) {
-    const double a = b.axis[k] / n, top = b.center[k] + b.length * a;
+    const double a = axis[k], top = b.center[k] + b.length * a;
     const double e = b.radius * std::sqrt(std::max(0.0, 1.0 - a * a));
     b.lower[k] = std::min(b.center[k], top) - e;
     b.upper[k] = std::max(b.center[k], top) + e;
   }
 }
 
-/// file: the path (relative to the scene file), read now for its bounds and
-/// particle count, so that a bad file is reported with the scene's line. The
-/// file is streamed (stream_particle_file: a block of rows at a time), so
-/// that every rank of a distributed run holds one block, not the file.
-void read_particle_file_body(const TableReader& t, BodySection& b, const Scene& s) {
+/// The path of the body's `file` (relative to the scene file's folder).
+std::string scene_relative_file(const TableReader& t, const Scene& s) {
   const std::string name = t.require<std::string>("file");
   check(!name.empty(), t.ref("file"), "must not be empty");
   namespace fs = std::filesystem;
   const fs::path given(name);
-  b.file = (given.is_absolute() || s.file.empty() ? given : fs::path(s.file).parent_path() / given).string();
+  return (given.is_absolute() || s.file.empty() ? given : fs::path(s.file).parent_path() / given).string();
+}
+
+/// The keys that place a geometry file: scale (a number or one per axis,
+/// > 0), rotate (degrees about x, y, z; 2D: one angle about z), translate.
+void read_placement(const TableReader& t, int dim, Vec3& scale, Vec3& rotate, Vec3& translate) {
+  const Vec3 given = t.vec("scale", dim, true).value_or(Vec3{1, 1, 1});
+  for (int k = 0; k < dim; ++k) {
+    check(given[k] > 0, t.ref("scale"), "must be > 0 (got " + fmt(given[k]) + ")");
+    scale[k] = given[k];
+  }
+  if (dim == 3) rotate = t.vec("rotate", 3).value_or(rotate);
+  else rotate[2] = t.get<double>("rotate", 0.0); // about z
+  translate = t.vec("translate", dim).value_or(translate);
+}
+
+/// stl, mesh: the geometry file (relative to the scene file) and its
+/// placement, read now for its bounds, checks and (mesh) particle count, so
+/// that a bad file is reported with the scene's line.
+void read_geometry_file_body(const TableReader& t, BodySection& b, const Scene& s) {
+  const int dim = s.simulation.dimension;
+  b.file = scene_relative_file(t, s);
+  if (b.shape == "mesh") {
+    b.physical = t.get<std::string>("physical", "");
+    b.seeding = t.choice("seeding", b.seeding, {"element", "quadrature"});
+  }
+  read_placement(t, dim, b.scale, b.rotate, b.translate);
+  try {
+    read_geometry_file(b, dim);
+  } catch (const InputError& e) {
+    input_error(t.ref("file"), e.what());
+  }
+  check_derived_box(t, "file", b.lower, b.upper, dim);
+}
+
+/// file: the path (relative to the scene file), read now for its bounds,
+/// particle count and the extremes of its density and velocity columns
+/// (the first time step), so that a bad file is reported with the scene's
+/// line. Its rows meet the checks of the scene keys of the same quantities
+/// (particle_file_rules). The file is streamed (stream_particle_file: a
+/// block of rows at a time), so that every rank of a distributed run holds
+/// one block, not the file.
+void read_particle_file_body(const TableReader& t, BodySection& b, const Scene& s) {
+  b.file = scene_relative_file(t, s);
   const int D = s.simulation.dimension;
   long long count = 0;
-  const auto bounds = [&b, &count, D](const ParticleColumns&, const ParticleRows& rows) {
-    for (int p = 0; p < rows.size(); ++p, ++count)
+  const auto bounds = [&b, &count, D](const ParticleColumns& columns, const ParticleRows& rows) {
+    const auto density = std::find(columns.fields.begin(), columns.fields.end(), kDensity.key);
+    for (int p = 0; p < rows.size(); ++p, ++count) {
+      const std::size_t i = static_cast<std::size_t>(p);
       for (int k = 0; k < D; ++k) {
-        const double x = rows.x[static_cast<std::size_t>(p) * D + k];
-        const double half = 0.5 * std::pow(rows.volume[static_cast<std::size_t>(p)], 1.0 / D);
+        const double x = rows.x[i * D + k];
+        const double half = 0.5 * std::pow(rows.volume[i], 1.0 / D);
         if (count == 0) b.lower[k] = b.upper[k] = x; // the first position, then min/max as one pass over the file
         b.lower[k] = std::min(b.lower[k], x - half);
         b.upper[k] = std::max(b.upper[k], x + half);
       }
+      if (density != columns.fields.end()) {
+        const double rho = rows.fields[static_cast<std::size_t>(density - columns.fields.begin())][i];
+        b.file_min_density = count == 0 ? rho : std::min(b.file_min_density, rho);
+      }
+      if (!rows.v.empty())
+        b.file_max_speed = std::max(b.file_max_speed, Eigen::Map<const Eigen::VectorXd>(&rows.v[i * D], D).norm());
+    }
   };
+  const ParticleFileRules rules = particle_file_rules(s, b);
   try {
-    stream_particle_file(b.file, D, bounds);
+    stream_particle_file(b.file, D, bounds, kParticleChunk, &rules);
   } catch (const InputError& e) {
     input_error(t.ref("file"), e.what());
   }
-  check(count <= kMaxSceneParticles, t.ref("file"),
-        "holds " + fmt(static_cast<double>(count)) + " particles; at most " + fmt(kMaxSceneParticles) +
-            " are allowed");
   b.file_particles = static_cast<int>(count);
   b.file_read = b.file;
 }
@@ -428,7 +474,7 @@ void read_shape(const TableReader& t, BodySection& b, const Scene& s) {
     check(dim == 3, t.ref("shape"), "shape \"cylinder\" is three-dimensional (use \"sphere\" for a disk in 2D)");
     b.center = t.require_vec("center", dim);
     b.axis = t.require_vec("axis", dim);
-    check(b.axis[0] != 0 || b.axis[1] != 0 || b.axis[2] != 0, t.ref("axis"), "must not be zero");
+    check(is_direction<3>(first_components(b.axis, dim)), t.ref("axis"), "must be finite and not zero");
     b.radius = positive_required(t, "radius");
     b.length = positive_required(t, "length");
     cylinder_bounds(b);
@@ -440,6 +486,8 @@ void read_shape(const TableReader& t, BodySection& b, const Scene& s) {
     for (const auto& v : b.vertices)
       for (int k = 0; k < 2; ++k) b.lower[k] = std::min(b.lower[k], v[k]), b.upper[k] = std::max(b.upper[k], v[k]);
     check_derived_box(t, "vertices", b.lower, b.upper, 2);
+  } else if (geometry_file_body(b)) {
+    read_geometry_file_body(t, b, s);
   } else {
     read_particle_file_body(t, b, s);
   }
@@ -504,16 +552,52 @@ std::vector<InitialVelocitySection> read_initial_velocities(const TableReader& r
   return out;
 }
 
-std::vector<BoundarySection> read_boundaries(const TableReader& root, int dim) {
+/// A boundary's box from a physical group of a mesh file (`file`,
+/// `physical`): the box of the group's nodes, which must be flat along an
+/// axis (a boundary holds the nodes in a box: a slanted group would give more).
+void read_boundary_group(const TableReader& t, BoundarySection& b, const Scene& s) {
+  const int dim = s.simulation.dimension;
+  check(dim >= 2, t.ref("file"), "a boundary from a mesh's physical group needs dimension 2 or 3");
+  const std::string file = scene_relative_file(t, s), group = t.require<std::string>("physical");
+  BodySection placed; // the placement keys, as a mesh body's
+  read_placement(t, dim, placed.scale, placed.rotate, placed.translate);
+  try {
+    Vec<3> lo = Vec<3>::Zero(), hi = Vec<3>::Zero();
+    if (dim == 2) {
+      const auto [lo2, hi2] = mesh_group_box<2>(file, group, body_placement(placed));
+      lo.head<2>() = lo2, hi.head<2>() = hi2;
+    } else {
+      std::tie(lo, hi) = mesh_group_box<3>(file, group, body_placement(placed));
+    }
+    double widest = 0;
+    for (int k = 0; k < dim; ++k) widest = std::max(widest, hi[k] - lo[k]);
+    bool flat = false;
+    for (int k = 0; k < dim; ++k) flat |= hi[k] - lo[k] <= 1e-9 * widest;
+    require(flat, file, ": physical group \"", group, "\" spans the box ", format_point<3>(lo), " - ",
+            format_point<3>(hi), ", flat along no axis (a boundary is the nodes of a box)");
+    for (int k = 0; k < dim; ++k) b.lower[k] = lo[k], b.upper[k] = hi[k];
+  } catch (const InputError& e) {
+    input_error(t.ref("physical"), e.what());
+  }
+}
+
+std::vector<BoundarySection> read_boundaries(const TableReader& root, const Scene& s) {
+  const int dim = s.simulation.dimension;
   std::vector<BoundarySection> out;
   std::set<std::string> names;
   for (const TableReader& t : root.tables("boundary")) {
-    t.only({"name", "lower", "upper", "fix", "value"});
+    const bool group = t.has("physical") || t.has("file");
+    if (group) t.only({"name", "file", "physical", "scale", "rotate", "translate", "fix", "value"});
+    else t.only({"name", "lower", "upper", "fix", "value"});
     BoundarySection b;
     b.where = t.self();
     b.name = read_name(t, false, default_name("boundary", out.size()), names, "boundary");
-    b.lower = t.require_vec("lower", dim);
-    b.upper = t.require_vec("upper", dim);
+    if (group) {
+      read_boundary_group(t, b, s);
+    } else {
+      b.lower = t.require_vec("lower", dim);
+      b.upper = t.require_vec("upper", dim);
+    }
     check_box(t, b.lower, b.upper, dim, false);
     auto fix = t.bools("fix", dim);
     if (!fix) t.missing("fix");
@@ -534,12 +618,10 @@ std::vector<WallSection> read_walls(const TableReader& root, int dim) {
     w.name = read_name(t, false, default_name("wall", out.size()), names, "wall");
     w.point = t.require_vec("point", dim);
     w.normal = t.require_vec("normal", dim);
-    double n2 = 0.0;
-    for (int k = 0; k < dim; ++k) n2 += w.normal[k] * w.normal[k];
-    check(n2 > 0.0, t.ref("normal"), "must not be zero (it points to the material's side of the wall)");
+    check(is_direction<3>(first_components(w.normal, dim)), t.ref("normal"),
+          "must be finite and not zero (it points to the material's side of the wall)");
     w.velocity = t.vec("velocity", dim).value_or(w.velocity);
-    w.friction = t.get<double>("friction", 0.0);
-    check(w.friction >= 0.0, t.ref("friction"), "must be >= 0 (the Coulomb coefficient; got " + fmt(w.friction) + ")");
+    w.friction = number(t, scene_keys::kFriction, w.friction);
     out.push_back(std::move(w));
   }
   return out;
@@ -551,9 +633,7 @@ std::optional<ContactSection> read_contact(const TableReader& root) {
   t->only({"friction"});
   ContactSection c;
   c.where = t->self();
-  c.friction = t->get<double>("friction", 0.0);
-  check(std::isfinite(c.friction) && c.friction >= 0.0, t->ref("friction"),
-        "must be finite and >= 0 (the Coulomb coefficient between bodies; got " + fmt(c.friction) + ")");
+  c.friction = number(*t, scene_keys::kFriction, c.friction);
   return c;
 }
 
@@ -564,7 +644,7 @@ TimeFunction read_time(const TableReader& parent) {
   t->only({"kind", "period"});
   f.kind = t->choice("kind", f.kind, {"constant", "ramp"});
   if (f.kind == "ramp" && !t->has("period")) t->missing("period", "required key is missing (kind = \"ramp\")");
-  f.period = t->has("period") ? positive(*t, "period", 1.0) : 0.0;
+  f.period = t->has("period") ? number(*t, scene_keys::kPeriod) : 0.0;
   return f;
 }
 
@@ -744,7 +824,7 @@ Scene read_scene(const toml::table& root, Context& ctx) {
   s.bodies = read_bodies(r, s);
   if (s.simulation.nodes_move()) check_node_count(grid, s);
   s.initial_velocities = read_initial_velocities(r, dim);
-  s.boundaries = read_boundaries(r, dim);
+  s.boundaries = read_boundaries(r, s);
   s.walls = read_walls(r, dim);
   s.contact = read_contact(r);
   s.body_force = read_body_force(r, dim);
@@ -763,7 +843,7 @@ const std::map<std::string, std::string> kExclusive = {
 
 /// Throws InputError "--set KEY: message" (source: the override's key).
 [[noreturn]] void override_error(const std::string& key, const std::string& message) {
-  throw InputError("--set " + key + ": " + message, {"", kCommandLineLine, key});
+  throw InputError("--set " + shortened(key) + ": " + message, {"", kCommandLineLine, key});
 }
 
 std::vector<std::string> split_key(const std::string& key, const std::string& what) {
@@ -784,40 +864,22 @@ std::string trim(const std::string& s) {
   return s.substr(b, s.find_last_not_of(" \t") - b + 1);
 }
 
-/// True when `s` is well-formed UTF-8 (RFC 3629: shortest form, no surrogates,
-/// at most U+10FFFF), as TOML requires of every string.
-bool valid_utf8(std::string_view s) {
-  constexpr char32_t kMinimum[] = {0, 0x80, 0x800, 0x10000}; // smallest code point per continuation count
-  for (std::size_t i = 0; i < s.size();) {
-    const auto lead = static_cast<unsigned char>(s[i]);
-    std::size_t more = 0;
-    char32_t cp = lead;
-    if (lead >= 0xF0 && lead < 0xF8) more = 3, cp = lead & 0x07u;
-    else if (lead >= 0xE0 && lead < 0xF0) more = 2, cp = lead & 0x0Fu;
-    else if (lead >= 0xC0 && lead < 0xE0) more = 1, cp = lead & 0x1Fu;
-    else if (lead >= 0x80) return false;
-    if (s.size() - i <= more) return false;
-    for (std::size_t j = 1; j <= more; ++j) {
-      const auto byte = static_cast<unsigned char>(s[i + j]);
-      if ((byte & 0xC0u) != 0x80u) return false;
-      cp = (cp << 6) | (byte & 0x3Fu);
-    }
-    if (cp < kMinimum[more] || cp > 0x10FFFF || (cp >= 0xD800 && cp <= 0xDFFF)) return false;
-    i += more + 1;
-  }
-  return true;
-}
-
 /// VALUE as a TOML value; a bare word that is not valid TOML is a string
 /// (if it is valid UTF-8: otherwise the resolved scene text would not read back).
 toml::table parse_value(const std::string& key, const std::string& value) {
+  // A line break would let the value end early and the rest of it become
+  // more keys of its own ("1e-5\nsimulation.cfl=5"), silently dropped.
+  if (value.find_first_of("\n\r") != std::string::npos)
+    override_error(key, "cannot read '" + shortened(TableReader::printable(value)) +
+                            "' as a TOML value: it contains a line break (one --set takes one value on one line)");
   try {
     const std::string doc = "v = " + value + "\n";
     return toml::parse(std::string_view(doc), std::string_view("--set"));
   } catch (const toml::parse_error& e) {
     const bool bare = !value.empty() && std::string("[{\"'").find(value.front()) == std::string::npos;
-    if (!bare) override_error(key, "cannot read '" + value + "' as a TOML value: " + std::string(e.description()));
-    if (!valid_utf8(value)) override_error(key, "the value is not valid UTF-8 text");
+    if (!bare)
+      override_error(key, "cannot read '" + shortened(value) + "' as a TOML value: " + std::string(e.description()));
+    if (!text::valid_utf8(value)) override_error(key, "the value is not valid UTF-8 text");
     toml::table t;
     t.insert("v", value);
     return t;
@@ -874,15 +936,22 @@ void apply_override(toml::table& root, const std::string& text, Context& ctx) {
 // ---------------------------------------------------------------- public
 
 std::string SourceRef::describe() const {
-  if (line == kCommandLineLine) return "--set " + key;
-  if (file.empty() && line <= 0) return "key '" + key + "'"; // a Scene built in code
-  std::string s = file;
+  const std::string k = shortened(key);
+  if (line == kCommandLineLine) return "--set " + k;
+  if (file.empty() && line <= 0) return "key '" + k + "'"; // a Scene built in code
+  std::string s = shortened(file);
   if (line > 0) s += ":" + std::to_string(line);
-  return s + ": key '" + key + "'";
+  return s + ": key '" + k + "'";
 }
 
 void input_error(const SourceRef& where, const std::string& message) {
   throw InputError(where.describe() + ": " + message, {where.file, where.line, where.key});
+}
+
+Vec<3> first_components(const Vec3& v, int dim) {
+  Vec<3> out = Vec<3>::Zero();
+  for (int k = 0; k < dim; ++k) out[k] = v[static_cast<std::size_t>(k)];
+  return out;
 }
 
 SourceRef Scene::locate(const std::string& key) const {

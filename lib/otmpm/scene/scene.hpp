@@ -32,6 +32,9 @@ struct SourceRef {
 
 using Vec3 = std::array<double, 3>;
 
+/// The first `dim` components of `v` as an Eigen vector (the others zero).
+Vec<3> first_components(const Vec3& v, int dim);
+
 struct SimulationSection {
   int dimension = 1;
   std::string mode = "mpm";        ///< mpm | ul
@@ -75,21 +78,33 @@ struct MaterialSection : MaterialParameters {
 /// Particles are seeded on the background lattice (the node lattice),
 /// particles_per_cell^D per cell at the Gauss points or cell centres, and
 /// kept where they lie in the shape; a box is cut into cells of the grid
-/// spacing of its own; a "file" body takes its particles from a file.
+/// spacing of its own; a "file" body takes its particles from a file; an
+/// "stl" body is the inside of the closed surface of an STL file (seeded on
+/// the lattice like a sphere); a "mesh" body takes one particle per element
+/// (or per quadrature point) of a Gmsh mesh, each carrying its volume.
 /// `lower`/`upper` are the box corners, or the shape's bounding box.
 struct BodySection {
   std::string name;
   std::string material;
-  std::string shape = "box";           ///< box | sphere | cylinder | polygon | file
+  std::string shape = "box";           ///< box | sphere | cylinder | polygon | file | stl | mesh
   Vec3 lower{0, 0, 0}, upper{0, 0, 0}; ///< box corners; the bounds of other shapes
   Vec3 center{0, 0, 0};                ///< sphere: centre; cylinder: centre of one end
   double radius = 0.0;                 ///< sphere, cylinder
   Vec3 axis{0, 0, 1};                  ///< cylinder
   double length = 0.0;                 ///< cylinder
   std::vector<std::array<double, 2>> vertices; ///< polygon (2D)
-  std::string file;                    ///< file: particle file (CSV or HDF5), resolved path
-  int file_particles = 0;              ///< file: the number of particles it holds
-  std::string file_read;               ///< file: the path file_particles, lower and upper were read from (else empty)
+  std::string file;                    ///< file: particle file (CSV or HDF5); stl, mesh: geometry file; resolved path
+  int file_particles = 0;              ///< file: the number of particles it holds; mesh: its material points
+  std::string file_read;               ///< file, stl, mesh: the path file_particles, lower and upper were read from (else empty)
+  /// file: the smallest value of its `density` column (0: none), and the
+  /// largest speed of its velocity columns, read with file_particles (the
+  /// first time step of scene/resources.hpp depends on them)
+  double file_min_density = 0.0, file_max_speed = 0.0;
+  std::string physical;                ///< mesh: the physical group of its elements (name or number; "": all)
+  std::string seeding = "element";     ///< mesh: "element" (one point per element) | "quadrature"
+  /// stl, mesh: x = R (scale .* x_file) + translate, R the rotations about
+  /// x, then y, then z by rotate's angles in degrees (2D: about z only)
+  Vec3 scale{1, 1, 1}, rotate{0, 0, 0}, translate{0, 0, 0};
   std::string overlap = "error";       ///< "first": particles inside an earlier body are dropped
   /// "exact": the particle volumes (and masses) of a shape seeded on the
   /// lattice are scaled to sum to the shape's exact volume (area, length);

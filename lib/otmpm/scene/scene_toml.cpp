@@ -101,6 +101,16 @@ void insert_shape(toml::table& t, const BodySection& b, int dim) {
   } else {
     t.insert("file", std::filesystem::absolute(b.file).string()); // readable from any directory
   }
+  if (b.shape == "stl" || b.shape == "mesh") {
+    t.insert("scale", first(b.scale, dim));
+    if (dim == 3) t.insert("rotate", first(b.rotate, 3));
+    else t.insert("rotate", b.rotate[2]);
+    t.insert("translate", first(b.translate, dim));
+  }
+  if (b.shape == "mesh") {
+    if (!b.physical.empty()) t.insert("physical", b.physical);
+    t.insert("seeding", b.seeding);
+  }
 }
 
 toml::array bodies(const std::vector<BodySection>& bs, int dim) {
