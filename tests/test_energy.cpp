@@ -127,13 +127,14 @@ TEST_CASE("energy balance: a moving boundary does the work rho c v0^2 t of a pis
   // ul mode: the node at x = 0 is driven at v0 = 0.01 c into the bar at rest.
   // Until the wave reaches x = 1 (t = L/c = 1) the exact reaction is the
   // impedance force rho c v0, so W_R(t) = rho c v0^2 t (per unit area) and
-  // E(t) = W_R(t). Measured at t = 0.5, cfl 0.1: W_R / exact = 0.950 (fe),
-  // 0.962 (npc), 0.951 (musl), the reaction lagging by about one step (2.5%
-  // of t) plus the smeared front at h = 1/8; 8% allows that. The balance
-  // E - W_R closes to the drift of the fixed-end bar (measured <= 0.03).
-  // Not otm: its particle velocities are interpolated from the nodal ones
-  // (v_p = sum N_Ip dx_I / dt), so the reset of the driven node's velocity is
-  // an impulse that the stored reaction -f_I does not contain (docs/stability.md).
+  // E(t) = W_R(t). Measured at t = 0.5, cfl 0.1: W_R / exact = 0.947 (fe),
+  // 0.962 (npc), 0.950 (musl): the reaction lags by about one step (2.5% of
+  // t), the front is smeared at h = 1/8, and W_R counts the kinetic energy
+  // the impulsive start takes (the particles at rest jump to v0 at the
+  // driven node); 10% allows that. The balance E - W_R closes to 0.022
+  // (fe), 0.044 (npc), 0.021 (musl). otm (consistent mass) closes to 0.17
+  // (before its driven node's change was booked: 5.14): its free rows do not
+  // see the moving value (docs/theory.md sect. 6), and E ends 16% above W_R.
   const double v0 = 0.01, t_end = 0.5;
   const std::string extra =
       "[[boundary]]\nname = \"piston\"\nlower = [0.0]\nupper = [0.0]\nfix = [true]\nvalue = [" +
@@ -145,9 +146,11 @@ TEST_CASE("energy balance: a moving boundary does the work rho c v0^2 t of a pis
     MESSAGE("piston, " << std::string(integrator) << ": W_R = " << e.energy().reaction_work << " (exact "
                        << exact << "), E = " << e.energy().total() << ", drift " << drift);
     CHECK(e.energy().initial == 0.0);
-    CHECK(e.energy().reaction_work == doctest::Approx(exact).epsilon(0.08));
-    CHECK(drift < 0.05);
+    CHECK(e.energy().reaction_work == doctest::Approx(exact).epsilon(0.1));
+    CHECK(drift < 0.06);
   }
+  Engine<1> otm = assemble<1>(parse_scene(bar_scene("ul", "otm", "linear", 0.1, t_end, extra), "piston.toml"));
+  CHECK(run_balance(otm) < 0.2);
 }
 
 TEST_CASE("energy summary: max_energy_ratio and energy_drift of a run") {

@@ -328,6 +328,7 @@ py::dict energy_dict(const EnergyBalance& E) {
   d["kinetic"] = E.kinetic;
   d["strain"] = E.strain;
   d["dissipated"] = E.dissipated;
+  d["friction"] = E.friction;
   d["external_work"] = E.external_work;
   d["reaction_work"] = E.reaction_work;
   d["initial"] = E.initial;
@@ -483,8 +484,9 @@ void register_simulation(py::module_& m) {
           "attributes) and returns the otmpm.Summary. Call once, after the last step.")
       .def(
           "energy", [](PySimulation& s) { return visit_engine(s.sim(), [](auto& e) -> py::object { return energy_dict(e.energy()); }); },
-          "The energy balance after the last step [J]: kinetic, strain, dissipated, external_work,\n"
-          "reaction_work, initial (E(0)), total (kinetic + strain), work, balance_error.")
+          "The energy balance after the last step [J]: kinetic, strain, dissipated (plastic work), friction\n"
+          "(dissipated at walls and in body contact), external_work, reaction_work, initial (E(0)),\n"
+          "total (kinetic + strain), work, balance_error.")
       .def_property_readonly(
           "particles", [](const py::object& self) { return ParticleViews{self}; }, "The particles (ParticleViews).")
       .def_property_readonly(

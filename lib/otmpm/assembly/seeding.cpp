@@ -252,6 +252,21 @@ void generate_body(const Scene& scene, int b, const Vec<D>& h, const CartesianGr
   input_error(body.where, "body '" + body.name + "' holds no particle (is it smaller than a cell?)");
 }
 
+/// True for a body seeded on the lattice and kept inside its shape (not a
+/// box, which its cells tile exactly, nor a file body).
+bool lattice_shape(const BodySection& body) { return body.shape != "box" && body.shape != "file"; }
+
+/// Scales the volumes of seeds [first, end) of a body by volume_factor
+/// (`seeded`: the volume of all the body's seeds, some of which a rank may not hold).
+template <int D>
+void scale_volumes(const BodySection& body, const Shape<D>& shape, double seeded, std::vector<Seed<D>>& seeds,
+                   std::size_t first) {
+  if (!lattice_shape(body)) return;
+  const double factor = volume_factor(body, seeded, shape.measure());
+  if (factor == 1.0) return;
+  for (std::size_t i = first; i < seeds.size(); ++i) seeds[i].V *= factor;
+}
+
 /// The particles of body b (and its shape, for the overlap of later bodies).
 template <int D>
 std::vector<Seed<D>> seed_body(const Scene& scene, int b, const Vec<D>& h, const CartesianGrid<D>& lattice,
@@ -271,6 +286,9 @@ std::vector<Seed<D>> seed_body(const Scene& scene, int b, const Vec<D>& h, const
                    [&seeds](const Seed<D>& s) { seeds.push_back(s); });
   if (seeds.empty()) no_particle(body);
   resolve_overlap<D>(scene, b, shapes, seeds);
+  double seeded = 0.0;
+  for (const Seed<D>& s : seeds) seeded += s.V;
+  scale_volumes<D>(body, *shapes.back(), seeded, seeds, 0);
   return seeds;
 }
 
@@ -484,6 +502,15 @@ void stream_file_body(const Scene& scene, int b, std::vector<std::unique_ptr<Sha
 
 } // namespace
 
+template <int D> double body_measure(const BodySection& body) {
+  if (body.shape == "file") return std::numeric_limits<double>::quiet_NaN();
+  return body_shape<D>(body, nullptr)->measure();
+}
+
+double volume_factor(const BodySection& body, double seeded, double exact) {
+  return body.volume == "exact" && seeded > 0.0 ? exact / seeded : 1.0;
+}
+
 template <int D>
 SeededBodies<D> seed_bodies(const Scene& scene, const Vec<D>& h, const CartesianGrid<D>& lattice) {
   validate_seeding<D>(scene, h);
@@ -519,9 +546,12 @@ long long seed_bodies_where(const Scene& scene, const Vec<D>& h, const Cartesian
     // A seed inside an earlier body is refused or dropped as it comes (the
     // serial seeding's first such seed is the one named in the error).
     long long generated = 0;
+    double seeded = 0.0; // the body's volume, in seed_bodies' order (the same bits)
+    const std::size_t first = kept.size();
     auto emit = [&](const Seed<D>& s) {
       ++generated;
       if (overlapped<D>(scene, b, shapes, s)) return false;
+      seeded += s.V;
       sides.visit(s.x, b);
       const bool keeps = keep(id, s.x) && result;
       if (keeps) {
@@ -538,6 +568,7 @@ long long seed_bodies_where(const Scene& scene, const Vec<D>& h, const Cartesian
       generate_body<D>(scene, b, h, lattice, *shapes.back(), nullptr, out, emit);
     }
     if (generated == 0) no_particle(scene.bodies[static_cast<std::size_t>(b)]);
+    scale_volumes<D>(scene.bodies[static_cast<std::size_t>(b)], *shapes.back(), seeded, kept, first);
   }
   sides.refuse();
   if (result) {
@@ -548,6 +579,9 @@ long long seed_bodies_where(const Scene& scene, const Vec<D>& h, const Cartesian
   return id;
 }
 
+template double body_measure<1>(const BodySection&);
+template double body_measure<2>(const BodySection&);
+template double body_measure<3>(const BodySection&);
 template SeededBodies<1> seed_bodies<1>(const Scene&, const Vec<1>&, const CartesianGrid<1>&);
 template SeededBodies<2> seed_bodies<2>(const Scene&, const Vec<2>&, const CartesianGrid<2>&);
 template SeededBodies<3> seed_bodies<3>(const Scene&, const Vec<3>&, const CartesianGrid<3>&);

@@ -97,8 +97,19 @@ template <int D> struct SeededBodies {
   std::shared_ptr<const TractionSurfaces<D>> surfaces;
 };
 
+/// The exact measure (volume; area in 2D; length in 1D) of a body's shape,
+/// or NaN for a file body (whose particle volumes are its volume).
+template <int D> double body_measure(const BodySection& body);
+
+/// The factor that scales the particle volumes `seeded` (their sum) of a
+/// body seeded on the lattice to its shape's exact measure `exact`, when
+/// the body asks for it (volume = "exact"), else 1. Every shape seeded on
+/// the lattice - the ones there are and any added - goes through it.
+double volume_factor(const BodySection& body, double seeded, double exact);
+
 /// Seeds every body of the scene (assembler.hpp, seed_particles): boxes on
-/// cells of the spacing `h`, other shapes on the cells of `lattice`.
+/// cells of the spacing `h`, other shapes on the cells of `lattice` (their
+/// volumes scaled by volume_factor).
 template <int D> SeededBodies<D> seed_bodies(const Scene& scene, const Vec<D>& h, const CartesianGrid<D>& lattice);
 
 /// Some of the particles of seed_bodies, without ever holding the others

@@ -214,6 +214,24 @@ void mass_times(const BasisTable<D>& table, const std::vector<double>& m_p, cons
 } // namespace
 
 template <int D>
+void Domain<D>::constrained_rows_product(const BasisTable<D>& table, const std::vector<double>& m_p,
+                                         const std::vector<char>& active, const std::vector<char>& constrained,
+                                         const AlignedVector<Vec<D>>& y, AlignedVector<Vec<D>>& rho) {
+  const std::size_t n = y.size();
+  AlignedVector<Vec<D>> free(n);
+  for (std::size_t I = 0; I < n; ++I)
+    for (int k = 0; k < D; ++k)
+      free[I][k] = active[I] && !constrained[I * D + static_cast<std::size_t>(k)] ? y[I][k] : 0.0;
+  rho.resize(n);
+  mass_times(table, m_p, free, rho);
+  NodalArray field{rho.data()->data(), D};
+  stats_.halo_bytes += exchange_.sum(comm_, {&field, 1});
+  for (std::size_t I = 0; I < n; ++I)
+    for (int k = 0; k < D; ++k)
+      if (!constrained[I * D + static_cast<std::size_t>(k)]) rho[I][k] = 0.0;
+}
+
+template <int D>
 void Domain<D>::solve_consistent_mass(const BasisTable<D>& table, const std::vector<double>& m_p,
                                       const std::vector<double>& m_lumped, const std::vector<char>& active,
                                       const std::vector<char>& constrained, const AlignedVector<Vec<D>>& r,

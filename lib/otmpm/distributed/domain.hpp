@@ -98,6 +98,9 @@ public:
   void check_support(const BasisTable<D>& table) const override;
   long long global_id(int p) const override { return gid_[static_cast<std::size_t>(p)]; }
   const std::vector<char>& owned_nodes() const override { return exchange_.owned(); }
+  void constrained_rows_product(const BasisTable<D>& table, const std::vector<double>& m_p,
+                                const std::vector<char>& active, const std::vector<char>& constrained,
+                                const AlignedVector<Vec<D>>& y, AlignedVector<Vec<D>>& rho) override;
   void solve_consistent_mass(const BasisTable<D>& table, const std::vector<double>& m_p,
                              const std::vector<double>& m_lumped, const std::vector<char>& active,
                              const std::vector<char>& constrained, const AlignedVector<Vec<D>>& r,

@@ -27,6 +27,8 @@ constexpr const char* kPointStateArrays[] = {"lambda", "lambda_slope", "lambda_c
                                                    "cell_hint"};
 /// The walls' held nodes (Engine::save_state: one per-node array per wall).
 constexpr const char* kWallHeld = "wall_held_";
+/// explicit_alpha's carried constraint momenta (Engine::save_state: per-node arrays).
+constexpr const char* kCarried = "carried_";
 /// The cell hints, which are local to a rank's basis and travel as global cells.
 constexpr const char* kCellHints = "cell_hint";
 
@@ -115,7 +117,7 @@ template <class F> void for_each_row_array(Checkpoint& ck, F&& f) {
                engine = gname == "engine";
     auto visit = [&](auto& arrays) {
       for (auto& [aname, a] : arrays) {
-        const bool held = engine && aname.rfind(kWallHeld, 0) == 0; // per node, per wall
+        const bool held = engine && (aname.rfind(kWallHeld, 0) == 0 || aname.rfind(kCarried, 0) == 0); // per node
         if (particles || (basis && is_point_state(aname)) || (nodes && aname == "x") || held)
           f(g, aname, a, nodes || held);
       }

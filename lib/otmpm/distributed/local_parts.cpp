@@ -7,6 +7,7 @@
 #include "otmpm/basis/bspline.hpp"
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/basis/lme.hpp"
+#include "otmpm/integrators/integrator.hpp"
 
 #include <cmath>
 #include <exception>
@@ -226,9 +227,16 @@ LatticePart<D> rank_lattice(const Scene& scene, const Comm& comm, const Cartesia
 /// decomposition and window basis (rank_lattice) are chosen.
 template <int D>
 EngineParts<D> finish_parts(const Comm& comm, EngineParts<D> parts, typename Domain<D>::Setup setup) {
-  // No rebalancing with walls: a wall's held nodes (its contact state, per
-  // node of the window) stay where they are; particles still migrate.
-  if (!parts.walls.empty()) setup.window_basis = nullptr;
+  // No rebalancing with walls, nor with an integrator that carries its
+  // constraints' momentum: a wall's held nodes (its contact state) and the
+  // carried momenta are per node of the window and stay where they are;
+  // particles still migrate.
+  const auto carries = [&] {
+    for (const IntegratorKind& k : integrator_kinds())
+      if (k.carries_constraints && k.step<D>() == parts.settings.step) return true;
+    return false;
+  };
+  if (!parts.walls.empty() || carries()) setup.window_basis = nullptr;
   auto domain = std::make_shared<Domain<D>>(comm, std::move(setup));
   if (auto* b = dynamic_cast<BsplineBasis<D>*>(parts.basis.get()))
     b->distribute(domain->owned_nodes(), [&comm](std::span<double> v) { comm.sum(v); });

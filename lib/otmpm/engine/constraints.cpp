@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <utility>
 
 namespace otmpm {
 
@@ -23,13 +24,14 @@ Constraints<D>::Constraints(Dirichlet<D> dirichlet, std::vector<Wall<D>> walls, 
                                  "Constraints: ", d_.node.size(), " nodes but ", d_.fix.size(), " fix flags and ",
                                  d_.value.size(), " values");
   constrained_.assign(static_cast<std::size_t>(nodes) * D, 0);
+  vbar_.assign(constrained_.size(), 0.0);
   for (std::size_t i = 0; i < d_.node.size(); ++i) {
     const int I = d_.node[i];
     require<std::invalid_argument>(I >= 0 && I < nodes, "Constraints: node ", I, " out of range [0, ", nodes, ")");
     for (int k = 0; k < D; ++k) {
       require<std::invalid_argument>(std::isfinite(d_.value[i][k]), "Constraints: node ", I, " component ", k,
                                      ": prescribed velocity ", d_.value[i][k], " is not finite");
-      if (d_.fix[i][k]) constrained_[static_cast<std::size_t>(I) * D + k] = 1;
+      if (d_.fix[i][k]) constrained_[static_cast<std::size_t>(I) * D + k] = 1, vbar_[static_cast<std::size_t>(I) * D + k] = d_.value[i][k];
     }
   }
   nodes_ = d_.node;
@@ -37,38 +39,78 @@ Constraints<D>::Constraints(Dirichlet<D> dirichlet, std::vector<Wall<D>> walls, 
   nodes_.erase(std::unique(nodes_.begin(), nodes_.end()), nodes_.end());
 }
 
-template <int D> void Constraints<D>::apply_velocity(AlignedVector<Vec<D>>& v) const {
-  for (std::size_t i = 0; i < d_.node.size(); ++i)
-    for (int k = 0; k < D; ++k)
-      if (d_.fix[i][k]) v[d_.node[i]][k] = d_.value[i][k];
-}
-
-template <int D> void Constraints<D>::zero_fixed(AlignedVector<Vec<D>>& r) const {
-  for (std::size_t i = 0; i < d_.node.size(); ++i)
-    for (int k = 0; k < D; ++k)
-      if (d_.fix[i][k]) r[d_.node[i]][k] = 0.0;
+template <int D>
+void Constraints<D>::book_fixed(std::size_t I, int k, double J, const Ledger<D>& ledger) const {
+  const std::size_t c = I * D + static_cast<std::size_t>(k);
+  if (!counts(static_cast<int>(I))) return;
+  (*ledger.impulse)[k] += J;
+  *ledger.work += J * vbar_[c];
 }
 
 template <int D>
-void Constraints<D>::apply_force(AlignedVector<Vec<D>>& f, AlignedVector<Vec<D>>& reaction, double dt,
-                                 Vec<D>& impulse, double& work) const {
+void Constraints<D>::apply_velocity(AlignedVector<Vec<D>>& v, const NodeView<D>& nodes, const WallEffect<D>& effect,
+                                    const Ledger<D>& ledger, bool first) {
+  // Particles that read a rate take up the change of a held component's
+  // value: in the first step a component held at a velocity jumps from what
+  // they bring to it, nothing later (the value is constant); a support at
+  // rest holds what reaches it. Particles that read v itself take every change.
+  const bool jumps = effect.impulse && (first || !effect.rate);
+  for (std::size_t i = 0; i < d_.node.size(); ++i) {
+    const int I = d_.node[i];
+    for (int k = 0; k < D; ++k) {
+      if (!d_.fix[i][k]) continue;
+      const double vbar = d_.value[i][k], before = v[I][k];
+      const auto node = static_cast<std::size_t>(I);
+      const double jump = effect.impulse ? vbar - effect.start(v, node)[k] : 0.0;
+      v[I][k] = vbar;
+      if (!jumps || (effect.rate && vbar == 0.0) || !nodes.active[I]) continue;
+      Vec<D> dv = Vec<D>::Zero();
+      dv[k] = vbar - before; // zero the second time a node listed by two sets is met
+      if (effect.kick) (*effect.kick)[node] += dv;
+      else effect.hand_on(node, dv);
+      const double J = nodes.m[I] * dv[k];
+      if (effect.booking == Booking::held) continue; // book_held
+      // The jump from the start velocity to vbar (zero once the particles
+      // carry vbar) takes its kinetic energy: a perfectly plastic impact.
+      // Not where the particles read v itself (otm): their velocity is the
+      // nodes' field, of which the node's start velocity is no part.
+      if (counts(I) && dv[k] != 0.0 && effect.rate) *ledger.work -= 0.5 * nodes.m[I] * jump * jump;
+      if (effect.booking == Booking::now || effect.kick) book_fixed(node, k, J, ledger);
+      if (effect.booking != Booking::carried || effect.kick) continue;
+      size_carried(v.size());
+      carried_step_[0][node][k] += J; // booked by book_carried
+    }
+  }
+}
+
+template <int D> void Constraints<D>::apply_increment(AlignedVector<Vec<D>>& dx, double dt) const {
+  for (std::size_t i = 0; i < d_.node.size(); ++i)
+    for (int k = 0; k < D; ++k)
+      if (d_.fix[i][k]) dx[d_.node[i]][k] = dt * d_.value[i][k];
+}
+
+template <int D>
+void Constraints<D>::apply_force(AlignedVector<Vec<D>>& f, AlignedVector<Vec<D>>& reaction, double c,
+                                 const Ledger<D>& ledger) const {
   // Only Dirichlet nodes carry a reaction (it stays zero elsewhere).
   for (int I : nodes_) reaction[I].setZero();
   for (std::size_t i = 0; i < d_.node.size(); ++i) {
     const int I = d_.node[i];
     for (int k = 0; k < D; ++k)
       if (d_.fix[i][k]) {
-        // -= keeps the reaction of a node listed by two sets (its f is zero
-        // the second time); the work uses the prescribed velocity, which is
-        // what every integrator sets on this component during the step.
+        // -= keeps the reaction of a node listed by two sets (its f is zero the second time)
         reaction[I][k] -= f[I][k];
-        if (counts(I)) work -= dt * f[I][k] * d_.value[i][k];
         f[I][k] = 0.0;
       }
   }
-  // In node order, as a sum over all nodes would add them (the others add zero).
+  if (c != 0.0) book_reaction(reaction, c, ledger);
+}
+
+template <int D>
+void Constraints<D>::book_reaction(const AlignedVector<Vec<D>>& rho, double c, const Ledger<D>& ledger) const {
   for (int I : nodes_)
-    if (counts(I)) impulse += dt * reaction[I];
+    for (int k = 0; k < D; ++k)
+      if (constrained_[static_cast<std::size_t>(I) * D + k]) book_fixed(static_cast<std::size_t>(I), k, c * rho[I][k], ledger);
 }
 
 template <int D> double Constraints<D>::prescribed_kinetic_energy(const std::vector<double>& m) const {
@@ -81,7 +123,7 @@ template <int D> double Constraints<D>::prescribed_kinetic_energy(const std::vec
 
 template <int D>
 void Constraints<D>::apply_walls(AlignedVector<Vec<D>>& v, const NodeView<D>& nodes, double t, double dt,
-                                 const WallEffect<D>& effect, double& work) {
+                                 const WallEffect<D>& effect, const Ledger<D>& ledger) {
   held_.resize(walls_.size());
   for (std::size_t w = 0; w < walls_.size(); ++w) {
     const Wall<D>& wall = walls_[w];
@@ -94,6 +136,7 @@ void Constraints<D>::apply_walls(AlignedVector<Vec<D>>& v, const NodeView<D>& no
       const double d = (nodes.x[I] - p).dot(wall.normal), floor = -std::max(d, 0.0) / dt;
       const Vec<D> u = v[I] - wall.velocity;
       const double un = u.dot(wall.normal);
+      const Vec<D> s = effect.start(v, I) - wall.velocity;
       double dn;
       if (held[I]) {
         // Held: its normal velocity stays at the floor - by losing its normal
@@ -112,15 +155,119 @@ void Constraints<D>::apply_walls(AlignedVector<Vec<D>>& v, const NodeView<D>& no
       }
       const Vec<D> dv = wall_change<D>(u, wall.normal, dn, wall.friction);
       v[I] += dv;
-      if (effect.rate) (*effect.rate)[I] += dv / effect.c;
-      if (counts(static_cast<int>(I)))
-        impulse += nodes.m[I] * dv; // the particles' momentum changes by m dv dt / c through the rate
+      if (!effect.impulse) continue;
+      effect.hand_on(I, dv);
+      if (effect.booking == Booking::carried) {
+        size_carried(v.size());
+        carried_step_[1 + w][I] += nodes.m[I] * dv;
+      }
+      if (effect.booking == Booking::held || !counts(static_cast<int>(I))) continue; // held: book_held
+      *ledger.friction += friction_loss<D>(nodes.m[I], s, u, dv, wall.normal);
+      if (effect.booking == Booking::now) impulse += nodes.m[I] * dv; // the particles' momentum changes by m dv
     }
-    if (!effect.impulse) continue;
-    if (effect.rate) impulse *= dt / effect.c;
+    if (!effect.impulse || effect.booking != Booking::now) continue;
     (counted_.empty() ? impulse_ : rank_impulse_)[w] += impulse;
-    work += impulse.dot(wall.velocity);
+    *ledger.work += impulse.dot(wall.velocity);
   }
+}
+
+template <int D>
+void Constraints<D>::book_held(const Held<D>& step, AlignedVector<Vec<D>>& q, const NodeView<D>& nodes,
+                               const Ledger<D>& ledger) {
+  AlignedVector<Vec<D>>& wall_impulse = counted_.empty() ? impulse_ : rank_impulse_;
+  held_.resize(walls_.size());
+  for (std::size_t I = 0; I < q.size(); ++I) {
+    if (!nodes.active[I]) {
+      q[I].setZero();
+      continue;
+    }
+    const double m = nodes.m[I];
+    const Vec<D> brought = q[I] / m;
+    Vec<D> end = brought + step.dt * Vec<D>(step.f[I] / m); // the particles' velocity at the node after the step
+    bool held = false;
+    for (std::size_t w = 0; w < walls_.size(); ++w) {
+      if (held_[w].empty() || !held_[w][I]) continue;
+      held = true;
+      const Wall<D>& wall = walls_[w];
+      const double d = (nodes.x[I] - (wall.point + step.t * wall.velocity)).dot(wall.normal);
+      const Vec<D> u = end - wall.velocity;
+      const double dn = -std::max(d, 0.0) / step.dt - u.dot(wall.normal);
+      if (dn <= 0.0) continue; // it leaves the wall at least as fast as the node: no pull
+      const Vec<D> dv = wall_change<D>(u, wall.normal, dn, wall.friction);
+      end += dv;
+      if (!counts(static_cast<int>(I))) continue;
+      *ledger.friction += friction_loss<D>(m, Vec<D>(brought - wall.velocity), u, dv, wall.normal);
+      wall_impulse[w] += m * dv;
+      *ledger.work += (m * dv).dot(wall.velocity);
+    }
+    for (int k = 0; k < D && step.first; ++k) {
+      const std::size_t c = I * D + static_cast<std::size_t>(k);
+      if (!constrained_[c] || vbar_[c] == 0.0) continue;
+      held = true;
+      // f is zero here (apply_force booked it); the jump from what the
+      // particles brought is the set's.
+      end[k] = vbar_[c];
+      const double jump = vbar_[c] - brought[k];
+      book_fixed(I, k, m * jump, ledger);
+      if (counts(static_cast<int>(I))) *ledger.work -= 0.5 * m * jump * jump;
+    }
+    q[I] = held ? Vec<D>(end - brought - step.dt * step.rate[I]) : Vec<D>::Zero(); // the kick
+  }
+}
+
+template <int D> void Constraints<D>::size_carried(std::size_t nodes) {
+  if (carried_step_.size() == walls_.size() + 1 && zeroed_.size() == nodes) return;
+  carried_.resize(walls_.size() + 1);
+  carried_step_.resize(walls_.size() + 1);
+  for (std::size_t s = 0; s < carried_.size(); ++s) {
+    if (carried_[s].size() != nodes) carried_[s].assign(nodes, Vec<D>::Zero());
+    carried_step_[s].assign(nodes, Vec<D>::Zero());
+  }
+  zeroed_.assign(nodes, Vec<D>::Zero());
+}
+
+template <int D> void Constraints<D>::zero_carried(AlignedVector<Vec<D>>& a, const std::vector<double>& m) {
+  size_carried(a.size());
+  for (std::size_t i = 0; i < d_.node.size(); ++i) {
+    const int I = d_.node[i];
+    for (int k = 0; k < D; ++k)
+      if (d_.fix[i][k]) {
+        zeroed_[I][k] += m[I] * a[I][k];
+        a[I][k] = 0.0;
+      }
+  }
+}
+
+template <int D>
+void Constraints<D>::book_carried(double alpha_m, double gamma, double dt, bool first,
+                                  const AlignedVector<Vec<D>>& reaction, const Ledger<D>& ledger) {
+  size_carried(reaction.size());
+  AlignedVector<Vec<D>>& wall_impulse = counted_.empty() ? impulse_ : rank_impulse_;
+  // One node of source s (0: the Dirichlet sets, 1 + w: wall w): its part
+  // of the new total, the momentum the particles take up now (returned).
+  auto carry = [&](std::size_t s, std::size_t I, const Vec<D>& removed, const Vec<D>& z) {
+    Vec<D>& X = carried_[s][I];
+    const Vec<D> Y = (removed - alpha_m * ((first ? removed : X) - z)) / (1.0 - alpha_m) +
+                     carried_step_[s][I] / (gamma * dt);
+    const Vec<D> J = ((1.0 - gamma) * dt) * X + (gamma * dt) * Y;
+    X = Y;
+    carried_step_[s][I] = Vec<D>::Zero();
+    return J;
+  };
+  for (int I : nodes_) {
+    const auto node = static_cast<std::size_t>(I);
+    const Vec<D> J = carry(0, node, reaction[node], zeroed_[node]);
+    zeroed_[node] = Vec<D>::Zero();
+    for (int k = 0; k < D; ++k)
+      if (constrained_[node * D + static_cast<std::size_t>(k)]) book_fixed(node, k, J[k], ledger);
+  }
+  for (std::size_t w = 0; w < walls_.size(); ++w)
+    for (std::size_t I = 0; I < reaction.size(); ++I) {
+      const Vec<D> J = carry(1 + w, I, Vec<D>::Zero(), Vec<D>::Zero());
+      if (!counts(static_cast<int>(I))) continue;
+      wall_impulse[w] += J;
+      *ledger.work += J.dot(walls_[w].velocity);
+    }
 }
 
 template <int D>

@@ -40,20 +40,81 @@ template <int D> struct Wall {
   double friction = 0.0;
 };
 
-/// How a wall's change dv_I of a nodal velocity-like field v = v0 + c rate
-/// reaches the particles: their velocity update reads `rate`, which gets
-/// rate_I += dv_I / c; `impulse`: the change is the body's (the wall force
-/// counts it) - not for a predictor that only drives the stress update.
-/// `hold_rate`: a node held earlier in the step is held by zeroing the
-/// normal part of its rate (relative to the wall) instead of setting its
-/// velocity - as a Dirichlet set zeroes its force components (npc's
-/// corrector, whose predictor the walls already held).
+/// When a pass books the momentum its constraints give the particles:
+/// `now`, as m_I dv_I (the particles take the change up as it is: fe, musl,
+/// central_difference, otm, unified); `held`, after the step from the
+/// components the pass holds (Constraints::book_held: npc, whose particles
+/// take up a held component's change from the velocity they brought, not
+/// its rate); `carried`, as the rate hands it on from step to step
+/// (Constraints::book_carried: explicit_alpha, whose particles keep the
+/// rate as their acceleration).
+enum class Booking { now, held, carried };
+
+/// How the change dv_I that a constraint makes to a nodal velocity-like
+/// field v = v0 + c rate reaches the particles: in a pass whose change is
+/// the body's (`impulse`), through `rate` when given (rate_I += dv_I / c;
+/// the particles read the rate times c), else directly (they read v itself:
+/// otm); `booking` says when its momentum is booked. A pass that is not the
+/// body's (`impulse` false: a predictor or a re-projection that only drives
+/// the stress update) changes v alone. `hold_rate`: a node held earlier in
+/// the step is held by zeroing the normal part of its rate (relative to the
+/// wall) instead of setting its velocity - as a Dirichlet set zeroes its
+/// force components (npc's corrector, central_difference's second kick).
 template <int D> struct WallEffect {
   AlignedVector<Vec<D>>* rate = nullptr;
   double c = 0.0;
   bool impulse = true;
   bool hold_rate = false;
+  Booking booking = Booking::now;
+  /// A held component's jump goes here instead of to the rate (kick_I +=
+  /// dv_I): a velocity change the particles take up as it is and do not keep
+  /// as an acceleration (explicit_alpha, whose kept rate would hand part of
+  /// it back later); booked at once.
+  AlignedVector<Vec<D>>* kick = nullptr;
+  /// The particles take up reach x dv through the rate (npc's corrector,
+  /// whose particles read its rate times dt: 1 / gamma).
+  double reach = 1.0;
+  /// Hands dv of node I on to the rate.
+  void hand_on(std::size_t I, const Vec<D>& dv) const {
+    if (rate) (*rate)[I] += dv / c;
+  }
+  /// The velocity node I had at the start of the time the pass covers,
+  /// v_I - c rate_I (v_I itself without a rate): the changes of the pass
+  /// leave it as it is.
+  Vec<D> start(const AlignedVector<Vec<D>>& v, std::size_t I) const {
+    return rate ? Vec<D>(v[I] - c * (*rate)[I]) : v[I];
+  }
 };
+
+/// Where the constraints book what a pass did: the run's totals (or, in a
+/// distributed run, this rank's share of the step, summed over the ranks
+/// after it). `impulse` and `work`: the impulse and the work of the
+/// Dirichlet reactions, at the prescribed velocity (the walls' work J . w is
+/// added to `work` too); `friction`: the energy Coulomb friction took
+/// (friction_loss).
+template <int D> struct Ledger {
+  Vec<D>* impulse = nullptr;
+  double* work = nullptr;
+  double* friction = nullptr;
+};
+
+/// The energy that the tangential part of an impulse J (relative to the
+/// unit normal n) takes over a pass in which the relative velocity it acts
+/// on went from s to e: its work against the mean tangential velocity,
+/// -J_t . (s_t + e_t) / 2 (mean2 = s + e). For Coulomb friction, the energy
+/// it dissipates: friction times the mean slip.
+template <int D> double friction_loss(const Vec<D>& J, const Vec<D>& mean2, const Vec<D>& n) {
+  return -0.5 * (J - J.dot(n) * n).dot(mean2 - mean2.dot(n) * n);
+}
+
+/// friction_loss of the change du that a constraint makes to the relative
+/// velocity u of a mass m, where s was the relative velocity at the start of
+/// the pass (WallEffect::start) and u follows from it by the forces of the
+/// pass: J = m du, e = u + du (for s = u, the tangential kinetic energy
+/// m/2 (|u_t|^2 - |u_t + du_t|^2)).
+template <int D> double friction_loss(double m, const Vec<D>& s, const Vec<D>& u, const Vec<D>& du, const Vec<D>& n) {
+  return friction_loss<D>(Vec<D>(m * du), s + u + du, n);
+}
 
 /// The change of u (velocity or increment relative to a wall or another
 /// body, with unit normal n pointing to u's side) that adds `dn` to its
@@ -66,6 +127,16 @@ template <int D> Vec<D> wall_change(const Vec<D>& u, const Vec<D>& n, double dn,
   if (mu > 0.0 && dn > 0.0 && t > 0.0) change -= std::min(1.0, mu * dn / t) * ut;
   return change;
 }
+
+/// What Constraints::book_held reads of npc's step: the time t and step dt
+/// (and whether it is the run's first), the nodal forces f (the fixed
+/// components zeroed) and the rate the particles take up times dt.
+template <int D> struct Held {
+  double t, dt;
+  bool first; ///< the run's first step
+  const AlignedVector<Vec<D>>& f;
+  const AlignedVector<Vec<D>>& rate;
+};
 
 /// The nodes a velocity constraint acts on: positions, lumped masses, active flags.
 template <int D> struct NodeView {
@@ -85,15 +156,68 @@ public:
   const Dirichlet<D>& dirichlet() const { return d_; }
   /// constrained()[I * D + k]: component k of node I is fixed.
   const std::vector<char>& constrained() const { return constrained_; }
-  /// Sets the fixed components of a nodal velocity-like field to their value.
-  void apply_velocity(AlignedVector<Vec<D>>& v) const;
-  /// Sets the fixed components of a nodal rate field (an acceleration) to zero.
-  void zero_fixed(AlignedVector<Vec<D>>& r) const;
-  /// Moves the fixed components of f into `reaction` (zeroing them in f),
-  /// adds their impulse dt R to `impulse` and their work dt R . v_prescribed
-  /// to `work`.
-  void apply_force(AlignedVector<Vec<D>>& f, AlignedVector<Vec<D>>& reaction, double dt, Vec<D>& impulse,
-                   double& work) const;
+  /// Sets the fixed components of a nodal velocity-like field to their
+  /// value. In a pass whose change is the body's (effect.impulse) the change
+  /// dv = vbar - v_Ik of an active node reaches the particles as `effect`
+  /// says: where they read a rate, only in the `first` step of the run and
+  /// for a component held at a velocity (vbar != 0: the jump from the
+  /// velocity they bring to the held one; the value is constant, so its
+  /// rate is zero later; a support at rest holds what reaches it); where
+  /// they read v itself (otm), every step. Its impulse J = m_I dv is booked
+  /// (book_fixed) as effect.booking says, and the kinetic energy m_I (vbar -
+  /// s)^2 / 2 that the jump from the component's start velocity s
+  /// (WallEffect::start) takes comes off the work (a perfectly plastic
+  /// impact on the set). With the component's force removed (s = v_Ik) the
+  /// work is that at the mean velocity, J (s + vbar) / 2.
+  void apply_velocity(AlignedVector<Vec<D>>& v, const NodeView<D>& nodes, const WallEffect<D>& effect,
+                      const Ledger<D>& ledger, bool first);
+  /// Sets the fixed components of a nodal increment to dt vbar.
+  void apply_increment(AlignedVector<Vec<D>>& dx, double dt) const;
+  /// Moves the fixed components of f into `reaction` (zeroing them in f)
+  /// and books their impulse c R (book_reaction), where c is the factor
+  /// with which the particles' velocities take up f / m (dt; dt/2 for each
+  /// kick of central_difference; (dt + dt_prev)/2 for otm).
+  void apply_force(AlignedVector<Vec<D>>& f, AlignedVector<Vec<D>>& reaction, double c, const Ledger<D>& ledger) const;
+  /// Books (book_fixed) the impulse c rho of a reaction rho on the fixed
+  /// components (the removed forces, a consistent-mass solve's inertial reaction).
+  void book_reaction(const AlignedVector<Vec<D>>& rho, double c, const Ledger<D>& ledger) const;
+  /// After a pass with Booking::held (npc's corrector; `step` gives its
+  /// nodal fields), whose particles take up dt rate: at the nodes it holds,
+  /// the particles are to end the step as the constraints have them end it,
+  /// starting from the velocity they would have without them, u = q_I / m_I
+  /// + dt f_I / m_I (npc's particle update, from the velocity they brought):
+  /// each wall that holds node I applies its rule (6.2-6.3) to u - so
+  /// Coulomb's bound holds between the tangential and the normal momentum
+  /// the particles get - and, in the first step, a Dirichlet set's
+  /// components held at a velocity end at vbar (apply_velocity). q
+  /// becomes the kick that adds the difference to dt rate there (zero
+  /// elsewhere); the walls' m dv are their impulses (work m dv . w, friction
+  /// by friction_loss from the velocity brought), a set's m_I (vbar - q_Ik /
+  /// m_I) its reaction (book_fixed; its jump's kinetic energy off the work).
+  void book_held(const Held<D>& step, AlignedVector<Vec<D>>& q, const NodeView<D>& nodes, const Ledger<D>& ledger);
+  /// Before a pass with Booking::carried (explicit_alpha): zeroes the fixed
+  /// components of the acceleration a_n the step starts from, noting the
+  /// momentum m_I a_nIk removed.
+  void zero_carried(AlignedVector<Vec<D>>& a, const std::vector<double>& m);
+  /// After it: books the momentum the constraints give the particles in
+  /// this step through explicit_alpha's rate, which the particles keep as
+  /// their acceleration a_p and take up again in the next steps (theory.md
+  /// sect. 8.7). Per component, with the constraint's part X of sum_p m_p
+  /// a_p carried from step to step, its part of the new total
+  ///   Y = (s - alpha_m (X - z)) / (1 - alpha_m) + W / (gamma dt)
+  /// (s: the reaction R = -f removed from the force, z: the momentum
+  /// zero_carried removed - both on fixed components -, W: a wall's m dv in
+  /// the pass; X = s in the first step, where a_n = f / m), of which the
+  /// particles take up J = dt ((1 - gamma) X +
+  /// gamma Y) now; X becomes Y. J is booked as a Dirichlet reaction
+  /// (book_fixed) or as the wall's impulse (work J . w).
+  void book_carried(double alpha_m, double gamma, double dt, bool first, const AlignedVector<Vec<D>>& reaction,
+                    const Ledger<D>& ledger);
+  /// explicit_alpha's carried parts X (book_carried), per node: the
+  /// Dirichlet sets' (entry 0) and each wall's (entry 1 + w); empty until
+  /// first carried.
+  std::vector<AlignedVector<Vec<D>>>& carried() { return carried_; }
+  const std::vector<AlignedVector<Vec<D>>>& carried() const { return carried_; }
   /// sum over fixed components of 1/2 m_I v_prescribed^2 (zero for fixed supports).
   double prescribed_kinetic_energy(const std::vector<double>& m) const;
   /// Only the nodes with counted[I] != 0 add to the impulse, the work and
@@ -108,15 +232,18 @@ public:
   }
 
   const std::vector<Wall<D>>& walls() const { return walls_; }
+  /// The nodes of the Dirichlet sets, each once, ascending.
+  const std::vector<int>& fixed_nodes() const { return nodes_; }
   /// Applies the walls at time t to the nodal velocities v of a step dt:
   /// with d_I the distance of node I from the wall plane (positive on the
   /// material side) and u = v_I - v_wall, the normal part u.n is raised to
   /// -max(d_I, 0) / dt when below it, and friction reduces the tangential
-  /// part. The change reaches the particles as `effect` says; its impulse
-  /// (m_I dv_I summed per wall) and its work (impulse . v_wall) are added
-  /// to wall_impulse() and `work`.
+  /// part. In a pass whose change is the body's (effect.impulse) the change
+  /// reaches the particles as `effect` says; its impulse (m_I dv_I summed
+  /// per wall) is added to wall_impulse() and its work (impulse . v_wall) to
+  /// `ledger` as effect.booking says, the energy friction took (friction_loss) at once.
   void apply_walls(AlignedVector<Vec<D>>& v, const NodeView<D>& nodes, double t, double dt,
-                   const WallEffect<D>& effect, double& work);
+                   const WallEffect<D>& effect, const Ledger<D>& ledger);
   /// The same rule for node increments dx of the step (positions after it:
   /// x_I + dx_I): the normal increment relative to the wall is raised to
   /// -max(d_I, 0); no impulse is counted.
@@ -139,6 +266,16 @@ private:
   std::vector<std::vector<char>> held_; ///< per wall and node: held by the wall
   std::vector<int> nodes_;       ///< the distinct nodes of d_.node, ascending
   std::vector<char> constrained_;
+  std::vector<double> vbar_;     ///< per node and component: the prescribed velocity (the last set's)
+  /// Booking::carried: the parts X (per node, entry 0 Dirichlet, 1 + w the
+  /// walls), and the step's W (same layout) and zeroed momentum z.
+  std::vector<AlignedVector<Vec<D>>> carried_, carried_step_;
+  AlignedVector<Vec<D>> zeroed_;
+  /// Books the impulse J a Dirichlet set gave component k of node I: its
+  /// reaction impulse and work J vbar (counted nodes only).
+  void book_fixed(std::size_t I, int k, double J, const Ledger<D>& ledger) const;
+  /// The step's buffers of Booking::carried, sized for `nodes` nodes.
+  void size_carried(std::size_t nodes);
   std::vector<char> counted_; ///< empty: every node counts
   bool counts(int I) const { return counted_.empty() || counted_[static_cast<std::size_t>(I)]; }
 };

@@ -41,8 +41,8 @@ template <int D> Vec<D> BodyContact<D>::normal(int I, int a, int b) const {
 }
 
 template <int D>
-void BodyContact<D>::share(int Ja, int Jb, Vec<D> du, AlignedVector<Vec<D>>& v, const ContactNodes& nodes,
-                           const WallEffect<D>& effect) const {
+Vec<D> BodyContact<D>::share(int Ja, int Jb, Vec<D> du, AlignedVector<Vec<D>>& v, const ContactNodes& nodes,
+                             const WallEffect<D>& effect) const {
   for (int k = 0; k < D; ++k)
     if (nodes.constrained[static_cast<std::size_t>(Ja) * D + k] || nodes.constrained[static_cast<std::size_t>(Jb) * D + k])
       du[k] = 0.0;
@@ -50,15 +50,18 @@ void BodyContact<D>::share(int Ja, int Jb, Vec<D> du, AlignedVector<Vec<D>>& v, 
   const Vec<D> dva = (mb / (ma + mb)) * du, dvb = (-ma / (ma + mb)) * du;
   v[Ja] += dva;
   v[Jb] += dvb;
-  if (effect.rate) {
-    (*effect.rate)[Ja] += dva / effect.c;
-    (*effect.rate)[Jb] += dvb / effect.c;
+  if (effect.impulse) {
+    effect.hand_on(static_cast<std::size_t>(Ja), dva);
+    effect.hand_on(static_cast<std::size_t>(Jb), dvb);
   }
+  return du;
 }
 
 template <int D>
-void BodyContact<D>::apply(AlignedVector<Vec<D>>& v, const ContactNodes& nodes, const WallEffect<D>& effect) {
+void BodyContact<D>::apply(AlignedVector<Vec<D>>& v, const ContactNodes& nodes, const WallEffect<D>& effect,
+                           double& friction) {
   const int P = pairs();
+  loss_.assign(static_cast<std::size_t>(nodes_), 0.0);
   parallel_for(nodes_, [&](long long node) {
     const int I = static_cast<int>(node);
     for (int a = 0, k = 0; a < fields_; ++a)
@@ -71,6 +74,7 @@ void BodyContact<D>::apply(AlignedVector<Vec<D>>& v, const ContactNodes& nodes, 
           continue;
         }
         const Vec<D> u = v[Ja] - v[Jb];
+        const Vec<D> start = effect.start(v, static_cast<std::size_t>(Ja)) - effect.start(v, static_cast<std::size_t>(Jb));
         const double s = -u.dot(n); // separation velocity
         double ds;
         if (held) {
@@ -87,9 +91,25 @@ void BodyContact<D>::apply(AlignedVector<Vec<D>>& v, const ContactNodes& nodes, 
           held = 1;
         }
         // From a's side, b is a wall with normal -n moving at v_b.
-        share(Ja, Jb, wall_change<D>(u, Vec<D>(-n), ds, law_.friction), v, nodes, effect);
+        const Vec<D> du = share(Ja, Jb, wall_change<D>(u, Vec<D>(-n), ds, law_.friction), v, nodes, effect);
+        if (!effect.impulse) continue;
+        // The pair's kinetic energy relative to its centre of mass is
+        // mu* |u|^2 / 2 with the reduced mass mu* = m_a m_b / (m_a + m_b);
+        // the particles take up reach x the change.
+        const double ma = nodes.m[static_cast<std::size_t>(Ja)], mb = nodes.m[static_cast<std::size_t>(Jb)];
+        loss_[static_cast<std::size_t>(I)] += friction_loss<D>(effect.reach * ma * mb / (ma + mb), start, u, du, n);
       }
   });
+  if (!effect.impulse) return;
+  // Summed in fixed blocks of nodes: the same bits for any thread count.
+  struct Sum {
+    double value = 0.0;
+    Sum& operator+=(const Sum& o) {
+      value += o.value;
+      return *this;
+    }
+  };
+  friction += blocked_reduce<Sum>(nodes_, [&](long long I, Sum& acc) { acc.value += loss_[static_cast<std::size_t>(I)]; }).value;
 }
 
 template <int D> void BodyContact<D>::apply_to_increment(AlignedVector<Vec<D>>& dx, const ContactNodes& nodes) const {

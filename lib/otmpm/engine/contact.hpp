@@ -73,8 +73,11 @@ public:
   /// each step's masses).
   AlignedVector<Vec<D>>& mass_gradient() { return grad_m_; }
   /// The correction of a nodal velocity-like field v over the field nodes;
-  /// `effect` says how it reaches the particles (as for the walls).
-  void apply(AlignedVector<Vec<D>>& v, const ContactNodes& nodes, const WallEffect<D>& effect);
+  /// `effect` says how it reaches the particles (as for the walls). In a
+  /// pass whose change is the bodies' (effect.impulse), the energy Coulomb
+  /// friction takes from the pairs' relative motion (friction_loss with the
+  /// reduced mass m_a m_b / (m_a + m_b)) is added to `friction`.
+  void apply(AlignedVector<Vec<D>>& v, const ContactNodes& nodes, const WallEffect<D>& effect, double& friction);
   /// For the held pairs, an approaching relative normal increment of the
   /// field-node increments dx is removed (same sharing, no friction).
   void apply_to_increment(AlignedVector<Vec<D>>& dx, const ContactNodes& nodes) const;
@@ -89,14 +92,18 @@ private:
   /// mass gradients give none.
   Vec<D> normal(int I, int a, int b) const;
   /// Adds du to u = v_a - v_b at the field nodes Ja, Jb, shared by mass,
-  /// on the components no Dirichlet set holds (and to the rate, if any).
-  void share(int Ja, int Jb, Vec<D> du, AlignedVector<Vec<D>>& v, const ContactNodes& nodes,
-             const WallEffect<D>& effect) const;
+  /// on the components no Dirichlet set holds (handed on to the particles
+  /// as `effect` says); returns the du it added.
+  Vec<D> share(int Ja, int Jb, Vec<D> du, AlignedVector<Vec<D>>& v, const ContactNodes& nodes,
+               const WallEffect<D>& effect) const;
+
 
   int nodes_ = 0, fields_ = 0;
   ContactLaw law_;
   AlignedVector<Vec<D>> grad_m_;
   std::vector<char> held_;
+  std::vector<double> loss_; ///< per grid node: the friction loss of the last pass
+
 };
 
 extern template class BodyContact<1>;

@@ -102,6 +102,12 @@ public:
                                      const std::vector<double>& m_lumped, const std::vector<char>& active,
                                      const std::vector<char>& constrained, const AlignedVector<Vec<D>>& r,
                                      AlignedVector<Vec<D>>& y) = 0;
+  /// rho_Ik = sum_{J free} M_IJ y_Jk over all ranks on the constrained
+  /// components (free: active and not constrained; rho = 0 elsewhere): the
+  /// inertial reaction of the constrained rows of the consistent mass.
+  virtual void constrained_rows_product(const BasisTable<D>& table, const std::vector<double>& m_p,
+                                        const std::vector<char>& active, const std::vector<char>& constrained,
+                                        const AlignedVector<Vec<D>>& y, AlignedVector<Vec<D>>& rho) = 0;
 };
 
 } // namespace otmpm

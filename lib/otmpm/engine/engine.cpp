@@ -168,6 +168,7 @@ template <int D> void Engine<D>::step() {
   if (!(dt_ > 0.0) || !std::isfinite(dt_))
     unstable("time step " + format_number(dt_) + " is not positive and finite");
   if (dt_prev_ == 0.0) dt_prev_ = dt_;
+  loads_.traction_positions(P_, traction_start_);
   try {
     settings_.step(*this, {t_, dt_, dt_prev_, step_, settings_.parameters, P_, nodal_});
   } catch (const ParticleFailure& f) {
@@ -186,7 +187,13 @@ template <int D> void Engine<D>::step() {
   // Trapezoidal rule: exact for a constant load on a uniformly accelerating
   // body, where the one-sided rule would leave an O(dt) error in the balance.
   const double power = global_power(t_, momentum_);
-  energy_.external_work += 0.5 * dt_ * (external_power_ + power);
+  double work = 0.5 * dt_ * (external_power_ + power);
+  if (!loads_.tractions.empty()) { // the tractions' work on the loaded particles' motion
+    double traction = loads_.traction_work(t0, t_, P_, traction_start_);
+    if (dist_) dist_->sum({&traction, 1});
+    work += traction;
+  }
+  energy_.external_work += work;
   external_power_ = power;
   check_energy();
 }
@@ -224,7 +231,7 @@ template <int D> void Engine<D>::to_nodes(const ToNodes<D>& what) {
   ScopedPhase timer(timers_, Phase::to_nodes);
   if (what.forces && !loads_.uniform() && loads_.any()) loads_.particle_forces(what.t, P_, fext_);
   to_nodes_with(what, [](int, int) {});
-  exchange_sums(what.mass, what.w != nullptr, what.forces);
+  exchange_sums(what.mass, what.w != nullptr, what.forces || what.split);
   if (what.mass) finish_mass();
 }
 
@@ -232,7 +239,10 @@ template <int D>
 template <class Update>
 void Engine<D>::to_nodes_with(const ToNodes<D>& what, Update&& update) {
   const bool q = what.w != nullptr;
-  if (what.mass && q && what.forces) to_nodes_impl<true, true, true>(what, update);
+  require<std::invalid_argument>(!what.split || (q && what.a && what.mass && !what.forces),
+                                 "Engine::to_nodes: split momenta need w, a and the mass, and no forces");
+  if (what.split) to_nodes_impl<true, true, false, true>(what, update);
+  else if (what.mass && q && what.forces) to_nodes_impl<true, true, true>(what, update);
   else if (what.mass && q) to_nodes_impl<true, true, false>(what, update);
   else if (what.mass && what.forces) to_nodes_impl<true, false, true>(what, update);
   else if (what.mass) to_nodes_impl<true, false, false>(what, update);
@@ -274,7 +284,7 @@ template <int D> void Engine<D>::exchange_sums(bool mass, bool momentum, bool fo
 }
 
 template <int D>
-template <bool Mass, bool Momentum, bool Forces, class Update>
+template <bool Mass, bool Momentum, bool Forces, bool Split, class Update>
 void Engine<D>::to_nodes_impl(const ToNodes<D>& what, Update&& update) {
   const Vec<D> b = loads_.uniform() ? loads_.body_force_at(what.t) : Vec<D>::Zero();
   const bool field = !fext_.empty() && loads_.any() && !loads_.uniform(), uniform = loads_.uniform();
@@ -294,7 +304,10 @@ void Engine<D>::to_nodes_impl(const ToNodes<D>& what, Update&& update) {
   auto prep = [=](int p) {
     Payload w;
     w.m = m[p];
-    if (Momentum) {
+    if (Split) {
+      w.mw = m[p] * vw[p];
+      w.fext = m[p] * va[p];
+    } else if (Momentum) {
       w.mw = m[p] * vw[p];
       if (va) w.mw += (m[p] * c) * va[p];
     }
@@ -310,6 +323,7 @@ void Engine<D>::to_nodes_impl(const ToNodes<D>& what, Update&& update) {
     const double N = Ne[e];
     if (Mass) acc.m += N * w.m;
     if (Momentum) acc.q += N * w.mw;
+    if (Split) acc.f += N * w.fext;
     if (Forces) {
       acc.f -= w.Vs * dNe[e];
       acc.f += N * w.fext;
@@ -318,12 +332,12 @@ void Engine<D>::to_nodes_impl(const ToNodes<D>& what, Update&& update) {
   auto merge = [&](int I, const NodeSums<D>& acc) {
     if (Mass) nodal_.m[I] += acc.m;
     if (Momentum) nodal_.q[I] += acc.q;
-    if (Forces) nodal_.f[I] += acc.f;
+    if (Forces || Split) nodal_.f[I] += acc.f;
   };
   auto clear = [&](int I0, int I1) {
     if (Mass) std::fill(nodal_.m.begin() + I0, nodal_.m.begin() + I1, 0.0);
     if (Momentum) std::fill(nodal_.q.begin() + I0, nodal_.q.begin() + I1, Vec<D>::Zero());
-    if (Forces) std::fill(nodal_.f.begin() + I0, nodal_.f.begin() + I1, Vec<D>::Zero());
+    if (Forces || Split) std::fill(nodal_.f.begin() + I0, nodal_.f.begin() + I1, Vec<D>::Zero());
   };
   scatter_->run(table_, static_cast<int>(nodal_.m.size()), update, prep, add, merge, clear);
 }
@@ -356,7 +370,7 @@ template <int D> const AlignedVector<Vec<D>>& Engine<D>::field_positions() const
 }
 
 template <int D>
-void Engine<D>::solve_mass(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>& y) {
+void Engine<D>::solve_mass(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>& y, double c) {
   ScopedPhase timer(timers_, Phase::nodal_update);
   const int n = static_cast<int>(r.size());
   y.resize(n);
@@ -365,27 +379,53 @@ void Engine<D>::solve_mass(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>
   if (lumped) return;
   if (dist_) dist_->solve_consistent_mass(table_, P_.m, nodal_.m, nodal_.active, constraints_.constrained(), r, y);
   else mass_matrix_->solve(r, y);
+  // The fixed components: what the lumped mass gives them (the constraints
+  // then set them; their change reaches the particles from there).
+  const std::vector<char>& fixed = constraints_.constrained();
+  for (int I : constraints_.fixed_nodes())
+    for (int k = 0; k < D; ++k)
+      if (nodal_.active[I] && fixed[static_cast<std::size_t>(I) * D + k]) y[I][k] = r[I][k] / nodal_.m[I];
+  if (c > 0.0) book_inertial_reaction(y, c);
+}
+
+template <int D> void Engine<D>::book_inertial_reaction(const AlignedVector<Vec<D>>& y, double c) {
+  if (constraints_.fixed_nodes().empty()) return;
+  AlignedVector<Vec<D>> rho(y.size(), Vec<D>::Zero());
+  if (dist_) dist_->constrained_rows_product(table_, P_.m, nodal_.active, constraints_.constrained(), y, rho);
+  else mass_matrix_->constrained_rows_product(y, rho);
+  constraints_.book_reaction(rho, c, ledger());
 }
 
 template <int D> void Engine<D>::constrain_velocity(AlignedVector<Vec<D>>& v, const WallEffect<D>& effect) {
-  constraints_.apply_velocity(v);
-  if (contact_) contact_->apply(v, {nodal_.m, nodal_.active, constraints_.constrained()}, effect);
+  // A distributed run books this rank's owned nodes, summed over the ranks after the step.
+  const NodeView<D> nodes{field_positions(), nodal_.m, nodal_.active};
+  const Ledger<D> books = ledger();
+  constraints_.apply_velocity(v, nodes, effect, books, step_ == 0);
+  if (contact_)
+    contact_->apply(v, {nodal_.m, nodal_.active, constraints_.constrained()}, effect, *books.friction);
   if (constraints_.walls().empty()) return;
-  // A distributed run: the work of this rank's owned nodes, summed over the ranks after the step.
-  constraints_.apply_walls(v, {field_positions(), nodal_.m, nodal_.active}, t_, dt_, effect,
-                           dist_ ? rank_reaction_.work : energy_.reaction_work);
+  constraints_.apply_walls(v, nodes, t_, dt_, effect, books);
+}
+
+template <int D> void Engine<D>::book_held(const AlignedVector<Vec<D>>& rate) {
+  constraints_.book_held({t_, dt_, step_ == 0, nodal_.f, rate}, nodal_.q, {field_positions(), nodal_.m, nodal_.active},
+                         ledger());
+}
+
+template <int D> void Engine<D>::book_carried(double alpha_m, double gamma, bool first) {
+  constraints_.book_carried(alpha_m, gamma, dt_, first, nodal_.reaction, ledger());
 }
 
 template <int D> void Engine<D>::constrain_increment(AlignedVector<Vec<D>>& dx) const {
+  constraints_.apply_increment(dx, dt_);
   if (contact_) contact_->apply_to_increment(dx, {nodal_.m, nodal_.active, constraints_.constrained()});
   if (constraints_.walls().empty()) return;
   constraints_.apply_walls_to_increment(dx, {field_positions(), nodal_.m, nodal_.active}, t_, dt_);
 }
 
-template <int D> void Engine<D>::apply_dirichlet_force(AlignedVector<Vec<D>>& f) {
+template <int D> void Engine<D>::apply_dirichlet_force(AlignedVector<Vec<D>>& f, double c) {
   // A distributed run: this rank's owned nodes, summed over the ranks after the step (sum_particles).
-  if (!dist_) constraints_.apply_force(f, nodal_.reaction, dt_, reaction_impulse_, energy_.reaction_work);
-  else constraints_.apply_force(f, nodal_.reaction, dt_, rank_reaction_.impulse, rank_reaction_.work);
+  constraints_.apply_force(f, nodal_.reaction, c, ledger());
 }
 
 template <int D> void Engine<D>::to_particles(const ToParticles<D>& what) {
@@ -407,7 +447,10 @@ void Engine<D>::to_particles_and_update_stress(const ToParticles<D>& what, const
 template <int D>
 void Engine<D>::to_particles_on(const ToParticles<D>& what, const Gradient<D>& g, int begin, int end) {
   const bool rate = what.rate != nullptr, move = what.move != nullptr, field = g.field != nullptr;
-  if (rate && move && field) to_particles_range<true, true, true>(what, g, begin, end);
+  if (what.kick) {
+    require<std::invalid_argument>(rate && move && !field, "Engine::to_particles: a kick needs a rate and a move");
+    to_particles_range<true, true, false, true>(what, g, begin, end);
+  } else if (rate && move && field) to_particles_range<true, true, true>(what, g, begin, end);
   else if (rate && move) to_particles_range<true, true, false>(what, g, begin, end);
   else if (rate && field) to_particles_range<true, false, true>(what, g, begin, end);
   else if (rate) to_particles_range<true, false, false>(what, g, begin, end);
@@ -418,20 +461,21 @@ void Engine<D>::to_particles_on(const ToParticles<D>& what, const Gradient<D>& g
 }
 
 template <int D>
-template <bool Rate, bool Move, bool Field>
+template <bool Rate, bool Move, bool Field, bool Kick>
 void Engine<D>::to_particles_range(const ToParticles<D>& what, const Gradient<D>& g, int begin, int end) {
-  if (row_width_ == (1 << D)) to_particles_rows<Rate, Move, Field, (1 << D)>(what, g, begin, end);
-  else to_particles_rows<Rate, Move, Field, 0>(what, g, begin, end);
+  if (row_width_ == (1 << D)) to_particles_rows<Rate, Move, Field, Kick, (1 << D)>(what, g, begin, end);
+  else to_particles_rows<Rate, Move, Field, Kick, 0>(what, g, begin, end);
 }
 
 template <int D>
-template <bool Rate, bool Move, bool Field, int W>
+template <bool Rate, bool Move, bool Field, bool Kick, int W>
 void Engine<D>::to_particles_rows(const ToParticles<D>& what, const Gradient<D>& g, int begin, int end) {
   // Plain pointers and factors in locals: the stores to the particles below
   // cannot alias them, so the loops keep them in registers.
   const Vec<D>* rate = Rate ? what.rate->data() : nullptr;
   const Vec<D>* move = Move ? what.move->data() : nullptr;
   const Vec<D>* field = Field ? g.field->data() : nullptr;
+  const Vec<D>* kick = Kick ? what.kick->data() : nullptr;
   Vec<D>* rate_out = what.rate_out ? what.rate_out->data() : nullptr;
   const double c_rate = what.c_rate, c_move = what.c_move, c = g.c;
   const int* offset = table_.offset.data();
@@ -445,12 +489,13 @@ void Engine<D>::to_particles_rows(const ToParticles<D>& what, const Gradient<D>&
   for (int p0 = begin; p0 < end; p0 += kStressBatch) {
     const int p1 = std::min(end, p0 + kStressBatch);
     for (int p = p0; p < p1; ++p) {
-      Vec<D> r = Vec<D>::Zero(), u = Vec<D>::Zero();
+      Vec<D> r = Vec<D>::Zero(), u = Vec<D>::Zero(), k = Vec<D>::Zero();
       Mat<D> G = Mat<D>::Zero();
       const auto [e0, e1] = row_entries<W>(offset, p);
       for (int e = e0; e < e1; ++e) {
         const int I = node[e];
         if constexpr (Rate) r += N[e] * rate[I];
+        if constexpr (Kick) k += N[e] * kick[I];
         if constexpr (Move) u += N[e] * move[I];
         if constexpr (Field) G.noalias() += field[I] * dN[e].transpose();
       }
@@ -458,6 +503,7 @@ void Engine<D>::to_particles_rows(const ToParticles<D>& what, const Gradient<D>&
         if (rate_out) rate_out[p] = r;
         v[p] += c_rate * r;
       }
+      if constexpr (Kick) v[p] += k;
       if constexpr (Move) x[p] += c_move * u;
       if constexpr (Field) H[p - p0] = c * G;
     }
@@ -631,8 +677,8 @@ template <int D> void Engine<D>::advect_nodes(const AlignedVector<Vec<D>>& dx) {
 }
 
 template <int D> double Engine<D>::global_power(double t, const Vec<D>& momentum) const {
-  double power = loads_.power(t, P_, momentum); // uniform: b . momentum, already global
-  if (dist_ && !loads_.uniform()) dist_->sum({&power, 1});
+  double power = loads_.power(t, P_, momentum); // without a field: b . momentum, already global
+  if (dist_ && loads_.body_force && loads_.body_force->field) dist_->sum({&power, 1});
   return power;
 }
 

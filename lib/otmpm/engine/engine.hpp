@@ -35,9 +35,10 @@ template <int D> class ParticleToNodes; // the particle-to-node map, engine/scat
 /// Nodal fields of one step. m: lumped mass m_I; q: momentum; v: velocity
 /// (after the nodal update); f: force f_I (internal + external); a:
 /// acceleration; dx: the increment that moves the particles (and the nodes
-/// in `ul` mode); reaction: Dirichlet reaction forces; active: m_I above the
-/// mass tolerance. With body contact every body has its own copy: entry
-/// I + b N is node I of body b's field (contact.hpp).
+/// in `ul` mode); reaction: Dirichlet reaction forces (the force components
+/// removed); active: m_I above the mass tolerance. With body contact every
+/// body has its own copy: entry I + b N is node I of body b's field
+/// (contact.hpp).
 template <int D> struct NodalFields {
   std::vector<double> m;
   AlignedVector<Vec<D>> q, v, f, a, dx, reaction;
@@ -102,25 +103,31 @@ template <int D> struct EngineParts {
   std::optional<ContactLaw> contact;
 };
 
-/// The energies of the runaway monitor and of the energy balance: kinetic
-/// and stored (elastic) energy, the energy the materials dissipated
-/// (plastic work), the work W_ext of the external loads (trapezoidal rule
-/// over each step) and W_R of the Dirichlet reactions since t = 0, and E(0).
+/// The energies of the runaway monitor and of the energy balance
+/// (docs/theory.md eq. 11.1): kinetic and stored (elastic) energy, the
+/// energy the materials dissipated (plastic work W_p), the energy Coulomb
+/// friction dissipated at the walls and in the body contact (W_f), the work
+/// W_ext of the external loads and W_R of the Dirichlet reactions and the
+/// walls since t = 0, and E(0).
 struct EnergyBalance {
   double kinetic = 0, strain = 0, dissipated = 0, external_work = 0, reaction_work = 0, initial = 0;
+  double friction = 0;
   double total() const { return kinetic + strain; }
   /// Work done on the body since t = 0: W_ext + W_R.
   double work() const { return external_work + reaction_work; }
-  /// E(t) + W_dissipated(t) - E(0) - W(t): zero for an exact solution;
+  /// The energy spent since t = 0: W_p + W_f.
+  double spent() const { return dissipated + friction; }
+  /// E(t) + W_p(t) + W_f(t) - E(0) - W(t): zero for an exact solution;
   /// negative when the scheme dissipates, positive when it creates energy.
-  double balance_error() const { return total() + dissipated - initial - work(); }
+  double balance_error() const { return total() + spent() - initial - work(); }
 };
 
 /// What the fused particle-to-node map carries, all from one pass over the
 /// basis table (molinos et al. Algorithm 1 steps 1-2 and 5, wobbes et al.
 /// Algorithm 1 step 1): m_I = sum_p N_Ip m_p; q_I = sum_p N_Ip m_p (w_p + c
 /// a_p) (null w: no momentum); f_I = sum_p (-V_p sigma_p grad N_Ip + N_Ip
-/// f_ext,p(t)) (forces).
+/// f_ext,p(t)) (forces). `split` (with w and a, without forces): q_I =
+/// sum_p N_Ip m_p w_p and f_I = sum_p N_Ip m_p a_p apart.
 template <int D> struct ToNodes {
   bool mass = false;
   const AlignedVector<Vec<D>>* w = nullptr;
@@ -128,15 +135,19 @@ template <int D> struct ToNodes {
   const AlignedVector<Vec<D>>* a = nullptr;
   bool forces = false;
   double t = 0.0;
+  bool split = false;
 };
 
 /// What the fused node-to-particle map does, all from one pass over the
 /// basis table: v_p += c_rate sum_I N_Ip r_I (the interpolated r also stored
-/// in rate_out when given); x_p += c_move sum_I N_Ip u_I.
+/// in rate_out when given) + sum_I N_Ip k_I (k: kick, a velocity change
+/// not kept in rate_out; only with a rate and a move); x_p += c_move sum_I
+/// N_Ip u_I.
 template <int D> struct ToParticles {
   const AlignedVector<Vec<D>>* rate = nullptr;
   double c_rate = 0.0;
   AlignedVector<Vec<D>>* rate_out = nullptr;
+  const AlignedVector<Vec<D>>* kick = nullptr;
   const AlignedVector<Vec<D>>* move = nullptr;
   double c_move = 0.0;
 };
@@ -198,7 +209,10 @@ public:
   long node_resets() const { return node_resets_; }
   PhaseTimers& timers() { return timers_; }
   const EnergyBalance& energy() const { return energy_; }
-  /// Sum of the Dirichlet reaction impulses since t = 0 (per component).
+  /// True when friction may dissipate energy (energy().friction): walls or body contact.
+  bool has_friction() const { return !constraints_.walls().empty() || contact_; }
+  /// Sum of the Dirichlet reaction impulses since t = 0 (per component): the
+  /// momentum the Dirichlet sets gave the particles.
   const Vec<D>& reaction_impulse() const { return reaction_impulse_; }
   /// True when the last particle-to-node map used the blocked scatter, false
   /// when it gathered over node columns (ParticleToNodes).
@@ -237,20 +251,36 @@ public:
   /// 1 stages 4-5 in one pass). InstabilityError for the lowest failing particle.
   void update_stress_and_to_nodes(const Gradient<D>& g, const ToNodes<D>& what);
   /// Solves M y = r (lumped: division by m_I; consistent: sparse solve) on
-  /// active nodes; inactive nodes get zero.
-  void solve_mass(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>& y);
+  /// active nodes; inactive nodes get zero, and the fixed components of
+  /// active nodes r_Ik / m_I (what the lumped mass gives them). With the
+  /// consistent mass the constrained rows couple to the free ones: when the
+  /// particles' velocities take up y times c (c > 0), their inertial
+  /// reaction rho_Ik = sum_{J free} M_IJ y_Jk is booked as a Dirichlet
+  /// reaction (impulse c rho, work c rho vbar), so that the reaction impulse
+  /// is the momentum the particles get.
+  void solve_mass(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>& y, double c = 0.0);
   /// Sets the fixed components of a nodal velocity-like field to their value,
   /// corrects the velocities of bodies in contact (BodyContact::apply) and
   /// applies the rigid walls (Constraints::apply_walls) at the nodes'
-  /// current positions; `effect` says how a change reaches the particles.
+  /// current positions; `effect` says how a change reaches the particles
+  /// (and whether it is booked: reaction impulse and work, wall impulses,
+  /// the energy friction takes).
   void constrain_velocity(AlignedVector<Vec<D>>& v, const WallEffect<D>& effect = {});
-  /// Sets the fixed components of a nodal acceleration-like field to zero.
-  void constrain_rate(AlignedVector<Vec<D>>& r) const { constraints_.zero_fixed(r); }
-  /// The contact's and the walls' rules on the node increments dx of this step.
+  /// Zeroes the fixed components of an acceleration-like field, noting the
+  /// momentum removed for book_carried.
+  void constrain_rate(AlignedVector<Vec<D>>& r) { constraints_.zero_carried(r, nodal_.m); }
+  /// After a Booking::held pass: Constraints::book_held on the nodal f and
+  /// q, which becomes the held nodes' kick.
+  void book_held(const AlignedVector<Vec<D>>& rate);
+  /// After a Booking::carried pass (Constraints::book_carried with the reactions).
+  void book_carried(double alpha_m, double gamma, bool first);
+  /// The Dirichlet sets' (dx = dt vbar), the contact's and the walls' rules
+  /// on the node increments dx of this step.
   void constrain_increment(AlignedVector<Vec<D>>& dx) const;
-  /// Zeroes fixed components of f, stores them as reactions, adds their
-  /// impulse and work (energy().reaction_work).
-  void apply_dirichlet_force(AlignedVector<Vec<D>>& f);
+  /// Zeroes fixed components of f, stores them as reactions and books their
+  /// impulse c R and work c R vbar (energy().reaction_work), where c is the
+  /// factor with which the particles' velocities take up f / m.
+  void apply_dirichlet_force(AlignedVector<Vec<D>>& f, double c);
   /// The fused node-to-particle map (ToParticles).
   void to_particles(const ToParticles<D>& what);
   /// to_particles(move), then to_nodes(what) from the updated particles, in
@@ -270,7 +300,8 @@ public:
   }
   /// x_I += dx_I in `ul` mode, nothing on the fixed grid (NodeMode::advect).
   void advect_nodes(const AlignedVector<Vec<D>>& dx);
-  /// Power of the external loads sum_p f_ext,p(t) . v_p.
+  /// Power of the body force sum_p m_p b(X_p, t) . v_p (the tractions'
+  /// work follows the loaded particles' motion: Loads::traction_work).
   double external_power(double t) const;
 
 private:
@@ -320,17 +351,17 @@ private:
   void agree_checks(bool failed) const;
   /// The particle-to-node pass; update(p0, p1) runs on each block of
   /// particles before it is scattered.
-  template <bool Mass, bool Momentum, bool Forces, class Update>
+  template <bool Mass, bool Momentum, bool Forces, bool Split = false, class Update>
   void to_nodes_impl(const ToNodes<D>& what, Update&& update);
   /// Dispatches to_nodes_impl on what `what` asks for.
   template <class Update> void to_nodes_with(const ToNodes<D>& what, Update&& update);
   /// The node-to-particle map of `what` (and the constitutive update from
   /// `g` when Field) on particles [begin, end).
-  template <bool Rate, bool Move, bool Field>
+  template <bool Rate, bool Move, bool Field, bool Kick = false>
   void to_particles_range(const ToParticles<D>& what, const Gradient<D>& g, int begin, int end);
   /// to_particles_range with rows of W entries each (W = 0: any length,
   /// from the table's offsets; row_entries).
-  template <bool Rate, bool Move, bool Field, int W>
+  template <bool Rate, bool Move, bool Field, bool Kick, int W>
   void to_particles_rows(const ToParticles<D>& what, const Gradient<D>& g, int begin, int end);
   /// Dispatches to_particles_range on what `what` and `g` hold.
   void to_particles_on(const ToParticles<D>& what, const Gradient<D>& g, int begin, int end);
@@ -375,8 +406,16 @@ private:
   template <class Stage> void fallible(Stage&& stage);
   /// Sends the partial nodal sums of the last to_nodes to their owners and the totals back (distributed runs).
   void exchange_sums(bool mass, bool momentum, bool forces);
-  /// Power of the loads at t over all ranks (`momentum`: the global sum_p m_p v_p).
+  /// Power of the body force at t over all ranks (`momentum`: the global sum_p m_p v_p).
   double global_power(double t, const Vec<D>& momentum) const;
+  /// Books c rho, rho_Ik = sum_{J free} M_IJ y_Jk the consistent mass's
+  /// inertial reaction on the fixed components, as a Dirichlet reaction.
+  void book_inertial_reaction(const AlignedVector<Vec<D>>& y, double c);
+  /// Where the constraints book: the run's totals, or this rank's share of the step.
+  Ledger<D> ledger() {
+    if (dist_) return {&rank_reaction_.impulse, &rank_reaction_.work, &rank_reaction_.friction};
+    return {&reaction_impulse_, &energy_.reaction_work, &energy_.friction};
+  }
   /// The particle's id in messages: its global id in a distributed run.
   long long particle_id(int p) const { return dist_ ? dist_->global_id(p) : p; }
 
@@ -416,14 +455,15 @@ private:
   double wave_speed_ = 0.0;          ///< max_p max(c_p, |v_p|) after the last step
   Vec<D> momentum_ = Vec<D>::Zero(); ///< sum_p m_p v_p after the last step
   Vec<D> reaction_impulse_ = Vec<D>::Zero();
-  double external_power_ = 0.0; ///< power of the loads at t_ (trapezoidal work)
+  double external_power_ = 0.0; ///< power of the body force at t_ (trapezoidal work)
+  AlignedVector<Vec<D>> traction_start_; ///< the loaded particles' positions at the start of the step
   std::shared_ptr<Distribution<D>> dist_;
-  /// A distributed run: this rank's Dirichlet impulse and work of the step
-  /// (summed over the ranks with the energies), and the ranks' kinetic
-  /// energy of the prescribed nodal velocities (check_energy).
+  /// A distributed run: this rank's Dirichlet impulse and work and the
+  /// walls' losses of the step (summed over the ranks with the energies),
+  /// and the ranks' kinetic energy of the prescribed nodal velocities (check_energy).
   struct {
     Vec<D> impulse = Vec<D>::Zero();
-    double work = 0.0;
+    double work = 0.0, friction = 0.0;
   } rank_reaction_;
   double boundary_kinetic_ = 0.0;
 };

@@ -7,8 +7,9 @@
 /// consistent mass matrix from the particles each step before reading them,
 /// and the scatter plan and transposed table are rebuilt with the basis
 /// table. What is carried from one step to the next besides the particles:
-/// t, dt_prev (OTM, unified), the external power at t (trapezoidal work), the
-/// wave speed of the next CFL step and the energy balance.
+/// t, dt_prev (OTM, unified), the body force's power at t (trapezoidal work), the
+/// wave speed of the next CFL step and the energy balance (with the energy
+/// friction dissipated).
 #include "otmpm/engine/engine.hpp"
 #include "otmpm/state.hpp"
 
@@ -22,7 +23,7 @@ namespace otmpm {
 namespace {
 
 // A member added to EnergyBalance must be saved and restored below.
-static_assert(sizeof(EnergyBalance) == 6 * sizeof(double), "EnergyBalance changed: update engine_state.cpp");
+static_assert(sizeof(EnergyBalance) == 7 * sizeof(double), "EnergyBalance changed: update engine_state.cpp");
 
 /// How one element of a particle field is stored: as `cols` values of type
 /// Stored (double, or int64 for integers) starting at begin(element).
@@ -105,7 +106,8 @@ template <class E> auto energy_fields(E& e) {
   return std::array{std::pair{"energy_kinetic", &e.kinetic}, std::pair{"energy_strain", &e.strain},
                     std::pair{"energy_dissipated", &e.dissipated},
                     std::pair{"energy_external_work", &e.external_work},
-                    std::pair{"energy_reaction_work", &e.reaction_work}, std::pair{"energy_initial", &e.initial}};
+                    std::pair{"energy_reaction_work", &e.reaction_work}, std::pair{"energy_initial", &e.initial},
+                    std::pair{"energy_friction", &e.friction}};
 }
 
 void save_timers(StateGroup& g, const PhaseTimers& timers) {
@@ -151,6 +153,8 @@ template <int D> void Engine<D>::save_state(Checkpoint& out) const {
     g.integer_arrays["wall_held_" + std::to_string(w)] = {1, std::vector<std::int64_t>(held.begin(), held.end())};
   }
   if (contact_) g.integer_arrays["contact_held"] = {1, std::vector<std::int64_t>(contact_->held().begin(), contact_->held().end())};
+  for (std::size_t s = 0; s < constraints_.carried().size(); ++s)
+    save_field(g, "carried_" + std::to_string(s), constraints_.carried()[s]);
   g.put_reals(energy_fields(energy_));
   save_timers(g, timers_);
   StateGroup& particles = out.group("particles");
@@ -231,6 +235,12 @@ template <int D> void Engine<D>::restore_state(const Checkpoint& in) {
   if (contact_) {
     const auto& held = g.integer_array("contact_held", contact_->held().size(), 1).values;
     contact_->held().assign(held.begin(), held.end());
+  }
+  constraints_.carried().clear();
+  for (std::size_t s = 0; g.has_array("carried_" + std::to_string(s)); ++s) {
+    if (s > constraints_.walls().size()) g.error("more carried constraint momenta than walls and Dirichlet sets");
+    constraints_.carried().emplace_back();
+    restore_field(g, "carried_" + std::to_string(s), constraints_.carried().back(), nodal_.m.size());
   }
   g.get_reals(energy_fields(energy_));
   restore_timers(g, timers_);

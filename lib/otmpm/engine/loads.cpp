@@ -20,10 +20,15 @@ void Loads<D>::for_each_force(double t, const Particles<D>& P, Visit&& visit) co
     for (int p = 0; p < P.size(); ++p) visit(p, Vec<D>(P.m[p] * (field ? Vec<D>(b + field(P.X[p], t)) : b)));
   }
   for (const Traction<D>& load : tractions) {
-    Vec<D> traction = load.value * time_function(load.time, t);
-    if (load.history) traction[load.axis] = load.history(t);
+    const Vec<D> traction = traction_at(load, t);
     for (std::size_t i = 0; i < load.particle.size(); ++i) visit(load.particle[i], Vec<D>(traction * load.area[i]));
   }
+}
+
+template <int D> Vec<D> Loads<D>::traction_at(const Traction<D>& load, double t) const {
+  Vec<D> traction = load.value * time_function(load.time, t);
+  if (load.history) traction[load.axis] = load.history(t);
+  return traction;
 }
 
 template <int D>
@@ -33,10 +38,30 @@ void Loads<D>::particle_forces(double t, const Particles<D>& P, AlignedVector<Ve
 }
 
 template <int D> double Loads<D>::power(double t, const Particles<D>& P, const Vec<D>& momentum) const {
-  if (uniform()) return body_force_at(t).dot(momentum); // sum_p m_p b(t) . v_p = b(t) . sum_p m_p v_p
+  if (!body_force) return 0.0;
+  const Vec<D> b = body_force_at(t);
+  if (!body_force->field) return b.dot(momentum); // sum_p m_p b(t) . v_p = b(t) . sum_p m_p v_p
   double power = 0.0;
-  for_each_force(t, P, [&](int p, const Vec<D>& force) { power += force.dot(P.v[p]); });
+  for (int p = 0; p < P.size(); ++p) power += Vec<D>(P.m[p] * Vec<D>(b + body_force->field(P.X[p], t))).dot(P.v[p]);
   return power;
+}
+
+template <int D> void Loads<D>::traction_positions(const Particles<D>& P, AlignedVector<Vec<D>>& x0) const {
+  x0.clear();
+  for (const Traction<D>& load : tractions)
+    for (int p : load.particle) x0.push_back(P.x[p]);
+}
+
+template <int D>
+double Loads<D>::traction_work(double t0, double t1, const Particles<D>& P, const AlignedVector<Vec<D>>& x0) const {
+  double work = 0.0;
+  std::size_t j = 0;
+  for (const Traction<D>& load : tractions) {
+    const Vec<D> mean = 0.5 * (traction_at(load, t0) + traction_at(load, t1));
+    for (std::size_t i = 0; i < load.particle.size(); ++i, ++j)
+      work += load.area[i] * mean.dot(P.x[load.particle[i]] - x0[j]);
+  }
+  return work;
 }
 
 template <int D> void Loads<D>::check(int n) const {

@@ -4,7 +4,10 @@
 /// force per unit mass b(X, t) = b g(t) + b_field(X, t) (gravity, or the body
 /// force of a manufactured solution) and tractions on sets of particles.
 /// The engine adds them to the nodal forces, f_I += sum_p N_Ip f_ext,p(t),
-/// and to the work of the energy balance. A benchmark that needs a load of
+/// and their work to the energy balance: the body force's by its power
+/// sum_p m_p b . v_p, a traction's by the motion of the particles it loads
+/// (the power that reaches the nodes, f_p . sum_I N_Ip v_I, is f_p times
+/// the rate of x_p; the particle's own v_p is not that rate in MPM). A benchmark that needs a load of
 /// its own (the traction history of wobbes et al. eq. 103, a manufactured
 /// body force) supplies it as a function here: the engine knows no benchmark.
 #include "otmpm/particles/particles.hpp"
@@ -54,15 +57,25 @@ public:
   /// The external force on every particle at time t into fext (sized to the
   /// particles, zero where there is none). Unused when uniform().
   void particle_forces(double t, const Particles<D>& P, AlignedVector<Vec<D>>& fext) const;
-  /// Power of the loads sum_p f_ext,p(t) . v_p; `momentum` = sum_p m_p v_p
-  /// (read only when uniform(): then the power is b(t) . momentum).
+  /// Power of the body force sum_p m_p b(X_p, t) . v_p; `momentum` = sum_p
+  /// m_p v_p (read only without a field: then the power is b(t) . momentum).
   double power(double t, const Particles<D>& P, const Vec<D>& momentum) const;
+  /// The positions of the particles the tractions load, in their order
+  /// (the start of a step for traction_work).
+  void traction_positions(const Particles<D>& P, AlignedVector<Vec<D>>& x0) const;
+  /// The work of the tractions over a step from t0 to t1 in which the loaded
+  /// particles moved from x0 (traction_positions) to x_p: the trapezoidal
+  /// rule on the force, sum (f_p(t0) + f_p(t1)) / 2 . (x_p - x0) - exact for
+  /// a constant or linearly varying load on the step's motion.
+  double traction_work(double t0, double t1, const Particles<D>& P, const AlignedVector<Vec<D>>& x0) const;
   /// std::invalid_argument naming the load unless every particle index is in
   /// [0, n) with a finite area >= 0, the values are finite and the axis is in [0, D).
   void check(int n) const;
 
 private:
   template <class Visit> void for_each_force(double t, const Particles<D>& P, Visit&& visit) const;
+  /// The traction of load `load` at t (force per unit reference area).
+  Vec<D> traction_at(const Traction<D>& load, double t) const;
 };
 
 extern template class Loads<1>;

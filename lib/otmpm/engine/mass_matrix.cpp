@@ -664,6 +664,26 @@ void MassMatrix<D>::solve(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>&
   }
 }
 
+template <int D>
+void MassMatrix<D>::constrained_rows_product(const AlignedVector<Vec<D>>& y, AlignedVector<Vec<D>>& rho) const {
+  require<std::invalid_argument>(!fixed_.empty(), "MassMatrix::constrained_rows_product: call assemble() first");
+  const int n = static_cast<int>(M_.rows());
+  rho.assign(static_cast<std::size_t>(n), Vec<D>::Zero());
+  const double* v = M_.valuePtr();
+  const int* inner = M_.innerIndexPtr();
+  const int* outer = M_.outerIndexPtr();
+  for (int k = 0; k < D; ++k) {
+    const std::vector<char>& fixed = fixed_[static_cast<std::size_t>(k)];
+    for (int I = 0; I < n; ++I) { // column I of the symmetric M is its row I
+      if (!fixed[I]) continue;
+      double s = 0.0;
+      for (int e = outer[I]; e < outer[I + 1]; ++e)
+        if (!fixed[inner[e]]) s += v[e] * y[inner[e]][k];
+      rho[I][k] = s;
+    }
+  }
+}
+
 template class MassMatrix<1>;
 template class MassMatrix<2>;
 template class MassMatrix<3>;

@@ -58,6 +58,10 @@ public:
   /// std::invalid_argument before assemble() or unless r and y have one entry
   /// per node.
   void solve(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>& y) const;
+  /// rho_Ik = sum_{J free} M_IJ y_Jk on the rows solve() leaves to the
+  /// caller (constrained components and inactive nodes; free: the others),
+  /// zero elsewhere: the inertial reaction of those rows.
+  void constrained_rows_product(const AlignedVector<Vec<D>>& y, AlignedVector<Vec<D>>& rho) const;
   /// The relative residual max_k |M y_k - r_k| / |r_k| of the free rows (not
   /// constrained, active) of a solve's y (for tests; solve() does not form it).
   double residual(const AlignedVector<Vec<D>>& r, const AlignedVector<Vec<D>>& y) const;

@@ -113,17 +113,19 @@ template <int D> void Engine<D>::sum_particles(bool check) {
   });
   if (dist_) {
     // One reduction per step: energies, momentum, this step's reaction
-    // impulse and work, the prescribed kinetic energy; the wave speed,
+    // impulse and work and the friction loss, the prescribed kinetic energy; the wave speed,
     // whether any rank's checks failed (a deferred failure throws in it) and
     // whether any particle may leave its rank before the next step.
     // The walls' impulses of this step follow.
     AlignedVector<Vec<D>>& wall = constraints_.rank_wall_impulse();
-    std::vector<double> sums(5 + 2 * D + wall.size() * D);
+    constexpr std::size_t W0 = 6 + 2 * D; // the walls' impulses start here
+    std::vector<double> sums(W0 + wall.size() * D);
     sums[0] = s.kinetic, sums[1] = s.strain, sums[2] = s.dissipated, sums[3] = rank_reaction_.work;
     sums[4] = constraints_.prescribed_kinetic_energy(nodal_.m);
-    for (int k = 0; k < D; ++k) sums[5 + k] = s.momentum[k], sums[5 + D + k] = rank_reaction_.impulse[k];
+    sums[5] = rank_reaction_.friction;
+    for (int k = 0; k < D; ++k) sums[6 + k] = s.momentum[k], sums[6 + D + k] = rank_reaction_.impulse[k];
     for (std::size_t w = 0; w < wall.size(); ++w)
-      for (int k = 0; k < D; ++k) sums[5 + 2 * D + w * D + static_cast<std::size_t>(k)] = wall[w][k];
+      for (int k = 0; k < D; ++k) sums[W0 + w * D + static_cast<std::size_t>(k)] = wall[w][k];
     double maxima[3] = {s.wave_speed2, failed.load() ? 1.0 : 0.0, s.outside ? 1.0 : 0.0};
     dist_->reduce(sums, maxima);
     if (maxima[1] > 0.0) agree_checks(failed.load());
@@ -131,9 +133,10 @@ template <int D> void Engine<D>::sum_particles(bool check) {
     s.kinetic = sums[0], s.strain = sums[1], s.dissipated = sums[2], s.wave_speed2 = maxima[0];
     energy_.reaction_work += sums[3];
     boundary_kinetic_ = sums[4];
-    for (int k = 0; k < D; ++k) s.momentum[k] = sums[5 + k], reaction_impulse_[k] += sums[5 + D + k];
+    energy_.friction += sums[5];
+    for (int k = 0; k < D; ++k) s.momentum[k] = sums[6 + k], reaction_impulse_[k] += sums[6 + D + k];
     for (std::size_t w = 0; w < wall.size(); ++w) {
-      for (int k = 0; k < D; ++k) constraints_.wall_impulse()[w][k] += sums[5 + 2 * D + w * D + static_cast<std::size_t>(k)];
+      for (int k = 0; k < D; ++k) constraints_.wall_impulse()[w][k] += sums[W0 + w * D + static_cast<std::size_t>(k)];
       wall[w] = Vec<D>::Zero();
     }
     rank_reaction_ = {};
@@ -177,11 +180,12 @@ template <int D> void Engine<D>::check_energy() const {
   const double reference =
       std::max(energy_.initial + std::abs(energy_.external_work) + std::abs(energy_.reaction_work) + boundary_kinetic,
                energy_floor);
-  // The energy the materials dissipated counts: E + W_p cannot exceed what
-  // the body was given, so a spurious jump shows in a plastic run too.
-  const double total = energy_.total() + energy_.dissipated;
+  // The energy the materials and friction dissipated counts: E + W_p + W_f
+  // cannot exceed what the body was given, so a spurious jump shows in a
+  // plastic run too.
+  const double total = energy_.total() + energy_.spent();
   if (total > settings_.energy_limit * reference)
-    unstable(std::string("runaway energy: kinetic + strain") + (energy_.dissipated > 0 ? " + dissipated" : "") +
+    unstable(std::string("runaway energy: kinetic + strain") + (energy_.spent() > 0 ? " + dissipated" : "") +
              " = " + format_number(total) + " J exceeds " +
              format_number(settings_.energy_limit) +
              " x (initial energy + |external work| + |reaction work| + boundary kinetic energy) = " +

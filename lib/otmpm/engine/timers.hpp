@@ -10,7 +10,8 @@ namespace otmpm {
 /// The phases every run reports. A constitutive update fused into a
 /// transfer pass counts in that pass: fe/unified in to_particles, npc in
 /// to_nodes (ToNodes::stress_from); `constitutive` times the separate
-/// update_stress passes (musl, otm).
+/// update_stress passes (musl, otm, explicit_alpha) and stays 0 in the
+/// other runs (the run summary then leaves it out).
 enum class Phase { basis, to_nodes, nodal_update, to_particles, constitutive, output, count };
 
 constexpr std::array<std::string_view, 6> phase_names{"basis", "to_nodes", "nodal_update",

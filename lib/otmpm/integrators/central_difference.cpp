@@ -15,9 +15,11 @@ template <int D> void step_central_difference(Engine<D>& e, const StepContext<D>
   e.evaluate_basis();
   // 1. m_I, q_I = sum N_Ip m_p v_p^n and f_I^n (sigma^n, loads at t_n); Dirichlet on f_I.
   e.to_nodes({.mass = true, .w = &P.v, .forces = true, .t = s.t});
-  e.apply_dirichlet_force(n.f);
+  // Each kick hands dt/2 of the force to the particles (step 5): the
+  // reactions of each kick are booked with dt/2.
+  e.apply_dirichlet_force(n.f, half);
   // 2. kick: a^n = f / m; v^{n+1/2} = q / m + dt/2 a^n; constraints. a^n kept in q.
-  e.solve_mass(n.f, n.a);
+  e.solve_mass(n.f, n.a, half);
   e.solve_mass(n.q, n.v);
   axpy(n.v, half, n.a);
   e.constrain_velocity(n.v, {.rate = &n.a, .c = half});
@@ -26,9 +28,9 @@ template <int D> void step_central_difference(Engine<D>& e, const StepContext<D>
   //    pass) f^{n+1} with the updated stresses and the loads at t_{n+1}.
   scale(n.dx, dt, n.v);
   e.update_stress_and_to_nodes({&n.dx, 1.0}, {.forces = true, .t = s.t + dt});
-  e.apply_dirichlet_force(n.f);
+  e.apply_dirichlet_force(n.f, half);
   // 4. kick: a^{n+1} = f / m; v^{n+1} = v^{n+1/2} + dt/2 a^{n+1}; constraints.
-  e.solve_mass(n.f, n.a);
+  e.solve_mass(n.f, n.a, half);
   axpy(n.v, half, n.a);
   e.constrain_velocity(n.v, {.rate = &n.a, .c = half, .hold_rate = true});
   // 5. v_p += dt/2 sum N_Ip (a^n + a^{n+1}); x_p += sum N_Ip dx_I; x_I += dx_I in ul.

@@ -26,7 +26,7 @@ template <int D> void step_explicit_alpha(Engine<D>& e, const StepContext<D>& s)
   e.evaluate_basis();
   // 1. m_I, q_I = sum N_Ip m_p v_p, f_I^n; Dirichlet on f_I. a = f / m, v = q / m.
   e.to_nodes({.mass = true, .w = &P.v, .forces = true, .t = s.t});
-  e.apply_dirichlet_force(n.f);
+  e.apply_dirichlet_force(n.f, 0.0); // booked as the rate hands it on (step 3)
   e.solve_mass(n.f, n.a);
   e.solve_mass(n.q, n.v);
   // 2. a_n at the nodes (held in dx): sum N_Ip m_p a_p / m_I; f / m in the first step.
@@ -37,12 +37,20 @@ template <int D> void step_explicit_alpha(Engine<D>& e, const StepContext<D>& s)
     e.solve_mass(n.q, n.dx);
   }
   e.constrain_rate(n.dx);
-  // 3. a_{n+1} = (f / m - alpha_m a_n) / (1 - alpha_m); v_{n+1}; constraints.
+  // 3. a_{n+1} = (f / m - alpha_m a_n) / (1 - alpha_m); v_{n+1}; constraints
+  //    (their change enters a_{n+1}, which the particles keep as a_p: the
+  //    momentum it gives them over this and the next steps is booked as they
+  //    take it up).
   parallel_for(static_cast<long long>(n.a.size()), [&](long long I) {
     n.a[I] = (n.a[I] - am * n.dx[I]) / (1.0 - am);
     n.v[I] += dt * ((1.0 - gamma) * n.dx[I] + gamma * n.a[I]);
   });
-  e.constrain_velocity(n.v, {.rate = &n.a, .c = gamma * dt});
+  // In the first step the held components jump to their values: a kick (in
+  // q), which a_p does not keep.
+  const bool first = s.step == 0;
+  if (first) scale(n.q, 0.0, n.v);
+  e.constrain_velocity(n.v, {.rate = &n.a, .c = gamma * dt, .booking = Booking::carried, .kick = first ? &n.q : nullptr});
+  e.book_carried(am, gamma, first);
   // 4. dx = dt v_{n+1} + dt^2 ((gamma - 1/2 - beta) a_n + (beta - gamma) a_{n+1})
   //    (= dt v_n + dt^2 ((1/2 - beta) a_n + beta a_{n+1})).
   parallel_for(static_cast<long long>(n.a.size()), [&](long long I) {
@@ -51,7 +59,8 @@ template <int D> void step_explicit_alpha(Engine<D>& e, const StepContext<D>& s)
   e.constrain_increment(n.dx);
   // 5. v_p += dt ((1 - gamma) a_p + gamma sum N a_{n+1}); a_p = sum N a_{n+1}; x_p += sum N dx.
   parallel_for(P.size(), [&](long long p) { P.v[p] += (dt * (1.0 - gamma)) * P.a[p]; });
-  e.to_particles({.rate = &n.a, .c_rate = gamma * dt, .rate_out = &P.a, .move = &n.dx, .c_move = 1.0});
+  e.to_particles({.rate = &n.a, .c_rate = gamma * dt, .rate_out = &P.a, .kick = first ? &n.q : nullptr, .move = &n.dx,
+                  .c_move = 1.0});
   // 6. the stress from the increment, F_p = (I + sum dx_I (x) grad N_Ip) F_p; x_I += dx_I in ul.
   e.update_stress({&n.dx, 1.0});
   e.advect_nodes(n.dx);

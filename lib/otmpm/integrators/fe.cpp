@@ -16,10 +16,11 @@ template <int D> void step_usl(Engine<D>& e, const StepContext<D>& s, bool musl)
   e.evaluate_basis();
   // 1. m_I, q_I = sum N_Ip m_p v_p and f_I in one pass; Dirichlet on f_I.
   e.to_nodes({.mass = true, .w = &P.v, .forces = true, .t = s.t});
-  e.apply_dirichlet_force(n.f);
-  // 2. a_I = f_I / m_I; v_I = q_I / m_I + dt a_I; constraints (a wall's
-  //    change of v_I also enters a_I, which updates the particle velocities).
-  e.solve_mass(n.f, n.a);
+  e.apply_dirichlet_force(n.f, dt);
+  // 2. a_I = f_I / m_I; v_I = q_I / m_I + dt a_I; constraints (their change
+  //    of v_I - a held value, a wall - also enters a_I, which updates the
+  //    particle velocities).
+  e.solve_mass(n.f, n.a, dt);
   e.solve_mass(n.q, n.v);
   axpy(n.v, dt, n.a);
   e.constrain_velocity(n.v, {.rate = &n.a, .c = dt});

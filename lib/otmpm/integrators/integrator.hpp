@@ -33,6 +33,9 @@ struct IntegratorKind {
   bool needs_acceleration = false;
   /// Keeps the previous particle position x_p^{s-1}.
   bool needs_previous_position = false;
+  /// Carries the momentum its constraints give from step to step, on the
+  /// nodes (Constraints::book_carried): a distributed run is not rebalanced.
+  bool carries_constraints = false;
   /// Its parameters (scene keys under [simulation]).
   std::span<const ParameterSpec> parameters{};
   /// Its parameters at their defaults (what a run built in code starts from).

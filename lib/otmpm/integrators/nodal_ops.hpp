@@ -21,14 +21,16 @@ template <int D> void scale(AlignedVector<Vec<D>>& y, double s, const AlignedVec
 
 /// The nodal increment of OTM and the unified approach (wobbes et al. eq. 51):
 /// v_I = M^{-1} (q + (dt + dt_prev)/2 f) with the constraints (`effect`: how
-/// a wall's change reaches the particles), dx_I = dt v_I. n.dx holds the
-/// right-hand side until the solve.
+/// a constraint's change reaches the particles), dx_I = dt v_I. n.dx holds
+/// the right-hand side until the solve. `c`: the factor with which the
+/// particles' velocities take up v_I (Engine::solve_mass; 0: they do not).
 template <int D>
-void transport_increment(Engine<D>& e, NodalFields<D>& n, double dt, double dt_prev, const WallEffect<D>& effect) {
+void transport_increment(Engine<D>& e, NodalFields<D>& n, double dt, double dt_prev, const WallEffect<D>& effect,
+                         double c) {
   n.dx.resize(n.q.size());
   parallel_for(static_cast<long long>(n.q.size()),
                [&](long long I) { n.dx[I] = n.q[I] + (0.5 * (dt + dt_prev)) * n.f[I]; });
-  e.solve_mass(n.dx, n.v);
+  e.solve_mass(n.dx, n.v, c);
   e.constrain_velocity(n.v, effect);
   scale(n.dx, dt, n.v);
 }

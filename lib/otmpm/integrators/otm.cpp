@@ -14,8 +14,10 @@ template <int D> void step_otm(Engine<D>& e, const StepContext<D>& s) {
   if (s.step > 0) parallel_for(P.size(), [&](long long p) { P.v[p] = (P.x[p] - P.x_prev[p]) / dt_prev; });
   // 1. q_I = sum N_Ip m_p v_p; dx_I = dt M^{-1} (q + (dt + dt_prev)/2 f).
   e.to_nodes({.mass = true, .w = &P.v, .forces = true, .t = s.t});
-  e.apply_dirichlet_force(n.f);
-  transport_increment(e, n, dt, dt_prev, {}); // v_p comes from dx
+  // v_p = sum N_Ip v_I: the particles take up (dt + dt_prev)/2 of the force
+  // and every change the constraints make to v_I.
+  e.apply_dirichlet_force(n.f, 0.5 * (dt + dt_prev));
+  transport_increment(e, n, dt, dt_prev, {}, 1.0); // v_p comes from dx
   // 2. x_I += dx_I; x_p = sum N_Ip x_I (old N): x_p += sum N_Ip dx_I, and
   //    v_p = sum N_Ip dx_I / dt, in one threaded pass.
   {

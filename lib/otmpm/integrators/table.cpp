@@ -55,6 +55,7 @@ const std::array kIntegrators{
     IntegratorKind{.name = "explicit_alpha",
                    .description = "explicit generalised-alpha (Hulbert & Chung 1996)",
                    .needs_acceleration = true,
+                   .carries_constraints = true,
                    .parameters = kAlphaParameters,
                    OTMPM_STEPS(step_explicit_alpha)},
 };

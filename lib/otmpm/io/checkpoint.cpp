@@ -29,7 +29,8 @@ namespace {
 
 constexpr const char* kFormat = "otmpm checkpoint";
 /// 2: the header with the file's size and CRC-64 in the HDF5 user block, and the run id.
-constexpr std::int64_t kFormatVersion = 2;
+/// 3: the energy friction dissipated and explicit_alpha's carried constraint momenta.
+constexpr std::int64_t kFormatVersion = 3;
 /// Bytes of the header at the start of the file (the HDF5 user block: a power of 2, >= 512).
 constexpr std::size_t kHeaderBytes = 512;
 /// Digits of the CRC in the header, and the placeholder it is computed with.

@@ -284,7 +284,7 @@ public:
   void sample_energy() {
     const EnergyBalance& E = e_.energy();
     energy_.initial = E.initial;
-    energy_.sample(E.total() + E.dissipated, E.work(), E.balance_error()); // plastic work counts as spent energy
+    energy_.sample(E.total() + E.spent(), E.work(), E.balance_error()); // W_p and W_f count as spent energy
   }
 
   /// Writes a frame and probe samples when t reached the next output time.
@@ -304,6 +304,7 @@ public:
       const auto counts = support_counts();
       s.diagnostics = {{"widened_supports", counts[0]}, {"moved_points", counts[1]}};
     }
+    const std::vector<BodyVolume> volumes = body_volumes<D>(scene_, e_); // every rank
     for (const Probe& pr : probes_)
       if (exact_ && pr.samples > 0) s.errors["history_error_" + pr.name] = std::sqrt(pr.sum_sq / pr.samples);
     if (exact_ && s.exit_code == 0 && !s.interrupted) final_errors(s);
@@ -320,7 +321,7 @@ public:
     view_.collectively([&] {
       if (writer_ && writer_->writable()) { // after a failed HDF5 write the file is left as it is
         try {
-          write_summary(s, distributed);
+          write_summary(s, distributed, volumes);
         } catch (const OutputError& err) {
           s.status = std::string("output error: ") + err.what();
           s.exit_code = kOutputErrorExit;
@@ -356,8 +357,11 @@ private:
     int samples;
   };
 
-  /// The final status and summary attributes (and those of a distributed run).
-  void write_summary(const RunSummary& s, const std::vector<std::pair<std::string, double>>& distributed) {
+  /// The final status and summary attributes (and those of a distributed
+  /// run; the bodies' volumes: volume_NAME as seeded, exact_volume_NAME of
+  /// the shape).
+  void write_summary(const RunSummary& s, const std::vector<std::pair<std::string, double>>& distributed,
+                     const std::vector<BodyVolume>& volumes) {
     writer_->set_attribute("status", s.status);
     writer_->set_attribute("steps", static_cast<long long>(s.steps));
     writer_->set_attribute("t_end", s.time);
@@ -371,6 +375,10 @@ private:
     for (std::size_t i = 0; i < phase_names.size(); ++i)
       writer_->set_attribute("seconds_" + std::string(phase_names[i]), s.timers.seconds[i]);
     for (const auto& [name, value] : distributed) writer_->set_attribute(name, value);
+    for (const BodyVolume& v : volumes) {
+      writer_->set_attribute("volume_" + v.name, v.seeded);
+      if (std::isfinite(v.exact)) writer_->set_attribute("exact_volume_" + v.name, v.exact);
+    }
     writer_->publish();
   }
 
@@ -399,6 +407,7 @@ private:
     for (const Probe& pr : probes_) h.push_back({pr.name, true, {"x", "v", "stress"}});
     std::vector<std::string> energy{"kinetic", "strain", "external_work", "reaction_work"};
     if (dissipative()) energy.push_back("dissipated");
+    if (e_.has_friction()) energy.push_back("friction");
     h.push_back({"energy", false, energy});
     for (const Wall<D>& w : e_.walls()) h.push_back({w.name, true, {"force", "impulse"}, "walls"});
     if (support_diagnostics()) h.push_back({"diagnostics", false, {"widened_supports", "moved_points"}});
@@ -541,6 +550,7 @@ private:
     o->energy = {{"kinetic", E.kinetic}, {"strain", E.strain}, {"external_work", E.external_work},
                  {"reaction_work", E.reaction_work}};
     if (dissipative()) o->energy.emplace_back("dissipated", E.dissipated);
+    if (e_.has_friction()) o->energy.emplace_back("friction", E.friction);
     o->diagnostics.clear();
     if (support_diagnostics()) {
       const auto counts = support_counts();

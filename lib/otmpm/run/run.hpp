@@ -54,21 +54,22 @@ struct RunOptions {
   bool background_output = false;
 };
 
-/// The energy balance of a run, sampled after every step: E = kinetic +
-/// strain energy, W = work of the external loads and of the Dirichlet
-/// reactions since t = 0 (Engine's EnergyBalance).
+/// The energy balance of a run, sampled after every step (docs/theory.md
+/// eq. 11.2): E = kinetic + strain energy, W_s = the energy spent (plastic
+/// work and friction), W = work of the external loads, of the
+/// Dirichlet reactions and of the walls since t = 0 (Engine's EnergyBalance).
 struct EnergySummary {
   double initial = 0.0;           ///< E(0)
-  double max_energy = 0.0;        ///< max_t E(t) + W_p(t) (W_p: plastic dissipation)
+  double max_energy = 0.0;        ///< max_t E(t) + W_s(t) (W_s = W_p + W_f: the energy spent, EnergyBalance::spent)
   double max_work = 0.0;          ///< max_t |W(t)|
-  double max_balance_error = 0.0; ///< max_t |E(t) - E(0) - W(t)|
+  double max_balance_error = 0.0; ///< max_t |E(t) + W_s(t) - E(0) - W(t)|
   /// Takes one sample; non-finite values are ignored (the run stops on them anyway).
   void sample(double energy, double work, double balance_error);
   /// E(0) + max_t |W(t)|: the most energy the body can hold without a spurious source.
   double reference() const;
-  /// max_t E(t) / reference(): at most 1 when the scheme creates no energy.
+  /// max_t (E(t) + W_s(t)) / reference(): at most 1 when the scheme creates no energy.
   double max_energy_ratio() const;
-  /// max_t |E(t) - E(0) - W(t)| / reference(): the relative energy error.
+  /// max_t |E(t) + W_s(t) - E(0) - W(t)| / reference(): the relative energy error.
   double energy_drift() const;
 };
 
@@ -126,6 +127,21 @@ RunSummary restart_run(const Checkpoint& checkpoint, const RunOptions& options =
 std::string summary_line(const RunSummary& s);
 
 /// What `otmpm run --check` prints about a scene without running it.
+template <int D> class Engine;
+
+/// A body's volume (area, length) as seeded - the sum of its particles'
+/// volumes at t = 0 - and its shape's exact one (a box's, sphere's,
+/// cylinder's or polygon's; the surface's enclosed volume for stl; the sum
+/// of the element volumes for a mesh; NaN for a file body).
+struct BodyVolume {
+  std::string name, shape;
+  double seeded = 0.0, exact = 0.0;
+};
+
+/// The BodyVolume of every body of the scene, from the particles of an
+/// engine built from it (all ranks' particles: collective in a distributed run).
+template <int D> std::vector<BodyVolume> body_volumes(const Scene& scene, const Engine<D>& e);
+
 struct SceneCheck {
   int dimension = 1;
   std::string mode, integrator, basis;
@@ -138,14 +154,7 @@ struct SceneCheck {
   double memory_bytes = 0.0; ///< the run's own memory estimate (estimate_resources, scene/resources.hpp)
   double memory_limit = 0.0; ///< what the estimate is checked against (memory_limit(scene))
   std::string out_file;      ///< output.file
-  /// A body whose shape a geometry file gives (stl, mesh): the volume of
-  /// its particles against the volume of its shape (the surface's enclosed
-  /// volume; the sum of the mesh's element volumes).
-  struct BodyVolume {
-    std::string name, shape;
-    double seeded = 0.0, exact = 0.0;
-  };
-  std::vector<BodyVolume> volumes;
+  std::vector<BodyVolume> volumes; ///< per body
 };
 
 /// Checks the scene as a run does, in the run's order: first, before

@@ -1,5 +1,6 @@
 // check_scene() (run.hpp): what `otmpm run --check` prints about a scene
 // without running it, after the checks a run makes, in the run's order.
+#include "otmpm/assembly/seeding.hpp"
 #include "otmpm/distributed/global_view.hpp"
 #include "otmpm/run/run.hpp"
 #include "otmpm/scene/file_bodies.hpp"
@@ -21,21 +22,26 @@ template <int D> SceneCheck check_dim(const Scene& scene, SceneCheck c) {
   c.particles = view.particles();
   c.nodes = view.nodes();
   c.estimated_steps = std::ceil(c.t_end / c.dt * (1.0 - 1e-9));
-  for (std::size_t b = 0; b < scene.bodies.size(); ++b)
-    if (const BodySection& body = scene.bodies[b]; geometry_file_body(body)) {
-      const Particles<D>& P = e.particles();
-      double seeded = 0.0;
-      for (int p = 0; p < P.size(); ++p) seeded += P.body[p] == static_cast<int>(b) ? P.V0[p] : 0.0;
-      double exact = 0.0;
-      if constexpr (D == 3)
-        exact = body.shape == "stl" ? stl_body_surface(body)->measure() : mesh_body_shape<3>(body)->measure();
-      if constexpr (D == 2) exact = mesh_body_shape<2>(body)->measure();
-      c.volumes.push_back({body.name, body.shape, seeded, exact});
-    }
+  c.volumes = body_volumes<D>(scene, e);
   return c;
 }
 
 } // namespace
+
+template <int D> std::vector<BodyVolume> body_volumes(const Scene& scene, const Engine<D>& e) {
+  std::vector<double> seeded(scene.bodies.size(), 0.0);
+  const Particles<D>& P = e.particles();
+  for (int p = 0; p < P.size(); ++p) seeded[static_cast<std::size_t>(P.body[p])] += P.V0[p];
+  if (Distribution<D>* d = e.distribution()) d->sum(seeded);
+  std::vector<BodyVolume> out;
+  for (std::size_t b = 0; b < scene.bodies.size(); ++b)
+    out.push_back({scene.bodies[b].name, scene.bodies[b].shape, seeded[b], body_measure<D>(scene.bodies[b])});
+  return out;
+}
+
+template std::vector<BodyVolume> body_volumes<1>(const Scene&, const Engine<1>&);
+template std::vector<BodyVolume> body_volumes<2>(const Scene&, const Engine<2>&);
+template std::vector<BodyVolume> body_volumes<3>(const Scene&, const Engine<3>&);
 
 SceneCheck check_scene(const Scene& scene) {
   const int D = scene.simulation.dimension;

@@ -511,7 +511,7 @@ std::vector<BodySection> read_bodies(const TableReader& root, const Scene& s) {
     b.where = t.self();
     b.shape = t.choice("shape", b.shape, shapes);
     std::vector<std::string_view> allowed{"name", "material", "shape", "particles_per_cell", "placement", "velocity",
-                                          "velocity_profile", "overlap"};
+                                          "velocity_profile", "overlap", "volume"};
     const auto& own = kShapeKeys.find(b.shape)->second;
     allowed.insert(allowed.end(), own.begin(), own.end());
     t.only(allowed);
@@ -529,6 +529,7 @@ std::vector<BodySection> read_bodies(const TableReader& root, const Scene& s) {
     b.velocity = t.vec("velocity", dim).value_or(b.velocity);
     if (t.has("velocity_profile")) b.velocity_profile = t.choice("velocity_profile", "", {"sin_x", "reference"});
     b.overlap = t.choice("overlap", b.overlap, {"error", "first"});
+    b.volume = t.choice("volume", b.volume, {"seeded", "exact"});
     particles += body_particles(b, s.grid, dim);
     check(particles <= kMaxSceneParticles, box_ref(t),
           "body \"" + b.name + "\" brings the particle count to " + fmt(particles) + " (" +

@@ -113,6 +113,10 @@ struct BodySection {
   /// x, then y, then z by rotate's angles in degrees (2D: about z only)
   Vec3 scale{1, 1, 1}, rotate{0, 0, 0}, translate{0, 0, 0};
   std::string overlap = "error";       ///< "first": particles inside an earlier body are dropped
+  /// "exact": the particle volumes (and masses) of a shape seeded on the
+  /// lattice are scaled to sum to the shape's exact volume (area, length);
+  /// "seeded": as seeded (the sum approaches it as the cells shrink).
+  std::string volume = "seeded";
   int particles_per_cell = 2;           ///< per axis
   std::string placement = "gauss";      ///< gauss | cell_centres
   Vec3 velocity{0, 0, 0};

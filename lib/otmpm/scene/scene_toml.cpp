@@ -122,7 +122,8 @@ toml::array bodies(const std::vector<BodySection>& bs, int dim) {
                   {"particles_per_cell", b.particles_per_cell},
                   {"placement", b.placement},
                   {"velocity", first(b.velocity, dim)},
-                  {"overlap", b.overlap}};
+                  {"overlap", b.overlap},
+                  {"volume", b.volume}};
     if (!b.name.empty()) t.insert("name", b.name); // else the reader's name, "body<index>"
     insert_shape(t, b, dim);
     if (b.velocity_profile) t.insert("velocity_profile", *b.velocity_profile);

@@ -384,6 +384,8 @@ void validate_bodies(const Scene& s, int dim) {
           "must be in [1, ", kMaxParticlesPerCell, "] (got ", b.particles_per_cell, ")");
     check(s, one_of(b.overlap, {"error", "first"}), key + ".overlap", "must be \"error\" or \"first\" (got \"",
           b.overlap, "\")");
+    check(s, one_of(b.volume, {"seeded", "exact"}), key + ".volume", "must be \"seeded\" or \"exact\" (got \"",
+          b.volume, "\")");
     check(s, one_of(b.placement, {"gauss", "cell_centres"}), key + ".placement",
           "must be \"gauss\" or \"cell_centres\" (got \"", b.placement, "\")");
     check_finite(s, key + ".velocity", b.velocity, dim);

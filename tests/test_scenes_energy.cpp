@@ -1,0 +1,62 @@
+// The energy balance of every example scene (docs/theory.md sect. 11): a
+// full run of each examples/*.toml closes E(t) + W_p + W_f - E(0) - W to its
+// measured energy_drift (the same figures in docs/theory.md's table). A new
+// example needs its figure here: the test fails for a scene it does not know.
+#include "otmpm/run/run.hpp"
+
+#include <doctest/doctest.h>
+
+#include <filesystem>
+#include <map>
+#include <string>
+
+using namespace otmpm;
+
+namespace {
+
+/// Per example: the energy_drift of a full run (measured, one thread) and
+/// what it is.
+struct Closure {
+  double drift;
+  const char* why;
+};
+
+const std::map<std::string, Closure> kClosures{
+    {"andersen_block", {0.0549, "npc's damping of the block's vibration"}},
+    {"column_collapse", {0.0587, "impacts on the frictionless walls (not booked) and mu(I) flow"}},
+    {"disks", {0.106, "the frictionless impact of the disks (not booked)"}},
+    {"dyka", {0.139, "npc's damping (molinos' first-order particle update)"}},
+    {"dyka_2d", {0.139, "npc's damping"}},
+    {"dyka_3d", {0.139, "npc's damping"}},
+    {"fixed_bar", {3.58e-4, "fe's time error"}},
+    {"mms_plate", {4.55e-5, "unified's error"}},
+    {"plate_impact", {0.0156, "npc's damping of the impact's waves"}},
+    {"sliding_block", {0.00668, "npc's error on the sheared contact layer (friction booked)"}},
+    {"stretch_bar", {0.622, "the neo-Hookean stored energy is the small-strain one: at twice the length it is not"}},
+    {"taylor_bar", {0.0347, "the impact on the frictionless wall (not booked)"}},
+    {"traction_bar", {0.00384, "fe's time error (the traction's work on the loaded particles' motion)"}},
+};
+
+} // namespace
+
+TEST_CASE("every example scene closes its energy balance to its measured figure") {
+  const std::filesystem::path examples = std::filesystem::path(OTMPM_SOURCE_DIR) / "examples";
+  int scenes = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(examples)) {
+    if (entry.path().extension() != ".toml") continue;
+    const std::string name = entry.path().stem().string();
+    INFO(name);
+    const auto it = kClosures.find(name);
+    REQUIRE_MESSAGE(it != kClosures.end(), "no energy figure for examples/" << name << ".toml");
+    RunOptions opt;
+    opt.write_results = false;
+    const RunSummary s = run_scene(load_scene(entry.path().string()), opt);
+    REQUIRE(s.exit_code == 0);
+    MESSAGE(name << ": energy_drift " << s.energy.energy_drift() << ", max_energy_ratio "
+                 << s.energy.max_energy_ratio() << " (" << it->second.why << ")");
+    // 10% above the figure: threads and platforms move it in the last digits only.
+    CHECK(s.energy.energy_drift() <= 1.1 * it->second.drift);
+    ++scenes;
+  }
+  CHECK(scenes == static_cast<int>(kClosures.size()));
+}
