@@ -48,9 +48,9 @@ CLI::Option* add_int_option(CLI::App& sub, const std::string& name, int& target,
 void check(const BasisArgs& a) {
   if (!(a.lower < a.upper)) throw InputError("need --lower < --upper");
   if (!(a.opt.gamma_lme > 0)) throw InputError("--gamma-lme must be > 0");
-  if (std::pow(a.cells + 1.0, a.dim) > kMaxSceneNodes)
+  if (std::pow(a.cells + 1.0, a.dim) > kMaxRankNodes)
     throw InputError("--cells " + std::to_string(a.cells) + " in " + std::to_string(a.dim) + "D gives more than " +
-                     std::to_string(static_cast<long long>(kMaxSceneNodes)) + " nodes");
+                     std::to_string(static_cast<long long>(kMaxRankNodes)) + " nodes");
   // The node set must also fit in memory (about 1 kB per node with the basis' neighbour search, generously).
   constexpr double kBytesPerNode = 1000;
   const double bytes = std::pow(a.cells + 1.0, a.dim) * kBytesPerNode;

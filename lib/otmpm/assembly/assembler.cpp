@@ -250,7 +250,7 @@ template <int D>
 EngineParts<D> assemble_parts(const Scene& scene,
                               const std::function<SeededBodies<D>(const Vec<D>&, const CartesianGrid<D>&)>& seed,
                               const std::function<LatticePart<D>(const CartesianGrid<D>&)>& lattice) {
-  validate_scene(scene, D);
+  validate_scene(scene, D, seed ? 0 : 1); // a share (seed) checks its own size
   const IntegratorKind& integrator = integrator_kind(scene.simulation.integrator);
   const bool ul = scene.simulation.nodes_move();
   EngineParts<D> parts;

@@ -156,13 +156,13 @@ const char* xdmf_attribute_type(int cols, int dimension, bool symmetric) {
 }
 
 /// The dataset holding the connectivity 0 .. points-1 of a Polyvertex topology.
-std::string vertices_name(int points) { return "vertices_" + std::to_string(points); }
+std::string vertices_name(long long points) { return "vertices_" + std::to_string(points); }
 
 /// What the sidecar needs to know about one written frame.
 struct FrameInfo {
   std::string group;      ///< "/frames/000012"
   double time = 0;
-  int points = 0;         ///< rows of x
+  long long points = 0;   ///< rows of x (of all ranks)
   std::string geometry;   ///< dataset used as geometry ("x" or the padded copy)
   int geometry_cols = 0;
   /// Other fields with `points` rows: name, cols, whether a symmetric tensor's components.
@@ -242,7 +242,7 @@ struct ResultWriter::Impl {
   bool broken = false;  ///< an HDF5 write failed: the file is left alone from then on
   std::vector<FrameInfo> frame_infos;
   std::map<std::string, ProbeInfo> probe_infos; ///< by path: "probes/<name>" or a root series name
-  std::set<int> vertex_counts;                  ///< the vertices_N datasets written
+  std::set<long long> vertex_counts;                ///< the vertices_N datasets written
   std::unique_ptr<VtkSeriesWriter> vtk;
 
   /// Appends one sample to the histories of group `name` under `parent`
@@ -287,7 +287,7 @@ struct ResultWriter::Impl {
   std::size_t xdmf_frames = 0;
   FrameInfo describe_frame(const std::string& group, double time, const std::vector<FieldView>& fields) const;
   /// Writes /xdmf/vertices_N unless it exists.
-  void write_vertices(int points);
+  void write_vertices(const FieldView& x, long long points);
 
   /// Size of the last sidecar written and the frames it named (its growth per frame).
   mutable std::uint64_t xdmf_bytes = 0, xdmf_bytes_frames = 0;
@@ -422,7 +422,7 @@ FrameInfo ResultWriter::Impl::describe_frame(const std::string& group_path, doub
     if (f.name == "x") x = &f;
   if (!x) return info; // no coordinates: the frame is in the .h5 file only
   const auto total = [](const FieldView& f) { return f.total_rows >= 0 ? f.total_rows : f.rows; };
-  info.points = static_cast<int>(total(*x));
+  info.points = total(*x);
   info.geometry = x->cols == 1 ? kPaddedX : "x";
   info.geometry_cols = x->cols == 1 ? kXdmfSpaceDim : x->cols;
   info.precision = single ? 4 : 8;
@@ -431,10 +431,14 @@ FrameInfo ResultWriter::Impl::describe_frame(const std::string& group_path, doub
   return info;
 }
 
-void ResultWriter::Impl::write_vertices(int points) {
+void ResultWriter::Impl::write_vertices(const FieldView& x, long long points) {
   if (!vertex_counts.insert(points).second) return;
-  std::vector<std::int64_t> ids(static_cast<std::size_t>(points));
-  std::iota(ids.begin(), ids.end(), std::int64_t{0});
+  // this rank's rows of the frame (a serial file, or the root writing a whole frame: all of them)
+  const bool block = parallel.mpi_comm && x.total_rows >= 0;
+  const long long first = block ? x.first_row : 0;
+  const long long rows = block ? x.rows : parallel.mpi_comm && !root() ? 0 : points;
+  std::vector<std::int64_t> ids(static_cast<std::size_t>(std::max(rows, 1LL))); // never a null buffer
+  std::iota(ids.begin(), ids.end(), std::int64_t{first});
   const hsize_t dims[1] = {static_cast<hsize_t>(points)};
   const std::string name = vertices_name(points);
   Handle space(checked(H5Screate_simple(1, dims, nullptr), path, "write " + name), H5Sclose);
@@ -447,12 +451,17 @@ void ResultWriter::Impl::write_vertices(int points) {
   if (!parallel.mpi_comm)
     return checked_status(H5Dwrite(set.get(), H5T_NATIVE_INT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, ids.data()), path,
                           "write " + name);
-  // Every rank takes part in the collective write; the root writes the ids.
+  // Every rank takes part in the collective write, each with its rows.
   Handle file_space(checked(H5Dget_space(set.get()), path, "write " + name), H5Sclose);
-  Handle mem_space(checked(H5Screate_simple(1, dims, nullptr), path, "write " + name), H5Sclose);
-  if (!root()) {
+  const hsize_t count[1] = {static_cast<hsize_t>(std::max(rows, 1LL))};
+  Handle mem_space(checked(H5Screate_simple(1, count, nullptr), path, "write " + name), H5Sclose);
+  if (rows == 0) {
     checked_status(H5Sselect_none(file_space.get()), path, "write " + name);
     checked_status(H5Sselect_none(mem_space.get()), path, "write " + name);
+  } else {
+    const hsize_t start[1] = {static_cast<hsize_t>(first)};
+    checked_status(H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr), path,
+                   "write " + name);
   }
   checked_status(H5Dwrite(set.get(), H5T_NATIVE_INT64, mem_space.get(), file_space.get(), dxpl(), ids.data()), path,
                  "write " + name);
@@ -509,7 +518,9 @@ void ResultWriter::write_frame(double time, const std::vector<FieldView>& fields
       x3.cols = kXdmfSpaceDim;
       m.write_field(g.get(), kPaddedX, x3, padded.data());
     }
-    if (!info.geometry.empty()) m.write_vertices(info.points);
+    if (!info.geometry.empty())
+      m.write_vertices(*std::find_if(fields.begin(), fields.end(), [](const FieldView& f) { return f.name == "x"; }),
+                       info.points);
   });
   ++frames_;
   flush();
@@ -653,7 +664,7 @@ void ResultWriter::Impl::write_xdmf() const {
     return "<DataItem Dimensions=\"" + dims + "\" NumberType=\"" + type + "\" Precision=\"" +
            std::to_string(precision) + "\" Format=\"HDF\">" + h5 + ":" + xml_escape(dataset) + "</DataItem>";
   };
-  auto matrix = [](int rows, int cols) { return std::to_string(rows) + " " + std::to_string(cols); };
+  auto matrix = [](long long rows, int cols) { return std::to_string(rows) + " " + std::to_string(cols); };
   for (const FrameInfo& f : frame_infos) {
     os << "      <Grid Name=\"frame " << f.group.substr(f.group.rfind('/') + 1) << "\" GridType=\"Uniform\">\n"
        << "        <Time Value=\"" << text::exact(f.time) << "\"/>\n"

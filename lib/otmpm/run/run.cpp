@@ -801,7 +801,9 @@ std::unique_ptr<Simulation::Runner> Simulation::make(const Scene& scene, const R
                                                      const Checkpoint* resume) {
   const int dim = scene.simulation.dimension;
   if (dim >= 1 && dim <= 3) {
-    validate_scene(scene, dim); // a Scene built in code: every check of the reader, before the estimates
+    // a Scene built in code: every check of the reader, before the estimates;
+    // the size per rank of the ranks this run has
+    validate_scene(scene, dim, distributed::Comm::world().size());
     check_resources(scene);     // before anything is allocated
   }
   switch (scene.simulation.dimension) {
