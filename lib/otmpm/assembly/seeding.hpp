@@ -95,6 +95,9 @@ template <int D> struct SeededBodies {
   std::vector<long long> ids;
   /// seed_bodies_where with traction loads: their surface particles among all
   std::shared_ptr<const TractionSurfaces<D>> surfaces;
+  /// Instead of `surfaces` (a distributed restart, which seeds nothing): per
+  /// traction load, per particle, its share of the loaded area (< 0: not loaded).
+  std::vector<std::vector<double>> traction_area;
 };
 
 /// Seeds every body of the scene (assembler.hpp, seed_particles): boxes on

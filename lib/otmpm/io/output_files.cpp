@@ -422,7 +422,7 @@ bool view_replaceable(const std::string& view, const std::string& owner, const C
 /// impossible, so it holds nothing a user can use.
 bool orphan_checkpoint(const std::string& path) {
   try {
-    const std::string result = read_checkpoint(path).group("recorder").string("result_file");
+    const std::string result = read_checkpoint_head(path).group("recorder").string("result_file");
     return !result.empty() && !occupied(result);
   } catch (const InputError&) {
     return false;

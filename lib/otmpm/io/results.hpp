@@ -9,6 +9,8 @@
 /// for every write is reserved first, so a full disk or a file size limit
 /// ends the output with an OutputError and a valid, shorter file (a
 /// compressed frame reserves its uncompressed size and the filters' worst case).
+#include "otmpm/io/parallel_io.hpp"
+
 #include <functional>
 #include <memory>
 #include <set>
@@ -34,18 +36,6 @@ struct FieldView {
   /// components: "xx xy xz yy yz zz"); written as the dataset's string
   /// attribute `components`. "" : no attribute.
   std::string components{};
-};
-
-/// A result file that all ranks of a distributed run write together with
-/// the parallel HDF5 (MPI-IO): every rank makes every call of the
-/// ResultWriter, with the same arguments except the rows of a frame; the
-/// root rank writes the history samples and the XDMF sidecar.
-struct ParallelIo {
-  const void* mpi_comm = nullptr; ///< the MPI_Comm* of the ranks (null: a serial file)
-  bool root = true;
-  /// Whether every rank's `ok` holds (collective): a frame is written only
-  /// when all ranks' rows are finite.
-  std::function<bool(bool)> all;
 };
 
 /// Why `name` cannot name a field, probe, series or attribute in the result
@@ -76,7 +66,10 @@ struct ResultOptions {
   int compression = 0;
 };
 
-/// Writes one result file. Creating it writes the root attributes
+/// Writes one result file (with a ParallelIo: all ranks of a distributed run
+/// together, with the parallel HDF5 - every rank makes every call, with the
+/// same arguments except the rows of a frame; the root rank writes the
+/// history samples and the XDMF sidecar). Creating it writes the root attributes
 /// otmpm_version, run_id, scene and status = "running"; finish() sets the final
 /// status and the summary attributes. The destructor closes the file
 /// (status stays whatever was last set). An existing file at `path` is

@@ -261,8 +261,7 @@ public:
       sum_sq.values.push_back(pr.sum_sq);
       samples.values.push_back(pr.samples);
     }
-    const Checkpoint all = view_.gather(ck); // the serial layout: any rank count can restart from it
-    view_.on_writer([&] { write_checkpoint(checkpoint_path_, all); });
+    view_.write_checkpoint(checkpoint_path_, std::move(ck)); // any rank count can restart from it
   }
 
   /// Wall time of the interrupted run up to its checkpoint (0 for a new run).
@@ -662,12 +661,14 @@ struct Simulation::Runner {
 template <int D> struct Simulation::DimRunner final : Simulation::Runner {
   std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now();
   RunOptions options;
+  /// A distributed restart: this rank's rows of the checkpoint, from build() to init().
+  Checkpoint restart_rows;
   Engine<D> e;
   std::unique_ptr<ExactSolution<D>> exact;
   Recorder<D> rec;
 
   DimRunner(const Scene& s, const RunOptions& opt, const Checkpoint* resume)
-      : options(opt), e(build(s, resume)), exact(make_exact_solution<D>(s)),
+      : options(opt), e(build(s, resume, restart_rows)), exact(make_exact_solution<D>(s)),
         rec(init(s, resume), opt, e, exact.get(), resume) {
     const distributed::GlobalView<D> view(e);
     summary.mode = scene.simulation.mode;
@@ -688,18 +689,17 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
   }
 
   /// This rank's engine of the scene (the whole scene in a serial run); a
-  /// restart decides the ranks' particles from the checkpoint's positions.
-  static Engine<D> build(const Scene& s, const Checkpoint* resume) {
+  /// distributed restart builds it from its rows of the checkpoint (`rows`).
+  static Engine<D> build(const Scene& s, const Checkpoint* resume, Checkpoint& rows) {
     const auto& comm = distributed::Comm::world();
     if (!resume || comm.size() == 1) return Engine<D>(distributed::rank_parts<D>(s, comm));
-    const AlignedVector<Vec<D>> x = distributed::checkpoint_positions<D>(*resume);
-    return Engine<D>(distributed::rank_parts<D>(s, comm, &x));
+    return Engine<D>(distributed::restart_parts<D>(s, comm, *resume, rows));
   }
 
   /// Stores the scene and restores the checkpoint before the recorder is built.
   const Scene& init(const Scene& s, const Checkpoint* resume) {
     scene = s;
-    if (resume) e.restore_state(distributed::local_checkpoint(e, *resume));
+    if (resume) e.restore_state(distributed::local_checkpoint(e, *resume, std::exchange(restart_rows, {})));
     return scene;
   }
 
