@@ -30,29 +30,6 @@ std::vector<Bytes> on_root(const Comm& comm, Bytes mine) {
   return in;
 }
 
-/// Rows `ids` (cols values each, ids[i] the global row of local row i) of
-/// every rank, assembled in global row order on rank 0 (`total` rows).
-template <class T>
-std::vector<T> gather_rows(const Comm& comm, const std::vector<long long>& ids, const std::vector<T>& values,
-                           std::size_t cols, long long total) {
-  Bytes mine;
-  for (std::size_t i = 0; i < ids.size(); ++i) {
-    put(mine, static_cast<std::int64_t>(ids[i]));
-    put_bytes(mine, values.data() + i * cols, cols * sizeof(T));
-  }
-  const std::vector<Bytes> in = on_root(comm, std::move(mine));
-  if (!comm.root()) return {};
-  std::vector<T> all(static_cast<std::size_t>(total) * cols);
-  for (const Bytes& b : in) {
-    Reader r(b);
-    while (!r.done()) {
-      const auto g = static_cast<std::size_t>(r.get<std::int64_t>());
-      r.get_bytes(all.data() + g * cols, cols * sizeof(T));
-    }
-  }
-  return all;
-}
-
 /// Adds `sign` times the hint offset to every cell hint of a basis group.
 template <int D> void shift_hints(StateGroup& basis, const Index<D>& offset, int sign) {
   const auto it = basis.integer_arrays.find(kCellHints);
@@ -236,13 +213,6 @@ template <int D> typename GlobalView<D>::Row GlobalView<D>::row(long long g) con
   Row r = it != ids.end() ? local_row(static_cast<int>(it - ids.begin())) : Row{};
   comm.broadcast(&r, sizeof r, owner);
   return r;
-}
-
-template <int D> std::vector<double> GlobalView<D>::gather(const double* local, int cols) const {
-  const std::size_t n = static_cast<std::size_t>(e_.particles().size()) * static_cast<std::size_t>(cols);
-  std::vector<double> mine(local, local + n);
-  if (!d_) return mine;
-  return gather_rows(d_->comm(), d_->global_ids(), mine, static_cast<std::size_t>(cols), d_->global_particles());
 }
 
 template <int D> double GlobalView<D>::rms(const std::vector<double>& squared) const {

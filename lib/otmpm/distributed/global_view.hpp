@@ -55,10 +55,6 @@ public:
     Mat<D> sigma;
   };
   Row row(long long g) const;
-  /// `cols` doubles per local particle -> on the writing rank, all particles'
-  /// rows in global order (empty elsewhere; the local rows themselves in a
-  /// serial run).
-  std::vector<double> gather(const double* local, int cols) const;
   /// This rank's block of a frame in global order: rows [first, first +
   /// count) of all particles' `cols` values (the ranks' blocks tile the
   /// frame; a serial run's block is the whole frame).

@@ -377,9 +377,11 @@ ResultWriter::ResultWriter(const std::string& path, const std::string& scene_tex
   });
   set_attribute("dimension", static_cast<long long>(dimension));
   flush();
-  if (!options.vtk_format.empty() && m.root())
+  if (!options.vtk_format.empty()) { // a distributed run: on every rank, each writes its pieces
     m.vtk = std::make_unique<VtkSeriesWriter>(files.pvd, files.vtk_dir, files.vtk_extension, dimension, m.run_id,
-                                              m.h5_name, m.single);
+                                              m.h5_name, m.single, m.parallel);
+    if (m.parallel.all) m.parallel.all(true); // the root made the directory before any rank writes there
+  }
   if (m.root()) m.write_xdmf();
   if (m.vtk) m.vtk->publish();
 }
@@ -399,6 +401,8 @@ ResultWriter::~ResultWriter() {
 }
 
 const std::string& ResultWriter::run_id() const { return impl_->run_id; }
+
+const ParallelIo& ResultWriter::parallel() const { return impl_->parallel; }
 
 bool ResultWriter::writable() const { return !impl_->broken; }
 
@@ -484,8 +488,7 @@ void ResultWriter::check_frame(double time, const std::vector<FieldView>& fields
   if (!std::isfinite(time)) throw InstabilityError(path_ + ": frame time is not finite");
 }
 
-void ResultWriter::write_frame(double time, const std::vector<FieldView>& fields,
-                               const std::vector<FieldView>* whole) {
+void ResultWriter::write_frame(double time, const std::vector<FieldView>& fields) {
   Impl& m = *impl_;
   const std::string name = frame_name(frames_);
   std::set<std::string> seen;
@@ -525,9 +528,7 @@ void ResultWriter::write_frame(double time, const std::vector<FieldView>& fields
   ++frames_;
   flush();
   if (!info.geometry.empty()) {
-    if (m.vtk && m.parallel.mpi_comm && !whole)
-      throw std::invalid_argument(path_ + ": the VTK files of a parallel result file need the whole frame");
-    if (m.vtk) m.vtk->write_frame(frames_ - 1, time, whole ? *whole : fields);
+    if (m.vtk) m.vtk->write_frame(frames_ - 1, time, fields);
     m.frame_infos.push_back(std::move(info));
   }
   m.publish_xdmf(false);
@@ -746,11 +747,13 @@ void append_stored_sample(const StoredHistory& h, hsize_t row, ResultWriter& to)
   else to.append_series(h.layout.name, t, scalars);
 }
 
-/// Frame `index` of a result file: its time and the datasets `fields`.
+/// Frame `index` of a result file: its time and the datasets `fields` (a
+/// parallel file: this rank's block of rows, from `first` of `total`).
 struct StoredFrame {
   double time = 0;
   std::vector<h5::Matrix<double>> fields;
   std::vector<std::string> components; ///< each field's attribute `components` ("" when absent)
+  long long first = 0, total = -1;     ///< total -1: the whole frame
 };
 
 /// The string attribute `components` of dataset `name` below `g`, or "".
@@ -759,14 +762,30 @@ std::string stored_components(hid_t g, const std::string& name, const std::strin
   return h5::has_attribute(set.get(), "components") ? h5::read_string(set.get(), "components", path) : "";
 }
 
-StoredFrame read_frame(hid_t file, int index, const std::vector<std::string>& fields, const std::string& path) {
+/// Rows [total r / P, total (r + 1) / P) of a dataset of `total` rows for rank r of P.
+h5::Matrix<double> read_block(hid_t g, const std::string& name, const ParallelIo& io, long long& first, long long& total,
+                              const std::string& path) {
+  const h5::DoubleRows rows(g, name, path);
+  total = static_cast<long long>(rows.rows());
+  first = total * io.rank / io.size;
+  h5::Matrix<double> m;
+  m.cols = rows.cols();
+  m.rows = static_cast<hsize_t>(total * (io.rank + 1) / io.size - first);
+  m.values.resize(static_cast<std::size_t>(m.rows * m.cols));
+  rows.read(static_cast<hsize_t>(first), m.rows, m.values.data());
+  return m;
+}
+
+StoredFrame read_frame(hid_t file, int index, const std::vector<std::string>& fields, const ParallelIo& io,
+                       const std::string& path) {
   Handle g = h5::open_group(file, "frames/" + frame_name(index), path);
   StoredFrame f;
   f.time = h5::read_double(g.get(), "time", path);
   if (!std::isfinite(f.time))
     h5::fail(path, "copy frame " + frame_name(index) + ": its time is not finite (the file is damaged)");
   for (const std::string& name : fields) {
-    f.fields.push_back(h5::read_double_matrix(g.get(), name, path));
+    f.fields.push_back(io.size > 1 ? read_block(g.get(), name, io, f.first, f.total, path)
+                                   : h5::read_double_matrix(g.get(), name, path));
     f.components.push_back(stored_components(g.get(), name, path));
     check_finite(f.fields.back(), f.fields.back().rows, "frames/" + frame_name(index) + "/" + name, path);
   }
@@ -797,7 +816,7 @@ void copy_results(const std::string& from, ResultWriter& to, int frames, const s
     stored.push_back(reading(from, [&] { return read_history(file.get(), layout, frames, from); }));
   for (int i = 0; i < frames; ++i) {
     for (const StoredHistory& h : stored) append_stored_sample(h, static_cast<hsize_t>(i), to);
-    const StoredFrame frame = reading(from, [&] { return read_frame(file.get(), i, frame_fields, from); });
+    const StoredFrame frame = reading(from, [&] { return read_frame(file.get(), i, frame_fields, to.parallel(), from); });
     // A run writes each history's sample and the frame at the same output time.
     for (const StoredHistory& h : stored)
       if (h.time.values[static_cast<std::size_t>(i)] != frame.time)
@@ -807,7 +826,7 @@ void copy_results(const std::string& from, ResultWriter& to, int frames, const s
     std::vector<FieldView> views;
     for (std::size_t k = 0; k < frame_fields.size(); ++k)
       views.push_back({frame_fields[k], static_cast<int>(frame.fields[k].rows),
-                       static_cast<int>(frame.fields[k].cols), frame.fields[k].values.data(), -1, 0,
+                       static_cast<int>(frame.fields[k].cols), frame.fields[k].values.data(), frame.total, frame.first,
                        frame.components[k]});
     to.write_frame(frame.time, views);
   }

@@ -432,8 +432,8 @@ private:
     Samples probes; ///< per probe: x, v, stress
     std::vector<std::pair<std::string, double>> energy;
     Samples walls; ///< per wall: force, impulse
-    std::vector<std::vector<double>> buffers, packed, gathered;
-    std::vector<FieldView> fields, whole;
+    std::vector<std::vector<double>> buffers, packed;
+    std::vector<FieldView> fields;
   };
 
   /// /walls/NAME: the impulse the wall gave the body since t = 0 and the
@@ -459,7 +459,7 @@ private:
     for (const auto& [name, values] : o.probes) writer_->append_probe(name, o.t, values);
     writer_->append_series("energy", o.t, o.energy);
     for (const auto& [name, values] : o.walls) writer_->append_group_sample("walls", name, o.t, values);
-    writer_->write_frame(o.t, o.fields, o.whole.empty() ? nullptr : &o.whole);
+    writer_->write_frame(o.t, o.fields);
   }
 
   /// Makes the frame's fields own their values (background output): the
@@ -506,9 +506,7 @@ private:
     o->walls = wall_samples(t);
     o->buffers.resize(scene_.output.fields.size());
     o->packed.resize(o->buffers.size());
-    o->gathered.resize(o->buffers.size());
-    o->whole.clear();
-    o->fields = frame_fields(o->buffers, o->packed, o->gathered, o->whole);
+    o->fields = frame_fields(o->buffers, o->packed);
     ++frames_;
     if (background_) {
       own_fields(*o);
@@ -521,14 +519,10 @@ private:
   }
 
   /// The output fields of all particles in global order (buffers hold the
-  /// values that are not stored as they are written, and the gathered ones).
-  /// A distributed run with VTK output also gathers every field of all
-  /// particles on the writing rank into `gathered` and `whole` (that rank
-  /// writes the VTK files alone; collective).
+  /// values that are not stored as they are written); a distributed run:
+  /// this rank's block of rows of the frame (collective).
   std::vector<FieldView> frame_fields(std::vector<std::vector<double>>& buffers,
-                                      std::vector<std::vector<double>>& packed,
-                                      std::vector<std::vector<double>>& gathered,
-                                      std::vector<FieldView>& whole) const {
+                                      std::vector<std::vector<double>>& packed) const {
     const Particles<D>& P = e_.particles();
     const auto n = static_cast<std::size_t>(P.size());
     std::vector<double> zz; // plane strain's sigma_zz, when a field of the frame holds it
@@ -558,11 +552,6 @@ private:
       if (!view_.distributed()) {
         fields.push_back({name, P.size(), d.cols, d.data, -1, 0, components});
         continue;
-      }
-      if (!vtk_extension_.empty()) {
-        gathered[i] = view_.gather(d.data, d.cols);
-        whole.push_back({name, view_.writes() ? static_cast<int>(view_.particles()) : 0, d.cols, gathered[i].data(),
-                         -1, 0, components});
       }
       auto block = view_.block(d.data, d.cols); // this rank's rows of the frame, in global order
       buffers[i] = std::move(block.values);
