@@ -4,6 +4,7 @@
 
 #include "otmpm/assembly/assembler.hpp"
 #include "otmpm/assembly/seeding.hpp"
+#include "otmpm/distributed/share_seeding.hpp"
 #include "otmpm/basis/bspline.hpp"
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/basis/lme.hpp"
@@ -240,85 +241,30 @@ EngineParts<D> finish_parts(const Comm& comm, EngineParts<D> parts, typename Dom
   return parts;
 }
 
-/// Seeding particles counted per rank in runs of this many global ids
-/// (rank r counts the runs r, r + N, ...): each rank's list of (cell, count)
-/// stays short, as particles of one cell are seeded together.
-constexpr long long kCountRun = 4096;
-
-/// A rank's parts seeded for its own cells only (local_parts.hpp): a
-/// counting pass over the seeding (no particle stored) gives the particles
-/// per cell for the bisection, a second pass stores the particles of this
-/// rank's cells. Every rank runs both passes over every body alike, so a bad
-/// scene fails on every rank alike. Traction loads find their surface
-/// particles in the counting pass (TractionSurfaces: one entry per column).
+/// A rank's parts seeded for its own cells only (local_parts.hpp,
+/// share_seeding.hpp).
 template <int D> EngineParts<D> seeded_parts(const Scene& scene, const Comm& comm) {
   typename Domain<D>::Setup setup;
-  const bool ul = scene.simulation.nodes_move();
-  long long n = 0;
-  // An error of the decomposition (too few cells) is raised after the rest
-  // of the assembly, as when the whole scene was assembled first.
-  std::exception_ptr deferred;
+  ShareSeeding<D> share;
   auto seed = [&](const Vec<D>& h, const CartesianGrid<D>& grid) {
-    SeededBodies<D> mine;
-    auto home = [&](long long, const Vec<D>& x) { return grid.cell_of(x); };
-    std::vector<Index<D>> cells;
-    std::vector<std::int64_t> weight;
-    // Traction loads: their surface particles among all (every rank sees every seed here).
-    std::shared_ptr<TractionSurfaces<D>> surfaces;
-    if (!scene.tractions.empty()) surfaces = std::make_shared<TractionSurfaces<D>>(scene, kBoxTolerance * grid.h().minCoeff());
-    // Every rank reads every particle file in both passes: one that fails
-    // alone (a file rewritten while the ranks read it) fails all (agree_on).
-    agree_on(comm, [&] {
-      n = seed_bodies_where<D>(
-          scene, h, grid,
-          [&](long long id, const Vec<D>& x) {
-            if (surfaces) surfaces->visit(id, x);
-            if ((id / kCountRun) % comm.size() != comm.rank()) return false;
-            const Index<D> c = home(id, x);
-            if (!cells.empty() && cells.back() == c) ++weight.back();
-            else cells.push_back(c), weight.push_back(1);
-            return false;
-          },
-          nullptr);
-    });
-    // a file that every rank read without an error but not alike
-    if (const auto fewest = comm.min(static_cast<std::int64_t>(n)), most = comm.max(static_cast<std::int64_t>(n));
-        fewest != most)
-      throw InputError("the ranks counted from " + std::to_string(fewest) + " to " + std::to_string(most) +
-                       " particles in the scene's bodies: a particle file read differently by the ranks (rewritten "
-                       "while they read it, or not the same on every node)");
-    if (surfaces) surfaces->finish();
-    mine.surfaces = surfaces;
-    try {
-      setup.decomposition = Decomposition<D>::rcb(grid.cells, comm.size(), cells, weight, comm);
-    } catch (...) {
-      deferred = std::current_exception();
-      return mine;
-    }
-    std::vector<Index<D>>().swap(cells);
-    std::vector<std::int64_t>().swap(weight);
-    agree_on(comm, [&] {
-      seed_bodies_where<D>(
-          scene, h, grid,
-          [&](long long id, const Vec<D>& x) { return setup.decomposition.owner(home(id, x)) == comm.rank(); },
-          &mine);
-    });
+    SeededBodies<D> mine = share_seeding<D>(scene, comm, h, grid, share);
+    setup.decomposition = share.decomposition;
     setup.global_ids = mine.ids; // a copy: the assembler reads mine.ids (traction surfaces)
     return mine;
   };
   auto lattice = [&](const CartesianGrid<D>& grid) {
-    return rank_lattice<D>(scene, comm, grid, !deferred, setup);
+    return rank_lattice<D>(scene, comm, grid, !share.deferred, setup);
   };
   EngineParts<D> parts = assemble_parts<D>(scene, seed, lattice);
-  if (deferred) std::rethrow_exception(deferred);
+  if (share.deferred) std::rethrow_exception(share.deferred);
   // The traction loads' shares of this rank's particles (they move with them).
   for (const Traction<D>& t : parts.loads.tractions) {
     std::vector<double> area(static_cast<std::size_t>(parts.particles.size()), -1.0);
     for (std::size_t i = 0; i < t.particle.size(); ++i) area[static_cast<std::size_t>(t.particle[i])] = t.area[i];
     setup.traction_area.push_back(std::move(area));
   }
-  setup.nodes_move = ul;
-  setup.global_particles = n;
+  setup.nodes_move = scene.simulation.nodes_move();
+  setup.global_particles = share.particles;
   setup.setup_particles = parts.particles.size();
   return finish_parts<D>(comm, std::move(parts), std::move(setup));
 }
