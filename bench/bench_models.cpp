@@ -12,7 +12,12 @@
 //    the Hencky strains and the yield check of every step);
 //  - j2 plastic: yield stress 2 kPa, hardening 100 kPa: the self-weight
 //    (up to rho g H = 9.8 kPa) drives most of the block into plastic flow;
-//  - drucker_prager: friction angle 30 deg, cohesion 1 kPa.
+//  - drucker_prager: friction angle 30 deg, cohesion 1 kPa;
+//  - drucker_prager cohesionless: 30 deg, no cohesion (the block collapses);
+//  - mu_i: the same static cone (mu_s = eta(30 deg) = 0.48, mu_2 = 0.74,
+//    I_0 = 0.28, d = 0.5 mm, packing 0.6, critical 0.55): the block collapses
+//    with the rate-dependent friction (the ratio mu_i / drucker_prager
+//    cohesionless is the model's own cost).
 // Each repetition builds every model's engine, takes W warm-up steps (the
 // default lets the relief wave from the base cross the block, so the
 // plastic cases are in flow where they will be) and then times S steps of
@@ -48,6 +53,9 @@ const std::vector<ModelCase> kCases{
     {"j2 elastic", "model = \"j2\"\nyield_stress = 1.0e9"},
     {"j2 plastic", "model = \"j2\"\nyield_stress = 2.0e3\nhardening_modulus = 1.0e5"},
     {"drucker_prager", "model = \"drucker_prager\"\nfriction_angle = 30.0\ncohesion = 1.0e3"},
+    {"dp cohesionless", "model = \"drucker_prager\"\nfriction_angle = 30.0"},
+    {"mu_i", "model = \"mu_i\"\nmu_s = 0.48038\nmu_2 = 0.74\nI_0 = 0.28\ngrain_diameter = 5e-4\n"
+             "grain_density = 1666.7\ncritical_packing = 0.55"},
 };
 
 double process_seconds() {

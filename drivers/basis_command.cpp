@@ -4,6 +4,7 @@
 #include "cli.hpp"
 
 #include "otmpm/basis/basis.hpp"
+#include "otmpm/io/output_files.hpp"
 #include "otmpm/scene/resources.hpp"
 #include "otmpm/scene/scene.hpp"
 
@@ -46,17 +47,12 @@ CLI::Option* add_int_option(CLI::App& sub, const std::string& name, int& target,
 }
 
 void check(const BasisArgs& a) {
+  if (const std::string kind = special_file(a.out); !kind.empty())
+    throw InputError("--out " + a.out + " is " + kind + ", not a CSV file");
   if (!(a.lower < a.upper)) throw InputError("need --lower < --upper");
   if (!(a.opt.gamma_lme > 0)) throw InputError("--gamma-lme must be > 0");
-  if (std::pow(a.cells + 1.0, a.dim) > kMaxRankNodes)
-    throw InputError("--cells " + std::to_string(a.cells) + " in " + std::to_string(a.dim) + "D gives more than " +
-                     std::to_string(static_cast<long long>(kMaxRankNodes)) + " nodes");
-  // The node set must also fit in memory (about 1 kB per node with the basis' neighbour search, generously).
-  constexpr double kBytesPerNode = 1000;
-  const double bytes = std::pow(a.cells + 1.0, a.dim) * kBytesPerNode;
-  if (bytes > available_memory())
-    throw InputError("--cells " + std::to_string(a.cells) + " in " + std::to_string(a.dim) + "D needs about " +
-                     format_bytes(bytes) + " of memory; " + format_bytes(available_memory()) + " are available");
+  check_node_count(std::pow(a.cells + 1.0, a.dim),
+                   "--cells " + std::to_string(a.cells) + " in " + std::to_string(a.dim) + "D");
 }
 
 template <int D> int evaluate(BasisArgs a) {
@@ -68,7 +64,7 @@ template <int D> int evaluate(BasisArgs a) {
   const double h = (a.upper - a.lower) / a.cells;
   // uGIMP half-width: --ppc gives 1/(2 ppc) in cells; default 2 particles per cell.
   for (double& w : a.opt.ugimp_half_width) w = (a.ppc > 0 ? 0.5 / a.ppc : 0.25) * h;
-  NodeSet<D> nodes = a.perturb > 0 ? NodeSet<D>::perturbed(grid, a.perturb, static_cast<unsigned>(a.seed))
+  NodeSet<D> nodes = a.perturb != 0.0 ? NodeSet<D>::perturbed(grid, a.perturb, static_cast<unsigned>(a.seed))
                                    : NodeSet<D>::cartesian(grid);
   const auto basis = make_basis<D>(a.opt, std::move(nodes));
   std::ofstream out(a.out);

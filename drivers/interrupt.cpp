@@ -1,6 +1,9 @@
 #include "interrupt.hpp"
 
+#include "otmpm/distributed/comm.hpp"
+
 #include <csignal>
+#include <cstdint>
 #include <cstdio>
 
 namespace otmpm::cli {
@@ -45,6 +48,11 @@ const char* interrupt_signal_name() {
   if (signal_number == SIGTERM) return "SIGTERM";
   std::snprintf(buf, sizeof buf, "signal %d", static_cast<int>(signal_number));
   return buf;
+}
+
+void share_interrupt_signal() {
+  const auto& world = distributed::Comm::world();
+  if (world.size() > 1) signal_number = static_cast<int>(world.max(static_cast<std::int64_t>(signal_number)));
 }
 
 } // namespace otmpm::cli

@@ -27,5 +27,10 @@ int interrupt_signal();
 int interrupted_exit_status();
 /// "SIGINT", "SIGTERM" or "signal N".
 const char* interrupt_signal_name();
+/// After a distributed run that was interrupted (every rank stops when one
+/// got a signal): every rank takes the largest signal any rank got, so the
+/// rank that reports it names the signal that stopped the run, not its own
+/// (none). Collective; nothing to do in one process.
+void share_interrupt_signal();
 
 } // namespace otmpm::cli

@@ -3,9 +3,10 @@
 //
 // Exit status: 0 success, 1 the simulation became unstable (diagnosis
 // printed), 2 bad input (the message names file, line and key; a bad option
-// gets CLI11's message), 3 internal error, 4 the results could not be
-// written (disk full, file size limit), 130/143 interrupted by
-// SIGINT/SIGTERM (the result file stays valid, status "interrupted").
+// gets CLI11's message; memory running out before the first step), 3
+// internal error, 4 a resource ran out during the run (the results could not
+// be written, or memory), 130/143 interrupted by SIGINT/SIGTERM (the result
+// file stays valid, status "interrupted").
 //
 // Under mpirun (or srun) `run` and `pair` run distributed over the ranks;
 // every rank ends with the same status and one rank prints the diagnosis.
@@ -19,6 +20,7 @@
 #include <cstdio>
 #include <cstring>
 #include <exception>
+#include <new>
 #include <string>
 #include <vector>
 
@@ -27,11 +29,11 @@ namespace {
 constexpr int kBadInput = 2;
 
 const char* const kFooter =
-    "Exit status: 0 ok, 1 the simulation became unstable, 2 bad input, 3 internal error,\n"
-    "4 the results could not be written (disk full, file size limit), 130/143 interrupted\n"
-    "by SIGINT/SIGTERM. Units: SI (m, s, kg, Pa) or any consistent set. OpenMP threads\n"
-    "spin about 0.2 ms, then sleep\n"
-    "(OMP_WAIT_POLICY=passive, GOMP_SPINCOUNT for this processor; see the user guide).\n"
+    "Exit status: 0 ok, 1 the simulation became unstable, 2 bad input (also memory running out\n"
+    "before the first step), 3 internal error, 4 the results could not be written or memory ran\n"
+    "out while stepping, 130/143 interrupted by SIGINT/SIGTERM. Units: SI (m, s, kg, Pa) or any\n"
+    "consistent set. OpenMP threads spin about 0.2 ms, then sleep (OMP_WAIT_POLICY=passive,\n"
+    "GOMP_SPINCOUNT for this processor; see the user guide).\n"
     "Each command has its own help: otmpm run --help, ...";
 
 /// An unknown first word would otherwise get CLI11's "A subcommand is required".
@@ -84,6 +86,10 @@ int dispatch(CLI::App& app, const std::vector<otmpm::cli::Command>& commands, in
     return 1;
   } catch (const otmpm::BasisError& e) {
     message = diagnosis("error", e.what());
+    return kBadInput;
+  } catch (const std::bad_alloc&) { // not a bug: the input asked for more than this machine gives
+    message = diagnosis("error", "out of memory: this process could not get the memory the input asks for "
+                                 "(a run that starts stepping stops with status \"out of memory\" and exit status 4)");
     return kBadInput;
   } catch (const std::exception& e) {
     message = diagnosis("internal error", e.what());

@@ -7,8 +7,10 @@
 #include "system.hpp"
 
 #include "otmpm/core.hpp"
+#include "otmpm/io/output_files.hpp"
 
 #include <cstdio>
+#include <cstdlib>
 #include <memory>
 
 namespace fs = std::filesystem;
@@ -26,16 +28,32 @@ struct RenderArgs {
   std::string scripts, python;
 };
 
+/// InputError when the picture `out` cannot be written without harm: it is
+/// the result file itself (or a link to it), a directory, a FIFO or a device.
+void check_picture(const std::string& out, const std::string& result) {
+  std::error_code ec;
+  if (fs::exists(out, ec) && same_file(out, result))
+    throw InputError("--out " + out + " is the result file " + result +
+                     " (or a link to it): the picture would replace the results; choose another name");
+  if (fs::is_directory(out, ec)) throw InputError("--out " + out + " is a directory; name the picture file");
+  if (const std::string kind = special_file(out); !kind.empty())
+    throw InputError("--out " + out + " is " + kind + ", not a picture file");
+}
+
 /// The exit status of the script: 0 and 2 (bad input, message printed by the
-/// script) pass through; anything else is an internal error.
+/// script) pass through; 1 - what the script never returns itself - is an
+/// interpreter that cannot run it (--python), anything else an internal error.
 int render(const RenderArgs& a) {
   require_file(a.result, "result file");
+  check_picture(a.out, a.result);
   const std::string python = find_python(a.python);
   if (python.empty())
     throw InputError("otmpm render needs python3 with matplotlib, numpy and h5py (Debian: apt-get install "
                      "python3-matplotlib python3-h5py); none found (/usr/bin/python3, python3 on PATH, --python)");
   const fs::path script = scripts_dir(a.scripts) / "render.py";
-  if (!fs::exists(script))
+  if (!fs::is_regular_file(script) && !a.scripts.empty())
+    throw InputError("--scripts " + a.scripts + ": no render.py in that folder");
+  if (!fs::is_regular_file(script))
     throw std::runtime_error(script.string() + " not found: otmpm is not installed completely (give --scripts DIR)");
   std::vector<std::string> argv{python,      script.string(), a.result, "--field", a.field, "--out", a.out,
                                 "--component", a.component, "--view", a.view};
@@ -48,6 +66,9 @@ int render(const RenderArgs& a) {
   const int rc = run_and_wait(argv);
   if (rc == 0 || rc == 2) return rc;
   if (rc == 127) throw InputError("cannot start " + python + " (--python)");
+  if (rc == 1)
+    throw InputError(python + " could not run render.py (exit status 1): give --python a Python 3 with matplotlib, "
+                              "numpy and h5py");
   throw std::runtime_error("render.py failed with exit status " + std::to_string(rc));
 }
 
@@ -87,7 +108,14 @@ Command add_render_command(CLI::App& app) {
                   "largest z on top; xz, yz likewise)")
       ->check(CLI::IsMember({"xy", "xz", "yz"}))
       ->capture_default_str();
-  sub->add_option("--fps", a->fps, "Frames per second of a GIF")->check(CLI::Range(0.1, 100.0))->capture_default_str();
+  sub->add_option("--fps", a->fps, "Frames per second of a GIF, 0.1 to 100")
+      ->check([](const std::string& s) { // CLI::Range lets NaN through (every comparison with it is false)
+        char* end = nullptr;
+        const double v = std::strtod(s.c_str(), &end);
+        const bool ok = end != s.c_str() && *end == '\0' && v >= 0.1 && v <= 100.0;
+        return ok ? std::string() : std::string("--fps must be a number from 0.1 to 100");
+      })
+      ->capture_default_str();
   sub->add_option("--scripts", a->scripts, "Folder with render.py (default: share/otmpm beside the bin folder)")
       ->type_name("DIR");
   sub->add_option("--python", a->python, "Python with matplotlib, numpy and h5py (default: /usr/bin/python3)")

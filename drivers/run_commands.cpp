@@ -9,6 +9,7 @@
 #include "otmpm/run/restart.hpp"
 #include "otmpm/run/run.hpp"
 #include "otmpm/io/checkpoint.hpp"
+#include "otmpm/scene/resources.hpp"
 #include "otmpm/scene/scene.hpp"
 
 #include <algorithm>
@@ -73,16 +74,6 @@ std::function<void(double, double, long)> progress(const SceneArgs& a) {
   return make_progress(a.quiet, a.progress_interval);
 }
 
-/// "1.23 MB" etc.
-std::string bytes_text(double bytes) {
-  const char* units[] = {"B", "kB", "MB", "GB", "TB"};
-  int u = 0;
-  while (bytes >= 1000 && u < 4) bytes /= 1000, ++u;
-  char b[32];
-  std::snprintf(b, sizeof b, "%.3g %s", bytes, units[u]);
-  return b;
-}
-
 /// `otmpm run --check`: what a run of the scene would be, without running it.
 int check_command(const SceneArgs& a) {
   Scene scene;
@@ -95,7 +86,8 @@ int check_command(const SceneArgs& a) {
   std::printf("  particles  %ld\n  nodes      %ld\n", c.particles, c.nodes);
   std::printf("  dt         %.6g s (first step%s)\n", c.dt, scene.simulation.dt ? ", fixed" : ", cfl rule");
   std::printf("  steps      about %.0f (t_end = %.6g s)\n", c.estimated_steps, c.t_end);
-  std::printf("  memory     about %s (estimate)\n", bytes_text(c.memory_bytes).c_str());
+  std::printf("  memory     about %s (the run's estimate; limit %s)\n", format_bytes(c.memory_bytes).c_str(),
+              format_bytes(c.memory_limit).c_str());
   std::printf("  results    %s\n", (a.out.empty() ? c.out_file : a.out).c_str());
   for (const SceneCheck::BodyVolume& v : c.volumes)
     std::printf("  volume     body '%s' (%s): particles %.6g, shape %.6g (error %+.3g %%)\n", v.name.c_str(),
@@ -144,6 +136,7 @@ int run_command(const SceneArgs& a) {
     });
     s = restart_run(*ck, opt);
   }
+  if (s.interrupted) share_interrupt_signal();
   if (!prints()) return s.interrupted ? interrupted_exit_status() : s.exit_code;
   end_progress_line();
   if (s.interrupted) report_interrupt(s, scene.get());
@@ -221,6 +214,7 @@ int pair_command(const SceneArgs& a) {
     opt.interrupt = &interrupt_flag();
     opt.progress = progress(a);
     runs.push_back(run_scene(scene, opt));
+    if (runs.back().interrupted) share_interrupt_signal();
     end_progress_line();
     if (runs.back().interrupted && prints()) report_interrupt(runs.back(), &scene);
     if (runs.back().interrupted) break;
@@ -232,7 +226,8 @@ int pair_command(const SceneArgs& a) {
       std::fprintf(stderr, "otmpm: %s run: %s\n", r.mode.c_str(), r.status.c_str());
     status = std::max(status, r.exit_code);
   }
-  return interrupt_flag().load() ? interrupted_exit_status() : status;
+  const bool stopped = interrupt_flag().load() || (!runs.empty() && runs.back().interrupted);
+  return stopped ? interrupted_exit_status() : status;
 }
 
 } // namespace

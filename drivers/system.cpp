@@ -1,6 +1,7 @@
 #include "system.hpp"
 
 #include "otmpm/core.hpp"
+#include "otmpm/io/output_files.hpp"
 
 #include <cerrno>
 #include <cstdlib>
@@ -60,6 +61,8 @@ void require_file(const std::string& path, const std::string& what) {
   std::error_code ec;
   if (path.empty()) throw InputError("the " + what + " path is empty");
   if (fs::is_directory(path, ec)) throw InputError(path + ": is a directory, not a " + what);
+  if (const std::string kind = special_file(path); !kind.empty())
+    throw InputError(path + ": is " + kind + ", not a " + what);
   if (!fs::exists(path, ec)) throw InputError(path + ": no such " + what);
 }
 

@@ -29,7 +29,8 @@ std::string find_python(const std::string& given = "");
 int run_and_wait(const std::vector<std::string>& argv);
 
 /// InputError unless `path` is an existing regular file: "PATH: no such
-/// WHAT" or "PATH: is a directory, not a WHAT".
+/// WHAT", "PATH: is a directory, not a WHAT" or "PATH: is a FIFO (named
+/// pipe), not a WHAT" (a device, a socket).
 void require_file(const std::string& path, const std::string& what);
 
 } // namespace otmpm::cli

@@ -2,7 +2,7 @@
 # Fuzzes the scene reader and whole runs with libFuzzer (clang from Debian),
 # ASan and UBSan.
 #
-#   bash scripts/fuzz.sh [SECONDS] [RUN_SECONDS]     (defaults 60 and 30)
+#   bash scripts/fuzz.sh [SECONDS] [RUN_SECONDS] [PYTHON_SECONDS]     (defaults 60, 30 and 20)
 #
 # Installs clang-14 and libclang-rt-14-dev if missing, builds build-fuzz/
 # (OTMPM_FUZZ=ON: the library, the otmpm command and the three targets) and
@@ -13,7 +13,11 @@
 # and probe settings) for RUN_SECONDS. Seeds: every examples/**/*.toml and
 # tests/scenes/**/*.toml (copied into build-fuzz/seeds/ on each run) and
 # fuzz/set.seeds; what the fuzzer learns is kept in build-fuzz/corpus/ for the
-# next run.
+# next run. Then, when the Python package of the ordinary build is there
+# (build/python, or $OTMPM_BUILD_DIR/python: scripts/test.sh builds it), the
+# Python API fuzzer python/tests/fuzz_api.py for PYTHON_SECONDS with a new
+# seed (random call sequences on Scene, Simulation, otmpm.results and
+# otmpm.basis; the pytest python/tests/test_fuzz.py runs it with fixed seeds).
 # A finding - a crash, a sanitizer report, a leak, an input taking more than
 # 5 s (60 s for fuzz_run) or more than 2 GB of memory, an exception other than
 # an InputError, an InputError not starting with FILE:LINE: or --set KEY:, a
@@ -26,6 +30,7 @@ set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 seconds=${1:-60}
 run_seconds=${2:-30}
+python_seconds=${3:-20}
 build=${OTMPM_FUZZ_BUILD_DIR:-$root/build-fuzz}
 cd "$root"
 
@@ -79,4 +84,21 @@ for target in fuzz_scene fuzz_set fuzz_run; do
     exit 1
   fi
 done
-echo "fuzz: no finding in $seconds s of the scene reader and $run_seconds s of whole runs"
+package=${OTMPM_BUILD_DIR:-$root/build}/python
+if [ -f "$package/otmpm/__init__.py" ]; then
+  seed=$(od -An -N4 -tu4 /dev/urandom | tr -d ' ')
+  echo "== Python API for $python_seconds s (seed $seed)"
+  log=$build/findings/fuzz_api-$seed.log
+  if ! PYTHONPATH=$package OTMPM_SOURCE_DIR=$root /usr/bin/python3 python/tests/fuzz_api.py --seed "$seed" \
+      --seconds "$python_seconds" >"$log" 2>&1; then
+    tail -20 "$log" >&2
+    echo "fuzz: FINDING in the Python API (log: $log)" >&2
+    echo "reproduce: PYTHONPATH=$package /usr/bin/python3 python/tests/fuzz_api.py --seed $seed --seconds $python_seconds" >&2
+    exit 1
+  fi
+  tail -1 "$log"
+  rm -f "$log"
+else
+  echo "== Python API: skipped ($package has no otmpm package: build it with scripts/test.sh first)"
+fi
+echo "fuzz: no finding in $seconds s of the scene reader, $run_seconds s of whole runs and the Python API"

@@ -27,6 +27,7 @@ mkdir -p "$out"
 # scene (relative to examples/, without .toml) | render options
 list='andersen_block|--field stress --component yy
 column_collapse|--field plastic_strain
+column_collapse_mu_i|--field plastic_strain
 disks|--field v
 dyka|--field v
 dyka_2d|--field stress --component xx

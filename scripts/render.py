@@ -75,30 +75,49 @@ def text(value):
     return value.decode() if isinstance(value, bytes) else str(value)
 
 
+def scalar(value, what):
+    """An HDF5 attribute that must be one number (an array or a string is not)."""
+    a = np.asarray(value)
+    if a.shape not in ((), (1,)) or not np.issubdtype(a.dtype, np.number):
+        raise ValueError(f"{what} is not a number ({a.dtype} of shape {a.shape})")
+    return a.reshape(()).item()
+
+
 class Result:
-    """The frames of a result file: times, positions and one field."""
+    """The frames of a result file: times, positions and one field. Every
+    part is checked as it is read: a file of another program (a dataset named
+    frames, an attribute that is an array) is bad input, never a traceback."""
 
     def __init__(self, path):
         try:
             self.file = h5py.File(path, "r")
         except OSError as e:
             fail(f"{path}: cannot read it as an otmpm result file ({e})")
-        if "frames" not in self.file or len(self.file["frames"]) == 0:
+        frames = self.file.get("frames")
+        if not isinstance(frames, h5py.Group) or len(frames) == 0:
             fail(f"{path}: no frames (not an otmpm result file, or the run wrote none)")
         self.path = path
-        self.names = link_names(self.file["frames"])
-        self.dim = int(self.file.attrs.get("dimension", self.file["frames"][self.names[0]]["x"].shape[1]))
+        self.names = link_names(frames)
+        if "dimension" in self.file.attrs:
+            dim = scalar(self.file.attrs["dimension"], "the attribute 'dimension'")
+        else:
+            dim = self.frame(0)["x"].shape[1]
+        if dim not in (1, 2, 3):
+            fail(f"{path}: the dimension {dim!r} is not 1, 2 or 3 (not an otmpm result file?)")
+        self.dim = int(dim)
         self.status = text(self.file.attrs.get("status", ""))
 
     def fields(self):
-        first = self.file["frames"][self.names[0]]
-        return [name for name in link_names(first) if name != "x3"]
+        return [name for name in link_names(self.frame(0)) if name != "x3"]
 
     def frame(self, k):
-        return self.file["frames"][self.names[k]]
+        group = self.file["frames"][self.names[k]]
+        if not isinstance(group, h5py.Group):
+            raise ValueError(f"frame {self.names[k]} is not a group")
+        return group
 
     def time(self, k):
-        return float(self.frame(k).attrs["time"])
+        return float(scalar(self.frame(k).attrs.get("time"), f"the time of frame {self.names[k]}"))
 
 
 def component_of(field, cols, dim, component):
@@ -270,7 +289,7 @@ def main():
     p.add_argument("--all", action="store_true")
     p.add_argument("--component", default="norm")
     p.add_argument("--view", default="xy", choices=["xy", "xz", "yz"])
-    p.add_argument("--fps", type=float, default=10.0)
+    p.add_argument("--fps", type=float, default=10.0)  # finite, 0.1 to 100 (checked below)
     p.add_argument("--stride", type=int, default=1)
     a = p.parse_args()
     ext = os.path.splitext(a.out)[1].lower()
@@ -278,8 +297,12 @@ def main():
         fail(f"--out {a.out}: the picture must be a .png or a .gif")
     if a.all and ext != ".gif":
         fail("--all draws every frame: use --out FILE.gif")
-    if not os.path.isfile(a.result):
-        fail(f"{a.result}: no such result file")
+    if not 0.1 <= a.fps <= 100.0:  # NaN fails too
+        fail(f"--fps {a.fps}: must be a number from 0.1 to 100")
+    if not os.path.isfile(a.result):  # also no FIFO: h5py would wait on it for ever
+        fail(f"{a.result}: no such result file (or not a regular file)")
+    if os.path.exists(a.out) and os.path.samefile(a.out, a.result):
+        fail(f"--out {a.out} is the result file {a.result} (or a link to it): the picture would replace the results")
     result = Result(a.result)
     fields = result.fields()
     if a.field not in fields:
@@ -333,9 +356,10 @@ def main():
 if __name__ == "__main__":
     try:
         main()
-    except (OSError, KeyError, IndexError, ValueError, RuntimeError) as e:  # h5py's errors reading a damaged file
+    except Exception as e:  # h5py's errors on a damaged file, a file of another program: exit 2, no traceback
         result = sys.argv[1] if len(sys.argv) > 1 else "the result file"
         other = getattr(e, "filename", None)
         if isinstance(e, OSError) and other is not None and os.path.abspath(str(other)) != os.path.abspath(result):
             fail(f"{other}: {e.strerror or e}")  # another file, e.g. --out in a missing directory
-        fail(f"{result}: cannot read it (a damaged file?): {e}")
+        fail(f"{result}: cannot read it as an otmpm result file (a damaged file, or another program's?): "
+             f"{type(e).__name__}: {e}")

@@ -12,10 +12,13 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include "temp_dir.hpp"
+
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -124,6 +127,35 @@ inline bool wait_for_file(const std::string& path, pid_t pid, std::chrono::secon
     std::this_thread::sleep_for(std::chrono::milliseconds(1));
   }
   return false;
+}
+
+/// Runs `otmpm ARGS` in the directory of `dir` (relative paths land there).
+inline CliResult otmpm_in(const TempDir& dir, const std::vector<std::string>& args,
+                          const std::vector<std::string>& env = {}) {
+  const std::filesystem::path here = std::filesystem::current_path();
+  std::filesystem::current_path(dir.dir);
+  const std::filesystem::path scratch = dir.dir.parent_path() / (dir.dir.filename().string() + "_io");
+  std::filesystem::create_directories(scratch);
+  CliResult r = run_process(OTMPM_BINARY, args, scratch, env);
+  std::filesystem::current_path(here);
+  std::filesystem::remove_all(scratch);
+  return r;
+}
+
+/// Names in a directory (hidden ones included).
+inline std::set<std::string> listing(const std::filesystem::path& dir) {
+  std::set<std::string> names;
+  for (const auto& e : std::filesystem::directory_iterator(dir)) names.insert(e.path().filename().string());
+  return names;
+}
+
+inline bool has(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+
+/// Checks that a process exited (no signal) with `status`; its output is shown when not.
+inline void expect_exit(const CliResult& r, int status) {
+  INFO("stderr: " << r.err << "\nstdout: " << r.out);
+  CHECK(r.signal == 0);
+  CHECK(r.status == status);
 }
 
 } // namespace otmpm::test

@@ -25,6 +25,10 @@
 
 namespace fs = std::filesystem;
 using otmpm::test::CliResult;
+using otmpm::test::expect_exit;
+using otmpm::test::has;
+using otmpm::test::listing;
+using otmpm::test::otmpm_in;
 using otmpm::test::TempDir;
 
 namespace {
@@ -32,33 +36,6 @@ namespace {
 const fs::path kSource = OTMPM_SOURCE_DIR;
 const std::string kBinary = OTMPM_BINARY;
 const std::string kDyka = (kSource / "examples/dyka.toml").string();
-
-/// Runs `otmpm ARGS` in the directory of `dir` (relative paths land there).
-CliResult otmpm_in(const TempDir& dir, const std::vector<std::string>& args, const std::vector<std::string>& env = {}) {
-  const fs::path here = fs::current_path();
-  fs::current_path(dir.dir);
-  const fs::path scratch = dir.dir.parent_path() / (dir.dir.filename().string() + "_io");
-  fs::create_directories(scratch);
-  CliResult r = otmpm::test::run_process(kBinary, args, scratch, env);
-  fs::current_path(here);
-  fs::remove_all(scratch);
-  return r;
-}
-
-/// Names in a directory (hidden ones included).
-std::set<std::string> listing(const fs::path& dir) {
-  std::set<std::string> names;
-  for (const auto& e : fs::directory_iterator(dir)) names.insert(e.path().filename().string());
-  return names;
-}
-
-bool has(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
-
-void expect_exit(const CliResult& r, int status) {
-  INFO("stderr: " << r.err << "\nstdout: " << r.out);
-  CHECK(r.signal == 0);
-  CHECK(r.status == status);
-}
 
 /// The number of frames and the status of a result file (HDF5 must open it).
 std::pair<int, std::string> frames_and_status(const std::string& path) {

@@ -8,7 +8,9 @@
 #include <doctest/doctest.h>
 
 #include <cmath>
+#include <map>
 #include <numbers>
+#include <string>
 
 using namespace otmpm;
 
@@ -69,7 +71,7 @@ TEST_CASE("Lame parameters and P-wave modulus") {
 }
 
 TEST_CASE("the model table: names, deformation gradient, P-wave modulus of the built material") {
-  CHECK(material_model_list() == "linear_elastic, linear_elastic_finite, neo_hookean, j2 or drucker_prager");
+  CHECK(material_model_list() == "linear_elastic, linear_elastic_finite, neo_hookean, j2, drucker_prager or mu_i");
   CHECK(find_material_model("hookean") == nullptr);
   MaterialParameters p{.name = "m", .model = "linear_elastic", .density = 1000.0, .young = kE, .poisson = kNu, .extra = {}};
   CHECK(!make_material<2>(p)->needs_deformation_gradient());
@@ -323,4 +325,93 @@ TEST_CASE("Material::add_energies: V sigma : eps / 2, summed in particle order")
   const double e0 = 0.5 * (2e-3 + 2 * 1e-4 + 3e-4);
   CHECK(stored == doctest::Approx(e0 + 3.0 * 2.0 * e0).epsilon(1e-14));
   CHECK(dissipated == 0.0);
+}
+
+namespace {
+
+/// The model parameters of an example material of each model in the table
+/// (a model added to the table must be added here: the loops below check it).
+std::map<std::string, double> example_parameters(std::string_view model) {
+  if (model == "j2") return {{"yield_stress", 1e6}};
+  if (model == "drucker_prager") return {{"friction_angle", 30.0}};
+  if (model == "mu_i")
+    return {{"mu_s", 0.38}, {"mu_2", 0.64}, {"I_0", 0.28}, {"grain_diameter", 1e-3}, {"grain_density", 2500.0},
+            {"critical_packing", 0.38}};
+  return {};
+}
+
+/// One particle of a 2D plane-strain body with F, its reference volume V0 =
+/// 1 and mass 1000 (rho0 = 1000), and the material's state.
+Particles<2> particle_with_F(Material<2>& m, const Mat<2>& F) {
+  Particles<2> P;
+  P.resize(1);
+  P.allocate_optional(false, true);
+  P.F[0] = F;
+  P.V0[0] = 1.0;
+  P.m[0] = 1000.0;
+  P.V[0] = F.determinant();
+  P.rho[0] = P.m[0] / P.V[0];
+  for (const StateSpec& st : m.state()) P.add_state(std::string(st.name), st.width, st.initial.data());
+  m.bind(P);
+  return P;
+}
+
+double wave_speed2(const Material<2>& m, const Particles<2>& P) {
+  double c2 = 0.0;
+  m.max_wave_speed2(P, 0, 1, c2);
+  return c2;
+}
+
+} // namespace
+
+TEST_CASE("every model's wave speed: M / rho at rest; a dilated stress-free particle does not raise it") {
+  // At rest (F = I) every model's tangent is its P-wave modulus: c^2 = M /
+  // rho0. A particle dilated to J = 4 (F = 2 I) without stress - the state
+  // the Hencky models reach by plastic dilation or below the critical
+  // packing (b_e = I) - has rho = rho0 / 4: its c^2 stays M / rho0 (Kirchhoff
+  // tangent M, Cauchy tangent M / J), where M / rho_p would be 4 M / rho0 and
+  // cut the step by 2.
+  for (const MaterialModel* model : material_models()) {
+    CAPTURE(model->name);
+    MaterialParameters p{.name = "m", .model = std::string(model->name), .density = 1000.0, .young = kE,
+                         .poisson = kNu, .extra = example_parameters(model->name)};
+    auto m = make_material<2>(p);
+    Particles<2> rest = particle_with_F(*m, Mat<2>::Identity());
+    CHECK(wave_speed2(*m, rest) == doctest::Approx(m->p_modulus() / 1000.0).epsilon(1e-15));
+    if (m->state().empty() || m->state()[0].name != "elastic_left_cauchy_green") continue;
+    Particles<2> dilated = particle_with_F(*m, 2.0 * Mat<2>::Identity()); // b_e = I: stress-free
+    CHECK(wave_speed2(*m, dilated) == wave_speed2(*m, rest));
+  }
+}
+
+TEST_CASE("finite elastic wave speeds: the tangent along the principal stretches (1D exact, 2D by hand)") {
+  // 1D: sigma = P of a bar; the spatial wave speed is F times the
+  // Lagrangian sqrt(dP/dF / rho0): neo_hookean P = E/2 (F^2 - 1)/F gives c^2
+  // = E/2 (F^2 + 1) / rho0, linear_elastic_finite P = E (F - 1) gives E F^2
+  // / rho0.
+  for (const double f : {0.7, 1.3}) {
+    Mat<1> F;
+    F << f;
+    const ElasticConstants c{1000.0, kE, 0.0};
+    CHECK(neo_hookean_wave_modulus<1>(c, F) == doctest::Approx(kE / 2 * (f * f + 1)).epsilon(1e-15));
+    CHECK(linear_elastic_finite_wave_modulus<1>(c, F) == doctest::Approx(kE * f * f).epsilon(1e-15));
+    // The same from finite differences of P(F): rho0 c^2 = F^2 dP/dF.
+    const double d = 1e-6;
+    auto P_neo = [&](double x) { return kE / 2 * (x * x - 1) / x; };
+    CHECK(neo_hookean_wave_modulus<1>(c, F) ==
+          doctest::Approx(f * f * (P_neo(f + d) - P_neo(f - d)) / (2 * d)).epsilon(1e-8));
+  }
+  // 2D, stretches u = (1.2, 0.9) along the axes: neo_hookean lambda (1 - ln
+  // J) + mu (u_max^2 + 1), linear_elastic_finite (lambda + 2 mu) u_max^2.
+  Mat<2> F;
+  F << 1.2, 0.0, 0.0, 0.9;
+  const ElasticConstants c{1000.0, kE, kNu};
+  CHECK(neo_hookean_wave_modulus<2>(c, F) ==
+        doctest::Approx(kLambda * (1 - std::log(1.08)) + kMu * (1.44 + 1)).epsilon(1e-14));
+  CHECK(linear_elastic_finite_wave_modulus<2>(c, F) == doctest::Approx((kLambda + 2 * kMu) * 1.44).epsilon(1e-14));
+  // Rotated stretches: the bound (largest row sum of F F^T) is at least the
+  // largest eigenvalue 1.44 and within the row's spread of it.
+  const Mat<2> RF = rotation<2>(0.4) * F;
+  CHECK(linear_elastic_finite_wave_modulus<2>(c, RF) >= (kLambda + 2 * kMu) * 1.44 * (1 - 1e-15));
+  CHECK(linear_elastic_finite_wave_modulus<2>(c, RF) <= (kLambda + 2 * kMu) * (1.44 + (1.44 - 0.81)));
 }

@@ -138,6 +138,9 @@ TEST_CASE("out_of_plane_stress: every model's 2D sigma_zz equals its 3D sigma_zz
       {"drucker_prager", parameters("drucker_prager", {{"friction_angle", 30.0}, {"dilation_angle", 10.0},
                                                         {"cohesion", 1e6}}),
        0.05, true, true},
+      {"mu_i", parameters("mu_i", {{"mu_s", 0.4}, {"mu_2", 0.65}, {"I_0", 0.28}, {"grain_diameter", 1e-3},
+                                    {"grain_density", 8000.0}, {"critical_packing", 0.9}}),
+       0.05, true, true},
   };
   for (const Case& c : cases) {
     INFO(c.name);
@@ -171,11 +174,14 @@ TEST_CASE("out_of_plane_stress: linear_elastic's sigma_zz is nu (sigma_xx + sigm
 }
 
 TEST_CASE("out_of_plane_stress: a rest state has sigma_zz = 0; 1D and 3D materials refuse") {
-  for (const char* model : {"linear_elastic", "linear_elastic_finite", "neo_hookean", "j2", "drucker_prager"}) {
+  for (const char* model : {"linear_elastic", "linear_elastic_finite", "neo_hookean", "j2", "drucker_prager", "mu_i"}) {
     INFO(model);
     std::map<std::string, double> extra;
     if (std::string(model) == "j2") extra = {{"yield_stress", 1e8}};
     if (std::string(model) == "drucker_prager") extra = {{"friction_angle", 30.0}, {"cohesion", 1e5}};
+    if (std::string(model) == "mu_i")
+      extra = {{"mu_s", 0.4}, {"mu_2", 0.65}, {"I_0", 0.28}, {"grain_diameter", 1e-3}, {"grain_density", 8000.0},
+               {"critical_packing", 0.9}};
     auto m2 = make_material<2>(parameters(model, extra));
     Particles<2> P = particles<2>(*m2, 2);
     std::vector<double> zz(2, 1.0);

@@ -15,6 +15,7 @@
 #include "otmpm/scene/resources.hpp"
 #include "otmpm/scene/validate.hpp"
 
+#include "run_support.hpp"
 #include "temp_dir.hpp"
 
 #include <doctest/doctest.h>
@@ -36,17 +37,13 @@
 
 using namespace otmpm;
 namespace fs = std::filesystem;
+using otmpm::test::input_error_of;
+using otmpm::test::small_scene;
 using otmpm::test::TempDir;
 
 namespace {
 
 const fs::path kSource = OTMPM_SOURCE_DIR;
-
-/// The minimal 1D scene, shortened: 10 us, a frame every 2 us (6 frames, 152 steps).
-Scene small_scene(std::vector<std::string> sets = {}) {
-  sets.insert(sets.begin(), {"simulation.t_end=1e-5", "output.every=2e-6"});
-  return load_scene((kSource / "tests/scenes/good_minimal.toml").string(), sets);
-}
 
 RunOptions to(const std::string& out, bool force = false) {
   RunOptions o;
@@ -70,17 +67,6 @@ std::string slurp(const std::string& path) {
 }
 
 void write_text(const std::string& path, const std::string& text) { std::ofstream(path, std::ios::binary) << text; }
-
-/// True when the message of `call`'s InputError contains every part.
-template <class F> std::string input_error_of(F&& call) {
-  try {
-    call();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  FAIL("no InputError");
-  return "";
-}
 
 bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
 

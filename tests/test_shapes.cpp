@@ -204,7 +204,7 @@ TEST_CASE("particle files: errors name the file and the line, column or dataset"
   };
   CHECK(contains(csv_error("x, y\n0, 0\n"), "p.csv:1: the header has no column 'volume'"));
   CHECK(contains(csv_error("x, y, volume\n0, 0, 1e-3\n0, zero, 1e-3\n"), "p.csv:3: column 'y'"));
-  CHECK(contains(csv_error("x, y, volume\n0, 0, -1\n"), "volume must be > 0"));
+  CHECK(contains(csv_error("x, y, volume\n0, 0, -1\n"), "p.csv:2: column 'volume': must be > 0 (got -1)"));
   CHECK(contains(csv_error("x, y, volume\n0, 0\n"), "p.csv:2: 2 values"));
   CHECK(contains(csv_error("x, y, volume, colour\n0, 0, 1e-3, 1\n"), "column 'colour'"));
   CHECK(contains(csv_error("x, y, volume\n"), "no particles"));

@@ -1,6 +1,9 @@
 // Simulation (run/simulation.hpp): a run stepped by hand is the run of
 // run_scene(), bit for bit; frames can be written between steps; an
-// instability finishes the run with its status in the result file.
+// instability finishes the run with its status in the result file; after
+// finish() the run is closed (and its locks free); one dropped unfinished
+// gets status "interrupted".
+#include "otmpm/io/output_files.hpp"
 #include "otmpm/io/results.hpp"
 #include "otmpm/run/simulation.hpp"
 
@@ -120,4 +123,60 @@ TEST_CASE("Simulation: interrupt() leaves a valid file with status interrupted a
   CHECK(read_string_attribute(opt.out_file, "status") == "interrupted");
   CHECK(read_double_attribute(opt.out_file, "steps") == 7.0);
   CHECK(std::filesystem::exists(tmp.file("r.checkpoint.h5"))); // taken at the interruption, not at step 1000
+}
+
+TEST_CASE("E1: after finish() write_frame, interrupt, step and finish throw std::logic_error and change nothing") {
+  TempDir tmp("closed");
+  RunOptions opt;
+  opt.out_file = tmp.file("r.h5");
+  Simulation sim(short_dyka(), opt);
+  sim.step();
+  sim.finish();
+  const hsize_t frames = frame_count(opt.out_file);
+  CHECK_THROWS_AS(sim.write_frame(), std::logic_error);
+  CHECK_THROWS_AS(sim.interrupt(), std::logic_error);
+  CHECK_THROWS_AS(sim.step(), std::logic_error);
+  CHECK_THROWS_AS(sim.finish(), std::logic_error);
+  CHECK(frame_count(opt.out_file) == frames);
+  CHECK(read_string_attribute(opt.out_file, "status") == "ok");
+  CHECK(sim.engine<1>().particles().size() == 80); // the state stays readable
+}
+
+TEST_CASE("E1: write_frame after t_end, an instability or interrupt() still writes; interrupt() of a "
+          "finished run throws") {
+  TempDir tmp("after_end");
+  RunOptions opt;
+  opt.out_file = tmp.file("r.h5");
+  Simulation sim(short_dyka({"output.every=0"}), opt);
+  sim.advance_to(1.0);
+  REQUIRE(sim.finished());
+  sim.write_frame();
+  CHECK_THROWS_AS(sim.interrupt(), std::logic_error); // it reached t_end: nothing to interrupt
+  CHECK(sim.finish().status == "ok");
+  CHECK(frame_count(opt.out_file) == 3); // t = 0, t_end, and the frame written by hand
+}
+
+TEST_CASE("E14: finish() releases otmpm's locks; a Simulation destroyed before finish() leaves status interrupted") {
+  TempDir tmp("locks");
+  RunOptions opt;
+  opt.out_file = tmp.file("r.h5");
+  const Scene scene = short_dyka({"output.checkpoint_every=1000"});
+  Simulation sim(scene, opt);
+  sim.advance_to(1.0);
+  CHECK(std::filesystem::exists(lock_path(opt.out_file)));
+  sim.finish();
+  CHECK_FALSE(std::filesystem::exists(lock_path(opt.out_file)));
+  // The finished Simulation still exists: a new run of the same files is not refused.
+  RunOptions again = opt;
+  again.force = true;
+  CHECK(run_scene(scene, again).status == "ok");
+  {
+    Simulation dropped(scene, again);
+    for (int s = 0; s < 4; ++s) dropped.step();
+  } // destroyed unfinished (an exception, a forgotten finish())
+  CHECK(read_string_attribute(opt.out_file, "status") == "interrupted");
+  CHECK(read_double_attribute(opt.out_file, "steps") == 4.0);
+  CHECK(std::filesystem::exists(tmp.file("r.checkpoint.h5"))); // the restart point interrupt() writes
+  for (const auto& e : std::filesystem::directory_iterator(tmp.dir))
+    CHECK(e.path().filename().string().find("otmpm-lock") == std::string::npos);
 }

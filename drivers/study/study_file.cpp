@@ -1,5 +1,6 @@
 #include "study_file.hpp"
 
+#include "otmpm/io/output_files.hpp"
 #include "otmpm/scene/toml_reader.hpp"
 
 #include <algorithm>
@@ -246,10 +247,14 @@ void check_folder(const SourceRef& where, const fs::path& path, const std::strin
 void check_paths(const TableReader& root, const Study& s) {
   std::error_code ec;
   if (fs::is_directory(s.scene, ec)) input_error(root.ref("scene"), s.scene.string() + " is a directory, not a scene file");
+  if (const std::string kind = special_file(s.scene.string()); !kind.empty())
+    input_error(root.ref("scene"), s.scene.string() + " is " + kind + ", not a scene file");
   if (!fs::exists(s.scene, ec)) input_error(root.ref("scene"), "no such file " + s.scene.string());
   check_folder(s.results_where, s.results, "the folder for the result files");
   const SourceRef csv = root.has("csv") ? root.ref("csv") : root.self();
   if (fs::is_directory(s.csv, ec)) input_error(csv, s.csv.string() + " is a directory, not a CSV file");
+  if (const std::string kind = special_file(s.csv.string()); !kind.empty())
+    input_error(csv, s.csv.string() + " is " + kind + ", not a CSV file");
   const fs::path folder = s.csv.parent_path().empty() ? fs::path(".") : s.csv.parent_path();
   if (!fs::is_directory(folder, ec))
     input_error(csv, "the folder of the CSV file " + s.csv.string() + " does not exist (create it first)");

@@ -70,16 +70,50 @@ struct InputSource {
   std::string key;
 };
 
+/// Longest piece of user text (a name, key, value or path) a message quotes whole.
+inline constexpr std::size_t kQuotedTextBytes = 80;
+/// Longest message of an InputError: a longer one keeps its start and its end.
+inline constexpr std::size_t kMaxMessageBytes = 2048;
+
+namespace detail {
+/// True for a UTF-8 continuation byte (10xxxxxx): a cut must not fall before one.
+inline bool utf8_continuation(char c) { return (static_cast<unsigned char>(c) & 0xC0u) == 0x80u; }
+} // namespace detail
+
+/// `s` as a message quotes it: whole when it has at most `limit` bytes, else
+/// its first bytes (cut at a UTF-8 character boundary) and "... (N bytes)",
+/// so that a 10 MB name never makes a 10 MB message.
+inline std::string shortened(std::string_view s, std::size_t limit = kQuotedTextBytes) {
+  if (s.size() <= limit) return std::string(s);
+  std::size_t keep = limit * 3 / 4;
+  while (keep > 0 && detail::utf8_continuation(s[keep])) --keep;
+  return std::string(s.substr(0, keep)) + "... (" + std::to_string(s.size()) + " bytes)";
+}
+
+namespace detail {
+/// `what` when it has at most kMaxMessageBytes, else its first and last
+/// bytes around "[... N bytes in all ...]" (a thrower that quoted user text whole).
+inline std::string bounded_message(const std::string& what) {
+  if (what.size() <= kMaxMessageBytes) return what;
+  std::size_t head = kMaxMessageBytes * 3 / 4, tail = what.size() - kMaxMessageBytes / 4;
+  while (head > 0 && utf8_continuation(what[head])) --head;
+  while (tail < what.size() && utf8_continuation(what[tail])) ++tail;
+  return what.substr(0, head) + " [... " + std::to_string(what.size()) + " bytes in all ...] " + what.substr(tail);
+}
+} // namespace detail
+
 /// Bad input: a scene value, a command-line option or a library argument that
 /// cannot be used. Carries where it came from (file, line, key) when known:
 /// in the message ("FILE:LINE: key 'KEY': ...") and, for the errors of the
 /// scene reader, as an InputSource (the Python package's InputError.file,
-/// .line, .key). The command line reports it and exits with status 2.
+/// .line, .key). The command line reports it and exits with status 2. The
+/// message is at most about kMaxMessageBytes long (detail::bounded_message).
 class InputError : public std::runtime_error {
 public:
-  explicit InputError(const std::string& what) : std::runtime_error(what) {}
+  explicit InputError(const std::string& what) : std::runtime_error(detail::bounded_message(what)) {}
   InputError(const std::string& what, InputSource source)
-      : std::runtime_error(what), source_(std::make_shared<const InputSource>(std::move(source))) {}
+      : std::runtime_error(detail::bounded_message(what)),
+        source_(std::make_shared<const InputSource>(std::move(source))) {}
   /// The source of the bad value, or null when the thrower did not give one.
   const InputSource* source() const { return source_.get(); }
 
@@ -162,5 +196,11 @@ template <class Error = InputError, class... Parts> void require(bool ok, const 
 
 /// True when `value` is finite and > 0 (false for NaN).
 inline bool finite_positive(double value) { return std::isfinite(value) && value > 0.0; }
+
+/// True when `v` gives a direction (a wall's normal, a cylinder's axis):
+/// finite and not zero, however large or small its components - its unit
+/// vector is v.stableNormalized(), which scales by the largest component
+/// first (v.normalized() is the zero vector when |v|^2 overflows or underflows).
+template <int D> bool is_direction(const Vec<D>& v) { return v.allFinite() && v.cwiseAbs().maxCoeff() > 0.0; }
 
 } // namespace otmpm

@@ -8,14 +8,16 @@
 namespace otmpm {
 
 std::string ParameterSpec::check(double value) const {
-  if (!std::isfinite(value)) return "must be a finite number (got " + format_number(value) + ")";
-  if (lower_open ? !(value > lower) : !(value >= lower))
-    return std::string("must be ") + (lower_open ? "> " : ">= ") + format_number(lower) + " (got " +
-           format_number(value) + ")";
-  if (upper_open ? !(value < upper) : !(value <= upper))
-    return std::string("must be ") + (upper_open ? "< " : "<= ") + format_number(upper) + " (got " +
-           format_number(value) + ")";
-  return "";
+  const bool above = lower <= -kUnbounded || (lower_open ? value > lower : value >= lower);
+  const bool below = upper >= kUnbounded || (upper_open ? value < upper : value <= upper);
+  if (above && below && std::isfinite(value)) return ""; // no message built: checked once per particle-file value
+  const std::string got = " (got " + format_number(value) + ")";
+  if (!std::isfinite(value)) return "must be a finite number" + got;
+  if (lower > -kUnbounded && upper < kUnbounded) // both ends bound it: the interval
+    return std::string("must be in ") + (lower_open ? "(" : "[") + format_number(lower) + ", " + format_number(upper) +
+           (upper_open ? ")" : "]") + got;
+  if (!above) return std::string("must be ") + (lower_open ? "> " : ">= ") + format_number(lower) + got;
+  return std::string("must be ") + (upper_open ? "< " : "<= ") + format_number(upper) + got;
 }
 
 } // namespace otmpm

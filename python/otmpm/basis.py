@@ -7,6 +7,7 @@ The families are those of a scene's [basis] (docs/theory.md sect. 4):
 linear, ugimp, bspline2, bspline3, lme, maxent.
 """
 import dataclasses
+import reprlib
 
 import numpy as np
 
@@ -15,10 +16,37 @@ from . import _otmpm
 #: The basis families (basis.kind of a scene).
 KINDS = ("linear", "ugimp", "bspline2", "bspline3", "lme", "maxent")
 
+#: Largest cell count per axis and Newton iteration count (C++ ints).
+_MAX_INT = 2**31 - 1
 
-def _floats(v):
+
+def _bad(what, value):
+    """An InputError saying that `what` got `value` (reprlib's short repr: nesting and length bounded)."""
+    return _otmpm.InputError(f"{what}, got {reprlib.repr(value)}")
+
+
+def _number(name, value):
+    """`value` as a float: an int or a float (NumPy's too), never a bool or a string."""
+    v = value.item() if isinstance(value, np.generic) else value
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise _bad(f"{name} must be a number", value)
+    try:
+        return float(v)
+    except OverflowError:  # an int beyond the doubles
+        raise _bad(f"{name} must be a number within the range of a double", value) from None
+
+
+def _floats(name, v):
     """A number or a sequence of numbers as a list of floats."""
-    return [float(x) for x in np.atleast_1d(v)]
+    return [_number(name, x) for x in np.atleast_1d(np.asarray(v, dtype=object))]
+
+
+def _whole(name, value, lo, hi):
+    """`value` as an int: a whole number from lo to hi (2.7 is refused, never taken as 2)."""
+    n = _number(name, value)
+    if not (n.is_integer() and lo <= n <= hi):
+        raise _bad(f"{name} must be a whole number from {lo} to {hi}", value)
+    return int(n)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -55,17 +83,28 @@ class Basis:
 
     def __init__(self, kind, nodes, h=None, *, gamma_lme=4.0, tolerance=1e-6, newton_tolerance=1e-12,
                  max_newton_iterations=100, d_max=2.0, ppc=2.0):
-        options = dict(gamma_lme=float(gamma_lme), tolerance=float(tolerance),
-                       newton_tolerance=float(newton_tolerance),
-                       max_newton_iterations=int(max_newton_iterations), d_max=float(d_max), ppc=float(ppc))
+        if not isinstance(kind, str):
+            raise _bad(f"Basis: kind must be one of {', '.join(KINDS)}", kind)
+        options = dict(gamma_lme=_number("gamma_lme", gamma_lme), tolerance=_number("tolerance", tolerance),
+                       newton_tolerance=_number("newton_tolerance", newton_tolerance),
+                       max_newton_iterations=_whole("max_newton_iterations", max_newton_iterations, 1, _MAX_INT),
+                       d_max=_number("d_max", d_max), ppc=_number("ppc", ppc))
         if isinstance(nodes, Grid):
-            self._basis = _otmpm.Basis.on_grid(kind, _floats(nodes.lower), _floats(nodes.upper),
-                                               [int(c) for c in np.atleast_1d(nodes.cells)],
-                                               float(nodes.perturbation), int(nodes.seed), **options)
+            cells = [_whole("Grid.cells", c, 1, _MAX_INT) for c in np.atleast_1d(np.asarray(nodes.cells, dtype=object))]
+            perturbation = _number("Grid.perturbation", nodes.perturbation)
+            if not 0.0 <= perturbation < 0.5:  # NaN too: never taken as 0
+                raise _bad("Grid.perturbation must be in [0, 0.5) (a fraction of h)", nodes.perturbation)
+            self._basis = _otmpm.Basis.on_grid(kind, _floats("Grid.lower", nodes.lower),
+                                               _floats("Grid.upper", nodes.upper), cells, perturbation,
+                                               _whole("Grid.seed", nodes.seed, 0, 2**32 - 1), **options)
         else:
             if h is None:
                 raise TypeError("Basis: a node cloud needs its nodal spacing h")
-            self._basis = _otmpm.Basis.on_cloud(kind, np.asarray(nodes, dtype=float), float(h), **options)
+            try:
+                positions = np.asarray(nodes, dtype=float)
+            except (TypeError, ValueError, OverflowError) as e:
+                raise _bad(f"Basis: nodes must be a Grid or an (m, D) array of numbers ({e})", nodes) from None
+            self._basis = _otmpm.Basis.on_cloud(kind, positions, _number("h", h), **options)
         self.kind = self._basis.kind
         self.dimension = self._basis.dimension
         self.spacing = self._basis.spacing
@@ -82,7 +121,11 @@ class Basis:
         Raises otmpm.BasisError naming the point when a point cannot be
         evaluated (outside the nodes' hull, ...).
         """
-        return self._basis.evaluate(np.asarray(points, dtype=float))
+        try:
+            points = np.asarray(points, dtype=float)
+        except (TypeError, ValueError, OverflowError) as e:
+            raise _bad(f"Basis.evaluate: points must be an (n, D) array of numbers ({e})", points) from None
+        return self._basis.evaluate(points)
 
     def __repr__(self):
         return f"<otmpm.basis.Basis {self.kind}, {self.dimension}D, {len(self.nodes)} nodes, h = {self.spacing:.6g}>"

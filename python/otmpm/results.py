@@ -10,6 +10,7 @@ Works on any otmpm result file, written by `otmpm run`, `otmpm pair`,
 `otmpm study` or the Python package. Uses h5py (Debian: python3-h5py).
 """
 import collections.abc
+import os
 import tomllib
 import warnings
 
@@ -181,26 +182,32 @@ class Results:
     def __init__(self, path):
         import h5py  # here, not at the top: `import otmpm` stays quick for those who never read a file
 
-        self.path = str(path)
+        self.path = os.fsdecode(path) if isinstance(path, (str, bytes, os.PathLike)) else str(path)
+        if os.path.exists(self.path) and not os.path.isfile(self.path):  # a FIFO would block h5py for ever
+            raise OSError(f"{self.path}: not a regular file (a directory, FIFO or device), not a result file")
         try:
             self._file = h5py.File(self.path, "r")
         except OSError as e:  # h5py's message does not name the file
             raise OSError(f"{self.path}: cannot open it as a result file: {e}") from e
         try:
             self._read()
-        except (KeyError, RuntimeError, OSError) as e:  # h5py's errors for damaged metadata
+        except BaseException as e:
             self._file.close()
-            if str(e).startswith(self.path + ": "):
+            # As they are: KeyboardInterrupt, a warning raised under warnings.simplefilter("error")
+            # (link_names' RuntimeWarning), an OSError that names the file already.
+            named = isinstance(e, OSError) and str(e).startswith(self.path + ": ")
+            if not isinstance(e, Exception) or isinstance(e, Warning) or named:
                 raise
-            raise OSError(f"{self.path}: cannot read it as a result file (a damaged file?): {e}") from e
-        except BaseException:  # e.g. link_names' RuntimeWarning raised under warnings.simplefilter("error")
-            self._file.close()
-            raise
+            # h5py's errors for damaged metadata, a file of another program (TypeError, AttributeError, ...)
+            raise OSError(f"{self.path}: cannot read it as a result file (a damaged file, or another program's?): "
+                          f"{type(e).__name__}: {e}") from e
 
     def _read(self):
         self.attrs = {k: _value(self._file.attrs[k]) for k in attribute_names(self._file)}
         self.status = self.attrs.get("status")
-        self.dimension = int(self.attrs["dimension"])
+        self.dimension = self.attrs["dimension"]
+        if type(self.dimension) is not int or self.dimension not in (1, 2, 3):
+            raise ValueError(f"the attribute 'dimension' is {self.dimension!r:.80}, not 1, 2 or 3")
         self.scene_text = self.attrs.get("scene", "")
         frames = self._file["frames"] if "frames" in self._file else None
         self.frames = [Frame(frames[name], self.dimension) for name in link_names(frames)] if frames is not None else []

@@ -1,12 +1,15 @@
 """otmpm.Summary: what a run reports (otmpm.run, Simulation.finish)."""
 import collections.abc
+import types
 
 
 class Summary(collections.abc.Mapping):
-    """What a run reports, as a read-only dict (also readable as attributes).
+    """What a run reports, as a read-only dict (also readable as attributes; setting or
+    deleting an attribute or an item raises, errors and phases are read-only mappings).
 
-    Keys: status ("ok", "interrupted" or "unstable: <diagnosis>"), exit_code
-    (the command line's: 0 ok, 1 unstable, 130 interrupted), interrupted
+    Keys: status ("ok", "interrupted", "unstable: <diagnosis>", "output error: <message>"
+    or "out of memory: <message>"), exit_code (the command line's: 0 ok, 1 unstable,
+    4 the results could not be written or memory ran out, 130 interrupted), interrupted
     (True when the run was stopped before t_end: Ctrl-C, interrupt()), mode, integrator,
     basis, steps, time (simulated time reached [s]), wall_seconds,
     particles, nodes, particle_steps_per_second, errors (dict: the errors
@@ -18,8 +21,18 @@ class Summary(collections.abc.Mapping):
     """
 
     def __init__(self, values, line=""):
-        self._values = dict(values)
-        self._line = line
+        values = dict(values)
+        for key in ("errors", "phases"):  # read-only views of copies: the summary never changes
+            if isinstance(values.get(key), collections.abc.Mapping):
+                values[key] = types.MappingProxyType(dict(values[key]))
+        object.__setattr__(self, "_values", values)
+        object.__setattr__(self, "_line", line)
+
+    def __setattr__(self, name, value):
+        raise AttributeError(f"Summary is read-only: cannot set '{name}'")
+
+    def __delattr__(self, name):
+        raise AttributeError(f"Summary is read-only: cannot delete '{name}'")
 
     def __getitem__(self, key):
         return self._values[key]

@@ -5,6 +5,7 @@
 #include "bindings.hpp"
 
 #include "otmpm/basis/basis.hpp"
+#include "otmpm/scene/resources.hpp"
 
 #include <pybind11/numpy.h>
 #include <pybind11/stl.h>
@@ -29,7 +30,7 @@ struct FamilyOptions {
 template <int D> AlignedVector<Vec<D>> rows_of(const Points& a, const char* what) {
   const bool flat = a.ndim() == 1 && D == 1;
   if (!flat && (a.ndim() != 2 || a.shape(1) != D))
-    throw py::value_error(std::string(what) + ": expected an array of shape (n, " + std::to_string(D) + ")");
+    throw InputError(std::string(what) + ": expected an array of shape (n, " + std::to_string(D) + ")");
   AlignedVector<Vec<D>> x(static_cast<std::size_t>(a.shape(0)));
   const double* p = a.data();
   for (std::size_t i = 0; i < x.size(); ++i)
@@ -113,13 +114,24 @@ PyBasis on_grid(const FamilyOptions& o, const std::vector<double>& lower, const 
     grid.cells[static_cast<std::size_t>(k)] = cells[static_cast<std::size_t>(k)];
   }
   grid.validate();
+  double count = 1;
+  std::string given;
+  for (int k = 0; k < D; ++k) {
+    count *= grid.cells[k] + 1.0;
+    given += (k ? ", " : "") + std::to_string(grid.cells[k]);
+  }
+  check_node_count(count, "Grid(cells = [" + given + "])");
   BasisOptions opt = o.basis;
   for (int k = 0; k < D; ++k) opt.ugimp_half_width[k] = grid.h()[k] / (2.0 * o.ppc);
-  NodeSet<D> nodes = perturbation > 0 ? NodeSet<D>::perturbed(grid, perturbation, seed) : NodeSet<D>::cartesian(grid);
+  // NaN or a negative fraction is refused by perturbed(), never taken as 0.
+  NodeSet<D> nodes =
+      perturbation != 0.0 ? NodeSet<D>::perturbed(grid, perturbation, seed) : NodeSet<D>::cartesian(grid);
   return PyBasis(make_basis<D>(opt, std::move(nodes)));
 }
 
 template <int D> PyBasis on_cloud(const FamilyOptions& o, const Points& positions, double spacing) {
+  check_node_count(static_cast<double>(positions.shape(0)),
+                   "a cloud of " + std::to_string(positions.shape(0)) + " nodes");
   return PyBasis(make_basis<D>(o.basis, NodeSet<D>::cloud(rows_of<D>(positions, "nodes"), spacing)));
 }
 
@@ -127,7 +139,7 @@ template <int D> PyBasis on_cloud(const FamilyOptions& o, const Points& position
 int grid_dimension(const std::vector<double>& lower, const std::vector<double>& upper, const std::vector<int>& cells) {
   const std::size_t d = lower.size();
   if (d < 1 || d > 3 || upper.size() != d || cells.size() != d)
-    throw py::value_error("lower, upper and cells must have the same length 1, 2 or 3");
+    throw InputError("lower, upper and cells must have the same length 1, 2 or 3");
   return static_cast<int>(d);
 }
 
@@ -162,7 +174,7 @@ void register_basis(py::module_& m) {
             case 1: return on_cloud<1>(o, positions, spacing);
             case 2: return on_cloud<2>(o, positions, spacing);
             case 3: return on_cloud<3>(o, positions, spacing);
-            default: throw py::value_error("nodes: expected an array of shape (m, D) with D = 1, 2 or 3");
+            default: throw InputError("nodes: expected an array of shape (m, D) with D = 1, 2 or 3");
             }
           },
           py::arg("kind"), py::arg("positions"), py::arg("spacing"), py::arg("gamma_lme"), py::arg("tolerance"),

@@ -76,6 +76,8 @@ void register_errors(py::module_& m) {
       PyErr_SetString(g_instability_error, e.what());
     } catch (const BasisError& e) {
       PyErr_SetString(g_basis_error, e.what());
+    } catch (const OutputError& e) { // the results could not be written: an I/O error
+      PyErr_SetString(PyExc_OSError, e.what());
     }
   });
 }

@@ -26,41 +26,84 @@ std::string child_path(const std::string& parent, const std::string& key) {
   return parent.empty() ? key : parent + "." + key;
 }
 
+/// The name of the type of `o` ("list"): messages never repr() a value,
+/// which may be nested too deep to print or be megabytes long.
+std::string type_name(py::handle o) { return py::str(py::type::handle_of(o).attr("__name__")).cast<std::string>(); }
+
 /// A Python value converted to TOML.
 using TomlValue = std::variant<bool, std::int64_t, double, std::string, toml::array, toml::table>;
 
-TomlValue convert(py::handle v, const std::string& file, const std::string& path, bool inline_tables);
+/// Deepest nesting of lists and dicts a scene value may have: the limit of the
+/// TOML parser the converted text goes through.
+constexpr std::size_t kMaxDepth = 256;
+
+/// Where a conversion is: the file name of its errors and the containers on
+/// the path from the top (their ids: a container met again contains itself).
+struct Conversion {
+  std::string file;
+  std::vector<const PyObject*> path;
+};
+
+TomlValue convert(py::handle v, Conversion& c, const std::string& key, bool inline_tables);
+
+/// Enters the container `o` at `key`: InputError naming the key when it is
+/// already on the path (a dict or list that contains itself) or the nesting
+/// is deeper than kMaxDepth. Leaves it on destruction.
+class Enter {
+public:
+  Enter(Conversion& c, const py::handle& o, const std::string& key) : c_(c) {
+    if (std::find(c.path.begin(), c.path.end(), o.ptr()) != c.path.end())
+      input_error({c.file, 0, key}, "the value contains itself (a dict or list that refers to itself)");
+    if (c.path.size() >= kMaxDepth)
+      input_error({c.file, 0, key}, "lists and dicts nested deeper than " + std::to_string(kMaxDepth) + " levels");
+    c.path.push_back(o.ptr());
+  }
+  ~Enter() { c_.path.pop_back(); }
+  Enter(const Enter&) = delete;
+  Enter& operator=(const Enter&) = delete;
+
+private:
+  Conversion& c_;
+};
 
 /// The dict `dict` as a TOML table (string keys only).
-toml::table table_from(py::handle dict, const std::string& file, const std::string& path, bool inline_tables) {
+toml::table table_from(py::handle dict, Conversion& c, const std::string& path, bool inline_tables) {
+  const Enter enter(c, dict, path);
   toml::table t;
   t.is_inline(inline_tables);
   for (auto [k, v] : py::reinterpret_borrow<py::dict>(dict)) {
-    if (!py::isinstance<py::str>(k))
-      input_error({file, 0, path}, "keys must be strings, got " + py::repr(k).cast<std::string>());
+    if (!py::isinstance<py::str>(k)) input_error({c.file, 0, path}, "keys must be strings, got a " + type_name(k));
     const std::string key = k.cast<std::string>();
-    std::visit([&](auto&& x) { t.insert(key, std::move(x)); }, convert(v, file, child_path(path, key), inline_tables));
+    std::visit([&](auto&& x) { t.insert(key, std::move(x)); }, convert(v, c, child_path(path, key), inline_tables));
   }
   return t;
 }
 
 /// Converts the Python value `v` at `path` to TOML: bool, int (64 bit),
 /// float, str, list/tuple (array), dict (table); NumPy scalars and arrays
-/// through their tolist(). Anything else is an InputError naming the key.
-TomlValue convert(py::handle v, const std::string& file, const std::string& path, bool inline_tables) {
+/// through their tolist(). Anything else, a container that contains itself
+/// or nesting deeper than kMaxDepth is an InputError naming the key.
+TomlValue convert(py::handle v, Conversion& c, const std::string& path, bool inline_tables) {
   py::object o = py::reinterpret_borrow<py::object>(v);
   if (!py::isinstance<py::str>(o) && py::hasattr(o, "tolist")) o = o.attr("tolist")();
   if (py::isinstance<py::bool_>(o)) return o.cast<bool>();
   if (py::isinstance<py::int_>(o)) {
     int overflow = 0;
     const long long i = PyLong_AsLongLongAndOverflow(o.ptr(), &overflow);
-    if (overflow != 0) input_error({file, 0, path}, "integer " + py::str(o).cast<std::string>() + " out of range");
+    if (overflow != 0) {
+      // str() of an int of more than 4300 digits raises: a huge one is told by its size.
+      const auto bits = o.attr("bit_length")().cast<long long>();
+      const std::string value = bits <= 1000 ? shortened(py::str(o).cast<std::string>())
+                                             : "of " + std::to_string(bits) + " bits";
+      input_error({c.file, 0, path}, "integer " + value + " out of range");
+    }
     return static_cast<std::int64_t>(i);
   }
   if (py::isinstance<py::float_>(o)) return o.cast<double>();
   if (py::isinstance<py::str>(o)) return o.cast<std::string>();
-  if (py::isinstance<py::dict>(o)) return table_from(o, file, path, inline_tables);
+  if (py::isinstance<py::dict>(o)) return table_from(o, c, path, inline_tables);
   if (py::isinstance<py::list>(o) || py::isinstance<py::tuple>(o)) {
+    const Enter enter(c, o, path);
     // Arrays of tables are [[headers]] at the top level, inline below it
     // (probes = [{ name = "A", ... }]), as the scene files write them.
     const bool nested = inline_tables || path.find('.') != std::string::npos;
@@ -68,11 +111,24 @@ TomlValue convert(py::handle v, const std::string& file, const std::string& path
     std::size_t i = 0;
     for (py::handle item : o)
       std::visit([&](auto&& x) { a.push_back(std::move(x)); },
-                 convert(item, file, child_path(path, std::to_string(i++)), nested));
+                 convert(item, c, child_path(path, std::to_string(i++)), nested));
     return a;
   }
-  input_error({file, 0, path}, "a " + py::str(o.get_type().attr("__name__")).cast<std::string>() +
-                                   " cannot be a scene value (expected bool, int, float, str, list or dict)");
+  input_error({c.file, 0, path},
+              "a " + type_name(o) + " cannot be a scene value (expected bool, int, float, str, list or dict)");
+}
+
+/// A TOML value written on one line, as --set reads it: strings as basic
+/// strings with escapes (never multi-line or literal: toml++ writes a literal
+/// string with a raw line break), and the line breaks toml++ puts between the
+/// elements of a long array (outside any string) made spaces.
+std::string one_line(const toml::table& t) {
+  constexpr auto flags = toml::format_flags::allow_unicode_strings;
+  std::ostringstream os;
+  os << toml::toml_formatter(t, flags); // "v = VALUE"
+  std::string text = os.str().substr(4);
+  std::replace(text.begin(), text.end(), '\n', ' ');
+  return text;
 }
 
 /// The overrides as the command line's --set strings: a dict {KEY: value}
@@ -83,19 +139,20 @@ std::vector<std::string> override_strings(const py::object& overrides) {
   if (overrides.is_none()) return sets;
   if (py::isinstance<py::dict>(overrides)) {
     for (auto [k, v] : py::reinterpret_borrow<py::dict>(overrides)) {
-      const std::string key = py::str(k).cast<std::string>();
+      if (!py::isinstance<py::str>(k))
+        throw py::type_error("overrides: the keys must be strings (\"material.steel.young\"), got a " + type_name(k));
+      const std::string key = k.cast<std::string>();
+      Conversion c;
       toml::table t;
-      std::visit([&](auto&& x) { t.insert("v", std::move(x)); }, convert(v, "", key, true));
-      std::ostringstream os;
-      os << t; // "v = VALUE"
-      sets.push_back(key + "=" + os.str().substr(4));
+      std::visit([&](auto&& x) { t.insert("v", std::move(x)); }, convert(v, c, key, true));
+      sets.push_back(key + "=" + one_line(t));
     }
     return sets;
   }
   for (py::handle s : overrides) {
     if (!py::isinstance<py::str>(s))
-      throw py::type_error("overrides: expected a dict or a list of \"KEY=VALUE\" strings, got an item " +
-                           py::repr(s).cast<std::string>());
+      throw py::type_error("overrides: expected a dict or a list of \"KEY=VALUE\" strings, got an item of type " +
+                           type_name(s));
     sets.push_back(s.cast<std::string>());
   }
   return sets;
@@ -167,8 +224,9 @@ void register_scene(py::module_& m) {
       .def_static(
           "from_dict",
           [](const py::dict& d, const py::object& overrides, const std::string& name) {
+            Conversion c{name, {}};
             std::ostringstream os;
-            os << table_from(d, name, "", false) << "\n";
+            os << table_from(d, c, "", false) << "\n";
             return parse_scene(os.str(), name, override_strings(overrides));
           },
           py::arg("d"), py::arg("overrides") = py::none(), py::arg("name") = "<dict>", kFromDictDoc)

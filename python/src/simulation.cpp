@@ -13,6 +13,9 @@
 
 #include <chrono>
 #include <filesystem>
+#include <limits>
+#include <new>
+#include <set>
 
 namespace otmpm::python {
 
@@ -32,7 +35,13 @@ RunOptions run_options(const py::object& out, bool write_results, bool force) {
   RunOptions opt;
   opt.write_results = write_results;
   opt.force = force;
-  if (!out.is_none()) opt.out_file = py::cast<std::filesystem::path>(out).string();
+  if (out.is_none()) return opt;
+  try {
+    opt.out_file = py::cast<std::filesystem::path>(out).string();
+  } catch (const py::cast_error&) {
+    throw py::type_error("out: expected a path (str or os.PathLike) or None, got a " +
+                         py::str(out.get_type().attr("__name__")).cast<std::string>());
+  }
   return opt;
 }
 
@@ -67,11 +76,41 @@ py::object summary_object(const RunSummary& s) {
   return py::module_::import("otmpm.summary").attr("Summary")(d, summary_line(s));
 }
 
-/// A run in progress, owned by the Python Simulation object.
+/// A run in progress, owned by the Python Simulation object. One dropped
+/// without finish() is completed by ~Simulation (status "interrupted"), and
+/// the ones still alive when the interpreter exits by finish_all() (atexit).
 class PySimulation {
 public:
   PySimulation(const Scene& scene, const py::object& out, bool write_results, bool force, std::optional<int> threads)
-      : threads_(checked_threads(threads)), sim_(build(scene, run_options(out, write_results, force), threads_)) {}
+      : threads_(checked_threads(threads)), sim_(build(scene, run_options(out, write_results, force), threads_)) {
+    live().insert(this);
+  }
+  ~PySimulation() { live().erase(this); }
+  PySimulation(const PySimulation&) = delete;
+  PySimulation& operator=(const PySimulation&) = delete;
+
+  /// Completes every simulation not finished yet (registered with atexit:
+  /// objects the interpreter never frees keep no status "running").
+  static void finish_all() {
+    for (PySimulation* s : std::set<PySimulation*>(live()))
+      if (!s->finish_called_ && !s->busy_) {
+        s->finish_called_ = true;
+        try {
+          if (!s->sim_.finished()) s->sim_.interrupt();
+          s->sim_.finish();
+        } catch (const std::exception&) { // at exit nothing more can be done; the status is what it could be
+        }
+      }
+  }
+
+  /// The simulation for `what`, a method that changes the run: RuntimeError
+  /// once finish() was called (the views and properties stay readable).
+  Simulation& open(const char* what) {
+    if (finish_called_)
+      throw std::runtime_error(std::string("Simulation.") + what +
+                               ": the run is finished (finish() was called; status " + sim_.status() + ")");
+    return sim();
+  }
 
   /// The simulation; RuntimeError while another Python thread is stepping it
   /// (its steps run with the GIL released).
@@ -79,7 +118,14 @@ public:
     if (busy_) throw std::runtime_error("Simulation: another thread is stepping this simulation");
     return sim_;
   }
-  py::object callback = py::none();
+  /// The per-step callback: None or a callable (TypeError otherwise, when it is set).
+  const py::object& callback() const { return callback_; }
+  void set_callback(const py::object& f) {
+    if (!f.is_none() && !PyCallable_Check(f.ptr()))
+      throw py::type_error("Simulation.callback: expected a callable or None, got a " +
+                           py::str(f.get_type().attr("__name__")).cast<std::string>());
+    callback_ = f;
+  }
 
   /// Steps while more(simulation) holds (more must not touch Python). Without a
   /// callback the steps run with the GIL released, which is taken back
@@ -91,7 +137,7 @@ public:
     sim(); // RuntimeError while another thread steps it
     auto next_poll = Clock::now() + kSignalPoll;
     while (more(sim_)) {
-      if (callback.is_none()) {
+      if (callback_.is_none()) {
         bool poll = false;
         {
           Busy busy(busy_);
@@ -113,24 +159,28 @@ public:
           ThreadScope scope(threads_);
           sim_.step();
         }
-        callback(self);
+        callback_(self);
         check_signals();
       }
     }
   }
 
-  /// Steps to t_end; an instability ends the run (its status is in the summary).
+  /// Steps to t_end; an instability, an output error or memory running out
+  /// ends the run (its status is in the summary, as run_scene's).
   void run_to_end(py::handle self) {
     try {
       steps_while(self, [](const Simulation& s) { return !s.finished(); });
     } catch (const InstabilityError&) { // run_scene's rule: the diagnosis is the status
+    } catch (const OutputError&) {
+    } catch (const std::bad_alloc&) {
     }
   }
 
   /// Simulation::interrupt() (status "interrupted"); RuntimeError once finished.
   void interrupt() {
-    require_running("interrupt");
-    sim().interrupt();
+    Simulation& s = open("interrupt");
+    if (s.finished()) throw std::runtime_error("Simulation.interrupt: the run is finished (" + s.status() + ")");
+    s.interrupt();
   }
 
   /// Simulation::finish() as an otmpm.Summary; RuntimeError the second time.
@@ -155,9 +205,9 @@ private:
     ThreadScope scope(threads);
     return Simulation(scene, options);
   }
-  void require_running(const char* what) const {
-    if (finish_called_ || sim_.finished())
-      throw std::runtime_error(std::string("Simulation.") + what + ": the run is finished (" + sim_.status() + ")");
+  static std::set<PySimulation*>& live() {
+    static std::set<PySimulation*> all; // touched with the GIL held only
+    return all;
   }
 
   /// Marks the simulation busy (set and cleared with the GIL held) while its
@@ -173,6 +223,7 @@ private:
     bool& flag_;
   };
 
+  py::object callback_ = py::none();
   std::optional<int> threads_;
   Simulation sim_;
   bool finish_called_ = false;
@@ -385,11 +436,12 @@ void register_views(py::module_& m) {
 
 void register_simulation(py::module_& m) {
   register_views(m);
+  py::module_::import("atexit").attr("register")(py::cpp_function([] { PySimulation::finish_all(); }));
   py::class_<PySimulation>(m, "Simulation", kSimulationDoc)
       .def(py::init([](const Scene& scene, const py::object& out, bool write_results, std::optional<int> threads,
                        const py::object& callback, bool force) {
              auto s = std::make_unique<PySimulation>(scene, out, write_results, force, threads);
-             s->callback = callback;
+             s->set_callback(callback);
              return s;
            }),
            py::arg("scene"), py::arg("out") = py::none(), py::arg("write_results") = true,
@@ -398,8 +450,11 @@ void register_simulation(py::module_& m) {
           "step",
           [](const py::object& self, long n) {
             PySimulation& s = cast(self);
-            if (s.sim().finished()) s.sim().step(); // raises: the run is finished
-            const long target = s.sim().steps() + n;
+            if (n < 0) throw py::value_error("Simulation.step: n must be >= 0, got " + std::to_string(n));
+            if (s.open("step").finished()) s.sim().step(); // raises: the run is finished
+            const long done = s.sim().steps();
+            const long target =
+                n > std::numeric_limits<long>::max() - done ? std::numeric_limits<long>::max() : done + n;
             s.steps_while(self, [&](const Simulation& m) { return m.steps() < target && !m.finished(); });
           },
           py::arg("n") = 1,
@@ -410,12 +465,14 @@ void register_simulation(py::module_& m) {
           "advance_to",
           [](const py::object& self, double t) {
             PySimulation& s = cast(self);
+            s.open("advance_to");
             s.steps_while(self, [&](const Simulation& m) { return !m.finished() && m.time() < t * (1.0 - kTimeSlack); });
           },
           py::arg("t"), "Steps until sim.t >= t (at most to t_end): the first step at or past t.")
       .def(
-          "write_frame", [](PySimulation& s) { s.sim().write_frame(); },
-          "Writes a frame (and probe and energy samples) of the current state into the result file now.")
+          "write_frame", [](PySimulation& s) { s.open("write_frame").write_frame(); },
+          "Writes a frame (and probe and energy samples) of the current state into the result file now.\n"
+          "RuntimeError after finish().")
       .def(
           "interrupt", [](PySimulation& s) { s.interrupt(); },
           "Stops the run before t_end: a last checkpoint (when output.checkpoint_every is set) and status\n"
@@ -454,10 +511,10 @@ void register_simulation(py::module_& m) {
           "\"running\", \"ok\" after finish(), \"interrupted\" or \"unstable: ...\" (the result file's status).")
       .def_property_readonly(
           "scene", [](PySimulation& s) { return s.sim().scene(); }, "The scene (a copy).")
-      .def_readwrite("callback", &PySimulation::callback,
-                     "Called as callback(sim) after every step taken by step(), advance_to() (None: no\n"
-                     "callback). It may read the views; an exception it raises stops the loop and\n"
-                     "propagates. Loops with a callback hold the GIL between steps.")
+      .def_property("callback", &PySimulation::callback, &PySimulation::set_callback,
+                    "Called as callback(sim) after every step taken by step(), advance_to() (None: no\n"
+                    "callback; TypeError for anything not callable). It may read the views; an exception\n"
+                    "it raises stops the loop and propagates. Loops with a callback hold the GIL between steps.")
       .def("__enter__", [](const py::object& self) { return self; })
       .def(
           "__exit__",

@@ -13,6 +13,8 @@
 #    and a 2D one (stress as 4: "xx xy yy zz", strain as 3, and stress_zz);
 #  - so do a 3D and a 1D run with output.compression (and a 2-rank one with
 #    MPIEXEC): chunked frame datasets with shuffle + deflate, checked to be so;
+#  - and a 1D and a 2D run whose result names hold "--", &, <, >, quotes and
+#    a non-ASCII letter (each XML file must stay well-formed);
 #  - pvpython (tests/client/paraview_check.py): each run's .xdmf through
 #    Xdmf3ReaderS and the legacy XDMFReader, and its .pvd through PVDReader:
 #    time steps, one point and one vertex cell per particle, point data equal
@@ -78,6 +80,14 @@ results=("$work/bar_1d.h5" "$work/plate_2d.h5" "$work/bar_3d.h5" "$work/bar_3d_s
   --set output.symmetric_tensors=true --set 'output.fields=["x", "v", "stress", "strain", "stress_zz"]' \
   --set 'output.format=["hdf5", "vtp"]'
 results+=("$work/plate_2d_sym.h5")
+# Names XML must escape, and "--" (which an XML comment cannot hold): the sidecar, the .pvd and the VTK
+# files stay well-formed for ParaView and meshio, and refer to the result file by its name.
+hostile="run--2 &<>\"q' é"
+"$otmpm" run "$src/examples/dyka.toml" --quiet --out "$hostile.h5" \
+  --set output.every=2e-5 --set 'output.format=["hdf5", "vtp"]'
+"$otmpm" run "$src/examples/mms_plate.toml" --quiet --out "$hostile 2d.h5" --set 'grid.cells=[8, 8]' \
+  --set 'output.format=["hdf5", "vtu"]'
+results+=("$work/$hostile.h5" "$work/$hostile 2d.h5")
 deflated=("$work/bar_3d_deflate.h5" "$work/bar_1d_deflate.h5")
 if [ -n "$mpiexec" ]; then
   OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 "$mpiexec" -q --oversubscribe -np 2 \

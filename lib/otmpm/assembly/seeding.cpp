@@ -171,7 +171,8 @@ std::optional<ParticleFile> open_body(const Scene& scene, int b, std::vector<std
   if (body.shape == "file") {
     try {
       // reserved for the scene reader's count when it read this file
-      file = read_particle_file(body.file, D, body.file_read == body.file ? body.file_particles : -1);
+      const ParticleFileRules rules = particle_file_rules(scene, body);
+      file = read_particle_file(body.file, D, body.file_read == body.file ? body.file_particles : -1, &rules);
     } catch (const InputError& e) {
       input_error(scene.locate("body." + body.name + ".file"), e.what());
     }
@@ -426,8 +427,9 @@ void stream_file_body(const Scene& scene, int b, std::vector<std::unique_ptr<Sha
         if (columns.entry[f] >= 0) out.file_state[static_cast<std::size_t>(columns.entry[f])].values.push_back(rows.fields[f][i]);
     }
   };
+  const ParticleFileRules rules = particle_file_rules(scene, body);
   try {
-    stream_particle_file(body.file, D, each);
+    stream_particle_file(body.file, D, each, kParticleChunk, &rules);
   } catch (const InputError& e) {
     input_error(scene.locate("body." + body.name + ".file"), e.what());
   }
@@ -531,6 +533,9 @@ SeededBodies<D> seed_bodies(const Scene& scene, const Vec<D>& h, const Cartesian
     if (seeds.empty()) seeds = std::move(body); // no copy of the common single body (peak memory)
     else seeds.insert(seeds.end(), body.begin(), body.end());
   }
+  WallSides<D> sides(scene, h);
+  for (std::size_t p = 0; p < seeds.size(); ++p) sides.visit(seeds[p].x, seeds[p].body, {0, static_cast<long long>(p)});
+  sides.refuse();
   store<D>(scene, seeds, result.particles);
   result.file_row.resize(seeds.size());
   for (std::size_t p = 0; p < seeds.size(); ++p) result.file_row[p] = seeds[p].row;
@@ -604,6 +609,7 @@ template <int D>
 long long seed_bodies_where(const Scene& scene, const Vec<D>& h, const CartesianGrid<D>& lattice,
                             const std::function<bool(long long, const Vec<D>&)>& keep, SeededBodies<D>* result) {
   long long id = 0;
+  WallSides<D> sides(scene, h);
   seed_cells_where<D>(
       scene, h, lattice,
       [](int) {
@@ -611,11 +617,13 @@ long long seed_bodies_where(const Scene& scene, const Vec<D>& h, const Cartesian
         all.hi.fill(std::numeric_limits<int>::max());
         return all;
       },
-      [&](const SeedSpot&, const Vec<D>& x) {
+      [&](const SeedSpot& s, const Vec<D>& x) {
+        sides.visit(x, s.body, seeding_order(s));
         const long long mine = id++;
         return keep(mine, x) ? mine : -1;
       },
       result);
+  sides.refuse();
   return id;
 }
 
@@ -652,6 +660,67 @@ template <int D> void TractionSurfaces<D>::finish() {
     ends_[i].clear(); // the columns are not needed any more
   }
 }
+
+template <int D>
+WallSides<D>::WallSides(const Scene& scene, const Vec<D>& h) : scene_(scene), tol_(kBoxTolerance * h.minCoeff()) {
+  for (const WallSection& w : scene.walls)
+    walls_.push_back({scene_vec<D>(w.point), Vec<D>(first_components(w.normal, D).template head<D>().stableNormalized())});
+  behind_.assign(walls_.size() * scene.bodies.size(), Behind{});
+}
+
+template <int D> void WallSides<D>::visit(const Vec<D>& x, int body, const Order& at) {
+  for (std::size_t w = 0; w < walls_.size(); ++w) {
+    if ((x - walls_[w].first).dot(walls_[w].second) >= -tol_) continue;
+    Behind& b = behind_[w * scene_.bodies.size() + static_cast<std::size_t>(body)];
+    if (b.count++ == 0 || at < b.at) b.first = x, b.at = at;
+  }
+}
+
+template <int D> void WallSides<D>::refuse() const {
+  for (std::size_t i = 0; i < behind_.size(); ++i) {
+    if (behind_[i].count == 0) continue;
+    const WallSection& w = scene_.walls[i / scene_.bodies.size()];
+    const std::string& body = scene_.bodies[i % scene_.bodies.size()].name;
+    input_error(w.where, "body '" + body + "' starts behind wall '" + w.name + "': " +
+                             std::to_string(behind_[i].count) + " of its particles (the first at " +
+                             format_point<D>(behind_[i].first) +
+                             ") lie on the side the wall's normal points away from, where the wall would push "
+                             "or hold them from the first step (move the wall or the body, or turn the normal "
+                             "to the body's side)");
+  }
+}
+
+template <int D> std::string WallSides<D>::pack() const {
+  std::string out;
+  auto put = [&out](const auto& v) { out.append(reinterpret_cast<const char*>(&v), sizeof v); };
+  for (const Behind& b : behind_) {
+    put(b.count), put(b.at.first), put(b.at.second);
+    for (int k = 0; k < D; ++k) put(b.first[k]);
+  }
+  return out;
+}
+
+template <int D> void WallSides<D>::merge(const std::string& packed) {
+  const std::size_t bytes = sizeof(long long) * 3 + sizeof(double) * D;
+  require<std::invalid_argument>(packed.size() == behind_.size() * bytes, "WallSides::merge: ", packed.size(),
+                                 " bytes for ", behind_.size(), " walls and bodies");
+  for (std::size_t i = 0; i < behind_.size(); ++i) {
+    Behind other;
+    const char* p = packed.data() + i * bytes;
+    std::memcpy(&other.count, p, sizeof(long long));
+    std::memcpy(&other.at.first, p + sizeof(long long), sizeof(long long));
+    std::memcpy(&other.at.second, p + 2 * sizeof(long long), sizeof(long long));
+    for (int k = 0; k < D; ++k) std::memcpy(&other.first[k], p + 3 * sizeof(long long) + k * sizeof(double), sizeof(double));
+    if (other.count == 0) continue;
+    Behind& mine = behind_[i];
+    if (mine.count == 0 || other.at < mine.at) mine.first = other.first, mine.at = other.at;
+    mine.count += other.count;
+  }
+}
+
+template class WallSides<1>;
+template class WallSides<2>;
+template class WallSides<3>;
 
 template <int D> std::string TractionSurfaces<D>::pack() const {
   std::string out;

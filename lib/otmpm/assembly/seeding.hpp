@@ -92,6 +92,39 @@ private:
   std::vector<char> selects_;
 };
 
+/// The particles that start behind a rigid wall - on the side its normal
+/// points away from (docs/theory.md sect. 6.1: the normal points to the
+/// material's side), by more than round-off (kBoxTolerance h) - counted per
+/// wall and body as the particles are seeded, so that a body the wall would
+/// push or hold from its first step is refused at set-up. Each particle
+/// comes with its place in the seeding order (`Order`, compared as a pair),
+/// so that shares counted apart (the ranks of a distributed run) merge into
+/// the counts and first particles of the whole.
+template <int D> class WallSides {
+public:
+  using Order = std::pair<long long, long long>;
+  WallSides(const Scene& scene, const Vec<D>& h);
+  /// A particle of body `body` at x, at place `at` of the seeding order.
+  void visit(const Vec<D>& x, int body, const Order& at);
+  /// InputError at the first wall with particles behind it, naming the
+  /// wall, the body, their count and the first of them.
+  void refuse() const;
+  /// The counts as bytes, and those of another share added in.
+  std::string pack() const;
+  void merge(const std::string& packed);
+
+private:
+  struct Behind {
+    long long count = 0;
+    Order at{0, 0};
+    Vec<D> first = Vec<D>::Zero();
+  };
+  const Scene& scene_;
+  double tol_;
+  std::vector<std::pair<Vec<D>, Vec<D>>> walls_; ///< point, unit normal
+  std::vector<Behind> behind_;                   ///< per wall and body
+};
+
 /// The seeded particles and what their particle files give beyond them.
 template <int D> struct SeededBodies {
   Particles<D> particles;
@@ -168,12 +201,18 @@ struct BodyTally {
 /// particles, -1 while a body's shape is built, max() for a body that
 /// holds no particle). A body whose every cell the pass generates and that
 /// holds no particle is an InputError at its end; of a body generated in
-/// part, the caller adds the tallies of all parts. Returns the tallies.
+/// part, the caller adds the tallies of all parts (and counts the
+/// particles behind walls: WallSides). Returns the tallies.
 template <int D>
 std::vector<BodyTally> seed_cells_where(const Scene& scene, const Vec<D>& h, const CartesianGrid<D>& lattice,
                                         const std::function<CellRange<D>(int)>& range,
                                         const std::function<long long(const SeedSpot&, const Vec<D>&)>& place,
                                         SeededBodies<D>* result, SeedSpot* at = nullptr);
+
+/// The place of a particle in the seeding order (WallSides::Order).
+inline std::pair<long long, long long> seeding_order(const SeedSpot& s) {
+  return {(static_cast<long long>(s.body) << 40) + s.cell, s.index};
+}
 
 /// The input error of a body that holds no particle.
 [[noreturn]] void no_particle(const BodySection& body);

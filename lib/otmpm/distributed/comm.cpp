@@ -394,6 +394,40 @@ void agree_on(const Comm& comm, const std::function<void()>& step) {
   }
 }
 
+namespace {
+
+/// At most this many bytes of a line are quoted in a message.
+constexpr std::size_t kQuoted = 120;
+
+std::string quoted(const std::string& line) {
+  return "'" + (line.size() > kQuoted ? line.substr(0, kQuoted) + "..." : line) + "'";
+}
+
+/// The first difference of `mine` from `root`'s text, for a message.
+std::string first_difference(const std::string& mine, const std::string& root) {
+  std::size_t at = 0, line = 1;
+  while (at < mine.size() && at < root.size() && mine[at] == root[at]) line += mine[at++] == '\n';
+  const auto line_of = [&](const std::string& s) {
+    const std::size_t from = at == 0 ? 0 : s.rfind('\n', at - 1) + 1; // npos + 1 == 0: the first line
+    return s.substr(from, s.find('\n', from) - from);
+  };
+  const bool lines = mine.find('\n') != std::string::npos || root.find('\n') != std::string::npos;
+  return (lines ? "line " + std::to_string(line) + " is " : std::string("it is ")) + quoted(line_of(mine)) +
+         " where rank 0 has " + quoted(line_of(root));
+}
+
+} // namespace
+
+void require_same(const Comm& comm, const std::string& what, const std::string& mine, const std::string& hint) {
+  if (comm.size() == 1) return;
+  const std::string root = comm.broadcast(mine, 0);
+  agree_on(comm, [&] {
+    if (mine != root)
+      throw InputError("rank " + std::to_string(comm.rank()) + ": " + what + " differs from rank 0's: " +
+                       first_difference(mine, root) + " (" + hint + ")");
+  });
+}
+
 bool built_with_mpi() {
 #ifdef OTMPM_HAVE_MPI
   return true;

@@ -129,6 +129,17 @@ private:
 /// One reduction when no rank failed; nothing but `step` on one rank.
 void agree_on(const Comm& comm, const std::function<void()>& step);
 
+/// Requires that `mine` is the same text on every rank of `comm` - before a
+/// collective operation that a difference would hang or corrupt (ranks that
+/// read different scenes: a scene file rewritten while a job started, a
+/// stale copy on one node, an MPMD command line; a relative path resolved in
+/// working directories that differ per node). Otherwise every rank throws
+/// the same InputError, naming the lowest rank R whose text differs and the
+/// first difference: "rank R: WHAT differs from rank 0's: line N is 'A'
+/// where rank 0 has 'B' (HINT)" ("line N" only for a text of several lines).
+/// One broadcast and one reduction.
+void require_same(const Comm& comm, const std::string& what, const std::string& mine, const std::string& hint);
+
 /// True when this otmpm was built with MPI (OTMPM_MPI).
 bool built_with_mpi();
 

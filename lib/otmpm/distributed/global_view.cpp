@@ -3,12 +3,20 @@
 #include "otmpm/distributed/global_view.hpp"
 
 #include "otmpm/io/checkpoint.hpp"
+#include "otmpm/io/output_files.hpp"
 #include "otmpm/reference/exact.hpp"
 
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
 #include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <limits>
 #include <set>
 #include <sstream>
-#include <limits>
 
 namespace otmpm::distributed {
 
@@ -123,6 +131,56 @@ ParallelIo parallel_io(const Comm& comm) {
 
 template <int D> ParallelIo GlobalView<D>::parallel_io() const {
   return d_ ? distributed::parallel_io(d_->comm()) : ParallelIo{};
+}
+
+template <int D> void GlobalView<D>::require_shared_file(const std::string& path) const {
+  if (!d_) return;
+  const std::string token = share(new_run_id()); // the probe's name and content
+  namespace fs = std::filesystem;
+  const Comm& comm = d_->comm();
+  std::error_code ec;
+  const fs::path resolved = fs::weakly_canonical(fs::absolute(path, ec), ec);
+  require_same(comm, "the absolute path of the result file '" + path + "'", resolved.string(),
+               "the ranks write one result file together: give an absolute path, or start every rank in the same "
+               "working directory");
+  const std::string probe =
+      (resolved.parent_path() / ("." + resolved.filename().string() + ".otmpm-ranks-" + token)).string();
+  bool created = false;
+  if (writes()) created = (std::ofstream(probe) << token).good();
+  // Where the writing rank cannot create a file, the claim of the output
+  // files that follows says why (prepare_outputs: a missing directory, ...).
+  if (share(created ? "1" : "0") != "1") return;
+  struct Remove { // by the writing rank, once every rank looked at it
+    const std::string& path;
+    bool writes;
+    ~Remove() {
+      if (writes) ::unlink(path.c_str());
+    }
+  } remove{probe, writes()};
+  agree_on(comm, [&] {
+    const std::string rank = "rank " + std::to_string(comm.rank()), file = "the result file '" + resolved.string() + "'";
+    const int fd = ::open(probe.c_str(), O_RDWR | O_CLOEXEC);
+    const int err = errno;
+    char text[64] = {};
+    const bool seen = fd >= 0 && ::read(fd, text, sizeof text - 1) >= 0 && token == text;
+    if (fd >= 0) ::close(fd);
+    require(fd >= 0 || err != ENOENT, rank, " does not see the file rank 0 created beside ", file,
+            ": the ranks write one result file together, in a directory that every node shares (not one local to "
+            "each node)");
+    require(fd >= 0, rank, " cannot write beside ", file, " (", std::strerror(err),
+            "): the ranks write one result file together, in a directory writable on every node");
+    require(seen, rank, " does not see the content rank 0 wrote beside ", file,
+            ": the ranks write one result file together, in a directory that every node shares");
+  });
+}
+
+template <int D> void GlobalView<D>::require_readable(const std::string& path, const std::string& what) const {
+  if (!d_) return;
+  const Comm& comm = d_->comm();
+  agree_on(comm, [&] {
+    const std::ifstream in(path);
+    require(in.good(), "rank ", comm.rank(), ": cannot read ", what, " '", path, "' (", std::strerror(errno), ")");
+  });
 }
 
 template <int D> typename GlobalView<D>::Block GlobalView<D>::block(const double* local, int cols) const {

@@ -33,6 +33,21 @@ public:
   void collectively(const std::function<void()>& write) const;
   /// How the ranks write one result file together (a serial file: none).
   ParallelIo parallel_io() const;
+  /// Before the ranks write the file `path` together (collectively): that
+  /// every rank resolves it to the same absolute path (require_same: a
+  /// relative path in working directories that differ per node is refused)
+  /// and reaches the same directory with write access - the writing rank
+  /// creates a file of a random name and content beside it, every rank
+  /// opens it for writing and reads its content back (a directory that is
+  /// local to each node, or mounted read-only on one, is refused).
+  /// InputError on every rank naming the lowest rank that fails. Where the
+  /// writing rank itself cannot create a file, nothing more is checked here
+  /// (the claim of the output files says why). Nothing to check in a serial run.
+  void require_shared_file(const std::string& path) const;
+  /// That every rank can read the file `path` (before the ranks read it and
+  /// write what they read collectively): InputError on every rank naming
+  /// the lowest rank that cannot.
+  void require_readable(const std::string& path, const std::string& what) const;
   /// The writing rank's `text` on every rank.
   std::string share(const std::string& text) const { return d_ ? d_->comm().broadcast(text, 0) : text; }
   /// Facts of a distributed run for the result file's root attributes

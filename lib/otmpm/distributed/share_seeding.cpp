@@ -179,10 +179,12 @@ void count(const Scene& scene, const Comm& comm, const Vec<D>& h, const Cartesia
   std::vector<std::unique_ptr<RangeCounter>> counters(plan.cells.size());
   for (std::size_t b = 0; b < counters.size(); ++b)
     if (plan.cells[b].by_cells) counters[b] = std::make_unique<RangeCounter>(plan.runs[b], plan.first[b]);
+  WallSides<D> sides(scene, h);
   auto place = [&](const SeedSpot& s, const Vec<D>& x) {
     const std::size_t b = static_cast<std::size_t>(s.body);
     if (counters[b]) counters[b]->placed(s.cell);
     else if ((s.index / kCountRun) % comm.size() != comm.rank()) return -1LL;
+    sides.visit(x, s.body, seeding_order(s));
     const Index<D> c = lattice.cell_of(x);
     if (!home.empty() && home.back() == c) ++weight.back();
     else home.push_back(c), weight.push_back(1);
@@ -211,6 +213,10 @@ void count(const Scene& scene, const Comm& comm, const Vec<D>& h, const Cartesia
         error = std::min(error, ErrorAt{plan.unit[b] + plan.cells[b].count() - 1, kNone, std::current_exception()});
       }
   agree_on_first(comm, error);
+  const std::string packed = sides.pack(); // the particles behind walls, of all ranks
+  WallSides<D> all(scene, h);
+  for (const Bytes& in : comm.allgather(Bytes(packed.begin(), packed.end()))) all.merge(std::string(in.begin(), in.end()));
+  all.refuse();
   for (std::size_t b = 0; b < tally.size(); ++b)
     if (!plan.cells[b].by_cells &&
         comm.min(static_cast<std::int64_t>(plan.whole[b])) != comm.max(static_cast<std::int64_t>(plan.whole[b])))

@@ -15,9 +15,9 @@ Constraints<D>::Constraints(Dirichlet<D> dirichlet, std::vector<Wall<D>> walls, 
     require<std::invalid_argument>(w.point.allFinite() && w.velocity.allFinite() && std::isfinite(w.friction) &&
                                        w.friction >= 0.0,
                                    "Constraints: wall '", w.name, "': point, velocity and friction >= 0 must be finite");
-    require<std::invalid_argument>(w.normal.allFinite() && w.normal.norm() > 0.0, "Constraints: wall '", w.name,
+    require<std::invalid_argument>(is_direction<D>(w.normal), "Constraints: wall '", w.name,
                                    "': the normal must be finite and non-zero");
-    w.normal.normalize();
+    w.normal = w.normal.stableNormalized();
   }
   require<std::invalid_argument>(d_.fix.size() == d_.node.size() && d_.value.size() == d_.node.size(),
                                  "Constraints: ", d_.node.size(), " nodes but ", d_.fix.size(), " fix flags and ",

@@ -75,10 +75,7 @@ Engine<D>::Engine(EngineParts<D> parts)
   constraints_ = Constraints<D>(std::move(parts.dirichlet), std::move(parts.walls), field_nodes);
   if (dist_) constraints_.count_only(dist_->owned_nodes());
   bool needs_F = false;
-  for (const auto& m : materials_) {
-    needs_F = needs_F || m->needs_deformation_gradient();
-    p_modulus_.push_back(m->p_modulus());
-  }
+  for (const auto& m : materials_) needs_F = needs_F || m->needs_deformation_gradient();
   needs_F = needs_F || basis_->point_state_use(mode_.nodes_move()).deformation; // basis.metric = "deformation"
   if (needs_F && P_.F.empty()) P_.F.assign(static_cast<std::size_t>(P_.size()), Mat<D>::Identity());
   for (const auto& m : materials_) m->bind(P_);

@@ -140,6 +140,8 @@ public:
   void step();
   /// Time step from the CFL condition or the fixed dt, at most t_end - t.
   double stable_dt() const;
+  /// The fastest signal of the CFL condition: max_p max(c_p, |v_p|) of all particles (all ranks).
+  double wave_speed() const { return wave_speed_; }
 
   Particles<D>& particles() { return P_; }
   const Particles<D>& particles() const { return P_; }
@@ -333,7 +335,6 @@ private:
   NodeMode<D> mode_;
   Particles<D> P_;
   std::vector<std::unique_ptr<Material<D>>> materials_;
-  std::vector<double> p_modulus_; ///< per material, for the wave speed
   Constraints<D> constraints_;
   std::unique_ptr<BodyContact<D>> contact_;
   AlignedVector<Vec<D>> field_positions_; ///< with contact: x_I repeated per field (fixed grid)

@@ -84,17 +84,13 @@ template <int D> void Engine<D>::sum_particles(bool check) {
     // far as the compiler knows), in particle order.
     const Vec<D>* v = P_.v.data();
     const double* m = P_.m.data();
-    const double* rho = P_.rho.data();
-    const int* material = P_.material.data();
-    const double* modulus = p_modulus_.data();
     double kinetic = acc.kinetic, wave_speed2 = acc.wave_speed2;
     Vec<D> momentum = acc.momentum;
     for (int p = p0; p < p1; ++p) {
       const double v2 = v[p].squaredNorm();
       kinetic += 0.5 * m[p] * v2;
       momentum += m[p] * v[p];
-      const double c2 = modulus[material[p]] / rho[p];
-      wave_speed2 = std::max({wave_speed2, c2, v2});
+      wave_speed2 = std::max(wave_speed2, v2);
     }
     acc.kinetic = kinetic, acc.wave_speed2 = wave_speed2, acc.momentum = momentum;
   };
@@ -108,7 +104,9 @@ template <int D> void Engine<D>::sum_particles(bool check) {
         const int id = P_.material[r0];
         int r1 = r0 + 1;
         while (r1 < s1 && P_.material[r1] == id) ++r1;
-        materials_[static_cast<std::size_t>(id)]->add_energies(P_, r0, r1, acc.strain, acc.dissipated);
+        const Material<D>& material = *materials_[static_cast<std::size_t>(id)];
+        material.add_energies(P_, r0, r1, acc.strain, acc.dissipated);
+        material.max_wave_speed2(P_, r0, r1, acc.wave_speed2); // the model's own c_p
         r0 = r1;
       }
     }

@@ -74,10 +74,10 @@ public:
   CylinderShape(const Vec<3>& base, const Vec<3>& axis, double radius, double length)
       : base_(base), radius_(radius), length_(length) {
     require(base.allFinite(), "cylinder: center ", base, " is not finite");
-    require(axis.allFinite() && axis.norm() > 0.0, "cylinder: axis ", axis, " must be a finite, non-zero vector");
+    require(is_direction<3>(axis), "cylinder: axis ", axis, " must be a finite, non-zero vector");
     require(finite_positive(radius), "cylinder: radius must be finite and > 0, got ", radius);
     require(finite_positive(length), "cylinder: length must be finite and > 0, got ", length);
-    axis_ = axis.normalized();
+    axis_ = axis.stableNormalized();
   }
   bool contains(const Vec<3>& x) const override {
     const Vec<3> d = x - base_;
@@ -177,6 +177,8 @@ template <int D> void ParticleCells<D>::add(const Vec<D>& x, double volume, cons
 }
 
 template <int D> void ParticleCells<D>::index() {
+  bucket_ = cell_;
+  for (int d = 0; d < D; ++d) bucket_ = std::max(bucket_, (upper_[d] - lower_[d]) / kMaxBuckets);
   for (Cube& c : cubes_) c.key = key(c.x);
   std::sort(cubes_.begin(), cubes_.end(), [](const Cube& a, const Cube& b) { return a.key < b.key; });
 }
@@ -196,19 +198,22 @@ template <int D> std::unique_ptr<ParticleCells<D>> ParticleCells<D>::Builder::fi
 
 template <int D> long long ParticleCells<D>::key(const Vec<D>& x) const {
   long long k = 0;
-  for (int d = 0; d < D; ++d) k = k * 2000003LL + static_cast<long long>(std::floor((x[d] - lower_[d]) / cell_));
+  for (int d = 0; d < D; ++d) {
+    const double c = std::floor((x[d] - lower_[d]) / bucket_);
+    k = k * kKeyBase + (c >= -1.0 ? static_cast<long long>(std::min(c, kMaxBuckets + 1)) : -1LL); // NaN: -1
+  }
   return k;
 }
 
 template <int D> bool ParticleCells<D>::contains(const Vec<D>& x) const {
   // Far from every cube (a cell beyond their bounds): no bucket to look in,
   // and no bucket index of a far point (an integer overflow) is formed.
-  if (!((x.array() >= lower_.array() - cell_).all() && (x.array() <= upper_.array() + cell_).all())) return false;
-  // A cube of half side <= cell / 2 around a centre in bucket c reaches at
-  // most the neighbouring buckets: look in the 3^D buckets around x.
+  if (!((x.array() >= lower_.array() - bucket_).all() && (x.array() <= upper_.array() + bucket_).all())) return false;
+  // A cube of half side <= cell / 2 <= bucket / 2 around a centre in bucket
+  // c reaches at most the neighbouring buckets: look in the 3^D buckets around x.
   Vec<D> probe;
   for (int n = 0; n < (D == 1 ? 3 : D == 2 ? 9 : 27); ++n) {
-    for (int d = 0, m = n; d < D; ++d, m /= 3) probe[d] = x[d] + ((m % 3) - 1) * cell_;
+    for (int d = 0, m = n; d < D; ++d, m /= 3) probe[d] = x[d] + ((m % 3) - 1) * bucket_;
     const long long k = key(probe);
     auto it = std::lower_bound(cubes_.begin(), cubes_.end(), k, [](const Cube& c, long long v) { return c.key < v; });
     for (; it != cubes_.end() && it->key == k; ++it)

@@ -81,9 +81,16 @@ private:
   /// Checks the next particle and adds it to the bounds and measure, and
   /// to the held particles unless `keep` refuses its cube.
   void add(const Vec<D>& x, double volume, const Filter& keep);
-  /// Sorts the held particles into their buckets (after the last add).
+  /// Sorts the held particles into their buckets (after the last add):
+  /// cubes of side bucket_ - the largest particle's cube, or more where the
+  /// particles' extent would need more than kMaxBuckets of them per axis
+  /// (tiny volumes far apart), so that a bucket's key never overflows.
   void index();
+  /// The key of the bucket of x: its coordinates floor((x - lower) / bucket_)
+  /// clamped to [-1, kMaxBuckets + 1] (outside: no cube), base kKeyBase digits.
   long long key(const Vec<D>& x) const;
+  static constexpr double kMaxBuckets = 1 << 20;
+  static constexpr long long kKeyBase = 2000003; ///< > kMaxBuckets + 3: keys of distinct buckets differ
   /// A held particle's cube: its bucket's key, centre and half side.
   struct Cube {
     long long key;
@@ -93,6 +100,7 @@ private:
   AlignedVector<Cube> cubes_; ///< sorted by key after index() (32 bytes each in 2D, 40 in 3D)
   Vec<D> lower_, upper_;
   double cell_ = 1.0, total_ = 0.0;
+  double bucket_ = 1.0; ///< side of a bucket (index())
   std::size_t count_ = 0; ///< the particles added
 };
 

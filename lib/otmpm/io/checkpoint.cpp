@@ -298,7 +298,7 @@ void seal_file(const std::string& path, const std::string& run_id, const Paralle
   on_all(io, [&] {
     std::error_code ec;
     h.size = fs::file_size(path, ec);
-    if (ec) throw std::runtime_error(path + ": cannot size the checkpoint: " + ec.message());
+    if (ec) throw OutputError(path + ": cannot size the checkpoint: " + ec.message());
     in.open(path, std::ios::binary);
     if (!in) throw OutputError(path + ": cannot reopen the checkpoint to seal it: " + std::strerror(errno));
   });
@@ -475,7 +475,7 @@ void sync_file(const std::string& path) {
   const int fd = ::open(path.c_str(), O_RDONLY);
   const bool ok = fd >= 0 && ::fsync(fd) == 0;
   if (fd >= 0) ::close(fd);
-  if (!ok) throw std::runtime_error(path + ": cannot sync the checkpoint to disk: " + std::strerror(errno));
+  if (!ok) throw OutputError(path + ": cannot sync the checkpoint to disk: " + std::strerror(errno));
 }
 
 /// Writes the HDF5 content of `ck` (layout: serial, or this rank's share)
@@ -495,7 +495,9 @@ void write_content(const std::string& path, const Checkpoint& ck, const Layout& 
   const Handle fcpl(h5::checked(H5Pcreate(H5P_FILE_CREATE), path, "create a file creation list"), H5Pclose);
   h5::checked_status(H5Pset_userblock(fcpl.get(), kHeaderBytes), path, "reserve the checkpoint header");
   const hid_t id = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, fcpl.get(), fapl.get());
-  if (id < 0) throw InputError(path + ": cannot create the checkpoint file");
+  // Its location was checked when the run started: failing now is an I/O
+  // error (a directory removed meanwhile, a file system gone), not bad input.
+  if (id < 0) throw OutputError(path + ": cannot create the checkpoint file: " + std::strerror(errno));
   Handle file(id, H5Fclose);
   if (!io.mpi_comm) h5::reserve_space(h5::file_descriptor(id, path), checkpoint_bytes(ck), path);
   try {
@@ -529,7 +531,7 @@ template <class Write> void write_atomically(const std::string& path, const Para
   }
   on_all(io, [&] {
     if (io.root && std::rename(tmp.c_str(), path.c_str()) != 0)
-      throw std::runtime_error(path + ": cannot move the checkpoint into place: " + std::strerror(errno));
+      throw OutputError(path + ": cannot move the checkpoint into place: " + std::strerror(errno));
   });
 }
 
@@ -629,11 +631,19 @@ Checkpoint read_verified(const std::string& path, const Header& header, hid_t fa
   }
 }
 
+/// InputError unless `path` is a regular file (a FIFO is never opened).
+void require_checkpoint_file(const std::string& path) {
+  std::error_code ec;
+  if (const std::string kind = special_file(path); !kind.empty())
+    throw InputError(path + ": is " + kind + ", not a checkpoint file");
+  if (fs::is_directory(path, ec)) throw InputError(path + ": is a directory, not a checkpoint file");
+  if (!fs::is_regular_file(path, ec)) throw InputError(path + ": no such checkpoint file");
+}
+
 /// read_checkpoint of one process, with or without the per-row arrays.
 Checkpoint read_serial(const std::string& path, bool rows) {
   h5::silence();
-  std::error_code ec;
-  if (!fs::is_regular_file(path, ec)) throw InputError(path + ": no such checkpoint file");
+  require_checkpoint_file(path);
   const Header header = verify_file(path); // before HDF5 parses anything
   std::map<std::string, std::vector<RowShape>> heads;
   return read_verified(path, header, H5P_DEFAULT, rows ? nullptr : &heads);
@@ -725,6 +735,7 @@ Checkpoint read_checkpoint(const std::string& path) { return read_serial(path, t
 Checkpoint read_checkpoint_head(const std::string& path) { return read_serial(path, false); }
 
 std::string checkpoint_run_id(const std::string& path) {
+  if (!special_file(path).empty()) return ""; // never open a FIFO
   std::ifstream in(path, std::ios::binary);
   std::string text(kHeaderBytes, '\0');
   in.read(text.data(), static_cast<std::streamsize>(text.size()));
@@ -743,10 +754,7 @@ struct CheckpointFile::Impl {
 CheckpointFile::CheckpointFile(const std::string& path, const ParallelIo& io) : impl_(std::make_unique<Impl>()) {
   h5::silence();
   impl_->path = path;
-  on_all(io, [&] {
-    std::error_code ec;
-    if (!fs::is_regular_file(path, ec)) throw InputError(path + ": no such checkpoint file");
-  });
+  on_all(io, [&] { require_checkpoint_file(path); });
   const Header header = verify_file(path, io); // before HDF5 parses anything
   const Handle fapl(h5::checked(H5Pcreate(H5P_FILE_ACCESS), path, "create a file access list"), H5Pclose);
   if (io.mpi_comm) impl_->transfer = h5::parallel_access(fapl.get(), io.mpi_comm, path);

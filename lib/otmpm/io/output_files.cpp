@@ -5,6 +5,7 @@
 #include "otmpm/core.hpp"
 #include "otmpm/io/checkpoint.hpp"
 #include "otmpm/io/hdf5.hpp"
+#include "otmpm/io/text_files.hpp"
 
 #include <fcntl.h>
 #include <sys/file.h>
@@ -52,7 +53,23 @@ bool is_directory(const std::string& path) {
   return fs::is_directory(path, ec);
 }
 
-std::string quoted(const std::string& path) { return "'" + path + "'"; }
+/// A path as a message shows it: control characters as \\xHH, at most about kQuotedTextBytes.
+std::string shown(const std::string& path) { return shortened(text::printable(path)); }
+
+std::string quoted(const std::string& path) { return "'" + shown(path) + "'"; }
+
+/// Why `result` (its file name `name`) cannot name a result file, or "": a
+/// control character anywhere (NUL would end the path the system sees), and
+/// in the name a ':' (the XDMF sidecar refers to datasets as NAME:PATH) or
+/// text that is not UTF-8 - the sidecar and the VTK files, XML, quote the name.
+std::string unusable_result_name(const std::string& result, const std::string& name) {
+  if (const std::string c = text::control_character(result); !c.empty()) return "the result path contains " + c;
+  if (name.find(':') != std::string::npos)
+    return "the result file's name contains ':', which its XDMF sidecar cannot refer to (it names the datasets as "
+           "FILE:PATH)";
+  if (!text::valid_utf8(name)) return "the result file's name is not UTF-8 text, which its XML sidecar must quote";
+  return "";
+}
 
 /// " (ORIGIN)" or "".
 std::string from(const std::string& origin) { return origin.empty() ? "" : " (" + origin + ")"; }
@@ -84,9 +101,15 @@ OutputFiles output_files(const std::string& result, const std::string& checkpoin
                        " (that extension is for the files otmpm writes beside the result file: the XDMF sidecar, "
                        "the VTK files); name it " +
                        fs::path(result).replace_extension(".h5").string() + " - nothing was written");
+  if (ext == ".png" || ext == ".gif")
+    throw InputError(shown(result) + ": the result file is HDF5 and may not end in " + ext +
+                     " (the pictures otmpm render writes: rendering it to a picture of its own name would replace "
+                     "it); name it " + fs::path(result).replace_extension(".h5").string() + " - nothing was written");
   const std::string name = fs::path(result).filename().string();
   if (name.empty() || name == "." || name == ".." || is_directory(result))
-    throw InputError(result + ": the result file path names a directory");
+    throw InputError(shown(result) + ": the result file path names a directory");
+  if (const std::string why = unusable_result_name(result, name); !why.empty())
+    throw InputError(shown(result) + ": " + why + "; choose another name - nothing was written");
   OutputFiles f;
   f.result = result;
   f.xdmf = xdmf_path(result);
@@ -96,6 +119,11 @@ OutputFiles output_files(const std::string& result, const std::string& checkpoin
     f.vtk_dir = output_base(result) + "_vtk";
     f.vtk_extension = vtk_format;
   }
+  for (const auto& [role, path] : written_paths(f))
+    if (const std::string kind = special_file(path); !kind.empty())
+      throw InputError(shown(path) + ": the " + role + " is " + kind +
+                       ", not a regular file (otmpm writes only regular files); choose another name - nothing was "
+                       "written");
   return f;
 }
 
@@ -133,6 +161,17 @@ fs::path resolve(const std::string& path) {
 }
 
 } // namespace
+
+std::string special_file(const std::string& path) {
+  std::error_code ec;
+  switch (fs::status(path, ec).type()) { // links followed
+  case fs::file_type::fifo: return "a FIFO (named pipe)";
+  case fs::file_type::character: return "a character device";
+  case fs::file_type::block: return "a block device";
+  case fs::file_type::socket: return "a socket";
+  default: return "";
+  }
+}
 
 bool same_file(const std::string& a, const std::string& b) {
   if (resolve(a) == resolve(b)) return true;
@@ -299,24 +338,50 @@ std::string new_run_id() {
 
 namespace {
 
-/// The first value V of `<Information Name="KEY" Value="V"/>` or
-/// `KEY Value="V"` in the first kRunIdSearchBytes of an XML file for which
-/// `accept(V)` holds ("" when there is none). (Plain string search: GCC 12's
+/// `v` with the entities xml_escape writes (&amp; &lt; &gt; &quot;) replaced by their characters.
+std::string xml_unescape(std::string_view v) {
+  constexpr std::array<std::pair<std::string_view, char>, 4> kEntities = {
+      {{"&amp;", '&'}, {"&lt;", '<'}, {"&gt;", '>'}, {"&quot;", '"'}}};
+  std::string out;
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    bool replaced = false;
+    for (const auto& [entity, c] : kEntities)
+      if (v.substr(i, entity.size()) == entity) {
+        out += c;
+        i += entity.size() - 1;
+        replaced = true;
+        break;
+      }
+    if (!replaced) out += v[i];
+  }
+  return out;
+}
+
+/// The first value V for which `accept(V)` holds of `KEY="V"` (the VTKFile
+/// attributes of otmpm's VTK outputs), `<Information Name="KEY" Value="V"/>`
+/// (the XDMF sidecar) or `KEY Value="V"` (the comment of VTK outputs of
+/// otmpm before the attributes) in the first kRunIdSearchBytes of an XML
+/// file, unescaped; "" when there is none. (Plain string search: GCC 12's
 /// std::regex does not compile warning-free under the sanitizers.)
 std::string xml_mark(const std::string& path, const std::string& key, bool (*accept)(std::string_view)) {
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) return ""; // a FIFO would block the read
   std::ifstream in(path, std::ios::binary);
   std::string head(kRunIdSearchBytes, '\0');
   in.read(head.data(), static_cast<std::streamsize>(head.size()));
   head.resize(static_cast<std::size_t>(in.gcount()));
-  const std::string_view text = head, marker = " Value=\"";
+  const std::string_view text = head;
   for (std::size_t at = text.find(key); at != std::string_view::npos; at = text.find(key, at + 1)) {
-    std::size_t v = at + key.size();
-    if (v < text.size() && text[v] == '"') ++v;
-    if (text.substr(v, marker.size()) != marker) continue;
-    v += marker.size();
+    const std::size_t after = at + key.size();
+    std::size_t v = std::string_view::npos;
+    for (const std::string_view marker : {std::string_view("=\""), std::string_view("\" Value=\""),
+                                          std::string_view(" Value=\"")})
+      if (text.substr(after, marker.size()) == marker) v = after + marker.size();
+    if (v == std::string_view::npos) continue;
     const std::size_t end = text.find('"', v);
     if (end == std::string_view::npos) break;
-    if (accept(text.substr(v, end - v))) return std::string(text.substr(v, end - v));
+    const std::string value = xml_unescape(text.substr(v, end - v));
+    if (accept(value)) return value;
   }
   return "";
 }
@@ -359,7 +424,7 @@ std::string optional_string(hid_t file, const char* name, const std::string& pat
 ExistingResult inspect_result(const std::string& path) {
   ExistingResult r;
   r.present = occupied(path);
-  if (!r.present || is_directory(path)) return r;
+  if (!r.present || is_directory(path) || !special_file(path).empty()) return r; // never open a FIFO
   h5::silence();
   if (H5Fis_hdf5(path.c_str()) <= 0) return r;
   const hid_t id = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);

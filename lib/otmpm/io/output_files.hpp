@@ -50,13 +50,23 @@ std::string default_checkpoint_path(const std::string& result);
 
 /// The files of a run writing `result`. `checkpoint`: "" for none;
 /// `vtk_format`: "", "vtp" or "vtu". InputError when the result path is empty,
-/// names a directory, or has an extension reserved for the files beside it
-/// (.xdmf, .xmf, .pvd, .vtp, .vtu: "res.xdmf" would be its own sidecar).
+/// names a directory, has an extension reserved for the files beside it
+/// (.xdmf, .xmf, .pvd, .vtp, .vtu: "res.xdmf" would be its own sidecar),
+/// contains a control character, or has a file name with ':' or not in
+/// UTF-8 (the XML sidecar and VTK files quote it), or when one of the paths
+/// names a FIFO, a device or a socket (special_file).
 OutputFiles output_files(const std::string& result, const std::string& checkpoint, const std::string& vtk_format);
 
 /// Every path the run writes, with its role ("result file", "XDMF sidecar",
 /// "checkpoint", "checkpoint temporary", ...), temporaries and lock files included.
 std::vector<std::pair<std::string, std::string>> written_paths(const OutputFiles& files);
+
+/// "a FIFO (named pipe)" (or "a character device", "a block device", "a
+/// socket") when `path` names such a thing, links followed; "" when it
+/// names a regular file, a directory or nothing. Every file otmpm opens
+/// is checked first: opening a FIFO blocks until another process opens its
+/// other end, and a device is no place for results.
+std::string special_file(const std::string& path);
 
 /// True when `a` and `b` name the same file: equal after
 /// std::filesystem::weakly_canonical (links, "." and ".." resolved), or the

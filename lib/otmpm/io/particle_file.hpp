@@ -9,6 +9,8 @@
 ///    datasets of n values): `density` (overrides the material's for the
 ///    particle's mass) or the name of a material state variable (its
 ///    initial value, e.g. `plastic_strain`).
+#include "otmpm/parameters.hpp"
+
 #include <cstddef>
 #include <functional>
 #include <map>
@@ -38,6 +40,21 @@ struct ParticleColumns {
   long long rows = -1;             ///< its number of rows when known before reading them (HDF5), else -1
 };
 
+/// What the rows of a particle file must satisfy beyond finite numbers and
+/// volumes > 0, so that its values meet the checks of the scene keys of the
+/// same quantity: the range of each further column (ParameterSpec: the row
+/// that checks the scene key, e.g. material.NAME.density for `density`, or
+/// a state variable's StateSpec range), with the message form of those keys
+/// ("FILE:LINE: column 'density': must be > 0 (got -1)"). A further column
+/// without a rule is refused when the file's layout is read (`known` says
+/// which columns the file may have), and so is a file of more than
+/// `max_rows` rows (-1: no cap) - as soon as its row count is known.
+struct ParticleFileRules {
+  std::map<std::string, ParameterSpec, std::less<>> columns;
+  std::string known; ///< "x, y, volume, vx, vy, density or plastic_strain": the columns allowed
+  long long max_rows = -1;
+};
+
 /// Consecutive rows [first, first + size()) of a particle file, laid out as
 /// in ParticleFile (positions and velocities row-major, size() x D).
 struct ParticleRows {
@@ -57,10 +74,12 @@ inline constexpr std::size_t kParticleChunk = 65536;
 /// most `chunk` rows are held at once. The checks and messages are those of
 /// read_particle_file; the blocks before the one holding a bad row have been
 /// handed over when it throws. The file's layout (columns, datasets and
-/// their sizes) is checked before any row is handed over.
+/// their sizes; with `rules`, its further columns and an HDF5 file's row
+/// count) is checked before any row is handed over; with `rules`, every row
+/// is checked against them before its block is handed over.
 void stream_particle_file(const std::string& path, int dimension,
                           const std::function<void(const ParticleColumns&, const ParticleRows&)>& each,
-                          std::size_t chunk = kParticleChunk);
+                          std::size_t chunk = kParticleChunk, const ParticleFileRules* rules = nullptr);
 
 /// Reads a whole particle file (CSV when the name ends in .csv, else HDF5).
 /// Throws InputError naming the file and the line and column (CSV) or the
@@ -74,7 +93,9 @@ void stream_particle_file(const std::string& path, int dimension,
 /// are reserved for the file's rows up front when they are known before
 /// reading them: an HDF5 file's extent, else `expected_rows` when > 0 (a
 /// hint, e.g. the count the scene reader found; a CSV file may hold more).
-ParticleFile read_particle_file(const std::string& path, int dimension, long long expected_rows = -1);
+/// `rules`: as for stream_particle_file.
+ParticleFile read_particle_file(const std::string& path, int dimension, long long expected_rows = -1,
+                                const ParticleFileRules* rules = nullptr);
 
 /// How many passes over the particle file `path` (as spelt by the caller)
 /// stream_particle_file - and so read_particle_file - has begun in this

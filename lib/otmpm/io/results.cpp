@@ -16,6 +16,9 @@
 #include "otmpm/io/text_files.hpp"
 #include "otmpm/io/vtk.hpp"
 
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -212,11 +215,10 @@ std::uint64_t frame_bytes(const std::vector<FieldView>& fields, int dimension, s
 std::string invalid_name_reason(const std::string& name) {
   if (name.empty()) return "it is empty";
   if (name.size() > kMaxNameBytes) return "it is longer than " + std::to_string(kMaxNameBytes) + " bytes";
-  for (unsigned char c : name) {
-    if (c == '/') return "it contains '/' (an HDF5 path separator)";
-    if (c == '.') return "it contains '.' (a --set key separator; '.' and '..' are HDF5 path components)";
-    if (c < 0x20 || c == 0x7f) return "it contains a control character (code " + std::to_string(c) + ")";
-  }
+  if (const std::string c = text::control_character(name); !c.empty()) return "it contains " + c;
+  if (name.find('/') != std::string::npos) return "it contains '/' (an HDF5 path separator)";
+  if (name.find('.') != std::string::npos)
+    return "it contains '.' (a --set key separator; '.' and '..' are HDF5 path components)";
   if (name.front() == ' ' || name.back() == ' ') return "it starts or ends with a space";
   return "";
 }
@@ -238,8 +240,12 @@ struct ResultWriter::Impl {
   int dimension = 0;
   bool single = false;  ///< frames' particle datasets as 32-bit floats
   int deflate = 0;      ///< ResultOptions::compression
-  int fd = -1;          ///< the file's descriptor (space reservations)
+  int fd = -1;          ///< the file's descriptor (space reservations; a parallel file's on the root only)
+  bool own_fd = false;  ///< fd was opened here (a parallel file, whose driver holds an MPI_File): closed at the end
   bool broken = false;  ///< an HDF5 write failed: the file is left alone from then on
+  ~Impl() {
+    if (own_fd) ::close(fd);
+  }
   std::vector<FrameInfo> frame_infos;
   std::map<std::string, ProbeInfo> probe_infos; ///< by path: "probes/<name>" or a root series name
   std::set<long long> vertex_counts;                ///< the vertices_N datasets written
@@ -299,12 +305,24 @@ struct ResultWriter::Impl {
   /// is not allocated ahead with fallocate: HDF5 truncates the file at every
   /// flush, and freeing preallocated blocks there widened the moment in which
   /// a killed run leaves a "truncated file" from microseconds to milliseconds.)
+  /// A parallel file: the root checks (it holds the file's size and writes
+  /// the sidecars) and every rank throws when it found no room (collective),
+  /// so no rank starts a write the others do not make.
   void reserve(std::uint64_t bytes, std::uint64_t beside = 0) const {
-    if (fd < 0) return;
-    h5::check_room(fd, bytes + kFinalReserve, path);
-    const std::uint64_t per_frame = xdmf_bytes_frames > 0 ? xdmf_bytes / xdmf_bytes_frames + 1 : kMetadataBytes;
-    const std::uint64_t sidecar = kMetadataBytes + (frame_infos.size() + 2) * per_frame;
-    h5::require_room(xdmf_path, 2 * sidecar * (vtk ? 2 : 1) + beside, std::max(sidecar, beside));
+    std::string refused;
+    try {
+      if (fd >= 0) {
+        h5::check_room(fd, bytes + kFinalReserve, path);
+        const std::uint64_t per_frame = xdmf_bytes_frames > 0 ? xdmf_bytes / xdmf_bytes_frames + 1 : kMetadataBytes;
+        const std::uint64_t sidecar = kMetadataBytes + (frame_infos.size() + 2) * per_frame;
+        h5::require_room(xdmf_path, 2 * sidecar * (vtk ? 2 : 1) + beside, std::max(sidecar, beside));
+      }
+    } catch (const OutputError& e) {
+      if (!parallel.all) throw;
+      refused = e.what();
+    }
+    if (parallel.all && !parallel.all(refused.empty()))
+      throw OutputError(refused.empty() ? path + ": no room for the next write (found by rank 0)" : refused);
   }
 
   /// Runs `write`, which writes to the HDF5 file. An HDF5 failure marks the
@@ -362,9 +380,10 @@ ResultWriter::ResultWriter(const std::string& path, const std::string& scene_tex
     throw InputError(path + ": cannot create the result file" + (cause.empty() ? "" : ": " + cause));
   }
   m.file = Handle(file, H5Fclose);
-  // A parallel file's driver handle is an MPI_File, not a descriptor: its
-  // writes are not reserved ahead (a full disk is an HDF5 write failure).
+  // A parallel file's driver handle is an MPI_File, not a descriptor: the
+  // root opens the file once more to check the room for each write.
   if (!m.parallel.mpi_comm) m.fd = h5::file_descriptor(file, path);
+  else if (m.root()) m.own_fd = (m.fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC)) >= 0;
   m.reserve(scene_text.size() + 8 * kMetadataBytes);
   m.guarded("write the root attributes", [&] {
     m.frames = h5::create_group(file, "frames", path);

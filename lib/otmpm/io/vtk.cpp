@@ -129,9 +129,9 @@ std::string VtkSeriesWriter::frame_text(double time, const std::vector<FieldView
   const bool poly = extension_ == "vtp";
   const std::string type = poly ? "PolyData" : "UnstructuredGrid";
   std::ostringstream os;
-  os << "<?xml version=\"1.0\"?>\n" << text::run_id_comment(run_id_, result_name_) << "\n"
-     << "<VTKFile type=\"" << type << "\" version=\"1.0\" byte_order=\"" << byte_order()
-     << "\" header_type=\"UInt64\">\n  <" << type << ">\n    <FieldData>\n      "
+  os << "<?xml version=\"1.0\"?>\n<VTKFile type=\"" << type << "\" version=\"1.0\" byte_order=\"" << byte_order()
+     << "\" header_type=\"UInt64\"" << text::run_id_attributes(run_id_, result_name_) << ">\n  <" << type
+     << ">\n    <FieldData>\n      "
      << "<DataArray type=\"Float64\" Name=\"TimeValue\" NumberOfTuples=\"1\" format=\"appended\" offset=\""
      << time_offset << "\"/>\n    </FieldData>\n";
   if (poly)
@@ -155,9 +155,9 @@ std::string VtkSeriesWriter::pieces_text(int index, const std::vector<FieldView>
   const bool poly = extension_ == "vtp";
   const std::string type = poly ? "PPolyData" : "PUnstructuredGrid";
   std::ostringstream os;
-  os << "<?xml version=\"1.0\"?>\n" << text::run_id_comment(run_id_, result_name_) << "\n"
-     << "<VTKFile type=\"" << type << "\" version=\"1.0\" byte_order=\"" << byte_order()
-     << "\" header_type=\"UInt64\">\n  <" << type << " GhostLevel=\"0\">\n    <PPointData>\n";
+  os << "<?xml version=\"1.0\"?>\n<VTKFile type=\"" << type << "\" version=\"1.0\" byte_order=\"" << byte_order()
+     << "\" header_type=\"UInt64\"" << text::run_id_attributes(run_id_, result_name_) << ">\n  <" << type
+     << " GhostLevel=\"0\">\n    <PPointData>\n";
   for (const FieldView& f : fields)
     if (f.name != "x")
       os << "      <PDataArray type=\"" << real_type(single_) << "\" Name=\"" << text::xml_escape(f.name)
@@ -193,8 +193,8 @@ void VtkSeriesWriter::publish() {
   if (!io_.root) return;
   if (published_ == frames_.size() && published_ > 0) return;
   std::ostringstream os;
-  os << "<?xml version=\"1.0\"?>\n" << text::run_id_comment(run_id_, result_name_) << "\n"
-     << "<VTKFile type=\"Collection\" version=\"0.1\" byte_order=\"" << byte_order() << "\">\n  <Collection>\n";
+  os << "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\" byte_order=\"" << byte_order() << "\""
+     << text::run_id_attributes(run_id_, result_name_) << ">\n  <Collection>\n";
   for (const auto& [time, file] : frames_)
     os << "    <DataSet timestep=\"" << text::exact(time) << "\" group=\"\" part=\"0\" file=\""
        << text::xml_escape(file) << "\"/>\n";

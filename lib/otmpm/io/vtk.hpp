@@ -15,8 +15,8 @@
 /// time as field data `TimeValue`. Arrays are stored as raw appended binary
 /// (header_type UInt64, the machine's byte order), so every bit of the
 /// doubles is kept. Every file carries the run id and the result file's
-/// name in a comment (`<!-- otmpm_run_id Value="..." otmpm_result Value="..." -->`,
-/// see output_files.hpp).
+/// name as attributes of its VTKFile element (`otmpm_run_id="..."
+/// otmpm_result="..."`, see output_files.hpp).
 ///
 /// A distributed run writes each frame in pieces, ParaView's convention for
 /// parallel data: every rank its rows of the frame (in global order, the

@@ -64,13 +64,18 @@ private:
 /// Finite strain: F_p = (I + H) F_p, V_p = det F_p V0_p, rho_p = m_p / V_p,
 /// sigma_p = Law(F_p), eps_p = sym(F_p) - I (for the energy monitor).
 /// ZzLaw: sigma_zz of the law in plane strain from the in-plane F_p
-/// (out_of_plane_stress).
+/// (out_of_plane_stress); WaveLaw: rho0 c^2 of its fastest wave at F_p.
 template <int D, Mat<D> (*Law)(const ElasticConstants&, const Mat<D>&),
-          double (*ZzLaw)(const ElasticConstants&, const Mat<2>&)>
+          double (*ZzLaw)(const ElasticConstants&, const Mat<2>&),
+          double (*WaveLaw)(const ElasticConstants&, const Mat<D>&)>
 class FiniteElastic final : public Material<D> {
 public:
   explicit FiniteElastic(const MaterialParameters& p) : Material<D>(p), c_(p.elastic()) {}
   bool needs_deformation_gradient() const override { return true; }
+  /// c_p^2 = WaveLaw(F_p) / rho0_p, rho0_p = m_p / V0_p.
+  void max_wave_speed2(const Particles<D>& P, int p0, int p1, double& c2) const override {
+    for (int p = p0; p < p1; ++p) c2 = std::max(c2, WaveLaw(c_, P.F[p]) * P.V0[p] / P.m[p]);
+  }
   void update(Particles<D>& P, int p0, int p1, const Mat<D>* H, double) const override {
     const ElasticConstants c = c_; // a local: the stores below cannot alias it
     for (int p = p0; p < p1; ++p) {
@@ -104,10 +109,12 @@ template <int D> std::unique_ptr<Material<D>> make_linear_elastic(const Material
   return std::make_unique<LinearElastic<D>>(p);
 }
 template <int D> std::unique_ptr<Material<D>> make_linear_elastic_finite(const MaterialParameters& p) {
-  return std::make_unique<FiniteElastic<D, linear_elastic_finite_stress<D>, linear_elastic_finite_out_of_plane>>(p);
+  return std::make_unique<FiniteElastic<D, linear_elastic_finite_stress<D>, linear_elastic_finite_out_of_plane,
+                                         linear_elastic_finite_wave_modulus<D>>>(p);
 }
 template <int D> std::unique_ptr<Material<D>> make_neo_hookean(const MaterialParameters& p) {
-  return std::make_unique<FiniteElastic<D, neo_hookean_stress<D>, neo_hookean_out_of_plane>>(p);
+  return std::make_unique<FiniteElastic<D, neo_hookean_stress<D>, neo_hookean_out_of_plane,
+                                         neo_hookean_wave_modulus<D>>>(p);
 }
 
 } // namespace

@@ -2,16 +2,16 @@
 /// The elastic stress laws of elasticity.hpp and the checks of the constants.
 #include "otmpm/materials/elasticity.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 namespace otmpm {
 
 void ElasticConstants::validate(const std::string& name) const {
-  const std::string what = "material '" + name + "': ";
-  require(finite_positive(density), what, "density must be finite and > 0, got ", density);
-  require(finite_positive(young), what, "young must be finite and > 0, got ", young);
-  require(std::isfinite(poisson) && poisson > -1.0 && poisson < 0.5, what, "poisson must be in (-1, 0.5), got ",
-          poisson);
+  for (const auto& [spec, value] : {std::pair{&kDensity, density}, {&kYoung, young}, {&kPoisson, poisson}}) {
+    const std::string why = spec->check(value);
+    require(why.empty(), "material '", name, "': ", spec->key, " ", why);
+  }
 }
 
 namespace {
@@ -38,6 +38,24 @@ template <int D> Mat<D> neo_hookean_stress(const ElasticConstants& c, const Mat<
   return (lame_lambda(c, D) * std::log(J) / J) * I + (lame_mu(c, D) / J) * (F * F.transpose() - I);
 }
 
+namespace {
+/// The largest row sum of |F F^T|: an upper bound of its largest eigenvalue,
+/// exact for a diagonal F F^T.
+template <int D> double largest_stretch2(const Mat<D>& F) {
+  const Mat<D> b = F * F.transpose();
+  return b.cwiseAbs().rowwise().sum().maxCoeff();
+}
+} // namespace
+
+template <int D> double linear_elastic_finite_wave_modulus(const ElasticConstants& c, const Mat<D>& F) {
+  return (lame_lambda(c, D) + 2.0 * lame_mu(c, D)) * largest_stretch2<D>(F);
+}
+
+template <int D> double neo_hookean_wave_modulus(const ElasticConstants& c, const Mat<D>& F) {
+  const double J = checked_det<D>(F, "neo_hookean");
+  return std::max(0.0, lame_lambda(c, D) * (1.0 - std::log(J)) + lame_mu(c, D) * (largest_stretch2<D>(F) + 1.0));
+}
+
 double linear_elastic_finite_out_of_plane(const ElasticConstants& c, const Mat<2>& F) {
   const double J = checked_det<2>(F, "linear_elastic_finite");
   return (c.lambda() / J) * ((F(0, 0) - 1.0) + (F(1, 1) - 1.0));
@@ -50,7 +68,9 @@ double neo_hookean_out_of_plane(const ElasticConstants& c, const Mat<2>& F) {
 
 #define OTMPM_INSTANTIATE(D)                                                                 \
   template Mat<D> linear_elastic_finite_stress<D>(const ElasticConstants&, const Mat<D>&);  \
-  template Mat<D> neo_hookean_stress<D>(const ElasticConstants&, const Mat<D>&);
+  template Mat<D> neo_hookean_stress<D>(const ElasticConstants&, const Mat<D>&);                  \
+  template double linear_elastic_finite_wave_modulus<D>(const ElasticConstants&, const Mat<D>&);  \
+  template double neo_hookean_wave_modulus<D>(const ElasticConstants&, const Mat<D>&);
 OTMPM_INSTANTIATE(1)
 OTMPM_INSTANTIATE(2)
 OTMPM_INSTANTIATE(3)

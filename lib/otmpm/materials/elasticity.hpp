@@ -11,10 +11,18 @@
 /// In 1D the uniaxial modulus of the finite-strain models is lambda + 2 mu,
 /// which equals E for nu = 0 (the value every 1D benchmark uses).
 #include "otmpm/core.hpp"
+#include "otmpm/parameters.hpp"
 
 #include <string>
 
 namespace otmpm {
+
+/// The ranges of the constants every material has - the scene keys
+/// material.NAME.density, .young and .poisson - read by the scene reader,
+/// validate_material and the density column of a particle file alike.
+inline constexpr ParameterSpec kDensity{"density", "reference mass density rho_0 [kg/m^3]", std::nullopt, 0.0, true};
+inline constexpr ParameterSpec kYoung{"young", "Young's modulus E [Pa]", std::nullopt, 0.0, true};
+inline constexpr ParameterSpec kPoisson{"poisson", "Poisson's ratio nu", std::nullopt, -1.0, true, 0.5, true};
 
 /// Density and isotropic elastic constants of a material.
 struct ElasticConstants {
@@ -22,9 +30,10 @@ struct ElasticConstants {
   double young = 1.0;
   double poisson = 0.0;
 
-  /// Throws InputError "material 'NAME': FIELD must be ..." unless density
-  /// and young are finite and > 0 and -1 < poisson < 0.5 (where lambda() and
-  /// mu() are finite and the material is stable).
+  /// Throws InputError "material 'NAME': FIELD must be ..." unless density,
+  /// young and poisson lie in their ranges (kDensity, kYoung, kPoisson:
+  /// density and young finite and > 0, -1 < poisson < 0.5, where lambda()
+  /// and mu() are finite and the material is stable).
   void validate(const std::string& name) const;
   double lambda() const { return young * poisson / ((1 + poisson) * (1 - 2 * poisson)); }
   double mu() const { return young / (2 * (1 + poisson)); }
@@ -50,6 +59,19 @@ template <int D> Mat<D> linear_elastic_finite_stress(const ElasticConstants& c, 
 /// Cauchy stress of neo_hookean (wobbes eq. 11) from F. Throws
 /// InstabilityError unless det F is finite and > 0 (one check per call).
 template <int D> Mat<D> neo_hookean_stress(const ElasticConstants& c, const Mat<D>& F);
+
+/// rho0 c^2 of the fastest wave of the finite-strain laws at F (the CFL
+/// step, docs/theory.md sect. 10): for a longitudinal wave along a
+/// principal stretch u, the tangent u dtau/du - tau of the Kirchhoff stress
+/// tau = J sigma, the current density being rho0 / J. With b_max >= u^2,
+/// the largest row sum of |F F^T| (exact when the stretches lie along the
+/// axes):
+///  - linear_elastic_finite: (lambda + 2 mu) b_max;
+///  - neo_hookean: lambda (1 - ln J) + mu (b_max + 1), at least 0.
+/// Both are lambda + 2 mu at F = I (E in 1D); neither depends on the volume
+/// change alone as M / rho_p = M J / rho0 would.
+template <int D> double linear_elastic_finite_wave_modulus(const ElasticConstants& c, const Mat<D>& F);
+template <int D> double neo_hookean_wave_modulus(const ElasticConstants& c, const Mat<D>& F);
 
 /// Plane strain: the out-of-plane Cauchy stress sigma_zz of
 /// linear_elastic_finite for the in-plane F (F_zz = 1, F_xz = F_yz = 0):

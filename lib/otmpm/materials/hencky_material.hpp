@@ -10,6 +10,7 @@
 #include "otmpm/materials/hencky_plane_j2.hpp"
 #include "otmpm/materials/material.hpp"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 
@@ -18,16 +19,42 @@ namespace otmpm {
 /// The internal variables every Hencky model keeps (StateSpec rows).
 inline constexpr std::array<StateSpec, 5> kHenckyState{{
     {"elastic_left_cauchy_green", 6, {1, 1, 1, 0, 0, 0}, "b_e = F_e F_e^T (xx, yy, zz, xy, yz, xz)"},
-    {"plastic_strain", 1, {}, "equivalent plastic strain eps_p"},
+    {"plastic_strain", 1, {}, "equivalent plastic strain eps_p", 0.0},
     {"volumetric_plastic_strain", 1, {}, "volumetric plastic strain eps_v (dilation > 0)"},
-    {"elastic_energy", 1, {}, "stored elastic energy V0 psi(b_e) [J]"},
-    {"plastic_work", 1, {}, "energy dissipated by plastic flow since t = 0 [J]"},
+    {"elastic_energy", 1, {}, "stored elastic energy V0 psi(b_e) [J]", 0.0},
+    {"plastic_work", 1, {}, "energy dissipated by plastic flow since t = 0 [J]", 0.0},
 }};
+
+/// What a model with values of its own per particle (Model::kExtraState,
+/// width 1 each) gets besides dF, dt and the Hencky state: det F before and
+/// after the step and those values, read before and written after it.
+template <std::size_t N> struct ModelPoint {
+  double J_n = 1.0, J = 1.0;
+  std::array<double, N> values{};
+};
+
+/// The state rows of a model: kHenckyState, then Model::kExtraState if it
+/// has one.
+template <class Model> inline constexpr auto kModelState = [] {
+  if constexpr (requires { Model::kExtraState; }) {
+    std::array<StateSpec, kHenckyState.size() + Model::kExtraState.size()> all{};
+    std::copy(kHenckyState.begin(), kHenckyState.end(), all.begin());
+    std::copy(Model::kExtraState.begin(), Model::kExtraState.end(), all.begin() + kHenckyState.size());
+    return all;
+  } else {
+    return kHenckyState;
+  }
+}();
 
 /// A Hencky elastoplastic material: Model has
 ///   plasticity::PointUpdate update(const Mat<D>& dF, double dt, plasticity::HenckyState&) const
-/// and `elastic()` (the moduli, for the wave speed).
+/// and `elastic()` (the moduli, for the wave speed); a model with values of
+/// its own (Model::kExtraState) has instead
+///   plasticity::PointUpdate update(const Mat<D>& dF, double dt, plasticity::HenckyState&, ModelPoint<N>&) const.
 template <int D, class Model> class HenckyMaterial final : public Material<D> {
+  static constexpr auto& kState = kModelState<Model>;
+  static constexpr std::size_t kExtra = kState.size() - kHenckyState.size();
+
 public:
   HenckyMaterial(const MaterialParameters& p, Model model) : Material<D>(p), model_(std::move(model)) {}
 
@@ -36,14 +63,25 @@ public:
     const plasticity::ElasticModuli& m = model_.elastic();
     return m.bulk + 4.0 / 3.0 * m.shear;
   }
+  /// c_p^2 = M / rho0_p, rho0_p = m_p / V0_p: the law is written in the
+  /// Kirchhoff stress tau = J sigma with the constant tangent M = K + 4G/3
+  /// in the elastic log strain, so the Cauchy tangent is M / J and c_p^2 =
+  /// (M / J) / (rho0_p / J) whatever the volume change (plastic dilation
+  /// included; docs/theory-plasticity.md, "Wave speed"). Exact at zero
+  /// elastic strain; the elastic strains of these models are small.
+  void max_wave_speed2(const Particles<D>& P, int p0, int p1, double& c2) const override {
+    double largest = 0.0; // the largest 1 / rho0_p
+    for (int p = p0; p < p1; ++p) largest = std::max(largest, P.V0[p] / P.m[p]);
+    c2 = std::max(c2, p_modulus() * largest);
+  }
   bool needs_deformation_gradient() const override { return true; }
-  std::span<const StateSpec> state() const override { return kHenckyState; }
+  std::span<const StateSpec> state() const override { return kState; }
 
   void bind(Particles<D>& P) override {
-    for (std::size_t i = 0; i < kHenckyState.size(); ++i) {
-      const StateField* f = P.find_state(kHenckyState[i].name);
+    for (std::size_t i = 0; i < kState.size(); ++i) {
+      const StateField* f = P.find_state(kState[i].name);
       require<std::invalid_argument>(f != nullptr, "material '", this->name(), "': the particles have no state '",
-                                     std::string(kHenckyState[i].name), "'");
+                                     std::string(kState[i].name), "'");
       field_[i] = static_cast<int>(f - P.state.data());
     }
   }
@@ -94,11 +132,16 @@ public:
   }
 
 private:
-  /// Base pointers of the state rows.
+  /// Base pointers of the state rows (extra: the model's own, kExtraState).
   struct Rows {
     double *be, *eps_p, *eps_v, *energy, *work;
+    std::array<double*, kExtra> extra;
   };
-  Rows rows(Particles<D>& P) const { return {row(P, 0, 0), row(P, 1, 0), row(P, 2, 0), row(P, 3, 0), row(P, 4, 0)}; }
+  Rows rows(Particles<D>& P) const {
+    Rows r{row(P, 0, 0), row(P, 1, 0), row(P, 2, 0), row(P, 3, 0), row(P, 4, 0), {}};
+    for (std::size_t i = 0; i < kExtra; ++i) r.extra[i] = row(P, static_cast<int>(kHenckyState.size() + i), 0);
+    return r;
+  }
 
   /// F = dF F_n and J = det F of particle p; ParticleFailure when J <= 0.
   static Mat<D> advanced_F(const Particles<D>& P, int p, const Mat<D>& dF, double& J) {
@@ -133,7 +176,14 @@ private:
     s.eps_v = r.eps_v[p];
     plasticity::PointUpdate u;
     try {
-      u = model.update(dF, dt, s);
+      if constexpr (kExtra > 0) {
+        ModelPoint<kExtra> point{P.F[p].determinant(), J, {}};
+        for (std::size_t i = 0; i < kExtra; ++i) point.values[i] = r.extra[i][p];
+        u = model.update(dF, dt, s, point);
+        for (std::size_t i = 0; i < kExtra; ++i) r.extra[i][p] = point.values[i];
+      } else {
+        u = model.update(dF, dt, s);
+      }
     } catch (const InstabilityError& e) {
       throw ParticleFailure{p, e.what()};
     }
@@ -202,7 +252,7 @@ private:
   }
 
   Model model_;
-  std::array<int, kHenckyState.size()> field_{};
+  std::array<int, kState.size()> field_{};
 };
 
 /// ElasticModuli of a material's young and poisson, with the InputError

@@ -20,6 +20,7 @@
 #include "otmpm/parameters.hpp"
 #include "otmpm/particles/particles.hpp"
 
+#include <algorithm>
 #include <array>
 #include <map>
 #include <memory>
@@ -55,6 +56,12 @@ struct StateSpec {
   int width = 1;
   std::array<double, 9> initial{};
   std::string_view description;
+  /// The smallest value a particle may start with (0 for an equivalent
+  /// plastic strain or an energy; -kUnbounded: any finite value).
+  double lower = -kUnbounded;
+  /// The range of a scalar variable as a ParameterSpec: what a particle
+  /// file's column of its name must satisfy (ParticleFileRules).
+  ParameterSpec range() const { return {name, description, initial[0], lower}; }
 };
 
 /// A model parameter beyond density, young and poisson (ParameterSpec). A
@@ -79,6 +86,16 @@ public:
   /// P-wave modulus M of the wave speed c_p = sqrt(M / rho_p) of the CFL
   /// condition: the elastic E in 1D, lambda + 2 mu otherwise.
   virtual double p_modulus() const { return params_.elastic().p_modulus(D); }
+  /// The largest squared wave speed c_p^2 of particles p0 .. p1-1, all of
+  /// this material, maxed into `c2` (the CFL step, docs/theory.md sect. 10):
+  /// the P-wave modulus of the model's tangent at the particle's state over
+  /// its current density. This default, c_p^2 = M / rho_p with M =
+  /// p_modulus(), is exact for a law with a constant Cauchy tangent (the
+  /// small-strain model); the finite-strain models give their own.
+  virtual void max_wave_speed2(const Particles<D>& P, int p0, int p1, double& c2) const {
+    const double M = p_modulus();
+    for (int p = p0; p < p1; ++p) c2 = std::max(c2, M / P.rho[p]);
+  }
   /// True when the model needs the deformation gradient F_p.
   virtual bool needs_deformation_gradient() const = 0;
   /// The internal variables of the model (none for the elastic models).

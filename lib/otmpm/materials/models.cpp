@@ -11,8 +11,9 @@ namespace otmpm {
 
 namespace {
 
-const std::array<const MaterialModel*, 5> kModels{&linear_elastic_model(), &linear_elastic_finite_model(),
-                                                  &neo_hookean_model(), &j2_model(), &drucker_prager_model()};
+const std::array<const MaterialModel*, 6> kModels{&linear_elastic_model(), &linear_elastic_finite_model(),
+                                                  &neo_hookean_model(), &j2_model(), &drucker_prager_model(),
+                                                  &mu_i_model()};
 
 /// The sub-table of a parameter key "table.key" ("" for a top-level key).
 std::string_view table_of(std::string_view key) {

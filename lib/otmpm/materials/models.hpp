@@ -12,5 +12,6 @@ const MaterialModel& linear_elastic_finite_model();
 const MaterialModel& neo_hookean_model();
 const MaterialModel& j2_model();
 const MaterialModel& drucker_prager_model();
+const MaterialModel& mu_i_model();
 
 } // namespace otmpm

@@ -10,13 +10,64 @@
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
+#include <sstream>
 
 namespace otmpm {
 
 namespace fs = std::filesystem;
 
+namespace {
+
+/// The note a restart adds to an error of a file body's particle file.
+constexpr const char* kFileNote = " - a restart seeds the file bodies from their particle files again (their state "
+                                  "comes from the checkpoint): give it the file the interrupted run read";
+
+/// The key of the file of body `name`.
+std::string file_key(const std::string& name) { return "body." + name + ".file"; }
+
+/// InputError when a file body's particle file holds other particles than the
+/// interrupted run read (the checkpoint's particle_file_record).
+void check_particle_files(const Scene& scene, const Checkpoint& ck) {
+  const auto g = ck.groups.find("recorder");
+  if (g == ck.groups.end()) return; // an engine's state alone (Engine::save_state)
+  const auto it = g->second.strings.find("particle_files");
+  if (it == g->second.strings.end()) return; // written before the record was kept
+  std::istringstream before(it->second), now(particle_file_record(scene));
+  for (std::string was, is; std::getline(now, is);) {
+    std::getline(before, was);
+    if (was == is) continue;
+    const std::string body = is.substr(0, is.find('\t'));
+    input_error(scene.locate(file_key(body)),
+                "the particle file changed since the checkpoint was written (the interrupted run read " +
+                    was.substr(was.find('\t') + 1) + ", the file now holds " + is.substr(is.find('\t') + 1) + ")" +
+                    kFileNote);
+  }
+}
+
+} // namespace
+
+std::string particle_file_record(const Scene& scene) {
+  std::string out;
+  const int dim = scene.simulation.dimension;
+  for (const BodySection& b : scene.bodies) {
+    if (b.shape != "file") continue;
+    out += b.name + "\t" + std::to_string(b.file_particles) + " particles in " +
+           format_point<3>(first_components(b.lower, dim)) + " - " + format_point<3>(first_components(b.upper, dim)) +
+           "\n";
+  }
+  return out;
+}
+
 Scene checkpoint_scene(const Checkpoint& ck) {
-  Scene scene = parse_scene(ck.scene, ck.file + " (checkpoint scene)");
+  Scene scene;
+  try {
+    scene = parse_scene(ck.scene, ck.file + " (checkpoint scene)");
+  } catch (const InputError& e) { // a file body's particle file the restart cannot read again
+    const InputSource* at = e.source();
+    if (!at || !at->key.starts_with("body.") || !at->key.ends_with(".file")) throw;
+    throw InputError(e.what() + std::string(kFileNote), *at);
+  }
+  check_particle_files(scene, ck);
   scene.text = ck.scene;
   if (scene.simulation.dimension != ck.dimension)
     throw InputError(ck.file + ": the stored scene has dimension " + std::to_string(scene.simulation.dimension) +

@@ -30,8 +30,10 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <new>
 #include <optional>
 #include <thread>
+#include <tuple>
 #include <utility>
 
 namespace otmpm {
@@ -43,22 +45,22 @@ constexpr double time_slack = 1e-9;
 /// Floor of EnergySummary::reference(), so a body at rest with no load has ratio 0, not 0/0.
 constexpr double energy_reference_floor = 1e-300;
 
+/// The result file of a run and where its name came from: RunOptions::out_file,
+/// else a restart's interrupted run's file, else output.file.
+std::pair<std::string, std::string> result_file(const Scene& scene, const RunOptions& opt, const Checkpoint* resume) {
+  if (!opt.out_file.empty()) return {opt.out_file, "RunOptions::out_file, otmpm run --out"};
+  if (resume)
+    return {resume->group("recorder").string("result_file"), "the interrupted run's result file, from " + resume->file};
+  return {scene.output.file, scene.locate("output.file").describe()};
+}
+std::string diagnosis(const std::string& what, long step, double t);
+
 /// What the run's output files are and where their names came from
 /// (prepare_outputs); `text` is the scene as TOML (the identical-scene rule).
 OutputRequest output_request(const Scene& scene, const std::string& text, const RunOptions& opt,
                              const Checkpoint* resume) {
   OutputRequest r;
-  const std::string previous = resume ? resume->group("recorder").string("result_file") : "";
-  if (!opt.out_file.empty()) {
-    r.result = opt.out_file;
-    r.result_origin = "RunOptions::out_file, otmpm run --out";
-  } else if (resume) {
-    r.result = previous;
-    r.result_origin = "the interrupted run's result file, from " + resume->file;
-  } else {
-    r.result = scene.output.file;
-    r.result_origin = scene.locate("output.file").describe();
-  }
+  std::tie(r.result, r.result_origin) = result_file(scene, opt, resume);
   if (scene.output.checkpoint_every > 0) {
     r.checkpoint = checkpoint_path(scene, r.result);
     r.checkpoint_origin = scene.output.checkpoint_file.empty() ? "the default beside the result file"
@@ -69,7 +71,7 @@ OutputRequest output_request(const Scene& scene, const std::string& text, const 
   r.force = opt.force;
   if (resume) {
     r.continued_run = resume->run_id;
-    r.previous_result = previous;
+    r.previous_result = resume->group("recorder").string("result_file");
     r.previous_frames = static_cast<int>(resume->group("recorder").integer("frames"));
   }
   return r;
@@ -181,7 +183,10 @@ public:
     if (resume) restore_accumulators(resume->group("recorder"));
     if (!opt.write_results) return;
     if (resume) frames_ = static_cast<int>(resume->group("recorder").integer("frames"));
-    prepare(output_request(scene, text_, opt, resume));
+    // Before the writing rank claims, replaces or sets aside anything, and
+    // before the collective create: every rank reaches the same result file.
+    view_.require_shared_file(result_file(scene, opt, resume).first);
+    prepare([&] { return output_request(scene, text_, opt, resume); });
     view_.collectively([&] {
       const ResultOptions options{run_id_, vtk_extension_, scene.output.precision == "single",
                                   scene.output.compression};
@@ -204,12 +209,13 @@ public:
     if (background_) background_->wait();
   }
 
-  /// Decides the output files on the writing rank (prepare_outputs: paths,
-  /// collisions, otmpm's locks, what may be replaced, a restart's previous
-  /// results; an InputError there is thrown on every rank) and shares the
-  /// answer with every rank.
-  void prepare(const OutputRequest& request) {
-    view_.on_writer([&] { outputs_ = prepare_outputs(request); });
+  /// Decides the output files on the writing rank (request(): the paths and
+  /// the checkpoint location tried, which the writing rank alone writes;
+  /// prepare_outputs: collisions, otmpm's locks, what may be replaced, a
+  /// restart's previous results; an InputError there is thrown on every
+  /// rank) and shares the answer with every rank.
+  void prepare(const std::function<OutputRequest()>& request) {
+    view_.on_writer([&] { outputs_ = prepare_outputs(request()); });
     const PreviousResults p = outputs_.previous.value_or(PreviousResults{});
     const char sep = '\0'; // never part of a path
     const std::string mine = outputs_.files.result + sep + outputs_.files.checkpoint + sep +
@@ -250,6 +256,7 @@ public:
     g.reals["wall_seconds"] = wall_before_ + wall_seconds;
     g.integers["frames"] = frames_;
     g.strings["result_file"] = std::filesystem::absolute(path_).string();
+    g.strings["particle_files"] = particle_file_record(scene_);
     g.put_reals(summary_fields(energy_));
     g.reals["wall_time"] = wall_time_;
     StateArray<double>& walls = g.real_arrays["wall_last_impulse"];
@@ -311,6 +318,7 @@ public:
       }
       writer_.reset(); // closed now: the run is over, and readers may open the file at once
     });
+    outputs_.lock = OutputLock(); // the files are free for the next run (otmpm's locks released)
   }
 
   /// Marks the file with a diagnosis (the file stays valid). An output error
@@ -415,6 +423,7 @@ private:
   /// A 2D file whose symmetric stress has 3 columns (an otmpm before
   /// sigma_zz) goes on with 3: the file stays what the interrupted run wrote.
   void continue_results(const PreviousResults& previous, const StateGroup& g) {
+    view_.require_readable(previous.path, "the result file of the interrupted run"); // every rank copies from it
     if (D == 2 && scene_.output.symmetric_tensors && g.integer("frames") > 0)
       plane_zz_ = !legacy_plane_stress(previous.path);
     view_.collectively([&] {
@@ -585,6 +594,18 @@ private:
       eu.push_back((P.x[p] - P.X[p] - exact_->displacement(P.X[p], t)).squaredNorm());
       es.push_back((P.sigma[p] - exact_->stress(P.X[p], t)).squaredNorm());
     }
+    // A finite state that overflows against the exact solution (a value near 1e300 written by hand through
+    // a view after the last step, which checked the state) has no error: it ends the run as unstable.
+    bool overflow = false;
+    for (const std::vector<double>* e : {&ev, &eu, &es})
+      overflow = overflow || !std::all_of(e->begin(), e->end(), [](double x) { return std::isfinite(x); });
+    if (view_.max(overflow ? 1.0 : 0.0) > 0.0) {
+      s.status = "unstable: " + diagnosis("the state is too far from the exact solution for its error to be a "
+                                          "finite number",
+                                          e_.steps(), t);
+      s.exit_code = 1;
+      return;
+    }
     s.errors["rms_velocity_error"] = view_.rms(ev);
     s.errors["rms_displacement_error"] = view_.rms(eu);
     s.errors["rms_stress_error"] = view_.rms(es);
@@ -624,8 +645,52 @@ std::string diagnosis(const std::string& what, long step, double t) {
   return "step " + std::to_string(step) + ", t = " + format_number(t) + " s: " + what;
 }
 
+/// What a run that ran out of memory had been told it could use: otmpm's
+/// estimate (scene/resources.hpp) and the limit the estimate passed.
+std::string memory_note(const Scene& scene) {
+  const bool set = scene.simulation.memory_limit > 0;
+  return "otmpm's estimate was about " + format_bytes(estimate_resources(scene).bytes) + " against a limit of " +
+         format_bytes(memory_limit(scene)) +
+         (set ? " set by simulation.memory_limit: more than this process could get" : " this process may use");
+}
+
 double seconds_since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+/// What every rank of a distributed run must share besides its scene: the
+/// otmpm version, the options that change the run or its files, and the
+/// checkpoint a restart continues.
+std::string run_inputs(const RunOptions& opt, const Checkpoint* resume) {
+  std::string s = "otmpm " OTMPM_VERSION "\nout_file = " + opt.out_file + "\nforce = " + (opt.force ? "1" : "0") +
+                  "\nwrite_results = " + (opt.write_results ? "1" : "0") + "\n";
+  if (resume) {
+    const StateGroup& g = resume->group("engine");
+    s += "checkpoint of run " + resume->run_id + " at step " + std::to_string(g.integer("step")) + "\n";
+  }
+  return s;
+}
+
+/// Every rank of a distributed run reads the scene (or checkpoint) itself:
+/// they must have read the same one, with the same options, before they
+/// set anything up together (distributed::require_same).
+void require_same_inputs(const Scene& scene, const RunOptions& opt, const Checkpoint* resume) {
+  const auto& comm = distributed::Comm::world();
+  if (comm.size() == 1) return;
+  const char* why = "every rank must run the same scene with the same options: does the scene file differ between "
+                    "nodes, was it rewritten while the job started, or do the ranks' command lines differ?";
+  distributed::require_same(comm, "the resolved scene (after --set)", scene.text.empty() ? to_toml(scene) : scene.text,
+                            why);
+  distributed::require_same(comm, "the set of run options", run_inputs(opt, resume), why);
+}
+
+/// True when options.interrupt asks to stop; the ranks of a distributed run
+/// agree (one of them got the signal: all stop at the same point).
+bool interrupt_requested(const RunOptions& options) {
+  if (!options.interrupt) return false;
+  const auto& comm = distributed::Comm::world();
+  const std::int64_t flag = options.interrupt->load() ? 1 : 0;
+  return (comm.size() > 1 ? comm.max(flag) : flag) != 0;
 }
 
 } // namespace
@@ -636,6 +701,7 @@ struct Simulation::Runner {
   Scene scene;
   RunSummary summary;
   bool finished = false;
+  bool closed = false; ///< finish() has run: the result file is complete and closed
   virtual int dimension() const = 0;
   virtual double time() const = 0;
   virtual long steps() const = 0;
@@ -667,6 +733,10 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
     summary.nodes = view.nodes();
     summary.status = "running";
     if (resume) return;
+    if (interrupt_requested(opt)) { // during the set-up: no initial frame, no checkpoint (nothing was run)
+      stop_interrupted();
+      return;
+    }
     try { // an initial state that is not finite or cannot be written is a diagnosis too
       rec.sample_energy();
       rec.maybe_record(true);
@@ -685,10 +755,13 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
     return Engine<D>(distributed::restart_parts<D>(s, comm, *resume, rows));
   }
 
-  /// Stores the scene and restores the checkpoint before the recorder is built.
+  /// Stores the scene and restores the checkpoint - or, for a new run,
+  /// checks the step count on the seeded particles' first step - before
+  /// the recorder is built.
   const Scene& init(const Scene& s, const Checkpoint* resume) {
     scene = s;
     if (resume) e.restore_state(distributed::local_checkpoint(e, *resume, std::exchange(restart_rows, {})));
+    else check_first_step(scene, e.stable_dt(), e.wave_speed());
     return scene;
   }
 
@@ -698,21 +771,37 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
 
   void step() override {
     const double t_end = scene.simulation.t_end;
-    try {
+    stopping_on_failure([&] {
       e.step();
       rec.sample_energy();
       const bool last = e.time() >= t_end * (1.0 - time_slack);
       rec.maybe_record(last);
       rec.maybe_checkpoint(seconds_since(start), last);
       finished = last;
+    });
+    if (options.progress) options.progress(e.time(), t_end, e.steps());
+  }
+
+  /// Runs `f` (a step, a frame); an instability, an output error or memory
+  /// running out ends the run with its status and is rethrown. (A distributed
+  /// run that runs out of memory on one rank cannot agree on a status: the
+  /// error goes up as it is, and the command ends every rank.)
+  template <class F> void stopping_on_failure(F&& f) {
+    try {
+      f();
     } catch (const InstabilityError& err) {
       stop_unstable(err);
       throw;
     } catch (const OutputError& err) {
       stop_output_error(err);
       throw;
+    } catch (const std::bad_alloc&) {
+      if (distributed::Comm::world().size() == 1)
+        stop(kOutOfMemoryStatus + (": " + diagnosis("the run needed more memory than this process could get (" +
+                                               memory_note(scene) + ")", e.steps(), e.time())),
+             kOutputErrorExit);
+      throw;
     }
-    if (options.progress) options.progress(e.time(), t_end, e.steps());
   }
 
   /// Ends the run on an instability: status "unstable: step N, t = T: ...", exit code 1.
@@ -735,7 +824,9 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
     finished = true;
   }
 
-  void write_frame() override { rec.maybe_record(true); }
+  void write_frame() override {
+    stopping_on_failure([&] { rec.maybe_record(true); });
+  }
 
   void interrupt() override {
     try {
@@ -747,11 +838,13 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
       stop_unstable(err);
       return;
     }
-    summary.status = "interrupted";
-    summary.exit_code = kInterruptedExit;
+    stop_interrupted();
+  }
+
+  /// Ends the run as interrupted: status "interrupted", kInterruptedExit.
+  void stop_interrupted() {
+    stop("interrupted", kInterruptedExit);
     summary.interrupted = true;
-    rec.set_status(summary.status);
-    finished = true;
   }
 
   void finish() override {
@@ -761,6 +854,13 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
       if (summary.exit_code == 0) stop_unstable(err);
     } catch (const OutputError& err) {
       if (summary.exit_code == 0) stop_output_error(err);
+    }
+    if (summary.exit_code == 0 && distributed::Comm::world().size() == 1) {
+      try { // every step ends checked; a state changed by hand since (a writable view) is checked here
+        e.check_particles_inside();
+      } catch (const InstabilityError& err) {
+        stop_unstable(err);
+      }
     }
     if (summary.exit_code == 0) summary.status = "ok";
     summary.steps = e.steps();
@@ -772,6 +872,7 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
     for (double& t : summary.timers.seconds) t = view.max(t);
     rec.finish(summary);
     finished = true;
+    closed = true;
   }
 };
 
@@ -789,20 +890,24 @@ double EnergySummary::energy_drift() const { return max_balance_error / referenc
 std::unique_ptr<Simulation::Runner> Simulation::make(const Scene& scene, const RunOptions& options,
                                                      const Checkpoint* resume) {
   const int dim = scene.simulation.dimension;
-  if (dim >= 1 && dim <= 3) {
-    // a Scene built in code: every check of the reader, before the estimates;
-    // the size per rank of the ranks this run has
-    validate_scene(scene, dim, distributed::Comm::world().size());
-    check_resources(scene);     // before anything is allocated
+  require_same_inputs(scene, options, resume);
+  // A Scene built in code meets the reader's checks too; the ranks agree
+  // (the memory a process may use can differ from node to node).
+  if (dim >= 1 && dim <= 3)
+    distributed::agree_on(distributed::Comm::world(),
+                          [&] { check_before_allocating(scene, dim, distributed::Comm::world().size()); });
+  try {
+    switch (scene.simulation.dimension) {
+    case 1: return std::make_unique<DimRunner<1>>(scene, options, resume);
+    case 2: return std::make_unique<DimRunner<2>>(scene, options, resume);
+    case 3: return std::make_unique<DimRunner<3>>(scene, options, resume);
+    default: break;
+    }
+  } catch (const std::bad_alloc&) { // the estimate let it start, the machine could not give it
+    throw InputError(shortened(scene.file) + ": out of memory while setting up the run (" + memory_note(scene) + ")");
   }
-  switch (scene.simulation.dimension) {
-  case 1: return std::make_unique<DimRunner<1>>(scene, options, resume);
-  case 2: return std::make_unique<DimRunner<2>>(scene, options, resume);
-  case 3: return std::make_unique<DimRunner<3>>(scene, options, resume);
-  default:
-    input_error(scene.locate("simulation.dimension"),
-                "dimension must be 1, 2 or 3, got " + std::to_string(scene.simulation.dimension));
-  }
+  input_error(scene.locate("simulation.dimension"),
+              "dimension must be 1, 2 or 3, got " + std::to_string(scene.simulation.dimension));
 }
 
 Simulation::Simulation(const Scene& scene, const RunOptions& options) : run_(make(scene, options, nullptr)) {}
@@ -810,7 +915,17 @@ Simulation::Simulation(const Checkpoint& checkpoint, const RunOptions& options)
     : run_(make(checkpoint_scene(checkpoint), options, &checkpoint)) {}
 Simulation::Simulation(Simulation&&) noexcept = default;
 Simulation& Simulation::operator=(Simulation&&) noexcept = default;
-Simulation::~Simulation() = default;
+Simulation::~Simulation() {
+  // A run dropped without finish() (an exception, a forgotten call) gets a
+  // final status, as finish() after interrupt() gives it, instead of keeping
+  // "running" for ever. Not in a distributed run: the other ranks may not be here.
+  if (!run_ || run_->closed || distributed::Comm::world().size() > 1) return;
+  try {
+    if (!finished()) run_->interrupt();
+    run_->finish();
+  } catch (const std::exception&) { // nothing can be reported from a destructor; the status is what it could be
+  }
+}
 
 const Scene& Simulation::scene() const { return run_->scene; }
 int Simulation::dimension() const { return run_->dimension(); }
@@ -830,11 +945,25 @@ void Simulation::advance_to(double t) {
   while (!finished() && time() < t * (1.0 - time_slack)) step();
 }
 
-void Simulation::write_frame() { run_->write_frame(); }
+void Simulation::require_open(const char* what) const {
+  if (run_->closed)
+    throw std::logic_error(std::string("Simulation::") + what +
+                           ": the run is finished (finish() was called)");
+}
 
-void Simulation::interrupt() { run_->interrupt(); }
+void Simulation::write_frame() {
+  require_open("write_frame");
+  run_->write_frame();
+}
+
+void Simulation::interrupt() {
+  require_open("interrupt");
+  if (finished()) throw std::logic_error("Simulation::interrupt: the run is finished (" + status() + ")");
+  run_->interrupt();
+}
 
 RunSummary Simulation::finish() {
+  require_open("finish");
   run_->finish();
   return run_->summary;
 }
@@ -854,15 +983,6 @@ template const Engine<2>& Simulation::engine<2>() const;
 template const Engine<3>& Simulation::engine<3>() const;
 
 namespace {
-/// True when options.interrupt asks to stop; the ranks of a distributed run
-/// agree (one of them got the signal: all stop after the same step).
-bool interrupt_requested(const RunOptions& options) {
-  if (!options.interrupt) return false;
-  const auto& comm = distributed::Comm::world();
-  const std::int64_t flag = options.interrupt->load() ? 1 : 0;
-  return (comm.size() > 1 ? comm.max(flag) : flag) != 0;
-}
-
 /// Steps a simulation to t_end; an instability ends it with its status, a
 /// request through options.interrupt (checked before each step) with status
 /// "interrupted" and a last checkpoint.
@@ -877,45 +997,56 @@ RunSummary run_to_end(Simulation& sim, const RunOptions& options) {
     }
   } catch (const InstabilityError&) { // the status is in the summary
   } catch (const OutputError&) {
+  } catch (const std::bad_alloc&) {
+    if (!sim.finished()) throw; // a distributed run: no status could be agreed on
   }
   return sim.finish();
 }
 
-/// The summary of a run whose result file could not even be created (no
-/// room for its first bytes) at step `step`, time `t` (0 for a new run, the
-/// checkpoint's for a restart): status "output error: ...", kOutputErrorExit.
-RunSummary not_started(const Scene& scene, const OutputError& err, long step, double t) {
+/// The summary of a run that did not start at step `step`, time `t` (0 for
+/// a new run, the checkpoint's for a restart), with `status` and `exit_code`.
+RunSummary not_started(const Scene& scene, long step, double t, const std::string& status, int exit_code) {
   RunSummary s;
   s.mode = scene.simulation.mode;
   s.integrator = scene.simulation.integrator;
   s.basis = scene.basis.kind;
   s.steps = step;
   s.time = t;
-  s.status = "output error: " + diagnosis(err.what(), step, t);
-  s.exit_code = kOutputErrorExit;
+  s.status = status;
+  s.exit_code = exit_code;
+  s.interrupted = exit_code == kInterruptedExit;
   return s;
+}
+
+/// Sets up a simulation (make(sim)) that starts at step `step`, time `t`
+/// and runs it to the end - unless options.interrupt asked to stop before
+/// the set-up (status "interrupted", no result file) or the result file
+/// could not even be created (no room for its first bytes: "output error:
+/// ...", kOutputErrorExit). scene_of() gives the scene for the summary of
+/// a run that did not start.
+template <class SceneOf, class Make>
+RunSummary set_up_and_run(long step, double t, const RunOptions& options, SceneOf&& scene_of, Make&& make) {
+  if (interrupt_requested(options)) return not_started(scene_of(), step, t, "interrupted", kInterruptedExit);
+  std::optional<Simulation> sim;
+  try {
+    make(sim);
+  } catch (const OutputError& err) {
+    return not_started(scene_of(), step, t, "output error: " + diagnosis(err.what(), step, t), kOutputErrorExit);
+  }
+  return run_to_end(*sim, options);
 }
 } // namespace
 
 RunSummary run_scene(const Scene& scene, const RunOptions& options) {
-  std::optional<Simulation> sim;
-  try {
-    sim.emplace(scene, options);
-  } catch (const OutputError& err) {
-    return not_started(scene, err, 0, 0.0);
-  }
-  return run_to_end(*sim, options);
+  return set_up_and_run(
+      0, 0.0, options, [&] { return scene; }, [&](std::optional<Simulation>& sim) { sim.emplace(scene, options); });
 }
 
 RunSummary restart_run(const Checkpoint& checkpoint, const RunOptions& options) {
-  std::optional<Simulation> sim;
-  try {
-    sim.emplace(checkpoint, options);
-  } catch (const OutputError& err) {
-    const StateGroup& g = checkpoint.group("engine");
-    return not_started(checkpoint_scene(checkpoint), err, static_cast<long>(g.integer("step")), g.real("t"));
-  }
-  return run_to_end(*sim, options);
+  const StateGroup& g = checkpoint.group("engine");
+  return set_up_and_run(
+      static_cast<long>(g.integer("step")), g.real("t"), options, [&] { return checkpoint_scene(checkpoint); },
+      [&](std::optional<Simulation>& sim) { sim.emplace(checkpoint, options); });
 }
 
 std::string summary_line(const RunSummary& s) {
@@ -923,7 +1054,9 @@ std::string summary_line(const RunSummary& s) {
   std::snprintf(buf, sizeof buf, "%s %s %s: %ld steps, t = %.6g s, %.3f s wall, %.3g particle-steps/s",
                 s.mode.c_str(), s.integrator.c_str(), s.basis.c_str(), s.steps, s.time, s.wall_seconds,
                 s.particle_steps_per_second());
+  const bool memory = s.status.rfind(kOutOfMemoryStatus, 0) == 0;
   const char* head = s.interrupted                     ? "INTERRUPTED: "
+                     : memory                          ? "OUT OF MEMORY: "
                      : s.exit_code == kOutputErrorExit ? "OUTPUT FAILED: "
                      : s.exit_code != 0                ? "UNSTABLE: "
                                                        : "ok: ";

@@ -16,8 +16,13 @@ namespace otmpm {
 struct Checkpoint;
 
 /// RunSummary::exit_code of a run whose results could not be written (disk
-/// full, file size limit, quota, I/O error): the `otmpm` exit status 4.
+/// full, file size limit, quota, I/O error) or that ran out of memory while
+/// stepping: the `otmpm` exit status 4 (a resource ran out; the result file
+/// keeps what was written before).
 inline constexpr int kOutputErrorExit = 4;
+/// The start of the status of a run that ran out of memory while stepping
+/// ("out of memory: step N, t = T s: ..."; exit code kOutputErrorExit).
+inline constexpr const char* kOutOfMemoryStatus = "out of memory";
 
 struct RunOptions {
   std::string out_file;  ///< overrides output.file when not empty
@@ -72,8 +77,11 @@ inline constexpr int kInterruptedExit = 130;
 
 /// What a run reports (docs/theory.md sect. 12).
 struct RunSummary {
-  std::string status = "ok"; ///< "ok", "unstable: DIAGNOSIS", "output error: MESSAGE" or "interrupted"
-  int exit_code = 0;         ///< 0 ok, 1 unstable, kOutputErrorExit the results could not be written, kInterruptedExit interrupted
+  /// "ok", "unstable: DIAGNOSIS", "output error: MESSAGE", "out of memory: MESSAGE" or "interrupted"
+  std::string status = "ok";
+  /// 0 ok, 1 unstable, kOutputErrorExit the results could not be written or memory ran out,
+  /// kInterruptedExit interrupted
+  int exit_code = 0;
   bool interrupted = false;  ///< stopped early (Simulation::interrupt, RunOptions::interrupt); status "interrupted"
   std::string mode, integrator, basis;
   long steps = 0;
@@ -111,20 +119,21 @@ RunSummary run_scene(const Scene& scene, const RunOptions& options = {});
 RunSummary restart_run(const Checkpoint& checkpoint, const RunOptions& options = {});
 
 /// One line: "ok: 1234 steps, 0.52 s wall, rms_velocity_error = 0.01 ..."
-/// ("INTERRUPTED: ...", "UNSTABLE: ..." or "OUTPUT FAILED: ..." for a run that did not finish).
+/// ("INTERRUPTED: ...", "UNSTABLE: ...", "OUTPUT FAILED: ..." or "OUT OF MEMORY: ..." for a run that did not finish).
 std::string summary_line(const RunSummary& s);
 
 /// What `otmpm run --check` prints about a scene without running it.
 struct SceneCheck {
   int dimension = 1;
   std::string mode, integrator, basis;
-  long particles = 0, nodes = 0;
-  double dt = 0.0;           ///< the first time step (cfl rule at t = 0, or simulation.dt)
+  long particles = 0, nodes = 0; ///< of all ranks
+  double dt = 0.0;           ///< the first time step (cfl rule at t = 0, or simulation.dt), as the engine takes it
   double t_end = 0.0;
   /// t_end / dt, rounded up: the step count if dt stayed as at t = 0 (with
   /// the cfl rule dt follows the wave and particle speeds, so it is an estimate).
   double estimated_steps = 0.0;
-  double memory_bytes = 0.0; ///< estimate_memory_bytes(scene)
+  double memory_bytes = 0.0; ///< the run's own memory estimate (estimate_resources, scene/resources.hpp)
+  double memory_limit = 0.0; ///< what the estimate is checked against (memory_limit(scene))
   std::string out_file;      ///< output.file
   /// A body whose shape a geometry file gives (stl, mesh): the volume of
   /// its particles against the volume of its shape (the surface's enclosed
@@ -136,19 +145,15 @@ struct SceneCheck {
   std::vector<BodyVolume> volumes;
 };
 
-/// Validates the scene as a run would (the scene checks and the engine's
-/// construction: particles seeded, nodes and basis built, Dirichlet boxes
-/// and tractions matched) and reports its size, first time step and
-/// estimated steps and memory, without stepping. InputError as run_scene().
+/// Checks the scene as a run does, in the run's order: first, before
+/// anything is allocated, every check of the reader and the run's memory
+/// and step estimates (check_before_allocating: a scene whose estimate
+/// exceeds its limits is refused in a moment, whatever its size); then the
+/// set-up of the engine as the run makes it (particles seeded, nodes and
+/// basis built, Dirichlet boxes and tractions matched; under mpirun each
+/// rank its share) and the step-count check on its first step. Reports the
+/// size, first time step, estimated steps and the run's memory estimate,
+/// without stepping. InputError as run_scene().
 SceneCheck check_scene(const Scene& scene);
-
-/// Estimated peak memory of a run of the scene, in bytes, from the scene
-/// alone (nothing allocated): per particle the fields the run allocates and
-/// its basis-table row (the stencil size of the family: 2^D linear, 3^D ugimp
-/// and bspline2, 4^D bspline3, the nodes inside the support radius for lme
-/// and maxent), per node the nodal fields, and the consistent mass matrix
-/// when used. Meant for refusing runs that cannot fit, not for accounting:
-/// docs/user-guide.md gives the measured ratio to the real peak.
-double estimate_memory_bytes(const Scene& scene);
 
 } // namespace otmpm

@@ -28,6 +28,11 @@ public:
   Simulation(const Checkpoint& checkpoint, const RunOptions& options);
   Simulation(Simulation&&) noexcept;
   Simulation& operator=(Simulation&&) noexcept;
+  /// A simulation destroyed before finish() (an exception, a forgotten call)
+  /// is completed as interrupt() and finish() would complete it - its result
+  /// file gets status "interrupted" (or its final one) and otmpm's lock files
+  /// go - so that no file keeps status "running" after its run is gone.
+  /// Not in a distributed run (the other ranks may not be destroying theirs).
   ~Simulation();
 
   const Scene& scene() const;
@@ -49,20 +54,25 @@ public:
   /// is written into the result file's status and rethrown
   /// (InstabilityError), and so is a result or checkpoint that cannot be
   /// written (OutputError, status "output error: ...", exit code
-  /// kOutputErrorExit); the simulation is then finished. std::logic_error
-  /// when finished() already.
+  /// kOutputErrorExit) and memory running out (std::bad_alloc, status "out
+  /// of memory: ...", kOutputErrorExit); the simulation is then finished.
+  /// std::logic_error when finished() already.
   void step();
   /// Steps until time() >= t (at most to t_end).
   void advance_to(double t);
-  /// Writes a frame (and probe samples) of the current state into the result file now.
+  /// Writes a frame (and probe samples) of the current state into the result
+  /// file now (also after t_end, an instability or interrupt(); a state that
+  /// is not finite ends the run as step() does). std::logic_error after finish().
   void write_frame();
   /// Stops the run before t_end at the user's request: a last checkpoint
   /// when checkpoints are on, status "interrupted" (exit code
   /// kInterruptedExit) in the result file; finish() then completes it.
+  /// std::logic_error when finished() already.
   void interrupt();
   /// The final errors, attributes and status of the result file, and the
-  /// summary. Call once, after the last step (also after an instability or
-  /// an interruption).
+  /// summary; closes the result file and releases otmpm's locks on the run's
+  /// files. Call once, after the last step (also after an instability or an
+  /// interruption); std::logic_error the second time.
   RunSummary finish();
 
   /// The engine; D must be dimension() (std::invalid_argument otherwise).
@@ -70,6 +80,8 @@ public:
   template <int D> const Engine<D>& engine() const;
 
 private:
+  /// std::logic_error naming `what` once finish() has run.
+  void require_open(const char* what) const;
   struct Runner;
   template <int D> struct DimRunner;
   static std::unique_ptr<Runner> make(const Scene& scene, const RunOptions& options, const Checkpoint* resume);

@@ -4,6 +4,7 @@
 
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/materials/elasticity.hpp"
+#include "otmpm/scene/validate.hpp"
 
 #include <sys/resource.h>
 #include <unistd.h>
@@ -61,24 +62,30 @@ double min_spacing(const Scene& s) {
   return h;
 }
 
-/// The fastest signal at t = 0: P-wave speed of every material, speed of
-/// every initial velocity. A velocity whose square overflows is left out: such
-/// a state is not a long run but an instability at t = 0, which the run reports.
-double max_wave_speed(const Scene& s) {
-  const int dim = s.simulation.dimension;
-  double c2 = 0;
-  for (const MaterialSection& ms : s.materials) {
-    const ElasticConstants m = ms.elastic();
-    c2 = std::max(c2, m.p_modulus(dim) / m.density);
-  }
-  auto speed2 = [dim](const Vec3& v) {
-    double v2 = 0;
-    for (int k = 0; k < dim; ++k) v2 += v[k] * v[k];
-    return std::isfinite(v2) ? v2 : 0.0;
-  };
-  for (const BodySection& b : s.bodies) c2 = std::max(c2, speed2(b.velocity));
-  for (const InitialVelocitySection& iv : s.initial_velocities) c2 = std::max(c2, speed2(iv.velocity));
-  return std::sqrt(c2);
+/// The square of the first `dim` components of v, or 0 when it overflows:
+/// such a state is not a long run but an instability at t = 0, which the run reports.
+double speed2(const Vec3& v, int dim) {
+  double v2 = 0;
+  for (int k = 0; k < dim; ++k) v2 += v[k] * v[k];
+  return std::isfinite(v2) ? v2 : 0.0;
+}
+
+/// The steps of a run whose steps are `dt` (INFINITY when dt underflowed to 0 or c overflowed).
+double step_count(const Scene& s, double dt) {
+  const double steps = std::ceil(s.simulation.t_end / dt);
+  return std::isfinite(steps) ? steps : INFINITY;
+}
+
+/// InputError when `steps` exceed simulation.max_steps: `dt` is the step
+/// they come from, `origin` what gave it (", from ..." or "").
+void check_steps(const Scene& s, double steps, double dt, const std::string& origin) {
+  if (steps <= s.simulation.max_steps) return;
+  const bool fixed = s.simulation.dt.has_value();
+  input_error(s.locate(fixed ? "simulation.dt" : "simulation.cfl"),
+              "the run would take about " + format_number(steps) + " steps (t_end = " +
+                  format_number(s.simulation.t_end) + " s over a " + (fixed ? "fixed" : "first CFL") +
+                  " step dt = " + format_number(dt) + " s" + origin + "), more than simulation.max_steps = " +
+                  format_number(s.simulation.max_steps) + " (set it higher to run anyway)");
 }
 
 /// The cgroup v2 memory limit of this process in bytes, or INFINITY.
@@ -95,13 +102,31 @@ double cgroup_limit() {
 
 } // namespace
 
-ResourceEstimate estimate_resources(const Scene& scene) {
+double max_wave_speed(const Scene& s) {
+  const int dim = s.simulation.dimension;
+  double c2 = 0;
+  for (const MaterialSection& ms : s.materials) {
+    const ElasticConstants m = ms.elastic();
+    c2 = std::max(c2, m.p_modulus(dim) / m.density);
+  }
+  for (const BodySection& b : s.bodies) {
+    c2 = std::max({c2, speed2(b.velocity, dim), b.file_max_speed * b.file_max_speed});
+    if (!(b.file_min_density > 0)) continue;
+    for (const MaterialSection& ms : s.materials)
+      if (ms.name == b.material) c2 = std::max(c2, ms.elastic().p_modulus(dim) / b.file_min_density);
+  }
+  for (const InitialVelocitySection& iv : s.initial_velocities) c2 = std::max(c2, speed2(iv.velocity, dim));
+  return std::sqrt(c2);
+}
+
+ResourceEstimate estimate_resources(const Scene& scene) { return estimate_resources(scene, scene_size(scene)); }
+
+ResourceEstimate estimate_resources(const Scene& scene, const SceneSize& share) {
   const int dim = scene.simulation.dimension;
   const std::size_t d = static_cast<std::size_t>(std::clamp(dim, 1, 3) - 1);
   ResourceEstimate e;
-  const SceneSize n = scene_size(scene);
-  e.particles = n.particles;
-  e.nodes = n.nodes;
+  e.particles = share.particles;
+  e.nodes = share.nodes;
   const BasisKind& kind = basis_kind(scene.basis.kind);
   e.stencil = kind.stencil_nodes(scene.basis, dim);
   e.bytes_per_particle = kSafety * (kParticleBytes[d] + e.stencil * kStencilEntryBytes);
@@ -109,10 +134,9 @@ ResourceEstimate estimate_resources(const Scene& scene) {
   if (scene.simulation.mass == "consistent" && e.nodes > 0)
     e.bytes_per_node += kFactorEntryBytes * factor_entries(e.nodes, support_radius(kind, e.stencil, dim), dim) / e.nodes;
   e.bytes = kBaseBytes + e.particles * e.bytes_per_particle + e.nodes * e.bytes_per_node;
-  const double c = max_wave_speed(scene);
-  e.dt = scene.simulation.dt ? *scene.simulation.dt : scene.simulation.cfl * min_spacing(scene) / c;
-  e.steps = std::ceil(scene.simulation.t_end / e.dt);
-  if (!std::isfinite(e.steps) || std::isnan(e.steps)) e.steps = INFINITY; // c = inf or dt = 0 after underflow
+  e.wave_speed = max_wave_speed(scene);
+  e.dt = scene.simulation.dt ? *scene.simulation.dt : scene.simulation.cfl * min_spacing(scene) / e.wave_speed;
+  e.steps = step_count(scene, e.dt);
   return e;
 }
 
@@ -155,16 +179,28 @@ void check_resources(const Scene& scene) {
                     (set ? " set by simulation.memory_limit"
                          : " this process may use (physical memory; set simulation.memory_limit in bytes to override)"));
   }
-  if (!(e.steps <= scene.simulation.max_steps)) {
-    const bool fixed = scene.simulation.dt.has_value();
-    input_error(scene.locate(fixed ? "simulation.dt" : "simulation.cfl"),
-                "the run would take about " + format_number(e.steps) + " steps (t_end = " +
-                    format_number(scene.simulation.t_end) + " s over a " + (fixed ? "fixed" : "first CFL") +
-                    " step dt = " + format_number(e.dt) + " s" +
-                    (fixed ? "" : ", from the fastest wave speed " + format_number(max_wave_speed(scene)) + " m/s") +
-                    "), more than simulation.max_steps = " + format_number(scene.simulation.max_steps) +
-                    " (set it higher to run anyway)");
-  }
+  check_steps(scene, e.steps, e.dt,
+              scene.simulation.dt ? "" : ", from the fastest wave speed " + format_number(e.wave_speed) + " m/s");
+}
+
+void check_before_allocating(const Scene& scene, int dimension, int processes) {
+  validate_scene(scene, dimension, processes);
+  check_resources(scene);
+}
+
+void check_first_step(const Scene& scene, double dt, double c) {
+  if (!(dt > 0.0) || !std::isfinite(c)) return; // not a long run: the first step reports the instability
+  check_steps(scene, step_count(scene, dt), dt,
+              c > 0 ? ", from the seeded particles' fastest wave or particle speed " + format_number(c) + " m/s" : "");
+}
+
+void check_node_count(double nodes, const std::string& what) {
+  constexpr double kBytesPerNode = 1000;
+  if (!(nodes <= kMaxRankNodes))
+    throw InputError(what + " gives " + format_number(nodes) + " nodes, more than " + format_number(kMaxRankNodes));
+  if (nodes * kBytesPerNode > available_memory())
+    throw InputError(what + " needs about " + format_bytes(nodes * kBytesPerNode) + " of memory; " +
+                     format_bytes(available_memory()) + " are available");
 }
 
 } // namespace otmpm

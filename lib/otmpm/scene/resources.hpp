@@ -23,20 +23,32 @@
 
 namespace otmpm {
 
-/// An estimate of what a run of a scene costs.
+/// An estimate of what a run of a scene costs in one process.
 struct ResourceEstimate {
-  double particles = 0;           ///< scene_size(scene).particles
-  double nodes = 0;               ///< scene_size(scene).nodes
+  double particles = 0;           ///< the particles the process holds (scene_size(scene).particles in one process)
+  double nodes = 0;               ///< the nodes it holds (scene_size(scene).nodes in one process)
   double stencil = 0;             ///< nodes per particle of the basis family (its support)
   double bytes_per_particle = 0;  ///< particle fields, basis table and scatter plan
   double bytes_per_node = 0;      ///< nodal fields (and the mass matrix, when consistent)
   double bytes = 0;               ///< the total, with the process's fixed footprint
   double dt = 0;                  ///< simulation.dt, or the first CFL step
+  double wave_speed = 0;          ///< the fastest signal at t = 0 the CFL step is taken from (max_wave_speed)
   double steps = 0;               ///< t_end / dt, rounded up
 };
 
-/// The estimate for a scene that validate_scene accepts.
+/// The estimate for a scene that validate_scene accepts, run in one process.
 ResourceEstimate estimate_resources(const Scene& scene);
+/// The estimate for the process that holds `share` of the scene's particles
+/// and nodes: the memory is linear in them (30 MB of its own, bytes_per_particle
+/// and bytes_per_node), so a decomposition known before anything is allocated
+/// gives each rank of a distributed run its own estimate.
+ResourceEstimate estimate_resources(const Scene& scene, const SceneSize& share);
+
+/// The fastest signal at t = 0: the P-wave speed sqrt(M / rho) of every
+/// material - with the smallest density of a file body's `density` column
+/// for that body (BodySection::file_min_density) - and the speed of every
+/// initial velocity, a file body's velocity columns included.
+double max_wave_speed(const Scene& scene);
 
 /// The memory limit of a run of `scene`: simulation.memory_limit when set
 /// (> 0), else available_memory().
@@ -52,5 +64,28 @@ std::string format_bytes(double bytes);
 /// it when the memory estimate exceeds memory_limit(scene) or the steps
 /// exceed simulation.max_steps.
 void check_resources(const Scene& scene);
+
+/// What a run and `otmpm run --check` check of a scene in `dimension`
+/// dimensions before anything is allocated, in this order: every check of
+/// the reader (validate_scene, with the size per process of a run on
+/// `processes` ranks), then its estimated memory and steps (check_resources).
+void check_before_allocating(const Scene& scene, int dimension, int processes = 1);
+
+/// The step-count check once the particles are seeded: t_end / dt, with
+/// dt the engine's first step (Engine::stable_dt: the particles' own
+/// densities and velocities), must not exceed simulation.max_steps. Throws
+/// InputError naming the step, the wave speed `c` it came from (0: a fixed
+/// step) and the key that raises it. A step that is not > 0, or a speed
+/// that is not finite, is no long run but an instability the first step
+/// reports (exit status 1): not checked here.
+void check_first_step(const Scene& scene, double dt, double c);
+
+/// Throws InputError, naming `what` (the option that gives the nodes, e.g.
+/// "--cells 5000 in 3D"), when a node set built outside a scene (`otmpm
+/// basis`, the Python otmpm.basis) would have more than kMaxRankNodes nodes
+/// or not fit in available_memory() at about 1 kB per node (the nodes with
+/// the basis' neighbour search, generously): the cap of one process, before
+/// anything is allocated.
+void check_node_count(double nodes, const std::string& what);
 
 } // namespace otmpm

@@ -6,6 +6,7 @@
 #include "otmpm/scene/scene.hpp"
 
 #include "otmpm/io/results.hpp"
+#include "otmpm/io/text_files.hpp"
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/integrators/integrator.hpp"
 #include "otmpm/io/particle_file.hpp"
@@ -55,11 +56,18 @@ void check(bool ok, const SourceRef& r, const std::string& message) {
   if (!ok) input_error(r, message);
 }
 
-/// A positive number, or absent (fallback).
-double positive(const TableReader& t, std::string_view key, double fallback) {
-  const double v = t.get<double>(key, fallback);
-  check(v > 0, t.ref(key), "must be > 0 (got " + fmt(v) + ")");
+/// The value of `spec.key` in `t` - `fallback` when absent, or required
+/// without one - checked against its row (ParameterSpec::check).
+double number(const TableReader& t, const ParameterSpec& spec, std::optional<double> fallback = std::nullopt) {
+  const double v = fallback ? t.get<double>(spec.key, *fallback) : t.require<double>(spec.key);
+  const std::string why = spec.check(v);
+  check(why.empty(), t.ref(spec.key), why);
   return v;
+}
+
+/// A number > 0, or absent (fallback).
+double positive(const TableReader& t, std::string_view key, double fallback) {
+  return number(t, {key, "", std::nullopt, 0.0, true}, fallback);
 }
 
 /// Every component of upper strictly (or not) above lower.
@@ -109,22 +117,15 @@ SimulationSection read_simulation(const TableReader& t) {
   // Default: the mass matrix of each algorithm's listing (IntegratorKind).
   const bool consistent_default = integrator_kind(s.integrator).consistent_by_default;
   s.mass = t.choice("mass", consistent_default ? "consistent" : "lumped", {"lumped", "consistent"});
-  s.t_end = t.require<double>("t_end");
-  check(s.t_end > 0, t.ref("t_end"), "must be > 0 (got " + fmt(s.t_end) + ")");
+  using namespace scene_keys;
+  s.t_end = number(t, kTEnd);
   check(!(t.has("cfl") && t.has("dt")), t.ref("dt"), "give either simulation.cfl or simulation.dt, not both");
-  s.cfl = positive(t, "cfl", s.cfl);
-  if (t.has("dt")) s.dt = positive(t, "dt", 1.0);
-  s.mass_tolerance = t.get<double>("mass_tolerance", s.mass_tolerance);
-  check(s.mass_tolerance >= 0 && s.mass_tolerance < 1, t.ref("mass_tolerance"),
-        "must be in [0, 1) (got " + fmt(s.mass_tolerance) + ")");
-  s.energy_limit = t.get<double>("energy_limit", s.energy_limit);
-  check(s.energy_limit >= 1, t.ref("energy_limit"),
-        "must be >= 1 (a multiple of the larger of initial energy and work; got " + fmt(s.energy_limit) + ")");
-  s.max_steps = t.get<double>("max_steps", s.max_steps);
-  check(s.max_steps >= 1, t.ref("max_steps"), "must be >= 1 (the most steps a run may take; got " + fmt(s.max_steps) + ")");
-  s.memory_limit = t.get<double>("memory_limit", s.memory_limit);
-  check(s.memory_limit >= 0, t.ref("memory_limit"),
-        "must be >= 0 (bytes; 0: the memory this process may use; got " + fmt(s.memory_limit) + ")");
+  s.cfl = number(t, kCfl, s.cfl);
+  if (t.has("dt")) s.dt = number(t, kDt);
+  s.mass_tolerance = number(t, kMassTolerance, s.mass_tolerance);
+  s.energy_limit = number(t, kEnergyLimit, s.energy_limit);
+  s.max_steps = number(t, kMaxSteps, s.max_steps);
+  s.memory_limit = number(t, kMemoryLimit, s.memory_limit);
   return s;
 }
 
@@ -199,9 +200,7 @@ GridSection read_grid(const TableReader& t, int dim) {
           "upper - lower overflows on axis " + std::to_string(k) + " (lower " + fmt(g.lower[k]) + ", upper " +
               fmt(g.upper[k]) + ")");
   g.cells = read_cells(t, g, dim);
-  g.perturbation = t.get<double>("perturbation", g.perturbation);
-  check(g.perturbation >= 0 && g.perturbation < 0.5, t.ref("perturbation"),
-        "must be in [0, 0.5) (a fraction of h; got " + fmt(g.perturbation) + ")");
+  g.perturbation = number(t, scene_keys::kPerturbation, g.perturbation);
   const std::int64_t seed = t.get<std::int64_t>("seed", g.seed);
   check(seed >= 0 && seed <= std::numeric_limits<unsigned>::max(), t.ref("seed"), "must be a non-negative 32-bit integer");
   g.seed = static_cast<unsigned>(seed);
@@ -244,7 +243,8 @@ std::string read_name(const TableReader& t, bool required, const std::string& fa
   check(!name.empty(), t.ref("name"), "must not be empty");
   const std::string why = name_error(name, what);
   check(why.empty(), t.ref("name"), why);
-  check(seen.insert(name).second, t.has("name") ? t.ref("name") : t.self(), "duplicate name \"" + name + "\"");
+  check(seen.insert(name).second, t.has("name") ? t.ref("name") : t.self(),
+        "duplicate name \"" + shortened(name) + "\"");
   return name;
 }
 
@@ -307,12 +307,8 @@ MaterialSection read_material(const TableReader& t, std::set<std::string>& names
   const MaterialModel& model = *find_material_model(m.model);
   t.only(material_keys(model));
   m.name = read_name(t, true, "", names, "material");
-  m.density = t.require<double>("density");
-  check(m.density > 0, t.ref("density"), "must be > 0 (got " + fmt(m.density) + ")");
-  m.young = t.require<double>("young");
-  check(m.young > 0, t.ref("young"), "must be > 0 (got " + fmt(m.young) + ")");
-  m.poisson = t.require<double>("poisson");
-  check(m.poisson > -1 && m.poisson < 0.5, t.ref("poisson"), "must be in (-1, 0.5) (got " + fmt(m.poisson) + ")");
+  for (auto [spec, value] : {std::pair{&kDensity, &m.density}, {&kYoung, &m.young}, {&kPoisson, &m.poisson}})
+    *value = number(t, *spec);
   read_model_parameters(t, model, m);
   try {
     validate_material(m); // the model's own cross-checks
@@ -377,9 +373,9 @@ std::vector<std::array<double, 2>> read_vertices(const TableReader& t, int dim) 
 
 /// The bounding box of a cylinder body (center of one end, axis, radius, length).
 void cylinder_bounds(BodySection& b) {
-  const double n = std::sqrt(b.axis[0] * b.axis[0] + b.axis[1] * b.axis[1] + b.axis[2] * b.axis[2]);
+  const Vec<3> axis = first_components(b.axis, 3).stableNormalized();
   for (int k = 0; k < 3; ++k) {
-    const double a = b.axis[k] / n, top = b.center[k] + b.length * a;
+    const double a = axis[k], top = b.center[k] + b.length * a;
     const double e = b.radius * std::sqrt(std::max(0.0, 1.0 - a * a));
     b.lower[k] = std::min(b.center[k], top) - e;
     b.upper[k] = std::max(b.center[k], top) + e;
@@ -427,32 +423,42 @@ void read_geometry_file_body(const TableReader& t, BodySection& b, const Scene& 
   check_derived_box(t, "file", b.lower, b.upper, dim);
 }
 
-/// file: the path (relative to the scene file), read now for its bounds and
-/// particle count, so that a bad file is reported with the scene's line. The
-/// file is streamed (stream_particle_file: a block of rows at a time), so
-/// that every rank of a distributed run holds one block, not the file.
+/// file: the path (relative to the scene file), read now for its bounds,
+/// particle count and the extremes of its density and velocity columns
+/// (the first time step), so that a bad file is reported with the scene's
+/// line. Its rows meet the checks of the scene keys of the same quantities
+/// (particle_file_rules). The file is streamed (stream_particle_file: a
+/// block of rows at a time), so that every rank of a distributed run holds
+/// one block, not the file.
 void read_particle_file_body(const TableReader& t, BodySection& b, const Scene& s) {
   b.file = scene_relative_file(t, s);
   const int D = s.simulation.dimension;
   long long count = 0;
-  const auto bounds = [&b, &count, D](const ParticleColumns&, const ParticleRows& rows) {
-    for (int p = 0; p < rows.size(); ++p, ++count)
+  const auto bounds = [&b, &count, D](const ParticleColumns& columns, const ParticleRows& rows) {
+    const auto density = std::find(columns.fields.begin(), columns.fields.end(), kDensity.key);
+    for (int p = 0; p < rows.size(); ++p, ++count) {
+      const std::size_t i = static_cast<std::size_t>(p);
       for (int k = 0; k < D; ++k) {
-        const double x = rows.x[static_cast<std::size_t>(p) * D + k];
-        const double half = 0.5 * std::pow(rows.volume[static_cast<std::size_t>(p)], 1.0 / D);
+        const double x = rows.x[i * D + k];
+        const double half = 0.5 * std::pow(rows.volume[i], 1.0 / D);
         if (count == 0) b.lower[k] = b.upper[k] = x; // the first position, then min/max as one pass over the file
         b.lower[k] = std::min(b.lower[k], x - half);
         b.upper[k] = std::max(b.upper[k], x + half);
       }
+      if (density != columns.fields.end()) {
+        const double rho = rows.fields[static_cast<std::size_t>(density - columns.fields.begin())][i];
+        b.file_min_density = count == 0 ? rho : std::min(b.file_min_density, rho);
+      }
+      if (!rows.v.empty())
+        b.file_max_speed = std::max(b.file_max_speed, Eigen::Map<const Eigen::VectorXd>(&rows.v[i * D], D).norm());
+    }
   };
+  const ParticleFileRules rules = particle_file_rules(s, b);
   try {
-    stream_particle_file(b.file, D, bounds);
+    stream_particle_file(b.file, D, bounds, kParticleChunk, &rules);
   } catch (const InputError& e) {
     input_error(t.ref("file"), e.what());
   }
-  check(count <= kMaxSceneParticles, t.ref("file"),
-        "holds " + fmt(static_cast<double>(count)) + " particles; at most " + fmt(kMaxSceneParticles) +
-            " are allowed");
   b.file_particles = count;
   b.file_read = b.file;
 }
@@ -473,7 +479,7 @@ void read_shape(const TableReader& t, BodySection& b, const Scene& s) {
     check(dim == 3, t.ref("shape"), "shape \"cylinder\" is three-dimensional (use \"sphere\" for a disk in 2D)");
     b.center = t.require_vec("center", dim);
     b.axis = t.require_vec("axis", dim);
-    check(b.axis[0] != 0 || b.axis[1] != 0 || b.axis[2] != 0, t.ref("axis"), "must not be zero");
+    check(is_direction<3>(first_components(b.axis, dim)), t.ref("axis"), "must be finite and not zero");
     b.radius = positive_required(t, "radius");
     b.length = positive_required(t, "length");
     cylinder_bounds(b);
@@ -622,12 +628,10 @@ std::vector<WallSection> read_walls(const TableReader& root, int dim) {
     w.name = read_name(t, false, default_name("wall", out.size()), names, "wall");
     w.point = t.require_vec("point", dim);
     w.normal = t.require_vec("normal", dim);
-    double n2 = 0.0;
-    for (int k = 0; k < dim; ++k) n2 += w.normal[k] * w.normal[k];
-    check(n2 > 0.0, t.ref("normal"), "must not be zero (it points to the material's side of the wall)");
+    check(is_direction<3>(first_components(w.normal, dim)), t.ref("normal"),
+          "must be finite and not zero (it points to the material's side of the wall)");
     w.velocity = t.vec("velocity", dim).value_or(w.velocity);
-    w.friction = t.get<double>("friction", 0.0);
-    check(w.friction >= 0.0, t.ref("friction"), "must be >= 0 (the Coulomb coefficient; got " + fmt(w.friction) + ")");
+    w.friction = number(t, scene_keys::kFriction, w.friction);
     out.push_back(std::move(w));
   }
   return out;
@@ -639,9 +643,7 @@ std::optional<ContactSection> read_contact(const TableReader& root) {
   t->only({"friction"});
   ContactSection c;
   c.where = t->self();
-  c.friction = t->get<double>("friction", 0.0);
-  check(std::isfinite(c.friction) && c.friction >= 0.0, t->ref("friction"),
-        "must be finite and >= 0 (the Coulomb coefficient between bodies; got " + fmt(c.friction) + ")");
+  c.friction = number(*t, scene_keys::kFriction, c.friction);
   return c;
 }
 
@@ -652,7 +654,7 @@ TimeFunction read_time(const TableReader& parent) {
   t->only({"kind", "period"});
   f.kind = t->choice("kind", f.kind, {"constant", "ramp"});
   if (f.kind == "ramp" && !t->has("period")) t->missing("period", "required key is missing (kind = \"ramp\")");
-  f.period = t->has("period") ? positive(*t, "period", 1.0) : 0.0;
+  f.period = t->has("period") ? number(*t, scene_keys::kPeriod) : 0.0;
   return f;
 }
 
@@ -857,7 +859,7 @@ const std::map<std::string, std::string> kExclusive = {
 
 /// Throws InputError "--set KEY: message" (source: the override's key).
 [[noreturn]] void override_error(const std::string& key, const std::string& message) {
-  throw InputError("--set " + key + ": " + message, {"", kCommandLineLine, key});
+  throw InputError("--set " + shortened(key) + ": " + message, {"", kCommandLineLine, key});
 }
 
 std::vector<std::string> split_key(const std::string& key, const std::string& what) {
@@ -878,40 +880,22 @@ std::string trim(const std::string& s) {
   return s.substr(b, s.find_last_not_of(" \t") - b + 1);
 }
 
-/// True when `s` is well-formed UTF-8 (RFC 3629: shortest form, no surrogates,
-/// at most U+10FFFF), as TOML requires of every string.
-bool valid_utf8(std::string_view s) {
-  constexpr char32_t kMinimum[] = {0, 0x80, 0x800, 0x10000}; // smallest code point per continuation count
-  for (std::size_t i = 0; i < s.size();) {
-    const auto lead = static_cast<unsigned char>(s[i]);
-    std::size_t more = 0;
-    char32_t cp = lead;
-    if (lead >= 0xF0 && lead < 0xF8) more = 3, cp = lead & 0x07u;
-    else if (lead >= 0xE0 && lead < 0xF0) more = 2, cp = lead & 0x0Fu;
-    else if (lead >= 0xC0 && lead < 0xE0) more = 1, cp = lead & 0x1Fu;
-    else if (lead >= 0x80) return false;
-    if (s.size() - i <= more) return false;
-    for (std::size_t j = 1; j <= more; ++j) {
-      const auto byte = static_cast<unsigned char>(s[i + j]);
-      if ((byte & 0xC0u) != 0x80u) return false;
-      cp = (cp << 6) | (byte & 0x3Fu);
-    }
-    if (cp < kMinimum[more] || cp > 0x10FFFF || (cp >= 0xD800 && cp <= 0xDFFF)) return false;
-    i += more + 1;
-  }
-  return true;
-}
-
 /// VALUE as a TOML value; a bare word that is not valid TOML is a string
 /// (if it is valid UTF-8: otherwise the resolved scene text would not read back).
 toml::table parse_value(const std::string& key, const std::string& value) {
+  // A line break would let the value end early and the rest of it become
+  // more keys of its own ("1e-5\nsimulation.cfl=5"), silently dropped.
+  if (value.find_first_of("\n\r") != std::string::npos)
+    override_error(key, "cannot read '" + shortened(TableReader::printable(value)) +
+                            "' as a TOML value: it contains a line break (one --set takes one value on one line)");
   try {
     const std::string doc = "v = " + value + "\n";
     return toml::parse(std::string_view(doc), std::string_view("--set"));
   } catch (const toml::parse_error& e) {
     const bool bare = !value.empty() && std::string("[{\"'").find(value.front()) == std::string::npos;
-    if (!bare) override_error(key, "cannot read '" + value + "' as a TOML value: " + std::string(e.description()));
-    if (!valid_utf8(value)) override_error(key, "the value is not valid UTF-8 text");
+    if (!bare)
+      override_error(key, "cannot read '" + shortened(value) + "' as a TOML value: " + std::string(e.description()));
+    if (!text::valid_utf8(value)) override_error(key, "the value is not valid UTF-8 text");
     toml::table t;
     t.insert("v", value);
     return t;
@@ -968,15 +952,22 @@ void apply_override(toml::table& root, const std::string& text, Context& ctx) {
 // ---------------------------------------------------------------- public
 
 std::string SourceRef::describe() const {
-  if (line == kCommandLineLine) return "--set " + key;
-  if (file.empty() && line <= 0) return "key '" + key + "'"; // a Scene built in code
-  std::string s = file;
+  const std::string k = shortened(key);
+  if (line == kCommandLineLine) return "--set " + k;
+  if (file.empty() && line <= 0) return "key '" + k + "'"; // a Scene built in code
+  std::string s = shortened(file);
   if (line > 0) s += ":" + std::to_string(line);
-  return s + ": key '" + key + "'";
+  return s + ": key '" + k + "'";
 }
 
 void input_error(const SourceRef& where, const std::string& message) {
   throw InputError(where.describe() + ": " + message, {where.file, where.line, where.key});
+}
+
+Vec<3> first_components(const Vec3& v, int dim) {
+  Vec<3> out = Vec<3>::Zero();
+  for (int k = 0; k < dim; ++k) out[k] = v[static_cast<std::size_t>(k)];
+  return out;
 }
 
 SourceRef Scene::locate(const std::string& key) const {

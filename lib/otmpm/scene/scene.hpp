@@ -32,6 +32,9 @@ struct SourceRef {
 
 using Vec3 = std::array<double, 3>;
 
+/// The first `dim` components of `v` as an Eigen vector (the others zero).
+Vec<3> first_components(const Vec3& v, int dim);
+
 struct SimulationSection {
   int dimension = 1;
   std::string mode = "mpm";        ///< mpm | ul
@@ -93,6 +96,10 @@ struct BodySection {
   std::string file;                    ///< file: particle file (CSV or HDF5); stl, mesh: geometry file; resolved path
   long long file_particles = 0;        ///< file: the number of particles it holds; mesh: its material points
   std::string file_read;               ///< file, stl, mesh: the path file_particles, lower and upper were read from (else empty)
+  /// file: the smallest value of its `density` column (0: none), and the
+  /// largest speed of its velocity columns, read with file_particles (the
+  /// first time step of scene/resources.hpp depends on them)
+  double file_min_density = 0.0, file_max_speed = 0.0;
   std::string physical;                ///< mesh: the physical group of its elements (name or number; "": all)
   std::string seeding = "element";     ///< mesh: "element" (one point per element) | "quadrature"
   /// stl, mesh: x = R (scale .* x_file) + translate, R the rotations about

@@ -1,5 +1,7 @@
 #include "otmpm/scene/toml_reader.hpp"
 
+#include "otmpm/io/output_files.hpp"
+
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -22,6 +24,8 @@ std::string read_text_file(const std::string& path, const std::string& what) {
   std::error_code ec;
   if (std::filesystem::is_directory(path, ec))
     throw InputError(path + ": is a directory, not a " + what + " (give the .toml file inside it)", {path, 0, ""});
+  if (const std::string kind = special_file(path); !kind.empty())
+    throw InputError(path + ": is " + kind + ", not a " + what, {path, 0, ""});
   std::ifstream in(path, std::ios::binary);
   if (!in)
     throw InputError(path + ": cannot open the " + what + (std::filesystem::exists(path, ec) ? "" : " (no such file)"),

@@ -5,6 +5,7 @@
 /// TableReader reads the keys of one TOML table, checks names, types and
 /// presence, and reports every problem as an InputError "FILE:LINE: key 'K':
 /// message" (SourceRef::describe), also for values written by --set.
+#include "otmpm/io/text_files.hpp"
 #include "otmpm/scene/scene.hpp"
 
 #include <toml++/toml.h>
@@ -108,7 +109,7 @@ template <> inline double convert<double>(const toml::node& n, const SourceRef& 
   if (auto i = n.as_integer()) v = static_cast<double>(i->get());
   else if (auto f = n.as_floating_point()) v = f->get();
   else input_error(r, "expected a number, got " + type_name(n));
-  if (!std::isfinite(v)) input_error(r, "must be a finite number");
+  if (!std::isfinite(v)) input_error(r, "must be a finite number (got " + format_number(v) + ")"); // as ParameterSpec::check
   return v;
 }
 template <> inline int convert<int>(const toml::node& n, const SourceRef& r) {
@@ -299,20 +300,8 @@ public:
     return std::to_string(index);
   }
 
-  /// `s` with control characters shown as \\xHH.
-  static std::string printable(const std::string& s) {
-    std::string out;
-    for (unsigned char c : s) {
-      if (c >= 0x20 && c != 0x7f) {
-        out += static_cast<char>(c);
-        continue;
-      }
-      char buf[8];
-      std::snprintf(buf, sizeof buf, "\\x%02x", c);
-      out += buf;
-    }
-    return out;
-  }
+  /// `s` with control characters shown as \\xHH (text::printable).
+  static std::string printable(const std::string& s) { return text::printable(s); }
 
 private:
   SourceRef with_line(SourceRef r) const {

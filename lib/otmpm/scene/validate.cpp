@@ -4,6 +4,7 @@
 #include "otmpm/scene/validate.hpp"
 
 #include "otmpm/io/results.hpp"
+#include "otmpm/io/text_files.hpp"
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/integrators/integrator.hpp"
 #include "otmpm/materials/material.hpp"
@@ -53,7 +54,7 @@ void check_name(const Scene& s, const std::string& key, const std::string& name,
     check(s, why.empty(), key + ".name", why);
   }
   const std::string& effective = name.empty() ? fallback : name;
-  check(s, seen.insert(effective).second, key + ".name", "duplicate name \"", effective, "\"",
+  check(s, seen.insert(effective).second, key + ".name", "duplicate name \"", shortened(effective), "\"",
         name.empty() ? " (the name of an unnamed " + std::string(what) + " at this place)" : std::string());
 }
 
@@ -71,12 +72,17 @@ void check_box(const Scene& s, const std::string& key, const Vec3& lo, const Vec
           " lower in every component (axis ", k, ": lower ", lo[k], ", upper ", hi[k], ")");
 }
 
+/// `value` of `key` in the range of its row (scene_keys).
+void check_number(const Scene& s, const std::string& key, double value, const ParameterSpec& spec) {
+  const std::string why = spec.check(value);
+  check(s, why.empty(), key, why);
+}
+
 /// kind "constant" or "ramp"; a ramp needs a finite period > 0 (it divides by it).
 void check_time(const Scene& s, const std::string& key, const TimeFunction& g) {
   check(s, one_of(g.kind, {"constant", "ramp"}), key + ".kind", "must be \"constant\" or \"ramp\" (got \"", g.kind,
         "\")");
-  check(s, g.kind != "ramp" || finite_positive(g.period), key + ".period", "must be finite and > 0 (got ", g.period,
-        ")");
+  if (g.kind == "ramp") check_number(s, key + ".period", g.period, scene_keys::kPeriod);
 }
 
 void check_simulation(const Scene& s, int dim) {
@@ -100,17 +106,13 @@ void check_simulation(const Scene& s, int dim) {
     const std::string why = (*spec)->check(entry.second);
     check(s, why.empty(), "simulation." + key, why);
   }
-  check(s, finite_positive(m.t_end), "simulation.t_end", "must be finite and > 0 (got ", m.t_end, ")");
-  if (m.dt) check(s, finite_positive(*m.dt), "simulation.dt", "must be finite and > 0 (got ", *m.dt, ")");
-  else check(s, finite_positive(m.cfl), "simulation.cfl", "must be finite and > 0 (got ", m.cfl, ")");
-  check(s, m.mass_tolerance >= 0.0 && m.mass_tolerance < 1.0, "simulation.mass_tolerance", "must be in [0, 1) (got ",
-        m.mass_tolerance, ")");
-  check(s, m.energy_limit >= 1.0 && std::isfinite(m.energy_limit), "simulation.energy_limit",
-        "must be finite and >= 1 (got ", m.energy_limit, ")");
-  check(s, m.max_steps >= 1.0 && std::isfinite(m.max_steps), "simulation.max_steps", "must be finite and >= 1 (got ",
-        m.max_steps, ")");
-  check(s, m.memory_limit >= 0.0 && std::isfinite(m.memory_limit), "simulation.memory_limit",
-        "must be finite and >= 0 (bytes; got ", m.memory_limit, ")");
+  using namespace scene_keys;
+  check_number(s, "simulation.t_end", m.t_end, kTEnd);
+  if (m.dt) check_number(s, "simulation.dt", *m.dt, kDt);
+  else check_number(s, "simulation.cfl", m.cfl, kCfl);
+  for (const auto& [spec, value] : {std::pair{&kMassTolerance, m.mass_tolerance}, {&kEnergyLimit, m.energy_limit},
+                                   {&kMaxSteps, m.max_steps}, {&kMemoryLimit, m.memory_limit}})
+    check_number(s, "simulation." + std::string(spec->key), value, *spec);
 }
 
 void check_grid(const Scene& s, int dim) {
@@ -122,8 +124,7 @@ void check_grid(const Scene& s, int dim) {
     check(s, std::isfinite(g.upper[k] - g.lower[k]), "grid.upper", "upper - lower overflows on axis ", k);
     check(s, g.cells[k] >= 1, "grid.cells", "axis ", k, ": must be >= 1 (got ", g.cells[k], ")");
   }
-  check(s, g.kind != "perturbed" || (g.perturbation >= 0.0 && g.perturbation < 0.5), "grid.perturbation",
-        "must be in [0, 0.5) (got ", g.perturbation, ")");
+  if (g.kind == "perturbed") check_number(s, "grid.perturbation", g.perturbation, scene_keys::kPerturbation);
 }
 
 void check_basis(const Scene& s) {
@@ -173,15 +174,20 @@ void check_shape(const Scene& s, const BodySection& b, const std::string& key, i
   if (b.shape == "cylinder") {
     check(s, dim == 3, key + ".shape", "\"cylinder\" is three-dimensional");
     check_finite(s, key + ".axis", b.axis, dim);
+    check(s, is_direction<3>(first_components(b.axis, dim)), key + ".axis", "must not be zero");
     check(s, finite_positive(b.length), key + ".length", "must be finite and > 0 (got ", b.length, ")");
   }
   if (b.shape == "polygon") {
     check(s, dim == 2, key + ".shape", "\"polygon\" is two-dimensional");
     check(s, b.vertices.size() >= 3, key + ".vertices", "needs at least 3 vertices (got ", b.vertices.size(), ")");
   }
-  if (b.shape == "file") check(s, !b.file.empty(), key + ".file", "must name a particle file");
+  if (b.shape == "file") {
+    check(s, !b.file.empty(), key + ".file", "must name a particle file");
+    check(s, b.file.find('\0') == std::string::npos, key + ".file", "must not contain NUL (code 0)");
+  }
   if (b.shape == "stl" || b.shape == "mesh") {
     check(s, !b.file.empty(), key + ".file", "must name a geometry file");
+    check(s, b.file.find('\0') == std::string::npos, key + ".file", "must not contain NUL (code 0)");
     check(s, b.shape == "mesh" ? dim >= 2 : dim == 3, key + ".shape", "\"", b.shape, "\" needs dimension ",
           b.shape == "mesh" ? "2 or 3" : "3");
     check(s, one_of(b.seeding, {"element", "quadrature"}), key + ".seeding",
@@ -220,8 +226,7 @@ void check_body_in_grid(const Scene& s, const BodySection& b, const std::string&
 void check_contact(const Scene& s) {
   if (!s.contact) return;
   const ContactSection& c = *s.contact;
-  if (!(std::isfinite(c.friction) && c.friction >= 0.0))
-    input_error(s.locate("contact.friction"), error_message("must be finite and >= 0 (got ", c.friction, ")"));
+  check_number(s, "contact.friction", c.friction, scene_keys::kFriction);
   if (s.simulation.nodes_move())
     input_error(c.where, "body-body contact needs simulation.mode = \"mpm\": it gives each body its own copy of "
                          "the fixed grid's nodal fields, and in \"ul\" mode, where the nodes move with the "
@@ -256,11 +261,8 @@ void check_loads(const Scene& s, int dim) {
     check_finite(s, key + ".point", w.point, dim);
     check_finite(s, key + ".normal", w.normal, dim);
     check_finite(s, key + ".velocity", w.velocity, dim);
-    double n2 = 0.0;
-    for (int k = 0; k < dim; ++k) n2 += w.normal[k] * w.normal[k];
-    check(s, n2 > 0.0, key + ".normal", "must not be zero");
-    check(s, std::isfinite(w.friction) && w.friction >= 0.0, key + ".friction", "must be finite and >= 0 (got ",
-          w.friction, ")");
+    check(s, is_direction<3>(first_components(w.normal, dim)), key + ".normal", "must not be zero");
+    check_number(s, key + ".friction", w.friction, scene_keys::kFriction);
   }
   if (s.body_force) {
     check_finite(s, "body_force.value", s.body_force->value, dim);
@@ -331,6 +333,18 @@ void check_output(const Scene& s, int dim) {
         "must be one of \"double\", \"single\" (got \"", o.precision, "\")");
   check(s, o.compression >= 0 && o.compression <= 9, "output.compression", "must be an integer 0..9 (got ",
         o.compression, ")");
+  // Frames a viewer can show: the XDMF sidecar and the VTK files place the particles at x.
+  const bool x = fields.count("x") > 0;
+  check(s, x || o.fields.empty(), "output.fields",
+        "must include \"x\": the XDMF sidecar and the VTK files place the particles at x, without which a viewer "
+        "shows none of the other fields ([] writes frames without fields, for the histories only)");
+  check(s, x || vtk_format(o).empty(), "output.format",
+        "\"vtp\" and \"vtu\" need \"x\" in output.fields (a VTK file places the particles at x)");
+  for (const auto& [key, path] :
+       {std::pair{"output.file", &o.file}, std::pair{"output.checkpoint_file", &o.checkpoint_file}}) {
+    const std::string c = text::control_character(*path);
+    check(s, c.empty(), key, "must not contain ", c, " (a file name otmpm writes, also into XML files)");
+  }
 }
 
 /// The caps of parse_scene (kMaxSceneParticles, kMaxSceneNodes,
@@ -391,7 +405,8 @@ std::string default_name(std::string_view kind, std::size_t index) {
 std::string name_error(const std::string& name, std::string_view what) {
   const std::string why = invalid_name_reason(name);
   if (why.empty()) return why;
-  return "\"" + toml_input::TableReader::printable(name) + "\" cannot name a " + std::string(what) + ": " + why;
+  return "\"" + shortened(toml_input::TableReader::printable(name)) + "\" cannot name a " +
+         std::string(what) + ": " + why;
 }
 
 void validate_scene(const Scene& s, int dimension, int processes) {
@@ -417,6 +432,29 @@ std::vector<std::string_view> output_field_names(const Scene& s) {
       for (const StateSpec& st : model->state)
         if (std::find(names.begin(), names.end(), st.name) == names.end()) names.push_back(st.name);
   return names;
+}
+
+ParticleFileRules particle_file_rules(const Scene& s, const BodySection& body) {
+  ParticleFileRules rules;
+  rules.max_rows = static_cast<long long>(kMaxSceneParticles);
+  const int dim = std::clamp(s.simulation.dimension, 1, 3);
+  const char* axes[] = {"x", "y", "z"};
+  for (const char* prefix : {"", "v"})
+    for (int k = 0; k < dim; ++k) rules.known += prefix + std::string(axes[k]) + ", ";
+  rules.known += "volume, density";
+  rules.columns.emplace(kDensity.key, kDensity);
+  const auto material = std::find_if(s.materials.begin(), s.materials.end(),
+                                     [&](const MaterialSection& m) { return m.name == body.material; });
+  const MaterialModel* model = material == s.materials.end() ? nullptr : find_material_model(material->model);
+  std::string states;
+  for (const StateSpec& st : model ? model->state : std::span<const StateSpec>{})
+    if (st.width == 1) {
+      rules.columns.emplace(st.name, st.range());
+      states += std::string(states.empty() ? "" : ", ") + std::string(st.name);
+    }
+  rules.known += states.empty() ? "; the model of material '" + body.material + "' has no state variable"
+                                : ", or a state variable of model '" + material->model + "': " + states;
+  return rules;
 }
 
 template <int D> void validate_seeding(const Scene& s, const Vec<D>& h, bool whole) {

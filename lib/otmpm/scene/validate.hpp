@@ -7,9 +7,37 @@
 /// gives an InputError naming the scene key ("FILE:LINE: key 'grid.cells': ..."
 /// when the scene came from a file, "key 'grid.cells': ..." otherwise) instead
 /// of undefined behaviour, a hang or a NaN in the first step.
+#include "otmpm/io/particle_file.hpp"
+#include "otmpm/parameters.hpp"
 #include "otmpm/scene/scene.hpp"
 
 namespace otmpm {
+
+/// The ranges of the scene's scalar keys (`key`: the key within its table;
+/// the defaults are the Scene's): one row per quantity, which the scene
+/// reader checks each value against as it reads it (FILE:LINE: key) and
+/// validate_scene checks again on a Scene built in code or from a Python
+/// dict (key 'K'), with the same message ("must be > 0 (got -1)"). The
+/// material constants are kDensity, kYoung and kPoisson (materials/
+/// elasticity.hpp), the model and integrator parameters their own rows; a
+/// particle file's columns meet the row of the same quantity
+/// (particle_file_rules).
+namespace scene_keys {
+inline constexpr ParameterSpec kTEnd{"t_end", "end time [s]", std::nullopt, 0.0, true};
+inline constexpr ParameterSpec kCfl{"cfl", "Courant number of the time step", std::nullopt, 0.0, true};
+inline constexpr ParameterSpec kDt{"dt", "fixed time step [s]", std::nullopt, 0.0, true};
+inline constexpr ParameterSpec kMassTolerance{"mass_tolerance", "relative mass below which a node is inactive",
+                                              std::nullopt, 0.0, false, 1.0, true};
+inline constexpr ParameterSpec kEnergyLimit{"energy_limit", "runaway energy, a multiple of energy and work",
+                                            std::nullopt, 1.0};
+inline constexpr ParameterSpec kMaxSteps{"max_steps", "the most steps a run may take", std::nullopt, 1.0};
+inline constexpr ParameterSpec kMemoryLimit{"memory_limit", "bytes a run may use (0: what the process may use)",
+                                            std::nullopt, 0.0};
+inline constexpr ParameterSpec kPerturbation{"perturbation", "node perturbation, a fraction of h", std::nullopt, 0.0,
+                                             false, 0.5, true};
+inline constexpr ParameterSpec kFriction{"friction", "Coulomb friction coefficient", std::nullopt, 0.0};
+inline constexpr ParameterSpec kPeriod{"period", "period of a ramp [s]", std::nullopt, 0.0, true};
+} // namespace scene_keys
 
 /// Throws InputError naming the key unless the scene can run in `dimension`
 /// dimensions: every check parse_scene makes of the values it reads.
@@ -56,6 +84,14 @@ std::string default_name(std::string_view kind, std::size_t index);
 /// validate_scene's message (invalid_name_reason, the name printable), or
 /// "" when it can.
 std::string name_error(const std::string& name, std::string_view what);
+
+/// What the particle file of file body `body` must satisfy
+/// (ParticleFileRules): a `density` column in the range of
+/// material.NAME.density (kDensity), a column named after a scalar state
+/// variable of its material's model in that variable's range
+/// (StateSpec::range), no other further column, at most kMaxSceneParticles
+/// rows. The scene reader and the seeding read the file with them.
+ParticleFileRules particle_file_rules(const Scene& scene, const BodySection& body);
 
 /// What seed_particles() relies on: validate_bodies(), a grid spacing h that
 /// is finite and > 0 on every axis, and (`whole`: all particles are stored
