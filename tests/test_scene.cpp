@@ -314,7 +314,7 @@ TEST_CASE("absurd sizes are rejected before the engine allocates anything") {
   // and particles per process, so a bigger scene needs enough ranks.
   const Scene huge = load_scene(bad("huge_grid"));
   const auto refusal = [](const Scene& s, int processes) {
-    return input_error_message([&] { validate_scene(s, s.simulation.dimension, processes); });
+    return input_error_of([&] { validate_scene(s, s.simulation.dimension, processes); });
   };
   check_message(refusal(huge, 1), {"huge_grid.toml:18: key 'grid.cells'", "1e+09 nodes", "at most 100000000 in one process",
                                    "at least 11 ranks"});
