@@ -5,6 +5,7 @@
 #include "system.hpp"
 
 #include "otmpm/distributed/comm.hpp"
+#include "otmpm/distributed/global_view.hpp"
 #include "otmpm/run/restart.hpp"
 #include "otmpm/run/run.hpp"
 #include "otmpm/io/checkpoint.hpp"
@@ -135,10 +136,14 @@ int run_command(const SceneArgs& a) {
     distributed::agree_on(world, [&] { scene = std::make_unique<Scene>(load_scene(a.scene, a.sets)); });
     s = run_scene(*scene, opt);
   } else {
+    // A distributed restart reads the checkpoint's head on every rank and
+    // each rank's rows later (open_checkpoint, collective: it agrees on its
+    // errors itself); one process reads it whole.
     std::unique_ptr<Checkpoint> ck;
+    distributed::agree_on(world, [&] { require_file(a.restart, "checkpoint file"); });
+    if (world.size() > 1) ck = std::make_unique<Checkpoint>(open_checkpoint(a.restart, distributed::parallel_io(world)));
     distributed::agree_on(world, [&] {
-      require_file(a.restart, "checkpoint file");
-      ck = std::make_unique<Checkpoint>(read_checkpoint(a.restart));
+      if (!ck) ck = std::make_unique<Checkpoint>(read_checkpoint(a.restart));
       scene = std::make_unique<Scene>(checkpoint_scene(*ck));
     });
     s = restart_run(*ck, opt);

@@ -93,6 +93,28 @@ TEST_CASE("rcb: the same home cells give the same boxes, too many ranks is an in
   CHECK_THROWS_AS(Decomposition<1>::rcb({3}, 4, std::vector<Index<1>>{}, Comm::self()), InputError);
 }
 
+TEST_CASE("rcb: the tree kept in a checkpoint gives the same owners; a tree of other ranks or cells is refused") {
+  std::mt19937 rng(3);
+  std::vector<Index<3>> home;
+  for (int i = 0; i < 3000; ++i)
+    home.push_back({static_cast<int>(rng() % 12), static_cast<int>(rng() % 7), static_cast<int>(rng() % 9)});
+  for (int ranks : {1, 2, 5, 16}) {
+    CAPTURE(ranks);
+    const auto d = Decomposition<3>::rcb({12, 7, 9}, ranks, home, Comm::self());
+    const std::vector<std::int64_t> rows = d.tree_rows();
+    const auto back = Decomposition<3>::from_tree({12, 7, 9}, ranks, rows);
+    REQUIRE(back.has_value());
+    check_tiling(*back);
+    for (int r = 0; r < ranks; ++r) CHECK(back->box(r) == d.box(r));
+    for (const Index<3>& c : home) CHECK(back->owner(c) == d.owner(c));
+    CHECK_FALSE(Decomposition<3>::from_tree({12, 7, 10}, ranks, rows).has_value()); // another lattice
+    CHECK_FALSE(Decomposition<3>::from_tree({12, 7, 9}, ranks + 1, rows).has_value());
+    std::vector<std::int64_t> damaged = rows;
+    damaged.pop_back();
+    CHECK_FALSE(Decomposition<3>::from_tree({12, 7, 9}, ranks, damaged).has_value());
+  }
+}
+
 TEST_CASE("rcb: (cell, count) runs give the same boxes as the cells repeated") {
   // What a rank's seeding gives the bisection (local_parts.cpp): runs of
   // one cell's particles, a cell in several runs and in any order.

@@ -11,6 +11,7 @@
 // keys output.checkpoint_every / checkpoint_file are checked like the others.
 #include "otmpm/basis/bspline.hpp"
 #include "otmpm/assembly/assembler.hpp"
+#include "otmpm/io/checkpoint.hpp"
 #include "otmpm/run/restart.hpp"
 
 #include "temp_dir.hpp"
@@ -25,6 +26,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -278,6 +280,25 @@ void flip_byte(const std::string& path, std::streamoff offset) {
 }
 
 } // namespace
+
+TEST_CASE("crc64_combine: the CRC of two parts combined is the CRC of the whole, for any cut") {
+  // The ranks of a distributed run checksum a checkpoint in parts.
+  std::mt19937_64 rng(7);
+  std::vector<unsigned char> bytes(5000);
+  for (unsigned char& b : bytes) b = static_cast<unsigned char>(rng());
+  const std::uint64_t whole = crc64(bytes.data(), bytes.size());
+  CHECK(crc64("123456789", 9) == 0x995DC9BBDF1939FAull); // the check value of CRC-64/XZ
+  for (std::size_t cut : {std::size_t{0}, std::size_t{1}, std::size_t{511}, std::size_t{512}, std::size_t{4999},
+                          std::size_t{5000}}) {
+    CAPTURE(cut);
+    const std::uint64_t a = crc64(bytes.data(), cut), b = crc64(bytes.data() + cut, bytes.size() - cut);
+    CHECK(crc64_combine(a, b, bytes.size() - cut) == whole);
+  }
+  // three parts, combined left to right
+  const std::uint64_t p1 = crc64(bytes.data(), 100), p2 = crc64(bytes.data() + 100, 2000),
+                      p3 = crc64(bytes.data() + 2100, 2900);
+  CHECK(crc64_combine(crc64_combine(p1, p2, 2000), p3, 2900) == whole);
+}
 
 TEST_CASE("a missing, truncated, foreign or damaged checkpoint is an InputError naming the file") {
   TempDir tmp("damaged");

@@ -7,6 +7,7 @@
 #include "otmpm/scene/scene.hpp"
 
 #include "otmpm/assembly/assembler.hpp"
+#include "otmpm/scene/validate.hpp"
 
 #include "input_error.hpp"
 
@@ -301,14 +302,28 @@ TEST_CASE("other out-of-range values") {
 }
 
 TEST_CASE("absurd sizes are rejected before the engine allocates anything") {
-  check_message(error_of(bad("huge_grid")),
-                {"huge_grid.toml:17: key 'grid.cells'", "1e+09 nodes", "at most 100000000"});
+  // The reader refuses what no rank count can index (cells per axis are int) ...
   check_message(error_of(kGood, {"grid.h=1e-12"}), {"--set grid.h", "cells on axis 0"});
+  check_message(error_of(kGood, {"grid.cells=[2000000000]"}), {"--set grid.cells", "axis 0", "cells are allowed"});
   check_message(error_of(kGood, {"body.bar.particles_per_cell=101"}), {"--set body.bar.particles_per_cell", "[1, 100]"});
   // ul mode: the body need not lie in the grid, but it is seeded in cells of grid.h.
-  check_message(error_of(kGood, {"simulation.mode=ul", "body.bar.upper=[1e6]"}),
-                {"--set body.bar.upper", "particle count", "at most 100000000"});
+  check_message(error_of(kGood, {"simulation.mode=ul", "body.bar.upper=[1e7]"}),
+                {"--set body.bar.upper", "cells of the grid spacing on axis 0", "are allowed"});
   check_message(error_of(kGood, {"grid.lower=[-1e308]", "grid.upper=[1e308]"}), {"--set grid.upper", "overflows"});
+  // ... and a run refuses what its processes cannot hold: at most 1e8 nodes
+  // and particles per process, so a bigger scene needs enough ranks.
+  const Scene huge = load_scene(bad("huge_grid"));
+  const auto refusal = [](const Scene& s, int processes) {
+    return input_error_of([&] { validate_scene(s, s.simulation.dimension, processes); });
+  };
+  check_message(refusal(huge, 1), {"huge_grid.toml:18: key 'grid.cells'", "1e+09 nodes", "at most 100000000 in one process",
+                                   "at least 11 ranks"});
+  check_message(refusal(huge, 10), {"per rank of 10", "at least 11 ranks"});
+  INFO(refusal(huge, 11));
+  CHECK(refusal(huge, 11).find("particles") != std::string::npos); // 1.9e9 of them
+  CHECK(refusal(huge, 20).empty());
+  const Scene ul = load_scene(kGood, {"simulation.mode=ul", "body.bar.upper=[1e6]"});
+  check_message(refusal(ul, 1), {"key 'grid.cells'", "nodes", "at most 100000000 in one process"});
 }
 
 TEST_CASE("scene_size counts the particles and nodes the engine creates") {

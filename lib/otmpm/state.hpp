@@ -7,10 +7,13 @@
 /// as doubles, so a state read back is the same bits.
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
 namespace otmpm {
+
+class CheckpointFile;
 
 /// rows x cols numbers in row-major order: one array of a state group.
 template <class T> struct StateArray {
@@ -59,6 +62,10 @@ struct Checkpoint {
   std::string run_id; ///< the run's id (io/output_files.hpp), also in its result file; "": write_checkpoint draws one
   int dimension = 0;
   std::map<std::string, StateGroup> groups;
+  /// The open file of a checkpoint read without its per-row arrays
+  /// (open_checkpoint, io/checkpoint.hpp): a distributed restart reads each
+  /// rank's rows from it. Null: every array is in `groups`.
+  std::shared_ptr<const CheckpointFile> source;
 
   /// The group `name`, created empty when absent.
   StateGroup& group(const std::string& name);

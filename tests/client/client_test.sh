@@ -5,8 +5,8 @@
 #   bash tests/client/client_test.sh OTMPM_BINARY SOURCE_DIR WORK_DIR [MPIEXEC]
 #
 # With MPIEXEC (an otmpm built with MPI), the 2D run is repeated on 2 ranks
-# (one result file written collectively; the VTK files by rank 0 from the
-# gathered frames) and its files go through the same checks.
+# (one result file written collectively; each VTK frame a .pvtp naming one
+# piece per rank, ParaView's convention) and its files go through the same checks.
 #
 #  - a 3D run with output.precision = "single" and symmetric tensors goes
 #    through every check too (stress and strain must arrive as 6 components),

@@ -3,6 +3,8 @@ the .vtu frames with meshio (Debian's python3-meshio; its version 5 has no
 .vtp reader) and the .vtp frames with a small independent decoder of VTK's
 raw appended format. Every frame's points and point data must equal the HDF5
 result file's frame bit for bit, and the .pvd must list every frame with its time.
+A distributed run's frames are .pvtp / .pvtu files naming one piece per rank:
+the pieces, read in their order, must give the frame.
 
     python3 vtk_files_check.py RESULT.h5...
 """
@@ -47,6 +49,35 @@ def read_vtp(path):
     return points, verts, point_data
 
 
+def read_serial(file, n):
+    """Points, vertex cells, point data and the reader of one .vtu / .vtp file of n particles."""
+    if file.endswith(".vtu"):
+        mesh = meshio.read(file)
+        cells = sum(len(c.data) for c in mesh.cells if c.type == "vertex")
+        return mesh.points, cells, dict(mesh.point_data), "meshio"
+    points, verts, point_data = read_vtp(file)
+    if not np.array_equal(verts["connectivity"].ravel(), np.arange(n)):
+        fail(f"{file}: vertex connectivity is not 0 .. {n - 1}")
+    return points, len(verts["offsets"]), point_data, "vtp decoder"
+
+
+def read_frame(file, n):
+    """read_serial of a frame file, or of the pieces a .pvtp / .pvtu names, joined in order."""
+    if not file.endswith((".pvtp", ".pvtu")):
+        return read_serial(file, n)
+    root = ET.parse(file).getroot()
+    sources = [os.path.join(os.path.dirname(file), p.get("Source")) for p in root.iter("Piece")]
+    if not sources:
+        fail(f"{file}: names no piece")
+    pieces = []
+    for source in sources:
+        count = int(re.search(rb'NumberOfPoints="(\d+)"', open(source, "rb").read(4096)).group(1))
+        pieces.append(read_serial(source, count))
+    points = np.concatenate([p[0] for p in pieces])
+    point_data = {k: np.concatenate([np.asarray(p[2][k]).reshape(len(p[0]), -1) for p in pieces]) for k in pieces[0][2]}
+    return points, sum(p[1] for p in pieces), point_data, pieces[0][3] + f" ({len(pieces)} pieces)"
+
+
 def frame_of(path, index):
     with h5py.File(path, "r") as f:
         g = f["frames"][f"{index:06d}"]
@@ -67,17 +98,7 @@ def check(path):
         file = os.path.join(os.path.dirname(stem + ".pvd"), entry.get("file"))
         x = fields.pop("x")
         n, d = x.shape
-        if file.endswith(".vtu"):
-            mesh = meshio.read(file)
-            points, point_data = mesh.points, mesh.point_data
-            cells = sum(len(c.data) for c in mesh.cells if c.type == "vertex")
-            reader = "meshio"
-        else:
-            points, verts, point_data = read_vtp(file)
-            cells = len(verts["offsets"])
-            if not np.array_equal(verts["connectivity"].ravel(), np.arange(n)):
-                fail(f"{file}: vertex connectivity is not 0 .. {n - 1}")
-            reader = "vtp decoder"
+        points, cells, point_data, reader = read_frame(file, n)
         if points.shape != (n, 3) or not np.array_equal(points[:, :d], x) or np.any(points[:, d:] != 0):
             fail(f"{file} ({reader}): points differ from x of the HDF5 frame")
         if cells != n:

@@ -88,6 +88,31 @@ template <int D> std::vector<char> surface_particles(const Particles<D>& P, int 
   return surface;
 }
 
+/// The particles of traction load `i` (scene section ts) and their face
+/// areas: its surface particles (surface_particles, or of a share of the
+/// particles `seeded.surfaces`) in its box. InputError when it selects none.
+template <int D>
+void surface_loads(const TractionSection& ts, const Particles<D>& P, double h, const SeededBodies<D>& seeded,
+                   std::size_t i, Traction<D>& load) {
+  std::vector<char> surface;
+  if (seeded.surfaces) {
+    require<std::logic_error>(seeded.ids.size() == static_cast<std::size_t>(P.size()),
+                              "build_tractions: a share of the particles without their global ids");
+    surface.resize(static_cast<std::size_t>(P.size()));
+    for (std::size_t p = 0; p < surface.size(); ++p) surface[p] = seeded.surfaces->surface(i, seeded.ids[p]);
+  } else {
+    surface = surface_particles<D>(P, load.axis, kBoxTolerance * h);
+  }
+  for (int p = 0; p < P.size(); ++p)
+    if (surface[static_cast<std::size_t>(p)] && inside_box<D>(P.x[p], ts.lower, ts.upper)) {
+      load.particle.push_back(p);
+      load.area.push_back(P.V0[p] / P.length0[p][load.axis]);
+    }
+  if (seeded.surfaces ? !seeded.surfaces->selects(i) : load.particle.empty())
+    input_error(ts.where, "traction box selects no surface particle (the first or last particle of a column "
+                          "along axis " + std::to_string(load.axis) + ")");
+}
+
 /// Tractions on the body surface inside each traction box (TractionSection):
 /// the surface particles in the box, each over its face area V0_p /
 /// l_p[axis]. The built-in history of wobbes et al. eq. 103 comes from the
@@ -95,7 +120,8 @@ template <int D> std::vector<char> surface_particles(const Particles<D>& P, int 
 ///
 /// A share of the particles (`seeded.surfaces`: a rank of a distributed
 /// run) takes its surface particles from there, found among all particles
-/// while seeding; the box must select one of all particles.
+/// while seeding; the box must select one of all particles. A restart's
+/// share (`seeded.traction_area`) takes the loads as its checkpoint holds them.
 template <int D>
 std::vector<Traction<D>> build_tractions(const Scene& scene, const Particles<D>& P, double h,
                                          const std::shared_ptr<const ExactSolution<D>>& exact,
@@ -107,23 +133,15 @@ std::vector<Traction<D>> build_tractions(const Scene& scene, const Particles<D>&
     load.value = scene_vec<D>(ts.value);
     load.time = ts.time;
     load.axis = traction_axis<D>(ts);
-    std::vector<char> surface;
-    if (seeded.surfaces) {
-      require<std::logic_error>(seeded.ids.size() == static_cast<std::size_t>(P.size()),
-                                "build_tractions: a share of the particles without their global ids");
-      surface.resize(static_cast<std::size_t>(P.size()));
-      for (std::size_t p = 0; p < surface.size(); ++p) surface[p] = seeded.surfaces->surface(i, seeded.ids[p]);
+    if (i < seeded.traction_area.size()) { // a restart's loads, as the checkpoint holds them
+      for (std::size_t p = 0; p < seeded.traction_area[i].size(); ++p)
+        if (seeded.traction_area[i][p] >= 0.0) {
+          load.particle.push_back(static_cast<int>(p));
+          load.area.push_back(seeded.traction_area[i][p]);
+        }
     } else {
-      surface = surface_particles<D>(P, load.axis, kBoxTolerance * h);
+      surface_loads<D>(ts, P, h, seeded, i, load);
     }
-    for (int p = 0; p < P.size(); ++p)
-      if (surface[static_cast<std::size_t>(p)] && inside_box<D>(P.x[p], ts.lower, ts.upper)) {
-        load.particle.push_back(p);
-        load.area.push_back(P.V0[p] / P.length0[p][load.axis]);
-      }
-    if (seeded.surfaces ? !seeded.surfaces->selects(i) : load.particle.empty())
-      input_error(ts.where, "traction box selects no surface particle (the first or last particle of a column "
-                            "along axis " + std::to_string(load.axis) + ")");
     if (ts.function == "wobbes_traction_bar") {
       const auto* bar = dynamic_cast<const TractionBar<D>*>(exact.get());
       if (!bar)
@@ -276,7 +294,7 @@ template <int D>
 EngineParts<D> assemble_parts(const Scene& scene,
                               const std::function<SeededBodies<D>(const Vec<D>&, const CartesianGrid<D>&)>& seed,
                               const std::function<LatticePart<D>(const CartesianGrid<D>&)>& lattice) {
-  validate_scene(scene, D);
+  validate_scene(scene, D, seed ? 0 : 1); // a share (seed) checks its own size
   const IntegratorKind& integrator = integrator_kind(scene.simulation.integrator);
   const bool ul = scene.simulation.nodes_move();
   EngineParts<D> parts;
@@ -317,7 +335,8 @@ EngineParts<D> assemble_parts(const Scene& scene,
     parts.walls.push_back({w.name, scene_vec<D>(w.point), scene_vec<D>(w.normal), scene_vec<D>(w.velocity), w.friction});
   if (scene.contact) parts.contact = ContactLaw{scene.contact->friction};
   parts.loads.body_force = build_body_force<D>(scene, exact);
-  require<std::logic_error>(!seed || scene.tractions.empty() || seeded.surfaces,
+  require<std::logic_error>(!seed || scene.tractions.empty() || seeded.surfaces ||
+                                seeded.traction_area.size() == scene.tractions.size(),
                             "assemble_parts: a share of the particles needs its traction loads' surface particles");
   parts.loads.tractions = build_tractions<D>(scene, P, h, exact, seeded);
   allocate_fields(scene, integrator, parts, P);

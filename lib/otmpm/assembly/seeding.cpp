@@ -14,6 +14,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <numbers>
 #include <optional>
@@ -72,6 +73,29 @@ template <int D> std::unique_ptr<Shape<D>> body_shape(const BodySection& b, cons
   return make_box<D>(scene_vec<D>(b.lower), scene_vec<D>(b.upper));
 }
 
+/// The cells of `lattice` that meet the bounds [lo, hi] of a shape: their
+/// box [lower, upper] and count per axis.
+template <int D> struct LatticeCells {
+  Vec<D> lower, upper;
+  Index<D> count;
+};
+template <int D> LatticeCells<D> lattice_cells(const Vec<D>& lo, const Vec<D>& hi, const CartesianGrid<D>& lattice) {
+  const Vec<D> h = lattice.h();
+  LatticeCells<D> c;
+  Index<D> first;
+  for (int k = 0; k < D; ++k) {
+    first[k] = std::clamp(static_cast<int>(std::floor((lo[k] - lattice.lower[k]) / h[k])), 0, lattice.cells[k] - 1);
+    const int last = std::clamp(static_cast<int>(std::ceil((hi[k] - lattice.lower[k]) / h[k])), first[k] + 1,
+                                lattice.cells[k]);
+    c.count[k] = last - first[k];
+  }
+  for (int k = 0; k < D; ++k) {
+    c.lower[k] = lattice.lower[k] + first[k] * h[k];
+    c.upper[k] = lattice.lower[k] + (first[k] + c.count[k]) * h[k];
+  }
+  return c;
+}
+
 /// The particles of a shape on the cells of `lattice` that meet its bounds,
 /// kept where they lie in the shape.
 template <int D, class Emit>
@@ -79,20 +103,8 @@ void seed_on_lattice(const Shape<D>& shape, const BodySection& b, int body, cons
                      Emit&& emit) {
   Vec<D> lo, hi;
   shape.bounds(lo, hi);
-  const Vec<D> h = lattice.h();
-  Index<D> first, count;
-  for (int k = 0; k < D; ++k) {
-    first[k] = std::clamp(static_cast<int>(std::floor((lo[k] - lattice.lower[k]) / h[k])), 0, lattice.cells[k] - 1);
-    const int last = std::clamp(static_cast<int>(std::ceil((hi[k] - lattice.lower[k]) / h[k])), first[k] + 1,
-                                lattice.cells[k]);
-    count[k] = last - first[k];
-  }
-  Vec<D> lower, upper;
-  for (int k = 0; k < D; ++k) {
-    lower[k] = lattice.lower[k] + first[k] * h[k];
-    upper[k] = lattice.lower[k] + (first[k] + count[k]) * h[k];
-  }
-  seed_box_cells<D>(lower, upper, count, b.particles_per_cell, b.placement,
+  const LatticeCells<D> c = lattice_cells<D>(lo, hi, lattice);
+  seed_box_cells<D>(c.lower, c.upper, c.count, b.particles_per_cell, b.placement,
                     [&](const Vec<D>& x, double V, const Vec<D>& extent) {
                       if (shape.contains(x)) emit(Seed<D>{x, extent, V, body});
                     });
@@ -142,55 +154,6 @@ bool overlapped(const Scene& scene, int b, const std::vector<std::unique_ptr<Sha
   }
   return false;
 }
-
-/// The particles that start behind a rigid wall - on the side its normal
-/// points away from (docs/theory.md sect. 6.1: the normal points to the
-/// material's side), by more than round-off (kBoxTolerance h) - counted per
-/// wall and body as the particles are seeded, so that a body the wall would
-/// push or hold from its first step is refused at set-up.
-template <int D> class WallSides {
-public:
-  WallSides(const Scene& scene, const Vec<D>& h) : scene_(scene), tol_(kBoxTolerance * h.minCoeff()) {
-    for (const WallSection& w : scene.walls)
-      walls_.push_back({scene_vec<D>(w.point), Vec<D>(first_components(w.normal, D).template head<D>().stableNormalized())});
-    behind_.assign(walls_.size() * scene.bodies.size(), {0, Vec<D>::Zero()});
-  }
-
-  /// A particle of body `body` at x.
-  void visit(const Vec<D>& x, int body) {
-    for (std::size_t w = 0; w < walls_.size(); ++w) {
-      if ((x - walls_[w].first).dot(walls_[w].second) >= -tol_) continue;
-      Behind& b = behind_[w * scene_.bodies.size() + static_cast<std::size_t>(body)];
-      if (b.count++ == 0) b.first = x;
-    }
-  }
-
-  /// InputError at the first wall with particles behind it, naming the
-  /// wall, the body, their count and the first of them.
-  void refuse() const {
-    for (std::size_t i = 0; i < behind_.size(); ++i) {
-      if (behind_[i].count == 0) continue;
-      const WallSection& w = scene_.walls[i / scene_.bodies.size()];
-      const std::string& body = scene_.bodies[i % scene_.bodies.size()].name;
-      input_error(w.where, "body '" + body + "' starts behind wall '" + w.name + "': " +
-                               std::to_string(behind_[i].count) + " of its particles (the first at " +
-                               format_point<D>(behind_[i].first) +
-                               ") lie on the side the wall's normal points away from, where the wall would push "
-                               "or hold them from the first step (move the wall or the body, or turn the normal "
-                               "to the body's side)");
-    }
-  }
-
-private:
-  struct Behind {
-    long long count;
-    Vec<D> first;
-  };
-  const Scene& scene_;
-  double tol_;
-  std::vector<std::pair<Vec<D>, Vec<D>>> walls_; ///< point, unit normal
-  std::vector<Behind> behind_;                   ///< per wall and body
-};
 
 /// Drops or refuses the seeds of body b that lie in an earlier body.
 template <int D>
@@ -248,23 +211,23 @@ void generate_body(const Scene& scene, int b, const Vec<D>& h, const CartesianGr
   }
 }
 
-[[noreturn]] void no_particle(const BodySection& body) {
-  input_error(body.where, "body '" + body.name + "' holds no particle (is it smaller than a cell?)");
-}
-
 /// True for a body seeded on the lattice and kept inside its shape (not a
 /// box, which its cells tile exactly, nor a file body).
 bool lattice_shape(const BodySection& body) { return body.shape != "box" && body.shape != "file"; }
 
 /// Scales the volumes of seeds [first, end) of a body by volume_factor
 /// (`seeded`: the volume of all the body's seeds, some of which a rank may not hold).
+/// Multiplies the volumes of seeds [first, end) by `factor`.
+template <int D> void scale_seeds(double factor, std::vector<Seed<D>>& seeds, std::size_t first) {
+  if (factor == 1.0) return;
+  for (std::size_t i = first; i < seeds.size(); ++i) seeds[i].V *= factor;
+}
+
 template <int D>
 void scale_volumes(const BodySection& body, const Shape<D>& shape, double seeded, std::vector<Seed<D>>& seeds,
                    std::size_t first) {
   if (!lattice_shape(body)) return;
-  const double factor = volume_factor(body, seeded, shape.measure());
-  if (factor == 1.0) return;
-  for (std::size_t i = first; i < seeds.size(); ++i) seeds[i].V *= factor;
+  scale_seeds<D>(volume_factor(body, seeded, shape.measure()), seeds, first);
 }
 
 /// The particles of body b (and its shape, for the overlap of later bodies).
@@ -500,6 +463,41 @@ void stream_file_body(const Scene& scene, int b, std::vector<std::unique_ptr<Sha
   if (refused) std::rethrow_exception(refused);
 }
 
+/// Stores the particles `kept` (and their file rows) in `out`.
+template <int D> void store_kept(const Scene& scene, const std::vector<Seed<D>>& kept, SeededBodies<D>& out) {
+  store<D>(scene, kept, out.particles);
+  out.file_row.resize(kept.size());
+  for (std::size_t p = 0; p < kept.size(); ++p) out.file_row[p] = kept[p].row;
+}
+
+/// Calls f(c, number) for every seeding cell of `range` within `cells`
+/// cells per axis, in number order (axis 0 fastest): a line along axis 0
+/// at a time, skipping the lines outside [from, to).
+template <int D, class F> void for_each_cell(const Index<D>& cells, const CellRange<D>& range, F&& f) {
+  Index<D> lo, hi;
+  for (int k = 0; k < D; ++k) lo[k] = std::max(range.lo[k], 0), hi[k] = std::min(range.hi[k], cells[k]);
+  for (int k = 0; k < D; ++k)
+    if (hi[k] <= lo[k]) return;
+  Index<D> c = lo;
+  while (true) {
+    long long line = 0; // the number of cell (0, c[1], ...)
+    for (int k = D - 1; k >= 1; --k) line = line * cells[k] + c[k];
+    line *= cells[0];
+    if (line + lo[0] >= range.to) return; // every later line lies beyond too
+    if (line + hi[0] > range.from)
+      for (int i = std::max<long long>(lo[0], range.from - line); i < hi[0] && line + i < range.to; ++i) {
+        c[0] = i;
+        f(static_cast<const Index<D>&>(c), line + i);
+      }
+    int k = 1;
+    for (; k < D; ++k) {
+      if (++c[k] < hi[k]) break;
+      c[k] = lo[k];
+    }
+    if (k == D) return;
+  }
+}
+
 } // namespace
 
 template <int D> double body_measure(const BodySection& body) {
@@ -507,8 +505,57 @@ template <int D> double body_measure(const BodySection& body) {
   return body_shape<D>(body, nullptr)->measure();
 }
 
+template <int D> double body_volume_factor(const BodySection& body, double seeded) {
+  if (!lattice_shape(body) || body.volume != "exact") return 1.0;
+  return volume_factor(body, seeded, body_measure<D>(body));
+}
+
 double volume_factor(const BodySection& body, double seeded, double exact) {
   return body.volume == "exact" && seeded > 0.0 ? exact / seeded : 1.0;
+}
+
+[[noreturn]] void no_particle(const BodySection& body) {
+  input_error(body.where, "body '" + body.name + "' holds no particle (is it smaller than a cell?)");
+}
+
+template <int D>
+std::pair<Index<D>, Index<D>> BodyCells<D>::near(const Vec<D>& lo, const Vec<D>& hi) const {
+  Index<D> first{}, last = cells;
+  for (int k = 0; k < D && by_cells; ++k) {
+    const double a = std::floor((lo[k] - lower[k]) / size[k]) - 1, b = std::ceil((hi[k] - lower[k]) / size[k]) + 1;
+    first[k] = static_cast<int>(std::clamp(a, 0.0, static_cast<double>(cells[k])));
+    last[k] = static_cast<int>(std::clamp(b, static_cast<double>(first[k]), static_cast<double>(cells[k])));
+  }
+  return {first, last};
+}
+
+template <int D>
+std::vector<BodyCells<D>> body_cells(const Scene& scene, const Vec<D>& h, const CartesianGrid<D>& lattice) {
+  std::vector<BodyCells<D>> out;
+  for (const BodySection& b : scene.bodies) {
+    BodyCells<D> c;
+    if (b.shape == "box") {
+      c.by_cells = true;
+      c.cells = box_cells<D>(b, h);
+      c.lower = scene_vec<D>(b.lower);
+      c.upper = scene_vec<D>(b.upper);
+    } else if (b.shape != "file" && b.shape != "mesh") {
+      Vec<D> lo, hi;
+      try {
+        body_shape<D>(b, nullptr)->bounds(lo, hi);
+      } catch (const InputError& e) {
+        input_error(b.where, "body '" + b.name + "': " + e.what());
+      }
+      const LatticeCells<D> l = lattice_cells<D>(lo, hi, lattice);
+      c.by_cells = true;
+      c.cells = l.count;
+      c.lower = l.lower;
+      c.upper = l.upper;
+    }
+    for (int k = 0; k < D && c.by_cells; ++k) c.size[k] = (c.upper[k] - c.lower[k]) / c.cells[k];
+    out.push_back(c);
+  }
+  return out;
 }
 
 template <int D>
@@ -523,7 +570,7 @@ SeededBodies<D> seed_bodies(const Scene& scene, const Vec<D>& h, const Cartesian
     else seeds.insert(seeds.end(), body.begin(), body.end());
   }
   WallSides<D> sides(scene, h);
-  for (const Seed<D>& s : seeds) sides.visit(s.x, s.body);
+  for (std::size_t p = 0; p < seeds.size(); ++p) sides.visit(seeds[p].x, seeds[p].body, {0, static_cast<long long>(p)});
   sides.refuse();
   store<D>(scene, seeds, result.particles);
   result.file_row.resize(seeds.size());
@@ -532,56 +579,103 @@ SeededBodies<D> seed_bodies(const Scene& scene, const Vec<D>& h, const Cartesian
 }
 
 template <int D>
-long long seed_bodies_where(const Scene& scene, const Vec<D>& h, const CartesianGrid<D>& lattice,
-                            const std::function<bool(long long, const Vec<D>&)>& keep, SeededBodies<D>* result) {
-  validate_seeding<D>(scene, h);
+std::vector<BodyTally> seed_cells_where(const Scene& scene, const Vec<D>& h, const CartesianGrid<D>& lattice,
+                                        const std::function<CellRange<D>(int)>& range,
+                                        const std::function<long long(const SeedSpot&, const Vec<D>&)>& place,
+                                        SeededBodies<D>* result, SeedSpot* at,
+                                        const std::vector<double>* factors) {
+  validate_seeding<D>(scene, h, false); // a share's size is checked by its maker
   SeededBodies<D> unused;
   SeededBodies<D>& out = result ? *result : unused;
+  SeedSpot unused_spot;
+  SeedSpot& where = at ? *at : unused_spot;
   std::vector<std::unique_ptr<Shape<D>>> shapes;
   std::vector<Seed<D>> kept;
   BodyBoxes<D> known(scene); // the later bodies' boxes (file bodies' shapes hold only the cubes near them)
-  WallSides<D> sides(scene, h);
-  long long id = 0;
+  const std::vector<BodyCells<D>> cells = body_cells<D>(scene, h, lattice);
+  std::vector<BodyTally> tally(scene.bodies.size());
   for (int b = 0; b < static_cast<int>(scene.bodies.size()); ++b) {
+    const BodySection& body = scene.bodies[static_cast<std::size_t>(b)];
+    const BodyCells<D>& bc = cells[static_cast<std::size_t>(b)];
+    BodyTally& t = tally[static_cast<std::size_t>(b)];
+    where = {b, 0, -1};
+    long long placed_in_cell = 0;
     // A seed inside an earlier body is refused or dropped as it comes (the
     // serial seeding's first such seed is the one named in the error).
-    long long generated = 0;
-    double seeded = 0.0; // the body's volume, in seed_bodies' order (the same bits)
-    const std::size_t first = kept.size();
+    const std::size_t first = kept.size(); // the body's first kept seed
     auto emit = [&](const Seed<D>& s) {
-      ++generated;
+      where.index = t.generated++;
       if (overlapped<D>(scene, b, shapes, s)) return false;
-      seeded += s.V;
-      sides.visit(s.x, b);
-      const bool keeps = keep(id, s.x) && result;
-      if (keeps) {
-        kept.push_back(s);
-        out.ids.push_back(id);
-      }
-      ++id;
-      return keeps;
+      ++t.placed;
+      t.seeded += s.V;
+      const long long id = place(SeedSpot{b, where.cell, placed_in_cell++}, s.x);
+      if (id < 0 || !result) return false;
+      kept.push_back(s);
+      out.ids.push_back(id);
+      return true;
     };
-    if (scene.bodies[static_cast<std::size_t>(b)].shape == "file") {
+    bool whole = true; // the pass generates every particle of the body
+    if (body.shape == "file") {
       stream_file_body<D>(scene, b, shapes, known, out, emit); // its rows are not held beyond those kept
-    } else {
+    } else if (!bc.by_cells) {
       open_body<D>(scene, b, shapes);
       generate_body<D>(scene, b, h, lattice, *shapes.back(), nullptr, out, emit);
+    } else {
+      open_body<D>(scene, b, shapes);
+      const Shape<D>* inside = body.shape == "box" ? nullptr : shapes.back().get();
+      const BoxCells<D> box(bc.lower, bc.upper, bc.cells, body.particles_per_cell, body.placement);
+      const CellRange<D> r = range(b);
+      for (int k = 0; k < D; ++k) whole = whole && r.lo[k] <= 0 && r.hi[k] >= bc.cells[k];
+      whole = whole && r.from <= 0 && r.to >= bc.count();
+      for_each_cell<D>(bc.cells, r, [&](const Index<D>& c, long long number) {
+        where.cell = number;
+        placed_in_cell = 0;
+        box.cell(c, [&](const Vec<D>& x, double V, const Vec<D>& extent) {
+          if (!inside || inside->contains(x)) emit(Seed<D>{x, extent, V, b});
+        });
+      });
     }
-    if (generated == 0) no_particle(scene.bodies[static_cast<std::size_t>(b)]);
-    scale_volumes<D>(scene.bodies[static_cast<std::size_t>(b)], *shapes.back(), seeded, kept, first);
+    if (whole && t.generated == 0) {
+      where.index = std::numeric_limits<long long>::max();
+      no_particle(body);
+    }
+    // a body generated whole has its volume here; one split over the ranks
+    // has the factor of the ranks' volumes summed (share_seeding)
+    if (factors) scale_seeds<D>((*factors)[static_cast<std::size_t>(b)], kept, first);
+    else if (whole) scale_volumes<D>(body, *shapes.back(), t.seeded, kept, first);
   }
+  if (result) store_kept<D>(scene, kept, out);
+  return tally;
+}
+
+template <int D>
+long long seed_bodies_where(const Scene& scene, const Vec<D>& h, const CartesianGrid<D>& lattice,
+                            const std::function<bool(long long, const Vec<D>&)>& keep, SeededBodies<D>* result) {
+  long long id = 0;
+  WallSides<D> sides(scene, h);
+  seed_cells_where<D>(
+      scene, h, lattice,
+      [](int) {
+        CellRange<D> all;
+        all.hi.fill(std::numeric_limits<int>::max());
+        return all;
+      },
+      [&](const SeedSpot& s, const Vec<D>& x) {
+        sides.visit(x, s.body, seeding_order(s));
+        const long long mine = id++;
+        return keep(mine, x) ? mine : -1;
+      },
+      result);
   sides.refuse();
-  if (result) {
-    store<D>(scene, kept, out.particles);
-    out.file_row.resize(kept.size());
-    for (std::size_t p = 0; p < kept.size(); ++p) out.file_row[p] = kept[p].row;
-  }
   return id;
 }
 
 template double body_measure<1>(const BodySection&);
 template double body_measure<2>(const BodySection&);
 template double body_measure<3>(const BodySection&);
+template double body_volume_factor<1>(const BodySection&, double);
+template double body_volume_factor<2>(const BodySection&, double);
+template double body_volume_factor<3>(const BodySection&, double);
 template SeededBodies<1> seed_bodies<1>(const Scene&, const Vec<1>&, const CartesianGrid<1>&);
 template SeededBodies<2> seed_bodies<2>(const Scene&, const Vec<2>&, const CartesianGrid<2>&);
 template SeededBodies<3> seed_bodies<3>(const Scene&, const Vec<3>&, const CartesianGrid<3>&);
@@ -616,6 +710,106 @@ template <int D> void TractionSurfaces<D>::finish() {
   }
 }
 
+template <int D>
+WallSides<D>::WallSides(const Scene& scene, const Vec<D>& h) : scene_(scene), tol_(kBoxTolerance * h.minCoeff()) {
+  for (const WallSection& w : scene.walls)
+    walls_.push_back({scene_vec<D>(w.point), Vec<D>(first_components(w.normal, D).template head<D>().stableNormalized())});
+  behind_.assign(walls_.size() * scene.bodies.size(), Behind{});
+}
+
+template <int D> void WallSides<D>::visit(const Vec<D>& x, int body, const Order& at) {
+  for (std::size_t w = 0; w < walls_.size(); ++w) {
+    if ((x - walls_[w].first).dot(walls_[w].second) >= -tol_) continue;
+    Behind& b = behind_[w * scene_.bodies.size() + static_cast<std::size_t>(body)];
+    if (b.count++ == 0 || at < b.at) b.first = x, b.at = at;
+  }
+}
+
+template <int D> void WallSides<D>::refuse() const {
+  for (std::size_t i = 0; i < behind_.size(); ++i) {
+    if (behind_[i].count == 0) continue;
+    const WallSection& w = scene_.walls[i / scene_.bodies.size()];
+    const std::string& body = scene_.bodies[i % scene_.bodies.size()].name;
+    input_error(w.where, "body '" + body + "' starts behind wall '" + w.name + "': " +
+                             std::to_string(behind_[i].count) + " of its particles (the first at " +
+                             format_point<D>(behind_[i].first) +
+                             ") lie on the side the wall's normal points away from, where the wall would push "
+                             "or hold them from the first step (move the wall or the body, or turn the normal "
+                             "to the body's side)");
+  }
+}
+
+template <int D> std::string WallSides<D>::pack() const {
+  std::string out;
+  auto put = [&out](const auto& v) { out.append(reinterpret_cast<const char*>(&v), sizeof v); };
+  for (const Behind& b : behind_) {
+    put(b.count), put(b.at.first), put(b.at.second);
+    for (int k = 0; k < D; ++k) put(b.first[k]);
+  }
+  return out;
+}
+
+template <int D> void WallSides<D>::merge(const std::string& packed) {
+  const std::size_t bytes = sizeof(long long) * 3 + sizeof(double) * D;
+  require<std::invalid_argument>(packed.size() == behind_.size() * bytes, "WallSides::merge: ", packed.size(),
+                                 " bytes for ", behind_.size(), " walls and bodies");
+  for (std::size_t i = 0; i < behind_.size(); ++i) {
+    Behind other;
+    const char* p = packed.data() + i * bytes;
+    std::memcpy(&other.count, p, sizeof(long long));
+    std::memcpy(&other.at.first, p + sizeof(long long), sizeof(long long));
+    std::memcpy(&other.at.second, p + 2 * sizeof(long long), sizeof(long long));
+    for (int k = 0; k < D; ++k) std::memcpy(&other.first[k], p + 3 * sizeof(long long) + k * sizeof(double), sizeof(double));
+    if (other.count == 0) continue;
+    Behind& mine = behind_[i];
+    if (mine.count == 0 || other.at < mine.at) mine.first = other.first, mine.at = other.at;
+    mine.count += other.count;
+  }
+}
+
+template class WallSides<1>;
+template class WallSides<2>;
+template class WallSides<3>;
+
+template <int D> std::string TractionSurfaces<D>::pack() const {
+  std::string out;
+  auto put = [&out](const auto& v) { out.append(reinterpret_cast<const char*>(&v), sizeof v); };
+  for (const auto& ends : ends_) {
+    put(static_cast<std::uint64_t>(ends.size()));
+    for (const auto& [column, e] : ends) {
+      put(column), put(e.first), put(e.last);
+      for (int k = 0; k < D; ++k) put(e.x_first[k]), put(e.x_last[k]);
+    }
+  }
+  return out;
+}
+
+template <int D> void TractionSurfaces<D>::merge(const std::string& packed) {
+  std::size_t at = 0;
+  auto get = [&](auto& v) {
+    require<std::invalid_argument>(at + sizeof v <= packed.size(), "TractionSurfaces::merge: truncated ends");
+    std::memcpy(&v, packed.data() + at, sizeof v);
+    at += sizeof v;
+  };
+  for (auto& ends : ends_) {
+    std::uint64_t n = 0;
+    for (get(n); n > 0; --n) {
+      std::array<long long, 2> column;
+      End e;
+      get(column), get(e.first), get(e.last);
+      for (int k = 0; k < D; ++k) get(e.x_first[k]), get(e.x_last[k]);
+      auto [it, fresh] = ends.try_emplace(column, e);
+      if (fresh) continue;
+      End& mine = it->second;
+      // as visits in id order keep them: the smallest (largest) coordinate, the earlier id on ties
+      const int axis = axis_[static_cast<std::size_t>(&ends - ends_.data())];
+      const auto before = [](double a, long long ia, double b, long long ib) { return a < b || (a == b && ia < ib); };
+      if (before(e.x_first[axis], e.first, mine.x_first[axis], mine.first)) mine.first = e.first, mine.x_first = e.x_first;
+      if (before(-e.x_last[axis], e.last, -mine.x_last[axis], mine.last)) mine.last = e.last, mine.x_last = e.x_last;
+    }
+  }
+}
+
 template <int D> bool TractionSurfaces<D>::surface(std::size_t load, long long id) const {
   return std::binary_search(ids_[load].begin(), ids_[load].end(), id);
 }
@@ -626,7 +820,13 @@ template class TractionSurfaces<3>;
 
 #define OTMPM_INSTANTIATE(D)                                                                                 \
   template long long seed_bodies_where<D>(const Scene&, const Vec<D>&, const CartesianGrid<D>&,              \
-                                          const std::function<bool(long long, const Vec<D>&)>&, SeededBodies<D>*);
+                                          const std::function<bool(long long, const Vec<D>&)>&, SeededBodies<D>*); \
+  template std::vector<BodyTally> seed_cells_where<D>(                                                       \
+      const Scene&, const Vec<D>&, const CartesianGrid<D>&, const std::function<CellRange<D>(int)>&,          \
+      const std::function<long long(const SeedSpot&, const Vec<D>&)>&, SeededBodies<D>*, SeedSpot*,          \
+      const std::vector<double>*);                                                                           \
+  template std::vector<BodyCells<D>> body_cells<D>(const Scene&, const Vec<D>&, const CartesianGrid<D>&);    \
+  template struct BodyCells<D>;
 OTMPM_INSTANTIATE(1)
 OTMPM_INSTANTIATE(2)
 OTMPM_INSTANTIATE(3)

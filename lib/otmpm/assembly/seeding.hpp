@@ -9,6 +9,7 @@
 #include <array>
 #include <cmath>
 #include <functional>
+#include <limits>
 #include <map>
 #include <memory>
 #include <string>
@@ -67,6 +68,12 @@ public:
   void visit(long long id, const Vec<D>& X);
   /// After every visit: per load, the ids of its surface particles, sorted.
   void finish();
+  /// The columns' ends as bytes (before finish), and the ends of another
+  /// share of the particles taken in, as visits of theirs would have been
+  /// (the earlier id on ties): the ranks of a distributed run visit their
+  /// own particles and then merge.
+  std::string pack() const;
+  void merge(const std::string& packed);
   /// Whether particle `id` is a surface particle of `load` (after finish).
   bool surface(std::size_t load, long long id) const;
   /// Whether some surface particle of `load` lies in the load's box.
@@ -85,6 +92,39 @@ private:
   std::vector<char> selects_;
 };
 
+/// The particles that start behind a rigid wall - on the side its normal
+/// points away from (docs/theory.md sect. 6.1: the normal points to the
+/// material's side), by more than round-off (kBoxTolerance h) - counted per
+/// wall and body as the particles are seeded, so that a body the wall would
+/// push or hold from its first step is refused at set-up. Each particle
+/// comes with its place in the seeding order (`Order`, compared as a pair),
+/// so that shares counted apart (the ranks of a distributed run) merge into
+/// the counts and first particles of the whole.
+template <int D> class WallSides {
+public:
+  using Order = std::pair<long long, long long>;
+  WallSides(const Scene& scene, const Vec<D>& h);
+  /// A particle of body `body` at x, at place `at` of the seeding order.
+  void visit(const Vec<D>& x, int body, const Order& at);
+  /// InputError at the first wall with particles behind it, naming the
+  /// wall, the body, their count and the first of them.
+  void refuse() const;
+  /// The counts as bytes, and those of another share added in.
+  std::string pack() const;
+  void merge(const std::string& packed);
+
+private:
+  struct Behind {
+    long long count = 0;
+    Order at{0, 0};
+    Vec<D> first = Vec<D>::Zero();
+  };
+  const Scene& scene_;
+  double tol_;
+  std::vector<std::pair<Vec<D>, Vec<D>>> walls_; ///< point, unit normal
+  std::vector<Behind> behind_;                   ///< per wall and body
+};
+
 /// The seeded particles and what their particle files give beyond them.
 template <int D> struct SeededBodies {
   Particles<D> particles;
@@ -95,6 +135,9 @@ template <int D> struct SeededBodies {
   std::vector<long long> ids;
   /// seed_bodies_where with traction loads: their surface particles among all
   std::shared_ptr<const TractionSurfaces<D>> surfaces;
+  /// Instead of `surfaces` (a distributed restart, which seeds nothing): per
+  /// traction load, per particle, its share of the loaded area (< 0: not loaded).
+  std::vector<std::vector<double>> traction_area;
 };
 
 /// The exact measure (volume; area in 2D; length in 1D) of a body's shape,
@@ -106,11 +149,89 @@ template <int D> double body_measure(const BodySection& body);
 /// the body asks for it (volume = "exact"), else 1. Every shape seeded on
 /// the lattice - the ones there are and any added - goes through it.
 double volume_factor(const BodySection& body, double seeded, double exact);
+/// volume_factor of a body whose placed particles have the volume `seeded`:
+/// 1 for a box, a file or a body that keeps its seeded volume.
+template <int D> double body_volume_factor(const BodySection& body, double seeded);
 
 /// Seeds every body of the scene (assembler.hpp, seed_particles): boxes on
 /// cells of the spacing `h`, other shapes on the cells of `lattice` (their
 /// volumes scaled by volume_factor).
 template <int D> SeededBodies<D> seed_bodies(const Scene& scene, const Vec<D>& h, const CartesianGrid<D>& lattice);
+
+/// How a body is seeded: a box on cells of the spacing h and a sphere,
+/// cylinder, polygon or STL surface on the cells of the node lattice that
+/// meet its bounds are seeded cell by cell (`by_cells`: the box [lower,
+/// upper] cut into `cells` seeding cells per axis of size `size`, numbered
+/// axis 0 fastest; any cell alone gives the bits it gives among all); a
+/// file or mesh body as a whole (one "cell").
+template <int D> struct BodyCells {
+  bool by_cells = false;
+  Index<D> cells{};
+  Vec<D> lower = Vec<D>::Zero(), upper = Vec<D>::Ones(), size = Vec<D>::Ones();
+  /// Seeding cells (1 for a body seeded as a whole).
+  long long count() const {
+    long long n = 1;
+    for (int k = 0; k < D && by_cells; ++k) n *= cells[k];
+    return n;
+  }
+  /// The seeding cells [first, last) per axis whose particles may lie in
+  /// the box [lo, hi) (a cell of margin on each side).
+  std::pair<Index<D>, Index<D>> near(const Vec<D>& lo, const Vec<D>& hi) const;
+};
+/// The seeding cells of each body of the scene (as seed_bodies seeds them).
+template <int D> std::vector<BodyCells<D>> body_cells(const Scene& scene, const Vec<D>& h, const CartesianGrid<D>& lattice);
+
+/// The seeding cells of a body that a pass generates: those of the box
+/// [lo, hi) whose number lies in [from, to).
+template <int D> struct CellRange {
+  Index<D> lo{}, hi{};
+  long long from = 0, to = std::numeric_limits<long long>::max();
+};
+
+/// Where a particle of a pass over the bodies comes from: its body, its
+/// seeding cell (BodyCells; 0 for a body seeded as a whole) and its index
+/// among the particles placed in that cell (of that body).
+struct SeedSpot {
+  int body = 0;
+  long long cell = 0, index = 0;
+};
+
+/// Per body of a pass: the particles it generated in the body's shape
+/// (none in the whole body is an input error) and those it placed (not
+/// dropped by an earlier body: overlap = "first").
+struct BodyTally {
+  long long generated = 0, placed = 0;
+  double seeded = 0.0; ///< the volume of the particles placed (before volume_factor)
+};
+
+/// A pass over the bodies in seeding order that generates only some of
+/// their particles: of a body seeded by cells, the cells `range(body)`
+/// (all of them: every particle, in the serial order), a file or mesh body
+/// whole (a file read in blocks of rows) - with the checks and errors of
+/// seed_bodies, one particle at a time (the overlap with earlier bodies).
+/// place(spot, x) is asked for every particle placed and returns its global
+/// id to keep it (in `result`, with result->ids; null `result`: nothing is
+/// stored) or -1. `at` follows the particle being checked (an error names
+/// where it happened: spot.index is its index among the cell's generated
+/// particles, -1 while a body's shape is built, max() for a body that
+/// holds no particle). A body whose every cell the pass generates and that
+/// holds no particle is an InputError at its end; of a body generated in
+/// part, the caller adds the tallies of all parts (and counts the
+/// particles behind walls: WallSides). Returns the tallies.
+template <int D>
+std::vector<BodyTally> seed_cells_where(const Scene& scene, const Vec<D>& h, const CartesianGrid<D>& lattice,
+                                        const std::function<CellRange<D>(int)>& range,
+                                        const std::function<long long(const SeedSpot&, const Vec<D>&)>& place,
+                                        SeededBodies<D>* result, SeedSpot* at = nullptr,
+                                        const std::vector<double>* factors = nullptr);
+
+/// The place of a particle in the seeding order (WallSides::Order).
+inline std::pair<long long, long long> seeding_order(const SeedSpot& s) {
+  return {(static_cast<long long>(s.body) << 40) + s.cell, s.index};
+}
+
+/// The input error of a body that holds no particle.
+[[noreturn]] void no_particle(const BodySection& body);
 
 /// Some of the particles of seed_bodies, without ever holding the others
 /// (a rank's share in a distributed run, distributed/local_parts.cpp): the

@@ -267,6 +267,26 @@ std::vector<Bytes> Comm::alltoall(const std::vector<Bytes>& send) const {
   return received;
 }
 
+std::vector<Bytes> Comm::allgather(const Bytes& mine) const {
+  if (size_ == 1) return {mine};
+  std::vector<Bytes> received(static_cast<std::size_t>(size_));
+#ifdef OTMPM_HAVE_MPI
+  const std::size_t P = static_cast<std::size_t>(size_);
+  std::vector<int> count(P), at(P);
+  const int n = checked_count(mine.size());
+  MPI_Allgather(&n, 1, MPI_INT, count.data(), 1, MPI_INT, world_comm());
+  std::size_t total = 0;
+  for (std::size_t q = 0; q < P; ++q) {
+    at[q] = checked_count(total);
+    total += static_cast<std::size_t>(count[q]);
+  }
+  Bytes in(total);
+  MPI_Allgatherv(mine.data(), n, MPI_BYTE, in.data(), count.data(), at.data(), MPI_BYTE, world_comm());
+  for (std::size_t q = 0; q < P; ++q) received[q].assign(in.begin() + at[q], in.begin() + at[q] + count[q]);
+#endif
+  return received;
+}
+
 void Comm::barrier() const {
 #ifdef OTMPM_HAVE_MPI
   if (mpi_ && size_ > 1) MPI_Barrier(world_comm());

@@ -62,6 +62,8 @@ public:
   /// Every rank sends send[q] to rank q (send.size() == size()); returns what
   /// each rank q sent to this one.
   std::vector<Bytes> alltoall(const std::vector<Bytes>& send) const;
+  /// Every rank's `mine`, in rank order, on every rank.
+  std::vector<Bytes> allgather(const Bytes& mine) const;
   void barrier() const;
   /// The MPI communicator (an MPI_Comm*) for the parallel HDF5; null when
   /// this is not an MPI communicator.

@@ -151,6 +151,49 @@ template <int D> int Decomposition<D>::owner(const Index<D>& c) const {
   return tree_[static_cast<std::size_t>(n)].first;
 }
 
+template <int D> std::vector<std::int64_t> Decomposition<D>::tree_rows() const {
+  std::vector<std::int64_t> rows;
+  for (const Node& n : tree_) {
+    rows.insert(rows.end(), {n.axis, n.cut, n.below, n.above, n.first, n.count});
+    rows.insert(rows.end(), n.box.lo.begin(), n.box.lo.end());
+    rows.insert(rows.end(), n.box.hi.begin(), n.box.hi.end());
+  }
+  return rows;
+}
+
+template <int D>
+std::optional<Decomposition<D>> Decomposition<D>::from_tree(const Index<D>& cells, int ranks,
+                                                            const std::vector<std::int64_t>& rows) {
+  const std::size_t cols = kTreeColumns, nodes = rows.size() / cols;
+  if (nodes == 0 || rows.size() % cols != 0 || ranks < 1) return std::nullopt;
+  Decomposition d(cells);
+  d.tree_.clear();
+  d.boxes_.assign(static_cast<std::size_t>(ranks), IndexBox<D>{});
+  std::vector<int> leaves(static_cast<std::size_t>(ranks), 0);
+  for (std::size_t i = 0; i < nodes; ++i) {
+    const std::int64_t* r = rows.data() + i * cols;
+    Node n;
+    n.axis = static_cast<int>(r[0]), n.cut = static_cast<int>(r[1]), n.below = static_cast<int>(r[2]);
+    n.above = static_cast<int>(r[3]), n.first = static_cast<int>(r[4]), n.count = static_cast<int>(r[5]);
+    for (int k = 0; k < D; ++k) n.box.lo[k] = static_cast<int>(r[6 + k]), n.box.hi[k] = static_cast<int>(r[6 + D + k]);
+    const auto child = [&](int c) { return c > static_cast<int>(i) && c < static_cast<int>(nodes); };
+    if (n.axis >= D || n.first < 0 || n.count < 1 || n.first + n.count > ranks || n.box.empty()) return std::nullopt;
+    if (n.axis >= 0 && !(child(n.below) && child(n.above))) return std::nullopt;
+    if (n.axis < 0) {
+      if (n.count != 1) return std::nullopt;
+      d.boxes_[static_cast<std::size_t>(n.first)] = n.box;
+      ++leaves[static_cast<std::size_t>(n.first)];
+    }
+    d.tree_.push_back(n);
+  }
+  IndexBox<D> all;
+  all.hi = cells;
+  if (!(d.tree_[0].box == all) || d.tree_[0].count != ranks) return std::nullopt;
+  for (int l : leaves)
+    if (l != 1) return std::nullopt;
+  return d;
+}
+
 template <int D> double Decomposition<D>::imbalance(long long particles, const Comm& comm) const {
   const double mine = static_cast<double>(particles) + kEmptyCellWeight * static_cast<double>(box(comm.rank()).count());
   const double total = comm.sum(mine), largest = comm.max(mine);

@@ -10,6 +10,7 @@
 #include "otmpm/core.hpp"
 #include "otmpm/distributed/comm.hpp"
 
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -95,6 +96,15 @@ public:
   const IndexBox<D>& box(int r) const { return boxes_[static_cast<std::size_t>(r)]; }
   /// The rank owning cell c (c inside the lattice).
   int owner(const Index<D>& c) const;
+  /// The tree as rows of kTreeColumns integers (axis, cut, below, above,
+  /// first rank, ranks, the box's lo and hi), and back: a checkpoint keeps
+  /// the decomposition of its run, so that a restart on as many ranks
+  /// continues it bit for bit. from_tree: std::nullopt when the rows are
+  /// not a tree of `ranks` ranks over `cells` cells.
+  static constexpr int kTreeColumns = 6 + 2 * D;
+  std::vector<std::int64_t> tree_rows() const;
+  static std::optional<Decomposition> from_tree(const Index<D>& cells, int ranks,
+                                                const std::vector<std::int64_t>& rows);
   /// max over ranks of (weight of the rank / mean weight) when this rank
   /// holds `particles` particles, all with home cells in its box
   /// (collective): 1 is perfect balance. The weight is that of rcb().

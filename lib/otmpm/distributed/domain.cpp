@@ -16,6 +16,7 @@ Domain<D>::Domain(const Comm& comm, Setup s)
       window_basis_(std::move(s.window_basis)), window_dirichlet_(std::move(s.window_dirichlet)) {
   stats_.setup_particles = s.setup_particles;
   stats_.setup_points = s.setup_points;
+  stats_.steps = s.steps;
   staying_ = interior_box(lattice_.grid, decomposition_.box(comm_.rank()));
   find_neighbours();
   find_guard();

@@ -79,6 +79,8 @@ public:
     long long setup_particles = 0;
     /// Lattice points this rank built node sets on during set-up (DomainStats::setup_points).
     long long setup_points = 0;
+    /// Steps the run has made (a restart: its checkpoint's; the rebalancing's cadence).
+    long long steps = 0;
   };
 
   Domain(const Comm& comm, Setup setup);

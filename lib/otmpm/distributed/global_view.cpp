@@ -2,6 +2,7 @@
 /// The particles of all ranks as the recorder sees them (global_view.hpp).
 #include "otmpm/distributed/global_view.hpp"
 
+#include "otmpm/io/checkpoint.hpp"
 #include "otmpm/io/output_files.hpp"
 #include "otmpm/reference/exact.hpp"
 
@@ -21,22 +22,8 @@ namespace otmpm::distributed {
 
 namespace {
 
-/// Per-particle arrays of a checkpoint besides the group "particles": the
-/// basis' per-point state (Basis::save_state).
-constexpr const char* kPointStateArrays[] = {"lambda", "lambda_slope", "lambda_curvature", "lambda_history",
-                                                   "cell_hint"};
-/// The walls' held nodes (Engine::save_state: one per-node array per wall).
-constexpr const char* kWallHeld = "wall_held_";
-/// explicit_alpha's carried constraint momenta (Engine::save_state: per-node arrays).
-constexpr const char* kCarried = "carried_";
 /// The cell hints, which are local to a rank's basis and travel as global cells.
 constexpr const char* kCellHints = "cell_hint";
-
-bool is_point_state(const std::string& name) {
-  for (const char* n : kPointStateArrays)
-    if (name == n) return true;
-  return false;
-}
 
 /// Every rank's `mine` on rank 0 (ranks 1, 2, ..., then rank 0's own);
 /// nothing on the other ranks.
@@ -51,45 +38,6 @@ std::vector<Bytes> on_root(const Comm& comm, Bytes mine) {
   return in;
 }
 
-/// Rows `ids` (cols values each, ids[i] the global row of local row i) of
-/// every rank, assembled in global row order on rank 0 (`total` rows).
-template <class T>
-std::vector<T> gather_rows(const Comm& comm, const std::vector<long long>& ids, const std::vector<T>& values,
-                           std::size_t cols, long long total) {
-  Bytes mine;
-  for (std::size_t i = 0; i < ids.size(); ++i) {
-    put(mine, static_cast<std::int64_t>(ids[i]));
-    put_bytes(mine, values.data() + i * cols, cols * sizeof(T));
-  }
-  const std::vector<Bytes> in = on_root(comm, std::move(mine));
-  if (!comm.root()) return {};
-  std::vector<T> all(static_cast<std::size_t>(total) * cols);
-  for (const Bytes& b : in) {
-    Reader r(b);
-    while (!r.done()) {
-      const auto g = static_cast<std::size_t>(r.get<std::int64_t>());
-      r.get_bytes(all.data() + g * cols, cols * sizeof(T));
-    }
-  }
-  return all;
-}
-
-/// Rows `ids` of a serial-layout array (InputError naming the group when it is too short).
-template <class T>
-StateArray<T> select_rows(const StateGroup& g, const std::string& name, const StateArray<T>& a,
-                          const std::vector<long long>& ids) {
-  StateArray<T> out;
-  out.cols = a.cols;
-  out.values.reserve(ids.size() * a.cols);
-  for (long long id : ids) {
-    const std::size_t at = static_cast<std::size_t>(id) * a.cols;
-    if (id < 0 || at + a.cols > a.values.size()) g.error("array '" + name + "' has no row " + std::to_string(id));
-    out.values.insert(out.values.end(), a.values.begin() + static_cast<std::ptrdiff_t>(at),
-                      a.values.begin() + static_cast<std::ptrdiff_t>(at + a.cols));
-  }
-  return out;
-}
-
 /// Adds `sign` times the hint offset to every cell hint of a basis group.
 template <int D> void shift_hints(StateGroup& basis, const Index<D>& offset, int sign) {
   const auto it = basis.integer_arrays.find(kCellHints);
@@ -98,46 +46,15 @@ template <int D> void shift_hints(StateGroup& basis, const Index<D>& offset, int
   for (std::size_t i = 0; i < v.size(); ++i) v[i] += sign * offset[i % D];
 }
 
-/// The global point ids of a window's points (all of them, or only the owned ones).
-template <int D> std::vector<long long> point_ids(const Domain<D>& d, bool owned_only) {
-  const Window<D>& w = d.exchange().window();
-  std::vector<long long> ids;
-  for (int i = 0; i < w.size(); ++i)
-    if (!owned_only || d.owned_nodes()[static_cast<std::size_t>(i)]) ids.push_back(d.lattice().point_id(w.index(i)));
-  return ids;
-}
-
-/// Applies f(rows) to every per-row array of a checkpoint: f(group name,
-/// array name, array, per_point) with per_point false for particle rows.
-template <class F> void for_each_row_array(Checkpoint& ck, F&& f) {
-  for (auto& entry : ck.groups) { // no structured binding: clang does not capture one in a lambda
-    const std::string& gname = entry.first;
-    StateGroup& g = entry.second;
-    const bool particles = gname == "particles", basis = gname == "basis", nodes = gname == "nodes",
-               engine = gname == "engine";
-    auto visit = [&](auto& arrays) {
-      for (auto& [aname, a] : arrays) {
-        const bool held = engine && (aname.rfind(kWallHeld, 0) == 0 || aname.rfind(kCarried, 0) == 0); // per node
-        if (particles || (basis && is_point_state(aname)) || (nodes && aname == "x") || held)
-          f(g, aname, a, nodes || held);
-      }
-    };
-    visit(g.real_arrays);
-    visit(g.integer_arrays);
-  }
-}
-
 /// Lines "group kind cols name" (kind r: real, i: integer) of the per-particle
-/// arrays of `ck`: the particle fields and the basis' per-point state.
+/// arrays of `ck` (checkpoint_row_kind).
 std::set<std::string> particle_array_lines(const Checkpoint& ck) {
   std::set<std::string> lines;
   for (const auto& entry : ck.groups) {
     const std::string& gname = entry.first;
-    const bool particles = gname == "particles", basis = gname == "basis";
-    if (!particles && !basis) continue;
     auto add = [&](const auto& arrays, const char* kind) {
       for (const auto& a : arrays)
-        if (particles || is_point_state(a.first))
+        if (checkpoint_row_kind(gname, a.first) == RowKind::particle)
           lines.insert(gname + " " + kind + " " + std::to_string(a.second.cols) + " " + a.first);
     };
     add(entry.second.real_arrays, "r");
@@ -148,8 +65,8 @@ std::set<std::string> particle_array_lines(const Checkpoint& ck) {
 
 /// Makes every rank's checkpoint hold the same per-particle arrays, adding
 /// those it lacks, empty, with the width the others give them: a rank without
-/// particles saves no particle field (every one is empty), and the gathers
-/// that follow are collective, one per array in name order.
+/// particles saves no particle field (every one is empty), and the file's
+/// datasets are created by all ranks together, one per array in name order.
 void same_particle_arrays(const Comm& comm, Checkpoint& ck) {
   std::string mine;
   for (const std::string& line : particle_array_lines(ck)) mine += line + "\n";
@@ -198,14 +115,22 @@ template <int D> void GlobalView<D>::collectively(const std::function<void()>& w
   agree_on(d_->comm(), write);
 }
 
-template <int D> ParallelIo GlobalView<D>::parallel_io() const {
+ParallelIo parallel_io(const Comm& comm) {
   ParallelIo io;
-  if (!d_) return io;
-  const Comm& comm = d_->comm();
+  if (comm.size() == 1) return io;
   io.mpi_comm = comm.mpi_comm();
   io.root = comm.root();
+  io.rank = comm.rank();
+  io.size = comm.size();
   io.all = [&comm](bool ok) { return comm.min(static_cast<std::int64_t>(ok)) != 0; };
+  io.allgather = [&comm](std::int64_t value) { return comm.allgather(value); };
+  io.broadcast = [&comm](const std::string& text) { return comm.broadcast(text, 0); };
+  io.agree = [&comm](const std::function<void()>& step) { agree_on(comm, step); };
   return io;
+}
+
+template <int D> ParallelIo GlobalView<D>::parallel_io() const {
+  return d_ ? distributed::parallel_io(d_->comm()) : ParallelIo{};
 }
 
 template <int D> void GlobalView<D>::require_shared_file(const std::string& path) const {
@@ -348,13 +273,6 @@ template <int D> typename GlobalView<D>::Row GlobalView<D>::row(long long g) con
   return r;
 }
 
-template <int D> std::vector<double> GlobalView<D>::gather(const double* local, int cols) const {
-  const std::size_t n = static_cast<std::size_t>(e_.particles().size()) * static_cast<std::size_t>(cols);
-  std::vector<double> mine(local, local + n);
-  if (!d_) return mine;
-  return gather_rows(d_->comm(), d_->global_ids(), mine, static_cast<std::size_t>(cols), d_->global_particles());
-}
-
 template <int D> double GlobalView<D>::rms(const std::vector<double>& squared) const {
   if (!d_) return rms_error(squared);
   double sum = 0.0;
@@ -362,57 +280,65 @@ template <int D> double GlobalView<D>::rms(const std::vector<double>& squared) c
   return std::sqrt(d_->comm().sum(sum) / static_cast<double>(d_->global_particles()));
 }
 
-template <int D> Checkpoint GlobalView<D>::gather(const Checkpoint& local) const {
-  if (!d_) return local;
-  Checkpoint ck = local;
-  same_particle_arrays(d_->comm(), ck);
+/// Keeps the rows of a per-point array of a window that `owned` marks.
+template <class T> void keep_owned(StateArray<T>& a, const std::vector<char>& owned) {
+  std::size_t w = 0;
+  for (std::size_t i = 0; i < owned.size() && (i + 1) * a.cols <= a.values.size(); ++i)
+    if (owned[i]) std::copy_n(a.values.begin() + static_cast<std::ptrdiff_t>(i * a.cols), a.cols,
+                              a.values.begin() + static_cast<std::ptrdiff_t>(w++ * a.cols));
+  a.values.resize(w * a.cols);
+}
+
+template <int D> void GlobalView<D>::write_checkpoint(const std::string& path, Checkpoint ck) const {
+  if (!d_) return on_writer([&] { otmpm::write_checkpoint(path, ck); });
+  const Comm& comm = d_->comm();
+  same_particle_arrays(comm, ck);
   shift_hints<D>(ck.group("basis"), d_->hint_offset(), +1);
-  const std::vector<long long> particles = d_->global_ids(), points = point_ids(*d_, true);
-  std::vector<long long> window = point_ids(*d_, false);
-  const long long total_points = nodes();
-  for_each_row_array(ck, [&](StateGroup&, const std::string&, auto& a, bool per_point) {
-    if (!per_point) {
-      a.values = gather_rows(d_->comm(), particles, a.values, a.cols, d_->global_particles());
-      return;
-    }
-    // owned points only: each point once
-    std::remove_reference_t<decltype(a.values)> own;
-    for (std::size_t i = 0; i < window.size(); ++i)
-      if (d_->owned_nodes()[i]) own.insert(own.end(), a.values.begin() + static_cast<std::ptrdiff_t>(i * a.cols),
-                                           a.values.begin() + static_cast<std::ptrdiff_t>((i + 1) * a.cols));
-    a.values = gather_rows(d_->comm(), points, own, a.cols, total_points);
-  });
-  return ck;
+  const std::vector<long long>& ids = d_->global_ids();
+  ck.group("particles").integer_arrays["global_id"] = {1, std::vector<std::int64_t>(ids.begin(), ids.end())};
+  for (auto& [gname, g] : ck.groups) {
+    for (auto& [name, a] : g.real_arrays)
+      if (checkpoint_row_kind(gname, name) == RowKind::point) keep_owned(a, d_->owned_nodes());
+    for (auto& [name, a] : g.integer_arrays)
+      if (checkpoint_row_kind(gname, name) == RowKind::point) keep_owned(a, d_->owned_nodes());
+  }
+  const std::vector<std::int64_t> counts = comm.allgather(static_cast<std::int64_t>(ids.size()));
+  long long first = 0;
+  for (int r = 0; r < comm.rank(); ++r) first += counts[static_cast<std::size_t>(r)];
+  StateGroup& g = ck.group("decomposition");
+  g.integers["ranks"] = comm.size();
+  g.integers["steps"] = d_->stats().steps;
+  g.integer_arrays["rows_per_rank"] = {1, counts};
+  g.integer_arrays["tree"] = {static_cast<std::size_t>(Decomposition<D>::kTreeColumns), d_->decomposition().tree_rows()};
+  CheckpointShare share;
+  share.io = parallel_io();
+  share.particles = d_->global_particles();
+  share.particle_rows = {{first, 1, 1, static_cast<long long>(ids.size())}};
+  share.points = nodes();
+  share.point_rows = point_blocks(d_->lattice(), d_->lattice().owned_points(d_->decomposition().box(comm.rank())));
+  collectively([&] { otmpm::write_checkpoint(path, ck, share); });
 }
 
-template <int D> AlignedVector<Vec<D>> checkpoint_positions(const Checkpoint& ck) {
-  const StateGroup& g = ck.group("particles");
-  const auto it = g.real_arrays.find("x");
-  if (it == g.real_arrays.end() || it->second.cols != D) g.error("missing particle positions 'x'");
-  AlignedVector<Vec<D>> x(it->second.rows());
-  for (std::size_t p = 0; p < x.size(); ++p)
-    for (int k = 0; k < D; ++k) x[p][k] = it->second.values[p * D + static_cast<std::size_t>(k)];
-  return x;
-}
-
-template <int D> Checkpoint local_checkpoint(const Engine<D>& e, const Checkpoint& ck) {
+template <int D> Checkpoint local_checkpoint(const Engine<D>& e, const Checkpoint& ck, Checkpoint rows) {
   const Domain<D>* d = domain_of(e);
-  if (!d) return ck;
-  Checkpoint out = ck;
-  const std::vector<long long> window = point_ids(*d, false);
-  for_each_row_array(out, [&](StateGroup& g, const std::string& name, auto& a, bool per_point) {
-    a = select_rows(g, name, a, per_point ? window : d->global_ids());
-  });
-  shift_hints<D>(out.group("basis"), d->hint_offset(), -1);
-  return out;
+  if (!d) { // every row, in the order of the global ids (a distributed run's file holds them by rank)
+    Checkpoint all = ck.source ? checkpoint_head(ck) : ck;
+    if (ck.source)
+      for (const RowKind kind : {RowKind::particle, RowKind::point})
+        read_checkpoint_rows(ck, kind, {{0, 1, 1, checkpoint_rows(ck, kind)}}, all);
+    order_by_global_id(all);
+    return all;
+  }
+  read_checkpoint_rows(ck, RowKind::point, point_blocks(d->lattice(), d->exchange().window().box), rows);
+  shift_hints<D>(rows.group("basis"), d->hint_offset(), -1);
+  return rows;
 }
 
 template class GlobalView<1>;
 template class GlobalView<2>;
 template class GlobalView<3>;
 #define OTMPM_INSTANTIATE(D)                                                  \
-  template AlignedVector<Vec<D>> checkpoint_positions<D>(const Checkpoint&); \
-  template Checkpoint local_checkpoint<D>(const Engine<D>&, const Checkpoint&);
+  template Checkpoint local_checkpoint<D>(const Engine<D>&, const Checkpoint&, Checkpoint);
 OTMPM_INSTANTIATE(1)
 OTMPM_INSTANTIATE(2)
 OTMPM_INSTANTIATE(3)

@@ -3,7 +3,8 @@
 /// What a run's recorder needs of the particles of all ranks: the probe
 /// particles by global id, one particle's values on every rank, particle
 /// fields in global order for the result file, global sums, and
-/// checkpoints in the layout of a serial run (so that a restart may use any
+/// checkpoints written by all ranks together (each rank its own rows, with
+/// their global ids and the decomposition, so that a restart may use any
 /// number of ranks). For a serial engine every operation is the plain
 /// serial one.
 #include "otmpm/distributed/local_parts.hpp"
@@ -69,10 +70,6 @@ public:
     Mat<D> sigma;
   };
   Row row(long long g) const;
-  /// `cols` doubles per local particle -> on the writing rank, all particles'
-  /// rows in global order (empty elsewhere; the local rows themselves in a
-  /// serial run).
-  std::vector<double> gather(const double* local, int cols) const;
   /// This rank's block of a frame in global order: rows [first, first +
   /// count) of all particles' `cols` values (the ranks' blocks tile the
   /// frame; a serial run's block is the whole frame).
@@ -83,23 +80,28 @@ public:
   Block block(const double* local, int cols) const;
   /// sqrt(sum of all ranks' squared errors / particles) (rms_error in a serial run).
   double rms(const std::vector<double>& squared) const;
-  /// The checkpoint of a rank's engine (Engine::save_state) as a serial
-  /// run would write it, on the writing rank: particle rows in global order,
-  /// node positions of the whole lattice, cell hints global (collective).
-  Checkpoint gather(const Checkpoint& local) const;
+  /// Writes the checkpoint `local` of this rank (Engine::save_state and the
+  /// recorder's groups) to `path` (io/checkpoint.hpp): in a distributed run
+  /// all ranks write one file together, each its particles' rows (with
+  /// their global ids, cell hints global) after the lower ranks' and its own
+  /// lattice points' rows, the root its scalars and the decomposition
+  /// (collective; an error on any rank is thrown on every rank).
+  void write_checkpoint(const std::string& path, Checkpoint local) const;
 
 private:
   const Engine<D>& e_;
   const Domain<D>* d_;
 };
 
-/// The particle positions of a checkpoint (rank_parts decides the home cells from them).
-template <int D> AlignedVector<Vec<D>> checkpoint_positions(const Checkpoint& ck);
+/// How the ranks of `comm` write and read one file together (a serial
+/// file for one rank).
+ParallelIo parallel_io(const Comm& comm);
 
-/// The part of a serial-layout checkpoint that the engine of this rank
-/// restores (its particles' rows, its window's node positions, local cell
-/// hints); `ck` itself for a serial engine.
-template <int D> Checkpoint local_checkpoint(const Engine<D>& e, const Checkpoint& ck);
+/// What the engine of this rank restores from checkpoint `ck`: `rows`, its
+/// particles' rows (restart_parts), with its window's lattice points' rows
+/// and its cell hints made local (collective); a serial engine: every row
+/// of `ck`, in the order of the global ids.
+template <int D> Checkpoint local_checkpoint(const Engine<D>& e, const Checkpoint& ck, Checkpoint rows);
 
 extern template class GlobalView<1>;
 extern template class GlobalView<2>;

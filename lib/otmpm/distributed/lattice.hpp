@@ -8,6 +8,7 @@
 /// particles need (docs/architecture.md, "Distributed runs").
 #include "otmpm/distributed/decomposition.hpp"
 #include "otmpm/engine/distribution.hpp"
+#include "otmpm/io/parallel_io.hpp"
 #include "otmpm/nodes/node_set.hpp"
 
 #include <cmath>
@@ -48,6 +49,21 @@ template <int D> struct PointLattice {
     return i;
   }
 };
+
+/// The rows of the points of `box` in an array of all points of `L` in
+/// point_id order (a checkpoint's per-point arrays): one block per layer of
+/// the last axis in 3D, one block in 1D and 2D.
+template <int D> std::vector<RowBlock> point_blocks(const PointLattice<D>& L, const IndexBox<D>& box) {
+  if (box.empty()) return {};
+  const long long stride = D >= 2 ? L.points[0] : 1, count = D >= 2 ? box.extent(1) : 1;
+  std::vector<RowBlock> blocks;
+  Index<D> at = box.lo;
+  for (int layer = D == 3 ? box.lo[D - 1] : 0; layer < (D == 3 ? box.hi[D - 1] : 1); ++layer) {
+    if constexpr (D == 3) at[2] = layer;
+    blocks.push_back({L.point_id(at), stride, count, box.extent(0)});
+  }
+  return blocks;
+}
 
 /// The positions certainly inside the cells of `box` on `grid`: per axis an
 /// open interval shrunk by a margin far above the rounding of

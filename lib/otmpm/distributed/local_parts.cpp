@@ -4,13 +4,18 @@
 
 #include "otmpm/assembly/assembler.hpp"
 #include "otmpm/assembly/seeding.hpp"
+#include "otmpm/distributed/share_seeding.hpp"
 #include "otmpm/basis/bspline.hpp"
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/basis/lme.hpp"
 #include "otmpm/integrators/integrator.hpp"
+#include "otmpm/io/checkpoint.hpp"
+#include "otmpm/particles/particle_state.hpp"
 
 #include <cmath>
+#include <cstring>
 #include <exception>
+#include <optional>
 
 namespace otmpm::distributed {
 
@@ -244,108 +249,194 @@ EngineParts<D> finish_parts(const Comm& comm, EngineParts<D> parts, typename Dom
   return parts;
 }
 
-/// Seeding particles counted per rank in runs of this many global ids
-/// (rank r counts the runs r, r + N, ...): each rank's list of (cell, count)
-/// stays short, as particles of one cell are seeded together.
-constexpr long long kCountRun = 4096;
-
-/// A rank's parts seeded for its own cells only (local_parts.hpp): a
-/// counting pass over the seeding (no particle stored) gives the particles
-/// per cell for the bisection, a second pass stores the particles of this
-/// rank's cells. Every rank runs both passes over every body alike, so a bad
-/// scene fails on every rank alike. Traction loads find their surface
-/// particles in the counting pass (TractionSurfaces: one entry per column).
-template <int D>
-EngineParts<D> seeded_parts(const Scene& scene, const Comm& comm, const AlignedVector<Vec<D>>* positions) {
+/// A rank's parts seeded for its own cells only (local_parts.hpp,
+/// share_seeding.hpp).
+template <int D> EngineParts<D> seeded_parts(const Scene& scene, const Comm& comm) {
   typename Domain<D>::Setup setup;
-  const bool ul = scene.simulation.nodes_move();
-  long long n = 0;
-  // An error of the decomposition (too few cells) is raised after the rest
-  // of the assembly, as when the whole scene was assembled first.
-  std::exception_ptr deferred;
+  ShareSeeding<D> share;
   auto seed = [&](const Vec<D>& h, const CartesianGrid<D>& grid) {
-    SeededBodies<D> mine;
-    // The home cell: of the checkpoint's position (a restart in `mpm` mode) or of the seeded one.
-    auto home = [&](long long id, const Vec<D>& x) {
-      return grid.cell_of(!ul && positions && id < static_cast<long long>(positions->size())
-                              ? (*positions)[static_cast<std::size_t>(id)]
-                              : x);
-    };
-    std::vector<Index<D>> cells;
-    std::vector<std::int64_t> weight;
-    // Traction loads: their surface particles among all (every rank sees every seed here).
-    std::shared_ptr<TractionSurfaces<D>> surfaces;
-    if (!scene.tractions.empty()) surfaces = std::make_shared<TractionSurfaces<D>>(scene, kBoxTolerance * grid.h().minCoeff());
-    // Every rank reads every particle file in both passes: one that fails
-    // alone (a file rewritten while the ranks read it) fails all (agree_on).
-    agree_on(comm, [&] {
-      n = seed_bodies_where<D>(
-          scene, h, grid,
-          [&](long long id, const Vec<D>& x) {
-            if (surfaces) surfaces->visit(id, x);
-            if ((id / kCountRun) % comm.size() != comm.rank()) return false;
-            const Index<D> c = home(id, x);
-            if (!cells.empty() && cells.back() == c) ++weight.back();
-            else cells.push_back(c), weight.push_back(1);
-            return false;
-          },
-          nullptr);
-    });
-    // a file that every rank read without an error but not alike
-    if (const auto fewest = comm.min(static_cast<std::int64_t>(n)), most = comm.max(static_cast<std::int64_t>(n));
-        fewest != most)
-      throw InputError("the ranks counted from " + std::to_string(fewest) + " to " + std::to_string(most) +
-                       " particles in the scene's bodies: a particle file read differently by the ranks (rewritten "
-                       "while they read it, or not the same on every node)");
-    if (surfaces) surfaces->finish();
-    mine.surfaces = surfaces;
-    try {
-      if (positions)
-        require<std::invalid_argument>(static_cast<long long>(positions->size()) == n, "rank_parts: ",
-                                       positions->size(), " positions for ", n, " particles");
-      setup.decomposition = Decomposition<D>::rcb(grid.cells, comm.size(), cells, weight, comm);
-    } catch (...) {
-      deferred = std::current_exception();
-      return mine;
-    }
-    std::vector<Index<D>>().swap(cells);
-    std::vector<std::int64_t>().swap(weight);
-    agree_on(comm, [&] {
-      seed_bodies_where<D>(
-          scene, h, grid,
-          [&](long long id, const Vec<D>& x) { return setup.decomposition.owner(home(id, x)) == comm.rank(); },
-          &mine);
-    });
+    SeededBodies<D> mine = share_seeding<D>(scene, comm, h, grid, share);
+    setup.decomposition = share.decomposition;
     setup.global_ids = mine.ids; // a copy: the assembler reads mine.ids (traction surfaces)
     return mine;
   };
   auto lattice = [&](const CartesianGrid<D>& grid) {
-    return rank_lattice<D>(scene, comm, grid, !deferred, setup);
+    return rank_lattice<D>(scene, comm, grid, !share.deferred, setup);
   };
   EngineParts<D> parts = assemble_parts<D>(scene, seed, lattice);
-  if (deferred) std::rethrow_exception(deferred);
+  if (share.deferred) std::rethrow_exception(share.deferred);
   // The traction loads' shares of this rank's particles (they move with them).
   for (const Traction<D>& t : parts.loads.tractions) {
     std::vector<double> area(static_cast<std::size_t>(parts.particles.size()), -1.0);
     for (std::size_t i = 0; i < t.particle.size(); ++i) area[static_cast<std::size_t>(t.particle[i])] = t.area[i];
     setup.traction_area.push_back(std::move(area));
   }
-  setup.nodes_move = ul;
-  setup.global_particles = n;
+  setup.nodes_move = scene.simulation.nodes_move();
+  setup.global_particles = share.particles;
   setup.setup_particles = parts.particles.size();
   return finish_parts<D>(comm, std::move(parts), std::move(setup));
 }
 
+/// The decomposition of the run that wrote checkpoint `ck` (its group
+/// "decomposition") when it ran on `ranks` ranks; none otherwise.
+/// InputError when that tree does not divide `cells` cells.
+template <int D>
+std::optional<Decomposition<D>> stored_decomposition(const Checkpoint& ck, const Index<D>& cells, int ranks) {
+  const auto it = ck.groups.find("decomposition");
+  if (it == ck.groups.end()) return std::nullopt;
+  const StateGroup& g = it->second;
+  if (g.integer("ranks") != ranks) return std::nullopt;
+  const auto& tree = g.integer_arrays.find("tree");
+  std::optional<Decomposition<D>> d;
+  if (tree != g.integer_arrays.end()) d = Decomposition<D>::from_tree(cells, ranks, tree->second.values);
+  if (!d) g.error("its decomposition over " + std::to_string(ranks) + " ranks does not divide the scene's lattice");
+  return d;
+}
+
+/// The global ids of `count` particle rows that start at row `first` of
+/// the checkpoint, now in `rows`: its array particles/global_id, or (a
+/// serial run's checkpoint, whose rows are in that order) first, first + 1, ...
+std::vector<long long> row_ids(Checkpoint& rows, long long first, long long count) {
+  StateGroup& g = rows.group("particles");
+  const auto it = g.integer_arrays.find("global_id");
+  if (it != g.integer_arrays.end()) {
+    const auto& v = g.integer_array("global_id", static_cast<std::size_t>(count), 1).values;
+    return {v.begin(), v.end()};
+  }
+  std::vector<long long> ids(static_cast<std::size_t>(count));
+  for (std::size_t i = 0; i < ids.size(); ++i) ids[i] = first + static_cast<long long>(i);
+  g.integer_arrays["global_id"] = {1, std::vector<std::int64_t>(ids.begin(), ids.end())};
+  return ids;
+}
+
+/// Calls f(array) for every particle array (checkpoint_row_kind) of `ck`, in a fixed order.
+template <class F> void for_each_particle_array(Checkpoint& ck, F&& f) {
+  for (auto& [gname, g] : ck.groups) {
+    for (auto& [name, a] : g.real_arrays)
+      if (checkpoint_row_kind(gname, name) == RowKind::particle) f(a);
+    for (auto& [name, a] : g.integer_arrays)
+      if (checkpoint_row_kind(gname, name) == RowKind::particle) f(a);
+  }
+}
+
+/// Sends row i of every particle array of `block` to rank dest[i]; `rows`
+/// gets the rows this rank receives (the arrays of `block`, empty there),
+/// in the order of their global ids (which travel in particles/global_id).
+void route_rows(const Comm& comm, Checkpoint& block, const std::vector<int>& dest, Checkpoint& rows) {
+  std::vector<Bytes> out(static_cast<std::size_t>(comm.size()));
+  for_each_particle_array(block, [&](auto& a) {
+    const std::size_t bytes = a.cols * sizeof(a.values[0]);
+    for (std::size_t i = 0; i < dest.size(); ++i)
+      put_bytes(out[static_cast<std::size_t>(dest[i])], a.values.data() + i * a.cols, bytes);
+    a.values = {}; // sent: freed before the rows come in
+  });
+  for (auto& [gname, g] : block.groups) { // the same arrays, empty, in `rows`
+    for (auto& [name, a] : g.real_arrays)
+      if (checkpoint_row_kind(gname, name) == RowKind::particle) rows.group(gname).real_arrays[name] = {a.cols, {}};
+    for (auto& [name, a] : g.integer_arrays)
+      if (checkpoint_row_kind(gname, name) == RowKind::particle) rows.group(gname).integer_arrays[name] = {a.cols, {}};
+  }
+  // A message holds each array's rows in turn (the sender packed array by array).
+  std::vector<std::size_t> row_bytes;
+  for_each_particle_array(rows, [&](auto& a) { row_bytes.push_back(a.cols * sizeof(a.values[0])); });
+  std::size_t width = 0;
+  for (std::size_t b : row_bytes) width += b;
+  const std::vector<Bytes> in = comm.alltoall(out);
+  for (const Bytes& msg : in) {
+    const std::size_t n = width ? msg.size() / width : 0;
+    std::size_t at = 0, k = 0;
+    for_each_particle_array(rows, [&](auto& a) {
+      const std::size_t old = a.values.size();
+      a.values.resize(old + n * a.cols);
+      std::memcpy(a.values.data() + old, msg.data() + at, n * row_bytes[k]);
+      at += n * row_bytes[k++];
+    });
+  }
+  order_by_global_id(rows);
+}
+
+/// This rank's particle rows of a restart from `ck` into `rows` (in the
+/// order of its particles) and their global ids, with the decomposition:
+/// the checkpoint's when its run had as many ranks, else a fresh bisection
+/// of the cells weighted by the particles' home cells (each rank reads
+/// 1/N of the rows, finds their cells and sends them to their owners).
+template <int D>
+std::vector<long long> restart_rows(const Scene& scene, const Comm& comm, const Checkpoint& ck,
+                                    const CartesianGrid<D>& grid, Decomposition<D>& decomposition, Checkpoint& rows) {
+  const long long n = checkpoint_rows(ck, RowKind::particle), P = comm.size(), r = comm.rank();
+  if (auto kept = stored_decomposition<D>(ck, grid.cells, comm.size())) {
+    decomposition = std::move(*kept);
+    const StateGroup& g = ck.group("decomposition");
+    const auto& counts = g.integer_array("rows_per_rank", static_cast<std::size_t>(P), 1).values;
+    long long first = 0, total = 0;
+    for (long long q = 0; q < P; ++q) (q < r ? first : total) += counts[static_cast<std::size_t>(q)];
+    if (first + total != n) g.error("its ranks' rows do not add up to the " + std::to_string(n) + " particles");
+    const long long count = counts[static_cast<std::size_t>(r)];
+    read_checkpoint_rows(ck, RowKind::particle, {{first, 1, 1, count}}, rows);
+    return row_ids(rows, first, count);
+  }
+  const long long first = n * r / P, count = n * (r + 1) / P - first;
+  Checkpoint block;
+  read_checkpoint_rows(ck, RowKind::particle, {{first, 1, 1, count}}, block);
+  row_ids(block, first, count);
+  // the home cell: of x on the fixed grid (mpm), of X on the initial lattice (ul)
+  const auto& x = block.group("particles").real_array(scene.simulation.nodes_move() ? "X" : "x",
+                                                      static_cast<std::size_t>(count), D).values;
+  std::vector<Index<D>> cells;
+  std::vector<std::int64_t> weight;
+  std::vector<Index<D>> home(static_cast<std::size_t>(count));
+  for (std::size_t i = 0; i < home.size(); ++i) {
+    home[i] = grid.cell_of(Eigen::Map<const Vec<D>>(x.data() + i * D));
+    if (!cells.empty() && cells.back() == home[i]) ++weight.back();
+    else cells.push_back(home[i]), weight.push_back(1);
+  }
+  decomposition = Decomposition<D>::rcb(grid.cells, comm.size(), cells, weight, comm);
+  std::vector<int> dest(home.size());
+  for (std::size_t i = 0; i < home.size(); ++i) dest[i] = decomposition.owner(home[i]);
+  route_rows(comm, block, dest, rows);
+  const auto& ids = rows.group("particles").integer_arrays.at("global_id").values;
+  return {ids.begin(), ids.end()};
+}
+
 } // namespace
 
-template <int D>
-EngineParts<D> rank_parts(const Scene& scene, const Comm& comm, const AlignedVector<Vec<D>>* positions) {
+template <int D> EngineParts<D> rank_parts(const Scene& scene, const Comm& comm) {
   if (comm.size() == 1) return assemble_parts<D>(scene);
-  return seeded_parts<D>(scene, comm, positions);
+  return seeded_parts<D>(scene, comm);
+}
+
+template <int D>
+EngineParts<D> restart_parts(const Scene& scene, const Comm& comm, const Checkpoint& ck, Checkpoint& rows) {
+  typename Domain<D>::Setup setup;
+  const CartesianGrid<D> grid = node_grid<D>(scene);
+  const long long n = checkpoint_rows(ck, RowKind::particle);
+  rows = checkpoint_head(ck);
+  std::vector<long long> ids = restart_rows<D>(scene, comm, ck, grid, setup.decomposition, rows);
+  SeededBodies<D> share;
+  const StateGroup& particles = rows.group("particles");
+  restore_particles(particles, share.particles, ids.size());
+  share.ids = ids;
+  for (std::size_t i = 0; i < scene.tractions.size(); ++i)
+    share.traction_area.push_back(
+        particles.real_array("traction_area_" + std::to_string(i), ids.size(), 1).values);
+  setup.traction_area = share.traction_area;
+  const long long particles_here = static_cast<long long>(ids.size());
+  auto seed = [&](const Vec<D>&, const CartesianGrid<D>&) { return std::move(share); };
+  auto lattice = [&](const CartesianGrid<D>& g) { return rank_lattice<D>(scene, comm, g, true, setup); };
+  EngineParts<D> parts = assemble_parts<D>(scene, seed, lattice);
+  setup.nodes_move = scene.simulation.nodes_move();
+  setup.global_ids = std::move(ids);
+  setup.global_particles = n;
+  setup.setup_particles = particles_here;
+  const auto& dg = rows.groups.find("decomposition");
+  setup.steps = dg != rows.groups.end() && dg->second.integers.count("steps") ? dg->second.integer("steps")
+                                                                                : rows.group("engine").integer("step");
+  return finish_parts<D>(comm, std::move(parts), std::move(setup));
 }
 
 #define OTMPM_INSTANTIATE(D)                                                                                      \
-  template EngineParts<D> rank_parts<D>(const Scene&, const Comm&, const AlignedVector<Vec<D>>*);
+  template EngineParts<D> rank_parts<D>(const Scene&, const Comm&);                                           \
+  template EngineParts<D> restart_parts<D>(const Scene&, const Comm&, const Checkpoint&, Checkpoint&);
 OTMPM_INSTANTIATE(1)
 OTMPM_INSTANTIATE(2)
 OTMPM_INSTANTIATE(3)

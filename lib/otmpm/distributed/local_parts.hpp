@@ -13,15 +13,25 @@
 /// parts are returned unchanged (a serial run, bit for bit).
 #include "otmpm/distributed/domain.hpp"
 #include "otmpm/scene/scene.hpp"
+#include "otmpm/state.hpp"
 
 namespace otmpm::distributed {
 
-/// This rank's parts of `scene`. `positions`, when given, are the current
-/// positions of all particles in global order (a restart: they decide the
-/// home cells in `mpm` mode instead of the seeded positions). InputError
-/// for a scene that cannot run, or that cannot be split over the ranks.
+/// This rank's parts of `scene`. InputError for a scene that cannot run, or
+/// that cannot be split over the ranks.
+template <int D> EngineParts<D> rank_parts(const Scene& scene, const Comm& comm);
+
+/// This rank's parts of a restart of `scene` from checkpoint `ck` (its head
+/// with its open file, or all of it in memory), seeding nothing: on as
+/// many ranks as the checkpoint's run, that run's decomposition and each
+/// rank its own rows of the file (the same bits as the run would have
+/// given); on another rank count, the cells bisected afresh from the
+/// particles' home cells, each rank reading 1/N of the rows and sending
+/// them to their owners. `rows` gets the checkpoint's head and this rank's
+/// particle rows, in the order of its particles (for local_checkpoint).
+/// Collective; InputError for a checkpoint that does not fit the scene.
 template <int D>
-EngineParts<D> rank_parts(const Scene& scene, const Comm& comm, const AlignedVector<Vec<D>>* positions = nullptr);
+EngineParts<D> restart_parts(const Scene& scene, const Comm& comm, const Checkpoint& ck, Checkpoint& rows);
 
 /// The Domain of an engine, or null for a serial engine.
 template <int D> const Domain<D>* domain_of(const Engine<D>& e) {

@@ -11,6 +11,7 @@
 /// wave speed of the next CFL step and the energy balance (with the energy
 /// friction dissipated).
 #include "otmpm/engine/engine.hpp"
+#include "otmpm/particles/particle_state.hpp"
 #include "otmpm/state.hpp"
 
 #include <algorithm>
@@ -24,72 +25,6 @@ namespace {
 
 // A member added to EnergyBalance must be saved and restored below.
 static_assert(sizeof(EnergyBalance) == 7 * sizeof(double), "EnergyBalance changed: update engine_state.cpp");
-
-/// How one element of a particle field is stored: as `cols` values of type
-/// Stored (double, or int64 for integers) starting at begin(element).
-template <class T> struct FieldLayout;
-template <> struct FieldLayout<double> {
-  using Stored = double;
-  static constexpr std::size_t cols = 1;
-  template <class E> static auto* begin(E& e) { return &e; }
-};
-template <> struct FieldLayout<int> {
-  using Stored = std::int64_t;
-  static constexpr std::size_t cols = 1;
-  template <class E> static auto* begin(E& e) { return &e; }
-};
-template <int R, int C, int O, int MR, int MC> struct FieldLayout<Eigen::Matrix<double, R, C, O, MR, MC>> {
-  using Stored = double;
-  static constexpr std::size_t cols = static_cast<std::size_t>(R * C);
-  template <class E> static auto* begin(E& e) { return e.data(); }
-};
-template <std::size_t N> struct FieldLayout<std::array<int, N>> {
-  using Stored = std::int64_t;
-  static constexpr std::size_t cols = N;
-  template <class E> static auto* begin(E& e) { return e.data(); }
-};
-
-/// The array of `g` that holds values of type T (real or integer arrays).
-template <class T> auto& arrays_of(StateGroup& g) {
-  if constexpr (std::is_same_v<T, double>) return g.real_arrays;
-  else return g.integer_arrays;
-}
-template <class T>
-const StateArray<T>& array_of(const StateGroup& g, const std::string& name, std::size_t rows, std::size_t cols) {
-  if constexpr (std::is_same_v<T, double>) return g.real_array(name, rows, cols);
-  else return g.integer_array(name, rows, cols);
-}
-
-/// Stores a per-particle array, element by element in memory order.
-template <class Field> void save_field(StateGroup& g, const std::string& name, const Field& field) {
-  using L = FieldLayout<typename Field::value_type>;
-  StateArray<typename L::Stored>& a = arrays_of<typename L::Stored>(g)[name];
-  a.cols = L::cols;
-  a.values.clear();
-  a.values.reserve(field.size() * L::cols);
-  for (const auto& e : field) a.values.insert(a.values.end(), L::begin(e), L::begin(e) + L::cols);
-}
-
-/// Restores a per-particle array of n elements. A field the checkpoint does
-/// not hold must be one this run leaves empty as well.
-template <class Field> void restore_field(const StateGroup& g, const std::string& name, Field& field, std::size_t n) {
-  using L = FieldLayout<typename Field::value_type>;
-  if (!g.has_array(name)) {
-    if (!field.empty()) g.error("missing particle field '" + name + "'");
-    return;
-  }
-  const auto& values = array_of<typename L::Stored>(g, name, n, L::cols).values;
-  field.resize(n);
-  for (std::size_t p = 0; p < n; ++p) {
-    auto* out = L::begin(field[p]);
-    for (std::size_t c = 0; c < L::cols; ++c) {
-      const auto v = values[p * L::cols + c];
-      out[c] = static_cast<std::remove_reference_t<decltype(*out)>>(v);
-      if constexpr (!std::is_same_v<typename L::Stored, double>)
-        if (out[c] != v) g.error("particle field '" + name + "': integer out of range");
-    }
-  }
-}
 
 template <int D> void save_vector(StateGroup& g, const std::string& name, const Vec<D>& v) {
   g.real_arrays[name] = {static_cast<std::size_t>(D), std::vector<double>(v.data(), v.data() + D)};
@@ -158,11 +93,15 @@ template <int D> void Engine<D>::save_state(Checkpoint& out) const {
   g.put_reals(energy_fields(energy_));
   save_timers(g, timers_);
   StateGroup& particles = out.group("particles");
-  P_.for_each_field([&](const char* name, const auto& field) {
-    if (!field.empty()) save_field(particles, name, field);
-  });
-  for (const StateField& f : P_.state)
-    particles.real_arrays["state_" + f.name] = {static_cast<std::size_t>(f.width), f.values};
+  save_particles(particles, P_);
+  // The traction loads' shares per particle (< 0: not loaded): what a
+  // distributed restart, which seeds nothing, loads its particles with.
+  for (std::size_t i = 0; i < loads_.tractions.size(); ++i) {
+    StateArray<double>& area = particles.real_arrays["traction_area_" + std::to_string(i)];
+    area = {1, std::vector<double>(static_cast<std::size_t>(P_.size()), -1.0)};
+    const Traction<D>& t = loads_.tractions[i];
+    for (std::size_t k = 0; k < t.particle.size(); ++k) area.values[static_cast<std::size_t>(t.particle[k])] = t.area[k];
+  }
   if (lattice_) { // laid out anew (NodeReset): the lattice, and the F-bar patches of its layout
     StateGroup& n = out.group("nodes");
     n.integers["resets"] = node_resets_;
@@ -245,12 +184,9 @@ template <int D> void Engine<D>::restore_state(const Checkpoint& in) {
   g.get_reals(energy_fields(energy_));
   restore_timers(g, timers_);
   const StateGroup& particles = in.group("particles");
-  const auto n = static_cast<std::size_t>(P_.size());
-  P_.for_each_field([&](const char* name, auto& field) { restore_field(particles, name, field, n); });
+  restore_particles(particles, P_, static_cast<std::size_t>(P_.size()));
   for (int m : P_.material)
     if (m < 0 || m >= static_cast<int>(materials_.size())) particles.error("material index out of range");
-  for (StateField& f : P_.state)
-    f.values = particles.real_array("state_" + f.name, n, static_cast<std::size_t>(f.width)).values;
   restore_nodes(nodes, basis_->nodes());
   const StateGroup& basis = in.group("basis");
   if (basis.string("kind") != basis_->kind())

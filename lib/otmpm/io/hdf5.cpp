@@ -306,12 +306,32 @@ namespace {
 /// The buffer of a rank that writes no rows (HDF5 wants a pointer).
 const double kNoData = 0.0;
 
-/// write_rows for elements stored as `file_type` from memory of type `memory_type`.
-void write_rows_as(hid_t parent, const std::string& name, hsize_t total_rows, hsize_t cols, hsize_t first,
-                   hsize_t rows, hid_t file_type, hid_t memory_type, const void* data, hid_t transfer,
-                   const std::string& path, int deflate) {
+/// Selects the rows of `blocks` (all columns) in the file space of a
+/// dataset of `cols` columns and a memory space of as many values; none
+/// when the blocks hold no row.
+void select_blocks(hid_t file_space, hid_t memory, hsize_t cols, const std::vector<RowBlock>& blocks,
+                   const std::string& path, const std::string& what) {
+  if (static_cast<hsize_t>(block_rows(blocks)) * cols == 0) {
+    checked_status(H5Sselect_none(file_space), path, what);
+    checked_status(H5Sselect_none(memory), path, what);
+    return;
+  }
+  checked_status(H5Sselect_none(file_space), path, what);
+  for (const RowBlock& b : blocks) {
+    if (b.count * b.block == 0) continue;
+    const hsize_t start[2] = {static_cast<hsize_t>(b.first), 0}, stride[2] = {static_cast<hsize_t>(b.stride), 1},
+                  count[2] = {static_cast<hsize_t>(b.count), 1}, block[2] = {static_cast<hsize_t>(b.block), cols};
+    checked_status(H5Sselect_hyperslab(file_space, H5S_SELECT_OR, start, stride, count, block), path, what);
+  }
+}
+
+/// write_blocks for elements stored as `file_type` from memory of type `memory_type`.
+void write_blocks_as(hid_t parent, const std::string& name, hsize_t total_rows, hsize_t cols,
+                     const std::vector<RowBlock>& blocks, hid_t file_type, hid_t memory_type, const void* data,
+                     hid_t transfer, const std::string& path, int deflate) {
   const std::string what = "write dataset " + name;
-  const hsize_t dims[2] = {total_rows, cols}, start[2] = {first, 0}, count[2] = {rows, cols};
+  const hsize_t dims[2] = {total_rows, cols},
+                values = std::max<hsize_t>(1, static_cast<hsize_t>(block_rows(blocks)) * cols);
   Handle space(checked(H5Screate_simple(2, dims, nullptr), path, what), H5Sclose);
   const Handle layout = dataset_creation(total_rows, cols, H5Tget_size(file_type), deflate, path);
   Handle set(checked(H5Dcreate2(parent, name.c_str(), file_type, space.get(), H5P_DEFAULT, creation(layout),
@@ -319,18 +339,46 @@ void write_rows_as(hid_t parent, const std::string& name, hsize_t total_rows, hs
                      path, what),
              H5Dclose);
   Handle file_space(checked(H5Dget_space(set.get()), path, what), H5Sclose);
-  Handle memory(checked(H5Screate_simple(2, count, nullptr), path, what), H5Sclose);
-  if (rows * cols > 0)
-    checked_status(H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr), path, what);
-  else {
-    checked_status(H5Sselect_none(file_space.get()), path, what);
-    checked_status(H5Sselect_none(memory.get()), path, what);
-  }
+  Handle memory(checked(H5Screate_simple(1, &values, nullptr), path, what), H5Sclose);
+  select_blocks(file_space.get(), memory.get(), cols, blocks, path, what);
   if (total_rows * cols > 0)
     checked_status(
         H5Dwrite(set.get(), memory_type, memory.get(), file_space.get(), transfer, data ? data : &kNoData), path, what);
 }
+
+/// write_rows for elements stored as `file_type` from memory of type `memory_type`.
+void write_rows_as(hid_t parent, const std::string& name, hsize_t total_rows, hsize_t cols, hsize_t first,
+                   hsize_t rows, hid_t file_type, hid_t memory_type, const void* data, hid_t transfer,
+                   const std::string& path, int deflate) {
+  const RowBlock one{static_cast<long long>(first), 1, 1, static_cast<long long>(rows)};
+  write_blocks_as(parent, name, total_rows, cols, {one}, file_type, memory_type, data, transfer, path, deflate);
+}
+
+/// read_blocks into memory of type `memory_type` from a dataset of type class `cls`.
+void read_blocks_as(hid_t parent, const std::string& name, hsize_t cols, const std::vector<RowBlock>& blocks,
+                    H5T_class_t cls, hid_t memory_type, void* out, hid_t transfer, const std::string& path);
 } // namespace
+
+void write_blocks(hid_t parent, const std::string& name, hsize_t total_rows, hsize_t cols,
+                  const std::vector<RowBlock>& blocks, const double* data, hid_t transfer, const std::string& path) {
+  write_blocks_as(parent, name, total_rows, cols, blocks, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, data, transfer, path, 0);
+}
+
+void write_blocks(hid_t parent, const std::string& name, hsize_t total_rows, hsize_t cols,
+                  const std::vector<RowBlock>& blocks, const std::int64_t* data, hid_t transfer,
+                  const std::string& path) {
+  write_blocks_as(parent, name, total_rows, cols, blocks, H5T_STD_I64LE, H5T_NATIVE_INT64, data, transfer, path, 0);
+}
+
+void read_blocks(hid_t parent, const std::string& name, hsize_t cols, const std::vector<RowBlock>& blocks,
+                 double* out, hid_t transfer, const std::string& path) {
+  read_blocks_as(parent, name, cols, blocks, H5T_FLOAT, H5T_NATIVE_DOUBLE, out, transfer, path);
+}
+
+void read_blocks(hid_t parent, const std::string& name, hsize_t cols, const std::vector<RowBlock>& blocks,
+                 std::int64_t* out, hid_t transfer, const std::string& path) {
+  read_blocks_as(parent, name, cols, blocks, H5T_INTEGER, H5T_NATIVE_INT64, out, transfer, path);
+}
 
 void write_rows(hid_t parent, const std::string& name, hsize_t total_rows, hsize_t cols, hsize_t first, hsize_t rows,
                 const double* data, hid_t transfer, const std::string& path, int deflate) {
@@ -452,6 +500,25 @@ OpenMatrix open_matrix(hid_t parent, const std::string& name, const std::string&
   return m;
 }
 
+void read_blocks_as(hid_t parent, const std::string& name, hsize_t cols, const std::vector<RowBlock>& blocks,
+                    H5T_class_t cls, hid_t memory_type, void* out, hid_t transfer, const std::string& path) {
+  const std::string what = "read dataset " + name;
+  const OpenMatrix m = open_matrix(parent, name, path, cls);
+  if (m.cols != cols) fail(path, what + " (" + std::to_string(m.cols) + " columns, expected " + std::to_string(cols) + ")");
+  for (const RowBlock& b : blocks)
+    if (b.count * b.block > 0 && static_cast<hsize_t>(b.first + (b.count - 1) * b.stride + b.block) > m.rows)
+      fail(path, what + " (rows up to " + std::to_string(b.first + (b.count - 1) * b.stride + b.block) + " of " +
+                     std::to_string(m.rows) + ")");
+  const hsize_t values = std::max<hsize_t>(1, static_cast<hsize_t>(block_rows(blocks)) * cols);
+  Handle file_space(checked(H5Dget_space(m.set.get()), path, what), H5Sclose);
+  Handle memory(checked(H5Screate_simple(1, &values, nullptr), path, what), H5Sclose);
+  if (H5Sget_simple_extent_ndims(file_space.get()) != 2) fail(path, what + " (rank 1, expected rows x columns)");
+  select_blocks(file_space.get(), memory.get(), cols, blocks, path, what);
+  double unused = 0.0;
+  checked_status(H5Dread(m.set.get(), memory_type, memory.get(), file_space.get(), transfer, out ? out : &unused), path,
+                 what);
+}
+
 /// Reads a rank-1 or rank-2 dataset whose type is of class `cls` into memory type `memory_type`.
 template <class T>
 Matrix<T> read_matrix(hid_t parent, const std::string& name, const std::string& path, H5T_class_t cls,
@@ -511,6 +578,18 @@ void DoubleRows::read(hsize_t first, hsize_t count, double* out) const {
   Handle memory_space(checked(H5Screate_simple(1, &values, nullptr), path_, what), H5Sclose);
   checked_status(H5Dread(set_.get(), H5T_NATIVE_DOUBLE, memory_space.get(), file_space.get(), H5P_DEFAULT, out), path_,
                  what);
+}
+
+std::pair<hsize_t, hsize_t> dataset_shape(hid_t parent, const std::string& name, const std::string& path) {
+  const std::string what = "read dataset " + name;
+  if (!has_link(parent, name)) fail(path, "find dataset '" + name + "'");
+  Handle set(checked(H5Dopen2(parent, name.c_str(), H5P_DEFAULT), path, what), H5Dclose);
+  Handle space(checked(H5Dget_space(set.get()), path, what), H5Sclose);
+  const int rank = H5Sget_simple_extent_ndims(space.get());
+  if (rank != 1 && rank != 2) fail(path, what + " (rank " + std::to_string(rank) + ", expected 1 or 2)");
+  hsize_t dims[2] = {0, 1};
+  checked_status(H5Sget_simple_extent_dims(space.get(), dims, nullptr), path, what);
+  return {dims[0], dims[1]};
 }
 
 Matrix<double> read_double_matrix(hid_t parent, const std::string& name, const std::string& path) {

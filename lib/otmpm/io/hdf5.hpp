@@ -13,6 +13,8 @@
 /// output_failure(). After such a failure HDF5 1.10 crashes when it closes the
 /// file again at exit (H5close from its atexit handler), so the library
 /// replaces that handler by one that skips H5close once a write failed.
+#include "otmpm/io/parallel_io.hpp"
+
 #include <hdf5.h>
 
 #include <cstdint>
@@ -188,6 +190,27 @@ void write_rows(hid_t parent, const std::string& name, hsize_t total_rows, hsize
 /// write_rows of 32-bit IEEE floats.
 void write_rows(hid_t parent, const std::string& name, hsize_t total_rows, hsize_t cols, hsize_t first, hsize_t rows,
                 const float* data, hid_t transfer, const std::string& path, int deflate = 0);
+
+/// Writes the rows of `blocks` (RowBlock: regular hyperslabs along the rows,
+/// every column; in increasing order, none twice) of a new
+/// total_rows x cols dataset of doubles or 64-bit integers; `data` holds them
+/// in that order. With a parallel file every rank creates the dataset and
+/// writes its rows in one collective call (`transfer`; H5P_DEFAULT: serial).
+void write_blocks(hid_t parent, const std::string& name, hsize_t total_rows, hsize_t cols,
+                  const std::vector<RowBlock>& blocks, const double* data, hid_t transfer, const std::string& path);
+void write_blocks(hid_t parent, const std::string& name, hsize_t total_rows, hsize_t cols,
+                  const std::vector<RowBlock>& blocks, const std::int64_t* data, hid_t transfer,
+                  const std::string& path);
+/// Reads the rows of `blocks` (in increasing order) of the rank-2 dataset
+/// `name` (of `cols` columns; Failure when it has other columns,
+/// fewer rows or another type class) into `out`, in that order (collective
+/// with a parallel file: every rank calls it, `transfer` as above).
+void read_blocks(hid_t parent, const std::string& name, hsize_t cols, const std::vector<RowBlock>& blocks,
+                 double* out, hid_t transfer, const std::string& path);
+void read_blocks(hid_t parent, const std::string& name, hsize_t cols, const std::vector<RowBlock>& blocks,
+                 std::int64_t* out, hid_t transfer, const std::string& path);
+/// Rows and columns of the rank-1 or rank-2 dataset `name` below `parent`.
+std::pair<hsize_t, hsize_t> dataset_shape(hid_t parent, const std::string& name, const std::string& path);
 
 /// True when `object` has an attribute `name`.
 bool has_attribute(hid_t object, const std::string& name);

@@ -487,19 +487,29 @@ bool view_replaceable(const std::string& view, const std::string& owner, const C
 /// impossible, so it holds nothing a user can use.
 bool orphan_checkpoint(const std::string& path) {
   try {
-    const std::string result = read_checkpoint(path).group("recorder").string("result_file");
+    const std::string result = read_checkpoint_head(path).group("recorder").string("result_file");
     return !result.empty() && !occupied(result);
   } catch (const InputError&) {
     return false;
   }
 }
 
-/// VTK frame files written by otmpm: frame_NNNNNN.vtp / .vtu.
+/// VTK frame files written by otmpm: frame_NNNNNN.vtp / .vtu, and a
+/// distributed run's frame_NNNNNN.pvtp / .pvtu and their pieces
+/// frame_NNNNNN_RRRR.vtp / .vtu.
 bool is_vtk_frame(const std::string& name) {
   const std::string_view n = name, prefix = "frame_";
-  if (n.size() < prefix.size() + 6 + 4 || n.substr(0, prefix.size()) != prefix) return false;
-  const std::string_view digits = n.substr(prefix.size(), n.size() - prefix.size() - 4), ext = n.substr(n.size() - 4);
-  return digits.find_first_not_of("0123456789") == std::string_view::npos && (ext == ".vtp" || ext == ".vtu");
+  const std::size_t dot = n.rfind('.');
+  if (dot == std::string_view::npos || n.substr(0, prefix.size()) != prefix) return false;
+  const std::string_view ext = n.substr(dot), stem = n.substr(prefix.size(), dot - prefix.size());
+  const std::size_t cut = stem.find('_');
+  const std::string_view frame = stem.substr(0, cut), piece = cut == std::string_view::npos ? "" : stem.substr(cut + 1);
+  auto digits = [](std::string_view d, std::size_t least) {
+    return d.size() >= least && d.find_first_not_of("0123456789") == std::string_view::npos;
+  };
+  if (!digits(frame, 6)) return false;
+  if (cut != std::string_view::npos) return digits(piece, 4) && (ext == ".vtp" || ext == ".vtu");
+  return ext == ".vtp" || ext == ".vtu" || ext == ".pvtp" || ext == ".pvtu";
 }
 
 } // namespace

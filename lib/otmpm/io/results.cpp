@@ -159,13 +159,13 @@ const char* xdmf_attribute_type(int cols, int dimension, bool symmetric) {
 }
 
 /// The dataset holding the connectivity 0 .. points-1 of a Polyvertex topology.
-std::string vertices_name(int points) { return "vertices_" + std::to_string(points); }
+std::string vertices_name(long long points) { return "vertices_" + std::to_string(points); }
 
 /// What the sidecar needs to know about one written frame.
 struct FrameInfo {
   std::string group;      ///< "/frames/000012"
   double time = 0;
-  int points = 0;         ///< rows of x
+  long long points = 0;   ///< rows of x (of all ranks)
   std::string geometry;   ///< dataset used as geometry ("x" or the padded copy)
   int geometry_cols = 0;
   /// Other fields with `points` rows: name, cols, whether a symmetric tensor's components.
@@ -248,7 +248,7 @@ struct ResultWriter::Impl {
   }
   std::vector<FrameInfo> frame_infos;
   std::map<std::string, ProbeInfo> probe_infos; ///< by path: "probes/<name>" or a root series name
-  std::set<int> vertex_counts;                  ///< the vertices_N datasets written
+  std::set<long long> vertex_counts;                ///< the vertices_N datasets written
   std::unique_ptr<VtkSeriesWriter> vtk;
 
   /// Appends one sample to the histories of group `name` under `parent`
@@ -293,7 +293,7 @@ struct ResultWriter::Impl {
   std::size_t xdmf_frames = 0;
   FrameInfo describe_frame(const std::string& group, double time, const std::vector<FieldView>& fields) const;
   /// Writes /xdmf/vertices_N unless it exists.
-  void write_vertices(int points);
+  void write_vertices(const FieldView& x, long long points);
 
   /// Size of the last sidecar written and the frames it named (its growth per frame).
   mutable std::uint64_t xdmf_bytes = 0, xdmf_bytes_frames = 0;
@@ -396,9 +396,11 @@ ResultWriter::ResultWriter(const std::string& path, const std::string& scene_tex
   });
   set_attribute("dimension", static_cast<long long>(dimension));
   flush();
-  if (!options.vtk_format.empty() && m.root())
+  if (!options.vtk_format.empty()) { // a distributed run: on every rank, each writes its pieces
     m.vtk = std::make_unique<VtkSeriesWriter>(files.pvd, files.vtk_dir, files.vtk_extension, dimension, m.run_id,
-                                              m.h5_name, m.single);
+                                              m.h5_name, m.single, m.parallel);
+    if (m.parallel.all) m.parallel.all(true); // the root made the directory before any rank writes there
+  }
   if (m.root()) m.write_xdmf();
   if (m.vtk) m.vtk->publish();
 }
@@ -418,6 +420,8 @@ ResultWriter::~ResultWriter() {
 }
 
 const std::string& ResultWriter::run_id() const { return impl_->run_id; }
+
+const ParallelIo& ResultWriter::parallel() const { return impl_->parallel; }
 
 bool ResultWriter::writable() const { return !impl_->broken; }
 
@@ -441,7 +445,7 @@ FrameInfo ResultWriter::Impl::describe_frame(const std::string& group_path, doub
     if (f.name == "x") x = &f;
   if (!x) return info; // no coordinates: the frame is in the .h5 file only
   const auto total = [](const FieldView& f) { return f.total_rows >= 0 ? f.total_rows : f.rows; };
-  info.points = static_cast<int>(total(*x));
+  info.points = total(*x);
   info.geometry = x->cols == 1 ? kPaddedX : "x";
   info.geometry_cols = x->cols == 1 ? kXdmfSpaceDim : x->cols;
   info.precision = single ? 4 : 8;
@@ -450,10 +454,14 @@ FrameInfo ResultWriter::Impl::describe_frame(const std::string& group_path, doub
   return info;
 }
 
-void ResultWriter::Impl::write_vertices(int points) {
+void ResultWriter::Impl::write_vertices(const FieldView& x, long long points) {
   if (!vertex_counts.insert(points).second) return;
-  std::vector<std::int64_t> ids(static_cast<std::size_t>(points));
-  std::iota(ids.begin(), ids.end(), std::int64_t{0});
+  // this rank's rows of the frame (a serial file, or the root writing a whole frame: all of them)
+  const bool block = parallel.mpi_comm && x.total_rows >= 0;
+  const long long first = block ? x.first_row : 0;
+  const long long rows = block ? x.rows : parallel.mpi_comm && !root() ? 0 : points;
+  std::vector<std::int64_t> ids(static_cast<std::size_t>(std::max(rows, 1LL))); // never a null buffer
+  std::iota(ids.begin(), ids.end(), std::int64_t{first});
   const hsize_t dims[1] = {static_cast<hsize_t>(points)};
   const std::string name = vertices_name(points);
   Handle space(checked(H5Screate_simple(1, dims, nullptr), path, "write " + name), H5Sclose);
@@ -466,12 +474,17 @@ void ResultWriter::Impl::write_vertices(int points) {
   if (!parallel.mpi_comm)
     return checked_status(H5Dwrite(set.get(), H5T_NATIVE_INT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, ids.data()), path,
                           "write " + name);
-  // Every rank takes part in the collective write; the root writes the ids.
+  // Every rank takes part in the collective write, each with its rows.
   Handle file_space(checked(H5Dget_space(set.get()), path, "write " + name), H5Sclose);
-  Handle mem_space(checked(H5Screate_simple(1, dims, nullptr), path, "write " + name), H5Sclose);
-  if (!root()) {
+  const hsize_t count[1] = {static_cast<hsize_t>(std::max(rows, 1LL))};
+  Handle mem_space(checked(H5Screate_simple(1, count, nullptr), path, "write " + name), H5Sclose);
+  if (rows == 0) {
     checked_status(H5Sselect_none(file_space.get()), path, "write " + name);
     checked_status(H5Sselect_none(mem_space.get()), path, "write " + name);
+  } else {
+    const hsize_t start[1] = {static_cast<hsize_t>(first)};
+    checked_status(H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr), path,
+                   "write " + name);
   }
   checked_status(H5Dwrite(set.get(), H5T_NATIVE_INT64, mem_space.get(), file_space.get(), dxpl(), ids.data()), path,
                  "write " + name);
@@ -494,8 +507,7 @@ void ResultWriter::check_frame(double time, const std::vector<FieldView>& fields
   if (!std::isfinite(time)) throw InstabilityError(path_ + ": frame time is not finite");
 }
 
-void ResultWriter::write_frame(double time, const std::vector<FieldView>& fields,
-                               const std::vector<FieldView>* whole) {
+void ResultWriter::write_frame(double time, const std::vector<FieldView>& fields) {
   Impl& m = *impl_;
   const std::string name = frame_name(frames_);
   std::set<std::string> seen;
@@ -528,14 +540,14 @@ void ResultWriter::write_frame(double time, const std::vector<FieldView>& fields
       x3.cols = kXdmfSpaceDim;
       m.write_field(g.get(), kPaddedX, x3, padded.data());
     }
-    if (!info.geometry.empty()) m.write_vertices(info.points);
+    if (!info.geometry.empty())
+      m.write_vertices(*std::find_if(fields.begin(), fields.end(), [](const FieldView& f) { return f.name == "x"; }),
+                       info.points);
   });
   ++frames_;
   flush();
   if (!info.geometry.empty()) {
-    if (m.vtk && m.parallel.mpi_comm && !whole)
-      throw std::invalid_argument(path_ + ": the VTK files of a parallel result file need the whole frame");
-    if (m.vtk) m.vtk->write_frame(frames_ - 1, time, whole ? *whole : fields);
+    if (m.vtk) m.vtk->write_frame(frames_ - 1, time, fields);
     m.frame_infos.push_back(std::move(info));
   }
   m.publish_xdmf(false);
@@ -672,7 +684,7 @@ void ResultWriter::Impl::write_xdmf() const {
     return "<DataItem Dimensions=\"" + dims + "\" NumberType=\"" + type + "\" Precision=\"" +
            std::to_string(precision) + "\" Format=\"HDF\">" + h5 + ":" + xml_escape(dataset) + "</DataItem>";
   };
-  auto matrix = [](int rows, int cols) { return std::to_string(rows) + " " + std::to_string(cols); };
+  auto matrix = [](long long rows, int cols) { return std::to_string(rows) + " " + std::to_string(cols); };
   for (const FrameInfo& f : frame_infos) {
     os << "      <Grid Name=\"frame " << f.group.substr(f.group.rfind('/') + 1) << "\" GridType=\"Uniform\">\n"
        << "        <Time Value=\"" << text::exact(f.time) << "\"/>\n"
@@ -754,11 +766,13 @@ void append_stored_sample(const StoredHistory& h, hsize_t row, ResultWriter& to)
   else to.append_series(h.layout.name, t, scalars);
 }
 
-/// Frame `index` of a result file: its time and the datasets `fields`.
+/// Frame `index` of a result file: its time and the datasets `fields` (a
+/// parallel file: this rank's block of rows, from `first` of `total`).
 struct StoredFrame {
   double time = 0;
   std::vector<h5::Matrix<double>> fields;
   std::vector<std::string> components; ///< each field's attribute `components` ("" when absent)
+  long long first = 0, total = -1;     ///< total -1: the whole frame
 };
 
 /// The string attribute `components` of dataset `name` below `g`, or "".
@@ -767,14 +781,30 @@ std::string stored_components(hid_t g, const std::string& name, const std::strin
   return h5::has_attribute(set.get(), "components") ? h5::read_string(set.get(), "components", path) : "";
 }
 
-StoredFrame read_frame(hid_t file, int index, const std::vector<std::string>& fields, const std::string& path) {
+/// Rows [total r / P, total (r + 1) / P) of a dataset of `total` rows for rank r of P.
+h5::Matrix<double> read_block(hid_t g, const std::string& name, const ParallelIo& io, long long& first, long long& total,
+                              const std::string& path) {
+  const h5::DoubleRows rows(g, name, path);
+  total = static_cast<long long>(rows.rows());
+  first = total * io.rank / io.size;
+  h5::Matrix<double> m;
+  m.cols = rows.cols();
+  m.rows = static_cast<hsize_t>(total * (io.rank + 1) / io.size - first);
+  m.values.resize(static_cast<std::size_t>(m.rows * m.cols));
+  rows.read(static_cast<hsize_t>(first), m.rows, m.values.data());
+  return m;
+}
+
+StoredFrame read_frame(hid_t file, int index, const std::vector<std::string>& fields, const ParallelIo& io,
+                       const std::string& path) {
   Handle g = h5::open_group(file, "frames/" + frame_name(index), path);
   StoredFrame f;
   f.time = h5::read_double(g.get(), "time", path);
   if (!std::isfinite(f.time))
     h5::fail(path, "copy frame " + frame_name(index) + ": its time is not finite (the file is damaged)");
   for (const std::string& name : fields) {
-    f.fields.push_back(h5::read_double_matrix(g.get(), name, path));
+    f.fields.push_back(io.size > 1 ? read_block(g.get(), name, io, f.first, f.total, path)
+                                   : h5::read_double_matrix(g.get(), name, path));
     f.components.push_back(stored_components(g.get(), name, path));
     check_finite(f.fields.back(), f.fields.back().rows, "frames/" + frame_name(index) + "/" + name, path);
   }
@@ -805,7 +835,7 @@ void copy_results(const std::string& from, ResultWriter& to, int frames, const s
     stored.push_back(reading(from, [&] { return read_history(file.get(), layout, frames, from); }));
   for (int i = 0; i < frames; ++i) {
     for (const StoredHistory& h : stored) append_stored_sample(h, static_cast<hsize_t>(i), to);
-    const StoredFrame frame = reading(from, [&] { return read_frame(file.get(), i, frame_fields, from); });
+    const StoredFrame frame = reading(from, [&] { return read_frame(file.get(), i, frame_fields, to.parallel(), from); });
     // A run writes each history's sample and the frame at the same output time.
     for (const StoredHistory& h : stored)
       if (h.time.values[static_cast<std::size_t>(i)] != frame.time)
@@ -815,7 +845,7 @@ void copy_results(const std::string& from, ResultWriter& to, int frames, const s
     std::vector<FieldView> views;
     for (std::size_t k = 0; k < frame_fields.size(); ++k)
       views.push_back({frame_fields[k], static_cast<int>(frame.fields[k].rows),
-                       static_cast<int>(frame.fields[k].cols), frame.fields[k].values.data(), -1, 0,
+                       static_cast<int>(frame.fields[k].cols), frame.fields[k].values.data(), frame.total, frame.first,
                        frame.components[k]});
     to.write_frame(frame.time, views);
   }

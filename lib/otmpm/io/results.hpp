@@ -9,6 +9,8 @@
 /// for every write is reserved first, so a full disk or a file size limit
 /// ends the output with an OutputError and a valid, shorter file (a
 /// compressed frame reserves its uncompressed size and the filters' worst case).
+#include "otmpm/io/parallel_io.hpp"
+
 #include <functional>
 #include <memory>
 #include <set>
@@ -34,18 +36,6 @@ struct FieldView {
   /// components: "xx xy xz yy yz zz"); written as the dataset's string
   /// attribute `components`. "" : no attribute.
   std::string components{};
-};
-
-/// A result file that all ranks of a distributed run write together with
-/// the parallel HDF5 (MPI-IO): every rank makes every call of the
-/// ResultWriter, with the same arguments except the rows of a frame; the
-/// root rank writes the history samples and the XDMF sidecar.
-struct ParallelIo {
-  const void* mpi_comm = nullptr; ///< the MPI_Comm* of the ranks (null: a serial file)
-  bool root = true;
-  /// Whether every rank's `ok` holds (collective): a frame is written only
-  /// when all ranks' rows are finite.
-  std::function<bool(bool)> all;
 };
 
 /// Why `name` cannot name a field, probe, series or attribute in the result
@@ -76,7 +66,10 @@ struct ResultOptions {
   int compression = 0;
 };
 
-/// Writes one result file. Creating it writes the root attributes
+/// Writes one result file (with a ParallelIo: all ranks of a distributed run
+/// together, with the parallel HDF5 - every rank makes every call, with the
+/// same arguments except the rows of a frame; the root rank writes the
+/// history samples and the XDMF sidecar). Creating it writes the root attributes
 /// otmpm_version, run_id, scene and status = "running"; finish() sets the final
 /// status and the summary attributes. The destructor closes the file
 /// (status stays whatever was last set). An existing file at `path` is
@@ -104,11 +97,10 @@ public:
   ResultWriter& operator=(const ResultWriter&) = delete;
 
   /// Appends /frames/NNNNNN with attribute time and the given fields; the
-  /// field named "x" gives the point coordinates in the XDMF sidecar.
-  /// `whole`: for a parallel file with VTK output, every row of the frame
-  /// on the root rank, which writes the VTK files alone (null otherwise).
-  void write_frame(double time, const std::vector<FieldView>& fields,
-                   const std::vector<FieldView>* whole = nullptr);
+  /// field named "x" gives the point coordinates in the XDMF sidecar (with
+  /// VTK output, also the VTK frame: in a parallel file each rank's piece of
+  /// its rows, vtk.hpp).
+  void write_frame(double time, const std::vector<FieldView>& fields);
   /// The checks write_frame makes of a serial frame before it writes
   /// anything (names, shapes, NaN or Inf, the range of a single-precision
   /// file), with the same exceptions, and nothing written. Reads only the
@@ -141,6 +133,8 @@ public:
   int frames() const { return frames_; }
   /// The run id written into the file.
   const std::string& run_id() const;
+  /// How the ranks write this file together (a serial file: the default).
+  const ParallelIo& parallel() const;
   /// False once an HDF5 write to the file failed (nothing more is written to it).
   bool writable() const;
 
@@ -168,8 +162,9 @@ struct HistoryLayout {
 /// frames 0 .. frames-1 (the datasets `frame_fields`, in that order) and the
 /// first `frames` samples of each of `histories`, interleaved as a run writes
 /// them (one sample of each history in the given order, then the frame). The
-/// values are copied bit for bit. Throws InputError naming `from` when it
-/// cannot be read or holds fewer frames or samples.
+/// values are copied bit for bit (a parallel `to`: each rank reads and
+/// writes its block of each frame's rows). Throws InputError naming `from`
+/// when it cannot be read or holds fewer frames or samples.
 void copy_results(const std::string& from, ResultWriter& to, int frames, const std::vector<HistoryLayout>& histories,
                   const std::vector<std::string>& frame_fields);
 

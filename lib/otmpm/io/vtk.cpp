@@ -76,22 +76,33 @@ std::string frame_file_name(int index, const std::string& extension) {
   return buf + extension;
 }
 
+/// The piece of rank `piece` of frame `index`: frame_NNNNNN_RRRR.EXT.
+std::string piece_file_name(int index, int piece, const std::string& extension) {
+  char buf[48];
+  std::snprintf(buf, sizeof buf, "frame_%06d_%04d.", index, piece);
+  return buf + extension;
+}
+
+/// The VTK type of the point data of a file (output.precision).
+const char* real_type(bool single) { return single ? "Float32" : "Float64"; }
+
 } // namespace
 
 VtkSeriesWriter::VtkSeriesWriter(std::string pvd, std::string dir, std::string extension, int dimension,
-                                 std::string run_id, std::string result_name, bool single)
+                                 std::string run_id, std::string result_name, bool single, ParallelIo io)
     : pvd_(std::move(pvd)), dir_(std::move(dir)), extension_(std::move(extension)), run_id_(std::move(run_id)),
-      result_name_(std::move(result_name)), dimension_(dimension), single_(single) {
+      result_name_(std::move(result_name)), dimension_(dimension), single_(single), io_(std::move(io)) {
   require<std::invalid_argument>(extension_ == "vtp" || extension_ == "vtu", "VtkSeriesWriter: extension '",
                                  extension_, "' is not vtp or vtu");
   require<std::invalid_argument>(dimension_ >= 1 && dimension_ <= kPointComponents,
                                  "VtkSeriesWriter: dimension must be 1, 2 or 3, got ", dimension_);
+  if (!io_.root) return;
   std::error_code ec;
   fs::create_directories(dir_, ec);
   if (ec) throw OutputError(dir_ + ": cannot create the directory of the VTK frames: " + ec.message());
 }
 
-void VtkSeriesWriter::write_frame(int index, double time, const std::vector<FieldView>& fields) {
+std::string VtkSeriesWriter::frame_text(double time, const std::vector<FieldView>& fields) const {
   const FieldView* x = nullptr;
   for (const FieldView& f : fields)
     if (f.name == "x") x = &f;
@@ -137,15 +148,49 @@ void VtkSeriesWriter::write_frame(int index, double time, const std::vector<Fiel
        << "\n";
   os << "      </" << (poly ? "Verts" : "Cells") << ">\n    </Piece>\n  </" << type
      << ">\n  <AppendedData encoding=\"raw\">\n   _" << data.bytes() << "\n  </AppendedData>\n</VTKFile>\n";
-  const std::string name = frame_file_name(index, extension_);
+  return os.str();
+}
+
+std::string VtkSeriesWriter::pieces_text(int index, const std::vector<FieldView>& fields) const {
+  const bool poly = extension_ == "vtp";
+  const std::string type = poly ? "PPolyData" : "PUnstructuredGrid";
+  std::ostringstream os;
+  os << "<?xml version=\"1.0\"?>\n<VTKFile type=\"" << type << "\" version=\"1.0\" byte_order=\"" << byte_order()
+     << "\" header_type=\"UInt64\"" << text::run_id_attributes(run_id_, result_name_) << ">\n  <" << type
+     << " GhostLevel=\"0\">\n    <PPointData>\n";
+  for (const FieldView& f : fields)
+    if (f.name != "x")
+      os << "      <PDataArray type=\"" << real_type(single_) << "\" Name=\"" << text::xml_escape(f.name)
+         << "\" NumberOfComponents=\"" << f.cols << "\"/>\n";
+  os << "    </PPointData>\n    <PPoints>\n      <PDataArray type=\"" << real_type(single_)
+     << "\" Name=\"Points\" NumberOfComponents=\"" << kPointComponents << "\"/>\n    </PPoints>\n";
+  for (int r = 0; r < io_.size; ++r)
+    os << "    <Piece Source=\"" << text::xml_escape(piece_file_name(index, r, extension_)) << "\"/>\n";
+  os << "  </" << type << ">\n</VTKFile>\n";
+  return os.str();
+}
+
+void VtkSeriesWriter::write_file(const std::string& name, const std::string& text) const {
   const std::string path = (fs::path(dir_) / name).string();
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  out << os.str();
+  out << text;
   if (!out.flush()) throw OutputError(path + ": cannot write the VTK frame: " + std::strerror(errno));
+}
+
+void VtkSeriesWriter::write_frame(int index, double time, const std::vector<FieldView>& fields) {
+  std::string name = frame_file_name(index, extension_);
+  if (io_.size > 1) {
+    write_file(piece_file_name(index, io_.rank, extension_), frame_text(time, fields));
+    name = frame_file_name(index, "p" + extension_);
+    if (io_.root) write_file(name, pieces_text(index, fields));
+  } else {
+    write_file(name, frame_text(time, fields));
+  }
   frames_.emplace_back(time, (fs::path(dir_).filename() / name).string());
 }
 
 void VtkSeriesWriter::publish() {
+  if (!io_.root) return;
   if (published_ == frames_.size() && published_ > 0) return;
   std::ostringstream os;
   os << "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\" byte_order=\"" << byte_order() << "\""

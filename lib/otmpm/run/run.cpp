@@ -273,8 +273,7 @@ public:
       sum_sq.values.push_back(pr.sum_sq);
       samples.values.push_back(pr.samples);
     }
-    const Checkpoint all = view_.gather(ck); // the serial layout: any rank count can restart from it
-    view_.on_writer([&] { write_checkpoint(checkpoint_path_, all); });
+    view_.write_checkpoint(checkpoint_path_, std::move(ck)); // any rank count can restart from it
   }
 
   /// Wall time of the interrupted run up to its checkpoint (0 for a new run).
@@ -478,8 +477,8 @@ private:
     std::vector<std::pair<std::string, double>> energy;
     std::vector<std::pair<std::string, double>> diagnostics; ///< support_counts (when support_diagnostics)
     Samples walls; ///< per wall: force, impulse
-    std::vector<std::vector<double>> buffers, packed, gathered;
-    std::vector<FieldView> fields, whole;
+    std::vector<std::vector<double>> buffers, packed;
+    std::vector<FieldView> fields;
   };
 
   /// /walls/NAME: the impulse the wall gave the body since t = 0 and the
@@ -506,7 +505,7 @@ private:
     writer_->append_series("energy", o.t, o.energy);
     for (const auto& [name, values] : o.walls) writer_->append_group_sample("walls", name, o.t, values);
     if (!o.diagnostics.empty()) writer_->append_series("diagnostics", o.t, o.diagnostics);
-    writer_->write_frame(o.t, o.fields, o.whole.empty() ? nullptr : &o.whole);
+    writer_->write_frame(o.t, o.fields);
   }
 
   /// Makes the frame's fields own their values (background output): the
@@ -559,9 +558,7 @@ private:
     o->walls = wall_samples(t);
     o->buffers.resize(scene_.output.fields.size());
     o->packed.resize(o->buffers.size());
-    o->gathered.resize(o->buffers.size());
-    o->whole.clear();
-    o->fields = frame_fields(o->buffers, o->packed, o->gathered, o->whole);
+    o->fields = frame_fields(o->buffers, o->packed);
     ++frames_;
     if (background_) {
       own_fields(*o);
@@ -574,14 +571,10 @@ private:
   }
 
   /// The output fields of all particles in global order (buffers hold the
-  /// values that are not stored as they are written, and the gathered ones).
-  /// A distributed run with VTK output also gathers every field of all
-  /// particles on the writing rank into `gathered` and `whole` (that rank
-  /// writes the VTK files alone; collective).
+  /// values that are not stored as they are written); a distributed run:
+  /// this rank's block of rows of the frame (collective).
   std::vector<FieldView> frame_fields(std::vector<std::vector<double>>& buffers,
-                                      std::vector<std::vector<double>>& packed,
-                                      std::vector<std::vector<double>>& gathered,
-                                      std::vector<FieldView>& whole) const {
+                                      std::vector<std::vector<double>>& packed) const {
     const Particles<D>& P = e_.particles();
     const auto n = static_cast<std::size_t>(P.size());
     std::vector<double> zz; // plane strain's sigma_zz, when a field of the frame holds it
@@ -611,11 +604,6 @@ private:
       if (!view_.distributed()) {
         fields.push_back({name, P.size(), d.cols, d.data, -1, 0, components});
         continue;
-      }
-      if (!vtk_extension_.empty()) {
-        gathered[i] = view_.gather(d.data, d.cols);
-        whole.push_back({name, view_.writes() ? static_cast<int>(view_.particles()) : 0, d.cols, gathered[i].data(),
-                         -1, 0, components});
       }
       auto block = view_.block(d.data, d.cols); // this rank's rows of the frame, in global order
       buffers[i] = std::move(block.values);
@@ -772,12 +760,14 @@ struct Simulation::Runner {
 template <int D> struct Simulation::DimRunner final : Simulation::Runner {
   std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now();
   RunOptions options;
+  /// A distributed restart: this rank's rows of the checkpoint, from build() to init().
+  Checkpoint restart_rows;
   Engine<D> e;
   std::unique_ptr<ExactSolution<D>> exact;
   Recorder<D> rec;
 
   DimRunner(const Scene& s, const RunOptions& opt, const Checkpoint* resume)
-      : options(opt), e(build(s, resume)), exact(make_exact_solution<D>(s)),
+      : options(opt), e(build(s, resume, restart_rows)), exact(make_exact_solution<D>(s)),
         rec(init(s, resume), opt, e, exact.get(), resume) {
     const distributed::GlobalView<D> view(e);
     summary.mode = scene.simulation.mode;
@@ -802,12 +792,11 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
   }
 
   /// This rank's engine of the scene (the whole scene in a serial run); a
-  /// restart decides the ranks' particles from the checkpoint's positions.
-  static Engine<D> build(const Scene& s, const Checkpoint* resume) {
+  /// distributed restart builds it from its rows of the checkpoint (`rows`).
+  static Engine<D> build(const Scene& s, const Checkpoint* resume, Checkpoint& rows) {
     const auto& comm = distributed::Comm::world();
     if (!resume || comm.size() == 1) return Engine<D>(distributed::rank_parts<D>(s, comm));
-    const AlignedVector<Vec<D>> x = distributed::checkpoint_positions<D>(*resume);
-    return Engine<D>(distributed::rank_parts<D>(s, comm, &x));
+    return Engine<D>(distributed::restart_parts<D>(s, comm, *resume, rows));
   }
 
   /// Stores the scene and restores the checkpoint - or, for a new run,
@@ -815,7 +804,7 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
   /// the recorder is built.
   const Scene& init(const Scene& s, const Checkpoint* resume) {
     scene = s;
-    if (resume) e.restore_state(distributed::local_checkpoint(e, *resume));
+    if (resume) e.restore_state(distributed::local_checkpoint(e, *resume, std::exchange(restart_rows, {})));
     else check_first_step(scene, e.stable_dt(), e.wave_speed());
     return scene;
   }
@@ -949,7 +938,8 @@ std::unique_ptr<Simulation::Runner> Simulation::make(const Scene& scene, const R
   // A Scene built in code meets the reader's checks too; the ranks agree
   // (the memory a process may use can differ from node to node).
   if (dim >= 1 && dim <= 3)
-    distributed::agree_on(distributed::Comm::world(), [&] { check_before_allocating(scene, dim); });
+    distributed::agree_on(distributed::Comm::world(),
+                          [&] { check_before_allocating(scene, dim, distributed::Comm::world().size()); });
   try {
     switch (scene.simulation.dimension) {
     case 1: return std::make_unique<DimRunner<1>>(scene, options, resume);

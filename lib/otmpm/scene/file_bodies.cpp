@@ -38,7 +38,7 @@ template <int D> void read_mesh(BodySection& b) {
   long long points = 0;
   for (const MeshElement<D>& e : shape->elements())
     points += b.seeding == "quadrature" ? static_cast<long long>(element_points<D>(e, true).size()) : 1;
-  b.file_particles = static_cast<int>(std::min<long long>(points, std::numeric_limits<int>::max()));
+  b.file_particles = points;
 }
 
 } // namespace

@@ -183,8 +183,8 @@ void check_resources(const Scene& scene) {
               scene.simulation.dt ? "" : ", from the fastest wave speed " + format_number(e.wave_speed) + " m/s");
 }
 
-void check_before_allocating(const Scene& scene, int dimension) {
-  validate_scene(scene, dimension);
+void check_before_allocating(const Scene& scene, int dimension, int processes) {
+  validate_scene(scene, dimension, processes);
   check_resources(scene);
 }
 
@@ -196,8 +196,8 @@ void check_first_step(const Scene& scene, double dt, double c) {
 
 void check_node_count(double nodes, const std::string& what) {
   constexpr double kBytesPerNode = 1000;
-  if (!(nodes <= kMaxSceneNodes))
-    throw InputError(what + " gives " + format_number(nodes) + " nodes, more than " + format_number(kMaxSceneNodes));
+  if (!(nodes <= kMaxRankNodes))
+    throw InputError(what + " gives " + format_number(nodes) + " nodes, more than " + format_number(kMaxRankNodes));
   if (nodes * kBytesPerNode > available_memory())
     throw InputError(what + " needs about " + format_bytes(nodes * kBytesPerNode) + " of memory; " +
                      format_bytes(available_memory()) + " are available");

@@ -67,9 +67,9 @@ void check_resources(const Scene& scene);
 
 /// What a run and `otmpm run --check` check of a scene in `dimension`
 /// dimensions before anything is allocated, in this order: every check of
-/// the reader (validate_scene), then its estimated memory and steps
-/// (check_resources).
-void check_before_allocating(const Scene& scene, int dimension);
+/// the reader (validate_scene, with the size per process of a run on
+/// `processes` ranks), then its estimated memory and steps (check_resources).
+void check_before_allocating(const Scene& scene, int dimension, int processes = 1);
 
 /// The step-count check once the particles are seeded: t_end / dt, with
 /// dt the engine's first step (Engine::stable_dt: the particles' own
@@ -82,10 +82,10 @@ void check_first_step(const Scene& scene, double dt, double c);
 
 /// Throws InputError, naming `what` (the option that gives the nodes, e.g.
 /// "--cells 5000 in 3D"), when a node set built outside a scene (`otmpm
-/// basis`, the Python otmpm.basis) would have more than kMaxSceneNodes nodes
+/// basis`, the Python otmpm.basis) would have more than kMaxRankNodes nodes
 /// or not fit in available_memory() at about 1 kB per node (the nodes with
-/// the basis' neighbour search, generously): the scene's cap, before anything
-/// is allocated.
+/// the basis' neighbour search, generously): the cap of one process, before
+/// anything is allocated.
 void check_node_count(double nodes, const std::string& what);
 
 } // namespace otmpm

@@ -160,9 +160,9 @@ std::array<int, 3> read_cells(const TableReader& t, const GridSection& g, int di
     for (int k = 0; k < dim; ++k) {
       check(h[k] > 0, t.ref("h"), "must be > 0 (got " + fmt(h[k]) + ")");
       const double n = (g.upper[k] - g.lower[k]) / h[k];
-      check(n <= kMaxSceneNodes, t.ref("h"),
-            "gives " + fmt(n) + " cells on axis " + std::to_string(k) + "; at most " + fmt(kMaxSceneNodes) +
-                " nodes are allowed");
+      check(n <= kMaxCellsPerAxis, t.ref("h"),
+            "gives " + fmt(n) + " cells on axis " + std::to_string(k) + "; at most " + fmt(kMaxCellsPerAxis) +
+                " are allowed");
       cells[k] = static_cast<int>(std::lround(n));
       check(cells[k] >= 1 && std::abs(n - cells[k]) <= kCellsTolerance * n, t.ref("h"),
             "does not divide the grid box into whole cells on axis " + std::to_string(k) + " ((upper - lower) / h = " +
@@ -182,7 +182,12 @@ std::array<int, 3> read_cells(const TableReader& t, const GridSection& g, int di
     const int c = convert<int>(*n, r);
     for (int k = 0; k < dim; ++k) cells[k] = c;
   }
-  for (int k = 0; k < dim; ++k) check(cells[k] >= 1, r, "must be >= 1 (got " + std::to_string(cells[k]) + ")");
+  for (int k = 0; k < dim; ++k) {
+    check(cells[k] >= 1, r, "must be >= 1 (got " + std::to_string(cells[k]) + ")");
+    check(cells[k] <= kMaxCellsPerAxis, r,
+          "axis " + std::to_string(k) + ": at most " + fmt(kMaxCellsPerAxis) + " cells are allowed (got " +
+              std::to_string(cells[k]) + ")");
+  }
   return cells;
 }
 
@@ -458,7 +463,7 @@ void read_particle_file_body(const TableReader& t, BodySection& b, const Scene& 
   } catch (const InputError& e) {
     input_error(t.ref("file"), e.what());
   }
-  b.file_particles = static_cast<int>(count);
+  b.file_particles = count;
   b.file_read = b.file;
 }
 
@@ -531,6 +536,12 @@ std::vector<BodySection> read_bodies(const TableReader& root, const Scene& s) {
     b.overlap = t.choice("overlap", b.overlap, {"error", "first"});
     b.volume = t.choice("volume", b.volume, {"seeded", "exact"});
     particles += body_particles(b, s.grid, dim);
+    for (int k = 0; k < dim && b.shape != "file" && b.shape != "mesh"; ++k) {
+      const double cells = cells_over(b.upper[k] - b.lower[k], spacing(s.grid, k));
+      check(cells <= kMaxCellsPerAxis, box_ref(t),
+            "body \"" + b.name + "\" spans " + fmt(cells) + " cells of the grid spacing on axis " +
+                std::to_string(k) + "; at most " + fmt(kMaxCellsPerAxis) + " are allowed");
+    }
     check(particles <= kMaxSceneParticles, box_ref(t),
           "body \"" + b.name + "\" brings the particle count to " + fmt(particles) + " (" +
               fmt(body_cells(b, s.grid, dim)) + " cells of the grid spacing, " +
@@ -801,6 +812,12 @@ ReferenceSection read_reference(const TableReader& root) {
 /// The node set must stay within kMaxSceneNodes: the grid in mpm mode, the
 /// bodies' bounding box in ul mode (both in cells of grid.h).
 void check_node_count(const TableReader& grid, const Scene& s) {
+  const LatticeBox box = node_lattice_box(s);
+  for (int k = 0; k < s.simulation.dimension; ++k)
+    check(box.cells[k] <= kMaxCellsPerAxis, grid.ref(grid.has("h") ? "h" : "cells"),
+          "the node set would have " + fmt(box.cells[k]) + " cells on axis " + std::to_string(k) +
+              " (the bodies' bounding box in cells of the grid spacing); at most " + fmt(kMaxCellsPerAxis) +
+              " are allowed");
   const double n = node_count(s);
   check(n <= kMaxSceneNodes, grid.ref(grid.has("h") ? "h" : "cells"),
         "the node set would have " + fmt(n) + " nodes" +
@@ -971,7 +988,9 @@ Scene parse_scene(const std::string& text, const std::string& name, const std::v
   for (const std::string& o : overrides) apply_override(root, o, ctx);
   Scene s = read_scene(root, ctx);
   s.where = std::move(ctx.where);
-  validate_scene(s, s.simulation.dimension); // checks across sections, with the lines recorded above
+  // checks across sections, with the lines recorded above; the size per
+  // process is for the run to check, which knows its rank count
+  validate_scene(s, s.simulation.dimension, 0);
   std::ostringstream os;
   os << root << "\n";
   s.text = os.str();
@@ -1041,7 +1060,14 @@ LatticeBox node_lattice_box(const Scene& s) {
 
 SceneSize scene_size(const Scene& scene) {
   SceneSize n;
-  for (const BodySection& b : scene.bodies) n.particles += body_particles(b, scene.grid, scene.simulation.dimension);
+  const int dim = scene.simulation.dimension;
+  const LatticeBox box = node_lattice_box(scene);
+  for (int k = 0; k < dim; ++k) n.axis_cells = std::max(n.axis_cells, box.cells[k]);
+  for (const BodySection& b : scene.bodies) {
+    n.particles += body_particles(b, scene.grid, dim);
+    for (int k = 0; k < dim && b.shape != "file" && b.shape != "mesh"; ++k)
+      n.axis_cells = std::max(n.axis_cells, cells_over(b.upper[k] - b.lower[k], spacing(scene.grid, k)));
+  }
   n.nodes = node_count(scene);
   return n;
 }

@@ -101,7 +101,7 @@ struct BodySection {
   double length = 0.0;                 ///< cylinder
   std::vector<std::array<double, 2>> vertices; ///< polygon (2D)
   std::string file;                    ///< file: particle file (CSV or HDF5); stl, mesh: geometry file; resolved path
-  int file_particles = 0;              ///< file: the number of particles it holds; mesh: its material points
+  long long file_particles = 0;        ///< file: the number of particles it holds; mesh: its material points
   std::string file_read;               ///< file, stl, mesh: the path file_particles, lower and upper were read from (else empty)
   /// file: the smallest value of its `density` column (0: none), and the
   /// largest speed of its velocity columns, read with file_particles (the
@@ -283,18 +283,32 @@ std::string volumetric_treatment(const Scene& scene);
 /// Particles: per body, prod_k max(1, round((upper - lower) / h_k)) cells of
 /// particles_per_cell^dimension particles (h = grid spacing). Nodes:
 /// prod_k (cells_k + 1) over the grid (mode mpm) or over the bodies' bounding
-/// box in cells of size h (mode ul).
+/// box in cells of size h (mode ul). Axis cells: the most cells along one
+/// axis, of the node lattice or of a body's cells.
 struct SceneSize {
   double particles = 0;
   double nodes = 0;
+  double axis_cells = 0;
 };
 SceneSize scene_size(const Scene& scene);
 
-/// Largest particle count and node count a scene may ask for: beyond them a
-/// run would not fit in memory (about 0.5 kB per particle) and int indices
-/// come close to overflowing. load_scene rejects larger scenes with an InputError.
-inline constexpr double kMaxSceneParticles = 1e8;
-inline constexpr double kMaxSceneNodes = 1e8;
+/// Largest particle count and node count one process (one rank of a
+/// distributed run) may hold: beyond them it would not fit in a node's
+/// memory (about 0.5 kB per particle) and its int indices come close to
+/// overflowing. A run in one process refuses a larger scene
+/// (validate_scene with processes = 1); a distributed run checks each
+/// rank's share, so a scene of N particles needs at least N / 1e8 ranks.
+inline constexpr double kMaxRankParticles = 1e8;
+inline constexpr double kMaxRankNodes = 1e8;
+/// Largest particle count and node count of a whole scene on any number of
+/// ranks: global particle and lattice point ids are 64-bit integers and
+/// global counts doubles, exact up to 2^53 = 9.0e15. load_scene rejects
+/// larger scenes with an InputError.
+inline constexpr double kMaxSceneParticles = 9.0e15;
+inline constexpr double kMaxSceneNodes = 9.0e15;
+/// Largest number of cells along one axis of the grid (lattice indices are
+/// int; a B-spline lattice adds its degree).
+inline constexpr double kMaxCellsPerAxis = 1e9;
 /// Largest body.particles_per_cell (per axis): the Gauss points cost O(n^2).
 inline constexpr int kMaxParticlesPerCell = 100;
 

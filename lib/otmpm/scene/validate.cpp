@@ -357,14 +357,27 @@ void check_output(const Scene& s, int dim) {
   }
 }
 
-/// The caps of parse_scene: particles and nodes (kMaxSceneParticles,
-/// kMaxSceneNodes).
-void check_size(const Scene& s) {
+/// The caps of parse_scene (kMaxSceneParticles, kMaxSceneNodes,
+/// kMaxCellsPerAxis) and, for a scene split over `processes` processes
+/// (0: a share that checks its own size), the per-process caps
+/// (kMaxRankParticles, kMaxRankNodes) on an even share.
+void check_size(const Scene& s, int processes) {
   const SceneSize n = scene_size(s);
+  check(s, n.axis_cells <= kMaxCellsPerAxis, "grid.cells", "the node lattice or a body would have ", n.axis_cells,
+        " cells along one axis; at most ", kMaxCellsPerAxis, " are allowed");
   check(s, n.nodes <= kMaxSceneNodes, "grid.cells", "the node set would have ", n.nodes, " nodes; at most ",
         kMaxSceneNodes, " are allowed");
   check(s, n.particles <= kMaxSceneParticles, "body", "the bodies would have ", n.particles,
         " particles; at most ", kMaxSceneParticles, " are allowed");
+  if (processes <= 0) return;
+  const std::string ranks = processes == 1 ? " in one process" : " per rank of " + std::to_string(processes);
+  auto needed = [](double count, double cap) { return static_cast<long long>(std::ceil(count / cap)); };
+  check(s, n.nodes <= kMaxRankNodes * processes, "grid.cells", "the node set would have ", n.nodes,
+        " nodes; at most ", kMaxRankNodes, ranks, " are allowed (run on at least ", needed(n.nodes, kMaxRankNodes),
+        " ranks: mpirun -np N otmpm run)");
+  check(s, n.particles <= kMaxRankParticles * processes, "body", "the bodies would have ", n.particles,
+        " particles; at most ", kMaxRankParticles, ranks, " are allowed (run on at least ",
+        needed(n.particles, kMaxRankParticles), " ranks: mpirun -np N otmpm run)");
 }
 
 } // namespace
@@ -408,7 +421,7 @@ std::string name_error(const std::string& name, std::string_view what) {
          std::string(what) + ": " + why;
 }
 
-void validate_scene(const Scene& s, int dimension) {
+void validate_scene(const Scene& s, int dimension, int processes) {
   require<std::invalid_argument>(dimension >= 1 && dimension <= 3, "validate_scene: dimension must be 1, 2 or 3, got ",
                                  dimension);
   check_simulation(s, dimension);
@@ -416,7 +429,7 @@ void validate_scene(const Scene& s, int dimension) {
   check_basis(s);
   check_materials(s);
   validate_bodies(s, dimension);
-  check_size(s);
+  check_size(s, processes);
   check_loads(s, dimension);
   check_contact(s);
   check_output(s, dimension);
@@ -456,10 +469,11 @@ ParticleFileRules particle_file_rules(const Scene& s, const BodySection& body) {
   return rules;
 }
 
-template <int D> void validate_seeding(const Scene& s, const Vec<D>& h) {
+template <int D> void validate_seeding(const Scene& s, const Vec<D>& h, bool whole) {
   for (int k = 0; k < D; ++k)
     require(finite_positive(h[k]), "seed_particles: grid spacing h[", k, "] = ", h[k], " must be finite and > 0");
   validate_bodies(s, D);
+  if (!whole) return;
   double total = 0.0;
   for (std::size_t i = 0; i < s.bodies.size(); ++i) {
     const BodySection& b = s.bodies[i];
@@ -472,8 +486,8 @@ template <int D> void validate_seeding(const Scene& s, const Vec<D>& h) {
   }
 }
 
-template void validate_seeding<1>(const Scene&, const Vec<1>&);
-template void validate_seeding<2>(const Scene&, const Vec<2>&);
-template void validate_seeding<3>(const Scene&, const Vec<3>&);
+template void validate_seeding<1>(const Scene&, const Vec<1>&, bool);
+template void validate_seeding<2>(const Scene&, const Vec<2>&, bool);
+template void validate_seeding<3>(const Scene&, const Vec<3>&, bool);
 
 } // namespace otmpm

@@ -50,7 +50,9 @@ inline constexpr ParameterSpec kNodeReset{"node_reset", "ul: the fraction of h b
 /// the basis kind and the grid and mode it needs, at least one material and
 /// body, every material (unique name, model and its parameters), every body
 /// (see validate_bodies), the particle and node caps (kMaxSceneParticles,
-/// kMaxSceneNodes), the initial-velocity, boundary, wall and traction boxes,
+/// kMaxSceneNodes, kMaxCellsPerAxis; and, split evenly over `processes`,
+/// kMaxRankParticles and kMaxRankNodes per process - 0 processes: a rank's
+/// share, whose own size is checked where it is known), the initial-velocity, boundary, wall and traction boxes,
 /// values, axes and functions, the body force, the time functions, and the
 /// output section (file, every, known and distinct fields and formats,
 /// probes with a known particle choice and a finite point, checkpoint_every
@@ -60,7 +62,7 @@ inline constexpr ParameterSpec kNodeReset{"node_reset", "ul: the fraction of h b
 /// among its kind and able to name a result-file group and a --set key
 /// (invalid_name_reason). Options of the basis family are checked by
 /// make_basis().
-void validate_scene(const Scene& scene, int dimension);
+void validate_scene(const Scene& scene, int dimension, int processes = 1);
 
 /// The bodies alone: at least one; each has a unique name (or none), names a
 /// defined material, has a known shape with the values it needs (a finite
@@ -94,8 +96,9 @@ std::string name_error(const std::string& name, std::string_view what);
 ParticleFileRules particle_file_rules(const Scene& scene, const BodySection& body);
 
 /// What seed_particles() relies on: validate_bodies(), a grid spacing h that
-/// is finite and > 0 on every axis, and a particle count per body that fits
-/// an int. InputError naming the body or the axis of h.
-template <int D> void validate_seeding(const Scene& scene, const Vec<D>& h);
+/// is finite and > 0 on every axis, and (`whole`: all particles are stored
+/// in one process) a particle count that fits an int. InputError naming the
+/// body or the axis of h.
+template <int D> void validate_seeding(const Scene& scene, const Vec<D>& h, bool whole = true);
 
 } // namespace otmpm
