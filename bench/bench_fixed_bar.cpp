@@ -1,4 +1,4 @@
-// bench_fixed_bar: the fixed bar of the issue-19 table alone (512 nodes,
+// bench_fixed_bar: the fixed bar of the methods table alone (512 nodes,
 // examples/fixed_bar.toml; MPM-linear, unified and OTM-maxent as
 // bench_table runs them), whole runs on one thread, interleaved; prints
 // the medians of the wall time and of each phase per method, and the
@@ -7,7 +7,7 @@
 //   OMP_NUM_THREADS=1 build-bench/bench/bench_fixed_bar [--rounds R] [--no-otm]
 //
 // Quicker than bench_table for work on these rows, and with the phase
-// times beside the wall time (docs/performance.md, "The unified step").
+// times beside the wall time (docs/performance-log-2026.md, "The unified step").
 #include "otmpm/openmp_wait.hpp"
 #include "bench_run.hpp"
 

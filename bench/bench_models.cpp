@@ -1,5 +1,5 @@
-// bench_models: whole-step cost of each material model in the engine (issue 13:
-// a j2 step must cost at most 1.3x the same step with neo_hookean).
+// bench_models: whole-step cost of each material model in the engine (the target:
+// a j2 step costs at most 1.3x the same step with neo_hookean).
 //
 //   OMP_NUM_THREADS=1 build/bench/bench_models [--cells N] [--warmup W] [--steps S] [--repeat R]
 //       [--basis linear|lme|...] [--integrator fe|npc|...] [--mode mpm|ul] [--case SUBSTRING]

@@ -1,5 +1,5 @@
 // bench_particle_block: writes a large file body for the set-up memory of
-// distributed runs (docs/performance.md, "Distributed runs", "Particle files
+// distributed runs (docs/performance-log-2026.md, "Distributed runs", "Particle files
 // at set-up"):
 //
 //   build/bench/bench_particle_block N DIR

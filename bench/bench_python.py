@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""What the Python package costs (docs/performance.md, "Python package").
+"""What the Python package costs (docs/performance-log-2026.md, "Python package").
 
 1. otmpm.run against the command line on the same scene (default
    examples/dyka/dyka_n133.toml, with its result file): REPEAT runs of each,

@@ -6,7 +6,7 @@
 //
 // Scenes: the andersen block at h = 0.125 m (25 600 particles) with the
 // particles in a fixed random order, linear, LME and bspline2; the 3D block of
-// the issue-19 table at 40^3 cells (512 000 particles) in the seeded order
+// the methods table at 40^3 cells (512 000 particles) in the seeded order
 // and shuffled, and at 64^3 (2 097 152 particles) in the seeded order. Each pass forgets the plan first (as in mpm mode, where the
 // table is rebuilt every step), so the plan, or the transposition, is in the
 // time; the payload is the force pass's (mass, momentum, V sigma grad N).

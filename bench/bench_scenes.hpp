@@ -1,6 +1,6 @@
 #pragma once
 // The scenes of the benchmarks (bench_step, bench_models, bench_table): the
-// elastic block of issue 7 in 2D and 3D, and the Dyka strip of
+// elastic block in 2D and 3D, and the Dyka strip of
 // examples/dyka_2d.toml at any cell count.
 #include <cstdio>
 #include <string>
@@ -51,7 +51,7 @@ inline std::string block_scene(int dim, int cells, const std::string& basis, con
          "\n[body_force]\nvalue = " + toml_vector(dim, 0.0, -9.81) + "\n";
 }
 
-/// The 2D block of issue 7 (block_scene in two dimensions).
+/// The 2D block of the throughput table (block_scene in two dimensions).
 inline std::string block_scene(int cells, const std::string& basis, const std::string& integrator,
                                const std::string& mode, double gamma_lme,
                                const std::string& material = kBlockLinearElastic) {

@@ -1,5 +1,5 @@
 // bench_setup_memory: the memory of a distributed run's set-up and steps,
-// per rank (docs/performance.md, "Distributed runs", set-up memory).
+// per rank (docs/performance-log-2026.md, "Distributed runs", set-up memory).
 //
 //   mpirun -np N build/bench/bench_setup_memory SCENE.toml [STEPS]
 //

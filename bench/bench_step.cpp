@@ -1,4 +1,4 @@
-// bench_step: whole-step throughput of the engine (issue 7 table).
+// bench_step: whole-step throughput of the engine (docs/performance.md).
 //
 //   OMP_NUM_THREADS=1 build/bench/bench_step [--cells N] [--steps S] [--repeat R]
 //       [--basis linear|lme|...] [--integrator fe|npc] [--mode mpm|ul] [--gamma-lme G] [--dim 2|3]
@@ -6,7 +6,7 @@
 // A 2D elastic block (plane strain, E = 10 MPa, rho = 1000, nu = 0.3) of
 // N x N cells with 2 x 2 particles per cell, inside a grid with two spare cells
 // on each side, falling under gravity with its base fixed - every stage of a
-// step runs. With --dim 3 the 3D block of the issue-19 table (N^3 cells,
+// step runs. With --dim 3 the 3D block of the methods table (N^3 cells,
 // 2 x 2 x 2 particles per cell). Prints the median over R repetitions of particle-steps per second
 // and the share of each phase.
 #include "otmpm/openmp_wait.hpp"

@@ -1,8 +1,9 @@
-// bench_table: every row of the performance tables of issue 7 and issue 19
-// (docs/performance.md) in one run.
+// bench_table: every row of the two performance tables of docs/performance.md
+// (throughput: the 2D block and the Dyka strip; methods: the methods' relative
+// cost, the fixed bar, the 3D block) in one run.
 //
-//   OMP_NUM_THREADS=2 build-bench/bench/bench_table [--repeat R] [--table 7|19|all] [--quick]
-//       [--scaling-csv FILE] [--scaling3d-csv FILE]
+//   OMP_NUM_THREADS=2 build-bench/bench/bench_table [--repeat R] [--table throughput|methods|all]
+//       [--quick] [--scaling-csv FILE] [--scaling3d-csv FILE]
 //
 // Cases that are compared (linear vs LME, ul vs mpm, 2 threads vs 1, the
 // fixed bar's methods) run interleaved, one repetition of each in turn, so
@@ -14,7 +15,7 @@
 // for the scaling plots (2D block with --scaling-csv, 3D block with
 // --scaling3d-csv). --quick: small sizes, short runs and one repetition, to
 // check that every row runs (its figures mean nothing). The output row of
-// issue 19 (result file bytes and write share) is scripts/bench-output.sh.
+// the methods table (result file bytes and write share) is scripts/bench-output.sh.
 #include "otmpm/openmp_wait.hpp"
 #include "bench_run.hpp"
 #include "bench_scenes.hpp"
@@ -185,22 +186,22 @@ int main(int argc, char** argv) {
     else if (a == "--table" && i + 1 < argc) table = argv[++i];
     else if (a == "--quick") quick = true;
     else {
-      std::fprintf(stderr, "usage: bench_table [--repeat R] [--table 7|19|all] [--quick] [--scaling-csv FILE] "
+      std::fprintf(stderr, "usage: bench_table [--repeat R] [--table throughput|methods|all] [--quick] [--scaling-csv FILE] "
                            "[--scaling3d-csv FILE]\n");
       return 2;
     }
   }
-  if (table != "7" && table != "19" && table != "all") {
-    std::fprintf(stderr, "bench_table: --table must be 7, 19 or all, not '%s'\n", table.c_str());
+  if (table != "throughput" && table != "methods" && table != "all") {
+    std::fprintf(stderr, "bench_table: --table must be throughput, methods or all, not '%s'\n", table.c_str());
     return 2;
   }
   if (repeat < 1) {
     std::fprintf(stderr, "bench_table: --repeat must be at least 1\n");
     return 2;
   }
-  const bool t7 = table != "19", t19 = table != "7";
+  const bool throughput = table != "methods", methods = table != "throughput";
 
-  // The 2D block and the Dyka strip of issue 7: rows of both tables.
+  // The 2D block and the Dyka strip: rows of both tables.
   const int cells = quick ? 60 : 200;
   const long steps = quick ? 5 : 20;
   auto block = [&](const char* basis, const char* integrator, const char* mode) {
@@ -213,13 +214,13 @@ int main(int argc, char** argv) {
   Case lin2{"2D block linear fe mpm, 2 threads", stepped(block("linear", "fe", "mpm"), steps, 2)};
   Case dyka{"dyka strip 160 lme npc, 1 thread", stepped(dyka_strip(160, {"basis.gamma_lme=3.0"}), quick ? 200 : 0, 1)};
   std::vector<Case*> block_cases{&lin, &lme};
-  if (t7) block_cases.insert(block_cases.end(), {&lme_ul, &lin2});
+  if (throughput) block_cases.insert(block_cases.end(), {&lme_ul, &lin2});
   block_cases.push_back(&dyka);
   interleave(block_cases, repeat);
   std::printf("2D block %dx%d cells (%ld particles), %d interleaved repetitions; medians\n\n", cells, cells,
               lin.last.particles, repeat);
 
-  if (t7) {
+  if (throughput) {
     // memory: a child process that runs only the linear block
     double rss = 0, rss_before = 0;
     long mem_particles = 0;
@@ -253,10 +254,10 @@ int main(int argc, char** argv) {
                       rss / double(mem_particles) <= 400});
     rows.push_back({fmt("scaling exponent, %.0e", n_p.front()) + fmt("..%.0e particles (linear fe)", n_p.back()),
                     "<= 1.05", fmt("%.3f", slope), slope <= 1.05});
-    print_table("issue 7 figure", rows);
+    print_table("throughput figure", rows);
     std::printf("\n");
   }
-  if (!t19) {
+  if (!methods) {
     print_cases({&lin, &lme, &lme_ul, &lin2, &dyka});
     return 0;
   }
@@ -309,7 +310,7 @@ int main(int argc, char** argv) {
   char block3[64];
   std::snprintf(block3, sizeof block3, "3D block %d^3 cells (%ld particles)", cells3, lin3.last.particles);
   print_table(
-      "issue 19 figure",
+      "method figure",
       {{"2D block, LME gamma_lme = 3, npc: time per step / linear fe", "<= 4.0", fmt("%.2f", lme_lin), lme_lin <= 4.0},
        {"2D Dyka strip, 160 cells, LME npc: particle-steps/s", ">= 5e6", fmt("%.3g", rate(dyka)), rate(dyka) >= 5e6},
        {"fixed bar, 512 nodes: OTM-maxent / MPM-linear wall time", "<= 2.5", fmt("%.2f", fb_otm_r), fb_otm_r <= 2.5},

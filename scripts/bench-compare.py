@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Compares the rows of the issue-7 table (bench/bench_table) of two builds,
+"""Compares the rows of the throughput table (bench/bench_table) of two builds,
 interleaved: one repetition of the old binary, one of the new, in turn, for
 R rounds, so that the machine's drift hits both alike. Prints per row the
 median of each and the median of the per-round ratios new/old.

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Distributed runs on this machine (docs/performance.md, "Distributed runs"):
-# the 2D block of the issue-7 table (bench/bench_scenes.hpp: N x N cells of
+# the 2D block of the throughput table (bench/bench_scenes.hpp: N x N cells of
 # the unit square, 2 x 2 particles per cell, plane strain, under gravity with
 # its base fixed; linear basis, fe, mpm) run with the otmpm command
 #

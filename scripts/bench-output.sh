@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The output row of issue 19 (docs/performance.md, "Result file size and
+# The output row of the methods table (docs/performance-log-2026.md, "Result file size and
 # write time"): the 3D elastic block of scripts/bench-mpi.sh --dim 3 (N^3
 # cells of the unit cube, 2 x 2 x 2 particles per cell, linear fe, mpm, base
 # fixed, gravity), 20 frames one every S steps, fields x, v, stress; run with
@@ -8,7 +8,7 @@
 # bytes, the wall time, the stepping thread's output phase (seconds_output:
 # what the run waits for) and the writer thread's busy time
 # (seconds_output_thread), and the output share of the wall time; last, the
-# two rows of the issue-19 table (bytes single/symmetric over default; the
+# two rows of the methods table (bytes single/symmetric over default; the
 # output share of the wall time of the single/symmetric run) with target,
 # measured value and met or not.
 #
@@ -110,7 +110,7 @@ n, threads = sys.argv[2], sys.argv[3]
 ratio = int(rows["single"][0]) / int(rows["double"][0])
 share = float(rows["single"][2]) / float(rows["single"][1])
 met = lambda ok: "met" if ok else "**not met**"
-print(f"\n| issue 19 figure | target | measured | met |\n|---|---|---|---|")
+print(f"\n| method figure | target | measured | met |\n|---|---|---|---|")
 print(f"| result file of the 3D block ({n}^3 cells), 20 frames: bytes with precision single + symmetric tensors "
       f"/ default | <= 0.5 | {ratio:.3f} | {met(ratio <= 0.5)} |")
 print(f"| same, single + symmetric, {threads} OpenMP thread(s): output time of the stepping thread / wall time "

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Scaling plots of issues 7 and 19: time per step against particle count (log-log).
+"""Scaling plots of the performance tables: time per step against particle count (log-log).
 
     /usr/bin/python3 scripts/plot_scaling.py SCALING.csv OUT.png [TITLE]
 

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-"""Smoke test of bench/bench_table (scripts/bench.sh): every row of the issue-7
-and issue-19 tables runs and prints a finite positive figure, its met column
+"""Smoke test of bench/bench_table (scripts/bench.sh): every row of the throughput
+and methods tables runs and prints a finite positive figure, its met column
 agrees with its target, and every case prints phase shares that add up to
 100%. Timings are not checked (--quick sizes, one repetition).
 
@@ -34,7 +34,7 @@ def main(argv):
             tables[title] = []
         elif title and not cells[0].startswith("---"):
             tables[title].append(cells)
-    expected = {"issue 7 figure": 6, "issue 19 figure": 8}
+    expected = {"throughput figure": 6, "method figure": 8}
     for name, count in expected.items():
         rows = tables.get(name, [])
         if len(rows) != count:

@@ -1,4 +1,4 @@
-// The library validates its own arguments (issue 6): every public entry point
+// The library validates its own arguments: every public entry point
 // refuses bad sizes and non-finite or out-of-range values with the documented
 // exception type (InputError: a bad value; std::invalid_argument: the caller
 // broke the interface; BasisError: a point that cannot be evaluated;

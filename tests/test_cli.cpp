@@ -353,7 +353,7 @@ TEST_CASE("cli: OpenMP threads wait passively after a short spin by default, and
   CHECK(last_setting(neither, "OMP_WAIT_POLICY") == "PASSIVE");
   CHECK(printed == 2);
   // about 0.2 ms of spinning: 100 to 10^7 spins on any processor (a pause
-  // takes from ~1 to ~100 ns; this machine's: docs/performance.md), not
+  // takes from ~1 to ~100 ns; this machine's: docs/performance-log-2026.md), not
   // libgomp's 300 000 when nothing is set nor its 0 for passive alone
   const long long spins = std::stoll(last_setting(neither, "GOMP_SPINCOUNT"));
   CHECK(spins >= 100);

@@ -1,6 +1,7 @@
-// The hostile-use cases of issue 20 through the `otmpm` command, as a user
-// meets them: each defect's command line, its exit status (0 ok, 1 unstable,
-// 2 bad input, 4 output failed; never a signal) and what is left on disk.
+// The promises about files (docs/stability.md, "What otmpm guarantees about
+// your files") through the `otmpm` command, as a user meets them: each
+// case's command line, its exit status (0 ok, 1 unstable, 2 bad input,
+// 4 output failed; never a signal) and what is left on disk.
 // The library-level checks of the same rules are in test_output_files.cpp.
 #include "otmpm/io/checkpoint.hpp"
 #include "otmpm/io/results.hpp"
@@ -57,7 +58,7 @@ int count(const std::string& text, const std::string& part) {
 
 } // namespace
 
-TEST_CASE("D1: otmpm run --out res.xdmf (or output.file) exits 2 and writes nothing") {
+TEST_CASE("otmpm run --out res.xdmf (or output.file) exits 2 and writes nothing") {
   TempDir t("cli_d1");
   const CliResult a = otmpm_in(t, {"run", kDyka, "--quiet", "--out", "res.xdmf"});
   expect_exit(a, 2);
@@ -67,7 +68,7 @@ TEST_CASE("D1: otmpm run --out res.xdmf (or output.file) exits 2 and writes noth
   CHECK(listing(t.dir).empty());
 }
 
-TEST_CASE("D2: a checkpoint resolving to the result file exits 2 naming both, before anything is written") {
+TEST_CASE("a checkpoint resolving to the result file exits 2 naming both, before anything is written") {
   TempDir t("cli_d2");
   const CliResult a = otmpm_in(t, {"run", kDyka, "--quiet", "--out", "same.h5", "--set",
                                    "output.checkpoint_file=same.h5", "--set", "output.checkpoint_every=50"});
@@ -81,7 +82,7 @@ TEST_CASE("D2: a checkpoint resolving to the result file exits 2 naming both, be
   CHECK(listing(t.dir).empty());
 }
 
-TEST_CASE("issue 15.4: another scene's result and another run's sidecar survive; the same scene is re-run") {
+TEST_CASE("another scene's result and another run's sidecar survive; the same scene is re-run") {
   TempDir t("cli_replace");
   expect_exit(otmpm_in(t, {"run", kDyka, "--quiet", "--out", "x.h5"}), 0);
   const std::string h5 = otmpm::test::read_text(t.file("x.h5")), xdmf = otmpm::test::read_text(t.file("x.xdmf"));
@@ -94,7 +95,7 @@ TEST_CASE("issue 15.4: another scene's result and another run's sidecar survive;
   expect_exit(otmpm_in(t, {"run", kDyka, "--quiet", "--out", "x.h5"}), 0); // identical scene: replaced
 }
 
-TEST_CASE("issue 15.4: a result file an HDF5 writer holds gives a message that says it is locked") {
+TEST_CASE("a result file an HDF5 writer holds gives a message that says it is locked") {
   TempDir t("cli_hdf5lock");
   const std::string path = t.file("held.h5");
   const hid_t f = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT); // HDF5 locks it
@@ -105,7 +106,7 @@ TEST_CASE("issue 15.4: a result file an HDF5 writer holds gives a message that s
   CHECK(has(r.err, "held.h5: the result file is locked by another process"));
 }
 
-TEST_CASE("D4, D17: a second run or a --restart of a running run exits 2 and changes nothing") {
+TEST_CASE("a second run or a --restart of a running run exits 2 and changes nothing") {
   for (const bool hdf5_locking : {true, false}) {
     INFO("HDF5 file locking " << (hdf5_locking ? "on" : "off (HDF5_USE_FILE_LOCKING=FALSE)"));
     TempDir t(hdf5_locking ? "cli_d4" : "cli_d17");
@@ -137,7 +138,7 @@ TEST_CASE("D4, D17: a second run or a --restart of a running run exits 2 and cha
   }
 }
 
-TEST_CASE("D3: --restart refuses a result file of another run at the recorded path and leaves it as it is") {
+TEST_CASE("--restart refuses a result file of another run at the recorded path and leaves it as it is") {
   TempDir t("cli_d3");
   expect_exit(otmpm_in(t, {"run", kDyka, "--quiet", "--out", "run.h5", "--set", "output.checkpoint_every=500"}), 0);
   expect_exit(otmpm_in(t, {"run", kDyka, "--quiet", "--out", "other.h5", "--set", "output.checkpoint_every=500"}), 0);
@@ -149,7 +150,7 @@ TEST_CASE("D3: --restart refuses a result file of another run at the recorded pa
   CHECK(otmpm::test::read_text(t.file("run.h5")) == before);
 }
 
-TEST_CASE("D5: a file size limit (ulimit -f, SIGXFSZ ignored: EFBIG) ends with exit 4 and a valid shorter file") {
+TEST_CASE("a file size limit (ulimit -f, SIGXFSZ ignored: EFBIG) ends with exit 4 and a valid shorter file") {
   // No root needed: the shell lowers RLIMIT_FSIZE for otmpm alone.
   TempDir t("cli_d5");
   const std::string cmd = "trap '' XFSZ; ulimit -f 400; exec '" + kBinary + "' run '" + kDyka +
@@ -172,7 +173,7 @@ TEST_CASE("D5: a file size limit (ulimit -f, SIGXFSZ ignored: EFBIG) ends with e
   CHECK(count(otmpm::test::read_text(t.file("limited.xdmf")), "<Time ") == frames);
 }
 
-TEST_CASE("D5: a full file system (a 300 kB tmpfs in a user namespace: ENOSPC) ends with exit 4 and a valid file") {
+TEST_CASE("a full file system (a 300 kB tmpfs in a user namespace: ENOSPC) ends with exit 4 and a valid file") {
   TempDir t("cli_d5fs");
   const std::string mnt = t.file("mnt");
   fs::create_directories(mnt);
@@ -197,7 +198,7 @@ TEST_CASE("D5: a full file system (a 300 kB tmpfs in a user namespace: ENOSPC) e
   CHECK(count(otmpm::test::read_text(t.file("full.xdmf")), "<Time ") == frames);
 }
 
-TEST_CASE("D6: 300 single-bit flips of a checkpoint: --restart exits 2 every time, never a signal") {
+TEST_CASE("300 single-bit flips of a checkpoint: --restart exits 2 every time, never a signal") {
   TempDir t("cli_d6");
   expect_exit(otmpm_in(t, {"run", kDyka, "--quiet", "--out", "run.h5", "--set", "output.checkpoint_every=500"}), 0);
   const std::string good = otmpm::test::read_text(t.file("run.checkpoint.h5"));
@@ -217,7 +218,7 @@ TEST_CASE("D6: 300 single-bit flips of a checkpoint: --restart exits 2 every tim
   CHECK(exit2 == 300);
 }
 
-TEST_CASE("D7: an instability at t = 0 prints the summary line, exits 1 and sets the status") {
+TEST_CASE("an instability at t = 0 prints the summary line, exits 1 and sets the status") {
   TempDir t("cli_d7");
   const CliResult r = otmpm_in(t, {"run", kDyka, "--quiet", "--out", "d7.h5", "--set", "body.bar.velocity=[1e300]"});
   expect_exit(r, 1);
@@ -225,7 +226,7 @@ TEST_CASE("D7: an instability at t = 0 prints the summary line, exits 1 and sets
   CHECK(otmpm::read_string_attribute(t.file("d7.h5"), "status").rfind("unstable: step 0, t = 0 s: ", 0) == 0);
 }
 
-TEST_CASE("D8: a probe name with '/', '.' or NUL exits 2 naming the key") {
+TEST_CASE("a probe name with '/', '.' or NUL exits 2 naming the key") {
   TempDir t("cli_d8");
   for (const std::string name : {"a/b", "a.b", "a\\u0000b"}) {
     const CliResult r = otmpm_in(
@@ -237,7 +238,7 @@ TEST_CASE("D8: a probe name with '/', '.' or NUL exits 2 naming the key") {
   CHECK(listing(t.dir).empty());
 }
 
-TEST_CASE("D11: a scene beyond memory exits 2 naming estimate and limit; otmpm basis --cells 1e9 too") {
+TEST_CASE("a scene beyond memory exits 2 naming estimate and limit; otmpm basis --cells 1e9 too") {
   TempDir t("cli_d11");
   // 1e6 cells x 99 particles: under the 1e8 particle cap, about 30 GB.
   const CliResult big = otmpm_in(t, {"run", kDyka, "--quiet", "--set", "grid.cells=[1000000]", "--set",
@@ -252,7 +253,7 @@ TEST_CASE("D11: a scene beyond memory exits 2 naming estimate and limit; otmpm b
   CHECK(listing(t.dir).empty());
 }
 
-TEST_CASE("D12: young = 1e308 or dt = 1e-30 exits 2 naming the step estimate and simulation.max_steps") {
+TEST_CASE("young = 1e308 or dt = 1e-30 exits 2 naming the step estimate and simulation.max_steps") {
   TempDir t("cli_d12");
   const CliResult stiff = otmpm_in(t, {"run", kDyka, "--quiet", "--set", "material.steel.young=1e308"});
   expect_exit(stiff, 2);
@@ -263,7 +264,7 @@ TEST_CASE("D12: young = 1e308 or dt = 1e-30 exits 2 naming the step estimate and
   CHECK(listing(t.dir).empty());
 }
 
-TEST_CASE("D13: an unwritable checkpoint location exits 2 before the first step") {
+TEST_CASE("an unwritable checkpoint location exits 2 before the first step") {
   TempDir t("cli_d13");
   const CliResult r = otmpm_in(t, {"run", kDyka, "--quiet", "--out", "run.h5", "--set",
                                    "output.checkpoint_file=/proc/otmpm.checkpoint.h5", "--set",

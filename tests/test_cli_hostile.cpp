@@ -1,4 +1,4 @@
-// Hostile use of the `otmpm` command, second round: result names that XML
+// Hostile use of the `otmpm` command: result names that XML
 // cannot quote, pictures written over results, render on files of other
 // programs, FIFOs and devices where otmpm reads or writes files, an output
 // directory removed during a run, memory running out at set-up, --set values
@@ -70,7 +70,7 @@ void write_file(const fs::path& path, const std::string& text) { std::ofstream(p
 
 } // namespace
 
-TEST_CASE("E10: result names with --, &, <, quotes and non-ASCII give well-formed XML files that name their run") {
+TEST_CASE("result names with --, &, <, quotes and non-ASCII give well-formed XML files that name their run") {
   TempDir t("cli_e10");
   const std::string name = "run--2 &<>\"q' \xc3\xa9";
   const CliResult a = otmpm_in(t, {"run", kDyka, "--quiet", "--out", name + ".h5", "--set", "output.every=5e-5",
@@ -92,7 +92,7 @@ TEST_CASE("E10: result names with --, &, <, quotes and non-ASCII give well-forme
   CHECK(has(b.err, "does not belong to the result file"));
 }
 
-TEST_CASE("E10, E30: a result or checkpoint path with ':' in its name, a control character or non-UTF-8 "
+TEST_CASE("a result or checkpoint path with ':' in its name, a control character or non-UTF-8 "
           "exits 2, writing nothing") {
   TempDir t("cli_e10_refused");
   for (const std::string& out : {std::string("co:lon.h5"), std::string("ctl\x01.h5"), std::string("new\nline.h5"),
@@ -115,7 +115,7 @@ TEST_CASE("E10, E30: a result or checkpoint path with ':' in its name, a control
   CHECK(listing(t.dir).empty());
 }
 
-TEST_CASE("E11: render --out naming the result file or a link to it exits 2 and keeps the results") {
+TEST_CASE("render --out naming the result file or a link to it exits 2 and keeps the results") {
   TempDir t("cli_e11");
   expect_exit(otmpm_in(t, {"run", kDyka, "--quiet", "--out", "r.h5", "--set", "output.every=5e-5"}), 0);
   const std::string before = otmpm::test::read_text(t.file("r.h5"));
@@ -135,7 +135,7 @@ TEST_CASE("E11: render --out naming the result file or a link to it exits 2 and 
   CHECK_FALSE(fs::exists(t.dir / "res.png"));
 }
 
-TEST_CASE("E16: render on files of other programs, --fps nan, a Python that fails, --scripts without "
+TEST_CASE("render on files of other programs, --fps nan, a Python that fails, --scripts without "
           "render.py exit 2") {
   TempDir t("cli_e16");
   expect_exit(otmpm_in(t, {"run", kDyka, "--quiet", "--out", "r.h5", "--set", "output.every=5e-5"}), 0);
@@ -174,7 +174,7 @@ TEST_CASE("E16: render on files of other programs, --fps nan, a Python that fail
   CHECK_FALSE(fs::exists(t.dir / "a.gif"));
 }
 
-TEST_CASE("E27: a FIFO or a device where otmpm reads or writes a file exits 2 at once (with --force too)") {
+TEST_CASE("a FIFO or a device where otmpm reads or writes a file exits 2 at once (with --force too)") {
   TempDir t("cli_e27");
   expect_exit(otmpm_in(t, {"run", kDyka, "--quiet", "--out", "r.h5", "--set", "output.every=5e-5"}), 0);
   for (const std::string fifo : {"fifo.h5", "fifo.toml", "fifo.png", "side.xdmf", "ck.fifo", "fifo.csv"})
@@ -209,7 +209,7 @@ TEST_CASE("E27: a FIFO or a device where otmpm reads or writes a file exits 2 at
                                                  "r.xdmf", "scene_fifo.toml", "side.xdmf", "study.toml"});
 }
 
-TEST_CASE("E29: an output directory removed during a run ends it with exit status 4, not 2") {
+TEST_CASE("an output directory removed during a run ends it with exit status 4, not 2") {
   TempDir t("cli_e29");
   fs::create_directories(t.dir / "sub");
   // Long enough to be running when the directory goes: 100 frames and a checkpoint every 500 steps.
@@ -229,7 +229,7 @@ TEST_CASE("E29: an output directory removed during a run ends it with exit statu
   CHECK(has(r.err, "sub/r."));
 }
 
-TEST_CASE("E17: memory running out while the run is set up exits 2 with an out-of-memory message, not 3") {
+TEST_CASE("memory running out while the run is set up exits 2 with an out-of-memory message, not 3") {
   TempDir t("cli_e17");
   // 2e6 particles on 101^3 nodes: otmpm's estimate (about 7.6 GB) passes the limit set, the address
   // space given to the process (3 GB) does not.
@@ -248,7 +248,7 @@ TEST_CASE("E17: memory running out while the run is set up exits 2 with an out-o
   CHECK_FALSE(fs::exists(t.dir / "big.h5"));
 }
 
-TEST_CASE("E18: a --set value with a line break exits 2 instead of dropping what follows it") {
+TEST_CASE("a --set value with a line break exits 2 instead of dropping what follows it") {
   TempDir t("cli_e18");
   for (const std::string& set : {std::string("simulation.t_end=1e-5\nsimulation.cfl=5"),
                                  std::string("simulation.t_end=1e-5\r"), std::string("output.file=a\nb.h5")}) {
@@ -260,7 +260,7 @@ TEST_CASE("E18: a --set value with a line break exits 2 instead of dropping what
   CHECK(listing(t.dir).empty());
 }
 
-TEST_CASE("E21: output.fields without x (frames no viewer can show) exits 2; [] stays for history-only runs") {
+TEST_CASE("output.fields without x (frames no viewer can show) exits 2; [] stays for history-only runs") {
   TempDir t("cli_e21");
   const CliResult vtk = otmpm_in(t, {"run", kDyka, "--quiet", "--out", "a.h5", "--set",
                                      "output.fields=[\"v\"]", "--set", "output.format=[\"hdf5\", \"vtu\"]"});
@@ -274,7 +274,7 @@ TEST_CASE("E21: output.fields without x (frames no viewer can show) exits 2; [] 
   expect_exit(otmpm_in(t, {"run", kDyka, "--quiet", "--out", "h.h5", "--set", "output.fields=[]"}), 0);
 }
 
-TEST_CASE("E30: a 10 MB name gives a message of at most a few kB that says how long the name is") {
+TEST_CASE("a 10 MB name gives a message of at most a few kB that says how long the name is") {
   TempDir t("cli_e30");
   std::string scene = otmpm::test::read_text(kDyka);
   const std::string huge(10'000'000, 'n');
@@ -289,7 +289,7 @@ TEST_CASE("E30: a 10 MB name gives a message of at most a few kB that says how l
   CHECK(has(r.err, "longer than 255 bytes"));
 }
 
-TEST_CASE("E26: a CSV particle file with a UTF-8 byte-order mark is read; a UTF-16 one is refused saying so") {
+TEST_CASE("a CSV particle file with a UTF-8 byte-order mark is read; a UTF-16 one is refused saying so") {
   TempDir t("cli_e26");
   std::string rows = "x,volume\n";
   for (int i = 0; i < 20; ++i) rows += std::to_string(0.0025 + 0.005 * i) + ",0.005\n";
@@ -318,7 +318,7 @@ TEST_CASE("E26: a CSV particle file with a UTF-8 byte-order mark is read; a UTF-
   CHECK(has(utf16.err, "UTF-16"));
 }
 
-TEST_CASE("E19: otmpm basis --perturb NaN or negative exits 2 instead of taking it as 0") {
+TEST_CASE("otmpm basis --perturb NaN or negative exits 2 instead of taking it as 0") {
   TempDir t("cli_e19");
   for (const std::string perturb : {"nan", "-1", "0.5"}) {
     INFO(perturb);

@@ -1,4 +1,4 @@
-// Energy balance tests (issue 6): E(t) - E(0) - W_ext(t) - W_R(t) on small 1D
+// Energy balance tests: E(t) - E(0) - W_ext(t) - W_R(t) on small 1D
 // bars, E = kinetic + strain energy, W_ext the work of a body force, W_R the
 // work of the Dirichlet reactions. Units: E = rho = 1, so c = 1; the bar is
 // [0, 1] with h = 1/8 and two particles per cell. Each run takes well under a

@@ -1,4 +1,4 @@
-// Extreme and stiff cases (issue 6): one TEST_CASE per scene of
+// Extreme and stiff cases: one TEST_CASE per scene of
 // examples/extreme/. Each scene is run as the CLI runs it (load_scene +
 // run_scene, no result file) or, where a quantity is needed that the summary
 // does not report (stress history, momentum), step by step through Engine<D>.

@@ -1,7 +1,7 @@
 // A result file a SIGKILLed run left half-written: HDF5 itself crashed while
 // iterating its /frames links (H5Literate sorting a half-written dense link
 // table), which `otmpm run --force` did to inspect the file it replaces.
-// tests/scenes/killed_run.h5 is such a file (left by the study test D9).
+// tests/scenes/killed_run.h5 is such a file (left by a killed study in test_study_files.cpp).
 #include "otmpm/io/hdf5.hpp"
 #include "otmpm/io/output_files.hpp"
 #include "h5_support.hpp"

@@ -36,7 +36,7 @@ bool contains(const std::string& text, const std::string& part) { return text.fi
 
 } // namespace
 
-TEST_CASE("E30: shortened() cuts long text at a character boundary and says its length; InputError bounds "
+TEST_CASE("shortened() cuts long text at a character boundary and says its length; InputError bounds "
           "its message") {
   CHECK(shortened("short") == "short");
   const std::string accents(200, 'e'); // then a two-byte character across the cut
@@ -60,7 +60,7 @@ TEST_CASE("E30: shortened() cuts long text at a character boundary and says its 
   CHECK(msg.size() < 1000);
 }
 
-TEST_CASE("E10, E30: result paths the XML outputs cannot quote are refused by output_files(), on every route") {
+TEST_CASE("result paths the XML outputs cannot quote are refused by output_files(), on every route") {
   for (const std::string& bad : {std::string("co:lon.h5"), std::string("dir/ctl\x01.h5"), std::string("nul\0.h5", 7),
                                  std::string("line\n.h5"), std::string("bad\xff.h5"), std::string("res.png"),
                                  std::string("anim.GIF")}) {
@@ -90,7 +90,7 @@ TEST_CASE("E10, E30: result paths the XML outputs cannot quote are refused by ou
   CHECK(xml_run_id(output_base(name) + "_vtk/frame_000000.vtp") == id);
 }
 
-TEST_CASE("E27: a FIFO where a run writes or reads a file is refused without opening it") {
+TEST_CASE("a FIFO where a run writes or reads a file is refused without opening it") {
   TempDir t("fifos");
   for (const std::string f : {"r.h5", "s.xdmf", "c.h5", "t.xdmf.tmp", "scene.toml", "ck.h5", "p.csv", "p.h5"})
     REQUIRE(::mkfifo(t.file(f).c_str(), 0644) == 0);
@@ -118,7 +118,7 @@ TEST_CASE("E27: a FIFO where a run writes or reads a file is refused without ope
   CHECK(xml_run_id(t.file("s.xdmf")).empty());
 }
 
-TEST_CASE("E18: a --set value with a line break is refused, not cut at it") {
+TEST_CASE("a --set value with a line break is refused, not cut at it") {
   for (const std::string& set : {std::string("simulation.t_end=1e-5\nsimulation.cfl=5"),
                                  std::string("output.file=a\nb.h5"), std::string("simulation.cfl=0.2\r")}) {
     CAPTURE(text::printable(set));
@@ -129,7 +129,7 @@ TEST_CASE("E18: a --set value with a line break is refused, not cut at it") {
   CHECK(contains(input_error_of([] { small_scene({"output.file=\"a\\nb.h5\""}); }), "control character (code 10)"));
 }
 
-TEST_CASE("E21: output.fields without x is refused (with VTK output, also []); [] alone writes history-only frames") {
+TEST_CASE("output.fields without x is refused (with VTK output, also []); [] alone writes history-only frames") {
   CHECK(contains(input_error_of([] { small_scene({"output.fields=[\"v\"]"}); }), "must include \"x\""));
   CHECK(contains(input_error_of([] { small_scene({"output.fields=[]", "output.format=[\"hdf5\", \"vtu\"]"}); }),
                  "output.format"));
@@ -139,7 +139,7 @@ TEST_CASE("E21: output.fields without x is refused (with VTK output, also []); [
   CHECK(contains(input_error_of([&] { validate_scene(s, 1); }), "output.fields"));
 }
 
-TEST_CASE("E26: a CSV particle file starting with a UTF-8 byte-order mark reads as the same file without it") {
+TEST_CASE("a CSV particle file starting with a UTF-8 byte-order mark reads as the same file without it") {
   TempDir t("bom");
   std::string rows = "# a comment\nx,y,volume\n";
   for (int i = 0; i < 12; ++i) rows += std::to_string(0.3 + 0.025 * i) + ",0.5,0.000625\n";

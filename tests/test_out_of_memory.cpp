@@ -83,7 +83,7 @@ void check_stopped(const RunSummary& s, const std::string& result) {
 
 } // namespace
 
-TEST_CASE("E17: memory running out at any allocation of a step stops the run with status 'out of memory', "
+TEST_CASE("memory running out at any allocation of a step stops the run with status 'out of memory', "
           "exit code 4") {
   TempDir t("out_of_memory");
   const Scene s = scene();
@@ -112,7 +112,7 @@ TEST_CASE("E17: memory running out at any allocation of a step stops the run wit
   CHECK(failed > 40); // the steps, frames and the checkpoint allocate hundreds of times
 }
 
-TEST_CASE("E17: run_scene returns the out-of-memory summary (exit code 4) and never lets std::bad_alloc out") {
+TEST_CASE("run_scene returns the out-of-memory summary (exit code 4) and never lets std::bad_alloc out") {
   TempDir t("out_of_memory_run");
   RunOptions opt;
   opt.out_file = t.file("run.h5");

@@ -1,12 +1,11 @@
-// What otmpm promises about the files a run writes (issue 20; docs/stability.md,
+// What otmpm promises about the files a run writes (docs/stability.md,
 // "What otmpm guarantees about your files"), checked through the library API:
 // the names derived from the result file, collisions refused before anything
-// is written (D1, D2), otmpm's own locks (D4, D17), the rules for replacing
-// existing files (issue 15 item 4), run ids and the restart's choice of
-// previous results (D3), checkpoint integrity (D6), an unwritable checkpoint
-// location found at start (D13), an instability at t = 0 (D7), names that
-// become HDF5 paths (D8), memory and step estimates (D11, D12), diagnosis
-// format (D18) and validate_scene for scenes built in code (D19).
+// is written, otmpm's own locks, the rules for replacing existing files, run
+// ids and the restart's choice of previous results, checkpoint integrity, an
+// unwritable checkpoint location found at start, an instability at t = 0,
+// names that become HDF5 paths, memory and step estimates, diagnosis format
+// and validate_scene for scenes built in code.
 #include "otmpm/run/run.hpp"
 #include "otmpm/io/checkpoint.hpp"
 #include "otmpm/io/output_files.hpp"
@@ -97,7 +96,7 @@ TEST_CASE("output names: the sidecar, checkpoint and VTK files derive from the r
   CHECK(lock_path("a/run.h5") == "a/.run.h5.otmpm-lock");
 }
 
-TEST_CASE("D1: a result path with a sidecar's extension is refused before anything is written, on every route") {
+TEST_CASE("a result path with a sidecar's extension is refused before anything is written, on every route") {
   TempDir t("d1");
   for (const char* ext : {".xdmf", ".XMF", ".pvd", ".vtp", ".vtu"}) {
     const std::string res = t.file(std::string("res") + ext);
@@ -110,7 +109,7 @@ TEST_CASE("D1: a result path with a sidecar's extension is refused before anythi
   CHECK(listing(t.dir).empty());
 }
 
-TEST_CASE("D1: a sidecar that resolves to the result file (a link) is refused") {
+TEST_CASE("a sidecar that resolves to the result file (a link) is refused") {
   TempDir t("d1link");
   const std::string res = t.file("a.h5");
   write_text(res, "not yet");
@@ -121,7 +120,7 @@ TEST_CASE("D1: a sidecar that resolves to the result file (a link) is refused") 
   CHECK(slurp(res) == "not yet");
 }
 
-TEST_CASE("D2: a checkpoint that resolves to the result file or its sidecar is refused, naming both") {
+TEST_CASE("a checkpoint that resolves to the result file or its sidecar is refused, naming both") {
   TempDir t("d2");
   const std::string res = t.file("same.h5");
   auto refused = [&](const std::string& checkpoint, const std::string& part) {
@@ -145,7 +144,7 @@ TEST_CASE("D2: a checkpoint that resolves to the result file or its sidecar is r
   CHECK(contains(input_error_of([&] { run_scene(s); }), "output.file"));
 }
 
-TEST_CASE("D2: a hard link between result and checkpoint is the same file (same inode)") {
+TEST_CASE("a hard link between result and checkpoint is the same file (same inode)") {
   TempDir t("d2hard");
   const std::string a = t.file("a.h5"), b = t.file("b.h5");
   write_text(a, "x");
@@ -158,7 +157,7 @@ TEST_CASE("D2: a hard link between result and checkpoint is the same file (same 
 
 // ---------------------------------------------------------------- locks
 
-TEST_CASE("D4, D17: otmpm's lock refuses a second holder, names it, and does not depend on HDF5 locking") {
+TEST_CASE("otmpm's lock refuses a second holder, names it, and does not depend on HDF5 locking") {
   TempDir t("lock");
   const std::string res = t.file("run.h5");
   ::setenv("HDF5_USE_FILE_LOCKING", "FALSE", 1);
@@ -180,7 +179,7 @@ TEST_CASE("D4, D17: otmpm's lock refuses a second holder, names it, and does not
   CHECK_NOTHROW(OutputLock({res}));
 }
 
-TEST_CASE("D9: a lock whose holder died is free: lock_holder_of says so and the next holder takes it") {
+TEST_CASE("a lock whose holder died is free: lock_holder_of says so and the next holder takes it") {
   TempDir t("lockdead");
   const std::string res = t.file("run.h5");
   CHECK(lock_holder_of(res).empty()); // no lock file
@@ -214,7 +213,7 @@ TEST_CASE("a run removes its lock files and leaves only its outputs") {
 
 // ---------------------------------------------------------------- replacing
 
-TEST_CASE("issue 15.4: an existing result is replaced only for the identical scene or with force") {
+TEST_CASE("an existing result is replaced only for the identical scene or with force") {
   TempDir t("replace");
   const std::string res = t.file("run.h5");
   REQUIRE(run_scene(small_scene(), to(res)).exit_code == 0);
@@ -233,7 +232,7 @@ TEST_CASE("issue 15.4: an existing result is replaced only for the identical sce
   CHECK(first.size() > 0);
 }
 
-TEST_CASE("issue 15.4: a file that is not otmpm's result is never replaced without force") {
+TEST_CASE("a file that is not otmpm's result is never replaced without force") {
   TempDir t("foreign");
   const std::string res = t.file("data.h5");
   write_text(res, "precious bytes");
@@ -248,7 +247,7 @@ TEST_CASE("issue 15.4: a file that is not otmpm's result is never replaced witho
   CHECK(listing(t.dir) == std::set<std::string>{"data.h5"});
 }
 
-TEST_CASE("issue 15.4: --out x.txt does not touch another run's x.xdmf; a foreign sidecar is kept") {
+TEST_CASE("--out x.txt does not touch another run's x.xdmf; a foreign sidecar is kept") {
   TempDir t("sidecar");
   REQUIRE(run_scene(small_scene(), to(t.file("x.h5"))).exit_code == 0);
   const std::string sidecar = slurp(t.file("x.xdmf"));
@@ -274,7 +273,7 @@ TEST_CASE("replacing: an otmpm sidecar whose result file is gone holds no data a
 
 // ---------------------------------------------------------------- run ids
 
-TEST_CASE("D3: every run has its own run id, in the result file, the sidecar, the .pvd and the checkpoint") {
+TEST_CASE("every run has its own run id, in the result file, the sidecar, the .pvd and the checkpoint") {
   TempDir t("runid");
   const Scene s = small_scene({"output.checkpoint_every=50", "output.format=[\"hdf5\", \"vtu\"]"});
   REQUIRE(run_scene(s, to(t.file("a.h5"))).exit_code == 0);
@@ -290,7 +289,7 @@ TEST_CASE("D3: every run has its own run id, in the result file, the sidecar, th
   CHECK(checkpoint_run_id(t.file("a.h5")) == ""); // a result file is not a checkpoint
 }
 
-TEST_CASE("D3: a restart copies frames only from a result file of the checkpoint's run") {
+TEST_CASE("a restart copies frames only from a result file of the checkpoint's run") {
   TempDir t("d3");
   const Scene s = small_scene({"output.checkpoint_every=50"});
   const std::string res = t.file("run.h5"), ck = t.file("run.checkpoint.h5");
@@ -307,7 +306,7 @@ TEST_CASE("D3: a restart copies frames only from a result file of the checkpoint
                                                 "other.checkpoint.h5"});
 }
 
-TEST_CASE("D3: the real partial results are preferred to a stale .before-restart copy of the same run") {
+TEST_CASE("the real partial results are preferred to a stale .before-restart copy of the same run") {
   TempDir t("aside");
   const Scene s = small_scene({"output.checkpoint_every=50"});
   const std::string res = t.file("run.h5"), ck = t.file("run.checkpoint.h5");
@@ -336,7 +335,7 @@ TEST_CASE("D3: the real partial results are preferred to a stale .before-restart
   CHECK_FALSE(fs::exists(aside));
 }
 
-TEST_CASE("D3: a restart killed while copying continues from its .before-restart copy") {
+TEST_CASE("a restart killed while copying continues from its .before-restart copy") {
   TempDir t("aside2");
   const Scene s = small_scene({"output.checkpoint_every=50"});
   const std::string res = t.file("run.h5"), ck = t.file("run.checkpoint.h5");
@@ -351,7 +350,7 @@ TEST_CASE("D3: a restart killed while copying continues from its .before-restart
   CHECK(frames_in(res) == 6);
 }
 
-TEST_CASE("D3: a path stored in a checkpoint never makes otmpm rename an unrelated file") {
+TEST_CASE("a path stored in a checkpoint never makes otmpm rename an unrelated file") {
   TempDir t("d3path");
   const Scene s = small_scene({"output.checkpoint_every=50"});
   REQUIRE(run_scene(s, to(t.file("run.h5"))).exit_code == 0);
@@ -368,7 +367,7 @@ TEST_CASE("D3: a path stored in a checkpoint never makes otmpm rename an unrelat
 
 // ---------------------------------------------------------------- checkpoints
 
-TEST_CASE("D6: every single-bit flip of a checkpoint is an InputError, found before HDF5 parses it") {
+TEST_CASE("every single-bit flip of a checkpoint is an InputError, found before HDF5 parses it") {
   TempDir t("flips");
   REQUIRE(run_scene(small_scene({"output.checkpoint_every=50"}), to(t.file("run.h5"))).exit_code == 0);
   const std::string good = slurp(t.file("run.checkpoint.h5"));
@@ -401,7 +400,7 @@ TEST_CASE("D6: every single-bit flip of a checkpoint is an InputError, found bef
   CHECK_THROWS_AS(read_checkpoint(damaged), InputError);
 }
 
-TEST_CASE("D13: an unwritable checkpoint location is an InputError at start, before the result file exists") {
+TEST_CASE("an unwritable checkpoint location is an InputError at start, before the result file exists") {
   TempDir t("d13");
   write_text(t.file("plain"), "a file, not a directory");
   for (const std::string& where : {t.file("plain/ck.h5"), std::string("/proc/otmpm_ck.h5"), t.file("nodir/ck.h5")}) {
@@ -416,7 +415,7 @@ TEST_CASE("D13: an unwritable checkpoint location is an InputError at start, bef
 
 // ---------------------------------------------------------------- instability, names
 
-TEST_CASE("D7: an instability at t = 0 ends with a diagnosis naming step and time and the file's status set") {
+TEST_CASE("an instability at t = 0 ends with a diagnosis naming step and time and the file's status set") {
   TempDir t("d7");
   const std::string res = t.file("run.h5");
   const RunSummary s = run_scene(small_scene({"body.bar.velocity=[1e300]"}), to(res));
@@ -426,7 +425,7 @@ TEST_CASE("D7: an instability at t = 0 ends with a diagnosis naming step and tim
   CHECK(contains(summary_line(s), "UNSTABLE: "));
 }
 
-TEST_CASE("D18: diagnoses give times with significant digits (never %f) and always step and time") {
+TEST_CASE("diagnoses give times with significant digits (never %f) and always step and time") {
   TempDir t("d18");
   // At 1e6 m/s the bar leaves the grid within nanoseconds: %f would print t = 0.000000.
   const RunSummary s = run_scene(small_scene({"initial_velocity.0.velocity=[-1e6]"}), to(t.file("run.h5")));
@@ -436,7 +435,7 @@ TEST_CASE("D18: diagnoses give times with significant digits (never %f) and alwa
   CHECK_FALSE(contains(s.status, "0.000000"));
 }
 
-TEST_CASE("D8: probe names that cannot be HDF5 names are refused by the reader at their key") {
+TEST_CASE("probe names that cannot be HDF5 names are refused by the reader at their key") {
   for (const std::string name : {"a/b", "a.b", ".", "..", "a\\u0000b", " a", "a ", "tab\\tname"}) {
     INFO(name);
     const std::string text = slurp((kSource / "tests/scenes/good_minimal.toml").string());
@@ -468,7 +467,7 @@ TEST_CASE("output.format: hdf5 always, at most one of vtp and vtu, read with FIL
 
 // ---------------------------------------------------------------- resources
 
-TEST_CASE("D11: a run whose memory estimate exceeds the limit is refused before it allocates") {
+TEST_CASE("a run whose memory estimate exceeds the limit is refused before it allocates") {
   const Scene s = small_scene({"simulation.memory_limit=1e6"});
   const std::string msg = input_error_of([&] { RunOptions o;
     o.write_results = false;
@@ -487,7 +486,7 @@ TEST_CASE("D11: a run whose memory estimate exceeds the limit is refused before 
   CHECK(estimate_resources(measured).bytes > 406e6);
 }
 
-TEST_CASE("D12: a run whose step estimate exceeds simulation.max_steps is refused; the key raises the limit") {
+TEST_CASE("a run whose step estimate exceeds simulation.max_steps is refused; the key raises the limit") {
   auto msg = [](const std::vector<std::string>& sets) { return input_error_of([&] { check_resources(small_scene(sets)); }); };
   CHECK(contains(msg({"material.steel.young=1e308"}), "simulation.cfl"));
   CHECK(contains(msg({"material.steel.young=1e308"}), "max_steps"));
@@ -503,7 +502,7 @@ TEST_CASE("D12: a run whose step estimate exceeds simulation.max_steps is refuse
 
 // ---------------------------------------------------------------- validate_scene
 
-TEST_CASE("D19: validate_scene makes every check of the reader on a Scene built in code") {
+TEST_CASE("validate_scene makes every check of the reader on a Scene built in code") {
   const Scene good = small_scene();
   CHECK_NOTHROW(validate_scene(good, 1));
   auto refused = [&](auto change, const std::string& key) {

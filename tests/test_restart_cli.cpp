@@ -1,4 +1,4 @@
-// `otmpm run --restart` (issue 6): a run with output.checkpoint_every is
+// `otmpm run --restart`: a run with output.checkpoint_every is
 // killed with SIGKILL by the test once a checkpoint exists, restarted from
 // the checkpoint alone, and its result file - every frame dataset, every probe
 // sample, the summary attributes and the errors, everything but wall times -

@@ -1,4 +1,4 @@
-// Short versions of the 2D benchmarks of molinos et al. (issue 5):
+// Short versions of the 2D benchmarks of molinos et al.:
 // the block under ramped gravity reaches its static stress profile, and the
 // plate hitting a wall conserves mass and turns the wall impulse exactly into
 // its change of momentum.
@@ -55,7 +55,7 @@ TEST_CASE("plate impact: mass is conserved and the momentum change equals the wa
     const Vec<2> p0 = e.momentum();
     double m0 = 0.0;
     for (double m : e.particles().m) m0 += m;
-    // Free flight (issue 18, defect 2): the leftmost particles start 0.450 m
+    // Free flight (the plate starts clear of the wall): the leftmost particles start 0.450 m
     // beyond the LME support radius R = 2.146 m of the wall nodes and reach
     // it at t = 0.450 s at 1 m/s. Until then no wall node carries a
     // particle's weight: the wall exerts nothing (impulse exactly zero) and

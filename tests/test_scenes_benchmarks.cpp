@@ -1,5 +1,5 @@
-// Short versions of the large-deformation benchmarks of docs/benchmarks.md
-// (issue 14), run from the shipped scenes: the sliding block follows
+// Short versions of the large-deformation benchmarks of docs/benchmarks.md,
+// run from the shipped scenes: the sliding block follows
 // x(t) = 1/2 g (sin theta - mu cos theta) t^2 with LME in both node modes,
 // the coarse Taylor bar shortens into the published band and dissipates
 // its energy plastically, and the granular column at a = 1 runs out as the

@@ -125,7 +125,7 @@ TEST_CASE("Simulation: interrupt() leaves a valid file with status interrupted a
   CHECK(std::filesystem::exists(tmp.file("r.checkpoint.h5"))); // taken at the interruption, not at step 1000
 }
 
-TEST_CASE("E1: after finish() write_frame, interrupt, step and finish throw std::logic_error and change nothing") {
+TEST_CASE("after finish() write_frame, interrupt, step and finish throw std::logic_error and change nothing") {
   TempDir tmp("closed");
   RunOptions opt;
   opt.out_file = tmp.file("r.h5");
@@ -142,7 +142,7 @@ TEST_CASE("E1: after finish() write_frame, interrupt, step and finish throw std:
   CHECK(sim.engine<1>().particles().size() == 80); // the state stays readable
 }
 
-TEST_CASE("E1: write_frame after t_end, an instability or interrupt() still writes; interrupt() of a "
+TEST_CASE("write_frame after t_end, an instability or interrupt() still writes; interrupt() of a "
           "finished run throws") {
   TempDir tmp("after_end");
   RunOptions opt;
@@ -156,7 +156,7 @@ TEST_CASE("E1: write_frame after t_end, an instability or interrupt() still writ
   CHECK(frame_count(opt.out_file) == 3); // t = 0, t_end, and the frame written by hand
 }
 
-TEST_CASE("E14: finish() releases otmpm's locks; a Simulation destroyed before finish() leaves status interrupted") {
+TEST_CASE("finish() releases otmpm's locks; a Simulation destroyed before finish() leaves status interrupted") {
   TempDir tmp("locks");
   RunOptions opt;
   opt.out_file = tmp.file("r.h5");

@@ -2,7 +2,7 @@
 // writes one CSV row per run with the expected parameters and errors, and a
 // rerun resumes: rows already present are not run again. A [stability] study
 // classifies a stable and a blown-up cfl and draws the stability map. The
-// issue-20 defects of the study (killed studies, colliding names, bad paths
+// file-handling cases of the study (killed studies, colliding names, bad paths
 // and overrides, cut-off rows) are in test_study_files.cpp.
 #include "study_support.hpp"
 

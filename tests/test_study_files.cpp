@@ -1,10 +1,10 @@
-// `otmpm study` and the files it owns (issue 20; docs/stability.md, "What
-// otmpm guarantees about your files"): a killed study leaves no child
-// running, and its resume keeps the finished runs, redoes the stopped ones
-// and waits for result files another process still writes (D9); colliding
-// names (D10), a results path that is a file (D14), a bad common or mesh
-// `set` entry (D15) and a directory as study or scene file (D20) are refused
-// before any run; a cut-off CSV row is redone (D16).
+// `otmpm study` and the files it owns (docs/stability.md, "What otmpm
+// guarantees about your files"): a killed study leaves no child running,
+// and its resume keeps the finished runs, redoes the stopped ones and waits
+// for result files another process still writes; colliding names, a results
+// path that is a file, a bad common or mesh `set` entry and a directory as
+// study or scene file are refused before any run; a cut-off CSV row is
+// redone.
 #include "study_support.hpp"
 
 #include <doctest/doctest.h>
@@ -163,9 +163,9 @@ bool contains(const std::string& text, const std::string& part) { return text.fi
 
 } // namespace
 
-// ---------------------------------------------------------------- D9: killed studies and children
+// ---------------------------------------------------------------- killed studies and children
 
-TEST_CASE("study (D9): SIGINT, SIGTERM or SIGKILL of the study stops its children; the resume keeps the finished "
+TEST_CASE("study: SIGINT, SIGTERM or SIGKILL of the study stops its children; the resume keeps the finished "
           "run and redoes the stopped one") {
   const fs::path dir = study_dir("d9", "");
   const fs::path a_h5 = dir / "study_results" / "a_n13.h5";
@@ -203,7 +203,7 @@ TEST_CASE("study (D9): SIGINT, SIGTERM or SIGKILL of the study stops its childre
   fs::remove_all(dir);
 }
 
-TEST_CASE("study (D9): a child killed by a signal is not recorded, and its left-over lock does not stop the retry") {
+TEST_CASE("study: a child killed by a signal is not recorded, and its left-over lock does not stop the retry") {
   const fs::path dir = study_dir("d9_child", two_variants("1.0", "2e-5", 1));
   const pid_t study = start_study(dir);
   const std::vector<pid_t> kids = wait_for_children(study, 1, {dir / "study_results" / "a_n13.h5"});
@@ -232,7 +232,7 @@ TEST_CASE("study (D9): a child killed by a signal is not recorded, and its left-
   fs::remove_all(dir);
 }
 
-TEST_CASE("study (D9): a run whose result file another process still writes waits for it and is never recorded "
+TEST_CASE("study: a run whose result file another process still writes waits for it and is never recorded "
           "as an input error") {
   const fs::path dir = study_dir("d9_lock", std::string("jobs = 1\nset = [\"simulation.t_end=2e-5\"]\n") + kMeshN13);
   fs::create_directories(dir / "study_results");
@@ -259,7 +259,7 @@ TEST_CASE("study (D9): a run whose result file another process still writes wait
   fs::remove_all(dir);
 }
 
-TEST_CASE("study (D9): a second study on the same CSV is refused with exit 2 and changes nothing") {
+TEST_CASE("study: a second study on the same CSV is refused with exit 2 and changes nothing") {
   const fs::path dir = study_dir("d9_twice", two_variants("1.0", "1.0", 1));
   const pid_t study = start_study(dir);
   wait_for_children(study, 1, {dir / "study_results" / "a_n13.h5"});
@@ -277,9 +277,9 @@ TEST_CASE("study (D9): a second study on the same CSV is refused with exit 2 and
   fs::remove_all(dir);
 }
 
-// ---------------------------------------------------------------- D10, D14, D15, D20: refused up front
+// ---------------------------------------------------------------- refused up front
 
-TEST_CASE("study (D10): duplicate variant or mesh names, or names mapping to one file, are refused naming both") {
+TEST_CASE("study: duplicate variant or mesh names, or names mapping to one file, are refused naming both") {
   expect_refused("d10_same_file",
                  "jobs = 1\n[[variant]]\nname = \"fe a\"\nset = [\"simulation.integrator=fe\"]\n"
                  "[[variant]]\nname = \"fe/a\"\nset = [\"simulation.integrator=npc\"]\n" +
@@ -305,7 +305,7 @@ TEST_CASE("study (D10): duplicate variant or mesh names, or names mapping to one
                  {"study.toml:3:", "gives a result file name of 257 bytes; at most 203"});
 }
 
-TEST_CASE("study (D14): a results path that is an existing file, or lies under one, is refused with exit 2") {
+TEST_CASE("study: a results path that is an existing file, or lies under one, is refused with exit 2") {
   for (const std::string results : {"taken.txt", "taken.txt/sub"}) {
     const fs::path dir = study_dir("d14", "results = \"" + results + "\"\n" + kMeshN13);
     std::ofstream(dir / "taken.txt") << "not a folder\n";
@@ -321,7 +321,7 @@ TEST_CASE("study (D14): a results path that is an existing file, or lies under o
   }
 }
 
-TEST_CASE("study (D15): every common set entry is applied to the scene before any run; a bad one is exit 2 at it") {
+TEST_CASE("study: every common set entry is applied to the scene before any run; a bad one is exit 2 at it") {
   // The form of an entry.
   expect_refused("d15", std::string("set = [\"simulation.t_end\"]\n") + kMeshN13,
                  {"study.toml:3: key 'set'", "'simulation.t_end' is not KEY=VALUE"});
@@ -356,7 +356,7 @@ TEST_CASE("study (D15): every common set entry is applied to the scene before an
   fs::remove_all(dir);
 }
 
-TEST_CASE("study (D20): a directory given as the study file or as its scene gets a clear message") {
+TEST_CASE("study: a directory given as the study file or as its scene gets a clear message") {
   const fs::path dir = study_dir("d20", kMeshN13);
   std::string out;
   CHECK(run_command("'" OTMPM_BINARY "' study " + quote(dir.string()), out) == 2);
@@ -369,9 +369,9 @@ TEST_CASE("study (D20): a directory given as the study file or as its scene gets
   fs::remove_all(dir);
 }
 
-// ---------------------------------------------------------------- D16: a cut-off row
+// ---------------------------------------------------------------- a cut-off row
 
-TEST_CASE("study (D16): a cut-off last CSV row is dropped and redone, and the next row starts on its own line") {
+TEST_CASE("study: a cut-off last CSV row is dropped and redone, and the next row starts on its own line") {
   const fs::path dir = make_study_dir("d16");
   std::string out;
   REQUIRE(run_study(dir, out) == 0);

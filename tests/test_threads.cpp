@@ -1,4 +1,4 @@
-// Results do not depend on the number of OpenMP threads (issue 7): the same
+// Results do not depend on the number of OpenMP threads: the same
 // scene stepped with 1 and with 2 threads gives bitwise identical particles.
 // Nor on fusing stages into one pass: the NPC stress update inside the force
 // scatter gives the bits of the two separate stages.

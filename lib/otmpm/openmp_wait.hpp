@@ -14,7 +14,7 @@
 namespace otmpm {
 
 /// Seconds a waiting OpenMP thread spins before it sleeps, by default
-/// (measured: docs/performance.md, "How OpenMP threads wait").
+/// (measured: docs/performance-log-2026.md, "How OpenMP threads wait").
 inline constexpr double kDefaultSpinSeconds = 2e-4;
 
 /// The GOMP_SPINCOUNT that spins for about `seconds` on this processor: the

@@ -1,7 +1,7 @@
 #pragma once
 /// \file parallel.hpp
 /// The OpenMP building blocks of the engine's particle and node loops, all of
-/// them giving the same bits for any thread count (issue 7): contiguous
+/// them giving the same bits for any thread count: contiguous
 /// chunks of particles or nodes, a few per thread, handed out dynamically (a
 /// thread slowed by other work on its core leaves its share to the others;
 /// no result depends on which thread ran a chunk), exceptions rethrown from

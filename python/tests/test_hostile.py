@@ -35,7 +35,7 @@ def lock_files(directory):
     return sorted(n for n in os.listdir(directory) if n.endswith(".otmpm-lock"))
 
 
-# ---------------------------------------------------------------- E1: a finished Simulation
+# ---------------------------------------------------------------- a finished Simulation
 
 
 @pytest.mark.parametrize("how", ["finish", "with"])
@@ -61,7 +61,7 @@ def test_every_method_that_changes_a_finished_run_raises_runtime_error(tmp_path,
     assert sim.particles.x.shape == (80, 1) and sim.energy()["kinetic"] > 0 and len(sim.nodes) == 43
 
 
-# ---------------------------------------------------------------- E14: locks and unfinished runs
+# ---------------------------------------------------------------- locks and unfinished runs
 
 
 def test_finish_releases_the_locks_while_the_object_lives(tmp_path):
@@ -97,7 +97,7 @@ def test_a_simulation_alive_at_interpreter_exit_gets_status_interrupted(tmp_path
     assert lock_files(tmp_path) == []
 
 
-# ---------------------------------------------------------------- E2: scene values that contain themselves
+# ---------------------------------------------------------------- scene values that contain themselves
 
 
 def test_a_dict_that_contains_itself_is_an_input_error_naming_the_key():
@@ -130,7 +130,7 @@ def test_the_same_list_twice_is_no_cycle():
     assert s.to_dict()["grid"]["lower"] == [0.0]
 
 
-# ---------------------------------------------------------------- E18, E30: override values
+# ---------------------------------------------------------------- override values
 
 
 def test_override_strings_with_a_line_break_and_values_with_nul_are_refused():
@@ -163,7 +163,7 @@ def test_a_long_name_gives_a_short_message():
     assert len(str(e.value)) < 2000
 
 
-# ---------------------------------------------------------------- E16: results.open on other files
+# ---------------------------------------------------------------- results.open on other files
 
 
 def test_results_open_raises_oserror_naming_files_of_other_programs(tmp_path):
@@ -202,7 +202,7 @@ def test_results_open_of_a_fifo_or_directory_raises_oserror_at_once(tmp_path):
     assert p.stdout.count("OSError") == 2 and "not a regular file" in p.stdout
 
 
-# ---------------------------------------------------------------- E19: otmpm.basis
+# ---------------------------------------------------------------- otmpm.basis
 
 
 @pytest.mark.parametrize("grid, message", [
@@ -230,7 +230,7 @@ def test_a_whole_float_cell_count_is_taken_and_gives_the_int_grid():
     assert np.array_equal(a.nodes, b.nodes) and len(a.nodes) == 11
 
 
-# ---------------------------------------------------------------- E24: Summary
+# ---------------------------------------------------------------- Summary
 
 
 def test_summary_is_read_only():

@@ -41,7 +41,7 @@
 //   When every exponent changes by at most kSafeExponentChange = 0.25 the
 //   Armijo condition provably holds (see the constant) and log Z is not
 //   evaluated: the quadratic phase costs no extra exp() pass.
-// * Cost (issue 7). The support is held in structure-of-arrays form (one
+// * Cost. The support is held in structure-of-arrays form (one
 //   array per axis of x - x_I, log w_I or w_I, N_I), padded to whole short vectors
 //   (simd.hpp: two lanes with SSE2, four with AVX), and every pass over the
 //   nodes - exponents, exp(), the sums for r and J, the exponent changes of

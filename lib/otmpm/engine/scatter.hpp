@@ -35,7 +35,7 @@ constexpr int max_block_overlap = 2;
 /// The dense blocked scatter is also used while the ranges add up to at
 /// most the table's entries over this: its buffers then take at most 14
 /// bytes per entry in 3D (the table itself 36), and it was measured faster
-/// than the sparse path (docs/performance.md).
+/// than the sparse path (docs/performance-log-2026.md).
 constexpr int dense_entries_per_slot = 4;
 /// The largest total of block node ranges, in table entries, for which the
 /// sparse blocked scatter is used: its per-block slot maps (one int per node
@@ -112,7 +112,7 @@ private:
   /// at most the entries over dense_entries_per_slot, else sparse when they
   /// add up to at most max_sparse_ranges times the entries, else the column
   /// gather (measured: both blocked paths are faster than the column gather,
-  /// also for shuffled particles, docs/performance.md).
+  /// also for shuffled particles, docs/performance-log-2026.md).
   void plan(const BasisTable<D>& table, int nodes) {
     if (valid_) return;
     valid_ = true;

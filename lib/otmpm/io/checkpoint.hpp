@@ -1,6 +1,6 @@
 #pragma once
 /// \file checkpoint.hpp
-/// Checkpoint and restart (issue 6): everything a run needs to continue bit
+/// Checkpoint and restart: everything a run needs to continue bit
 /// for bit, first gathered in memory (Checkpoint: named groups of scalars and
 /// arrays, filled by Engine::save_state, the basis families and the run's
 /// recorder) and then written to an HDF5 file atomically - to FILE.tmp, flushed,
