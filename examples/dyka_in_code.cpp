@@ -93,9 +93,10 @@ int main(int argc, char** argv) {
       parts.dirichlet.value.push_back({0.0, 0.0, 0.0});
     }
 
-  // 5. The step settings: the integrator's step function from the table,
-  //    its parameters at their defaults, CFL 0.1 on the nodal spacing h, and
-  //    the particle fields it keeps.
+  // 5. The step settings: the integrator from the table (its step function
+  //    and what it needs: the engine allocates the particle fields it keeps,
+  //    such as a_p for npc, and refuses a run that lacks the rest), its
+  //    parameters at their defaults, CFL 0.1 on the nodal spacing h.
   const IntegratorKind& kind = integrator_kind(integrator);
   parts.settings.step = kind.step<1>();
   parts.settings.parameters = kind.default_parameters(); // gamma = 0.5 for npc
@@ -103,8 +104,6 @@ int main(int argc, char** argv) {
   parts.settings.cfl = 0.1;
   parts.settings.h = h;
   parts.settings.consistent_mass = kind.consistent_by_default;
-  P.allocate_optional(kind.needs_acceleration, ul);
-  if (kind.needs_previous_position) P.x_prev = P.x;
 
   // 6. The engine, stepped to t_end.
   Engine<1> engine(std::move(parts));

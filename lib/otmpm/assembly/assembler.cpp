@@ -37,16 +37,13 @@ bool output_wants(const Scene& scene, const char* field) {
   return std::find(f.begin(), f.end(), field) != f.end();
 }
 
-/// The optional particle fields the integrator, the materials, the mode and
-/// the output read (a scene pays memory only for what it uses).
-template <int D>
-void allocate_fields(const Scene& scene, const IntegratorKind& integrator, const EngineParts<D>& parts,
-                     Particles<D>& P) {
+/// The optional particle fields the materials, the mode and the output read
+/// (a scene pays memory only for what it uses; the engine adds those the
+/// integrator keeps, StepNeeds).
+template <int D> void allocate_fields(const Scene& scene, const EngineParts<D>& parts, Particles<D>& P) {
   bool finite = false;
   for (const auto& m : parts.materials) finite = finite || m->needs_deformation_gradient();
-  P.allocate_optional(integrator.needs_acceleration || output_wants(scene, "a"),
-                      finite || parts.mode.nodes_move() || output_wants(scene, "F"));
-  if (integrator.needs_previous_position) P.x_prev = P.x;
+  P.allocate_optional(output_wants(scene, "a"), finite || parts.mode.nodes_move() || output_wants(scene, "F"));
   AlignedVector<Vec<D>>().swap(P.length0); // the traction areas are taken (memory)
   for (const auto& m : parts.materials)
     for (const StateSpec& s : m->state()) P.add_state(std::string(s.name), s.width, s.initial.data());
@@ -339,7 +336,7 @@ EngineParts<D> assemble_parts(const Scene& scene,
                                 seeded.traction_area.size() == scene.tractions.size(),
                             "assemble_parts: a share of the particles needs its traction loads' surface particles");
   parts.loads.tractions = build_tractions<D>(scene, P, h, exact, seeded);
-  allocate_fields(scene, integrator, parts, P);
+  allocate_fields(scene, parts, P);
   set_file_state<D>(scene, seeded, P);
   parts.settings = build_settings<D>(scene, integrator, h);
   return parts;

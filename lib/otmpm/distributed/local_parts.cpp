@@ -8,7 +8,6 @@
 #include "otmpm/basis/bspline.hpp"
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/basis/lme.hpp"
-#include "otmpm/integrators/integrator.hpp"
 #include "otmpm/io/checkpoint.hpp"
 #include "otmpm/particles/particle_state.hpp"
 
@@ -236,12 +235,7 @@ EngineParts<D> finish_parts(const Comm& comm, EngineParts<D> parts, typename Dom
   // constraints' momentum: a wall's held nodes (its contact state) and the
   // carried momenta are per node of the window and stay where they are;
   // particles still migrate.
-  const auto carries = [&] {
-    for (const IntegratorKind& k : integrator_kinds())
-      if (k.carries_constraints && k.step<D>() == parts.settings.step) return true;
-    return false;
-  };
-  if (!parts.walls.empty() || carries()) setup.window_basis = nullptr;
+  if (!parts.walls.empty() || parts.settings.step.needs.carries_constraints) setup.window_basis = nullptr;
   auto domain = std::make_shared<Domain<D>>(comm, std::move(setup));
   if (auto* b = dynamic_cast<BsplineBasis<D>*>(parts.basis.get()))
     b->distribute(domain->owned_nodes(), [&comm](std::span<double> v) { comm.sum(v); });

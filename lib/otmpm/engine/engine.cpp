@@ -3,6 +3,7 @@
 /// (engine.hpp); the after-step checks and energies are in monitor.cpp, the
 /// checkpoint state in engine_state.cpp.
 #include "otmpm/engine/engine.hpp"
+#include "otmpm/basis/kinds.hpp"
 #include "otmpm/engine/scatter.hpp"
 
 #include "otmpm/parallel.hpp"
@@ -41,6 +42,37 @@ struct MaxOf {
   }
 };
 
+/// What the integrator's row says it needs (StepNeeds): the particle fields
+/// it keeps are allocated at their values at t = 0 when the parts lack them;
+/// the node mode, the basis, the mass and the parameters it runs with must
+/// be there. std::invalid_argument naming the integrator and the need.
+template <int D>
+void provide_step_needs(const StepSettings<D>& s, const NodeMode<D>& mode, const Basis<D>& basis, Particles<D>& P) {
+  using E = std::invalid_argument;
+  const StepNeeds& needs = s.step.needs;
+  const std::string who = "Engine: integrator '" + std::string(s.step.name) + "' ";
+  const auto n = static_cast<std::size_t>(P.size());
+  if (needs.acceleration && P.a.empty()) P.a.assign(n, Vec<D>::Zero());
+  if (needs.previous_position && P.x_prev.empty()) P.x_prev = P.x;
+  require<E>(P.a.empty() || P.a.size() == n, "Engine: the particle accelerations have ", P.a.size(), " entries, not ", n);
+  require<E>(P.x_prev.empty() || P.x_prev.size() == n, "Engine: the previous positions have ", P.x_prev.size(),
+             " entries, not ", n);
+  require<E>(!needs.advected_nodes || mode.nodes_move(),
+             who + "needs nodes that move with the body (NodeMode::advected, mode ul)");
+  const BasisKind* family = find_basis_kind(basis.kind());
+  require<E>(!needs.bspline || (family && family->bspline), who + "needs a B-spline basis, not '",
+             std::string(basis.kind()), "'");
+  require<E>(!needs.consistent_mass || s.consistent_mass,
+             who + "needs the consistent mass (StepSettings::consistent_mass = true)");
+  for (const ParameterSpec& p : needs.parameters) {
+    const auto it = s.parameters.values.find(p.key);
+    require<E>(it != s.parameters.values.end(), who + "reads parameter '", std::string(p.key),
+               "', which StepSettings::parameters lacks (IntegratorKind::default_parameters() has the defaults)");
+    const std::string problem = p.check(it->second);
+    require<E>(problem.empty(), who + "parameter '", std::string(p.key), "': ", problem);
+  }
+}
+
 } // namespace
 
 template <int D> void NodalFields<D>::resize(int n) {
@@ -57,6 +89,7 @@ Engine<D>::Engine(EngineParts<D> parts)
       dist_(std::move(parts.distribution)) {
   scatter_ = std::make_unique<ParticleToNodes<D>>();
   check_parts();
+  provide_step_needs(settings_, mode_, *basis_, P_);
   const int nodes = basis_->nodes().size();
   const int bodies = P_.body.empty() ? 1 : 1 + *std::max_element(P_.body.begin(), P_.body.end());
   require<InputError>(!(parts.contact && dist_), "[contact]: body-body contact is not available in distributed "
@@ -124,7 +157,7 @@ template <int D> void Engine<D>::repartition(std::unique_ptr<Basis<D>> basis, Di
 template <int D> void Engine<D>::check_parts() const {
   using E = std::invalid_argument;
   require<E>(basis_ != nullptr, "Engine: no basis");
-  require<E>(settings_.step != nullptr, "Engine: no step function (StepSettings::step)");
+  require<E>(settings_.step.function != nullptr, "Engine: no step function (StepSettings::step: IntegratorKind::step<D>())");
   require<E>(finite_positive(settings_.t_end), "Engine: t_end = ", settings_.t_end, " must be finite and > 0");
   require<E>(finite_positive(settings_.h), "Engine: h = ", settings_.h, " must be finite and > 0");
   require<E>(settings_.dt ? finite_positive(*settings_.dt) : finite_positive(settings_.cfl), "Engine: the time step (",
@@ -170,7 +203,7 @@ template <int D> void Engine<D>::step() {
   if (dt_prev_ == 0.0) dt_prev_ = dt_;
   loads_.traction_positions(P_, traction_start_);
   try {
-    settings_.step(*this, {t_, dt_, dt_prev_, step_, settings_.parameters, P_, nodal_});
+    settings_.step.function(*this, {t_, dt_, dt_prev_, step_, settings_.parameters, P_, nodal_});
   } catch (const ParticleFailure& f) {
     unstable(f.particle, f.what);
   }

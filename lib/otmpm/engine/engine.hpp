@@ -67,7 +67,7 @@ template <int D> struct NodeReset {
 /// the time step rule (CFL with the P-wave speed, docs/theory.md
 /// sect. 10, or a fixed dt), the mass matrix and the run's limits.
 template <int D> struct StepSettings {
-  StepFunction<D> step = nullptr;
+  IntegratorStep<D> step; ///< the integrator: its step function and what it needs
   IntegratorParameters parameters;
   double t_end = 0.0;
   double cfl = 0.1;

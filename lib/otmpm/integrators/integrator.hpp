@@ -44,11 +44,13 @@ struct IntegratorKind {
   StepFunction<2> step2 = nullptr;
   StepFunction<3> step3 = nullptr;
 
-  /// The step function for D dimensions.
-  template <int D> StepFunction<D> step() const {
-    if constexpr (D == 1) return step1;
-    else if constexpr (D == 2) return step2;
-    else return step3;
+  /// What the engine must provide (from the flags and parameters above).
+  StepNeeds needs() const;
+  /// The integrator as an engine runs it in D dimensions (StepSettings::step).
+  template <int D> IntegratorStep<D> step() const {
+    if constexpr (D == 1) return {name, step1, needs()};
+    else if constexpr (D == 2) return {name, step2, needs()};
+    else return {name, step3, needs()};
   }
 };
 

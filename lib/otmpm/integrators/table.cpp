@@ -73,6 +73,16 @@ const IntegratorKind* find_integrator(std::string_view name) {
 
 std::span<const ParameterSpec* const> integrator_parameters() { return kAllParameters; }
 
+StepNeeds IntegratorKind::needs() const {
+  return {.acceleration = needs_acceleration,
+          .previous_position = needs_previous_position,
+          .advected_nodes = needs_ul,
+          .bspline = needs_bspline,
+          .consistent_mass = needs_consistent_mass,
+          .carries_constraints = carries_constraints,
+          .parameters = parameters};
+}
+
 IntegratorParameters IntegratorKind::default_parameters() const {
   IntegratorParameters out;
   for (const ParameterSpec& p : parameters) out.values[std::string(p.key)] = p.fallback.value_or(0.0);
