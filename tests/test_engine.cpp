@@ -5,6 +5,8 @@
 // the Dyka bar. Scenes are built from TOML text (otmpm::parse_scene), kept
 // coarse and short so that the executable runs in a few seconds.
 #include "otmpm/assembly/assembler.hpp"
+#include "otmpm/basis/kinds.hpp"
+#include "otmpm/integrators/integrator.hpp"
 #include "otmpm/run/run.hpp"
 #include "otmpm/reference/exact.hpp"
 
@@ -128,31 +130,45 @@ template <int D> double momentum_scale(const Engine<D>& e) {
   return s;
 }
 
-const std::vector<std::string> kAllBases = {"linear", "ugimp", "bspline2", "bspline3", "lme", "maxent"};
-/// uGIMP needs an untouched Cartesian lattice, so it has no ul variant.
-const std::vector<std::string> kUlBases = {"linear", "bspline2", "bspline3", "lme", "maxent"};
+/// The basis families of the table; in `ul` mode those that do not need an
+/// untouched Cartesian lattice (not uGIMP).
+std::vector<std::string> bases(bool ul) {
+  std::vector<std::string> out;
+  for (const BasisKind& k : basis_kinds())
+    if (!ul || !k.cartesian_only) out.emplace_back(k.name);
+  return out;
+}
+const std::vector<std::string> kAllBases = bases(false);
+const std::vector<std::string> kUlBases = bases(true);
 
 struct Variant {
   std::string mode, integrator, basis;
   std::string mass = ""; ///< "" for the integrator's default (lumped; consistent for otm, unified)
 };
 
-/// Every (mode, integrator, basis) combination the engine accepts, with the
-/// default mass matrix of each integrator, plus the other mass matrix for a
-/// few (lumped OTM, consistent fe/npc). Not consistent mass with LME in mpm
+/// Every (mode, integrator, basis) combination the engine accepts, from the
+/// tables (an integrator in `mpm` unless it needs advected nodes, a family
+/// in `ul` unless it needs an untouched lattice, B-spline integrators with
+/// B-spline families), with the default mass matrix of each integrator,
+/// plus the other mass matrix: lumped for those whose default is the
+/// consistent one (unless they need it), consistent in `mpm` mode with the
+/// families that do not search nodes. Not consistent mass with LME in mpm
 /// mode: the grid nodes in the LME tails around the body (lumped mass ~1e-4 of
 /// the largest) make M nearly singular, and at cfl 0.1 that runs away within
 /// 3 steps (stable at cfl 0.01): a time-step limit, not a conservation matter.
 std::vector<Variant> all_variants() {
   std::vector<Variant> out;
-  for (const char* integ : {"fe", "musl", "npc", "central_difference", "explicit_alpha"})
-    for (const auto& b : kAllBases) out.push_back({"mpm", integ, b});
-  for (const char* integ : {"fe", "musl", "npc", "otm", "central_difference", "explicit_alpha"})
-    for (const auto& b : kUlBases) out.push_back({"ul", integ, b});
-  for (const char* b : {"bspline2", "bspline3"}) out.push_back({"ul", "unified", b});
-  for (const auto& b : kUlBases) out.push_back({"ul", "otm", b, "lumped"});
-  for (const char* integ : {"fe", "npc"})
-    for (const char* b : {"linear", "bspline2", "bspline3"}) out.push_back({"mpm", integ, b, "consistent"});
+  for (const IntegratorKind& k : integrator_kinds())
+    for (const BasisKind& b : basis_kinds()) {
+      if (k.needs_bspline && !b.bspline) continue;
+      const std::string integ(k.name), basis(b.name);
+      if (!k.needs_ul) out.push_back({"mpm", integ, basis});
+      if (!b.cartesian_only) out.push_back({"ul", integ, basis});
+      if (k.consistent_by_default && !k.needs_consistent_mass && !b.cartesian_only)
+        out.push_back({"ul", integ, basis, "lumped"});
+      if (!k.consistent_by_default && !k.needs_ul && !b.searches_nodes && !b.cartesian_only)
+        out.push_back({"mpm", integ, basis, "consistent"});
+    }
   return out;
 }
 

@@ -48,10 +48,12 @@ template <int D> std::unique_ptr<Material<D>> make_drucker_prager(const Material
 } // namespace
 
 const MaterialModel& drucker_prager_model() {
+  static const std::array<ParameterValue, 5> example{
+      {{"density", 1590.0}, {"young", 10.0e6}, {"poisson", 0.3}, {"friction_angle", 30.0}, {"cohesion", 1.0e3}}};
   static const MaterialModel m{"drucker_prager",
                                "Drucker-Prager soil (cone matched to Mohr-Coulomb in plane strain), finite strain",
                                kParameters, kHenckyState, make_drucker_prager<1>, make_drucker_prager<2>,
-                               make_drucker_prager<3>};
+                               make_drucker_prager<3>, example};
   return m;
 }
 

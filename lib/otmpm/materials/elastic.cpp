@@ -5,6 +5,8 @@
 /// internal variables; the stored energy is 1/2 sigma : eps V_p.
 #include "otmpm/materials/models.hpp"
 
+#include <array>
+
 namespace otmpm {
 
 namespace {
@@ -119,22 +121,25 @@ template <int D> std::unique_ptr<Material<D>> make_neo_hookean(const MaterialPar
 
 } // namespace
 
+/// Steel: the example material of the elastic models.
+const std::array<ParameterValue, 3> kSteel{{{"density", 7833.0}, {"young", 200.0e9}, {"poisson", 0.3}}};
+
 const MaterialModel& linear_elastic_model() {
   static const MaterialModel m{"linear_elastic", "small-strain isotropic elasticity (molinos et al.)", {}, {},
-                               make_linear_elastic<1>, make_linear_elastic<2>, make_linear_elastic<3>};
+                               make_linear_elastic<1>, make_linear_elastic<2>, make_linear_elastic<3>, kSteel};
   return m;
 }
 
 const MaterialModel& linear_elastic_finite_model() {
   static const MaterialModel m{"linear_elastic_finite", "St. Venant-like law of wobbes et al. eq. 10 (not objective)",
                                {}, {}, make_linear_elastic_finite<1>, make_linear_elastic_finite<2>,
-                               make_linear_elastic_finite<3>};
+                               make_linear_elastic_finite<3>, kSteel};
   return m;
 }
 
 const MaterialModel& neo_hookean_model() {
   static const MaterialModel m{"neo_hookean", "compressible neo-Hookean (wobbes et al. eq. 11)", {}, {},
-                               make_neo_hookean<1>, make_neo_hookean<2>, make_neo_hookean<3>};
+                               make_neo_hookean<1>, make_neo_hookean<2>, make_neo_hookean<3>, kSteel};
   return m;
 }
 

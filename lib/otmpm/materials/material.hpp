@@ -132,6 +132,12 @@ private:
 /// Builds a material of one model in D dimensions (parameters validated).
 template <int D> using MaterialFactory = std::unique_ptr<Material<D>> (*)(const MaterialParameters&);
 
+/// A value of a material's scene key (MaterialModel::example).
+struct ParameterValue {
+  std::string_view key;
+  double value = 0.0;
+};
+
 /// One material model as the scene names it (`model`) with its parameters,
 /// internal variables and constructors.
 struct MaterialModel {
@@ -142,6 +148,11 @@ struct MaterialModel {
   MaterialFactory<1> make1 = nullptr;
   MaterialFactory<2> make2 = nullptr;
   MaterialFactory<3> make3 = nullptr;
+  /// A valid material of the model, by scene key (density, young, poisson
+  /// and its own parameters): the material the contract tests run every
+  /// model with (tests/test_contracts.cpp). A model with required
+  /// parameters must give one.
+  std::span<const ParameterValue> example{};
 };
 
 /// Every model, in the order the docs list them.

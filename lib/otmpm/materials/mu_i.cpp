@@ -140,9 +140,19 @@ template <int D> std::unique_ptr<Material<D>> make_mu_i(const MaterialParameters
 } // namespace
 
 const MaterialModel& mu_i_model() {
+  // The glass beads of examples/column_collapse_mu_i.toml.
+  static const std::array<ParameterValue, 9> example{{{"density", 1590.0},
+                                                      {"young", 10.0e6},
+                                                      {"poisson", 0.3},
+                                                      {"mu_s", 0.6},
+                                                      {"mu_2", 0.86},
+                                                      {"I_0", 0.279},
+                                                      {"grain_diameter", 0.5e-3},
+                                                      {"grain_density", 2650.0},
+                                                      {"critical_packing", 0.6}}};
   static const MaterialModel m{"mu_i",
                                "dense granular flow, mu(I) rheology, stress-free below the critical packing, finite strain",
-                               kParameters, kModelState<MuIModel>, make_mu_i<1>, make_mu_i<2>, make_mu_i<3>};
+                               kParameters, kModelState<MuIModel>, make_mu_i<1>, make_mu_i<2>, make_mu_i<3>, example};
   return m;
 }
 

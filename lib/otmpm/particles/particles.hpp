@@ -28,7 +28,8 @@ struct StateField {
 /// OTM velocity), `F` the deformation gradient (finite-strain models, `ul`
 /// mode, or asked for as output), `a` the acceleration (NPC). Optional
 /// fields are empty when the run does not use them; the assembler allocates
-/// what the scene's integrator, materials and output need. The per-point
+/// what the scene's materials and output need, the engine what the
+/// integrator keeps (StepNeeds) and what the materials read. The per-point
 /// state of the basis (LME multipliers, cell hints) lives in the basis.
 template <int D> struct Particles {
   AlignedVector<Vec<D>> x, X, v, a, x_prev;
