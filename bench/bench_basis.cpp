@@ -54,9 +54,9 @@ int main(int argc, char** argv) {
   auto add = [&](const std::string& label, const std::string& kind, double gamma = 4.0, double d_max = 2.0) {
     Case c{label, {}};
     c.opt.kind = kind;
-    c.opt.gamma_lme = gamma;
-    c.opt.d_max = d_max;
-    for (double& w : c.opt.ugimp_half_width) w = h / 4;
+    c.opt.values["gamma_lme"] = gamma;
+    c.opt.values["d_max"] = d_max;
+    for (double& w : c.opt.particle_half_width) w = h / 4;
     cases.push_back(c);
   };
   add("linear", "linear");

@@ -4,10 +4,12 @@
 #include "cli.hpp"
 
 #include "otmpm/basis/basis.hpp"
+#include "otmpm/basis/kinds.hpp"
 #include "otmpm/io/output_files.hpp"
 #include "otmpm/scene/resources.hpp"
 #include "otmpm/scene/scene.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -46,11 +48,20 @@ CLI::Option* add_int_option(CLI::App& sub, const std::string& name, int& target,
       ->default_str(std::to_string(target));
 }
 
+/// The command-line flag of a basis parameter: "--gamma-lme" for gamma_lme.
+std::string flag_of(std::string_view key) {
+  std::string flag = "--" + std::string(key);
+  std::replace(flag.begin(), flag.end(), '_', '-');
+  return flag;
+}
+
 void check(const BasisArgs& a) {
   if (const std::string kind = special_file(a.out); !kind.empty())
     throw InputError("--out " + a.out + " is " + kind + ", not a CSV file");
   if (!(a.lower < a.upper)) throw InputError("need --lower < --upper");
-  if (!(a.opt.gamma_lme > 0)) throw InputError("--gamma-lme must be > 0");
+  for (const auto& [key, value] : a.opt.values) // every family's, as the scene reader checks them
+    if (const std::string why = find_basis_parameter(key)->check(value); !why.empty())
+      throw InputError(flag_of(key) + ": " + why);
   check_node_count(std::pow(a.cells + 1.0, a.dim),
                    "--cells " + std::to_string(a.cells) + " in " + std::to_string(a.dim) + "D");
 }
@@ -63,7 +74,7 @@ template <int D> int evaluate(BasisArgs a) {
   grid.validate();
   const double h = (a.upper - a.lower) / a.cells;
   // uGIMP half-width: --ppc gives 1/(2 ppc) in cells; default 2 particles per cell.
-  for (double& w : a.opt.ugimp_half_width) w = (a.ppc > 0 ? 0.5 / a.ppc : 0.25) * h;
+  for (double& w : a.opt.particle_half_width) w = (a.ppc > 0 ? 0.5 / a.ppc : 0.25) * h;
   NodeSet<D> nodes = a.perturb != 0.0 ? NodeSet<D>::perturbed(grid, a.perturb, static_cast<unsigned>(a.seed))
                                    : NodeSet<D>::cartesian(grid);
   const auto basis = make_basis<D>(a.opt, std::move(nodes));
@@ -115,9 +126,9 @@ Command add_basis_command(CLI::App& app) {
   auto a = std::make_shared<BasisArgs>();
   CLI::App* sub = app.add_subcommand(
       "basis", "Evaluate a basis family on a Cartesian node layout and write N and grad N at sample points as CSV");
-  sub->add_option("--kind", a->opt.kind, "Basis family")
-      ->check(CLI::IsMember({"linear", "ugimp", "bspline2", "bspline3", "lme", "maxent"}))
-      ->capture_default_str();
+  std::vector<std::string> kinds;
+  for (const BasisKind& k : basis_kinds()) kinds.emplace_back(k.name);
+  sub->add_option("--kind", a->opt.kind, "Basis family")->check(CLI::IsMember(kinds))->capture_default_str();
   add_int_option(*sub, "--dim", a->dim, "Dimension; in 2D/3D the samples run along x at the centre of the other axes")
       ->check(CLI::Range(1, 3));
   sub->add_option("--lower", a->lower, "Lower end of the box, the same on every axis")->capture_default_str();
@@ -127,11 +138,12 @@ Command add_basis_command(CLI::App& app) {
       ->type_name("F")
       ->capture_default_str();
   add_int_option(*sub, "--seed", a->seed, "Random seed of --perturb")->check(CLI::NonNegativeNumber);
-  sub->add_option("--gamma-lme", a->opt.gamma_lme, "LME gamma: beta = G / h^2")->type_name("G")->capture_default_str();
-  sub->add_option("--tolerance", a->opt.tolerance, "LME support cut-off exp(-beta r^2) >= T")
-      ->type_name("T")
-      ->capture_default_str();
-  sub->add_option("--d-max", a->opt.d_max, "max-ent support radius in units of h")->capture_default_str();
+  for (const ParameterSpec* p : basis_parameters()) // the families' parameters, as [basis] in a scene
+    sub->add_option_function<double>(
+           flag_of(p->key), [a, key = std::string(p->key)](const double& v) { a->opt.values[key] = v; },
+           std::string(p->description))
+        ->type_name(p->integer ? "INT" : "X")
+        ->default_str(format_number(p->fallback.value_or(0.0)));
   sub->add_option("--ppc", a->ppc, "uGIMP particles per cell (half-width h / (2 P)); default 2")
       ->type_name("P")
       ->check(CLI::PositiveNumber);

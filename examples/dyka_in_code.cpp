@@ -56,7 +56,7 @@ int main(int argc, char** argv) {
   grid.cells = {ul ? n : n + 2};
   BasisOptions basis;
   basis.kind = "lme";
-  basis.gamma_lme = 4.0;
+  basis.values["gamma_lme"] = 4.0;
   parts.basis = make_basis<1>(basis, NodeSet<1>::cartesian(grid));
   parts.mode = ul ? NodeMode<1>::advected() : NodeMode<1>::fixed_grid(grid.lower, grid.upper);
 

@@ -219,24 +219,24 @@ TEST_CASE("make_basis: LME and max-ent options out of range name the option") {
     return [opt, &nodes] { make_basis<2>(opt, nodes); };
   };
   CHECK_NOTHROW(lme([](BasisOptions&) {})());
-  expect_error<InputError>(lme([](BasisOptions& o) { o.gamma_lme = 0.0; }), {"gamma_lme", "got 0"});
-  expect_error<InputError>(lme([](BasisOptions& o) { o.gamma_lme = kNaN; }), {"gamma_lme", "nan"});
-  expect_error<InputError>(lme([](BasisOptions& o) { o.gamma_lme = 1e308; }), {"support radius"});
-  expect_error<InputError>(lme([](BasisOptions& o) { o.tolerance = 1.0; }), {"tolerance", "(0, 1)"});
-  expect_error<InputError>(lme([](BasisOptions& o) { o.newton_tolerance = -1.0; }), {"newton_tolerance"});
-  expect_error<InputError>(lme([](BasisOptions& o) { o.max_newton_iterations = 0; }), {"max_newton_iterations"});
+  expect_error<InputError>(lme([](BasisOptions& o) { o.values["gamma_lme"] = 0.0; }), {"gamma_lme", "got 0"});
+  expect_error<InputError>(lme([](BasisOptions& o) { o.values["gamma_lme"] = kNaN; }), {"gamma_lme", "nan"});
+  expect_error<InputError>(lme([](BasisOptions& o) { o.values["gamma_lme"] = 1e308; }), {"support radius"});
+  expect_error<InputError>(lme([](BasisOptions& o) { o.values["tolerance"] = 1.0; }), {"tolerance", "(0, 1)"});
+  expect_error<InputError>(lme([](BasisOptions& o) { o.values["newton_tolerance"] = -1.0; }), {"newton_tolerance"});
+  expect_error<InputError>(lme([](BasisOptions& o) { o.values["max_newton_iterations"] = 0; }), {"max_newton_iterations"});
   BasisOptions maxent;
   maxent.kind = "maxent";
-  maxent.d_max = kInf;
+  maxent.values["d_max"] = kInf;
   expect_error<InputError>([&] { make_basis<2>(maxent, nodes); }, {"d_max", "inf"});
 }
 
 TEST_CASE("make_basis: a uGIMP half-width that is not in (0, h/2) or h/2 names the axis") {
   BasisOptions opt;
   opt.kind = "ugimp";
-  opt.ugimp_half_width[0] = opt.ugimp_half_width[1] = 0.0625;
+  opt.particle_half_width[0] = opt.particle_half_width[1] = 0.0625;
   CHECK_NOTHROW(make_basis<2>(opt, NodeSet<2>::cartesian(unit_grid<2>(4))));
-  opt.ugimp_half_width[1] = kNaN;
+  opt.particle_half_width[1] = kNaN;
   expect_error<InputError>([&] { make_basis<2>(opt, NodeSet<2>::cartesian(unit_grid<2>(4))); },
                            {"half-width on axis 1"});
 }
@@ -244,7 +244,7 @@ TEST_CASE("make_basis: a uGIMP half-width that is not in (0, h/2) or h/2 names t
 TEST_CASE("Basis::evaluate: a non-finite point is a BasisError naming the family and the point, in every family") {
   const CartesianGrid<2> g = unit_grid<2>(4);
   BasisOptions opt;
-  opt.ugimp_half_width[0] = opt.ugimp_half_width[1] = 0.0625;
+  opt.particle_half_width[0] = opt.particle_half_width[1] = 0.0625;
   for (const char* kind : {"linear", "ugimp", "bspline2", "bspline3", "lme", "maxent", "linear-perturbed"}) {
     CAPTURE(kind);
     const bool perturbed = std::string(kind) == "linear-perturbed";
@@ -570,11 +570,15 @@ TEST_CASE("Engine: a body outside the grid in mpm mode is an input error, not a 
   expect_scene_error(s, "body.bar", {"not inside the grid"});
 }
 
-TEST_CASE("Engine: basis options of a Scene built in code are reported at key 'basis'") {
+TEST_CASE("Engine: basis options of a Scene built in code are reported at their key, checked against their row") {
   Scene s = code_scene();
   s.basis.kind = "lme";
-  s.basis.gamma_lme = -1.0;
-  expect_scene_error(s, "basis", {"gamma_lme", "got -1"});
+  s.basis.values["gamma_lme"] = -1.0;
+  expect_scene_error(s, "basis.gamma_lme", {"must be > 0", "got -1"});
+  s.basis.values = {{"max_newton_iterations", 2.5}};
+  expect_scene_error(s, "basis.max_newton_iterations", {"whole number", "got 2.5"});
+  s.basis.values = {{"gamma", 3.0}};
+  expect_scene_error(s, "basis.gamma", {"unknown key"});
 }
 
 TEST_CASE("validate_scene: the dimension argument must be 1, 2 or 3") {

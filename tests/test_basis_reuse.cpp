@@ -26,8 +26,8 @@ namespace {
 BasisOptions options(const std::string& kind) {
   BasisOptions opt;
   opt.kind = kind;
-  opt.gamma_lme = 3.0;
-  opt.d_max = 2.0;
+  opt.values["gamma_lme"] = 3.0;
+  opt.values["d_max"] = 2.0;
   return opt;
 }
 

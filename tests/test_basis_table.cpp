@@ -35,8 +35,8 @@ AlignedVector<Vec<2>> random_points(int n, unsigned seed) {
 std::unique_ptr<Basis<2>> basis(const std::string& kind, NodeSet<2> nodes) {
   BasisOptions opt;
   opt.kind = kind;
-  opt.ugimp_half_width[0] = 0.25 * test_grid().h()[0];
-  opt.ugimp_half_width[1] = 0.25 * test_grid().h()[1];
+  opt.particle_half_width[0] = 0.25 * test_grid().h()[0];
+  opt.particle_half_width[1] = 0.25 * test_grid().h()[1];
   return make_basis<2>(opt, std::move(nodes));
 }
 

@@ -35,6 +35,7 @@
 #include <cmath>
 #include <cstring>
 #include <functional>
+#include <initializer_list>
 #include <map>
 #include <sstream>
 #include <string>
@@ -53,6 +54,13 @@ std::string num(double x) {
   s.precision(17);
   s << x;
   return s.str();
+}
+
+/// The violations of every part, in order.
+Violations concatenated(std::initializer_list<Violations> parts) {
+  Violations v;
+  for (const Violations& part : parts) v.insert(v.end(), part.begin(), part.end());
+  return v;
 }
 
 std::string joined(const Violations& v) {
@@ -132,7 +140,7 @@ template <int D> BasisOptions options_for(const BasisKind& k, const Vec<D>& h) {
   BasisOptions opt;
   opt.kind = std::string(k.name);
   if (k.particle_size)
-    for (int a = 0; a < D; ++a) opt.ugimp_half_width[a] = h[a] / 4.0;
+    for (int a = 0; a < D; ++a) opt.particle_half_width[a] = h[a] / 4.0;
   return opt;
 }
 
@@ -234,11 +242,8 @@ Violations basis_run(const BasisKind& k) {
 }
 
 Violations basis_contract(const BasisKind& k) {
-  Violations v;
-  for (const Violations& part : {basis_identities<1>(k), basis_identities<2>(k), basis_identities<3>(k),
-                                 basis_table_threads(k), basis_run(k)})
-    v.insert(v.end(), part.begin(), part.end());
-  return v;
+  return concatenated({basis_identities<1>(k), basis_identities<2>(k), basis_identities<3>(k), basis_table_threads(k),
+                 basis_run(k)});
 }
 
 // ---------------------------------------------------------------- integrators
@@ -313,12 +318,7 @@ Violations integrator_energy(const IntegratorKind& k) {
   return v;
 }
 
-Violations integrator_contract(const IntegratorKind& k) {
-  Violations v = integrator_run(k);
-  const Violations e = integrator_energy(k);
-  v.insert(v.end(), e.begin(), e.end());
-  return v;
-}
+Violations integrator_contract(const IntegratorKind& k) { return concatenated({integrator_run(k), integrator_energy(k)}); }
 
 // ---------------------------------------------------------------- material models
 
@@ -404,12 +404,7 @@ Violations material_energy(const MaterialModel& m) {
   return v;
 }
 
-Violations material_contract(const MaterialModel& m) {
-  Violations v = material_run(m);
-  const Violations e = material_energy(m);
-  v.insert(v.end(), e.begin(), e.end());
-  return v;
-}
+Violations material_contract(const MaterialModel& m) { return concatenated({material_run(m), material_energy(m)}); }
 
 // ---------------------------------------------------------------- test-only rows
 
@@ -504,10 +499,7 @@ TEST_CASE("contract: rows that are not in the tables are taken as they are; a br
                           .make1 = make_shepard<1>,
                           .make2 = make_shepard<2>,
                           .make3 = make_shepard<3>};
-  Violations v;
-  for (const Violations& part : {basis_identities<1>(shepard), basis_identities<2>(shepard)})
-    v.insert(v.end(), part.begin(), part.end());
-  const std::string found = joined(v);
+  const std::string found = joined(concatenated({basis_identities<1>(shepard), basis_identities<2>(shepard)}));
   CHECK(found.find("shepard_test 2D: claims linear completeness, |sum N_I x_I - x| / h") != std::string::npos);
   CHECK(found.find("shepard_test 2D: mean stencil") != std::string::npos);
   CHECK(found.find("sum N_I - 1") == std::string::npos); // what it gets right is not reported

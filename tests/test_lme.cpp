@@ -67,7 +67,7 @@ template <int D> void require_identities(const Basis<D>& basis, const AlignedVec
 BasisOptions lme_options(double gamma = 4.0) {
   BasisOptions opt;
   opt.kind = "lme";
-  opt.gamma_lme = gamma;
+  opt.values["gamma_lme"] = gamma;
   return opt;
 }
 
@@ -78,7 +78,7 @@ template <int D> void identities_on(const NodeSet<D>& nodes, unsigned seed) {
 
 template <int D> void fd_on(const NodeSet<D>& nodes, unsigned seed) {
   BasisOptions opt = lme_options();
-  opt.newton_tolerance = 1e-14;
+  opt.values["newton_tolerance"] = 1e-14;
   const auto basis = make_lme_basis<D>(nodes, opt);
   const double err = max_fd_gradient_error<D>(*basis, seed, kFdStep);
   INFO("layout " << int(nodes.layout()) << ", D = " << D);
@@ -95,13 +95,13 @@ TEST_CASE("lme: kind, linear completeness flag and option checks") {
   BasisOptions bad = lme_options(0.0);
   CHECK_THROWS_AS(make_lme_basis<2>(nodes, bad), InputError);
   bad = lme_options();
-  bad.tolerance = 1.0;
+  bad.values["tolerance"] = 1.0;
   CHECK_THROWS_AS(make_lme_basis<2>(nodes, bad), InputError);
   bad = lme_options();
-  bad.newton_tolerance = 0.0;
+  bad.values["newton_tolerance"] = 0.0;
   CHECK_THROWS_AS(make_lme_basis<2>(nodes, bad), InputError);
   bad = lme_options();
-  bad.max_newton_iterations = 0;
+  bad.values["max_newton_iterations"] = 0;
   CHECK_THROWS_AS(make_lme_basis<2>(nodes, bad), InputError);
 }
 
@@ -148,7 +148,7 @@ TEST_CASE("lme: identities for small and large gamma_lme") {
   for (double gamma : {0.8, 10.0}) {
     CAPTURE(gamma);
     BasisOptions opt = lme_options(gamma);
-    opt.tolerance = gamma > 4 ? 1e-12 : 1e-6;
+    opt.values["tolerance"] = gamma > 4 ? 1e-12 : 1e-6;
     require_identities<2>(*make_lme_basis<2>(nodes, opt), unit_box_points<2>(nodes, 30, 41));
   }
 }
@@ -203,7 +203,7 @@ TEST_CASE("lme: tends to the linear hat functions in 1D as gamma_lme grows") {
   double previous = 1.0;
   for (double gamma : {2.0, 4.0, 8.0, 16.0, 32.0}) {
     BasisOptions opt = lme_options(gamma);
-    opt.tolerance = 1e-100;
+    opt.values["tolerance"] = 1e-100;
     const auto b = make_lme_basis<1>(nodes, opt);
     double err = 0;
     std::vector<double> N;
@@ -230,7 +230,7 @@ TEST_CASE("lme: tends to the bilinear hat functions on 2D cell edges as gamma_lm
   double previous = 1.0;
   for (double gamma : {2.0, 4.0, 8.0, 16.0, 24.0}) {
     BasisOptions opt = lme_options(gamma);
-    opt.tolerance = 1e-100;
+    opt.values["tolerance"] = 1e-100;
     const auto b = make_lme_basis<2>(nodes, opt);
     double err = 0;
     std::vector<double> N;
@@ -258,7 +258,7 @@ TEST_CASE("lme: support radius R = h sqrt(-ln tol / gamma_lme)") {
   for (double gamma : {0.8, 4.0}) {
     for (double tol : {1e-6, 1e-9}) {
       BasisOptions opt = lme_options(gamma);
-      opt.tolerance = tol;
+      opt.values["tolerance"] = tol;
       const auto nodes = NodeSet<2>::perturbed(unit_grid<2>(8), 0.25, 9);
       const auto b = make_lme_basis<2>(nodes, opt);
       const double h = nodes.spacing();

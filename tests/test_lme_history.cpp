@@ -47,8 +47,8 @@ namespace {
 BasisOptions options(const std::string& kind, double newton_tolerance = 1e-14) {
   BasisOptions opt;
   opt.kind = kind;
-  opt.gamma_lme = 3.0;
-  opt.newton_tolerance = newton_tolerance;
+  opt.values["gamma_lme"] = 3.0;
+  opt.values["newton_tolerance"] = newton_tolerance;
   return opt;
 }
 

@@ -46,8 +46,8 @@ namespace {
 BasisOptions lme_options(double gamma = 3.0) {
   BasisOptions opt;
   opt.kind = "lme";
-  opt.gamma_lme = gamma;
-  opt.newton_tolerance = 1e-14;
+  opt.values["gamma_lme"] = gamma;
+  opt.values["newton_tolerance"] = 1e-14;
   return opt;
 }
 
@@ -59,11 +59,11 @@ template <int D> struct LatticeSetup {
   NewtonSettings set;
   LatticeSetup(const NodeSet<D>& nodes, const BasisOptions& opt) {
     const double h = nodes.spacing();
-    prior.beta = opt.gamma_lme / (h * h);
-    prior.max_exponent = -std::log(opt.tolerance);
+    prior.beta = opt.value("gamma_lme") / (h * h);
+    prior.max_exponent = -std::log(opt.value("tolerance"));
     set.h = h;
-    set.residual_tolerance = opt.newton_tolerance * h;
-    set.max_iterations = opt.max_newton_iterations;
+    set.residual_tolerance = opt.value("newton_tolerance") * h;
+    set.max_iterations = opt.value("max_newton_iterations");
     set.support_radius = prior.support_radius();
     axes = LatticeAxes<D>::from(nodes, prior.beta);
   }

@@ -39,7 +39,7 @@ constexpr double kFdTol = 2e-8;  // times 1/h
 BasisOptions lme_options(const std::string& metric, double gamma = 4.0) {
   BasisOptions opt;
   opt.kind = "lme";
-  opt.gamma_lme = gamma;
+  opt.values["gamma_lme"] = gamma;
   opt.metric = metric;
   return opt;
 }
@@ -166,7 +166,7 @@ TEST_CASE("lme metric deformation: partition of unity and linear completeness wi
 
 TEST_CASE("lme metric deformation: gradients agree with central differences") {
   BasisOptions opt = lme_options("deformation");
-  opt.newton_tolerance = 1e-14;
+  opt.values["newton_tolerance"] = 1e-14;
   const auto b2 = make_lme_basis<2>(NodeSet<2>::perturbed(unit_grid<2>(10), 0.3, 7), opt);
   const auto b3 = make_lme_basis<3>(NodeSet<3>::cartesian(unit_grid<3>(6)), opt);
   double err2 = 0, err3 = 0;
@@ -183,14 +183,14 @@ TEST_CASE("lme metric deformation: the support is the ellipse dx^T beta M_p dx <
   const BasisOptions opt = lme_options("deformation");
   const auto b = make_lme_basis<2>(nodes, opt);
   const Mat<2> F = Vec<2>(2.0, 1.0).asDiagonal();
-  const Mat<2> B = opt.gamma_lme / (nodes.spacing() * nodes.spacing()) * metric_of<2>(F);
+  const Mat<2> B = opt.value("gamma_lme") / (nodes.spacing() * nodes.spacing()) * metric_of<2>(F);
   const Vec<2> x(0.512, 0.487);
   Stencil<2> st;
   evaluate_with<2>(*b, x, &F, st);
   std::vector<int> expected;
   for (int I = 0; I < nodes.size(); ++I) {
     const Vec<2> d = x - nodes.position(I);
-    if (d.dot(B * d) <= -std::log(opt.tolerance)) expected.push_back(I);
+    if (d.dot(B * d) <= -std::log(opt.value("tolerance"))) expected.push_back(I);
   }
   std::vector<int> got(st.node.begin(), st.node.end());
   std::sort(got.begin(), got.end());
@@ -200,7 +200,7 @@ TEST_CASE("lme metric deformation: the support is the ellipse dx^T beta M_p dx <
     reach_x = std::max(reach_x, std::abs(nodes.position(I)[0] - x[0]));
     reach_y = std::max(reach_y, std::abs(nodes.position(I)[1] - x[1]));
   }
-  const double R = nodes.spacing() * std::sqrt(-std::log(opt.tolerance) / opt.gamma_lme);
+  const double R = nodes.spacing() * std::sqrt(-std::log(opt.value("tolerance")) / opt.value("gamma_lme"));
   CHECK(reach_x > R);                  // beyond the isotropic radius along the stretch
   CHECK(reach_y <= R / std::sqrt(2.0)); // within R / sqrt(2) across it
 }
@@ -261,8 +261,8 @@ TEST_CASE("lme metric node_spacing: beta_I = gamma_lme / h_I^2 with h_I the near
   double R_max = 0;
   for (int I = 0; I < nodes.size(); ++I) {
     const double hI = nearest<2>(nodes, I);
-    CHECK(lme->node_beta()[I] == doctest::Approx(opt.gamma_lme / (hI * hI)).epsilon(1e-14));
-    R_max = std::max(R_max, hI * std::sqrt(-std::log(opt.tolerance) / opt.gamma_lme));
+    CHECK(lme->node_beta()[I] == doctest::Approx(opt.value("gamma_lme") / (hI * hI)).epsilon(1e-14));
+    R_max = std::max(R_max, hI * std::sqrt(-std::log(opt.value("tolerance")) / opt.value("gamma_lme")));
   }
   CHECK(b->search_radius() >= R_max);
 }
@@ -304,7 +304,7 @@ TEST_CASE("lme metric node_spacing: identities and gradients on perturbed grids"
       check_identities<3>(*make_lme_basis<3>(p3, lme_options("node_spacing", 2.0)), unit_box_points<3>(p3, 30, 36));
   test::require_identities<3>(id3, id3.worst_point, kIdentityTol);
   BasisOptions opt = lme_options("node_spacing", 2.0);
-  opt.newton_tolerance = 1e-14;
+  opt.values["newton_tolerance"] = 1e-14;
   CHECK(max_fd_gradient_error<2>(*make_lme_basis<2>(p2, opt), 37, kFdStep) <= kFdTol);
   CHECK(max_fd_gradient_error<3>(*make_lme_basis<3>(p3, opt), 38, kFdStep) <= kFdTol);
 }

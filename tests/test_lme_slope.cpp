@@ -40,9 +40,9 @@ namespace {
 BasisOptions options(const std::string& kind, const std::string& metric = "isotropic") {
   BasisOptions opt;
   opt.kind = kind;
-  opt.gamma_lme = 3.0;
+  opt.values["gamma_lme"] = 3.0;
   opt.metric = metric;
-  opt.newton_tolerance = 1e-14;
+  opt.values["newton_tolerance"] = 1e-14;
   return opt;
 }
 
@@ -266,7 +266,7 @@ TEST_CASE("lme slope: the second-order term only along the last displacement, |a
 
 TEST_CASE("lme slope: steady motion converges in fewer Newton steps, to the same N") {
   BasisOptions opt = options("lme");
-  opt.newton_tolerance = 1e-12; // the default
+  opt.values["newton_tolerance"] = 1e-12; // the default
   const auto b = make_basis<2>(opt, NodeSet<2>::perturbed(unit_grid<2>(8), 0.3, 31));
   const double h = b->nodes().spacing();
   int with_total = 0, without_total = 0;

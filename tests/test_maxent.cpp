@@ -43,7 +43,7 @@ constexpr IdentityTolerances kIdentityTol{kPartitionTol, kGradientSumTol, kCompl
 BasisOptions maxent_options(double d_max = 2.0) {
   BasisOptions opt;
   opt.kind = "maxent";
-  opt.d_max = d_max;
+  opt.values["d_max"] = d_max;
   return opt;
 }
 
@@ -60,7 +60,7 @@ template <int D> void identities_on(const NodeSet<D>& nodes, unsigned seed, doub
 
 template <int D> void fd_on(const NodeSet<D>& nodes, unsigned seed) {
   BasisOptions opt = maxent_options();
-  opt.newton_tolerance = 1e-14;
+  opt.values["newton_tolerance"] = 1e-14;
   const auto basis = make_maxent_basis<D>(nodes, opt);
   const double err = max_fd_gradient_error<D>(*basis, seed, kFdStep);
   INFO("layout " << int(nodes.layout()) << ", D = " << D);

@@ -139,7 +139,7 @@ TEST_CASE(
     "neighbour lists: LME basis tables with and without lists are identical while particles and nodes move") {
   BasisOptions opt;
   opt.kind = "lme";
-  opt.gamma_lme = 3.0;
+  opt.values["gamma_lme"] = 3.0;
   auto basis = make_basis<2>(opt, NodeSet<2>::cartesian(unit_grid<2>(12)));
   AlignedVector<Vec<2>> x = inner_points<2>(300, 8);
   AlignedVector<Vec<2>> lambda_a(x.size(), Vec<2>::Zero()), lambda_b = lambda_a;

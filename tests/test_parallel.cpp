@@ -60,7 +60,7 @@ AlignedVector<Vec<2>> points_inside(int n, unsigned seed) {
 std::unique_ptr<Basis<2>> lme_basis() {
   BasisOptions opt;
   opt.kind = "lme";
-  opt.gamma_lme = 3.0;
+  opt.values["gamma_lme"] = 3.0;
   return make_basis<2>(opt, NodeSet<2>::cartesian(grid()));
 }
 

@@ -79,7 +79,7 @@ TEST_CASE("the minimal good scene has the values written in it") {
   CHECK(s.simulation.cfl == 0.1);
   CHECK_FALSE(s.simulation.dt.has_value());
   CHECK(s.basis.kind == "lme");
-  CHECK(s.basis.gamma_lme == 4.0);
+  CHECK(s.basis.value("gamma_lme") == 4.0);
   CHECK(s.grid.lower[0] == -0.0067);
   CHECK(s.grid.upper[0] == 0.1333);
   CHECK(s.grid.cells[0] == 40);
@@ -124,7 +124,7 @@ TEST_CASE("--set overrides scalars, arrays of tables by name and bare-word strin
   CHECK(s.bodies[0].velocity[0] == 1.5);
   CHECK(s.simulation.mode == "ul");
   CHECK(s.simulation.integrator == "otm");
-  CHECK(s.basis.gamma_lme == 2.0);
+  CHECK(s.basis.value("gamma_lme") == 2.0);
   CHECK(s.locate("material.steel.young").describe() == "--set material.steel.young");
 }
 
@@ -165,7 +165,7 @@ TEST_CASE("uGIMP gets the particle half-width h / (2 ppc)") {
   const double h = (0.1333 - -0.0067) / 40;
   BasisOptions opt;
   opt.kind = "ugimp";
-  opt.ugimp_half_width[0] = h / 4;
+  opt.particle_half_width[0] = h / 4;
   const auto by_hand = make_basis<1>(opt, e.basis().nodes());
   for (double x : {0.0012, 0.05, 0.1201}) {
     Stencil<1> a, b;

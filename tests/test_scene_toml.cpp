@@ -6,6 +6,7 @@
 #include "otmpm/run/run.hpp"
 #include "otmpm/io/results.hpp"
 #include "otmpm/scene/scene.hpp"
+#include "otmpm/basis/kinds.hpp"
 
 #include "temp_dir.hpp"
 
@@ -55,13 +56,9 @@ void check_same(const Scene& a, const Scene& b) {
   CHECK(s.memory_limit == t.memory_limit);
   CHECK(a.output.formats == b.output.formats);
   CHECK(a.basis.kind == b.basis.kind);
-  CHECK(a.basis.gamma_lme == b.basis.gamma_lme);
-  CHECK(a.basis.tolerance == b.basis.tolerance);
-  CHECK(a.basis.newton_tolerance == b.basis.newton_tolerance);
-  CHECK(a.basis.max_newton_iterations == b.basis.max_newton_iterations);
-  CHECK(a.basis.d_max == b.basis.d_max);
+  for (const ParameterSpec* p : basis_parameters()) CHECK(a.basis.value(*p) == b.basis.value(*p));
   CHECK(a.basis.metric == b.basis.metric);
-  CHECK(std::equal(a.basis.ugimp_half_width, a.basis.ugimp_half_width + 3, b.basis.ugimp_half_width));
+  CHECK(a.basis.particle_half_width == b.basis.particle_half_width);
   CHECK(a.grid.kind == b.grid.kind);
   CHECK(a.grid.lower == b.grid.lower);
   CHECK(a.grid.upper == b.grid.upper);

@@ -326,7 +326,7 @@ TEST_CASE("lme: a point outside the hull of its cut-off support is carried by a 
   x.push_back(Vec<2>(0.5, 0.25));
   BasisOptions opt;
   opt.kind = "lme";
-  opt.gamma_lme = 4.0;
+  opt.values["gamma_lme"] = 4.0;
   auto basis = make_basis<2>(opt, NodeSet<2>::cloud(x, 0.1));
   PointQuery<2> q;
   q.x = Vec<2>(0.5, 0.02);

@@ -20,7 +20,7 @@ int main() {
   grid.cells = {10, 10};
   otmpm::BasisOptions opt;
   opt.kind = "lme";
-  opt.gamma_lme = 3.0;
+  opt.values["gamma_lme"] = 3.0;
   auto basis = otmpm::make_basis<2>(opt, otmpm::NodeSet<2>::cartesian(grid));
   otmpm::PointQuery<2> q;
   q.x = otmpm::Vec<2>(0.437, 0.618);

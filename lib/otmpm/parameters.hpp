@@ -14,7 +14,8 @@ namespace otmpm {
 inline constexpr double kUnbounded = 1e300;
 
 /// One parameter: `fallback` is the default (nullopt: required); the value
-/// must be finite and lie in [lower, upper] (an open end excludes its bound).
+/// must be finite and lie in [lower, upper] (an open end excludes its bound),
+/// and be a whole number when `integer` (a count).
 /// The one range check of every number that enters a run by a scene key
 /// or a particle file's column of the same quantity.
 struct ParameterSpec {
@@ -25,8 +26,10 @@ struct ParameterSpec {
   bool lower_open = false;        ///< lower itself excluded
   double upper = kUnbounded;      ///< largest allowed value (kUnbounded: none)
   bool upper_open = false;
+  bool integer = false;           ///< a count: whole numbers only
   /// "" when `value` is allowed, else the reason: "must be >= 0 (got -1)",
-  /// "must be in (-1, 0.5) (got 0.5)" when both ends bound it.
+  /// "must be in (-1, 0.5) (got 0.5)" when both ends bound it, "must be a
+  /// whole number (got 2.5)".
   std::string check(double value) const;
 };
 

@@ -14,7 +14,9 @@ import numpy as np
 from . import _otmpm
 
 #: The basis families (basis.kind of a scene).
-KINDS = ("linear", "ugimp", "bspline2", "bspline3", "lme", "maxent")
+KINDS = tuple(_otmpm.basis_kinds())
+#: The parameters of every family (the scene's [basis] keys), key -> default.
+PARAMETERS = {row["key"]: row["default"] for row in _otmpm.basis_parameters()}
 
 #: Largest cell count per axis and Newton iteration count (C++ ints).
 _MAX_INT = 2**31 - 1
@@ -66,29 +68,29 @@ class Grid:
 class Basis:
     """A basis family on nodes.
 
-    Basis(kind, nodes, h=None, gamma_lme=4.0, tolerance=1e-6, newton_tolerance=1e-12,
-          max_newton_iterations=100, d_max=2.0, ppc=2)
+    Basis(kind, nodes, h=None, *, ppc=2, **options)
 
     nodes: a Grid, or an (m, D) array of node positions (a cloud: lme and
-    maxent only; h, the nodal spacing, is then required). Options as the
-    scene's [basis]: gamma_lme (LME: beta = gamma_lme / h^2), tolerance (LME
-    support cut-off), newton_tolerance, max_newton_iterations, d_max
-    (maxent support radius in h); ppc: uGIMP particles per cell (half-width
-    h / (2 ppc)). Bad options raise otmpm.InputError.
+    maxent only; h, the nodal spacing, is then required). options: the
+    scene's [basis] keys of the families (PARAMETERS: key -> default), e.g.
+    gamma_lme (LME: beta = gamma_lme / h^2), tolerance (LME support cut-off),
+    newton_tolerance, max_newton_iterations, d_max (maxent support radius in
+    h); ppc: uGIMP particles per cell (half-width h / (2 ppc)). Bad values
+    raise otmpm.InputError, unknown keys TypeError.
 
     Attributes: kind, dimension, nodes ((m, D) positions of the nodes the
     functions belong to: the grid vertices, or the control points at the
     Greville abscissae for B-splines), spacing (h), linearly_complete.
     """
 
-    def __init__(self, kind, nodes, h=None, *, gamma_lme=4.0, tolerance=1e-6, newton_tolerance=1e-12,
-                 max_newton_iterations=100, d_max=2.0, ppc=2.0):
+    def __init__(self, kind, nodes, h=None, *, ppc=2.0, **options):
         if not isinstance(kind, str):
             raise _bad(f"Basis: kind must be one of {', '.join(KINDS)}", kind)
-        options = dict(gamma_lme=_number("gamma_lme", gamma_lme), tolerance=_number("tolerance", tolerance),
-                       newton_tolerance=_number("newton_tolerance", newton_tolerance),
-                       max_newton_iterations=_whole("max_newton_iterations", max_newton_iterations, 1, _MAX_INT),
-                       d_max=_number("d_max", d_max), ppc=_number("ppc", ppc))
+        for key in options:
+            if key not in PARAMETERS:
+                raise TypeError(f"Basis() got an unexpected keyword argument '{key}' "
+                                f"(the basis options are {', '.join(PARAMETERS)})")
+        options = dict(options={key: _number(key, value) for key, value in options.items()}, ppc=_number("ppc", ppc))
         if isinstance(nodes, Grid):
             cells = [_whole("Grid.cells", c, 1, _MAX_INT) for c in np.atleast_1d(np.asarray(nodes.cells, dtype=object))]
             perturbation = _number("Grid.perturbation", nodes.perturbation)

@@ -5,6 +5,7 @@
 #include "bindings.hpp"
 
 #include "otmpm/basis/basis.hpp"
+#include "otmpm/basis/kinds.hpp"
 #include "otmpm/scene/resources.hpp"
 
 #include <pybind11/numpy.h>
@@ -90,15 +91,12 @@ private:
   std::variant<std::unique_ptr<Basis<1>>, std::unique_ptr<Basis<2>>, std::unique_ptr<Basis<3>>> basis_;
 };
 
-FamilyOptions family_options(const std::string& kind, double gamma_lme, double tolerance, double newton_tolerance,
-                             int max_newton_iterations, double d_max, double ppc) {
+/// The options of a family: `values` by key (BasisKind::parameters; make_basis
+/// refuses a key no family has, the family a value out of its range).
+FamilyOptions family_options(const std::string& kind, const std::map<std::string, double>& values, double ppc) {
   FamilyOptions o;
   o.basis.kind = kind;
-  o.basis.gamma_lme = gamma_lme;
-  o.basis.tolerance = tolerance;
-  o.basis.newton_tolerance = newton_tolerance;
-  o.basis.max_newton_iterations = max_newton_iterations;
-  o.basis.d_max = d_max;
+  o.basis.values.insert(values.begin(), values.end());
   require(ppc > 0 && std::isfinite(ppc), "ppc must be finite and > 0, got ", ppc);
   o.ppc = ppc;
   return o;
@@ -122,7 +120,7 @@ PyBasis on_grid(const FamilyOptions& o, const std::vector<double>& lower, const 
   }
   check_node_count(count, "Grid(cells = [" + given + "])");
   BasisOptions opt = o.basis;
-  for (int k = 0; k < D; ++k) opt.ugimp_half_width[k] = grid.h()[k] / (2.0 * o.ppc);
+  for (int k = 0; k < D; ++k) opt.particle_half_width[k] = grid.h()[k] / (2.0 * o.ppc);
   // NaN or a negative fraction is refused by perturbed(), never taken as 0.
   NodeSet<D> nodes =
       perturbation != 0.0 ? NodeSet<D>::perturbed(grid, perturbation, seed) : NodeSet<D>::cartesian(grid);
@@ -146,14 +144,32 @@ int grid_dimension(const std::vector<double>& lower, const std::vector<double>& 
 } // namespace
 
 void register_basis(py::module_& m) {
+  m.def(
+      "basis_kinds",
+      [] {
+        std::vector<std::string> names;
+        for (const BasisKind& k : basis_kinds()) names.emplace_back(k.name);
+        return names;
+      },
+      "The basis families, in the order of the table (basis_kinds()).");
+  m.def(
+      "basis_parameters",
+      [] {
+        py::list rows;
+        for (const ParameterSpec* p : basis_parameters())
+          rows.append(py::dict(py::arg("key") = std::string(p->key), py::arg("default") = p->fallback.value_or(0.0),
+                               py::arg("description") = std::string(p->description),
+                               py::arg("integer") = p->integer));
+        return rows;
+      },
+      "The parameters of every basis family (scene keys under [basis]): key, default, description, integer.");
   py::class_<PyBasis>(m, "Basis", "A basis family on nodes; see otmpm.basis.Basis.")
       .def_static(
           "on_grid",
           [](const std::string& kind, const std::vector<double>& lower, const std::vector<double>& upper,
-             const std::vector<int>& cells, double perturbation, unsigned seed, double gamma_lme, double tolerance,
-             double newton_tolerance, int max_newton_iterations, double d_max, double ppc) {
-            const FamilyOptions o =
-                family_options(kind, gamma_lme, tolerance, newton_tolerance, max_newton_iterations, d_max, ppc);
+             const std::vector<int>& cells, double perturbation, unsigned seed,
+             const std::map<std::string, double>& options, double ppc) {
+            const FamilyOptions o = family_options(kind, options, ppc);
             switch (grid_dimension(lower, upper, cells)) {
             case 1: return on_grid<1>(o, lower, upper, cells, perturbation, seed);
             case 2: return on_grid<2>(o, lower, upper, cells, perturbation, seed);
@@ -161,14 +177,12 @@ void register_basis(py::module_& m) {
             }
           },
           py::arg("kind"), py::arg("lower"), py::arg("upper"), py::arg("cells"), py::arg("perturbation"),
-          py::arg("seed"), py::arg("gamma_lme"), py::arg("tolerance"), py::arg("newton_tolerance"),
-          py::arg("max_newton_iterations"), py::arg("d_max"), py::arg("ppc"))
+          py::arg("seed"), py::arg("options"), py::arg("ppc"))
       .def_static(
           "on_cloud",
-          [](const std::string& kind, const Points& positions, double spacing, double gamma_lme, double tolerance,
-             double newton_tolerance, int max_newton_iterations, double d_max, double ppc) {
-            const FamilyOptions o =
-                family_options(kind, gamma_lme, tolerance, newton_tolerance, max_newton_iterations, d_max, ppc);
+          [](const std::string& kind, const Points& positions, double spacing,
+             const std::map<std::string, double>& options, double ppc) {
+            const FamilyOptions o = family_options(kind, options, ppc);
             const py::ssize_t d = positions.ndim() == 1 ? 1 : positions.ndim() == 2 ? positions.shape(1) : 0;
             switch (d) {
             case 1: return on_cloud<1>(o, positions, spacing);
@@ -177,8 +191,7 @@ void register_basis(py::module_& m) {
             default: throw InputError("nodes: expected an array of shape (m, D) with D = 1, 2 or 3");
             }
           },
-          py::arg("kind"), py::arg("positions"), py::arg("spacing"), py::arg("gamma_lme"), py::arg("tolerance"),
-          py::arg("newton_tolerance"), py::arg("max_newton_iterations"), py::arg("d_max"), py::arg("ppc"))
+          py::arg("kind"), py::arg("positions"), py::arg("spacing"), py::arg("options"), py::arg("ppc"))
       .def("evaluate", &PyBasis::evaluate, py::arg("points"))
       .def_property_readonly("dimension", &PyBasis::dimension)
       .def_property_readonly("kind", [](const PyBasis& b) { return b.visit([](const auto& f) { return std::string(f.kind()); }); })

@@ -272,7 +272,7 @@ template <int D> BasisOptions basis_options(const Scene& scene) {
   BasisOptions opt = scene.basis;
   if (basis_kind(opt.kind).particle_size) {
     const Vec<D> h = grid_spacing<D>(scene);
-    for (int k = 0; k < D; ++k) opt.ugimp_half_width[k] = h[k] / (2.0 * scene.bodies.front().particles_per_cell);
+    for (int k = 0; k < D; ++k) opt.particle_half_width[k] = h[k] / (2.0 * scene.bodies.front().particles_per_cell);
   }
   return opt;
 }

@@ -17,6 +17,18 @@
 
 namespace otmpm {
 
+double BasisOptions::value(const ParameterSpec& p) const {
+  const auto it = values.find(p.key);
+  return it != values.end() ? it->second : p.fallback.value_or(0.0);
+}
+
+void require_options(const BasisOptions& o, std::span<const ParameterSpec> parameters) {
+  for (const ParameterSpec& p : parameters) {
+    const std::string problem = p.check(o.value(p));
+    if (!problem.empty()) throw InputError(o.kind + " basis: " + std::string(p.key) + " " + problem);
+  }
+}
+
 template <int D> void Basis<D>::bind_points(int n, bool nodes_move) {
   require<std::invalid_argument>(n >= 0, "Basis::bind_points: n must be >= 0, got ", n);
   const PointStateUse use = point_state_use(nodes_move);

@@ -7,8 +7,13 @@
 #include "otmpm/core.hpp"
 #include "otmpm/nodes/neighbour_lists.hpp"
 #include "otmpm/nodes/node_set.hpp"
+#include "otmpm/parameters.hpp"
 
+#include <array>
+#include <functional>
+#include <map>
 #include <memory>
+#include <span>
 #include <string>
 #include <string_view>
 #include <type_traits>
@@ -115,23 +120,34 @@ template <int D> inline void require_finite_query(std::string_view kind, const P
     throw_non_finite_query(kind, q);
 }
 
-/// Parameters of every family (only those of the chosen family are used).
+/// The options of a basis: its family, its locality metric and the values
+/// of the family's parameters by scene key (BasisKind::parameters, e.g.
+/// "gamma_lme"; a key not given takes its default: value()).
 struct BasisOptions {
-  std::string kind = "linear"; ///< linear | ugimp | bspline2 | bspline3 | lme | maxent
-  double gamma_lme = 4.0;      ///< LME: beta = gamma_lme / h^2
-  double tolerance = 1e-6;     ///< LME: support cut-off exp(-beta r^2) >= tolerance
-  double newton_tolerance = 1e-12; ///< LME/max-ent: converged when |r| <= newton_tolerance * h
-  int max_newton_iterations = 100;
-  double d_max = 2.0;          ///< max-ent: support radius d_max * h of the cubic-spline prior
+  std::string kind = "linear"; ///< the family (basis_kinds())
   /// LME locality (docs/theory.md, "Adapted locality"): "isotropic" (beta =
   /// gamma_lme / h^2), "deformation" (beta_p = gamma_lme / h^2 M_p, M_p =
   /// (F_p F_p^T)^-1 scaled to det 1, F_p from PointQuery::deformation) or
   /// "node_spacing" (beta_I = gamma_lme / h_I^2, h_I the distance from node
   /// I to its nearest node). basis_metrics() lists them.
   std::string metric = "isotropic";
-  /// uGIMP particle half-width per axis (l_p = h / (2 n_ppc_axis)).
-  double ugimp_half_width[3] = {0.0, 0.0, 0.0};
+  /// The parameters given, by key; the rest take their defaults.
+  std::map<std::string, double, std::less<>> values;
+  /// The particles' half-width per axis, for the families that use particle
+  /// sizes (BasisKind::particle_size: uGIMP, l_p = h / (2 n_ppc_axis)):
+  /// derived from the particles, not a scene key.
+  std::array<double, 3> particle_half_width{0.0, 0.0, 0.0};
+  /// The value of parameter `p`: values[p.key], or its default.
+  double value(const ParameterSpec& p) const;
+  /// The value of the parameter of some family named `key` (kinds.hpp,
+  /// find_basis_parameter); std::invalid_argument when no family has one.
+  double value(std::string_view key) const;
 };
+
+/// InputError "KIND basis: KEY must be ... (got ...)" for the first value of
+/// `o` for one of `parameters` that its range refuses (ParameterSpec::check;
+/// the defaults are in range).
+void require_options(const BasisOptions& o, std::span<const ParameterSpec> parameters);
 
 /// Which per-point state a family keeps between evaluations of the same point.
 struct PointStateUse {
@@ -281,6 +297,12 @@ public:
   /// Restores what save_state wrote, called after the node positions were
   /// restored. InputError (StateGroup::error) when it does not fit.
   void restore_state(const StateGroup& in);
+  /// A distributed run: the family's nodes this rank owns (counted[I] != 0)
+  /// and the sum over the ranks (in place), for a family whose state sums
+  /// over its nodes (the B-splines' knot advection). The default: nothing.
+  virtual void distribute(std::vector<char> counted, std::function<void(std::span<double>)> sum) {
+    (void)counted, (void)sum;
+  }
 
 protected:
   /// Family state beyond the node positions that evolves during a run (the

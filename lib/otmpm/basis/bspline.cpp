@@ -625,8 +625,20 @@ std::unique_ptr<Basis<D>> make_bspline_basis(const CartesianGrid<D>& grid, int d
   return std::make_unique<BsplineBasis<D>>(grid, degree);
 }
 
+template <int D>
+std::unique_ptr<Basis<D>> make_bspline_window(const CartesianGrid<D>& grid, int degree, const Index<D>& lo,
+                                              const Index<D>& hi) {
+  return std::make_unique<BsplineBasis<D>>(grid, degree, lo, hi);
+}
+
 template std::unique_ptr<Basis<1>> make_bspline_basis<1>(const CartesianGrid<1>&, int);
 template std::unique_ptr<Basis<2>> make_bspline_basis<2>(const CartesianGrid<2>&, int);
 template std::unique_ptr<Basis<3>> make_bspline_basis<3>(const CartesianGrid<3>&, int);
+template std::unique_ptr<Basis<1>> make_bspline_window<1>(const CartesianGrid<1>&, int, const Index<1>&,
+                                                          const Index<1>&);
+template std::unique_ptr<Basis<2>> make_bspline_window<2>(const CartesianGrid<2>&, int, const Index<2>&,
+                                                          const Index<2>&);
+template std::unique_ptr<Basis<3>> make_bspline_window<3>(const CartesianGrid<3>&, int, const Index<3>&,
+                                                          const Index<3>&);
 
 } // namespace otmpm

@@ -205,7 +205,7 @@ public:
   /// A distributed run: only the control points with counted[I] != 0 (this
   /// rank's own) enter the mean increments of the knot advection, and
   /// `sum` adds the per-axis sums and counts of all ranks (in place).
-  void distribute(std::vector<char> counted, std::function<void(std::span<double>)> sum);
+  void distribute(std::vector<char> counted, std::function<void(std::span<double>)> sum) override;
   /// Largest |x_I + dx_I - xi_I| of the last nodes_moved() (0 before any).
   double last_projection_distance() const { return last_projection_; }
 

@@ -24,6 +24,11 @@ std::unique_ptr<Basis<D>> make_ugimp_basis(NodeSet<D> nodes, const Vec<D>& half_
 /// for an invalid grid or a degree outside [kMinBsplineDegree, kMaxBsplineDegree].
 template <int D>
 std::unique_ptr<Basis<D>> make_bspline_basis(const CartesianGrid<D>& grid, int degree);
+/// The B-splines of `grid` whose degrees of freedom are only the control
+/// points with lattice index in [lo, hi) (a distributed run's window).
+template <int D>
+std::unique_ptr<Basis<D>> make_bspline_window(const CartesianGrid<D>& grid, int degree, const Index<D>& lo,
+                                              const Index<D>& hi);
 
 /// Local max-ent (Arroyo & Ortiz 2006, molinos sect. 2.3), beta = gamma_lme / h^2.
 /// InputError unless gamma_lme is finite and > 0, 0 < tolerance < 1, and the
@@ -33,5 +38,15 @@ template <int D> std::unique_ptr<Basis<D>> make_lme_basis(NodeSet<D> nodes, cons
 /// Max-ent with a cubic-spline prior of radius d_max * h (wobbes sect. 6.3).
 /// InputError unless d_max is finite and > 0 and the Newton options are valid.
 template <int D> std::unique_ptr<Basis<D>> make_maxent_basis(NodeSet<D> nodes, const BasisOptions& opt);
+
+/// The parameters of lme (gamma_lme, tolerance and the Newton options) and
+/// of maxent (d_max and the Newton options): scene keys under [basis].
+std::span<const ParameterSpec> lme_parameters();
+std::span<const ParameterSpec> maxent_parameters();
+/// The nodes of an lme / maxent stencil on a uniform lattice: those in the
+/// ball of the support radius (LME: exp(-gamma_lme r^2) >= tolerance;
+/// max-ent: d_max), at least 2^dim.
+double lme_stencil_nodes(const BasisOptions& o, int dim);
+double maxent_stencil_nodes(const BasisOptions& o, int dim);
 
 } // namespace otmpm

@@ -8,7 +8,6 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <numbers>
 
 namespace otmpm {
 
@@ -29,11 +28,16 @@ template <int D> std::unique_ptr<Basis<D>> linear(const BasisOptions&, NodeSet<D
 }
 template <int D> std::unique_ptr<Basis<D>> ugimp(const BasisOptions& opt, NodeSet<D> nodes) {
   Vec<D> l;
-  for (int k = 0; k < D; ++k) l[k] = opt.ugimp_half_width[k];
+  for (int k = 0; k < D; ++k) l[k] = opt.particle_half_width[k];
   return make_ugimp_basis<D>(std::move(nodes), l);
 }
 template <int D, int Degree> std::unique_ptr<Basis<D>> bspline(const BasisOptions& opt, NodeSet<D> nodes) {
   return make_bspline_basis<D>(require_grid(nodes, opt.kind), Degree);
+}
+template <int D, int Degree>
+std::unique_ptr<Basis<D>> bspline_window(const BasisOptions&, const CartesianGrid<D>& grid, const Index<D>& lo,
+                                         const Index<D>& hi) {
+  return make_bspline_window<D>(grid, Degree, lo, hi);
 }
 template <int D> std::unique_ptr<Basis<D>> lme(const BasisOptions& opt, NodeSet<D> nodes) {
   return make_lme_basis<D>(std::move(nodes), opt);
@@ -42,62 +46,72 @@ template <int D> std::unique_ptr<Basis<D>> maxent(const BasisOptions& opt, NodeS
   return make_maxent_basis<D>(std::move(nodes), opt);
 }
 
-/// Stencil sizes: (degree + 1)^dim for the tensor-product families; for
-/// the max-ent families the lattice nodes in the ball of the support radius
-/// (in units of h): LME's cut-off exp(-gamma_lme r^2) >= tolerance, max-ent's d_max.
-double ball_volume(int dim, double r) {
-  if (dim == 1) return 2.0 * r;
-  if (dim == 2) return std::numbers::pi * r * r;
-  return 4.0 / 3.0 * std::numbers::pi * r * r * r;
-}
+/// Stencil sizes of the tensor-product families: (degree + 1)^dim.
 template <int Width> double tensor_stencil(const BasisOptions&, int dim) { return std::pow(Width, dim); }
-double lme_stencil(const BasisOptions& o, int dim) {
-  return std::max(std::pow(2.0, dim), ball_volume(dim, std::sqrt(-std::log(o.tolerance) / o.gamma_lme)));
+
+/// The reaches on the lattice (LatticeReach): the cell's corners (linear),
+/// one more cell each side (uGIMP: |x - x_I| < h + l_p), the p + 1 control
+/// points c .. c + p of a cell (B-splines of degree p, cells + p per axis),
+/// the nodes within the search radius (max-ent families).
+LatticeReach corners(double, double) { return {}; }
+LatticeReach gimp_reach(double, double) { return {.below = 1, .above = 2}; }
+template <int Degree> LatticeReach spline_reach(double, double) {
+  return {.points_beyond_cells = Degree, .shift = Degree / 2, .below = 0, .above = Degree};
 }
-double maxent_stencil(const BasisOptions& o, int dim) { return std::max(std::pow(2.0, dim), ball_volume(dim, o.d_max)); }
+LatticeReach radius_reach(double radius, double h) {
+  const int r = static_cast<int>(std::ceil(radius / h));
+  return {.below = r, .above = r + 1};
+}
 
 /// The row of a family whose constructor is F<D> for D = 1, 2, 3.
 #define OTMPM_FACTORIES(F) .make1 = F<1>, .make2 = F<2>, .make3 = F<3>
+#define OTMPM_SPLINE(P) .make1 = bspline<1, P>, .make2 = bspline<2, P>, .make3 = bspline<3, P>, \
+    .window1 = bspline_window<1, P>, .window2 = bspline_window<2, P>, .window3 = bspline_window<3, P>
 const std::array kKinds{
     BasisKind{.name = "linear",
               .description = "tensor-product hat functions; isoparametric Q4/Q8 on a perturbed or moving lattice",
               .stencil_nodes = tensor_stencil<2>,
+              .reach = corners,
               OTMPM_FACTORIES(linear)},
     BasisKind{.name = "ugimp",
               .description = "uniform GIMP (Bardenhagen & Kober 2004)",
               .cartesian_only = true,
               .particle_size = true,
               .stencil_nodes = tensor_stencil<3>,
+              .reach = gimp_reach,
               OTMPM_FACTORIES(ugimp)},
     BasisKind{.name = "bspline2",
               .description = "quadratic B-splines on open knot vectors",
               .bspline = true,
               .stencil_nodes = tensor_stencil<kQuadraticDegree + 1>,
-              .make1 = bspline<1, kQuadraticDegree>,
-              .make2 = bspline<2, kQuadraticDegree>,
-              .make3 = bspline<3, kQuadraticDegree>},
+              .reach = spline_reach<kQuadraticDegree>,
+              OTMPM_SPLINE(kQuadraticDegree)},
     BasisKind{.name = "bspline3",
               .description = "cubic B-splines on open knot vectors",
               .bspline = true,
               .stencil_nodes = tensor_stencil<kCubicDegree + 1>,
-              .make1 = bspline<1, kCubicDegree>,
-              .make2 = bspline<2, kCubicDegree>,
-              .make3 = bspline<3, kCubicDegree>},
+              .reach = spline_reach<kCubicDegree>,
+              OTMPM_SPLINE(kCubicDegree)},
     BasisKind{.name = "lme",
               .description = "local max-ent (Arroyo & Ortiz 2006)",
               .needs_lattice = false,
               .searches_nodes = true,
               .adapts_metric = true,
-              .stencil_nodes = lme_stencil,
+              .stencil_nodes = lme_stencil_nodes,
+              .reach = radius_reach,
+              .parameters = lme_parameters(),
               OTMPM_FACTORIES(lme)},
     BasisKind{.name = "maxent",
               .description = "max-ent with a cubic-spline prior",
               .needs_lattice = false,
               .searches_nodes = true,
-              .stencil_nodes = maxent_stencil,
+              .stencil_nodes = maxent_stencil_nodes,
+              .reach = radius_reach,
+              .parameters = maxent_parameters(),
               OTMPM_FACTORIES(maxent)},
 };
 #undef OTMPM_FACTORIES
+#undef OTMPM_SPLINE
 
 constexpr std::array<std::string_view, 3> kMetrics{"isotropic", "deformation", "node_spacing"};
 
@@ -128,6 +142,31 @@ std::string basis_kind_list() {
   return name_list(kKinds, [](const BasisKind& k) { return k.name; });
 }
 
+std::span<const ParameterSpec* const> basis_parameters() {
+  static const std::vector<const ParameterSpec*> all = [] {
+    std::vector<const ParameterSpec*> out;
+    for (const BasisKind& k : kKinds)
+      for (const ParameterSpec& p : k.parameters)
+        if (std::none_of(out.begin(), out.end(), [&](const ParameterSpec* q) { return q->key == p.key; }))
+          out.push_back(&p);
+    return out;
+  }();
+  return all;
+}
+
+const ParameterSpec* find_basis_parameter(std::string_view key) {
+  for (const ParameterSpec* p : basis_parameters())
+    if (p->key == key) return p;
+  return nullptr;
+}
+
+double BasisOptions::value(std::string_view key) const {
+  const ParameterSpec* p = find_basis_parameter(key);
+  require<std::invalid_argument>(p != nullptr, "BasisOptions::value: no basis family has a parameter '",
+                                 std::string(key), "'");
+  return value(*p);
+}
+
 const BasisKind& basis_kind(std::string_view name) {
   const BasisKind* k = find_basis_kind(name);
   if (!k) throw InputError("unknown basis kind '" + std::string(name) + "' (expected " + basis_kind_list() + ")");
@@ -136,9 +175,14 @@ const BasisKind& basis_kind(std::string_view name) {
 
 template <int D> std::unique_ptr<Basis<D>> make_basis(const BasisOptions& opt, NodeSet<D> nodes) {
   const BasisKind& k = basis_kind(opt.kind);
-  if constexpr (D == 1) return k.make1(opt, std::move(nodes));
-  else if constexpr (D == 2) return k.make2(opt, std::move(nodes));
-  else return k.make3(opt, std::move(nodes));
+  for (const auto& [key, value] : opt.values)
+    if (!find_basis_parameter(key)) {
+      std::vector<std::string_view> keys;
+      for (const ParameterSpec* p : basis_parameters()) keys.push_back(p->key);
+      throw InputError(opt.kind + " basis: unknown option '" + key + "' (expected " +
+                       name_list(keys, [](std::string_view s) { return s; }) + ")");
+    }
+  return k.make<D>()(opt, std::move(nodes));
 }
 
 template std::unique_ptr<Basis<1>> make_basis<1>(const BasisOptions&, NodeSet<1>);

@@ -1,10 +1,13 @@
 #pragma once
 /// \file kinds.hpp
 /// The closed set of basis families, listed once: the scene reader takes its
-/// choice list from it, the scene validator and the assembler the rules that
-/// depend on the family, and make_basis() its constructor. Adding a family
-/// means a file with the family, its constructor in families.hpp and one row
-/// here (docs/architecture.md, "Adding a part").
+/// choice list and the family's parameters (scene keys under [basis]) from
+/// it, the scene writer, `otmpm basis` and the Python package its
+/// parameters, the scene validator and the assembler the rules that depend
+/// on the family, a distributed run how far a stencil reaches, and
+/// make_basis() its constructor. Adding a family means its source, its
+/// header (constructor, parameters) and one row in kinds.cpp
+/// (docs/architecture.md, "Adding a part").
 #include "otmpm/basis/basis.hpp"
 
 #include <span>
@@ -15,6 +18,24 @@ namespace otmpm {
 
 /// Constructor of a family in D dimensions (families.hpp).
 template <int D> using BasisFactory = std::unique_ptr<Basis<D>> (*)(const BasisOptions&, NodeSet<D>);
+
+/// Constructor of a family on a window of a lattice whose points are not
+/// the lattice's nodes (B-splines: the control points with lattice index in
+/// [lo, hi) on the whole lattice's knot vectors; a distributed run).
+template <int D>
+using WindowFactory = std::unique_ptr<Basis<D>> (*)(const BasisOptions&, const CartesianGrid<D>& lattice,
+                                                    const Index<D>& lo, const Index<D>& hi);
+
+/// Where a family's points sit on a lattice of cells and which of them the
+/// stencil of a point in cell c reaches along one axis: points c - below ..
+/// c + above, of cells + points_beyond_cells per axis, the point of cell c
+/// being c + shift (distributed runs: a rank's window of points).
+struct LatticeReach {
+  int points_beyond_cells = 1; ///< 1: the lattice vertices; B-splines of degree p: p control points
+  int shift = 0;
+  int below = 0;
+  int above = 1;
+};
 
 /// One basis family as the scene names it (`basis.kind`) and the facts about
 /// it that the rest of otmpm needs.
@@ -38,9 +59,33 @@ struct BasisKind {
   /// Expected nodes in one particle's stencil on a uniform lattice (for the
   /// memory estimate of `otmpm run --check`).
   double (*stencil_nodes)(const BasisOptions&, int dim) = nullptr;
+  /// Its reach along an axis of spacing h, `radius` its search radius
+  /// (Basis::search_radius(); 0 for the families that do not search).
+  LatticeReach (*reach)(double radius, double h) = nullptr;
+  /// Its parameters (scene keys under [basis], `otmpm basis` options,
+  /// Python keywords), with their defaults and ranges.
+  std::span<const ParameterSpec> parameters{};
   BasisFactory<1> make1 = nullptr;
   BasisFactory<2> make2 = nullptr;
   BasisFactory<3> make3 = nullptr;
+  /// On a window of the lattice, for the families whose points are not the
+  /// lattice's nodes (null: the family on the window's nodes).
+  WindowFactory<1> window1 = nullptr;
+  WindowFactory<2> window2 = nullptr;
+  WindowFactory<3> window3 = nullptr;
+
+  /// The constructor for D dimensions.
+  template <int D> BasisFactory<D> make() const {
+    if constexpr (D == 1) return make1;
+    else if constexpr (D == 2) return make2;
+    else return make3;
+  }
+  /// The window constructor for D dimensions (null: the lattice's nodes).
+  template <int D> WindowFactory<D> window() const {
+    if constexpr (D == 1) return window1;
+    else if constexpr (D == 2) return window2;
+    else return window3;
+  }
 };
 
 /// Every family, in the order the docs list them.
@@ -51,6 +96,11 @@ const BasisKind* find_basis_kind(std::string_view name);
 const BasisKind& basis_kind(std::string_view name);
 /// "linear, ugimp, bspline2, bspline3, lme or maxent", for messages.
 std::string basis_kind_list();
+/// The parameters of every family, each key once (the scene accepts each of
+/// them whatever the family, so that switching families with --set works).
+std::span<const ParameterSpec* const> basis_parameters();
+/// The parameter `key` of some family, or null.
+const ParameterSpec* find_basis_parameter(std::string_view key);
 
 /// The values of `basis.metric` (BasisOptions::metric), "isotropic" first.
 std::span<const std::string_view> basis_metrics();

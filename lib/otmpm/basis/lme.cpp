@@ -568,11 +568,24 @@ double stepped_radius(double radius0, double R_max) {
   return radius0 * std::ceil(kRadiusSteps * R_max / radius0) / kRadiusSteps;
 }
 
+/// The parameters of the two families (scene keys under [basis]).
+constexpr ParameterSpec kGammaLme{"gamma_lme", "LME locality: beta = gamma_lme / h^2", 4.0, 0.0, true};
+constexpr ParameterSpec kTolerance{"tolerance", "LME support cut-off: exp(-beta r^2) >= tolerance", 1e-6, 0.0, true,
+                                   1.0, true};
+constexpr ParameterSpec kNewtonTolerance{"newton_tolerance",
+                                         "Newton solve converged when |r| <= newton_tolerance h (LME, max-ent)",
+                                         1e-12, 0.0, true, 1.0, true};
+constexpr ParameterSpec kMaxNewtonIterations{
+    "max_newton_iterations", "Newton iterations at most (LME, max-ent)", 100.0, 1.0, false, 2147483647.0, false, true};
+constexpr ParameterSpec kDMax{"d_max", "max-ent support radius d_max h of the cubic-spline prior", 2.0, 0.0, true};
+constexpr std::array kLmeParameters{kGammaLme, kTolerance, kNewtonTolerance, kMaxNewtonIterations};
+constexpr std::array kMaxentParameters{kDMax, kNewtonTolerance, kMaxNewtonIterations};
+
 /// The Gaussian prior of an lme basis with options `opt` on nodes of spacing h.
 template <int D> GaussianPrior<D> lme_prior(const BasisOptions& opt, double h) {
   GaussianPrior<D> prior;
-  prior.beta = opt.gamma_lme / (h * h);
-  prior.max_exponent = -std::log(opt.tolerance);
+  prior.beta = opt.value(kGammaLme) / (h * h);
+  prior.max_exponent = -std::log(opt.value(kTolerance));
   return prior;
 }
 
@@ -752,16 +765,12 @@ MaxEntBasis<D, Prior>::MaxEntBasis(NodeSet<D> nodes, const BasisOptions& opt, co
   if (nodes_.size() < D + 1)
     throw InputError(name + " basis needs at least " + std::to_string(D + 1) + " nodes, got " +
                      std::to_string(nodes_.size()));
-  if (!(opt.newton_tolerance > 0.0) || !std::isfinite(opt.newton_tolerance))
-    throw InputError(name + " basis: newton_tolerance must be > 0, got " + format_number(opt.newton_tolerance));
-  if (opt.max_newton_iterations < 1)
-    throw InputError(name + " basis: max_newton_iterations must be >= 1, got " +
-                     std::to_string(opt.max_newton_iterations));
+  require_options(opt, std::array{kNewtonTolerance, kMaxNewtonIterations});
   require(finite_positive(prior_.support_radius()), name, " basis: the prior's support radius must be finite and > 0, got ",
           prior_.support_radius());
   settings_.h = nodes_.spacing();
-  settings_.residual_tolerance = opt.newton_tolerance * settings_.h;
-  settings_.max_iterations = opt.max_newton_iterations;
+  settings_.residual_tolerance = opt.value(kNewtonTolerance) * settings_.h;
+  settings_.max_iterations = static_cast<int>(opt.value(kMaxNewtonIterations));
   settings_.support_radius = prior_.support_radius();
   radius0_ = settings_.support_radius;
   require(Prior::kGaussian || metric_ == Metric::isotropic, name, " basis: only the Gaussian prior adapts its metric");
@@ -1359,11 +1368,31 @@ template double nearest_node_distance<3>(const NodeSet<3>&, int, double);
 
 namespace otmpm {
 
+namespace {
+
+/// The volume of the ball of radius r (in units of h) in dim dimensions:
+/// the lattice nodes a max-ent support holds.
+double ball_volume(int dim, double r) {
+  if (dim == 1) return 2.0 * r;
+  if (dim == 2) return std::numbers::pi * r * r;
+  return 4.0 / 3.0 * std::numbers::pi * r * r * r;
+}
+
+} // namespace
+
+std::span<const ParameterSpec> lme_parameters() { return maxent::kLmeParameters; }
+std::span<const ParameterSpec> maxent_parameters() { return maxent::kMaxentParameters; }
+
+double lme_stencil_nodes(const BasisOptions& o, int dim) {
+  const double radius = std::sqrt(-std::log(o.value(maxent::kTolerance)) / o.value(maxent::kGammaLme));
+  return std::max(std::pow(2.0, dim), ball_volume(dim, radius));
+}
+double maxent_stencil_nodes(const BasisOptions& o, int dim) {
+  return std::max(std::pow(2.0, dim), ball_volume(dim, o.value(maxent::kDMax)));
+}
+
 template <int D> std::unique_ptr<Basis<D>> make_lme_basis(NodeSet<D> nodes, const BasisOptions& opt) {
-  if (!(opt.gamma_lme > 0.0) || !std::isfinite(opt.gamma_lme))
-    throw InputError("lme basis: gamma_lme must be > 0, got " + maxent::format_number(opt.gamma_lme));
-  if (!(opt.tolerance > 0.0 && opt.tolerance < 1.0))
-    throw InputError("lme basis: tolerance must be in (0, 1), got " + maxent::format_number(opt.tolerance));
+  require_options(opt, maxent::kLmeParameters);
   const double h = nodes.spacing();
   if (!(h > 0.0) || !std::isfinite(h))
     throw InputError("lme basis: the nodal spacing must be > 0, got " + maxent::format_number(h));
@@ -1374,15 +1403,14 @@ template <int D> std::unique_ptr<Basis<D>> make_lme_basis(NodeSet<D> nodes, cons
 }
 
 template <int D> std::unique_ptr<Basis<D>> make_maxent_basis(NodeSet<D> nodes, const BasisOptions& opt) {
-  if (!(opt.d_max > 0.0) || !std::isfinite(opt.d_max))
-    throw InputError("maxent basis: d_max must be > 0, got " + maxent::format_number(opt.d_max));
+  require_options(opt, maxent::kMaxentParameters);
   const double h = nodes.spacing();
   if (!(h > 0.0) || !std::isfinite(h))
     throw InputError("maxent basis: the nodal spacing must be > 0, got " + maxent::format_number(h));
   if (maxent::parse_metric(opt.metric, "maxent") != maxent::Metric::isotropic)
     throw InputError("maxent basis: metric '" + opt.metric + "' is not available (only lme adapts its metric; use "
                      "metric = \"isotropic\")");
-  const maxent::CubicSplinePrior<D> prior(opt.d_max * h);
+  const maxent::CubicSplinePrior<D> prior(opt.value(maxent::kDMax) * h);
   return std::make_unique<maxent::MaxEntBasis<D, maxent::CubicSplinePrior<D>>>(std::move(nodes), opt, prior,
                                                                                 "maxent");
 }

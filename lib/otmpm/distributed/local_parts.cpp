@@ -5,7 +5,6 @@
 #include "otmpm/assembly/assembler.hpp"
 #include "otmpm/assembly/seeding.hpp"
 #include "otmpm/distributed/share_seeding.hpp"
-#include "otmpm/basis/bspline.hpp"
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/basis/lme.hpp"
 #include "otmpm/io/checkpoint.hpp"
@@ -88,33 +87,21 @@ double perturbed_search_radius(const Scene& scene, const Comm& comm, const Carte
   return maxent::node_spacing_search_radius(basis_options<D>(scene), h, comm.max(largest));
 }
 
-/// The point lattice of the scene's basis (`probe`: probe_basis; `radius`:
-/// its search radius, or the whole lattice's when that differs): which
-/// points, which cell each belongs to, and how far the particles of a cell reach.
+/// The point lattice of the scene's basis (`radius`: its search radius, or
+/// the whole lattice's when that differs): which points, which cell each
+/// belongs to, and how far the particles of a cell reach - the family's
+/// reach (BasisKind::reach).
 template <int D>
-PointLattice<D> point_lattice(const Scene& scene, const Basis<D>& probe, double radius, const CartesianGrid<D>& grid,
-                              bool ul) {
+PointLattice<D> point_lattice(const Scene& scene, double radius, const CartesianGrid<D>& grid, bool ul) {
   PointLattice<D> L;
   L.grid = grid;
   const BasisKind& kind = basis_kind(scene.basis.kind);
   const Vec<D> h = grid.h();
   for (int k = 0; k < D; ++k) {
-    L.points[k] = grid.cells[k] + 1;
-    L.below[k] = 0, L.above[k] = 1; // linear: the cell's corners
-  }
-  if (kind.bspline) {
-    const int degree = dynamic_cast<const BsplineBasis<D>&>(probe).degree();
-    // an open uniform knot vector over the cells: cells + degree control points per axis
-    for (int k = 0; k < D; ++k) L.points[k] = grid.cells[k] + degree;
-    L.shift = degree / 2;
-    for (int k = 0; k < D; ++k) L.above[k] = degree; // cell c: control points c .. c + p
-  } else if (kind.particle_size) {
-    for (int k = 0; k < D; ++k) L.below[k] = 1, L.above[k] = 2; // uGIMP: |x - x_I| < h + l_p
-  } else if (radius > 0.0) {
-    for (int k = 0; k < D; ++k) {
-      const int r = static_cast<int>(std::ceil(radius / h[k]));
-      L.below[k] = r, L.above[k] = r + 1;
-    }
+    const LatticeReach r = kind.reach(radius, h[k]);
+    L.points[k] = grid.cells[k] + r.points_beyond_cells;
+    L.below[k] = r.below, L.above[k] = r.above;
+    if (k == 0) L.shift = r.shift;
   }
   if (ul) {
     for (int k = 0; k < D; ++k) L.below[k] += kAdvectedSlack, L.above[k] += kAdvectedSlack;
@@ -123,27 +110,27 @@ PointLattice<D> point_lattice(const Scene& scene, const Basis<D>& probe, double 
   return L;
 }
 
-/// The basis of the scene on a window: B-splines on the whole lattice's
-/// knots with the window's control points; the lattice families on the
-/// window's part of the lattice (a perturbed lattice's positions drawn for
-/// the window from the grid's random stream, NodeSet::perturbed_positions).
-/// Also gives the global cell of the basis' local cell 0 (its cell hints
-/// are local to it). Never builds the whole lattice.
+/// The basis of the scene on a window: a family whose points are not the
+/// lattice's nodes by its window constructor (B-splines: the whole
+/// lattice's knots with the window's control points, BasisKind::window);
+/// the lattice families on the window's part of the lattice (a perturbed
+/// lattice's positions drawn for the window from the grid's random stream,
+/// NodeSet::perturbed_positions). Also gives the global cell of the basis'
+/// local cell 0 (its cell hints are local to it). Never builds the whole lattice.
 template <int D>
 std::function<std::unique_ptr<Basis<D>>(const Window<D>&, Index<D>&)>
-window_basis_factory(const Scene& scene, const Basis<D>& probe, const PointLattice<D>& L) {
+window_basis_factory(const Scene& scene, const PointLattice<D>& L) {
   const CartesianGrid<D> grid = L.grid;
-  if (basis_kind(scene.basis.kind).bspline) {
-    const int degree = dynamic_cast<const BsplineBasis<D>&>(probe).degree();
-    return [grid, degree](const Window<D>& w, Index<D>& hint_offset) -> std::unique_ptr<Basis<D>> {
+  const BasisOptions options = basis_options<D>(scene);
+  if (const WindowFactory<D> window = basis_kind(scene.basis.kind).window<D>()) {
+    return [grid, options, window](const Window<D>& w, Index<D>& hint_offset) -> std::unique_ptr<Basis<D>> {
       hint_offset = {};
-      return std::make_unique<BsplineBasis<D>>(grid, degree, w.box.lo, w.box.hi);
+      return window(options, grid, w.box.lo, w.box.hi);
     };
   }
   const bool perturbed = scene.grid.kind == "perturbed";
   const double fraction = scene.grid.perturbation;
   const unsigned seed = scene.grid.seed;
-  const BasisOptions options = basis_options<D>(scene);
   return [grid, perturbed, fraction, seed, options](const Window<D>& w,
                                                     Index<D>& hint_offset) -> std::unique_ptr<Basis<D>> {
     hint_offset = w.box.lo;
@@ -194,25 +181,25 @@ LatticePart<D> rank_lattice(const Scene& scene, const Comm& comm, const Cartesia
   setup.setup_points = probe->nodes().size();
   double radius = probe->search_radius();
   if (!decomposed) {
-    setup.lattice = point_lattice<D>(scene, *probe, radius, grid, ul);
+    setup.lattice = point_lattice<D>(scene, radius, grid, ul);
     part.basis = std::move(probe);
     return part;
   }
   const IndexBox<D> cells = setup.decomposition.box(comm.rank());
   if (radius_from_nodes(scene)) {
     // the owned nodes do not depend on the radius (only the ghost layers do)
-    const IndexBox<D> own = point_lattice<D>(scene, *probe, radius, grid, ul).owned_points(cells);
+    const IndexBox<D> own = point_lattice<D>(scene, radius, grid, ul).owned_points(cells);
     radius = perturbed_search_radius<D>(scene, comm, grid, own);
   }
-  setup.lattice = point_lattice<D>(scene, *probe, radius, grid, ul);
+  setup.lattice = point_lattice<D>(scene, radius, grid, ul);
   const PointLattice<D>& L = setup.lattice;
   Window<D> w;
   w.box = L.window(cells);
-  setup.window_basis = window_basis_factory<D>(scene, *probe, L);
+  setup.window_basis = window_basis_factory<D>(scene, L);
   probe.reset();
   part.basis = setup.window_basis(w, setup.hint_offset);
   setup.setup_points += w.size();
-  const bool from_basis = basis_kind(scene.basis.kind).bspline || scene.grid.kind == "perturbed";
+  const bool from_basis = basis_kind(scene.basis.kind).window<D>() || scene.grid.kind == "perturbed";
   const IndexBox<D> own = L.owned_points(cells);
   std::vector<char> owned(static_cast<std::size_t>(w.size()));
   for (int i = 0; i < w.size(); ++i) owned[static_cast<std::size_t>(i)] = own.contains(w.index(i)) ? 1 : 0;
@@ -237,8 +224,7 @@ EngineParts<D> finish_parts(const Comm& comm, EngineParts<D> parts, typename Dom
   // particles still migrate.
   if (!parts.walls.empty() || parts.settings.step.needs.carries_constraints) setup.window_basis = nullptr;
   auto domain = std::make_shared<Domain<D>>(comm, std::move(setup));
-  if (auto* b = dynamic_cast<BsplineBasis<D>*>(parts.basis.get()))
-    b->distribute(domain->owned_nodes(), [&comm](std::span<double> v) { comm.sum(v); });
+  parts.basis->distribute(domain->owned_nodes(), [&comm](std::span<double> v) { comm.sum(v); });
   parts.distribution = std::move(domain);
   return parts;
 }

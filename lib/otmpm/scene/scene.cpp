@@ -65,11 +65,6 @@ double number(const TableReader& t, const ParameterSpec& spec, std::optional<dou
   return v;
 }
 
-/// A number > 0, or absent (fallback).
-double positive(const TableReader& t, std::string_view key, double fallback) {
-  return number(t, {key, "", std::nullopt, 0.0, true}, fallback);
-}
-
 /// Every component of upper strictly (or not) above lower.
 void check_box(const TableReader& t, const Vec3& lo, const Vec3& hi, int dim, bool strict) {
   for (int k = 0; k < dim; ++k) {
@@ -133,20 +128,18 @@ SimulationSection read_simulation(const TableReader& t) {
   return s;
 }
 
+/// [basis]: the family, the metric and the parameters of every family
+/// (BasisKind::parameters; each accepted whatever the family, so that
+/// switching families with --set works), each checked against its row.
 BasisOptions read_basis(const TableReader& t) {
-  t.only({"kind", "gamma_lme", "tolerance", "d_max", "newton_tolerance", "max_newton_iterations", "metric"});
+  std::vector<std::string_view> keys{"kind", "metric"};
+  for (const ParameterSpec* p : basis_parameters()) keys.push_back(p->key);
+  t.only(keys);
   BasisOptions b;
   if (!t.has("kind")) t.missing("kind");
   b.kind = t.choice("kind", b.kind, names_of(basis_kinds(), [](const BasisKind& k) { return k.name; }));
-  b.gamma_lme = positive(t, "gamma_lme", b.gamma_lme);
-  b.tolerance = t.get<double>("tolerance", b.tolerance);
-  check(b.tolerance > 0 && b.tolerance < 1, t.ref("tolerance"), "must be in (0, 1) (got " + fmt(b.tolerance) + ")");
-  b.d_max = positive(t, "d_max", b.d_max);
-  b.newton_tolerance = t.get<double>("newton_tolerance", b.newton_tolerance);
-  check(b.newton_tolerance > 0 && b.newton_tolerance < 1, t.ref("newton_tolerance"),
-        "must be in (0, 1) (got " + fmt(b.newton_tolerance) + ")");
-  b.max_newton_iterations = t.get<int>("max_newton_iterations", b.max_newton_iterations);
-  check(b.max_newton_iterations >= 1, t.ref("max_newton_iterations"), "must be >= 1");
+  for (const ParameterSpec* p : basis_parameters())
+    if (t.has(p->key)) b.values[std::string(p->key)] = number(t, *p, p->fallback);
   b.metric = t.choice("metric", b.metric, basis_metrics());
   return b;
 }

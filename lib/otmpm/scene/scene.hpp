@@ -329,7 +329,7 @@ Scene parse_scene(const std::string& text, const std::string& name,
 /// the same values: every key is written, defaults included, vectors with
 /// simulation.dimension components, grid.cells rather than grid.h, and
 /// simulation.cfl only when simulation.dt is unset (the reader takes one of
-/// the two). `file`, `where` and the derived basis.ugimp_half_width are not
+/// the two). `file`, `where` and the derived basis.particle_half_width are not
 /// written. run_scene() stores this text when Scene::text is empty (a scene
 /// built in code), so its result file and checkpoints hold the scene.
 std::string to_toml(const Scene& scene);

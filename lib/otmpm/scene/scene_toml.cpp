@@ -3,9 +3,11 @@
 // result file and in checkpoints, so such a run can be restarted and its
 // result file says what was run).
 #include "otmpm/scene/scene.hpp"
+#include "otmpm/basis/kinds.hpp"
 
 #include <toml++/toml.h>
 
+#include <cstdint>
 #include <filesystem>
 #include <sstream>
 
@@ -40,14 +42,14 @@ toml::table simulation(const SimulationSection& s, const Scene& scene) {
 }
 
 toml::table basis(const BasisOptions& b) {
-  // ugimp_half_width is derived by the reader from the grid and the first body.
-  return toml::table{{"kind", b.kind},
-                     {"gamma_lme", b.gamma_lme},
-                     {"tolerance", b.tolerance},
-                     {"d_max", b.d_max},
-                     {"newton_tolerance", b.newton_tolerance},
-                     {"max_newton_iterations", b.max_newton_iterations},
-                     {"metric", b.metric}};
+  // particle_half_width is derived by the assembler from the grid and the first body.
+  toml::table t{{"kind", b.kind}, {"metric", b.metric}};
+  for (const ParameterSpec* p : basis_parameters()) {
+    const double v = b.value(*p);
+    if (p->integer) t.insert(p->key, static_cast<std::int64_t>(v));
+    else t.insert(p->key, v);
+  }
+  return t;
 }
 
 toml::table grid(const GridSection& g, int dim) {

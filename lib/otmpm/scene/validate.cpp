@@ -153,6 +153,11 @@ void check_basis(const Scene& s) {
   check(s, s.basis.metric == metrics.front() || kind->adapts_metric, "basis.metric", "\"", s.basis.metric,
         "\" needs a basis that adapts its locality; basis.kind = \"", s.basis.kind, "\" has only \"",
         metrics.front(), "\"");
+  for (const auto& [key, value] : s.basis.values) {
+    const ParameterSpec* p = find_basis_parameter(key);
+    check(s, p != nullptr, "basis." + key, "unknown key (not a parameter of any basis family)");
+    check_number(s, "basis." + key, value, *p);
+  }
 }
 
 void check_materials(const Scene& s) {
