@@ -8,8 +8,9 @@
 //   (Basis::linearly_complete), gradients against central differences,
 //   stencils no larger than its row says (BasisKind::stencil_nodes: a family
 //   that reaches every node gives a plausible error thousands of times
-//   slower), a basis table independent of the thread count; in an engine,
-//   restart bit for bit and thread independence;
+//   slower), a reach (BasisKind::reach) that covers its stencils, a basis
+//   table independent of the thread count; in an engine, restart bit for
+//   bit and thread independence;
 // * integrator: restart bit for bit, thread independence and the energy
 //   balance of the fixed-end bar (no load, fixed supports: E(t) - E(0) is the
 //   scheme's own error), small, never above E(0) by more than the scheme's
@@ -21,8 +22,9 @@
 //
 // Each check takes a row, not a name: it builds its run from a standard
 // scene and puts the row's member into the parts. Test-only rows show that
-// any row is taken: copies of table rows under new names pass, and a Shepard
-// family that claims linear completeness and reaches every node is caught.
+// any row is taken: copies of table rows under new names pass, and a row
+// with too short a reach and a Shepard family that claims linear
+// completeness and reaches every node are caught.
 #include "otmpm/assembly/assembler.hpp"
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/integrators/integrator.hpp"
@@ -190,6 +192,40 @@ template <int D> Violations basis_identities(const BasisKind& k) {
   return v;
 }
 
+/// The row's reach (BasisKind::reach, what a distributed run's windows hold)
+/// covers the family's stencils: on the unit lattice in 2D, every node of
+/// the stencil of a point in cell c has the lattice index c - below ..
+/// c + above per axis, of cells + points_beyond_cells per axis (node ids
+/// axis 0 fastest).
+Violations basis_reach(const BasisKind& k) {
+  if (!k.reach) return {std::string(k.name) + ": the row declares no reach (BasisKind::reach)"};
+  const int cells = 8;
+  const CartesianGrid<2> grid = test::unit_grid<2>(cells);
+  const auto b = make_family<2>(k, options_for<2>(k, grid.h()), NodeSet<2>::cartesian(grid));
+  const LatticeReach r = k.reach(b->search_radius(), grid.h()[0]);
+  const int n = cells + r.points_beyond_cells;
+  if (b->nodes().size() != n * n)
+    return {std::string(k.name) + ": " + std::to_string(b->nodes().size()) + " points, the reach says " +
+            std::to_string(n) + " per axis"};
+  std::mt19937 rng(5);
+  Stencil<2> st;
+  for (int i = 0; i < 200; ++i) {
+    const Vec<2> x = test::random_in_box<2>(rng, Vec<2>(0.0, 0.0), Vec<2>(1.0, 1.0));
+    test::evaluate_at(*b, x, st);
+    for (int e = 0; e < st.size(); ++e) {
+      const int index[2] = {st.node[e] % n, st.node[e] / n};
+      for (int a = 0; a < 2; ++a) {
+        const int c = std::min(cells - 1, static_cast<int>(x[a] * cells));
+        if (index[a] < c - r.below || index[a] > c + r.above)
+          return {std::string(k.name) + ": a point in cell " + std::to_string(c) + " reaches point " +
+                  std::to_string(index[a]) + " on axis " + std::to_string(a) + ", beyond the row's reach -" +
+                  std::to_string(r.below) + "/+" + std::to_string(r.above)};
+      }
+    }
+  }
+  return {};
+}
+
 /// The basis table of 3000 points filled with 1 and 2 threads: the same bits.
 Violations basis_table_threads(const BasisKind& k) {
   const CartesianGrid<2> grid = test::unit_grid<2>(16);
@@ -242,8 +278,8 @@ Violations basis_run(const BasisKind& k) {
 }
 
 Violations basis_contract(const BasisKind& k) {
-  return concatenated({basis_identities<1>(k), basis_identities<2>(k), basis_identities<3>(k), basis_table_threads(k),
-                 basis_run(k)});
+  return concatenated({basis_identities<1>(k), basis_identities<2>(k), basis_identities<3>(k), basis_reach(k),
+                       basis_table_threads(k), basis_run(k)});
 }
 
 // ---------------------------------------------------------------- integrators
@@ -490,6 +526,12 @@ TEST_CASE("contract: rows that are not in the tables are taken as they are; a br
   neo_copy.name = "neo_hookean_test";
   const Violations material = material_contract(neo_copy);
   CHECK_MESSAGE(material.empty(), joined(material));
+
+  // A row that declares too short a reach (a distributed run's windows would
+  // miss nodes its stencils use).
+  BasisKind short_reach = linear_copy;
+  short_reach.reach = [](double, double) { return LatticeReach{.below = 0, .above = 0}; };
+  CHECK(joined(basis_reach(short_reach)).find("beyond the row's reach") != std::string::npos);
 
   // A family that lies about its completeness and reaches every node.
   const BasisKind shepard{.name = "shepard_test",
