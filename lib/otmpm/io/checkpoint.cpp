@@ -856,7 +856,9 @@ StateArray<T> block_values(const StateGroup& g, const std::string& name, const S
 void read_checkpoint_rows(const Checkpoint& ck, RowKind kind, const std::vector<RowBlock>& blocks, Checkpoint& into,
                           const std::vector<std::string>& names) {
   if (ck.source) return ck.source->read(kind, blocks, into, names);
-  for (const auto& [gname, g] : ck.groups) {
+  for (const auto& entry : ck.groups) { // no structured binding: clang does not capture one in a lambda
+    const std::string& gname = entry.first;
+    const StateGroup& g = entry.second;
     auto copy = [&](const auto& arrays, auto& out) {
       for (const auto& [name, a] : arrays)
         if (checkpoint_row_kind(gname, name) == kind &&

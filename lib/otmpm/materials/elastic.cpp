@@ -7,6 +7,7 @@
 #include "otmpm/materials/models.hpp"
 
 #include <array>
+#include <type_traits>
 
 namespace otmpm {
 
@@ -64,16 +65,23 @@ private:
   ElasticConstants c_;
 };
 
+/// A finite-strain law without a stored-energy potential.
+struct NoPotential {};
+/// neo_hookean's potential W(F) (neo_hookean_energy).
+template <int D> struct NeoHookeanPotential {
+  static double density(const ElasticConstants& c, const Mat<D>& F) { return neo_hookean_energy<D>(c, F); }
+};
+
 /// Finite strain: F_p = (I + H) F_p, V_p = det F_p V0_p, rho_p = m_p / V_p,
 /// sigma_p = Law(F_p), eps_p = sym(F_p) - I (for the energy monitor).
 /// ZzLaw: sigma_zz of the law in plane strain from the in-plane F_p
 /// (out_of_plane_stress); WaveLaw: rho0 c^2 of its fastest wave at F_p;
-/// EnergyLaw: the law's stored energy per reference volume, W(F_p) (null:
-/// a law without a potential, counted as 1/2 sigma : eps V_p).
+/// Potential: the law's stored energy per reference volume,
+/// Potential::density(c, F_p) = W(F_p) (NoPotential: a law without one,
+/// counted as 1/2 sigma : eps V_p).
 template <int D, Mat<D> (*Law)(const ElasticConstants&, const Mat<D>&),
           double (*ZzLaw)(const ElasticConstants&, const Mat<2>&),
-          double (*WaveLaw)(const ElasticConstants&, const Mat<D>&),
-          double (*EnergyLaw)(const ElasticConstants&, const Mat<D>&) = nullptr>
+          double (*WaveLaw)(const ElasticConstants&, const Mat<D>&), class Potential = NoPotential>
 class FiniteElastic final : public Material<D> {
 public:
   explicit FiniteElastic(const MaterialParameters& p) : Material<D>(p), c_(p.elastic()) {}
@@ -96,9 +104,9 @@ public:
     }
   }
   void add_energies(const Particles<D>& P, int p0, int p1, double& stored, double&) const override {
-    if constexpr (EnergyLaw == nullptr) add_elastic_energies(P, p0, p1, stored);
+    if constexpr (std::is_same_v<Potential, NoPotential>) add_elastic_energies(P, p0, p1, stored);
     else
-      for (int p = p0; p < p1; ++p) stored += P.V0[p] * EnergyLaw(c_, P.F[p]);
+      for (int p = p0; p < p1; ++p) stored += P.V0[p] * Potential::density(c_, P.F[p]);
   }
   /// sigma_zz = ZzLaw(F_p): the law evaluated on the F_p of the last update.
   void out_of_plane_stress(const Particles<D>& P, int p0, int p1, double* out) const override {
@@ -122,7 +130,7 @@ template <int D> std::unique_ptr<Material<D>> make_linear_elastic_finite(const M
 }
 template <int D> std::unique_ptr<Material<D>> make_neo_hookean(const MaterialParameters& p) {
   return std::make_unique<FiniteElastic<D, neo_hookean_stress<D>, neo_hookean_out_of_plane,
-                                         neo_hookean_wave_modulus<D>, neo_hookean_energy<D>>>(p);
+                                         neo_hookean_wave_modulus<D>, NeoHookeanPotential<D>>>(p);
 }
 
 } // namespace
