@@ -1,0 +1,102 @@
+#!/usr/bin/env bash
+# Peak resident memory per rank of a distributed run that writes a
+# checkpoint, and of its restart (docs/performance.md, "Distributed runs",
+# "Checkpoints"): the 3D block of scripts/bench-mpi.sh --dim 3 (N^3 cells
+# of the unit cube, 2 x 2 x 2 particles per cell, linear fe, mpm, its base
+# held, under gravity) run for S steps under mpirun -np R, one OpenMP thread
+# per rank, each rank under /usr/bin/time -f %M:
+#
+#   1. the run without a checkpoint, 2. the same run writing one checkpoint
+#   (at step S - 1), 3. its restart on R ranks (the last step), 4. its
+#   restart on R2 ranks
+#
+# and prints per case each rank's peak (MB) and the largest over the mean.
+#
+#   bash scripts/checkpoint-memory.sh [--cells N] [--ranks R] [--restart-ranks R2] [--steps S]
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+bin=${OTMPM_BIN:-$root/build/bin/otmpm}
+cells=64 ranks=2 ranks2=3 steps=4
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --cells) cells=$2; shift 2 ;;
+    --ranks) ranks=$2; shift 2 ;;
+    --restart-ranks) ranks2=$2; shift 2 ;;
+    --steps) steps=$2; shift 2 ;;
+    *) echo "usage: bash scripts/checkpoint-memory.sh [--cells N] [--ranks R] [--restart-ranks R2] [--steps S]" >&2; exit 2 ;;
+  esac
+done
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMP_NUM_THREADS=1
+h=$(/usr/bin/python3 -c "print(repr(1.0/$cells))")
+lo=$(/usr/bin/python3 -c "print(-2*$h)") hi=$(/usr/bin/python3 -c "print(1+2*$h)")
+cat > "$work/block.toml" <<TOML
+[simulation]
+dimension = 3
+mode = "mpm"
+integrator = "fe"
+t_end = 1.0
+cfl = 0.3
+[basis]
+kind = "linear"
+[grid]
+lower = [$lo, $lo, 0.0]
+upper = [$hi, $hi, $hi]
+cells = [$((cells + 4)), $((cells + 4)), $((cells + 2))]
+[[material]]
+name = "m"
+model = "linear_elastic"
+density = 1000.0
+young = 1.0e7
+poisson = 0.3
+[[body]]
+name = "block"
+material = "m"
+lower = [0.0, 0.0, 0.0]
+upper = [1.0, 1.0, 1.0]
+particles_per_cell = 2
+[[boundary]]
+name = "base"
+lower = [$lo, $lo, 0.0]
+upper = [$hi, $hi, 0.0]
+fix = [true, true, true]
+[body_force]
+value = [0.0, 0.0, -9.81]
+[output]
+every = 0.0
+fields = ["x"]
+TOML
+# t_end of S steps (cfl h / c_P)
+t_end=$(/usr/bin/python3 -c "
+E,nu,rho=1e7,0.3,1000.0
+M=E*(1-nu)/((1+nu)*(1-2*nu))
+print($steps*0.3*(1.0/$cells)/(M/rho)**0.5*0.9999)")
+measure() { # label ranks otmpm-arguments... -> one line: label, each rank's peak MB, largest / mean
+  local label=$1 n=$2
+  shift 2
+  (cd "$work" && mpirun -q --oversubscribe -np "$n" sh -c \
+    'exec /usr/bin/time -f "peak $OMPI_COMM_WORLD_RANK %M" "$@" > /dev/null' sh "$bin" "$@" 2> "$work/err.txt") || {
+    cat "$work/err.txt" >&2
+    exit 1
+  }
+  /usr/bin/python3 - "$label" "$work/err.txt" <<'PY'
+import sys
+peaks = {}
+for line in open(sys.argv[2]):
+    w = line.split()
+    if len(w) == 3 and w[0] == "peak":
+        peaks[int(w[1])] = int(w[2]) / 1000.0
+mb = [peaks[r] for r in sorted(peaks)]
+print(f"{sys.argv[1]:40s} " + " ".join(f"{m:8.1f}" for m in mb) + f"   max/mean {max(mb) / (sum(mb) / len(mb)):.3f}")
+PY
+}
+echo "machine: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg)"
+echo "3D block, $cells^3 cells, $((8 * cells * cells * cells)) particles, $steps steps; peak RSS per rank in MB (rank 0 first)"
+measure "run on $ranks ranks, no checkpoint" "$ranks" run block.toml --quiet --out a.h5 --set simulation.t_end="$t_end"
+measure "run on $ranks ranks, checkpoint at step $((steps - 1))" "$ranks" run block.toml --quiet --out b.h5 \
+  --set simulation.t_end="$t_end" --set output.checkpoint_every="$((steps - 1))"
+ls -l "$work/b.checkpoint.h5" | awk '{printf "checkpoint file: %.1f MB\n", $5 / 1e6}'
+measure "restart on $ranks ranks" "$ranks" run --restart b.checkpoint.h5 --quiet --out c.h5
+measure "restart on $ranks2 ranks" "$ranks2" run --restart b.checkpoint.h5 --quiet --out d.h5
+echo "load after: $(cut -d' ' -f1-3 /proc/loadavg)"
