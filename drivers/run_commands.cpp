@@ -129,8 +129,9 @@ void print_ranks(const SceneCheck& c, const Scene& scene) {
   if (!t.calibrated) std::printf("  step time  not calibrated (%s)\n", t.why_not.c_str());
   else {
     std::printf("  step time  about %.3g s: compute %.3g s on rank %d, communication %.3g s (per step: nodal "
-                "exchanges %.3g, reductions %.3g)\n",
-                t.seconds, t.compute, t.busiest, t.communication, t.exchanges, t.reductions);
+                "exchanges %.3g, reductions %.3g); the run's steps about %.3g s\n",
+                t.seconds, t.compute, t.busiest, t.communication, t.exchanges, t.reductions,
+                t.seconds * c.estimated_steps);
     std::printf("             calibrated on each rank: %d steps of a block of %ld particles of this scene's kind "
                 "(%.3g us per particle, %.3g us per node on rank %d), and the step's exchanges with the neighbours "
                 "and reductions, %d times\n",

@@ -75,23 +75,20 @@ print($steps*0.3*(1.0/$cells)/(M/rho)**0.5*0.9999)")
 measure() { # label ranks otmpm-arguments... -> one line: label, each rank's peak MB, largest / mean
   local label=$1 n=$2
   shift 2
+  rm -f "$work"/peak.*
   (cd "$work" && mpirun -q --oversubscribe -np "$n" sh -c \
-    'exec /usr/bin/time -f "peak $OMPI_COMM_WORLD_RANK %M" "$@" > /dev/null' sh "$bin" "$@" 2> "$work/err.txt") || {
+    'exec /usr/bin/time -o "peak.$OMPI_COMM_WORLD_RANK" -f %M "$@" > /dev/null' sh "$bin" "$@" 2> "$work/err.txt") || {
     cat "$work/err.txt" >&2
     exit 1
   }
-  /usr/bin/python3 - "$label" "$work/err.txt" <<'PY'
+  /usr/bin/python3 - "$label" "$n" "$work" <<'PY'
 import sys
-peaks = {}
-for line in open(sys.argv[2]):
-    w = line.split()
-    if len(w) == 3 and w[0] == "peak":
-        peaks[int(w[1])] = int(w[2]) / 1000.0
-mb = [peaks[r] for r in sorted(peaks)]
-print(f"{sys.argv[1]:40s} " + " ".join(f"{m:8.1f}" for m in mb) + f"   max/mean {max(mb) / (sum(mb) / len(mb)):.3f}")
+label, n, work = sys.argv[1], int(sys.argv[2]), sys.argv[3]
+mb = [int(open(f"{work}/peak.{r}").read().split()[-1]) / 1000.0 for r in range(n)]
+print(f"{label:40s} " + " ".join(f"{m:8.1f}" for m in mb) + f"   max/mean {max(mb) / (sum(mb) / len(mb)):.3f}")
 PY
 }
-echo "machine: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg)"
+echo "machine: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $(nproc --all) cores, load $(cut -d' ' -f1-3 /proc/loadavg)"
 echo "3D block, $cells^3 cells, $((8 * cells * cells * cells)) particles, $steps steps; peak RSS per rank in MB (rank 0 first)"
 measure "run on $ranks ranks, no checkpoint" "$ranks" run block.toml --quiet --out a.h5 --set simulation.t_end="$t_end"
 measure "run on $ranks ranks, checkpoint at step $((steps - 1))" "$ranks" run block.toml --quiet --out b.h5 \

@@ -429,8 +429,8 @@ void route_rows(const Comm& comm, Checkpoint& block, const std::vector<int>& des
   for_each_particle_array(rows, [&](auto& a) { row_bytes.push_back(a.cols * sizeof(a.values[0])); });
   std::size_t width = 0;
   for (std::size_t b : row_bytes) width += b;
-  const std::vector<Bytes> in = comm.alltoall(out);
-  for (const Bytes& msg : in) {
+  std::vector<Bytes> in = comm.alltoall(std::move(out));
+  for (Bytes& msg : in) {
     const std::size_t n = width ? msg.size() / width : 0;
     std::size_t at = 0, k = 0;
     for_each_particle_array(rows, [&](auto& a) {
@@ -439,6 +439,7 @@ void route_rows(const Comm& comm, Checkpoint& block, const std::vector<int>& des
       std::memcpy(a.values.data() + old, msg.data() + at, n * row_bytes[k]);
       at += n * row_bytes[k++];
     });
+    Bytes().swap(msg); // unpacked
   }
   order_by_global_id(rows);
 }
