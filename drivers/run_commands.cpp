@@ -325,7 +325,8 @@ Command add_run_command(CLI::App& app) {
   sub->add_option("--out", a->out, "Result file (default: output.file of the scene)")->type_name("FILE.h5");
   CLI::Option* check = sub->add_flag("--check", a->check,
                                      "Validate the scene and print particles, nodes, dt, estimated steps and "
-                                     "memory; do not run");
+                                     "memory; do not run (under mpirun: per rank, with the halo and a step time, "
+                                     "nothing allocated)");
   restart->excludes(scene)->excludes("--set")->excludes(check);
   sub->footer("One of SCENE.toml and --restart is required. SIGINT/SIGTERM stop the run after the current step: "
               "the result file keeps status \"interrupted\" (and a last checkpoint is written if checkpointing is "

@@ -3,8 +3,8 @@
 # checkpoint, and of its restart (docs/performance.md, "Distributed runs",
 # "Checkpoints"): the 3D block of scripts/bench-mpi.sh --dim 3 (N^3 cells
 # of the unit cube, 2 x 2 x 2 particles per cell, linear fe, mpm, its base
-# held, under gravity) run for S steps under mpirun -np R, one OpenMP thread
-# per rank, each rank under /usr/bin/time -f %M:
+# held, under gravity; bench-mpi.sh --write-scene) run for S steps under
+# mpirun -np R, one OpenMP thread per rank, each rank under /usr/bin/time:
 #
 #   1. the run without a checkpoint, 2. the same run writing one checkpoint
 #   (at step S - 1), 3. its restart on R ranks (the last step), 4. its
@@ -29,44 +29,7 @@ done
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMP_NUM_THREADS=1
-h=$(/usr/bin/python3 -c "print(repr(1.0/$cells))")
-lo=$(/usr/bin/python3 -c "print(-2*$h)") hi=$(/usr/bin/python3 -c "print(1+2*$h)")
-cat > "$work/block.toml" <<TOML
-[simulation]
-dimension = 3
-mode = "mpm"
-integrator = "fe"
-t_end = 1.0
-cfl = 0.3
-[basis]
-kind = "linear"
-[grid]
-lower = [$lo, $lo, 0.0]
-upper = [$hi, $hi, $hi]
-cells = [$((cells + 4)), $((cells + 4)), $((cells + 2))]
-[[material]]
-name = "m"
-model = "linear_elastic"
-density = 1000.0
-young = 1.0e7
-poisson = 0.3
-[[body]]
-name = "block"
-material = "m"
-lower = [0.0, 0.0, 0.0]
-upper = [1.0, 1.0, 1.0]
-particles_per_cell = 2
-[[boundary]]
-name = "base"
-lower = [$lo, $lo, 0.0]
-upper = [$hi, $hi, 0.0]
-fix = [true, true, true]
-[body_force]
-value = [0.0, 0.0, -9.81]
-[output]
-every = 0.0
-fields = ["x"]
-TOML
+bash "$root/scripts/bench-mpi.sh" --dim 3 --cells "$cells" --write-scene "$work/block.toml"
 # t_end of S steps (cfl h / c_P)
 t_end=$(/usr/bin/python3 -c "
 E,nu,rho=1e7,0.3,1000.0
