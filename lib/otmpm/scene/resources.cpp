@@ -187,12 +187,17 @@ std::string format_bytes(double bytes) {
   return buf;
 }
 
+ResourceEstimate estimate_even_share(const Scene& scene, int processes) {
+  const int P = std::max(processes, 1);
+  SceneSize even = scene_size(scene);
+  even.particles = std::ceil(even.particles / P), even.nodes = std::ceil(even.nodes / P);
+  return estimate_resources(scene, even, P);
+}
+
 void check_resources(const Scene& scene, int processes) {
   const int P = std::max(processes, 1);
   const ResourceEstimate whole = estimate_resources(scene);
-  SceneSize even = scene_size(scene);
-  even.particles = std::ceil(even.particles / P), even.nodes = std::ceil(even.nodes / P);
-  const ResourceEstimate e = P > 1 ? estimate_resources(scene, even, P) : whole;
+  const ResourceEstimate e = P > 1 ? estimate_even_share(scene, P) : whole;
   if (P == 1) refuse_memory(scene, e, "the run would need");
   else
     refuse_memory(scene, e, "each of the " + std::to_string(P) + " ranks would need at least",

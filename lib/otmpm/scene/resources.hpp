@@ -47,6 +47,12 @@ ResourceEstimate estimate_resources(const Scene& scene);
 /// solver's five nodal vectors instead).
 ResourceEstimate estimate_resources(const Scene& scene, const SceneSize& share, int ranks = 1);
 
+/// The estimate for one of `processes` ranks holding an even share of the
+/// scene (1/processes of its particles and nodes, rounded up): the largest
+/// rank of a decomposition holds at least that. One process: the whole
+/// scene's.
+ResourceEstimate estimate_even_share(const Scene& scene, int processes);
+
 /// The fastest signal at t = 0: the P-wave speed sqrt(M / rho) of every
 /// material - with the smallest density of a file body's `density` column
 /// for that body (BodySection::file_min_density) - and the speed of every
