@@ -82,13 +82,87 @@ std::function<void(double, double, long)> progress(const SceneArgs& a) {
   return make_progress(a.quiet, a.progress_interval);
 }
 
+std::string fmt(const char* f, double v) {
+  char b[64];
+  std::snprintf(b, sizeof b, f, v);
+  return b;
+}
+
+/// Ranks up to which `run --check` under mpirun prints a row per rank.
+constexpr std::size_t kRankTableRows = 16;
+
+/// A per-rank figure over the ranks: "min .. max (the most on rank R)", or
+/// "V on every rank"; `text` formats one value.
+template <class F, class T>
+std::string range_of(const std::vector<RankCheck>& ranks, F get, T text) {
+  std::size_t lo = 0, hi = 0;
+  for (std::size_t r = 0; r < ranks.size(); ++r) {
+    if (get(ranks[r]) < get(ranks[lo])) lo = r;
+    if (get(ranks[r]) > get(ranks[hi])) hi = r;
+  }
+  const std::string least = text(get(ranks[lo])), most = text(get(ranks[hi]));
+  if (least == most) return most + " on every rank";
+  return least + " .. " + most + " (the most on rank " + std::to_string(hi) + ")";
+}
+
+std::string integer_text(double v) { return fmt("%.0f", v); }
+
+/// The decomposition, memory per rank, halo and step time of `run --check` under mpirun.
+void print_ranks(const SceneCheck& c, const Scene& scene) {
+  const std::vector<RankCheck>& R = c.ranks;
+  const auto particles = [](const RankCheck& r) { return static_cast<double>(r.particles); };
+  const auto nodes = [](const RankCheck& r) { return static_cast<double>(r.nodes); };
+  const auto memory = [](const RankCheck& r) { return r.memory_bytes; };
+  std::printf("  particles  %ld: %s\n", c.particles, range_of(R, particles, integer_text).c_str());
+  std::printf("  nodes      %ld: with its ghosts %s\n", c.nodes, range_of(R, nodes, integer_text).c_str());
+  std::printf("  dt         %.6g s (first step, %s)\n", c.dt,
+              scene.simulation.dt ? "fixed" : "cfl rule on the scene's fastest wave speed");
+  std::printf("  steps      about %.0f (t_end = %.6g s)\n", c.estimated_steps, c.t_end);
+  std::printf("  memory     about %s; %s all %zu ranks together (the run's estimates; limit %s per rank)\n",
+              range_of(R, memory, format_bytes).c_str(), format_bytes(c.memory_bytes).c_str(), R.size(),
+              format_bytes(c.memory_limit).c_str());
+  std::printf("  halo       ghost nodes %s; neighbours %s; sent per nodal exchange %s\n",
+              range_of(R, [](const RankCheck& r) { return static_cast<double>(r.ghosts); }, integer_text).c_str(),
+              range_of(R, [](const RankCheck& r) { return static_cast<double>(r.neighbours); }, integer_text).c_str(),
+              range_of(R, [](const RankCheck& r) { return r.halo_bytes; }, format_bytes).c_str());
+  const StepTime& t = c.step_time;
+  if (!t.calibrated) std::printf("  step time  not calibrated (%s)\n", t.why_not.c_str());
+  else {
+    std::printf("  step time  about %.3g s: compute %.3g s on rank %d, communication %.3g s (per step: nodal "
+                "exchanges %.3g, reductions %.3g); the run's steps about %.3g s\n",
+                t.seconds, t.compute, t.busiest, t.communication, t.exchanges, t.reductions,
+                t.seconds * c.estimated_steps);
+    std::printf("             calibrated on each rank: %d steps of a block of %ld particles of this scene's kind "
+                "(%.3g us per particle, %.3g us per node on rank %d), and the step's exchanges with the neighbours "
+                "and reductions, %d times\n",
+                t.calibration_steps, t.calibration_particles, 1e6 * t.per_particle, 1e6 * t.per_node, t.busiest,
+                t.comm_rounds);
+  }
+  if (R.size() > kRankTableRows) return;
+  std::printf("  %6s %12s %12s %10s %10s %12s %12s\n", "rank", "particles", "nodes", "ghosts", "neighbours", "halo",
+              "memory");
+  for (std::size_t r = 0; r < R.size(); ++r)
+    std::printf("  %6zu %12lld %12lld %10lld %10d %12s %12s\n", r, R[r].particles, R[r].nodes, R[r].ghosts,
+                R[r].neighbours, format_bytes(R[r].halo_bytes).c_str(), format_bytes(R[r].memory_bytes).c_str());
+}
+
 /// `otmpm run --check`: what a run of the scene would be, without running it.
 int check_command(const SceneArgs& a) {
+  set_threads(a.threads);
   Scene scene;
   const distributed::Comm& world = distributed::Comm::world();
   distributed::agree_on(world, [&] { scene = load_scene(a.scene, a.sets, world.size()); });
   const SceneCheck c = check_scene(scene);
   if (!prints()) return 0;
+  if (!c.ranks.empty()) {
+    std::printf("%s: ok (the scene reads and divides over %zu ranks; nothing allocated)\n", a.scene.c_str(),
+                c.ranks.size());
+    std::printf("  %dD, mode %s, integrator %s, basis %s\n", c.dimension, c.mode.c_str(), c.integrator.c_str(),
+                c.basis.c_str());
+    print_ranks(c, scene);
+    std::printf("  results    %s\n", (a.out.empty() ? c.out_file : a.out).c_str());
+    return 0;
+  }
   std::printf("%s: ok (the scene reads and the run can be set up)\n", a.scene.c_str());
   std::printf("  %dD, mode %s, integrator %s, basis %s\n", c.dimension, c.mode.c_str(), c.integrator.c_str(),
               c.basis.c_str());
@@ -158,12 +232,6 @@ int run_command(const SceneArgs& a) {
   std::printf("%s\n", summary_line(s).c_str());
   if (!s.out_file.empty() && !a.quiet) std::printf("results: %s\n", s.out_file.c_str());
   return s.interrupted ? interrupted_exit_status() : s.exit_code;
-}
-
-std::string fmt(const char* f, double v) {
-  char b[64];
-  std::snprintf(b, sizeof b, f, v);
-  return b;
 }
 
 /// An error's row label with its unit: absolute RMS errors in the
@@ -257,7 +325,8 @@ Command add_run_command(CLI::App& app) {
   sub->add_option("--out", a->out, "Result file (default: output.file of the scene)")->type_name("FILE.h5");
   CLI::Option* check = sub->add_flag("--check", a->check,
                                      "Validate the scene and print particles, nodes, dt, estimated steps and "
-                                     "memory; do not run");
+                                     "memory; do not run (under mpirun: per rank, with the halo and a step time, "
+                                     "nothing allocated)");
   restart->excludes(scene)->excludes("--set")->excludes(check);
   sub->footer("One of SCENE.toml and --restart is required. SIGINT/SIGTERM stop the run after the current step: "
               "the result file keeps status \"interrupted\" (and a last checkpoint is written if checkpointing is "

@@ -15,13 +15,15 @@
 # the halo bytes and communication seconds per step and rank.
 #
 # With --dim 3 the block is the 3D cube of N^3 cells, 2 x 2 x 2 particles per
-# cell, under gravity along z with its base fixed.
+# cell, under gravity along z with its base fixed. --write-scene FILE writes
+# the block's scene to FILE and runs nothing (scripts/checkpoint-memory.sh).
 #
 #   bash scripts/bench-mpi.sh [--repeat R] [--cells N] [--ranks MAX] [--basis linear] [--integrator fe] [--dim 2|3]
+#                             [--write-scene FILE]
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 bin=${OTMPM_BIN:-$root/build/bin/otmpm}
-repeat=5 cells=200 ranks=2 basis=linear integrator=fe short=10 long=60 dim=2
+repeat=5 cells=200 ranks=2 basis=linear integrator=fe short=10 long=60 dim=2 scene_out=
 while [ $# -gt 0 ]; do
   case "$1" in
     --repeat) repeat=$2; shift 2 ;;
@@ -31,6 +33,7 @@ while [ $# -gt 0 ]; do
     --integrator) integrator=$2; shift 2 ;;
     --steps) short=$2; long=$3; shift 3 ;;
     --dim) dim=$2; shift 2 ;;
+    --write-scene) scene_out=$2; shift 2 ;;
     *) echo "usage: bash scripts/bench-mpi.sh [--repeat R] [--cells N] [--ranks MAX] [--basis B] [--integrator I] [--steps SHORT LONG]" >&2; exit 2 ;;
   esac
 done
@@ -96,6 +99,10 @@ value = $gravity
 every = 0.0
 fields = ["x"]
 EOF
+if [ -n "$scene_out" ]; then
+  cp "$work/block.toml" "$scene_out"
+  exit 0
+fi
 # dt of the scene (cfl h / c_P), for t_end = steps * dt
 dt=$(/usr/bin/python3 -c "
 E,nu,rho=1e7,0.3,1000.0

@@ -18,13 +18,6 @@ namespace otmpm {
 
 namespace {
 
-/// The grid spacing of the scene's grid per axis.
-template <int D> Vec<D> grid_spacing(const Scene& scene) {
-  Vec<D> h;
-  for (int k = 0; k < D; ++k) h[k] = (scene.grid.upper[k] - scene.grid.lower[k]) / scene.grid.cells[k];
-  return h;
-}
-
 template <int D> bool inside_box(const Vec<D>& x, const Vec3& lo, const Vec3& hi, double tol = 0.0) {
   for (int k = 0; k < D; ++k)
     if (x[k] < lo[k] - tol || x[k] > hi[k] + tol) return false;
@@ -256,6 +249,12 @@ void require_boundary_nodes(const Scene& scene, const std::vector<long long>& se
     }
 }
 
+template <int D> Vec<D> grid_spacing(const Scene& scene) {
+  Vec<D> h;
+  for (int k = 0; k < D; ++k) h[k] = (scene.grid.upper[k] - scene.grid.lower[k]) / scene.grid.cells[k];
+  return h;
+}
+
 template <int D> CartesianGrid<D> node_grid(const Scene& scene) {
   const LatticeBox box = node_lattice_box(scene);
   CartesianGrid<D> grid;
@@ -359,6 +358,7 @@ template <int D> Engine<D> assemble(const Scene& scene) { return Engine<D>(assem
   template Engine<D> assemble<D>(const Scene&);                                   \
   template Particles<D> seed_particles<D>(const Scene&, const Vec<D>&);   \
   template CartesianGrid<D> node_grid<D>(const Scene&);                    \
+  template Vec<D> grid_spacing<D>(const Scene&);                           \
   template BasisOptions basis_options<D>(const Scene&);
 OTMPM_INSTANTIATE(1)
 OTMPM_INSTANTIATE(2)

@@ -60,6 +60,9 @@ Dirichlet<D> boundary_entries(const std::vector<BoundarySection>& boundaries, in
 /// `selected` (boundary_entries) is 0: it selects no node.
 void require_boundary_nodes(const Scene& scene, const std::vector<long long>& selected);
 
+/// The grid spacing of the scene's grid per axis (the spacing particles are seeded with).
+template <int D> Vec<D> grid_spacing(const Scene& scene);
+
 /// The node lattice of the scene (node_lattice_box: the grid in `mpm`
 /// mode, the bodies' bounding box in `ul` mode) as a grid.
 template <int D> CartesianGrid<D> node_grid(const Scene& scene);

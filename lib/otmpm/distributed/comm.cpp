@@ -239,7 +239,7 @@ std::vector<Bytes> Comm::exchange(const std::vector<int>& to, const std::vector<
   return received;
 }
 
-std::vector<Bytes> Comm::alltoall(const std::vector<Bytes>& send) const {
+std::vector<Bytes> Comm::alltoall(std::vector<Bytes> send) const {
   if (send.size() != static_cast<std::size_t>(size_))
     throw std::invalid_argument("Comm::alltoall: " + std::to_string(send.size()) + " buffers for " +
                                 std::to_string(size_) + " ranks");
@@ -257,10 +257,15 @@ std::vector<Bytes> Comm::alltoall(const std::vector<Bytes>& send) const {
     s += static_cast<std::size_t>(send_count[q]);
     r += static_cast<std::size_t>(recv_count[q]);
   }
-  Bytes out(s), in(r);
-  for (std::size_t q = 0; q < P; ++q) std::copy(send[q].begin(), send[q].end(), out.begin() + send_at[q]);
+  Bytes out(s);
+  for (std::size_t q = 0; q < P; ++q) {
+    std::copy(send[q].begin(), send[q].end(), out.begin() + send_at[q]);
+    Bytes().swap(send[q]);
+  }
+  Bytes in(r);
   MPI_Alltoallv(out.data(), send_count.data(), send_at.data(), MPI_BYTE, in.data(), recv_count.data(),
                 recv_at.data(), MPI_BYTE, world_comm());
+  Bytes().swap(out);
   for (std::size_t q = 0; q < P; ++q)
     received[q].assign(in.begin() + recv_at[q], in.begin() + recv_at[q] + recv_count[q]);
 #endif

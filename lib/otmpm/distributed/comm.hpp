@@ -60,8 +60,10 @@ public:
   std::vector<Bytes> exchange(const std::vector<int>& to, const std::vector<Bytes>& send,
                               const std::vector<int>& from) const;
   /// Every rank sends send[q] to rank q (send.size() == size()); returns what
-  /// each rank q sent to this one.
-  std::vector<Bytes> alltoall(const std::vector<Bytes>& send) const;
+  /// each rank q sent to this one. `send` is taken by value (move it in):
+  /// each buffer is freed once packed, so the call holds about twice the
+  /// larger of what this rank sends and receives, not four times.
+  std::vector<Bytes> alltoall(std::vector<Bytes> send) const;
   /// Every rank's `mine`, in rank order, on every rank.
   std::vector<Bytes> allgather(const Bytes& mine) const;
   void barrier() const;

@@ -130,7 +130,7 @@ template <int D> void Domain<D>::migrate(Engine<D>& e) {
                                                                            dest[p]) - neighbours_.begin());
     pack_row(cols, p, out[to]);
   }
-  received = far ? comm_.alltoall(out) : comm_.exchange(neighbours_, out, neighbours_);
+  received = far ? comm_.alltoall(std::move(out)) : comm_.exchange(neighbours_, out, neighbours_);
   keep_rows(cols, keep, n);
   std::size_t count = 0;
   for (std::size_t p = 0; p < n; ++p) count += keep[p];

@@ -203,7 +203,7 @@ template <int D> typename GlobalView<D>::Block GlobalView<D>::block(const double
     put(out[static_cast<std::size_t>(r)], static_cast<std::int64_t>(g));
     put_bytes(out[static_cast<std::size_t>(r)], local + p * c, c * sizeof(double));
   }
-  const std::vector<Bytes> in = comm.alltoall(out);
+  const std::vector<Bytes> in = comm.alltoall(std::move(out));
   b.first = first_of(comm.rank());
   b.count = first_of(comm.rank() + 1) - b.first;
   b.values.assign(static_cast<std::size_t>(b.count) * c, 0.0);
@@ -316,7 +316,7 @@ template <int D> void GlobalView<D>::write_checkpoint(const std::string& path, C
   share.particle_rows = {{first, 1, 1, static_cast<long long>(ids.size())}};
   share.points = nodes();
   share.point_rows = point_blocks(d_->lattice(), d_->lattice().owned_points(d_->decomposition().box(comm.rank())));
-  collectively([&] { otmpm::write_checkpoint(path, ck, share); });
+  collectively([&] { otmpm::write_checkpoint(path, std::move(ck), share); });
 }
 
 template <int D> Checkpoint local_checkpoint(const Engine<D>& e, const Checkpoint& ck, Checkpoint rows) {

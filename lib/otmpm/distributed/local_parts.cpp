@@ -9,6 +9,7 @@
 #include "otmpm/basis/lme.hpp"
 #include "otmpm/io/checkpoint.hpp"
 #include "otmpm/particles/particle_state.hpp"
+#include "otmpm/scene/resources.hpp"
 
 #include <cmath>
 #include <cstring>
@@ -110,6 +111,69 @@ PointLattice<D> point_lattice(const Scene& scene, double radius, const Cartesian
   return L;
 }
 
+/// The point lattice of the scene's basis as the rank that owns `cells`
+/// builds its window on it (collective: the LME node_spacing metric on a
+/// perturbed grid takes its radius from every rank's nodes).
+template <int D>
+PointLattice<D> rank_point_lattice(const Scene& scene, const Comm& comm, const CartesianGrid<D>& grid,
+                                   const IndexBox<D>& cells) {
+  const bool ul = scene.simulation.nodes_move();
+  double radius = probe_basis<D>(scene, grid)->search_radius();
+  if (radius_from_nodes(scene)) {
+    // the owned nodes do not depend on the radius (only the ghost layers do)
+    const IndexBox<D> own = point_lattice<D>(scene, radius, grid, ul).owned_points(cells);
+    radius = perturbed_search_radius<D>(scene, comm, grid, own);
+  }
+  return point_lattice<D>(scene, radius, grid, ul);
+}
+
+/// What rank r of `d` holds on the point lattice `L` with `particles`
+/// particles (RankShare), and its neighbours in the nodal exchange (`links`).
+template <int D>
+RankShare rank_share(const PointLattice<D>& L, const Decomposition<D>& d, int r, long long particles,
+                     std::vector<HaloLink>& links) {
+  RankShare s;
+  s.particles = particles;
+  const IndexBox<D> window = L.window(d.box(r)), own = L.owned_points(d.box(r));
+  s.points = window.count();
+  for (int q = 0; q < d.ranks(); ++q) {
+    if (q == r) continue;
+    const HaloLink link{q, window.intersect(L.owned_points(d.box(q))).count(),
+                        own.intersect(L.window(d.box(q))).count()};
+    if (link.ghosts + link.shared == 0) continue;
+    links.push_back(link);
+    ++s.neighbours;
+    s.ghosts += link.ghosts;
+    s.halo += link.ghosts + link.shared;
+  }
+  return s;
+}
+
+/// Refuses (InputError on every rank: the lowest rank over its limit) a
+/// rank whose share - rank r holds particles[r] particles and the window of
+/// its cells of `d` on `L` - has more than kMaxRankNodes lattice points or
+/// exceeds its memory limit (check_rank_resources).
+template <int D>
+void check_rank_memory(const Scene& scene, const Comm& comm, const PointLattice<D>& L, const Decomposition<D>& d,
+                       const std::vector<std::int64_t>& particles) {
+  double total = 0.0;
+  SceneSize mine;
+  for (int r = 0; r < d.ranks(); ++r) {
+    SceneSize share;
+    share.particles = static_cast<double>(particles[static_cast<std::size_t>(r)]);
+    share.nodes = static_cast<double>(L.window(d.box(r)).count());
+    total += estimate_resources(scene, share, d.ranks()).bytes;
+    if (r == comm.rank()) mine = share;
+  }
+  agree_on(comm, [&] {
+    if (mine.nodes > kMaxRankNodes)
+      throw InputError("rank " + std::to_string(comm.rank()) + " of " + std::to_string(d.ranks()) + " would hold " +
+                       format_number(mine.nodes) + " lattice points with its ghosts; at most " +
+                       format_number(kMaxRankNodes) + " per rank are allowed (run on more ranks)");
+    check_rank_resources(scene, mine, comm.rank(), d.ranks(), total);
+  });
+}
+
 /// The basis of the scene on a window: a family whose points are not the
 /// lattice's nodes by its window constructor (B-splines: the whole
 /// lattice's knots with the window's control points, BasisKind::window);
@@ -171,27 +235,20 @@ Dirichlet<D> window_boundaries(const std::vector<BoundarySection>& boundaries, c
 /// that each boundary box selects a node counts the points each rank owns,
 /// summed over the ranks (a boundary is found once, on the whole lattice).
 /// `decomposed` false: the bisection failed (its error is raised after the
-/// assembly), only the probe is built.
+/// assembly), only the probe is built; true: setup.lattice is this rank's
+/// rank_point_lattice (found before the particles were kept).
 template <int D>
 LatticePart<D> rank_lattice(const Scene& scene, const Comm& comm, const CartesianGrid<D>& grid, bool decomposed,
                             typename Domain<D>::Setup& setup) {
-  const bool ul = scene.simulation.nodes_move();
   LatticePart<D> part;
   std::unique_ptr<Basis<D>> probe = probe_basis<D>(scene, grid);
   setup.setup_points = probe->nodes().size();
-  double radius = probe->search_radius();
   if (!decomposed) {
-    setup.lattice = point_lattice<D>(scene, radius, grid, ul);
+    setup.lattice = point_lattice<D>(scene, probe->search_radius(), grid, scene.simulation.nodes_move());
     part.basis = std::move(probe);
     return part;
   }
   const IndexBox<D> cells = setup.decomposition.box(comm.rank());
-  if (radius_from_nodes(scene)) {
-    // the owned nodes do not depend on the radius (only the ghost layers do)
-    const IndexBox<D> own = point_lattice<D>(scene, radius, grid, ul).owned_points(cells);
-    radius = perturbed_search_radius<D>(scene, comm, grid, own);
-  }
-  setup.lattice = point_lattice<D>(scene, radius, grid, ul);
   const PointLattice<D>& L = setup.lattice;
   Window<D> w;
   w.box = L.window(cells);
@@ -229,13 +286,19 @@ EngineParts<D> finish_parts(const Comm& comm, EngineParts<D> parts, typename Dom
   return parts;
 }
 
-/// A rank's parts seeded for its own cells only (local_parts.hpp,
-/// share_seeding.hpp).
+} // namespace
+
 template <int D> EngineParts<D> seeded_parts(const Scene& scene, const Comm& comm) {
   typename Domain<D>::Setup setup;
   ShareSeeding<D> share;
   auto seed = [&](const Vec<D>& h, const CartesianGrid<D>& grid) {
-    SeededBodies<D> mine = share_seeding<D>(scene, comm, h, grid, share);
+    // each rank's memory, checked before its particles and nodes are allocated
+    auto check = [&](const ShareSeeding<D>& s) {
+      setup.lattice = rank_point_lattice<D>(scene, comm, grid, s.decomposition.box(comm.rank()));
+      check_rank_memory<D>(scene, comm, setup.lattice, s.decomposition, s.per_rank);
+      return true;
+    };
+    SeededBodies<D> mine = share_seeding<D>(scene, comm, h, grid, share, check);
     setup.decomposition = share.decomposition;
     setup.global_ids = mine.ids; // a copy: the assembler reads mine.ids (traction surfaces)
     return mine;
@@ -256,6 +319,30 @@ template <int D> EngineParts<D> seeded_parts(const Scene& scene, const Comm& com
   setup.setup_particles = parts.particles.size();
   return finish_parts<D>(comm, std::move(parts), std::move(setup));
 }
+
+template <int D> RankPlan plan_ranks(const Scene& scene, const Comm& comm) {
+  const CartesianGrid<D> grid = node_grid<D>(scene);
+  ShareSeeding<D> share;
+  RankPlan plan;
+  auto report = [&](const ShareSeeding<D>& s) {
+    const PointLattice<D> L = rank_point_lattice<D>(scene, comm, grid, s.decomposition.box(comm.rank()));
+    check_rank_memory<D>(scene, comm, L, s.decomposition, s.per_rank);
+    const RankShare mine =
+        rank_share<D>(L, s.decomposition, comm.rank(), s.per_rank[static_cast<std::size_t>(comm.rank())], plan.links);
+    Bytes packed;
+    put(packed, mine);
+    for (const Bytes& in : comm.allgather(packed)) plan.ranks.push_back(Reader(in).get<RankShare>());
+    plan.particles = s.particles;
+    plan.points = 1;
+    for (int k = 0; k < D; ++k) plan.points *= L.points[k];
+    return false;
+  };
+  share_seeding<D>(scene, comm, grid_spacing<D>(scene), grid, share, report);
+  if (share.deferred) std::rethrow_exception(share.deferred);
+  return plan;
+}
+
+namespace {
 
 /// The decomposition of the run that wrote checkpoint `ck` (its group
 /// "decomposition") when it ran on `ranks` ranks; none otherwise.
@@ -321,8 +408,8 @@ void route_rows(const Comm& comm, Checkpoint& block, const std::vector<int>& des
   for_each_particle_array(rows, [&](auto& a) { row_bytes.push_back(a.cols * sizeof(a.values[0])); });
   std::size_t width = 0;
   for (std::size_t b : row_bytes) width += b;
-  const std::vector<Bytes> in = comm.alltoall(out);
-  for (const Bytes& msg : in) {
+  std::vector<Bytes> in = comm.alltoall(std::move(out));
+  for (Bytes& msg : in) {
     const std::size_t n = width ? msg.size() / width : 0;
     std::size_t at = 0, k = 0;
     for_each_particle_array(rows, [&](auto& a) {
@@ -331,6 +418,7 @@ void route_rows(const Comm& comm, Checkpoint& block, const std::vector<int>& des
       std::memcpy(a.values.data() + old, msg.data() + at, n * row_bytes[k]);
       at += n * row_bytes[k++];
     });
+    Bytes().swap(msg); // unpacked
   }
   order_by_global_id(rows);
 }
@@ -342,7 +430,8 @@ void route_rows(const Comm& comm, Checkpoint& block, const std::vector<int>& des
 /// 1/N of the rows, finds their cells and sends them to their owners).
 template <int D>
 std::vector<long long> restart_rows(const Scene& scene, const Comm& comm, const Checkpoint& ck,
-                                    const CartesianGrid<D>& grid, Decomposition<D>& decomposition, Checkpoint& rows) {
+                                    const CartesianGrid<D>& grid, Decomposition<D>& decomposition, Checkpoint& rows,
+                                    const std::function<void(const std::vector<std::int64_t>&)>& check) {
   const long long n = checkpoint_rows(ck, RowKind::particle), P = comm.size(), r = comm.rank();
   if (auto kept = stored_decomposition<D>(ck, grid.cells, comm.size())) {
     decomposition = std::move(*kept);
@@ -351,6 +440,7 @@ std::vector<long long> restart_rows(const Scene& scene, const Comm& comm, const 
     long long first = 0, total = 0;
     for (long long q = 0; q < P; ++q) (q < r ? first : total) += counts[static_cast<std::size_t>(q)];
     if (first + total != n) g.error("its ranks' rows do not add up to the " + std::to_string(n) + " particles");
+    check(counts);
     const long long count = counts[static_cast<std::size_t>(r)];
     read_checkpoint_rows(ck, RowKind::particle, {{first, 1, 1, count}}, rows);
     return row_ids(rows, first, count);
@@ -372,7 +462,10 @@ std::vector<long long> restart_rows(const Scene& scene, const Comm& comm, const 
   }
   decomposition = Decomposition<D>::rcb(grid.cells, comm.size(), cells, weight, comm);
   std::vector<int> dest(home.size());
-  for (std::size_t i = 0; i < home.size(); ++i) dest[i] = decomposition.owner(home[i]);
+  std::vector<std::int64_t> per_rank(static_cast<std::size_t>(P), 0);
+  for (std::size_t i = 0; i < home.size(); ++i) ++per_rank[static_cast<std::size_t>(dest[i] = decomposition.owner(home[i]))];
+  comm.sum(per_rank);
+  check(per_rank);
   route_rows(comm, block, dest, rows);
   const auto& ids = rows.group("particles").integer_arrays.at("global_id").values;
   return {ids.begin(), ids.end()};
@@ -391,7 +484,12 @@ EngineParts<D> restart_parts(const Scene& scene, const Comm& comm, const Checkpo
   const CartesianGrid<D> grid = node_grid<D>(scene);
   const long long n = checkpoint_rows(ck, RowKind::particle);
   rows = checkpoint_head(ck);
-  std::vector<long long> ids = restart_rows<D>(scene, comm, ck, grid, setup.decomposition, rows);
+  // each rank's memory, checked before its rows are read (or sent to it)
+  auto check = [&](const std::vector<std::int64_t>& per_rank) {
+    setup.lattice = rank_point_lattice<D>(scene, comm, grid, setup.decomposition.box(comm.rank()));
+    check_rank_memory<D>(scene, comm, setup.lattice, setup.decomposition, per_rank);
+  };
+  std::vector<long long> ids = restart_rows<D>(scene, comm, ck, grid, setup.decomposition, rows, check);
   SeededBodies<D> share;
   const StateGroup& particles = rows.group("particles");
   restore_particles(particles, share.particles, ids.size());
@@ -416,6 +514,8 @@ EngineParts<D> restart_parts(const Scene& scene, const Comm& comm, const Checkpo
 
 #define OTMPM_INSTANTIATE(D)                                                                                      \
   template EngineParts<D> rank_parts<D>(const Scene&, const Comm&);                                           \
+  template EngineParts<D> seeded_parts<D>(const Scene&, const Comm&);                                         \
+  template RankPlan plan_ranks<D>(const Scene&, const Comm&);                                                 \
   template EngineParts<D> restart_parts<D>(const Scene&, const Comm&, const Checkpoint&, Checkpoint&);
 OTMPM_INSTANTIATE(1)
 OTMPM_INSTANTIATE(2)

@@ -18,8 +18,51 @@
 namespace otmpm::distributed {
 
 /// This rank's parts of `scene`. InputError for a scene that cannot run, or
-/// that cannot be split over the ranks.
+/// that cannot be split over the ranks, or when a rank's share would need
+/// more memory than it may use (check_rank_resources: checked once the
+/// decomposition is known, before the particles are kept).
 template <int D> EngineParts<D> rank_parts(const Scene& scene, const Comm& comm);
+/// rank_parts with a Domain also on one rank (where rank_parts gives the
+/// serial parts): such an engine counts the halo exchanges and reductions a
+/// step of a distributed run makes (DomainStats), on one process.
+template <int D> EngineParts<D> seeded_parts(const Scene& scene, const Comm& comm);
+
+/// What one rank of a distributed run holds, known from the decomposition
+/// before anything is allocated.
+struct RankShare {
+  long long particles = 0; ///< its particles (counted while seeding, before any is kept)
+  long long points = 0;    ///< the lattice points of its window: its own and its ghosts
+  long long ghosts = 0;    ///< of them, the points other ranks own
+  /// Points whose values it sends in one nodal exchange: its ghosts'
+  /// partial sums to their owners, then its own points' totals to the
+  /// ranks that hold them as ghosts (halo.hpp).
+  long long halo = 0;
+  int neighbours = 0; ///< ranks it exchanges nodal values with
+};
+
+/// A neighbour in the nodal exchange and the points sent to it: in the
+/// first round the ghosts it owns, in the second the own points it holds as
+/// ghosts (halo.hpp).
+struct HaloLink {
+  int rank = 0;
+  long long ghosts = 0, shared = 0;
+};
+
+/// The decomposition of a run: its particles and lattice points, and each rank's share.
+struct RankPlan {
+  long long particles = 0; ///< of all ranks
+  long long points = 0;    ///< of the whole lattice
+  std::vector<RankShare> ranks;
+  std::vector<HaloLink> links; ///< this rank's neighbours, ascending
+};
+
+/// The shares of `scene` on the ranks of `comm` as a run divides it - the
+/// seeding's counting pass, the bisection and the basis' point lattice
+/// (from a probe of a few cells) - without seeding a particle or building
+/// a node (`otmpm run --check` under mpirun). Collective; InputError as the
+/// run's set-up makes it up to that point, on every rank alike (a rank's
+/// memory too: check_rank_resources).
+template <int D> RankPlan plan_ranks(const Scene& scene, const Comm& comm);
 
 /// This rank's parts of a restart of `scene` from checkpoint `ck` (its head
 /// with its open file, or all of it in memory), seeding nothing: on as

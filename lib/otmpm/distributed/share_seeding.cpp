@@ -278,7 +278,7 @@ CellRange<D> near(const BodyCells<D>& body, const CartesianGrid<D>& lattice, con
 
 template <int D>
 SeededBodies<D> share_seeding(const Scene& scene, const Comm& comm, const Vec<D>& h, const CartesianGrid<D>& lattice,
-                              ShareSeeding<D>& out) {
+                              ShareSeeding<D>& out, const BeforeKeeping<D>& before_keeping) {
   Plan<D> plan(scene, comm, h, lattice);
   std::vector<Index<D>> home;
   std::vector<std::int64_t> weight;
@@ -286,11 +286,11 @@ SeededBodies<D> share_seeding(const Scene& scene, const Comm& comm, const Vec<D>
   plan.number(comm);
   out.particles = plan.particles;
   SeededBodies<D> mine;
-  if (!scene.tractions.empty()) mine.surfaces = surfaces<D>(scene, comm, h, lattice, plan);
   try {
     out.decomposition = Decomposition<D>::rcb(lattice.cells, comm.size(), home, weight, comm);
   } catch (...) {
     out.deferred = std::current_exception();
+    if (!scene.tractions.empty()) mine.surfaces = surfaces<D>(scene, comm, h, lattice, plan);
     return mine;
   }
   out.per_rank.assign(static_cast<std::size_t>(comm.size()), 0);
@@ -303,6 +303,8 @@ SeededBodies<D> share_seeding(const Scene& scene, const Comm& comm, const Vec<D>
     throw InputError("rank " + std::to_string(most - out.per_rank.begin()) + " of " + std::to_string(comm.size()) +
                      " would hold " + std::to_string(*most) + " particles; at most " +
                      format_number(kMaxRankParticles) + " per rank are allowed (run on more ranks)");
+  if (before_keeping && !before_keeping(out)) return mine;
+  if (!scene.tractions.empty()) mine.surfaces = surfaces<D>(scene, comm, h, lattice, plan);
   const IndexBox<D>& own = out.decomposition.box(comm.rank());
   agree_on(comm, [&] {
     seed_cells_where<D>(
@@ -318,7 +320,7 @@ SeededBodies<D> share_seeding(const Scene& scene, const Comm& comm, const Vec<D>
 
 #define OTMPM_INSTANTIATE(D)                                                                                   \
   template SeededBodies<D> share_seeding<D>(const Scene&, const Comm&, const Vec<D>&, const CartesianGrid<D>&, \
-                                            ShareSeeding<D>&);
+                                            ShareSeeding<D>&, const BeforeKeeping<D>&);
 OTMPM_INSTANTIATE(1)
 OTMPM_INSTANTIATE(2)
 OTMPM_INSTANTIATE(3)

@@ -23,6 +23,7 @@
 #include "otmpm/distributed/decomposition.hpp"
 
 #include <exception>
+#include <functional>
 
 namespace otmpm::distributed {
 
@@ -37,13 +38,20 @@ template <int D> struct ShareSeeding {
   std::vector<std::int64_t> per_rank;
 };
 
+/// Called on every rank once the decomposition and the particles per rank
+/// are known (ShareSeeding), before anything is kept: a check of each
+/// rank's share (its memory), or the report of a decomposition that stops
+/// there (false: nothing is seeded).
+template <int D> using BeforeKeeping = std::function<bool(const ShareSeeding<D>&)>;
+
 /// This rank's particles of `scene` (cells of spacing h, the node lattice
 /// `lattice`; SeededBodies::ids their global ids, SeededBodies::surfaces the traction
 /// loads' surface particles). Collective; InputError (on every rank alike)
 /// for a scene that cannot be seeded, and when a rank would hold more than
-/// kMaxRankParticles.
+/// kMaxRankParticles. `before_keeping` (when given): see BeforeKeeping;
+/// it is not called when the bisection failed (ShareSeeding::deferred).
 template <int D>
 SeededBodies<D> share_seeding(const Scene& scene, const Comm& comm, const Vec<D>& h, const CartesianGrid<D>& lattice,
-                              ShareSeeding<D>& out);
+                              ShareSeeding<D>& out, const BeforeKeeping<D>& before_keeping = nullptr);
 
 } // namespace otmpm::distributed

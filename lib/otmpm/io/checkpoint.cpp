@@ -724,19 +724,20 @@ void write_checkpoint(const std::string& path, const Checkpoint& ck) {
   write_atomically(path, {}, [&](const std::string& tmp) { write_checkpoint_file(tmp, ck); });
 }
 
-void write_checkpoint(const std::string& path, const Checkpoint& mine, const CheckpointShare& share) {
+void write_checkpoint(const std::string& path, Checkpoint mine, const CheckpointShare& share) {
   const ParallelIo& io = share.io;
   if (!io.mpi_comm) return write_checkpoint(path, mine);
   // The root's scalars and whole arrays on every rank (the collective HDF5
-  // calls write the same values everywhere), with this rank's rows.
+  // calls write the same values everywhere), with this rank's rows (moved:
+  // a rank holds its rows once).
   Checkpoint ck = unpack_head(io.broadcast(io.root ? pack_head(mine) : std::string()));
   if (ck.run_id.empty()) ck.run_id = io.broadcast(io.root ? new_run_id() : std::string());
-  for (const auto& [gname, g] : mine.groups) {
+  for (auto& [gname, g] : mine.groups) {
     StateGroup& out = ck.group(gname);
-    for (const auto& [name, a] : g.real_arrays)
-      if (checkpoint_row_kind(gname, name) != RowKind::whole) out.real_arrays[name] = a;
-    for (const auto& [name, a] : g.integer_arrays)
-      if (checkpoint_row_kind(gname, name) != RowKind::whole) out.integer_arrays[name] = a;
+    for (auto& [name, a] : g.real_arrays)
+      if (checkpoint_row_kind(gname, name) != RowKind::whole) out.real_arrays[name] = std::move(a);
+    for (auto& [name, a] : g.integer_arrays)
+      if (checkpoint_row_kind(gname, name) != RowKind::whole) out.integer_arrays[name] = std::move(a);
   }
   write_atomically(path, io, [&](const std::string& tmp) {
     on_all(io, [&] { write_content(tmp, ck, Layout{&share}, io); });

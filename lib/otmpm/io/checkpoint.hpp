@@ -74,7 +74,8 @@ struct CheckpointShare {
 /// is computed by the ranks in parts. The space is not checked ahead (an
 /// MPI-IO file has no descriptor): a full disk is a failed write. An error
 /// on one rank is thrown on every rank (those without one: OutputError).
-void write_checkpoint(const std::string& path, const Checkpoint& mine, const CheckpointShare& share);
+/// `mine` is taken by value: its rows are moved into the file's layout.
+void write_checkpoint(const std::string& path, Checkpoint mine, const CheckpointShare& share);
 
 /// Reads a checkpoint file. Throws InputError naming `path` when it is
 /// missing, not an otmpm checkpoint (of this format version), truncated,

@@ -693,7 +693,9 @@ std::string diagnosis(const std::string& what, long step, double t) {
 /// estimate (scene/resources.hpp) and the limit the estimate passed.
 std::string memory_note(const Scene& scene) {
   const bool set = scene.simulation.memory_limit > 0;
-  return "otmpm's estimate was about " + format_bytes(estimate_resources(scene).bytes) + " against a limit of " +
+  const int ranks = distributed::Comm::world().size();
+  return "otmpm's estimate was about " + format_bytes(estimate_even_share(scene, ranks).bytes) +
+         (ranks > 1 ? " per rank (an even share of " + std::to_string(ranks) + ")" : "") + " against a limit of " +
          format_bytes(memory_limit(scene)) +
          (set ? " set by simulation.memory_limit: more than this process could get" : " this process may use");
 }

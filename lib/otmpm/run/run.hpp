@@ -142,6 +142,43 @@ struct BodyVolume {
 /// engine built from it (all ranks' particles: collective in a distributed run).
 template <int D> std::vector<BodyVolume> body_volumes(const Scene& scene, const Engine<D>& e);
 
+/// One rank of a distributed run as `run --check` under mpirun reports it
+/// (distributed::plan_ranks: known before anything is allocated).
+struct RankCheck {
+  long long particles = 0;
+  long long nodes = 0;  ///< the lattice points of its window, ghosts included
+  long long ghosts = 0; ///< of them, the points other ranks own
+  int neighbours = 0;   ///< ranks it exchanges nodal values with
+  /// Bytes it sends in one nodal exchange of the mass, momentum and force
+  /// (1 + 2D doubles per point; halo.hpp: ghosts' partial sums, then totals).
+  double halo_bytes = 0.0;
+  double memory_bytes = 0.0; ///< its memory estimate (estimate_resources of its share)
+};
+
+/// The expected wall time of one step of a distributed run, calibrated on
+/// the ranks `run --check` runs on (each rank for itself): the step of a
+/// small block of the scene's kind (calibration_particles particles of its
+/// dimension, mode, integrator, basis, mass and first body's material and
+/// particles per cell, with its grid spacing; one rank with the run's
+/// Domain, which counts the nodal exchanges and reductions of a step) timed
+/// over calibration_steps steps: the nodal update phase gives the time per
+/// node, the others the time per particle. The communication of a step -
+/// its exchanges with this rank's neighbours at the planned sizes, its
+/// reductions over all ranks - is timed by doing it `comm_rounds` times.
+/// compute = max over ranks of (per_particle particles + per_node nodes).
+struct StepTime {
+  bool calibrated = false;
+  std::string why_not;      ///< when not calibrated: the error the calibration met
+  double seconds = 0.0;     ///< compute + communication
+  double compute = 0.0;     ///< of the busiest rank
+  int busiest = 0;          ///< that rank
+  double communication = 0.0; ///< per step, the slowest rank's
+  double per_particle = 0.0, per_node = 0.0; ///< seconds per particle-step and node-step (the busiest rank's)
+  double exchanges = 0.0, reductions = 0.0;  ///< per step, counted on the calibration
+  long calibration_particles = 0;
+  int calibration_steps = 0, comm_rounds = 0;
+};
+
 struct SceneCheck {
   int dimension = 1;
   std::string mode, integrator, basis;
@@ -151,21 +188,29 @@ struct SceneCheck {
   /// t_end / dt, rounded up: the step count if dt stayed as at t = 0 (with
   /// the cfl rule dt follows the wave and particle speeds, so it is an estimate).
   double estimated_steps = 0.0;
-  double memory_bytes = 0.0; ///< the run's own memory estimate (estimate_resources, scene/resources.hpp)
-  double memory_limit = 0.0; ///< what the estimate is checked against (memory_limit(scene))
+  /// the run's own memory estimate (estimate_resources, scene/resources.hpp);
+  /// under mpirun the sum of the ranks' estimates
+  double memory_bytes = 0.0;
+  double memory_limit = 0.0; ///< what the estimate is checked against (memory_limit(scene)), per process
   std::string out_file;      ///< output.file
-  std::vector<BodyVolume> volumes; ///< per body
+  std::vector<BodyVolume> volumes; ///< per body (in one process only)
+  std::vector<RankCheck> ranks; ///< under mpirun: per rank (empty in one process)
+  StepTime step_time;           ///< under mpirun
 };
 
 /// Checks the scene as a run does, in the run's order: first, before
 /// anything is allocated, every check of the reader and the run's memory
 /// and step estimates (check_before_allocating: a scene whose estimate
-/// exceeds its limits is refused in a moment, whatever its size); then the
-/// set-up of the engine as the run makes it (particles seeded, nodes and
-/// basis built, Dirichlet boxes and tractions matched; under mpirun each
-/// rank its share) and the step-count check on its first step. Reports the
-/// size, first time step, estimated steps and the run's memory estimate,
-/// without stepping. InputError as run_scene().
+/// exceeds its limits is refused in a moment, whatever its size); then, in
+/// one process, the set-up of the engine as the run makes it (particles
+/// seeded, nodes and basis built, Dirichlet boxes and tractions matched)
+/// and the step-count check on its first step. Under mpirun (collective)
+/// it allocates no share of the scene: the decomposition as the run finds
+/// it (the seeding's counting pass, the bisection, the basis' reach) with
+/// each rank's memory checked (RankCheck), the first step from the scene's
+/// wave speeds, and the expected step time (StepTime). Reports the size,
+/// first time step, estimated steps and the run's memory estimate, without
+/// stepping. InputError as run_scene().
 SceneCheck check_scene(const Scene& scene);
 
 } // namespace otmpm

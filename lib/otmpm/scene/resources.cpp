@@ -31,6 +31,10 @@ constexpr double kStencilEntryBytes = 60;
 constexpr double kNodeBytes = 260;
 /// Bytes per entry of the LDL^T factor of the consistent mass matrix.
 constexpr double kFactorEntryBytes = 12;
+/// Nodal vectors of D doubles of the conjugate gradients that solve the
+/// consistent mass of a distributed run (mask, solution, residual,
+/// preconditioned residual, direction, product: Domain::solve_consistent_mass).
+constexpr double kCgVectors = 6;
 /// The footprint of the process before the scene (libraries, HDF5, buffers).
 constexpr double kBaseBytes = 30e6;
 /// Factor on the fitted costs: the estimate stays above what was measured.
@@ -100,6 +104,21 @@ double cgroup_limit() {
   }
 }
 
+/// InputError when estimate `e` exceeds memory_limit(scene): "WHO about X of
+/// memory (WHAT: the particles and nodes with their costs; ALL), more than the limit ...".
+void refuse_memory(const Scene& scene, const ResourceEstimate& e, const std::string& who, const std::string& what = "",
+                   const std::string& all = "") {
+  const double limit = memory_limit(scene);
+  if (e.bytes <= limit) return;
+  const bool set = scene.simulation.memory_limit > 0;
+  input_error(scene.locate("simulation.memory_limit"),
+              who + " about " + format_bytes(e.bytes) + " of memory (" + what + format_number(e.particles) +
+                  " particles x " + format_bytes(e.bytes_per_particle) + " with the " + scene.basis.kind + " basis, " +
+                  format_number(e.nodes) + " nodes x " + format_bytes(e.bytes_per_node) + all + "), more than the limit of " + format_bytes(limit) +
+                  (set ? " set by simulation.memory_limit"
+                       : " this process may use (physical memory; set simulation.memory_limit in bytes to override)"));
+}
+
 } // namespace
 
 double max_wave_speed(const Scene& s) {
@@ -121,7 +140,7 @@ double max_wave_speed(const Scene& s) {
 
 ResourceEstimate estimate_resources(const Scene& scene) { return estimate_resources(scene, scene_size(scene)); }
 
-ResourceEstimate estimate_resources(const Scene& scene, const SceneSize& share) {
+ResourceEstimate estimate_resources(const Scene& scene, const SceneSize& share, int ranks) {
   const int dim = scene.simulation.dimension;
   const std::size_t d = static_cast<std::size_t>(std::clamp(dim, 1, 3) - 1);
   ResourceEstimate e;
@@ -131,7 +150,9 @@ ResourceEstimate estimate_resources(const Scene& scene, const SceneSize& share) 
   e.stencil = kind.stencil_nodes(scene.basis, dim);
   e.bytes_per_particle = kSafety * (kParticleBytes[d] + e.stencil * kStencilEntryBytes);
   e.bytes_per_node = kSafety * kNodeBytes;
-  if (scene.simulation.mass == "consistent" && e.nodes > 0)
+  if (scene.simulation.mass == "consistent" && ranks > 1)
+    e.bytes_per_node += kSafety * kCgVectors * dim * sizeof(double);
+  else if (scene.simulation.mass == "consistent" && e.nodes > 0)
     e.bytes_per_node += kFactorEntryBytes * factor_entries(e.nodes, support_radius(kind, e.stencil, dim), dim) / e.nodes;
   e.bytes = kBaseBytes + e.particles * e.bytes_per_particle + e.nodes * e.bytes_per_node;
   e.wave_speed = max_wave_speed(scene);
@@ -166,26 +187,36 @@ std::string format_bytes(double bytes) {
   return buf;
 }
 
-void check_resources(const Scene& scene) {
-  const ResourceEstimate e = estimate_resources(scene);
-  const double limit = memory_limit(scene);
-  if (e.bytes > limit) {
-    const bool set = scene.simulation.memory_limit > 0;
-    input_error(scene.locate("simulation.memory_limit"),
-                "the run would need about " + format_bytes(e.bytes) + " of memory (" + format_number(e.particles) +
-                    " particles x " + format_bytes(e.bytes_per_particle) + " with the " + scene.basis.kind +
-                    " basis, " + format_number(e.nodes) + " nodes x " + format_bytes(e.bytes_per_node) +
-                    "), more than the limit of " + format_bytes(limit) +
-                    (set ? " set by simulation.memory_limit"
-                         : " this process may use (physical memory; set simulation.memory_limit in bytes to override)"));
-  }
-  check_steps(scene, e.steps, e.dt,
-              scene.simulation.dt ? "" : ", from the fastest wave speed " + format_number(e.wave_speed) + " m/s");
+ResourceEstimate estimate_even_share(const Scene& scene, int processes) {
+  const int P = std::max(processes, 1);
+  SceneSize even = scene_size(scene);
+  even.particles = std::ceil(even.particles / P), even.nodes = std::ceil(even.nodes / P);
+  return estimate_resources(scene, even, P);
+}
+
+void check_resources(const Scene& scene, int processes) {
+  const int P = std::max(processes, 1);
+  const ResourceEstimate whole = estimate_resources(scene);
+  const ResourceEstimate e = P > 1 ? estimate_even_share(scene, P) : whole;
+  if (P == 1) refuse_memory(scene, e, "the run would need");
+  else
+    refuse_memory(scene, e, "each of the " + std::to_string(P) + " ranks would need at least",
+                  "1/" + std::to_string(P) + " of the scene: ",
+                  "; all ranks together at least " + format_bytes(P * e.bytes));
+  check_steps(scene, whole.steps, whole.dt,
+              scene.simulation.dt ? "" : ", from the fastest wave speed " + format_number(whole.wave_speed) + " m/s");
+}
+
+void check_rank_resources(const Scene& scene, const SceneSize& share, int rank, int ranks, double total_bytes) {
+  refuse_memory(scene, estimate_resources(scene, share, ranks),
+                "rank " + std::to_string(rank) + " of " + std::to_string(ranks) + " would need",
+                "its share of the decomposition: ",
+                " with its ghosts; all ranks together about " + format_bytes(total_bytes));
 }
 
 void check_before_allocating(const Scene& scene, int dimension, int processes) {
   validate_scene(scene, dimension, processes);
-  check_resources(scene);
+  check_resources(scene, processes);
 }
 
 void check_first_step(const Scene& scene, double dt, double c) {

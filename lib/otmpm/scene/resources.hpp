@@ -41,8 +41,17 @@ ResourceEstimate estimate_resources(const Scene& scene);
 /// The estimate for the process that holds `share` of the scene's particles
 /// and nodes: the memory is linear in them (30 MB of its own, bytes_per_particle
 /// and bytes_per_node), so a decomposition known before anything is allocated
-/// gives each rank of a distributed run its own estimate.
-ResourceEstimate estimate_resources(const Scene& scene, const SceneSize& share);
+/// gives each rank of a distributed run its own estimate. With `ranks` > 1
+/// the process is one rank of a distributed run, whose consistent mass is
+/// solved by conjugate gradients over the basis table (no factor; the
+/// solver's five nodal vectors instead).
+ResourceEstimate estimate_resources(const Scene& scene, const SceneSize& share, int ranks = 1);
+
+/// The estimate for one of `processes` ranks holding an even share of the
+/// scene (1/processes of its particles and nodes, rounded up): the largest
+/// rank of a decomposition holds at least that. One process: the whole
+/// scene's.
+ResourceEstimate estimate_even_share(const Scene& scene, int processes);
 
 /// The fastest signal at t = 0: the P-wave speed sqrt(M / rho) of every
 /// material - with the smallest density of a file body's `density` column
@@ -62,13 +71,25 @@ std::string format_bytes(double bytes);
 
 /// Throws InputError naming the estimate, the limit and the key that raises
 /// it when the memory estimate exceeds memory_limit(scene) or the steps
-/// exceed simulation.max_steps.
-void check_resources(const Scene& scene);
+/// exceed simulation.max_steps. With `processes` > 1 (a distributed run) the
+/// memory checked is that of an even share, 1/processes of the particles and
+/// nodes: the largest rank holds at least that, so a scene refused here is
+/// refused before its particles are counted; check_rank_resources checks
+/// each rank's own share once the decomposition is known.
+void check_resources(const Scene& scene, int processes = 1);
+
+/// Throws InputError when rank `rank` of `ranks`, holding `share` (its
+/// particles and the lattice points of its window, ghosts included), would
+/// need more than memory_limit(scene): the message names the rank, its
+/// particles, nodes and estimate, the estimate of all ranks together
+/// (`total_bytes`) and the limit.
+void check_rank_resources(const Scene& scene, const SceneSize& share, int rank, int ranks, double total_bytes);
 
 /// What a run and `otmpm run --check` check of a scene in `dimension`
 /// dimensions before anything is allocated, in this order: every check of
 /// the reader (validate_scene, with the size per process of a run on
-/// `processes` ranks), then its estimated memory and steps (check_resources).
+/// `processes` ranks), then its estimated memory (of an even share on
+/// `processes` ranks) and steps (check_resources).
 void check_before_allocating(const Scene& scene, int dimension, int processes = 1);
 
 /// The step-count check once the particles are seeded: t_end / dt, with
