@@ -55,6 +55,7 @@ template <int D> struct VecSum {
 
 template <int D> Vec<D> Engine<D>::momentum() const {
   Vec<D> m = blocked_reduce<VecSum<D>>(P_.size(), [&](long long p, VecSum<D>& s) { s.v += P_.m[p] * P_.v[p]; }).v;
+  if (two_phase_) m += two_phase_->momentum(P_);
   if (dist_) dist_->sum({m.data(), D});
   return m;
 }
@@ -111,6 +112,13 @@ template <int D> void Engine<D>::sum_particles(bool check) {
       }
     }
   });
+  if (two_phase_) { // the liquid of saturated bodies (a distributed run has none)
+    const LiquidTotals<D> liquid = two_phase_->totals(*this);
+    if (check && liquid.bad >= 0) unstable(liquid.bad, "pore pressure or liquid velocity is not finite");
+    s.kinetic += liquid.kinetic, s.strain += liquid.stored, s.momentum += liquid.momentum;
+    s.wave_speed2 = std::max(s.wave_speed2, liquid.wave_speed2);
+    energy_.darcy = two_phase_->darcy();
+  }
   if (dist_) {
     // One reduction per step: energies, momentum, this step's reaction
     // impulse and work and the friction loss, the prescribed kinetic energy; the wave speed,

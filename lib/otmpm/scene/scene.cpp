@@ -10,6 +10,7 @@
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/integrators/integrator.hpp"
 #include "otmpm/io/particle_file.hpp"
+#include "otmpm/materials/pore_fluid.hpp"
 #include "otmpm/scene/file_bodies.hpp"
 #include "otmpm/particles/output_fields.hpp"
 #include "otmpm/scene/toml_reader.hpp"
@@ -276,6 +277,7 @@ void read_parameter(const TableReader& t, std::string_view key, const ParameterS
 /// top-level parameters and the names of its sub-tables.
 std::vector<std::string_view> material_keys(const MaterialModel& model) {
   std::vector<std::string_view> keys{"name", "model", "density", "young", "poisson"};
+  for (const ParameterSpec& p : pore_fluid_parameters()) keys.push_back(p.key);
   for (const ParameterSpec& p : model.parameters) {
     const std::string_view table = sub_table(p.key);
     const std::string_view key = table.empty() ? p.key : table;
@@ -314,6 +316,8 @@ MaterialSection read_material(const TableReader& t, std::set<std::string>& names
   for (auto [spec, value] : {std::pair{&kDensity, &m.density}, {&kYoung, &m.young}, {&kPoisson, &m.poisson}})
     *value = number(t, *spec);
   read_model_parameters(t, model, m);
+  for (const ParameterSpec& p : pore_fluid_parameters()) // a saturated material: all five (validate_material)
+    if (t.has(p.key)) read_parameter(t, p.key, p, m);
   try {
     validate_material(m); // the model's own cross-checks
   } catch (const InputError& e) {
@@ -602,8 +606,8 @@ std::vector<BoundarySection> read_boundaries(const TableReader& root, const Scen
   std::set<std::string> names;
   for (const TableReader& t : root.tables("boundary")) {
     const bool group = t.has("physical") || t.has("file");
-    if (group) t.only({"name", "file", "physical", "scale", "rotate", "translate", "fix", "value"});
-    else t.only({"name", "lower", "upper", "fix", "value"});
+    if (group) t.only({"name", "file", "physical", "scale", "rotate", "translate", "fix", "value", "pore_pressure", "rigid"});
+    else t.only({"name", "lower", "upper", "fix", "value", "pore_pressure", "rigid"});
     BoundarySection b;
     b.where = t.self();
     b.name = read_name(t, false, default_name("boundary", out.size()), names, "boundary");
@@ -615,9 +619,11 @@ std::vector<BoundarySection> read_boundaries(const TableReader& root, const Scen
     }
     check_box(t, b.lower, b.upper, dim, false);
     auto fix = t.bools("fix", dim);
-    if (!fix) t.missing("fix");
-    b.fix = *fix;
+    if (!fix && !t.has("pore_pressure") && !t.has("rigid")) t.missing("fix");
+    b.fix = fix.value_or(b.fix);
     b.value = t.vec("value", dim).value_or(b.value);
+    if (t.has("pore_pressure")) b.pore_pressure = number(t, scene_keys::kPorePressure);
+    b.rigid = t.bools("rigid", dim).value_or(b.rigid);
     out.push_back(std::move(b));
   }
   return out;
@@ -805,7 +811,7 @@ ReferenceSection read_reference(const TableReader& root) {
   if (!t) return r;
   t->only({"solution"});
   r.where = t->self();
-  r.solution = t->choice("solution", "", {"", "dyka", "fixed_bar", "traction_bar", "mms_plate"});
+  r.solution = t->choice("solution", "", {"", "dyka", "fixed_bar", "traction_bar", "mms_plate", "terzaghi", "mandel"});
   return r;
 }
 

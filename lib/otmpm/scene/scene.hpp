@@ -135,12 +135,19 @@ struct InitialVelocitySection {
 };
 
 /// Dirichlet node set: nodes inside the closed box [lower, upper] (within
-/// kBoxTolerance h) get the fixed velocity components held at `value`.
+/// kBoxTolerance h) get the fixed velocity components held at `value`. With
+/// saturated bodies (docs/theory.md sect. 15) a fixed component holds the
+/// pore liquid too (an impermeable support) unless `pore_pressure` is given
+/// (a drained surface: the liquid passes; 0 is the value supported, that of
+/// every free surface); a `rigid` component makes the box's nodes move as
+/// one frictionless, impermeable plate along that axis.
 struct BoundarySection {
   std::string name;
   Vec3 lower{0, 0, 0}, upper{0, 0, 0};
   std::array<bool, 3> fix{false, false, false};
   Vec3 value{0, 0, 0};
+  std::optional<double> pore_pressure;
+  std::array<bool, 3> rigid{false, false, false};
   SourceRef where{"", 0, "boundary"};
 };
 
@@ -230,7 +237,7 @@ std::string vtk_format(const OutputSection& output);
 bool is_output_format(const std::string& format);
 
 struct ReferenceSection {
-  std::string solution; ///< "" | dyka | fixed_bar | traction_bar | mms_plate
+  std::string solution; ///< "" | dyka | fixed_bar | traction_bar | mms_plate | terzaghi | mandel
   SourceRef where;
 };
 

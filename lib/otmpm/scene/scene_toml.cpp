@@ -148,6 +148,8 @@ toml::array boundaries(const std::vector<BoundarySection>& bs, int dim) {
                   {"fix", first(b.fix, dim)},
                   {"value", first(b.value, dim)}};
     if (!b.name.empty()) t.insert("name", b.name); // else the reader's name, "boundary<index>"
+    if (b.pore_pressure) t.insert("pore_pressure", *b.pore_pressure);
+    if (b.rigid != std::array<bool, 3>{}) t.insert("rigid", first(b.rigid, dim));
     a.push_back(std::move(t));
   }
   return a;

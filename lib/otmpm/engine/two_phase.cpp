@@ -1,0 +1,317 @@
+/// \file two_phase.cpp
+/// The liquid phase of saturated bodies (two_phase.hpp; docs/theory.md
+/// sect. 15): its particle-to-node sums, the coupled nodal solve with the
+/// implicit Darcy drag, rigid plates, and the liquid's particle update.
+#include "otmpm/engine/two_phase.hpp"
+
+#include "otmpm/engine/engine.hpp"
+#include "otmpm/engine/scatter.hpp"
+#include "otmpm/parallel.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace otmpm {
+
+/// Per-node partial sums of the liquid: m_w, the drag coefficient Q, the
+/// momentum q_w, the liquid's pressure force f_w = sum V n p grad N and the
+/// pore pressure's force on the mixture f_p = sum V p grad N (eq. 15.4).
+template <int D> struct LiquidSums {
+  double m = 0.0, drag = 0.0;
+  Vec<D> q = Vec<D>::Zero(), fw = Vec<D>::Zero(), fp = Vec<D>::Zero();
+};
+
+namespace {
+
+/// The liquid velocity w_p of particle p in the state array (D values per particle).
+template <int D> Eigen::Map<Vec<D>> liquid_at(StateField& w, int p) { return Eigen::Map<Vec<D>>(w.row(p)); }
+template <int D> Eigen::Map<const Vec<D>> liquid_at(const StateField& w, int p) {
+  return Eigen::Map<const Vec<D>>(w.row(p));
+}
+
+/// The largest squared speed of the two compressional waves of the mixture
+/// (eq. 15.7): the largest eigenvalue of K v = c^2 R v with the stiffness
+/// K = [M + (1-n)^2 K_w/n, (1-n) K_w; (1-n) K_w, n K_w] and the partial
+/// densities R = diag(rho_s', n rho_w); M the skeleton's P-wave modulus.
+double fast_wave_speed2(double M, double n, double rho_solid, double rho_liquid, double Kw) {
+  const double a = (M + (1.0 - n) * (1.0 - n) * Kw / n) / rho_solid, d = n * Kw / rho_liquid;
+  const double b = (1.0 - n) * Kw / std::sqrt(rho_solid * rho_liquid);
+  return 0.5 * (a + d) + std::sqrt(0.25 * (a - d) * (a - d) + b * b);
+}
+
+/// The lower of two particle indices, -1 meaning none.
+int lowest(int a, int b) { return a < 0 ? b : b < 0 ? a : std::min(a, b); }
+
+} // namespace
+
+template <int D>
+TwoPhase<D>::TwoPhase(TwoPhaseParts<D> parts, Particles<D>& P, const Dirichlet<D>& dirichlet, int nodes)
+    : parts_(std::move(parts)), scatter_(std::make_unique<BlockedScatter<D, LiquidSums<D>>>()) {
+  using E = std::invalid_argument;
+  for (int p = 0; p < P.size(); ++p)
+    require<E>(P.material[p] >= 0 && P.material[p] < static_cast<int>(parts_.fluid.size()), "TwoPhase: particle ", p,
+               " has material ", P.material[p], " but the pore fluids are given for ", parts_.fluid.size());
+  const auto n = static_cast<std::size_t>(nodes) * D;
+  fixed_.assign(n, 0), held_.assign(n, 0), rigid_.assign(n, 0), value_.assign(n, 0.0);
+  for (std::size_t i = 0; i < dirichlet.node.size(); ++i)
+    for (int k = 0; k < D; ++k)
+      if (dirichlet.fix[i][k]) {
+        const std::size_t c = static_cast<std::size_t>(dirichlet.node[i]) * D + k;
+        fixed_[c] = 1, value_[c] = dirichlet.value[i][k];
+      }
+  for (std::size_t i = 0; i < parts_.held.node.size(); ++i)
+    for (int k = 0; k < D; ++k) {
+      const int I = parts_.held.node[i];
+      require<E>(I >= 0 && I < nodes, "TwoPhase: held node ", I, " out of range [0, ", nodes, ")");
+      const std::size_t c = static_cast<std::size_t>(I) * D + k;
+      require<E>(!parts_.held.fix[i][k] || fixed_[c], "TwoPhase: the liquid is held at node ", I, " component ", k,
+                 ", which the Dirichlet sets do not fix");
+      if (parts_.held.fix[i][k]) held_[c] = 1;
+    }
+  for (const RigidSet& r : parts_.rigid) {
+    require<E>(r.axis >= 0 && r.axis < D, "TwoPhase: rigid set along axis ", r.axis, " in ", D, "D");
+    for (int I : r.node) {
+      require<E>(I >= 0 && I < nodes, "TwoPhase: rigid node ", I, " out of range [0, ", nodes, ")");
+      rigid_[static_cast<std::size_t>(I) * D + r.axis] = 1;
+    }
+  }
+  const bool fresh = P.find_state(kLiquidVelocityField) == nullptr;
+  const double zero[9] = {};
+  P.add_state(std::string(kPorePressureField), 1, zero);
+  StateField& w = P.add_state(std::string(kLiquidVelocityField), D, zero);
+  if (fresh) // the liquid starts with the solid's velocity
+    for (int p = 0; p < P.size(); ++p) liquid_at<D>(w, p) = P.v[p];
+  mw_.assign(static_cast<std::size_t>(nodes), 0.0);
+  drag_ = mw_;
+  wet_.assign(static_cast<std::size_t>(nodes), 0);
+  qw_.assign(static_cast<std::size_t>(nodes), Vec<D>::Zero());
+  fw_ = fp_ = fm_ = vw_ = aw_ = qw_;
+}
+
+template <int D> TwoPhase<D>::~TwoPhase() = default;
+
+template <int D> void TwoPhase<D>::to_nodes(Engine<D>& e, double t, double dt) {
+  scatter(e, false, [](int, int) {});
+  darcy_ += solve(e, t, dt);
+  tie(e, dt);
+}
+
+template <int D>
+template <class Update>
+void TwoPhase<D>::scatter(const Engine<D>& e, bool momentum_only, Update&& update) {
+  const Particles<D>& P = e.particles();
+  const BasisTable<D>& table = e.table();
+  const StateField& pressure = *P.find_state(kPorePressureField);
+  const StateField& velocity = *P.find_state(kLiquidVelocityField);
+  std::vector<const PoreFluid*> fluids;
+  for (std::size_t m = 0; m < parts_.fluid.size(); ++m) fluids.push_back(fluid(static_cast<int>(m)));
+  struct Payload {
+    double m = 0.0, drag = 0.0, Vp = 0.0, Vnp = 0.0;
+    Vec<D> q = Vec<D>::Zero();
+  };
+  auto prep = [&](int p) {
+    Payload w;
+    const PoreFluid* f = fluids[static_cast<std::size_t>(P.material[p])];
+    if (!f) return w;
+    const double V = P.V[p], n = porosity(*f, P.V0[p], V);
+    w.m = n * f->density * V;
+    w.q = w.m * liquid_at<D>(velocity, p);
+    if (momentum_only) return w;
+    w.drag = f->drag(n) * V;
+    w.Vp = V * pressure.values[static_cast<std::size_t>(p)];
+    w.Vnp = n * w.Vp;
+    return w;
+  };
+  const double* Ne = table.N.data();
+  const Vec<D>* dNe = table.dN.data();
+  auto add = [Ne, dNe, momentum_only](LiquidSums<D>& acc, int e, const Payload& w) {
+    acc.q += Ne[e] * w.q;
+    if (momentum_only) return;
+    acc.m += Ne[e] * w.m;
+    acc.drag += Ne[e] * w.drag;
+    acc.fw += w.Vnp * dNe[e];
+    acc.fp += w.Vp * dNe[e];
+  };
+  auto merge = [&](int I, const LiquidSums<D>& acc) {
+    qw_[I] += acc.q;
+    if (momentum_only) return;
+    mw_[I] += acc.m, drag_[I] += acc.drag, fw_[I] += acc.fw, fp_[I] += acc.fp;
+  };
+  auto clear = [&](int I0, int I1) {
+    std::fill(qw_.begin() + I0, qw_.begin() + I1, Vec<D>::Zero());
+    if (momentum_only) return;
+    std::fill(mw_.begin() + I0, mw_.begin() + I1, 0.0);
+    std::fill(drag_.begin() + I0, drag_.begin() + I1, 0.0);
+    std::fill(fw_.begin() + I0, fw_.begin() + I1, Vec<D>::Zero());
+    std::fill(fp_.begin() + I0, fp_.begin() + I1, Vec<D>::Zero());
+  };
+  scatter_->invalidate(linear_row_width(table)); // the table of this step
+  scatter_->run(table, static_cast<int>(mw_.size()), update, prep, add, merge, clear);
+}
+
+template <int D> double TwoPhase<D>::solve(Engine<D>& e, double t, double dt) {
+  NodalFields<D>& n = e.nodal();
+  const Vec<D> b = e.loads().body_force_at(t); // the uniform body force (a field is refused with saturated bodies)
+  const double mw_max = mw_.empty() ? 0.0 : *std::max_element(mw_.begin(), mw_.end());
+  const double mw_min = e.settings().mass_tolerance * mw_max;
+  return blocked_reduce<double>(static_cast<long long>(mw_.size()), [&](long long i, double& darcy) {
+    const auto I = static_cast<std::size_t>(i);
+    const Vec<D> Fm = n.f[I] + fp_[I] + mw_[I] * b, Fw = fw_[I] + mw_[I] * b;
+    fm_[I] = Fm;
+    aw_[I].setZero();
+    wet_[I] = n.active[I] && mw_[I] > mw_min;
+    n.f[I] = Fm;
+    if (!wet_[I]) return;
+    const double ms = n.m[I], mw = mw_[I], Q = drag_[I];
+    const Vec<D> vs0 = n.q[I] / ms, vw0 = qw_[I] / mw;
+    for (int k = 0; k < D; ++k) {
+      const std::size_t c = I * D + static_cast<std::size_t>(k);
+      if (held_[c] || rigid_[c]) continue; // held: a_w = 0, the reaction takes F_m; rigid: tie()
+      double aw, r0, r1;
+      if (fixed_[c]) { // a drained support: the solid held at its value, the liquid free
+        r0 = vw0[k] - value_[c];
+        aw = (Fw[k] - Q * r0) / (mw + Q * dt);
+        r1 = r0 + dt * aw;
+      } else { // eq. 15.5
+        r0 = vw0[k] - vs0[k];
+        aw = (Fw[k] - Q * r0 + Q * dt * Fm[k] / ms) / (mw + Q * dt * (1.0 + mw / ms));
+        r1 = r0 + dt * (aw - (Fm[k] - mw * aw) / ms);
+      }
+      aw_[I][k] = aw;
+      n.f[I][k] = Fm[k] - mw * aw;
+      darcy += dt * Q * r1 * 0.5 * (r0 + r1); // eq. 15.6
+    }
+  });
+}
+
+template <int D> void TwoPhase<D>::tie(Engine<D>& e, double dt) {
+  NodalFields<D>& n = e.nodal();
+  for (const RigidSet& r : parts_.rigid) {
+    const int k = r.axis;
+    double M = 0.0, momentum = 0.0, force = 0.0;
+    for (int I : r.node) {
+      if (!n.active[I]) continue;
+      M += n.m[I], momentum += n.q[I][k], force += fm_[I][k];
+      if (wet_[I]) M += mw_[I], momentum += qw_[I][k];
+    }
+    if (!(M > 0.0)) continue;
+    const double V = (momentum + dt * force) / M; // the plate's velocity at the end of the step
+    for (int I : r.node) {
+      if (!n.active[I]) continue;
+      n.f[I][k] = (n.m[I] * V - n.q[I][k]) / dt;
+      if (wet_[I]) aw_[I][k] = (V - qw_[I][k] / mw_[I]) / dt;
+    }
+  }
+}
+
+template <int D> void TwoPhase<D>::nodal_velocity(const Engine<D>& e, double dt) {
+  const NodalFields<D>& n = e.nodal();
+  parallel_for(static_cast<long long>(mw_.size()), [&](long long i) {
+    const auto I = static_cast<std::size_t>(i);
+    if (!wet_[I]) {
+      vw_[I] = n.v[I];
+      return;
+    }
+    Vec<D> w = qw_[I] / mw_[I] + dt * aw_[I];
+    for (int k = 0; k < D; ++k)
+      if (held_[I * D + static_cast<std::size_t>(k)]) w[k] = n.v[I][k];
+    vw_[I] = w;
+  });
+}
+
+template <int D> void TwoPhase<D>::to_particles(Engine<D>& e, double dt, bool remap) {
+  if (!remap) return update_particles(e, dt, true, true);
+  // musl: w_p += dt sum N a_w block by block, then the new momenta re-projected.
+  scatter(e, true, [&](int p0, int p1) { update_particles_range(e, dt, true, false, p0, p1); });
+  const NodalFields<D>& n = e.nodal();
+  parallel_for(static_cast<long long>(mw_.size()), [&](long long i) {
+    const auto I = static_cast<std::size_t>(i);
+    if (!wet_[I]) return void(vw_[I] = n.v[I]);
+    vw_[I] = qw_[I] / mw_[I];
+    for (int k = 0; k < D; ++k)
+      if (held_[I * D + static_cast<std::size_t>(k)] || rigid_[I * D + static_cast<std::size_t>(k)]) vw_[I][k] = n.v[I][k];
+  });
+  update_particles(e, dt, false, true);
+}
+
+template <int D> void TwoPhase<D>::update_particles(Engine<D>& e, double dt, bool rate, bool pressure) {
+  parallel_chunks(e.particles().size(), [&](long long p0, long long p1) {
+    update_particles_range(e, dt, rate, pressure, static_cast<int>(p0), static_cast<int>(p1));
+  });
+}
+
+template <int D>
+void TwoPhase<D>::update_particles_range(Engine<D>& e, double dt, bool rate, bool pressure, int p0, int p1) {
+  Particles<D>& P = e.particles();
+  const BasisTable<D>& table = e.table();
+  const AlignedVector<Vec<D>>& v = e.nodal().v;
+  StateField& pp = *P.find_state(kPorePressureField);
+  StateField& w = *P.find_state(kLiquidVelocityField);
+  for (int p = p0; p < p1; ++p) {
+    const PoreFluid* f = fluid(P.material[p]);
+    if (!f) continue;
+    Vec<D> a = Vec<D>::Zero();
+    double div_s = 0.0, div_w = 0.0;
+    for (int e0 = table.begin(p); e0 < table.end(p); ++e0) {
+      const int I = table.node[e0];
+      if (rate) a += table.N[e0] * aw_[I];
+      if (pressure) div_s += v[I].dot(table.dN[e0]), div_w += vw_[I].dot(table.dN[e0]);
+    }
+    if (rate) liquid_at<D>(w, p) += dt * a;
+    if (!pressure) continue;
+    const double n = porosity(*f, P.V0[p], P.V[p]);
+    if (!(n > 0.0 && n < 1.0)) [[unlikely]]
+      throw ParticleFailure{p, "porosity n = " + format_number(n) +
+                                   " left (0, 1): the skeleton's volume fell to its grains' or below"};
+    pp.values[static_cast<std::size_t>(p)] -= dt * f->bulk_modulus / n * ((1.0 - n) * div_s + n * div_w); // eq. 15.3
+  }
+}
+
+template <int D> LiquidTotals<D>& LiquidTotals<D>::operator+=(const LiquidTotals& o) {
+  kinetic += o.kinetic, stored += o.stored, momentum += o.momentum;
+  wave_speed2 = std::max(wave_speed2, o.wave_speed2);
+  bad = lowest(bad, o.bad);
+  return *this;
+}
+
+template <int D> LiquidTotals<D> TwoPhase<D>::totals(const Engine<D>& e) const {
+  const Particles<D>& P = e.particles();
+  const StateField& pp = *P.find_state(kPorePressureField);
+  const StateField& w = *P.find_state(kLiquidVelocityField);
+  return blocked_reduce<LiquidTotals<D>>(P.size(), [&](long long i, LiquidTotals<D>& acc) {
+    const int p = static_cast<int>(i);
+    const PoreFluid* f = fluid(P.material[p]);
+    if (!f) return;
+    const Vec<D> wp = liquid_at<D>(w, p);
+    const double pressure = pp.values[static_cast<std::size_t>(p)];
+    if (!std::isfinite(pressure) || !wp.allFinite()) acc.bad = lowest(acc.bad, p);
+    const double V = P.V[p], n = porosity(*f, P.V0[p], V), mw = n * f->density * V;
+    acc.kinetic += 0.5 * mw * wp.squaredNorm();
+    acc.stored += V * n * pressure * pressure / (2.0 * f->bulk_modulus);
+    acc.momentum += mw * wp;
+    double c2 = 0.0; // the skeleton's own c^2 = M / rho_p
+    e.material(P.material[p]).max_wave_speed2(P, p, p + 1, c2);
+    if (n > 0.0 && n < 1.0)
+      acc.wave_speed2 =
+          std::max(acc.wave_speed2, fast_wave_speed2(c2 * P.rho[p], n, P.rho[p], n * f->density, f->bulk_modulus));
+  });
+}
+
+template <int D> Vec<D> TwoPhase<D>::momentum(const Particles<D>& P) const {
+  const StateField& w = *P.find_state(kLiquidVelocityField);
+  return blocked_reduce<LiquidTotals<D>>(P.size(), [&](long long i, LiquidTotals<D>& acc) {
+           const int p = static_cast<int>(i);
+           if (const PoreFluid* f = fluid(P.material[p]))
+             acc.momentum += porosity(*f, P.V0[p], P.V[p]) * f->density * P.V[p] * liquid_at<D>(w, p);
+         })
+      .momentum;
+}
+
+template struct LiquidTotals<1>;
+template struct LiquidTotals<2>;
+template struct LiquidTotals<3>;
+template class TwoPhase<1>;
+template class TwoPhase<2>;
+template class TwoPhase<3>;
+
+} // namespace otmpm
