@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <unordered_map>
 
 namespace otmpm {
 
@@ -91,42 +92,47 @@ TwoPhase<D>::TwoPhase(TwoPhaseParts<D> parts, Particles<D>& P, const Dirichlet<D
 template <int D> TwoPhase<D>::~TwoPhase() = default;
 
 template <int D> void TwoPhase<D>::to_nodes(Engine<D>& e, double t, double dt) {
-  scatter(e, false, [](int, int) {});
+  scatter<false>(e, [](int, int) {});
   darcy_ += solve(e, t, dt);
   tie(e, dt);
 }
 
 template <int D>
-template <class Update>
-void TwoPhase<D>::scatter(const Engine<D>& e, bool momentum_only, Update&& update) {
+template <bool MomentumOnly, class Update>
+void TwoPhase<D>::scatter(const Engine<D>& e, Update&& update) {
   const Particles<D>& P = e.particles();
   const BasisTable<D>& table = e.table();
-  const StateField& pressure = *P.find_state(kPorePressureField);
-  const StateField& velocity = *P.find_state(kLiquidVelocityField);
+  const StateField& pressure_field = *P.find_state(kPorePressureField);
+  const StateField& velocity_field = *P.find_state(kLiquidVelocityField);
   std::vector<const PoreFluid*> fluids;
   for (std::size_t m = 0; m < parts_.fluid.size(); ++m) fluids.push_back(fluid(static_cast<int>(m)));
   struct Payload {
     double m = 0.0, drag = 0.0, Vp = 0.0, Vnp = 0.0;
     Vec<D> q = Vec<D>::Zero();
   };
-  auto prep = [&](int p) {
+  // Plain pointers by value: the sums' stores cannot alias them.
+  const int* material = P.material.data();
+  const double *V = P.V.data(), *V0 = P.V0.data(), *pressure = pressure_field.values.data();
+  const double* velocity = velocity_field.values.data();
+  const PoreFluid* const* fluid_of = fluids.data();
+  auto prep = [=](int p) {
     Payload w;
-    const PoreFluid* f = fluids[static_cast<std::size_t>(P.material[p])];
+    const PoreFluid* f = fluid_of[material[p]];
     if (!f) return w;
-    const double V = P.V[p], n = porosity(*f, P.V0[p], V);
-    w.m = n * f->density * V;
-    w.q = w.m * liquid_at<D>(velocity, p);
-    if (momentum_only) return w;
-    w.drag = f->drag(n) * V;
-    w.Vp = V * pressure.values[static_cast<std::size_t>(p)];
+    const double n = porosity(*f, V0[p], V[p]);
+    w.m = n * f->density * V[p];
+    w.q = w.m * Eigen::Map<const Vec<D>>(velocity + static_cast<std::size_t>(p) * D);
+    if constexpr (MomentumOnly) return w;
+    w.drag = f->drag(n) * V[p];
+    w.Vp = V[p] * pressure[p];
     w.Vnp = n * w.Vp;
     return w;
   };
   const double* Ne = table.N.data();
   const Vec<D>* dNe = table.dN.data();
-  auto add = [Ne, dNe, momentum_only](LiquidSums<D>& acc, int e, const Payload& w) {
+  auto add = [Ne, dNe](LiquidSums<D>& acc, int e, const Payload& w) {
     acc.q += Ne[e] * w.q;
-    if (momentum_only) return;
+    if constexpr (MomentumOnly) return;
     acc.m += Ne[e] * w.m;
     acc.drag += Ne[e] * w.drag;
     acc.fw += w.Vnp * dNe[e];
@@ -134,12 +140,12 @@ void TwoPhase<D>::scatter(const Engine<D>& e, bool momentum_only, Update&& updat
   };
   auto merge = [&](int I, const LiquidSums<D>& acc) {
     qw_[I] += acc.q;
-    if (momentum_only) return;
+    if constexpr (MomentumOnly) return;
     mw_[I] += acc.m, drag_[I] += acc.drag, fw_[I] += acc.fw, fp_[I] += acc.fp;
   };
   auto clear = [&](int I0, int I1) {
     std::fill(qw_.begin() + I0, qw_.begin() + I1, Vec<D>::Zero());
-    if (momentum_only) return;
+    if constexpr (MomentumOnly) return;
     std::fill(mw_.begin() + I0, mw_.begin() + I1, 0.0);
     std::fill(drag_.begin() + I0, drag_.begin() + I1, 0.0);
     std::fill(fw_.begin() + I0, fw_.begin() + I1, Vec<D>::Zero());
@@ -222,7 +228,7 @@ template <int D> void TwoPhase<D>::nodal_velocity(const Engine<D>& e, double dt)
 template <int D> void TwoPhase<D>::to_particles(Engine<D>& e, double dt, bool remap) {
   if (!remap) return update_particles(e, dt, true, true);
   // musl: w_p += dt sum N a_w block by block, then the new momenta re-projected.
-  scatter(e, true, [&](int p0, int p1) { update_particles_range(e, dt, true, false, p0, p1); });
+  scatter<true>(e, [&](int p0, int p1) { update_particles_range(e, dt, true, false, p0, p1); });
   const NodalFields<D>& n = e.nodal();
   parallel_for(static_cast<long long>(mw_.size()), [&](long long i) {
     const auto I = static_cast<std::size_t>(i);
@@ -235,9 +241,12 @@ template <int D> void TwoPhase<D>::to_particles(Engine<D>& e, double dt, bool re
 }
 
 template <int D> void TwoPhase<D>::update_particles(Engine<D>& e, double dt, bool rate, bool pressure) {
-  parallel_chunks(e.particles().size(), [&](long long p0, long long p1) {
+  const int n = e.particles().size();
+  if (pressure) dp_.resize(static_cast<std::size_t>(n)), cell_.resize(static_cast<std::size_t>(n));
+  parallel_chunks(n, [&](long long p0, long long p1) {
     update_particles_range(e, dt, rate, pressure, static_cast<int>(p0), static_cast<int>(p1));
   });
+  if (pressure) average_pressure(e);
 }
 
 template <int D>
@@ -245,7 +254,7 @@ void TwoPhase<D>::update_particles_range(Engine<D>& e, double dt, bool rate, boo
   Particles<D>& P = e.particles();
   const BasisTable<D>& table = e.table();
   const AlignedVector<Vec<D>>& v = e.nodal().v;
-  StateField& pp = *P.find_state(kPorePressureField);
+  const std::optional<CartesianGrid<D>>& grid = e.basis().nodes().grid();
   StateField& w = *P.find_state(kLiquidVelocityField);
   for (int p = p0; p < p1; ++p) {
     const PoreFluid* f = fluid(P.material[p]);
@@ -263,8 +272,47 @@ void TwoPhase<D>::update_particles_range(Engine<D>& e, double dt, bool rate, boo
     if (!(n > 0.0 && n < 1.0)) [[unlikely]]
       throw ParticleFailure{p, "porosity n = " + format_number(n) +
                                    " left (0, 1): the skeleton's volume fell to its grains' or below"};
-    pp.values[static_cast<std::size_t>(p)] -= dt * f->bulk_modulus / n * ((1.0 - n) * div_s + n * div_w); // eq. 15.3
+    const auto i = static_cast<std::size_t>(p);
+    dp_[i] = -dt * f->bulk_modulus / n * ((1.0 - n) * div_s + n * div_w); // eq. 15.3
+    cell_[i] = -1;
+    if (grid) { // the lattice cell of the particle, as one number
+      const Index<D> c = grid->cell_of(P.x[p]);
+      cell_[i] = 0;
+      for (int k = D - 1; k >= 0; --k) cell_[i] = cell_[i] * (grid->cells[k] + 1LL) + c[k];
+    }
   }
+}
+
+template <int D> void TwoPhase<D>::average_pressure(Engine<D>& e) {
+  // Each cell's volume-weighted mean increment (eq. 15.3a), summed in particle order.
+  Particles<D>& P = e.particles();
+  StateField& pp = *P.find_state(kPorePressureField);
+  const int n = P.size();
+  patch_.resize(static_cast<std::size_t>(n));
+  sums_.clear();
+  std::unordered_map<long long, int> number;
+  long long last = -2;
+  int id = -1;
+  for (int p = 0; p < n; ++p) {
+    const auto i = static_cast<std::size_t>(p);
+    if (!fluid(P.material[p]) || cell_[i] < 0) {
+      patch_[i] = -1;
+      continue;
+    }
+    if (cell_[i] != last) { // consecutive particles mostly share a cell
+      last = cell_[i];
+      id = number.try_emplace(last, static_cast<int>(sums_.size())).first->second;
+      if (id == static_cast<int>(sums_.size())) sums_.push_back({0.0, 0.0});
+    }
+    patch_[i] = id;
+    sums_[static_cast<std::size_t>(id)][0] += P.V[p] * dp_[i];
+    sums_[static_cast<std::size_t>(id)][1] += P.V[p];
+  }
+  parallel_for(n, [&](long long p) {
+    const auto i = static_cast<std::size_t>(p);
+    if (!fluid(P.material[i])) return;
+    pp.values[i] += patch_[i] < 0 ? dp_[i] : sums_[static_cast<std::size_t>(patch_[i])][0] / sums_[static_cast<std::size_t>(patch_[i])][1];
+  });
 }
 
 template <int D> LiquidTotals<D>& LiquidTotals<D>::operator+=(const LiquidTotals& o) {
@@ -278,22 +326,30 @@ template <int D> LiquidTotals<D> TwoPhase<D>::totals(const Engine<D>& e) const {
   const Particles<D>& P = e.particles();
   const StateField& pp = *P.find_state(kPorePressureField);
   const StateField& w = *P.find_state(kLiquidVelocityField);
-  return blocked_reduce<LiquidTotals<D>>(P.size(), [&](long long i, LiquidTotals<D>& acc) {
-    const int p = static_cast<int>(i);
-    const PoreFluid* f = fluid(P.material[p]);
-    if (!f) return;
-    const Vec<D> wp = liquid_at<D>(w, p);
-    const double pressure = pp.values[static_cast<std::size_t>(p)];
-    if (!std::isfinite(pressure) || !wp.allFinite()) acc.bad = lowest(acc.bad, p);
-    const double V = P.V[p], n = porosity(*f, P.V0[p], V), mw = n * f->density * V;
-    acc.kinetic += 0.5 * mw * wp.squaredNorm();
-    acc.stored += V * n * pressure * pressure / (2.0 * f->bulk_modulus);
-    acc.momentum += mw * wp;
-    double c2 = 0.0; // the skeleton's own c^2 = M / rho_p
-    e.material(P.material[p]).max_wave_speed2(P, p, p + 1, c2);
-    if (n > 0.0 && n < 1.0)
-      acc.wave_speed2 =
-          std::max(acc.wave_speed2, fast_wave_speed2(c2 * P.rho[p], n, P.rho[p], n * f->density, f->bulk_modulus));
+  const auto run = [&](int r0, int r1, LiquidTotals<D>& acc) { // particles of one saturated material
+    const PoreFluid& f = *fluid(P.material[r0]);
+    double c2 = 0.0; // the skeleton's largest c^2 = M / rho_p over the run: M <= c2 rho_p for each
+    e.material(P.material[r0]).max_wave_speed2(P, r0, r1, c2);
+    for (int p = r0; p < r1; ++p) {
+      const Vec<D> wp = liquid_at<D>(w, p);
+      const double pressure = pp.values[static_cast<std::size_t>(p)];
+      if (!std::isfinite(pressure) || !wp.allFinite()) acc.bad = lowest(acc.bad, p);
+      const double V = P.V[p], n = porosity(f, P.V0[p], V), mw = n * f.density * V;
+      acc.kinetic += 0.5 * mw * wp.squaredNorm();
+      acc.stored += V * n * pressure * pressure / (2.0 * f.bulk_modulus);
+      acc.momentum += mw * wp;
+      if (n > 0.0 && n < 1.0)
+        acc.wave_speed2 =
+            std::max(acc.wave_speed2, fast_wave_speed2(c2 * P.rho[p], n, P.rho[p], n * f.density, f.bulk_modulus));
+    }
+  };
+  return blocked_reduce_ranges<LiquidTotals<D>>(P.size(), [&](long long b0, long long b1, LiquidTotals<D>& acc) {
+    for (int r0 = static_cast<int>(b0); r0 < b1;) { // runs of one material
+      int r1 = r0 + 1;
+      while (r1 < b1 && P.material[r1] == P.material[r0]) ++r1;
+      if (fluid(P.material[r0])) run(r0, r1, acc);
+      r0 = r1;
+    }
   });
 }
 

@@ -23,6 +23,7 @@
 #include "otmpm/materials/pore_fluid.hpp"
 #include "otmpm/particles/particles.hpp"
 
+#include <array>
 #include <memory>
 #include <optional>
 #include <string_view>
@@ -108,7 +109,7 @@ public:
 private:
   /// The liquid's particle-to-node sums (momentum only: musl's re-projection);
   /// update(p0, p1) runs on each block of particles before it is summed.
-  template <class Update> void scatter(const Engine<D>& e, bool momentum_only, Update&& update);
+  template <bool MomentumOnly, class Update> void scatter(const Engine<D>& e, Update&& update);
   /// The coupled nodal solve (eq. 15.5); returns the step's Darcy dissipation (eq. 15.6).
   double solve(Engine<D>& e, double t, double dt);
   /// The rigid sets: one velocity per set along its axis for both phases.
@@ -116,6 +117,9 @@ private:
   /// w_p += dt sum N a_w (rate) and the pore pressure update (pressure) of all particles.
   void update_particles(Engine<D>& e, double dt, bool rate, bool pressure);
   void update_particles_range(Engine<D>& e, double dt, bool rate, bool pressure, int p0, int p1);
+  /// p_p += the volume-weighted mean of the pressure increments of the
+  /// particles in its lattice cell (eq. 15.3a).
+  void average_pressure(Engine<D>& e);
 
   TwoPhaseParts<D> parts_;
   /// Per node component (I D + k): fixed by the solid's Dirichlet sets, the
@@ -127,6 +131,12 @@ private:
   /// q_w, f_w, f_p, the mixture's force F_m, w_I and a_w of the step.
   AlignedVector<Vec<D>> qw_, fw_, fp_, fm_, vw_, aw_;
   std::unique_ptr<BlockedScatter<D, LiquidSums<D>>> scatter_;
+  /// The pressure update: each particle's increment and lattice cell, its
+  /// patch, and per patch sum V dp and sum V.
+  std::vector<double> dp_;
+  std::vector<long long> cell_;
+  std::vector<int> patch_;
+  std::vector<std::array<double, 2>> sums_;
   double darcy_ = 0.0;
 };
 
