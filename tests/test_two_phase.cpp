@@ -8,6 +8,7 @@
 #include "otmpm/materials/pore_fluid.hpp"
 #include "otmpm/reference/consolidation.hpp"
 #include "otmpm/run/restart.hpp"
+#include "otmpm/scene/validate.hpp"
 
 #include "run_support.hpp"
 #include "support.hpp"
@@ -306,6 +307,43 @@ TEST_CASE("saturated scenes: bad keys are refused with the file, line and key") 
   dry = dry.substr(0, dry.find("[reference]"));
   why = test::input_error_of([&] { (void)parse_scene(dry, "dry.toml"); });
   CHECK(why.find("pore_pressure") != std::string::npos);
+}
+
+TEST_CASE("Mandel's slab: the centre's pore pressure, with its overshoot, within 3 % at h = a/8") {
+  // examples/mandel.toml on 8 cells across the quarter (h = a/8), to T_v = 0.5
+  Scene scene = load_scene(std::string(OTMPM_SOURCE_DIR) + "/examples/mandel.toml", {"grid.cells=[10,2]"});
+  Engine<2> e = assemble<2>(scene);
+  const auto exact = make_exact_solution<2>(scene);
+  const auto& m = dynamic_cast<const Mandel&>(*exact);
+  const Particles<2>& P = e.particles();
+  int centre = 0;
+  for (int p = 1; p < P.size(); ++p)
+    if (P.X[p].norm() < P.X[centre].norm()) centre = p;
+  const double p0 = 1e4 * m.skempton() * (1.0 + m.undrained_poisson()) / 3.0;
+  double worst = 0.0, peak = 0.0, exact_peak = 0.0;
+  for (double t = 0.5; t <= scene.simulation.t_end + 1e-9; t += 0.5) {
+    run_to(e, t);
+    const double p = pressure_of(e, centre), q = exact->pore_pressure(P.X[centre], e.time());
+    worst = std::max(worst, std::abs(p - q) / p0);
+    peak = std::max(peak, p), exact_peak = std::max(exact_peak, q);
+  }
+  MESSAGE("Mandel, h = a/8: centre |p - p_exact| / p0 <= " << worst << "; peak " << peak / p0 << " p0 (exact "
+                                                            << exact_peak / p0 << " p0)");
+  CHECK(worst < 0.03);
+  CHECK(peak > 1.05 * p0); // the Mandel-Cryer overshoot
+  CHECK(peak == doctest::Approx(exact_peak).epsilon(0.01));
+}
+
+TEST_CASE("a rigid plate needs saturated bodies and an axis of the run") {
+  Scene scene = load_scene(std::string(OTMPM_SOURCE_DIR) + "/examples/mandel.toml");
+  scene.plates[0].axis = 2;
+  std::string why = test::input_error_of([&] { validate_scene(scene, 2); });
+  CHECK(why.find("key 'plate.plate.axis'") != std::string::npos);
+  scene.plates[0].axis = 1;
+  scene.materials[0].extra.clear(); // dry
+  scene.reference.solution.clear();
+  why = test::input_error_of([&] { validate_scene(scene, 2); });
+  CHECK(why.find("saturated bodies only") != std::string::npos);
 }
 
 TEST_CASE("Terzaghi's series: the degree of consolidation of the classical table") {

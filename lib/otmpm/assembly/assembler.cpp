@@ -236,18 +236,17 @@ std::optional<TwoPhaseParts<D>> build_two_phase(const Scene& scene, const NodeSe
       P.rho[p] *= 1.0 - f->porosity;
     }
   const auto position = [&nodes](int I) { return nodes.position(I); };
-  std::vector<BoundarySection> impermeable, rigid;
-  for (const BoundarySection& b : scene.boundaries) {
+  std::vector<BoundarySection> impermeable;
+  for (const BoundarySection& b : scene.boundaries)
     if (!b.pore_pressure) impermeable.push_back(b);
-    for (int k = 0; k < D; ++k) {
-      if (!b.rigid[static_cast<std::size_t>(k)]) continue;
-      BoundarySection box = b;
-      box.fix = {false, false, false};
-      box.fix[static_cast<std::size_t>(k)] = true;
-      parts.rigid.push_back({boundary_entries<D>({box}, nodes.size(), position, h).node, k});
-    }
-  }
   parts.held = boundary_entries<D>(impermeable, nodes.size(), position, h);
+  for (const PlateSection& ps : scene.plates) { // a plate's box is a boundary's
+    BoundarySection box;
+    box.lower = ps.lower, box.upper = ps.upper;
+    Plate plate{boundary_entries<D>({box}, nodes.size(), position, h).node, ps.axis, ps.force, ps.time};
+    if (plate.node.empty()) input_error(ps.where, "plate '" + ps.name + "' selects no node of the grid");
+    parts.plates.push_back(std::move(plate));
+  }
   return parts;
 }
 

@@ -203,6 +203,7 @@ template <int D> void Engine<D>::step() {
     if (dist_) dist_->sum({&traction, 1});
     work += traction;
   }
+  if (two_phase_) work += two_phase_->take_plate_work(); // the rigid plates' forces
   energy_.external_work += work;
   external_power_ = power;
   check_energy();

@@ -69,10 +69,11 @@ TwoPhase<D>::TwoPhase(TwoPhaseParts<D> parts, Particles<D>& P, const Dirichlet<D
                  ", which the Dirichlet sets do not fix");
       if (parts_.held.fix[i][k]) held_[c] = 1;
     }
-  for (const RigidSet& r : parts_.rigid) {
-    require<E>(r.axis >= 0 && r.axis < D, "TwoPhase: rigid set along axis ", r.axis, " in ", D, "D");
+  for (const Plate& r : parts_.plates) {
+    require<E>(r.axis >= 0 && r.axis < D && std::isfinite(r.force), "TwoPhase: a plate along axis ", r.axis, " in ",
+               D, "D with the force ", r.force);
     for (int I : r.node) {
-      require<E>(I >= 0 && I < nodes, "TwoPhase: rigid node ", I, " out of range [0, ", nodes, ")");
+      require<E>(I >= 0 && I < nodes, "TwoPhase: plate node ", I, " out of range [0, ", nodes, ")");
       rigid_[static_cast<std::size_t>(I) * D + r.axis] = 1;
     }
   }
@@ -94,7 +95,7 @@ template <int D> TwoPhase<D>::~TwoPhase() = default;
 template <int D> void TwoPhase<D>::to_nodes(Engine<D>& e, double t, double dt) {
   scatter<false>(e, [](int, int) {});
   darcy_ += solve(e, t, dt);
-  tie(e, dt);
+  tie(e, t, dt);
 }
 
 template <int D>
@@ -190,11 +191,12 @@ template <int D> double TwoPhase<D>::solve(Engine<D>& e, double t, double dt) {
   });
 }
 
-template <int D> void TwoPhase<D>::tie(Engine<D>& e, double dt) {
+template <int D> void TwoPhase<D>::tie(Engine<D>& e, double t, double dt) {
   NodalFields<D>& n = e.nodal();
-  for (const RigidSet& r : parts_.rigid) {
+  for (const Plate& r : parts_.plates) {
     const int k = r.axis;
-    double M = 0.0, momentum = 0.0, force = 0.0;
+    const double F0 = r.force * time_function(r.time, t), F1 = r.force * time_function(r.time, t + dt);
+    double M = 0.0, momentum = 0.0, force = F0;
     for (int I : r.node) {
       if (!n.active[I]) continue;
       M += n.m[I], momentum += n.q[I][k], force += fm_[I][k];
@@ -202,6 +204,7 @@ template <int D> void TwoPhase<D>::tie(Engine<D>& e, double dt) {
     }
     if (!(M > 0.0)) continue;
     const double V = (momentum + dt * force) / M; // the plate's velocity at the end of the step
+    plate_work_ += 0.5 * (F0 + F1) * dt * V;
     for (int I : r.node) {
       if (!n.active[I]) continue;
       n.f[I][k] = (n.m[I] * V - n.q[I][k]) / dt;
@@ -225,20 +228,34 @@ template <int D> void TwoPhase<D>::nodal_velocity(const Engine<D>& e, double dt)
   });
 }
 
-template <int D> void TwoPhase<D>::to_particles(Engine<D>& e, double dt, bool remap) {
-  if (!remap) return update_particles(e, dt, true, true);
-  // musl: w_p += dt sum N a_w block by block, then the new momenta re-projected.
+template <int D> void TwoPhase<D>::to_particles(Engine<D>& e, double dt) { update_particles(e, dt, true, true); }
+
+template <int D> void TwoPhase<D>::remap(Engine<D>& e, double dt) {
+  // w_p += dt sum N a_w block by block, then the new momenta re-projected.
   scatter<true>(e, [&](int p0, int p1) { update_particles_range(e, dt, true, false, p0, p1); });
-  const NodalFields<D>& n = e.nodal();
+  NodalFields<D>& n = e.nodal();
   parallel_for(static_cast<long long>(mw_.size()), [&](long long i) {
     const auto I = static_cast<std::size_t>(i);
     if (!wet_[I]) return void(vw_[I] = n.v[I]);
     vw_[I] = qw_[I] / mw_[I];
     for (int k = 0; k < D; ++k)
-      if (held_[I * D + static_cast<std::size_t>(k)] || rigid_[I * D + static_cast<std::size_t>(k)]) vw_[I][k] = n.v[I][k];
+      if (held_[I * D + static_cast<std::size_t>(k)]) vw_[I][k] = n.v[I][k];
   });
-  update_particles(e, dt, false, true);
+  for (const Plate& r : parts_.plates) { // one velocity per plate: the re-projected momentum of both phases
+    const int k = r.axis;
+    double M = 0.0, momentum = 0.0;
+    for (int I : r.node) {
+      if (!n.active[I]) continue;
+      M += n.m[I], momentum += n.q[I][k];
+      if (wet_[I]) M += mw_[I], momentum += qw_[I][k];
+    }
+    if (!(M > 0.0)) continue;
+    for (int I : r.node)
+      if (n.active[I]) n.v[I][k] = vw_[I][k] = momentum / M;
+  }
 }
+
+template <int D> void TwoPhase<D>::update_pressure(Engine<D>& e, double dt) { update_particles(e, dt, false, true); }
 
 template <int D> void TwoPhase<D>::update_particles(Engine<D>& e, double dt, bool rate, bool pressure) {
   const int n = e.particles().size();

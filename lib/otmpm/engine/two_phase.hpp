@@ -15,18 +15,22 @@
 ///                   m_s a_s, so that the engine's nodal update is unchanged;
 ///   nodal_velocity  the liquid's nodal velocity (held components: the solid's);
 ///   to_particles    w_p += dt sum N a_w, p_p from the phases' volumetric
-///                   rates (eq. 15.3); musl: after the re-projection of w.
+///                   rates (eq. 15.3); musl: remap (w_p, the re-projection of
+///                   w, the rigid plates) before the stress update, then
+///                   update_pressure.
 /// The Darcy dissipation is booked in the engine's energy balance
 /// (EnergyBalance::darcy).
 #include "otmpm/basis/basis.hpp"
 #include "otmpm/engine/constraints.hpp"
 #include "otmpm/materials/pore_fluid.hpp"
 #include "otmpm/particles/particles.hpp"
+#include "otmpm/time_function.hpp"
 
 #include <array>
 #include <memory>
 #include <optional>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 namespace otmpm {
@@ -37,12 +41,14 @@ template <int D> struct LiquidSums;
 template <int D, class Sums> class BlockedScatter;
 
 /// A rigid, frictionless, impermeable plate: the listed nodes move together
-/// along `axis` (both phases), massless; the forces on them along the axis
-/// (a traction on the plate's surface particles, the body's reaction) are
-/// shared so that they keep one velocity. The other components stay free.
-struct RigidSet {
+/// along `axis` (both phases), massless, pressed by `force` g(t); the nodal
+/// forces along the axis are shared so that they keep one velocity. The other
+/// components stay free.
+struct Plate {
   std::vector<int> node;
   int axis = 0;
+  double force = 0.0;
+  TimeFunction time;
 };
 
 /// What the liquid phase of a run is built from.
@@ -54,7 +60,7 @@ template <int D> struct TwoPhaseParts {
   /// drained. Every entry must also be a fixed component of the engine's
   /// Dirichlet sets.
   Dirichlet<D> held;
-  std::vector<RigidSet> rigid;
+  std::vector<Plate> plates;
 };
 
 /// The liquid's contributions to the after-step sums (Engine::sum_particles):
@@ -78,9 +84,13 @@ public:
   ~TwoPhase();
 
   /// After the engine's to_nodes (mass, momentum, forces at t): the liquid's
-  /// sums and the coupled nodal solve; f_I becomes m_s a_s, and the Darcy
-  /// dissipation of the step is added to darcy().
+  /// sums and the coupled nodal solve; f_I becomes m_s a_s, the Darcy
+  /// dissipation of the step is added to darcy() and the plates' work to
+  /// plate_work().
   void to_nodes(Engine<D>& e, double t, double dt);
+  /// The work the plates' forces did in the steps since the last call (the
+  /// engine adds it to W_ext), (F(t_n) + F(t_n+1)) / 2 . dt V for each step.
+  double take_plate_work() { return std::exchange(plate_work_, 0.0); }
   /// The energy the Darcy drag dissipated since t = 0 (W_d, eq. 15.6; EnergyBalance::darcy).
   double darcy() const { return darcy_; }
   /// Sets W_d (a restart).
@@ -88,8 +98,13 @@ public:
   /// After the engine's constrained nodal velocity v_I: the liquid's w_I.
   void nodal_velocity(const Engine<D>& e, double dt);
   /// After the particles moved and their stresses were updated: w_p and p_p.
-  /// `remap`: musl's re-projection of the liquid's momenta first.
-  void to_particles(Engine<D>& e, double dt, bool remap);
+  void to_particles(Engine<D>& e, double dt);
+  /// musl, after the re-projection of the solid's momenta and before the
+  /// stress update: w_p, the re-projection of the liquid's momenta, and the
+  /// rigid plates on both phases' re-projected velocities.
+  void remap(Engine<D>& e, double dt);
+  /// musl, after the stress update: p_p from the re-projected velocities.
+  void update_pressure(Engine<D>& e, double dt);
   /// The liquid's after-step sums (LiquidTotals), in fixed blocks of particles.
   LiquidTotals<D> totals(const Engine<D>& e) const;
   /// The liquid's momentum sum_p m_w w_p.
@@ -112,8 +127,8 @@ private:
   template <bool MomentumOnly, class Update> void scatter(const Engine<D>& e, Update&& update);
   /// The coupled nodal solve (eq. 15.5); returns the step's Darcy dissipation (eq. 15.6).
   double solve(Engine<D>& e, double t, double dt);
-  /// The rigid sets: one velocity per set along its axis for both phases.
-  void tie(Engine<D>& e, double dt);
+  /// The plates: one velocity per plate along its axis for both phases.
+  void tie(Engine<D>& e, double t, double dt);
   /// w_p += dt sum N a_w (rate) and the pore pressure update (pressure) of all particles.
   void update_particles(Engine<D>& e, double dt, bool rate, bool pressure);
   void update_particles_range(Engine<D>& e, double dt, bool rate, bool pressure, int p0, int p1);
@@ -137,7 +152,7 @@ private:
   std::vector<long long> cell_;
   std::vector<int> patch_;
   std::vector<std::array<double, 2>> sums_;
-  double darcy_ = 0.0;
+  double darcy_ = 0.0, plate_work_ = 0.0;
 };
 
 extern template class TwoPhase<1>;

@@ -39,13 +39,14 @@ template <int D> void step_usl(Engine<D>& e, const StepContext<D>& s, bool musl)
   scale(n.dx, dt, n.v); // also in mpm mode: the step's nodal increments (Engine::nodal)
   e.advect_nodes(n.dx);
   if (!musl) {
-    if (liquid) liquid->to_particles(e, dt, false); // w_p and p_p
+    if (liquid) liquid->to_particles(e, dt); // w_p and p_p
     return;
   }
   e.solve_mass(n.q, n.v);
   e.constrain_velocity(n.v, {.impulse = false});
+  if (liquid) liquid->remap(e, dt); // w_p, its re-projection, the rigid plates
   e.update_stress({&n.v, dt});
-  if (liquid) liquid->to_particles(e, dt, true); // w_p, its re-projection, p_p
+  if (liquid) liquid->update_pressure(e, dt);
 }
 
 } // namespace

@@ -191,19 +191,23 @@ Mat<2> Mandel::stress(const Vec<2>& X, double t) const {
 
 namespace {
 
-/// The one material (saturated, linear elastic), body (a box) and traction of a consolidation scene.
+/// The one material (saturated, linear elastic) and body (a box at rest) of
+/// a consolidation scene, loaded by one traction (Terzaghi) or one plate (Mandel).
 struct ConsolidationScene {
   const MaterialSection* material;
   PoreFluid fluid;
   const BodySection* body;
-  const TractionSection* traction;
-  int axis;
 };
 
-ConsolidationScene consolidation_parts(const Scene& scene, const SourceRef& where, const std::string& name) {
+ConsolidationScene consolidation_parts(const Scene& scene, const SourceRef& where, const std::string& name,
+                                       bool plate) {
   auto fail = [&](const std::string& why) { input_error(where, "exact solution '" + name + "' " + why); };
-  if (scene.materials.size() != 1 || scene.bodies.size() != 1 || scene.tractions.size() != 1)
-    fail("needs exactly one [[material]], one [[body]] and one [[traction]] (the load)");
+  if (scene.materials.size() != 1 || scene.bodies.size() != 1)
+    fail("needs exactly one [[material]] and one [[body]]");
+  if (plate ? scene.plates.size() != 1 || !scene.tractions.empty()
+            : scene.tractions.size() != 1 || !scene.plates.empty())
+    fail(plate ? "is loaded by exactly one [[plate]] and no [[traction]]"
+               : "is loaded by exactly one [[traction]] and no [[plate]]");
   const MaterialSection& m = scene.materials[0];
   const std::optional<PoreFluid> fluid = pore_fluid(m);
   if (!fluid) fail("needs a saturated material (porosity, permeability, fluid_density, fluid_bulk_modulus, "
@@ -213,21 +217,20 @@ ConsolidationScene consolidation_parts(const Scene& scene, const SourceRef& wher
   if (b.shape != "box") fail("needs a box body");
   if (scene.body_force || !scene.initial_velocities.empty() || b.velocity != Vec3{0, 0, 0} || b.velocity_profile)
     fail("starts at rest and has no body force (the solution is the pore pressure in excess of the hydrostatic)");
-  const TractionSection& tr = scene.tractions[0];
-  if (!tr.function.empty()) fail("needs a traction value, not a function");
-  int axis = tr.axis.value_or(0);
-  if (!tr.axis)
-    for (int k = 1; k < scene.simulation.dimension; ++k)
-      if (std::abs(tr.value[k]) > std::abs(tr.value[axis])) axis = k;
-  return {&m, *fluid, &b, &tr, axis};
+  if (!plate && !scene.tractions[0].function.empty()) fail("needs a traction value, not a function");
+  return {&m, *fluid, &b};
 }
 
 template <int D> std::unique_ptr<ExactSolution<D>> make_terzaghi(const Scene& scene, const SourceRef& where) {
-  const ConsolidationScene s = consolidation_parts(scene, where, "terzaghi");
-  const int k = s.axis;
+  const ConsolidationScene s = consolidation_parts(scene, where, "terzaghi", false);
+  const TractionSection& tr = scene.tractions[0];
+  int k = tr.axis.value_or(0); // the traction's axis (its largest component by default)
+  if (!tr.axis)
+    for (int j = 1; j < D; ++j)
+      if (std::abs(tr.value[j]) > std::abs(tr.value[k])) k = j;
   const double lo = s.body->lower[k], hi = s.body->upper[k];
   // The loaded (drained) end: the one nearer the traction box.
-  const double mid = 0.5 * (s.traction->lower[k] + s.traction->upper[k]);
+  const double mid = 0.5 * (tr.lower[k] + tr.upper[k]);
   const bool top = std::abs(mid - hi) <= std::abs(mid - lo);
   const ElasticConstants c = s.material->elastic();
   TerzaghiParameters p;
@@ -240,8 +243,8 @@ template <int D> std::unique_ptr<ExactSolution<D>> make_terzaghi(const Scene& sc
   p.porosity = s.fluid.porosity;
   p.mobility = s.fluid.permeability / s.fluid.viscosity;
   p.fluid_bulk_modulus = s.fluid.bulk_modulus;
-  p.load = -p.direction * s.traction->value[k];
-  p.time = s.traction->time;
+  p.load = -p.direction * tr.value[k];
+  p.time = tr.time;
   try {
     return std::make_unique<Terzaghi<D>>(p);
   } catch (const InputError& e) {
@@ -254,8 +257,9 @@ template <int D> std::unique_ptr<ExactSolution<D>> make_mandel(const Scene& scen
     input_error(where, "exact solution 'mandel' is two-dimensional (plane strain); the run is " + std::to_string(D) +
                            "D");
   } else {
-    const ConsolidationScene s = consolidation_parts(scene, where, "mandel");
-    if (s.axis != 1) input_error(where, "exact solution 'mandel' needs the load along y (axis 1) on the top plate");
+    const ConsolidationScene s = consolidation_parts(scene, where, "mandel", true);
+    const PlateSection& plate = scene.plates[0];
+    if (plate.axis != 1) input_error(where, "exact solution 'mandel' needs the plate to press along y (axis 1)");
     MandelParameters p;
     p.width = s.body->upper[0] - s.body->lower[0];
     p.height = s.body->upper[1] - s.body->lower[1];
@@ -266,8 +270,8 @@ template <int D> std::unique_ptr<ExactSolution<D>> make_mandel(const Scene& scen
     p.porosity = s.fluid.porosity;
     p.mobility = s.fluid.permeability / s.fluid.viscosity;
     p.fluid_bulk_modulus = s.fluid.bulk_modulus;
-    p.stress = -s.traction->value[1];
-    p.time = s.traction->time;
+    p.stress = -plate.force / p.width; // the plate on the top of the quarter presses down (-y)
+    p.time = plate.time;
     try {
       return std::make_unique<Mandel>(p);
     } catch (const InputError& e) {

@@ -38,7 +38,7 @@ using namespace toml_input;
 constexpr double kCellsTolerance = 1e-6;
 
 const std::set<std::string, std::less<>> kTableArrays = {"material", "body", "initial_velocity", "boundary",
-                                                         "wall", "traction", "probes"};
+                                                         "wall", "plate", "traction", "probes"};
 
 std::string fmt(double x) {
   char buf[32];
@@ -606,8 +606,8 @@ std::vector<BoundarySection> read_boundaries(const TableReader& root, const Scen
   std::set<std::string> names;
   for (const TableReader& t : root.tables("boundary")) {
     const bool group = t.has("physical") || t.has("file");
-    if (group) t.only({"name", "file", "physical", "scale", "rotate", "translate", "fix", "value", "pore_pressure", "rigid"});
-    else t.only({"name", "lower", "upper", "fix", "value", "pore_pressure", "rigid"});
+    if (group) t.only({"name", "file", "physical", "scale", "rotate", "translate", "fix", "value", "pore_pressure"});
+    else t.only({"name", "lower", "upper", "fix", "value", "pore_pressure"});
     BoundarySection b;
     b.where = t.self();
     b.name = read_name(t, false, default_name("boundary", out.size()), names, "boundary");
@@ -619,11 +619,10 @@ std::vector<BoundarySection> read_boundaries(const TableReader& root, const Scen
     }
     check_box(t, b.lower, b.upper, dim, false);
     auto fix = t.bools("fix", dim);
-    if (!fix && !t.has("pore_pressure") && !t.has("rigid")) t.missing("fix");
+    if (!fix && !t.has("pore_pressure")) t.missing("fix");
     b.fix = fix.value_or(b.fix);
     b.value = t.vec("value", dim).value_or(b.value);
     if (t.has("pore_pressure")) b.pore_pressure = number(t, scene_keys::kPorePressure);
-    b.rigid = t.bools("rigid", dim).value_or(b.rigid);
     out.push_back(std::move(b));
   }
   return out;
@@ -644,6 +643,29 @@ std::vector<WallSection> read_walls(const TableReader& root, int dim) {
     w.velocity = t.vec("velocity", dim).value_or(w.velocity);
     w.friction = number(t, scene_keys::kFriction, w.friction);
     out.push_back(std::move(w));
+  }
+  return out;
+}
+
+TimeFunction read_time(const TableReader& parent);
+
+std::vector<PlateSection> read_plates(const TableReader& root, int dim) {
+  std::vector<PlateSection> out;
+  std::set<std::string> names;
+  for (const TableReader& t : root.tables("plate")) {
+    t.only({"name", "lower", "upper", "axis", "force", "time"});
+    PlateSection p;
+    p.where = t.self();
+    p.name = read_name(t, false, default_name("plate", out.size()), names, "plate");
+    p.lower = t.require_vec("lower", dim);
+    p.upper = t.require_vec("upper", dim);
+    check_box(t, p.lower, p.upper, dim, false);
+    p.axis = t.get<int>("axis", dim - 1);
+    check(p.axis >= 0 && p.axis < dim, t.ref("axis"),
+          "must be an axis index in [0, " + std::to_string(dim) + ") (got " + std::to_string(p.axis) + ")");
+    p.force = number(t, scene_keys::kPlateForce, 0.0);
+    p.time = read_time(t);
+    out.push_back(std::move(p));
   }
   return out;
 }
@@ -833,8 +855,8 @@ void check_node_count(const TableReader& grid, const Scene& s) {
 
 Scene read_scene(const toml::table& root, Context& ctx) {
   TableReader r(ctx, &root, "", SourceRef{ctx.file, 1, ""});
-  r.only({"simulation", "basis", "grid", "material", "body", "initial_velocity", "boundary", "wall", "contact",
-          "body_force", "traction", "output", "reference"});
+  r.only({"simulation", "basis", "grid", "material", "body", "initial_velocity", "boundary", "wall", "plate",
+          "contact", "body_force", "traction", "output", "reference"});
   Scene s;
   s.file = ctx.file;
   s.simulation = read_simulation(r.require_table("simulation"));
@@ -853,6 +875,7 @@ Scene read_scene(const toml::table& root, Context& ctx) {
   s.initial_velocities = read_initial_velocities(r, dim);
   s.boundaries = read_boundaries(r, s);
   s.walls = read_walls(r, dim);
+  s.plates = read_plates(r, dim);
   s.contact = read_contact(r);
   s.body_force = read_body_force(r, dim);
   s.tractions = read_tractions(r, dim);

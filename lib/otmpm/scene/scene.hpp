@@ -139,15 +139,13 @@ struct InitialVelocitySection {
 /// saturated bodies (docs/theory.md sect. 15) a fixed component holds the
 /// pore liquid too (an impermeable support) unless `pore_pressure` is given
 /// (a drained surface: the liquid passes; 0 is the value supported, that of
-/// every free surface); a `rigid` component makes the box's nodes move as
-/// one frictionless, impermeable plate along that axis.
+/// every free surface).
 struct BoundarySection {
   std::string name;
   Vec3 lower{0, 0, 0}, upper{0, 0, 0};
   std::array<bool, 3> fix{false, false, false};
   Vec3 value{0, 0, 0};
   std::optional<double> pore_pressure;
-  std::array<bool, 3> rigid{false, false, false};
   SourceRef where{"", 0, "boundary"};
 };
 
@@ -160,6 +158,20 @@ struct WallSection {
   Vec3 point{0, 0, 0}, normal{0, 0, 0}, velocity{0, 0, 0};
   double friction = 0.0;
   SourceRef where{"", 0, "wall"};
+};
+
+/// A rigid, frictionless, impermeable plate on saturated bodies (docs/theory.md
+/// sect. 15): the nodes inside the box move together along `axis` (both
+/// phases), the plate is massless and pressed by `force` times the time
+/// function (N; in 2D per unit length out of plane, in 1D per unit area).
+/// Its other components are free.
+struct PlateSection {
+  std::string name;
+  Vec3 lower{0, 0, 0}, upper{0, 0, 0};
+  int axis = 0;
+  double force = 0.0;
+  TimeFunction time;
+  SourceRef where{"", 0, "plate"};
 };
 
 /// Body-body contact on the fixed grid: each body gets its own nodal
@@ -255,6 +267,7 @@ struct Scene {
   std::vector<InitialVelocitySection> initial_velocities;
   std::vector<BoundarySection> boundaries;
   std::vector<WallSection> walls;
+  std::vector<PlateSection> plates;
   std::optional<ContactSection> contact;
   std::optional<BodyForceSection> body_force;
   std::vector<TractionSection> tractions;

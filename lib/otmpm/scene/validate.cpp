@@ -264,9 +264,9 @@ std::string two_phase_integrators() {
   return list;
 }
 
-/// A boundary's saturated keys: pore_pressure 0 (the one value supported) and
-/// rigid components that are not fixed, both in a scene with saturated bodies.
-void check_saturated_boundary(const Scene& s, const BoundarySection& b, const std::string& key, int dim) {
+/// A boundary's saturated key: pore_pressure 0 (the one value supported), in
+/// a scene with saturated bodies.
+void check_saturated_boundary(const Scene& s, const BoundarySection& b, const std::string& key) {
   if (b.pore_pressure) {
     check_number(s, key + ".pore_pressure", *b.pore_pressure, scene_keys::kPorePressure);
     check(s, *b.pore_pressure == 0.0, key + ".pore_pressure", "only 0 is supported (a drained surface at the ",
@@ -275,11 +275,23 @@ void check_saturated_boundary(const Scene& s, const BoundarySection& b, const st
     check(s, saturated(s), key + ".pore_pressure", "marks a drained surface of a saturated body, but no material "
           "has a pore fluid (porosity, permeability, fluid_density, fluid_bulk_modulus, fluid_viscosity)");
   }
-  for (int k = 0; k < dim; ++k) {
-    if (!b.rigid[static_cast<std::size_t>(k)]) continue;
-    check(s, saturated(s), key + ".rigid", "a rigid plate is available with saturated bodies only (a material with "
+}
+
+/// The rigid plates: named, boxes, an axis of the run, a finite force and its
+/// time function, in a scene with saturated bodies.
+void check_plates(const Scene& s, int dim) {
+  std::set<std::string> names;
+  for (std::size_t i = 0; i < s.plates.size(); ++i) {
+    const PlateSection& p = s.plates[i];
+    const std::string key = element_key("plate", p.name, i);
+    check_name(s, key, p.name, "plate", false, default_name("plate", i), names);
+    check_box(s, key, p.lower, p.upper, dim, false);
+    check(s, p.axis >= 0 && p.axis < dim, key + ".axis", "must be an axis index in [0, ", dim, ") (got ", p.axis,
+          ")");
+    check_number(s, key + ".force", p.force, scene_keys::kPlateForce);
+    check_time(s, key + ".time", p.time);
+    check(s, saturated(s), key, "a rigid plate is available with saturated bodies only (a material with "
           "porosity, permeability, fluid_density, fluid_bulk_modulus and fluid_viscosity)");
-    check(s, !b.fix[static_cast<std::size_t>(k)], key + ".rigid", "axis ", k, " is both fixed and rigid");
   }
 }
 
@@ -311,7 +323,7 @@ void check_loads(const Scene& s, int dim) {
     check_name(s, key, b.name, "boundary", false, default_name("boundary", i), boundary_names);
     check_box(s, key, b.lower, b.upper, dim, false);
     check_finite(s, key + ".value", b.value, dim);
-    check_saturated_boundary(s, b, key, dim);
+    check_saturated_boundary(s, b, key);
   }
   for (std::size_t i = 0; i < s.walls.size(); ++i) {
     const WallSection& w = s.walls[i];
@@ -481,6 +493,7 @@ void validate_scene(const Scene& s, int dimension, int processes) {
   check_size(s, processes);
   check_loads(s, dimension);
   check_contact(s);
+  check_plates(s, dimension);
   check_saturated(s);
   check_output(s, dimension);
 }
