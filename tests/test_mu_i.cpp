@@ -24,12 +24,12 @@ using namespace otmpm;
 namespace {
 
 // Sand-like grains: E = 10 MPa, nu = 0.3 (K = 8.33 MPa, G = 3.85 MPa).
-constexpr double kYoung = 10e6, kPoisson = 0.3, kDensity = 1500.0;
+constexpr double kE = 10e6, kNu = 0.3, kRho = 1500.0;
 constexpr double kMuS = 0.38, kMu2 = 0.64, kI0 = 0.28, kGrain = 1e-3, kGrainDensity = 2500.0;
 constexpr double kCritical = 0.55; // seeded at 1500 / 2500 = 0.6: J_c = 0.6 / 0.55
 
 MaterialParameters mu_i(double mu_2 = kMu2) {
-  return {.name = "grains", .model = "mu_i", .density = kDensity, .young = kYoung, .poisson = kPoisson,
+  return {.name = "grains", .model = "mu_i", .density = kRho, .young = kE, .poisson = kNu,
           .extra = {{"mu_s", kMuS}, {"mu_2", mu_2}, {"I_0", kI0}, {"grain_diameter", kGrain},
                     {"grain_density", kGrainDensity}, {"critical_packing", kCritical}}};
 }
@@ -39,7 +39,7 @@ MaterialParameters mu_i(double mu_2 = kMu2) {
 /// tan(phi) = mu_s / sqrt(1 - 4 mu_s^2 / 3).
 MaterialParameters matched_drucker_prager() {
   const double phi = std::atan(kMuS / std::sqrt(1.0 - 4.0 * kMuS * kMuS / 3.0)) * 180.0 / std::numbers::pi;
-  return {.name = "sand", .model = "drucker_prager", .density = kDensity, .young = kYoung, .poisson = kPoisson,
+  return {.name = "sand", .model = "drucker_prager", .density = kRho, .young = kE, .poisson = kNu,
           .extra = {{"friction_angle", phi}}};
 }
 
@@ -51,7 +51,7 @@ template <int D> Particles<D> one_particle(Material<D>& m) {
   P.resize(1);
   P.allocate_optional(false, true);
   P.V[0] = P.V0[0] = 1.0;
-  P.m[0] = P.rho[0] = kDensity;
+  P.m[0] = P.rho[0] = kRho;
   for (const StateSpec& s : m.state()) P.add_state(std::string(s.name), s.width, s.initial.data());
   m.bind(P);
   return P;
@@ -182,7 +182,7 @@ template <int D> double path_difference(const MaterialParameters& a, const Mater
 TEST_CASE("mu_i: the static limit is drucker_prager with eta = mu_s (rate-independent: mu_2 = mu_s; I -> 0)") {
   // Round-off along a path of n = 400 steps: 5e-16 n (K + G) (the bound of
   // test_plasticity.cpp) on stresses of ~1e4 Pa: 2.4e-3 Pa.
-  const plasticity::ElasticModuli el = plasticity::ElasticModuli::from_young_poisson(kYoung, kPoisson);
+  const plasticity::ElasticModuli el = plasticity::ElasticModuli::from_young_poisson(kE, kNu);
   const double tol = 5e-16 * 400 * (el.bulk + el.shear);
   double largest = 0.0, eps_p = 0.0;
   const double d1 = path_difference<1>(mu_i(kMuS), matched_drucker_prager(), 1e-3, largest, eps_p);
@@ -207,8 +207,8 @@ TEST_CASE("mu_i: the static limit is drucker_prager with eta = mu_s (rate-indepe
 TEST_CASE("mu_i: below the critical packing stress-free; compacted again, the elastic volume strain is ln(J / J_c)") {
   // Seeded at the packing phi0 = 0.6, the grains lose contact below phi_c =
   // 0.55, i.e. at J > J_c = phi0 / phi_c = 1.0909.
-  const double J_c = (kDensity / kGrainDensity) / kCritical;
-  const plasticity::ElasticModuli el = plasticity::ElasticModuli::from_young_poisson(kYoung, kPoisson);
+  const double J_c = (kRho / kGrainDensity) / kCritical;
+  const plasticity::ElasticModuli el = plasticity::ElasticModuli::from_young_poisson(kE, kNu);
   // One path of isotropic increments (1D uniaxial, 2D in plane): e^0.15
   // (loose), back to e^0.09 (J = 1.094 > J_c: still loose although denser
   // than at the start of the step), then e^0.06 < J_c: the grains carry the

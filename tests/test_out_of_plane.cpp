@@ -21,13 +21,13 @@ using namespace otmpm;
 
 namespace {
 
-constexpr double kYoung = 200e9, kPoisson = 0.3;
+constexpr double kE = 200e9, kNu = 0.3;
 constexpr int kParticles = 3; // an odd count: J2's plane update takes pairs and one particle alone
 constexpr int kSteps = 400;
 
-/// A material of `model` with young = kYoung, poisson = kPoisson and `extra` parameters.
+/// A material of `model` with young = kE, poisson = kNu and `extra` parameters.
 MaterialParameters parameters(const std::string& model, std::map<std::string, double> extra = {}) {
-  return {.name = "m", .model = model, .density = 7800.0, .young = kYoung, .poisson = kPoisson, .extra = std::move(extra)};
+  return {.name = "m", .model = model, .density = 7800.0, .young = kE, .poisson = kNu, .extra = std::move(extra)};
 }
 
 /// n particles of unit volume at rest, with F = I and the material's state.
@@ -122,7 +122,7 @@ TEST_CASE("out_of_plane_stress: every model's 2D sigma_zz equals its 3D sigma_zz
   // 2x2 against 3x3 products and eigen-decompositions), so they drift apart
   // by at most that. (K + G = 2.4e11 Pa here: tol = 4.8e-2 Pa for 400 steps,
   // i.e. 1e-10 of the ~5e8 Pa stresses.)
-  const plasticity::ElasticModuli el = plasticity::ElasticModuli::from_young_poisson(kYoung, kPoisson);
+  const plasticity::ElasticModuli el = plasticity::ElasticModuli::from_young_poisson(kE, kNu);
   const double tol = 5e-16 * kSteps * (el.bulk + el.shear);
   const std::vector<Case> cases{
       {"linear_elastic", parameters("linear_elastic"), 2e-3, false, false},
@@ -167,10 +167,10 @@ TEST_CASE("out_of_plane_stress: linear_elastic's sigma_zz is nu (sigma_xx + sigm
                Mat<2>::Identity();
     m->update(P, 0, 1, &H, 1e-6);
     m->out_of_plane_stress(P, 0, 1, zz.data());
-    worst = std::max(worst, std::abs(zz[0] - kPoisson * (P.sigma[0](0, 0) + P.sigma[0](1, 1))));
+    worst = std::max(worst, std::abs(zz[0] - kNu * (P.sigma[0](0, 0) + P.sigma[0](1, 1))));
   }
   CHECK(std::abs(zz[0]) > 1e6);
-  CHECK(worst <= 5e-16 * kSteps * kYoung);
+  CHECK(worst <= 5e-16 * kSteps * kE);
 }
 
 TEST_CASE("out_of_plane_stress: a rest state has sigma_zz = 0; 1D and 3D materials refuse") {

@@ -21,6 +21,12 @@ namespace {
 /// update them (a batch on the stack, one virtual call per run of a material).
 constexpr int kStressBatch = 64;
 
+/// ul: a node lighter than this fraction of the heaviest node moves with
+/// the material it carries (Engine::advect_nodes). The lattice a body fills
+/// has none (its lightest node, a corner, carries 1/2^D of the heaviest);
+/// a node the material barely reaches carries far less.
+constexpr double kLightNode = 1e-2;
+
 /// The Dirichlet set repeated on every one of `fields` copies of `nodes` nodes.
 template <int D> Dirichlet<D> repeat_per_field(const Dirichlet<D>& d, int nodes, int fields) {
   Dirichlet<D> out;
@@ -179,6 +185,7 @@ template <int D> void Engine<D>::step() {
     unstable("time step " + format_number(dt_) + " is not positive and finite");
   if (dt_prev_ == 0.0) dt_prev_ = dt_;
   loads_.traction_positions(P_, traction_start_);
+  if (mode_.nodes_move()) x_start_.assign(P_.x.begin(), P_.x.end());
   try {
     settings_.step(*this, {t_, dt_, dt_prev_, step_, settings_.parameters, P_, nodal_});
   } catch (const ParticleFailure& f) {
@@ -362,6 +369,10 @@ template <int D> void Engine<D>::finish_mass() {
   if (dist_) dist_->max({&m_max, 1});
   const double m_min = settings_.mass_tolerance * m_max;
   parallel_for(nodes, [&](long long I) { nodal_.active[I] = nodal_.m[I] > m_min; });
+  light_.clear();
+  if (mode_.nodes_move()) // the lattice's own nodes fill their cells: none is light (sect. 3)
+    for (int I = 0; I < nodes; ++I)
+      if (nodal_.m[I] > 0.0 && nodal_.m[I] < kLightNode * m_max) light_.push_back(I);
   if (mass_matrix_) mass_matrix_->assemble(table_, P_.m, nodal_.active, constraints_.constrained(), nodes);
   if (contact_) contact_mass_gradient();
 }
@@ -671,9 +682,11 @@ template <int D> void Engine<D>::update_materials(int p0, int p1, const Mat<D>* 
   }
 }
 
-template <int D> void Engine<D>::advect_nodes(const AlignedVector<Vec<D>>& dx) {
+template <int D> void Engine<D>::advect_nodes(const AlignedVector<Vec<D>>& increments) {
   if (!mode_.nodes_move()) return;
   ScopedPhase timer(timers_, Phase::nodal_update);
+  const std::optional<AlignedVector<Vec<D>>> own = light_increments(increments);
+  const AlignedVector<Vec<D>>& dx = own ? *own : increments;
   // Ranks agree on the increments first: a family may meet the other ranks
   // while it advects (the B-spline knots are global).
   if (dist_) {
@@ -685,6 +698,29 @@ template <int D> void Engine<D>::advect_nodes(const AlignedVector<Vec<D>>& dx) {
     dist_->agree(it != dx.end() ? &bad : nullptr);
   }
   mode_.advect(*basis_, dx);
+}
+
+template <int D>
+std::optional<AlignedVector<Vec<D>>> Engine<D>::light_increments(const AlignedVector<Vec<D>>& dx) {
+  double any = light_.empty() || contact_ ? 0.0 : 1.0;
+  if (dist_) dist_->max({&any, 1});
+  if (any == 0.0) return std::nullopt;
+  const int nodes = static_cast<int>(nodal_.m.size());
+  AlignedVector<Vec<D>> carried(static_cast<std::size_t>(nodes), Vec<D>::Zero()); // sum_p N_Ip m_p dx_p
+  auto update = [](int, int) {};
+  auto prep = [&](int p) { return Vec<D>(P_.m[p] * (P_.x[p] - x_start_[p])); };
+  auto add = [&](NodeSums<D>& acc, int e, const Vec<D>& w) { acc.q += table_.N[e] * w; };
+  auto merge = [&](int I, const NodeSums<D>& acc) { carried[I] += acc.q; };
+  auto clear = [&](int I0, int I1) { std::fill(carried.begin() + I0, carried.begin() + I1, Vec<D>::Zero()); };
+  scatter_->run(table_, nodes, update, prep, add, merge, clear);
+  if (dist_) {
+    const NodalArray sums[] = {{carried.data()->data(), D}};
+    dist_->sum_nodal(sums);
+  }
+  AlignedVector<Vec<D>> own = dx;
+  for (int I : light_) own[I] = carried[I] / nodal_.m[I];
+  constrain_increment(own);
+  return own;
 }
 
 template <int D> double Engine<D>::global_power(double t, const Vec<D>& momentum) const {

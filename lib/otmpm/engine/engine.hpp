@@ -306,6 +306,10 @@ public:
     return s;
   }
   /// x_I += dx_I in `ul` mode, nothing on the fixed grid (NodeMode::advect).
+  /// A light node (under kLightNode of the heaviest node's mass: a corner of
+  /// a cell the material barely reaches) moves with the material it
+  /// carries, sum_p N_Ip m_p dx_p / m_I, not with its own acceleration,
+  /// f_I / m_I, which grows without bound as m_I falls (docs/theory.md sect. 3).
   void advect_nodes(const AlignedVector<Vec<D>>& dx);
   /// Power of the body force sum_p m_p b(X_p, t) . v_p (the tractions'
   /// work follows the loaded particles' motion: Loads::traction_work).
@@ -404,6 +408,8 @@ private:
   /// of the node set (NodeSet::remove): the nodes discretise the body, not its
   /// bounding box.
   void follow_body(const AlignedVector<Vec<D>>& x);
+  /// advect_nodes' increments with the light nodes' replaced (null: none is light on any rank).
+  std::optional<AlignedVector<Vec<D>>> light_increments(const AlignedVector<Vec<D>>& dx);
   [[noreturn]] void unstable(int p, const std::string& what) const;
   [[noreturn]] void unstable(const std::string& what) const;
   /// A stage that may fail for a particle: in a distributed run a rank that
@@ -447,6 +453,10 @@ private:
   /// the last basis table (NodeMode::cfl_spacing); 0 until the first.
   double gradient0_ = 0.0, gradient_ = 0.0;
   AlignedVector<Vec<D>> moved_; ///< ul, searching family: the displacement into the hull (Basis::evaluate_points)
+  /// ul: the particles' positions at the start of the step, and the nodes
+  /// that carry under kLightNode of the heaviest node's mass (finish_mass)
+  AlignedVector<Vec<D>> x_start_;
+  std::vector<int> light_;
   long node_resets_ = 0;
   std::optional<CartesianGrid<D>> lattice_; ///< after a node reset: the lattice the nodes were laid out on
   struct {
