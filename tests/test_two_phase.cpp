@@ -346,6 +346,37 @@ TEST_CASE("a rigid plate needs saturated bodies and an axis of the run") {
   CHECK(why.find("saturated bodies only") != std::string::npos);
 }
 
+TEST_CASE("what a softer pore liquid changes in Terzaghi's solution (examples/terzaghi.toml)") {
+  // The example's column with water (K_w = 2.2 GPa) and with a tenth and a
+  // hundredth of its bulk modulus, the same load and ramp: the largest
+  // difference of the pore pressure over the column, relative to the load, at
+  // the water's T_v = 0.05 and 0.2 (docs/benchmarks.md quotes these figures).
+  auto column = [](double Kw) {
+    TerzaghiParameters p;
+    p.height = 1.0, p.modulus = 1e7, p.porosity = 0.4, p.mobility = 1e-7, p.fluid_bulk_modulus = Kw, p.load = 1e4;
+    p.time = {"ramp", 0.08};
+    return Terzaghi<1>(p);
+  };
+  const Terzaghi<1> water = column(2.2e9);
+  auto difference = [&](const Terzaghi<1>& soft, double Tv) {
+    const double t = Tv / water.consolidation_coefficient();
+    double worst = 0.0;
+    for (int i = 0; i <= 400; ++i) {
+      const Vec<1> X{i / 400.0};
+      worst = std::max(worst, std::abs(soft.pore_pressure(X, t) - water.pore_pressure(X, t)) / 1e4);
+    }
+    return worst;
+  };
+  const Terzaghi<1> tenth = column(2.2e8), hundredth = column(2.2e7);
+  MESSAGE("K_w / 10: beta " << tenth.undrained_share() << ", |dp| / q " << difference(tenth, 0.05) << " at T_v 0.05, "
+                            << difference(tenth, 0.2) << " at 0.2; K_w / 100: beta " << hundredth.undrained_share()
+                            << ", " << difference(hundredth, 0.05) << ", " << difference(hundredth, 0.2));
+  CHECK(difference(tenth, 0.05) == doctest::Approx(0.016).epsilon(0.05));
+  CHECK(difference(tenth, 0.2) == doctest::Approx(0.0077).epsilon(0.05));
+  CHECK(difference(hundredth, 0.05) == doctest::Approx(0.152).epsilon(0.02));
+  CHECK(difference(hundredth, 0.2) == doctest::Approx(0.080).epsilon(0.02));
+}
+
 TEST_CASE("Terzaghi's series: the degree of consolidation of the classical table") {
   TerzaghiParameters p;
   p.height = 2.0;

@@ -33,11 +33,13 @@ template <int D> Eigen::Map<const Vec<D>> liquid_at(const StateField& w, int p) 
 /// The largest squared speed of the two compressional waves of the mixture
 /// (eq. 15.7): the largest eigenvalue of K v = c^2 R v with the stiffness
 /// K = [M + (1-n)^2 K_w/n, (1-n) K_w; (1-n) K_w, n K_w] and the partial
-/// densities R = diag(rho_s', n rho_w); M the skeleton's P-wave modulus.
-double fast_wave_speed2(double M, double n, double rho_solid, double rho_liquid, double Kw) {
-  const double a = (M + (1.0 - n) * (1.0 - n) * Kw / n) / rho_solid, d = n * Kw / rho_liquid;
-  const double b = (1.0 - n) * Kw / std::sqrt(rho_solid * rho_liquid);
-  return 0.5 * (a + d) + std::sqrt(0.25 * (a - d) * (a - d) + b * b);
+/// densities R = diag(rho_s', n rho_w); M = c2 rho_s' the skeleton's P-wave
+/// modulus. With a = K_11 / rho_s' and d = K_22 / (n rho_w) = K_w / rho_w the
+/// eigenvalues are (a + d) / 2 +- sqrt(((a + d) / 2)^2 - det), det = det K /
+/// det R = c2 K_w / rho_w.
+double fast_wave_speed2(double c2, double n, double rho_solid, double Kw, double Kw_over_rho_w) {
+  const double half = 0.5 * (c2 + (1.0 - n) * (1.0 - n) * Kw / (n * rho_solid) + Kw_over_rho_w);
+  return half + std::sqrt(std::max(0.0, half * half - c2 * Kw_over_rho_w));
 }
 
 /// The lower of two particle indices, -1 meaning none.
@@ -77,6 +79,7 @@ TwoPhase<D>::TwoPhase(TwoPhaseParts<D> parts, Particles<D>& P, const Dirichlet<D
       rigid_[static_cast<std::size_t>(I) * D + r.axis] = 1;
     }
   }
+  for (std::size_t m = 0; m < parts_.fluid.size(); ++m) fluids_.push_back(parts_.fluid[m] ? &*parts_.fluid[m] : nullptr);
   const bool fresh = P.find_state(kLiquidVelocityField) == nullptr;
   const double zero[9] = {};
   P.add_state(std::string(kPorePressureField), 1, zero);
@@ -105,8 +108,6 @@ void TwoPhase<D>::scatter(const Engine<D>& e, Update&& update) {
   const BasisTable<D>& table = e.table();
   const StateField& pressure_field = *P.find_state(kPorePressureField);
   const StateField& velocity_field = *P.find_state(kLiquidVelocityField);
-  std::vector<const PoreFluid*> fluids;
-  for (std::size_t m = 0; m < parts_.fluid.size(); ++m) fluids.push_back(fluid(static_cast<int>(m)));
   struct Payload {
     double m = 0.0, drag = 0.0, Vp = 0.0, Vnp = 0.0;
     Vec<D> q = Vec<D>::Zero();
@@ -115,7 +116,7 @@ void TwoPhase<D>::scatter(const Engine<D>& e, Update&& update) {
   const int* material = P.material.data();
   const double *V = P.V.data(), *V0 = P.V0.data(), *pressure = pressure_field.values.data();
   const double* velocity = velocity_field.values.data();
-  const PoreFluid* const* fluid_of = fluids.data();
+  const PoreFluid* const* fluid_of = fluids_.data();
   auto prep = [=](int p) {
     Payload w;
     const PoreFluid* f = fluid_of[material[p]];
@@ -152,7 +153,8 @@ void TwoPhase<D>::scatter(const Engine<D>& e, Update&& update) {
     std::fill(fw_.begin() + I0, fw_.begin() + I1, Vec<D>::Zero());
     std::fill(fp_.begin() + I0, fp_.begin() + I1, Vec<D>::Zero());
   };
-  scatter_->invalidate(linear_row_width(table)); // the table of this step
+  if constexpr (!MomentumOnly) width_ = linear_row_width(table); // the table of this step
+  scatter_->invalidate(width_);
   scatter_->run(table, static_cast<int>(mw_.size()), update, prep, add, merge, clear);
 }
 
@@ -232,7 +234,9 @@ template <int D> void TwoPhase<D>::to_particles(Engine<D>& e, double dt) { updat
 
 template <int D> void TwoPhase<D>::remap(Engine<D>& e, double dt) {
   // w_p += dt sum N a_w block by block, then the new momenta re-projected.
-  scatter<true>(e, [&](int p0, int p1) { update_particles_range(e, dt, true, false, p0, p1); });
+  scatter<true>(e, [&](int p0, int p1) {
+    width_ == (1 << D) ? update_range<true, false, (1 << D)>(e, dt, p0, p1) : update_range<true, false, 0>(e, dt, p0, p1);
+  });
   NodalFields<D>& n = e.nodal();
   parallel_for(static_cast<long long>(mw_.size()), [&](long long i) {
     const auto I = static_cast<std::size_t>(i);
@@ -260,31 +264,48 @@ template <int D> void TwoPhase<D>::update_pressure(Engine<D>& e, double dt) { up
 template <int D> void TwoPhase<D>::update_particles(Engine<D>& e, double dt, bool rate, bool pressure) {
   const int n = e.particles().size();
   if (pressure) dp_.resize(static_cast<std::size_t>(n)), cell_.resize(static_cast<std::size_t>(n));
+  const bool fixed = width_ == (1 << D);
   parallel_chunks(n, [&](long long p0, long long p1) {
-    update_particles_range(e, dt, rate, pressure, static_cast<int>(p0), static_cast<int>(p1));
+    const int b = static_cast<int>(p0), c = static_cast<int>(p1);
+    if (rate && pressure) fixed ? update_range<true, true, (1 << D)>(e, dt, b, c) : update_range<true, true, 0>(e, dt, b, c);
+    else if (rate) fixed ? update_range<true, false, (1 << D)>(e, dt, b, c) : update_range<true, false, 0>(e, dt, b, c);
+    else fixed ? update_range<false, true, (1 << D)>(e, dt, b, c) : update_range<false, true, 0>(e, dt, b, c);
   });
   if (pressure) average_pressure(e);
 }
 
 template <int D>
-void TwoPhase<D>::update_particles_range(Engine<D>& e, double dt, bool rate, bool pressure, int p0, int p1) {
+template <bool Rate, bool Pressure, int W>
+void TwoPhase<D>::update_range(Engine<D>& e, double dt, int p0, int p1) {
   Particles<D>& P = e.particles();
   const BasisTable<D>& table = e.table();
-  const AlignedVector<Vec<D>>& v = e.nodal().v;
+  // Plain pointers in locals: the stores below cannot alias them.
+  const int* offset = table.offset.data();
+  const int* node = table.node.data();
+  const double* N = table.N.data();
+  const Vec<D>* dN = table.dN.data();
+  const Vec<D>* v = e.nodal().v.data();
+  const Vec<D>* vw = vw_.data();
+  const Vec<D>* aw = aw_.data();
+  const int* material = P.material.data();
+  const PoreFluid* const* fluid_of = fluids_.data();
+  double* w = P.find_state(kLiquidVelocityField)->values.data();
   const std::optional<CartesianGrid<D>>& grid = e.basis().nodes().grid();
-  StateField& w = *P.find_state(kLiquidVelocityField);
+  Vec<D> lower = Vec<D>::Zero(), inverse = Vec<D>::Zero();
+  if (grid) lower = grid->lower, inverse = grid->h().cwiseInverse();
   for (int p = p0; p < p1; ++p) {
-    const PoreFluid* f = fluid(P.material[p]);
+    const PoreFluid* f = fluid_of[material[p]];
     if (!f) continue;
     Vec<D> a = Vec<D>::Zero();
     double div_s = 0.0, div_w = 0.0;
-    for (int e0 = table.begin(p); e0 < table.end(p); ++e0) {
-      const int I = table.node[e0];
-      if (rate) a += table.N[e0] * aw_[I];
-      if (pressure) div_s += v[I].dot(table.dN[e0]), div_w += vw_[I].dot(table.dN[e0]);
+    const auto [e0, e1] = row_entries<W>(offset, p);
+    for (int k = e0; k < e1; ++k) {
+      const int I = node[k];
+      if constexpr (Rate) a += N[k] * aw[I];
+      if constexpr (Pressure) div_s += v[I].dot(dN[k]), div_w += vw[I].dot(dN[k]);
     }
-    if (rate) liquid_at<D>(w, p) += dt * a;
-    if (!pressure) continue;
+    if constexpr (Rate) Eigen::Map<Vec<D>>(w + static_cast<std::size_t>(p) * D) += dt * a;
+    if constexpr (!Pressure) continue;
     const double n = porosity(*f, P.V0[p], P.V[p]);
     if (!(n > 0.0 && n < 1.0)) [[unlikely]]
       throw ParticleFailure{p, "porosity n = " + format_number(n) +
@@ -292,43 +313,60 @@ void TwoPhase<D>::update_particles_range(Engine<D>& e, double dt, bool rate, boo
     const auto i = static_cast<std::size_t>(p);
     dp_[i] = -dt * f->bulk_modulus / n * ((1.0 - n) * div_s + n * div_w); // eq. 15.3
     cell_[i] = -1;
-    if (grid) { // the lattice cell of the particle, as one number
-      const Index<D> c = grid->cell_of(P.x[p]);
+    if (grid) { // the lattice cell of the particle, as one number (clamped as CartesianGrid::cell_of clamps)
       cell_[i] = 0;
-      for (int k = D - 1; k >= 0; --k) cell_[i] = cell_[i] * (grid->cells[k] + 1LL) + c[k];
+      for (int k = D - 1; k >= 0; --k) {
+        const double c = std::floor((P.x[p][k] - lower[k]) * inverse[k]);
+        const double clamped = std::isnan(c) ? 0.0 : std::clamp(c, 0.0, grid->cells[k] - 1.0); // a NaN is caught after the step
+        cell_[i] = cell_[i] * (grid->cells[k] + 1LL) + static_cast<long long>(clamped);
+      }
     }
   }
+}
+
+template <int D> int TwoPhase<D>::patch_of(long long cell, long long cells) {
+  // A dense slot per lattice cell while the lattice is not much larger than the particles, else a map.
+  if (cells <= 8 * static_cast<long long>(dp_.size()) + 4096) {
+    if (slot_.size() != static_cast<std::size_t>(cells)) slot_.assign(static_cast<std::size_t>(cells), -1);
+    int& id = slot_[static_cast<std::size_t>(cell)];
+    if (id < 0) id = static_cast<int>(sums_.size()), sums_.push_back({0.0, 0.0}), used_.push_back(cell);
+    return id;
+  }
+  const int id = number_.try_emplace(cell, static_cast<int>(sums_.size())).first->second;
+  if (id == static_cast<int>(sums_.size())) sums_.push_back({0.0, 0.0});
+  return id;
 }
 
 template <int D> void TwoPhase<D>::average_pressure(Engine<D>& e) {
   // Each cell's volume-weighted mean increment (eq. 15.3a), summed in particle order.
   Particles<D>& P = e.particles();
-  StateField& pp = *P.find_state(kPorePressureField);
+  double* pp = P.find_state(kPorePressureField)->values.data();
+  const std::optional<CartesianGrid<D>>& grid = e.basis().nodes().grid();
+  long long cells = 1;
+  for (int k = 0; grid && k < D; ++k) cells *= grid->cells[k] + 1LL;
   const int n = P.size();
   patch_.resize(static_cast<std::size_t>(n));
-  sums_.clear();
-  std::unordered_map<long long, int> number;
+  sums_.clear(), number_.clear();
   long long last = -2;
   int id = -1;
   for (int p = 0; p < n; ++p) {
     const auto i = static_cast<std::size_t>(p);
-    if (!fluid(P.material[p]) || cell_[i] < 0) {
+    if (!fluids_[static_cast<std::size_t>(P.material[p])] || cell_[i] < 0) {
       patch_[i] = -1;
       continue;
     }
-    if (cell_[i] != last) { // consecutive particles mostly share a cell
-      last = cell_[i];
-      id = number.try_emplace(last, static_cast<int>(sums_.size())).first->second;
-      if (id == static_cast<int>(sums_.size())) sums_.push_back({0.0, 0.0});
-    }
+    if (cell_[i] != last) last = cell_[i], id = patch_of(last, cells); // consecutive particles mostly share a cell
     patch_[i] = id;
     sums_[static_cast<std::size_t>(id)][0] += P.V[p] * dp_[i];
     sums_[static_cast<std::size_t>(id)][1] += P.V[p];
   }
+  for (long long c : used_) slot_[static_cast<std::size_t>(c)] = -1; // ready for the next step
+  used_.clear();
   parallel_for(n, [&](long long p) {
     const auto i = static_cast<std::size_t>(p);
-    if (!fluid(P.material[i])) return;
-    pp.values[i] += patch_[i] < 0 ? dp_[i] : sums_[static_cast<std::size_t>(patch_[i])][0] / sums_[static_cast<std::size_t>(patch_[i])][1];
+    if (!fluids_[static_cast<std::size_t>(P.material[i])]) return;
+    const int j = patch_[i];
+    pp[i] += j < 0 ? dp_[i] : sums_[static_cast<std::size_t>(j)][0] / sums_[static_cast<std::size_t>(j)][1];
   });
 }
 
@@ -347,18 +385,21 @@ template <int D> LiquidTotals<D> TwoPhase<D>::totals(const Engine<D>& e) const {
     const PoreFluid& f = *fluid(P.material[r0]);
     double c2 = 0.0; // the skeleton's largest c^2 = M / rho_p over the run: M <= c2 rho_p for each
     e.material(P.material[r0]).max_wave_speed2(P, r0, r1, c2);
+    const double half_compliance = 0.5 / f.bulk_modulus, Kw_over_rho_w = f.bulk_modulus / f.density;
+    double kinetic = 0.0, stored = 0.0, wave2 = acc.wave_speed2; // locals: the loop keeps them in registers
+    Vec<D> momentum = Vec<D>::Zero();
     for (int p = r0; p < r1; ++p) {
       const Vec<D> wp = liquid_at<D>(w, p);
       const double pressure = pp.values[static_cast<std::size_t>(p)];
       if (!std::isfinite(pressure) || !wp.allFinite()) acc.bad = lowest(acc.bad, p);
       const double V = P.V[p], n = porosity(f, P.V0[p], V), mw = n * f.density * V;
-      acc.kinetic += 0.5 * mw * wp.squaredNorm();
-      acc.stored += V * n * pressure * pressure / (2.0 * f.bulk_modulus);
-      acc.momentum += mw * wp;
+      kinetic += 0.5 * mw * wp.squaredNorm();
+      stored += V * n * pressure * pressure * half_compliance;
+      momentum += mw * wp;
       if (n > 0.0 && n < 1.0)
-        acc.wave_speed2 =
-            std::max(acc.wave_speed2, fast_wave_speed2(c2 * P.rho[p], n, P.rho[p], n * f.density, f.bulk_modulus));
+        wave2 = std::max(wave2, fast_wave_speed2(c2, n, P.rho[p], f.bulk_modulus, Kw_over_rho_w));
     }
+    acc.kinetic += kinetic, acc.stored += stored, acc.momentum += momentum, acc.wave_speed2 = wave2;
   };
   return blocked_reduce_ranges<LiquidTotals<D>>(P.size(), [&](long long b0, long long b1, LiquidTotals<D>& acc) {
     for (int r0 = static_cast<int>(b0); r0 < b1;) { // runs of one material

@@ -30,6 +30,7 @@
 #include <memory>
 #include <optional>
 #include <string_view>
+#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -110,10 +111,7 @@ public:
   /// The liquid's momentum sum_p m_w w_p.
   Vec<D> momentum(const Particles<D>& P) const;
   /// The pore fluid of material `m`, or null when it is dry.
-  const PoreFluid* fluid(int m) const {
-    const auto& f = parts_.fluid[static_cast<std::size_t>(m)];
-    return f ? &*f : nullptr;
-  }
+  const PoreFluid* fluid(int m) const { return fluids_[static_cast<std::size_t>(m)]; }
   /// The porosity of particle p: n = 1 - (1 - n_0) V0_p / V_p (incompressible grains).
   static double porosity(const PoreFluid& f, double V0, double V) { return 1.0 - (1.0 - f.porosity) * V0 / V; }
   /// The liquid's nodal fields of the step: mass, drag coefficient, velocity, acceleration.
@@ -131,10 +129,13 @@ private:
   void tie(Engine<D>& e, double t, double dt);
   /// w_p += dt sum N a_w (rate) and the pore pressure update (pressure) of all particles.
   void update_particles(Engine<D>& e, double dt, bool rate, bool pressure);
-  void update_particles_range(Engine<D>& e, double dt, bool rate, bool pressure, int p0, int p1);
+  /// update_particles on particles [p0, p1), rows of W entries (0: any length).
+  template <bool Rate, bool Pressure, int W> void update_range(Engine<D>& e, double dt, int p0, int p1);
   /// p_p += the volume-weighted mean of the pressure increments of the
   /// particles in its lattice cell (eq. 15.3a).
   void average_pressure(Engine<D>& e);
+  /// The patch number of lattice cell `cell` (of `cells`) in this step's sums.
+  int patch_of(long long cell, long long cells);
 
   TwoPhaseParts<D> parts_;
   /// Per node component (I D + k): fixed by the solid's Dirichlet sets, the
@@ -152,6 +153,11 @@ private:
   std::vector<long long> cell_;
   std::vector<int> patch_;
   std::vector<std::array<double, 2>> sums_;
+  std::vector<int> slot_;         ///< per lattice cell its patch in this step, or -1 (a lattice not too large)
+  std::vector<long long> used_;   ///< the cells slot_ numbered in this step
+  std::unordered_map<long long, int> number_; ///< the patches of a large lattice
+  std::vector<const PoreFluid*> fluids_; ///< per material its pore fluid, or null
+  int width_ = 0;                 ///< linear_row_width of this step's table
   double darcy_ = 0.0, plate_work_ = 0.0;
 };
 
