@@ -96,6 +96,7 @@ TwoPhase<D>::TwoPhase(TwoPhaseParts<D> parts, Particles<D>& P, const Dirichlet<D
 template <int D> TwoPhase<D>::~TwoPhase() = default;
 
 template <int D> void TwoPhase<D>::to_nodes(Engine<D>& e, double t, double dt) {
+  totals_ready_ = false;
   scatter<false>(e, [](int, int) {});
   darcy_ += solve(e, t, dt);
   tie(e, t, dt);
@@ -121,13 +122,13 @@ void TwoPhase<D>::scatter(const Engine<D>& e, Update&& update) {
     Payload w;
     const PoreFluid* f = fluid_of[material[p]];
     if (!f) return w;
-    const double n = porosity(*f, V0[p], V[p]);
-    w.m = n * f->density * V[p];
+    const double nV = V[p] - (1.0 - f->porosity) * V0[p]; // the pores' volume n V
+    w.m = f->density * nV;
     w.q = w.m * Eigen::Map<const Vec<D>>(velocity + static_cast<std::size_t>(p) * D);
     if constexpr (MomentumOnly) return w;
-    w.drag = f->drag(n) * V[p];
+    w.drag = f->drag(nV / V[p]) * V[p];
     w.Vp = V[p] * pressure[p];
-    w.Vnp = n * w.Vp;
+    w.Vnp = nV * pressure[p];
     return w;
   };
   const double* Ne = table.N.data();
@@ -362,12 +363,16 @@ template <int D> void TwoPhase<D>::average_pressure(Engine<D>& e) {
   }
   for (long long c : used_) slot_[static_cast<std::size_t>(c)] = -1; // ready for the next step
   used_.clear();
-  parallel_for(n, [&](long long p) {
-    const auto i = static_cast<std::size_t>(p);
-    if (!fluids_[static_cast<std::size_t>(P.material[i])]) return;
-    const int j = patch_[i];
-    pp[i] += j < 0 ? dp_[i] : sums_[static_cast<std::size_t>(j)][0] / sums_[static_cast<std::size_t>(j)][1];
+  // The new pressures, and in the same pass (blocks as totals() takes them: its bits) the after-step sums.
+  totals_ = blocked_reduce_ranges<LiquidTotals<D>>(n, [&](long long b0, long long b1, LiquidTotals<D>& acc) {
+    for (auto i = static_cast<std::size_t>(b0); i < static_cast<std::size_t>(b1); ++i) {
+      if (!fluids_[static_cast<std::size_t>(P.material[i])]) continue;
+      const int j = patch_[i];
+      pp[i] += j < 0 ? dp_[i] : sums_[static_cast<std::size_t>(j)][0] / sums_[static_cast<std::size_t>(j)][1];
+    }
+    add_totals(e, static_cast<int>(b0), static_cast<int>(b1), acc);
   });
+  totals_ready_ = true;
 }
 
 template <int D> LiquidTotals<D>& LiquidTotals<D>::operator+=(const LiquidTotals& o) {
@@ -377,37 +382,50 @@ template <int D> LiquidTotals<D>& LiquidTotals<D>::operator+=(const LiquidTotals
   return *this;
 }
 
-template <int D> LiquidTotals<D> TwoPhase<D>::totals(const Engine<D>& e) const {
+template <int D> void TwoPhase<D>::add_totals(const Engine<D>& e, int b0, int b1, LiquidTotals<D>& acc) const {
   const Particles<D>& P = e.particles();
-  const StateField& pp = *P.find_state(kPorePressureField);
-  const StateField& w = *P.find_state(kLiquidVelocityField);
-  const auto run = [&](int r0, int r1, LiquidTotals<D>& acc) { // particles of one saturated material
-    const PoreFluid& f = *fluid(P.material[r0]);
-    double c2 = 0.0; // the skeleton's largest c^2 = M / rho_p over the run: M <= c2 rho_p for each
-    e.material(P.material[r0]).max_wave_speed2(P, r0, r1, c2);
-    const double half_compliance = 0.5 / f.bulk_modulus, Kw_over_rho_w = f.bulk_modulus / f.density;
-    double kinetic = 0.0, stored = 0.0, wave2 = acc.wave_speed2; // locals: the loop keeps them in registers
+  const double* pp = P.find_state(kPorePressureField)->values.data();
+  const double* w = P.find_state(kLiquidVelocityField)->values.data();
+  for (int r0 = b0; r0 < b1;) { // runs of one material
+    int r1 = r0 + 1;
+    while (r1 < b1 && P.material[r1] == P.material[r0]) ++r1;
+    const PoreFluid* f = fluid(P.material[r0]);
+    if (!f) {
+      r0 = r1;
+      continue;
+    }
+    const double half_compliance = 0.5 / f->bulk_modulus, grains = 1.0 - f->porosity;
+    // Locals: the loop keeps them in registers. The pores' volume n V = V - (1 - n_0) V0 (no division).
+    double kinetic = 0.0, stored = 0.0, pores = 1.0, volume = 1.0, density = kUnbounded;
     Vec<D> momentum = Vec<D>::Zero();
     for (int p = r0; p < r1; ++p) {
-      const Vec<D> wp = liquid_at<D>(w, p);
-      const double pressure = pp.values[static_cast<std::size_t>(p)];
+      const Vec<D> wp = Eigen::Map<const Vec<D>>(w + static_cast<std::size_t>(p) * D);
+      const double pressure = pp[p];
       if (!std::isfinite(pressure) || !wp.allFinite()) acc.bad = lowest(acc.bad, p);
-      const double V = P.V[p], n = porosity(f, P.V0[p], V), mw = n * f.density * V;
+      const double V = P.V[p], nV = V - grains * P.V0[p], mw = f->density * nV;
       kinetic += 0.5 * mw * wp.squaredNorm();
-      stored += V * n * pressure * pressure * half_compliance;
+      stored += nV * pressure * pressure * half_compliance;
       momentum += mw * wp;
-      if (n > 0.0 && n < 1.0)
-        wave2 = std::max(wave2, fast_wave_speed2(c2, n, P.rho[p], f.bulk_modulus, Kw_over_rho_w));
+      if (nV * volume < pores * V) pores = nV, volume = V; // the smallest porosity as a fraction
+      density = std::min(density, P.rho[p]);
     }
-    acc.kinetic += kinetic, acc.stored += stored, acc.momentum += momentum, acc.wave_speed2 = wave2;
-  };
-  return blocked_reduce_ranges<LiquidTotals<D>>(P.size(), [&](long long b0, long long b1, LiquidTotals<D>& acc) {
-    for (int r0 = static_cast<int>(b0); r0 < b1;) { // runs of one material
-      int r1 = r0 + 1;
-      while (r1 < b1 && P.material[r1] == P.material[r0]) ++r1;
-      if (fluid(P.material[r0])) run(r0, r1, acc);
-      r0 = r1;
-    }
+    acc.kinetic += kinetic, acc.stored += stored, acc.momentum += momentum;
+    // The fastest wave of the run (eq. 15.7) is at most that of its stiffest skeleton, its smallest
+    // porosity and its lightest skeleton: exact for a uniform run.
+    double c2 = 0.0; // the skeleton's largest c^2 = M / rho_p over the run: M <= c2 rho_p for each
+    e.material(P.material[r0]).max_wave_speed2(P, r0, r1, c2);
+    const double n = pores / volume;
+    if (n > 0.0 && n < 1.0)
+      acc.wave_speed2 = std::max(acc.wave_speed2, fast_wave_speed2(c2, n, density, f->bulk_modulus,
+                                                                   f->bulk_modulus / f->density));
+    r0 = r1;
+  }
+}
+
+template <int D> LiquidTotals<D> TwoPhase<D>::totals(const Engine<D>& e) {
+  if (std::exchange(totals_ready_, false)) return totals_; // summed by the step's last pass over the particles
+  return blocked_reduce_ranges<LiquidTotals<D>>(e.particles().size(), [&](long long b0, long long b1, LiquidTotals<D>& acc) {
+    add_totals(e, static_cast<int>(b0), static_cast<int>(b1), acc);
   });
 }
 

@@ -106,8 +106,9 @@ public:
   void remap(Engine<D>& e, double dt);
   /// musl, after the stress update: p_p from the re-projected velocities.
   void update_pressure(Engine<D>& e, double dt);
-  /// The liquid's after-step sums (LiquidTotals), in fixed blocks of particles.
-  LiquidTotals<D> totals(const Engine<D>& e) const;
+  /// The liquid's after-step sums (LiquidTotals), in fixed blocks of
+  /// particles: those the step's last pass took (once), else summed anew.
+  LiquidTotals<D> totals(const Engine<D>& e);
   /// The liquid's momentum sum_p m_w w_p.
   Vec<D> momentum(const Particles<D>& P) const;
   /// The pore fluid of material `m`, or null when it is dry.
@@ -134,6 +135,8 @@ private:
   /// p_p += the volume-weighted mean of the pressure increments of the
   /// particles in its lattice cell (eq. 15.3a).
   void average_pressure(Engine<D>& e);
+  /// Adds particles [b0, b1) to the after-step sums (runs of one material).
+  void add_totals(const Engine<D>& e, int b0, int b1, LiquidTotals<D>& acc) const;
   /// The patch number of lattice cell `cell` (of `cells`) in this step's sums.
   int patch_of(long long cell, long long cells);
 
@@ -159,6 +162,8 @@ private:
   std::vector<const PoreFluid*> fluids_; ///< per material its pore fluid, or null
   int width_ = 0;                 ///< linear_row_width of this step's table
   double darcy_ = 0.0, plate_work_ = 0.0;
+  LiquidTotals<D> totals_; ///< the sums of the step's last pass (totals_ready_)
+  bool totals_ready_ = false;
 };
 
 extern template class TwoPhase<1>;
