@@ -85,7 +85,8 @@ std::function<void(double, double, long)> progress(const SceneArgs& a) {
 /// `otmpm run --check`: what a run of the scene would be, without running it.
 int check_command(const SceneArgs& a) {
   Scene scene;
-  distributed::agree_on(distributed::Comm::world(), [&] { scene = load_scene(a.scene, a.sets); });
+  const distributed::Comm& world = distributed::Comm::world();
+  distributed::agree_on(world, [&] { scene = load_scene(a.scene, a.sets, world.size()); });
   const SceneCheck c = check_scene(scene);
   if (!prints()) return 0;
   std::printf("%s: ok (the scene reads and the run can be set up)\n", a.scene.c_str());
@@ -133,7 +134,7 @@ int run_command(const SceneArgs& a) {
   // not yet visible on its node) fails all at once (agree_on).
   const distributed::Comm& world = distributed::Comm::world();
   if (a.restart.empty()) {
-    distributed::agree_on(world, [&] { scene = std::make_unique<Scene>(load_scene(a.scene, a.sets)); });
+    distributed::agree_on(world, [&] { scene = std::make_unique<Scene>(load_scene(a.scene, a.sets, world.size())); });
     s = run_scene(*scene, opt);
   } else {
     // A distributed restart reads the checkpoint's head on every rank and
@@ -216,7 +217,8 @@ int pair_command(const SceneArgs& a) {
     std::vector<std::string> sets = a.sets;
     sets.push_back(std::string("simulation.mode=") + mode);
     Scene scene;
-    distributed::agree_on(distributed::Comm::world(), [&] { scene = load_scene(a.scene, sets); });
+    const distributed::Comm& world = distributed::Comm::world();
+    distributed::agree_on(world, [&] { scene = load_scene(a.scene, sets, world.size()); });
     RunOptions opt;
     const std::string& out = scene.output.file;
     const auto dot = out.rfind(".h5");

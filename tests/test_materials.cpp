@@ -11,6 +11,7 @@
 #include <map>
 #include <numbers>
 #include <string>
+#include <type_traits>
 
 using namespace otmpm;
 
@@ -414,4 +415,29 @@ TEST_CASE("finite elastic wave speeds: the tangent along the principal stretches
   const Mat<2> RF = rotation<2>(0.4) * F;
   CHECK(linear_elastic_finite_wave_modulus<2>(c, RF) >= (kLambda + 2 * kMu) * 1.44 * (1 - 1e-15));
   CHECK(linear_elastic_finite_wave_modulus<2>(c, RF) <= (kLambda + 2 * kMu) * (1.44 + (1.44 - 0.81)));
+}
+
+TEST_CASE("neo_hookean: the stored energy is the potential of the stress, J sigma F^-T = dW/dF, in 1D, 2D and 3D") {
+  // Central differences of W at a finite stretch with shear; their error is
+  // O(e^2 W'''), about 1e-9 of the stress at e = 1e-6.
+  const ElasticConstants c{1000.0, kE, kNu};
+  auto check = [&](auto dim) {
+    constexpr int D = decltype(dim)::value;
+    Mat<D> F = Mat<D>::Identity();
+    for (int i = 0; i < D; ++i)
+      for (int j = 0; j < D; ++j) F(i, j) += (i == j ? 0.6 : 0.1 * (i + 2 * j + 1));
+    const Mat<D> P = F.determinant() * neo_hookean_stress<D>(c, F) * F.inverse().transpose();
+    const double e = 1e-6;
+    for (int i = 0; i < D; ++i)
+      for (int j = 0; j < D; ++j) {
+        Mat<D> Fp = F, Fm = F;
+        Fp(i, j) += e, Fm(i, j) -= e;
+        const double dW = (neo_hookean_energy<D>(c, Fp) - neo_hookean_energy<D>(c, Fm)) / (2.0 * e);
+        CHECK(dW == doctest::Approx(P(i, j)).epsilon(1e-6).scale(kE));
+      }
+    CHECK(neo_hookean_energy<D>(c, Mat<D>::Identity()) == 0.0);
+  };
+  check(std::integral_constant<int, 1>{});
+  check(std::integral_constant<int, 2>{});
+  check(std::integral_constant<int, 3>{});
 }

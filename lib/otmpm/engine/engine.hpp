@@ -300,25 +300,14 @@ public:
   /// The constitutive update from `g` alone (its own pass).
   void update_stress(const Gradient<D>& g);
   /// Interpolates a nodal field to particle p: sum_I N_Ip y_I (table order).
-  Vec<D> interpolate(int p, const AlignedVector<Vec<D>>& y) const {
-    Vec<D> s = Vec<D>::Zero();
-    for (int e = table_.begin(p); e < table_.end(p); ++e) s += table_.N[e] * y[table_.node[e]];
-    return s;
-  }
-  /// x_I += dx_I in `ul` mode, nothing on the fixed grid (NodeMode::advect).
-  /// A light node (under kLightNode of the heaviest node's mass: a corner of
-  /// a cell the material barely reaches) moves with the material it
-  /// carries, sum_p N_Ip m_p dx_p / m_I, not with its own acceleration,
-  /// f_I / m_I, which grows without bound as m_I falls (docs/theory.md sect. 3).
+  Vec<D> interpolate(int p, const AlignedVector<Vec<D>>& y) const;
+  /// x_I += dx_I in `ul` mode, nothing on the fixed grid (NodeMode::advect);
+  /// a light node moves with its material (docs/theory.md eq. 3.1).
   void advect_nodes(const AlignedVector<Vec<D>>& dx);
   /// Power of the body force sum_p m_p b(X_p, t) . v_p (the tractions'
   /// work follows the loaded particles' motion: Loads::traction_work).
   double external_power(double t) const;
 
-private:
-  void check_parts() const;
-
-public:
   /// A distributed run rebalanced its cells: this rank's window of the node
   /// lattice changed. The basis on the new window and its Dirichlet entries
   /// replace the old ones; the per-point state of the basis (which moved
@@ -326,6 +315,7 @@ public:
   void repartition(std::unique_ptr<Basis<D>> basis, Dirichlet<D> dirichlet);
 
 private:
+  void check_parts() const;
   /// The checks of particle p: finite position, velocity and stress; on the
   /// fixed grid inside it and not about to leave it.
   void check_particle(int p) const;
@@ -453,19 +443,11 @@ private:
   /// the last basis table (NodeMode::cfl_spacing); 0 until the first.
   double gradient0_ = 0.0, gradient_ = 0.0;
   AlignedVector<Vec<D>> moved_; ///< ul, searching family: the displacement into the hull (Basis::evaluate_points)
-  /// ul: the particles' positions at the start of the step, and the nodes
-  /// that carry under kLightNode of the heaviest node's mass (finish_mass)
-  AlignedVector<Vec<D>> x_start_;
-  std::vector<int> light_;
+  AlignedVector<Vec<D>> x_start_; ///< ul: the particles' positions at the start of the step
+  std::vector<int> light_;        ///< ul: nodes under kLightNode of the heaviest's mass (finish_mass)
   long node_resets_ = 0;
   std::optional<CartesianGrid<D>> lattice_; ///< after a node reset: the lattice the nodes were laid out on
-  struct {
-    std::vector<long long> patch; ///< each particle's patch
-    long long patches = 0;
-    PatchAverage<D> average;
-    AlignedVector<Mat<D>> H; ///< the averaged H_p of the current pass
-    bool ready = false;      ///< the current pass reads H
-  } fbar_;
+  FbarState<D> fbar_;
   double t_ = 0.0, dt_ = 0.0, dt_prev_ = 0.0;
   long step_ = 0;
   PhaseTimers timers_;
@@ -485,6 +467,12 @@ private:
   } rank_reaction_;
   double boundary_kinetic_ = 0.0;
 };
+
+template <int D> Vec<D> Engine<D>::interpolate(int p, const AlignedVector<Vec<D>>& y) const {
+  Vec<D> s = Vec<D>::Zero();
+  for (int e = table_.begin(p); e < table_.end(p); ++e) s += table_.N[e] * y[table_.node[e]];
+  return s;
+}
 
 extern template class Engine<1>;
 extern template class Engine<2>;

@@ -45,6 +45,16 @@ private:
   std::vector<double> dJ_;                ///< dJ_p of the current call
 };
 
+/// The engine's F-bar state: each particle's patch (docs/theory.md sect.
+/// 9.8) and the averaged H_p of the current pass.
+template <int D> struct FbarState {
+  std::vector<long long> patch; ///< each particle's patch
+  long long patches = 0;
+  PatchAverage<D> average;
+  AlignedVector<Mat<D>> H; ///< the averaged H_p of the current pass
+  bool ready = false;      ///< the current pass reads H
+};
+
 extern template class PatchAverage<1>;
 extern template class PatchAverage<2>;
 extern template class PatchAverage<3>;

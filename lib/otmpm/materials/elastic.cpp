@@ -2,7 +2,8 @@
 /// The three elastic models (elasticity.hpp) as Material<D>:
 /// linear_elastic (small strain; molinos et al.), linear_elastic_finite
 /// (wobbes et al. eq. 10) and neo_hookean (wobbes et al. eq. 11). None has
-/// internal variables; the stored energy is 1/2 sigma : eps V_p.
+/// internal variables; the stored energy is neo_hookean's potential V0_p W(F_p),
+/// 1/2 sigma : eps V_p for the other two.
 #include "otmpm/materials/models.hpp"
 
 namespace otmpm {
@@ -64,10 +65,13 @@ private:
 /// Finite strain: F_p = (I + H) F_p, V_p = det F_p V0_p, rho_p = m_p / V_p,
 /// sigma_p = Law(F_p), eps_p = sym(F_p) - I (for the energy monitor).
 /// ZzLaw: sigma_zz of the law in plane strain from the in-plane F_p
-/// (out_of_plane_stress); WaveLaw: rho0 c^2 of its fastest wave at F_p.
+/// (out_of_plane_stress); WaveLaw: rho0 c^2 of its fastest wave at F_p;
+/// EnergyLaw: the law's stored energy per reference volume, W(F_p) (null:
+/// a law without a potential, counted as 1/2 sigma : eps V_p).
 template <int D, Mat<D> (*Law)(const ElasticConstants&, const Mat<D>&),
           double (*ZzLaw)(const ElasticConstants&, const Mat<2>&),
-          double (*WaveLaw)(const ElasticConstants&, const Mat<D>&)>
+          double (*WaveLaw)(const ElasticConstants&, const Mat<D>&),
+          double (*EnergyLaw)(const ElasticConstants&, const Mat<D>&) = nullptr>
 class FiniteElastic final : public Material<D> {
 public:
   explicit FiniteElastic(const MaterialParameters& p) : Material<D>(p), c_(p.elastic()) {}
@@ -90,7 +94,9 @@ public:
     }
   }
   void add_energies(const Particles<D>& P, int p0, int p1, double& stored, double&) const override {
-    add_elastic_energies(P, p0, p1, stored);
+    if constexpr (EnergyLaw == nullptr) add_elastic_energies(P, p0, p1, stored);
+    else
+      for (int p = p0; p < p1; ++p) stored += P.V0[p] * EnergyLaw(c_, P.F[p]);
   }
   /// sigma_zz = ZzLaw(F_p): the law evaluated on the F_p of the last update.
   void out_of_plane_stress(const Particles<D>& P, int p0, int p1, double* out) const override {
@@ -114,7 +120,7 @@ template <int D> std::unique_ptr<Material<D>> make_linear_elastic_finite(const M
 }
 template <int D> std::unique_ptr<Material<D>> make_neo_hookean(const MaterialParameters& p) {
   return std::make_unique<FiniteElastic<D, neo_hookean_stress<D>, neo_hookean_out_of_plane,
-                                         neo_hookean_wave_modulus<D>>>(p);
+                                         neo_hookean_wave_modulus<D>, neo_hookean_energy<D>>>(p);
 }
 
 } // namespace

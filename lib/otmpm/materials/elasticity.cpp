@@ -56,6 +56,12 @@ template <int D> double neo_hookean_wave_modulus(const ElasticConstants& c, cons
   return std::max(0.0, lame_lambda(c, D) * (1.0 - std::log(J)) + lame_mu(c, D) * (largest_stretch2<D>(F) + 1.0));
 }
 
+template <int D> double neo_hookean_energy(const ElasticConstants& c, const Mat<D>& F) {
+  const double lnJ = std::log(checked_det<D>(F, "neo_hookean"));
+  const double mu = lame_mu(c, D);
+  return 0.5 * lame_lambda(c, D) * lnJ * lnJ - mu * lnJ + 0.5 * mu * ((F * F.transpose()).trace() - D);
+}
+
 double linear_elastic_finite_out_of_plane(const ElasticConstants& c, const Mat<2>& F) {
   const double J = checked_det<2>(F, "linear_elastic_finite");
   return (c.lambda() / J) * ((F(0, 0) - 1.0) + (F(1, 1) - 1.0));
@@ -70,7 +76,8 @@ double neo_hookean_out_of_plane(const ElasticConstants& c, const Mat<2>& F) {
   template Mat<D> linear_elastic_finite_stress<D>(const ElasticConstants&, const Mat<D>&);  \
   template Mat<D> neo_hookean_stress<D>(const ElasticConstants&, const Mat<D>&);                  \
   template double linear_elastic_finite_wave_modulus<D>(const ElasticConstants&, const Mat<D>&);  \
-  template double neo_hookean_wave_modulus<D>(const ElasticConstants&, const Mat<D>&);
+  template double neo_hookean_wave_modulus<D>(const ElasticConstants&, const Mat<D>&);             \
+  template double neo_hookean_energy<D>(const ElasticConstants&, const Mat<D>&);
 OTMPM_INSTANTIATE(1)
 OTMPM_INSTANTIATE(2)
 OTMPM_INSTANTIATE(3)

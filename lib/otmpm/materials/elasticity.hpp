@@ -72,6 +72,11 @@ template <int D> Mat<D> neo_hookean_stress(const ElasticConstants& c, const Mat<
 /// change alone as M / rho_p = M J / rho0 would.
 template <int D> double linear_elastic_finite_wave_modulus(const ElasticConstants& c, const Mat<D>& F);
 template <int D> double neo_hookean_wave_modulus(const ElasticConstants& c, const Mat<D>& F);
+/// The stored energy of neo_hookean per unit reference volume, the
+/// potential of its stress (sigma = F dW/dF F^T / J):
+/// W = lambda/2 (ln J)^2 - mu ln J + mu/2 (tr(F F^T) - D) (in plane strain
+/// the out-of-plane stretch is 1 and adds nothing). Throws as neo_hookean_stress.
+template <int D> double neo_hookean_energy(const ElasticConstants& c, const Mat<D>& F);
 
 /// Plane strain: the out-of-plane Cauchy stress sigma_zz of
 /// linear_elastic_finite for the in-plane F (F_zz = 1, F_xz = F_yz = 0):

@@ -461,7 +461,7 @@ void read_particle_file_body(const TableReader& t, BodySection& b, const Scene& 
         b.file_max_speed = std::max(b.file_max_speed, Eigen::Map<const Eigen::VectorXd>(&rows.v[i * D], D).norm());
     }
   };
-  const ParticleFileRules rules = particle_file_rules(s, b);
+  const ParticleFileRules rules = particle_file_rules(s, b, t.context().processes);
   try {
     stream_particle_file(b.file, D, bounds, kParticleChunk, &rules);
   } catch (const InputError& e) {
@@ -1010,10 +1010,12 @@ SourceRef Scene::locate(const std::string& key) const {
   return SourceRef{file, 0, key};
 }
 
-Scene parse_scene(const std::string& text, const std::string& name, const std::vector<std::string>& overrides) {
+Scene parse_scene(const std::string& text, const std::string& name, const std::vector<std::string>& overrides,
+                  int processes) {
   toml::table root = parse_toml_text(text, name);
   Context ctx;
   ctx.file = name;
+  ctx.processes = processes;
   for (const std::string& o : overrides) apply_override(root, o, ctx);
   Scene s = read_scene(root, ctx);
   s.where = std::move(ctx.where);
@@ -1101,9 +1103,9 @@ SceneSize scene_size(const Scene& scene) {
   return n;
 }
 
-Scene load_scene(const std::string& path, const std::vector<std::string>& overrides) {
+Scene load_scene(const std::string& path, const std::vector<std::string>& overrides, int processes) {
   if (path.empty()) throw InputError("load_scene: the scene file path is empty");
-  return parse_scene(read_text_file(path, "scene file"), path, overrides);
+  return parse_scene(read_text_file(path, "scene file"), path, overrides, processes);
 }
 
 } // namespace otmpm

@@ -336,11 +336,14 @@ inline constexpr int kMaxParticlesPerCell = 100;
 /// --set (KEY is the TOML path; an array of tables is addressed by its name:
 /// material.steel.young). Throws InputError naming file, line and key for
 /// syntax errors, unknown keys, missing required keys, wrong types and
-/// out-of-range values (also for an empty path). Nothing partially read is returned.
-Scene load_scene(const std::string& path, const std::vector<std::string>& overrides = {});
+/// out-of-range values (also for an empty path). Nothing partially read is
+/// returned. `processes` > 0: the run's process count, so that a particle
+/// file too large for it is refused as soon as its row count is read (0: the
+/// whole-scene cap; the run checks its share).
+Scene load_scene(const std::string& path, const std::vector<std::string>& overrides = {}, int processes = 0);
 /// The same from TOML text (`name` is used as the file name in messages).
 Scene parse_scene(const std::string& text, const std::string& name,
-                  const std::vector<std::string>& overrides = {});
+                  const std::vector<std::string>& overrides = {}, int processes = 0);
 
 /// The scene as TOML text (scene_toml.cpp) that parse_scene() reads back to
 /// the same values: every key is written, defaults included, vectors with

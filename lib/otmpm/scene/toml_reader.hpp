@@ -86,6 +86,10 @@ inline std::string suggestion(std::string_view key, std::span<const std::string_
 /// wrote (dotted path -> the KEY typed on the command line) and every key read.
 struct Context {
   std::string file;
+  /// The processes the scene is read for (0: not known): a particle file of
+  /// more rows than they may hold (kMaxRankParticles each) is refused as
+  /// soon as its row count is read.
+  int processes = 0;
   std::map<std::string, std::string> overridden;
   std::map<std::string, SourceRef> where;
 
@@ -140,6 +144,7 @@ template <> inline bool convert<bool>(const toml::node& n, const SourceRef& r) {
 /// Every key read is recorded in Context::where under its dotted path.
 class TableReader {
 public:
+  const Context& context() const { return *ctx_; }
   TableReader(Context& ctx, const toml::table* table, std::string path, SourceRef self)
       : ctx_(&ctx), table_(table), path_(std::move(path)), self_(std::move(self)) {
     if (!path_.empty()) ctx_->where[path_] = self_;

@@ -510,9 +510,9 @@ std::vector<std::string_view> output_field_names(const Scene& s) {
   return names;
 }
 
-ParticleFileRules particle_file_rules(const Scene& s, const BodySection& body) {
+ParticleFileRules particle_file_rules(const Scene& s, const BodySection& body, int processes) {
   ParticleFileRules rules;
-  rules.max_rows = static_cast<long long>(kMaxSceneParticles);
+  rules.max_rows = static_cast<long long>(processes > 0 ? kMaxRankParticles * processes : kMaxSceneParticles);
   const int dim = std::clamp(s.simulation.dimension, 1, 3);
   const char* axes[] = {"x", "y", "z"};
   for (const char* prefix : {"", "v"})

@@ -96,8 +96,10 @@ std::string name_error(const std::string& name, std::string_view what);
 /// material.NAME.density (kDensity), a column named after a scalar state
 /// variable of its material's model in that variable's range
 /// (StateSpec::range), no other further column, at most kMaxSceneParticles
-/// rows. The scene reader and the seeding read the file with them.
-ParticleFileRules particle_file_rules(const Scene& scene, const BodySection& body);
+/// rows (kMaxRankParticles per process when the process count is known).
+/// The scene reader and the seeding read the file with them.
+/// `processes` > 0: the rows a run on that many processes may hold (kMaxRankParticles each).
+ParticleFileRules particle_file_rules(const Scene& scene, const BodySection& body, int processes = 0);
 
 /// What seed_particles() relies on: validate_bodies(), a grid spacing h that
 /// is finite and > 0 on every axis, and (`whole`: all particles are stored
