@@ -96,6 +96,7 @@ TwoPhase<D>::TwoPhase(TwoPhaseParts<D> parts, Particles<D>& P, const Dirichlet<D
 template <int D> TwoPhase<D>::~TwoPhase() = default;
 
 template <int D> void TwoPhase<D>::to_nodes(Engine<D>& e, double t, double dt) {
+  ScopedPhase timer(e.timers(), Phase::to_nodes);
   totals_ready_ = false;
   scatter<false>(e, [](int, int) {});
   darcy_ += solve(e, t, dt);
@@ -216,7 +217,8 @@ template <int D> void TwoPhase<D>::tie(Engine<D>& e, double t, double dt) {
   }
 }
 
-template <int D> void TwoPhase<D>::nodal_velocity(const Engine<D>& e, double dt) {
+template <int D> void TwoPhase<D>::nodal_velocity(Engine<D>& e, double dt) {
+  ScopedPhase timer(e.timers(), Phase::nodal_update);
   const NodalFields<D>& n = e.nodal();
   parallel_for(static_cast<long long>(mw_.size()), [&](long long i) {
     const auto I = static_cast<std::size_t>(i);
@@ -231,9 +233,13 @@ template <int D> void TwoPhase<D>::nodal_velocity(const Engine<D>& e, double dt)
   });
 }
 
-template <int D> void TwoPhase<D>::to_particles(Engine<D>& e, double dt) { update_particles(e, dt, true, true); }
+template <int D> void TwoPhase<D>::to_particles(Engine<D>& e, double dt) {
+  ScopedPhase timer(e.timers(), Phase::to_particles);
+  update_particles(e, dt, true, true);
+}
 
 template <int D> void TwoPhase<D>::remap(Engine<D>& e, double dt) {
+  ScopedPhase timer(e.timers(), Phase::to_nodes); // as the engine's musl re-projection counts
   // w_p += dt sum N a_w block by block, then the new momenta re-projected.
   scatter<true>(e, [&](int p0, int p1) {
     width_ == (1 << D) ? update_range<true, false, (1 << D)>(e, dt, p0, p1) : update_range<true, false, 0>(e, dt, p0, p1);
@@ -260,7 +266,10 @@ template <int D> void TwoPhase<D>::remap(Engine<D>& e, double dt) {
   }
 }
 
-template <int D> void TwoPhase<D>::update_pressure(Engine<D>& e, double dt) { update_particles(e, dt, false, true); }
+template <int D> void TwoPhase<D>::update_pressure(Engine<D>& e, double dt) {
+  ScopedPhase timer(e.timers(), Phase::constitutive); // as the engine's musl stress update counts
+  update_particles(e, dt, false, true);
+}
 
 template <int D> void TwoPhase<D>::update_particles(Engine<D>& e, double dt, bool rate, bool pressure) {
   const int n = e.particles().size();

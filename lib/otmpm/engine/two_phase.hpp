@@ -19,7 +19,7 @@
 ///                   w, the rigid plates) before the stress update, then
 ///                   update_pressure.
 /// The Darcy dissipation is booked in the engine's energy balance
-/// (EnergyBalance::darcy).
+/// (EnergyBalance::darcy); the stages' time in the engine's phase timers.
 #include "otmpm/basis/basis.hpp"
 #include "otmpm/engine/constraints.hpp"
 #include "otmpm/materials/pore_fluid.hpp"
@@ -97,7 +97,7 @@ public:
   /// Sets W_d (a restart).
   void set_darcy(double w) { darcy_ = w; }
   /// After the engine's constrained nodal velocity v_I: the liquid's w_I.
-  void nodal_velocity(const Engine<D>& e, double dt);
+  void nodal_velocity(Engine<D>& e, double dt);
   /// After the particles moved and their stresses were updated: w_p and p_p.
   void to_particles(Engine<D>& e, double dt);
   /// musl, after the re-projection of the solid's momenta and before the
