@@ -200,6 +200,25 @@ TEST_CASE("drained limit: with a large permeability the skeleton alone takes the
         doctest::Approx(-q * e.particles().X[top][0] / M).epsilon(0.02));
 }
 
+TEST_CASE("extreme permeabilities: the drag and the exact solution stay finite, the balance closed") {
+  for (double kappa : {1e-300, 1e300}) {
+    CAPTURE(kappa);
+    Column c;
+    c.permeability = kappa, c.t_end = 0.05;
+    const Scene scene = parse_scene(column(c), "extreme.toml");
+    Engine<1> e = assemble<1>(scene);
+    run_to(e, c.t_end);
+    const auto exact = make_exact_solution<1>(scene);
+    for (int p = 0; p < e.particles().size(); ++p) {
+      CHECK(std::isfinite(pressure_of(e, p)));
+      CHECK(std::isfinite(exact->pore_pressure(e.particles().X[p], e.time())));
+      CHECK(std::isfinite(exact->velocity(e.particles().X[p], e.time())[0]));
+    }
+    CHECK(std::isfinite(e.energy().darcy));
+    CHECK(std::abs(e.energy().balance_error()) < 0.01 * e.energy().external_work);
+  }
+}
+
 TEST_CASE("both phases' momentum: a free saturated block under gravity falls as one body") {
   Column c;
   c.extra = "[body_force]\nvalue = [-9.81]\n";

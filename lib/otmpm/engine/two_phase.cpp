@@ -178,18 +178,19 @@ template <int D> double TwoPhase<D>::solve(Engine<D>& e, double t, double dt) {
     for (int k = 0; k < D; ++k) {
       const std::size_t c = I * D + static_cast<std::size_t>(k);
       if (held_[c] || rigid_[c]) continue; // held: a_w = 0, the reaction takes F_m; rigid: tie()
-      double aw, r0, r1;
-      if (fixed_[c]) { // a drained support: the solid held at its value, the liquid free
-        r0 = vw0[k] - value_[c];
-        aw = (Fw[k] - Q * r0) / (mw + Q * dt);
-        r1 = r0 + dt * aw;
-      } else { // eq. 15.5
-        r0 = vw0[k] - vs0[k];
-        aw = (Fw[k] - Q * r0 + Q * dt * Fm[k] / ms) / (mw + Q * dt * (1.0 + mw / ms));
-        r1 = r0 + dt * (aw - (Fm[k] - mw * aw) / ms);
-      }
+      // A drained support holds the solid at its value and leaves the liquid free (k = 1, no F term).
+      const bool drained = fixed_[c];
+      const double r0 = vw0[k] - (drained ? value_[c] : vs0[k]), both = drained ? 1.0 : 1.0 + mw / ms;
+      const double push = drained ? 0.0 : dt * Fm[k] / ms;
+      // eq. 15.5 and the end relative velocity r'; where the drag dominates, divided by Q and r' from
+      // the drag force Q r' = f_w - m_w a_w, so that no permeability makes them overflow or cancel
+      const bool stiff = Q * dt > mw;
+      const double aw = stiff ? (Fw[k] / Q - r0 + push) / (mw / Q + dt * both)
+                              : (Fw[k] - Q * r0 + Q * push) / (mw + Q * dt * both);
       aw_[I][k] = aw;
       n.f[I][k] = Fm[k] - mw * aw;
+      const double solid = drained ? 0.0 : (Fm[k] - mw * aw) / ms; // a_v
+      const double r1 = stiff ? (Fw[k] - mw * aw) / Q : r0 + dt * (aw - solid);
       darcy += dt * Q * r1 * 0.5 * (r0 + r1); // eq. 15.6
     }
   });

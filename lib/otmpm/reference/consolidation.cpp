@@ -47,7 +47,7 @@ double LoadHistory::rate(double t) const {
 }
 
 double LoadHistory::memory(double lambda, double t) const {
-  if (t < 0.0) return 0.0;
+  if (t < 0.0 || !(lambda < kUnbounded)) return 0.0; // an infinitely fast mode has decayed
   if (g_.kind != "ramp") return std::exp(-lambda * t);
   // int_0^s (pi / T) sin(w r) exp(-lambda (t - r)) dr, s = min(t, T / 2), w = 2 pi / T
   const double T = g_.period, w = 2.0 * pi / T, s = std::min(t, 0.5 * T);

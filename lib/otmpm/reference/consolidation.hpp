@@ -10,6 +10,7 @@
 /// discretisation's. Every field is a function of the initial position X and
 /// the time t; the stress is the effective stress the particles carry
 /// (sigma' = sigma + p I, tension positive; p compression positive).
+#include "otmpm/parameters.hpp"
 #include "otmpm/reference/exact.hpp"
 #include "otmpm/time_function.hpp"
 
@@ -26,7 +27,10 @@ public:
   double value(double t) const { return time_function(g_, t); }
   double rate(double t) const; ///< g'(t) for t > 0 (0 for a sudden load)
   double memory(double lambda, double t) const;
-  double memory_rate(double lambda, double t) const { return rate(t) - lambda * memory(lambda, t); }
+  /// dJ/dt; 0 for an infinite lambda (J follows the load: lambda J -> g'(t)).
+  double memory_rate(double lambda, double t) const {
+    return lambda < kUnbounded ? rate(t) - lambda * memory(lambda, t) : 0.0;
+  }
 
 private:
   TimeFunction g_;
