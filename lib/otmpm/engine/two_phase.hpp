@@ -5,7 +5,7 @@
 /// sect. 15). Each particle of a saturated material carries, besides the
 /// skeleton's state, the pore pressure p_p (compression positive) and the
 /// liquid velocity w_p (Particles::state "pore_pressure" and
-/// "liquid_velocity": checkpointed, migrated and written like any state).
+/// "liquid_velocity": checkpointed and written like any state).
 /// The engine's particle mass m_p is the solid's; the liquid's is
 /// n_p rho_w V_p. A step of an integrator that steps saturated bodies
 /// (IntegratorKind::two_phase) calls, after the engine's own stages:
@@ -29,7 +29,6 @@
 #include <array>
 #include <memory>
 #include <optional>
-#include <string_view>
 #include <unordered_map>
 #include <utility>
 #include <vector>
@@ -37,7 +36,6 @@
 namespace otmpm {
 
 template <int D> class Engine;
-template <int D> class Material;
 template <int D> struct LiquidSums;
 template <int D, class Sums> class BlockedScatter;
 
