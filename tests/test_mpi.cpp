@@ -66,8 +66,11 @@ constexpr double kOtmStress = 1e-9;
 /// difference in q carries into tau with the elastic modulus over the
 /// hardening one. Measured over 235 steps (velocity, stress relative to
 /// their largest values): 1.0e-12 .. 2.1e-12 on 2 and 3 ranks, depending on
-/// the split and on the rounding of the return formulas; 1e-11 bounds it.
-constexpr double kPlasticAgreement = 1e-11;
+/// the split and on the rounding of the return formulas; with F-bar (the
+/// default in `ul` for plastic models: a patch's average adds sums whose
+/// order follows the ranks' particle order) 1.1e-11 on 2 ranks (ul,
+/// explicit_alpha); 2e-11 bounds it.
+constexpr double kPlasticAgreement = 2e-11;
 
 struct Result {
   int status = -1;
@@ -1106,8 +1109,8 @@ TEST_CASE("mpi: ranks that read different scenes or options end at once with sta
   REQUIRE(run_otmpm(dir, 0, write).status == 0);
   const std::vector<std::string> second{"run", "--restart", "s.checkpoint.h5", "--quiet", "--out", "c.h5"},
       first{"run", "--restart", "first.checkpoint.h5", "--quiet", "--out", "c.h5"};
-  check_refused(run_mpmd(dir, {{second}, {first}}), "rank 1: the set of run options differs from rank 0's: line 5 is "
-                                                    "'checkpoint of run ");
+  check_refused(run_mpmd(dir, {{second}, {first}}),
+                "rank 1 reads another checkpoint than rank 0's s.checkpoint.h5 (another run, step or copy");
 }
 
 TEST_CASE("mpi: a full disk ends every rank with status 4, the file's status set and only complete frames") {

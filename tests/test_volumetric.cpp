@@ -244,15 +244,15 @@ fix = [true, true]
 
 TEST_CASE("ul: the nodes of lattice cells without particles leave the max-ent node set") {
   // A disk in the box of its bounds: the corner cells hold no particle.
-  Scene s = parse_scene(block_scene(R"(
+  const std::string disk = block_scene(R"(
 [[body]]
 name = "disk"
 material = "m"
 shape = "sphere"
 center = [0.5, 0.25]
 radius = 0.2
-)"),
-                        "disk.toml", {"basis.kind=\"lme\""});
+)");
+  Scene s = parse_scene(disk, "disk.toml", {"basis.kind=\"lme\""});
   Engine<2> e = assemble<2>(s);
   const NodeSet<2>& nodes = e.basis().nodes();
   REQUIRE(nodes.grid().has_value());
@@ -273,15 +273,7 @@ radius = 0.2
   CHECK(static_cast<int>(found.size()) == nodes.present_count());
   for (int I : found) CHECK(nodes.present(I));
   // the linear basis keeps the whole lattice (its cells are its elements)
-  Engine<2> linear = assemble<2>(parse_scene(block_scene(R"(
-[[body]]
-name = "disk"
-material = "m"
-shape = "sphere"
-center = [0.5, 0.25]
-radius = 0.2
-)"),
-                                             "disk.toml"));
+  Engine<2> linear = assemble<2>(parse_scene(disk, "disk.toml"));
   CHECK_FALSE(linear.basis().nodes().has_absent());
 }
 

@@ -38,7 +38,7 @@ template <int D> struct ShareSeeding {
 };
 
 /// This rank's particles of `scene` (cells of spacing h, the node lattice
-/// `lattice`; SeededBodies::ids their global ids, ::surfaces the traction
+/// `lattice`; SeededBodies::ids their global ids, SeededBodies::surfaces the traction
 /// loads' surface particles). Collective; InputError (on every rank alike)
 /// for a scene that cannot be seeded, and when a rank would hold more than
 /// kMaxRankParticles.

@@ -411,7 +411,11 @@ void Engine<D>::solve_mass(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>
 }
 
 template <int D> void Engine<D>::book_inertial_reaction(const AlignedVector<Vec<D>>& y, double c) {
-  if (constraints_.fixed_nodes().empty()) return;
+  // The distributed product is collective: every rank takes it when any
+  // rank holds a fixed node (a rank without one would leave the others waiting).
+  double any = constraints_.fixed_nodes().empty() ? 0.0 : 1.0;
+  if (dist_) dist_->max({&any, 1});
+  if (any == 0.0) return;
   AlignedVector<Vec<D>> rho(y.size(), Vec<D>::Zero());
   if (dist_) dist_->constrained_rows_product(table_, P_.m, nodal_.active, constraints_.constrained(), y, rho);
   else mass_matrix_->constrained_rows_product(y, rho);

@@ -95,7 +95,7 @@ template <int D> void Engine<D>::sum_particles(bool check) {
     }
     acc.kinetic = kinetic, acc.wave_speed2 = wave_speed2, acc.momentum = momentum;
   };
-  auto s = blocked_reduce_ranges<ParticleSums<D>>(P_.size(), [&](long long b0, long long b1, ParticleSums<D>& acc) {
+  const auto sums = [&](long long b0, long long b1, ParticleSums<D>& acc) {
     // Sub-blocks small enough that the material's energy pass finds the
     // particles still in the L1 cache; the sums keep particle order.
     for (int s0 = static_cast<int>(b0); s0 < b1; s0 += monitor_sub_block) {
@@ -111,7 +111,20 @@ template <int D> void Engine<D>::sum_particles(bool check) {
         r0 = r1;
       }
     }
-  });
+  };
+  ParticleSums<D> s;
+  try {
+    s = blocked_reduce_ranges<ParticleSums<D>>(P_.size(), sums);
+  } catch (const InstabilityError& e) {
+    // A model that cannot price a failed particle (det F <= 0): a rank of a
+    // distributed run defers it and meets the others in the reduction below,
+    // where every rank stops on the lowest failure.
+    if (!dist_) throw;
+    LocalFailure failure;
+    failure.deferred = true;
+    failure.message = e.what();
+    dist_->defer(failure);
+  }
   if (two_phase_) { // the liquid of saturated bodies (a distributed run has none)
     const LiquidTotals<D> liquid = two_phase_->totals(*this);
     if (check && liquid.bad >= 0) unstable(liquid.bad, "pore pressure or liquid velocity is not finite");

@@ -275,6 +275,21 @@ template <class Step> void on_all(const ParallelIo& io, Step&& step) {
   io.agree(step);
 }
 
+/// The ranks that read `path` together each checksum a part of it: they
+/// must read the same file (the same run, step and bytes), or their parts
+/// would combine to a false "damaged". InputError naming the first rank whose
+/// header differs from rank 0's (a node that sees another file at that path).
+void same_file_on_every_rank(const std::string& path, const Header& h, const ParallelIo& io) {
+  const std::string mine = header_text(h);
+  const bool same = io.broadcast(mine) == mine;
+  const std::vector<std::int64_t> all = io.allgather(same ? 1 : 0);
+  const auto first = std::find(all.begin(), all.end(), 0);
+  if (first == all.end()) return;
+  throw InputError("rank " + std::to_string(first - all.begin()) + " reads another checkpoint than rank 0's " +
+                   (io.root ? path : std::string("file")) +
+                   " (another run, step or copy: its header differs); every rank must restart from the same file");
+}
+
 /// Verifies the header, size and CRC of a checkpoint file before HDF5 opens
 /// it (io: the ranks that read it together, each checksumming a part);
 /// returns the header or throws InputError naming the file.
@@ -285,6 +300,7 @@ Header verify_file(const std::string& path, const ParallelIo& io = {}) {
     if (!in) throw InputError(path + ": cannot open the checkpoint file");
     h = read_header(in, path);
   });
+  if (io.mpi_comm) same_file_on_every_rank(path, h, io);
   if (file_crc(in, h, io) != h.crc)
     throw InputError(path + ": checksum mismatch: the checkpoint file is damaged (CRC-64 of its bytes)");
   return h;
