@@ -301,7 +301,7 @@ TEST_CASE("saturated scenes: every integrator of the table steps them or is refu
     if (k.two_phase) {
       Engine<1> e = assemble<1>(parse_scene(text, "ok.toml"));
       run_to(e, c.t_end);
-      CHECK(e.two_phase() != nullptr);
+      CHECK(e.settings().two_phase != nullptr);
     } else {
       const std::string why = test::input_error_of([&] { (void)parse_scene(text, "refused.toml"); });
       CHECK(why.find("simulation.integrator") != std::string::npos);
@@ -353,7 +353,7 @@ TEST_CASE("a rigid plate moves its nodes as one and its work closes the energy b
   const AlignedVector<Vec<2>>& x = e.basis().nodes().positions();
   std::vector<double> vy, wy;
   for (std::size_t I = 0; I < x.size(); ++I)
-    if (std::abs(x[I][1] - 0.25) < 1e-9 && n.active[I]) vy.push_back(n.v[I][1]), wy.push_back(e.two_phase()->liquid_velocity()[I][1]);
+    if (std::abs(x[I][1] - 0.25) < 1e-9 && n.active[I]) vy.push_back(n.v[I][1]), wy.push_back(e.settings().two_phase->liquid_velocity()[I][1]);
   REQUIRE(vy.size() >= 8); // the plate's nodes on the slab
   for (std::size_t i = 0; i < vy.size(); ++i) {
     CHECK(vy[i] == doctest::Approx(vy[0]).epsilon(1e-12)); // one velocity

@@ -83,6 +83,10 @@ template <int D> struct StepSettings {
   /// the grid in `mpm`, the initial lattice in `ul`); unset: the nodes' own.
   std::optional<CartesianGrid<D>> patch_grid;
   NodeReset<D> node_reset;
+  /// The liquid phase of saturated bodies that the step function drives
+  /// (engine/two_phase.hpp), or null (a dry run): built by the engine from
+  /// EngineParts::two_phase.
+  std::shared_ptr<TwoPhase<D>> two_phase;
 };
 
 /// Everything an engine is built from.
@@ -214,8 +218,6 @@ public:
   long node_resets() const { return node_resets_; }
   PhaseTimers& timers() { return timers_; }
   const EnergyBalance& energy() const { return energy_; }
-  /// The liquid phase of saturated bodies, or null (a dry run).
-  TwoPhase<D>* two_phase() const { return two_phase_.get(); }
   /// True when friction may dissipate energy (energy().friction): walls or body contact.
   bool has_friction() const { return !constraints_.walls().empty() || contact_; }
   /// Sum of the Dirichlet reaction impulses since t = 0 (per component): the
@@ -428,7 +430,6 @@ private:
   std::vector<std::unique_ptr<Material<D>>> materials_;
   Constraints<D> constraints_;
   std::unique_ptr<BodyContact<D>> contact_;
-  std::unique_ptr<TwoPhase<D>> two_phase_;
   AlignedVector<Vec<D>> field_positions_; ///< with contact: x_I repeated per field (fixed grid)
   Loads<D> loads_;
   StepSettings<D> settings_;

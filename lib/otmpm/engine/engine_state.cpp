@@ -184,7 +184,7 @@ template <int D> void Engine<D>::restore_state(const Checkpoint& in) {
   }
   g.get_reals(energy_fields(energy_));
   energy_.darcy = g.reals.count("energy_darcy") ? g.real("energy_darcy") : 0.0;
-  if (two_phase_) two_phase_->set_darcy(energy_.darcy);
+  if (settings_.two_phase) settings_.two_phase->set_darcy(energy_.darcy);
   restore_timers(g, timers_);
   const StateGroup& particles = in.group("particles");
   restore_particles(particles, P_, static_cast<std::size_t>(P_.size()));

@@ -407,7 +407,7 @@ private:
     std::vector<std::string> energy{"kinetic", "strain", "external_work", "reaction_work"};
     if (dissipative()) energy.push_back("dissipated");
     if (e_.has_friction()) energy.push_back("friction");
-    if (e_.two_phase()) energy.push_back("darcy");
+    if (e_.settings().two_phase) energy.push_back("darcy");
     h.push_back({"energy", false, energy});
     for (const Wall<D>& w : e_.walls()) h.push_back({w.name, true, {"force", "impulse"}, "walls"});
     if (support_diagnostics()) h.push_back({"diagnostics", false, {"widened_supports", "moved_points"}});
@@ -551,7 +551,7 @@ private:
                  {"reaction_work", E.reaction_work}};
     if (dissipative()) o->energy.emplace_back("dissipated", E.dissipated);
     if (e_.has_friction()) o->energy.emplace_back("friction", E.friction);
-    if (e_.two_phase()) o->energy.emplace_back("darcy", E.darcy);
+    if (e_.settings().two_phase) o->energy.emplace_back("darcy", E.darcy);
     o->diagnostics.clear();
     if (support_diagnostics()) {
       const auto counts = support_counts();
@@ -661,7 +661,7 @@ private:
   /// (eq. 12.1 over the saturated particles) and max_pore_pressure_error, the
   /// largest |p_p - p(X_p, t)|.
   void pore_pressure_errors(RunSummary& s) const {
-    const TwoPhase<D>* liquid = e_.two_phase();
+    const TwoPhase<D>* liquid = e_.settings().two_phase.get();
     if (!liquid || !exact_->has_pore_pressure()) return;
     const Particles<D>& P = e_.particles();
     const StateField& pressure = *P.find_state(kPorePressureField);
