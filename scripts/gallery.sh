@@ -38,6 +38,8 @@ plate_impact|--field v
 sliding_block|--field x --component x
 stretch_bar|--field stress --component xx
 taylor_bar|--field plastic_strain --view xz
+terzaghi|--field pore_pressure --frame 4
+mandel|--field pore_pressure --frame 8
 traction_bar|--field stress
 geometry/impactor|--field plastic_strain --view xz
 geometry/embankment|--field plastic_strain'

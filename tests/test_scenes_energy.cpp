@@ -30,11 +30,13 @@ const std::map<std::string, Closure> kClosures{
     {"dyka_2d", {0.139, "npc's damping"}},
     {"dyka_3d", {0.139, "npc's damping"}},
     {"fixed_bar", {3.58e-4, "fe's time error"}},
+    {"mandel", {2.87e-4, "fe's time error; the plate's force works on the nodes' motion"}},
     {"mms_plate", {4.55e-5, "unified's error"}},
     {"plate_impact", {0.0156, "npc's damping of the impact's waves"}},
     {"sliding_block", {0.00668, "npc's error on the sheared contact layer (friction booked)"}},
     {"stretch_bar", {0.0011, "npc's error over the pull to twice the length (cfl 0.15; at 0.3 it goes unstable)"}},
     {"taylor_bar", {0.0347, "the impact on the frictionless wall (not booked)"}},
+    {"terzaghi", {1.53e-4, "fe's time error (the Darcy dissipation booked: half the work)"}},
     {"traction_bar", {0.00384, "fe's time error (the traction's work on the loaded particles' motion)"}},
 };
 

@@ -72,10 +72,11 @@ TEST_CASE("study: a CSV written before the energy columns is extended in place a
   std::string out;
   REQUIRE(run_study(dir, out) == 0);
   // Rewrite the CSV as an older otmpm wrote it: without the two energy
-  // columns, and without its last row.
+  // columns and the two pore-pressure columns after them, and without its last row.
   const auto rows = read_csv(dir / "study.csv");
   const std::size_t ratio = column(rows[0], "max_energy_ratio");
-  REQUIRE(ratio + 2 == rows[0].size());
+  REQUIRE(ratio + 4 == rows[0].size());
+  CHECK(rows[0][ratio + 2] == "rms_pore_pressure_error");
   std::string text;
   for (std::size_t r = 0; r + 1 < rows.size(); ++r) {
     for (std::size_t c = 0; c < ratio; ++c) text += (c ? "," : "") + rows[r][c];
@@ -110,7 +111,8 @@ TEST_CASE("study: a [stability] sweep marks a blown-up cfl unstable, the stable 
   const auto rows = read_csv(dir / "study.csv");
   REQUIRE(rows.size() == 3);
   const auto& h = rows[0];
-  CHECK(h.back() == "stability");
+  CHECK(h[h.size() - 3] == "stability"); // then the pore-pressure errors (empty for a dry scene)
+  CHECK(h.back() == "max_pore_pressure_error");
   for (std::size_t r = 1; r < rows.size(); ++r) {
     const auto& row = rows[r];
     const std::string cfl = row[column(h, "simulation.cfl")];
@@ -209,4 +211,44 @@ TEST_CASE("study: a refused run whose result file is an earlier run's records th
     }
     fs::remove_all(dir);
   }
+}
+
+TEST_CASE("study: a saturated scene's rows carry its pore-pressure errors; a CSV without those columns is extended") {
+  // examples/terzaghi.toml at h = H/16 and H/32 to T_v = 0.05
+  const fs::path dir = study_dir("pore", "jobs = 1\nerror = \"max_pore_pressure_error\"\n"
+                                         "set = [\"simulation.t_end=0.0501\", \"output.every=0\", \"output.fields=[]\"]\n"
+                                         "[[mesh]]\nh = 0.0625\nset = [\"grid.cells=[16]\"]\n"
+                                         "[[mesh]]\nh = 0.03125\nset = [\"grid.cells=[32]\"]\n");
+  {
+    std::string toml;
+    std::ifstream in(dir / "study.toml");
+    std::getline(in, toml, '\0');
+    toml.replace(toml.find("dyka.toml"), 9, "terzaghi.toml");
+    std::ofstream(dir / "study.toml") << toml;
+  }
+  std::string out;
+  REQUIRE(run_study(dir, out) == 0);
+  const auto rows = read_csv(dir / "study.csv");
+  REQUIRE(rows.size() == 3);
+  const auto& h = rows[0];
+  const double coarse = std::stod(rows[1][column(h, "max_pore_pressure_error")]);
+  const double fine = std::stod(rows[2][column(h, "max_pore_pressure_error")]);
+  CHECK(std::stod(rows[1][column(h, "rms_pore_pressure_error")]) < coarse);
+  CHECK(fine < 0.6 * coarse); // first order in h (docs/benchmarks.md)
+  // The CSV as the version before the pore-pressure columns wrote it, without its last row.
+  const std::size_t pore = column(h, "rms_pore_pressure_error");
+  std::string text;
+  for (std::size_t r = 0; r + 1 < rows.size(); ++r) {
+    for (std::size_t c = 0; c < pore; ++c) text += (c ? "," : "") + rows[r][c];
+    text += "\n";
+  }
+  std::ofstream(dir / "study.csv") << text;
+  REQUIRE(run_study(dir, out) == 0);
+  CHECK(out.find("added the columns") != std::string::npos);
+  const auto now = read_csv(dir / "study.csv");
+  REQUIRE(now.size() == 3);
+  CHECK(now[0] == h);
+  CHECK(now[1][pore].empty()); // the old row, padded
+  CHECK(std::stod(now[2][column(h, "max_pore_pressure_error")]) == doctest::Approx(fine));
+  fs::remove_all(dir);
 }

@@ -20,6 +20,9 @@ const std::vector<std::string> error_columns{"rms_velocity_error", "rms_displace
                                              "history_error"};
 /// Energy columns: attributes of the result file, after the error columns.
 const std::vector<std::string> energy_columns{"max_energy_ratio", "energy_drift"};
+/// The errors of a saturated body's pore pressure, at the end of a row (after
+/// the stability columns: CSVs written before them are extended in place).
+const std::vector<std::string> pore_pressure_columns{"rms_pore_pressure_error", "max_pore_pressure_error"};
 
 std::string csv_escape(std::string s) {
   std::replace(s.begin(), s.end(), '\n', ' '); // one row per line
@@ -39,10 +42,17 @@ std::string legacy_header(const Study& s) {
   return h;
 }
 
-std::string header(const Study& s) {
+/// The header without the pore-pressure columns (CSVs written before them).
+std::string header_before_pore_pressure(const Study& s) {
   std::string h = legacy_header(s);
   for (const std::string& e : energy_columns) h += "," + e;
   if (s.stability.enabled) h += ",stable,stability";
+  return h;
+}
+
+std::string header(const Study& s) {
+  std::string h = header_before_pore_pressure(s);
+  for (const std::string& e : pore_pressure_columns) h += "," + e;
   return h;
 }
 
@@ -114,7 +124,7 @@ DoneRuns prepare_csv(const Study& s) {
     return done;
   }
   std::string pad;
-  if (lines.front() == legacy_header(s)) {
+  if (lines.front() == legacy_header(s) || lines.front() == header_before_pore_pressure(s)) {
     pad.assign(csv_cells(head).size() - csv_cells(lines.front()).size(), ',');
     lines.front() = head;
     changed = true;
@@ -182,12 +192,13 @@ std::string result_row(const Study& s, const StudyRun& r, int exit_code, const f
     wall = read_double_attribute(out.string(), "wall_seconds");
     particles = read_double_attribute(out.string(), "particles");
     nodes = read_double_attribute(out.string(), "nodes");
-    for (const std::string& e : error_columns) {
-      try {
-        errors[e] = read_double_attribute(out.string(), e == "history_error" ? "history_error_A" : e);
-      } catch (const InputError&) {
+    for (const std::vector<std::string>* columns : {&error_columns, &pore_pressure_columns})
+      for (const std::string& e : *columns) {
+        try {
+          errors[e] = read_double_attribute(out.string(), e == "history_error" ? "history_error_A" : e);
+        } catch (const InputError&) { // not a run with that error
+        }
       }
-    }
     for (const std::string& e : energy_columns) energy[e] = read_double_attribute(out.string(), e);
   } catch (const InputError&) {
     status = refused;
@@ -203,6 +214,7 @@ std::string result_row(const Study& s, const StudyRun& r, int exit_code, const f
     const std::string verdict = stability_class(s.stability, exit_code, ratio);
     row += "," + std::string(verdict == "stable" ? "1" : "0") + "," + verdict;
   }
+  for (const std::string& e : pore_pressure_columns) row += "," + (errors.count(e) ? number(errors[e]) : std::string());
   return row;
 }
 

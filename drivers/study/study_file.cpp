@@ -386,7 +386,8 @@ Study read_study(const fs::path& file) {
   s.results_where = root.has("results") ? root.ref("results") : root.self();
   check_paths(root, s);
   s.error = root.choice("error", s.error,
-                        {"rms_velocity_error", "rms_displacement_error", "rms_stress_error", "history_error"});
+                        {"rms_velocity_error", "rms_displacement_error", "rms_stress_error", "history_error",
+                         "rms_pore_pressure_error", "max_pore_pressure_error"});
   s.jobs = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   s.jobs = root.get<int>("jobs", s.jobs);
   if (s.jobs < 1) input_error(root.ref("jobs"), "must be an integer >= 1");

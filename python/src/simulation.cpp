@@ -329,6 +329,7 @@ py::dict energy_dict(const EnergyBalance& E) {
   d["strain"] = E.strain;
   d["dissipated"] = E.dissipated;
   d["friction"] = E.friction;
+  d["darcy"] = E.darcy;
   d["external_work"] = E.external_work;
   d["reaction_work"] = E.reaction_work;
   d["initial"] = E.initial;
@@ -485,7 +486,8 @@ void register_simulation(py::module_& m) {
       .def(
           "energy", [](PySimulation& s) { return visit_engine(s.sim(), [](auto& e) -> py::object { return energy_dict(e.energy()); }); },
           "The energy balance after the last step [J]: kinetic, strain, dissipated (plastic work), friction\n"
-          "(dissipated at walls and in body contact), external_work, reaction_work, initial (E(0)),\n"
+          "(dissipated at walls and in body contact), darcy (dissipated by the drag of a saturated body's pore\n"
+          "liquid), external_work, reaction_work, initial (E(0)),\n"
           "total (kinetic + strain), work, balance_error.")
       .def_property_readonly(
           "particles", [](const py::object& self) { return ParticleViews{self}; }, "The particles (ParticleViews).")

@@ -5,6 +5,7 @@
 #include "otmpm/assembly/seeding.hpp"
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/integrators/integrator.hpp"
+#include "otmpm/materials/pore_fluid.hpp"
 #include "otmpm/reference/exact.hpp"
 #include "otmpm/reference/solutions.hpp"
 #include "otmpm/scene/validate.hpp"
@@ -203,6 +204,42 @@ template <int D> StepSettings<D> build_settings(const Scene& scene, const Integr
   return s;
 }
 
+/// The liquid phase of a scene with saturated bodies (docs/theory.md sect.
+/// 15), or nullopt: the pore fluid of each material; the liquid held with
+/// the solid at the fixed components of the boundaries that are not drained
+/// (no pore_pressure); the rigid plates. The particles of a saturated
+/// material carry the mass of their grains, (1 - n_0) rho_s V0.
+template <int D>
+std::optional<TwoPhaseParts<D>> build_two_phase(const Scene& scene, const NodeSet<D>& nodes, double h,
+                                                const ExactSolution<D>* exact, Particles<D>& P) {
+  TwoPhaseParts<D> parts;
+  for (const MaterialSection& ms : scene.materials) parts.fluid.push_back(pore_fluid(ms));
+  if (std::none_of(parts.fluid.begin(), parts.fluid.end(), [](const auto& f) { return f.has_value(); }))
+    return std::nullopt;
+  if (exact && exact->has_body_force())
+    input_error(scene.reference.where, "reference.solution = \"" + scene.reference.solution +
+                                           "\" drives the bodies with a body force field, which saturated bodies "
+                                           "do not take (their liquid takes the uniform body force only)");
+  for (int p = 0; p < P.size(); ++p)
+    if (const auto& f = parts.fluid[static_cast<std::size_t>(P.material[p])]) {
+      P.m[p] *= 1.0 - f->porosity;
+      P.rho[p] *= 1.0 - f->porosity;
+    }
+  const auto position = [&nodes](int I) { return nodes.position(I); };
+  std::vector<BoundarySection> impermeable;
+  for (const BoundarySection& b : scene.boundaries)
+    if (!b.pore_pressure) impermeable.push_back(b);
+  parts.held = boundary_entries<D>(impermeable, nodes.size(), position, h);
+  for (const PlateSection& ps : scene.plates) { // a plate's box is a boundary's
+    BoundarySection box;
+    box.lower = ps.lower, box.upper = ps.upper;
+    Plate plate{boundary_entries<D>({box}, nodes.size(), position, h).node, ps.axis, ps.force, ps.time};
+    if (plate.node.empty()) input_error(ps.where, "plate '" + ps.name + "' selects no node of the grid");
+    parts.plates.push_back(std::move(plate));
+  }
+  return parts;
+}
+
 /// The initial values of material state variables given by particle files.
 template <int D> void set_file_state(const Scene& scene, const SeededBodies<D>& seeded, Particles<D>& P) {
   for (const FileState& f : seeded.file_state) {
@@ -337,6 +374,7 @@ EngineParts<D> assemble_parts(const Scene& scene,
   parts.loads.tractions = build_tractions<D>(scene, P, h, exact, seeded);
   allocate_fields(scene, parts, P);
   set_file_state<D>(scene, seeded, P);
+  parts.two_phase = build_two_phase<D>(scene, parts.basis->nodes(), h, exact.get(), P);
   parts.settings = build_settings<D>(scene, integrator, h);
   return parts;
 }

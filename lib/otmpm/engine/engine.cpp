@@ -114,6 +114,17 @@ Engine<D>::Engine(EngineParts<D> parts)
   const int field_nodes = contact_ ? nodes * contact_->fields() : nodes;
   constraints_ = Constraints<D>(std::move(parts.dirichlet), std::move(parts.walls), field_nodes);
   if (dist_) constraints_.count_only(dist_->owned_nodes());
+  settings_.two_phase.reset(); // a liquid phase is the engine's own, from parts.two_phase
+  if (parts.two_phase) { // before the materials bind to their state: it adds arrays of its own
+    require<InputError>(!dist_, "saturated bodies (materials with a pore fluid) are not available in distributed "
+                                "runs (MPI); run the scene on one process");
+    require<std::invalid_argument>(!mode_.nodes_move() && !settings_.consistent_mass && !contact_ &&
+                                       constraints_.walls().empty() &&
+                                       !(loads_.body_force && loads_.body_force->field),
+                                   "Engine: saturated bodies need the fixed grid (mode mpm), the lumped mass, no "
+                                   "body contact, no walls and a body force without a field");
+    settings_.two_phase = std::make_shared<TwoPhase<D>>(std::move(*parts.two_phase), P_, constraints_.dirichlet(), nodes);
+  }
   bool needs_F = false;
   for (const auto& m : materials_) needs_F = needs_F || m->needs_deformation_gradient();
   needs_F = needs_F || basis_->point_state_use(mode_.nodes_move()).deformation; // basis.metric = "deformation"
@@ -233,6 +244,7 @@ template <int D> void Engine<D>::step() {
     if (dist_) dist_->sum({&traction, 1});
     work += traction;
   }
+  if (TwoPhase<D>* liquid = settings_.two_phase.get()) work += liquid->take_plate_work(); // the rigid plates' forces
   energy_.external_work += work;
   external_power_ = power;
   check_energy();

@@ -16,6 +16,7 @@
 #include "otmpm/engine/mass_matrix.hpp"
 #include "otmpm/engine/node_mode.hpp"
 #include "otmpm/engine/timers.hpp"
+#include "otmpm/engine/two_phase.hpp"
 #include "otmpm/engine/volumetric.hpp"
 #include "otmpm/engine/step.hpp"
 #include "otmpm/materials/material.hpp"
@@ -82,6 +83,10 @@ template <int D> struct StepSettings {
   /// the grid in `mpm`, the initial lattice in `ul`); unset: the nodes' own.
   std::optional<CartesianGrid<D>> patch_grid;
   NodeReset<D> node_reset;
+  /// The liquid phase of saturated bodies that the step function drives
+  /// (engine/two_phase.hpp), or null (a dry run): built by the engine from
+  /// EngineParts::two_phase.
+  std::shared_ptr<TwoPhase<D>> two_phase;
 };
 
 /// Everything an engine is built from.
@@ -101,22 +106,26 @@ template <int D> struct EngineParts {
   /// Body-body contact (fixed grid, lumped mass); without it the bodies
   /// share one nodal field. Ignored when the particles belong to one body.
   std::optional<ContactLaw> contact;
+  /// The liquid phase of saturated bodies (two_phase.hpp; fixed grid, lumped mass, serial).
+  std::optional<TwoPhaseParts<D>> two_phase;
 };
 
 /// The energies of the runaway monitor and of the energy balance
 /// (docs/theory.md eq. 11.1): kinetic and stored (elastic) energy, the
 /// energy the materials dissipated (plastic work W_p), the energy Coulomb
-/// friction dissipated at the walls and in the body contact (W_f), the work
-/// W_ext of the external loads and W_R of the Dirichlet reactions and the
-/// walls since t = 0, and E(0).
+/// friction dissipated at the walls and in the body contact (W_f), the
+/// energy the Darcy drag of saturated bodies dissipated (W_d, eq. 15.6), the
+/// work W_ext of the external loads and W_R of the Dirichlet reactions and
+/// the walls since t = 0, and E(0). With saturated bodies the kinetic and
+/// stored energies include the liquid's.
 struct EnergyBalance {
   double kinetic = 0, strain = 0, dissipated = 0, external_work = 0, reaction_work = 0, initial = 0;
-  double friction = 0;
+  double friction = 0, darcy = 0;
   double total() const { return kinetic + strain; }
   /// Work done on the body since t = 0: W_ext + W_R.
   double work() const { return external_work + reaction_work; }
-  /// The energy spent since t = 0: W_p + W_f.
-  double spent() const { return dissipated + friction; }
+  /// The energy spent since t = 0: W_p + W_f + W_d.
+  double spent() const { return dissipated + friction + darcy; }
   /// E(t) + W_p(t) + W_f(t) - E(0) - W(t): zero for an exact solution;
   /// negative when the scheme dissipates, positive when it creates energy.
   double balance_error() const { return total() + spent() - initial - work(); }

@@ -24,7 +24,7 @@ namespace otmpm {
 namespace {
 
 // A member added to EnergyBalance must be saved and restored below.
-static_assert(sizeof(EnergyBalance) == 7 * sizeof(double), "EnergyBalance changed: update engine_state.cpp");
+static_assert(sizeof(EnergyBalance) == 8 * sizeof(double), "EnergyBalance changed: update engine_state.cpp");
 
 template <int D> void save_vector(StateGroup& g, const std::string& name, const Vec<D>& v) {
   g.real_arrays[name] = {static_cast<std::size_t>(D), std::vector<double>(v.data(), v.data() + D)};
@@ -91,6 +91,7 @@ template <int D> void Engine<D>::save_state(Checkpoint& out) const {
   for (std::size_t s = 0; s < constraints_.carried().size(); ++s)
     save_field(g, "carried_" + std::to_string(s), constraints_.carried()[s]);
   g.put_reals(energy_fields(energy_));
+  g.reals["energy_darcy"] = energy_.darcy; // read back when present (checkpoints of format 4 have none)
   save_timers(g, timers_);
   StateGroup& particles = out.group("particles");
   save_particles(particles, P_);
@@ -182,6 +183,8 @@ template <int D> void Engine<D>::restore_state(const Checkpoint& in) {
     restore_field(g, "carried_" + std::to_string(s), constraints_.carried().back(), nodal_.m.size());
   }
   g.get_reals(energy_fields(energy_));
+  energy_.darcy = g.reals.count("energy_darcy") ? g.real("energy_darcy") : 0.0;
+  if (settings_.two_phase) settings_.two_phase->set_darcy(energy_.darcy);
   restore_timers(g, timers_);
   const StateGroup& particles = in.group("particles");
   restore_particles(particles, P_, static_cast<std::size_t>(P_.size()));

@@ -55,6 +55,7 @@ template <int D> struct VecSum {
 
 template <int D> Vec<D> Engine<D>::momentum() const {
   Vec<D> m = blocked_reduce<VecSum<D>>(P_.size(), [&](long long p, VecSum<D>& s) { s.v += P_.m[p] * P_.v[p]; }).v;
+  if (settings_.two_phase) m += settings_.two_phase->momentum(P_);
   if (dist_) dist_->sum({m.data(), D});
   return m;
 }
@@ -123,6 +124,13 @@ template <int D> void Engine<D>::sum_particles(bool check) {
     failure.deferred = true;
     failure.message = e.what();
     dist_->defer(failure);
+  }
+  if (TwoPhase<D>* phase = settings_.two_phase.get()) { // the liquid of saturated bodies (not distributed)
+    const LiquidTotals<D> liquid = phase->totals(*this);
+    if (check && liquid.bad >= 0) unstable(liquid.bad, "pore pressure or liquid velocity is not finite");
+    s.kinetic += liquid.kinetic, s.strain += liquid.stored, s.momentum += liquid.momentum;
+    s.wave_speed2 = std::max(s.wave_speed2, liquid.wave_speed2);
+    energy_.darcy = phase->darcy();
   }
   if (dist_) {
     // One reduction per step: energies, momentum, this step's reaction

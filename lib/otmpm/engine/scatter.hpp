@@ -56,7 +56,8 @@ enum class ScatterPath {
 /// particle order, into its own buffer, and each node then adds the block
 /// sums in block order (dense and sparse give the same bits: a node a block
 /// does not touch receives +0 in the dense path, which changes no sum).
-template <int D> class ParticleToNodes {
+/// `Sums` is the per-node partial sum (default-constructed = zero).
+template <int D, class Sums> class BlockedScatter {
 public:
   /// Forgets the plan and the transposed table: the basis table changed;
   /// `row_width` is the new table's linear_row_width (0: rows of any length).
@@ -190,18 +191,18 @@ private:
   template <class Update, class Prep, class Add>
   void dense_block_sums(const BasisTable<D>& table, int b, Update& update, Prep& prep, Add& add) {
     const bool entries = hi_[b] >= lo_[b];
-    NodeSums<D>* buf = entries ? buffer_.data() + offset_[b] - lo_[b] : nullptr;
-    if (entries) std::fill(buf + lo_[b], buf + hi_[b] + 1, NodeSums<D>{});
-    block_sums(table, b, [buf](int I) -> NodeSums<D>& { return buf[I]; }, update, prep, add);
+    Sums* buf = entries ? buffer_.data() + offset_[b] - lo_[b] : nullptr;
+    if (entries) std::fill(buf + lo_[b], buf + hi_[b] + 1, Sums{});
+    block_sums(table, b, [buf](int I) -> Sums& { return buf[I]; }, update, prep, add);
   }
 
   /// Phase 1 for block b, sparse: as dense_block_sums into the block's slots.
   template <class Update, class Prep, class Add>
   void sparse_block_sums(const BasisTable<D>& table, int b, Update& update, Prep& prep, Add& add) {
-    NodeSums<D>* buf = buffer_.data() + offset_[b];
-    std::fill(buf, buffer_.data() + offset_[b + 1], NodeSums<D>{});
+    Sums* buf = buffer_.data() + offset_[b];
+    std::fill(buf, buffer_.data() + offset_[b + 1], Sums{});
     const int* slot = hi_[b] >= lo_[b] ? slot_.data() + range_start_[b] - lo_[b] : nullptr;
-    block_sums(table, b, [buf, slot](int I) -> NodeSums<D>& { return buf[slot[I]]; }, update, prep, add);
+    block_sums(table, b, [buf, slot](int I) -> Sums& { return buf[slot[I]]; }, update, prep, add);
   }
 
   /// update() on block b's particles, then add() of each of their entries
@@ -230,14 +231,14 @@ private:
   /// Phase 2, dense: block b's sums into nodes [first, last].
   template <class Merge> void merge_dense(int b, int first, int last, Merge& merge) const {
     if (first > last) return;
-    const NodeSums<D>* buf = buffer_.data() + offset_[b] - lo_[b];
+    const Sums* buf = buffer_.data() + offset_[b] - lo_[b];
     for (int I = first; I <= last; ++I) merge(I, buf[I]);
   }
 
   /// Phase 2, sparse: block b's sums into the nodes of [first, last] it touches.
   template <class Merge> void merge_sparse(int b, int first, int last, Merge& merge) const {
     if (first > last) return;
-    const NodeSums<D>* buf = buffer_.data() + offset_[b];
+    const Sums* buf = buffer_.data() + offset_[b];
     const int* slot = slot_.data() + range_start_[b] - lo_[b];
     for (int I = first; I <= last; ++I)
       if (slot[I] >= 0) merge(I, buf[slot[I]]);
@@ -255,7 +256,7 @@ private:
     parallel_chunks(nodes, team_size(static_cast<long long>(table.entries())), [&](long long I0, long long I1) {
       clear(static_cast<int>(I0), static_cast<int>(I1));
       for (int I = static_cast<int>(I0); I < I1; ++I) {
-        NodeSums<D> acc{};
+        Sums acc{};
         for (int k = off[I]; k < off[I + 1]; ++k) add(acc, columns_.entry[k], prep(columns_.particle[k]));
         merge(I, acc);
       }
@@ -266,7 +267,7 @@ private:
   std::vector<long long> range_start_; ///< start of each block's range in slot_ (prefix of the ranges)
   std::vector<long long> offset_;    ///< start of each block's buffer
   std::vector<int> slot_;            ///< sparse: each block's slot per node of its range, or -1
-  AlignedVector<NodeSums<D>> buffer_;
+  AlignedVector<Sums> buffer_;
   bool valid_ = false;
   int width_ = 0; ///< linear_row_width of the table (0: rows of any length)
   std::optional<ScatterPath> forced_;
@@ -274,5 +275,8 @@ private:
   NodeColumns columns_; ///< the transposed table, for gather_columns
   bool columns_valid_ = false;
 };
+
+/// The engine's particle-to-node sum (mass, momentum, force).
+template <int D> class ParticleToNodes final : public BlockedScatter<D, NodeSums<D>> {};
 
 } // namespace otmpm

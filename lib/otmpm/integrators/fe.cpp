@@ -16,6 +16,9 @@ template <int D> void step_usl(Engine<D>& e, const StepContext<D>& s, bool musl)
   e.evaluate_basis();
   // 1. m_I, q_I = sum N_Ip m_p v_p and f_I in one pass; Dirichlet on f_I.
   e.to_nodes({.mass = true, .w = &P.v, .forces = true, .t = s.t});
+  // Saturated bodies: the liquid's sums and the coupled solve (f_I becomes m_s a_s).
+  TwoPhase<D>* liquid = e.settings().two_phase.get();
+  if (liquid) liquid->to_nodes(e, s.t, dt);
   e.apply_dirichlet_force(n.f, dt);
   // 2. a_I = f_I / m_I; v_I = q_I / m_I + dt a_I; constraints (their change
   //    of v_I - a held value, a wall - also enters a_I, which updates the
@@ -24,6 +27,7 @@ template <int D> void step_usl(Engine<D>& e, const StepContext<D>& s, bool musl)
   e.solve_mass(n.q, n.v);
   axpy(n.v, dt, n.a);
   e.constrain_velocity(n.v, {.rate = &n.a, .c = dt});
+  if (liquid) liquid->nodal_velocity(e, dt);
   // 3. v_p += dt sum N_Ip a_I; x_p += dt sum N_Ip v_I; x_I += dt v_I in ul.
   const ToParticles<D> move{.rate = &n.a, .c_rate = dt, .move = &n.v, .c_move = dt};
   // 4. (usl) L_p = sum v_I (x) grad N_Ip; strain, density and stress
@@ -34,10 +38,15 @@ template <int D> void step_usl(Engine<D>& e, const StepContext<D>& s, bool musl)
   else e.to_particles_and_update_stress(move, {&n.v, dt});
   scale(n.dx, dt, n.v); // also in mpm mode: the step's nodal increments (Engine::nodal)
   e.advect_nodes(n.dx);
-  if (!musl) return;
+  if (!musl) {
+    if (liquid) liquid->to_particles(e, dt); // w_p and p_p
+    return;
+  }
   e.solve_mass(n.q, n.v);
   e.constrain_velocity(n.v, {.impulse = false});
+  if (liquid) liquid->remap(e, dt); // w_p, its re-projection, the rigid plates
   e.update_stress({&n.v, dt});
+  if (liquid) liquid->update_pressure(e, dt);
 }
 
 } // namespace

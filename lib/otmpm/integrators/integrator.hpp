@@ -36,6 +36,8 @@ struct IntegratorKind {
   /// Carries the momentum its constraints give from step to step, on the
   /// nodes (Constraints::book_carried): a distributed run is not rebalanced.
   bool carries_constraints = false;
+  /// Steps saturated bodies: drives the liquid phase (engine/two_phase.hpp).
+  bool two_phase = false;
   /// Its parameters (scene keys under [simulation]).
   std::span<const ParameterSpec> parameters{};
   /// Its parameters at their defaults (what a run built in code starts from).

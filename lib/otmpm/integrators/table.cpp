@@ -28,9 +28,10 @@ const std::array kAllParameters{&kGamma, &kRhoInf};
 
 #define OTMPM_STEPS(F) .step1 = F<1>, .step2 = F<2>, .step3 = F<3>
 const std::array kIntegrators{
-    IntegratorKind{.name = "fe", .description = "forward Euler, stress updated last (USL)", OTMPM_STEPS(step_fe)},
+    IntegratorKind{.name = "fe", .description = "forward Euler, stress updated last (USL)", .two_phase = true,
+                   OTMPM_STEPS(step_fe)},
     IntegratorKind{.name = "musl", .description = "forward Euler with the modified update-stress-last",
-                   OTMPM_STEPS(step_musl)},
+                   .two_phase = true, OTMPM_STEPS(step_musl)},
     IntegratorKind{.name = "npc",
                    .description = "explicit Newmark predictor-corrector (molinos et al. Algorithm 1)",
                    .needs_acceleration = true,

@@ -2,6 +2,7 @@
 /// The table of material models and the construction of a material from
 /// its parameters (material.hpp). A new model adds one line to kModels.
 #include "otmpm/materials/models.hpp"
+#include "otmpm/materials/pore_fluid.hpp"
 
 #include <algorithm>
 #include <array>
@@ -61,6 +62,9 @@ void validate_material(const MaterialParameters& p) {
   for (const auto& entry : p.extra) {
     const std::string& key = entry.first; // named, not a structured binding: lambdas capture it (clang)
     const double value = entry.second;
+    const auto fluid = pore_fluid_parameters();
+    if (std::any_of(fluid.begin(), fluid.end(), [&](const ParameterSpec& s) { return s.key == key; }))
+      continue; // a saturated material's key, whatever the model (pore_fluid below)
     const auto spec = std::find_if(model.parameters.begin(), model.parameters.end(),
                                    [&](const ParameterSpec& s) { return s.key == key; });
     require(spec != model.parameters.end(), "material '", p.name, "': model '", p.model, "' has no parameter '", key,
@@ -74,6 +78,7 @@ void validate_material(const MaterialParameters& p) {
     require(!expected || p.has(std::string(s.key)), "material '", p.name, "': model '", p.model, "' needs ",
             std::string(s.key));
   }
+  (void)pore_fluid(p);  // all five keys of a saturated material, or none
   (void)model.make3(p); // the model's own checks across its parameters
 }
 

@@ -2,6 +2,7 @@
 // that builds them from a scene, and the RMS error of docs/theory.md sect. 12.
 #include "otmpm/reference/exact.hpp"
 
+#include "otmpm/reference/consolidation.hpp"
 #include "otmpm/reference/solutions.hpp"
 #include "otmpm/scene/scene.hpp"
 
@@ -394,7 +395,9 @@ template <int D> std::unique_ptr<ExactSolution<D>> make_exact_solution(const Sce
   if (name == "fixed_bar") return make_fixed_bar<D>(scene, where);
   if (name == "traction_bar") return make_traction_bar<D>(scene, where);
   if (name == "mms_plate") return make_mms_plate<D>(scene, where);
-  input_error(where, "unknown exact solution '" + name + "' (expected dyka, fixed_bar, traction_bar or mms_plate)");
+  if (auto consolidation = make_consolidation<D>(scene, name)) return consolidation;
+  input_error(where, "unknown exact solution '" + name +
+                         "' (expected dyka, fixed_bar, traction_bar, mms_plate, terzaghi or mandel)");
 }
 
 double rms_error(const std::vector<double>& squared_errors) {

@@ -22,6 +22,9 @@ public:
   virtual Vec<D> velocity(const Vec<D>& X, double t) const = 0;
   /// Cauchy stress.
   virtual Mat<D> stress(const Vec<D>& X, double t) const = 0;
+  /// Pore pressure of a saturated body (compression positive; zero for a dry one).
+  virtual double pore_pressure(const Vec<D>& /*X*/, double /*t*/) const { return 0.0; }
+  virtual bool has_pore_pressure() const { return false; }
   /// Body force per unit mass needed by a manufactured solution (zero otherwise).
   virtual Vec<D> body_force(const Vec<D>& /*X*/, double /*t*/) const { return Vec<D>::Zero(); }
   virtual bool has_body_force() const { return false; }

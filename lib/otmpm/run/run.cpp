@@ -407,6 +407,7 @@ private:
     std::vector<std::string> energy{"kinetic", "strain", "external_work", "reaction_work"};
     if (dissipative()) energy.push_back("dissipated");
     if (e_.has_friction()) energy.push_back("friction");
+    if (e_.settings().two_phase) energy.push_back("darcy");
     h.push_back({"energy", false, energy});
     for (const Wall<D>& w : e_.walls()) h.push_back({w.name, true, {"force", "impulse"}, "walls"});
     if (support_diagnostics()) h.push_back({"diagnostics", false, {"widened_supports", "moved_points"}});
@@ -550,6 +551,7 @@ private:
                  {"reaction_work", E.reaction_work}};
     if (dissipative()) o->energy.emplace_back("dissipated", E.dissipated);
     if (e_.has_friction()) o->energy.emplace_back("friction", E.friction);
+    if (e_.settings().two_phase) o->energy.emplace_back("darcy", E.darcy);
     o->diagnostics.clear();
     if (support_diagnostics()) {
       const auto counts = support_counts();
@@ -652,6 +654,28 @@ private:
     s.errors["rms_velocity_error"] = view_.rms(ev);
     s.errors["rms_displacement_error"] = view_.rms(eu);
     s.errors["rms_stress_error"] = view_.rms(es);
+    pore_pressure_errors(s);
+  }
+
+  /// A saturated body against an exact pore pressure: rms_pore_pressure_error
+  /// (eq. 12.1 over the saturated particles) and max_pore_pressure_error, the
+  /// largest |p_p - p(X_p, t)|.
+  void pore_pressure_errors(RunSummary& s) const {
+    const TwoPhase<D>* liquid = e_.settings().two_phase.get();
+    if (!liquid || !exact_->has_pore_pressure()) return;
+    const Particles<D>& P = e_.particles();
+    const StateField& pressure = *P.find_state(kPorePressureField);
+    std::vector<double> ep;
+    double largest = 0.0;
+    for (int p = 0; p < P.size(); ++p) {
+      if (!liquid->fluid(P.material[p])) continue;
+      const double d = pressure.values[static_cast<std::size_t>(p)] - exact_->pore_pressure(P.X[p], e_.time());
+      ep.push_back(d * d);
+      largest = std::max(largest, std::abs(d));
+    }
+    if (ep.empty()) return;
+    s.errors["rms_pore_pressure_error"] = view_.rms(ep);
+    s.errors["max_pore_pressure_error"] = view_.max(largest);
   }
 
   const Scene& scene_;

@@ -10,6 +10,7 @@
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/integrators/integrator.hpp"
 #include "otmpm/io/particle_file.hpp"
+#include "otmpm/materials/pore_fluid.hpp"
 #include "otmpm/scene/file_bodies.hpp"
 #include "otmpm/particles/output_fields.hpp"
 #include "otmpm/scene/toml_reader.hpp"
@@ -37,7 +38,7 @@ using namespace toml_input;
 constexpr double kCellsTolerance = 1e-6;
 
 const std::set<std::string, std::less<>> kTableArrays = {"material", "body", "initial_velocity", "boundary",
-                                                         "wall", "traction", "probes"};
+                                                         "wall", "plate", "traction", "probes"};
 
 std::string fmt(double x) {
   char buf[32];
@@ -269,6 +270,7 @@ void read_parameter(const TableReader& t, std::string_view key, const ParameterS
 /// top-level parameters and the names of its sub-tables.
 std::vector<std::string_view> material_keys(const MaterialModel& model) {
   std::vector<std::string_view> keys{"name", "model", "density", "young", "poisson"};
+  for (const ParameterSpec& p : pore_fluid_parameters()) keys.push_back(p.key);
   for (const ParameterSpec& p : model.parameters) {
     const std::string_view table = sub_table(p.key);
     const std::string_view key = table.empty() ? p.key : table;
@@ -307,6 +309,8 @@ MaterialSection read_material(const TableReader& t, std::set<std::string>& names
   for (auto [spec, value] : {std::pair{&kDensity, &m.density}, {&kYoung, &m.young}, {&kPoisson, &m.poisson}})
     *value = number(t, *spec);
   read_model_parameters(t, model, m);
+  for (const ParameterSpec& p : pore_fluid_parameters()) // a saturated material: all five (validate_material)
+    if (t.has(p.key)) read_parameter(t, p.key, p, m);
   try {
     validate_material(m); // the model's own cross-checks
   } catch (const InputError& e) {
@@ -595,8 +599,8 @@ std::vector<BoundarySection> read_boundaries(const TableReader& root, const Scen
   std::set<std::string> names;
   for (const TableReader& t : root.tables("boundary")) {
     const bool group = t.has("physical") || t.has("file");
-    if (group) t.only({"name", "file", "physical", "scale", "rotate", "translate", "fix", "value"});
-    else t.only({"name", "lower", "upper", "fix", "value"});
+    if (group) t.only({"name", "file", "physical", "scale", "rotate", "translate", "fix", "value", "pore_pressure"});
+    else t.only({"name", "lower", "upper", "fix", "value", "pore_pressure"});
     BoundarySection b;
     b.where = t.self();
     b.name = read_name(t, false, default_name("boundary", out.size()), names, "boundary");
@@ -608,9 +612,10 @@ std::vector<BoundarySection> read_boundaries(const TableReader& root, const Scen
     }
     check_box(t, b.lower, b.upper, dim, false);
     auto fix = t.bools("fix", dim);
-    if (!fix) t.missing("fix");
-    b.fix = *fix;
+    if (!fix && !t.has("pore_pressure")) t.missing("fix");
+    b.fix = fix.value_or(b.fix);
     b.value = t.vec("value", dim).value_or(b.value);
+    if (t.has("pore_pressure")) b.pore_pressure = number(t, scene_keys::kPorePressure);
     out.push_back(std::move(b));
   }
   return out;
@@ -631,6 +636,29 @@ std::vector<WallSection> read_walls(const TableReader& root, int dim) {
     w.velocity = t.vec("velocity", dim).value_or(w.velocity);
     w.friction = number(t, scene_keys::kFriction, w.friction);
     out.push_back(std::move(w));
+  }
+  return out;
+}
+
+TimeFunction read_time(const TableReader& parent);
+
+std::vector<PlateSection> read_plates(const TableReader& root, int dim) {
+  std::vector<PlateSection> out;
+  std::set<std::string> names;
+  for (const TableReader& t : root.tables("plate")) {
+    t.only({"name", "lower", "upper", "axis", "force", "time"});
+    PlateSection p;
+    p.where = t.self();
+    p.name = read_name(t, false, default_name("plate", out.size()), names, "plate");
+    p.lower = t.require_vec("lower", dim);
+    p.upper = t.require_vec("upper", dim);
+    check_box(t, p.lower, p.upper, dim, false);
+    p.axis = t.get<int>("axis", dim - 1);
+    check(p.axis >= 0 && p.axis < dim, t.ref("axis"),
+          "must be an axis index in [0, " + std::to_string(dim) + ") (got " + std::to_string(p.axis) + ")");
+    p.force = number(t, scene_keys::kPlateForce, 0.0);
+    p.time = read_time(t);
+    out.push_back(std::move(p));
   }
   return out;
 }
@@ -798,7 +826,7 @@ ReferenceSection read_reference(const TableReader& root) {
   if (!t) return r;
   t->only({"solution"});
   r.where = t->self();
-  r.solution = t->choice("solution", "", {"", "dyka", "fixed_bar", "traction_bar", "mms_plate"});
+  r.solution = t->choice("solution", "", {"", "dyka", "fixed_bar", "traction_bar", "mms_plate", "terzaghi", "mandel"});
   return r;
 }
 
@@ -820,8 +848,8 @@ void check_node_count(const TableReader& grid, const Scene& s) {
 
 Scene read_scene(const toml::table& root, Context& ctx) {
   TableReader r(ctx, &root, "", SourceRef{ctx.file, 1, ""});
-  r.only({"simulation", "basis", "grid", "material", "body", "initial_velocity", "boundary", "wall", "contact",
-          "body_force", "traction", "output", "reference"});
+  r.only({"simulation", "basis", "grid", "material", "body", "initial_velocity", "boundary", "wall", "plate",
+          "contact", "body_force", "traction", "output", "reference"});
   Scene s;
   s.file = ctx.file;
   s.simulation = read_simulation(r.require_table("simulation"));
@@ -840,6 +868,7 @@ Scene read_scene(const toml::table& root, Context& ctx) {
   s.initial_velocities = read_initial_velocities(r, dim);
   s.boundaries = read_boundaries(r, s);
   s.walls = read_walls(r, dim);
+  s.plates = read_plates(r, dim);
   s.contact = read_contact(r);
   s.body_force = read_body_force(r, dim);
   s.tractions = read_tractions(r, dim);

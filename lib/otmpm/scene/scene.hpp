@@ -135,12 +135,17 @@ struct InitialVelocitySection {
 };
 
 /// Dirichlet node set: nodes inside the closed box [lower, upper] (within
-/// kBoxTolerance h) get the fixed velocity components held at `value`.
+/// kBoxTolerance h) get the fixed velocity components held at `value`. With
+/// saturated bodies (docs/theory.md sect. 15) a fixed component holds the
+/// pore liquid too (an impermeable support) unless `pore_pressure` is given
+/// (a drained surface: the liquid passes; 0 is the value supported, that of
+/// every free surface).
 struct BoundarySection {
   std::string name;
   Vec3 lower{0, 0, 0}, upper{0, 0, 0};
   std::array<bool, 3> fix{false, false, false};
   Vec3 value{0, 0, 0};
+  std::optional<double> pore_pressure;
   SourceRef where{"", 0, "boundary"};
 };
 
@@ -153,6 +158,20 @@ struct WallSection {
   Vec3 point{0, 0, 0}, normal{0, 0, 0}, velocity{0, 0, 0};
   double friction = 0.0;
   SourceRef where{"", 0, "wall"};
+};
+
+/// A rigid, frictionless, impermeable plate on saturated bodies (docs/theory.md
+/// sect. 15): the nodes inside the box move together along `axis` (both
+/// phases), the plate is massless and pressed by `force` times the time
+/// function (N; in 2D per unit length out of plane, in 1D per unit area).
+/// Its other components are free.
+struct PlateSection {
+  std::string name;
+  Vec3 lower{0, 0, 0}, upper{0, 0, 0};
+  int axis = 0;
+  double force = 0.0;
+  TimeFunction time;
+  SourceRef where{"", 0, "plate"};
 };
 
 /// Body-body contact on the fixed grid: each body gets its own nodal
@@ -230,7 +249,7 @@ std::string vtk_format(const OutputSection& output);
 bool is_output_format(const std::string& format);
 
 struct ReferenceSection {
-  std::string solution; ///< "" | dyka | fixed_bar | traction_bar | mms_plate
+  std::string solution; ///< "" | dyka | fixed_bar | traction_bar | mms_plate | terzaghi | mandel
   SourceRef where;
 };
 
@@ -248,6 +267,7 @@ struct Scene {
   std::vector<InitialVelocitySection> initial_velocities;
   std::vector<BoundarySection> boundaries;
   std::vector<WallSection> walls;
+  std::vector<PlateSection> plates;
   std::optional<ContactSection> contact;
   std::optional<BodyForceSection> body_force;
   std::vector<TractionSection> tractions;

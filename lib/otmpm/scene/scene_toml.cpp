@@ -150,6 +150,18 @@ toml::array boundaries(const std::vector<BoundarySection>& bs, int dim) {
                   {"fix", first(b.fix, dim)},
                   {"value", first(b.value, dim)}};
     if (!b.name.empty()) t.insert("name", b.name); // else the reader's name, "boundary<index>"
+    if (b.pore_pressure) t.insert("pore_pressure", *b.pore_pressure);
+    a.push_back(std::move(t));
+  }
+  return a;
+}
+
+toml::array plates(const std::vector<PlateSection>& ps, int dim) {
+  toml::array a;
+  for (const PlateSection& p : ps) {
+    toml::table t{{"lower", first(p.lower, dim)}, {"upper", first(p.upper, dim)}, {"axis", p.axis},
+                  {"force", p.force},         {"time", time_function(p.time)}};
+    if (!p.name.empty()) t.insert("name", p.name); // else the reader's name, "plate<index>"
     a.push_back(std::move(t));
   }
   return a;
@@ -220,6 +232,7 @@ std::string to_toml(const Scene& scene) {
   if (!scene.initial_velocities.empty()) root.insert("initial_velocity", initial_velocities(scene.initial_velocities, dim));
   if (!scene.boundaries.empty()) root.insert("boundary", boundaries(scene.boundaries, dim));
   if (!scene.walls.empty()) root.insert("wall", walls(scene.walls, dim));
+  if (!scene.plates.empty()) root.insert("plate", plates(scene.plates, dim));
   if (scene.contact) root.insert("contact", toml::table{{"friction", scene.contact->friction}});
   if (scene.body_force)
     root.insert("body_force",

@@ -8,6 +8,7 @@
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/integrators/integrator.hpp"
 #include "otmpm/materials/material.hpp"
+#include "otmpm/materials/pore_fluid.hpp"
 #include "otmpm/particles/output_fields.hpp"
 #include "otmpm/scene/toml_reader.hpp"
 
@@ -254,6 +255,65 @@ void check_contact(const Scene& s) {
                          "correction acts node by node on each body's velocity field");
 }
 
+/// True when a material of the scene has a pore fluid (docs/theory.md sect. 15).
+bool saturated(const Scene& s) {
+  return std::any_of(s.materials.begin(), s.materials.end(),
+                     [](const MaterialSection& m) { return pore_fluid(m).has_value(); });
+}
+
+/// The integrators that step saturated bodies (IntegratorKind::two_phase), for messages.
+std::string two_phase_integrators() {
+  std::string list;
+  for (const IntegratorKind& k : integrator_kinds())
+    if (k.two_phase) list += std::string(list.empty() ? "" : " or ") + "\"" + std::string(k.name) + "\"";
+  return list;
+}
+
+/// A boundary's saturated key: pore_pressure 0 (the one value supported), in
+/// a scene with saturated bodies.
+void check_saturated_boundary(const Scene& s, const BoundarySection& b, const std::string& key) {
+  if (b.pore_pressure) {
+    check_number(s, key + ".pore_pressure", *b.pore_pressure, scene_keys::kPorePressure);
+    check(s, *b.pore_pressure == 0.0, key + ".pore_pressure", "only 0 is supported (a drained surface at the ",
+          "pressure of every free surface; a surface under standing water is not modelled; got ", *b.pore_pressure,
+          ")");
+    check(s, saturated(s), key + ".pore_pressure", "marks a drained surface of a saturated body, but no material "
+          "has a pore fluid (porosity, permeability, fluid_density, fluid_bulk_modulus, fluid_viscosity)");
+  }
+}
+
+/// The rigid plates: named, boxes, an axis of the run, a finite force and its
+/// time function, in a scene with saturated bodies.
+void check_plates(const Scene& s, int dim) {
+  std::set<std::string> names;
+  for (std::size_t i = 0; i < s.plates.size(); ++i) {
+    const PlateSection& p = s.plates[i];
+    const std::string key = element_key("plate", p.name, i);
+    check_name(s, key, p.name, "plate", false, default_name("plate", i), names);
+    check_box(s, key, p.lower, p.upper, dim, false);
+    check(s, p.axis >= 0 && p.axis < dim, key + ".axis", "must be an axis index in [0, ", dim, ") (got ", p.axis,
+          ")");
+    check_number(s, key + ".force", p.force, scene_keys::kPlateForce);
+    check_time(s, key + ".time", p.time);
+    check(s, saturated(s), key, "a rigid plate is available with saturated bodies only (a material with "
+          "porosity, permeability, fluid_density, fluid_bulk_modulus and fluid_viscosity)");
+  }
+}
+
+/// Saturated bodies run with an integrator that steps them, on the fixed
+/// grid, with the lumped mass, without walls or body contact.
+void check_saturated(const Scene& s) {
+  if (!saturated(s)) return;
+  const std::string why = "saturated bodies (materials with a pore fluid) ";
+  check(s, find_integrator(s.simulation.integrator)->two_phase, "simulation.integrator", why, "are stepped by ",
+        two_phase_integrators(), " (got \"", s.simulation.integrator, "\")");
+  check(s, !s.simulation.nodes_move(), "simulation.mode", why, "need simulation.mode = \"mpm\"");
+  check(s, s.simulation.mass == "lumped", "simulation.mass", why, "need the lumped mass");
+  check(s, s.walls.empty(), element_key("wall", s.walls.empty() ? "" : s.walls[0].name, 0), why,
+        "cannot meet rigid walls (use a [[boundary]])");
+  if (s.contact) input_error(s.contact->where, why + "cannot have body contact");
+}
+
 void check_loads(const Scene& s, int dim) {
   std::set<std::string> boundary_names, wall_names;
   for (std::size_t i = 0; i < s.initial_velocities.size(); ++i) {
@@ -268,6 +328,7 @@ void check_loads(const Scene& s, int dim) {
     check_name(s, key, b.name, "boundary", false, default_name("boundary", i), boundary_names);
     check_box(s, key, b.lower, b.upper, dim, false);
     check_finite(s, key + ".value", b.value, dim);
+    check_saturated_boundary(s, b, key);
   }
   for (std::size_t i = 0; i < s.walls.size(); ++i) {
     const WallSection& w = s.walls[i];
@@ -437,6 +498,8 @@ void validate_scene(const Scene& s, int dimension, int processes) {
   check_size(s, processes);
   check_loads(s, dimension);
   check_contact(s);
+  check_plates(s, dimension);
+  check_saturated(s);
   check_output(s, dimension);
 }
 
@@ -448,6 +511,7 @@ std::vector<std::string_view> output_field_names(const Scene& s) {
     if (const MaterialModel* model = find_material_model(m.model))
       for (const StateSpec& st : model->state)
         if (std::find(names.begin(), names.end(), st.name) == names.end()) names.push_back(st.name);
+  if (saturated(s)) names.insert(names.end(), {kPorePressureField, kLiquidVelocityField});
   return names;
 }
 

@@ -37,6 +37,10 @@ inline constexpr ParameterSpec kPerturbation{"perturbation", "node perturbation,
                                              false, 0.5, true};
 inline constexpr ParameterSpec kFriction{"friction", "Coulomb friction coefficient", std::nullopt, 0.0};
 inline constexpr ParameterSpec kPeriod{"period", "period of a ramp [s]", std::nullopt, 0.0, true};
+inline constexpr ParameterSpec kPorePressure{"pore_pressure", "pore pressure of a drained surface [Pa]", std::nullopt,
+                                             -kUnbounded};
+inline constexpr ParameterSpec kPlateForce{"force", "force on a rigid plate [N] (2D: N/m, 1D: N/m^2)", 0.0,
+                                           -kUnbounded};
 inline constexpr ParameterSpec kNodeReset{"node_reset", "ul: the fraction of h below which the nodes are laid out anew",
                                           0.0, 0.0, false, 1.0, true};
 } // namespace scene_keys

@@ -1,0 +1,459 @@
+/// \file two_phase.cpp
+/// The liquid phase of saturated bodies (two_phase.hpp; docs/theory.md
+/// sect. 15): its particle-to-node sums, the coupled nodal solve with the
+/// implicit Darcy drag, rigid plates, and the liquid's particle update.
+#include "otmpm/engine/two_phase.hpp"
+
+#include "otmpm/engine/engine.hpp"
+#include "otmpm/engine/scatter.hpp"
+#include "otmpm/parallel.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <unordered_map>
+
+namespace otmpm {
+
+/// Per-node partial sums of the liquid: m_w, the drag coefficient Q, the
+/// momentum q_w, the liquid's pressure force f_w = sum V n p grad N and the
+/// pore pressure's force on the mixture f_p = sum V p grad N (eq. 15.4).
+template <int D> struct LiquidSums {
+  double m = 0.0, drag = 0.0;
+  Vec<D> q = Vec<D>::Zero(), fw = Vec<D>::Zero(), fp = Vec<D>::Zero();
+};
+
+namespace {
+
+/// The liquid velocity w_p of particle p in the state array (D values per particle).
+template <int D> Eigen::Map<Vec<D>> liquid_at(StateField& w, int p) { return Eigen::Map<Vec<D>>(w.row(p)); }
+template <int D> Eigen::Map<const Vec<D>> liquid_at(const StateField& w, int p) {
+  return Eigen::Map<const Vec<D>>(w.row(p));
+}
+
+/// The largest squared speed of the two compressional waves of the mixture
+/// (eq. 15.7): the largest eigenvalue of K v = c^2 R v with the stiffness
+/// K = [M + (1-n)^2 K_w/n, (1-n) K_w; (1-n) K_w, n K_w] and the partial
+/// densities R = diag(rho_s', n rho_w); M = c2 rho_s' the skeleton's P-wave
+/// modulus. With a = K_11 / rho_s' and d = K_22 / (n rho_w) = K_w / rho_w the
+/// eigenvalues are (a + d) / 2 +- sqrt(((a + d) / 2)^2 - det), det = det K /
+/// det R = c2 K_w / rho_w.
+double fast_wave_speed2(double c2, double n, double rho_solid, double Kw, double Kw_over_rho_w) {
+  const double half = 0.5 * (c2 + (1.0 - n) * (1.0 - n) * Kw / (n * rho_solid) + Kw_over_rho_w);
+  return half + std::sqrt(std::max(0.0, half * half - c2 * Kw_over_rho_w));
+}
+
+/// The lower of two particle indices, -1 meaning none.
+int lowest(int a, int b) { return a < 0 ? b : b < 0 ? a : std::min(a, b); }
+
+} // namespace
+
+template <int D>
+TwoPhase<D>::TwoPhase(TwoPhaseParts<D> parts, Particles<D>& P, const Dirichlet<D>& dirichlet, int nodes)
+    : parts_(std::move(parts)), scatter_(std::make_unique<BlockedScatter<D, LiquidSums<D>>>()) {
+  using E = std::invalid_argument;
+  for (int p = 0; p < P.size(); ++p)
+    require<E>(P.material[p] >= 0 && P.material[p] < static_cast<int>(parts_.fluid.size()), "TwoPhase: particle ", p,
+               " has material ", P.material[p], " but the pore fluids are given for ", parts_.fluid.size());
+  const auto n = static_cast<std::size_t>(nodes) * D;
+  fixed_.assign(n, 0), held_.assign(n, 0), rigid_.assign(n, 0), value_.assign(n, 0.0);
+  for (std::size_t i = 0; i < dirichlet.node.size(); ++i)
+    for (int k = 0; k < D; ++k)
+      if (dirichlet.fix[i][k]) {
+        const std::size_t c = static_cast<std::size_t>(dirichlet.node[i]) * D + k;
+        fixed_[c] = 1, value_[c] = dirichlet.value[i][k];
+      }
+  for (std::size_t i = 0; i < parts_.held.node.size(); ++i)
+    for (int k = 0; k < D; ++k) {
+      const int I = parts_.held.node[i];
+      require<E>(I >= 0 && I < nodes, "TwoPhase: held node ", I, " out of range [0, ", nodes, ")");
+      const std::size_t c = static_cast<std::size_t>(I) * D + k;
+      require<E>(!parts_.held.fix[i][k] || fixed_[c], "TwoPhase: the liquid is held at node ", I, " component ", k,
+                 ", which the Dirichlet sets do not fix");
+      if (parts_.held.fix[i][k]) held_[c] = 1;
+    }
+  for (const Plate& r : parts_.plates) {
+    require<E>(r.axis >= 0 && r.axis < D && std::isfinite(r.force), "TwoPhase: a plate along axis ", r.axis, " in ",
+               D, "D with the force ", r.force);
+    for (int I : r.node) {
+      require<E>(I >= 0 && I < nodes, "TwoPhase: plate node ", I, " out of range [0, ", nodes, ")");
+      rigid_[static_cast<std::size_t>(I) * D + r.axis] = 1;
+    }
+  }
+  for (std::size_t m = 0; m < parts_.fluid.size(); ++m) fluids_.push_back(parts_.fluid[m] ? &*parts_.fluid[m] : nullptr);
+  const bool fresh = P.find_state(kLiquidVelocityField) == nullptr;
+  const double zero[9] = {};
+  P.add_state(std::string(kPorePressureField), 1, zero);
+  StateField& w = P.add_state(std::string(kLiquidVelocityField), D, zero);
+  if (fresh) // the liquid starts with the solid's velocity
+    for (int p = 0; p < P.size(); ++p) liquid_at<D>(w, p) = P.v[p];
+  mw_.assign(static_cast<std::size_t>(nodes), 0.0);
+  drag_ = mw_;
+  wet_.assign(static_cast<std::size_t>(nodes), 0);
+  qw_.assign(static_cast<std::size_t>(nodes), Vec<D>::Zero());
+  fw_ = fp_ = fm_ = vw_ = aw_ = qw_;
+}
+
+template <int D> TwoPhase<D>::~TwoPhase() = default;
+
+template <int D> void TwoPhase<D>::to_nodes(Engine<D>& e, double t, double dt) {
+  ScopedPhase timer(e.timers(), Phase::to_nodes);
+  totals_ready_ = false;
+  scatter<false>(e, [](int, int) {});
+  darcy_ += solve(e, t, dt);
+  tie(e, t, dt);
+}
+
+template <int D>
+template <bool MomentumOnly, class Update>
+void TwoPhase<D>::scatter(const Engine<D>& e, Update&& update) {
+  const Particles<D>& P = e.particles();
+  const BasisTable<D>& table = e.table();
+  const StateField& pressure_field = *P.find_state(kPorePressureField);
+  const StateField& velocity_field = *P.find_state(kLiquidVelocityField);
+  struct Payload {
+    double m = 0.0, drag = 0.0, Vp = 0.0, Vnp = 0.0;
+    Vec<D> q = Vec<D>::Zero();
+  };
+  // Plain pointers by value: the sums' stores cannot alias them.
+  const int* material = P.material.data();
+  const double *V = P.V.data(), *V0 = P.V0.data(), *pressure = pressure_field.values.data();
+  const double* velocity = velocity_field.values.data();
+  const PoreFluid* const* fluid_of = fluids_.data();
+  auto prep = [=](int p) {
+    Payload w;
+    const PoreFluid* f = fluid_of[material[p]];
+    if (!f) return w;
+    const double nV = V[p] - (1.0 - f->porosity) * V0[p]; // the pores' volume n V
+    w.m = f->density * nV;
+    w.q = w.m * Eigen::Map<const Vec<D>>(velocity + static_cast<std::size_t>(p) * D);
+    if constexpr (MomentumOnly) return w;
+    w.drag = f->drag(nV / V[p]) * V[p];
+    w.Vp = V[p] * pressure[p];
+    w.Vnp = nV * pressure[p];
+    return w;
+  };
+  const double* Ne = table.N.data();
+  const Vec<D>* dNe = table.dN.data();
+  auto add = [Ne, dNe](LiquidSums<D>& acc, int e, const Payload& w) {
+    acc.q += Ne[e] * w.q;
+    if constexpr (MomentumOnly) return;
+    acc.m += Ne[e] * w.m;
+    acc.drag += Ne[e] * w.drag;
+    acc.fw += w.Vnp * dNe[e];
+    acc.fp += w.Vp * dNe[e];
+  };
+  auto merge = [&](int I, const LiquidSums<D>& acc) {
+    qw_[I] += acc.q;
+    if constexpr (MomentumOnly) return;
+    mw_[I] += acc.m, drag_[I] += acc.drag, fw_[I] += acc.fw, fp_[I] += acc.fp;
+  };
+  auto clear = [&](int I0, int I1) {
+    std::fill(qw_.begin() + I0, qw_.begin() + I1, Vec<D>::Zero());
+    if constexpr (MomentumOnly) return;
+    std::fill(mw_.begin() + I0, mw_.begin() + I1, 0.0);
+    std::fill(drag_.begin() + I0, drag_.begin() + I1, 0.0);
+    std::fill(fw_.begin() + I0, fw_.begin() + I1, Vec<D>::Zero());
+    std::fill(fp_.begin() + I0, fp_.begin() + I1, Vec<D>::Zero());
+  };
+  if constexpr (!MomentumOnly) width_ = linear_row_width(table); // the table of this step
+  scatter_->invalidate(width_);
+  scatter_->run(table, static_cast<int>(mw_.size()), update, prep, add, merge, clear);
+}
+
+template <int D> double TwoPhase<D>::solve(Engine<D>& e, double t, double dt) {
+  NodalFields<D>& n = e.nodal();
+  const Vec<D> b = e.loads().body_force_at(t); // the uniform body force (a field is refused with saturated bodies)
+  const double mw_max = mw_.empty() ? 0.0 : *std::max_element(mw_.begin(), mw_.end());
+  const double mw_min = e.settings().mass_tolerance * mw_max;
+  return blocked_reduce<double>(static_cast<long long>(mw_.size()), [&](long long i, double& darcy) {
+    const auto I = static_cast<std::size_t>(i);
+    const Vec<D> Fm = n.f[I] + fp_[I] + mw_[I] * b, Fw = fw_[I] + mw_[I] * b;
+    fm_[I] = Fm;
+    aw_[I].setZero();
+    wet_[I] = n.active[I] && mw_[I] > mw_min;
+    n.f[I] = Fm;
+    if (!wet_[I]) return;
+    const double ms = n.m[I], mw = mw_[I], Q = drag_[I];
+    const Vec<D> vs0 = n.q[I] / ms, vw0 = qw_[I] / mw;
+    for (int k = 0; k < D; ++k) {
+      const std::size_t c = I * D + static_cast<std::size_t>(k);
+      if (held_[c] || rigid_[c]) continue; // held: a_w = 0, the reaction takes F_m; rigid: tie()
+      // A drained support holds the solid at its value and leaves the liquid free (k = 1, no F term).
+      const bool drained = fixed_[c];
+      const double r0 = vw0[k] - (drained ? value_[c] : vs0[k]), both = drained ? 1.0 : 1.0 + mw / ms;
+      const double push = drained ? 0.0 : dt * Fm[k] / ms;
+      // eq. 15.5 and the end relative velocity r'; where the drag dominates, divided by Q and r' from
+      // the drag force Q r' = f_w - m_w a_w, so that no permeability makes them overflow or cancel
+      const bool stiff = Q * dt > mw;
+      const double aw = stiff ? (Fw[k] / Q - r0 + push) / (mw / Q + dt * both)
+                              : (Fw[k] - Q * r0 + Q * push) / (mw + Q * dt * both);
+      aw_[I][k] = aw;
+      n.f[I][k] = Fm[k] - mw * aw;
+      const double solid = drained ? 0.0 : (Fm[k] - mw * aw) / ms; // a_v
+      const double r1 = stiff ? (Fw[k] - mw * aw) / Q : r0 + dt * (aw - solid);
+      darcy += dt * Q * r1 * 0.5 * (r0 + r1); // eq. 15.6
+    }
+  });
+}
+
+template <int D> void TwoPhase<D>::tie(Engine<D>& e, double t, double dt) {
+  NodalFields<D>& n = e.nodal();
+  for (const Plate& r : parts_.plates) {
+    const int k = r.axis;
+    const double F0 = r.force * time_function(r.time, t), F1 = r.force * time_function(r.time, t + dt);
+    double M = 0.0, momentum = 0.0, force = F0;
+    for (int I : r.node) {
+      if (!n.active[I]) continue;
+      M += n.m[I], momentum += n.q[I][k], force += fm_[I][k];
+      if (wet_[I]) M += mw_[I], momentum += qw_[I][k];
+    }
+    if (!(M > 0.0)) continue;
+    const double V = (momentum + dt * force) / M; // the plate's velocity at the end of the step
+    plate_work_ += 0.5 * (F0 + F1) * dt * V;
+    for (int I : r.node) {
+      if (!n.active[I]) continue;
+      n.f[I][k] = (n.m[I] * V - n.q[I][k]) / dt;
+      if (wet_[I]) aw_[I][k] = (V - qw_[I][k] / mw_[I]) / dt;
+    }
+  }
+}
+
+template <int D> void TwoPhase<D>::nodal_velocity(Engine<D>& e, double dt) {
+  ScopedPhase timer(e.timers(), Phase::nodal_update);
+  const NodalFields<D>& n = e.nodal();
+  parallel_for(static_cast<long long>(mw_.size()), [&](long long i) {
+    const auto I = static_cast<std::size_t>(i);
+    if (!wet_[I]) {
+      vw_[I] = n.v[I];
+      return;
+    }
+    Vec<D> w = qw_[I] / mw_[I] + dt * aw_[I];
+    for (int k = 0; k < D; ++k)
+      if (held_[I * D + static_cast<std::size_t>(k)]) w[k] = n.v[I][k];
+    vw_[I] = w;
+  });
+}
+
+template <int D> void TwoPhase<D>::to_particles(Engine<D>& e, double dt) {
+  ScopedPhase timer(e.timers(), Phase::to_particles);
+  update_particles(e, dt, true, true);
+}
+
+template <int D> void TwoPhase<D>::remap(Engine<D>& e, double dt) {
+  ScopedPhase timer(e.timers(), Phase::to_nodes); // as the engine's musl re-projection counts
+  // w_p += dt sum N a_w block by block, then the new momenta re-projected.
+  scatter<true>(e, [&](int p0, int p1) {
+    width_ == (1 << D) ? update_range<true, false, (1 << D)>(e, dt, p0, p1) : update_range<true, false, 0>(e, dt, p0, p1);
+  });
+  NodalFields<D>& n = e.nodal();
+  parallel_for(static_cast<long long>(mw_.size()), [&](long long i) {
+    const auto I = static_cast<std::size_t>(i);
+    if (!wet_[I]) return void(vw_[I] = n.v[I]);
+    vw_[I] = qw_[I] / mw_[I];
+    for (int k = 0; k < D; ++k)
+      if (held_[I * D + static_cast<std::size_t>(k)]) vw_[I][k] = n.v[I][k];
+  });
+  for (const Plate& r : parts_.plates) { // one velocity per plate: the re-projected momentum of both phases
+    const int k = r.axis;
+    double M = 0.0, momentum = 0.0;
+    for (int I : r.node) {
+      if (!n.active[I]) continue;
+      M += n.m[I], momentum += n.q[I][k];
+      if (wet_[I]) M += mw_[I], momentum += qw_[I][k];
+    }
+    if (!(M > 0.0)) continue;
+    for (int I : r.node)
+      if (n.active[I]) n.v[I][k] = vw_[I][k] = momentum / M;
+  }
+}
+
+template <int D> void TwoPhase<D>::update_pressure(Engine<D>& e, double dt) {
+  ScopedPhase timer(e.timers(), Phase::constitutive); // as the engine's musl stress update counts
+  update_particles(e, dt, false, true);
+}
+
+template <int D> void TwoPhase<D>::update_particles(Engine<D>& e, double dt, bool rate, bool pressure) {
+  const int n = e.particles().size();
+  if (pressure) dp_.resize(static_cast<std::size_t>(n)), cell_.resize(static_cast<std::size_t>(n));
+  const bool fixed = width_ == (1 << D);
+  parallel_chunks(n, [&](long long p0, long long p1) {
+    const int b = static_cast<int>(p0), c = static_cast<int>(p1);
+    if (rate && pressure) fixed ? update_range<true, true, (1 << D)>(e, dt, b, c) : update_range<true, true, 0>(e, dt, b, c);
+    else if (rate) fixed ? update_range<true, false, (1 << D)>(e, dt, b, c) : update_range<true, false, 0>(e, dt, b, c);
+    else fixed ? update_range<false, true, (1 << D)>(e, dt, b, c) : update_range<false, true, 0>(e, dt, b, c);
+  });
+  if (pressure) average_pressure(e);
+}
+
+template <int D>
+template <bool Rate, bool Pressure, int W>
+void TwoPhase<D>::update_range(Engine<D>& e, double dt, int p0, int p1) {
+  Particles<D>& P = e.particles();
+  const BasisTable<D>& table = e.table();
+  // Plain pointers in locals: the stores below cannot alias them.
+  const int* offset = table.offset.data();
+  const int* node = table.node.data();
+  const double* N = table.N.data();
+  const Vec<D>* dN = table.dN.data();
+  const Vec<D>* v = e.nodal().v.data();
+  const Vec<D>* vw = vw_.data();
+  const Vec<D>* aw = aw_.data();
+  const int* material = P.material.data();
+  const PoreFluid* const* fluid_of = fluids_.data();
+  double* w = P.find_state(kLiquidVelocityField)->values.data();
+  const std::optional<CartesianGrid<D>>& grid = e.basis().nodes().grid();
+  Vec<D> lower = Vec<D>::Zero(), inverse = Vec<D>::Zero();
+  if (grid) lower = grid->lower, inverse = grid->h().cwiseInverse();
+  for (int p = p0; p < p1; ++p) {
+    const PoreFluid* f = fluid_of[material[p]];
+    if (!f) continue;
+    Vec<D> a = Vec<D>::Zero();
+    double div_s = 0.0, div_w = 0.0;
+    const auto [e0, e1] = row_entries<W>(offset, p);
+    for (int k = e0; k < e1; ++k) {
+      const int I = node[k];
+      if constexpr (Rate) a += N[k] * aw[I];
+      if constexpr (Pressure) div_s += v[I].dot(dN[k]), div_w += vw[I].dot(dN[k]);
+    }
+    if constexpr (Rate) Eigen::Map<Vec<D>>(w + static_cast<std::size_t>(p) * D) += dt * a;
+    if constexpr (!Pressure) continue;
+    const double n = porosity(*f, P.V0[p], P.V[p]);
+    if (!(n > 0.0 && n < 1.0)) [[unlikely]]
+      throw ParticleFailure{p, "porosity n = " + format_number(n) +
+                                   " left (0, 1): the skeleton's volume fell to its grains' or below"};
+    const auto i = static_cast<std::size_t>(p);
+    dp_[i] = -dt * f->bulk_modulus / n * ((1.0 - n) * div_s + n * div_w); // eq. 15.3
+    cell_[i] = -1;
+    if (grid) { // the lattice cell of the particle, as one number (clamped as CartesianGrid::cell_of clamps)
+      cell_[i] = 0;
+      for (int k = D - 1; k >= 0; --k) {
+        const double c = std::floor((P.x[p][k] - lower[k]) * inverse[k]);
+        const double clamped = std::isnan(c) ? 0.0 : std::clamp(c, 0.0, grid->cells[k] - 1.0); // a NaN is caught after the step
+        cell_[i] = cell_[i] * (grid->cells[k] + 1LL) + static_cast<long long>(clamped);
+      }
+    }
+  }
+}
+
+template <int D> int TwoPhase<D>::patch_of(long long cell, long long cells) {
+  // A dense slot per lattice cell while the lattice is not much larger than the particles, else a map.
+  if (cells <= 8 * static_cast<long long>(dp_.size()) + 4096) {
+    if (slot_.size() != static_cast<std::size_t>(cells)) slot_.assign(static_cast<std::size_t>(cells), -1);
+    int& id = slot_[static_cast<std::size_t>(cell)];
+    if (id < 0) id = static_cast<int>(sums_.size()), sums_.push_back({0.0, 0.0}), used_.push_back(cell);
+    return id;
+  }
+  const int id = number_.try_emplace(cell, static_cast<int>(sums_.size())).first->second;
+  if (id == static_cast<int>(sums_.size())) sums_.push_back({0.0, 0.0});
+  return id;
+}
+
+template <int D> void TwoPhase<D>::average_pressure(Engine<D>& e) {
+  // Each cell's volume-weighted mean increment (eq. 15.3a), summed in particle order.
+  Particles<D>& P = e.particles();
+  double* pp = P.find_state(kPorePressureField)->values.data();
+  const std::optional<CartesianGrid<D>>& grid = e.basis().nodes().grid();
+  long long cells = 1;
+  for (int k = 0; grid && k < D; ++k) cells *= grid->cells[k] + 1LL;
+  const int n = P.size();
+  patch_.resize(static_cast<std::size_t>(n));
+  sums_.clear(), number_.clear();
+  long long last = -2;
+  int id = -1;
+  for (int p = 0; p < n; ++p) {
+    const auto i = static_cast<std::size_t>(p);
+    if (!fluids_[static_cast<std::size_t>(P.material[p])] || cell_[i] < 0) {
+      patch_[i] = -1;
+      continue;
+    }
+    if (cell_[i] != last) last = cell_[i], id = patch_of(last, cells); // consecutive particles mostly share a cell
+    patch_[i] = id;
+    sums_[static_cast<std::size_t>(id)][0] += P.V[p] * dp_[i];
+    sums_[static_cast<std::size_t>(id)][1] += P.V[p];
+  }
+  for (long long c : used_) slot_[static_cast<std::size_t>(c)] = -1; // ready for the next step
+  used_.clear();
+  // The new pressures, and in the same pass (blocks as totals() takes them: its bits) the after-step sums.
+  totals_ = blocked_reduce_ranges<LiquidTotals<D>>(n, [&](long long b0, long long b1, LiquidTotals<D>& acc) {
+    for (auto i = static_cast<std::size_t>(b0); i < static_cast<std::size_t>(b1); ++i) {
+      if (!fluids_[static_cast<std::size_t>(P.material[i])]) continue;
+      const int j = patch_[i];
+      pp[i] += j < 0 ? dp_[i] : sums_[static_cast<std::size_t>(j)][0] / sums_[static_cast<std::size_t>(j)][1];
+    }
+    add_totals(e, static_cast<int>(b0), static_cast<int>(b1), acc);
+  });
+  totals_ready_ = true;
+}
+
+template <int D> LiquidTotals<D>& LiquidTotals<D>::operator+=(const LiquidTotals& o) {
+  kinetic += o.kinetic, stored += o.stored, momentum += o.momentum;
+  wave_speed2 = std::max(wave_speed2, o.wave_speed2);
+  bad = lowest(bad, o.bad);
+  return *this;
+}
+
+template <int D> void TwoPhase<D>::add_totals(const Engine<D>& e, int b0, int b1, LiquidTotals<D>& acc) const {
+  const Particles<D>& P = e.particles();
+  const double* pp = P.find_state(kPorePressureField)->values.data();
+  const double* w = P.find_state(kLiquidVelocityField)->values.data();
+  for (int r0 = b0; r0 < b1;) { // runs of one material
+    int r1 = r0 + 1;
+    while (r1 < b1 && P.material[r1] == P.material[r0]) ++r1;
+    const PoreFluid* f = fluid(P.material[r0]);
+    if (!f) {
+      r0 = r1;
+      continue;
+    }
+    const double half_compliance = 0.5 / f->bulk_modulus, grains = 1.0 - f->porosity;
+    // Locals: the loop keeps them in registers. The pores' volume n V = V - (1 - n_0) V0 (no division).
+    double kinetic = 0.0, stored = 0.0, pores = 1.0, volume = 1.0, density = kUnbounded;
+    Vec<D> momentum = Vec<D>::Zero();
+    for (int p = r0; p < r1; ++p) {
+      const Vec<D> wp = Eigen::Map<const Vec<D>>(w + static_cast<std::size_t>(p) * D);
+      const double pressure = pp[p];
+      if (!std::isfinite(pressure) || !wp.allFinite()) acc.bad = lowest(acc.bad, p);
+      const double V = P.V[p], nV = V - grains * P.V0[p], mw = f->density * nV;
+      kinetic += 0.5 * mw * wp.squaredNorm();
+      stored += nV * pressure * pressure * half_compliance;
+      momentum += mw * wp;
+      if (nV * volume < pores * V) pores = nV, volume = V; // the smallest porosity as a fraction
+      density = std::min(density, P.rho[p]);
+    }
+    acc.kinetic += kinetic, acc.stored += stored, acc.momentum += momentum;
+    // The fastest wave of the run (eq. 15.7) is at most that of its stiffest skeleton, its smallest
+    // porosity and its lightest skeleton: exact for a uniform run.
+    double c2 = 0.0; // the skeleton's largest c^2 = M / rho_p over the run: M <= c2 rho_p for each
+    e.material(P.material[r0]).max_wave_speed2(P, r0, r1, c2);
+    const double n = pores / volume;
+    if (n > 0.0 && n < 1.0)
+      acc.wave_speed2 = std::max(acc.wave_speed2, fast_wave_speed2(c2, n, density, f->bulk_modulus,
+                                                                   f->bulk_modulus / f->density));
+    r0 = r1;
+  }
+}
+
+template <int D> LiquidTotals<D> TwoPhase<D>::totals(const Engine<D>& e) {
+  if (std::exchange(totals_ready_, false)) return totals_; // summed by the step's last pass over the particles
+  return blocked_reduce_ranges<LiquidTotals<D>>(e.particles().size(), [&](long long b0, long long b1, LiquidTotals<D>& acc) {
+    add_totals(e, static_cast<int>(b0), static_cast<int>(b1), acc);
+  });
+}
+
+template <int D> Vec<D> TwoPhase<D>::momentum(const Particles<D>& P) const {
+  const StateField& w = *P.find_state(kLiquidVelocityField);
+  return blocked_reduce<LiquidTotals<D>>(P.size(), [&](long long i, LiquidTotals<D>& acc) {
+           const int p = static_cast<int>(i);
+           if (const PoreFluid* f = fluid(P.material[p]))
+             acc.momentum += porosity(*f, P.V0[p], P.V[p]) * f->density * P.V[p] * liquid_at<D>(w, p);
+         })
+      .momentum;
+}
+
+template struct LiquidTotals<1>;
+template struct LiquidTotals<2>;
+template struct LiquidTotals<3>;
+template class TwoPhase<1>;
+template class TwoPhase<2>;
+template class TwoPhase<3>;
+
+} // namespace otmpm

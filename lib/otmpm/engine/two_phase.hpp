@@ -1,0 +1,171 @@
+#pragma once
+/// \file two_phase.hpp
+/// Saturated bodies: the liquid phase of the single-point two-phase
+/// formulation with solid and liquid velocities on the nodes (docs/theory.md
+/// sect. 15). Each particle of a saturated material carries, besides the
+/// skeleton's state, the pore pressure p_p (compression positive) and the
+/// liquid velocity w_p (Particles::state "pore_pressure" and
+/// "liquid_velocity": checkpointed and written like any state).
+/// The engine's particle mass m_p is the solid's; the liquid's is
+/// n_p rho_w V_p. A step of an integrator that steps saturated bodies
+/// (IntegratorKind::two_phase) calls, after the engine's own stages:
+///   to_nodes        the liquid's nodal mass, momentum, Darcy drag and forces,
+///                   and the nodal solve of both phases with the drag taken
+///                   implicitly (eq. 15.5); the solid's force f_I becomes
+///                   m_s a_s, so that the engine's nodal update is unchanged;
+///   nodal_velocity  the liquid's nodal velocity (held components: the solid's);
+///   to_particles    w_p += dt sum N a_w, p_p from the phases' volumetric
+///                   rates (eq. 15.3); musl: remap (w_p, the re-projection of
+///                   w, the rigid plates) before the stress update, then
+///                   update_pressure.
+/// The Darcy dissipation is booked in the engine's energy balance
+/// (EnergyBalance::darcy); the stages' time in the engine's phase timers.
+#include "otmpm/basis/basis.hpp"
+#include "otmpm/engine/constraints.hpp"
+#include "otmpm/materials/pore_fluid.hpp"
+#include "otmpm/particles/particles.hpp"
+#include "otmpm/time_function.hpp"
+
+#include <array>
+#include <memory>
+#include <optional>
+#include <unordered_map>
+#include <utility>
+#include <vector>
+
+namespace otmpm {
+
+template <int D> class Engine;
+template <int D> struct LiquidSums;
+template <int D, class Sums> class BlockedScatter;
+
+/// A rigid, frictionless, impermeable plate: the listed nodes move together
+/// along `axis` (both phases), massless, pressed by `force` g(t); the nodal
+/// forces along the axis are shared so that they keep one velocity. The other
+/// components stay free.
+struct Plate {
+  std::vector<int> node;
+  int axis = 0;
+  double force = 0.0;
+  TimeFunction time;
+};
+
+/// What the liquid phase of a run is built from.
+template <int D> struct TwoPhaseParts {
+  /// The pore fluid of each material (indexed as Particles::material); nullopt: dry.
+  std::vector<std::optional<PoreFluid>> fluid;
+  /// The components where the liquid is held with the solid (an impermeable
+  /// support): the fixed components of the Dirichlet sets that are not
+  /// drained. Every entry must also be a fixed component of the engine's
+  /// Dirichlet sets.
+  Dirichlet<D> held;
+  std::vector<Plate> plates;
+};
+
+/// The liquid's contributions to the after-step sums (Engine::sum_particles):
+/// kinetic energy sum 1/2 m_w |w|^2, stored energy sum V n p^2 / (2 K_w),
+/// momentum sum m_w w, the largest squared fast-wave speed (eq. 15.7) and the
+/// first particle whose pore pressure or liquid velocity is not finite (-1: none).
+template <int D> struct LiquidTotals {
+  double kinetic = 0.0, stored = 0.0, wave_speed2 = 0.0;
+  Vec<D> momentum = Vec<D>::Zero();
+  int bad = -1;
+  LiquidTotals& operator+=(const LiquidTotals& o);
+};
+
+/// The liquid phase of the saturated particles of an engine.
+template <int D> class TwoPhase {
+public:
+  /// Adds the state arrays to P (a fresh array starts at p = 0 and w = v_p).
+  /// `dirichlet` are the engine's Dirichlet sets on `nodes` nodes.
+  /// std::invalid_argument when the parts do not fit.
+  TwoPhase(TwoPhaseParts<D> parts, Particles<D>& P, const Dirichlet<D>& dirichlet, int nodes);
+  ~TwoPhase();
+
+  /// After the engine's to_nodes (mass, momentum, forces at t): the liquid's
+  /// sums and the coupled nodal solve; f_I becomes m_s a_s, the Darcy
+  /// dissipation of the step is added to darcy() and the plates' work to
+  /// plate_work().
+  void to_nodes(Engine<D>& e, double t, double dt);
+  /// The work the plates' forces did in the steps since the last call (the
+  /// engine adds it to W_ext), (F(t_n) + F(t_n+1)) / 2 . dt V for each step.
+  double take_plate_work() { return std::exchange(plate_work_, 0.0); }
+  /// The energy the Darcy drag dissipated since t = 0 (W_d, eq. 15.6; EnergyBalance::darcy).
+  double darcy() const { return darcy_; }
+  /// Sets W_d (a restart).
+  void set_darcy(double w) { darcy_ = w; }
+  /// After the engine's constrained nodal velocity v_I: the liquid's w_I.
+  void nodal_velocity(Engine<D>& e, double dt);
+  /// After the particles moved and their stresses were updated: w_p and p_p.
+  void to_particles(Engine<D>& e, double dt);
+  /// musl, after the re-projection of the solid's momenta and before the
+  /// stress update: w_p, the re-projection of the liquid's momenta, and the
+  /// rigid plates on both phases' re-projected velocities.
+  void remap(Engine<D>& e, double dt);
+  /// musl, after the stress update: p_p from the re-projected velocities.
+  void update_pressure(Engine<D>& e, double dt);
+  /// The liquid's after-step sums (LiquidTotals), in fixed blocks of
+  /// particles: those the step's last pass took (once), else summed anew.
+  LiquidTotals<D> totals(const Engine<D>& e);
+  /// The liquid's momentum sum_p m_w w_p.
+  Vec<D> momentum(const Particles<D>& P) const;
+  /// The pore fluid of material `m`, or null when it is dry.
+  const PoreFluid* fluid(int m) const { return fluids_[static_cast<std::size_t>(m)]; }
+  /// The porosity of particle p: n = 1 - (1 - n_0) V0_p / V_p (incompressible grains).
+  static double porosity(const PoreFluid& f, double V0, double V) { return 1.0 - (1.0 - f.porosity) * V0 / V; }
+  /// The liquid's nodal fields of the step: mass, drag coefficient, velocity, acceleration.
+  const std::vector<double>& liquid_mass() const { return mw_; }
+  const AlignedVector<Vec<D>>& liquid_velocity() const { return vw_; }
+  const AlignedVector<Vec<D>>& liquid_acceleration() const { return aw_; }
+
+private:
+  /// The liquid's particle-to-node sums (momentum only: musl's re-projection);
+  /// update(p0, p1) runs on each block of particles before it is summed.
+  template <bool MomentumOnly, class Update> void scatter(const Engine<D>& e, Update&& update);
+  /// The coupled nodal solve (eq. 15.5); returns the step's Darcy dissipation (eq. 15.6).
+  double solve(Engine<D>& e, double t, double dt);
+  /// The plates: one velocity per plate along its axis for both phases.
+  void tie(Engine<D>& e, double t, double dt);
+  /// w_p += dt sum N a_w (rate) and the pore pressure update (pressure) of all particles.
+  void update_particles(Engine<D>& e, double dt, bool rate, bool pressure);
+  /// update_particles on particles [p0, p1), rows of W entries (0: any length).
+  template <bool Rate, bool Pressure, int W> void update_range(Engine<D>& e, double dt, int p0, int p1);
+  /// p_p += the volume-weighted mean of the pressure increments of the
+  /// particles in its lattice cell (eq. 15.3a).
+  void average_pressure(Engine<D>& e);
+  /// Adds particles [b0, b1) to the after-step sums (runs of one material).
+  void add_totals(const Engine<D>& e, int b0, int b1, LiquidTotals<D>& acc) const;
+  /// The patch number of lattice cell `cell` (of `cells`) in this step's sums.
+  int patch_of(long long cell, long long cells);
+
+  TwoPhaseParts<D> parts_;
+  /// Per node component (I D + k): fixed by the solid's Dirichlet sets, the
+  /// liquid held with it, tied by a rigid set; the solid's prescribed velocity.
+  std::vector<char> fixed_, held_, rigid_;
+  std::vector<double> value_;
+  std::vector<char> wet_;         ///< per node: active with a liquid mass above the mass tolerance
+  std::vector<double> mw_, drag_; ///< m_w,I and Q_I
+  /// q_w, f_w, f_p, the mixture's force F_m, w_I and a_w of the step.
+  AlignedVector<Vec<D>> qw_, fw_, fp_, fm_, vw_, aw_;
+  std::unique_ptr<BlockedScatter<D, LiquidSums<D>>> scatter_;
+  /// The pressure update: each particle's increment and lattice cell, its
+  /// patch, and per patch sum V dp and sum V.
+  std::vector<double> dp_;
+  std::vector<long long> cell_;
+  std::vector<int> patch_;
+  std::vector<std::array<double, 2>> sums_;
+  std::vector<int> slot_;         ///< per lattice cell its patch in this step, or -1 (a lattice not too large)
+  std::vector<long long> used_;   ///< the cells slot_ numbered in this step
+  std::unordered_map<long long, int> number_; ///< the patches of a large lattice
+  std::vector<const PoreFluid*> fluids_; ///< per material its pore fluid, or null
+  int width_ = 0;                 ///< linear_row_width of this step's table
+  double darcy_ = 0.0, plate_work_ = 0.0;
+  LiquidTotals<D> totals_; ///< the sums of the step's last pass (totals_ready_)
+  bool totals_ready_ = false;
+};
+
+extern template class TwoPhase<1>;
+extern template class TwoPhase<2>;
+extern template class TwoPhase<3>;
+
+} // namespace otmpm
