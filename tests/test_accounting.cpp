@@ -240,7 +240,7 @@ TEST_CASE("the energy friction dissipates is booked and closes the balance of th
   }
 }
 
-TEST_CASE("seeded volumes: a box's is exact; other shapes report theirs against the exact one, or match it") {
+TEST_CASE("seeded volumes: a box's is exact, other shapes report theirs against the exact one, or match it") {
   // A box is tiled by whole cells (exact to round-off). A sphere, cylinder
   // or polygon keeps the lattice's sub-cells whose point lies inside: its
   // volume differs from the shape's (measured: the gauss cylinder of R =

@@ -82,7 +82,7 @@ TEST_CASE("a checkpoint resolving to the result file exits 2 naming both, before
   CHECK(listing(t.dir).empty());
 }
 
-TEST_CASE("another scene's result and another run's sidecar survive; the same scene is re-run") {
+TEST_CASE("another scene's result and another run's sidecar survive, the same scene is re-run") {
   TempDir t("cli_replace");
   expect_exit(otmpm_in(t, {"run", kDyka, "--quiet", "--out", "x.h5"}), 0);
   const std::string h5 = otmpm::test::read_text(t.file("x.h5")), xdmf = otmpm::test::read_text(t.file("x.xdmf"));
@@ -238,7 +238,7 @@ TEST_CASE("a probe name with '/', '.' or NUL exits 2 naming the key") {
   CHECK(listing(t.dir).empty());
 }
 
-TEST_CASE("a scene beyond memory exits 2 naming estimate and limit; otmpm basis --cells 1e9 too") {
+TEST_CASE("a scene beyond memory exits 2 naming estimate and limit, otmpm basis --cells 1e9 too") {
   TempDir t("cli_d11");
   // 1e6 cells x 99 particles: under the 1e8 particle cap, about 30 GB.
   const CliResult big = otmpm_in(t, {"run", kDyka, "--quiet", "--set", "grid.cells=[1000000]", "--set",

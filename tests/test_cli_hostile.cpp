@@ -260,7 +260,7 @@ TEST_CASE("a --set value with a line break exits 2 instead of dropping what foll
   CHECK(listing(t.dir).empty());
 }
 
-TEST_CASE("output.fields without x (frames no viewer can show) exits 2; [] stays for history-only runs") {
+TEST_CASE("output.fields without x (frames no viewer can show) exits 2, [] stays for history-only runs") {
   TempDir t("cli_e21");
   const CliResult vtk = otmpm_in(t, {"run", kDyka, "--quiet", "--out", "a.h5", "--set",
                                      "output.fields=[\"v\"]", "--set", "output.format=[\"hdf5\", \"vtu\"]"});
@@ -289,7 +289,7 @@ TEST_CASE("a 10 MB name gives a message of at most a few kB that says how long t
   CHECK(has(r.err, "longer than 255 bytes"));
 }
 
-TEST_CASE("a CSV particle file with a UTF-8 byte-order mark is read; a UTF-16 one is refused saying so") {
+TEST_CASE("a CSV particle file with a UTF-8 byte-order mark is read, a UTF-16 one is refused saying so") {
   TempDir t("cli_e26");
   std::string rows = "x,volume\n";
   for (int i = 0; i < 20; ++i) rows += std::to_string(0.0025 + 0.005 * i) + ",0.005\n";

@@ -511,7 +511,7 @@ TEST_CASE("contract: every material model of material_models(), with its example
   }
 }
 
-TEST_CASE("contract: rows that are not in the tables are taken as they are; a broken family is caught") {
+TEST_CASE("contract: rows that are not in the tables are taken as they are, a broken family is caught") {
   // Copies of table rows under new names: the checks find them by the row,
   // never by name, so they pass as the originals do.
   BasisKind linear_copy = basis_kind("linear");

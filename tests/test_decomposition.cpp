@@ -93,7 +93,7 @@ TEST_CASE("rcb: the same home cells give the same boxes, too many ranks is an in
   CHECK_THROWS_AS(Decomposition<1>::rcb({3}, 4, std::vector<Index<1>>{}, Comm::self()), InputError);
 }
 
-TEST_CASE("rcb: the tree kept in a checkpoint gives the same owners; a tree of other ranks or cells is refused") {
+TEST_CASE("rcb: the tree kept in a checkpoint gives the same owners, a tree of other ranks or cells is refused") {
   std::mt19937 rng(3);
   std::vector<Index<3>> home;
   for (int i = 0; i < 3000; ++i)

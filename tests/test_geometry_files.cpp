@@ -212,7 +212,7 @@ TEST_CASE("stl: open, non-manifold, self-intersecting and malformed files are re
   }
 }
 
-TEST_CASE("gmsh: ASCII and binary files of the embankment agree; groups; exact areas and centroids") {
+TEST_CASE("gmsh: ASCII and binary files of the embankment agree, groups, exact areas and centroids") {
   const GmshMesh a = read_gmsh(kData + "embankment_ascii.msh");
   const GmshMesh b = read_gmsh(kExamples + "embankment.msh");
   REQUIRE(a.nodes.size() == b.nodes.size());

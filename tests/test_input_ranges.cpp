@@ -210,7 +210,7 @@ TEST_CASE("each scalar scene key is checked by its row, by the reader and by val
   }
 }
 
-TEST_CASE("a range with two ends names the interval; one with one end its bound") {
+TEST_CASE("a range with two ends names the interval, one with one end its bound") {
   CHECK(kPoisson.check(0.5) == "must be in (-1, 0.5) (got 0.5)");
   CHECK(kDensity.check(-2.0) == "must be > 0 (got -2)");
   CHECK(kDensity.check(std::numeric_limits<double>::infinity()) == "must be a finite number (got inf)");

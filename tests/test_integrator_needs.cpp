@@ -51,7 +51,7 @@ std::string refusal(EngineParts<1> parts) {
 
 } // namespace
 
-TEST_CASE("integrator needs: the engine allocates the fields an integrator keeps; the run keeps its bits") {
+TEST_CASE("integrator needs: the engine allocates the fields an integrator keeps, the run keeps its bits") {
   int kept = 0;
   for (const IntegratorKind& k : integrator_kinds()) {
     CAPTURE(k.name);

@@ -365,7 +365,7 @@ double wave_speed2(const Material<2>& m, const Particles<2>& P) {
 
 } // namespace
 
-TEST_CASE("every model's wave speed: M / rho at rest; a dilated stress-free particle does not raise it") {
+TEST_CASE("every model's wave speed: M / rho at rest, a dilated stress-free particle does not raise it") {
   // At rest (F = I) every model's tangent is its P-wave modulus: c^2 = M /
   // rho0. A particle dilated to J = 4 (F = 2 I) without stress - the state
   // the Hencky models reach by plastic dilation or below the critical

@@ -1150,7 +1150,7 @@ TEST_CASE("mpi: a full disk ends every rank with status 4, the file's status set
   CHECK(listed == f.time.size());
 }
 
-TEST_CASE("mpi: a signal to one rank stops every rank; the message names that signal") {
+TEST_CASE("mpi: a signal to one rank stops every rank, the message names that signal") {
   // mpirun in the background; SIGTERM or SIGINT to rank 1 alone (its pid
   // from the ranks' environment). Before, rank 0 said "signal 0".
   TempDir dir("mpi_signal");
@@ -1201,7 +1201,7 @@ TEST_CASE("mpi: a block landing on a wall agrees with the serial run within kImp
   }
 }
 
-TEST_CASE("mpi: run --check refuses at once what the run refuses; a restart names a changed particle file") {
+TEST_CASE("mpi: run --check refuses at once what the run refuses, a restart names a changed particle file") {
   TempDir dir("mpi_check");
   // 6.4e7 nodes and 6.1e7 particles (a consistent mass, solved by conjugate
   // gradients over the ranks): about 28 GB per rank of 2, refused by every
@@ -1355,7 +1355,7 @@ TEST_CASE("mpi: a rank whose share exceeds the memory limit is refused, naming i
   CHECK(!fs::exists(dir.file("out.h5")));
 }
 
-TEST_CASE("mpi: 16 ranks: the Dyka strip agrees with the serial run; its checkpoint restarts on 4 and on 16 ranks") {
+TEST_CASE("mpi: 16 ranks: the Dyka strip agrees with the serial run, its checkpoint restarts on 4 and on 16 ranks") {
   // 160 particles over 40 cells: 8-12 particles per rank, every rank's
   // LME support reaches its neighbours' (oversubscribed: 16 ranks share the
   // machine's cores). The bound is the one of every rank count, kAgreement;

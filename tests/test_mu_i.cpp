@@ -179,7 +179,7 @@ template <int D> double path_difference(const MaterialParameters& a, const Mater
 
 } // namespace
 
-TEST_CASE("mu_i: the static limit is drucker_prager with eta = mu_s (rate-independent: mu_2 = mu_s; I -> 0)") {
+TEST_CASE("mu_i: the static limit is drucker_prager with eta = mu_s (rate-independent: mu_2 = mu_s, I -> 0)") {
   // Round-off along a path of n = 400 steps: 5e-16 n (K + G) (the bound of
   // test_plasticity.cpp) on stresses of ~1e4 Pa: 2.4e-3 Pa.
   const plasticity::ElasticModuli el = plasticity::ElasticModuli::from_young_poisson(kE, kNu);
@@ -204,7 +204,7 @@ TEST_CASE("mu_i: the static limit is drucker_prager with eta = mu_s (rate-indepe
   CHECK(slower == doctest::Approx(slow / 10).epsilon(0.2));
 }
 
-TEST_CASE("mu_i: below the critical packing stress-free; compacted again, the elastic volume strain is ln(J / J_c)") {
+TEST_CASE("mu_i: below the critical packing stress-free, compacted again, the elastic volume strain is ln(J / J_c)") {
   // Seeded at the packing phi0 = 0.6, the grains lose contact below phi_c =
   // 0.55, i.e. at J > J_c = phi0 / phi_c = 1.0909.
   const double J_c = (kRho / kGrainDensity) / kCritical;
@@ -316,7 +316,7 @@ Engine<2> run(const std::string& text) {
 
 } // namespace
 
-TEST_CASE("mu_i: a heap below the angle of repose atan(mu_s) stays at rest; one above it flows") {
+TEST_CASE("mu_i: a heap below the angle of repose atan(mu_s) stays at rest, one above it flows") {
   // Released stress-free under gravity, the heap settles elastically by
   // rho g H / E ~ 0.15 mm. Below the angle of repose (31 deg; 0.8 of it: 25
   // deg) the flanks stay: above the lowest cell no particle moves by more

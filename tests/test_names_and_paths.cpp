@@ -36,7 +36,7 @@ bool contains(const std::string& text, const std::string& part) { return text.fi
 
 } // namespace
 
-TEST_CASE("shortened() cuts long text at a character boundary and says its length; InputError bounds "
+TEST_CASE("shortened() cuts long text at a character boundary and says its length, InputError bounds "
           "its message") {
   CHECK(shortened("short") == "short");
   const std::string accents(200, 'e'); // then a two-byte character across the cut
@@ -129,7 +129,7 @@ TEST_CASE("a --set value with a line break is refused, not cut at it") {
   CHECK(contains(input_error_of([] { small_scene({"output.file=\"a\\nb.h5\""}); }), "control character (code 10)"));
 }
 
-TEST_CASE("output.fields without x is refused (with VTK output, also []); [] alone writes history-only frames") {
+TEST_CASE("output.fields without x is refused (with VTK output, also []), [] alone writes history-only frames") {
   CHECK(contains(input_error_of([] { small_scene({"output.fields=[\"v\"]"}); }), "must include \"x\""));
   CHECK(contains(input_error_of([] { small_scene({"output.fields=[]", "output.format=[\"hdf5\", \"vtu\"]"}); }),
                  "output.format"));

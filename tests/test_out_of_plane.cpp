@@ -173,7 +173,7 @@ TEST_CASE("out_of_plane_stress: linear_elastic's sigma_zz is nu (sigma_xx + sigm
   CHECK(worst <= 5e-16 * kSteps * kE);
 }
 
-TEST_CASE("out_of_plane_stress: a rest state has sigma_zz = 0; 1D and 3D materials refuse") {
+TEST_CASE("out_of_plane_stress: a rest state has sigma_zz = 0, 1D and 3D materials refuse") {
   for (const char* model : {"linear_elastic", "linear_elastic_finite", "neo_hookean", "j2", "drucker_prager", "mu_i"}) {
     INFO(model);
     std::map<std::string, double> extra;

@@ -247,7 +247,7 @@ TEST_CASE("a file that is not otmpm's result is never replaced without force") {
   CHECK(listing(t.dir) == std::set<std::string>{"data.h5"});
 }
 
-TEST_CASE("--out x.txt does not touch another run's x.xdmf; a foreign sidecar is kept") {
+TEST_CASE("--out x.txt does not touch another run's x.xdmf, a foreign sidecar is kept") {
   TempDir t("sidecar");
   REQUIRE(run_scene(small_scene(), to(t.file("x.h5"))).exit_code == 0);
   const std::string sidecar = slurp(t.file("x.xdmf"));
@@ -486,7 +486,7 @@ TEST_CASE("a run whose memory estimate exceeds the limit is refused before it al
   CHECK(estimate_resources(measured).bytes > 406e6);
 }
 
-TEST_CASE("a run whose step estimate exceeds simulation.max_steps is refused; the key raises the limit") {
+TEST_CASE("a run whose step estimate exceeds simulation.max_steps is refused, the key raises the limit") {
   auto msg = [](const std::vector<std::string>& sets) { return input_error_of([&] { check_resources(small_scene(sets)); }); };
   CHECK(contains(msg({"material.steel.young=1e308"}), "simulation.cfl"));
   CHECK(contains(msg({"material.steel.young=1e308"}), "max_steps"));

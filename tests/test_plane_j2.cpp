@@ -227,7 +227,7 @@ TEST_CASE("j2 material in plane strain: a particle's result does not depend on w
   CHECK(grown >= 3);
 }
 
-TEST_CASE("j2 material in plane strain: det F <= 0 inside a pair names that particle; the one before is updated") {
+TEST_CASE("j2 material in plane strain: det F <= 0 inside a pair names that particle, the one before is updated") {
   constexpr int n = 4;
   Batch b = make_batch(n);
   b.H[1] << -1.5, 0.0, 0.0, 0.0; // F = diag(-0.5, 1) for particle 1, paired with particle 0

@@ -142,7 +142,7 @@ TEST_CASE("after finish() write_frame, interrupt, step and finish throw std::log
   CHECK(sim.engine<1>().particles().size() == 80); // the state stays readable
 }
 
-TEST_CASE("write_frame after t_end, an instability or interrupt() still writes; interrupt() of a "
+TEST_CASE("write_frame after t_end, an instability or interrupt() still writes, interrupt() of a "
           "finished run throws") {
   TempDir tmp("after_end");
   RunOptions opt;
@@ -156,7 +156,7 @@ TEST_CASE("write_frame after t_end, an instability or interrupt() still writes; 
   CHECK(frame_count(opt.out_file) == 3); // t = 0, t_end, and the frame written by hand
 }
 
-TEST_CASE("finish() releases otmpm's locks; a Simulation destroyed before finish() leaves status interrupted") {
+TEST_CASE("finish() releases otmpm's locks, a Simulation destroyed before finish() leaves status interrupted") {
   TempDir tmp("locks");
   RunOptions opt;
   opt.out_file = tmp.file("r.h5");

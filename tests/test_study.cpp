@@ -213,7 +213,7 @@ TEST_CASE("study: a refused run whose result file is an earlier run's records th
   }
 }
 
-TEST_CASE("study: a saturated scene's rows carry its pore-pressure errors; a CSV without those columns is extended") {
+TEST_CASE("study: a saturated scene's rows carry its pore-pressure errors, a CSV without those columns is extended") {
   // examples/terzaghi.toml at h = H/16 and H/32 to T_v = 0.05
   const fs::path dir = study_dir("pore", "jobs = 1\nerror = \"max_pore_pressure_error\"\n"
                                          "set = [\"simulation.t_end=0.0501\", \"output.every=0\", \"output.fields=[]\"]\n"

@@ -165,7 +165,7 @@ bool contains(const std::string& text, const std::string& part) { return text.fi
 
 // ---------------------------------------------------------------- killed studies and children
 
-TEST_CASE("study: SIGINT, SIGTERM or SIGKILL of the study stops its children; the resume keeps the finished "
+TEST_CASE("study: SIGINT, SIGTERM or SIGKILL of the study stops its children, the resume keeps the finished "
           "run and redoes the stopped one") {
   const fs::path dir = study_dir("d9", "");
   const fs::path a_h5 = dir / "study_results" / "a_n13.h5";
@@ -321,7 +321,7 @@ TEST_CASE("study: a results path that is an existing file, or lies under one, is
   }
 }
 
-TEST_CASE("study: every common set entry is applied to the scene before any run; a bad one is exit 2 at it") {
+TEST_CASE("study: every common set entry is applied to the scene before any run, a bad one is exit 2 at it") {
   // The form of an entry.
   expect_refused("d15", std::string("set = [\"simulation.t_end\"]\n") + kMeshN13,
                  {"study.toml:3: key 'set'", "'simulation.t_end' is not KEY=VALUE"});

@@ -132,7 +132,7 @@ TEST_CASE("F-bar: det dFbar is the patch's volume ratio, the isochoric part the 
   check_patch_average<3>();
 }
 
-TEST_CASE("F-bar: a patch of one particle keeps its dF bit for bit; 1D is unchanged") {
+TEST_CASE("F-bar: a patch of one particle keeps its dF bit for bit, 1D is unchanged") {
   check_single_particle_patches<2>();
   check_single_particle_patches<3>();
   check_single_particle_patches<1>(); // one axis: no volumetric part to average
@@ -178,7 +178,7 @@ velocity = [1.0, 0.0]
   }
 }
 
-TEST_CASE("simulation.volumetric: by default fbar in ul with a plastic material, else none; bad values refused") {
+TEST_CASE("simulation.volumetric: by default fbar in ul with a plastic material, else none, bad values refused") {
   const std::string body = R"(
 [[body]]
 name = "b"

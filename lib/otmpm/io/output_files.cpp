@@ -135,7 +135,7 @@ std::vector<std::pair<std::string, std::string>> written_paths(const OutputFiles
     out.emplace_back("lock file of the " + role, lock_path(path));
     if (temporary) out.emplace_back("temporary of the " + role, path + ".tmp");
   };
-  add("result file", f.result, false);
+  add("result file", f.result, true);
   add("XDMF sidecar", f.xdmf, true);
   add("checkpoint", f.checkpoint, true);
   add("VTK collection", f.pvd, true);

@@ -325,6 +325,20 @@ struct ResultWriter::Impl {
       throw OutputError(refused.empty() ? path + ": no room for the next write (found by rank 0)" : refused);
   }
 
+  /// Renames the new file `created` over `path` once every rank has flushed
+  /// its part of the header (the root renames; every rank learns whether it
+  /// could): from then on `path` names a file that opens. OutputError when
+  /// the rename fails.
+  void publish_created(const std::string& created) {
+    if (parallel.all) parallel.all(true);
+    std::error_code ec;
+    if (root()) std::filesystem::rename(created, path, ec);
+    const bool renamed = !ec;
+    if (parallel.all ? !parallel.all(renamed) : !renamed)
+      throw OutputError(path + ": cannot rename the new result file " + created + " into place" +
+                        (ec ? ": " + ec.message() : std::string(" (on rank 0)")));
+  }
+
   /// Runs `write`, which writes to the HDF5 file. An HDF5 failure marks the
   /// file broken and becomes an OutputError (h5::output_failure); a broken
   /// file is not written again.
@@ -362,28 +376,38 @@ ResultWriter::ResultWriter(const std::string& path, const std::string& scene_tex
   m.run_id = options.run_id.empty() ? new_run_id() : options.run_id;
   m.xdmf_path = files.xdmf;
   m.h5_name = std::filesystem::path(path).filename().string();
-  // Replaced by a new file, not truncated: a reader holding the old one open
-  // (ParaView, h5py) keeps reading it and does not block the run.
+  // Created as PATH.tmp and renamed over PATH once its root attributes are
+  // on disk: a process killed while the ranks create it together leaves no
+  // result file that does not open, and a reader holding the old one open
+  // (ParaView, h5py) keeps reading it and does not block the run. A link at
+  // PATH is replaced, not written through.
+  const std::string created = path + ".tmp";
   std::error_code ec;
-  if (m.root() && (std::filesystem::symlink_status(path, ec).type() == std::filesystem::file_type::regular ||
-                   std::filesystem::is_symlink(path, ec)))
-    std::filesystem::remove(path, ec);
+  if (m.root()) std::filesystem::remove(created, ec); // a killed run's (the run holds PATH's lock)
   if (m.parallel.all) m.parallel.all(true); // the other ranks create the file after the root removed the old one
   // The 1.8 file format: readable by every current HDF5 and allows attributes
   // above 64 KiB (a long scene text) in dense storage.
   Handle fapl(checked(H5Pcreate(H5P_FILE_ACCESS), path, "create a file access list"), H5Pclose);
   checked_status(H5Pset_libver_bounds(fapl.get(), H5F_LIBVER_V18, H5F_LIBVER_V18), path, "set the file format");
   if (m.parallel.mpi_comm) m.transfer = h5::parallel_access(fapl.get(), m.parallel.mpi_comm, path);
-  const hid_t file = H5Fcreate(path.c_str(), H5F_ACC_EXCL, H5P_DEFAULT, fapl.get());
+  const hid_t file = H5Fcreate(created.c_str(), H5F_ACC_EXCL, H5P_DEFAULT, fapl.get());
   if (file < 0) {
     const std::string cause = h5::system_error();
     throw InputError(path + ": cannot create the result file" + (cause.empty() ? "" : ": " + cause));
   }
   m.file = Handle(file, H5Fclose);
+  struct Unpublished { // removes the new file when the constructor ends before its rename
+    std::string path;
+    bool root;
+    ~Unpublished() {
+      std::error_code ignored;
+      if (root && !path.empty()) std::filesystem::remove(path, ignored);
+    }
+  } unpublished{created, m.root()};
   // A parallel file's driver handle is an MPI_File, not a descriptor: the
   // root opens the file once more to check the room for each write.
   if (!m.parallel.mpi_comm) m.fd = h5::file_descriptor(file, path);
-  else if (m.root()) m.own_fd = (m.fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC)) >= 0;
+  else if (m.root()) m.own_fd = (m.fd = ::open(created.c_str(), O_RDONLY | O_CLOEXEC)) >= 0;
   m.reserve(scene_text.size() + 8 * kMetadataBytes);
   m.guarded("write the root attributes", [&] {
     m.frames = h5::create_group(file, "frames", path);
@@ -396,6 +420,8 @@ ResultWriter::ResultWriter(const std::string& path, const std::string& scene_tex
   });
   set_attribute("dimension", static_cast<long long>(dimension));
   flush();
+  m.publish_created(created);
+  unpublished.path.clear();
   if (!options.vtk_format.empty()) { // a distributed run: on every rank, each writes its pieces
     m.vtk = std::make_unique<VtkSeriesWriter>(files.pvd, files.vtk_dir, files.vtk_extension, dimension, m.run_id,
                                               m.h5_name, m.single, m.parallel);
