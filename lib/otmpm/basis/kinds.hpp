@@ -27,9 +27,10 @@ using WindowFactory = std::unique_ptr<Basis<D>> (*)(const BasisOptions&, const C
                                                     const Index<D>& lo, const Index<D>& hi);
 
 /// Where a family's points sit on a lattice of cells and which of them the
-/// stencil of a point in cell c reaches along one axis: points c - below ..
-/// c + above, of cells + points_beyond_cells per axis, the point of cell c
-/// being c + shift (distributed runs: a rank's window of points).
+/// stencil of a point in cell c reaches along one axis: the points from
+/// c minus `below` to c plus `above`, of (cells + `points_beyond_cells`) per
+/// axis, the point of cell c being c plus `shift` (distributed runs: a
+/// rank's window of points).
 struct LatticeReach {
   int points_beyond_cells = 1; ///< 1: the lattice vertices; B-splines of degree p: p control points
   int shift = 0;
