@@ -10,6 +10,7 @@
 #include "otmpm/materials/material.hpp"
 #include "otmpm/materials/pore_fluid.hpp"
 #include "otmpm/particles/output_fields.hpp"
+#include "otmpm/scene/file_bodies.hpp"
 #include "otmpm/scene/toml_reader.hpp"
 
 #include <algorithm>
@@ -213,6 +214,30 @@ void check_shape(const Scene& s, const BodySection& b, const std::string& key, i
                    std::isfinite(b.translate[static_cast<std::size_t>(k)]),
             key + ".scale", "scale must be finite and > 0, rotate and translate finite");
   }
+}
+
+/// nodes = "mesh": a mesh body in `ul` mode, every body alike (one node
+/// set), a basis that takes a node cloud (the max-ent families).
+void check_mesh_nodes(const Scene& s) {
+  if (!mesh_nodes(s)) return;
+  const auto first = std::find_if(s.bodies.begin(), s.bodies.end(), [](const BodySection& b) { return b.nodes == "mesh"; });
+  for (std::size_t i = 0; i < s.bodies.size(); ++i) {
+    const BodySection& b = s.bodies[i];
+    const std::string key = element_key("body", b.name, i) + ".nodes";
+    check(s, one_of(b.nodes, {"lattice", "mesh"}), key, "must be \"lattice\" or \"mesh\" (got \"", b.nodes, "\")");
+    check(s, b.nodes != "mesh" || b.shape == "mesh", key, "\"mesh\" takes the vertices of a mesh body's elements "
+          "as nodes: it needs shape = \"mesh\" (got \"", b.shape, "\")");
+    check(s, b.nodes == "mesh", key, "body '", first->name, "' takes its mesh's vertices as the nodes, body '",
+          b.name, "' its nodes from the lattice: a scene has one node set (give every body shape = \"mesh\" and "
+          "nodes = \"mesh\")");
+  }
+  const std::string key = element_key("body", first->name, static_cast<std::size_t>(first - s.bodies.begin())) + ".nodes";
+  check(s, s.simulation.nodes_move(), key, "the mesh's vertices as nodes move with the material: nodes = \"mesh\" "
+        "needs simulation.mode = \"ul\" (mpm's nodes are the fixed grid)");
+  const BasisKind* kind = find_basis_kind(s.basis.kind);
+  check(s, kind && !kind->needs_lattice, "basis.kind", "basis \"", s.basis.kind, "\" needs the nodes of a lattice, and ",
+        "body '", first->name, "' gives the mesh's vertices as nodes (nodes = \"mesh\"): use a basis for node "
+        "clouds (lme or maxent), or nodes = \"lattice\"");
 }
 
 /// Where a box of `key` came from: the --set that changed its lower or
@@ -450,6 +475,7 @@ void check_size(const Scene& s, int processes) {
 
 void validate_bodies(const Scene& s, int dim) {
   check(s, !s.bodies.empty(), "body", "at least one [[body]] is required");
+  check_mesh_nodes(s);
   std::set<std::string> names;
   for (std::size_t i = 0; i < s.bodies.size(); ++i) {
     const BodySection& b = s.bodies[i];
