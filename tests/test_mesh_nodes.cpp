@@ -208,6 +208,18 @@ TEST_CASE("mesh nodes: F-bar patches are the grid's cells at t = 0 (one volume c
   for (const auto& [patch, range] : J) CHECK(range.second - range.first < 1e-12);
 }
 
+TEST_CASE("mesh nodes: a node reset lays the nodes out on the grid's lattice") {
+  Scene s = cube_scene("lme", {"body.cube.velocity=[0.0, 0.0, -200.0]", "simulation.node_reset=0.95",
+                               "simulation.integrator=npc"});
+  s.walls.push_back({"floor", {0, 0, 0}, {0, 0, 1}, {0, 0, 0}, 0.0, {}});
+  Engine<3> e(assemble_parts<3>(s));
+  while (e.node_resets() == 0 && e.steps() < 400) e.step();
+  REQUIRE(e.node_resets() == 1);
+  CHECK(e.basis().nodes().layout() == NodeLayout::cartesian);
+  for (int n = 0; n < 10; ++n) e.step(); // and it goes on, on the lattice
+  for (int p = 0; p < e.particles().size(); ++p) REQUIRE(e.particles().x[p].allFinite());
+}
+
 TEST_CASE("mesh nodes: refused with a lattice basis, in mpm mode, with a body on the lattice, under mpirun") {
   for (const BasisKind& k : basis_kinds()) {
     if (!k.needs_lattice) continue;
