@@ -114,6 +114,21 @@ TEST_CASE("mesh nodes: the vertices are the nodes, each element one particle at 
   }
 }
 
+TEST_CASE("mesh nodes: two bodies of one mesh share the vertices of their interface (2D)") {
+  const std::string dir = std::string(OTMPM_SOURCE_DIR) + "/examples/geometry/";
+  const Scene s = load_scene(dir + "embankment.toml", {"simulation.mode=ul", "basis.kind=lme", "body.core.nodes=mesh",
+                                                       "body.shoulders.nodes=mesh"});
+  const EngineParts<2> parts = assemble_parts<2>(s);
+  const MeshBody<2> core = read_mesh_body<2>(dir + "embankment.msh", "core", Placement{});
+  const MeshBody<2> fill = read_mesh_body<2>(dir + "embankment.msh", "fill", Placement{});
+  const MeshBody<2> all = read_mesh_body<2>(dir + "embankment.msh", "", Placement{});
+  CHECK(parts.basis->nodes().size() == static_cast<int>(all.vertices.size()));
+  CHECK(all.vertices.size() < core.vertices.size() + fill.vertices.size()); // the interface, once
+  CHECK(parts.particles.size() == static_cast<int>(core.elements.size() + fill.elements.size()));
+  CHECK(parts.dirichlet.node.size() > 0); // the base: the vertices on y = 0
+  for (int I : parts.dirichlet.node) CHECK(parts.basis->nodes().position(I)[1] == doctest::Approx(0.0));
+}
+
 TEST_CASE("mesh nodes: the cloud bases reproduce linear fields at the particles, also after a homogeneous "
           "deformation (patch test)") {
   Mat<3> F; // a stretch with shear, and a translation
