@@ -250,6 +250,11 @@ TEST_CASE("mesh nodes: refused with a lattice basis, in mpm mode, with a body on
       CHECK(std::string(err.what()).find("cube.toml") != std::string::npos);
     }
   }
+  CHECK_THROWS_WITH_AS(cube_scene("lme", {"body.cube.nodes=vertices"}), doctest::Contains("body.cube.nodes"),
+                       InputError);
+  Scene coded = cube_scene("lme"); // a scene changed in code: validate_scene's check
+  coded.bodies[0].nodes = "vertices";
+  CHECK_THROWS_WITH_AS(assemble_parts<3>(coded), doctest::Contains("must be \"lattice\" or \"mesh\""), InputError);
   CHECK_THROWS_WITH_AS(cube_scene("lme", {"simulation.mode=mpm"}),
                        doctest::Contains("nodes = \"mesh\" needs simulation.mode = \"ul\""), InputError);
   Scene mixed = cube_scene("lme");

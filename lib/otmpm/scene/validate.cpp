@@ -209,6 +209,8 @@ void check_shape(const Scene& s, const BodySection& b, const std::string& key, i
           b.shape == "mesh" ? "2 or 3" : "3");
     check(s, one_of(b.seeding, {"element", "quadrature"}), key + ".seeding",
           "must be \"element\" or \"quadrature\" (got \"", b.seeding, "\")");
+    check(s, one_of(b.nodes, {"lattice", "mesh"}), key + ".nodes", "must be \"lattice\" or \"mesh\" (got \"",
+          b.nodes, "\")");
     for (int k = 0; k < 3; ++k)
       check(s, finite_positive(b.scale[static_cast<std::size_t>(k)]) && std::isfinite(b.rotate[static_cast<std::size_t>(k)]) &&
                    std::isfinite(b.translate[static_cast<std::size_t>(k)]),
@@ -224,7 +226,6 @@ void check_mesh_nodes(const Scene& s) {
   for (std::size_t i = 0; i < s.bodies.size(); ++i) {
     const BodySection& b = s.bodies[i];
     const std::string key = element_key("body", b.name, i) + ".nodes";
-    check(s, one_of(b.nodes, {"lattice", "mesh"}), key, "must be \"lattice\" or \"mesh\" (got \"", b.nodes, "\")");
     check(s, b.nodes != "mesh" || b.shape == "mesh", key, "\"mesh\" takes the vertices of a mesh body's elements "
           "as nodes: it needs shape = \"mesh\" (got \"", b.shape, "\")");
     check(s, b.nodes == "mesh", key, "body '", first->name, "' takes its mesh's vertices as the nodes, body '",
@@ -235,9 +236,12 @@ void check_mesh_nodes(const Scene& s) {
   check(s, s.simulation.nodes_move(), key, "the mesh's vertices as nodes move with the material: nodes = \"mesh\" "
         "needs simulation.mode = \"ul\" (mpm's nodes are the fixed grid)");
   const BasisKind* kind = find_basis_kind(s.basis.kind);
+  std::string clouds; // the families for node clouds
+  for (const BasisKind& k : basis_kinds())
+    if (!k.needs_lattice) clouds += (clouds.empty() ? "" : ", ") + std::string(k.name);
   check(s, kind && !kind->needs_lattice, "basis.kind", "basis \"", s.basis.kind, "\" needs the nodes of a lattice, and ",
         "body '", first->name, "' gives the mesh's vertices as nodes (nodes = \"mesh\"): use a basis for node "
-        "clouds (lme or maxent), or nodes = \"lattice\"");
+        "clouds (", clouds, "), or nodes = \"lattice\"");
 }
 
 /// Where a box of `key` came from: the --set that changed its lower or
