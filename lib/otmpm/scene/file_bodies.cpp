@@ -54,12 +54,23 @@ template <int D> MeshNodes<D> mesh_body_nodes(const std::vector<BodySection>& bo
   double volume = 0.0;
   for (const BodySection& b : bodies) {
     const MeshBody<D> mesh = read_mesh_body<D>(b.file, b.physical, body_placement(b));
-    for (const Vec<D>& x : mesh.vertices) {
+    std::vector<int> node(mesh.vertices.size()); // vertex -> node
+    for (std::size_t v = 0; v < node.size(); ++v) {
+      const Vec<D>& x = mesh.vertices[v];
       std::array<double, D> key;
       for (int k = 0; k < D; ++k) key[static_cast<std::size_t>(k)] = x[k];
-      if (seen.try_emplace(key, static_cast<int>(out.x.size())).second) out.x.push_back(x);
+      const auto [it, fresh] = seen.try_emplace(key, static_cast<int>(out.x.size()));
+      if (fresh) out.x.push_back(x);
+      node[v] = it->second;
     }
-    for (const MeshElement<D>& e : mesh.elements) volume += element_points<D>(e, false).front().volume;
+    for (std::size_t e = 0; e < mesh.elements.size(); ++e) {
+      volume += element_points<D>(mesh.elements[e], false).front().volume;
+      ElementNodes el;
+      el.corners = element_corners(mesh.elements[e].kind);
+      for (int a = 0; a < el.corners; ++a)
+        el.node[static_cast<std::size_t>(a)] = node[static_cast<std::size_t>(mesh.corners[e][static_cast<std::size_t>(a)])];
+      out.elements.push_back(el);
+    }
   }
   out.spacing = std::pow(volume / static_cast<double>(out.x.size()), 1.0 / D);
   return out;

@@ -4,6 +4,7 @@
 /// surface; `shape = "mesh"`: the elements of a Gmsh mesh), read by the
 /// scene reader (bounds, particle count, the file's checks), the assembler
 /// (their shape and particles) and run --check (their volumes).
+#include "otmpm/basis/mesh_elements.hpp"
 #include "otmpm/geometry/file_shapes.hpp"
 #include "otmpm/scene/scene.hpp"
 
@@ -27,10 +28,12 @@ inline bool mesh_nodes(const Scene& s) {
 /// (nodes = "mesh"): the bodies' vertices, each position once (two bodies
 /// of one mesh share the vertices of their interface), in body and file
 /// order; `spacing` h = (V / n)^(1/D), V the bodies' volume and n the
-/// vertices - the spacing of a lattice with as many nodes per volume.
+/// vertices - the spacing of a lattice with as many nodes per volume; the
+/// bodies' elements on these nodes.
 template <int D> struct MeshNodes {
   AlignedVector<Vec<D>> x;
   double spacing = 0.0;
+  std::vector<ElementNodes> elements;
 };
 template <int D> MeshNodes<D> mesh_body_nodes(const std::vector<BodySection>& bodies);
 

@@ -236,12 +236,12 @@ void check_mesh_nodes(const Scene& s) {
   check(s, s.simulation.nodes_move(), key, "the mesh's vertices as nodes move with the material: nodes = \"mesh\" "
         "needs simulation.mode = \"ul\" (mpm's nodes are the fixed grid)");
   const BasisKind* kind = find_basis_kind(s.basis.kind);
-  std::string clouds; // the families for node clouds
+  std::string takes; // the families that take a mesh's vertices: on its elements, or as a cloud
   for (const BasisKind& k : basis_kinds())
-    if (!k.needs_lattice) clouds += (clouds.empty() ? "" : ", ") + std::string(k.name);
-  check(s, kind && !kind->needs_lattice, "basis.kind", "basis \"", s.basis.kind, "\" needs the nodes of a lattice, and ",
-        "body '", first->name, "' gives the mesh's vertices as nodes (nodes = \"mesh\"): use a basis for node "
-        "clouds (", clouds, "), or nodes = \"lattice\"");
+    if (k.mesh_elements || !k.needs_lattice) takes += (takes.empty() ? "" : ", ") + std::string(k.name);
+  check(s, kind && (kind->mesh_elements || !kind->needs_lattice), "basis.kind", "basis \"", s.basis.kind,
+        "\" needs the nodes of a lattice, and body '", first->name, "' gives the mesh's vertices as nodes (nodes = "
+        "\"mesh\"): use ", takes, ", or nodes = \"lattice\"");
 }
 
 /// Where a box of `key` came from: the --set that changed its lower or
