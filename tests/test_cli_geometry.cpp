@@ -1,7 +1,7 @@
 // Bodies from geometry files through the otmpm command: the STL impactor
 // (3D) and the Gmsh embankment (2D) of examples/geometry run in both node
 // modes, the tetrahedral bracket (3D) with its mesh's vertices as the nodes
-// and on the lattice, `run --check` reports their seeded volumes against their shapes',
+// (lme, linear on its tetrahedra) and on the lattice, `run --check` reports their seeded volumes against their shapes',
 // and bad files end the run with exit status 2 and a message naming the
 // file and the triangle or element.
 #include "cli_support.hpp"
@@ -52,10 +52,10 @@ TEST_CASE("geometry examples: the STL impactor and the mesh embankment run in bo
                                   " --set simulation.t_end=0.1");
     CHECK_MESSAGE(embankment.status == 0, embankment.output);
   }
-  for (const std::string nodes : {"mesh", "lattice"}) { // as written (the mesh's nodes), and on the lattice
+  // as written (lme on the mesh's nodes), on the tetrahedra's own shape functions, and on the lattice
+  for (const std::string variant : {"body.bracket.nodes=mesh", "basis.kind=linear", "body.bracket.nodes=lattice"}) {
     const auto bracket = shell("OMP_NUM_THREADS=1 " + quote(kBinary) + " run " + quote(kExamples + "bracket.toml") +
-                               " --quiet --out " + quote(dir.file("bracket_" + nodes + ".h5")) +
-                               " --set body.bracket.nodes=" + nodes);
+                               " --quiet --force --out " + quote(dir.file("bracket.h5")) + " --set " + variant);
     CHECK_MESSAGE(bracket.status == 0, bracket.output);
   }
 }
