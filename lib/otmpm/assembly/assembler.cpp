@@ -44,21 +44,29 @@ template <int D> void allocate_fields(const Scene& scene, const EngineParts<D>& 
     for (const StateSpec& s : m->state()) P.add_state(std::string(s.name), s.width, s.initial.data());
 }
 
-/// The basis of the scene on the mesh bodies' vertices (nodes = "mesh": a
-/// cloud; a family that takes the mesh's elements on them, or one for
-/// clouds), else on the node lattice.
+/// The nodes of the scene: the node lattice, or with nodes = "mesh" the
+/// mesh bodies' vertices (a cloud) and their elements (`elements`).
+template <int D>
+NodeSet<D> scene_nodes(const Scene& scene, const CartesianGrid<D>& grid, std::vector<ElementNodes>& elements) {
+  if constexpr (D > 1)
+    if (mesh_nodes(scene)) {
+      MeshNodes<D> mesh = mesh_body_nodes<D>(scene.bodies);
+      elements = std::move(mesh.elements);
+      return NodeSet<D>::cloud(std::move(mesh.x), mesh.spacing);
+    }
+  return scene.grid.kind == "perturbed" ? NodeSet<D>::perturbed(grid, scene.grid.perturbation, scene.grid.seed)
+                                        : NodeSet<D>::cartesian(grid);
+}
+
+/// The basis of the scene on its nodes (scene_nodes): on a mesh's vertices
+/// the family on the mesh's elements when it takes them, else on the cloud.
 template <int D> std::unique_ptr<Basis<D>> build_basis(const Scene& scene, const CartesianGrid<D>& grid) {
+  std::vector<ElementNodes> elements;
+  NodeSet<D> nodes = scene_nodes<D>(scene, grid, elements);
   try {
     if constexpr (D > 1)
-      if (mesh_nodes(scene)) {
-        MeshNodes<D> mesh = mesh_body_nodes<D>(scene.bodies);
-        NodeSet<D> cloud = NodeSet<D>::cloud(std::move(mesh.x), mesh.spacing);
-        if (basis_kind(scene.basis.kind).mesh_elements) return make_element_basis<D>(std::move(cloud), std::move(mesh.elements));
-        return make_basis<D>(basis_options<D>(scene), std::move(cloud));
-      }
-    NodeSet<D> nodes = scene.grid.kind == "perturbed"
-                           ? NodeSet<D>::perturbed(grid, scene.grid.perturbation, scene.grid.seed)
-                           : NodeSet<D>::cartesian(grid);
+      if (!elements.empty() && basis_kind(scene.basis.kind).mesh_elements)
+        return make_element_basis<D>(std::move(nodes), std::move(elements));
     return make_basis<D>(basis_options<D>(scene), std::move(nodes));
   } catch (const InputError& e) {
     input_error(scene.basis_where, e.what());
