@@ -4,6 +4,7 @@
 
 #include <Eigen/LU>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -86,6 +87,7 @@ public:
       for (int a = 0; a < elements_[e].corners; ++a)
         node_elements_[static_cast<std::size_t>(count[static_cast<std::size_t>(elements_[e].node[static_cast<std::size_t>(a)])]++)] =
             static_cast<int>(e);
+    build_buckets();
   }
 
   std::string_view kind() const override { return "linear"; }
@@ -144,13 +146,23 @@ private:
     return std::numeric_limits<double>::infinity();
   }
 
-  /// The element that holds x (its xi): the hinted one, else a walk over
-  /// neighbours (elements sharing a node) that goes on while it gets
-  /// nearer; when the walk stops farther than kElementSlack outside, the
+  /// The element that holds x (its xi): the hinted one (or, when x is more
+  /// than an element from it, the best of those whose box as read meets the
+  /// bucket of x), else a walk over neighbours (elements sharing a node)
+  /// that goes on while it gets nearer; when the walk stops farther than kElementSlack outside, the
   /// first of all elements that holds it, or the nearest. BasisError when
   /// that one is farther than kElementSlack too.
   int locate(const PointQuery<D>& q, int e, Vec<D>& xi) const {
     double d = local(e, q.x, xi);
+    if (d > 1.0) { // more than an element away: start from the bucket of x (the mesh as read)
+      const long long c = flat(cell_of(q.x));
+      for (int k = bucket_start_[static_cast<std::size_t>(c)]; d > 0.0 && k < bucket_start_[static_cast<std::size_t>(c) + 1]; ++k) {
+        Vec<D> y;
+        const int f = bucket_elements_[static_cast<std::size_t>(k)];
+        const double df = local(f, q.x, y);
+        if (df < d) e = f, d = df, xi = y;
+      }
+    }
     for (std::size_t walk = 0; d > 0.0 && walk < elements_.size(); ++walk) {
       int best = -1;
       double best_d = d;
@@ -179,8 +191,56 @@ private:
     return e;
   }
 
+  /// The bucket grid of the elements' boxes as the nodes stand now (at
+  /// construction: the mesh as read), about one element per cell.
+  void build_buckets() {
+    std::vector<std::pair<Vec<D>, Vec<D>>> box(elements_.size());
+    lo_ = Vec<D>::Constant(std::numeric_limits<double>::infinity());
+    Vec<D> hi = -lo_;
+    for (std::size_t e = 0; e < elements_.size(); ++e) {
+      box[e] = {corner(elements_[e], 0), corner(elements_[e], 0)};
+      for (int a = 1; a < elements_[e].corners; ++a)
+        box[e] = {box[e].first.cwiseMin(corner(elements_[e], a)), box[e].second.cwiseMax(corner(elements_[e], a))};
+      lo_ = lo_.cwiseMin(box[e].first), hi = hi.cwiseMax(box[e].second);
+    }
+    const int per_axis = std::max(1, static_cast<int>(std::round(std::pow(static_cast<double>(elements_.size()), 1.0 / D))));
+    cells_.fill(per_axis);
+    cell_ = ((hi - lo_) / per_axis).cwiseMax(Vec<D>::Constant(std::numeric_limits<double>::min()));
+    std::vector<std::vector<int>> lists(static_cast<std::size_t>(std::pow(per_axis, D)));
+    for (std::size_t e = 0; e < box.size(); ++e) {
+      const Index<D> a = cell_of(box[e].first), b = cell_of(box[e].second);
+      Index<D> c = a;
+      while (true) { // every cell of [a, b]
+        lists[static_cast<std::size_t>(flat(c))].push_back(static_cast<int>(e));
+        int k = 0;
+        while (k < D && c[k] == b[k]) c[k] = a[k], ++k;
+        if (k == D) break;
+        ++c[k];
+      }
+    }
+    bucket_start_.assign(1, 0);
+    for (const std::vector<int>& l : lists) {
+      bucket_elements_.insert(bucket_elements_.end(), l.begin(), l.end());
+      bucket_start_.push_back(static_cast<int>(bucket_elements_.size()));
+    }
+  }
+  Index<D> cell_of(const Vec<D>& x) const {
+    Index<D> c;
+    for (int k = 0; k < D; ++k)
+      c[k] = std::clamp(static_cast<int>(std::floor((x[k] - lo_[k]) / cell_[k])), 0, cells_[k] - 1);
+    return c;
+  }
+  long long flat(const Index<D>& c) const {
+    long long f = 0;
+    for (int k = D - 1; k >= 0; --k) f = f * cells_[k] + c[k];
+    return f;
+  }
+
   NodeSet<D> nodes_;
   std::vector<ElementNodes> elements_;
+  Vec<D> lo_, cell_;
+  Index<D> cells_{};
+  std::vector<int> bucket_start_, bucket_elements_; ///< CSR: the elements whose box meets each cell
   std::vector<int> start_;         ///< CSR: the elements of node I are node_elements_[start_[I] .. start_[I+1])
   std::vector<int> node_elements_;
 };
