@@ -42,7 +42,8 @@ terzaghi|--field pore_pressure --frame 4
 mandel|--field pore_pressure --frame 8
 traction_bar|--field stress
 geometry/impactor|--field plastic_strain --view xz
-geometry/embankment|--field plastic_strain'
+geometry/embankment|--field plastic_strain
+geometry/bracket|--field plastic_strain --view xz'
 
 status=0
 # every example scene is in the list, and in docs/gallery.md

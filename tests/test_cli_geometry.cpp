@@ -1,6 +1,7 @@
 // Bodies from geometry files through the otmpm command: the STL impactor
 // (3D) and the Gmsh embankment (2D) of examples/geometry run in both node
-// modes, `run --check` reports their seeded volumes against their shapes',
+// modes, the tetrahedral bracket (3D) with its mesh's vertices as the nodes
+// (lme, linear on its tetrahedra) and on the lattice, `run --check` reports their seeded volumes against their shapes',
 // and bad files end the run with exit status 2 and a message naming the
 // file and the triangle or element.
 #include "cli_support.hpp"
@@ -51,6 +52,12 @@ TEST_CASE("geometry examples: the STL impactor and the mesh embankment run in bo
                                   " --set simulation.t_end=0.1");
     CHECK_MESSAGE(embankment.status == 0, embankment.output);
   }
+  // as written (lme on the mesh's nodes), on the tetrahedra's own shape functions, and on the lattice
+  for (const std::string variant : {"body.bracket.nodes=mesh", "basis.kind=linear", "body.bracket.nodes=lattice"}) {
+    const auto bracket = shell("OMP_NUM_THREADS=1 " + quote(kBinary) + " run " + quote(kExamples + "bracket.toml") +
+                               " --quiet --force --out " + quote(dir.file("bracket.h5")) + " --set " + variant);
+    CHECK_MESSAGE(bracket.status == 0, bracket.output);
+  }
 }
 
 TEST_CASE("geometry examples: run --check reports the seeded volume against the shape's") {
@@ -59,6 +66,13 @@ TEST_CASE("geometry examples: run --check reports the seeded volume against the 
   CHECK(std::abs(volume_error(emb.output, "core")) < 1e-9); // element volumes: exact
   CHECK(std::abs(volume_error(emb.output, "shoulders")) < 1e-9);
   CHECK(has(emb.output, "particles  322\n")); // one per element: 40 quadrangles, 282 triangles
+  // the bracket's tetrahedra: the L-shaped solid's exact volume (20 x 6 + 6 x 14) x 10 mm^3, its 241
+  // vertices the nodes
+  const auto bracket = shell(quote(kBinary) + " run --check " + quote(kExamples + "bracket.toml"));
+  REQUIRE_MESSAGE(bracket.status == 0, bracket.output);
+  CHECK(std::abs(volume_error(bracket.output, "bracket")) < 1e-9);
+  CHECK_MESSAGE(has(bracket.output, "particles 2.04e-06, shape 2.04e-06"), bracket.output);
+  CHECK(has(bracket.output, "nodes      241\n"));
   // the impactor at h = 1 mm (2 particles per cell per axis): within 1 %, closer at h = 0.5 mm
   const auto coarse = shell(quote(kBinary) + " run --check " + quote(kExamples + "impactor.toml"));
   const auto fine = shell(quote(kBinary) + " run --check " + quote(kExamples + "impactor.toml") +

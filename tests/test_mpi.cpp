@@ -650,6 +650,19 @@ TEST_CASE("mpi: a bad scene ends every rank with status 2 and one message") {
   CHECK(r.err == "otmpm: error: --set simulation.cfl: must be > 0 (got -1)\n");
 }
 
+TEST_CASE("mpi: a mesh's vertices as the nodes (nodes = \"mesh\") are refused under mpirun, naming the key") {
+  TempDir dir("mpi_mesh_nodes");
+  const Result r = run_otmpm(dir, 2, {"run", (kExamples / "geometry" / "bracket.toml").string(), "--quiet"});
+  CHECK(r.status == 2);
+  CHECK_MESSAGE(r.err.find("key 'body.bracket.nodes': the mesh's vertices as nodes run in one process only") !=
+                    std::string::npos,
+                r.err);
+  CHECK(r.err.find("otmpm: error:") == r.err.rfind("otmpm: error:")); // once, not per rank
+  const Result check = run_otmpm(dir, 2, {"run", "--check", (kExamples / "geometry" / "bracket.toml").string()});
+  CHECK(check.status == 2);
+  CHECK(check.err.find("run in one process only") != std::string::npos);
+}
+
 TEST_CASE("mpi: ranks without particles write checkpoints and restart (a body of one cell on 4 ranks)") {
   // The bisection gives 3 of 4 ranks no particle: they save no particle
   // field, and the gathered checkpoint needs every array from every rank

@@ -8,6 +8,7 @@
 #include "otmpm/materials/pore_fluid.hpp"
 #include "otmpm/reference/exact.hpp"
 #include "otmpm/reference/solutions.hpp"
+#include "otmpm/scene/file_bodies.hpp"
 #include "otmpm/scene/validate.hpp"
 
 #include <algorithm>
@@ -43,11 +44,29 @@ template <int D> void allocate_fields(const Scene& scene, const EngineParts<D>& 
     for (const StateSpec& s : m->state()) P.add_state(std::string(s.name), s.width, s.initial.data());
 }
 
-/// The basis of the scene on the node lattice.
+/// The nodes of the scene: the node lattice, or with nodes = "mesh" the
+/// mesh bodies' vertices (a cloud) and their elements (`elements`).
+template <int D>
+NodeSet<D> scene_nodes(const Scene& scene, const CartesianGrid<D>& grid, std::vector<ElementNodes>& elements) {
+  if constexpr (D > 1)
+    if (mesh_nodes(scene)) {
+      MeshNodes<D> mesh = mesh_body_nodes<D>(scene.bodies);
+      elements = std::move(mesh.elements);
+      return NodeSet<D>::cloud(std::move(mesh.x), mesh.spacing);
+    }
+  return scene.grid.kind == "perturbed" ? NodeSet<D>::perturbed(grid, scene.grid.perturbation, scene.grid.seed)
+                                        : NodeSet<D>::cartesian(grid);
+}
+
+/// The basis of the scene on its nodes (scene_nodes): on a mesh's vertices
+/// the family on the mesh's elements when it takes them, else on the cloud.
 template <int D> std::unique_ptr<Basis<D>> build_basis(const Scene& scene, const CartesianGrid<D>& grid) {
-  NodeSet<D> nodes = scene.grid.kind == "perturbed" ? NodeSet<D>::perturbed(grid, scene.grid.perturbation, scene.grid.seed)
-                                                    : NodeSet<D>::cartesian(grid);
+  std::vector<ElementNodes> elements;
+  NodeSet<D> nodes = scene_nodes<D>(scene, grid, elements);
   try {
+    if constexpr (D > 1)
+      if (!elements.empty() && basis_kind(scene.basis.kind).mesh_elements)
+        return make_element_basis<D>(std::move(nodes), std::move(elements));
     return make_basis<D>(basis_options<D>(scene), std::move(nodes));
   } catch (const InputError& e) {
     input_error(scene.basis_where, e.what());
@@ -355,13 +374,15 @@ EngineParts<D> assemble_parts(const Scene& scene,
   for (int p = 0; p < P.size(); ++p)
     if (scene.bodies[static_cast<std::size_t>(P.body[p])].velocity_profile.value_or("") == "reference")
       P.v[p] = exact->velocity(P.X[p], 0.0);
-  const double h = grid.h().minCoeff();
+  double h = grid.h().minCoeff();
   if (lattice) {
     LatticePart<D> part = lattice(grid);
     parts.basis = std::move(part.basis);
     parts.dirichlet = std::move(part.dirichlet);
   } else {
     parts.basis = build_basis<D>(scene, grid);
+    // mesh nodes: h of the time step is the shortest distance between two vertices
+    if (mesh_nodes(scene)) h = parts.basis->nodes().min_spacing();
     parts.dirichlet = build_dirichlet<D>(scene, parts.basis->nodes(), h);
   }
   for (const WallSection& w : scene.walls)

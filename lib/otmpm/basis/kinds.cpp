@@ -69,7 +69,9 @@ LatticeReach radius_reach(double radius, double h) {
     .window1 = bspline_window<1, P>, .window2 = bspline_window<2, P>, .window3 = bspline_window<3, P>
 const std::array kKinds{
     BasisKind{.name = "linear",
-              .description = "tensor-product hat functions; isoparametric Q4/Q8 on a perturbed or moving lattice",
+              .description = "tensor-product hat functions; isoparametric Q4/Q8 on a perturbed or moving lattice; "
+                             "a mesh's own elements on its vertices",
+              .mesh_elements = true,
               .stencil_nodes = tensor_stencil<2>,
               .reach = corners,
               OTMPM_FACTORIES(linear)},

@@ -49,6 +49,9 @@ struct BasisKind {
   bool cartesian_only = false;
   /// A B-spline family (the unified integrator needs one).
   bool bspline = false;
+  /// On a mesh's vertices (a body with nodes = "mesh") it takes the mesh's
+  /// own elements as its shape functions (linear: make_element_basis).
+  bool mesh_elements = false;
   /// Uses the size of the particles (uGIMP: half-width l_p = h / (2 n_ppc) per axis).
   bool particle_size = false;
   /// Searches the nodes within a radius (Verlet lists) and keeps a Lagrange

@@ -286,9 +286,20 @@ EngineParts<D> finish_parts(const Comm& comm, EngineParts<D> parts, typename Dom
   return parts;
 }
 
+/// InputError for a scene whose nodes are its mesh bodies' vertices
+/// (nodes = "mesh"): a distributed run splits a lattice of nodes.
+void require_lattice_nodes(const Scene& scene) {
+  for (std::size_t i = 0; i < scene.bodies.size(); ++i)
+    if (scene.bodies[i].nodes == "mesh")
+      input_error(scene.locate("body." + scene.bodies[i].name + ".nodes"),
+                  "the mesh's vertices as nodes run in one process only (a distributed run divides the cells of "
+                  "a node lattice among its ranks): run without mpirun, or use nodes = \"lattice\"");
+}
+
 } // namespace
 
 template <int D> EngineParts<D> seeded_parts(const Scene& scene, const Comm& comm) {
+  require_lattice_nodes(scene);
   typename Domain<D>::Setup setup;
   ShareSeeding<D> share;
   auto seed = [&](const Vec<D>& h, const CartesianGrid<D>& grid) {
@@ -321,6 +332,7 @@ template <int D> EngineParts<D> seeded_parts(const Scene& scene, const Comm& com
 }
 
 template <int D> RankPlan plan_ranks(const Scene& scene, const Comm& comm) {
+  require_lattice_nodes(scene);
   const CartesianGrid<D> grid = node_grid<D>(scene);
   ShareSeeding<D> share;
   RankPlan plan;
@@ -480,6 +492,7 @@ template <int D> EngineParts<D> rank_parts(const Scene& scene, const Comm& comm)
 
 template <int D>
 EngineParts<D> restart_parts(const Scene& scene, const Comm& comm, const Checkpoint& ck, Checkpoint& rows) {
+  require_lattice_nodes(scene);
   typename Domain<D>::Setup setup;
   const CartesianGrid<D> grid = node_grid<D>(scene);
   const long long n = checkpoint_rows(ck, RowKind::particle);

@@ -25,7 +25,9 @@ constexpr int kStressBatch = 64;
 /// ul: a node lighter than this fraction of the heaviest node moves with
 /// the material it carries (Engine::advect_nodes). The lattice a body fills
 /// has none (its lightest node, a corner, carries 1/2^D of the heaviest);
-/// a node the material barely reaches carries far less.
+/// a node the material barely reaches carries far less. The rule asks
+/// nothing of the layout: on a node cloud (a mesh's vertices) it moves a
+/// light node by its material's mass-weighted displacement alike.
 constexpr double kLightNode = 1e-2;
 
 /// The Dirichlet set repeated on every one of `fields` copies of `nodes` nodes.

@@ -3,7 +3,10 @@
 #include "otmpm/scene/file_bodies.hpp"
 
 #include <algorithm>
+#include <array>
+#include <cmath>
 #include <limits>
+#include <map>
 
 namespace otmpm {
 
@@ -31,7 +34,9 @@ void seed_mesh_body(const BodySection& b, const ElementUnion<D>& shape,
 namespace {
 
 template <int D> void read_mesh(BodySection& b) {
-  const std::unique_ptr<ElementUnion<D>> shape = mesh_body_shape<D>(b);
+  MeshBody<D> mesh = read_mesh_body<D>(b.file, b.physical, body_placement(b));
+  b.file_vertices = static_cast<long long>(mesh.vertices.size());
+  const auto shape = std::make_unique<ElementUnion<D>>(std::move(mesh.elements));
   Vec<D> lo, hi;
   shape->bounds(lo, hi);
   for (int k = 0; k < D; ++k) b.lower[k] = lo[k], b.upper[k] = hi[k];
@@ -42,6 +47,34 @@ template <int D> void read_mesh(BodySection& b) {
 }
 
 } // namespace
+
+template <int D> MeshNodes<D> mesh_body_nodes(const std::vector<BodySection>& bodies) {
+  MeshNodes<D> out;
+  std::map<std::array<double, D>, int> seen; // a position -> its node
+  double volume = 0.0;
+  for (const BodySection& b : bodies) {
+    const MeshBody<D> mesh = read_mesh_body<D>(b.file, b.physical, body_placement(b));
+    std::vector<int> node(mesh.vertices.size()); // vertex -> node
+    for (std::size_t v = 0; v < node.size(); ++v) {
+      const Vec<D>& x = mesh.vertices[v];
+      std::array<double, D> key;
+      for (int k = 0; k < D; ++k) key[static_cast<std::size_t>(k)] = x[k];
+      const auto [it, fresh] = seen.try_emplace(key, static_cast<int>(out.x.size()));
+      if (fresh) out.x.push_back(x);
+      node[v] = it->second;
+    }
+    for (std::size_t e = 0; e < mesh.elements.size(); ++e) {
+      volume += element_points<D>(mesh.elements[e], false).front().volume;
+      ElementNodes el;
+      el.corners = element_corners(mesh.elements[e].kind);
+      for (int a = 0; a < el.corners; ++a)
+        el.node[static_cast<std::size_t>(a)] = node[static_cast<std::size_t>(mesh.corners[e][static_cast<std::size_t>(a)])];
+      out.elements.push_back(el);
+    }
+  }
+  out.spacing = std::pow(volume / static_cast<double>(out.x.size()), 1.0 / D);
+  return out;
+}
 
 void read_geometry_file(BodySection& b, int dim) {
   if (b.shape == "stl") {
@@ -59,6 +92,8 @@ void read_geometry_file(BodySection& b, int dim) {
 
 template std::unique_ptr<ElementUnion<2>> mesh_body_shape<2>(const BodySection&);
 template std::unique_ptr<ElementUnion<3>> mesh_body_shape<3>(const BodySection&);
+template MeshNodes<2> mesh_body_nodes<2>(const std::vector<BodySection>&);
+template MeshNodes<3> mesh_body_nodes<3>(const std::vector<BodySection>&);
 template void seed_mesh_body<2>(const BodySection&, const ElementUnion<2>&,
                                 const std::function<void(const Vec<2>&, double)>&);
 template void seed_mesh_body<3>(const BodySection&, const ElementUnion<3>&,

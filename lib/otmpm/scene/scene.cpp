@@ -225,6 +225,11 @@ double body_particles(const BodySection& b, const GridSection& g, int dim) {
 
 /// The nodes of the engine's node set (see SceneSize).
 double node_count(const Scene& s) {
+  if (mesh_nodes(s)) { // the bodies' vertices (those two bodies share counted twice)
+    double n = 0;
+    for (const BodySection& b : s.bodies) n += static_cast<double>(b.file_vertices);
+    return n;
+  }
   const LatticeBox box = node_lattice_box(s);
   double n = 1;
   for (int k = 0; k < s.simulation.dimension; ++k) n *= box.cells[k] + 1;
@@ -345,7 +350,7 @@ const std::map<std::string, std::vector<std::string_view>, std::less<>> kShapeKe
     {"polygon", {"vertices"}},
     {"file", {"file"}},
     {"stl", {"file", "scale", "rotate", "translate"}},
-    {"mesh", {"file", "physical", "seeding", "scale", "rotate", "translate"}}};
+    {"mesh", {"file", "physical", "seeding", "nodes", "scale", "rotate", "translate"}}};
 
 /// A value > 0 that the shape needs.
 double positive_required(const TableReader& t, std::string_view key) {
@@ -414,6 +419,7 @@ void read_geometry_file_body(const TableReader& t, BodySection& b, const Scene& 
   if (b.shape == "mesh") {
     b.physical = t.get<std::string>("physical", "");
     b.seeding = t.choice("seeding", b.seeding, {"element", "quadrature"});
+    b.nodes = t.choice("nodes", b.nodes, {"lattice", "mesh"});
   }
   read_placement(t, dim, b.scale, b.rotate, b.translate);
   try {

@@ -109,6 +109,11 @@ struct BodySection {
   double file_min_density = 0.0, file_max_speed = 0.0;
   std::string physical;                ///< mesh: the physical group of its elements (name or number; "": all)
   std::string seeding = "element";     ///< mesh: "element" (one point per element) | "quadrature"
+  /// mesh, `ul` mode: "lattice" (the nodes on the lattice, as for every
+  /// shape) | "mesh" (the mesh's vertices are the nodes: the classic OTM
+  /// discretisation, a node cloud for the max-ent bases)
+  std::string nodes = "lattice";
+  long long file_vertices = 0;         ///< mesh: the vertices its elements use, read with file_particles
   /// stl, mesh: x = R (scale .* x_file) + translate, R the rotations about
   /// x, then y, then z by rotate's angles in degrees (2D: about z only)
   Vec3 scale{1, 1, 1}, rotate{0, 0, 0}, translate{0, 0, 0};

@@ -114,6 +114,7 @@ void insert_shape(toml::table& t, const BodySection& b, int dim) {
   if (b.shape == "mesh") {
     if (!b.physical.empty()) t.insert("physical", b.physical);
     t.insert("seeding", b.seeding);
+    t.insert("nodes", b.nodes);
   }
 }
 

@@ -10,6 +10,7 @@
 #include "otmpm/materials/material.hpp"
 #include "otmpm/materials/pore_fluid.hpp"
 #include "otmpm/particles/output_fields.hpp"
+#include "otmpm/scene/file_bodies.hpp"
 #include "otmpm/scene/toml_reader.hpp"
 
 #include <algorithm>
@@ -208,11 +209,39 @@ void check_shape(const Scene& s, const BodySection& b, const std::string& key, i
           b.shape == "mesh" ? "2 or 3" : "3");
     check(s, one_of(b.seeding, {"element", "quadrature"}), key + ".seeding",
           "must be \"element\" or \"quadrature\" (got \"", b.seeding, "\")");
+    check(s, one_of(b.nodes, {"lattice", "mesh"}), key + ".nodes", "must be \"lattice\" or \"mesh\" (got \"",
+          b.nodes, "\")");
     for (int k = 0; k < 3; ++k)
       check(s, finite_positive(b.scale[static_cast<std::size_t>(k)]) && std::isfinite(b.rotate[static_cast<std::size_t>(k)]) &&
                    std::isfinite(b.translate[static_cast<std::size_t>(k)]),
             key + ".scale", "scale must be finite and > 0, rotate and translate finite");
   }
+}
+
+/// nodes = "mesh": a mesh body in `ul` mode, every body alike (one node
+/// set), a basis that takes a node cloud (the max-ent families).
+void check_mesh_nodes(const Scene& s) {
+  if (!mesh_nodes(s)) return;
+  const auto first = std::find_if(s.bodies.begin(), s.bodies.end(), [](const BodySection& b) { return b.nodes == "mesh"; });
+  for (std::size_t i = 0; i < s.bodies.size(); ++i) {
+    const BodySection& b = s.bodies[i];
+    const std::string key = element_key("body", b.name, i) + ".nodes";
+    check(s, b.nodes != "mesh" || b.shape == "mesh", key, "\"mesh\" takes the vertices of a mesh body's elements "
+          "as nodes: it needs shape = \"mesh\" (got \"", b.shape, "\")");
+    check(s, b.nodes == "mesh", key, "body '", first->name, "' takes its mesh's vertices as the nodes, body '",
+          b.name, "' its nodes from the lattice: a scene has one node set (give every body shape = \"mesh\" and "
+          "nodes = \"mesh\")");
+  }
+  const std::string key = element_key("body", first->name, static_cast<std::size_t>(first - s.bodies.begin())) + ".nodes";
+  check(s, s.simulation.nodes_move(), key, "the mesh's vertices as nodes move with the material: nodes = \"mesh\" "
+        "needs simulation.mode = \"ul\" (mpm's nodes are the fixed grid)");
+  const BasisKind* kind = find_basis_kind(s.basis.kind);
+  std::string takes; // the families that take a mesh's vertices: on its elements, or as a cloud
+  for (const BasisKind& k : basis_kinds())
+    if (k.mesh_elements || !k.needs_lattice) takes += (takes.empty() ? "" : ", ") + std::string(k.name);
+  check(s, kind && (kind->mesh_elements || !kind->needs_lattice), "basis.kind", "basis \"", s.basis.kind,
+        "\" needs the nodes of a lattice, and body '", first->name, "' gives the mesh's vertices as nodes (nodes = "
+        "\"mesh\"): use ", takes, ", or nodes = \"lattice\"");
 }
 
 /// Where a box of `key` came from: the --set that changed its lower or
@@ -450,6 +479,7 @@ void check_size(const Scene& s, int processes) {
 
 void validate_bodies(const Scene& s, int dim) {
   check(s, !s.bodies.empty(), "body", "at least one [[body]] is required");
+  check_mesh_nodes(s);
   std::set<std::string> names;
   for (std::size_t i = 0; i < s.bodies.size(); ++i) {
     const BodySection& b = s.bodies[i];
