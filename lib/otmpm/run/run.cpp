@@ -9,6 +9,7 @@
 
 #include "otmpm/assembly/assembler.hpp"
 #include "otmpm/distributed/global_view.hpp"
+#include "otmpm/interrupt.hpp"
 #include "otmpm/io/hdf5.hpp"
 #include "otmpm/io/output_files.hpp"
 #include "otmpm/parallel.hpp"
@@ -793,7 +794,7 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
   Recorder<D> rec;
 
   DimRunner(const Scene& s, const RunOptions& opt, const Checkpoint* resume)
-      : options(opt), e(build(s, resume, restart_rows)), exact(make_exact_solution<D>(s)),
+      : options(opt), e(build(s, opt, resume, restart_rows)), exact(make_exact_solution<D>(s)),
         rec(init(s, resume), opt, e, exact.get(), resume) {
     const distributed::GlobalView<D> view(e);
     summary.mode = scene.simulation.mode;
@@ -819,8 +820,13 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
 
   /// This rank's engine of the scene (the whole scene in a serial run); a
   /// distributed restart builds it from its rows of the checkpoint (`rows`).
-  static Engine<D> build(const Scene& s, const Checkpoint* resume, Checkpoint& rows) {
+  /// A serial run stops inside the seeding when opt.interrupt is set
+  /// (InterruptedError, before any file is created); the ranks of a
+  /// distributed run meet in collectives between its loops, so they stop
+  /// at the agreed check after it.
+  static Engine<D> build(const Scene& s, const RunOptions& opt, const Checkpoint* resume, Checkpoint& rows) {
     const auto& comm = distributed::Comm::world();
+    const InterruptPolling polling(comm.size() == 1 ? opt.interrupt : nullptr);
     if (!resume || comm.size() == 1) return Engine<D>(distributed::rank_parts<D>(s, comm));
     return Engine<D>(distributed::restart_parts<D>(s, comm, *resume, rows));
   }
@@ -1102,6 +1108,8 @@ RunSummary set_up_and_run(long step, double t, const RunOptions& options, SceneO
     make(sim);
   } catch (const OutputError& err) {
     return not_started(scene_of(), step, t, "output error: " + diagnosis(err.what(), step, t), kOutputErrorExit);
+  } catch (const InterruptedError&) { // inside the set-up's loops (DimRunner::build): nothing was written
+    return not_started(scene_of(), step, t, "interrupted", kInterruptedExit);
   }
   return run_to_end(*sim, options);
 }
