@@ -89,8 +89,9 @@ int dispatch(CLI::App& app, const std::vector<otmpm::cli::Command>& commands, in
     message = diagnosis("error", e.what());
     return kBadInput;
   } catch (const otmpm::InterruptedError& e) { // a signal inside the scene's reading: nothing was written
-    message = diagnosis("stopped", (std::string(e.what()) + " (" + otmpm::cli::interrupt_signal_name() +
-                                    "); no result file was written").c_str());
+    otmpm::cli::end_progress_line();
+    message = std::string("otmpm: ") + e.what() + " (" + otmpm::cli::interrupt_signal_name() +
+              "); no result file was written";
     return otmpm::cli::interrupted_exit_status();
   } catch (const std::bad_alloc&) { // not a bug: the input asked for more than this machine gives
     message = diagnosis("error", "out of memory: this process could not get the memory the input asks for "
