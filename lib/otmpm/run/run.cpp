@@ -859,9 +859,11 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
   }
 
   /// Runs `f` (a step, a frame); an instability, an output error or memory
-  /// running out ends the run with its status and is rethrown. (A distributed
-  /// run that runs out of memory on one rank cannot agree on a status: the
-  /// error goes up as it is, and the command ends every rank.)
+  /// running out ends the run with its status and is rethrown. A distributed
+  /// run agrees on an allocation that failed inside a stage of a step
+  /// (DeferredOutOfMemory, the same on every rank); one that failed
+  /// elsewhere on one rank cannot be agreed on: the error goes up as it is,
+  /// and the command ends every rank.
   template <class F> void stopping_on_failure(F&& f) {
     try {
       f();
@@ -870,6 +872,10 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
       throw;
     } catch (const OutputError& err) {
       stop_output_error(err);
+      throw;
+    } catch (const DeferredOutOfMemory& err) {
+      stop(kOutOfMemoryStatus + (": " + diagnosis(err.what(), e.steps(), e.time()) + " (" + memory_note(scene) + ")"),
+           kOutputErrorExit);
       throw;
     } catch (const std::bad_alloc&) {
       if (distributed::Comm::world().size() == 1)
@@ -1073,6 +1079,7 @@ RunSummary run_to_end(Simulation& sim, const RunOptions& options) {
     }
   } catch (const InstabilityError&) { // the status is in the summary
   } catch (const OutputError&) {
+  } catch (const DeferredOutOfMemory&) { // every rank of a distributed run, with the same status
   } catch (const std::bad_alloc&) {
     if (!sim.finished()) throw; // a distributed run: no status could be agreed on
   }
