@@ -24,7 +24,7 @@ struct sigaction previous[2];
 
 } // namespace
 
-InterruptHandlers::InterruptHandlers() {
+InterruptHandlers::InterruptHandlers() : polling_(&flag) {
   struct sigaction sa {};
   sa.sa_handler = on_signal;
   sigemptyset(&sa.sa_mask);

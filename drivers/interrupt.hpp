@@ -5,6 +5,11 @@
 /// reads while it waits for its children; the run then stops cleanly (status
 /// "interrupted", a last checkpoint if checkpointing is on). A second signal
 /// of the same kind takes its default action (the process ends at once).
+/// While the handlers are installed, the loops of reading a scene and seeding
+/// its bodies poll the flag too (otmpm::InterruptPolling): a large particle
+/// file stops within a block of rows, with InterruptedError.
+#include "otmpm/interrupt.hpp"
+
 #include <atomic>
 
 namespace otmpm::cli {
@@ -16,6 +21,9 @@ public:
   ~InterruptHandlers();
   InterruptHandlers(const InterruptHandlers&) = delete;
   InterruptHandlers& operator=(const InterruptHandlers&) = delete;
+
+private:
+  InterruptPolling polling_;
 };
 
 /// The flag the handlers set (false until a signal arrives).

@@ -11,6 +11,7 @@
 // Under mpirun (or srun) `run` and `pair` run distributed over the ranks;
 // every rank ends with the same status and one rank prints the diagnosis.
 #include "cli.hpp"
+#include "interrupt.hpp"
 #include "progress.hpp"
 
 #include "otmpm/core.hpp"
@@ -87,6 +88,11 @@ int dispatch(CLI::App& app, const std::vector<otmpm::cli::Command>& commands, in
   } catch (const otmpm::BasisError& e) {
     message = diagnosis("error", e.what());
     return kBadInput;
+  } catch (const otmpm::InterruptedError& e) { // a signal inside the scene's reading: nothing was written
+    otmpm::cli::end_progress_line();
+    message = std::string("otmpm: ") + e.what() + " (" + otmpm::cli::interrupt_signal_name() +
+              "); no result file was written";
+    return otmpm::cli::interrupted_exit_status();
   } catch (const std::bad_alloc&) { // not a bug: the input asked for more than this machine gives
     message = diagnosis("error", "out of memory: this process could not get the memory the input asks for "
                                  "(a run that starts stepping stops with status \"out of memory\" and exit status 4)");

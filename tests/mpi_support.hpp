@@ -27,6 +27,7 @@ struct RankLine {
   std::vector<std::string> args;
   std::string wdir = "";
   std::string mount = "";
+  std::string env = ""; ///< NAME=VALUE in this rank's environment alone
 };
 
 /// Waits up to `seconds` until process `pid` catches signal `sig` (its
@@ -68,6 +69,7 @@ public:
       cmd += std::string(r ? " :" : "") + " -np 1";
       if (!ranks[r].wdir.empty()) cmd += " -wdir '" + ranks[r].wdir + "'";
       if (!ranks[r].mount.empty()) cmd += " unshare -m sh -c '" + ranks[r].mount + " && exec \"$@\"' sh";
+      if (!ranks[r].env.empty()) cmd += " env '" + ranks[r].env + "'";
       cmd += " '" + binary + "'";
       for (const std::string& a : ranks[r].args) cmd += " '" + a + "'";
     }

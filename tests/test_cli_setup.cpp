@@ -4,7 +4,8 @@
 // fixed step of 1e-30 s, a memory limit below the estimate and particle
 // densities that make the first step 1e-155 s), a particle file's columns
 // meet the ranges of the scene keys of the same quantity, a SIGTERM during
-// the set-up stops the run before its initial frame, and a restart whose
+// the set-up stops the run before its initial frame, a SIGINT while a large
+// particle file is read or seeded stops it within a block of rows, and a restart whose
 // file body's particle file changed says so.
 #include "cli_support.hpp"
 #include "h5_support.hpp"
@@ -151,13 +152,44 @@ TEST_CASE("SIGTERM during the set-up stops the run before its initial frame: exi
   fs::current_path(cwd);
   CAPTURE(r.err);
   CHECK(r.status == 143);
-  CHECK(has(r.err, "otmpm: interrupted by SIGTERM at t = 0 s (step 0)"));
+  // in the scene reader's pass over the file, or after it (the seeding's)
+  CHECK((has(r.err, "otmpm: interrupted while reading a particle file (SIGTERM); no result file was written") ||
+         has(r.err, "otmpm: interrupted by SIGTERM at t = 0 s (step 0)")));
   if (fs::exists(dir.file("r.h5"))) { // interrupted after the file was created: no frame, status set
     const hid_t id = H5Fopen(dir.file("r.h5").c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
     REQUIRE(id >= 0);
     const otmpm::h5::Handle file(id, H5Fclose);
     CHECK(otmpm::h5::read_string(file.get(), "status", "r.h5") == "interrupted");
     CHECK(otmpm::h5::link_names(otmpm::h5::open_group(file.get(), "frames", "r.h5").get(), "r.h5").empty());
+  }
+}
+
+TEST_CASE("SIGINT while a large particle file is read or seeded ends the run within a block of rows: exit 130") {
+  // 2.25e6 rows (about 55 MB): the scene reader's pass and the seeding's
+  // each take seconds; before, a signal was acted on only after both. The
+  // signal comes at 0.3, 1.5 and 3 s; the process must end within 4 s of it
+  // (it takes one block of 65536 rows, milliseconds) and write nothing.
+  TempDir dir("cli_setup_sigint");
+  std::ofstream(dir.file("s.toml")) << block_scene("big.csv");
+  write_block(dir.file("big.csv"), 1500);
+  for (const int ms : {300, 1500, 3000}) {
+    CAPTURE(ms);
+    const std::string out = dir.file("stdout.txt"), err = dir.file("stderr.txt");
+    const fs::path cwd = fs::current_path();
+    fs::current_path(dir.dir);
+    const pid_t pid = otmpm::test::spawn_process(kBinary, {"run", "s.toml", "--out", "r.h5"}, out, err);
+    std::this_thread::sleep_for(std::chrono::milliseconds(ms));
+    const auto sent = std::chrono::steady_clock::now();
+    ::kill(pid, SIGINT);
+    const CliResult r = otmpm::test::wait_process(pid, out, err);
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - sent).count();
+    fs::current_path(cwd);
+    CAPTURE(r.err);
+    CHECK(r.status == 130);
+    CHECK(seconds < 4.0);
+    CHECK(has(r.err, "otmpm: interrupted"));
+    CHECK(!fs::exists(dir.file("r.h5")));
+    CHECK(!fs::exists(dir.file("r.xdmf")));
   }
 }
 

@@ -1135,6 +1135,32 @@ TEST_CASE("mpi: ranks that read different scenes or options end at once with sta
                 "rank 1 reads another checkpoint than rank 0's s.checkpoint.h5 (another run, step or copy");
 }
 
+TEST_CASE("mpi: an allocation failing on one rank inside a step ends every rank with status 4, one message") {
+  // Rank 1 alone fails an allocation in its basis evaluation of step 3
+  // (OTMPM_TEST_FAIL_ALLOCATION: std::bad_alloc where its basis table would
+  // grow). Before, that rank ended alone and the others waited in their next
+  // collective until its 30 s wait for them aborted the job.
+  for (const int np : {2, 3}) {
+    CAPTURE(np);
+    TempDir dir("mpi_oom");
+    const std::string scene = write_scene(dir, "block", block_on_floor(20, 0.02));
+    const std::vector<std::string> args{"run", scene, "--quiet", "--out", "oom.h5"};
+    std::vector<RankLine> lines(static_cast<std::size_t>(np), RankLine{args});
+    lines[1].env = "OTMPM_TEST_FAIL_ALLOCATION=3";
+    const auto [r, seconds] = run_mpmd(dir, lines);
+    CAPTURE(r.err);
+    CHECK(r.status == 4);
+    CHECK(seconds < 25.0); // no rank waited for another (the last resort waits 30 s)
+    CHECK(std::count(r.err.begin(), r.err.end(), '\n') == 1);
+    CHECK(r.err.find("otmpm: out of memory: step 3, t = ") != std::string::npos);
+    CHECK(r.err.find("rank 1 could not get the memory it needed") != std::string::npos);
+    CHECK(r.err.find("MPI_ABORT") == std::string::npos);
+    const std::string status = string_attribute(dir.file("oom.h5"), "status");
+    CHECK(status.rfind("out of memory: step 3, t = ", 0) == 0);
+    CHECK(attribute(dir.file("oom.h5"), "steps") == 3.0);
+  }
+}
+
 TEST_CASE("mpi: a full disk ends every rank with status 4, the file's status set and only complete frames") {
   // A 600 kB tmpfs (unshare -rm, as the serial test of a full disk): before,
   // the distributed file kept status "running" and a last frame holding x only.

@@ -8,6 +8,7 @@
 #include "otmpm/assembly/seeding.hpp"
 
 #include "otmpm/geometry/shapes.hpp"
+#include "otmpm/interrupt.hpp"
 #include "otmpm/io/particle_file.hpp"
 #include "otmpm/scene/file_bodies.hpp"
 #include "otmpm/scene/validate.hpp"
@@ -628,6 +629,7 @@ std::vector<BodyTally> seed_cells_where(const Scene& scene, const Vec<D>& h, con
       for (int k = 0; k < D; ++k) whole = whole && r.lo[k] <= 0 && r.hi[k] >= bc.cells[k];
       whole = whole && r.from <= 0 && r.to >= bc.count();
       for_each_cell<D>(bc.cells, r, [&](const Index<D>& c, long long number) {
+        interrupt_point("seeding a body");
         where.cell = number;
         placed_in_cell = 0;
         box.cell(c, [&](const Vec<D>& x, double V, const Vec<D>& extent) {

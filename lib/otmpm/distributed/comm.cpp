@@ -5,6 +5,7 @@
 #include "otmpm/distributed/comm.hpp"
 
 #include "otmpm/core.hpp"
+#include "otmpm/interrupt.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -377,6 +378,7 @@ void agree_on(const Comm& comm, const std::function<void()>& step) {
            : dynamic_cast<const BasisError*>(&e)       ? 'B'
            : dynamic_cast<const InstabilityError*>(&e) ? 'U'
            : dynamic_cast<const OutputError*>(&e)      ? 'O'
+           : dynamic_cast<const InterruptedError*>(&e) ? 'S'
                                                        : 'E';
   } catch (...) {
     mine = std::current_exception();
@@ -395,6 +397,7 @@ void agree_on(const Comm& comm, const std::function<void()>& step) {
   case 'B': throw BasisError(what);
   case 'U': throw InstabilityError(what);
   case 'O': throw OutputError(what);
+  case 'S': throw InterruptedError(what);
   default: throw std::runtime_error(what);
   }
 }

@@ -120,7 +120,7 @@ private:
 /// Runs `step` on every rank of `comm` and agrees on how it ended: when it
 /// threw on any rank, every rank throws the error of the lowest rank it threw
 /// on (that rank its own exception; the others an InputError, BasisError,
-/// InstabilityError or OutputError as such, anything else as a
+/// InstabilityError, OutputError or InterruptedError as such, anything else as a
 /// std::runtime_error, with its message), so that no rank goes on into
 /// the collectives after `step` while another one has failed, and the run
 /// ends at once with one message and one exit status. For the set-up steps

@@ -185,10 +185,14 @@ template <int D> void Domain<D>::agree(const LocalFailure* given) {
   const int winner = static_cast<int>(comm_.min(static_cast<std::int64_t>(key == best ? comm_.rank() : comm_.size())));
   const bool mine = comm_.rank() == winner;
   std::string message = comm_.broadcast(
-      mine ? std::string(failure->deferred ? "D" : failure->instability ? "I" : "B") + failure->message : "", winner);
+      mine ? std::string(failure->memory ? "M" : failure->deferred ? "D" : failure->instability ? "I" : "B") +
+                 failure->message
+           : "",
+      winner);
   const char kind = message.front();
   message.erase(0, 1);
   pending_.reset();
+  if (kind == 'M') throw DeferredOutOfMemory(message);
   if (kind == 'D') throw DeferredInstability(message);
   if (kind == 'I') throw InstabilityError(message);
   throw InputError(message);

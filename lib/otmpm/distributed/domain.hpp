@@ -98,6 +98,7 @@ public:
   void defer(const LocalFailure& failure) override;
   void agree(const LocalFailure* failure) override;
   void check_support(const BasisTable<D>& table) const override;
+  int rank() const override { return comm_.rank(); }
   long long global_id(int p) const override { return gid_[static_cast<std::size_t>(p)]; }
   const std::vector<char>& owned_nodes() const override { return exchange_.owned(); }
   void constrained_rows_product(const BasisTable<D>& table, const std::vector<double>& m_p,

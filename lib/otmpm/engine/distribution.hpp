@@ -11,6 +11,7 @@
 #include "otmpm/core.hpp"
 
 #include <span>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -35,6 +36,7 @@ struct LocalFailure {
   std::string message;
   bool instability = true;
   bool deferred = false; ///< a stage failure passed to defer(): thrown as DeferredInstability
+  bool memory = false;   ///< an allocation that failed inside a stage: thrown as DeferredOutOfMemory
 };
 
 /// The InstabilityError of a stage failure that a rank deferred (defer()),
@@ -44,6 +46,14 @@ struct LocalFailure {
 class DeferredInstability : public InstabilityError {
 public:
   using InstabilityError::InstabilityError;
+};
+
+/// An allocation that failed on one rank inside a stage (std::bad_alloc),
+/// thrown on every rank by the reduction that found it, so that every rank
+/// ends the run "out of memory" with the same message (the failed rank's).
+class DeferredOutOfMemory : public std::runtime_error {
+public:
+  using std::runtime_error::runtime_error;
 };
 
 template <int D> class Distribution {
@@ -90,6 +100,8 @@ public:
   /// support might go beyond the nodes this rank holds: `ul` mode, where
   /// particles keep their cell while the lattice moves).
   virtual void check_support(const BasisTable<D>& table) const = 0;
+  /// This process's rank.
+  virtual int rank() const = 0;
   /// The global id of local particle p (its index in a serial run).
   virtual long long global_id(int p) const = 0;
   /// Per local node: 1 where this rank owns the node.

@@ -11,7 +11,9 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
+#include <new>
 #include <unordered_map>
 
 namespace otmpm {
@@ -236,6 +238,9 @@ template <int D> void Engine<D>::step() {
   } catch (const DeferredInstability&) { // a rank failed inside the step: stop there, as a serial run does
     t_ = t0, dt_prev_ = dt_prev0, --step_;
     throw;
+  } catch (const DeferredOutOfMemory&) {
+    t_ = t0, dt_prev_ = dt_prev0, --step_;
+    throw;
   }
   // Trapezoidal rule: exact for a constant load on a uniformly accelerating
   // body, where the one-sided rule would leave an O(dt) error in the balance.
@@ -252,11 +257,32 @@ template <int D> void Engine<D>::step() {
   check_energy();
 }
 
+/// Tests of a rank that runs out of memory inside a step (tests/test_mpi.cpp):
+/// with OTMPM_TEST_FAIL_ALLOCATION=STEP in its environment, a process's basis
+/// evaluation of step STEP throws std::bad_alloc, as a failed allocation of its
+/// basis table would. Read once; unset (as always outside those tests): never.
+static bool test_allocation_fails(long step) {
+  static const long at = [] {
+    const char* v = std::getenv("OTMPM_TEST_FAIL_ALLOCATION");
+    return v ? std::strtol(v, nullptr, 10) : -1L;
+  }();
+  return at >= 0 && at == step;
+}
+
 template <int D> void Engine<D>::evaluate_basis() {
   ScopedPhase timer(timers_, Phase::basis);
   fbar_.ready = false; // a pass that failed in the last step may have left it set
+  // Every particle gets an empty row until the ranks stop on a failure
+  // (fallible() names the particle by its global id).
+  const auto empty_rows = [&] {
+    table_ = BasisTable<D>{};
+    table_.offset.assign(static_cast<std::size_t>(P_.size()) + 1, 0);
+    row_width_ = 0;
+    scatter_->invalidate(row_width_);
+  };
   fallible([&] {
     try {
+      if (test_allocation_fails(step_)) throw std::bad_alloc();
       const bool may_move = mode_.nodes_move() && basis_->search_radius() > 0.0;
       if (may_move) moved_.resize(P_.x.size(), Vec<D>::Zero());
       const long long moved_before = basis_->moved_points();
@@ -270,12 +296,10 @@ template <int D> void Engine<D>::evaluate_basis() {
       if (mode_.nodes_move() && basis_->search_radius() > 0.0) measure_gradients();
     } catch (const BasisError& e) {
       if (!dist_) unstable(std::string("basis evaluation failed: ") + e.what());
-      // Every particle gets an empty row until the ranks stop on the failure
-      // (fallible() names the particle by its global id).
-      table_ = BasisTable<D>{};
-      table_.offset.assign(static_cast<std::size_t>(P_.size()) + 1, 0);
-      row_width_ = 0;
-      scatter_->invalidate(row_width_);
+      empty_rows();
+      throw;
+    } catch (const std::bad_alloc&) { // the table freed: the step goes on with empty rows to the reduction
+      if (dist_) empty_rows();
       throw;
     }
   });
@@ -806,6 +830,9 @@ template <int D> template <class Stage> void Engine<D>::fallible(Stage&& stage) 
                       (named ? "particle " + std::to_string(failure.key) + what.substr(rest) : what);
   } catch (const InstabilityError& e) {
     failure.message = e.what();
+  } catch (const std::bad_alloc&) { // every rank ends "out of memory", not only this one
+    failure.memory = true;
+    failure.message = when + "rank " + std::to_string(dist_->rank()) + " could not get the memory it needed";
   }
   if (failed) dist_->defer(failure); // every rank stops on it at the next reduction
 }

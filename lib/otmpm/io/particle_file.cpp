@@ -6,6 +6,7 @@
 #include "otmpm/core.hpp"
 #include "otmpm/io/hdf5.hpp"
 #include "otmpm/io/output_files.hpp"
+#include "otmpm/interrupt.hpp"
 
 #include <algorithm>
 #include <cerrno>
@@ -329,8 +330,12 @@ void stream_particle_file(const std::string& path, int dimension, const Each& ea
   require(!std::filesystem::is_directory(path, ec), path, ": is a directory, not a particle file");
   require(std::filesystem::is_regular_file(path, ec), path, ": no such particle file");
   count_pass(path);
-  if (path.size() > 4 && path.ends_with(".csv")) stream_csv(path, dimension, each, chunk, rules);
-  else stream_hdf5(path, dimension, each, chunk, rules);
+  const Each polled = [&each](const ParticleColumns& columns, const ParticleRows& rows) {
+    interrupt_point("reading a particle file"); // once per block: a file of 1e8 rows stops at once
+    each(columns, rows);
+  };
+  if (path.size() > 4 && path.ends_with(".csv")) stream_csv(path, dimension, polled, chunk, rules);
+  else stream_hdf5(path, dimension, polled, chunk, rules);
 }
 
 ParticleFile read_particle_file(const std::string& path, int dimension, long long expected_rows,

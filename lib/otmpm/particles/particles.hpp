@@ -4,6 +4,7 @@
 /// fixed-size Eigen types (docs/architecture.md). Fields follow the notation of
 /// docs/theory.md: x_p, v_p, a_p, m_p, V_p, V0_p, rho_p, F_p, eps_p, sigma_p.
 #include "otmpm/core.hpp"
+#include "otmpm/interrupt.hpp"
 
 #include <string>
 #include <string_view>
@@ -142,6 +143,7 @@ void seed_box_cells(const Vec<D>& lower, const Vec<D>& upper, const Index<D>& ce
     int k = 0;
     while (k < D && ++c[k] == cells[k]) c[k++] = 0;
     if (k == D) break;
+    if (k > 0) interrupt_point("seeding a body"); // once per row of cells
   }
 }
 

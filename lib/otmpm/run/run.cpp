@@ -9,6 +9,7 @@
 
 #include "otmpm/assembly/assembler.hpp"
 #include "otmpm/distributed/global_view.hpp"
+#include "otmpm/interrupt.hpp"
 #include "otmpm/io/hdf5.hpp"
 #include "otmpm/io/output_files.hpp"
 #include "otmpm/parallel.hpp"
@@ -793,7 +794,7 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
   Recorder<D> rec;
 
   DimRunner(const Scene& s, const RunOptions& opt, const Checkpoint* resume)
-      : options(opt), e(build(s, resume, restart_rows)), exact(make_exact_solution<D>(s)),
+      : options(opt), e(build(s, opt, resume, restart_rows)), exact(make_exact_solution<D>(s)),
         rec(init(s, resume), opt, e, exact.get(), resume) {
     const distributed::GlobalView<D> view(e);
     summary.mode = scene.simulation.mode;
@@ -819,8 +820,13 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
 
   /// This rank's engine of the scene (the whole scene in a serial run); a
   /// distributed restart builds it from its rows of the checkpoint (`rows`).
-  static Engine<D> build(const Scene& s, const Checkpoint* resume, Checkpoint& rows) {
+  /// A serial run stops inside the seeding when opt.interrupt is set
+  /// (InterruptedError, before any file is created); the ranks of a
+  /// distributed run meet in collectives between its loops, so they stop
+  /// at the agreed check after it.
+  static Engine<D> build(const Scene& s, const RunOptions& opt, const Checkpoint* resume, Checkpoint& rows) {
     const auto& comm = distributed::Comm::world();
+    const InterruptPolling polling(comm.size() == 1 ? opt.interrupt : nullptr);
     if (!resume || comm.size() == 1) return Engine<D>(distributed::rank_parts<D>(s, comm));
     return Engine<D>(distributed::restart_parts<D>(s, comm, *resume, rows));
   }
@@ -853,9 +859,11 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
   }
 
   /// Runs `f` (a step, a frame); an instability, an output error or memory
-  /// running out ends the run with its status and is rethrown. (A distributed
-  /// run that runs out of memory on one rank cannot agree on a status: the
-  /// error goes up as it is, and the command ends every rank.)
+  /// running out ends the run with its status and is rethrown. A distributed
+  /// run agrees on an allocation that failed inside a stage of a step
+  /// (DeferredOutOfMemory, the same on every rank); one that failed
+  /// elsewhere on one rank cannot be agreed on: the error goes up as it is,
+  /// and the command ends every rank.
   template <class F> void stopping_on_failure(F&& f) {
     try {
       f();
@@ -864,6 +872,10 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
       throw;
     } catch (const OutputError& err) {
       stop_output_error(err);
+      throw;
+    } catch (const DeferredOutOfMemory& err) {
+      stop(kOutOfMemoryStatus + (": " + diagnosis(err.what(), e.steps(), e.time()) + " (" + memory_note(scene) + ")"),
+           kOutputErrorExit);
       throw;
     } catch (const std::bad_alloc&) {
       if (distributed::Comm::world().size() == 1)
@@ -1067,6 +1079,7 @@ RunSummary run_to_end(Simulation& sim, const RunOptions& options) {
     }
   } catch (const InstabilityError&) { // the status is in the summary
   } catch (const OutputError&) {
+  } catch (const DeferredOutOfMemory&) { // every rank of a distributed run, with the same status
   } catch (const std::bad_alloc&) {
     if (!sim.finished()) throw; // a distributed run: no status could be agreed on
   }
@@ -1102,6 +1115,8 @@ RunSummary set_up_and_run(long step, double t, const RunOptions& options, SceneO
     make(sim);
   } catch (const OutputError& err) {
     return not_started(scene_of(), step, t, "output error: " + diagnosis(err.what(), step, t), kOutputErrorExit);
+  } catch (const InterruptedError&) { // inside the set-up's loops (DimRunner::build): nothing was written
+    return not_started(scene_of(), step, t, "interrupted", kInterruptedExit);
   }
   return run_to_end(*sim, options);
 }

@@ -2,6 +2,8 @@
 /// Bodies from geometry files (file_bodies.hpp).
 #include "otmpm/scene/file_bodies.hpp"
 
+#include "otmpm/interrupt.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -27,8 +29,10 @@ template <int D> std::unique_ptr<ElementUnion<D>> mesh_body_shape(const BodySect
 template <int D>
 void seed_mesh_body(const BodySection& b, const ElementUnion<D>& shape,
                     const std::function<void(const Vec<D>& x, double V)>& emit) {
-  for (const MeshElement<D>& e : shape.elements())
+  for (const MeshElement<D>& e : shape.elements()) {
+    interrupt_point("seeding a mesh body");
     for (const ElementPoint<D>& p : element_points<D>(e, b.seeding == "quadrature")) emit(p.x, p.volume);
+  }
 }
 
 namespace {
