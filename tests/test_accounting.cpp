@@ -162,14 +162,16 @@ TEST_CASE("the energy a wall's impact takes is booked, every integrator") {
   // (measured energy_drift, without W_i in brackets): fe 0.042 (0.046), musl
   // 0.031 (0.037), npc 0.062 (0.068), central_difference 0.033 (0.037),
   // explicit_alpha 0.730 (0.724: its strain energy jumps by 6 J for a few
-  // steps at t = 0.287 s), otm 0.049 (0.066), unified 0.048 (0.065). The
-  // rest (3-6 %, the same at cfl 0.05 and at h / 4) is what the held nodes'
-  // change costs the particles beyond the nodes' own kinetic energy (their
-  // velocity is spread with the consistent, not the lumped, mass) and
-  // the integrators' own error; not booked.
+  // steps at t = 0.287 s), otm 0.051 (0.076), unified 0.048 (0.065). The
+  // rest (no less at cfl 0.05 or at h / 4) is what the held nodes' change
+  // costs the particles beyond the nodes' own kinetic energy (their
+  // velocity is spread with the consistent, not the lumped, mass) and the
+  // integrators' own error; not booked. On the wall moving at 0.2 m/s the
+  // runs lose far more (fe 12.1 J of E(0) + W_R = 40.5 J, W_i 0.15 J;
+  // theory.md sect. 6.1): only W_i's bound is checked there.
   const std::map<std::string, double> drift{{"fe", 0.042},  {"musl", 0.031},          {"npc", 0.062},
                                             {"central_difference", 0.033}, {"explicit_alpha", 0.73},
-                                            {"otm", 0.049}, {"unified", 0.048}};
+                                            {"otm", 0.051}, {"unified", 0.048}};
   for (const IntegratorKind& k : integrator_kinds())
     for (const double wall : {0.0, 0.2}) {
       const std::string name(k.name);
