@@ -816,6 +816,13 @@ TEST_CASE("mpi: a block sliding on a wall agrees with the serial run, the wall f
       const auto b = history(dir.file("np3.h5"), "walls", "floor", dataset);
       CHECK(history_difference(a, b) <= kAgreement);
     }
+    // The energy friction and the impacts took, summed over the ranks.
+    for (const std::string dataset : {"friction", "impact"}) {
+      CAPTURE(dataset);
+      const auto a = history(dir.file("serial.h5"), "/", "energy", dataset);
+      CHECK(a.values.back() > 0.0);
+      CHECK(history_difference(a, history(dir.file("np3.h5"), "/", "energy", dataset)) <= kAgreement);
+    }
     // The wall carries the block: its normal impulse is about m g cos(theta) t
     // (500 kg x 8.496 m/s^2 x 0.05 s = 212.4 N s; the elastic transient
     // and the start of contact within 5%).

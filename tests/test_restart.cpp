@@ -137,7 +137,8 @@ template <int D> std::map<std::string, std::string> restarted(const Checkpoint& 
   e.restore_state(ck);
   CHECK(e.steps() == kBefore);
   run_steps(e, kAfter);
-  if (D == 2) CHECK(e.energy().friction > 0.0); // the wall's friction is part of the state
+  if (D == 2) CHECK(e.energy().friction > 0.0); // the wall's friction and impacts are part of the state
+  if (D == 2) CHECK(e.energy().impact > 0.0);
   return state_bytes(e);
 }
 

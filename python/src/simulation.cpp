@@ -329,6 +329,7 @@ py::dict energy_dict(const EnergyBalance& E) {
   d["strain"] = E.strain;
   d["dissipated"] = E.dissipated;
   d["friction"] = E.friction;
+  d["impact"] = E.impact;
   d["darcy"] = E.darcy;
   d["external_work"] = E.external_work;
   d["reaction_work"] = E.reaction_work;
@@ -486,7 +487,7 @@ void register_simulation(py::module_& m) {
       .def(
           "energy", [](PySimulation& s) { return visit_engine(s.sim(), [](auto& e) -> py::object { return energy_dict(e.energy()); }); },
           "The energy balance after the last step [J]: kinetic, strain, dissipated (plastic work), friction\n"
-          "(dissipated at walls and in body contact), darcy (dissipated by the drag of a saturated body's pore\n"
+          "(dissipated at walls and in body contact), impact (taken by impacts on walls and between bodies), darcy (dissipated by the drag of a saturated body's pore\n"
           "liquid), external_work, reaction_work, initial (E(0)),\n"
           "total (kinetic + strain), work, balance_error.")
       .def_property_readonly(

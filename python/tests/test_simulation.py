@@ -160,7 +160,7 @@ def test_advance_to_dt_and_energy():
     assert 1e-5 * (1 - 1e-9) <= sim.t < 1e-5 + sim.dt
     E = sim.energy()
     assert E["total"] == E["kinetic"] + E["strain"] and E["kinetic"] > 0
-    assert set(E) >= {"kinetic", "strain", "external_work", "reaction_work", "initial", "balance_error"}
+    assert set(E) >= {"kinetic", "strain", "external_work", "reaction_work", "initial", "balance_error", "friction", "impact"}
     sim.advance_to(1.0)  # beyond t_end: stops there
     assert sim.finished and sim.t == pytest.approx(2e-5, rel=1e-12)
     with pytest.raises(RuntimeError, match="finished"):

@@ -137,6 +137,9 @@ void Constraints<D>::apply_walls(AlignedVector<Vec<D>>& v, const NodeView<D>& no
       const Vec<D> u = v[I] - wall.velocity;
       const double un = u.dot(wall.normal);
       const Vec<D> s = effect.start(v, I) - wall.velocity;
+      // Particles that read v itself (otm) see a held node's normal velocity
+      // stay at its floor from step to step: only a new contact stops them.
+      const bool stops = effect.rate || !held[I];
       double dn;
       if (held[I]) {
         // Held: its normal velocity stays at the floor - by losing its normal
@@ -163,6 +166,7 @@ void Constraints<D>::apply_walls(AlignedVector<Vec<D>>& v, const NodeView<D>& no
       }
       if (effect.booking == Booking::held || !counts(static_cast<int>(I))) continue; // held: book_held
       *ledger.friction += friction_loss<D>(nodes.m[I], s, u, dv, wall.normal);
+      if (stops) *ledger.impact += impact_loss<D>(nodes.m[I], s, Vec<D>(u + dv), wall.normal);
       if (effect.booking == Booking::now) impulse += nodes.m[I] * dv; // the particles' momentum changes by m dv
     }
     if (!effect.impulse || effect.booking != Booking::now) continue;
@@ -197,6 +201,7 @@ void Constraints<D>::book_held(const Held<D>& step, AlignedVector<Vec<D>>& q, co
       end += dv;
       if (!counts(static_cast<int>(I))) continue;
       *ledger.friction += friction_loss<D>(m, Vec<D>(brought - wall.velocity), u, dv, wall.normal);
+      *ledger.impact += impact_loss<D>(m, Vec<D>(brought - wall.velocity), Vec<D>(u + dv), wall.normal);
       wall_impulse[w] += m * dv;
       *ledger.work += (m * dv).dot(wall.velocity);
     }

@@ -91,11 +91,13 @@ template <int D> struct WallEffect {
 /// after it). `impulse` and `work`: the impulse and the work of the
 /// Dirichlet reactions, at the prescribed velocity (the walls' work J . w is
 /// added to `work` too); `friction`: the energy Coulomb friction took
-/// (friction_loss).
+/// (friction_loss); `impact`: the energy the stopped normal approach took
+/// (impact_loss).
 template <int D> struct Ledger {
   Vec<D>* impulse = nullptr;
   double* work = nullptr;
   double* friction = nullptr;
+  double* impact = nullptr;
 };
 
 /// The energy that the tangential part of an impulse J (relative to the
@@ -105,6 +107,18 @@ template <int D> struct Ledger {
 /// it dissipates: friction times the mean slip.
 template <int D> double friction_loss(const Vec<D>& J, const Vec<D>& mean2, const Vec<D>& n) {
   return -0.5 * (J - J.dot(n) * n).dot(mean2 - mean2.dot(n) * n);
+}
+
+/// The energy an impact takes from a mass m whose velocity relative to a
+/// wall or another body (unit normal n) went from s at the start of a pass
+/// to e at its end, the constraint's change included: the kinetic energy of
+/// its normal part, m/2 ((s . n)^2 - (e . n)^2) (docs/theory.md eq. 6.5). The
+/// forces of the pass are part of it: the held node's velocity, not the
+/// particles' motion, drives the stress update, so the work of its normal
+/// force is not in the stored energy.
+template <int D> double impact_loss(double m, const Vec<D>& s, const Vec<D>& e, const Vec<D>& n) {
+  const double sn = s.dot(n), en = e.dot(n);
+  return 0.5 * m * (sn * sn - en * en);
 }
 
 /// friction_loss of the change du that a constraint makes to the relative
@@ -193,7 +207,9 @@ public:
   /// becomes the kick that adds the difference to dt rate there (zero
   /// elsewhere); the walls' m dv are their impulses (work m dv . w, friction
   /// by friction_loss from the velocity brought), a set's m_I (vbar - q_Ik /
-  /// m_I) its reaction (book_fixed; its jump's kinetic energy off the work).
+  /// m_I) its reaction (book_fixed; its jump's kinetic energy off the work);
+  /// the impact a wall's normal change takes is impact_loss from the velocity
+  /// brought to the end velocity.
   void book_held(const Held<D>& step, AlignedVector<Vec<D>>& q, const NodeView<D>& nodes, const Ledger<D>& ledger);
   /// Before a pass with Booking::carried (explicit_alpha): zeroes the fixed
   /// components of the acceleration a_n the step starts from, noting the
@@ -241,7 +257,8 @@ public:
   /// part. In a pass whose change is the body's (effect.impulse) the change
   /// reaches the particles as `effect` says; its impulse (m_I dv_I summed
   /// per wall) is added to wall_impulse() and its work (impulse . v_wall) to
-  /// `ledger` as effect.booking says, the energy friction took (friction_loss) at once.
+  /// `ledger` as effect.booking says, the energy friction and the impact took
+  /// (friction_loss, impact_loss) at once.
   void apply_walls(AlignedVector<Vec<D>>& v, const NodeView<D>& nodes, double t, double dt,
                    const WallEffect<D>& effect, const Ledger<D>& ledger);
   /// The same rule for node increments dx of the step (positions after it:

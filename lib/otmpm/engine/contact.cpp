@@ -59,9 +59,10 @@ Vec<D> BodyContact<D>::share(int Ja, int Jb, Vec<D> du, AlignedVector<Vec<D>>& v
 
 template <int D>
 void BodyContact<D>::apply(AlignedVector<Vec<D>>& v, const ContactNodes& nodes, const WallEffect<D>& effect,
-                           double& friction) {
+                           double& friction, double& impact) {
   const int P = pairs();
   loss_.assign(static_cast<std::size_t>(nodes_), 0.0);
+  impact_.assign(static_cast<std::size_t>(nodes_), 0.0);
   parallel_for(nodes_, [&](long long node) {
     const int I = static_cast<int>(node);
     for (int a = 0, k = 0; a < fields_; ++a)
@@ -97,19 +98,27 @@ void BodyContact<D>::apply(AlignedVector<Vec<D>>& v, const ContactNodes& nodes, 
         // mu* |u|^2 / 2 with the reduced mass mu* = m_a m_b / (m_a + m_b);
         // the particles take up reach x the change.
         const double ma = nodes.m[static_cast<std::size_t>(Ja)], mb = nodes.m[static_cast<std::size_t>(Jb)];
-        loss_[static_cast<std::size_t>(I)] += friction_loss<D>(effect.reach * ma * mb / (ma + mb), start, u, du, n);
+        const double reduced = effect.reach * ma * mb / (ma + mb);
+        loss_[static_cast<std::size_t>(I)] += friction_loss<D>(reduced, start, u, du, n);
+        impact_[static_cast<std::size_t>(I)] += impact_loss<D>(reduced, start, Vec<D>(u + du), n);
       }
   });
   if (!effect.impulse) return;
   // Summed in fixed blocks of nodes: the same bits for any thread count.
   struct Sum {
-    double value = 0.0;
+    double friction = 0.0, impact = 0.0;
     Sum& operator+=(const Sum& o) {
-      value += o.value;
+      friction += o.friction;
+      impact += o.impact;
       return *this;
     }
   };
-  friction += blocked_reduce<Sum>(nodes_, [&](long long I, Sum& acc) { acc.value += loss_[static_cast<std::size_t>(I)]; }).value;
+  const Sum sum = blocked_reduce<Sum>(nodes_, [&](long long I, Sum& acc) {
+    acc.friction += loss_[static_cast<std::size_t>(I)];
+    acc.impact += impact_[static_cast<std::size_t>(I)];
+  });
+  friction += sum.friction;
+  impact += sum.impact;
 }
 
 template <int D> void BodyContact<D>::apply_to_increment(AlignedVector<Vec<D>>& dx, const ContactNodes& nodes) const {

@@ -76,8 +76,10 @@ public:
   /// `effect` says how it reaches the particles (as for the walls). In a
   /// pass whose change is the bodies' (effect.impulse), the energy Coulomb
   /// friction takes from the pairs' relative motion (friction_loss with the
-  /// reduced mass m_a m_b / (m_a + m_b)) is added to `friction`.
-  void apply(AlignedVector<Vec<D>>& v, const ContactNodes& nodes, const WallEffect<D>& effect, double& friction);
+  /// reduced mass m_a m_b / (m_a + m_b)) is added to `friction`, the energy
+  /// the stopped approach takes (impact_loss, same mass) to `impact`.
+  void apply(AlignedVector<Vec<D>>& v, const ContactNodes& nodes, const WallEffect<D>& effect, double& friction,
+             double& impact);
   /// For the held pairs, an approaching relative normal increment of the
   /// field-node increments dx is removed (same sharing, no friction).
   void apply_to_increment(AlignedVector<Vec<D>>& dx, const ContactNodes& nodes) const;
@@ -102,7 +104,8 @@ private:
   ContactLaw law_;
   AlignedVector<Vec<D>> grad_m_;
   std::vector<char> held_;
-  std::vector<double> loss_; ///< per grid node: the friction loss of the last pass
+  std::vector<double> loss_;   ///< per grid node: the friction loss of the last pass
+  std::vector<double> impact_; ///< per grid node: the impact loss of the last pass
 
 };
 

@@ -488,7 +488,7 @@ template <int D> void Engine<D>::constrain_velocity(AlignedVector<Vec<D>>& v, co
   const Ledger<D> books = ledger();
   constraints_.apply_velocity(v, nodes, effect, books, step_ == 0);
   if (contact_)
-    contact_->apply(v, {nodal_.m, nodal_.active, constraints_.constrained()}, effect, *books.friction);
+    contact_->apply(v, {nodal_.m, nodal_.active, constraints_.constrained()}, effect, *books.friction, *books.impact);
   if (constraints_.walls().empty()) return;
   constraints_.apply_walls(v, nodes, t_, dt_, effect, books);
 }

@@ -114,19 +114,21 @@ template <int D> struct EngineParts {
 /// (docs/theory.md eq. 11.1): kinetic and stored (elastic) energy, the
 /// energy the materials dissipated (plastic work W_p), the energy Coulomb
 /// friction dissipated at the walls and in the body contact (W_f), the
+/// energy impacts took there (W_i: the normal approach the walls and the
+/// contact stopped, eq. 6.5), the
 /// energy the Darcy drag of saturated bodies dissipated (W_d, eq. 15.6), the
 /// work W_ext of the external loads and W_R of the Dirichlet reactions and
 /// the walls since t = 0, and E(0). With saturated bodies the kinetic and
 /// stored energies include the liquid's.
 struct EnergyBalance {
   double kinetic = 0, strain = 0, dissipated = 0, external_work = 0, reaction_work = 0, initial = 0;
-  double friction = 0, darcy = 0;
+  double friction = 0, darcy = 0, impact = 0;
   double total() const { return kinetic + strain; }
   /// Work done on the body since t = 0: W_ext + W_R.
   double work() const { return external_work + reaction_work; }
-  /// The energy spent since t = 0: W_p + W_f + W_d.
-  double spent() const { return dissipated + friction + darcy; }
-  /// E(t) + W_p(t) + W_f(t) - E(0) - W(t): zero for an exact solution;
+  /// The energy spent since t = 0: W_p + W_f + W_i + W_d.
+  double spent() const { return dissipated + friction + darcy + impact; }
+  /// E(t) + W_p(t) + W_f(t) + W_i(t) + W_d(t) - E(0) - W(t): zero for an exact solution;
   /// negative when the scheme dissipates, positive when it creates energy.
   double balance_error() const { return total() + spent() - initial - work(); }
 };
@@ -218,7 +220,7 @@ public:
   long node_resets() const { return node_resets_; }
   PhaseTimers& timers() { return timers_; }
   const EnergyBalance& energy() const { return energy_; }
-  /// True when friction may dissipate energy (energy().friction): walls or body contact.
+  /// True when friction and impacts may take energy (energy().friction, energy().impact): walls or body contact.
   bool has_friction() const { return !constraints_.walls().empty() || contact_; }
   /// Sum of the Dirichlet reaction impulses since t = 0 (per component): the
   /// momentum the Dirichlet sets gave the particles.
@@ -418,8 +420,8 @@ private:
   void book_inertial_reaction(const AlignedVector<Vec<D>>& y, double c);
   /// Where the constraints book: the run's totals, or this rank's share of the step.
   Ledger<D> ledger() {
-    if (dist_) return {&rank_reaction_.impulse, &rank_reaction_.work, &rank_reaction_.friction};
-    return {&reaction_impulse_, &energy_.reaction_work, &energy_.friction};
+    if (dist_) return {&rank_reaction_.impulse, &rank_reaction_.work, &rank_reaction_.friction, &rank_reaction_.impact};
+    return {&reaction_impulse_, &energy_.reaction_work, &energy_.friction, &energy_.impact};
   }
   /// The particle's id in messages: its global id in a distributed run.
   long long particle_id(int p) const { return dist_ ? dist_->global_id(p) : p; }
@@ -464,7 +466,7 @@ private:
   /// and the ranks' kinetic energy of the prescribed nodal velocities (check_energy).
   struct {
     Vec<D> impulse = Vec<D>::Zero();
-    double work = 0.0, friction = 0.0;
+    double work = 0.0, friction = 0.0, impact = 0.0;
   } rank_reaction_;
   double boundary_kinetic_ = 0.0;
 };

@@ -139,12 +139,12 @@ template <int D> void Engine<D>::sum_particles(bool check) {
     // whether any particle may leave its rank before the next step.
     // The walls' impulses of this step follow.
     AlignedVector<Vec<D>>& wall = constraints_.rank_wall_impulse();
-    constexpr std::size_t W0 = 6 + 2 * D; // the walls' impulses start here
+    constexpr std::size_t W0 = 7 + 2 * D; // the walls' impulses start here
     std::vector<double> sums(W0 + wall.size() * D);
     sums[0] = s.kinetic, sums[1] = s.strain, sums[2] = s.dissipated, sums[3] = rank_reaction_.work;
     sums[4] = constraints_.prescribed_kinetic_energy(nodal_.m);
-    sums[5] = rank_reaction_.friction;
-    for (int k = 0; k < D; ++k) sums[6 + k] = s.momentum[k], sums[6 + D + k] = rank_reaction_.impulse[k];
+    sums[5] = rank_reaction_.friction, sums[6] = rank_reaction_.impact;
+    for (int k = 0; k < D; ++k) sums[7 + k] = s.momentum[k], sums[7 + D + k] = rank_reaction_.impulse[k];
     for (std::size_t w = 0; w < wall.size(); ++w)
       for (int k = 0; k < D; ++k) sums[W0 + w * D + static_cast<std::size_t>(k)] = wall[w][k];
     double maxima[3] = {s.wave_speed2, failed.load() ? 1.0 : 0.0, s.outside ? 1.0 : 0.0};
@@ -155,7 +155,8 @@ template <int D> void Engine<D>::sum_particles(bool check) {
     energy_.reaction_work += sums[3];
     boundary_kinetic_ = sums[4];
     energy_.friction += sums[5];
-    for (int k = 0; k < D; ++k) s.momentum[k] = sums[6 + k], reaction_impulse_[k] += sums[6 + D + k];
+    energy_.impact += sums[6];
+    for (int k = 0; k < D; ++k) s.momentum[k] = sums[7 + k], reaction_impulse_[k] += sums[7 + D + k];
     for (std::size_t w = 0; w < wall.size(); ++w) {
       for (int k = 0; k < D; ++k) constraints_.wall_impulse()[w][k] += sums[W0 + w * D + static_cast<std::size_t>(k)];
       wall[w] = Vec<D>::Zero();
@@ -201,7 +202,7 @@ template <int D> void Engine<D>::check_energy() const {
   const double reference =
       std::max(energy_.initial + std::abs(energy_.external_work) + std::abs(energy_.reaction_work) + boundary_kinetic,
                energy_floor);
-  // The energy the materials and friction dissipated counts: E + W_p + W_f
+  // The energy the materials, friction and impacts took counts: E + W_s
   // cannot exceed what the body was given, so a spurious jump shows in a
   // plastic run too.
   const double total = energy_.total() + energy_.spent();

@@ -284,7 +284,7 @@ public:
   void sample_energy() {
     const EnergyBalance& E = e_.energy();
     energy_.initial = E.initial;
-    energy_.sample(E.total() + E.spent(), E.work(), E.balance_error()); // W_p and W_f count as spent energy
+    energy_.sample(E.total() + E.spent(), E.work(), E.balance_error()); // W_p, W_f, W_i and W_d count as spent energy
   }
 
   /// Writes a frame and probe samples when t reached the next output time.
@@ -300,6 +300,7 @@ public:
 
   void finish(RunSummary& s) {
     s.energy = energy_;
+    s.impact = e_.energy().impact;
     if (support_diagnostics()) {
       const auto counts = support_counts();
       s.diagnostics = {{"widened_supports", counts[0]}, {"moved_points", counts[1]}};
@@ -407,7 +408,7 @@ private:
     for (const Probe& pr : probes_) h.push_back({pr.name, true, {"x", "v", "stress"}});
     std::vector<std::string> energy{"kinetic", "strain", "external_work", "reaction_work"};
     if (dissipative()) energy.push_back("dissipated");
-    if (e_.has_friction()) energy.push_back("friction");
+    if (e_.has_friction()) energy.push_back("friction"), energy.push_back("impact");
     if (e_.settings().two_phase) energy.push_back("darcy");
     h.push_back({"energy", false, energy});
     for (const Wall<D>& w : e_.walls()) h.push_back({w.name, true, {"force", "impulse"}, "walls"});
@@ -551,7 +552,7 @@ private:
     o->energy = {{"kinetic", E.kinetic}, {"strain", E.strain}, {"external_work", E.external_work},
                  {"reaction_work", E.reaction_work}};
     if (dissipative()) o->energy.emplace_back("dissipated", E.dissipated);
-    if (e_.has_friction()) o->energy.emplace_back("friction", E.friction);
+    if (e_.has_friction()) o->energy.emplace_back("friction", E.friction), o->energy.emplace_back("impact", E.impact);
     if (e_.settings().two_phase) o->energy.emplace_back("darcy", E.darcy);
     o->diagnostics.clear();
     if (support_diagnostics()) {
@@ -1153,6 +1154,10 @@ std::string summary_line(const RunSummary& s) {
   std::snprintf(buf, sizeof buf, ", max_energy_ratio = %.4g, energy_drift = %.3g", s.energy.max_energy_ratio(),
                 s.energy.energy_drift());
   line += buf;
+  if (s.impact != 0.0) {
+    std::snprintf(buf, sizeof buf, ", impact = %.3g J", s.impact);
+    line += buf;
+  }
   for (const auto& [name, value] : s.diagnostics)
     if (value != 0.0) {
       std::snprintf(buf, sizeof buf, ", %s = %.0f", name.c_str(), value);

@@ -56,11 +56,11 @@ struct RunOptions {
 
 /// The energy balance of a run, sampled after every step (docs/theory.md
 /// eq. 11.2): E = kinetic + strain energy, W_s = the energy spent (plastic
-/// work and friction), W = work of the external loads, of the
+/// work, friction, impacts and Darcy drag), W = work of the external loads, of the
 /// Dirichlet reactions and of the walls since t = 0 (Engine's EnergyBalance).
 struct EnergySummary {
   double initial = 0.0;           ///< E(0)
-  double max_energy = 0.0;        ///< max_t E(t) + W_s(t) (W_s = W_p + W_f: the energy spent, EnergyBalance::spent)
+  double max_energy = 0.0;        ///< max_t E(t) + W_s(t) (W_s = W_p + W_f + W_i + W_d: the energy spent, EnergyBalance::spent)
   double max_work = 0.0;          ///< max_t |W(t)|
   double max_balance_error = 0.0; ///< max_t |E(t) + W_s(t) - E(0) - W(t)|
   /// Takes one sample; non-finite values are ignored (the run stops on them anyway).
@@ -94,6 +94,9 @@ struct RunSummary {
   /// t = 0 (docs/theory.md sect. 4.8; also the series /diagnostics)
   std::map<std::string, double> diagnostics;
   EnergySummary energy;                 ///< max_energy_ratio, energy_drift
+  /// The energy impacts on walls and between bodies took since t = 0 (W_i,
+  /// docs/theory.md eq. 6.5); 0 without walls or [contact]
+  double impact = 0.0;
   PhaseTimers timers;
   std::string out_file;
   double particle_steps_per_second() const { return wall_seconds > 0 ? particles * steps / wall_seconds : 0.0; }
