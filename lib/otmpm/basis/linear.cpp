@@ -15,6 +15,7 @@
 #include <limits>
 #include <type_traits>
 #include <utility>
+#include <vector>
 
 namespace otmpm {
 
@@ -574,28 +575,45 @@ private:
     return det;
   }
 
-  /// 2D and 3D off the lattice: consecutive points each in the element of
-  /// its start cell (start_cell: the hint, else the Cartesian guess), by
-  /// the operations of evaluate() when its walk ends where it starts. A run
-  /// of points in one element forms the element and its first Newton step
-  /// once. Stops before the first point that is not finite, not inside that
-  /// element or in an inverted one (evaluate() walks on or reports it).
-  int elements_run(const Vec<D>* x, int count, Index<D>* cell_hint, int* node, double* N, Vec<D>* dN) const {
-    constexpr int S = kCorners<D>;
+  /// The elements one elements_run() has formed (with their first Newton
+  /// step), in kElementSlots slots by the id of the cell's first vertex: the
+  /// points of a cell come in a few runs (particles are usually listed along
+  /// lines), so most of them find their element formed. A slot is valid for
+  /// one call (its `call` number): the nodes move between calls.
+  struct FormedElement {
+    unsigned long long call = 0;
+    int base = -1;
     Element<D> e;
     NewtonStart<D> start;
-    Index<D> formed;
+  };
+  static constexpr int kElementSlots = 256;
+
+  /// 2D and 3D off the lattice: consecutive points each in the element of
+  /// its start cell (start_cell: the hint, else the Cartesian guess), by
+  /// the operations of evaluate() when its walk ends where it starts; each
+  /// element and its first Newton step formed once per call where the
+  /// slots keep it. Stops before the first point that is not finite, not
+  /// inside that element or in an inverted one (evaluate() walks on or
+  /// reports it).
+  int elements_run(const Vec<D>* x, int count, Index<D>* cell_hint, int* node, double* N, Vec<D>* dN) const {
+    constexpr int S = kCorners<D>;
+    thread_local std::vector<FormedElement> slots(kElementSlots);
+    thread_local unsigned long long calls = 0;
+    const unsigned long long call = ++calls;
     for (int p = 0; p < count; ++p) {
       if (!x[p].allFinite()) return p;
       const Index<D> c = start_cell(cell_hint ? &cell_hint[p] : nullptr, x[p]);
-      if (p == 0 || c != formed) {
-        e = Element<D>(grid_, nodes_, c);
-        start = NewtonStart<D>(e);
-        formed = c;
+      const int base = grid_.node_id(c);
+      FormedElement& f = slots[static_cast<std::size_t>(base % kElementSlots)];
+      if (f.call != call || f.base != base) {
+        f.e = Element<D>(grid_, nodes_, c);
+        f.start = NewtonStart<D>(f.e);
+        f.call = call;
+        f.base = base;
       }
       Vec<D> xi, affine;
-      if (inverse_map(e, start, x[p], xi, affine) != InverseStatus::inside) return p;
-      if (!(element_values(e, xi, node + p * S, N + p * S, dN + p * S) > 0.0)) return p;
+      if (inverse_map(f.e, f.start, x[p], xi, affine) != InverseStatus::inside) return p;
+      if (!(element_values(f.e, xi, node + p * S, N + p * S, dN + p * S) > 0.0)) return p;
       if (cell_hint) cell_hint[p] = c;
     }
     return count;
