@@ -453,8 +453,7 @@ private:
   std::unique_ptr<ParticleToNodes<D>> scatter_; ///< engine/scatter.hpp (internal: needs parallel.hpp)
   AlignedVector<Vec<D>> fext_; ///< external force per particle when not uniform
   double node_spacing0_ = 1.0; ///< the nodes' smallest spacing at t = 0
-  /// ul with a searching family: the largest |grad N_Ip| of the first and of
-  /// the last basis table (NodeMode::cfl_spacing); 0 until the first.
+  /// ul, searching family: max |grad N_Ip| of the first and the last table (NodeMode::cfl_spacing), 0 before
   double gradient0_ = 0.0, gradient_ = 0.0;
   AlignedVector<Vec<D>> moved_; ///< ul, searching family: the displacement into the hull (Basis::evaluate_points)
   AlignedVector<Vec<D>> x_start_; ///< ul: the particles' positions at the start of the step
