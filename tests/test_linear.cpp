@@ -391,7 +391,8 @@ int batch_against_evaluate(const Basis<D>& b, const CartesianGrid<D>& g, const A
   std::vector<Index<D>> hint_batch = hints, hint_point = hints;
   int batched = 0;
   for (int p = 0; p < n; ++p) {
-    const int done = b.evaluate_fixed_points(&x[p], n - p, &hint_batch[p], &node[S * p], &N[S * p], &dN[S * p]);
+    const int done =
+        b.evaluate_fixed_points(&x[p], n - p, &hint_batch[p], &node[S * p], &N[S * p], &dN[S * p]);
     batched += done;
     p += done;
     if (p == n) break;
@@ -401,7 +402,8 @@ int batch_against_evaluate(const Basis<D>& b, const CartesianGrid<D>& g, const A
     q.cell_hint = &hint_batch[p];
     b.evaluate(q, st);
     REQUIRE(st.size() == S);
-    for (int a = 0; a < S; ++a) node[S * p + a] = st.node[a], N[S * p + a] = st.N[a], dN[S * p + a] = st.dN[a];
+    for (int a = 0; a < S; ++a)
+      node[S * p + a] = st.node[a], N[S * p + a] = st.N[a], dN[S * p + a] = st.dN[a];
   }
   int in_start_cell = 0;
   for (int p = 0; p < n; ++p) {
@@ -478,8 +480,9 @@ TEST_CASE("linear 1D off the lattice: the batch gives evaluate()'s bits and leav
   CHECK(hint[0] == 1);
 }
 
-TEST_CASE_TEMPLATE_DEFINE("linear 2D and 3D off the lattice: the batch gives evaluate()'s bits and leaves the walk to it",
-                          T, iso_batch_id) {
+TEST_CASE_TEMPLATE_DEFINE(
+    "linear 2D and 3D off the lattice: the batch gives evaluate()'s bits and leaves the walk to it", T,
+    iso_batch_id) {
   constexpr int D = T::value;
   const CartesianGrid<D> g = test_grid<D>();
   const auto b = make_linear_basis<D>(NodeSet<D>::perturbed(g, 0.3, 4u));
@@ -490,7 +493,8 @@ TEST_CASE_TEMPLATE_DEFINE("linear 2D and 3D off the lattice: the batch gives eva
     // runs of points in one cell (the batch forms the element once), the
     // cell of the Cartesian guess, a neighbour (often not the element: the
     // walk), an invalid hint (ignored)
-    x.push_back(i % 4 == 1 ? Vec<D>((x.back() + 0.01 * g.h()).cwiseMin(g.upper)) : random_in_box<D>(rng, g.lower, g.upper));
+    x.push_back(i % 4 == 1 ? Vec<D>((x.back() + 0.01 * g.h()).cwiseMin(g.upper))
+                           : random_in_box<D>(rng, g.lower, g.upper));
     Index<D> c = g.cell_of(x.back());
     const int pick = i % 5;
     if (pick == 1) c[0] = std::min(c[0] + 1, g.cells[0] - 1);
@@ -509,7 +513,8 @@ TEST_CASE_TEMPLATE_DEFINE("linear 2D and 3D off the lattice: the batch gives eva
   const AlignedVector<Vec<D>> bad{Vec<D>::Constant(std::nan("")), x[0]};
   CHECK(b->evaluate_fixed_points(bad.data(), 2, nullptr, node.data(), N.data(), dN.data()) == 0);
 }
-TEST_CASE_TEMPLATE_APPLY(iso_batch_id, std::tuple<std::integral_constant<int, 2>, std::integral_constant<int, 3>>);
+TEST_CASE_TEMPLATE_APPLY(iso_batch_id,
+                         std::tuple<std::integral_constant<int, 2>, std::integral_constant<int, 3>>);
 
 TEST_CASE("linear uses and updates the cell hint") {
   const CartesianGrid<2> g = test_grid<2>();

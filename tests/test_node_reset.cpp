@@ -143,7 +143,8 @@ double top(const Particles<2>& P) {
 
 } // namespace
 
-TEST_CASE("node reset with a moving wall and a moving boundary: the lattice lines and the box follow the platen") {
+TEST_CASE(
+    "node reset with a moving wall and a moving boundary: the lattice lines and the box follow the platen") {
   const double h = 0.05;
   Engine<2> reset = assemble<2>(squeeze({"simulation.node_reset=0.7"}));
   Engine<2> plain = assemble<2>(squeeze({"simulation.node_reset=0"}));
@@ -199,7 +200,8 @@ TEST_CASE("node reset with a moving boundary: a run restarted after a reset goes
   CHECK(a.reaction_impulse() == b.reaction_impulse());
 }
 
-TEST_CASE("node reset: refused in mpm mode, out of its range (0 to 1) and with boundaries fixing an axis at different "
+TEST_CASE("node reset: refused in mpm mode, out of its range (0 to 1) and with boundaries fixing an axis at "
+          "different "
           "velocities") {
   CHECK_THROWS_WITH_AS(impact({"simulation.mode=\"mpm\""}), doctest::Contains("node_reset"), InputError);
   CHECK_THROWS_WITH_AS(impact({"simulation.node_reset=1.0"}), doctest::Contains("node_reset"), InputError);

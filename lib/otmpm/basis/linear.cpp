@@ -341,7 +341,7 @@ public:
                             Vec<D>* dN) const override {
     if (!nodes_.on_lattice()) {
       if constexpr (D == 1) return segments_run(x, count, cell_hint, node, N, dN);
-      else return elements_run(x, count, cell_hint, node, N, dN);
+      return elements_run(x, count, cell_hint, node, N, dN);
     }
     return cell_hint ? hats_run<true>(x, count, cell_hint, node, N, dN) : hats_run<false>(x, count, nullptr, node, N, dN);
   }

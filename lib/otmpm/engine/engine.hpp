@@ -64,7 +64,7 @@ template <int D> struct NodeReset {
   double below = 0.0;
   CartesianGrid<D> lines; ///< the scene's grid at t = 0: the new lattice runs on its lines, with its spacing
   Vec<D> velocity = Vec<D>::Zero(); ///< per axis: the velocity of the boundaries that fix it (0: none moves)
-  /// The basis and Dirichlet sets on a lattice laid out at time t (the boundary boxes moved with their nodes).
+  /// The basis and Dirichlet sets on a lattice laid out at time t (the boundary boxes moved with them).
   std::function<LatticePart<D>(const CartesianGrid<D>&, double t)> lattice;
   /// The lines at time t: `lines` translated by velocity t.
   CartesianGrid<D> lines_at(double t) const {
