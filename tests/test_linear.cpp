@@ -256,14 +256,13 @@ TEST_CASE_TEMPLATE_DEFINE("linear batch stops before a point it cannot evaluate 
     CHECK_THROWS_AS(b->evaluate_fixed(q, node.data(), N.data(), dN.data()), BasisError);
   }
   CHECK(b->evaluate_fixed_points(x.data(), 0, nullptr, node.data(), N.data(), dN.data()) == 0);
-  // Once the nodes moved: no batch in 2D and 3D (-1: the isoparametric map
-  // goes through evaluate()); in 1D the segments of the points' cells (below).
+  // Once the nodes moved: the elements (segments in 1D) of the points' cells (below).
   AlignedVector<Vec<D>> dx(static_cast<std::size_t>(b->nodes().size()), Vec<D>::Constant(1e-3 * g.h()[0]));
   b->nodes().advect(dx);
   b->nodes_moved(dx);
   x[3] = x[0];
   for (Vec<D>& p : x) p += 0.25 * g.h(); // inside the cells of their Cartesian guess (a node before)
-  CHECK(b->evaluate_fixed_points(x.data(), 6, nullptr, node.data(), N.data(), dN.data()) == (D == 1 ? 6 : -1));
+  CHECK(b->evaluate_fixed_points(x.data(), 6, nullptr, node.data(), N.data(), dN.data()) == 6);
 }
 TEST_CASE_TEMPLATE_APPLY(stop_id, Dims);
 
@@ -381,42 +380,48 @@ std::unique_ptr<Basis<1>> inverted_segment() {
 /// hints after, and the batch wrote exactly the points that lie in their
 /// start cell (the hint when valid, else the Cartesian guess). Returns the
 /// points the batch wrote.
-int batch_against_evaluate(const Basis<1>& b, const CartesianGrid<1>& g, const AlignedVector<Vec<1>>& x,
-                           const std::vector<Index<1>>& hints) {
+template <int D>
+int batch_against_evaluate(const Basis<D>& b, const CartesianGrid<D>& g, const AlignedVector<Vec<D>>& x,
+                           const std::vector<Index<D>>& hints) {
+  constexpr int S = 1 << D;
   const int n = static_cast<int>(x.size());
-  std::vector<int> node(2 * x.size());
+  std::vector<int> node(S * x.size());
   std::vector<double> N(node.size());
-  AlignedVector<Vec<1>> dN(node.size());
-  std::vector<Index<1>> hint_batch = hints, hint_point = hints;
+  AlignedVector<Vec<D>> dN(node.size());
+  std::vector<Index<D>> hint_batch = hints, hint_point = hints;
   int batched = 0;
   for (int p = 0; p < n; ++p) {
-    const int done = b.evaluate_fixed_points(&x[p], n - p, &hint_batch[p], &node[2 * p], &N[2 * p], &dN[2 * p]);
+    const int done =
+        b.evaluate_fixed_points(&x[p], n - p, &hint_batch[p], &node[S * p], &N[S * p], &dN[S * p]);
     batched += done;
     p += done;
     if (p == n) break;
-    Stencil<1> st;
-    PointQuery<1> q;
+    Stencil<D> st;
+    PointQuery<D> q;
     q.x = x[p];
     q.cell_hint = &hint_batch[p];
     b.evaluate(q, st);
-    REQUIRE(st.size() == 2);
-    for (int a = 0; a < 2; ++a) node[2 * p + a] = st.node[a], N[2 * p + a] = st.N[a], dN[2 * p + a] = st.dN[a];
+    REQUIRE(st.size() == S);
+    for (int a = 0; a < S; ++a)
+      node[S * p + a] = st.node[a], N[S * p + a] = st.N[a], dN[S * p + a] = st.dN[a];
   }
   int in_start_cell = 0;
   for (int p = 0; p < n; ++p) {
-    const int h = hint_point[p][0];
-    const int start = h >= 0 && h < g.cells[0] ? h : g.cell_of(x[p])[0];
-    Stencil<1> st;
-    PointQuery<1> q;
+    bool valid = true;
+    for (int k = 0; k < D; ++k) valid = valid && hint_point[p][k] >= 0 && hint_point[p][k] < g.cells[k];
+    const Index<D> start = valid ? hint_point[p] : g.cell_of(x[p]);
+    Stencil<D> st;
+    PointQuery<D> q;
     q.x = x[p];
     q.cell_hint = &hint_point[p];
     b.evaluate(q, st);
-    in_start_cell += hint_point[p][0] == start ? 1 : 0;
-    INFO("point " << p << " at " << x[p][0]);
-    for (int a = 0; a < 2; ++a) {
-      CHECK(node[2 * p + a] == st.node[a]);
-      CHECK(std::bit_cast<std::uint64_t>(N[2 * p + a]) == std::bit_cast<std::uint64_t>(st.N[a]));
-      CHECK(std::bit_cast<std::uint64_t>(dN[2 * p + a][0]) == std::bit_cast<std::uint64_t>(st.dN[a][0]));
+    in_start_cell += hint_point[p] == start ? 1 : 0;
+    INFO("point " << p << " at " << x[p].transpose());
+    for (int a = 0; a < S; ++a) {
+      CHECK(node[S * p + a] == st.node[a]);
+      CHECK(std::bit_cast<std::uint64_t>(N[S * p + a]) == std::bit_cast<std::uint64_t>(st.N[a]));
+      for (int k = 0; k < D; ++k)
+        CHECK(std::bit_cast<std::uint64_t>(dN[S * p + a][k]) == std::bit_cast<std::uint64_t>(st.dN[a][k]));
     }
     CHECK(hint_batch[p] == hint_point[p]);
   }
@@ -457,7 +462,7 @@ TEST_CASE("linear 1D off the lattice: the batch gives evaluate()'s bits and leav
       x.push_back(b->nodes().position(I));
       hints.push_back(Index<1>{side});
     }
-  const int batched = batch_against_evaluate(*b, g, x, hints);
+  const int batched = batch_against_evaluate<1>(*b, g, x, hints);
   MESSAGE("points written by the batch: " << batched << " of " << x.size());
   CHECK(batched > 100);
   CHECK(batched < static_cast<int>(x.size())); // the walks went through evaluate()
@@ -474,6 +479,42 @@ TEST_CASE("linear 1D off the lattice: the batch gives evaluate()'s bits and leav
   CHECK(inverted->evaluate_fixed_points(&x_in, 1, &hint, node.data(), N.data(), dN.data()) == 0);
   CHECK(hint[0] == 1);
 }
+
+TEST_CASE_TEMPLATE_DEFINE(
+    "linear 2D and 3D off the lattice: the batch gives evaluate()'s bits and leaves the walk to it", T,
+    iso_batch_id) {
+  constexpr int D = T::value;
+  const CartesianGrid<D> g = test_grid<D>();
+  const auto b = make_linear_basis<D>(NodeSet<D>::perturbed(g, 0.3, 4u));
+  std::mt19937 rng(22);
+  AlignedVector<Vec<D>> x;
+  std::vector<Index<D>> hints;
+  for (int i = 0; i < 400; ++i) {
+    // runs of points in one cell (the batch forms the element once), the
+    // cell of the Cartesian guess, a neighbour (often not the element: the
+    // walk), an invalid hint (ignored)
+    x.push_back(i % 4 == 1 ? Vec<D>((x.back() + 0.01 * g.h()).cwiseMin(g.upper))
+                           : random_in_box<D>(rng, g.lower, g.upper));
+    Index<D> c = g.cell_of(x.back());
+    const int pick = i % 5;
+    if (pick == 1) c[0] = std::min(c[0] + 1, g.cells[0] - 1);
+    if (pick == 2) c[D - 1] = -5;
+    hints.push_back(c);
+  }
+  const int batched = batch_against_evaluate<D>(*b, g, x, hints);
+  MESSAGE("points written by the batch: " << batched << " of " << x.size());
+  CHECK(batched > 100);
+  CHECK(batched < static_cast<int>(x.size())); // the walks went through evaluate()
+  // a point that is not finite: the batch stops before it
+  constexpr int S = 1 << D;
+  std::vector<int> node(2 * S);
+  std::vector<double> N(2 * S);
+  AlignedVector<Vec<D>> dN(2 * S);
+  const AlignedVector<Vec<D>> bad{Vec<D>::Constant(std::nan("")), x[0]};
+  CHECK(b->evaluate_fixed_points(bad.data(), 2, nullptr, node.data(), N.data(), dN.data()) == 0);
+}
+TEST_CASE_TEMPLATE_APPLY(iso_batch_id,
+                         std::tuple<std::integral_constant<int, 2>, std::integral_constant<int, 3>>);
 
 TEST_CASE("linear uses and updates the cell hint") {
   const CartesianGrid<2> g = test_grid<2>();

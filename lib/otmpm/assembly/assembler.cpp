@@ -180,8 +180,10 @@ std::optional<BodyForce<D>> build_body_force(const Scene& scene, std::shared_ptr
   return b;
 }
 
-/// The node reset of a `ul` scene: on the scene grid's lines, the scene's
-/// basis and boundary boxes on the new lattice.
+/// The node reset of a `ul` scene: on the scene grid's lines (translated
+/// along an axis with the boundaries that fix it and move, validate_scene
+/// checks that they move alike), the scene's basis and boundary boxes on the
+/// new lattice, each box moved along its fixed axes with its nodes.
 template <int D> NodeReset<D> node_reset(const Scene& scene) {
   NodeReset<D> r;
   r.below = scene.simulation.node_reset;
@@ -189,15 +191,21 @@ template <int D> NodeReset<D> node_reset(const Scene& scene) {
     r.lines.lower[k] = scene.grid.lower[k];
     r.lines.upper[k] = scene.grid.upper[k];
     r.lines.cells[k] = scene.grid.cells[k];
+    for (const BoundarySection& b : scene.boundaries)
+      if (b.fix[static_cast<std::size_t>(k)]) r.velocity[k] = b.value[static_cast<std::size_t>(k)];
   }
-  r.lattice = [scene](const CartesianGrid<D>& grid) {
+  r.lattice = [scene](const CartesianGrid<D>& grid, double t) {
     LatticePart<D> part;
     try {
       part.basis = make_basis<D>(basis_options<D>(scene), NodeSet<D>::cartesian(grid));
     } catch (const InputError& e) {
       input_error(scene.basis_where, e.what());
     }
-    part.dirichlet = build_dirichlet<D>(scene, part.basis->nodes(), grid.h().minCoeff());
+    Scene moved = scene;
+    for (BoundarySection& b : moved.boundaries)
+      for (std::size_t k = 0; k < 3; ++k)
+        if (b.fix[k]) b.lower[k] += b.value[k] * t, b.upper[k] += b.value[k] * t;
+    part.dirichlet = build_dirichlet<D>(moved, part.basis->nodes(), grid.h().minCoeff());
     return part;
   };
   return r;

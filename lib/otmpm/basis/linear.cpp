@@ -15,6 +15,7 @@
 #include <limits>
 #include <type_traits>
 #include <utility>
+#include <vector>
 
 namespace otmpm {
 
@@ -133,18 +134,20 @@ template <int D> struct ReferenceShape {
   std::array<Vec<D>, kCorners<D>> dN; // dN_a / dxi
 
   explicit ReferenceShape(const Vec<D>& xi) {
+    // the two 1D factors of each axis, f[k][0] for s = -1 and f[k][1] for s = +1
+    std::array<std::array<double, 2>, D> f;
+    constexpr std::array<double, 2> df{0.5 * -1.0, 0.5 * 1.0};
+    for (int k = 0; k < D; ++k) {
+      f[k][0] = 0.5 * (1.0 + -1.0 * xi[k]);
+      f[k][1] = 0.5 * (1.0 + 1.0 * xi[k]);
+    }
     for (int a = 0; a < kCorners<D>; ++a) {
-      std::array<double, D> f, df;
-      for (int k = 0; k < D; ++k) {
-        const double s = ((a >> k) & 1) ? 1.0 : -1.0;
-        f[k] = 0.5 * (1.0 + s * xi[k]);
-        df[k] = 0.5 * s;
-      }
       N[a] = 1.0;
       dN[a] = Vec<D>::Ones();
       for (int k = 0; k < D; ++k) {
-        N[a] *= f[k];
-        for (int m = 0; m < D; ++m) dN[a][m] *= (m == k ? df[k] : f[k]);
+        const int b = (a >> k) & 1;
+        N[a] *= f[k][b];
+        for (int m = 0; m < D; ++m) dN[a][m] *= (m == k ? df[b] : f[k][b]);
       }
     }
   }
@@ -156,10 +159,20 @@ template <int D> struct ReferenceShape {
 /// (S a subset of the axes, as a bit mask), so that Newton's x(xi) and J(xi)
 /// cost a few multiply-adds.
 template <int D> struct Element {
+  /// prod_{k in S} s_ak = (-1)^(number of k in S with bit k of a clear)
+  static constexpr std::array<std::array<double, kCorners<D>>, kCorners<D>> kSign = [] {
+    std::array<std::array<double, kCorners<D>>, kCorners<D>> t{};
+    for (int S = 0; S < kCorners<D>; ++S)
+      for (int a = 0; a < kCorners<D>; ++a)
+        t[S][a] = std::popcount(static_cast<unsigned>(S & ~a)) % 2 != 0 ? -1.0 : 1.0;
+    return t;
+  }();
+
   std::array<int, kCorners<D>> id;
   std::array<Vec<D>, kCorners<D>> x;
   std::array<Vec<D>, kCorners<D>> c;
 
+  Element() = default;
   Element(const CartesianGrid<D>& g, const NodeSet<D>& nodes, const Index<D>& cell) {
     const int base = g.node_id(cell);
     std::array<int, D> stride;
@@ -169,11 +182,8 @@ template <int D> struct Element {
       id[a] = base;
       for (int k = 0; k < D; ++k) id[a] += ((a >> k) & 1) * stride[k];
       x[a] = nodes.position(id[a]);
-      for (int S = 0; S < kCorners<D>; ++S) {
-        // prod_{k in S} s_ak = (-1)^(number of k in S with bit k of a clear)
-        const bool negative = std::popcount(static_cast<unsigned>(S & ~a)) % 2 != 0;
-        c[S] += negative ? Vec<D>(-x[a]) : x[a];
-      }
+      // (+-1) x_a is x_a or its negation exactly: the sum of +-x_a in corner order
+      for (int S = 0; S < kCorners<D>; ++S) c[S] += kSign[S][a] * x[a];
     }
     for (Vec<D>& v : c) v /= kCorners<D>;
   }
@@ -194,22 +204,45 @@ template <int D> struct Element {
 
 enum class InverseStatus { inside, outside, failed };
 
+/// What the first Newton step of inverse_map reads, x(0) and J(0) (its
+/// determinant and inverse): the same for every point of the element, so a
+/// run of points in one element forms it once. The same bits as forming it
+/// in the step.
+template <int D> struct NewtonStart {
+  Vec<D> pos;
+  Mat<D> J_inverse;
+  double det = 0.0;
+
+  NewtonStart() = default;
+  explicit NewtonStart(const Element<D>& e) {
+    Mat<D> J;
+    e.map(Vec<D>::Zero(), pos, J);
+    det = J.determinant();
+    J_inverse = J.inverse();
+  }
+};
+
 /// Solves x(xi) = x for xi by Newton from the element centre. `affine`
 /// receives the first iterate, J(0)^{-1} (x - x(0)): the parallelogram
 /// estimate, which tells the side of a point outside the element reliably
 /// (Newton itself may converge to a spurious preimage of the folded bilinear
 /// extension there). On `outside` xi is Newton's estimate; on `failed`
 /// (singular Jacobian or no convergence) xi is meaningless.
-template <int D> InverseStatus inverse_map(const Element<D>& e, const Vec<D>& x, Vec<D>& xi, Vec<D>& affine) {
+template <int D>
+InverseStatus inverse_map(const Element<D>& e, const NewtonStart<D>& start, const Vec<D>& x, Vec<D>& xi,
+                          Vec<D>& affine) {
   xi.setZero();
   affine.setConstant(std::numeric_limits<double>::quiet_NaN());
   for (int it = 0; it < kMaxNewtonIterations; ++it) {
-    Vec<D> pos;
+    Vec<D> pos = start.pos;
     Mat<D> J;
-    e.map(xi, pos, J);
-    const double det = J.determinant();
+    double det = start.det;
+    if (it > 0) {
+      e.map(xi, pos, J);
+      det = J.determinant();
+    }
     if (!(std::abs(det) > 0.0) || !std::isfinite(det)) return InverseStatus::failed;
-    const Vec<D> step = J.inverse() * (pos - x);
+    const Vec<D> step = (it > 0 ? Mat<D>(J.inverse()) : start.J_inverse) * (pos - x);
     xi -= step;
     if (it == 0) affine = xi;
     if (!xi.allFinite()) return InverseStatus::failed;
@@ -303,12 +336,12 @@ public:
   /// no virtual call), the same bits as evaluate_fixed(). Stops before the
   /// first point outside the widened grid box (or not finite). Once the
   /// nodes left their lattice: in 1D the segments of segments_run, in 2D and
-  /// 3D no batch (-1).
+  /// 3D the elements of elements_run.
   int evaluate_fixed_points(const Vec<D>* x, int count, Index<D>* cell_hint, int* node, double* N,
                             Vec<D>* dN) const override {
     if (!nodes_.on_lattice()) {
       if constexpr (D == 1) return segments_run(x, count, cell_hint, node, N, dN);
-      return -1;
+      return elements_run(x, count, cell_hint, node, N, dN);
     }
     return cell_hint ? hats_run<true>(x, count, cell_hint, node, N, dN) : hats_run<false>(x, count, nullptr, node, N, dN);
   }
@@ -424,7 +457,7 @@ private:
     for (int step = 0; step < max_steps; ++step) {
       const Element<D> e(grid_, nodes_, c);
       Vec<D> xi, affine;
-      const InverseStatus st = inverse_map(e, q.x, xi, affine);
+      const InverseStatus st = inverse_map(e, NewtonStart<D>(e), q.x, xi, affine);
       if (st == InverseStatus::inside) return finish(e, xi, c, q, out);
       const bool affine_outside = affine.allFinite() && affine.cwiseAbs().maxCoeff() > 1.0 + kInsideTolerance;
       if (!affine_outside && st == InverseStatus::failed) break;
@@ -458,7 +491,7 @@ private:
           const Element<D> e(grid_, nodes_, c);
           if (in_bounding_box(e, q.x, slack)) {
             Vec<D> xi, affine;
-            const InverseStatus st = inverse_map(e, q.x, xi, affine);
+            const InverseStatus st = inverse_map(e, NewtonStart<D>(e), q.x, xi, affine);
             if (st == InverseStatus::inside) return finish(e, xi, c, q, out);
             distorted = distorted || st == InverseStatus::failed;
           }
@@ -512,18 +545,78 @@ private:
     return true;
   }
 
-  void push_element(const Element<D>& e, Vec<D> xi, const PointQuery<D>& q, Stencil<D>& out) const {
+  void push_element(const Element<D>& e, const Vec<D>& xi, const PointQuery<D>& q, Stencil<D>& out) const {
+    std::array<int, kCorners<D>> node;
+    std::array<double, kCorners<D>> N;
+    std::array<Vec<D>, kCorners<D>> dN;
+    const double det = element_values(e, xi, node.data(), N.data(), dN.data());
+    if (!(det > 0.0))
+      throw BasisError("linear basis: the element containing " + point_text(q) +
+                       " is inverted or degenerate (det J = " + std::to_string(det) + ")");
+    for (int a = 0; a < kCorners<D>; ++a) out.push(node[a], N[a], dN[a]);
+  }
+
+  /// N_a(xi) and grad N_a = J^{-T} dN_a/dxi of the element at xi (clamped
+  /// to [-1, 1]^D), written to node/N/dN when det J > 0; returns det J.
+  static double element_values(const Element<D>& e, Vec<D> xi, int* node, double* N, Vec<D>* dN) {
     xi = xi.cwiseMax(-1.0).cwiseMin(1.0);
     const ReferenceShape<D> s(xi);
     Vec<D> pos;
     Mat<D> J;
     e.map(xi, pos, J);
     const double det = J.determinant();
-    if (!(det > 0.0))
-      throw BasisError("linear basis: the element containing " + point_text(q) +
-                       " is inverted or degenerate (det J = " + std::to_string(det) + ")");
+    if (!(det > 0.0)) return det;
     const Mat<D> JinvT = J.inverse().transpose();
-    for (int a = 0; a < kCorners<D>; ++a) out.push(e.id[a], s.N[a], JinvT * s.dN[a]);
+    for (int a = 0; a < kCorners<D>; ++a) {
+      node[a] = e.id[a];
+      N[a] = s.N[a];
+      dN[a] = JinvT * s.dN[a];
+    }
+    return det;
+  }
+
+  /// The elements one elements_run() has formed (with their first Newton
+  /// step), in kElementSlots slots by the id of the cell's first vertex: the
+  /// points of a cell come in a few runs (particles are usually listed along
+  /// lines), so most of them find their element formed. A slot is valid for
+  /// one call (its `call` number): the nodes move between calls.
+  struct FormedElement {
+    unsigned long long call = 0;
+    int base = -1;
+    Element<D> e;
+    NewtonStart<D> start;
+  };
+  static constexpr int kElementSlots = 256;
+
+  /// 2D and 3D off the lattice: consecutive points each in the element of
+  /// its start cell (start_cell: the hint, else the Cartesian guess), by
+  /// the operations of evaluate() when its walk ends where it starts; each
+  /// element and its first Newton step formed once per call where the
+  /// slots keep it. Stops before the first point that is not finite, not
+  /// inside that element or in an inverted one (evaluate() walks on or
+  /// reports it).
+  int elements_run(const Vec<D>* x, int count, Index<D>* cell_hint, int* node, double* N, Vec<D>* dN) const {
+    constexpr int S = kCorners<D>;
+    thread_local std::vector<FormedElement> slots(kElementSlots);
+    thread_local unsigned long long calls = 0;
+    const unsigned long long call = ++calls;
+    for (int p = 0; p < count; ++p) {
+      if (!x[p].allFinite()) return p;
+      const Index<D> c = start_cell(cell_hint ? &cell_hint[p] : nullptr, x[p]);
+      const int base = grid_.node_id(c);
+      FormedElement& f = slots[static_cast<std::size_t>(base % kElementSlots)];
+      if (f.call != call || f.base != base) {
+        f.e = Element<D>(grid_, nodes_, c);
+        f.start = NewtonStart<D>(f.e);
+        f.call = call;
+        f.base = base;
+      }
+      Vec<D> xi, affine;
+      if (inverse_map(f.e, f.start, x[p], xi, affine) != InverseStatus::inside) return p;
+      if (!(element_values(f.e, xi, node + p * S, N + p * S, dN + p * S) > 0.0)) return p;
+      if (cell_hint) cell_hint[p] = c;
+    }
+    return count;
   }
 
   /// 1D off the lattice (moved or perturbed nodes), consecutive points each

@@ -653,7 +653,7 @@ template <int D> void Engine<D>::reset_nodes(const CartesianGrid<D>* given) {
   if (given) {
     grid = *given;
   } else { // the grid's lines around every particle's extent
-    const CartesianGrid<D>& lines = settings_.node_reset.lines;
+    const CartesianGrid<D> lines = settings_.node_reset.lines_at(t_);
     const Vec<D> h = lines.h();
     Vec<D> lo = Vec<D>::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
     for (int p = 0; p < P_.size(); ++p) {
@@ -669,7 +669,8 @@ template <int D> void Engine<D>::reset_nodes(const CartesianGrid<D>* given) {
     }
     grid.validate();
   }
-  LatticePart<D> part = settings_.node_reset.lattice(grid);
+  if (!given) lattice_time_ = t_;
+  LatticePart<D> part = settings_.node_reset.lattice(grid, lattice_time_);
   const AlignedVector<Vec<D>> wall_impulse = constraints_.wall_impulse(); // the walls keep their impulse
   basis_ = std::move(part.basis);
   const int nodes = basis_->nodes().size();

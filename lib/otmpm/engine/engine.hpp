@@ -57,11 +57,24 @@ template <int D> struct LatticePart {
 
 /// `ul` mode: the nodes laid out anew on the scene grid's lattice over the
 /// particles when the CFL spacing has fallen below `below` h (docs/theory.md
-/// sect. 3, "Node reset"); below = 0: never.
+/// sect. 3, "Node reset"); below = 0: never. The lattice lines move with the
+/// boundaries that move their nodes: at time t they are the scene grid's
+/// lines translated by `velocity` t, so that a held node plane stays on a line.
 template <int D> struct NodeReset {
   double below = 0.0;
-  CartesianGrid<D> lines; ///< the scene's grid: the new lattice runs on its lines, with its spacing
-  std::function<LatticePart<D>(const CartesianGrid<D>&)> lattice; ///< the basis and Dirichlet sets on a lattice
+  CartesianGrid<D> lines; ///< the scene's grid at t = 0: the new lattice runs on its lines, with its spacing
+  Vec<D> velocity = Vec<D>::Zero(); ///< per axis: the velocity of the boundaries that fix it (0: none moves)
+  /// The basis and Dirichlet sets on a lattice laid out at time t (the boundary boxes moved with them).
+  std::function<LatticePart<D>(const CartesianGrid<D>&, double t)> lattice;
+  /// The lines at time t: `lines` translated by velocity t.
+  CartesianGrid<D> lines_at(double t) const {
+    CartesianGrid<D> g = lines;
+    for (int k = 0; k < D; ++k) {
+      g.lower[k] += velocity[k] * t;
+      g.upper[k] += velocity[k] * t;
+    }
+    return g;
+  }
 };
 
 /// How the engine steps: the integrator's step function and parameters,
@@ -442,13 +455,13 @@ private:
   std::unique_ptr<ParticleToNodes<D>> scatter_; ///< engine/scatter.hpp (internal: needs parallel.hpp)
   AlignedVector<Vec<D>> fext_; ///< external force per particle when not uniform
   double node_spacing0_ = 1.0; ///< the nodes' smallest spacing at t = 0
-  /// ul with a searching family: the largest |grad N_Ip| of the first and of
-  /// the last basis table (NodeMode::cfl_spacing); 0 until the first.
+  /// ul, searching family: max |grad N_Ip| of the first and the last table (NodeMode::cfl_spacing), 0 before
   double gradient0_ = 0.0, gradient_ = 0.0;
   AlignedVector<Vec<D>> moved_; ///< ul, searching family: the displacement into the hull (Basis::evaluate_points)
   AlignedVector<Vec<D>> x_start_; ///< ul: the particles' positions at the start of the step
   std::vector<int> light_;        ///< ul: nodes under kLightNode of the heaviest's mass (finish_mass)
   long node_resets_ = 0;
+  double lattice_time_ = 0.0; ///< the time of the last node reset (where the moving boundary boxes were)
   std::optional<CartesianGrid<D>> lattice_; ///< after a node reset: the lattice the nodes were laid out on
   FbarState<D> fbar_;
   double t_ = 0.0, dt_ = 0.0, dt_prev_ = 0.0;

@@ -107,6 +107,7 @@ template <int D> void Engine<D>::save_state(Checkpoint& out) const {
   if (lattice_) { // laid out anew (NodeReset): the lattice, and the F-bar patches of its layout
     StateGroup& n = out.group("nodes");
     n.integers["resets"] = node_resets_;
+    n.reals["lattice_time"] = lattice_time_;
     save_vector<D>(n, "lattice_lower", lattice_->lower);
     save_vector<D>(n, "lattice_upper", lattice_->upper);
     n.integer_arrays["lattice_cells"] = {1, std::vector<std::int64_t>(lattice_->cells.begin(), lattice_->cells.end())};
@@ -139,6 +140,8 @@ template <int D> void Engine<D>::restore_state(const Checkpoint& in) {
     } catch (const InputError& e) {
       nodes.error(std::string("the lattice of the last node reset: ") + e.what());
     }
+    // (checkpoints written before the lattice followed moving boundaries: only fixed ones, t = 0)
+    lattice_time_ = nodes.reals.count("lattice_time") ? nodes.real("lattice_time") : 0.0;
     reset_nodes(&grid);
     node_resets_ = static_cast<long>(nodes.integer("resets"));
     const auto& absent = nodes.integer_array("absent", static_cast<std::size_t>(basis_->nodes().size()), 1).values;

@@ -101,11 +101,14 @@ void check_simulation(const Scene& s, int dim) {
   check_number(s, "simulation.node_reset", m.node_reset, scene_keys::kNodeReset);
   check(s, m.node_reset == 0 || m.nodes_move(), "simulation.node_reset",
         "lays the advected nodes out anew: it needs simulation.mode = \"ul\"");
-  for (const BoundarySection& b : s.boundaries) {
-    const bool moves = (b.fix[0] && b.value[0] != 0) || (b.fix[1] && b.value[1] != 0) || (b.fix[2] && b.value[2] != 0);
-    check(s, m.node_reset == 0 || !moves, "simulation.node_reset", "boundary '", b.name,
-          "' moves its nodes (a non-zero value): after a node reset its box would select other nodes");
-  }
+  // A node reset moves the lattice lines along an axis with the boundaries that fix it: one velocity per axis.
+  for (std::size_t k = 0; k < static_cast<std::size_t>(m.dimension) && m.node_reset > 0; ++k)
+    for (const BoundarySection& a : s.boundaries)
+      for (const BoundarySection& b : s.boundaries)
+        check(s, !(a.fix[k] && b.fix[k] && a.value[k] != b.value[k]), "simulation.node_reset", "boundaries '",
+              a.name, "' and '", b.name, "' fix axis ", k, " at different velocities (", a.value[k], ", ",
+              b.value[k],
+              "): a node reset moves the lattice lines with the boundaries, one velocity per axis");
   check(s, !integrator->needs_ul || m.nodes_move(), "simulation.integrator", "integrator \"", m.integrator,
         "\" needs advected nodes: use simulation.mode = \"ul\"");
   check(s, !integrator->needs_consistent_mass || m.mass == "consistent", "simulation.mass", "integrator \"",
