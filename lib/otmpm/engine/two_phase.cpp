@@ -65,7 +65,7 @@ Relative relative(double Q, double ms, double mw, double dt, double Fm, double F
   return r;
 }
 
-/// The free water's pressure at x (Drain, eq. 15.10) under the body force b.
+/// The free water's pressure at x (Drain, eq. 15.11) under the body force b.
 template <int D> double water_pressure(const Drain& s, const Vec<D>& x, const Vec<D>& b) {
   if (!s.level) return s.pressure;
   return s.pressure + s.density * std::max(0.0, b.norm() * *s.level + b.dot(x));
@@ -217,7 +217,7 @@ template <int D> double TwoPhase<D>::solve(Engine<D>& e, double t, double dt) {
   return blocked_reduce<double>(static_cast<long long>(mw_.size()), [&](long long i, double& darcy) {
     const auto I = static_cast<std::size_t>(i);
     Vec<D> Fm = n.f[I] + fp_[I] + mw_[I] * b, Fw = fw_[I] + mw_[I] * b;
-    if (drain_[I] >= 0) { // the free water's push (eq. 15.10)
+    if (drain_[I] >= 0) { // the free water's push (eq. 15.11)
       const double pbar = water_pressure(parts_.drains[static_cast<std::size_t>(drain_[I])], nodes.position(static_cast<int>(I)), b);
       Fm -= pbar * g_[I], Fw -= pbar * gn_[I];
       pbar_[I] = pbar;

@@ -53,7 +53,7 @@ struct Plate {
 
 /// A drained surface in contact with free water: the nodes of a
 /// `[[boundary]]` with `pore_pressure` or `water_level`. The free water's
-/// pressure at a node x_I is (docs/theory.md eq. 15.10)
+/// pressure at a node x_I is (docs/theory.md eq. 15.11)
 ///   pbar(x) = pressure + density max(0, |b| level + b . x),
 /// `level` the water level's height along -b (b the uniform body force),
 /// and it pushes on the surface: -pbar G_I on the mixture, -pbar G_n,I on
@@ -79,7 +79,7 @@ template <int D> struct TwoPhaseParts {
   /// The drained surfaces. Every other surface of a saturated body is
   /// impermeable: at a node of the body's surface (a node with an empty
   /// lattice cell beside it) the liquid's normal velocity is the solid's,
-  /// (w - v) . n_I = 0 with n_I along G_I (eq. 15.11).
+  /// (w - v) . n_I = 0 with n_I along G_I (eq. 15.10).
   std::vector<Drain> drains;
 };
 
@@ -151,7 +151,7 @@ private:
   /// The coupled nodal solve (eq. 15.5); returns the step's Darcy dissipation (eq. 15.6).
   double solve(Engine<D>& e, double t, double dt);
   /// The solve of node I's free components with (w - v) . normal = 0 at
-  /// the end of the step (eq. 15.11); returns its dissipation.
+  /// the end of the step (eq. 15.10); returns its dissipation.
   double solve_impermeable(NodalFields<D>& n, std::size_t I, const Vec<D>& Fm, const Vec<D>& Fw,
                            const Vec<D>& normal, double dt);
   /// The impermeable normals of the step (normal_): the surface nodes of the
