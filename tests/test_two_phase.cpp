@@ -390,6 +390,9 @@ TEST_CASE("a rigid plate needs saturated bodies and an axis of the run") {
   scene.materials[0].extra.clear(); // dry
   scene.reference.solution.clear();
   why = test::input_error_of([&] { validate_scene(scene, 2); });
+  CHECK(why.find("key 'boundary.side.pore_pressure'") != std::string::npos); // the drained side
+  for (BoundarySection& b : scene.boundaries) b.pore_pressure.reset();
+  why = test::input_error_of([&] { validate_scene(scene, 2); });
   CHECK(why.find("saturated bodies only") != std::string::npos);
 }
 

@@ -255,7 +255,8 @@ std::optional<TwoPhaseParts<D>> build_two_phase(const Scene& scene, const NodeSe
 /// effective stress is that plus the pore pressure, times k0 across.
 template <int D> void set_water_table(const Scene& scene, const Vec<D>& spacing, Particles<D>& P) {
   const auto table = [&](int p) -> const BodySection& { return scene.bodies[static_cast<std::size_t>(P.body[p])]; };
-  if (std::none_of(scene.bodies.begin(), scene.bodies.end(), [](const BodySection& b) { return b.water_table.has_value(); }))
+  if (std::none_of(scene.bodies.begin(), scene.bodies.end(),
+                   [](const BodySection& b) { return b.water_table.has_value(); }))
     return;
   const Vec<D> b = scene_vec<D>(scene.body_force->value); // along one axis (validate_scene)
   int axis = 0;
@@ -277,7 +278,8 @@ template <int D> void set_water_table(const Scene& scene, const Vec<D>& spacing,
     // The top of the column: the upper end of its top particle's share of the seeding lattice (a box's
     // own cells, the grid's for the other shapes seeded on it), or half its extent above it.
     const BodySection& body = table(top);
-    const double z = up * P.X[top][axis], origin = up * (body.shape == "box" ? body.lower[axis] : scene.grid.lower[axis]);
+    const double z = up * P.X[top][axis];
+    const double origin = up * (body.shape == "box" ? body.lower[axis] : scene.grid.lower[axis]);
     const bool lattice = body.shape != "file" && body.shape != "mesh";
     double z_up = lattice ? origin + std::ceil((z - origin) / length(top)) * length(top) : z + 0.5 * length(top);
     double sv = -rho_top * g * std::max(0.0, *body.water_table - z_up); // the total vertical stress at z_up

@@ -71,6 +71,19 @@ template <int D> double water_pressure(const Drain& s, const Vec<D>& x, const Ve
   return s.pressure + s.density * std::max(0.0, b.norm() * *s.level + b.dot(x));
 }
 
+/// The lattice cell of x as one number: the node number of its lower corner
+/// (clamped as CartesianGrid::cell_of clamps; a NaN is caught after the step).
+template <int D> long long lattice_cell(const Vec<D>& x, const Vec<D>& lower, const Vec<D>& inverse, const Index<D>& cells) {
+  long long id = 0;
+  for (int k = D - 1; k >= 0; --k) {
+    // clamped first, then truncated: floor's cell without a call to floor
+    const double c = (x[k] - lower[k]) * inverse[k];
+    const double clamped = std::isnan(c) ? 0.0 : std::clamp(c, 0.0, cells[k] - 1.0);
+    id = id * (cells[k] + 1LL) + static_cast<long long>(clamped);
+  }
+  return id;
+}
+
 /// The lower of two particle indices, -1 meaning none.
 int lowest(int a, int b) { return a < 0 ? b : b < 0 ? a : std::min(a, b); }
 
@@ -162,10 +175,19 @@ void TwoPhase<D>::scatter(const Engine<D>& e, Update&& update) {
   const double *V = P.V.data(), *V0 = P.V0.data(), *pressure = pressure_field.values.data();
   const double* velocity = velocity_field.values.data();
   const PoreFluid* const* fluid_of = fluids_.data();
+  const std::optional<CartesianGrid<D>>& grid = e.basis().nodes().grid();
+  if constexpr (!MomentumOnly) start_cell_.resize(static_cast<std::size_t>(P.size()));
+  long long* start_cell = start_cell_.data();
+  const Vec<D>* x = P.x.data();
+  const Vec<D> lower = grid ? grid->lower : Vec<D>::Zero();
+  const Vec<D> inverse = grid ? Vec<D>(grid->h().cwiseInverse()) : Vec<D>::Zero();
+  const Index<D> cells = grid ? grid->cells : Index<D>{};
+  const bool lattice = grid.has_value();
   auto prep = [=](int p) {
     Payload w;
     const PoreFluid* f = fluid_of[material[p]];
     if (!f) return w;
+    if constexpr (!MomentumOnly) start_cell[p] = lattice ? lattice_cell<D>(x[p], lower, inverse, cells) : -1;
     const double nV = V[p] - (1.0 - f->porosity) * V0[p]; // the pores' volume n V
     w.m = f->density * nV;
     w.q = w.m * Eigen::Map<const Vec<D>>(velocity + static_cast<std::size_t>(p) * D);
@@ -218,7 +240,8 @@ template <int D> double TwoPhase<D>::solve(Engine<D>& e, double t, double dt) {
     const auto I = static_cast<std::size_t>(i);
     Vec<D> Fm = n.f[I] + fp_[I] + mw_[I] * b, Fw = fw_[I] + mw_[I] * b;
     if (drain_[I] >= 0) { // the free water's push (eq. 15.11)
-      const double pbar = water_pressure(parts_.drains[static_cast<std::size_t>(drain_[I])], nodes.position(static_cast<int>(I)), b);
+      const Drain& drain = parts_.drains[static_cast<std::size_t>(drain_[I])];
+      const double pbar = water_pressure(drain, nodes.position(static_cast<int>(I)), b);
       Fm -= pbar * g_[I], Fw -= pbar * gn_[I];
       pbar_[I] = pbar;
     }
@@ -269,15 +292,11 @@ template <int D> void TwoPhase<D>::find_surface(const Engine<D>& e) {
   std::fill(normal_.begin(), normal_.end(), Vec<D>::Zero());
   const std::optional<CartesianGrid<D>>& grid = e.basis().nodes().grid();
   if (!grid) return;
-  const auto cell_id = [&](const Index<D>& c) {
-    long long id = 0;
-    for (int k = D - 1; k >= 0; --k) id = id * grid->cells[k] + c[k];
-    return static_cast<std::size_t>(id);
-  };
+  // The cells that hold a saturated particle, by the node number of their lower corner (scatter: start_cell_).
   const Particles<D>& P = e.particles();
-  occupied_.assign(static_cast<std::size_t>(grid->num_cells()), 0);
+  occupied_.assign(mw_.size(), 0);
   for (int p = 0; p < P.size(); ++p)
-    if (fluids_[static_cast<std::size_t>(P.material[p])]) occupied_[cell_id(grid->cell_of(P.x[p]))] = 1;
+    if (fluids_[static_cast<std::size_t>(P.material[p])]) occupied_[static_cast<std::size_t>(start_cell_[p])] = 1;
   const NodalFields<D>& n = e.nodal();
   parallel_for(static_cast<long long>(mw_.size()), [&](long long i) {
     const auto I = static_cast<std::size_t>(i);
@@ -291,7 +310,7 @@ template <int D> void TwoPhase<D>::find_surface(const Engine<D>& e) {
         c[k] -= (corner >> k) & 1;
         inside = inside && c[k] >= 0 && c[k] < grid->cells[k];
       }
-      surface = !inside || !occupied_[cell_id(c)];
+      surface = !inside || !occupied_[static_cast<std::size_t>(grid->node_id(c))];
     }
     if (!surface) return;
     Vec<D> g = g_[I]; // the outward normal over the components the liquid is free in
@@ -438,15 +457,7 @@ void TwoPhase<D>::update_range(Engine<D>& e, double dt, int p0, int p1) {
                                    " left (0, 1): the skeleton's volume fell to its grains' or below"};
     const auto i = static_cast<std::size_t>(p);
     dp_[i] = -dt * f->bulk_modulus / n * ((1.0 - n) * div_s + n * div_w); // eq. 15.3
-    cell_[i] = -1;
-    if (grid) { // the lattice cell of the particle, as one number (clamped as CartesianGrid::cell_of clamps)
-      cell_[i] = 0;
-      for (int k = D - 1; k >= 0; --k) {
-        const double c = std::floor((P.x[p][k] - lower[k]) * inverse[k]);
-        const double clamped = std::isnan(c) ? 0.0 : std::clamp(c, 0.0, grid->cells[k] - 1.0); // a NaN is caught after the step
-        cell_[i] = cell_[i] * (grid->cells[k] + 1LL) + static_cast<long long>(clamped);
-      }
-    }
+    cell_[i] = grid ? lattice_cell<D>(P.x[p], lower, inverse, grid->cells) : -1;
   }
 }
 

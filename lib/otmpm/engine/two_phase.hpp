@@ -178,7 +178,8 @@ private:
   std::vector<double> value_;
   std::vector<char> wet_;         ///< per node: active with a liquid mass above the mass tolerance
   std::vector<int> drain_;        ///< per node: its Drain in parts_.drains, or -1
-  std::vector<char> occupied_;    ///< per lattice cell: holds a saturated particle (this step)
+  std::vector<char> occupied_;    ///< per lattice cell (its lower corner's node): holds a saturated particle
+  std::vector<long long> start_cell_; ///< per particle its lattice cell at the step's start (lattice_cell)
   /// G_I and G_n,I (Drain), the impermeable normals (impermeable_normal).
   AlignedVector<Vec<D>> g_, gn_, normal_;
   std::vector<double> mw_, drag_; ///< m_w,I and Q_I
