@@ -40,6 +40,7 @@ stretch_bar|--field stress --component xx
 taylor_bar|--field plastic_strain --view xz
 terzaghi|--field pore_pressure --frame 4
 mandel|--field pore_pressure --frame 8
+dike|--field pore_pressure
 traction_bar|--field stress
 geometry/impactor|--field plastic_strain --view xz
 geometry/embankment|--field plastic_strain

@@ -326,8 +326,22 @@ TEST_CASE("saturated scenes: bad keys are refused with the file, line and key") 
   CHECK(why.find("key 'material.sand.porosity'") != std::string::npos); // out of (0, 1)
   why = refused("permeability = ", "permeability = -");
   CHECK(why.find("permeability") != std::string::npos);
-  why = refused("pore_pressure = 0.0", "pore_pressure = 5.0");
-  CHECK(why.find("only 0 is supported") != std::string::npos);
+  why = refused("pore_pressure = 0.0", "water_level = 2.0");
+  CHECK(why.find("key 'boundary.top.water_level'") != std::string::npos);
+  CHECK(why.find("no [body_force] along one axis") != std::string::npos);
+  why = refused("particles_per_cell = 2\n", "particles_per_cell = 2\nk0 = 0.5\n");
+  CHECK(why.find("key 'body.column.k0'") != std::string::npos);
+  CHECK(why.find("needs water_table") != std::string::npos);
+  why = refused("particles_per_cell = 2\n", "particles_per_cell = 2\nwater_table = 1.0\n");
+  CHECK(why.find("key 'body.column.water_table'") != std::string::npos);
+  const std::string gravity = good + "[body_force]\nvalue = [-9.81]\n";
+  why = test::input_error_of([&] {
+    std::string text = gravity;
+    text.replace(text.find("model = \"linear_elastic\""), 24, "model = \"neo_hookean\"");
+    text.replace(text.find("particles_per_cell = 2\n"), 23, "particles_per_cell = 2\nwater_table = 1.0\n");
+    (void)parse_scene(text, "bad.toml");
+  });
+  CHECK(why.find("model \"neo_hookean\" does not take") != std::string::npos);
   why = refused("mode = \"mpm\"", "mode = \"ul\"");
   CHECK(why.find("saturated bodies (materials with a pore fluid) need simulation.mode = \"mpm\"") != std::string::npos);
   why = refused("[basis]", "mass = \"consistent\"\n[basis]");
@@ -375,6 +389,9 @@ TEST_CASE("a rigid plate needs saturated bodies and an axis of the run") {
   scene.plates[0].axis = 1;
   scene.materials[0].extra.clear(); // dry
   scene.reference.solution.clear();
+  why = test::input_error_of([&] { validate_scene(scene, 2); });
+  CHECK(why.find("key 'boundary.side.pore_pressure'") != std::string::npos); // the drained side
+  for (BoundarySection& b : scene.boundaries) b.pore_pressure.reset();
   why = test::input_error_of([&] { validate_scene(scene, 2); });
   CHECK(why.find("saturated bodies only") != std::string::npos);
 }
@@ -468,4 +485,122 @@ TEST_CASE("Mandel's series: its roots, the undrained start and the Mandel-Cryer 
     }
     CHECK(force == doctest::Approx(-p.stress).epsilon(1e-4));
   }
+}
+
+namespace {
+
+/// The column of `column(c)` without its load and exact solution, with the
+/// text `from` of its scene replaced by `to`, and `extra` appended.
+std::string unloaded(const Column& c, const std::string& from, const std::string& to, const std::string& extra) {
+  std::string s = column(c);
+  s = s.substr(0, s.find("[[traction]]"));
+  if (!from.empty()) s.replace(s.find(from), from.size(), to);
+  return s + extra;
+}
+
+/// A column at rest under gravity with its water table at `table` (above
+/// the top at 1 m: standing water, whose level the top's drain takes), K0
+/// (nu = 0.3): the largest displacement and |p - rho_w g (table - z)| over
+/// the particles after `t` seconds.
+template <int D> std::pair<double, double> still_column(double table, double t) {
+  Column c;
+  c.dim = D;
+  const std::string level = table > 1.0 ? "water_level = " + num(table) : "pore_pressure = 0.0";
+  std::string text = unloaded(c, "pore_pressure = 0.0", level,
+                              "[body_force]\nvalue = " + vec(D, 0.0, -9.81) + "\n");
+  text.replace(text.find("poisson = 0.0"), 13, "poisson = 0.3");
+  text.replace(text.find("particles_per_cell = 2\n"), 23, "particles_per_cell = 2\nwater_table = " + num(table) + "\n");
+  Engine<D> e = assemble<D>(parse_scene(text, "still.toml"));
+  run_to(e, t);
+  double moved = 0.0, off = 0.0;
+  const Particles<D>& P = e.particles();
+  for (int p = 0; p < P.size(); ++p) {
+    moved = std::max(moved, (P.x[p] - P.X[p]).norm());
+    off = std::max(off, std::abs(pressure_of(e, p) - 1000.0 * 9.81 * (table - P.X[p][D - 1])));
+  }
+  return {moved, off};
+}
+
+} // namespace
+
+TEST_CASE("a saturated column under gravity, its pore pressure hydrostatic and its stress K0, stays still") {
+  // Without the initial state the skeleton would settle by its buoyant weight, rho' g H^2 / (2 M) =
+  // 990 * 9.81 / (2 * 1.346e7) = 0.36 mm at the top (M = E (1 - nu) / ((1 + nu)(1 - 2 nu))); the pore
+  // pressure at the base is rho_w g H = 9810 Pa. Ten undrained wave crossings (0.06 s).
+  const double settlement = 990.0 * 9.81 / (2.0 * 1.0e7 * 0.7 / (1.3 * 0.4)), base = 9810.0;
+  for (const double table : {1.0, 1.5}) { // the water table at the top; 0.5 m of standing water
+    const auto [moved1, off1] = still_column<1>(table, 0.06);
+    const auto [moved2, off2] = still_column<2>(table, 0.06);
+    MESSAGE("water table " << table << ": max |u| / settlement = " << moved1 / settlement << " (1D), "
+                           << moved2 / settlement << " (2D); max |p - p_hydrostatic| / (rho_w g H) = " << off1 / base
+                           << " (1D), " << off2 / base << " (2D)");
+    CHECK(moved1 < 1e-3 * settlement);
+    CHECK(moved2 < 1e-3 * settlement);
+    CHECK(off1 < 1e-3 * base);
+    CHECK(off2 < 1e-3 * base);
+  }
+}
+
+TEST_CASE("surfaces are impermeable unless drained: a column with a closed top keeps its pore water") {
+  // The column of Terzaghi's test without the top's drain: it settles as undrained, (1 - beta) q X / M
+  // at its top particle, and its mean pore pressure stays beta q (Terzaghi's drained top has settled
+  // 3 times that by then, T_v = 0.21, and lost 40 % of the mean pressure).
+  for (const int dim : {1, 2}) {
+    Column c;
+    c.dim = dim;
+    std::string text = column(c);
+    const std::string top = "pore_pressure = 0.0\n";
+    text.replace(text.find(top), top.size(), "fix = " + flags(dim, false, false) + "\n");
+    const Scene scene = parse_scene(text, "closed.toml");
+    const double M = 1e7, n = 0.4, beta = 1.0 / (1.0 + M * n / c.fluid_bulk_modulus), q = 1e4;
+    double settlement = 0.0, closed = 0.0, mean = 0.0, volume = 0.0;
+    auto measure = [&](auto& e) {
+      run_to(e, c.t_end); // the ramp is over at 0.2 s
+      const auto& P = e.particles();
+      const int p = top_particle(P);
+      settlement = P.x[p][dim - 1] - P.X[p][dim - 1];
+      closed = -(1.0 - beta) * q * P.X[p][dim - 1] / M;
+      for (int i = 0; i < P.size(); ++i) mean += P.V[i] * pressure_of(e, i), volume += P.V[i];
+    };
+    if (dim == 1) {
+      Engine<1> e = assemble<1>(scene);
+      measure(e);
+    } else {
+      Engine<2> e = assemble<2>(scene);
+      measure(e);
+    }
+    mean /= volume;
+    MESSAGE(dim << "D closed top: settlement / undrained = " << settlement / closed << ", mean p / (beta q) = "
+                << mean / (beta * q));
+    CHECK(settlement == doctest::Approx(closed).epsilon(0.03));
+    CHECK(mean == doctest::Approx(beta * q).epsilon(0.02));
+  }
+}
+
+TEST_CASE("a drained base at a prescribed pore pressure fills the column as Terzaghi's series says") {
+  // No load, no gravity; the base drains at p0 = 5 kPa, the top is closed: p0 - p diffuses as the
+  // excess pressure of Terzaghi's column, p = p0 (1 - sum 2 / M_m sin(M_m z / H) exp(-M_m^2 T_v)).
+  Column c;
+  c.t_end = 0.5;
+  const double p0 = 5.0e3;
+  const std::string text = unloaded(c, "fix = [true]\n", "fix = [true]\npore_pressure = " + num(p0) + "\n", "");
+  Engine<1> e = assemble<1>(parse_scene(text.substr(0, text.find("[[boundary]]\nname = \"top\"")), "filled.toml"));
+  const double cv = (1e-10 / 1e-3) / (1.0 / 1e7 + 0.4 / c.fluid_bulk_modulus), T = 0.3;
+  run_to(e, T / cv);
+  double worst = 0.0;
+  for (int p = 0; p < e.particles().size(); ++p) {
+    double excess = 0.0;
+    for (int m = 0; m < 50; ++m) {
+      const double Mm = (2 * m + 1) * std::numbers::pi / 2;
+      excess += 2.0 / Mm * std::sin(Mm * e.particles().X[p][0]) * std::exp(-Mm * Mm * T);
+    }
+    worst = std::max(worst, std::abs(pressure_of(e, p) - p0 * (1.0 - excess)));
+  }
+  const EnergyBalance& E = e.energy(); // the free water's push does the work
+  MESSAGE("drained base at p0: T_v = 0.3, max |p - p_exact| / p0 = " << worst / p0 << "; W_ext = "
+                                                                    << E.external_work << " J, W_d = " << E.darcy
+                                                                    << " J, balance error = " << E.balance_error());
+  CHECK(worst < 0.03 * p0);
+  CHECK(E.external_work > 0.0);
+  CHECK(std::abs(E.balance_error()) < 2e-2 * E.external_work); // the push starts at once: 0.9 %
 }

@@ -254,8 +254,15 @@ std::optional<TwoPhaseParts<D>> build_two_phase(const Scene& scene, const NodeSe
     }
   const auto position = [&nodes](int I) { return nodes.position(I); };
   std::vector<BoundarySection> impermeable;
+  const double rho_w = std::find_if(parts.fluid.begin(), parts.fluid.end(), [](const auto& f) { return f.has_value(); })
+                           ->value()
+                           .density; // the free water's: the saturated materials share it (validate_scene)
   for (const BoundarySection& b : scene.boundaries)
-    if (!b.pore_pressure) impermeable.push_back(b);
+    if (b.pore_pressure || b.water_level)
+      parts.drains.push_back({boundary_entries<D>({b}, nodes.size(), position, h).node, b.pore_pressure.value_or(0.0),
+                              b.water_level, rho_w});
+    else
+      impermeable.push_back(b);
   parts.held = boundary_entries<D>(impermeable, nodes.size(), position, h);
   for (const PlateSection& ps : scene.plates) { // a plate's box is a boundary's
     BoundarySection box;
@@ -265,6 +272,56 @@ std::optional<TwoPhaseParts<D>> build_two_phase(const Scene& scene, const NodeSe
     parts.plates.push_back(std::move(plate));
   }
   return parts;
+}
+
+/// The hydrostatic pore pressure and the geostatic effective stress of the
+/// particles of bodies with a water table (docs/theory.md eq. 15.12): in
+/// each column of such particles along the body force's axis, from the top
+/// down, the total vertical stress is the free water's pressure above the
+/// column's top and the weight of the mixture above the particle; the
+/// effective stress is that plus the pore pressure, times k0 across.
+template <int D> void set_water_table(const Scene& scene, const Vec<D>& spacing, Particles<D>& P) {
+  const auto table = [&](int p) -> const BodySection& { return scene.bodies[static_cast<std::size_t>(P.body[p])]; };
+  if (std::none_of(scene.bodies.begin(), scene.bodies.end(),
+                   [](const BodySection& b) { return b.water_table.has_value(); }))
+    return;
+  const Vec<D> b = scene_vec<D>(scene.body_force->value); // along one axis (validate_scene)
+  int axis = 0;
+  for (int k = 0; k < D; ++k)
+    if (b[k] != 0.0) axis = k;
+  const double g = std::abs(b[axis]), up = b[axis] < 0.0 ? 1.0 : -1.0; // height z = up x[axis]
+  const double zero = 0.0;
+  double* pore = P.add_state(std::string(kPorePressureField), 1, &zero).values.data();
+  std::map<std::array<long long, 2>, std::vector<int>> columns;
+  for (int p = 0; p < P.size(); ++p)
+    if (table(p).water_table) columns[column_key<D>(P.X[p], axis, kBoxTolerance * spacing.minCoeff())].push_back(p);
+  for (auto& [key, column] : columns) {
+    std::sort(column.begin(), column.end(), [&](int p, int q) { return up * P.X[p][axis] > up * P.X[q][axis]; });
+    const auto length = [&](int p) {
+      return P.length0.size() == P.x.size() ? P.length0[p][axis] : spacing[axis] / table(p).particles_per_cell;
+    };
+    const int top = column.front();
+    const double rho_top = pore_fluid(scene.materials[static_cast<std::size_t>(P.material[top])])->density;
+    // The top of the column: the upper end of its top particle's share of the seeding lattice (a box's
+    // own cells, the grid's for the other shapes seeded on it), or half its extent above it.
+    const BodySection& body = table(top);
+    const double z = up * P.X[top][axis];
+    const double origin = up * (body.shape == "box" ? body.lower[axis] : scene.grid.lower[axis]);
+    const bool lattice = body.shape != "file" && body.shape != "mesh";
+    double z_up = lattice ? origin + std::ceil((z - origin) / length(top)) * length(top) : z + 0.5 * length(top);
+    double sv = -rho_top * g * std::max(0.0, *body.water_table - z_up); // the total vertical stress at z_up
+    for (int p : column) {
+      const MaterialSection& ms = scene.materials[static_cast<std::size_t>(P.material[p])];
+      const PoreFluid f = *pore_fluid(ms);
+      const double rho = (1.0 - f.porosity) * ms.density + f.porosity * f.density, zp = up * P.X[p][axis];
+      pore[p] = f.density * g * std::max(0.0, *table(p).water_table - zp);
+      const double vertical = sv - rho * g * (z_up - zp) + pore[p];
+      const double k0 = table(p).k0.value_or(ms.poisson / (1.0 - ms.poisson));
+      P.sigma[p] = k0 * vertical * Mat<D>::Identity();
+      P.sigma[p](axis, axis) = vertical;
+      sv -= rho * g * length(p), z_up -= length(p);
+    }
+  }
 }
 
 /// The initial values of material state variables given by particle files.
@@ -401,6 +458,7 @@ EngineParts<D> assemble_parts(const Scene& scene,
                                 seeded.traction_area.size() == scene.tractions.size(),
                             "assemble_parts: a share of the particles needs its traction loads' surface particles");
   parts.loads.tractions = build_tractions<D>(scene, P, h, exact, seeded);
+  set_water_table<D>(scene, grid_spacing<D>(scene), P);
   allocate_fields(scene, parts, P);
   set_file_state<D>(scene, seeded, P);
   parts.two_phase = build_two_phase<D>(scene, parts.basis->nodes(), h, exact.get(), P);

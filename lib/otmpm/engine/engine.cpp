@@ -251,7 +251,7 @@ template <int D> void Engine<D>::step() {
     if (dist_) dist_->sum({&traction, 1});
     work += traction;
   }
-  if (TwoPhase<D>* liquid = settings_.two_phase.get()) work += liquid->take_plate_work(); // the rigid plates' forces
+  if (TwoPhase<D>* liquid = settings_.two_phase.get()) work += liquid->take_boundary_work(); // the rigid plates, the free water
   energy_.external_work += work;
   external_power_ = power;
   check_energy();

@@ -16,10 +16,11 @@ namespace otmpm {
 
 /// Per-node partial sums of the liquid: m_w, the drag coefficient Q, the
 /// momentum q_w, the liquid's pressure force f_w = sum V n p grad N and the
-/// pore pressure's force on the mixture f_p = sum V p grad N (eq. 15.4).
+/// pore pressure's force on the mixture f_p = sum V p grad N (eq. 15.4), and
+/// the surface vectors G = sum V grad N, G_n = sum n V grad N (Drain).
 template <int D> struct LiquidSums {
   double m = 0.0, drag = 0.0;
-  Vec<D> q = Vec<D>::Zero(), fw = Vec<D>::Zero(), fp = Vec<D>::Zero();
+  Vec<D> q = Vec<D>::Zero(), fw = Vec<D>::Zero(), fp = Vec<D>::Zero(), g = Vec<D>::Zero(), gn = Vec<D>::Zero();
 };
 
 namespace {
@@ -40,6 +41,47 @@ template <int D> Eigen::Map<const Vec<D>> liquid_at(const StateField& w, int p) 
 double fast_wave_speed2(double c2, double n, double rho_solid, double Kw, double Kw_over_rho_w) {
   const double half = 0.5 * (c2 + (1.0 - n) * (1.0 - n) * Kw / (n * rho_solid) + Kw_over_rho_w);
   return half + std::sqrt(std::max(0.0, half * half - c2 * Kw_over_rho_w));
+}
+
+/// One component of the nodal solve (eq. 15.5): the liquid's acceleration
+/// and the drag's dissipation (eq. 15.6).
+struct Relative {
+  double aw = 0.0, darcy = 0.0;
+};
+
+/// Component k of eq. 15.5 at a node of solid mass ms, liquid mass mw and
+/// drag Q, the mixture's force Fm, the liquid's Fw and the start relative
+/// velocity r0; `drained`: a drained support (the solid held, no F term).
+Relative relative(double Q, double ms, double mw, double dt, double Fm, double Fw, double r0, bool drained) {
+  const double both = drained ? 1.0 : 1.0 + mw / ms, push = drained ? 0.0 : dt * Fm / ms;
+  // eq. 15.5 and the end relative velocity r'; where the drag dominates, divided by Q and r' from
+  // the drag force Q r' = f_w - m_w a_w, so that no permeability makes them overflow or cancel
+  const bool stiff = Q * dt > mw;
+  Relative r;
+  r.aw = stiff ? (Fw / Q - r0 + push) / (mw / Q + dt * both) : (Fw - Q * r0 + Q * push) / (mw + Q * dt * both);
+  const double solid = drained ? 0.0 : (Fm - mw * r.aw) / ms; // a_v
+  const double r1 = stiff ? (Fw - mw * r.aw) / Q : r0 + dt * (r.aw - solid);
+  r.darcy = dt * Q * r1 * 0.5 * (r0 + r1);
+  return r;
+}
+
+/// The free water's pressure at x (Drain, eq. 15.11) under the body force b.
+template <int D> double water_pressure(const Drain& s, const Vec<D>& x, const Vec<D>& b) {
+  if (!s.level) return s.pressure;
+  return s.pressure + s.density * std::max(0.0, b.norm() * *s.level + b.dot(x));
+}
+
+/// The lattice cell of x as one number: the node number of its lower corner
+/// (clamped as CartesianGrid::cell_of clamps; a NaN is caught after the step).
+template <int D> long long lattice_cell(const Vec<D>& x, const Vec<D>& lower, const Vec<D>& inverse, const Index<D>& cells) {
+  long long id = 0;
+  for (int k = D - 1; k >= 0; --k) {
+    // clamped first, then truncated: floor's cell without a call to floor
+    const double c = (x[k] - lower[k]) * inverse[k];
+    const double clamped = std::isnan(c) ? 0.0 : std::clamp(c, 0.0, cells[k] - 1.0);
+    id = id * (cells[k] + 1LL) + static_cast<long long>(clamped);
+  }
+  return id;
 }
 
 /// The lower of two particle indices, -1 meaning none.
@@ -90,7 +132,20 @@ TwoPhase<D>::TwoPhase(TwoPhaseParts<D> parts, Particles<D>& P, const Dirichlet<D
   drag_ = mw_;
   wet_.assign(static_cast<std::size_t>(nodes), 0);
   qw_.assign(static_cast<std::size_t>(nodes), Vec<D>::Zero());
-  fw_ = fp_ = fm_ = vw_ = aw_ = qw_;
+  fw_ = fp_ = fm_ = vw_ = aw_ = g_ = gn_ = normal_ = qw_;
+  drain_.assign(static_cast<std::size_t>(nodes), -1);
+  pbar_.assign(static_cast<std::size_t>(nodes), 0.0);
+  for (std::size_t d = 0; d < parts_.drains.size(); ++d) {
+    const Drain& s = parts_.drains[d];
+    require<E>(std::isfinite(s.pressure) && std::isfinite(s.level.value_or(0.0)) && std::isfinite(s.density) &&
+                   s.density >= 0.0,
+               "TwoPhase: a drain with the pressure ", s.pressure, ", the level ", s.level.value_or(0.0),
+               " and the density ", s.density);
+    for (int I : s.node) {
+      require<E>(I >= 0 && I < nodes, "TwoPhase: drained node ", I, " out of range [0, ", nodes, ")");
+      drain_[static_cast<std::size_t>(I)] = static_cast<int>(d);
+    }
+  }
 }
 
 template <int D> TwoPhase<D>::~TwoPhase() = default;
@@ -99,6 +154,7 @@ template <int D> void TwoPhase<D>::to_nodes(Engine<D>& e, double t, double dt) {
   ScopedPhase timer(e.timers(), Phase::to_nodes);
   totals_ready_ = false;
   scatter<false>(e, [](int, int) {});
+  find_surface(e);
   darcy_ += solve(e, t, dt);
   tie(e, t, dt);
 }
@@ -111,7 +167,7 @@ void TwoPhase<D>::scatter(const Engine<D>& e, Update&& update) {
   const StateField& pressure_field = *P.find_state(kPorePressureField);
   const StateField& velocity_field = *P.find_state(kLiquidVelocityField);
   struct Payload {
-    double m = 0.0, drag = 0.0, Vp = 0.0, Vnp = 0.0;
+    double m = 0.0, drag = 0.0, Vp = 0.0, Vnp = 0.0, V = 0.0, nV = 0.0;
     Vec<D> q = Vec<D>::Zero();
   };
   // Plain pointers by value: the sums' stores cannot alias them.
@@ -119,10 +175,19 @@ void TwoPhase<D>::scatter(const Engine<D>& e, Update&& update) {
   const double *V = P.V.data(), *V0 = P.V0.data(), *pressure = pressure_field.values.data();
   const double* velocity = velocity_field.values.data();
   const PoreFluid* const* fluid_of = fluids_.data();
+  const std::optional<CartesianGrid<D>>& grid = e.basis().nodes().grid();
+  if constexpr (!MomentumOnly) start_cell_.resize(static_cast<std::size_t>(P.size()));
+  long long* start_cell = start_cell_.data();
+  const Vec<D>* x = P.x.data();
+  const Vec<D> lower = grid ? grid->lower : Vec<D>::Zero();
+  const Vec<D> inverse = grid ? Vec<D>(grid->h().cwiseInverse()) : Vec<D>::Zero();
+  const Index<D> cells = grid ? grid->cells : Index<D>{};
+  const bool lattice = grid.has_value();
   auto prep = [=](int p) {
     Payload w;
     const PoreFluid* f = fluid_of[material[p]];
     if (!f) return w;
+    if constexpr (!MomentumOnly) start_cell[p] = lattice ? lattice_cell<D>(x[p], lower, inverse, cells) : -1;
     const double nV = V[p] - (1.0 - f->porosity) * V0[p]; // the pores' volume n V
     w.m = f->density * nV;
     w.q = w.m * Eigen::Map<const Vec<D>>(velocity + static_cast<std::size_t>(p) * D);
@@ -130,6 +195,7 @@ void TwoPhase<D>::scatter(const Engine<D>& e, Update&& update) {
     w.drag = f->drag(nV / V[p]) * V[p];
     w.Vp = V[p] * pressure[p];
     w.Vnp = nV * pressure[p];
+    w.V = V[p], w.nV = nV;
     return w;
   };
   const double* Ne = table.N.data();
@@ -141,11 +207,13 @@ void TwoPhase<D>::scatter(const Engine<D>& e, Update&& update) {
     acc.drag += Ne[e] * w.drag;
     acc.fw += w.Vnp * dNe[e];
     acc.fp += w.Vp * dNe[e];
+    acc.g += w.V * dNe[e];
+    acc.gn += w.nV * dNe[e];
   };
   auto merge = [&](int I, const LiquidSums<D>& acc) {
     qw_[I] += acc.q;
     if constexpr (MomentumOnly) return;
-    mw_[I] += acc.m, drag_[I] += acc.drag, fw_[I] += acc.fw, fp_[I] += acc.fp;
+    mw_[I] += acc.m, drag_[I] += acc.drag, fw_[I] += acc.fw, fp_[I] += acc.fp, g_[I] += acc.g, gn_[I] += acc.gn;
   };
   auto clear = [&](int I0, int I1) {
     std::fill(qw_.begin() + I0, qw_.begin() + I1, Vec<D>::Zero());
@@ -154,6 +222,8 @@ void TwoPhase<D>::scatter(const Engine<D>& e, Update&& update) {
     std::fill(drag_.begin() + I0, drag_.begin() + I1, 0.0);
     std::fill(fw_.begin() + I0, fw_.begin() + I1, Vec<D>::Zero());
     std::fill(fp_.begin() + I0, fp_.begin() + I1, Vec<D>::Zero());
+    std::fill(g_.begin() + I0, g_.begin() + I1, Vec<D>::Zero());
+    std::fill(gn_.begin() + I0, gn_.begin() + I1, Vec<D>::Zero());
   };
   if constexpr (!MomentumOnly) width_ = linear_row_width(table); // the table of this step
   scatter_->invalidate(width_);
@@ -165,34 +235,89 @@ template <int D> double TwoPhase<D>::solve(Engine<D>& e, double t, double dt) {
   const Vec<D> b = e.loads().body_force_at(t); // the uniform body force (a field is refused with saturated bodies)
   const double mw_max = mw_.empty() ? 0.0 : *std::max_element(mw_.begin(), mw_.end());
   const double mw_min = e.settings().mass_tolerance * mw_max;
+  const NodeSet<D>& nodes = e.basis().nodes();
   return blocked_reduce<double>(static_cast<long long>(mw_.size()), [&](long long i, double& darcy) {
     const auto I = static_cast<std::size_t>(i);
-    const Vec<D> Fm = n.f[I] + fp_[I] + mw_[I] * b, Fw = fw_[I] + mw_[I] * b;
+    Vec<D> Fm = n.f[I] + fp_[I] + mw_[I] * b, Fw = fw_[I] + mw_[I] * b;
+    if (drain_[I] >= 0) { // the free water's push (eq. 15.11)
+      const Drain& drain = parts_.drains[static_cast<std::size_t>(drain_[I])];
+      const double pbar = water_pressure(drain, nodes.position(static_cast<int>(I)), b);
+      Fm -= pbar * g_[I], Fw -= pbar * gn_[I];
+      pbar_[I] = pbar;
+    }
     fm_[I] = Fm;
     aw_[I].setZero();
     wet_[I] = n.active[I] && mw_[I] > mw_min;
     n.f[I] = Fm;
     if (!wet_[I]) return;
-    const double ms = n.m[I], mw = mw_[I], Q = drag_[I];
+    if (!normal_[I].isZero()) return void(darcy += solve_impermeable(n, I, Fm, Fw, normal_[I], dt));
+    const double ms = n.m[I], mw = mw_[I];
     const Vec<D> vs0 = n.q[I] / ms, vw0 = qw_[I] / mw;
     for (int k = 0; k < D; ++k) {
       const std::size_t c = I * D + static_cast<std::size_t>(k);
       if (held_[c] || rigid_[c]) continue; // held: a_w = 0, the reaction takes F_m; rigid: tie()
       // A drained support holds the solid at its value and leaves the liquid free (k = 1, no F term).
       const bool drained = fixed_[c];
-      const double r0 = vw0[k] - (drained ? value_[c] : vs0[k]), both = drained ? 1.0 : 1.0 + mw / ms;
-      const double push = drained ? 0.0 : dt * Fm[k] / ms;
-      // eq. 15.5 and the end relative velocity r'; where the drag dominates, divided by Q and r' from
-      // the drag force Q r' = f_w - m_w a_w, so that no permeability makes them overflow or cancel
-      const bool stiff = Q * dt > mw;
-      const double aw = stiff ? (Fw[k] / Q - r0 + push) / (mw / Q + dt * both)
-                              : (Fw[k] - Q * r0 + Q * push) / (mw + Q * dt * both);
-      aw_[I][k] = aw;
-      n.f[I][k] = Fm[k] - mw * aw;
-      const double solid = drained ? 0.0 : (Fm[k] - mw * aw) / ms; // a_v
-      const double r1 = stiff ? (Fw[k] - mw * aw) / Q : r0 + dt * (aw - solid);
-      darcy += dt * Q * r1 * 0.5 * (r0 + r1); // eq. 15.6
+      const Relative r = relative(drag_[I], ms, mw, dt, Fm[k], Fw[k], vw0[k] - (drained ? value_[c] : vs0[k]), drained);
+      aw_[I][k] = r.aw;
+      n.f[I][k] = Fm[k] - mw * r.aw;
+      darcy += r.darcy;
     }
+  });
+}
+
+template <int D>
+double TwoPhase<D>::solve_impermeable(NodalFields<D>& n, std::size_t I, const Vec<D>& Fm, const Vec<D>& Fw,
+                                      const Vec<D>& normal, double dt) {
+  // Tangential: eq. 15.5 on the components of the vectors less their normal parts (the solve is
+  // linear and isotropic); normal: both phases end with one velocity (the limit Q -> oo).
+  const double ms = n.m[I], mw = mw_[I];
+  const Vec<D> vs0 = n.q[I] / ms, vw0 = qw_[I] / mw;
+  const double Fm_n = Fm.dot(normal), Fw_n = Fw.dot(normal), vs_n = vs0.dot(normal), vw_n = vw0.dot(normal);
+  const double V_n = (ms * vs_n + mw * vw_n + dt * Fm_n) / (ms + mw), aw_n = (V_n - vw_n) / dt;
+  double darcy = 0.5 * dt * (Fw_n - mw * aw_n) * (vw_n - vs_n); // eq. 15.6 as Q -> oo (r' = 0)
+  for (int k = 0; k < D; ++k) {
+    const std::size_t c = I * D + static_cast<std::size_t>(k);
+    if (held_[c] || rigid_[c]) continue; // the normal has no such component
+    const Relative r = relative(drag_[I], ms, mw, dt, Fm[k] - Fm_n * normal[k], Fw[k] - Fw_n * normal[k],
+                                vw0[k] - vs0[k] - (vw_n - vs_n) * normal[k], false);
+    aw_[I][k] = r.aw + aw_n * normal[k];
+    n.f[I][k] = Fm[k] - mw * aw_[I][k];
+    darcy += r.darcy;
+  }
+  return darcy;
+}
+
+template <int D> void TwoPhase<D>::find_surface(const Engine<D>& e) {
+  std::fill(normal_.begin(), normal_.end(), Vec<D>::Zero());
+  const std::optional<CartesianGrid<D>>& grid = e.basis().nodes().grid();
+  if (!grid) return;
+  // The cells that hold a saturated particle, by the node number of their lower corner (scatter: start_cell_).
+  const Particles<D>& P = e.particles();
+  occupied_.assign(mw_.size(), 0);
+  for (int p = 0; p < P.size(); ++p)
+    if (fluids_[static_cast<std::size_t>(P.material[p])]) occupied_[static_cast<std::size_t>(start_cell_[p])] = 1;
+  const NodalFields<D>& n = e.nodal();
+  parallel_for(static_cast<long long>(mw_.size()), [&](long long i) {
+    const auto I = static_cast<std::size_t>(i);
+    if (drain_[I] >= 0 || !n.active[I] || !(mw_[I] > 0.0)) return;
+    const Index<D> node = grid->node_index(static_cast<int>(I));
+    bool surface = false; // a lattice cell beside the node is empty or outside the lattice
+    for (int corner = 0; corner < (1 << D) && !surface; ++corner) {
+      Index<D> c = node;
+      bool inside = true;
+      for (int k = 0; k < D; ++k) {
+        c[k] -= (corner >> k) & 1;
+        inside = inside && c[k] >= 0 && c[k] < grid->cells[k];
+      }
+      surface = !inside || !occupied_[static_cast<std::size_t>(grid->node_id(c))];
+    }
+    if (!surface) return;
+    Vec<D> g = g_[I]; // the outward normal over the components the liquid is free in
+    for (int k = 0; k < D; ++k)
+      if (held_[I * D + static_cast<std::size_t>(k)] || rigid_[I * D + static_cast<std::size_t>(k)]) g[k] = 0.0;
+    const double norm = g.norm();
+    if (norm > 0.1 * g_[I].norm()) normal_[I] = g / norm; // else the held components carry the surface
   });
 }
 
@@ -209,7 +334,7 @@ template <int D> void TwoPhase<D>::tie(Engine<D>& e, double t, double dt) {
     }
     if (!(M > 0.0)) continue;
     const double V = (momentum + dt * force) / M; // the plate's velocity at the end of the step
-    plate_work_ += 0.5 * (F0 + F1) * dt * V;
+    boundary_work_ += 0.5 * (F0 + F1) * dt * V;
     for (int I : r.node) {
       if (!n.active[I]) continue;
       n.f[I][k] = (n.m[I] * V - n.q[I][k]) / dt;
@@ -232,6 +357,14 @@ template <int D> void TwoPhase<D>::nodal_velocity(Engine<D>& e, double dt) {
       if (held_[I * D + static_cast<std::size_t>(k)]) w[k] = n.v[I][k];
     vw_[I] = w;
   });
+  // The free water's push -pbar G_n on the liquid, -pbar (G - G_n) on the grains, over the step.
+  for (std::size_t d = 0; d < parts_.drains.size(); ++d)
+    for (int node : parts_.drains[d].node) {
+      const auto I = static_cast<std::size_t>(node);
+      if (drain_[I] != static_cast<int>(d) || pbar_[I] == 0.0 || !n.active[I]) continue; // each node once
+      const Vec<D> v0 = n.q[I] / n.m[I], w0 = wet_[I] ? Vec<D>(qw_[I] / mw_[I]) : v0;
+      boundary_work_ -= 0.5 * dt * pbar_[I] * (gn_[I].dot(w0 + vw_[I]) + (g_[I] - gn_[I]).dot(v0 + n.v[I]));
+    }
 }
 
 template <int D> void TwoPhase<D>::to_particles(Engine<D>& e, double dt) {
@@ -252,6 +385,7 @@ template <int D> void TwoPhase<D>::remap(Engine<D>& e, double dt) {
     vw_[I] = qw_[I] / mw_[I];
     for (int k = 0; k < D; ++k)
       if (held_[I * D + static_cast<std::size_t>(k)]) vw_[I][k] = n.v[I][k];
+    vw_[I] += (n.v[I] - vw_[I]).dot(normal_[I]) * normal_[I]; // an impermeable surface: no normal flux
   });
   for (const Plate& r : parts_.plates) { // one velocity per plate: the re-projected momentum of both phases
     const int k = r.axis;
@@ -323,15 +457,7 @@ void TwoPhase<D>::update_range(Engine<D>& e, double dt, int p0, int p1) {
                                    " left (0, 1): the skeleton's volume fell to its grains' or below"};
     const auto i = static_cast<std::size_t>(p);
     dp_[i] = -dt * f->bulk_modulus / n * ((1.0 - n) * div_s + n * div_w); // eq. 15.3
-    cell_[i] = -1;
-    if (grid) { // the lattice cell of the particle, as one number (clamped as CartesianGrid::cell_of clamps)
-      cell_[i] = 0;
-      for (int k = D - 1; k >= 0; --k) {
-        const double c = std::floor((P.x[p][k] - lower[k]) * inverse[k]);
-        const double clamped = std::isnan(c) ? 0.0 : std::clamp(c, 0.0, grid->cells[k] - 1.0); // a NaN is caught after the step
-        cell_[i] = cell_[i] * (grid->cells[k] + 1LL) + static_cast<long long>(clamped);
-      }
-    }
+    cell_[i] = grid ? lattice_cell<D>(P.x[p], lower, inverse, grid->cells) : -1;
   }
 }
 

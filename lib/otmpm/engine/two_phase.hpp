@@ -36,6 +36,7 @@
 namespace otmpm {
 
 template <int D> class Engine;
+template <int D> struct NodalFields;
 template <int D> struct LiquidSums;
 template <int D, class Sums> class BlockedScatter;
 
@@ -50,6 +51,21 @@ struct Plate {
   TimeFunction time;
 };
 
+/// A drained surface in contact with free water: the nodes of a
+/// `[[boundary]]` with `pore_pressure` or `water_level`. The free water's
+/// pressure at a node x_I is (docs/theory.md eq. 15.11)
+///   pbar(x) = pressure + density max(0, |b| level + b . x),
+/// `level` the water level's height along -b (b the uniform body force),
+/// and it pushes on the surface: -pbar G_I on the mixture, -pbar G_n,I on
+/// the liquid (G_I = sum_p V_p grad N_Ip, G_n,I with n_p V_p: the surface
+/// integrals of N_I n_s over the body's surface and its pores).
+struct Drain {
+  std::vector<int> node;
+  double pressure = 0.0;
+  std::optional<double> level; ///< none: no hydrostatic part
+  double density = 0.0;        ///< of the free water (the pore fluid's)
+};
+
 /// What the liquid phase of a run is built from.
 template <int D> struct TwoPhaseParts {
   /// The pore fluid of each material (indexed as Particles::material); nullopt: dry.
@@ -60,6 +76,11 @@ template <int D> struct TwoPhaseParts {
   /// Dirichlet sets.
   Dirichlet<D> held;
   std::vector<Plate> plates;
+  /// The drained surfaces. Every other surface of a saturated body is
+  /// impermeable: at a node of the body's surface (a node with an empty
+  /// lattice cell beside it) the liquid's normal velocity is the solid's,
+  /// (w - v) . n_I = 0 with n_I along G_I (eq. 15.10).
+  std::vector<Drain> drains;
 };
 
 /// The liquid's contributions to the after-step sums (Engine::sum_particles):
@@ -85,11 +106,13 @@ public:
   /// After the engine's to_nodes (mass, momentum, forces at t): the liquid's
   /// sums and the coupled nodal solve; f_I becomes m_s a_s, the Darcy
   /// dissipation of the step is added to darcy() and the plates' work to
-  /// plate_work().
+  /// take_boundary_work().
   void to_nodes(Engine<D>& e, double t, double dt);
-  /// The work the plates' forces did in the steps since the last call (the
-  /// engine adds it to W_ext), (F(t_n) + F(t_n+1)) / 2 . dt V for each step.
-  double take_plate_work() { return std::exchange(plate_work_, 0.0); }
+  /// The work the plates' forces and the free water's push on drained
+  /// surfaces did in the steps since the last call (the engine adds it to
+  /// W_ext): (F(t_n) + F(t_n+1)) / 2 . dt V for each step and plate,
+  /// F . dt (u_n + u_n+1) / 2 for each drained node and phase.
+  double take_boundary_work() { return std::exchange(boundary_work_, 0.0); }
   /// The energy the Darcy drag dissipated since t = 0 (W_d, eq. 15.6; EnergyBalance::darcy).
   double darcy() const { return darcy_; }
   /// Sets W_d (a restart).
@@ -113,6 +136,9 @@ public:
   const PoreFluid* fluid(int m) const { return fluids_[static_cast<std::size_t>(m)]; }
   /// The porosity of particle p: n = 1 - (1 - n_0) V0_p / V_p (incompressible grains).
   static double porosity(const PoreFluid& f, double V0, double V) { return 1.0 - (1.0 - f.porosity) * V0 / V; }
+  /// Per node: the unit normal of an impermeable surface node over its free
+  /// components, or zero (an interior, drained, held or dry node).
+  const AlignedVector<Vec<D>>& impermeable_normal() const { return normal_; }
   /// The liquid's nodal fields of the step: mass, drag coefficient, velocity, acceleration.
   const std::vector<double>& liquid_mass() const { return mw_; }
   const AlignedVector<Vec<D>>& liquid_velocity() const { return vw_; }
@@ -124,6 +150,13 @@ private:
   template <bool MomentumOnly, class Update> void scatter(const Engine<D>& e, Update&& update);
   /// The coupled nodal solve (eq. 15.5); returns the step's Darcy dissipation (eq. 15.6).
   double solve(Engine<D>& e, double t, double dt);
+  /// The solve of node I's free components with (w - v) . normal = 0 at
+  /// the end of the step (eq. 15.10); returns its dissipation.
+  double solve_impermeable(NodalFields<D>& n, std::size_t I, const Vec<D>& Fm, const Vec<D>& Fw,
+                           const Vec<D>& normal, double dt);
+  /// The impermeable normals of the step (normal_): the surface nodes of the
+  /// lattice cells that hold saturated particles.
+  void find_surface(const Engine<D>& e);
   /// The plates: one velocity per plate along its axis for both phases.
   void tie(Engine<D>& e, double t, double dt);
   /// w_p += dt sum N a_w (rate) and the pore pressure update (pressure) of all particles.
@@ -144,6 +177,11 @@ private:
   std::vector<char> fixed_, held_, rigid_;
   std::vector<double> value_;
   std::vector<char> wet_;         ///< per node: active with a liquid mass above the mass tolerance
+  std::vector<int> drain_;        ///< per node: its Drain in parts_.drains, or -1
+  std::vector<char> occupied_;    ///< per lattice cell (its lower corner's node): holds a saturated particle
+  std::vector<long long> start_cell_; ///< per particle its lattice cell at the step's start (lattice_cell)
+  /// G_I and G_n,I (Drain), the impermeable normals (impermeable_normal).
+  AlignedVector<Vec<D>> g_, gn_, normal_;
   std::vector<double> mw_, drag_; ///< m_w,I and Q_I
   /// q_w, f_w, f_p, the mixture's force F_m, w_I and a_w of the step.
   AlignedVector<Vec<D>> qw_, fw_, fp_, fm_, vw_, aw_;
@@ -159,7 +197,8 @@ private:
   std::unordered_map<long long, int> number_; ///< the patches of a large lattice
   std::vector<const PoreFluid*> fluids_; ///< per material its pore fluid, or null
   int width_ = 0;                 ///< linear_row_width of this step's table
-  double darcy_ = 0.0, plate_work_ = 0.0;
+  double darcy_ = 0.0, boundary_work_ = 0.0;
+  std::vector<double> pbar_;      ///< per node: the free water's pressure of this step (drained nodes)
   LiquidTotals<D> totals_; ///< the sums of the step's last pass (totals_ready_)
   bool totals_ready_ = false;
 };

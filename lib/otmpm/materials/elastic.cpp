@@ -140,7 +140,7 @@ const std::array<ParameterValue, 3> kSteel{{{"density", 7833.0}, {"young", 200.0
 
 const MaterialModel& linear_elastic_model() {
   static const MaterialModel m{"linear_elastic", "small-strain isotropic elasticity (molinos et al.)", {}, {},
-                               make_linear_elastic<1>, make_linear_elastic<2>, make_linear_elastic<3>, kSteel};
+                               make_linear_elastic<1>, make_linear_elastic<2>, make_linear_elastic<3>, kSteel, true};
   return m;
 }
 

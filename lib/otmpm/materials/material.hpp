@@ -153,6 +153,9 @@ struct MaterialModel {
   /// model with (tests/test_contracts.cpp). A model with required
   /// parameters must give one.
   std::span<const ParameterValue> example{};
+  /// Its update adds a rate to sigma_p, so that a stress set on sigma_p
+  /// before the run (a geostatic initial stress) stays.
+  bool takes_initial_stress = false;
 };
 
 /// Every model, in the order the docs list them.

@@ -519,7 +519,7 @@ std::vector<BodySection> read_bodies(const TableReader& root, const Scene& s) {
     b.where = t.self();
     b.shape = t.choice("shape", b.shape, shapes);
     std::vector<std::string_view> allowed{"name", "material", "shape", "particles_per_cell", "placement", "velocity",
-                                          "velocity_profile", "overlap", "volume"};
+                                          "velocity_profile", "overlap", "volume", "water_table", "k0"};
     const auto& own = kShapeKeys.find(b.shape)->second;
     allowed.insert(allowed.end(), own.begin(), own.end());
     t.only(allowed);
@@ -538,6 +538,8 @@ std::vector<BodySection> read_bodies(const TableReader& root, const Scene& s) {
     if (t.has("velocity_profile")) b.velocity_profile = t.choice("velocity_profile", "", {"sin_x", "reference"});
     b.overlap = t.choice("overlap", b.overlap, {"error", "first"});
     b.volume = t.choice("volume", b.volume, {"seeded", "exact"});
+    if (t.has("water_table")) b.water_table = number(t, scene_keys::kWaterTable);
+    if (t.has("k0")) b.k0 = number(t, scene_keys::kK0);
     particles += body_particles(b, s.grid, dim);
     for (int k = 0; k < dim && b.shape != "file" && b.shape != "mesh"; ++k) {
       const double cells = cells_over(b.upper[k] - b.lower[k], spacing(s.grid, k));
@@ -605,8 +607,9 @@ std::vector<BoundarySection> read_boundaries(const TableReader& root, const Scen
   std::set<std::string> names;
   for (const TableReader& t : root.tables("boundary")) {
     const bool group = t.has("physical") || t.has("file");
-    if (group) t.only({"name", "file", "physical", "scale", "rotate", "translate", "fix", "value", "pore_pressure"});
-    else t.only({"name", "lower", "upper", "fix", "value", "pore_pressure"});
+    if (group) t.only({"name", "file", "physical", "scale", "rotate", "translate", "fix", "value", "pore_pressure",
+                     "water_level"});
+    else t.only({"name", "lower", "upper", "fix", "value", "pore_pressure", "water_level"});
     BoundarySection b;
     b.where = t.self();
     b.name = read_name(t, false, default_name("boundary", out.size()), names, "boundary");
@@ -618,10 +621,11 @@ std::vector<BoundarySection> read_boundaries(const TableReader& root, const Scen
     }
     check_box(t, b.lower, b.upper, dim, false);
     auto fix = t.bools("fix", dim);
-    if (!fix && !t.has("pore_pressure")) t.missing("fix");
+    if (!fix && !t.has("pore_pressure") && !t.has("water_level")) t.missing("fix");
     b.fix = fix.value_or(b.fix);
     b.value = t.vec("value", dim).value_or(b.value);
     if (t.has("pore_pressure")) b.pore_pressure = number(t, scene_keys::kPorePressure);
+    if (t.has("water_level")) b.water_level = number(t, scene_keys::kWaterLevel);
     out.push_back(std::move(b));
   }
   return out;

@@ -129,6 +129,13 @@ struct BodySection {
   /// per component (fixed bar); "reference": the velocity of the reference
   /// solution at t = 0 (a manufactured solution's own initial state).
   std::optional<std::string> velocity_profile;
+  /// A saturated body under gravity: the height (along the body force's
+  /// axis, against it) of its water table. The pore pressure starts
+  /// hydrostatic, rho_w |b| (water_table - z) below it and 0 above, and the
+  /// effective stress geostatic (docs/theory.md eq. 15.12): the weight of
+  /// the column above a particle, less its pore pressure, vertically, and
+  /// `k0` times that horizontally (k0 default nu / (1 - nu)).
+  std::optional<double> water_table, k0;
   SourceRef where;
 };
 
@@ -143,14 +150,17 @@ struct InitialVelocitySection {
 /// kBoxTolerance h) get the fixed velocity components held at `value`. With
 /// saturated bodies (docs/theory.md sect. 15) a fixed component holds the
 /// pore liquid too (an impermeable support) unless `pore_pressure` is given
-/// (a drained surface: the liquid passes; 0 is the value supported, that of
-/// every free surface).
+/// (a drained surface: the liquid passes at that pressure) or `water_level`
+/// (free water standing to that height against the body force: the pressure
+/// pore_pressure + rho_w |b| (water_level - z) where positive). On a free
+/// surface the free water also pushes on the body. Every other surface of a
+/// saturated body is impermeable (docs/theory.md sect. 15).
 struct BoundarySection {
   std::string name;
   Vec3 lower{0, 0, 0}, upper{0, 0, 0};
   std::array<bool, 3> fix{false, false, false};
   Vec3 value{0, 0, 0};
-  std::optional<double> pore_pressure;
+  std::optional<double> pore_pressure, water_level;
   SourceRef where{"", 0, "boundary"};
 };
 

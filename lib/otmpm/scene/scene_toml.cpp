@@ -130,6 +130,8 @@ toml::array bodies(const std::vector<BodySection>& bs, int dim) {
     if (!b.name.empty()) t.insert("name", b.name); // else the reader's name, "body<index>"
     insert_shape(t, b, dim);
     if (b.velocity_profile) t.insert("velocity_profile", *b.velocity_profile);
+    if (b.water_table) t.insert("water_table", *b.water_table);
+    if (b.k0) t.insert("k0", *b.k0);
     a.push_back(std::move(t));
   }
   return a;
@@ -152,6 +154,7 @@ toml::array boundaries(const std::vector<BoundarySection>& bs, int dim) {
                   {"value", first(b.value, dim)}};
     if (!b.name.empty()) t.insert("name", b.name); // else the reader's name, "boundary<index>"
     if (b.pore_pressure) t.insert("pore_pressure", *b.pore_pressure);
+    if (b.water_level) t.insert("water_level", *b.water_level);
     a.push_back(std::move(t));
   }
   return a;

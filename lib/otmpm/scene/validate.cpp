@@ -8,6 +8,7 @@
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/integrators/integrator.hpp"
 #include "otmpm/materials/material.hpp"
+#include "otmpm/materials/models.hpp"
 #include "otmpm/materials/pore_fluid.hpp"
 #include "otmpm/particles/output_fields.hpp"
 #include "otmpm/scene/file_bodies.hpp"
@@ -301,17 +302,59 @@ std::string two_phase_integrators() {
   return list;
 }
 
-/// A boundary's saturated key: pore_pressure 0 (the one value supported), in
-/// a scene with saturated bodies.
+/// The axis of the scene's body force when it acts along one axis of the
+/// run (gravity), else -1.
+int gravity_axis(const Scene& s, int dim) {
+  if (!s.body_force) return -1;
+  int axis = -1;
+  for (int k = 0; k < dim; ++k)
+    if (s.body_force->value[k] != 0.0) axis = axis < 0 ? k : dim;
+  return axis < dim ? axis : -1;
+}
+
+/// The fluid density the saturated materials share, or 0 when they differ.
+double shared_fluid_density(const Scene& s) {
+  double rho = -1.0;
+  for (const MaterialSection& m : s.materials)
+    if (const auto f = pore_fluid(m)) rho = rho < 0.0 || rho == f->density ? f->density : 0.0;
+  return std::max(rho, 0.0);
+}
+
+/// A boundary's saturated keys: pore_pressure (any value) and water_level
+/// (free water under the body force, of the pore fluid's density), in a
+/// scene with saturated bodies.
 void check_saturated_boundary(const Scene& s, const BoundarySection& b, const std::string& key) {
-  if (b.pore_pressure) {
-    check_number(s, key + ".pore_pressure", *b.pore_pressure, scene_keys::kPorePressure);
-    check(s, *b.pore_pressure == 0.0, key + ".pore_pressure", "only 0 is supported (a drained surface at the ",
-          "pressure of every free surface; a surface under standing water is not modelled; got ", *b.pore_pressure,
-          ")");
-    check(s, saturated(s), key + ".pore_pressure", "marks a drained surface of a saturated body, but no material "
-          "has a pore fluid (porosity, permeability, fluid_density, fluid_bulk_modulus, fluid_viscosity)");
+  if (b.pore_pressure) check_number(s, key + ".pore_pressure", *b.pore_pressure, scene_keys::kPorePressure);
+  if (b.water_level) {
+    check_number(s, key + ".water_level", *b.water_level, scene_keys::kWaterLevel);
+    check(s, gravity_axis(s, s.simulation.dimension) >= 0, key + ".water_level",
+          "is a height against the body force, but the scene has no [body_force] along one axis");
+    check(s, !saturated(s) || shared_fluid_density(s) > 0.0, key + ".water_level",
+          "takes the free water's density from the pore fluid, but the saturated materials' fluid_density differ");
   }
+  if (b.pore_pressure || b.water_level)
+    check(s, saturated(s), key + (b.pore_pressure ? ".pore_pressure" : ".water_level"),
+          "marks a drained surface of a saturated body, but no material has a pore fluid (porosity, "
+          "permeability, fluid_density, fluid_bulk_modulus, fluid_viscosity)");
+}
+
+/// A body's water table and k0: a saturated material whose model takes an
+/// initial stress, under a body force along one axis.
+void check_water_table(const Scene& s, const BodySection& b, const std::string& key) {
+  check(s, !b.k0 || b.water_table, key + ".k0", "sets the geostatic stress, which needs water_table");
+  if (b.k0) check_number(s, key + ".k0", *b.k0, scene_keys::kK0);
+  if (!b.water_table) return;
+  check_number(s, key + ".water_table", *b.water_table, scene_keys::kWaterTable);
+  check(s, gravity_axis(s, s.simulation.dimension) >= 0, key + ".water_table",
+        "is a height against the body force, but the scene has no [body_force] along one axis");
+  const auto m = std::find_if(s.materials.begin(), s.materials.end(),
+                              [&](const MaterialSection& ms) { return ms.name == b.material; });
+  if (m == s.materials.end()) return;
+  check(s, pore_fluid(*m).has_value(), key + ".water_table", "needs a saturated material; \"", m->name,
+        "\" has no pore fluid");
+  const MaterialModel* model = find_material_model(m->model);
+  check(s, !model || model->takes_initial_stress, key + ".water_table", "sets the initial effective stress, which "
+        "model \"", m->model, "\" does not take (its stress follows its elastic strain); use linear_elastic");
 }
 
 /// The rigid plates: named, boxes, an axis of the run, a finite force and its
@@ -506,6 +549,7 @@ void validate_bodies(const Scene& s, int dim) {
     check(s, b.velocity_profile.value_or("") != "reference" || !s.reference.solution.empty(), key + ".velocity_profile",
           "\"reference\" takes the initial velocity of the reference solution, but the scene has no reference.solution");
     if (!s.simulation.nodes_move()) check_body_in_grid(s, b, key, dim);
+    check_water_table(s, b, key);
   }
 }
 

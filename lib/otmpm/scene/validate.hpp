@@ -39,6 +39,11 @@ inline constexpr ParameterSpec kFriction{"friction", "Coulomb friction coefficie
 inline constexpr ParameterSpec kPeriod{"period", "period of a ramp [s]", std::nullopt, 0.0, true};
 inline constexpr ParameterSpec kPorePressure{"pore_pressure", "pore pressure of a drained surface [Pa]", std::nullopt,
                                              -kUnbounded};
+inline constexpr ParameterSpec kWaterLevel{"water_level", "height of free water on a drained surface [m]",
+                                           std::nullopt, -kUnbounded};
+inline constexpr ParameterSpec kWaterTable{"water_table", "height of a saturated body's water table [m]",
+                                           std::nullopt, -kUnbounded};
+inline constexpr ParameterSpec kK0{"k0", "lateral earth pressure coefficient at rest", std::nullopt, 0.0};
 inline constexpr ParameterSpec kPlateForce{"force", "force on a rigid plate [N] (2D: N/m, 1D: N/m^2)", 0.0,
                                            -kUnbounded};
 inline constexpr ParameterSpec kNodeReset{"node_reset", "ul: the fraction of h below which the nodes are laid out anew",
