@@ -3,6 +3,7 @@
 // 11, their small-deformation limit, a hand computation and objectivity; the
 // Material interface (batch update, energies, failures) and the model table.
 #include "otmpm/materials/material.hpp"
+#include "otmpm/materials/pore_fluid.hpp"
 
 #include <Eigen/Geometry>
 #include <doctest/doctest.h>
@@ -313,19 +314,38 @@ TEST_CASE("Material::update: det F <= 0 is a ParticleFailure naming the first fa
   }
 }
 
-TEST_CASE("Material::add_energies: V sigma : eps / 2, summed in particle order") {
+TEST_CASE("linear_elastic's stored energy: V (sigma0 : eps + eps : C : eps / 2), from rest or an initial stress") {
+  // Particle 0 starts unstressed (sigma = C : eps, the energy is V sigma : eps / 2);
+  // particle 1 starts from sigma0 (a geostatic start), V = 3.
   auto m = make_material<2>({.name = "m", .model = "linear_elastic", .density = 1000.0, .young = kE, .poisson = kNu, .extra = {}});
   Particles<2> P = two_particles();
-  P.sigma[0] << 2.0, 0.5, 0.5, -1.0;
-  P.eps[0] << 1e-3, 2e-4, 2e-4, -3e-4;
-  P.sigma[1] = 2.0 * P.sigma[0];
-  P.eps[1] = P.eps[0];
+  Mat<2> eps, sigma0;
+  eps << 1e-3, 2e-4, 2e-4, -3e-4;
+  sigma0 << -2.0, 0.0, 0.0, -5.0;
+  const Mat<2> c_eps = otmpm::elastic_stress_increment<2>({1000.0, kE, kNu}, eps);
+  P.eps[0] = P.eps[1] = eps;
+  P.sigma[0] = c_eps, P.sigma[1] = sigma0 + c_eps;
   P.V[1] = 3.0;
   double stored = 0.0, dissipated = 0.0;
   m->add_energies(P, 0, 2, stored, dissipated);
-  const double e0 = 0.5 * (2e-3 + 2 * 1e-4 + 3e-4);
-  CHECK(stored == doctest::Approx(e0 + 3.0 * 2.0 * e0).epsilon(1e-14));
+  const double elastic = 0.5 * c_eps.cwiseProduct(eps).sum(), initial = sigma0.cwiseProduct(eps).sum();
+  CHECK(stored == doctest::Approx(elastic + 3.0 * (initial + elastic)).epsilon(1e-13));
   CHECK(dissipated == 0.0);
+}
+
+TEST_CASE("linear_elastic in plane strain: sigma_zz = lambda tr(eps) plus the particle's initial out-of-plane stress") {
+  auto m = make_material<2>({.name = "m", .model = "linear_elastic", .density = 1000.0, .young = kE, .poisson = kNu, .extra = {}});
+  Particles<2> P = two_particles();
+  P.eps[0] << 1e-3, 0.0, 0.0, -3e-4;
+  P.eps[1] = P.eps[0];
+  double zz[2];
+  m->out_of_plane_stress(P, 0, 2, zz);
+  CHECK(zz[0] == doctest::Approx(kLambda * 7e-4).epsilon(1e-14));
+  const double zero = 0.0;
+  P.add_state(std::string(kInitialOutOfPlaneStressField), 1, &zero).values[1] = -4.0;
+  m->out_of_plane_stress(P, 0, 2, zz);
+  CHECK(zz[0] == doctest::Approx(kLambda * 7e-4).epsilon(1e-14));
+  CHECK(zz[1] == doctest::Approx(kLambda * 7e-4 - 4.0).epsilon(1e-14));
 }
 
 namespace {

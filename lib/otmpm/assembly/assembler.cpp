@@ -292,6 +292,8 @@ template <int D> void set_water_table(const Scene& scene, const Vec<D>& spacing,
   const double g = std::abs(b[axis]), up = b[axis] < 0.0 ? 1.0 : -1.0; // height z = up x[axis]
   const double zero = 0.0;
   double* pore = P.add_state(std::string(kPorePressureField), 1, &zero).values.data();
+  double* out_of_plane = D == 2 ? P.add_state(std::string(kInitialOutOfPlaneStressField), 1, &zero).values.data()
+                                : nullptr; // plane strain: sigma_zz = k0 times the vertical stress too
   std::map<std::array<long long, 2>, std::vector<int>> columns;
   for (int p = 0; p < P.size(); ++p)
     if (table(p).water_table) columns[column_key<D>(P.X[p], axis, kBoxTolerance * spacing.minCoeff())].push_back(p);
@@ -319,6 +321,7 @@ template <int D> void set_water_table(const Scene& scene, const Vec<D>& spacing,
       const double k0 = table(p).k0.value_or(ms.poisson / (1.0 - ms.poisson));
       P.sigma[p] = k0 * vertical * Mat<D>::Identity();
       P.sigma[p](axis, axis) = vertical;
+      if (out_of_plane) out_of_plane[p] = k0 * vertical;
       sv -= rho * g * length(p), z_up -= length(p);
     }
   }

@@ -3,8 +3,10 @@
 /// linear_elastic (small strain; molinos et al.), linear_elastic_finite
 /// (wobbes et al. eq. 10) and neo_hookean (wobbes et al. eq. 11). None has
 /// internal variables; the stored energy is neo_hookean's potential V0_p W(F_p),
-/// 1/2 sigma : eps V_p for the other two.
+/// linear_elastic's V_p (sigma0_p : eps_p + 1/2 eps_p : C : eps_p) (its
+/// initial stress sigma0_p in), 1/2 sigma : eps V_p for linear_elastic_finite.
 #include "otmpm/materials/models.hpp"
+#include "otmpm/materials/pore_fluid.hpp"
 
 #include <array>
 #include <type_traits>
@@ -47,17 +49,27 @@ public:
       V[p] = m[p] / rho[p];
     }
   }
+  /// The energy stored since the start, V_p (sigma0_p : eps_p + 1/2 eps_p :
+  /// C : eps_p), with the initial stress sigma0_p = sigma_p - C : eps_p (a
+  /// geostatic start; 0 otherwise, where this is 1/2 sigma_p : eps_p).
   void add_energies(const Particles<D>& P, int p0, int p1, double& stored, double&) const override {
-    add_elastic_energies(P, p0, p1, stored);
+    const ElasticConstants c = c_;
+    for (int p = p0; p < p1; ++p)
+      stored += P.V[p] * (P.sigma[p] - 0.5 * elastic_stress_increment<D>(c, P.eps[p])).cwiseProduct(P.eps[p]).sum();
   }
-  /// sigma_zz = lambda tr(eps_p): eps_p and sigma_p start at 0 and take the
-  /// same increments d_eps (d_eps_zz = 0), so sigma_zz = lambda sum tr(d_eps).
+  /// sigma_zz = sigma0_zz + lambda tr(eps_p): eps_p starts at 0 and takes
+  /// the increments d_eps of sigma_p (d_eps_zz = 0); sigma0_zz is the
+  /// particle's initial out-of-plane stress (kInitialOutOfPlaneStressField,
+  /// 0 without one).
   void out_of_plane_stress(const Particles<D>& P, int p0, int p1, double* out) const override {
     if constexpr (D != 2) {
       Material<D>::out_of_plane_stress(P, p0, p1, out);
     } else {
       const double lambda = c_.lambda();
-      for (int p = p0; p < p1; ++p) out[p - p0] = lambda * (P.eps[p](0, 0) + P.eps[p](1, 1));
+      const StateField* initial = P.find_state(kInitialOutOfPlaneStressField);
+      for (int p = p0; p < p1; ++p)
+        out[p - p0] = lambda * (P.eps[p](0, 0) + P.eps[p](1, 1)) +
+                      (initial ? initial->values[static_cast<std::size_t>(p)] : 0.0);
     }
   }
 

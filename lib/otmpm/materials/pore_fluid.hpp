@@ -35,6 +35,10 @@ inline constexpr ParameterSpec kFluidViscosity{"fluid_viscosity", "dynamic visco
 /// positive) and the liquid velocity w_p [m/s] (D values).
 inline constexpr std::string_view kPorePressureField = "pore_pressure";
 inline constexpr std::string_view kLiquidVelocityField = "liquid_velocity";
+/// The out-of-plane stress sigma_zz a plane-strain particle starts with (a
+/// geostatic start, docs/theory.md eq. 15.12: k0 times the vertical
+/// effective stress), added to the material's sigma_zz of its strain.
+inline constexpr std::string_view kInitialOutOfPlaneStressField = "initial_stress_zz";
 
 /// The keys of a saturated material, every one required once any is given.
 std::span<const ParameterSpec> pore_fluid_parameters();
