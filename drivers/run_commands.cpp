@@ -153,6 +153,7 @@ int check_command(const SceneArgs& a) {
   const distributed::Comm& world = distributed::Comm::world();
   distributed::agree_on(world, [&] { scene = load_scene(a.scene, a.sets, world.size()); });
   const SceneCheck c = check_scene(scene);
+  distributed::agree_on(world, [&] { check_output_names(scene, a.out); });
   if (!prints()) return 0;
   if (!c.ranks.empty()) {
     std::printf("%s: ok (the scene reads and divides over %zu ranks; nothing allocated)\n", a.scene.c_str(),

@@ -34,8 +34,9 @@ Scene bar_for(const IntegratorKind& k) {
   return parse_scene(text, "needs.toml");
 }
 
+/// Same length and bytes (two empty arrays are the same: memcmp is not given their null data).
 template <class T> bool same_bits(const T& a, const T& b) {
-  return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(a[0])) == 0;
+  return a.size() == b.size() && (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(a[0])) == 0);
 }
 
 /// Builds an engine from `parts` and returns the message of the

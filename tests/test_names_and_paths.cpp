@@ -152,3 +152,15 @@ TEST_CASE("a CSV particle file starting with a UTF-8 byte-order mark reads as th
   CHECK(bom.volume == plain.volume);
   CHECK(contains(input_error_of([&] { read_particle_file(t.file("utf16.csv"), 2); }), "UTF-16"));
 }
+
+TEST_CASE("a file name longer than the file system allows is refused for every file the run writes, before writing") {
+  TempDir t("long_names");
+  const std::string over(300, 'r'), near(250, 'r'); // the lock file .NAME.otmpm-lock of 250 bytes is too long
+  CHECK(contains(input_error_of([&] { output_files(t.file(over + ".h5"), "", ""); }),
+                 "the file name of the result file is 303 bytes long"));
+  CHECK(contains(input_error_of([&] { output_files(t.file(near + ".h5"), "", ""); }), "lock file of the result file"));
+  CHECK(contains(input_error_of([&] { output_files(t.file("r.h5"), t.file(over), ""); }),
+                 "the file name of the checkpoint is 300 bytes long"));
+  CHECK_NOTHROW(output_files(t.file(std::string(200, 'r') + ".h5"), "", ""));
+  CHECK(fs::is_empty(t.dir));
+}

@@ -22,10 +22,12 @@
 #include <malloc.h>
 
 #include <chrono>
+#include <filesystem>
 #include <fstream>
 #include <string>
 
 using namespace otmpm;
+namespace fs = std::filesystem;
 
 namespace {
 
@@ -132,6 +134,28 @@ TEST_CASE("check_scene: what the run refuses before it allocates, --check refuse
     opt.write_results = false;
     CHECK(input_error_of([&] { run_scene(scene, opt); }) == check);
   }
+}
+
+TEST_CASE("check_output_names: --check refuses the output names the run refuses, with the run's message") {
+  test::TempDir dir("check_names");
+  const std::string long_name = dir.file(std::string(300, 'r') + ".h5");
+  const std::vector<std::pair<std::vector<std::string>, std::string>> refused{
+      {{"output.file=\"" + long_name + "\""}, "the file name of the result file is 303 bytes long"},
+      {{"output.file=\"" + dir.file("r.xdmf") + "\""}, "may not end in .xdmf"},
+      {{"output.file=\"" + dir.file("r.h5") + "\"", "output.checkpoint_every=10",
+        "output.checkpoint_file=\"" + dir.file("r.xdmf") + "\""},
+       "r.xdmf"}};
+  for (const auto& item : refused) {
+    const std::string& expected = item.second;
+    CAPTURE(expected);
+    const Scene scene = parse_scene(kCube, "cube.toml", item.first);
+    const std::string check = input_error_of([&] { check_output_names(scene, ""); });
+    CHECK(check.find(expected) != std::string::npos);
+    RunOptions opt;
+    CHECK(input_error_of([&] { run_scene(scene, opt); }) == check);
+  }
+  CHECK(fs::is_empty(dir.dir));
+  CHECK_NOTHROW(check_output_names(parse_scene(kCube, "cube.toml", {"output.file=\"" + dir.file("r.h5") + "\""}), ""));
 }
 
 TEST_CASE("check_scene: the step count of a particle file's densities is the run's first step") {

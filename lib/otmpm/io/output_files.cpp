@@ -15,6 +15,7 @@
 #include <algorithm>
 #include <array>
 #include <cctype>
+#include <climits>
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
@@ -90,6 +91,26 @@ std::string xdmf_path(const std::string& result) { return output_base(result) + 
 
 std::string default_checkpoint_path(const std::string& result) { return output_base(result) + ".checkpoint.h5"; }
 
+namespace {
+
+/// InputError when the file name of `path` (the `role` of the run's files)
+/// is longer than its directory's file system allows (NAME_MAX, 255 bytes
+/// on Linux, when the directory does not exist yet): the run would create
+/// nothing, so `run --check` must refuse it too.
+void check_name_length(const std::string& path, const std::string& role) {
+  const fs::path p(path);
+  const std::string name = p.filename().string();
+  const fs::path dir = p.has_parent_path() ? p.parent_path() : fs::path(".");
+  long limit = ::pathconf(dir.c_str(), _PC_NAME_MAX);
+  if (limit <= 0) limit = NAME_MAX;
+  if (name.size() > static_cast<std::size_t>(limit))
+    throw InputError(shown(path) + ": the file name of the " + role + " is " + std::to_string(name.size()) +
+                     " bytes long; the file system allows at most " + std::to_string(limit) +
+                     " - choose a shorter name - nothing was written");
+}
+
+} // namespace
+
 OutputFiles output_files(const std::string& result, const std::string& checkpoint, const std::string& vtk_format) {
   require(!result.empty(), "the result file path is empty");
   require(vtk_format.empty() || vtk_format == "vtp" || vtk_format == "vtu", "output_files: VTK format '", vtk_format,
@@ -119,11 +140,13 @@ OutputFiles output_files(const std::string& result, const std::string& checkpoin
     f.vtk_dir = output_base(result) + "_vtk";
     f.vtk_extension = vtk_format;
   }
-  for (const auto& [role, path] : written_paths(f))
+  for (const auto& [role, path] : written_paths(f)) {
     if (const std::string kind = special_file(path); !kind.empty())
       throw InputError(shown(path) + ": the " + role + " is " + kind +
                        ", not a regular file (otmpm writes only regular files); choose another name - nothing was "
                        "written");
+    check_name_length(path, role);
+  }
   return f;
 }
 
