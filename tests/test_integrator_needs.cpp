@@ -85,36 +85,32 @@ TEST_CASE("integrator needs: parts without what an integrator needs are refused,
     const Scene scene = bar_for(k);
     const std::string who = "integrator '" + std::string(k.name) + "'";
     CHECK(refusal(assemble_parts<1>(scene)).empty());
-    if (k.needs_ul) {
+    // The scene's parts with `remove` taking a need away: refused, naming the integrator and `need`.
+    const auto check_refused = [&](const auto& remove, const std::string& need) {
       EngineParts<1> parts = assemble_parts<1>(scene);
-      parts.mode = NodeMode<1>::fixed_grid(Vec<1>(-0.25), Vec<1>(1.0));
+      remove(parts);
       const std::string m = refusal(std::move(parts));
       CHECK(m.find(who) != std::string::npos);
-      CHECK(m.find("nodes that move") != std::string::npos);
+      CHECK(m.find(need) != std::string::npos);
       ++refused;
-    }
-    if (k.needs_bspline) {
-      EngineParts<1> parts = assemble_parts<1>(scene);
-      BasisOptions linear;
-      linear.kind = "linear";
-      CartesianGrid<1> grid;
-      grid.lower = Vec<1>(0.0);
-      grid.upper = Vec<1>(1.0);
-      grid.cells = {8};
-      parts.basis = make_basis<1>(linear, NodeSet<1>::cartesian(grid));
-      const std::string m = refusal(std::move(parts));
-      CHECK(m.find(who) != std::string::npos);
-      CHECK(m.find("B-spline basis, not 'linear'") != std::string::npos);
-      ++refused;
-    }
-    if (k.needs_consistent_mass) {
-      EngineParts<1> parts = assemble_parts<1>(scene);
-      parts.settings.consistent_mass = false;
-      const std::string m = refusal(std::move(parts));
-      CHECK(m.find(who) != std::string::npos);
-      CHECK(m.find("consistent mass") != std::string::npos);
-      ++refused;
-    }
+    };
+    if (k.needs_ul)
+      check_refused([](EngineParts<1>& parts) { parts.mode = NodeMode<1>::fixed_grid(Vec<1>(-0.25), Vec<1>(1.0)); },
+                    "nodes that move");
+    if (k.needs_bspline)
+      check_refused(
+          [](EngineParts<1>& parts) {
+            BasisOptions linear;
+            linear.kind = "linear";
+            CartesianGrid<1> grid;
+            grid.lower = Vec<1>(0.0);
+            grid.upper = Vec<1>(1.0);
+            grid.cells = {8};
+            parts.basis = make_basis<1>(linear, NodeSet<1>::cartesian(grid));
+          },
+          "B-spline basis, not 'linear'");
+    if (k.needs_consistent_mass)
+      check_refused([](EngineParts<1>& parts) { parts.settings.consistent_mass = false; }, "consistent mass");
     for (const ParameterSpec& p : k.parameters) {
       CAPTURE(p.key);
       EngineParts<1> missing = assemble_parts<1>(scene);

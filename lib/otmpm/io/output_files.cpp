@@ -640,12 +640,17 @@ void check_previous_distinct(const OutputFiles& f, const std::string& previous) 
 
 } // namespace
 
+OutputFiles checked_output_files(const OutputRequest& r) {
+  OutputFiles files = output_files(r.result, r.checkpoint, r.vtk_format);
+  files.result_origin = r.result_origin;
+  files.checkpoint_origin = r.checkpoint_origin;
+  check_distinct(files);
+  return files;
+}
+
 PreparedOutputs prepare_outputs(const OutputRequest& r) {
   PreparedOutputs out;
-  out.files = output_files(r.result, r.checkpoint, r.vtk_format);
-  out.files.result_origin = r.result_origin;
-  out.files.checkpoint_origin = r.checkpoint_origin;
-  check_distinct(out.files);
+  out.files = checked_output_files(r);
   check_previous_distinct(out.files, r.previous_result);
   std::vector<std::string> locked = {out.files.result, out.files.xdmf, out.files.checkpoint, out.files.pvd};
   if (!r.previous_result.empty()) locked.push_back(r.previous_result);

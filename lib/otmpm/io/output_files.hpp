@@ -179,6 +179,11 @@ struct PreparedOutputs {
   std::optional<PreviousResults> previous;
 };
 
+/// The paths of `request` with where their names came from (output_files),
+/// refused when two are the same file (check_distinct): the checks of
+/// prepare_outputs that touch no file (`otmpm run --check` makes them alone).
+OutputFiles checked_output_files(const OutputRequest& request);
+
 /// In this order, before anything is written: derives the paths
 /// (output_files), refuses collisions (check_distinct; the restart's
 /// previous result file included), takes otmpm's locks (OutputLock, the

@@ -1170,11 +1170,7 @@ void check_output_names(const Scene& scene, const std::string& out_file) {
   if (out_file.empty() && scene.output.file.empty()) return;
   RunOptions opt;
   opt.out_file = out_file;
-  const OutputRequest r = output_request(scene, "", opt, nullptr);
-  OutputFiles files = output_files(r.result, r.checkpoint, r.vtk_format);
-  files.result_origin = r.result_origin;
-  files.checkpoint_origin = r.checkpoint_origin;
-  check_distinct(files);
+  checked_output_files(output_request(scene, "", opt, nullptr));
 }
 
 } // namespace otmpm

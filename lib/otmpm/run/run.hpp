@@ -219,9 +219,9 @@ SceneCheck check_scene(const Scene& scene);
 /// The run's rules on its output files applied without touching them
 /// (`otmpm run --check`): the paths derived from `out_file` ("": the
 /// scene's output.file) and the scene's checkpoint and VTK keys, each a
-/// usable name (output_files) and all different files (check_distinct).
-/// InputError as the run gives before writing; nothing when the scene
-/// writes no result file.
+/// usable name and all different files (checked_output_files). InputError
+/// as the run gives before writing; nothing when the scene writes no result
+/// file.
 void check_output_names(const Scene& scene, const std::string& out_file);
 
 } // namespace otmpm
