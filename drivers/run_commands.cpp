@@ -36,6 +36,7 @@ struct SceneArgs {
   std::string out;
   std::string restart; ///< checkpoint file to continue (run only)
   bool check = false;  ///< run only: validate and report, do not run
+  int ranks = 0;       ///< run --check only: the rank count to plan for (0: the ranks it runs on)
   bool quiet = false;
   bool force = false;
   int threads = 0;
@@ -88,6 +89,10 @@ std::string fmt(const char* f, double v) {
   return b;
 }
 
+/// The most ranks `run --check --ranks N` plans for (each played by a thread
+/// of this process while it plans).
+constexpr int kMaxPlannedRanks = 65536;
+
 /// Ranks up to which `run --check` under mpirun prints a row per rank.
 constexpr std::size_t kRankTableRows = 16;
 
@@ -127,7 +132,14 @@ void print_ranks(const SceneCheck& c, const Scene& scene) {
               range_of(R, [](const RankCheck& r) { return r.halo_bytes; }, format_bytes).c_str());
   const StepTime& t = c.step_time;
   if (!t.calibrated) std::printf("  step time  not calibrated (%s)\n", t.why_not.c_str());
-  else {
+  else if (t.comm_rounds == 0) {
+    std::printf("  step time  about %.3g s of compute on rank %d, communication not included (it is timed only "
+                "between real ranks: run --check under mpirun); the run's steps at least %.3g s\n",
+                t.compute, t.busiest, t.compute * c.estimated_steps);
+    std::printf("             calibrated here: %d steps of a block of %ld particles of this scene's kind (%.3g us "
+                "per particle, %.3g us per node)\n",
+                t.calibration_steps, t.calibration_particles, 1e6 * t.per_particle, 1e6 * t.per_node);
+  } else {
     std::printf("  step time  about %.3g s: compute %.3g s on rank %d, communication %.3g s (per step: nodal "
                 "exchanges %.3g, reductions %.3g); the run's steps about %.3g s\n",
                 t.seconds, t.compute, t.busiest, t.communication, t.exchanges, t.reductions,
@@ -151,13 +163,19 @@ int check_command(const SceneArgs& a) {
   set_threads(a.threads);
   Scene scene;
   const distributed::Comm& world = distributed::Comm::world();
-  distributed::agree_on(world, [&] { scene = load_scene(a.scene, a.sets, world.size()); });
-  const SceneCheck c = check_scene(scene);
+  const int ranks = world.size() > 1 ? world.size() : std::max(a.ranks, 1);
+  distributed::agree_on(world, [&] { scene = load_scene(a.scene, a.sets, ranks); });
+  const SceneCheck c = check_scene(scene, a.ranks);
   distributed::agree_on(world, [&] { check_output_names(scene, a.out); });
   if (!prints()) return 0;
   if (!c.ranks.empty()) {
-    std::printf("%s: ok (the scene reads and divides over %zu ranks; nothing allocated)\n", a.scene.c_str(),
-                c.ranks.size());
+    if (world.size() > 1)
+      std::printf("%s: ok (the scene reads and divides over %zu ranks; nothing allocated)\n", a.scene.c_str(),
+                  c.ranks.size());
+    else
+      std::printf("%s: ok (the scene reads and would divide over %zu ranks as shown: planned in this process, "
+                  "nothing allocated)\n",
+                  a.scene.c_str(), c.ranks.size());
     std::printf("  %dD, mode %s, integrator %s, basis %s\n", c.dimension, c.mode.c_str(), c.integrator.c_str(),
                 c.basis.c_str());
     print_ranks(c, scene);
@@ -328,6 +346,12 @@ Command add_run_command(CLI::App& app) {
                                      "Validate the scene and print particles, nodes, dt, estimated steps and "
                                      "memory; do not run (under mpirun: per rank, with the halo and a step time, "
                                      "nothing allocated)");
+  sub->add_option("--ranks", a->ranks,
+                  "With --check: the decomposition, memory and compute time per rank of a run on N ranks, planned "
+                  "in this process without starting them (under mpirun the ranks it runs on are used)")
+      ->check(CLI::Range(1, kMaxPlannedRanks))
+      ->needs(check)
+      ->type_name("N");
   restart->excludes(scene)->excludes("--set")->excludes(check);
   sub->footer("One of SCENE.toml and --restart is required. SIGINT/SIGTERM stop the run after the current step: "
               "the result file keeps status \"interrupted\" (and a last checkpoint is written if checkpointing is "

@@ -1364,6 +1364,51 @@ TEST_CASE("mpi: memory is checked per rank: a scene too large for one process ru
   CHECK(attribute(dir.file("np2.h5"), "setup_particles_sum") == particles);
 }
 
+TEST_CASE("mpi: run --check --ranks N in one process prints the decomposition mpirun -np N finds, nothing run") {
+  TempDir dir("mpi_planned_ranks");
+  // a block and a ball apart from it: the particles are uneven over the lattice
+  const std::string scene = write_scene(dir, "uneven",
+      "[simulation]\ndimension = 2\nmode = \"mpm\"\nintegrator = \"fe\"\nt_end = 1.0e-4\ncfl = 0.3\n"
+      "[basis]\nkind = \"linear\"\n[grid]\nlower = [0.0, 0.0]\nupper = [2.4, 1.6]\ncells = [60, 40]\n"
+      "[[material]]\nname = \"m\"\nmodel = \"linear_elastic\"\ndensity = 1000.0\nyoung = 1.0e6\npoisson = 0.3\n"
+      "[[body]]\nname = \"block\"\nmaterial = \"m\"\nlower = [0.2, 0.2]\nupper = [1.0, 0.6]\n"
+      "[[body]]\nname = \"ball\"\nmaterial = \"m\"\nshape = \"sphere\"\ncenter = [1.7, 1.0]\nradius = 0.5\n"
+      "particles_per_cell = 3\n[output]\nevery = 0.0\nfields = [\"x\"]\n");
+  for (int ranks : {3, 5}) {
+    CAPTURE(ranks);
+    const std::string n = std::to_string(ranks);
+    const Result real = run_otmpm(dir, ranks, {"run", "--check", scene});
+    const Result planned = run_otmpm(dir, 0, {"run", "--check", "--ranks", n, scene});
+    REQUIRE_MESSAGE(real.status == 0, real.err);
+    REQUIRE_MESSAGE(planned.status == 0, planned.err);
+    CAPTURE(planned.out);
+    const std::vector<RankRow> a = rank_rows(real.out), b = rank_rows(planned.out);
+    REQUIRE(a.size() == static_cast<std::size_t>(ranks));
+    REQUIRE(b.size() == a.size());
+    for (std::size_t r = 0; r < a.size(); ++r) {
+      CHECK(b[r].rank == a[r].rank);
+      CHECK(b[r].particles == a[r].particles);
+      CHECK(b[r].nodes == a[r].nodes);
+    }
+    // the lines of the table after the step time: the halo and memory of each rank, the same text
+    auto table = [](const std::string& out) { return out.substr(out.find("\n  memory ")); };
+    auto lines_until_step = [&](const std::string& out) {
+      const std::string t = table(out);
+      return t.substr(0, t.find("\n  step time"));
+    };
+    CHECK(lines_until_step(planned.out) == lines_until_step(real.out));
+    CHECK(has(planned.out, "would divide over " + n + " ranks"));
+    CHECK(has(planned.out, "communication not included"));
+  }
+  // --ranks under mpirun must be the rank count; --ranks needs --check
+  const Result other = run_otmpm(dir, 2, {"run", "--check", "--ranks", "3", scene});
+  CHECK(other.status == 2);
+  CHECK(has(other.err, "--ranks 3 under mpirun with 2 ranks"));
+  CHECK(run_otmpm(dir, 2, {"run", "--check", "--ranks", "2", scene}).status == 0);
+  CHECK(run_otmpm(dir, 0, {"run", "--ranks", "2", scene}).status != 0);
+  CHECK(run_otmpm(dir, 0, {"run", "--check", "--ranks", "0", scene}).status != 0);
+}
+
 TEST_CASE("mpi: a rank whose share exceeds the memory limit is refused, naming it, before anything is allocated") {
   // 10 000 particles in one cell (100 x 100 per cell): the bisection cannot
   // split them, so one of 2 ranks holds them all - twice the even share.

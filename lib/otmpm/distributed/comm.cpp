@@ -3,6 +3,7 @@
 /// point-to-point and all-to-all byte exchanges, the MPI session. Without
 /// MPI (no OTMPM_HAVE_MPI) every operation is that of a single rank.
 #include "otmpm/distributed/comm.hpp"
+#include "otmpm/distributed/comm_local.hpp"
 
 #include "otmpm/core.hpp"
 #include "otmpm/interrupt.hpp"
@@ -119,6 +120,14 @@ const Comm& Comm::world() {
 void Comm::sum(std::span<double> values) const { reduce(values, {}); }
 
 void Comm::reduce(std::span<double> sums, std::span<double> maxima) const {
+  if (local_) {
+    std::vector<double> v(sums.begin(), sums.end());
+    v.insert(v.end(), maxima.begin(), maxima.end());
+    local_->reduce<double>(rank_, v, sums.size(), LocalRanks::Op::max);
+    std::copy(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(sums.size()), sums.begin());
+    std::copy(v.begin() + static_cast<std::ptrdiff_t>(sums.size()), v.end(), maxima.begin());
+    return;
+  }
 #ifdef OTMPM_HAVE_MPI
   if (!mpi_ || size_ == 1) return;
   std::vector<double> v(sums.begin(), sums.end());
@@ -137,6 +146,7 @@ double Comm::sum(double value) const {
 }
 
 void Comm::sum(std::span<std::int64_t> values) const {
+  if (local_) return local_->reduce(rank_, values, values.size(), LocalRanks::Op::sum);
 #ifdef OTMPM_HAVE_MPI
   if (mpi_ && size_ > 1)
     MPI_Allreduce(MPI_IN_PLACE, values.data(), checked_count(values.size()), MPI_INT64_T, MPI_SUM, world_comm());
@@ -151,6 +161,7 @@ std::int64_t Comm::sum(std::int64_t value) const {
 }
 
 void Comm::max(std::span<double> values) const {
+  if (local_) return local_->reduce(rank_, values, 0, LocalRanks::Op::max);
 #ifdef OTMPM_HAVE_MPI
   if (mpi_ && size_ > 1)
     MPI_Allreduce(MPI_IN_PLACE, values.data(), checked_count(values.size()), MPI_DOUBLE, MPI_MAX, world_comm());
@@ -160,6 +171,7 @@ void Comm::max(std::span<double> values) const {
 }
 
 void Comm::min(std::span<double> values) const {
+  if (local_) return local_->reduce(rank_, values, 0, LocalRanks::Op::min);
 #ifdef OTMPM_HAVE_MPI
   if (mpi_ && size_ > 1)
     MPI_Allreduce(MPI_IN_PLACE, values.data(), checked_count(values.size()), MPI_DOUBLE, MPI_MIN, world_comm());
@@ -179,6 +191,7 @@ double Comm::min(double value) const {
 }
 
 std::int64_t Comm::min(std::int64_t value) const {
+  if (local_) local_->reduce(rank_, std::span<std::int64_t>(&value, 1), 0, LocalRanks::Op::min);
 #ifdef OTMPM_HAVE_MPI
   if (mpi_ && size_ > 1) MPI_Allreduce(MPI_IN_PLACE, &value, 1, MPI_INT64_T, MPI_MIN, world_comm());
 #endif
@@ -186,6 +199,7 @@ std::int64_t Comm::min(std::int64_t value) const {
 }
 
 std::int64_t Comm::max(std::int64_t value) const {
+  if (local_) local_->reduce(rank_, std::span<std::int64_t>(&value, 1), 0, LocalRanks::Op::max);
 #ifdef OTMPM_HAVE_MPI
   if (mpi_ && size_ > 1) MPI_Allreduce(MPI_IN_PLACE, &value, 1, MPI_INT64_T, MPI_MAX, world_comm());
 #endif
@@ -194,6 +208,12 @@ std::int64_t Comm::max(std::int64_t value) const {
 
 std::vector<std::int64_t> Comm::allgather(std::int64_t value) const {
   std::vector<std::int64_t> all(static_cast<std::size_t>(size_), value);
+  if (local_) {
+    Bytes mine;
+    put(mine, value);
+    const std::vector<Bytes> in = local_->allgather(rank_, mine);
+    for (std::size_t q = 0; q < in.size(); ++q) all[q] = Reader(in[q]).get<std::int64_t>();
+  }
 #ifdef OTMPM_HAVE_MPI
   if (mpi_ && size_ > 1) MPI_Allgather(&value, 1, MPI_INT64_T, all.data(), 1, MPI_INT64_T, world_comm());
 #endif
@@ -210,6 +230,7 @@ std::string Comm::broadcast(const std::string& text, int from) const {
 }
 
 void Comm::broadcast(void* data, std::size_t bytes, int from) const {
+  if (local_) return local_->broadcast(rank_, data, bytes, from);
 #ifdef OTMPM_HAVE_MPI
   if (mpi_ && size_ > 1 && bytes > 0) MPI_Bcast(data, checked_count(bytes), MPI_BYTE, from, world_comm());
 #else
@@ -220,6 +241,7 @@ void Comm::broadcast(void* data, std::size_t bytes, int from) const {
 std::vector<Bytes> Comm::exchange(const std::vector<int>& to, const std::vector<Bytes>& send,
                                   const std::vector<int>& from) const {
   std::vector<Bytes> received(from.size());
+  if (local_) throw std::logic_error("Comm::exchange: not available between ranks played by threads");
 #ifdef OTMPM_HAVE_MPI
   if (!mpi_) return received;
   std::vector<MPI_Request> requests(to.size());
@@ -245,6 +267,7 @@ std::vector<Bytes> Comm::alltoall(std::vector<Bytes> send) const {
     throw std::invalid_argument("Comm::alltoall: " + std::to_string(send.size()) + " buffers for " +
                                 std::to_string(size_) + " ranks");
   if (size_ == 1) return send;
+  if (local_) return local_->alltoall(rank_, std::move(send));
   std::vector<Bytes> received(static_cast<std::size_t>(size_));
 #ifdef OTMPM_HAVE_MPI
   const std::size_t P = static_cast<std::size_t>(size_);
@@ -275,6 +298,7 @@ std::vector<Bytes> Comm::alltoall(std::vector<Bytes> send) const {
 
 std::vector<Bytes> Comm::allgather(const Bytes& mine) const {
   if (size_ == 1) return {mine};
+  if (local_) return local_->allgather(rank_, mine);
   std::vector<Bytes> received(static_cast<std::size_t>(size_));
 #ifdef OTMPM_HAVE_MPI
   const std::size_t P = static_cast<std::size_t>(size_);
@@ -294,6 +318,7 @@ std::vector<Bytes> Comm::allgather(const Bytes& mine) const {
 }
 
 void Comm::barrier() const {
+  if (local_) return local_->wait();
 #ifdef OTMPM_HAVE_MPI
   if (mpi_ && size_ > 1) MPI_Barrier(world_comm());
 #endif

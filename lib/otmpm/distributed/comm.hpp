@@ -13,6 +13,7 @@
 /// sums are exact in any order.
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -21,6 +22,8 @@ namespace otmpm::distributed {
 
 /// Bytes of one message.
 using Bytes = std::vector<char>;
+
+class LocalRanks;
 
 /// A group of ranks (all ranks of the program: world()).
 class Comm {
@@ -71,10 +74,21 @@ public:
   /// this is not an MPI communicator.
   const void* mpi_comm() const;
 
+  /// Runs body(comm) on `ranks` threads of this process, each one rank of a
+  /// Comm of that size: what a run on `ranks` processes computes in its
+  /// collective set-up (`otmpm run --check --ranks N`: the decomposition,
+  /// without starting N processes). Its collectives give the bits MPI's
+  /// give (the same ordered sums); exchange() is not available (a
+  /// std::logic_error). Returns once every rank has returned; when a rank
+  /// throws, the others stop at their next collective and the lowest
+  /// throwing rank's exception is rethrown here.
+  static void run_local(int ranks, const std::function<void(const Comm&)>& body);
+
 private:
   Comm() = default;
   int rank_ = 0, size_ = 1;
   bool mpi_ = false;
+  std::shared_ptr<LocalRanks> local_; ///< the ranks of run_local, when this is one of them
 };
 
 /// How many processes a launcher (OpenMPI's mpirun, a PMI launcher such as

@@ -197,8 +197,8 @@ struct SceneCheck {
   double memory_limit = 0.0; ///< what the estimate is checked against (memory_limit(scene)), per process
   std::string out_file;      ///< output.file
   std::vector<BodyVolume> volumes; ///< per body (in one process only)
-  std::vector<RankCheck> ranks; ///< under mpirun: per rank (empty in one process)
-  StepTime step_time;           ///< under mpirun
+  std::vector<RankCheck> ranks; ///< under mpirun or with planned ranks: per rank (else empty)
+  StepTime step_time;           ///< under mpirun or with planned ranks
 };
 
 /// Checks the scene as a run does, in the run's order: first, before
@@ -214,7 +214,14 @@ struct SceneCheck {
 /// wave speeds, and the expected step time (StepTime). Reports the size,
 /// first time step, estimated steps and the run's memory estimate, without
 /// stepping. InputError as run_scene().
-SceneCheck check_scene(const Scene& scene);
+///
+/// `planned_ranks` > 1 in one process (`run --check --ranks N`): the
+/// decomposition a run on that many ranks would compute, found as under
+/// mpirun by threads of this process playing the ranks (nothing of the
+/// scene allocated; the step time's compute part from one calibration
+/// here, its communication not timed: StepTime::comm_rounds 0). Under
+/// mpirun it must be the rank count or 0 (InputError otherwise).
+SceneCheck check_scene(const Scene& scene, int planned_ranks = 0);
 
 /// The run's rules on its output files applied without touching them
 /// (`otmpm run --check`): the paths derived from `out_file` ("": the

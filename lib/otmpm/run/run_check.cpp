@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <omp.h>
 
 namespace otmpm {
 
@@ -157,11 +158,9 @@ template <int D> StepTime step_time(const Scene& scene, const distributed::RankP
   return t;
 }
 
-/// run --check under mpirun: the decomposition and the estimates of each
-/// rank, nothing allocated (SceneCheck).
-template <int D> SceneCheck check_ranks(const Scene& scene, SceneCheck c) {
-  const distributed::Comm& comm = distributed::Comm::world();
-  const distributed::RankPlan plan = distributed::plan_ranks<D>(scene, comm);
+/// The decomposition `plan` of the scene over `ranks` ranks and each
+/// rank's estimates in `c` (SceneCheck::ranks).
+template <int D> void report_plan(const Scene& scene, const distributed::RankPlan& plan, int ranks, SceneCheck& c) {
   const ResourceEstimate whole = estimate_resources(scene);
   c.dt = whole.dt;
   c.particles = plan.particles;
@@ -171,11 +170,58 @@ template <int D> SceneCheck check_ranks(const Scene& scene, SceneCheck c) {
   for (const distributed::RankShare& r : plan.ranks) {
     SceneSize share;
     share.particles = static_cast<double>(r.particles), share.nodes = static_cast<double>(r.points);
-    const double bytes = estimate_resources(scene, share, comm.size()).bytes;
+    const double bytes = estimate_resources(scene, share, ranks).bytes;
     c.ranks.push_back({r.particles, r.points, r.ghosts, r.neighbours, 8.0 * (1 + 2 * D) * r.halo, bytes});
     c.memory_bytes += bytes;
   }
+}
+
+/// The compute part of the step time of the run that `plan` divides, from
+/// one calibration in this process (StepTime with comm_rounds 0: the
+/// communication is not timed without the ranks). A calibration that
+/// fails is reported, not thrown.
+template <int D> StepTime planned_step_time(const Scene& scene, const distributed::RankPlan& plan) {
+  StepTime t;
+  double busiest = 0.0;
+  for (const distributed::RankShare& r : plan.ranks) busiest = std::max(busiest, static_cast<double>(r.particles));
+  try {
+    time_block<D>(scene, busiest, t);
+  } catch (const std::exception& e) {
+    t.why_not = e.what();
+    return t;
+  }
+  for (std::size_t r = 0; r < plan.ranks.size(); ++r) {
+    const double compute = t.per_particle * plan.ranks[r].particles + t.per_node * plan.ranks[r].points;
+    if (compute > t.compute) t.compute = compute, t.busiest = static_cast<int>(r);
+  }
+  t.seconds = t.compute;
+  t.calibrated = true;
+  return t;
+}
+
+/// run --check under mpirun: the decomposition and the estimates of each
+/// rank, nothing allocated (SceneCheck).
+template <int D> SceneCheck check_ranks(const Scene& scene, SceneCheck c) {
+  const distributed::Comm& comm = distributed::Comm::world();
+  const distributed::RankPlan plan = distributed::plan_ranks<D>(scene, comm);
+  report_plan<D>(scene, plan, comm.size(), c);
   c.step_time = step_time<D>(scene, plan);
+  return c;
+}
+
+/// run --check --ranks N in one process: the decomposition a run on
+/// `ranks` ranks computes, found by `ranks` threads of this process playing
+/// them (Comm::run_local; each with one OpenMP thread), nothing allocated;
+/// the step time from one calibration here, without the communication.
+template <int D> SceneCheck check_planned_ranks(const Scene& scene, SceneCheck c, int ranks) {
+  distributed::RankPlan plan;
+  distributed::Comm::run_local(ranks, [&](const distributed::Comm& comm) {
+    omp_set_num_threads(1);
+    distributed::RankPlan mine = distributed::plan_ranks<D>(scene, comm);
+    if (comm.root()) plan = std::move(mine);
+  });
+  report_plan<D>(scene, plan, ranks, c);
+  c.step_time = planned_step_time<D>(scene, plan);
   return c;
 }
 
@@ -210,12 +256,17 @@ template std::vector<BodyVolume> body_volumes<1>(const Scene&, const Engine<1>&)
 template std::vector<BodyVolume> body_volumes<2>(const Scene&, const Engine<2>&);
 template std::vector<BodyVolume> body_volumes<3>(const Scene&, const Engine<3>&);
 
-SceneCheck check_scene(const Scene& scene) {
+SceneCheck check_scene(const Scene& scene, int planned_ranks) {
   const int D = scene.simulation.dimension;
   if (D < 1 || D > 3)
     input_error(scene.locate("simulation.dimension"), "dimension must be 1, 2 or 3, got " + std::to_string(D));
   // the run's checks, before anything is allocated (the ranks agree, as in the run)
-  const int ranks = distributed::Comm::world().size();
+  const int world = distributed::Comm::world().size();
+  if (planned_ranks > 0 && world > 1 && planned_ranks != world)
+    throw InputError("--ranks " + std::to_string(planned_ranks) + " under mpirun with " + std::to_string(world) +
+                     " ranks: under mpirun run --check divides the scene over the ranks it runs on (leave --ranks "
+                     "out, or run without mpirun)");
+  const int ranks = world > 1 ? world : std::max(planned_ranks, 1);
   distributed::agree_on(distributed::Comm::world(), [&] { check_before_allocating(scene, D, ranks); });
   SceneCheck c;
   c.dimension = D;
@@ -226,10 +277,15 @@ SceneCheck check_scene(const Scene& scene) {
   c.memory_bytes = estimate_resources(scene).bytes;
   c.memory_limit = memory_limit(scene);
   c.out_file = scene.output.file;
-  if (ranks > 1) switch (D) {
+  if (world > 1) switch (D) {
     case 1: return check_ranks<1>(scene, c);
     case 2: return check_ranks<2>(scene, c);
     default: return check_ranks<3>(scene, c);
+    }
+  if (ranks > 1) switch (D) {
+    case 1: return check_planned_ranks<1>(scene, c, ranks);
+    case 2: return check_planned_ranks<2>(scene, c, ranks);
+    default: return check_planned_ranks<3>(scene, c, ranks);
     }
   switch (D) {
   case 1: return check_dim<1>(scene, c);

@@ -1,0 +1,124 @@
+/// \file comm_local.cpp
+/// Ranks played by threads of one process (comm_local.hpp, Comm::run_local).
+#include "otmpm/distributed/comm_local.hpp"
+
+#include <algorithm>
+#include <cstring>
+#include <exception>
+#include <stdexcept>
+#include <thread>
+
+namespace otmpm::distributed {
+
+LocalRanks::LocalRanks(int size)
+    : size_(size), slots_(static_cast<std::size_t>(size)), posts_(static_cast<std::size_t>(size)),
+      data_(static_cast<std::size_t>(size)) {}
+
+void LocalRanks::wait() {
+  std::unique_lock<std::mutex> lock(mutex_);
+  if (stopped_) throw Stopped{};
+  const long long generation = generation_;
+  if (++arrived_ == size_) {
+    arrived_ = 0;
+    ++generation_;
+    arrived_all_.notify_all();
+  } else {
+    arrived_all_.wait(lock, [&] { return generation_ != generation || stopped_; });
+  }
+  if (stopped_) throw Stopped{};
+}
+
+void LocalRanks::stop() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  stopped_ = true;
+  arrived_all_.notify_all();
+}
+
+std::vector<Bytes> LocalRanks::allgather(int rank, const Bytes& mine) {
+  slots_[static_cast<std::size_t>(rank)] = mine;
+  wait();
+  std::vector<Bytes> all = slots_;
+  wait(); // nobody writes its slot again before all have read
+  return all;
+}
+
+std::vector<Bytes> LocalRanks::alltoall(int rank, std::vector<Bytes> send) {
+  posts_[static_cast<std::size_t>(rank)] = std::move(send);
+  wait();
+  std::vector<Bytes> received(static_cast<std::size_t>(size_));
+  for (std::size_t q = 0; q < received.size(); ++q) received[q] = posts_[q][static_cast<std::size_t>(rank)];
+  wait();
+  return received;
+}
+
+void LocalRanks::broadcast(int rank, void* data, std::size_t bytes, int from) {
+  if (rank == from) data_[0] = data;
+  wait();
+  if (rank != from) std::memcpy(data, data_[0], bytes);
+  wait();
+}
+
+namespace {
+
+template <class T> T combine(T a, T b, LocalRanks::Op op) {
+  switch (op) {
+  case LocalRanks::Op::sum: return a + b;
+  case LocalRanks::Op::max: return std::max(a, b);
+  default: return std::min(a, b);
+  }
+}
+
+} // namespace
+
+template <class T> void LocalRanks::reduce(int rank, std::span<T> values, std::size_t sums, Op rest) {
+  const std::size_t n = values.size(), P = static_cast<std::size_t>(size_), r = static_cast<std::size_t>(rank);
+  if (rank == 0) result_.assign(n * sizeof(T), 0);
+  data_[r] = values.data();
+  wait();
+  // each rank combines its slice of the entries, as the tree would
+  std::vector<T> tree(P);
+  for (std::size_t i = n * r / P; i < n * (r + 1) / P; ++i) {
+    for (std::size_t q = 0; q < P; ++q) tree[q] = static_cast<const T*>(data_[q])[i];
+    const Op op = i < sums ? Op::sum : rest;
+    for (std::size_t mask = 1; mask < P; mask <<= 1)
+      for (std::size_t q = 0; q + mask < P; q += 2 * mask) tree[q] = combine(tree[q], tree[q + mask], op);
+    std::memcpy(result_.data() + i * sizeof(T), &tree[0], sizeof(T));
+  }
+  wait();
+  std::memcpy(static_cast<void*>(values.data()), result_.data(), n * sizeof(T));
+  wait(); // rank 0 does not resize the result before all have read it
+}
+
+template void LocalRanks::reduce(int, std::span<double>, std::size_t, Op);
+template void LocalRanks::reduce(int, std::span<std::int64_t>, std::size_t, Op);
+
+void Comm::run_local(int ranks, const std::function<void(const Comm&)>& body) {
+  if (ranks < 1) throw std::invalid_argument("Comm::run_local: " + std::to_string(ranks) + " ranks");
+  auto group = std::make_shared<LocalRanks>(ranks);
+  std::vector<std::exception_ptr> failed(static_cast<std::size_t>(ranks));
+  std::vector<std::thread> threads;
+  auto play = [&](int r) {
+    Comm c;
+    c.rank_ = r, c.size_ = ranks, c.local_ = group;
+    try {
+      body(c);
+    } catch (const LocalRanks::Stopped&) {
+    } catch (...) {
+      failed[static_cast<std::size_t>(r)] = std::current_exception();
+      group->stop();
+    }
+  };
+  try {
+    for (int r = 0; r < ranks; ++r) threads.emplace_back(play, r);
+  } catch (const std::system_error& e) { // the process may not start that many threads
+    group->stop();
+    for (std::thread& t : threads) t.join();
+    throw std::runtime_error("cannot start " + std::to_string(ranks) + " threads to play the ranks (" +
+                             std::to_string(threads.size()) + " started): " + e.what());
+  }
+  for (std::thread& t : threads) t.join();
+  for (const std::exception_ptr& e : failed)
+    if (e) std::rethrow_exception(e);
+}
+
+} // namespace otmpm::distributed

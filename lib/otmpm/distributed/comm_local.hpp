@@ -1,0 +1,50 @@
+#pragma once
+/// \file comm_local.hpp
+/// Ranks played by threads of one process (Comm::run_local): the shared
+/// state of their collectives. Internal to comm.cpp and comm_local.cpp.
+#include "otmpm/distributed/comm.hpp"
+
+#include <condition_variable>
+#include <mutex>
+
+namespace otmpm::distributed {
+
+/// The threads of Comm::run_local as the ranks of one group: a barrier,
+/// and the buffers through which each collective passes its data.
+class LocalRanks {
+public:
+  /// Thrown at a collective of a rank once another rank has failed (the
+  /// group is stopped): it ends that rank's thread, not the program.
+  struct Stopped {};
+  enum class Op { sum, max, min };
+
+  explicit LocalRanks(int size);
+  int size() const { return size_; }
+  /// Stops the group: every rank waiting in, or later entering, a
+  /// collective throws Stopped.
+  void stop();
+
+  std::vector<Bytes> allgather(int rank, const Bytes& mine);
+  std::vector<Bytes> alltoall(int rank, std::vector<Bytes> send);
+  void broadcast(int rank, void* data, std::size_t bytes, int from);
+  /// Combines the ranks' `values` entry by entry along MPI's binomial tree
+  /// (children in increasing rank order: the bits an MPI run's ordered sums
+  /// give): entries before `sums` added, the others by `rest`.
+  template <class T> void reduce(int rank, std::span<T> values, std::size_t sums, Op rest);
+  /// A barrier of the ranks.
+  void wait();
+
+private:
+  int size_;
+  std::mutex mutex_;
+  std::condition_variable arrived_all_;
+  int arrived_ = 0;
+  long long generation_ = 0;
+  bool stopped_ = false;
+  std::vector<Bytes> slots_;              ///< allgather: each rank's message
+  std::vector<std::vector<Bytes>> posts_; ///< alltoall: posts_[from][to]
+  std::vector<const void*> data_;         ///< reduce, broadcast: each rank's values
+  Bytes result_;                          ///< reduce: the combined values
+};
+
+} // namespace otmpm::distributed
