@@ -11,19 +11,24 @@
 #   restart on R2 ranks
 #
 # and prints per case each rank's peak (MB) and the largest over the mean.
+# With --agreement the runs also write VTK files (vtp, by every rank) and
+# every output time, and the script runs the scene in one process and prints
+# the largest relative difference per field (scripts/compare_results.py) of
+# the R-rank run and of both restarts against it; exit 1 above 1e-12.
 #
-#   bash scripts/checkpoint-memory.sh [--cells N] [--ranks R] [--restart-ranks R2] [--steps S]
+#   bash scripts/checkpoint-memory.sh [--cells N] [--ranks R] [--restart-ranks R2] [--steps S] [--agreement]
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 bin=${OTMPM_BIN:-$root/build/bin/otmpm}
-cells=64 ranks=2 ranks2=3 steps=4
+cells=64 ranks=2 ranks2=3 steps=4 agreement=0
 while [ $# -gt 0 ]; do
   case "$1" in
     --cells) cells=$2; shift 2 ;;
     --ranks) ranks=$2; shift 2 ;;
     --restart-ranks) ranks2=$2; shift 2 ;;
     --steps) steps=$2; shift 2 ;;
-    *) echo "usage: bash scripts/checkpoint-memory.sh [--cells N] [--ranks R] [--restart-ranks R2] [--steps S]" >&2; exit 2 ;;
+    --agreement) agreement=1; shift ;;
+    *) echo "usage: bash scripts/checkpoint-memory.sh [--cells N] [--ranks R] [--restart-ranks R2] [--steps S] [--agreement]" >&2; exit 2 ;;
   esac
 done
 work=$(mktemp -d)
@@ -53,10 +58,24 @@ PY
 }
 echo "machine: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $(nproc --all) cores, load $(cut -d' ' -f1-3 /proc/loadavg)"
 echo "3D block, $cells^3 cells, $((8 * cells * cells * cells)) particles, $steps steps; peak RSS per rank in MB (rank 0 first)"
-measure "run on $ranks ranks, no checkpoint" "$ranks" run block.toml --quiet --out a.h5 --set simulation.t_end="$t_end"
+outputs=()
+if [ "$agreement" = 1 ]; then
+  outputs=(--set 'output.format=["hdf5", "vtp"]' --set "output.every=$t_end")
+fi
+measure "run on $ranks ranks, no checkpoint" "$ranks" run block.toml --quiet --out a.h5 --set simulation.t_end="$t_end" \
+  "${outputs[@]}"
 measure "run on $ranks ranks, checkpoint at step $((steps - 1))" "$ranks" run block.toml --quiet --out b.h5 \
-  --set simulation.t_end="$t_end" --set output.checkpoint_every="$((steps - 1))"
+  --set simulation.t_end="$t_end" --set output.checkpoint_every="$((steps - 1))" "${outputs[@]}"
 ls -l "$work/b.checkpoint.h5" | awk '{printf "checkpoint file: %.1f MB\n", $5 / 1e6}'
 measure "restart on $ranks ranks" "$ranks" run --restart b.checkpoint.h5 --quiet --out c.h5
 measure "restart on $ranks2 ranks" "$ranks2" run --restart b.checkpoint.h5 --quiet --out d.h5
+if [ "$agreement" = 1 ]; then
+  (cd "$work" && OMP_NUM_THREADS=2 "$bin" run block.toml --quiet --out serial.h5 --set simulation.t_end="$t_end" \
+    "${outputs[@]}")
+  for f in b c d; do
+    echo "largest difference of $f.h5 from the run in one process:"
+    /usr/bin/python3 "$root/scripts/compare_results.py" "$work/serial.h5" "$work/$f.h5" --tol 1e-12
+  done
+  echo "VTK pieces of the $ranks-rank run: $(ls "$work"/b_vtk | wc -l) files"
+fi
 echo "load after: $(cut -d' ' -f1-3 /proc/loadavg)"
