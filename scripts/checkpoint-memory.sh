@@ -10,7 +10,8 @@
 #   (at step S - 1), 3. its restart on R ranks (the last step), 4. its
 #   restart on R2 ranks
 #
-# and prints per case each rank's peak (MB) and the largest over the mean.
+# and prints per case each rank's peak (MB), the largest over the mean and
+# the wall time (the slowest rank's, set-up and output included).
 # With --agreement the runs also write VTK files (vtp, by every rank) and
 # every output time, and the script runs the scene in one process and prints
 # the largest relative difference per field (scripts/compare_results.py) of
@@ -45,15 +46,18 @@ measure() { # label ranks otmpm-arguments... -> one line: label, each rank's pea
   shift 2
   rm -f "$work"/peak.*
   (cd "$work" && mpirun -q --oversubscribe -np "$n" sh -c \
-    'exec /usr/bin/time -o "peak.$OMPI_COMM_WORLD_RANK" -f %M "$@" > /dev/null' sh "$bin" "$@" 2> "$work/err.txt") || {
+    'exec /usr/bin/time -o "peak.$OMPI_COMM_WORLD_RANK" -f "%M %e" "$@" > /dev/null' sh "$bin" "$@" 2> "$work/err.txt") || {
     cat "$work/err.txt" >&2
     exit 1
   }
   /usr/bin/python3 - "$label" "$n" "$work" <<'PY'
 import sys
 label, n, work = sys.argv[1], int(sys.argv[2]), sys.argv[3]
-mb = [int(open(f"{work}/peak.{r}").read().split()[-1]) / 1000.0 for r in range(n)]
-print(f"{label:40s} " + " ".join(f"{m:8.1f}" for m in mb) + f"   max/mean {max(mb) / (sum(mb) / len(mb)):.3f}")
+rows = [open(f"{work}/peak.{r}").read().split()[-2:] for r in range(n)]
+mb = [int(r[0]) / 1000.0 for r in rows]
+wall = max(float(r[1]) for r in rows)
+print(f"{label:40s} " + " ".join(f"{m:8.1f}" for m in mb) + f"   max/mean {max(mb) / (sum(mb) / len(mb)):.3f}"
+      + f"   wall {wall:.1f} s")
 PY
 }
 echo "machine: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $(nproc --all) cores, load $(cut -d' ' -f1-3 /proc/loadavg)"
