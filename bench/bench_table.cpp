@@ -196,6 +196,7 @@ void block3d_cases(int cells3, bool quick, int repeat, Case& lin3, Case& lme3, C
   for (Case* c : cases) c->run = nullptr; // the engines end here
 }
 
+/// The 3D block's name in the rows: its cells and particles.
 std::string block3d_name(int cells3, const Case& lin3) {
   return "3D block " + std::to_string(cells3) + "^3 cells" + fmt(" (%.0f particles)", double(lin3.last.particles));
 }
