@@ -2,7 +2,8 @@
 """Smoke test of bench/bench_table (scripts/bench.sh): every row of the throughput
 and methods tables runs and prints a finite positive figure, its met column
 agrees with its target, and every case prints phase shares that add up to
-100%. Timings are not checked (--quick sizes, one repetition).
+100%; the same for --table lme (the methods table's two LME rows). Timings
+are not checked (--quick sizes, one repetition).
 
     check_bench_table.py BENCH_TABLE
 """
@@ -19,8 +20,10 @@ def printed_resolution(text):
     return 10.0 ** (int(exponent or 0) - decimals)
 
 
-def main(argv):
-    out = subprocess.run([argv[1], "--quick", "--repeat", "1"], check=True, capture_output=True, text=True,
+def check(bench_table, args, expected, cases):
+    """The failures of one run of bench_table with `args`: `expected` rows per
+    table title, `cases` cases with phase shares."""
+    out = subprocess.run([bench_table, "--quick", "--repeat", "1"] + args, check=True, capture_output=True, text=True,
                          env={"OMP_NUM_THREADS": "2", "OMP_WAIT_POLICY": "passive"}).stdout
     failures = []
     tables = {}
@@ -34,7 +37,6 @@ def main(argv):
             tables[title] = []
         elif title and not cells[0].startswith("---"):
             tables[title].append(cells)
-    expected = {"throughput figure": 6, "method figure": 8}
     for name, count in expected.items():
         rows = tables.get(name, [])
         if len(rows) != count:
@@ -54,18 +56,26 @@ def main(argv):
             if met not in ("met", "**not met**") or (not at_bound and met != ("met" if ok else "**not met**")):
                 failures.append(f"{figure}: measured {value}, target {target}, but the row says '{met}'")
     shares = re.findall(r"^  (\S.*?)\s{2,}(basis .*)$", out, re.M)
-    if len(shares) != 12:
-        failures.append(f"phase shares of {len(shares)} cases, expected 12")
+    if len(shares) != cases:
+        failures.append(f"phase shares of {len(shares)} cases, expected {cases}")
     for case, text in shares:
         total = sum(float(p) for p in re.findall(r"([0-9.]+)%", text))
         if not 97 <= total <= 103:  # each share rounded to 1%: 6 phases
             failures.append(f"{case}: phase shares add up to {total}%")
     if failures:
         print(out)
+        return [f"{' '.join(args) or 'all'}: {f}" for f in failures]
+    print(f"ok ({' '.join(args) or 'all'}): {sum(len(r) for r in tables.values())} rows, "
+          f"{len(shares)} cases with phase shares")
+    return []
+
+
+def main(argv):
+    failures = check(argv[1], [], {"throughput figure": 6, "method figure": 8}, 12)
+    failures += check(argv[1], ["--table", "lme"], {"method figure": 2}, 4)
+    if failures:
         print("\n".join(failures))
-        return 1
-    print(f"ok: {sum(len(r) for r in tables.values())} rows, {len(shares)} cases with phase shares")
-    return 0
+    return 1 if failures else 0
 
 
 if __name__ == "__main__":
