@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
-# Runs every row of the performance tables (throughput, methods) and prints
+# Runs every row of the performance tables (throughput, methods, plastic) and prints
 # them with target, measured value and met or not (see docs/performance.md):
 #
-#   bash scripts/bench.sh [--repeat R] [--native] [--table throughput|methods|all] [--quick] [--no-output]
+#   bash scripts/bench.sh [--repeat R] [--native] [--table throughput|methods|plastic|all] [--quick] [--no-output]
 #
 # Builds build-bench (Release, benchmarks, no tests, the portable default
 # flags; with --native build-bench-native with -march=native), runs
@@ -22,7 +22,7 @@ native=OFF
 table=all
 quick=0
 output=1
-usage="usage: bash scripts/bench.sh [--repeat R] [--native] [--table throughput|methods|all] [--quick] [--no-output]"
+usage="usage: bash scripts/bench.sh [--repeat R] [--native] [--table throughput|methods|plastic|all] [--quick] [--no-output]"
 while [ $# -gt 0 ]; do
   case "$1" in
     --repeat) repeat="$2"; shift 2 ;;
@@ -33,7 +33,7 @@ while [ $# -gt 0 ]; do
     *) echo "$usage" >&2; exit 2 ;;
   esac
 done
-case "$table" in throughput|methods|all) ;; *) echo "$usage" >&2; exit 2 ;; esac
+case "$table" in throughput|methods|plastic|all) ;; *) echo "$usage" >&2; exit 2 ;; esac
 bash scripts/install-deps.sh >/dev/null
 build=build-bench suffix=""
 [ "$native" = ON ] && build=build-bench-native suffix="-native"
@@ -50,8 +50,8 @@ fi
 echo "machine: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg); build $build (OTMPM_NATIVE=$native); $(date -u '+%Y-%m-%d %H:%M UTC')"
 # otmpm's own OpenMP wait (otmpm/openmp_wait.hpp), whatever the caller set
 env -u OMP_WAIT_POLICY -u GOMP_SPINCOUNT OMP_NUM_THREADS=2 "$build"/bench/bench_table "${args[@]}"
-[ "$table" != methods ] && /usr/bin/python3 scripts/plot_scaling.py "out/scaling$suffix.csv" "out/scaling$suffix.png"
-if [ "$table" != throughput ]; then
+case "$table" in throughput|all) /usr/bin/python3 scripts/plot_scaling.py "out/scaling$suffix.csv" "out/scaling$suffix.png" ;; esac
+if [ "$table" = methods ] || [ "$table" = all ]; then
   /usr/bin/python3 scripts/plot_scaling.py "out/scaling3d$suffix.csv" "out/scaling3d$suffix.png" \
     "3D block, 8 particles per cell, linear basis, fe, mpm, one thread"
   if [ "$output" = 1 ]; then
