@@ -195,7 +195,7 @@ void plastic_table(int repeat, bool quick) {
   const std::vector<double>& eps1 = e_j2.particles().find_state("plastic_strain")->values;
   long flowed = 0;
   for (std::size_t i = 0; i < eps0.size(); ++i) flowed += eps1[i] > eps0[i];
-  Case taylor{"Taylor bar full cylinder R/4 j2 npc, 1 thread",
+  Case taylor{"Taylor bar cylinder j2 npc, 1 thread",
               [s = parse_scene(taylor_bar_cylinder_scene(), "taylor_bar.toml"), quick]() mutable {
                 if (quick) s.simulation.t_end = 2e-6;
                 return time_whole_run(s, 1);

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-"""Smoke test of bench/bench_table (scripts/bench.sh): every row of the throughput
-and methods tables runs and prints a finite positive figure, its met column
+"""Smoke test of bench/bench_table (scripts/bench.sh): every row of the throughput,
+methods and plastic tables runs and prints a finite positive figure, its met column
 agrees with its target, and every case prints phase shares that add up to
 100%. Timings are not checked (--quick sizes, one repetition).
 
@@ -34,7 +34,7 @@ def main(argv):
             tables[title] = []
         elif title and not cells[0].startswith("---"):
             tables[title].append(cells)
-    expected = {"throughput figure": 6, "method figure": 8}
+    expected = {"throughput figure": 6, "method figure": 8, "plastic figure": 2}
     for name, count in expected.items():
         rows = tables.get(name, [])
         if len(rows) != count:
@@ -54,8 +54,8 @@ def main(argv):
             if met not in ("met", "**not met**") or (not at_bound and met != ("met" if ok else "**not met**")):
                 failures.append(f"{figure}: measured {value}, target {target}, but the row says '{met}'")
     shares = re.findall(r"^  (\S.*?)\s{2,}(basis .*)$", out, re.M)
-    if len(shares) != 12:
-        failures.append(f"phase shares of {len(shares)} cases, expected 12")
+    if len(shares) != 15:
+        failures.append(f"phase shares of {len(shares)} cases, expected 15")
     for case, text in shares:
         total = sum(float(p) for p in re.findall(r"([0-9.]+)%", text))
         if not 97 <= total <= 103:  # each share rounded to 1%: 6 phases
