@@ -39,6 +39,7 @@ template <> struct LaneOps<double> {
   static double log(double x) { return std::log(x); }
   static double abs(double x) { return std::abs(x); }
   static double select(bool m, double a, double b) { return m ? a : b; }
+  static double keep(bool m, double a) { return m ? a : 0.0; }
   static bool any(bool m) { return m; }
   template <class... M> static bool all(M... m) { return (m && ...); }
 };
@@ -57,6 +58,8 @@ template <> struct LaneOps<Lanes2> {
   static Lanes2 log(Lanes2 x) { return Lanes2{std::log(x[0]), std::log(x[1])}; }
   static Lanes2 abs(Lanes2 x) { return (Lanes2)((Mask2)x & Mask2{~(1LL << 63), ~(1LL << 63)}); }
   static Lanes2 select(Mask2 m, Lanes2 a, Lanes2 b) { return (Lanes2)((m & (Mask2)a) | (~m & (Mask2)b)); }
+  /// a where m, +0 elsewhere (one AND).
+  static Lanes2 keep(Mask2 m, Lanes2 a) { return (Lanes2)(m & (Mask2)a); }
   static bool any(Mask2 m) { return (m[0] | m[1]) != 0; }
   template <class... M> static Mask2 all(M... m) { return ((Mask2)m & ...); }
 };

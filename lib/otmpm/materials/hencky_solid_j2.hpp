@@ -75,7 +75,9 @@ template <class T>
   if (!O::any(covered)) return covered;
   const T J3 = z[0] * (z[1] * z[2] - z[5] * z[5]) - z[3] * (z[3] * z[2] - z[5] * z[4]) +
                z[4] * (z[3] * z[5] - z[1] * z[4]);
-  // The series (update3_series): term k is taken where rho^k > kSeriesTolerance.
+  // The series (update3_series): term k is taken where rho^k > kSeriesTolerance,
+  // elsewhere +0 is added, which leaves a sum that started at +0 or 1 as it
+  // is (a rounded sum is -0 only when both terms are).
   T P[kMaxTerms], Q[kMaxTerms], R[kMaxTerms];
   Mask take[kMaxTerms];
   P[0] = O::splat(0.0), Q[0] = O::splat(1.0), R[0] = O::splat(0.0);
@@ -89,9 +91,9 @@ template <class T>
     Q[k] = P[k - 1] + R[k - 1] * J2;
     R[k] = Q[k - 1];
     const double s = k % 2 ? -kInverse[k] : kInverse[k];
-    c0 = O::select(take[k], c0 + s * P[k], c0);
-    c1 = O::select(take[k], c1 + s * Q[k], c1);
-    c2 = O::select(take[k], c2 + s * R[k], c2);
+    c0 += O::keep(take[k], s * P[k]);
+    c1 += O::keep(take[k], s * Q[k]);
+    c2 += O::keep(take[k], s * R[k]);
   }
   const T S = 3.0 * c0 + 2.0 * J2 * c2;
   const T ev = 0.5 * (3.0 * O::log(m) + S);
@@ -124,12 +126,8 @@ template <class T>
     T d0 = O::splat(1.0), d1 = O::splat(0.0), d2 = O::splat(0.0), binom = O::splat(1.0);
     for (int k = 0; k < n; ++k) {
       binom *= (beta - double(k)) * kInverse[k];
-      const T e0 = d0 + binom * P[k], e1 = d1 + binom * Q[k], e2 = d2 + binom * R[k];
-      if (k == 0) {
-        d0 = e0, d1 = e1, d2 = e2;
-      } else {
-        d0 = O::select(take[k], e0, d0), d1 = O::select(take[k], e1, d1), d2 = O::select(take[k], e2, d2);
-      }
+      const T b = k == 0 ? binom : O::keep(take[k], binom);
+      d0 += b * P[k], d1 += b * Q[k], d2 += b * R[k];
     }
     // exp_small, its two polynomial tiers: lanes beyond 1/64 are not covered.
     const T d = (2.0 * (ev - ev) - (beta - 1.0) * S) / 3.0;
