@@ -10,6 +10,7 @@
 #include "otmpm/materials/hencky_solid_j2.hpp"
 #include "otmpm/materials/material.hpp"
 #include "otmpm/scene/scene.hpp"
+#include "j2_batch.hpp"
 #include "support.hpp"
 
 #include <doctest/doctest.h>
@@ -74,7 +75,7 @@ template <class T> void set_lane(SolidJ2<T>& x, int l, const Step& a) {
   put(x.eps_p, a.eps_p);
 }
 
-std::uint64_t bits(double x) { return std::bit_cast<std::uint64_t>(x); }
+using test::bits;
 double lane(double v, int) { return v; }
 double lane(Lanes2 v, int l) { return v[l]; }
 
@@ -178,82 +179,35 @@ TEST_CASE("3D J2 form: the series takes as many terms per lane as update3 (a sma
 
 namespace {
 
-/// n 3D particles with a j2 material bound to them, random states and
-/// increments H (one of them far outside the form's range).
-struct Batch {
-  std::unique_ptr<Material<3>> material;
-  Particles<3> P;
-  std::vector<Mat3, Eigen::aligned_allocator<Mat3>> H;
-};
-Batch make_batch(int n) {
-  Batch b;
-  b.material = make_material<3>({.name = "steel",
-                                 .model = "j2",
-                                 .density = 1000.0,
-                                 .young = kYoung,
-                                 .poisson = kPoisson,
-                                 .extra = {{"yield_stress", kYield}, {"hardening_modulus", kHardening}}});
-  b.P.resize(n);
-  b.P.allocate_optional(false, true);
-  for (const StateSpec& s : b.material->state()) b.P.add_state(std::string(s.name), s.width, s.initial.data());
-  b.material->bind(b.P);
+/// n 3D particles of a j2 material, random states and increments H (one of
+/// them far outside the form's range).
+test::J2Batch<3> make_batch(int n) {
+  test::J2Batch<3> b = test::j2_batch<3>(n, kYoung, kPoisson, kYield, kHardening);
   std::mt19937_64 rng(3);
   double* be = b.P.find_state("elastic_left_cauchy_green")->values.data();
   for (int p = 0; p < n; ++p) {
     const Step s = random_step(rng, p % 3 == 0 ? 1e-6 : 2e-3);
-    b.P.V[p] = b.P.V0[p] = 1e-4;
-    b.P.m[p] = b.P.rho[p] = 1000.0 * 1e-4;
     b.P.F[p] = Mat3::Identity() + 0.1 * s.H.transpose();
     const double v[6] = {s.be(0, 0), s.be(1, 1), s.be(2, 2), s.be(0, 1), s.be(1, 2), s.be(0, 2)};
     for (int k = 0; k < 6; ++k) be[6 * p + k] = v[k];
     b.P.find_state("plastic_strain")->values[static_cast<std::size_t>(p)] = s.eps_p;
-    b.H.push_back(s.H);
+    b.H[static_cast<std::size_t>(p)] = s.H;
   }
   if (n > 5) b.H[5] << 0.2, 0.05, -0.03, 0.1, 0.0, 0.02, 0.0, 0.01, -0.1; // the general path inside a pair
   return b;
 }
 
-/// Every per-particle field of a and b is bitwise equal.
-bool same_particles(const Particles<3>& a, const Particles<3>& b) {
-  for (int p = 0; p < a.size(); ++p) {
-    const bool same = a.F[p] == b.F[p] && a.sigma[p] == b.sigma[p] && a.eps[p] == b.eps[p] &&
-                      bits(a.V[p]) == bits(b.V[p]) && bits(a.rho[p]) == bits(b.rho[p]);
-    if (!same) return false;
-  }
-  for (std::size_t f = 0; f < a.state.size(); ++f)
-    for (std::size_t i = 0; i < a.state[f].values.size(); ++i)
-      if (bits(a.state[f].values[i]) != bits(b.state[f].values[i])) return false;
-  return true;
-}
-
 } // namespace
 
 TEST_CASE("j2 material in 3D: a particle's result does not depend on whether it is updated in a pair") {
-  constexpr int n = 41;
-  Batch whole = make_batch(n), shifted = make_batch(n), single = make_batch(n);
-  whole.material->update(whole.P, 0, n, whole.H.data(), 1e-3);
-  // Pairs (1,2), (3,4), ... instead of (0,1), (2,3), ...
-  shifted.material->update(shifted.P, 0, 1, shifted.H.data(), 1e-3);
-  shifted.material->update(shifted.P, 1, n, shifted.H.data() + 1, 1e-3);
-  for (int p = 0; p < n; ++p) single.material->update(single.P, p, p + 1, single.H.data() + p, 1e-3);
-  CHECK(same_particles(whole.P, shifted.P));
-  CHECK(same_particles(whole.P, single.P));
-  // Plastic flow happened and every stress is finite.
-  const std::vector<double>& eps_p = whole.P.find_state("plastic_strain")->values;
-  const Batch before = make_batch(n);
-  const std::vector<double>& eps_p0 = before.P.find_state("plastic_strain")->values;
-  int grown = 0;
-  for (int p = 0; p < n; ++p) {
-    grown += eps_p[static_cast<std::size_t>(p)] > eps_p0[static_cast<std::size_t>(p)];
-    CHECK(whole.P.sigma[p].allFinite());
-  }
+  const int grown = test::check_pairings<3>(make_batch, 41);
   CHECK(grown >= 10);
-  CHECK(grown < n);
+  CHECK(grown < 41);
 }
 
 TEST_CASE("j2 material in 3D: det F <= 0 inside a pair names that particle, the one before is updated") {
   constexpr int n = 4;
-  Batch b = make_batch(n);
+  test::J2Batch<3> b = make_batch(n);
   b.H[1] = Mat3::Zero();
   b.H[1](0, 0) = -1.5; // dF = diag(-0.5, 1, 1) for particle 1, paired with particle 0
   const Mat3 F0 = (Mat3::Identity() + b.H[0]) * b.P.F[0];
@@ -320,7 +274,7 @@ normal = [0.0, 0.0, 1.0]
 TEST_CASE("j2 impact in 3D: bitwise identical with 1 and 2 threads, plastic state included") {
   const Particles<3> one = impact(1, 40), two = impact(2, 40);
   REQUIRE(one.size() == two.size());
-  CHECK(same_particles(one, two));
+  CHECK(test::same_particles(one, two));
   const std::vector<double>& eps_p = one.find_state("plastic_strain")->values;
   const long yielded = std::count_if(eps_p.begin(), eps_p.end(), [](double v) { return v > 0.0; });
   CHECK(yielded > 100);
