@@ -1,8 +1,9 @@
 #pragma once
-// The material-level checks of the j2 lane forms (test_plane_j2.cpp,
-// test_solid_j2.cpp): a batch of particles with a j2 material bound to them,
-// and the check that a particle gets the same bits whether the batch update
-// takes it in a pair, in the other pairing or alone.
+// Shared by the tests of the j2 lane forms (test_plane_j2.cpp,
+// test_solid_j2.cpp): their material, a batch of particles with it bound to
+// them, and the check that a particle gets the same bits whether the batch
+// update takes it in a pair, in the other pairing or alone.
+#include "otmpm/materials/hencky_plasticity.hpp"
 #include "otmpm/materials/material.hpp"
 
 #include <doctest/doctest.h>
@@ -18,21 +19,32 @@ namespace otmpm::test {
 
 inline std::uint64_t bits(double x) { return std::bit_cast<std::uint64_t>(x); }
 
-/// n particles of a j2 material (E, nu, yield stress, hardening) with the
-/// state arrays bound and increments H to be filled (fill_j2_batch's caller).
+/// The material of the tests: E = 10 MPa, nu = 0.3, yield stress 2 kPa,
+/// linear hardening 100 kPa.
+constexpr double kYoung = 1.0e7, kPoisson = 0.3, kYield = 2.0e3, kHardening = 1.0e5;
+inline plasticity::J2Parameters parameters() {
+  plasticity::J2Parameters p;
+  p.elastic = plasticity::ElasticModuli::from_young_poisson(kYoung, kPoisson);
+  p.yield_stress = kYield;
+  p.hardening_modulus = kHardening;
+  return p;
+}
+
+/// n particles of the tests' j2 material with the state arrays bound, and
+/// their increments H (to be filled by the caller).
 template <int D> struct J2Batch {
   std::unique_ptr<Material<D>> material;
   Particles<D> P;
   std::vector<Mat<D>, Eigen::aligned_allocator<Mat<D>>> H;
 };
-template <int D> J2Batch<D> j2_batch(int n, double young, double poisson, double yield, double hardening) {
+template <int D> J2Batch<D> j2_batch(int n) {
   J2Batch<D> b;
   b.material = make_material<D>({.name = "steel",
                                  .model = "j2",
                                  .density = 1000.0,
-                                 .young = young,
-                                 .poisson = poisson,
-                                 .extra = {{"yield_stress", yield}, {"hardening_modulus", hardening}}});
+                                 .young = kYoung,
+                                 .poisson = kPoisson,
+                                 .extra = {{"yield_stress", kYield}, {"hardening_modulus", kHardening}}});
   b.P.resize(n);
   b.P.allocate_optional(false, true);
   for (const StateSpec& s : b.material->state()) b.P.add_state(std::string(s.name), s.width, s.initial.data());

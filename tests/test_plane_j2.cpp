@@ -24,15 +24,7 @@ using point::PlaneJ2;
 
 namespace {
 
-constexpr double kYoung = 1.0e7, kPoisson = 0.3, kYield = 2.0e3, kHardening = 1.0e5;
-
-J2Parameters parameters() {
-  J2Parameters p;
-  p.elastic = ElasticModuli::from_young_poisson(kYoung, kPoisson);
-  p.yield_stress = kYield;
-  p.hardening_modulus = kHardening;
-  return p;
-}
+using test::parameters;
 
 /// A random step of a particle: dF = I + H with |H| ~ scale, b_e a small
 /// elastic stretch (|b_e - I| ~ 1e-3, b_zz too), eps_p in [0, 0.1).
@@ -160,7 +152,7 @@ namespace {
 /// n plane-strain particles of a j2 material, random elastic states and
 /// random increments H (one of them far outside the plane form's range).
 test::J2Batch<2> make_batch(int n) {
-  test::J2Batch<2> b = test::j2_batch<2>(n, kYoung, kPoisson, kYield, kHardening);
+  test::J2Batch<2> b = test::j2_batch<2>(n);
   std::mt19937_64 rng(3);
   double* be = b.P.find_state("elastic_left_cauchy_green")->values.data();
   for (int p = 0; p < n; ++p) {

@@ -31,15 +31,7 @@ using point::SolidJ2;
 
 namespace {
 
-constexpr double kYoung = 1.0e7, kPoisson = 0.3, kYield = 2.0e3, kHardening = 1.0e5;
-
-J2Parameters parameters() {
-  J2Parameters p;
-  p.elastic = ElasticModuli::from_young_poisson(kYoung, kPoisson);
-  p.yield_stress = kYield;
-  p.hardening_modulus = kHardening;
-  return p;
-}
+using test::parameters;
 
 /// A random step of a particle: dF = I + H with |H| ~ scale, b_e = Fe Fe^T
 /// with |Fe - I| ~ stretch (q from 0.01 to 40 sigma_y: elastic and plastic),
@@ -182,7 +174,7 @@ namespace {
 /// n 3D particles of a j2 material, random states and increments H (one of
 /// them far outside the form's range).
 test::J2Batch<3> make_batch(int n) {
-  test::J2Batch<3> b = test::j2_batch<3>(n, kYoung, kPoisson, kYield, kHardening);
+  test::J2Batch<3> b = test::j2_batch<3>(n);
   std::mt19937_64 rng(3);
   double* be = b.P.find_state("elastic_left_cauchy_green")->values.data();
   for (int p = 0; p < n; ++p) {
