@@ -7,6 +7,9 @@
 //  - neo_hookean:   F <- dF F; sigma = neo_hookean_stress<D>(F)   (materials/elasticity.hpp)
 //  - j2, drucker_prager (hencky_plasticity.hpp):
 //                   F <- dF F; tau = *_update<D>(dF, state); sigma = tau / det F
+//  - "material ...": the same points through the engine's batch update,
+//                   Material<D>::update (j2: plane strain and 3D two
+//                   particles per register), against neo_hookean's
 // "elastic": every point stays inside the yield surface; "plastic": every
 // point is in plastic flow (states driven onto the yield surface first, dF
 // continuing the same strain path). j2 johnson-cook adds the Newton return
@@ -21,11 +24,13 @@
 #include "bench_util.hpp"
 #include "otmpm/materials/hencky_plasticity.hpp"
 #include "otmpm/materials/elasticity.hpp"
+#include "otmpm/materials/material.hpp"
 
 #include <algorithm>
 #include <cstdio>
 #include <cstring>
 #include <functional>
+#include <map>
 #include <memory>
 #include <random>
 #include <string>
@@ -134,6 +139,47 @@ void add_plastic_case(std::vector<Case>& cases, const std::string& label, int n,
                    {}});
 }
 
+/// A case through the engine's batch update (Material<D>::update over all
+/// points, H = dF - I): `model` with `keys`, the points' F and b_e, eps_p
+/// from `pts` (neo_hookean: F only).
+template <int D>
+void add_material_case(std::vector<Case>& cases, const std::string& label, const std::string& model,
+                       std::map<std::string, double> keys, std::shared_ptr<Points<D>> pts) {
+  if (label.find(g_only) == std::string::npos && model != "neo_hookean") return;
+  struct Batch {
+    std::unique_ptr<Material<D>> material;
+    Particles<D> P, P0;
+    AlignedVector<Mat<D>> H;
+  };
+  auto b = std::make_shared<Batch>();
+  b->material = make_material<D>({.name = "m", .model = model, .density = 1.0, .young = 200e9, .poisson = 0.3,
+                                  .extra = std::move(keys)});
+  const int n = static_cast<int>(pts->dF.size());
+  b->P.resize(n);
+  b->P.allocate_optional(false, true);
+  for (const StateSpec& st : b->material->state()) b->P.add_state(std::string(st.name), st.width, st.initial.data());
+  b->material->bind(b->P);
+  StateField* be = b->P.find_state("elastic_left_cauchy_green");
+  StateField* eps_p = b->P.find_state("plastic_strain");
+  for (int i = 0; i < n; ++i) {
+    b->P.V[i] = b->P.V0[i] = b->P.m[i] = b->P.rho[i] = 1.0;
+    b->P.F[i] = pts->F0[i];
+    b->H.push_back(pts->dF[i] - Mat<D>::Identity());
+    if (be == nullptr) continue;
+    const Mat3& s = pts->state0[i].be;
+    const double v[6] = {s(0, 0), s(1, 1), s(2, 2), s(0, 1), s(1, 2), s(0, 2)};
+    std::copy(v, v + 6, be->row(i));
+    eps_p->values[static_cast<std::size_t>(i)] = pts->state0[i].eps_p;
+  }
+  b->P0 = b->P;
+  cases.push_back({label, D, [b] { b->P = b->P0; },
+                   [b, n] {
+                     b->material->update(b->P, 0, n, b->H.data(), 1e-6);
+                     return b->P.sigma[0](0, 0) + b->P.sigma[n - 1](0, 0);
+                   },
+                   {}});
+}
+
 template <int D> void add_cases(std::vector<Case>& cases, int n, std::mt19937_64& rng) {
   const std::string dim = std::to_string(D) + "D ";
   // Neo-Hookean with the same elastic constants as j2.
@@ -169,6 +215,15 @@ template <int D> void add_cases(std::vector<Case>& cases, int n, std::mt19937_64
   // Elastic: 3 steps of 1e-4 from the reference state (q ~ 0.2 sigma_y).
   add_plastic_case<D>(cases, dim + "j2 elastic", n, rng, 1e-4, false, j2_step, false);
   add_plastic_case<D>(cases, dim + "j2 plastic", n, rng, 1e-3, true, j2_step, true);
+  // The same through Material<D>::update (plane strain and 3D: two particles per register).
+  if (D > 1 && (dim + "material").find(g_only) != std::string::npos) {
+    auto elastic = std::make_shared<Points<D>>(prepare<D>(n, rng, 1e-4, false, j2_step, Mat3::Identity()));
+    auto plastic = std::make_shared<Points<D>>(prepare<D>(n, rng, 1e-3, true, j2_step, Mat3::Identity()));
+    add_material_case<D>(cases, dim + "material neo_hookean", "neo_hookean", {}, elastic);
+    const std::map<std::string, double> keys{{"yield_stress", j2.yield_stress}, {"hardening_modulus", j2.hardening_modulus}};
+    add_material_case<D>(cases, dim + "material j2 elastic", "j2", keys, elastic);
+    add_material_case<D>(cases, dim + "material j2 plastic", "j2", keys, plastic);
+  }
   J2Parameters jc = j2;
   jc.johnson_cook = JohnsonCook{500e6, 0.3, 0.02, 1.0};
   jc.validate();
@@ -213,12 +268,16 @@ int main(int argc, char** argv) {
     }
   }
   std::printf("%-34s %10s %14s\n", "case (one point update)", "ns/point", "/ neo_hookean");
-  double nh = 0.0;
-  for (const Case& c : cases) {
-    const double t = median(c.ns);
-    if (c.label.find("neo_hookean") != std::string::npos) nh = t;
-    std::printf("%-34s %10.1f %14.2f\n", c.label.c_str(), t, t / nh);
-  }
+  // Each case against neo_hookean of its dimension, the batch cases against the batch neo_hookean.
+  const auto reference = [&](const Case& c) {
+    const bool batch = c.label.find("material") != std::string::npos;
+    for (const Case& r : cases)
+      if (r.dim == c.dim && r.label.find("neo_hookean") != std::string::npos &&
+          (r.label.find("material") != std::string::npos) == batch)
+        return median(r.ns);
+    return 0.0;
+  };
+  for (const Case& c : cases) std::printf("%-34s %10.1f %14.2f\n", c.label.c_str(), median(c.ns), median(c.ns) / reference(c));
   std::printf("(%d points, median of %d repetitions; checksum %.6e)\n", points, repeat, checksum);
   return 0;
 }

@@ -1,7 +1,7 @@
 #pragma once
 // The scenes of the benchmarks (bench_step, bench_models, bench_table): the
-// elastic block in 2D and 3D, and the Dyka strip of
-// examples/dyka_2d.toml at any cell count.
+// elastic block in 2D and 3D, the Dyka strip of examples/dyka_2d.toml at any
+// cell count and the full 3D Taylor bar.
 #include <cstdio>
 #include <string>
 #include <vector>
@@ -56,6 +56,52 @@ inline std::string block_scene(int cells, const std::string& basis, const std::s
                                const std::string& mode, double gamma_lme,
                                const std::string& material = kBlockLinearElastic) {
   return block_scene(2, cells, basis, integrator, mode, gamma_lme, material);
+}
+
+/// The Taylor bar as a full 3D cylinder (docs/benchmarks.md, "Taylor bar"):
+/// copper, L = 32.4 mm, R = 3.2 mm, j2 (yield 400 MPa, linear hardening
+/// 100 MPa), 227 m/s onto the frictionless wall z = 0, h = 0.8 mm = R/4 with
+/// 2 x 2 x 2 particles per cell (16 848 particles), npc, linear basis, to
+/// 80 us, no output frames.
+inline std::string taylor_bar_cylinder_scene() {
+  return R"(
+[simulation]
+dimension = 3
+mode = "mpm"
+integrator = "npc"
+t_end = 8.0e-5
+cfl = 0.2
+[basis]
+kind = "linear"
+[grid]
+lower = [-0.0144, -0.0144, -0.0032]
+upper = [0.0144, 0.0144, 0.0368]
+cells = [36, 36, 50]
+[[material]]
+name = "copper"
+model = "j2"
+density = 8930.0
+young = 117.0e9
+poisson = 0.35
+yield_stress = 400.0e6
+hardening_modulus = 100.0e6
+[[body]]
+name = "bar"
+material = "copper"
+shape = "cylinder"
+center = [0.0, 0.0, 0.0]
+radius = 0.0032
+axis = [0.0, 0.0, 1.0]
+length = 0.0324
+particles_per_cell = 2
+velocity = [0.0, 0.0, -227.0]
+[[wall]]
+name = "target"
+point = [0.0, 0.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+[output]
+every = 0.0
+)";
 }
 
 /// The overrides that turn examples/dyka_2d.toml (L = 0.1333 m) into a strip

@@ -1,8 +1,9 @@
-// bench_table: every row of the two performance tables of docs/performance.md
+// bench_table: every row of the performance tables of docs/performance.md
 // (throughput: the 2D block and the Dyka strip; methods: the methods' relative
-// cost, the fixed bar, the 3D block) in one run.
+// cost, the fixed bar, the 3D block; plastic: the 3D j2 block against
+// neo_hookean and the full 3D Taylor bar) in one run.
 //
-//   OMP_NUM_THREADS=2 build-bench/bench/bench_table [--repeat R] [--table throughput|methods|lme|all]
+//   OMP_NUM_THREADS=2 build-bench/bench/bench_table [--repeat R] [--table throughput|methods|lme|plastic|all]
 //       [--quick] [--scaling-csv FILE] [--scaling3d-csv FILE]
 //
 // Cases that are compared (linear vs LME, ul vs mpm, 2 threads vs 1, the
@@ -208,6 +209,50 @@ std::vector<Row> lme_rows(double lme_lin, double lme3_r, const std::string& bloc
           {block3 + ", LME gamma_lme = 3, npc: time per step / linear fe", "<= 3", fmt("%.2f", lme3_r), lme3_r <= 3}};
 }
 
+/// The 3D block (block_scene) of `cells` cells per axis, linear basis, npc,
+/// made of `material`.
+Scene block3(int cells, const std::string& material) {
+  return parse_scene(block_scene(3, cells, "linear", "npc", "mpm", 3.0, material), "block3d.toml");
+}
+
+/// The plastic table: the 3D block in j2 plastic flow against the same block
+/// of neo_hookean, time per step (interleaved, one engine each, 100 steps
+/// of settling first), and the full 3D Taylor bar, whole runs.
+void plastic_table(int repeat, bool quick) {
+  const int cells = quick ? 8 : 32;
+  // yield_stress 1 Pa: under its weight (about 1e4 Pa at the base) the block flows almost everywhere.
+  const Scene j2 = block3(cells, "model = \"j2\"\nyield_stress = 1.0"), nh = block3(cells, "model = \"neo_hookean\"");
+  set_threads(1);
+  Engine<3> e_j2 = assemble<3>(j2), e_nh = assemble<3>(nh);
+  for (int i = 0; i < (quick ? 5 : 100); ++i) e_j2.step(), e_nh.step();
+  const std::vector<double> eps0 = e_j2.particles().find_state("plastic_strain")->values;
+  const long n = quick ? 2 : 10;
+  Case c_j2{"3D block j2 plastic npc, 1 thread", [&] { return time_steps(e_j2, n, 1, j2.simulation.t_end); }};
+  Case c_nh{"3D block neo_hookean npc, 1 thread", [&] { return time_steps(e_nh, n, 1, nh.simulation.t_end); }};
+  interleave({&c_j2, &c_nh}, repeat);
+  const std::vector<double>& eps1 = e_j2.particles().find_state("plastic_strain")->values;
+  long flowed = 0;
+  for (std::size_t i = 0; i < eps0.size(); ++i) flowed += eps1[i] > eps0[i];
+  Case taylor{"Taylor bar cylinder j2 npc, 1 thread",
+              [s = parse_scene(taylor_bar_cylinder_scene(), "taylor_bar.toml"), quick]() mutable {
+                if (quick) s.simulation.t_end = 2e-6;
+                return time_whole_run(s, 1);
+              }};
+  interleave({&taylor}, repeat);
+  const double r = ratio(c_j2, c_nh);
+  char block[96];
+  std::snprintf(block, sizeof block, "3D block %d^3 cells (%ld particles, %.0f%% flowing)", cells, c_j2.last.particles,
+                100.0 * double(flowed) / double(eps0.size()));
+  print_table("plastic figure",
+              {{std::string(block) + ", npc: j2 plastic / neo_hookean time per step, one core", "<= 1.3",
+                fmt("%.2f", r), r <= 1.3},
+               {fmt("Taylor bar, full 3D cylinder, h = R/4 (%.0f particles), j2, wall, npc linear, to 80 us: "
+                    "particle-steps/s, whole run, one core",
+                    double(taylor.last.particles)),
+                ">= 1.2e7", fmt("%.3g", rate(taylor)), rate(taylor) >= 1.2e7}});
+  print_cases({&c_j2, &c_nh, &taylor});
+}
+
 } // namespace
 
 int main(int argc, char** argv) {
@@ -224,18 +269,22 @@ int main(int argc, char** argv) {
     else if (a == "--table" && i + 1 < argc) table = argv[++i];
     else if (a == "--quick") quick = true;
     else {
-      std::fprintf(stderr, "usage: bench_table [--repeat R] [--table throughput|methods|lme|all] [--quick] "
+      std::fprintf(stderr, "usage: bench_table [--repeat R] [--table throughput|methods|lme|plastic|all] [--quick] "
                            "[--scaling-csv FILE] [--scaling3d-csv FILE]\n");
       return 2;
     }
   }
-  if (table != "throughput" && table != "methods" && table != "lme" && table != "all") {
-    std::fprintf(stderr, "bench_table: --table must be throughput, methods, lme or all, not '%s'\n", table.c_str());
+  if (table != "throughput" && table != "methods" && table != "lme" && table != "plastic" && table != "all") {
+    std::fprintf(stderr, "bench_table: --table must be throughput, methods, lme, plastic or all, not '%s'\n", table.c_str());
     return 2;
   }
   if (repeat < 1) {
     std::fprintf(stderr, "bench_table: --repeat must be at least 1\n");
     return 2;
+  }
+  if (table == "plastic") {
+    plastic_table(repeat, quick);
+    return 0;
   }
   const bool throughput = table == "throughput" || table == "all", methods = table == "methods" || table == "all";
   const bool lme_only = table == "lme";
@@ -355,5 +404,9 @@ int main(int argc, char** argv) {
               "scripts/bench-output.sh)\n",
               loglog_slope(n3, t3), n3.front(), n3.back());
   print_cases({&lin, &lme, &lme_ul, &lin2, &dyka, &fb_mpm, &fb_otm, &fb_uni, &dyka_big, &lin3, &lme3, &lin3_2});
+  if (table == "all") {
+    std::printf("\n");
+    plastic_table(repeat, quick);
+  }
   return 0;
 }

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
-# Runs every row of the performance tables (throughput, methods) and prints
+# Runs every row of the performance tables (throughput, methods, plastic) and prints
 # them with target, measured value and met or not (see docs/performance.md):
 #
-#   bash scripts/bench.sh [--repeat R] [--native] [--table throughput|methods|lme|all] [--quick] [--no-output]
+#   bash scripts/bench.sh [--repeat R] [--native] [--table throughput|methods|lme|plastic|all] [--quick] [--no-output]
 #
 # Builds build-bench (Release, benchmarks, no tests, the portable default
 # flags; with --native build-bench-native with -march=native), runs
@@ -23,7 +23,7 @@ native=OFF
 table=all
 quick=0
 output=1
-usage="usage: bash scripts/bench.sh [--repeat R] [--native] [--table throughput|methods|lme|all] [--quick] [--no-output]"
+usage="usage: bash scripts/bench.sh [--repeat R] [--native] [--table throughput|methods|lme|plastic|all] [--quick] [--no-output]"
 while [ $# -gt 0 ]; do
   case "$1" in
     --repeat) repeat="$2"; shift 2 ;;
@@ -34,7 +34,7 @@ while [ $# -gt 0 ]; do
     *) echo "$usage" >&2; exit 2 ;;
   esac
 done
-case "$table" in throughput|methods|lme|all) ;; *) echo "$usage" >&2; exit 2 ;; esac
+case "$table" in throughput|methods|lme|plastic|all) ;; *) echo "$usage" >&2; exit 2 ;; esac
 bash scripts/install-deps.sh >/dev/null
 build=build-bench suffix=""
 [ "$native" = ON ] && build=build-bench-native suffix="-native"

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-"""Smoke test of bench/bench_table (scripts/bench.sh): every row of the throughput
-and methods tables runs and prints a finite positive figure, its met column
+"""Smoke test of bench/bench_table (scripts/bench.sh): every row of the throughput,
+methods and plastic tables runs and prints a finite positive figure, its met column
 agrees with its target, and every case prints phase shares that add up to
 100%; the same for --table lme (the methods table's two LME rows). Timings
 are not checked (--quick sizes, one repetition).
@@ -71,7 +71,7 @@ def check(bench_table, args, expected, cases):
 
 
 def main(argv):
-    failures = check(argv[1], [], {"throughput figure": 6, "method figure": 8}, 12)
+    failures = check(argv[1], [], {"throughput figure": 6, "method figure": 8, "plastic figure": 2}, 15)
     failures += check(argv[1], ["--table", "lme"], {"method figure": 2}, 4)
     if failures:
         print("\n".join(failures))

@@ -7,6 +7,7 @@
 // anywhere), and still names the first failing particle.
 #include "otmpm/materials/hencky_plane_j2.hpp"
 #include "otmpm/materials/material.hpp"
+#include "j2_batch.hpp"
 
 #include <doctest/doctest.h>
 
@@ -23,15 +24,7 @@ using point::PlaneJ2;
 
 namespace {
 
-constexpr double kYoung = 1.0e7, kPoisson = 0.3, kYield = 2.0e3, kHardening = 1.0e5;
-
-J2Parameters parameters() {
-  J2Parameters p;
-  p.elastic = ElasticModuli::from_young_poisson(kYoung, kPoisson);
-  p.yield_stress = kYield;
-  p.hardening_modulus = kHardening;
-  return p;
-}
+using test::parameters;
 
 /// A random step of a particle: dF = I + H with |H| ~ scale, b_e a small
 /// elastic stretch (|b_e - I| ~ 1e-3, b_zz too), eps_p in [0, 0.1).
@@ -69,7 +62,7 @@ void set_input(PlaneJ2<Lanes2>& x, const Step& a, const Step& b) {
   x.eps_p = two(a.eps_p, b.eps_p);
 }
 
-std::uint64_t bits(double x) { return std::bit_cast<std::uint64_t>(x); }
+using test::bits;
 
 /// Every output of lane l of v equals the one-particle output s, bit for bit.
 bool same_lane(const PlaneJ2<Lanes2>& v, int l, const PlaneJ2<double>& s) {
@@ -156,80 +149,31 @@ TEST_CASE("j2_update in plane strain falls back to the general update outside th
 
 namespace {
 
-/// n plane-strain particles with a j2 material bound to them, random
-/// elastic states and random increments H (one of them far outside the
-/// plane form's range).
-struct Batch {
-  std::unique_ptr<Material<2>> material;
-  Particles<2> P;
-  std::vector<Mat<2>, Eigen::aligned_allocator<Mat<2>>> H;
-};
-Batch make_batch(int n) {
-  Batch b;
-  b.material = make_material<2>({.name = "steel",
-                                 .model = "j2",
-                                 .density = 1000.0,
-                                 .young = kYoung,
-                                 .poisson = kPoisson,
-                                 .extra = {{"yield_stress", kYield}, {"hardening_modulus", kHardening}}});
-  b.P.resize(n);
-  b.P.allocate_optional(false, true);
-  for (const StateSpec& s : b.material->state()) b.P.add_state(std::string(s.name), s.width, s.initial.data());
-  b.material->bind(b.P);
+/// n plane-strain particles of a j2 material, random elastic states and
+/// random increments H (one of them far outside the plane form's range).
+test::J2Batch<2> make_batch(int n) {
+  test::J2Batch<2> b = test::j2_batch<2>(n);
   std::mt19937_64 rng(3);
   double* be = b.P.find_state("elastic_left_cauchy_green")->values.data();
   for (int p = 0; p < n; ++p) {
     const Step s = random_step(rng, p % 3 == 0 ? 1e-6 : 2e-3);
-    b.P.V[p] = b.P.V0[p] = 1e-4;
-    b.P.m[p] = b.P.rho[p] = 1000.0 * 1e-4;
     be[6 * p + 0] = s.be(0, 0), be[6 * p + 1] = s.be(1, 1), be[6 * p + 2] = s.be(2, 2), be[6 * p + 3] = s.be(0, 1);
     b.P.find_state("plastic_strain")->values[static_cast<std::size_t>(p)] = s.eps_p;
-    b.H.push_back(s.H);
+    b.H[static_cast<std::size_t>(p)] = s.H;
   }
   if (n > 5) b.H[5] << 0.2, 0.05, -0.03, 0.1; // outside the covered range: the general path inside a pair
   return b;
 }
 
-/// Every per-particle field of P and P0 is bitwise equal.
-bool same_particles(const Particles<2>& a, const Particles<2>& b) {
-  for (int p = 0; p < a.size(); ++p) {
-    const bool same = a.F[p] == b.F[p] && a.sigma[p] == b.sigma[p] && a.eps[p] == b.eps[p] &&
-                      bits(a.V[p]) == bits(b.V[p]) && bits(a.rho[p]) == bits(b.rho[p]);
-    if (!same) return false;
-  }
-  for (std::size_t f = 0; f < a.state.size(); ++f)
-    for (std::size_t i = 0; i < a.state[f].values.size(); ++i)
-      if (bits(a.state[f].values[i]) != bits(b.state[f].values[i])) return false;
-  return true;
-}
-
 } // namespace
 
 TEST_CASE("j2 material in plane strain: a particle's result does not depend on whether it is updated in a pair") {
-  constexpr int n = 9;
-  Batch whole = make_batch(n), shifted = make_batch(n), single = make_batch(n);
-  whole.material->update(whole.P, 0, n, whole.H.data(), 1e-3);
-  // Pairs (1,2), (3,4), ... instead of (0,1), (2,3), ...
-  shifted.material->update(shifted.P, 0, 1, shifted.H.data(), 1e-3);
-  shifted.material->update(shifted.P, 1, n, shifted.H.data() + 1, 1e-3);
-  for (int p = 0; p < n; ++p) single.material->update(single.P, p, p + 1, single.H.data() + p, 1e-3);
-  CHECK(same_particles(whole.P, shifted.P));
-  CHECK(same_particles(whole.P, single.P));
-  // Plastic flow happened and every stress is finite.
-  const std::vector<double>& eps_p = whole.P.find_state("plastic_strain")->values;
-  const Batch before = make_batch(n);
-  const std::vector<double>& eps_p0 = before.P.find_state("plastic_strain")->values;
-  int grown = 0;
-  for (int p = 0; p < n; ++p) {
-    grown += eps_p[static_cast<std::size_t>(p)] > eps_p0[static_cast<std::size_t>(p)];
-    CHECK(whole.P.sigma[p].allFinite());
-  }
-  CHECK(grown >= 3);
+  CHECK(test::check_pairings<2>(make_batch, 9) >= 3);
 }
 
 TEST_CASE("j2 material in plane strain: det F <= 0 inside a pair names that particle, the one before is updated") {
   constexpr int n = 4;
-  Batch b = make_batch(n);
+  test::J2Batch<2> b = make_batch(n);
   b.H[1] << -1.5, 0.0, 0.0, 0.0; // F = diag(-0.5, 1) for particle 1, paired with particle 0
   const Mat<2> F0 = (Mat<2>::Identity() + b.H[0]) * b.P.F[0];
   try {

@@ -8,6 +8,7 @@
 /// update. Internal to materials/: a model (j2.cpp, drucker_prager.cpp)
 /// supplies `Model::update(dF, dt, state)` and its parameters.
 #include "otmpm/materials/hencky_plane_j2.hpp"
+#include "otmpm/materials/hencky_solid_j2.hpp"
 #include "otmpm/materials/material.hpp"
 
 #include <algorithm>
@@ -88,17 +89,21 @@ public:
 
   /// The point update of each particle inlined (Model::update), sigma =
   /// tau / J with one division, the state read and written through the
-  /// arrays' base pointers. In plane strain a model with `lanes()` (J2)
-  /// updates two particles at a time where its plane form covers both.
+  /// arrays' base pointers. In plane strain and in 3D a model with `lanes()`
+  /// (J2) updates two particles at a time where its plane or 3D form covers
+  /// both.
   void update(Particles<D>& P, int p0, int p1, const Mat<D>* H, double dt) const override {
     // A local copy: the stores of the loop cannot alias its parameters, so
     // they stay in registers and the derived constants are hoisted.
     const Model model = model_;
     const Rows r = rows(P);
     int p = p0;
-    if constexpr (D == 2 && requires { model.lanes(); })
+    if constexpr (D >= 2 && requires { model.lanes(); })
       if (model.lanes())
-        for (; p + 1 < p1; p += 2) update_pair(P, r, model, p, H + (p - p0), dt);
+        for (; p + 1 < p1; p += 2) {
+          if constexpr (D == 2) update_pair(P, r, model, p, H + (p - p0), dt);
+          else update_solid_pair(P, r, model, p, H + (p - p0), dt);
+        }
     for (; p < p1; ++p) update_one(P, r, model, p, H[p - p0], dt);
   }
 
@@ -237,6 +242,54 @@ private:
       P.eps[q] << e00[l], e01[l], e01[l], e11[l];
       double* const b = r.be + 6 * static_cast<std::ptrdiff_t>(q);
       b[0] = x.be00[l], b[1] = x.be11[l], b[2] = x.bezz[l], b[3] = x.be01[l];
+      r.eps_p[q] = x.eps_p_new[l];
+      r.energy[q] = energy[l];
+      r.work[q] += work[l];
+    }
+  }
+
+  /// Particles p and p + 1 (3D) in the two lanes of Model::solid, the
+  /// stress and the state of update_one lane by lane with the same
+  /// operations; F = dF F_n and det F by Eigen per particle, as update_one
+  /// (the order of Eigen's sums in a 3x3 product depends on its
+  /// vectorisation). Both by update_one where the 3D form does not cover
+  /// both or a J <= 0.
+  static void update_solid_pair(Particles<D>& P, const Rows& r, const Model& model, int p, const Mat<D>* Hp, double dt)
+    requires(D == 3)
+  {
+    using L = plasticity::point::Lanes2;
+    const Mat<3> dFa = Mat<3>::Identity() + Hp[0], dFb = Mat<3>::Identity() + Hp[1];
+    const double* b0 = r.be + 6 * static_cast<std::ptrdiff_t>(p);
+    plasticity::point::SolidJ2<L> x;
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) x.f[i][j] = L{dFa(i, j), dFb(i, j)};
+    for (int k = 0; k < 6; ++k) x.b[k] = L{b0[k], b0[6 + k]};
+    x.eps_p = L{r.eps_p[p], r.eps_p[p + 1]};
+    const auto covered = model.solid(x);
+    const Mat<3> Fa = dFa * P.F[p], Fb = dFb * P.F[p + 1];
+    const L J{Fa.determinant(), Fb.determinant()};
+    if (!(covered[0] && covered[1] && J[0] > 0.0 && J[1] > 0.0)) {
+      update_one(P, r, model, p, Hp[0], dt);
+      update_one(P, r, model, p + 1, Hp[1], dt);
+      return;
+    }
+    const L V0{P.V0[p], P.V0[p + 1]};
+    const L V = J * V0, rho = L{P.m[p], P.m[p + 1]} / V, inv_J = 1.0 / J;
+    const L energy = V0 * x.energy, work = V0 * x.work;
+    L s[6];
+    for (int k = 0; k < 6; ++k) s[k] = x.tau[k] * inv_J;
+    constexpr int kSym[3][3] = {{0, 3, 5}, {3, 1, 4}, {5, 4, 2}}; // (xx, yy, zz, xy, yz, xz)
+    for (int l = 0; l < 2; ++l) {
+      const int q = p + l;
+      const Mat<3>& F = l == 0 ? Fa : Fb;
+      P.F[q] = F;
+      P.eps[q] = 0.5 * (F + F.transpose()) - Mat<3>::Identity();
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) P.sigma[q](i, j) = s[kSym[i][j]][l];
+      P.V[q] = V[l];
+      P.rho[q] = rho[l];
+      double* const b = r.be + 6 * static_cast<std::ptrdiff_t>(q);
+      for (int k = 0; k < 6; ++k) b[k] = x.be[k][l];
       r.eps_p[q] = x.eps_p_new[l];
       r.energy[q] = energy[l];
       r.work[q] += work[l];

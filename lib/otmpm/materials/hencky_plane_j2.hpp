@@ -28,16 +28,18 @@ using Lanes2 = double __attribute__((vector_size(16)));
 /// Lane masks of Lanes2 comparisons: all ones or all zeros per lane.
 using Mask2 = long long __attribute__((vector_size(16)));
 
-/// The lane operations the plane J2 form needs, for one particle (double)
-/// and for two (Lanes2).
+/// The lane operations the J2 forms need (plane here, 3D in
+/// hencky_solid_j2.hpp), for one particle (double) and for two (Lanes2).
 template <class T> struct LaneOps;
 
 template <> struct LaneOps<double> {
   using Mask = bool;
   static double splat(double x) { return x; }
   static double sqrt(double x) { return std::sqrt(x); }
+  static double log(double x) { return std::log(x); }
   static double abs(double x) { return std::abs(x); }
   static double select(bool m, double a, double b) { return m ? a : b; }
+  static double keep(bool m, double a) { return m ? a : 0.0; }
   static bool any(bool m) { return m; }
   template <class... M> static bool all(M... m) { return (m && ...); }
 };
@@ -52,8 +54,12 @@ template <> struct LaneOps<Lanes2> {
     return Lanes2{std::sqrt(x[0]), std::sqrt(x[1])};
 #endif
   }
+  /// The library's log lane by lane (the bits of the one-particle form).
+  static Lanes2 log(Lanes2 x) { return Lanes2{std::log(x[0]), std::log(x[1])}; }
   static Lanes2 abs(Lanes2 x) { return (Lanes2)((Mask2)x & Mask2{~(1LL << 63), ~(1LL << 63)}); }
   static Lanes2 select(Mask2 m, Lanes2 a, Lanes2 b) { return (Lanes2)((m & (Mask2)a) | (~m & (Mask2)b)); }
+  /// a where m, +0 elsewhere (one AND).
+  static Lanes2 keep(Mask2 m, Lanes2 a) { return (Lanes2)(m & (Mask2)a); }
   static bool any(Mask2 m) { return (m[0] | m[1]) != 0; }
   template <class... M> static Mask2 all(M... m) { return ((Mask2)m & ...); }
 };

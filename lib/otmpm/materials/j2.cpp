@@ -26,10 +26,11 @@ struct J2Model {
   [[gnu::always_inline]] plasticity::PointUpdate update(const Mat<D>& dF, double dt, plasticity::HenckyState& s) const {
     return plasticity::point::j2<D>(p, dF, dt, s);
   }
-  /// Plane strain two particles at a time (HenckyMaterial): without a
-  /// Johnson-Cook term, whose return is an iteration.
+  /// Plane strain and 3D two particles at a time (HenckyMaterial): without
+  /// a Johnson-Cook term, whose return is an iteration.
   bool lanes() const { return !p.johnson_cook; }
   template <class T> auto plane(plasticity::point::PlaneJ2<T>& x) const { return plasticity::point::plane_j2(p, x); }
+  template <class T> auto solid(plasticity::point::SolidJ2<T>& x) const { return plasticity::point::solid_j2(p, x); }
 };
 
 J2Model j2_model(const MaterialParameters& m) {
