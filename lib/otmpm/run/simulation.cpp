@@ -6,6 +6,7 @@
 #include "otmpm/run/simulation.hpp"
 
 #include "otmpm/assembly/assembler.hpp"
+#include "otmpm/assembly/exact_solutions.hpp"
 #include "otmpm/distributed/global_view.hpp"
 #include "otmpm/interrupt.hpp"
 #include "otmpm/run/recorder.hpp"
