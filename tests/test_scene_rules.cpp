@@ -39,6 +39,17 @@ name = "block"
 material = "rubber"
 lower = [1.0, 0.5]
 upper = [3.0, 1.5]
+[[body]]
+name = "ball"
+material = "rubber"
+shape = "sphere"
+center = [3.5, 1.0]
+radius = 0.25
+[[body]]
+name = "tri"
+material = "rubber"
+shape = "polygon"
+vertices = [[0.2, 0.2], [0.8, 0.2], [0.5, 0.8]]
 [[wall]]
 name = "floor"
 point = [0.0, 0.25]
@@ -91,6 +102,11 @@ const std::vector<BrokenRule>& broken_rules() {
        [](Scene& s) { s.bodies[0].placement = "random"; }},
       {"choice", "body.block.velocity_profile", {"body.block.velocity_profile=\"cos_x\""},
        [](Scene& s) { s.bodies[0].velocity_profile = "cos_x"; }},
+      {"size", "body.ball.radius", {"body.ball.radius=-1.0"}, [](Scene& s) { s.bodies[1].radius = -1.0; }},
+      {"cylinder_dimension", "body.ball.shape", {"body.ball.shape=\"cylinder\""},
+       [](Scene& s) { s.bodies[1].shape = "cylinder"; }},
+      {"vertex_count", "body.tri.vertices", {"body.tri.vertices=[[0.2, 0.2], [0.8, 0.2]]"},
+       [](Scene& s) { s.bodies[2].vertices.resize(2); }},
       {"wall_normal", "wall.floor.normal", {"wall.floor.normal=[0.0, 0.0]"},
        [](Scene& s) { s.walls[0].normal = {0, 0, 0}; }},
       {"axis_index", "traction.0.axis", {"traction.0.axis=2"}, [](Scene& s) { s.tractions[0].axis = 2; }},
