@@ -28,6 +28,7 @@
 //               It prints the RMS velocity error at t_end and the velocity of
 //               the leftmost particle, the numbers `otmpm run` reports.
 #include "otmpm/engine/engine.hpp"
+#include "otmpm/geometry/box_cells.hpp"
 #include "otmpm/integrators/integrator.hpp"
 #include "otmpm/reference/solutions.hpp"
 

@@ -7,7 +7,9 @@ top-level headers count as folder 'core'):
 2. engine/ includes nothing of scene/, reference/, assembly/, run/ or io/;
 3. no `friend` declaration;
 4. no basis family named in a string outside basis/;
-5. the class Engine<D> (engine/engine.hpp) is under 300 lines.
+5. the class Engine<D> (engine/engine.hpp) is under 300 lines;
+6. a folder includes only folders of its own layer or of a layer below it
+   (`layers`, lowest first: the order of docs/architecture.md).
 
 Exit status 1 when a rule is broken (each broken rule is printed)."""
 import collections
@@ -15,7 +17,20 @@ import os
 import re
 import sys
 
-root = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "lib", "otmpm")
+# The tree checked: lib/otmpm, or the folder given as the only argument (a copy, tests).
+root = sys.argv[1] if len(sys.argv) > 1 else os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "lib", "otmpm")
+# The layers of docs/architecture.md ("The folders form layers"), lowest first.
+layers = [
+    ("core",),
+    ("nodes", "particles", "materials", "geometry", "basis", "reference"),
+    ("engine", "io"),
+    ("integrators",),
+    ("scene",),
+    ("assembly",),
+    ("distributed",),
+    ("run",),
+]
+layer_of = {folder: i for i, group in enumerate(layers) for folder in group}
 families = ("linear", "ugimp", "bspline2", "bspline3", "lme", "maxent")
 deps = collections.defaultdict(set)
 broken = []
@@ -32,6 +47,11 @@ for d, _, files in os.walk(root):
             target = m.group(1).split("/")[0] if "/" in m.group(1) else "core"
             if target != folder:
                 deps[folder].add(target)
+            if folder not in layer_of or target not in layer_of:
+                broken.append(f"{path}: folder '{folder if folder not in layer_of else target}' is in no layer")
+            elif layer_of[target] > layer_of[folder]:
+                broken.append(f"{path}: {folder}/ (layer {layer_of[folder]}) includes otmpm/{m.group(1)} "
+                              f"(layer {layer_of[target]})")
             if folder == "engine" and target in ("scene", "reference", "assembly", "run", "io"):
                 broken.append(f"{path}: engine/ includes otmpm/{m.group(1)}")
         code = re.sub(r"//.*", "", text)

@@ -6,6 +6,7 @@
 // names the function or scene key, the argument and the bad value. One small
 // TEST_CASE per entry point and kind of bad argument; each also checks that a
 // good call passes, so that a check which rejects everything fails here too.
+#include "otmpm/assembly/exact_solutions.hpp"
 #include "otmpm/basis/basis.hpp"
 #include "otmpm/basis/bspline.hpp"
 #include "otmpm/basis/lme.hpp"

@@ -5,6 +5,7 @@
 // the Dyka bar. Scenes are built from TOML text (otmpm::parse_scene), kept
 // coarse and short so that the executable runs in a few seconds.
 #include "otmpm/assembly/assembler.hpp"
+#include "otmpm/assembly/exact_solutions.hpp"
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/integrators/integrator.hpp"
 #include "otmpm/run/run.hpp"

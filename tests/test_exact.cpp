@@ -2,6 +2,7 @@
 // boundary conditions, known values at the wave fronts, the governing PDEs
 // checked by finite differences (or in integral form where the fields jump),
 // the manufactured body force, the scene factory and the RMS error.
+#include "otmpm/assembly/exact_solutions.hpp"
 #include "otmpm/reference/exact.hpp"
 #include "otmpm/reference/solutions.hpp"
 #include "otmpm/scene/scene.hpp"

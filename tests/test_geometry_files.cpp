@@ -5,7 +5,7 @@
 // element volumes and centroids, physical groups, files it refuses), and
 // the particles the scene seeds from them.
 #include "otmpm/assembly/assembler.hpp"
-#include "otmpm/geometry/file_shapes.hpp"
+#include "otmpm/scene/file_shapes.hpp"
 #include "otmpm/io/gmsh.hpp"
 #include "otmpm/io/stl.hpp"
 

@@ -11,7 +11,7 @@
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/distributed/comm.hpp"
 #include "otmpm/distributed/local_parts.hpp"
-#include "otmpm/geometry/file_shapes.hpp"
+#include "otmpm/scene/file_shapes.hpp"
 
 #include <algorithm>
 #include <map>
@@ -307,7 +307,8 @@ TEST_CASE("mesh nodes: refused with a lattice basis, in mpm mode, with a body on
                        InputError);
   Scene coded = cube_scene("lme"); // a scene changed in code: validate_scene's check
   coded.bodies[0].nodes = "vertices";
-  CHECK_THROWS_WITH_AS(assemble_parts<3>(coded), doctest::Contains("must be \"lattice\" or \"mesh\""), InputError);
+  CHECK_THROWS_WITH_AS(assemble_parts<3>(coded),
+                       doctest::Contains("must be one of \"lattice\", \"mesh\" (got \"vertices\")"), InputError);
   CHECK_THROWS_WITH_AS(cube_scene("lme", {"simulation.mode=mpm"}),
                        doctest::Contains("nodes = \"mesh\" needs simulation.mode = \"ul\""), InputError);
   Scene mixed = cube_scene("lme");

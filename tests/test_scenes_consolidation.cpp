@@ -6,6 +6,7 @@
 // centre's pore pressure with its Mandel-Cryer overshoot over the first half
 // of the consolidation, within 3 %.
 #include "otmpm/assembly/assembler.hpp"
+#include "otmpm/assembly/exact_solutions.hpp"
 #include "otmpm/materials/pore_fluid.hpp"
 #include "otmpm/reference/consolidation.hpp"
 

@@ -3,6 +3,7 @@
 // limits, the momentum and energy of both phases, restarts and threads, the
 // scene's checks; the exact consolidation solutions themselves.
 #include "otmpm/assembly/assembler.hpp"
+#include "otmpm/assembly/exact_solutions.hpp"
 #include "otmpm/integrators/integrator.hpp"
 #include "otmpm/io/checkpoint.hpp"
 #include "otmpm/materials/pore_fluid.hpp"

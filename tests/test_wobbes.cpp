@@ -7,6 +7,7 @@
 // measured value (quoted next to it, Release build) with the stated margin;
 // docs/benchmarks.md (Wobbes section) has the full tables and the figures.
 #include "otmpm/assembly/assembler.hpp"
+#include "otmpm/assembly/exact_solutions.hpp"
 #include "otmpm/run/run.hpp"
 #include "otmpm/reference/exact.hpp"
 

@@ -2,6 +2,7 @@
 /// Scene -> engine parts (assembler.hpp). Each part has one short function.
 #include "otmpm/assembly/assembler.hpp"
 
+#include "otmpm/assembly/exact_solutions.hpp"
 #include "otmpm/assembly/seeding.hpp"
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/integrators/integrator.hpp"

@@ -7,6 +7,7 @@
 /// the later body says overlap = "first" (it is then dropped).
 #include "otmpm/assembly/seeding.hpp"
 
+#include "otmpm/geometry/box_cells.hpp"
 #include "otmpm/geometry/shapes.hpp"
 #include "otmpm/interrupt.hpp"
 #include "otmpm/io/particle_file.hpp"

@@ -4,7 +4,7 @@
 /// stored in compressed rows, independent of the OpenMP thread count.
 #include "otmpm/basis/basis.hpp"
 
-#include "otmpm/io/text_files.hpp"
+#include "otmpm/text.hpp"
 #include "otmpm/parallel.hpp"
 #include "otmpm/state.hpp"
 

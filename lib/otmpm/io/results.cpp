@@ -61,8 +61,6 @@ constexpr std::uint64_t kMetadataBytes = 4096;
 /// Bytes always kept in reserve beyond the next write, so that the final
 /// status and summary attributes fit after an output was refused.
 constexpr std::uint64_t kFinalReserve = 64 * 1024;
-/// Longest name of a field, probe or series.
-constexpr std::size_t kMaxNameBytes = 255;
 
 /// Creates an extendible dataset of 0 x cols doubles (rank 1 when cols == 0).
 void create_history(hid_t parent, const std::string& name, hsize_t cols, const std::string& path) {
@@ -211,17 +209,6 @@ std::uint64_t frame_bytes(const std::vector<FieldView>& fields, int dimension, s
 }
 
 } // namespace
-
-std::string invalid_name_reason(const std::string& name) {
-  if (name.empty()) return "it is empty";
-  if (name.size() > kMaxNameBytes) return "it is longer than " + std::to_string(kMaxNameBytes) + " bytes";
-  if (const std::string c = text::control_character(name); !c.empty()) return "it contains " + c;
-  if (name.find('/') != std::string::npos) return "it contains '/' (an HDF5 path separator)";
-  if (name.find('.') != std::string::npos)
-    return "it contains '.' (a --set key separator; '.' and '..' are HDF5 path components)";
-  if (name.front() == ' ' || name.back() == ' ') return "it starts or ends with a space";
-  return "";
-}
 
 struct ResultWriter::Impl {
   ParallelIo parallel;

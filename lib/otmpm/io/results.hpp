@@ -10,6 +10,7 @@
 /// ends the output with an OutputError and a valid, shorter file (a
 /// compressed frame reserves its uncompressed size and the filters' worst case).
 #include "otmpm/io/parallel_io.hpp"
+#include "otmpm/text.hpp"
 
 #include <functional>
 #include <memory>
@@ -37,14 +38,6 @@ struct FieldView {
   /// attribute `components`. "" : no attribute.
   std::string components{};
 };
-
-/// Why `name` cannot name a field, probe, series or attribute in the result
-/// file, or "" when it can: it must be non-empty, at most 255 bytes, without
-/// '/' (an HDF5 path separator), '.' ('.' and '..' are HDF5 path components,
-/// and '.' separates the parts of a --set key), control characters (NUL
-/// included), and without a leading or trailing space. The scene reader and
-/// validate_scene apply the same rule to probe names.
-std::string invalid_name_reason(const std::string& name);
 
 /// Options of a ResultWriter.
 struct ResultOptions {

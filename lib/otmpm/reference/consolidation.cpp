@@ -1,10 +1,7 @@
 /// \file consolidation.cpp
-/// Terzaghi's column and Mandel's slab (consolidation.hpp) and their
-/// construction from a scene.
+/// Terzaghi's column and Mandel's slab (consolidation.hpp).
 #include "otmpm/reference/consolidation.hpp"
 
-#include "otmpm/materials/pore_fluid.hpp"
-#include "otmpm/scene/scene.hpp"
 
 #include <cmath>
 #include <numbers>
@@ -186,114 +183,8 @@ Mat<2> Mandel::stress(const Vec<2>& X, double t) const {
   return s;
 }
 
-// ---------------------------------------------------------------------------
-// From a scene
-
-namespace {
-
-/// The one material (saturated, linear elastic) and body (a box at rest) of
-/// a consolidation scene, loaded by one traction (Terzaghi) or one plate (Mandel).
-struct ConsolidationScene {
-  const MaterialSection* material;
-  PoreFluid fluid;
-  const BodySection* body;
-};
-
-ConsolidationScene consolidation_parts(const Scene& scene, const SourceRef& where, const std::string& name,
-                                       bool plate) {
-  auto fail = [&](const std::string& why) { input_error(where, "exact solution '" + name + "' " + why); };
-  if (scene.materials.size() != 1 || scene.bodies.size() != 1)
-    fail("needs exactly one [[material]] and one [[body]]");
-  if (plate ? scene.plates.size() != 1 || !scene.tractions.empty()
-            : scene.tractions.size() != 1 || !scene.plates.empty())
-    fail(plate ? "is loaded by exactly one [[plate]] and no [[traction]]"
-               : "is loaded by exactly one [[traction]] and no [[plate]]");
-  const MaterialSection& m = scene.materials[0];
-  const std::optional<PoreFluid> fluid = pore_fluid(m);
-  if (!fluid) fail("needs a saturated material (porosity, permeability, fluid_density, fluid_bulk_modulus, "
-                   "fluid_viscosity)");
-  if (m.model != "linear_elastic") fail("needs model = \"linear_elastic\" (got \"" + m.model + "\")");
-  const BodySection& b = scene.bodies[0];
-  if (b.shape != "box") fail("needs a box body");
-  if (scene.body_force || !scene.initial_velocities.empty() || b.velocity != Vec3{0, 0, 0} || b.velocity_profile)
-    fail("starts at rest and has no body force (the solution is the pore pressure in excess of the hydrostatic)");
-  if (!plate && !scene.tractions[0].function.empty()) fail("needs a traction value, not a function");
-  return {&m, *fluid, &b};
-}
-
-template <int D> std::unique_ptr<ExactSolution<D>> make_terzaghi(const Scene& scene, const SourceRef& where) {
-  const ConsolidationScene s = consolidation_parts(scene, where, "terzaghi", false);
-  const TractionSection& tr = scene.tractions[0];
-  int k = tr.axis.value_or(0); // the traction's axis (its largest component by default)
-  if (!tr.axis)
-    for (int j = 1; j < D; ++j)
-      if (std::abs(tr.value[j]) > std::abs(tr.value[k])) k = j;
-  const double lo = s.body->lower[k], hi = s.body->upper[k];
-  // The loaded (drained) end: the one nearer the traction box.
-  const double mid = 0.5 * (tr.lower[k] + tr.upper[k]);
-  const bool top = std::abs(mid - hi) <= std::abs(mid - lo);
-  const ElasticConstants c = s.material->elastic();
-  TerzaghiParameters p;
-  p.height = hi - lo;
-  p.base = top ? lo : hi;
-  p.direction = top ? 1.0 : -1.0;
-  p.axis = k;
-  p.modulus = c.p_modulus(D);
-  p.lateral = D == 1 ? 0.0 : c.lambda() / c.p_modulus(D);
-  p.porosity = s.fluid.porosity;
-  p.mobility = s.fluid.permeability / s.fluid.viscosity;
-  p.fluid_bulk_modulus = s.fluid.bulk_modulus;
-  p.load = -p.direction * tr.value[k];
-  p.time = tr.time;
-  try {
-    return std::make_unique<Terzaghi<D>>(p);
-  } catch (const InputError& e) {
-    input_error(where, e.what());
-  }
-}
-
-template <int D> std::unique_ptr<ExactSolution<D>> make_mandel(const Scene& scene, const SourceRef& where) {
-  if constexpr (D != 2) {
-    input_error(where, "exact solution 'mandel' is two-dimensional (plane strain); the run is " + std::to_string(D) +
-                           "D");
-  } else {
-    const ConsolidationScene s = consolidation_parts(scene, where, "mandel", true);
-    const PlateSection& plate = scene.plates[0];
-    if (plate.axis != 1) input_error(where, "exact solution 'mandel' needs the plate to press along y (axis 1)");
-    MandelParameters p;
-    p.width = s.body->upper[0] - s.body->lower[0];
-    p.height = s.body->upper[1] - s.body->lower[1];
-    p.lower[0] = s.body->lower[0];
-    p.lower[1] = s.body->lower[1];
-    p.young = s.material->young;
-    p.poisson = s.material->poisson;
-    p.porosity = s.fluid.porosity;
-    p.mobility = s.fluid.permeability / s.fluid.viscosity;
-    p.fluid_bulk_modulus = s.fluid.bulk_modulus;
-    p.stress = -plate.force / p.width; // the plate on the top of the quarter presses down (-y)
-    p.time = plate.time;
-    try {
-      return std::make_unique<Mandel>(p);
-    } catch (const InputError& e) {
-      input_error(where, e.what());
-    }
-  }
-}
-
-} // namespace
-
-template <int D> std::unique_ptr<ExactSolution<D>> make_consolidation(const Scene& scene, const std::string& name) {
-  const SourceRef where = scene.locate("reference.solution");
-  if (name == "terzaghi") return make_terzaghi<D>(scene, where);
-  if (name == "mandel") return make_mandel<D>(scene, where);
-  return nullptr;
-}
-
 template class Terzaghi<1>;
 template class Terzaghi<2>;
 template class Terzaghi<3>;
-template std::unique_ptr<ExactSolution<1>> make_consolidation<1>(const Scene&, const std::string&);
-template std::unique_ptr<ExactSolution<2>> make_consolidation<2>(const Scene&, const std::string&);
-template std::unique_ptr<ExactSolution<3>> make_consolidation<3>(const Scene&, const std::string&);
 
 } // namespace otmpm

@@ -136,9 +136,4 @@ extern template class Terzaghi<1>;
 extern template class Terzaghi<2>;
 extern template class Terzaghi<3>;
 
-/// The exact solution `name` ("terzaghi", "mandel") of a scene, or null for
-/// another name; InputError naming reference.solution when the scene does
-/// not fit it (make_exact_solution, exact.hpp).
-template <int D> std::unique_ptr<ExactSolution<D>> make_consolidation(const Scene& scene, const std::string& name);
-
 } // namespace otmpm

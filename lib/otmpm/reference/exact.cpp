@@ -1,10 +1,8 @@
-// Exact solutions of the benchmark scenes (docs/benchmarks.md), the factory
-// that builds them from a scene, and the RMS error of docs/theory.md sect. 12.
+// Exact solutions of the benchmark scenes (docs/benchmarks.md) and the RMS
+// error of docs/theory.md sect. 12 (assembly/exact_solutions.cpp builds them from a scene).
 #include "otmpm/reference/exact.hpp"
 
-#include "otmpm/reference/consolidation.hpp"
 #include "otmpm/reference/solutions.hpp"
-#include "otmpm/scene/scene.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -15,19 +13,6 @@ namespace otmpm {
 namespace {
 
 constexpr double pi = std::numbers::pi;
-
-/// Relative tolerance for geometric comparisons of scene boxes (a box edge
-/// written with the same decimal literal as the body edge must match).
-constexpr double kBoxTolerance = 1e-9;
-
-/// wobbes eq. 103 has a unit traction amplitude [Pa].
-constexpr double kWobbesTractionAmplitude = 1.0;
-
-/// Displacement amplitude A of the manufactured plate (wobbes sect. 8.3) [m].
-constexpr double kMmsAmplitude = 0.005;
-
-/// Name of the built-in traction history of wobbes eq. 103 in a [[traction]] section.
-const char* const kTractionBarFunction = "wobbes_traction_bar";
 
 void require_finite_positive(double value, const char* what) {
   require(finite_positive(value), what, " must be finite and positive (got ", value, ")");
@@ -251,155 +236,6 @@ Vec<2> MmsPlate::body_force(const Vec<2>& X, double t) const {
   return b;
 }
 
-// ---------------------------------------------------------------------------
-// Factory
-
-namespace {
-
-/// The single material and body of a bar or plate scene, checked.
-struct SceneParts {
-  const MaterialSection* material;
-  const BodySection* body;
-};
-
-template <int D> SceneParts single_body(const Scene& scene, const SourceRef& where, const std::string& name) {
-  if (scene.materials.size() != 1 || scene.bodies.size() != 1)
-    input_error(where, "exact solution '" + name + "' needs exactly one [[material]] and one [[body]] (the scene has " +
-                           std::to_string(scene.materials.size()) + " and " + std::to_string(scene.bodies.size()) + ")");
-  const MaterialSection& m = scene.materials[0];
-  const BodySection& b = scene.bodies[0];
-  if (!b.material.empty() && b.material != m.name)
-    input_error(where, "exact solution '" + name + "': body '" + b.name + "' uses material '" + b.material +
-                           "', not '" + m.name + "'");
-  if (!(m.density > 0.0) || !(m.young > 0.0))
-    input_error(where, "exact solution '" + name + "' needs a positive density and Young's modulus in material '" +
-                           m.name + "'");
-  for (int k = 0; k < D; ++k)
-    if (!(b.upper[k] > b.lower[k]))
-      input_error(where, "exact solution '" + name + "': body '" + b.name + "' has no extent along axis " +
-                             std::to_string(k));
-  return {&m, &b};
-}
-
-/// The bar's motion must be along x only: no initial velocity across it.
-template <int D> void require_axial(const Vec3& velocity, const SourceRef& where, const std::string& what) {
-  for (int k = 1; k < D; ++k)
-    if (velocity[k] != 0.0)
-      input_error(where, what + " has a non-zero component " + std::to_string(k) +
-                             "; the exact solution is for motion along x only");
-}
-
-bool covers(double box_lower, double box_upper, double lower, double upper) {
-  const double tol = kBoxTolerance * std::max(1.0, std::abs(upper - lower));
-  return box_lower <= lower + tol && box_upper >= upper - tol;
-}
-
-template <int D> std::unique_ptr<ExactSolution<D>> make_dyka(const Scene& scene, const SourceRef& where) {
-  const auto [m, b] = single_body<D>(scene, where, "dyka");
-  if (scene.initial_velocities.size() != 1)
-    input_error(where, "exact solution 'dyka' needs exactly one [[initial_velocity]] box (the scene has " +
-                           std::to_string(scene.initial_velocities.size()) + ")");
-  if (b->velocity_profile)
-    input_error(where, "exact solution 'dyka' needs a uniform body velocity, not velocity_profile = '" +
-                           *b->velocity_profile + "'");
-  const InitialVelocitySection& iv = scene.initial_velocities[0];
-  require_axial<D>(iv.velocity, where, "the [[initial_velocity]] velocity");
-  require_axial<D>(b->velocity, where, "the body velocity");
-  for (int k = 1; k < D; ++k)
-    if (!covers(iv.lower[k], iv.upper[k], b->lower[k], b->upper[k]))
-      input_error(where, "exact solution 'dyka': the [[initial_velocity]] box must span the whole bar across axis " +
-                             std::to_string(k));
-  DykaParameters p;
-  p.length = b->upper[0] - b->lower[0];
-  p.young = m->young;
-  p.density = m->density;
-  p.region_velocity = iv.velocity[0];
-  p.rest_velocity = b->velocity[0];
-  p.x_free = b->lower[0];
-  p.region_begin = std::max(iv.lower[0], b->lower[0]) - p.x_free;
-  p.region_end = std::min(iv.upper[0], b->upper[0]) - p.x_free;
-  if (p.region_end < p.region_begin)
-    input_error(where, "exact solution 'dyka': the [[initial_velocity]] box does not overlap the bar");
-  return std::make_unique<DykaBar<D>>(p);
-}
-
-template <int D> std::unique_ptr<ExactSolution<D>> make_fixed_bar(const Scene& scene, const SourceRef& where) {
-  const auto [m, b] = single_body<D>(scene, where, "fixed_bar");
-  if (!b->velocity_profile || *b->velocity_profile != "sin_x")
-    input_error(where, "exact solution 'fixed_bar' needs body velocity_profile = \"sin_x\"");
-  if (!scene.initial_velocities.empty())
-    input_error(where, "exact solution 'fixed_bar' does not allow [[initial_velocity]] boxes");
-  require_axial<D>(b->velocity, where, "the body velocity");
-  FixedBarParameters p;
-  p.length = b->upper[0] - b->lower[0];
-  p.young = m->young;
-  p.density = m->density;
-  p.amplitude = b->velocity[0];
-  p.x_left = b->lower[0];
-  return std::make_unique<FixedBar<D>>(p);
-}
-
-template <int D> std::unique_ptr<ExactSolution<D>> make_traction_bar(const Scene& scene, const SourceRef& where) {
-  const auto [m, b] = single_body<D>(scene, where, "traction_bar");
-  const auto it = std::find_if(scene.tractions.begin(), scene.tractions.end(),
-                               [](const TractionSection& t) { return t.function == kTractionBarFunction; });
-  if (it == scene.tractions.end())
-    input_error(where, std::string("exact solution 'traction_bar' needs a [[traction]] with function = \"") +
-                           kTractionBarFunction + "\"");
-  if (!scene.initial_velocities.empty() || b->velocity_profile || b->velocity != Vec3{0, 0, 0})
-    input_error(where, "exact solution 'traction_bar' starts at rest: no initial velocity allowed");
-  TractionBarParameters p;
-  p.length = b->upper[0] - b->lower[0];
-  p.young = m->young;
-  p.density = m->density;
-  p.amplitude = it->value[0] != 0.0 ? it->value[0] : kWobbesTractionAmplitude;
-  p.x_fixed = b->lower[0];
-  return std::make_unique<TractionBar<D>>(p);
-}
-
-template <int D> std::unique_ptr<ExactSolution<D>> make_mms_plate(const Scene& scene, const SourceRef& where) {
-  if constexpr (D != 2) {
-    input_error(where, "exact solution 'mms_plate' is two-dimensional; the run is " + std::to_string(D) + "D");
-  } else {
-    const auto [m, b] = single_body<D>(scene, where, "mms_plate");
-    const double lx = b->upper[0] - b->lower[0], ly = b->upper[1] - b->lower[1];
-    if (std::abs(lx - ly) > kBoxTolerance * lx)
-      input_error(where, "exact solution 'mms_plate' needs a square body (got " + std::to_string(lx) + " x " +
-                             std::to_string(ly) + ")");
-    MmsPlateParameters p;
-    p.length = lx;
-    p.young = m->young;
-    p.poisson = m->poisson;
-    p.density = m->density;
-    p.amplitude = kMmsAmplitude;
-    p.lower[0] = b->lower[0];
-    p.lower[1] = b->lower[1];
-    try {
-      return std::make_unique<MmsPlate>(p);
-    } catch (const InputError& e) {
-      input_error(where, e.what());
-    }
-  }
-}
-
-} // namespace
-
-template <int D> std::unique_ptr<ExactSolution<D>> make_exact_solution(const Scene& scene) {
-  const std::string& name = scene.reference.solution;
-  if (name.empty()) return nullptr;
-  const SourceRef where = scene.locate("reference.solution");
-  if (scene.simulation.dimension != D)
-    input_error(where, "the scene is " + std::to_string(scene.simulation.dimension) + "D but the run is " +
-                           std::to_string(D) + "D");
-  if (name == "dyka") return make_dyka<D>(scene, where);
-  if (name == "fixed_bar") return make_fixed_bar<D>(scene, where);
-  if (name == "traction_bar") return make_traction_bar<D>(scene, where);
-  if (name == "mms_plate") return make_mms_plate<D>(scene, where);
-  if (auto consolidation = make_consolidation<D>(scene, name)) return consolidation;
-  input_error(where, "unknown exact solution '" + name +
-                         "' (expected dyka, fixed_bar, traction_bar, mms_plate, terzaghi or mandel)");
-}
-
 double rms_error(const std::vector<double>& squared_errors) {
   if (squared_errors.empty()) throw InputError("rms_error: no samples");
   double sum = 0.0;
@@ -423,8 +259,5 @@ template class FixedBar<3>;
 template class TractionBar<1>;
 template class TractionBar<2>;
 template class TractionBar<3>;
-template std::unique_ptr<ExactSolution<1>> make_exact_solution<1>(const Scene&);
-template std::unique_ptr<ExactSolution<2>> make_exact_solution<2>(const Scene&);
-template std::unique_ptr<ExactSolution<3>> make_exact_solution<3>(const Scene&);
 
 } // namespace otmpm

@@ -10,7 +10,6 @@
 
 namespace otmpm {
 
-struct Scene;
 
 /// An exact solution u(X, t), v(X, t), sigma(X, t). Scenes with a manufactured
 /// solution also provide the body force per unit mass b(X, t) that drives it.
@@ -29,13 +28,6 @@ public:
   virtual Vec<D> body_force(const Vec<D>& /*X*/, double /*t*/) const { return Vec<D>::Zero(); }
   virtual bool has_body_force() const { return false; }
 };
-
-/// The exact solution named by scene.reference.solution, with its
-/// parameters (material, bar length, initial velocity) taken from the scene.
-/// Returns null when the scene has none; throws InputError (naming the key)
-/// when the scene does not fit the solution (e.g. "dyka" in a scene with two
-/// materials, "mms_plate" in 1D).
-template <int D> std::unique_ptr<ExactSolution<D>> make_exact_solution(const Scene& scene);
 
 /// RMS over particles (docs/theory.md sect. 12, molinos eq. 44):
 /// sqrt((1/N) sum_p |q_p - q_exact(X_p, t)|^2).

@@ -5,7 +5,7 @@
 /// scene reader (bounds, particle count, the file's checks), the assembler
 /// (their shape and particles) and run --check (their volumes).
 #include "otmpm/basis/mesh_elements.hpp"
-#include "otmpm/geometry/file_shapes.hpp"
+#include "otmpm/scene/file_shapes.hpp"
 #include "otmpm/scene/scene.hpp"
 
 #include <functional>

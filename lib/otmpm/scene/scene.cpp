@@ -5,13 +5,13 @@
 // The reading idiom (TableReader, Context) is in scene/toml_reader.hpp.
 #include "otmpm/scene/scene.hpp"
 
-#include "otmpm/io/results.hpp"
-#include "otmpm/io/text_files.hpp"
+#include "otmpm/text.hpp"
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/integrators/integrator.hpp"
 #include "otmpm/io/particle_file.hpp"
 #include "otmpm/materials/pore_fluid.hpp"
 #include "otmpm/scene/file_bodies.hpp"
+#include "otmpm/scene/scene_rules.hpp"
 #include "otmpm/particles/output_fields.hpp"
 #include "otmpm/scene/toml_reader.hpp"
 #include "otmpm/scene/validate.hpp"
@@ -57,6 +57,11 @@ void check(bool ok, const SourceRef& r, const std::string& message) {
   if (!ok) input_error(r, message);
 }
 
+/// A shared rule (scene_rules.hpp): its message at `r` unless it passed ("").
+void enforce(const std::string& broken, const SourceRef& r) {
+  if (!broken.empty()) input_error(r, broken);
+}
+
 /// The value of `spec.key` in `t` - `fallback` when absent, or required
 /// without one - checked against its row (ParameterSpec::check).
 double number(const TableReader& t, const ParameterSpec& spec, std::optional<double> fallback = std::nullopt) {
@@ -68,11 +73,7 @@ double number(const TableReader& t, const ParameterSpec& spec, std::optional<dou
 
 /// Every component of upper strictly (or not) above lower.
 void check_box(const TableReader& t, const Vec3& lo, const Vec3& hi, int dim, bool strict) {
-  for (int k = 0; k < dim; ++k) {
-    const bool ok = strict ? lo[k] < hi[k] : lo[k] <= hi[k];
-    check(ok, t.ref("upper"), std::string("must be ") + (strict ? ">" : ">=") + " lower in every component (axis " +
-                                  std::to_string(k) + ": lower " + fmt(lo[k]) + ", upper " + fmt(hi[k]) + ")");
-  }
+  enforce(scene_rules::box(lo, hi, dim, strict), t.ref("upper"));
 }
 
 /// The bounding box a shape derives from its key `from` (a sphere's or
@@ -100,7 +101,7 @@ SimulationSection read_simulation(const TableReader& t) {
   s.dimension = t.require<int>("dimension");
   check(s.dimension >= 1 && s.dimension <= 3, t.ref("dimension"),
         "must be 1, 2 or 3 (got " + std::to_string(s.dimension) + ")");
-  s.mode = t.choice("mode", s.mode, {"mpm", "ul"});
+  s.mode = t.choice("mode", s.mode, scene_rules::kModes);
   const auto integrators = names_of(integrator_kinds(), [](const IntegratorKind& k) { return k.name; });
   s.integrator = t.choice("integrator", s.integrator, integrators);
   for (const ParameterSpec* p : integrator_parameters()) {
@@ -112,12 +113,11 @@ SimulationSection read_simulation(const TableReader& t) {
   }
   // Default: the mass matrix of each algorithm's listing (IntegratorKind).
   const bool consistent_default = integrator_kind(s.integrator).consistent_by_default;
-  s.mass = t.choice("mass", consistent_default ? "consistent" : "lumped", {"lumped", "consistent"});
-  if (t.has("volumetric")) s.volumetric = t.choice("volumetric", "none", {"none", "fbar"});
+  s.mass = t.choice("mass", consistent_default ? "consistent" : "lumped", scene_rules::kMasses);
+  if (t.has("volumetric")) s.volumetric = t.choice("volumetric", "none", scene_rules::kVolumetric);
   using namespace scene_keys;
   s.node_reset = number(t, kNodeReset, s.node_reset);
-  check(s.node_reset == 0 || s.nodes_move(), t.ref("node_reset"),
-        "lays the advected nodes out anew: it needs simulation.mode = \"ul\"");
+  enforce(scene_rules::node_reset(s.node_reset, s.nodes_move()), t.ref("node_reset"));
   s.t_end = number(t, kTEnd);
   check(!(t.has("cfl") && t.has("dt")), t.ref("dt"), "give either simulation.cfl or simulation.dt, not both");
   s.cfl = number(t, kCfl, s.cfl);
@@ -176,8 +176,8 @@ std::array<int, 3> read_cells(const TableReader& t, const GridSection& g, int di
     const int c = convert<int>(*n, r);
     for (int k = 0; k < dim; ++k) cells[k] = c;
   }
+  enforce(scene_rules::cells(cells, dim), r);
   for (int k = 0; k < dim; ++k) {
-    check(cells[k] >= 1, r, "must be >= 1 (got " + std::to_string(cells[k]) + ")");
     check(cells[k] <= kMaxCellsPerAxis, r,
           "axis " + std::to_string(k) + ": at most " + fmt(kMaxCellsPerAxis) + " cells are allowed (got " +
               std::to_string(cells[k]) + ")");
@@ -189,14 +189,11 @@ GridSection read_grid(const TableReader& t, int dim) {
   t.only({"kind", "lower", "upper", "cells", "h", "perturbation", "seed"});
   GridSection g;
   g.where = t.self();
-  g.kind = t.choice("kind", g.kind, {"cartesian", "perturbed"});
+  g.kind = t.choice("kind", g.kind, scene_rules::kGridKinds);
   g.lower = t.require_vec("lower", dim);
   g.upper = t.require_vec("upper", dim);
   check_box(t, g.lower, g.upper, dim, true);
-  for (int k = 0; k < dim; ++k)
-    check(std::isfinite(g.upper[k] - g.lower[k]), t.ref("upper"),
-          "upper - lower overflows on axis " + std::to_string(k) + " (lower " + fmt(g.lower[k]) + ", upper " +
-              fmt(g.upper[k]) + ")");
+  enforce(scene_rules::extent(g.lower, g.upper, dim), t.ref("upper"));
   g.cells = read_cells(t, g, dim);
   g.perturbation = number(t, scene_keys::kPerturbation, g.perturbation);
   const std::int64_t seed = t.get<std::int64_t>("seed", g.seed);
@@ -326,7 +323,7 @@ MaterialSection read_material(const TableReader& t, std::set<std::string>& names
 
 std::vector<MaterialSection> read_materials(const TableReader& root) {
   auto tables = root.tables("material");
-  if (tables.empty()) root.missing("material", "at least one [[material]] is required");
+  if (tables.empty()) root.missing("material", scene_rules::kNoMaterial);
   std::vector<MaterialSection> out;
   std::set<std::string> names;
   for (const TableReader& t : tables) out.push_back(read_material(t, names));
@@ -342,7 +339,7 @@ SourceRef box_ref(const TableReader& t) {
   return t.self();
 }
 
-/// The keys of each body shape beyond the common ones.
+/// The keys of each body shape (scene_rules::kShapes) beyond the common ones.
 const std::map<std::string, std::vector<std::string_view>, std::less<>> kShapeKeys = {
     {"box", {"lower", "upper"}},
     {"sphere", {"center", "radius"}},
@@ -352,22 +349,22 @@ const std::map<std::string, std::vector<std::string_view>, std::less<>> kShapeKe
     {"stl", {"file", "scale", "rotate", "translate"}},
     {"mesh", {"file", "physical", "seeding", "nodes", "scale", "rotate", "translate"}}};
 
-/// A value > 0 that the shape needs.
+/// A size the shape needs (finite, > 0).
 double positive_required(const TableReader& t, std::string_view key) {
   const double v = t.require<double>(key);
-  check(v > 0, t.ref(key), "must be > 0 (got " + fmt(v) + ")");
+  enforce(scene_rules::size(v), t.ref(key));
   return v;
 }
 
 /// polygon: vertices = [[x, y], ...] (2D, at least 3).
 std::vector<std::array<double, 2>> read_vertices(const TableReader& t, int dim) {
-  check(dim == 2, t.ref("shape"), "shape \"polygon\" is two-dimensional (simulation.dimension = " +
-                                      std::to_string(dim) + ")");
+  enforce(scene_rules::polygon_dimension(dim), t.ref("shape"));
   const toml::node* n = t.node("vertices");
   if (!n) t.missing("vertices");
   const SourceRef r = t.ref("vertices");
   const toml::array* a = n->as_array();
-  check(a && a->size() >= 3, r, "expected an array of at least 3 vertices [[x, y], ...]");
+  check(a, r, "expected an array of at least 3 vertices [[x, y], ...]");
+  enforce(scene_rules::vertex_count(a->size()), r);
   std::vector<std::array<double, 2>> out;
   for (const toml::node& v : *a) {
     const toml::array* xy = v.as_array();
@@ -391,7 +388,7 @@ void cylinder_bounds(BodySection& b) {
 /// The path of the body's `file` (relative to the scene file's folder).
 std::string scene_relative_file(const TableReader& t, const Scene& s) {
   const std::string name = t.require<std::string>("file");
-  check(!name.empty(), t.ref("file"), "must not be empty");
+  enforce(scene_rules::file_name(name), t.ref("file"));
   namespace fs = std::filesystem;
   const fs::path given(name);
   return (given.is_absolute() || s.file.empty() ? given : fs::path(s.file).parent_path() / given).string();
@@ -418,8 +415,8 @@ void read_geometry_file_body(const TableReader& t, BodySection& b, const Scene& 
   b.file = scene_relative_file(t, s);
   if (b.shape == "mesh") {
     b.physical = t.get<std::string>("physical", "");
-    b.seeding = t.choice("seeding", b.seeding, {"element", "quadrature"});
-    b.nodes = t.choice("nodes", b.nodes, {"lattice", "mesh"});
+    b.seeding = t.choice("seeding", b.seeding, scene_rules::kSeedings);
+    b.nodes = t.choice("nodes", b.nodes, scene_rules::kNodeSources);
   }
   read_placement(t, dim, b.scale, b.rotate, b.translate);
   try {
@@ -483,10 +480,10 @@ void read_shape(const TableReader& t, BodySection& b, const Scene& s) {
     for (int k = 0; k < dim; ++k) b.lower[k] = b.center[k] - b.radius, b.upper[k] = b.center[k] + b.radius;
     check_derived_box(t, "center", b.lower, b.upper, dim);
   } else if (b.shape == "cylinder") {
-    check(dim == 3, t.ref("shape"), "shape \"cylinder\" is three-dimensional (use \"sphere\" for a disk in 2D)");
+    enforce(scene_rules::cylinder_dimension(dim), t.ref("shape"));
     b.center = t.require_vec("center", dim);
     b.axis = t.require_vec("axis", dim);
-    check(is_direction<3>(first_components(b.axis, dim)), t.ref("axis"), "must be finite and not zero");
+    enforce(scene_rules::cylinder_axis(b.axis, dim), t.ref("axis"));
     b.radius = positive_required(t, "radius");
     b.length = positive_required(t, "length");
     cylinder_bounds(b);
@@ -507,17 +504,15 @@ void read_shape(const TableReader& t, BodySection& b, const Scene& s) {
 
 std::vector<BodySection> read_bodies(const TableReader& root, const Scene& s) {
   auto tables = root.tables("body");
-  if (tables.empty()) root.missing("body", "at least one [[body]] is required");
+  if (tables.empty()) root.missing("body", scene_rules::kNoBody);
   const int dim = s.simulation.dimension;
   std::vector<BodySection> out;
   std::set<std::string> names;
   double particles = 0;
-  std::vector<std::string_view> shapes;
-  for (const auto& [name, keys] : kShapeKeys) shapes.push_back(name);
   for (const TableReader& t : tables) {
     BodySection b;
     b.where = t.self();
-    b.shape = t.choice("shape", b.shape, shapes);
+    b.shape = t.choice("shape", b.shape, scene_rules::kShapes);
     std::vector<std::string_view> allowed{"name", "material", "shape", "particles_per_cell", "placement", "velocity",
                                           "velocity_profile", "overlap", "volume", "water_table", "k0"};
     const auto& own = kShapeKeys.find(b.shape)->second;
@@ -525,19 +520,16 @@ std::vector<BodySection> read_bodies(const TableReader& root, const Scene& s) {
     t.only(allowed);
     b.name = read_name(t, false, default_name("body", out.size()), names, "body");
     b.material = t.require<std::string>("material");
-    const bool known = std::any_of(s.materials.begin(), s.materials.end(),
-                                   [&](const MaterialSection& m) { return m.name == b.material; });
-    check(known, t.ref("material"), "no [[material]] named \"" + b.material + "\"");
+    enforce(scene_rules::material(s.materials, b.material), t.ref("material"));
     read_shape(t, b, s);
     b.particles_per_cell = t.get<int>("particles_per_cell", b.particles_per_cell);
-    check(b.particles_per_cell >= 1 && b.particles_per_cell <= kMaxParticlesPerCell, t.ref("particles_per_cell"),
-          "must be in [1, " + std::to_string(kMaxParticlesPerCell) + "] (got " +
-              std::to_string(b.particles_per_cell) + ")");
-    b.placement = t.choice("placement", b.placement, {"gauss", "cell_centres"});
+    enforce(scene_rules::particles_per_cell(b.particles_per_cell), t.ref("particles_per_cell"));
+    b.placement = t.choice("placement", b.placement, scene_rules::kPlacements);
     b.velocity = t.vec("velocity", dim).value_or(b.velocity);
-    if (t.has("velocity_profile")) b.velocity_profile = t.choice("velocity_profile", "", {"sin_x", "reference"});
-    b.overlap = t.choice("overlap", b.overlap, {"error", "first"});
-    b.volume = t.choice("volume", b.volume, {"seeded", "exact"});
+    if (t.has("velocity_profile"))
+      b.velocity_profile = t.choice("velocity_profile", "", scene_rules::kVelocityProfiles);
+    b.overlap = t.choice("overlap", b.overlap, scene_rules::kOverlaps);
+    b.volume = t.choice("volume", b.volume, scene_rules::kVolumes);
     if (t.has("water_table")) b.water_table = number(t, scene_keys::kWaterTable);
     if (t.has("k0")) b.k0 = number(t, scene_keys::kK0);
     particles += body_particles(b, s.grid, dim);
@@ -641,8 +633,7 @@ std::vector<WallSection> read_walls(const TableReader& root, int dim) {
     w.name = read_name(t, false, default_name("wall", out.size()), names, "wall");
     w.point = t.require_vec("point", dim);
     w.normal = t.require_vec("normal", dim);
-    check(is_direction<3>(first_components(w.normal, dim)), t.ref("normal"),
-          "must be finite and not zero (it points to the material's side of the wall)");
+    enforce(scene_rules::wall_normal(w.normal, dim), t.ref("normal"));
     w.velocity = t.vec("velocity", dim).value_or(w.velocity);
     w.friction = number(t, scene_keys::kFriction, w.friction);
     out.push_back(std::move(w));
@@ -664,8 +655,7 @@ std::vector<PlateSection> read_plates(const TableReader& root, int dim) {
     p.upper = t.require_vec("upper", dim);
     check_box(t, p.lower, p.upper, dim, false);
     p.axis = t.get<int>("axis", dim - 1);
-    check(p.axis >= 0 && p.axis < dim, t.ref("axis"),
-          "must be an axis index in [0, " + std::to_string(dim) + ") (got " + std::to_string(p.axis) + ")");
+    enforce(scene_rules::axis_index(p.axis, dim), t.ref("axis"));
     p.force = number(t, scene_keys::kPlateForce, 0.0);
     p.time = read_time(t);
     out.push_back(std::move(p));
@@ -688,7 +678,7 @@ TimeFunction read_time(const TableReader& parent) {
   auto t = parent.table("time");
   if (!t) return f;
   t->only({"kind", "period"});
-  f.kind = t->choice("kind", f.kind, {"constant", "ramp"});
+  f.kind = t->choice("kind", f.kind, scene_rules::kTimeKinds);
   if (f.kind == "ramp" && !t->has("period")) t->missing("period", "required key is missing (kind = \"ramp\")");
   f.period = t->has("period") ? number(*t, scene_keys::kPeriod) : 0.0;
   return f;
@@ -714,14 +704,13 @@ std::vector<TractionSection> read_tractions(const TableReader& root, int dim) {
     tr.lower = t.require_vec("lower", dim);
     tr.upper = t.require_vec("upper", dim);
     check_box(t, tr.lower, tr.upper, dim, false);
-    if (t.has("function")) tr.function = t.choice("function", "", {"wobbes_traction_bar"});
+    if (t.has("function")) tr.function = t.choice("function", "", scene_rules::kTractionFunctions);
     if (tr.function.empty()) tr.value = t.require_vec("value", dim);
     else tr.value = t.vec("value", dim).value_or(tr.value);
     tr.time = read_time(t);
     if (t.has("axis")) {
       tr.axis = t.get<int>("axis", 0);
-      check(*tr.axis >= 0 && *tr.axis < dim, t.ref("axis"),
-            "must be an axis index in [0, " + std::to_string(dim) + ") (got " + std::to_string(*tr.axis) + ")");
+      enforce(scene_rules::axis_index(*tr.axis, dim), t.ref("axis"));
     }
     out.push_back(tr);
   }
@@ -736,7 +725,7 @@ std::vector<ProbeSection> read_probes(const TableReader& out_table, int dim) {
     ProbeSection p;
     p.where = t.self();
     p.name = read_name(t, true, "", names, "probe");
-    p.particle = t.choice("particle", p.particle, {"leftmost", "rightmost", "nearest"});
+    p.particle = t.choice("particle", p.particle, scene_rules::kProbeParticles);
     if (p.particle == "nearest" && !t.has("at")) t.missing("at", "required key is missing (particle = \"nearest\")");
     p.at = t.vec("at", dim).value_or(p.at);
     out.push_back(std::move(p));
@@ -757,19 +746,10 @@ std::vector<std::string> read_fields(const TableReader& t, std::string_view key,
   std::vector<std::string> out;
   for (const toml::node& el : *a) {
     out.push_back(convert<std::string>(el, r));
-    check(std::find(known.begin(), known.end(), out.back()) != known.end(), r,
-          "unknown field \"" + out.back() + "\"" + suggestion(out.back(), known));
-    check(std::count(out.begin(), out.end(), out.back()) == 1, r, "names \"" + out.back() + "\" twice");
-    check(out.back() != kStressZzField || s.simulation.dimension == 2, r,
-          "\"stress_zz\" (plane strain's out-of-plane stress) needs simulation.dimension = 2 (got " +
-              std::to_string(s.simulation.dimension) +
-              (s.simulation.dimension == 3 ? "; the 3D \"stress\" holds sigma_zz)" : ")"));
+    enforce(scene_rules::field(out, out.size() - 1, known, s.simulation.dimension), r);
   }
   return out;
 }
-
-/// Values of output.format.
-constexpr std::array<std::string_view, 3> kOutputFormats = {"hdf5", "vtp", "vtu"};
 
 /// output.format: "hdf5" (required) and at most one of "vtp", "vtu"; a
 /// string is a list of one.
@@ -782,27 +762,18 @@ std::vector<std::string> read_formats(const TableReader& t) {
   else if (const toml::array* a = n->as_array())
     for (const toml::node& el : *a) out.push_back(convert<std::string>(el, r));
   else input_error(r, "expected an array of strings, got " + type_name(*n));
-  for (const std::string& f : out) {
-    check(std::find(kOutputFormats.begin(), kOutputFormats.end(), f) != kOutputFormats.end(), r,
-          "unknown format \"" + f + "\"" + suggestion(f, kOutputFormats));
-    check(std::count(out.begin(), out.end(), f) == 1, r, "names \"" + f + "\" twice");
-  }
-  check(std::count(out.begin(), out.end(), "hdf5") == 1, r,
-        "must contain \"hdf5\": the HDF5 result file is always written (e.g. [\"hdf5\", \"vtp\"])");
-  check(!(std::count(out.begin(), out.end(), "vtp") && std::count(out.begin(), out.end(), "vtu")), r,
-        "choose one of \"vtp\" and \"vtu\" (both would be listed by the same .pvd)");
+  enforce(scene_rules::formats(out), r);
   return out;
 }
 
 /// output.checkpoint_every (steps, >= 0) and output.checkpoint_file.
 void read_checkpoint_keys(const TableReader& t, OutputSection& o) {
   const std::int64_t every = t.get<std::int64_t>("checkpoint_every", 0);
-  check(every >= 0 && every <= std::numeric_limits<long>::max(), t.ref("checkpoint_every"),
-        "must be an integer >= 0 (steps between checkpoints; 0: none; got " + std::to_string(every) + ")");
+  enforce(scene_rules::checkpoint_every(every), t.ref("checkpoint_every"));
   o.checkpoint_every = static_cast<long>(every);
   o.checkpoint_file = t.get<std::string>("checkpoint_file", "");
-  check(!t.has("checkpoint_file") || !o.checkpoint_file.empty(), t.ref("checkpoint_file"), "must not be empty");
-  check(o.checkpoint_file != o.file, t.ref("checkpoint_file"), "must differ from output.file");
+  if (t.has("checkpoint_file")) enforce(scene_rules::file_name(o.checkpoint_file), t.ref("checkpoint_file"));
+  enforce(scene_rules::checkpoint_file(o.checkpoint_file, o.file), t.ref("checkpoint_file"));
 }
 
 OutputSection read_output(const TableReader& root, const Scene& s) {
@@ -814,18 +785,17 @@ OutputSection read_output(const TableReader& root, const Scene& s) {
             "symmetric_tensors", "compression"});
   o.where = t->self();
   o.file = t->get<std::string>("file", o.file);
-  check(!o.file.empty(), t->ref("file"), "must not be empty");
+  enforce(scene_rules::file_name(o.file), t->ref("file"));
   o.every = t->get<double>("every", o.every);
   check(o.every >= 0, t->ref("every"), "must be >= 0 (got " + fmt(o.every) + ")");
   o.fields = read_fields(*t, "fields", o.fields, s);
   o.probes = read_probes(*t, dim);
   read_checkpoint_keys(*t, o);
   o.formats = read_formats(*t);
-  o.precision = t->choice("precision", o.precision, {"double", "single"});
+  o.precision = t->choice("precision", o.precision, scene_rules::kPrecisions);
   o.symmetric_tensors = t->get<bool>("symmetric_tensors", o.symmetric_tensors);
   const std::int64_t level = t->get<std::int64_t>("compression", o.compression);
-  check(level >= 0 && level <= 9, t->ref("compression"),
-        "must be an integer 0..9 (deflate level; 0: uncompressed; got " + std::to_string(level) + ")");
+  enforce(scene_rules::compression(level), t->ref("compression"));
   o.compression = static_cast<int>(level);
   return o;
 }
@@ -1032,7 +1002,8 @@ Scene parse_scene(const std::string& text, const std::string& name, const std::v
 }
 
 bool is_output_format(const std::string& format) {
-  return std::find(kOutputFormats.begin(), kOutputFormats.end(), format) != kOutputFormats.end();
+  return std::find(scene_rules::kOutputFormats.begin(), scene_rules::kOutputFormats.end(), format) !=
+         scene_rules::kOutputFormats.end();
 }
 
 std::string vtk_format(const OutputSection& output) {

@@ -5,7 +5,7 @@
 /// TableReader reads the keys of one TOML table, checks names, types and
 /// presence, and reports every problem as an InputError "FILE:LINE: key 'K':
 /// message" (SourceRef::describe), also for values written by --set.
-#include "otmpm/io/text_files.hpp"
+#include "otmpm/text.hpp"
 #include "otmpm/scene/scene.hpp"
 
 #include <toml++/toml.h>
@@ -37,6 +37,12 @@ inline std::string quoted_list(std::span<const std::string_view> names) {
   std::string s;
   for (auto n : names) s += (s.empty() ? "\"" : ", \"") + std::string(n) + "\"";
   return s;
+}
+
+/// The message of a value that is not one of `allowed`: TableReader::choice's,
+/// and the scene validator's (scene_rules::choice).
+inline std::string choice_message(std::span<const std::string_view> allowed, std::string_view value) {
+  return "must be one of " + quoted_list(allowed) + " (got \"" + std::string(value) + "\")";
 }
 
 inline std::string join_path(const std::string& prefix, std::string_view key) {
@@ -206,7 +212,7 @@ public:
   std::string choice(std::string_view key, std::string fallback, std::span<const std::string_view> allowed) const {
     std::string v = get<std::string>(key, fallback);
     if (std::find(allowed.begin(), allowed.end(), v) == allowed.end())
-      input_error(ref(key), "must be one of " + quoted_list(allowed) + " (got \"" + v + "\")");
+      input_error(ref(key), choice_message(allowed, v));
     return v;
   }
 

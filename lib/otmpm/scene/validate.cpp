@@ -3,22 +3,23 @@
 /// short function; every failure is an InputError at the scene key.
 #include "otmpm/scene/validate.hpp"
 
-#include "otmpm/io/results.hpp"
-#include "otmpm/io/text_files.hpp"
+#include "otmpm/text.hpp"
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/integrators/integrator.hpp"
+#include "otmpm/io/particle_file.hpp"
 #include "otmpm/materials/material.hpp"
 #include "otmpm/materials/models.hpp"
 #include "otmpm/materials/pore_fluid.hpp"
 #include "otmpm/particles/output_fields.hpp"
 #include "otmpm/scene/file_bodies.hpp"
+#include "otmpm/scene/scene_rules.hpp"
 #include "otmpm/scene/toml_reader.hpp"
 
 #include <algorithm>
 #include <cmath>
-#include <initializer_list>
 #include <limits>
 #include <set>
+#include <span>
 #include <stdexcept>
 #include <string_view>
 
@@ -32,8 +33,16 @@ template <class... Parts> void check(const Scene& s, bool ok, const std::string&
     input_error(s.locate(key), error_message(parts...));
 }
 
-bool one_of(const std::string& value, std::initializer_list<std::string_view> allowed) {
-  return std::find(allowed.begin(), allowed.end(), value) != allowed.end();
+/// A shared rule (scene_rules.hpp) at `key`: its message unless it passed ("").
+void enforce(const Scene& s, const std::string& broken, const std::string& key) {
+  if (!broken.empty()) [[unlikely]]
+    input_error(s.locate(key), broken);
+}
+
+/// `value` of `key` one of the words of its rule.
+void check_choice(const Scene& s, const std::string& key, std::span<const std::string_view> allowed,
+                  const std::string& value) {
+  enforce(s, scene_rules::choice(allowed, value), key);
 }
 
 /// The key of element `index` of an array of tables: "section.NAME", or
@@ -70,9 +79,7 @@ void check_finite(const Scene& s, const std::string& key, const Vec3& v, int dim
 void check_box(const Scene& s, const std::string& key, const Vec3& lo, const Vec3& hi, int dim, bool strict) {
   check_finite(s, key + ".lower", lo, dim);
   check_finite(s, key + ".upper", hi, dim);
-  for (int k = 0; k < dim; ++k)
-    check(s, strict ? lo[k] < hi[k] : lo[k] <= hi[k], key + ".upper", "must be ", strict ? ">" : ">=",
-          " lower in every component (axis ", k, ": lower ", lo[k], ", upper ", hi[k], ")");
+  enforce(s, scene_rules::box(lo, hi, dim, strict), key + ".upper");
 }
 
 /// `value` of `key` in the range of its row (scene_keys).
@@ -83,25 +90,21 @@ void check_number(const Scene& s, const std::string& key, double value, const Pa
 
 /// kind "constant" or "ramp"; a ramp needs a finite period > 0 (it divides by it).
 void check_time(const Scene& s, const std::string& key, const TimeFunction& g) {
-  check(s, one_of(g.kind, {"constant", "ramp"}), key + ".kind", "must be \"constant\" or \"ramp\" (got \"", g.kind,
-        "\")");
+  check_choice(s, key + ".kind", scene_rules::kTimeKinds, g.kind);
   if (g.kind == "ramp") check_number(s, key + ".period", g.period, scene_keys::kPeriod);
 }
 
 void check_simulation(const Scene& s, int dim) {
   const SimulationSection& m = s.simulation;
   check(s, m.dimension == dim, "simulation.dimension", "the scene is ", m.dimension, "D but the run is ", dim, "D");
-  check(s, one_of(m.mode, {"mpm", "ul"}), "simulation.mode", "must be \"mpm\" or \"ul\" (got \"", m.mode, "\")");
+  check_choice(s, "simulation.mode", scene_rules::kModes, m.mode);
   const IntegratorKind* integrator = find_integrator(m.integrator);
   check(s, integrator != nullptr, "simulation.integrator", "must be one of ", integrator_list(), " (got \"",
         m.integrator, "\")");
-  check(s, one_of(m.mass, {"lumped", "consistent"}), "simulation.mass", "must be \"lumped\" or \"consistent\" (got \"",
-        m.mass, "\")");
-  check(s, m.volumetric.empty() || one_of(m.volumetric, {"none", "fbar"}), "simulation.volumetric", "must be \"none\" or \"fbar\" (got \"",
-        m.volumetric, "\")");
+  check_choice(s, "simulation.mass", scene_rules::kMasses, m.mass);
+  if (!m.volumetric.empty()) check_choice(s, "simulation.volumetric", scene_rules::kVolumetric, m.volumetric);
   check_number(s, "simulation.node_reset", m.node_reset, scene_keys::kNodeReset);
-  check(s, m.node_reset == 0 || m.nodes_move(), "simulation.node_reset",
-        "lays the advected nodes out anew: it needs simulation.mode = \"ul\"");
+  enforce(s, scene_rules::node_reset(m.node_reset, m.nodes_move()), "simulation.node_reset");
   // A node reset moves the lattice lines along an axis with the boundaries that fix it: one velocity per axis.
   for (std::size_t k = 0; k < static_cast<std::size_t>(m.dimension) && m.node_reset > 0; ++k)
     for (const BoundarySection& a : s.boundaries)
@@ -133,13 +136,10 @@ void check_simulation(const Scene& s, int dim) {
 
 void check_grid(const Scene& s, int dim) {
   const GridSection& g = s.grid;
-  check(s, one_of(g.kind, {"cartesian", "perturbed"}), "grid.kind", "must be \"cartesian\" or \"perturbed\" (got \"",
-        g.kind, "\")");
+  check_choice(s, "grid.kind", scene_rules::kGridKinds, g.kind);
   check_box(s, "grid", g.lower, g.upper, dim, true);
-  for (int k = 0; k < dim; ++k) {
-    check(s, std::isfinite(g.upper[k] - g.lower[k]), "grid.upper", "upper - lower overflows on axis ", k);
-    check(s, g.cells[k] >= 1, "grid.cells", "axis ", k, ": must be >= 1 (got ", g.cells[k], ")");
-  }
+  enforce(s, scene_rules::extent(g.lower, g.upper, dim), "grid.upper");
+  enforce(s, scene_rules::cells(g.cells, dim), "grid.cells");
   if (g.kind == "perturbed") check_number(s, "grid.perturbation", g.perturbation, scene_keys::kPerturbation);
 }
 
@@ -167,7 +167,7 @@ void check_basis(const Scene& s) {
 }
 
 void check_materials(const Scene& s) {
-  check(s, !s.materials.empty(), "material", "at least one [[material]] is required");
+  check(s, !s.materials.empty(), "material", scene_rules::kNoMaterial);
   std::set<std::string> names;
   for (std::size_t i = 0; i < s.materials.size(); ++i) {
     const MaterialSection& ms = s.materials[i];
@@ -184,37 +184,33 @@ void check_materials(const Scene& s) {
 /// The shape of a body: known, with the values it needs (its bounds are
 /// lower/upper for every shape).
 void check_shape(const Scene& s, const BodySection& b, const std::string& key, int dim) {
-  check(s, one_of(b.shape, {"box", "sphere", "cylinder", "polygon", "file", "stl", "mesh"}), key + ".shape",
-        "must be one of \"box\", \"sphere\", \"cylinder\", \"polygon\", \"file\", \"stl\", \"mesh\" (got \"", b.shape,
-        "\")");
+  check_choice(s, key + ".shape", scene_rules::kShapes, b.shape);
   check_box(s, key, b.lower, b.upper, dim, true);
   if (b.shape == "sphere" || b.shape == "cylinder") {
     check_finite(s, key + ".center", b.center, dim);
-    check(s, finite_positive(b.radius), key + ".radius", "must be finite and > 0 (got ", b.radius, ")");
+    enforce(s, scene_rules::size(b.radius), key + ".radius");
   }
   if (b.shape == "cylinder") {
-    check(s, dim == 3, key + ".shape", "\"cylinder\" is three-dimensional");
+    enforce(s, scene_rules::cylinder_dimension(dim), key + ".shape");
     check_finite(s, key + ".axis", b.axis, dim);
-    check(s, is_direction<3>(first_components(b.axis, dim)), key + ".axis", "must not be zero");
-    check(s, finite_positive(b.length), key + ".length", "must be finite and > 0 (got ", b.length, ")");
+    enforce(s, scene_rules::cylinder_axis(b.axis, dim), key + ".axis");
+    enforce(s, scene_rules::size(b.length), key + ".length");
   }
   if (b.shape == "polygon") {
-    check(s, dim == 2, key + ".shape", "\"polygon\" is two-dimensional");
-    check(s, b.vertices.size() >= 3, key + ".vertices", "needs at least 3 vertices (got ", b.vertices.size(), ")");
+    enforce(s, scene_rules::polygon_dimension(dim), key + ".shape");
+    enforce(s, scene_rules::vertex_count(b.vertices.size()), key + ".vertices");
   }
   if (b.shape == "file") {
-    check(s, !b.file.empty(), key + ".file", "must name a particle file");
+    enforce(s, scene_rules::file_name(b.file), key + ".file");
     check(s, b.file.find('\0') == std::string::npos, key + ".file", "must not contain NUL (code 0)");
   }
   if (b.shape == "stl" || b.shape == "mesh") {
-    check(s, !b.file.empty(), key + ".file", "must name a geometry file");
+    enforce(s, scene_rules::file_name(b.file), key + ".file");
     check(s, b.file.find('\0') == std::string::npos, key + ".file", "must not contain NUL (code 0)");
     check(s, b.shape == "mesh" ? dim >= 2 : dim == 3, key + ".shape", "\"", b.shape, "\" needs dimension ",
           b.shape == "mesh" ? "2 or 3" : "3");
-    check(s, one_of(b.seeding, {"element", "quadrature"}), key + ".seeding",
-          "must be \"element\" or \"quadrature\" (got \"", b.seeding, "\")");
-    check(s, one_of(b.nodes, {"lattice", "mesh"}), key + ".nodes", "must be \"lattice\" or \"mesh\" (got \"",
-          b.nodes, "\")");
+    check_choice(s, key + ".seeding", scene_rules::kSeedings, b.seeding);
+    check_choice(s, key + ".nodes", scene_rules::kNodeSources, b.nodes);
     for (int k = 0; k < 3; ++k)
       check(s, finite_positive(b.scale[static_cast<std::size_t>(k)]) && std::isfinite(b.rotate[static_cast<std::size_t>(k)]) &&
                    std::isfinite(b.translate[static_cast<std::size_t>(k)]),
@@ -366,8 +362,7 @@ void check_plates(const Scene& s, int dim) {
     const std::string key = element_key("plate", p.name, i);
     check_name(s, key, p.name, "plate", false, default_name("plate", i), names);
     check_box(s, key, p.lower, p.upper, dim, false);
-    check(s, p.axis >= 0 && p.axis < dim, key + ".axis", "must be an axis index in [0, ", dim, ") (got ", p.axis,
-          ")");
+    enforce(s, scene_rules::axis_index(p.axis, dim), key + ".axis");
     check_number(s, key + ".force", p.force, scene_keys::kPlateForce);
     check_time(s, key + ".time", p.time);
     check(s, saturated(s), key, "a rigid plate is available with saturated bodies only (a material with "
@@ -412,7 +407,7 @@ void check_loads(const Scene& s, int dim) {
     check_finite(s, key + ".point", w.point, dim);
     check_finite(s, key + ".normal", w.normal, dim);
     check_finite(s, key + ".velocity", w.velocity, dim);
-    check(s, is_direction<3>(first_components(w.normal, dim)), key + ".normal", "must not be zero");
+    enforce(s, scene_rules::wall_normal(w.normal, dim), key + ".normal");
     check_number(s, key + ".friction", w.friction, scene_keys::kFriction);
   }
   if (s.body_force) {
@@ -425,10 +420,8 @@ void check_loads(const Scene& s, int dim) {
     check_box(s, key, t.lower, t.upper, dim, false);
     check_finite(s, key + ".value", t.value, dim);
     check_time(s, key + ".time", t.time);
-    check(s, t.function.empty() || t.function == "wobbes_traction_bar", key + ".function",
-          "must be \"wobbes_traction_bar\" when set (got \"", t.function, "\")");
-    check(s, !t.axis || (*t.axis >= 0 && *t.axis < dim), key + ".axis", "must be an axis index in [0, ", dim,
-          ") (got ", t.axis.value_or(0), ")");
+    if (!t.function.empty()) check_choice(s, key + ".function", scene_rules::kTractionFunctions, t.function);
+    if (t.axis) enforce(s, scene_rules::axis_index(*t.axis, dim), key + ".axis");
   }
 }
 
@@ -440,12 +433,8 @@ void check_output_every(const Scene& s) {
   check(s, every == 0.0 || (finite_positive(every) && s.simulation.t_end / every <= kMaxOutputTimes), "output.every",
         "must be 0 or finite and > 0 with at most ", kMaxOutputTimes, " output times up to t_end (got ", every, ")");
   const std::vector<std::string_view> known = output_field_names(s);
-  for (const std::string& f : s.output.fields) {
-    check(s, std::find(known.begin(), known.end(), f) != known.end(), "output.fields", "unknown field \"", f, "\"");
-    check(s, f != kStressZzField || s.simulation.dimension == 2, "output.fields",
-          "\"stress_zz\" (plane strain's out-of-plane stress) needs simulation.dimension = 2 (got ",
-          s.simulation.dimension, ")");
-  }
+  for (std::size_t i = 0; i < s.output.fields.size(); ++i)
+    enforce(s, scene_rules::field(s.output.fields, i, known, s.simulation.dimension), "output.fields");
 }
 
 /// Each probe: a unique name the result file can hold (invalid_name_reason),
@@ -456,8 +445,7 @@ void check_probes(const Scene& s, int dim) {
     const ProbeSection& p = s.output.probes[i];
     const std::string key = element_key("output.probes", p.name, i);
     check_name(s, key, p.name, "probe", true, "", names);
-    check(s, one_of(p.particle, {"leftmost", "rightmost", "nearest"}), key + ".particle",
-          "must be one of \"leftmost\", \"rightmost\", \"nearest\" (got \"", p.particle, "\")");
+    check_choice(s, key + ".particle", scene_rules::kProbeParticles, p.particle);
     if (p.particle == "nearest") check_finite(s, key + ".at", p.at, dim);
   }
 }
@@ -465,27 +453,16 @@ void check_probes(const Scene& s, int dim) {
 /// output.file, fields, format and the checkpoint keys, as parse_scene reads them.
 void check_output(const Scene& s, int dim) {
   const OutputSection& o = s.output;
-  check(s, !o.file.empty(), "output.file", "must not be empty");
+  enforce(s, scene_rules::file_name(o.file), "output.file");
   check_output_every(s);
-  std::set<std::string> fields;
-  for (const std::string& f : o.fields)
-    check(s, fields.insert(f).second, "output.fields", "names \"", f, "\" twice");
   check_probes(s, dim);
-  check(s, o.checkpoint_every >= 0, "output.checkpoint_every", "must be >= 0 (got ", o.checkpoint_every, ")");
-  check(s, o.checkpoint_file != o.file, "output.checkpoint_file", "must differ from output.file");
-  std::set<std::string> formats;
-  for (const std::string& f : o.formats) {
-    check(s, is_output_format(f), "output.format", "unknown format \"", f, "\"");
-    check(s, formats.insert(f).second, "output.format", "names \"", f, "\" twice");
-  }
-  check(s, formats.count("hdf5") == 1, "output.format", "must contain \"hdf5\"");
-  check(s, !(formats.count("vtp") && formats.count("vtu")), "output.format", "choose one of \"vtp\" and \"vtu\"");
-  check(s, one_of(o.precision, {"double", "single"}), "output.precision",
-        "must be one of \"double\", \"single\" (got \"", o.precision, "\")");
-  check(s, o.compression >= 0 && o.compression <= 9, "output.compression", "must be an integer 0..9 (got ",
-        o.compression, ")");
+  enforce(s, scene_rules::checkpoint_every(o.checkpoint_every), "output.checkpoint_every");
+  enforce(s, scene_rules::checkpoint_file(o.checkpoint_file, o.file), "output.checkpoint_file");
+  enforce(s, scene_rules::formats(o.formats), "output.format");
+  check_choice(s, "output.precision", scene_rules::kPrecisions, o.precision);
+  enforce(s, scene_rules::compression(o.compression), "output.compression");
   // Frames a viewer can show: the XDMF sidecar and the VTK files place the particles at x.
-  const bool x = fields.count("x") > 0;
+  const bool x = std::count(o.fields.begin(), o.fields.end(), "x") > 0;
   check(s, x || o.fields.empty(), "output.fields",
         "must include \"x\": the XDMF sidecar and the VTK files place the particles at x, without which a viewer "
         "shows none of the other fields ([] writes frames without fields, for the histories only)");
@@ -524,28 +501,22 @@ void check_size(const Scene& s, int processes) {
 } // namespace
 
 void validate_bodies(const Scene& s, int dim) {
-  check(s, !s.bodies.empty(), "body", "at least one [[body]] is required");
+  check(s, !s.bodies.empty(), "body", scene_rules::kNoBody);
   check_mesh_nodes(s);
   std::set<std::string> names;
   for (std::size_t i = 0; i < s.bodies.size(); ++i) {
     const BodySection& b = s.bodies[i];
     const std::string key = element_key("body", b.name, i);
     check_name(s, key, b.name, "body", false, default_name("body", i), names);
-    const bool known = std::any_of(s.materials.begin(), s.materials.end(),
-                                   [&](const MaterialSection& m) { return m.name == b.material; });
-    check(s, known, key + ".material", "no [[material]] named \"", b.material, "\"");
+    enforce(s, scene_rules::material(s.materials, b.material), key + ".material");
     check_shape(s, b, key, dim);
-    check(s, b.particles_per_cell >= 1 && b.particles_per_cell <= kMaxParticlesPerCell, key + ".particles_per_cell",
-          "must be in [1, ", kMaxParticlesPerCell, "] (got ", b.particles_per_cell, ")");
-    check(s, one_of(b.overlap, {"error", "first"}), key + ".overlap", "must be \"error\" or \"first\" (got \"",
-          b.overlap, "\")");
-    check(s, one_of(b.volume, {"seeded", "exact"}), key + ".volume", "must be \"seeded\" or \"exact\" (got \"",
-          b.volume, "\")");
-    check(s, one_of(b.placement, {"gauss", "cell_centres"}), key + ".placement",
-          "must be \"gauss\" or \"cell_centres\" (got \"", b.placement, "\")");
+    enforce(s, scene_rules::particles_per_cell(b.particles_per_cell), key + ".particles_per_cell");
+    check_choice(s, key + ".overlap", scene_rules::kOverlaps, b.overlap);
+    check_choice(s, key + ".volume", scene_rules::kVolumes, b.volume);
+    check_choice(s, key + ".placement", scene_rules::kPlacements, b.placement);
     check_finite(s, key + ".velocity", b.velocity, dim);
-    check(s, !b.velocity_profile || one_of(*b.velocity_profile, {"sin_x", "reference"}), key + ".velocity_profile",
-          "must be \"sin_x\" or \"reference\" when set (got \"", b.velocity_profile.value_or(""), "\")");
+    if (b.velocity_profile)
+      check_choice(s, key + ".velocity_profile", scene_rules::kVelocityProfiles, *b.velocity_profile);
     check(s, b.velocity_profile.value_or("") != "reference" || !s.reference.solution.empty(), key + ".velocity_profile",
           "\"reference\" takes the initial velocity of the reference solution, but the scene has no reference.solution");
     if (!s.simulation.nodes_move()) check_body_in_grid(s, b, key, dim);

@@ -7,11 +7,12 @@
 /// gives an InputError naming the scene key ("FILE:LINE: key 'grid.cells': ..."
 /// when the scene came from a file, "key 'grid.cells': ..." otherwise) instead
 /// of undefined behaviour, a hang or a NaN in the first step.
-#include "otmpm/io/particle_file.hpp"
 #include "otmpm/parameters.hpp"
 #include "otmpm/scene/scene.hpp"
 
 namespace otmpm {
+
+struct ParticleFileRules; // io/particle_file.hpp
 
 /// The ranges of the scene's scalar keys (`key`: the key within its table;
 /// the defaults are the Scene's): one row per quantity, which the scene

@@ -1,6 +1,6 @@
 /// \file file_shapes.cpp
 /// Body shapes read from files (file_shapes.hpp).
-#include "otmpm/geometry/file_shapes.hpp"
+#include "otmpm/scene/file_shapes.hpp"
 
 #include "otmpm/io/gmsh.hpp"
 #include "otmpm/io/stl.hpp"
