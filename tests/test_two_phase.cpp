@@ -334,6 +334,12 @@ TEST_CASE("saturated scenes: bad keys are refused with the file, line and key") 
   CHECK(why.find("needs water_table") != std::string::npos);
   why = refused("particles_per_cell = 2\n", "particles_per_cell = 2\nwater_table = 1.0\n");
   CHECK(why.find("key 'body.column.water_table'") != std::string::npos);
+  why = refused("pore_pressure = 0.0", "pore_pressure = 0.0\nwater_rise = 1.0");
+  CHECK(why.find("key 'boundary.top.water_rise'") != std::string::npos);
+  CHECK(why.find("needs water_level") != std::string::npos);
+  why = refused("pore_pressure = 0.0", "pore_pressure = 0.0\ntime = { kind = \"ramp\", period = 1.0 }");
+  CHECK(why.find("boundary") != std::string::npos);
+  CHECK(why.find("time function of water_rise") != std::string::npos);
   const std::string gravity = good + "[body_force]\nvalue = [-9.81]\n";
   why = test::input_error_of([&] {
     std::string text = gravity;
@@ -617,7 +623,13 @@ TEST_CASE("a rising water level: the pore pressure follows it and its push's wor
   std::string text = still_scene(2, 1.5, *find_material_model("linear_elastic"));
   text.replace(text.find("permeability = 1e-10"), 20, "permeability = 1e-08");
   text.replace(text.find("water_level = 1.5"), 17, "water_level = 1.5\nwater_rise = 0.5\ntime = { kind = \"ramp\", period = 0.4 }");
-  Engine<2> e = assemble<2>(parse_scene(text, "rising.toml"));
+  const Scene scene = parse_scene(text, "rising.toml");
+  const Scene again = parse_scene(to_toml(scene), "again.toml"); // the scene's TOML keeps the rise
+  const BoundarySection& top = again.boundaries.back();
+  CHECK(top.water_rise == 0.5);
+  CHECK(top.time.kind == "ramp");
+  CHECK(top.time.period == 0.4);
+  Engine<2> e = assemble<2>(scene);
   const double rho_g = 1000.0 * 9.81, rise = 0.5 * rho_g;
   double worst = 0.0;
   for (const double t : {0.05, 0.1, 0.15, 0.2, 0.25}) {
