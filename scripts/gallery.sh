@@ -41,6 +41,7 @@ taylor_bar|--field plastic_strain --view xz
 terzaghi|--field pore_pressure --frame 4
 mandel|--field pore_pressure --frame 8
 dike|--field pore_pressure
+dike_rising|--field plastic_strain
 traction_bar|--field stress
 geometry/impactor|--field plastic_strain --view xz
 geometry/embankment|--field plastic_strain

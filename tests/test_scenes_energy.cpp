@@ -27,6 +27,8 @@ const std::map<std::string, Closure> kClosures{
     {"column_collapse_mu_i", {0.130, "the landing of the grains that left contact: the part of that impact W_i does not book (0.212 without W_i)"}},
     {"dike", {0.0549, "not yet accounted for (open): the geostatic initial stress's work sigma_0 : eps is booked "
                       "(0.131 before it was)"}},
+    {"dike_rising", {0.0848, "not yet accounted for (open), as dike's; W_ext 68.8 kJ went to the Darcy drag (55.6 kJ) "
+                             "and plastic flow (18.9 kJ) as the landward slope slid"}},
     {"disks", {0.0842, "the part of the disks' impact W_i does not book (0.106 without W_i)"}},
     {"dyka", {0.139, "npc's damping (molinos' first-order particle update)"}},
     {"dyka_2d", {0.139, "npc's damping"}},

@@ -261,7 +261,7 @@ std::optional<TwoPhaseParts<D>> build_two_phase(const Scene& scene, const NodeSe
   for (const BoundarySection& b : scene.boundaries)
     if (b.pore_pressure || b.water_level)
       parts.drains.push_back({boundary_entries<D>({b}, nodes.size(), position, h).node, b.pore_pressure.value_or(0.0),
-                              b.water_level, rho_w});
+                              b.water_level, rho_w, b.water_rise.value_or(0.0), b.time});
     else
       impermeable.push_back(b);
   parts.held = boundary_entries<D>(impermeable, nodes.size(), position, h);
@@ -281,11 +281,16 @@ std::optional<TwoPhaseParts<D>> build_two_phase(const Scene& scene, const NodeSe
 /// down, the total vertical stress is the free water's pressure above the
 /// column's top and the weight of the mixture above the particle; the
 /// effective stress is that plus the pore pressure, times k0 across.
-template <int D> void set_water_table(const Scene& scene, const Vec<D>& spacing, Particles<D>& P) {
+/// Returns each such particle with its initial effective stress (3x3, the
+/// out-of-plane components k0 times the vertical one too), for
+/// Material::start_from_stress.
+template <int D>
+std::vector<std::pair<int, Mat<3>>> set_water_table(const Scene& scene, const Vec<D>& spacing, Particles<D>& P) {
   const auto table = [&](int p) -> const BodySection& { return scene.bodies[static_cast<std::size_t>(P.body[p])]; };
+  std::vector<std::pair<int, Mat<3>>> initial;
   if (std::none_of(scene.bodies.begin(), scene.bodies.end(),
                    [](const BodySection& b) { return b.water_table.has_value(); }))
-    return;
+    return initial;
   const Vec<D> b = scene_vec<D>(scene.body_force->value); // along one axis (validate_scene)
   int axis = 0;
   for (int k = 0; k < D; ++k)
@@ -320,12 +325,15 @@ template <int D> void set_water_table(const Scene& scene, const Vec<D>& spacing,
       pore[p] = f.density * g * std::max(0.0, *table(p).water_table - zp);
       const double vertical = sv - rho * g * (z_up - zp) + pore[p];
       const double k0 = table(p).k0.value_or(ms.poisson / (1.0 - ms.poisson));
-      P.sigma[p] = k0 * vertical * Mat<D>::Identity();
-      P.sigma[p](axis, axis) = vertical;
-      if (out_of_plane) out_of_plane[p] = k0 * vertical;
+      Mat<3> sigma0 = k0 * vertical * Mat<3>::Identity();
+      sigma0(axis, axis) = vertical;
+      P.sigma[p] = sigma0.template topLeftCorner<D, D>();
+      if (out_of_plane) out_of_plane[p] = sigma0(2, 2);
+      initial.emplace_back(p, sigma0);
       sv -= rho * g * length(p), z_up -= length(p);
     }
   }
+  return initial;
 }
 
 /// The initial values of material state variables given by particle files.
@@ -462,8 +470,10 @@ EngineParts<D> assemble_parts(const Scene& scene,
                                 seeded.traction_area.size() == scene.tractions.size(),
                             "assemble_parts: a share of the particles needs its traction loads' surface particles");
   parts.loads.tractions = build_tractions<D>(scene, P, h, exact, seeded);
-  set_water_table<D>(scene, grid_spacing<D>(scene), P);
+  const auto geostatic = set_water_table<D>(scene, grid_spacing<D>(scene), P);
   allocate_fields(scene, parts, P);
+  for (const auto& [p, sigma0] : geostatic)
+    parts.materials[static_cast<std::size_t>(P.material[p])]->start_from_stress(P, p, sigma0);
   set_file_state<D>(scene, seeded, P);
   parts.two_phase = build_two_phase<D>(scene, parts.basis->nodes(), h, exact.get(), P);
   parts.settings = build_settings<D>(scene, integrator, h);

@@ -246,10 +246,11 @@ template <int D> void Engine<D>::step() {
   // body, where the one-sided rule would leave an O(dt) error in the balance.
   const double power = global_power(t_, momentum_);
   double work = 0.5 * dt_ * (external_power_ + power);
-  if (!loads_.tractions.empty()) { // the tractions' work on the loaded particles' motion
-    double traction = loads_.traction_work(t0, t_, P_, traction_start_);
-    if (dist_) dist_->sum({&traction, 1});
-    work += traction;
+  if (!loads_.tractions.empty()) { // the tractions' work on the loaded particles' motion, and what it cannot see
+    double traction[2] = {loads_.traction_work(t0, t_, P_, traction_start_), loads_.unresolved_work(t_, P_)};
+    if (dist_) dist_->sum(traction);
+    work += traction[0];
+    unresolved_work_ = traction[1];
   }
   if (TwoPhase<D>* liquid = settings_.two_phase.get()) work += liquid->take_boundary_work(); // the rigid plates, the free water
   energy_.external_work += work;

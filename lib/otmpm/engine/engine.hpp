@@ -482,6 +482,7 @@ private:
     double work = 0.0, friction = 0.0, impact = 0.0;
   } rank_reaction_;
   double boundary_kinetic_ = 0.0;
+  double unresolved_work_ = 0.0; ///< Loads::unresolved_work of the step (check_energy)
 };
 
 template <int D> Vec<D> Engine<D>::interpolate(int p, const AlignedVector<Vec<D>>& y) const {

@@ -3,6 +3,7 @@
 #include "otmpm/engine/loads.hpp"
 
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 namespace otmpm {
@@ -62,6 +63,16 @@ double Loads<D>::traction_work(double t0, double t1, const Particles<D>& P, cons
       work += load.area[i] * mean.dot(P.x[load.particle[i]] - x0[j]);
   }
   return work;
+}
+
+template <int D> double Loads<D>::unresolved_work(double t, const Particles<D>& P) const {
+  double work = 0.0;
+  for (const Traction<D>& load : tractions) {
+    const double traction = traction_at(load, t).template lpNorm<1>();
+    for (std::size_t i = 0; i < load.particle.size(); ++i)
+      work += traction * load.area[i] * P.x[load.particle[i]].template lpNorm<Eigen::Infinity>();
+  }
+  return std::numeric_limits<double>::epsilon() * work;
 }
 
 template <int D> void Loads<D>::check(int n) const {

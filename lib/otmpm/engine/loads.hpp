@@ -68,6 +68,12 @@ public:
   /// rule on the force, sum (f_p(t0) + f_p(t1)) / 2 . (x_p - x0) - exact for
   /// a constant or linearly varying load on the step's motion.
   double traction_work(double t0, double t1, const Particles<D>& P, const AlignedVector<Vec<D>>& x0) const;
+  /// What traction_work cannot see: the work of the tractions at t over
+  /// motions below the rounding of the loaded positions, sum |f_p|_1 eps
+  /// |x_p|_inf (eps the machine epsilon). A load that starts from nearly
+  /// 0 (a ramp) moves its particles by less than that in the first steps:
+  /// their kinetic energy, up to about this, appears with no work booked.
+  double unresolved_work(double t, const Particles<D>& P) const;
   /// std::invalid_argument naming the load unless every particle index is in
   /// [0, n) with a finite area >= 0, the values are finite and the axis is in [0, D).
   void check(int n) const;

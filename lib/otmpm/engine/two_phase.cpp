@@ -65,10 +65,11 @@ Relative relative(double Q, double ms, double mw, double dt, double Fm, double F
   return r;
 }
 
-/// The free water's pressure at x (Drain, eq. 15.11) under the body force b.
-template <int D> double water_pressure(const Drain& s, const Vec<D>& x, const Vec<D>& b) {
+/// The free water's pressure at x and time t (Drain, eq. 15.11) under the body force b.
+template <int D> double water_pressure(const Drain& s, const Vec<D>& x, const Vec<D>& b, double t) {
   if (!s.level) return s.pressure;
-  return s.pressure + s.density * std::max(0.0, b.norm() * *s.level + b.dot(x));
+  const double level = *s.level + (s.rise != 0.0 ? s.rise * time_function(s.time, t) : 0.0);
+  return s.pressure + s.density * std::max(0.0, b.norm() * level + b.dot(x));
 }
 
 /// The lattice cell of x as one number: the node number of its lower corner
@@ -138,9 +139,9 @@ TwoPhase<D>::TwoPhase(TwoPhaseParts<D> parts, Particles<D>& P, const Dirichlet<D
   for (std::size_t d = 0; d < parts_.drains.size(); ++d) {
     const Drain& s = parts_.drains[d];
     require<E>(std::isfinite(s.pressure) && std::isfinite(s.level.value_or(0.0)) && std::isfinite(s.density) &&
-                   s.density >= 0.0,
+                   s.density >= 0.0 && std::isfinite(s.rise),
                "TwoPhase: a drain with the pressure ", s.pressure, ", the level ", s.level.value_or(0.0),
-               " and the density ", s.density);
+               ", the rise ", s.rise, " and the density ", s.density);
     for (int I : s.node) {
       require<E>(I >= 0 && I < nodes, "TwoPhase: drained node ", I, " out of range [0, ", nodes, ")");
       drain_[static_cast<std::size_t>(I)] = static_cast<int>(d);
@@ -241,7 +242,7 @@ template <int D> double TwoPhase<D>::solve(Engine<D>& e, double t, double dt) {
     Vec<D> Fm = n.f[I] + fp_[I] + mw_[I] * b, Fw = fw_[I] + mw_[I] * b;
     if (drain_[I] >= 0) { // the free water's push (eq. 15.11)
       const Drain& drain = parts_.drains[static_cast<std::size_t>(drain_[I])];
-      const double pbar = water_pressure(drain, nodes.position(static_cast<int>(I)), b);
+      const double pbar = water_pressure(drain, nodes.position(static_cast<int>(I)), b, t);
       Fm -= pbar * g_[I], Fw -= pbar * gn_[I];
       pbar_[I] = pbar;
     }

@@ -54,8 +54,9 @@ struct Plate {
 /// A drained surface in contact with free water: the nodes of a
 /// `[[boundary]]` with `pore_pressure` or `water_level`. The free water's
 /// pressure at a node x_I is (docs/theory.md eq. 15.11)
-///   pbar(x) = pressure + density max(0, |b| level + b . x),
-/// `level` the water level's height along -b (b the uniform body force),
+///   pbar(x, t) = pressure + density max(0, |b| level(t) + b . x),
+/// level(t) = level + rise g(t) the water level's height along -b (b the
+/// uniform body force, g the time function `time`),
 /// and it pushes on the surface: -pbar G_I on the mixture, -pbar G_n,I on
 /// the liquid (G_I = sum_p V_p grad N_Ip, G_n,I with n_p V_p: the surface
 /// integrals of N_I n_s over the body's surface and its pores).
@@ -64,6 +65,8 @@ struct Drain {
   double pressure = 0.0;
   std::optional<double> level; ///< none: no hydrostatic part
   double density = 0.0;        ///< of the free water (the pore fluid's)
+  double rise = 0.0;           ///< of the level, times time(t)
+  TimeFunction time;
 };
 
 /// What the liquid phase of a run is built from.

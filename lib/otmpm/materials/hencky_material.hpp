@@ -87,6 +87,15 @@ public:
     }
   }
 
+  /// b_e = exp(2 e) with tau(e) = sigma0 at J = 1 (Hencky's law inverted),
+  /// the stored energy V0_p psi(b_e); no plastic strain.
+  void start_from_stress(Particles<D>& P, int p, const Mat<3>& sigma0) const override {
+    const plasticity::Mat3 be = plasticity::hencky_left_cauchy_green(model_.elastic(), sigma0);
+    double* b = P.find_state(kHenckyState[0].name)->row(p);
+    b[0] = be(0, 0), b[1] = be(1, 1), b[2] = be(2, 2), b[3] = be(0, 1), b[4] = be(1, 2), b[5] = be(0, 2);
+    P.find_state(kHenckyState[3].name)->row(p)[0] = P.V0[p] * plasticity::hencky_energy(model_.elastic(), be);
+  }
+
   /// The point update of each particle inlined (Model::update), sigma =
   /// tau / J with one division, the state read and written through the
   /// arrays' base pointers. In plane strain and in 3D a model with `lanes()`

@@ -265,6 +265,15 @@ Mat3 hencky_strain(const Mat3& be) {
   return point::spectral(s.Q, s.e);
 }
 
+Mat3 hencky_left_cauchy_green(const ElasticModuli& m, const Mat3& tau) {
+  Eigen::Vector3d t;
+  Mat3 Q;
+  symmetric_eigen(tau, t, Q);
+  const double mean = t.sum() / 3.0;
+  const Eigen::Vector3d e = (mean / (3.0 * m.bulk) + (t.array() - mean) / (2.0 * m.shear)).matrix();
+  return point::spectral(Q, (2.0 * e).array().exp().matrix());
+}
+
 #define OTMPM_INSTANTIATE(D)                                                                             \
   template PointUpdate j2_update<D>(const J2Parameters&, const Mat<D>&, double, HenckyState&);           \
   template PointUpdate drucker_prager_update<D>(const DruckerPrager&, const Mat<D>&, HenckyState&);

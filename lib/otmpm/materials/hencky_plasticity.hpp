@@ -186,6 +186,10 @@ double hencky_energy(const ElasticModuli& m, const Mat3& be);
 Mat3 hencky_kirchhoff(const ElasticModuli& m, const Mat3& be);
 /// Hencky strain e = 1/2 ln b_e (general 3x3 symmetric positive definite b_e).
 Mat3 hencky_strain(const Mat3& be);
+/// The inverse of hencky_kirchhoff: b_e = exp(2 e) with e = tr(tau) / (9 K) I
+/// + dev(tau) / (2 G), the elastic state whose Kirchhoff stress is tau
+/// (symmetric; a geostatic initial stress at F = I, where tau = sigma).
+Mat3 hencky_left_cauchy_green(const ElasticModuli& m, const Mat3& tau);
 
 /// Eigen-decomposition A = Q diag(w) Q^T of a symmetric 3x3 matrix by cyclic
 /// Jacobi rotations: Q orthonormal and w accurate to round-off relative to

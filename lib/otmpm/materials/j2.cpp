@@ -60,7 +60,7 @@ const MaterialModel& j2_model() {
   static const std::array<ParameterValue, 5> example{
       {{"density", 7833.0}, {"young", 200.0e9}, {"poisson", 0.3}, {"yield_stress", 5.0e7}, {"hardening_modulus", 1.0e9}}};
   static const MaterialModel m{"j2", "von Mises plasticity, linear isotropic / Johnson-Cook hardening, finite strain",
-                               kParameters, kHenckyState, make_j2<1>, make_j2<2>, make_j2<3>, example};
+                               kParameters, kHenckyState, make_j2<1>, make_j2<2>, make_j2<3>, example, true};
   return m;
 }
 

@@ -104,6 +104,16 @@ public:
   /// sets the initial state of the particles of this material. Called once,
   /// before the first step.
   virtual void bind(Particles<D>& P) { (void)P; }
+  /// A geostatic start (MaterialModel::takes_initial_stress): particle p, of
+  /// this material, starts at F_p = I under the Cauchy stress sigma0 (3x3:
+  /// with its out-of-plane components in 1D and 2D). The assembler has set
+  /// P.sigma[p] to it (and, in plane strain, the state "initial_stress_zz"
+  /// to sigma0_zz); a model whose stress follows from a state of its own
+  /// (b_e) sets that state here, with its stored energy. Called once, after
+  /// the state arrays are allocated and before bind.
+  virtual void start_from_stress(Particles<D>& P, int p, const Mat<3>& sigma0) const {
+    (void)P, (void)p, (void)sigma0;
+  }
   /// The constitutive update of particles p0 .. p1-1, all of this material:
   /// H[i] = dt L_p (or G_p - I) of particle p0 + i, dt the step. Updates F_p
   /// when P.F is allocated, eps_p, rho_p, V_p, sigma_p and the state. Throws
@@ -153,8 +163,9 @@ struct MaterialModel {
   /// model with (tests/test_contracts.cpp). A model with required
   /// parameters must give one.
   std::span<const ParameterValue> example{};
-  /// Its update adds a rate to sigma_p, so that a stress set on sigma_p
-  /// before the run (a geostatic initial stress) stays.
+  /// It takes a geostatic initial stress (`water_table`): its update adds
+  /// a rate to sigma_p, so that a stress set on sigma_p before the run stays,
+  /// or Material::start_from_stress sets the state the stress follows from.
   bool takes_initial_stress = false;
 };
 

@@ -593,6 +593,8 @@ void read_boundary_group(const TableReader& t, BoundarySection& b, const Scene& 
   }
 }
 
+TimeFunction read_time(const TableReader& parent);
+
 std::vector<BoundarySection> read_boundaries(const TableReader& root, const Scene& s) {
   const int dim = s.simulation.dimension;
   std::vector<BoundarySection> out;
@@ -600,8 +602,8 @@ std::vector<BoundarySection> read_boundaries(const TableReader& root, const Scen
   for (const TableReader& t : root.tables("boundary")) {
     const bool group = t.has("physical") || t.has("file");
     if (group) t.only({"name", "file", "physical", "scale", "rotate", "translate", "fix", "value", "pore_pressure",
-                     "water_level"});
-    else t.only({"name", "lower", "upper", "fix", "value", "pore_pressure", "water_level"});
+                     "water_level", "water_rise", "time"});
+    else t.only({"name", "lower", "upper", "fix", "value", "pore_pressure", "water_level", "water_rise", "time"});
     BoundarySection b;
     b.where = t.self();
     b.name = read_name(t, false, default_name("boundary", out.size()), names, "boundary");
@@ -618,6 +620,9 @@ std::vector<BoundarySection> read_boundaries(const TableReader& root, const Scen
     b.value = t.vec("value", dim).value_or(b.value);
     if (t.has("pore_pressure")) b.pore_pressure = number(t, scene_keys::kPorePressure);
     if (t.has("water_level")) b.water_level = number(t, scene_keys::kWaterLevel);
+    if (t.has("water_rise")) b.water_rise = number(t, scene_keys::kWaterRise);
+    check(!t.has("time") || t.has("water_rise"), t.ref("time"), "is the time function of water_rise, which is not set");
+    b.time = read_time(t);
     out.push_back(std::move(b));
   }
   return out;
@@ -640,8 +645,6 @@ std::vector<WallSection> read_walls(const TableReader& root, int dim) {
   }
   return out;
 }
-
-TimeFunction read_time(const TableReader& parent);
 
 std::vector<PlateSection> read_plates(const TableReader& root, int dim) {
   std::vector<PlateSection> out;

@@ -152,15 +152,18 @@ struct InitialVelocitySection {
 /// pore liquid too (an impermeable support) unless `pore_pressure` is given
 /// (a drained surface: the liquid passes at that pressure) or `water_level`
 /// (free water standing to that height against the body force: the pressure
-/// pore_pressure + rho_w |b| (water_level - z) where positive). On a free
-/// surface the free water also pushes on the body. Every other surface of a
-/// saturated body is impermeable (docs/theory.md sect. 15).
+/// pore_pressure + rho_w |b| (water_level - z) where positive), a level
+/// that rises by `water_rise` times the time function `time` (a river in
+/// flood: water_level + water_rise g(t)). On a free surface the free water
+/// also pushes on the body. Every other surface of a saturated body is
+/// impermeable (docs/theory.md sect. 15).
 struct BoundarySection {
   std::string name;
   Vec3 lower{0, 0, 0}, upper{0, 0, 0};
   std::array<bool, 3> fix{false, false, false};
   Vec3 value{0, 0, 0};
-  std::optional<double> pore_pressure, water_level;
+  std::optional<double> pore_pressure, water_level, water_rise;
+  TimeFunction time; ///< of water_rise
   SourceRef where{"", 0, "boundary"};
 };
 

@@ -155,6 +155,7 @@ toml::array boundaries(const std::vector<BoundarySection>& bs, int dim) {
     if (!b.name.empty()) t.insert("name", b.name); // else the reader's name, "boundary<index>"
     if (b.pore_pressure) t.insert("pore_pressure", *b.pore_pressure);
     if (b.water_level) t.insert("water_level", *b.water_level);
+    if (b.water_rise) t.insert("water_rise", *b.water_rise), t.insert("time", time_function(b.time));
     a.push_back(std::move(t));
   }
   return a;

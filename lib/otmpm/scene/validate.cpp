@@ -328,6 +328,11 @@ void check_saturated_boundary(const Scene& s, const BoundarySection& b, const st
     check(s, !saturated(s) || shared_fluid_density(s) > 0.0, key + ".water_level",
           "takes the free water's density from the pore fluid, but the saturated materials' fluid_density differ");
   }
+  if (b.water_rise) {
+    check_number(s, key + ".water_rise", *b.water_rise, scene_keys::kWaterRise);
+    check(s, b.water_level.has_value(), key + ".water_rise", "raises a water level, which needs water_level");
+    check_time(s, key + ".time", b.time);
+  }
   if (b.pore_pressure || b.water_level)
     check(s, saturated(s), key + (b.pore_pressure ? ".pore_pressure" : ".water_level"),
           "marks a drained surface of a saturated body, but no material has a pore fluid (porosity, "
@@ -349,8 +354,11 @@ void check_water_table(const Scene& s, const BodySection& b, const std::string& 
   check(s, pore_fluid(*m).has_value(), key + ".water_table", "needs a saturated material; \"", m->name,
         "\" has no pore fluid");
   const MaterialModel* model = find_material_model(m->model);
+  std::string takers;
+  for (const MaterialModel* t : material_models())
+    if (t->takes_initial_stress) takers += std::string(takers.empty() ? "" : ", ") + std::string(t->name);
   check(s, !model || model->takes_initial_stress, key + ".water_table", "sets the initial effective stress, which "
-        "model \"", m->model, "\" does not take (its stress follows its elastic strain); use linear_elastic");
+        "model \"", m->model, "\" does not take (its stress follows its elastic strain); use one of ", takers);
 }
 
 /// The rigid plates: named, boxes, an axis of the run, a finite force and its

@@ -42,6 +42,8 @@ inline constexpr ParameterSpec kPorePressure{"pore_pressure", "pore pressure of 
                                              -kUnbounded};
 inline constexpr ParameterSpec kWaterLevel{"water_level", "height of free water on a drained surface [m]",
                                            std::nullopt, -kUnbounded};
+inline constexpr ParameterSpec kWaterRise{"water_rise", "rise of a water level over its time function [m]",
+                                          std::nullopt, -kUnbounded};
 inline constexpr ParameterSpec kWaterTable{"water_table", "height of a saturated body's water table [m]",
                                            std::nullopt, -kUnbounded};
 inline constexpr ParameterSpec kK0{"k0", "lateral earth pressure coefficient at rest", std::nullopt, 0.0};
