@@ -180,6 +180,18 @@ std::optional<BodyForce<D>> build_body_force(const Scene& scene, std::shared_ptr
   return b;
 }
 
+} // namespace
+
+std::vector<BoundarySection> boundaries_at(const Scene& scene, double t) {
+  std::vector<BoundarySection> moved = scene.boundaries;
+  for (BoundarySection& b : moved)
+    for (std::size_t k = 0; k < 3; ++k)
+      if (b.fix[k]) b.lower[k] += b.value[k] * t, b.upper[k] += b.value[k] * t;
+  return moved;
+}
+
+namespace {
+
 /// The node reset of a `ul` scene: on the scene grid's lines (translated
 /// along an axis with the boundaries that fix it and move, validate_scene
 /// checks that they move alike), the scene's basis and boundary boxes on the
@@ -202,9 +214,7 @@ template <int D> NodeReset<D> node_reset(const Scene& scene) {
       input_error(scene.basis_where, e.what());
     }
     Scene moved = scene;
-    for (BoundarySection& b : moved.boundaries)
-      for (std::size_t k = 0; k < 3; ++k)
-        if (b.fix[k]) b.lower[k] += b.value[k] * t, b.upper[k] += b.value[k] * t;
+    moved.boundaries = boundaries_at(scene, t);
     part.dirichlet = build_dirichlet<D>(moved, part.basis->nodes(), grid.h().minCoeff());
     return part;
   };
