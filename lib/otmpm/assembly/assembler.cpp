@@ -198,7 +198,7 @@ namespace {
 /// new lattice, each box moved along its fixed axes with its nodes.
 template <int D> NodeReset<D> node_reset(const Scene& scene) {
   NodeReset<D> r;
-  r.below = scene.simulation.node_reset;
+  r.below = node_reset_fraction(scene);
   for (int k = 0; k < D; ++k) {
     r.lines.lower[k] = scene.grid.lower[k];
     r.lines.upper[k] = scene.grid.upper[k];
@@ -237,7 +237,7 @@ template <int D> StepSettings<D> build_settings(const Scene& scene, const Integr
   s.energy_limit = sim.energy_limit;
   s.volumetric = volumetric_treatment(scene) == "fbar" ? Volumetric::fbar : Volumetric::none;
   if (s.volumetric == Volumetric::fbar) s.patch_grid = node_grid<D>(scene);
-  if (sim.node_reset > 0) s.node_reset = node_reset<D>(scene);
+  if (node_reset_fraction(scene) > 0) s.node_reset = node_reset<D>(scene);
   return s;
 }
 

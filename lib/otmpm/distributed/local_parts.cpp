@@ -252,7 +252,7 @@ Dirichlet<D> checked_boundaries(const Scene& scene, const std::vector<BoundarySe
 /// the scene grid's lines), and the basis and the Dirichlet entries of the
 /// boundary boxes at time t on a rank's window of it.
 template <int D> void reset_hooks(const Scene& scene, const Comm& comm, typename Domain<D>::Setup& setup) {
-  if (!(scene.simulation.node_reset > 0)) return;
+  if (!(node_reset_fraction(scene) > 0)) return;
   setup.reset_lattice = [scene](const CartesianGrid<D>& grid) {
     return point_lattice<D>(scene, probe_basis<D>(scene, grid)->search_radius(), grid, true);
   };

@@ -99,11 +99,11 @@ void check_simulation(const Scene& s, int dim) {
         m.mass, "\")");
   check(s, m.volumetric.empty() || one_of(m.volumetric, {"none", "fbar"}), "simulation.volumetric", "must be \"none\" or \"fbar\" (got \"",
         m.volumetric, "\")");
-  check_number(s, "simulation.node_reset", m.node_reset, scene_keys::kNodeReset);
-  check(s, m.node_reset == 0 || m.nodes_move(), "simulation.node_reset",
+  if (m.node_reset) check_number(s, "simulation.node_reset", *m.node_reset, scene_keys::kNodeReset);
+  check(s, m.node_reset.value_or(0.0) == 0 || m.nodes_move(), "simulation.node_reset",
         "lays the advected nodes out anew: it needs simulation.mode = \"ul\"");
   // A node reset moves the lattice lines along an axis with the boundaries that fix it: one velocity per axis.
-  for (std::size_t k = 0; k < static_cast<std::size_t>(m.dimension) && m.node_reset > 0; ++k)
+  for (std::size_t k = 0; k < static_cast<std::size_t>(m.dimension) && node_reset_fraction(s) > 0; ++k)
     for (const BoundarySection& a : s.boundaries)
       for (const BoundarySection& b : s.boundaries)
         check(s, !(a.fix[k] && b.fix[k] && a.value[k] != b.value[k]), "simulation.node_reset", "boundaries '",
