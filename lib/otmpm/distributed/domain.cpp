@@ -92,11 +92,11 @@ template <int D> void Domain<D>::rebalance(Engine<D>& e) {
   shift_hints(e, -1); // local to the new window
 }
 
-template <int D> LatticePart<D> Domain<D>::lay_out(Engine<D>& e, const CartesianGrid<D>& grid, double t) {
+template <int D>
+LatticePart<D> Domain<D>::lay_out(Engine<D>& e, const CartesianGrid<D>& grid, double t, bool restart) {
   require<std::logic_error>(reset_lattice_ && reset_window_, "Domain::lay_out: this run cannot lay its nodes out anew");
   const Clock clock(stats_);
-  const bool same = grid.lower == lattice_.grid.lower && grid.upper == lattice_.grid.upper && grid.cells == lattice_.grid.cells;
-  if (!same) {
+  if (!restart) { // (even on the same lattice: the particles' cells are those of x now, their F-bar patches)
     lattice_ = reset_lattice_(grid);
     const Particles<D>& P = e.particles();
     std::vector<Index<D>> home(static_cast<std::size_t>(P.size()));

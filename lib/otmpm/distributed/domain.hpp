@@ -106,7 +106,7 @@ public:
   void defer(const LocalFailure& failure) override;
   void agree(const LocalFailure* failure) override;
   void check_support(const BasisTable<D>& table) const override;
-  LatticePart<D> lay_out(Engine<D>& e, const CartesianGrid<D>& grid, double t) override;
+  LatticePart<D> lay_out(Engine<D>& e, const CartesianGrid<D>& grid, double t, bool restart) override;
   int rank() const override { return comm_.rank(); }
   long long global_id(int p) const override { return gid_[static_cast<std::size_t>(p)]; }
   const std::vector<char>& owned_nodes() const override { return exchange_.owned(); }

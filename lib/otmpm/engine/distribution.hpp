@@ -108,10 +108,10 @@ public:
   /// in each cell (of x), send every particle to the owner of its cell (its
   /// home cell until the next reset) and rebuild the nodal exchange; returns
   /// the basis and the Dirichlet entries on this rank's window of the new
-  /// lattice. When `grid` is the lattice already (a restart from a
-  /// checkpoint written after a reset), the decomposition is kept and no
+  /// lattice. `restart`: the run restarts from a checkpoint written after
+  /// the reset, whose lattice and division the ranks hold already: no
   /// particle moves. Collective.
-  virtual LatticePart<D> lay_out(Engine<D>& e, const CartesianGrid<D>& grid, double t) = 0;
+  virtual LatticePart<D> lay_out(Engine<D>& e, const CartesianGrid<D>& grid, double t, bool restart) = 0;
   /// This process's rank.
   virtual int rank() const = 0;
   /// The global id of local particle p (its index in a serial run).

@@ -678,7 +678,8 @@ template <int D> void Engine<D>::reset_nodes(const CartesianGrid<D>* given) {
   }
   if (!given) lattice_time_ = t_;
   // distributed: the cells bisected afresh, the particles sent to their owners, this rank's window
-  LatticePart<D> part = dist_ ? dist_->lay_out(*this, grid, lattice_time_) : settings_.node_reset.lattice(grid, lattice_time_);
+  LatticePart<D> part = dist_ ? dist_->lay_out(*this, grid, lattice_time_, given != nullptr)
+                              : settings_.node_reset.lattice(grid, lattice_time_);
   const AlignedVector<Vec<D>> wall_impulse = constraints_.wall_impulse(); // the walls keep their impulse
   basis_ = std::move(part.basis);
   const int nodes = basis_->nodes().size();

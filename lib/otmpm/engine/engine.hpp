@@ -400,10 +400,8 @@ private:
   /// The F-bar patch of each particle (volumetric.hpp), from the positions of
   /// the basis evaluation (`mpm`) or, once, of the lattice's layout (`ul`).
   void assign_patches();
-  /// The node spacing of the CFL rule (NodeMode::cfl_spacing; the ranks' smallest).
-  double cfl_spacing() const;
-  /// True when the nodes are to be laid out anew before this step (NodeReset; the same on every rank).
-  bool reset_due() const;
+  double cfl_spacing() const; ///< the CFL rule's node spacing (NodeMode::cfl_spacing; the ranks' smallest)
+  bool reset_due() const; ///< the nodes are to be laid out anew before this step (NodeReset; on every rank)
   /// Lays the nodes out anew on the scene grid's lattice over the particles
   /// (NodeReset), or on `grid` when given (a restart).
   void reset_nodes(const CartesianGrid<D>* grid = nullptr);
