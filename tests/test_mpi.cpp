@@ -853,10 +853,12 @@ std::string reset_block(bool squeeze) {
          "[[material]]\nname = \"m\"\nmodel = \"j2\"\ndensity = 1000.0\nyoung = 1.0e7\npoisson = 0.3\n"
          "yield_stress = 1.0e5\nhardening_modulus = 1.0e5\n"
          "[[body]]\nname = \"b\"\nmaterial = \"m\"\nlower = [0.0, 0.05]\nupper = [0.4, 0.25]\n" +
-         (squeeze ? "" : "velocity = [0.0, -60.0]\n") + "[[wall]]\nname = \"floor\"\npoint = [0.0, 0.05]\nnormal = [0.0, 1.0]\n" +
+         (squeeze ? "" : "velocity = [0.0, -60.0]\n") +
+         "[[wall]]\nname = \"floor\"\npoint = [0.0, 0.05]\nnormal = [0.0, 1.0]\n" +
          (squeeze ? "velocity = [0.0, 5.0]\n" : "") +
          "[[boundary]]\nname = \"symmetry\"\nlower = [0.0, 0.0]\nupper = [0.0, 0.3]\nfix = [true, false]\n" +
-         (squeeze ? "[[boundary]]\nname = \"platen\"\nlower = [-0.2, 0.25]\nupper = [0.6, 0.25]\nfix = [false, true]\n"
+         (squeeze ? "[[boundary]]\nname = \"platen\"\nlower = [-0.2, 0.25]\nupper = [0.6, 0.25]\nfix = "
+                    "[false, true]\n"
                     "value = [0.0, -5.0]\n"
                   : "") +
          "[output]\nevery = 5.0e-4\nfields = [\"x\", \"v\", \"stress\"]\ncheckpoint_every = 30\n";
@@ -873,13 +875,18 @@ double checkpoint_resets(const std::string& path) {
 
 } // namespace
 
-TEST_CASE("mpi: ul node reset under mpirun: the ranks lay the nodes out anew together, agree with the serial run, "
-          "and restart bit for bit on as many ranks") {
+TEST_CASE(
+    "mpi: ul node reset under mpirun: the ranks lay the nodes out anew together, agree with the serial run, "
+    "and restart bit for bit on as many ranks") {
   TempDir scenes("mpi_reset_scenes");
   for (const bool squeeze : {false, true}) {
     CAPTURE(squeeze);
     const Case c{squeeze ? "reset_squeeze" : "reset_impact",
-                 write_scene(scenes, squeeze ? "squeeze" : "impact", reset_block(squeeze)), {}, false, 0.0, {},
+                 write_scene(scenes, squeeze ? "squeeze" : "impact", reset_block(squeeze)),
+                 {},
+                 false,
+                 0.0,
+                 {},
                  kPlasticAgreement};
     TempDir dir(std::string("mpi_") + c.name);
     const Result serial = run_otmpm(dir, 0, arguments(c, "serial.h5"));
@@ -901,8 +908,8 @@ TEST_CASE("mpi: ul node reset under mpirun: the ranks lay the nodes out anew tog
                                history(dir.file(np + ".h5"), "walls", "floor", "impulse")) <= c.agreement);
       // the reset lattice, its decomposition and windows are in the checkpoint: the same bits
       fs::copy_file(dir.file(np + ".h5"), dir.file("full.h5"), fs::copy_options::overwrite_existing);
-      const Result re = run_otmpm(dir, n, {"run", "--restart", np + ".checkpoint.h5", "--out", "re.h5", "--quiet",
-                                           "--force"});
+      const Result re = run_otmpm(
+          dir, n, {"run", "--restart", np + ".checkpoint.h5", "--out", "re.h5", "--quiet", "--force"});
       REQUIRE_MESSAGE(re.status == 0, re.err);
       CHECK(same_bits(dir.file("full.h5"), dir.file("re.h5")));
     }
@@ -913,9 +920,11 @@ TEST_CASE("mpi: ul node reset under mpirun: the ranks lay the nodes out anew tog
   const Case c{"reset_refused", write_scene(scenes, "refused", reset_block(false)), {}};
   REQUIRE(run_otmpm(dir, 2, arguments(c, "np2.h5")).status == 0);
   REQUIRE(run_otmpm(dir, 0, arguments(c, "serial.h5")).status == 0);
-  for (const auto& [ranks, file] : std::vector<std::pair<int, std::string>>{{3, "np2"}, {0, "np2"}, {2, "serial"}}) {
+  for (const auto& [ranks, file] :
+       std::vector<std::pair<int, std::string>>{{3, "np2"}, {0, "np2"}, {2, "serial"}}) {
     CAPTURE(ranks);
-    const Result r = run_otmpm(dir, ranks, {"run", "--restart", file + ".checkpoint.h5", "--out", "x.h5", "--quiet"});
+    const Result r =
+        run_otmpm(dir, ranks, {"run", "--restart", file + ".checkpoint.h5", "--out", "x.h5", "--quiet"});
     CHECK(r.status == 2);
     CHECK(r.err.find("node_reset") != std::string::npos);
     CHECK(r.err.find(file == "np2" ? "mpirun -np 2" : "without mpirun") != std::string::npos);

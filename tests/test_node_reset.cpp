@@ -215,7 +215,8 @@ TEST_CASE("node reset: refused in mpm mode, out of its range (0 to 1) and with b
   CHECK_THROWS_WITH_AS(assemble<2>(s), doctest::Contains("different velocities"), InputError);
 }
 
-TEST_CASE("node reset by default: 0.7 in ul on a node lattice, none where the lattice cannot follow the boundaries") {
+TEST_CASE("node reset by default: 0.7 in ul on a node lattice, none where the lattice cannot follow the "
+          "boundaries") {
   Scene s = impact({});
   s.simulation.node_reset.reset(); // the scene gives none
   CHECK(node_reset_fraction(s) == 0.7);

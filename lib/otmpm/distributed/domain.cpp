@@ -11,10 +11,11 @@ namespace otmpm::distributed {
 template <int D>
 Domain<D>::Domain(const Comm& comm, Setup s)
     : comm_(comm), lattice_(std::move(s.lattice)), decomposition_(std::move(s.decomposition)),
-      exchange_(lattice_, decomposition_, comm.rank()), nodes_move_(s.nodes_move), gid_(std::move(s.global_ids)),
-      global_particles_(s.global_particles), hint_offset_(s.hint_offset), traction_area_(std::move(s.traction_area)),
-      window_basis_(std::move(s.window_basis)), window_dirichlet_(std::move(s.window_dirichlet)),
-      reset_lattice_(std::move(s.reset_lattice)), reset_window_(std::move(s.reset_window)) {
+      exchange_(lattice_, decomposition_, comm.rank()), nodes_move_(s.nodes_move),
+      gid_(std::move(s.global_ids)), global_particles_(s.global_particles), hint_offset_(s.hint_offset),
+      traction_area_(std::move(s.traction_area)), window_basis_(std::move(s.window_basis)),
+      window_dirichlet_(std::move(s.window_dirichlet)), reset_lattice_(std::move(s.reset_lattice)),
+      reset_window_(std::move(s.reset_window)) {
   stats_.setup_particles = s.setup_particles;
   stats_.setup_points = s.setup_points;
   stats_.steps = s.steps;
@@ -94,7 +95,8 @@ template <int D> void Domain<D>::rebalance(Engine<D>& e) {
 
 template <int D>
 LatticePart<D> Domain<D>::lay_out(Engine<D>& e, const CartesianGrid<D>& grid, double t, bool restart) {
-  require<std::logic_error>(reset_lattice_ && reset_window_, "Domain::lay_out: this run cannot lay its nodes out anew");
+  require<std::logic_error>(reset_lattice_ && reset_window_,
+                            "Domain::lay_out: this run cannot lay its nodes out anew");
   const Clock clock(stats_);
   if (!restart) { // (even on the same lattice: the particles' cells are those of x now, their F-bar patches)
     lattice_ = reset_lattice_(grid);

@@ -177,7 +177,8 @@ private:
   std::function<std::unique_ptr<Basis<D>>(const Window<D>&, Index<D>&)> window_basis_;
   std::function<Dirichlet<D>(const Window<D>&, const Basis<D>&)> window_dirichlet_;
   std::function<PointLattice<D>(const CartesianGrid<D>&)> reset_lattice_;
-  std::function<LatticePart<D>(const PointLattice<D>&, const IndexBox<D>&, const Window<D>&, double, Index<D>&)>
+  std::function<LatticePart<D>(const PointLattice<D>&, const IndexBox<D>&, const Window<D>&, double,
+                               Index<D>&)>
       reset_window_;
   DomainStats stats_;
 };

@@ -233,9 +233,9 @@ Dirichlet<D> window_boundaries(const std::vector<BoundarySection>& boundaries, c
 /// `L`, checked: each box must select a node of the whole lattice (the
 /// points each rank owns, counted over the ranks; collective).
 template <int D>
-Dirichlet<D> checked_boundaries(const Scene& scene, const std::vector<BoundarySection>& boundaries, const Comm& comm,
-                                const PointLattice<D>& L, const IndexBox<D>& cells, bool from_basis,
-                                const Window<D>& w, const Basis<D>& basis) {
+Dirichlet<D> checked_boundaries(const Scene& scene, const std::vector<BoundarySection>& boundaries,
+                                const Comm& comm, const PointLattice<D>& L, const IndexBox<D>& cells,
+                                bool from_basis, const Window<D>& w, const Basis<D>& basis) {
   const IndexBox<D> own = L.owned_points(cells);
   std::vector<char> owned(static_cast<std::size_t>(w.size()));
   for (int i = 0; i < w.size(); ++i) owned[static_cast<std::size_t>(i)] = own.contains(w.index(i)) ? 1 : 0;
@@ -261,7 +261,8 @@ template <int D> void reset_hooks(const Scene& scene, const Comm& comm, typename
     LatticePart<D> part;
     part.basis = window_basis_factory<D>(scene, L, true)(w, hint_offset);
     const bool from_basis = static_cast<bool>(basis_kind(scene.basis.kind).window<D>());
-    part.dirichlet = checked_boundaries<D>(scene, boundaries_at(scene, t), comm, L, cells, from_basis, w, *part.basis);
+    part.dirichlet =
+        checked_boundaries<D>(scene, boundaries_at(scene, t), comm, L, cells, from_basis, w, *part.basis);
     return part;
   };
 }
@@ -529,7 +530,8 @@ EngineParts<D> restart_parts(const Scene& scene, const Comm& comm, const Checkpo
   reset_hooks<D>(scene, comm, setup);
   // after a node reset: its lattice, divided as its run divided it
   const std::optional<ResetLattice<D>> reset = reset_lattice_of<D>(ck);
-  if (reset && !setup.reset_lattice) ck.group("nodes").error("nodes laid out anew, but this run cannot lay them out");
+  if (reset && !setup.reset_lattice)
+    ck.group("nodes").error("nodes laid out anew, but this run cannot lay them out");
   const CartesianGrid<D> grid = reset ? reset->grid : node_grid<D>(scene);
   const long long n = checkpoint_rows(ck, RowKind::particle);
   rows = checkpoint_head(ck);
@@ -573,10 +575,11 @@ template <int D> void require_reset_ranks(const Checkpoint& ck, int ranks) {
   const auto it = ck.groups.find("decomposition");
   const long long written = it == ck.groups.end() ? 1 : it->second.integer("ranks");
   if (written == ranks) return;
-  ck.group("nodes").error("its run laid the nodes out anew (simulation.node_reset) on " + std::to_string(written) +
-                          (written == 1 ? " process" : " ranks") + "; it restarts on as many (" +
-                          (written == 1 ? std::string("without mpirun") : "mpirun -np " + std::to_string(written)) +
-                          "): its ranks' particles and F-bar patches follow that run's lattice");
+  ck.group("nodes").error(
+      "its run laid the nodes out anew (simulation.node_reset) on " + std::to_string(written) +
+      (written == 1 ? " process" : " ranks") + "; it restarts on as many (" +
+      (written == 1 ? std::string("without mpirun") : "mpirun -np " + std::to_string(written)) +
+      "): its ranks' particles and F-bar patches follow that run's lattice");
 }
 
 #define OTMPM_INSTANTIATE(D)                                                                                      \

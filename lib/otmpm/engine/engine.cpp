@@ -135,9 +135,10 @@ Engine<D>::Engine(EngineParts<D> parts)
   if (needs_F && P_.F.empty()) P_.F.assign(static_cast<std::size_t>(P_.size()), Mat<D>::Identity());
   for (const auto& m : materials_) m->bind(P_);
   if (mode_.nodes_move() && basis_->search_radius() > 0.0) follow_body(P_.X);
-  require<InputError>(!(settings_.node_reset.below > 0.0 && (!mode_.nodes_move() || !settings_.node_reset.lattice)),
-                      "simulation.node_reset: the nodes are laid out anew only in ul mode, with the lattice's builder "
-                      "(NodeReset::lattice)");
+  require<InputError>(
+      !(settings_.node_reset.below > 0.0 && (!mode_.nodes_move() || !settings_.node_reset.lattice)),
+      "simulation.node_reset: the nodes are laid out anew only in ul mode, with the lattice's builder "
+      "(NodeReset::lattice)");
   basis_->bind_points(P_.size(), mode_.nodes_move());
   nodal_.resize(field_nodes);
   node_spacing0_ = basis_->nodes().min_spacing();

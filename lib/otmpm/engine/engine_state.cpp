@@ -128,7 +128,8 @@ template <int D> void Engine<D>::restore_state(const Checkpoint& in) {
     throw InputError(in.file + ": checkpoint of a " + std::to_string(in.dimension) + "D run, the scene is " +
                      std::to_string(D) + "D");
   const StateGroup& nodes = in.group("nodes");
-  if (const std::optional<ResetLattice<D>> reset = reset_lattice_of<D>(in)) { // the lattice of the last node reset, then its positions
+  // the lattice of the last node reset, then its positions
+  if (const std::optional<ResetLattice<D>> reset = reset_lattice_of<D>(in)) {
     if (!settings_.node_reset.lattice) nodes.error("nodes laid out anew, but this run cannot lay them out");
     lattice_time_ = reset->time;
     reset_nodes(&reset->grid);
