@@ -184,7 +184,7 @@ TEST_CASE("each scalar scene key is checked by its row, by the reader and by val
       {"simulation.energy_limit", &kEnergyLimit, [](Scene& s) { return &s.simulation.energy_limit; }},
       {"simulation.max_steps", &kMaxSteps, [](Scene& s) { return &s.simulation.max_steps; }},
       {"simulation.memory_limit", &kMemoryLimit, [](Scene& s) { return &s.simulation.memory_limit; }},
-      {"simulation.node_reset", &kNodeReset, [](Scene& s) { return &s.simulation.node_reset; }},
+      {"simulation.node_reset", &kNodeReset, [](Scene& s) { return &s.simulation.node_reset.emplace(); }},
       {"grid.perturbation", &kPerturbation, [](Scene& s) { return &s.grid.perturbation; }},
       {"wall.w.friction", &kFriction, [](Scene& s) { return &s.walls[0].friction; }},
       {"contact.friction", &kFriction, [](Scene& s) { return &s.contact->friction; }},

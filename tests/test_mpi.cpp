@@ -8,7 +8,8 @@
 // unstable scene end every rank with exit status 2 and 1 and one message; a
 // j2 strip (plastic state) and a block sliding on a wall (its force summed
 // over the ranks) agree with the serial run and restart on another rank count;
-// each rank seeds only the particles of its own cells.
+// each rank seeds only the particles of its own cells; ul node resets are
+// made by all ranks together and restart bit for bit on as many ranks.
 #include "h5_support.hpp"
 #include "mpi_support.hpp"
 #include "otmpm/io/hdf5.hpp"
@@ -835,6 +836,99 @@ TEST_CASE("mpi: a block sliding on a wall agrees with the serial run, the wall f
   restart_on_three(dir, {"wall_restart", scene, {"output.checkpoint_every=100"}}, {"x", "v", "stress"});
   CHECK(history_difference(history(dir.file("full.h5"), "walls", "floor", "impulse"),
                            history(dir.file("np3.h5"), "walls", "floor", "impulse")) <= kAgreement);
+}
+
+namespace {
+
+/// A j2 block (0.4 x 0.2 m, 128 particles) at 60 m/s onto a rigid wall in
+/// `ul` mode with node_reset = 0.5 (its bottom cells flatten and the nodes
+/// are laid out anew 5 times in 40 steps), a symmetry plane at x = 0; with
+/// `squeeze` the block starts at rest between the wall moving up at 5 m/s
+/// and a platen (a boundary box) moving down at 5 m/s (node_reset 0.7: a
+/// reset by step 60 of 73, the lattice's lines moving with the platen).
+std::string reset_block(bool squeeze) {
+  return std::string("[simulation]\ndimension = 2\nmode = \"ul\"\nintegrator = \"npc\"\ncfl = 0.3\n") +
+         (squeeze ? "t_end = 8.0e-3\nnode_reset = 0.7\n" : "t_end = 4.0e-3\nnode_reset = 0.5\n") +
+         "[basis]\nkind = \"linear\"\n[grid]\nlower = [-0.2, 0.0]\nupper = [0.6, 0.3]\ncells = [16, 6]\n"
+         "[[material]]\nname = \"m\"\nmodel = \"j2\"\ndensity = 1000.0\nyoung = 1.0e7\npoisson = 0.3\n"
+         "yield_stress = 1.0e5\nhardening_modulus = 1.0e5\n"
+         "[[body]]\nname = \"b\"\nmaterial = \"m\"\nlower = [0.0, 0.05]\nupper = [0.4, 0.25]\n" +
+         (squeeze ? "" : "velocity = [0.0, -60.0]\n") +
+         "[[wall]]\nname = \"floor\"\npoint = [0.0, 0.05]\nnormal = [0.0, 1.0]\n" +
+         (squeeze ? "velocity = [0.0, 5.0]\n" : "") +
+         "[[boundary]]\nname = \"symmetry\"\nlower = [0.0, 0.0]\nupper = [0.0, 0.3]\nfix = [true, false]\n" +
+         (squeeze ? "[[boundary]]\nname = \"platen\"\nlower = [-0.2, 0.25]\nupper = [0.6, 0.25]\nfix = "
+                    "[false, true]\n"
+                    "value = [0.0, -5.0]\n"
+                  : "") +
+         "[output]\nevery = 5.0e-4\nfields = [\"x\", \"v\", \"stress\"]\ncheckpoint_every = 30\n";
+}
+
+/// The node resets a checkpoint file's run made (its nodes/resets; 0 when none).
+double checkpoint_resets(const std::string& path) {
+  const hid_t id = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  REQUIRE(id >= 0);
+  const h5::Handle file(id, H5Fclose);
+  const h5::Handle nodes = h5::open_group(file.get(), "nodes", path);
+  return H5Aexists(nodes.get(), "resets") > 0 ? h5::read_double(nodes.get(), "resets", path) : 0.0;
+}
+
+} // namespace
+
+TEST_CASE(
+    "mpi: ul node reset under mpirun: the ranks lay the nodes out anew together, agree with the serial run, "
+    "and restart bit for bit on as many ranks") {
+  TempDir scenes("mpi_reset_scenes");
+  for (const bool squeeze : {false, true}) {
+    CAPTURE(squeeze);
+    const Case c{squeeze ? "reset_squeeze" : "reset_impact",
+                 write_scene(scenes, squeeze ? "squeeze" : "impact", reset_block(squeeze)),
+                 {},
+                 false,
+                 0.0,
+                 {},
+                 kPlasticAgreement};
+    TempDir dir(std::string("mpi_") + c.name);
+    const Result serial = run_otmpm(dir, 0, arguments(c, "serial.h5"));
+    REQUIRE_MESSAGE(serial.status == 0, serial.err);
+    for (int n : {2, 3, 4}) {
+      CAPTURE(n);
+      const std::string np = "np" + std::to_string(n);
+      const Result r = run_otmpm(dir, n, arguments(c, np + ".h5"));
+      REQUIRE_MESSAGE(r.status == 0, r.err);
+      // the last checkpoint follows the resets (impact: 2 by step 30; squeeze: 1 by step 60), which every
+      // rank made at the same step
+      CHECK(checkpoint_resets(dir.file(np + ".checkpoint.h5")) >= (squeeze ? 1 : 2));
+      const auto d = differences(dir.file("serial.h5"), dir.file(np + ".h5"));
+      for (const std::string field : {"x", "v", "stress"}) {
+        CAPTURE(field);
+        CHECK(d.at(field) <= c.agreement);
+      }
+      CHECK(history_difference(history(dir.file("serial.h5"), "walls", "floor", "impulse"),
+                               history(dir.file(np + ".h5"), "walls", "floor", "impulse")) <= c.agreement);
+      // the reset lattice, its decomposition and windows are in the checkpoint: the same bits
+      fs::copy_file(dir.file(np + ".h5"), dir.file("full.h5"), fs::copy_options::overwrite_existing);
+      const Result re = run_otmpm(
+          dir, n, {"run", "--restart", np + ".checkpoint.h5", "--out", "re.h5", "--quiet", "--force"});
+      REQUIRE_MESSAGE(re.status == 0, re.err);
+      CHECK(same_bits(dir.file("full.h5"), dir.file("re.h5")));
+    }
+  }
+  // On another rank count (or without mpirun) the particles would not be
+  // where the checkpoint's lattice put them: refused, naming the count.
+  TempDir dir("mpi_reset_refused");
+  const Case c{"reset_refused", write_scene(scenes, "refused", reset_block(false)), {}};
+  REQUIRE(run_otmpm(dir, 2, arguments(c, "np2.h5")).status == 0);
+  REQUIRE(run_otmpm(dir, 0, arguments(c, "serial.h5")).status == 0);
+  for (const auto& [ranks, file] :
+       std::vector<std::pair<int, std::string>>{{3, "np2"}, {0, "np2"}, {2, "serial"}}) {
+    CAPTURE(ranks);
+    const Result r =
+        run_otmpm(dir, ranks, {"run", "--restart", file + ".checkpoint.h5", "--out", "x.h5", "--quiet"});
+    CHECK(r.status == 2);
+    CHECK(r.err.find("node_reset") != std::string::npos);
+    CHECK(r.err.find(file == "np2" ? "mpirun -np 2" : "without mpirun") != std::string::npos);
+  }
 }
 
 TEST_CASE("mpi: a j2 bar moving through the ranks into a wall: plastic state migrates, the wall force is summed") {

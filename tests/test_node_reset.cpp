@@ -4,6 +4,7 @@
 #include <doctest/doctest.h>
 
 #include "otmpm/assembly/assembler.hpp"
+#include "otmpm/scene/validate.hpp"
 #include "otmpm/state.hpp"
 
 #include <algorithm>
@@ -212,4 +213,36 @@ TEST_CASE("node reset: refused in mpm mode, out of its range (0 to 1) and with b
   s.boundaries.back().name = "base";
   s.boundaries.back().value = {0.0, 0.0, 0.0};
   CHECK_THROWS_WITH_AS(assemble<2>(s), doctest::Contains("different velocities"), InputError);
+}
+
+TEST_CASE("node reset by default: 0.7 in ul on a node lattice, none where the lattice cannot follow the "
+          "boundaries") {
+  Scene s = impact({});
+  s.simulation.node_reset.reset(); // the scene gives none
+  CHECK(node_reset_fraction(s) == 0.7);
+  CHECK(assemble_parts<2>(s).settings.node_reset.below == 0.7);
+  // the default as a file says it: read back, the same fraction given
+  const Scene back = parse_scene(to_toml(s), "back.toml");
+  REQUIRE(back.simulation.node_reset.has_value());
+  CHECK(*back.simulation.node_reset == 0.7);
+  Scene given = s;
+  given.simulation.node_reset = 0.3;
+  CHECK(node_reset_fraction(given) == 0.3);
+  Scene fixed_grid = s;
+  fixed_grid.simulation.mode = "mpm";
+  CHECK(node_reset_fraction(fixed_grid) == 0.0);
+  Scene mesh = s;
+  mesh.bodies.at(0).nodes = "mesh";
+  CHECK(node_reset_fraction(mesh) == 0.0);
+  // two boundaries fixing x at different velocities: no lattice line follows both
+  Scene moving = s;
+  BoundarySection pusher = moving.boundaries.at(0);
+  pusher.name = "pusher";
+  pusher.lower[0] = pusher.upper[0] = 0.4;
+  pusher.value[0] = -1.0;
+  moving.boundaries.push_back(pusher);
+  CHECK(node_reset_fraction(moving) == 0.0);
+  CHECK_NOTHROW(validate_scene(moving, 2)); // the default gives way; a given fraction is refused
+  moving.simulation.node_reset = 0.5;
+  CHECK_THROWS_WITH_AS(validate_scene(moving, 2), doctest::Contains("different velocities"), InputError);
 }

@@ -94,11 +94,13 @@ TEST_CASE("ul, lme: the particle on the axis at the wall of the Taylor bar stays
   // that mesh): nodes held by the target wall and the symmetry planes
   // crowd around the particle on the axis next to the wall, which stopped
   // the run at 19 us before its lattice ran on the grid's lines (particles
-  // on the hull) and before the rule of docs/theory.md sect. 4.8.
+  // on the hull) and before the rule of docs/theory.md sect. 4.8. Without
+  // node resets (the default lays the flattened cells out anew).
   const Scene s = load_scene(OTMPM_SOURCE_DIR "/examples/taylor_bar.toml",
                              {"simulation.mode=\"ul\"", "basis.kind=\"lme\"", "simulation.t_end=2.2e-5",
-                              "body.bar.file=\"taylor_bar/quarter_h1.6.csv\"", "grid.lower=[0, 0, -0.0032]",
-                              "grid.upper=[0.0144, 0.0144, 0.0368]", "grid.cells=[9, 9, 25]", "output.every=0"});
+                              "simulation.node_reset=0", "body.bar.file=\"taylor_bar/quarter_h1.6.csv\"",
+                              "grid.lower=[0, 0, -0.0032]", "grid.upper=[0.0144, 0.0144, 0.0368]",
+                              "grid.cells=[9, 9, 25]", "output.every=0"});
   Engine<3> e = assemble<3>(s);
   while (e.time() < 2.2e-5) e.step();
   const Particles<3>& P = e.particles();
@@ -116,26 +118,34 @@ TEST_CASE("ul, lme: the particle on the axis at the wall of the Taylor bar stays
 }
 
 TEST_CASE("ul, node reset: the nodes the material barely reaches move with it, and no particle is lost") {
-  // The quarter bar at h = R/2 with simulation.node_reset = 0.5: a lattice
+  // The quarter bar at h = R/2 with simulation.node_reset = 0.5 and the
+  // default 0.7: a lattice
   // laid out anew around the flattened foot has nodes whose cells the
   // material barely enters. Moved by their own acceleration f_I / m_I they
   // tangled their cells and lost a particle at 52 us (linear); moved with the
   // material they carry, both bases finish, in a few times mpm's steps
-  // (measured: 1724 linear, 1256 lme, 1147 for mpm).
-  for (const char* basis : {"linear", "lme"}) {
-    CAPTURE(std::string(basis));
-    const Scene s = load_scene(OTMPM_SOURCE_DIR "/examples/taylor_bar.toml",
-                               {"simulation.mode=\"ul\"", std::string("basis.kind=\"") + basis + "\"",
-                                "simulation.node_reset=0.5", "body.bar.file=\"taylor_bar/quarter_h1.6.csv\"",
-                                "grid.lower=[0, 0, -0.0032]", "grid.upper=[0.0144, 0.0144, 0.0368]",
-                                "grid.cells=[9, 9, 25]", "output.every=0"});
-    Engine<3> e = assemble<3>(s);
-    while (e.time() < s.simulation.t_end) e.step(); // an InstabilityError fails the test
-    CHECK(e.node_resets() > 0);
-    CHECK(e.steps() < 2 * 1147);
-    double top = 0.0; // the final length: the highest particle
-    for (const Vec<3>& x : e.particles().x) top = std::max(top, x[2]);
-    CHECK(top > 0.0210); // mpm at this h: 22.2 mm; published 21.4 - 21.7 mm
-    CHECK(top < 0.0225);
-  }
+  // (measured: 1724 linear, 1256 lme with 0.5; 1368 and 1255 with 0.7; 1147 for mpm).
+  for (const char* basis : {"linear", "lme"})
+    for (const std::string fraction : {"0.5", "0.7"}) {
+      CAPTURE(std::string(basis));
+      CAPTURE(fraction);
+      std::vector<std::string> sets{"simulation.mode=\"ul\"",
+                                    std::string("basis.kind=\"") + basis + "\"",
+                                    "body.bar.file=\"taylor_bar/quarter_h1.6.csv\"",
+                                    "grid.lower=[0, 0, -0.0032]",
+                                    "grid.upper=[0.0144, 0.0144, 0.0368]",
+                                    "grid.cells=[9, 9, 25]",
+                                    "output.every=0"};
+      if (fraction != "0.7") sets.push_back("simulation.node_reset=" + fraction); // 0.7: the default
+      const Scene s = load_scene(OTMPM_SOURCE_DIR "/examples/taylor_bar.toml", sets);
+      CHECK(node_reset_fraction(s) == std::stod(fraction));
+      Engine<3> e = assemble<3>(s);
+      while (e.time() < s.simulation.t_end) e.step(); // an InstabilityError fails the test
+      CHECK(e.node_resets() > 0);
+      CHECK(e.steps() < 2 * 1147);
+      double top = 0.0; // the final length: the highest particle
+      for (const Vec<3>& x : e.particles().x) top = std::max(top, x[2]);
+      CHECK(top > 0.0210); // mpm at this h: 22.2 mm; published 21.4 - 21.7 mm
+      CHECK(top < 0.0225);
+    }
 }

@@ -181,13 +181,25 @@ std::optional<BodyForce<D>> build_body_force(const Scene& scene, std::shared_ptr
   return b;
 }
 
+} // namespace
+
+std::vector<BoundarySection> boundaries_at(const Scene& scene, double t) {
+  std::vector<BoundarySection> moved = scene.boundaries;
+  for (BoundarySection& b : moved)
+    for (std::size_t k = 0; k < 3; ++k)
+      if (b.fix[k]) b.lower[k] += b.value[k] * t, b.upper[k] += b.value[k] * t;
+  return moved;
+}
+
+namespace {
+
 /// The node reset of a `ul` scene: on the scene grid's lines (translated
 /// along an axis with the boundaries that fix it and move, validate_scene
 /// checks that they move alike), the scene's basis and boundary boxes on the
 /// new lattice, each box moved along its fixed axes with its nodes.
 template <int D> NodeReset<D> node_reset(const Scene& scene) {
   NodeReset<D> r;
-  r.below = scene.simulation.node_reset;
+  r.below = node_reset_fraction(scene);
   for (int k = 0; k < D; ++k) {
     r.lines.lower[k] = scene.grid.lower[k];
     r.lines.upper[k] = scene.grid.upper[k];
@@ -203,9 +215,7 @@ template <int D> NodeReset<D> node_reset(const Scene& scene) {
       input_error(scene.basis_where, e.what());
     }
     Scene moved = scene;
-    for (BoundarySection& b : moved.boundaries)
-      for (std::size_t k = 0; k < 3; ++k)
-        if (b.fix[k]) b.lower[k] += b.value[k] * t, b.upper[k] += b.value[k] * t;
+    moved.boundaries = boundaries_at(scene, t);
     part.dirichlet = build_dirichlet<D>(moved, part.basis->nodes(), grid.h().minCoeff());
     return part;
   };
@@ -228,7 +238,7 @@ template <int D> StepSettings<D> build_settings(const Scene& scene, const Integr
   s.energy_limit = sim.energy_limit;
   s.volumetric = volumetric_treatment(scene) == "fbar" ? Volumetric::fbar : Volumetric::none;
   if (s.volumetric == Volumetric::fbar) s.patch_grid = node_grid<D>(scene);
-  if (sim.node_reset > 0) s.node_reset = node_reset<D>(scene);
+  if (node_reset_fraction(scene) > 0) s.node_reset = node_reset<D>(scene);
   return s;
 }
 

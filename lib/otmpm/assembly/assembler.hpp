@@ -60,6 +60,10 @@ Dirichlet<D> boundary_entries(const std::vector<BoundarySection>& boundaries, in
 /// `selected` (boundary_entries) is 0: it selects no node.
 void require_boundary_nodes(const Scene& scene, const std::vector<long long>& selected);
 
+/// The scene's boundary boxes at time t: each moved along its fixed axes by
+/// its prescribed velocity times t (the nodes it holds move so).
+std::vector<BoundarySection> boundaries_at(const Scene& scene, double t);
+
 /// The grid spacing of the scene's grid per axis (the spacing particles are seeded with).
 template <int D> Vec<D> grid_spacing(const Scene& scene);
 

@@ -11,9 +11,11 @@ namespace otmpm::distributed {
 template <int D>
 Domain<D>::Domain(const Comm& comm, Setup s)
     : comm_(comm), lattice_(std::move(s.lattice)), decomposition_(std::move(s.decomposition)),
-      exchange_(lattice_, decomposition_, comm.rank()), nodes_move_(s.nodes_move), gid_(std::move(s.global_ids)),
-      global_particles_(s.global_particles), hint_offset_(s.hint_offset), traction_area_(std::move(s.traction_area)),
-      window_basis_(std::move(s.window_basis)), window_dirichlet_(std::move(s.window_dirichlet)) {
+      exchange_(lattice_, decomposition_, comm.rank()), nodes_move_(s.nodes_move),
+      gid_(std::move(s.global_ids)), global_particles_(s.global_particles), hint_offset_(s.hint_offset),
+      traction_area_(std::move(s.traction_area)), window_basis_(std::move(s.window_basis)),
+      window_dirichlet_(std::move(s.window_dirichlet)), reset_lattice_(std::move(s.reset_lattice)),
+      reset_window_(std::move(s.reset_window)) {
   stats_.setup_particles = s.setup_particles;
   stats_.setup_points = s.setup_points;
   stats_.steps = s.steps;
@@ -91,6 +93,25 @@ template <int D> void Domain<D>::rebalance(Engine<D>& e) {
   shift_hints(e, -1); // local to the new window
 }
 
+template <int D>
+LatticePart<D> Domain<D>::lay_out(Engine<D>& e, const CartesianGrid<D>& grid, double t, bool restart) {
+  require<std::logic_error>(reset_lattice_ && reset_window_,
+                            "Domain::lay_out: this run cannot lay its nodes out anew");
+  const Clock clock(stats_);
+  if (!restart) { // (even on the same lattice: the particles' cells are those of x now, their F-bar patches)
+    lattice_ = reset_lattice_(grid);
+    const Particles<D>& P = e.particles();
+    std::vector<Index<D>> home(static_cast<std::size_t>(P.size()));
+    for (int p = 0; p < P.size(); ++p) home[static_cast<std::size_t>(p)] = grid.cell_of(P.x[p]);
+    decomposition_ = Decomposition<D>::rcb(grid.cells, comm_.size(), home, comm_);
+    find_neighbours();
+    migrate(e, &home);
+  }
+  exchange_ = NodeExchange<D>(lattice_, decomposition_, comm_.rank());
+  find_guard();
+  return reset_window_(lattice_, decomposition_.box(comm_.rank()), exchange_.window(), t, hint_offset_);
+}
+
 template <int D> std::vector<Column> Domain<D>::columns(Engine<D>& e) {
   std::vector<Column> c = particle_columns(e.particles(), e.basis().point_state());
   c.push_back(column_of(gid_));
@@ -98,15 +119,15 @@ template <int D> std::vector<Column> Domain<D>::columns(Engine<D>& e) {
   return c;
 }
 
-template <int D> void Domain<D>::migrate(Engine<D>& e) {
+template <int D> void Domain<D>::migrate(Engine<D>& e, const std::vector<Index<D>>* home) {
   Particles<D>& P = e.particles();
   const std::size_t n = static_cast<std::size_t>(P.size());
   const IndexBox<D>& mine = decomposition_.box(comm_.rank());
   std::vector<int> dest(n, -1);
   double flags[2] = {0.0, 0.0}; // some particle leaves; some goes to a rank that is not a neighbour
   for (std::size_t p = 0; p < n; ++p) {
-    if (!nodes_move_ && staying_.contains(P.x[p])) continue; // home cell: the cell of x
-    const Index<D> c = home_cell(P.x[p], P.X[p]);
+    if (!home && !nodes_move_ && staying_.contains(P.x[p])) continue; // home cell: the cell of x
+    const Index<D> c = home ? (*home)[p] : home_cell(P.x[p], P.X[p]);
     if (mine.contains(c)) continue;
     dest[p] = decomposition_.owner(c);
     flags[0] = 1.0;

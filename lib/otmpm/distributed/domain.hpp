@@ -75,6 +75,14 @@ public:
     /// The Dirichlet entries on a window with the basis built on it
     /// (rebalancing): found on the window's points from the scene's boxes.
     std::function<Dirichlet<D>(const Window<D>&, const Basis<D>&)> window_dirichlet;
+    /// `ul` node reset (lay_out): the point lattice of a new node lattice,
+    /// and the basis and Dirichlet entries on the window of the rank that
+    /// owns `cells`, with the boundary boxes at time t (and the global cell
+    /// of the basis' local cell 0). Collective.
+    std::function<PointLattice<D>(const CartesianGrid<D>&)> reset_lattice;
+    std::function<LatticePart<D>(const PointLattice<D>&, const IndexBox<D>& cells, const Window<D>&, double t,
+                                 Index<D>& hint_offset)>
+        reset_window;
     /// Particles this rank held at once during set-up (DomainStats::setup_particles).
     long long setup_particles = 0;
     /// Lattice points this rank built node sets on during set-up (DomainStats::setup_points).
@@ -98,6 +106,7 @@ public:
   void defer(const LocalFailure& failure) override;
   void agree(const LocalFailure* failure) override;
   void check_support(const BasisTable<D>& table) const override;
+  LatticePart<D> lay_out(Engine<D>& e, const CartesianGrid<D>& grid, double t, bool restart) override;
   int rank() const override { return comm_.rank(); }
   long long global_id(int p) const override { return gid_[static_cast<std::size_t>(p)]; }
   const std::vector<char>& owned_nodes() const override { return exchange_.owned(); }
@@ -119,7 +128,8 @@ public:
   /// Global cell index of the basis' local cell 0 (cell hints are local to it).
   const Index<D>& hint_offset() const { return hint_offset_; }
   /// The home cell of a particle at x with initial position X: the cell of
-  /// x on the fixed grid (`mpm`), of X on the initial lattice (`ul`).
+  /// x on the fixed grid (`mpm`), of X on the initial lattice (`ul`; after a
+  /// node reset the cell of x at the reset, which lay_out gave it).
   Index<D> home_cell(const Vec<D>& x, const Vec<D>& X) const {
     return lattice_.grid.cell_of(nodes_move_ ? X : x);
   }
@@ -132,8 +142,9 @@ private:
     DomainStats& stats;
     std::chrono::steady_clock::time_point start;
   };
-  /// Sends the particles whose home cell another rank owns to that rank.
-  void migrate(Engine<D>& e);
+  /// Sends the particles whose home cell another rank owns to that rank
+  /// (`home`: the home cells of the particles, when not home_cell()'s).
+  void migrate(Engine<D>& e, const std::vector<Index<D>>* home = nullptr);
   /// The columns that move with the particles (particle_rows.hpp plus the global ids and traction shares).
   std::vector<Column> columns(Engine<D>& e);
   /// Rebuilds the traction loads' particle lists from the shares.
@@ -165,6 +176,10 @@ private:
   void find_guard();
   std::function<std::unique_ptr<Basis<D>>(const Window<D>&, Index<D>&)> window_basis_;
   std::function<Dirichlet<D>(const Window<D>&, const Basis<D>&)> window_dirichlet_;
+  std::function<PointLattice<D>(const CartesianGrid<D>&)> reset_lattice_;
+  std::function<LatticePart<D>(const PointLattice<D>&, const IndexBox<D>&, const Window<D>&, double,
+                               Index<D>&)>
+      reset_window_;
   DomainStats stats_;
 };
 

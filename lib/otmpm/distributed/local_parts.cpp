@@ -183,7 +183,7 @@ void check_rank_memory(const Scene& scene, const Comm& comm, const PointLattice<
 /// local cell 0 (its cell hints are local to it). Never builds the whole lattice.
 template <int D>
 std::function<std::unique_ptr<Basis<D>>(const Window<D>&, Index<D>&)>
-window_basis_factory(const Scene& scene, const PointLattice<D>& L) {
+window_basis_factory(const Scene& scene, const PointLattice<D>& L, bool cartesian = false) {
   const CartesianGrid<D> grid = L.grid;
   const BasisOptions options = basis_options<D>(scene);
   if (const WindowFactory<D> window = basis_kind(scene.basis.kind).window<D>()) {
@@ -192,7 +192,7 @@ window_basis_factory(const Scene& scene, const PointLattice<D>& L) {
       return window(options, grid, w.box.lo, w.box.hi);
     };
   }
-  const bool perturbed = scene.grid.kind == "perturbed";
+  const bool perturbed = !cartesian && scene.grid.kind == "perturbed";
   const double fraction = scene.grid.perturbation;
   const unsigned seed = scene.grid.seed;
   return [grid, perturbed, fraction, seed, options](const Window<D>& w,
@@ -229,6 +229,44 @@ Dirichlet<D> window_boundaries(const std::vector<BoundarySection>& boundaries, c
       boundaries, w.size(), [&grid, &w](int i) { return grid.node_position(w.index(i)); }, h, counted, selected);
 }
 
+/// window_boundaries on the window `w` of the rank that owns `cells` of
+/// `L`, checked: each box must select a node of the whole lattice (the
+/// points each rank owns, counted over the ranks; collective).
+template <int D>
+Dirichlet<D> checked_boundaries(const Scene& scene, const std::vector<BoundarySection>& boundaries,
+                                const Comm& comm, const PointLattice<D>& L, const IndexBox<D>& cells,
+                                bool from_basis, const Window<D>& w, const Basis<D>& basis) {
+  const IndexBox<D> own = L.owned_points(cells);
+  std::vector<char> owned(static_cast<std::size_t>(w.size()));
+  for (int i = 0; i < w.size(); ++i) owned[static_cast<std::size_t>(i)] = own.contains(w.index(i)) ? 1 : 0;
+  std::vector<long long> selected;
+  Dirichlet<D> d = window_boundaries<D>(boundaries, L.grid, from_basis, w, basis, &owned, &selected);
+  std::vector<std::int64_t> total(selected.begin(), selected.end());
+  comm.sum(total);
+  require_boundary_nodes(scene, std::vector<long long>(total.begin(), total.end()));
+  return d;
+}
+
+/// The node reset of a `ul` run on the ranks (Domain::lay_out): the point
+/// lattice of a new node lattice (the serial reset's Cartesian lattice on
+/// the scene grid's lines), and the basis and the Dirichlet entries of the
+/// boundary boxes at time t on a rank's window of it.
+template <int D> void reset_hooks(const Scene& scene, const Comm& comm, typename Domain<D>::Setup& setup) {
+  if (!(node_reset_fraction(scene) > 0)) return;
+  setup.reset_lattice = [scene](const CartesianGrid<D>& grid) {
+    return point_lattice<D>(scene, probe_basis<D>(scene, grid)->search_radius(), grid, true);
+  };
+  setup.reset_window = [scene, &comm](const PointLattice<D>& L, const IndexBox<D>& cells, const Window<D>& w,
+                                      double t, Index<D>& hint_offset) {
+    LatticePart<D> part;
+    part.basis = window_basis_factory<D>(scene, L, true)(w, hint_offset);
+    const bool from_basis = static_cast<bool>(basis_kind(scene.basis.kind).window<D>());
+    part.dirichlet =
+        checked_boundaries<D>(scene, boundaries_at(scene, t), comm, L, cells, from_basis, w, *part.basis);
+    return part;
+  };
+}
+
 /// The lattice part of a rank (assemble_parts' `lattice`): the basis on its
 /// window and the Dirichlet entries found there; the Domain's set-up gets
 /// the point lattice and the factories of both (rebalancing). The check
@@ -257,14 +295,7 @@ LatticePart<D> rank_lattice(const Scene& scene, const Comm& comm, const Cartesia
   part.basis = setup.window_basis(w, setup.hint_offset);
   setup.setup_points += w.size();
   const bool from_basis = basis_kind(scene.basis.kind).window<D>() || scene.grid.kind == "perturbed";
-  const IndexBox<D> own = L.owned_points(cells);
-  std::vector<char> owned(static_cast<std::size_t>(w.size()));
-  for (int i = 0; i < w.size(); ++i) owned[static_cast<std::size_t>(i)] = own.contains(w.index(i)) ? 1 : 0;
-  std::vector<long long> selected;
-  part.dirichlet = window_boundaries<D>(scene.boundaries, grid, from_basis, w, *part.basis, &owned, &selected);
-  std::vector<std::int64_t> total(selected.begin(), selected.end());
-  comm.sum(total);
-  require_boundary_nodes(scene, std::vector<long long>(total.begin(), total.end()));
+  part.dirichlet = checked_boundaries<D>(scene, scene.boundaries, comm, L, cells, from_basis, w, *part.basis);
   setup.window_dirichlet = [boundaries = scene.boundaries, grid, from_basis](const Window<D>& v, const Basis<D>& b) {
     return window_boundaries<D>(boundaries, grid, from_basis, v, b);
   };
@@ -326,6 +357,7 @@ template <int D> EngineParts<D> seeded_parts(const Scene& scene, const Comm& com
     setup.traction_area.push_back(std::move(area));
   }
   setup.nodes_move = scene.simulation.nodes_move();
+  reset_hooks<D>(scene, comm, setup);
   setup.global_particles = share.particles;
   setup.setup_particles = parts.particles.size();
   return finish_parts<D>(comm, std::move(parts), std::move(setup));
@@ -445,6 +477,7 @@ std::vector<long long> restart_rows(const Scene& scene, const Comm& comm, const 
                                     const CartesianGrid<D>& grid, Decomposition<D>& decomposition, Checkpoint& rows,
                                     const std::function<void(const std::vector<std::int64_t>&)>& check) {
   const long long n = checkpoint_rows(ck, RowKind::particle), P = comm.size(), r = comm.rank();
+  require_reset_ranks<D>(ck, comm.size());
   if (auto kept = stored_decomposition<D>(ck, grid.cells, comm.size())) {
     decomposition = std::move(*kept);
     const StateGroup& g = ck.group("decomposition");
@@ -494,12 +527,18 @@ template <int D>
 EngineParts<D> restart_parts(const Scene& scene, const Comm& comm, const Checkpoint& ck, Checkpoint& rows) {
   require_lattice_nodes(scene);
   typename Domain<D>::Setup setup;
-  const CartesianGrid<D> grid = node_grid<D>(scene);
+  reset_hooks<D>(scene, comm, setup);
+  // after a node reset: its lattice, divided as its run divided it
+  const std::optional<ResetLattice<D>> reset = reset_lattice_of<D>(ck);
+  if (reset && !setup.reset_lattice)
+    ck.group("nodes").error("nodes laid out anew, but this run cannot lay them out");
+  const CartesianGrid<D> grid = reset ? reset->grid : node_grid<D>(scene);
   const long long n = checkpoint_rows(ck, RowKind::particle);
   rows = checkpoint_head(ck);
   // each rank's memory, checked before its rows are read (or sent to it)
   auto check = [&](const std::vector<std::int64_t>& per_rank) {
-    setup.lattice = rank_point_lattice<D>(scene, comm, grid, setup.decomposition.box(comm.rank()));
+    setup.lattice = reset ? setup.reset_lattice(grid)
+                          : rank_point_lattice<D>(scene, comm, grid, setup.decomposition.box(comm.rank()));
     check_rank_memory<D>(scene, comm, setup.lattice, setup.decomposition, per_rank);
   };
   std::vector<long long> ids = restart_rows<D>(scene, comm, ck, grid, setup.decomposition, rows, check);
@@ -513,7 +552,13 @@ EngineParts<D> restart_parts(const Scene& scene, const Comm& comm, const Checkpo
   setup.traction_area = share.traction_area;
   const long long particles_here = static_cast<long long>(ids.size());
   auto seed = [&](const Vec<D>&, const CartesianGrid<D>&) { return std::move(share); };
-  auto lattice = [&](const CartesianGrid<D>& g) { return rank_lattice<D>(scene, comm, g, true, setup); };
+  auto lattice = [&](const CartesianGrid<D>& g) {
+    if (!reset) return rank_lattice<D>(scene, comm, g, true, setup);
+    const IndexBox<D> cells = setup.decomposition.box(comm.rank());
+    const Window<D> w{setup.lattice.window(cells)};
+    setup.setup_points += w.size();
+    return setup.reset_window(setup.lattice, cells, w, reset->time, setup.hint_offset);
+  };
   EngineParts<D> parts = assemble_parts<D>(scene, seed, lattice);
   setup.nodes_move = scene.simulation.nodes_move();
   setup.global_ids = std::move(ids);
@@ -525,7 +570,20 @@ EngineParts<D> restart_parts(const Scene& scene, const Comm& comm, const Checkpo
   return finish_parts<D>(comm, std::move(parts), std::move(setup));
 }
 
+template <int D> void require_reset_ranks(const Checkpoint& ck, int ranks) {
+  if (!reset_lattice_of<D>(ck)) return;
+  const auto it = ck.groups.find("decomposition");
+  const long long written = it == ck.groups.end() ? 1 : it->second.integer("ranks");
+  if (written == ranks) return;
+  ck.group("nodes").error(
+      "its run laid the nodes out anew (simulation.node_reset) on " + std::to_string(written) +
+      (written == 1 ? " process" : " ranks") + "; it restarts on as many (" +
+      (written == 1 ? std::string("without mpirun") : "mpirun -np " + std::to_string(written)) +
+      "): its ranks' particles and F-bar patches follow that run's lattice");
+}
+
 #define OTMPM_INSTANTIATE(D)                                                                                      \
+  template void require_reset_ranks<D>(const Checkpoint&, int);                                               \
   template EngineParts<D> rank_parts<D>(const Scene&, const Comm&);                                           \
   template EngineParts<D> seeded_parts<D>(const Scene&, const Comm&);                                         \
   template RankPlan plan_ranks<D>(const Scene&, const Comm&);                                                 \

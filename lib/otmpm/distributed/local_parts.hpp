@@ -76,6 +76,12 @@ template <int D> RankPlan plan_ranks(const Scene& scene, const Comm& comm);
 template <int D>
 EngineParts<D> restart_parts(const Scene& scene, const Comm& comm, const Checkpoint& ck, Checkpoint& rows);
 
+/// InputError naming checkpoint `ck` when its run laid the nodes out anew
+/// (simulation.node_reset) on another number of ranks than `ranks` (1: a
+/// serial run): each rank's particles are those of its cells of the reset
+/// lattice, and their F-bar patches are numbered per rank.
+template <int D> void require_reset_ranks(const Checkpoint& ck, int ranks);
+
 /// The Domain of an engine, or null for a serial engine.
 template <int D> const Domain<D>* domain_of(const Engine<D>& e) {
   return dynamic_cast<const Domain<D>*>(e.distribution());

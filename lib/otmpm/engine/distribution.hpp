@@ -19,6 +19,8 @@ namespace otmpm {
 
 template <int D> class Engine;
 template <int D> struct BasisTable;
+template <int D> struct CartesianGrid;
+template <int D> struct LatticePart;
 
 /// A nodal array of the engine seen as `width` doubles per local node.
 struct NodalArray {
@@ -100,6 +102,16 @@ public:
   /// support might go beyond the nodes this rank holds: `ul` mode, where
   /// particles keep their cell while the lattice moves).
   virtual void check_support(const BasisTable<D>& table) const = 0;
+  /// `ul` node reset (NodeReset): the nodes are laid out anew on `grid` (the
+  /// same on every rank), the boundary boxes where they are at time t. The
+  /// ranks bisect the new lattice's cells afresh, weighted by the particles
+  /// in each cell (of x), send every particle to the owner of its cell (its
+  /// home cell until the next reset) and rebuild the nodal exchange; returns
+  /// the basis and the Dirichlet entries on this rank's window of the new
+  /// lattice. `restart`: the run restarts from a checkpoint written after
+  /// the reset, whose lattice and division the ranks hold already: no
+  /// particle moves. Collective.
+  virtual LatticePart<D> lay_out(Engine<D>& e, const CartesianGrid<D>& grid, double t, bool restart) = 0;
   /// This process's rank.
   virtual int rank() const = 0;
   /// The global id of local particle p (its index in a serial run).

@@ -135,9 +135,10 @@ Engine<D>::Engine(EngineParts<D> parts)
   if (needs_F && P_.F.empty()) P_.F.assign(static_cast<std::size_t>(P_.size()), Mat<D>::Identity());
   for (const auto& m : materials_) m->bind(P_);
   if (mode_.nodes_move() && basis_->search_radius() > 0.0) follow_body(P_.X);
-  require<InputError>(!(settings_.node_reset.below > 0.0 && (dist_ || !mode_.nodes_move() || !settings_.node_reset.lattice)),
-                      "simulation.node_reset: the nodes are laid out anew only in ul mode, in one process, with the "
-                      "lattice's builder (NodeReset::lattice)");
+  require<InputError>(
+      !(settings_.node_reset.below > 0.0 && (!mode_.nodes_move() || !settings_.node_reset.lattice)),
+      "simulation.node_reset: the nodes are laid out anew only in ul mode, with the lattice's builder "
+      "(NodeReset::lattice)");
   basis_->bind_points(P_.size(), mode_.nodes_move());
   nodal_.resize(field_nodes);
   node_spacing0_ = basis_->nodes().min_spacing();
@@ -205,14 +206,18 @@ template <int D> double Engine<D>::stable_dt() const {
     dt = *settings_.dt;
   } else {
     const double c = wave_speed_; // max_p max(c_p, |v_p|), from the last sum_particles()
-    double g[2] = {gradient0_, gradient_};
-    if (dist_ && mode_.nodes_move() && basis_->search_radius() > 0.0) dist_->max({g, 2});
-    const double ratio = g[1] > 0.0 ? g[0] / g[1] : 1.0;
-    double h = mode_.cfl_spacing(*basis_, settings_.h, node_spacing0_, ratio);
-    if (dist_ && mode_.nodes_move()) dist_->min({&h, 1}); // the ranks' smallest (monotone in the spacing)
-    dt = settings_.cfl * h / c;
+    dt = settings_.cfl * cfl_spacing() / c;
   }
   return std::min(dt, settings_.t_end - t_);
+}
+
+template <int D> double Engine<D>::cfl_spacing() const {
+  double g[2] = {gradient0_, gradient_};
+  if (dist_ && mode_.nodes_move() && basis_->search_radius() > 0.0) dist_->max({g, 2});
+  const double ratio = g[1] > 0.0 ? g[0] / g[1] : 1.0;
+  double h = mode_.cfl_spacing(*basis_, settings_.h, node_spacing0_, ratio);
+  if (dist_ && mode_.nodes_move()) dist_->min({&h, 1}); // the ranks' smallest (monotone in the spacing)
+  return h;
 }
 
 template <int D> void Engine<D>::step() {
@@ -645,8 +650,7 @@ template <int D> void Engine<D>::follow_body(const AlignedVector<Vec<D>>& x) {
 
 template <int D> bool Engine<D>::reset_due() const {
   if (!(settings_.node_reset.below > 0.0) || settings_.dt) return false;
-  const double ratio = gradient_ > 0.0 ? gradient0_ / gradient_ : 1.0;
-  return mode_.cfl_spacing(*basis_, settings_.h, node_spacing0_, ratio) < settings_.node_reset.below * settings_.h;
+  return cfl_spacing() < settings_.node_reset.below * settings_.h; // the same on every rank
 }
 
 template <int D> void Engine<D>::reset_nodes(const CartesianGrid<D>* given) {
@@ -662,6 +666,10 @@ template <int D> void Engine<D>::reset_nodes(const CartesianGrid<D>* given) {
       lo = lo.cwiseMin(P_.x[p] - Vec<D>::Constant(half));
       hi = hi.cwiseMax(P_.x[p] + Vec<D>::Constant(half));
     }
+    if (dist_) { // the extent of every rank's particles
+      dist_->min({lo.data(), static_cast<std::size_t>(D)});
+      dist_->max({hi.data(), static_cast<std::size_t>(D)});
+    }
     for (int k = 0; k < D; ++k) {
       const double a = std::floor((lo[k] - lines.lower[k]) / h[k]), b = std::ceil((hi[k] - lines.lower[k]) / h[k]);
       grid.lower[k] = lines.lower[k] + a * h[k];
@@ -671,12 +679,18 @@ template <int D> void Engine<D>::reset_nodes(const CartesianGrid<D>* given) {
     grid.validate();
   }
   if (!given) lattice_time_ = t_;
-  LatticePart<D> part = settings_.node_reset.lattice(grid, lattice_time_);
+  // distributed: the cells bisected afresh, the particles sent to their owners, this rank's window
+  LatticePart<D> part = dist_ ? dist_->lay_out(*this, grid, lattice_time_, given != nullptr)
+                              : settings_.node_reset.lattice(grid, lattice_time_);
   const AlignedVector<Vec<D>> wall_impulse = constraints_.wall_impulse(); // the walls keep their impulse
   basis_ = std::move(part.basis);
   const int nodes = basis_->nodes().size();
   constraints_ = Constraints<D>(std::move(part.dirichlet), constraints_.walls(), nodes);
   constraints_.wall_impulse() = wall_impulse;
+  if (dist_) {
+    constraints_.count_only(dist_->owned_nodes());
+    basis_->distribute(dist_->owned_nodes(), [this](std::span<double> v) { dist_->sum(v); });
+  }
   nodal_.resize(nodes);
   scatter_->invalidate(0);
   if (mass_matrix_) mass_matrix_ = std::make_unique<MassMatrix<D>>(basis_->fixed_stencil() > 0);
@@ -684,6 +698,7 @@ template <int D> void Engine<D>::reset_nodes(const CartesianGrid<D>* given) {
   if (!given && basis_->search_radius() > 0.0) follow_body(P_.x); // a restart restores the node set's
   basis_->bind_points(P_.size(), true); // the multipliers and hints belonged to the old nodes
   node_spacing0_ = basis_->nodes().min_spacing();
+  if (dist_) dist_->min({&node_spacing0_, 1});
   gradient_ = gradient0_; // a fresh lattice: the gradients of t = 0 until the next table
   fbar_.patch.clear();    // the cells of the new lattice
   if (!given) ++node_resets_;

@@ -400,8 +400,8 @@ private:
   /// The F-bar patch of each particle (volumetric.hpp), from the positions of
   /// the basis evaluation (`mpm`) or, once, of the lattice's layout (`ul`).
   void assign_patches();
-  /// True when the nodes are to be laid out anew before this step (NodeReset).
-  bool reset_due() const;
+  double cfl_spacing() const; ///< the CFL rule's node spacing (NodeMode::cfl_spacing; the ranks' smallest)
+  bool reset_due() const; ///< the nodes are to be laid out anew before this step (NodeReset; on every rank)
   /// Lays the nodes out anew on the scene grid's lattice over the particles
   /// (NodeReset), or on `grid` when given (a restart).
   void reset_nodes(const CartesianGrid<D>* grid = nullptr);
@@ -490,6 +490,15 @@ template <int D> Vec<D> Engine<D>::interpolate(int p, const AlignedVector<Vec<D>
   for (int e = table_.begin(p); e < table_.end(p); ++e) s += table_.N[e] * y[table_.node[e]];
   return s;
 }
+
+/// The lattice of the last node reset (NodeReset) a checkpoint holds and the
+/// time it was laid out at, or nullopt when its run laid out no node anew.
+/// InputError naming the checkpoint when the lattice is not valid.
+template <int D> struct ResetLattice {
+  CartesianGrid<D> grid;
+  double time = 0.0;
+};
+template <int D> std::optional<ResetLattice<D>> reset_lattice_of(const Checkpoint& ck);
 
 extern template class Engine<1>;
 extern template class Engine<2>;

@@ -128,21 +128,11 @@ template <int D> void Engine<D>::restore_state(const Checkpoint& in) {
     throw InputError(in.file + ": checkpoint of a " + std::to_string(in.dimension) + "D run, the scene is " +
                      std::to_string(D) + "D");
   const StateGroup& nodes = in.group("nodes");
-  if (nodes.integers.count("resets")) { // the lattice of the last node reset, then its positions
+  // the lattice of the last node reset, then its positions
+  if (const std::optional<ResetLattice<D>> reset = reset_lattice_of<D>(in)) {
     if (!settings_.node_reset.lattice) nodes.error("nodes laid out anew, but this run cannot lay them out");
-    CartesianGrid<D> grid;
-    grid.lower = restore_vector<D>(nodes, "lattice_lower");
-    grid.upper = restore_vector<D>(nodes, "lattice_upper");
-    const auto& cells = nodes.integer_array("lattice_cells", D, 1).values;
-    for (int k = 0; k < D; ++k) grid.cells[k] = static_cast<int>(cells[static_cast<std::size_t>(k)]);
-    try {
-      grid.validate();
-    } catch (const InputError& e) {
-      nodes.error(std::string("the lattice of the last node reset: ") + e.what());
-    }
-    // (checkpoints written before the lattice followed moving boundaries: only fixed ones, t = 0)
-    lattice_time_ = nodes.reals.count("lattice_time") ? nodes.real("lattice_time") : 0.0;
-    reset_nodes(&grid);
+    lattice_time_ = reset->time;
+    reset_nodes(&reset->grid);
     node_resets_ = static_cast<long>(nodes.integer("resets"));
     const auto& absent = nodes.integer_array("absent", static_cast<std::size_t>(basis_->nodes().size()), 1).values;
     std::vector<char> marks(absent.begin(), absent.end());
@@ -202,6 +192,28 @@ template <int D> void Engine<D>::restore_state(const Checkpoint& in) {
   basis_->restore_state(basis);
 }
 
+template <int D> std::optional<ResetLattice<D>> reset_lattice_of(const Checkpoint& ck) {
+  const auto it = ck.groups.find("nodes");
+  if (it == ck.groups.end() || !it->second.integers.count("resets")) return std::nullopt;
+  const StateGroup& nodes = it->second;
+  ResetLattice<D> r;
+  r.grid.lower = restore_vector<D>(nodes, "lattice_lower");
+  r.grid.upper = restore_vector<D>(nodes, "lattice_upper");
+  const auto& cells = nodes.integer_array("lattice_cells", D, 1).values;
+  for (int k = 0; k < D; ++k) r.grid.cells[k] = static_cast<int>(cells[static_cast<std::size_t>(k)]);
+  try {
+    r.grid.validate();
+  } catch (const InputError& e) {
+    nodes.error(std::string("the lattice of the last node reset: ") + e.what());
+  }
+  // (checkpoints written before the lattice followed moving boundaries: only fixed ones, t = 0)
+  r.time = nodes.reals.count("lattice_time") ? nodes.real("lattice_time") : 0.0;
+  return r;
+}
+
+template std::optional<ResetLattice<1>> reset_lattice_of<1>(const Checkpoint&);
+template std::optional<ResetLattice<2>> reset_lattice_of<2>(const Checkpoint&);
+template std::optional<ResetLattice<3>> reset_lattice_of<3>(const Checkpoint&);
 template void Engine<1>::save_state(Checkpoint&) const;
 template void Engine<2>::save_state(Checkpoint&) const;
 template void Engine<3>::save_state(Checkpoint&) const;

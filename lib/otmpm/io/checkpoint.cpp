@@ -675,7 +675,9 @@ RowKind checkpoint_row_kind(const std::string& group, const std::string& array) 
   if (group == "basis")
     for (const char* n : {"lambda", "lambda_slope", "lambda_curvature", "lambda_history", "cell_hint"})
       if (array == n) return RowKind::particle;
-  if (group == "nodes" && array == "x") return RowKind::point;
+  if (group == "nodes" && (array == "x" || array == "absent")) return RowKind::point;
+  // the F-bar patches of a node reset's lattice
+  if (group == "nodes" && array == "patch") return RowKind::particle;
   if (group == "engine" && (array.rfind("wall_held_", 0) == 0 || array.rfind("carried_", 0) == 0)) return RowKind::point;
   return RowKind::whole;
 }

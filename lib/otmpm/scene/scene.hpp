@@ -48,8 +48,9 @@ struct SimulationSection {
   /// default (volumetric_treatment)
   std::string volumetric;
   /// ul: lay the nodes out anew on the grid's lattice over the particles when
-  /// the CFL spacing falls below node_reset h (0: never; docs/theory.md sect. 3)
-  double node_reset = 0.0;
+  /// the CFL spacing falls below node_reset h (0: never; docs/theory.md sect.
+  /// 3); unset: the default (node_reset_fraction)
+  std::optional<double> node_reset;
   double t_end = 0.0;
   double cfl = 0.1;
   std::optional<double> dt;        ///< fixed step instead of cfl
@@ -315,6 +316,14 @@ LatticeBox node_lattice_box(const Scene& scene);
 /// "fbar" in `ul` mode when a material of the scene is plastic (a model with
 /// internal variables), "none" otherwise (docs/theory.md sect. 9.8).
 std::string volumetric_treatment(const Scene& scene);
+
+/// simulation.node_reset, or when the scene does not give it the default:
+/// 0.7 in `ul` mode on a node lattice (not a mesh's vertices) whose
+/// boundaries that fix an axis share its velocity (the reset lattice moves
+/// with them), 0 otherwise (docs/theory.md sect. 3; docs/benchmarks.md, "ul
+/// on the Taylor bar": 1.2x the steps of `mpm` where advected cells
+/// flatten, 5 - 31x without).
+double node_reset_fraction(const Scene& scene);
 
 /// How many particles and nodes the engine of a scene has, counted the way the
 /// engine counts them but in doubles, so that absurd scenes do not overflow.

@@ -33,7 +33,7 @@ toml::table simulation(const SimulationSection& s, const Scene& scene) {
                 {"mass", s.mass},           {"t_end", s.t_end},        {"mass_tolerance", s.mass_tolerance},
                 {"energy_limit", s.energy_limit}, {"max_steps", s.max_steps}, {"memory_limit", s.memory_limit}};
   t.insert("volumetric", volumetric_treatment(scene)); // the default resolved: the file says what ran
-  if (s.node_reset > 0) t.insert("node_reset", s.node_reset);
+  if (s.nodes_move()) t.insert("node_reset", node_reset_fraction(scene)); // the default resolved
   for (const auto& [key, value] : s.parameters) t.insert(key, value); // the integrator's own (gamma, rho_inf)
   // The reader takes one of cfl and dt: a fixed dt makes cfl irrelevant.
   if (s.dt) t.insert("dt", *s.dt);

@@ -103,10 +103,10 @@ void check_simulation(const Scene& s, int dim) {
         m.integrator, "\")");
   check_choice(s, "simulation.mass", scene_rules::kMasses, m.mass);
   if (!m.volumetric.empty()) check_choice(s, "simulation.volumetric", scene_rules::kVolumetric, m.volumetric);
-  check_number(s, "simulation.node_reset", m.node_reset, scene_keys::kNodeReset);
-  enforce(s, scene_rules::node_reset(m.node_reset, m.nodes_move()), "simulation.node_reset");
+  if (m.node_reset) check_number(s, "simulation.node_reset", *m.node_reset, scene_keys::kNodeReset);
+  enforce(s, scene_rules::node_reset(m.node_reset.value_or(0.0), m.nodes_move()), "simulation.node_reset");
   // A node reset moves the lattice lines along an axis with the boundaries that fix it: one velocity per axis.
-  for (std::size_t k = 0; k < static_cast<std::size_t>(m.dimension) && m.node_reset > 0; ++k)
+  for (std::size_t k = 0; k < static_cast<std::size_t>(m.dimension) && node_reset_fraction(s) > 0; ++k)
     for (const BoundarySection& a : s.boundaries)
       for (const BoundarySection& b : s.boundaries)
         check(s, !(a.fix[k] && b.fix[k] && a.value[k] != b.value[k]), "simulation.node_reset", "boundaries '",
