@@ -1224,6 +1224,76 @@ TEST_CASE("mpi: a signal to one rank stops every rank, the message names that si
   }
 }
 
+TEST_CASE("mpi: a signal to one rank while the bodies are seeded stops every rank inside the seeding") {
+  // 5000 x 5000 cells, 5.6e7 seeds: each rank's counting pass takes
+  // seconds (measured 6.7 s on 2 ranks, 4.7 s on 3 to the end of the
+  // set-up). The body lies behind a wall, so a set-up that is not stopped
+  // ends with status 2 after its counting pass, before it keeps a particle.
+  // Before, a rank saw its signal only at the agreement after its pass, and
+  // the others finished theirs first.
+  TempDir dir("mpi_seeding_signal");
+  std::string text = block_on_floor(5000, 0.01);
+  text.replace(text.find("point = [0.0, 0.1]"), 18, "point = [0.0, 0.9]"); // above the body, facing up
+  text.replace(text.find("cfl = 0.1\n"), 10, "cfl = 0.1\nmemory_limit = 1e12\n");
+  const std::string scene = write_scene(dir, "seed", text);
+  for (const int np : {2, 3})
+    for (const auto& [sig, name] : {std::pair{SIGINT, "SIGINT"}, std::pair{SIGTERM, "SIGTERM"}}) {
+      CAPTURE(np);
+      CAPTURE(name);
+      const std::vector<std::string> args{"run", scene, "--quiet", "--out", "seed.h5"};
+      MpiLaunch mpirun(kMpiexec, kBinary, dir.dir, std::vector<RankLine>(static_cast<std::size_t>(np), RankLine{args}),
+                       dir.file("stderr.txt"));
+      const pid_t rank1 = mpirun.rank(1);
+      REQUIRE(rank1 > 0);
+      REQUIRE(otmpm::test::catches(rank1, sig, 30.0)); // otmpm runs its command
+      std::this_thread::sleep_for(std::chrono::milliseconds(1000)); // reading the scene, then seeding
+      ::kill(rank1, sig);
+      const auto sent = std::chrono::steady_clock::now();
+      const int status = mpirun.end_within(60.0);
+      const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - sent).count();
+      std::ifstream in(dir.file("stderr.txt"));
+      const std::string err((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+      CAPTURE(err);
+      CHECK(status == 128 + sig);
+      CHECK(seconds < 3.0); // measured 0.1 .. 1.2 s, most of it the ranks' MPI and HDF5 ending
+      CHECK(std::count(err.begin(), err.end(), '\n') == 1);
+      CHECK(err.find(std::string("otmpm: interrupted by ") + name + " at t = 0 s (step 0)") != std::string::npos);
+      CHECK(!fs::exists(dir.file("seed.h5")));
+      CHECK(!fs::exists(dir.file("seed.xdmf")));
+    }
+}
+
+TEST_CASE("mpi: SIGINT to mpirun itself: mpirun exits 1, the ranks stop as on SIGTERM, the file says interrupted") {
+  // OpenMPI 4.1's mpirun passes SIGINT and SIGTERM on to the ranks as
+  // SIGTERM, SIGKILLs them 1 s later (odls_base_sigkill_timeout) and itself
+  // exits 1 whatever the ranks' statuses (measured with ranks that exit 0
+  // and 130 on the signal); otmpm cannot change that status. A script sees
+  // status 1, the ranks' message "interrupted by SIGTERM" and the file's
+  // status "interrupted" (docs/stability.md).
+  TempDir dir("mpi_signal_mpirun");
+  std::string text = block_on_floor(40, 1.0e3);
+  text.replace(text.find("velocity = [0.0, -1.0]"), 22, "velocity = [0.0, -0.01]");
+  const std::string scene = write_scene(dir, "block", text);
+  for (const int np : {2, 3}) {
+    CAPTURE(np);
+    const std::vector<std::string> args{"run", scene, "--quiet", "--out", "sig.h5", "--force"};
+    MpiLaunch mpirun(kMpiexec, kBinary, dir.dir, std::vector<RankLine>(static_cast<std::size_t>(np), RankLine{args}),
+                     dir.file("stderr.txt"));
+    const pid_t rank1 = mpirun.rank(1);
+    REQUIRE(rank1 > 0);
+    REQUIRE(otmpm::test::catches(rank1, SIGINT, 30.0));
+    std::this_thread::sleep_for(std::chrono::seconds(2)); // stepping
+    mpirun.signal(SIGINT);
+    const int status = mpirun.end_within(60.0);
+    std::ifstream in(dir.file("stderr.txt"));
+    const std::string err((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    CAPTURE(err);
+    CHECK(status == 1);
+    CHECK(err.find("otmpm: interrupted by SIGTERM at t = ") != std::string::npos);
+    CHECK(string_attribute(dir.file("sig.h5"), "status") == "interrupted");
+  }
+}
+
 TEST_CASE("mpi: a block landing on a wall agrees with the serial run within kImpactAgreement") {
   // Contact with a wall amplifies the round-off differences of the nodal
   // sums more than the elastic runs above: measured (relative to each

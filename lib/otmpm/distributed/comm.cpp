@@ -30,6 +30,8 @@ namespace {
 /// Tags of the point-to-point messages (reductions, exchanges).
 constexpr int kTreeTag = 7101;
 constexpr int kExchangeTag = 7102;
+/// Tag of a notice to the other ranks (interrupt_peers()).
+constexpr int kNoticeTag = 7103;
 
 MPI_Comm world_comm() { return MPI_COMM_WORLD; }
 
@@ -434,6 +436,55 @@ void require_same(const Comm& comm, const std::string& what, const std::string& 
       throw InputError("rank " + std::to_string(comm.rank()) + ": " + what + " differs from rank 0's: " +
                        first_difference(mine, root) + " (" + hint + ")");
   });
+}
+
+#ifdef OTMPM_HAVE_MPI
+namespace {
+
+/// The ranks of world() as InterruptPeers (one message of kNoticeTag per rank).
+class WorldPeers final : public InterruptPeers {
+public:
+  void tell() override {
+    if (told_them_) return;
+    told_them_ = true;
+    for (int q = 0; q < Comm::world().size(); ++q) {
+      if (q == Comm::world().rank()) continue;
+      MPI_Request r;
+      MPI_Isend(&kStop, 1, MPI_INT, q, kNoticeTag, world_comm(), &r);
+      MPI_Request_free(&r); // sent in the background; nothing waits for it
+    }
+  }
+  bool told() override {
+    if (heard_) return true;
+    const auto now = std::chrono::steady_clock::now();
+    if (now < next_) return false;
+    next_ = now + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                      std::chrono::duration<double>(kNoticeInterval));
+    int found = 0;
+    MPI_Status status;
+    MPI_Iprobe(MPI_ANY_SOURCE, kNoticeTag, world_comm(), &found, &status);
+    if (!found) return false;
+    int stop = 0;
+    MPI_Recv(&stop, 1, MPI_INT, status.MPI_SOURCE, kNoticeTag, world_comm(), MPI_STATUS_IGNORE);
+    heard_ = true;
+    return true;
+  }
+
+private:
+  static constexpr int kStop = 1;
+  bool told_them_ = false, heard_ = false;
+  std::chrono::steady_clock::time_point next_{};
+};
+
+} // namespace
+#endif
+
+InterruptPeers* interrupt_peers() {
+#ifdef OTMPM_HAVE_MPI
+  static WorldPeers peers;
+  if (Comm::world().size() > 1) return &peers;
+#endif
+  return nullptr;
 }
 
 bool built_with_mpi() {

@@ -11,6 +11,8 @@
 /// result is broadcast, so every rank holds the same bits and a run with the
 /// same rank count gives the same bits again. Maxima, minima and integer
 /// sums are exact in any order.
+#include "otmpm/interrupt.hpp"
+
 #include <cstdint>
 #include <functional>
 #include <span>
@@ -141,6 +143,14 @@ void agree_on(const Comm& comm, const std::function<void()>& step);
 /// where rank 0 has 'B' (HINT)" ("line N" only for a text of several lines).
 /// One broadcast and one reduction.
 void require_same(const Comm& comm, const std::string& what, const std::string& mine, const std::string& hint);
+
+/// The other ranks of Comm::world() as interrupt_point() sees them: a rank
+/// that stops (its signal) sends each of them a notice, and a rank looks
+/// for one (MPI_Iprobe) at most every kNoticeInterval seconds. Null when
+/// there is one rank. Main thread only (MPI funnelled).
+InterruptPeers* interrupt_peers();
+/// Seconds between two looks for a notice (interrupt_peers()).
+inline constexpr double kNoticeInterval = 0.005;
 
 /// True when this otmpm was built with MPI (OTMPM_MPI).
 bool built_with_mpi();

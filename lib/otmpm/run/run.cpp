@@ -821,13 +821,13 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
 
   /// This rank's engine of the scene (the whole scene in a serial run); a
   /// distributed restart builds it from its rows of the checkpoint (`rows`).
-  /// A serial run stops inside the seeding when opt.interrupt is set
-  /// (InterruptedError, before any file is created); the ranks of a
-  /// distributed run meet in collectives between its loops, so they stop
-  /// at the agreed check after it.
+  /// The run stops inside the seeding's loops when opt.interrupt is set
+  /// (InterruptedError, before any file is created); in a distributed run
+  /// the rank that got the signal tells the others (interrupt_peers), each
+  /// leaves its loop, and the agreement after the loop stops them all.
   static Engine<D> build(const Scene& s, const RunOptions& opt, const Checkpoint* resume, Checkpoint& rows) {
     const auto& comm = distributed::Comm::world();
-    const InterruptPolling polling(comm.size() == 1 ? opt.interrupt : nullptr);
+    const InterruptPolling polling(opt.interrupt, distributed::interrupt_peers());
     if (!resume || comm.size() == 1) return Engine<D>(distributed::rank_parts<D>(s, comm));
     return Engine<D>(distributed::restart_parts<D>(s, comm, *resume, rows));
   }
