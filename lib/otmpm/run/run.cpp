@@ -860,14 +860,22 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
   }
 
   /// Runs `f` (a step, a frame); an instability, an output error or memory
-  /// running out ends the run with its status and is rethrown. A distributed
-  /// run agrees on an allocation that failed inside a stage of a step
-  /// (DeferredOutOfMemory, the same on every rank); one that failed
-  /// elsewhere on one rank cannot be agreed on: the error goes up as it is,
-  /// and the command ends every rank.
+  /// running out ends the run with its status and is rethrown. In a
+  /// distributed run an allocation that fails on one rank ends every rank
+  /// with the same DeferredOutOfMemory: inside a stage of a step the rank
+  /// defers it to the next reduction; anywhere else (a halo or migration
+  /// buffer, a frame's rows, a sum) it tells the others at once
+  /// (stop_every_rank), which leave the operation they wait in.
   template <class F> void stopping_on_failure(F&& f) {
     try {
-      f();
+      try {
+        f();
+      } catch (const std::bad_alloc&) {
+        if (distributed::Comm::world().size() == 1) throw;
+        const std::string what = "rank " + std::to_string(distributed::Comm::world().rank()) +
+                                 " could not get the memory it needed";
+        throw DeferredOutOfMemory(distributed::stop_every_rank(diagnosis(what, e.steps(), e.time())));
+      }
     } catch (const InstabilityError& err) {
       stop_unstable(err);
       throw;
