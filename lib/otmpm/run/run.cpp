@@ -827,7 +827,8 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
   /// leaves its loop, and the agreement after the loop stops them all.
   static Engine<D> build(const Scene& s, const RunOptions& opt, const Checkpoint* resume, Checkpoint& rows) {
     const auto& comm = distributed::Comm::world();
-    const InterruptPolling polling(opt.interrupt, distributed::interrupt_peers());
+    std::optional<InterruptPolling> polling; // else the caller's (Python's signal handlers), if any
+    if (opt.interrupt) polling.emplace(opt.interrupt, distributed::interrupt_peers());
     if (!resume || comm.size() == 1) return Engine<D>(distributed::rank_parts<D>(s, comm));
     return Engine<D>(distributed::restart_parts<D>(s, comm, *resume, rows));
   }
