@@ -371,7 +371,10 @@ std::vector<Bytes> Comm::alltoall(std::vector<Bytes> send) const {
   const std::size_t P = static_cast<std::size_t>(size_);
   // the counts and offsets too: MPI reads them until the operations end
   Landing<int> l1(P), l2(P), l3(P), l4(P);
-  std::vector<int>&send_count = *l1, &recv_count = *l2, &send_at = *l3, &recv_at = *l4;
+  std::vector<int>& send_count = *l1;
+  std::vector<int>& recv_count = *l2;
+  std::vector<int>& send_at = *l3;
+  std::vector<int>& recv_at = *l4;
   for (std::size_t q = 0; q < P; ++q) send_count[q] = checked_count(send[q].size());
   MPI_Request counted;
   MPI_Ialltoall(send_count.data(), 1, MPI_INT, recv_count.data(), 1, MPI_INT, world_comm(), &counted);
@@ -408,7 +411,8 @@ std::vector<Bytes> Comm::allgather(const Bytes& mine) const {
 #ifdef OTMPM_HAVE_MPI
   const std::size_t P = static_cast<std::size_t>(size_);
   Landing<int> l1(P), l2(P); // MPI reads the counts and offsets until the operations end
-  std::vector<int>&count = *l1, &at = *l2;
+  std::vector<int>& count = *l1;
+  std::vector<int>& at = *l2;
   const int n = checked_count(mine.size());
   MPI_Request r;
   MPI_Iallgather(&n, 1, MPI_INT, count.data(), 1, MPI_INT, world_comm(), &r);
