@@ -1245,6 +1245,8 @@ TEST_CASE("mpi: a signal to one rank while the bodies are seeded stops every ran
   TempDir dir("mpi_seeding_signal");
   std::string text = block_on_floor(5000, 0.01);
   text.replace(text.find("point = [0.0, 0.1]"), 18, "point = [0.0, 0.9]"); // above the body, facing up
+  const std::string box = "lower = [0.2, 0.2]\nupper = [0.8, 0.6]";
+  text.replace(text.find(box), box.size(), "lower = [0.1, 0.1]\nupper = [0.9, 0.8]");
   text.replace(text.find("cfl = 0.1\n"), 10, "cfl = 0.1\nmemory_limit = 1e12\n");
   const std::string scene = write_scene(dir, "seed", text);
   for (const int np : {2, 3})
@@ -1257,7 +1259,7 @@ TEST_CASE("mpi: a signal to one rank while the bodies are seeded stops every ran
       const pid_t rank1 = mpirun.rank(1);
       REQUIRE(rank1 > 0);
       REQUIRE(otmpm::test::catches(rank1, sig, 30.0)); // otmpm runs its command
-      std::this_thread::sleep_for(std::chrono::milliseconds(1000)); // reading the scene, then seeding
+      std::this_thread::sleep_for(std::chrono::milliseconds(500)); // reading the scene, then seeding
       ::kill(rank1, sig);
       const auto sent = std::chrono::steady_clock::now();
       const int status = mpirun.end_within(60.0);

@@ -17,14 +17,14 @@ InterruptPolling::~InterruptPolling() { polled.store(previous_); }
 void interrupt_point(const char* what) {
   const InterruptPolling* p = polled.load(std::memory_order_relaxed);
   if (!p) return;
-  const bool mine = p->flag_ && p->flag_->load(std::memory_order_relaxed);
-  if (!mine && !p->peers_) return;
+  const bool mine = p->flag() && p->flag()->load(std::memory_order_relaxed);
+  if (!mine && !p->peers()) return;
 #ifdef OTMPM_HAVE_OPENMP
   if (omp_in_parallel()) return; // an exception may not leave a parallel region (nor may a thread call MPI)
 #endif
   if (mine) {
-    if (p->peers_) p->peers_->tell();
-  } else if (!p->peers_->told()) {
+    if (p->peers()) p->peers()->tell();
+  } else if (!p->peers()->told()) {
     return;
   }
   throw InterruptedError(std::string("interrupted while ") + what);

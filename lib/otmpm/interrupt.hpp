@@ -48,8 +48,11 @@ public:
   InterruptPolling(const InterruptPolling&) = delete;
   InterruptPolling& operator=(const InterruptPolling&) = delete;
 
+  /// The polled flag (nullptr: none) and the peers (nullptr: none).
+  const std::atomic<bool>* flag() const { return flag_; }
+  InterruptPeers* peers() const { return peers_; }
+
 private:
-  friend void interrupt_point(const char* what);
   const std::atomic<bool>* flag_;
   InterruptPeers* peers_;
   const InterruptPolling* previous_;

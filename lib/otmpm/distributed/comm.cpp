@@ -443,8 +443,7 @@ void Comm::barrier() const {
 
 const void* Comm::mpi_comm() const {
 #ifdef OTMPM_HAVE_MPI
-  static const MPI_Comm world = MPI_COMM_WORLD;
-  if (mpi_) return &world;
+  if (mpi_) return &active; // MPI_COMM_WORLD; after a rank's failure the spare (stop_every_rank)
 #endif
   return nullptr;
 }

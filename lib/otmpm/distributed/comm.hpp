@@ -11,13 +11,15 @@
 /// result is broadcast, so every rank holds the same bits and a run with the
 /// same rank count gives the same bits again. Maxima, minima and integer
 /// sums are exact in any order.
-#include "otmpm/interrupt.hpp"
-
 #include <cstdint>
 #include <functional>
 #include <span>
 #include <string>
 #include <vector>
+
+namespace otmpm {
+class InterruptPeers;
+} // namespace otmpm
 
 namespace otmpm::distributed {
 

@@ -2,6 +2,8 @@
 /// A rank's particles, seeded once in its own cells (share_seeding.hpp).
 #include "otmpm/distributed/share_seeding.hpp"
 
+#include "otmpm/interrupt.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
