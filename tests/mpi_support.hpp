@@ -109,6 +109,9 @@ public:
     return 0;
   }
 
+  /// Sends `sig` to mpirun itself (not to its ranks).
+  void signal(int sig) const { ::kill(pid_, sig); }
+
   /// Waits up to `seconds` for mpirun to end: its exit status (128 + N when
   /// signal N ended it), or -1 when it had not ended - then the launch is
   /// killed (SIGKILL to its process group) and reaped.

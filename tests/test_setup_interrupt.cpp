@@ -2,12 +2,15 @@
 // inside the long loops of a set-up while an InterruptPolling watches it: a
 // particle file (CSV and HDF5) stops at the next block of rows, a body's
 // seeding (box cells, a shape's lattice, a mesh's elements) at the next row
-// of cells; without a polling, or with its flag clear, nothing changes.
+// of cells, a checkpoint's reading at the next chunk or array (the file
+// untouched); without a polling, or with its flag clear, nothing changes.
 // test_cli_setup sends the signal to `otmpm run` itself.
 #include "otmpm/assembly/assembler.hpp"
 #include "otmpm/assembly/seeding.hpp"
 #include "otmpm/interrupt.hpp"
+#include "otmpm/io/checkpoint.hpp"
 #include "otmpm/io/particle_file.hpp"
+#include "otmpm/run/run.hpp"
 #include "otmpm/scene/scene.hpp"
 
 #include "h5_support.hpp"
@@ -17,6 +20,7 @@
 
 #include <atomic>
 #include <fstream>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -92,4 +96,30 @@ TEST_CASE("a body's seeding stops when the flag is raised: box, sphere and file 
     flag = false;
     CHECK(seed_bodies<2>(scene, grid.h(), grid).particles.size() > 0);
   }
+}
+
+TEST_CASE("reading a checkpoint stops when the flag is raised, and leaves the checkpoint as it was") {
+  test::TempDir dir("setup_interrupt_checkpoint");
+  Scene scene = parse_scene(scene_text("lower = [0.2, 0.2]\nupper = [0.8, 0.8]\n"), dir.file("s.toml"));
+  scene.output.checkpoint_every = 1;
+  scene.simulation.t_end = 1e-3; // several steps: checkpoints after each but the last
+  RunOptions options;
+  options.out_file = dir.file("r.h5");
+  REQUIRE(run_scene(scene, options).exit_code == 0);
+  const std::string ck = dir.file("r.checkpoint.h5");
+  const auto bytes = [&] {
+    std::ifstream in(ck, std::ios::binary);
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  };
+  const std::string before = bytes();
+  REQUIRE(before.size() > 0);
+  std::atomic<bool> flag{true};
+  const Checkpoint whole = read_checkpoint(ck); // raised, not polled
+  {
+    const InterruptPolling polling(&flag);
+    CHECK_THROWS_WITH_AS(read_checkpoint(ck), "interrupted while reading a checkpoint", InterruptedError);
+    flag = false;
+    CHECK(read_checkpoint(ck).groups.size() == whole.groups.size()); // a clear flag changes nothing
+  }
+  CHECK(bytes() == before);
 }

@@ -52,6 +52,29 @@ PyObject* new_error(py::module_& m, const char* name, PyObject* base, const char
 
 } // namespace
 
+bool PythonSignals::check() {
+  if (PyErr_CheckSignals() == 0) return false;
+  raised_.emplace(); // fetches the handler's exception
+  return true;
+}
+
+bool PythonSignals::told() {
+  if (raised_) return true;
+  const auto now = std::chrono::steady_clock::now();
+  if (now < next_) return false;
+  next_ = now + std::chrono::milliseconds(10);
+  if (PyGILState_Check()) return check();
+  const py::gil_scoped_acquire gil;
+  return check();
+}
+
+void PythonSignals::rethrow() {
+  if (!raised_) return;
+  py::error_already_set e = std::move(*raised_);
+  raised_.reset();
+  throw e;
+}
+
 void register_errors(py::module_& m) {
   g_input_error = new_error(m, "InputError", PyExc_ValueError,
                             "Bad input: a scene value, an override or an argument that cannot be used.\n\n"

@@ -218,7 +218,9 @@ void register_scene(py::module_& m) {
       .def_static(
           "from_toml",
           [](const std::filesystem::path& path, const py::object& overrides) {
-            return load_scene(path.string(), override_strings(overrides), 1); // Python runs in one process
+            return with_python_signals([&] { // Python runs in one process
+              return load_scene(path.string(), override_strings(overrides), 1);
+            });
           },
           py::arg("path"), py::arg("overrides") = py::none(), kFromTomlDoc)
       .def_static(
@@ -227,13 +229,13 @@ void register_scene(py::module_& m) {
             Conversion c{name, {}};
             std::ostringstream os;
             os << table_from(d, c, "", false) << "\n";
-            return parse_scene(os.str(), name, override_strings(overrides), 1);
+            return with_python_signals([&] { return parse_scene(os.str(), name, override_strings(overrides), 1); });
           },
           py::arg("d"), py::arg("overrides") = py::none(), py::arg("name") = "<dict>", kFromDictDoc)
       .def(
           "with_overrides",
           [](const Scene& s, const py::object& overrides) {
-            return parse_scene(s.text, s.file, override_strings(overrides), 1);
+            return with_python_signals([&] { return parse_scene(s.text, s.file, override_strings(overrides), 1); });
           },
           py::arg("overrides"),
           "A new scene: this one with the overrides applied (as Scene.from_toml's overrides).")

@@ -200,10 +200,14 @@ public:
   }
 
 private:
+  /// The simulation, built without the GIL; Ctrl-C during its set-up raises
+  /// KeyboardInterrupt (with_python_signals) and leaves no object.
   static Simulation build(const Scene& scene, const RunOptions& options, std::optional<int> threads) {
-    py::gil_scoped_release nogil;
-    ThreadScope scope(threads);
-    return Simulation(scene, options);
+    return with_python_signals([&] {
+      py::gil_scoped_release nogil;
+      ThreadScope scope(threads);
+      return Simulation(scene, options);
+    });
   }
   static std::set<PySimulation*>& live() {
     static std::set<PySimulation*> all; // touched with the GIL held only

@@ -103,6 +103,77 @@ CHILD = textwrap.dedent("""
 """)
 
 
+# A body of 3.6e5 particles and one over it of 5.2e7 seeds that the first
+# body's overlap drops: its seeding takes seconds (measured 8.5 s), and
+# holds no more than the first body's particles.
+SLOW_SETUP = """
+[simulation]
+dimension = 2
+integrator = "musl"
+t_end = 1e-4
+[basis]
+kind = "linear"
+[grid]
+lower = [0.0, 0.0]
+upper = [1.0, 1.0]
+cells = [1000, 1000]
+[[material]]
+name = "m"
+model = "linear_elastic"
+density = 1000.0
+young = 1.0e6
+poisson = 0.3
+[[body]]
+name = "a"
+material = "m"
+lower = [0.2, 0.2]
+upper = [0.8, 0.8]
+particles_per_cell = 1
+[[body]]
+name = "b"
+material = "m"
+lower = [0.2, 0.2]
+upper = [0.8, 0.8]
+particles_per_cell = 12
+overlap = "first"
+[output]
+every = 1e-4
+"""
+
+SETUP_CHILD = textwrap.dedent("""
+    import sys, time, otmpm
+    scene = otmpm.Scene.from_toml(sys.argv[1])
+    print("building", flush=True)
+    start = time.perf_counter()
+    try:
+        sim = otmpm.Simulation(scene, out=sys.argv[2])
+    except KeyboardInterrupt:
+        print("KeyboardInterrupt", flush=True)
+        sys.exit(130)
+    print("built", time.perf_counter() - start, flush=True)
+""")
+
+
+def test_ctrl_c_during_the_set_up_raises_keyboard_interrupt_at_once_and_writes_nothing(tmp_path):
+    """Ctrl-C while a Simulation seeds its bodies: KeyboardInterrupt within
+    a row of cells (before, only after the whole set-up), no object, no file."""
+    scene = tmp_path / "slow.toml"
+    scene.write_text(SLOW_SETUP)
+    out = tmp_path / "r.h5"
+    child = subprocess.Popen([sys.executable, "-c", SETUP_CHILD, str(scene), str(out)],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert child.stdout.readline().strip() == "building"
+    time.sleep(1.0)  # seeding (measured 8.5 s in all)
+    sent = time.perf_counter()
+    child.send_signal(signal.SIGINT)
+    stdout, stderr = child.communicate(timeout=60)
+    assert child.returncode == 130, (stdout, stderr)
+    assert stdout.strip() == "KeyboardInterrupt"
+    assert time.perf_counter() - sent < 3.0  # measured 0.15 s; the set-up takes seconds more
+    assert not out.exists() and not (tmp_path / "r.xdmf").exists()
+    assert not [n for n in os.listdir(tmp_path) if n.endswith(".otmpm-lock")]
+
+
 def test_ctrl_c_raises_keyboard_interrupt_and_leaves_a_valid_file(tmp_path):
     out = tmp_path / "interrupted.h5"
     child = subprocess.Popen([sys.executable, "-c", CHILD, example("fixed_bar.toml"), str(out)],

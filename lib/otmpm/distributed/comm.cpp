@@ -6,6 +6,7 @@
 #include "otmpm/distributed/comm_local.hpp"
 
 #include "otmpm/core.hpp"
+#include "otmpm/engine/distribution.hpp"
 #include "otmpm/interrupt.hpp"
 
 #include <algorithm>
@@ -13,6 +14,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <initializer_list>
+#include <new>
 #include <thread>
 #include <cstring>
 #include <exception>
@@ -31,8 +33,97 @@ namespace {
 /// Tags of the point-to-point messages (reductions, exchanges).
 constexpr int kTreeTag = 7101;
 constexpr int kExchangeTag = 7102;
+/// Tag of a notice to the other ranks (interrupt_peers()).
+constexpr int kNoticeTag = 7103;
+/// Tag of a rank's failure (stop_every_rank()).
+constexpr int kFailureTag = 7104;
 
-MPI_Comm world_comm() { return MPI_COMM_WORLD; }
+/// The communicator of the ranks' operations: MPI_COMM_WORLD, until a rank
+/// fails between two of them (stop_every_rank): then `spare`, a copy made
+/// when MPI started, on which no operation of the abandoned step is pending.
+MPI_Comm active = MPI_COMM_WORLD;
+MPI_Comm spare = MPI_COMM_NULL;
+/// This rank told the others of its failure (it waits for them at most Session::kExitWait).
+bool failed = false;
+std::string failure_message;
+
+MPI_Comm world_comm() { return active; }
+
+/// Takes the spare communicator: the operations of the step that failed are abandoned.
+void abandon_step() {
+  active = spare;
+  spare = MPI_COMM_NULL;
+}
+
+/// When another rank told of its failure (stop_every_rank): every rank
+/// throws its DeferredOutOfMemory from the operation it waits in. On the
+/// rank that failed: when the others have not come within Session::kExitWait
+/// (they wait inside a library's collective, out of this layer's sight), the
+/// last resort ends every rank.
+void look_for_failure(std::chrono::steady_clock::time_point start) {
+  if (failed) {
+    if (std::chrono::steady_clock::now() - start > std::chrono::duration<double>(Session::kExitWait)) {
+      std::fprintf(stderr, "otmpm: out of memory: %s\n", failure_message.c_str());
+      Session::abort(4);
+    }
+    return;
+  }
+  if (spare == MPI_COMM_NULL) return; // no step to abandon (MPI not started by a Session, or a failure before)
+  int found = 0;
+  MPI_Status status;
+  MPI_Iprobe(MPI_ANY_SOURCE, kFailureTag, active, &found, &status);
+  if (!found) return;
+  int n = 0;
+  MPI_Get_count(&status, MPI_CHAR, &n);
+  std::string message(static_cast<std::size_t>(n), '\0');
+  MPI_Recv(message.data(), n, MPI_CHAR, status.MPI_SOURCE, kFailureTag, active, MPI_STATUS_IGNORE);
+  abandon_step();
+  throw DeferredOutOfMemory(message);
+}
+
+/// A buffer that an operation of MPI writes into: freed when the operation
+/// is done, kept (never freed) when the rank abandons the step inside the
+/// operation (look_for_failure threw), since MPI may still write into it.
+template <class T> class Landing {
+public:
+  explicit Landing(std::size_t n, T value = T()) : v_(new std::vector<T>(n, value)) {}
+  ~Landing() {
+    if (std::uncaught_exceptions() == exceptions_) delete v_;
+  }
+  Landing(const Landing&) = delete;
+  Landing& operator=(const Landing&) = delete;
+  std::vector<T>& operator*() { return *v_; }
+  std::vector<T>* operator->() { return v_; }
+
+private:
+  std::vector<T>* v_;
+  int exceptions_ = std::uncaught_exceptions();
+};
+
+/// MPI_Waitall that looks for another rank's failure while it waits.
+void wait_all(int n, MPI_Request* requests) {
+  const auto start = std::chrono::steady_clock::now();
+  for (long spins = 0;; ++spins) {
+    int done = 0;
+    MPI_Testall(n, requests, &done, MPI_STATUSES_IGNORE);
+    if (done) return;
+    look_for_failure(start);
+    if (spins > 1000) std::this_thread::yield();
+  }
+}
+void wait_one(MPI_Request& request) { wait_all(1, &request); }
+
+/// MPI_Probe of a message from `from` with `tag`, looking for failures while it waits.
+void probe(int from, int tag, MPI_Status& status) {
+  const auto start = std::chrono::steady_clock::now();
+  for (long spins = 0;; ++spins) {
+    int found = 0;
+    MPI_Iprobe(from, tag, world_comm(), &found, &status);
+    if (found) return;
+    look_for_failure(start);
+    if (spins > 1000) std::this_thread::yield();
+  }
+}
 
 bool mpi_running() {
   int init = 0, fin = 0;
@@ -51,21 +142,36 @@ int checked_count(std::size_t n) {
 /// (children combined in increasing rank order): the first `sums` entries
 /// added, the rest by maximum; then broadcasts the result.
 void tree_reduce(double* values, int n, int sums, int rank, int size) {
-  std::vector<double> child(static_cast<std::size_t>(n));
+  Landing<double> child(static_cast<std::size_t>(n));
   for (int mask = 1; mask < size; mask <<= 1) {
+    MPI_Request r;
     if (rank & mask) {
-      MPI_Send(values, n, MPI_DOUBLE, rank - mask, kTreeTag, world_comm());
+      MPI_Isend(values, n, MPI_DOUBLE, rank - mask, kTreeTag, world_comm(), &r);
+      wait_one(r);
       break;
     }
     if (rank + mask < size) {
-      MPI_Recv(child.data(), n, MPI_DOUBLE, rank + mask, kTreeTag, world_comm(), MPI_STATUS_IGNORE);
+      MPI_Irecv(child->data(), n, MPI_DOUBLE, rank + mask, kTreeTag, world_comm(), &r);
+      wait_one(r);
       for (int i = 0; i < n; ++i) {
-        const double c = child[static_cast<std::size_t>(i)];
+        const double c = (*child)[static_cast<std::size_t>(i)];
         values[i] = i < sums ? values[i] + c : std::max(values[i], c);
       }
     }
   }
-  MPI_Bcast(values, n, MPI_DOUBLE, 0, world_comm());
+  MPI_Request r;
+  MPI_Ibcast(values, n, MPI_DOUBLE, 0, world_comm(), &r);
+  wait_one(r);
+}
+
+/// MPI_Allreduce in place of `n` values of T, looking for failures while it waits.
+template <class T> void allreduce(T* values, int n, MPI_Datatype type, MPI_Op op) {
+  Landing<T> v(static_cast<std::size_t>(n));
+  std::copy(values, values + n, v->begin());
+  MPI_Request r;
+  MPI_Iallreduce(MPI_IN_PLACE, v->data(), n, type, op, world_comm(), &r);
+  wait_one(r);
+  std::copy(v->begin(), v->end(), values);
 }
 #endif
 
@@ -130,8 +236,10 @@ void Comm::reduce(std::span<double> sums, std::span<double> maxima) const {
   }
 #ifdef OTMPM_HAVE_MPI
   if (!mpi_ || size_ == 1) return;
-  std::vector<double> v(sums.begin(), sums.end());
-  v.insert(v.end(), maxima.begin(), maxima.end());
+  Landing<double> landing(sums.size() + maxima.size());
+  std::vector<double>& v = *landing;
+  std::copy(sums.begin(), sums.end(), v.begin());
+  std::copy(maxima.begin(), maxima.end(), v.begin() + static_cast<std::ptrdiff_t>(sums.size()));
   tree_reduce(v.data(), checked_count(v.size()), static_cast<int>(sums.size()), rank_, size_);
   std::copy(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(sums.size()), sums.begin());
   std::copy(v.begin() + static_cast<std::ptrdiff_t>(sums.size()), v.end(), maxima.begin());
@@ -149,7 +257,7 @@ void Comm::sum(std::span<std::int64_t> values) const {
   if (local_) return local_->reduce(rank_, values, values.size(), LocalRanks::Op::sum);
 #ifdef OTMPM_HAVE_MPI
   if (mpi_ && size_ > 1)
-    MPI_Allreduce(MPI_IN_PLACE, values.data(), checked_count(values.size()), MPI_INT64_T, MPI_SUM, world_comm());
+    allreduce(values.data(), checked_count(values.size()), MPI_INT64_T, MPI_SUM);
 #else
   (void)values;
 #endif
@@ -164,7 +272,7 @@ void Comm::max(std::span<double> values) const {
   if (local_) return local_->reduce(rank_, values, 0, LocalRanks::Op::max);
 #ifdef OTMPM_HAVE_MPI
   if (mpi_ && size_ > 1)
-    MPI_Allreduce(MPI_IN_PLACE, values.data(), checked_count(values.size()), MPI_DOUBLE, MPI_MAX, world_comm());
+    allreduce(values.data(), checked_count(values.size()), MPI_DOUBLE, MPI_MAX);
 #else
   (void)values;
 #endif
@@ -174,7 +282,7 @@ void Comm::min(std::span<double> values) const {
   if (local_) return local_->reduce(rank_, values, 0, LocalRanks::Op::min);
 #ifdef OTMPM_HAVE_MPI
   if (mpi_ && size_ > 1)
-    MPI_Allreduce(MPI_IN_PLACE, values.data(), checked_count(values.size()), MPI_DOUBLE, MPI_MIN, world_comm());
+    allreduce(values.data(), checked_count(values.size()), MPI_DOUBLE, MPI_MIN);
 #else
   (void)values;
 #endif
@@ -193,7 +301,7 @@ double Comm::min(double value) const {
 std::int64_t Comm::min(std::int64_t value) const {
   if (local_) local_->reduce(rank_, std::span<std::int64_t>(&value, 1), 0, LocalRanks::Op::min);
 #ifdef OTMPM_HAVE_MPI
-  if (mpi_ && size_ > 1) MPI_Allreduce(MPI_IN_PLACE, &value, 1, MPI_INT64_T, MPI_MIN, world_comm());
+  if (mpi_ && size_ > 1) allreduce(&value, 1, MPI_INT64_T, MPI_MIN);
 #endif
   return value;
 }
@@ -201,7 +309,7 @@ std::int64_t Comm::min(std::int64_t value) const {
 std::int64_t Comm::max(std::int64_t value) const {
   if (local_) local_->reduce(rank_, std::span<std::int64_t>(&value, 1), 0, LocalRanks::Op::max);
 #ifdef OTMPM_HAVE_MPI
-  if (mpi_ && size_ > 1) MPI_Allreduce(MPI_IN_PLACE, &value, 1, MPI_INT64_T, MPI_MAX, world_comm());
+  if (mpi_ && size_ > 1) allreduce(&value, 1, MPI_INT64_T, MPI_MAX);
 #endif
   return value;
 }
@@ -215,7 +323,13 @@ std::vector<std::int64_t> Comm::allgather(std::int64_t value) const {
     for (std::size_t q = 0; q < in.size(); ++q) all[q] = Reader(in[q]).get<std::int64_t>();
   }
 #ifdef OTMPM_HAVE_MPI
-  if (mpi_ && size_ > 1) MPI_Allgather(&value, 1, MPI_INT64_T, all.data(), 1, MPI_INT64_T, world_comm());
+  if (mpi_ && size_ > 1) {
+    Landing<std::int64_t> in(all.size());
+    MPI_Request r;
+    MPI_Iallgather(&value, 1, MPI_INT64_T, in->data(), 1, MPI_INT64_T, world_comm(), &r);
+    wait_one(r);
+    all = *in;
+  }
 #endif
   return all;
 }
@@ -232,7 +346,14 @@ std::string Comm::broadcast(const std::string& text, int from) const {
 void Comm::broadcast(void* data, std::size_t bytes, int from) const {
   if (local_) return local_->broadcast(rank_, data, bytes, from);
 #ifdef OTMPM_HAVE_MPI
-  if (mpi_ && size_ > 1 && bytes > 0) MPI_Bcast(data, checked_count(bytes), MPI_BYTE, from, world_comm());
+  if (mpi_ && size_ > 1 && bytes > 0) {
+    Landing<char> v(bytes);
+    if (rank_ == from) std::memcpy(v->data(), data, bytes);
+    MPI_Request r;
+    MPI_Ibcast(v->data(), checked_count(bytes), MPI_BYTE, from, world_comm(), &r);
+    wait_one(r);
+    std::memcpy(data, v->data(), bytes);
+  }
 #else
   (void)data, (void)bytes, (void)from;
 #endif
@@ -249,13 +370,13 @@ std::vector<Bytes> Comm::exchange(const std::vector<int>& to, const std::vector<
     MPI_Isend(send[i].data(), checked_count(send[i].size()), MPI_BYTE, to[i], kExchangeTag, world_comm(), &requests[i]);
   for (std::size_t i = 0; i < from.size(); ++i) {
     MPI_Status status;
-    MPI_Probe(from[i], kExchangeTag, world_comm(), &status);
+    probe(from[i], kExchangeTag, status);
     int count = 0;
     MPI_Get_count(&status, MPI_BYTE, &count);
     received[i].resize(static_cast<std::size_t>(count));
     MPI_Recv(received[i].data(), count, MPI_BYTE, from[i], kExchangeTag, world_comm(), MPI_STATUS_IGNORE);
   }
-  MPI_Waitall(static_cast<int>(requests.size()), requests.data(), MPI_STATUSES_IGNORE);
+  wait_all(static_cast<int>(requests.size()), requests.data());
 #else
   (void)to, (void)send;
 #endif
@@ -271,9 +392,16 @@ std::vector<Bytes> Comm::alltoall(std::vector<Bytes> send) const {
   std::vector<Bytes> received(static_cast<std::size_t>(size_));
 #ifdef OTMPM_HAVE_MPI
   const std::size_t P = static_cast<std::size_t>(size_);
-  std::vector<int> send_count(P), recv_count(P), send_at(P), recv_at(P);
+  // the counts and offsets too: MPI reads them until the operations end
+  Landing<int> l1(P), l2(P), l3(P), l4(P);
+  std::vector<int>& send_count = *l1;
+  std::vector<int>& recv_count = *l2;
+  std::vector<int>& send_at = *l3;
+  std::vector<int>& recv_at = *l4;
   for (std::size_t q = 0; q < P; ++q) send_count[q] = checked_count(send[q].size());
-  MPI_Alltoall(send_count.data(), 1, MPI_INT, recv_count.data(), 1, MPI_INT, world_comm());
+  MPI_Request counted;
+  MPI_Ialltoall(send_count.data(), 1, MPI_INT, recv_count.data(), 1, MPI_INT, world_comm(), &counted);
+  wait_one(counted);
   std::size_t s = 0, r = 0;
   for (std::size_t q = 0; q < P; ++q) {
     send_at[q] = checked_count(s);
@@ -281,14 +409,18 @@ std::vector<Bytes> Comm::alltoall(std::vector<Bytes> send) const {
     s += static_cast<std::size_t>(send_count[q]);
     r += static_cast<std::size_t>(recv_count[q]);
   }
-  Bytes out(s);
+  Landing<char> sent(s); // MPI may read it after the rank abandoned the step
+  Bytes& out = *sent;
   for (std::size_t q = 0; q < P; ++q) {
     std::copy(send[q].begin(), send[q].end(), out.begin() + send_at[q]);
     Bytes().swap(send[q]);
   }
-  Bytes in(r);
-  MPI_Alltoallv(out.data(), send_count.data(), send_at.data(), MPI_BYTE, in.data(), recv_count.data(),
-                recv_at.data(), MPI_BYTE, world_comm());
+  Landing<char> landing(r);
+  Bytes& in = *landing;
+  MPI_Request req;
+  MPI_Ialltoallv(out.data(), send_count.data(), send_at.data(), MPI_BYTE, in.data(), recv_count.data(),
+                 recv_at.data(), MPI_BYTE, world_comm(), &req);
+  wait_one(req);
   Bytes().swap(out);
   for (std::size_t q = 0; q < P; ++q)
     received[q].assign(in.begin() + recv_at[q], in.begin() + recv_at[q] + recv_count[q]);
@@ -302,16 +434,22 @@ std::vector<Bytes> Comm::allgather(const Bytes& mine) const {
   std::vector<Bytes> received(static_cast<std::size_t>(size_));
 #ifdef OTMPM_HAVE_MPI
   const std::size_t P = static_cast<std::size_t>(size_);
-  std::vector<int> count(P), at(P);
+  Landing<int> l1(P), l2(P); // MPI reads the counts and offsets until the operations end
+  std::vector<int>& count = *l1;
+  std::vector<int>& at = *l2;
   const int n = checked_count(mine.size());
-  MPI_Allgather(&n, 1, MPI_INT, count.data(), 1, MPI_INT, world_comm());
+  MPI_Request r;
+  MPI_Iallgather(&n, 1, MPI_INT, count.data(), 1, MPI_INT, world_comm(), &r);
+  wait_one(r);
   std::size_t total = 0;
   for (std::size_t q = 0; q < P; ++q) {
     at[q] = checked_count(total);
     total += static_cast<std::size_t>(count[q]);
   }
-  Bytes in(total);
-  MPI_Allgatherv(mine.data(), n, MPI_BYTE, in.data(), count.data(), at.data(), MPI_BYTE, world_comm());
+  Landing<char> landing(total);
+  Bytes& in = *landing;
+  MPI_Iallgatherv(mine.data(), n, MPI_BYTE, in.data(), count.data(), at.data(), MPI_BYTE, world_comm(), &r);
+  wait_one(r);
   for (std::size_t q = 0; q < P; ++q) received[q].assign(in.begin() + at[q], in.begin() + at[q] + count[q]);
 #endif
   return received;
@@ -320,14 +458,17 @@ std::vector<Bytes> Comm::allgather(const Bytes& mine) const {
 void Comm::barrier() const {
   if (local_) return local_->wait();
 #ifdef OTMPM_HAVE_MPI
-  if (mpi_ && size_ > 1) MPI_Barrier(world_comm());
+  if (mpi_ && size_ > 1) {
+    MPI_Request r;
+    MPI_Ibarrier(world_comm(), &r);
+    wait_one(r);
+  }
 #endif
 }
 
 const void* Comm::mpi_comm() const {
 #ifdef OTMPM_HAVE_MPI
-  static const MPI_Comm world = MPI_COMM_WORLD;
-  if (mpi_) return &world;
+  if (mpi_) return &active; // MPI_COMM_WORLD; after a rank's failure the spare (stop_every_rank)
 #endif
   return nullptr;
 }
@@ -338,6 +479,7 @@ Session::Session(int& argc, char**& argv) {
   int provided = 0;
   MPI_Init_thread(&argc, &argv, MPI_THREAD_FUNNELED, &provided);
   initialised_ = true;
+  MPI_Comm_dup(MPI_COMM_WORLD, &spare); // for the end of a run whose step a rank abandoned (stop_every_rank)
 #else
   (void)argc, (void)argv, (void)started_by_launcher;
 #endif
@@ -459,6 +601,75 @@ void require_same(const Comm& comm, const std::string& what, const std::string& 
       throw InputError("rank " + std::to_string(comm.rank()) + ": " + what + " differs from rank 0's: " +
                        first_difference(mine, root) + " (" + hint + ")");
   });
+}
+
+#ifdef OTMPM_HAVE_MPI
+namespace {
+
+/// The ranks of world() as InterruptPeers (one message of kNoticeTag per rank).
+class WorldPeers final : public InterruptPeers {
+public:
+  void tell() override {
+    if (told_them_) return;
+    told_them_ = true;
+    for (int q = 0; q < Comm::world().size(); ++q) {
+      if (q == Comm::world().rank()) continue;
+      MPI_Request r;
+      MPI_Isend(&kStop, 1, MPI_INT, q, kNoticeTag, world_comm(), &r);
+      MPI_Request_free(&r); // sent in the background; nothing waits for it
+    }
+  }
+  bool told() override {
+    if (heard_) return true;
+    const auto now = std::chrono::steady_clock::now();
+    if (now < next_) return false;
+    next_ = now + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                      std::chrono::duration<double>(kNoticeInterval));
+    int found = 0;
+    MPI_Status status;
+    MPI_Iprobe(MPI_ANY_SOURCE, kNoticeTag, world_comm(), &found, &status);
+    if (!found) return false;
+    int stop = 0;
+    MPI_Recv(&stop, 1, MPI_INT, status.MPI_SOURCE, kNoticeTag, world_comm(), MPI_STATUS_IGNORE);
+    heard_ = true;
+    return true;
+  }
+
+private:
+  static constexpr int kStop = 1;
+  bool told_them_ = false, heard_ = false;
+  std::chrono::steady_clock::time_point next_{};
+};
+
+} // namespace
+#endif
+
+InterruptPeers* interrupt_peers() {
+#ifdef OTMPM_HAVE_MPI
+  static WorldPeers peers;
+  if (Comm::world().size() > 1) return &peers;
+#endif
+  return nullptr;
+}
+
+std::string stop_every_rank(const std::string& message) {
+#ifdef OTMPM_HAVE_MPI
+  const Comm& w = Comm::world();
+  if (w.size() == 1 || spare == MPI_COMM_NULL || failed) throw std::bad_alloc();
+  failed = true;
+  failure_message = message;
+  for (int q = 0; q < w.size(); ++q) {
+    if (q == w.rank()) continue;
+    MPI_Request r;
+    MPI_Isend(failure_message.data(), checked_count(failure_message.size()), MPI_CHAR, q, kFailureTag, active, &r);
+    MPI_Request_free(&r); // received by each rank in the operation it waits in
+  }
+  abandon_step();
+  return message;
+#else
+  (void)message;
+  throw std::bad_alloc();
+#endif
 }
 
 bool built_with_mpi() {

@@ -18,6 +18,10 @@
 #include <string>
 #include <vector>
 
+namespace otmpm {
+class InterruptPeers;
+} // namespace otmpm
+
 namespace otmpm::distributed {
 
 /// Bytes of one message.
@@ -155,6 +159,27 @@ void agree_on(const Comm& comm, const std::function<void()>& step);
 /// where rank 0 has 'B' (HINT)" ("line N" only for a text of several lines).
 /// One broadcast and one reduction.
 void require_same(const Comm& comm, const std::string& what, const std::string& mine, const std::string& hint);
+
+/// For a rank that cannot go on with a step (memory ran out where no stage
+/// defers the failure: a halo or migration buffer, a frame's rows, a sum):
+/// tells every other rank, each of which throws DeferredOutOfMemory(message)
+/// from the operation of Comm it waits in (Comm's operations wait while
+/// looking for such a message), and every rank goes on with a communicator
+/// on which no operation of the abandoned step is pending - so the ranks end
+/// the run together: the result file's status set, one message, exit 4.
+/// Returns `message`. Once per run; rethrows std::bad_alloc when it cannot
+/// (one rank, MPI not started by a Session, a second failure). While the
+/// others do not come (inside a library's collective call), this rank waits
+/// at most Session::kExitWait, then ends every rank (MPI_Abort).
+std::string stop_every_rank(const std::string& message);
+
+/// The other ranks of Comm::world() as interrupt_point() sees them: a rank
+/// that stops (its signal) sends each of them a notice, and a rank looks
+/// for one (MPI_Iprobe) at most every kNoticeInterval seconds. Null when
+/// there is one rank. Main thread only (MPI funnelled).
+InterruptPeers* interrupt_peers();
+/// Seconds between two looks for a notice (interrupt_peers()).
+inline constexpr double kNoticeInterval = 0.005;
 
 /// True when this otmpm was built with MPI (OTMPM_MPI).
 bool built_with_mpi();

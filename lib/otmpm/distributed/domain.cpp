@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <limits>
+#include <new>
 
 namespace otmpm::distributed {
 
@@ -136,6 +137,7 @@ template <int D> void Domain<D>::migrate(Engine<D>& e, const std::vector<Index<D
   comm_.max(flags);
   ++stats_.reductions;
   if (flags[0] == 0.0) return;
+  if (test_allocation_fails("migration", e.steps())) throw std::bad_alloc();
   shift_hints(e, +1); // hints travel as global cells
   const std::vector<Column> cols = columns(e);
   std::vector<char> keep(n, 1);

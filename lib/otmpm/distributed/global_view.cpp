@@ -15,6 +15,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <new>
 #include <set>
 #include <sstream>
 
@@ -112,6 +113,10 @@ template <int D> void GlobalView<D>::on_writer(const std::function<void()>& writ
 
 template <int D> void GlobalView<D>::collectively(const std::function<void()>& write) const {
   if (!d_) return write();
+  // Every rank is here before any enters the parallel HDF5's calls, which
+  // would wait without end for a rank that stopped before them
+  // (stop_every_rank: the others learn of it in this barrier).
+  d_->comm().barrier();
   agree_on(d_->comm(), write);
 }
 
@@ -191,6 +196,7 @@ template <int D> typename GlobalView<D>::Block GlobalView<D>::block(const double
     b.count = static_cast<long long>(n);
     return b;
   }
+  if (test_allocation_fails("output", e_.steps())) throw std::bad_alloc();
   const Comm& comm = d_->comm();
   const long long N = d_->global_particles(), P = comm.size();
   auto first_of = [&](long long r) { return N * r / P; };

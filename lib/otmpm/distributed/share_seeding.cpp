@@ -2,6 +2,8 @@
 /// A rank's particles, seeded once in its own cells (share_seeding.hpp).
 #include "otmpm/distributed/share_seeding.hpp"
 
+#include "otmpm/interrupt.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -194,11 +196,17 @@ void count(const Scene& scene, const Comm& comm, const Vec<D>& h, const Cartesia
   SeedSpot at;
   ErrorAt error;
   std::vector<BodyTally> tally;
+  std::exception_ptr interrupted;
   try {
     tally = seed_cells_where<D>(scene, h, lattice, [&plan](int b) { return plan.range(b); }, place, nullptr, &at);
   } catch (const InputError&) {
     error = plan.at(at, std::current_exception());
+  } catch (const InterruptedError&) { // a signal here or a peer's notice (interrupt_peers): every rank stops
+    interrupted = std::current_exception();
   }
+  agree_on(comm, [&] {
+    if (interrupted) std::rethrow_exception(interrupted);
+  });
   tally.resize(plan.cells.size());
   std::vector<std::int64_t> generated(tally.size());
   for (std::size_t b = 0; b < tally.size(); ++b) {

@@ -13,6 +13,7 @@
 #include <span>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace otmpm {
@@ -57,6 +58,15 @@ class DeferredOutOfMemory : public std::runtime_error {
 public:
   using std::runtime_error::runtime_error;
 };
+
+/// Tests of a rank that runs out of memory (tests/test_mpi.cpp): true once,
+/// at the first call for `site` at step `step` or later, when the variable
+/// OTMPM_TEST_FAIL_ALLOCATION=SITE:STEP of this process names it ("STEP"
+/// alone: the site "basis", a basis evaluation; "migration": particles
+/// leaving for another rank; "output": a frame's rows). The caller then
+/// throws std::bad_alloc, as a failed allocation there would. Unset (as
+/// always outside those tests): never.
+bool test_allocation_fails(std::string_view site, long step);
 
 template <int D> class Distribution {
 public:

@@ -263,16 +263,19 @@ template <int D> void Engine<D>::step() {
   check_energy();
 }
 
-/// Tests of a rank that runs out of memory inside a step (tests/test_mpi.cpp):
-/// with OTMPM_TEST_FAIL_ALLOCATION=STEP in its environment, a process's basis
-/// evaluation of step STEP throws std::bad_alloc, as a failed allocation of its
-/// basis table would. Read once; unset (as always outside those tests): never.
-static bool test_allocation_fails(long step) {
-  static const long at = [] {
+bool test_allocation_fails(std::string_view site, long step) {
+  static const auto [where, at] = [] {
     const char* v = std::getenv("OTMPM_TEST_FAIL_ALLOCATION");
-    return v ? std::strtol(v, nullptr, 10) : -1L;
+    const std::string text = v ? v : "";
+    const auto colon = text.find(':');
+    const std::string name = colon == std::string::npos ? "basis" : text.substr(0, colon);
+    const std::string number = colon == std::string::npos ? text : text.substr(colon + 1);
+    return std::pair{name, v ? std::strtol(number.c_str(), nullptr, 10) : -1L};
   }();
-  return at >= 0 && at == step;
+  static bool failed = false;
+  if (failed || at < 0 || site != where || step < at) return false;
+  failed = true;
+  return true;
 }
 
 template <int D> void Engine<D>::evaluate_basis() {
@@ -288,7 +291,7 @@ template <int D> void Engine<D>::evaluate_basis() {
   };
   fallible([&] {
     try {
-      if (test_allocation_fails(step_)) throw std::bad_alloc();
+      if (test_allocation_fails("basis", step_)) throw std::bad_alloc();
       const bool may_move = mode_.nodes_move() && basis_->search_radius() > 0.0;
       if (may_move) moved_.resize(P_.x.size(), Vec<D>::Zero());
       const long long moved_before = basis_->moved_points();

@@ -4,6 +4,7 @@
 #include "otmpm/io/checkpoint.hpp"
 
 #include "otmpm/core.hpp"
+#include "otmpm/interrupt.hpp"
 #include "otmpm/io/hdf5.hpp"
 #include "otmpm/io/output_files.hpp"
 
@@ -214,8 +215,20 @@ std::uint64_t blank_header_crc(const Header& h) {
   return crc64(head.data(), head.size());
 }
 
-/// CRC-64 of bytes [first, first + count) of an open file.
-std::uint64_t range_crc(std::istream& in, std::uint64_t first, std::uint64_t count) {
+/// Runs `step` on every rank of `io` and agrees on how it ended
+/// (ParallelIo::agree: an error on any rank is thrown on every rank).
+template <class Step> void on_all(const ParallelIo& io, Step&& step) {
+  if (io.size <= 1 || !io.agree) return step();
+  io.agree(step);
+}
+
+/// What a stop while a checkpoint is read says (interrupt_point).
+constexpr const char* kReading = "reading a checkpoint";
+
+/// CRC-64 of bytes [first, first + count) of an open file; with `polled`
+/// (reading a checkpoint, never while writing one) interrupt_point(polled)
+/// after each chunk.
+std::uint64_t range_crc(std::istream& in, std::uint64_t first, std::uint64_t count, const char* polled) {
   Crc64 crc;
   in.clear();
   in.seekg(static_cast<std::streamoff>(first));
@@ -225,6 +238,7 @@ std::uint64_t range_crc(std::istream& in, std::uint64_t first, std::uint64_t cou
     const auto got = static_cast<std::size_t>(in.gcount());
     crc.process_bytes(buf.data(), got);
     count -= got;
+    if (polled) interrupt_point(polled);
   }
   return crc.checksum();
 }
@@ -240,10 +254,13 @@ std::pair<std::uint64_t, std::uint64_t> crc_part(std::uint64_t file_size, int ra
 /// CRC-64 of a whole file of `h.size` bytes whose header is `h` (its CRC
 /// left out): the header, then each rank's part (io: every rank checksums
 /// its own part and the parts are combined; collective) - every rank gets
-/// the same value. `in`: the open file.
-std::uint64_t file_crc(std::istream& in, const Header& h, const ParallelIo& io) {
+/// the same value. `in`: the open file; `polled`: as range_crc (the ranks
+/// then agree on a stop).
+std::uint64_t file_crc(std::istream& in, const Header& h, const ParallelIo& io, const char* polled) {
   const auto [first, count] = crc_part(h.size, io.rank, io.size);
-  const std::uint64_t mine = range_crc(in, first, count);
+  std::uint64_t mine = 0;
+  if (polled) on_all(io, [&] { mine = range_crc(in, first, count, polled); });
+  else mine = range_crc(in, first, count, nullptr);
   std::vector<std::int64_t> parts{static_cast<std::int64_t>(mine)};
   if (io.size > 1) parts = io.allgather(static_cast<std::int64_t>(mine));
   std::uint64_t crc = blank_header_crc(h);
@@ -266,13 +283,6 @@ Header read_header(std::istream& in, const std::string& path) {
     throw InputError(path + ": the checkpoint file has " + std::to_string(ec ? 0 : size) + " bytes but was written with " +
                      std::to_string(h.size) + ": it is truncated or damaged");
   return h;
-}
-
-/// Runs `step` on every rank of `io` and agrees on how it ended
-/// (ParallelIo::agree: an error on any rank is thrown on every rank).
-template <class Step> void on_all(const ParallelIo& io, Step&& step) {
-  if (io.size <= 1 || !io.agree) return step();
-  io.agree(step);
 }
 
 /// The ranks that read `path` together each checksum a part of it: they
@@ -301,7 +311,7 @@ Header verify_file(const std::string& path, const ParallelIo& io = {}) {
     h = read_header(in, path);
   });
   if (io.mpi_comm) same_file_on_every_rank(path, h, io);
-  if (file_crc(in, h, io) != h.crc)
+  if (file_crc(in, h, io, kReading) != h.crc)
     throw InputError(path + ": checksum mismatch: the checkpoint file is damaged (CRC-64 of its bytes)");
   return h;
 }
@@ -319,7 +329,7 @@ void seal_file(const std::string& path, const std::string& run_id, const Paralle
     in.open(path, std::ios::binary);
     if (!in) throw OutputError(path + ": cannot reopen the checkpoint to seal it: " + std::strerror(errno));
   });
-  h.crc = file_crc(in, h, io);
+  h.crc = file_crc(in, h, io, nullptr);
   on_all(io, [&] {
     if (!io.root) return;
     std::fstream out(path, std::ios::binary | std::ios::in | std::ios::out);
@@ -572,6 +582,9 @@ void read_arrays(hid_t id, const std::string& name, StateGroup& g, std::vector<R
                  const std::string& path) {
   std::vector<RowShape> reals, integers;
   for (const std::string& d : h5::link_names(id, path)) {
+    // one process reading the whole file (with `heads`, the ranks of a
+    // distributed restart open it together: HDF5's calls must not stop on one)
+    if (!heads) interrupt_point(kReading);
     const H5T_class_t cls = h5::dataset_class(id, d, path);
     if (cls != H5T_FLOAT && cls != H5T_INTEGER)
       h5::fail(path, "read dataset '" + d + "' of group '" + name + "' (unexpected type)");

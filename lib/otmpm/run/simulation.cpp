@@ -18,6 +18,7 @@
 #include <chrono>
 #include <memory>
 #include <new>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -123,13 +124,14 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
 
   /// This rank's engine of the scene (the whole scene in a serial run); a
   /// distributed restart builds it from its rows of the checkpoint (`rows`).
-  /// A serial run stops inside the seeding when opt.interrupt is set
-  /// (InterruptedError, before any file is created); the ranks of a
-  /// distributed run meet in collectives between its loops, so they stop
-  /// at the agreed check after it.
+  /// The run stops inside the seeding's loops when opt.interrupt is set
+  /// (InterruptedError, before any file is created); in a distributed run
+  /// the rank that got the signal tells the others (interrupt_peers), each
+  /// leaves its loop, and the agreement after the loop stops them all.
   static Engine<D> build(const Scene& s, const RunOptions& opt, const Checkpoint* resume, Checkpoint& rows) {
     const auto& comm = distributed::Comm::world();
-    const InterruptPolling polling(comm.size() == 1 ? opt.interrupt : nullptr);
+    std::optional<InterruptPolling> polling; // else the caller's (Python's signal handlers), if any
+    if (opt.interrupt) polling.emplace(opt.interrupt, distributed::interrupt_peers());
     if (!resume || comm.size() == 1) return Engine<D>(distributed::rank_parts<D>(s, comm));
     return Engine<D>(distributed::restart_parts<D>(s, comm, *resume, rows));
   }
@@ -162,14 +164,22 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
   }
 
   /// Runs `f` (a step, a frame); an instability, an output error or memory
-  /// running out ends the run with its status and is rethrown. A distributed
-  /// run agrees on an allocation that failed inside a stage of a step
-  /// (DeferredOutOfMemory, the same on every rank); one that failed
-  /// elsewhere on one rank cannot be agreed on: the error goes up as it is,
-  /// and the command ends every rank.
+  /// running out ends the run with its status and is rethrown. In a
+  /// distributed run an allocation that fails on one rank ends every rank
+  /// with the same DeferredOutOfMemory: inside a stage of a step the rank
+  /// defers it to the next reduction; anywhere else (a halo or migration
+  /// buffer, a frame's rows, a sum) it tells the others at once
+  /// (stop_every_rank), which leave the operation they wait in.
   template <class F> void stopping_on_failure(F&& f) {
     try {
-      f();
+      try {
+        f();
+      } catch (const std::bad_alloc&) {
+        if (distributed::Comm::world().size() == 1) throw;
+        const std::string what = "rank " + std::to_string(distributed::Comm::world().rank()) +
+                                 " could not get the memory it needed";
+        throw DeferredOutOfMemory(distributed::stop_every_rank(diagnosis(what, e.steps(), e.time())));
+      }
     } catch (const InstabilityError& err) {
       stop_unstable(err);
       throw;
