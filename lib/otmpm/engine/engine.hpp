@@ -402,8 +402,7 @@ private:
   void assign_patches();
   double cfl_spacing() const; ///< the CFL rule's node spacing (NodeMode::cfl_spacing; the ranks' smallest)
   bool reset_due() const; ///< the nodes are to be laid out anew before this step (NodeReset; on every rank)
-  /// Lays the nodes out anew on the scene grid's lattice over the particles
-  /// (NodeReset), or on `grid` when given (a restart).
+  /// Lays the nodes out anew on the grid's lattice over the particles (NodeReset), or on `grid` (a restart).
   void reset_nodes(const CartesianGrid<D>* grid = nullptr);
   /// gradient_ (and gradient0_ the first time) from the table just evaluated.
   void measure_gradients();
