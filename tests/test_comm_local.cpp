@@ -83,7 +83,7 @@ TEST_CASE("local ranks: gathers in rank order, all-to-all, broadcast from any ra
   CHECK(checked.load() == P);
 }
 
-TEST_CASE("local ranks: a rank that throws stops the others at their next collective; its exception is rethrown") {
+TEST_CASE("local ranks: a rank that throws stops the others at their next collective, its exception is rethrown") {
   for (int thrower : {0, 3}) {
     CAPTURE(thrower);
     std::atomic<int> returned{0};
