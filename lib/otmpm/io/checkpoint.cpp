@@ -257,7 +257,8 @@ std::pair<std::uint64_t, std::uint64_t> crc_part(std::uint64_t file_size, int ra
 /// the same value. `in`: the open file; `polled`: as range_crc (the ranks
 /// then agree on a stop).
 std::uint64_t file_crc(std::istream& in, const Header& h, const ParallelIo& io, const char* polled) {
-  const auto [first, count] = crc_part(h.size, io.rank, io.size);
+  const std::pair<std::uint64_t, std::uint64_t> part = crc_part(h.size, io.rank, io.size);
+  const std::uint64_t first = part.first, count = part.second; // named: clang captures no structured binding
   std::uint64_t mine = 0;
   if (polled) on_all(io, [&] { mine = range_crc(in, first, count, polled); });
   else mine = range_crc(in, first, count, nullptr);
