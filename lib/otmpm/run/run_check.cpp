@@ -10,7 +10,10 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+
+#ifdef OTMPM_HAVE_OPENMP
 #include <omp.h>
+#endif
 
 namespace otmpm {
 
@@ -216,7 +219,9 @@ template <int D> SceneCheck check_ranks(const Scene& scene, SceneCheck c) {
 template <int D> SceneCheck check_planned_ranks(const Scene& scene, SceneCheck c, int ranks) {
   distributed::RankPlan plan;
   distributed::Comm::run_local(ranks, [&](const distributed::Comm& comm) {
-    omp_set_num_threads(1);
+#ifdef OTMPM_HAVE_OPENMP
+    omp_set_num_threads(1); // the threads play the ranks: no OpenMP team inside each
+#endif
     distributed::RankPlan mine = distributed::plan_ranks<D>(scene, comm);
     if (comm.root()) plan = std::move(mine);
   });
