@@ -117,6 +117,15 @@ TEST_CASE("every key read remembers its line") {
   CHECK(s.locate("no.such.key").line == 0);
 }
 
+TEST_CASE("an unnamed table's keys are found under the name the reader gives it, for the validator's messages") {
+  // the reader records the plate's unnamed [[body]] as body.0; the validator names it body.body0
+  const Scene s = parse_scene(kPlate2D, "plate.toml");
+  CHECK(s.bodies[0].name == "body0");
+  CHECK(s.locate("body.body0.lower").line == s.locate("body.0.lower").line);
+  CHECK(s.locate("body.body0.lower").line > 0);
+  CHECK(s.locate("body.bodyx.lower").line == 0);
+}
+
 TEST_CASE("--set overrides scalars, arrays of tables by name and bare-word strings") {
   const Scene s = load_scene(kGood, {"material.steel.young=70e9", "body.bar.velocity=[1.5]", "simulation.mode=ul",
                                      "simulation.integrator=\"otm\"", "basis.gamma_lme = 2"});

@@ -980,9 +980,31 @@ Vec<3> first_components(const Vec3& v, int dim) {
   return out;
 }
 
+namespace {
+
+/// `key` with an unnamed table's element as the reader records it: the
+/// name the reader gives it (default_name: the section's name and its
+/// index, "body.body0.lower") replaced by its index ("body.0.lower"); ""
+/// when `key` has no such element.
+std::string unnamed_element_key(const std::string& key) {
+  const std::size_t dot = key.find('.');
+  if (dot == std::string::npos) return "";
+  const std::string section = key.substr(0, dot);
+  const std::size_t end = std::min(key.find('.', dot + 1), key.size());
+  const std::string element = key.substr(dot + 1, end - dot - 1);
+  if (element.size() <= section.size() || element.compare(0, section.size(), section) != 0) return "";
+  const std::string index = element.substr(section.size());
+  if (index.find_first_not_of("0123456789") != std::string::npos) return "";
+  return section + "." + index + key.substr(end);
+}
+
+} // namespace
+
 SourceRef Scene::locate(const std::string& key) const {
   auto it = where.find(key);
   if (it != where.end()) return it->second;
+  const std::string unnamed = unnamed_element_key(key);
+  if (!unnamed.empty() && (it = where.find(unnamed)) != where.end()) return it->second;
   return SourceRef{file, 0, key};
 }
 
