@@ -28,7 +28,8 @@ the outermost particle and the bar's end); the footprint radius is the
 largest sqrt(x^2 + y^2) of the particles in the bottom layer (z below
 one sub-cell) plus the gap R - max_p sqrt(X^2 + Y^2) of the undeformed
 bar; the largest plastic strain is the max over particles of the
-`plastic_strain` field.
+`plastic_strain` field. The measures take the quarter bar and the full
+cylinder (`shape = "cylinder"`, seeded about the axis x = y = 0) alike.
 """
 import argparse
 import os
@@ -106,7 +107,7 @@ def measure(path):
         wd = e["dissipated"][:] if "dissipated" in e else np.zeros_like(ek)
         w = e["external_work"][:] + e["reaction_work"][:]
         scene = tomllib.loads(text(a["scene"]))
-        s = X[:, 0].min() * 2  # the sub-cell across (particles at its centres)
+        s = 2 * np.abs(X[:, 0]).min()  # the sub-cell across (particles at its centres, x = 0 a cell face)
         r0 = np.hypot(X[:, 0], X[:, 1])
         bottom = x[:, 2] < x[:, 2].min() + s
         E0 = ek[0] + es[0]
