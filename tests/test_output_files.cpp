@@ -179,6 +179,40 @@ TEST_CASE("otmpm's lock refuses a second holder, names it, and does not depend o
   CHECK_NOTHROW(OutputLock({res}));
 }
 
+TEST_CASE("one lock per file however its path is spelt: a relative, an absolute and a linked name share it") {
+  TempDir t("lockname");
+  const std::string res = t.file("run.h5"), link = t.file("link.h5");
+  fs::create_symlink(res, link);
+  const fs::path cwd = fs::current_path();
+  fs::current_path(t.dir);
+  {
+    // One holder naming the file three ways takes one lock (a restart whose
+    // --out names the checkpoint's result file relative to the directory).
+    OutputLock one({"run.h5", res, link});
+    CHECK(lock_path("run.h5") == lock_path(res));
+    CHECK(lock_path(link) == lock_path(res));
+    // Another holder is refused under any of the names.
+    const pid_t child = ::fork();
+    REQUIRE(child >= 0);
+    if (child == 0) {
+      int refused = 0;
+      for (const std::string& name : {std::string("run.h5"), res, link}) {
+        try {
+          OutputLock other({name});
+        } catch (const InputError&) {
+          ++refused;
+        }
+      }
+      ::_exit(refused == 3 ? 0 : 1);
+    }
+    int status = 0;
+    REQUIRE(::waitpid(child, &status, 0) == child);
+    CHECK((WIFEXITED(status) && WEXITSTATUS(status) == 0));
+  }
+  fs::current_path(cwd);
+  CHECK_FALSE(fs::exists(lock_path(res)));
+}
+
 TEST_CASE("a lock whose holder died is free: lock_holder_of says so and the next holder takes it") {
   TempDir t("lockdead");
   const std::string res = t.file("run.h5");

@@ -227,6 +227,66 @@ TEST_CASE("a completed run restarted from its last checkpoint rewrites the later
   CHECK(fs::exists(full)); // --out elsewhere: the interrupted run's file is left as it was
 }
 
+TEST_CASE("a restart whose --out names the interrupted run's file by another spelling continues it in place") {
+  TempDir dir("respelt");
+  // The first run names its file relatively; the checkpoint records it absolute.
+  const std::vector<std::string> scene = checkpointed_plate({});
+  REQUIRE(otmpm::test::otmpm_in(dir, with(scene, {"--out", "plate.h5"})).status == 0);
+  const std::string full = dir.file("full.h5");
+  fs::copy_file(dir.file("plate.h5"), full);
+  for (const std::string& out : {std::string("plate.h5"), std::string("./plate.h5"), dir.file("plate.h5")}) {
+    INFO("--out " << out);
+    const otmpm::test::CliResult r =
+        otmpm::test::otmpm_in(dir, {"run", "--restart", "plate.checkpoint.h5", "--out", out, "--quiet"});
+    INFO(r.err);
+    REQUIRE(r.status == 0); // it was refused: "is being written by process <its own pid>"
+    check_same_results(full, dir.file("plate.h5"));
+  }
+}
+
+TEST_CASE("a result file written before the impact and friction series existed is continued, those read as 0") {
+  TempDir dir("oldseries");
+  // The Taylor bar at h = R/2 on its frictionless wall (1147 steps), a checkpoint every 500 steps.
+  const std::string scene = (kSource / "examples/taylor_bar.toml").string();
+  const std::string run = dir.file("run.h5"), full = dir.file("full.h5");
+  REQUIRE(run_cli(dir, {"run", scene, "--quiet", "--out", run, "--set", "output.checkpoint_every=500", "--set",
+                        "body.bar.file=" + (kSource / "examples/taylor_bar/quarter_h1.6.csv").string(), "--set",
+                        "grid.lower=[0, 0, -0.0032]", "--set", "grid.upper=[0.0144, 0.0144, 0.0368]", "--set",
+                        "grid.cells=[9, 9, 25]"})
+              .status == 0);
+  fs::copy_file(run, full);
+  const std::string checkpoint = dir.file("run.checkpoint.h5");
+  const auto frames = static_cast<std::size_t>(checkpoint_integer(checkpoint, "recorder", "frames"));
+  REQUIRE(frames > 0);
+  { // the file as an older otmpm wrote it: /energy without the two columns
+    const hid_t f = H5Fopen(run.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+    REQUIRE(f >= 0);
+    CHECK(H5Ldelete(f, "energy/impact", H5P_DEFAULT) >= 0);
+    CHECK(H5Ldelete(f, "energy/friction", H5P_DEFAULT) >= 0);
+    H5Fclose(f);
+  }
+  const otmpm::test::CliResult r = run_cli(dir, {"run", "--restart", checkpoint, "--quiet"});
+  INFO(r.err);
+  REQUIRE(r.status == 0);
+  const Snapshot expected = snapshot(full), actual = snapshot(run);
+  CHECK(expected.size() == actual.size());
+  for (const auto& [key, bytes] : expected) {
+    const std::string& what = key;
+    INFO(what);
+    REQUIRE(actual.count(key) == 1);
+    if (key != "/energy/impact" && key != "/energy/friction") CHECK((actual.at(key) == bytes));
+  }
+  const hid_t a = H5Fopen(run.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), e = H5Fopen(full.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  for (const char* column : {"energy/impact", "energy/friction"}) {
+    INFO(column);
+    const auto got = otmpm::h5::read_double_matrix(a, column, run), want = otmpm::h5::read_double_matrix(e, column, full);
+    REQUIRE(got.values.size() == want.values.size());
+    for (std::size_t i = 0; i < got.values.size(); ++i)
+      CHECK(got.values[i] == (i < frames ? 0.0 : want.values[i])); // the restart books from its checkpoint's value
+  }
+  H5Fclose(a), H5Fclose(e);
+}
+
 TEST_CASE("a single-precision file with symmetric tensors is continued by a restart with the same layout and bits") {
   TempDir dir("completed_single");
   // As above, with output.precision = "single" and output.symmetric_tensors:

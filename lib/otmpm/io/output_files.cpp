@@ -237,7 +237,7 @@ void check_distinct(const OutputFiles& f) {
 // ---------------------------------------------------------------- locks
 
 std::string lock_path(const std::string& path) {
-  const fs::path p(path);
+  const fs::path p = resolve(path); // one lock file however the path is spelt (relative, absolute, a symlink)
   return (p.parent_path() / ("." + p.filename().string() + ".otmpm-lock")).string();
 }
 
@@ -312,7 +312,9 @@ std::string lock_holder_of(const std::string& path) {
 OutputLock::OutputLock(const std::vector<std::string>& paths) {
   try {
     for (const std::string& p : paths) {
-      const bool again = std::any_of(held_.begin(), held_.end(), [&](const Held& h) { return h.path == lock_path(p); });
+      // The same file under another name (./r.h5, /abs/r.h5, through a linked directory) is held already.
+      const bool again =
+          std::any_of(held_.begin(), held_.end(), [&](const Held& h) { return same_file(h.path, lock_path(p)); });
       if (p.empty() || again) continue;
       const int fd = take_lock(p);
       held_.push_back({lock_path(p), fd});

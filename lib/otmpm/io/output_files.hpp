@@ -77,7 +77,8 @@ bool same_file(const std::string& a, const std::string& b);
 /// paths the run writes are the same file, or one lies inside the VTK directory.
 void check_distinct(const OutputFiles& files);
 
-/// The hidden lock file otmpm uses for `path`: DIR/.NAME.otmpm-lock.
+/// The hidden lock file otmpm uses for `path`: DIR/.NAME.otmpm-lock of the
+/// path made absolute with its symlinks followed (one lock however it is named).
 std::string lock_path(const std::string& path);
 
 /// Who holds otmpm's lock on `path` now: "process PID on host HOST" (or

@@ -744,12 +744,21 @@ void check_finite(const h5::Matrix<double>& m, hsize_t rows, const std::string& 
 
 /// Reads what copy_results needs of a history, checking it has `samples`
 /// rows of finite values and increasing times.
+/// A column of `samples` zeros (a series an older file lacks).
+h5::Matrix<double> zero_column(int samples) {
+  return {static_cast<hsize_t>(samples), 1, std::vector<double>(static_cast<std::size_t>(samples), 0.0)};
+}
+
 StoredHistory read_history(hid_t file, const HistoryLayout& layout, int samples, const std::string& path) {
   StoredHistory h;
   h.layout = layout;
   Handle g = h5::open_group(file, (layout.probe ? layout.group + "/" : "") + layout.name, path);
   h.time = h5::read_double_matrix(g.get(), "time", path);
-  for (const std::string& f : layout.fields) h.fields.push_back(h5::read_double_matrix(g.get(), f, path));
+  for (const std::string& f : layout.fields) {
+    const bool absent = std::count(layout.zero_if_absent.begin(), layout.zero_if_absent.end(), f) > 0 &&
+                        !h5::has_link(g.get(), f);
+    h.fields.push_back(absent ? zero_column(samples) : h5::read_double_matrix(g.get(), f, path));
+  }
   bool complete = h.time.rows >= static_cast<hsize_t>(samples);
   for (const auto& m : h.fields) complete = complete && m.rows >= static_cast<hsize_t>(samples);
   if (!complete) h5::fail(path, "find " + std::to_string(samples) + " samples of history '" + layout.name + "'");

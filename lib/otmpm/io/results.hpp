@@ -148,6 +148,10 @@ struct HistoryLayout {
   bool probe = true;           ///< a history of vector fields under `group`; false: a root-level series
   std::vector<std::string> fields; ///< the datasets besides time, in the order the run writes them
   std::string group = "probes";
+  /// Datasets among `fields` that files written before they existed lack
+  /// (a series a later version added): such a file's run booked none, so
+  /// copy_results reads them as zeros.
+  std::vector<std::string> zero_if_absent = {};
 };
 
 /// Continues a result file after a restart (checkpoint.hpp): appends to `to`
