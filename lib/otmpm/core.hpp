@@ -146,6 +146,14 @@ public:
   explicit OutputError(const std::string& what) : std::runtime_error(what) {}
 };
 
+/// An allocation that failed on one rank of a distributed run (std::bad_alloc),
+/// thrown on every rank by the reduction or wait that found it, so that every
+/// rank ends the run "out of memory" with the same message (the failed rank's).
+class DeferredOutOfMemory : public std::runtime_error {
+public:
+  using std::runtime_error::runtime_error;
+};
+
 /// Formats a number with nine significant digits ("%.9g") for error messages.
 inline std::string format_number(double x) {
   char buf[32];

@@ -6,7 +6,6 @@
 #include "otmpm/distributed/comm_local.hpp"
 
 #include "otmpm/core.hpp"
-#include "otmpm/engine/distribution.hpp"
 #include "otmpm/interrupt.hpp"
 
 #include <algorithm>

@@ -51,14 +51,6 @@ public:
   using InstabilityError::InstabilityError;
 };
 
-/// An allocation that failed on one rank inside a stage (std::bad_alloc),
-/// thrown on every rank by the reduction that found it, so that every rank
-/// ends the run "out of memory" with the same message (the failed rank's).
-class DeferredOutOfMemory : public std::runtime_error {
-public:
-  using std::runtime_error::runtime_error;
-};
-
 /// Tests of a rank that runs out of memory (tests/test_mpi.cpp): true once,
 /// at the first call for `site` at step `step` or later, when the variable
 /// OTMPM_TEST_FAIL_ALLOCATION=SITE:STEP of this process names it ("STEP"
