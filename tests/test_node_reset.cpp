@@ -115,6 +115,28 @@ TEST_CASE("node reset: a run restarted from a checkpoint after a reset goes on b
   }
 }
 
+TEST_CASE("node reset with a B-spline basis: a run restarted after a reset goes on bit for bit") {
+  // The block at 5 m/s without the symmetry plane (at 60 m/s a corner
+  // particle leaves the knot vectors within 7 steps, with or without resets).
+  Scene s = impact({"basis.kind=\"bspline2\"", "body.b.velocity=[0.0, -5.0]", "simulation.node_reset=0.95",
+                    "simulation.t_end=2.0e-2"});
+  s.boundaries.clear();
+  Engine<2> a = assemble<2>(s);
+  while (a.node_resets() == 0 && a.time() < s.simulation.t_end) a.step();
+  REQUIRE(a.node_resets() > 0);
+  for (int k = 0; k < 5; ++k) a.step();
+  Checkpoint ck;
+  a.save_state(ck);
+  Engine<2> b = assemble<2>(s);
+  b.restore_state(ck); // the control points are all present: none removed
+  for (int k = 0; k < 200 && a.time() < s.simulation.t_end; ++k) {
+    a.step();
+    b.step();
+  }
+  CHECK(a.node_resets() == b.node_resets());
+  CHECK(same_particles(a.particles(), b.particles()));
+}
+
 namespace {
 
 /// The impact block at rest, squeezed between the floor wall moving up at
