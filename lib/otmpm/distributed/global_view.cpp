@@ -328,11 +328,11 @@ template <int D> void GlobalView<D>::write_checkpoint(const std::string& path, C
 template <int D> Checkpoint local_checkpoint(const Engine<D>& e, const Checkpoint& ck, Checkpoint rows) {
   const Domain<D>* d = domain_of(e);
   if (!d) { // every row, in the order of the global ids (a distributed run's file holds them by rank)
-    require_reset_ranks<D>(ck, 1);
     Checkpoint all = ck.source ? checkpoint_head(ck) : ck;
     if (ck.source)
       for (const RowKind kind : {RowKind::particle, RowKind::point})
         read_checkpoint_rows(ck, kind, {{0, 1, 1, checkpoint_rows(ck, kind)}}, all);
+    require_reset_homes<D>(ck, all, 1);
     order_by_global_id(all);
     return all;
   }

@@ -467,6 +467,33 @@ void route_rows(const Comm& comm, Checkpoint& block, const std::vector<int>& des
   order_by_global_id(rows);
 }
 
+/// The home cells on `grid` of the `count` particle rows `block` of
+/// checkpoint `ck`: after a node reset the cells of its lattice that the
+/// checkpoint holds (nodes/home_cell: InputError on every rank for one
+/// outside it), else the cell of x on the fixed grid (mpm), of X on the
+/// initial lattice (ul).
+template <int D>
+std::vector<Index<D>> row_homes(const Scene& scene, const Comm& comm, const Checkpoint& ck, const Checkpoint& block,
+                                const CartesianGrid<D>& grid, long long count) {
+  std::vector<Index<D>> home(static_cast<std::size_t>(count));
+  if (reset_lattice_of<D>(ck)) {
+    const auto& cells = block.group("nodes").integer_array("home_cell", home.size(), D).values;
+    bool inside = true;
+    for (std::size_t i = 0; i < cells.size(); ++i) {
+      if (cells[i] < 0 || cells[i] >= grid.cells[i % D]) inside = false;
+      else home[i / D][i % D] = static_cast<int>(cells[i]);
+    }
+    agree_on(comm, [&] {
+      if (!inside) ck.group("nodes").error("a home cell outside the reset lattice");
+    });
+    return home;
+  }
+  const auto& x =
+      block.group("particles").real_array(scene.simulation.nodes_move() ? "X" : "x", home.size(), D).values;
+  for (std::size_t i = 0; i < home.size(); ++i) home[i] = grid.cell_of(Eigen::Map<const Vec<D>>(x.data() + i * D));
+  return home;
+}
+
 /// This rank's particle rows of a restart from `ck` into `rows` (in the
 /// order of its particles) and their global ids, with the decomposition:
 /// the checkpoint's when its run had as many ranks, else a fresh bisection
@@ -477,7 +504,6 @@ std::vector<long long> restart_rows(const Scene& scene, const Comm& comm, const 
                                     const CartesianGrid<D>& grid, Decomposition<D>& decomposition, Checkpoint& rows,
                                     const std::function<void(const std::vector<std::int64_t>&)>& check) {
   const long long n = checkpoint_rows(ck, RowKind::particle), P = comm.size(), r = comm.rank();
-  require_reset_ranks<D>(ck, comm.size());
   if (auto kept = stored_decomposition<D>(ck, grid.cells, comm.size())) {
     decomposition = std::move(*kept);
     const StateGroup& g = ck.group("decomposition");
@@ -494,16 +520,13 @@ std::vector<long long> restart_rows(const Scene& scene, const Comm& comm, const 
   Checkpoint block;
   read_checkpoint_rows(ck, RowKind::particle, {{first, 1, 1, count}}, block);
   row_ids(block, first, count);
-  // the home cell: of x on the fixed grid (mpm), of X on the initial lattice (ul)
-  const auto& x = block.group("particles").real_array(scene.simulation.nodes_move() ? "X" : "x",
-                                                      static_cast<std::size_t>(count), D).values;
+  require_reset_homes<D>(ck, block, comm.size());
+  const std::vector<Index<D>> home = row_homes<D>(scene, comm, ck, block, grid, count);
   std::vector<Index<D>> cells;
   std::vector<std::int64_t> weight;
-  std::vector<Index<D>> home(static_cast<std::size_t>(count));
-  for (std::size_t i = 0; i < home.size(); ++i) {
-    home[i] = grid.cell_of(Eigen::Map<const Vec<D>>(x.data() + i * D));
-    if (!cells.empty() && cells.back() == home[i]) ++weight.back();
-    else cells.push_back(home[i]), weight.push_back(1);
+  for (const Index<D>& c : home) {
+    if (!cells.empty() && cells.back() == c) ++weight.back();
+    else cells.push_back(c), weight.push_back(1);
   }
   decomposition = Decomposition<D>::rcb(grid.cells, comm.size(), cells, weight, comm);
   std::vector<int> dest(home.size());
@@ -570,20 +593,24 @@ EngineParts<D> restart_parts(const Scene& scene, const Comm& comm, const Checkpo
   return finish_parts<D>(comm, std::move(parts), std::move(setup));
 }
 
-template <int D> void require_reset_ranks(const Checkpoint& ck, int ranks) {
+template <int D> void require_reset_homes(const Checkpoint& ck, const Checkpoint& rows, int ranks) {
   if (!reset_lattice_of<D>(ck)) return;
+  const auto nodes = rows.groups.find("nodes");
+  if (nodes != rows.groups.end() && nodes->second.has_array("home_cell")) return;
   const auto it = ck.groups.find("decomposition");
   const long long written = it == ck.groups.end() ? 1 : it->second.integer("ranks");
   if (written == ranks) return;
   ck.group("nodes").error(
       "its run laid the nodes out anew (simulation.node_reset) on " + std::to_string(written) +
-      (written == 1 ? " process" : " ranks") + "; it restarts on as many (" +
+      (written == 1 ? " process" : " ranks") +
+      " and holds no home cells of its particles (an older otmpm's checkpoint, or a restart's of one); it "
+      "restarts on as many (" +
       (written == 1 ? std::string("without mpirun") : "mpirun -np " + std::to_string(written)) +
       "): its ranks' particles and F-bar patches follow that run's lattice");
 }
 
 #define OTMPM_INSTANTIATE(D)                                                                                      \
-  template void require_reset_ranks<D>(const Checkpoint&, int);                                               \
+  template void require_reset_homes<D>(const Checkpoint&, const Checkpoint&, int);                            \
   template EngineParts<D> rank_parts<D>(const Scene&, const Comm&);                                           \
   template EngineParts<D> seeded_parts<D>(const Scene&, const Comm&);                                         \
   template RankPlan plan_ranks<D>(const Scene&, const Comm&);                                                 \

@@ -78,9 +78,10 @@ EngineParts<D> restart_parts(const Scene& scene, const Comm& comm, const Checkpo
 
 /// InputError naming checkpoint `ck` when its run laid the nodes out anew
 /// (simulation.node_reset) on another number of ranks than `ranks` (1: a
-/// serial run): each rank's particles are those of its cells of the reset
-/// lattice, and their F-bar patches are numbered per rank.
-template <int D> void require_reset_ranks(const Checkpoint& ck, int ranks);
+/// serial run) and `rows`, its particle rows, hold no home cells
+/// (nodes/home_cell): a checkpoint of an older otmpm, whose F-bar patches
+/// are numbered per rank and whose particles cannot be divided afresh.
+template <int D> void require_reset_homes(const Checkpoint& ck, const Checkpoint& rows, int ranks);
 
 /// The Domain of an engine, or null for a serial engine.
 template <int D> const Domain<D>* domain_of(const Engine<D>& e) {

@@ -698,6 +698,11 @@ template <int D> void Engine<D>::reset_nodes(const CartesianGrid<D>* given) {
   scatter_->invalidate(0);
   if (mass_matrix_) mass_matrix_ = std::make_unique<MassMatrix<D>>(basis_->fixed_stencil() > 0);
   lattice_ = grid;
+  if (!given) { // each particle's home: its cell now, by which lay_out placed it (a restart restores them)
+    home_.resize(static_cast<std::size_t>(P_.size()));
+    for (int p = 0; p < P_.size(); ++p) home_[static_cast<std::size_t>(p)] = grid.cell_of(P_.x[p]);
+    homes_ = true;
+  }
   if (!given && basis_->search_radius() > 0.0) follow_body(P_.x); // a restart restores the node set's
   basis_->bind_points(P_.size(), true); // the multipliers and hints belonged to the old nodes
   node_spacing0_ = basis_->nodes().min_spacing();
@@ -718,7 +723,7 @@ template <int D> void Engine<D>::measure_gradients() {
 
 template <int D> void Engine<D>::assign_patches() {
   // ul: the cell of the lattice the nodes were laid out on that held the
-  // particle then (t = 0, or the last node reset), fixed until the next
+  // particle then (t = 0, or the last node reset: its home), fixed until the next
   const bool own = mode_.nodes_move();
   if (own && fbar_.patch.size() == static_cast<std::size_t>(P_.size())) return;
   const std::optional<CartesianGrid<D>>& lattice =
@@ -731,7 +736,8 @@ template <int D> void Engine<D>::assign_patches() {
   std::unordered_map<long long, long long> number;
   fbar_.patch.resize(static_cast<std::size_t>(P_.size()));
   for (int p = 0; p < P_.size(); ++p) {
-    const Index<D> c = grid.cell_of(own && !lattice_ ? P_.X[p] : P_.x[p]);
+    const Index<D> c = own && lattice_ && homes_ ? home_[static_cast<std::size_t>(p)]
+                                                 : grid.cell_of(own && !lattice_ ? P_.X[p] : P_.x[p]);
     long long key = contact_ ? P_.body[p] : 0;
     for (int k = D - 1; k >= 0; --k) key = key * (grid.cells[k] + 1LL) + c[k];
     fbar_.patch[static_cast<std::size_t>(p)] =

@@ -398,7 +398,8 @@ private:
   /// (true); false when the particles' own H_p apply.
   bool average_volumetric(const Gradient<D>& g);
   /// The F-bar patch of each particle (volumetric.hpp), from the positions of
-  /// the basis evaluation (`mpm`) or, once, of the lattice's layout (`ul`).
+  /// the basis evaluation (`mpm`) or, once, of the lattice's layout (`ul`:
+  /// X on the initial lattice, home_ after a node reset).
   void assign_patches();
   double cfl_spacing() const; ///< the CFL rule's node spacing (NodeMode::cfl_spacing; the ranks' smallest)
   bool reset_due() const; ///< the nodes are to be laid out anew before this step (NodeReset; on every rank)
@@ -462,6 +463,12 @@ private:
   long node_resets_ = 0;
   double lattice_time_ = 0.0; ///< the time of the last node reset (where the moving boundary boxes were)
   std::optional<CartesianGrid<D>> lattice_; ///< after a node reset: the lattice the nodes were laid out on
+  /// After a node reset: each particle's home, the cell of lattice_ that held
+  /// it then - its F-bar patch until the next reset, and in a distributed run
+  /// the cell whose rank holds it (Domain::lay_out). Checkpointed as cells of
+  /// that lattice, so that a restart divides the particles on any rank count.
+  std::vector<Index<D>> home_;
+  bool homes_ = false; ///< home_ holds every particle's (not so after a restart from a checkpoint without them)
   FbarState<D> fbar_;
   double t_ = 0.0, dt_ = 0.0, dt_prev_ = 0.0;
   long step_ = 0;

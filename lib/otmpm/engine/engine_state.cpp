@@ -104,15 +104,21 @@ template <int D> void Engine<D>::save_state(Checkpoint& out) const {
     const Traction<D>& t = loads_.tractions[i];
     for (std::size_t k = 0; k < t.particle.size(); ++k) area.values[static_cast<std::size_t>(t.particle[k])] = t.area[k];
   }
-  if (lattice_) { // laid out anew (NodeReset): the lattice, and the F-bar patches of its layout
+  if (lattice_) { // laid out anew (NodeReset): the lattice, and the particles' cells of it (their homes)
     StateGroup& n = out.group("nodes");
     n.integers["resets"] = node_resets_;
     n.reals["lattice_time"] = lattice_time_;
     save_vector<D>(n, "lattice_lower", lattice_->lower);
     save_vector<D>(n, "lattice_upper", lattice_->upper);
     n.integer_arrays["lattice_cells"] = {1, std::vector<std::int64_t>(lattice_->cells.begin(), lattice_->cells.end())};
-    if (!fbar_.patch.empty())
+    if (homes_) {
+      std::vector<std::int64_t> home;
+      home.reserve(home_.size() * D);
+      for (const Index<D>& c : home_) home.insert(home.end(), c.begin(), c.end());
+      n.integer_arrays["home_cell"] = {static_cast<std::size_t>(D), std::move(home)};
+    } else if (!fbar_.patch.empty()) { // restored from a checkpoint without homes: its F-bar patches as it had them
       n.integer_arrays["patch"] = {1, std::vector<std::int64_t>(fbar_.patch.begin(), fbar_.patch.end())};
+    }
     std::vector<std::int64_t> absent(static_cast<std::size_t>(basis_->nodes().size()));
     for (std::size_t I = 0; I < absent.size(); ++I) absent[I] = !basis_->nodes().present(static_cast<int>(I));
     n.integer_arrays["absent"] = {1, std::move(absent)};
@@ -136,10 +142,22 @@ template <int D> void Engine<D>::restore_state(const Checkpoint& in) {
     node_resets_ = static_cast<long>(nodes.integer("resets"));
     const auto& absent = nodes.integer_array("absent", static_cast<std::size_t>(basis_->nodes().size()), 1).values;
     std::vector<char> marks(absent.begin(), absent.end());
-    if (std::count(marks.begin(), marks.end(), char(0)) == 0) nodes.error("no node present");
-    basis_->nodes().remove(marks);
-    basis_->nodes_moved({});
-    if (nodes.has_array("patch")) {
+    const auto present = std::count(marks.begin(), marks.end(), char(0));
+    if (present == 0) nodes.error("no node present");
+    if (present < static_cast<std::ptrdiff_t>(marks.size())) { // as follow_body (a B-spline's are all present)
+      basis_->nodes().remove(marks);
+      basis_->nodes_moved({});
+    }
+    homes_ = nodes.has_array("home_cell");
+    if (homes_) { // the F-bar patches follow from them (assign_patches)
+      const auto& home = nodes.integer_array("home_cell", static_cast<std::size_t>(P_.size()), D).values;
+      home_.resize(static_cast<std::size_t>(P_.size()));
+      for (std::size_t i = 0; i < home.size(); ++i) {
+        const std::size_t k = i % D;
+        if (home[i] < 0 || home[i] >= reset->grid.cells[k]) nodes.error("a home cell outside the reset lattice");
+        home_[i / D][k] = static_cast<int>(home[i]);
+      }
+    } else if (nodes.has_array("patch")) { // written before the homes were: its F-bar patches, numbered per rank
       const auto& patch = nodes.integer_array("patch", static_cast<std::size_t>(P_.size()), 1).values;
       if (std::any_of(patch.begin(), patch.end(), [&](std::int64_t c) { return c < 0 || c >= P_.size(); }))
         nodes.error("an F-bar patch number out of range");

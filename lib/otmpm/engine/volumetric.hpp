@@ -15,8 +15,8 @@
 /// "Overcoming volumetric locking in material point methods"). A patch c is a
 /// cell of the node lattice and a body: on the fixed grid the cell that holds
 /// the particle when the basis is evaluated, with advected nodes the cell of
-/// the initial lattice that held it at t = 0 (a Lagrangian patch). Internal to
-/// the engine.
+/// the initial lattice that held it at t = 0, or of the last node reset's
+/// lattice that held it then (a Lagrangian patch). Internal to the engine.
 #include "otmpm/core.hpp"
 
 #include <vector>

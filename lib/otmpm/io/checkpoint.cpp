@@ -690,8 +690,8 @@ RowKind checkpoint_row_kind(const std::string& group, const std::string& array) 
     for (const char* n : {"lambda", "lambda_slope", "lambda_curvature", "lambda_history", "cell_hint"})
       if (array == n) return RowKind::particle;
   if (group == "nodes" && (array == "x" || array == "absent")) return RowKind::point;
-  // the F-bar patches of a node reset's lattice
-  if (group == "nodes" && array == "patch") return RowKind::particle;
+  // the particles' cells of a node reset's lattice (older checkpoints: their F-bar patches)
+  if (group == "nodes" && (array == "home_cell" || array == "patch")) return RowKind::particle;
   if (group == "engine" && (array.rfind("wall_held_", 0) == 0 || array.rfind("carried_", 0) == 0)) return RowKind::point;
   return RowKind::whole;
 }
