@@ -681,10 +681,10 @@ template <int D> void Engine<D>::reset_nodes(const CartesianGrid<D>* given) {
     }
     grid.validate();
   }
-  if (!given) lattice_time_ = t_;
+  if (!given) laid_out_.time = t_;
   // distributed: the cells bisected afresh, the particles sent to their owners, this rank's window
-  LatticePart<D> part = dist_ ? dist_->lay_out(*this, grid, lattice_time_, given != nullptr)
-                              : settings_.node_reset.lattice(grid, lattice_time_);
+  LatticePart<D> part = dist_ ? dist_->lay_out(*this, grid, laid_out_.time, given != nullptr)
+                              : settings_.node_reset.lattice(grid, laid_out_.time);
   const AlignedVector<Vec<D>> wall_impulse = constraints_.wall_impulse(); // the walls keep their impulse
   basis_ = std::move(part.basis);
   const int nodes = basis_->nodes().size();
@@ -697,11 +697,11 @@ template <int D> void Engine<D>::reset_nodes(const CartesianGrid<D>* given) {
   nodal_.resize(nodes);
   scatter_->invalidate(0);
   if (mass_matrix_) mass_matrix_ = std::make_unique<MassMatrix<D>>(basis_->fixed_stencil() > 0);
-  lattice_ = grid;
+  laid_out_.grid = grid;
   if (!given) { // each particle's home: its cell now, by which lay_out placed it (a restart restores them)
-    home_.resize(static_cast<std::size_t>(P_.size()));
-    for (int p = 0; p < P_.size(); ++p) home_[static_cast<std::size_t>(p)] = grid.cell_of(P_.x[p]);
-    homes_ = true;
+    laid_out_.home.resize(static_cast<std::size_t>(P_.size()));
+    for (int p = 0; p < P_.size(); ++p) laid_out_.home[static_cast<std::size_t>(p)] = grid.cell_of(P_.x[p]);
+    laid_out_.homes = true;
   }
   if (!given && basis_->search_radius() > 0.0) follow_body(P_.x); // a restart restores the node set's
   basis_->bind_points(P_.size(), true); // the multipliers and hints belonged to the old nodes
@@ -709,7 +709,7 @@ template <int D> void Engine<D>::reset_nodes(const CartesianGrid<D>* given) {
   if (dist_) dist_->min({&node_spacing0_, 1});
   gradient_ = gradient0_; // a fresh lattice: the gradients of t = 0 until the next table
   fbar_.patch.clear();    // the cells of the new lattice
-  if (!given) ++node_resets_;
+  if (!given) ++laid_out_.resets;
 }
 
 template <int D> void Engine<D>::measure_gradients() {
@@ -726,8 +726,9 @@ template <int D> void Engine<D>::assign_patches() {
   // particle then (t = 0, or the last node reset: its home), fixed until the next
   const bool own = mode_.nodes_move();
   if (own && fbar_.patch.size() == static_cast<std::size_t>(P_.size())) return;
-  const std::optional<CartesianGrid<D>>& lattice =
-      lattice_ ? lattice_ : settings_.patch_grid ? settings_.patch_grid : basis_->nodes().grid();
+  const std::optional<CartesianGrid<D>>& lattice = laid_out_.grid         ? laid_out_.grid
+                                                   : settings_.patch_grid ? settings_.patch_grid
+                                                                          : basis_->nodes().grid();
   require<std::invalid_argument>(lattice.has_value(), "Engine: volumetric = fbar needs the lattice of its patches "
                                                       "(StepSettings::patch_grid); the node set is a cloud");
   const CartesianGrid<D>& grid = *lattice;
@@ -736,8 +737,9 @@ template <int D> void Engine<D>::assign_patches() {
   std::unordered_map<long long, long long> number;
   fbar_.patch.resize(static_cast<std::size_t>(P_.size()));
   for (int p = 0; p < P_.size(); ++p) {
-    const Index<D> c = own && lattice_ && homes_ ? home_[static_cast<std::size_t>(p)]
-                                                 : grid.cell_of(own && !lattice_ ? P_.X[p] : P_.x[p]);
+    const Index<D> c = own && laid_out_.grid && laid_out_.homes
+                           ? laid_out_.home[static_cast<std::size_t>(p)]
+                           : grid.cell_of(own && !laid_out_.grid ? P_.X[p] : P_.x[p]);
     long long key = contact_ ? P_.body[p] : 0;
     for (int k = D - 1; k >= 0; --k) key = key * (grid.cells[k] + 1LL) + c[k];
     fbar_.patch[static_cast<std::size_t>(p)] =

@@ -77,6 +77,20 @@ template <int D> struct NodeReset {
   }
 };
 
+/// What the node resets of a run have left (NodeReset): how many, when the
+/// last was, the lattice it laid the nodes out on, and each particle's home -
+/// the cell of that lattice that held it then: its F-bar patch until the next
+/// reset, and in a distributed run the cell whose rank holds it
+/// (Domain::lay_out). Checkpointed as cells of that lattice, so that a
+/// restart divides the particles on any rank count.
+template <int D> struct LaidOutLattice {
+  long resets = 0;
+  double time = 0.0;                    ///< of the last reset (where the moving boundary boxes were)
+  std::optional<CartesianGrid<D>> grid; ///< none before the first reset
+  std::vector<Index<D>> home;
+  bool homes = false; ///< home holds every particle's (not so after a restart from a checkpoint without them)
+};
+
 /// How the engine steps: the integrator's step function and parameters,
 /// the time step rule (CFL with the P-wave speed, docs/theory.md
 /// sect. 10, or a fixed dt), the mass matrix and the run's limits.
@@ -230,7 +244,7 @@ public:
   long steps() const { return step_; }
   double last_dt() const { return dt_; }
   /// `ul` mode: how often the nodes were laid out anew (NodeReset) since t = 0.
-  long node_resets() const { return node_resets_; }
+  long node_resets() const { return laid_out_.resets; }
   PhaseTimers& timers() { return timers_; }
   const EnergyBalance& energy() const { return energy_; }
   /// True when friction and impacts may take energy (energy().friction, energy().impact): walls or body contact.
@@ -399,7 +413,7 @@ private:
   bool average_volumetric(const Gradient<D>& g);
   /// The F-bar patch of each particle (volumetric.hpp), from the positions of
   /// the basis evaluation (`mpm`) or, once, of the lattice's layout (`ul`:
-  /// X on the initial lattice, home_ after a node reset).
+  /// X on the initial lattice, the homes after a node reset).
   void assign_patches();
   double cfl_spacing() const; ///< the CFL rule's node spacing (NodeMode::cfl_spacing; the ranks' smallest)
   bool reset_due() const; ///< the nodes are to be laid out anew before this step (NodeReset; on every rank)
@@ -460,15 +474,7 @@ private:
   AlignedVector<Vec<D>> moved_; ///< ul, searching family: the displacement into the hull (Basis::evaluate_points)
   AlignedVector<Vec<D>> x_start_; ///< ul: the particles' positions at the start of the step
   std::vector<int> light_;        ///< ul: nodes under kLightNode of the heaviest's mass (finish_mass)
-  long node_resets_ = 0;
-  double lattice_time_ = 0.0; ///< the time of the last node reset (where the moving boundary boxes were)
-  std::optional<CartesianGrid<D>> lattice_; ///< after a node reset: the lattice the nodes were laid out on
-  /// After a node reset: each particle's home, the cell of lattice_ that held
-  /// it then - its F-bar patch until the next reset, and in a distributed run
-  /// the cell whose rank holds it (Domain::lay_out). Checkpointed as cells of
-  /// that lattice, so that a restart divides the particles on any rank count.
-  std::vector<Index<D>> home_;
-  bool homes_ = false; ///< home_ holds every particle's (not so after a restart from a checkpoint without them)
+  LaidOutLattice<D> laid_out_;
   FbarState<D> fbar_;
   double t_ = 0.0, dt_ = 0.0, dt_prev_ = 0.0;
   long step_ = 0;

@@ -104,19 +104,20 @@ template <int D> void Engine<D>::save_state(Checkpoint& out) const {
     const Traction<D>& t = loads_.tractions[i];
     for (std::size_t k = 0; k < t.particle.size(); ++k) area.values[static_cast<std::size_t>(t.particle[k])] = t.area[k];
   }
-  if (lattice_) { // laid out anew (NodeReset): the lattice, and the particles' cells of it (their homes)
+  if (laid_out_.grid) { // laid out anew (NodeReset): the lattice, and the particles' cells of it
     StateGroup& n = out.group("nodes");
-    n.integers["resets"] = node_resets_;
-    n.reals["lattice_time"] = lattice_time_;
-    save_vector<D>(n, "lattice_lower", lattice_->lower);
-    save_vector<D>(n, "lattice_upper", lattice_->upper);
-    n.integer_arrays["lattice_cells"] = {1, std::vector<std::int64_t>(lattice_->cells.begin(), lattice_->cells.end())};
-    if (homes_) {
+    n.integers["resets"] = laid_out_.resets;
+    n.reals["lattice_time"] = laid_out_.time;
+    save_vector<D>(n, "lattice_lower", laid_out_.grid->lower);
+    save_vector<D>(n, "lattice_upper", laid_out_.grid->upper);
+    n.integer_arrays["lattice_cells"] = {
+        1, std::vector<std::int64_t>(laid_out_.grid->cells.begin(), laid_out_.grid->cells.end())};
+    if (laid_out_.homes) {
       std::vector<std::int64_t> home;
-      home.reserve(home_.size() * D);
-      for (const Index<D>& c : home_) home.insert(home.end(), c.begin(), c.end());
+      home.reserve(laid_out_.home.size() * D);
+      for (const Index<D>& c : laid_out_.home) home.insert(home.end(), c.begin(), c.end());
       n.integer_arrays["home_cell"] = {static_cast<std::size_t>(D), std::move(home)};
-    } else if (!fbar_.patch.empty()) { // restored from a checkpoint without homes: its F-bar patches as it had them
+    } else if (!fbar_.patch.empty()) { // restored from a checkpoint without homes: its F-bar patches
       n.integer_arrays["patch"] = {1, std::vector<std::int64_t>(fbar_.patch.begin(), fbar_.patch.end())};
     }
     std::vector<std::int64_t> absent(static_cast<std::size_t>(basis_->nodes().size()));
@@ -137,9 +138,9 @@ template <int D> void Engine<D>::restore_state(const Checkpoint& in) {
   // the lattice of the last node reset, then its positions
   if (const std::optional<ResetLattice<D>> reset = reset_lattice_of<D>(in)) {
     if (!settings_.node_reset.lattice) nodes.error("nodes laid out anew, but this run cannot lay them out");
-    lattice_time_ = reset->time;
+    laid_out_.time = reset->time;
     reset_nodes(&reset->grid);
-    node_resets_ = static_cast<long>(nodes.integer("resets"));
+    laid_out_.resets = static_cast<long>(nodes.integer("resets"));
     const auto& absent = nodes.integer_array("absent", static_cast<std::size_t>(basis_->nodes().size()), 1).values;
     std::vector<char> marks(absent.begin(), absent.end());
     const auto present = std::count(marks.begin(), marks.end(), char(0));
@@ -148,16 +149,16 @@ template <int D> void Engine<D>::restore_state(const Checkpoint& in) {
       basis_->nodes().remove(marks);
       basis_->nodes_moved({});
     }
-    homes_ = nodes.has_array("home_cell");
-    if (homes_) { // the F-bar patches follow from them (assign_patches)
+    laid_out_.homes = nodes.has_array("home_cell");
+    if (laid_out_.homes) { // the F-bar patches follow from them (assign_patches)
       const auto& home = nodes.integer_array("home_cell", static_cast<std::size_t>(P_.size()), D).values;
-      home_.resize(static_cast<std::size_t>(P_.size()));
+      laid_out_.home.resize(static_cast<std::size_t>(P_.size()));
       for (std::size_t i = 0; i < home.size(); ++i) {
         const std::size_t k = i % D;
         if (home[i] < 0 || home[i] >= reset->grid.cells[k]) nodes.error("a home cell outside the reset lattice");
-        home_[i / D][k] = static_cast<int>(home[i]);
+        laid_out_.home[i / D][k] = static_cast<int>(home[i]);
       }
-    } else if (nodes.has_array("patch")) { // written before the homes were: its F-bar patches, numbered per rank
+    } else if (nodes.has_array("patch")) { // written before the homes were: F-bar patches numbered per rank
       const auto& patch = nodes.integer_array("patch", static_cast<std::size_t>(P_.size()), 1).values;
       if (std::any_of(patch.begin(), patch.end(), [&](std::int64_t c) { return c < 0 || c >= P_.size(); }))
         nodes.error("an F-bar patch number out of range");
