@@ -88,8 +88,10 @@ template <int D> struct TwoPhaseParts {
 
 /// The liquid's contributions to the after-step sums (Engine::sum_particles):
 /// kinetic energy sum 1/2 m_w |w|^2, stored energy sum V n p^2 / (2 K_w),
-/// the step's W_a increment (eq. 15.13: summed by the pressure update only), momentum sum m_w w, the largest squared fast-wave speed (eq. 15.7) and the
-/// first particle whose pore pressure or liquid velocity is not finite (-1: none).
+/// the step's increment of W_a (eq. 15.13; summed by the pressure update
+/// only), momentum sum m_w w, the largest squared fast-wave speed (eq. 15.7)
+/// and the first particle whose pore pressure or liquid velocity is not
+/// finite (-1: none).
 template <int D> struct LiquidTotals {
   double kinetic = 0.0, stored = 0.0, averaged = 0.0, wave_speed2 = 0.0;
   Vec<D> momentum = Vec<D>::Zero();

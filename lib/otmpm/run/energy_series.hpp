@@ -19,8 +19,9 @@ static_assert(sizeof(EnergySummary) == 4 * sizeof(double), "EnergySummary change
 /// time the series /energy - E's kinetic and strain parts, W_ext, W_R (eq.
 /// 11.1), W_p as "dissipated" when a material has internal variables, W_f
 /// and W_i as "friction" and "impact" with friction (walls, contact), W_d and
-/// W_a as "darcy" and "pressure_average" with a pore liquid - and after every step the run's EnergySummary
-/// (max_energy_ratio and energy_drift, eq. 11.2; the impact energy W_i).
+/// W_a as "darcy" and "pressure_average" with a pore liquid - and after
+/// every step the run's EnergySummary (max_energy_ratio and energy_drift,
+/// eq. 11.2; the impact energy W_i).
 template <int D> class EnergySeries {
 public:
   explicit EnergySeries(const Engine<D>& e) : e_(e) {}
