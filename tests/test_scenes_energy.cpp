@@ -25,10 +25,10 @@ const std::map<std::string, Closure> kClosures{
     {"andersen_block", {0.0549, "npc's damping of the block's vibration"}},
     {"column_collapse", {0.0422, "the part of the flow's impacts on the walls W_i does not book (0.063 without W_i)"}},
     {"column_collapse_mu_i", {0.130, "the landing of the grains that left contact: the part of that impact W_i does not book (0.212 without W_i)"}},
-    {"dike", {0.0549, "not yet accounted for (open): the geostatic initial stress's work sigma_0 : eps is booked "
-                      "(0.131 before it was)"}},
-    {"dike_rising", {0.0848, "not yet accounted for (open), as dike's; W_ext 68.8 kJ went to the Darcy drag (55.6 kJ) "
-                             "and plastic flow (18.9 kJ) as the landward slope slid"}},
+    {"dike", {0.0461, "fe's error with the stiff drag: 0.0361, 0.0251 at cfl 0.2, 0.1, musl 0.0059 (0.0549 before "
+                      "W_a and the held nodes' body-force work, 0.131 before the geostatic stress's work)"}},
+    {"dike_rising", {6.2e-4, "musl's time error, 2.0e-4 at cfl 0.2; W_ext 68.5 kJ went to the Darcy drag (55.6 kJ) and "
+                             "plastic flow (18.9 kJ), W_a -6.2 kJ after the slide (0.0848 before W_a was booked)"}},
     {"disks", {0.0842, "the part of the disks' impact W_i does not book (0.106 without W_i)"}},
     {"dyka", {0.139, "npc's damping (molinos' first-order particle update)"}},
     {"dyka_2d", {0.139, "npc's damping"}},

@@ -144,18 +144,20 @@ template <int D> struct EngineParts {
 /// energy impacts took there (W_i: the normal approach the walls and the
 /// contact stopped, eq. 6.5), the
 /// energy the Darcy drag of saturated bodies dissipated (W_d, eq. 15.6), the
+/// pore pressure's work on the increments its cell average leaves out (W_a,
+/// eq. 15.13), the
 /// work W_ext of the external loads and W_R of the Dirichlet reactions and
 /// the walls since t = 0, and E(0). With saturated bodies the kinetic and
 /// stored energies include the liquid's.
 struct EnergyBalance {
   double kinetic = 0, strain = 0, dissipated = 0, external_work = 0, reaction_work = 0, initial = 0;
-  double friction = 0, darcy = 0, impact = 0;
+  double friction = 0, darcy = 0, impact = 0, pressure_average = 0;
   double total() const { return kinetic + strain; }
   /// Work done on the body since t = 0: W_ext + W_R.
   double work() const { return external_work + reaction_work; }
-  /// The energy spent since t = 0: W_p + W_f + W_i + W_d.
-  double spent() const { return dissipated + friction + darcy + impact; }
-  /// E(t) + W_p(t) + W_f(t) + W_i(t) + W_d(t) - E(0) - W(t): zero for an exact solution;
+  /// The energy spent since t = 0: W_p + W_f + W_i + W_d + W_a.
+  double spent() const { return dissipated + friction + darcy + impact + pressure_average; }
+  /// E(t) + W_p(t) + W_f(t) + W_i(t) + W_d(t) + W_a(t) - E(0) - W(t): zero for an exact solution;
   /// negative when the scheme dissipates, positive when it creates energy.
   double balance_error() const { return total() + spent() - initial - work(); }
 };

@@ -130,7 +130,7 @@ template <int D> void Engine<D>::sum_particles(bool check) {
     if (check && liquid.bad >= 0) unstable(liquid.bad, "pore pressure or liquid velocity is not finite");
     s.kinetic += liquid.kinetic, s.strain += liquid.stored, s.momentum += liquid.momentum;
     s.wave_speed2 = std::max(s.wave_speed2, liquid.wave_speed2);
-    energy_.darcy = phase->darcy();
+    energy_.darcy = phase->darcy(), energy_.pressure_average = phase->pressure_average();
   }
   if (dist_) {
     // One reduction per step: energies, momentum, this step's reaction

@@ -103,8 +103,10 @@ TwoPhase<D>::TwoPhase(TwoPhaseParts<D> parts, Particles<D>& P, const Dirichlet<D
     for (int k = 0; k < D; ++k)
       if (dirichlet.fix[i][k]) {
         const std::size_t c = static_cast<std::size_t>(dirichlet.node[i]) * D + k;
+        if (!fixed_[c]) fixed_list_.push_back(c);
         fixed_[c] = 1, value_[c] = dirichlet.value[i][k];
       }
+  std::sort(fixed_list_.begin(), fixed_list_.end());
   for (std::size_t i = 0; i < parts_.held.node.size(); ++i)
     for (int k = 0; k < D; ++k) {
       const int I = parts_.held.node[i];
@@ -155,6 +157,7 @@ template <int D> void TwoPhase<D>::to_nodes(Engine<D>& e, double t, double dt) {
   ScopedPhase timer(e.timers(), Phase::to_nodes);
   totals_ready_ = false;
   scatter<false>(e, [](int, int) {});
+  boundary_work_ -= dt * held_power(e, e.loads().body_force_at(t));
   find_surface(e);
   darcy_ += solve(e, t, dt);
   tie(e, t, dt);
@@ -229,6 +232,20 @@ void TwoPhase<D>::scatter(const Engine<D>& e, Update&& update) {
   if constexpr (!MomentumOnly) width_ = linear_row_width(table); // the table of this step
   scatter_->invalidate(width_);
   scatter_->run(table, static_cast<int>(mw_.size()), update, prep, add, merge, clear);
+}
+
+template <int D> double TwoPhase<D>::held_power(const Engine<D>& e, const Vec<D>& b) const {
+  // eq. 15.14: per fixed component, b_k (q_Ik - m_I vbar_Ik), and the liquid's where it is held
+  const NodalFields<D>& n = e.nodal();
+  double power = 0.0;
+  for (const std::size_t c : fixed_list_) {
+    const std::size_t I = c / D;
+    const int k = static_cast<int>(c % D);
+    if (!n.active[I]) continue;
+    power += b[k] * (n.q[I][k] - n.m[I] * value_[c]);
+    if (held_[c]) power += b[k] * (qw_[I][k] - mw_[I] * value_[c]);
+  }
+  return power;
 }
 
 template <int D> double TwoPhase<D>::solve(Engine<D>& e, double t, double dt) {
@@ -505,15 +522,20 @@ template <int D> void TwoPhase<D>::average_pressure(Engine<D>& e) {
     for (auto i = static_cast<std::size_t>(b0); i < static_cast<std::size_t>(b1); ++i) {
       if (!fluids_[static_cast<std::size_t>(P.material[i])]) continue;
       const int j = patch_[i];
-      pp[i] += j < 0 ? dp_[i] : sums_[static_cast<std::size_t>(j)][0] / sums_[static_cast<std::size_t>(j)][1];
+      const double mean = j < 0 ? dp_[i] : sums_[static_cast<std::size_t>(j)][0] / sums_[static_cast<std::size_t>(j)][1];
+      const PoreFluid& f = *fluids_[static_cast<std::size_t>(P.material[i])];
+      // eq. 15.13: the pressure's work on the increment the average leaves out
+      acc.averaged += (P.V[i] - (1.0 - f.porosity) * P.V0[i]) * pp[i] * (dp_[i] - mean) / f.bulk_modulus;
+      pp[i] += mean;
     }
     add_totals(e, static_cast<int>(b0), static_cast<int>(b1), acc);
   });
+  averaged_ += totals_.averaged;
   totals_ready_ = true;
 }
 
 template <int D> LiquidTotals<D>& LiquidTotals<D>::operator+=(const LiquidTotals& o) {
-  kinetic += o.kinetic, stored += o.stored, momentum += o.momentum;
+  kinetic += o.kinetic, stored += o.stored, averaged += o.averaged, momentum += o.momentum;
   wave_speed2 = std::max(wave_speed2, o.wave_speed2);
   bad = lowest(bad, o.bad);
   return *this;

@@ -88,10 +88,12 @@ template <int D> struct TwoPhaseParts {
 
 /// The liquid's contributions to the after-step sums (Engine::sum_particles):
 /// kinetic energy sum 1/2 m_w |w|^2, stored energy sum V n p^2 / (2 K_w),
-/// momentum sum m_w w, the largest squared fast-wave speed (eq. 15.7) and the
-/// first particle whose pore pressure or liquid velocity is not finite (-1: none).
+/// the step's increment of W_a (eq. 15.13; summed by the pressure update
+/// only), momentum sum m_w w, the largest squared fast-wave speed (eq. 15.7)
+/// and the first particle whose pore pressure or liquid velocity is not
+/// finite (-1: none).
 template <int D> struct LiquidTotals {
-  double kinetic = 0.0, stored = 0.0, wave_speed2 = 0.0;
+  double kinetic = 0.0, stored = 0.0, averaged = 0.0, wave_speed2 = 0.0;
   Vec<D> momentum = Vec<D>::Zero();
   int bad = -1;
   LiquidTotals& operator+=(const LiquidTotals& o);
@@ -114,12 +116,21 @@ public:
   /// The work the plates' forces and the free water's push on drained
   /// surfaces did in the steps since the last call (the engine adds it to
   /// W_ext): (F(t_n) + F(t_n+1)) / 2 . dt V for each step and plate,
-  /// F . dt (u_n + u_n+1) / 2 for each drained node and phase.
+  /// F . dt (u_n + u_n+1) / 2 for each drained node and phase; less dt
+  /// held_power at t_n, which the engine's body-force work counts but no
+  /// held component does.
   double take_boundary_work() { return std::exchange(boundary_work_, 0.0); }
   /// The energy the Darcy drag dissipated since t = 0 (W_d, eq. 15.6; EnergyBalance::darcy).
   double darcy() const { return darcy_; }
   /// Sets W_d (a restart).
   void set_darcy(double w) { darcy_ = w; }
+  /// The work the pore pressure did since t = 0 on the pressure increments
+  /// that the cell average (eq. 15.3a) takes from each particle
+  /// (W_a, eq. 15.13; EnergyBalance::pressure_average): energy the liquid's
+  /// stored energy does not keep (negative: energy it gained).
+  double pressure_average() const { return averaged_; }
+  /// Sets W_a (a restart).
+  void set_pressure_average(double w) { averaged_ = w; }
   /// After the engine's constrained nodal velocity v_I: the liquid's w_I.
   void nodal_velocity(Engine<D>& e, double dt);
   /// After the particles moved and their stresses were updated: w_p and p_p.
@@ -151,6 +162,12 @@ private:
   /// The liquid's particle-to-node sums (momentum only: musl's re-projection);
   /// update(p0, p1) runs on each block of particles before it is summed.
   template <bool MomentumOnly, class Update> void scatter(const Engine<D>& e, Update&& update);
+  /// The part of the body force's power P = b . (sum_p m_p v_p + sum_p m_w,p w_p)
+  /// (the engine's W_ext, sect. 11) that falls on the momenta the particles bring to
+  /// the fixed components, which move at their prescribed velocity instead
+  /// (eq. 15.14): sum_{I,k fixed} b_k (q_Ik - m_I vbar_Ik), with the liquid's
+  /// (q_w, m_w) where it is held.
+  double held_power(const Engine<D>& e, const Vec<D>& b) const;
   /// The coupled nodal solve (eq. 15.5); returns the step's Darcy dissipation (eq. 15.6).
   double solve(Engine<D>& e, double t, double dt);
   /// The solve of node I's free components with (w - v) . normal = 0 at
@@ -179,6 +196,7 @@ private:
   /// liquid held with it, tied by a rigid set; the solid's prescribed velocity.
   std::vector<char> fixed_, held_, rigid_;
   std::vector<double> value_;
+  std::vector<std::size_t> fixed_list_; ///< the fixed components (I D + k), ascending
   std::vector<char> wet_;         ///< per node: active with a liquid mass above the mass tolerance
   std::vector<int> drain_;        ///< per node: its Drain in parts_.drains, or -1
   std::vector<char> occupied_;    ///< per lattice cell (its lower corner's node): holds a saturated particle
@@ -200,7 +218,7 @@ private:
   std::unordered_map<long long, int> number_; ///< the patches of a large lattice
   std::vector<const PoreFluid*> fluids_; ///< per material its pore fluid, or null
   int width_ = 0;                 ///< linear_row_width of this step's table
-  double darcy_ = 0.0, boundary_work_ = 0.0;
+  double darcy_ = 0.0, averaged_ = 0.0, boundary_work_ = 0.0;
   std::vector<double> pbar_;      ///< per node: the free water's pressure of this step (drained nodes)
   LiquidTotals<D> totals_; ///< the sums of the step's last pass (totals_ready_)
   bool totals_ready_ = false;

@@ -18,9 +18,10 @@ static_assert(sizeof(EnergySummary) == 4 * sizeof(double), "EnergySummary change
 /// Records the energy balance of docs/theory.md sect. 11: at every output
 /// time the series /energy - E's kinetic and strain parts, W_ext, W_R (eq.
 /// 11.1), W_p as "dissipated" when a material has internal variables, W_f
-/// and W_i as "friction" and "impact" with friction (walls, contact), W_d as
-/// "darcy" with a pore liquid - and after every step the run's EnergySummary
-/// (max_energy_ratio and energy_drift, eq. 11.2; the impact energy W_i).
+/// and W_i as "friction" and "impact" with friction (walls, contact), W_d and
+/// W_a as "darcy" and "pressure_average" with a pore liquid - and after
+/// every step the run's EnergySummary (max_energy_ratio and energy_drift,
+/// eq. 11.2; the impact energy W_i).
 template <int D> class EnergySeries {
 public:
   explicit EnergySeries(const Engine<D>& e) : e_(e) {}
@@ -29,7 +30,7 @@ public:
   void sample_summary() {
     const EnergyBalance& E = e_.energy();
     summary_.initial = E.initial;
-    summary_.sample(E.total() + E.spent(), E.work(), E.balance_error()); // W_p, W_f, W_i and W_d count as spent energy
+    summary_.sample(E.total() + E.spent(), E.work(), E.balance_error()); // W_p, W_f, W_i, W_d and W_a count as spent energy
   }
 
   /// The columns of /energy now, in the order the file holds them.
@@ -39,7 +40,7 @@ public:
                    {"reaction_work", E.reaction_work}};
     if (dissipative()) s.emplace_back("dissipated", E.dissipated);
     if (e_.has_friction()) s.emplace_back("friction", E.friction), s.emplace_back("impact", E.impact);
-    if (e_.settings().two_phase) s.emplace_back("darcy", E.darcy);
+    if (e_.settings().two_phase) s.emplace_back("darcy", E.darcy), s.emplace_back("pressure_average", E.pressure_average);
     return s;
   }
 
