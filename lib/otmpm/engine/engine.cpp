@@ -345,8 +345,14 @@ template <int D> void Engine<D>::update_stress_and_to_nodes(const Gradient<D>& g
                                  "Engine::update_stress_and_to_nodes: only the forces follow a stress update");
   if (!loads_.uniform() && loads_.any()) loads_.particle_forces(what.t, P_, fext_);
   fallible([&] {
-    average_volumetric(g);
-    to_nodes_impl<false, false, true>(what, [&](int p0, int p1) { update_stress_range(g, p0, p1); });
+    const bool fbar = average_volumetric(g); // F-bar: the forces' patch means need every new stress first
+    if (fbar)
+      parallel_chunks(P_.size(), [&](long long p0, long long p1) {
+        update_stress_range(g, static_cast<int>(p0), static_cast<int>(p1));
+      });
+    to_nodes_impl<false, false, true>(what, [&](int p0, int p1) {
+      if (!fbar) update_stress_range(g, p0, p1);
+    });
   });
   fbar_.ready = false;
   exchange_sums(false, false, true);
@@ -387,6 +393,8 @@ void Engine<D>::to_nodes_impl(const ToNodes<D>& what, Update&& update) {
   const Vec<D>* vw = Momentum ? what.w->data() : nullptr;
   const Vec<D>* va = Momentum && what.a ? what.a->data() : nullptr;
   const Vec<D>* fext = field ? fext_.data() : nullptr;
+  // F-bar: the patch's mean stress in place of the particle's (volumetric.hpp, docs/theory.md eq. 9.10)
+  const double* shift = Forces && settings_.volumetric == Volumetric::fbar ? fbar_.mean_stress_shift(P_) : nullptr;
   const double c = what.c;
   auto prep = [=](int p) {
     Payload w;
@@ -400,6 +408,7 @@ void Engine<D>::to_nodes_impl(const ToNodes<D>& what, Update&& update) {
     }
     if (Forces) {
       w.Vs = V[p] * sigma[p];
+      if (shift) w.Vs.diagonal().array() += V[p] * shift[p];
       w.fext = uniform ? Vec<D>(m[p] * b) : fext ? fext[p] : Vec<D>::Zero();
     }
     return w;

@@ -166,7 +166,8 @@ struct EnergyBalance {
 /// basis table (molinos et al. Algorithm 1 steps 1-2 and 5, wobbes et al.
 /// Algorithm 1 step 1): m_I = sum_p N_Ip m_p; q_I = sum_p N_Ip m_p (w_p + c
 /// a_p) (null w: no momentum); f_I = sum_p (-V_p sigma_p grad N_Ip + N_Ip
-/// f_ext,p(t)) (forces). `split` (with w and a, without forces): q_I =
+/// f_ext,p(t)) (forces; with F-bar sigma_eff,p of docs/theory.md eq. 9.10).
+/// `split` (with w and a, without forces): q_I =
 /// sum_p N_Ip m_p w_p and f_I = sum_p N_Ip m_p a_p apart.
 template <int D> struct ToNodes {
   bool mass = false;
@@ -287,8 +288,8 @@ public:
   void to_nodes(const ToNodes<D>& what);
   /// The constitutive update from `g` (docs/theory.md
   /// sect. 9) in the same pass as to_nodes(what): each block of particles
-  /// is updated, then scatters its new V_p sigma_p (molinos et al. Algorithm
-  /// 1 stages 4-5 in one pass). InstabilityError for the lowest failing particle.
+  /// is updated, then scatters its new V_p sigma_p (molinos et al. Algorithm 1
+  /// stages 4-5; with F-bar every particle first). InstabilityError for the lowest failing particle.
   void update_stress_and_to_nodes(const Gradient<D>& g, const ToNodes<D>& what);
   /// Solves M y = r (lumped: division by m_I; consistent: sparse solve) on
   /// active nodes; inactive nodes get zero, and the fixed components of

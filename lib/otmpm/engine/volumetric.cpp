@@ -14,11 +14,7 @@ void PatchAverage<D>::apply(const std::vector<long long>& patch, long long patch
   if constexpr (D == 1) {
     return; // one axis: dFbar = dF (the patch volume change is the particle's own)
   } else {
-    if (static_cast<long long>(weight_.size()) < patches) {
-      weight_.assign(static_cast<std::size_t>(patches), 0.0);
-      weighted_.assign(static_cast<std::size_t>(patches), 0.0);
-      count_.assign(static_cast<std::size_t>(patches), 0);
-    }
+    reserve(patches);
     dJ_.resize(static_cast<std::size_t>(n));
     parallel_for(n, [&](long long p) { dJ_[p] = (Mat<D>::Identity() + H[p]).determinant(); });
     for (int p = 0; p < n; ++p) { // in particle order: the sums do not depend on the threads
@@ -35,15 +31,54 @@ void PatchAverage<D>::apply(const std::vector<long long>& patch, long long patch
       H[p] = s * H[p];
       H[p].diagonal().array() += s - 1.0;
     });
-    for (int p = 0; p < n; ++p) { // zero what was touched
-      weighted_[patch[p]] = weight_[patch[p]] = 0.0;
-      count_[patch[p]] = 0;
-    }
+    clear(patch, n);
   }
+}
+
+template <int D>
+void PatchAverage<D>::shift_mean_stress(const std::vector<long long>& patch, long long patches, const double* V,
+                                        const Mat<D>* sigma, double* shift, int n) {
+  reserve(patches);
+  for (int p = 0; p < n; ++p) { // in particle order: the sums do not depend on the threads
+    weighted_[patch[p]] += V[p] * sigma[p].trace();
+    weight_[patch[p]] += V[p];
+    ++count_[patch[p]];
+  }
+  parallel_for(n, [&](long long p) {
+    const long long c = patch[p];
+    shift[p] = count_[c] < 2 ? 0.0 : (weighted_[c] / weight_[c] - sigma[p].trace()) / D;
+  });
+  clear(patch, n);
+}
+
+template <int D> void PatchAverage<D>::reserve(long long patches) {
+  if (static_cast<long long>(weight_.size()) >= patches) return;
+  weight_.assign(static_cast<std::size_t>(patches), 0.0);
+  weighted_.assign(static_cast<std::size_t>(patches), 0.0);
+  count_.assign(static_cast<std::size_t>(patches), 0);
+}
+
+template <int D> void PatchAverage<D>::clear(const std::vector<long long>& patch, int n) {
+  for (int p = 0; p < n; ++p) {
+    weighted_[patch[p]] = weight_[patch[p]] = 0.0;
+    count_[patch[p]] = 0;
+  }
+}
+
+template <int D> const double* FbarState<D>::mean_stress_shift(const Particles<D>& P) {
+  if (D == 1) return nullptr; // one axis: dFbar = dF, and the forces take sigma_p
+  require<std::logic_error>(patch.size() == static_cast<std::size_t>(P.size()),
+                            "FbarState::mean_stress_shift: the patches are not those of the particles");
+  shift.resize(patch.size());
+  average.shift_mean_stress(patch, patches, P.V.data(), P.sigma.data(), shift.data(), P.size());
+  return shift.data();
 }
 
 template class PatchAverage<1>;
 template class PatchAverage<2>;
 template class PatchAverage<3>;
+template struct FbarState<1>;
+template struct FbarState<2>;
+template struct FbarState<3>;
 
 } // namespace otmpm

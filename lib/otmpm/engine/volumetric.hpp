@@ -1,6 +1,6 @@
 #pragma once
 /// \file volumetric.hpp
-/// The F-bar treatment of volumetric locking (docs/theory.md sect. 9.7):
+/// The F-bar treatment of volumetric locking (docs/theory.md sect. 9.8):
 /// the volume change of each particle's step is replaced by the volume
 /// change of its patch, so that isochoric (plastic) flow is not resisted by
 /// the many volume constraints of a patch's material points.
@@ -16,8 +16,17 @@
 /// cell of the node lattice and a body: on the fixed grid the cell that holds
 /// the particle when the basis is evaluated, with advected nodes the cell of
 /// the initial lattice that held it at t = 0, or of the last node reset's
-/// lattice that held it then (a Lagrangian patch). Internal to the engine.
+/// lattice that held it then (a Lagrangian patch).
+///
+/// The internal forces are the work conjugate of the averaged rate: they use
+/// each particle's deviatoric stress with its patch's mean stress,
+///   sigma_eff,p = sigma_p + (mbar_c - m_p) I,   m_p = tr sigma_p / D,
+///   mbar_c = sum_{q in c} V_q m_q / sum_{q in c} V_q,
+/// so that sum_p V_p sigma_eff,p : L_p = sum_p V_p sigma_p : Lbar_p, the rate
+/// of the energy the materials store (docs/theory.md eq. 9.10). Internal to
+/// the engine.
 #include "otmpm/core.hpp"
+#include "otmpm/particles/particles.hpp"
 
 #include <vector>
 
@@ -38,9 +47,16 @@ public:
   /// any thread count). A patch of one particle keeps its H_p. A particle whose dJ_p is not positive keeps H_p (its
   /// material then reports det F <= 0), and adds nothing to its patch.
   void apply(const std::vector<long long>& patch, long long patches, const double* V, Mat<D>* H, int n);
+  /// shift[p] = mbar_c - m_p (the file's head) for particles [0, n), with the
+  /// patches and volume weights of apply(); 0 in a patch of one. The sums run
+  /// in particle order.
+  void shift_mean_stress(const std::vector<long long>& patch, long long patches, const double* V,
+                         const Mat<D>* sigma, double* shift, int n);
 
 private:
-  std::vector<double> weighted_, weight_; ///< sum V dJ and sum V per patch (zero between calls)
+  void reserve(long long patches);
+  void clear(const std::vector<long long>& patch, int n); ///< zero the sums patch[0 .. n) touched
+  std::vector<double> weighted_, weight_; ///< sum V dJ (or V tr sigma) and sum V per patch (zero between calls)
   std::vector<int> count_;                ///< particles per patch (zero between calls)
   std::vector<double> dJ_;                ///< dJ_p of the current call
 };
@@ -53,10 +69,18 @@ template <int D> struct FbarState {
   PatchAverage<D> average;
   AlignedVector<Mat<D>> H; ///< the averaged H_p of the current pass
   bool ready = false;      ///< the current pass reads H
+  std::vector<double> shift; ///< mbar_c - m_p of the particles' stresses (shift_mean_stress)
+
+  /// The internal forces' mean-stress shifts (PatchAverage::shift_mean_stress)
+  /// of the stresses and volumes in P, on the patches of this step; null in 1D.
+  const double* mean_stress_shift(const Particles<D>& P);
 };
 
 extern template class PatchAverage<1>;
 extern template class PatchAverage<2>;
 extern template class PatchAverage<3>;
+extern template struct FbarState<1>;
+extern template struct FbarState<2>;
+extern template struct FbarState<3>;
 
 } // namespace otmpm
