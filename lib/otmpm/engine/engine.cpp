@@ -662,7 +662,11 @@ template <int D> void Engine<D>::follow_body(const AlignedVector<Vec<D>>& x) {
 
 template <int D> bool Engine<D>::reset_due() const {
   if (!(settings_.node_reset.below > 0.0) || settings_.dt) return false;
-  return cfl_spacing() < settings_.node_reset.below * settings_.h; // the same on every rank
+  // The nodes' own spacing against the laid-out lattice's (a searching family's CFL spacing, from its
+  // gradients, can be small on a fresh lattice at a body's edge, where a reset gains nothing).
+  double h = basis_->nodes().min_spacing() / node_spacing0_;
+  if (dist_) dist_->min({&h, 1}); // the same on every rank
+  return h < settings_.node_reset.below;
 }
 
 template <int D> void Engine<D>::reset_nodes(const CartesianGrid<D>* given) {
