@@ -56,7 +56,7 @@ template <int D> struct LatticePart {
 };
 
 /// `ul` mode: the nodes laid out anew on the scene grid's lattice over the
-/// particles when the CFL spacing has fallen below `below` h (docs/theory.md
+/// particles when their smallest spacing has fallen below `below` h (docs/theory.md
 /// sect. 3, "Node reset"); below = 0: never. The lattice lines move with the
 /// boundaries that move their nodes: at time t they are the scene grid's
 /// lines translated by `velocity` t, so that a held node plane stays on a line.

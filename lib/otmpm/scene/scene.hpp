@@ -48,7 +48,7 @@ struct SimulationSection {
   /// default (volumetric_treatment)
   std::string volumetric;
   /// ul: lay the nodes out anew on the grid's lattice over the particles when
-  /// the CFL spacing falls below node_reset h (0: never; docs/theory.md sect.
+  /// the nodes' smallest spacing falls below node_reset h (0: never; docs/theory.md sect.
   /// 3); unset: the default (node_reset_fraction)
   std::optional<double> node_reset;
   double t_end = 0.0;
