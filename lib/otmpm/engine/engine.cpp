@@ -662,7 +662,8 @@ template <int D> void Engine<D>::follow_body(const AlignedVector<Vec<D>>& x) {
 
 template <int D> bool Engine<D>::reset_due() const {
   if (!(settings_.node_reset.below > 0.0) || settings_.dt) return false;
-  // The nodes' own spacing against the laid-out lattice's (a searching family's CFL spacing, from its
+  if (!basis_->nodes().grid()) return cfl_spacing() < settings_.node_reset.below * settings_.h; // mesh vertices
+  // A lattice's own spacing against the laid-out one's (a searching family's CFL spacing, from its
   // gradients, can be small on a fresh lattice at a body's edge, where a reset gains nothing).
   double h = basis_->nodes().min_spacing() / node_spacing0_;
   if (dist_) dist_->min({&h, 1}); // the same on every rank
