@@ -97,7 +97,7 @@ std::pair<Engine<2>, Engine<2>> restarted_after_reset(const Scene& s, int steps)
 
 } // namespace
 
-TEST_CASE("node reset: the nodes are laid out anew when the CFL spacing falls below the fraction") {
+TEST_CASE("node reset: the nodes are laid out anew when their spacing falls below the fraction") {
   for (const char* basis : {"linear", "lme"}) {
     CAPTURE(basis);
     Engine<2> e = assemble<2>(impact({std::string("basis.kind=\"") + basis + "\""}));

@@ -477,16 +477,11 @@ std::vector<Index<D>> row_homes(const Scene& scene, const Comm& comm, const Chec
                                 const CartesianGrid<D>& grid, long long count) {
   std::vector<Index<D>> home(static_cast<std::size_t>(count));
   if (reset_lattice_of<D>(ck)) {
-    const auto& cells = block.group("nodes").integer_array("home_cell", home.size(), D).values;
-    bool inside = true;
-    for (std::size_t i = 0; i < cells.size(); ++i) {
-      if (cells[i] < 0 || cells[i] >= grid.cells[i % D]) inside = false;
-      else home[i / D][i % D] = static_cast<int>(cells[i]);
-    }
+    auto stored = home_cells_of<D>(block.group("nodes"), home.size(), grid.cells);
     agree_on(comm, [&] {
-      if (!inside) ck.group("nodes").error("a home cell outside the reset lattice");
+      if (!stored) ck.group("nodes").error("a home cell outside the reset lattice");
     });
-    return home;
+    return std::move(*stored);
   }
   const auto& x =
       block.group("particles").real_array(scene.simulation.nodes_move() ? "X" : "x", home.size(), D).values;

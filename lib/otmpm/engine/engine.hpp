@@ -514,6 +514,11 @@ template <int D> struct ResetLattice {
   double time = 0.0;
 };
 template <int D> std::optional<ResetLattice<D>> reset_lattice_of(const Checkpoint& ck);
+/// The home cells of `n` particles a checkpoint's group "nodes" holds
+/// (home_cell: n rows of D cell indices of a lattice of `cells` cells), or
+/// nullopt when one lies outside that lattice.
+template <int D>
+std::optional<std::vector<Index<D>>> home_cells_of(const StateGroup& nodes, std::size_t n, const Index<D>& cells);
 
 extern template class Engine<1>;
 extern template class Engine<2>;

@@ -152,13 +152,9 @@ template <int D> void Engine<D>::restore_state(const Checkpoint& in) {
     }
     laid_out_.homes = nodes.has_array("home_cell");
     if (laid_out_.homes) { // the F-bar patches follow from them (assign_patches)
-      const auto& home = nodes.integer_array("home_cell", static_cast<std::size_t>(P_.size()), D).values;
-      laid_out_.home.resize(static_cast<std::size_t>(P_.size()));
-      for (std::size_t i = 0; i < home.size(); ++i) {
-        const std::size_t k = i % D;
-        if (home[i] < 0 || home[i] >= reset->grid.cells[k]) nodes.error("a home cell outside the reset lattice");
-        laid_out_.home[i / D][k] = static_cast<int>(home[i]);
-      }
+      auto home = home_cells_of<D>(nodes, static_cast<std::size_t>(P_.size()), reset->grid.cells);
+      if (!home) nodes.error("a home cell outside the reset lattice");
+      laid_out_.home = std::move(*home);
     } else if (nodes.has_array("patch")) { // written before the homes were: F-bar patches numbered per rank
       const auto& patch = nodes.integer_array("patch", static_cast<std::size_t>(P_.size()), 1).values;
       if (std::any_of(patch.begin(), patch.end(), [&](std::int64_t c) { return c < 0 || c >= P_.size(); }))
@@ -216,6 +212,18 @@ template <int D> void Engine<D>::restore_state(const Checkpoint& in) {
   basis_->restore_state(basis);
 }
 
+template <int D>
+std::optional<std::vector<Index<D>>> home_cells_of(const StateGroup& nodes, std::size_t n, const Index<D>& cells) {
+  const auto& values = nodes.integer_array("home_cell", n, D).values;
+  std::vector<Index<D>> home(n);
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    const std::size_t k = i % D;
+    if (values[i] < 0 || values[i] >= cells[k]) return std::nullopt;
+    home[i / D][k] = static_cast<int>(values[i]);
+  }
+  return home;
+}
+
 template <int D> std::optional<ResetLattice<D>> reset_lattice_of(const Checkpoint& ck) {
   const auto it = ck.groups.find("nodes");
   if (it == ck.groups.end() || !it->second.integers.count("resets")) return std::nullopt;
@@ -238,6 +246,9 @@ template <int D> std::optional<ResetLattice<D>> reset_lattice_of(const Checkpoin
 template std::optional<ResetLattice<1>> reset_lattice_of<1>(const Checkpoint&);
 template std::optional<ResetLattice<2>> reset_lattice_of<2>(const Checkpoint&);
 template std::optional<ResetLattice<3>> reset_lattice_of<3>(const Checkpoint&);
+template std::optional<std::vector<Index<1>>> home_cells_of<1>(const StateGroup&, std::size_t, const Index<1>&);
+template std::optional<std::vector<Index<2>>> home_cells_of<2>(const StateGroup&, std::size_t, const Index<2>&);
+template std::optional<std::vector<Index<3>>> home_cells_of<3>(const StateGroup&, std::size_t, const Index<3>&);
 template void Engine<1>::save_state(Checkpoint&) const;
 template void Engine<2>::save_state(Checkpoint&) const;
 template void Engine<3>::save_state(Checkpoint&) const;

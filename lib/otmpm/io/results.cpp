@@ -742,13 +742,14 @@ void check_finite(const h5::Matrix<double>& m, hsize_t rows, const std::string& 
                          " is not finite, which otmpm never writes (the file is damaged)");
 }
 
-/// Reads what copy_results needs of a history, checking it has `samples`
-/// rows of finite values and increasing times.
 /// A column of `samples` zeros (a series an older file lacks).
 h5::Matrix<double> zero_column(int samples) {
   return {static_cast<hsize_t>(samples), 1, std::vector<double>(static_cast<std::size_t>(samples), 0.0)};
 }
 
+/// Reads what copy_results needs of a history, checking it has `samples`
+/// rows of finite values and increasing times; the columns of
+/// `layout.zero_if_absent` the file lacks are zeros.
 StoredHistory read_history(hid_t file, const HistoryLayout& layout, int samples, const std::string& path) {
   StoredHistory h;
   h.layout = layout;
