@@ -4,8 +4,11 @@
 #include <doctest/doctest.h>
 
 #include "otmpm/assembly/assembler.hpp"
+#include "otmpm/io/results.hpp"
+#include "otmpm/run/run.hpp"
 #include "otmpm/scene/validate.hpp"
 #include "otmpm/state.hpp"
+#include "temp_dir.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -113,6 +116,28 @@ TEST_CASE("node reset: the nodes are laid out anew when their spacing falls belo
     CHECK(plain.node_resets() == 0);
     CHECK(plain.steps() > e.steps());
   }
+}
+
+TEST_CASE("node reset: a run reports how many resets it made, in its summary and its result file") {
+  const Scene s = impact({});
+  Engine<2> e = assemble<2>(s);
+  while (e.time() < s.simulation.t_end) e.step();
+  REQUIRE(e.node_resets() > 1);
+  test::TempDir dir("node_reset_count");
+  RunOptions opt;
+  opt.out_file = dir.file("impact.h5");
+  const RunSummary r = run_scene(s, opt);
+  REQUIRE(r.exit_code == 0);
+  CHECK(r.steps == e.steps());
+  REQUIRE(r.diagnostics.count("node_resets") == 1);
+  CHECK(r.diagnostics.at("node_resets") == static_cast<double>(e.node_resets()));
+  CHECK(summary_line(r).find("node_resets = " + std::to_string(e.node_resets())) != std::string::npos);
+  CHECK(read_double_attribute(opt.out_file, "node_resets") == static_cast<double>(e.node_resets()));
+  // mpm mode has no node set to reset: no count is reported.
+  RunOptions none;
+  none.write_results = false;
+  const RunSummary m = run_scene(impact({"simulation.mode=mpm", "simulation.node_reset=0"}), none);
+  CHECK(m.diagnostics.count("node_resets") == 0);
 }
 
 TEST_CASE("node reset: a run restarted from a checkpoint after a reset goes on bit for bit") {

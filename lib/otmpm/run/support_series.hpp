@@ -16,7 +16,9 @@ namespace otmpm {
 /// (widened_supports) and the points moved into their support's hull
 /// (moved_points), over every rank and across restarts - the series
 /// /diagnostics and the run's summary. Off unless the nodes move and the
-/// family searches its support.
+/// family searches its support. The summary of a run whose nodes move also
+/// gives node_resets: how many times the nodes were laid out anew since
+/// t = 0 (docs/theory.md sect. 3; a checkpoint carries the count).
 template <int D> class SupportSeries {
 public:
   explicit SupportSeries(const Engine<D>& e) : e_(e) {}
@@ -49,6 +51,7 @@ public:
   void summarize(RunSummary& s) const {
     const SeriesSample c = sample();
     if (!c.empty()) s.diagnostics = {c.begin(), c.end()};
+    if (e_.mode().nodes_move()) s.diagnostics["node_resets"] = static_cast<double>(e_.node_resets());
   }
 
 private:
