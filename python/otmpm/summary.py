@@ -15,14 +15,15 @@ class Summary(collections.abc.Mapping):
     particles, nodes, particle_steps_per_second, errors (dict: the errors
     against the exact solution of the scene's [reference], e.g.
     rms_velocity_error, history_error_A), max_energy_ratio, energy_drift,
-    phases (dict: wall seconds per phase), out_file (None without a result
-    file). The values are those the result file stores as root attributes.
+    phases (dict: wall seconds per phase), diagnostics (dict, empty in mpm
+    mode: node_resets in ul mode, widened_supports and moved_points with a
+    searching basis in ul mode), out_file (None without a result file). The values are those the result file stores as root attributes.
     str(summary) is the command line's summary line.
     """
 
     def __init__(self, values, line=""):
         values = dict(values)
-        for key in ("errors", "phases"):  # read-only views of copies: the summary never changes
+        for key in ("errors", "phases", "diagnostics"):  # read-only views of copies: the summary never changes
             if isinstance(values.get(key), collections.abc.Mapping):
                 values[key] = types.MappingProxyType(dict(values[key]))
         object.__setattr__(self, "_values", values)

@@ -52,8 +52,9 @@ void check_signals() {
 
 /// The otmpm.Summary (a dict-like object, otmpm/summary.py) of a finished run.
 py::object summary_object(const RunSummary& s) {
-  py::dict errors, phases;
+  py::dict errors, phases, diagnostics;
   for (const auto& [name, value] : s.errors) errors[py::str(name)] = value;
+  for (const auto& [name, value] : s.diagnostics) diagnostics[py::str(name)] = value;
   for (std::size_t i = 0; i < phase_names.size(); ++i) phases[py::str(std::string(phase_names[i]))] = s.timers.seconds[i];
   py::dict d;
   d["status"] = s.status;
@@ -72,6 +73,7 @@ py::object summary_object(const RunSummary& s) {
   d["max_energy_ratio"] = s.energy.max_energy_ratio();
   d["energy_drift"] = s.energy.energy_drift();
   d["phases"] = phases;
+  d["diagnostics"] = diagnostics;
   d["out_file"] = s.out_file.empty() ? py::object(py::none()) : py::object(py::str(s.out_file));
   return py::module_::import("otmpm.summary").attr("Summary")(d, summary_line(s));
 }

@@ -239,7 +239,7 @@ def test_summary_is_read_only():
                     lambda: delattr(s, "steps"), lambda: setattr(s, "new_key", 1)):
         with pytest.raises(AttributeError, match="read-only"):
             attempt()
-    for mapping in (s.errors, s.phases):
+    for mapping in (s.errors, s.phases, s.diagnostics):
         with pytest.raises(TypeError):
             mapping["rms_velocity_error"] = -1
     with pytest.raises(TypeError):

@@ -60,6 +60,19 @@ def test_summary_is_dict_like(tmp_path):
         s.no_such_key
 
 
+def test_summary_reports_the_node_resets_of_a_ul_run(tmp_path):
+    # The quarter Taylor bar at h = R/2 for 10 us: ul mode lays its nodes out anew twice.
+    grid = {"body.bar.file": "taylor_bar/quarter_h1.6.csv", "grid.lower": [0, 0, -0.0032],
+            "grid.upper": [0.0144, 0.0144, 0.0368], "grid.cells": [9, 9, 25], "simulation.t_end": 1e-5}
+    ul = otmpm.run(otmpm.Scene.from_toml(example("taylor_bar.toml"), {**grid, "simulation.mode": "ul"}),
+                   out=str(tmp_path / "ul.h5"))
+    assert ul.exit_code == 0 and ul.diagnostics["node_resets"] >= 1
+    assert attrs(tmp_path / "ul.h5")["node_resets"] == ul.diagnostics["node_resets"]
+    assert f"node_resets = {ul.diagnostics['node_resets']:.0f}" in str(ul)
+    mpm = otmpm.run(otmpm.Scene.from_toml(example("taylor_bar.toml"), grid), write_results=False)
+    assert mpm.exit_code == 0 and dict(mpm.diagnostics) == {}
+
+
 def test_unstable_run_reports_exit_code_1(tmp_path):
     s = otmpm.run(otmpm.Scene.from_toml(DYKA, {"simulation.cfl": 4.0}), out=str(tmp_path / "u.h5"))
     assert s.exit_code == 1 and s.status.startswith("unstable: ")
