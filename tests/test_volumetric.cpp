@@ -7,6 +7,7 @@
 #include "otmpm/assembly/assembler.hpp"
 #include "otmpm/engine/volumetric.hpp"
 #include "otmpm/integrators/integrator.hpp"
+#include "otmpm/materials/material.hpp"
 #include "support.hpp"
 #include "temp_dir.hpp"
 
@@ -255,7 +256,7 @@ upper = [0.8, 0.4]
   }
 }
 
-TEST_CASE("simulation.volumetric: by default fbar in ul with a plastic material, else none, bad values refused") {
+TEST_CASE("simulation.volumetric: by default fbar in ul with a plastic material that is not frictional, else none, bad values refused") {
   const std::string body = R"(
 [[body]]
 name = "b"
@@ -269,6 +270,17 @@ upper = [1.0, 0.5]
   elastic.materials.front().model = "neo_hookean";
   elastic.materials.front().extra.clear();
   CHECK(volumetric_treatment(elastic) == "none"); // elastic: no locking to treat
+  // over the model table: fbar in ul for the plastic models whose cone does
+  // not depend on the pressure, none for elastic and frictional ones
+  for (const MaterialModel* m : material_models()) {
+    CAPTURE(m->name);
+    Scene s = elastic;
+    s.materials.front().model = std::string(m->name);
+    CHECK(volumetric_treatment(s) == (!m->state.empty() && !m->frictional ? "fbar" : "none"));
+  }
+  CHECK(find_material_model("drucker_prager")->frictional);
+  CHECK(find_material_model("mu_i")->frictional);
+  CHECK_FALSE(find_material_model("j2")->frictional);
   CHECK(volumetric_treatment(parse_scene(block_scene(body), "a.toml",
                                          {"simulation.mode=\"mpm\"", "simulation.volumetric=\"fbar\""})) == "fbar");
   CHECK_THROWS_WITH_AS(parse_scene(block_scene(body), "a.toml", {"simulation.volumetric=\"bar\""}),

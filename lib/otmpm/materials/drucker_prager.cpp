@@ -53,7 +53,7 @@ const MaterialModel& drucker_prager_model() {
   static const MaterialModel m{"drucker_prager",
                                "Drucker-Prager soil (cone matched to Mohr-Coulomb in plane strain), finite strain",
                                kParameters, kHenckyState, make_drucker_prager<1>, make_drucker_prager<2>,
-                               make_drucker_prager<3>, example, true};
+                               make_drucker_prager<3>, example, true, true};
   return m;
 }
 

@@ -167,6 +167,12 @@ struct MaterialModel {
   /// a rate to sigma_p, so that a stress set on sigma_p before the run stays,
   /// or Material::start_from_stress sets the state the stress follows from.
   bool takes_initial_stress = false;
+  /// Its yield stress grows with the mean pressure (friction: drucker_prager,
+  /// mu_i). F-bar gives each particle its patch's mean stress, which such a
+  /// yield cone does not follow where dense and separated grains share a
+  /// patch: `ul` mode's default volumetric treatment leaves these models out
+  /// (docs/benchmarks.md, "Granular column collapse").
+  bool frictional = false;
 };
 
 /// Every model, in the order the docs list them.

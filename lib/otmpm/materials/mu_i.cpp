@@ -152,7 +152,8 @@ const MaterialModel& mu_i_model() {
                                                       {"critical_packing", 0.6}}};
   static const MaterialModel m{"mu_i",
                                "dense granular flow, mu(I) rheology, stress-free below the critical packing, finite strain",
-                               kParameters, kModelState<MuIModel>, make_mu_i<1>, make_mu_i<2>, make_mu_i<3>, example};
+                               kParameters, kModelState<MuIModel>, make_mu_i<1>, make_mu_i<2>, make_mu_i<3>, example,
+                               false, true};
   return m;
 }
 

@@ -1061,12 +1061,15 @@ std::string volumetric_treatment(const Scene& scene) {
   // ul: the lattice cells move with the material and keep their particles,
   // whose own volume changes lock isochoric plastic flow; an elastic body
   // does not lock, and with a hyperelastic law (whose mean stress depends on
-  // the isochoric part) the average lowers the stable step; mpm: particles
-  // change cells, and a cell's average does not follow them
-  // (docs/benchmarks.md, "ul on large deformation").
+  // the isochoric part) the average lowers the stable step; a frictional
+  // model's cone does not fit the patch's mean stress (a granular column's
+  // top sinks); mpm: particles change cells, and a cell's average does not
+  // follow them (docs/benchmarks.md, "ul on large deformation", "Granular
+  // column collapse").
   if (!scene.simulation.nodes_move()) return "none";
   for (const MaterialSection& m : scene.materials)
-    if (const MaterialModel* model = find_material_model(m.model); model && !model->state.empty()) return "fbar";
+    if (const MaterialModel* model = find_material_model(m.model); model && !model->state.empty() && !model->frictional)
+      return "fbar";
   return "none";
 }
 
