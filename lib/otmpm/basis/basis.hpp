@@ -15,6 +15,7 @@
 #include <memory>
 #include <span>
 #include <string>
+#include <optional>
 #include <string_view>
 #include <type_traits>
 #include <utility>
@@ -212,6 +213,12 @@ public:
   /// Evaluations since construction whose point lay outside the hull of every
   /// node near it and was moved back into it (PointQuery::moved), else 0.
   virtual long long moved_points() const { return 0; }
+  /// The box of points evaluate() takes, for the families whose domain the
+  /// nodes carry as a box (B-splines: the knot vectors' ranges), else
+  /// nothing (a family whose support follows the points). `ul` mode's node
+  /// reset lays the nodes out anew before a particle's extent leaves it
+  /// (Engine::reset_due).
+  virtual std::optional<std::pair<Vec<D>, Vec<D>>> domain() const { return std::nullopt; }
   /// The stencil size when every point has the same one (linear: 2^D,
   /// B-splines: (p+1)^D), else 0. fill_basis_table then writes rows in place
   /// (and starts again on its general path when a point gives another size).

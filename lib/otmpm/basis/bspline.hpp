@@ -185,6 +185,12 @@ public:
   /// (on a knot: evaluate() decides which entries it keeps).
   int evaluate_fixed_points(const Vec<D>* x, int count, Index<D>* cell_hint, int* node, double* N,
                             Vec<D>* dN) const override;
+  /// The knot vectors' ranges.
+  std::optional<std::pair<Vec<D>, Vec<D>>> domain() const override {
+    Vec<D> lo, hi;
+    for (int k = 0; k < D; ++k) lo[k] = knots_[k].lower(), hi[k] = knots_[k].upper();
+    return std::pair{lo, hi};
+  }
   /// The element walk over knot spans starts from each point's last cell.
   PointStateUse point_state_use(bool) const override { return {.cell_hint = true}; }
 

@@ -660,8 +660,28 @@ template <int D> void Engine<D>::follow_body(const AlignedVector<Vec<D>>& x) {
   basis_->nodes_moved({});
 }
 
+namespace {
+/// The box of this process' particles' extents: each a cube of its volume
+/// about x_p (node reset).
+template <int D> std::pair<Vec<D>, Vec<D>> particles_extent(const Particles<D>& P) {
+  Vec<D> lo = Vec<D>::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  for (int p = 0; p < P.size(); ++p) {
+    const double half = 0.5 * std::pow(P.V[p], 1.0 / D);
+    lo = lo.cwiseMin(P.x[p] - Vec<D>::Constant(half));
+    hi = hi.cwiseMax(P.x[p] + Vec<D>::Constant(half));
+  }
+  return {lo, hi};
+}
+} // namespace
+
 template <int D> bool Engine<D>::reset_due() const {
   if (!(settings_.node_reset.below > 0.0) || settings_.dt) return false;
+  if (const auto domain = basis_->domain()) { // a particle's extent has left the domain the nodes carry
+    const auto [lo, hi] = particles_extent(P_);
+    double inside = (lo.array() >= domain->first.array()).all() && (hi.array() <= domain->second.array()).all();
+    if (dist_) dist_->min({&inside, 1});
+    if (inside == 0.0) return true;
+  }
   if (!basis_->nodes().grid()) return cfl_spacing() < settings_.node_reset.below * settings_.h; // mesh vertices
   // A lattice's own spacing against the laid-out one's (a searching family's CFL spacing, from its
   // gradients, can be small on a fresh lattice at a body's edge, where a reset gains nothing).
@@ -677,12 +697,7 @@ template <int D> void Engine<D>::reset_nodes(const CartesianGrid<D>* given) {
   } else { // the grid's lines around every particle's extent
     const CartesianGrid<D> lines = settings_.node_reset.lines_at(t_);
     const Vec<D> h = lines.h();
-    Vec<D> lo = Vec<D>::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
-    for (int p = 0; p < P_.size(); ++p) {
-      const double half = 0.5 * std::pow(P_.V[p], 1.0 / D);
-      lo = lo.cwiseMin(P_.x[p] - Vec<D>::Constant(half));
-      hi = hi.cwiseMax(P_.x[p] + Vec<D>::Constant(half));
-    }
+    auto [lo, hi] = particles_extent(P_);
     if (dist_) { // the extent of every rank's particles
       dist_->min({lo.data(), static_cast<std::size_t>(D)});
       dist_->max({hi.data(), static_cast<std::size_t>(D)});
