@@ -5,6 +5,7 @@
 #include "otmpm/engine/engine.hpp"
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/engine/scatter.hpp"
+#include "otmpm/engine/two_phase_scatter.hpp"
 
 #include "otmpm/parallel.hpp"
 
@@ -328,6 +329,8 @@ void Engine<D>::to_nodes_with(const ToNodes<D>& what, Update&& update) {
   const bool q = what.w != nullptr;
   require<std::invalid_argument>(!what.split || (q && what.a && what.mass && !what.forces),
                                  "Engine::to_nodes: split momenta need w, a and the mass, and no forces");
+  require<std::invalid_argument>(!what.liquid || (q && what.mass && what.forces && !what.split),
+                                 "Engine::to_nodes: the liquid's sums go with the mass, momenta and forces");
   if (what.split) to_nodes_impl<true, true, false, true>(what, update);
   else if (what.mass && q && what.forces) to_nodes_impl<true, true, true>(what, update);
   else if (what.mass && q) to_nodes_impl<true, true, false>(what, update);
@@ -435,6 +438,8 @@ void Engine<D>::to_nodes_impl(const ToNodes<D>& what, Update&& update) {
     if (Momentum) std::fill(nodal_.q.begin() + I0, nodal_.q.begin() + I1, Vec<D>::Zero());
     if (Forces || Split) std::fill(nodal_.f.begin() + I0, nodal_.f.begin() + I1, Vec<D>::Zero());
   };
+  if constexpr (Mass && Momentum && Forces && !Split)
+    if (what.liquid) return what.liquid->scatter_with(*this, update, prep, add, merge, clear);
   scatter_->run(table_, static_cast<int>(nodal_.m.size()), update, prep, add, merge, clear);
 }
 

@@ -168,7 +168,9 @@ struct EnergyBalance {
 /// a_p) (null w: no momentum); f_I = sum_p (-V_p sigma_p grad N_Ip + N_Ip
 /// f_ext,p(t)) (forces; with F-bar sigma_eff,p of docs/theory.md eq. 9.10).
 /// `split` (with w and a, without forces): q_I =
-/// sum_p N_Ip m_p w_p and f_I = sum_p N_Ip m_p a_p apart.
+/// sum_p N_Ip m_p w_p and f_I = sum_p N_Ip m_p a_p apart. `liquid` (with
+/// the mass, w and forces): the liquid's sums of the step in the same pass
+/// (TwoPhase::scatter_with).
 template <int D> struct ToNodes {
   bool mass = false;
   const AlignedVector<Vec<D>>* w = nullptr;
@@ -177,6 +179,7 @@ template <int D> struct ToNodes {
   bool forces = false;
   double t = 0.0;
   bool split = false;
+  TwoPhase<D>* liquid = nullptr;
 };
 
 /// What the fused node-to-particle map does, all from one pass over the

@@ -5,7 +5,7 @@
 #include "otmpm/engine/two_phase.hpp"
 
 #include "otmpm/engine/engine.hpp"
-#include "otmpm/engine/scatter.hpp"
+#include "otmpm/engine/two_phase_scatter.hpp"
 #include "otmpm/parallel.hpp"
 
 #include <algorithm>
@@ -13,15 +13,6 @@
 #include <unordered_map>
 
 namespace otmpm {
-
-/// Per-node partial sums of the liquid: m_w, the drag coefficient Q, the
-/// momentum q_w, the liquid's pressure force f_w = sum V n p grad N and the
-/// pore pressure's force on the mixture f_p = sum V p grad N (eq. 15.4), and
-/// the surface vectors G = sum V grad N, G_n = sum n V grad N (Drain).
-template <int D> struct LiquidSums {
-  double m = 0.0, drag = 0.0;
-  Vec<D> q = Vec<D>::Zero(), fw = Vec<D>::Zero(), fp = Vec<D>::Zero(), g = Vec<D>::Zero(), gn = Vec<D>::Zero();
-};
 
 namespace {
 
@@ -72,19 +63,6 @@ template <int D> double water_pressure(const Drain& s, const Vec<D>& x, const Ve
   return s.pressure + s.density * std::max(0.0, b.norm() * level + b.dot(x));
 }
 
-/// The lattice cell of x as one number: the node number of its lower corner
-/// (clamped as CartesianGrid::cell_of clamps; a NaN is caught after the step).
-template <int D> long long lattice_cell(const Vec<D>& x, const Vec<D>& lower, const Vec<D>& inverse, const Index<D>& cells) {
-  long long id = 0;
-  for (int k = D - 1; k >= 0; --k) {
-    // clamped first, then truncated: floor's cell without a call to floor
-    const double c = (x[k] - lower[k]) * inverse[k];
-    const double clamped = std::isnan(c) ? 0.0 : std::clamp(c, 0.0, cells[k] - 1.0);
-    id = id * (cells[k] + 1LL) + static_cast<long long>(clamped);
-  }
-  return id;
-}
-
 /// The lower of two particle indices, -1 meaning none.
 int lowest(int a, int b) { return a < 0 ? b : b < 0 ? a : std::min(a, b); }
 
@@ -92,7 +70,8 @@ int lowest(int a, int b) { return a < 0 ? b : b < 0 ? a : std::min(a, b); }
 
 template <int D>
 TwoPhase<D>::TwoPhase(TwoPhaseParts<D> parts, Particles<D>& P, const Dirichlet<D>& dirichlet, int nodes)
-    : parts_(std::move(parts)), scatter_(std::make_unique<BlockedScatter<D, LiquidSums<D>>>()) {
+    : parts_(std::move(parts)), scatter_(std::make_unique<BlockedScatter<D, LiquidSums<D>>>()),
+      mixture_(std::make_unique<BlockedScatter<D, MixtureSums<D>>>()) {
   using E = std::invalid_argument;
   for (int p = 0; p < P.size(); ++p)
     require<E>(P.material[p] >= 0 && P.material[p] < static_cast<int>(parts_.fluid.size()), "TwoPhase: particle ", p,
@@ -156,82 +135,11 @@ template <int D> TwoPhase<D>::~TwoPhase() = default;
 template <int D> void TwoPhase<D>::to_nodes(Engine<D>& e, double t, double dt) {
   ScopedPhase timer(e.timers(), Phase::to_nodes);
   totals_ready_ = false;
-  scatter<false>(e, [](int, int) {});
+  if (!std::exchange(summed_, false)) scatter<false>(e, [](int, int) {}); // else in the engine's pass
   boundary_work_ -= dt * held_power(e, e.loads().body_force_at(t));
   find_surface(e);
   darcy_ += solve(e, t, dt);
   tie(e, t, dt);
-}
-
-template <int D>
-template <bool MomentumOnly, class Update>
-void TwoPhase<D>::scatter(const Engine<D>& e, Update&& update) {
-  const Particles<D>& P = e.particles();
-  const BasisTable<D>& table = e.table();
-  const StateField& pressure_field = *P.find_state(kPorePressureField);
-  const StateField& velocity_field = *P.find_state(kLiquidVelocityField);
-  struct Payload {
-    double m = 0.0, drag = 0.0, Vp = 0.0, Vnp = 0.0, V = 0.0, nV = 0.0;
-    Vec<D> q = Vec<D>::Zero();
-  };
-  // Plain pointers by value: the sums' stores cannot alias them.
-  const int* material = P.material.data();
-  const double *V = P.V.data(), *V0 = P.V0.data(), *pressure = pressure_field.values.data();
-  const double* velocity = velocity_field.values.data();
-  const PoreFluid* const* fluid_of = fluids_.data();
-  const std::optional<CartesianGrid<D>>& grid = e.basis().nodes().grid();
-  if constexpr (!MomentumOnly) start_cell_.resize(static_cast<std::size_t>(P.size()));
-  long long* start_cell = start_cell_.data();
-  const Vec<D>* x = P.x.data();
-  const Vec<D> lower = grid ? grid->lower : Vec<D>::Zero();
-  const Vec<D> inverse = grid ? Vec<D>(grid->h().cwiseInverse()) : Vec<D>::Zero();
-  const Index<D> cells = grid ? grid->cells : Index<D>{};
-  const bool lattice = grid.has_value();
-  auto prep = [=](int p) {
-    Payload w;
-    const PoreFluid* f = fluid_of[material[p]];
-    if (!f) return w;
-    if constexpr (!MomentumOnly) start_cell[p] = lattice ? lattice_cell<D>(x[p], lower, inverse, cells) : -1;
-    const double nV = V[p] - (1.0 - f->porosity) * V0[p]; // the pores' volume n V
-    w.m = f->density * nV;
-    w.q = w.m * Eigen::Map<const Vec<D>>(velocity + static_cast<std::size_t>(p) * D);
-    if constexpr (MomentumOnly) return w;
-    w.drag = f->drag(nV / V[p]) * V[p];
-    w.Vp = V[p] * pressure[p];
-    w.Vnp = nV * pressure[p];
-    w.V = V[p], w.nV = nV;
-    return w;
-  };
-  const double* Ne = table.N.data();
-  const Vec<D>* dNe = table.dN.data();
-  auto add = [Ne, dNe](LiquidSums<D>& acc, int e, const Payload& w) {
-    acc.q += Ne[e] * w.q;
-    if constexpr (MomentumOnly) return;
-    acc.m += Ne[e] * w.m;
-    acc.drag += Ne[e] * w.drag;
-    acc.fw += w.Vnp * dNe[e];
-    acc.fp += w.Vp * dNe[e];
-    acc.g += w.V * dNe[e];
-    acc.gn += w.nV * dNe[e];
-  };
-  auto merge = [&](int I, const LiquidSums<D>& acc) {
-    qw_[I] += acc.q;
-    if constexpr (MomentumOnly) return;
-    mw_[I] += acc.m, drag_[I] += acc.drag, fw_[I] += acc.fw, fp_[I] += acc.fp, g_[I] += acc.g, gn_[I] += acc.gn;
-  };
-  auto clear = [&](int I0, int I1) {
-    std::fill(qw_.begin() + I0, qw_.begin() + I1, Vec<D>::Zero());
-    if constexpr (MomentumOnly) return;
-    std::fill(mw_.begin() + I0, mw_.begin() + I1, 0.0);
-    std::fill(drag_.begin() + I0, drag_.begin() + I1, 0.0);
-    std::fill(fw_.begin() + I0, fw_.begin() + I1, Vec<D>::Zero());
-    std::fill(fp_.begin() + I0, fp_.begin() + I1, Vec<D>::Zero());
-    std::fill(g_.begin() + I0, g_.begin() + I1, Vec<D>::Zero());
-    std::fill(gn_.begin() + I0, gn_.begin() + I1, Vec<D>::Zero());
-  };
-  if constexpr (!MomentumOnly) width_ = linear_row_width(table); // the table of this step
-  scatter_->invalidate(width_);
-  scatter_->run(table, static_cast<int>(mw_.size()), update, prep, add, merge, clear);
 }
 
 template <int D> double TwoPhase<D>::held_power(const Engine<D>& e, const Vec<D>& b) const {

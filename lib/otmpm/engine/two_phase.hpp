@@ -38,6 +38,7 @@ namespace otmpm {
 template <int D> class Engine;
 template <int D> struct NodalFields;
 template <int D> struct LiquidSums;
+template <int D> struct MixtureSums;
 template <int D, class Sums> class BlockedScatter;
 
 /// A rigid, frictionless, impermeable plate: the listed nodes move together
@@ -113,6 +114,14 @@ public:
   /// dissipation of the step is added to darcy() and the plates' work to
   /// take_boundary_work().
   void to_nodes(Engine<D>& e, double t, double dt);
+  /// The engine's particle-to-node pass at the start of a step
+  /// (Engine::to_nodes with ToNodes::liquid) with the liquid's sums of
+  /// to_nodes beside it, in one traversal of the basis table
+  /// (two_phase_scatter.hpp): the engine's prep, add, merge and clear on
+  /// NodeSums (BlockedScatter::run), the liquid's on their own buffers. The
+  /// next to_nodes then takes the sums as summed. The same bits as two passes.
+  template <class Update, class Prep, class Add, class Merge, class Clear>
+  void scatter_with(const Engine<D>& e, Update&& update, Prep&& prep, Add&& add, Merge&& merge, Clear&& clear);
   /// The work the plates' forces and the free water's push on drained
   /// surfaces did in the steps since the last call (the engine adds it to
   /// W_ext): (F(t_n) + F(t_n+1)) / 2 . dt V for each step and plate,
@@ -162,6 +171,9 @@ private:
   /// The liquid's particle-to-node sums (momentum only: musl's re-projection);
   /// update(p0, p1) runs on each block of particles before it is summed.
   template <bool MomentumOnly, class Update> void scatter(const Engine<D>& e, Update&& update);
+  /// Calls sum(prep, add, merge, clear) with the liquid's closures for
+  /// BlockedScatter::run on LiquidSums (two_phase_scatter.hpp).
+  template <bool MomentumOnly, class Sum> void with_sums(const Engine<D>& e, Sum&& sum);
   /// The part of the body force's power P = b . (sum_p m_p v_p + sum_p m_w,p w_p)
   /// (the engine's W_ext, sect. 11) that falls on the momenta the particles bring to
   /// the fixed components, which move at their prescribed velocity instead
@@ -207,6 +219,8 @@ private:
   /// q_w, f_w, f_p, the mixture's force F_m, w_I and a_w of the step.
   AlignedVector<Vec<D>> qw_, fw_, fp_, fm_, vw_, aw_;
   std::unique_ptr<BlockedScatter<D, LiquidSums<D>>> scatter_;
+  std::unique_ptr<BlockedScatter<D, MixtureSums<D>>> mixture_; ///< scatter_with's
+  bool summed_ = false; ///< scatter_with summed the liquid's sums of this step's to_nodes
   /// The pressure update: each particle's increment and lattice cell, its
   /// patch, and per patch sum V dp and sum V.
   std::vector<double> dp_;

@@ -15,9 +15,10 @@ template <int D> void step_usl(Engine<D>& e, const StepContext<D>& s, bool musl)
   const double dt = s.dt;
   e.evaluate_basis();
   // 1. m_I, q_I = sum N_Ip m_p v_p and f_I in one pass; Dirichlet on f_I.
-  e.to_nodes({.mass = true, .w = &P.v, .forces = true, .t = s.t});
-  // Saturated bodies: the liquid's sums and the coupled solve (f_I becomes m_s a_s).
+  //    Saturated bodies: the liquid's sums in the same pass, then the
+  //    coupled solve (f_I becomes m_s a_s).
   TwoPhase<D>* liquid = e.settings().two_phase.get();
+  e.to_nodes({.mass = true, .w = &P.v, .forces = true, .t = s.t, .liquid = liquid});
   if (liquid) liquid->to_nodes(e, s.t, dt);
   e.apply_dirichlet_force(n.f, dt);
   // 2. a_I = f_I / m_I; v_I = q_I / m_I + dt a_I; constraints (their change
