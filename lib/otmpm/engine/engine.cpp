@@ -556,6 +556,14 @@ void Engine<D>::to_particles_and_update_stress(const ToParticles<D>& what, const
 template <int D>
 void Engine<D>::to_particles_on(const ToParticles<D>& what, const Gradient<D>& g, int begin, int end) {
   const bool rate = what.rate != nullptr, move = what.move != nullptr, field = g.field != nullptr;
+  if (what.liquid) { // saturated bodies: the liquid's particle update in the same pass
+    require<std::invalid_argument>(rate && move && !what.kick, "Engine::to_particles: the liquid needs a rate and a move");
+    if (field) return to_particles_range<true, true, true, false, true>(what, g, begin, end);
+    ToParticles<D> solid = what; // F-bar: the liquid's rows after the chunk's stress update
+    solid.liquid = nullptr;
+    to_particles_on(solid, g, begin, end);
+    return what.liquid->update_rows(*this, begin, end);
+  }
   if (what.kick) {
     require<std::invalid_argument>(rate && move && !field, "Engine::to_particles: a kick needs a rate and a move");
     to_particles_range<true, true, false, true>(what, g, begin, end);
@@ -570,14 +578,14 @@ void Engine<D>::to_particles_on(const ToParticles<D>& what, const Gradient<D>& g
 }
 
 template <int D>
-template <bool Rate, bool Move, bool Field, bool Kick>
+template <bool Rate, bool Move, bool Field, bool Kick, bool Liquid>
 void Engine<D>::to_particles_range(const ToParticles<D>& what, const Gradient<D>& g, int begin, int end) {
-  if (row_width_ == (1 << D)) to_particles_rows<Rate, Move, Field, Kick, (1 << D)>(what, g, begin, end);
-  else to_particles_rows<Rate, Move, Field, Kick, 0>(what, g, begin, end);
+  if (row_width_ == (1 << D)) to_particles_rows<Rate, Move, Field, Kick, Liquid, (1 << D)>(what, g, begin, end);
+  else to_particles_rows<Rate, Move, Field, Kick, Liquid, 0>(what, g, begin, end);
 }
 
 template <int D>
-template <bool Rate, bool Move, bool Field, bool Kick, int W>
+template <bool Rate, bool Move, bool Field, bool Kick, bool Liquid, int W>
 void Engine<D>::to_particles_rows(const ToParticles<D>& what, const Gradient<D>& g, int begin, int end) {
   // Plain pointers and factors in locals: the stores to the particles below
   // cannot alias them, so the loops keep them in registers.
@@ -595,11 +603,15 @@ void Engine<D>::to_particles_rows(const ToParticles<D>& what, const Gradient<D>&
   Vec<D>* x = P_.x.data();
   const Mat<D>* averaged = fbar_.ready ? fbar_.H.data() : nullptr; // F-bar: H_p from average_volumetric
   Mat<D> H[kStressBatch];
+  [[maybe_unused]] LiquidRows<D> liquid; // Liquid: the liquid's row sums of the batch
+  static_assert(kStressBatch <= LiquidRows<D>::size);
+  if constexpr (Liquid) what.liquid->bind(*this, liquid);
   for (int p0 = begin; p0 < end; p0 += kStressBatch) {
     const int p1 = std::min(end, p0 + kStressBatch);
     for (int p = p0; p < p1; ++p) {
       Vec<D> r = Vec<D>::Zero(), u = Vec<D>::Zero(), k = Vec<D>::Zero();
       Mat<D> G = Mat<D>::Zero();
+      [[maybe_unused]] LiquidRow<D> l;
       const auto [e0, e1] = row_entries<W>(offset, p);
       for (int e = e0; e < e1; ++e) {
         const int I = node[e];
@@ -607,7 +619,9 @@ void Engine<D>::to_particles_rows(const ToParticles<D>& what, const Gradient<D>&
         if constexpr (Kick) k += N[e] * kick[I];
         if constexpr (Move) u += N[e] * move[I];
         if constexpr (Field) G.noalias() += field[I] * dN[e].transpose();
+        if constexpr (Liquid) liquid.add(l, I, N[e], dN[e]);
       }
+      if constexpr (Liquid) liquid.row[p - p0] = l;
       if constexpr (Rate) {
         if (rate_out) rate_out[p] = r;
         v[p] += c_rate * r;
@@ -618,6 +632,7 @@ void Engine<D>::to_particles_rows(const ToParticles<D>& what, const Gradient<D>&
     }
     if constexpr (Field) update_materials(p0, p1, H);
     else if (averaged) update_materials(p0, p1, averaged + p0);
+    if constexpr (Liquid) what.liquid->finish_rows(*this, p0, p1, liquid);
   }
 }
 

@@ -295,7 +295,24 @@ template <int D> void TwoPhase<D>::nodal_velocity(Engine<D>& e, double dt) {
 
 template <int D> void TwoPhase<D>::to_particles(Engine<D>& e, double dt) {
   ScopedPhase timer(e.timers(), Phase::to_particles);
-  update_particles(e, dt, true, true);
+  if (std::exchange(gathered_, false)) average_pressure(e);
+  else update_particles(e, dt, true, true);
+}
+
+template <int D> void TwoPhase<D>::begin_rows(const Engine<D>& e, double dt) {
+  const auto n = static_cast<std::size_t>(e.particles().size());
+  dp_.resize(n), cell_.resize(n);
+  rows_dt_ = dt;
+  gathered_ = true;
+}
+
+template <int D> void TwoPhase<D>::finish_rows(Engine<D>& e, int p0, int p1, const LiquidRows<D>& rows) {
+  finish<true, true>(e, rows_dt_, p0, p1, rows);
+}
+
+template <int D> void TwoPhase<D>::update_rows(Engine<D>& e, int p0, int p1) {
+  if (width_ == (1 << D)) update_range<true, true, (1 << D)>(e, rows_dt_, p0, p1);
+  else update_range<true, true, 0>(e, rows_dt_, p0, p1);
 }
 
 template <int D> void TwoPhase<D>::remap(Engine<D>& e, double dt) {
@@ -348,41 +365,50 @@ template <int D> void TwoPhase<D>::update_particles(Engine<D>& e, double dt, boo
 template <int D>
 template <bool Rate, bool Pressure, int W>
 void TwoPhase<D>::update_range(Engine<D>& e, double dt, int p0, int p1) {
-  Particles<D>& P = e.particles();
   const BasisTable<D>& table = e.table();
   // Plain pointers in locals: the stores below cannot alias them.
   const int* offset = table.offset.data();
   const int* node = table.node.data();
   const double* N = table.N.data();
   const Vec<D>* dN = table.dN.data();
-  const Vec<D>* v = e.nodal().v.data();
-  const Vec<D>* vw = vw_.data();
-  const Vec<D>* aw = aw_.data();
-  const int* material = P.material.data();
+  const int* material = e.particles().material.data();
   const PoreFluid* const* fluid_of = fluids_.data();
+  LiquidRows<D> rows;
+  bind(e, rows);
+  for (int b0 = p0; b0 < p1; b0 += LiquidRows<D>::size) { // batches: the row sums, then their particles' update
+    const int b1 = std::min(p1, b0 + LiquidRows<D>::size);
+    for (int p = b0; p < b1; ++p) {
+      LiquidRow<D> r;
+      if (fluid_of[material[p]]) {
+        const auto [e0, e1] = row_entries<W>(offset, p);
+        for (int k = e0; k < e1; ++k) rows.template add<Rate, Pressure>(r, node[k], N[k], dN[k]);
+      }
+      rows.row[p - b0] = r;
+    }
+    finish<Rate, Pressure>(e, dt, b0, b1, rows);
+  }
+}
+
+template <int D>
+template <bool Rate, bool Pressure>
+void TwoPhase<D>::finish(Engine<D>& e, double dt, int p0, int p1, const LiquidRows<D>& rows) {
+  Particles<D>& P = e.particles();
   double* w = P.find_state(kLiquidVelocityField)->values.data();
   const std::optional<CartesianGrid<D>>& grid = e.basis().nodes().grid();
   Vec<D> lower = Vec<D>::Zero(), inverse = Vec<D>::Zero();
   if (grid) lower = grid->lower, inverse = grid->h().cwiseInverse();
   for (int p = p0; p < p1; ++p) {
-    const PoreFluid* f = fluid_of[material[p]];
+    const PoreFluid* f = fluids_[static_cast<std::size_t>(P.material[p])];
     if (!f) continue;
-    Vec<D> a = Vec<D>::Zero();
-    double div_s = 0.0, div_w = 0.0;
-    const auto [e0, e1] = row_entries<W>(offset, p);
-    for (int k = e0; k < e1; ++k) {
-      const int I = node[k];
-      if constexpr (Rate) a += N[k] * aw[I];
-      if constexpr (Pressure) div_s += v[I].dot(dN[k]), div_w += vw[I].dot(dN[k]);
-    }
-    if constexpr (Rate) Eigen::Map<Vec<D>>(w + static_cast<std::size_t>(p) * D) += dt * a;
+    const LiquidRow<D>& r = rows.row[p - p0];
+    if constexpr (Rate) Eigen::Map<Vec<D>>(w + static_cast<std::size_t>(p) * D) += dt * r.a;
     if constexpr (!Pressure) continue;
     const double n = porosity(*f, P.V0[p], P.V[p]);
     if (!(n > 0.0 && n < 1.0)) [[unlikely]]
       throw ParticleFailure{p, "porosity n = " + format_number(n) +
                                    " left (0, 1): the skeleton's volume fell to its grains' or below"};
     const auto i = static_cast<std::size_t>(p);
-    dp_[i] = -dt * f->bulk_modulus / n * ((1.0 - n) * div_s + n * div_w); // eq. 15.3
+    dp_[i] = -dt * f->bulk_modulus / n * ((1.0 - n) * r.div_s + n * r.div_w); // eq. 15.3
     cell_[i] = grid ? lattice_cell<D>(P.x[p], lower, inverse, grid->cells) : -1;
   }
 }

@@ -100,6 +100,32 @@ template <int D> struct LiquidTotals {
   LiquidTotals& operator+=(const LiquidTotals& o);
 };
 
+/// The liquid's sums over the basis table row of particle p in a
+/// node-to-particle pass (eq. 15.3): sum_I N_Ip a_w,I (the liquid's rate)
+/// and the divergences sum_I v_I . grad N_Ip and sum_I w_I . grad N_Ip of
+/// the solid's and the liquid's nodal velocities.
+template <int D> struct LiquidRow {
+  Vec<D> a = Vec<D>::Zero();
+  double div_s = 0.0, div_w = 0.0;
+};
+
+/// The LiquidRow of each particle of a batch of at most `size` particles:
+/// the engine's pass with ToParticles::liquid sums them beside its own
+/// (add: entry by entry, in row order), TwoPhase::finish_rows takes them.
+template <int D> struct LiquidRows {
+  static constexpr int size = 64;
+  const Vec<D>* v = nullptr;  ///< the solid's nodal velocity v_I
+  const Vec<D>* vw = nullptr; ///< the liquid's w_I
+  const Vec<D>* aw = nullptr; ///< the liquid's a_w,I
+  LiquidRow<D> row[size];
+  /// Adds the entry of node I with N_Ip = N and grad N_Ip = dN to r: the
+  /// rate (Rate) and the divergences (Pressure).
+  template <bool Rate = true, bool Pressure = true> void add(LiquidRow<D>& r, int I, double N, const Vec<D>& dN) const {
+    if constexpr (Rate) r.a += N * aw[I];
+    if constexpr (Pressure) r.div_s += v[I].dot(dN), r.div_w += vw[I].dot(dN);
+  }
+};
+
 /// The liquid phase of the saturated particles of an engine.
 template <int D> class TwoPhase {
 public:
@@ -142,8 +168,25 @@ public:
   void set_pressure_average(double w) { averaged_ = w; }
   /// After the engine's constrained nodal velocity v_I: the liquid's w_I.
   void nodal_velocity(Engine<D>& e, double dt);
-  /// After the particles moved and their stresses were updated: w_p and p_p.
+  /// After the particles moved and their stresses were updated: w_p and p_p
+  /// (after an engine pass that took ToParticles::liquid: the cell average of
+  /// the pressure increments that pass found).
   void to_particles(Engine<D>& e, double dt);
+  /// Before an engine pass with ToParticles::liquid (fe): the step's dt and
+  /// the arrays the pass fills.
+  void begin_rows(const Engine<D>& e, double dt);
+  /// The nodal fields a LiquidRows reads: v_I, w_I and a_w,I of the step.
+  void bind(const Engine<D>& e, LiquidRows<D>& rows) const {
+    rows.v = e.nodal().v.data(), rows.vw = vw_.data(), rows.aw = aw_.data();
+  }
+  /// In that pass, after particles [p0, p1) (a batch, at most
+  /// LiquidRows::size) moved and their stresses were updated, from their
+  /// row sums: w_p += dt sum N a_w, the pore pressure increments (eq. 15.3)
+  /// and the lattice cells that to_particles then averages over.
+  void finish_rows(Engine<D>& e, int p0, int p1, const LiquidRows<D>& rows);
+  /// As finish_rows on particles [p0, p1) with their own traversal of the
+  /// table (an engine pass without the gradient: F-bar).
+  void update_rows(Engine<D>& e, int p0, int p1);
   /// musl, after the re-projection of the solid's momenta and before the
   /// stress update: w_p, the re-projection of the liquid's momenta, and the
   /// rigid plates on both phases' re-projected velocities.
@@ -195,6 +238,9 @@ private:
   void update_particles(Engine<D>& e, double dt, bool rate, bool pressure);
   /// update_particles on particles [p0, p1), rows of W entries (0: any length).
   template <bool Rate, bool Pressure, int W> void update_range(Engine<D>& e, double dt, int p0, int p1);
+  /// The end of the update of particles [p0, p1) from their row sums (finish_rows).
+  template <bool Rate, bool Pressure>
+  void finish(Engine<D>& e, double dt, int p0, int p1, const LiquidRows<D>& rows);
   /// p_p += the volume-weighted mean of the pressure increments of the
   /// particles in its lattice cell (eq. 15.3a).
   void average_pressure(Engine<D>& e);
@@ -221,6 +267,8 @@ private:
   std::unique_ptr<BlockedScatter<D, LiquidSums<D>>> scatter_;
   std::unique_ptr<BlockedScatter<D, MixtureSums<D>>> mixture_; ///< scatter_with's
   bool summed_ = false; ///< scatter_with summed the liquid's sums of this step's to_nodes
+  double rows_dt_ = 0.0; ///< begin_rows' dt
+  bool gathered_ = false; ///< begin_rows: the engine's pass updates the particles
   /// The pressure update: each particle's increment and lattice cell, its
   /// patch, and per patch sum V dp and sum V.
   std::vector<double> dp_;

@@ -30,7 +30,10 @@ template <int D> void step_usl(Engine<D>& e, const StepContext<D>& s, bool musl)
   e.constrain_velocity(n.v, {.rate = &n.a, .c = dt});
   if (liquid) liquid->nodal_velocity(e, dt);
   // 3. v_p += dt sum N_Ip a_I; x_p += dt sum N_Ip v_I; x_I += dt v_I in ul.
-  const ToParticles<D> move{.rate = &n.a, .c_rate = dt, .move = &n.v, .c_move = dt};
+  //    usl, saturated bodies: w_p and the pore pressure increments in the same pass.
+  TwoPhase<D>* rows = musl ? nullptr : liquid;
+  if (rows) rows->begin_rows(e, dt);
+  const ToParticles<D> move{.rate = &n.a, .c_rate = dt, .move = &n.v, .c_move = dt, .liquid = rows};
   // 4. (usl) L_p = sum v_I (x) grad N_Ip; strain, density and stress
   //    update, in the same pass over the particles.
   // musl: v_I recomputed from the updated particle momenta (each block of
@@ -40,7 +43,7 @@ template <int D> void step_usl(Engine<D>& e, const StepContext<D>& s, bool musl)
   scale(n.dx, dt, n.v); // also in mpm mode: the step's nodal increments (Engine::nodal)
   e.advect_nodes(n.dx);
   if (!musl) {
-    if (liquid) liquid->to_particles(e, dt); // w_p and p_p
+    if (liquid) liquid->to_particles(e, dt); // the cell average of the pore pressure increments
     return;
   }
   e.solve_mass(n.q, n.v);
