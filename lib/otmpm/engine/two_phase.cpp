@@ -218,11 +218,17 @@ template <int D> void TwoPhase<D>::find_surface(const Engine<D>& e) {
   std::fill(normal_.begin(), normal_.end(), Vec<D>::Zero());
   const std::optional<CartesianGrid<D>>& grid = e.basis().nodes().grid();
   if (!grid) return;
-  // The cells that hold a saturated particle, by the node number of their lower corner (scatter: start_cell_).
+  // The cells that hold a saturated particle, by the node number of their lower corner: those the last
+  // pressure update found when the particles have not moved since (cells_ready_), else found anew.
   const Particles<D>& P = e.particles();
+  const bool ready = std::exchange(cells_ready_, false) && cell_.size() == static_cast<std::size_t>(P.size());
+  const Vec<D> lower = grid->lower, inverse = grid->h().cwiseInverse();
   occupied_.assign(mw_.size(), 0);
-  for (int p = 0; p < P.size(); ++p)
-    if (fluids_[static_cast<std::size_t>(P.material[p])]) occupied_[static_cast<std::size_t>(start_cell_[p])] = 1;
+  for (int p = 0; p < P.size(); ++p) {
+    if (!fluids_[static_cast<std::size_t>(P.material[p])]) continue;
+    const long long cell = ready ? cell_[static_cast<std::size_t>(p)] : lattice_cell<D>(P.x[p], lower, inverse, grid->cells);
+    occupied_[static_cast<std::size_t>(cell)] = 1;
+  }
   const NodalFields<D>& n = e.nodal();
   parallel_for(static_cast<long long>(mw_.size()), [&](long long i) {
     const auto I = static_cast<std::size_t>(i);
@@ -466,6 +472,7 @@ template <int D> void TwoPhase<D>::average_pressure(Engine<D>& e) {
   });
   averaged_ += totals_.averaged;
   totals_ready_ = true;
+  cells_ready_ = true; // the particles' cells at the step's end: the next step's start
 }
 
 template <int D> LiquidTotals<D>& LiquidTotals<D>::operator+=(const LiquidTotals& o) {

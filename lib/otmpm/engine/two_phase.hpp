@@ -166,6 +166,9 @@ public:
   double pressure_average() const { return averaged_; }
   /// Sets W_a (a restart).
   void set_pressure_average(double w) { averaged_ = w; }
+  /// The particles were given other positions between steps (a restart):
+  /// the lattice cells the last pressure update found no longer hold.
+  void forget_cells() { cells_ready_ = false; }
   /// After the engine's constrained nodal velocity v_I: the liquid's w_I.
   void nodal_velocity(Engine<D>& e, double dt);
   /// After the particles moved and their stresses were updated: w_p and p_p
@@ -258,7 +261,6 @@ private:
   std::vector<char> wet_;         ///< per node: active with a liquid mass above the mass tolerance
   std::vector<int> drain_;        ///< per node: its Drain in parts_.drains, or -1
   std::vector<char> occupied_;    ///< per lattice cell (its lower corner's node): holds a saturated particle
-  std::vector<long long> start_cell_; ///< per particle its lattice cell at the step's start (lattice_cell)
   /// G_I and G_n,I (Drain), the impermeable normals (impermeable_normal).
   AlignedVector<Vec<D>> g_, gn_, normal_;
   std::vector<double> mw_, drag_; ///< m_w,I and Q_I
@@ -284,6 +286,10 @@ private:
   std::vector<double> pbar_;      ///< per node: the free water's pressure of this step (drained nodes)
   LiquidTotals<D> totals_; ///< the sums of the step's last pass (totals_ready_)
   bool totals_ready_ = false;
+  /// cell_ holds the lattice cells of the particles' positions: the step's
+  /// last pass found them, and nothing has moved the particles since
+  /// (find_surface takes them; forget_cells).
+  bool cells_ready_ = false;
 };
 
 extern template class TwoPhase<1>;

@@ -61,19 +61,10 @@ void TwoPhase<D>::with_sums(const Engine<D>& e, Sum&& sum) {
   const double *V = P.V.data(), *V0 = P.V0.data(), *pressure = P.find_state(kPorePressureField)->values.data();
   const double* velocity = P.find_state(kLiquidVelocityField)->values.data();
   const PoreFluid* const* fluid_of = fluids_.data();
-  const std::optional<CartesianGrid<D>>& grid = e.basis().nodes().grid();
-  if constexpr (!MomentumOnly) start_cell_.resize(static_cast<std::size_t>(P.size()));
-  long long* start_cell = start_cell_.data();
-  const Vec<D>* x = P.x.data();
-  const Vec<D> lower = grid ? grid->lower : Vec<D>::Zero();
-  const Vec<D> inverse = grid ? Vec<D>(grid->h().cwiseInverse()) : Vec<D>::Zero();
-  const Index<D> cells = grid ? grid->cells : Index<D>{};
-  const bool lattice = grid.has_value();
   auto prep = [=](int p) {
     Payload w;
     const PoreFluid* f = fluid_of[material[p]];
     if (!f) return w;
-    if constexpr (!MomentumOnly) start_cell[p] = lattice ? lattice_cell<D>(x[p], lower, inverse, cells) : -1;
     const double nV = V[p] - (1.0 - f->porosity) * V0[p]; // the pores' volume n V
     w.m = f->density * nV;
     w.q = w.m * Eigen::Map<const Vec<D>>(velocity + static_cast<std::size_t>(p) * D);
