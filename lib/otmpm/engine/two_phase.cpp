@@ -43,7 +43,8 @@ struct Relative {
 /// Component k of eq. 15.5 at a node of solid mass ms, liquid mass mw and
 /// drag Q, the mixture's force Fm, the liquid's Fw and the start relative
 /// velocity r0; `drained`: a drained support (the solid held, no F term).
-Relative relative(double Q, double ms, double mw, double dt, double Fm, double Fw, double r0, bool drained) {
+[[gnu::always_inline]] inline Relative relative(double Q, double ms, double mw, double dt, double Fm, double Fw, double r0,
+                                                bool drained) {
   const double both = drained ? 1.0 : 1.0 + mw / ms, push = drained ? 0.0 : dt * Fm / ms;
   // eq. 15.5 and the end relative velocity r'; where the drag dominates, divided by Q and r' from
   // the drag force Q r' = f_w - m_w a_w, so that no permeability makes them overflow or cancel
@@ -457,12 +458,13 @@ template <int D> void TwoPhase<D>::average_pressure(Engine<D>& e) {
   }
   for (long long c : used_) slot_[static_cast<std::size_t>(c)] = -1; // ready for the next step
   used_.clear();
+  for (std::array<double, 2>& s : sums_) s[0] /= s[1]; // each patch's mean increment, once
   // The new pressures, and in the same pass (blocks as totals() takes them: its bits) the after-step sums.
   totals_ = blocked_reduce_ranges<LiquidTotals<D>>(n, [&](long long b0, long long b1, LiquidTotals<D>& acc) {
     for (auto i = static_cast<std::size_t>(b0); i < static_cast<std::size_t>(b1); ++i) {
       if (!fluids_[static_cast<std::size_t>(P.material[i])]) continue;
       const int j = patch_[i];
-      const double mean = j < 0 ? dp_[i] : sums_[static_cast<std::size_t>(j)][0] / sums_[static_cast<std::size_t>(j)][1];
+      const double mean = j < 0 ? dp_[i] : sums_[static_cast<std::size_t>(j)][0];
       const PoreFluid& f = *fluids_[static_cast<std::size_t>(P.material[i])];
       // eq. 15.13: the pressure's work on the increment the average leaves out
       acc.averaged += (P.V[i] - (1.0 - f.porosity) * P.V0[i]) * pp[i] * (dp_[i] - mean) / f.bulk_modulus;

@@ -272,7 +272,7 @@ private:
   double rows_dt_ = 0.0; ///< begin_rows' dt
   bool gathered_ = false; ///< begin_rows: the engine's pass updates the particles
   /// The pressure update: each particle's increment and lattice cell, its
-  /// patch, and per patch sum V dp and sum V.
+  /// patch, and per patch sum V dp (then the mean increment) and sum V.
   std::vector<double> dp_;
   std::vector<long long> cell_;
   std::vector<int> patch_;
