@@ -61,7 +61,7 @@ void TwoPhase<D>::with_sums(const Engine<D>& e, Sum&& sum) {
   const double *V = P.V.data(), *V0 = P.V0.data(), *pressure = P.find_state(kPorePressureField)->values.data();
   const double* velocity = P.find_state(kLiquidVelocityField)->values.data();
   const PoreFluid* const* fluid_of = fluids_.data();
-  auto prep = [=](int p) {
+  auto prep = [=](int p) __attribute__((always_inline)) { // inlined in the scatter's loop (as the engine's)
     Payload w;
     const PoreFluid* f = fluid_of[material[p]];
     if (!f) return w;
@@ -121,8 +121,10 @@ void TwoPhase<D>::scatter_with(const Engine<D>& e, Update&& update, Prep&& prep,
                                Clear&& clear) {
   with_sums<false>(e, [&](auto& liquid_prep, auto& liquid_add, auto& liquid_merge, auto& liquid_clear) {
     // Copies of the adds' and preps' closures (pointers by value): the sums' stores cannot alias them.
-    auto prep_both = [prep, liquid_prep](int p) { return std::pair(prep(p), liquid_prep(p)); };
-    auto add_both = [add, liquid_add](MixtureSums<D>& acc, int k, const auto& w) {
+    auto prep_both = [prep, liquid_prep](int p) __attribute__((always_inline)) {
+      return std::pair(prep(p), liquid_prep(p));
+    };
+    auto add_both = [add, liquid_add](MixtureSums<D>& acc, int k, const auto& w) __attribute__((always_inline)) {
       add(acc.solid, k, w.first);
       liquid_add(acc.liquid, k, w.second);
     };
