@@ -18,6 +18,9 @@
 ///                   rates (eq. 15.3); musl: remap (w_p, the re-projection of
 ///                   w, the rigid plates) before the stress update, then
 ///                   update_pressure.
+/// fe and musl have the engine sum the liquid's to_nodes sums in its own
+/// scatter (ToNodes::liquid), fe its particle update in its own particle
+/// pass (ToParticles::liquid): one traversal of the basis table each way.
 /// The Darcy dissipation is booked in the engine's energy balance
 /// (EnergyBalance::darcy); the stages' time in the engine's phase timers.
 #include "otmpm/basis/basis.hpp"
