@@ -5,6 +5,7 @@
 #include "otmpm/engine/engine.hpp"
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/engine/scatter.hpp"
+#include "otmpm/engine/two_phase_scatter.hpp"
 
 #include "otmpm/parallel.hpp"
 
@@ -328,6 +329,8 @@ void Engine<D>::to_nodes_with(const ToNodes<D>& what, Update&& update) {
   const bool q = what.w != nullptr;
   require<std::invalid_argument>(!what.split || (q && what.a && what.mass && !what.forces),
                                  "Engine::to_nodes: split momenta need w, a and the mass, and no forces");
+  require<std::invalid_argument>(!what.liquid || (q && what.mass && what.forces && !what.split),
+                                 "Engine::to_nodes: the liquid's sums go with the mass, momenta and forces");
   if (what.split) to_nodes_impl<true, true, false, true>(what, update);
   else if (what.mass && q && what.forces) to_nodes_impl<true, true, true>(what, update);
   else if (what.mass && q) to_nodes_impl<true, true, false>(what, update);
@@ -396,7 +399,9 @@ void Engine<D>::to_nodes_impl(const ToNodes<D>& what, Update&& update) {
   // F-bar: the patch's mean stress in place of the particle's (volumetric.hpp, docs/theory.md eq. 9.10)
   const double* shift = Forces && settings_.volumetric == Volumetric::fbar ? fbar_.mean_stress_shift(P_) : nullptr;
   const double c = what.c;
-  auto prep = [=](int p) {
+  // Inlined also where the liquid's sums join it (TwoPhase::scatter_with; measured: called, its
+  // payload returned through memory, it took twice the time).
+  auto prep = [=](int p) __attribute__((always_inline)) {
     Payload w;
     w.m = m[p];
     if (Split) {
@@ -435,6 +440,8 @@ void Engine<D>::to_nodes_impl(const ToNodes<D>& what, Update&& update) {
     if (Momentum) std::fill(nodal_.q.begin() + I0, nodal_.q.begin() + I1, Vec<D>::Zero());
     if (Forces || Split) std::fill(nodal_.f.begin() + I0, nodal_.f.begin() + I1, Vec<D>::Zero());
   };
+  if constexpr (Mass && Momentum && Forces && !Split)
+    if (what.liquid) return what.liquid->scatter_with(*this, update, prep, add, merge, clear);
   scatter_->run(table_, static_cast<int>(nodal_.m.size()), update, prep, add, merge, clear);
 }
 
@@ -551,6 +558,14 @@ void Engine<D>::to_particles_and_update_stress(const ToParticles<D>& what, const
 template <int D>
 void Engine<D>::to_particles_on(const ToParticles<D>& what, const Gradient<D>& g, int begin, int end) {
   const bool rate = what.rate != nullptr, move = what.move != nullptr, field = g.field != nullptr;
+  if (what.liquid) { // saturated bodies: the liquid's particle update in the same pass
+    require<std::invalid_argument>(rate && move && !what.kick, "Engine::to_particles: the liquid needs a rate and a move");
+    if (field) return to_particles_range<true, true, true, false, true>(what, g, begin, end);
+    ToParticles<D> solid = what; // F-bar: the liquid's rows after the chunk's stress update
+    solid.liquid = nullptr;
+    to_particles_on(solid, g, begin, end);
+    return what.liquid->update_rows(*this, begin, end);
+  }
   if (what.kick) {
     require<std::invalid_argument>(rate && move && !field, "Engine::to_particles: a kick needs a rate and a move");
     to_particles_range<true, true, false, true>(what, g, begin, end);
@@ -565,14 +580,14 @@ void Engine<D>::to_particles_on(const ToParticles<D>& what, const Gradient<D>& g
 }
 
 template <int D>
-template <bool Rate, bool Move, bool Field, bool Kick>
+template <bool Rate, bool Move, bool Field, bool Kick, bool Liquid>
 void Engine<D>::to_particles_range(const ToParticles<D>& what, const Gradient<D>& g, int begin, int end) {
-  if (row_width_ == (1 << D)) to_particles_rows<Rate, Move, Field, Kick, (1 << D)>(what, g, begin, end);
-  else to_particles_rows<Rate, Move, Field, Kick, 0>(what, g, begin, end);
+  if (row_width_ == (1 << D)) to_particles_rows<Rate, Move, Field, Kick, Liquid, (1 << D)>(what, g, begin, end);
+  else to_particles_rows<Rate, Move, Field, Kick, Liquid, 0>(what, g, begin, end);
 }
 
 template <int D>
-template <bool Rate, bool Move, bool Field, bool Kick, int W>
+template <bool Rate, bool Move, bool Field, bool Kick, bool Liquid, int W>
 void Engine<D>::to_particles_rows(const ToParticles<D>& what, const Gradient<D>& g, int begin, int end) {
   // Plain pointers and factors in locals: the stores to the particles below
   // cannot alias them, so the loops keep them in registers.
@@ -590,11 +605,15 @@ void Engine<D>::to_particles_rows(const ToParticles<D>& what, const Gradient<D>&
   Vec<D>* x = P_.x.data();
   const Mat<D>* averaged = fbar_.ready ? fbar_.H.data() : nullptr; // F-bar: H_p from average_volumetric
   Mat<D> H[kStressBatch];
+  [[maybe_unused]] LiquidRows<D> liquid; // Liquid: the liquid's row sums of the batch
+  static_assert(kStressBatch <= LiquidRows<D>::size);
+  if constexpr (Liquid) what.liquid->bind(*this, liquid);
   for (int p0 = begin; p0 < end; p0 += kStressBatch) {
     const int p1 = std::min(end, p0 + kStressBatch);
     for (int p = p0; p < p1; ++p) {
       Vec<D> r = Vec<D>::Zero(), u = Vec<D>::Zero(), k = Vec<D>::Zero();
       Mat<D> G = Mat<D>::Zero();
+      [[maybe_unused]] LiquidRow<D> l;
       const auto [e0, e1] = row_entries<W>(offset, p);
       for (int e = e0; e < e1; ++e) {
         const int I = node[e];
@@ -602,7 +621,9 @@ void Engine<D>::to_particles_rows(const ToParticles<D>& what, const Gradient<D>&
         if constexpr (Kick) k += N[e] * kick[I];
         if constexpr (Move) u += N[e] * move[I];
         if constexpr (Field) G.noalias() += field[I] * dN[e].transpose();
+        if constexpr (Liquid) liquid.add(l, I, N[e], dN[e]);
       }
+      if constexpr (Liquid) liquid.row[p - p0] = l;
       if constexpr (Rate) {
         if (rate_out) rate_out[p] = r;
         v[p] += c_rate * r;
@@ -613,6 +634,7 @@ void Engine<D>::to_particles_rows(const ToParticles<D>& what, const Gradient<D>&
     }
     if constexpr (Field) update_materials(p0, p1, H);
     else if (averaged) update_materials(p0, p1, averaged + p0);
+    if constexpr (Liquid) what.liquid->finish_rows(*this, p0, p1, liquid);
   }
 }
 

@@ -168,7 +168,9 @@ struct EnergyBalance {
 /// a_p) (null w: no momentum); f_I = sum_p (-V_p sigma_p grad N_Ip + N_Ip
 /// f_ext,p(t)) (forces; with F-bar sigma_eff,p of docs/theory.md eq. 9.10).
 /// `split` (with w and a, without forces): q_I =
-/// sum_p N_Ip m_p w_p and f_I = sum_p N_Ip m_p a_p apart.
+/// sum_p N_Ip m_p w_p and f_I = sum_p N_Ip m_p a_p apart. `liquid` (with
+/// the mass, w and forces): the liquid's sums of the step in the same pass
+/// (TwoPhase::scatter_with).
 template <int D> struct ToNodes {
   bool mass = false;
   const AlignedVector<Vec<D>>* w = nullptr;
@@ -177,13 +179,16 @@ template <int D> struct ToNodes {
   bool forces = false;
   double t = 0.0;
   bool split = false;
+  TwoPhase<D>* liquid = nullptr;
 };
 
 /// What the fused node-to-particle map does, all from one pass over the
 /// basis table: v_p += c_rate sum_I N_Ip r_I (the interpolated r also stored
 /// in rate_out when given) + sum_I N_Ip k_I (k: kick, a velocity change
 /// not kept in rate_out; only with a rate and a move); x_p += c_move sum_I
-/// N_Ip u_I.
+/// N_Ip u_I. `liquid` (with a rate and a move; TwoPhase::begin_rows first):
+/// the liquid's update of each particle (TwoPhase::finish_rows) in the same
+/// pass, after the particle's stress update.
 template <int D> struct ToParticles {
   const AlignedVector<Vec<D>>* rate = nullptr;
   double c_rate = 0.0;
@@ -191,6 +196,7 @@ template <int D> struct ToParticles {
   const AlignedVector<Vec<D>>* kick = nullptr;
   const AlignedVector<Vec<D>>* move = nullptr;
   double c_move = 0.0;
+  TwoPhase<D>* liquid = nullptr;
 };
 
 /// A nodal field g with a factor c whose gradient drives the constitutive
@@ -392,11 +398,11 @@ private:
   template <class Update> void to_nodes_with(const ToNodes<D>& what, Update&& update);
   /// The node-to-particle map of `what` (and the constitutive update from
   /// `g` when Field) on particles [begin, end).
-  template <bool Rate, bool Move, bool Field, bool Kick = false>
+  template <bool Rate, bool Move, bool Field, bool Kick = false, bool Liquid = false>
   void to_particles_range(const ToParticles<D>& what, const Gradient<D>& g, int begin, int end);
   /// to_particles_range with rows of W entries each (W = 0: any length,
-  /// from the table's offsets; row_entries).
-  template <bool Rate, bool Move, bool Field, bool Kick, int W>
+  /// from the table's offsets; row_entries); Liquid: ToParticles::liquid.
+  template <bool Rate, bool Move, bool Field, bool Kick, bool Liquid, int W>
   void to_particles_rows(const ToParticles<D>& what, const Gradient<D>& g, int begin, int end);
   /// Dispatches to_particles_range on what `what` and `g` hold.
   void to_particles_on(const ToParticles<D>& what, const Gradient<D>& g, int begin, int end);

@@ -199,6 +199,7 @@ template <int D> void Engine<D>::restore_state(const Checkpoint& in) {
   if (settings_.two_phase) {
     settings_.two_phase->set_darcy(energy_.darcy);
     settings_.two_phase->set_pressure_average(energy_.pressure_average);
+    settings_.two_phase->forget_cells(); // the particles are restored below
   }
   restore_timers(g, timers_);
   const StateGroup& particles = in.group("particles");

@@ -5,7 +5,7 @@
 #include "otmpm/engine/two_phase.hpp"
 
 #include "otmpm/engine/engine.hpp"
-#include "otmpm/engine/scatter.hpp"
+#include "otmpm/engine/two_phase_scatter.hpp"
 #include "otmpm/parallel.hpp"
 
 #include <algorithm>
@@ -13,15 +13,6 @@
 #include <unordered_map>
 
 namespace otmpm {
-
-/// Per-node partial sums of the liquid: m_w, the drag coefficient Q, the
-/// momentum q_w, the liquid's pressure force f_w = sum V n p grad N and the
-/// pore pressure's force on the mixture f_p = sum V p grad N (eq. 15.4), and
-/// the surface vectors G = sum V grad N, G_n = sum n V grad N (Drain).
-template <int D> struct LiquidSums {
-  double m = 0.0, drag = 0.0;
-  Vec<D> q = Vec<D>::Zero(), fw = Vec<D>::Zero(), fp = Vec<D>::Zero(), g = Vec<D>::Zero(), gn = Vec<D>::Zero();
-};
 
 namespace {
 
@@ -52,7 +43,8 @@ struct Relative {
 /// Component k of eq. 15.5 at a node of solid mass ms, liquid mass mw and
 /// drag Q, the mixture's force Fm, the liquid's Fw and the start relative
 /// velocity r0; `drained`: a drained support (the solid held, no F term).
-Relative relative(double Q, double ms, double mw, double dt, double Fm, double Fw, double r0, bool drained) {
+[[gnu::always_inline]] inline Relative relative(double Q, double ms, double mw, double dt, double Fm, double Fw, double r0,
+                                                bool drained) {
   const double both = drained ? 1.0 : 1.0 + mw / ms, push = drained ? 0.0 : dt * Fm / ms;
   // eq. 15.5 and the end relative velocity r'; where the drag dominates, divided by Q and r' from
   // the drag force Q r' = f_w - m_w a_w, so that no permeability makes them overflow or cancel
@@ -72,19 +64,6 @@ template <int D> double water_pressure(const Drain& s, const Vec<D>& x, const Ve
   return s.pressure + s.density * std::max(0.0, b.norm() * level + b.dot(x));
 }
 
-/// The lattice cell of x as one number: the node number of its lower corner
-/// (clamped as CartesianGrid::cell_of clamps; a NaN is caught after the step).
-template <int D> long long lattice_cell(const Vec<D>& x, const Vec<D>& lower, const Vec<D>& inverse, const Index<D>& cells) {
-  long long id = 0;
-  for (int k = D - 1; k >= 0; --k) {
-    // clamped first, then truncated: floor's cell without a call to floor
-    const double c = (x[k] - lower[k]) * inverse[k];
-    const double clamped = std::isnan(c) ? 0.0 : std::clamp(c, 0.0, cells[k] - 1.0);
-    id = id * (cells[k] + 1LL) + static_cast<long long>(clamped);
-  }
-  return id;
-}
-
 /// The lower of two particle indices, -1 meaning none.
 int lowest(int a, int b) { return a < 0 ? b : b < 0 ? a : std::min(a, b); }
 
@@ -92,7 +71,8 @@ int lowest(int a, int b) { return a < 0 ? b : b < 0 ? a : std::min(a, b); }
 
 template <int D>
 TwoPhase<D>::TwoPhase(TwoPhaseParts<D> parts, Particles<D>& P, const Dirichlet<D>& dirichlet, int nodes)
-    : parts_(std::move(parts)), scatter_(std::make_unique<BlockedScatter<D, LiquidSums<D>>>()) {
+    : parts_(std::move(parts)), scatter_(std::make_unique<BlockedScatter<D, LiquidSums<D>>>()),
+      mixture_(std::make_unique<BlockedScatter<D, MixtureSums<D>>>()) {
   using E = std::invalid_argument;
   for (int p = 0; p < P.size(); ++p)
     require<E>(P.material[p] >= 0 && P.material[p] < static_cast<int>(parts_.fluid.size()), "TwoPhase: particle ", p,
@@ -156,82 +136,11 @@ template <int D> TwoPhase<D>::~TwoPhase() = default;
 template <int D> void TwoPhase<D>::to_nodes(Engine<D>& e, double t, double dt) {
   ScopedPhase timer(e.timers(), Phase::to_nodes);
   totals_ready_ = false;
-  scatter<false>(e, [](int, int) {});
+  if (!std::exchange(summed_, false)) scatter<false>(e, [](int, int) {}); // else in the engine's pass
   boundary_work_ -= dt * held_power(e, e.loads().body_force_at(t));
   find_surface(e);
   darcy_ += solve(e, t, dt);
   tie(e, t, dt);
-}
-
-template <int D>
-template <bool MomentumOnly, class Update>
-void TwoPhase<D>::scatter(const Engine<D>& e, Update&& update) {
-  const Particles<D>& P = e.particles();
-  const BasisTable<D>& table = e.table();
-  const StateField& pressure_field = *P.find_state(kPorePressureField);
-  const StateField& velocity_field = *P.find_state(kLiquidVelocityField);
-  struct Payload {
-    double m = 0.0, drag = 0.0, Vp = 0.0, Vnp = 0.0, V = 0.0, nV = 0.0;
-    Vec<D> q = Vec<D>::Zero();
-  };
-  // Plain pointers by value: the sums' stores cannot alias them.
-  const int* material = P.material.data();
-  const double *V = P.V.data(), *V0 = P.V0.data(), *pressure = pressure_field.values.data();
-  const double* velocity = velocity_field.values.data();
-  const PoreFluid* const* fluid_of = fluids_.data();
-  const std::optional<CartesianGrid<D>>& grid = e.basis().nodes().grid();
-  if constexpr (!MomentumOnly) start_cell_.resize(static_cast<std::size_t>(P.size()));
-  long long* start_cell = start_cell_.data();
-  const Vec<D>* x = P.x.data();
-  const Vec<D> lower = grid ? grid->lower : Vec<D>::Zero();
-  const Vec<D> inverse = grid ? Vec<D>(grid->h().cwiseInverse()) : Vec<D>::Zero();
-  const Index<D> cells = grid ? grid->cells : Index<D>{};
-  const bool lattice = grid.has_value();
-  auto prep = [=](int p) {
-    Payload w;
-    const PoreFluid* f = fluid_of[material[p]];
-    if (!f) return w;
-    if constexpr (!MomentumOnly) start_cell[p] = lattice ? lattice_cell<D>(x[p], lower, inverse, cells) : -1;
-    const double nV = V[p] - (1.0 - f->porosity) * V0[p]; // the pores' volume n V
-    w.m = f->density * nV;
-    w.q = w.m * Eigen::Map<const Vec<D>>(velocity + static_cast<std::size_t>(p) * D);
-    if constexpr (MomentumOnly) return w;
-    w.drag = f->drag(nV / V[p]) * V[p];
-    w.Vp = V[p] * pressure[p];
-    w.Vnp = nV * pressure[p];
-    w.V = V[p], w.nV = nV;
-    return w;
-  };
-  const double* Ne = table.N.data();
-  const Vec<D>* dNe = table.dN.data();
-  auto add = [Ne, dNe](LiquidSums<D>& acc, int e, const Payload& w) {
-    acc.q += Ne[e] * w.q;
-    if constexpr (MomentumOnly) return;
-    acc.m += Ne[e] * w.m;
-    acc.drag += Ne[e] * w.drag;
-    acc.fw += w.Vnp * dNe[e];
-    acc.fp += w.Vp * dNe[e];
-    acc.g += w.V * dNe[e];
-    acc.gn += w.nV * dNe[e];
-  };
-  auto merge = [&](int I, const LiquidSums<D>& acc) {
-    qw_[I] += acc.q;
-    if constexpr (MomentumOnly) return;
-    mw_[I] += acc.m, drag_[I] += acc.drag, fw_[I] += acc.fw, fp_[I] += acc.fp, g_[I] += acc.g, gn_[I] += acc.gn;
-  };
-  auto clear = [&](int I0, int I1) {
-    std::fill(qw_.begin() + I0, qw_.begin() + I1, Vec<D>::Zero());
-    if constexpr (MomentumOnly) return;
-    std::fill(mw_.begin() + I0, mw_.begin() + I1, 0.0);
-    std::fill(drag_.begin() + I0, drag_.begin() + I1, 0.0);
-    std::fill(fw_.begin() + I0, fw_.begin() + I1, Vec<D>::Zero());
-    std::fill(fp_.begin() + I0, fp_.begin() + I1, Vec<D>::Zero());
-    std::fill(g_.begin() + I0, g_.begin() + I1, Vec<D>::Zero());
-    std::fill(gn_.begin() + I0, gn_.begin() + I1, Vec<D>::Zero());
-  };
-  if constexpr (!MomentumOnly) width_ = linear_row_width(table); // the table of this step
-  scatter_->invalidate(width_);
-  scatter_->run(table, static_cast<int>(mw_.size()), update, prep, add, merge, clear);
 }
 
 template <int D> double TwoPhase<D>::held_power(const Engine<D>& e, const Vec<D>& b) const {
@@ -310,11 +219,17 @@ template <int D> void TwoPhase<D>::find_surface(const Engine<D>& e) {
   std::fill(normal_.begin(), normal_.end(), Vec<D>::Zero());
   const std::optional<CartesianGrid<D>>& grid = e.basis().nodes().grid();
   if (!grid) return;
-  // The cells that hold a saturated particle, by the node number of their lower corner (scatter: start_cell_).
+  // The cells that hold a saturated particle, by the node number of their lower corner: those the last
+  // pressure update found when the particles have not moved since (cells_ready_), else found anew.
   const Particles<D>& P = e.particles();
+  const bool ready = std::exchange(cells_ready_, false) && cell_.size() == static_cast<std::size_t>(P.size());
+  const Vec<D> lower = grid->lower, inverse = grid->h().cwiseInverse();
   occupied_.assign(mw_.size(), 0);
-  for (int p = 0; p < P.size(); ++p)
-    if (fluids_[static_cast<std::size_t>(P.material[p])]) occupied_[static_cast<std::size_t>(start_cell_[p])] = 1;
+  for (int p = 0; p < P.size(); ++p) {
+    if (!fluids_[static_cast<std::size_t>(P.material[p])]) continue;
+    const long long cell = ready ? cell_[static_cast<std::size_t>(p)] : lattice_cell<D>(P.x[p], lower, inverse, grid->cells);
+    occupied_[static_cast<std::size_t>(cell)] = 1;
+  }
   const NodalFields<D>& n = e.nodal();
   parallel_for(static_cast<long long>(mw_.size()), [&](long long i) {
     const auto I = static_cast<std::size_t>(i);
@@ -387,7 +302,24 @@ template <int D> void TwoPhase<D>::nodal_velocity(Engine<D>& e, double dt) {
 
 template <int D> void TwoPhase<D>::to_particles(Engine<D>& e, double dt) {
   ScopedPhase timer(e.timers(), Phase::to_particles);
-  update_particles(e, dt, true, true);
+  if (std::exchange(gathered_, false)) average_pressure(e);
+  else update_particles(e, dt, true, true);
+}
+
+template <int D> void TwoPhase<D>::begin_rows(const Engine<D>& e, double dt) {
+  const auto n = static_cast<std::size_t>(e.particles().size());
+  dp_.resize(n), cell_.resize(n);
+  rows_dt_ = dt;
+  gathered_ = true;
+}
+
+template <int D> void TwoPhase<D>::finish_rows(Engine<D>& e, int p0, int p1, const LiquidRows<D>& rows) {
+  finish<true, true>(e, rows_dt_, p0, p1, rows);
+}
+
+template <int D> void TwoPhase<D>::update_rows(Engine<D>& e, int p0, int p1) {
+  if (width_ == (1 << D)) update_range<true, true, (1 << D)>(e, rows_dt_, p0, p1);
+  else update_range<true, true, 0>(e, rows_dt_, p0, p1);
 }
 
 template <int D> void TwoPhase<D>::remap(Engine<D>& e, double dt) {
@@ -440,41 +372,50 @@ template <int D> void TwoPhase<D>::update_particles(Engine<D>& e, double dt, boo
 template <int D>
 template <bool Rate, bool Pressure, int W>
 void TwoPhase<D>::update_range(Engine<D>& e, double dt, int p0, int p1) {
-  Particles<D>& P = e.particles();
   const BasisTable<D>& table = e.table();
   // Plain pointers in locals: the stores below cannot alias them.
   const int* offset = table.offset.data();
   const int* node = table.node.data();
   const double* N = table.N.data();
   const Vec<D>* dN = table.dN.data();
-  const Vec<D>* v = e.nodal().v.data();
-  const Vec<D>* vw = vw_.data();
-  const Vec<D>* aw = aw_.data();
-  const int* material = P.material.data();
+  const int* material = e.particles().material.data();
   const PoreFluid* const* fluid_of = fluids_.data();
+  LiquidRows<D> rows;
+  bind(e, rows);
+  for (int b0 = p0; b0 < p1; b0 += LiquidRows<D>::size) { // batches: the row sums, then their particles' update
+    const int b1 = std::min(p1, b0 + LiquidRows<D>::size);
+    for (int p = b0; p < b1; ++p) {
+      LiquidRow<D> r;
+      if (fluid_of[material[p]]) {
+        const auto [e0, e1] = row_entries<W>(offset, p);
+        for (int k = e0; k < e1; ++k) rows.template add<Rate, Pressure>(r, node[k], N[k], dN[k]);
+      }
+      rows.row[p - b0] = r;
+    }
+    finish<Rate, Pressure>(e, dt, b0, b1, rows);
+  }
+}
+
+template <int D>
+template <bool Rate, bool Pressure>
+void TwoPhase<D>::finish(Engine<D>& e, double dt, int p0, int p1, const LiquidRows<D>& rows) {
+  Particles<D>& P = e.particles();
   double* w = P.find_state(kLiquidVelocityField)->values.data();
   const std::optional<CartesianGrid<D>>& grid = e.basis().nodes().grid();
   Vec<D> lower = Vec<D>::Zero(), inverse = Vec<D>::Zero();
   if (grid) lower = grid->lower, inverse = grid->h().cwiseInverse();
   for (int p = p0; p < p1; ++p) {
-    const PoreFluid* f = fluid_of[material[p]];
+    const PoreFluid* f = fluids_[static_cast<std::size_t>(P.material[p])];
     if (!f) continue;
-    Vec<D> a = Vec<D>::Zero();
-    double div_s = 0.0, div_w = 0.0;
-    const auto [e0, e1] = row_entries<W>(offset, p);
-    for (int k = e0; k < e1; ++k) {
-      const int I = node[k];
-      if constexpr (Rate) a += N[k] * aw[I];
-      if constexpr (Pressure) div_s += v[I].dot(dN[k]), div_w += vw[I].dot(dN[k]);
-    }
-    if constexpr (Rate) Eigen::Map<Vec<D>>(w + static_cast<std::size_t>(p) * D) += dt * a;
+    const LiquidRow<D>& r = rows.row[p - p0];
+    if constexpr (Rate) Eigen::Map<Vec<D>>(w + static_cast<std::size_t>(p) * D) += dt * r.a;
     if constexpr (!Pressure) continue;
     const double n = porosity(*f, P.V0[p], P.V[p]);
     if (!(n > 0.0 && n < 1.0)) [[unlikely]]
       throw ParticleFailure{p, "porosity n = " + format_number(n) +
                                    " left (0, 1): the skeleton's volume fell to its grains' or below"};
     const auto i = static_cast<std::size_t>(p);
-    dp_[i] = -dt * f->bulk_modulus / n * ((1.0 - n) * div_s + n * div_w); // eq. 15.3
+    dp_[i] = -dt * f->bulk_modulus / n * ((1.0 - n) * r.div_s + n * r.div_w); // eq. 15.3
     cell_[i] = grid ? lattice_cell<D>(P.x[p], lower, inverse, grid->cells) : -1;
   }
 }
@@ -517,12 +458,13 @@ template <int D> void TwoPhase<D>::average_pressure(Engine<D>& e) {
   }
   for (long long c : used_) slot_[static_cast<std::size_t>(c)] = -1; // ready for the next step
   used_.clear();
+  for (std::array<double, 2>& s : sums_) s[0] /= s[1]; // each patch's mean increment, once
   // The new pressures, and in the same pass (blocks as totals() takes them: its bits) the after-step sums.
   totals_ = blocked_reduce_ranges<LiquidTotals<D>>(n, [&](long long b0, long long b1, LiquidTotals<D>& acc) {
     for (auto i = static_cast<std::size_t>(b0); i < static_cast<std::size_t>(b1); ++i) {
       if (!fluids_[static_cast<std::size_t>(P.material[i])]) continue;
       const int j = patch_[i];
-      const double mean = j < 0 ? dp_[i] : sums_[static_cast<std::size_t>(j)][0] / sums_[static_cast<std::size_t>(j)][1];
+      const double mean = j < 0 ? dp_[i] : sums_[static_cast<std::size_t>(j)][0];
       const PoreFluid& f = *fluids_[static_cast<std::size_t>(P.material[i])];
       // eq. 15.13: the pressure's work on the increment the average leaves out
       acc.averaged += (P.V[i] - (1.0 - f.porosity) * P.V0[i]) * pp[i] * (dp_[i] - mean) / f.bulk_modulus;
@@ -532,6 +474,7 @@ template <int D> void TwoPhase<D>::average_pressure(Engine<D>& e) {
   });
   averaged_ += totals_.averaged;
   totals_ready_ = true;
+  cells_ready_ = true; // the particles' cells at the step's end: the next step's start
 }
 
 template <int D> LiquidTotals<D>& LiquidTotals<D>::operator+=(const LiquidTotals& o) {

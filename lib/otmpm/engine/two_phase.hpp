@@ -18,6 +18,9 @@
 ///                   rates (eq. 15.3); musl: remap (w_p, the re-projection of
 ///                   w, the rigid plates) before the stress update, then
 ///                   update_pressure.
+/// fe and musl have the engine sum the liquid's to_nodes sums in its own
+/// scatter (ToNodes::liquid), fe its particle update in its own particle
+/// pass (ToParticles::liquid): one traversal of the basis table each way.
 /// The Darcy dissipation is booked in the engine's energy balance
 /// (EnergyBalance::darcy); the stages' time in the engine's phase timers.
 #include "otmpm/basis/basis.hpp"
@@ -38,6 +41,7 @@ namespace otmpm {
 template <int D> class Engine;
 template <int D> struct NodalFields;
 template <int D> struct LiquidSums;
+template <int D> struct MixtureSums;
 template <int D, class Sums> class BlockedScatter;
 
 /// A rigid, frictionless, impermeable plate: the listed nodes move together
@@ -99,6 +103,32 @@ template <int D> struct LiquidTotals {
   LiquidTotals& operator+=(const LiquidTotals& o);
 };
 
+/// The liquid's sums over the basis table row of particle p in a
+/// node-to-particle pass (eq. 15.3): sum_I N_Ip a_w,I (the liquid's rate)
+/// and the divergences sum_I v_I . grad N_Ip and sum_I w_I . grad N_Ip of
+/// the solid's and the liquid's nodal velocities.
+template <int D> struct LiquidRow {
+  Vec<D> a = Vec<D>::Zero();
+  double div_s = 0.0, div_w = 0.0;
+};
+
+/// The LiquidRow of each particle of a batch of at most `size` particles:
+/// the engine's pass with ToParticles::liquid sums them beside its own
+/// (add: entry by entry, in row order), TwoPhase::finish_rows takes them.
+template <int D> struct LiquidRows {
+  static constexpr int size = 64;
+  const Vec<D>* v = nullptr;  ///< the solid's nodal velocity v_I
+  const Vec<D>* vw = nullptr; ///< the liquid's w_I
+  const Vec<D>* aw = nullptr; ///< the liquid's a_w,I
+  LiquidRow<D> row[size];
+  /// Adds the entry of node I with N_Ip = N and grad N_Ip = dN to r: the
+  /// rate (Rate) and the divergences (Pressure).
+  template <bool Rate = true, bool Pressure = true> void add(LiquidRow<D>& r, int I, double N, const Vec<D>& dN) const {
+    if constexpr (Rate) r.a += N * aw[I];
+    if constexpr (Pressure) r.div_s += v[I].dot(dN), r.div_w += vw[I].dot(dN);
+  }
+};
+
 /// The liquid phase of the saturated particles of an engine.
 template <int D> class TwoPhase {
 public:
@@ -113,6 +143,14 @@ public:
   /// dissipation of the step is added to darcy() and the plates' work to
   /// take_boundary_work().
   void to_nodes(Engine<D>& e, double t, double dt);
+  /// The engine's particle-to-node pass at the start of a step
+  /// (Engine::to_nodes with ToNodes::liquid) with the liquid's sums of
+  /// to_nodes beside it, in one traversal of the basis table
+  /// (two_phase_scatter.hpp): the engine's prep, add, merge and clear on
+  /// NodeSums (BlockedScatter::run), the liquid's on their own buffers. The
+  /// next to_nodes then takes the sums as summed. The same bits as two passes.
+  template <class Update, class Prep, class Add, class Merge, class Clear>
+  void scatter_with(const Engine<D>& e, Update&& update, Prep&& prep, Add&& add, Merge&& merge, Clear&& clear);
   /// The work the plates' forces and the free water's push on drained
   /// surfaces did in the steps since the last call (the engine adds it to
   /// W_ext): (F(t_n) + F(t_n+1)) / 2 . dt V for each step and plate,
@@ -131,10 +169,30 @@ public:
   double pressure_average() const { return averaged_; }
   /// Sets W_a (a restart).
   void set_pressure_average(double w) { averaged_ = w; }
+  /// The particles were given other positions between steps (a restart):
+  /// the lattice cells the last pressure update found no longer hold.
+  void forget_cells() { cells_ready_ = false; }
   /// After the engine's constrained nodal velocity v_I: the liquid's w_I.
   void nodal_velocity(Engine<D>& e, double dt);
-  /// After the particles moved and their stresses were updated: w_p and p_p.
+  /// After the particles moved and their stresses were updated: w_p and p_p
+  /// (after an engine pass that took ToParticles::liquid: the cell average of
+  /// the pressure increments that pass found).
   void to_particles(Engine<D>& e, double dt);
+  /// Before an engine pass with ToParticles::liquid (fe): the step's dt and
+  /// the arrays the pass fills.
+  void begin_rows(const Engine<D>& e, double dt);
+  /// The nodal fields a LiquidRows reads: v_I, w_I and a_w,I of the step.
+  void bind(const Engine<D>& e, LiquidRows<D>& rows) const {
+    rows.v = e.nodal().v.data(), rows.vw = vw_.data(), rows.aw = aw_.data();
+  }
+  /// In that pass, after particles [p0, p1) (a batch, at most
+  /// LiquidRows::size) moved and their stresses were updated, from their
+  /// row sums: w_p += dt sum N a_w, the pore pressure increments (eq. 15.3)
+  /// and the lattice cells that to_particles then averages over.
+  void finish_rows(Engine<D>& e, int p0, int p1, const LiquidRows<D>& rows);
+  /// As finish_rows on particles [p0, p1) with their own traversal of the
+  /// table (an engine pass without the gradient: F-bar).
+  void update_rows(Engine<D>& e, int p0, int p1);
   /// musl, after the re-projection of the solid's momenta and before the
   /// stress update: w_p, the re-projection of the liquid's momenta, and the
   /// rigid plates on both phases' re-projected velocities.
@@ -162,6 +220,9 @@ private:
   /// The liquid's particle-to-node sums (momentum only: musl's re-projection);
   /// update(p0, p1) runs on each block of particles before it is summed.
   template <bool MomentumOnly, class Update> void scatter(const Engine<D>& e, Update&& update);
+  /// Calls sum(prep, add, merge, clear) with the liquid's closures for
+  /// BlockedScatter::run on LiquidSums (two_phase_scatter.hpp).
+  template <bool MomentumOnly, class Sum> void with_sums(const Engine<D>& e, Sum&& sum);
   /// The part of the body force's power P = b . (sum_p m_p v_p + sum_p m_w,p w_p)
   /// (the engine's W_ext, sect. 11) that falls on the momenta the particles bring to
   /// the fixed components, which move at their prescribed velocity instead
@@ -183,6 +244,9 @@ private:
   void update_particles(Engine<D>& e, double dt, bool rate, bool pressure);
   /// update_particles on particles [p0, p1), rows of W entries (0: any length).
   template <bool Rate, bool Pressure, int W> void update_range(Engine<D>& e, double dt, int p0, int p1);
+  /// The end of the update of particles [p0, p1) from their row sums (finish_rows).
+  template <bool Rate, bool Pressure>
+  void finish(Engine<D>& e, double dt, int p0, int p1, const LiquidRows<D>& rows);
   /// p_p += the volume-weighted mean of the pressure increments of the
   /// particles in its lattice cell (eq. 15.3a).
   void average_pressure(Engine<D>& e);
@@ -200,15 +264,18 @@ private:
   std::vector<char> wet_;         ///< per node: active with a liquid mass above the mass tolerance
   std::vector<int> drain_;        ///< per node: its Drain in parts_.drains, or -1
   std::vector<char> occupied_;    ///< per lattice cell (its lower corner's node): holds a saturated particle
-  std::vector<long long> start_cell_; ///< per particle its lattice cell at the step's start (lattice_cell)
   /// G_I and G_n,I (Drain), the impermeable normals (impermeable_normal).
   AlignedVector<Vec<D>> g_, gn_, normal_;
   std::vector<double> mw_, drag_; ///< m_w,I and Q_I
   /// q_w, f_w, f_p, the mixture's force F_m, w_I and a_w of the step.
   AlignedVector<Vec<D>> qw_, fw_, fp_, fm_, vw_, aw_;
   std::unique_ptr<BlockedScatter<D, LiquidSums<D>>> scatter_;
+  std::unique_ptr<BlockedScatter<D, MixtureSums<D>>> mixture_; ///< scatter_with's
+  bool summed_ = false; ///< scatter_with summed the liquid's sums of this step's to_nodes
+  double rows_dt_ = 0.0; ///< begin_rows' dt
+  bool gathered_ = false; ///< begin_rows: the engine's pass updates the particles
   /// The pressure update: each particle's increment and lattice cell, its
-  /// patch, and per patch sum V dp and sum V.
+  /// patch, and per patch sum V dp (then the mean increment) and sum V.
   std::vector<double> dp_;
   std::vector<long long> cell_;
   std::vector<int> patch_;
@@ -222,6 +289,10 @@ private:
   std::vector<double> pbar_;      ///< per node: the free water's pressure of this step (drained nodes)
   LiquidTotals<D> totals_; ///< the sums of the step's last pass (totals_ready_)
   bool totals_ready_ = false;
+  /// cell_ holds the lattice cells of the particles' positions: the step's
+  /// last pass found them, and nothing has moved the particles since
+  /// (find_surface takes them; forget_cells).
+  bool cells_ready_ = false;
 };
 
 extern template class TwoPhase<1>;

@@ -15,9 +15,10 @@ template <int D> void step_usl(Engine<D>& e, const StepContext<D>& s, bool musl)
   const double dt = s.dt;
   e.evaluate_basis();
   // 1. m_I, q_I = sum N_Ip m_p v_p and f_I in one pass; Dirichlet on f_I.
-  e.to_nodes({.mass = true, .w = &P.v, .forces = true, .t = s.t});
-  // Saturated bodies: the liquid's sums and the coupled solve (f_I becomes m_s a_s).
+  //    Saturated bodies: the liquid's sums in the same pass, then the
+  //    coupled solve (f_I becomes m_s a_s).
   TwoPhase<D>* liquid = e.settings().two_phase.get();
+  e.to_nodes({.mass = true, .w = &P.v, .forces = true, .t = s.t, .liquid = liquid});
   if (liquid) liquid->to_nodes(e, s.t, dt);
   e.apply_dirichlet_force(n.f, dt);
   // 2. a_I = f_I / m_I; v_I = q_I / m_I + dt a_I; constraints (their change
@@ -29,7 +30,10 @@ template <int D> void step_usl(Engine<D>& e, const StepContext<D>& s, bool musl)
   e.constrain_velocity(n.v, {.rate = &n.a, .c = dt});
   if (liquid) liquid->nodal_velocity(e, dt);
   // 3. v_p += dt sum N_Ip a_I; x_p += dt sum N_Ip v_I; x_I += dt v_I in ul.
-  const ToParticles<D> move{.rate = &n.a, .c_rate = dt, .move = &n.v, .c_move = dt};
+  //    usl, saturated bodies: w_p and the pore pressure increments in the same pass.
+  TwoPhase<D>* rows = musl ? nullptr : liquid;
+  if (rows) rows->begin_rows(e, dt);
+  const ToParticles<D> move{.rate = &n.a, .c_rate = dt, .move = &n.v, .c_move = dt, .liquid = rows};
   // 4. (usl) L_p = sum v_I (x) grad N_Ip; strain, density and stress
   //    update, in the same pass over the particles.
   // musl: v_I recomputed from the updated particle momenta (each block of
@@ -39,7 +43,7 @@ template <int D> void step_usl(Engine<D>& e, const StepContext<D>& s, bool musl)
   scale(n.dx, dt, n.v); // also in mpm mode: the step's nodal increments (Engine::nodal)
   e.advect_nodes(n.dx);
   if (!musl) {
-    if (liquid) liquid->to_particles(e, dt); // w_p and p_p
+    if (liquid) liquid->to_particles(e, dt); // the cell average of the pore pressure increments
     return;
   }
   e.solve_mass(n.q, n.v);
