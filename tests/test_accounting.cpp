@@ -157,20 +157,23 @@ TEST_CASE("a wall's impulse is the momentum the particles got at every step, eve
 TEST_CASE("the energy a wall's impact takes is booked, every integrator") {
   // The bar bouncing on a wall at rest, the whole bounce (t_end 0.45 s; it
   // leaves the wall at 0.32 s). The nodes the wall stops lose the kinetic
-  // energy of their normal velocity (theory.md eq. 6.5), booked as W_i: it
-  // does not exceed what the run lost, E(0) + W_R - E(t). The balance closes to
-  // (measured energy_drift, without W_i in brackets): fe 0.042 (0.046), musl
-  // 0.031 (0.037), npc 0.062 (0.068), central_difference 0.033 (0.037),
-  // explicit_alpha 0.730 (0.724: its strain energy jumps by 6 J for a few
-  // steps at t = 0.287 s), otm 0.051 (0.076), unified 0.048 (0.065). The
-  // rest (no less at cfl 0.05 or at h / 4) is what the held nodes' change
-  // costs the particles beyond the nodes' own kinetic energy (their
-  // velocity is spread with the consistent, not the lumped, mass) and the
-  // integrators' own error; not booked. On the wall moving at 0.2 m/s the
+  // energy of their normal velocity (theory.md eq. 6.5) and the particles
+  // the transfer term of the held nodes' normal change (eq. 6.6), booked as
+  // W_i: it does not exceed what the run lost, E(0) + W_R - E(t). The
+  // balance closes to (measured energy_drift; with (6.5) alone, without W_i
+  // in brackets): fe 0.038 (0.042, 0.046), musl 0.027 (0.031, 0.037), npc
+  // 0.057 (0.062, 0.068), central_difference 0.029 (0.033, 0.037),
+  // explicit_alpha 0.730 (no eq. 6.6; 0.724: its strain energy jumps by 8 J for a few
+  // steps from t = 0.286 s, when the free end's last particle crosses the
+  // grid line x = 1.0 and is alone at the node x = 1.05, 6.3e-4 of the
+  // largest nodal mass), otm 0.051 (0.076), unified 0.048 (0.065). The
+  // rest (no less at cfl 0.05 or at h / 4) is the schemes' response to the
+  // sudden stop, which a support at rest shows as well (the test below);
+  // not booked. On the wall moving at 0.2 m/s the
   // runs lose far more (fe 12.1 J of E(0) + W_R = 40.5 J, W_i 0.15 J;
   // theory.md sect. 6.1): only W_i's bound is checked there.
-  const std::map<std::string, double> drift{{"fe", 0.042},  {"musl", 0.031},          {"npc", 0.062},
-                                            {"central_difference", 0.033}, {"explicit_alpha", 0.73},
+  const std::map<std::string, double> drift{{"fe", 0.038},  {"musl", 0.027},          {"npc", 0.057},
+                                            {"central_difference", 0.029}, {"explicit_alpha", 0.73},
                                             {"otm", 0.051}, {"unified", 0.048}};
   for (const IntegratorKind& k : integrator_kinds())
     for (const double wall : {0.0, 0.2}) {
@@ -257,17 +260,19 @@ TEST_CASE("the energy friction dissipates is booked and closes the balance of th
   // examples/sliding_block.toml (30 deg, mu = 0.3) to t = 0.5 s: friction
   // takes half of what gravity gives (W_f = 356 J of W_ext = 711 J). Before,
   // nothing booked it and energy_drift was 0.512. Measured energy_drift (the
-  // scheme's own error) with the impacts booked (W_i = 0.55 J musl, 0.11 J
-  // npc; without: musl 9.8e-4 at cfl 0.2, 6.6e-4 at 0.1): musl 2.8e-4 at
-  // cfl 0.2, 2.4e-4 at 0.1, 1.6e-4 at 0.05; npc 6.5e-3 at cfl 0.2, 5.0e-3
-  // at 0.1, 3.7e-3 at 0.05, 2.8e-3 at 0.025 (its predictor-corrector's
-  // error on the sheared contact layer, about dt^0.45); frictionless musl
-  // 1.2e-5, npc 8.6e-5.
+  // scheme's own error) with the impacts booked (W_i = 1.22 J musl, 0.25 J
+  // npc at cfl 0.2, eqs. 6.5-6.6): musl 9.9e-4 at cfl 0.2, 5.5e-4 at 0.1,
+  // 2.8e-4 at 0.05 (with eq. 6.5 alone 2.8e-4, 2.4e-4, 1.6e-4; the transfer
+  // term of the held nodes grows with musl's error on the sheared layer);
+  // npc 6.3e-3 at cfl 0.2, 4.9e-3 at 0.1, 3.6e-3 at 0.05, 2.6e-3 at 0.025
+  // (its predictor-corrector's error on the sheared contact layer, about
+  // dt^0.45; 6.5e-3 at 0.2 with eq. 6.5 alone); frictionless musl 6.7e-6,
+  // npc 8.4e-5.
   struct Case {
     const char* integrator;
     double friction, cfl, bound;
   };
-  for (const Case& c : {Case{"musl", 0.3, 0.1, 5e-4}, Case{"npc", 0.3, 0.2, 1e-2}, Case{"musl", 0.0, 0.2, 5e-5},
+  for (const Case& c : {Case{"musl", 0.3, 0.1, 1e-3}, Case{"npc", 0.3, 0.2, 1e-2}, Case{"musl", 0.0, 0.2, 5e-5},
                         Case{"npc", 0.0, 0.2, 1e-4}}) {
     const std::string what = std::string(c.integrator) + ", mu " + std::to_string(c.friction) + ", cfl " + std::to_string(c.cfl);
     INFO(what);
@@ -379,4 +384,43 @@ TEST_CASE("the booked friction, impulses and carried momenta are bitwise the sam
     CHECK(v1 == v2);
     if (std::string(r.scene) != "andersen_block.toml") CHECK(E1.friction > 0.0);
   }
+}
+
+TEST_CASE("a bar stopped by a wall loses, beyond W_i, what a bar stopped by a support loses, every integrator and node mode") {
+  // The bar [0, 1] at -0.5 m/s, stopped at x = 0 from the first step by a
+  // wall at rest or by a support (a fixed node), to t = 0.12 s (the wave
+  // has reached the free end, the bar still pushes on x = 0). The wall's
+  // W_i books the stopped node's kinetic energy (0.3125 J in the first
+  // step), the per-step approach of the held node (6.5) and the transfer
+  // term (6.6); the support books nothing (a support at rest does no
+  // work). What neither books, E(0) - E(t) - W_i, is of the same size for
+  // both: measured wall / support 0.78 fe, 1.02 musl, 0.79 npc, 0.83
+  // central_difference, 0.72 explicit_alpha in mpm (0.68, 0.88, 0.81,
+  // 0.64, 0.70 in ul; with eq. 6.5 alone 0.70 to 1.43), of 0.59 J (fe,
+  // mpm) of E(0) = 12.5 J. So the energy a bounce leaves unbooked (theory.md
+  // sect. 6.1) is the schemes' response to the sudden stop of the bar's
+  // end, which a support shows as well, not a work of the wall left out of W_i.
+  for (const IntegratorKind& k : integrator_kinds())
+    for (const std::string mode : {"mpm", "ul"}) {
+      if (k.needs_bspline || k.needs_ul) continue;
+      const std::string name(k.name);
+      INFO(name << ", " << mode);
+      double lost[2], impact = 0.0;
+      for (int wall = 0; wall < 2; ++wall) {
+        std::string toml = bar(k, 0.12, 0.2, "lower = [0.0]\nupper = [1.0]\nvelocity = [-0.5]",
+                               wall ? "[[wall]]\nname = \"anvil\"\npoint = [0.0]\nnormal = [1.0]\n"
+                                    : "[[boundary]]\nname = \"left\"\nlower = [0.0]\nupper = [0.0]\nfix = [true]\n");
+        toml.replace(toml.find("mode = \"mpm\""), 12, "mode = \"" + mode + "\"");
+        Engine<1> e = assemble<1>(parse_scene(toml, "stop.toml"));
+        while (e.time() < e.settings().t_end * (1.0 - 1e-12)) e.step();
+        lost[wall] = -e.energy().balance_error();
+        if (wall) impact = e.energy().impact;
+      }
+      MESSAGE(name << " " << mode << ": unbooked loss support " << lost[0] << " J, wall " << lost[1] << " J (W_i "
+                   << impact << " J)");
+      CHECK(impact >= 0.3125); // the first step's stop of the end node, m_I v^2 / 2 = 2.5 kg (0.5 m/s)^2 / 2
+      CHECK(lost[0] > 0.2);
+      CHECK(lost[1] >= 0.5 * lost[0]);
+      CHECK(lost[1] <= 1.6 * lost[0]);
+    }
 }

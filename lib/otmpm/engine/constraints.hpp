@@ -247,6 +247,8 @@ public:
     rank_impulse_.assign(walls_.size(), Vec<D>::Zero());
   }
 
+  /// Node I adds to the books (count_only).
+  bool counts(int I) const { return counted_.empty() || counted_[static_cast<std::size_t>(I)]; }
   const std::vector<Wall<D>>& walls() const { return walls_; }
   /// The nodes of the Dirichlet sets, each once, ascending.
   const std::vector<int>& fixed_nodes() const { return nodes_; }
@@ -294,7 +296,6 @@ private:
   /// The step's buffers of Booking::carried, sized for `nodes` nodes.
   void size_carried(std::size_t nodes);
   std::vector<char> counted_; ///< empty: every node counts
-  bool counts(int I) const { return counted_.empty() || counted_[static_cast<std::size_t>(I)]; }
 };
 
 extern template class Constraints<1>;

@@ -228,6 +228,7 @@ template <int D> void Engine<D>::step() {
   if (!(dt_ > 0.0) || !std::isfinite(dt_))
     unstable("time step " + format_number(dt_) + " is not positive and finite");
   if (dt_prev_ == 0.0) dt_prev_ = dt_;
+  if (impacted_) std::fill(impact_axis_.begin(), impact_axis_.end(), Vec<D>::Zero()), impacted_ = false; // a step that did not book them (otm)
   loads_.traction_positions(P_, traction_start_);
   if (mode_.nodes_move()) x_start_.assign(P_.x.begin(), P_.x.end());
   try {
@@ -365,6 +366,7 @@ template <int D> void Engine<D>::to_particles_then_to_nodes(const ToParticles<D>
   // Its time counts in the to_nodes phase.
   ScopedPhase timer(timers_, Phase::to_nodes);
   require<std::invalid_argument>(!what.mass, "Engine::to_particles_then_to_nodes: the mass does not follow a move");
+  if (move.rate) book_transfer(move);
   if (what.forces && !loads_.uniform() && loads_.any()) loads_.particle_forces(what.t, P_, fext_);
   to_nodes_with(what, [&](int p0, int p1) { to_particles_on(move, {}, p0, p1); });
   exchange_sums(false, what.w != nullptr, what.forces);
@@ -515,12 +517,75 @@ template <int D> void Engine<D>::constrain_velocity(AlignedVector<Vec<D>>& v, co
   if (contact_)
     contact_->apply(v, {nodal_.m, nodal_.active, constraints_.constrained()}, effect, *books.friction, *books.impact);
   if (constraints_.walls().empty()) return;
+  // The walls' changes the particles take up in this step (book_transfer;
+  // not explicit_alpha's, which its kept rate hands on over later steps).
+  const bool transfer = effect.impulse && effect.booking != Booking::carried;
+  if (transfer) impact_before_.assign(v.begin(), v.end());
   constraints_.apply_walls(v, nodes, t_, dt_, effect, books);
+  if (!transfer) return;
+  for (std::size_t I = 0; I < v.size(); ++I)
+    if (v[I] != impact_before_[I]) note_impact(I);
+}
+
+template <int D> void Engine<D>::note_impact(std::size_t I) {
+  const auto& held = constraints_.held();
+  for (std::size_t w = 0; w < held.size(); ++w)
+    if (I < held[w].size() && held[w][I]) { // the first wall that holds it
+      impact_axis_.resize(nodal_.v.size(), Vec<D>::Zero());
+      impact_axis_[I] = constraints_.walls()[w].normal;
+      impacted_ = true;
+      return;
+    }
+}
+
+template <int D> void Engine<D>::book_transfer(const ToParticles<D>& what) {
+  if (!impacted_) return;
+  impacted_ = false;
+  // Delta_I, the velocity change the particles take up from node I; with the
+  // consistent mass the nodes' kinetic energy is the particles' (T = 0).
+  auto change = [&](int I) {
+    Vec<D> d = what.c_rate * (*what.rate)[I];
+    if (what.kick) d += (*what.kick)[I];
+    return d;
+  };
+  if (!settings_.consistent_mass) {
+    // g_I: a held node's normal part of Delta_I; |d|^2 - |d - h|^2 = h . (2 d - h),
+    // d_p = sum_I N_Ip Delta_I, h_p = sum_I N_Ip g_I.
+    auto normal_part = [&](std::size_t I) -> Vec<D> {
+      const Vec<D>& n = impact_axis_[I];
+      if (n == Vec<D>::Zero()) return n;
+      return n.dot(change(static_cast<int>(I))) * n;
+    };
+    const double particles = blocked_reduce_ranges<double>(P_.size(), [&](long long p0, long long p1, double& acc) {
+      for (auto p = static_cast<int>(p0); p < p1; ++p) {
+        Vec<D> h = Vec<D>::Zero();
+        for (int e = table_.begin(p); e < table_.end(p); ++e) h += table_.N[e] * normal_part(table_.node[e]);
+        if (h == Vec<D>::Zero()) continue;
+        Vec<D> d = Vec<D>::Zero();
+        for (int e = table_.begin(p); e < table_.end(p); ++e) d += table_.N[e] * change(table_.node[e]);
+        acc += P_.m[p] * h.dot(2.0 * d - h);
+      }
+    });
+    double nodes = 0.0;
+    for (std::size_t I = 0; I < impact_axis_.size(); ++I)
+      if (constraints_.counts(static_cast<int>(I))) {
+        const Vec<D> g = normal_part(I);
+        nodes += nodal_.m[I] * g.dot(2.0 * change(static_cast<int>(I)) - g);
+      }
+    *ledger().impact += 0.5 * (nodes - particles);
+  }
+  std::fill(impact_axis_.begin(), impact_axis_.end(), Vec<D>::Zero());
 }
 
 template <int D> void Engine<D>::book_held(const AlignedVector<Vec<D>>& rate) {
   constraints_.book_held({t_, dt_, step_ == 0, nodal_.f, rate}, nodal_.q, {field_positions(), nodal_.m, nodal_.active},
                          ledger());
+  // The nodes a wall holds: the particles take their kick up (book_transfer).
+  const auto& held = constraints_.held();
+  for (std::size_t I = 0; I < nodal_.q.size(); ++I)
+    if (nodal_.q[I] != Vec<D>::Zero() &&
+        std::any_of(held.begin(), held.end(), [&](const std::vector<char>& h) { return I < h.size() && h[I]; }))
+      note_impact(I);
 }
 
 template <int D> void Engine<D>::book_carried(double alpha_m, double gamma, bool first) {
@@ -546,6 +611,7 @@ template <int D> void Engine<D>::to_particles(const ToParticles<D>& what) {
 template <int D>
 void Engine<D>::to_particles_and_update_stress(const ToParticles<D>& what, const Gradient<D>& g) {
   ScopedPhase timer(timers_, Phase::to_particles);
+  if (what.rate) book_transfer(what);
   fallible([&] {
     const Gradient<D> own = average_volumetric(g) ? Gradient<D>{} : g;
     parallel_chunks(P_.size(), [&](long long begin, long long end) {
