@@ -216,8 +216,8 @@ public:
   /// The box of points evaluate() takes, for the families whose domain the
   /// nodes carry as a box (B-splines: the knot vectors' ranges), else
   /// nothing (a family whose support follows the points). `ul` mode's node
-  /// reset lays the nodes out anew before a particle's extent leaves it
-  /// (Engine::reset_due).
+  /// reset lays the nodes out anew before a particle could leave it within
+  /// a step (Engine::reset_due).
   virtual std::optional<std::pair<Vec<D>, Vec<D>>> domain() const { return std::nullopt; }
   /// The stencil size when every point has the same one (linear: 2^D,
   /// B-splines: (p+1)^D), else 0. fill_basis_table then writes rows in place

@@ -228,7 +228,7 @@ template <int D> void Engine<D>::step() {
   if (!(dt_ > 0.0) || !std::isfinite(dt_))
     unstable("time step " + format_number(dt_) + " is not positive and finite");
   if (dt_prev_ == 0.0) dt_prev_ = dt_;
-  if (impacted_) std::fill(impact_axis_.begin(), impact_axis_.end(), Vec<D>::Zero()), impacted_ = false; // a step that did not book them (otm)
+  transfer_.clear(); // what a step did not book (otm)
   loads_.traction_positions(P_, traction_start_);
   if (mode_.nodes_move()) x_start_.assign(P_.x.begin(), P_.x.end());
   try {
@@ -520,61 +520,25 @@ template <int D> void Engine<D>::constrain_velocity(AlignedVector<Vec<D>>& v, co
   // The walls' changes the particles take up in this step (book_transfer;
   // not explicit_alpha's, which its kept rate hands on over later steps).
   const bool transfer = effect.impulse && effect.booking != Booking::carried;
-  if (transfer) impact_before_.assign(v.begin(), v.end());
+  if (transfer) transfer_.before.assign(v.begin(), v.end());
   constraints_.apply_walls(v, nodes, t_, dt_, effect, books);
   if (!transfer) return;
   for (std::size_t I = 0; I < v.size(); ++I)
-    if (v[I] != impact_before_[I]) note_impact(I);
-}
-
-template <int D> void Engine<D>::note_impact(std::size_t I) {
-  const auto& held = constraints_.held();
-  for (std::size_t w = 0; w < held.size(); ++w)
-    if (I < held[w].size() && held[w][I]) { // the first wall that holds it
-      impact_axis_.resize(nodal_.v.size(), Vec<D>::Zero());
-      impact_axis_[I] = constraints_.walls()[w].normal;
-      impacted_ = true;
-      return;
-    }
+    if (v[I] != transfer_.before[I]) transfer_.note(I, constraints_, nodal_.v.size());
 }
 
 template <int D> void Engine<D>::book_transfer(const ToParticles<D>& what) {
-  if (!impacted_) return;
-  impacted_ = false;
-  // Delta_I, the velocity change the particles take up from node I; with the
-  // consistent mass the nodes' kinetic energy is the particles' (T = 0).
-  auto change = [&](int I) {
-    Vec<D> d = what.c_rate * (*what.rate)[I];
-    if (what.kick) d += (*what.kick)[I];
-    return d;
-  };
-  if (!settings_.consistent_mass) {
-    // g_I: a held node's normal part of Delta_I; |d|^2 - |d - h|^2 = h . (2 d - h),
-    // d_p = sum_I N_Ip Delta_I, h_p = sum_I N_Ip g_I.
-    auto normal_part = [&](std::size_t I) -> Vec<D> {
-      const Vec<D>& n = impact_axis_[I];
-      if (n == Vec<D>::Zero()) return n;
-      return n.dot(change(static_cast<int>(I))) * n;
-    };
-    const double particles = blocked_reduce_ranges<double>(P_.size(), [&](long long p0, long long p1, double& acc) {
-      for (auto p = static_cast<int>(p0); p < p1; ++p) {
-        Vec<D> h = Vec<D>::Zero();
-        for (int e = table_.begin(p); e < table_.end(p); ++e) h += table_.N[e] * normal_part(table_.node[e]);
-        if (h == Vec<D>::Zero()) continue;
-        Vec<D> d = Vec<D>::Zero();
-        for (int e = table_.begin(p); e < table_.end(p); ++e) d += table_.N[e] * change(table_.node[e]);
-        acc += P_.m[p] * h.dot(2.0 * d - h);
-      }
-    });
-    double nodes = 0.0;
-    for (std::size_t I = 0; I < impact_axis_.size(); ++I)
-      if (constraints_.counts(static_cast<int>(I))) {
-        const Vec<D> g = normal_part(I);
-        nodes += nodal_.m[I] * g.dot(2.0 * change(static_cast<int>(I)) - g);
-      }
-    *ledger().impact += 0.5 * (nodes - particles);
-  }
-  std::fill(impact_axis_.begin(), impact_axis_.end(), Vec<D>::Zero());
+  if (!transfer_.any) return;
+  // with the consistent mass the nodes' kinetic energy is the particles' (T = 0)
+  if (!settings_.consistent_mass)
+    *ledger().impact += transfer_.booked(
+        [&](int I) {
+          Vec<D> d = what.c_rate * (*what.rate)[I];
+          if (what.kick) d += (*what.kick)[I];
+          return d;
+        },
+        table_, P_, nodal_.m, constraints_);
+  transfer_.clear();
 }
 
 template <int D> void Engine<D>::book_held(const AlignedVector<Vec<D>>& rate) {
@@ -585,7 +549,7 @@ template <int D> void Engine<D>::book_held(const AlignedVector<Vec<D>>& rate) {
   for (std::size_t I = 0; I < nodal_.q.size(); ++I)
     if (nodal_.q[I] != Vec<D>::Zero() &&
         std::any_of(held.begin(), held.end(), [&](const std::vector<char>& h) { return I < h.size() && h[I]; }))
-      note_impact(I);
+      transfer_.note(I, constraints_, nodal_.v.size());
 }
 
 template <int D> void Engine<D>::book_carried(double alpha_m, double gamma, bool first) {
@@ -764,8 +728,12 @@ template <int D> std::pair<Vec<D>, Vec<D>> particles_extent(const Particles<D>& 
 
 template <int D> bool Engine<D>::reset_due() const {
   if (!(settings_.node_reset.below > 0.0) || settings_.dt) return false;
-  if (const auto domain = basis_->domain()) { // a particle's extent has left the domain the nodes carry
-    const auto [lo, hi] = particles_extent(P_);
+  if (const auto domain = basis_->domain()) { // a particle may leave the domain the nodes carry within a step
+    Vec<D> lo = Vec<D>::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+    for (int p = 0; p < P_.size(); ++p) { // where its velocity takes it in the last step's dt, either way
+      const Vec<D> reach = P_.v[p].cwiseAbs() * dt_prev_;
+      lo = lo.cwiseMin(P_.x[p] - reach), hi = hi.cwiseMax(P_.x[p] + reach);
+    }
     double inside = (lo.array() >= domain->first.array()).all() && (hi.array() <= domain->second.array()).all();
     if (dist_) dist_->min({&inside, 1});
     if (inside == 0.0) return true;

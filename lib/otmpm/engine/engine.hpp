@@ -18,6 +18,7 @@
 #include "otmpm/engine/timers.hpp"
 #include "otmpm/engine/two_phase.hpp"
 #include "otmpm/engine/volumetric.hpp"
+#include "otmpm/engine/wall_transfer.hpp"
 #include "otmpm/engine/step.hpp"
 #include "otmpm/materials/material.hpp"
 #include "otmpm/particles/particles.hpp"
@@ -502,23 +503,9 @@ private:
     Vec<D> impulse = Vec<D>::Zero();
     double work = 0.0, friction = 0.0, impact = 0.0;
   } rank_reaction_;
-  double boundary_kinetic_ = 0.0;
-  double unresolved_work_ = 0.0; ///< Loads::unresolved_work of the step (check_energy)
-  /// Per node a wall holds and changed the velocity of in a pass whose
-  /// change the particles take up in the step: the wall's normal; zero
-  /// elsewhere (`impacted_`: one is not zero; book_transfer).
-  AlignedVector<Vec<D>> impact_axis_;
-  bool impacted_ = false;
-  AlignedVector<Vec<D>> impact_before_; ///< v before the walls of a pass
-  /// Notes node I in impact_axis_ with the normal of the first wall that holds it.
-  void note_impact(std::size_t I);
-  /// Books as W_i the share of the held nodes' normal changes in the kinetic
-  /// energy the particles' update loses against the nodes' (docs/theory.md
-  /// eq. 6.6): T(Delta - g) - T(Delta), T(y) = 1/2 sum_p m_p |sum_I N_Ip y_I|^2
-  /// - 1/2 sum_I m_I |y_I|^2, Delta_I the velocity change the particles take
-  /// up from node I (what.c_rate rate_I + kick_I), g_I its normal part at the
-  /// nodes of impact_axis_ (lumped mass only; ledger()).
-  void book_transfer(const ToParticles<D>& what);
+  double boundary_kinetic_ = 0.0, unresolved_work_ = 0.0; ///< unresolved: Loads::unresolved_work of the step
+  WallTransfer<D> transfer_; ///< the nodes the walls changed in the step's passes (book_transfer)
+  void book_transfer(const ToParticles<D>& what); ///< W_i += transfer_'s share, Delta_I = c_rate rate_I + kick_I
 };
 
 template <int D> Vec<D> Engine<D>::interpolate(int p, const AlignedVector<Vec<D>>& y) const {

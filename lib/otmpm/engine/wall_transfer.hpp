@@ -1,0 +1,77 @@
+#pragma once
+/// \file wall_transfer.hpp
+/// The share of the walls' velocity changes in the kinetic energy the
+/// particles' update loses against the nodes' (internal to engine/).
+#include "otmpm/basis/basis.hpp"
+#include "otmpm/core.hpp"
+#include "otmpm/engine/constraints.hpp"
+#include "otmpm/parallel.hpp"
+#include "otmpm/particles/particles.hpp"
+
+#include <algorithm>
+#include <vector>
+
+namespace otmpm {
+
+/// The nodes a wall held and changed the velocity of in a pass whose change
+/// the particles take up in the step, and the impact energy booked for them
+/// (docs/theory.md eq. 6.6): with the lumped mass the particles' kinetic
+/// energy changes by the nodes' plus T(Delta) = 1/2 sum_p m_p |sum_I N_Ip
+/// Delta_I|^2 - 1/2 sum_I m_I |Delta_I|^2 <= 0, Delta_I the velocity change
+/// they take up from node I; W_i gets T(Delta - g) - T(Delta), g_I the
+/// normal part of Delta_I at the held nodes.
+template <int D> struct WallTransfer {
+  AlignedVector<Vec<D>> axis;   ///< per node: the holding wall's normal, zero elsewhere
+  bool any = false;             ///< a node of `axis` is not zero
+  AlignedVector<Vec<D>> before; ///< the nodal velocities before a pass's walls
+
+  /// Notes node I (of `nodes`) with the normal of the first wall that holds it.
+  void note(std::size_t I, const Constraints<D>& c, std::size_t nodes) {
+    const auto& held = c.held();
+    for (std::size_t w = 0; w < held.size(); ++w)
+      if (I < held[w].size() && held[w][I]) {
+        axis.resize(nodes, Vec<D>::Zero());
+        axis[I] = c.walls()[w].normal;
+        any = true;
+        return;
+      }
+  }
+
+  /// Forgets the noted nodes (a step that booked none of them, or after booking).
+  void clear() {
+    if (any) std::fill(axis.begin(), axis.end(), Vec<D>::Zero());
+    any = false;
+  }
+
+  /// T(Delta - g) - T(Delta), change(I) = Delta_I: with d_p = sum_I N_Ip
+  /// Delta_I and h_p = sum_I N_Ip g_I, |d|^2 - |d - h|^2 = h . (2 d - h).
+  /// The nodes are summed where c.counts(I) (a distributed run's owned nodes).
+  template <class Change>
+  double booked(Change&& change, const BasisTable<D>& table, const Particles<D>& P, const std::vector<double>& m,
+                const Constraints<D>& c) const {
+    auto normal_part = [&](std::size_t I) -> Vec<D> {
+      const Vec<D>& n = axis[I];
+      if (n == Vec<D>::Zero()) return n;
+      return n.dot(change(static_cast<int>(I))) * n;
+    };
+    const double particles = blocked_reduce_ranges<double>(P.size(), [&](long long p0, long long p1, double& acc) {
+      for (auto p = static_cast<int>(p0); p < p1; ++p) {
+        Vec<D> h = Vec<D>::Zero();
+        for (int e = table.begin(p); e < table.end(p); ++e) h += table.N[e] * normal_part(table.node[e]);
+        if (h == Vec<D>::Zero()) continue;
+        Vec<D> d = Vec<D>::Zero();
+        for (int e = table.begin(p); e < table.end(p); ++e) d += table.N[e] * change(table.node[e]);
+        acc += P.m[p] * h.dot(2.0 * d - h);
+      }
+    });
+    double nodes = 0.0;
+    for (std::size_t I = 0; I < axis.size(); ++I)
+      if (c.counts(static_cast<int>(I))) {
+        const Vec<D> g = normal_part(I);
+        nodes += m[I] * g.dot(2.0 * change(static_cast<int>(I)) - g);
+      }
+    return 0.5 * (nodes - particles);
+  }
+};
+
+} // namespace otmpm
