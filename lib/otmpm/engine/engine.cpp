@@ -527,6 +527,34 @@ template <int D> void Engine<D>::constrain_velocity(AlignedVector<Vec<D>>& v, co
     if (v[I] != transfer_.before[I]) transfer_.note(I, constraints_, nodal_.v.size());
 }
 
+template <int D>
+template <class Change>
+double WallTransfer<D>::booked(Change&& change, const BasisTable<D>& table, const Particles<D>& P,
+                            const std::vector<double>& m, const Constraints<D>& c) const {
+  auto normal_part = [&](std::size_t I) -> Vec<D> {
+    const Vec<D>& n = axis[I];
+    if (n == Vec<D>::Zero()) return n;
+    return n.dot(change(static_cast<int>(I))) * n;
+  };
+  const double particles = blocked_reduce_ranges<double>(P.size(), [&](long long p0, long long p1, double& acc) {
+    for (auto p = static_cast<int>(p0); p < p1; ++p) {
+      Vec<D> h = Vec<D>::Zero();
+      for (int e = table.begin(p); e < table.end(p); ++e) h += table.N[e] * normal_part(table.node[e]);
+      if (h == Vec<D>::Zero()) continue;
+      Vec<D> d = Vec<D>::Zero();
+      for (int e = table.begin(p); e < table.end(p); ++e) d += table.N[e] * change(table.node[e]);
+      acc += P.m[p] * h.dot(2.0 * d - h);
+    }
+  });
+  double nodes = 0.0;
+  for (std::size_t I = 0; I < axis.size(); ++I)
+    if (c.counts(static_cast<int>(I))) {
+      const Vec<D> g = normal_part(I);
+      nodes += m[I] * g.dot(2.0 * change(static_cast<int>(I)) - g);
+    }
+  return 0.5 * (nodes - particles);
+}
+
 template <int D> void Engine<D>::book_transfer(const ToParticles<D>& what) {
   if (!transfer_.any) return;
   // with the consistent mass the nodes' kinetic energy is the particles' (T = 0)

@@ -5,7 +5,6 @@
 #include "otmpm/basis/basis.hpp"
 #include "otmpm/core.hpp"
 #include "otmpm/engine/constraints.hpp"
-#include "otmpm/parallel.hpp"
 #include "otmpm/particles/particles.hpp"
 
 #include <algorithm>
@@ -48,30 +47,7 @@ template <int D> struct WallTransfer {
   /// The nodes are summed where c.counts(I) (a distributed run's owned nodes).
   template <class Change>
   double booked(Change&& change, const BasisTable<D>& table, const Particles<D>& P, const std::vector<double>& m,
-                const Constraints<D>& c) const {
-    auto normal_part = [&](std::size_t I) -> Vec<D> {
-      const Vec<D>& n = axis[I];
-      if (n == Vec<D>::Zero()) return n;
-      return n.dot(change(static_cast<int>(I))) * n;
-    };
-    const double particles = blocked_reduce_ranges<double>(P.size(), [&](long long p0, long long p1, double& acc) {
-      for (auto p = static_cast<int>(p0); p < p1; ++p) {
-        Vec<D> h = Vec<D>::Zero();
-        for (int e = table.begin(p); e < table.end(p); ++e) h += table.N[e] * normal_part(table.node[e]);
-        if (h == Vec<D>::Zero()) continue;
-        Vec<D> d = Vec<D>::Zero();
-        for (int e = table.begin(p); e < table.end(p); ++e) d += table.N[e] * change(table.node[e]);
-        acc += P.m[p] * h.dot(2.0 * d - h);
-      }
-    });
-    double nodes = 0.0;
-    for (std::size_t I = 0; I < axis.size(); ++I)
-      if (c.counts(static_cast<int>(I))) {
-        const Vec<D> g = normal_part(I);
-        nodes += m[I] * g.dot(2.0 * change(static_cast<int>(I)) - g);
-      }
-    return 0.5 * (nodes - particles);
-  }
+                const Constraints<D>& c) const; // engine.cpp (it sums over the particles in parallel blocks)
 };
 
 } // namespace otmpm
