@@ -46,6 +46,7 @@ void check_picture(const std::string& out, const std::string& result) {
 int render(const RenderArgs& a) {
   require_file(a.result, "result file");
   check_picture(a.out, a.result);
+  roll_back_interrupted_flush(a.result); // a run killed inside a flush: the script reads the last flushed state
   const std::string python = find_python(a.python);
   if (python.empty())
     throw InputError("otmpm render needs python3 with matplotlib, numpy and h5py (Debian: apt-get install "

@@ -14,7 +14,7 @@
 ///    report: the child is the instrumented build of `otmpm`);
 ///  - after exit status 0 or 1, a result file that HDF5 cannot read or whose
 ///    status is still "running";
-///  - a victim changed, a lock file left behind, or anything created or
+///  - a victim changed, a lock file or undo journal left behind, or anything created or
 ///    changed outside the temporary directory (a sentinel directory beside it
 ///    is compared before and after).
 /// Paths are built from a fixed pool of components with at most two `..`
@@ -284,7 +284,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     if (content != "<dir>" && (!after.count(path) || after.at(path) != content))
       finding("victim " + path + " was changed or removed by " + joined(args));
   for (const auto& [path, content] : after)
-    if (path.find("otmpm-lock") != std::string::npos) finding("lock file left behind: " + path);
+    if (path.find("otmpm-lock") != std::string::npos || path.find("otmpm-undo") != std::string::npos)
+      finding("lock file or undo journal left behind: " + path);
   if (snapshot(sentinel) != outside) finding("a file outside the temporary directory changed: " + joined(args));
   for (const auto& e : fs::directory_iterator(root))
     if (e.path().filename() != "case" && e.path().filename() != "stderr.txt")

@@ -134,6 +134,7 @@ TEST_CASE("a second run or a --restart of a running run exits 2 and changes noth
     for (const std::string& name : listing(t.dir)) {
       CHECK_FALSE(has(name, "before-restart"));
       CHECK_FALSE(has(name, "otmpm-lock"));
+      CHECK_FALSE(has(name, "otmpm-undo")); // the result file's undo journal ends with the run
     }
   }
 }

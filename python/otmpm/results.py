@@ -185,6 +185,7 @@ class Results:
         self.path = os.fsdecode(path) if isinstance(path, (str, bytes, os.PathLike)) else str(path)
         if os.path.exists(self.path) and not os.path.isfile(self.path):  # a FIFO would block h5py for ever
             raise OSError(f"{self.path}: not a regular file (a directory, FIFO or device), not a result file")
+        _restore_killed(self.path)
         try:
             self._file = h5py.File(self.path, "r")
         except OSError as e:  # h5py's message does not name the file
@@ -246,6 +247,21 @@ class Results:
 
     def __repr__(self):
         return f"<otmpm.results.Results '{self.path}': status {self.status!r}, {len(self.frames)} frames>"
+
+
+def _restore_killed(path):
+    """Undoes a flush that a kill cut short (the undo journal otmpm's writer leaves beside the file).
+
+    Through otmpm's compiled part; the copy of this module that otmpm's scripts use alone (share/otmpm)
+    has none, and the otmpm command that starts them has restored the file already."""
+    try:
+        from ._otmpm import InputError, _roll_back_interrupted_flush
+    except ImportError:
+        return
+    try:
+        _roll_back_interrupted_flush(path)
+    except InputError as e:
+        raise OSError(f"{path}: cannot restore it after its writer was killed: {e}") from e
 
 
 def open(path):  # noqa: A001 - the module's one entry point, as in h5py.File / builtins.open

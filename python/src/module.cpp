@@ -2,6 +2,8 @@
 /// The module otmpm._otmpm: the error types and the registration of its parts.
 #include "bindings.hpp"
 
+#include "otmpm/io/output_files.hpp"
+
 #include "otmpm/core.hpp"
 
 #ifdef OTMPM_HAVE_OPENMP
@@ -135,4 +137,7 @@ PYBIND11_MODULE(_otmpm, m) {
   otmpm::python::register_scene(m);
   otmpm::python::register_simulation(m);
   otmpm::python::register_basis(m);
+  m.def("_roll_back_interrupted_flush", &otmpm::roll_back_interrupted_flush, pybind11::arg("path"),
+        "Restores a result file whose writer was killed inside a flush to its last flushed state (what otmpm's "
+        "own readers do before they open it); nothing while its writer runs.");
 }

@@ -11,7 +11,7 @@ Each call is checked against what docs/python.md and docs/stability.md
 the exception types documented for that call in that state - anything else,
 a crash or a call running longer than CALL_SECONDS is a finding. After each
 run the result file must read back with a final status (never "running") and
-no otmpm lock file may be left.
+no otmpm lock file or undo journal may be left.
 
     python3 fuzz_api.py [--seed N] [--iterations N | --seconds S] [--workdir DIR]
 
@@ -291,9 +291,9 @@ class Fuzzer:
             if r.status in (None, "running"):
                 raise Finding(f"{path}: status {r.status!r} after the run ended")
         folder = os.path.dirname(path) or "."
-        locks = [n for n in os.listdir(folder) if n.endswith(".otmpm-lock")]
+        locks = [n for n in os.listdir(folder) if n.endswith((".otmpm-lock", ".otmpm-undo"))]
         if locks:
-            raise Finding(f"lock files left after the run ended: {locks}")
+            raise Finding(f"lock files or undo journals left after the run ended: {locks}")
 
     # ---------------------------------------------------------------- results
 

@@ -246,3 +246,42 @@ def test_summary_is_read_only():
         s["steps"] = 99
     assert s.steps == s["steps"] > 0 and s.status == "ok"
     assert dict(s.errors) == {k: s["errors"][k] for k in s.errors}
+
+
+# ---------------------------------------------------------------- a run killed inside a flush
+
+
+def _undo_record(addr, old):
+    """One record of otmpm's undo journal: magic, reserved, address, size, FNV-1a check, then the old bytes."""
+    import struct
+
+    def fnv1a(data, h=0xCBF29CE484222325):
+        for b in data:
+            h = ((h ^ b) * 0x100000001B3) & 0xFFFFFFFFFFFFFFFF
+        return h
+
+    magic = 0x524A554F
+    check = fnv1a(old, fnv1a(struct.pack("<QQQ", magic, addr, len(old))))
+    return struct.pack("<IIQQQ", magic, 0, addr, len(old), check) + old
+
+
+def test_a_result_file_a_kill_cut_inside_a_flush_is_restored_when_opened(tmp_path):
+    """As a SIGKILL inside a flush leaves it: bytes already overwritten, their old values in the journal
+    (the last record cut short by the kill). otmpm.results.open writes them back and opens the flushed state."""
+    out = tmp_path / "r.h5"
+    otmpm.run(short_dyka(), out=str(out))
+    flushed = out.read_bytes()
+    frames = len(otmpm.results.open(str(out)).frames)
+    cut = bytearray(flushed)
+    cut[0:48] = bytes(48)  # the superblock, half-way through being rewritten
+    cut[2048:2600] = b"\xff" * 552
+    out.write_bytes(bytes(cut))
+    with pytest.raises(OSError):
+        h5py.File(out, "r").close()
+    journal = tmp_path / ".r.h5.otmpm-undo"
+    journal.write_bytes(_undo_record(2048, flushed[2048:2600]) + _undo_record(0, flushed[0:48]) +
+                        _undo_record(4096, b"never written")[:20])
+    with otmpm.results.open(str(out)) as r:
+        assert len(r.frames) == frames
+    assert out.read_bytes() == flushed
+    assert not journal.exists() and lock_files(tmp_path) == []

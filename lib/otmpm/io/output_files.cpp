@@ -6,6 +6,7 @@
 #include "otmpm/io/checkpoint.hpp"
 #include "otmpm/io/hdf5.hpp"
 #include "otmpm/io/text_files.hpp"
+#include "otmpm/io/undo_journal.hpp"
 
 #include <fcntl.h>
 #include <sys/file.h>
@@ -159,6 +160,7 @@ std::vector<std::pair<std::string, std::string>> written_paths(const OutputFiles
     if (temporary) out.emplace_back("temporary of the " + role, path + ".tmp");
   };
   add("result file", f.result, true);
+  if (!f.result.empty()) out.emplace_back("undo journal of the result file", undo_journal_path(f.result));
   add("XDMF sidecar", f.xdmf, true);
   add("checkpoint", f.checkpoint, true);
   add("VTK collection", f.pvd, true);
@@ -236,10 +238,20 @@ void check_distinct(const OutputFiles& f) {
 
 // ---------------------------------------------------------------- locks
 
-std::string lock_path(const std::string& path) {
-  const fs::path p = resolve(path); // one lock file however the path is spelt (relative, absolute, a symlink)
-  return (p.parent_path() / ("." + p.filename().string() + ".otmpm-lock")).string();
+namespace {
+
+/// DIR/.NAME<suffix> for `path` made absolute with its symlinks followed:
+/// one file however the path is spelt (relative, absolute, a symlink).
+std::string hidden_beside(const std::string& path, const char* suffix) {
+  const fs::path p = resolve(path);
+  return (p.parent_path() / ("." + p.filename().string() + suffix)).string();
 }
+
+} // namespace
+
+std::string lock_path(const std::string& path) { return hidden_beside(path, ".otmpm-lock"); }
+
+std::string undo_journal_path(const std::string& path) { return hidden_beside(path, ".otmpm-undo"); }
 
 namespace {
 
@@ -291,6 +303,12 @@ int take_lock(const std::string& path) {
     }
     if (still_linked(fd, file)) {
       record_holder(fd);
+      try {
+        h5::apply_undo_journal(path); // a killed writer's interrupted flush, undone before anyone reads
+      } catch (...) {
+        ::close(fd);
+        throw;
+      }
       return fd;
     }
     ::close(fd); // its holder removed it between our open and our flock: take the new one
@@ -452,7 +470,7 @@ ExistingResult inspect_result(const std::string& path) {
   if (!r.present || is_directory(path) || !special_file(path).empty()) return r; // never open a FIFO
   h5::silence();
   if (H5Fis_hdf5(path.c_str()) <= 0) return r;
-  const hid_t id = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  const hid_t id = h5::open_result_read_only(path);
   if (id < 0) return r;
   const h5::Handle file(id, H5Fclose);
   r.readable = true;

@@ -81,6 +81,20 @@ void check_distinct(const OutputFiles& files);
 /// path made absolute with its symlinks followed (one lock however it is named).
 std::string lock_path(const std::string& path);
 
+/// The undo journal of the result file `path`: DIR/.NAME.otmpm-undo beside
+/// it, resolved as lock_path. It holds the bytes the run's writes replaced
+/// since the file's last complete flush; a killed run leaves it, and the
+/// next otmpm process that opens or locks the file restores the flushed
+/// state from it (io/undo_journal.hpp).
+std::string undo_journal_path(const std::string& path);
+
+/// For readers of the result file `path`: when its killed writer left an
+/// undo journal and no process holds otmpm's lock on it, takes the lock
+/// (which restores the last flushed state, io/undo_journal.hpp) and releases
+/// it. Does nothing while a writer runs. InputError when the lock cannot be
+/// taken or the journal cannot be applied.
+void roll_back_interrupted_flush(const std::string& path);
+
 /// Who holds otmpm's lock on `path` now: "process PID on host HOST" (or
 /// "another process" when the lock file does not say), or "" when no process
 /// holds it - no lock file, or one a killed run left behind unlocked (flock
@@ -89,7 +103,8 @@ std::string lock_holder_of(const std::string& path);
 
 /// otmpm's exclusive lock on a set of paths, held for the lifetime of the
 /// object: flock(LOCK_EX | LOCK_NB) on lock_path() of each, which records the
-/// holder's process id and host name. The constructor takes every lock or
+/// holder's process id and host name; a file whose killed writer left an
+/// undo journal is restored from it once its lock is held. The constructor takes every lock or
 /// none: when another process holds one it throws InputError naming the path
 /// and the holder ("... is being written by process 1234 on host h (lock file
 /// ...)"). The destructor removes the lock files. Does not depend on HDF5's

@@ -14,6 +14,7 @@
 #include "otmpm/io/hdf5.hpp"
 #include "otmpm/io/output_files.hpp"
 #include "otmpm/io/text_files.hpp"
+#include "otmpm/io/undo_journal.hpp"
 #include "otmpm/io/vtk.hpp"
 
 #include <fcntl.h>
@@ -377,6 +378,7 @@ ResultWriter::ResultWriter(const std::string& path, const std::string& scene_tex
   Handle fapl(checked(H5Pcreate(H5P_FILE_ACCESS), path, "create a file access list"), H5Pclose);
   checked_status(H5Pset_libver_bounds(fapl.get(), H5F_LIBVER_V18, H5F_LIBVER_V18), path, "set the file format");
   if (m.parallel.mpi_comm) m.transfer = h5::parallel_access(fapl.get(), m.parallel.mpi_comm, path);
+  else h5::use_undo_journal(fapl.get(), undo_journal_path(path), path); // a kill inside a flush is undone
   const hid_t file = H5Fcreate(created.c_str(), H5F_ACC_EXCL, H5P_DEFAULT, fapl.get());
   if (file < 0) {
     const std::string cause = h5::system_error();
@@ -850,7 +852,7 @@ template <class F> auto reading(const std::string& path, F&& read) {
 void copy_results(const std::string& from, ResultWriter& to, int frames, const std::vector<HistoryLayout>& histories,
                   const std::vector<std::string>& frame_fields) {
   h5::silence();
-  const hid_t id = H5Fopen(from.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  const hid_t id = h5::open_result_read_only(from);
   if (id < 0) throw InputError(from + ": cannot open the result file of the interrupted run");
   const Handle file(id, H5Fclose);
   std::vector<StoredHistory> stored;
@@ -885,7 +887,7 @@ Handle open_with_attribute(const std::string& path, const std::string& name, H5T
   h5::silence();
   require(!path.empty(), "read attribute '", name, "': the result file path is empty");
   check_name(name, "attribute");
-  const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  const hid_t file = h5::open_result_read_only(path);
   if (file < 0) throw InputError(path + ": cannot open the result file");
   Handle f(file, H5Fclose);
   if (!h5::has_attribute(file, name)) throw InputError(path + ": no root attribute '" + name + "'");

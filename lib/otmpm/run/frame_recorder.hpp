@@ -4,6 +4,7 @@
 #include "otmpm/distributed/global_view.hpp"
 #include "otmpm/engine/engine.hpp"
 #include "otmpm/io/hdf5.hpp"
+#include "otmpm/io/undo_journal.hpp"
 #include "otmpm/parallel.hpp"
 #include "otmpm/particles/output_fields.hpp"
 #include "otmpm/run/output_time.hpp"
@@ -130,7 +131,7 @@ private:
   /// sigma_zz (false when there is no such frame or attribute).
   static bool legacy_plane_stress(const std::string& path) {
     h5::silence();
-    const hid_t id = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+    const hid_t id = h5::open_result_read_only(path);
     if (id < 0) return false; // copy_results says why
     const h5::Handle file(id, H5Fclose);
     if (!h5::has_link(file.get(), "frames") || !h5::has_link(file.get(), "frames/000000") ||
