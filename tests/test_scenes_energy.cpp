@@ -37,7 +37,7 @@ const std::map<std::string, Closure> kClosures{
     {"mandel", {2.87e-4, "fe's time error; the plate's force works on the nodes' motion"}},
     {"mms_plate", {3.45e-6, "unified's error"}},
     {"plate_impact", {0.0156, "npc's damping of the impact's waves"}},
-    {"sliding_block", {0.00633, "npc's error on the sheared contact layer, about dt^0.45 (friction and impacts booked)"}},
+    {"sliding_block", {0.00633, "npc's damping (theory.md eq. 8.1) of the vibration friction drives in the block, about dt^0.45 (friction and impacts booked)"}},
     {"stretch_bar", {0.0011, "npc's error over the pull to twice the length (cfl 0.15; at 0.3 it goes unstable)"}},
     {"taylor_bar", {0.0147, "the part of the impact on the wall W_i does not book (0.0202 with eq. 6.5 alone, 0.035 without W_i)"}},
     {"terzaghi", {1.53e-4, "fe's time error (the Darcy dissipation booked: half the work)"}},
