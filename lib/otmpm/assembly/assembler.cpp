@@ -205,7 +205,11 @@ template <int D> NodeReset<D> node_reset(const Scene& scene) {
     r.lines.upper[k] = scene.grid.upper[k];
     r.lines.cells[k] = scene.grid.cells[k];
     for (const BoundarySection& b : scene.boundaries)
-      if (b.fix[static_cast<std::size_t>(k)]) r.velocity[k] = b.value[static_cast<std::size_t>(k)];
+      if (b.fix[static_cast<std::size_t>(k)]) {
+        r.velocity[k] = b.value[static_cast<std::size_t>(k)];
+        if (b.lower[static_cast<std::size_t>(k)] == b.upper[static_cast<std::size_t>(k)])
+          r.planes.emplace_back(k, b.lower[static_cast<std::size_t>(k)]);
+      }
   }
   r.lattice = [scene](const CartesianGrid<D>& grid, double t) {
     LatticePart<D> part;

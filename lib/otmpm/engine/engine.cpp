@@ -752,6 +752,26 @@ template <int D> std::pair<Vec<D>, Vec<D>> particles_extent(const Particles<D>& 
   }
   return {lo, hi};
 }
+
+/// NodeReset::planes: a reset lattice's box [lo, hi] at time t ends on a
+/// boundary plane that the particles lie on one side of (their extents may
+/// reach past it by rounding or growth), so that the plane holds nodes of a
+/// family whose domain the nodes carry.
+template <int D>
+void end_on_planes(const Particles<D>& P, Distribution<D>* dist, const NodeReset<D>& reset, double t, Vec<D>& lo,
+                   Vec<D>& hi) {
+  Vec<D> xlo = Vec<D>::Constant(std::numeric_limits<double>::infinity()), xhi = -xlo;
+  for (int p = 0; p < P.size(); ++p) xlo = xlo.cwiseMin(P.x[p]), xhi = xhi.cwiseMax(P.x[p]);
+  if (dist) {
+    dist->min({xlo.data(), static_cast<std::size_t>(D)});
+    dist->max({xhi.data(), static_cast<std::size_t>(D)});
+  }
+  for (const auto& [k, c0] : reset.planes) {
+    const double c = c0 + reset.velocity[k] * t;
+    if (xlo[k] >= c) lo[k] = std::max(lo[k], c);
+    if (xhi[k] <= c) hi[k] = std::min(hi[k], c);
+  }
+}
 } // namespace
 
 template <int D> bool Engine<D>::reset_due() const {
@@ -786,6 +806,7 @@ template <int D> void Engine<D>::reset_nodes(const CartesianGrid<D>* given) {
       dist_->min({lo.data(), static_cast<std::size_t>(D)});
       dist_->max({hi.data(), static_cast<std::size_t>(D)});
     }
+    if (basis_->domain()) end_on_planes(P_, dist_.get(), settings_.node_reset, t_, lo, hi);
     for (int k = 0; k < D; ++k) {
       const double a = std::floor((lo[k] - lines.lower[k]) / h[k]), b = std::ceil((hi[k] - lines.lower[k]) / h[k]);
       grid.lower[k] = lines.lower[k] + a * h[k];

@@ -65,6 +65,11 @@ template <int D> struct NodeReset {
   double below = 0.0;
   CartesianGrid<D> lines; ///< the scene's grid at t = 0: the new lattice runs on its lines, with its spacing
   Vec<D> velocity = Vec<D>::Zero(); ///< per axis: the velocity of the boundaries that fix it (0: none moves)
+  /// The boundary boxes that are planes normal to an axis they fix: (axis,
+  /// coordinate at t = 0; it moves with `velocity`). A basis whose domain the
+  /// nodes carry (B-splines) has a node on such a plane only where its
+  /// lattice ends: a reset lattice ends there when the particles lie on one side.
+  std::vector<std::pair<int, double>> planes;
   /// The basis and Dirichlet sets on a lattice laid out at time t (the boundary boxes moved with them).
   std::function<LatticePart<D>(const CartesianGrid<D>&, double t)> lattice;
   /// The lines at time t: `lines` translated by velocity t.
