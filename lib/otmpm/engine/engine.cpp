@@ -573,11 +573,9 @@ template <int D> void Engine<D>::book_held(const AlignedVector<Vec<D>>& rate) {
   constraints_.book_held({t_, dt_, step_ == 0, nodal_.f, rate}, nodal_.q, {field_positions(), nodal_.m, nodal_.active},
                          ledger());
   // The nodes a wall holds: the particles take their kick up (book_transfer).
-  const auto& held = constraints_.held();
-  for (std::size_t I = 0; I < nodal_.q.size(); ++I)
-    if (nodal_.q[I] != Vec<D>::Zero() &&
-        std::any_of(held.begin(), held.end(), [&](const std::vector<char>& h) { return I < h.size() && h[I]; }))
-      transfer_.note(I, constraints_, nodal_.v.size());
+  if (constraints_.held().empty()) return;
+  for (std::size_t I = 0; I < nodal_.q.size(); ++I) // note() keeps only the nodes a wall holds
+    if (nodal_.q[I] != Vec<D>::Zero()) transfer_.note(I, constraints_, nodal_.v.size());
 }
 
 template <int D> void Engine<D>::book_carried(double alpha_m, double gamma, bool first) {
@@ -741,16 +739,21 @@ template <int D> void Engine<D>::follow_body(const AlignedVector<Vec<D>>& x) {
 }
 
 namespace {
+/// The box of this process' particles, each widened by half(p) about x_p
+/// either way (a Vec<D>).
+template <int D, class Half> std::pair<Vec<D>, Vec<D>> particles_box(const Particles<D>& P, Half half) {
+  Vec<D> lo = Vec<D>::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  for (int p = 0; p < P.size(); ++p) {
+    const Vec<D> w = half(p);
+    lo = lo.cwiseMin(P.x[p] - w), hi = hi.cwiseMax(P.x[p] + w);
+  }
+  return {lo, hi};
+}
+
 /// The box of this process' particles' extents: each a cube of its volume
 /// about x_p (node reset).
 template <int D> std::pair<Vec<D>, Vec<D>> particles_extent(const Particles<D>& P) {
-  Vec<D> lo = Vec<D>::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
-  for (int p = 0; p < P.size(); ++p) {
-    const double half = 0.5 * std::pow(P.V[p], 1.0 / D);
-    lo = lo.cwiseMin(P.x[p] - Vec<D>::Constant(half));
-    hi = hi.cwiseMax(P.x[p] + Vec<D>::Constant(half));
-  }
-  return {lo, hi};
+  return particles_box(P, [&](int p) { return Vec<D>::Constant(0.5 * std::pow(P.V[p], 1.0 / D)); });
 }
 
 /// NodeReset::planes: a reset lattice's box [lo, hi] at time t ends on a
@@ -760,8 +763,7 @@ template <int D> std::pair<Vec<D>, Vec<D>> particles_extent(const Particles<D>& 
 template <int D>
 void end_on_planes(const Particles<D>& P, Distribution<D>* dist, const NodeReset<D>& reset, double t, Vec<D>& lo,
                    Vec<D>& hi) {
-  Vec<D> xlo = Vec<D>::Constant(std::numeric_limits<double>::infinity()), xhi = -xlo;
-  for (int p = 0; p < P.size(); ++p) xlo = xlo.cwiseMin(P.x[p]), xhi = xhi.cwiseMax(P.x[p]);
+  auto [xlo, xhi] = particles_box(P, [](int) { return Vec<D>::Zero().eval(); });
   if (dist) {
     dist->min({xlo.data(), static_cast<std::size_t>(D)});
     dist->max({xhi.data(), static_cast<std::size_t>(D)});
@@ -777,11 +779,8 @@ void end_on_planes(const Particles<D>& P, Distribution<D>* dist, const NodeReset
 template <int D> bool Engine<D>::reset_due() const {
   if (!(settings_.node_reset.below > 0.0) || settings_.dt) return false;
   if (const auto domain = basis_->domain()) { // a particle may leave the domain the nodes carry within a step
-    Vec<D> lo = Vec<D>::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
-    for (int p = 0; p < P_.size(); ++p) { // where its velocity takes it in the last step's dt, either way
-      const Vec<D> reach = P_.v[p].cwiseAbs() * dt_prev_;
-      lo = lo.cwiseMin(P_.x[p] - reach), hi = hi.cwiseMax(P_.x[p] + reach);
-    }
+    // where each particle's velocity takes it in the last step's dt, either way
+    const auto [lo, hi] = particles_box(P_, [&](int p) { return (P_.v[p].cwiseAbs() * dt_prev_).eval(); });
     double inside = (lo.array() >= domain->first.array()).all() && (hi.array() <= domain->second.array()).all();
     if (dist_) dist_->min({&inside, 1});
     if (inside == 0.0) return true;
