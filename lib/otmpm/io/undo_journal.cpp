@@ -67,26 +67,21 @@ struct UndoFile {
 UndoFile* as_undo(H5FD_t* f) { return reinterpret_cast<UndoFile*>(f); }
 const UndoFile* as_undo(const H5FD_t* f) { return reinterpret_cast<const UndoFile*>(f); }
 
-bool read_all(int fd, void* buf, std::size_t n, off_t at) {
-  auto* p = static_cast<char*>(buf);
+/// Repeats pread or pwrite (`io`) until all n bytes at `at` are moved; false on an error or the file's end.
+template <class Io, class Byte> bool move_all(Io io, int fd, Byte* p, std::size_t n, off_t at) {
   while (n > 0) {
-    const ssize_t got = ::pread(fd, p, n, at);
-    if (got < 0 && errno == EINTR) continue;
-    if (got <= 0) return false;
-    p += got, at += got, n -= static_cast<std::size_t>(got);
+    const ssize_t moved = io(fd, p, n, at);
+    if (moved < 0 && errno == EINTR) continue;
+    if (moved <= 0) return false;
+    p += moved, at += moved, n -= static_cast<std::size_t>(moved);
   }
   return true;
 }
 
+bool read_all(int fd, void* buf, std::size_t n, off_t at) { return move_all(::pread, fd, static_cast<char*>(buf), n, at); }
+
 bool write_all(int fd, const void* buf, std::size_t n, off_t at) {
-  const auto* p = static_cast<const char*>(buf);
-  while (n > 0) {
-    const ssize_t put = ::pwrite(fd, p, n, at);
-    if (put < 0 && errno == EINTR) continue;
-    if (put <= 0) return false;
-    p += put, at += put, n -= static_cast<std::size_t>(put);
-  }
-  return true;
+  return move_all(::pwrite, fd, static_cast<const char*>(buf), n, at);
 }
 
 /// Appends the bytes [addr, addr + n) as they are now to the journal, as one write.
