@@ -15,6 +15,8 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <memory>
+#include <new>
 #include <vector>
 
 namespace otmpm::h5 {
@@ -85,12 +87,13 @@ bool write_all(int fd, const void* buf, std::size_t n, off_t at) {
 }
 
 /// Appends the bytes [addr, addr + n) as they are now to the journal, as one write.
+/// Called by HDF5's C code: allocates without throwing (a failed allocation is a failed write).
 bool journal_old_bytes(UndoFile& f, haddr_t addr, std::size_t n) {
-  std::vector<char> old(n);
-  if (!read_all(f.fd, old.data(), n, static_cast<off_t>(addr))) return false;
+  const std::unique_ptr<char, decltype(&std::free)> old(static_cast<char*>(std::malloc(n)), &std::free);
+  if (!old || !read_all(f.fd, old.get(), n, static_cast<off_t>(addr))) return false;
   RecordHeader r{kRecordMagic, 0, addr, n, 0};
-  r.check = record_check(r, old.data());
-  iovec parts[2] = {{&r, sizeof r}, {old.data(), n}};
+  r.check = record_check(r, old.get());
+  iovec parts[2] = {{&r, sizeof r}, {old.get(), n}};
   const std::size_t total = sizeof r + n;
   ssize_t put = 0;
   do put = ::writev(f.journal_fd, parts, 2);
@@ -124,7 +127,8 @@ int open_flags(unsigned flags) {
 H5FD_t* open_file(const char* name, unsigned flags, hid_t fapl, haddr_t maxaddr) {
   const auto* info = static_cast<const JournalInfo*>(H5Pget_driver_info(fapl));
   if (!name || !*name || !info || maxaddr == 0 || maxaddr == HADDR_UNDEF || maxaddr > kMaxAddress) return nullptr;
-  auto* f = new UndoFile{};
+  auto* f = new (std::nothrow) UndoFile{}; // HDF5's C code calls this: no exception may leave it
+  if (!f) return nullptr;
   f->info = *info;
   f->fd = ::open(name, open_flags(flags), 0666);
   struct stat st {};
