@@ -164,7 +164,8 @@ TEST_CASE("a writer killed at 100 random moments leaves a file that otmpm restor
     const pid_t child = ::fork();
     REQUIRE(child >= 0);
     if (child == 0) write_until_killed(path, count, kill % 2 == 0 ? 0 : 6);
-    ::usleep(static_cast<useconds_t>(20000 + std::rand() % 40000));
+    for (int wait = 0; wait < 5000 && !fs::exists(count); ++wait) ::usleep(1000); // its first frame is written
+    ::usleep(static_cast<useconds_t>(std::rand() % 40000));
     ::kill(child, SIGKILL);
     int status = 0;
     REQUIRE(::waitpid(child, &status, 0) == child);

@@ -62,6 +62,7 @@ struct UndoFile {
   haddr_t eoa = 0, eof = 0;
   haddr_t committed = 0; ///< end of the last flushed state: a write below it is journalled first
   bool dirty = false;    ///< the journal holds records of the flush under way
+  bool failed = false;   ///< a write failed: the file may be half-written, the journal stays
   dev_t device = 0;
   ino_t inode = 0;
 };
@@ -149,14 +150,15 @@ H5FD_t* open_file(const char* name, unsigned flags, hid_t fapl, haddr_t maxaddr)
 }
 
 /// HDF5 closes the driver's file after its last write (the superblock's
-/// consistency flag cleared after the final flush): the file is complete.
+/// consistency flag cleared after the final flush): the file is complete,
+/// unless a write failed on the way (then the journal stays for a restore).
 herr_t close_file(H5FD_t* file) {
   UndoFile* f = as_undo(file);
   int status = 0;
   if (f->journal_fd >= 0) {
-    if (f->eof > f->eoa) status |= ::ftruncate(f->fd, static_cast<off_t>(f->eoa));
+    if (!f->failed && f->eof > f->eoa) status |= ::ftruncate(f->fd, static_cast<off_t>(f->eoa));
     status |= ::close(f->journal_fd);
-    ::unlink(f->info.journal);
+    if (!f->failed) ::unlink(f->info.journal);
   }
   status |= ::close(f->fd);
   delete f;
@@ -204,9 +206,9 @@ herr_t write_bytes(H5FD_t* file, H5FD_mem_t, hid_t, haddr_t addr, size_t size, c
   if (f->journal_fd < 0 || addr == HADDR_UNDEF || addr + size > f->eoa) return -1;
   if (addr < f->committed) {
     const auto n = static_cast<std::size_t>(std::min<haddr_t>(size, f->committed - addr));
-    if (!journal_old_bytes(*f, addr, n)) return -1;
+    if (!journal_old_bytes(*f, addr, n)) return f->failed = true, -1;
   }
-  if (!write_all(f->fd, buf, size, static_cast<off_t>(addr))) return -1;
+  if (!write_all(f->fd, buf, size, static_cast<off_t>(addr))) return f->failed = true, -1;
   f->eof = std::max<haddr_t>(f->eof, addr + size);
   return 0;
 }
