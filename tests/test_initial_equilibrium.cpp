@@ -1,5 +1,5 @@
 // The gravity-loading phase of simulation.initial_equilibrium
-// (run/initial_equilibrium.hpp, docs/theory.md sect. 15.9): a confined
+// (run/initial_equilibrium.hpp, docs/theory.md sect. 15, "Initial equilibrium"): a confined
 // elastic column reaches the geostatic stress, a slope brought into
 // equilibrium stays still where one started stress-free moves, the run
 // starts with zero displacements and energy series, and the key is

@@ -1,6 +1,6 @@
 /// \file initial_equilibrium.cpp
 /// The gravity-loading phase (initial_equilibrium.hpp, docs/theory.md
-/// sect. 15.9): an engine of the phase's scene stepped with local damping,
+/// sect. 15, "Initial equilibrium"): an engine of the phase's scene stepped with local damping,
 /// then its state moved into the run's engine through the checkpoint
 /// groups (Engine::save_state / restore_state), which carry everything a
 /// step hands to the next.
@@ -23,7 +23,7 @@ namespace otmpm {
 
 namespace {
 
-/// Cundall's local damping of one velocity component over a step (eq. 15.14):
+/// Cundall's local damping of one velocity component over a step (eq. 15.15):
 /// the change dv the unbalanced force gave it, less alpha |dv| in the
 /// direction of the velocity v0 at the step's start.
 double damped(double v0, double dv, double alpha) {
@@ -32,7 +32,7 @@ double damped(double v0, double dv, double alpha) {
 }
 
 /// One step of the phase: the engine's step, then the damping of every
-/// particle's solid (and liquid) velocity; returns the residuals of eq. 15.15
+/// particle's solid (and liquid) velocity; returns the residuals of eq. 15.16
 /// with `weight` = sum_p m_p |b| and `speed` = sqrt(|b| h).
 template <int D>
 std::pair<double, double> damped_step(Engine<D>& e, double alpha, double weight, double speed,

@@ -1,9 +1,9 @@
 #pragma once
 /// \file initial_equilibrium.hpp
 /// The gravity-loading phase of `simulation.initial_equilibrium`
-/// (docs/theory.md sect. 15.9): before t = 0 the bodies are stepped under
+/// (docs/theory.md sect. 15, "Initial equilibrium"): before t = 0 the bodies are stepped under
 /// the scene's loads at t = 0 with Cundall's local non-viscous damping
-/// (eq. 15.14) until the residual (eq. 15.15) falls below the tolerance or
+/// (eq. 15.15) until the residual (eq. 15.16) falls below the tolerance or
 /// the phase's time has run; the run then starts from that state.
 #include "otmpm/engine/engine.hpp"
 #include "otmpm/scene/scene.hpp"
@@ -15,7 +15,7 @@ namespace otmpm {
 /// How a gravity-loading phase ended: converged (the residual below the
 /// tolerance) or out of time, after `steps` steps and `time` seconds, with
 /// the last step's residuals: the unbalanced force R_f and the velocity
-/// R_v of eq. 15.15.
+/// R_v of eq. 15.16.
 struct EquilibriumReport {
   bool converged = false;
   long steps = 0;
