@@ -7,6 +7,7 @@
 #include "otmpm/run/initial_equilibrium.hpp"
 
 #include "otmpm/assembly/assembler.hpp"
+#include "otmpm/interrupt.hpp"
 #include "otmpm/materials/pore_fluid.hpp"
 #include "otmpm/run/run_common.hpp"
 #include "otmpm/state.hpp"
@@ -120,12 +121,18 @@ template <int D> EquilibriumReport settle(const Scene& scene, Engine<D>& e) {
   EquilibriumReport report;
   AlignedVector<Vec<D>> v0;
   std::vector<double> w0;
-  while (phase.time() < q.time * (1.0 - time_slack)) {
-    std::tie(report.force_residual, report.velocity_residual) = damped_step(phase, q.damping, weight, speed, v0, w0);
-    report.steps = phase.steps();
-    report.time = phase.time();
-    report.converged = std::max(report.force_residual, report.velocity_residual) < q.tolerance;
-    if (report.converged) break;
+  try {
+    while (phase.time() < q.time * (1.0 - time_slack)) {
+      interrupt_point("bringing the bodies into their initial equilibrium");
+      std::tie(report.force_residual, report.velocity_residual) = damped_step(phase, q.damping, weight, speed, v0, w0);
+      report.steps = phase.steps();
+      report.time = phase.time();
+      report.converged = std::max(report.force_residual, report.velocity_residual) < q.tolerance;
+      if (report.converged) break;
+    }
+  } catch (const InstabilityError& err) { // the phase's step and time, before the run's t = 0
+    throw InstabilityError(std::string("in the initial equilibrium phase (simulation.initial_equilibrium): ") +
+                           err.what());
   }
   Checkpoint run; // the run's engine as built: its clock, impulses and works at zero, its initial velocities
   e.save_state(run);

@@ -37,7 +37,8 @@ Scene equilibrium_scene(const Scene& scene);
 /// deformation gradients and material state (the plastic strain kept, the
 /// plastic work zeroed), with the displacements (X_p = x_p), the energy
 /// series and the clock starting at zero and the velocities e's initial
-/// ones. InstabilityError when the phase becomes unstable.
+/// ones. InstabilityError when the phase becomes unstable; InterruptedError
+/// (interrupt_point) when the polled interrupt flag is set during it.
 template <int D> EquilibriumReport settle(const Scene& scene, Engine<D>& e);
 
 } // namespace otmpm

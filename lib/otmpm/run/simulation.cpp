@@ -146,6 +146,8 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
     else if (const auto& q = scene.simulation.initial_equilibrium) {
       if (distributed::Comm::world().size() > 1)
         input_error(scene.locate("simulation.initial_equilibrium"), "runs in a serial run only (one rank)");
+      std::optional<InterruptPolling> polling; // as in the set-up (build): SIGINT stops the phase
+      if (options.interrupt) polling.emplace(options.interrupt);
       summary.initial_equilibrium = settle<D>(scene, e).describe(q->tolerance);
     }
     if (!resume) check_first_step(scene, e.stable_dt(), e.wave_speed());
