@@ -114,8 +114,9 @@ template <int D> EquilibriumReport settle(const Scene& scene, Engine<D>& e) {
   const Particles<D>& P = phase.particles();
   double weight = 0.0;
   for (int p = 0; p < P.size(); ++p) weight += P.m[p];
-  const Vec3& b = scene.body_force->value;
-  const double g = std::sqrt(b[0] * b[0] + b[1] * b[1] + b[2] * b[2]);
+  double g = 0.0; // |b| of the components the run has
+  for (int k = 0; k < D; ++k) g += scene.body_force->value[static_cast<std::size_t>(k)] * scene.body_force->value[static_cast<std::size_t>(k)];
+  g = std::sqrt(g);
   weight *= g;
   const double speed = std::sqrt(g * phase.settings().h);
   EquilibriumReport report;
