@@ -5,11 +5,13 @@
 // starts with zero displacements and energy series, and the key is
 // checked like every scene key.
 #include "otmpm/integrators/integrator.hpp"
+#include "otmpm/io/results.hpp"
 #include "otmpm/run/initial_equilibrium.hpp"
 #include "otmpm/run/simulation.hpp"
 #include "otmpm/scene/validate.hpp"
 
 #include "run_support.hpp"
+#include "temp_dir.hpp"
 
 #include <doctest/doctest.h>
 
@@ -139,6 +141,17 @@ TEST_CASE("a slope brought into equilibrium stays still, one started stress-free
   CHECK(still_u < 0.02 * moving_u);
   CHECK(still_v < 1e-3);
   (void)moving.finish();
+}
+
+TEST_CASE("the result file says how the phase ended") {
+  test::TempDir tmp("initial_equilibrium");
+  RunOptions o;
+  o.out_file = tmp.file("slope.h5");
+  const RunSummary s =
+      run_scene(parse_scene(slope("initial_equilibrium = { time = 0.05 }"), "slope.toml", {"simulation.t_end=0.01"}), o);
+  REQUIRE(s.exit_code == 0);
+  CHECK(s.initial_equilibrium.starts_with("not converged in")); // 0.05 s is a sixth of what it needs
+  CHECK(read_string_attribute(o.out_file, "initial_equilibrium") == s.initial_equilibrium);
 }
 
 TEST_CASE("every integrator of the fixed grid brings the slope into equilibrium") {
