@@ -30,10 +30,12 @@ constexpr double kRho = 2000.0, kG = 9.81, kNu = 0.3;
 /// its base and held laterally at its sides, under gravity; stress-free at
 /// the start.
 std::string column(const std::string& phase) {
-  return "[simulation]\ndimension = 2\nmode = \"mpm\"\nintegrator = \"musl\"\nt_end = 0.5\ncfl = 0.4\n" + phase +
+  return "[simulation]\ndimension = 2\nmode = \"mpm\"\nintegrator = \"musl\"\nt_end = 0.5\ncfl = 0.4\n" +
+         phase +
          "\n[basis]\nkind = \"linear\"\n"
          "[grid]\nlower = [0.0, 0.0]\nupper = [0.5, 5.0]\ncells = [2, 20]\n"
-         "[[material]]\nname = \"soil\"\nmodel = \"linear_elastic\"\ndensity = 2000.0\nyoung = 1.0e7\npoisson = 0.3\n"
+         "[[material]]\nname = \"soil\"\nmodel = \"linear_elastic\"\ndensity = 2000.0\nyoung = "
+         "1.0e7\npoisson = 0.3\n"
          "[[body]]\nname = \"column\"\nmaterial = \"soil\"\nlower = [0.0, 0.0]\nupper = [0.5, 4.0]\n"
          "particles_per_cell = 2\n"
          "[body_force]\nvalue = [0.0, -9.81]\n"
@@ -45,10 +47,12 @@ std::string column(const std::string& phase) {
 
 /// A dry elastic slope (1:1.5, 2 m high) on a fixed base, stress-free at the start.
 std::string slope(const std::string& phase) {
-  return "[simulation]\ndimension = 2\nmode = \"mpm\"\nintegrator = \"musl\"\nt_end = 2.0\ncfl = 0.4\n" + phase +
+  return "[simulation]\ndimension = 2\nmode = \"mpm\"\nintegrator = \"musl\"\nt_end = 2.0\ncfl = 0.4\n" +
+         phase +
          "\n[basis]\nkind = \"linear\"\n"
          "[grid]\nlower = [-0.5, 0.0]\nupper = [6.5, 3.0]\ncells = [28, 12]\n"
-         "[[material]]\nname = \"soil\"\nmodel = \"linear_elastic\"\ndensity = 2000.0\nyoung = 1.0e7\npoisson = 0.3\n"
+         "[[material]]\nname = \"soil\"\nmodel = \"linear_elastic\"\ndensity = 2000.0\nyoung = "
+         "1.0e7\npoisson = 0.3\n"
          "[[body]]\nname = \"slope\"\nmaterial = \"soil\"\nshape = \"polygon\"\n"
          "vertices = [[0.0, 0.0], [6.0, 0.0], [6.0, 2.0], [3.0, 2.0]]\nparticles_per_cell = 2\n"
          "[body_force]\nvalue = [0.0, -9.81]\n"
@@ -78,8 +82,8 @@ double largest_speed(const Particles<2>& P) {
 } // namespace
 
 TEST_CASE("a confined elastic column ends at sigma_yy = -rho g (H - y) and sigma_xx = K0 sigma_yy") {
-  const Scene scene = parse_scene(column("initial_equilibrium = { time = 10.0, damping = 0.7, tolerance = 1e-4 }"),
-                                  "column.toml");
+  const Scene scene = parse_scene(
+      column("initial_equilibrium = { time = 10.0, damping = 0.7, tolerance = 1e-4 }"), "column.toml");
   Simulation sim(scene, no_files());
   const Engine<2>& e = sim.engine<2>();
   const Particles<2>& P = e.particles();
@@ -107,7 +111,8 @@ TEST_CASE("a confined elastic column ends at sigma_yy = -rho g (H - y) and sigma
   CHECK(mean == doctest::Approx(exact_mean).epsilon(1e-3));
 }
 
-TEST_CASE("a slope brought into equilibrium stays still, one started stress-free moves; its series start at zero") {
+TEST_CASE(
+    "a slope brought into equilibrium stays still, one started stress-free moves; its series start at zero") {
   const std::string phase = "initial_equilibrium = { time = 20.0, tolerance = 1e-4 }";
   Simulation still(parse_scene(slope(phase), "slope.toml"), no_files());
   const Engine<2>& e = still.engine<2>();
@@ -147,8 +152,9 @@ TEST_CASE("the result file says how the phase ended") {
   test::TempDir tmp("initial_equilibrium");
   RunOptions o;
   o.out_file = tmp.file("slope.h5");
-  const RunSummary s =
-      run_scene(parse_scene(slope("initial_equilibrium = { time = 0.05 }"), "slope.toml", {"simulation.t_end=0.01"}), o);
+  const RunSummary s = run_scene(
+      parse_scene(slope("initial_equilibrium = { time = 0.05 }"), "slope.toml", {"simulation.t_end=0.01"}),
+      o);
   REQUIRE(s.exit_code == 0);
   CHECK(s.initial_equilibrium.starts_with("not converged in")); // 0.05 s is a sixth of what it needs
   CHECK(read_string_attribute(o.out_file, "initial_equilibrium") == s.initial_equilibrium);
@@ -158,10 +164,12 @@ TEST_CASE("every integrator of the fixed grid brings the slope into equilibrium"
   for (const IntegratorKind& k : integrator_kinds()) {
     if (k.needs_ul || k.needs_bspline) continue;
     CAPTURE(k.name);
-    std::vector<std::string> sets{"simulation.integrator=\"" + std::string(k.name) + "\"", "simulation.t_end=0.5"};
+    std::vector<std::string> sets{"simulation.integrator=\"" + std::string(k.name) + "\"",
+                                  "simulation.t_end=0.5"};
     if (k.needs_consistent_mass) sets.push_back("simulation.mass=\"consistent\"");
-    Simulation sim(parse_scene(slope("initial_equilibrium = { time = 20.0, tolerance = 1e-4 }"), "slope.toml", sets),
-                   no_files());
+    Simulation sim(
+        parse_scene(slope("initial_equilibrium = { time = 20.0, tolerance = 1e-4 }"), "slope.toml", sets),
+        no_files());
     double moved = 0.0;
     while (!sim.finished()) {
       sim.step();
@@ -174,14 +182,17 @@ TEST_CASE("every integrator of the fixed grid brings the slope into equilibrium"
   }
 }
 
-TEST_CASE("simulation.initial_equilibrium is checked with the file's line, and needs the fixed grid and a constant weight") {
+TEST_CASE("simulation.initial_equilibrium is checked with the file's line, and needs the fixed grid and a "
+          "constant weight") {
   using test::input_error_of;
-  std::string why = input_error_of([] { parse_scene(column("initial_equilibrium = { time = 1.0, damping = 1.0 }"), "c.toml"); });
+  std::string why = input_error_of(
+      [] { parse_scene(column("initial_equilibrium = { time = 1.0, damping = 1.0 }"), "c.toml"); });
   CHECK(why.find("c.toml:7") != std::string::npos);
   CHECK(why.find("damping") != std::string::npos);
   why = input_error_of([] { parse_scene(column("initial_equilibrium = { damping = 0.5 }"), "c.toml"); });
   CHECK(why.find("time") != std::string::npos);
-  why = input_error_of([] { parse_scene(column("initial_equilibrium = { time = 1.0, alpha = 0.5 }"), "c.toml"); });
+  why = input_error_of(
+      [] { parse_scene(column("initial_equilibrium = { time = 1.0, alpha = 0.5 }"), "c.toml"); });
   CHECK(why.find("alpha") != std::string::npos);
   Scene s = parse_scene(column("initial_equilibrium = { time = 1.0 }"), "c.toml");
   s.simulation.initial_equilibrium->damping = 1.0; // a Scene built in code meets the same row
@@ -206,7 +217,10 @@ TEST_CASE("simulation.initial_equilibrium is checked with the file's line, and n
   why = input_error_of([&] { validate_scene(s, 2); });
   CHECK(why.find("needs mode = \"mpm\"") != std::string::npos);
   // written back as TOML it reads back the same
-  const Scene again = parse_scene(to_toml(parse_scene(column("initial_equilibrium = { time = 2.5, damping = 0.8, tolerance = 1e-5 }"), "c.toml")), "again.toml");
+  const Scene again = parse_scene(
+      to_toml(parse_scene(column("initial_equilibrium = { time = 2.5, damping = 0.8, tolerance = 1e-5 }"),
+                          "c.toml")),
+      "again.toml");
   REQUIRE(again.simulation.initial_equilibrium);
   CHECK(again.simulation.initial_equilibrium->time == 2.5);
   CHECK(again.simulation.initial_equilibrium->damping == 0.8);
@@ -253,5 +267,6 @@ TEST_CASE("a saturated dike brought into equilibrium stands still under its slop
   const RunSummary s = sim.finish();
   MESSAGE(s.initial_equilibrium << "; largest displacement over 3 s: " << moved << " m");
   CHECK(s.initial_equilibrium.starts_with("converged"));
-  CHECK(moved < 0.01); // the phase leaves the residual of its tolerance: 2.2 mm at the crest in the first second
+  CHECK(moved <
+        0.01); // the phase leaves the residual of its tolerance: 2.2 mm at the crest in the first second
 }

@@ -1,9 +1,9 @@
 /// \file initial_equilibrium.cpp
 /// The gravity-loading phase (initial_equilibrium.hpp, docs/theory.md
-/// sect. 15, "Initial equilibrium"): an engine of the phase's scene stepped with local damping,
-/// then its state moved into the run's engine through the checkpoint
-/// groups (Engine::save_state / restore_state), which carry everything a
-/// step hands to the next.
+/// sect. 15, "Initial equilibrium"): an engine of the phase's scene stepped
+/// with local damping, then its state moved into the run's engine through
+/// the checkpoint groups (Engine::save_state / restore_state), which carry
+/// everything a step hands to the next.
 #include "otmpm/run/initial_equilibrium.hpp"
 
 #include "otmpm/assembly/assembler.hpp"
@@ -103,7 +103,8 @@ Scene equilibrium_scene(const Scene& scene) {
   for (WallSection& w : s.walls) w.velocity = Vec3{0, 0, 0};
   for (PlateSection& p : s.plates)
     if (p.time.kind != "constant") p.force = 0.0, p.time = {};
-  std::erase_if(s.tractions, [](const TractionSection& t) { return t.time.kind != "constant" || !t.function.empty(); });
+  std::erase_if(s.tractions,
+                [](const TractionSection& t) { return t.time.kind != "constant" || !t.function.empty(); });
   return s;
 }
 
@@ -114,9 +115,7 @@ template <int D> EquilibriumReport settle(const Scene& scene, Engine<D>& e) {
   const Particles<D>& P = phase.particles();
   double weight = 0.0;
   for (int p = 0; p < P.size(); ++p) weight += P.m[p];
-  double g = 0.0; // |b| of the components the run has
-  for (int k = 0; k < D; ++k) g += scene.body_force->value[static_cast<std::size_t>(k)] * scene.body_force->value[static_cast<std::size_t>(k)];
-  g = std::sqrt(g);
+  const double g = first_components(scene.body_force->value, D).norm(); // |b| of the run's components
   weight *= g;
   const double speed = std::sqrt(g * phase.settings().h);
   EquilibriumReport report;
@@ -125,15 +124,16 @@ template <int D> EquilibriumReport settle(const Scene& scene, Engine<D>& e) {
   try {
     while (phase.time() < q.time * (1.0 - time_slack)) {
       interrupt_point("bringing the bodies into their initial equilibrium");
-      std::tie(report.force_residual, report.velocity_residual) = damped_step(phase, q.damping, weight, speed, v0, w0);
+      std::tie(report.force_residual, report.velocity_residual) =
+          damped_step(phase, q.damping, weight, speed, v0, w0);
       report.steps = phase.steps();
       report.time = phase.time();
       report.converged = std::max(report.force_residual, report.velocity_residual) < q.tolerance;
       if (report.converged) break;
     }
   } catch (const InstabilityError& err) { // the phase's step and time, before the run's t = 0
-    throw InstabilityError(std::string("in the initial equilibrium phase (simulation.initial_equilibrium): ") +
-                           err.what());
+    throw InstabilityError(
+        std::string("in the initial equilibrium phase (simulation.initial_equilibrium): ") + err.what());
   }
   Checkpoint run; // the run's engine as built: its clock, impulses and works at zero, its initial velocities
   e.save_state(run);

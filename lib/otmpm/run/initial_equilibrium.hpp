@@ -1,10 +1,11 @@
 #pragma once
 /// \file initial_equilibrium.hpp
 /// The gravity-loading phase of `simulation.initial_equilibrium`
-/// (docs/theory.md sect. 15, "Initial equilibrium"): before t = 0 the bodies are stepped under
-/// the scene's loads at t = 0 with Cundall's local non-viscous damping
-/// (eq. 15.15) until the residual (eq. 15.16) falls below the tolerance or
-/// the phase's time has run; the run then starts from that state.
+/// (docs/theory.md sect. 15, "Initial equilibrium"): before t = 0 the
+/// bodies are stepped under the scene's loads at t = 0 with Cundall's local
+/// non-viscous damping (eq. 15.15) until the residuals (eq. 15.16) fall
+/// below the tolerance or the phase's time has run; the run then starts
+/// from that state.
 #include "otmpm/engine/engine.hpp"
 #include "otmpm/scene/scene.hpp"
 

@@ -36,11 +36,11 @@ using Vec3 = std::array<double, 3>;
 Vec<3> first_components(const Vec3& v, int dim);
 
 /// A gravity-loading phase before t = 0 (`simulation.initial_equilibrium`,
-/// docs/theory.md sect. 15, "Initial equilibrium"): the scene's loads at t = 0 step the bodies
-/// with Cundall's local non-viscous damping (eq. 15.15) until the residual
-/// (eq. 15.16) falls below `tolerance` or `time` has run; the run then starts
-/// from the equilibrated stresses with its own initial velocities and zero
-/// displacements and energy series.
+/// docs/theory.md sect. 15, "Initial equilibrium"): the scene's loads at
+/// t = 0 step the bodies with Cundall's local non-viscous damping (eq.
+/// 15.15) until the residuals (eq. 15.16) fall below `tolerance` or `time`
+/// has run; the run then starts from the equilibrated stresses with its own
+/// initial velocities and zero displacements and energy series.
 struct InitialEquilibrium {
   double time = 0.0;       ///< the longest the phase may run [s]
   double damping = 0.7;    ///< alpha of eq. 15.15, 0 <= alpha < 1

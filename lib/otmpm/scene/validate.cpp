@@ -105,10 +105,10 @@ void check_initial_equilibrium(const Scene& s) {
                                    {&kEquilibriumTolerance, q->tolerance}})
     check_number(s, key + "." + std::string(spec->key), value, *spec);
   check(s, s.simulation.mode == "mpm", key, "needs mode = \"mpm\" (the fixed grid), got \"", s.simulation.mode, "\"");
-  check(s, s.body_force.has_value(), key, "brings the bodies into equilibrium under their weight: it needs a [body_force]");
-  const Vec3& b = s.body_force->value;
-  check(s, b[0] != 0.0 || (s.simulation.dimension > 1 && b[1] != 0.0) || (s.simulation.dimension > 2 && b[2] != 0.0),
-        key, "brings the bodies into equilibrium under their weight: body_force.value is zero");
+  check(s, s.body_force.has_value(), key,
+        "brings the bodies into equilibrium under their weight: it needs a [body_force]");
+  check(s, first_components(s.body_force->value, s.simulation.dimension).norm() != 0.0, key,
+        "brings the bodies into equilibrium under their weight: body_force.value is zero");
   check(s, s.body_force->time.kind == "constant", key,
         "brings the bodies into equilibrium under their weight at t = 0: body_force.time must be constant");
 }
