@@ -248,6 +248,7 @@ int run_command(const SceneArgs& a) {
   if (s.interrupted) report_interrupt(s, scene.get());
   else if (s.exit_code != 0) std::fprintf(stderr, "otmpm: %s\n", s.status.c_str());
   if (!a.quiet) print_phases(s);
+  if (!s.initial_equilibrium.empty()) std::printf("initial equilibrium: %s\n", s.initial_equilibrium.c_str());
   std::printf("%s\n", summary_line(s).c_str());
   if (!s.out_file.empty() && !a.quiet) std::printf("results: %s\n", s.out_file.c_str());
   return s.interrupted ? interrupted_exit_status() : s.exit_code;

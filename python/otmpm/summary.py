@@ -17,7 +17,9 @@ class Summary(collections.abc.Mapping):
     rms_velocity_error, history_error_A), max_energy_ratio, energy_drift,
     phases (dict: wall seconds per phase), diagnostics (dict, empty in mpm
     mode: node_resets in ul mode, widened_supports and moved_points with a
-    searching basis in ul mode), out_file (None without a result file). The values are those the result file stores as root attributes.
+    searching basis in ul mode), initial_equilibrium (how the gravity-loading phase of
+    simulation.initial_equilibrium ended, None without one), out_file (None without a
+    result file). The values are those the result file stores as root attributes.
     str(summary) is the command line's summary line.
     """
 

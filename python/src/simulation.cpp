@@ -74,6 +74,8 @@ py::object summary_object(const RunSummary& s) {
   d["energy_drift"] = s.energy.energy_drift();
   d["phases"] = phases;
   d["diagnostics"] = diagnostics;
+  d["initial_equilibrium"] =
+      s.initial_equilibrium.empty() ? py::object(py::none()) : py::object(py::str(s.initial_equilibrium));
   d["out_file"] = s.out_file.empty() ? py::object(py::none()) : py::object(py::str(s.out_file));
   return py::module_::import("otmpm.summary").attr("Summary")(d, summary_line(s));
 }

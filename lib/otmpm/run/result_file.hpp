@@ -181,6 +181,7 @@ private:
     writer_->set_attribute("wall_seconds", s.wall_seconds);
     writer_->set_attribute("particles", static_cast<long long>(s.particles));
     writer_->set_attribute("nodes", static_cast<long long>(s.nodes));
+    if (!s.initial_equilibrium.empty()) writer_->set_attribute("initial_equilibrium", s.initial_equilibrium);
     for (const auto& [name, value] : s.errors) writer_->set_attribute(name, value);
     for (const auto& [name, value] : s.diagnostics) writer_->set_attribute(name, value);
     writer_->set_attribute("max_energy_ratio", s.energy.max_energy_ratio());

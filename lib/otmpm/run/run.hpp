@@ -98,6 +98,9 @@ struct RunSummary {
   /// docs/theory.md eq. 6.5); 0 without walls or [contact]
   double impact = 0.0;
   PhaseTimers timers;
+  /// How the gravity-loading phase of simulation.initial_equilibrium ended
+  /// (EquilibriumReport::describe); empty without one (or in a restart).
+  std::string initial_equilibrium;
   std::string out_file;
   double particle_steps_per_second() const { return wall_seconds > 0 ? particles * steps / wall_seconds : 0.0; }
 };

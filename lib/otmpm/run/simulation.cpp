@@ -9,6 +9,7 @@
 #include "otmpm/assembly/exact_solutions.hpp"
 #include "otmpm/distributed/global_view.hpp"
 #include "otmpm/interrupt.hpp"
+#include "otmpm/run/initial_equilibrium.hpp"
 #include "otmpm/run/recorder.hpp"
 #include "otmpm/run/restart.hpp"
 #include "otmpm/run/run_common.hpp"
@@ -142,7 +143,14 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
   const Scene& init(const Scene& s, const Checkpoint* resume) {
     scene = s;
     if (resume) e.restore_state(distributed::local_checkpoint(e, *resume, std::exchange(restart_rows, {})));
-    else check_first_step(scene, e.stable_dt(), e.wave_speed());
+    else if (const auto& q = scene.simulation.initial_equilibrium) {
+      if (distributed::Comm::world().size() > 1)
+        input_error(scene.locate("simulation.initial_equilibrium"), "runs in a serial run only (one rank)");
+      std::optional<InterruptPolling> polling; // as in the set-up (build): SIGINT stops the phase
+      if (options.interrupt) polling.emplace(options.interrupt);
+      summary.initial_equilibrium = settle<D>(scene, e).describe(q->tolerance);
+    }
+    if (!resume) check_first_step(scene, e.stable_dt(), e.wave_speed());
     return scene;
   }
 

@@ -93,7 +93,7 @@ void check_derived_box(const TableReader& t, std::string_view from, const Vec3& 
 SimulationSection read_simulation(const TableReader& t) {
   std::vector<std::string_view> keys{"dimension", "mode",          "integrator",  "mass",        "volumetric", "node_reset",
                                      "t_end",     "cfl",           "dt",          "mass_tolerance",
-                                     "energy_limit", "max_steps",  "memory_limit"};
+                                     "energy_limit", "max_steps",  "memory_limit", "initial_equilibrium"};
   for (const ParameterSpec* p : integrator_parameters()) keys.push_back(p->key);
   t.only(keys);
   SimulationSection s;
@@ -126,6 +126,14 @@ SimulationSection read_simulation(const TableReader& t) {
   s.energy_limit = number(t, kEnergyLimit, s.energy_limit);
   s.max_steps = number(t, kMaxSteps, s.max_steps);
   s.memory_limit = number(t, kMemoryLimit, s.memory_limit);
+  if (auto q = t.table("initial_equilibrium")) {
+    q->only({"time", "damping", "tolerance"});
+    InitialEquilibrium e;
+    e.time = number(*q, kEquilibriumTime);
+    e.damping = number(*q, kEquilibriumDamping, e.damping);
+    e.tolerance = number(*q, kEquilibriumTolerance, e.tolerance);
+    s.initial_equilibrium = e;
+  }
   return s;
 }
 

@@ -35,6 +35,18 @@ using Vec3 = std::array<double, 3>;
 /// The first `dim` components of `v` as an Eigen vector (the others zero).
 Vec<3> first_components(const Vec3& v, int dim);
 
+/// A gravity-loading phase before t = 0 (`simulation.initial_equilibrium`,
+/// docs/theory.md sect. 15, "Initial equilibrium"): the scene's loads at
+/// t = 0 step the bodies with Cundall's local non-viscous damping (eq.
+/// 15.15) until the residuals (eq. 15.16) fall below `tolerance` or `time`
+/// has run; the run then starts from the equilibrated stresses with its own
+/// initial velocities and zero displacements and energy series.
+struct InitialEquilibrium {
+  double time = 0.0;       ///< the longest the phase may run [s]
+  double damping = 0.7;    ///< alpha of eq. 15.15, 0 <= alpha < 1
+  double tolerance = 1e-3; ///< of the residual, eq. 15.16
+};
+
 struct SimulationSection {
   int dimension = 1;
   std::string mode = "mpm";        ///< mpm | ul
@@ -62,6 +74,7 @@ struct SimulationSection {
   /// Largest estimated memory of a run in bytes; 0: the memory this process
   /// may use (scene/resources.hpp available_memory()).
   double memory_limit = 0.0;
+  std::optional<InitialEquilibrium> initial_equilibrium; ///< none: the run starts from the seeded state
   SourceRef where;
   /// True in `ul` mode (nodes advected with the material).
   bool nodes_move() const { return mode == "ul"; }

@@ -38,6 +38,9 @@ toml::table simulation(const SimulationSection& s, const Scene& scene) {
   // The reader takes one of cfl and dt: a fixed dt makes cfl irrelevant.
   if (s.dt) t.insert("dt", *s.dt);
   else t.insert("cfl", s.cfl);
+  if (const auto& q = s.initial_equilibrium)
+    t.insert("initial_equilibrium",
+             toml::table{{"time", q->time}, {"damping", q->damping}, {"tolerance", q->tolerance}});
   return t;
 }
 

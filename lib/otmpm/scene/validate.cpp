@@ -94,6 +94,25 @@ void check_time(const Scene& s, const std::string& key, const TimeFunction& g) {
   if (g.kind == "ramp") check_number(s, key + ".period", g.period, scene_keys::kPeriod);
 }
 
+/// simulation.initial_equilibrium: its numbers, and a scene whose loads at
+/// t = 0 it can bring into equilibrium: the fixed grid and a constant body force.
+void check_initial_equilibrium(const Scene& s) {
+  const auto& q = s.simulation.initial_equilibrium;
+  if (!q) return;
+  const std::string key = "simulation.initial_equilibrium";
+  using namespace scene_keys;
+  for (const auto& [spec, value] : {std::pair{&kEquilibriumTime, q->time}, {&kEquilibriumDamping, q->damping},
+                                   {&kEquilibriumTolerance, q->tolerance}})
+    check_number(s, key + "." + std::string(spec->key), value, *spec);
+  check(s, s.simulation.mode == "mpm", key, "needs mode = \"mpm\" (the fixed grid), got \"", s.simulation.mode, "\"");
+  check(s, s.body_force.has_value(), key,
+        "brings the bodies into equilibrium under their weight: it needs a [body_force]");
+  check(s, first_components(s.body_force->value, s.simulation.dimension).norm() != 0.0, key,
+        "brings the bodies into equilibrium under their weight: body_force.value is zero");
+  check(s, s.body_force->time.kind == "constant", key,
+        "brings the bodies into equilibrium under their weight at t = 0: body_force.time must be constant");
+}
+
 void check_simulation(const Scene& s, int dim) {
   const SimulationSection& m = s.simulation;
   check(s, m.dimension == dim, "simulation.dimension", "the scene is ", m.dimension, "D but the run is ", dim, "D");
@@ -132,6 +151,7 @@ void check_simulation(const Scene& s, int dim) {
   for (const auto& [spec, value] : {std::pair{&kMassTolerance, m.mass_tolerance}, {&kEnergyLimit, m.energy_limit},
                                    {&kMaxSteps, m.max_steps}, {&kMemoryLimit, m.memory_limit}})
     check_number(s, "simulation." + std::string(spec->key), value, *spec);
+  check_initial_equilibrium(s);
 }
 
 void check_grid(const Scene& s, int dim) {

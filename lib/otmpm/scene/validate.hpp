@@ -34,6 +34,12 @@ inline constexpr ParameterSpec kEnergyLimit{"energy_limit", "runaway energy, a m
 inline constexpr ParameterSpec kMaxSteps{"max_steps", "the most steps a run may take", std::nullopt, 1.0};
 inline constexpr ParameterSpec kMemoryLimit{"memory_limit", "bytes a run may use (0: what the process may use)",
                                             std::nullopt, 0.0};
+inline constexpr ParameterSpec kEquilibriumTime{"time", "longest time of the initial equilibrium phase [s]",
+                                                std::nullopt, 0.0, true};
+inline constexpr ParameterSpec kEquilibriumDamping{"damping", "local damping factor of the initial equilibrium phase",
+                                                   0.7, 0.0, false, 1.0, true};
+inline constexpr ParameterSpec kEquilibriumTolerance{"tolerance", "residual that ends the initial equilibrium phase",
+                                                     1e-3, 0.0, true, 1.0, true};
 inline constexpr ParameterSpec kPerturbation{"perturbation", "node perturbation, a fraction of h", std::nullopt, 0.0,
                                              false, 0.5, true};
 inline constexpr ParameterSpec kFriction{"friction", "Coulomb friction coefficient", std::nullopt, 0.0};

@@ -1,0 +1,272 @@
+// The gravity-loading phase of simulation.initial_equilibrium
+// (run/initial_equilibrium.hpp, docs/theory.md sect. 15, "Initial equilibrium"): a confined
+// elastic column reaches the geostatic stress, a slope brought into
+// equilibrium stays still where one started stress-free moves, the run
+// starts with zero displacements and energy series, and the key is
+// checked like every scene key.
+#include "otmpm/integrators/integrator.hpp"
+#include "otmpm/io/results.hpp"
+#include "otmpm/run/initial_equilibrium.hpp"
+#include "otmpm/run/simulation.hpp"
+#include "otmpm/scene/validate.hpp"
+
+#include "run_support.hpp"
+#include "temp_dir.hpp"
+
+#include <doctest/doctest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <vector>
+
+using namespace otmpm;
+
+namespace {
+
+constexpr double kRho = 2000.0, kG = 9.81, kNu = 0.3;
+
+/// A linear elastic column 0.5 m wide and 4 m high (h = 0.25 m), fixed at
+/// its base and held laterally at its sides, under gravity; stress-free at
+/// the start.
+std::string column(const std::string& phase) {
+  return "[simulation]\ndimension = 2\nmode = \"mpm\"\nintegrator = \"musl\"\nt_end = 0.5\ncfl = 0.4\n" +
+         phase +
+         "\n[basis]\nkind = \"linear\"\n"
+         "[grid]\nlower = [0.0, 0.0]\nupper = [0.5, 5.0]\ncells = [2, 20]\n"
+         "[[material]]\nname = \"soil\"\nmodel = \"linear_elastic\"\ndensity = 2000.0\nyoung = "
+         "1.0e7\npoisson = 0.3\n"
+         "[[body]]\nname = \"column\"\nmaterial = \"soil\"\nlower = [0.0, 0.0]\nupper = [0.5, 4.0]\n"
+         "particles_per_cell = 2\n"
+         "[body_force]\nvalue = [0.0, -9.81]\n"
+         "[[boundary]]\nname = \"base\"\nlower = [0.0, 0.0]\nupper = [0.5, 0.0]\nfix = [true, true]\n"
+         "[[boundary]]\nname = \"left\"\nlower = [0.0, 0.0]\nupper = [0.0, 5.0]\nfix = [true, false]\n"
+         "[[boundary]]\nname = \"right\"\nlower = [0.5, 0.0]\nupper = [0.5, 5.0]\nfix = [true, false]\n"
+         "[output]\nfile = \"column.h5\"\n";
+}
+
+/// A dry elastic slope (1:1.5, 2 m high) on a fixed base, stress-free at the start.
+std::string slope(const std::string& phase) {
+  return "[simulation]\ndimension = 2\nmode = \"mpm\"\nintegrator = \"musl\"\nt_end = 2.0\ncfl = 0.4\n" +
+         phase +
+         "\n[basis]\nkind = \"linear\"\n"
+         "[grid]\nlower = [-0.5, 0.0]\nupper = [6.5, 3.0]\ncells = [28, 12]\n"
+         "[[material]]\nname = \"soil\"\nmodel = \"linear_elastic\"\ndensity = 2000.0\nyoung = "
+         "1.0e7\npoisson = 0.3\n"
+         "[[body]]\nname = \"slope\"\nmaterial = \"soil\"\nshape = \"polygon\"\n"
+         "vertices = [[0.0, 0.0], [6.0, 0.0], [6.0, 2.0], [3.0, 2.0]]\nparticles_per_cell = 2\n"
+         "[body_force]\nvalue = [0.0, -9.81]\n"
+         "[[boundary]]\nname = \"base\"\nlower = [-0.5, 0.0]\nupper = [6.5, 0.0]\nfix = [true, true]\n"
+         "[[boundary]]\nname = \"back\"\nlower = [6.0, 0.0]\nupper = [6.0, 3.0]\nfix = [true, false]\n"
+         "[output]\nfile = \"slope.h5\"\n";
+}
+
+RunOptions no_files() {
+  RunOptions o;
+  o.write_results = false;
+  return o;
+}
+
+double largest_displacement(const Particles<2>& P) {
+  double d = 0.0;
+  for (int p = 0; p < P.size(); ++p) d = std::max(d, (P.x[p] - P.X[p]).norm());
+  return d;
+}
+
+double largest_speed(const Particles<2>& P) {
+  double v = 0.0;
+  for (int p = 0; p < P.size(); ++p) v = std::max(v, P.v[p].norm());
+  return v;
+}
+
+} // namespace
+
+TEST_CASE("a confined elastic column ends at sigma_yy = -rho g (H - y) and sigma_xx = K0 sigma_yy") {
+  const Scene scene = parse_scene(
+      column("initial_equilibrium = { time = 10.0, damping = 0.7, tolerance = 1e-4 }"), "column.toml");
+  Simulation sim(scene, no_files());
+  const Engine<2>& e = sim.engine<2>();
+  const Particles<2>& P = e.particles();
+  MESSAGE(sim.finish().initial_equilibrium);
+  // the exact stress at each particle's height as seeded (the phase moved it down)
+  Simulation seeded(parse_scene(column(""), "column.toml"), no_files());
+  const AlignedVector<Vec<2>> Y = seeded.engine<2>().particles().X;
+  REQUIRE(Y.size() == P.X.size());
+  const double H = 4.0, h = 0.25, K0 = kNu / (1.0 - kNu);
+  double mean = 0.0, exact_mean = 0.0, worst = 0.0;
+  for (int p = 0; p < P.size(); ++p) {
+    CAPTURE(P.x[p][1]);
+    const double exact = -kRho * kG * (H - Y[p][1]);
+    // a linear basis gives each cell one strain: the particle's stress is
+    // its cell's, within half a cell's weight of the exact one at the particle
+    CHECK(std::abs(P.sigma[p](1, 1) - exact) <= 0.5 * kRho * kG * h);
+    // the sides hold every node laterally: eps_xx = 0 exactly
+    CHECK(P.sigma[p](0, 0) == doctest::Approx(K0 * P.sigma[p](1, 1)).epsilon(1e-6));
+    mean += P.sigma[p](1, 1), exact_mean += exact;
+    worst = std::max(worst, std::abs(P.sigma[p](1, 1) - exact) / (kRho * kG * h));
+  }
+  MESSAGE("largest sigma_yy error: " << worst << " rho g h; mean " << mean / exact_mean - 1.0);
+  // the column's weight is carried: the mean vertical stress within ten
+  // times the phase's tolerance on the unbalanced force (measured: 1e-4)
+  CHECK(mean == doctest::Approx(exact_mean).epsilon(1e-3));
+}
+
+TEST_CASE(
+    "a slope brought into equilibrium stays still, one started stress-free moves; its series start at zero") {
+  const std::string phase = "initial_equilibrium = { time = 20.0, tolerance = 1e-4 }";
+  Simulation still(parse_scene(slope(phase), "slope.toml"), no_files());
+  const Engine<2>& e = still.engine<2>();
+  // at t = 0: no displacement, at rest, every work and loss zero, E(0) the stored energy
+  CHECK(e.time() == 0.0);
+  CHECK(e.steps() == 0);
+  CHECK(largest_displacement(e.particles()) == 0.0);
+  CHECK(largest_speed(e.particles()) == 0.0);
+  CHECK(e.energy().kinetic == 0.0);
+  CHECK(e.energy().external_work == 0.0);
+  CHECK(e.energy().reaction_work == 0.0);
+  CHECK(e.energy().dissipated == 0.0);
+  CHECK(e.energy().strain > 0.0);
+  CHECK(e.energy().initial == e.energy().strain);
+  Simulation moving(parse_scene(slope(""), "slope.toml"), no_files());
+  double still_u = 0.0, still_v = 0.0, moving_u = 0.0;
+  while (!still.finished()) {
+    still.step();
+    still_u = std::max(still_u, largest_displacement(e.particles()));
+    still_v = std::max(still_v, largest_speed(e.particles()));
+  }
+  while (!moving.finished()) {
+    moving.step();
+    moving_u = std::max(moving_u, largest_displacement(moving.engine<2>().particles()));
+  }
+  const RunSummary summary = still.finish();
+  MESSAGE(summary.initial_equilibrium);
+  MESSAGE("largest displacement over 2 s: " << still_u << " m with the phase, " << moving_u << " m without");
+  CHECK(summary.initial_equilibrium.starts_with("converged"));
+  CHECK(moving_u > 1e-3);
+  CHECK(still_u < 0.02 * moving_u);
+  CHECK(still_v < 1e-3);
+  (void)moving.finish();
+}
+
+TEST_CASE("the result file says how the phase ended") {
+  test::TempDir tmp("initial_equilibrium");
+  RunOptions o;
+  o.out_file = tmp.file("slope.h5");
+  const RunSummary s = run_scene(
+      parse_scene(slope("initial_equilibrium = { time = 0.05 }"), "slope.toml", {"simulation.t_end=0.01"}),
+      o);
+  REQUIRE(s.exit_code == 0);
+  CHECK(s.initial_equilibrium.starts_with("not converged in")); // 0.05 s is a sixth of what it needs
+  CHECK(read_string_attribute(o.out_file, "initial_equilibrium") == s.initial_equilibrium);
+}
+
+TEST_CASE("every integrator of the fixed grid brings the slope into equilibrium") {
+  for (const IntegratorKind& k : integrator_kinds()) {
+    if (k.needs_ul || k.needs_bspline) continue;
+    CAPTURE(k.name);
+    std::vector<std::string> sets{"simulation.integrator=\"" + std::string(k.name) + "\"",
+                                  "simulation.t_end=0.5"};
+    if (k.needs_consistent_mass) sets.push_back("simulation.mass=\"consistent\"");
+    Simulation sim(
+        parse_scene(slope("initial_equilibrium = { time = 20.0, tolerance = 1e-4 }"), "slope.toml", sets),
+        no_files());
+    double moved = 0.0;
+    while (!sim.finished()) {
+      sim.step();
+      moved = std::max(moved, largest_displacement(sim.engine<2>().particles()));
+    }
+    const RunSummary s = sim.finish();
+    MESSAGE(k.name << ": " << s.initial_equilibrium << "; largest displacement over 0.5 s " << moved << " m");
+    CHECK(s.initial_equilibrium.starts_with("converged"));
+    CHECK(moved < 1e-4); // started stress-free it moves 8.3 mm
+  }
+}
+
+TEST_CASE("simulation.initial_equilibrium is checked with the file's line, and needs the fixed grid and a "
+          "constant weight") {
+  using test::input_error_of;
+  std::string why = input_error_of(
+      [] { parse_scene(column("initial_equilibrium = { time = 1.0, damping = 1.0 }"), "c.toml"); });
+  CHECK(why.find("c.toml:7") != std::string::npos);
+  CHECK(why.find("damping") != std::string::npos);
+  why = input_error_of([] { parse_scene(column("initial_equilibrium = { damping = 0.5 }"), "c.toml"); });
+  CHECK(why.find("time") != std::string::npos);
+  why = input_error_of(
+      [] { parse_scene(column("initial_equilibrium = { time = 1.0, alpha = 0.5 }"), "c.toml"); });
+  CHECK(why.find("alpha") != std::string::npos);
+  Scene s = parse_scene(column("initial_equilibrium = { time = 1.0 }"), "c.toml");
+  s.simulation.initial_equilibrium->damping = 1.0; // a Scene built in code meets the same row
+  why = input_error_of([&] { validate_scene(s, 2); });
+  CHECK(why.find("key 'simulation.initial_equilibrium.damping'") != std::string::npos);
+  CHECK(why.ends_with(scene_keys::kEquilibriumDamping.check(1.0)));
+  s.simulation.initial_equilibrium->damping = 0.7;
+  s.body_force->time = {"ramp", 1.0};
+  why = input_error_of([&] { validate_scene(s, 2); });
+  CHECK(why.find("body_force.time must be constant") != std::string::npos);
+  CHECK(why.find("simulation.initial_equilibrium") != std::string::npos);
+  s = parse_scene(column("initial_equilibrium = { time = 1.0 }"), "c.toml");
+  s.body_force.reset();
+  why = input_error_of([&] { validate_scene(s, 2); });
+  CHECK(why.find("[body_force]") != std::string::npos);
+  s = parse_scene(column("initial_equilibrium = { time = 1.0 }"), "c.toml");
+  s.body_force->value = {0.0, 0.0, -9.81}; // the third component is not the 2D run's
+  why = input_error_of([&] { validate_scene(s, 2); });
+  CHECK(why.find("body_force.value is zero") != std::string::npos);
+  s = parse_scene(column("initial_equilibrium = { time = 1.0 }"), "c.toml");
+  s.simulation.mode = "ul";
+  why = input_error_of([&] { validate_scene(s, 2); });
+  CHECK(why.find("needs mode = \"mpm\"") != std::string::npos);
+  // written back as TOML it reads back the same
+  const Scene again = parse_scene(
+      to_toml(parse_scene(column("initial_equilibrium = { time = 2.5, damping = 0.8, tolerance = 1e-5 }"),
+                          "c.toml")),
+      "again.toml");
+  REQUIRE(again.simulation.initial_equilibrium);
+  CHECK(again.simulation.initial_equilibrium->time == 2.5);
+  CHECK(again.simulation.initial_equilibrium->damping == 0.8);
+  CHECK(again.simulation.initial_equilibrium->tolerance == 1e-5);
+}
+
+TEST_CASE("the phase's scene holds the loads at their values at t = 0") {
+  Scene s = parse_scene(slope("initial_equilibrium = { time = 3.0 }"), "slope.toml");
+  TractionSection ramped;
+  ramped.time.kind = "ramp";
+  ramped.time.period = 2.0;
+  s.tractions.push_back(ramped);
+  s.boundaries[0].water_rise = 1.0;
+  s.boundaries[0].time = {"ramp", 2.0};
+  s.boundaries[1].value = {0.1, 0.0, 0.0};
+  s.bodies[0].velocity = {1.0, 0.0, 0.0};
+  const Scene q = equilibrium_scene(s);
+  CHECK(q.simulation.t_end == 3.0);
+  CHECK(!q.simulation.initial_equilibrium);
+  CHECK(q.tractions.empty());
+  CHECK(!q.boundaries[0].water_rise);
+  CHECK(q.boundaries[1].value == Vec3{0, 0, 0});
+  CHECK(q.bodies[0].velocity == Vec3{0, 0, 0});
+}
+
+TEST_CASE("a saturated dike brought into equilibrium stands still under its slopes until the river rises") {
+  // examples/dike_rising.toml to t = 3 s: without the phase its crest's
+  // landward edge moves 12.8 cm landward in these 3 s (docs/gallery.md)
+  const std::string dike = OTMPM_SOURCE_DIR "/examples/dike_rising.toml";
+  Simulation sim(load_scene(dike, {"simulation.t_end=3.0"}), no_files());
+  const Engine<2>& e = sim.engine<2>();
+  CHECK(e.energy().darcy == 0.0);
+  CHECK(e.energy().pressure_average == 0.0);
+  CHECK(e.energy().kinetic == 0.0);
+  const Particles<2>& P = e.particles();
+  const StateField* w = P.find_state("liquid_velocity");
+  REQUIRE(w != nullptr);
+  CHECK(std::all_of(w->values.begin(), w->values.end(), [](double v) { return v == 0.0; }));
+  double moved = 0.0;
+  while (!sim.finished()) {
+    sim.step();
+    moved = std::max(moved, largest_displacement(P));
+  }
+  const RunSummary s = sim.finish();
+  MESSAGE(s.initial_equilibrium << "; largest displacement over 3 s: " << moved << " m");
+  CHECK(s.initial_equilibrium.starts_with("converged"));
+  CHECK(moved <
+        0.01); // the phase leaves the residual of its tolerance: 2.2 mm at the crest in the first second
+}
