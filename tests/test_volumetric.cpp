@@ -12,6 +12,7 @@
 #include "support.hpp"
 #include "temp_dir.hpp"
 
+#include <array>
 #include <cmath>
 #include <fstream>
 #include <random>
@@ -162,11 +163,12 @@ template <int D> void check_nodal_average() {
       }
     for (int p = 0; p < n; ++p)
       for (int e = t.begin(p); e < t.end(p); ++e)
-        out[static_cast<std::size_t>(p)] += t.N[e] * num[static_cast<std::size_t>(t.node[e])] /
-                                            den[static_cast<std::size_t>(t.node[e])];
+        out[static_cast<std::size_t>(p)] +=
+            t.N[e] * num[static_cast<std::size_t>(t.node[e])] / den[static_cast<std::size_t>(t.node[e])];
     return out;
   };
-  const std::vector<double> Jbar = smoothed([&](int p) { return split<D>(H0[static_cast<std::size_t>(p)]).first; });
+  const std::vector<double> Jbar =
+      smoothed([&](int p) { return split<D>(H0[static_cast<std::size_t>(p)]).first; });
   double spread = 0.0; // the average must change the volume ratios: a test that cannot fail otherwise
   for (int p = 0; p < n; ++p) {
     const auto [J0, iso0] = split<D>(H0[static_cast<std::size_t>(p)]);
@@ -178,7 +180,8 @@ template <int D> void check_nodal_average() {
   CHECK(spread > 1e-3);
   std::vector<double> shift(n);
   average.shift_mean_stress(t, nodes, V.data(), sigma.data(), shift.data(), n);
-  const std::vector<double> mbar = smoothed([&](int p) { return sigma[static_cast<std::size_t>(p)].trace() / D; });
+  const std::vector<double> mbar =
+      smoothed([&](int p) { return sigma[static_cast<std::size_t>(p)].trace() / D; });
   for (int p = 0; p < n; ++p)
     CHECK(shift[static_cast<std::size_t>(p)] + sigma[static_cast<std::size_t>(p)].trace() / D ==
           doctest::Approx(mbar[static_cast<std::size_t>(p)]).epsilon(1e-13).scale(1e6));
@@ -186,7 +189,8 @@ template <int D> void check_nodal_average() {
   const Mat<D> h = random_H<D>(rng, 0.02);
   AlignedVector<Mat<D>> Hh(n, h);
   average.apply(t, nodes, V.data(), Hh.data(), n);
-  for (const Mat<D>& Hp : Hh) CHECK((Hp - h).cwiseAbs().maxCoeff() <= 4e-16 * (1.0 + h.cwiseAbs().maxCoeff()));
+  for (const Mat<D>& Hp : Hh)
+    CHECK((Hp - h).cwiseAbs().maxCoeff() <= 4e-16 * (1.0 + h.cwiseAbs().maxCoeff()));
 }
 
 /// A 2D ul scene of a j2 block (20 x 10 cells of 0.05 m) with `extra` TOML.
@@ -235,7 +239,8 @@ TEST_CASE("F-bar reduces to F for a homogeneous deformation") {
   check_homogeneous<3>();
 }
 
-TEST_CASE("nodal F-bar: det dFbar is the nodal average interpolated back, the forces' mean stress the same (2D, 3D)") {
+TEST_CASE("nodal F-bar: det dFbar is the nodal average interpolated back, the forces' mean stress the same "
+          "(2D, 3D)") {
   check_nodal_average<2>();
   check_nodal_average<3>();
 }
@@ -248,7 +253,8 @@ TEST_CASE("F-bar in the engine: a homogeneous stretch gives the same F with and 
     const std::string integrator(kind.name);
     CAPTURE(integrator);
     const auto stretched = [&](const std::string& volumetric) {
-      Scene s = parse_scene(block_scene(R"(
+      Scene s = parse_scene(
+          block_scene(R"(
 [[body]]
 name = "b"
 material = "m"
@@ -256,9 +262,9 @@ lower = [0.0, 0.0]
 upper = [1.0, 0.5]
 velocity = [1.0, 0.0]
 )"),
-                            "stretch.toml",
-                            {"simulation.integrator=\"" + integrator + "\"", "simulation.volumetric=\"" + volumetric + "\"",
-                             std::string("basis.kind=\"") + (kind.needs_bspline ? "bspline2" : "linear") + "\""});
+          "stretch.toml",
+          {"simulation.integrator=\"" + integrator + "\"", "simulation.volumetric=\"" + volumetric + "\"",
+           std::string("basis.kind=\"") + (kind.needs_bspline ? "bspline2" : "linear") + "\""});
       Engine<2> e = assemble<2>(s);
       Mat<2> L;
       L << 0.3, 0.1, -0.05, -0.2;
@@ -306,8 +312,12 @@ TEST_CASE("F-bar: the internal forces' power is the rate of the energy the avera
     return s;
   };
   const double e = 1e-7;
+  std::vector<std::array<std::string, 3>> settings; // mode, basis, treatment
   for (const std::string& volumetric : averaging_treatments())
-  for (const auto& [mode, basis] : {std::pair{"ul", "linear"}, {"mpm", "linear"}, {"mpm", "lme"}, {"ul", "lme"}}) {
+    for (const auto& [mode, basis] :
+         {std::pair{"ul", "linear"}, {"mpm", "linear"}, {"mpm", "lme"}, {"ul", "lme"}})
+      settings.push_back({mode, basis, volumetric});
+  for (const auto& [mode, basis, volumetric] : settings) {
     const std::string setting = std::string(mode) + ", " + basis + ", " + volumetric;
     CAPTURE(setting);
     const Scene s = parse_scene(block_scene(R"(
@@ -390,8 +400,8 @@ upper = [1.0, 0.5]
   CHECK_FALSE(find_material_model("j2")->frictional);
   CHECK(volumetric_treatment(parse_scene(block_scene(body), "a.toml",
                                          {"simulation.mode=\"mpm\"", "simulation.volumetric=\"fbar\""})) == "fbar");
-  CHECK(volumetric_treatment(parse_scene(block_scene(body), "a.toml", {"simulation.volumetric=\"fbar_nodal\""})) ==
-        "fbar_nodal");
+  CHECK(volumetric_treatment(parse_scene(block_scene(body), "a.toml",
+                                         {"simulation.volumetric=\"fbar_nodal\""})) == "fbar_nodal");
   CHECK_THROWS_WITH_AS(parse_scene(block_scene(body), "a.toml", {"simulation.volumetric=\"bar\""}),
                        doctest::Contains("volumetric"), InputError);
   Scene s = parse_scene(block_scene(body), "a.toml");
@@ -403,10 +413,13 @@ upper = [1.0, 0.5]
   CHECK(text.find("volumetric = 'fbar'") != std::string::npos);
 }
 
-TEST_CASE("F-bar: results are bitwise identical with 1 and 2 threads (ul, j2, npc and fe, each averaging treatment)") {
+TEST_CASE("F-bar: results are bitwise identical with 1 and 2 threads (ul, j2, npc and fe, each averaging "
+          "treatment)") {
   // 3200 particles, a block pressed onto its base: plastic in the rows there
+  std::vector<std::pair<std::string, std::string>> settings; // treatment, integrator
   for (const std::string& volumetric : averaging_treatments())
-  for (const char* integrator : {"npc", "fe"}) {
+    for (const char* integrator : {"npc", "fe"}) settings.emplace_back(volumetric, integrator);
+  for (const auto& [volumetric, integrator] : settings) {
     CAPTURE(volumetric);
     CAPTURE(integrator);
     Particles<2> P[2];
@@ -426,8 +439,9 @@ lower = [0.0, 0.0]
 upper = [1.0, 0.0]
 fix = [true, true]
 )"),
-                            "fbar.toml", {std::string("simulation.integrator=\"") + integrator + "\"",
-                                          "simulation.volumetric=\"" + volumetric + "\""});
+                            "fbar.toml",
+                            {std::string("simulation.integrator=\"") + integrator + "\"",
+                             "simulation.volumetric=\"" + volumetric + "\""});
       Engine<2> e = assemble<2>(s);
       for (int k = 0; k < 8; ++k) e.step();
       P[threads - 1] = e.particles();

@@ -121,7 +121,8 @@ void NodalAverage<D>::shift_mean_stress(const BasisTable<D>& table, int nodes, c
 }
 
 template <int D>
-const double* FbarState<D>::nodal_mean_stress_shift(const Particles<D>& P, const BasisTable<D>& table, int nodes) {
+const double* FbarState<D>::nodal_mean_stress_shift(const Particles<D>& P, const BasisTable<D>& table,
+                                                    int nodes) {
   if (D == 1) return nullptr;
   shift.resize(static_cast<std::size_t>(P.size()));
   nodal.shift_mean_stress(table, nodes, P.V.data(), P.sigma.data(), shift.data(), P.size());

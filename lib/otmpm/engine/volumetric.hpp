@@ -43,8 +43,8 @@ namespace otmpm {
 
 /// How the engine treats the volumetric part of the deformation.
 enum class Volumetric {
-  none, ///< every particle's own dF (full integration of the volume change)
-  fbar, ///< dF's volume change averaged over the particle's cell (F-bar)
+  none,       ///< every particle's own dF (full integration of the volume change)
+  fbar,       ///< dF's volume change averaged over the particle's cell (F-bar)
   fbar_nodal, ///< dF's volume change averaged at the nodes and interpolated back (nodal F-bar)
 };
 
@@ -68,8 +68,8 @@ public:
 private:
   /// value[p] replaced by sum_I N_Ip a_I / sum_I N_Ip (over nodes with a sum),
   /// a_I = sum_q N_Iq V_q value[q] / sum_q N_Iq V_q over the q with use(q).
-  template <class Use> void smooth(const BasisTable<D>& table, int nodes, const double* V, double* value, int n,
-                                   Use&& use);
+  template <class Use>
+  void smooth(const BasisTable<D>& table, int nodes, const double* V, double* value, int n, Use&& use);
   std::vector<double> weighted_, weight_; ///< sum N V value and sum N V per node
   std::vector<double> value_;             ///< dJ_p or tr sigma_p of the current call, then its average
   std::vector<double> dJ_;                ///< dJ_p of the current apply
