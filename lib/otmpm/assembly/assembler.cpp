@@ -240,7 +240,10 @@ template <int D> StepSettings<D> build_settings(const Scene& scene, const Integr
   s.consistent_mass = sim.mass == "consistent" || integrator.needs_consistent_mass;
   s.mass_tolerance = sim.mass_tolerance;
   s.energy_limit = sim.energy_limit;
-  s.volumetric = volumetric_treatment(scene) == "fbar" ? Volumetric::fbar : Volumetric::none;
+  const std::string volumetric = volumetric_treatment(scene);
+  s.volumetric = volumetric == "fbar"         ? Volumetric::fbar
+                 : volumetric == "fbar_nodal" ? Volumetric::fbar_nodal
+                                              : Volumetric::none;
   if (s.volumetric == Volumetric::fbar) s.patch_grid = node_grid<D>(scene);
   if (node_reset_fraction(scene) > 0) s.node_reset = node_reset<D>(scene);
   return s;

@@ -105,6 +105,10 @@ Engine<D>::Engine(EngineParts<D> parts)
   const int bodies = P_.body.empty() ? 1 : 1 + *std::max_element(P_.body.begin(), P_.body.end());
   require<InputError>(!(parts.contact && dist_), "[contact]: body-body contact is not available in distributed "
                                                  "runs (MPI); run the scene on one process");
+  require<InputError>(
+      !(settings_.volumetric == Volumetric::fbar_nodal && dist_),
+      "simulation.volumetric = \"fbar_nodal\" is not available in distributed runs (MPI; its nodal "
+      "sums are not exchanged between the ranks); run the scene on one process or take \"fbar\"");
   if (parts.contact && bodies > 1) {
     using E = std::invalid_argument;
     require<E>(!mode_.nodes_move(), "Engine: body contact needs the fixed grid (mode mpm): in ul mode each body "
@@ -399,7 +403,11 @@ void Engine<D>::to_nodes_impl(const ToNodes<D>& what, Update&& update) {
   const Vec<D>* va = Momentum && what.a ? what.a->data() : nullptr;
   const Vec<D>* fext = field ? fext_.data() : nullptr;
   // F-bar: the patch's mean stress in place of the particle's (volumetric.hpp, docs/theory.md eq. 9.10)
-  const double* shift = Forces && settings_.volumetric == Volumetric::fbar ? fbar_.mean_stress_shift(P_) : nullptr;
+  const double* shift = !Forces                                    ? nullptr
+                        : settings_.volumetric == Volumetric::fbar ? fbar_.mean_stress_shift(P_)
+                        : settings_.volumetric == Volumetric::fbar_nodal
+                            ? fbar_.nodal_mean_stress_shift(P_, table_, static_cast<int>(nodal_.m.size()))
+                            : nullptr;
   const double c = what.c;
   // Inlined also where the liquid's sums join it (TwoPhase::scatter_with; measured: called, its
   // payload returned through memory, it took twice the time).
@@ -882,7 +890,7 @@ template <int D> void Engine<D>::assign_patches() {
 }
 
 template <int D> bool Engine<D>::average_volumetric(const Gradient<D>& g) {
-  if (settings_.volumetric != Volumetric::fbar || D == 1 || !g.field) return false;
+  if (settings_.volumetric == Volumetric::none || D == 1 || !g.field) return false;
   fbar_.H.resize(static_cast<std::size_t>(P_.size()));
   const Vec<D>* field = g.field->data();
   const double c = g.c;
@@ -892,7 +900,10 @@ template <int D> bool Engine<D>::average_volumetric(const Gradient<D>& g) {
       G.noalias() += field[table_.node[e]] * table_.dN[e].transpose();
     fbar_.H[p] = c * G;
   });
-  fbar_.average.apply(fbar_.patch, fbar_.patches, P_.V.data(), fbar_.H.data(), P_.size());
+  if (settings_.volumetric == Volumetric::fbar_nodal)
+    fbar_.nodal.apply(table_, static_cast<int>(nodal_.m.size()), P_.V.data(), fbar_.H.data(), P_.size());
+  else
+    fbar_.average.apply(fbar_.patch, fbar_.patches, P_.V.data(), fbar_.H.data(), P_.size());
   fbar_.ready = true;
   return true;
 }

@@ -23,8 +23,17 @@
 ///   sigma_eff,p = sigma_p + (mbar_c - m_p) I,   m_p = tr sigma_p / D,
 ///   mbar_c = sum_{q in c} V_q m_q / sum_{q in c} V_q,
 /// so that sum_p V_p sigma_eff,p : L_p = sum_p V_p sigma_p : Lbar_p, the rate
-/// of the energy the materials store (docs/theory.md eq. 9.10). Internal to
-/// the engine.
+/// of the energy the materials store (docs/theory.md eq. 9.10).
+///
+/// The nodal variant (`fbar_nodal`, docs/theory.md eq. 9.11) takes the patch
+/// through the basis instead of a cell: the volume ratios are averaged at the
+/// nodes and interpolated back,
+///   dJ_I = sum_p N_Ip V_p dJ_p / sum_p N_Ip V_p,   dJbar_p = sum_I N_Ip dJ_I,
+/// and the forces' mean stress likewise, mbar_p = sum_I N_Ip m_I with
+/// m_I = sum_q N_Iq V_q m_q / sum_q N_Iq V_q (the same symmetric operator, so
+/// the forces stay the work conjugate of the averaged rate). Internal to the
+/// engine.
+#include "otmpm/basis/basis.hpp"
 #include "otmpm/core.hpp"
 #include "otmpm/particles/particles.hpp"
 
@@ -34,8 +43,36 @@ namespace otmpm {
 
 /// How the engine treats the volumetric part of the deformation.
 enum class Volumetric {
-  none, ///< every particle's own dF (full integration of the volume change)
-  fbar, ///< dF's volume change averaged over the particle's cell (F-bar)
+  none,       ///< every particle's own dF (full integration of the volume change)
+  fbar,       ///< dF's volume change averaged over the particle's cell (F-bar)
+  fbar_nodal, ///< dF's volume change averaged at the nodes and interpolated back (nodal F-bar)
+};
+
+/// The nodal sums of the nodal F-bar average (docs/theory.md eq. 9.11): each
+/// particle's dJ_p (or mean stress) averaged at the nodes of its basis row
+/// with the weights N_Ip V_p and interpolated back with N_Ip; reused step
+/// after step.
+template <int D> class NodalAverage {
+public:
+  /// Replaces H_p by (dJbar_p / dJ_p)^{1/D} (I + H_p) - I for particles [0, n)
+  /// on the rows of `table` over `nodes` nodes; V[p] is the particle's volume at
+  /// the start of the step. The sums run in particle order (the same bits for
+  /// any thread count). A particle whose dJ_p is not positive keeps H_p and adds
+  /// nothing to its nodes; dJbar_p is normalised by the weights N_Ip of the
+  /// nodes that received a sum.
+  void apply(const BasisTable<D>& table, int nodes, const double* V, Mat<D>* H, int n);
+  /// shift[p] = mbar_p - m_p, m_p = tr sigma_p / D, for particles [0, n).
+  void shift_mean_stress(const BasisTable<D>& table, int nodes, const double* V, const Mat<D>* sigma,
+                         double* shift, int n);
+
+private:
+  /// value[p] replaced by sum_I N_Ip a_I / sum_I N_Ip (over nodes with a sum),
+  /// a_I = sum_q N_Iq V_q value[q] / sum_q N_Iq V_q over the q with use(q).
+  template <class Use>
+  void smooth(const BasisTable<D>& table, int nodes, const double* V, double* value, int n, Use&& use);
+  std::vector<double> weighted_, weight_; ///< sum N V value and sum N V per node
+  std::vector<double> value_;             ///< dJ_p or tr sigma_p of the current call, then its average
+  std::vector<double> dJ_;                ///< dJ_p of the current apply
 };
 
 /// The patch sums of the F-bar average; reused step after step.
@@ -70,15 +107,22 @@ template <int D> struct FbarState {
   AlignedVector<Mat<D>> H; ///< the averaged H_p of the current pass
   bool ready = false;      ///< the current pass reads H
   std::vector<double> shift; ///< mbar_c - m_p of the particles' stresses (shift_mean_stress)
+  NodalAverage<D> nodal;     ///< the sums of Volumetric::fbar_nodal
 
   /// The internal forces' mean-stress shifts (PatchAverage::shift_mean_stress)
   /// of the stresses and volumes in P, on the patches of this step; null in 1D.
   const double* mean_stress_shift(const Particles<D>& P);
+  /// The same for Volumetric::fbar_nodal (NodalAverage::shift_mean_stress) on
+  /// the rows of `table` over `nodes` nodes; null in 1D.
+  const double* nodal_mean_stress_shift(const Particles<D>& P, const BasisTable<D>& table, int nodes);
 };
 
 extern template class PatchAverage<1>;
 extern template class PatchAverage<2>;
 extern template class PatchAverage<3>;
+extern template class NodalAverage<1>;
+extern template class NodalAverage<2>;
+extern template class NodalAverage<3>;
 extern template struct FbarState<1>;
 extern template struct FbarState<2>;
 extern template struct FbarState<3>;

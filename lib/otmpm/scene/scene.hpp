@@ -55,9 +55,10 @@ struct SimulationSection {
   /// explicit_alpha, ...: IntegratorKind::parameters); the rest take their defaults.
   std::map<std::string, double> parameters;
   std::string mass = "lumped";     ///< lumped | consistent (default: consistent for otm and unified)
-  /// none | fbar: the volumetric part of each particle's deformation its own,
-  /// or averaged over its cell (F-bar, docs/theory.md sect. 9.8); empty: the
-  /// default (volumetric_treatment)
+  /// none | fbar | fbar_nodal: the volumetric part of each particle's
+  /// deformation its own, averaged over its cell (F-bar, docs/theory.md sect.
+  /// 9.8), or averaged at the nodes and interpolated back (eq. 9.11); empty:
+  /// the default (volumetric_treatment)
   std::string volumetric;
   /// ul: lay the nodes out anew on the grid's lattice over the particles when
   /// the nodes' smallest spacing falls below node_reset h (0: never; docs/theory.md sect.

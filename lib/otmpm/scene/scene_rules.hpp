@@ -23,7 +23,7 @@ inline constexpr std::array<std::string_view, 7> kShapes{"box",     "cylinder", 
                                                           "polygon", "sphere",   "stl"}; ///< body.shape
 inline constexpr std::array<std::string_view, 2> kModes{"mpm", "ul"};                       ///< simulation.mode
 inline constexpr std::array<std::string_view, 2> kMasses{"lumped", "consistent"};           ///< simulation.mass
-inline constexpr std::array<std::string_view, 2> kVolumetric{"none", "fbar"};               ///< simulation.volumetric
+inline constexpr std::array<std::string_view, 3> kVolumetric{"none", "fbar", "fbar_nodal"}; ///< simulation.volumetric
 inline constexpr std::array<std::string_view, 2> kGridKinds{"cartesian", "perturbed"};      ///< grid.kind
 inline constexpr std::array<std::string_view, 2> kSeedings{"element", "quadrature"};        ///< body.seeding (mesh)
 inline constexpr std::array<std::string_view, 2> kNodeSources{"lattice", "mesh"};           ///< body.nodes (mesh)
