@@ -7,6 +7,7 @@
 #include <exception>
 #include <stdexcept>
 #include <thread>
+#include <type_traits>
 
 namespace otmpm::distributed {
 
@@ -76,13 +77,22 @@ template <class T> void LocalRanks::reduce(int rank, std::span<T> values, std::s
   data_[r] = values.data();
   wait();
   // each rank combines its slice of the entries, as the tree would
-  std::vector<T> tree(P);
-  for (std::size_t i = n * r / P; i < n * (r + 1) / P; ++i) {
-    for (std::size_t q = 0; q < P; ++q) tree[q] = static_cast<const T*>(data_[q])[i];
-    const Op op = i < sums ? Op::sum : rest;
-    for (std::size_t mask = 1; mask < P; mask <<= 1)
-      for (std::size_t q = 0; q + mask < P; q += 2 * mask) tree[q] = combine(tree[q], tree[q + mask], op);
-    std::memcpy(result_.data() + i * sizeof(T), &tree[0], sizeof(T));
+  const std::size_t from = n * r / P, to = n * (r + 1) / P;
+  if constexpr (std::is_integral_v<T>) { // exact in any order: rank after rank, along the memory
+    std::vector<T> slice(static_cast<const T*>(data_[0]) + from, static_cast<const T*>(data_[0]) + to);
+    for (std::size_t q = 1; q < P; ++q)
+      for (std::size_t i = from; i < to; ++i)
+        slice[i - from] = combine(slice[i - from], static_cast<const T*>(data_[q])[i], i < sums ? Op::sum : rest);
+    if (to > from) std::memcpy(result_.data() + from * sizeof(T), slice.data(), (to - from) * sizeof(T));
+  } else {
+    std::vector<T> tree(P);
+    for (std::size_t i = from; i < to; ++i) {
+      for (std::size_t q = 0; q < P; ++q) tree[q] = static_cast<const T*>(data_[q])[i];
+      const Op op = i < sums ? Op::sum : rest;
+      for (std::size_t mask = 1; mask < P; mask <<= 1)
+        for (std::size_t q = 0; q + mask < P; q += 2 * mask) tree[q] = combine(tree[q], tree[q + mask], op);
+      std::memcpy(result_.data() + i * sizeof(T), &tree[0], sizeof(T));
+    }
   }
   wait();
   std::memcpy(static_cast<void*>(values.data()), result_.data(), n * sizeof(T));
