@@ -16,23 +16,22 @@ LocalRanks::LocalRanks(int size)
       data_(static_cast<std::size_t>(size)) {}
 
 void LocalRanks::wait() {
-  std::unique_lock<std::mutex> lock(mutex_);
   if (stopped_) throw Stopped{};
-  const long long generation = generation_;
-  if (++arrived_ == size_) {
-    arrived_ = 0;
+  const long long generation = generation_.load();
+  if (arrived_.fetch_add(1) + 1 == size_) {
+    arrived_.store(0);
     ++generation_;
-    arrived_all_.notify_all();
+    generation_.notify_all();
   } else {
-    arrived_all_.wait(lock, [&] { return generation_ != generation || stopped_; });
+    while (generation_.load() == generation && !stopped_) generation_.wait(generation);
   }
   if (stopped_) throw Stopped{};
 }
 
 void LocalRanks::stop() {
-  std::lock_guard<std::mutex> lock(mutex_);
   stopped_ = true;
-  arrived_all_.notify_all();
+  ++generation_; // wakes the waiting ranks, which then see stopped_
+  generation_.notify_all();
 }
 
 std::vector<Bytes> LocalRanks::allgather(int rank, const Bytes& mine) {
@@ -47,7 +46,8 @@ std::vector<Bytes> LocalRanks::alltoall(int rank, std::vector<Bytes> send) {
   posts_[static_cast<std::size_t>(rank)] = std::move(send);
   wait();
   std::vector<Bytes> received(static_cast<std::size_t>(size_));
-  for (std::size_t q = 0; q < received.size(); ++q) received[q] = posts_[q][static_cast<std::size_t>(rank)];
+  for (std::size_t q = 0; q < received.size(); ++q) // each post has one reader: taken, not copied
+    received[q] = std::move(posts_[q][static_cast<std::size_t>(rank)]);
   wait();
   return received;
 }

@@ -4,8 +4,7 @@
 /// state of their collectives. Internal to comm.cpp and comm_local.cpp.
 #include "otmpm/distributed/comm.hpp"
 
-#include <condition_variable>
-#include <mutex>
+#include <atomic>
 
 namespace otmpm::distributed {
 
@@ -36,11 +35,11 @@ public:
 
 private:
   int size_;
-  std::mutex mutex_;
-  std::condition_variable arrived_all_;
-  int arrived_ = 0;
-  long long generation_ = 0;
-  bool stopped_ = false;
+  // the barrier: the last rank to arrive starts the next generation
+  // (std::atomic::wait: the ranks wake without taking a lock in turn)
+  std::atomic<int> arrived_{0};
+  std::atomic<long long> generation_{0};
+  std::atomic<bool> stopped_{false};
   std::vector<Bytes> slots_;              ///< allgather: each rank's message
   std::vector<std::vector<Bytes>> posts_; ///< alltoall: posts_[from][to]
   std::vector<const void*> data_;         ///< reduce, broadcast: each rank's values

@@ -156,12 +156,15 @@ Decomposition<D> Decomposition<D>::rcb(const Index<D>& cells, int ranks, std::sp
       put_bytes(out, v.data(), v.size() * sizeof(std::int64_t));
     }
     std::map<int, std::vector<std::int64_t>> sums; // the boxes this rank cuts
+    std::vector<std::int64_t> part;
     for (const Bytes& in : comm.alltoall(std::move(send)))
       for (Reader rd(in); !rd.done();) {
         const int j = static_cast<int>(rd.get<std::int64_t>());
         std::vector<std::int64_t>& v = sums[j];
         v.resize(slice_entries<D>(d.tree_[static_cast<std::size_t>(pending[static_cast<std::size_t>(j)])].box), 0);
-        for (std::int64_t& x : v) x += rd.get<std::int64_t>();
+        part.resize(v.size());
+        rd.get_bytes(part.data(), part.size() * sizeof(std::int64_t));
+        for (std::size_t i = 0; i < v.size(); ++i) v[i] += part[i];
       }
     std::vector<std::int64_t> chosen(2 * pending.size(), 0); // per box: axis + 1 (0: none possible), cut; summed
     for (std::size_t j = static_cast<std::size_t>(comm.rank()); j < pending.size(); j += static_cast<std::size_t>(comm.size())) {
