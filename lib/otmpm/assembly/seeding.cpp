@@ -482,6 +482,14 @@ template <int D, class F> void for_each_line(const Index<D>& cells, const CellRa
   for (int k = 0; k < D; ++k)
     if (hi[k] <= lo[k]) return;
   Index<D> c = lo;
+  bool whole_lines = true; // the box spans axes 1.. whole: start at the line of `from`
+  for (int k = 1; k < D; ++k) whole_lines = whole_lines && lo[k] == 0 && hi[k] == cells[k];
+  if (whole_lines && range.from > 0)
+    for (long long line = range.from / cells[0], k = 1; k < D; ++k) {
+      c[k] = static_cast<int>(line % cells[k]);
+      line /= cells[k];
+      if (k == D - 1 && line > 0) return; // beyond the last line
+    }
   while (true) {
     long long line = 0; // the number of cell (0, c[1], ...)
     for (int k = D - 1; k >= 1; --k) line = line * cells[k] + c[k];
