@@ -97,7 +97,7 @@ template <class T> void LocalRanks::reduce(int rank, std::span<T> values, std::s
     }
   }
   wait();
-  std::memcpy(static_cast<void*>(values.data()), p.result.data(), n * sizeof(T));
+  if (n > 0) std::memcpy(static_cast<void*>(values.data()), p.result.data(), n * sizeof(T));
 }
 
 template void LocalRanks::reduce(int, std::span<double>, std::size_t, Op);
