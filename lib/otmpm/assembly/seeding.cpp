@@ -472,25 +472,34 @@ template <int D> void store_kept(const Scene& scene, const std::vector<Seed<D>>&
   for (std::size_t p = 0; p < kept.size(); ++p) out.file_row[p] = kept[p].row;
 }
 
-/// Calls f(c, number) for every seeding cell of `range` within `cells`
-/// cells per axis, in number order (axis 0 fastest): a line along axis 0
-/// at a time, skipping the lines outside [from, to).
-template <int D, class F> void for_each_cell(const Index<D>& cells, const CellRange<D>& range, F&& f) {
+/// Calls f(c, i0, i1, number) for every line along axis 0 of the seeding
+/// cells of `range` within `cells` cells per axis, in number order (axis 0
+/// fastest): its cells c + (i - c[0]) e_0 for i in [i0, i1) (c[0] = i0),
+/// the first of number `number`, skipping the cells outside [from, to).
+template <int D, class F> void for_each_line(const Index<D>& cells, const CellRange<D>& range, F&& f) {
   Index<D> lo, hi;
   for (int k = 0; k < D; ++k) lo[k] = std::max(range.lo[k], 0), hi[k] = std::min(range.hi[k], cells[k]);
   for (int k = 0; k < D; ++k)
     if (hi[k] <= lo[k]) return;
   Index<D> c = lo;
+  bool whole_lines = true; // the box spans axes 1.. whole: start at the line of `from`
+  for (int k = 1; k < D; ++k) whole_lines = whole_lines && lo[k] == 0 && hi[k] == cells[k];
+  if (whole_lines && range.from > 0)
+    for (long long line = range.from / cells[0], k = 1; k < D; ++k) {
+      c[k] = static_cast<int>(line % cells[k]);
+      line /= cells[k];
+      if (k == D - 1 && line > 0) return; // beyond the last line
+    }
   while (true) {
     long long line = 0; // the number of cell (0, c[1], ...)
     for (int k = D - 1; k >= 1; --k) line = line * cells[k] + c[k];
     line *= cells[0];
     if (line + lo[0] >= range.to) return; // every later line lies beyond too
-    if (line + hi[0] > range.from)
-      for (int i = std::max<long long>(lo[0], range.from - line); i < hi[0] && line + i < range.to; ++i) {
-        c[0] = i;
-        f(static_cast<const Index<D>&>(c), line + i);
-      }
+    const long long i0 = std::max<long long>(lo[0], range.from - line), i1 = std::min<long long>(hi[0], range.to - line);
+    if (i0 < i1) {
+      c[0] = static_cast<int>(i0);
+      f(static_cast<const Index<D>&>(c), static_cast<int>(i0), static_cast<int>(i1), line + i0);
+    }
     int k = 1;
     for (; k < D; ++k) {
       if (++c[k] < hi[k]) break;
@@ -498,6 +507,93 @@ template <int D, class F> void for_each_cell(const Index<D>& cells, const CellRa
     }
     if (k == D) return;
   }
+}
+
+/// The particles of one cell of `box`.
+template <int D> long long box_particles(const BoxCells<D>& box) {
+  long long n = 1;
+  for (int k = 0; k < D; ++k) n *= box.per_axis();
+  return n;
+}
+
+/// The volumes of one cell's particles of `box`, in order (the same in
+/// every cell), when the body's tally of seeded volume is used (a shape on
+/// the lattice scaled to its exact volume: body_volume_factor); else none.
+template <int D> std::vector<double> cell_volumes(const BodySection& body, const BoxCells<D>& box) {
+  std::vector<double> V;
+  if (!lattice_shape(body) || body.volume != "exact") return V;
+  box.cell(Index<D>{}, [&V](const Vec<D>&, double v, const Vec<D>&) { V.push_back(v); });
+  return V;
+}
+
+/// What seed_run needs of a body seeded by cells in a counting pass.
+template <int D> struct RunSeeding {
+  const BodySection& body;
+  const BoxCells<D>& box;
+  const Shape<D>* inside;                                 ///< the body's shape (null: a box, which its cells tile)
+  const std::vector<std::unique_ptr<Shape<D>>>& earlier; ///< the shapes of the bodies before it
+  const TakeRun<D>& take;
+  std::vector<double> volumes; ///< of one cell's particles, in order, when BodyTally::seeded is used; else empty
+  long long per_cell;
+};
+
+/// The box of the particles of cells [i0, i1) along axis 0 from cell c (BoxCells::coordinate).
+template <int D> void run_box(const BoxCells<D>& box, const Index<D>& c, int i0, int i1, Vec<D>& lo, Vec<D>& hi) {
+  for (int k = 0; k < D; ++k) {
+    const int first = k == 0 ? i0 : c[k], last = k == 0 ? i1 - 1 : c[k];
+    lo[k] = box.coordinate(k, first, 0), hi[k] = box.coordinate(k, last, 0);
+    for (int q = 1; q < box.per_axis(); ++q)
+      lo[k] = std::min(lo[k], box.coordinate(k, first, q)), hi[k] = std::max(hi[k], box.coordinate(k, last, q));
+  }
+}
+
+/// Where the box [lo, hi] lies against the earlier bodies: outside all
+/// (nothing dropped), inside one (every particle in an earlier body), or unknown.
+template <int D>
+typename Shape<D>::Side earlier_side(const std::vector<std::unique_ptr<Shape<D>>>& earlier, std::size_t count,
+                                     const Vec<D>& lo, const Vec<D>& hi) {
+  using Side = typename Shape<D>::Side;
+  Side all = Side::outside;
+  for (std::size_t a = 0; a < count; ++a) {
+    const Side s = earlier[a]->side(lo, hi);
+    if (s == Side::inside) return s;
+    if (s == Side::unknown) all = s;
+  }
+  return all;
+}
+
+/// The counting pass over the cells [i0, i1) along axis 0 from cell c
+/// (number `number`) of body b (seed_cells_where with `take`): a run
+/// outside the shape is skipped, one whose particles are all placed is
+/// offered to `take`, one whose particles an earlier body all drops
+/// (overlap = "first") is tallied; the others are halved, and a single
+/// cell left is seeded by one(c, number), particle by particle.
+template <int D, class One>
+void seed_run(const RunSeeding<D>& r, int b, Index<D> c, int i0, int i1, long long number, BodyTally& t, One&& one) {
+  using Side = typename Shape<D>::Side;
+  interrupt_point("seeding a body");
+  CellRun<D> run{b, number, i1 - i0, r.per_cell, c, Vec<D>::Zero(), Vec<D>::Zero(), &r.box};
+  run.c[0] = i0;
+  run_box<D>(r.box, run.c, i0, i1, run.lower, run.upper);
+  const Side side = r.inside ? r.inside->side(run.lower, run.upper) : Side::inside;
+  if (side == Side::outside) return;
+  if (side == Side::inside) {
+    const Side earlier = earlier_side<D>(r.earlier, static_cast<std::size_t>(b), run.lower, run.upper);
+    if (earlier == Side::outside && r.take(run)) {
+      t.generated += run.cells * r.per_cell, t.placed += run.cells * r.per_cell;
+      for (long long i = 0; i < run.cells; ++i)
+        for (double V : r.volumes) t.seeded += V;
+      return;
+    }
+    if (earlier == Side::inside && r.body.overlap == "first") {
+      t.generated += run.cells * r.per_cell;
+      return;
+    }
+  }
+  if (i1 - i0 == 1) return one(run.c, number);
+  const int mid = i0 + (i1 - i0) / 2;
+  seed_run<D>(r, b, c, i0, mid, number, t, one);
+  seed_run<D>(r, b, c, mid, i1, number + (mid - i0), t, one);
 }
 
 } // namespace
@@ -585,8 +681,9 @@ std::vector<BodyTally> seed_cells_where(const Scene& scene, const Vec<D>& h, con
                                         const std::function<CellRange<D>(int)>& range,
                                         const std::function<long long(const SeedSpot&, const Vec<D>&)>& place,
                                         SeededBodies<D>* result, SeedSpot* at,
-                                        const std::vector<double>* factors) {
+                                        const std::vector<double>* factors, const TakeRun<D>& take) {
   validate_seeding<D>(scene, h, false); // a share's size is checked by its maker
+  require<std::invalid_argument>(!take || !result, "seed_cells_where: runs are taken whole only in a counting pass");
   SeededBodies<D> unused;
   SeededBodies<D>& out = result ? *result : unused;
   SeedSpot unused_spot;
@@ -629,13 +726,21 @@ std::vector<BodyTally> seed_cells_where(const Scene& scene, const Vec<D>& h, con
       const CellRange<D> r = range(b);
       for (int k = 0; k < D; ++k) whole = whole && r.lo[k] <= 0 && r.hi[k] >= bc.cells[k];
       whole = whole && r.from <= 0 && r.to >= bc.count();
-      for_each_cell<D>(bc.cells, r, [&](const Index<D>& c, long long number) {
-        interrupt_point("seeding a body");
+      auto one = [&](const Index<D>& c, long long number) {
         where.cell = number;
         placed_in_cell = 0;
         box.cell(c, [&](const Vec<D>& x, double V, const Vec<D>& extent) {
           if (!inside || inside->contains(x)) emit(Seed<D>{x, extent, V, b});
         });
+      };
+      const RunSeeding<D> runs{body, box, inside, shapes, take, cell_volumes<D>(body, box), box_particles<D>(box)};
+      for_each_line<D>(bc.cells, r, [&](Index<D> c, int i0, int i1, long long number) {
+        if (take) return seed_run<D>(runs, b, c, i0, i1, number, t, one);
+        for (int i = i0; i < i1; ++i, ++number) {
+          interrupt_point("seeding a body");
+          c[0] = i;
+          one(c, number);
+        }
       });
     }
     if (whole && t.generated == 0) {
@@ -726,6 +831,19 @@ template <int D> void WallSides<D>::visit(const Vec<D>& x, int body, const Order
     Behind& b = behind_[w * scene_.bodies.size() + static_cast<std::size_t>(body)];
     if (b.count++ == 0 || at < b.at) b.first = x, b.at = at;
   }
+}
+
+template <int D> bool WallSides<D>::clear(const Vec<D>& lo, const Vec<D>& hi) const {
+  for (const auto& [p, n] : walls_) {
+    double least = 0.0, scale = 0.0; // the box's least (x - p).n, and the size of its terms
+    for (int k = 0; k < D; ++k) {
+      const double x = n[k] >= 0.0 ? lo[k] : hi[k];
+      least += (x - p[k]) * n[k];
+      scale = std::max({scale, std::abs(x), std::abs(p[k])});
+    }
+    if (least < -tol_ + kSideSlack * scale) return false;
+  }
+  return true;
 }
 
 template <int D> void WallSides<D>::refuse() const {
@@ -827,7 +945,7 @@ template class TractionSurfaces<3>;
   template std::vector<BodyTally> seed_cells_where<D>(                                                       \
       const Scene&, const Vec<D>&, const CartesianGrid<D>&, const std::function<CellRange<D>(int)>&,          \
       const std::function<long long(const SeedSpot&, const Vec<D>&)>&, SeededBodies<D>*, SeedSpot*,          \
-      const std::vector<double>*);                                                                           \
+      const std::vector<double>*, const TakeRun<D>&);                                                        \
   template std::vector<BodyCells<D>> body_cells<D>(const Scene&, const Vec<D>&, const CartesianGrid<D>&);    \
   template struct BodyCells<D>;
 OTMPM_INSTANTIATE(1)

@@ -2,6 +2,7 @@
 /// \file seeding.hpp
 /// The particles of a scene's bodies (seeding.cpp). Internal to assembly/ and
 /// the distributed set-up (distributed/local_parts.cpp, which seeds a rank's share).
+#include "otmpm/geometry/box_cells.hpp"
 #include "otmpm/nodes/node_set.hpp"
 #include "otmpm/particles/particles.hpp"
 #include "otmpm/scene/scene.hpp"
@@ -106,6 +107,9 @@ public:
   WallSides(const Scene& scene, const Vec<D>& h);
   /// A particle of body `body` at x, at place `at` of the seeding order.
   void visit(const Vec<D>& x, int body, const Order& at);
+  /// True when visit() would count no particle in the box [lower, upper]:
+  /// it lies on the material side of every wall, by more than rounding.
+  bool clear(const Vec<D>& lower, const Vec<D>& upper) const;
   /// InputError at the first wall with particles behind it, naming the
   /// wall, the body, their count and the first of them.
   void refuse() const;
@@ -201,8 +205,29 @@ struct SeedSpot {
 /// dropped by an earlier body: overlap = "first").
 struct BodyTally {
   long long generated = 0, placed = 0;
-  double seeded = 0.0; ///< the volume of the particles placed (before volume_factor)
+  /// the volume of the particles placed (before volume_factor); of the runs
+  /// a pass takes whole (TakeRun), only where body_volume_factor uses it
+  double seeded = 0.0;
 };
+
+/// A run of seeding cells along axis 0 of a body seeded by cells whose
+/// every particle a counting pass places (all in the body's shape, none in
+/// an earlier body's: Shape::side): the cells [first, first + cells) of the
+/// body's numbering (BodyCells), the first of index `c`, `per_cell`
+/// particles each, all of them in the box [lower, upper]; `box` gives
+/// their coordinates (BoxCells::coordinate).
+template <int D> struct CellRun {
+  int body = 0;
+  long long first = 0, cells = 0, per_cell = 0;
+  Index<D> c{};
+  Vec<D> lower = Vec<D>::Zero(), upper = Vec<D>::Zero();
+  const BoxCells<D>* box = nullptr;
+};
+
+/// Takes the particles of a CellRun at once (true: they are counted as
+/// placed, none generated), or leaves them to be generated one at a time
+/// (false).
+template <int D> using TakeRun = std::function<bool(const CellRun<D>&)>;
 
 /// A pass over the bodies in seeding order that generates only some of
 /// their particles: of a body seeded by cells, the cells `range(body)`
@@ -217,13 +242,19 @@ struct BodyTally {
 /// holds no particle). A body whose every cell the pass generates and that
 /// holds no particle is an InputError at its end; of a body generated in
 /// part, the caller adds the tallies of all parts (and counts the
-/// particles behind walls: WallSides). Returns the tallies.
+/// particles behind walls: WallSides). With `take` (a counting pass: no
+/// `result`), the cells of a run along axis 0 whose particles are all
+/// placed are offered to it whole (TakeRun), and a run whose particles are
+/// all outside the shape or dropped by an earlier body is skipped, with the
+/// tallies of the particles one by one; the other runs are halved down to
+/// single cells, generated particle by particle, in cell order. Returns the
+/// tallies.
 template <int D>
 std::vector<BodyTally> seed_cells_where(const Scene& scene, const Vec<D>& h, const CartesianGrid<D>& lattice,
                                         const std::function<CellRange<D>(int)>& range,
                                         const std::function<long long(const SeedSpot&, const Vec<D>&)>& place,
                                         SeededBodies<D>* result, SeedSpot* at = nullptr,
-                                        const std::vector<double>* factors = nullptr);
+                                        const std::vector<double>* factors = nullptr, const TakeRun<D>& take = nullptr);
 
 /// The place of a particle in the seeding order (WallSides::Order).
 inline std::pair<long long, long long> seeding_order(const SeedSpot& s) {

@@ -7,55 +7,57 @@
 #include <exception>
 #include <stdexcept>
 #include <thread>
+#include <type_traits>
 
 namespace otmpm::distributed {
 
-LocalRanks::LocalRanks(int size)
-    : size_(size), slots_(static_cast<std::size_t>(size)), posts_(static_cast<std::size_t>(size)),
-      data_(static_cast<std::size_t>(size)) {}
+LocalRanks::LocalRanks(int size) : size_(size), calls_(static_cast<std::size_t>(size), 0) {
+  const std::size_t P = static_cast<std::size_t>(size);
+  for (Posts& p : posts_) p.slots.resize(P), p.posts.assign(P, std::vector<Bytes>(P)), p.data.resize(P);
+}
 
 void LocalRanks::wait() {
-  std::unique_lock<std::mutex> lock(mutex_);
   if (stopped_) throw Stopped{};
-  const long long generation = generation_;
-  if (++arrived_ == size_) {
-    arrived_ = 0;
+  const long long generation = generation_.load();
+  if (arrived_.fetch_add(1) + 1 == size_) {
+    arrived_.store(0);
     ++generation_;
-    arrived_all_.notify_all();
+    generation_.notify_all();
   } else {
-    arrived_all_.wait(lock, [&] { return generation_ != generation || stopped_; });
+    while (generation_.load() == generation && !stopped_) generation_.wait(generation);
   }
   if (stopped_) throw Stopped{};
 }
 
 void LocalRanks::stop() {
-  std::lock_guard<std::mutex> lock(mutex_);
   stopped_ = true;
-  arrived_all_.notify_all();
+  ++generation_; // wakes the waiting ranks, which then see stopped_
+  generation_.notify_all();
 }
 
 std::vector<Bytes> LocalRanks::allgather(int rank, const Bytes& mine) {
-  slots_[static_cast<std::size_t>(rank)] = mine;
+  Posts& p = posts(rank);
+  p.slots[static_cast<std::size_t>(rank)] = mine;
   wait();
-  std::vector<Bytes> all = slots_;
-  wait(); // nobody writes its slot again before all have read
-  return all;
+  return p.slots;
 }
 
 std::vector<Bytes> LocalRanks::alltoall(int rank, std::vector<Bytes> send) {
-  posts_[static_cast<std::size_t>(rank)] = std::move(send);
+  Posts& p = posts(rank);
+  const std::size_t from = static_cast<std::size_t>(rank);
+  for (std::size_t to = 0; to < send.size(); ++to) // only the messages there are: most are empty
+    if (!send[to].empty()) p.posts[to][from] = std::move(send[to]);
   wait();
   std::vector<Bytes> received(static_cast<std::size_t>(size_));
-  for (std::size_t q = 0; q < received.size(); ++q) received[q] = posts_[q][static_cast<std::size_t>(rank)];
-  wait();
+  received.swap(p.posts[from]); // this rank's row, left empty for the next use
   return received;
 }
 
 void LocalRanks::broadcast(int rank, void* data, std::size_t bytes, int from) {
-  if (rank == from) data_[0] = data;
+  Posts& p = posts(rank);
+  if (rank == from) p.result.assign(static_cast<const char*>(data), static_cast<const char*>(data) + bytes);
   wait();
-  if (rank != from) std::memcpy(data, data_[0], bytes);
-  wait();
+  if (rank != from && bytes > 0) std::memcpy(data, p.result.data(), bytes);
 }
 
 namespace {
@@ -72,21 +74,30 @@ template <class T> T combine(T a, T b, LocalRanks::Op op) {
 
 template <class T> void LocalRanks::reduce(int rank, std::span<T> values, std::size_t sums, Op rest) {
   const std::size_t n = values.size(), P = static_cast<std::size_t>(size_), r = static_cast<std::size_t>(rank);
-  if (rank == 0) result_.assign(n * sizeof(T), 0);
-  data_[r] = values.data();
+  Posts& p = posts(rank);
+  if (rank == 0) p.result.assign(n * sizeof(T), 0);
+  p.data[r] = values.data();
   wait();
   // each rank combines its slice of the entries, as the tree would
-  std::vector<T> tree(P);
-  for (std::size_t i = n * r / P; i < n * (r + 1) / P; ++i) {
-    for (std::size_t q = 0; q < P; ++q) tree[q] = static_cast<const T*>(data_[q])[i];
-    const Op op = i < sums ? Op::sum : rest;
-    for (std::size_t mask = 1; mask < P; mask <<= 1)
-      for (std::size_t q = 0; q + mask < P; q += 2 * mask) tree[q] = combine(tree[q], tree[q + mask], op);
-    std::memcpy(result_.data() + i * sizeof(T), &tree[0], sizeof(T));
+  const std::size_t from = n * r / P, to = n * (r + 1) / P;
+  if constexpr (std::is_integral_v<T>) { // exact in any order: rank after rank, along the memory
+    std::vector<T> slice(static_cast<const T*>(p.data[0]) + from, static_cast<const T*>(p.data[0]) + to);
+    for (std::size_t q = 1; q < P; ++q)
+      for (std::size_t i = from; i < to; ++i)
+        slice[i - from] = combine(slice[i - from], static_cast<const T*>(p.data[q])[i], i < sums ? Op::sum : rest);
+    if (to > from) std::memcpy(p.result.data() + from * sizeof(T), slice.data(), (to - from) * sizeof(T));
+  } else {
+    std::vector<T> tree(P);
+    for (std::size_t i = from; i < to; ++i) {
+      for (std::size_t q = 0; q < P; ++q) tree[q] = static_cast<const T*>(p.data[q])[i];
+      const Op op = i < sums ? Op::sum : rest;
+      for (std::size_t mask = 1; mask < P; mask <<= 1)
+        for (std::size_t q = 0; q + mask < P; q += 2 * mask) tree[q] = combine(tree[q], tree[q + mask], op);
+      std::memcpy(p.result.data() + i * sizeof(T), &tree[0], sizeof(T));
+    }
   }
   wait();
-  std::memcpy(static_cast<void*>(values.data()), result_.data(), n * sizeof(T));
-  wait(); // rank 0 does not resize the result before all have read it
+  if (n > 0) std::memcpy(static_cast<void*>(values.data()), p.result.data(), n * sizeof(T));
 }
 
 template void LocalRanks::reduce(int, std::span<double>, std::size_t, Op);

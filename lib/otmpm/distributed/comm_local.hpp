@@ -4,8 +4,8 @@
 /// state of their collectives. Internal to comm.cpp and comm_local.cpp.
 #include "otmpm/distributed/comm.hpp"
 
-#include <condition_variable>
-#include <mutex>
+#include <array>
+#include <atomic>
 
 namespace otmpm::distributed {
 
@@ -36,15 +36,25 @@ public:
 
 private:
   int size_;
-  std::mutex mutex_;
-  std::condition_variable arrived_all_;
-  int arrived_ = 0;
-  long long generation_ = 0;
-  bool stopped_ = false;
-  std::vector<Bytes> slots_;              ///< allgather: each rank's message
-  std::vector<std::vector<Bytes>> posts_; ///< alltoall: posts_[from][to]
-  std::vector<const void*> data_;         ///< reduce, broadcast: each rank's values
-  Bytes result_;                          ///< reduce: the combined values
+  // the barrier: the last rank to arrive starts the next generation
+  // (std::atomic::wait: the ranks wake without taking a lock in turn)
+  std::atomic<int> arrived_{0};
+  std::atomic<long long> generation_{0};
+  std::atomic<bool> stopped_{false};
+  /// What the collectives pass through, twice: a collective uses the set
+  /// of the parity of its number (each rank counts its calls, `calls_`), so
+  /// it needs one barrier after the ranks post their data and none after
+  /// they read it - a set is written again two collectives later, after
+  /// every rank has passed the barrier of the one between.
+  struct Posts {
+    std::vector<Bytes> slots;              ///< allgather: each rank's message
+    std::vector<std::vector<Bytes>> posts; ///< alltoall: posts[to][from]
+    std::vector<const void*> data;         ///< reduce: each rank's values
+    Bytes result;                          ///< reduce: the combined values; broadcast: the message
+  };
+  Posts& posts(int rank) { return posts_[calls_[static_cast<std::size_t>(rank)]++ & 1]; }
+  std::array<Posts, 2> posts_;
+  std::vector<long long> calls_; ///< per rank: the collectives it entered
 };
 
 } // namespace otmpm::distributed

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <map>
 
 namespace otmpm::distributed {
 
@@ -45,6 +46,44 @@ template <int D> Cut best_cut(const IndexBox<D>& box, int k, const std::int64_t*
   return cut;
 }
 
+/// The entries of a rank's per-slice counts of a box in rcb: along axis 0
+/// as differences (extent + 1), then the slices of each further axis.
+template <int D> std::size_t slice_entries(const IndexBox<D>& box) {
+  std::size_t n = 1;
+  for (int k = 0; k < D; ++k) n += static_cast<std::size_t>(box.extent(k));
+  return n;
+}
+
+/// Per-slice counts of a box from slice_entries' layout (the differences
+/// along axis 0 summed; `E0` slices along axis 0): each axis' slices in turn.
+inline const std::vector<std::int64_t>& slice_counts(std::vector<std::int64_t>& v, int E0) {
+  std::int64_t sum = 0;
+  for (int i = 0; i < E0; ++i) v[static_cast<std::size_t>(i)] = sum += v[static_cast<std::size_t>(i)];
+  v.erase(v.begin() + E0);
+  return v;
+}
+
+/// The axis (-1: none allowed) and cut of a box of `ranks` ranks from its
+/// per-slice counts: the cut of best_cut along the axis where the
+/// particles extend furthest (ties: the longer box side, then the lower axis).
+template <int D>
+std::pair<int, int> choose_cut(const IndexBox<D>& box, const std::vector<std::int64_t>& counts, int ranks) {
+  const int below = ranks / 2;
+  int axis = -1;
+  Cut chosen;
+  std::size_t at = 0;
+  for (int k = 0; k < D; ++k) {
+    const Cut c = best_cut<D>(box, k, counts.data() + at, below, ranks);
+    at += static_cast<std::size_t>(box.extent(k));
+    if (!std::isfinite(c.miss)) continue;
+    const bool longer = axis < 0 || c.particle_extent > chosen.particle_extent ||
+                        (c.particle_extent == chosen.particle_extent && c.particle_extent == 0 &&
+                         box.extent(k) > box.extent(axis));
+    if (longer) axis = k, chosen = c;
+  }
+  return {axis, chosen.at};
+}
+
 } // namespace
 
 template <int D> Decomposition<D>::Decomposition(const Index<D>& cells) : cells_(cells) {
@@ -63,8 +102,17 @@ Decomposition<D> Decomposition<D>::rcb(const Index<D>& cells, int ranks, std::sp
 template <int D>
 Decomposition<D> Decomposition<D>::rcb(const Index<D>& cells, int ranks, std::span<const Index<D>> home,
                                        std::span<const std::int64_t> weight, const Comm& comm) {
+  return rcb(cells, ranks, home, weight, {}, comm);
+}
+
+template <int D>
+Decomposition<D> Decomposition<D>::rcb(const Index<D>& cells, int ranks, std::span<const Index<D>> home,
+                                       std::span<const std::int64_t> weight, std::span<const int> length,
+                                       const Comm& comm) {
   require<std::invalid_argument>(weight.empty() || weight.size() == home.size(), "Decomposition::rcb: ",
                                  weight.size(), " weights for ", home.size(), " cells");
+  require<std::invalid_argument>(length.empty() || length.size() == home.size(), "Decomposition::rcb: ",
+                                 length.size(), " lengths for ", home.size(), " cells");
   Decomposition d(cells);
   const long long total_cells = d.tree_[0].box.count();
   require(ranks >= 1 && total_cells >= ranks, "the node lattice has ", total_cells,
@@ -75,54 +123,68 @@ Decomposition<D> Decomposition<D>::rcb(const Index<D>& cells, int ranks, std::sp
   if (ranks > 1) pending.push_back(0);
   else d.boxes_[0] = d.tree_[0].box;
   while (!pending.empty()) {
-    // Per-slice particle counts of every pending box along every axis.
-    std::vector<long long> offset(d.tree_.size(), -1);
-    long long size = 0;
-    for (int n : pending) {
-      offset[static_cast<std::size_t>(n)] = size;
-      for (int k = 0; k < D; ++k) size += d.tree_[static_cast<std::size_t>(n)].box.extent(k);
-    }
-    std::vector<std::int64_t> counts(static_cast<std::size_t>(size), 0);
+    // The per-slice particle counts of pending box j are summed, and its cut
+    // chosen, on rank j % P; the ranks then share the cuts.
+    std::vector<int> slot(d.tree_.size(), -1);
+    for (std::size_t j = 0; j < pending.size(); ++j) slot[static_cast<std::size_t>(pending[j])] = static_cast<int>(j);
+    std::map<int, std::vector<std::int64_t>> mine; // per pending box this rank's particles reach: slice_counts' layout
     for (std::size_t i = 0; i < home.size(); ++i) {
       const Index<D>& c = home[i];
       const std::int64_t w = weight.empty() ? 1 : weight[i];
-      int n = 0;
-      while (d.tree_[static_cast<std::size_t>(n)].axis >= 0) {
-        const Node& node = d.tree_[static_cast<std::size_t>(n)];
-        n = c[node.axis] < node.cut ? node.below : node.above;
-      }
-      const long long at = offset[static_cast<std::size_t>(n)];
-      if (at < 0) continue;
-      const IndexBox<D>& box = d.tree_[static_cast<std::size_t>(n)].box;
-      if (!box.contains(c)) continue;
-      long long axis_at = at;
-      for (int k = 0; k < D; ++k) {
-        counts[static_cast<std::size_t>(axis_at + c[k] - box.lo[k])] += w;
-        axis_at += box.extent(k);
-      }
+      d.pieces(c, c[0], c[0] + (length.empty() ? 1 : length[i]), [&](int n, int lo, int hi) {
+        const int j = slot[static_cast<std::size_t>(n)];
+        const IndexBox<D>& box = d.tree_[static_cast<std::size_t>(n)].box;
+        lo = std::max(lo, box.lo[0]), hi = std::min(hi, box.hi[0]);
+        if (j < 0 || lo >= hi) return;
+        for (int k = 1; k < D; ++k)
+          if (c[k] < box.lo[k] || c[k] >= box.hi[k]) return;
+        std::vector<std::int64_t>& v = mine[j];
+        if (v.empty()) v.assign(slice_entries<D>(box), 0);
+        v[static_cast<std::size_t>(lo - box.lo[0])] += w; // along axis 0 as differences
+        v[static_cast<std::size_t>(hi - box.lo[0])] -= w;
+        std::size_t at = static_cast<std::size_t>(box.extent(0)) + 1;
+        for (int k = 1; k < D; ++k) {
+          v[at + static_cast<std::size_t>(c[k] - box.lo[k])] += w * (hi - lo);
+          at += static_cast<std::size_t>(box.extent(k));
+        }
+      });
     }
-    comm.sum(counts);
-    std::vector<int> next;
-    for (int n : pending) {
-      const Node node = d.tree_[static_cast<std::size_t>(n)];
-      const int below = node.count / 2;
-      int axis = -1;
-      Cut chosen;
-      long long at = offset[static_cast<std::size_t>(n)];
-      for (int k = 0; k < D; ++k) {
-        const Cut c = best_cut<D>(node.box, k, counts.data() + at, below, node.count);
-        at += node.box.extent(k);
-        if (!std::isfinite(c.miss)) continue;
-        const bool longer = axis < 0 || c.particle_extent > chosen.particle_extent ||
-                            (c.particle_extent == chosen.particle_extent && c.particle_extent == 0 &&
-                             node.box.extent(k) > node.box.extent(axis));
-        if (longer) axis = k, chosen = c;
+    std::vector<Bytes> send(static_cast<std::size_t>(comm.size()));
+    for (const auto& [j, v] : mine) {
+      Bytes& out = send[static_cast<std::size_t>(j % comm.size())];
+      put(out, static_cast<std::int64_t>(j));
+      put_bytes(out, v.data(), v.size() * sizeof(std::int64_t));
+    }
+    std::map<int, std::vector<std::int64_t>> sums; // the boxes this rank cuts
+    std::vector<std::int64_t> part;
+    for (const Bytes& in : comm.alltoall(std::move(send)))
+      for (Reader rd(in); !rd.done();) {
+        const int j = static_cast<int>(rd.get<std::int64_t>());
+        std::vector<std::int64_t>& v = sums[j];
+        v.resize(slice_entries<D>(d.tree_[static_cast<std::size_t>(pending[static_cast<std::size_t>(j)])].box), 0);
+        part.resize(v.size());
+        rd.get_bytes(part.data(), part.size() * sizeof(std::int64_t));
+        for (std::size_t i = 0; i < v.size(); ++i) v[i] += part[i];
       }
+    std::vector<std::int64_t> chosen(2 * pending.size(), 0); // per box: axis + 1 (0: none possible), cut; summed
+    for (std::size_t j = static_cast<std::size_t>(comm.rank()); j < pending.size(); j += static_cast<std::size_t>(comm.size())) {
+      const Node& node = d.tree_[static_cast<std::size_t>(pending[j])];
+      std::vector<std::int64_t>& v = sums[static_cast<int>(j)];
+      v.resize(slice_entries<D>(node.box), 0);
+      const auto [axis, at] = choose_cut<D>(node.box, slice_counts(v, node.box.extent(0)), node.count);
+      chosen[2 * j] = axis + 1, chosen[2 * j + 1] = at;
+    }
+    comm.sum(chosen);
+    std::vector<int> next;
+    for (std::size_t j = 0; j < pending.size(); ++j) {
+      const int n = pending[j];
+      const Node node = d.tree_[static_cast<std::size_t>(n)];
+      const int below = node.count / 2, axis = static_cast<int>(chosen[2 * j]) - 1;
       require(axis >= 0, "the node lattice cannot be split over ", ranks, " ranks (a box of ", node.box.count(),
               " cells for ", node.count, " ranks): run with fewer ranks or a finer grid");
       Node lo{-1, 0, -1, -1, node.first, below, node.box}, hi{-1, 0, -1, -1, node.first + below, node.count - below,
                                                               node.box};
-      lo.box.hi[axis] = node.box.lo[axis] + chosen.at;
+      lo.box.hi[axis] = node.box.lo[axis] + static_cast<int>(chosen[2 * j + 1]);
       hi.box.lo[axis] = lo.box.hi[axis];
       Node& parent = d.tree_[static_cast<std::size_t>(n)];
       parent.axis = axis;

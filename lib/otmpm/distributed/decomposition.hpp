@@ -89,6 +89,11 @@ public:
   /// the particles): the same tree as rcb over the cells repeated.
   static Decomposition rcb(const Index<D>& cells, int ranks, std::span<const Index<D>> home,
                            std::span<const std::int64_t> weight, const Comm& comm);
+  /// The same with runs of cells along axis 0: `length[i]` cells from
+  /// home[i] (home[i] + t e_0, 0 <= t < length[i]) of `weight[i]` particles
+  /// each: the same tree as rcb over the cells of the runs.
+  static Decomposition rcb(const Index<D>& cells, int ranks, std::span<const Index<D>> home,
+                           std::span<const std::int64_t> weight, std::span<const int> length, const Comm& comm);
 
   int ranks() const { return static_cast<int>(boxes_.size()); }
   const Index<D>& cells() const { return cells_; }
@@ -96,6 +101,11 @@ public:
   const IndexBox<D>& box(int r) const { return boxes_[static_cast<std::size_t>(r)]; }
   /// The rank owning cell c (c inside the lattice).
   int owner(const Index<D>& c) const;
+  /// Calls f(rank, cells) for the pieces of the run of `length` cells from
+  /// c along axis 0 (inside the lattice) that each rank owns, along axis 0.
+  template <class F> void owners(const Index<D>& c, int length, F&& f) const {
+    pieces(c, c[0], c[0] + length, [&](int node, int lo, int hi) { f(tree_[static_cast<std::size_t>(node)].first, hi - lo); });
+  }
   /// The tree as rows of kTreeColumns integers (axis, cut, below, above,
   /// first rank, ranks, the box's lo and hi), and back: a checkpoint keeps
   /// the decomposition of its run, so that a restart on as many ranks
@@ -111,6 +121,15 @@ public:
   double imbalance(long long particles, const Comm& comm) const;
 
 private:
+  /// Calls f(leaf, lo, hi) for the pieces [lo, hi) along axis 0 of the
+  /// cells c + (i - c[0]) e_0, i in [lo, hi), that the tree's leaves hold.
+  template <class F> void pieces(const Index<D>& c, int lo, int hi, F&& f, int n = 0) const {
+    const Node& node = tree_[static_cast<std::size_t>(n)];
+    if (node.axis < 0) return f(n, lo, hi);
+    if (node.axis != 0) return pieces(c, lo, hi, f, c[node.axis] < node.cut ? node.below : node.above);
+    if (lo < node.cut) pieces(c, lo, std::min(hi, node.cut), f, node.below);
+    if (hi > node.cut) pieces(c, std::max(lo, node.cut), hi, f, node.above);
+  }
   struct Node {
     int axis = -1;           ///< -1: a leaf (rank = first)
     int cut = 0;             ///< cells with index < cut on `axis` go below

@@ -62,6 +62,13 @@ public:
     }
     ++count_;
   }
+  /// Cells [first, first + cells) of per_cell particles each, counted at
+  /// once (a CellRun), after the cells before them.
+  void placed_run(long long first, long long cells, long long per_cell) {
+    if (first != cell_) runs_.add(cell_, 1, count_), runs_.add(cell_ + 1, first - cell_ - 1, 0);
+    runs_.add(first, cells, per_cell);
+    cell_ = first + cells, count_ = 0;
+  }
   void finish(long long to) {
     if (cell_ >= to) return;
     runs_.add(cell_, 1, count_);
@@ -71,6 +78,77 @@ public:
 private:
   CellRuns& runs_;
   long long cell_, count_ = 0;
+};
+
+/// The particles of a rank's counting pass per home cell (the lattice cell
+/// of their position), as runs along axis 0 of cells with one count each:
+/// the weights of the bisection (Decomposition::rcb with lengths).
+template <int D> class HomeRuns {
+public:
+  std::vector<Index<D>> home;
+  std::vector<std::int64_t> weight;
+  std::vector<int> length;
+
+  /// A particle whose home cell is c.
+  void add(const Index<D>& c) {
+    if (!home.empty() && home.back() == c && length.back() == 1) ++weight.back();
+    else home.push_back(c), weight.push_back(1), length.push_back(1);
+  }
+  /// The particles of a CellRun: their home cells counted per axis (the
+  /// index of a home cell along axis k depends on coordinate k only,
+  /// CartesianGrid::cell_index), multiplied over the axes.
+  void add(const CellRun<D>& run, const CartesianGrid<D>& lattice) {
+    std::array<std::vector<std::pair<int, long long>>, D> per_axis; // per axis: (cell index, particles), increasing
+    for (int k = 1; k < D; ++k) per_axis[k] = axis_counts(*run.box, lattice, k, run.c[k], run.c[k] + 1);
+    const auto& along = line_runs(run, lattice);
+    Index<D> c{}, at{};
+    while (true) {
+      long long factor = 1;
+      for (int k = 1; k < D; ++k) {
+        const auto& [index, count] = per_axis[k][static_cast<std::size_t>(at[k])];
+        c[k] = index, factor *= count;
+      }
+      for (const auto& [first, cells, count] : along) {
+        c[0] = static_cast<int>(first);
+        home.push_back(c), weight.push_back(count * factor), length.push_back(static_cast<int>(cells));
+      }
+      int k = 1;
+      while (k < D && ++at[k] == static_cast<int>(per_axis[k].size())) at[k++] = 0;
+      if (k >= D) return;
+    }
+  }
+
+private:
+  /// The particles of cells [c0, c1) along axis k per home cell index along
+  /// k: (index, particles), indices increasing (BoxCells::coordinate grows).
+  static std::vector<std::pair<int, long long>> axis_counts(const BoxCells<D>& box, const CartesianGrid<D>& lattice,
+                                                            int k, int c0, int c1) {
+    std::vector<std::pair<int, long long>> out;
+    for (int c = c0; c < c1; ++c)
+      for (int q = 0; q < box.per_axis(); ++q) {
+        const int i = lattice.cell_index(k, box.coordinate(k, c, q));
+        if (!out.empty() && out.back().first == i) ++out.back().second;
+        else out.emplace_back(i, 1);
+      }
+    return out;
+  }
+  /// axis_counts along axis 0 of the run as runs of consecutive cells of
+  /// one count: (first cell, cells, count); the last run's are kept, as
+  /// runs of whole lines repeat.
+  const std::vector<std::array<long long, 3>>& line_runs(const CellRun<D>& run, const CartesianGrid<D>& lattice) {
+    if (run.body == last_body_ && run.c[0] == last_from_ && run.cells == last_cells_) return last_;
+    last_body_ = run.body, last_from_ = run.c[0], last_cells_ = run.cells;
+    last_.clear();
+    for (const auto& [i, n] : axis_counts(*run.box, lattice, 0, run.c[0], run.c[0] + static_cast<int>(run.cells))) {
+      auto& r = last_;
+      if (!r.empty() && r.back()[0] + r.back()[1] == i && r.back()[2] == n) ++r.back()[1];
+      else r.push_back({i, 1, n});
+    }
+    return last_;
+  }
+  int last_body_ = -1;
+  long long last_from_ = -1, last_cells_ = 0;
+  std::vector<std::array<long long, 3>> last_;
 };
 
 /// Where the first error of a pass happened, in the serial seeding order:
@@ -173,12 +251,14 @@ template <int D> struct Plan {
 };
 
 /// The counting pass (share_seeding.hpp, 1.): this rank's range of the
-/// seeding cells, counted per cell (plan.runs) and per home cell (`home`,
-/// `weight`); 1/N of the rows of each body seeded whole. The first error
+/// seeding cells, counted per cell (plan.runs) and per home cell (`homes`);
+/// 1/N of the rows of each body seeded whole. With `by_runs`, the runs of
+/// cells whose particles are all placed, none behind a wall, are counted
+/// without generating them (TakeRun: the same counts). The first error
 /// of the ranks, and a body without particles, is thrown on every rank.
 template <int D>
 void count(const Scene& scene, const Comm& comm, const Vec<D>& h, const CartesianGrid<D>& lattice, Plan<D>& plan,
-           std::vector<Index<D>>& home, std::vector<std::int64_t>& weight) {
+           HomeRuns<D>& homes, bool by_runs) {
   std::vector<std::unique_ptr<RangeCounter>> counters(plan.cells.size());
   for (std::size_t b = 0; b < counters.size(); ++b)
     if (plan.cells[b].by_cells) counters[b] = std::make_unique<RangeCounter>(plan.runs[b], plan.first[b]);
@@ -188,17 +268,24 @@ void count(const Scene& scene, const Comm& comm, const Vec<D>& h, const Cartesia
     if (counters[b]) counters[b]->placed(s.cell);
     else if ((s.index / kCountRun) % comm.size() != comm.rank()) return -1LL;
     sides.visit(x, s.body, seeding_order(s));
-    const Index<D> c = lattice.cell_of(x);
-    if (!home.empty() && home.back() == c) ++weight.back();
-    else home.push_back(c), weight.push_back(1);
+    homes.add(lattice.cell_of(x));
     return -1LL;
   };
+  TakeRun<D> take;
+  if (by_runs)
+    take = [&](const CellRun<D>& run) {
+      if (!sides.clear(run.lower, run.upper)) return false;
+      counters[static_cast<std::size_t>(run.body)]->placed_run(run.first, run.cells, run.per_cell);
+      homes.add(run, lattice);
+      return true;
+    };
   SeedSpot at;
   ErrorAt error;
   std::vector<BodyTally> tally;
   std::exception_ptr interrupted;
   try {
-    tally = seed_cells_where<D>(scene, h, lattice, [&plan](int b) { return plan.range(b); }, place, nullptr, &at);
+    tally = seed_cells_where<D>(scene, h, lattice, [&plan](int b) { return plan.range(b); }, place, nullptr, &at,
+                                nullptr, take);
   } catch (const InputError&) {
     error = plan.at(at, std::current_exception());
   } catch (const InterruptedError&) { // a signal here or a peer's notice (interrupt_peers): every rank stops
@@ -286,26 +373,27 @@ CellRange<D> near(const BodyCells<D>& body, const CartesianGrid<D>& lattice, con
 
 template <int D>
 SeededBodies<D> share_seeding(const Scene& scene, const Comm& comm, const Vec<D>& h, const CartesianGrid<D>& lattice,
-                              ShareSeeding<D>& out, const BeforeKeeping<D>& before_keeping) {
+                              ShareSeeding<D>& out, const BeforeKeeping<D>& before_keeping, CountBy count_by) {
   Plan<D> plan(scene, comm, h, lattice);
-  std::vector<Index<D>> home;
-  std::vector<std::int64_t> weight;
-  count<D>(scene, comm, h, lattice, plan, home, weight);
+  HomeRuns<D> homes;
+  count<D>(scene, comm, h, lattice, plan, homes, count_by == CountBy::runs);
   plan.number(comm);
   out.particles = plan.particles;
   SeededBodies<D> mine;
   try {
-    out.decomposition = Decomposition<D>::rcb(lattice.cells, comm.size(), home, weight, comm);
+    out.decomposition = Decomposition<D>::rcb(lattice.cells, comm.size(), homes.home, homes.weight, homes.length, comm);
   } catch (...) {
     out.deferred = std::current_exception();
     if (!scene.tractions.empty()) mine.surfaces = surfaces<D>(scene, comm, h, lattice, plan);
     return mine;
   }
   out.per_rank.assign(static_cast<std::size_t>(comm.size()), 0);
-  for (std::size_t i = 0; i < home.size(); ++i) out.per_rank[static_cast<std::size_t>(out.decomposition.owner(home[i]))] += weight[i];
+  for (std::size_t i = 0; i < homes.home.size(); ++i)
+    out.decomposition.owners(homes.home[i], homes.length[i], [&](int rank, int cells) {
+      out.per_rank[static_cast<std::size_t>(rank)] += homes.weight[i] * cells;
+    });
   comm.sum(out.per_rank);
-  std::vector<Index<D>>().swap(home);
-  std::vector<std::int64_t>().swap(weight);
+  homes = {};
   const auto most = std::max_element(out.per_rank.begin(), out.per_rank.end());
   if (static_cast<double>(*most) > kMaxRankParticles)
     throw InputError("rank " + std::to_string(most - out.per_rank.begin()) + " of " + std::to_string(comm.size()) +
@@ -328,7 +416,7 @@ SeededBodies<D> share_seeding(const Scene& scene, const Comm& comm, const Vec<D>
 
 #define OTMPM_INSTANTIATE(D)                                                                                   \
   template SeededBodies<D> share_seeding<D>(const Scene&, const Comm&, const Vec<D>&, const CartesianGrid<D>&, \
-                                            ShareSeeding<D>&, const BeforeKeeping<D>&);
+                                            ShareSeeding<D>&, const BeforeKeeping<D>&, CountBy);
 OTMPM_INSTANTIATE(1)
 OTMPM_INSTANTIATE(2)
 OTMPM_INSTANTIATE(3)

@@ -5,12 +5,17 @@
 ///
 /// 1. counting: the seeding cells of the bodies seeded cell by cell (boxes,
 ///    shapes on the lattice: assembly/seeding.hpp, BodyCells) are split
-///    into N contiguous ranges, one per rank; each rank generates its range
-///    (with every check of the serial seeding: shapes, overlaps) and counts
-///    the particles placed per seeding cell - kept as runs of equal counts,
-///    shared by all ranks (CellNumbers: a body of equal cells is one run) -
-///    and per home cell (the weights of the bisection); a file or mesh body
-///    is read by every rank, which counts 1/N of its rows;
+///    into N contiguous ranges, one per rank; each rank goes through its
+///    range (with every check of the serial seeding: shapes, overlaps) and
+///    counts the particles placed per seeding cell - kept as runs of equal
+///    counts, shared by all ranks (CellRuns: a body of equal cells is one
+///    run) - and per home cell (the weights of the bisection, as runs of
+///    cells along axis 0); a run of cells whose particles all lie inside the
+///    shape, in no earlier body and behind no wall (Shape::side,
+///    WallSides::clear) is counted without generating its particles
+///    (TakeRun: their home cells from their coordinates axis by axis), the
+///    cells cutting a boundary particle by particle - the same counts; a
+///    file or mesh body is read by every rank, which counts 1/N of its rows;
 /// 2. the traction loads' surface particles (only with traction loads): the
 ///    ranks visit their ranges again, now numbered, and merge the columns;
 /// 3. keeping: each rank generates the seeding cells near its own cells and
@@ -44,6 +49,11 @@ template <int D> struct ShareSeeding {
 /// there (false: nothing is seeded).
 template <int D> using BeforeKeeping = std::function<bool(const ShareSeeding<D>&)>;
 
+/// How the counting pass counts: runs of cells whose particles are all
+/// placed at once (`runs`), or every particle generated (`seeds`: the
+/// reference the runs must equal, for tests).
+enum class CountBy { runs, seeds };
+
 /// This rank's particles of `scene` (cells of spacing h, the node lattice
 /// `lattice`; SeededBodies::ids their global ids, SeededBodies::surfaces the traction
 /// loads' surface particles). Collective; InputError (on every rank alike)
@@ -52,6 +62,7 @@ template <int D> using BeforeKeeping = std::function<bool(const ShareSeeding<D>&
 /// it is not called when the bisection failed (ShareSeeding::deferred).
 template <int D>
 SeededBodies<D> share_seeding(const Scene& scene, const Comm& comm, const Vec<D>& h, const CartesianGrid<D>& lattice,
-                              ShareSeeding<D>& out, const BeforeKeeping<D>& before_keeping = nullptr);
+                              ShareSeeding<D>& out, const BeforeKeeping<D>& before_keeping = nullptr,
+                              CountBy count_by = CountBy::runs);
 
 } // namespace otmpm::distributed

@@ -38,6 +38,13 @@ public:
   }
   const Index<D>& cells() const { return cells_; }
   const Vec<D>& size() const { return size_; }
+  /// Particles per axis and cell.
+  int per_axis() const { return n_; }
+  /// Coordinate k of the particles q (0 <= q < n along axis k) of the cells
+  /// with index c along axis k: the bits cell() gives. It grows with c and
+  /// q (each rounding is monotone), so the particles of a block of cells lie
+  /// in the box of its first and last particles' coordinates.
+  double coordinate(int k, int c, int q) const { return lower_[k] + (c + s_[static_cast<std::size_t>(q)]) * size_[k]; }
   template <class Seed> void cell(const Index<D>& c, Seed&& seed) const {
     Vec<D> len;
     Index<D> q{};
@@ -45,7 +52,7 @@ public:
       Vec<D> x;
       double V = 1.0;
       for (int k = 0; k < D; ++k) {
-        x[k] = lower_[k] + (c[k] + s_[q[k]]) * size_[k];
+        x[k] = coordinate(k, c[k], q[k]);
         V *= w_[q[k]] * size_[k];
         len[k] = equal_ ? size_[k] / n_ : w_[q[k]] * size_[k];
       }

@@ -22,6 +22,20 @@ namespace bg = boost::geometry;
 constexpr double unit_ball(int D) { return D == 1 ? 2.0 : D == 2 ? std::numbers::pi : 4.0 / 3.0 * std::numbers::pi; }
 constexpr double unit_sphere(int D) { return D == 1 ? 2.0 : D == 2 ? 2.0 * std::numbers::pi : 4.0 * std::numbers::pi; }
 
+/// The largest coordinate of the boxes [a, b] and [c, d] (the scale of Shape::side's margin).
+template <int D> double magnitude(const Vec<D>& a, const Vec<D>& b, const Vec<D>& c, const Vec<D>& d) {
+  return std::max({a.cwiseAbs().maxCoeff(), b.cwiseAbs().maxCoeff(), c.cwiseAbs().maxCoeff(), d.cwiseAbs().maxCoeff()});
+}
+
+/// Calls f(corner) for the 2^D corners of the box [lo, hi].
+template <int D, class F> void for_each_corner(const Vec<D>& lo, const Vec<D>& hi, F&& f) {
+  for (int m = 0; m < (1 << D); ++m) {
+    Vec<D> x;
+    for (int k = 0; k < D; ++k) x[k] = (m >> k) & 1 ? hi[k] : lo[k];
+    f(static_cast<const Vec<D>&>(x));
+  }
+}
+
 template <int D> class BoxShape final : public Shape<D> {
 public:
   BoxShape(const Vec<D>& lower, const Vec<D>& upper) : lower_(lower), upper_(upper) {
@@ -39,6 +53,15 @@ public:
     upper = upper_;
   }
   double measure() const override { return (upper_ - lower_).prod(); }
+  /// Exact: contains() compares coordinates, without rounding.
+  typename Shape<D>::Side side(const Vec<D>& lo, const Vec<D>& hi) const override {
+    bool inside = true;
+    for (int k = 0; k < D; ++k) {
+      if (hi[k] < lower_[k] || lo[k] > upper_[k]) return Shape<D>::Side::outside;
+      inside = inside && lo[k] >= lower_[k] && hi[k] <= upper_[k];
+    }
+    return inside ? Shape<D>::Side::inside : Shape<D>::Side::unknown;
+  }
   double boundary_measure() const override {
     if constexpr (D == 1) return 2.0;
     const Vec<D> e = upper_ - lower_;
@@ -63,6 +86,19 @@ public:
   }
   double measure() const override { return unit_ball(D) * std::pow(r_, D); }
   double boundary_measure() const override { return unit_sphere(D) * std::pow(r_, D - 1); }
+  /// The box's nearest and farthest points from the centre against the radius.
+  typename Shape<D>::Side side(const Vec<D>& lo, const Vec<D>& hi) const override {
+    const double e = kSideSlack * (r_ + magnitude<D>(lo, hi, c_, c_));
+    double near = 0.0, far = 0.0;
+    for (int k = 0; k < D; ++k) {
+      const double a = std::abs(lo[k] - c_[k]), b = std::abs(hi[k] - c_[k]);
+      const double in = c_[k] < lo[k] || c_[k] > hi[k] ? std::min(a, b) : 0.0;
+      near += in * in, far += std::max(a, b) * std::max(a, b);
+    }
+    if (std::sqrt(far) < r_ - e) return Shape<D>::Side::inside;
+    if (std::sqrt(near) > r_ + e) return Shape<D>::Side::outside;
+    return Shape<D>::Side::unknown;
+  }
 
 private:
   Vec<D> c_;
@@ -97,6 +133,23 @@ public:
   double boundary_measure() const override {
     return 2.0 * std::numbers::pi * radius_ * (radius_ + length_);
   }
+  /// Inside: every corner inside by the margin (the cylinder is convex).
+  /// Outside: every corner beyond one end, or the box's bounding ball
+  /// clear of the axis' line.
+  Side side(const Vec<3>& lo, const Vec<3>& hi) const override {
+    const double e = kSideSlack * (radius_ + length_ + magnitude<3>(lo, hi, base_, base_));
+    bool inside = true, below = true, beyond = true;
+    for_each_corner<3>(lo, hi, [&](const Vec<3>& x) {
+      const Vec<3> d = x - base_;
+      const double s = d.dot(axis_);
+      inside = inside && s > e && s < length_ - e && (d - s * axis_).norm() < radius_ - e;
+      below = below && s < -e, beyond = beyond && s > length_ + e;
+    });
+    if (inside) return Side::inside;
+    const Vec<3> d = 0.5 * (lo + hi) - base_;
+    if (below || beyond || (d - d.dot(axis_) * axis_).norm() > radius_ + 0.5 * (hi - lo).norm() + e) return Side::outside;
+    return Side::unknown;
+  }
 
 private:
   Vec<3> base_, axis_;
@@ -128,6 +181,17 @@ public:
   }
   double measure() const override { return bg::area(poly_); }
   double boundary_measure() const override { return bg::perimeter(poly_); }
+  /// The box widened by the margin, within the polygon or apart from it.
+  Side side(const Vec<2>& lo, const Vec<2>& hi) const override {
+    const Vec<2> a(box_.min_corner().x(), box_.min_corner().y()), b(box_.max_corner().x(), box_.max_corner().y());
+    const double e = kSideSlack * magnitude<2>(lo, hi, a, b);
+    const bg::model::box<Point> wide(Point(lo[0] - e, lo[1] - e), Point(hi[0] + e, hi[1] + e));
+    Polygon square;
+    bg::convert(wide, square);
+    if (bg::within(square, poly_)) return Side::inside;
+    if (bg::disjoint(wide, poly_)) return Side::outside;
+    return Side::unknown;
+  }
 
 private:
   Polygon poly_;
@@ -135,6 +199,19 @@ private:
 };
 
 } // namespace
+
+template <int D> typename Shape<D>::Side Shape<D>::side(const Vec<D>& lo, const Vec<D>& hi) const {
+  Vec<D> a, b;
+  bounds(a, b);
+  const double e = kSideSlack * magnitude<D>(lo, hi, a, b);
+  for (int k = 0; k < D; ++k)
+    if (hi[k] < a[k] - e || lo[k] > b[k] + e) return Side::outside;
+  return Side::unknown;
+}
+
+template class Shape<1>;
+template class Shape<2>;
+template class Shape<3>;
 
 template <int D> std::unique_ptr<Shape<D>> make_box(const Vec<D>& lower, const Vec<D>& upper) {
   return std::make_unique<BoxShape<D>>(lower, upper);

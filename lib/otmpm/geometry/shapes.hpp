@@ -25,7 +25,24 @@ public:
   virtual double measure() const = 0;
   /// The measure of its boundary (surface; perimeter in 2D; 2 in 1D).
   virtual double boundary_measure() const = 0;
+  /// Where the closed box [lower, upper] lies: `inside` only when
+  /// contains(x) is true at every point x of the box, `outside` only when
+  /// it is false at every one (rounding included: a box within a relative
+  /// kSideSlack of the boundary is `unknown`), `unknown` otherwise. It lets
+  /// the seeding count the particles of whole blocks of cells without
+  /// generating them. This one knows only the bounds (outside them, or
+  /// unknown); the shapes with a closed form say more.
+  enum class Side { inside, outside, unknown };
+  virtual Side side(const Vec<D>& lower, const Vec<D>& upper) const;
 };
+
+/// The margin of Shape::side relative to the size of the coordinates: far
+/// above the rounding of contains(), far below a seeding cell.
+inline constexpr double kSideSlack = 1e-9;
+
+extern template class Shape<1>;
+extern template class Shape<2>;
+extern template class Shape<3>;
 
 /// The box [lower, upper]. InputError unless lower < upper, finite.
 template <int D> std::unique_ptr<Shape<D>> make_box(const Vec<D>& lower, const Vec<D>& upper);

@@ -78,14 +78,16 @@ template <int D> Vec<D> CartesianGrid<D>::node_position(const Index<D>& ijk) con
 
 template <int D> Index<D> CartesianGrid<D>::cell_of(const Vec<D>& x) const {
   Index<D> c;
-  for (int k = 0; k < D; ++k) {
-    const double s = (x[k] - lower[k]) / (upper[k] - lower[k]) * cells[k];
-    const double f = std::floor(s);
-    // Clamp in floating point first: x may be far away (or NaN).
-    const double clamped = std::isnan(f) ? 0.0 : std::clamp(f, 0.0, double(cells[k] - 1));
-    c[k] = static_cast<int>(clamped);
-  }
+  for (int k = 0; k < D; ++k) c[k] = cell_index(k, x[k]);
   return c;
+}
+
+template <int D> int CartesianGrid<D>::cell_index(int k, double xk) const {
+  const double s = (xk - lower[k]) / (upper[k] - lower[k]) * cells[k];
+  const double f = std::floor(s);
+  // Clamp in floating point first: x may be far away (or NaN).
+  const double clamped = std::isnan(f) ? 0.0 : std::clamp(f, 0.0, double(cells[k] - 1));
+  return static_cast<int>(clamped);
 }
 
 template <int D> bool CartesianGrid<D>::contains(const Vec<D>& x) const {

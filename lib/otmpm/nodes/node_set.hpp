@@ -36,6 +36,9 @@ template <int D> struct CartesianGrid {
   Vec<D> node_position(const Index<D>& ijk) const;
   /// The cell that contains x (clamped to the grid), lattice index of its lower corner.
   Index<D> cell_of(const Vec<D>& x) const;
+  /// Index k of cell_of(x) from x[k] alone (it does not depend on the
+  /// other coordinates, and it never decreases as x[k] grows).
+  int cell_index(int k, double xk) const;
   /// True when x lies in the closed box [lower, upper].
   bool contains(const Vec<D>& x) const;
   /// Throws InputError (naming the axis and the values) unless lower < upper
