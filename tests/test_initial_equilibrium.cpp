@@ -112,7 +112,7 @@ TEST_CASE("a confined elastic column ends at sigma_yy = -rho g (H - y) and sigma
 }
 
 TEST_CASE(
-    "a slope brought into equilibrium stays still, one started stress-free moves; its series start at zero") {
+    "a slope brought into equilibrium stays still, one started stress-free moves, its series start at zero") {
   const std::string phase = "initial_equilibrium = { time = 20.0, tolerance = 1e-4 }";
   Simulation still(parse_scene(slope(phase), "slope.toml"), no_files());
   const Engine<2>& e = still.engine<2>();
