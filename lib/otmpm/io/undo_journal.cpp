@@ -17,6 +17,7 @@
 #include <filesystem>
 #include <memory>
 #include <new>
+#include <type_traits>
 #include <vector>
 
 namespace otmpm::h5 {
@@ -117,6 +118,9 @@ herr_t info_free(void* info) {
 
 void* info_get(H5FD_t* f) { return info_copy(&as_undo(f)->info); }
 
+static_assert(std::is_trivially_destructible_v<UndoFile>);
+void release_file(UndoFile* f) { std::free(f); }
+
 int open_flags(unsigned flags) {
   int o = (flags & H5F_ACC_RDWR) ? O_RDWR : O_RDONLY;
   if (flags & H5F_ACC_TRUNC) o |= O_TRUNC;
@@ -128,8 +132,11 @@ int open_flags(unsigned flags) {
 H5FD_t* open_file(const char* name, unsigned flags, hid_t fapl, haddr_t maxaddr) {
   const auto* info = static_cast<const JournalInfo*>(H5Pget_driver_info(fapl));
   if (!name || !*name || !info || maxaddr == 0 || maxaddr == HADDR_UNDEF || maxaddr > kMaxAddress) return nullptr;
-  auto* f = new (std::nothrow) UndoFile{}; // HDF5's C code calls this: no exception may leave it
-  if (!f) return nullptr;
+  // HDF5's C code calls this: no exception may leave it, so the file's
+  // record lives in malloc'ed memory (released by release_file).
+  void* memory = std::malloc(sizeof(UndoFile));
+  if (!memory) return nullptr;
+  auto* f = new (memory) UndoFile{};
   f->info = *info;
   f->fd = ::open(name, open_flags(flags), 0666);
   struct stat st {};
@@ -144,7 +151,7 @@ H5FD_t* open_file(const char* name, unsigned flags, hid_t fapl, haddr_t maxaddr)
   }
   const int err = errno;
   if (f->fd >= 0) ::close(f->fd);
-  delete f;
+  release_file(f);
   errno = err;
   return nullptr;
 }
@@ -161,7 +168,7 @@ herr_t close_file(H5FD_t* file) {
     if (!f->failed) ::unlink(f->info.journal);
   }
   status |= ::close(f->fd);
-  delete f;
+  release_file(f);
   return status == 0 ? 0 : -1;
 }
 
