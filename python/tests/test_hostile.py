@@ -252,16 +252,19 @@ def test_summary_is_read_only():
 
 
 def _undo_record(addr, old):
-    """One record of otmpm's undo journal: magic, reserved, address, size, FNV-1a check, then the old bytes."""
+    """One record of otmpm's undo journal: magic, reserved, address, size, CRC-64/XZ check, then the old bytes."""
     import struct
 
-    def fnv1a(data, h=0xCBF29CE484222325):
+    def crc64(data):  # CRC-64/XZ (ECMA-182, reflected), as the checkpoints' checksum
+        crc = 0xFFFFFFFFFFFFFFFF
         for b in data:
-            h = ((h ^ b) * 0x100000001B3) & 0xFFFFFFFFFFFFFFFF
-        return h
+            crc ^= b
+            for _ in range(8):
+                crc = (crc >> 1) ^ (0xC96C5795D7870F42 if crc & 1 else 0)
+        return crc ^ 0xFFFFFFFFFFFFFFFF
 
     magic = 0x524A554F
-    check = fnv1a(old, fnv1a(struct.pack("<QQQ", magic, addr, len(old))))
+    check = crc64(struct.pack("<QQQ", magic, addr, len(old)) + old)
     return struct.pack("<IIQQQ", magic, 0, addr, len(old), check) + old
 
 

@@ -1,6 +1,7 @@
 #include "otmpm/io/undo_journal.hpp"
 
 #include "otmpm/core.hpp"
+#include "otmpm/io/checkpoint.hpp"
 #include "otmpm/io/output_files.hpp"
 
 #include <fcntl.h>
@@ -33,7 +34,7 @@ struct JournalInfo {
 };
 
 /// One undo record: the bytes [addr, addr + size) held before a write,
-/// followed by those bytes; `check` covers the header fields and the bytes.
+/// followed by those bytes; `check` (record_check) covers the header fields and the bytes.
 struct RecordHeader {
   std::uint32_t magic;
   std::uint32_t reserved;
@@ -42,16 +43,11 @@ struct RecordHeader {
   std::uint64_t check;
 };
 
-/// FNV-1a (64 bits), continued from `h`: detects a record cut short by the kill.
-std::uint64_t fnv1a(const void* data, std::size_t n, std::uint64_t h = 0xcbf29ce484222325ULL) {
-  const auto* p = static_cast<const unsigned char*>(data);
-  for (std::size_t i = 0; i < n; ++i) h = (h ^ p[i]) * 0x100000001b3ULL;
-  return h;
-}
-
+/// CRC-64 of a record's header fields and bytes (the checkpoints' checksum):
+/// detects a record cut short by the kill.
 std::uint64_t record_check(const RecordHeader& r, const void* bytes) {
   const std::uint64_t fields[3] = {r.magic, r.addr, r.size};
-  return fnv1a(bytes, r.size, fnv1a(fields, sizeof fields));
+  return crc64_combine(crc64(fields, sizeof fields), crc64(bytes, r.size), r.size);
 }
 
 /// An open file of the driver. `pub` comes first: HDF5 hands the driver its address.
