@@ -176,21 +176,19 @@ TEST_CASE("the energy a wall's impact takes is booked, every integrator") {
   // energy of their normal velocity (theory.md eq. 6.5) and the particles
   // the transfer term of the held nodes' normal change (eq. 6.6), booked as
   // W_i: it does not exceed what the run lost, E(0) + W_R - E(t). The
-  // balance closes to (measured energy_drift; with (6.5) alone, without W_i
-  // in brackets): fe 0.038 (0.042, 0.046), musl 0.027 (0.031, 0.037), npc
-  // 0.057 (0.062, 0.068), central_difference 0.029 (0.033, 0.037),
-  // explicit_alpha 0.730 (no eq. 6.6; 0.724: its strain energy jumps by 8 J for a few
-  // steps from t = 0.286 s, when the free end's last particle crosses the
-  // grid line x = 1.0 and is alone at the node x = 1.05, 6.3e-4 of the
-  // largest nodal mass), otm 0.051 (0.076), unified 0.048 (0.065). The
-  // rest (no less at cfl 0.05 or at h / 4) is the schemes' response to the
-  // sudden stop, which a support at rest shows as well (the test below);
-  // not booked. On the wall moving at 0.2 m/s the
+  // balance closes to (measured energy_drift): fe 0.030, musl 0.0095, npc
+  // 0.057, central_difference 0.022, explicit_alpha 0.914 (its strain energy
+  // jumps by 8 J for a few steps from t = 0.286 s, when the free end's last
+  // particle crosses the grid line x = 1.0 and is alone at the node x =
+  // 1.05, 6.3e-4 of the largest nodal mass), otm 0.049, unified 0.046. The
+  // rest is the schemes' response to the sudden stop on linear elements,
+  // which a support at rest shows as well (the test below); not booked. On
+  // B-splines at h = L / 320 musl closes the bounce to 1e-3 (the next test). On the wall moving at 0.2 m/s the
   // runs lose far more (fe 12.1 J of E(0) + W_R = 40.5 J, W_i 0.15 J;
   // theory.md sect. 6.1): only W_i's bound is checked there.
-  const std::map<std::string, double> drift{{"fe", 0.038},  {"musl", 0.027},          {"npc", 0.057},
-                                            {"central_difference", 0.029}, {"explicit_alpha", 0.73},
-                                            {"otm", 0.051}, {"unified", 0.048}};
+  const std::map<std::string, double> drift{{"fe", 0.030},  {"musl", 0.0095},         {"npc", 0.057},
+                                            {"central_difference", 0.022}, {"explicit_alpha", 0.914},
+                                            {"otm", 0.049}, {"unified", 0.046}};
   for (const IntegratorKind& k : integrator_kinds())
     for (const double wall : {0.0, 0.2}) {
       const std::string name(k.name);
@@ -211,6 +209,73 @@ TEST_CASE("the energy a wall's impact takes is booked, every integrator") {
       // explicit_alpha ends the bounce at rest 0.046 J above E(0) (0.4 %): 2 % of E(0) allowed.
       CHECK(E.impact <= lost + 0.02 * E0);
       if (wall == 0.0) CHECK(worst / E0 <= 1.1 * drift.at(name));
+    }
+}
+
+TEST_CASE("a frictionless bounce closes its energy balance to 1e-3: musl on B-splines, every elastic law") {
+  // The bounce above (wall at rest, the bar compressed by 5 % from t = 0.2 to
+  // 0.4 s, to t = 0.5 s) on a grid of h = L / 320 (512 cells), musl: the
+  // largest balance error over the run, relative to E(0) = 12.5 J, measured
+  // bspline2 / bspline3: linear_elastic 8.2e-4 / 4.8e-4, linear_elastic_finite
+  // 3.4e-4 / 5.2e-4, neo_hookean 3.4e-4 / 5.2e-4 (neo_hookean 2.6e-4 at h =
+  // L / 640). Counting linear_elastic's stored energy as V sigma : eps / 2
+  // instead of its work (theory.md eq. 11.1a) gives 0.018 here, a balance
+  // that dips by tr(eps) / 3 of the stored energy while the bar is
+  // compressed. On linear elements cell crossings add 0.007 to 0.015; fe,
+  // central_difference and npc lose more at the sudden stop (theory.md sect.
+  // 11: 2.6e-3, 1.6e-3, 0.015 at h = L / 640).
+  const IntegratorKind& musl = integrator_kind("musl");
+  for (const std::string law : {"linear_elastic", "linear_elastic_finite", "neo_hookean"})
+    for (const std::string basis : {"bspline2", "bspline3"}) {
+      INFO(law << ", " << basis);
+      std::string toml = bounce(musl, 0.0, 0.5);
+      toml.replace(toml.find("cells = [32]"), 12, "cells = [512]");
+      toml.replace(toml.find("\"linear\""), 8, "\"" + basis + "\"");
+      toml.replace(toml.find("\"linear_elastic\""), 16, "\"" + law + "\"");
+      Engine<1> e = assemble<1>(parse_scene(toml, "bounce.toml"));
+      const double E0 = e.energy().initial;
+      double worst = 0.0;
+      while (e.time() < e.settings().t_end * (1.0 - 1e-12)) {
+        e.step();
+        worst = std::max(worst, std::abs(e.energy().balance_error()));
+      }
+      CHECK(e.particles().v[0][0] > 0.45); // it bounced: back at (nearly) 0.5 m/s
+      CHECK(worst / E0 < 1e-3);
+    }
+}
+
+TEST_CASE("a body force does no work on the momentum a fixed support takes: a column on its base, every integrator and node mode") {
+  // The bar [0, 1] (E = 1e5 Pa here) standing on a fixed node at x = 0
+  // under its weight, the gravity ramped in over 1 s (static strain at the
+  // base rho g L / E = 0.0098: no particle crosses a grid line), cfl 0.1.
+  // W_ext is the trapezoidal rule on b . sum_p m_p v_p, and the particles
+  // bring the base node a momentum q_I it does not keep: eq. 11.1c takes b
+  // q_I dt out. Measured energy_drift, mpm and ul alike: fe, musl 1.9e-4
+  // (fe's first-order time error), npc 1.3e-6, central_difference 3.5e-7,
+  // explicit_alpha 1.3e-6; without eq. 11.1c 3.7e-3 to 3.9e-3.
+  const std::map<std::string, double> drift{{"fe", 1.9e-4}, {"musl", 1.9e-4}, {"npc", 1.3e-6},
+                                            {"central_difference", 3.5e-7}, {"explicit_alpha", 1.3e-6}};
+  for (const IntegratorKind& k : integrator_kinds())
+    for (const std::string mode : {"mpm", "ul"}) {
+      if (k.needs_bspline || k.needs_ul) continue;
+      const std::string name(k.name);
+      INFO(name << ", " << mode);
+      REQUIRE(drift.count(name) == 1);
+      std::string toml = bar(k, 1.0, 0.1, "lower = [0.0]\nupper = [1.0]",
+                             "[[boundary]]\nname = \"base\"\nlower = [0.0]\nupper = [0.0]\nfix = [true]\n"
+                             "[body_force]\nvalue = [-9.81]\ntime = { kind = \"ramp\", period = 2.0 }\n");
+      toml.replace(toml.find("mode = \"mpm\""), 12, "mode = \"" + mode + "\"");
+      toml.replace(toml.find("young = 1.0e4"), 13, "young = 1.0e5");
+      Engine<1> e = assemble<1>(parse_scene(toml, "column.toml"));
+      double worst = 0.0;
+      while (e.time() < e.settings().t_end * (1.0 - 1e-12)) {
+        e.step();
+        worst = std::max(worst, std::abs(e.energy().balance_error()));
+      }
+      const double relative = worst / std::abs(e.energy().external_work);
+      MESSAGE(name << " " << mode << ": energy_drift " << relative);
+      CHECK(e.energy().external_work > 0.0);
+      CHECK(relative <= 1.2 * drift.at(name));
     }
 }
 
@@ -449,10 +514,9 @@ TEST_CASE("a bar stopped by a wall loses, beyond W_i, what a bar stopped by a su
   // step), the per-step approach of the held node (6.5) and the transfer
   // term (6.6); the support books nothing (a support at rest does no
   // work). What neither books, E(0) - E(t) - W_i, is of the same size for
-  // both: measured wall / support 0.78 fe, 1.02 musl, 0.79 npc, 0.83
-  // central_difference, 0.72 explicit_alpha in mpm (0.68, 0.88, 0.81,
-  // 0.64, 0.70 in ul; with eq. 6.5 alone 0.70 to 1.43), of 0.59 J (fe,
-  // mpm) of E(0) = 12.5 J. So the energy a bounce leaves unbooked (theory.md
+  // both: measured wall / support 0.73 fe, 1.07 musl, 0.75 npc, 0.78
+  // central_difference, 0.64 explicit_alpha in mpm (0.55, 0.76, 0.78,
+  // 0.38, 0.56 in ul), of 0.11 to 0.87 J (musl ul, npc mpm) of E(0) = 12.5 J. So the energy a bounce leaves unbooked (theory.md
   // sect. 6.1) is the schemes' response to the sudden stop of the bar's
   // end, which a support shows as well, not a work of the wall left out of W_i.
   for (const IntegratorKind& k : integrator_kinds())
@@ -474,8 +538,8 @@ TEST_CASE("a bar stopped by a wall loses, beyond W_i, what a bar stopped by a su
       MESSAGE(name << " " << mode << ": unbooked loss support " << lost[0] << " J, wall " << lost[1] << " J (W_i "
                    << impact << " J)");
       CHECK(impact >= 0.3125); // the first step's stop of the end node, m_I v^2 / 2 = 2.5 kg (0.5 m/s)^2 / 2
-      CHECK(lost[0] > 0.2);
-      CHECK(lost[1] >= 0.5 * lost[0]);
+      CHECK(lost[0] > 0.1);
+      CHECK(lost[1] >= 0.3 * lost[0]);
       CHECK(lost[1] <= 1.6 * lost[0]);
     }
 }

@@ -113,6 +113,18 @@ void Constraints<D>::book_reaction(const AlignedVector<Vec<D>>& rho, double c, c
       if (constrained_[static_cast<std::size_t>(I) * D + k]) book_fixed(static_cast<std::size_t>(I), k, c * rho[I][k], ledger);
 }
 
+template <int D>
+double Constraints<D>::held_body_power(const Vec<D>& b, const AlignedVector<Vec<D>>& q, const std::vector<double>& m) const {
+  double power = 0.0;
+  if (b == Vec<D>::Zero()) return power;
+  for (const int I : nodes_)
+    for (int k = 0; k < D; ++k) {
+      const std::size_t c = static_cast<std::size_t>(I) * D + static_cast<std::size_t>(k);
+      if (constrained_[c] && counts(I)) power += b[k] * (q[I][k] - m[I] * vbar_[c]);
+    }
+  return power;
+}
+
 template <int D> double Constraints<D>::prescribed_kinetic_energy(const std::vector<double>& m) const {
   double e = 0.0;
   for (std::size_t i = 0; i < d_.node.size(); ++i)

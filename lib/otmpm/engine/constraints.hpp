@@ -234,6 +234,10 @@ public:
   /// first carried.
   std::vector<AlignedVector<Vec<D>>>& carried() { return carried_; }
   const std::vector<AlignedVector<Vec<D>>>& carried() const { return carried_; }
+  /// sum over the fixed components k of counted nodes I of b_k (q_Ik - m_I
+  /// vbar_Ik): the body force's power on the momentum the particles bring
+  /// to the fixed components beyond what they keep (docs/theory.md eq. 11.1c).
+  double held_body_power(const Vec<D>& b, const AlignedVector<Vec<D>>& q, const std::vector<double>& m) const;
   /// sum over fixed components of 1/2 m_I v_prescribed^2 (zero for fixed supports).
   double prescribed_kinetic_energy(const std::vector<double>& m) const;
   /// Only the nodes with counted[I] != 0 add to the impulse, the work and

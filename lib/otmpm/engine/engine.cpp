@@ -16,6 +16,7 @@
 #include <limits>
 #include <new>
 #include <unordered_map>
+#include <utility>
 
 namespace otmpm {
 
@@ -257,12 +258,14 @@ template <int D> void Engine<D>::step() {
   // body, where the one-sided rule would leave an O(dt) error in the balance.
   const double power = global_power(t_, momentum_);
   double work = 0.5 * dt_ * (external_power_ + power);
-  if (!loads_.tractions.empty()) { // the tractions' work on the loaded particles' motion, and what it cannot see
-    double traction[2] = {loads_.traction_work(t0, t_, P_, traction_start_), loads_.unresolved_work(t_, P_)};
-    if (dist_) dist_->sum(traction);
-    work += traction[0];
-    unresolved_work_ = traction[1];
-  }
+  // The tractions' work on the loaded particles' motion, what it cannot see,
+  // and the body force's on the momentum the fixed components do not take.
+  double rank[3] = {0.0, 0.0, std::exchange(held_work_, 0.0)};
+  if (!loads_.tractions.empty())
+    rank[0] = loads_.traction_work(t0, t_, P_, traction_start_), rank[1] = loads_.unresolved_work(t_, P_);
+  if (dist_ && loads_.any()) dist_->sum(rank);
+  work += rank[0] - rank[2];
+  unresolved_work_ = rank[1];
   if (TwoPhase<D>* liquid = settings_.two_phase.get()) work += liquid->take_boundary_work(); // the rigid plates, the free water
   energy_.external_work += work;
   external_power_ = power;
@@ -326,6 +329,11 @@ template <int D> void Engine<D>::to_nodes(const ToNodes<D>& what) {
   to_nodes_with(what, [](int, int) {});
   exchange_sums(what.mass, what.w != nullptr, what.forces || what.split);
   if (what.mass) finish_mass();
+  // The step's first sums (every integrator's): the body force's work on the
+  // momentum its fixed components do not take (docs/theory.md eq. 11.1c;
+  // saturated bodies book it with the liquid's, eq. 15.14).
+  if (what.mass && what.w == &P_.v && !settings_.two_phase)
+    held_work_ = dt_ * constraints_.held_body_power(loads_.body_force_at(t_), nodal_.q, nodal_.m);
 }
 
 template <int D>

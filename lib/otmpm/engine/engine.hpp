@@ -498,7 +498,7 @@ private:
   double wave_speed_ = 0.0;          ///< max_p max(c_p, |v_p|) after the last step
   Vec<D> momentum_ = Vec<D>::Zero(); ///< sum_p m_p v_p after the last step
   Vec<D> reaction_impulse_ = Vec<D>::Zero();
-  double external_power_ = 0.0; ///< power of the body force at t_ (trapezoidal work)
+  double external_power_ = 0.0, held_work_ = 0.0; ///< power of the body force at t_ (trapezoidal work); eq. 11.1c
   AlignedVector<Vec<D>> traction_start_; ///< the loaded particles' positions at the start of the step
   std::shared_ptr<Distribution<D>> dist_;
   /// A distributed run: this rank's Dirichlet impulse and work and the

@@ -2,22 +2,68 @@
 /// The three elastic models (elasticity.hpp) as Material<D>:
 /// linear_elastic (small strain; molinos et al.), linear_elastic_finite
 /// (wobbes et al. eq. 10) and neo_hookean (wobbes et al. eq. 11). None has
-/// internal variables; the stored energy is neo_hookean's potential V0_p W(F_p),
-/// linear_elastic's V_p (sigma0_p : eps_p + 1/2 eps_p : C : eps_p) (its
-/// initial stress sigma0_p in), 1/2 sigma : eps V_p for linear_elastic_finite.
+/// internal variables; the stored energy is neo_hookean's potential V0_p W(F_p)
+/// and, for the two laws without a potential, the work of the law's own
+/// stress along the straight path to the particle's state (docs/theory.md
+/// eqs. 11.1a-11.1b).
 #include "otmpm/materials/models.hpp"
 #include "otmpm/materials/pore_fluid.hpp"
 
 #include <array>
+#include <cmath>
 #include <type_traits>
 
 namespace otmpm {
 
 namespace {
 
-/// The energy of the elastic models as the monitor counts it: V_p 1/2 sigma : eps.
-template <int D> void add_elastic_energies(const Particles<D>& P, int p0, int p1, double& stored) {
-  for (int p = p0; p < p1; ++p) stored += P.V[p] * strain_energy_density<D>(P.sigma[p], P.eps[p]);
+/// phi_1(a) = int_0^1 exp(-(1 - s) a) ds and phi_2(a) = int_0^1 s exp(-(1 -
+/// s) a) ds (docs/theory.md eq. 11.1a): the weights of linear_elastic's work
+/// along the straight strain path, on which the volume is V exp(-(1 - s) a),
+/// a = tr eps. Their Taylor series below |a| = 0.1 (terms to a^7: relative
+/// error below 1e-15), where the closed forms lose digits to cancellation.
+struct StraightPathWeights {
+  double phi1, phi2;
+  explicit StraightPathWeights(double a) {
+    if (std::abs(a) < 0.1) {
+      // (-a)^k / (k + 1)! and (-a)^k / (k + 2)!, k = 7 .. 0 (Horner).
+      phi1 = phi2 = 0.0;
+      for (int k = 7; k >= 0; --k) {
+        phi1 = 1.0 / factorial(k + 1) - a * phi1;
+        phi2 = 1.0 / factorial(k + 2) - a * phi2;
+      }
+    } else {
+      phi1 = -std::expm1(-a) / a;
+      phi2 = (a + std::expm1(-a)) / (a * a);
+    }
+  }
+  static double factorial(int n) {
+    double f = 1.0;
+    for (int i = 2; i <= n; ++i) f *= i;
+    return f;
+  }
+};
+
+/// The work of a law sigma(F) without a potential along the straight path
+/// F(s) = I + s (F - I), per reference volume: int_0^1 J(s) sigma(F(s)) :
+/// ((F - I) F(s)^-1) ds (docs/theory.md eq. 11.1b; the stress power sigma : L
+/// of the forces), by 4-point Gauss-Legendre (exact in 1D, where the
+/// integrand of linear_elastic_finite is a polynomial of degree 1). A path
+/// through det F(s) <= 0 (a rotation near half a turn, where the law has no
+/// meaning) counts 1/2 sigma : (sym(F) - I) J instead.
+template <int D, Mat<D> (*Law)(const ElasticConstants&, const Mat<D>&)>
+double straight_path_work(const ElasticConstants& c, const Mat<D>& F, const Mat<D>& sigma, const Mat<D>& eps) {
+  static constexpr double x[4] = {0.0694318442029737, 0.3300094782075719, 0.6699905217924281, 0.9305681557970263};
+  static constexpr double w[4] = {0.1739274225687269, 0.3260725774312731, 0.3260725774312731, 0.1739274225687269};
+  const Mat<D> dF = F - Mat<D>::Identity();
+  double work = 0.0;
+  for (int k = 0; k < 4; ++k) {
+    const Mat<D> Fs = Mat<D>::Identity() + x[k] * dF;
+    const double J = Fs.determinant();
+    if (!(J > 0.0)) return 0.5 * F.determinant() * sigma.cwiseProduct(eps).sum();
+    work += w[k] * J * Law(c, Fs).cwiseProduct(dF * Fs.inverse()).sum();
+  }
+  return work;
 }
 
 /// Small strain (docs/theory.md): d_eps = sym(H), eps += d_eps,
@@ -49,13 +95,19 @@ public:
       V[p] = m[p] / rho[p];
     }
   }
-  /// The energy stored since the start, V_p (sigma0_p : eps_p + 1/2 eps_p :
-  /// C : eps_p), with the initial stress sigma0_p = sigma_p - C : eps_p (a
-  /// geostatic start; 0 otherwise, where this is 1/2 sigma_p : eps_p).
+  /// The energy stored since the start, the work of the stress along the
+  /// straight path to eps_p (docs/theory.md eq. 11.1a), V_p (phi_1(a)
+  /// sigma0_p : eps_p + phi_2(a) eps_p : C : eps_p), a = tr eps_p, with the
+  /// initial stress sigma0_p = sigma_p - C : eps_p (a geostatic start; 0
+  /// otherwise); to first order in eps_p V_p (sigma0_p + C : eps_p / 2) : eps_p.
   void add_energies(const Particles<D>& P, int p0, int p1, double& stored, double&) const override {
     const ElasticConstants c = c_;
-    for (int p = p0; p < p1; ++p)
-      stored += P.V[p] * (P.sigma[p] - 0.5 * elastic_stress_increment<D>(c, P.eps[p])).cwiseProduct(P.eps[p]).sum();
+    for (int p = p0; p < p1; ++p) {
+      const Mat<D> c_eps = elastic_stress_increment<D>(c, P.eps[p]);
+      const StraightPathWeights phi(P.eps[p].trace());
+      stored += P.V[p] * (phi.phi1 * (P.sigma[p] - c_eps).cwiseProduct(P.eps[p]).sum() +
+                          phi.phi2 * c_eps.cwiseProduct(P.eps[p]).sum());
+    }
   }
   /// sigma_zz = sigma0_zz + lambda tr(eps_p): eps_p starts at 0 and takes
   /// the increments d_eps of sigma_p (d_eps_zz = 0); sigma0_zz is the
@@ -90,7 +142,7 @@ template <int D> struct NeoHookeanPotential {
 /// (out_of_plane_stress); WaveLaw: rho0 c^2 of its fastest wave at F_p;
 /// Potential: the law's stored energy per reference volume,
 /// Potential::density(c, F_p) = W(F_p) (NoPotential: a law without one,
-/// counted as 1/2 sigma : eps V_p).
+/// counted as its work along the straight path to F_p, straight_path_work).
 template <int D, Mat<D> (*Law)(const ElasticConstants&, const Mat<D>&),
           double (*ZzLaw)(const ElasticConstants&, const Mat<2>&),
           double (*WaveLaw)(const ElasticConstants&, const Mat<D>&), class Potential = NoPotential>
@@ -116,7 +168,8 @@ public:
     }
   }
   void add_energies(const Particles<D>& P, int p0, int p1, double& stored, double&) const override {
-    if constexpr (std::is_same_v<Potential, NoPotential>) add_elastic_energies(P, p0, p1, stored);
+    if constexpr (std::is_same_v<Potential, NoPotential>)
+      for (int p = p0; p < p1; ++p) stored += P.V0[p] * straight_path_work<D, Law>(c_, P.F[p], P.sigma[p], P.eps[p]);
     else
       for (int p = p0; p < p1; ++p) stored += P.V0[p] * Potential::density(c_, P.F[p]);
   }

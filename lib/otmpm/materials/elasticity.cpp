@@ -57,9 +57,23 @@ template <int D> double neo_hookean_wave_modulus(const ElasticConstants& c, cons
 }
 
 template <int D> double neo_hookean_energy(const ElasticConstants& c, const Mat<D>& F) {
-  const double lnJ = std::log(checked_det<D>(F, "neo_hookean"));
-  const double mu = lame_mu(c, D);
-  return 0.5 * lame_lambda(c, D) * lnJ * lnJ - mu * lnJ + 0.5 * mu * ((F * F.transpose()).trace() - D);
+  checked_det<D>(F, "neo_hookean");
+  // In H = F - I, without the cancellations of tr(F F^T) - D and ln J near
+  // F = I: J - 1 = j = tr H + I2(H) + I3(H), tr(F F^T) - D - 2 ln J = |H|^2
+  // - 2 (I2 + I3) + 2 (j - ln(1 + j)).
+  const Mat<D> H = F - Mat<D>::Identity();
+  const double tr = H.trace();
+  const double i2 = D >= 2 ? 0.5 * (tr * tr - (H * H).trace()) : 0.0;
+  const double i3 = D == 3 ? H.determinant() : 0.0;
+  const double j = tr + i2 + i3, lnJ = std::log1p(j);
+  // j - ln(1 + j) = j^2 (1/2 - j/3 + j^2/4 - ...): the series to j^9 below |j| = 0.01.
+  double rest = j - lnJ;
+  if (std::abs(j) < 1e-2) {
+    rest = 0.0;
+    for (int k = 9; k >= 2; --k) rest = 1.0 / k - j * rest;
+    rest *= j * j;
+  }
+  return 0.5 * lame_lambda(c, D) * lnJ * lnJ + 0.5 * lame_mu(c, D) * (H.squaredNorm() - 2.0 * (i2 + i3) + 2.0 * rest);
 }
 
 double linear_elastic_finite_out_of_plane(const ElasticConstants& c, const Mat<2>& F) {

@@ -88,11 +88,4 @@ double linear_elastic_finite_out_of_plane(const ElasticConstants& c, const Mat<2
 /// ((F F^T)_zz = 1). Throws InstabilityError as neo_hookean_stress.
 double neo_hookean_out_of_plane(const ElasticConstants& c, const Mat<2>& F);
 
-/// Stored energy density of the elastic models as the energy monitor counts
-/// it (per unit current volume): 1/2 sigma : eps, with eps the small strain
-/// or sym(F) - I.
-template <int D> inline double strain_energy_density(const Mat<D>& sigma, const Mat<D>& eps) {
-  return 0.5 * sigma.cwiseProduct(eps).sum();
-}
-
 } // namespace otmpm
