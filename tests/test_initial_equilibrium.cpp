@@ -194,6 +194,15 @@ TEST_CASE("simulation.initial_equilibrium is checked with the file's line, and n
   why = input_error_of(
       [] { parse_scene(column("initial_equilibrium = { time = 1.0, alpha = 0.5 }"), "c.toml"); });
   CHECK(why.find("alpha") != std::string::npos);
+  // the table given whole by --set: the message names the key inside it
+  for (const char* set : {"simulation.initial_equilibrium={time=1.0, damping=2}",
+                          "simulation.initial_equilibrium.damping=2"}) {
+    CAPTURE(set);
+    why = input_error_of([&] { parse_scene(column("initial_equilibrium = { time = 1.0 }"), "c.toml", {set}); });
+    CHECK(why.starts_with("--set simulation.initial_equilibrium"));
+    CHECK(why.find("simulation.initial_equilibrium.damping") != std::string::npos);
+    CHECK(why.ends_with(scene_keys::kEquilibriumDamping.check(2.0)));
+  }
   Scene s = parse_scene(column("initial_equilibrium = { time = 1.0 }"), "c.toml");
   s.simulation.initial_equilibrium->damping = 1.0; // a Scene built in code meets the same row
   why = input_error_of([&] { validate_scene(s, 2); });

@@ -22,7 +22,12 @@ struct SourceRef {
   std::string file;
   int line = 0;
   std::string key;
-  /// "FILE:LINE: key 'KEY'" ("--set KEY" for command-line overrides, "key 'KEY'"
+  /// A key inside the table that `--set key=...` wrote whole (line ==
+  /// kCommandLineLine; empty: `key` itself), e.g. key
+  /// "simulation.initial_equilibrium", field "simulation.initial_equilibrium.damping".
+  std::string field = {};
+  /// "FILE:LINE: key 'KEY'" ("--set KEY" for command-line overrides, "--set
+  /// KEY: key 'FIELD'" for a key inside a table it wrote, "key 'KEY'"
   /// without a file: a Scene built in code).
   std::string describe() const;
 };
