@@ -5,6 +5,7 @@
 // starts with zero displacements and energy series, and the key is
 // checked like every scene key.
 #include "otmpm/integrators/integrator.hpp"
+#include "otmpm/io/checkpoint.hpp"
 #include "otmpm/io/results.hpp"
 #include "otmpm/run/initial_equilibrium.hpp"
 #include "otmpm/run/simulation.hpp"
@@ -158,6 +159,24 @@ TEST_CASE("the result file says how the phase ended") {
   REQUIRE(s.exit_code == 0);
   CHECK(s.initial_equilibrium.starts_with("not converged in")); // 0.05 s is a sixth of what it needs
   CHECK(read_string_attribute(o.out_file, "initial_equilibrium") == s.initial_equilibrium);
+}
+
+TEST_CASE("a restart's result file says how the interrupted run's phase ended") {
+  test::TempDir tmp("initial_equilibrium_restart");
+  RunOptions o;
+  o.out_file = tmp.file("slope.h5");
+  const RunSummary first = run_scene(parse_scene(slope("initial_equilibrium = { time = 20.0, tolerance = 1e-4 }"),
+                                                 "slope.toml", {"simulation.t_end=0.05", "output.checkpoint_every=20"}),
+                                     o);
+  REQUIRE(first.exit_code == 0);
+  REQUIRE(first.initial_equilibrium.starts_with("converged after"));
+  RunOptions again;
+  again.out_file = tmp.file("again.h5");
+  const RunSummary restarted = restart_run(read_checkpoint(tmp.file("slope.checkpoint.h5")), again);
+  REQUIRE(restarted.exit_code == 0);
+  CHECK(restarted.steps == first.steps);
+  CHECK(restarted.initial_equilibrium == first.initial_equilibrium);
+  CHECK(read_string_attribute(again.out_file, "initial_equilibrium") == first.initial_equilibrium);
 }
 
 TEST_CASE("every integrator of the fixed grid brings the slope into equilibrium") {

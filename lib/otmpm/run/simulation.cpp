@@ -108,6 +108,8 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
     summary.particles = view.particles();
     summary.nodes = view.nodes();
     summary.status = "running";
+    if (resume) summary.initial_equilibrium = rec.initial_equilibrium(); // how the interrupted run's phase ended
+    else rec.set_initial_equilibrium(summary.initial_equilibrium);
     if (resume) return;
     if (interrupt_requested(opt)) { // during the set-up: no initial frame, no checkpoint (nothing was run)
       stop_interrupted();
