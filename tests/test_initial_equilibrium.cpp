@@ -4,6 +4,7 @@
 // equilibrium stays still where one started stress-free moves, the run
 // starts with zero displacements and energy series, and the key is
 // checked like every scene key.
+#include "otmpm/assembly/assembler.hpp"
 #include "otmpm/integrators/integrator.hpp"
 #include "otmpm/io/checkpoint.hpp"
 #include "otmpm/io/results.hpp"
@@ -18,6 +19,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <regex>
 #include <string>
 #include <vector>
 
@@ -60,6 +62,22 @@ std::string slope(const std::string& phase) {
          "[[boundary]]\nname = \"base\"\nlower = [-0.5, 0.0]\nupper = [6.5, 0.0]\nfix = [true, true]\n"
          "[[boundary]]\nname = \"back\"\nlower = [6.0, 0.0]\nupper = [6.0, 3.0]\nfix = [true, false]\n"
          "[output]\nfile = \"slope.h5\"\n";
+}
+
+/// A saturated elastic column 1 m high (h = 1/64 m, 1D) under its weight,
+/// drained at its top, without a water table: its pore water carries the
+/// weight at first and drains through the top over about 1 s (c_v = 1 m^2/s).
+std::string consolidating(const std::string& phase) {
+  return "[simulation]\ndimension = 1\nmode = \"mpm\"\nintegrator = \"fe\"\nt_end = 0.001\ncfl = 0.5\n" + phase +
+         "\n[basis]\nkind = \"linear\"\n[grid]\nlower = [0.0]\nupper = [1.0]\ncells = [64]\n"
+         "[[material]]\nname = \"sand\"\nmodel = \"linear_elastic\"\ndensity = 2650.0\nyoung = 1.0e7\n"
+         "poisson = 0.0\nporosity = 0.4\npermeability = 1.0e-10\nfluid_density = 1000.0\n"
+         "fluid_bulk_modulus = 2.2e9\nfluid_viscosity = 1.0e-3\n"
+         "[[body]]\nname = \"column\"\nmaterial = \"sand\"\nlower = [0.0]\nupper = [1.0]\nparticles_per_cell = 2\n"
+         "[body_force]\nvalue = [-9.81]\n"
+         "[[boundary]]\nname = \"base\"\nlower = [0.0]\nupper = [0.0]\nfix = [true]\n"
+         "[[boundary]]\nname = \"top\"\nlower = [1.0]\nupper = [1.0]\npore_pressure = 0.0\n"
+         "[output]\nfile = \"consolidating.h5\"\n";
 }
 
 RunOptions no_files() {
@@ -177,6 +195,64 @@ TEST_CASE("a restart's result file says how the interrupted run's phase ended") 
   CHECK(restarted.steps == first.steps);
   CHECK(restarted.initial_equilibrium == first.initial_equilibrium);
   CHECK(read_string_attribute(again.out_file, "initial_equilibrium") == first.initial_equilibrium);
+}
+
+TEST_CASE("a dip of the residuals below the tolerance during the transient does not end the phase") {
+  // The column's damped oscillation passes through its equilibrium every
+  // half period (2 H / c): both residuals fall below 1e-2 there for up to
+  // 0.023 s (19 steps), then rise above it again (measured).
+  const double tolerance = 1e-2;
+  const Scene scene =
+      parse_scene(column("initial_equilibrium = { time = 10.0, tolerance = 1e-2 }"), "column.toml");
+  Engine<2> e(assemble_parts<2>(scene));
+  std::vector<EquilibriumReport> steps;
+  const EquilibriumReport r = settle<2>(scene, e, [&](const EquilibriumReport& s) { steps.push_back(s); });
+  MESSAGE(r.describe(tolerance));
+  REQUIRE(r.converged);
+  REQUIRE(steps.size() >= 2);
+  CHECK(steps.back().steps == r.steps);
+  const auto below = [&](const EquilibriumReport& s) {
+    return std::max(s.force_residual, s.velocity_residual) < tolerance;
+  };
+  // the transient has a dip: a step below the tolerance, a later one above it
+  const auto dip = std::find_if(steps.begin(), steps.end(), below);
+  REQUIRE(dip != steps.end());
+  const auto above_again = std::find_if_not(dip, steps.end(), below);
+  REQUIRE(above_again != steps.end());
+  MESSAGE("below the tolerance at step " << dip->steps << ", above it again at step " << above_again->steps);
+  CHECK(r.steps > above_again->steps);
+  // W of eq. 15.17: twice the particles' extent (H less half a particle spacing) over c_p
+  const double M = 1.0e7 * (1.0 - kNu) / ((1.0 + kNu) * (1.0 - 2.0 * kNu));
+  CHECK(r.window == doctest::Approx(2.0 * (4.0 - 0.125) / std::sqrt(M / kRho)).epsilon(0.01));
+  // ended at the first step after which every step of the last W was below the tolerance
+  for (const EquilibriumReport& s : steps)
+    if (s.time > r.time - r.window) CHECK(below(s));
+  CHECK(r.held >= r.window * (1.0 - 1e-9));
+  CHECK(steps[steps.size() - 2].held < steps[steps.size() - 2].window);
+}
+
+TEST_CASE("a phase that ends with the bodies creeping says so, and names the fastest particle") {
+  // consolidation under its weight: the drag balances the weight (R_f small)
+  // while the column settles for about 1 s, longer than the phase's 0.2 s
+  const Scene scene = parse_scene(consolidating("initial_equilibrium = { time = 0.2 }"), "consolidating.toml");
+  Engine<1> e(assemble_parts<1>(scene));
+  const EquilibriumReport r = settle<1>(scene, e);
+  const std::string why = r.describe(1e-3);
+  MESSAGE(why);
+  REQUIRE(!r.converged);
+  CHECK(why.starts_with("not converged in"));
+  CHECK(r.force_residual < 1e-3);
+  CHECK(r.velocity_residual > 1e-3);
+  CHECK(why.find("R_v above the tolerance with no unbalanced force to damp: the bodies creep") !=
+        std::string::npos);
+  CHECK(why.find("give a longer time") != std::string::npos);
+  // the fastest particle, where the run starts it: at the drained top, which settles fastest
+  std::smatch m;
+  REQUIRE(std::regex_search(why, m, std::regex("particle ([0-9]+) \\(body 'column'\\) at (\\([^)]*\\)): \\|v\\| = ")));
+  const int p = std::stoi(m[1].str());
+  REQUIRE(p < e.particles().size());
+  CHECK(m[2].str() == format_point<1>(e.particles().x[p]));
+  CHECK(e.particles().x[p][0] > 0.9);
 }
 
 TEST_CASE("every integrator of the fixed grid brings the slope into equilibrium") {
