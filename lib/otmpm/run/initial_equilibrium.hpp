@@ -3,9 +3,9 @@
 /// The gravity-loading phase of `simulation.initial_equilibrium`
 /// (docs/theory.md sect. 15, "Initial equilibrium"): before t = 0 the
 /// bodies are stepped under the scene's loads at t = 0 with Cundall's local
-/// non-viscous damping (eq. 15.15) until the residuals (eq. 15.16) fall
-/// below the tolerance or the phase's time has run; the run then starts
-/// from that state.
+/// non-viscous damping (eq. 15.15) until the residuals (eq. 15.16) have
+/// stayed below the tolerance over the window of eq. 15.17 or the phase's
+/// time has run; the run then starts from that state.
 #include "otmpm/engine/engine.hpp"
 #include "otmpm/scene/scene.hpp"
 
@@ -23,7 +23,7 @@ struct EquilibriumReport {
   long steps = 0;
   double time = 0.0;
   double force_residual = 0.0, velocity_residual = 0.0;
-  double window = 0.0; ///< W of eq. 15.17 at the last step: the bodies' extent over the wave speed [s]
+  double window = 0.0; ///< W of eq. 15.17 at the last step: twice the bodies' extent over the wave speed [s]
   double held = 0.0;   ///< how long both residuals had been below the tolerance at the last step [s]
   /// Not converged: the fastest particle at the end, "particle P (body 'NAME') at (x, y): |v| = V".
   std::string fastest;

@@ -43,7 +43,8 @@ Vec<3> first_components(const Vec3& v, int dim);
 /// A gravity-loading phase before t = 0 (`simulation.initial_equilibrium`,
 /// docs/theory.md sect. 15, "Initial equilibrium"): the scene's loads at
 /// t = 0 step the bodies with Cundall's local non-viscous damping (eq.
-/// 15.15) until the residuals (eq. 15.16) fall below `tolerance` or `time`
+/// 15.15) until the residuals (eq. 15.16) stay below `tolerance` over a
+/// window (eq. 15.17) or `time`
 /// has run; the run then starts from the equilibrated stresses with its own
 /// initial velocities and zero displacements and energy series.
 struct InitialEquilibrium {
