@@ -229,6 +229,19 @@ TEST_CASE("a dip of the residuals below the tolerance during the transient does 
     if (s.time > r.time - r.window) CHECK(below(s));
   CHECK(r.held >= r.window * (1.0 - 1e-9));
   CHECK(steps[steps.size() - 2].held < steps[steps.size() - 2].window);
+  // out of time before the window has passed: not converged, and the message says how long they held
+  const Scene short_phase = parse_scene(
+      column("initial_equilibrium = { time = " + std::to_string(r.time - 0.5 * r.window) + ", tolerance = 1e-2 }"),
+      "column.toml");
+  Engine<2> again(assemble_parts<2>(short_phase));
+  const EquilibriumReport cut = settle<2>(short_phase, again);
+  const std::string why = cut.describe(tolerance);
+  MESSAGE(why);
+  CHECK(!cut.converged);
+  CHECK(cut.held > 0.0);
+  CHECK(cut.held < cut.window);
+  CHECK(why.find("both below the tolerance for the last") != std::string::npos);
+  CHECK(why.find("give a longer time") != std::string::npos);
 }
 
 TEST_CASE("a phase that ends with the bodies creeping says so, and names the fastest particle") {
