@@ -200,7 +200,7 @@ TEST_CASE("a restart's result file says how the interrupted run's phase ended") 
 TEST_CASE("a dip of the residuals below the tolerance during the transient does not end the phase") {
   // The column's damped oscillation passes through its equilibrium every
   // half period (2 H / c): both residuals fall below 1e-2 there for up to
-  // 0.023 s (19 steps), then rise above it again (measured).
+  // 0.023 s (steps 361 to 380), then rise above it again (measured).
   const double tolerance = 1e-2;
   const auto below = [&](const EquilibriumReport& s) {
     return std::max(s.force_residual, s.velocity_residual) < tolerance;
