@@ -179,6 +179,33 @@ TEST_CASE("cli: --set of an unknown key exits with 2 and names the key") {
   }
 }
 
+TEST_CASE("cli: a bad field of simulation.initial_equilibrium is named, from the file or from --set") {
+  TempDir dir("cli");
+  const fs::path dike = kSource / "examples" / "dike_rising.toml";
+  const std::string given = "initial_equilibrium = { time = 20.0, tolerance = 1.0e-4 }";
+  std::string text = read_text(dike);
+  const std::size_t at = text.find(given);
+  REQUIRE(at != std::string::npos);
+  const int line = 1 + static_cast<int>(std::count(text.begin(), text.begin() + static_cast<long>(at), '\n'));
+  const fs::path bad = dir.dir / "dike_bad.toml";
+  std::ofstream(bad) << text.replace(at, given.size(), "initial_equilibrium = { time = 20.0, damping = 2 }");
+  const std::string field = "simulation.initial_equilibrium.damping";
+  struct Case {
+    std::string scene, set, where;
+  };
+  for (const Case& c : {Case{bad.string(), "", "dike_bad.toml:" + std::to_string(line) + ": key '" + field + "'"},
+                        Case{dike.string(), field + "=2", "--set " + field},
+                        Case{dike.string(), "simulation.initial_equilibrium={time=20.0, damping=2}",
+                             "--set simulation.initial_equilibrium: key '" + field + "'"}}) {
+    std::vector<std::string> args{"run", c.scene, "--check"};
+    if (!c.set.empty()) args.insert(args.end(), {"--set", c.set});
+    const CliResult r = run_cli(dir, args);
+    INFO("stderr: " << r.err);
+    CHECK(r.status == 2);
+    CHECK(r.err.find(c.where + ": must be in [0, 1) (got 2)") != std::string::npos);
+  }
+}
+
 TEST_CASE("cli: the line-number detector used above") {
   CHECK(has_line_number("otmpm: error: a.toml:14: key 'x'"));
   CHECK(has_line_number("b.toml:21:11: syntax error"));

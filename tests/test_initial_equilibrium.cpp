@@ -4,7 +4,9 @@
 // equilibrium stays still where one started stress-free moves, the run
 // starts with zero displacements and energy series, and the key is
 // checked like every scene key.
+#include "otmpm/assembly/assembler.hpp"
 #include "otmpm/integrators/integrator.hpp"
+#include "otmpm/io/checkpoint.hpp"
 #include "otmpm/io/results.hpp"
 #include "otmpm/run/initial_equilibrium.hpp"
 #include "otmpm/run/simulation.hpp"
@@ -17,6 +19,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <regex>
 #include <string>
 #include <vector>
 
@@ -59,6 +62,22 @@ std::string slope(const std::string& phase) {
          "[[boundary]]\nname = \"base\"\nlower = [-0.5, 0.0]\nupper = [6.5, 0.0]\nfix = [true, true]\n"
          "[[boundary]]\nname = \"back\"\nlower = [6.0, 0.0]\nupper = [6.0, 3.0]\nfix = [true, false]\n"
          "[output]\nfile = \"slope.h5\"\n";
+}
+
+/// A saturated elastic column 1 m high (h = 1/64 m, 1D) under its weight,
+/// drained at its top, without a water table: its pore water carries the
+/// weight at first and drains through the top over about 1 s (c_v = 1 m^2/s).
+std::string consolidating(const std::string& phase) {
+  return "[simulation]\ndimension = 1\nmode = \"mpm\"\nintegrator = \"fe\"\nt_end = 0.001\ncfl = 0.5\n" + phase +
+         "\n[basis]\nkind = \"linear\"\n[grid]\nlower = [0.0]\nupper = [1.0]\ncells = [64]\n"
+         "[[material]]\nname = \"sand\"\nmodel = \"linear_elastic\"\ndensity = 2650.0\nyoung = 1.0e7\n"
+         "poisson = 0.0\nporosity = 0.4\npermeability = 1.0e-10\nfluid_density = 1000.0\n"
+         "fluid_bulk_modulus = 2.2e9\nfluid_viscosity = 1.0e-3\n"
+         "[[body]]\nname = \"column\"\nmaterial = \"sand\"\nlower = [0.0]\nupper = [1.0]\nparticles_per_cell = 2\n"
+         "[body_force]\nvalue = [-9.81]\n"
+         "[[boundary]]\nname = \"base\"\nlower = [0.0]\nupper = [0.0]\nfix = [true]\n"
+         "[[boundary]]\nname = \"top\"\nlower = [1.0]\nupper = [1.0]\npore_pressure = 0.0\n"
+         "[output]\nfile = \"consolidating.h5\"\n";
 }
 
 RunOptions no_files() {
@@ -160,6 +179,109 @@ TEST_CASE("the result file says how the phase ended") {
   CHECK(read_string_attribute(o.out_file, "initial_equilibrium") == s.initial_equilibrium);
 }
 
+TEST_CASE("a restart's result file says how the interrupted run's phase ended") {
+  test::TempDir tmp("initial_equilibrium_restart");
+  RunOptions o;
+  o.out_file = tmp.file("slope.h5");
+  const RunSummary first = run_scene(parse_scene(slope("initial_equilibrium = { time = 20.0, tolerance = 1e-4 }"),
+                                                 "slope.toml", {"simulation.t_end=0.05", "output.checkpoint_every=20"}),
+                                     o);
+  REQUIRE(first.exit_code == 0);
+  REQUIRE(first.initial_equilibrium.starts_with("converged after"));
+  RunOptions again;
+  again.out_file = tmp.file("again.h5");
+  const RunSummary restarted = restart_run(read_checkpoint(tmp.file("slope.checkpoint.h5")), again);
+  REQUIRE(restarted.exit_code == 0);
+  CHECK(restarted.steps == first.steps);
+  CHECK(restarted.initial_equilibrium == first.initial_equilibrium);
+  CHECK(read_string_attribute(again.out_file, "initial_equilibrium") == first.initial_equilibrium);
+}
+
+TEST_CASE("a dip of the residuals below the tolerance during the transient does not end the phase") {
+  // The column's damped oscillation passes through its equilibrium every
+  // half period (2 H / c): both residuals fall below 1e-2 there for up to
+  // 0.023 s (steps 361 to 380), then rise above it again (measured).
+  const double tolerance = 1e-2;
+  const auto below = [&](const EquilibriumReport& s) {
+    return std::max(s.force_residual, s.velocity_residual) < tolerance;
+  };
+  // the residuals step by step, from a phase that cannot converge (its
+  // steps are those of any tolerance: the tolerance only ends the phase)
+  const Scene endless =
+      parse_scene(column("initial_equilibrium = { time = 1.0, tolerance = 1e-12 }"), "column.toml");
+  Engine<2> e0(assemble_parts<2>(endless));
+  std::vector<EquilibriumReport> steps;
+  (void)settle<2>(endless, e0, [&](const EquilibriumReport& s) { steps.push_back(s); });
+  REQUIRE(steps.size() > 2);
+  CHECK(steps.back().steps == static_cast<long>(steps.size()));
+  // the transient has a dip: a step below the tolerance, a later one above it
+  const auto dip = std::find_if(steps.begin(), steps.end(), below);
+  REQUIRE(dip != steps.end());
+  const auto above_again = std::find_if_not(dip, steps.end(), below);
+  REQUIRE(above_again != steps.end());
+  MESSAGE("below the tolerance at step " << dip->steps << ", above it again at step " << above_again->steps);
+  // the phase with that tolerance does not end in the dip
+  const Scene scene =
+      parse_scene(column("initial_equilibrium = { time = 10.0, tolerance = 1e-2 }"), "column.toml");
+  Engine<2> e(assemble_parts<2>(scene));
+  const EquilibriumReport r = settle<2>(scene, e);
+  MESSAGE(r.describe(tolerance));
+  REQUIRE(r.converged);
+  CHECK(r.steps > above_again->steps);
+  REQUIRE(r.steps < static_cast<long>(steps.size()));
+  const EquilibriumReport& last = steps[static_cast<std::size_t>(r.steps - 1)];
+  CHECK(last.time == r.time);
+  // W of eq. 15.17: twice the particles' extent (H less half a particle spacing) over c_p
+  const double M = 1.0e7 * (1.0 - kNu) / ((1.0 + kNu) * (1.0 - 2.0 * kNu));
+  CHECK(r.window == doctest::Approx(2.0 * (4.0 - 0.125) / std::sqrt(M / kRho)).epsilon(0.01));
+  // it ended at the first step that closed W below the tolerance: the run
+  // of steps below it began W before its end, one step later than that
+  auto k = static_cast<std::size_t>(r.steps - 1); // the run's first step: steps[k]
+  while (k > 0 && below(steps[k - 1])) --k;
+  REQUIRE(k > 0);
+  const double began = steps[k - 1].time; // the start of that step
+  CHECK(r.time - began >= r.window * (1.0 - 1e-9));
+  CHECK(steps[static_cast<std::size_t>(r.steps - 2)].time - began < r.window);
+  CHECK(r.held == doctest::Approx(r.time - began));
+  // out of time before the window has passed: not converged, and the message says how long they held
+  const Scene short_phase = parse_scene(
+      column("initial_equilibrium = { time = " + std::to_string(r.time - 0.5 * r.window) + ", tolerance = 1e-2 }"),
+      "column.toml");
+  Engine<2> again(assemble_parts<2>(short_phase));
+  const EquilibriumReport cut = settle<2>(short_phase, again);
+  const std::string why = cut.describe(tolerance);
+  MESSAGE(why);
+  CHECK(!cut.converged);
+  CHECK(cut.held > 0.0);
+  CHECK(cut.held < cut.window);
+  CHECK(why.find("both below the tolerance for the last") != std::string::npos);
+  CHECK(why.find("give a longer time") != std::string::npos);
+}
+
+TEST_CASE("a phase that ends with the bodies creeping says so, and names the fastest particle") {
+  // consolidation under its weight: the drag balances the weight (R_f small)
+  // while the column settles for about 1 s, longer than the phase's 0.2 s
+  const Scene scene = parse_scene(consolidating("initial_equilibrium = { time = 0.2 }"), "consolidating.toml");
+  Engine<1> e(assemble_parts<1>(scene));
+  const EquilibriumReport r = settle<1>(scene, e);
+  const std::string why = r.describe(1e-3);
+  MESSAGE(why);
+  REQUIRE(!r.converged);
+  CHECK(why.starts_with("not converged in"));
+  CHECK(r.force_residual < 1e-3);
+  CHECK(r.velocity_residual > 1e-3);
+  CHECK(why.find("R_v above the tolerance with no unbalanced force to damp: the bodies creep") !=
+        std::string::npos);
+  CHECK(why.find("give a longer time") != std::string::npos);
+  // the fastest particle, where the run starts it: at the drained top, which settles fastest
+  std::smatch m;
+  REQUIRE(std::regex_search(why, m, std::regex("particle ([0-9]+) \\(body 'column'\\) at (\\([^)]*\\)): \\|v\\| = ")));
+  const int p = std::stoi(m[1].str());
+  REQUIRE(p < e.particles().size());
+  CHECK(m[2].str() == format_point<1>(e.particles().x[p]));
+  CHECK(e.particles().x[p][0] > 0.9);
+}
+
 TEST_CASE("every integrator of the fixed grid brings the slope into equilibrium") {
   for (const IntegratorKind& k : integrator_kinds()) {
     if (k.needs_ul || k.needs_bspline) continue;
@@ -194,6 +316,15 @@ TEST_CASE("simulation.initial_equilibrium is checked with the file's line, and n
   why = input_error_of(
       [] { parse_scene(column("initial_equilibrium = { time = 1.0, alpha = 0.5 }"), "c.toml"); });
   CHECK(why.find("alpha") != std::string::npos);
+  // the table given whole by --set: the message names the key inside it
+  for (const char* set : {"simulation.initial_equilibrium={time=1.0, damping=2}",
+                          "simulation.initial_equilibrium.damping=2"}) {
+    CAPTURE(set);
+    why = input_error_of([&] { parse_scene(column("initial_equilibrium = { time = 1.0 }"), "c.toml", {set}); });
+    CHECK(why.starts_with("--set simulation.initial_equilibrium"));
+    CHECK(why.find("simulation.initial_equilibrium.damping") != std::string::npos);
+    CHECK(why.ends_with(scene_keys::kEquilibriumDamping.check(2.0)));
+  }
   Scene s = parse_scene(column("initial_equilibrium = { time = 1.0 }"), "c.toml");
   s.simulation.initial_equilibrium->damping = 1.0; // a Scene built in code meets the same row
   why = input_error_of([&] { validate_scene(s, 2); });

@@ -276,6 +276,11 @@ TEST_CASE("an unknown --set key is named as such") {
   CHECK(parse_scene(utf8.text, "resolved.toml").output.file == utf8.output.file);
   // A table given whole on the command line: the message names the key missing inside it.
   check_message(error_of(kGood, {"grid={}"}), {"--set grid", "missing", "'grid.lower'"});
+  // ... and the key inside it whose value is wrong
+  check_message(error_of(kGood, {"output={file=\"a.h5\", every=-1.0}"}),
+                {"--set output: key 'output.every'", ">= 0 (got -1)"});
+  check_message(error_of(kGood, {"grid={lower=[0.0], upper=[1.0], cells=[10], h=\"a\"}"}),
+                {"--set grid: key 'grid.h'"});
 }
 
 TEST_CASE("otm in mpm mode is rejected") {

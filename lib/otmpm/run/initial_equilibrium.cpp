@@ -15,6 +15,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <string>
 #include <tuple>
 #include <utility>
@@ -80,14 +81,67 @@ template <int D> void put_energies(StateGroup& g, const Engine<D>& from) {
   g.reals["wave_speed"] = from.wave_speed();
 }
 
+/// The largest extent of the bodies' particles along an axis: L of eq. 15.17.
+template <int D> double extent(const Particles<D>& P) {
+  Vec<D> lo = Vec<D>::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  for (int p = 0; p < P.size(); ++p) lo = lo.cwiseMin(P.x[p]), hi = hi.cwiseMax(P.x[p]);
+  return P.size() > 0 ? (hi - lo).maxCoeff() : 0.0;
+}
+
+/// "particle P (body 'NAME') at (x, y): |v| = V m/s", the fastest of the
+/// phase's particles (serial: P is the particle's number in the run too).
+template <int D> std::string fastest_particle(const Scene& scene, const Particles<D>& P) {
+  if (P.size() == 0) return "";
+  int fastest = 0;
+  for (int p = 1; p < P.size(); ++p)
+    if (P.v[p].squaredNorm() > P.v[fastest].squaredNorm()) fastest = p;
+  const auto body = static_cast<std::size_t>(P.body[static_cast<std::size_t>(fastest)]);
+  char speed[48];
+  std::snprintf(speed, sizeof speed, ": |v| = %.3g m/s", P.v[fastest].norm());
+  return "particle " + std::to_string(fastest) + " (body '" + scene.bodies.at(body).name + "') at " +
+         format_point<D>(P.x[fastest]) + speed;
+}
+
+/// The rule of eq. 15.17: the phase has converged when both residuals have
+/// been below the tolerance at every step over the last W.
+struct SustainedBelow {
+  double since = -1.0; ///< the phase time at the start of the first step of the current run below the tolerance
+  /// r.held and r.converged after a step that started at `start` and ended at r.time.
+  void check(EquilibriumReport& r, double start, double tolerance) {
+    const bool below = std::max(r.force_residual, r.velocity_residual) < tolerance;
+    since = !below ? -1.0 : since < 0.0 ? start : since;
+    r.held = below ? r.time - since : 0.0;
+    r.converged = below && r.held >= r.window * (1.0 - time_slack);
+  }
+};
+
+/// Why a phase did not converge, from its last residuals, and what to try.
+std::string not_converged_hint(const EquilibriumReport& r, double tolerance) {
+  char buf[160];
+  if (std::max(r.force_residual, r.velocity_residual) < tolerance) {
+    std::snprintf(buf, sizeof buf, "both below the tolerance for the last %.3g s of the %.3g s they must hold",
+                  r.held, r.window);
+    return std::string(buf) + ": give a longer time";
+  }
+  if (r.force_residual < tolerance)
+    return "R_v above the tolerance with no unbalanced force to damp: the bodies creep (consolidation, a "
+           "rate-dependent material) or slide as a mechanism (a slope steeper than its strength holds): give a "
+           "longer time, or check that the bodies have an equilibrium under their weight";
+  return "R_f above the tolerance: give a longer time; an unbalanced force that does not decrease is a part "
+         "that nothing holds (a boundary missing) or that slides (a slope steeper than its strength holds)";
+}
+
 } // namespace
 
 std::string EquilibriumReport::describe(double tolerance) const {
   char buf[256];
-  std::snprintf(buf, sizeof buf, "%s %ld steps (%.6g s): R_f = %.3g, R_v = %.3g (tolerance %.3g)",
+  std::snprintf(buf, sizeof buf, "%s %ld steps (%.6g s): R_f = %.3g, R_v = %.3g (tolerance %.3g",
                 converged ? "converged after" : "not converged in", steps, time, force_residual,
                 velocity_residual, tolerance);
-  return buf;
+  std::string s = buf;
+  std::snprintf(buf, sizeof buf, ", held for %.3g s)", window);
+  if (converged) return s + buf;
+  return s + "); " + not_converged_hint(*this, tolerance) + (fastest.empty() ? "" : "; the fastest: " + fastest);
 }
 
 Scene equilibrium_scene(const Scene& scene) {
@@ -108,7 +162,9 @@ Scene equilibrium_scene(const Scene& scene) {
   return s;
 }
 
-template <int D> EquilibriumReport settle(const Scene& scene, Engine<D>& e) {
+template <int D>
+EquilibriumReport settle(const Scene& scene, Engine<D>& e,
+                         const std::function<void(const EquilibriumReport&)>& each_step) {
   const InitialEquilibrium& q = *scene.simulation.initial_equilibrium;
   const Scene phase_scene = equilibrium_scene(scene);
   Engine<D> phase(assemble_parts<D>(phase_scene));
@@ -118,23 +174,29 @@ template <int D> EquilibriumReport settle(const Scene& scene, Engine<D>& e) {
   const double g = first_components(scene.body_force->value, D).norm(); // |b| of the run's components
   weight *= g;
   const double speed = std::sqrt(g * phase.settings().h);
+  const double L = extent(P);
   EquilibriumReport report;
   AlignedVector<Vec<D>> v0;
   std::vector<double> w0;
+  SustainedBelow rule;
   try {
     while (phase.time() < q.time * (1.0 - time_slack)) {
       interrupt_point("bringing the bodies into their initial equilibrium");
+      const double start = phase.time();
       std::tie(report.force_residual, report.velocity_residual) =
           damped_step(phase, q.damping, weight, speed, v0, w0);
       report.steps = phase.steps();
       report.time = phase.time();
-      report.converged = std::max(report.force_residual, report.velocity_residual) < q.tolerance;
+      report.window = 2.0 * L / phase.wave_speed(); // eq. 15.17
+      rule.check(report, start, q.tolerance);
+      if (each_step) each_step(report);
       if (report.converged) break;
     }
   } catch (const InstabilityError& err) { // the phase's step and time, before the run's t = 0
     throw InstabilityError(
         std::string("in the initial equilibrium phase (simulation.initial_equilibrium): ") + err.what());
   }
+  if (!report.converged) report.fastest = fastest_particle(scene, phase.particles());
   Checkpoint run; // the run's engine as built: its clock, impulses and works at zero, its initial velocities
   e.save_state(run);
   Particles<D>& settled = phase.particles();
@@ -154,8 +216,11 @@ template <int D> EquilibriumReport settle(const Scene& scene, Engine<D>& e) {
   return report;
 }
 
-template EquilibriumReport settle<1>(const Scene&, Engine<1>&);
-template EquilibriumReport settle<2>(const Scene&, Engine<2>&);
-template EquilibriumReport settle<3>(const Scene&, Engine<3>&);
+template EquilibriumReport settle<1>(const Scene&, Engine<1>&,
+                                        const std::function<void(const EquilibriumReport&)>&);
+template EquilibriumReport settle<2>(const Scene&, Engine<2>&,
+                                        const std::function<void(const EquilibriumReport&)>&);
+template EquilibriumReport settle<3>(const Scene&, Engine<3>&,
+                                        const std::function<void(const EquilibriumReport&)>&);
 
 } // namespace otmpm

@@ -13,6 +13,7 @@
 
 #include <filesystem>
 #include <optional>
+#include <string>
 
 namespace otmpm {
 
@@ -68,6 +69,12 @@ public:
 
   /// Wall time of the interrupted run up to its checkpoint (0 for a new run).
   double wall_before() const { return wall_before_; }
+
+  /// How the gravity-loading phase before t = 0 ended (RunSummary::
+  /// initial_equilibrium; empty: the scene has none): a new run's, stored in
+  /// its checkpoints, or the one a restart's checkpoint stored.
+  const std::string& initial_equilibrium() const { return initial_equilibrium_; }
+  void set_initial_equilibrium(const std::string& how) { initial_equilibrium_ = how; }
 
   /// Adds the engine's current energy balance to the run's EnergySummary (every step).
   void sample_energy() { energy_.sample_summary(); }
@@ -144,6 +151,7 @@ private:
     g.integers["frames"] = frame_count_;
     g.strings["result_file"] = std::filesystem::absolute(file_.path()).string();
     g.strings["particle_files"] = particle_file_record(scene_);
+    if (!initial_equilibrium_.empty()) g.strings["initial_equilibrium"] = initial_equilibrium_;
     energy_.save(g);
     supports_.save(g);
     walls_.save(g);
@@ -153,6 +161,7 @@ private:
   void restore(const StateGroup& g) {
     next_ = g.real("next_output_time");
     wall_before_ = g.real("wall_seconds");
+    if (auto it = g.strings.find("initial_equilibrium"); it != g.strings.end()) initial_equilibrium_ = it->second;
     energy_.restore(g);
     walls_.restore(g);
     supports_.restore(g);
@@ -167,6 +176,7 @@ private:
   int frame_count_ = 0; ///< frames written so far (every rank counts them)
   double next_ = 0.0;   ///< the next output time
   double wall_before_ = 0.0;
+  std::string initial_equilibrium_; ///< initial_equilibrium()
   ProbeSeries<D> probes_;
   EnergySeries<D> energy_;
   WallSeries<D> walls_;

@@ -99,7 +99,8 @@ struct RunSummary {
   double impact = 0.0;
   PhaseTimers timers;
   /// How the gravity-loading phase of simulation.initial_equilibrium ended
-  /// (EquilibriumReport::describe); empty without one (or in a restart).
+  /// (EquilibriumReport::describe); empty without one. A restart carries the
+  /// interrupted run's (stored in its checkpoints).
   std::string initial_equilibrium;
   std::string out_file;
   double particle_steps_per_second() const { return wall_seconds > 0 ? particles * steps / wall_seconds : 0.0; }

@@ -108,7 +108,11 @@ template <int D> struct Simulation::DimRunner final : Simulation::Runner {
     summary.particles = view.particles();
     summary.nodes = view.nodes();
     summary.status = "running";
-    if (resume) return;
+    if (resume) {
+      summary.initial_equilibrium = rec.initial_equilibrium(); // how the interrupted run's phase ended
+      return;
+    }
+    rec.set_initial_equilibrium(summary.initial_equilibrium); // its checkpoints carry it to a restart
     if (interrupt_requested(opt)) { // during the set-up: no initial frame, no checkpoint (nothing was run)
       stop_interrupted();
       return;

@@ -971,7 +971,7 @@ void apply_override(toml::table& root, const std::string& text, Context& ctx) {
 
 std::string SourceRef::describe() const {
   const std::string k = shortened(key);
-  if (line == kCommandLineLine) return "--set " + k;
+  if (line == kCommandLineLine) return "--set " + k + (field.empty() ? "" : ": key '" + shortened(field) + "'");
   if (file.empty() && line <= 0) return "key '" + k + "'"; // a Scene built in code
   std::string s = shortened(file);
   if (line > 0) s += ":" + std::to_string(line);

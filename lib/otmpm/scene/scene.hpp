@@ -22,7 +22,12 @@ struct SourceRef {
   std::string file;
   int line = 0;
   std::string key;
-  /// "FILE:LINE: key 'KEY'" ("--set KEY" for command-line overrides, "key 'KEY'"
+  /// A key inside the table that `--set key=...` wrote whole (line ==
+  /// kCommandLineLine; empty: `key` itself), e.g. key
+  /// "simulation.initial_equilibrium", field "simulation.initial_equilibrium.damping".
+  std::string field = {};
+  /// "FILE:LINE: key 'KEY'" ("--set KEY" for command-line overrides, "--set
+  /// KEY: key 'FIELD'" for a key inside a table it wrote, "key 'KEY'"
   /// without a file: a Scene built in code).
   std::string describe() const;
 };
@@ -38,7 +43,8 @@ Vec<3> first_components(const Vec3& v, int dim);
 /// A gravity-loading phase before t = 0 (`simulation.initial_equilibrium`,
 /// docs/theory.md sect. 15, "Initial equilibrium"): the scene's loads at
 /// t = 0 step the bodies with Cundall's local non-viscous damping (eq.
-/// 15.15) until the residuals (eq. 15.16) fall below `tolerance` or `time`
+/// 15.15) until the residuals (eq. 15.16) stay below `tolerance` over a
+/// window (eq. 15.17) or `time`
 /// has run; the run then starts from the equilibrated stresses with its own
 /// initial velocities and zero displacements and energy series.
 struct InitialEquilibrium {

@@ -99,13 +99,15 @@ struct Context {
   std::map<std::string, std::string> overridden;
   std::map<std::string, SourceRef> where;
 
-  /// Where `path` came from: the --set that wrote it (or a table above it),
-  /// else the node's line in the file, else `fallback_line`.
+  /// Where `path` came from: the --set that wrote it (or a table above it:
+  /// then `path` is the SourceRef's field), else the node's line in the
+  /// file, else `fallback_line`.
   SourceRef ref(const std::string& path, const toml::node* node, int fallback_line) const {
     for (std::size_t pos = 0; pos != std::string::npos;) {
       pos = path.find('.', pos + 1);
       auto it = overridden.find(path.substr(0, pos));
-      if (it != overridden.end()) return SourceRef{file, kCommandLineLine, it->second};
+      if (it != overridden.end())
+        return SourceRef{file, kCommandLineLine, it->second, pos == std::string::npos ? "" : path};
     }
     int line = node ? static_cast<int>(node->source().begin.line) : 0;
     return SourceRef{file, line > 0 ? line : fallback_line, path};
@@ -185,9 +187,7 @@ public:
   [[noreturn]] void missing(std::string_view key, const std::string& what = "required key is missing") const {
     SourceRef r = ctx_->ref(key_path(key), nullptr, self_.line);
     if (r.line == 0) r.line = 1;
-    // A table written by --set: r names the --set KEY, so say which key inside it is missing.
-    if (r.line == kCommandLineLine) input_error(r, what + " ('" + key_path(key) + "')");
-    input_error(r, what);
+    input_error(r, what); // in a table written by --set, r names the key inside it (SourceRef::field)
   }
 
   template <class T> std::optional<T> get(std::string_view key) const {
