@@ -188,6 +188,10 @@ int check_command(const SceneArgs& a) {
   std::printf("  particles  %ld\n  nodes      %ld\n", c.particles, c.nodes);
   std::printf("  dt         %.6g s (first step%s)\n", c.dt, scene.simulation.dt ? ", fixed" : ", cfl rule");
   std::printf("  steps      about %.0f (t_end = %.6g s)\n", c.estimated_steps, c.t_end);
+  if (c.phase_steps > 0)
+    std::printf("  settling   up to about %.0f steps before t = 0 (simulation.initial_equilibrium, time = %.6g s; "
+                "its engine is in the memory below)\n",
+                c.phase_steps, scene.simulation.initial_equilibrium->time);
   std::printf("  memory     about %s (the run's estimate; limit %s)\n", format_bytes(c.memory_bytes).c_str(),
               format_bytes(c.memory_limit).c_str());
   std::printf("  results    %s\n", (a.out.empty() ? c.out_file : a.out).c_str());

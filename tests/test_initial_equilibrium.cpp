@@ -9,6 +9,7 @@
 #include "otmpm/io/checkpoint.hpp"
 #include "otmpm/io/results.hpp"
 #include "otmpm/run/initial_equilibrium.hpp"
+#include "otmpm/scene/resources.hpp"
 #include "otmpm/run/simulation.hpp"
 #include "otmpm/scene/validate.hpp"
 
@@ -356,6 +357,20 @@ TEST_CASE("simulation.initial_equilibrium is checked with the file's line, and n
   CHECK(again.simulation.initial_equilibrium->time == 2.5);
   CHECK(again.simulation.initial_equilibrium->damping == 0.8);
   CHECK(again.simulation.initial_equilibrium->tolerance == 1e-5);
+}
+
+TEST_CASE("run --check counts the phase's steps and its engine beside the run's in the memory") {
+  const Scene with = parse_scene(column("initial_equilibrium = { time = 3.0 }"), "column.toml");
+  const Scene without = parse_scene(column(""), "column.toml");
+  const SceneCheck a = check_scene(with), b = check_scene(without);
+  CHECK(b.phase_steps == 0.0);
+  CHECK(a.phase_steps == std::ceil(3.0 / a.dt * (1.0 - 1e-9)));
+  CHECK(a.phase_steps > 5.0 * a.estimated_steps); // 3 s of settling against a 0.5 s run
+  CHECK(a.estimated_steps == b.estimated_steps);
+  // The phase's engine holds the particles and nodes a second time while it runs.
+  const ResourceEstimate e = estimate_resources(without);
+  CHECK(a.memory_bytes == doctest::Approx(b.memory_bytes + e.particles * e.bytes_per_particle +
+                                          e.nodes * e.bytes_per_node).epsilon(1e-12));
 }
 
 TEST_CASE("the phase's scene holds the loads at their values at t = 0") {

@@ -195,6 +195,9 @@ struct SceneCheck {
   /// t_end / dt, rounded up: the step count if dt stayed as at t = 0 (with
   /// the cfl rule dt follows the wave and particle speeds, so it is an estimate).
   double estimated_steps = 0.0;
+  /// simulation.initial_equilibrium's time / dt, rounded up: the most steps
+  /// its gravity-loading phase takes before t = 0 (0: the scene has none).
+  double phase_steps = 0.0;
   /// the run's own memory estimate (estimate_resources, scene/resources.hpp);
   /// under mpirun the sum of the ranks' estimates
   double memory_bytes = 0.0;

@@ -240,6 +240,7 @@ template <int D> SceneCheck check_dim(const Scene& scene, SceneCheck c) {
   c.particles = view.particles();
   c.nodes = view.nodes();
   c.estimated_steps = std::ceil(c.t_end / c.dt * (1.0 - 1e-9));
+  if (const auto& q = scene.simulation.initial_equilibrium) c.phase_steps = std::ceil(q->time / c.dt * (1.0 - 1e-9));
   c.volumes = body_volumes<D>(scene, e);
   return c;
 }

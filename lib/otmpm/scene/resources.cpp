@@ -155,6 +155,8 @@ ResourceEstimate estimate_resources(const Scene& scene, const SceneSize& share, 
   else if (scene.simulation.mass == "consistent" && e.nodes > 0)
     e.bytes_per_node += kFactorEntryBytes * factor_entries(e.nodes, support_radius(kind, e.stencil, dim), dim) / e.nodes;
   e.bytes = kBaseBytes + e.particles * e.bytes_per_particle + e.nodes * e.bytes_per_node;
+  // A gravity-loading phase runs its own engine beside the run's (run/initial_equilibrium.hpp).
+  if (scene.simulation.initial_equilibrium) e.bytes += e.particles * e.bytes_per_particle + e.nodes * e.bytes_per_node;
   e.wave_speed = max_wave_speed(scene);
   e.dt = scene.simulation.dt ? *scene.simulation.dt : scene.simulation.cfl * min_spacing(scene) / e.wave_speed;
   e.steps = step_count(scene, e.dt);

@@ -30,7 +30,7 @@ struct ResourceEstimate {
   double stencil = 0;             ///< nodes per particle of the basis family (its support)
   double bytes_per_particle = 0;  ///< particle fields, basis table and scatter plan
   double bytes_per_node = 0;      ///< nodal fields (and the mass matrix, when consistent)
-  double bytes = 0;               ///< the total, with the process's fixed footprint
+  double bytes = 0;               ///< the total, with the process's fixed footprint (and a gravity-loading phase's engine)
   double dt = 0;                  ///< simulation.dt, or the first CFL step
   double wave_speed = 0;          ///< the fastest signal at t = 0 the CFL step is taken from (max_wave_speed)
   double steps = 0;               ///< t_end / dt, rounded up
