@@ -53,15 +53,15 @@ struct MaxOf {
   }
 };
 
-/// What the integrator's row says it needs (StepNeeds): the particle fields
-/// it keeps are allocated at their values at t = 0 when the parts lack them;
-/// the node mode, the basis, the mass and the parameters it runs with must
-/// be there. std::invalid_argument naming the integrator and the need.
 /// The nodes at positions x with the masses and active nodes of `n` (the walls' passes).
 template <int D> NodeView<D> node_view(const AlignedVector<Vec<D>>& x, const NodalFields<D>& n) {
   return {x, n.m, n.active, n.active_nodes};
 }
 
+/// What the integrator's row says it needs (StepNeeds): the particle fields
+/// it keeps are allocated at their values at t = 0 when the parts lack them;
+/// the node mode, the basis, the mass and the parameters it runs with must
+/// be there. std::invalid_argument naming the integrator and the need.
 template <int D>
 void provide_step_needs(const StepSettings<D>& s, const NodeMode<D>& mode, const Basis<D>& basis, Particles<D>& P) {
   using E = std::invalid_argument;
@@ -542,8 +542,8 @@ template <int D> void Engine<D>::constrain_velocity(AlignedVector<Vec<D>>& v, co
     contact_->apply(v, {nodal_.m, nodal_.active, constraints_.constrained()}, effect, *books.friction, *books.impact);
   if (constraints_.walls().empty()) return;
   // The walls' changes the particles take up in this step (book_transfer;
-  // not explicit_alpha's, which its kept rate hands on over later steps).
-  // The walls change active nodes only.
+  // not explicit_alpha's, which its kept rate hands on over later steps):
+  // the walls change active nodes only.
   const bool transfer = effect.impulse && effect.booking != Booking::carried;
   if (transfer) {
     transfer_.before.resize(v.size());
@@ -567,7 +567,8 @@ double WallTransfer<D>::booked(Change&& change, const BasisTable<D>& table, cons
   const double particles = blocked_reduce_ranges<double>(P.size(), [&](long long p0, long long p1, double& acc) {
     for (auto p = static_cast<int>(p0); p < p1; ++p) {
       char near = 0; // a node of the row is noted (else h is zero)
-      for (int e = table.begin(p); e < table.end(p); ++e) near |= is_noted[static_cast<std::size_t>(table.node[e])];
+      for (int e = table.begin(p); e < table.end(p); ++e)
+        near |= is_noted[static_cast<std::size_t>(table.node[e])];
       if (!near) continue;
       Vec<D> h = Vec<D>::Zero();
       for (int e = table.begin(p); e < table.end(p); ++e) h += table.N[e] * normal_part(table.node[e]);
@@ -604,7 +605,8 @@ template <int D> void Engine<D>::book_transfer(const ToParticles<D>& what) {
 }
 
 template <int D> void Engine<D>::book_held(const AlignedVector<Vec<D>>& rate) {
-  constraints_.book_held({t_, dt_, step_ == 0, nodal_.f, rate}, nodal_.q, node_view(field_positions(), nodal_), ledger());
+  constraints_.book_held({t_, dt_, step_ == 0, nodal_.f, rate}, nodal_.q, node_view(field_positions(), nodal_),
+                         ledger());
   // The nodes a wall holds: the particles take their kick up (book_transfer;
   // the inactive nodes get none).
   if (constraints_.held().empty()) return;
