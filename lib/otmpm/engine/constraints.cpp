@@ -143,8 +143,8 @@ void Constraints<D>::apply_walls(AlignedVector<Vec<D>>& v, const NodeView<D>& no
     std::vector<char>& held = held_[w];
     held.resize(v.size(), 0);
     Vec<D> impulse = Vec<D>::Zero();
-    for (std::size_t I = 0; I < v.size(); ++I) {
-      if (!nodes.active[I]) continue;
+    for (const int node : nodes.active_nodes) {
+      const auto I = static_cast<std::size_t>(node);
       const double d = (nodes.x[I] - p).dot(wall.normal), floor = -std::max(d, 0.0) / dt;
       const Vec<D> u = v[I] - wall.velocity;
       const double un = u.dot(wall.normal);
@@ -192,11 +192,11 @@ void Constraints<D>::book_held(const Held<D>& step, AlignedVector<Vec<D>>& q, co
                                const Ledger<D>& ledger) {
   AlignedVector<Vec<D>>& wall_impulse = counted_.empty() ? impulse_ : rank_impulse_;
   held_.resize(walls_.size());
-  for (std::size_t I = 0; I < q.size(); ++I) {
-    if (!nodes.active[I]) {
-      q[I].setZero();
-      continue;
-    }
+  std::size_t next = 0; // the inactive nodes up to the next active one get no kick
+  for (const int node : nodes.active_nodes) {
+    const auto I = static_cast<std::size_t>(node);
+    std::fill(q.begin() + static_cast<std::ptrdiff_t>(next), q.begin() + node, Vec<D>::Zero());
+    next = I + 1;
     const double m = nodes.m[I];
     const Vec<D> brought = q[I] / m;
     Vec<D> end = brought + step.dt * Vec<D>(step.f[I] / m); // the particles' velocity at the node after the step
@@ -230,6 +230,7 @@ void Constraints<D>::book_held(const Held<D>& step, AlignedVector<Vec<D>>& q, co
     }
     q[I] = held ? Vec<D>(end - brought - step.dt * step.rate[I]) : Vec<D>::Zero(); // the kick
   }
+  std::fill(q.begin() + static_cast<std::ptrdiff_t>(next), q.end(), Vec<D>::Zero());
 }
 
 template <int D> void Constraints<D>::size_carried(std::size_t nodes) {
@@ -292,8 +293,7 @@ void Constraints<D>::apply_walls_to_increment(AlignedVector<Vec<D>>& dx, const N
                                               double dt) const {
   for (const Wall<D>& wall : walls_) {
     const Vec<D> p = wall.point + t * wall.velocity;
-    for (std::size_t I = 0; I < dx.size(); ++I) {
-      if (!nodes.active[I]) continue;
+    for (const int I : nodes.active_nodes) {
       const double d = (nodes.x[I] - p).dot(wall.normal);
       const Vec<D> u = dx[I] - dt * wall.velocity;
       const double floor = -std::max(d, 0.0), un = u.dot(wall.normal);

@@ -152,11 +152,14 @@ template <int D> struct Held {
   const AlignedVector<Vec<D>>& rate;
 };
 
-/// The nodes a velocity constraint acts on: positions, lumped masses, active flags.
+/// The nodes a velocity constraint acts on: positions, lumped masses, active
+/// flags and the active nodes, ascending (the walls' passes visit only
+/// these: the others carry no mass and keep their velocity).
 template <int D> struct NodeView {
   const AlignedVector<Vec<D>>& x;
   const std::vector<double>& m;
   const std::vector<char>& active;
+  const std::vector<int>& active_nodes;
 };
 
 /// The constraints of a run with the bookkeeping derived from them.

@@ -54,6 +54,11 @@ struct MaxOf {
   }
 };
 
+/// The nodes at positions x with the masses and active nodes of `n` (the walls' passes).
+template <int D> NodeView<D> node_view(const AlignedVector<Vec<D>>& x, const NodalFields<D>& n) {
+  return {x, n.m, n.active, n.active_nodes};
+}
+
 /// What the integrator's row says it needs (StepNeeds): the particle fields
 /// it keeps are allocated at their values at t = 0 when the parts lack them;
 /// the node mode, the basis, the mass and the parameters it runs with must
@@ -92,6 +97,7 @@ template <int D> void NodalFields<D>::resize(int n) {
   q.assign(n, Vec<D>::Zero());
   v = f = a = dx = reaction = q;
   active.assign(n, 0);
+  active_nodes.clear();
 }
 
 template <int D>
@@ -471,7 +477,17 @@ template <int D> void Engine<D>::finish_mass() {
   }).value;
   if (dist_) dist_->max({&m_max, 1});
   const double m_min = settings_.mass_tolerance * m_max;
-  parallel_for(nodes, [&](long long I) { nodal_.active[I] = nodal_.m[I] > m_min; });
+  // The flags and the list of the active nodes in one pass (raw pointers:
+  // a char store may alias the vectors' own).
+  std::vector<int>& list = nodal_.active_nodes;
+  list.clear();
+  const double* m = nodal_.m.data();
+  char* active = nodal_.active.data();
+  for (int I = 0; I < nodes; ++I) {
+    const bool on = m[I] > m_min;
+    active[I] = on;
+    if (on) list.push_back(I);
+  }
   light_.clear();
   if (mode_.nodes_move()) // the lattice's own nodes fill their cells: none is light (sect. 3)
     for (int I = 0; I < nodes; ++I)
@@ -527,19 +543,23 @@ template <int D> void Engine<D>::book_inertial_reaction(const AlignedVector<Vec<
 
 template <int D> void Engine<D>::constrain_velocity(AlignedVector<Vec<D>>& v, const WallEffect<D>& effect) {
   // A distributed run books this rank's owned nodes, summed over the ranks after the step.
-  const NodeView<D> nodes{field_positions(), nodal_.m, nodal_.active};
+  const NodeView<D> nodes = node_view(field_positions(), nodal_);
   const Ledger<D> books = ledger();
   constraints_.apply_velocity(v, nodes, effect, books, step_ == 0);
   if (contact_)
     contact_->apply(v, {nodal_.m, nodal_.active, constraints_.constrained()}, effect, *books.friction, *books.impact);
   if (constraints_.walls().empty()) return;
   // The walls' changes the particles take up in this step (book_transfer;
-  // not explicit_alpha's, which its kept rate hands on over later steps).
+  // not explicit_alpha's, which its kept rate hands on over later steps):
+  // the walls change active nodes only.
   const bool transfer = effect.impulse && effect.booking != Booking::carried;
-  if (transfer) transfer_.before.assign(v.begin(), v.end());
+  if (transfer) {
+    transfer_.before.resize(v.size());
+    for (const int I : nodal_.active_nodes) transfer_.before[I] = v[I];
+  }
   constraints_.apply_walls(v, nodes, t_, dt_, effect, books);
   if (!transfer) return;
-  for (std::size_t I = 0; I < v.size(); ++I)
+  for (const int I : nodal_.active_nodes)
     if (v[I] != transfer_.before[I]) transfer_.note(I, constraints_, nodal_.v.size());
 }
 
@@ -554,6 +574,10 @@ double WallTransfer<D>::booked(Change&& change, const BasisTable<D>& table, cons
   };
   const double particles = blocked_reduce_ranges<double>(P.size(), [&](long long p0, long long p1, double& acc) {
     for (auto p = static_cast<int>(p0); p < p1; ++p) {
+      char near = 0; // a node of the row is noted (else h is zero)
+      for (int e = table.begin(p); e < table.end(p); ++e)
+        near |= is_noted[static_cast<std::size_t>(table.node[e])];
+      if (!near) continue;
       Vec<D> h = Vec<D>::Zero();
       for (int e = table.begin(p); e < table.end(p); ++e) h += table.N[e] * normal_part(table.node[e]);
       if (h == Vec<D>::Zero()) continue;
@@ -562,17 +586,20 @@ double WallTransfer<D>::booked(Change&& change, const BasisTable<D>& table, cons
       acc += P.m[p] * h.dot(2.0 * d - h);
     }
   });
+  // The nodes in ascending order (the others add zero).
+  std::vector<int> ascending(noted);
+  std::sort(ascending.begin(), ascending.end());
   double nodes = 0.0;
-  for (std::size_t I = 0; I < axis.size(); ++I)
-    if (c.counts(static_cast<int>(I))) {
-      const Vec<D> g = normal_part(I);
-      nodes += m[I] * g.dot(2.0 * change(static_cast<int>(I)) - g);
+  for (const int I : ascending)
+    if (c.counts(I)) {
+      const Vec<D> g = normal_part(static_cast<std::size_t>(I));
+      nodes += m[static_cast<std::size_t>(I)] * g.dot(2.0 * change(I) - g);
     }
   return 0.5 * (nodes - particles);
 }
 
 template <int D> void Engine<D>::book_transfer(const ToParticles<D>& what) {
-  if (!transfer_.any) return;
+  if (!transfer_.any()) return;
   // with the consistent mass the nodes' kinetic energy is the particles' (T = 0)
   if (!settings_.consistent_mass)
     *ledger().impact += transfer_.booked(
@@ -586,11 +613,12 @@ template <int D> void Engine<D>::book_transfer(const ToParticles<D>& what) {
 }
 
 template <int D> void Engine<D>::book_held(const AlignedVector<Vec<D>>& rate) {
-  constraints_.book_held({t_, dt_, step_ == 0, nodal_.f, rate}, nodal_.q, {field_positions(), nodal_.m, nodal_.active},
+  constraints_.book_held({t_, dt_, step_ == 0, nodal_.f, rate}, nodal_.q, node_view(field_positions(), nodal_),
                          ledger());
-  // The nodes a wall holds: the particles take their kick up (book_transfer).
+  // The nodes a wall holds: the particles take their kick up (book_transfer;
+  // the inactive nodes get none).
   if (constraints_.held().empty()) return;
-  for (std::size_t I = 0; I < nodal_.q.size(); ++I) // note() keeps only the nodes a wall holds
+  for (const int I : nodal_.active_nodes) // note() keeps only the nodes a wall holds
     if (nodal_.q[I] != Vec<D>::Zero()) transfer_.note(I, constraints_, nodal_.v.size());
 }
 
@@ -602,7 +630,7 @@ template <int D> void Engine<D>::constrain_increment(AlignedVector<Vec<D>>& dx) 
   constraints_.apply_increment(dx, dt_);
   if (contact_) contact_->apply_to_increment(dx, {nodal_.m, nodal_.active, constraints_.constrained()});
   if (constraints_.walls().empty()) return;
-  constraints_.apply_walls_to_increment(dx, {field_positions(), nodal_.m, nodal_.active}, t_, dt_);
+  constraints_.apply_walls_to_increment(dx, node_view(field_positions(), nodal_), t_, dt_);
 }
 
 template <int D> void Engine<D>::apply_dirichlet_force(AlignedVector<Vec<D>>& f, double c) {

@@ -38,13 +38,15 @@ template <int D> class ParticleToNodes; // the particle-to-node map, engine/scat
 /// (after the nodal update); f: force f_I (internal + external); a:
 /// acceleration; dx: the increment that moves the particles (and the nodes
 /// in `ul` mode); reaction: Dirichlet reaction forces (the force components
-/// removed); active: m_I above the mass tolerance. With body contact every
-/// body has its own copy: entry I + b N is node I of body b's field
-/// (contact.hpp).
+/// removed); active: m_I above the mass tolerance; active_nodes: the
+/// active nodes, ascending (the walls' passes visit only these). With body
+/// contact every body has its own copy: entry I + b N is node I of body b's
+/// field (contact.hpp).
 template <int D> struct NodalFields {
   std::vector<double> m;
   AlignedVector<Vec<D>> q, v, f, a, dx, reaction;
   std::vector<char> active;
+  std::vector<int> active_nodes;
   void resize(int n);
 };
 

@@ -21,8 +21,9 @@ namespace otmpm {
 /// normal part of Delta_I at the held nodes.
 template <int D> struct WallTransfer {
   AlignedVector<Vec<D>> axis;   ///< per node: the holding wall's normal, zero elsewhere
-  bool any = false;             ///< a node of `axis` is not zero
-  AlignedVector<Vec<D>> before; ///< the nodal velocities before a pass's walls
+  std::vector<int> noted;       ///< the nodes whose axis is not zero, in the order noted
+  std::vector<char> is_noted;   ///< per node: in `noted` (booked skips the particles of none)
+  AlignedVector<Vec<D>> before; ///< the nodal velocities before a pass's walls (at the active nodes)
 
   /// Notes node I (of `nodes`) with the normal of the first wall that holds it.
   void note(std::size_t I, const Constraints<D>& c, std::size_t nodes) {
@@ -30,16 +31,24 @@ template <int D> struct WallTransfer {
     for (std::size_t w = 0; w < held.size(); ++w)
       if (I < held[w].size() && held[w][I]) {
         axis.resize(nodes, Vec<D>::Zero());
+        is_noted.resize(nodes, 0);
+        if (!is_noted[I]) noted.push_back(static_cast<int>(I));
+        is_noted[I] = 1;
         axis[I] = c.walls()[w].normal;
-        any = true;
         return;
       }
   }
 
+  /// A node is noted.
+  bool any() const { return !noted.empty(); }
+
   /// Forgets the noted nodes (a step that booked none of them, or after booking).
   void clear() {
-    if (any) std::fill(axis.begin(), axis.end(), Vec<D>::Zero());
-    any = false;
+    for (const int I : noted) {
+      axis[static_cast<std::size_t>(I)] = Vec<D>::Zero();
+      is_noted[static_cast<std::size_t>(I)] = 0;
+    }
+    noted.clear();
   }
 
   /// T(Delta - g) - T(Delta), change(I) = Delta_I: with d_p = sum_I N_Ip
