@@ -143,6 +143,7 @@ template <int D> void TwoPhase<D>::to_nodes(Engine<D>& e, double t, double dt) {
   ScopedPhase timer(e.timers(), Phase::to_nodes);
   totals_ready_ = false;
   if (!std::exchange(summed_, false)) scatter<false>(e, [](int, int) {}); // else in the engine's pass
+  count_occupied(e);
   exchange(e, false);
   const double held = dt * held_power(e, e.loads().body_force_at(t));
   find_surface(e);
@@ -169,7 +170,8 @@ template <int D> void TwoPhase<D>::exchange(Engine<D>& e, bool momentum_only) {
                                  {fw_.data()->data(), D},
                                  {fp_.data()->data(), D},
                                  {g_.data()->data(), D},
-                                 {gn_.data()->data(), D}});
+                                 {gn_.data()->data(), D},
+                                 {around_.data(), 1}});
   dist->sum_nodal(fields);
 }
 
@@ -253,8 +255,8 @@ double TwoPhase<D>::solve_impermeable(NodalFields<D>& n, std::size_t I, const Ve
   return darcy;
 }
 
-template <int D> void TwoPhase<D>::find_surface(const Engine<D>& e) {
-  std::fill(normal_.begin(), normal_.end(), Vec<D>::Zero());
+template <int D> void TwoPhase<D>::count_occupied(const Engine<D>& e) {
+  around_.assign(mw_.size(), 0.0);
   const std::optional<CartesianGrid<D>>& grid = e.basis().nodes().grid();
   if (!grid) return;
   // The cells that hold a saturated particle, by the node number of their lower corner: those the last
@@ -270,9 +272,8 @@ template <int D> void TwoPhase<D>::find_surface(const Engine<D>& e) {
     const long long cell = ready ? cell_[static_cast<std::size_t>(p)] : lattice_cell<D>(P.x[p], lower, inverse, grid->cells);
     occupied_[static_cast<std::size_t>(cell)] = 1;
   }
-  // Per node the occupied cells beside it (a distributed run: summed over the ranks, whose
-  // particles are in their own cells at the start of a step, so each cell counts once).
-  around_.assign(mw_.size(), 0.0);
+  // Per node the occupied cells beside it (a distributed run: summed over the ranks by exchange(),
+  // whose particles are in their own cells at the start of a step, so each cell counts once).
   parallel_for(static_cast<long long>(mw_.size()), [&](long long i) {
     const Index<D> node = grid->node_index(static_cast<int>(i));
     for (int corner = 0; corner < (1 << D); ++corner) {
@@ -285,7 +286,11 @@ template <int D> void TwoPhase<D>::find_surface(const Engine<D>& e) {
       if (inside && occupied_[static_cast<std::size_t>(grid->node_id(c))]) around_[static_cast<std::size_t>(i)] += 1.0;
     }
   });
-  if (Distribution<D>* dist = e.distribution()) dist->sum_nodal(std::array<NodalArray, 1>{NodalArray{around_.data(), 1}});
+}
+
+template <int D> void TwoPhase<D>::find_surface(const Engine<D>& e) {
+  std::fill(normal_.begin(), normal_.end(), Vec<D>::Zero());
+  if (!e.basis().nodes().grid()) return;
   const NodalFields<D>& n = e.nodal();
   parallel_for(static_cast<long long>(mw_.size()), [&](long long i) {
     const auto I = static_cast<std::size_t>(i);

@@ -252,8 +252,11 @@ private:
   /// the end of the step (eq. 15.10); returns its dissipation.
   double solve_impermeable(NodalFields<D>& n, std::size_t I, const Vec<D>& Fm, const Vec<D>& Fw,
                            const Vec<D>& normal, double dt);
-  /// The impermeable normals of the step (normal_): the surface nodes of the
-  /// lattice cells that hold saturated particles.
+  /// Per node the lattice cells beside it that hold a saturated particle
+  /// (around_; a distributed run: this rank's particles, exchange() sums them).
+  void count_occupied(const Engine<D>& e);
+  /// The impermeable normals of the step (normal_): the nodes beside a
+  /// lattice cell without saturated particles (count_occupied).
   void find_surface(const Engine<D>& e);
   /// A distributed run: completes the liquid's nodal sums over the ranks
   /// (q_w alone: `momentum_only`), as the engine's own; nothing in a serial run.
@@ -319,7 +322,7 @@ private:
   int width_ = 0;                 ///< linear_row_width of this step's table
   long long blocks_ = -1;         ///< wave_maxima: reduction blocks of the global particle ids (-1: not counted yet)
   double darcy_ = 0.0, averaged_ = 0.0, boundary_work_ = 0.0, rank_work_ = 0.0;
-  std::vector<double> around_;  ///< per node: the occupied lattice cells beside it (find_surface)
+  std::vector<double> around_;  ///< per node: the occupied lattice cells beside it (count_occupied)
   std::vector<double> corner_;  ///< distributed_means: per node and corner slot, sum V dp and sum V
   std::vector<double> means_;   ///< distributed_means: per particle
   std::vector<double> pbar_;      ///< per node: the free water's pressure of this step (drained nodes)
