@@ -322,6 +322,29 @@ void restart_on_three(const TempDir& dir, const Case& c, const std::vector<std::
   }
 }
 
+/// Runs case `c` (which sets output.checkpoint_every) on 2 ranks (np2.h5,
+/// kept as full.h5) and restarts its last checkpoint on 3 ranks (np3.h5) and
+/// in one process (np1.h5); checks `fields` and the energy series
+/// `c.energies` of both agree with the uninterrupted run.
+void restart_on_three_and_one(const TempDir& dir, const Case& c, const std::vector<std::string>& fields) {
+  REQUIRE(run_otmpm(dir, 2, arguments(c, "np2.h5")).status == 0);
+  REQUIRE(fs::exists(dir.file("np2.checkpoint.h5")));
+  fs::copy_file(dir.file("np2.h5"), dir.file("full.h5"));
+  const Result r3 = run_otmpm(dir, 3, {"run", "--restart", "np2.checkpoint.h5", "--out", "np3.h5", "--quiet"});
+  REQUIRE_MESSAGE(r3.status == 0, r3.err);
+  const Result r1 = run_otmpm(dir, 0, {"run", "--restart", "np2.checkpoint.h5", "--out", "np1.h5", "--quiet"});
+  REQUIRE_MESSAGE(r1.status == 0, r1.err);
+  for (const std::string out : {"np3.h5", "np1.h5"}) {
+    CAPTURE(out);
+    const auto d = differences(dir.file("full.h5"), dir.file(out));
+    for (const std::string& field : fields) {
+      CAPTURE(field);
+      CHECK(d.at(field) <= c.agreement);
+    }
+    if (!c.energies.empty()) check_energies(dir.file("full.h5"), dir.file(out), c.energies);
+  }
+}
+
 /// Writes `text` as NAME.toml in `dir`; returns its absolute path.
 std::string write_scene(const TempDir& dir, const std::string& name, const std::string& text) {
   const std::string path = fs::absolute(dir.file(name + ".toml")).string();
@@ -439,21 +462,7 @@ TEST_CASE("mpi: a checkpoint of 2 ranks restarts on 3 ranks and on one process")
     TempDir dir("mpi_restart_" + mode);
     const Case c{"restart", "dyka.toml", {"simulation.t_end=3e-5", "simulation.mode=" + mode,
                                          "output.every=5e-6", "output.checkpoint_every=150", kFields}};
-    REQUIRE(run_otmpm(dir, 2, arguments(c, "np2.h5")).status == 0);
-    REQUIRE(fs::exists(dir.file("np2.checkpoint.h5")));
-    fs::copy_file(dir.file("np2.h5"), dir.file("full.h5"));
-    const Result r3 = run_otmpm(dir, 3, {"run", "--restart", "np2.checkpoint.h5", "--out", "np3.h5", "--quiet"});
-    REQUIRE_MESSAGE(r3.status == 0, r3.err);
-    const Result r1 = run_otmpm(dir, 0, {"run", "--restart", "np2.checkpoint.h5", "--out", "np1.h5", "--quiet"});
-    REQUIRE_MESSAGE(r1.status == 0, r1.err);
-    for (const std::string out : {"np3.h5", "np1.h5"}) {
-      CAPTURE(out);
-      const auto d = differences(dir.file("full.h5"), dir.file(out));
-      for (const std::string field : {"x", "v", "stress"}) {
-        CAPTURE(field);
-        CHECK(d.at(field) <= kAgreement);
-      }
-    }
+    restart_on_three_and_one(dir, c, {"x", "v", "stress"});
   }
 }
 
@@ -865,23 +874,15 @@ TEST_CASE("mpi: saturated bodies (Terzaghi's column, Mandel's slab between rigid
 TEST_CASE("mpi: a saturated run's checkpoint of 2 ranks restarts on 3 ranks and on one process") {
   // Each particle's pore pressure and liquid velocity travel in its rows; W_d and W_a in the books.
   TempDir dir("mpi_saturated_restart");
-  const Case c{"mandel_restart", "mandel.toml",
-               {"simulation.t_end=0.3", "output.every=0.05", "output.checkpoint_every=1500", kSaturatedFields}};
-  REQUIRE(run_otmpm(dir, 2, arguments(c, "np2.h5")).status == 0);
-  REQUIRE(fs::exists(dir.file("np2.checkpoint.h5")));
-  const Result r3 = run_otmpm(dir, 3, {"run", "--restart", "np2.checkpoint.h5", "--out", "np3.h5", "--quiet"});
-  REQUIRE_MESSAGE(r3.status == 0, r3.err);
-  const Result r1 = run_otmpm(dir, 0, {"run", "--restart", "np2.checkpoint.h5", "--out", "np1.h5", "--quiet"});
-  REQUIRE_MESSAGE(r1.status == 0, r1.err);
-  for (const std::string out : {"np3.h5", "np1.h5"}) {
-    CAPTURE(out);
-    const auto d = differences(dir.file("np2.h5"), dir.file(out));
-    for (const std::string field : {"x", "v", "stress", "pore_pressure", "liquid_velocity", "displacement"}) {
-      CAPTURE(field);
-      CHECK(d.at(field) <= kAgreement);
-    }
-    check_energies(dir.file("np2.h5"), dir.file(out), kSaturatedEnergies);
-  }
+  const Case c{"mandel_restart",
+               "mandel.toml",
+               {"simulation.t_end=0.3", "output.every=0.05", "output.checkpoint_every=1500", kSaturatedFields},
+               false,
+               0.0,
+               {},
+               kAgreement,
+               kSaturatedEnergies};
+  restart_on_three_and_one(dir, c, {"x", "v", "stress", "pore_pressure", "liquid_velocity", "displacement"});
 }
 
 TEST_CASE("mpi: a block sliding on a wall agrees with the serial run, the wall force summed over the ranks") {
