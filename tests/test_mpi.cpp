@@ -871,6 +871,25 @@ TEST_CASE("mpi: saturated bodies (Terzaghi's column, Mandel's slab between rigid
   check_agreement(musl, {3});
 }
 
+TEST_CASE("mpi: saturated bodies on B-splines (control points, not the lattice's nodes) are refused, naming the key") {
+  TempDir dir("mpi_saturated_bspline");
+  const std::string scene = (kExamples / "mandel.toml").string();
+  for (const bool check : {false, true}) {
+    CAPTURE(check);
+    std::vector<std::string> args{"run", scene, "--quiet", "--set", "basis.kind=bspline2"};
+    if (check) args.insert(args.begin() + 1, "--check");
+    const Result r = run_otmpm(dir, 2, args);
+    CHECK(r.status == 2);
+    CHECK_MESSAGE(r.err.find("--set basis.kind: saturated bodies on a basis of control points (\"bspline2\") run in "
+                             "one process only") != std::string::npos,
+                  r.err);
+    CHECK(r.err.find("otmpm: error:") == r.err.rfind("otmpm: error:")); // once, not per rank
+  }
+  CHECK(run_otmpm(dir, 0, {"run", scene, "--quiet", "--set", "basis.kind=bspline2", "--set", "simulation.t_end=0.01",
+                           "--out", "serial.h5"})
+            .status == 0);
+}
+
 /// A saturated block 0.5 m x 0.25 m (K_w = 2.2e7 Pa) sliding at 2 m/s
 /// through the ranks' cells (musl), its rear 2% faster: it compresses while
 /// its particles move to other ranks, and at the end of each step some of

@@ -8,9 +8,11 @@
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/basis/lme.hpp"
 #include "otmpm/io/checkpoint.hpp"
+#include "otmpm/materials/pore_fluid.hpp"
 #include "otmpm/particles/particle_state.hpp"
 #include "otmpm/scene/resources.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <exception>
@@ -345,10 +347,24 @@ void require_lattice_nodes(const Scene& scene) {
                   "a node lattice among its ranks): run without mpirun, or use nodes = \"lattice\"");
 }
 
+/// InputError for saturated bodies on a basis whose points are not the
+/// lattice's nodes (B-splines' control points): the liquid's cells and
+/// surfaces are the node lattice's, which a rank's window of control points
+/// does not give.
+template <int D> void require_liquid_on_nodes(const Scene& scene) {
+  const bool saturated = std::any_of(scene.materials.begin(), scene.materials.end(),
+                                     [](const MaterialSection& m) { return pore_fluid(m).has_value(); });
+  if (saturated && basis_kind(scene.basis.kind).window<D>())
+    input_error(scene.locate("basis.kind"), "saturated bodies on a basis of control points (\"" + scene.basis.kind +
+                                                "\") run in one process only: run without mpirun, or take a basis "
+                                                "on the lattice's nodes (such as \"linear\" or \"lme\")");
+}
+
 } // namespace
 
 template <int D> EngineParts<D> seeded_parts(const Scene& scene, const Comm& comm) {
   require_lattice_nodes(scene);
+  require_liquid_on_nodes<D>(scene);
   typename Domain<D>::Setup setup;
   ShareSeeding<D> share;
   auto seed = [&](const Vec<D>& h, const CartesianGrid<D>& grid) {
@@ -383,6 +399,7 @@ template <int D> EngineParts<D> seeded_parts(const Scene& scene, const Comm& com
 
 template <int D> RankPlan plan_ranks(const Scene& scene, const Comm& comm) {
   require_lattice_nodes(scene);
+  require_liquid_on_nodes<D>(scene);
   const CartesianGrid<D> grid = node_grid<D>(scene);
   ShareSeeding<D> share;
   RankPlan plan;
@@ -562,6 +579,7 @@ template <int D> EngineParts<D> rank_parts(const Scene& scene, const Comm& comm)
 template <int D>
 EngineParts<D> restart_parts(const Scene& scene, const Comm& comm, const Checkpoint& ck, Checkpoint& rows) {
   require_lattice_nodes(scene);
+  require_liquid_on_nodes<D>(scene);
   typename Domain<D>::Setup setup;
   reset_hooks<D>(scene, comm, setup);
   // after a node reset: its lattice, divided as its run divided it
