@@ -306,43 +306,36 @@ double history_difference(const h5::Matrix<double>& a, const h5::Matrix<double>&
   return scale > 0.0 ? diff / scale : diff;
 }
 
+/// Checks `fields` and the energy series `c.energies` of result file `out`
+/// agree with full.h5, the uninterrupted run of case `c`.
+void check_restart(const TempDir& dir, const Case& c, const std::vector<std::string>& fields, const std::string& out) {
+  CAPTURE(out);
+  const auto d = differences(dir.file("full.h5"), dir.file(out));
+  for (const std::string& field : fields) {
+    CAPTURE(field);
+    CHECK(d.at(field) <= c.agreement);
+  }
+  if (!c.energies.empty()) check_energies(dir.file("full.h5"), dir.file(out), c.energies);
+}
+
 /// Runs case `c` (which sets output.checkpoint_every) on 2 ranks (np2.h5,
 /// kept as full.h5) and restarts its last checkpoint on 3 ranks into
-/// np3.h5; checks `fields` of the two agree to kAgreement.
+/// np3.h5; check_restart.
 void restart_on_three(const TempDir& dir, const Case& c, const std::vector<std::string>& fields) {
   REQUIRE(run_otmpm(dir, 2, arguments(c, "np2.h5")).status == 0);
   REQUIRE(fs::exists(dir.file("np2.checkpoint.h5")));
   fs::copy_file(dir.file("np2.h5"), dir.file("full.h5"));
   const Result r3 = run_otmpm(dir, 3, {"run", "--restart", "np2.checkpoint.h5", "--out", "np3.h5", "--quiet"});
   REQUIRE_MESSAGE(r3.status == 0, r3.err);
-  const auto d = differences(dir.file("full.h5"), dir.file("np3.h5"));
-  for (const std::string& field : fields) {
-    CAPTURE(field);
-    CHECK(d.at(field) <= c.agreement);
-  }
+  check_restart(dir, c, fields, "np3.h5");
 }
 
-/// Runs case `c` (which sets output.checkpoint_every) on 2 ranks (np2.h5,
-/// kept as full.h5) and restarts its last checkpoint on 3 ranks (np3.h5) and
-/// in one process (np1.h5); checks `fields` and the energy series
-/// `c.energies` of both agree with the uninterrupted run.
+/// restart_on_three, and the checkpoint restarted in one process (np1.h5).
 void restart_on_three_and_one(const TempDir& dir, const Case& c, const std::vector<std::string>& fields) {
-  REQUIRE(run_otmpm(dir, 2, arguments(c, "np2.h5")).status == 0);
-  REQUIRE(fs::exists(dir.file("np2.checkpoint.h5")));
-  fs::copy_file(dir.file("np2.h5"), dir.file("full.h5"));
-  const Result r3 = run_otmpm(dir, 3, {"run", "--restart", "np2.checkpoint.h5", "--out", "np3.h5", "--quiet"});
-  REQUIRE_MESSAGE(r3.status == 0, r3.err);
+  restart_on_three(dir, c, fields);
   const Result r1 = run_otmpm(dir, 0, {"run", "--restart", "np2.checkpoint.h5", "--out", "np1.h5", "--quiet"});
   REQUIRE_MESSAGE(r1.status == 0, r1.err);
-  for (const std::string out : {"np3.h5", "np1.h5"}) {
-    CAPTURE(out);
-    const auto d = differences(dir.file("full.h5"), dir.file(out));
-    for (const std::string& field : fields) {
-      CAPTURE(field);
-      CHECK(d.at(field) <= c.agreement);
-    }
-    if (!c.energies.empty()) check_energies(dir.file("full.h5"), dir.file(out), c.energies);
-  }
+  check_restart(dir, c, fields, "np1.h5");
 }
 
 /// Writes `text` as NAME.toml in `dir`; returns its absolute path.
