@@ -152,8 +152,8 @@ template <int D> void TwoPhase<D>::to_nodes(Engine<D>& e, double t, double dt) {
   if (Distribution<D>* dist = e.distribution()) { // one reduction: the ranks' own nodes' parts
     plates.insert(plates.end(), {held, darcy});
     dist->sum(plates);
+    boundary_work_ -= plates.end()[-2], darcy_ += plates.end()[-1];
     plates.resize(plates.size() - 2);
-    boundary_work_ -= plates.end()[0], darcy_ += plates.end()[1];
   } else {
     boundary_work_ -= held, darcy_ += darcy;
   }
