@@ -252,11 +252,12 @@ template <int D> StepSettings<D> build_settings(const Scene& scene, const Integr
 /// The liquid phase of a scene with saturated bodies (docs/theory.md sect.
 /// 15), or nullopt: the pore fluid of each material; the liquid held with
 /// the solid at the fixed components of the boundaries that are not drained
-/// (no pore_pressure); the rigid plates. The particles of a saturated
+/// (no pore_pressure); the rigid plates (`window`: the nodes are a rank's
+/// window, a plate may select none there). The particles of a saturated
 /// material carry the mass of their grains, (1 - n_0) rho_s V0.
 template <int D>
 std::optional<TwoPhaseParts<D>> build_two_phase(const Scene& scene, const NodeSet<D>& nodes, double h,
-                                                const ExactSolution<D>* exact, Particles<D>& P) {
+                                                const ExactSolution<D>* exact, Particles<D>& P, bool window) {
   TwoPhaseParts<D> parts;
   for (const MaterialSection& ms : scene.materials) parts.fluid.push_back(pore_fluid(ms));
   if (std::none_of(parts.fluid.begin(), parts.fluid.end(), [](const auto& f) { return f.has_value(); }))
@@ -286,7 +287,7 @@ std::optional<TwoPhaseParts<D>> build_two_phase(const Scene& scene, const NodeSe
     BoundarySection box;
     box.lower = ps.lower, box.upper = ps.upper;
     Plate plate{boundary_entries<D>({box}, nodes.size(), position, h).node, ps.axis, ps.force, ps.time};
-    if (plate.node.empty()) input_error(ps.where, "plate '" + ps.name + "' selects no node of the grid");
+    if (plate.node.empty() && !window) input_error(ps.where, "plate '" + ps.name + "' selects no node of the grid");
     parts.plates.push_back(std::move(plate));
   }
   return parts;
@@ -492,7 +493,8 @@ EngineParts<D> assemble_parts(const Scene& scene,
   for (const auto& [p, sigma0] : geostatic)
     parts.materials[static_cast<std::size_t>(P.material[p])]->start_from_stress(P, p, sigma0);
   set_file_state<D>(scene, seeded, P);
-  parts.two_phase = build_two_phase<D>(scene, parts.basis->nodes(), h, exact.get(), P);
+  // a rank's window of the lattice: the ranks check the plates' nodes together (local_parts.cpp)
+  parts.two_phase = build_two_phase<D>(scene, parts.basis->nodes(), h, exact.get(), P, static_cast<bool>(lattice));
   parts.settings = build_settings<D>(scene, integrator, h);
   return parts;
 }

@@ -8,9 +8,11 @@
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/basis/lme.hpp"
 #include "otmpm/io/checkpoint.hpp"
+#include "otmpm/materials/pore_fluid.hpp"
 #include "otmpm/particles/particle_state.hpp"
 #include "otmpm/scene/resources.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <exception>
@@ -304,16 +306,34 @@ LatticePart<D> rank_lattice(const Scene& scene, const Comm& comm, const Cartesia
 
 /// The Domain of a rank whose particles (parts.particles, setup.global_ids),
 /// decomposition and window basis (rank_lattice) are chosen.
+/// InputError (on every rank) for a rigid plate of saturated bodies that
+/// selects no node of the whole lattice (each rank counts its own nodes).
+template <int D> void require_plate_nodes(const Scene& scene, const Comm& comm, const EngineParts<D>& parts) {
+  if (!parts.two_phase) return;
+  const std::vector<char>& owned = parts.distribution->owned_nodes();
+  std::vector<std::int64_t> count;
+  for (const Plate& plate : parts.two_phase->plates)
+    count.push_back(std::count_if(plate.node.begin(), plate.node.end(),
+                                  [&owned](int I) { return owned[static_cast<std::size_t>(I)] != 0; }));
+  comm.sum(count);
+  for (std::size_t i = 0; i < count.size(); ++i)
+    if (count[i] == 0) input_error(scene.plates[i].where, "plate '" + scene.plates[i].name + "' selects no node of the grid");
+}
+
 template <int D>
-EngineParts<D> finish_parts(const Comm& comm, EngineParts<D> parts, typename Domain<D>::Setup setup) {
-  // No rebalancing with walls, nor with an integrator that carries its
-  // constraints' momentum: a wall's held nodes (its contact state) and the
+EngineParts<D> finish_parts(const Scene& scene, const Comm& comm, EngineParts<D> parts,
+                            typename Domain<D>::Setup setup) {
+  // No rebalancing with walls, with saturated bodies, nor with an
+  // integrator that carries its constraints' momentum: a wall's held nodes
+  // (its contact state), the liquid's held, drained and plate nodes and the
   // carried momenta are per node of the window and stay where they are;
   // particles still migrate.
-  if (!parts.walls.empty() || parts.settings.step.needs.carries_constraints) setup.window_basis = nullptr;
+  if (!parts.walls.empty() || parts.two_phase || parts.settings.step.needs.carries_constraints)
+    setup.window_basis = nullptr;
   auto domain = std::make_shared<Domain<D>>(comm, std::move(setup));
   parts.basis->distribute(domain->owned_nodes(), [&comm](std::span<double> v) { comm.sum(v); });
   parts.distribution = std::move(domain);
+  require_plate_nodes<D>(scene, comm, parts);
   return parts;
 }
 
@@ -327,10 +347,24 @@ void require_lattice_nodes(const Scene& scene) {
                   "a node lattice among its ranks): run without mpirun, or use nodes = \"lattice\"");
 }
 
+/// InputError for saturated bodies on a basis whose points are not the
+/// lattice's nodes (B-splines' control points): the liquid's cells and
+/// surfaces are the node lattice's, which a rank's window of control points
+/// does not give.
+template <int D> void require_liquid_on_nodes(const Scene& scene) {
+  const bool saturated = std::any_of(scene.materials.begin(), scene.materials.end(),
+                                     [](const MaterialSection& m) { return pore_fluid(m).has_value(); });
+  if (saturated && basis_kind(scene.basis.kind).window<D>())
+    input_error(scene.locate("basis.kind"), "saturated bodies on a basis of control points (\"" + scene.basis.kind +
+                                                "\") run in one process only: run without mpirun, or take a basis "
+                                                "on the lattice's nodes (such as \"linear\" or \"lme\")");
+}
+
 } // namespace
 
 template <int D> EngineParts<D> seeded_parts(const Scene& scene, const Comm& comm) {
   require_lattice_nodes(scene);
+  require_liquid_on_nodes<D>(scene);
   typename Domain<D>::Setup setup;
   ShareSeeding<D> share;
   auto seed = [&](const Vec<D>& h, const CartesianGrid<D>& grid) {
@@ -360,11 +394,12 @@ template <int D> EngineParts<D> seeded_parts(const Scene& scene, const Comm& com
   reset_hooks<D>(scene, comm, setup);
   setup.global_particles = share.particles;
   setup.setup_particles = parts.particles.size();
-  return finish_parts<D>(comm, std::move(parts), std::move(setup));
+  return finish_parts<D>(scene, comm, std::move(parts), std::move(setup));
 }
 
 template <int D> RankPlan plan_ranks(const Scene& scene, const Comm& comm) {
   require_lattice_nodes(scene);
+  require_liquid_on_nodes<D>(scene);
   const CartesianGrid<D> grid = node_grid<D>(scene);
   ShareSeeding<D> share;
   RankPlan plan;
@@ -544,6 +579,7 @@ template <int D> EngineParts<D> rank_parts(const Scene& scene, const Comm& comm)
 template <int D>
 EngineParts<D> restart_parts(const Scene& scene, const Comm& comm, const Checkpoint& ck, Checkpoint& rows) {
   require_lattice_nodes(scene);
+  require_liquid_on_nodes<D>(scene);
   typename Domain<D>::Setup setup;
   reset_hooks<D>(scene, comm, setup);
   // after a node reset: its lattice, divided as its run divided it
@@ -585,7 +621,7 @@ EngineParts<D> restart_parts(const Scene& scene, const Comm& comm, const Checkpo
   const auto& dg = rows.groups.find("decomposition");
   setup.steps = dg != rows.groups.end() && dg->second.integers.count("steps") ? dg->second.integer("steps")
                                                                                 : rows.group("engine").integer("step");
-  return finish_parts<D>(comm, std::move(parts), std::move(setup));
+  return finish_parts<D>(scene, comm, std::move(parts), std::move(setup));
 }
 
 template <int D> void require_reset_homes(const Checkpoint& ck, const Checkpoint& rows, int ranks) {

@@ -132,8 +132,6 @@ Engine<D>::Engine(EngineParts<D> parts)
   if (dist_) constraints_.count_only(dist_->owned_nodes());
   settings_.two_phase.reset(); // a liquid phase is the engine's own, from parts.two_phase
   if (parts.two_phase) { // before the materials bind to their state: it adds arrays of its own
-    require<InputError>(!dist_, "saturated bodies (materials with a pore fluid) are not available in distributed "
-                                "runs (MPI); run the scene on one process");
     require<std::invalid_argument>(!mode_.nodes_move() && !settings_.consistent_mass && !contact_ &&
                                        constraints_.walls().empty() &&
                                        !(loads_.body_force && loads_.body_force->field),
@@ -266,13 +264,15 @@ template <int D> void Engine<D>::step() {
   double work = 0.5 * dt_ * (external_power_ + power);
   // The tractions' work on the loaded particles' motion, what it cannot see,
   // and the body force's on the momentum the fixed components do not take.
-  double rank[3] = {0.0, 0.0, std::exchange(held_work_, 0.0)};
+  // Saturated bodies: the free water's work on each rank's drained nodes.
+  TwoPhase<D>* liquid = settings_.two_phase.get();
+  double rank[4] = {0.0, 0.0, std::exchange(held_work_, 0.0), liquid ? liquid->take_rank_work() : 0.0};
   if (!loads_.tractions.empty())
     rank[0] = loads_.traction_work(t0, t_, P_, traction_start_), rank[1] = loads_.unresolved_work(t_, P_);
-  if (dist_ && loads_.any()) dist_->sum(rank);
+  if (dist_ && (loads_.any() || liquid)) dist_->sum(rank);
   work += rank[0] - rank[2];
   unresolved_work_ = rank[1];
-  if (TwoPhase<D>* liquid = settings_.two_phase.get()) work += liquid->take_boundary_work(); // the rigid plates, the free water
+  if (liquid) work += liquid->take_boundary_work() + rank[3]; // the rigid plates, the free water
   energy_.external_work += work;
   external_power_ = power;
   check_energy();

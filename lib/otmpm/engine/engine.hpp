@@ -141,7 +141,7 @@ template <int D> struct EngineParts {
   /// Body-body contact (fixed grid, lumped mass); without it the bodies
   /// share one nodal field. Ignored when the particles belong to one body.
   std::optional<ContactLaw> contact;
-  /// The liquid phase of saturated bodies (two_phase.hpp; fixed grid, lumped mass, serial).
+  /// The liquid phase of saturated bodies (two_phase.hpp; fixed grid, lumped mass).
   std::optional<TwoPhaseParts<D>> two_phase;
 };
 

@@ -125,12 +125,24 @@ template <int D> void Engine<D>::sum_particles(bool check) {
     failure.message = e.what();
     dist_->defer(failure);
   }
-  if (TwoPhase<D>* phase = settings_.two_phase.get()) { // the liquid of saturated bodies (not distributed)
-    const LiquidTotals<D> liquid = phase->totals(*this);
-    if (check && liquid.bad >= 0) unstable(liquid.bad, "pore pressure or liquid velocity is not finite");
+  TwoPhase<D>* phase = settings_.two_phase.get(); // the liquid of saturated bodies
+  LiquidTotals<D> liquid;
+  if (phase) {
+    liquid = phase->totals(*this);
+    if (check && liquid.bad >= 0) {
+      if (!dist_) unstable(liquid.bad, "pore pressure or liquid velocity is not finite");
+      LocalFailure failure; // every rank stops on the lowest failure in the reduction below
+      failure.key = particle_id(liquid.bad);
+      try {
+        unstable(liquid.bad, "pore pressure or liquid velocity is not finite");
+      } catch (const InstabilityError& e) {
+        failure.message = e.what();
+      }
+      dist_->defer(failure);
+    }
     s.kinetic += liquid.kinetic, s.strain += liquid.stored, s.momentum += liquid.momentum;
-    s.wave_speed2 = std::max(s.wave_speed2, liquid.wave_speed2);
-    energy_.darcy = phase->darcy(), energy_.pressure_average = phase->pressure_average();
+    // (a distributed run: the bound of the serial run's groups of particles, reduced below)
+    if (!dist_) s.wave_speed2 = std::max(s.wave_speed2, liquid.wave_speed2);
   }
   if (dist_) {
     // One reduction per step: energies, momentum, this step's reaction
@@ -140,15 +152,24 @@ template <int D> void Engine<D>::sum_particles(bool check) {
     // The walls' impulses of this step follow.
     AlignedVector<Vec<D>>& wall = constraints_.rank_wall_impulse();
     constexpr std::size_t W0 = 7 + 2 * D; // the walls' impulses start here
-    std::vector<double> sums(W0 + wall.size() * D);
+    std::vector<double> sums(W0 + wall.size() * D + 1); // last: the liquid's W_a of the step
     sums[0] = s.kinetic, sums[1] = s.strain, sums[2] = s.dissipated, sums[3] = rank_reaction_.work;
     sums[4] = constraints_.prescribed_kinetic_energy(nodal_.m);
     sums[5] = rank_reaction_.friction, sums[6] = rank_reaction_.impact;
     for (int k = 0; k < D; ++k) sums[7 + k] = s.momentum[k], sums[7 + D + k] = rank_reaction_.impulse[k];
     for (std::size_t w = 0; w < wall.size(); ++w)
       for (int k = 0; k < D; ++k) sums[W0 + w * D + static_cast<std::size_t>(k)] = wall[w][k];
-    double maxima[3] = {s.wave_speed2, failed.load() ? 1.0 : 0.0, s.outside ? 1.0 : 0.0};
+    std::vector<double> maxima{s.wave_speed2, failed.load() ? 1.0 : 0.0, s.outside ? 1.0 : 0.0};
+    if (phase) { // the liquid's fast-wave bound (eq. 15.7) follows
+      const std::vector<double> wave = phase->wave_maxima(*this);
+      maxima.insert(maxima.end(), wave.begin(), wave.end());
+    }
+    sums.back() = liquid.averaged;
     dist_->reduce(sums, maxima);
+    if (phase) {
+      phase->add_pressure_average(sums.back());
+      maxima[0] = std::max(maxima[0], phase->wave_speed2(std::span<const double>(maxima).subspan(3)));
+    }
     if (maxima[1] > 0.0) agree_checks(failed.load());
     dist_->departures(maxima[2] > 0.0);
     s.kinetic = sums[0], s.strain = sums[1], s.dissipated = sums[2], s.wave_speed2 = maxima[0];
@@ -163,6 +184,7 @@ template <int D> void Engine<D>::sum_particles(bool check) {
     }
     rank_reaction_ = {};
   }
+  if (phase) energy_.darcy = phase->darcy(), energy_.pressure_average = phase->pressure_average();
   energy_.kinetic = s.kinetic;
   energy_.strain = s.strain;
   energy_.dissipated = s.dissipated;

@@ -67,6 +67,12 @@ template <int D> double water_pressure(const Drain& s, const Vec<D>& x, const Ve
 /// The lower of two particle indices, -1 meaning none.
 int lowest(int a, int b) { return a < 0 ? b : b < 0 ? a : std::min(a, b); }
 
+/// Per local node: 1 where this rank counts it in a sum over the nodes (its
+/// own nodes in a distributed run), or null (a serial run: every node).
+template <int D> const char* counted_nodes(const Engine<D>& e) {
+  return e.distribution() ? e.distribution()->owned_nodes().data() : nullptr;
+}
+
 } // namespace
 
 template <int D>
@@ -137,20 +143,47 @@ template <int D> void TwoPhase<D>::to_nodes(Engine<D>& e, double t, double dt) {
   ScopedPhase timer(e.timers(), Phase::to_nodes);
   totals_ready_ = false;
   if (!std::exchange(summed_, false)) scatter<false>(e, [](int, int) {}); // else in the engine's pass
-  boundary_work_ -= dt * held_power(e, e.loads().body_force_at(t));
+  count_occupied(e);
+  exchange(e, false);
+  const double held = dt * held_power(e, e.loads().body_force_at(t));
   find_surface(e);
-  darcy_ += solve(e, t, dt);
-  tie(e, t, dt);
+  const double darcy = solve(e, t, dt);
+  std::vector<double> plates = plate_sums(e, t, true);
+  if (Distribution<D>* dist = e.distribution()) { // one reduction: the ranks' own nodes' parts
+    plates.insert(plates.end(), {held, darcy});
+    dist->sum(plates);
+    boundary_work_ -= plates.end()[-2], darcy_ += plates.end()[-1];
+    plates.resize(plates.size() - 2);
+  } else {
+    boundary_work_ -= held, darcy_ += darcy;
+  }
+  tie(e, t, dt, plates);
+}
+
+template <int D> void TwoPhase<D>::exchange(Engine<D>& e, bool momentum_only) {
+  Distribution<D>* dist = e.distribution();
+  if (!dist) return;
+  std::vector<NodalArray> fields{{qw_.data()->data(), D}};
+  if (!momentum_only)
+    fields.insert(fields.end(), {{mw_.data(), 1},
+                                 {drag_.data(), 1},
+                                 {fw_.data()->data(), D},
+                                 {fp_.data()->data(), D},
+                                 {g_.data()->data(), D},
+                                 {gn_.data()->data(), D},
+                                 {around_.data(), 1}});
+  dist->sum_nodal(fields);
 }
 
 template <int D> double TwoPhase<D>::held_power(const Engine<D>& e, const Vec<D>& b) const {
   // eq. 15.14: per fixed component, b_k (q_Ik - m_I vbar_Ik), and the liquid's where it is held
   const NodalFields<D>& n = e.nodal();
+  const char* counted = counted_nodes(e);
   double power = 0.0;
   for (const std::size_t c : fixed_list_) {
     const std::size_t I = c / D;
     const int k = static_cast<int>(c % D);
-    if (!n.active[I]) continue;
+    if (!n.active[I] || (counted && !counted[I])) continue;
     power += b[k] * (n.q[I][k] - n.m[I] * value_[c]);
     if (held_[c]) power += b[k] * (qw_[I][k] - mw_[I] * value_[c]);
   }
@@ -160,7 +193,9 @@ template <int D> double TwoPhase<D>::held_power(const Engine<D>& e, const Vec<D>
 template <int D> double TwoPhase<D>::solve(Engine<D>& e, double t, double dt) {
   NodalFields<D>& n = e.nodal();
   const Vec<D> b = e.loads().body_force_at(t); // the uniform body force (a field is refused with saturated bodies)
-  const double mw_max = mw_.empty() ? 0.0 : *std::max_element(mw_.begin(), mw_.end());
+  double mw_max = mw_.empty() ? 0.0 : *std::max_element(mw_.begin(), mw_.end());
+  if (e.distribution()) e.distribution()->max({&mw_max, 1});
+  const char* counted = counted_nodes(e); // the ranks' own nodes' dissipation
   const double mw_min = e.settings().mass_tolerance * mw_max;
   const NodeSet<D>& nodes = e.basis().nodes();
   return blocked_reduce<double>(static_cast<long long>(mw_.size()), [&](long long i, double& darcy) {
@@ -177,7 +212,12 @@ template <int D> double TwoPhase<D>::solve(Engine<D>& e, double t, double dt) {
     wet_[I] = n.active[I] && mw_[I] > mw_min;
     n.f[I] = Fm;
     if (!wet_[I]) return;
-    if (!normal_[I].isZero()) return void(darcy += solve_impermeable(n, I, Fm, Fw, normal_[I], dt));
+    const bool count = !counted || counted[I];
+    if (!normal_[I].isZero()) {
+      const double d = solve_impermeable(n, I, Fm, Fw, normal_[I], dt);
+      if (count) darcy += d;
+      return;
+    }
     const double ms = n.m[I], mw = mw_[I];
     const Vec<D> vs0 = n.q[I] / ms, vw0 = qw_[I] / mw;
     for (int k = 0; k < D; ++k) {
@@ -188,7 +228,7 @@ template <int D> double TwoPhase<D>::solve(Engine<D>& e, double t, double dt) {
       const Relative r = relative(drag_[I], ms, mw, dt, Fm[k], Fw[k], vw0[k] - (drained ? value_[c] : vs0[k]), drained);
       aw_[I][k] = r.aw;
       n.f[I][k] = Fm[k] - mw * r.aw;
-      darcy += r.darcy;
+      if (count) darcy += r.darcy;
     }
   });
 }
@@ -215,14 +255,16 @@ double TwoPhase<D>::solve_impermeable(NodalFields<D>& n, std::size_t I, const Ve
   return darcy;
 }
 
-template <int D> void TwoPhase<D>::find_surface(const Engine<D>& e) {
-  std::fill(normal_.begin(), normal_.end(), Vec<D>::Zero());
+template <int D> void TwoPhase<D>::count_occupied(const Engine<D>& e) {
+  around_.assign(mw_.size(), 0.0);
   const std::optional<CartesianGrid<D>>& grid = e.basis().nodes().grid();
   if (!grid) return;
   // The cells that hold a saturated particle, by the node number of their lower corner: those the last
   // pressure update found when the particles have not moved since (cells_ready_), else found anew.
+  // (A distributed run finds them anew: its particles migrated since.)
   const Particles<D>& P = e.particles();
-  const bool ready = std::exchange(cells_ready_, false) && cell_.size() == static_cast<std::size_t>(P.size());
+  const bool ready = std::exchange(cells_ready_, false) && !e.distribution() &&
+                     cell_.size() == static_cast<std::size_t>(P.size());
   const Vec<D> lower = grid->lower, inverse = grid->h().cwiseInverse();
   occupied_.assign(mw_.size(), 0);
   for (int p = 0; p < P.size(); ++p) {
@@ -230,22 +272,31 @@ template <int D> void TwoPhase<D>::find_surface(const Engine<D>& e) {
     const long long cell = ready ? cell_[static_cast<std::size_t>(p)] : lattice_cell<D>(P.x[p], lower, inverse, grid->cells);
     occupied_[static_cast<std::size_t>(cell)] = 1;
   }
-  const NodalFields<D>& n = e.nodal();
+  // Per node the occupied cells beside it (a distributed run: summed over the ranks by exchange(),
+  // whose particles are in their own cells at the start of a step, so each cell counts once).
   parallel_for(static_cast<long long>(mw_.size()), [&](long long i) {
-    const auto I = static_cast<std::size_t>(i);
-    if (drain_[I] >= 0 || !n.active[I] || !(mw_[I] > 0.0)) return;
-    const Index<D> node = grid->node_index(static_cast<int>(I));
-    bool surface = false; // a lattice cell beside the node is empty or outside the lattice
-    for (int corner = 0; corner < (1 << D) && !surface; ++corner) {
+    const Index<D> node = grid->node_index(static_cast<int>(i));
+    for (int corner = 0; corner < (1 << D); ++corner) {
       Index<D> c = node;
       bool inside = true;
       for (int k = 0; k < D; ++k) {
         c[k] -= (corner >> k) & 1;
         inside = inside && c[k] >= 0 && c[k] < grid->cells[k];
       }
-      surface = !inside || !occupied_[static_cast<std::size_t>(grid->node_id(c))];
+      if (inside && occupied_[static_cast<std::size_t>(grid->node_id(c))]) around_[static_cast<std::size_t>(i)] += 1.0;
     }
-    if (!surface) return;
+  });
+}
+
+template <int D> void TwoPhase<D>::find_surface(const Engine<D>& e) {
+  std::fill(normal_.begin(), normal_.end(), Vec<D>::Zero());
+  if (!e.basis().nodes().grid()) return;
+  const NodalFields<D>& n = e.nodal();
+  parallel_for(static_cast<long long>(mw_.size()), [&](long long i) {
+    const auto I = static_cast<std::size_t>(i);
+    if (drain_[I] >= 0 || !n.active[I] || !(mw_[I] > 0.0)) return;
+    // a surface node: a lattice cell beside it is empty or outside the lattice
+    if (around_[I] >= static_cast<double>(1 << D)) return;
     Vec<D> g = g_[I]; // the outward normal over the components the liquid is free in
     for (int k = 0; k < D; ++k)
       if (held_[I * D + static_cast<std::size_t>(k)] || rigid_[I * D + static_cast<std::size_t>(k)]) g[k] = 0.0;
@@ -254,17 +305,32 @@ template <int D> void TwoPhase<D>::find_surface(const Engine<D>& e) {
   });
 }
 
-template <int D> void TwoPhase<D>::tie(Engine<D>& e, double t, double dt) {
-  NodalFields<D>& n = e.nodal();
+template <int D> std::vector<double> TwoPhase<D>::plate_sums(const Engine<D>& e, double t, bool forces) const {
+  const NodalFields<D>& n = e.nodal();
+  const char* counted = counted_nodes(e);
+  std::vector<double> sums;
   for (const Plate& r : parts_.plates) {
     const int k = r.axis;
-    const double F0 = r.force * time_function(r.time, t), F1 = r.force * time_function(r.time, t + dt);
-    double M = 0.0, momentum = 0.0, force = F0;
+    double M = 0.0, momentum = 0.0, force = forces && !counted ? r.force * time_function(r.time, t) : 0.0;
     for (int I : r.node) {
-      if (!n.active[I]) continue;
-      M += n.m[I], momentum += n.q[I][k], force += fm_[I][k];
+      if (!n.active[I] || (counted && !counted[I])) continue;
+      M += n.m[I], momentum += n.q[I][k];
+      if (forces) force += fm_[I][k];
       if (wet_[I]) M += mw_[I], momentum += qw_[I][k];
     }
+    sums.insert(sums.end(), {M, momentum, force});
+  }
+  return sums;
+}
+
+template <int D> void TwoPhase<D>::tie(Engine<D>& e, double t, double dt, const std::vector<double>& sums) {
+  NodalFields<D>& n = e.nodal();
+  for (std::size_t i = 0; i < parts_.plates.size(); ++i) {
+    const Plate& r = parts_.plates[i];
+    const int k = r.axis;
+    const double F0 = r.force * time_function(r.time, t), F1 = r.force * time_function(r.time, t + dt);
+    const double M = sums[3 * i], momentum = sums[3 * i + 1];
+    const double force = e.distribution() ? sums[3 * i + 2] + F0 : sums[3 * i + 2];
     if (!(M > 0.0)) continue;
     const double V = (momentum + dt * force) / M; // the plate's velocity at the end of the step
     boundary_work_ += 0.5 * (F0 + F1) * dt * V;
@@ -290,13 +356,17 @@ template <int D> void TwoPhase<D>::nodal_velocity(Engine<D>& e, double dt) {
       if (held_[I * D + static_cast<std::size_t>(k)]) w[k] = n.v[I][k];
     vw_[I] = w;
   });
-  // The free water's push -pbar G_n on the liquid, -pbar (G - G_n) on the grains, over the step.
+  // The free water's push -pbar G_n on the liquid, -pbar (G - G_n) on the grains, over the step
+  // (a distributed run: each rank's own nodes, summed by the engine).
+  const char* counted = counted_nodes(e);
+  double& work = counted ? rank_work_ : boundary_work_;
   for (std::size_t d = 0; d < parts_.drains.size(); ++d)
     for (int node : parts_.drains[d].node) {
       const auto I = static_cast<std::size_t>(node);
       if (drain_[I] != static_cast<int>(d) || pbar_[I] == 0.0 || !n.active[I]) continue; // each node once
+      if (counted && !counted[I]) continue;
       const Vec<D> v0 = n.q[I] / n.m[I], w0 = wet_[I] ? Vec<D>(qw_[I] / mw_[I]) : v0;
-      boundary_work_ -= 0.5 * dt * pbar_[I] * (gn_[I].dot(w0 + vw_[I]) + (g_[I] - gn_[I]).dot(v0 + n.v[I]));
+      work -= 0.5 * dt * pbar_[I] * (gn_[I].dot(w0 + vw_[I]) + (g_[I] - gn_[I]).dot(v0 + n.v[I]));
     }
 }
 
@@ -328,6 +398,7 @@ template <int D> void TwoPhase<D>::remap(Engine<D>& e, double dt) {
   scatter<true>(e, [&](int p0, int p1) {
     width_ == (1 << D) ? update_range<true, false, (1 << D)>(e, dt, p0, p1) : update_range<true, false, 0>(e, dt, p0, p1);
   });
+  exchange(e, true);
   NodalFields<D>& n = e.nodal();
   parallel_for(static_cast<long long>(mw_.size()), [&](long long i) {
     const auto I = static_cast<std::size_t>(i);
@@ -337,14 +408,12 @@ template <int D> void TwoPhase<D>::remap(Engine<D>& e, double dt) {
       if (held_[I * D + static_cast<std::size_t>(k)]) vw_[I][k] = n.v[I][k];
     vw_[I] += (n.v[I] - vw_[I]).dot(normal_[I]) * normal_[I]; // an impermeable surface: no normal flux
   });
-  for (const Plate& r : parts_.plates) { // one velocity per plate: the re-projected momentum of both phases
+  std::vector<double> sums = plate_sums(e, 0.0, false);
+  if (Distribution<D>* dist = e.distribution()) dist->sum(sums);
+  for (std::size_t i = 0; i < parts_.plates.size(); ++i) { // one velocity per plate: the re-projected momenta
+    const Plate& r = parts_.plates[i];
     const int k = r.axis;
-    double M = 0.0, momentum = 0.0;
-    for (int I : r.node) {
-      if (!n.active[I]) continue;
-      M += n.m[I], momentum += n.q[I][k];
-      if (wet_[I]) M += mw_[I], momentum += qw_[I][k];
-    }
+    const double M = sums[3 * i], momentum = sums[3 * i + 1];
     if (!(M > 0.0)) continue;
     for (int I : r.node)
       if (n.active[I]) n.v[I][k] = vw_[I][k] = momentum / M;
@@ -443,9 +512,11 @@ template <int D> void TwoPhase<D>::average_pressure(Engine<D>& e) {
   const int n = P.size();
   patch_.resize(static_cast<std::size_t>(n));
   sums_.clear(), number_.clear();
+  const bool distributed = e.distribution() != nullptr;
+  if (distributed) distributed_means(e);
   long long last = -2;
   int id = -1;
-  for (int p = 0; p < n; ++p) {
+  for (int p = 0; p < n && !distributed; ++p) {
     const auto i = static_cast<std::size_t>(p);
     if (!fluids_[static_cast<std::size_t>(P.material[p])] || cell_[i] < 0) {
       patch_[i] = -1;
@@ -464,7 +535,7 @@ template <int D> void TwoPhase<D>::average_pressure(Engine<D>& e) {
     for (auto i = static_cast<std::size_t>(b0); i < static_cast<std::size_t>(b1); ++i) {
       if (!fluids_[static_cast<std::size_t>(P.material[i])]) continue;
       const int j = patch_[i];
-      const double mean = j < 0 ? dp_[i] : sums_[static_cast<std::size_t>(j)][0];
+      const double mean = distributed ? means_[i] : j < 0 ? dp_[i] : sums_[static_cast<std::size_t>(j)][0];
       const PoreFluid& f = *fluids_[static_cast<std::size_t>(P.material[i])];
       // eq. 15.13: the pressure's work on the increment the average leaves out
       acc.averaged += (P.V[i] - (1.0 - f.porosity) * P.V0[i]) * pp[i] * (dp_[i] - mean) / f.bulk_modulus;
@@ -472,9 +543,58 @@ template <int D> void TwoPhase<D>::average_pressure(Engine<D>& e) {
     }
     add_totals(e, static_cast<int>(b0), static_cast<int>(b1), acc);
   });
-  averaged_ += totals_.averaged;
+  if (!distributed) averaged_ += totals_.averaged; // else the ranks' sum (add_pressure_average)
   totals_ready_ = true;
   cells_ready_ = true; // the particles' cells at the step's end: the next step's start
+}
+
+template <int D> void TwoPhase<D>::distributed_means(Engine<D>& e) {
+  const Particles<D>& P = e.particles();
+  const CartesianGrid<D>& grid = *e.basis().nodes().grid(); // this rank's window of the lattice
+  const Vec<D> inverse = grid.h().cwiseInverse();
+  constexpr int corners = 1 << D;
+  const auto n = static_cast<std::size_t>(P.size());
+  corner_.assign(mw_.size() * corners * 2, 0.0);
+  means_.assign(n, 0.0);
+  // The particle's cell, up to one cell beyond the window (a particle that left this rank's cells),
+  // and its corner `b`'s node in the window, or -1.
+  const auto cell_of = [&](std::size_t p) {
+    Index<D> c;
+    for (int k = 0; k < D; ++k) {
+      const double x = (P.x[p][k] - grid.lower[k]) * inverse[k];
+      c[k] = std::isnan(x) ? 0 : static_cast<int>(std::floor(std::clamp(x, -1.0, grid.cells[k] + 0.5)));
+    }
+    return c;
+  };
+  const auto corner_node = [&](const Index<D>& c, int b) {
+    Index<D> node;
+    for (int k = 0; k < D; ++k) {
+      node[k] = c[k] + ((b >> k) & 1);
+      if (node[k] < 0 || node[k] > grid.cells[k]) return -1;
+    }
+    return grid.node_id(node);
+  };
+  for (std::size_t p = 0; p < n; ++p) {
+    if (!fluids_[static_cast<std::size_t>(P.material[p])]) continue;
+    const Index<D> c = cell_of(p);
+    for (int b = 0; b < corners; ++b)
+      if (const int I = corner_node(c, b); I >= 0) {
+        double* s = &corner_[(static_cast<std::size_t>(I) * corners + static_cast<std::size_t>(b)) * 2];
+        s[0] += P.V[p] * dp_[p], s[1] += P.V[p];
+      }
+  }
+  e.distribution()->sum_nodal(std::array<NodalArray, 1>{NodalArray{corner_.data(), 2 * corners}});
+  for (std::size_t p = 0; p < n; ++p) {
+    if (!fluids_[static_cast<std::size_t>(P.material[p])]) continue;
+    const Index<D> c = cell_of(p);
+    const double* best = nullptr;
+    for (int b = 0; b < corners; ++b)
+      if (const int I = corner_node(c, b); I >= 0) {
+        const double* s = &corner_[(static_cast<std::size_t>(I) * corners + static_cast<std::size_t>(b)) * 2];
+        if (!best || s[1] > best[1]) best = s;
+      }
+    means_[p] = best ? best[0] / best[1] : dp_[p];
+  }
 }
 
 template <int D> LiquidTotals<D>& LiquidTotals<D>::operator+=(const LiquidTotals& o) {
@@ -529,6 +649,41 @@ template <int D> LiquidTotals<D> TwoPhase<D>::totals(const Engine<D>& e) {
   return blocked_reduce_ranges<LiquidTotals<D>>(e.particles().size(), [&](long long b0, long long b1, LiquidTotals<D>& acc) {
     add_totals(e, static_cast<int>(b0), static_cast<int>(b1), acc);
   });
+}
+
+template <int D> std::vector<double> TwoPhase<D>::wave_maxima(const Engine<D>& e) {
+  const Distribution<D>& dist = *e.distribution();
+  const Particles<D>& P = e.particles();
+  if (blocks_ < 0) { // the particles of the whole run
+    double count = 0.0;
+    for (int p = 0; p < P.size(); ++p) count = std::max(count, static_cast<double>(dist.global_id(p)) + 1.0);
+    e.distribution()->max({&count, 1});
+    blocks_ = (static_cast<long long>(count) + reduction_block - 1) / reduction_block;
+  }
+  const std::size_t materials = fluids_.size();
+  std::vector<double> m(static_cast<std::size_t>(blocks_) * materials * 3, -kUnbounded);
+  for (int p = 0; p < P.size(); ++p) {
+    const PoreFluid* f = fluids_[static_cast<std::size_t>(P.material[p])];
+    if (!f) continue;
+    const auto block = static_cast<std::size_t>(dist.global_id(p) / reduction_block);
+    double* g = &m[(block * materials + static_cast<std::size_t>(P.material[p])) * 3];
+    double c2 = 0.0;
+    e.material(P.material[p]).max_wave_speed2(P, p, p + 1, c2);
+    const double n = (P.V[p] - (1.0 - f->porosity) * P.V0[p]) / P.V[p];
+    g[0] = std::max(g[0], c2), g[1] = std::max(g[1], -n), g[2] = std::max(g[2], -P.rho[p]);
+  }
+  return m;
+}
+
+template <int D> double TwoPhase<D>::wave_speed2(std::span<const double> maxima) const {
+  double c2 = 0.0;
+  for (std::size_t g = 0; g + 2 < maxima.size(); g += 3) {
+    const PoreFluid* f = fluids_[(g / 3) % fluids_.size()];
+    const double n = -maxima[g + 1];
+    if (f && n > 0.0 && n < 1.0)
+      c2 = std::max(c2, fast_wave_speed2(maxima[g], n, -maxima[g + 2], f->bulk_modulus, f->bulk_modulus / f->density));
+  }
+  return c2;
 }
 
 template <int D> Vec<D> TwoPhase<D>::momentum(const Particles<D>& P) const {

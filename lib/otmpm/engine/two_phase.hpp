@@ -32,6 +32,7 @@
 #include <array>
 #include <memory>
 #include <optional>
+#include <span>
 #include <unordered_map>
 #include <utility>
 #include <vector>
@@ -158,6 +159,10 @@ public:
   /// held_power at t_n, which the engine's body-force work counts but no
   /// held component does.
   double take_boundary_work() { return std::exchange(boundary_work_, 0.0); }
+  /// A distributed run: the free water's work on this rank's own drained
+  /// nodes since the last call (the rest of take_boundary_work() is the same
+  /// on every rank); the engine sums it over the ranks. Zero in a serial run.
+  double take_rank_work() { return std::exchange(rank_work_, 0.0); }
   /// The energy the Darcy drag dissipated since t = 0 (W_d, eq. 15.6; EnergyBalance::darcy).
   double darcy() const { return darcy_; }
   /// Sets W_d (a restart).
@@ -169,6 +174,9 @@ public:
   double pressure_average() const { return averaged_; }
   /// Sets W_a (a restart).
   void set_pressure_average(double w) { averaged_ = w; }
+  /// A distributed run: adds the step's W_a summed over the ranks (the
+  /// LiquidTotals::averaged of each rank's totals()).
+  void add_pressure_average(double w) { averaged_ += w; }
   /// The particles were given other positions between steps (a restart):
   /// the lattice cells the last pressure update found no longer hold.
   void forget_cells() { cells_ready_ = false; }
@@ -202,6 +210,15 @@ public:
   /// The liquid's after-step sums (LiquidTotals), in fixed blocks of
   /// particles: those the step's last pass took (once), else summed anew.
   LiquidTotals<D> totals(const Engine<D>& e);
+  /// A distributed run: the inputs of the fast-wave bound (eq. 15.7) of
+  /// add_totals' groups - the particles of one material in one reduction
+  /// block of global ids (a serial run's runs) - as maxima to reduce over
+  /// the ranks: per group the skeleton's largest c^2, minus the smallest
+  /// porosity, minus the smallest density. Collective at its first call.
+  std::vector<double> wave_maxima(const Engine<D>& e);
+  /// The largest squared fast-wave speed of the groups of wave_maxima
+  /// reduced over the ranks: the serial run's LiquidTotals::wave_speed2.
+  double wave_speed2(std::span<const double> maxima) const;
   /// The liquid's momentum sum_p m_w w_p.
   Vec<D> momentum(const Particles<D>& P) const;
   /// The pore fluid of material `m`, or null when it is dry.
@@ -235,11 +252,29 @@ private:
   /// the end of the step (eq. 15.10); returns its dissipation.
   double solve_impermeable(NodalFields<D>& n, std::size_t I, const Vec<D>& Fm, const Vec<D>& Fw,
                            const Vec<D>& normal, double dt);
-  /// The impermeable normals of the step (normal_): the surface nodes of the
-  /// lattice cells that hold saturated particles.
+  /// Per node the lattice cells beside it that hold a saturated particle
+  /// (around_; a distributed run: this rank's particles, exchange() sums them).
+  void count_occupied(const Engine<D>& e);
+  /// The impermeable normals of the step (normal_): the nodes beside a
+  /// lattice cell without saturated particles (count_occupied).
   void find_surface(const Engine<D>& e);
-  /// The plates: one velocity per plate along its axis for both phases.
-  void tie(Engine<D>& e, double t, double dt);
+  /// A distributed run: completes the liquid's nodal sums over the ranks
+  /// (q_w alone: `momentum_only`), as the engine's own; nothing in a serial run.
+  void exchange(Engine<D>& e, bool momentum_only);
+  /// Per plate its mass M, momentum and (`forces`) force F(t) + sum F_m along
+  /// its axis over its active nodes (a distributed run: this rank's own
+  /// nodes, without F(t)), summed over the ranks.
+  std::vector<double> plate_sums(const Engine<D>& e, double t, bool forces) const;
+  /// The plates: one velocity per plate along its axis for both phases, from `sums` (plate_sums).
+  void tie(Engine<D>& e, double t, double dt, const std::vector<double>& sums);
+  /// A distributed run: each saturated particle's mean pressure increment
+  /// of its lattice cell (eq. 15.3a) in means_. A cell's particles may be on
+  /// two ranks after the step moved them (they migrate before the next):
+  /// each rank adds its particles' V dp and V at every corner node of their
+  /// cell in its window (one slot per corner), the ranks complete those
+  /// sums, and a particle takes its cell's sums from the corner with the
+  /// largest V (the corner that every rank with particles there holds).
+  void distributed_means(Engine<D>& e);
   /// w_p += dt sum N a_w (rate) and the pore pressure update (pressure) of all particles.
   void update_particles(Engine<D>& e, double dt, bool rate, bool pressure);
   /// update_particles on particles [p0, p1), rows of W entries (0: any length).
@@ -285,7 +320,11 @@ private:
   std::unordered_map<long long, int> number_; ///< the patches of a large lattice
   std::vector<const PoreFluid*> fluids_; ///< per material its pore fluid, or null
   int width_ = 0;                 ///< linear_row_width of this step's table
-  double darcy_ = 0.0, averaged_ = 0.0, boundary_work_ = 0.0;
+  long long blocks_ = -1;         ///< wave_maxima: reduction blocks of the global particle ids (-1: not counted yet)
+  double darcy_ = 0.0, averaged_ = 0.0, boundary_work_ = 0.0, rank_work_ = 0.0;
+  std::vector<double> around_;  ///< per node: the occupied lattice cells beside it (count_occupied)
+  std::vector<double> corner_;  ///< distributed_means: per node and corner slot, sum V dp and sum V
+  std::vector<double> means_;   ///< distributed_means: per particle
   std::vector<double> pbar_;      ///< per node: the free water's pressure of this step (drained nodes)
   LiquidTotals<D> totals_; ///< the sums of the step's last pass (totals_ready_)
   bool totals_ready_ = false;
