@@ -29,19 +29,24 @@ struct StraightPathWeights {
       // (-a)^k / (k + 1)! and (-a)^k / (k + 2)!, k = 7 .. 0 (Horner).
       phi1 = phi2 = 0.0;
       for (int k = 7; k >= 0; --k) {
-        phi1 = 1.0 / factorial(k + 1) - a * phi1;
-        phi2 = 1.0 / factorial(k + 2) - a * phi2;
+        phi1 = kInverseFactorial[k + 1] - a * phi1;
+        phi2 = kInverseFactorial[k + 2] - a * phi2;
       }
     } else {
       phi1 = -std::expm1(-a) / a;
       phi2 = (a + std::expm1(-a)) / (a * a);
     }
   }
-  static double factorial(int n) {
+  /// 1 / n!, n = 0 .. 9, made once by the compiler (the energy pass runs every step).
+  static constexpr std::array<double, 10> kInverseFactorial = [] {
+    std::array<double, 10> inverse{};
     double f = 1.0;
-    for (int i = 2; i <= n; ++i) f *= i;
-    return f;
-  }
+    for (int n = 0; n < 10; ++n) {
+      if (n > 1) f *= n;
+      inverse[static_cast<std::size_t>(n)] = 1.0 / f;
+    }
+    return inverse;
+  }();
 };
 
 /// The work of a law sigma(F) without a potential along the straight path
