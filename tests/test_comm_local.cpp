@@ -1,4 +1,4 @@
-// Ranks played by threads of one process (Comm::run_local, which `otmpm run
+// Ranks played in one process (Comm::run_local, which `otmpm run
 // --check --ranks N` plans a distributed run with): each collective gives
 // what MPI's ranks give - the ordered sums with the binomial tree's bits,
 // gathers in rank order - and a rank that fails stops the others instead of
@@ -9,10 +9,12 @@
 
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <mutex>
 #include <stdexcept>
+#include <thread>
 
 using namespace otmpm;
 using namespace otmpm::distributed;
@@ -117,4 +119,39 @@ TEST_CASE("local ranks: the bisection over ranks that each hold a slice of the p
       CHECK(found[static_cast<std::size_t>(r)].box(q).lo == one.box(q).lo);
       CHECK(found[static_cast<std::size_t>(r)].box(q).hi == one.box(q).hi);
     }
+}
+
+TEST_CASE("local ranks: a thousand ranks play their collectives as fibers on a few threads") {
+  constexpr int P = 1000;
+  std::vector<std::int64_t> sums(P), gathered(P);
+  std::vector<std::thread::id> threads(P);
+  Comm::run_local(P, [&](const Comm& c) {
+    const std::size_t r = static_cast<std::size_t>(c.rank());
+    std::int64_t total = 0;
+    for (int round = 0; round < 5; ++round) total += c.sum(static_cast<std::int64_t>(c.rank()) + round);
+    sums[r] = total;
+    const std::vector<std::int64_t> all = c.allgather(static_cast<std::int64_t>(c.rank()));
+    for (std::size_t q = 0; q < all.size(); ++q) gathered[r] += all[q] == static_cast<std::int64_t>(q);
+    threads[r] = std::this_thread::get_id();
+  });
+  const std::int64_t expect = 5 * static_cast<std::int64_t>(P) * (P - 1) / 2 + static_cast<std::int64_t>(P) * (0 + 1 + 2 + 3 + 4);
+  for (int r = 0; r < P; ++r) {
+    CHECK(sums[static_cast<std::size_t>(r)] == expect);
+    CHECK(gathered[static_cast<std::size_t>(r)] == P);
+  }
+  std::sort(threads.begin(), threads.end());
+  const auto distinct = std::unique(threads.begin(), threads.end()) - threads.begin();
+  CHECK(distinct >= 1);
+  CHECK(distinct <= static_cast<long>(std::max(1u, std::thread::hardware_concurrency()))); // not a thread per rank
+}
+
+TEST_CASE("local ranks: a rank that returns while the others wait in a collective is a logic error, not a wrong answer") {
+  std::atomic<int> past{0};
+  auto body = [&](const Comm& c) {
+    if (c.rank() == 2) return; // skips the barrier the others wait in
+    c.barrier();
+    ++past;
+  };
+  CHECK_THROWS_AS(Comm::run_local(5, body), std::logic_error);
+  CHECK(past.load() == 0);
 }

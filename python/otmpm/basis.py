@@ -38,9 +38,23 @@ def _number(name, value):
         raise _bad(f"{name} must be a number within the range of a double", value) from None
 
 
+def _entries(name, v):
+    """A number or a flat sequence (list, tuple, 1-D array) as a list of its entries.
+
+    Never np.asarray(v, dtype=object) of a nested value: a ragged mix of
+    arrays and lists makes NumPy raise ValueError (could not broadcast)."""
+    if isinstance(v, np.ndarray):
+        if v.ndim > 1:
+            raise _bad(f"{name} must be a number or a flat list of numbers", v)
+        return list(v.reshape(-1))
+    if isinstance(v, (list, tuple)):
+        return list(v)
+    return [v]
+
+
 def _floats(name, v):
     """A number or a sequence of numbers as a list of floats."""
-    return [_number(name, x) for x in np.atleast_1d(np.asarray(v, dtype=object))]
+    return [_number(name, x) for x in _entries(name, v)]
 
 
 def _whole(name, value, lo, hi):
@@ -92,7 +106,7 @@ class Basis:
                                 f"(the basis options are {', '.join(PARAMETERS)})")
         options = dict(options={key: _number(key, value) for key, value in options.items()}, ppc=_number("ppc", ppc))
         if isinstance(nodes, Grid):
-            cells = [_whole("Grid.cells", c, 1, _MAX_INT) for c in np.atleast_1d(np.asarray(nodes.cells, dtype=object))]
+            cells = [_whole("Grid.cells", c, 1, _MAX_INT) for c in _entries("Grid.cells", nodes.cells)]
             perturbation = _number("Grid.perturbation", nodes.perturbation)
             if not 0.0 <= perturbation < 0.5:  # NaN too: never taken as 0
                 raise _bad("Grid.perturbation must be in [0, 0.5) (a fraction of h)", nodes.perturbation)

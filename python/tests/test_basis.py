@@ -88,3 +88,16 @@ def test_bad_input():
         Basis("lme", Grid(lower=[0.0], upper=[1.0], cells=[4])).evaluate([[np.nan]])
     with pytest.raises(ValueError, match=r"shape \(n, 2\)"):
         Basis("linear", Grid(lower=[0.0, 0.0], upper=[1.0, 1.0], cells=[2, 2])).evaluate([0.5, 0.5])
+
+
+@pytest.mark.parametrize("field, value", [
+    ("cells", [np.zeros((2, 2)), [np.nan, ["x"]]]),  # ragged: NumPy cannot even make an object array of it
+    ("cells", np.ones((2, 2))),
+    ("lower", [[], {"fe": {}}, [3, [], -np.inf]]),
+    ("upper", [np.zeros(2), 1.0]),
+])
+def test_nested_grid_fields_are_input_errors(field, value):
+    fields = dict(lower=[0.0, 0.0], upper=[1.0, 1.0], cells=[2, 2])
+    fields[field] = value
+    with pytest.raises(otmpm.InputError, match=f"Grid.{field} must be"):
+        Basis("lme", Grid(**fields), gamma_lme=1)

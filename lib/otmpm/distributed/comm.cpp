@@ -361,7 +361,7 @@ void Comm::broadcast(void* data, std::size_t bytes, int from) const {
 std::vector<Bytes> Comm::exchange(const std::vector<int>& to, const std::vector<Bytes>& send,
                                   const std::vector<int>& from) const {
   std::vector<Bytes> received(from.size());
-  if (local_) throw std::logic_error("Comm::exchange: not available between ranks played by threads");
+  if (local_) throw std::logic_error("Comm::exchange: not available between ranks played in one process");
 #ifdef OTMPM_HAVE_MPI
   if (!mpi_) return received;
   std::vector<MPI_Request> requests(to.size());
@@ -455,7 +455,7 @@ std::vector<Bytes> Comm::allgather(const Bytes& mine) const {
 }
 
 void Comm::barrier() const {
-  if (local_) return local_->wait();
+  if (local_) return local_->wait(rank_);
 #ifdef OTMPM_HAVE_MPI
   if (mpi_ && size_ > 1) {
     MPI_Request r;

@@ -78,14 +78,17 @@ public:
   /// this is not an MPI communicator.
   const void* mpi_comm() const;
 
-  /// Runs body(comm) on `ranks` threads of this process, each one rank of a
-  /// Comm of that size: what a run on `ranks` processes computes in its
-  /// collective set-up (`otmpm run --check --ranks N`: the decomposition,
-  /// without starting N processes). Its collectives give the bits MPI's
-  /// give (the same ordered sums); exchange() is not available (a
-  /// std::logic_error). Returns once every rank has returned; when a rank
-  /// throws, the others stop at their next collective and the lowest
-  /// throwing rank's exception is rethrown here.
+  /// Runs body(comm) for `ranks` ranks of a Comm of that size in this
+  /// process, each rank a fiber (its own stack, switched at its
+  /// collectives) and the fibers shared out over the machine's cores: what
+  /// a run on `ranks` processes computes in its collective set-up (`otmpm
+  /// run --check --ranks N`: the decomposition, without starting N
+  /// processes). Its collectives give the bits MPI's give (the same ordered
+  /// sums); exchange() is not available (a std::logic_error). Returns once
+  /// every rank has returned; when a rank throws, the others stop at their
+  /// next collective and the lowest throwing rank's exception is rethrown
+  /// here; a rank that returns while others wait in a collective is a
+  /// std::logic_error (MPI would hang).
   static void run_local(int ranks, const std::function<void(const Comm&)>& body);
 
 private:

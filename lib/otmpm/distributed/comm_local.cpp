@@ -1,44 +1,224 @@
 /// \file comm_local.cpp
-/// Ranks played by threads of one process (comm_local.hpp, Comm::run_local).
+/// Ranks played in one process (comm_local.hpp, Comm::run_local): fibers
+/// (ucontext) on a few threads.
 #include "otmpm/distributed/comm_local.hpp"
 
 #include <algorithm>
+#include <barrier>
 #include <cstring>
 #include <exception>
+#include <latch>
+#include <optional>
 #include <stdexcept>
+#include <system_error>
 #include <thread>
 #include <type_traits>
 
+#include <sys/mman.h>
+#include <ucontext.h>
+#include <unistd.h>
+
+#if defined(__SANITIZE_ADDRESS__)
+#define OTMPM_FIBERS_ASAN 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define OTMPM_FIBERS_ASAN 1
+#endif
+#endif
+#ifdef OTMPM_FIBERS_ASAN
+#include <sanitizer/common_interface_defs.h>
+#endif
+
 namespace otmpm::distributed {
 
-LocalRanks::LocalRanks(int size) : size_(size), calls_(static_cast<std::size_t>(size), 0) {
+namespace {
+
+/// Each fiber's stack: the size of a thread's default stack, reserved
+/// (MAP_NORESERVE: only the pages a rank touches take memory), below it a
+/// guard page.
+constexpr std::size_t kStackBytes = std::size_t{8} << 20;
+
+/// AddressSanitizer's notices of a switch of stacks (no-ops without it):
+/// before switching to the stack [bottom, bottom + size) and after arriving.
+/// `save` null: the stack left is never switched to again.
+void switching_to([[maybe_unused]] void** save, [[maybe_unused]] const void* bottom, [[maybe_unused]] std::size_t size) {
+#ifdef OTMPM_FIBERS_ASAN
+  __sanitizer_start_switch_fiber(save, bottom, size);
+#endif
+}
+void arrived([[maybe_unused]] void* save, [[maybe_unused]] const void** bottom, [[maybe_unused]] std::size_t* size) {
+#ifdef OTMPM_FIBERS_ASAN
+  __sanitizer_finish_switch_fiber(save, bottom, size);
+#endif
+}
+
+} // namespace
+
+/// The ranks' fibers: a stack and a context each, and each thread's own
+/// context (`home`) they switch back to at a collective or on returning.
+struct LocalRanks::Fibers {
+  struct Fiber {
+    ucontext_t context{};
+    char* mapping = nullptr; ///< guard page, then the stack
+    bool done = false;
+  };
+  /// Each thread's context and stack (the stack for AddressSanitizer's notices).
+  struct Home {
+    ucontext_t context{};
+    const void* bottom = nullptr;
+    std::size_t size = 0;
+  };
+  /// At the end of a round (every thread arrived): whether every fiber has
+  /// returned, and whether one returned while another still waits in a
+  /// collective of a group not stopped (the ranks' collectives do not
+  /// match: the group is stopped, the waiting ranks are not let through).
+  struct RoundEnd {
+    Fibers* f;
+    void operator()() noexcept {
+      f->finished = f->live.load() == 0;
+      if (f->returned.exchange(0) > 0 && !f->finished && !f->stopped->load()) f->mismatch = true, f->stopped->store(true);
+    }
+  };
+
+  std::size_t page = static_cast<std::size_t>(sysconf(_SC_PAGESIZE));
+  std::vector<Fiber> fiber;
+  std::vector<Home> home;
+  std::function<void(int)> play;
+  std::atomic<int> live{0}, returned{0};
+  bool finished = false, mismatch = false;
+  std::atomic<bool>* stopped = nullptr; ///< the group's flag (LocalRanks::stop)
+  std::optional<std::barrier<RoundEnd>> round;
+
+  Fibers(int ranks, int threads) : fiber(static_cast<std::size_t>(ranks)), home(static_cast<std::size_t>(threads)) {}
+  ~Fibers() {
+    for (Fiber& f : fiber)
+      if (f.mapping) munmap(f.mapping, kStackBytes + page);
+  }
+  char* stack(int r) { return fiber[static_cast<std::size_t>(r)].mapping + page; }
+
+  /// Maps rank r's stack and makes its context, to start in entry().
+  void make(int r);
+  /// Runs rank r's fiber on thread t until it waits in a collective or returns.
+  void resume(int t, int r);
+  /// Rank r's fiber (on thread t) gives the thread back until the next round.
+  void park(int t, int r);
+};
+
+namespace {
+
+/// The group and rank a fiber starts with (read by entry(), on the thread
+/// that first switches to it, before the thread switches to another).
+thread_local LocalRanks* starting_group = nullptr;
+thread_local int starting_rank = 0, starting_thread = 0;
+
+} // namespace
+
+void LocalRanks::Fibers::make(int r) {
+  void* m = mmap(nullptr, kStackBytes + page, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS | MAP_NORESERVE | MAP_STACK,
+                 -1, 0);
+  if (m == MAP_FAILED)
+    throw std::runtime_error("cannot map the stacks of " + std::to_string(fiber.size()) + " played ranks (" +
+                             std::to_string(r) + " mapped): " + std::strerror(errno));
+  Fiber& f = fiber[static_cast<std::size_t>(r)];
+  f.mapping = static_cast<char*>(m);
+  mprotect(f.mapping, page, PROT_NONE);
+  getcontext(&f.context);
+  f.context.uc_stack.ss_sp = stack(r);
+  f.context.uc_stack.ss_size = kStackBytes;
+  f.context.uc_link = nullptr; // entry() never returns: it switches home
+  makecontext(&f.context, &LocalRanks::entry, 0);
+}
+
+void LocalRanks::Fibers::resume(int t, int r) {
+  Home& h = home[static_cast<std::size_t>(t)];
+  starting_rank = r, starting_thread = t;
+  void* save = nullptr;
+  switching_to(&save, stack(r), kStackBytes);
+  swapcontext(&h.context, &fiber[static_cast<std::size_t>(r)].context);
+  arrived(save, nullptr, nullptr);
+}
+
+void LocalRanks::Fibers::park(int t, int r) {
+  Home& h = home[static_cast<std::size_t>(t)];
+  void* save = nullptr;
+  switching_to(&save, h.bottom, h.size);
+  swapcontext(&fiber[static_cast<std::size_t>(r)].context, &h.context);
+  arrived(save, &h.bottom, &h.size);
+}
+
+void LocalRanks::entry() {
+  LocalRanks* group = starting_group;
+  const int r = starting_rank, t = starting_thread;
+  Fibers& F = *group->fibers_;
+  Fibers::Home& h = F.home[static_cast<std::size_t>(t)];
+  arrived(nullptr, &h.bottom, &h.size);
+  F.play(r);
+  F.fiber[static_cast<std::size_t>(r)].done = true;
+  --F.live, ++F.returned;
+  switching_to(nullptr, h.bottom, h.size);
+  setcontext(&h.context);
+}
+
+LocalRanks::LocalRanks(int size, int threads)
+    : size_(size), threads_(std::clamp(threads, 1, size)), fibers_(std::make_unique<Fibers>(size, threads_)),
+      calls_(static_cast<std::size_t>(size), 0) {
   const std::size_t P = static_cast<std::size_t>(size);
   for (Posts& p : posts_) p.slots.resize(P), p.posts.assign(P, std::vector<Bytes>(P)), p.data.resize(P);
 }
 
-void LocalRanks::wait() {
-  if (stopped_) throw Stopped{};
-  const long long generation = generation_.load();
-  if (arrived_.fetch_add(1) + 1 == size_) {
-    arrived_.store(0);
-    ++generation_;
-    generation_.notify_all();
-  } else {
-    while (generation_.load() == generation && !stopped_) generation_.wait(generation);
+LocalRanks::~LocalRanks() = default;
+
+void LocalRanks::work(int t) {
+  Fibers& F = *fibers_;
+  starting_group = this;
+  for (;;) {
+    for (int r = t; r < size_; r += threads_)
+      if (!F.fiber[static_cast<std::size_t>(r)].done) F.resume(t, r);
+    F.round->arrive_and_wait();
+    if (F.finished) return;
   }
+}
+
+void LocalRanks::run(const std::function<void(int)>& play) {
+  Fibers& F = *fibers_;
+  F.play = play;
+  F.stopped = &stopped_;
+  for (int r = 0; r < size_; ++r) F.make(r);
+  F.live = size_;
+  // the caller is thread 0; a thread that cannot start leaves its share to fewer threads
+  std::latch go(1);
+  std::vector<std::jthread> threads;
+  int started = 1;
+  try {
+    for (int t = 1; t < threads_; ++t, ++started)
+      threads.emplace_back([this, &go, t] {
+        go.wait();
+        work(t);
+      });
+  } catch (const std::system_error&) {
+  }
+  threads_ = started; // read by the threads only after go
+  F.round.emplace(threads_, Fibers::RoundEnd{&F});
+  go.count_down();
+  work(0);
+  threads.clear(); // joins
+  if (F.mismatch)
+    throw std::logic_error("Comm::run_local: a rank returned while another waited in a collective (the ranks' "
+                           "collectives do not match)");
+}
+
+void LocalRanks::wait(int rank) {
+  if (stopped_) throw Stopped{};
+  fibers_->park(rank % threads_, rank);
   if (stopped_) throw Stopped{};
 }
 
-void LocalRanks::stop() {
-  stopped_ = true;
-  ++generation_; // wakes the waiting ranks, which then see stopped_
-  generation_.notify_all();
-}
+void LocalRanks::stop() { stopped_ = true; } // the waiting ranks see it when the next round resumes them
 
 std::vector<Bytes> LocalRanks::allgather(int rank, const Bytes& mine) {
   Posts& p = posts(rank);
   p.slots[static_cast<std::size_t>(rank)] = mine;
-  wait();
+  wait(rank);
   return p.slots;
 }
 
@@ -47,7 +227,7 @@ std::vector<Bytes> LocalRanks::alltoall(int rank, std::vector<Bytes> send) {
   const std::size_t from = static_cast<std::size_t>(rank);
   for (std::size_t to = 0; to < send.size(); ++to) // only the messages there are: most are empty
     if (!send[to].empty()) p.posts[to][from] = std::move(send[to]);
-  wait();
+  wait(rank);
   std::vector<Bytes> received(static_cast<std::size_t>(size_));
   received.swap(p.posts[from]); // this rank's row, left empty for the next use
   return received;
@@ -56,7 +236,7 @@ std::vector<Bytes> LocalRanks::alltoall(int rank, std::vector<Bytes> send) {
 void LocalRanks::broadcast(int rank, void* data, std::size_t bytes, int from) {
   Posts& p = posts(rank);
   if (rank == from) p.result.assign(static_cast<const char*>(data), static_cast<const char*>(data) + bytes);
-  wait();
+  wait(rank);
   if (rank != from && bytes > 0) std::memcpy(data, p.result.data(), bytes);
 }
 
@@ -77,7 +257,7 @@ template <class T> void LocalRanks::reduce(int rank, std::span<T> values, std::s
   Posts& p = posts(rank);
   if (rank == 0) p.result.assign(n * sizeof(T), 0);
   p.data[r] = values.data();
-  wait();
+  wait(rank);
   // each rank combines its slice of the entries, as the tree would
   const std::size_t from = n * r / P, to = n * (r + 1) / P;
   if constexpr (std::is_integral_v<T>) { // exact in any order: rank after rank, along the memory
@@ -96,7 +276,7 @@ template <class T> void LocalRanks::reduce(int rank, std::span<T> values, std::s
       std::memcpy(p.result.data() + i * sizeof(T), &tree[0], sizeof(T));
     }
   }
-  wait();
+  wait(rank);
   if (n > 0) std::memcpy(static_cast<void*>(values.data()), p.result.data(), n * sizeof(T));
 }
 
@@ -105,10 +285,10 @@ template void LocalRanks::reduce(int, std::span<std::int64_t>, std::size_t, Op);
 
 void Comm::run_local(int ranks, const std::function<void(const Comm&)>& body) {
   if (ranks < 1) throw std::invalid_argument("Comm::run_local: " + std::to_string(ranks) + " ranks");
-  auto group = std::make_shared<LocalRanks>(ranks);
+  const int threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  auto group = std::make_shared<LocalRanks>(ranks, threads);
   std::vector<std::exception_ptr> failed(static_cast<std::size_t>(ranks));
-  std::vector<std::thread> threads;
-  auto play = [&](int r) {
+  group->run([&](int r) {
     Comm c;
     c.rank_ = r, c.size_ = ranks, c.local_ = group;
     try {
@@ -118,16 +298,7 @@ void Comm::run_local(int ranks, const std::function<void(const Comm&)>& body) {
       failed[static_cast<std::size_t>(r)] = std::current_exception();
       group->stop();
     }
-  };
-  try {
-    for (int r = 0; r < ranks; ++r) threads.emplace_back(play, r);
-  } catch (const std::system_error& e) { // the process may not start that many threads
-    group->stop();
-    for (std::thread& t : threads) t.join();
-    throw std::runtime_error("cannot start " + std::to_string(ranks) + " threads to play the ranks (" +
-                             std::to_string(threads.size()) + " started): " + e.what());
-  }
-  for (std::thread& t : threads) t.join();
+  });
   for (const std::exception_ptr& e : failed)
     if (e) std::rethrow_exception(e);
 }

@@ -224,7 +224,7 @@ struct SceneCheck {
 ///
 /// `planned_ranks` > 1 in one process (`run --check --ranks N`): the
 /// decomposition a run on that many ranks would compute, found as under
-/// mpirun by threads of this process playing the ranks (nothing of the
+/// mpirun by ranks played in this process (Comm::run_local) (nothing of the
 /// scene allocated; the step time's compute part from one calibration
 /// here, its communication not timed: StepTime::comm_rounds 0). Under
 /// mpirun it must be the rank count or 0 (InputError otherwise).

@@ -213,14 +213,14 @@ template <int D> SceneCheck check_ranks(const Scene& scene, SceneCheck c) {
 }
 
 /// run --check --ranks N in one process: the decomposition a run on
-/// `ranks` ranks computes, found by `ranks` threads of this process playing
-/// them (Comm::run_local; each with one OpenMP thread), nothing allocated;
+/// `ranks` ranks computes, found by `ranks` ranks played in this process
+/// (Comm::run_local: fibers on a few threads, each with one OpenMP thread), nothing allocated;
 /// the step time from one calibration here, without the communication.
 template <int D> SceneCheck check_planned_ranks(const Scene& scene, SceneCheck c, int ranks) {
   distributed::RankPlan plan;
   distributed::Comm::run_local(ranks, [&](const distributed::Comm& comm) {
 #ifdef OTMPM_HAVE_OPENMP
-    omp_set_num_threads(1); // the threads play the ranks: no OpenMP team inside each
+    omp_set_num_threads(1); // the threads play the ranks: no OpenMP team inside a rank
 #endif
     distributed::RankPlan mine = distributed::plan_ranks<D>(scene, comm);
     if (comm.root()) plan = std::move(mine);
