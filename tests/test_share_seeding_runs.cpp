@@ -5,9 +5,9 @@
 // every particle: per body the particles generated and placed and the volume
 // factor (bits), and, over the ranks, the decomposition, the particles per
 // rank and each kept particle's global id and position - on boxes aligned and
-// not with the lattice, a sphere, a rotated cylinder, a polygon, a particle
-// file, bodies overlapping (overlap = "first") and walls, and the same
-// error where the scene is refused.
+// not with the lattice, a sphere, a rotated cylinder, a polygon, a
+// triangulated surface (STL), a particle file, bodies overlapping (overlap =
+// "first") and walls, and the same error where the scene is refused.
 #include "otmpm/assembly/assembler.hpp"
 #include "otmpm/assembly/seeding.hpp"
 #include "otmpm/distributed/share_seeding.hpp"
@@ -61,6 +61,14 @@ std::vector<Case> cases() {
                                 "[[body]]\nname = \"rod\"\nmaterial = \"m\"\nshape = \"cylinder\"\ncenter = [0.1, 0.15, 0.35]\n"
                                 "axis = [1.0, 0.8, 0.9]\nradius = 0.2\nlength = 1.1\noverlap = \"first\"\n"
                                 "[[wall]]\nname = \"floor\"\npoint = [0.0, 0.0, 0.0]\nnormal = [0.0, 0.0, 1.0]\n"});
+  const std::string stl_grid = "[grid]\nlower = [-0.009, -0.009, -0.001]\nupper = [0.009, 0.009, 0.025]\n"
+                               "cells = [36, 36, 52]\n";
+  c.push_back({"3D triangulated surface (the impactor's STL) and a box over it, overlap first", 3,
+               head(3, stl_grid) + "[[body]]\nname = \"impactor\"\nmaterial = \"m\"\nshape = \"stl\"\nfile = \"" +
+                   std::string(OTMPM_SOURCE_DIR) + "/examples/geometry/impactor.stl\"\n"
+                   "translate = [0.0003, -0.0002, 0.005]\nparticles_per_cell = 2\n"
+                   "[[body]]\nname = \"b\"\nmaterial = \"m\"\nlower = [-0.006, -0.006, 0.0]\nupper = [0.006, 0.006, 0.008]\n"
+                   "overlap = \"first\"\n"});
   c.push_back({"2D polygon, a disk and a box, overlap first", 2,
                head(2, grid2) + "[[body]]\nname = \"p\"\nmaterial = \"m\"\nshape = \"polygon\"\n"
                                 "vertices = [[0.0, 0.0], [1.0, 0.1], [1.3, 0.9], [0.6, 0.5], [0.1, 1.0]]\n"

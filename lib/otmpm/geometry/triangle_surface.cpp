@@ -260,6 +260,32 @@ bool TriangleSurface::contains(const Vec<3>& x) const {
   return std::llround(std::abs(winding_number(x))) % 2 == 1;
 }
 
+Shape<3>::Side TriangleSurface::side(const Vec<3>& lo, const Vec<3>& hi) const {
+  const Side around = Shape<3>::side(lo, hi);
+  if (around == Side::outside || node_.empty()) return around;
+  const double e = kSideSlack * std::max({lo.cwiseAbs().maxCoeff(), hi.cwiseAbs().maxCoeff(),
+                                          lower_.cwiseAbs().maxCoeff(), upper_.cwiseAbs().maxCoeff()});
+  if (touches(0, lo.array() - e, hi.array() + e)) return Side::unknown;
+  return contains(0.5 * (lo + hi)) ? Side::inside : Side::outside;
+}
+
+bool TriangleSurface::touches(int id, const Vec<3>& a, const Vec<3>& b) const {
+  const auto apart = [&](const Vec<3>& lo, const Vec<3>& hi) {
+    return (hi.array() < a.array()).any() || (lo.array() > b.array()).any();
+  };
+  const Node& n = node_[static_cast<std::size_t>(id)];
+  if (apart(n.lower, n.upper)) return false;
+  if (n.count == 0) return touches(n.left, a, b) || touches(n.right, a, b);
+  for (int t = n.first; t < n.first + n.count; ++t) {
+    const auto& v = tri_[static_cast<std::size_t>(t)];
+    const Vec<3>& p = vertex_[static_cast<std::size_t>(v[0])];
+    const Vec<3>& q = vertex_[static_cast<std::size_t>(v[1])];
+    const Vec<3>& r = vertex_[static_cast<std::size_t>(v[2])];
+    if (!apart(p.cwiseMin(q).cwiseMin(r), p.cwiseMax(q).cwiseMax(r))) return true;
+  }
+  return false;
+}
+
 void TriangleSurface::bounds(Vec<3>& lower, Vec<3>& upper) const {
   lower = lower_;
   upper = upper_;

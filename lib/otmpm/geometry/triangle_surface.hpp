@@ -34,6 +34,11 @@ public:
   /// that share no vertex and cross each other (a self-intersection).
   TriangleSurface(const std::vector<std::array<Vec<3>, 3>>& triangles, const std::string& name);
   bool contains(const Vec<3>& x) const override;
+  /// Shape::side: `unknown` where a triangle's bounding box comes within
+  /// the margin of [lower, upper] (found through the tree); otherwise no
+  /// triangle crosses the box, w(x) is the same integer all over it, and
+  /// the box is on the side of its centre.
+  Side side(const Vec<3>& lower, const Vec<3>& upper) const override;
   void bounds(Vec<3>& lower, Vec<3>& upper) const override;
   /// The enclosed volume, sum over triangles of x_c . a_t / 3 (divergence theorem: exact).
   double measure() const override { return volume_; }
@@ -68,6 +73,8 @@ private:
   /// Fills a node's box, centre, radius and moments (and its children's).
   void summarise(int node);
   void collect(int node, std::vector<int>& out) const;
+  /// Whether the bounding box of a triangle of node `node` meets the box [a, b].
+  bool touches(int node, const Vec<3>& a, const Vec<3>& b) const;
   /// The sum of the solid angles of a node's triangles seen from x.
   double sum(int node, const Vec<3>& x) const;
   double solid_angle(int t, const Vec<3>& x) const;
