@@ -121,7 +121,7 @@ TEST_CASE("local ranks: the bisection over ranks that each hold a slice of the p
     }
 }
 
-TEST_CASE("local ranks: a thousand ranks play their collectives as fibers on a few threads") {
+TEST_CASE("local ranks: a thousand ranks play their collectives as fibers on a few threads, not the caller's") {
   constexpr int P = 1000;
   std::vector<std::int64_t> sums(P), gathered(P);
   std::vector<std::thread::id> threads(P);
@@ -139,6 +139,8 @@ TEST_CASE("local ranks: a thousand ranks play their collectives as fibers on a f
     CHECK(sums[static_cast<std::size_t>(r)] == expect);
     CHECK(gathered[static_cast<std::size_t>(r)] == P);
   }
+  // never on the caller's thread: what a rank sets on its thread (omp_set_num_threads) stays with the ranks
+  CHECK(std::count(threads.begin(), threads.end(), std::this_thread::get_id()) == 0);
   std::sort(threads.begin(), threads.end());
   const auto distinct = std::unique(threads.begin(), threads.end()) - threads.begin();
   CHECK(distinct >= 1);

@@ -10,6 +10,7 @@
 #include <latch>
 #include <optional>
 #include <stdexcept>
+#include <string>
 #include <system_error>
 #include <thread>
 #include <type_traits>
@@ -185,23 +186,26 @@ void LocalRanks::run(const std::function<void(int)>& play) {
   F.stopped = &stopped_;
   for (int r = 0; r < size_; ++r) F.make(r);
   F.live = size_;
-  // the caller is thread 0; a thread that cannot start leaves its share to fewer threads
+  // threads of their own, not the caller's: a rank's settings of its thread
+  // (omp_set_num_threads) stay with the played ranks; a thread that cannot
+  // start leaves its share to fewer threads
   std::latch go(1);
   std::vector<std::jthread> threads;
-  int started = 1;
+  std::string why;
   try {
-    for (int t = 1; t < threads_; ++t, ++started)
+    for (int t = 0; t < threads_; ++t)
       threads.emplace_back([this, &go, t] {
         go.wait();
         work(t);
       });
-  } catch (const std::system_error&) {
+  } catch (const std::system_error& e) {
+    why = e.what();
   }
-  threads_ = started; // read by the threads only after go
-  F.round.emplace(threads_, Fibers::RoundEnd{&F});
+  threads_ = static_cast<int>(threads.size()); // read by the threads only after go
+  if (threads_ > 0) F.round.emplace(threads_, Fibers::RoundEnd{&F});
   go.count_down();
-  work(0);
   threads.clear(); // joins
+  if (threads_ == 0) throw std::runtime_error("cannot start a thread to play the ranks: " + why);
   if (F.mismatch)
     throw std::logic_error("Comm::run_local: a rank returned while another waited in a collective (the ranks' "
                            "collectives do not match)");
