@@ -85,6 +85,54 @@ TEST_CASE("local ranks: gathers in rank order, all-to-all, broadcast from any ra
   CHECK(checked.load() == P);
 }
 
+TEST_CASE("local ranks: a sparse all-to-all lists each sender's message in rank order, a repeated destination is an error") {
+  constexpr int P = 6;
+  std::atomic<int> checked{0};
+  Comm::run_local(P, [&](const Comm& c) {
+    const int r = c.rank();
+    Messages send; // to r + 3 and r + 1 (this order), and an empty one to itself
+    send.emplace_back((r + 3) % P, Bytes(2, static_cast<char>(r)));
+    send.emplace_back((r + 1) % P, Bytes(1, static_cast<char>(r)));
+    send.emplace_back(r, Bytes{});
+    const Messages got = c.sparse_alltoall(std::move(send));
+    Messages want; // from r - 3 (two bytes) and r - 1 (one byte), in rank order
+    for (int q = 0; q < P; ++q)
+      if (q == (r + P - 3) % P || q == (r + P - 1) % P)
+        want.emplace_back(q, Bytes(q == (r + P - 3) % P ? 2 : 1, static_cast<char>(q)));
+    if (got == want) ++checked;
+  });
+  CHECK(checked.load() == P);
+  Messages self;
+  self.emplace_back(0, Bytes(3, 'x'));
+  CHECK(Comm::self().sparse_alltoall(self) == self);
+  const auto twice = [](const Comm& c) {
+    Messages send;
+    send.emplace_back(0, Bytes(1, 'a'));
+    send.emplace_back(0, Bytes(1, 'b'));
+    c.sparse_alltoall(std::move(send));
+  };
+  CHECK_THROWS_AS(Comm::run_local(3, twice), std::invalid_argument);
+  CHECK_THROWS_AS(twice(Comm::self()), std::invalid_argument);
+}
+
+TEST_CASE("local ranks: a gather's result stays as it was through the collectives after it (one copy for all ranks)") {
+  constexpr int P = 7;
+  std::atomic<int> checked{0};
+  Comm::run_local(P, [&](const Comm& c) {
+    const Gathered first = c.allgather(Bytes(static_cast<std::size_t>(c.rank() + 1), 'a'));
+    bool ok = true;
+    for (int round = 0; round < 4; ++round) { // reuses the buffers of the first one twice
+      const Gathered later = c.allgather(Bytes(1, static_cast<char>('b' + round)));
+      for (const Bytes& b : later) ok = ok && b == Bytes(1, static_cast<char>('b' + round));
+      c.barrier();
+    }
+    ok = ok && first.size() == P;
+    for (int q = 0; q < P; ++q) ok = ok && first[static_cast<std::size_t>(q)] == Bytes(static_cast<std::size_t>(q + 1), 'a');
+    if (ok) ++checked;
+  });
+  CHECK(checked.load() == P);
+}
+
 TEST_CASE("local ranks: a rank that throws stops the others at their next collective, its exception is rethrown") {
   for (int thrower : {0, 3}) {
     CAPTURE(thrower);

@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <map>
+#include <numeric>
 #include <random>
 #include <set>
 
@@ -137,6 +138,53 @@ TEST_CASE("rcb: (cell, count) runs give the same boxes as the cells repeated") {
   }
   CHECK_THROWS_AS(Decomposition<3>::rcb({12, 7, 5}, 4, cells, std::vector<std::int64_t>(3, 1), Comm::self()),
                   std::invalid_argument);
+}
+
+TEST_CASE("rcb: runs along axis 0 give the tree of their cells and each rank's particles, merged into boxes or not") {
+  // Rows of runs as a rank's counting pass gives them: blocks of rows with
+  // one extent and weight (merged into boxes along y, then z), rows cut
+  // into pieces, single cells, a cell in several runs, in any order.
+  std::mt19937 rng(5);
+  const Index<3> L{14, 9, 6};
+  std::vector<Index<3>> home, cells;
+  std::vector<std::int64_t> weight, cell_weight;
+  std::vector<int> length;
+  const auto run = [&](Index<3> c, int n, int w) {
+    home.push_back(c), weight.push_back(w), length.push_back(n);
+    for (int t = 0; t < n; ++t) cells.push_back({c[0] + t, c[1], c[2]}), cell_weight.push_back(w);
+  };
+  for (int z = 0; z < L[2]; ++z)
+    for (int y = 0; y < L[1]; ++y) run({2, y, z}, 9, 8); // one box: every row of x 2..10
+  for (int y = 3; y < 7; ++y) run({0, y, 1}, 14, 3);     // a box of whole rows
+  for (int i = 0; i < 150; ++i) {
+    const int x = static_cast<int>(rng() % 14);
+    run({x, static_cast<int>(rng() % 9), static_cast<int>(rng() % 6)}, 1 + static_cast<int>(rng() % (14 - x)),
+        1 + static_cast<int>(rng() % 5));
+  }
+  for (bool shuffled : {false, true}) {
+    CAPTURE(shuffled);
+    if (shuffled) { // the same runs in another order (fewer merge)
+      std::vector<std::size_t> order(home.size());
+      std::iota(order.begin(), order.end(), 0);
+      std::shuffle(order.begin(), order.end(), rng);
+      std::vector<Index<3>> h;
+      std::vector<std::int64_t> w;
+      std::vector<int> n;
+      for (std::size_t i : order) h.push_back(home[i]), w.push_back(weight[i]), n.push_back(length[i]);
+      home = h, weight = w, length = n;
+    }
+    for (int ranks : {1, 2, 3, 7, 16}) {
+      CAPTURE(ranks);
+      std::vector<std::int64_t> owned;
+      const auto a = Decomposition<3>::rcb(L, ranks, home, weight, length, Comm::self(), &owned);
+      const auto b = Decomposition<3>::rcb(L, ranks, cells, cell_weight, Comm::self());
+      check_tiling(a);
+      for (int r = 0; r < ranks; ++r) CHECK(a.box(r) == b.box(r));
+      std::vector<std::int64_t> want(static_cast<std::size_t>(ranks), 0);
+      for (std::size_t i = 0; i < cells.size(); ++i) want[static_cast<std::size_t>(a.owner(cells[i]))] += cell_weight[i];
+      CHECK(owned == want);
+    }
+  }
 }
 
 TEST_CASE("rcb: the cut follows the particles, not the empty lattice") {

@@ -318,7 +318,7 @@ std::vector<std::int64_t> Comm::allgather(std::int64_t value) const {
   if (local_) {
     Bytes mine;
     put(mine, value);
-    const std::vector<Bytes> in = local_->allgather(rank_, mine);
+    const Gathered in = local_->allgather(rank_, mine);
     for (std::size_t q = 0; q < in.size(); ++q) all[q] = Reader(in[q]).get<std::int64_t>();
   }
 #ifdef OTMPM_HAVE_MPI
@@ -427,8 +427,28 @@ std::vector<Bytes> Comm::alltoall(std::vector<Bytes> send) const {
   return received;
 }
 
-std::vector<Bytes> Comm::allgather(const Bytes& mine) const {
-  if (size_ == 1) return {mine};
+Messages Comm::sparse_alltoall(Messages send) const {
+  for (const auto& [to, bytes] : send)
+    if (to < 0 || to >= size_)
+      throw std::invalid_argument("Comm::sparse_alltoall: a message to rank " + std::to_string(to) + " of " +
+                                  std::to_string(size_));
+  if (local_) return local_->sparse_alltoall(rank_, std::move(send));
+  std::vector<Bytes> dense(static_cast<std::size_t>(size_));
+  for (auto& [to, bytes] : send) {
+    if (!dense[static_cast<std::size_t>(to)].empty())
+      throw std::invalid_argument("Comm::sparse_alltoall: two messages to rank " + std::to_string(to));
+    dense[static_cast<std::size_t>(to)] = std::move(bytes);
+  }
+  send.clear();
+  Messages received;
+  std::vector<Bytes> in = alltoall(std::move(dense));
+  for (std::size_t q = 0; q < in.size(); ++q)
+    if (!in[q].empty()) received.emplace_back(static_cast<int>(q), std::move(in[q]));
+  return received;
+}
+
+Gathered Comm::allgather(const Bytes& mine) const {
+  if (size_ == 1) return Gathered(std::make_shared<const std::vector<Bytes>>(1, mine));
   if (local_) return local_->allgather(rank_, mine);
   std::vector<Bytes> received(static_cast<std::size_t>(size_));
 #ifdef OTMPM_HAVE_MPI
@@ -451,7 +471,7 @@ std::vector<Bytes> Comm::allgather(const Bytes& mine) const {
   wait_one(r);
   for (std::size_t q = 0; q < P; ++q) received[q].assign(in.begin() + at[q], in.begin() + at[q] + count[q]);
 #endif
-  return received;
+  return Gathered(std::make_shared<const std::vector<Bytes>>(std::move(received)));
 }
 
 void Comm::barrier() const {

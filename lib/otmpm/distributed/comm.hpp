@@ -16,6 +16,7 @@
 #include <memory>
 #include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace otmpm {
@@ -26,8 +27,24 @@ namespace otmpm::distributed {
 
 /// Bytes of one message.
 using Bytes = std::vector<char>;
+/// Messages with their ranks: (destination or sender, bytes).
+using Messages = std::vector<std::pair<int, Bytes>>;
 
 class LocalRanks;
+
+/// What allgather() returns: every rank's message in rank order, shared by
+/// the ranks played in one process (Comm::run_local: one copy, not one per rank).
+class Gathered {
+public:
+  explicit Gathered(std::shared_ptr<const std::vector<Bytes>> all) : all_(std::move(all)) {}
+  auto begin() const { return all_->begin(); }
+  auto end() const { return all_->end(); }
+  std::size_t size() const { return all_->size(); }
+  const Bytes& operator[](std::size_t q) const { return (*all_)[q]; }
+
+private:
+  std::shared_ptr<const std::vector<Bytes>> all_;
+};
 
 /// A group of ranks (all ranks of the program: world()).
 class Comm {
@@ -71,8 +88,14 @@ public:
   /// each buffer is freed once packed, so the call holds about twice the
   /// larger of what this rank sends and receives, not four times.
   std::vector<Bytes> alltoall(std::vector<Bytes> send) const;
+  /// alltoall where each rank writes to a few: `send` lists (destination,
+  /// message), each destination at most once; returns (sender, message) for
+  /// every non-empty message this rank received, in rank order. Its
+  /// arguments and result do not grow with the rank count (played ranks:
+  /// no vector of size() entries per rank and call).
+  Messages sparse_alltoall(Messages send) const;
   /// Every rank's `mine`, in rank order, on every rank.
-  std::vector<Bytes> allgather(const Bytes& mine) const;
+  Gathered allgather(const Bytes& mine) const;
   void barrier() const;
   /// The MPI communicator (an MPI_Comm*) for the parallel HDF5; null when
   /// this is not an MPI communicator.

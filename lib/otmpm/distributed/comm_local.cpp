@@ -164,7 +164,7 @@ LocalRanks::LocalRanks(int size, int threads)
     : size_(size), threads_(std::clamp(threads, 1, size)), fibers_(std::make_unique<Fibers>(size, threads_)),
       calls_(static_cast<std::size_t>(size), 0) {
   const std::size_t P = static_cast<std::size_t>(size);
-  for (Posts& p : posts_) p.slots.resize(P), p.posts.assign(P, std::vector<Bytes>(P)), p.data.resize(P);
+  for (Posts& p : posts_) p.inbox.resize(P), p.data.resize(P);
 }
 
 LocalRanks::~LocalRanks() = default;
@@ -219,21 +219,54 @@ void LocalRanks::wait(int rank) {
 
 void LocalRanks::stop() { stopped_ = true; } // the waiting ranks see it when the next round resumes them
 
-std::vector<Bytes> LocalRanks::allgather(int rank, const Bytes& mine) {
+Gathered LocalRanks::allgather(int rank, const Bytes& mine) {
+  const long long call = calls_[static_cast<std::size_t>(rank)];
   Posts& p = posts(rank);
-  p.slots[static_cast<std::size_t>(rank)] = mine;
+  std::shared_ptr<std::vector<Bytes>> slots;
+  {
+    // The first rank of this collective makes the vector every rank writes
+    // to and shares; those of two collectives before still hold theirs.
+    const std::lock_guard<std::mutex> lock(mutex_);
+    if (p.slots_call != call) p.slots = std::make_shared<std::vector<Bytes>>(static_cast<std::size_t>(size_)), p.slots_call = call;
+    slots = p.slots;
+  }
+  (*slots)[static_cast<std::size_t>(rank)] = mine;
   wait(rank);
-  return p.slots;
+  return Gathered(std::move(slots));
+}
+
+void LocalRanks::post(Posts& p, int rank, Messages send) {
+  std::sort(send.begin(), send.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  for (std::size_t i = 1; i < send.size(); ++i)
+    if (send[i].first == send[i - 1].first)
+      throw std::invalid_argument("Comm::sparse_alltoall: two messages to rank " + std::to_string(send[i].first));
+  const std::lock_guard<std::mutex> lock(mutex_);
+  for (auto& [to, bytes] : send) p.inbox[static_cast<std::size_t>(to)].emplace_back(rank, std::move(bytes));
+}
+
+Messages LocalRanks::take(Posts& p, int rank) {
+  Messages received;
+  received.swap(p.inbox[static_cast<std::size_t>(rank)]); // left empty for the next use
+  std::sort(received.begin(), received.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  return received;
 }
 
 std::vector<Bytes> LocalRanks::alltoall(int rank, std::vector<Bytes> send) {
-  Posts& p = posts(rank);
-  const std::size_t from = static_cast<std::size_t>(rank);
-  for (std::size_t to = 0; to < send.size(); ++to) // only the messages there are: most are empty
-    if (!send[to].empty()) p.posts[to][from] = std::move(send[to]);
-  wait(rank);
+  Messages some; // only the messages there are: most are empty
+  for (std::size_t to = 0; to < send.size(); ++to)
+    if (!send[to].empty()) some.emplace_back(static_cast<int>(to), std::move(send[to]));
+  send = {};
   std::vector<Bytes> received(static_cast<std::size_t>(size_));
-  received.swap(p.posts[from]); // this rank's row, left empty for the next use
+  for (auto& [from, bytes] : sparse_alltoall(rank, std::move(some))) received[static_cast<std::size_t>(from)] = std::move(bytes);
+  return received;
+}
+
+Messages LocalRanks::sparse_alltoall(int rank, Messages send) {
+  Posts& p = posts(rank);
+  post(p, rank, std::move(send));
+  wait(rank);
+  Messages received = take(p, rank);
+  std::erase_if(received, [](const auto& m) { return m.second.empty(); });
   return received;
 }
 

@@ -10,6 +10,7 @@
 #include <atomic>
 #include <functional>
 #include <memory>
+#include <mutex>
 
 namespace otmpm::distributed {
 
@@ -43,8 +44,9 @@ public:
   /// collective throws Stopped.
   void stop();
 
-  std::vector<Bytes> allgather(int rank, const Bytes& mine);
+  Gathered allgather(int rank, const Bytes& mine);
   std::vector<Bytes> alltoall(int rank, std::vector<Bytes> send);
+  Messages sparse_alltoall(int rank, Messages send);
   void broadcast(int rank, void* data, std::size_t bytes, int from);
   /// Combines the ranks' `values` entry by entry along MPI's binomial tree
   /// (children in increasing rank order: the bits an MPI run's ordered sums
@@ -70,14 +72,21 @@ private:
   /// they read it - a set is written again two collectives later, after
   /// every rank has passed the barrier of the one between.
   struct Posts {
-    std::vector<Bytes> slots;              ///< allgather: each rank's message
-    std::vector<std::vector<Bytes>> posts; ///< alltoall: posts[to][from]
+    std::shared_ptr<std::vector<Bytes>> slots; ///< allgather: each rank's message (shared by the ranks' results)
+    long long slots_call = -1;                 ///< the collective (count of a rank's calls) `slots` belongs to
+    std::vector<Messages> inbox;           ///< alltoall: per rank, (sender, message) in any order
     std::vector<const void*> data;         ///< reduce: each rank's values
     Bytes result;                          ///< reduce: the combined values; broadcast: the message
   };
   Posts& posts(int rank) { return posts_[calls_[static_cast<std::size_t>(rank)]++ & 1]; }
   std::array<Posts, 2> posts_;
   std::vector<long long> calls_; ///< per rank: the collectives it entered
+  std::mutex mutex_;             ///< guards the making of Posts::slots and the inboxes (ranks on several threads)
+  /// Posts this rank's (destination, message) pairs to the inboxes of `p`;
+  /// std::invalid_argument when a destination repeats.
+  void post(Posts& p, int rank, Messages send);
+  /// This rank's inbox of `p` (after the barrier), in rank order.
+  Messages take(Posts& p, int rank);
 };
 
 } // namespace otmpm::distributed

@@ -91,9 +91,12 @@ public:
                            std::span<const std::int64_t> weight, const Comm& comm);
   /// The same with runs of cells along axis 0: `length[i]` cells from
   /// home[i] (home[i] + t e_0, 0 <= t < length[i]) of `weight[i]` particles
-  /// each: the same tree as rcb over the cells of the runs.
+  /// each: the same tree as rcb over the cells of the runs. `owned`, when
+  /// given, receives per rank the particles of this rank's runs in that
+  /// rank's box (summed over the ranks: each rank's particles).
   static Decomposition rcb(const Index<D>& cells, int ranks, std::span<const Index<D>> home,
-                           std::span<const std::int64_t> weight, std::span<const int> length, const Comm& comm);
+                           std::span<const std::int64_t> weight, std::span<const int> length, const Comm& comm,
+                           std::vector<std::int64_t>* owned = nullptr);
 
   int ranks() const { return static_cast<int>(boxes_.size()); }
   const Index<D>& cells() const { return cells_; }
@@ -137,6 +140,35 @@ private:
     int first = 0, count = 1; ///< ranks [first, first + count)
     IndexBox<D> box;
   };
+  /// A box of cells of this rank's home runs in rcb (runs merged where
+  /// they line up), `weight` particles in each cell, inside the box of
+  /// tree node `node`, a box of more than one rank.
+  struct HomeBox {
+    IndexBox<D> cells;
+    std::int64_t weight;
+    int node;
+  };
+  /// The runs of rcb as boxes inside the lattice: consecutive runs of one
+  /// weight and extent along axis 0 merged along axis 1, then such boxes
+  /// along axis 2.
+  static std::vector<HomeBox> home_boxes(const Index<D>& cells, std::span<const Index<D>> home,
+                                         std::span<const std::int64_t> weight, std::span<const int> length);
+  /// rcb's messages of one level: this rank's per-slice counts of each
+  /// pending box its boxes reach, to the rank that cuts it (pending box j
+  /// on rank j % P), as blocks of non-zero entries.
+  Messages slice_messages(const std::vector<int>& pending, const std::vector<HomeBox>& boxes, int P) const;
+  /// The cuts this rank chooses (rcb): per pending box, axis + 1 (0: none
+  /// possible) and the cut, from the counts received; zero for the boxes of
+  /// other ranks.
+  std::vector<std::int64_t> choose_cuts(const std::vector<int>& pending, const Messages& received, int rank,
+                                        int P) const;
+  /// Splits the pending boxes at the chosen cuts; returns the children of
+  /// more than one rank (the next level's pending boxes).
+  std::vector<int> split(const std::vector<int>& pending, const std::vector<std::int64_t>& chosen, int ranks);
+  /// Moves the boxes into the children of their nodes, just cut (written
+  /// to `spare`, then swapped in); the particles of those in one-rank
+  /// children are added to `owned` (per rank) and the boxes dropped.
+  void descend(std::vector<HomeBox>& boxes, std::vector<HomeBox>& spare, std::vector<std::int64_t>& owned) const;
   Index<D> cells_{};
   std::vector<Node> tree_;
   std::vector<IndexBox<D>> boxes_;

@@ -158,15 +158,10 @@ RankShare rank_share(const PointLattice<D>& L, const Decomposition<D>& d, int r,
 template <int D>
 void check_rank_memory(const Scene& scene, const Comm& comm, const PointLattice<D>& L, const Decomposition<D>& d,
                        const std::vector<std::int64_t>& particles) {
-  double total = 0.0;
   SceneSize mine;
-  for (int r = 0; r < d.ranks(); ++r) {
-    SceneSize share;
-    share.particles = static_cast<double>(particles[static_cast<std::size_t>(r)]);
-    share.nodes = static_cast<double>(L.window(d.box(r)).count());
-    total += estimate_resources(scene, share, d.ranks()).bytes;
-    if (r == comm.rank()) mine = share;
-  }
+  mine.particles = static_cast<double>(particles[static_cast<std::size_t>(comm.rank())]);
+  mine.nodes = static_cast<double>(L.window(d.box(comm.rank())).count());
+  const double total = comm.sum(estimate_resources(scene, mine, d.ranks()).bytes);
   agree_on(comm, [&] {
     if (mine.nodes > kMaxRankNodes)
       throw InputError("rank " + std::to_string(comm.rank()) + " of " + std::to_string(d.ranks()) + " would hold " +

@@ -381,18 +381,14 @@ SeededBodies<D> share_seeding(const Scene& scene, const Comm& comm, const Vec<D>
   out.particles = plan.particles;
   SeededBodies<D> mine;
   try {
-    out.decomposition = Decomposition<D>::rcb(lattice.cells, comm.size(), homes.home, homes.weight, homes.length, comm);
+    out.decomposition =
+        Decomposition<D>::rcb(lattice.cells, comm.size(), homes.home, homes.weight, homes.length, comm, &out.per_rank);
   } catch (...) {
     out.deferred = std::current_exception();
     if (!scene.tractions.empty()) mine.surfaces = surfaces<D>(scene, comm, h, lattice, plan);
     return mine;
   }
-  out.per_rank.assign(static_cast<std::size_t>(comm.size()), 0);
-  for (std::size_t i = 0; i < homes.home.size(); ++i)
-    out.decomposition.owners(homes.home[i], homes.length[i], [&](int rank, int cells) {
-      out.per_rank[static_cast<std::size_t>(rank)] += homes.weight[i] * cells;
-    });
-  comm.sum(out.per_rank);
+  comm.sum(out.per_rank); // each rank's particles
   homes = {};
   const auto most = std::max_element(out.per_rank.begin(), out.per_rank.end());
   if (static_cast<double>(*most) > kMaxRankParticles)
