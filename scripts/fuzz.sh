@@ -37,7 +37,8 @@ cd "$root"
 bash "$root/scripts/install-deps.sh" clang-14 libclang-rt-14-dev
 
 # OpenMP off: clang would need libomp, and the reader is serial anyway.
-CC=clang-14 CXX=clang++-14 cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DOTMPM_FUZZ=ON \
+CC=clang-14 CXX=clang++-14 cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+  -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -g1 -DNDEBUG" -DCMAKE_C_FLAGS_RELWITHDEBINFO="-O2 -g1 -DNDEBUG" -DOTMPM_FUZZ=ON \
   -DOTMPM_OPENMP=OFF -DOTMPM_WERROR=ON -DOTMPM_BUILD_TESTS=OFF -DOTMPM_BUILD_BENCH=OFF >/dev/null
 cmake --build "$build" -j2 --target fuzz_scene fuzz_set fuzz_run otmpm_cli
 
