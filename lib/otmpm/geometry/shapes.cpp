@@ -22,11 +22,6 @@ namespace bg = boost::geometry;
 constexpr double unit_ball(int D) { return D == 1 ? 2.0 : D == 2 ? std::numbers::pi : 4.0 / 3.0 * std::numbers::pi; }
 constexpr double unit_sphere(int D) { return D == 1 ? 2.0 : D == 2 ? 2.0 * std::numbers::pi : 4.0 * std::numbers::pi; }
 
-/// The largest coordinate of the boxes [a, b] and [c, d] (the scale of Shape::side's margin).
-template <int D> double magnitude(const Vec<D>& a, const Vec<D>& b, const Vec<D>& c, const Vec<D>& d) {
-  return std::max({a.cwiseAbs().maxCoeff(), b.cwiseAbs().maxCoeff(), c.cwiseAbs().maxCoeff(), d.cwiseAbs().maxCoeff()});
-}
-
 /// Calls f(corner) for the 2^D corners of the box [lo, hi].
 template <int D, class F> void for_each_corner(const Vec<D>& lo, const Vec<D>& hi, F&& f) {
   for (int m = 0; m < (1 << D); ++m) {
@@ -88,7 +83,7 @@ public:
   double boundary_measure() const override { return unit_sphere(D) * std::pow(r_, D - 1); }
   /// The box's nearest and farthest points from the centre against the radius.
   typename Shape<D>::Side side(const Vec<D>& lo, const Vec<D>& hi) const override {
-    const double e = kSideSlack * (r_ + magnitude<D>(lo, hi, c_, c_));
+    const double e = kSideSlack * (r_ + largest_coordinate<D>(lo, hi, c_, c_));
     double near = 0.0, far = 0.0;
     for (int k = 0; k < D; ++k) {
       const double a = std::abs(lo[k] - c_[k]), b = std::abs(hi[k] - c_[k]);
@@ -137,7 +132,7 @@ public:
   /// Outside: every corner beyond one end, or the box's bounding ball
   /// clear of the axis' line.
   Side side(const Vec<3>& lo, const Vec<3>& hi) const override {
-    const double e = kSideSlack * (radius_ + length_ + magnitude<3>(lo, hi, base_, base_));
+    const double e = kSideSlack * (radius_ + length_ + largest_coordinate<3>(lo, hi, base_, base_));
     bool inside = true, below = true, beyond = true;
     for_each_corner<3>(lo, hi, [&](const Vec<3>& x) {
       const Vec<3> d = x - base_;
@@ -184,7 +179,7 @@ public:
   /// The box widened by the margin, within the polygon or apart from it.
   Side side(const Vec<2>& lo, const Vec<2>& hi) const override {
     const Vec<2> a(box_.min_corner().x(), box_.min_corner().y()), b(box_.max_corner().x(), box_.max_corner().y());
-    const double e = kSideSlack * magnitude<2>(lo, hi, a, b);
+    const double e = kSideSlack * largest_coordinate<2>(lo, hi, a, b);
     const bg::model::box<Point> wide(Point(lo[0] - e, lo[1] - e), Point(hi[0] + e, hi[1] + e));
     Polygon square;
     bg::convert(wide, square);
@@ -203,7 +198,7 @@ private:
 template <int D> typename Shape<D>::Side Shape<D>::side(const Vec<D>& lo, const Vec<D>& hi) const {
   Vec<D> a, b;
   bounds(a, b);
-  const double e = kSideSlack * magnitude<D>(lo, hi, a, b);
+  const double e = kSideSlack * largest_coordinate<D>(lo, hi, a, b);
   for (int k = 0; k < D; ++k)
     if (hi[k] < a[k] - e || lo[k] > b[k] + e) return Side::outside;
   return Side::unknown;

@@ -7,6 +7,7 @@
 /// the shape; overlapping bodies are found with contains().
 #include "otmpm/core.hpp"
 
+#include <algorithm>
 #include <functional>
 #include <memory>
 #include <vector>
@@ -39,6 +40,11 @@ public:
 /// The margin of Shape::side relative to the size of the coordinates: far
 /// above the rounding of contains(), far below a seeding cell.
 inline constexpr double kSideSlack = 1e-9;
+
+/// The largest coordinate of the boxes [a, b] and [c, d] (the scale of Shape::side's margin).
+template <int D> double largest_coordinate(const Vec<D>& a, const Vec<D>& b, const Vec<D>& c, const Vec<D>& d) {
+  return std::max({a.cwiseAbs().maxCoeff(), b.cwiseAbs().maxCoeff(), c.cwiseAbs().maxCoeff(), d.cwiseAbs().maxCoeff()});
+}
 
 extern template class Shape<1>;
 extern template class Shape<2>;

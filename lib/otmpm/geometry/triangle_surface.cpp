@@ -263,8 +263,7 @@ bool TriangleSurface::contains(const Vec<3>& x) const {
 Shape<3>::Side TriangleSurface::side(const Vec<3>& lo, const Vec<3>& hi) const {
   const Side around = Shape<3>::side(lo, hi);
   if (around == Side::outside || node_.empty()) return around;
-  const double e = kSideSlack * std::max({lo.cwiseAbs().maxCoeff(), hi.cwiseAbs().maxCoeff(),
-                                          lower_.cwiseAbs().maxCoeff(), upper_.cwiseAbs().maxCoeff()});
+  const double e = kSideSlack * largest_coordinate<3>(lo, hi, lower_, upper_);
   if (touches(0, lo.array() - e, hi.array() + e)) return Side::unknown;
   return contains(0.5 * (lo + hi)) ? Side::inside : Side::outside;
 }
