@@ -30,6 +30,11 @@ one sub-cell) plus the gap R - max_p sqrt(X^2 + Y^2) of the undeformed
 bar; the largest plastic strain is the max over particles of the
 `plastic_strain` field. The measures take the quarter bar and the full
 cylinder (`shape = "cylinder"`, seeded about the axis x = y = 0) alike.
+When the file has the fields `F` and `volume` (output.fields), the
+measure adds the area-equivalent footprint radius R sqrt(A / A0): A and
+A0 the deformed and the initial area of the bottom layer of particles,
+each particle's share V0 (cof F)_zz and V0 - a measure of the whole rim,
+not of its outermost particle.
 """
 import argparse
 import os
@@ -92,6 +97,19 @@ def text(v):
     return v.decode() if isinstance(v, bytes) else v
 
 
+def footprint_area(X, V0, F):
+    """The area-equivalent footprint radius R sqrt(A / A0): A and A0 the
+    deformed and initial area of the particles' bottom layer (those at the
+    lowest Z), each particle's share V0 (cof F)_zz and V0, (cof F)_zz =
+    J (F^-1)_zz the area ratio of a face normal to z."""
+    Z = X[:, 2]
+    above = Z[Z > Z.min() + 1e-9 * L]
+    layer = Z < (0.5 * (Z.min() + above.min()) if above.size else np.inf)
+    F = F.reshape(-1, 3, 3)[layer]
+    cof_zz = np.linalg.det(F) * np.linalg.inv(F)[:, 2, 2]
+    return R * math.sqrt((V0[layer] * cof_zz).sum() / V0[layer].sum())
+
+
 def measure(path):
     """The Taylor bar measures of one result file (a dict)."""
     with h5py.File(path, "r") as f:
@@ -102,6 +120,8 @@ def measure(path):
         if len(names) < 2:  # a run that stopped before its last frame: no final shape
             x = np.full_like(X, np.nan)
         eps = last["plastic_strain"][:].ravel() if "plastic_strain" in last else np.full(len(x), np.nan)
+        area_r = footprint_area(X, first["volume"][:].ravel(), last["F"][:]) \
+            if "volume" in first and "F" in last and len(names) > 1 else np.nan
         e = f["energy"]
         ek, es = e["kinetic"][:], e["strain"][:]
         wd = e["dissipated"][:] if "dissipated" in e else np.zeros_like(ek)
@@ -123,6 +143,7 @@ def measure(path):
             "wall_seconds": float(a["wall_seconds"]),
             "length_mm": 1e3 * (x[:, 2].max() + L - X[:, 2].max()),
             "footprint_mm": 1e3 * (np.hypot(x[bottom, 0], x[bottom, 1]).max() + R - r0.max()) if bottom.any() else np.nan,
+            "footprint_area_mm": 1e3 * area_r,
             "max_plastic_strain": float(np.nanmax(eps)),
             "E0": E0,
             "kinetic_end": ek[-1] / E0,
@@ -133,7 +154,8 @@ def measure(path):
 
 
 COLUMNS = ["mode", "integrator", "basis", "status", "particles", "steps", "wall_seconds", "length_mm",
-           "footprint_mm", "max_plastic_strain", "kinetic_end", "strain_end", "plastic_work", "integrator_loss"]
+           "footprint_mm", "max_plastic_strain", "kinetic_end", "strain_end", "plastic_work", "integrator_loss",
+           "footprint_area_mm"]
 
 
 def cmd_measure(a):
@@ -149,7 +171,9 @@ def cmd_measure(a):
                   f"{m['wall_seconds']:.1f} s | L_f = {m['length_mm']:.2f} mm, footprint = {m['footprint_mm']:.2f} mm, "
                   f"max eps_p = {m['max_plastic_strain']:.2f} | of E0: kinetic {m['kinetic_end']:.4f}, "
                   f"elastic {m['strain_end']:.4f}, plastic {m['plastic_work']:.4f}, "
-                  f"integrator {m['integrator_loss']:.4f}")
+                  f"integrator {m['integrator_loss']:.4f}"
+                  + (f" | area-equivalent footprint {m['footprint_area_mm']:.2f} mm"
+                     if math.isfinite(m['footprint_area_mm']) else ""))
 
 
 def cmd_plot(a):
