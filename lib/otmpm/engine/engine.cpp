@@ -6,6 +6,7 @@
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/engine/scatter.hpp"
 #include "otmpm/engine/two_phase_scatter.hpp"
+#include "otmpm/particles/particles_box.hpp"
 
 #include "otmpm/parallel.hpp"
 
@@ -783,17 +784,6 @@ template <int D> void Engine<D>::follow_body(const AlignedVector<Vec<D>>& x) {
 }
 
 namespace {
-/// The box of this process' particles, each widened by half(p) about x_p
-/// either way (a Vec<D>).
-template <int D, class Half> std::pair<Vec<D>, Vec<D>> particles_box(const Particles<D>& P, Half half) {
-  Vec<D> lo = Vec<D>::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
-  for (int p = 0; p < P.size(); ++p) {
-    const Vec<D> w = half(p);
-    lo = lo.cwiseMin(P.x[p] - w), hi = hi.cwiseMax(P.x[p] + w);
-  }
-  return {lo, hi};
-}
-
 /// The box of this process' particles' extents: each a cube of its volume
 /// about x_p (node reset).
 template <int D> std::pair<Vec<D>, Vec<D>> particles_extent(const Particles<D>& P) {
@@ -807,7 +797,7 @@ template <int D> std::pair<Vec<D>, Vec<D>> particles_extent(const Particles<D>& 
 template <int D>
 void end_on_planes(const Particles<D>& P, Distribution<D>* dist, const NodeReset<D>& reset, double t, Vec<D>& lo,
                    Vec<D>& hi) {
-  auto [xlo, xhi] = particles_box(P, [](int) { return Vec<D>::Zero().eval(); });
+  auto [xlo, xhi] = particles_box(P);
   if (dist) {
     dist->min({xlo.data(), static_cast<std::size_t>(D)});
     dist->max({xhi.data(), static_cast<std::size_t>(D)});

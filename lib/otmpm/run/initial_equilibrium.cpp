@@ -9,6 +9,7 @@
 #include "otmpm/assembly/assembler.hpp"
 #include "otmpm/interrupt.hpp"
 #include "otmpm/materials/pore_fluid.hpp"
+#include "otmpm/particles/particles_box.hpp"
 #include "otmpm/run/run_common.hpp"
 #include "otmpm/state.hpp"
 
@@ -83,8 +84,7 @@ template <int D> void put_energies(StateGroup& g, const Engine<D>& from) {
 
 /// The largest extent of the bodies' particles along an axis: L of eq. 15.17.
 template <int D> double extent(const Particles<D>& P) {
-  Vec<D> lo = Vec<D>::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
-  for (int p = 0; p < P.size(); ++p) lo = lo.cwiseMin(P.x[p]), hi = hi.cwiseMax(P.x[p]);
+  const auto [lo, hi] = particles_box(P);
   return P.size() > 0 ? (hi - lo).maxCoeff() : 0.0;
 }
 
