@@ -105,14 +105,16 @@ TEST_CASE("local ranks: a sparse all-to-all lists each sender's message in rank 
   Messages self;
   self.emplace_back(0, Bytes(3, 'x'));
   CHECK(Comm::self().sparse_alltoall(self) == self);
-  const auto twice = [](const Comm& c) {
-    Messages send;
-    send.emplace_back(0, Bytes(1, 'a'));
-    send.emplace_back(0, Bytes(1, 'b'));
-    c.sparse_alltoall(std::move(send));
-  };
-  CHECK_THROWS_AS(Comm::run_local(3, twice), std::invalid_argument);
-  CHECK_THROWS_AS(twice(Comm::self()), std::invalid_argument);
+  // A repeated destination, also when the first message to it is empty or
+  // the two are apart, and a destination out of range: errors on local
+  // ranks and on a communicator of its own alike.
+  for (const Messages& bad : {Messages{{0, Bytes(1, 'a')}, {0, Bytes(1, 'b')}}, Messages{{0, Bytes{}}, {0, Bytes(1, 'b')}},
+                              Messages{{0, Bytes(1, 'a')}, {1, Bytes{}}, {0, Bytes{}}}, Messages{{3, Bytes(1, 'a')}},
+                              Messages{{-1, Bytes{}}}}) {
+    const auto send_bad = [&](const Comm& c) { c.sparse_alltoall(bad); };
+    CHECK_THROWS_AS(Comm::run_local(3, send_bad), std::invalid_argument);
+    CHECK_THROWS_AS(send_bad(Comm::self()), std::invalid_argument);
+  }
 }
 
 TEST_CASE("local ranks: a gather's result stays as it was through the collectives after it (one copy for all ranks)") {

@@ -428,17 +428,18 @@ std::vector<Bytes> Comm::alltoall(std::vector<Bytes> send) const {
 }
 
 Messages Comm::sparse_alltoall(Messages send) const {
-  for (const auto& [to, bytes] : send)
+  std::stable_sort(send.begin(), send.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  for (std::size_t i = 0; i < send.size(); ++i) {
+    const int to = send[i].first;
     if (to < 0 || to >= size_)
       throw std::invalid_argument("Comm::sparse_alltoall: a message to rank " + std::to_string(to) + " of " +
                                   std::to_string(size_));
+    if (i > 0 && to == send[i - 1].first)
+      throw std::invalid_argument("Comm::sparse_alltoall: two messages to rank " + std::to_string(to));
+  }
   if (local_) return local_->sparse_alltoall(rank_, std::move(send));
   std::vector<Bytes> dense(static_cast<std::size_t>(size_));
-  for (auto& [to, bytes] : send) {
-    if (!dense[static_cast<std::size_t>(to)].empty())
-      throw std::invalid_argument("Comm::sparse_alltoall: two messages to rank " + std::to_string(to));
-    dense[static_cast<std::size_t>(to)] = std::move(bytes);
-  }
+  for (auto& [to, bytes] : send) dense[static_cast<std::size_t>(to)] = std::move(bytes);
   send.clear();
   Messages received;
   std::vector<Bytes> in = alltoall(std::move(dense));

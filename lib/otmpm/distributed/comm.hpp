@@ -89,7 +89,8 @@ public:
   /// larger of what this rank sends and receives, not four times.
   std::vector<Bytes> alltoall(std::vector<Bytes> send) const;
   /// alltoall where each rank writes to a few: `send` lists (destination,
-  /// message), each destination at most once; returns (sender, message) for
+  /// message), each destination at most once (std::invalid_argument for a
+  /// destination out of range or repeated, an empty message included); returns (sender, message) for
   /// every non-empty message this rank received, in rank order. Its
   /// arguments and result do not grow with the rank count (played ranks:
   /// no vector of size() entries per rank and call).

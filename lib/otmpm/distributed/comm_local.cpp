@@ -236,10 +236,6 @@ Gathered LocalRanks::allgather(int rank, const Bytes& mine) {
 }
 
 void LocalRanks::post(Posts& p, int rank, Messages send) {
-  std::sort(send.begin(), send.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
-  for (std::size_t i = 1; i < send.size(); ++i)
-    if (send[i].first == send[i - 1].first)
-      throw std::invalid_argument("Comm::sparse_alltoall: two messages to rank " + std::to_string(send[i].first));
   const std::lock_guard<std::mutex> lock(mutex_);
   for (auto& [to, bytes] : send) p.inbox[static_cast<std::size_t>(to)].emplace_back(rank, std::move(bytes));
 }

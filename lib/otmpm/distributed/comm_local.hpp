@@ -82,8 +82,8 @@ private:
   std::array<Posts, 2> posts_;
   std::vector<long long> calls_; ///< per rank: the collectives it entered
   std::mutex mutex_;             ///< guards the making of Posts::slots and the inboxes (ranks on several threads)
-  /// Posts this rank's (destination, message) pairs to the inboxes of `p`;
-  /// std::invalid_argument when a destination repeats.
+  /// Posts this rank's (destination, message) pairs to the inboxes of `p`
+  /// (destinations checked by Comm::sparse_alltoall: each in range, once).
   void post(Posts& p, int rank, Messages send);
   /// This rank's inbox of `p` (after the barrier), in rank order.
   Messages take(Posts& p, int rank);
