@@ -90,8 +90,9 @@ public:
   std::vector<Bytes> alltoall(std::vector<Bytes> send) const;
   /// alltoall where each rank writes to a few: `send` lists (destination,
   /// message), each destination at most once (std::invalid_argument for a
-  /// destination out of range or repeated, an empty message included); returns (sender, message) for
-  /// every non-empty message this rank received, in rank order. Its
+  /// destination out of range or repeated, empty messages included);
+  /// returns (sender, message) for every non-empty message this rank
+  /// received, in rank order. Its
   /// arguments and result do not grow with the rank count (played ranks:
   /// no vector of size() entries per rank and call).
   Messages sparse_alltoall(Messages send) const;
