@@ -3,8 +3,10 @@
 // theta) t^2 in both node modes and the wall force is (-mu N, N); a block
 // dropped on a frictionless wall does not pass it and gains no energy; a
 // moving wall pushes a block and does work; a lattice padded with empty
-// cells gives the same bits; bad walls are input errors.
+// cells gives the same bits; a wall takes no new contact at a node whose
+// support it cannot meet in the step; bad walls are input errors.
 #include "otmpm/assembly/assembler.hpp"
+#include "otmpm/engine/constraints.hpp"
 #include "otmpm/integrators/integrator.hpp"
 #include "otmpm/io/results.hpp"
 #include "otmpm/run/run.hpp"
@@ -16,6 +18,7 @@
 
 #include <cmath>
 #include <numbers>
+#include <random>
 #include <string>
 
 using namespace otmpm;
@@ -178,6 +181,77 @@ TEST_CASE("a wall's results do not depend on the lattice's empty cells (bitwise)
     CHECK(E.impact == F.impact);
     CHECK(E.impact > 0.0);
     CHECK(E.friction > 0.0);
+  }
+}
+
+TEST_CASE("a wall takes a new contact only within the nodes' reach, the wall's own travel added") {
+  // Random active nodes above a floor (friction 0.6), some approaching it
+  // faster than (6.2) allows, with a step dt and the reach r of a linear
+  // basis at h = 0.02: a node with d_I <= r + max(w . n, 0) dt is treated
+  // as with an unbounded reach (the same bits, the same ledger), a node
+  // farther away keeps its velocity and books nothing. The light node of a
+  // column collapse, 0.24 m above the floor with dt f / m = 8e6 m/s toward
+  // it, is among them.
+  const double dt = 6.5e-5, r = 0.02;
+  for (const double w : {0.0, 500.0, -500.0}) { // the floor still, rising into the nodes, sinking
+    CAPTURE(w);
+    Wall<2> floor;
+    floor.normal = Vec<2>(0.0, 1.0), floor.velocity = Vec<2>(0.0, w), floor.friction = 0.6;
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<double> height(0.0, 0.3), speed(-1e4, 1e4);
+    const int n = 2000;
+    AlignedVector<Vec<2>> x(n), v(n);
+    std::vector<double> m(n);
+    for (int I = 0; I < n; ++I)
+      x[I] = Vec<2>(0.01 * I, height(rng)), v[I] = Vec<2>(speed(rng), speed(rng)), m[I] = 1e-6 + 1e-3 * height(rng);
+    x[0] = Vec<2>(0.1, 0.24), v[0] = Vec<2>(3e3, -8e6), m[0] = 1e-9;
+    const std::vector<char> active(n, 1);
+    std::vector<int> nodes(n);
+    for (int I = 0; I < n; ++I) nodes[I] = I;
+    auto apply = [&](double reach, AlignedVector<Vec<2>>& u, double& friction, double& impact) {
+      Constraints<2> c({}, {floor}, n);
+      Vec<2> impulse = Vec<2>::Zero();
+      double work = 0.0;
+      c.apply_walls(u, {x, m, active, nodes, reach}, 0.0, dt, WallEffect<2>{}, {&impulse, &work, &friction, &impact});
+      return c.held()[0];
+    };
+    AlignedVector<Vec<2>> unbounded = v, bounded = v;
+    double f_inf = 0.0, i_inf = 0.0, f_r = 0.0, i_r = 0.0;
+    const std::vector<char> held_inf = apply(std::numeric_limits<double>::infinity(), unbounded, f_inf, i_inf);
+    const std::vector<char> held_r = apply(r, bounded, f_r, i_r);
+    const double reach = r + std::max(w, 0.0) * dt;
+    double f_near = 0.0, i_near = 0.0; // the unbounded run's ledger over the nodes within reach
+    int near = 0, far = 0;
+    for (int I = 0; I < n; ++I) {
+      if (x[I].y() <= reach) {
+        CHECK(bounded[I] == unbounded[I]);
+        CHECK(held_r[I] == held_inf[I]);
+        near += held_inf[I];
+        if (!held_inf[I]) continue;
+        double one_f = 0.0, one_i = 0.0;
+        AlignedVector<Vec<2>> u(1, v[I]);
+        Constraints<2> c({}, {floor}, 1);
+        Vec<2> impulse = Vec<2>::Zero();
+        double work = 0.0;
+        const AlignedVector<Vec<2>> xi(1, x[I]);
+        const std::vector<double> mi(1, m[I]);
+        const std::vector<char> a(1, 1);
+        const std::vector<int> ni(1, 0);
+        c.apply_walls(u, {xi, mi, a, ni}, 0.0, dt, WallEffect<2>{}, {&impulse, &work, &one_f, &one_i});
+        f_near += one_f, i_near += one_i;
+      } else {
+        CHECK(bounded[I] == v[I]);
+        CHECK(held_r[I] == 0);
+        far += held_inf[I];
+      }
+    }
+    CHECK(held_inf[0] == 1); // the unbounded reach holds the light node...
+    CHECK(held_r[0] == 0);   // ...the node's reach does not
+    CHECK(near > 10);
+    CHECK(far > 10);
+    CHECK(f_r == doctest::Approx(f_near).epsilon(1e-12));
+    CHECK(i_r == doctest::Approx(i_near).epsilon(1e-12));
+    CHECK(f_inf > f_r); // what the far nodes booked
   }
 }
 

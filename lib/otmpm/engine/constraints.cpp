@@ -143,6 +143,7 @@ void Constraints<D>::apply_walls(AlignedVector<Vec<D>>& v, const NodeView<D>& no
     std::vector<char>& held = held_[w];
     held.resize(v.size(), 0);
     Vec<D> impulse = Vec<D>::Zero();
+    const double reach = nodes.reach + std::max(wall.velocity.dot(wall.normal), 0.0) * dt;
     for (const int node : nodes.active_nodes) {
       const auto I = static_cast<std::size_t>(node);
       const double d = (nodes.x[I] - p).dot(wall.normal), floor = -std::max(d, 0.0) / dt;
@@ -164,7 +165,7 @@ void Constraints<D>::apply_walls(AlignedVector<Vec<D>>& v, const NodeView<D>& no
           continue;
         }
       } else {
-        if (un >= floor) continue;
+        if (un >= floor || d > reach) continue;
         dn = floor - un; // a new contact: just the change that stops the approach
         held[I] = 1;
       }

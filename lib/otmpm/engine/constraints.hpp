@@ -16,6 +16,7 @@
 
 #include <algorithm>
 #include <array>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -154,12 +155,15 @@ template <int D> struct Held {
 
 /// The nodes a velocity constraint acts on: positions, lumped masses, active
 /// flags and the active nodes, ascending (the walls' passes visit only
-/// these: the others carry no mass and keep their velocity).
+/// these: the others carry no mass and keep their velocity), and `reach`,
+/// how far from a node its shape function reaches (wall_reach): a wall
+/// takes a new contact only at a node whose support it can meet in the step.
 template <int D> struct NodeView {
   const AlignedVector<Vec<D>>& x;
   const std::vector<double>& m;
   const std::vector<char>& active;
   const std::vector<int>& active_nodes;
+  double reach = std::numeric_limits<double>::infinity();
 };
 
 /// The constraints of a run with the bookkeeping derived from them.
@@ -263,7 +267,11 @@ public:
   /// with d_I the distance of node I from the wall plane (positive on the
   /// material side) and u = v_I - v_wall, the normal part u.n is raised to
   /// -max(d_I, 0) / dt when below it, and friction reduces the tangential
-  /// part. In a pass whose change is the body's (effect.impulse) the change
+  /// part. A new contact needs d_I <= nodes.reach + max(v_wall . n, 0) dt:
+  /// no particle of a node farther away can meet the wall in the step (its
+  /// support ends short of the plane), and the approach that such a node
+  /// shows is the velocity dt f_I / m_I of a node with little mass, which a
+  /// wall would turn into friction and impact that no particle has. In a pass whose change is the body's (effect.impulse) the change
   /// reaches the particles as `effect` says; its impulse (m_I dv_I summed
   /// per wall) is added to wall_impulse() and its work (impulse . v_wall) to
   /// `ledger` as effect.booking says, the energy friction and the impact took

@@ -55,9 +55,32 @@ struct MaxOf {
   }
 };
 
-/// The nodes at positions x with the masses and active nodes of `n` (the walls' passes).
-template <int D> NodeView<D> node_view(const AlignedVector<Vec<D>>& x, const NodalFields<D>& n) {
-  return {x, n.m, n.active, n.active_nodes};
+/// How far from a node its shape function reaches (NodeView::reach), on
+/// nodes that stay where they are: the search radius of a family that
+/// searches nodes; on a lattice, half the cells a node's stencil spans
+/// (LatticeReach: below + above + 1) times the lattice's largest spacing,
+/// twice that on a perturbed lattice (whose nodes sit up to half a cell
+/// off); for B-splines the same with their knot span. Unbounded on a mesh's
+/// vertices, whose elements' sizes vary, and on nodes that move (`ul`: their
+/// supports deform with the body).
+template <int D> double wall_reach(const Basis<D>& basis, bool nodes_move) {
+  if (nodes_move) return std::numeric_limits<double>::infinity();
+  if (basis.search_radius() > 0.0) return basis.search_radius();
+  const BasisKind* family = find_basis_kind(basis.kind());
+  const NodeSet<D>& nodes = basis.nodes();
+  const auto& grid = nodes.grid();
+  if (!family || !family->reach || (!grid && !family->bspline)) return std::numeric_limits<double>::infinity();
+  const double h = grid ? grid->h().maxCoeff() : nodes.spacing();
+  const LatticeReach r = family->reach(0.0, h);
+  return 0.5 * (r.below + r.above + 1) * h * (nodes.layout() == NodeLayout::perturbed ? 2.0 : 1.0);
+}
+
+/// The nodes at positions x with the masses and active nodes of `n` and
+/// the basis' reach (the walls' passes).
+template <int D>
+NodeView<D> node_view(const AlignedVector<Vec<D>>& x, const NodalFields<D>& n, const Basis<D>& basis,
+                      bool nodes_move) {
+  return {x, n.m, n.active, n.active_nodes, wall_reach(basis, nodes_move)};
 }
 
 /// What the integrator's row says it needs (StepNeeds): the particle fields
@@ -544,7 +567,7 @@ template <int D> void Engine<D>::book_inertial_reaction(const AlignedVector<Vec<
 
 template <int D> void Engine<D>::constrain_velocity(AlignedVector<Vec<D>>& v, const WallEffect<D>& effect) {
   // A distributed run books this rank's owned nodes, summed over the ranks after the step.
-  const NodeView<D> nodes = node_view(field_positions(), nodal_);
+  const NodeView<D> nodes = node_view(field_positions(), nodal_, *basis_, mode_.nodes_move());
   const Ledger<D> books = ledger();
   constraints_.apply_velocity(v, nodes, effect, books, step_ == 0);
   if (contact_)
@@ -614,8 +637,8 @@ template <int D> void Engine<D>::book_transfer(const ToParticles<D>& what) {
 }
 
 template <int D> void Engine<D>::book_held(const AlignedVector<Vec<D>>& rate) {
-  constraints_.book_held({t_, dt_, step_ == 0, nodal_.f, rate}, nodal_.q, node_view(field_positions(), nodal_),
-                         ledger());
+  constraints_.book_held({t_, dt_, step_ == 0, nodal_.f, rate}, nodal_.q,
+                         node_view(field_positions(), nodal_, *basis_, mode_.nodes_move()), ledger());
   // The nodes a wall holds: the particles take their kick up (book_transfer;
   // the inactive nodes get none).
   if (constraints_.held().empty()) return;
@@ -631,7 +654,7 @@ template <int D> void Engine<D>::constrain_increment(AlignedVector<Vec<D>>& dx) 
   constraints_.apply_increment(dx, dt_);
   if (contact_) contact_->apply_to_increment(dx, {nodal_.m, nodal_.active, constraints_.constrained()});
   if (constraints_.walls().empty()) return;
-  constraints_.apply_walls_to_increment(dx, node_view(field_positions(), nodal_), t_, dt_);
+  constraints_.apply_walls_to_increment(dx, node_view(field_positions(), nodal_, *basis_, mode_.nodes_move()), t_, dt_);
 }
 
 template <int D> void Engine<D>::apply_dirichlet_force(AlignedVector<Vec<D>>& f, double c) {
