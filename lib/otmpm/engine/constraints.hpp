@@ -271,7 +271,8 @@ public:
   /// no particle of a node farther away can meet the wall in the step (its
   /// support ends short of the plane), and the approach that such a node
   /// shows is the velocity dt f_I / m_I of a node with little mass, which a
-  /// wall would turn into friction and impact that no particle has. In a pass whose change is the body's (effect.impulse) the change
+  /// wall would turn into friction and impact that no particle has. In a
+  /// pass whose change is the body's (effect.impulse) the change
   /// reaches the particles as `effect` says; its impulse (m_I dv_I summed
   /// per wall) is added to wall_impulse() and its work (impulse . v_wall) to
   /// `ledger` as effect.booking says, the energy friction and the impact took

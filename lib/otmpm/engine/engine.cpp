@@ -654,7 +654,8 @@ template <int D> void Engine<D>::constrain_increment(AlignedVector<Vec<D>>& dx) 
   constraints_.apply_increment(dx, dt_);
   if (contact_) contact_->apply_to_increment(dx, {nodal_.m, nodal_.active, constraints_.constrained()});
   if (constraints_.walls().empty()) return;
-  constraints_.apply_walls_to_increment(dx, node_view(field_positions(), nodal_, *basis_, mode_.nodes_move()), t_, dt_);
+  const NodeView<D> nodes = node_view(field_positions(), nodal_, *basis_, mode_.nodes_move());
+  constraints_.apply_walls_to_increment(dx, nodes, t_, dt_);
 }
 
 template <int D> void Engine<D>::apply_dirichlet_force(AlignedVector<Vec<D>>& f, double c) {
