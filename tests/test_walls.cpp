@@ -206,39 +206,34 @@ TEST_CASE("a wall takes a new contact only within the nodes' reach, the wall's o
       x[I] = Vec<2>(0.01 * I, height(rng)), v[I] = Vec<2>(speed(rng), speed(rng)), m[I] = 1e-6 + 1e-3 * height(rng);
     x[0] = Vec<2>(0.1, 0.24), v[0] = Vec<2>(3e3, -8e6), m[0] = 1e-9;
     const std::vector<char> active(n, 1);
-    std::vector<int> nodes(n);
-    for (int I = 0; I < n; ++I) nodes[I] = I;
-    auto apply = [&](double reach, AlignedVector<Vec<2>>& u, double& friction, double& impact) {
+    std::vector<int> all(n), near_nodes; // near_nodes: those within reach, ascending
+    const double reach = r + std::max(w, 0.0) * dt;
+    for (int I = 0; I < n; ++I) {
+      all[I] = I;
+      if (x[I].y() <= reach) near_nodes.push_back(I);
+    }
+    // The walls' pass over the active nodes `nodes` with reach `rho`.
+    auto apply = [&](const std::vector<int>& nodes, double rho, AlignedVector<Vec<2>>& u, double& friction,
+                     double& impact) {
       Constraints<2> c({}, {floor}, n);
       Vec<2> impulse = Vec<2>::Zero();
       double work = 0.0;
-      c.apply_walls(u, {x, m, active, nodes, reach}, 0.0, dt, WallEffect<2>{}, {&impulse, &work, &friction, &impact});
+      c.apply_walls(u, {x, m, active, nodes, rho}, 0.0, dt, WallEffect<2>{}, {&impulse, &work, &friction, &impact});
       return c.held()[0];
     };
-    AlignedVector<Vec<2>> unbounded = v, bounded = v;
+    const double inf = std::numeric_limits<double>::infinity();
+    AlignedVector<Vec<2>> unbounded = v, bounded = v, near_only = v;
     double f_inf = 0.0, i_inf = 0.0, f_r = 0.0, i_r = 0.0;
-    const std::vector<char> held_inf = apply(std::numeric_limits<double>::infinity(), unbounded, f_inf, i_inf);
-    const std::vector<char> held_r = apply(r, bounded, f_r, i_r);
-    const double reach = r + std::max(w, 0.0) * dt;
-    double f_near = 0.0, i_near = 0.0; // the unbounded run's ledger over the nodes within reach
+    double f_near = 0.0, i_near = 0.0; // the unbounded reach's ledger over the nodes within reach
+    const std::vector<char> held_inf = apply(all, inf, unbounded, f_inf, i_inf);
+    const std::vector<char> held_r = apply(all, r, bounded, f_r, i_r);
+    apply(near_nodes, inf, near_only, f_near, i_near);
     int near = 0, far = 0;
     for (int I = 0; I < n; ++I) {
       if (x[I].y() <= reach) {
         CHECK(bounded[I] == unbounded[I]);
         CHECK(held_r[I] == held_inf[I]);
         near += held_inf[I];
-        if (!held_inf[I]) continue;
-        double one_f = 0.0, one_i = 0.0;
-        AlignedVector<Vec<2>> u(1, v[I]);
-        Constraints<2> c({}, {floor}, 1);
-        Vec<2> impulse = Vec<2>::Zero();
-        double work = 0.0;
-        const AlignedVector<Vec<2>> xi(1, x[I]);
-        const std::vector<double> mi(1, m[I]);
-        const std::vector<char> a(1, 1);
-        const std::vector<int> ni(1, 0);
-        c.apply_walls(u, {xi, mi, a, ni}, 0.0, dt, WallEffect<2>{}, {&impulse, &work, &one_f, &one_i});
-        f_near += one_f, i_near += one_i;
       } else {
         CHECK(bounded[I] == v[I]);
         CHECK(held_r[I] == 0);
