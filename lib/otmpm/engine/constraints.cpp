@@ -193,11 +193,16 @@ void Constraints<D>::book_held(const Held<D>& step, AlignedVector<Vec<D>>& q, co
                                const Ledger<D>& ledger) {
   AlignedVector<Vec<D>>& wall_impulse = counted_.empty() ? impulse_ : rank_impulse_;
   held_.resize(walls_.size());
-  std::size_t next = 0; // the inactive nodes up to the next active one get no kick
+  // the inactive nodes get no kick (the nodes not visited hold zero)
+  if (nodes.visited) {
+    for (const int I : *nodes.visited)
+      if (!nodes.active[static_cast<std::size_t>(I)]) q[static_cast<std::size_t>(I)] = Vec<D>::Zero();
+  } else {
+    for (std::size_t I = 0; I < q.size(); ++I)
+      if (!nodes.active[I]) q[I] = Vec<D>::Zero();
+  }
   for (const int node : nodes.active_nodes) {
     const auto I = static_cast<std::size_t>(node);
-    std::fill(q.begin() + static_cast<std::ptrdiff_t>(next), q.begin() + node, Vec<D>::Zero());
-    next = I + 1;
     const double m = nodes.m[I];
     const Vec<D> brought = q[I] / m;
     Vec<D> end = brought + step.dt * Vec<D>(step.f[I] / m); // the particles' velocity at the node after the step
@@ -231,7 +236,6 @@ void Constraints<D>::book_held(const Held<D>& step, AlignedVector<Vec<D>>& q, co
     }
     q[I] = held ? Vec<D>(end - brought - step.dt * step.rate[I]) : Vec<D>::Zero(); // the kick
   }
-  std::fill(q.begin() + static_cast<std::ptrdiff_t>(next), q.end(), Vec<D>::Zero());
 }
 
 template <int D> void Constraints<D>::size_carried(std::size_t nodes) {

@@ -158,12 +158,15 @@ template <int D> struct Held {
 /// these: the others carry no mass and keep their velocity), and `reach`,
 /// how far from a node its shape function reaches (wall_reach): a wall
 /// takes a new contact only at a node whose support it can meet in the step.
+/// `visited`: the nodes the step visits (NodalFields::visited; the others'
+/// fields are zero), or null: every node.
 template <int D> struct NodeView {
   const AlignedVector<Vec<D>>& x;
   const std::vector<double>& m;
   const std::vector<char>& active;
   const std::vector<int>& active_nodes;
   double reach = std::numeric_limits<double>::infinity();
+  const std::vector<int>* visited = nullptr;
 };
 
 /// The constraints of a run with the bookkeeping derived from them.

@@ -16,6 +16,7 @@
 #include <cstdlib>
 #include <limits>
 #include <new>
+#include <numeric>
 #include <unordered_map>
 #include <utility>
 
@@ -75,12 +76,13 @@ template <int D> double wall_reach(const Basis<D>& basis, bool nodes_move) {
   return 0.5 * (r.below + r.above + 1) * h * (nodes.layout() == NodeLayout::perturbed ? 2.0 : 1.0);
 }
 
-/// The nodes at positions x with the masses and active nodes of `n` and
-/// the basis' reach (the walls' passes).
+/// The nodes at positions x with the masses, active and visited nodes of
+/// `n` and the basis' reach (the walls' passes).
 template <int D>
 NodeView<D> node_view(const AlignedVector<Vec<D>>& x, const NodalFields<D>& n, const Basis<D>& basis,
                       bool nodes_move) {
-  return {x, n.m, n.active, n.active_nodes, wall_reach(basis, nodes_move)};
+  const bool every = n.visited.size() == n.m.size() || n.visited.empty(); // empty: before the first step
+  return {x, n.m, n.active, n.active_nodes, wall_reach(basis, nodes_move), every ? nullptr : &n.visited};
 }
 
 /// What the integrator's row says it needs (StepNeeds): the particle fields
@@ -122,6 +124,15 @@ template <int D> void NodalFields<D>::resize(int n) {
   v = f = a = dx = reaction = q;
   active.assign(n, 0);
   active_nodes.clear();
+  visited.clear();
+}
+
+template <int D> void NodalFields<D>::zero(int I) {
+  const auto i = static_cast<std::size_t>(I);
+  m[i] = 0.0;
+  active[i] = 0;
+  for (AlignedVector<Vec<D>>* field : {&q, &v, &f, &a, &dx, &reaction})
+    if (i < field->size()) (*field)[i] = Vec<D>::Zero();
 }
 
 template <int D>
@@ -327,6 +338,7 @@ template <int D> void Engine<D>::evaluate_basis() {
     table_.offset.assign(static_cast<std::size_t>(P_.size()) + 1, 0);
     row_width_ = 0;
     scatter_->invalidate(row_width_);
+    list_visited_nodes();
   };
   fallible([&] {
     try {
@@ -339,6 +351,7 @@ template <int D> void Engine<D>::evaluate_basis() {
       if (contact_) contact_->remap(table_, P_.body);
       row_width_ = linear_row_width(table_);
       scatter_->invalidate(row_width_);
+      list_visited_nodes();
       if (dist_) dist_->check_support(table_);
       if (settings_.volumetric == Volumetric::fbar) assign_patches();
       if (mode_.nodes_move() && basis_->search_radius() > 0.0) measure_gradients();
@@ -490,14 +503,53 @@ void Engine<D>::to_nodes_impl(const ToNodes<D>& what, Update&& update) {
   };
   if constexpr (Mass && Momentum && Forces && !Split)
     if (what.liquid) return what.liquid->scatter_with(*this, update, prep, add, merge, clear);
-  scatter_->run(table_, static_cast<int>(nodal_.m.size()), update, prep, add, merge, clear);
+  const int nodes = static_cast<int>(nodal_.m.size());
+  const bool every = static_cast<int>(nodal_.visited.size()) == nodes;
+  scatter_->run(table_, nodes, update, prep, add, merge, clear, every ? nullptr : &nodal_.visited);
+}
+
+/// The nodes the step's nodal loops visit (NodalFields::visited), after the
+/// basis table is built: on a fixed grid (`mpm`) in a serial run without body
+/// contact, saturated bodies or the consistent mass, and while fewer than half
+/// the nodes were active in the last step, the nodes of the table's rows and
+/// the constrained ones; the nodes that leave the list are zeroed, so that
+/// every other node holds the zero fields a loop over all nodes would give
+/// it. Every node otherwise.
+template <int D> void Engine<D>::list_visited_nodes() {
+  const int nodes = static_cast<int>(nodal_.m.size());
+  std::vector<int>& list = nodal_.visited;
+  // Listing costs a pass over the table and the nodes: worth it when the
+  // last step's active nodes were fewer than half the nodes. From every node
+  // to a list nothing needs zeroing: a loop over all nodes leaves the nodes
+  // outside the rows and the constrained ones at zero.
+  const bool every = mode_.nodes_move() || contact_ || dist_ || settings_.two_phase ||
+                     settings_.consistent_mass || 2 * nodal_.active_nodes.size() >= static_cast<std::size_t>(nodes);
+  if (every) {
+    if (static_cast<int>(list.size()) != nodes) {
+      list.resize(static_cast<std::size_t>(nodes));
+      std::iota(list.begin(), list.end(), 0);
+    }
+    return;
+  }
+  nodal_.listed.assign(static_cast<std::size_t>(nodes), 0);
+  char* mark = nodal_.listed.data();
+  for (const int I : table_.node) mark[I] = 1;
+  for (const int I : constraints_.fixed_nodes()) mark[I] = 1;
+  if (static_cast<int>(list.size()) < nodes)
+    for (const int I : list)
+      if (!mark[I]) nodal_.zero(I);
+  list.clear();
+  for (int I = 0; I < nodes; ++I)
+    if (mark[I]) list.push_back(I);
 }
 
 template <int D> void Engine<D>::finish_mass() {
   const int nodes = static_cast<int>(nodal_.m.size());
-  // The largest nodal mass: a maximum, exact in any grouping.
-  double m_max = blocked_reduce<MaxOf>(nodes, [&](long long I, MaxOf& acc) {
-    acc.value = std::max(acc.value, nodal_.m[I]);
+  // The largest nodal mass: a maximum, exact in any grouping (the nodes not
+  // visited have none).
+  const std::vector<int>& visited = nodal_.visited;
+  double m_max = blocked_reduce<MaxOf>(static_cast<long long>(visited.size()), [&](long long i, MaxOf& acc) {
+    acc.value = std::max(acc.value, nodal_.m[visited[i]]);
   }).value;
   if (dist_) dist_->max({&m_max, 1});
   const double m_min = settings_.mass_tolerance * m_max;
@@ -507,7 +559,7 @@ template <int D> void Engine<D>::finish_mass() {
   list.clear();
   const double* m = nodal_.m.data();
   char* active = nodal_.active.data();
-  for (int I = 0; I < nodes; ++I) {
+  for (const int I : visited) {
     const bool on = m[I] > m_min;
     active[I] = on;
     if (on) list.push_back(I);
@@ -540,7 +592,11 @@ void Engine<D>::solve_mass(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>
   const int n = static_cast<int>(r.size());
   y.resize(n);
   const bool lumped = !settings_.consistent_mass;
-  parallel_for(n, [&](long long I) { y[I] = lumped && nodal_.active[I] ? Vec<D>(r[I] / nodal_.m[I]) : Vec<D>::Zero(); });
+  const std::vector<int>& visited = nodal_.visited; // the others hold zero in r and y
+  parallel_for(static_cast<long long>(visited.size()), [&](long long i) {
+    const int I = visited[i];
+    y[I] = lumped && nodal_.active[I] ? Vec<D>(r[I] / nodal_.m[I]) : Vec<D>::Zero();
+  });
   if (lumped) return;
   if (dist_) dist_->solve_consistent_mass(table_, P_.m, nodal_.m, nodal_.active, constraints_.constrained(), r, y);
   else mass_matrix_->solve(r, y);

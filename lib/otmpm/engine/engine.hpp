@@ -39,15 +39,20 @@ template <int D> class ParticleToNodes; // the particle-to-node map, engine/scat
 /// acceleration; dx: the increment that moves the particles (and the nodes
 /// in `ul` mode); reaction: Dirichlet reaction forces (the force components
 /// removed); active: m_I above the mass tolerance; active_nodes: the
-/// active nodes, ascending (the walls' passes visit only these). With body
-/// contact every body has its own copy: entry I + b N is node I of body b's
-/// field (contact.hpp).
+/// active nodes, ascending (the walls' passes visit only these); visited:
+/// the nodes the step's nodal loops visit, ascending (Engine::list_visited_nodes).
+/// With body contact every body has its own copy: entry I + b N is node I of
+/// body b's field (contact.hpp).
 template <int D> struct NodalFields {
   std::vector<double> m;
   AlignedVector<Vec<D>> q, v, f, a, dx, reaction;
   std::vector<char> active;
   std::vector<int> active_nodes;
+  std::vector<int> visited;
+  std::vector<char> listed; ///< scratch of Engine::list_visited_nodes: per node, visited
   void resize(int n);
+  /// Zeroes every field of node I (it left the visited nodes).
+  void zero(int I);
 };
 
 /// A basis and its Dirichlet sets on a node lattice: a share's, built by the
@@ -415,8 +420,8 @@ private:
   /// Dispatches to_particles_range on what `what` and `g` hold.
   void to_particles_on(const ToParticles<D>& what, const Gradient<D>& g, int begin, int end);
   void finish_mass();
-  /// The mass gradients of the bodies' fields for the contact normals.
-  void contact_mass_gradient();
+  void list_visited_nodes(); ///< NodalFields::visited for the new basis table (engine.cpp says which)
+  void contact_mass_gradient(); ///< the mass gradients of the bodies' fields for the contact normals
   /// Node positions per field node (the nodes' own without contact).
   const AlignedVector<Vec<D>>& field_positions() const;
   /// The constitutive update of particles [p0, p1) from H_p = c sum_I g_I (x)

@@ -17,6 +17,7 @@
 
 #include <algorithm>
 #include <optional>
+#include <utility>
 #include <vector>
 
 namespace otmpm {
@@ -82,20 +83,24 @@ public:
   /// [p0, p1), each particle once and before its prep; clear(I0, I1) zeroes
   /// the nodal fields of nodes [I0, I1); then for every table entry e
   /// (particle p, node I) add(acc_I, e, prep(p)), and merge(I, acc_I) adds
-  /// acc_I into the nodal fields.
+  /// acc_I into the nodal fields. `visit`: the nodes, ascending, that
+  /// phase 2 clears and merges into (every node of a table row among them;
+  /// the others' fields are left as they are), or null: every node.
   template <class Update, class Prep, class Add, class Merge, class Clear>
   void run(const BasisTable<D>& table, int nodes, Update&& update, Prep&& prep, Add&& add, Merge&& merge,
-           Clear&& clear) {
+           Clear&& clear, const std::vector<int>* visit = nullptr) {
     plan(table, nodes);
-    if (path_ == ScatterPath::columns) return gather_columns(table, nodes, update, prep, add, merge, clear);
+    if (path_ == ScatterPath::columns) return gather_columns(table, nodes, update, prep, add, merge, clear, visit);
     const int n = table.rows(), count = static_cast<int>(lo_.size());
     const bool dense = path_ == ScatterPath::dense;
     buffer_.resize(static_cast<std::size_t>(offset_.back()));
+    clean_ = std::exchange(zeroed_, false);
     // 1. every block sums its particles, in particle order, into its own buffer
     parallel_chunks(count, team_size(n), [&](long long b0, long long b1) {
       for (int b = static_cast<int>(b0); b < b1; ++b)
         dense ? dense_block_sums(table, b, update, prep, add) : sparse_block_sums(table, b, update, prep, add);
     });
+    if (visit) return merge_visited(*visit, team_size(n), merge, clear);
     // 2. every node adds the block sums in block order (threads own node ranges)
     parallel_chunks(nodes, team_size(n), [&](long long I0, long long I1) {
       clear(static_cast<int>(I0), static_cast<int>(I1));
@@ -192,7 +197,7 @@ private:
   void dense_block_sums(const BasisTable<D>& table, int b, Update& update, Prep& prep, Add& add) {
     const bool entries = hi_[b] >= lo_[b];
     Sums* buf = entries ? buffer_.data() + offset_[b] - lo_[b] : nullptr;
-    if (entries) std::fill(buf + lo_[b], buf + hi_[b] + 1, Sums{});
+    if (entries && !clean_) std::fill(buf + lo_[b], buf + hi_[b] + 1, Sums{});
     block_sums(table, b, [buf](int I) -> Sums& { return buf[I]; }, update, prep, add);
   }
 
@@ -228,6 +233,37 @@ private:
     }
   }
 
+  /// Phase 2 on the nodes of `visit` only (ascending): each node cleared,
+  /// then the block sums added in block order, as run() does for every node
+  /// (threads own ranges of the list). The dense buffers are zeroed as they
+  /// are read (every node a block touches is visited): the next run's
+  /// blocks then need not clear their whole node ranges.
+  template <class Merge, class Clear>
+  void merge_visited(const std::vector<int>& visit, int team, Merge& merge, Clear& clear) {
+    const bool dense = path_ == ScatterPath::dense;
+    const int* list = visit.data();
+    parallel_chunks(static_cast<long long>(visit.size()), team, [&](long long i0, long long i1) {
+      for (long long i = i0; i < i1; ++i) clear(list[i], list[i] + 1);
+      for (int b = 0; b < static_cast<int>(lo_.size()); ++b) {
+        const int* first = std::lower_bound(list + i0, list + i1, lo_[b]);
+        const int* last = std::upper_bound(first, list + i1, hi_[b]);
+        if (dense) {
+          Sums* buf = buffer_.data() + offset_[b] - lo_[b];
+          for (const int* I = first; I < last; ++I) {
+            merge(*I, buf[*I]);
+            buf[*I] = Sums{};
+          }
+        } else {
+          const Sums* buf = buffer_.data() + offset_[b];
+          const int* slot = slot_.data() + range_start_[b] - lo_[b];
+          for (const int* I = first; I < last; ++I)
+            if (slot[*I] >= 0) merge(*I, buf[slot[*I]]);
+        }
+      }
+    });
+    zeroed_ = dense;
+  }
+
   /// Phase 2, dense: block b's sums into nodes [first, last].
   template <class Merge> void merge_dense(int b, int first, int last, Merge& merge) const {
     if (first > last) return;
@@ -248,14 +284,16 @@ private:
   /// updating all particles (it calls prep once per entry).
   template <class Update, class Prep, class Add, class Merge, class Clear>
   void gather_columns(const BasisTable<D>& table, int nodes, Update& update, Prep& prep, Add& add, Merge& merge,
-                      Clear& clear) {
+                      Clear& clear, const std::vector<int>* visit) {
     parallel_chunks(table.rows(), [&](long long p0, long long p1) { update(static_cast<int>(p0), static_cast<int>(p1)); });
     if (!columns_valid_) transpose_basis_table(table, nodes, columns_);
     columns_valid_ = true;
     const std::vector<int>& off = columns_.offset;
-    parallel_chunks(nodes, team_size(static_cast<long long>(table.entries())), [&](long long I0, long long I1) {
-      clear(static_cast<int>(I0), static_cast<int>(I1));
-      for (int I = static_cast<int>(I0); I < I1; ++I) {
+    const long long count = visit ? static_cast<long long>(visit->size()) : nodes;
+    parallel_chunks(count, team_size(static_cast<long long>(table.entries())), [&](long long i0, long long i1) {
+      for (auto i = i0; i < i1; ++i) {
+        const int I = visit ? (*visit)[i] : static_cast<int>(i);
+        clear(I, I + 1);
         Sums acc{};
         for (int k = off[I]; k < off[I + 1]; ++k) add(acc, columns_.entry[k], prep(columns_.particle[k]));
         merge(I, acc);
@@ -269,6 +307,8 @@ private:
   std::vector<int> slot_;            ///< sparse: each block's slot per node of its range, or -1
   AlignedVector<Sums> buffer_;
   bool valid_ = false;
+  bool zeroed_ = false; ///< buffer_ is all zero (merge_visited left it so)
+  bool clean_ = false;  ///< this run's phase 1 found buffer_ all zero
   int width_ = 0; ///< linear_row_width of the table (0: rows of any length)
   std::optional<ScatterPath> forced_;
   ScatterPath path_ = ScatterPath::columns;

@@ -21,20 +21,20 @@ template <int D> void step_central_difference(Engine<D>& e, const StepContext<D>
   // 2. kick: a^n = f / m; v^{n+1/2} = q / m + dt/2 a^n; constraints. a^n kept in q.
   e.solve_mass(n.f, n.a, half);
   e.solve_mass(n.q, n.v);
-  axpy(n.v, half, n.a);
+  axpy(n, n.v, half, n.a);
   e.constrain_velocity(n.v, {.rate = &n.a, .c = half});
-  scale(n.q, 1.0, n.a);
+  scale(n, n.q, 1.0, n.a);
   // 3. drift: dx_I = dt v^{n+1/2}; sigma^{n+1} from sum dx_I (x) grad N_Ip and (same
   //    pass) f^{n+1} with the updated stresses and the loads at t_{n+1}.
-  scale(n.dx, dt, n.v);
+  scale(n, n.dx, dt, n.v);
   e.update_stress_and_to_nodes({&n.dx, 1.0}, {.forces = true, .t = s.t + dt});
   e.apply_dirichlet_force(n.f, half);
   // 4. kick: a^{n+1} = f / m; v^{n+1} = v^{n+1/2} + dt/2 a^{n+1}; constraints.
   e.solve_mass(n.f, n.a, half);
-  axpy(n.v, half, n.a);
+  axpy(n, n.v, half, n.a);
   e.constrain_velocity(n.v, {.rate = &n.a, .c = half, .hold_rate = true});
   // 5. v_p += dt/2 sum N_Ip (a^n + a^{n+1}); x_p += sum N_Ip dx_I; x_I += dx_I in ul.
-  axpy(n.a, 1.0, n.q);
+  axpy(n, n.a, 1.0, n.q);
   e.to_particles({.rate = &n.a, .c_rate = half, .move = &n.dx, .c_move = 1.0});
   e.advect_nodes(n.dx);
 }

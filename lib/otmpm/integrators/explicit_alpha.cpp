@@ -31,7 +31,7 @@ template <int D> void step_explicit_alpha(Engine<D>& e, const StepContext<D>& s)
   e.solve_mass(n.q, n.v);
   // 2. a_n at the nodes (held in dx): sum N_Ip m_p a_p / m_I; f / m in the first step.
   if (s.step == 0) {
-    scale(n.dx, 1.0, n.a);
+    scale(n, n.dx, 1.0, n.a);
   } else {
     e.to_nodes({.w = &P.a});
     e.solve_mass(n.q, n.dx);
@@ -41,19 +41,19 @@ template <int D> void step_explicit_alpha(Engine<D>& e, const StepContext<D>& s)
   //    (their change enters a_{n+1}, which the particles keep as a_p: the
   //    momentum it gives them over this and the next steps is booked as they
   //    take it up).
-  parallel_for(static_cast<long long>(n.a.size()), [&](long long I) {
+  for_nodes(n, [&](int I) {
     n.a[I] = (n.a[I] - am * n.dx[I]) / (1.0 - am);
     n.v[I] += dt * ((1.0 - gamma) * n.dx[I] + gamma * n.a[I]);
   });
   // In the first step the held components jump to their values: a kick (in
   // q), which a_p does not keep.
   const bool first = s.step == 0;
-  if (first) scale(n.q, 0.0, n.v);
+  if (first) scale(n, n.q, 0.0, n.v);
   e.constrain_velocity(n.v, {.rate = &n.a, .c = gamma * dt, .booking = Booking::carried, .kick = first ? &n.q : nullptr});
   e.book_carried(am, gamma, first);
   // 4. dx = dt v_{n+1} + dt^2 ((gamma - 1/2 - beta) a_n + (beta - gamma) a_{n+1})
   //    (= dt v_n + dt^2 ((1/2 - beta) a_n + beta a_{n+1})).
-  parallel_for(static_cast<long long>(n.a.size()), [&](long long I) {
+  for_nodes(n, [&](int I) {
     n.dx[I] = dt * n.v[I] + (dt * dt) * ((gamma - 0.5 - beta) * n.dx[I] + (beta - gamma) * n.a[I]);
   });
   e.constrain_increment(n.dx);

@@ -26,7 +26,7 @@ template <int D> void step_usl(Engine<D>& e, const StepContext<D>& s, bool musl)
   //    particle velocities).
   e.solve_mass(n.f, n.a, dt);
   e.solve_mass(n.q, n.v);
-  axpy(n.v, dt, n.a);
+  axpy(n, n.v, dt, n.a);
   e.constrain_velocity(n.v, {.rate = &n.a, .c = dt});
   if (liquid) liquid->nodal_velocity(e, dt);
   // 3. v_p += dt sum N_Ip a_I; x_p += dt sum N_Ip v_I; x_I += dt v_I in ul.
@@ -40,7 +40,7 @@ template <int D> void step_usl(Engine<D>& e, const StepContext<D>& s, bool musl)
   // particles moved, then scattered, in one pass), then step 4.
   if (musl) e.to_particles_then_to_nodes(move, {.w = &P.v});
   else e.to_particles_and_update_stress(move, {&n.v, dt});
-  scale(n.dx, dt, n.v); // also in mpm mode: the step's nodal increments (Engine::nodal)
+  scale(n, n.dx, dt, n.v); // also in mpm mode: the step's nodal increments (Engine::nodal)
   e.advect_nodes(n.dx);
   if (!musl) {
     if (liquid) liquid->to_particles(e, dt); // the cell average of the pore pressure increments

@@ -8,15 +8,23 @@
 
 namespace otmpm {
 
-/// a += s * b.
-template <int D> void axpy(AlignedVector<Vec<D>>& a, double s, const AlignedVector<Vec<D>>& b) {
-  parallel_for(static_cast<long long>(a.size()), [&](long long i) { a[i] += s * b[i]; });
+/// body(I) for every node the step visits (NodalFields::visited; the
+/// others' fields are zero and stay so).
+template <int D, class Body> void for_nodes(const NodalFields<D>& n, Body&& body) {
+  const int* visited = n.visited.data();
+  parallel_for(static_cast<long long>(n.visited.size()), [&](long long i) { body(visited[i]); });
 }
 
-/// y = s * x.
-template <int D> void scale(AlignedVector<Vec<D>>& y, double s, const AlignedVector<Vec<D>>& x) {
+/// a += s * b on the nodes of n.
+template <int D> void axpy(const NodalFields<D>& n, AlignedVector<Vec<D>>& a, double s, const AlignedVector<Vec<D>>& b) {
+  for_nodes(n, [&](int I) { a[I] += s * b[I]; });
+}
+
+/// y = s * x on the nodes of n.
+template <int D>
+void scale(const NodalFields<D>& n, AlignedVector<Vec<D>>& y, double s, const AlignedVector<Vec<D>>& x) {
   y.resize(x.size());
-  parallel_for(static_cast<long long>(x.size()), [&](long long i) { y[i] = s * x[i]; });
+  for_nodes(n, [&](int I) { y[I] = s * x[I]; });
 }
 
 /// The nodal increment of OTM and the unified approach (wobbes et al. eq. 51):
@@ -28,11 +36,10 @@ template <int D>
 void transport_increment(Engine<D>& e, NodalFields<D>& n, double dt, double dt_prev, const WallEffect<D>& effect,
                          double c) {
   n.dx.resize(n.q.size());
-  parallel_for(static_cast<long long>(n.q.size()),
-               [&](long long I) { n.dx[I] = n.q[I] + (0.5 * (dt + dt_prev)) * n.f[I]; });
+  for_nodes(n, [&](int I) { n.dx[I] = n.q[I] + (0.5 * (dt + dt_prev)) * n.f[I]; });
   e.solve_mass(n.dx, n.v, c);
   e.constrain_velocity(n.v, effect);
-  scale(n.dx, dt, n.v);
+  scale(n, n.dx, dt, n.v);
 }
 
 } // namespace otmpm

@@ -15,7 +15,7 @@ template <int D> void step_npc(Engine<D>& e, const StepContext<D>& s) {
   // 2. predictor: v_I^pred = M^{-1} (q_I + (1 - gamma) dt sum N_Ip m_p a_p) (molinos eq. 30).
   e.to_nodes({.mass = true, .w = &P.v, .a = &P.a, .split = true});
   n.dx.resize(n.q.size());
-  parallel_for(static_cast<long long>(n.q.size()), [&](long long I) { n.dx[I] = n.q[I] + ((1.0 - gamma) * dt) * n.f[I]; });
+  for_nodes(n, [&](int I) { n.dx[I] = n.q[I] + ((1.0 - gamma) * dt) * n.f[I]; });
   e.solve_mass(n.dx, n.v);
   // 3. Constraints on the predictor (it drives only the stress update).
   e.constrain_velocity(n.v, {.impulse = false});
@@ -27,7 +27,7 @@ template <int D> void step_npc(Engine<D>& e, const StepContext<D>& s) {
   // 6. corrector: v_I = v_I^pred + gamma dt f_I / m_I; a wall holds a node
   //    by zeroing its normal acceleration, as a Dirichlet set zeroes f_I.
   e.solve_mass(n.f, n.a);
-  axpy(n.v, gamma * dt, n.a);
+  axpy(n, n.v, gamma * dt, n.a);
   e.constrain_velocity(n.v,
                        {.rate = &n.a, .c = gamma * dt, .hold_rate = true, .booking = Booking::held, .reach = 1.0 / gamma});
   // 7. x_p += sum N_Ip (dt v_I + dt^2/2 a_I); a_p = sum N_Ip a_I; v_p += dt
@@ -35,8 +35,7 @@ template <int D> void step_npc(Engine<D>& e, const StepContext<D>& s) {
   //    particles take up the change from the velocity they brought to the
   //    held one, v_I - q_I / m_I (q becomes the kick).
   n.dx.resize(n.v.size());
-  parallel_for(static_cast<long long>(n.v.size()),
-               [&](long long I) { n.dx[I] = dt * n.v[I] + (0.5 * dt * dt) * n.a[I]; });
+  for_nodes(n, [&](int I) { n.dx[I] = dt * n.v[I] + (0.5 * dt * dt) * n.a[I]; });
   e.constrain_increment(n.dx);
   e.book_held(n.a);
   e.to_particles({.rate = &n.a, .c_rate = dt, .rate_out = &P.a, .kick = &n.q, .move = &n.dx, .c_move = 1.0});
