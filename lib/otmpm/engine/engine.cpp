@@ -13,7 +13,9 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdint>
 #include <cstdlib>
+#include <cstring>
 #include <limits>
 #include <new>
 #include <numeric>
@@ -539,8 +541,14 @@ template <int D> void Engine<D>::list_visited_nodes() {
     for (const int I : list)
       if (!mark[I]) nodal_.zero(I);
   list.clear();
-  for (int I = 0; I < nodes; ++I)
-    if (mark[I]) list.push_back(I);
+  for (int I0 = 0; I0 < nodes; I0 += 8) { // eight flags at a time: most nodes are not listed
+    std::uint64_t any = 0;
+    if (I0 + 8 <= nodes) std::memcpy(&any, mark + I0, 8);
+    else any = 1;
+    if (any == 0) continue;
+    for (int I = I0; I < std::min(I0 + 8, nodes); ++I)
+      if (mark[I]) list.push_back(I);
+  }
 }
 
 template <int D> void Engine<D>::finish_mass() {
