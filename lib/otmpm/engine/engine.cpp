@@ -78,13 +78,19 @@ template <int D> double wall_reach(const Basis<D>& basis, bool nodes_move) {
   return 0.5 * (r.below + r.above + 1) * h * (nodes.layout() == NodeLayout::perturbed ? 2.0 : 1.0);
 }
 
+/// The visited nodes of `n` when they are a part of the nodes, or null when
+/// the loops visit every node (or, before the first step, none is listed).
+template <int D> const std::vector<int>* visit_list(const NodalFields<D>& n) {
+  const bool every = n.visited.size() == n.m.size() || n.visited.empty();
+  return every ? nullptr : &n.visited;
+}
+
 /// The nodes at positions x with the masses, active and visited nodes of
 /// `n` and the basis' reach (the walls' passes).
 template <int D>
 NodeView<D> node_view(const AlignedVector<Vec<D>>& x, const NodalFields<D>& n, const Basis<D>& basis,
                       bool nodes_move) {
-  const bool every = n.visited.size() == n.m.size() || n.visited.empty(); // empty: before the first step
-  return {x, n.m, n.active, n.active_nodes, wall_reach(basis, nodes_move), every ? nullptr : &n.visited};
+  return {x, n.m, n.active, n.active_nodes, wall_reach(basis, nodes_move), visit_list(n)};
 }
 
 /// What the integrator's row says it needs (StepNeeds): the particle fields
@@ -505,9 +511,7 @@ void Engine<D>::to_nodes_impl(const ToNodes<D>& what, Update&& update) {
   };
   if constexpr (Mass && Momentum && Forces && !Split)
     if (what.liquid) return what.liquid->scatter_with(*this, update, prep, add, merge, clear);
-  const int nodes = static_cast<int>(nodal_.m.size());
-  const bool every = static_cast<int>(nodal_.visited.size()) == nodes;
-  scatter_->run(table_, nodes, update, prep, add, merge, clear, every ? nullptr : &nodal_.visited);
+  scatter_->run(table_, static_cast<int>(nodal_.m.size()), update, prep, add, merge, clear, visit_list(nodal_));
 }
 
 /// The nodes the step's nodal loops visit (NodalFields::visited), after the

@@ -94,11 +94,11 @@ public:
     const int n = table.rows(), count = static_cast<int>(lo_.size());
     const bool dense = path_ == ScatterPath::dense;
     buffer_.resize(static_cast<std::size_t>(offset_.back()));
-    clean_ = std::exchange(zeroed_, false);
+    const bool clean = std::exchange(zeroed_, false); // the buffers need no clearing
     // 1. every block sums its particles, in particle order, into its own buffer
     parallel_chunks(count, team_size(n), [&](long long b0, long long b1) {
       for (int b = static_cast<int>(b0); b < b1; ++b)
-        dense ? dense_block_sums(table, b, update, prep, add) : sparse_block_sums(table, b, update, prep, add);
+        dense ? dense_block_sums(table, b, clean, update, prep, add) : sparse_block_sums(table, b, update, prep, add);
     });
     if (visit) return merge_visited(*visit, team_size(n), merge, clear);
     // 2. every node adds the block sums in block order (threads own node ranges)
@@ -192,12 +192,13 @@ private:
   /// Phase 1 for block b, dense: update() on the block's particles, then
   /// their sums into the block's buffer (the block's table rows, read by
   /// both, partly still in cache; measured: updating smaller batches between
-  /// their sums is slower, the two access streams interfere).
+  /// their sums is slower, the two access streams interfere). `clean`: the
+  /// buffer is all zero already (merge_visited left it so).
   template <class Update, class Prep, class Add>
-  void dense_block_sums(const BasisTable<D>& table, int b, Update& update, Prep& prep, Add& add) {
+  void dense_block_sums(const BasisTable<D>& table, int b, bool clean, Update& update, Prep& prep, Add& add) {
     const bool entries = hi_[b] >= lo_[b];
     Sums* buf = entries ? buffer_.data() + offset_[b] - lo_[b] : nullptr;
-    if (entries && !clean_) std::fill(buf + lo_[b], buf + hi_[b] + 1, Sums{});
+    if (entries && !clean) std::fill(buf + lo_[b], buf + hi_[b] + 1, Sums{});
     block_sums(table, b, [buf](int I) -> Sums& { return buf[I]; }, update, prep, add);
   }
 
@@ -253,11 +254,8 @@ private:
             merge(*I, buf[*I]);
             buf[*I] = Sums{};
           }
-        } else {
-          const Sums* buf = buffer_.data() + offset_[b];
-          const int* slot = slot_.data() + range_start_[b] - lo_[b];
-          for (const int* I = first; I < last; ++I)
-            if (slot[*I] >= 0) merge(*I, buf[slot[*I]]);
+        } else if (first < last) { // the nodes it touches are listed: its slots over their span
+          merge_sparse(b, *first, *(last - 1), merge);
         }
       }
     });
@@ -308,7 +306,6 @@ private:
   AlignedVector<Sums> buffer_;
   bool valid_ = false;
   bool zeroed_ = false; ///< buffer_ is all zero (merge_visited left it so)
-  bool clean_ = false;  ///< this run's phase 1 found buffer_ all zero
   int width_ = 0; ///< linear_row_width of the table (0: rows of any length)
   std::optional<ScatterPath> forced_;
   ScatterPath path_ = ScatterPath::columns;
