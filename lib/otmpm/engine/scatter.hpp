@@ -289,9 +289,10 @@ private:
     const std::vector<int>& off = columns_.offset;
     const long long count = visit ? static_cast<long long>(visit->size()) : nodes;
     parallel_chunks(count, team_size(static_cast<long long>(table.entries())), [&](long long i0, long long i1) {
+      if (!visit) clear(static_cast<int>(i0), static_cast<int>(i1)); // the chunk's nodes at once
       for (auto i = i0; i < i1; ++i) {
         const int I = visit ? (*visit)[i] : static_cast<int>(i);
-        clear(I, I + 1);
+        if (visit) clear(I, I + 1);
         Sums acc{};
         for (int k = off[I]; k < off[I + 1]; ++k) add(acc, columns_.entry[k], prep(columns_.particle[k]));
         merge(I, acc);
