@@ -388,6 +388,15 @@ TEST_CASE("mpi: the block under gravity (mpm, fe, linear, Dirichlet base) agrees
                   {2, 3, 4});
 }
 
+TEST_CASE("mpi: the PIC relaxation (npc, the block under gravity) agrees on 2 and 3 ranks, its energy included") {
+  check_agreement({.name = "block_pic",
+                   .scene = "andersen_block.toml",
+                   .sets = {"simulation.t_end=0.3", "output.every=0.1", kFields, "basis.kind=linear",
+                            "simulation.pic_relaxation_time=0.05"},
+                   .energies = {"kinetic", "relaxation"}},
+                  {2, 3});
+}
+
 TEST_CASE("mpi: ul otm with the consistent mass (CG across ranks) agrees on 2, 3 and 4 ranks") {
   check_agreement({"fixed_bar_otm", "fixed_bar.toml", {"simulation.t_end=3e-4", "simulation.mode=ul",
                                                       "simulation.integrator=otm", "output.every=1e-4", kFields},

@@ -241,6 +241,37 @@ TEST_CASE("mu_i: below the critical packing stress-free, compacted again, the el
   SUBCASE("3D") { check(std::integral_constant<int, 3>{}); }
 }
 
+TEST_CASE("mu_i without a critical packing: dilated grains carry the next compression at once") {
+  // critical_packing absent (or 0): the grains lose contact only where the
+  // pressure vanishes. The path of the test above: e^0.15 (stress-free: no
+  // pressure), then one squeeze e^-0.03 at J = e^0.12, far below the
+  // packing phi0 / J: the grains carry it, e_v = -0.03 from the zero elastic
+  // strain of the stress-free steps, and the Kirchhoff mean stress is K e_v.
+  const plasticity::ElasticModuli el = plasticity::ElasticModuli::from_young_poisson(kE, kNu);
+  auto check = [&](auto dim, bool zero) {
+    constexpr int d = decltype(dim)::value;
+    MaterialParameters params = mu_i();
+    if (zero) params.extra["critical_packing"] = 0.0;
+    else params.extra.erase("critical_packing");
+    auto m = make_material<d>(params);
+    Particles<d> P = one_particle<d>(*m);
+    const Mat<d> expand = compression<d>(0.05) - Mat<d>::Identity(), squeeze = compression<d>(-0.03) - Mat<d>::Identity();
+    for (int k = 0; k < 3; ++k) m->update(P, 0, 1, &expand, 1e-3);
+    CHECK(P.sigma[0].norm() == 0.0);
+    m->update(P, 0, 1, &squeeze, 1e-3);
+    CHECK(P.F[0].determinant() == doctest::Approx(std::exp(0.12)).epsilon(1e-12));
+    Mat<3> s = Mat<3>::Zero();
+    s.topLeftCorner<d, d>() = P.sigma[0];
+    if constexpr (d == 2) m->out_of_plane_stress(P, 0, 1, &s(2, 2));
+    CHECK(s.trace() / 3.0 * P.F[0].determinant() == doctest::Approx(el.bulk * -0.03).epsilon(1e-12));
+  };
+  for (const bool zero : {false, true}) {
+    CAPTURE(zero);
+    check(std::integral_constant<int, 2>{}, zero);
+    check(std::integral_constant<int, 3>{}, zero);
+  }
+}
+
 TEST_CASE("mu_i scene keys: required, ranges and the model's own checks name the key") {
   const std::string base = "[simulation]\ndimension = 2\nmode = \"mpm\"\nintegrator = \"npc\"\nt_end = 0.01\n"
                            "[basis]\nkind = \"linear\"\n[grid]\nlower = [0.0, 0.0]\nupper = [1.0, 1.0]\ncells = [4, 4]\n"
@@ -265,7 +296,11 @@ TEST_CASE("mu_i scene keys: required, ranges and the model's own checks name the
     return t;
   };
   auto with = [&](const std::string& key, const std::string& value) { return without(key) + key + " = " + value + "\n"; };
-  for (const char* key : {"mu_s", "mu_2", "I_0", "grain_diameter", "grain_density", "critical_packing"}) {
+  CHECK(error(without("critical_packing")).empty()); // optional: none
+  CHECK(error(with("critical_packing", "0.0")).empty());
+  CHECK(error(with("critical_packing", "-0.1")).find("key 'material.g.critical_packing': must be in [0, 1]") !=
+        std::string::npos);
+  for (const char* key : {"mu_s", "mu_2", "I_0", "grain_diameter", "grain_density"}) {
     CAPTURE(key);
     const std::string named = std::string("key 'material.g.") + key + "'";
     CHECK(error(without(key)).find(named + ": required key is missing") != std::string::npos);

@@ -181,6 +181,16 @@ TEST_CASE("mu_i granular flow: bitwise identical with 1 and 2 threads, flowing s
   CHECK(std::count_if(I.begin(), I.end(), [](double v) { return v > 0.0; }) > 30);
 }
 
+// The PIC relaxation sums the kinetic energy it removes in fixed blocks.
+TEST_CASE("PIC relaxation: bitwise identical with 1 and 2 threads, its booked energy included") {
+  const std::vector<std::string> sets{"simulation.pic_relaxation_time=0.01", "body.block.velocity=[0.5, -1.0]"};
+  const Result one = run_with_threads(1, sets);
+  const Result two = run_with_threads(2, sets);
+  check_same(one, two);
+  CHECK(one.energy.relaxation == two.energy.relaxation);
+  CHECK(one.energy.relaxation > 0.0);
+}
+
 // molinos Algorithm 1 stages 4-5 in one pass (update_stress_and_to_nodes, what
 // step_npc runs) against update_stress followed by compute_forces, from the
 // same state: with the dense and the sparse blocked scatter (spatial and

@@ -176,7 +176,8 @@ class Results:
     rms_*/history_error_* attributes), frames (a list of Frame), times (the
     frames' times), probes (dict: name -> dict of arrays time, x, v, stress),
     energy (dict of arrays: time, kinetic, strain, external_work,
-    reaction_work[, dissipated][, friction, impact][, darcy, pressure_average]). field(name) stacks a field over all frames.
+    reaction_work[, dissipated][, friction, impact][, darcy, pressure_average][, relaxation]). field(name) stacks a field
+    over all frames.
     """
 
     def __init__(self, path):

@@ -340,6 +340,7 @@ py::dict energy_dict(const EnergyBalance& E) {
   d["impact"] = E.impact;
   d["darcy"] = E.darcy;
   d["pressure_average"] = E.pressure_average;
+  d["relaxation"] = E.relaxation;
   d["external_work"] = E.external_work;
   d["reaction_work"] = E.reaction_work;
   d["initial"] = E.initial;
@@ -497,7 +498,8 @@ void register_simulation(py::module_& m) {
           "energy", [](PySimulation& s) { return visit_engine(s.sim(), [](auto& e) -> py::object { return energy_dict(e.energy()); }); },
           "The energy balance after the last step [J]: kinetic, strain, dissipated (plastic work), friction\n"
           "(dissipated at walls and in body contact), impact (taken by impacts on walls and between bodies), darcy (dissipated by the drag of a saturated body's pore\n"
-          "liquid), pressure_average (the pore pressure's work on the increments its cell average leaves out), external_work, reaction_work, initial (E(0)),\n"
+          "liquid), pressure_average (the pore pressure's work on the increments its cell average leaves out), relaxation (the kinetic\n"
+          "energy the PIC relaxation took: simulation.pic_relaxation_time), external_work, reaction_work, initial (E(0)),\n"
           "total (kinetic + strain), work, balance_error.")
       .def_property_readonly(
           "particles", [](const py::object& self) { return ParticleViews{self}; }, "The particles (ParticleViews).")

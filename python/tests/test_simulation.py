@@ -97,6 +97,23 @@ def test_views_are_read_only_except_v():
     assert p.state == {}  # linear_elastic has no internal variables
 
 
+def test_pic_relaxation_books_what_it_takes_from_noise_written_into_v(tmp_path):
+    """v written from Python with particle-to-particle noise: the PIC relaxation
+    (pic_relaxation_time) takes part of it and books it as energy()["relaxation"]
+    and in the result file's /energy/relaxation."""
+    sim = otmpm.Simulation(short_dyka(**{"simulation.pic_relaxation_time": 1e-6}), out=str(tmp_path / "pic.h5"))
+    sim.particles.v[::2] += 1.0  # FLIP would keep this noise
+    sim.particles.v[1::2] -= 1.0
+    sim.step(20)
+    E = sim.energy()
+    assert E["relaxation"] > 0.1 * E["kinetic"]
+    sim.advance_to(1.0)  # to t_end, where the last output is written
+    sim.finish()
+    with h5py.File(tmp_path / "pic.h5", "r") as f:
+        assert f["energy"]["relaxation"][-1] == pytest.approx(sim.energy()["relaxation"], rel=1e-12)
+        assert f["energy"]["relaxation"][-1] >= E["relaxation"] > 0.0
+
+
 def test_writing_v_changes_the_next_step():
     a = otmpm.Simulation(short_dyka(), write_results=False)
     b = otmpm.Simulation(short_dyka(), write_results=False)

@@ -99,6 +99,7 @@ template <int D> struct Ledger {
   double* work = nullptr;
   double* friction = nullptr;
   double* impact = nullptr;
+  double* relaxation = nullptr; ///< W_v of the PIC relaxation (ToParticles::pic)
 };
 
 /// The energy that the tangential part of an impulse J (relative to the

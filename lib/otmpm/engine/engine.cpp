@@ -746,6 +746,19 @@ void Engine<D>::to_particles_and_update_stress(const ToParticles<D>& what, const
     });
   });
   fbar_.ready = false;
+  if (!what.pic || !(what.pic_share > 0.0)) return;
+  // PIC relaxation (ToParticles::pic), the kinetic energy it removes summed
+  // in fixed blocks (the same bits for any thread count) and booked as W_v.
+  const Vec<D>* pic = what.pic->data();
+  const double share = what.pic_share;
+  *ledger().relaxation += blocked_reduce<double>(P_.size(), [&](long long q, double& removed) {
+    const int p = static_cast<int>(q);
+    Vec<D> u = Vec<D>::Zero();
+    for (int e = table_.begin(p); e < table_.end(p); ++e) u += table_.N[e] * pic[table_.node[e]];
+    const Vec<D> v = P_.v[p] + share * (u - P_.v[p]);
+    removed += 0.5 * P_.m[p] * (P_.v[p].squaredNorm() - v.squaredNorm());
+    P_.v[p] = v;
+  });
 }
 
 template <int D>

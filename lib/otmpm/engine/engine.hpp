@@ -158,19 +158,20 @@ template <int D> struct EngineParts {
 /// contact stopped, eq. 6.5), the
 /// energy the Darcy drag of saturated bodies dissipated (W_d, eq. 15.6), the
 /// pore pressure's work on the increments its cell average leaves out (W_a,
-/// eq. 15.13), the
+/// eq. 15.13), the kinetic energy the PIC relaxation of the particle
+/// velocities took (W_v, ToParticles::pic), the
 /// work W_ext of the external loads and W_R of the Dirichlet reactions and
 /// the walls since t = 0, and E(0). With saturated bodies the kinetic and
 /// stored energies include the liquid's.
 struct EnergyBalance {
   double kinetic = 0, strain = 0, dissipated = 0, external_work = 0, reaction_work = 0, initial = 0;
-  double friction = 0, darcy = 0, impact = 0, pressure_average = 0;
+  double friction = 0, darcy = 0, impact = 0, pressure_average = 0, relaxation = 0;
   double total() const { return kinetic + strain; }
   /// Work done on the body since t = 0: W_ext + W_R.
   double work() const { return external_work + reaction_work; }
-  /// The energy spent since t = 0: W_p + W_f + W_i + W_d + W_a.
-  double spent() const { return dissipated + friction + darcy + impact + pressure_average; }
-  /// E(t) + W_p(t) + W_f(t) + W_i(t) + W_d(t) + W_a(t) - E(0) - W(t): zero for an exact solution;
+  /// The energy spent since t = 0: W_p + W_f + W_i + W_d + W_a + W_v.
+  double spent() const { return dissipated + friction + darcy + impact + pressure_average + relaxation; }
+  /// E(t) + W_p(t) + W_f(t) + W_i(t) + W_d(t) + W_a(t) + W_v(t) - E(0) - W(t): zero for an exact solution;
   /// negative when the scheme dissipates, positive when it creates energy.
   double balance_error() const { return total() + spent() - initial - work(); }
 };
@@ -210,6 +211,11 @@ template <int D> struct ToParticles {
   const AlignedVector<Vec<D>>* move = nullptr;
   double c_move = 0.0;
   TwoPhase<D>* liquid = nullptr;
+  /// PIC relaxation after the pass: v_p += pic_share (sum_I N_Ip pic_I -
+  /// v_p) (pic: the nodal velocities at the step's end; share in (0, 1]),
+  /// the kinetic energy it removes booked as W_v (EnergyBalance::relaxation).
+  const AlignedVector<Vec<D>>* pic = nullptr;
+  double pic_share = 0.0;
 };
 
 /// A nodal field g with a factor c whose gradient drives the constitutive
@@ -469,8 +475,8 @@ private:
   void book_inertial_reaction(const AlignedVector<Vec<D>>& y, double c);
   /// Where the constraints book: the run's totals, or this rank's share of the step.
   Ledger<D> ledger() {
-    if (dist_) return {&rank_reaction_.impulse, &rank_reaction_.work, &rank_reaction_.friction, &rank_reaction_.impact};
-    return {&reaction_impulse_, &energy_.reaction_work, &energy_.friction, &energy_.impact};
+    if (dist_) return {&rank_reaction_.impulse, &rank_reaction_.work, &rank_reaction_.friction, &rank_reaction_.impact, &rank_reaction_.relaxation};
+    return {&reaction_impulse_, &energy_.reaction_work, &energy_.friction, &energy_.impact, &energy_.relaxation};
   }
   /// The particle's id in messages: its global id in a distributed run.
   long long particle_id(int p) const { return dist_ ? dist_->global_id(p) : p; }
@@ -513,7 +519,7 @@ private:
   /// and the ranks' kinetic energy of the prescribed nodal velocities (check_energy).
   struct {
     Vec<D> impulse = Vec<D>::Zero();
-    double work = 0.0, friction = 0.0, impact = 0.0;
+    double work = 0.0, friction = 0.0, impact = 0.0, relaxation = 0.0;
   } rank_reaction_;
   double boundary_kinetic_ = 0.0, unresolved_work_ = 0.0; ///< unresolved: Loads::unresolved_work of the step
   WallTransfer<D> transfer_; ///< the nodes the walls changed in the step's passes (book_transfer)

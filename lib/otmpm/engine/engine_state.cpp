@@ -24,7 +24,7 @@ namespace otmpm {
 namespace {
 
 // A member added to EnergyBalance must be saved and restored below.
-static_assert(sizeof(EnergyBalance) == 10 * sizeof(double), "EnergyBalance changed: update engine_state.cpp");
+static_assert(sizeof(EnergyBalance) == 11 * sizeof(double), "EnergyBalance changed: update engine_state.cpp");
 
 template <int D> void save_vector(StateGroup& g, const std::string& name, const Vec<D>& v) {
   g.real_arrays[name] = {static_cast<std::size_t>(D), std::vector<double>(v.data(), v.data() + D)};
@@ -94,6 +94,7 @@ template <int D> void Engine<D>::save_state(Checkpoint& out) const {
   g.reals["energy_darcy"] = energy_.darcy; // read back when present (checkpoints of format 4 have none)
   g.reals["energy_pressure_average"] = energy_.pressure_average; // read back when present (older checkpoints have none)
   g.reals["energy_impact"] = energy_.impact; // read back when present (older checkpoints have none)
+  g.reals["energy_relaxation"] = energy_.relaxation; // read back when present (older checkpoints have none)
   save_timers(g, timers_);
   StateGroup& particles = out.group("particles");
   save_particles(particles, P_);
@@ -195,6 +196,7 @@ template <int D> void Engine<D>::restore_state(const Checkpoint& in) {
   g.get_reals(energy_fields(energy_));
   energy_.darcy = g.reals.count("energy_darcy") ? g.real("energy_darcy") : 0.0;
   energy_.impact = g.reals.count("energy_impact") ? g.real("energy_impact") : 0.0;
+  energy_.relaxation = g.reals.count("energy_relaxation") ? g.real("energy_relaxation") : 0.0;
   energy_.pressure_average = g.reals.count("energy_pressure_average") ? g.real("energy_pressure_average") : 0.0;
   if (settings_.two_phase) {
     settings_.two_phase->set_darcy(energy_.darcy);

@@ -152,7 +152,7 @@ template <int D> void Engine<D>::sum_particles(bool check) {
     // The walls' impulses of this step follow.
     AlignedVector<Vec<D>>& wall = constraints_.rank_wall_impulse();
     constexpr std::size_t W0 = 7 + 2 * D; // the walls' impulses start here
-    std::vector<double> sums(W0 + wall.size() * D + 1); // last: the liquid's W_a of the step
+    std::vector<double> sums(W0 + wall.size() * D + 2); // last: the liquid's W_a of the step, before it W_v
     sums[0] = s.kinetic, sums[1] = s.strain, sums[2] = s.dissipated, sums[3] = rank_reaction_.work;
     sums[4] = constraints_.prescribed_kinetic_energy(nodal_.m);
     sums[5] = rank_reaction_.friction, sums[6] = rank_reaction_.impact;
@@ -164,6 +164,7 @@ template <int D> void Engine<D>::sum_particles(bool check) {
       const std::vector<double> wave = phase->wave_maxima(*this);
       maxima.insert(maxima.end(), wave.begin(), wave.end());
     }
+    sums[sums.size() - 2] = rank_reaction_.relaxation;
     sums.back() = liquid.averaged;
     dist_->reduce(sums, maxima);
     if (phase) {
@@ -177,6 +178,7 @@ template <int D> void Engine<D>::sum_particles(bool check) {
     boundary_kinetic_ = sums[4];
     energy_.friction += sums[5];
     energy_.impact += sums[6];
+    energy_.relaxation += sums[sums.size() - 2];
     for (int k = 0; k < D; ++k) s.momentum[k] = sums[7 + k], reaction_impulse_[k] += sums[7 + D + k];
     for (std::size_t w = 0; w < wall.size(); ++w) {
       for (int k = 0; k < D; ++k) constraints_.wall_impulse()[w][k] += sums[W0 + w * D + static_cast<std::size_t>(k)];

@@ -33,9 +33,10 @@ template <int D> void step_central_difference(Engine<D>& e, const StepContext<D>
   e.solve_mass(n.f, n.a, half);
   axpy(n, n.v, half, n.a);
   e.constrain_velocity(n.v, {.rate = &n.a, .c = half, .hold_rate = true});
-  // 5. v_p += dt/2 sum N_Ip (a^n + a^{n+1}); x_p += sum N_Ip dx_I; x_I += dx_I in ul.
+  // 5. v_p += dt/2 sum N_Ip (a^n + a^{n+1}), then the PIC relaxation toward
+  //    sum N_Ip v^{n+1}, if any; x_p += sum N_Ip dx_I; x_I += dx_I in ul.
   axpy(n, n.a, 1.0, n.q);
-  e.to_particles({.rate = &n.a, .c_rate = half, .move = &n.dx, .c_move = 1.0});
+  e.to_particles({.rate = &n.a, .c_rate = half, .move = &n.dx, .c_move = 1.0, .pic = &n.v, .pic_share = pic_share(s)});
   e.advect_nodes(n.dx);
 }
 

@@ -57,10 +57,11 @@ template <int D> void step_explicit_alpha(Engine<D>& e, const StepContext<D>& s)
     n.dx[I] = dt * n.v[I] + (dt * dt) * ((gamma - 0.5 - beta) * n.dx[I] + (beta - gamma) * n.a[I]);
   });
   e.constrain_increment(n.dx);
-  // 5. v_p += dt ((1 - gamma) a_p + gamma sum N a_{n+1}); a_p = sum N a_{n+1}; x_p += sum N dx.
+  // 5. v_p += dt ((1 - gamma) a_p + gamma sum N a_{n+1}), then the PIC
+  //    relaxation toward sum N v_{n+1}, if any; a_p = sum N a_{n+1}; x_p += sum N dx.
   parallel_for(P.size(), [&](long long p) { P.v[p] += (dt * (1.0 - gamma)) * P.a[p]; });
   e.to_particles({.rate = &n.a, .c_rate = gamma * dt, .rate_out = &P.a, .kick = first ? &n.q : nullptr, .move = &n.dx,
-                  .c_move = 1.0});
+                  .c_move = 1.0, .pic = &n.v, .pic_share = pic_share(s)});
   // 6. the stress from the increment, F_p = (I + sum dx_I (x) grad N_Ip) F_p; x_I += dx_I in ul.
   e.update_stress({&n.dx, 1.0});
   e.advect_nodes(n.dx);

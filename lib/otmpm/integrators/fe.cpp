@@ -29,11 +29,14 @@ template <int D> void step_usl(Engine<D>& e, const StepContext<D>& s, bool musl)
   axpy(n, n.v, dt, n.a);
   e.constrain_velocity(n.v, {.rate = &n.a, .c = dt});
   if (liquid) liquid->nodal_velocity(e, dt);
-  // 3. v_p += dt sum N_Ip a_I; x_p += dt sum N_Ip v_I; x_I += dt v_I in ul.
+  // 3. v_p += dt sum N_Ip a_I; x_p += dt sum N_Ip v_I; x_I += dt v_I in ul;
+  //    usl: then the PIC relaxation toward sum N_Ip v_I, if any.
   //    usl, saturated bodies: w_p and the pore pressure increments in the same pass.
   TwoPhase<D>* rows = musl ? nullptr : liquid;
   if (rows) rows->begin_rows(e, dt);
-  const ToParticles<D> move{.rate = &n.a, .c_rate = dt, .move = &n.v, .c_move = dt, .liquid = rows};
+  const double share = pic_share(s);
+  const ToParticles<D> move{.rate = &n.a, .c_rate = dt, .move = &n.v, .c_move = dt, .liquid = rows,
+                            .pic = musl ? nullptr : &n.v, .pic_share = share};
   // 4. (usl) L_p = sum v_I (x) grad N_Ip; strain, density and stress
   //    update, in the same pass over the particles.
   // musl: v_I recomputed from the updated particle momenta (each block of
@@ -51,6 +54,8 @@ template <int D> void step_usl(Engine<D>& e, const StepContext<D>& s, bool musl)
   if (liquid) liquid->remap(e, dt); // w_p, its re-projection, the rigid plates
   e.update_stress({&n.v, dt});
   if (liquid) liquid->update_pressure(e, dt);
+  // musl: the PIC relaxation toward the remapped sum N_Ip v_I, if any.
+  if (share > 0.0) e.to_particles({.pic = &n.v, .pic_share = share});
 }
 
 } // namespace

@@ -15,6 +15,14 @@ template <int D, class Body> void for_nodes(const NodalFields<D>& n, Body&& body
   parallel_for(static_cast<long long>(n.visited.size()), [&](long long i) { body(visited[i]); });
 }
 
+/// The share min(1, dt / tau) of the grid's (PIC) velocity sum_I N_Ip v_I
+/// in the particles' new velocity (ToParticles::pic), tau the integrator's
+/// pic_relaxation_time; 0 without one (FLIP).
+template <int D> double pic_share(const StepContext<D>& s) {
+  const double tau = s.parameters.get("pic_relaxation_time");
+  return tau > 0.0 ? std::min(1.0, s.dt / tau) : 0.0;
+}
+
 /// a += s * b on the nodes of n.
 template <int D> void axpy(const NodalFields<D>& n, AlignedVector<Vec<D>>& a, double s, const AlignedVector<Vec<D>>& b) {
   for_nodes(n, [&](int I) { a[I] += s * b[I]; });

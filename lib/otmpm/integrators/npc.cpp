@@ -33,12 +33,14 @@ template <int D> void step_npc(Engine<D>& e, const StepContext<D>& s) {
   // 7. x_p += sum N_Ip (dt v_I + dt^2/2 a_I); a_p = sum N_Ip a_I; v_p += dt
   //    a_p + sum N_Ip k_I, where the kick k_I of a held component makes the
   //    particles take up the change from the velocity they brought to the
-  //    held one, v_I - q_I / m_I (q becomes the kick).
+  //    held one, v_I - q_I / m_I (q becomes the kick); then the PIC
+  //    relaxation toward sum N_Ip v_I, if any.
   n.dx.resize(n.v.size());
   for_nodes(n, [&](int I) { n.dx[I] = dt * n.v[I] + (0.5 * dt * dt) * n.a[I]; });
   e.constrain_increment(n.dx);
   e.book_held(n.a);
-  e.to_particles({.rate = &n.a, .c_rate = dt, .rate_out = &P.a, .kick = &n.q, .move = &n.dx, .c_move = 1.0});
+  e.to_particles({.rate = &n.a, .c_rate = dt, .rate_out = &P.a, .kick = &n.q, .move = &n.dx, .c_move = 1.0,
+                  .pic = &n.v, .pic_share = pic_share(s)});
   e.advect_nodes(n.dx);
 }
 

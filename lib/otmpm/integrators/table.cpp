@@ -22,16 +22,22 @@ namespace {
 const ParameterSpec kGamma{"gamma", "Newmark parameter of npc (molinos et al. Algorithm 1)", 0.5, 0.0, true, 1.0};
 const ParameterSpec kRhoInf{"rho_inf", "spectral radius at the bifurcation limit of explicit_alpha (Hulbert & Chung rho_b)",
                             0.5, 0.0, false, 1.0};
-const std::array kNpcParameters{kGamma};
-const std::array kAlphaParameters{kRhoInf};
-const std::array kAllParameters{&kGamma, &kRhoInf};
+const ParameterSpec kPicTime{"pic_relaxation_time",
+                             "relaxation time tau [s] of the particle velocities toward the grid's: each step v_p += "
+                             "min(1, dt / tau) (sum_I N_Ip v_I - v_p), the kinetic energy it removes booked as "
+                             "`relaxation`; 0: none (FLIP)",
+                             0.0, 0.0};
+const std::array kNpcParameters{kGamma, kPicTime};
+const std::array kAlphaParameters{kRhoInf, kPicTime};
+const std::array kPicParameters{kPicTime};
+const std::array kAllParameters{&kGamma, &kRhoInf, &kPicTime};
 
 #define OTMPM_STEPS(F) .step1 = F<1>, .step2 = F<2>, .step3 = F<3>
 const std::array kIntegrators{
     IntegratorKind{.name = "fe", .description = "forward Euler, stress updated last (USL)", .two_phase = true,
-                   OTMPM_STEPS(step_fe)},
+                   .parameters = kPicParameters, OTMPM_STEPS(step_fe)},
     IntegratorKind{.name = "musl", .description = "forward Euler with the modified update-stress-last",
-                   .two_phase = true, OTMPM_STEPS(step_musl)},
+                   .two_phase = true, .parameters = kPicParameters, OTMPM_STEPS(step_musl)},
     IntegratorKind{.name = "npc",
                    .description = "explicit Newmark predictor-corrector (molinos et al. Algorithm 1)",
                    .needs_acceleration = true,
@@ -52,6 +58,7 @@ const std::array kIntegrators{
                    OTMPM_STEPS(step_unified)},
     IntegratorKind{.name = "central_difference",
                    .description = "central difference in velocity-Verlet form (kick, drift, kick)",
+                   .parameters = kPicParameters,
                    OTMPM_STEPS(step_central_difference)},
     IntegratorKind{.name = "explicit_alpha",
                    .description = "explicit generalised-alpha (Hulbert & Chung 1996)",

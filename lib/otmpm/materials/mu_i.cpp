@@ -9,6 +9,8 @@
 #include "otmpm/materials/hencky_point.hpp"
 #include "otmpm/materials/models.hpp"
 
+#include <limits>
+
 namespace otmpm {
 
 namespace {
@@ -19,8 +21,10 @@ const std::array<ParameterSpec, 6> kParameters{{
     {"I_0", "inertial number I_0 at which mu = (mu_s + mu_2) / 2", std::nullopt, 0.0, true},
     {"grain_diameter", "grain diameter d [m]", std::nullopt, 0.0, true},
     {"grain_density", "grain density rho_s [kg/m3], at least the bulk density", std::nullopt, 0.0, true},
-    {"critical_packing", "packing fraction phi_c below which the grains lose contact, at most density / grain_density",
-     std::nullopt, 0.0, true, 1.0},
+    {"critical_packing",
+     "packing fraction phi_c below which the grains lose contact, at most density / grain_density; 0: none (they "
+     "lose contact only where the pressure vanishes)",
+     0.0, 0.0, false, 1.0},
 }};
 
 /// x^(1/D).
@@ -42,7 +46,8 @@ struct MuIModel {
   plasticity::ElasticModuli moduli;
   double mu_s = 0.0, mu_2 = 0.0, I_0 = 0.0, grain_diameter = 0.0, grain_density = 0.0;
   /// det F at the critical packing, phi0 / phi_c with phi0 = density /
-  /// grain_density the packing the material is seeded with.
+  /// grain_density the packing the material is seeded with (infinite
+  /// without a critical packing).
   double J_c = 1.0;
 
   const plasticity::ElasticModuli& elastic() const { return moduli; }
@@ -126,10 +131,10 @@ MuIModel mu_i_model(const MaterialParameters& m) {
           model.mu_s);
   require(model.grain_density >= m.density, "material '", m.name, "': grain_density = ", model.grain_density,
           " must be at least the bulk density = ", m.density, " (a packing fraction density / grain_density <= 1)");
-  const double phi0 = m.density / model.grain_density, phi_c = m.get("critical_packing", phi0);
+  const double phi0 = m.density / model.grain_density, phi_c = m.get("critical_packing", 0.0);
   require(phi_c <= phi0, "material '", m.name, "': critical_packing = ", phi_c,
           " must be at most the packing of the seeded material, density / grain_density = ", phi0);
-  model.J_c = phi0 / phi_c;
+  model.J_c = phi_c > 0.0 ? phi0 / phi_c : std::numeric_limits<double>::infinity();
   return model;
 }
 

@@ -19,7 +19,8 @@ static_assert(sizeof(EnergySummary) == 4 * sizeof(double), "EnergySummary change
 /// time the series /energy - E's kinetic and strain parts, W_ext, W_R (eq.
 /// 11.1), W_p as "dissipated" when a material has internal variables, W_f
 /// and W_i as "friction" and "impact" with friction (walls, contact), W_d and
-/// W_a as "darcy" and "pressure_average" with a pore liquid - and after
+/// W_a as "darcy" and "pressure_average" with a pore liquid, W_v as
+/// "relaxation" with a PIC relaxation time - and after
 /// every step the run's EnergySummary (max_energy_ratio and energy_drift,
 /// eq. 11.2; the impact energy W_i).
 template <int D> class EnergySeries {
@@ -41,6 +42,7 @@ public:
     if (dissipative()) s.emplace_back("dissipated", E.dissipated);
     if (e_.has_friction()) s.emplace_back("friction", E.friction), s.emplace_back("impact", E.impact);
     if (e_.settings().two_phase) s.emplace_back("darcy", E.darcy), s.emplace_back("pressure_average", E.pressure_average);
+    if (relaxes()) s.emplace_back("relaxation", E.relaxation);
     return s;
   }
 
@@ -68,6 +70,12 @@ private:
     for (int i = 0; i < e_.material_count(); ++i)
       if (!e_.material(i).state().empty()) return true;
     return false;
+  }
+  /// True when the integrator relaxes the particle velocities (pic_relaxation_time > 0).
+  bool relaxes() const {
+    const auto& values = e_.settings().parameters.values;
+    const auto it = values.find("pic_relaxation_time");
+    return it != values.end() && it->second > 0.0;
   }
 
   /// The members of an EnergySummary (const or not) by checkpoint name.
