@@ -302,9 +302,7 @@ template <int D> void use_integrator(const IntegratorKind& k, EngineParts<D>& pa
 /// `relaxed`: with pic_relaxation_time = 1e-3 where the integrator takes
 /// it (its W_v is part of the energy compared), else nothing to check.
 Violations integrator_run(const IntegratorKind& k, bool relaxed = false) {
-  const bool takes = std::any_of(k.parameters.begin(), k.parameters.end(),
-                                 [](const ParameterSpec& p) { return p.key == "pic_relaxation_time"; });
-  if (relaxed && !takes) return {};
+  if (relaxed && !k.takes("pic_relaxation_time")) return {};
   const Scene scene =
       parse_scene(block_scene(mode_of(k), "npc", basis_of(k), mass_of(k), kUnitElastic), "contract.toml");
   const PartsMaker<2> make = [&] {

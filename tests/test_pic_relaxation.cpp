@@ -28,9 +28,7 @@ namespace {
 std::vector<const IntegratorKind*> relaxing() {
   std::vector<const IntegratorKind*> out;
   for (const IntegratorKind& k : integrator_kinds())
-    if (std::any_of(k.parameters.begin(), k.parameters.end(),
-                    [](const ParameterSpec& p) { return p.key == "pic_relaxation_time"; }))
-      out.push_back(&k);
+    if (k.takes("pic_relaxation_time")) out.push_back(&k);
   return out;
 }
 
@@ -138,9 +136,7 @@ TEST_CASE("pic_relaxation_time: the integrators without it refuse it, a bad valu
     return test::input_error_of([&] { (void)parse_scene(toml, "pic.toml"); });
   };
   for (const IntegratorKind& k : integrator_kinds()) {
-    const bool takes = std::any_of(k.parameters.begin(), k.parameters.end(),
-                                   [](const ParameterSpec& p) { return p.key == "pic_relaxation_time"; });
-    if (takes) continue;
+    if (k.takes("pic_relaxation_time")) continue;
     CAPTURE(k.name);
     std::string toml = block(std::string(k.name), 0.01, "");
     toml.replace(toml.find("mode = \"mpm\""), 12, "mode = \"ul\"");
@@ -148,6 +144,7 @@ TEST_CASE("pic_relaxation_time: the integrators without it refuse it, a bad valu
     const std::string m = error_of(toml);
     CHECK(m.find("simulation.pic_relaxation_time") != std::string::npos);
     CHECK(m.find("does not relax the particle velocities") != std::string::npos);
+    CHECK(m.find("(use fe, musl, npc, central_difference or explicit_alpha)") != std::string::npos);
   }
   const std::string negative = error_of(block("npc", -1.0, ""));
   CHECK(negative.find("simulation.pic_relaxation_time") != std::string::npos);

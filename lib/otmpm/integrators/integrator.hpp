@@ -42,6 +42,8 @@ struct IntegratorKind {
   std::span<const ParameterSpec> parameters{};
   /// Its parameters at their defaults (what a run built in code starts from).
   IntegratorParameters default_parameters() const;
+  /// True when `key` is one of its parameters.
+  bool takes(std::string_view key) const;
   StepFunction<1> step1 = nullptr;
   StepFunction<2> step2 = nullptr;
   StepFunction<3> step3 = nullptr;
@@ -62,8 +64,9 @@ std::span<const IntegratorKind> integrator_kinds();
 const IntegratorKind* find_integrator(std::string_view name);
 /// The integrator named `name`; InputError listing the integrators otherwise.
 const IntegratorKind& integrator_kind(std::string_view name);
-/// "fe, musl, npc, otm, unified, central_difference or explicit_alpha", for messages.
-std::string integrator_list();
+/// "fe, musl, npc, otm, unified, central_difference or explicit_alpha", for
+/// messages; with `parameter`, only the integrators that take it.
+std::string integrator_list(std::string_view parameter = {});
 /// The parameter keys of every integrator (the scene accepts each of them
 /// whatever the integrator, so that switching integrators with --set works).
 std::span<const ParameterSpec* const> integrator_parameters();

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <array>
+#include <vector>
 
 namespace otmpm {
 
@@ -97,10 +98,17 @@ IntegratorParameters IntegratorKind::default_parameters() const {
   return out;
 }
 
-std::string integrator_list() {
+bool IntegratorKind::takes(std::string_view key) const {
+  return std::any_of(parameters.begin(), parameters.end(), [&](const ParameterSpec& p) { return p.key == key; });
+}
+
+std::string integrator_list(std::string_view parameter) {
+  std::vector<std::string_view> names;
+  for (const IntegratorKind& k : kIntegrators)
+    if (parameter.empty() || k.takes(parameter)) names.push_back(k.name);
   std::string s;
-  for (std::size_t i = 0; i < kIntegrators.size(); ++i)
-    s += std::string(i == 0 ? "" : i + 1 == kIntegrators.size() ? " or " : ", ") + std::string(kIntegrators[i].name);
+  for (std::size_t i = 0; i < names.size(); ++i)
+    s += std::string(i == 0 ? "" : i + 1 == names.size() ? " or " : ", ") + std::string(names[i]);
   return s;
 }
 

@@ -145,13 +145,10 @@ void check_simulation(const Scene& s, int dim) {
     check(s, why.empty(), "simulation." + key, why);
   }
   // The one parameter an integrator must not ignore: a run without the relaxation it asks for is not the run.
-  const auto own = integrator->parameters;
-  check(s,
-        !m.parameters.count("pic_relaxation_time") ||
-            std::any_of(own.begin(), own.end(), [](const ParameterSpec& p) { return p.key == "pic_relaxation_time"; }),
+  check(s, !m.parameters.count("pic_relaxation_time") || integrator->takes("pic_relaxation_time"),
         "simulation.pic_relaxation_time", "integrator \"", m.integrator,
-        "\" does not relax the particle velocities toward the grid's (fe, musl, npc, central_difference and "
-        "explicit_alpha do)");
+        "\" does not relax the particle velocities toward the grid's (use ", integrator_list("pic_relaxation_time"),
+        ")");
   using namespace scene_keys;
   check_number(s, "simulation.t_end", m.t_end, kTEnd);
   if (m.dt) check_number(s, "simulation.dt", *m.dt, kDt);
