@@ -1,9 +1,11 @@
 // bench_table: every row of the performance tables of docs/performance.md
 // (throughput: the 2D block and the Dyka strip; methods: the methods' relative
 // cost, the fixed bar, the 3D block; plastic: the 3D j2 block against
-// neo_hookean and the full 3D Taylor bar) in one run.
+// neo_hookean and the full 3D Taylor bar) in one run; --table threads: each
+// case of the targets on one and two threads, the speed-up (not in "all").
 //
-//   OMP_NUM_THREADS=2 build-bench/bench/bench_table [--repeat R] [--table throughput|methods|lme|plastic|all]
+//   OMP_NUM_THREADS=2 build-bench/bench/bench_table [--repeat R]
+//       [--table throughput|methods|lme|plastic|threads|all]
 //       [--quick] [--scaling-csv FILE] [--scaling3d-csv FILE]
 //
 // Cases that are compared (linear vs LME, ul vs mpm, 2 threads vs 1, the
@@ -93,11 +95,11 @@ void print_table(const char* title, const std::vector<Row>& rows) {
 void print_cases(std::vector<const Case*> cases) {
   std::erase_if(cases, [](const Case* c) { return c->per_step.empty(); });
   std::printf("\nphase shares (last repetition):\n");
-  for (const Case* c : cases) std::printf("  %-40s %s\n", c->name.c_str(), phase_shares(c->last.phases).c_str());
+  for (const Case* c : cases) std::printf("  %-48s %s\n", c->name.c_str(), phase_shares(c->last.phases).c_str());
   std::printf("\nmedian time per particle-step (wall; the calling thread's CPU time, which on one thread leaves out "
               "the moments it waited for a core):\n");
   for (const Case* c : cases)
-    std::printf("  %-40s %.3f us, CPU %.3f us (%ld particles, %ld steps%s)\n", c->name.c_str(),
+    std::printf("  %-48s %.3f us, CPU %.3f us (%ld particles, %ld steps%s)\n", c->name.c_str(),
                 1e6 * median(c->per_step) / double(c->last.particles),
                 1e6 * median(c->cpu_per_step) / double(c->last.particles), c->last.particles, c->last.steps,
                 c->last.nodes_per_particle > 0 ? fmt(", %.1f nodes per particle", c->last.nodes_per_particle).c_str()
@@ -253,6 +255,69 @@ void plastic_table(int repeat, bool quick) {
   print_cases({&c_j2, &c_nh, &taylor});
 }
 
+/// One case of the threads table, stepped on one and on two threads in
+/// turn: one engine, built from `scene`, `settle` untimed steps (the first
+/// basis evaluation, a plastic block's flow), then `repeat` interleaved
+/// repetitions of `steps` steps on each thread count.
+template <int D>
+std::pair<Case, Case> thread_cases(const std::string& name, const Scene& scene, long settle, long steps, int repeat) {
+  set_threads(2);
+  Engine<D> e = assemble<D>(scene);
+  for (long i = 0; i < settle; ++i) e.step();
+  const double t_end = scene.simulation.t_end;
+  Case one{name + ", 1 thread", [&] { return time_steps(e, steps, 1, t_end); }};
+  Case two{name + ", 2 threads", [&] { return time_steps(e, steps, 2, t_end); }};
+  interleave({&one, &two}, repeat);
+  one.run = two.run = nullptr; // the engine ends here
+  return {one, two};
+}
+
+/// The threads table: each case of the performance targets on one and on
+/// two threads, interleaved, and the speed-up (the median of the
+/// per-repetition ratios) against the target 1.85.
+void threads_table(int repeat, bool quick) {
+  const int big = quick ? 60 : 500, mid = quick ? 40 : 200, cube = quick ? 10 : 64, small_cube = quick ? 8 : 32;
+  const long steps = quick ? 2 : 10;
+  auto block2 = [](int cells, const char* basis, const char* integrator) {
+    return parse_scene(block_scene(cells, basis, integrator, "mpm", 3.0), "block.toml");
+  };
+  auto block3 = [](int cells, const char* basis, const std::string& material) {
+    return parse_scene(block_scene(3, cells, basis, std::string(basis) == "lme" ? "npc" : "fe", "mpm", 3.0, material),
+                       "block3d.toml");
+  };
+  std::vector<std::pair<Case, Case>> pairs;
+  const std::string b2 = "2D block " + std::to_string(big) + "^2 cells", m2 = "2D block " + std::to_string(mid) + "^2 cells";
+  const std::string c3 = "3D block " + std::to_string(cube) + "^3 cells";
+  const std::string s3 = "3D block " + std::to_string(small_cube) + "^3 cells";
+  pairs.push_back(thread_cases<2>(b2 + ", linear fe", block2(big, "linear", "fe"), 1, steps, repeat));
+  pairs.push_back(thread_cases<2>(b2 + ", linear musl", block2(big, "linear", "musl"), 1, steps, repeat));
+  pairs.push_back(thread_cases<2>(m2 + ", LME npc", block2(mid, "lme", "npc"), 1, steps, repeat));
+  pairs.push_back(thread_cases<3>(c3 + ", linear fe", block3(cube, "linear", kBlockLinearElastic), 1, steps / 2, repeat));
+  pairs.push_back(thread_cases<3>(s3 + ", LME npc", block3(small_cube, "lme", kBlockLinearElastic), 1, steps / 5 + 1,
+                                  repeat));
+  // yield_stress 1 Pa: the block flows almost everywhere after settling (plastic table)
+  pairs.push_back(thread_cases<3>(s3 + ", j2 plastic npc", block3(small_cube, "linear", "model = \"j2\"\nyield_stress = 1.0"),
+                                  quick ? 5 : 100, steps, repeat));
+  Scene taylor = parse_scene(taylor_bar_cylinder_scene(), "taylor_bar.toml");
+  if (quick) taylor.simulation.t_end = 2e-6;
+  Case t1{"Taylor bar cylinder j2 npc, 1 thread", [&] { return time_whole_run(taylor, 1); }};
+  Case t2{"Taylor bar cylinder j2 npc, 2 threads", [&] { return time_whole_run(taylor, 2); }};
+  interleave({&t1, &t2}, repeat);
+  pairs.emplace_back(t1, t2);
+  std::vector<Row> rows;
+  std::vector<const Case*> cases;
+  for (const auto& [one, two] : pairs) {
+    const double speedup = ratio(one, two);
+    const std::string name = one.name.substr(0, one.name.size() - std::string(", 1 thread").size());
+    rows.push_back({name + fmt(" (%.0f particles): speed-up, 2 threads / 1", double(one.last.particles)),
+                    ">= 1.85", fmt("%.2f", speedup), speedup >= 1.85});
+    cases.insert(cases.end(), {&one, &two});
+  }
+  std::printf("%d interleaved repetitions; medians\n\n", repeat);
+  print_table("threads figure", rows);
+  print_cases(cases);
+}
+
 } // namespace
 
 int main(int argc, char** argv) {
@@ -269,13 +334,15 @@ int main(int argc, char** argv) {
     else if (a == "--table" && i + 1 < argc) table = argv[++i];
     else if (a == "--quick") quick = true;
     else {
-      std::fprintf(stderr, "usage: bench_table [--repeat R] [--table throughput|methods|lme|plastic|all] [--quick] "
-                           "[--scaling-csv FILE] [--scaling3d-csv FILE]\n");
+      std::fprintf(stderr, "usage: bench_table [--repeat R] [--table throughput|methods|lme|plastic|threads|all] "
+                           "[--quick] [--scaling-csv FILE] [--scaling3d-csv FILE]\n");
       return 2;
     }
   }
-  if (table != "throughput" && table != "methods" && table != "lme" && table != "plastic" && table != "all") {
-    std::fprintf(stderr, "bench_table: --table must be throughput, methods, lme, plastic or all, not '%s'\n", table.c_str());
+  if (table != "throughput" && table != "methods" && table != "lme" && table != "plastic" && table != "threads" &&
+      table != "all") {
+    std::fprintf(stderr, "bench_table: --table must be throughput, methods, lme, plastic, threads or all, not '%s'\n",
+                 table.c_str());
     return 2;
   }
   if (repeat < 1) {
@@ -284,6 +351,10 @@ int main(int argc, char** argv) {
   }
   if (table == "plastic") {
     plastic_table(repeat, quick);
+    return 0;
+  }
+  if (table == "threads") {
+    threads_table(repeat, quick);
     return 0;
   }
   const bool throughput = table == "throughput" || table == "all", methods = table == "methods" || table == "all";

@@ -2,7 +2,7 @@
 # Runs every row of the performance tables (throughput, methods, plastic) and prints
 # them with target, measured value and met or not (see docs/performance.md):
 #
-#   bash scripts/bench.sh [--repeat R] [--native] [--table throughput|methods|lme|plastic|all] [--quick] [--no-output]
+#   bash scripts/bench.sh [--repeat R] [--native] [--table throughput|methods|lme|plastic|threads|all] [--quick] [--no-output]
 #
 # Builds build-bench (Release, benchmarks, no tests, the portable default
 # flags; with --native build-bench-native with -march=native), runs
@@ -14,7 +14,9 @@
 # into a temporary folder; --no-output skips it). --quick: small sizes,
 # short runs, one repetition - a smoke test of every row in about a minute,
 # whose figures mean nothing. --table lme: only the methods table's two LME
-# rows (the 2D and the 3D block, LME npc / linear fe), no plots.
+# rows (the 2D and the 3D block, LME npc / linear fe), no plots. --table
+# threads: each case of the performance targets on one and on two threads,
+# interleaved, and the speed-up (not part of "all"), no plots.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
@@ -23,7 +25,7 @@ native=OFF
 table=all
 quick=0
 output=1
-usage="usage: bash scripts/bench.sh [--repeat R] [--native] [--table throughput|methods|lme|plastic|all] [--quick] [--no-output]"
+usage="usage: bash scripts/bench.sh [--repeat R] [--native] [--table throughput|methods|lme|plastic|threads|all] [--quick] [--no-output]"
 while [ $# -gt 0 ]; do
   case "$1" in
     --repeat) repeat="$2"; shift 2 ;;
@@ -34,7 +36,7 @@ while [ $# -gt 0 ]; do
     *) echo "$usage" >&2; exit 2 ;;
   esac
 done
-case "$table" in throughput|methods|lme|plastic|all) ;; *) echo "$usage" >&2; exit 2 ;; esac
+case "$table" in throughput|methods|lme|plastic|threads|all) ;; *) echo "$usage" >&2; exit 2 ;; esac
 bash scripts/install-deps.sh >/dev/null
 build=build-bench suffix=""
 [ "$native" = ON ] && build=build-bench-native suffix="-native"

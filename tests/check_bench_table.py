@@ -2,8 +2,9 @@
 """Smoke test of bench/bench_table (scripts/bench.sh): every row of the throughput,
 methods and plastic tables runs and prints a finite positive figure, its met column
 agrees with its target, and every case prints phase shares that add up to
-100%; the same for --table lme (the methods table's two LME rows). Timings
-are not checked (--quick sizes, one repetition).
+100%; the same for --table lme (the methods table's two LME rows) and
+--table threads (each case on one and two threads). Timings are not checked
+(--quick sizes, one repetition).
 
     check_bench_table.py BENCH_TABLE
 """
@@ -73,6 +74,7 @@ def check(bench_table, args, expected, cases):
 def main(argv):
     failures = check(argv[1], [], {"throughput figure": 6, "method figure": 8, "plastic figure": 2}, 15)
     failures += check(argv[1], ["--table", "lme"], {"method figure": 2}, 4)
+    failures += check(argv[1], ["--table", "threads"], {"threads figure": 7}, 14)
     if failures:
         print("\n".join(failures))
     return 1 if failures else 0

@@ -1,6 +1,7 @@
 // The OpenMP building blocks (parallel.hpp): parallel_chunks cuts [0, n)
-// into contiguous chunks, several per thread, taken by whichever thread is
-// free; the lowest failing chunk's exception is the one rethrown; the basis
+// into contiguous chunks, several per thread, each thread's own (its home
+// range, the same particles in a particle loop and in a loop over their
+// blocks) run first and the rest taken by whichever thread is free; the lowest failing chunk's exception is the one rethrown; the basis
 // table's general fill (stencils of varying size) buffers those chunks and
 // gives the table of one thread.
 #include "otmpm/basis/basis.hpp"
@@ -11,6 +12,7 @@
 #include <doctest/doctest.h>
 
 #include <algorithm>
+#include <cstdlib>
 #include <chrono>
 #include <mutex>
 #include <random>
@@ -93,6 +95,38 @@ TEST_CASE("parallel_chunks covers every item once, in contiguous chunks, several
   CHECK(one.front() == std::pair<long long, long long>(0, 12345));
 }
 
+TEST_CASE("home ranges: a particle loop and a loop over its blocks give each thread the same particles") {
+  // n particles: thread t's first particle in a particle loop is that of its
+  // first block in a loop over the scatter blocks (scatter_block particles,
+  // granule 1) and over the blocks of blocked_reduce (reduction_block
+  // particles, granule home_granule / reduction_block), for every team; the
+  // ranges tile [0, n) in thread order, cut at whole scatter blocks.
+  for (const long long n : {16384LL, 16848LL, 25600LL, 160000LL, 2097152LL, 10000019LL})
+    for (const int team : {2, 3, 4, 7}) {
+      const long long blocks = (n + home_granule - 1) / home_granule;
+      if (blocks < team) continue;
+      CAPTURE(n);
+      CAPTURE(team);
+      const long long sums = (n + reduction_block - 1) / reduction_block;
+      long long last = 0;
+      for (int t = 0; t <= team; ++t) {
+        const long long first = home_begin(n, team, t, home_granule);
+        CHECK(first == std::min(n, home_granule * home_begin(blocks, team, t, 1)));
+        CHECK(first == std::min(n, reduction_block * home_begin(sums, team, t, home_granule / reduction_block)));
+        CHECK(first >= last);
+        CHECK((t == team || first % home_granule == 0));
+        last = first;
+      }
+      CHECK(home_begin(n, team, 0, home_granule) == 0);
+      CHECK(last == n);
+    }
+  // Fewer granules than threads: even ranges of single items.
+  CHECK(home_begin(1000, 2, 1, home_granule) == 500);
+  CHECK(home_begin(8000, 2, 1, home_granule) == 4000);
+  CHECK(home_begin(12000, 2, 1, home_granule) == 8192); // two scatter blocks: one each
+  CHECK(home_begin(7, 2, 1, home_granule) == 3);
+}
+
 TEST_CASE("parallel_chunks rethrows the exception of the lowest failing chunk") {
   // Items 60000 and 90000 fail (each body stops at its first failure); so does
   // 3000, in an earlier chunk that may well finish after the others.
@@ -113,24 +147,33 @@ TEST_CASE("parallel_chunks rethrows the exception of the lowest failing chunk") 
 #ifdef OTMPM_HAVE_OPENMP
 TEST_CASE("parallel_chunks: a slow chunk does not hold the other chunks back") {
   // The chunk of item 0 takes 300 ms (a thread whose core is taken by another
-  // process); every other chunk is instant. The chunks are handed out as
-  // threads come free, so the other thread runs all of them: with one chunk
-  // per thread (or a static share) the slow thread would own half of them.
+  // process); every other chunk is instant. A thread done with its own
+  // chunks takes those the others have not started, so the thread held up
+  // in the slow chunk starts no chunk after it: the other thread runs every
+  // chunk left (with one chunk per thread, or a static share, the slow
+  // thread would still own half of them).
   std::mutex m;
-  std::vector<int> thread_of(static_cast<std::size_t>(chunk_count(64000, 2)), -1);
-  const long long k = chunk_count(64000, 2);
+  struct Start {
+    long long begin;
+    int thread, order;
+  };
+  std::vector<Start> starts;
   parallel_chunks(64000, 2, [&](long long begin, long long) {
-    const long long c = begin * k / 64000; // begin = 64000 c / k exactly
-    if (c == 0) std::this_thread::sleep_for(std::chrono::milliseconds(300));
-    const std::lock_guard lock(m);
-    thread_of[static_cast<std::size_t>(c)] = omp_get_thread_num();
+    {
+      const std::lock_guard lock(m);
+      starts.push_back({begin, omp_get_thread_num(), static_cast<int>(starts.size())});
+    }
+    if (begin == 0) std::this_thread::sleep_for(std::chrono::milliseconds(300));
   });
+  const long long k = chunk_count(64000, 2);
   REQUIRE(k == 2 * chunks_per_thread);
+  REQUIRE(static_cast<long long>(starts.size()) == k);
+  const auto slow = *std::find_if(starts.begin(), starts.end(), [](const Start& c) { return c.begin == 0; });
   // Without a second thread (OMP_THREAD_LIMIT=1, OMP_DYNAMIC) there is nothing to hand over.
-  if (std::count(thread_of.begin(), thread_of.end(), thread_of[0]) == k) return;
-  for (long long c = 1; c < k; ++c) {
-    CAPTURE(c);
-    CHECK(thread_of[static_cast<std::size_t>(c)] != thread_of[0]);
+  if (std::all_of(starts.begin(), starts.end(), [&](const Start& c) { return c.thread == slow.thread; })) return;
+  for (const Start& c : starts) {
+    CAPTURE(c.begin);
+    CHECK((c.thread != slow.thread || c.order <= slow.order));
   }
 }
 #endif

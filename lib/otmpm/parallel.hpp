@@ -2,13 +2,15 @@
 /// \file parallel.hpp
 /// The OpenMP building blocks of the engine's particle and node loops, all of
 /// them giving the same bits for any thread count: contiguous
-/// chunks of particles or nodes, a few per thread, handed out dynamically (a
-/// thread slowed by other work on its core leaves its share to the others;
-/// no result depends on which thread ran a chunk), exceptions rethrown from
+/// chunks of particles or nodes, a few per thread, each thread running its
+/// own (the same particles in every pass, so their data stay in its caches)
+/// and then taking those of a slowed thread (no result depends on which
+/// thread ran a chunk), exceptions rethrown from
 /// the lowest chunk (so the reported particle is the lowest failing index, as
 /// in a serial loop), and sums over particles taken in fixed blocks whose
 /// size does not depend on the thread count.
 #include <algorithm>
+#include <atomic>
 #include <exception>
 #include <vector>
 
@@ -35,39 +37,85 @@ inline int team_size(long long n) {
 }
 
 /// Chunks per thread of a parallel loop: with one chunk per thread a step
-/// waits for the thread whose core is busiest; with several, taken by
-/// whichever thread is free, the other threads take over its share.
+/// waits for the thread whose core is busiest; with several, the other
+/// threads take over a slowed thread's remaining share.
 constexpr int chunks_per_thread = 8;
+
+/// Items per alignment unit of the threads' home ranges: the particles of a
+/// block of the particle-to-node sum (scatter_block), a whole number of the
+/// blocks of blocked_reduce, so that a particle loop and a loop over either
+/// kind of block give each thread the same particles.
+constexpr long long home_granule = 8192;
 
 /// Number of chunks parallel_chunks cuts [0, n) into for `team` threads.
 inline long long chunk_count(long long n, int team) {
   return std::max(1LL, std::min<long long>(n, static_cast<long long>(team) * chunks_per_thread));
 }
 
-/// Runs body(begin, end) on contiguous chunks of [0, n) with `team` threads:
-/// chunk c of k = chunk_count(n, team) covers [n c / k, n (c+1) / k), and the
-/// chunks are taken in turn by whichever thread is free (so a body must not
-/// depend on which thread runs it, nor on the chunk boundaries). An exception
-/// thrown by a body is rethrown after the loop; if several chunks fail, the
-/// lowest chunk's exception wins (the lowest failing index when each body
-/// stops at its first failure, as a serial loop would).
-template <class Body> void parallel_chunks(long long n, int team, Body&& body) {
-  if (team <= 1) {
+/// First item of thread t's home range when [0, n) is shared by `team`
+/// threads: g floor(B t / team), at most n, with B = ceil(n / g) granules of
+/// g = `granule` items while B >= team, else g = 1 (B = n). A loop over n
+/// particles (granule home_granule) and one over their blocks of k particles
+/// (granule home_granule / k) give thread t the same particles.
+inline long long home_begin(long long n, int team, int t, long long granule) {
+  long long g = granule, blocks = (n + g - 1) / g;
+  if (blocks < team) g = 1, blocks = n;
+  return std::min(n, g * (blocks * t / team));
+}
+
+/// Runs body(begin, end) on contiguous chunks of [0, n) with `team` threads.
+/// Thread t owns the home range [home_begin(t), home_begin(t + 1)), cut into
+/// up to chunks_per_thread chunks that it runs first, in order; a thread
+/// done with its own chunks then takes the chunks other threads have not
+/// started. So every loop over the same items gives each thread the same
+/// items (their data stay in its caches from pass to pass), and a thread
+/// slowed by other work on its core still leaves its remaining share to the
+/// others. A body must not depend on which thread runs it, nor on the chunk
+/// boundaries. An exception thrown by a body is rethrown after the loop; if
+/// several chunks fail, the lowest chunk's exception wins (the lowest
+/// failing index when each body stops at its first failure, as a serial loop
+/// would). `granule`: see home_begin (1 for loops over blocks).
+template <class Body> void parallel_chunks(long long n, int team, Body&& body, long long granule = home_granule) {
+  if (team <= 1 || n <= 1) {
     body(0LL, n);
     return;
   }
-  const long long k = chunk_count(n, team);
-  std::vector<std::exception_ptr> errors(static_cast<std::size_t>(k));
-#ifdef OTMPM_HAVE_OPENMP
-#pragma omp parallel for schedule(dynamic, 1) num_threads(team)
-#endif
-  for (long long c = 0; c < k; ++c) {
-    try {
-      body(n * c / k, n * (c + 1) / k);
-    } catch (...) {
-      errors[static_cast<std::size_t>(c)] = std::current_exception();
-    }
+  struct alignas(64) Home {
+    long long begin = 0, size = 0;
+    int chunks = 0, first = 0; // chunk count, global index of the first
+    std::atomic<int> next{0};  // the next chunk to start
+  };
+  std::vector<Home> home(static_cast<std::size_t>(team));
+  int total = 0;
+  for (int t = 0; t < team; ++t) {
+    Home& h = home[static_cast<std::size_t>(t)];
+    h.begin = home_begin(n, team, t, granule);
+    h.size = home_begin(n, team, t + 1, granule) - h.begin;
+    h.chunks = static_cast<int>(std::min<long long>(h.size, chunks_per_thread));
+    h.first = total;
+    total += h.chunks;
   }
+  std::vector<std::exception_ptr> errors(static_cast<std::size_t>(total));
+  auto run = [&](Home& h) {
+    for (int j = h.next.fetch_add(1, std::memory_order_relaxed); j < h.chunks;
+         j = h.next.fetch_add(1, std::memory_order_relaxed)) {
+      try {
+        body(h.begin + h.size * j / h.chunks, h.begin + h.size * (j + 1) / h.chunks);
+      } catch (...) {
+        errors[static_cast<std::size_t>(h.first + j)] = std::current_exception();
+      }
+    }
+  };
+#ifdef OTMPM_HAVE_OPENMP
+#pragma omp parallel num_threads(team)
+  {
+    // its own chunks, then the others' (also those of threads a smaller team lacks)
+    const int t = omp_get_thread_num();
+    for (int u = 0; u < team; ++u) run(home[static_cast<std::size_t>((t + u) % team)]);
+  }
+#else
+  for (Home& h : home) run(h);
+#endif
   for (const std::exception_ptr& e : errors)
     if (e) std::rethrow_exception(e);
 }
@@ -89,6 +137,7 @@ template <class Body> void parallel_for(long long n, Body&& body) {
 /// Items per block of a blocked_reduce: fixed, so that the grouping of the
 /// partial sums (hence the bits of the result) does not depend on threads.
 constexpr int reduction_block = 1024;
+static_assert(home_granule % reduction_block == 0, "a particle loop and a blocked sum give each thread the same particles");
 
 /// Sums over [0, n) into an accumulator `Acc` (default-constructed = zero,
 /// with `a += b`) block by block: term(begin, end, acc) adds items
@@ -98,13 +147,16 @@ constexpr int reduction_block = 1024;
 template <class Acc, class Term> Acc blocked_reduce_ranges(long long n, Term&& term) {
   const long long blocks = (n + reduction_block - 1) / reduction_block;
   std::vector<Acc> partial(static_cast<std::size_t>(blocks));
-  parallel_chunks(blocks, team_size(n), [&](long long b0, long long b1) {
-    for (long long b = b0; b < b1; ++b) {
-      Acc acc{};
-      term(b * reduction_block, std::min(n, (b + 1) * reduction_block), acc);
-      partial[static_cast<std::size_t>(b)] = acc;
-    }
-  });
+  parallel_chunks(
+      blocks, team_size(n),
+      [&](long long b0, long long b1) {
+        for (long long b = b0; b < b1; ++b) {
+          Acc acc{};
+          term(b * reduction_block, std::min(n, (b + 1) * reduction_block), acc);
+          partial[static_cast<std::size_t>(b)] = acc;
+        }
+      },
+      home_granule / reduction_block);
   Acc total{};
   for (const Acc& a : partial) total += a;
   return total;

@@ -11,6 +11,7 @@
 #include "otmpm/parallel.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <cctype>
 #include <cmath>
 #include <cstdint>
@@ -539,7 +540,13 @@ template <int D> void Engine<D>::list_visited_nodes() {
   }
   nodal_.listed.assign(static_cast<std::size_t>(nodes), 0);
   char* mark = nodal_.listed.data();
-  for (const int I : table_.node) mark[I] = 1;
+  // Each thread marks the nodes of its own particles' rows (their table
+  // entries stay in its caches); a node two threads mark gets the same 1.
+  parallel_chunks(table_.rows(), [&](long long p0, long long p1) {
+    const int* node = table_.node.data();
+    for (int e = table_.begin(static_cast<int>(p0)); e < table_.end(static_cast<int>(p1) - 1); ++e)
+      std::atomic_ref<char>(mark[node[e]]).store(1, std::memory_order_relaxed);
+  });
   for (const int I : constraints_.fixed_nodes()) mark[I] = 1;
   if (static_cast<int>(list.size()) < nodes)
     for (const int I : list)

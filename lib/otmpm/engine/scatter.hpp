@@ -31,7 +31,7 @@ template <int D> struct NodeSums {
 
 /// Particles per scatter block, and a total of block node ranges (in units
 /// of the node count) up to which the dense blocked scatter is used.
-constexpr int scatter_block = 8192;
+constexpr int scatter_block = static_cast<int>(home_granule);
 constexpr int max_block_overlap = 2;
 /// The dense blocked scatter is also used while the ranges add up to at
 /// most the table's entries over this: its buffers then take at most 14
@@ -96,10 +96,13 @@ public:
     buffer_.resize(static_cast<std::size_t>(offset_.back()));
     const bool clean = std::exchange(zeroed_, false); // the buffers need no clearing
     // 1. every block sums its particles, in particle order, into its own buffer
-    parallel_chunks(count, team_size(n), [&](long long b0, long long b1) {
-      for (int b = static_cast<int>(b0); b < b1; ++b)
-        dense ? dense_block_sums(table, b, clean, update, prep, add) : sparse_block_sums(table, b, update, prep, add);
-    });
+    parallel_chunks(
+        count, team_size(n),
+        [&](long long b0, long long b1) {
+          for (int b = static_cast<int>(b0); b < b1; ++b)
+            dense ? dense_block_sums(table, b, clean, update, prep, add) : sparse_block_sums(table, b, update, prep, add);
+        },
+        1);
     if (visit) return merge_visited(*visit, team_size(n), merge, clear);
     // 2. every node adds the block sums in block order (threads own node ranges)
     parallel_chunks(nodes, team_size(n), [&](long long I0, long long I1) {
@@ -142,17 +145,20 @@ private:
     const int count = (n + scatter_block - 1) / scatter_block;
     lo_.assign(static_cast<std::size_t>(count), nodes);
     hi_.assign(static_cast<std::size_t>(count), -1);
-    parallel_chunks(count, team_size(n), [&](long long b0, long long b1) {
-      for (int b = static_cast<int>(b0); b < b1; ++b) {
-        int lo = nodes, hi = -1; // locals: the loop vectorises
-        for (int e = entry_begin(table, b); e < entry_end(table, b); ++e) {
-          lo = std::min(lo, table.node[e]);
-          hi = std::max(hi, table.node[e]);
-        }
-        lo_[b] = lo;
-        hi_[b] = hi;
-      }
-    });
+    parallel_chunks(
+        count, team_size(n),
+        [&](long long b0, long long b1) {
+          for (int b = static_cast<int>(b0); b < b1; ++b) {
+            int lo = nodes, hi = -1; // locals: the loop vectorises
+            for (int e = entry_begin(table, b); e < entry_end(table, b); ++e) {
+              lo = std::min(lo, table.node[e]);
+              hi = std::max(hi, table.node[e]);
+            }
+            lo_[b] = lo;
+            hi_[b] = hi;
+          }
+        },
+        1);
     range_start_.assign(static_cast<std::size_t>(count) + 1, 0);
     for (int b = 0; b < count; ++b) range_start_[b + 1] = range_start_[b] + std::max(0, hi_[b] - lo_[b] + 1);
     return range_start_.back();
@@ -165,9 +171,12 @@ private:
     const int count = static_cast<int>(lo_.size());
     slot_.resize(static_cast<std::size_t>(range_start_.back()));
     std::vector<long long> used(static_cast<std::size_t>(count));
-    parallel_chunks(count, team_size(table.rows()), [&](long long b0, long long b1) {
-      for (int b = static_cast<int>(b0); b < b1; ++b) used[b] = number_slots(table, b);
-    });
+    parallel_chunks(
+        count, team_size(table.rows()),
+        [&](long long b0, long long b1) {
+          for (int b = static_cast<int>(b0); b < b1; ++b) used[b] = number_slots(table, b);
+        },
+        1);
     offset_.assign(static_cast<std::size_t>(count) + 1, 0);
     for (int b = 0; b < count; ++b) offset_[b + 1] = offset_[b] + used[b];
   }
