@@ -281,7 +281,8 @@ void threads_table(int repeat, bool quick) {
   auto block2 = [](int cells, const char* basis, const char* integrator) {
     return parse_scene(block_scene(cells, basis, integrator, "mpm", 3.0), "block.toml");
   };
-  auto block3 = [](int cells, const char* basis, const std::string& material) {
+  // linear fe, LME npc (the methods table's pairing); not block3() below, which is linear npc
+  auto cube_scene = [](int cells, const char* basis, const std::string& material) {
     return parse_scene(block_scene(3, cells, basis, std::string(basis) == "lme" ? "npc" : "fe", "mpm", 3.0, material),
                        "block3d.toml");
   };
@@ -292,11 +293,11 @@ void threads_table(int repeat, bool quick) {
   pairs.push_back(thread_cases<2>(b2 + ", linear fe", block2(big, "linear", "fe"), 1, steps, repeat));
   pairs.push_back(thread_cases<2>(b2 + ", linear musl", block2(big, "linear", "musl"), 1, steps, repeat));
   pairs.push_back(thread_cases<2>(m2 + ", LME npc", block2(mid, "lme", "npc"), 1, steps, repeat));
-  pairs.push_back(thread_cases<3>(c3 + ", linear fe", block3(cube, "linear", kBlockLinearElastic), 1, steps / 2, repeat));
-  pairs.push_back(thread_cases<3>(s3 + ", LME npc", block3(small_cube, "lme", kBlockLinearElastic), 1, steps / 5 + 1,
+  pairs.push_back(thread_cases<3>(c3 + ", linear fe", cube_scene(cube, "linear", kBlockLinearElastic), 1, steps / 2, repeat));
+  pairs.push_back(thread_cases<3>(s3 + ", LME npc", cube_scene(small_cube, "lme", kBlockLinearElastic), 1, steps / 5 + 1,
                                   repeat));
   // yield_stress 1 Pa: the block flows almost everywhere after settling (plastic table)
-  pairs.push_back(thread_cases<3>(s3 + ", j2 plastic npc", block3(small_cube, "linear", "model = \"j2\"\nyield_stress = 1.0"),
+  pairs.push_back(thread_cases<3>(s3 + ", j2 plastic fe", cube_scene(small_cube, "linear", "model = \"j2\"\nyield_stress = 1.0"),
                                   quick ? 5 : 100, steps, repeat));
   Scene taylor = parse_scene(taylor_bar_cylinder_scene(), "taylor_bar.toml");
   if (quick) taylor.simulation.t_end = 2e-6;
