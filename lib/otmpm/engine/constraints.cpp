@@ -135,7 +135,8 @@ template <int D> double Constraints<D>::prescribed_kinetic_energy(const std::vec
 
 template <int D>
 void Constraints<D>::apply_walls(AlignedVector<Vec<D>>& v, const NodeView<D>& nodes, double t, double dt,
-                                 const WallEffect<D>& effect, const Ledger<D>& ledger) {
+                                 const WallEffect<D>& effect, const Ledger<D>& ledger,
+                                 std::vector<std::pair<int, Vec<D>>>* touched) {
   held_.resize(walls_.size());
   for (std::size_t w = 0; w < walls_.size(); ++w) {
     const Wall<D>& wall = walls_[w];
@@ -146,7 +147,9 @@ void Constraints<D>::apply_walls(AlignedVector<Vec<D>>& v, const NodeView<D>& no
     const double reach = nodes.reach + std::max(wall.velocity.dot(wall.normal), 0.0) * dt;
     for (const int node : nodes.active_nodes) {
       const auto I = static_cast<std::size_t>(node);
-      const double d = (nodes.x[I] - p).dot(wall.normal), floor = -std::max(d, 0.0) / dt;
+      const double d = (nodes.x[I] - p).dot(wall.normal);
+      if (d > reach && !held[I]) continue; // most nodes: out of reach, no contact to keep
+      const double floor = -std::max(d, 0.0) / dt;
       const Vec<D> u = v[I] - wall.velocity;
       const double un = u.dot(wall.normal);
       const Vec<D> s = effect.start(v, I) - wall.velocity;
@@ -170,6 +173,7 @@ void Constraints<D>::apply_walls(AlignedVector<Vec<D>>& v, const NodeView<D>& no
         held[I] = 1;
       }
       const Vec<D> dv = wall_change<D>(u, wall.normal, dn, wall.friction);
+      if (touched) touched->emplace_back(node, v[I]);
       v[I] += dv;
       if (!effect.impulse) continue;
       effect.hand_on(I, dv);
@@ -188,6 +192,17 @@ void Constraints<D>::apply_walls(AlignedVector<Vec<D>>& v, const NodeView<D>& no
   }
 }
 
+template <int D> bool Constraints<D>::holds(std::size_t I, bool first) const {
+  for (const std::vector<char>& held : held_)
+    if (!held.empty() && held[I]) return true;
+  if (first)
+    for (int k = 0; k < D; ++k) {
+      const std::size_t c = I * D + static_cast<std::size_t>(k);
+      if (constrained_[c] && vbar_[c] != 0.0) return true;
+    }
+  return false;
+}
+
 template <int D>
 void Constraints<D>::book_held(const Held<D>& step, AlignedVector<Vec<D>>& q, const NodeView<D>& nodes,
                                const Ledger<D>& ledger) {
@@ -203,6 +218,10 @@ void Constraints<D>::book_held(const Held<D>& step, AlignedVector<Vec<D>>& q, co
   }
   for (const int node : nodes.active_nodes) {
     const auto I = static_cast<std::size_t>(node);
+    if (!holds(I, step.first)) { // most nodes: no kick
+      q[I] = Vec<D>::Zero();
+      continue;
+    }
     const double m = nodes.m[I];
     const Vec<D> brought = q[I] / m;
     Vec<D> end = brought + step.dt * Vec<D>(step.f[I] / m); // the particles' velocity at the node after the step

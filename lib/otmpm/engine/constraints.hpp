@@ -18,6 +18,7 @@
 #include <array>
 #include <limits>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace otmpm {
@@ -280,9 +281,12 @@ public:
   /// reaches the particles as `effect` says; its impulse (m_I dv_I summed
   /// per wall) is added to wall_impulse() and its work (impulse . v_wall) to
   /// `ledger` as effect.booking says, the energy friction and the impact took
-  /// (friction_loss, impact_loss) at once.
+  /// (friction_loss, impact_loss) at once. `touched`, if given, receives
+  /// (I, v_I before the change) for every change a wall makes, in the
+  /// order made (a node two walls change appears twice).
   void apply_walls(AlignedVector<Vec<D>>& v, const NodeView<D>& nodes, double t, double dt,
-                   const WallEffect<D>& effect, const Ledger<D>& ledger);
+                   const WallEffect<D>& effect, const Ledger<D>& ledger,
+                   std::vector<std::pair<int, Vec<D>>>* touched = nullptr);
   /// The same rule for node increments dx of the step (positions after it:
   /// x_I + dx_I): the normal increment relative to the wall is raised to
   /// -max(d_I, 0); no impulse is counted.
@@ -298,6 +302,9 @@ public:
   AlignedVector<Vec<D>>& rank_wall_impulse() { return rank_impulse_; }
 
 private:
+  /// Node I is held by a wall, or (first step) has a component set to a
+  /// non-zero velocity: book_held gives it a kick (the others none).
+  bool holds(std::size_t I, bool first) const;
   Dirichlet<D> d_;
   std::vector<Wall<D>> walls_;
   AlignedVector<Vec<D>> impulse_; ///< per wall

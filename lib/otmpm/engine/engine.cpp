@@ -652,14 +652,17 @@ template <int D> void Engine<D>::constrain_velocity(AlignedVector<Vec<D>>& v, co
   // not explicit_alpha's, which its kept rate hands on over later steps):
   // the walls change active nodes only.
   const bool transfer = effect.impulse && effect.booking != Booking::carried;
-  if (transfer) {
-    transfer_.before.resize(v.size());
-    for (const int I : nodal_.active_nodes) transfer_.before[I] = v[I];
+  std::vector<std::pair<int, Vec<D>>>& touched = transfer_.touched;
+  touched.clear();
+  constraints_.apply_walls(v, nodes, t_, dt_, effect, books, transfer ? &touched : nullptr);
+  // The nodes whose velocity the walls changed: each node's first entry
+  // holds its velocity before them.
+  std::stable_sort(touched.begin(), touched.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  for (std::size_t i = 0; i < touched.size(); ++i) {
+    const int I = touched[i].first;
+    if ((i == 0 || touched[i - 1].first != I) && v[I] != touched[i].second)
+      transfer_.note(static_cast<std::size_t>(I), constraints_, nodal_.v.size());
   }
-  constraints_.apply_walls(v, nodes, t_, dt_, effect, books);
-  if (!transfer) return;
-  for (const int I : nodal_.active_nodes)
-    if (v[I] != transfer_.before[I]) transfer_.note(I, constraints_, nodal_.v.size());
 }
 
 template <int D>

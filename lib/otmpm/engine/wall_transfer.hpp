@@ -8,6 +8,7 @@
 #include "otmpm/particles/particles.hpp"
 
 #include <algorithm>
+#include <utility>
 #include <vector>
 
 namespace otmpm {
@@ -23,7 +24,7 @@ template <int D> struct WallTransfer {
   AlignedVector<Vec<D>> axis;   ///< per node: the holding wall's normal, zero elsewhere
   std::vector<int> noted;       ///< the nodes whose axis is not zero, in the order noted
   std::vector<char> is_noted;   ///< per node: in `noted` (booked skips the particles of none)
-  AlignedVector<Vec<D>> before; ///< the nodal velocities before a pass's walls (at the active nodes)
+  std::vector<std::pair<int, Vec<D>>> touched; ///< a pass's wall changes: (node, velocity before)
 
   /// Notes node I (of `nodes`) with the normal of the first wall that holds it.
   void note(std::size_t I, const Constraints<D>& c, std::size_t nodes) {
