@@ -70,6 +70,10 @@ template <class T> void set_lane(SolidJ2<T>& x, int l, const Step& a) {
 using test::bits;
 double lane(double v, int) { return v; }
 double lane(Lanes2 v, int l) { return v[l]; }
+#ifdef OTMPM_WIDE_LANES
+using point::Lanes4;
+double lane(Lanes4 v, int l) { return v[l]; }
+#endif
 
 /// Every output of lane l of x has the bits of the general update u, st of
 /// the same step (b_e in the state's order xx, yy, zz, xy, yz, xz).
@@ -91,13 +95,14 @@ struct Reached {
   int elastic = 0, plastic = 0, unloading = 0, uncovered = 0;
 };
 
-/// The two-lane and one-lane forms against j2_general for steps a and b.
-void check_pair(const J2Parameters& p, const Step& a, const Step& b, Reached& reached, bool unloading) {
-  SolidJ2<Lanes2> v{};
-  set_lane(v, 0, a), set_lane(v, 1, b);
-  const point::Mask2 cv = point::solid_j2(p, v);
-  for (int l = 0; l < 2; ++l) {
-    const Step& s = l == 0 ? a : b;
+/// The W-lane (lane type L) and one-lane forms against j2_general for the
+/// steps s[0 .. W - 1].
+template <class L, int W> void check_lanes(const J2Parameters& p, const Step* steps, Reached& reached, bool unloading) {
+  SolidJ2<L> v{};
+  for (int l = 0; l < W; ++l) set_lane(v, l, steps[l]);
+  const auto cv = point::solid_j2(p, v);
+  for (int l = 0; l < W; ++l) {
+    const Step& s = steps[l];
     SolidJ2<double> one{};
     set_lane(one, 0, s);
     const bool c1 = point::solid_j2(p, one);
@@ -121,6 +126,12 @@ void check_pair(const J2Parameters& p, const Step& a, const Step& b, Reached& re
     else if (unloading) ++reached.unloading;
     else ++reached.elastic;
   }
+}
+
+/// check_lanes for the two-lane form and steps a, b.
+void check_pair(const J2Parameters& p, const Step& a, const Step& b, Reached& reached, bool unloading) {
+  const Step steps[2] = {a, b};
+  check_lanes<Lanes2, 2>(p, steps, reached, unloading);
 }
 
 } // namespace
@@ -169,6 +180,25 @@ TEST_CASE("3D J2 form: the series takes as many terms per lane as update3 (a sma
   }
 }
 
+#ifdef OTMPM_WIDE_LANES
+TEST_CASE("3D J2 in four lanes: each lane has the bits of the general update (elastic, return, uncovered)") {
+  const J2Parameters p = parameters();
+  std::mt19937_64 rng(29);
+  Reached reached;
+  for (double scale : {1e-7, 1e-4, 1e-3, 1e-2, 3e-2, 3e-1})
+    for (int i = 0; i < 200; ++i) {
+      Step s[4];
+      for (Step& a : s) a = random_step(rng, scale);
+      if (i == 0) s[2].H = -Mat3::Identity(); // det dF = 0 in one lane
+      if (i == 1) s[3].be = Mat3::Identity() + 20.0 * (s[3].be - Mat3::Identity()); // many series terms in one lane
+      check_lanes<Lanes4, 4>(p, s, reached, false);
+    }
+  CHECK(reached.elastic > 300);
+  CHECK(reached.plastic > 300);
+  CHECK(reached.uncovered > 300);
+}
+#endif
+
 namespace {
 
 /// n 3D particles of a j2 material, random states and increments H (one of
@@ -195,6 +225,26 @@ TEST_CASE("j2 material in 3D: a particle's result does not depend on whether it 
   const int grown = test::check_pairings<3>(make_batch, 41);
   CHECK(grown >= 10);
   CHECK(grown < 41);
+}
+
+TEST_CASE("j2 material in 3D: the four-lane path (AVX2) gives every particle the bits of the two-lane path") {
+  if (!point::wide_lanes()) {
+    MESSAGE("this processor has no AVX2: the four-lane path is not taken");
+    return;
+  }
+  constexpr int n = 203; // 50 quads, then a pair and one
+  test::J2Batch<3> wide = make_batch(n), pairs = make_batch(n);
+  wide.material->update(wide.P, 0, n, wide.H.data(), 1e-3);
+  point::set_wide_lanes(false);
+  pairs.material->update(pairs.P, 0, n, pairs.H.data(), 1e-3);
+  point::set_wide_lanes(true);
+  CHECK(test::same_particles(wide.P, pairs.P));
+  const test::J2Batch<3> before = make_batch(n);
+  int grown = 0;
+  for (std::size_t q = 0; q < static_cast<std::size_t>(n); ++q)
+    grown += wide.P.find_state("plastic_strain")->values[q] > before.P.find_state("plastic_strain")->values[q];
+  CHECK(grown > 20); // lanes in plastic flow among them
+  CHECK(grown < n);  // and elastic ones
 }
 
 TEST_CASE("j2 material in 3D: det F <= 0 inside a pair names that particle, the one before is updated") {

@@ -108,11 +108,17 @@ public:
     const Rows r = rows(P);
     int p = p0;
     if constexpr (D >= 2 && requires { model.lanes(); })
-      if (model.lanes())
+      if (model.lanes()) {
+#ifdef OTMPM_WIDE_LANES
+        if constexpr (D == 3)
+          if (p1 - p >= 4 && plasticity::point::wide_lanes())
+            p = update_solid_quads(P, r, model, p, p1, H - p0, dt);
+#endif
         for (; p + 1 < p1; p += 2) {
           if constexpr (D == 2) update_pair(P, r, model, p, H + (p - p0), dt);
           else update_solid_pair(P, r, model, p, H + (p - p0), dt);
         }
+      }
     for (; p < p1; ++p) update_one(P, r, model, p, H[p - p0], dt);
   }
 
@@ -257,42 +263,74 @@ private:
     }
   }
 
-  /// Particles p and p + 1 (3D) in the two lanes of Model::solid, the
-  /// stress and the state of update_one lane by lane with the same
-  /// operations; F = dF F_n and det F by Eigen per particle, as update_one
-  /// (the order of Eigen's sums in a 3x3 product depends on its
-  /// vectorisation). Both by update_one where the 3D form does not cover
-  /// both or a J <= 0.
+  /// Particles p and p + 1 (3D) in the two lanes of Model::solid
+  /// (solid_lanes).
   static void update_solid_pair(Particles<D>& P, const Rows& r, const Model& model, int p, const Mat<D>* Hp, double dt)
     requires(D == 3)
   {
-    using L = plasticity::point::Lanes2;
-    const Mat<3> dFa = Mat<3>::Identity() + Hp[0], dFb = Mat<3>::Identity() + Hp[1];
+    update_solid_lanes<plasticity::point::Lanes2, 2>(P, r, model, p, Hp, dt);
+  }
+
+#ifdef OTMPM_WIDE_LANES
+  /// Particles p, p + 4, ... below p1 four at a time (AVX2, solid_lanes);
+  /// H0[q] is particle q's increment. Returns the first particle not updated.
+  [[gnu::target("avx2"), gnu::noinline]] static int update_solid_quads(Particles<D>& P, const Rows& r,
+                                                                     const Model& model, int p, int p1,
+                                                                     const Mat<D>* H0, double dt)
+    requires(D == 3)
+  {
+    for (; p + 3 < p1; p += 4) update_solid_lanes<plasticity::point::Lanes4, 4>(P, r, model, p, H0 + p, dt);
+    return p;
+  }
+#endif
+
+  /// Particles p .. p + W - 1 (3D) in the W lanes of Model::solid, the
+  /// stress and the state of update_one lane by lane with the same
+  /// operations; F = dF F_n and det F by Eigen per particle, as update_one
+  /// (the order of Eigen's sums in a 3x3 product depends on its
+  /// vectorisation). All by update_one where the 3D form does not cover
+  /// every lane or a J <= 0.
+  template <class L, int W>
+  [[gnu::always_inline]] static inline void update_solid_lanes(Particles<D>& P, const Rows& r, const Model& model,
+                                                               int p, const Mat<D>* Hp, double dt)
+    requires(D == 3)
+  {
+    Mat<3> dF[W];
+    for (int l = 0; l < W; ++l) dF[l] = Mat<3>::Identity() + Hp[l];
     const double* b0 = r.be + 6 * static_cast<std::ptrdiff_t>(p);
     plasticity::point::SolidJ2<L> x;
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j) x.f[i][j] = L{dFa(i, j), dFb(i, j)};
-    for (int k = 0; k < 6; ++k) x.b[k] = L{b0[k], b0[6 + k]};
-    x.eps_p = L{r.eps_p[p], r.eps_p[p + 1]};
+    L V0, m;
+    for (int l = 0; l < W; ++l) {
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) x.f[i][j][l] = dF[l](i, j);
+      for (int k = 0; k < 6; ++k) x.b[k][l] = b0[6 * l + k];
+      x.eps_p[l] = r.eps_p[p + l];
+      V0[l] = P.V0[p + l];
+      m[l] = P.m[p + l];
+    }
     const auto covered = model.solid(x);
-    const Mat<3> Fa = dFa * P.F[p], Fb = dFb * P.F[p + 1];
-    const L J{Fa.determinant(), Fb.determinant()};
-    if (!(covered[0] && covered[1] && J[0] > 0.0 && J[1] > 0.0)) {
-      update_one(P, r, model, p, Hp[0], dt);
-      update_one(P, r, model, p + 1, Hp[1], dt);
+    Mat<3> F[W];
+    L J;
+    bool all = true;
+    for (int l = 0; l < W; ++l) {
+      F[l] = dF[l] * P.F[p + l];
+      J[l] = F[l].determinant();
+      all = all && covered[l] && J[l] > 0.0;
+    }
+    if (!all) {
+      for (int l = 0; l < W; ++l) update_one(P, r, model, p + l, Hp[l], dt);
       return;
     }
-    const L V0{P.V0[p], P.V0[p + 1]};
-    const L V = J * V0, rho = L{P.m[p], P.m[p + 1]} / V, inv_J = 1.0 / J;
+    const L V = J * V0, rho = m / V, inv_J = 1.0 / J;
     const L energy = V0 * x.energy, work = V0 * x.work;
     L s[6];
     for (int k = 0; k < 6; ++k) s[k] = x.tau[k] * inv_J;
     constexpr int kSym[3][3] = {{0, 3, 5}, {3, 1, 4}, {5, 4, 2}}; // (xx, yy, zz, xy, yz, xz)
-    for (int l = 0; l < 2; ++l) {
+    for (int l = 0; l < W; ++l) {
       const int q = p + l;
-      const Mat<3>& F = l == 0 ? Fa : Fb;
-      P.F[q] = F;
-      P.eps[q] = 0.5 * (F + F.transpose()) - Mat<3>::Identity();
+      P.F[q] = F[l];
+      const Mat<3>& Fq = F[l];
+      P.eps[q] = 0.5 * (Fq + Fq.transpose()) - Mat<3>::Identity();
       for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j) P.sigma[q](i, j) = s[kSym[i][j]][l];
       P.V[q] = V[l];

@@ -118,7 +118,7 @@ double johnson_cook_return(const J2Parameters& p, double q, double eps_n, double
 /// e^d by its Taylor polynomial of degree 7 for |d| <= 1/64 (truncation
 /// < (1/64)^8 / 8! = 9e-20 relative), by Estrin's scheme: three levels of
 /// multiplications instead of a chain of seven.
-template <class T> inline T exp_series(T d) {
+template <class T> [[gnu::always_inline]] inline T exp_series(T d) {
   const T d2 = d * d, d4 = d2 * d2;
   const T lo = (1.0 + d) + d2 * (1.0 / 2 + d * (1.0 / 6));
   const T hi = (1.0 / 24 + d * (1.0 / 120)) + d2 * (1.0 / 720 + d * (1.0 / 5040));

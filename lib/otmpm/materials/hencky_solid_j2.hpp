@@ -19,7 +19,50 @@
 
 #include <limits>
 
+#if defined(__x86_64__) && defined(__GNUC__)
+#define OTMPM_WIDE_LANES 1
+#endif
+
 namespace otmpm::plasticity::point {
+
+#ifdef OTMPM_WIDE_LANES
+/// Four doubles (one AVX register): the 3D J2 step of four particles,
+/// inlined into a function compiled for AVX2 (`[[gnu::target("avx2")]]`;
+/// no FMA, and the build does not contract: the lanes keep the IEEE
+/// operations of the one-particle form) and chosen at run time where the
+/// processor has AVX2 (wide_lanes()). The operations below are generic
+/// vector code, always inlined: they take the instructions of their caller.
+using Lanes4 = double __attribute__((vector_size(32)));
+/// Lane masks of Lanes4 comparisons: all ones or all zeros per lane.
+using Mask4 = long long __attribute__((vector_size(32)));
+
+template <> struct LaneOps<Lanes4> {
+  using Mask = Mask4;
+  [[gnu::always_inline]] static inline Lanes4 splat(double x) { return Lanes4{x, x, x, x}; }
+  [[gnu::always_inline]] static inline Lanes4 sqrt(Lanes4 x) {
+    return Lanes4{std::sqrt(x[0]), std::sqrt(x[1]), std::sqrt(x[2]), std::sqrt(x[3])};
+  }
+  /// The library's log lane by lane (the bits of the one-particle form).
+  [[gnu::always_inline]] static inline Lanes4 log(Lanes4 x) {
+    return Lanes4{std::log(x[0]), std::log(x[1]), std::log(x[2]), std::log(x[3])};
+  }
+  [[gnu::always_inline]] static inline Lanes4 abs(Lanes4 x) { return (Lanes4)((Mask4)x & ~(1LL << 63)); }
+  [[gnu::always_inline]] static inline Lanes4 select(Mask4 m, Lanes4 a, Lanes4 b) {
+    return (Lanes4)((m & (Mask4)a) | (~m & (Mask4)b));
+  }
+  /// a where m, +0 elsewhere (one AND).
+  [[gnu::always_inline]] static inline Lanes4 keep(Mask4 m, Lanes4 a) { return (Lanes4)(m & (Mask4)a); }
+  [[gnu::always_inline]] static inline bool any(Mask4 m) { return ((m[0] | m[1]) | (m[2] | m[3])) != 0; }
+  template <class... M> [[gnu::always_inline]] static inline Mask4 all(M... m) { return ((Mask4)m & ...); }
+};
+#endif
+
+/// The four-lane 3D J2 step is used: the processor has AVX2 and
+/// set_wide_lanes(false) was not called (j2.cpp).
+bool wide_lanes();
+/// Allows (true, the default) or forbids the four-lane step (tests compare
+/// the two paths' bits).
+void set_wide_lanes(bool allowed);
 
 /// Input and output of a 3D J2 step, one lane per particle. Symmetric
 /// tensors as (xx, yy, zz, xy, yz, xz), the order of the b_e state rows.
@@ -36,7 +79,7 @@ template <class T> struct SolidJ2 {
 };
 
 /// det A of a 3x3 matrix, with Eigen's operations (first-row cofactors).
-template <class T> inline T det3(const T (&a)[3][3]) {
+template <class T> [[gnu::always_inline]] inline T det3(const T (&a)[3][3]) {
   return a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0]) +
          a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
 }

@@ -5,6 +5,8 @@
 #include "otmpm/materials/hencky_material.hpp"
 #include "otmpm/materials/models.hpp"
 
+#include <atomic>
+
 namespace otmpm {
 
 namespace {
@@ -29,8 +31,13 @@ struct J2Model {
   /// Plane strain and 3D two particles at a time (HenckyMaterial): without
   /// a Johnson-Cook term, whose return is an iteration.
   bool lanes() const { return !p.johnson_cook; }
-  template <class T> auto plane(plasticity::point::PlaneJ2<T>& x) const { return plasticity::point::plane_j2(p, x); }
-  template <class T> auto solid(plasticity::point::SolidJ2<T>& x) const { return plasticity::point::solid_j2(p, x); }
+  template <class T> [[gnu::always_inline]] auto plane(plasticity::point::PlaneJ2<T>& x) const {
+    return plasticity::point::plane_j2(p, x);
+  }
+  /// Inlined into its caller (for four lanes an AVX2 function).
+  template <class T> [[gnu::always_inline]] auto solid(plasticity::point::SolidJ2<T>& x) const {
+    return plasticity::point::solid_j2(p, x);
+  }
 };
 
 J2Model j2_model(const MaterialParameters& m) {
@@ -55,6 +62,26 @@ template <int D> std::unique_ptr<Material<D>> make_j2(const MaterialParameters& 
 }
 
 } // namespace
+
+namespace plasticity::point {
+
+namespace {
+/// The four-lane step is allowed (set_wide_lanes).
+std::atomic<bool> wide_allowed{true};
+} // namespace
+
+bool wide_lanes() {
+#ifdef OTMPM_WIDE_LANES
+  static const bool avx2 = __builtin_cpu_supports("avx2");
+  return avx2 && wide_allowed.load(std::memory_order_relaxed);
+#else
+  return false;
+#endif
+}
+
+void set_wide_lanes(bool allowed) { wide_allowed.store(allowed, std::memory_order_relaxed); }
+
+} // namespace plasticity::point
 
 const MaterialModel& j2_model() {
   static const std::array<ParameterValue, 5> example{
