@@ -164,9 +164,21 @@ private:
   }
 
   /// F = dF F_n and J = det F of particle p; ParticleFailure when J <= 0.
+  /// In 3D by mul3 and det3, as the lanes (update_solid_lanes).
   static Mat<D> advanced_F(const Particles<D>& P, int p, const Mat<D>& dF, double& J) {
-    const Mat<D> F = dF * P.F[p];
-    J = F.determinant();
+    Mat<D> F;
+    if constexpr (D == 3) {
+      double a[3][3], b[3][3], c[3][3];
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) a[i][j] = dF(i, j), b[i][j] = P.F[p](i, j);
+      plasticity::point::mul3(a, b, c);
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) F(i, j) = c[i][j];
+      J = plasticity::point::det3(c);
+    } else {
+      F = dF * P.F[p];
+      J = F.determinant();
+    }
     if (!(J > 0.0)) [[unlikely]]
       fail_det(p, J);
     return F;
@@ -286,10 +298,9 @@ private:
 
   /// Particles p .. p + W - 1 (3D) in the W lanes of Model::solid, the
   /// stress and the state of update_one lane by lane with the same
-  /// operations; F = dF F_n and det F by Eigen per particle, as update_one
-  /// (the order of Eigen's sums in a 3x3 product depends on its
-  /// vectorisation). All by update_one where the 3D form does not cover
-  /// every lane or a J <= 0.
+  /// operations (F = dF F_n and det F by mul3 and det3, as advanced_F).
+  /// All by update_one where the 3D form does not cover every lane or a
+  /// J <= 0.
   template <class L, int W>
   [[gnu::always_inline]] static inline void update_solid_lanes(Particles<D>& P, const Rows& r, const Model& model,
                                                                int p, const Mat<D>* Hp, double dt)
@@ -309,14 +320,14 @@ private:
       m[l] = P.m[p + l];
     }
     const auto covered = model.solid(x);
-    Mat<3> F[W];
-    L J;
+    L Fn[3][3] = {}, Fv[3][3];
+    for (int l = 0; l < W; ++l)
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) Fn[i][j][l] = P.F[p + l](i, j);
+    plasticity::point::mul3(x.f, Fn, Fv);
+    const L J = plasticity::point::det3(Fv);
     bool all = true;
-    for (int l = 0; l < W; ++l) {
-      F[l] = dF[l] * P.F[p + l];
-      J[l] = F[l].determinant();
-      all = all && covered[l] && J[l] > 0.0;
-    }
+    for (int l = 0; l < W; ++l) all = all && covered[l] && J[l] > 0.0;
     if (!all) {
       for (int l = 0; l < W; ++l) update_one(P, r, model, p + l, Hp[l], dt);
       return;
@@ -328,8 +339,10 @@ private:
     constexpr int kSym[3][3] = {{0, 3, 5}, {3, 1, 4}, {5, 4, 2}}; // (xx, yy, zz, xy, yz, xz)
     for (int l = 0; l < W; ++l) {
       const int q = p + l;
-      P.F[q] = F[l];
-      const Mat<3>& Fq = F[l];
+      Mat<3> Fq;
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) Fq(i, j) = Fv[i][j][l];
+      P.F[q] = Fq;
       P.eps[q] = 0.5 * (Fq + Fq.transpose()) - Mat<3>::Identity();
       for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j) P.sigma[q](i, j) = s[kSym[i][j]][l];

@@ -78,10 +78,19 @@ template <class T> struct SolidJ2 {
   typename LaneOps<T>::Mask plastic; ///< out: the lanes in plastic flow
 };
 
-/// det A of a 3x3 matrix, with Eigen's operations (first-row cofactors).
+/// det A of a 3x3 matrix (first-row cofactors, Eigen's order).
 template <class T> [[gnu::always_inline]] inline T det3(const T (&a)[3][3]) {
   return a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0]) +
          a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
+}
+
+/// c = a b of 3x3 matrices, each entry (a_i0 b_0j + a_i1 b_1j) + a_i2 b_2j:
+/// one order for every lane width and build (that of Eigen's product
+/// depends on its vectorisation), so the 3D Hencky models advance F with
+/// the same bits on any path (HenckyMaterial::advanced_F and the lanes).
+template <class T> [[gnu::always_inline]] inline void mul3(const T (&a)[3][3], const T (&b)[3][3], T (&c)[3][3]) {
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) c[i][j] = (a[i][0] * b[0][j] + a[i][1] * b[1][j]) + a[i][2] * b[2][j];
 }
 
 /// The 3D J2 step (update3 -> update3_series with j2_return, linear
