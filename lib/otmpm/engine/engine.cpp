@@ -666,15 +666,25 @@ template <int D> void Engine<D>::constrain_velocity(AlignedVector<Vec<D>>& v, co
 }
 
 template <int D>
-template <class Change>
+template <class Change, class NodesOf>
 double WallTransfer<D>::booked(Change&& change, const BasisTable<D>& table, const Particles<D>& P,
-                            const std::vector<double>& m, const Constraints<D>& c) const {
+                            const std::vector<double>& m, const Constraints<D>& c, NodesOf&& nodes_of) const {
   auto normal_part = [&](std::size_t I) -> Vec<D> {
     const Vec<D>& n = axis[I];
     if (n == Vec<D>::Zero()) return n;
     return n.dot(change(static_cast<int>(I))) * n;
   };
+  // The nodes in ascending order (the others add zero).
+  std::vector<int> ascending(noted);
+  std::sort(ascending.begin(), ascending.end());
+  const auto none_noted = [&](int p) { // the rows of p's group reach no noted node
+    int lo, hi;
+    if (!nodes_of(p, lo, hi)) return false;
+    const auto first = std::lower_bound(ascending.begin(), ascending.end(), lo);
+    return first == ascending.end() || *first > hi;
+  };
   const double particles = blocked_reduce_ranges<double>(P.size(), [&](long long p0, long long p1, double& acc) {
+    if (none_noted(static_cast<int>(p0))) return; // every particle adds zero
     for (auto p = static_cast<int>(p0); p < p1; ++p) {
       char near = 0; // a node of the row is noted (else h is zero)
       for (int e = table.begin(p); e < table.end(p); ++e)
@@ -688,9 +698,6 @@ double WallTransfer<D>::booked(Change&& change, const BasisTable<D>& table, cons
       acc += P.m[p] * h.dot(2.0 * d - h);
     }
   });
-  // The nodes in ascending order (the others add zero).
-  std::vector<int> ascending(noted);
-  std::sort(ascending.begin(), ascending.end());
   double nodes = 0.0;
   for (const int I : ascending)
     if (c.counts(I)) {
@@ -710,7 +717,8 @@ template <int D> void Engine<D>::book_transfer(const ToParticles<D>& what) {
           if (what.kick) d += (*what.kick)[I];
           return d;
         },
-        table_, P_, nodal_.m, constraints_);
+        table_, P_, nodal_.m, constraints_,
+        [&](int p, int& lo, int& hi) { return scatter_->block_nodes(p, lo, hi); });
   transfer_.clear();
 }
 

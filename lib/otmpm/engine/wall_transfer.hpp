@@ -55,9 +55,12 @@ template <int D> struct WallTransfer {
   /// T(Delta - g) - T(Delta), change(I) = Delta_I: with d_p = sum_I N_Ip
   /// Delta_I and h_p = sum_I N_Ip g_I, |d|^2 - |d - h|^2 = h . (2 d - h).
   /// The nodes are summed where c.counts(I) (a distributed run's owned nodes).
-  template <class Change>
+  /// nodes_of(p, lo, hi): the node-id range of the rows of a group of
+  /// particles holding p, all of whose members the summing block holds
+  /// (false: unknown); a block whose range holds no noted node is skipped.
+  template <class Change, class NodesOf>
   double booked(Change&& change, const BasisTable<D>& table, const Particles<D>& P, const std::vector<double>& m,
-                const Constraints<D>& c) const; // engine.cpp (it sums over the particles in parallel blocks)
+                const Constraints<D>& c, NodesOf&& nodes_of) const; // engine.cpp (it sums over the particles in parallel blocks)
 };
 
 } // namespace otmpm
