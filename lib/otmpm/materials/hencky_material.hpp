@@ -112,7 +112,7 @@ public:
 #ifdef OTMPM_WIDE_LANES
         if constexpr (D == 3)
           if (p1 - p >= 4 && plasticity::point::wide_lanes())
-            p = update_solid_quads(P, r, model, p, p1, H - p0, dt);
+            p = update_solid_quads(P, r, model, p, p1, H + (p - p0), dt);
 #endif
         for (; p + 1 < p1; p += 2) {
           if constexpr (D == 2) update_pair(P, r, model, p, H + (p - p0), dt);
@@ -285,14 +285,16 @@ private:
 
 #ifdef OTMPM_WIDE_LANES
   /// Particles p, p + 4, ... below p1 four at a time (AVX2, solid_lanes);
-  /// H0[q] is particle q's increment. Returns the first particle not updated.
+  /// Hp[i] is particle p + i's increment. Returns the first particle not
+  /// updated.
   [[gnu::target("avx2"), gnu::noinline]] static int update_solid_quads(Particles<D>& P, const Rows& r,
                                                                      const Model& model, int p, int p1,
-                                                                     const Mat<D>* H0, double dt)
+                                                                     const Mat<D>* Hp, double dt)
     requires(D == 3)
   {
-    for (; p + 3 < p1; p += 4) update_solid_lanes<plasticity::point::Lanes4, 4>(P, r, model, p, H0 + p, dt);
-    return p;
+    int q = p;
+    for (; q + 3 < p1; q += 4) update_solid_lanes<plasticity::point::Lanes4, 4>(P, r, model, q, Hp + (q - p), dt);
+    return q;
   }
 #endif
 
