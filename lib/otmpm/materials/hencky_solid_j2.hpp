@@ -3,11 +3,12 @@
 /// The 3D J2 step with linear hardening - update3's series branch with
 /// j2_return (hencky_point.hpp) - written once for a number type T: T =
 /// double updates one particle, T = Lanes2 two particles in one SSE2
-/// register. Each lane does the IEEE operations of update3 in its order (ISO
+/// register, T = Lanes4 four in one AVX register (where the processor has
+/// AVX2). Each lane does the IEEE operations of update3 in its order (ISO
 /// C++, no contraction; ln m by the library's log, lane by lane; each lane
 /// takes as many series terms as update3 gives it), so a particle gets the
 /// bits of the general path whichever way it is updated, and results do not
-/// depend on how the particles fall into pairs (thread chunks).
+/// depend on how the particles fall into pairs or quads (thread chunks).
 ///
 /// A lane that update3 would not take through its series branch and the
 /// polynomial exponentials (det dF <= 0 or not finite, b_e_trial farther
