@@ -201,18 +201,6 @@ TEST_CASE("3D J2 in four lanes: each lane has the bits of the general update (el
 
 namespace {
 
-/// a b by point::mul3 (the order in which the 3D Hencky models advance F).
-Mat3 mul3(const Mat3& a, const Mat3& b) {
-  double x[3][3], y[3][3], z[3][3];
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j) x[i][j] = a(i, j), y[i][j] = b(i, j);
-  point::mul3(x, y, z);
-  Mat3 c;
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j) c(i, j) = z[i][j];
-  return c;
-}
-
 /// n 3D particles of a j2 material, random states and increments H (one of
 /// them far outside the form's range).
 test::J2Batch<3> make_batch(int n) {
@@ -264,7 +252,8 @@ TEST_CASE("j2 material in 3D: det F <= 0 inside a pair names that particle, the 
   test::J2Batch<3> b = make_batch(n);
   b.H[1] = Mat3::Zero();
   b.H[1](0, 0) = -1.5; // dF = diag(-0.5, 1, 1) for particle 1, paired with particle 0
-  const Mat3 F0 = mul3(Mat3::Identity() + b.H[0], b.P.F[0]); // the material's order of the product
+  double J0 = 0.0;
+  const Mat3 F0 = point::mul3(Mat3::Identity() + b.H[0], b.P.F[0], J0); // the material's order of the product
   try {
     b.material->update(b.P, 0, n, b.H.data(), 1e-3);
     FAIL("no ParticleFailure");

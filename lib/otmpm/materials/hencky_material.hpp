@@ -168,13 +168,7 @@ private:
   static Mat<D> advanced_F(const Particles<D>& P, int p, const Mat<D>& dF, double& J) {
     Mat<D> F;
     if constexpr (D == 3) {
-      double a[3][3], b[3][3], c[3][3];
-      for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) a[i][j] = dF(i, j), b[i][j] = P.F[p](i, j);
-      plasticity::point::mul3(a, b, c);
-      for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) F(i, j) = c[i][j];
-      J = plasticity::point::det3(c);
+      F = plasticity::point::mul3(dF, P.F[p], J);
     } else {
       F = dF * P.F[p];
       J = F.determinant();

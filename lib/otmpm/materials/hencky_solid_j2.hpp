@@ -94,6 +94,20 @@ template <class T> [[gnu::always_inline]] inline void mul3(const T (&a)[3][3], c
     for (int j = 0; j < 3; ++j) c[i][j] = (a[i][0] * b[0][j] + a[i][1] * b[1][j]) + a[i][2] * b[2][j];
 }
 
+/// F = a b of 3x3 matrices by mul3 above (its order of the sums), and its
+/// determinant by det3 (J), for the one-particle path and the tests.
+inline Mat<3> mul3(const Mat<3>& a, const Mat<3>& b, double& J) {
+  double x[3][3], y[3][3], z[3][3];
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) x[i][j] = a(i, j), y[i][j] = b(i, j);
+  mul3(x, y, z);
+  Mat<3> c;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) c(i, j) = z[i][j];
+  J = det3(z);
+  return c;
+}
+
 /// The 3D J2 step (update3 -> update3_series with j2_return, linear
 /// hardening): b_e_trial = dF b_e dF^T = m (I + Z), the logarithm and the
 /// power (I + Z)^beta by their Cayley-Hamilton series, the closed-form
