@@ -973,8 +973,15 @@ template <int D> void Engine<D>::reset_nodes(const CartesianGrid<D>* given) {
   }
   if (!given) laid_out_.time = t_;
   // distributed: the cells bisected afresh, the particles sent to their owners, this rank's window
-  LatticePart<D> part = dist_ ? dist_->lay_out(*this, grid, laid_out_.time, given != nullptr)
-                              : settings_.node_reset.lattice(grid, laid_out_.time);
+  LatticePart<D> part;
+  try {
+    part = dist_ ? dist_->lay_out(*this, grid, laid_out_.time, given != nullptr)
+                 : settings_.node_reset.lattice(grid, laid_out_.time);
+  } catch (const InputError& e) { // the scene was read; the state the run reached cannot be laid out
+    if (given) throw;               // a restart's lattice: its checkpoint does not fit the scene
+    unstable("the nodes could not be laid out anew on the lattice " + format_point<D>(grid.lower) + " - " +
+             format_point<D>(grid.upper) + " around the particles: " + e.what());
+  }
   const AlignedVector<Vec<D>> wall_impulse = constraints_.wall_impulse(); // the walls keep their impulse
   basis_ = std::move(part.basis);
   const int nodes = basis_->nodes().size();

@@ -1057,6 +1057,14 @@ double node_reset_fraction(const Scene& scene) {
   if (!scene.simulation.nodes_move()) return 0.0;
   for (const BodySection& b : scene.bodies)
     if (b.nodes == "mesh") return 0.0;
+  // The consistent mass on a reset lattice: its lines cut the body's cells
+  // (a cell holding one layer of particles), where M extrapolates the nodal
+  // values from one side and the run fails within steps; the advected nodes
+  // keep their cells filled. B-splines keep the reset: it also keeps their
+  // particles inside the knot vectors (docs/theory.md sect. 3).
+  if (const BasisKind* kind = find_basis_kind(scene.basis.kind);
+      scene.simulation.mass == "consistent" && kind && !kind->bspline)
+    return 0.0;
   for (const BoundarySection& a : scene.boundaries)
     for (const BoundarySection& b : scene.boundaries)
       for (std::size_t k = 0; k < 3; ++k)
