@@ -52,10 +52,12 @@ template <int D> void step_usl(Engine<D>& e, const StepContext<D>& s, bool musl)
   e.solve_mass(n.q, n.v);
   e.constrain_velocity(n.v, {.impulse = false});
   if (liquid) liquid->remap(e, dt); // w_p, its re-projection, the rigid plates
-  e.update_stress({&n.v, dt});
+  // musl: the PIC relaxation toward the remapped sum N_Ip v_I, if any, in
+  // the stress update's pass (saturated bodies: after the pore pressures).
+  const ToParticles<D> relax{.pic = &n.v, .pic_share = share};
+  e.update_stress({&n.v, dt}, liquid ? ToParticles<D>{} : relax);
   if (liquid) liquid->update_pressure(e, dt);
-  // musl: the PIC relaxation toward the remapped sum N_Ip v_I, if any.
-  if (share > 0.0) e.to_particles({.pic = &n.v, .pic_share = share});
+  if (liquid && share > 0.0) e.to_particles(relax);
 }
 
 } // namespace
