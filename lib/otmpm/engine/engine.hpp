@@ -211,9 +211,8 @@ template <int D> struct ToParticles {
   const AlignedVector<Vec<D>>* move = nullptr;
   double c_move = 0.0;
   TwoPhase<D>* liquid = nullptr;
-  /// PIC relaxation in the pass, each particle after its update: v_p +=
-  /// pic_share (sum_I N_Ip pic_I - v_p) (pic: the nodal velocities at the
-  /// step's end; share in (0, 1]),
+  /// PIC relaxation after the pass: v_p += pic_share (sum_I N_Ip pic_I -
+  /// v_p) (pic: the nodal velocities at the step's end; share in (0, 1]),
   /// the kinetic energy it removes booked as W_v (EnergyBalance::relaxation).
   const AlignedVector<Vec<D>>* pic = nullptr;
   double pic_share = 0.0;
