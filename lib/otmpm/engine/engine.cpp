@@ -31,51 +31,6 @@ namespace {
 /// update them (a batch on the stack, one virtual call per run of a material).
 constexpr int kStressBatch = 64;
 
-/// The PIC relaxation (ToParticles::pic) of particles [p0, p1) with rows of
-/// W entries (0: any length): v_p += share (sum_I N_Ip pic_I - v_p), the
-/// kinetic energy it removes added to what.relaxed[p / reduction_block] in
-/// particle order (blocked_reduce's blocks: the same bits for any thread count).
-template <int D, int W>
-void relax_rows(const BasisTable<D>& table, const ToParticles<D>& what, const double* m, Vec<D>* v, int p0, int p1) {
-  const Vec<D>* pic = what.pic->data();
-  const int* offset = table.offset.data();
-  const int* node = table.node.data();
-  const double* N = table.N.data();
-  for (int p = p0; p < p1; ++p) {
-    Vec<D> u = Vec<D>::Zero();
-    const auto [e0, e1] = row_entries<W>(offset, p);
-    for (int e = e0; e < e1; ++e) u += N[e] * pic[node[e]];
-    const Vec<D> w = v[p] + what.pic_share * (u - v[p]);
-    what.relaxed[p / reduction_block] += 0.5 * m[p] * (v[p].squaredNorm() - w.squaredNorm());
-    v[p] = w;
-  }
-}
-
-/// relax_rows on the table's row width, when the pass relaxes.
-template <int D>
-void relax_range(const BasisTable<D>& table, int width, const ToParticles<D>& what, Particles<D>& P, int p0, int p1) {
-  if (!what.relaxed) return;
-  if (width == (1 << D)) relax_rows<D, (1 << D)>(table, what, P.m.data(), P.v.data(), p0, p1);
-  else relax_rows<D, 0>(table, what, P.m.data(), P.v.data(), p0, p1);
-}
-
-/// `what` for a pass over n particles that relaxes them when it asks for
-/// it (ToParticles::relaxed into `blocks`).
-template <int D> ToParticles<D> relaxing(const ToParticles<D>& what, long long n, std::vector<double>& blocks) {
-  ToParticles<D> pass = what;
-  if (!what.pic || !(what.pic_share > 0.0)) return pass;
-  blocks.assign(static_cast<std::size_t>((n + reduction_block - 1) / reduction_block), 0.0);
-  pass.relaxed = blocks.data();
-  return pass;
-}
-
-/// The blocks' W_v summed in block order (blocked_reduce's order).
-double relaxed_total(const std::vector<double>& blocks) {
-  double total = 0.0;
-  for (const double r : blocks) total += r;
-  return total;
-}
-
 /// ul: a node lighter than this fraction of the heaviest node moves with
 /// the material it carries (Engine::advect_nodes). The lattice a body fills
 /// has none (its lightest node, a corner, carries 1/2^D of the heaviest);
@@ -802,18 +757,26 @@ template <int D>
 void Engine<D>::to_particles_and_update_stress(const ToParticles<D>& what, const Gradient<D>& g) {
   ScopedPhase timer(timers_, Phase::to_particles);
   if (what.rate) book_transfer(what);
-  // PIC relaxation (ToParticles::pic) in the same pass, the kinetic energy
-  // it removes summed in fixed blocks and booked as W_v.
-  std::vector<double> relaxed;
-  const ToParticles<D> pass = relaxing(what, P_.size(), relaxed);
   fallible([&] {
     const Gradient<D> own = average_volumetric(g) ? Gradient<D>{} : g;
     parallel_chunks(P_.size(), [&](long long begin, long long end) {
-      to_particles_on(pass, own, static_cast<int>(begin), static_cast<int>(end));
+      to_particles_on(what, own, static_cast<int>(begin), static_cast<int>(end));
     });
   });
   fbar_.ready = false;
-  if (pass.relaxed) *ledger().relaxation += relaxed_total(relaxed);
+  if (!what.pic || !(what.pic_share > 0.0)) return;
+  // PIC relaxation (ToParticles::pic), the kinetic energy it removes summed
+  // in fixed blocks (the same bits for any thread count) and booked as W_v.
+  const Vec<D>* pic = what.pic->data();
+  const double share = what.pic_share;
+  *ledger().relaxation += blocked_reduce<double>(P_.size(), [&](long long q, double& removed) {
+    const int p = static_cast<int>(q);
+    Vec<D> u = Vec<D>::Zero();
+    for (int e = table_.begin(p); e < table_.end(p); ++e) u += table_.N[e] * pic[table_.node[e]];
+    const Vec<D> v = P_.v[p] + share * (u - P_.v[p]);
+    removed += 0.5 * P_.m[p] * (P_.v[p].squaredNorm() - v.squaredNorm());
+    P_.v[p] = v;
+  });
 }
 
 template <int D>
@@ -824,10 +787,8 @@ void Engine<D>::to_particles_on(const ToParticles<D>& what, const Gradient<D>& g
     if (field) return to_particles_range<true, true, true, false, true>(what, g, begin, end);
     ToParticles<D> solid = what; // F-bar: the liquid's rows after the chunk's stress update
     solid.liquid = nullptr;
-    solid.relaxed = nullptr;
     to_particles_on(solid, g, begin, end);
-    what.liquid->update_rows(*this, begin, end);
-    return relax_range(table_, row_width_, what, P_, begin, end);
+    return what.liquid->update_rows(*this, begin, end);
   }
   if (what.kick) {
     require<std::invalid_argument>(rate && move && !field, "Engine::to_particles: a kick needs a rate and a move");
@@ -839,7 +800,7 @@ void Engine<D>::to_particles_on(const ToParticles<D>& what, const Gradient<D>& g
   else if (move && field) to_particles_range<false, true, true>(what, g, begin, end);
   else if (move) to_particles_range<false, true, false>(what, g, begin, end);
   else if (field) to_particles_range<false, false, true>(what, g, begin, end);
-  else update_stress_range({}, begin, end, what); // F-bar's updates if ready, the relaxation if asked
+  else if (fbar_.ready) update_materials(begin, end, fbar_.H.data() + begin);
 }
 
 template <int D>
@@ -898,29 +859,23 @@ void Engine<D>::to_particles_rows(const ToParticles<D>& what, const Gradient<D>&
     if constexpr (Field) update_materials(p0, p1, H);
     else if (averaged) update_materials(p0, p1, averaged + p0);
     if constexpr (Liquid) what.liquid->finish_rows(*this, p0, p1, liquid);
-    if (what.relaxed) relax_rows<D, W>(table_, what, P_.m.data(), v, p0, p1);
   }
 }
 
-template <int D> void Engine<D>::update_stress(const Gradient<D>& g, const ToParticles<D>& relax) {
+template <int D> void Engine<D>::update_stress(const Gradient<D>& g) {
   ScopedPhase timer(timers_, Phase::constitutive);
-  std::vector<double> relaxed;
-  const ToParticles<D> pass = relaxing(relax, P_.size(), relaxed);
   fallible([&] {
     average_volumetric(g);
     parallel_chunks(P_.size(), [&](long long begin, long long end) {
-      update_stress_range(g, static_cast<int>(begin), static_cast<int>(end), pass);
+      update_stress_range(g, static_cast<int>(begin), static_cast<int>(end));
     });
   });
   fbar_.ready = false;
-  if (pass.relaxed) *ledger().relaxation += relaxed_total(relaxed);
 }
 
-template <int D>
-void Engine<D>::update_stress_range(const Gradient<D>& g, int p0, int p1, const ToParticles<D>& relax) {
-  if (!fbar_.ready && g.field) return to_particles_range<false, false, true>(relax, g, p0, p1);
+template <int D> void Engine<D>::update_stress_range(const Gradient<D>& g, int p0, int p1) {
   if (fbar_.ready) update_materials(p0, p1, fbar_.H.data() + p0);
-  relax_range(table_, row_width_, relax, P_, p0, p1);
+  else to_particles_range<false, false, true>({}, g, p0, p1);
 }
 
 template <int D> void Engine<D>::move_into_hull() {

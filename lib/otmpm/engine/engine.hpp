@@ -216,10 +216,6 @@ template <int D> struct ToParticles {
   /// the kinetic energy it removes booked as W_v (EnergyBalance::relaxation).
   const AlignedVector<Vec<D>>* pic = nullptr;
   double pic_share = 0.0;
-  /// Set by the engine for its pass, not by callers: W_v per block of
-  /// reduction_block particles (the relaxation runs in the pass, each batch
-  /// of particles after its update).
-  double* relaxed = nullptr;
 };
 
 /// A nodal field g with a factor c whose gradient drives the constitutive
@@ -360,8 +356,8 @@ public:
   void to_particles_then_to_nodes(const ToParticles<D>& move, const ToNodes<D>& what);
   /// to_particles(what) and, in the same pass, the constitutive update from `g`.
   void to_particles_and_update_stress(const ToParticles<D>& what, const Gradient<D>& g);
-  /// The constitutive update from `g` (its own pass; `relax.pic`: then the PIC relaxation, ToParticles).
-  void update_stress(const Gradient<D>& g, const ToParticles<D>& relax = {});
+  /// The constitutive update from `g` alone (its own pass).
+  void update_stress(const Gradient<D>& g);
   /// Interpolates a nodal field to particle p: sum_I N_Ip y_I (table order).
   Vec<D> interpolate(int p, const AlignedVector<Vec<D>>& y) const;
   /// x_I += dx_I in `ul` mode, nothing on the fixed grid (NodeMode::advect);
@@ -436,7 +432,7 @@ private:
   const AlignedVector<Vec<D>>& field_positions() const;
   /// The constitutive update of particles [p0, p1) from H_p = c sum_I g_I (x)
   /// grad N_Ip, in batches handed to each particle's material.
-  void update_stress_range(const Gradient<D>& g, int p0, int p1, const ToParticles<D>& relax = {});
+  void update_stress_range(const Gradient<D>& g, int p0, int p1);
   /// Hands H of particles [p0, p1) to their materials (runs of one material).
   void update_materials(int p0, int p1, const Mat<D>* H);
   /// F-bar (StepSettings::volumetric): H_p of every particle from `g`, averaged

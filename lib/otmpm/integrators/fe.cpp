@@ -52,12 +52,10 @@ template <int D> void step_usl(Engine<D>& e, const StepContext<D>& s, bool musl)
   e.solve_mass(n.q, n.v);
   e.constrain_velocity(n.v, {.impulse = false});
   if (liquid) liquid->remap(e, dt); // w_p, its re-projection, the rigid plates
-  // musl: the PIC relaxation toward the remapped sum N_Ip v_I, if any, in
-  // the stress update's pass (saturated bodies: after the pore pressures).
-  const ToParticles<D> relax{.pic = &n.v, .pic_share = share};
-  e.update_stress({&n.v, dt}, liquid ? ToParticles<D>{} : relax);
+  e.update_stress({&n.v, dt});
   if (liquid) liquid->update_pressure(e, dt);
-  if (liquid && share > 0.0) e.to_particles(relax);
+  // musl: the PIC relaxation toward the remapped sum N_Ip v_I, if any.
+  if (share > 0.0) e.to_particles({.pic = &n.v, .pic_share = share});
 }
 
 } // namespace
