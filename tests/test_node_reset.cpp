@@ -4,8 +4,10 @@
 #include <doctest/doctest.h>
 
 #include "otmpm/assembly/assembler.hpp"
+#include "otmpm/integrators/integrator.hpp"
 #include "otmpm/io/results.hpp"
 #include "otmpm/run/run.hpp"
+#include "otmpm/scene/resources.hpp"
 #include "otmpm/scene/validate.hpp"
 #include "otmpm/state.hpp"
 #include "temp_dir.hpp"
@@ -361,4 +363,33 @@ TEST_CASE("node reset by default: 0.7 in ul on a node lattice, none where the la
   CHECK_NOTHROW(validate_scene(moving, 2)); // the default gives way; a given fraction is refused
   moving.simulation.node_reset = 0.5;
   CHECK_THROWS_WITH_AS(validate_scene(moving, 2), doctest::Contains("different velocities"), InputError);
+}
+
+TEST_CASE("the consistent mass: the scene's mass or an integrator that needs it, the same answer for the "
+          "assembler, the node reset and the memory estimate") {
+  // A scene built in code may leave simulation.mass "lumped" under an
+  // integrator that needs the consistent mass (the assembler refuses it);
+  // every reader asks the one question.
+  for (const IntegratorKind& integrator : integrator_kinds()) {
+    for (const char* mass : {"lumped", "consistent"}) {
+      CAPTURE(integrator.name);
+      CAPTURE(mass);
+      Scene s = impact({"basis.kind=bspline2"});
+      s.simulation.integrator = std::string(integrator.name);
+      s.simulation.mass = mass;
+      s.simulation.node_reset.reset();
+      const bool consistent = std::string(mass) == "consistent" || integrator.needs_consistent_mass;
+      CHECK(uses_consistent_mass(s) == consistent);
+      if (integrator.needs_consistent_mass && std::string(mass) == "lumped") // a scene must say it
+        CHECK_THROWS_WITH_AS(assemble_parts<2>(s), doctest::Contains("set mass = \"consistent\""), InputError);
+      else
+        CHECK(assemble_parts<2>(s).settings.consistent_mass == consistent);
+      Scene lumped = s; // the memory estimate counts the mass matrix's factor
+      lumped.simulation.mass = "lumped";
+      lumped.simulation.integrator = "npc";
+      CHECK((estimate_resources(s).bytes_per_node > estimate_resources(lumped).bytes_per_node) == consistent);
+      s.basis.kind = "linear"; // the consistent mass on a reset lattice's cut cells: no reset
+      CHECK(node_reset_fraction(s) == (consistent ? 0.0 : 0.7));
+    }
+  }
 }

@@ -237,7 +237,7 @@ template <int D> StepSettings<D> build_settings(const Scene& scene, const Integr
   s.cfl = sim.cfl;
   s.dt = sim.dt;
   s.h = h;
-  s.consistent_mass = sim.mass == "consistent" || integrator.needs_consistent_mass;
+  s.consistent_mass = uses_consistent_mass(scene);
   s.mass_tolerance = sim.mass_tolerance;
   s.energy_limit = sim.energy_limit;
   const std::string volumetric = volumetric_treatment(scene);

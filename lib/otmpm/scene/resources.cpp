@@ -150,9 +150,9 @@ ResourceEstimate estimate_resources(const Scene& scene, const SceneSize& share, 
   e.stencil = kind.stencil_nodes(scene.basis, dim);
   e.bytes_per_particle = kSafety * (kParticleBytes[d] + e.stencil * kStencilEntryBytes);
   e.bytes_per_node = kSafety * kNodeBytes;
-  if (scene.simulation.mass == "consistent" && ranks > 1)
+  if (uses_consistent_mass(scene) && ranks > 1)
     e.bytes_per_node += kSafety * kCgVectors * dim * sizeof(double);
-  else if (scene.simulation.mass == "consistent" && e.nodes > 0)
+  else if (uses_consistent_mass(scene) && e.nodes > 0)
     e.bytes_per_node += kFactorEntryBytes * factor_entries(e.nodes, support_radius(kind, e.stencil, dim), dim) / e.nodes;
   e.bytes = kBaseBytes + e.particles * e.bytes_per_particle + e.nodes * e.bytes_per_node;
   // A gravity-loading phase runs its own engine beside the run's (run/initial_equilibrium.hpp).

@@ -1052,6 +1052,11 @@ namespace {
 constexpr double kDefaultNodeReset = 0.7;
 } // namespace
 
+bool uses_consistent_mass(const Scene& scene) {
+  const IntegratorKind* integrator = find_integrator(scene.simulation.integrator);
+  return scene.simulation.mass == "consistent" || (integrator && integrator->needs_consistent_mass);
+}
+
 double node_reset_fraction(const Scene& scene) {
   if (scene.simulation.node_reset) return *scene.simulation.node_reset;
   if (!scene.simulation.nodes_move()) return 0.0;
@@ -1063,7 +1068,7 @@ double node_reset_fraction(const Scene& scene) {
   // keep their cells filled. B-splines keep the reset: it also keeps their
   // particles inside the knot vectors (docs/theory.md sect. 3).
   if (const BasisKind* kind = find_basis_kind(scene.basis.kind);
-      scene.simulation.mass == "consistent" && kind && !kind->bspline)
+      uses_consistent_mass(scene) && kind && !kind->bspline)
     return 0.0;
   for (const BoundarySection& a : scene.boundaries)
     for (const BoundarySection& b : scene.boundaries)

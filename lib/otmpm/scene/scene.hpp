@@ -337,6 +337,12 @@ LatticeBox node_lattice_box(const Scene& scene);
 /// internal variables), "none" otherwise (docs/theory.md sect. 9.8).
 std::string volumetric_treatment(const Scene& scene);
 
+/// True when the run uses the consistent mass matrix: simulation.mass =
+/// "consistent", or an integrator that needs it (`unified`; scenes read from
+/// a file name it, scenes built in code may leave it out). The assembler, the
+/// checks and the defaults that depend on it all ask here.
+bool uses_consistent_mass(const Scene& scene);
+
 /// simulation.node_reset, or when the scene does not give it the default:
 /// 0.7 in `ul` mode on a node lattice (not a mesh's vertices) whose
 /// boundaries that fix an axis share its velocity (the reset lattice moves

@@ -302,9 +302,7 @@ void check_contact(const Scene& s) {
                          "the fixed grid's nodal fields, and in \"ul\" mode, where the nodes move with the "
                          "material, contact between bodies is not implemented (remove [contact] or use mode = "
                          "\"mpm\"; rigid [[wall]]s work in both modes)");
-  const IntegratorKind* integrator = find_integrator(s.simulation.integrator);
-  const bool consistent = s.simulation.mass == "consistent" || (integrator && integrator->needs_consistent_mass);
-  if (consistent)
+  if (uses_consistent_mass(s))
     input_error(c.where, "body-body contact needs the lumped mass (simulation.mass = \"lumped\"): the "
                          "correction acts node by node on each body's velocity field");
 }
