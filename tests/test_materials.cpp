@@ -328,6 +328,56 @@ TEST_CASE("linear_elastic's stored energy: V (phi1 sigma0 : eps + phi2 eps : C :
   CHECK(dissipated == 0.0);
 }
 
+template <int D> void check_energy_batches() {
+  // 150 particles (two batches of the weights and a remainder) whose
+  // tr eps runs from -0.3 to 0.3, on both sides of the series' bound |a| =
+  // 0.1, every seventh at it: the sum over the range has the bits of the
+  // particles added one call at a time, and the value of eq. 11.1a.
+  auto m = make_material<D>({.name = "m", .model = "linear_elastic", .density = 1000.0, .young = kE, .poisson = kNu,
+                             .extra = {}});
+  Particles<D> P;
+  const int n = 150;
+  P.resize(n);
+  for (int p = 0; p < n; ++p) {
+    const double a = -0.3 + 0.6 * p / (n - 1);
+    P.eps[p] = (p % 7 == 0 ? 0.1 : a) / D * Mat<D>::Identity() + 1e-3 * (p % 5) * sample_matrix<D>();
+    P.sigma[p] = (-1e4 * (1 + p % 3)) * Mat<D>::Identity() + 10.0 * p * sample_matrix<D>();
+    P.V[p] = 1.0 + 0.01 * p;
+  }
+  double range = 0.0, single = 0.0, dissipated = 0.0;
+  m->add_energies(P, 0, n, range, dissipated);
+  for (int p = 0; p < n; ++p) m->add_energies(P, p, p + 1, single, dissipated);
+  CHECK(std::isfinite(range));
+  CHECK(range == single);
+  // eq. 11.1a term by term: phi_1 = (1 - e^-a) / a, phi_2 = (a - 1 + e^-a) / a^2, by
+  // their series to a^7 (Horner) below |a| = 0.1 - the bits of the model's sum.
+  double expected = 0.0;
+  for (int p = 0; p < n; ++p) {
+    const double a = P.eps[p].trace();
+    double phi1 = -std::expm1(-a) / a, phi2 = (a + std::expm1(-a)) / (a * a);
+    if (std::abs(a) < 0.1) {
+      phi1 = phi2 = 0.0;
+      double factorial = 40320.0; // 8!
+      for (int k = 7; k >= 0; --k) {
+        phi1 = 1.0 / factorial - a * phi1; // 1 / (k + 1)!
+        phi2 = 1.0 / (factorial * (k + 2)) - a * phi2; // 1 / (k + 2)!
+        factorial /= (k + 1);
+      }
+    }
+    const Mat<D> c_eps = otmpm::elastic_stress_increment<D>({1000.0, kE, kNu}, P.eps[p]);
+    expected += P.V[p] * (phi1 * (P.sigma[p] - c_eps).cwiseProduct(P.eps[p]).sum() +
+                          phi2 * c_eps.cwiseProduct(P.eps[p]).sum());
+  }
+  CHECK(range == doctest::Approx(expected).epsilon(1e-15));
+}
+
+TEST_CASE("linear_elastic's stored energy over a range has the bits of one particle at a time (its weights in "
+          "batches, both sides of the series' bound)") {
+  check_energy_batches<1>();
+  check_energy_batches<2>();
+  check_energy_batches<3>();
+}
+
 namespace {
 
 /// Drives one particle (V0 = 1) of `model` along the straight path F(s) = I
