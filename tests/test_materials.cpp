@@ -330,9 +330,10 @@ TEST_CASE("linear_elastic's stored energy: V (phi1 sigma0 : eps + phi2 eps : C :
 
 template <int D> void check_energy_batches() {
   // 150 particles (two batches of the weights and a remainder) whose
-  // tr eps runs from -0.3 to 0.3, on both sides of the series' bound |a| =
-  // 0.1, every seventh at it: the sum over the range has the bits of the
-  // particles added one call at a time, and the value of eq. 11.1a.
+  // tr eps runs from about -0.3 to 0.3, on both sides of the series' bound
+  // |a| = 0.1, every seventh next to it (at it where the perturbation is
+  // zero): the sum over the range has the bits of the particles added one
+  // call at a time, and the value of eq. 11.1a to round-off.
   auto m = make_material<D>({.name = "m", .model = "linear_elastic", .density = 1000.0, .young = kE, .poisson = kNu,
                              .extra = {}});
   Particles<D> P;
@@ -350,7 +351,7 @@ template <int D> void check_energy_batches() {
   CHECK(std::isfinite(range));
   CHECK(range == single);
   // eq. 11.1a term by term: phi_1 = (1 - e^-a) / a, phi_2 = (a - 1 + e^-a) / a^2, by
-  // their series to a^7 (Horner) below |a| = 0.1 - the bits of the model's sum.
+  // their series to a^7 (Horner) below |a| = 0.1, its factorials formed here.
   double expected = 0.0;
   for (int p = 0; p < n; ++p) {
     const double a = P.eps[p].trace();
