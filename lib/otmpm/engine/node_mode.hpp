@@ -47,18 +47,19 @@ public:
   }
   /// keeps_inside for every particle of [p0, p1) of the finite positions x
   /// and velocities v (a non-finite one may pass: finite_state tests those):
-  /// the smallest distance of x and x + dt v to the box's faces, taken with
-  /// vector operations over the particles, is positive. For finite values
-  /// x - lo > 0 exactly when x > lo, so the answer is keeps_inside's.
+  /// the smallest and largest coordinates of x and x + dt v, taken with
+  /// vector operations over the particles, lie strictly inside the box - for
+  /// finite values keeps_inside's answer.
   bool keep_inside(const Vec<D>* x, const Vec<D>* v, int p0, int p1, double dt) const {
     if (advected_) return true;
-    const Vec<D> lo = grid_.lo, hi = grid_.hi;
-    Vec<D> margin = Vec<D>::Constant(std::numeric_limits<double>::infinity());
+    constexpr double inf = std::numeric_limits<double>::infinity();
+    Vec<D> least = Vec<D>::Constant(inf), most = Vec<D>::Constant(-inf);
     for (int p = p0; p < p1; ++p) {
       const Vec<D> y = x[p] + dt * v[p];
-      margin = margin.cwiseMin(x[p] - lo).cwiseMin(hi - x[p]).cwiseMin(y - lo).cwiseMin(hi - y);
+      least = least.cwiseMin(x[p]).cwiseMin(y);
+      most = most.cwiseMax(x[p]).cwiseMax(y);
     }
-    return (margin.array() > 0.0).all();
+    return (least.array() > grid_.lo.array()).all() && (most.array() < grid_.hi.array()).all();
   }
   /// Why keeps_inside(x, v, dt) is false, for the diagnosis.
   std::string leaving(const Vec<D>& x, const Vec<D>& v) const;

@@ -242,7 +242,13 @@ private:
   /// add() of each entry of particles [begin, end) into at(node), in
   /// particle order; rows of W entries (W = 0: any length).
   template <int W, class At, class Prep, class Add>
-  static void rows_sums(const BasisTable<D>& table, int begin, int end, At at, Prep& prep, Add& add) {
+  static void rows_sums(const BasisTable<D>& table, int begin, int end, At at, const Prep& prep_in,
+                        const Add& add_in) {
+    // Local copies of the two functions (their captured pointers): the
+    // sums' vector stores may alias any memory, so members reached through
+    // the references would be loaded again for every entry.
+    const Prep prep = prep_in;
+    const Add add = add_in;
     const int* offset = table.offset.data();
     const int* node = table.node.data();
     for (int p = begin; p < end; ++p) {

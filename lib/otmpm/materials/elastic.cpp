@@ -6,6 +6,7 @@
 /// and, for the two laws without a potential, the work of the law's own
 /// stress along the straight path to the particle's state (docs/theory.md
 /// eqs. 11.1a-11.1b).
+#include "otmpm/materials/hencky_solid_j2.hpp"
 #include "otmpm/materials/models.hpp"
 #include "otmpm/materials/pore_fluid.hpp"
 
@@ -58,6 +59,16 @@ struct StraightPathWeights {
 /// Particles per batch of LinearElastic::add_energies' weights.
 constexpr int kEnergyBatch = 64;
 
+#ifdef OTMPM_WIDE_LANES
+/// The series loop of straight_path_weights compiled for AVX2 (four
+/// particles per instruction; no FMA, so each value has the bits of the
+/// portable loop), chosen where plasticity::point::wide_lanes() allows it.
+[[gnu::target("avx2"), gnu::noinline]] void straight_path_series_avx2(const double* a, int n, double* phi1,
+                                                                      double* phi2) {
+  for (int i = 0; i < n; ++i) StraightPathWeights::series(a[i], phi1[i], phi2[i]);
+}
+#endif
+
 /// StraightPathWeights of a = tr eps_i for the n strains eps[0, n), into
 /// phi1[i] and phi2[i]: the series for every i in one loop the compiler
 /// vectorises, then the closed form where |a| >= 0.1 - each value the one
@@ -65,7 +76,11 @@ constexpr int kEnergyBatch = 64;
 template <int D> void straight_path_weights(const Mat<D>* eps, int n, double* phi1, double* phi2) {
   double a[kEnergyBatch];
   for (int i = 0; i < n; ++i) a[i] = eps[i].trace();
-  for (int i = 0; i < n; ++i) StraightPathWeights::series(a[i], phi1[i], phi2[i]);
+#ifdef OTMPM_WIDE_LANES
+  if (plasticity::point::wide_lanes()) straight_path_series_avx2(a, n, phi1, phi2);
+  else
+#endif
+    for (int i = 0; i < n; ++i) StraightPathWeights::series(a[i], phi1[i], phi2[i]);
   for (int i = 0; i < n; ++i)
     if (!(std::abs(a[i]) < 0.1)) {
       const StraightPathWeights w(a[i]);

@@ -58,10 +58,11 @@ template <> struct LaneOps<Lanes4> {
 };
 #endif
 
-/// The four-lane 3D J2 step is used: the processor has AVX2 and
-/// set_wide_lanes(false) was not called (j2.cpp).
+/// The four-lane (AVX2) forms are used - the 3D J2 step, and
+/// linear_elastic's straight-path energy weights (elastic.cpp): the
+/// processor has AVX2 and set_wide_lanes(false) was not called (j2.cpp).
 bool wide_lanes();
-/// Allows (true, the default) or forbids the four-lane step (tests compare
+/// Allows (true, the default) or forbids the four-lane forms (tests compare
 /// the two paths' bits).
 void set_wide_lanes(bool allowed);
 
