@@ -47,7 +47,7 @@ work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 export OMP_NUM_THREADS=1 OMP_WAIT_POLICY=passive
 taylor="$root/examples/taylor_bar/full_cylinder.toml"
-taylor_particles=16848
+taylor_particles=16848 # the particles `otmpm run` seeds for that scene in `mpm` (its header says so)
 
 "$build/bench/bench_machine" --repeat 3 > "$work/machine"
 machine() { sed -n "s/^$1 //p" "$work/machine"; }
@@ -91,7 +91,7 @@ block() {
   row "$name" "$rate" "$(per_particle_step "$sum1" "$sum2" $(( (s2 - s1) * particles )))"
 }
 
-# taylor_steps T_END: "summary steps" of a cachegrind run of the Taylor bar to T_END
+# taylor_cachegrind T_END: "summary steps" of a cachegrind run of the Taylor bar to T_END
 taylor_cachegrind() {
   local sum
   sum=$(cachegrind_summary "$build/bin/otmpm" run "$taylor" --threads 1 --set output.every=0 \
