@@ -75,12 +75,16 @@ double adds(long loops, bool independent) {
 int main(int argc, char** argv) {
   int repeat = 5;
   double mb = 256.0;
-  for (int i = 1; i + 1 < argc; i += 2) {
+  for (int i = 1; i < argc; i += 2) {
     const std::string a = argv[i];
-    if (a == "--repeat") repeat = std::max(1, std::atoi(argv[i + 1]));
-    else if (a == "--mb") mb = std::max(1.0, std::atof(argv[i + 1]));
+    char* end = nullptr;
+    const double value = i + 1 < argc ? std::strtod(argv[i + 1], &end) : 0.0;
+    const bool number = end && *end == '\0' && value >= 1.0;
+    if (number && a == "--repeat") repeat = static_cast<int>(value);
+    else if (number && a == "--mb") mb = value;
     else {
-      std::fprintf(stderr, "usage: bench_machine [--repeat R] [--mb M]\n");
+      std::fprintf(stderr, "bench_machine: '%s'%s: usage: bench_machine [--repeat R] [--mb M] (R, M >= 1)\n", argv[i],
+                   i + 1 < argc ? "" : " without a value");
       return 2;
     }
   }
