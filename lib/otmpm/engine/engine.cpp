@@ -542,10 +542,14 @@ template <int D> void Engine<D>::list_visited_nodes() {
   char* mark = nodal_.listed.data();
   // Each thread marks the nodes of its own particles' rows (their table
   // entries stay in its caches); a node two threads mark gets the same 1.
+  // The bounds and pointers in locals: a char store may alias any memory,
+  // so members read in the loop would be loaded again after every mark.
   parallel_chunks(table_.rows(), [&](long long p0, long long p1) {
     const int* node = table_.node.data();
-    for (int e = table_.begin(static_cast<int>(p0)); e < table_.end(static_cast<int>(p1) - 1); ++e)
-      std::atomic_ref<char>(mark[node[e]]).store(1, std::memory_order_relaxed);
+    char* const marks = mark;
+    const int e1 = table_.end(static_cast<int>(p1) - 1);
+    for (int e = table_.begin(static_cast<int>(p0)); e < e1; ++e)
+      std::atomic_ref<char>(marks[node[e]]).store(1, std::memory_order_relaxed);
   });
   for (const int I : constraints_.fixed_nodes()) mark[I] = 1;
   if (static_cast<int>(list.size()) < nodes)
