@@ -180,10 +180,15 @@ TEST_CASE_TEMPLATE_DEFINE("linear on a lattice: evaluate, evaluate_fixed and the
   const auto b = make_linear_basis<D>(NodeSet<D>::cartesian(g));
   REQUIRE(b->fixed_stencil() == S);
   AlignedVector<Vec<D>> x = sample_points(g, 11u);
-  // within the 1e-12-cell slack outside the boundary: clamped onto it
-  Vec<D> slack = g.upper;
-  slack[0] += 1e-14 * g.h()[0];
-  x.push_back(slack);
+  // within the 1e-12-cell slack outside the boundary, below and above on
+  // each axis (u < 0 and u > cells): clamped onto it
+  for (int k = 0; k < D; ++k) {
+    Vec<D> below = g.lower, above = g.upper;
+    below[k] -= 1e-14 * g.h()[k];
+    above[k] += 1e-14 * g.h()[k];
+    x.push_back(below);
+    x.push_back(above);
+  }
   const int n = static_cast<int>(x.size());
   std::vector<int> node(static_cast<std::size_t>(n * S), -1);
   std::vector<double> N(node.size(), -1.0);

@@ -17,6 +17,10 @@
 #include <utility>
 #include <vector>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 namespace otmpm {
 
 namespace detail {
@@ -290,6 +294,7 @@ public:
       lattice_.d[k][1] = 1.0 / h_[k];
       lattice_.d[k][0] = -lattice_.d[k][1];
       lattice_.last_cell[k] = grid_.cells[k] - 1;
+      lattice_.last[k] = grid_.cells[k] - 1;
       lattice_.stride[k] = s;
     }
     for (int a = 0; a < kCorners<D>; ++a) {
@@ -355,6 +360,7 @@ private:
     double lower[D], h[D];
     double d[D][2];       ///< d N / d x_k of the lower / upper 1D hat: -1/h_k, 1/h_k
     int last_cell[D];     ///< cells - 1 per axis
+    double last[D];       ///< last_cell as a double (the two-lane hats)
     int stride[D];        ///< node-id stride per axis
     int corner_offset[kCorners<D>]; ///< node id of corner a minus that of corner 0
   };
@@ -397,6 +403,9 @@ private:
   /// to right in axis order (the bits of the tests and state hashes).
   [[gnu::always_inline]] static inline bool hats(const Lattice& L, const Vec<D>& x, int* node, double* N, Vec<D>* dN,
                                                  Index<D>* cell) {
+#if defined(__SSE2__)
+    if constexpr (D > 1) return hats_in_lanes(L, x, node, N, dN, cell);
+#endif
     for (int k = 0; k < D; ++k)
       if (!(x[k] >= L.lo[k] && x[k] <= L.hi[k])) return false; // also for NaN
     double w[D][2];
@@ -441,6 +450,89 @@ private:
     }
     return true;
   }
+
+#if defined(__SSE2__)
+  /// Axes 0 and 1 of hats() in the two lanes of SSE2 registers: the
+  /// cell's indices c_0, c_1 and the pairs the products take, w_0 = (1 -
+  /// t_0, t_0), w_1 = (1 - t_1, t_1), and per lower / upper node of axis 0
+  /// (d_0, w_0) and of axis 1 (w_1, d_1). Every value comes from the
+  /// operations of the generic form on the same operands, so the table has
+  /// its bits: the cell index clamps u to [0, last] before truncating, which
+  /// for the u >= -1e-12 of the widened box is the generic clamp of the
+  /// truncation; t = clamp(u - c, 0, 1) by maxpd / minpd, which return the
+  /// bound where u - c equals it (u - c is never -0 here: x - x rounds to
+  /// +0). False when x_0 or x_1 is outside the box or not finite.
+  struct PairHats {
+    __m128d w0, w1, a0, a1, b0, b1;
+    int c0, c1;
+  };
+  [[gnu::always_inline]] static inline bool pair_hats(const Lattice& L, const double* x, PairHats& p) {
+    const __m128d xv = _mm_loadu_pd(x);
+    const __m128d in = _mm_and_pd(_mm_cmpge_pd(xv, _mm_loadu_pd(L.lo)), _mm_cmple_pd(xv, _mm_loadu_pd(L.hi)));
+    if (_mm_movemask_pd(in) != 3) return false; // also for NaN
+    const __m128d zero = _mm_setzero_pd(), one = _mm_set1_pd(1.0);
+    const __m128d u = _mm_div_pd(_mm_sub_pd(xv, _mm_loadu_pd(L.lower)), _mm_loadu_pd(L.h));
+    const __m128i c = _mm_cvttpd_epi32(_mm_min_pd(_mm_max_pd(u, zero), _mm_loadu_pd(L.last)));
+    const __m128d t = _mm_min_pd(_mm_max_pd(_mm_sub_pd(u, _mm_cvtepi32_pd(c)), zero), one);
+    p.c0 = _mm_cvtsi128_si32(c);
+    p.c1 = _mm_cvtsi128_si32(_mm_shuffle_epi32(c, 1));
+    const __m128d s = _mm_sub_pd(one, t); // (1 - t_0, 1 - t_1)
+    p.w0 = _mm_unpacklo_pd(s, t);
+    p.w1 = _mm_unpackhi_pd(s, t);
+    const __m128d d0 = _mm_loadu_pd(L.d[0]), d1 = _mm_loadu_pd(L.d[1]);
+    p.a0 = _mm_unpacklo_pd(d0, p.w0);
+    p.a1 = _mm_unpackhi_pd(d0, p.w0);
+    p.b0 = _mm_unpacklo_pd(p.w1, d1);
+    p.b1 = _mm_unpackhi_pd(p.w1, d1);
+    return true;
+  }
+
+  /// hats() in 2D and 3D with axes 0 and 1 in lanes (pair_hats) and axis 2
+  /// as the generic form takes it: the same bits.
+  [[gnu::always_inline]] static inline bool hats_in_lanes(const Lattice& L, const Vec<D>& x, int* node, double* N,
+                                                          Vec<D>* dN, Index<D>* cell) {
+    PairHats p;
+    if (!pair_hats(L, x.data(), p)) return false;
+    int base = L.stride[0] * p.c0 + L.stride[1] * p.c1;
+    double w2[2] = {1.0, 1.0};
+    int c2 = 0;
+    if constexpr (D == 3) {
+      if (!(x[2] >= L.lo[2] && x[2] <= L.hi[2])) return false;
+      const double u = (x[2] - L.lower[2]) / L.h[2];
+      c2 = std::clamp(static_cast<int>(u), 0, L.last_cell[2]);
+      const double t = std::clamp(u - c2, 0.0, 1.0);
+      w2[0] = 1.0 - t, w2[1] = t;
+      base += L.stride[2] * c2;
+    }
+    if (cell) {
+      (*cell)[0] = p.c0, (*cell)[1] = p.c1;
+      if constexpr (D == 3) (*cell)[2] = c2;
+    }
+    for (int a = 0; a < kCorners<D>; ++a) node[a] = base + L.corner_offset[a];
+    const __m128d ww_lo = _mm_mul_pd(p.w0, _mm_unpacklo_pd(p.w1, p.w1)); // w_0 w_1 of corners 0, 1
+    const __m128d ww_hi = _mm_mul_pd(p.w0, _mm_unpackhi_pd(p.w1, p.w1)); // of corners 2, 3
+    const __m128d dw[4] = {_mm_mul_pd(p.a0, p.b0), _mm_mul_pd(p.a1, p.b0), _mm_mul_pd(p.a0, p.b1),
+                           _mm_mul_pd(p.a1, p.b1)}; // (d_0 w_1, w_0 d_1) of corners 0 - 3
+    if constexpr (D == 2) {
+      _mm_storeu_pd(N, ww_lo);
+      _mm_storeu_pd(N + 2, ww_hi);
+      for (int a = 0; a < 4; ++a) _mm_storeu_pd(dN[a].data(), dw[a]);
+    } else {
+      const double ww[4] = {_mm_cvtsd_f64(ww_lo), _mm_cvtsd_f64(_mm_unpackhi_pd(ww_lo, ww_lo)), _mm_cvtsd_f64(ww_hi),
+                            _mm_cvtsd_f64(_mm_unpackhi_pd(ww_hi, ww_hi))};
+      for (int a2 = 0; a2 < 2; ++a2) {
+        const __m128d w = _mm_set1_pd(w2[a2]);
+        _mm_storeu_pd(N + 4 * a2, _mm_mul_pd(ww_lo, w));
+        _mm_storeu_pd(N + 4 * a2 + 2, _mm_mul_pd(ww_hi, w));
+        for (int a = 0; a < 4; ++a) {
+          _mm_storeu_pd(dN[4 * a2 + a].data(), _mm_mul_pd(dw[a], w));
+          dN[4 * a2 + a][2] = ww[a] * L.d[2][a2];
+        }
+      }
+    }
+    return true;
+  }
+#endif
 
   /// Finds the element containing x and evaluates its shape functions there.
   /// Start: the hint, else the Cartesian guess. Walk: to the neighbour across
