@@ -49,7 +49,6 @@ def read_otmpm(path):
         frames = sorted(f["frames"].keys())
         last = f["frames"][frames[-1]]
         out = {name: np.array(last[name]) for name in ("x", "v", "stress") if name in last}
-        out["t"] = float(last.attrs["time"])
     return out
 
 
