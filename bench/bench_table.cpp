@@ -2,10 +2,13 @@
 // (throughput: the 2D block and the Dyka strip; methods: the methods' relative
 // cost, the fixed bar, the 3D block; plastic: the 3D j2 block against
 // neo_hookean and the full 3D Taylor bar) in one run; --table threads: each
-// case of the targets on one and two threads, the speed-up (not in "all").
+// case of the targets on one and two threads, the speed-up (not in "all");
+// --table targets: the current round's targets (the 10^6-particle block in
+// fe and musl, the LME rows, then the plastic and the threads tables; not in
+// "all").
 //
 //   OMP_NUM_THREADS=2 build-bench/bench/bench_table [--repeat R]
-//       [--table throughput|methods|lme|plastic|threads|all]
+//       [--table throughput|methods|lme|plastic|threads|targets|all]
 //       [--quick] [--scaling-csv FILE] [--scaling3d-csv FILE]
 //
 // Cases that are compared (linear vs LME, ul vs mpm, 2 threads vs 1, the
@@ -217,6 +220,16 @@ Scene block3(int cells, const std::string& material) {
   return parse_scene(block_scene(3, cells, "linear", "npc", "mpm", 3.0, material), "block3d.toml");
 }
 
+/// The 2D block (block_scene) of `cells`^2 cells.
+Scene block2(int cells, const char* basis, const char* integrator, const char* mode = "mpm") {
+  return parse_scene(block_scene(cells, basis, integrator, mode, 3.0), "block.toml");
+}
+
+/// A case that times `n` steps of a fresh engine of `s` on `threads` threads.
+Case stepped(std::string name, const Scene& s, long n, int threads) {
+  return Case{std::move(name), [s, n, threads] { return time_run<2>(s, n, threads); }};
+}
+
 /// The plastic table: the 3D block in j2 plastic flow against the same block
 /// of neo_hookean, time per step (interleaved, one engine each, 100 steps
 /// of settling first), and the full 3D Taylor bar, whole runs.
@@ -278,9 +291,6 @@ std::pair<Case, Case> thread_cases(const std::string& name, const Scene& scene, 
 void threads_table(int repeat, bool quick) {
   const int big = quick ? 60 : 500, mid = quick ? 40 : 200, cube = quick ? 10 : 64, small_cube = quick ? 8 : 32;
   const long steps = quick ? 2 : 10;
-  auto block2 = [](int cells, const char* basis, const char* integrator) {
-    return parse_scene(block_scene(cells, basis, integrator, "mpm", 3.0), "block.toml");
-  };
   // linear fe, LME npc (the methods table's pairing); not block3() below, which is linear npc
   auto cube_scene = [](int cells, const char* basis, const std::string& material) {
     return parse_scene(block_scene(3, cells, basis, std::string(basis) == "lme" ? "npc" : "fe", "mpm", 3.0, material),
@@ -319,6 +329,52 @@ void threads_table(int repeat, bool quick) {
   print_cases(cases);
 }
 
+/// The 2D block of 10^6 particles (500^2 cells), linear basis, `fe` and
+/// `musl` on one core: one engine each, a settling step, then `repeat`
+/// interleaved repetitions of a few steps.
+std::pair<Case, Case> big_block_cases(int repeat, bool quick) {
+  const int cells = quick ? 60 : 500;
+  const long steps = quick ? 2 : 10;
+  const Scene s_fe = block2(cells, "linear", "fe"), s_musl = block2(cells, "linear", "musl");
+  set_threads(1);
+  Engine<2> e_fe = assemble<2>(s_fe), e_musl = assemble<2>(s_musl);
+  e_fe.step(), e_musl.step();
+  const std::string name = "2D block " + std::to_string(cells) + "^2 cells linear ";
+  Case fe{name + "fe, 1 thread", [&] { return time_steps(e_fe, steps, 1, s_fe.simulation.t_end); }};
+  Case musl{name + "musl, 1 thread", [&] { return time_steps(e_musl, steps, 1, s_musl.simulation.t_end); }};
+  interleave({&fe, &musl}, repeat);
+  fe.run = musl.run = nullptr; // the engines end here
+  return {fe, musl};
+}
+
+/// The targets of the current performance round that one process measures:
+/// the 10^6-particle block's rate in `fe` and `musl`, the LME / linear time
+/// per step of the 2D and the 3D block; then the plastic table (j2 against
+/// neo_hookean, the full Taylor bar) and the threads table (every case on
+/// two threads). The bytes per particle-step are cachegrind's
+/// (scripts/roofline.sh, which scripts/bench.sh --table targets runs after).
+void targets_table(int repeat, bool quick) {
+  const auto [fe, musl] = big_block_cases(repeat, quick);
+  const int cells = quick ? 60 : 200, cells3 = quick ? 12 : 64;
+  const long steps = quick ? 5 : 20;
+  Case lin = stepped("2D block linear fe mpm, 1 thread", block2(cells, "linear", "fe"), steps, 1);
+  Case lme = stepped("2D block lme npc mpm, 1 thread", block2(cells, "lme", "npc"), steps / 2, 1);
+  interleave({&lin, &lme}, repeat);
+  Case lin3, lme3;
+  block3d_cases(cells3, quick, repeat, lin3, lme3, nullptr);
+  std::vector<Row> rows{{fmt("2D block (%.0f particles), linear fe: particle-steps/s, one core", double(fe.last.particles)),
+                         ">= 6e7", fmt("%.3g", rate(fe)), rate(fe) >= 6e7},
+                        {"same, linear musl", ">= 6e7", fmt("%.3g", rate(musl)), rate(musl) >= 6e7}};
+  for (const Row& r : lme_rows(ratio(lme, lin), ratio(lme3, lin3), block3d_name(cells3, lin3))) rows.push_back(r);
+  std::printf("%d interleaved repetitions; medians\n\n", repeat);
+  print_table("target figure", rows);
+  print_cases({&fe, &musl, &lin, &lme, &lin3, &lme3});
+  std::printf("\n");
+  plastic_table(repeat, quick);
+  std::printf("\n");
+  threads_table(repeat, quick);
+}
+
 } // namespace
 
 int main(int argc, char** argv) {
@@ -335,14 +391,15 @@ int main(int argc, char** argv) {
     else if (a == "--table" && i + 1 < argc) table = argv[++i];
     else if (a == "--quick") quick = true;
     else {
-      std::fprintf(stderr, "usage: bench_table [--repeat R] [--table throughput|methods|lme|plastic|threads|all] "
+      std::fprintf(stderr, "usage: bench_table [--repeat R] [--table throughput|methods|lme|plastic|threads|targets|all] "
                            "[--quick] [--scaling-csv FILE] [--scaling3d-csv FILE]\n");
       return 2;
     }
   }
   if (table != "throughput" && table != "methods" && table != "lme" && table != "plastic" && table != "threads" &&
-      table != "all") {
-    std::fprintf(stderr, "bench_table: --table must be throughput, methods, lme, plastic, threads or all, not '%s'\n",
+      table != "targets" && table != "all") {
+    std::fprintf(stderr,
+                 "bench_table: --table must be throughput, methods, lme, plastic, threads, targets or all, not '%s'\n",
                  table.c_str());
     return 2;
   }
@@ -358,21 +415,21 @@ int main(int argc, char** argv) {
     threads_table(repeat, quick);
     return 0;
   }
+  if (table == "targets") {
+    targets_table(repeat, quick);
+    return 0;
+  }
   const bool throughput = table == "throughput" || table == "all", methods = table == "methods" || table == "all";
   const bool lme_only = table == "lme";
 
   // The 2D block and the Dyka strip: rows of both tables.
   const int cells = quick ? 60 : 200;
   const long steps = quick ? 5 : 20;
-  auto block = [&](const char* basis, const char* integrator, const char* mode) {
-    return parse_scene(block_scene(cells, basis, integrator, mode, 3.0), "block.toml");
-  };
-  auto stepped = [](const Scene& s, long n, int threads) { return [s, n, threads] { return time_run<2>(s, n, threads); }; };
-  Case lin{"2D block linear fe mpm, 1 thread", stepped(block("linear", "fe", "mpm"), steps, 1)};
-  Case lme{"2D block lme npc mpm, 1 thread", stepped(block("lme", "npc", "mpm"), steps / 2, 1)};
-  Case lme_ul{"2D block lme npc ul, 1 thread", stepped(block("lme", "npc", "ul"), steps / 2, 1)};
-  Case lin2{"2D block linear fe mpm, 2 threads", stepped(block("linear", "fe", "mpm"), steps, 2)};
-  Case dyka{"dyka strip 160 lme npc, 1 thread", stepped(dyka_strip(160, {"basis.gamma_lme=3.0"}), quick ? 200 : 0, 1)};
+  Case lin = stepped("2D block linear fe mpm, 1 thread", block2(cells, "linear", "fe"), steps, 1);
+  Case lme = stepped("2D block lme npc mpm, 1 thread", block2(cells, "lme", "npc"), steps / 2, 1);
+  Case lme_ul = stepped("2D block lme npc ul, 1 thread", block2(cells, "lme", "npc", "ul"), steps / 2, 1);
+  Case lin2 = stepped("2D block linear fe mpm, 2 threads", block2(cells, "linear", "fe"), steps, 2);
+  Case dyka = stepped("dyka strip 160 lme npc, 1 thread", dyka_strip(160, {"basis.gamma_lme=3.0"}), quick ? 200 : 0, 1);
   std::vector<Case*> block_cases{&lin, &lme};
   if (throughput) block_cases.insert(block_cases.end(), {&lme_ul, &lin2});
   if (!lme_only) block_cases.push_back(&dyka);

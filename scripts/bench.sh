@@ -2,7 +2,7 @@
 # Runs every row of the performance tables (throughput, methods, plastic) and prints
 # them with target, measured value and met or not (see docs/performance.md):
 #
-#   bash scripts/bench.sh [--repeat R] [--native] [--table throughput|methods|lme|plastic|threads|all] [--quick] [--no-output]
+#   bash scripts/bench.sh [--repeat R] [--native] [--table throughput|methods|lme|plastic|threads|targets|all] [--quick] [--no-output]
 #
 # Builds build-bench (Release, benchmarks, no tests, the portable default
 # flags; with --native build-bench-native with -march=native), runs
@@ -16,7 +16,11 @@
 # whose figures mean nothing. --table lme: only the methods table's two LME
 # rows (the 2D and the 3D block, LME npc / linear fe), no plots. --table
 # threads: each case of the performance targets on one and on two threads,
-# interleaved, and the speed-up (not part of "all"), no plots.
+# interleaved, and the speed-up (not part of "all"), no plots. --table
+# targets: every target of the current round (docs/performance.md, "The
+# targets"): the 10^6-particle block in fe and musl, the LME ratios, the
+# plastic and the threads tables, then scripts/roofline.sh for the bytes per
+# particle-step (cachegrind; skipped with --quick) - not part of "all", no plots.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
@@ -25,7 +29,7 @@ native=OFF
 table=all
 quick=0
 output=1
-usage="usage: bash scripts/bench.sh [--repeat R] [--native] [--table throughput|methods|lme|plastic|threads|all] [--quick] [--no-output]"
+usage="usage: bash scripts/bench.sh [--repeat R] [--native] [--table throughput|methods|lme|plastic|threads|targets|all] [--quick] [--no-output]"
 while [ $# -gt 0 ]; do
   case "$1" in
     --repeat) repeat="$2"; shift 2 ;;
@@ -36,13 +40,13 @@ while [ $# -gt 0 ]; do
     *) echo "$usage" >&2; exit 2 ;;
   esac
 done
-case "$table" in throughput|methods|lme|plastic|threads|all) ;; *) echo "$usage" >&2; exit 2 ;; esac
+case "$table" in throughput|methods|lme|plastic|threads|targets|all) ;; *) echo "$usage" >&2; exit 2 ;; esac
 bash scripts/install-deps.sh >/dev/null
 build=build-bench suffix=""
 [ "$native" = ON ] && build=build-bench-native suffix="-native"
 cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release -DOTMPM_BUILD_TESTS=OFF -DOTMPM_BUILD_BENCH=ON \
   -DOTMPM_NATIVE="$native" >/dev/null
-cmake --build "$build" -j"$(nproc)" --target bench_table bench_step bench_basis otmpm_cli >/dev/null
+cmake --build "$build" -j"$(nproc)" --target bench_table bench_step bench_basis bench_machine otmpm_cli >/dev/null
 mkdir -p out
 args=(--repeat "$repeat" --table "$table" --scaling-csv "out/scaling$suffix.csv" --scaling3d-csv "out/scaling3d$suffix.csv")
 cells3=64
@@ -62,5 +66,16 @@ if [ "$table" = methods ] || [ "$table" = all ]; then
     echo "methods table, output row (scripts/bench-output.sh --cells $cells3 --threads 1):"
     bash scripts/bench-output.sh "$build/bin/otmpm" --cells "$cells3" --threads 1
   fi
+fi
+if [ "$table" = targets ] && [ "$quick" = 0 ]; then
+  echo
+  echo "roofline (scripts/roofline.sh --build $build --repeat $repeat):"
+  bash scripts/roofline.sh --build "$build" --repeat "$repeat" | tee "out/roofline$suffix.md"
+  # the bytes target: the 2D block's row (the first of the table), bytes beyond L1 (and beyond L3)
+  awk -F'|' '/^\| 2D block, linear fe/ {
+    l1 = $6 + 0; l3 = $7 + 0
+    printf "\n| target figure | target | measured | met |\n|---|---|---|---|\n"
+    printf "| 2D block, linear fe: bytes per particle-step beyond L1 (beyond L3) | <= 400 | %d (%d) | %s |\n", l1, l3, l1 <= 400 ? "met" : "**not met**"
+  }' "out/roofline$suffix.md"
 fi
 echo "load at the end: $(cut -d' ' -f1-3 /proc/loadavg)"

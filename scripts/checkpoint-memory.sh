@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Peak resident memory per rank of a distributed run that writes a
-# checkpoint, and of its restart (docs/performance.md, "Distributed runs",
-# "Checkpoints"): the 3D block of scripts/bench-mpi.sh --dim 3 (N^3 cells
+# checkpoint, and of its restart (docs/performance.md, "Memory at scale"):
+# the 3D block of scripts/bench-mpi.sh --dim 3 (N^3 cells
 # of the unit cube, 2 x 2 x 2 particles per cell, linear fe, mpm, its base
 # held, under gravity; bench-mpi.sh --write-scene) run for S steps under
 # mpirun -np R, one OpenMP thread per rank, each rank under /usr/bin/time:

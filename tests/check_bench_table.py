@@ -3,7 +3,8 @@
 methods and plastic tables runs and prints a finite positive figure, its met column
 agrees with its target, and every case prints phase shares that add up to
 100%; the same for --table lme (the methods table's two LME rows) and
---table threads (each case on one and two threads). Timings are not checked
+--table threads (each case on one and two threads) and --table targets (the
+current round's rows, then the plastic and threads tables). Timings are not checked
 (--quick sizes, one repetition).
 
     check_bench_table.py BENCH_TABLE
@@ -75,6 +76,8 @@ def main(argv):
     failures = check(argv[1], [], {"throughput figure": 6, "method figure": 8, "plastic figure": 2}, 15)
     failures += check(argv[1], ["--table", "lme"], {"method figure": 2}, 4)
     failures += check(argv[1], ["--table", "threads"], {"threads figure": 7}, 14)
+    failures += check(argv[1], ["--table", "targets"],
+                      {"target figure": 4, "plastic figure": 2, "threads figure": 7}, 6 + 3 + 14)
     if failures:
         print("\n".join(failures))
     return 1 if failures else 0
