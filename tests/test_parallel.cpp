@@ -16,6 +16,7 @@
 #include <chrono>
 #include <mutex>
 #include <random>
+#include <string>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -227,4 +228,18 @@ TEST_CASE("openmp wait: the spin count is clamped to [100, 10^7], the default in
   const long long spins = otmpm::spin_count_for(otmpm::kDefaultSpinSeconds);
   CHECK(spins >= 100);
   CHECK(spins < 10000000);
+}
+
+TEST_CASE("openmp wait: valgrind is recognised by its preloaded core, and nothing else is") {
+  // the program is not executed again under valgrind, whose /proc/self/exe is its tool
+  const char* saved = std::getenv("LD_PRELOAD");
+  const std::string before = saved ? saved : "";
+  setenv("LD_PRELOAD",
+         "/usr/libexec/valgrind/vgpreload_core-amd64-linux.so:/usr/libexec/valgrind/vgpreload_memcheck-amd64-linux.so", 1);
+  CHECK(otmpm::under_valgrind());
+  setenv("LD_PRELOAD", "/usr/lib/x86_64-linux-gnu/libasan.so.8", 1);
+  CHECK_FALSE(otmpm::under_valgrind());
+  unsetenv("LD_PRELOAD");
+  CHECK_FALSE(otmpm::under_valgrind());
+  if (saved) setenv("LD_PRELOAD", before.c_str(), 1);
 }

@@ -6,6 +6,7 @@
 #include <atomic>
 #include <chrono>
 #include <cstdlib>
+#include <cstring>
 #include <string>
 #include <unistd.h>
 
@@ -57,9 +58,14 @@ long long spin_count_for(double seconds) {
   return std::clamp(static_cast<long long>(seconds / per_spin), kMinSpins, kMaxSpins);
 }
 
+bool under_valgrind() {
+  const char* preload = std::getenv("LD_PRELOAD");
+  return preload && std::strstr(preload, "vgpreload") != nullptr;
+}
+
 void default_openmp_wait(char** argv) {
 #ifdef OTMPM_HAVE_OPENMP
-  if (std::getenv("OMP_WAIT_POLICY") || std::getenv("GOMP_SPINCOUNT")) return;
+  if (std::getenv("OMP_WAIT_POLICY") || std::getenv("GOMP_SPINCOUNT") || under_valgrind()) return;
   const std::string spins = std::to_string(spin_count_for(kDefaultSpinSeconds));
   if (setenv("GOMP_SPINCOUNT", spins.c_str(), 1) != 0 || setenv("OMP_WAIT_POLICY", "passive", 1) != 0) return;
   execv("/proc/self/exe", argv);

@@ -23,12 +23,18 @@ inline constexpr double kDefaultSpinSeconds = 2e-4;
 /// [100, 10^7].
 long long spin_count_for(double seconds);
 
+/// True when the program runs under valgrind (its core library is preloaded:
+/// LD_PRELOAD names vgpreload_*). There /proc/self/exe is valgrind's tool,
+/// which cannot be executed again on its own.
+bool under_valgrind();
+
 /// When neither OMP_WAIT_POLICY nor GOMP_SPINCOUNT is set, sets
 /// OMP_WAIT_POLICY=passive and GOMP_SPINCOUNT=spin_count_for(
 /// kDefaultSpinSeconds) and executes the program again with the same
 /// arguments (libgomp reads both once, when it is loaded). A user's own
-/// setting of either is kept. Nothing without OpenMP; when the new process
-/// cannot be started, the program goes on with libgomp's defaults. Call it
+/// setting of either is kept. Nothing without OpenMP or under valgrind
+/// (under_valgrind: libgomp's defaults, or the caller's settings); when the
+/// new process cannot be started, the program goes on with libgomp's defaults. Call it
 /// first in main, before any thread or MPI starts.
 void default_openmp_wait(char** argv);
 
