@@ -178,28 +178,52 @@ Scene fixed_bar(const std::vector<std::string>& method) {
   return load_scene(OTMPM_SOURCE_DIR "/examples/fixed_bar.toml", o);
 }
 
+/// A case that steps one of engine_cases' engines: its name, the engine
+/// (index into the scenes), threads and steps per repetition.
+struct EngineCase {
+  std::string name;
+  int engine = 0, threads = 1;
+  long steps = 1;
+};
+
+/// One engine per scene (assembled on two threads), `settle` untimed steps
+/// each (the first basis evaluation, a plastic block's flow), then `repeat`
+/// interleaved repetitions of the cases in turn; returns the timed cases
+/// (their engines end here).
+template <int D>
+std::vector<Case> engine_cases(const std::vector<Scene>& scenes, long settle, const std::vector<EngineCase>& specs,
+                               int repeat) {
+  set_threads(2);
+  std::vector<Engine<D>> engines;
+  engines.reserve(scenes.size());
+  for (const Scene& s : scenes) engines.push_back(assemble<D>(s));
+  for (Engine<D>& e : engines)
+    for (long i = 0; i < settle; ++i) e.step();
+  std::vector<Case> cases;
+  for (const EngineCase& c : specs)
+    cases.emplace_back(c.name, [&engines, &scenes, c] {
+      return time_steps(engines[c.engine], c.steps, c.threads, scenes[c.engine].simulation.t_end);
+    });
+  std::vector<Case*> order;
+  for (Case& c : cases) order.push_back(&c);
+  interleave(order, repeat);
+  for (Case& c : cases) c.run = nullptr;
+  return cases;
+}
+
 /// The 3D block of `cells3`^3 cells, linear fe and LME npc (and linear fe
 /// on 2 threads when lin3_2 is set): one engine per basis, built once and
 /// stepped on by each of `repeat` interleaved repetitions.
 void block3d_cases(int cells3, bool quick, int repeat, Case& lin3, Case& lme3, Case* lin3_2) {
-  const Scene s3_lin = parse_scene(block_scene(3, cells3, "linear", "fe", "mpm", 3.0), "block3d.toml");
-  const Scene s3_lme = parse_scene(block_scene(3, cells3, "lme", "npc", "mpm", 3.0), "block3d.toml");
-  set_threads(2);
-  Engine<3> e_lin = assemble<3>(s3_lin);
-  Engine<3> e_lme = assemble<3>(s3_lme);
-  e_lin.step();
-  e_lme.step();
-  const double t_end = s3_lin.simulation.t_end;
+  const std::vector<Scene> scenes{parse_scene(block_scene(3, cells3, "linear", "fe", "mpm", 3.0), "block3d.toml"),
+                                  parse_scene(block_scene(3, cells3, "lme", "npc", "mpm", 3.0), "block3d.toml")};
   const long n_lin = quick ? 2 : 4, n_lme = quick ? 1 : 2;
-  lin3 = Case{"3D block linear fe mpm, 1 thread", [&] { return time_steps(e_lin, n_lin, 1, t_end); }};
-  lme3 = Case{"3D block lme npc mpm, 1 thread", [&] { return time_steps(e_lme, n_lme, 1, t_end); }};
-  std::vector<Case*> cases{&lin3, &lme3};
-  if (lin3_2) {
-    *lin3_2 = Case{"3D block linear fe mpm, 2 threads", [&] { return time_steps(e_lin, n_lin, 2, t_end); }};
-    cases.push_back(lin3_2);
-  }
-  interleave(cases, repeat);
-  for (Case* c : cases) c->run = nullptr; // the engines end here
+  std::vector<EngineCase> specs{{"3D block linear fe mpm, 1 thread", 0, 1, n_lin},
+                                {"3D block lme npc mpm, 1 thread", 1, 1, n_lme}};
+  if (lin3_2) specs.push_back({"3D block linear fe mpm, 2 threads", 0, 2, n_lin});
+  const std::vector<Case> cases = engine_cases<3>(scenes, 1, specs, repeat);
+  lin3 = cases[0], lme3 = cases[1];
+  if (lin3_2) *lin3_2 = cases[2];
 }
 
 /// The 3D block's name in the rows: its cells and particles.
@@ -274,15 +298,9 @@ void plastic_table(int repeat, bool quick) {
 /// repetitions of `steps` steps on each thread count.
 template <int D>
 std::pair<Case, Case> thread_cases(const std::string& name, const Scene& scene, long settle, long steps, int repeat) {
-  set_threads(2);
-  Engine<D> e = assemble<D>(scene);
-  for (long i = 0; i < settle; ++i) e.step();
-  const double t_end = scene.simulation.t_end;
-  Case one{name + ", 1 thread", [&] { return time_steps(e, steps, 1, t_end); }};
-  Case two{name + ", 2 threads", [&] { return time_steps(e, steps, 2, t_end); }};
-  interleave({&one, &two}, repeat);
-  one.run = two.run = nullptr; // the engine ends here
-  return {one, two};
+  const std::vector<Case> c =
+      engine_cases<D>({scene}, settle, {{name + ", 1 thread", 0, 1, steps}, {name + ", 2 threads", 0, 2, steps}}, repeat);
+  return {c[0], c[1]};
 }
 
 /// The threads table: each case of the performance targets on one and on
@@ -335,16 +353,11 @@ void threads_table(int repeat, bool quick) {
 std::pair<Case, Case> big_block_cases(int repeat, bool quick) {
   const int cells = quick ? 60 : 500;
   const long steps = quick ? 2 : 10;
-  const Scene s_fe = block2(cells, "linear", "fe"), s_musl = block2(cells, "linear", "musl");
-  set_threads(1);
-  Engine<2> e_fe = assemble<2>(s_fe), e_musl = assemble<2>(s_musl);
-  e_fe.step(), e_musl.step();
   const std::string name = "2D block " + std::to_string(cells) + "^2 cells linear ";
-  Case fe{name + "fe, 1 thread", [&] { return time_steps(e_fe, steps, 1, s_fe.simulation.t_end); }};
-  Case musl{name + "musl, 1 thread", [&] { return time_steps(e_musl, steps, 1, s_musl.simulation.t_end); }};
-  interleave({&fe, &musl}, repeat);
-  fe.run = musl.run = nullptr; // the engines end here
-  return {fe, musl};
+  const std::vector<Case> c = engine_cases<2>({block2(cells, "linear", "fe"), block2(cells, "linear", "musl")}, 1,
+                                              {{name + "fe, 1 thread", 0, 1, steps}, {name + "musl, 1 thread", 1, 1, steps}},
+                                              repeat);
+  return {c[0], c[1]};
 }
 
 /// The targets of the current performance round that one process measures:
