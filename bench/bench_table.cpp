@@ -360,6 +360,24 @@ std::pair<Case, Case> big_block_cases(int repeat, bool quick) {
   return {c[0], c[1]};
 }
 
+/// The LME rows' cases (the 2D block 200^2 and the 3D block 64^3, LME npc
+/// against linear fe, each pair interleaved) and the rows (lme_rows).
+struct LmeCases {
+  Case lin, lme, lin3, lme3;
+  std::vector<Row> rows;
+};
+LmeCases lme_cases(int repeat, bool quick) {
+  const int cells = quick ? 60 : 200, cells3 = quick ? 12 : 64;
+  const long steps = quick ? 5 : 20;
+  LmeCases c;
+  c.lin = stepped("2D block linear fe mpm, 1 thread", block2(cells, "linear", "fe"), steps, 1);
+  c.lme = stepped("2D block lme npc mpm, 1 thread", block2(cells, "lme", "npc"), steps / 2, 1);
+  interleave({&c.lin, &c.lme}, repeat);
+  block3d_cases(cells3, quick, repeat, c.lin3, c.lme3, nullptr);
+  c.rows = lme_rows(ratio(c.lme, c.lin), ratio(c.lme3, c.lin3), block3d_name(cells3, c.lin3));
+  return c;
+}
+
 /// The targets of the current performance round that one process measures:
 /// the 10^6-particle block's rate in `fe` and `musl`, the LME / linear time
 /// per step of the 2D and the 3D block; then the plastic table (j2 against
@@ -368,20 +386,14 @@ std::pair<Case, Case> big_block_cases(int repeat, bool quick) {
 /// (scripts/roofline.sh, which scripts/bench.sh --table targets runs after).
 void targets_table(int repeat, bool quick) {
   const auto [fe, musl] = big_block_cases(repeat, quick);
-  const int cells = quick ? 60 : 200, cells3 = quick ? 12 : 64;
-  const long steps = quick ? 5 : 20;
-  Case lin = stepped("2D block linear fe mpm, 1 thread", block2(cells, "linear", "fe"), steps, 1);
-  Case lme = stepped("2D block lme npc mpm, 1 thread", block2(cells, "lme", "npc"), steps / 2, 1);
-  interleave({&lin, &lme}, repeat);
-  Case lin3, lme3;
-  block3d_cases(cells3, quick, repeat, lin3, lme3, nullptr);
+  const LmeCases l = lme_cases(repeat, quick);
   std::vector<Row> rows{{fmt("2D block (%.0f particles), linear fe: particle-steps/s, one core", double(fe.last.particles)),
                          ">= 6e7", fmt("%.3g", rate(fe)), rate(fe) >= 6e7},
                         {"same, linear musl", ">= 6e7", fmt("%.3g", rate(musl)), rate(musl) >= 6e7}};
-  for (const Row& r : lme_rows(ratio(lme, lin), ratio(lme3, lin3), block3d_name(cells3, lin3))) rows.push_back(r);
+  rows.insert(rows.end(), l.rows.begin(), l.rows.end());
   std::printf("%d interleaved repetitions; medians\n\n", repeat);
   print_table("target figure", rows);
-  print_cases({&fe, &musl, &lin, &lme, &lin3, &lme3});
+  print_cases({&fe, &musl, &l.lin, &l.lme, &l.lin3, &l.lme3});
   std::printf("\n");
   plastic_table(repeat, quick);
   std::printf("\n");
@@ -432,8 +444,16 @@ int main(int argc, char** argv) {
     targets_table(repeat, quick);
     return 0;
   }
+  if (table == "lme") {
+    const LmeCases l = lme_cases(repeat, quick);
+    const int cells = quick ? 60 : 200;
+    std::printf("2D block %dx%d cells (%ld particles), %d interleaved repetitions; medians\n\n", cells, cells,
+                l.lin.last.particles, repeat);
+    print_table("method figure", l.rows);
+    print_cases({&l.lin, &l.lme, &l.lin3, &l.lme3});
+    return 0;
+  }
   const bool throughput = table == "throughput" || table == "all", methods = table == "methods" || table == "all";
-  const bool lme_only = table == "lme";
 
   // The 2D block and the Dyka strip: rows of both tables.
   const int cells = quick ? 60 : 200;
@@ -445,7 +465,7 @@ int main(int argc, char** argv) {
   Case dyka = stepped("dyka strip 160 lme npc, 1 thread", dyka_strip(160, {"basis.gamma_lme=3.0"}), quick ? 200 : 0, 1);
   std::vector<Case*> block_cases{&lin, &lme};
   if (throughput) block_cases.insert(block_cases.end(), {&lme_ul, &lin2});
-  if (!lme_only) block_cases.push_back(&dyka);
+  block_cases.push_back(&dyka);
   interleave(block_cases, repeat);
   std::printf("2D block %dx%d cells (%ld particles), %d interleaved repetitions; medians\n\n", cells, cells,
               lin.last.particles, repeat);
@@ -492,13 +512,6 @@ int main(int argc, char** argv) {
     return 0;
   }
   const int cells3 = quick ? 12 : 64;
-  if (lme_only) {
-    Case lin3, lme3;
-    block3d_cases(cells3, quick, repeat, lin3, lme3, nullptr);
-    print_table("method figure", lme_rows(ratio(lme, lin), ratio(lme3, lin3), block3d_name(cells3, lin3)));
-    print_cases({&lin, &lme, &lin3, &lme3});
-    return 0;
-  }
 
   // The fixed bar, 512 nodes, whole runs on one thread (scripts/wobbes_figures.py's timing).
   auto whole = [](const Scene& s) { return [s] { return time_whole_run(s, 1); }; };

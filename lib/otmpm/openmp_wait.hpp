@@ -34,8 +34,8 @@ bool under_valgrind();
 /// arguments (libgomp reads both once, when it is loaded). A user's own
 /// setting of either is kept. Nothing without OpenMP or under valgrind
 /// (under_valgrind: libgomp's defaults, or the caller's settings); when the
-/// new process cannot be started, the program goes on with libgomp's defaults. Call it
-/// first in main, before any thread or MPI starts.
+/// new process cannot be started, the program goes on with libgomp's
+/// defaults. Call it first in main, before any thread or MPI starts.
 void default_openmp_wait(char** argv);
 
 } // namespace otmpm
