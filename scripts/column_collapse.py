@@ -19,6 +19,13 @@
            line per model (study result names MODEL-aA_MESH.h5):
       /usr/bin/python3 scripts/column_collapse.py work-precision --out WP.png RUN.h5 ...
 
+  surface: how far the deposits of one column on finer and finer grids
+           agree: the top surface (the highest particle + h/4 in bins of
+           --bin metres from x = L0) of each file against the last (the
+           finest), largest difference over the bins out to where the
+           finest deposit is thinner than --thick metres:
+      /usr/bin/python3 scripts/column_collapse.py surface COARSE.h5 ... FINEST.h5
+
 Scaling (Lube, Huppert, Sparks & Freundt 2005, Phys. Rev. E 72, 041301,
 two-dimensional collapses in a channel): (L_f - L0) / L0 = 1.2 a for a small
 and 1.9 a^(2/3) for a large (fits to a < 1.8 and a > 2.8; switched here at
@@ -140,6 +147,31 @@ def study_name(path):
     stem = os.path.basename(path).rsplit(".", 1)[0]
     variant, _, mesh = stem.rpartition("_")
     return variant, mesh
+
+
+def surface_heights(m, width):
+    """The deposit's top (largest y + h/4) in bins of `width` from x = L0 outward."""
+    x = m["x"]
+    b = np.floor((x[:, 0] - m["L0"]) / width).astype(int)
+    out = b >= 0
+    top = np.zeros(max(b.max() + 1, 0))
+    np.maximum.at(top, b[out], x[out, 1] + m["h"] / 4)
+    return top
+
+
+def cmd_surface(a):
+    ms = [measure(path) for path in a.files]
+    finest = surface_heights(ms[-1], a.bin)
+    thin = np.nonzero(finest < a.thick)[0]
+    bins = thin[0] if len(thin) else len(finest)
+    print(f"{a.files[-1]}: h = {ms[-1]['h']:.4g} m, tip {ms[-1]['tip']:.3f}; deposit thicker than {a.thick:g} m "
+          f"from x = L0 over {bins} bins of {a.bin:g} m")
+    for path, m in zip(a.files[:-1], ms[:-1]):
+        top = surface_heights(m, a.bin)[:bins]
+        top = np.pad(top, (0, bins - len(top)))
+        diff = np.abs(top - finest[:bins]).max() if bins else 0.0
+        print(f"{path}: h = {m['h']:.4g} m, tip {m['tip']:.3f}: top surface within {1e3 * diff:.1f} mm "
+              f"({diff / m['H0']:.3f} H0) of the finest")
 
 
 def cmd_table(a):
@@ -282,6 +314,11 @@ def main():
     g.add_argument("--labels")
     g.add_argument("--vmax", type=float, default=2.0)
     g.set_defaults(func=cmd_plot)
+    f = sub.add_parser("surface")
+    f.add_argument("files", nargs="+")
+    f.add_argument("--bin", type=float, default=0.01)
+    f.add_argument("--thick", type=float, default=0.01)
+    f.set_defaults(func=cmd_surface)
     w = sub.add_parser("work-precision")
     w.add_argument("files", nargs="+")
     w.add_argument("--out", required=True)
