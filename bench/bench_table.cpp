@@ -360,6 +360,11 @@ std::pair<Case, Case> big_block_cases(int repeat, bool quick) {
   return {c[0], c[1]};
 }
 
+/// Cells per axis of the tables' 2D block (fewer with --quick) and the
+/// steps of each of its timings.
+constexpr int block_cells(bool quick) { return quick ? 60 : 200; }
+constexpr long block_steps(bool quick) { return quick ? 5 : 20; }
+
 /// The LME rows' cases (the 2D block 200^2 and the 3D block 64^3, LME npc
 /// against linear fe, each pair interleaved) and the rows (lme_rows).
 struct LmeCases {
@@ -367,8 +372,8 @@ struct LmeCases {
   std::vector<Row> rows;
 };
 LmeCases lme_cases(int repeat, bool quick) {
-  const int cells = quick ? 60 : 200, cells3 = quick ? 12 : 64;
-  const long steps = quick ? 5 : 20;
+  const int cells = block_cells(quick), cells3 = quick ? 12 : 64;
+  const long steps = block_steps(quick);
   LmeCases c;
   c.lin = stepped("2D block linear fe mpm, 1 thread", block2(cells, "linear", "fe"), steps, 1);
   c.lme = stepped("2D block lme npc mpm, 1 thread", block2(cells, "lme", "npc"), steps / 2, 1);
@@ -446,7 +451,7 @@ int main(int argc, char** argv) {
   }
   if (table == "lme") {
     const LmeCases l = lme_cases(repeat, quick);
-    const int cells = quick ? 60 : 200;
+    const int cells = block_cells(quick);
     std::printf("2D block %dx%d cells (%ld particles), %d interleaved repetitions; medians\n\n", cells, cells,
                 l.lin.last.particles, repeat);
     print_table("method figure", l.rows);
@@ -456,8 +461,8 @@ int main(int argc, char** argv) {
   const bool throughput = table == "throughput" || table == "all", methods = table == "methods" || table == "all";
 
   // The 2D block and the Dyka strip: rows of both tables.
-  const int cells = quick ? 60 : 200;
-  const long steps = quick ? 5 : 20;
+  const int cells = block_cells(quick);
+  const long steps = block_steps(quick);
   Case lin = stepped("2D block linear fe mpm, 1 thread", block2(cells, "linear", "fe"), steps, 1);
   Case lme = stepped("2D block lme npc mpm, 1 thread", block2(cells, "lme", "npc"), steps / 2, 1);
   Case lme_ul = stepped("2D block lme npc ul, 1 thread", block2(cells, "lme", "npc", "ul"), steps / 2, 1);
