@@ -71,12 +71,15 @@ def height_scaling(a):
     return np.where(a < 1.15, 1.0, a ** (-3 / 5))
 
 
-def deposit_top(x, h):
-    """The deposit's top surface: (bin centres, largest y + h/4) in bins of h/2 from x = 0."""
-    b = np.floor(x[:, 0] / (h / 2)).astype(int)
-    top = np.full(b.max() + 1, -1.0)
-    np.maximum.at(top, np.clip(b, 0, None), x[:, 1] + h / 4)
-    return (np.arange(len(top)) + 0.5) * h / 2, top
+def deposit_top(x, h, width=None, start=0.0, empty=-1.0):
+    """The deposit's top surface: (bin centres, largest y + h/4) in bins of
+    `width` (h/2 unless given) from x = `start` (particles before it count in
+    the first bin); `empty` where a bin holds no particle."""
+    width = h / 2 if width is None else width
+    b = np.clip(np.floor((x[:, 0] - start) / width).astype(int), 0, None)
+    top = np.full(b.max() + 1, empty)
+    np.maximum.at(top, b, x[:, 1] + h / 4)
+    return start + (np.arange(len(top)) + 0.5) * width, top
 
 
 def measure(path):
@@ -150,17 +153,19 @@ def study_name(path):
 
 
 def surface_heights(m, width):
-    """The deposit's top (largest y + h/4) in bins of `width` from x = L0 outward."""
-    x = m["x"]
-    b = np.floor((x[:, 0] - m["L0"]) / width).astype(int)
-    out = b >= 0
-    top = np.zeros(max(b.max() + 1, 0))
-    np.maximum.at(top, b[out], x[out, 1] + m["h"] / 4)
-    return top
+    """The deposit's top (largest y + h/4, 0 where no particle) in bins of `width` from x = L0 outward."""
+    x = m["x"][m["x"][:, 0] >= m["L0"]]
+    return deposit_top(x, m["h"], width, m["L0"], 0.0)[1] if len(x) else np.zeros(0)
 
 
 def cmd_surface(a):
+    if len(a.files) < 2 or not (a.bin > 0 and a.thick > 0):
+        sys.exit("column_collapse.py surface: give two or more result files (the finest last), --bin and --thick > 0")
     ms = [measure(path) for path in a.files]
+    for path, m in zip(a.files, ms):
+        if (m["L0"], m["H0"]) != (ms[-1]["L0"], ms[-1]["H0"]):
+            sys.exit(f"column_collapse.py surface: {path} is a column of L0 = {m['L0']:g}, H0 = {m['H0']:g} m, "
+                     f"{a.files[-1]} one of L0 = {ms[-1]['L0']:g}, H0 = {ms[-1]['H0']:g} m: compare one column")
     finest = surface_heights(ms[-1], a.bin)
     thin = np.nonzero(finest < a.thick)[0]
     bins = thin[0] if len(thin) else len(finest)
