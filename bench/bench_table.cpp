@@ -360,9 +360,10 @@ std::pair<Case, Case> big_block_cases(int repeat, bool quick) {
   return {c[0], c[1]};
 }
 
-/// Cells per axis of the tables' 2D block (fewer with --quick) and the
-/// steps of each of its timings.
+/// Cells per axis of the tables' 2D and 3D blocks (fewer with --quick) and
+/// the steps of each timing of the 2D block.
 constexpr int block_cells(bool quick) { return quick ? 60 : 200; }
+constexpr int block3_cells(bool quick) { return quick ? 12 : 64; }
 constexpr long block_steps(bool quick) { return quick ? 5 : 20; }
 
 /// The LME rows' cases (the 2D block 200^2 and the 3D block 64^3, LME npc
@@ -372,7 +373,7 @@ struct LmeCases {
   std::vector<Row> rows;
 };
 LmeCases lme_cases(int repeat, bool quick) {
-  const int cells = block_cells(quick), cells3 = quick ? 12 : 64;
+  const int cells = block_cells(quick), cells3 = block3_cells(quick);
   const long steps = block_steps(quick);
   LmeCases c;
   c.lin = stepped("2D block linear fe mpm, 1 thread", block2(cells, "linear", "fe"), steps, 1);
@@ -516,7 +517,7 @@ int main(int argc, char** argv) {
     print_cases({&lin, &lme, &lme_ul, &lin2, &dyka});
     return 0;
   }
-  const int cells3 = quick ? 12 : 64;
+  const int cells3 = block3_cells(quick);
 
   // The fixed bar, 512 nodes, whole runs on one thread (scripts/wobbes_figures.py's timing).
   auto whole = [](const Scene& s) { return [s] { return time_whole_run(s, 1); }; };
