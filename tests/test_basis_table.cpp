@@ -5,6 +5,7 @@
 
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <random>
 #include <stdexcept>
 #include <string>
@@ -187,6 +188,93 @@ TEST_CASE("basis table: empty input and mismatched side arrays") {
   std::vector<Index<2>> no_hint;
   CHECK_NOTHROW(fill_basis_table(*b, x, &no_lambda, &no_hint, t));
   CHECK(t.rows() == 5);
+}
+
+namespace {
+
+/// The rows of a per-point evaluation of each point (no per-point state).
+BasisTable<2> rows_one_by_one(const Basis<2>& b, const AlignedVector<Vec<2>>& x) {
+  BasisTable<2> t;
+  for (std::size_t p = 0; p < x.size(); ++p) {
+    Stencil<2> st;
+    PointQuery<2> q;
+    q.x = x[p];
+    b.evaluate(q, st);
+    t.node.insert(t.node.end(), st.node.begin(), st.node.end());
+    t.N.insert(t.N.end(), st.N.begin(), st.N.end());
+    t.dN.insert(t.dN.end(), st.dN.begin(), st.dN.end());
+    t.offset.push_back(static_cast<int>(t.node.size()));
+  }
+  return t;
+}
+
+std::unique_ptr<Basis<2>> lme(double gamma) {
+  BasisOptions opt;
+  opt.kind = "lme";
+  opt.values["gamma_lme"] = gamma;
+  return make_basis<2>(opt, NodeSet<2>::cartesian(test_grid()));
+}
+
+} // namespace
+
+TEST_CASE("basis table: two threads place each chunk's rows where they were in the last fill - the same rows") {
+  // From the second fill on, two threads write each chunk of rows in place
+  // where the chunk's rows were; rows that moved (larger or smaller) are
+  // gathered after. Points that stay, points that move by 0.3 h (rows of
+  // new sizes), and the table of another family's fill: every case gives
+  // the rows of one thread and of each point.
+  const auto b = lme(3.0);
+  AlignedVector<Vec<2>> x = random_points(3001, 21u);
+  std::mt19937 rng(5u);
+  std::uniform_real_distribution<double> u(-0.3, 0.3);
+  BasisTable<2> two;
+  for (int fill = 0; fill < 4; ++fill) {
+    CAPTURE(fill);
+    if (fill == 2) // the points move: the rows change size in every chunk
+      for (Vec<2>& p : x)
+        for (int k = 0; k < 2; ++k)
+          p[k] = std::clamp(p[k] + u(rng) * test_grid().h()[k], test_grid().lower[k], test_grid().upper[k]);
+    BasisTable<2> one;
+    fill_with_threads(1, *b, x, nullptr, one);
+    fill_with_threads(2, *b, x, nullptr, two);
+    CHECK(same_table(one, two));
+    CHECK(same_table(one, rows_one_by_one(*b, x)));
+  }
+}
+
+TEST_CASE("basis table: a table holding another fill of as many points changes the cost, never the rows") {
+  const AlignedVector<Vec<2>> x = random_points(3001, 22u);
+  const auto b = lme(3.0);
+  const BasisTable<2> expected = rows_one_by_one(*b, x);
+  BasisTable<2> wider, narrower, empty, short_arrays;
+  fill_with_threads(1, *lme(1.5), x, nullptr, wider);   // larger rows: gaps to close
+  fill_with_threads(1, *lme(8.0), x, nullptr, narrower); // smaller rows: rows beyond their place
+  empty.offset.assign(x.size() + 1, 0); // every row empty (a fill that failed)
+  short_arrays = wider;
+  short_arrays.N.resize(10); // not a fill: ignored
+  for (BasisTable<2>* t : {&wider, &narrower, &empty, &short_arrays}) {
+    fill_with_threads(2, *b, x, nullptr, *t);
+    CHECK(same_table(*t, expected));
+  }
+}
+
+TEST_CASE("basis table: the error of rows placed in the last fill's places names the particle with the lowest index") {
+  AlignedVector<Vec<2>> x = random_points(3001, 23u);
+  const auto b = lme(3.0);
+  BasisTable<2> t;
+  fill_with_threads(2, *b, x, nullptr, t);
+  x[2500] = Vec<2>(-5.0, 1.5); // outside the nodes' hull, in the second thread's half
+  x[1800] = Vec<2>(5.0, 1.5);
+  try {
+    fill_with_threads(2, *b, x, nullptr, t);
+    FAIL("no BasisError");
+  } catch (const BasisError& e) {
+    CHECK(std::string(e.what()).find("particle 1800 at " + format_point<2>(x[1800]) + ": ") == 0);
+  }
+  x[1800] = x[1799];
+  x[2500] = x[2499];
+  fill_with_threads(2, *b, x, nullptr, t); // after a failure the table fills again
+  CHECK(same_table(t, rows_one_by_one(*b, x)));
 }
 
 TEST_CASE("make_basis dispatches on the kind name") {

@@ -215,6 +215,10 @@ template <int D> struct TableChunk {
   Stencil<D> stencil;
   /// First failure in the chunk (lowest particle index, since rows go in order).
   std::exception_ptr error;
+  /// fill_placed: the chunk's place in the table, entries [start, limit);
+  /// its first `placed` rows were written there, up to entry `end`, the
+  /// rest (count, node, N, dN) did not fit.
+  int start = 0, limit = 0, placed = 0, end = 0;
 };
 
 /// The query for point p of a table fill.
@@ -338,6 +342,8 @@ public:
     if (m >= 0) return used_ += static_cast<std::size_t>(m);
     return append(st);
   }
+  /// Entries written so far.
+  std::size_t used() const { return used_; }
   /// Cuts the arrays to the entries written.
   void finish() {
     node_.resize(used_);
@@ -381,43 +387,65 @@ void fill_serial(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, const Po
   rows.finish();
 }
 
-/// Evaluates particles [begin, end) into `c`; stops at the first error.
+/// Runs row(), the evaluation of particle p for chunk `c`; an exception it
+/// throws is kept in c.error (a BasisError with the particle's index and
+/// position prepended). False when it threw.
+template <int D, class Row> bool keeps_error(Row&& row, const AlignedVector<Vec<D>>& x, int p, TableChunk<D>& c) {
+  try {
+    row();
+    return true;
+  } catch (const BasisError& e) {
+    c.error = std::make_exception_ptr(point_error<D>(x, p, e));
+  } catch (...) {
+    c.error = std::current_exception();
+  }
+  return false;
+}
+
+/// Appends the rows of particles [begin, end) to `rows`, their sizes to
+/// c.count; stops at the first error (kept in c.error).
+template <int D>
+void append_rows(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, const PointArrays<D>& a, int begin, int end,
+                 RowWriter<D>& rows, TableChunk<D>& c) {
+  const bool in_place = basis.writes_in_place();
+  std::size_t used = rows.used();
+  for (int p = begin; p < end; ++p) {
+    std::size_t now = used;
+    if (!keeps_error<D>([&] { now = rows.append_point(basis, point_query<D>(x, a, p), in_place, c.stencil); }, x, p, c))
+      return;
+    c.count.push_back(static_cast<int>(now - used));
+    used = now;
+  }
+}
+
+/// Evaluates particles [begin, end) into `c`'s buffer, after the row left
+/// in c.stencil when `carried` (then that of particle begin - 1); stops at
+/// the first error.
 template <int D>
 void fill_chunk(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, const PointArrays<D>& a, int begin, int end,
-                TableChunk<D>& c) {
+                TableChunk<D>& c, bool carried = false) {
   c.count.clear();
   c.error = nullptr;
-  c.count.reserve(static_cast<std::size_t>(end - begin));
+  c.count.reserve(static_cast<std::size_t>(end - begin + (carried ? 1 : 0)));
   RowWriter<D> rows(c.node, c.N, c.dN); // the chunk's arrays keep their size from the last fill
-  const bool in_place = basis.writes_in_place();
-  std::size_t used = 0;
-  for (int p = begin; p < end; ++p) {
-    try {
-      const std::size_t now = rows.append_point(basis, point_query<D>(x, a, p), in_place, c.stencil);
-      c.count.push_back(static_cast<int>(now - used));
-      used = now;
-    } catch (const BasisError& e) {
-      c.error = std::make_exception_ptr(point_error<D>(x, p, e));
-      break;
-    } catch (...) {
-      c.error = std::current_exception();
-      break;
-    }
-  }
+  if (carried) c.count.push_back(static_cast<int>(rows.append(c.stencil)));
+  append_rows<D>(basis, x, a, begin, end, rows, c);
   rows.finish();
 }
 
-/// Copies the rows of chunk `c` into the table, starting at row `row0` and
-/// entry `entry0` (the table is already sized).
-template <int D> void copy_chunk(const TableChunk<D>& c, int row0, int entry0, BasisTable<D>& table) {
+/// Copies the rows of chunk `c`'s buffer into node/N/dN from entry
+/// `entry0`, their offsets into `offset` from row `row0` (all sized).
+template <int D>
+void copy_rows(const TableChunk<D>& c, int row0, int entry0, std::vector<int>& offset, std::vector<int>& node,
+               std::vector<double>& N, AlignedVector<Vec<D>>& dN) {
   int end = entry0;
   for (std::size_t i = 0; i < c.count.size(); ++i) {
     end += c.count[i];
-    table.offset[static_cast<std::size_t>(row0) + i + 1] = end;
+    offset[static_cast<std::size_t>(row0) + i + 1] = end;
   }
-  std::copy(c.node.begin(), c.node.end(), table.node.begin() + entry0);
-  std::copy(c.N.begin(), c.N.end(), table.N.begin() + entry0);
-  std::copy(c.dN.begin(), c.dN.end(), table.dN.begin() + entry0);
+  std::copy(c.node.begin(), c.node.end(), node.begin() + entry0);
+  std::copy(c.N.begin(), c.N.end(), N.begin() + entry0);
+  std::copy(c.dN.begin(), c.dN.end(), dN.begin() + entry0);
 }
 
 /// Turns per-chunk counts (in slots 1..team) into starting positions and
@@ -435,6 +463,161 @@ void size_table(std::vector<int>& rows, std::vector<int>& entries, int team, Bas
   table.dN.resize(static_cast<std::size_t>(entries[team]));
 }
 
+/// The first particle of each of the chunk_count(n, threads) chunks a
+/// threaded fill cuts [0, n) into, and n after the last.
+inline std::vector<int> chunk_firsts(int n, int threads) {
+  const long long k = chunk_count(n, threads);
+  std::vector<int> first(static_cast<std::size_t>(k) + 1);
+  for (long long c = 0; c <= k; ++c) first[static_cast<std::size_t>(c)] = static_cast<int>(n * c / k);
+  return first;
+}
+
+/// What a threaded fill keeps on the calling thread from call to call (a
+/// worker thread's own would be empty), so that after the first steps a
+/// fill allocates nothing: the chunks' buffers, and spare entry arrays
+/// that gather_placed copies into and swaps with the table's.
+template <int D> struct FillScratch {
+  std::vector<TableChunk<D>> chunks;
+  std::vector<int> node;
+  std::vector<double> N;
+  AlignedVector<Vec<D>> dN;
+};
+
+/// The calling thread's FillScratch, with at least k chunk buffers.
+template <int D> FillScratch<D>& fill_scratch(std::size_t k) {
+  thread_local FillScratch<D> scratch;
+  if (scratch.chunks.size() < k) scratch.chunks.resize(k);
+  return scratch;
+}
+
+/// fill_placed's plan: chunk c goes where its rows were in the table's
+/// last fill, [start, limit) (the particles move little in a step, and the
+/// sizes of their rows with them). False when `table` does not hold a fill
+/// of as many rows (the first fill, another point count, or a table not
+/// filled here).
+template <int D>
+bool place_chunks(const std::vector<int>& first, std::vector<TableChunk<D>>& pool, const BasisTable<D>& table) {
+  const std::size_t k = first.size() - 1;
+  const std::vector<int>& offset = table.offset;
+  if (offset.size() != static_cast<std::size_t>(first[k]) + 1 || offset[0] != 0) return false;
+  const auto entries = static_cast<std::size_t>(offset.back());
+  if (offset.back() < 0 || table.node.size() != entries || table.N.size() != entries || table.dN.size() != entries)
+    return false;
+  for (std::size_t c = 0; c < k; ++c) {
+    pool[c].start = offset[static_cast<std::size_t>(first[c])];
+    pool[c].limit = offset[static_cast<std::size_t>(first[c + 1])];
+    if (pool[c].start < 0 || pool[c].limit < pool[c].start || pool[c].limit > offset.back()) return false;
+  }
+  return true;
+}
+
+/// Writes the row of q at node/N/dN when it fits in `room` entries and
+/// returns its size; else returns -1 with the row in `st`.
+template <int D>
+int place_row(const Basis<D>& basis, const PointQuery<D>& q, int room, int* node, double* N, Vec<D>* dN,
+              Stencil<D>& st) {
+  const int m = basis.evaluate_into(q, room, node, N, dN, st);
+  if (m >= 0) return m;
+  const int size = st.size();
+  if (size > room) return -1;
+  std::copy(st.node.begin(), st.node.end(), node);
+  std::copy(st.N.begin(), st.N.end(), N);
+  std::copy(st.dN.begin(), st.dN.end(), dN);
+  return size;
+}
+
+/// fill_placed's second pass over the particles [begin, end) of chunk `c`:
+/// their rows (and offsets) written straight into the table from c.start
+/// while they fit before c.limit; from the first that does not, the rest
+/// into the chunk's buffer. Stops at the first error.
+template <int D>
+void fill_chunk_placed(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, const PointArrays<D>& a, int begin,
+                       int end, TableChunk<D>& c, BasisTable<D>& table) {
+  c.count.clear();
+  c.error = nullptr;
+  // the cursor in locals: the next chunk's fields may share a cache line
+  // with this one's and be another thread's
+  const int limit = c.limit;
+  int at = c.start, p = begin;
+  for (; p < end; ++p) {
+    int m = 0;
+    const auto row = [&] {
+      m = place_row<D>(basis, point_query<D>(x, a, p), limit - at, table.node.data() + at, table.N.data() + at,
+                       table.dN.data() + at, c.stencil);
+    };
+    if (!keeps_error<D>(row, x, p, c) || m < 0) break; // m < 0: the row, in c.stencil, does not fit
+    table.offset[static_cast<std::size_t>(p) + 1] = at += m;
+  }
+  c.placed = p - begin;
+  c.end = at;
+  if (p < end && !c.error) return fill_chunk<D>(basis, x, a, p + 1, end, c, true);
+  // nothing beyond the place: the buffer's memory (a whole chunk's rows
+  // after a fill_chunked) goes back
+  std::vector<int>().swap(c.node);
+  std::vector<double>().swap(c.N);
+  AlignedVector<Vec<D>>().swap(c.dN);
+}
+
+/// Closes the gaps fill_placed left: chunk c's placed rows move to the end
+/// of the rows before it, its buffered rows after them - a copy of every
+/// entry into the spare arrays, which are then swapped with the table's;
+/// only when some chunk's entries were not where its rows were last time.
+template <int D>
+void gather_placed(const std::vector<int>& first, int threads, FillScratch<D>& s, BasisTable<D>& table) {
+  const std::size_t k = first.size() - 1;
+  std::vector<TableChunk<D>>& pool = s.chunks;
+  std::vector<int> at(k + 1, 0); // each chunk's first entry in the new arrays
+  for (std::size_t c = 0; c < k; ++c)
+    at[c + 1] = at[c] + (pool[c].end - pool[c].start) + static_cast<int>(pool[c].node.size());
+  const auto entries = static_cast<std::size_t>(at[k]);
+  s.node.resize(entries);
+  s.N.resize(entries);
+  s.dN.resize(entries);
+  parallel_chunks(static_cast<long long>(k), threads, [&](long long c0, long long c1) {
+    for (auto c = static_cast<std::size_t>(c0); c < static_cast<std::size_t>(c1); ++c) {
+      const TableChunk<D>& ch = pool[c];
+      const int shift = at[c] - ch.start;
+      for (int p = first[c]; p < first[c] + ch.placed; ++p) table.offset[static_cast<std::size_t>(p) + 1] += shift;
+      std::copy(table.node.begin() + ch.start, table.node.begin() + ch.end, s.node.begin() + at[c]);
+      std::copy(table.N.begin() + ch.start, table.N.begin() + ch.end, s.N.begin() + at[c]);
+      std::copy(table.dN.begin() + ch.start, table.dN.begin() + ch.end, s.dN.begin() + at[c]);
+      copy_rows<D>(ch, first[c] + ch.placed, at[c] + ch.end - ch.start, table.offset, s.node, s.N, s.dN);
+    }
+  });
+  table.node.swap(s.node);
+  table.N.swap(s.N);
+  table.dN.swap(s.dN);
+}
+
+/// Several threads, the table holding the last fill of as many points
+/// (every step after the first): each chunk of particles is placed where
+/// its rows were and written there in place by whichever thread evaluates
+/// it - no buffer and no copy while the chunks' entries stay the same.
+/// Rows beyond a chunk's place go to its buffer, and when any chunk's
+/// entries changed gather_placed closes the gaps: the same table as
+/// fill_chunked's either way. False (nothing evaluated) when the table
+/// holds no such fill.
+template <int D>
+bool fill_placed(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, const PointArrays<D>& a, int threads,
+                 BasisTable<D>& table) {
+  const std::vector<int> first = chunk_firsts(static_cast<int>(x.size()), threads);
+  const std::size_t k = first.size() - 1;
+  FillScratch<D>& scratch = fill_scratch<D>(k);
+  std::vector<TableChunk<D>>& pool = scratch.chunks;
+  if (!place_chunks<D>(first, pool, table)) return false;
+  parallel_chunks(static_cast<long long>(k), threads, [&](long long c0, long long c1) {
+    for (auto c = static_cast<std::size_t>(c0); c < static_cast<std::size_t>(c1); ++c)
+      fill_chunk_placed<D>(basis, x, a, first[c], first[c + 1], pool[c], table);
+  });
+  bool exact = true;
+  for (std::size_t c = 0; c < k; ++c) {
+    if (pool[c].error) std::rethrow_exception(pool[c].error); // the failing particle with the lowest index
+    exact = exact && pool[c].end == pool[c].limit && pool[c].node.empty();
+  }
+  if (!exact) gather_placed<D>(first, threads, scratch, table);
+  return true;
+}
+
 /// Several threads: the particles cut into parallel_chunks' chunks, each
 /// evaluated into a buffer of its own by whichever thread is free, then the
 /// buffers copied into the table in particle order (the same table for any
@@ -443,13 +626,9 @@ void size_table(std::vector<int>& rows, std::vector<int>& entries, int team, Bas
 template <int D>
 void fill_chunked(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, const PointArrays<D>& a, int threads,
                   BasisTable<D>& table) {
-  const int n = static_cast<int>(x.size());
-  thread_local std::vector<TableChunk<D>> buffers;
-  std::vector<TableChunk<D>>& pool = buffers; // the caller's: a worker thread's own would be empty
-  const auto k = static_cast<std::size_t>(chunk_count(n, threads));
-  if (pool.size() < k) pool.resize(k);
-  std::vector<int> first(k + 1); // each chunk's first particle
-  for (std::size_t c = 0; c <= k; ++c) first[c] = static_cast<int>(static_cast<long long>(n) * static_cast<long long>(c) / static_cast<long long>(k));
+  const std::vector<int> first = chunk_firsts(static_cast<int>(x.size()), threads);
+  const std::size_t k = first.size() - 1;
+  std::vector<TableChunk<D>>& pool = fill_scratch<D>(k).chunks;
   parallel_chunks(static_cast<long long>(k), threads, [&](long long c0, long long c1) {
     for (auto c = static_cast<std::size_t>(c0); c < static_cast<std::size_t>(c1); ++c)
       fill_chunk<D>(basis, x, a, first[c], first[c + 1], pool[c]);
@@ -464,7 +643,7 @@ void fill_chunked(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, const P
   // Rows land in particle order whatever the team size.
   parallel_chunks(static_cast<long long>(k), threads, [&](long long c0, long long c1) {
     for (auto c = static_cast<std::size_t>(c0); c < static_cast<std::size_t>(c1); ++c)
-      copy_chunk<D>(pool[c], rows[c], entries[c], table);
+      copy_rows<D>(pool[c], rows[c], entries[c], table.offset, table.node, table.N, table.dN);
   });
 }
 
@@ -487,7 +666,7 @@ void fill_basis_table(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, con
 
   const int threads = team_size(n);
   if (threads == 1) return fill_serial<D>(basis, x, a, table);
-  fill_chunked<D>(basis, x, a, threads, table);
+  if (!fill_placed<D>(basis, x, a, threads, table)) fill_chunked<D>(basis, x, a, threads, table);
 }
 
 template <int D>
