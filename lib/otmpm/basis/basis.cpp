@@ -618,11 +618,13 @@ bool fill_placed(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, const Po
   return true;
 }
 
-/// Several threads: the particles cut into parallel_chunks' chunks, each
-/// evaluated into a buffer of its own by whichever thread is free, then the
-/// buffers copied into the table in particle order (the same table for any
-/// thread count). The buffers are kept by the calling thread from call to
-/// call: after the first step filling the table allocates nothing.
+/// Several threads, when fill_placed has no last fill to place rows by (the
+/// first step, or another point count): the particles cut into
+/// parallel_chunks' chunks, each evaluated into a buffer of its own by
+/// whichever thread is free, then the buffers copied into the table in
+/// particle order (the same table for any thread count). The buffers are
+/// the calling thread's (fill_scratch); fill_placed gives their memory
+/// back once the chunks fit their places.
 template <int D>
 void fill_chunked(const Basis<D>& basis, const AlignedVector<Vec<D>>& x, const PointArrays<D>& a, int threads,
                   BasisTable<D>& table) {
