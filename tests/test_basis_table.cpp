@@ -220,9 +220,9 @@ std::unique_ptr<Basis<2>> lme(double gamma) {
 TEST_CASE("basis table: two threads place each chunk's rows where they were in the last fill - the same rows") {
   // From the second fill on, two threads write each chunk of rows in place
   // where the chunk's rows were; rows that moved (larger or smaller) are
-  // gathered after. Points that stay, points that move by 0.3 h (rows of
-  // new sizes), and the table of another family's fill: every case gives
-  // the rows of one thread and of each point.
+  // gathered after. Points that stay and points that move by up to 0.3 h
+  // (rows of new sizes): every fill gives the rows of one thread and of
+  // each point.
   const auto b = lme(3.0);
   AlignedVector<Vec<2>> x = random_points(3001, 21u);
   std::mt19937 rng(5u);
