@@ -206,6 +206,16 @@ template <int D> PointArrays<D> used_arrays(PointArrays<D> a) {
   return a;
 }
 
+/// Copies entries [e0, e1) of the entry arrays of `from` (a Stencil, a
+/// TableChunk's buffer or a BasisTable: node, N, dN) to node/N/dN.
+template <class From, int D>
+void copy_entries(const From& from, std::size_t e0, std::size_t e1, int* node, double* N, Vec<D>* dN) {
+  const auto b = static_cast<std::ptrdiff_t>(e0), e = static_cast<std::ptrdiff_t>(e1);
+  std::copy(from.node.begin() + b, from.node.begin() + e, node);
+  std::copy(from.N.begin() + b, from.N.begin() + e, N);
+  std::copy(from.dN.begin() + b, from.dN.begin() + e, dN);
+}
+
 /// The rows of a contiguous range of particles, evaluated by one thread.
 template <int D> struct TableChunk {
   std::vector<int> count; // stencil size per particle of the chunk
@@ -294,9 +304,7 @@ bool fill_fixed(const Basis<D>& basis, int S, const AlignedVector<Vec<D>>& x, co
         irregular.store(true, std::memory_order_relaxed);
         return;
       }
-      std::copy(st.node.begin(), st.node.end(), table.node.begin() + static_cast<std::ptrdiff_t>(e0));
-      std::copy(st.N.begin(), st.N.end(), table.N.begin() + static_cast<std::ptrdiff_t>(e0));
-      std::copy(st.dN.begin(), st.dN.end(), table.dN.begin() + static_cast<std::ptrdiff_t>(e0));
+      copy_entries(st, 0, st.node.size(), table.node.data() + e0, table.N.data() + e0, table.dN.data() + e0);
     }
   });
   table.offset[static_cast<std::size_t>(n)] = static_cast<int>(entries);
@@ -322,9 +330,7 @@ public:
   std::size_t append(const Stencil<D>& s) {
     const std::size_t m = s.node.size();
     if (used_ + m > node_.size()) grow(used_ + m);
-    std::copy(s.node.begin(), s.node.end(), node_.begin() + static_cast<std::ptrdiff_t>(used_));
-    std::copy(s.N.begin(), s.N.end(), N_.begin() + static_cast<std::ptrdiff_t>(used_));
-    std::copy(s.dN.begin(), s.dN.end(), dN_.begin() + static_cast<std::ptrdiff_t>(used_));
+    copy_entries(s, 0, m, node_.data() + used_, N_.data() + used_, dN_.data() + used_);
     return used_ += m;
   }
   /// Appends the stencil of q: written in place by basis.evaluate_into()
@@ -443,9 +449,7 @@ void copy_rows(const TableChunk<D>& c, int row0, int entry0, std::vector<int>& o
     end += c.count[i];
     offset[static_cast<std::size_t>(row0) + i + 1] = end;
   }
-  std::copy(c.node.begin(), c.node.end(), node.begin() + entry0);
-  std::copy(c.N.begin(), c.N.end(), N.begin() + entry0);
-  std::copy(c.dN.begin(), c.dN.end(), dN.begin() + entry0);
+  copy_entries(c, 0, c.node.size(), node.data() + entry0, N.data() + entry0, dN.data() + entry0);
 }
 
 /// Turns per-chunk counts (in slots 1..team) into starting positions and
@@ -520,9 +524,7 @@ int place_row(const Basis<D>& basis, const PointQuery<D>& q, int room, int* node
   if (m >= 0) return m;
   const int size = st.size();
   if (size > room) return -1;
-  std::copy(st.node.begin(), st.node.end(), node);
-  std::copy(st.N.begin(), st.N.end(), N);
-  std::copy(st.dN.begin(), st.dN.end(), dN);
+  copy_entries(st, 0, st.node.size(), node, N, dN);
   return size;
 }
 
@@ -578,9 +580,7 @@ void gather_placed(const std::vector<int>& first, int threads, FillScratch<D>& s
       const TableChunk<D>& ch = pool[c];
       const int shift = at[c] - ch.start;
       for (int p = first[c]; p < first[c] + ch.placed; ++p) table.offset[static_cast<std::size_t>(p) + 1] += shift;
-      std::copy(table.node.begin() + ch.start, table.node.begin() + ch.end, s.node.begin() + at[c]);
-      std::copy(table.N.begin() + ch.start, table.N.begin() + ch.end, s.N.begin() + at[c]);
-      std::copy(table.dN.begin() + ch.start, table.dN.begin() + ch.end, s.dN.begin() + at[c]);
+      copy_entries(table, ch.start, ch.end, s.node.data() + at[c], s.N.data() + at[c], s.dN.data() + at[c]);
       copy_rows<D>(ch, first[c] + ch.placed, at[c] + ch.end - ch.start, table.offset, s.node, s.N, s.dN);
     }
   });
