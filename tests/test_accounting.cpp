@@ -475,8 +475,11 @@ TEST_CASE("the booked friction, impulses and carried momenta are bitwise the sam
   // Two disks colliding with frictional [contact] (h = 0.025: 1681 grid
   // nodes, so that the contact's pass over the nodes and its blocked sum of
   // the friction run on two threads; they touch from t = 1.03 s), the
-  // sliding block (npc, a frictional wall) and the andersen block with
-  // explicit_alpha (Dirichlet momenta carried from step to step).
+  // sliding block (npc, a frictional wall; also at h = 0.0125, 12 800
+  // particles on 3 321 active nodes, so that the walls' passes find the
+  // nodes within reach and the held ones on two threads, with npc and with
+  // musl, whose wall pass books the friction itself) and the andersen
+  // block with explicit_alpha (Dirichlet momenta carried from step to step).
   struct Run {
     const char* scene;
     std::vector<std::string> sets;
@@ -485,6 +488,8 @@ TEST_CASE("the booked friction, impulses and carried momenta are bitwise the sam
   const std::vector<Run> runs{
       {"disks.toml", {"contact.friction=0.3", "grid.h=0.025", "output.every=0"}, 1.15},
       {"sliding_block.toml", {"output.every=0"}, 0.1},
+      {"sliding_block.toml", {"output.every=0", "grid.h=0.0125"}, 0.01},
+      {"sliding_block.toml", {"output.every=0", "grid.h=0.0125", "simulation.integrator=\"musl\""}, 0.01},
       {"andersen_block.toml", {"simulation.integrator=\"explicit_alpha\"", "output.every=0"}, 0.2},
   };
   for (const Run& r : runs) {

@@ -1,7 +1,8 @@
 // The OpenMP building blocks (parallel.hpp): parallel_chunks cuts [0, n)
 // into contiguous chunks, several per thread, each thread's own (its home
 // range, the same particles in a particle loop and in a loop over their
-// blocks) run first and the rest taken by whichever thread is free; the lowest failing chunk's exception is the one rethrown; the basis
+// blocks) run first and the rest taken by whichever thread is free; the lowest failing chunk's exception is the one rethrown;
+// parallel_list and parallel_filter give a serial loop's list; the basis
 // table's general fill (stencils of varying size) buffers those chunks and
 // gives the table of one thread.
 #include "otmpm/basis/basis.hpp"
@@ -94,6 +95,60 @@ TEST_CASE("parallel_chunks covers every item once, in contiguous chunks, several
   const auto one = chunks_of(12345, 1);
   REQUIRE(one.size() == 1);
   CHECK(one.front() == std::pair<long long, long long>(0, 12345));
+}
+
+TEST_CASE("parallel_filter keeps the items of a serial filter, in their order, on any thread count") {
+  // Items in no order, more blocks of reduction_block than threads; keep()
+  // writes its own item's flag (what the wall and mass passes do).
+  std::vector<int> items(25000);
+  std::mt19937 rng(7);
+  for (int& i : items) i = static_cast<int>(rng() % 100000);
+  auto keep = [](int i) { return i % 7 == 3 || i % 11 == 0; };
+  std::vector<int> serial;
+  for (const int i : items)
+    if (keep(i)) serial.push_back(i);
+  REQUIRE(serial.size() > 3000);
+  for (const int threads : {1, 2, 3})
+    for (const std::size_t n : {std::size_t{0}, std::size_t{1}, std::size_t{1024}, std::size_t{1025}, items.size()}) {
+      CAPTURE(threads);
+      CAPTURE(n);
+      const ScopedThreads scope(threads);
+      const std::vector<int> part(items.begin(), items.begin() + static_cast<std::ptrdiff_t>(n));
+      std::vector<char> seen(100000, 0);
+      std::vector<int> out{-1, -2}; // what was in it before goes
+      parallel_filter(
+          part,
+          [&](int i) {
+            seen[static_cast<std::size_t>(i)] = 1;
+            return keep(i);
+          },
+          out);
+      std::vector<int> expected;
+      for (const int i : part)
+        if (keep(i)) expected.push_back(i);
+      CHECK(out == expected);
+      CHECK(std::all_of(part.begin(), part.end(), [&](int i) { return seen[static_cast<std::size_t>(i)] == 1; }));
+    }
+}
+
+TEST_CASE("parallel_list joins the blocks' lists in block order: the same list for 1, 2 and 3 threads") {
+  // Each block of indices appends the multiples of 5 it holds, then its own
+  // first index once more: a join out of block order would show.
+  const long long n = 10 * reduction_block + 17;
+  auto emit = [](long long begin, long long end, std::vector<int>& list) {
+    for (long long i = begin; i < end; ++i)
+      if (i % 5 == 0) list.push_back(static_cast<int>(i));
+    list.push_back(static_cast<int>(begin));
+  };
+  std::vector<int> serial;
+  for (long long b = 0; b < n; b += reduction_block) emit(b, std::min(n, b + reduction_block), serial);
+  for (const int threads : {1, 2, 3}) {
+    CAPTURE(threads);
+    const ScopedThreads scope(threads);
+    std::vector<int> out;
+    parallel_list(n, emit, out);
+    CHECK(out == serial);
+  }
 }
 
 TEST_CASE("home ranges: a particle loop and a loop over its blocks give each thread the same particles") {

@@ -195,34 +195,42 @@ TEST_CASE("PIC relaxation: bitwise identical with 1 and 2 threads, its booked en
 // step_npc runs) against update_stress followed by compute_forces, from the
 // same state: with the dense and the sparse blocked scatter (spatial and
 // shuffled order) and with the column gather (linear, shuffled, wide grid).
+// On one thread each scatter block updates its particles before it sums
+// them; on two, the block's 4 scatter blocks are too few for two threads
+// (few_scatter_blocks) and the updates run first, in shared chunks.
 TEST_CASE("npc: the stress update inside the force scatter gives the bits of the two separate stages") {
-  for (const char* basis : {"\"linear\"", "\"lme\""})
-    for (const int order : {0, 1, 2}) { // spatial, shuffled, shuffled on the wide grid
-      const bool shuffled = order > 0, wide = order == 2;
-      if (wide && std::string(basis) != "\"linear\"") continue;
-      CAPTURE(basis);
-      CAPTURE(order);
-      std::vector<std::string> sets{std::string("basis.kind=") + basis};
-      if (wide) sets.insert(sets.end(), wide_grid.begin(), wide_grid.end());
-      const Scene scene = andersen_block(sets);
-      Engine<2> fused = assemble<2>(scene), separate = assemble<2>(scene);
-      if (shuffled) shuffle_particles(fused.particles()), shuffle_particles(separate.particles());
-      fused.step(); // a stressed state, the same in both
-      separate.step();
-      const AlignedVector<Vec<2>> v = fused.nodal().v;
-      const double dt = fused.last_dt(), t = fused.time();
-      fused.update_stress_and_to_nodes({&v, dt}, {.forces = true, .t = t});
-      separate.update_stress({&v, dt});
-      separate.to_nodes({.forces = true, .t = t});
-      CHECK(fused.scatter_blocked() == !wide);
-      const Particles<2>& a = fused.particles();
-      const Particles<2>& b = separate.particles();
-      bool same = true;
-      for (int p = 0; p < a.size(); ++p)
-        same = same && a.sigma[p] == b.sigma[p] && a.eps[p] == b.eps[p] && a.V[p] == b.V[p] && a.rho[p] == b.rho[p];
-      CHECK(same);
-      CHECK(fused.nodal().f == separate.nodal().f);
-    }
+  for (const int threads : {1, 2}) {
+    for (const char* basis : {"\"linear\"", "\"lme\""})
+      for (const int order : {0, 1, 2}) { // spatial, shuffled, shuffled on the wide grid
+        const bool shuffled = order > 0, wide = order == 2;
+        if (wide && std::string(basis) != "\"linear\"") continue;
+        CAPTURE(threads);
+        CAPTURE(basis);
+        CAPTURE(order);
+        const ScopedThreads scope(threads);
+        CHECK(few_scatter_blocks(25600) == (threads == 2));
+        std::vector<std::string> sets{std::string("basis.kind=") + basis};
+        if (wide) sets.insert(sets.end(), wide_grid.begin(), wide_grid.end());
+        const Scene scene = andersen_block(sets);
+        Engine<2> fused = assemble<2>(scene), separate = assemble<2>(scene);
+        if (shuffled) shuffle_particles(fused.particles()), shuffle_particles(separate.particles());
+        fused.step(); // a stressed state, the same in both
+        separate.step();
+        const AlignedVector<Vec<2>> v = fused.nodal().v;
+        const double dt = fused.last_dt(), t = fused.time();
+        fused.update_stress_and_to_nodes({&v, dt}, {.forces = true, .t = t});
+        separate.update_stress({&v, dt});
+        separate.to_nodes({.forces = true, .t = t});
+        CHECK(fused.scatter_blocked() == !wide);
+        const Particles<2>& a = fused.particles();
+        const Particles<2>& b = separate.particles();
+        bool same = true;
+        for (int p = 0; p < a.size(); ++p)
+          same = same && a.sigma[p] == b.sigma[p] && a.eps[p] == b.eps[p] && a.V[p] == b.V[p] && a.rho[p] == b.rho[p];
+        CHECK(same);
+        CHECK(fused.nodal().f == separate.nodal().f);
+      }
+  }
 }
 
 // The 3D block in the seeded particle order with 3 x 3 x 3 particles per cell

@@ -162,6 +162,38 @@ template <class Acc, class Term> Acc blocked_reduce_ranges(long long n, Term&& t
   return total;
 }
 
+/// A list built over [0, n) in fixed blocks of reduction_block indices:
+/// emit(begin, end, list) appends what indices [begin, end) give, in order,
+/// each block to a list of its own on the threads; `out` is their join in
+/// block order - the same list for any thread count (its memory is reused).
+template <class Emit> void parallel_list(long long n, Emit&& emit, std::vector<int>& out) {
+  const long long blocks = (n + reduction_block - 1) / reduction_block;
+  out.clear();
+  if (blocks <= 1) return emit(0LL, n, out);
+  std::vector<std::vector<int>> lists(static_cast<std::size_t>(blocks));
+  parallel_chunks(
+      blocks, team_size(n),
+      [&](long long b0, long long b1) {
+        for (long long b = b0; b < b1; ++b)
+          emit(b * reduction_block, std::min(n, (b + 1) * reduction_block), lists[static_cast<std::size_t>(b)]);
+      },
+      home_granule / reduction_block);
+  for (const std::vector<int>& l : lists) out.insert(out.end(), l.begin(), l.end());
+}
+
+/// The items of `items` for which keep(item) is true, in their order, into
+/// `out` (parallel_list; not `items` itself). keep may write what belongs to
+/// its item alone.
+template <class Keep> void parallel_filter(const std::vector<int>& items, Keep&& keep, std::vector<int>& out) {
+  parallel_list(
+      static_cast<long long>(items.size()),
+      [&](long long begin, long long end, std::vector<int>& list) {
+        for (long long i = begin; i < end; ++i)
+          if (keep(items[static_cast<std::size_t>(i)])) list.push_back(items[static_cast<std::size_t>(i)]);
+      },
+      out);
+}
+
 /// blocked_reduce_ranges with a term per item: term(i, acc) adds item i.
 template <class Acc, class Term> Acc blocked_reduce(long long n, Term&& term) {
   return blocked_reduce_ranges<Acc>(n, [&](long long begin, long long end, Acc& acc) {

@@ -1,6 +1,7 @@
 /// \file constraints.cpp
 /// Dirichlet constraints (constraints.hpp).
 #include "otmpm/engine/constraints.hpp"
+#include "otmpm/parallel.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -145,10 +146,19 @@ void Constraints<D>::apply_walls(AlignedVector<Vec<D>>& v, const NodeView<D>& no
     held.resize(v.size(), 0);
     Vec<D> impulse = Vec<D>::Zero();
     const double reach = nodes.reach + std::max(wall.velocity.dot(wall.normal), 0.0) * dt;
-    for (const int node : nodes.active_nodes) {
+    // Most nodes are out of reach with no contact to keep: the threads find
+    // the others, in node order; the changes and their sums follow in order.
+    std::vector<int> near;
+    parallel_filter(
+        nodes.active_nodes,
+        [&](int node) {
+          const auto I = static_cast<std::size_t>(node);
+          return held[I] || !((nodes.x[I] - p).dot(wall.normal) > reach); // a NaN distance stays, as in the loop
+        },
+        near);
+    for (const int node : near) {
       const auto I = static_cast<std::size_t>(node);
       const double d = (nodes.x[I] - p).dot(wall.normal);
-      if (d > reach && !held[I]) continue; // most nodes: out of reach, no contact to keep
       const double floor = -std::max(d, 0.0) / dt;
       const Vec<D> u = v[I] - wall.velocity;
       const double un = u.dot(wall.normal);
@@ -210,18 +220,30 @@ void Constraints<D>::book_held(const Held<D>& step, AlignedVector<Vec<D>>& q, co
   held_.resize(walls_.size());
   // the inactive nodes get no kick (the nodes not visited hold zero)
   if (nodes.visited) {
-    for (const int I : *nodes.visited)
-      if (!nodes.active[static_cast<std::size_t>(I)]) q[static_cast<std::size_t>(I)] = Vec<D>::Zero();
-  } else {
-    for (std::size_t I = 0; I < q.size(); ++I)
+    const std::vector<int>& visited = *nodes.visited;
+    parallel_for(static_cast<long long>(visited.size()), [&](long long i) {
+      const auto I = static_cast<std::size_t>(visited[static_cast<std::size_t>(i)]);
       if (!nodes.active[I]) q[I] = Vec<D>::Zero();
+    });
+  } else {
+    parallel_for(static_cast<long long>(q.size()), [&](long long I) {
+      if (!nodes.active[static_cast<std::size_t>(I)]) q[static_cast<std::size_t>(I)] = Vec<D>::Zero();
+    });
   }
-  for (const int node : nodes.active_nodes) {
+  // Most nodes get no kick: the threads zero theirs and find the held ones,
+  // whose kicks and sums follow in node order.
+  std::vector<int> kicked;
+  parallel_filter(
+      nodes.active_nodes,
+      [&](int node) {
+        const auto I = static_cast<std::size_t>(node);
+        if (holds(I, step.first)) return true;
+        q[I] = Vec<D>::Zero();
+        return false;
+      },
+      kicked);
+  for (const int node : kicked) {
     const auto I = static_cast<std::size_t>(node);
-    if (!holds(I, step.first)) { // most nodes: no kick
-      q[I] = Vec<D>::Zero();
-      continue;
-    }
     const double m = nodes.m[I];
     const Vec<D> brought = q[I] / m;
     Vec<D> end = brought + step.dt * Vec<D>(step.f[I] / m); // the particles' velocity at the node after the step
@@ -317,12 +339,13 @@ void Constraints<D>::apply_walls_to_increment(AlignedVector<Vec<D>>& dx, const N
                                               double dt) const {
   for (const Wall<D>& wall : walls_) {
     const Vec<D> p = wall.point + t * wall.velocity;
-    for (const int I : nodes.active_nodes) {
+    parallel_for(static_cast<long long>(nodes.active_nodes.size()), [&](long long i) {
+      const int I = nodes.active_nodes[static_cast<std::size_t>(i)];
       const double d = (nodes.x[I] - p).dot(wall.normal);
       const Vec<D> u = dx[I] - dt * wall.velocity;
       const double floor = -std::max(d, 0.0), un = u.dot(wall.normal);
       if (un < floor) dx[I] += wall_change<D>(u, wall.normal, floor - un, wall.friction);
-    }
+    });
   }
 }
 

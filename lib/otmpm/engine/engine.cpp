@@ -413,13 +413,16 @@ template <int D> void Engine<D>::update_stress_and_to_nodes(const Gradient<D>& g
                                  "Engine::update_stress_and_to_nodes: only the forces follow a stress update");
   if (!loads_.uniform() && loads_.any()) loads_.particle_forces(what.t, P_, fext_);
   fallible([&] {
-    const bool fbar = average_volumetric(g); // F-bar: the forces' patch means need every new stress first
-    if (fbar)
+    // F-bar: the forces' patch means need every new stress first. With few
+    // scatter blocks per thread the updates also run first, in chunks the
+    // threads share: one block's plastic particles would hold its thread.
+    const bool first = average_volumetric(g) || few_scatter_blocks(P_.size());
+    if (first)
       parallel_chunks(P_.size(), [&](long long p0, long long p1) {
         update_stress_range(g, static_cast<int>(p0), static_cast<int>(p1));
       });
     to_nodes_impl<false, false, true>(what, [&](int p0, int p1) {
-      if (!fbar) update_stress_range(g, p0, p1);
+      if (!first) update_stress_range(g, p0, p1);
     });
   });
   fbar_.ready = false;
@@ -553,17 +556,22 @@ template <int D> void Engine<D>::list_visited_nodes() {
   });
   for (const int I : constraints_.fixed_nodes()) mark[I] = 1;
   if (static_cast<int>(list.size()) < nodes)
-    for (const int I : list)
-      if (!mark[I]) nodal_.zero(I);
-  list.clear();
-  for (int I0 = 0; I0 < nodes; I0 += 8) { // eight flags at a time: most nodes are not listed
-    std::uint64_t any = 0;
-    if (I0 + 8 <= nodes) std::memcpy(&any, mark + I0, 8);
-    else any = 1;
-    if (any == 0) continue;
-    for (int I = I0; I < std::min(I0 + 8, nodes); ++I)
-      if (mark[I]) list.push_back(I);
-  }
+    parallel_for(static_cast<long long>(list.size()), [&](long long i) {
+      if (!mark[list[static_cast<std::size_t>(i)]]) nodal_.zero(list[static_cast<std::size_t>(i)]);
+    });
+  parallel_list(
+      nodes,
+      [mark, nodes](long long begin, long long end, std::vector<int>& listed) {
+        for (auto I0 = static_cast<int>(begin); I0 < end; I0 += 8) { // eight flags at a time: most nodes are not listed
+          std::uint64_t any = 0;
+          if (I0 + 8 <= nodes) std::memcpy(&any, mark + I0, 8);
+          else any = 1;
+          if (any == 0) continue;
+          for (int I = I0; I < std::min(I0 + 8, nodes); ++I)
+            if (mark[I]) listed.push_back(I);
+        }
+      },
+      list);
 }
 
 template <int D> void Engine<D>::finish_mass() {
@@ -578,15 +586,16 @@ template <int D> void Engine<D>::finish_mass() {
   const double m_min = settings_.mass_tolerance * m_max;
   // The flags and the list of the active nodes in one pass (raw pointers:
   // a char store may alias the vectors' own).
-  std::vector<int>& list = nodal_.active_nodes;
-  list.clear();
   const double* m = nodal_.m.data();
   char* active = nodal_.active.data();
-  for (const int I : visited) {
-    const bool on = m[I] > m_min;
-    active[I] = on;
-    if (on) list.push_back(I);
-  }
+  parallel_filter(
+      visited,
+      [m, active, m_min](int I) {
+        const bool on = m[I] > m_min;
+        active[I] = on;
+        return on;
+      },
+      nodal_.active_nodes);
   light_.clear();
   if (mode_.nodes_move()) // the lattice's own nodes fill their cells: none is light (sect. 3)
     for (int I = 0; I < nodes; ++I)
@@ -732,8 +741,9 @@ template <int D> void Engine<D>::book_held(const AlignedVector<Vec<D>>& rate) {
   // The nodes a wall holds: the particles take their kick up (book_transfer;
   // the inactive nodes get none).
   if (constraints_.held().empty()) return;
-  for (const int I : nodal_.active_nodes) // note() keeps only the nodes a wall holds
-    if (nodal_.q[I] != Vec<D>::Zero()) transfer_.note(I, constraints_, nodal_.v.size());
+  std::vector<int> kicked;
+  parallel_filter(nodal_.active_nodes, [&](int I) { return nodal_.q[I] != Vec<D>::Zero(); }, kicked);
+  for (const int I : kicked) transfer_.note(I, constraints_, nodal_.v.size()); // it keeps only the nodes a wall holds
 }
 
 template <int D> void Engine<D>::book_carried(double alpha_m, double gamma, bool first) {

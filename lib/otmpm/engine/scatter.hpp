@@ -45,6 +45,20 @@ constexpr int dense_entries_per_slot = 4;
 /// Above it (particles in no spatial order on a large grid) the column gather.
 constexpr int max_sparse_ranges = 2;
 
+/// Fewer blocks than this per thread leave a pass that updates each block's
+/// particles before it sums them (BlockedScatter::run's `update`) waiting for
+/// the thread whose blocks cost most - a block of plastic particles among
+/// elastic ones: such a pass then runs its updates first, in chunks the
+/// threads share (few_scatter_blocks).
+constexpr int min_blocks_per_thread = 4;
+
+/// True when n particles make fewer than min_blocks_per_thread scatter
+/// blocks per thread of team_size(n), with more than one thread.
+inline bool few_scatter_blocks(long long n) {
+  const int team = team_size(n);
+  return team > 1 && (n + scatter_block - 1) / scatter_block < static_cast<long long>(min_blocks_per_thread) * team;
+}
+
 /// How ParticleToNodes sums for the current basis table.
 enum class ScatterPath {
   dense,   ///< each block sums into a buffer over its whole node-index range
