@@ -162,14 +162,16 @@ template <class Acc, class Term> Acc blocked_reduce_ranges(long long n, Term&& t
   return total;
 }
 
-/// A list built over [0, n) in fixed blocks of reduction_block indices:
-/// emit(begin, end, list) appends what indices [begin, end) give, in order,
-/// each block to a list of its own on the threads; `out` is their join in
-/// block order - the same list for any thread count (its memory is reused).
+/// A list built over [0, n): emit(begin, end, list) appends what indices
+/// [begin, end) give, in index order, so that [a, c) gives what [a, b) and
+/// then [b, c) give. On several threads each fixed block of
+/// reduction_block indices goes to a list of its own, and `out` is their
+/// join in block order; on one, emit runs once over [0, n): the same list
+/// for any thread count (out's memory is reused).
 template <class Emit> void parallel_list(long long n, Emit&& emit, std::vector<int>& out) {
   const long long blocks = (n + reduction_block - 1) / reduction_block;
   out.clear();
-  if (blocks <= 1) return emit(0LL, n, out);
+  if (blocks <= 1 || team_size(n) <= 1) return emit(0LL, n, out);
   std::vector<std::vector<int>> lists(static_cast<std::size_t>(blocks));
   parallel_chunks(
       blocks, team_size(n),
