@@ -23,7 +23,12 @@
            agree: the top surface (the highest particle + h/4 in bins of
            --bin metres from x = L0) of each file against the last (the
            finest), largest difference over the bins out to where the
-           finest deposit is thinner than --thick metres:
+           finest deposit is thinner than --thick metres; and each file's
+           reach at that thickness, (L_t - L0) / L0 with L_t the outermost
+           particle (+ h/4) of the last bin whose top is at least --thick
+           high (the tip counts the film of one or two particles at the
+           deposit's end, which thins and lengthens with the grid; L_t
+           does not):
       /usr/bin/python3 scripts/column_collapse.py surface COARSE.h5 ... FINEST.h5
 
 Scaling (Lube, Huppert, Sparks & Freundt 2005, Phys. Rev. E 72, 041301,
@@ -158,6 +163,19 @@ def surface_heights(m, width):
     return deposit_top(x, m["h"], width, m["L0"], 0.0)[1] if len(x) else np.zeros(0)
 
 
+def reach(m, width, thick):
+    """(L_t - L0) / L0: L_t the largest x + h/4 of the particles in the last
+    bin of `width` from x = L0 whose top surface is at least `thick` high
+    (L_t = L0 if none)."""
+    top = surface_heights(m, width)
+    thick_bins = np.nonzero(top >= thick)[0]
+    if not len(thick_bins):
+        return 0.0
+    x = m["x"][:, 0]
+    edge = m["L0"] + thick_bins[-1] * width
+    return (x[(x >= edge) & (x < edge + width)].max() + m["h"] / 4 - m["L0"]) / m["L0"]
+
+
 def cmd_surface(a):
     if len(a.files) < 2 or not (a.bin > 0 and a.thick > 0):
         sys.exit("column_collapse.py surface: give two or more result files (the finest last), --bin and --thick > 0")
@@ -169,13 +187,15 @@ def cmd_surface(a):
     finest = surface_heights(ms[-1], a.bin)
     thin = np.nonzero(finest < a.thick)[0]
     bins = thin[0] if len(thin) else len(finest)
-    print(f"{a.files[-1]}: h = {ms[-1]['h']:.4g} m, tip {ms[-1]['tip']:.3f}; deposit thicker than {a.thick:g} m "
+    print(f"{a.files[-1]}: h = {ms[-1]['h']:.4g} m, tip {ms[-1]['tip']:.3f}, reach at {a.thick:g} m "
+          f"{reach(ms[-1], a.bin, a.thick):.3f}; deposit thicker than {a.thick:g} m "
           f"from x = L0 over {bins} bins of {a.bin:g} m")
     for path, m in zip(a.files[:-1], ms[:-1]):
         top = surface_heights(m, a.bin)[:bins]
         top = np.pad(top, (0, bins - len(top)))
         diff = np.abs(top - finest[:bins]).max() if bins else 0.0
-        print(f"{path}: h = {m['h']:.4g} m, tip {m['tip']:.3f}: top surface within {1e3 * diff:.1f} mm "
+        print(f"{path}: h = {m['h']:.4g} m, tip {m['tip']:.3f}, reach at {a.thick:g} m "
+              f"{reach(m, a.bin, a.thick):.3f}: top surface within {1e3 * diff:.1f} mm "
               f"({diff / m['H0']:.3f} H0) of the finest")
 
 
