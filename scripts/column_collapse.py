@@ -171,9 +171,9 @@ def reach(m, width, thick):
     thick_bins = np.nonzero(top >= thick)[0]
     if not len(thick_bins):
         return 0.0
-    x = m["x"][:, 0]
-    edge = m["L0"] + thick_bins[-1] * width
-    return (x[(x >= edge) & (x < edge + width)].max() + m["h"] / 4 - m["L0"]) / m["L0"]
+    x = m["x"][m["x"][:, 0] >= m["L0"], 0]  # the particles surface_heights bins, binned as it does
+    last = x[np.floor((x - m["L0"]) / width).astype(int) == thick_bins[-1]]
+    return (last.max() + m["h"] / 4 - m["L0"]) / m["L0"]
 
 
 def cmd_surface(a):
