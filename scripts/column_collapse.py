@@ -76,12 +76,17 @@ def height_scaling(a):
     return np.where(a < 1.15, 1.0, a ** (-3 / 5))
 
 
+def bin_index(x, width, start):
+    """The bin of each abscissa x in bins of `width` from `start` (those before it in the first)."""
+    return np.clip(np.floor((x - start) / width).astype(int), 0, None)
+
+
 def deposit_top(x, h, width=None, start=0.0, empty=-1.0):
     """The deposit's top surface: (bin centres, largest y + h/4) in bins of
     `width` (h/2 unless given) from x = `start` (particles before it count in
     the first bin); `empty` where a bin holds no particle."""
     width = h / 2 if width is None else width
-    b = np.clip(np.floor((x[:, 0] - start) / width).astype(int), 0, None)
+    b = bin_index(x[:, 0], width, start)
     top = np.full(b.max() + 1, empty)
     np.maximum.at(top, b, x[:, 1] + h / 4)
     return start + (np.arange(len(top)) + 0.5) * width, top
@@ -163,16 +168,15 @@ def surface_heights(m, width):
     return deposit_top(x, m["h"], width, m["L0"], 0.0)[1] if len(x) else np.zeros(0)
 
 
-def reach(m, width, thick):
+def reach(m, top, width, thick):
     """(L_t - L0) / L0: L_t the largest x + h/4 of the particles in the last
-    bin of `width` from x = L0 whose top surface is at least `thick` high
-    (L_t = L0 if none)."""
-    top = surface_heights(m, width)
+    bin whose top is at least `thick` high (`top`: surface_heights(m,
+    width)); L_t = L0 if none."""
     thick_bins = np.nonzero(top >= thick)[0]
     if not len(thick_bins):
         return 0.0
-    x = m["x"][m["x"][:, 0] >= m["L0"], 0]  # the particles surface_heights bins, binned as it does
-    last = x[np.floor((x - m["L0"]) / width).astype(int) == thick_bins[-1]]
+    x = m["x"][m["x"][:, 0] >= m["L0"], 0]  # the particles surface_heights bins
+    last = x[bin_index(x, width, m["L0"]) == thick_bins[-1]]
     return (last.max() + m["h"] / 4 - m["L0"]) / m["L0"]
 
 
@@ -184,18 +188,19 @@ def cmd_surface(a):
         if (m["L0"], m["H0"]) != (ms[-1]["L0"], ms[-1]["H0"]):
             sys.exit(f"column_collapse.py surface: {path} is a column of L0 = {m['L0']:g}, H0 = {m['H0']:g} m, "
                      f"{a.files[-1]} one of L0 = {ms[-1]['L0']:g}, H0 = {ms[-1]['H0']:g} m: compare one column")
-    finest = surface_heights(ms[-1], a.bin)
+    tops = [surface_heights(m, a.bin) for m in ms]
+    finest = tops[-1]
     thin = np.nonzero(finest < a.thick)[0]
     bins = thin[0] if len(thin) else len(finest)
     print(f"{a.files[-1]}: h = {ms[-1]['h']:.4g} m, tip {ms[-1]['tip']:.3f}, reach at {a.thick:g} m "
-          f"{reach(ms[-1], a.bin, a.thick):.3f}; deposit thicker than {a.thick:g} m "
+          f"{reach(ms[-1], finest, a.bin, a.thick):.3f}; deposit thicker than {a.thick:g} m "
           f"from x = L0 over {bins} bins of {a.bin:g} m")
-    for path, m in zip(a.files[:-1], ms[:-1]):
-        top = surface_heights(m, a.bin)[:bins]
-        top = np.pad(top, (0, bins - len(top)))
-        diff = np.abs(top - finest[:bins]).max() if bins else 0.0
+    for path, m, top in zip(a.files[:-1], ms[:-1], tops[:-1]):
+        near = top[:bins]
+        near = np.pad(near, (0, bins - len(near)))
+        diff = np.abs(near - finest[:bins]).max() if bins else 0.0
         print(f"{path}: h = {m['h']:.4g} m, tip {m['tip']:.3f}, reach at {a.thick:g} m "
-              f"{reach(m, a.bin, a.thick):.3f}: top surface within {1e3 * diff:.1f} mm "
+              f"{reach(m, top, a.bin, a.thick):.3f}: top surface within {1e3 * diff:.1f} mm "
               f"({diff / m['H0']:.3f} H0) of the finest")
 
 
