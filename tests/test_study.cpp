@@ -67,6 +67,50 @@ TEST_CASE("study: a rerun skips the runs already in the CSV and completes a trun
   fs::remove_all(dir);
 }
 
+/// The (variant, mesh) pairs of a study CSV's rows, as "variant@mesh".
+std::set<std::string> csv_runs(const fs::path& csv) {
+  const auto rows = read_csv(csv);
+  std::set<std::string> runs;
+  for (std::size_t r = 1; r < rows.size(); ++r)
+    runs.insert(rows[r][column(rows[0], "variant")] + "@" + rows[r][column(rows[0], "mesh")]);
+  return runs;
+}
+
+TEST_CASE("study: --variant and --mesh run only the runs they name, the next study the others") {
+  const fs::path dir = make_study_dir("parts");
+  const std::string study = "cd " + quote(dir.string()) + " && '" OTMPM_BINARY "' study study.toml";
+  std::string out;
+  REQUIRE(run_command(study + " --mesh n20", out) == 0);
+  INFO(out);
+  CHECK(out.find("4 runs, 2 chosen by --variant/--mesh, 0 of them already in") != std::string::npos);
+  CHECK(csv_runs(dir / "study.csv") == std::set<std::string>{"fe@n20", "npc@n20"});
+  CHECK(!fs::exists(dir / "study_results" / "fe_n13.h5"));
+  REQUIRE(run_command(study + " --variant npc --mesh n13 --mesh n20", out) == 0);
+  CHECK(out.find("2 chosen by --variant/--mesh, 1 of them already in") != std::string::npos);
+  CHECK(csv_runs(dir / "study.csv") == std::set<std::string>{"fe@n20", "npc@n20", "npc@n13"});
+  REQUIRE(run_command(study + " --variant npc", out) == 0);
+  CHECK(out.find("nothing to run: the 2 runs chosen by --variant/--mesh are already in") !=
+        std::string::npos);
+  REQUIRE(run_study(dir, out) == 0);
+  CHECK(out.find("4 runs, 3 already in") != std::string::npos);
+  CHECK(csv_runs(dir / "study.csv") == std::set<std::string>{"fe@n13", "fe@n20", "npc@n13", "npc@n20"});
+  fs::remove_all(dir);
+}
+
+TEST_CASE(
+    "study: a --variant or --mesh name the study does not have is refused with exit 2, naming its names") {
+  const fs::path dir = make_study_dir("parts_bad");
+  const std::string study = "cd " + quote(dir.string()) + " && '" OTMPM_BINARY "' study study.toml";
+  std::string out;
+  CHECK(run_command(study + " --mesh n30", out) == 2);
+  CHECK(out.find("study.toml: --mesh 'n30' is none of its meshes: n13, n20") != std::string::npos);
+  CHECK(run_command(study + " --variant fe --variant FE", out) == 2);
+  CHECK(out.find("--variant 'FE' is none of its variants: fe, npc") != std::string::npos);
+  CHECK(!fs::exists(dir / "study.csv"));
+  CHECK(!fs::exists(dir / "study_results"));
+  fs::remove_all(dir);
+}
+
 TEST_CASE("study: a CSV written before the energy columns is extended in place and resumed") {
   const fs::path dir = make_study_dir("upgrade");
   std::string out;

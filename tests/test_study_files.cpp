@@ -44,8 +44,9 @@ void expect_refused(const std::string& name, const std::string& body, const std:
   fs::remove_all(dir);
 }
 
-/// Starts `otmpm study study.toml` in dir (stdout and stderr to study.out); returns its pid.
-pid_t start_study(const fs::path& dir) {
+/// Starts `otmpm study study.toml` in dir (stdout and stderr to study.out)
+/// with the executable `binary`; returns its pid.
+pid_t start_study(const fs::path& dir, const std::string& binary = OTMPM_BINARY) {
   std::fflush(nullptr); // or the child flushes the test's buffered output a second time
   const pid_t pid = ::fork();
   REQUIRE(pid >= 0);
@@ -53,7 +54,7 @@ pid_t start_study(const fs::path& dir) {
     if (::chdir(dir.c_str()) != 0) ::_exit(127);
     std::FILE* f = std::freopen("study.out", "w", stdout);
     if (f) ::dup2(::fileno(stdout), STDERR_FILENO);
-    ::execl(OTMPM_BINARY, OTMPM_BINARY, "study", "study.toml", static_cast<char*>(nullptr));
+    ::execl(binary.c_str(), binary.c_str(), "study", "study.toml", static_cast<char*>(nullptr));
     ::_exit(127);
   }
   return pid;
@@ -229,6 +230,48 @@ TEST_CASE("study: a child killed by a signal is not recorded, and its left-over 
   CHECK(rows[2][0] == "a");
   CHECK(rows[2][column(rows[0], "status")] == "ok");
   CHECK(!fs::exists(dir / "study_results" / ".a_n13.h5.otmpm-lock"));
+  fs::remove_all(dir);
+}
+
+TEST_CASE("study: otmpm rebuilt under a running study: the runs still to come run the study's own binary") {
+  const fs::path dir = study_dir("d9_rebuilt", two_variants("1.0", "2e-5", 1));
+  const fs::path bin = dir / "bin" / "otmpm";
+  fs::create_directories(bin.parent_path());
+  fs::copy_file(OTMPM_BINARY, bin);
+  const pid_t study = start_study(dir, bin.string());
+  const std::vector<pid_t> kids = wait_for_children(study, 1, {dir / "study_results" / "a_n13.h5"});
+  REQUIRE(kids.size() == 1);
+  // The file is replaced, as a rebuild or reinstall does: another binary at its path.
+  fs::remove(bin);
+  std::ofstream(bin) << "#!/bin/sh\necho 'not the study'\nexit 3\n";
+  fs::permissions(bin, fs::perms::owner_all);
+  ::kill(kids.front(), SIGTERM); // a stops (not recorded); b starts after the replacement
+  CHECK(wait_exit(study) == 0);
+  const std::string printed = read_text(dir / "study.out");
+  INFO(printed);
+  CHECK(contains(printed, "a n13: stopped (exit 143), not recorded"));
+  const auto rows = read_csv(dir / "study.csv");
+  REQUIRE(rows.size() == 2);
+  CHECK(rows[1][0] == "b");
+  CHECK(rows[1][column(rows[0], "status")] == "ok");
+  fs::remove_all(dir);
+}
+
+TEST_CASE("study: a run that cannot be started is not recorded, says why in its log, and the study exits 1") {
+  // An argument over Linux's 128 KiB per argument: execve refuses it (E2BIG).
+  const std::string huge = "[[variant]]\nname = \"huge\"\nset = [\"simulation.t_end=2e-5\", \"output.file=" +
+                           std::string(200000, 'x') + ".h5\"]\n";
+  const fs::path dir = study_dir("d9_unstartable", two_variants("2e-5", "2e-5", 1) + huge);
+  std::string out;
+  CHECK(run_study(dir, out) == 1);
+  INFO(out.substr(0, 2000));
+  CHECK(contains(out, "huge n13: could not be started (study_results/huge_n13.log says why), not recorded"));
+  CHECK(contains(out, "1 runs were stopped by a signal or not started and are not in the CSV"));
+  CHECK(contains(read_text(dir / "study_results" / "huge_n13.log"), ": Argument list too long"));
+  const auto rows = read_csv(dir / "study.csv");
+  REQUIRE(rows.size() == 3); // a and b, not huge
+  CHECK(rows[1][column(rows[0], "status")] == "ok");
+  CHECK(rows[2][column(rows[0], "status")] == "ok");
   fs::remove_all(dir);
 }
 

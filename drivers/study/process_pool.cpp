@@ -24,8 +24,8 @@ ProcessPool::~ProcessPool() {
   }
 }
 
-pid_t ProcessPool::start(const std::vector<std::string>& argv, const std::filesystem::path& log,
-                         const std::vector<std::string>& env) {
+pid_t ProcessPool::start(const std::string& program, const std::vector<std::string>& argv,
+                         const std::filesystem::path& log, const std::vector<std::string>& env) {
   // Everything the child needs is prepared before fork: after it, only
   // async-signal-safe calls.
   std::vector<std::string> args = argv, vars = env;
@@ -42,7 +42,7 @@ pid_t ProcessPool::start(const std::vector<std::string>& argv, const std::filesy
   }
   for (std::string& v : vars) cenv.push_back(v.data());
   cenv.push_back(nullptr);
-  const std::string log_path = log.string();
+  const std::string log_path = log.string(), cannot = "otmpm study: cannot start " + argv.at(0) + ": ";
   const pid_t parent = getpid();
   const pid_t pid = fork();
   if (pid < 0) throw std::runtime_error(std::string("fork failed: ") + std::strerror(errno));
@@ -54,8 +54,12 @@ pid_t ProcessPool::start(const std::vector<std::string>& argv, const std::filesy
       dup2(fd, STDOUT_FILENO);
       dup2(fd, STDERR_FILENO);
     }
-    execve(cargv[0], cargv.data(), cenv.data());
-    _exit(127);
+    execve(program.c_str(), cargv.data(), cenv.data());
+    const char* why = std::strerror(errno); // the study has no other thread: no lock is held here
+    if (write(STDERR_FILENO, cannot.data(), cannot.size()) >= 0 &&
+        write(STDERR_FILENO, why, std::strlen(why)) >= 0)
+      (void)!write(STDERR_FILENO, "\n", 1);
+    _exit(kNotStarted);
   }
   children_.push_back(pid);
   return pid;

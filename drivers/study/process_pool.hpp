@@ -13,6 +13,9 @@
 
 namespace otmpm::study {
 
+/// The exit status of a child that could not execute its program (as a shell's).
+constexpr int kNotStarted = 127;
+
 /// How a child ended.
 struct ChildExit {
   pid_t pid = -1;
@@ -28,10 +31,12 @@ public:
   ProcessPool(const ProcessPool&) = delete;
   ProcessPool& operator=(const ProcessPool&) = delete;
 
-  /// Starts argv (argv[0] a path) with stdout and stderr to `log` and the
-  /// extra environment `env` ("NAME=VALUE"); returns its pid.
-  pid_t start(const std::vector<std::string>& argv, const std::filesystem::path& log,
-              const std::vector<std::string>& env);
+  /// Starts the executable `program` with argv (argv[0] the name it is
+  /// given), stdout and stderr to `log` and the extra environment `env`
+  /// ("NAME=VALUE"); returns its pid. A child that cannot execute `program`
+  /// writes why to `log` and exits with kNotStarted.
+  pid_t start(const std::string& program, const std::vector<std::string>& argv,
+              const std::filesystem::path& log, const std::vector<std::string>& env);
   /// Waits up to `limit` for the next child to end. Returns pid -1 when none
   /// is running or none ended in time: the caller checks its interrupt flag
   /// between waits, so a signal that arrives just before a wait is seen

@@ -13,7 +13,9 @@
 // with it (PR_SET_PDEATHSIG). A run whose result file is still locked by
 // another process (a child of a killed study that is still stopping) waits
 // for it instead of failing; the study holds otmpm's lock on its CSV, so a
-// second study on the same CSV is refused.
+// second study on the same CSV is refused. Every run executes the study's
+// own binary, so rebuilding otmpm under a running study changes nothing; a
+// run that cannot be started is not recorded, and the study exits 1.
 #include "../cli.hpp"
 #include "../interrupt.hpp"
 #include "../system.hpp"
@@ -24,6 +26,7 @@
 #include "otmpm/core.hpp"
 #include "otmpm/io/output_files.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <map>
@@ -44,6 +47,7 @@ struct StudyArgs {
   std::string file;
   int threads = 1; ///< OpenMP threads of each child run
   std::string scripts, python;
+  std::vector<std::string> variants, meshes; ///< --variant / --mesh: run only these (empty: all)
 };
 
 /// The `otmpm run` command line of one study run.
@@ -56,6 +60,12 @@ std::vector<std::string> run_argv(const Study& s, const StudyRun& r, const Study
   }
   return argv;
 }
+
+/// The program every run of a study executes: the study's own executable
+/// (/proc/self/exe), so that an otmpm rebuilt or reinstalled while the
+/// study runs - its file now another binary, or gone - neither stops nor
+/// changes the runs still to come; the file's path where /proc is missing.
+std::string run_program() { return fs::exists("/proc/self/exe") ? "/proc/self/exe" : self_path().string(); }
 
 /// Draws the plots with the scripts found beside the executable (or --scripts):
 /// with [[measure]], the errors against the reference run (convergence.py:
@@ -126,7 +136,7 @@ private:
   std::vector<const StudyRun*> todo_;
   study::ProcessPool pool_;
   std::map<pid_t, const StudyRun*> running_;
-  std::size_t next_ = 0, recorded_ = 0, not_recorded_ = 0, skipped_ = 0;
+  std::size_t next_ = 0, recorded_ = 0, not_recorded_ = 0, skipped_ = 0, not_started_ = 0;
   bool stopping_ = false;
   std::optional<std::chrono::steady_clock::time_point> lock_wait_since_;
 };
@@ -150,7 +160,7 @@ void StudyRunner::start_runs() {
   while (next_ < todo_.size() && static_cast<int>(pool_.running()) < s_.jobs) {
     const StudyRun& r = *todo_[next_];
     if (!may_start(r)) return;
-    running_[pool_.start(run_argv(s_, r, a_, result_path(r)), log_path(r), {})] = &r;
+    running_[pool_.start(run_program(), run_argv(s_, r, a_, result_path(r)), log_path(r), {})] = &r;
     ++next_;
   }
 }
@@ -188,6 +198,10 @@ void StudyRunner::finish(const study::ChildExit& c) {
     ++not_recorded_;
     std::printf("[-] %s %s: stopped (exit %d), not recorded: the next `otmpm study` runs it again\n",
                 r->variant.c_str(), r->mesh.c_str(), c.status);
+  } else if (c.status == study::kNotStarted) {
+    ++not_started_;
+    std::printf("[-] %s %s: could not be started (%s says why), not recorded\n", r->variant.c_str(),
+                r->mesh.c_str(), log_path(*r).c_str());
   } else {
     study::append_row(s_, study::result_row(s_, *r, c.status, result_path(*r), log_path(*r)));
     std::printf("[%zu/%zu] %s %s: exit %d\n", ++recorded_, todo_.size(), r->variant.c_str(), r->mesh.c_str(),
@@ -204,11 +218,12 @@ int StudyRunner::report() const {
                 a_.file.c_str());
     return interrupted_exit_status();
   }
-  if (not_recorded_ + skipped_ > 0)
-    std::printf("%zu runs were stopped by a signal or not started and are not in the CSV: run the study again to "
-                "retry them\n",
-                not_recorded_ + skipped_);
-  return 0;
+  if (not_recorded_ + skipped_ + not_started_ > 0)
+    std::printf(
+        "%zu runs were stopped by a signal or not started and are not in the CSV: run the study again to "
+        "retry them\n",
+        not_recorded_ + skipped_ + not_started_);
+  return not_started_ > 0 ? 1 : 0;
 }
 
 /// Creates the results folder (InputError naming the study file's `results` key when it cannot).
@@ -230,21 +245,61 @@ OutputLock lock_csv(const Study& s) {
   }
 }
 
+/// Refuses (InputError) a --variant or --mesh name that is none of the
+/// study's, naming the option, the name and the study's names of that kind.
+void check_names(const Study& s, const std::vector<std::string>& wanted, const std::string& kind,
+                 std::string StudyRun::*field) {
+  std::vector<std::string> names;
+  for (const StudyRun& r : s.runs)
+    if (std::find(names.begin(), names.end(), r.*field) == names.end()) names.push_back(r.*field);
+  for (const std::string& w : wanted) {
+    if (std::find(names.begin(), names.end(), w) != names.end()) continue;
+    std::string list;
+    for (const std::string& n : names) list += (list.empty() ? "" : ", ") + n;
+    throw InputError("study " + s.file.string() + ": --" + kind + " '" + w + "' is none of its " + kind +
+                     (kind == "mesh" ? "es: " : "s: ") + list);
+  }
+}
+
+/// Whether `r` is one of the runs --variant and --mesh select (all when neither is given).
+bool selected(const StudyArgs& a, const StudyRun& r) {
+  const auto in = [](const std::vector<std::string>& v, const std::string& x) {
+    return v.empty() || std::find(v.begin(), v.end(), x) != v.end();
+  };
+  return in(a.variants, r.variant) && in(a.meshes, r.mesh);
+}
+
+/// Prints what the study will do: its runs, the `chosen` ones (by --variant
+/// and --mesh), how many of those the CSV already holds and the `todo` left.
+void announce(const Study& s, std::size_t chosen, std::size_t todo) {
+  const bool all = chosen == s.runs.size();
+  const std::string runs = all ? "all " + std::to_string(chosen) + " runs"
+                               : "the " + std::to_string(chosen) + " runs chosen by --variant/--mesh";
+  const std::string of = all ? "" : ", " + std::to_string(chosen) + " chosen by --variant/--mesh";
+  if (todo == 0)
+    std::printf("study %s: nothing to run: %s are already in %s (delete it, or set another `csv`, to run them "
+                "again); drawing the plots from it\n",
+                s.file.c_str(), runs.c_str(), s.csv.c_str());
+  else
+    std::printf("study %s: %zu runs%s, %zu %salready in %s, %zu to do, %d at a time\n", s.file.c_str(),
+                s.runs.size(), of.c_str(), chosen - todo, all ? "" : "of them ", s.csv.c_str(), todo, s.jobs);
+}
+
 int study_command(const StudyArgs& a) {
   const Study s = study::read_study(a.file);
+  check_names(s, a.variants, "variant", &StudyRun::variant);
+  check_names(s, a.meshes, "mesh", &StudyRun::mesh);
   create_results_folder(s);
   const OutputLock csv_lock = lock_csv(s);
   const study::DoneRuns done = study::prepare_csv(s);
   std::vector<const StudyRun*> todo;
-  for (const StudyRun& r : s.runs)
+  std::size_t chosen = 0;
+  for (const StudyRun& r : s.runs) {
+    if (!selected(a, r)) continue;
+    ++chosen;
     if (!done.count({r.variant, r.mesh})) todo.push_back(&r);
-  if (todo.empty())
-    std::printf("study %s: nothing to run: all %zu runs are already in %s (delete it, or set another `csv`, to run "
-                "them again); drawing the plots from it\n",
-                s.file.c_str(), s.runs.size(), s.csv.c_str());
-  else
-    std::printf("study %s: %zu runs, %zu already in %s, %zu to do, %d at a time\n", s.file.c_str(), s.runs.size(),
-                s.runs.size() - todo.size(), s.csv.c_str(), todo.size(), s.jobs);
+  }
+  announce(s, chosen, todo.size());
   std::fflush(stdout);
   InterruptHandlers handlers;
   if (const int status = StudyRunner(s, a, std::move(todo)).run(); status != 0) return status;
@@ -270,8 +325,19 @@ Command add_study_command(CLI::App& app) {
   sub->add_option("--python", a->python,
                   "Python with matplotlib for the plots (default: /usr/bin/python3, else python3 on PATH)")
       ->type_name("PATH");
-  sub->footer("Rows already in the CSV are skipped, so an interrupted study resumes. SIGINT/SIGTERM stop the "
-              "children cleanly; unfinished runs are not recorded (exit 130/143).");
+  sub->add_option(
+         "--variant", a->variants,
+         "Run only this variant (repeat for more; default: every variant); the CSV keeps the other rows")
+      ->type_name("NAME")
+      ->expected(1)
+      ->take_all();
+  sub->add_option("--mesh", a->meshes, "Run only this mesh (repeat for more; default: every mesh)")
+      ->type_name("NAME")
+      ->expected(1)
+      ->take_all();
+  sub->footer(
+      "Rows already in the CSV are skipped, so an interrupted study resumes, and --variant / --mesh run it "
+      "in parts. SIGINT/SIGTERM stop the children cleanly; unfinished runs are not recorded (exit 130/143).");
   return [a] { return study_command(*a); };
 }
 
