@@ -92,8 +92,20 @@ def deposit_top(x, h, width=None, start=0.0, empty=-1.0):
     return start + (np.arange(len(top)) + 0.5) * width, top
 
 
+def open_result(path):
+    """The result file `path` opened for reading, or exit with a message naming
+    it (HDF5's lock refuses a file that a run is still writing)."""
+    try:
+        return h5py.File(path, "r")
+    except BlockingIOError:
+        sys.exit(f"column_collapse.py: {path}: a run is still writing it (HDF5 file lock); measure it when the run "
+                 "has ended, or set HDF5_USE_FILE_LOCKING=FALSE to read the frames written so far")
+    except OSError as e:
+        sys.exit(f"column_collapse.py: {path}: cannot open it as a result file: {e}")
+
+
 def measure(path):
-    with h5py.File(path, "r") as f:
+    with open_result(path) as f:
         scene = tomllib.loads(text(f.attrs["scene"]))
         body = scene["body"][0]
         L0 = body["upper"][0] - body["lower"][0]
