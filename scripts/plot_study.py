@@ -6,7 +6,8 @@
 
 Writes PREFIX_work_precision.{png,svg} (error against wall time, log-log, one
 line per variant through its mesh sizes) and PREFIX_convergence.{png,svg}
-(error against h). Runs that did not finish ok (unstable, refused) are drawn as
+(error against h); neither when no run has a value in the error column (a
+scene without an exact solution) and none failed, and it says so. Runs that did not finish ok (unstable, refused) are drawn as
 red crosses at the top of the axes, at their wall time / h, not left out.
 With --table it also prints a markdown table on stdout: one row per variant,
 one column per mesh, each cell "error / wall time" (or the status of a run
@@ -131,6 +132,12 @@ def main(argv):
     series = load(a.csv, a.error, a.variants, a.order, a.estimate)
     if not series:
         sys.exit(f"{a.csv}: no rows")
+    runs = [r for rs in series.values() for r in rs]
+    if all(r["ok"] and not math.isfinite(r["error"]) for r in runs):
+        # Empty axes would say nothing: a scene without an exact solution.
+        print(f"{a.csv}: no run has a value in column {a.error} (the scene has no exact solution to compare "
+              "with): no plots drawn; a [[measure]] in the study gives errors against a reference run")
+        return
     title = a.title or a.csv
     draw(series, "wall", "wall time [s] (one core per run)", a.error, title + ": work-precision", prefix,
          "work_precision")

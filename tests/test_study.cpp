@@ -67,6 +67,25 @@ TEST_CASE("study: a rerun skips the runs already in the CSV and completes a trun
   fs::remove_all(dir);
 }
 
+TEST_CASE("study: a scene without an exact solution gets no empty error plots, and the study says so") {
+  const fs::path dir = study_dir("no_errors", "");
+  std::ofstream(dir / "study.toml", std::ios::trunc)
+      << "scene = \"" OTMPM_SOURCE_DIR "/examples/column_collapse_mu_i.toml\"\ncsv = \"study.csv\"\n"
+      << "set = [\"simulation.t_end=0.002\", \"output.every=0.001\"]\n"
+      << "[[mesh]]\nname = \"L0-5\"\nh = 0.04\nset = [\"grid.h=0.04\"]\n";
+  std::string out;
+  REQUIRE(run_study(dir, out) == 0);
+  INFO(out);
+  const auto rows = read_csv(dir / "study.csv");
+  REQUIRE(rows.size() == 2);
+  CHECK(rows[1][column(rows[0], "status")] == "ok");
+  CHECK(rows[1][column(rows[0], "rms_velocity_error")].empty());
+  CHECK(out.find("no run has a value in column rms_velocity_error") != std::string::npos);
+  CHECK(!fs::exists(dir / "study_work_precision.png"));
+  CHECK(!fs::exists(dir / "study_convergence.png"));
+  fs::remove_all(dir);
+}
+
 /// The (variant, mesh) pairs of a study CSV's rows, as "variant@mesh".
 std::set<std::string> csv_runs(const fs::path& csv) {
   const auto rows = read_csv(csv);
