@@ -51,9 +51,10 @@ inline int run_command(const std::string& cmd, std::string& out) {
   return r.status;
 }
 
-/// Runs `otmpm study study.toml` in dir; returns the exit status and fills `out` with its output.
-inline int run_study(const std::filesystem::path& dir, std::string& out) {
-  return run_command("cd " + quote(dir.string()) + " && '" OTMPM_BINARY "' study study.toml", out);
+/// Runs `otmpm study study.toml` (and `args`, options for the shell) in dir;
+/// returns the exit status and fills `out` with its output.
+inline int run_study(const std::filesystem::path& dir, std::string& out, const std::string& args = "") {
+  return run_command("cd " + quote(dir.string()) + " && '" OTMPM_BINARY "' study study.toml" + args, out);
 }
 
 /// The rows of a CSV file, as cells (RFC 4180: "a, ""b""" is one cell; trailing empty cells are kept).

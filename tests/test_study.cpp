@@ -97,17 +97,16 @@ std::set<std::string> csv_runs(const fs::path& csv) {
 
 TEST_CASE("study: --variant and --mesh run only the runs they name, the next study the others") {
   const fs::path dir = make_study_dir("parts");
-  const std::string study = "cd " + quote(dir.string()) + " && '" OTMPM_BINARY "' study study.toml";
   std::string out;
-  REQUIRE(run_command(study + " --mesh n20", out) == 0);
+  REQUIRE(run_study(dir, out, " --mesh n20") == 0);
   INFO(out);
   CHECK(out.find("4 runs, 2 chosen by --variant/--mesh, 0 of them already in") != std::string::npos);
   CHECK(csv_runs(dir / "study.csv") == std::set<std::string>{"fe@n20", "npc@n20"});
   CHECK(!fs::exists(dir / "study_results" / "fe_n13.h5"));
-  REQUIRE(run_command(study + " --variant npc --mesh n13 --mesh n20", out) == 0);
+  REQUIRE(run_study(dir, out, " --variant npc --mesh n13 --mesh n20") == 0);
   CHECK(out.find("2 chosen by --variant/--mesh, 1 of them already in") != std::string::npos);
   CHECK(csv_runs(dir / "study.csv") == std::set<std::string>{"fe@n20", "npc@n20", "npc@n13"});
-  REQUIRE(run_command(study + " --variant npc", out) == 0);
+  REQUIRE(run_study(dir, out, " --variant npc") == 0);
   CHECK(out.find("nothing to run: the 2 runs chosen by --variant/--mesh are already in") !=
         std::string::npos);
   REQUIRE(run_study(dir, out) == 0);
@@ -119,11 +118,10 @@ TEST_CASE("study: --variant and --mesh run only the runs they name, the next stu
 TEST_CASE(
     "study: a --variant or --mesh name the study does not have is refused with exit 2, naming its names") {
   const fs::path dir = make_study_dir("parts_bad");
-  const std::string study = "cd " + quote(dir.string()) + " && '" OTMPM_BINARY "' study study.toml";
   std::string out;
-  CHECK(run_command(study + " --mesh n30", out) == 2);
+  CHECK(run_study(dir, out, " --mesh n30") == 2);
   CHECK(out.find("study.toml: --mesh 'n30' is none of its meshes: n13, n20") != std::string::npos);
-  CHECK(run_command(study + " --variant fe --variant FE", out) == 2);
+  CHECK(run_study(dir, out, " --variant fe --variant FE") == 2);
   CHECK(out.find("--variant 'FE' is none of its variants: fe, npc") != std::string::npos);
   CHECK(!fs::exists(dir / "study.csv"));
   CHECK(!fs::exists(dir / "study_results"));
