@@ -701,6 +701,17 @@ TEST_CASE("mpi: a bad scene ends every rank with status 2 and one message") {
   CHECK(r.err == "otmpm: error: --set simulation.cfl: must be > 0 (got -1)\n");
 }
 
+TEST_CASE("mpi: a channel's side walls are refused under mpirun, once, status 2") {
+  TempDir dir("mpi_channel");
+  const Result r = run_otmpm(dir, 2,
+                             {"run", (kExamples / "column_collapse_mu_i.toml").string(), "--quiet", "--set",
+                              "channel.width=0.2", "--set", "channel.friction=0.4"});
+  CHECK(r.status == 2);
+  CHECK_MESSAGE(
+      r.err.find("[channel]: side walls are not available in distributed runs") != std::string::npos, r.err);
+  CHECK(r.err.find("otmpm: error:") == r.err.rfind("otmpm: error:")); // once, not per rank
+}
+
 TEST_CASE("mpi: a mesh's vertices as the nodes (nodes = \"mesh\") are refused under mpirun, naming the key") {
   TempDir dir("mpi_mesh_nodes");
   const Result r = run_otmpm(dir, 2, {"run", (kExamples / "geometry" / "bracket.toml").string(), "--quiet"});

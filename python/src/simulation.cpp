@@ -451,8 +451,8 @@ void register_simulation(py::module_& m) {
   register_views(m);
   py::module_::import("atexit").attr("register")(py::cpp_function([] { PySimulation::finish_all(); }));
   py::class_<PySimulation>(m, "Simulation", kSimulationDoc)
-      .def(py::init([](const Scene& scene, const py::object& out, bool write_results, std::optional<int> threads,
-                       const py::object& callback, bool force) {
+      .def(py::init([](const Scene& scene, const py::object& out, bool write_results,
+                       std::optional<int> threads, const py::object& callback, bool force) {
              auto s = std::make_unique<PySimulation>(scene, out, write_results, force, threads);
              s->set_callback(callback);
              return s;
@@ -495,23 +495,36 @@ void register_simulation(py::module_& m) {
           "Completes the result file (final status, errors against the exact solution, summary\n"
           "attributes) and returns the otmpm.Summary. Call once, after the last step.")
       .def(
-          "energy", [](PySimulation& s) { return visit_engine(s.sim(), [](auto& e) -> py::object { return energy_dict(e.energy()); }); },
+          "energy",
+          [](PySimulation& s) {
+            return visit_engine(s.sim(), [](auto& e) -> py::object { return energy_dict(e.energy()); });
+          },
           "The energy balance after the last step [J]: kinetic, strain, dissipated (plastic work), friction\n"
-          "(dissipated at walls and in body contact), impact (taken by impacts on walls and between bodies), darcy (dissipated by the drag of a saturated body's pore\n"
-          "liquid), pressure_average (the pore pressure's work on the increments its cell average leaves out), relaxation (the kinetic\n"
-          "energy the PIC relaxation took: simulation.pic_relaxation_time), external_work, reaction_work, initial (E(0)),\n"
+          "(dissipated at walls, in body contact and at a channel's side walls), impact (taken by impacts on "
+          "walls and between bodies), darcy (dissipated by the drag of a saturated body's pore\n"
+          "liquid), pressure_average (the pore pressure's work on the increments its cell average leaves "
+          "out), relaxation (the kinetic\n"
+          "energy the PIC relaxation took: simulation.pic_relaxation_time), external_work, reaction_work, "
+          "initial (E(0)),\n"
           "total (kinetic + strain), work, balance_error.")
       .def_property_readonly(
-          "particles", [](const py::object& self) { return ParticleViews{self}; }, "The particles (ParticleViews).")
+          "particles", [](const py::object& self) { return ParticleViews{self}; },
+          "The particles (ParticleViews).")
       .def_property_readonly(
           "nodes", [](const py::object& self) { return NodeViews{self}; }, "The nodes (NodeViews).")
       .def_property_readonly(
           "t", [](PySimulation& s) { return s.sim().time(); }, "Simulated time [s].")
       .def_property_readonly(
-          "dt", [](PySimulation& s) { return visit_engine(s.sim(), [](auto& e) { return py::float_(e.last_dt()); }); },
+          "dt",
+          [](PySimulation& s) {
+            return visit_engine(s.sim(), [](auto& e) { return py::float_(e.last_dt()); });
+          },
           "Size of the last step [s] (0 before the first).")
       .def_property_readonly(
-          "next_dt", [](PySimulation& s) { return visit_engine(s.sim(), [](auto& e) { return py::float_(e.stable_dt()); }); },
+          "next_dt",
+          [](PySimulation& s) {
+            return visit_engine(s.sim(), [](auto& e) { return py::float_(e.stable_dt()); });
+          },
           "Size of the next step [s] (CFL rule or the fixed dt, at most t_end - t).")
       .def_property_readonly(
           "steps", [](PySimulation& s) { return s.sim().steps(); }, "Steps taken.")
@@ -524,20 +537,24 @@ void register_simulation(py::module_& m) {
           "True once t_end is reached, the run became unstable or was interrupted.")
       .def_property_readonly(
           "status", [](PySimulation& s) { return s.sim().status(); },
-          "\"running\", \"ok\" after finish(), \"interrupted\" or \"unstable: ...\" (the result file's status).")
+          "\"running\", \"ok\" after finish(), \"interrupted\" or \"unstable: ...\" (the result file's "
+          "status).")
       .def_property_readonly(
           "scene", [](PySimulation& s) { return s.sim().scene(); }, "The scene (a copy).")
-      .def_property("callback", &PySimulation::callback, &PySimulation::set_callback,
-                    "Called as callback(sim) after every step taken by step(), advance_to() (None: no\n"
-                    "callback; TypeError for anything not callable). It may read the views; an exception\n"
-                    "it raises stops the loop and propagates. Loops with a callback hold the GIL between steps.")
+      .def_property(
+          "callback", &PySimulation::callback, &PySimulation::set_callback,
+          "Called as callback(sim) after every step taken by step(), advance_to() (None: no\n"
+          "callback; TypeError for anything not callable). It may read the views; an exception\n"
+          "it raises stops the loop and propagates. Loops with a callback hold the GIL between steps.")
       .def("__enter__", [](const py::object& self) { return self; })
       .def(
           "__exit__",
           [](PySimulation& s, const py::object& type, const py::object&, const py::object&) {
             if (s.finish_called()) return false;
-            if (type.is_none()) s.finish();
-            else s.abandon();
+            if (type.is_none())
+              s.finish();
+            else
+              s.abandon();
             return false;
           },
           "Finishes the run (status \"interrupted\" when an exception left the block before t_end).");

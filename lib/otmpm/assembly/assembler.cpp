@@ -483,6 +483,7 @@ EngineParts<D> assemble_parts(const Scene& scene,
   for (const WallSection& w : scene.walls)
     parts.walls.push_back({w.name, scene_vec<D>(w.point), scene_vec<D>(w.normal), scene_vec<D>(w.velocity), w.friction});
   if (scene.contact) parts.contact = ContactLaw{scene.contact->friction};
+  if (scene.channel) parts.side_walls = SideWalls{scene.channel->width, scene.channel->friction};
   parts.loads.body_force = build_body_force<D>(scene, exact);
   require<std::logic_error>(!seed || scene.tractions.empty() || seeded.surfaces ||
                                 seeded.traction_area.size() == scene.tractions.size(),

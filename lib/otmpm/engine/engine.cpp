@@ -144,6 +144,40 @@ template <int D> void NodalFields<D>::zero(int I) {
     if (i < field->size()) (*field)[i] = Vec<D>::Zero();
 }
 
+/// A channel's side walls (side_walls.hpp): plane strain only, on materials
+/// that give the out-of-plane stress.
+template <int D>
+void start_channel(const SideWalls& walls, const Particles<D>& P, bool distributed, bool saturated,
+                   const std::vector<std::unique_ptr<Material<D>>>& materials,
+                   std::optional<ChannelWalls<D>>& channel) {
+  require<InputError>(D == 2, "[channel]: side walls bound a plane-strain body: the run must be 2D");
+  require<InputError>(!saturated, "[channel]: side walls are not available with saturated bodies (the liquid "
+                                  "phase's share of the wall pressure is not modelled)");
+  require<InputError>(!distributed,
+                      "[channel]: side walls are not available in distributed runs (MPI; the "
+                      "nodal mean of sigma_zz is not exchanged between the ranks); run the scene "
+                      "on one process");
+  for (const auto& m : materials) try {
+      m->out_of_plane_stress(P, 0, 0, nullptr); // a model without it throws
+    } catch (const std::logic_error&) {
+      throw InputError("[channel]: material '" + m->name() +
+                       "' does not give the out-of-plane stress sigma_zz " +
+                       "that presses on the side walls");
+    }
+  channel.emplace(walls);
+}
+
+/// The side walls' force on every particle for a pass of the step dt (eq. 6.7).
+template <int D>
+void channel_forces(std::optional<ChannelWalls<D>>& channel, const Particles<D>& P,
+                    const BasisTable<D>& table, int nodes,
+                    const std::vector<std::unique_ptr<Material<D>>>& materials, double dt) {
+  if (!channel) return;
+  channel->compute(P, table, nodes, dt, [&](int p0, int p1, double* out) {
+    materials[static_cast<std::size_t>(P.material[p0])]->out_of_plane_stress(P, p0, p1, out);
+  });
+}
+
 template <int D>
 Engine<D>::Engine(EngineParts<D> parts)
     : basis_(std::move(parts.basis)), mode_(parts.mode), P_(std::move(parts.particles)),
@@ -188,6 +222,9 @@ Engine<D>::Engine(EngineParts<D> parts)
   needs_F = needs_F || basis_->point_state_use(mode_.nodes_move()).deformation; // basis.metric = "deformation"
   if (needs_F && P_.F.empty()) P_.F.assign(static_cast<std::size_t>(P_.size()), Mat<D>::Identity());
   for (const auto& m : materials_) m->bind(P_);
+  if (parts.side_walls)
+    start_channel(*parts.side_walls, P_, dist_ != nullptr, settings_.two_phase != nullptr, materials_,
+                  channel_);
   if (mode_.nodes_move() && basis_->search_radius() > 0.0) follow_body(P_.X);
   require<InputError>(
       !(settings_.node_reset.below > 0.0 && (!mode_.nodes_move() || !settings_.node_reset.lattice)),
@@ -284,11 +321,13 @@ template <int D> void Engine<D>::step() {
   transfer_.clear(); // what a step did not book (otm)
   loads_.traction_positions(P_, traction_start_);
   if (mode_.nodes_move()) x_start_.assign(P_.x.begin(), P_.x.end());
+  if (channel_) channel_->start(P_);
   try {
     settings_.step.function(*this, {t_, dt_, dt_prev_, step_, settings_.parameters, P_, nodal_});
   } catch (const ParticleFailure& f) {
     unstable(f.particle, f.what);
   }
+  if (channel_) *ledger().friction += channel_->loss(P_); // eq. 6.8 (summed over the ranks with the energies)
   const double t0 = t_, dt_prev0 = dt_prev_;
   t_ += dt_;
   ++step_;
@@ -378,6 +417,7 @@ template <int D> void Engine<D>::evaluate_basis() {
 template <int D> void Engine<D>::to_nodes(const ToNodes<D>& what) {
   ScopedPhase timer(timers_, Phase::to_nodes);
   if (what.forces && !loads_.uniform() && loads_.any()) loads_.particle_forces(what.t, P_, fext_);
+  if (what.forces) channel_forces(channel_, P_, table_, static_cast<int>(nodal_.m.size()), materials_, dt_);
   to_nodes_with(what, [](int, int) {});
   exchange_sums(what.mass, what.w != nullptr, what.forces || what.split);
   if (what.mass) finish_mass();
@@ -412,6 +452,8 @@ template <int D> void Engine<D>::update_stress_and_to_nodes(const Gradient<D>& g
   require<std::invalid_argument>(what.forces && !what.mass && !what.w,
                                  "Engine::update_stress_and_to_nodes: only the forces follow a stress update");
   if (!loads_.uniform() && loads_.any()) loads_.particle_forces(what.t, P_, fext_);
+  // the side walls press with sigma_zz before the update (the pass's start)
+  channel_forces(channel_, P_, table_, static_cast<int>(nodal_.m.size()), materials_, dt_);
   fallible([&] {
     // F-bar: the forces' patch means need every new stress first. With few
     // scatter blocks per thread the updates also run first, in chunks the
@@ -435,6 +477,7 @@ template <int D> void Engine<D>::to_particles_then_to_nodes(const ToParticles<D>
   require<std::invalid_argument>(!what.mass, "Engine::to_particles_then_to_nodes: the mass does not follow a move");
   if (move.rate) book_transfer(move);
   if (what.forces && !loads_.uniform() && loads_.any()) loads_.particle_forces(what.t, P_, fext_);
+  if (what.forces) channel_forces(channel_, P_, table_, static_cast<int>(nodal_.m.size()), materials_, dt_);
   to_nodes_with(what, [&](int p0, int p1) { to_particles_on(move, {}, p0, p1); });
   exchange_sums(false, what.w != nullptr, what.forces);
 }
@@ -465,6 +508,7 @@ void Engine<D>::to_nodes_impl(const ToNodes<D>& what, Update&& update) {
   const Vec<D>* vw = Momentum ? what.w->data() : nullptr;
   const Vec<D>* va = Momentum && what.a ? what.a->data() : nullptr;
   const Vec<D>* fext = field ? fext_.data() : nullptr;
+  const Vec<D>* side = Forces && channel_ ? channel_->force(P_.size()) : nullptr; // the side walls' f_p
   // F-bar: the patch's mean stress in place of the particle's (volumetric.hpp, docs/theory.md eq. 9.10)
   const double* shift = !Forces                                    ? nullptr
                         : settings_.volumetric == Volumetric::fbar ? fbar_.mean_stress_shift(P_)
@@ -488,6 +532,7 @@ void Engine<D>::to_nodes_impl(const ToNodes<D>& what, Update&& update) {
       w.Vs = V[p] * sigma[p];
       if (shift) w.Vs.diagonal().array() += V[p] * shift[p];
       w.fext = uniform ? Vec<D>(m[p] * b) : fext ? fext[p] : Vec<D>::Zero();
+      if (side) w.fext += side[p];
     }
     return w;
   };

@@ -10,16 +10,17 @@
 /// The engine knows no scene, no benchmark and no integrator by name.
 #include "otmpm/basis/basis.hpp"
 #include "otmpm/engine/constraints.hpp"
-#include "otmpm/engine/distribution.hpp"
 #include "otmpm/engine/contact.hpp"
+#include "otmpm/engine/distribution.hpp"
 #include "otmpm/engine/loads.hpp"
 #include "otmpm/engine/mass_matrix.hpp"
 #include "otmpm/engine/node_mode.hpp"
+#include "otmpm/engine/side_walls.hpp"
+#include "otmpm/engine/step.hpp"
 #include "otmpm/engine/timers.hpp"
 #include "otmpm/engine/two_phase.hpp"
 #include "otmpm/engine/volumetric.hpp"
 #include "otmpm/engine/wall_transfer.hpp"
-#include "otmpm/engine/step.hpp"
 #include "otmpm/materials/material.hpp"
 #include "otmpm/particles/particles.hpp"
 
@@ -148,6 +149,8 @@ template <int D> struct EngineParts {
   std::optional<ContactLaw> contact;
   /// The liquid phase of saturated bodies (two_phase.hpp; fixed grid, lumped mass).
   std::optional<TwoPhaseParts<D>> two_phase;
+  /// A channel's side walls on a plane-strain body (D = 2; side_walls.hpp).
+  std::optional<SideWalls> side_walls;
 };
 
 /// The energies of the runaway monitor and of the energy balance
@@ -276,7 +279,7 @@ public:
   PhaseTimers& timers() { return timers_; }
   const EnergyBalance& energy() const { return energy_; }
   /// True when friction and impacts may take energy (energy().friction, energy().impact): walls or body contact.
-  bool has_friction() const { return !constraints_.walls().empty() || contact_; }
+  bool has_friction() const { return !constraints_.walls().empty() || contact_ || channel_; }
   /// Sum of the Dirichlet reaction impulses since t = 0 (per component): the
   /// momentum the Dirichlet sets gave the particles.
   const Vec<D>& reaction_impulse() const { return reaction_impulse_; }
@@ -496,6 +499,7 @@ private:
   int row_width_ = 0; ///< linear_row_width(table_), set with the table
   std::unique_ptr<ParticleToNodes<D>> scatter_; ///< engine/scatter.hpp (internal: needs parallel.hpp)
   AlignedVector<Vec<D>> fext_; ///< external force per particle when not uniform
+  std::optional<ChannelWalls<D>> channel_; ///< a channel's side walls (2D)
   double node_spacing0_ = 1.0; ///< the nodes' smallest spacing at t = 0
   /// ul, searching family: max |grad N_Ip| of the first and the last table (NodeMode::cfl_spacing), 0 before
   double gradient0_ = 0.0, gradient_ = 0.0;
@@ -514,9 +518,8 @@ private:
   double external_power_ = 0.0, held_work_ = 0.0; ///< power of the body force at t_ (trapezoidal work); eq. 11.1c
   AlignedVector<Vec<D>> traction_start_; ///< the loaded particles' positions at the start of the step
   std::shared_ptr<Distribution<D>> dist_;
-  /// A distributed run: this rank's Dirichlet impulse and work and the
-  /// walls' losses of the step (summed over the ranks with the energies),
-  /// and the ranks' kinetic energy of the prescribed nodal velocities (check_energy).
+  /// A distributed run: this rank's Dirichlet impulse and work and the walls' losses of the step (summed
+  /// over the ranks with the energies), and the ranks' kinetic energy of the prescribed nodal velocities.
   struct {
     Vec<D> impulse = Vec<D>::Zero();
     double work = 0.0, friction = 0.0, impact = 0.0, relaxation = 0.0;

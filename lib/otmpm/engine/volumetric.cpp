@@ -121,6 +121,11 @@ void NodalAverage<D>::shift_mean_stress(const BasisTable<D>& table, int nodes, c
 }
 
 template <int D>
+void NodalAverage<D>::average(const BasisTable<D>& table, int nodes, const double* V, double* value, int n) {
+  smooth(table, nodes, V, value, n, [](int) { return true; });
+}
+
+template <int D>
 const double* FbarState<D>::nodal_mean_stress_shift(const Particles<D>& P, const BasisTable<D>& table,
                                                     int nodes) {
   if (D == 1) return nullptr;

@@ -64,6 +64,9 @@ public:
   /// shift[p] = mbar_p - m_p, m_p = tr sigma_p / D, for particles [0, n).
   void shift_mean_stress(const BasisTable<D>& table, int nodes, const double* V, const Mat<D>* sigma,
                          double* shift, int n);
+  /// value[p] replaced by its nodal average sum_I N_Ip a_I / sum_I N_Ip,
+  /// a_I = sum_q N_Iq V_q value[q] / sum_q N_Iq V_q, for particles [0, n).
+  void average(const BasisTable<D>& table, int nodes, const double* V, double* value, int n);
 
 private:
   /// value[p] replaced by sum_I N_Ip a_I / sum_I N_Ip (over nodes with a sum),

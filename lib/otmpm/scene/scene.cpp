@@ -684,6 +684,17 @@ std::optional<ContactSection> read_contact(const TableReader& root) {
   return c;
 }
 
+std::optional<ChannelSection> read_channel(const TableReader& root) {
+  auto t = root.table("channel");
+  if (!t) return std::nullopt;
+  t->only({"width", "friction"});
+  ChannelSection c;
+  c.where = t->self();
+  c.width = number(*t, scene_keys::kChannelWidth);
+  c.friction = number(*t, scene_keys::kFriction);
+  return c;
+}
+
 TimeFunction read_time(const TableReader& parent) {
   TimeFunction f;
   auto t = parent.table("time");
@@ -840,7 +851,7 @@ void check_node_count(const TableReader& grid, const Scene& s) {
 Scene read_scene(const toml::table& root, Context& ctx) {
   TableReader r(ctx, &root, "", SourceRef{ctx.file, 1, ""});
   r.only({"simulation", "basis", "grid", "material", "body", "initial_velocity", "boundary", "wall", "plate",
-          "contact", "body_force", "traction", "output", "reference"});
+          "contact", "channel", "body_force", "traction", "output", "reference"});
   Scene s;
   s.file = ctx.file;
   s.simulation = read_simulation(r.require_table("simulation"));
@@ -861,6 +872,7 @@ Scene read_scene(const toml::table& root, Context& ctx) {
   s.walls = read_walls(r, dim);
   s.plates = read_plates(r, dim);
   s.contact = read_contact(r);
+  s.channel = read_channel(r);
   s.body_force = read_body_force(r, dim);
   s.tractions = read_tractions(r, dim);
   s.output = read_output(r, s);

@@ -223,6 +223,17 @@ struct ContactSection {
   SourceRef where{"", 0, "contact"};
 };
 
+/// Plane strain in a channel: the 2D body lies between two parallel side
+/// walls `width` apart (normal to the out-of-plane axis z), which press on
+/// it with its out-of-plane stress and resist its in-plane motion by Coulomb
+/// `friction` (docs/theory.md sect. 6.3): a laboratory flume's glass or
+/// Perspex walls in a quasi-2D experiment. 2D only.
+struct ChannelSection {
+  double width = 0.0;
+  double friction = 0.0;
+  SourceRef where{"", 0, "channel"};
+};
+
 /// Body force b(t) = value * g(t) on every particle (e.g. gravity).
 struct BodyForceSection {
   Vec3 value{0, 0, 0};
@@ -308,6 +319,7 @@ struct Scene {
   std::vector<WallSection> walls;
   std::vector<PlateSection> plates;
   std::optional<ContactSection> contact;
+  std::optional<ChannelSection> channel;
   std::optional<BodyForceSection> body_force;
   std::vector<TractionSection> tractions;
   OutputSection output;

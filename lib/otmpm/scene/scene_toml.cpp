@@ -242,6 +242,9 @@ std::string to_toml(const Scene& scene) {
   if (!scene.walls.empty()) root.insert("wall", walls(scene.walls, dim));
   if (!scene.plates.empty()) root.insert("plate", plates(scene.plates, dim));
   if (scene.contact) root.insert("contact", toml::table{{"friction", scene.contact->friction}});
+  if (scene.channel)
+    root.insert("channel",
+                toml::table{{"width", scene.channel->width}, {"friction", scene.channel->friction}});
   if (scene.body_force)
     root.insert("body_force",
                 toml::table{{"value", first(scene.body_force->value, dim)}, {"time", time_function(scene.body_force->time)}});

@@ -307,6 +307,18 @@ void check_contact(const Scene& s) {
                          "correction acts node by node on each body's velocity field");
 }
 
+/// [channel]: width > 0, friction >= 0, finite; plane strain (2D) only.
+void check_channel(const Scene& s) {
+  if (!s.channel) return;
+  const ChannelSection& c = *s.channel;
+  check_number(s, "channel.width", c.width, scene_keys::kChannelWidth);
+  check_number(s, "channel.friction", c.friction, scene_keys::kFriction);
+  if (s.simulation.dimension != 2)
+    input_error(c.where,
+                "[channel] needs simulation.dimension = 2: its side walls bound a plane-strain body in the "
+                "out-of-plane direction (in 3D model the walls as [[wall]]s)");
+}
+
 /// True when a material of the scene has a pore fluid (docs/theory.md sect. 15).
 bool saturated(const Scene& s) {
   return std::any_of(s.materials.begin(), s.materials.end(),
@@ -577,6 +589,7 @@ void validate_scene(const Scene& s, int dimension, int processes) {
   check_size(s, processes);
   check_loads(s, dimension);
   check_contact(s);
+  check_channel(s);
   check_plates(s, dimension);
   check_saturated(s);
   check_output(s, dimension);

@@ -43,6 +43,8 @@ inline constexpr ParameterSpec kEquilibriumTolerance{"tolerance", "residual that
 inline constexpr ParameterSpec kPerturbation{"perturbation", "node perturbation, a fraction of h", std::nullopt, 0.0,
                                              false, 0.5, true};
 inline constexpr ParameterSpec kFriction{"friction", "Coulomb friction coefficient", std::nullopt, 0.0};
+inline constexpr ParameterSpec kChannelWidth{"width", "distance between a channel's side walls [m]",
+                                             std::nullopt, 0.0, true};
 inline constexpr ParameterSpec kPeriod{"period", "period of a ramp [s]", std::nullopt, 0.0, true};
 inline constexpr ParameterSpec kPorePressure{"pore_pressure", "pore pressure of a drained surface [Pa]", std::nullopt,
                                              -kUnbounded};
