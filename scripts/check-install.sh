@@ -27,7 +27,7 @@ trap restore EXIT
 
 echo "== install into $prefix"
 cmake --install "$build" --prefix "$prefix" >/dev/null
-for internal in hdf5.hpp parallel.hpp simd.hpp lme.hpp linear.hpp toml_reader.hpp scatter.hpp nodal_ops.hpp; do
+for internal in hdf5.hpp parallel.hpp channel_walls.hpp simd.hpp lme.hpp linear.hpp toml_reader.hpp scatter.hpp nodal_ops.hpp; do
   if [ -n "$(find "$prefix/include" -name "$internal")" ]; then
     echo "FAIL: internal header $internal was installed" >&2
     exit 1

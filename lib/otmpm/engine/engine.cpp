@@ -4,6 +4,7 @@
 /// checkpoint state in engine_state.cpp.
 #include "otmpm/engine/engine.hpp"
 #include "otmpm/basis/kinds.hpp"
+#include "otmpm/engine/channel_walls.hpp"
 #include "otmpm/engine/scatter.hpp"
 #include "otmpm/engine/two_phase_scatter.hpp"
 #include "otmpm/particles/particles_box.hpp"
@@ -144,12 +145,12 @@ template <int D> void NodalFields<D>::zero(int I) {
     if (i < field->size()) (*field)[i] = Vec<D>::Zero();
 }
 
-/// A channel's side walls (side_walls.hpp): plane strain only, on materials
+/// A channel's side walls (channel_walls.hpp): plane strain only, on materials
 /// that give the out-of-plane stress.
 template <int D>
 void start_channel(const SideWalls& walls, const Particles<D>& P, bool distributed, bool saturated,
                    const std::vector<std::unique_ptr<Material<D>>>& materials,
-                   std::optional<ChannelWalls<D>>& channel) {
+                   std::unique_ptr<ChannelWalls<D>>& channel) {
   require<InputError>(D == 2, "[channel]: side walls bound a plane-strain body: the run must be 2D");
   require<InputError>(!saturated, "[channel]: side walls are not available with saturated bodies (the liquid "
                                   "phase's share of the wall pressure is not modelled)");
@@ -164,12 +165,12 @@ void start_channel(const SideWalls& walls, const Particles<D>& P, bool distribut
                        "' does not give the out-of-plane stress sigma_zz " +
                        "that presses on the side walls");
     }
-  channel.emplace(walls);
+  channel = std::make_unique<ChannelWalls<D>>(walls);
 }
 
 /// The side walls' force on every particle for a pass of the step dt (eq. 6.7).
 template <int D>
-void channel_forces(std::optional<ChannelWalls<D>>& channel, const Particles<D>& P,
+void channel_forces(std::unique_ptr<ChannelWalls<D>>& channel, const Particles<D>& P,
                     const BasisTable<D>& table, int nodes,
                     const std::vector<std::unique_ptr<Material<D>>>& materials, double dt) {
   if (!channel) return;

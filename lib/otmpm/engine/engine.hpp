@@ -34,6 +34,7 @@ namespace otmpm {
 struct Checkpoint;
 
 template <int D> class ParticleToNodes; // the particle-to-node map, engine/scatter.hpp
+template <int D> class ChannelWalls;    // a channel's side walls in a run, engine/channel_walls.hpp
 
 /// Nodal fields of one step. m: lumped mass m_I; q: momentum; v: velocity
 /// (after the nodal update); f: force f_I (internal + external); a:
@@ -499,7 +500,7 @@ private:
   int row_width_ = 0; ///< linear_row_width(table_), set with the table
   std::unique_ptr<ParticleToNodes<D>> scatter_; ///< engine/scatter.hpp (internal: needs parallel.hpp)
   AlignedVector<Vec<D>> fext_; ///< external force per particle when not uniform
-  std::optional<ChannelWalls<D>> channel_; ///< a channel's side walls (2D)
+  std::unique_ptr<ChannelWalls<D>> channel_; ///< side walls (2D; engine/channel_walls.hpp)
   double node_spacing0_ = 1.0; ///< the nodes' smallest spacing at t = 0
   /// ul, searching family: max |grad N_Ip| of the first and the last table (NodeMode::cfl_spacing), 0 before
   double gradient0_ = 0.0, gradient_ = 0.0;
