@@ -710,6 +710,12 @@ TEST_CASE("mpi: a channel's side walls are refused under mpirun, once, status 2"
   CHECK_MESSAGE(
       r.err.find("[channel]: side walls are not available in distributed runs") != std::string::npos, r.err);
   CHECK(r.err.find("otmpm: error:") == r.err.rfind("otmpm: error:")); // once, not per rank
+  const Result check = run_otmpm(dir, 2,
+                                 {"run", "--check", (kExamples / "column_collapse_mu_i.toml").string(),
+                                  "--set", "channel.width=0.2", "--set", "channel.friction=0.4"});
+  CHECK(check.status == 2);
+  CHECK_MESSAGE(check.err.find("not available in distributed runs (MPI, 2 ranks") != std::string::npos,
+                check.err);
 }
 
 TEST_CASE("mpi: a mesh's vertices as the nodes (nodes = \"mesh\") are refused under mpirun, naming the key") {

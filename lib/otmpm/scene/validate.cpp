@@ -307,8 +307,15 @@ void check_contact(const Scene& s) {
                          "correction acts node by node on each body's velocity field");
 }
 
-/// [channel]: width > 0, friction >= 0, finite; plane strain (2D) only.
-void check_channel(const Scene& s) {
+/// True when a material of the scene has a pore fluid (docs/theory.md sect. 15).
+bool saturated(const Scene& s) {
+  return std::any_of(s.materials.begin(), s.materials.end(),
+                     [](const MaterialSection& m) { return pore_fluid(m).has_value(); });
+}
+
+/// [channel]: width > 0, friction >= 0, finite; plane strain (2D) only, dry
+/// bodies, one process (the nodal mean of sigma_zz is not exchanged).
+void check_channel(const Scene& s, int processes) {
   if (!s.channel) return;
   const ChannelSection& c = *s.channel;
   check_number(s, "channel.width", c.width, scene_keys::kChannelWidth);
@@ -317,12 +324,16 @@ void check_channel(const Scene& s) {
     input_error(c.where,
                 "[channel] needs simulation.dimension = 2: its side walls bound a plane-strain body in the "
                 "out-of-plane direction (in 3D model the walls as [[wall]]s)");
-}
-
-/// True when a material of the scene has a pore fluid (docs/theory.md sect. 15).
-bool saturated(const Scene& s) {
-  return std::any_of(s.materials.begin(), s.materials.end(),
-                     [](const MaterialSection& m) { return pore_fluid(m).has_value(); });
+  if (saturated(s))
+    input_error(c.where,
+                "[channel]: side walls are not available with saturated bodies (the liquid phase's share of "
+                "the wall pressure is not modelled)");
+  if (processes > 1)
+    input_error(c.where,
+                "[channel]: side walls are not available in distributed runs (MPI, " +
+                    std::to_string(processes) +
+                    " ranks; the nodal mean of sigma_zz is not exchanged between the ranks); run the scene "
+                    "on one process");
 }
 
 /// The integrators that step saturated bodies (IntegratorKind::two_phase), for messages.
@@ -589,7 +600,7 @@ void validate_scene(const Scene& s, int dimension, int processes) {
   check_size(s, processes);
   check_loads(s, dimension);
   check_contact(s);
-  check_channel(s);
+  check_channel(s, processes);
   check_plates(s, dimension);
   check_saturated(s);
   check_output(s, dimension);
