@@ -5,7 +5,6 @@
 #include "otmpm/integrators/integrator.hpp"
 #include "otmpm/particles/particles.hpp"
 
-#include <stdexcept>
 #include <string>
 
 namespace otmpm::test {
@@ -33,12 +32,6 @@ inline std::string sliding_block(const IntegratorKind& k, double h, double lengt
          ", 0.1]\nvelocity = [1.0, 0.0]\n"
          "[[wall]]\nname = \"floor\"\npoint = [0.0, 0.0]\nnormal = [0.0, 1.0]\n"
          "[body_force]\nvalue = [0.0, -9.81]\n[channel]\nwidth = 0.1\nfriction = 0.5\n";
-}
-
-inline const IntegratorKind& kind(const std::string& name) {
-  for (const IntegratorKind& k : integrator_kinds())
-    if (k.name == name) return k;
-  throw std::logic_error("no integrator " + name);
 }
 
 /// The block's mean horizontal velocity.

@@ -48,14 +48,14 @@ TEST_CASE("channel: a block sliding between side walls decelerates at mu_w nu g 
   // make sigma_zz oscillate about the static value, and the walls take
   // only its compressive part (eq. 6.7's max), which raises the mean.
   const double expected = kMu * kNu * kG * kH / kWidth;
-  Engine<2> e = assemble<2>(parse_scene(sliding_block(kind("npc"), 0.025), "channel.toml"));
+  Engine<2> e = assemble<2>(parse_scene(sliding_block(integrator_kind("npc"), 0.025), "channel.toml"));
   while (e.time() < 0.2 - 1e-12) e.step();
   const double v = mean_vx(e.particles());
   CHECK((1.0 - v) / e.time() == doctest::Approx(expected).epsilon(0.05));
 }
 
 TEST_CASE("channel: without friction the side walls change nothing") {
-  const std::string with = sliding_block(kind("musl"), 0.025);
+  const std::string with = sliding_block(integrator_kind("musl"), 0.025);
   std::string without = with;
   without.replace(without.find("friction = 0.5"), 14, "friction = 0.0");
   Engine<2> a = assemble<2>(parse_scene(with, "a.toml")), b = assemble<2>(parse_scene(without, "b.toml"));
@@ -71,7 +71,7 @@ TEST_CASE("channel: the same bits with 1 and 2 threads") {
   auto run = [](int threads) {
     const int saved = omp_get_max_threads();
     omp_set_num_threads(threads);
-    Engine<2> e = assemble<2>(parse_scene(sliding_block(kind("musl"), 0.01, 4.0), "channel.toml"));
+    Engine<2> e = assemble<2>(parse_scene(sliding_block(integrator_kind("musl"), 0.01, 4.0), "channel.toml"));
     for (int s = 0; s < 5; ++s) e.step();
     omp_set_num_threads(saved);
     return std::pair{e.particles(), e.energy().friction};
@@ -88,7 +88,7 @@ TEST_CASE("channel: the same bits with 1 and 2 threads") {
 #endif
 
 TEST_CASE("bad [channel] input is refused with its key") {
-  const std::string text = sliding_block(kind("musl"), 0.025);
+  const std::string text = sliding_block(integrator_kind("musl"), 0.025);
   auto with = [&](const std::string& from, const std::string& to) {
     std::string s = text;
     return s.replace(s.find(from), from.size(), to);
