@@ -439,3 +439,46 @@ TEST_CASE("study: a cut-off last CSV row is dropped and redone, and the next row
   CHECK(rows[4][column(rows[0], "status")] == "ok");
   fs::remove_all(dir);
 }
+
+TEST_CASE(
+    "study --check: every chosen run's scene is checked, a refused run is named with the reader's message, "
+    "nothing is run or written") {
+  const std::string bad =
+      "[[variant]]\nname = \"bad\"\nset = [\"simulation.t_end=2e-5\", \"material.steel.young=-1\"]\n";
+  const fs::path dir = study_dir("d12_check", two_variants("2e-5", "2e-5", 1) + bad);
+  std::string out;
+  CHECK(run_study(dir, out, " --check") == 2);
+  INFO(out);
+  CHECK(out.find("ok       a n13: ") != std::string::npos);
+  CHECK(out.find("ok       b n13: ") != std::string::npos);
+  CHECK(out.find("refused  bad n13: ") != std::string::npos);
+  CHECK(out.find("material.steel.young: must be > 0") != std::string::npos);
+  CHECK(out.find("2 of 3 runs checked would start, 1 refused") != std::string::npos);
+  CHECK(run_study(dir, out, " --check --variant a") == 0);
+  CHECK(out.find("1 of 1 runs checked would start, 0 refused") != std::string::npos);
+  CHECK(out.find("bad") == std::string::npos);
+  CHECK(!fs::exists(dir / "study.csv"));
+  CHECK(!fs::exists(dir / "study_results"));
+  fs::remove_all(dir);
+}
+
+TEST_CASE("study --check: every run of every example study file would start") {
+  // A change of the scene reader or of an example scene that leaves a
+  // study's variant behind (a renamed key, a refused combination) shows here,
+  // not hours into the study.
+  int files = 0;
+  for (const auto& e : fs::directory_iterator(fs::path(OTMPM_SOURCE_DIR) / "examples/studies")) {
+    if (e.path().extension() != ".toml") continue;
+    ++files;
+    std::string out;
+    INFO(e.path().string());
+    const int status =
+        run_command("cd " + quote(e.path().parent_path().string()) + " && '" OTMPM_BINARY "' study --check " +
+                        quote(e.path().filename().string()),
+                    out);
+    INFO(out);
+    CHECK(status == 0);
+    CHECK(out.find(" 0 refused (nothing run or written)") != std::string::npos);
+  }
+  CHECK(files >= 10);
+}

@@ -25,6 +25,8 @@
 
 #include "otmpm/core.hpp"
 #include "otmpm/io/output_files.hpp"
+#include "otmpm/run/run.hpp"
+#include "otmpm/scene/scene.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -48,6 +50,7 @@ struct StudyArgs {
   int threads = 1; ///< OpenMP threads of each child run
   std::string scripts, python;
   std::vector<std::string> variants, meshes; ///< --variant / --mesh: run only these (empty: all)
+  bool check = false;                        ///< --check: check every chosen run's scene, run none
 };
 
 /// The `otmpm run` command line of one study run.
@@ -285,10 +288,37 @@ void announce(const Study& s, std::size_t chosen, std::size_t todo) {
                 s.runs.size(), of.c_str(), chosen - todo, all ? "" : "of them ", s.csv.c_str(), todo, s.jobs);
 }
 
+/// `otmpm study --check`: reads the scene of every chosen run with its
+/// overrides and checks it as `otmpm run --check` does (check_scene: the
+/// reader's rules, the memory and step estimates, the set-up), one line per
+/// run; runs nothing and writes nothing (no CSV, no results folder). Exit 0
+/// when every run would start, 2 when one or more are refused.
+int check_study(const Study& s, const StudyArgs& a) {
+  std::size_t chosen = 0, refused = 0;
+  for (const StudyRun& r : s.runs) {
+    if (!selected(a, r)) continue;
+    ++chosen;
+    try {
+      const Scene scene = load_scene(s.scene.string(), r.sets);
+      const SceneCheck c = check_scene(scene);
+      std::printf("  ok       %s %s: %ld particles, %ld nodes, about %.0f steps\n", r.variant.c_str(),
+                  r.mesh.c_str(), c.particles, c.nodes, c.estimated_steps);
+    } catch (const InputError& e) {
+      ++refused;
+      std::printf("  refused  %s %s: %s\n", r.variant.c_str(), r.mesh.c_str(), e.what());
+    }
+    std::fflush(stdout);
+  }
+  std::printf("study %s: %zu of %zu runs checked would start, %zu refused (nothing run or written)\n",
+              s.file.c_str(), chosen - refused, chosen, refused);
+  return refused > 0 ? 2 : 0;
+}
+
 int study_command(const StudyArgs& a) {
   const Study s = study::read_study(a.file);
   check_names(s, a.variants, "variant", &StudyRun::variant);
   check_names(s, a.meshes, "mesh", &StudyRun::mesh);
+  if (a.check) return check_study(s, a);
   create_results_folder(s);
   const OutputLock csv_lock = lock_csv(s);
   const study::DoneRuns done = study::prepare_csv(s);
@@ -335,6 +365,9 @@ Command add_study_command(CLI::App& app) {
       ->type_name("NAME")
       ->expected(1)
       ->take_all();
+  sub->add_flag("--check", a->check,
+                "Check the scene of every chosen run as `otmpm run --check` does, one line per run; run "
+                "nothing, write nothing (exit 2 when a run would be refused)");
   sub->footer(
       "Rows already in the CSV are skipped, so an interrupted study resumes, and --variant / --mesh run it "
       "in parts. SIGINT/SIGTERM stop the children cleanly; unfinished runs are not recorded (exit 130/143).");
