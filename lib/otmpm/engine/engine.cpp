@@ -152,12 +152,8 @@ void start_channel(const SideWalls& walls, const Particles<D>& P, bool distribut
                    const std::vector<std::unique_ptr<Material<D>>>& materials,
                    std::unique_ptr<ChannelWalls<D>>& channel) {
   require<InputError>(D == 2, "[channel]: side walls bound a plane-strain body: the run must be 2D");
-  require<InputError>(!saturated, "[channel]: side walls are not available with saturated bodies (the liquid "
-                                  "phase's share of the wall pressure is not modelled)");
-  require<InputError>(!distributed,
-                      "[channel]: side walls are not available in distributed runs (MPI; the "
-                      "nodal mean of sigma_zz is not exchanged between the ranks); run the scene "
-                      "on one process");
+  require<InputError>(!saturated, SideWalls::refusal_saturated());
+  require<InputError>(!distributed, SideWalls::refusal_distributed(0));
   for (const auto& m : materials) try {
       m->out_of_plane_stress(P, 0, 0, nullptr); // a model without it throws
     } catch (const std::logic_error&) {

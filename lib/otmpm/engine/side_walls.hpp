@@ -23,6 +23,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
 
 namespace otmpm {
 
@@ -39,6 +40,19 @@ struct SideWalls {
     if (!(speed > 0.0)) return Vec<D>::Zero();
     const double slide = 2.0 * friction * std::max(-sigma_zz, 0.0) * V / width;
     return (-std::min(slide, m * speed / dt) / speed) * v;
+  }
+
+  /// Why a channel refuses saturated bodies (the scene check and the engine
+  /// say it in the same words).
+  static std::string refusal_saturated() {
+    return "[channel]: side walls are not available with saturated bodies (the liquid phase's share of the "
+           "wall pressure is not modelled)";
+  }
+  /// Why a channel refuses a run over `ranks` MPI ranks (0: a count not known).
+  static std::string refusal_distributed(int ranks) {
+    const std::string count = ranks > 0 ? ", " + std::to_string(ranks) + " ranks" : "";
+    return "[channel]: side walls are not available in distributed runs (MPI" + count +
+           "; the nodal mean of sigma_zz is not exchanged between the ranks); run the scene on one process";
   }
 };
 

@@ -3,8 +3,8 @@
 /// short function; every failure is an InputError at the scene key.
 #include "otmpm/scene/validate.hpp"
 
-#include "otmpm/text.hpp"
 #include "otmpm/basis/kinds.hpp"
+#include "otmpm/engine/side_walls.hpp"
 #include "otmpm/integrators/integrator.hpp"
 #include "otmpm/io/particle_file.hpp"
 #include "otmpm/materials/material.hpp"
@@ -14,6 +14,7 @@
 #include "otmpm/scene/file_bodies.hpp"
 #include "otmpm/scene/scene_rules.hpp"
 #include "otmpm/scene/toml_reader.hpp"
+#include "otmpm/text.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -324,16 +325,8 @@ void check_channel(const Scene& s, int processes) {
     input_error(c.where,
                 "[channel] needs simulation.dimension = 2: its side walls bound a plane-strain body in the "
                 "out-of-plane direction (in 3D model the walls as [[wall]]s)");
-  if (saturated(s))
-    input_error(c.where,
-                "[channel]: side walls are not available with saturated bodies (the liquid phase's share of "
-                "the wall pressure is not modelled)");
-  if (processes > 1)
-    input_error(c.where,
-                "[channel]: side walls are not available in distributed runs (MPI, " +
-                    std::to_string(processes) +
-                    " ranks; the nodal mean of sigma_zz is not exchanged between the ranks); run the scene "
-                    "on one process");
+  if (saturated(s)) input_error(c.where, SideWalls::refusal_saturated());
+  if (processes > 1) input_error(c.where, SideWalls::refusal_distributed(processes));
 }
 
 /// The integrators that step saturated bodies (IntegratorKind::two_phase), for messages.
