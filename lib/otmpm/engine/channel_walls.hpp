@@ -37,6 +37,9 @@ public:
     average_.average(table, nodes, P.V.data(), zz_.data(), n);
     parallel_for(n, [&](long long p) { force_[p] = walls_.force<D>(P.m[p], P.V[p], P.v[p], zz_[p], dt); });
   }
+  /// The ranks of a distributed run (null: one process): the nodal mean of
+  /// sigma_zz is then summed over them (NodalAverage::distribute).
+  void distribute(Distribution<D>* ranks) { average_.distribute(ranks); }
   /// The forces of the last pass (null before the first, or when the particles changed since).
   const Vec<D>* force(int n) const { return static_cast<int>(force_.size()) == n ? force_.data() : nullptr; }
   /// Keeps the particles' positions at the start of a step.

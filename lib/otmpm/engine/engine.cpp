@@ -148,12 +148,11 @@ template <int D> void NodalFields<D>::zero(int I) {
 /// A channel's side walls (channel_walls.hpp): plane strain only, on materials
 /// that give the out-of-plane stress.
 template <int D>
-void start_channel(const SideWalls& walls, const Particles<D>& P, bool distributed, bool saturated,
+void start_channel(const SideWalls& walls, const Particles<D>& P, Distribution<D>* ranks, bool saturated,
                    const std::vector<std::unique_ptr<Material<D>>>& materials,
                    std::unique_ptr<ChannelWalls<D>>& channel) {
   require<InputError>(D == 2, "[channel]: side walls bound a plane-strain body: the run must be 2D");
   require<InputError>(!saturated, SideWalls::refusal_saturated());
-  require<InputError>(!distributed, SideWalls::refusal_distributed(0));
   for (const auto& m : materials) try {
       m->out_of_plane_stress(P, 0, 0, nullptr); // a model without it throws
     } catch (const std::logic_error&) {
@@ -162,6 +161,7 @@ void start_channel(const SideWalls& walls, const Particles<D>& P, bool distribut
                        "that presses on the side walls");
     }
   channel = std::make_unique<ChannelWalls<D>>(walls);
+  channel->distribute(ranks); // the nodal mean of sigma_zz summed over the ranks
 }
 
 /// The side walls' force on every particle for a pass of the step dt (eq. 6.7).
@@ -187,10 +187,7 @@ Engine<D>::Engine(EngineParts<D> parts)
   const int bodies = P_.body.empty() ? 1 : 1 + *std::max_element(P_.body.begin(), P_.body.end());
   require<InputError>(!(parts.contact && dist_), "[contact]: body-body contact is not available in distributed "
                                                  "runs (MPI); run the scene on one process");
-  require<InputError>(
-      !(settings_.volumetric == Volumetric::fbar_nodal && dist_),
-      "simulation.volumetric = \"fbar_nodal\" is not available in distributed runs (MPI; its nodal "
-      "sums are not exchanged between the ranks); run the scene on one process or take \"fbar\"");
+  fbar_.nodal.distribute(dist_.get()); // fbar_nodal's sums over the ranks
   if (parts.contact && bodies > 1) {
     using E = std::invalid_argument;
     require<E>(!mode_.nodes_move(), "Engine: body contact needs the fixed grid (mode mpm): in ul mode each body "
@@ -220,8 +217,7 @@ Engine<D>::Engine(EngineParts<D> parts)
   if (needs_F && P_.F.empty()) P_.F.assign(static_cast<std::size_t>(P_.size()), Mat<D>::Identity());
   for (const auto& m : materials_) m->bind(P_);
   if (parts.side_walls)
-    start_channel(*parts.side_walls, P_, dist_ != nullptr, settings_.two_phase != nullptr, materials_,
-                  channel_);
+    start_channel(*parts.side_walls, P_, dist_.get(), settings_.two_phase != nullptr, materials_, channel_);
   if (mode_.nodes_move() && basis_->search_radius() > 0.0) follow_body(P_.X);
   require<InputError>(
       !(settings_.node_reset.below > 0.0 && (!mode_.nodes_move() || !settings_.node_reset.lattice)),

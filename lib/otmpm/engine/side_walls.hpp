@@ -48,12 +48,6 @@ struct SideWalls {
     return "[channel]: side walls are not available with saturated bodies (the liquid phase's share of the "
            "wall pressure is not modelled)";
   }
-  /// Why a channel refuses a run over `ranks` MPI ranks (0: a count not known).
-  static std::string refusal_distributed(int ranks) {
-    const std::string count = ranks > 0 ? ", " + std::to_string(ranks) + " ranks" : "";
-    return "[channel]: side walls are not available in distributed runs (MPI" + count +
-           "; the nodal mean of sigma_zz is not exchanged between the ranks); run the scene on one process";
-  }
 };
 
 } // namespace otmpm

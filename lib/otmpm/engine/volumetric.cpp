@@ -2,8 +2,10 @@
 /// The F-bar patch average (volumetric.hpp).
 #include "otmpm/engine/volumetric.hpp"
 
+#include "otmpm/engine/distribution.hpp"
 #include "otmpm/parallel.hpp"
 
+#include <array>
 #include <cmath>
 
 namespace otmpm {
@@ -79,6 +81,9 @@ void NodalAverage<D>::smooth(const BasisTable<D>& table, int nodes, const double
       weight_[table.node[e]] += w;
     }
   }
+  if (ranks_)
+    ranks_->sum_nodal(
+        std::array<NodalArray, 2>{NodalArray{weighted_.data(), 1}, NodalArray{weight_.data(), 1}});
   parallel_for(n, [&](long long p) {
     double sum = 0.0, norm = 0.0;
     for (int e = table.begin(static_cast<int>(p)); e < table.end(static_cast<int>(p)); ++e) {

@@ -31,8 +31,10 @@
 ///   dJ_I = sum_p N_Ip V_p dJ_p / sum_p N_Ip V_p,   dJbar_p = sum_I N_Ip dJ_I,
 /// and the forces' mean stress likewise, mbar_p = sum_I N_Ip m_I with
 /// m_I = sum_q N_Iq V_q m_q / sum_q N_Iq V_q (the same symmetric operator, so
-/// the forces stay the work conjugate of the averaged rate). Internal to the
-/// engine.
+/// the forces stay the work conjugate of the averaged rate). In a distributed
+/// run the nodal sums of each rank's particles are added over the ranks
+/// before they are interpolated back (the nodes of a rank's window hold the
+/// totals, as the mass does). Internal to the engine.
 #include "otmpm/basis/basis.hpp"
 #include "otmpm/core.hpp"
 #include "otmpm/particles/particles.hpp"
@@ -40,6 +42,8 @@
 #include <vector>
 
 namespace otmpm {
+
+template <int D> class Distribution;
 
 /// How the engine treats the volumetric part of the deformation.
 enum class Volumetric {
@@ -67,6 +71,10 @@ public:
   /// value[p] replaced by its nodal average sum_I N_Ip a_I / sum_I N_Ip,
   /// a_I = sum_q N_Iq V_q value[q] / sum_q N_Iq V_q, for particles [0, n).
   void average(const BasisTable<D>& table, int nodes, const double* V, double* value, int n);
+  /// The ranks of a distributed run (null: one process): every call then
+  /// adds the nodal sums over the ranks before interpolating them back, so
+  /// every rank must make the same calls (each force pass does).
+  void distribute(Distribution<D>* ranks) { ranks_ = ranks; }
 
 private:
   /// value[p] replaced by sum_I N_Ip a_I / sum_I N_Ip (over nodes with a sum),
@@ -76,6 +84,7 @@ private:
   std::vector<double> weighted_, weight_; ///< sum N V value and sum N V per node
   std::vector<double> value_;             ///< dJ_p or tr sigma_p of the current call, then its average
   std::vector<double> dJ_;                ///< dJ_p of the current apply
+  Distribution<D>* ranks_ = nullptr;      ///< distribute()
 };
 
 /// The patch sums of the F-bar average; reused step after step.

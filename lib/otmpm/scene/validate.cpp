@@ -315,8 +315,8 @@ bool saturated(const Scene& s) {
 }
 
 /// [channel]: width > 0, friction >= 0, finite; plane strain (2D) only, dry
-/// bodies, one process (the nodal mean of sigma_zz is not exchanged).
-void check_channel(const Scene& s, int processes) {
+/// bodies.
+void check_channel(const Scene& s) {
   if (!s.channel) return;
   const ChannelSection& c = *s.channel;
   check_number(s, "channel.width", c.width, scene_keys::kChannelWidth);
@@ -326,7 +326,6 @@ void check_channel(const Scene& s, int processes) {
                 "[channel] needs simulation.dimension = 2: its side walls bound a plane-strain body in the "
                 "out-of-plane direction (in 3D model the walls as [[wall]]s)");
   if (saturated(s)) input_error(c.where, SideWalls::refusal_saturated());
-  if (processes > 1) input_error(c.where, SideWalls::refusal_distributed(processes));
 }
 
 /// The integrators that step saturated bodies (IntegratorKind::two_phase), for messages.
@@ -593,7 +592,7 @@ void validate_scene(const Scene& s, int dimension, int processes) {
   check_size(s, processes);
   check_loads(s, dimension);
   check_contact(s);
-  check_channel(s, processes);
+  check_channel(s);
   check_plates(s, dimension);
   check_saturated(s);
   check_output(s, dimension);
