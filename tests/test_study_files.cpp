@@ -4,7 +4,8 @@
 // for result files another process still writes; colliding names, a results
 // path that is a file, a bad common or mesh `set` entry and a directory as
 // study or scene file are refused before any run; a cut-off CSV row is
-// redone.
+// redone. `study --check` checks every run's scene without running it, and
+// every run of every example study file passes it.
 #include "study_support.hpp"
 
 #include <doctest/doctest.h>
