@@ -87,12 +87,15 @@ int main(int argc, char** argv) {
   add("bspline3", "bspline3");
   add("lme gamma_lme=4", "lme", 4.0);
   add("lme gamma_lme=1.5", "lme", 1.5);
+  add("lme gamma_lme=3", "lme", 3.0);
+  add("lme_box gamma_lme=3", "lme_box", 3.0);
+  add("lme_box gamma_lme=4", "lme_box", 4.0);
   add("maxent d_max=2", "maxent", 4.0, 2.0);
   std::printf("%-22s %14s %14s %12s\n", "family (2D)", "evals/s cold", "evals/s warm", "mean stencil");
   for (const Case& c : cases) {
     const auto basis = make_basis<2>(c.opt, NodeSet<2>::cartesian(grid));
     if (c.moved) displace(*basis, h);
-    const bool maxent = c.opt.kind == "lme" || c.opt.kind == "maxent";
+    const bool maxent = c.opt.kind == "lme" || c.opt.kind == "lme_box" || c.opt.kind == "maxent";
     BasisTable<2> table;
     std::vector<double> cold, warm;
     for (int r = 0; r < repeat; ++r) {

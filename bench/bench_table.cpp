@@ -22,8 +22,9 @@
 // --scaling3d-csv). --quick: small sizes, short runs and one repetition, to
 // check that every row runs (its figures mean nothing). The output row of
 // the methods table (result file bytes and write share) is scripts/bench-output.sh.
-// --table lme: only the methods table's two LME rows (the 2D and the 3D block,
-// LME npc against linear fe, interleaved).
+// --table lme: only the methods table's LME rows (the 2D and the 3D block,
+// LME npc and LME with the box support (lme_box) npc against linear fe,
+// interleaved).
 #include "otmpm/openmp_wait.hpp"
 #include "bench_run.hpp"
 #include "bench_scenes.hpp"
@@ -214,16 +215,22 @@ std::vector<Case> engine_cases(const std::vector<Scene>& scenes, long settle, co
 /// The 3D block of `cells3`^3 cells, linear fe and LME npc (and linear fe
 /// on 2 threads when lin3_2 is set): one engine per basis, built once and
 /// stepped on by each of `repeat` interleaved repetitions.
-void block3d_cases(int cells3, bool quick, int repeat, Case& lin3, Case& lme3, Case* lin3_2) {
-  const std::vector<Scene> scenes{parse_scene(block_scene(3, cells3, "linear", "fe", "mpm", 3.0), "block3d.toml"),
-                                  parse_scene(block_scene(3, cells3, "lme", "npc", "mpm", 3.0), "block3d.toml")};
+/// With box3 set, LME with the box support (lme_box) npc as well.
+void block3d_cases(int cells3, bool quick, int repeat, Case& lin3, Case& lme3, Case* lin3_2,
+                   Case* box3 = nullptr) {
+  const std::vector<Scene> scenes{
+      parse_scene(block_scene(3, cells3, "linear", "fe", "mpm", 3.0), "block3d.toml"),
+      parse_scene(block_scene(3, cells3, "lme", "npc", "mpm", 3.0), "block3d.toml"),
+      parse_scene(block_scene(3, cells3, "lme_box", "npc", "mpm", 3.0), "block3d.toml")};
   const long n_lin = quick ? 2 : 4, n_lme = quick ? 1 : 2;
   std::vector<EngineCase> specs{{"3D block linear fe mpm, 1 thread", 0, 1, n_lin},
                                 {"3D block lme npc mpm, 1 thread", 1, 1, n_lme}};
   if (lin3_2) specs.push_back({"3D block linear fe mpm, 2 threads", 0, 2, n_lin});
+  if (box3) specs.push_back({"3D block lme_box npc mpm, 1 thread", 2, 1, n_lme});
   const std::vector<Case> cases = engine_cases<3>(scenes, 1, specs, repeat);
   lin3 = cases[0], lme3 = cases[1];
   if (lin3_2) *lin3_2 = cases[2];
+  if (box3) *box3 = cases.back();
 }
 
 /// The 3D block's name in the rows: its cells and particles.
@@ -233,9 +240,21 @@ std::string block3d_name(int cells3, const Case& lin3) {
 
 /// The methods table's LME rows: the 2D block's and the 3D block's (`block3`
 /// names it) LME npc / linear fe time per step.
-std::vector<Row> lme_rows(double lme_lin, double lme3_r, const std::string& block3) {
-  return {{"2D block, LME gamma_lme = 3, npc: time per step / linear fe", "<= 2.5", fmt("%.2f", lme_lin), lme_lin <= 2.5},
-          {block3 + ", LME gamma_lme = 3, npc: time per step / linear fe", "<= 3", fmt("%.2f", lme3_r), lme3_r <= 3}};
+/// The box support's rows (`box`, `box3`: lme_box npc / linear fe) follow
+/// when given.
+std::vector<Row> lme_rows(double lme_lin, double lme3_r, const std::string& block3, double box = -1.0,
+                          double box3 = -1.0) {
+  std::vector<Row> rows{{"2D block, LME gamma_lme = 3, npc: time per step / linear fe", "<= 2.5",
+                         fmt("%.2f", lme_lin), lme_lin <= 2.5},
+                        {block3 + ", LME gamma_lme = 3, npc: time per step / linear fe", "<= 3",
+                         fmt("%.2f", lme3_r), lme3_r <= 3}};
+  if (box >= 0.0)
+    rows.insert(rows.end(),
+                {{"2D block, LME box support (lme_box), gamma_lme = 3, npc: time per step / linear fe",
+                  "<= 2.5", fmt("%.2f", box), box <= 2.5},
+                 {block3 + ", lme_box gamma_lme = 3, npc: time per step / linear fe", "<= 3",
+                  fmt("%.2f", box3), box3 <= 3}});
+  return rows;
 }
 
 /// The 3D block (block_scene) of `cells` cells per axis, linear basis, npc,
@@ -369,7 +388,7 @@ constexpr long block_steps(bool quick) { return quick ? 5 : 20; }
 /// The LME rows' cases (the 2D block 200^2 and the 3D block 64^3, LME npc
 /// against linear fe, each pair interleaved) and the rows (lme_rows).
 struct LmeCases {
-  Case lin, lme, lin3, lme3;
+  Case lin, lme, box, lin3, lme3, box3;
   std::vector<Row> rows;
 };
 LmeCases lme_cases(int repeat, bool quick) {
@@ -378,9 +397,11 @@ LmeCases lme_cases(int repeat, bool quick) {
   LmeCases c;
   c.lin = stepped("2D block linear fe mpm, 1 thread", block2(cells, "linear", "fe"), steps, 1);
   c.lme = stepped("2D block lme npc mpm, 1 thread", block2(cells, "lme", "npc"), steps / 2, 1);
-  interleave({&c.lin, &c.lme}, repeat);
-  block3d_cases(cells3, quick, repeat, c.lin3, c.lme3, nullptr);
-  c.rows = lme_rows(ratio(c.lme, c.lin), ratio(c.lme3, c.lin3), block3d_name(cells3, c.lin3));
+  c.box = stepped("2D block lme_box npc mpm, 1 thread", block2(cells, "lme_box", "npc"), steps / 2, 1);
+  interleave({&c.lin, &c.lme, &c.box}, repeat);
+  block3d_cases(cells3, quick, repeat, c.lin3, c.lme3, nullptr, &c.box3);
+  c.rows = lme_rows(ratio(c.lme, c.lin), ratio(c.lme3, c.lin3), block3d_name(cells3, c.lin3),
+                    ratio(c.box, c.lin), ratio(c.box3, c.lin3));
   return c;
 }
 
@@ -399,7 +420,7 @@ void targets_table(int repeat, bool quick) {
   rows.insert(rows.end(), l.rows.begin(), l.rows.end());
   std::printf("%d interleaved repetitions; medians\n\n", repeat);
   print_table("target figure", rows);
-  print_cases({&fe, &musl, &l.lin, &l.lme, &l.lin3, &l.lme3});
+  print_cases({&fe, &musl, &l.lin, &l.lme, &l.box, &l.lin3, &l.lme3, &l.box3});
   std::printf("\n");
   plastic_table(repeat, quick);
   std::printf("\n");
@@ -456,7 +477,7 @@ int main(int argc, char** argv) {
     std::printf("2D block %dx%d cells (%ld particles), %d interleaved repetitions; medians\n\n", cells, cells,
                 l.lin.last.particles, repeat);
     print_table("method figure", l.rows);
-    print_cases({&l.lin, &l.lme, &l.lin3, &l.lme3});
+    print_cases({&l.lin, &l.lme, &l.box, &l.lin3, &l.lme3, &l.box3});
     return 0;
   }
   const bool throughput = table == "throughput" || table == "all", methods = table == "methods" || table == "all";

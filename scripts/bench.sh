@@ -13,8 +13,9 @@
 # block with one OpenMP thread (the writer thread; it writes 5 GB and 2 GB
 # into a temporary folder; --no-output skips it). --quick: small sizes,
 # short runs, one repetition - a smoke test of every row in about a minute,
-# whose figures mean nothing. --table lme: only the methods table's two LME
-# rows (the 2D and the 3D block, LME npc / linear fe), no plots. --table
+# whose figures mean nothing. --table lme: only the methods table's LME
+# rows (the 2D and the 3D block, lme npc and lme_box npc / linear fe), no
+# plots. --table
 # threads: each case of the performance targets on one and on two threads,
 # interleaved, and the speed-up (not part of "all"), no plots. --table
 # targets: every target of the current round (docs/performance.md, "The

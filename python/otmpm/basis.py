@@ -4,7 +4,7 @@
     ids, N, gradN = otmpm.basis.evaluate("lme", grid, points, gamma_lme=4)
 
 The families are those of a scene's [basis] (docs/theory.md sect. 4):
-linear, ugimp, bspline2, bspline3, lme, maxent.
+linear, ugimp, bspline2, bspline3, lme, lme_box, maxent.
 """
 import dataclasses
 import reprlib

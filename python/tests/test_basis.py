@@ -37,7 +37,7 @@ def check_identities(basis, points, complete=True):
         np.testing.assert_allclose(grad_x, np.broadcast_to(np.eye(D), grad_x.shape), rtol=0, atol=TOL)
 
 
-@pytest.mark.parametrize("kind", ["linear", "bspline2", "bspline3", "lme", "maxent"])
+@pytest.mark.parametrize("kind", ["linear", "bspline2", "bspline3", "lme", "lme_box", "maxent"])
 @pytest.mark.parametrize("grid", list(grids()), ids=["1d", "2d", "3d"])
 def test_partition_of_unity_and_linear_completeness(kind, grid):
     basis = Basis(kind, grid, gamma_lme=2.0)
@@ -52,7 +52,7 @@ def test_ugimp_is_a_partition_of_unity(grid):
     check_identities(basis, random_points(grid), complete=False)
 
 
-@pytest.mark.parametrize("kind", ["linear", "lme"])
+@pytest.mark.parametrize("kind", ["linear", "lme", "lme_box"])
 def test_perturbed_grid(kind):
     grid = Grid(lower=[0.0, 0.0], upper=[1.0, 1.0], cells=[6, 6], perturbation=0.2, seed=3)
     basis = Basis(kind, grid)
@@ -61,7 +61,7 @@ def test_perturbed_grid(kind):
     check_identities(basis, random_points(grid))
 
 
-@pytest.mark.parametrize("kind", ["lme", "maxent"])
+@pytest.mark.parametrize("kind", ["lme", "lme_box", "maxent"])
 def test_node_cloud(kind):
     h = 0.125
     lattice = np.stack(np.meshgrid(np.arange(9) * h, np.arange(9) * h), -1).reshape(-1, 2)

@@ -2,7 +2,7 @@
 /// \file basis.hpp
 /// The one question every basis family answers (docs/theory.md sect. 4,
 /// docs/architecture.md): "for this point, which nodes, with what N and grad N?"
-/// Families: linear, ugimp, bspline2, bspline3, lme, maxent. Every integrator
+/// Families: linear, ugimp, bspline2, bspline3, lme, lme_box, maxent. Every integrator
 /// consumes a BasisTable filled once per step, without knowing the family.
 #include "otmpm/core.hpp"
 #include "otmpm/nodes/neighbour_lists.hpp"

@@ -35,6 +35,11 @@ std::unique_ptr<Basis<D>> make_bspline_window(const CartesianGrid<D>& grid, int 
 /// Newton options are valid (MaxEntBasis).
 template <int D> std::unique_ptr<Basis<D>> make_lme_basis(NodeSet<D> nodes, const BasisOptions& opt);
 
+/// Local max-ent with the box support (lme_box.hpp): the tensor product of
+/// 1D LME functions on a lattice, read from a table on an untouched uniform
+/// lattice; the same options as make_lme_basis, isotropic metric only.
+template <int D> std::unique_ptr<Basis<D>> make_lme_box_basis(NodeSet<D> nodes, const BasisOptions& opt);
+
 /// Max-ent with a cubic-spline prior of radius d_max * h (wobbes sect. 6.3).
 /// InputError unless d_max is finite and > 0 and the Newton options are valid.
 template <int D> std::unique_ptr<Basis<D>> make_maxent_basis(NodeSet<D> nodes, const BasisOptions& opt);
@@ -47,6 +52,8 @@ std::span<const ParameterSpec> maxent_parameters();
 /// ball of the support radius (LME: exp(-gamma_lme r^2) >= tolerance;
 /// max-ent: d_max), at least 2^dim.
 double lme_stencil_nodes(const BasisOptions& o, int dim);
+/// The mean support of lme_box on a lattice: (2 R / h)^dim.
+double lme_box_stencil_nodes(const BasisOptions& o, int dim);
 double maxent_stencil_nodes(const BasisOptions& o, int dim);
 
 } // namespace otmpm

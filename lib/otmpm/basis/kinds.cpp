@@ -42,6 +42,9 @@ std::unique_ptr<Basis<D>> bspline_window(const BasisOptions&, const CartesianGri
 template <int D> std::unique_ptr<Basis<D>> lme(const BasisOptions& opt, NodeSet<D> nodes) {
   return make_lme_basis<D>(std::move(nodes), opt);
 }
+template <int D> std::unique_ptr<Basis<D>> lme_box(const BasisOptions& opt, NodeSet<D> nodes) {
+  return make_lme_box_basis<D>(std::move(nodes), opt);
+}
 template <int D> std::unique_ptr<Basis<D>> maxent(const BasisOptions& opt, NodeSet<D> nodes) {
   return make_maxent_basis<D>(std::move(nodes), opt);
 }
@@ -69,8 +72,9 @@ LatticeReach radius_reach(double radius, double h) {
     .window1 = bspline_window<1, P>, .window2 = bspline_window<2, P>, .window3 = bspline_window<3, P>
 const std::array kKinds{
     BasisKind{.name = "linear",
-              .description = "tensor-product hat functions; isoparametric Q4/Q8 on a perturbed or moving lattice; "
-                             "a mesh's own elements on its vertices",
+              .description =
+                  "tensor-product hat functions; isoparametric Q4/Q8 on a perturbed or moving lattice; "
+                  "a mesh's own elements on its vertices",
               .mesh_elements = true,
               .stencil_nodes = tensor_stencil<2>,
               .reach = corners,
@@ -103,6 +107,15 @@ const std::array kKinds{
               .reach = radius_reach,
               .parameters = lme_parameters(),
               OTMPM_FACTORIES(lme)},
+    BasisKind{.name = "lme_box",
+              .description = "local max-ent with the box support: 1D LME functions multiplied over the axes, "
+                             "read from a table on an untouched lattice",
+              .needs_lattice = false,
+              .searches_nodes = true,
+              .stencil_nodes = lme_box_stencil_nodes,
+              .reach = radius_reach,
+              .parameters = lme_parameters(),
+              OTMPM_FACTORIES(lme_box)},
     BasisKind{.name = "maxent",
               .description = "max-ent with a cubic-spline prior",
               .needs_lattice = false,

@@ -98,7 +98,7 @@ std::span<const BasisKind> basis_kinds();
 const BasisKind* find_basis_kind(std::string_view name);
 /// The family named `name`; InputError listing the families otherwise.
 const BasisKind& basis_kind(std::string_view name);
-/// "linear, ugimp, bspline2, bspline3, lme or maxent", for messages.
+/// "linear, ugimp, bspline2, bspline3, lme, lme_box or maxent", for messages.
 std::string basis_kind_list();
 /// The parameters of every family, each key once (the scene accepts each of
 /// them whatever the family, so that switching families with --set works).

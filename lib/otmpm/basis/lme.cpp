@@ -128,6 +128,7 @@
 //   centred in that cell can reach. Computed lazily, cached, invalidated by
 //   nodes_moved().
 #include "otmpm/basis/lme.hpp"
+#include "otmpm/basis/lme_box.hpp"
 #include "otmpm/basis/lme_lattice.hpp"
 
 #include "otmpm/basis/families.hpp"
@@ -638,7 +639,9 @@ Metric parse_metric(const std::string& name, std::string_view kind) {
   throw InputError(std::string(kind) + " basis: unknown metric '" + name + "' (expected " + basis_metric_list() + ")");
 }
 
-template <int D> double GaussianPrior<D>::support_radius() const { return std::sqrt(max_exponent / beta); }
+template <int D> double GaussianPrior<D>::support_radius() const {
+  return std::sqrt(max_exponent / beta) * (box ? std::sqrt(static_cast<double>(D)) : 1.0);
+}
 
 // ---- stencil bound -------------------------------------------------------------
 
@@ -776,7 +779,16 @@ MaxEntBasis<D, Prior>::MaxEntBasis(NodeSet<D> nodes, const BasisOptions& opt, co
   require(Prior::kGaussian || metric_ == Metric::isotropic, name, " basis: only the Gaussian prior adapts its metric");
   nodes_.prepare_search();
   if (metric_ == Metric::node_spacing) update_node_spacing();
-  if constexpr (Prior::kGaussian) lattice_ = LatticeAxes<D>::from(nodes_, prior_.beta);
+  read_lattice();
+}
+
+template <int D, class Prior> void MaxEntBasis<D, Prior>::read_lattice() {
+  if constexpr (Prior::kGaussian) {
+    lattice_ = LatticeAxes<D>::from(nodes_, prior_.beta);
+    if (prior_.box && !box_ && !lattice_.empty())
+      box_ = std::make_shared<const BoxTables<D>>(
+          BoxTables<D>::from(lattice_, prior_.beta, prior_.max_exponent));
+  }
 }
 
 template <int D, class Prior> void MaxEntBasis<D, Prior>::nodes_moved(const AlignedVector<Vec<D>>&) {
@@ -784,15 +796,29 @@ template <int D, class Prior> void MaxEntBasis<D, Prior>::nodes_moved(const Alig
   // evaluate() may run from several threads. The stencil bound is stale.
   nodes_.prepare_search();
   if (metric_ == Metric::node_spacing) update_node_spacing();
-  if constexpr (Prior::kGaussian) lattice_ = LatticeAxes<D>::from(nodes_, prior_.beta);
+  read_lattice();
   std::lock_guard lock(bound_mutex_);
   bound_ = -1;
 }
 
 template <int D, class Prior> int MaxEntBasis<D, Prior>::max_stencil() const {
   std::lock_guard lock(bound_mutex_);
-  if (bound_ < 0) bound_ = max_nodes_within(nodes_, settings_.support_radius);
+  if (bound_ < 0) {
+    bound_ = max_nodes_within(nodes_, settings_.support_radius);
+    if constexpr (Prior::kGaussian)
+      if (prior_.box && !lattice_.empty() && nodes_.on_lattice())
+        bound_ = std::min(bound_, box_lattice_bound());
+  }
   return bound_;
+}
+
+template <int D, class Prior> int MaxEntBasis<D, Prior>::box_lattice_bound() const {
+  int n = 1;
+  if constexpr (Prior::kGaussian) {
+    const double R = std::sqrt(prior_.max_exponent / prior_.beta);
+    for (int k = 0; k < D; ++k) n *= static_cast<int>(std::floor(2.0 * R * lattice_.inv_h[k])) + 1;
+  }
+  return n;
 }
 
 template <int D, class Prior> void MaxEntBasis<D, Prior>::fail(const PointQuery<D>& q, const std::string& why) const {
@@ -892,11 +918,8 @@ int MaxEntBasis<D, Prior>::gather_metric_support(const PointQuery<D>& q, const P
       return gather_support(q, pm.radius * widen, weight, out, lo, hi);
     }
     if (widen != 1.0) {
-      const double beta = prior_.beta;
       const auto weight = [&](int, const Vec<D>& d, double& w, double&) {
-        const double e = beta * d.squaredNorm();
-        w = -e;
-        return e <= max_exponent;
+        return prior_.log_weight(d, w, max_exponent);
       };
       return gather_support(q, R, weight, out, lo, hi);
     }
@@ -1025,8 +1048,8 @@ bool MaxEntBasis<D, Prior>::evaluate_to(const PointQuery<D>& q, RowTarget<D>& ta
   PointMetric<D> pm;
   pm.radius = settings_.support_radius;
   if (metric_ == Metric::deformation && q.deformation) pm = point_metric(q, *q.deformation);
+  if (evaluate_on_lattice(q, pm, target)) return true;
   const Vec<D> warm = warm_start(q);
-  if (evaluate_on_lattice(q, pm, warm, target)) return true;
   // The support within the prior's cut-off; where the point is not inside
   // its hull there (nodes held by a wall, crowded or torn apart), the same
   // prior over a search kWiden times wider (docs/theory.md sect. 4.8).
@@ -1132,19 +1155,25 @@ bool MaxEntBasis<D, Prior>::evaluate_moved(const PointQuery<D>& q, const Stencil
 }
 
 template <int D, class Prior>
-bool MaxEntBasis<D, Prior>::evaluate_on_lattice(const PointQuery<D>& q, const PointMetric<D>& pm, const Vec<D>& warm,
+bool MaxEntBasis<D, Prior>::evaluate_on_lattice(const PointQuery<D>& q, const PointMetric<D>& pm,
                                                 RowTarget<D>& out) const {
   if constexpr (Prior::kGaussian) {
     // on the lattice every beta_I of Metric::node_spacing is the prior's beta
     if (lattice_.empty() || !nodes_.on_lattice() || !pm.isotropic) return false;
+    if (prior_.box) { // the table (lme_box.hpp), lambda and its diagonal slope from it
+      Vec<D> lambda, G;
+      if (!box_ || !box_table_stencil<D>(lattice_, *box_, q.x, out, lambda, G)) return false;
+      store_point_state(q, lambda, 0, G.asDiagonal(), Mat<D>::Zero()); // (no slope is kept: point_state_use)
+      return true;
+    }
     LatticeSolve<D> res;
-    if (!lattice_solve<D>(lattice_, prior_, settings_, q.x, warm, out, res)) return false;
+    if (!lattice_solve<D>(lattice_, prior_, settings_, q.x, warm_start(q), out, res)) return false;
     const int first = out.in_place ? out.node[0] : out.stencil->node[0];
     store_point_state(q, kept_multiplier(q, res.lambda, res.J_inv, res.r), res.iterations, prior_hessian(pm, first),
                       res.J_inv);
     return true;
   } else {
-    (void)q, (void)pm, (void)warm, (void)out;
+    (void)q, (void)pm, (void)out;
     return false;
   }
 }
@@ -1387,29 +1416,61 @@ double lme_stencil_nodes(const BasisOptions& o, int dim) {
   const double radius = std::sqrt(-std::log(o.value(maxent::kTolerance)) / o.value(maxent::kGammaLme));
   return std::max(std::pow(2.0, dim), ball_volume(dim, radius));
 }
+double lme_box_stencil_nodes(const BasisOptions& o, int dim) {
+  // the mean count of lattice lines within R of a point is 2 R / h per axis
+  const double radius = std::sqrt(-std::log(o.value(maxent::kTolerance)) / o.value(maxent::kGammaLme));
+  return std::max(std::pow(2.0, dim), std::pow(2.0 * radius, dim));
+}
 double maxent_stencil_nodes(const BasisOptions& o, int dim) {
   return std::max(std::pow(2.0, dim), ball_volume(dim, o.value(maxent::kDMax)));
 }
 
-template <int D> std::unique_ptr<Basis<D>> make_lme_basis(NodeSet<D> nodes, const BasisOptions& opt) {
-  require_options(opt, maxent::kLmeParameters);
+namespace {
+
+/// The nodal spacing of a max-ent family's nodes; InputError naming `kind`
+/// unless it is finite and > 0.
+template <int D> double checked_spacing(const NodeSet<D>& nodes, std::string_view kind) {
   const double h = nodes.spacing();
   if (!(h > 0.0) || !std::isfinite(h))
-    throw InputError("lme basis: the nodal spacing must be > 0, got " + maxent::format_number(h));
+    throw InputError(std::string(kind) + " basis: the nodal spacing must be > 0, got " +
+                     maxent::format_number(h));
+  return h;
+}
+
+/// InputError naming `kind` unless opt.metric is "isotropic" (`hint`: what
+/// to use instead).
+void require_isotropic(const BasisOptions& opt, std::string_view kind, std::string_view hint) {
+  if (maxent::parse_metric(opt.metric, kind) != maxent::Metric::isotropic)
+    throw InputError(std::string(kind) + " basis: metric '" + opt.metric + "' is not available (" +
+                     std::string(hint) + ")");
+}
+
+} // namespace
+
+template <int D> std::unique_ptr<Basis<D>> make_lme_basis(NodeSet<D> nodes, const BasisOptions& opt) {
+  require_options(opt, maxent::kLmeParameters);
+  const double h = checked_spacing(nodes, "lme");
   const maxent::Metric metric = maxent::parse_metric(opt.metric, "lme");
   const maxent::GaussianPrior<D> prior = maxent::lme_prior<D>(opt, h);
   return std::make_unique<maxent::MaxEntBasis<D, maxent::GaussianPrior<D>>>(std::move(nodes), opt, prior, "lme",
                                                                              metric);
 }
 
+template <int D> std::unique_ptr<Basis<D>> make_lme_box_basis(NodeSet<D> nodes, const BasisOptions& opt) {
+  require_options(opt, maxent::kLmeParameters);
+  const double h = checked_spacing(nodes, "lme_box");
+  require_isotropic(opt, "lme_box",
+                    "the box support is the isotropic prior's; use kind = \"lme\" to adapt the metric");
+  maxent::GaussianPrior<D> prior = maxent::lme_prior<D>(opt, h);
+  prior.box = true;
+  return std::make_unique<maxent::MaxEntBasis<D, maxent::GaussianPrior<D>>>(std::move(nodes), opt, prior,
+                                                                            "lme_box");
+}
+
 template <int D> std::unique_ptr<Basis<D>> make_maxent_basis(NodeSet<D> nodes, const BasisOptions& opt) {
   require_options(opt, maxent::kMaxentParameters);
-  const double h = nodes.spacing();
-  if (!(h > 0.0) || !std::isfinite(h))
-    throw InputError("maxent basis: the nodal spacing must be > 0, got " + maxent::format_number(h));
-  if (maxent::parse_metric(opt.metric, "maxent") != maxent::Metric::isotropic)
-    throw InputError("maxent basis: metric '" + opt.metric + "' is not available (only lme adapts its metric; use "
-                     "metric = \"isotropic\")");
+  const double h = checked_spacing(nodes, "maxent");
+  require_isotropic(opt, "maxent", "only lme adapts its metric; use metric = \"isotropic\"");
   const maxent::CubicSplinePrior<D> prior(opt.value(maxent::kDMax) * h);
   return std::make_unique<maxent::MaxEntBasis<D, maxent::CubicSplinePrior<D>>>(std::move(nodes), opt, prior,
                                                                                 "maxent");
@@ -1418,6 +1479,9 @@ template <int D> std::unique_ptr<Basis<D>> make_maxent_basis(NodeSet<D> nodes, c
 template std::unique_ptr<Basis<1>> make_lme_basis<1>(NodeSet<1>, const BasisOptions&);
 template std::unique_ptr<Basis<2>> make_lme_basis<2>(NodeSet<2>, const BasisOptions&);
 template std::unique_ptr<Basis<3>> make_lme_basis<3>(NodeSet<3>, const BasisOptions&);
+template std::unique_ptr<Basis<1>> make_lme_box_basis<1>(NodeSet<1>, const BasisOptions&);
+template std::unique_ptr<Basis<2>> make_lme_box_basis<2>(NodeSet<2>, const BasisOptions&);
+template std::unique_ptr<Basis<3>> make_lme_box_basis<3>(NodeSet<3>, const BasisOptions&);
 template std::unique_ptr<Basis<1>> make_maxent_basis<1>(NodeSet<1>, const BasisOptions&);
 template std::unique_ptr<Basis<2>> make_maxent_basis<2>(NodeSet<2>, const BasisOptions&);
 template std::unique_ptr<Basis<3>> make_maxent_basis<3>(NodeSet<3>, const BasisOptions&);

@@ -23,6 +23,7 @@
 
 #include <array>
 #include <atomic>
+#include <memory>
 #include <mutex>
 #include <string>
 #include <string_view>
@@ -51,11 +52,17 @@ template <int D> struct GaussianPrior {
   static constexpr bool kGaussian = true;
   double beta = 1.0;       ///< beta = gamma_lme / h^2
   double max_exponent = 1; ///< -ln(tol): node kept while beta |x - x_I|^2 <= -ln(tol)
+  /// The box support (lme_box.hpp): node kept while beta dx_k^2 <= -ln(tol)
+  /// on every axis k instead of beta |dx|^2 <= -ln(tol).
+  bool box = false;
 
-  /// Support radius R = sqrt(-ln(tol) / beta).
+  /// Support radius: R = sqrt(-ln(tol) / beta), sqrt(D) R for the box.
   double support_radius() const;
   /// log w_I for dx = x - x_I; false when the node lies outside the support.
-  bool log_weight(const Vec<D>& dx, double& log_w) const;
+  bool log_weight(const Vec<D>& dx, double& log_w) const { return log_weight(dx, log_w, max_exponent); }
+  /// log_weight with the cut-off exponent `cut` in place of -ln(tol) (a
+  /// widened support).
+  bool log_weight(const Vec<D>& dx, double& log_w, double cut) const;
   /// grad_x log w_I = -2 beta dx.
   Vec<D> grad_log_weight(const Vec<D>& dx) const { return -2.0 * beta * dx; }
 };
@@ -140,9 +147,9 @@ template <int D> inline Vec<D> CubicSplinePrior<D>::grad_log_weight(const Vec<D>
   return (factor * inv_d2) * dx;
 }
 
-template <int D> inline bool GaussianPrior<D>::log_weight(const Vec<D>& dx, double& log_w) const {
+template <int D> inline bool GaussianPrior<D>::log_weight(const Vec<D>& dx, double& log_w, double cut) const {
   const double e = beta * dx.squaredNorm();
-  if (!(e <= max_exponent)) return false;
+  if (!(box ? beta * dx.cwiseAbs2().maxCoeff() <= cut : e <= cut)) return false;
   log_w = -e;
   return true;
 }
@@ -348,6 +355,7 @@ template <int D> struct PointMetric {
 };
 
 template <int D> struct RowTarget; // lme_lattice.hpp: where the factorised path writes a stencil
+template <int D> struct BoxTables; // lme_box.hpp: the tables of the box support's 1D functions
 
 /// The nodes of an untouched Cartesian lattice axis by axis: node
 /// (i_0, ..., i_{D-1}) has id sum_k i_k stride[k] and the position
@@ -411,11 +419,21 @@ public:
   /// the multipliers of the solves before (MultiplierHistory) into the
   /// extrapolation over the steps; the deformation metric reads the points'
   /// deformation gradients.
+  /// The box support (lme_box) keeps no slope: on its lattice the table
+  /// needs no start, and the cells next to the lattice's end that the
+  /// Newton solve takes start from the multiplier alone.
   PointStateUse point_state_use(bool nodes_move) const override {
     return {.lambda = true,
-            .slope = !nodes_move,
+            .slope = !nodes_move && !box_support(),
             .history = nodes_move,
             .deformation = metric_ == Metric::deformation};
+  }
+  /// True for the Gaussian prior with the box support (lme_box.hpp).
+  bool box_support() const {
+    if constexpr (Prior::kGaussian)
+      return prior_.box;
+    else
+      return false;
   }
 
   /// The start of the solve at q.x: the Taylor prediction *q.lambda + G (x -
@@ -456,6 +474,9 @@ private:
   /// Metric::node_spacing: h_I, beta_I and the search radius of the current
   /// node positions (on an untouched lattice h_I = h for every node).
   void update_node_spacing();
+  /// The Gaussian prior: lattice_ from the current node positions, and the
+  /// box support's tables the first time the nodes sit on their lattice.
+  void read_lattice();
   /// The Gaussian prior's part of update_node_spacing (nothing for another prior).
   void update_beta_by_spacing();
   /// True when every support node of `out` has the same beta_I (or the
@@ -500,12 +521,11 @@ private:
   /// the displacement (docs/theory.md sect. 4.8). BasisError when even the
   /// centroid is not inside. Returns evaluate_to's answer for that point.
   bool evaluate_moved(const PointQuery<D>& q, const Stencil<D>& support, RowTarget<D>& target) const;
-  /// The factorised path (lattice_solve) for q from the warm start `warm`,
-  /// when the nodes sit on their lattice, the prior is the isotropic
-  /// Gaussian at q and lattice_solve takes the point; false otherwise
-  /// (nothing of q's state written).
-  bool evaluate_on_lattice(const PointQuery<D>& q, const PointMetric<D>& pm, const Vec<D>& warm,
-                           RowTarget<D>& out) const;
+  /// The factorised path (lattice_solve) for q from its warm start, or the
+  /// box support's table (lme_box.hpp), when the nodes sit on their
+  /// lattice, the prior is the isotropic Gaussian at q and the path takes
+  /// the point; false otherwise (nothing of q's state written).
+  bool evaluate_on_lattice(const PointQuery<D>& q, const PointMetric<D>& pm, RowTarget<D>& out) const;
   /// Writes back q's multiplier, Newton count and slope or history after a
   /// converged solve (lambda: the multiplier to keep, kept_multiplier; JA =
   /// J^{-1} (I + A), two_B: the prior's Hessian 2 B); the history takes the
@@ -516,6 +536,9 @@ private:
   void drop_zeros(Stencil<D>& out) const;
   [[noreturn]] void fail(const PointQuery<D>& q, const std::string& why) const;
   int compute_stencil_bound() const;
+  /// The box support on the lattice: at most floor(2 R / h_k) + 1 lines per
+  /// axis (R = sqrt(-ln(tol) / beta)), their product in all.
+  int box_lattice_bound() const;
 
   /// Arrays of out.scratch_w (see support()).
   static constexpr int kScratchArrays = D + 4;
@@ -530,6 +553,9 @@ private:
   /// The nodes' lattice axis by axis while they sit on it and the prior is
   /// the Gaussian (the factorised path, lme_lattice.hpp); empty otherwise.
   LatticeAxes<D> lattice_;
+  /// The box support's tables (prior_.box on an untouched lattice; built
+  /// once, kept while the nodes move); null otherwise.
+  std::shared_ptr<const BoxTables<D>> box_;
   /// The factors of the support radius tried in turn when a point is not
   /// inside the hull of its support (the first is the prior's cut-off; the
   /// Gaussian prior only: the cubic spline's support is bounded).

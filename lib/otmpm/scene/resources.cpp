@@ -43,7 +43,7 @@ constexpr double kSafety = 1.25;
 /// The support radius, in units of h, of a basis family whose particles
 /// see `stencil` lattice nodes: half the width of the cube of a tensor-product
 /// family (1 linear, 1.5 quadratic, 2 cubic), the radius of the D-ball of a
-/// family that searches the nodes within a radius (lme, maxent).
+/// family that searches the nodes within a radius (lme, lme_box, maxent).
 double support_radius(const BasisKind& kind, double stencil, int dim) {
   if (!kind.searches_nodes) return 0.5 * std::pow(stencil, 1.0 / dim);
   return dim == 1 ? 0.5 * stencil

@@ -1,0 +1,360 @@
+// LME with the box support on a uniform lattice, read from a table
+// (lme_box.hpp, docs/theory.md sect. 4.9).
+//
+// Choices made here
+// -----------------
+// * Units: the table works in cell units (spacing 1, offsets dx = u - o),
+//   where the 1D problem depends on gamma = beta h^2 and the cut-off only;
+//   lambda = L / h, d lambda / dx = (dL / du) / h^2, dN/dx = (dN/du) / h.
+// * Intervals: the lines within r of u change where u - r or u + r is an
+//   integer, at frac(r) and 1 - frac(r); between them every function is
+//   smooth and is sampled on its own (both ends of an interval with the
+//   interval's lines, the one-sided limits).
+// * Quintic Hermite: the closed forms give N and its first three
+//   derivatives at each sample; N is interpolated from (N, N', N'') and
+//   dN/du from (N', N'', N''') with an error O(du^6) each. Near a node the
+//   functions turn within a length ~J = sum N dx^2 ~ 2 exp(-gamma) (the LME
+//   tends to the hat functions as gamma grows), which sets the uniform
+//   spacing of the samples (lme_box.hpp, kBoxMinSamples).
+#include "otmpm/basis/lme_box.hpp"
+
+#include "otmpm/basis/lme_lattice.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace otmpm::maxent {
+
+namespace {
+
+/// Newton iterations of the 1D solve at most (interior points converge in
+/// fewer than 10 from L = 0).
+constexpr int kMaxIterations1d = 200;
+/// Largest Newton step in L (cell units): keeps every exponent change below
+/// kMaxStep1d r without a line search.
+constexpr double kMaxStep1d = 2.0;
+
+/// The weights p_i = exp(-gamma dx_i^2 + L dx_i - shift) (shift: their
+/// largest exponent), Z = sum p, the mean offset and the variance.
+struct Moments1d {
+  double Z = 0.0, mean = 0.0, var = 0.0;
+};
+
+Moments1d moments_1d(double gamma, double L, const double* dx, int m, double* p) {
+  double shift = -std::numeric_limits<double>::infinity();
+  for (int i = 0; i < m; ++i) shift = std::max(shift, dx[i] * (L - gamma * dx[i]));
+  Moments1d s;
+  double s1 = 0.0, s2 = 0.0;
+  for (int i = 0; i < m; ++i) {
+    p[i] = std::exp(dx[i] * (L - gamma * dx[i]) - shift);
+    s.Z += p[i];
+    s1 += p[i] * dx[i];
+    s2 += p[i] * dx[i] * dx[i];
+  }
+  s.mean = s1 / s.Z;
+  s.var = s2 / s.Z - s.mean * s.mean;
+  return s;
+}
+
+/// The quintic Hermite basis at s in [0, 1]: h[0..5], the weights of f0,
+/// f0', f0'', f1, f1', f1'' with the derivatives in units of the interval.
+void hermite5(double s, double* h) {
+  const double s2 = s * s, s3 = s2 * s, s4 = s3 * s, s5 = s4 * s;
+  h[0] = 1.0 - 10.0 * s3 + 15.0 * s4 - 6.0 * s5;
+  h[1] = s - 6.0 * s3 + 8.0 * s4 - 3.0 * s5;
+  h[2] = 0.5 * (s2 - 3.0 * s3 + 3.0 * s4 - s5);
+  h[3] = 1.0 - h[0];
+  h[4] = -4.0 * s3 + 7.0 * s4 - 3.0 * s5;
+  h[5] = 0.5 * (s3 - 2.0 * s4 + s5);
+}
+
+} // namespace
+
+bool solve_lme_1d(double gamma, const double* dx, int m, Lme1d& out) {
+  double p[kBoxMaxLines];
+  if (m < 2 || m > kBoxMaxLines) return false;
+  double L = 0.0;
+  Moments1d s;
+  for (int it = 0;; ++it) {
+    s = moments_1d(gamma, L, dx, m, p);
+    if (!(s.var > 0.0) || !std::isfinite(s.mean)) return false;
+    const double step = std::clamp(-s.mean / s.var, -kMaxStep1d, kMaxStep1d);
+    if (std::abs(step) <= 1e-15 * (1.0 + std::abs(L))) break;
+    if (it >= kMaxIterations1d) return false;
+    L += step;
+  }
+  // The closed forms at the solution (a = dx - mean, sum N a = 0 to
+  // round-off): N' = -N a / J with J = sum N a^2; J' = sum N' a^2; J'' =
+  // sum N'' a^2 - 2 (as sum N' a = -1);
+  //   N''  = -(N' a + N) / J + N a c2,                  c2 = J' / J^2,
+  //   N''' = -(N'' a + 2 N') / J + 2 (N' a + N) c2 + N a c3,
+  //                                          c3 = J'' / J^2 - 2 J'^2 / J^3;
+  // L' = 2 gamma - 1 / J, L'' = c2, L''' = c3.
+  const double J = s.var, inv_J = 1.0 / J;
+  double dJ = 0.0, d2J = -2.0;
+  for (int i = 0; i < m; ++i) {
+    const double a = dx[i] - s.mean;
+    out.f[i][0] = p[i] / s.Z;
+    out.f[i][1] = -out.f[i][0] * a * inv_J;
+    dJ += out.f[i][1] * a * a;
+  }
+  const double c2 = dJ * inv_J * inv_J;
+  for (int i = 0; i < m; ++i) {
+    const double a = dx[i] - s.mean, N = out.f[i][0], N1 = out.f[i][1];
+    out.f[i][2] = -(N1 * a + N) * inv_J + N * a * c2;
+    d2J += out.f[i][2] * a * a;
+  }
+  const double c3 = d2J * inv_J * inv_J - 2.0 * dJ * dJ * inv_J * inv_J * inv_J;
+  for (int i = 0; i < m; ++i) {
+    const double a = dx[i] - s.mean, N = out.f[i][0], N1 = out.f[i][1], N2 = out.f[i][2];
+    out.f[i][3] = -(N2 * a + 2.0 * N1) * inv_J + 2.0 * (N1 * a + N) * c2 + N * a * c3;
+  }
+  out.L[0] = L;
+  out.L[1] = 2.0 * gamma - inv_J;
+  out.L[2] = c2;
+  out.L[3] = c3;
+  return true;
+}
+
+BoxAxisTable::BoxAxisTable(double gamma, double max_exponent)
+    : gamma_(gamma), max_exponent_(max_exponent), r_(std::sqrt(max_exponent / gamma)) {
+  if (!(r_ > 0.0) || !(2.0 * r_ + 1.0 <= kBoxMaxLines)) return;
+  reach_ = static_cast<int>(std::floor(r_));
+  // the interval ends: 0, frac(r), 1 - frac(r), 1
+  std::vector<double> ends{0.0, 1.0};
+  for (const double b : {r_ - std::floor(r_), std::ceil(r_) - r_})
+    if (b > 0.0 && b < 1.0) ends.push_back(b);
+  std::sort(ends.begin(), ends.end());
+  ends.erase(std::unique(ends.begin(), ends.end()), ends.end());
+  for (std::size_t e = 0; e + 1 < ends.size(); ++e) {
+    Segment s;
+    s.a = ends[e];
+    s.b = ends[e + 1];
+    const double mid = 0.5 * (s.a + s.b);
+    s.first = static_cast<int>(std::ceil(mid - r_));
+    s.m = static_cast<int>(std::floor(mid + r_)) - s.first + 1;
+    s.lanes = (s.m + 2) & ~1; // the lines and L, rounded up to pairs
+    if (!build_segment(s)) {
+      segments_.clear();
+      return;
+    }
+    segments_.push_back(std::move(s));
+  }
+}
+
+bool BoxAxisTable::sample(const Segment& s, double u, double* row) const {
+  double dx[kBoxMaxLines];
+  for (int i = 0; i < s.m; ++i) dx[i] = u - (s.first + i);
+  Lme1d f;
+  if (!solve_lme_1d(gamma_, dx, s.m, f)) return false;
+  for (int d = 0; d < 4; ++d) {
+    double* r = row + d * s.lanes;
+    for (int i = 0; i < s.lanes; ++i) r[i] = i < s.m ? f.f[i][d] : i == s.m ? f.L[d] : 0.0;
+  }
+  return true;
+}
+
+void BoxAxisTable::interpolate(const Segment& s, double u, double* N, double* dN, double& L, double& dL) {
+  const double t = std::clamp((u - s.a) * s.inv_du, 0.0, static_cast<double>(s.n));
+  const int j = std::min(static_cast<int>(t), s.n - 1);
+  double h[6];
+  hermite5(t - j, h);
+  // the weights of (f, f', f'') at both ends in units of u
+  const double du = s.du, w0 = h[0], w1 = h[1] * du, w2 = h[2] * du * du, w3 = h[3], w4 = h[4] * du,
+               w5 = h[5] * du * du;
+  const int n = s.lanes;
+  const double* __restrict f0 = s.data.data() + static_cast<std::size_t>(j) * static_cast<std::size_t>(4 * n);
+  const double* __restrict f1 = f0 + 4 * n;
+  double out[2 * (kBoxMaxLines + 2)]; // N (and L), then dN (and dL), lane by lane
+  for (int i = 0; i < n; ++i) {
+    out[i] =
+        w0 * f0[i] + w1 * f0[n + i] + w2 * f0[2 * n + i] + w3 * f1[i] + w4 * f1[n + i] + w5 * f1[2 * n + i];
+    out[n + i] = w0 * f0[n + i] + w1 * f0[2 * n + i] + w2 * f0[3 * n + i] + w3 * f1[n + i] +
+                 w4 * f1[2 * n + i] + w5 * f1[3 * n + i];
+  }
+  for (int i = 0; i < s.m; ++i) {
+    N[i] = out[i];
+    dN[i] = out[n + i];
+  }
+  L = out[s.m];
+  dL = out[n + s.m];
+}
+
+bool BoxAxisTable::fill(Segment& s, int n) const {
+  s.n = n;
+  s.du = (s.b - s.a) / n;
+  s.inv_du = n / (s.b - s.a);
+  const auto width = static_cast<std::size_t>(s.width());
+  s.data.resize(static_cast<std::size_t>(n + 1) * width);
+  for (int j = 0; j <= n; ++j)
+    if (!sample(s, j == n ? s.b : s.a + j * s.du, s.data.data() + static_cast<std::size_t>(j) * width))
+      return false;
+  return true;
+}
+
+bool BoxAxisTable::accurate(const Segment& s) const {
+  std::vector<double> exact(static_cast<std::size_t>(s.width())), N(static_cast<std::size_t>(s.m)),
+      dN(static_cast<std::size_t>(s.m));
+  for (int j = 0; j < s.n; ++j)
+    for (const double t : {0.25, 0.5, 0.75}) {
+      const double x = s.a + (j + t) * s.du;
+      if (!sample(s, x, exact.data())) return false;
+      double L, dL;
+      interpolate(s, x, N.data(), dN.data(), L, dL);
+      const auto lanes = static_cast<std::size_t>(s.lanes);
+      for (std::size_t i = 0; i < static_cast<std::size_t>(s.m); ++i)
+        if (!(std::abs(N[i] - exact[i]) <= kBoxRefineError &&
+              std::abs(dN[i] - exact[lanes + i]) <= kBoxRefineGradient))
+          return false;
+      const double L_exact = exact[static_cast<std::size_t>(s.m)];
+      if (!(std::abs(L - L_exact) <= kBoxRefineGradient * (1.0 + std::abs(L_exact)))) return false;
+    }
+  return true;
+}
+
+bool BoxAxisTable::build_segment(Segment& s) const {
+  for (int n = kBoxMinSamples; n <= kBoxMaxSamples; n *= 2) {
+    if (!fill(s, n)) return false;
+    if (accurate(s)) return true;
+  }
+  return false;
+}
+
+std::size_t BoxAxisTable::samples() const {
+  std::size_t n = 0;
+  for (const Segment& s : segments_) n += static_cast<std::size_t>(s.n) + 1;
+  return n;
+}
+
+std::size_t BoxAxisTable::bytes() const {
+  std::size_t n = 0;
+  for (const Segment& s : segments_) n += s.data.size() * sizeof(double);
+  return n;
+}
+
+int BoxAxisTable::evaluate(double u, int& first, double* N, double* dN, double& L, double& dL) const {
+  std::size_t k = 0;
+  while (k + 1 < segments_.size() && u > segments_[k].b) ++k;
+  const Segment& s = segments_[k];
+  interpolate(s, u, N, dN, L, dL);
+  first = s.first;
+  return s.m;
+}
+
+template <int D>
+BoxTables<D> BoxTables<D>::from(const LatticeAxes<D>& axes, double beta, double max_exponent) {
+  BoxTables t;
+  if (axes.empty()) return t;
+  for (int k = 0; k < D; ++k) {
+    const double gamma = beta * axes.h[k] * axes.h[k];
+    for (int l = 0; l < k && !t.axis[k]; ++l)
+      if (t.axis[l]->gamma() == gamma) t.axis[k] = t.axis[l];
+    if (!t.axis[k]) t.axis[k] = std::make_shared<const BoxAxisTable>(gamma, max_exponent);
+    if (t.axis[k]->empty()) return BoxTables{};
+  }
+  return t;
+}
+
+namespace {
+
+/// One axis of a point's box: lines lo .. lo + m - 1 with the 1D values n,
+/// their derivatives d (per unit length) and the multiplier and its slope.
+struct BoxAxis {
+  int lo = 0, m = 0;
+  double n[kBoxMaxLines], d[kBoxMaxLines];
+};
+
+/// Axis k of the box of coordinate xk from its table; false when xk is not
+/// in an interior cell.
+template <int D>
+bool box_axis(const LatticeAxes<D>& axes, const BoxAxisTable& table, int k, double xk, BoxAxis& a,
+              double& lambda, double& G) {
+  const std::vector<double>& X = axes.coord[k];
+  const double inv_h = axes.inv_h[k];
+  const double ug = (xk - X.front()) * inv_h;
+  if (!(ug >= 0.0)) return false; // below the lattice, or NaN
+  const int last = static_cast<int>(X.size()) - 1;
+  const int reach = table.reach();
+  if (!(ug < last)) return false;
+  const int c = static_cast<int>(ug);
+  if (c < reach || c + 1 + reach > last) return false;
+  const double u = std::clamp((xk - X[static_cast<std::size_t>(c)]) * inv_h, 0.0, 1.0);
+  int first;
+  double L, dL;
+  a.m = table.evaluate(u, first, a.n, a.d, L, dL);
+  a.lo = c + first;
+  for (int i = 0; i < a.m; ++i) a.d[i] *= inv_h;
+  lambda = L * inv_h;
+  G = dL * inv_h * inv_h;
+  return true;
+}
+
+} // namespace
+
+template <int D>
+bool box_table_stencil(const LatticeAxes<D>& axes, const BoxTables<D>& tables, const Vec<D>& x,
+                       RowTarget<D>& out, Vec<D>& lambda, Vec<D>& G) {
+  if (tables.empty()) return false;
+  BoxAxis a[D];
+  int n = 1;
+  for (int k = 0; k < D; ++k) {
+    if (!box_axis<D>(axes, *tables.axis[k], k, x[k], a[k], lambda[k], G[k])) return false;
+    n *= a[k].m;
+  }
+  out.in_place = out.node && n <= out.room;
+  out.size = n;
+  int* __restrict node = out.node;
+  double* __restrict N = out.N;
+  Vec<D>* __restrict dN = out.dN;
+  if (!out.in_place) {
+    Stencil<D>& st = *out.stencil;
+    const auto size = static_cast<std::size_t>(n);
+    if (st.node.size() != size) st.node.resize(size);
+    if (st.N.size() != size) st.N.resize(size);
+    if (st.dN.size() != size) st.dN.resize(size);
+    node = st.node.data();
+    N = st.N.data();
+    dN = st.dN.data();
+  }
+  // node ids ascending: axis 0 innermost (stride 1), the last axis outermost
+  const BoxAxis& a0 = a[0];
+  const int m1 = D > 1 ? a[1 % D].m : 1, m2 = D > 2 ? a[2 % D].m : 1;
+  int q = 0;
+  for (int i2 = 0; i2 < m2; ++i2) {
+    for (int i1 = 0; i1 < m1; ++i1) {
+      double w = 1.0;            // the product of the factors of axes 1 and 2
+      Vec<D> g = Vec<D>::Zero(); // their derivatives times the other's factor (axis 0's entry unused)
+      int id = a0.lo;
+      if constexpr (D > 1) {
+        const double n1 = a[1 % D].n[i1], d1 = a[1 % D].d[i1];
+        const double n2 = D > 2 ? a[2 % D].n[i2] : 1.0, d2 = D > 2 ? a[2 % D].d[i2] : 0.0;
+        w = n1 * n2;
+        g[1 % D] = d1 * n2;
+        if constexpr (D > 2) g[2 % D] = n1 * d2;
+        id += (a[1 % D].lo + i1) * axes.stride[1 % D];
+        if constexpr (D > 2) id += (a[2 % D].lo + i2) * axes.stride[2 % D];
+      }
+      for (int i0 = 0; i0 < a0.m; ++i0, ++q) {
+        node[q] = id + i0;
+        N[q] = a0.n[i0] * w;
+        // component by component into the row (a vector built in a local
+        // and then patched would stall the store forwarding)
+        dN[q][0] = a0.d[i0] * w;
+        for (int k = 1; k < D; ++k) dN[q][k] = a0.n[i0] * g[k];
+      }
+    }
+  }
+  return true;
+}
+
+template struct BoxTables<1>;
+template struct BoxTables<2>;
+template struct BoxTables<3>;
+template bool box_table_stencil<1>(const LatticeAxes<1>&, const BoxTables<1>&, const Vec<1>&, RowTarget<1>&,
+                                   Vec<1>&, Vec<1>&);
+template bool box_table_stencil<2>(const LatticeAxes<2>&, const BoxTables<2>&, const Vec<2>&, RowTarget<2>&,
+                                   Vec<2>&, Vec<2>&);
+template bool box_table_stencil<3>(const LatticeAxes<3>&, const BoxTables<3>&, const Vec<3>&, RowTarget<3>&,
+                                   Vec<3>&, Vec<3>&);
+
+} // namespace otmpm::maxent

@@ -1,0 +1,142 @@
+#pragma once
+/// \file lme_box.hpp
+/// LME with the box support on an untouched uniform lattice, read from a
+/// table (docs/theory.md sect. 4.9). With the isotropic Gaussian prior
+/// w_I = exp(-beta |x - x_I|^2) = prod_k exp(-beta dx_k^2) and the support
+/// cut per axis (node I kept while beta dx_k^2 <= -ln(tol) on every axis k,
+/// a box of lattice lines instead of the ball of `lme`), the partition
+/// function is a product over the axes, Z = prod_k Z_k, and the D
+/// constraints sum_I N_I dx_I = 0 decouple: N_I = prod_k N^1_k(i_k) with
+/// N^1_k the 1D LME function of the lines within R = h sqrt(-ln(tol) /
+/// gamma_lme) along axis k, and J = diag(J_k), so grad N_I has the entries
+/// dN^1_k / dx_k times the other axes' factors (molinos eq. 42, diagonal).
+/// On a uniform lattice N^1_k depends only on the position u in [0, 1) of
+/// the point in its cell when every line within R exists on both sides (an
+/// interior cell): BoxAxisTable holds it, per gamma_lme = beta h^2, as quintic
+/// Hermite data (N^1, dN^1/du, d2N^1/du^2 from the closed forms) at samples
+/// of each interval of u over which the set of lines does not change. The
+/// interpolant of a partition of unity with zero derivatives is 1, and that
+/// of the coordinates is u: partition of unity and linear completeness hold
+/// to round-off, and the values match the Newton solution within
+/// kBoxTableError (tests/test_lme_box.cpp measures the bound). Cells within
+/// R of the lattice's end, moved or perturbed nodes and points off the
+/// lattice take the general solver with the same box cut-off (lme.cpp).
+/// Internal to the max-ent basis and its tests.
+#include "otmpm/basis/lme.hpp"
+
+#include <cstddef>
+#include <memory>
+#include <vector>
+
+namespace otmpm::maxent {
+
+/// Each interval of u is sampled uniformly, kBoxMinSamples samples at
+/// first, doubled until the interpolant agrees with the Newton solution at
+/// the quarter points of every sample interval within kBoxRefineError in N
+/// and kBoxRefineGradient in dN/du (and relative in lambda h). Near a node
+/// the functions turn within ~2 exp(-gamma_lme) of it (the LME tends to the
+/// hat functions as gamma_lme grows), which sets the spacing: gamma_lme 3
+/// takes 256 samples per cell. A table that would need more than
+/// kBoxMaxSamples per interval is not built (the general solver then takes
+/// every point). Uniform samples keep the lookup free of searches.
+inline constexpr int kBoxMinSamples = 16;
+inline constexpr double kBoxRefineError = 1e-13;
+inline constexpr double kBoxRefineGradient = 1e-12;
+inline constexpr int kBoxMaxSamples = 1 << 14;
+/// The most lines of a 1D support the table holds (2 r + 1, r = R / h:
+/// gamma_lme >= ~0.25 at tolerance 1e-6).
+inline constexpr int kBoxMaxLines = 16;
+/// Bounds on |N - N_solve| and on h |dN/dx - dN_solve/dx| of the table
+/// against the 1D Newton solution, for every gamma_lme and tolerance whose
+/// table is built (measured: tests/test_lme_box.cpp): below the Newton
+/// tolerance's effect on N (newton_tolerance 1e-12 by default: N moves by
+/// ~gamma_lme 1e-12) and on grad N.
+inline constexpr double kBoxTableError = 1e-12;
+inline constexpr double kBoxTableGradientError = 1e-11;
+
+/// The 1D LME of the box support on a uniform lattice of unit spacing, for
+/// interior cells: lines o = ceil(u - r) .. floor(u + r) relative to the
+/// cell's lower line, r = sqrt(-ln(tol) / gamma).
+class BoxAxisTable {
+public:
+  /// Builds the table of gamma = beta h^2 and max_exponent = -ln(tol).
+  /// Empty (no interior cell) when r is so large that more than
+  /// kBoxMaxLines lines fall within it.
+  BoxAxisTable(double gamma, double max_exponent);
+  bool empty() const { return segments_.empty(); }
+  double gamma() const { return gamma_; }
+  double max_exponent() const { return max_exponent_; }
+  /// Lines that must exist below a cell's lower line (floor r) and above its
+  /// upper line (floor r) for the cell to be interior.
+  int reach() const { return reach_; }
+  /// The samples of the table (all intervals) and its size in bytes.
+  std::size_t samples() const;
+  std::size_t bytes() const;
+  /// The 1D functions at u in [0, 1]: writes N[i] and dN[i] = dN/du of the
+  /// lines first + i, i < m, and L = lambda h with dL = dL/du; returns m and
+  /// sets `first` (relative to the cell's lower line).
+  int evaluate(double u, int& first, double* N, double* dN, double& L, double& dL) const;
+
+private:
+  /// An interval [a, b] of u with lines first .. first + m - 1, sampled
+  /// at u_j = a + j du, j = 0 .. n: at each sample four rows of `lanes`
+  /// entries (the m lines, then L, then zeros), the rows f, f', f'', f''':
+  /// the quintic Hermite data of f from the first three rows and of f'
+  /// from the last three (the same weights), so the derivative is
+  /// interpolated, not differentiated (which would add a rounding error
+  /// ~1e-16 / du), and both are sums of rows, which vectorise over the
+  /// lines.
+  struct Segment {
+    double a = 0.0, b = 0.0, du = 0.0, inv_du = 0.0;
+    int first = 0, m = 0, n = 0, lanes = 0;
+    std::vector<double> data;
+    int width() const { return 4 * lanes; }
+  };
+  /// The data of u into `row` (false: the solve failed).
+  bool sample(const Segment& s, double u, double* row) const;
+  /// Samples s at n intervals; false when a solve fails.
+  bool fill(Segment& s, int n) const;
+  /// True when every sample interval of s meets the refinement bounds.
+  bool accurate(const Segment& s) const;
+  /// The interpolant of s at u: N[i], dN[i] (i < m), L, dL.
+  static void interpolate(const Segment& s, double u, double* N, double* dN, double& L, double& dL);
+  /// Samples s finely enough (see kBoxMinSamples); false when a solve
+  /// fails or more than kBoxMaxSamples would be needed.
+  bool build_segment(Segment& s) const;
+  double gamma_, max_exponent_, r_;
+  int reach_ = 0;
+  std::vector<Segment> segments_;
+};
+
+/// The 1D LME of m lines at the offsets dx[i] = u - o_i (unit spacing) and
+/// its derivatives in u up to the third: f[i][d] = d^d N_i / du^d, and
+/// L = lambda h likewise in `L`.
+struct Lme1d {
+  double f[kBoxMaxLines][4];
+  double L[4];
+};
+
+/// Solves the 1D LME of the lines at offsets dx (m of them) by Newton to
+/// round-off and fills `out` from the closed forms. False when the solve
+/// does not converge (a point outside the lines' hull).
+bool solve_lme_1d(double gamma, const double* dx, int m, Lme1d& out);
+
+/// The tables of the D axes of a lattice (shared between axes of the same
+/// spacing) and the interior cells of each axis.
+template <int D> struct BoxTables {
+  std::shared_ptr<const BoxAxisTable> axis[D];
+  bool empty() const { return !axis[0]; }
+  /// Builds the tables of `axes` for the prior's beta and cut-off; empty
+  /// when the lattice is empty or an axis has no interior table.
+  static BoxTables from(const LatticeAxes<D>& axes, double beta, double max_exponent);
+};
+
+/// The box-support LME at x on the lattice `axes` from `tables`: writes the
+/// stencil (node ids ascending, N_I = prod_k N^1_k, grad N_I) to `out` and
+/// lambda and the diagonal slope d lambda / dx to `lambda`, `G`. False
+/// (nothing written) when x is not inside an interior cell on every axis.
+template <int D>
+bool box_table_stencil(const LatticeAxes<D>& axes, const BoxTables<D>& tables, const Vec<D>& x,
+                       RowTarget<D>& out, Vec<D>& lambda, Vec<D>& G);
+
+} // namespace otmpm::maxent

@@ -1,0 +1,252 @@
+// Tests of LME with the box support (lme_box.hpp, docs/theory.md sect. 4.9):
+// the table of the 1D functions against the Newton solve, and the basis on
+// a lattice (the table) against the general solver with the same box
+// cut-off on the same positions given as a cloud.
+//
+// Tolerances (h = nodal spacing):
+// * The table against the 1D Newton solve (solved to round-off): |N| within
+//   kBoxTableError = 1e-12 and |dN/du| within kBoxTableGradientError =
+//   1e-11 at 10^6 random positions for the benchmark's and the default
+//   gamma_lme (3 and 4), 2e5 for the others, every interval of the cell.
+//   The table's spacing is refined until its quarter points agree to 1e-13
+//   (N) and 1e-12 (dN/du); measured (MESSAGE): N 1.1e-15 - 6.3e-14, dN/du
+//   5.4e-14 - 8.1e-13, lambda h (relative) up to 5.3e-13.
+// * The basis against the general solver (newton_tolerance 1e-14): N within
+//   1e-11 (the table's error per axis, D factors, plus the solver's), h
+//   grad N within 1e-9 (J^{-1} ~ gamma / h^2 amplifies the general solver's
+//   residual).
+// * The identities on the table's stencils: sum N_I = 1, sum N_I x_I = x,
+//   sum grad N_I = 0 and sum x_I (x) grad N_I = I to 1e-13 (h): the
+//   interpolant of a partition of unity (zero derivatives) is 1 and that of
+//   the coordinates is u, in N and in dN/du alike, up to the rounding of
+//   sums of ~20 - 80 terms (measured 4e-16 - 9e-15).
+#include "otmpm/basis/families.hpp"
+#include "otmpm/basis/lme_box.hpp"
+#include "support.hpp"
+
+#include <doctest/doctest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <vector>
+
+using namespace otmpm;
+using namespace otmpm::maxent;
+using namespace otmpm::test;
+
+namespace {
+
+BasisOptions box_options(double gamma = 3.0) {
+  BasisOptions opt;
+  opt.kind = "lme_box";
+  opt.values["gamma_lme"] = gamma;
+  opt.values["newton_tolerance"] = 1e-14;
+  return opt;
+}
+
+/// The largest errors of the table of (gamma, tol) against the 1D solve at
+/// `count` random positions of a cell.
+struct TableError {
+  double N = 0.0, dN = 0.0, L = 0.0;
+};
+
+TableError table_error(double gamma, double tol, int count, unsigned seed) {
+  const double cut = -std::log(tol), r = std::sqrt(cut / gamma);
+  const BoxAxisTable table(gamma, cut);
+  REQUIRE_FALSE(table.empty());
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> pick(0.0, 1.0);
+  TableError e;
+  double Nt[kBoxMaxLines], dNt[kBoxMaxLines], dx[kBoxMaxLines];
+  for (int p = 0; p < count; ++p) {
+    const double u = pick(rng);
+    int first;
+    double Lt, dLt;
+    const int m = table.evaluate(u, first, Nt, dNt, Lt, dLt);
+    // the lines within r of u, as the cut-off beta dx^2 <= -ln(tol) keeps them
+    const int lo = static_cast<int>(std::ceil(u - r)), hi = static_cast<int>(std::floor(u + r));
+    REQUIRE(first == lo);
+    REQUIRE(m == hi - lo + 1);
+    for (int i = 0; i < m; ++i) dx[i] = u - (first + i);
+    Lme1d f;
+    REQUIRE(solve_lme_1d(gamma, dx, m, f));
+    for (int i = 0; i < m; ++i) {
+      e.N = std::max(e.N, std::abs(Nt[i] - f.f[i][0]));
+      e.dN = std::max(e.dN, std::abs(dNt[i] - f.f[i][1]));
+    }
+    e.L = std::max(e.L, std::abs(Lt - f.L[0]) / (1.0 + std::abs(f.L[0])));
+  }
+  return e;
+}
+
+/// The general solver's stencil at x (cold start), or the table's.
+template <int D> int stencil_at(const Basis<D>& b, const Vec<D>& x, Stencil<D>& st) {
+  Vec<D> lambda = Vec<D>::Zero();
+  int iterations = -1;
+  PointQuery<D> q;
+  q.x = x;
+  q.lambda = &lambda;
+  q.iterations = &iterations;
+  b.evaluate(q, st);
+  return iterations;
+}
+
+/// The table path against the general solver on the same positions as a
+/// cloud at `count` points of the unit box; returns the share of the
+/// points the table took (no Newton step).
+template <int D> double agreement(int cells, double gamma, int count, unsigned seed) {
+  const NodeSet<D> lattice = NodeSet<D>::cartesian(unit_grid<D>(cells));
+  const NodeSet<D> cloud = NodeSet<D>::cloud(lattice.positions(), lattice.spacing());
+  const auto fast = make_lme_box_basis<D>(lattice, box_options(gamma));
+  const auto general = make_lme_box_basis<D>(cloud, box_options(gamma));
+  const double h = lattice.spacing();
+  int taken = 0;
+  for (const Vec<D>& x : unit_box_points<D>(lattice, count, seed)) {
+    Stencil<D> a, b;
+    taken += stencil_at<D>(*fast, x, a) == 0;
+    stencil_at<D>(*general, x, b);
+    INFO("x = " << x.transpose());
+    REQUIRE(a.node == b.node);
+    double dN = 0.0, dG = 0.0;
+    for (int i = 0; i < a.size(); ++i) {
+      dN = std::max(dN, std::abs(a.N[i] - b.N[i]));
+      dG = std::max(dG, (a.dN[i] - b.dN[i]).norm() * h);
+    }
+    CHECK(dN <= 1e-11);
+    CHECK(dG <= 1e-9);
+  }
+  return double(taken) / count;
+}
+
+/// The largest departures from the reproducing identities over the table's
+/// stencils at `count` points of the middle of the box.
+template <int D> void check_identities(int cells, double gamma, int count, unsigned seed) {
+  const NodeSet<D> nodes = NodeSet<D>::cartesian(unit_grid<D>(cells));
+  const auto basis = make_lme_box_basis<D>(nodes, box_options(gamma));
+  const double h = nodes.spacing();
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0.35, 0.65);
+  double pu = 0, lin = 0, grad = 0, dlin = 0;
+  for (int p = 0; p < count; ++p) {
+    Vec<D> x;
+    for (int k = 0; k < D; ++k) x[k] = u(rng);
+    Stencil<D> st;
+    REQUIRE(stencil_at<D>(*basis, x, st) == 0); // the table took it
+    double sum = 0.0;
+    Vec<D> first = Vec<D>::Zero(), g = Vec<D>::Zero();
+    Mat<D> second = Mat<D>::Zero();
+    for (int i = 0; i < st.size(); ++i) {
+      const Vec<D> xi = nodes.position(st.node[static_cast<std::size_t>(i)]);
+      sum += st.N[i];
+      first += st.N[i] * xi;
+      g += st.dN[i];
+      second += xi * st.dN[i].transpose();
+      CHECK(st.N[i] > 0.0);
+    }
+    pu = std::max(pu, std::abs(sum - 1.0));
+    lin = std::max(lin, (first - x).norm() / h);
+    grad = std::max(grad, g.norm() * h);
+    dlin = std::max(dlin, (second - Mat<D>::Identity()).norm());
+  }
+  MESSAGE(D << "D gamma_lme " << gamma << ": |sum N - 1| " << pu << ", |sum N x - x| / h " << lin
+            << ", h |sum grad N| " << grad << ", |sum x grad N - I| " << dlin);
+  CHECK(pu <= 1e-13);
+  CHECK(lin <= 1e-13);
+  CHECK(grad <= 1e-13);
+  CHECK(dlin <= 1e-13);
+}
+
+} // namespace
+
+TEST_CASE("lme_box table: the 1D functions within kBoxTableError of the Newton solve at 10^6 random points") {
+  struct Case {
+    double gamma, tol;
+    int count;
+  };
+  const Case cases[] = {{3.0, 1e-6, 1000000}, {4.0, 1e-6, 1000000}, {0.8, 1e-6, 200000},
+                        {1.5, 1e-6, 200000},  {6.0, 1e-6, 200000},  {4.0, 1e-10, 200000}};
+  unsigned seed = 1;
+  for (const Case& c : cases) {
+    const TableError e = table_error(c.gamma, c.tol, c.count, seed++);
+    MESSAGE("gamma_lme " << c.gamma << ", tolerance " << c.tol << ": |N| " << e.N << ", |dN/du| " << e.dN
+                         << ", lambda h (relative) " << e.L);
+    CHECK(e.N <= kBoxTableError);
+    CHECK(e.dN <= kBoxTableGradientError);
+    CHECK(e.L <= kBoxTableGradientError);
+  }
+}
+
+TEST_CASE("lme_box table: refuses a support wider than it holds, and the intervals follow the cut-off") {
+  // r = sqrt(-ln tol / gamma) > 7.5: more than kBoxMaxLines lines
+  CHECK(BoxAxisTable(0.2, -std::log(1e-6)).empty());
+  // gamma_lme 8: the functions turn within ~2 exp(-8) of a node, more
+  // samples than kBoxMaxSamples; 6 is the largest integer that is built
+  CHECK(BoxAxisTable(8.0, -std::log(1e-6)).empty());
+  CHECK_FALSE(BoxAxisTable(6.0, -std::log(1e-6)).empty());
+  // gamma 3, tol 1e-6: r = 2.145, 5 lines for u < 0.145 or u > 0.855, else 4
+  const BoxAxisTable t(3.0, -std::log(1e-6));
+  double N[kBoxMaxLines], dN[kBoxMaxLines], L, dL;
+  int first;
+  CHECK(t.evaluate(0.1, first, N, dN, L, dL) == 5);
+  CHECK(first == -2);
+  CHECK(t.evaluate(0.5, first, N, dN, L, dL) == 4);
+  CHECK(first == -1);
+  CHECK(t.evaluate(0.9, first, N, dN, L, dL) == 5);
+  CHECK(first == -1);
+  // symmetry of the interior: N_o(u) = N_{1-o}(1 - u)
+  double M[kBoxMaxLines], dM[kBoxMaxLines];
+  int first2;
+  t.evaluate(0.3, first, N, dN, L, dL);
+  const int m = t.evaluate(0.7, first2, M, dM, L, dL);
+  for (int i = 0; i < m; ++i) CHECK(N[i] == doctest::Approx(M[m - 1 - i]).epsilon(1e-13));
+}
+
+TEST_CASE("lme_box: the table's stencil is the general solver's on the same positions (1D, 2D, 3D)") {
+  // interior points (more than R from the lattice's ends) take the table;
+  // the rest the general solver with the box cut-off on both bases
+  CHECK(agreement<1>(20, 3.0, 300, 1) >= 0.5);
+  CHECK(agreement<2>(12, 3.0, 200, 2) >= 0.2);
+  CHECK(agreement<3>(8, 3.0, 60, 3) >= 0.02);
+  CHECK(agreement<2>(12, 1.5, 100, 4) >= 0.05);
+  CHECK(agreement<2>(12, 6.0, 100, 5) >= 0.2);
+  // no table at gamma_lme 8: every point is the general solver's
+  CHECK(agreement<2>(12, 8.0, 50, 6) == 0.0);
+}
+
+TEST_CASE("lme_box: partition of unity and linear completeness of the table's stencils") {
+  check_identities<1>(20, 3.0, 2000, 6);
+  check_identities<2>(16, 3.0, 1000, 7);
+  check_identities<3>(12, 3.0, 200, 8);
+  check_identities<2>(16, 6.0, 500, 9);
+}
+
+TEST_CASE("lme_box: N_I is the product of the 1D functions, and the box holds the ball of lme") {
+  const int cells = 16;
+  const auto box2 = make_lme_box_basis<2>(NodeSet<2>::cartesian(unit_grid<2>(cells)), box_options());
+  const auto box1 = make_lme_box_basis<1>(NodeSet<1>::cartesian(unit_grid<1>(cells)), box_options());
+  BasisOptions lme = box_options();
+  lme.kind = "lme";
+  const auto ball = make_lme_basis<2>(NodeSet<2>::cartesian(unit_grid<2>(cells)), lme);
+  std::mt19937 rng(10);
+  std::uniform_real_distribution<double> u(0.35, 0.65);
+  for (int p = 0; p < 200; ++p) {
+    const Vec<2> x(u(rng), u(rng));
+    Stencil<2> st, b;
+    Stencil<1> ax[2];
+    stencil_at<2>(*box2, x, st);
+    for (int k = 0; k < 2; ++k) stencil_at<1>(*box1, Vec<1>(x[k]), ax[k]);
+    REQUIRE(st.size() == ax[0].size() * ax[1].size());
+    int q = 0;
+    for (int j = 0; j < ax[1].size(); ++j)
+      for (int i = 0; i < ax[0].size(); ++i, ++q) {
+        CHECK(st.node[q] == ax[0].node[i] + ax[1].node[j] * (cells + 1));
+        CHECK(st.N[q] == ax[0].N[i] * ax[1].N[j]);
+        CHECK(st.dN[q][0] == ax[0].dN[i][0] * ax[1].N[j]);
+        CHECK(st.dN[q][1] == ax[0].N[i] * ax[1].dN[j][0]);
+      }
+    stencil_at<2>(*ball, x, b);
+    for (const int I : b.node) CHECK(std::find(st.node.begin(), st.node.end(), I) != st.node.end());
+    CHECK(st.size() >= b.size());
+  }
+}
