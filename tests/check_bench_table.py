@@ -74,10 +74,11 @@ def check(bench_table, args, expected, cases):
 
 def main(argv):
     failures = check(argv[1], [], {"throughput figure": 6, "method figure": 8, "plastic figure": 2}, 15)
-    failures += check(argv[1], ["--table", "lme"], {"method figure": 2}, 4)
+    # --table lme: lme and lme_box npc against linear fe, 2D and 3D
+    failures += check(argv[1], ["--table", "lme"], {"method figure": 4}, 6)
     failures += check(argv[1], ["--table", "threads"], {"threads figure": 7}, 14)
     failures += check(argv[1], ["--table", "targets"],
-                      {"target figure": 4, "plastic figure": 2, "threads figure": 7}, 6 + 3 + 14)
+                      {"target figure": 6, "plastic figure": 2, "threads figure": 7}, 8 + 3 + 14)
     if failures:
         print("\n".join(failures))
     return 1 if failures else 0
