@@ -803,12 +803,10 @@ template <int D, class Prior> void MaxEntBasis<D, Prior>::nodes_moved(const Alig
 
 template <int D, class Prior> int MaxEntBasis<D, Prior>::max_stencil() const {
   std::lock_guard lock(bound_mutex_);
-  if (bound_ < 0) {
-    bound_ = max_nodes_within(nodes_, settings_.support_radius);
-    if constexpr (Prior::kGaussian)
-      if (prior_.box && !lattice_.empty() && nodes_.on_lattice())
-        bound_ = std::min(bound_, box_lattice_bound());
-  }
+  if (bound_ < 0)
+    bound_ = box_support() && !lattice_.empty() && nodes_.on_lattice()
+                 ? box_lattice_bound()
+                 : max_nodes_within(nodes_, settings_.support_radius);
   return bound_;
 }
 
@@ -1048,8 +1046,9 @@ bool MaxEntBasis<D, Prior>::evaluate_to(const PointQuery<D>& q, RowTarget<D>& ta
   PointMetric<D> pm;
   pm.radius = settings_.support_radius;
   if (metric_ == Metric::deformation && q.deformation) pm = point_metric(q, *q.deformation);
-  if (evaluate_on_lattice(q, pm, target)) return true;
+  if (evaluate_on_table(q, target)) return true;
   const Vec<D> warm = warm_start(q);
+  if (evaluate_on_lattice(q, pm, warm, target)) return true;
   // The support within the prior's cut-off; where the point is not inside
   // its hull there (nodes held by a wall, crowded or torn apart), the same
   // prior over a search kWiden times wider (docs/theory.md sect. 4.8).
@@ -1155,25 +1154,35 @@ bool MaxEntBasis<D, Prior>::evaluate_moved(const PointQuery<D>& q, const Stencil
 }
 
 template <int D, class Prior>
-bool MaxEntBasis<D, Prior>::evaluate_on_lattice(const PointQuery<D>& q, const PointMetric<D>& pm,
-                                                RowTarget<D>& out) const {
+bool MaxEntBasis<D, Prior>::evaluate_on_table(const PointQuery<D>& q, RowTarget<D>& out) const {
   if constexpr (Prior::kGaussian) {
-    // on the lattice every beta_I of Metric::node_spacing is the prior's beta
-    if (lattice_.empty() || !nodes_.on_lattice() || !pm.isotropic) return false;
-    if (prior_.box) { // the table (lme_box.hpp), lambda and its diagonal slope from it
-      Vec<D> lambda, G;
-      if (!box_ || !box_table_stencil<D>(lattice_, *box_, q.x, out, lambda, G)) return false;
-      store_point_state(q, lambda, 0, G.asDiagonal(), Mat<D>::Zero()); // (no slope is kept: point_state_use)
-      return true;
-    }
+    if (!box_ || lattice_.empty() || !nodes_.on_lattice()) return false;
+    Vec<D> lambda;
+    if (!box_table_stencil<D>(lattice_, *box_, q.x, out, lambda)) return false;
+    // lme_box keeps no multiplier slope (point_state_use): the multiplier only
+    store_point_state(q, lambda, 0, Mat<D>::Zero(), Mat<D>::Zero());
+    return true;
+  } else {
+    (void)q, (void)out;
+    return false;
+  }
+}
+
+template <int D, class Prior>
+bool MaxEntBasis<D, Prior>::evaluate_on_lattice(const PointQuery<D>& q, const PointMetric<D>& pm,
+                                                const Vec<D>& warm, RowTarget<D>& out) const {
+  if constexpr (Prior::kGaussian) {
+    // on the lattice every beta_I of Metric::node_spacing is the prior's beta;
+    // the box support is not lattice_solve's ball
+    if (prior_.box || lattice_.empty() || !nodes_.on_lattice() || !pm.isotropic) return false;
     LatticeSolve<D> res;
-    if (!lattice_solve<D>(lattice_, prior_, settings_, q.x, warm_start(q), out, res)) return false;
+    if (!lattice_solve<D>(lattice_, prior_, settings_, q.x, warm, out, res)) return false;
     const int first = out.in_place ? out.node[0] : out.stencil->node[0];
     store_point_state(q, kept_multiplier(q, res.lambda, res.J_inv, res.r), res.iterations, prior_hessian(pm, first),
                       res.J_inv);
     return true;
   } else {
-    (void)q, (void)pm, (void)out;
+    (void)q, (void)pm, (void)warm, (void)out;
     return false;
   }
 }

@@ -521,11 +521,17 @@ private:
   /// the displacement (docs/theory.md sect. 4.8). BasisError when even the
   /// centroid is not inside. Returns evaluate_to's answer for that point.
   bool evaluate_moved(const PointQuery<D>& q, const Stencil<D>& support, RowTarget<D>& target) const;
-  /// The factorised path (lattice_solve) for q from its warm start, or the
-  /// box support's table (lme_box.hpp), when the nodes sit on their
-  /// lattice, the prior is the isotropic Gaussian at q and the path takes
-  /// the point; false otherwise (nothing of q's state written).
-  bool evaluate_on_lattice(const PointQuery<D>& q, const PointMetric<D>& pm, RowTarget<D>& out) const;
+  /// The box support's table (lme_box.hpp) for q, when the prior is the
+  /// Gaussian with the box support, the nodes sit on their lattice and q
+  /// lies in an interior cell; false otherwise (nothing of q's state
+  /// written).
+  bool evaluate_on_table(const PointQuery<D>& q, RowTarget<D>& out) const;
+  /// The factorised path (lattice_solve) for q from the warm start `warm`,
+  /// when the nodes sit on their lattice, the prior is the isotropic
+  /// Gaussian (ball support) at q and lattice_solve takes the point; false
+  /// otherwise (nothing of q's state written).
+  bool evaluate_on_lattice(const PointQuery<D>& q, const PointMetric<D>& pm, const Vec<D>& warm,
+                           RowTarget<D>& out) const;
   /// Writes back q's multiplier, Newton count and slope or history after a
   /// converged solve (lambda: the multiplier to keep, kept_multiplier; JA =
   /// J^{-1} (I + A), two_B: the prior's Hessian 2 B); the history takes the

@@ -117,7 +117,7 @@ bool solve_lme_1d(double gamma, const double* dx, int m, Lme1d& out) {
 }
 
 BoxAxisTable::BoxAxisTable(double gamma, double max_exponent)
-    : gamma_(gamma), max_exponent_(max_exponent), r_(std::sqrt(max_exponent / gamma)) {
+    : gamma_(gamma), r_(std::sqrt(max_exponent / gamma)) {
   if (!(r_ > 0.0) || !(2.0 * r_ + 1.0 <= kBoxMaxLines)) return;
   reach_ = static_cast<int>(std::floor(r_));
   // the interval ends: 0, frac(r), 1 - frac(r), 1
@@ -154,7 +154,7 @@ bool BoxAxisTable::sample(const Segment& s, double u, double* row) const {
   return true;
 }
 
-void BoxAxisTable::interpolate(const Segment& s, double u, double* N, double* dN, double& L, double& dL) {
+void BoxAxisTable::interpolate(const Segment& s, double u, double* N, double* dN, double& L) {
   const double t = std::clamp((u - s.a) * s.inv_du, 0.0, static_cast<double>(s.n));
   const int j = std::min(static_cast<int>(t), s.n - 1);
   double h[6];
@@ -165,7 +165,7 @@ void BoxAxisTable::interpolate(const Segment& s, double u, double* N, double* dN
   const int n = s.lanes;
   const double* __restrict f0 = s.data.data() + static_cast<std::size_t>(j) * static_cast<std::size_t>(4 * n);
   const double* __restrict f1 = f0 + 4 * n;
-  double out[2 * (kBoxMaxLines + 2)]; // N (and L), then dN (and dL), lane by lane
+  double out[2 * (kBoxMaxLines + 2)]; // N (and L), then dN (and L's derivative, unused), lane by lane
   for (int i = 0; i < n; ++i) {
     out[i] =
         w0 * f0[i] + w1 * f0[n + i] + w2 * f0[2 * n + i] + w3 * f1[i] + w4 * f1[n + i] + w5 * f1[2 * n + i];
@@ -177,7 +177,6 @@ void BoxAxisTable::interpolate(const Segment& s, double u, double* N, double* dN
     dN[i] = out[n + i];
   }
   L = out[s.m];
-  dL = out[n + s.m];
 }
 
 bool BoxAxisTable::fill(Segment& s, int n) const {
@@ -199,8 +198,8 @@ bool BoxAxisTable::accurate(const Segment& s) const {
     for (const double t : {0.25, 0.5, 0.75}) {
       const double x = s.a + (j + t) * s.du;
       if (!sample(s, x, exact.data())) return false;
-      double L, dL;
-      interpolate(s, x, N.data(), dN.data(), L, dL);
+      double L;
+      interpolate(s, x, N.data(), dN.data(), L);
       const auto lanes = static_cast<std::size_t>(s.lanes);
       for (std::size_t i = 0; i < static_cast<std::size_t>(s.m); ++i)
         if (!(std::abs(N[i] - exact[i]) <= kBoxRefineError &&
@@ -232,11 +231,11 @@ std::size_t BoxAxisTable::bytes() const {
   return n;
 }
 
-int BoxAxisTable::evaluate(double u, int& first, double* N, double* dN, double& L, double& dL) const {
+int BoxAxisTable::evaluate(double u, int& first, double* N, double* dN, double& L) const {
   std::size_t k = 0;
   while (k + 1 < segments_.size() && u > segments_[k].b) ++k;
   const Segment& s = segments_[k];
-  interpolate(s, u, N, dN, L, dL);
+  interpolate(s, u, N, dN, L);
   first = s.first;
   return s.m;
 }
@@ -257,8 +256,8 @@ BoxTables<D> BoxTables<D>::from(const LatticeAxes<D>& axes, double beta, double 
 
 namespace {
 
-/// One axis of a point's box: lines lo .. lo + m - 1 with the 1D values n,
-/// their derivatives d (per unit length) and the multiplier and its slope.
+/// One axis of a point's box: lines lo .. lo + m - 1 with the 1D values n
+/// and their derivatives d (per unit length).
 struct BoxAxis {
   int lo = 0, m = 0;
   double n[kBoxMaxLines], d[kBoxMaxLines];
@@ -268,7 +267,7 @@ struct BoxAxis {
 /// in an interior cell.
 template <int D>
 bool box_axis(const LatticeAxes<D>& axes, const BoxAxisTable& table, int k, double xk, BoxAxis& a,
-              double& lambda, double& G) {
+              double& lambda) {
   const std::vector<double>& X = axes.coord[k];
   const double inv_h = axes.inv_h[k];
   const double ug = (xk - X.front()) * inv_h;
@@ -280,12 +279,11 @@ bool box_axis(const LatticeAxes<D>& axes, const BoxAxisTable& table, int k, doub
   if (c < reach || c + 1 + reach > last) return false;
   const double u = std::clamp((xk - X[static_cast<std::size_t>(c)]) * inv_h, 0.0, 1.0);
   int first;
-  double L, dL;
-  a.m = table.evaluate(u, first, a.n, a.d, L, dL);
+  double L;
+  a.m = table.evaluate(u, first, a.n, a.d, L);
   a.lo = c + first;
   for (int i = 0; i < a.m; ++i) a.d[i] *= inv_h;
   lambda = L * inv_h;
-  G = dL * inv_h * inv_h;
   return true;
 }
 
@@ -293,29 +291,18 @@ bool box_axis(const LatticeAxes<D>& axes, const BoxAxisTable& table, int k, doub
 
 template <int D>
 bool box_table_stencil(const LatticeAxes<D>& axes, const BoxTables<D>& tables, const Vec<D>& x,
-                       RowTarget<D>& out, Vec<D>& lambda, Vec<D>& G) {
+                       RowTarget<D>& out, Vec<D>& lambda) {
   if (tables.empty()) return false;
   BoxAxis a[D];
   int n = 1;
   for (int k = 0; k < D; ++k) {
-    if (!box_axis<D>(axes, *tables.axis[k], k, x[k], a[k], lambda[k], G[k])) return false;
+    if (!box_axis<D>(axes, *tables.axis[k], k, x[k], a[k], lambda[k])) return false;
     n *= a[k].m;
   }
-  out.in_place = out.node && n <= out.room;
-  out.size = n;
-  int* __restrict node = out.node;
-  double* __restrict N = out.N;
-  Vec<D>* __restrict dN = out.dN;
-  if (!out.in_place) {
-    Stencil<D>& st = *out.stencil;
-    const auto size = static_cast<std::size_t>(n);
-    if (st.node.size() != size) st.node.resize(size);
-    if (st.N.size() != size) st.N.resize(size);
-    if (st.dN.size() != size) st.dN.resize(size);
-    node = st.node.data();
-    N = st.N.data();
-    dN = st.dN.data();
-  }
+  int* node;
+  double* N;
+  Vec<D>* dN;
+  out.place(n, node, N, dN);
   // node ids ascending: axis 0 innermost (stride 1), the last axis outermost
   const BoxAxis& a0 = a[0];
   const int m1 = D > 1 ? a[1 % D].m : 1, m2 = D > 2 ? a[2 % D].m : 1;
@@ -351,10 +338,10 @@ template struct BoxTables<1>;
 template struct BoxTables<2>;
 template struct BoxTables<3>;
 template bool box_table_stencil<1>(const LatticeAxes<1>&, const BoxTables<1>&, const Vec<1>&, RowTarget<1>&,
-                                   Vec<1>&, Vec<1>&);
+                                   Vec<1>&);
 template bool box_table_stencil<2>(const LatticeAxes<2>&, const BoxTables<2>&, const Vec<2>&, RowTarget<2>&,
-                                   Vec<2>&, Vec<2>&);
+                                   Vec<2>&);
 template bool box_table_stencil<3>(const LatticeAxes<3>&, const BoxTables<3>&, const Vec<3>&, RowTarget<3>&,
-                                   Vec<3>&, Vec<3>&);
+                                   Vec<3>&);
 
 } // namespace otmpm::maxent

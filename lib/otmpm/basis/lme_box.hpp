@@ -65,7 +65,6 @@ public:
   BoxAxisTable(double gamma, double max_exponent);
   bool empty() const { return segments_.empty(); }
   double gamma() const { return gamma_; }
-  double max_exponent() const { return max_exponent_; }
   /// Lines that must exist below a cell's lower line (floor r) and above its
   /// upper line (floor r) for the cell to be interior.
   int reach() const { return reach_; }
@@ -73,9 +72,9 @@ public:
   std::size_t samples() const;
   std::size_t bytes() const;
   /// The 1D functions at u in [0, 1]: writes N[i] and dN[i] = dN/du of the
-  /// lines first + i, i < m, and L = lambda h with dL = dL/du; returns m and
-  /// sets `first` (relative to the cell's lower line).
-  int evaluate(double u, int& first, double* N, double* dN, double& L, double& dL) const;
+  /// lines first + i, i < m, and L = lambda h; returns m and sets `first`
+  /// (relative to the cell's lower line).
+  int evaluate(double u, int& first, double* N, double* dN, double& L) const;
 
 private:
   /// An interval [a, b] of u with lines first .. first + m - 1, sampled
@@ -98,12 +97,12 @@ private:
   bool fill(Segment& s, int n) const;
   /// True when every sample interval of s meets the refinement bounds.
   bool accurate(const Segment& s) const;
-  /// The interpolant of s at u: N[i], dN[i] (i < m), L, dL.
-  static void interpolate(const Segment& s, double u, double* N, double* dN, double& L, double& dL);
+  /// The interpolant of s at u: N[i], dN[i] (i < m), L.
+  static void interpolate(const Segment& s, double u, double* N, double* dN, double& L);
   /// Samples s finely enough (see kBoxMinSamples); false when a solve
   /// fails or more than kBoxMaxSamples would be needed.
   bool build_segment(Segment& s) const;
-  double gamma_, max_exponent_, r_;
+  double gamma_, r_;
   int reach_ = 0;
   std::vector<Segment> segments_;
 };
@@ -133,10 +132,10 @@ template <int D> struct BoxTables {
 
 /// The box-support LME at x on the lattice `axes` from `tables`: writes the
 /// stencil (node ids ascending, N_I = prod_k N^1_k, grad N_I) to `out` and
-/// lambda and the diagonal slope d lambda / dx to `lambda`, `G`. False
-/// (nothing written) when x is not inside an interior cell on every axis.
+/// the multiplier to `lambda`. False (nothing written) when x is not inside
+/// an interior cell on every axis.
 template <int D>
 bool box_table_stencil(const LatticeAxes<D>& axes, const BoxTables<D>& tables, const Vec<D>& x,
-                       RowTarget<D>& out, Vec<D>& lambda, Vec<D>& G);
+                       RowTarget<D>& out, Vec<D>& lambda);
 
 } // namespace otmpm::maxent

@@ -326,21 +326,10 @@ template <int D> bool dual_sums(const Box<D>& box, double& Z, Vec<D>& r, Mat<D>&
 template <int D>
 void write_stencil(const LatticeAxes<D>& axes, const Box<D>& box, double Z, const Vec<D>& r, const Mat<D>& J_inv,
                    RowTarget<D>& out) {
-  out.in_place = out.node && box.n <= out.room;
-  out.size = box.n;
-  int* __restrict node = out.node;
-  double* __restrict N = out.N;
-  Vec<D>* __restrict dN = out.dN;
-  if (!out.in_place) {
-    Stencil<D>& st = *out.stencil;
-    const auto n = static_cast<std::size_t>(box.n);
-    if (st.node.size() != n) st.node.resize(n);
-    if (st.N.size() != n) st.N.resize(n);
-    if (st.dN.size() != n) st.dN.resize(n);
-    node = st.node.data();
-    N = st.N.data();
-    dN = st.dN.data();
-  }
+  int* node;
+  double* N;
+  Vec<D>* dN;
+  out.place(box.n, node, N, dN);
   const AxisBox& a0 = box.axis[0];
   const double inv_Z = 1.0 / Z;
   double N0[kLatticeMaxSpan];

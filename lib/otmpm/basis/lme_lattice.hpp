@@ -68,6 +68,20 @@ template <int D> struct RowTarget {
   int room = 0;
   int size = 0;
   bool in_place = false;
+  /// Sets size = n and in_place (a row is set and n fits in its room) and
+  /// points node, N, dN at where the n entries go: the row, or *stencil
+  /// sized to n.
+  void place(int n, int*& node_out, double*& N_out, Vec<D>*& dN_out) {
+    in_place = node && n <= room;
+    size = n;
+    node_out = node, N_out = N, dN_out = dN;
+    if (in_place) return;
+    const auto count = static_cast<std::size_t>(n);
+    if (stencil->node.size() != count) stencil->node.resize(count);
+    if (stencil->N.size() != count) stencil->N.resize(count);
+    if (stencil->dN.size() != count) stencil->dN.resize(count);
+    node_out = stencil->node.data(), N_out = stencil->N.data(), dN_out = stencil->dN.data();
+  }
 };
 
 /// LME with the isotropic Gaussian prior `prior` (support radius R =
