@@ -116,23 +116,26 @@ bool solve_lme_1d(double gamma, const double* dx, int m, Lme1d& out) {
   return true;
 }
 
-BoxAxisTable::BoxAxisTable(double gamma, double max_exponent)
+BoxAxisTable::BoxAxisTable(double gamma, double max_exponent, BoxEnds ends)
     : gamma_(gamma), r_(std::sqrt(max_exponent / gamma)) {
   if (!(r_ > 0.0) || !(2.0 * r_ + 1.0 <= kBoxMaxLines)) return;
   reach_ = static_cast<int>(std::floor(r_));
+  ends_ = {std::min(ends.below, reach_), std::min(ends.above, reach_)};
+  if (ends_.below < std::min(reach_, 1) || ends_.above < std::min(reach_, 1)) return;
   // the interval ends: 0, frac(r), 1 - frac(r), 1
-  std::vector<double> ends{0.0, 1.0};
+  std::vector<double> bounds{0.0, 1.0};
   for (const double b : {r_ - std::floor(r_), std::ceil(r_) - r_})
-    if (b > 0.0 && b < 1.0) ends.push_back(b);
-  std::sort(ends.begin(), ends.end());
-  ends.erase(std::unique(ends.begin(), ends.end()), ends.end());
-  for (std::size_t e = 0; e + 1 < ends.size(); ++e) {
+    if (b > 0.0 && b < 1.0) bounds.push_back(b);
+  std::sort(bounds.begin(), bounds.end());
+  bounds.erase(std::unique(bounds.begin(), bounds.end()), bounds.end());
+  for (std::size_t e = 0; e + 1 < bounds.size(); ++e) {
     Segment s;
-    s.a = ends[e];
-    s.b = ends[e + 1];
+    s.a = bounds[e];
+    s.b = bounds[e + 1];
     const double mid = 0.5 * (s.a + s.b);
-    s.first = static_cast<int>(std::ceil(mid - r_));
-    s.m = static_cast<int>(std::floor(mid + r_)) - s.first + 1;
+    // the lines within r of the interval that exist
+    s.first = std::max(static_cast<int>(std::ceil(mid - r_)), -ends_.below);
+    s.m = std::min(static_cast<int>(std::floor(mid + r_)), 1 + ends_.above) - s.first + 1;
     s.lanes = (s.m + 2) & ~1; // the lines and L, rounded up to pairs
     if (!build_segment(s)) {
       segments_.clear();
@@ -240,15 +243,41 @@ int BoxAxisTable::evaluate(double u, int& first, double* N, double* dN, double& 
   return s.m;
 }
 
+BoxAxisTables::BoxAxisTables(double gamma, double max_exponent, int cells) : gamma_(gamma), cells_(cells) {
+  auto interior = std::make_shared<const BoxAxisTable>(gamma, max_exponent);
+  if (interior->empty()) return;
+  reach_ = interior->reach();
+  // the configurations the axis' cells have, the outermost cells excepted
+  ends_.resize(static_cast<std::size_t>(reach_ * reach_));
+  for (int c = 1; c + 1 < cells; ++c) {
+    const BoxEnds e{std::min(c, reach_), std::min(cells - 1 - c, reach_)};
+    if (e == BoxEnds{reach_, reach_}) continue;
+    auto& slot = ends_[static_cast<std::size_t>((e.below - 1) * reach_ + e.above - 1)];
+    if (slot) continue;
+    auto table = std::make_shared<const BoxAxisTable>(gamma, max_exponent, e);
+    if (!table->empty()) slot = std::move(table);
+  }
+  interior_ = std::move(interior);
+}
+
+std::vector<const BoxAxisTable*> BoxAxisTables::tables() const {
+  std::vector<const BoxAxisTable*> all;
+  if (interior_) all.push_back(interior_.get());
+  for (const auto& t : ends_)
+    if (t) all.push_back(t.get());
+  return all;
+}
+
 template <int D>
 BoxTables<D> BoxTables<D>::from(const LatticeAxes<D>& axes, double beta, double max_exponent) {
   BoxTables t;
   if (axes.empty()) return t;
   for (int k = 0; k < D; ++k) {
     const double gamma = beta * axes.h[k] * axes.h[k];
+    const int cells = static_cast<int>(axes.coord[k].size()) - 1;
     for (int l = 0; l < k && !t.axis[k]; ++l)
-      if (t.axis[l]->gamma() == gamma) t.axis[k] = t.axis[l];
-    if (!t.axis[k]) t.axis[k] = std::make_shared<const BoxAxisTable>(gamma, max_exponent);
+      if (t.axis[l]->gamma() == gamma && t.axis[l]->cells() == cells) t.axis[k] = t.axis[l];
+    if (!t.axis[k]) t.axis[k] = std::make_shared<const BoxAxisTables>(gamma, max_exponent, cells);
     if (t.axis[k]->empty()) return BoxTables{};
   }
   return t;
@@ -263,24 +292,24 @@ struct BoxAxis {
   double n[kBoxMaxLines], d[kBoxMaxLines];
 };
 
-/// Axis k of the box of coordinate xk from its table; false when xk is not
-/// in an interior cell.
+/// Axis k of the box of coordinate xk from its tables; false when xk is not
+/// in a cell with a table (BoxAxisTables::at).
 template <int D>
-bool box_axis(const LatticeAxes<D>& axes, const BoxAxisTable& table, int k, double xk, BoxAxis& a,
+bool box_axis(const LatticeAxes<D>& axes, const BoxAxisTables& tables, int k, double xk, BoxAxis& a,
               double& lambda) {
   const std::vector<double>& X = axes.coord[k];
   const double inv_h = axes.inv_h[k];
   const double ug = (xk - X.front()) * inv_h;
   if (!(ug >= 0.0)) return false; // below the lattice, or NaN
   const int last = static_cast<int>(X.size()) - 1;
-  const int reach = table.reach();
   if (!(ug < last)) return false;
   const int c = static_cast<int>(ug);
-  if (c < reach || c + 1 + reach > last) return false;
+  const BoxAxisTable* table = tables.at(c);
+  if (!table) return false;
   const double u = std::clamp((xk - X[static_cast<std::size_t>(c)]) * inv_h, 0.0, 1.0);
   int first;
   double L;
-  a.m = table.evaluate(u, first, a.n, a.d, L);
+  a.m = table->evaluate(u, first, a.n, a.d, L);
   a.lo = c + first;
   for (int i = 0; i < a.m; ++i) a.d[i] *= inv_h;
   lambda = L * inv_h;

@@ -11,19 +11,23 @@
 /// gamma_lme) along axis k, and J = diag(J_k), so grad N_I has the entries
 /// dN^1_k / dx_k times the other axes' factors (molinos eq. 42, diagonal).
 /// On a uniform lattice N^1_k depends only on the position u in [0, 1) of
-/// the point in its cell when every line within R exists on both sides (an
-/// interior cell): BoxAxisTable holds it, per gamma_lme = beta h^2, as quintic
-/// Hermite data (N^1, dN^1/du, d2N^1/du^2 from the closed forms) at samples
-/// of each interval of u over which the set of lines does not change. The
-/// interpolant of a partition of unity with zero derivatives is 1, and that
-/// of the coordinates is u: partition of unity and linear completeness hold
-/// to round-off, and the values match the Newton solution within
-/// kBoxTableError (tests/test_lme_box.cpp measures the bound). Cells within
-/// R of the lattice's end, moved or perturbed nodes and points off the
-/// lattice take the general solver with the same box cut-off (lme.cpp).
+/// the point in its cell and on how many lines exist beyond the cell on
+/// each side (all within R: an interior cell; fewer: a cell within R of
+/// the lattice's end): BoxAxisTable holds it, per gamma_lme = beta h^2 and
+/// per such configuration, as quintic Hermite data (N^1, dN^1/du,
+/// d2N^1/du^2 from the closed forms) at samples of each interval of u over
+/// which the set of lines does not change. The interpolant of a partition
+/// of unity with zero derivatives is 1, and that of the coordinates is u:
+/// partition of unity and linear completeness hold to round-off, and the
+/// values match the Newton solution within kBoxTableError
+/// (tests/test_lme_box.cpp measures the bound). The outermost cell of each
+/// end (a point on the hull's boundary, where lambda diverges), moved or
+/// perturbed nodes and points off the lattice take the general solver with
+/// the same box cut-off (lme.cpp).
 /// Internal to the max-ent basis and its tests.
 #include "otmpm/basis/lme.hpp"
 
+#include <algorithm>
 #include <cstddef>
 #include <memory>
 #include <vector>
@@ -54,20 +58,36 @@ inline constexpr int kBoxMaxLines = 16;
 inline constexpr double kBoxTableError = 1e-12;
 inline constexpr double kBoxTableGradientError = 1e-11;
 
-/// The 1D LME of the box support on a uniform lattice of unit spacing, for
-/// interior cells: lines o = ceil(u - r) .. floor(u + r) relative to the
-/// cell's lower line, r = sqrt(-ln(tol) / gamma).
+/// The lines that exist beyond a cell on a lattice axis: `below` lines
+/// below its lower line and `above` above its upper line, each counted up
+/// to the table's reach (floor r: a side with `reach` lines lacks none
+/// within r). An interior cell has {reach, reach}.
+struct BoxEnds {
+  int below = 0, above = 0;
+  bool operator==(const BoxEnds&) const = default;
+};
+
+/// The 1D LME of the box support on a uniform lattice of unit spacing: lines
+/// o = ceil(u - r) .. floor(u + r) relative to the cell's lower line, r =
+/// sqrt(-ln(tol) / gamma), those that exist (o >= -below, o <= 1 + above).
 class BoxAxisTable {
 public:
-  /// Builds the table of gamma = beta h^2 and max_exponent = -ln(tol).
-  /// Empty (no interior cell) when r is so large that more than
-  /// kBoxMaxLines lines fall within it.
-  BoxAxisTable(double gamma, double max_exponent);
+  /// Requests the interior configuration whatever the reach.
+  static constexpr BoxEnds interior_ends{kBoxMaxLines, kBoxMaxLines};
+  /// Builds the table of gamma = beta h^2 and max_exponent = -ln(tol) for
+  /// the cells with `ends` (each side counted up to the reach; at least one
+  /// line on each side: in a cell at the lattice's end the point can lie on
+  /// the hull's boundary, where lambda diverges). Empty when r is so large
+  /// that more than kBoxMaxLines lines fall within it, when a side has no
+  /// line beyond the cell, or when the samples would exceed kBoxMaxSamples.
+  BoxAxisTable(double gamma, double max_exponent, BoxEnds ends = interior_ends);
   bool empty() const { return segments_.empty(); }
   double gamma() const { return gamma_; }
   /// Lines that must exist below a cell's lower line (floor r) and above its
   /// upper line (floor r) for the cell to be interior.
   int reach() const { return reach_; }
+  /// The configuration the table was built for (each side up to the reach).
+  BoxEnds ends() const { return ends_; }
   /// The samples of the table (all intervals) and its size in bytes.
   std::size_t samples() const;
   std::size_t bytes() const;
@@ -104,7 +124,38 @@ private:
   bool build_segment(Segment& s) const;
   double gamma_, r_;
   int reach_ = 0;
+  BoxEnds ends_;
   std::vector<Segment> segments_;
+};
+
+/// The tables of one lattice axis: one per configuration of lines beyond
+/// the cell (BoxEnds) that its cells have, the outermost cell of each end
+/// (no line beyond it on one side) excepted.
+class BoxAxisTables {
+public:
+  /// Builds the tables of gamma and max_exponent for an axis of `cells`
+  /// cells; empty when the interior table is not built (BoxAxisTable).
+  BoxAxisTables(double gamma, double max_exponent, int cells);
+  bool empty() const { return !interior_; }
+  double gamma() const { return gamma_; }
+  int cells() const { return cells_; }
+  /// The table of cell c of the axis, or null (an outermost cell, or a
+  /// configuration whose table was not built).
+  const BoxAxisTable* at(int c) const {
+    const int below = std::min(c, reach_), above = std::min(cells_ - 1 - c, reach_);
+    if (below == reach_ && above == reach_) return interior_.get();
+    if (below < 1 || above < 1) return nullptr;
+    return ends_[static_cast<std::size_t>((below - 1) * reach_ + above - 1)].get();
+  }
+  /// Every table built, the interior one first.
+  std::vector<const BoxAxisTable*> tables() const;
+
+private:
+  double gamma_;
+  int cells_, reach_ = 0;
+  std::shared_ptr<const BoxAxisTable> interior_;
+  /// The boundary configurations, index (below - 1) reach + above - 1.
+  std::vector<std::shared_ptr<const BoxAxisTable>> ends_;
 };
 
 /// The 1D LME of m lines at the offsets dx[i] = u - o_i (unit spacing) and
@@ -121,9 +172,9 @@ struct Lme1d {
 bool solve_lme_1d(double gamma, const double* dx, int m, Lme1d& out);
 
 /// The tables of the D axes of a lattice (shared between axes of the same
-/// spacing) and the interior cells of each axis.
+/// spacing and cell count).
 template <int D> struct BoxTables {
-  std::shared_ptr<const BoxAxisTable> axis[D];
+  std::shared_ptr<const BoxAxisTables> axis[D];
   bool empty() const { return !axis[0]; }
   /// Builds the tables of `axes` for the prior's beta and cut-off; empty
   /// when the lattice is empty or an axis has no interior table.
@@ -132,8 +183,8 @@ template <int D> struct BoxTables {
 
 /// The box-support LME at x on the lattice `axes` from `tables`: writes the
 /// stencil (node ids ascending, N_I = prod_k N^1_k, grad N_I) to `out` and
-/// the multiplier to `lambda`. False (nothing written) when x is not inside
-/// an interior cell on every axis.
+/// the multiplier to `lambda`. False (nothing written) when x is not in a
+/// cell with a table on every axis (BoxAxisTables::at).
 template <int D>
 bool box_table_stencil(const LatticeAxes<D>& axes, const BoxTables<D>& tables, const Vec<D>& x,
                        RowTarget<D>& out, Vec<D>& lambda);
