@@ -7,8 +7,9 @@
 // * The table against the 1D Newton solve (solved to round-off): |N| within
 //   kBoxTableError = 1e-12 and |dN/du| within kBoxTableGradientError =
 //   1e-11 at 10^6 random positions for the benchmark's and the default
-//   gamma_lme (3 and 4), 2e5 for the others, every interval of the cell.
-//   The table's spacing is refined until its quarter points agree to 1e-13
+//   gamma_lme (3 and 4), 2e5 for the others, every interval of the cell;
+//   the same for every configuration of the cells near the lattice's end
+//   (10^6 each at gamma_lme 3). The table's spacing is refined until its quarter points agree to 1e-13
 //   (N) and 1e-12 (dN/du); measured (MESSAGE): N 1.1e-15 - 6.3e-14, dN/du
 //   5.4e-14 - 8.1e-13, lambda h (relative) up to 5.3e-13.
 // * The basis against the general solver (newton_tolerance 1e-14): N within
@@ -19,7 +20,8 @@
 //   sum grad N_I = 0 and sum x_I (x) grad N_I = I to 1e-13 (h): the
 //   interpolant of a partition of unity (zero derivatives) is 1 and that of
 //   the coordinates is u, in N and in dN/du alike, up to the rounding of
-//   sums of ~20 - 80 terms (measured 4e-16 - 9e-15).
+//   sums of ~20 - 80 terms (measured 4e-16 - 2.5e-14, the latter next to
+//   the hull's boundary).
 #include "otmpm/basis/families.hpp"
 #include "otmpm/basis/lme_box.hpp"
 #include "support.hpp"
@@ -65,6 +67,10 @@ TableError table_error(double gamma, double tol, int count, unsigned seed,
     int first;
     double Lt;
     const int m = table.evaluate(u, first, Nt, dNt, Lt);
+    if (m == 0) { // declined: only within kBoxHullGap of a side that is the hull's boundary
+      REQUIRE(((ends.below == 0 && u < kBoxHullGap) || (ends.above == 0 && u > 1.0 - kBoxHullGap)));
+      continue;
+    }
     // the lines within r of u, as the cut-off beta dx^2 <= -ln(tol) keeps
     // them, that exist beyond the cell
     const int lo = std::max(static_cast<int>(std::ceil(u - r)), -ends.below);
@@ -97,8 +103,8 @@ template <int D> int stencil_at(const Basis<D>& b, const Vec<D>& x, Stencil<D>& 
 
 /// The table path against the general solver on the same positions as a
 /// cloud at `count` points of the unit box; returns the share of the
-/// points off the outermost cells (those the tables cover) that the table
-/// took (no Newton step).
+/// points the tables cover (all but those within kBoxHullGap h of the
+/// lattice's ends) that the table took (no Newton step).
 template <int D> double agreement(int cells, double gamma, int count, unsigned seed) {
   const NodeSet<D> lattice = NodeSet<D>::cartesian(unit_grid<D>(cells));
   const NodeSet<D> cloud = NodeSet<D>::cloud(lattice.positions(), lattice.spacing());
@@ -108,15 +114,15 @@ template <int D> double agreement(int cells, double gamma, int count, unsigned s
   int taken = 0, covered = 0;
   for (const Vec<D>& x : unit_box_points<D>(lattice, count, seed)) {
     Stencil<D> a, b;
-    bool inner = true; // off the outermost cell of every axis
+    bool inner = true; // off the hull's boundary by kBoxHullGap h on every axis
     for (int k = 0; k < D; ++k) {
-      const int c = static_cast<int>(std::floor(x[k] / h)); // the lattice starts at 0
-      inner = inner && c >= 1 && c <= cells - 2;
+      const double u = x[k] / h; // the lattice starts at 0
+      inner = inner && u >= kBoxHullGap && u <= cells - kBoxHullGap;
     }
     const bool table = stencil_at<D>(*fast, x, a) == 0;
     covered += inner;
     taken += inner && table;
-    CHECK((table <= inner)); // the outermost cells take the general solver
+    CHECK((table <= inner)); // next to the hull's boundary the general solver
     stencil_at<D>(*general, x, b);
     INFO("x = " << x.transpose());
     REQUIRE(a.node == b.node);
@@ -134,7 +140,7 @@ template <int D> double agreement(int cells, double gamma, int count, unsigned s
 
 /// The largest departures from the reproducing identities over the table's
 /// stencils at `count` points of [lo, 1 - lo]^D (lo = 0.35: interior cells;
-/// one cell: every cell with a table, those within R of the ends among them).
+/// kBoxHullGap h: every cell, those within R of the ends among them).
 template <int D> void check_identities(int cells, double gamma, int count, unsigned seed, double lo = 0.35) {
   const NodeSet<D> nodes = NodeSet<D>::cartesian(unit_grid<D>(cells));
   const auto basis = make_lme_box_basis<D>(nodes, box_options(gamma));
@@ -195,7 +201,8 @@ TEST_CASE("lme_box table: the 1D functions within kBoxTableError of the Newton s
 TEST_CASE(
     "lme_box table: the cells near the lattice's end within kBoxTableError, 10^6 points per configuration") {
   // every configuration of lines beyond the cell (BoxEnds) that an axis has
-  // - at gamma_lme 3 (r = 2.15) one or two lines below and above - and the
+  // - at gamma_lme 3 (r = 2.15) none, one or two lines below and above (none:
+  // the outermost cell, the hull's boundary at u = 0 or 1) - and the
   // interior; 10^6 points each for the benchmark's gamma_lme, 10^5 for the
   // wider supports
   struct Case {
@@ -208,8 +215,8 @@ TEST_CASE(
     const BoxAxisTables axis(c.gamma, cut, 40);
     const int reach = BoxAxisTable(c.gamma, cut).reach();
     const std::vector<const BoxAxisTable*> tables = axis.tables();
-    // the interior and every (below, above) in [1, reach]^2 an axis of 40 cells has
-    CHECK(tables.size() == static_cast<std::size_t>(2 * (reach - 1) + 1));
+    // the interior and the (below, reach), (reach, above), below, above < reach, of an axis of 40 cells
+    CHECK(tables.size() == static_cast<std::size_t>(2 * reach + 1));
     for (const BoxAxisTable* t : tables) {
       if (t->ends() == BoxEnds{reach, reach}) continue; // the interior: the case above
       const TableError e = table_error(c.gamma, tol, c.count, seed++, t->ends());
@@ -221,33 +228,47 @@ TEST_CASE(
       CHECK(e.L <= kBoxTableGradientError);
     }
   }
-  // a short axis (3 cells at reach 2): its middle cell has one line on each side
+  // a short axis (3 cells at reach 2): its middle cell has one line on each
+  // side; a single cell none on either (two lines: N = 1 - u, u)
   const BoxAxisTables short_axis(3.0, cut, 3);
   REQUIRE(short_axis.at(1));
   CHECK(short_axis.at(1)->ends() == BoxEnds{1, 1});
-  CHECK(table_error(3.0, tol, 100000, 40, BoxEnds{1, 1}).N <= kBoxTableError);
+  for (const BoxEnds e : {BoxEnds{1, 1}, BoxEnds{0, 1}, BoxEnds{0, 0}}) {
+    const TableError err = table_error(3.0, tol, 100000, seed++, e);
+    CHECK(err.N <= kBoxTableError);
+    CHECK(err.dN <= kBoxTableGradientError);
+    CHECK(err.L <= kBoxTableGradientError);
+  }
 }
 
 TEST_CASE("lme_box table: which cells of an axis have a table") {
   const double cut = -std::log(1e-6);
   const BoxAxisTables axis(3.0, cut, 10); // reach 2
-  CHECK_FALSE(axis.at(0));                // the outermost cells: the hull's boundary
-  CHECK_FALSE(axis.at(9));
+  REQUIRE(axis.at(0));                    // the outermost cells: the hull's boundary on one side
+  CHECK(axis.at(0)->ends() == BoxEnds{0, 2});
+  REQUIRE(axis.at(9));
+  CHECK(axis.at(9)->ends() == BoxEnds{2, 0});
   REQUIRE(axis.at(1));
   CHECK(axis.at(1)->ends() == BoxEnds{1, 2});
   REQUIRE(axis.at(8));
   CHECK(axis.at(8)->ends() == BoxEnds{2, 1});
   for (int c = 2; c <= 7; ++c) CHECK(axis.at(c)->ends() == BoxEnds{2, 2});
-  // a table asked for a side without lines beyond the cell is not built
-  CHECK(BoxAxisTable(3.0, cut, BoxEnds{0, 2}).empty());
-  // gamma_lme 4 and 6 (reach 1): one line beyond is the interior, no other table
-  CHECK(BoxAxisTables(4.0, cut, 10).tables().size() == 1);
-  CHECK(BoxAxisTables(6.0, cut, 10).tables().size() == 1);
+  // gamma_lme 4 and 6 (reach 1): one line beyond is the interior; the outermost cells
+  CHECK(BoxAxisTables(4.0, cut, 10).tables().size() == 3);
+  CHECK(BoxAxisTables(6.0, cut, 10).tables().size() == 3);
   // the lines of the cell next to the lower end at u = 0.1: -1 .. 2 (line -2 is missing)
   double N[kBoxMaxLines], dN[kBoxMaxLines], L;
   int first;
   CHECK(axis.at(1)->evaluate(0.1, first, N, dN, L) == 4);
   CHECK(first == -1);
+  // the outermost cell: lines 0 .. 2; nearer the hull's boundary than
+  // kBoxHullGap the table declines (the general solver takes the point)
+  CHECK(axis.at(0)->evaluate(0.1, first, N, dN, L) == 3);
+  CHECK(first == 0);
+  CHECK(axis.at(0)->evaluate(0.5 * kBoxHullGap, first, N, dN, L) == 0);
+  CHECK(axis.at(0)->evaluate(2.0 * kBoxHullGap, first, N, dN, L) == 3);
+  CHECK(N[0] > 0.99);
+  CHECK(axis.at(9)->evaluate(1.0 - 0.5 * kBoxHullGap, first, N, dN, L) == 0);
 }
 
 TEST_CASE("lme_box table: refuses a support wider than it holds, and the intervals follow the cut-off") {
@@ -280,9 +301,11 @@ TEST_CASE("lme_box table: refuses a support wider than it holds, and the interva
 }
 
 TEST_CASE("lme_box: the table's stencil is the general solver's on the same positions (1D, 2D, 3D)") {
-  // every point off the outermost cells takes a table (interior cells and
-  // those within R of the ends); the outermost cells the general solver,
-  // with the box cut-off as on the cloud
+  // every point takes a table (interior cells and those within R of the
+  // ends) but those within kBoxHullGap h of the lattice's end, which take
+  // the general solver, with the box cut-off as on the cloud (the points of
+  // unit_box_points at 1e-3 h from a face take the table, those at 1e-6 h
+  // and 1e-10 h the solver)
   CHECK(agreement<1>(20, 3.0, 300, 1) == 1.0);
   CHECK(agreement<2>(12, 3.0, 200, 2) == 1.0);
   CHECK(agreement<3>(8, 3.0, 60, 3) == 1.0);
@@ -298,11 +321,11 @@ TEST_CASE("lme_box: partition of unity and linear completeness of the table's st
   check_identities<2>(16, 3.0, 1000, 7);
   check_identities<3>(12, 3.0, 200, 8);
   check_identities<2>(16, 6.0, 500, 9);
-  // off the outermost cells: the cells within R of the ends included
-  check_identities<1>(20, 3.0, 2000, 11, 1.0 / 20);
-  check_identities<2>(16, 3.0, 1000, 12, 1.0 / 16);
-  check_identities<2>(16, 1.5, 500, 13, 1.0 / 16);
-  check_identities<3>(8, 3.0, 200, 14, 1.0 / 8);
+  // over every cell, those within R of the ends included, up to kBoxHullGap h of the ends
+  check_identities<1>(20, 3.0, 2000, 11, kBoxHullGap / 20);
+  check_identities<2>(16, 3.0, 1000, 12, kBoxHullGap / 16);
+  check_identities<2>(16, 1.5, 500, 13, kBoxHullGap / 16);
+  check_identities<3>(8, 3.0, 200, 14, kBoxHullGap / 8);
 }
 
 TEST_CASE("lme_box: N_I is the product of the 1D functions, and the box holds the ball of lme") {

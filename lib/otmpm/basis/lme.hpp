@@ -523,7 +523,7 @@ private:
   bool evaluate_moved(const PointQuery<D>& q, const Stencil<D>& support, RowTarget<D>& target) const;
   /// The box support's table (lme_box.hpp) for q, when the prior is the
   /// Gaussian with the box support, the nodes sit on their lattice and q
-  /// lies in a cell with a table on every axis (all but the outermost);
+  /// lies in a cell with a table on every axis, off the lattice's end by kBoxHullGap h;
   /// false otherwise (nothing of q's state written).
   bool evaluate_on_table(const PointQuery<D>& q, RowTarget<D>& out) const;
   /// The factorised path (lattice_solve) for q from the warm start `warm`,

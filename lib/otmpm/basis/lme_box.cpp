@@ -120,12 +120,13 @@ BoxAxisTable::BoxAxisTable(double gamma, double max_exponent, BoxEnds ends)
     : gamma_(gamma), r_(std::sqrt(max_exponent / gamma)) {
   if (!(r_ > 0.0) || !(2.0 * r_ + 1.0 <= kBoxMaxLines)) return;
   reach_ = static_cast<int>(std::floor(r_));
-  ends_ = {std::min(ends.below, reach_), std::min(ends.above, reach_)};
-  if (ends_.below < std::min(reach_, 1) || ends_.above < std::min(reach_, 1)) return;
-  // the interval ends: 0, frac(r), 1 - frac(r), 1
-  std::vector<double> bounds{0.0, 1.0};
+  ends_ = {std::max(0, std::min(ends.below, reach_)), std::max(0, std::min(ends.above, reach_))};
+  // the interval ends: 0 (kBoxHullGap at the hull's boundary), frac(r),
+  // 1 - frac(r), 1 (1 - kBoxHullGap)
+  const double lo = ends_.below == 0 ? kBoxHullGap : 0.0, hi = ends_.above == 0 ? 1.0 - kBoxHullGap : 1.0;
+  std::vector<double> bounds{lo, hi};
   for (const double b : {r_ - std::floor(r_), std::ceil(r_) - r_})
-    if (b > 0.0 && b < 1.0) bounds.push_back(b);
+    if (b > lo && b < hi) bounds.push_back(b);
   std::sort(bounds.begin(), bounds.end());
   bounds.erase(std::unique(bounds.begin(), bounds.end()), bounds.end());
   for (std::size_t e = 0; e + 1 < bounds.size(); ++e) {
@@ -145,11 +146,32 @@ BoxAxisTable::BoxAxisTable(double gamma, double max_exponent, BoxEnds ends)
   }
 }
 
+void BoxAxisTable::hull_log(double u, double* g) const {
+  for (int d = 0; d < 4; ++d) g[d] = 0.0;
+  if (ends_.below == 0) { // -ln(u)
+    g[0] -= std::log(u);
+    g[1] -= 1.0 / u;
+    g[2] += 1.0 / (u * u);
+    g[3] -= 2.0 / (u * u * u);
+  }
+  if (ends_.above == 0) { // ln(1 - u)
+    const double v = 1.0 - u;
+    g[0] += std::log(v);
+    g[1] -= 1.0 / v;
+    g[2] -= 1.0 / (v * v);
+    g[3] -= 2.0 / (v * v * v);
+  }
+}
+
 bool BoxAxisTable::sample(const Segment& s, double u, double* row) const {
   double dx[kBoxMaxLines];
   for (int i = 0; i < s.m; ++i) dx[i] = u - (s.first + i);
   Lme1d f;
   if (!solve_lme_1d(gamma_, dx, s.m, f)) return false;
+  // lambda diverges at the hull's boundary like its logarithm; the rest is smooth
+  double g[4];
+  hull_log(u, g);
+  for (int d = 0; d < 4; ++d) f.L[d] -= g[d];
   for (int d = 0; d < 4; ++d) {
     double* r = row + d * s.lanes;
     for (int i = 0; i < s.lanes; ++i) r[i] = i < s.m ? f.f[i][d] : i == s.m ? f.L[d] : 0.0;
@@ -201,14 +223,16 @@ bool BoxAxisTable::accurate(const Segment& s) const {
     for (const double t : {0.25, 0.5, 0.75}) {
       const double x = s.a + (j + t) * s.du;
       if (!sample(s, x, exact.data())) return false;
-      double L;
+      double L, g[4];
       interpolate(s, x, N.data(), dN.data(), L);
+      hull_log(x, g);
+      L += g[0];
       const auto lanes = static_cast<std::size_t>(s.lanes);
       for (std::size_t i = 0; i < static_cast<std::size_t>(s.m); ++i)
         if (!(std::abs(N[i] - exact[i]) <= kBoxRefineError &&
               std::abs(dN[i] - exact[lanes + i]) <= kBoxRefineGradient))
           return false;
-      const double L_exact = exact[static_cast<std::size_t>(s.m)];
+      const double L_exact = exact[static_cast<std::size_t>(s.m)] + g[0];
       if (!(std::abs(L - L_exact) <= kBoxRefineGradient * (1.0 + std::abs(L_exact)))) return false;
     }
   return true;
@@ -235,10 +259,17 @@ std::size_t BoxAxisTable::bytes() const {
 }
 
 int BoxAxisTable::evaluate(double u, int& first, double* N, double* dN, double& L) const {
+  if (u < segments_.front().a || u > segments_.back().b)
+    return 0; // within kBoxHullGap of the hull's boundary
   std::size_t k = 0;
   while (k + 1 < segments_.size() && u > segments_[k].b) ++k;
   const Segment& s = segments_[k];
   interpolate(s, u, N, dN, L);
+  if (ends_.below == 0 || ends_.above == 0) {
+    double g[4];
+    hull_log(u, g);
+    L += g[0];
+  }
   first = s.first;
   return s.m;
 }
@@ -247,12 +278,12 @@ BoxAxisTables::BoxAxisTables(double gamma, double max_exponent, int cells) : gam
   auto interior = std::make_shared<const BoxAxisTable>(gamma, max_exponent);
   if (interior->empty()) return;
   reach_ = interior->reach();
-  // the configurations the axis' cells have, the outermost cells excepted
-  ends_.resize(static_cast<std::size_t>(reach_ * reach_));
-  for (int c = 1; c + 1 < cells; ++c) {
+  // the configurations the axis' cells have
+  ends_.resize(static_cast<std::size_t>((reach_ + 1) * (reach_ + 1)));
+  for (int c = 0; c < cells; ++c) {
     const BoxEnds e{std::min(c, reach_), std::min(cells - 1 - c, reach_)};
     if (e == BoxEnds{reach_, reach_}) continue;
-    auto& slot = ends_[static_cast<std::size_t>((e.below - 1) * reach_ + e.above - 1)];
+    auto& slot = ends_[static_cast<std::size_t>(e.below * (reach_ + 1) + e.above)];
     if (slot) continue;
     auto table = std::make_shared<const BoxAxisTable>(gamma, max_exponent, e);
     if (!table->empty()) slot = std::move(table);
@@ -310,6 +341,7 @@ bool box_axis(const LatticeAxes<D>& axes, const BoxAxisTables& tables, int k, do
   int first;
   double L;
   a.m = table->evaluate(u, first, a.n, a.d, L);
+  if (a.m == 0) return false; // next to the hull's boundary
   a.lo = c + first;
   for (int i = 0; i < a.m; ++i) a.d[i] *= inv_h;
   lambda = L * inv_h;

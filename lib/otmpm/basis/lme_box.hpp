@@ -20,10 +20,13 @@
 /// of unity with zero derivatives is 1, and that of the coordinates is u:
 /// partition of unity and linear completeness hold to round-off, and the
 /// values match the Newton solution within kBoxTableError
-/// (tests/test_lme_box.cpp measures the bound). The outermost cell of each
-/// end (a point on the hull's boundary, where lambda diverges), moved or
-/// perturbed nodes and points off the lattice take the general solver with
-/// the same box cut-off (lme.cpp).
+/// (tests/test_lme_box.cpp measures the bound). In the outermost cell of
+/// each end the point approaches the hull's boundary, where lambda
+/// diverges like -ln of the distance (the functions stay smooth): its table
+/// holds lambda with that logarithm taken off and stops kBoxHullGap short
+/// of the boundary. Points nearer the boundary, moved or perturbed nodes
+/// and points off the lattice take the general solver with the same box
+/// cut-off (lme.cpp).
 /// Internal to the max-ent basis and its tests.
 #include "otmpm/basis/lme.hpp"
 
@@ -57,6 +60,11 @@ inline constexpr int kBoxMaxLines = 16;
 /// ~gamma_lme 1e-12) and on grad N.
 inline constexpr double kBoxTableError = 1e-12;
 inline constexpr double kBoxTableGradientError = 1e-11;
+/// How far short of the hull's boundary (in units of the cell) the table of
+/// an outermost cell stops: nearer it the closed forms' derivatives lose
+/// digits to the cancellation of terms ~1/u^k (at 2^-10 about three, within
+/// the bounds above).
+inline constexpr double kBoxHullGap = 1.0 / 1024;
 
 /// The lines that exist beyond a cell on a lattice axis: `below` lines
 /// below its lower line and `above` above its upper line, each counted up
@@ -75,11 +83,11 @@ public:
   /// Requests the interior configuration whatever the reach.
   static constexpr BoxEnds interior_ends{kBoxMaxLines, kBoxMaxLines};
   /// Builds the table of gamma = beta h^2 and max_exponent = -ln(tol) for
-  /// the cells with `ends` (each side counted up to the reach; at least one
-  /// line on each side: in a cell at the lattice's end the point can lie on
-  /// the hull's boundary, where lambda diverges). Empty when r is so large
-  /// that more than kBoxMaxLines lines fall within it, when a side has no
-  /// line beyond the cell, or when the samples would exceed kBoxMaxSamples.
+  /// the cells with `ends` (each side counted up to the reach; a side with
+  /// no line beyond the cell is the hull's boundary: the table then covers u
+  /// from kBoxHullGap, or up to 1 - kBoxHullGap). Empty when r is so large
+  /// that more than kBoxMaxLines lines fall within it, or when the samples
+  /// would exceed kBoxMaxSamples.
   BoxAxisTable(double gamma, double max_exponent, BoxEnds ends = interior_ends);
   bool empty() const { return segments_.empty(); }
   double gamma() const { return gamma_; }
@@ -93,7 +101,8 @@ public:
   std::size_t bytes() const;
   /// The 1D functions at u in [0, 1]: writes N[i] and dN[i] = dN/du of the
   /// lines first + i, i < m, and L = lambda h; returns m and sets `first`
-  /// (relative to the cell's lower line).
+  /// (relative to the cell's lower line). Returns 0 (nothing written) when
+  /// u lies within kBoxHullGap of a side that is the hull's boundary.
   int evaluate(double u, int& first, double* N, double* dN, double& L) const;
 
 private:
@@ -111,8 +120,12 @@ private:
     std::vector<double> data;
     int width() const { return 4 * lanes; }
   };
-  /// The data of u into `row` (false: the solve failed).
+  /// The data of u into `row` (false: the solve failed); L with the
+  /// logarithm of the hull's boundary taken off (hull_log).
   bool sample(const Segment& s, double u, double* row) const;
+  /// The part of L that diverges at a side that is the hull's boundary and
+  /// its first three derivatives: -ln(u) below, ln(1 - u) above.
+  void hull_log(double u, double* g) const;
   /// Samples s at n intervals; false when a solve fails.
   bool fill(Segment& s, int n) const;
   /// True when every sample interval of s meets the refinement bounds.
@@ -129,8 +142,7 @@ private:
 };
 
 /// The tables of one lattice axis: one per configuration of lines beyond
-/// the cell (BoxEnds) that its cells have, the outermost cell of each end
-/// (no line beyond it on one side) excepted.
+/// the cell (BoxEnds) that its cells have.
 class BoxAxisTables {
 public:
   /// Builds the tables of gamma and max_exponent for an axis of `cells`
@@ -139,13 +151,12 @@ public:
   bool empty() const { return !interior_; }
   double gamma() const { return gamma_; }
   int cells() const { return cells_; }
-  /// The table of cell c of the axis, or null (an outermost cell, or a
-  /// configuration whose table was not built).
+  /// The table of cell c of the axis, or null (a configuration whose table
+  /// was not built).
   const BoxAxisTable* at(int c) const {
     const int below = std::min(c, reach_), above = std::min(cells_ - 1 - c, reach_);
     if (below == reach_ && above == reach_) return interior_.get();
-    if (below < 1 || above < 1) return nullptr;
-    return ends_[static_cast<std::size_t>((below - 1) * reach_ + above - 1)].get();
+    return ends_[static_cast<std::size_t>(below * (reach_ + 1) + above)].get();
   }
   /// Every table built, the interior one first.
   std::vector<const BoxAxisTable*> tables() const;
@@ -154,7 +165,7 @@ private:
   double gamma_;
   int cells_, reach_ = 0;
   std::shared_ptr<const BoxAxisTable> interior_;
-  /// The boundary configurations, index (below - 1) reach + above - 1.
+  /// The boundary configurations, index below (reach + 1) + above.
   std::vector<std::shared_ptr<const BoxAxisTable>> ends_;
 };
 
