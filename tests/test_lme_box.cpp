@@ -269,6 +269,16 @@ TEST_CASE("lme_box table: which cells of an axis have a table") {
   CHECK(axis.at(0)->evaluate(2.0 * kBoxHullGap, first, N, dN, L) == 3);
   CHECK(N[0] > 0.99);
   CHECK(axis.at(9)->evaluate(1.0 - 0.5 * kBoxHullGap, first, N, dN, L) == 0);
+  // an axis of the same spacing and another cell count takes the tables it
+  // shares with the first instead of building them; a configuration the
+  // first lacks ({1, 1} of a 3-cell axis) it builds
+  const BoxAxisTables longer(3.0, cut, 20, &axis), short_axis(3.0, cut, 3, &axis);
+  CHECK(longer.at(10) == axis.at(5));
+  CHECK(longer.at(0) == axis.at(0));
+  CHECK(longer.at(19) == axis.at(9));
+  REQUIRE(short_axis.at(1));
+  CHECK(short_axis.at(1)->ends() == BoxEnds{1, 1});
+  CHECK(short_axis.at(0) == axis.at(0));
 }
 
 TEST_CASE("lme_box table: refuses a support wider than it holds, and the intervals follow the cut-off") {

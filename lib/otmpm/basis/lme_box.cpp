@@ -274,8 +274,10 @@ int BoxAxisTable::evaluate(double u, int& first, double* N, double* dN, double& 
   return s.m;
 }
 
-BoxAxisTables::BoxAxisTables(double gamma, double max_exponent, int cells) : gamma_(gamma), cells_(cells) {
-  auto interior = std::make_shared<const BoxAxisTable>(gamma, max_exponent);
+BoxAxisTables::BoxAxisTables(double gamma, double max_exponent, int cells, const BoxAxisTables* same)
+    : gamma_(gamma), cells_(cells) {
+  if (same && same->empty()) return; // the interior table of gamma is not built
+  auto interior = same ? same->interior_ : std::make_shared<const BoxAxisTable>(gamma, max_exponent);
   if (interior->empty()) return;
   reach_ = interior->reach();
   // the configurations the axis' cells have
@@ -283,8 +285,13 @@ BoxAxisTables::BoxAxisTables(double gamma, double max_exponent, int cells) : gam
   for (int c = 0; c < cells; ++c) {
     const BoxEnds e{std::min(c, reach_), std::min(cells - 1 - c, reach_)};
     if (e == BoxEnds{reach_, reach_}) continue;
-    auto& slot = ends_[static_cast<std::size_t>(e.below * (reach_ + 1) + e.above)];
+    const auto index = static_cast<std::size_t>(e.below * (reach_ + 1) + e.above);
+    auto& slot = ends_[index];
     if (slot) continue;
+    if (same && same->ends_[index]) {
+      slot = same->ends_[index];
+      continue;
+    }
     auto table = std::make_shared<const BoxAxisTable>(gamma, max_exponent, e);
     if (!table->empty()) slot = std::move(table);
   }
@@ -306,9 +313,14 @@ BoxTables<D> BoxTables<D>::from(const LatticeAxes<D>& axes, double beta, double 
   for (int k = 0; k < D; ++k) {
     const double gamma = beta * axes.h[k] * axes.h[k];
     const int cells = static_cast<int>(axes.coord[k].size()) - 1;
+    // an axis of the same spacing: its tables, whole if it has as many cells
+    const BoxAxisTables* same = nullptr;
     for (int l = 0; l < k && !t.axis[k]; ++l)
-      if (t.axis[l]->gamma() == gamma && t.axis[l]->cells() == cells) t.axis[k] = t.axis[l];
-    if (!t.axis[k]) t.axis[k] = std::make_shared<const BoxAxisTables>(gamma, max_exponent, cells);
+      if (t.axis[l]->gamma() == gamma) {
+        same = t.axis[l].get();
+        if (same->cells() == cells) t.axis[k] = t.axis[l];
+      }
+    if (!t.axis[k]) t.axis[k] = std::make_shared<const BoxAxisTables>(gamma, max_exponent, cells, same);
     if (t.axis[k]->empty()) return BoxTables{};
   }
   return t;

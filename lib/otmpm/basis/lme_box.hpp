@@ -146,8 +146,10 @@ private:
 class BoxAxisTables {
 public:
   /// Builds the tables of gamma and max_exponent for an axis of `cells`
-  /// cells; empty when the interior table is not built (BoxAxisTable).
-  BoxAxisTables(double gamma, double max_exponent, int cells);
+  /// cells, taking those `same` (the tables of another axis of the same
+  /// gamma and cut-off, or null) has instead of building them again; empty
+  /// when the interior table is not built (BoxAxisTable).
+  BoxAxisTables(double gamma, double max_exponent, int cells, const BoxAxisTables* same = nullptr);
   bool empty() const { return !interior_; }
   double gamma() const { return gamma_; }
   int cells() const { return cells_; }
