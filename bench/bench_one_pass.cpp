@@ -1,0 +1,271 @@
+// bench_one_pass: how fast the 2D linear `fe` step of the benchmark block
+// could run as ONE sweep over the particles (docs/performance.md, "Against
+// the machine": the bound of a one-pass step).
+//
+//   OMP_NUM_THREADS=1 build/bench/bench_one_pass [--cells N] [--steps S] [--repeat R] [--check C]
+//       [--engine 0]
+//
+// OnePassBlock below is a model of the step, not a part of the library: the
+// physics of step_fe (wobbes et al. Algorithm 1, lumped mass) with
+// linear_elastic on the block of bench_step (N x N cells, 2 x 2 particles per
+// cell, its base held), written as the fused grid-to-particle-to-grid sweep
+// of the massively parallel MPM literature - the nodal update, then for each
+// particle the grid-to-particle update, the stress update, the energy sums
+// and checks, and the next step's particle-to-node sums, the weights of the
+// linear hats recomputed from x_p in the sweep (no basis table), on one
+// thread, scattering straight into the nodes. It leaves out what the engine
+// needs beyond that block (other bases, integrators, threads, walls,
+// deterministic blocked sums, the straight-path strain energy), so its rate
+// bounds from above what fusing the engine's passes can give on this core.
+//
+// It first proves that it computes the engine's step: from the engine's
+// initial particles and with the engine's time steps, its velocities and
+// positions after --check steps agree with the engine's to kAgreement of
+// their scale (exit 1 otherwise). Then it times itself and the engine on
+// the same block, in turn (--repeat rounds), and prints both medians
+// (--engine 0: the model alone, after the check - for counting its
+// instructions and bytes with cachegrind, scripts/roofline.sh's way).
+#include "bench_run.hpp"
+#include "bench_scenes.hpp"
+#include "otmpm/openmp_wait.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+using namespace otmpm;
+using namespace otmpm::bench;
+
+namespace {
+
+/// How close the model's velocities and positions must come to the
+/// engine's, relative to their largest value: the same arithmetic with the
+/// node sums in another order, so round-off (measured after 20 steps: 1.2e-15
+/// on 50^2 cells, 1.6e-14 on 500^2; 1.7e-15 after 100 steps on 50^2). The
+/// check catches a different step: a held node's acceleration taken as
+/// -q_I / (m_I dt) instead of 0 gives 0.13 after 2 steps, V_p = det F V_0
+/// instead of m_p / rho_p 3e-11 after 20.
+constexpr double kAgreement = 1e-12;
+
+/// The nodal sums of the particle-to-node map (m_I, q_I, f_I).
+struct NodeSums {
+  double m = 0, qx = 0, qy = 0, fx = 0, fy = 0;
+};
+/// The nodal acceleration a_I = f_I / m_I and velocity v_I = q_I / m_I + dt a_I.
+struct NodeRates {
+  double ax = 0, ay = 0, vx = 0, vy = 0;
+};
+/// The four linear hats of a particle: the lower-left node and N, dN/dx, dN/dy.
+struct Hats {
+  int I;
+  double N[4], dNx[4], dNy[4];
+};
+
+/// The 2D block's linear `fe` step as one sweep over the particles (see the file's head).
+class OnePassBlock {
+public:
+  OnePassBlock(const Engine<2>& e, int cells)
+      : h_(1.0 / cells), lo_(-2.0 / cells), NX_(cells + 5), NY_(cells + 3) {
+    const Particles<2>& P = e.particles();
+    const int n = static_cast<int>(P.size());
+    for (int p = 0; p < n; ++p) {
+      x_.push_back(P.x[p].x()), y_.push_back(P.x[p].y()), vx_.push_back(P.v[p].x()),
+          vy_.push_back(P.v[p].y());
+      m_.push_back(P.m[p]), V_.push_back(P.V[p]), rho_.push_back(P.rho[p]);
+      eps_.insert(eps_.end(), {0.0, 0.0, 0.0});
+      sigma_.insert(sigma_.end(), {0.0, 0.0, 0.0});
+    }
+    const double E = 1e7, nu = 0.3; // the block's material (bench_scenes.hpp)
+    lambda_ = E * nu / ((1 + nu) * (1 - 2 * nu)), mu_ = E / (2 * (1 + nu));
+    sums_.assign(static_cast<std::size_t>(NX_) * NY_, NodeSums{});
+    next_ = sums_;
+    rates_.assign(sums_.size(), NodeRates{});
+    for (int p = 0; p < n; ++p) scatter(sums_, p);
+  }
+  /// One step of size dt: the nodal update, then the sweep.
+  void step(double dt) {
+    nodal_update(dt);
+    sweep(dt);
+    std::swap(sums_, next_);
+  }
+  int size() const { return static_cast<int>(x_.size()); }
+  double vx(int p) const { return vx_[p]; }
+  double vy(int p) const { return vy_[p]; }
+  double x(int p) const { return x_[p]; }
+  double y(int p) const { return y_[p]; }
+  long failed() const { return failed_; }
+
+private:
+  Hats hats(double px, double py) const {
+    const double inv_h = 1.0 / h_, u = (px - lo_) * inv_h, w = py * inv_h; // the grid: x from -2h, y from 0
+    const int i = static_cast<int>(u), j = static_cast<int>(w);
+    const double a = u - i, b = w - j, Nx0 = 1 - a, Ny0 = 1 - b;
+    return {j * NX_ + i,
+            {Nx0 * Ny0, a * Ny0, Nx0 * b, a * b},
+            {-inv_h * Ny0, inv_h * Ny0, -inv_h * b, inv_h * b},
+            {-inv_h * Nx0, -inv_h * a, inv_h * Nx0, inv_h * a}};
+  }
+  int node(const Hats& w, int k) const { return w.I + (k & 1) + (k >> 1) * NX_; }
+  /// m_I, q_I = m_p v_p and f_I = -V_p sigma_p grad N + N m_p g of particle p.
+  void scatter(std::vector<NodeSums>& s, int p) const {
+    const Hats w = hats(x_[p], y_[p]);
+    const double sxx = V_[p] * sigma_[3 * p], syy = V_[p] * sigma_[3 * p + 1],
+                 sxy = V_[p] * sigma_[3 * p + 2];
+    const double mp = m_[p], qx = mp * vx_[p], qy = mp * vy_[p], fg = mp * -9.81;
+    for (int k = 0; k < 4; ++k) {
+      NodeSums& d = s[static_cast<std::size_t>(node(w, k))];
+      d.m += w.N[k] * mp;
+      d.qx += w.N[k] * qx, d.qy += w.N[k] * qy;
+      d.fx -= sxx * w.dNx[k] + sxy * w.dNy[k];
+      d.fy -= sxy * w.dNx[k] + syy * w.dNy[k];
+      d.fy += w.N[k] * fg;
+    }
+  }
+  /// a_I, v_I of every node with mass; the base's row (y = 0) held: v_I = 0 and, as the engine's Dirichlet
+  /// sets give it (the fixed components of f_I zeroed), a_I = 0.
+  void nodal_update(double dt) {
+    for (int r = 0; r < NY_; ++r)
+      for (int i = 0; i < NX_; ++i) {
+        const std::size_t I = static_cast<std::size_t>(r) * NX_ + i;
+        const NodeSums& d = sums_[I];
+        NodeRates& o = rates_[I];
+        if (d.m > 0 && r > 0) {
+          o.ax = d.fx / d.m, o.ay = d.fy / d.m;
+          o.vx = d.qx / d.m + dt * o.ax, o.vy = d.qy / d.m + dt * o.ay;
+        } else if (d.m > 0)
+          o = {0.0, 0.0, 0.0, 0.0};
+        else
+          o = NodeRates{};
+        next_[I] = NodeSums{};
+      }
+  }
+  /// The grid-to-particle update, stress update, sums and checks and the
+  /// next particle-to-node sums, particle by particle.
+  void sweep(double dt) {
+    kinetic_ = strain_ = speed2_ = 0.0;
+    failed_ = 0;
+    for (int p = 0; p < size(); ++p) {
+      const Hats w = hats(x_[p], y_[p]);
+      double ax = 0, ay = 0, ux = 0, uy = 0, Lxx = 0, Lxy = 0, Lyx = 0, Lyy = 0;
+      for (int k = 0; k < 4; ++k) {
+        const NodeRates& o = rates_[static_cast<std::size_t>(node(w, k))];
+        ax += w.N[k] * o.ax, ay += w.N[k] * o.ay, ux += w.N[k] * o.vx, uy += w.N[k] * o.vy;
+        Lxx += o.vx * w.dNx[k], Lxy += o.vx * w.dNy[k], Lyx += o.vy * w.dNx[k], Lyy += o.vy * w.dNy[k];
+      }
+      vx_[p] += dt * ax, vy_[p] += dt * ay;
+      x_[p] += dt * ux, y_[p] += dt * uy;
+      update_stress(p, dt * Lxx, dt * Lxy, dt * Lyx, dt * Lyy);
+      sum_and_check(p);
+      scatter(next_, p);
+    }
+  }
+  /// eps += dt sym L, sigma += C : dt sym L, rho /= 1 + tr(dt sym L), V = m / rho (linear_elastic's update).
+  void update_stress(int p, double gxx, double gxy, double gyx, double gyy) {
+    const double dxy = 0.5 * (gxy + gyx), tr = gxx + gyy;
+    double* e = &eps_[3 * static_cast<std::size_t>(p)];
+    double* s = &sigma_[3 * static_cast<std::size_t>(p)];
+    e[0] += gxx, e[1] += gyy, e[2] += dxy;
+    s[0] += lambda_ * tr + 2 * mu_ * gxx, s[1] += lambda_ * tr + 2 * mu_ * gyy, s[2] += 2 * mu_ * dxy;
+    rho_[p] /= 1.0 + tr;
+    V_[p] = m_[p] / rho_[p];
+  }
+  /// Kinetic and stored energy, the fastest particle, the finiteness check.
+  void sum_and_check(int p) {
+    const double* e = &eps_[3 * static_cast<std::size_t>(p)];
+    const double* s = &sigma_[3 * static_cast<std::size_t>(p)];
+    const double v2 = vx_[p] * vx_[p] + vy_[p] * vy_[p];
+    kinetic_ += 0.5 * m_[p] * v2;
+    strain_ += 0.5 * V_[p] * (s[0] * e[0] + s[1] * e[1] + 2 * s[2] * e[2]);
+    speed2_ = std::max(speed2_, v2);
+    const double z = (x_[p] - x_[p]) + (y_[p] - y_[p]) + (s[0] - s[0]) + (s[1] - s[1]) + (s[2] - s[2]);
+    failed_ += !(z == 0.0);
+  }
+
+  double h_, lo_;
+  int NX_, NY_;
+  double lambda_ = 0, mu_ = 0;
+  std::vector<double> x_, y_, vx_, vy_, m_, V_, rho_, eps_, sigma_;
+  std::vector<NodeSums> sums_, next_;
+  std::vector<NodeRates> rates_;
+  double kinetic_ = 0, strain_ = 0, speed2_ = 0;
+  long failed_ = 0;
+};
+
+/// Steps the engine and the model `steps` times with the engine's dt and
+/// returns the largest difference of velocity and position, each relative
+/// to the largest value of its field.
+double agreement(const Scene& scene, int cells, int steps) {
+  Engine<2> e = assemble<2>(scene);
+  OnePassBlock b(e, cells);
+  for (int s = 0; s < steps; ++s) {
+    e.step();
+    b.step(e.last_dt());
+  }
+  const Particles<2>& P = e.particles();
+  double dv = 0, vmax = 0, dx = 0, xmax = 0;
+  for (int p = 0; p < b.size(); ++p) {
+    dv = std::max({dv, std::abs(b.vx(p) - P.v[p].x()), std::abs(b.vy(p) - P.v[p].y())});
+    dx = std::max({dx, std::abs(b.x(p) - P.x[p].x()), std::abs(b.y(p) - P.x[p].y())});
+    vmax = std::max(vmax, P.v[p].norm()), xmax = std::max(xmax, P.x[p].norm());
+  }
+  return std::max(dv / vmax, dx / xmax);
+}
+
+/// Particle-steps per second of `steps` model steps (after one untimed step).
+double time_model(const Scene& scene, int cells, int steps) {
+  Engine<2> e = assemble<2>(scene);
+  OnePassBlock b(e, cells);
+  const double dt = e.stable_dt();
+  b.step(dt);
+  const auto t0 = std::chrono::steady_clock::now();
+  for (int s = 0; s < steps; ++s) b.step(dt);
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (b.failed() != 0) std::fprintf(stderr, "bench_one_pass: %ld particles not finite\n", b.failed());
+  return double(b.size()) * steps / wall;
+}
+
+} // namespace
+
+int main(int argc, char** argv) {
+  otmpm::default_openmp_wait(argv);
+  int cells = 500, steps = 50, repeat = 5, check = 20, with_engine = 1;
+  for (int i = 1; i + 1 < argc; i += 2) {
+    const std::string a = argv[i], v = argv[i + 1];
+    if (a == "--cells")
+      cells = std::stoi(v);
+    else if (a == "--steps")
+      steps = std::stoi(v);
+    else if (a == "--repeat")
+      repeat = std::stoi(v);
+    else if (a == "--check")
+      check = std::stoi(v);
+    else if (a == "--engine")
+      with_engine = std::stoi(v);
+  }
+  const Scene scene = parse_scene(block_scene(2, cells, "linear", "fe", "mpm", 3.0), "bench_one_pass.toml");
+  const double differ = agreement(scene, cells, check);
+  std::printf(
+      "one-pass model against the engine after %d steps: velocities and positions within %.1e of their "
+      "scale (bound %.0e)\n",
+      check, differ, kAgreement);
+  if (!(differ <= kAgreement)) return 1;
+  std::vector<double> model, engine;
+  for (int r = 0; r < repeat; ++r) {
+    model.push_back(time_model(scene, cells, steps));
+    if (!with_engine) continue;
+    const Timing t = time_run<2>(scene, steps, 1);
+    engine.push_back(double(t.particles) / t.per_step);
+  }
+  if (!with_engine) {
+    std::printf("block %d^2 cells, one-pass model, median of %d rounds: %.3e particle-steps/s\n", cells,
+                repeat, median(model));
+    return 0;
+  }
+  std::printf(
+      "block %d^2 cells, linear fe, one thread, median of %d rounds: one-pass model %.3e, engine %.3e "
+      "particle-steps/s (model / engine %.2f)\n",
+      cells, repeat, median(model), median(engine), median(model) / median(engine));
+  return 0;
+}
