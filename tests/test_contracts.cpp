@@ -194,35 +194,34 @@ template <int D> Violations basis_identities(const BasisKind& k) {
 }
 
 /// The row's reach (BasisKind::reach, what a distributed run's windows hold)
-/// covers the family's stencils: on the unit lattice in 2D, every node of
-/// the stencil of a point in cell c has the lattice index c - below ..
-/// c + above per axis, of cells + points_beyond_cells per axis (node ids
+/// covers the family's stencils: on the unit lattice of D dimensions, every
+/// node of the stencil of a point in cell c has the lattice index c - below
+/// .. c + above per axis, of cells + points_beyond_cells per axis (node ids
 /// axis 0 fastest).
-Violations basis_reach(const BasisKind& k) {
-  if (!k.reach) return {std::string(k.name) + ": the row declares no reach (BasisKind::reach)"};
-  const int cells = 8;
-  const CartesianGrid<2> grid = test::unit_grid<2>(cells);
-  const auto b = make_family<2>(k, options_for<2>(k, grid.h()), NodeSet<2>::cartesian(grid));
-  const LatticeReach r = k.reach(b->search_radius(), grid.h()[0]);
+template <int D> Violations basis_reach(const BasisKind& k) {
+  const std::string at = std::string(k.name) + " (" + std::to_string(D) + "D): ";
+  if (!k.reach) return {at + "the row declares no reach (BasisKind::reach)"};
+  const int cells = D == 3 ? 6 : 8;
+  const CartesianGrid<D> grid = test::unit_grid<D>(cells);
+  const auto b = make_family<D>(k, options_for<D>(k, grid.h()), NodeSet<D>::cartesian(grid));
+  const LatticeReach r = k.reach(b->search_radius(), grid.h()[0], D);
   const int n = cells + r.points_beyond_cells;
-  if (b->nodes().size() != n * n)
-    return {std::string(k.name) + ": " + std::to_string(b->nodes().size()) + " points, the reach says " +
-            std::to_string(n) + " per axis"};
+  if (b->nodes().size() != static_cast<int>(std::pow(n, D)))
+    return {at + std::to_string(b->nodes().size()) + " points, the reach says " + std::to_string(n) +
+            " per axis"};
   std::mt19937 rng(5);
-  Stencil<2> st;
+  Stencil<D> st;
   for (int i = 0; i < 200; ++i) {
-    const Vec<2> x = test::random_in_box<2>(rng, Vec<2>(0.0, 0.0), Vec<2>(1.0, 1.0));
+    const Vec<D> x = test::random_in_box<D>(rng, Vec<D>::Zero(), Vec<D>::Ones());
     test::evaluate_at(*b, x, st);
-    for (int e = 0; e < st.size(); ++e) {
-      const int index[2] = {st.node[e] % n, st.node[e] / n};
-      for (int a = 0; a < 2; ++a) {
-        const int c = std::min(cells - 1, static_cast<int>(x[a] * cells));
-        if (index[a] < c - r.below || index[a] > c + r.above)
-          return {std::string(k.name) + ": a point in cell " + std::to_string(c) + " reaches point " +
-                  std::to_string(index[a]) + " on axis " + std::to_string(a) + ", beyond the row's reach -" +
-                  std::to_string(r.below) + "/+" + std::to_string(r.above)};
+    for (int e = 0; e < st.size(); ++e)
+      for (int a = 0, id = st.node[e]; a < D; ++a, id /= n) {
+        const int index = id % n, c = std::min(cells - 1, static_cast<int>(x[a] * cells));
+        if (index < c - r.below || index > c + r.above)
+          return {at + "a point in cell " + std::to_string(c) + " reaches point " + std::to_string(index) +
+                  " on axis " + std::to_string(a) + ", beyond the row's reach -" + std::to_string(r.below) +
+                  "/+" + std::to_string(r.above)};
       }
-    }
   }
   return {};
 }
@@ -279,8 +278,8 @@ Violations basis_run(const BasisKind& k) {
 }
 
 Violations basis_contract(const BasisKind& k) {
-  return concatenated({basis_identities<1>(k), basis_identities<2>(k), basis_identities<3>(k), basis_reach(k),
-                       basis_table_threads(k), basis_run(k)});
+  return concatenated({basis_identities<1>(k), basis_identities<2>(k), basis_identities<3>(k),
+                       basis_reach<2>(k), basis_reach<3>(k), basis_table_threads(k), basis_run(k)});
 }
 
 // ---------------------------------------------------------------- integrators
@@ -537,8 +536,8 @@ TEST_CASE("contract: rows that are not in the tables are taken as they are, a br
   // A row that declares too short a reach (a distributed run's windows would
   // miss nodes its stencils use).
   BasisKind short_reach = linear_copy;
-  short_reach.reach = [](double, double) { return LatticeReach{.below = 0, .above = 0}; };
-  CHECK(joined(basis_reach(short_reach)).find("beyond the row's reach") != std::string::npos);
+  short_reach.reach = [](double, double, int) { return LatticeReach{.below = 0, .above = 0}; };
+  CHECK(joined(basis_reach<2>(short_reach)).find("beyond the row's reach") != std::string::npos);
 
   // A family that lies about its completeness and reaches every node.
   const BasisKind shepard{.name = "shepard_test",

@@ -23,6 +23,7 @@
 //   sums of ~20 - 80 terms (measured 4e-16 - 2.5e-14, the latter next to
 //   the hull's boundary).
 #include "otmpm/basis/families.hpp"
+#include "otmpm/basis/kinds.hpp"
 #include "otmpm/basis/lme_box.hpp"
 #include "support.hpp"
 
@@ -366,4 +367,38 @@ TEST_CASE("lme_box: N_I is the product of the 1D functions, and the box holds th
     for (const int I : b.node) CHECK(std::find(st.node.begin(), st.node.end(), I) != st.node.end());
     CHECK(st.size() >= b.size());
   }
+}
+
+TEST_CASE("lme_box: a distributed run's window holds the lines within R per axis, not sqrt(D) R") {
+  // The window's reach (BasisKind::reach, from the search radius sqrt(D) R
+  // of the ball around the box) is lme's at R: R / h rounded up below and
+  // one more above, at least the lines a cell's stencil takes beyond it
+  // (floor(R / h) below, BoxAxisTable::reach; that the stencils hold no
+  // more: test_contracts' basis_reach), where the ball around the box would
+  // add about (sqrt(D) - 1) R / h lines on each side
+  const BasisKind* kind = find_basis_kind("lme_box");
+  REQUIRE(kind);
+  const double cut = -std::log(1e-6);
+  for (const double gamma : {0.8, 1.5, 3.0, 6.0})
+    for (const int D : {2, 3}) {
+      CAPTURE(gamma);
+      CAPTURE(D);
+      const double R = std::sqrt(cut / gamma); // in units of h
+      const LatticeReach r = kind->reach(std::sqrt(static_cast<double>(D)) * R, 1.0, D);
+      const int lines = BoxAxisTable(gamma, cut).reach();
+      const LatticeReach ball = find_basis_kind("lme")->reach(R, 1.0, D);
+      CHECK(r.below == ball.below);
+      CHECK(r.above == ball.above);
+      CHECK(r.below == lines + 1); // R / h is no integer at these gamma_lme
+      CHECK(r.above == r.below + 1);
+    }
+  // gamma_lme 3 in 3D: R = 2.15 h, 3 lines below and 4 above; the ball
+  // around the box, radius 3.72 h, would take 4 and 5
+  const double R3 = std::sqrt(cut / 3.0);
+  CHECK(kind->reach(std::sqrt(3.0) * R3, 1.0, 3).below == 3);
+  CHECK(find_basis_kind("lme")->reach(std::sqrt(3.0) * R3, 1.0, 3).below == 4);
+  // an integer R / h that sqrt(D) R / sqrt(D) may leave an ulp short still reaches its R / h lines
+  for (const int D : {2, 3})
+    for (const double R : {1.0, 2.0, 3.0, 5.0})
+      CHECK(kind->reach(std::sqrt(double(D)) * R, 1.0, D).below >= int(R));
 }

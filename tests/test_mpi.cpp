@@ -440,6 +440,28 @@ TEST_CASE("mpi: LME in ul mode, uGIMP and a 3D run") {
                   {3});
 }
 
+TEST_CASE("mpi: lme_box's windows hold the lines within R per axis: 2D and 3D, mpm and ul, agree with one "
+          "process") {
+  // The box support takes the nodes within R per axis, and a rank's window
+  // holds floor(R / h) lines below its cells and one more above (not the
+  // sqrt(D) R of the ball around the box): the stencils of its particles
+  // must still be whole, in 2D and 3D (where the two differ), on the
+  // lattice (the table) and on advected nodes (the general solver)
+  check_agreement({"lme_box_3d",
+                   "dyka_3d.toml",
+                   {"simulation.t_end=1e-5", "basis.kind=lme_box", "output.every=5e-6", kFields}},
+                  {4});
+  check_agreement(
+      {"lme_box_3d_ul",
+       "dyka_3d.toml",
+       {"simulation.t_end=1e-5", "simulation.mode=ul", "basis.kind=lme_box", "output.every=5e-6", kFields}},
+      {3});
+  check_agreement({"lme_box_2d",
+                   "andersen_block.toml",
+                   {"simulation.t_end=0.5", "basis.kind=lme_box", "output.every=0.25", kFields}},
+                  {3});
+}
+
 TEST_CASE("mpi: one rank gives the serial bits, a rank count gives the same bits run to run") {
   TempDir dir("mpi_bits");
   const Case c{"bits", "dyka_2d.toml", {"simulation.t_end=1e-5", "output.every=5e-6", kFields}};

@@ -56,14 +56,23 @@ template <int Width> double tensor_stencil(const BasisOptions&, int dim) { retur
 /// one more cell each side (uGIMP: |x - x_I| < h + l_p), the p + 1 control
 /// points c .. c + p of a cell (B-splines of degree p, cells + p per axis),
 /// the nodes within the search radius (max-ent families).
-LatticeReach corners(double, double) { return {}; }
-LatticeReach gimp_reach(double, double) { return {.below = 1, .above = 2}; }
-template <int Degree> LatticeReach spline_reach(double, double) {
+LatticeReach corners(double, double, int) { return {}; }
+LatticeReach gimp_reach(double, double, int) { return {.below = 1, .above = 2}; }
+template <int Degree> LatticeReach spline_reach(double, double, int) {
   return {.points_beyond_cells = Degree, .shift = Degree / 2, .below = 0, .above = Degree};
 }
-LatticeReach radius_reach(double radius, double h) {
+LatticeReach radius_reach(double radius, double h, int) {
   const int r = static_cast<int>(std::ceil(radius / h));
   return {.below = r, .above = r + 1};
+}
+/// The box support (lme_box): the nodes within R per axis, R = radius /
+/// sqrt(dim) (its search radius is the ball around the box) - along an axis
+/// the lines the ball of radius R takes, so lme's reach at R. (An R / h
+/// that is an integer and that the division leaves an ulp short still
+/// reaches its lines: a point in cell c, at c + u with 0 <= u < 1, takes
+/// the lines from c - floor(R / h) to at most c + floor(R / h) + 1.)
+LatticeReach box_reach(double radius, double h, int dim) {
+  return radius_reach(radius / std::sqrt(static_cast<double>(dim)), h, dim);
 }
 
 /// The row of a family whose constructor is F<D> for D = 1, 2, 3.
@@ -113,7 +122,7 @@ const std::array kKinds{
               .needs_lattice = false,
               .searches_nodes = true,
               .stencil_nodes = lme_box_stencil_nodes,
-              .reach = radius_reach,
+              .reach = box_reach,
               .parameters = lme_parameters(),
               OTMPM_FACTORIES(lme_box)},
     BasisKind{.name = "maxent",

@@ -63,9 +63,9 @@ struct BasisKind {
   /// Expected nodes in one particle's stencil on a uniform lattice (for the
   /// memory estimate of `otmpm run --check`).
   double (*stencil_nodes)(const BasisOptions&, int dim) = nullptr;
-  /// Its reach along an axis of spacing h, `radius` its search radius
-  /// (Basis::search_radius(); 0 for the families that do not search).
-  LatticeReach (*reach)(double radius, double h) = nullptr;
+  /// Its reach along an axis of spacing h in `dim` dimensions, `radius` its
+  /// search radius (Basis::search_radius(); 0 for the families that do not search).
+  LatticeReach (*reach)(double radius, double h, int dim) = nullptr;
   /// Its parameters (scene keys under [basis], `otmpm basis` options,
   /// Python keywords), with their defaults and ranges.
   std::span<const ParameterSpec> parameters{};

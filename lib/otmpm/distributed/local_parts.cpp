@@ -101,7 +101,7 @@ PointLattice<D> point_lattice(const Scene& scene, double radius, const Cartesian
   const BasisKind& kind = basis_kind(scene.basis.kind);
   const Vec<D> h = grid.h();
   for (int k = 0; k < D; ++k) {
-    const LatticeReach r = kind.reach(radius, h[k]);
+    const LatticeReach r = kind.reach(radius, h[k], D);
     L.points[k] = grid.cells[k] + r.points_beyond_cells;
     L.below[k] = r.below, L.above[k] = r.above;
     if (k == 0) L.shift = r.shift;

@@ -76,7 +76,7 @@ template <int D> double wall_reach(const Basis<D>& basis, bool nodes_move) {
   const auto& grid = nodes.grid();
   if (!family || !family->reach || (!grid && !family->bspline)) return std::numeric_limits<double>::infinity();
   const double h = grid ? grid->h().maxCoeff() : nodes.spacing();
-  const LatticeReach r = family->reach(0.0, h);
+  const LatticeReach r = family->reach(0.0, h, D);
   return 0.5 * (r.below + r.above + 1) * h * (nodes.layout() == NodeLayout::perturbed ? 2.0 : 1.0);
 }
 
