@@ -443,10 +443,12 @@ TEST_CASE("mpi: LME in ul mode, uGIMP and a 3D run") {
 TEST_CASE("mpi: lme_box's windows hold the lines within R per axis: 2D and 3D, mpm and ul, agree with one "
           "process") {
   // The box support takes the nodes within R per axis, and a rank's window
-  // holds floor(R / h) lines below its cells and one more above (not the
-  // sqrt(D) R of the ball around the box): the stencils of its particles
-  // must still be whole, in 2D and 3D (where the two differ), on the
-  // lattice (the table) and on advected nodes (the general solver)
+  // holds ceil(R / h) lines below its cells and one more above, lme's window
+  // at R (not the sqrt(D) R of the ball around the box): the stencils of its
+  // particles must still be whole, in 2D and 3D (where the two differ), on
+  // the lattice (the table) and on advected nodes (the general solver). Its
+  // particles need floor(R / h) below: a window one line shorter than that
+  // fails here, the spare line of ceil does not show
   check_agreement({"lme_box_3d",
                    "dyka_3d.toml",
                    {"simulation.t_end=1e-5", "basis.kind=lme_box", "output.every=5e-6", kFields}},
