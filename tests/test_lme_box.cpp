@@ -62,7 +62,7 @@ TableError table_error(double gamma, double tol, int count, unsigned seed,
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> pick(0.0, 1.0);
   TableError e;
-  double Nt[kBoxMaxLines], dNt[kBoxMaxLines], dx[kBoxMaxLines];
+  double Nt[kBoxLanes], dNt[kBoxLanes], dx[kBoxMaxLines];
   for (int p = 0; p < count; ++p) {
     const double u = pick(rng);
     int first;
@@ -258,7 +258,7 @@ TEST_CASE("lme_box table: which cells of an axis have a table") {
   CHECK(BoxAxisTables(4.0, cut, 10).tables().size() == 3);
   CHECK(BoxAxisTables(6.0, cut, 10).tables().size() == 3);
   // the lines of the cell next to the lower end at u = 0.1: -1 .. 2 (line -2 is missing)
-  double N[kBoxMaxLines], dN[kBoxMaxLines], L;
+  double N[kBoxLanes], dN[kBoxLanes], L;
   int first;
   CHECK(axis.at(1)->evaluate(0.1, first, N, dN, L) == 4);
   CHECK(first == -1);
@@ -295,7 +295,7 @@ TEST_CASE("lme_box table: refuses a support wider than it holds, and the interva
   // quotes these figures)
   MESSAGE("gamma_lme 3, tolerance 1e-6: " << t.samples() << " samples, " << t.bytes() << " bytes");
   CHECK(t.bytes() <= 65536);
-  double N[kBoxMaxLines], dN[kBoxMaxLines], L;
+  double N[kBoxLanes], dN[kBoxLanes], L;
   int first;
   CHECK(t.evaluate(0.1, first, N, dN, L) == 5);
   CHECK(first == -2);
@@ -304,11 +304,21 @@ TEST_CASE("lme_box table: refuses a support wider than it holds, and the interva
   CHECK(t.evaluate(0.9, first, N, dN, L) == 5);
   CHECK(first == -1);
   // symmetry of the interior: N_o(u) = N_{1-o}(1 - u)
-  double M[kBoxMaxLines], dM[kBoxMaxLines];
+  double M[kBoxLanes], dM[kBoxLanes];
   int first2;
   t.evaluate(0.3, first, N, dN, L);
   const int m = t.evaluate(0.7, first2, M, dM, L);
   for (int i = 0; i < m; ++i) CHECK(N[i] == doctest::Approx(M[m - 1 - i]).epsilon(1e-13));
+  // dN_scale multiplies the interpolated derivative (per unit length: 1 / h)
+  const double inv_h = 1.0 / 0.37;
+  double L1, L2;
+  const int m1 = t.evaluate(0.3, first, N, dN, L1);
+  CHECK(t.evaluate(0.3, first2, M, dM, L2, inv_h) == m1);
+  CHECK(L2 == L1);
+  for (int i = 0; i < m1; ++i) {
+    CHECK(M[i] == N[i]);
+    CHECK(dM[i] == dN[i] * inv_h);
+  }
 }
 
 TEST_CASE("lme_box: the table's stencil is the general solver's on the same positions (1D, 2D, 3D)") {

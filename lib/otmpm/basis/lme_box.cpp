@@ -179,7 +179,8 @@ bool BoxAxisTable::sample(const Segment& s, double u, double* row) const {
   return true;
 }
 
-void BoxAxisTable::interpolate(const Segment& s, double u, double* N, double* dN, double& L) {
+void BoxAxisTable::interpolate(const Segment& s, double u, double* __restrict N, double* __restrict dN,
+                               double& L, double dN_scale) {
   const double t = std::clamp((u - s.a) * s.inv_du, 0.0, static_cast<double>(s.n));
   const int j = std::min(static_cast<int>(t), s.n - 1);
   double h[6];
@@ -190,18 +191,15 @@ void BoxAxisTable::interpolate(const Segment& s, double u, double* N, double* dN
   const int n = s.lanes;
   const double* __restrict f0 = s.data.data() + static_cast<std::size_t>(j) * static_cast<std::size_t>(4 * n);
   const double* __restrict f1 = f0 + 4 * n;
-  double out[2 * (kBoxMaxLines + 2)]; // N (and L), then dN (and L's derivative, unused), lane by lane
+  // every lane straight into N and dN (the lines, then L and padding)
   for (int i = 0; i < n; ++i) {
-    out[i] =
+    N[i] =
         w0 * f0[i] + w1 * f0[n + i] + w2 * f0[2 * n + i] + w3 * f1[i] + w4 * f1[n + i] + w5 * f1[2 * n + i];
-    out[n + i] = w0 * f0[n + i] + w1 * f0[2 * n + i] + w2 * f0[3 * n + i] + w3 * f1[n + i] +
-                 w4 * f1[2 * n + i] + w5 * f1[3 * n + i];
+    dN[i] = (w0 * f0[n + i] + w1 * f0[2 * n + i] + w2 * f0[3 * n + i] + w3 * f1[n + i] + w4 * f1[2 * n + i] +
+             w5 * f1[3 * n + i]) *
+            dN_scale;
   }
-  for (int i = 0; i < s.m; ++i) {
-    N[i] = out[i];
-    dN[i] = out[n + i];
-  }
-  L = out[s.m];
+  L = N[s.m];
 }
 
 bool BoxAxisTable::fill(Segment& s, int n) const {
@@ -217,14 +215,14 @@ bool BoxAxisTable::fill(Segment& s, int n) const {
 }
 
 bool BoxAxisTable::accurate(const Segment& s) const {
-  std::vector<double> exact(static_cast<std::size_t>(s.width())), N(static_cast<std::size_t>(s.m)),
-      dN(static_cast<std::size_t>(s.m));
+  std::vector<double> exact(static_cast<std::size_t>(s.width())), N(static_cast<std::size_t>(s.lanes)),
+      dN(static_cast<std::size_t>(s.lanes));
   for (int j = 0; j < s.n; ++j)
     for (const double t : {0.25, 0.5, 0.75}) {
       const double x = s.a + (j + t) * s.du;
       if (!sample(s, x, exact.data())) return false;
       double L, g[4];
-      interpolate(s, x, N.data(), dN.data(), L);
+      interpolate(s, x, N.data(), dN.data(), L, 1.0);
       hull_log(x, g);
       L += g[0];
       const auto lanes = static_cast<std::size_t>(s.lanes);
@@ -258,13 +256,13 @@ std::size_t BoxAxisTable::bytes() const {
   return n;
 }
 
-int BoxAxisTable::evaluate(double u, int& first, double* N, double* dN, double& L) const {
+int BoxAxisTable::evaluate(double u, int& first, double* N, double* dN, double& L, double dN_scale) const {
   if (u < segments_.front().a || u > segments_.back().b)
     return 0; // within kBoxHullGap of the hull's boundary
   std::size_t k = 0;
   while (k + 1 < segments_.size() && u > segments_[k].b) ++k;
   const Segment& s = segments_[k];
-  interpolate(s, u, N, dN, L);
+  interpolate(s, u, N, dN, L, dN_scale);
   if (ends_.below == 0 || ends_.above == 0) {
     double g[4];
     hull_log(u, g);
@@ -332,7 +330,7 @@ namespace {
 /// and their derivatives d (per unit length).
 struct BoxAxis {
   int lo = 0, m = 0;
-  double n[kBoxMaxLines], d[kBoxMaxLines];
+  double n[kBoxLanes], d[kBoxLanes];
 };
 
 /// Axis k of the box of coordinate xk from its tables; false when xk is not
@@ -352,12 +350,52 @@ bool box_axis(const LatticeAxes<D>& axes, const BoxAxisTables& tables, int k, do
   const double u = std::clamp((xk - X[static_cast<std::size_t>(c)]) * inv_h, 0.0, 1.0);
   int first;
   double L;
-  a.m = table->evaluate(u, first, a.n, a.d, L);
+  a.m = table->evaluate(u, first, a.n, a.d, L, inv_h);
   if (a.m == 0) return false; // next to the hull's boundary
   a.lo = c + first;
-  for (int i = 0; i < a.m; ++i) a.d[i] *= inv_h;
   lambda = L * inv_h;
   return true;
+}
+
+/// The box's stencil from its axes, node ids ascending (axis 0 innermost,
+/// stride 1; the last axis outermost): N_I the product of the axes' factors
+/// and grad N_I (component k: axis k's derivative times the other axes'
+/// factors), written to node, N and dN (D doubles per entry). Axis 0 read
+/// through local restrict pointers and the rows written by index: the
+/// stores then reload nothing.
+template <int D>
+void write_box(const LatticeAxes<D>& axes, const BoxAxis (&a)[D], int* __restrict node, double* __restrict N,
+               double* __restrict dN) {
+  const int m0 = a[0].m, lo0 = a[0].lo;
+  const double* __restrict n0 = a[0].n;
+  const double* __restrict d0 = a[0].d;
+  const int m1 = D > 1 ? a[1 % D].m : 1, m2 = D > 2 ? a[2 % D].m : 1;
+  int q = 0;
+  for (int i2 = 0; i2 < m2; ++i2) {
+    for (int i1 = 0; i1 < m1; ++i1, q += m0) {
+      double w = 1.0;               // the product of the factors of axes 1 and 2
+      double g[D > 1 ? D : 2] = {}; // their derivatives times the other's factor (entry 0 unused)
+      int id = lo0;
+      if constexpr (D > 1) {
+        const double n1 = a[1 % D].n[i1], d1 = a[1 % D].d[i1];
+        const double n2 = D > 2 ? a[2 % D].n[i2] : 1.0, d2 = D > 2 ? a[2 % D].d[i2] : 0.0;
+        w = n1 * n2;
+        g[1 % D] = d1 * n2;
+        if constexpr (D > 2) g[2 % D] = n1 * d2;
+        id += (a[1 % D].lo + i1) * axes.stride[1 % D];
+        if constexpr (D > 2) id += (a[2 % D].lo + i2) * axes.stride[2 % D];
+      }
+      int* __restrict row_node = node + q;
+      double* __restrict row_N = N + q;
+      double* __restrict row_dN = dN + static_cast<std::ptrdiff_t>(q) * D;
+      for (int i0 = 0; i0 < m0; ++i0) {
+        row_node[i0] = id + i0;
+        row_N[i0] = n0[i0] * w;
+        row_dN[i0 * D] = d0[i0] * w;
+        for (int k = 1; k < D; ++k) row_dN[i0 * D + k] = n0[i0] * g[k];
+      }
+    }
+  }
 }
 
 } // namespace
@@ -376,34 +414,8 @@ bool box_table_stencil(const LatticeAxes<D>& axes, const BoxTables<D>& tables, c
   double* N;
   Vec<D>* dN;
   out.place(n, node, N, dN);
-  // node ids ascending: axis 0 innermost (stride 1), the last axis outermost
-  const BoxAxis& a0 = a[0];
-  const int m1 = D > 1 ? a[1 % D].m : 1, m2 = D > 2 ? a[2 % D].m : 1;
-  int q = 0;
-  for (int i2 = 0; i2 < m2; ++i2) {
-    for (int i1 = 0; i1 < m1; ++i1) {
-      double w = 1.0;            // the product of the factors of axes 1 and 2
-      Vec<D> g = Vec<D>::Zero(); // their derivatives times the other's factor (axis 0's entry unused)
-      int id = a0.lo;
-      if constexpr (D > 1) {
-        const double n1 = a[1 % D].n[i1], d1 = a[1 % D].d[i1];
-        const double n2 = D > 2 ? a[2 % D].n[i2] : 1.0, d2 = D > 2 ? a[2 % D].d[i2] : 0.0;
-        w = n1 * n2;
-        g[1 % D] = d1 * n2;
-        if constexpr (D > 2) g[2 % D] = n1 * d2;
-        id += (a[1 % D].lo + i1) * axes.stride[1 % D];
-        if constexpr (D > 2) id += (a[2 % D].lo + i2) * axes.stride[2 % D];
-      }
-      for (int i0 = 0; i0 < a0.m; ++i0, ++q) {
-        node[q] = id + i0;
-        N[q] = a0.n[i0] * w;
-        // component by component into the row (a vector built in a local
-        // and then patched would stall the store forwarding)
-        dN[q][0] = a0.d[i0] * w;
-        for (int k = 1; k < D; ++k) dN[q][k] = a0.n[i0] * g[k];
-      }
-    }
-  }
+  static_assert(sizeof(Vec<D>) == D * sizeof(double)); // the rows' gradients as D doubles each
+  write_box<D>(axes, a, node, N, dN[0].data());
   return true;
 }
 

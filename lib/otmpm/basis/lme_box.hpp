@@ -53,6 +53,10 @@ inline constexpr int kBoxMaxSamples = 1 << 14;
 /// The most lines of a 1D support the table holds (2 r + 1, r = R / h:
 /// gamma_lme >= ~0.25 at tolerance 1e-6).
 inline constexpr int kBoxMaxLines = 16;
+/// Entries of the arrays BoxAxisTable::evaluate writes: the lines, L and a
+/// lane of padding (the interpolation runs over pairs of lanes and writes
+/// them all).
+inline constexpr int kBoxLanes = kBoxMaxLines + 2;
 /// Bounds on |N - N_solve| and on h |dN/dx - dN_solve/dx| of the table
 /// against the 1D Newton solution, for every gamma_lme and tolerance whose
 /// table is built (measured: tests/test_lme_box.cpp): below the Newton
@@ -99,11 +103,13 @@ public:
   /// The samples of the table (all intervals) and its size in bytes.
   std::size_t samples() const;
   std::size_t bytes() const;
-  /// The 1D functions at u in [0, 1]: writes N[i] and dN[i] = dN/du of the
-  /// lines first + i, i < m, and L = lambda h; returns m and sets `first`
-  /// (relative to the cell's lower line). Returns 0 (nothing written) when
-  /// u lies within kBoxHullGap of a side that is the hull's boundary.
-  int evaluate(double u, int& first, double* N, double* dN, double& L) const;
+  /// The 1D functions at u in [0, 1]: writes N[i] and dN[i] = (dN/du)
+  /// dN_scale of the lines first + i, i < m, and L = lambda h; returns m and
+  /// sets `first` (relative to the cell's lower line). N and dN hold
+  /// kBoxLanes entries: those from m on are overwritten with scratch.
+  /// Returns 0 (nothing written) when u lies within kBoxHullGap of a side
+  /// that is the hull's boundary.
+  int evaluate(double u, int& first, double* N, double* dN, double& L, double dN_scale = 1.0) const;
 
 private:
   /// An interval [a, b] of u with lines first .. first + m - 1, sampled
@@ -130,8 +136,9 @@ private:
   bool fill(Segment& s, int n) const;
   /// True when every sample interval of s meets the refinement bounds.
   bool accurate(const Segment& s) const;
-  /// The interpolant of s at u: N[i], dN[i] (i < m), L.
-  static void interpolate(const Segment& s, double u, double* N, double* dN, double& L);
+  /// The interpolant of s at u: N[i], dN[i] dN_scale (i < m; the arrays
+  /// take all s.lanes lanes), L.
+  static void interpolate(const Segment& s, double u, double* N, double* dN, double& L, double dN_scale);
   /// Samples s finely enough (see kBoxMinSamples); false when a solve
   /// fails or more than kBoxMaxSamples would be needed.
   bool build_segment(Segment& s) const;
