@@ -362,11 +362,12 @@ bool box_axis(const LatticeAxes<D>& axes, const BoxAxisTables& tables, int k, do
 /// and grad N_I (component k: axis k's derivative times the other axes'
 /// factors), written to node, N and dN (D doubles per entry). Axis 0 read
 /// through local restrict pointers and the rows written by index: the
-/// stores then reload nothing.
-template <int D>
+/// stores then reload nothing. M0 > 0: axis 0 has M0 lines (a row's loop
+/// unrolled, without the set-up of a loop of unknown length); 0: any.
+template <int D, int M0>
 void write_box(const LatticeAxes<D>& axes, const BoxAxis (&a)[D], int* __restrict node, double* __restrict N,
                double* __restrict dN) {
-  const int m0 = a[0].m, lo0 = a[0].lo;
+  const int m0 = M0 > 0 ? M0 : a[0].m, lo0 = a[0].lo;
   const double* __restrict n0 = a[0].n;
   const double* __restrict d0 = a[0].d;
   const int m1 = D > 1 ? a[1 % D].m : 1, m2 = D > 2 ? a[2 % D].m : 1;
@@ -395,6 +396,26 @@ void write_box(const LatticeAxes<D>& axes, const BoxAxis (&a)[D], int* __restric
         for (int k = 1; k < D; ++k) row_dN[i0 * D + k] = n0[i0] * g[k];
       }
     }
+  }
+}
+
+/// write_box with the row length of the common supports fixed (gamma_lme
+/// about 1.5 - 6 at the default tolerance: 3 - 7 lines per axis).
+template <int D>
+void write_box(const LatticeAxes<D>& axes, const BoxAxis (&a)[D], int* node, double* N, double* dN) {
+  switch (a[0].m) {
+  case 3:
+    return write_box<D, 3>(axes, a, node, N, dN);
+  case 4:
+    return write_box<D, 4>(axes, a, node, N, dN);
+  case 5:
+    return write_box<D, 5>(axes, a, node, N, dN);
+  case 6:
+    return write_box<D, 6>(axes, a, node, N, dN);
+  case 7:
+    return write_box<D, 7>(axes, a, node, N, dN);
+  default:
+    return write_box<D, 0>(axes, a, node, N, dN);
   }
 }
 
