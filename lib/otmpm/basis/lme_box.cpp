@@ -146,17 +146,23 @@ BoxAxisTable::BoxAxisTable(double gamma, double max_exponent, BoxEnds ends)
   }
 }
 
+double BoxAxisTable::hull_log_value(double u) const {
+  double g0 = 0.0;
+  if (ends_.below == 0) g0 -= std::log(u);
+  if (ends_.above == 0) g0 += std::log(1.0 - u);
+  return g0;
+}
+
 void BoxAxisTable::hull_log(double u, double* g) const {
-  for (int d = 0; d < 4; ++d) g[d] = 0.0;
+  g[0] = hull_log_value(u);
+  for (int d = 1; d < 4; ++d) g[d] = 0.0;
   if (ends_.below == 0) { // -ln(u)
-    g[0] -= std::log(u);
     g[1] -= 1.0 / u;
     g[2] += 1.0 / (u * u);
     g[3] -= 2.0 / (u * u * u);
   }
   if (ends_.above == 0) { // ln(1 - u)
     const double v = 1.0 - u;
-    g[0] += std::log(v);
     g[1] -= 1.0 / v;
     g[2] -= 1.0 / (v * v);
     g[3] -= 2.0 / (v * v * v);
@@ -221,16 +227,16 @@ bool BoxAxisTable::accurate(const Segment& s) const {
     for (const double t : {0.25, 0.5, 0.75}) {
       const double x = s.a + (j + t) * s.du;
       if (!sample(s, x, exact.data())) return false;
-      double L, g[4];
+      double L;
       interpolate(s, x, N.data(), dN.data(), L, 1.0);
-      hull_log(x, g);
-      L += g[0];
+      const double g0 = hull_log_value(x);
+      L += g0;
       const auto lanes = static_cast<std::size_t>(s.lanes);
       for (std::size_t i = 0; i < static_cast<std::size_t>(s.m); ++i)
         if (!(std::abs(N[i] - exact[i]) <= kBoxRefineError &&
               std::abs(dN[i] - exact[lanes + i]) <= kBoxRefineGradient))
           return false;
-      const double L_exact = exact[static_cast<std::size_t>(s.m)] + g[0];
+      const double L_exact = exact[static_cast<std::size_t>(s.m)] + g0;
       if (!(std::abs(L - L_exact) <= kBoxRefineGradient * (1.0 + std::abs(L_exact)))) return false;
     }
   return true;
@@ -263,11 +269,7 @@ int BoxAxisTable::evaluate(double u, int& first, double* N, double* dN, double& 
   while (k + 1 < segments_.size() && u > segments_[k].b) ++k;
   const Segment& s = segments_[k];
   interpolate(s, u, N, dN, L, dN_scale);
-  if (ends_.below == 0 || ends_.above == 0) {
-    double g[4];
-    hull_log(u, g);
-    L += g[0];
-  }
+  if (ends_.below == 0 || ends_.above == 0) L += hull_log_value(u);
   first = s.first;
   return s.m;
 }

@@ -132,6 +132,8 @@ private:
   /// The part of L that diverges at a side that is the hull's boundary and
   /// its first three derivatives: -ln(u) below, ln(1 - u) above.
   void hull_log(double u, double* g) const;
+  /// hull_log's g[0] alone (the same bits), what a lookup adds back to L.
+  double hull_log_value(double u) const;
   /// Samples s at n intervals; false when a solve fails.
   bool fill(Segment& s, int n) const;
   /// True when every sample interval of s meets the refinement bounds.
