@@ -68,11 +68,14 @@ double pass_seconds(const Engine<D>& e, std::optional<ScatterPath> forced, int p
     scatter.invalidate(linear_row_width(T));
     const auto t0 = std::chrono::steady_clock::now();
     scatter.run(
-        T, nodes, [](int, int) {}, [&](int p) { return Payload{P.m[p], P.m[p] * P.v[p], P.V[p] * P.sigma[p]}; },
-        [&](NodeSums<D>& acc, int en, const Payload& w) {
-          acc.m += T.N[en] * w.m;
-          acc.q += T.N[en] * w.mv;
-          acc.f -= w.Vs * T.dN[en];
+        T, nodes, [](int, int) {},
+        [&](int p) {
+          return Payload{P.m[p], P.m[p] * P.v[p], P.V[p] * P.sigma[p]};
+        },
+        [&](NodeSums<D>& acc, double N, const Vec<D>& dN, const Payload& w) {
+          acc.m += N * w.m;
+          acc.q += N * w.mv;
+          acc.f -= w.Vs * dN;
         },
         [&](int I, const NodeSums<D>& acc) {
           m[I] += acc.m;

@@ -172,16 +172,11 @@ template <class T> bool same_bits(const T& a, const T& b) { return std::memcmp(&
 
 } // namespace
 
-TEST_CASE_TEMPLATE_DEFINE("linear on a lattice: evaluate, evaluate_fixed and the batch give the reference bits", T,
-                          batch_id) {
-  constexpr int D = T::value;
-  constexpr int S = 1 << D;
-  const CartesianGrid<D> g = test_grid<D>();
-  const auto b = make_linear_basis<D>(NodeSet<D>::cartesian(g));
-  REQUIRE(b->fixed_stencil() == S);
-  AlignedVector<Vec<D>> x = sample_points(g, 11u);
-  // within the 1e-12-cell slack outside the boundary, below and above on
-  // each axis (u < 0 and u > cells): clamped onto it
+namespace {
+/// sample_points and, on each axis, a point below and above the box within
+/// the 1e-12-cell slack (u < 0 and u > cells): clamped onto it.
+template <int D> AlignedVector<Vec<D>> points_and_slack(const CartesianGrid<D>& g, unsigned seed) {
+  AlignedVector<Vec<D>> x = sample_points(g, seed);
   for (int k = 0; k < D; ++k) {
     Vec<D> below = g.lower, above = g.upper;
     below[k] -= 1e-14 * g.h()[k];
@@ -189,6 +184,19 @@ TEST_CASE_TEMPLATE_DEFINE("linear on a lattice: evaluate, evaluate_fixed and the
     x.push_back(below);
     x.push_back(above);
   }
+  return x;
+}
+} // namespace
+
+TEST_CASE_TEMPLATE_DEFINE(
+    "linear on a lattice: evaluate, evaluate_fixed, the batch and the lattice rows give the reference bits",
+    T, batch_id) {
+  constexpr int D = T::value;
+  constexpr int S = 1 << D;
+  const CartesianGrid<D> g = test_grid<D>();
+  const auto b = make_linear_basis<D>(NodeSet<D>::cartesian(g));
+  REQUIRE(b->fixed_stencil() == S);
+  AlignedVector<Vec<D>> x = points_and_slack(g, 11u);
   const int n = static_cast<int>(x.size());
   std::vector<int> node(static_cast<std::size_t>(n * S), -1);
   std::vector<double> N(node.size(), -1.0);
@@ -233,6 +241,23 @@ TEST_CASE_TEMPLATE_DEFINE("linear on a lattice: evaluate, evaluate_fixed and the
   CHECK(node2 == node);
   CHECK(std::memcmp(N2.data(), N.data(), N.size() * sizeof(double)) == 0);
   CHECK(std::memcmp(dN2.data(), dN.data(), dN.size() * sizeof(Vec<D>)) == 0);
+  // The compact lattice rows (LatticeRows): every entry rebuilt the same,
+  // and lowest / highest the row's extreme node ids.
+  LatticeRows<D> rows;
+  REQUIRE(b->evaluate_lattice_rows(x, rows));
+  REQUIRE(rows.rows() == n);
+  BasisTable<D> expanded;
+  expand_lattice_rows(rows, expanded);
+  CHECK(expanded.offset.back() == n * S);
+  CHECK(expanded.node == node);
+  CHECK(std::memcmp(expanded.N.data(), N.data(), N.size() * sizeof(double)) == 0);
+  CHECK(std::memcmp(expanded.dN.data(), dN.data(), dN.size() * sizeof(Vec<D>)) == 0);
+  int wrong_range = 0;
+  for (int p = 0; p < n; ++p) {
+    const auto [lo, hi] = std::minmax_element(node.begin() + p * S, node.begin() + (p + 1) * S);
+    wrong_range += *lo != rows.lowest(p) || *hi != rows.highest(p);
+  }
+  CHECK(wrong_range == 0);
 }
 TEST_CASE_TEMPLATE_APPLY(batch_id, Dims);
 
@@ -270,6 +295,33 @@ TEST_CASE_TEMPLATE_DEFINE("linear batch stops before a point it cannot evaluate 
   CHECK(b->evaluate_fixed_points(x.data(), 6, nullptr, node.data(), N.data(), dN.data()) == 6);
 }
 TEST_CASE_TEMPLATE_APPLY(stop_id, Dims);
+
+TEST_CASE_TEMPLATE_DEFINE("linear lattice rows: none for a point outside, a non-finite one or moved nodes", T,
+                          rows_refused_id) {
+  constexpr int D = T::value;
+  const CartesianGrid<D> g = test_grid<D>();
+  auto b = make_linear_basis<D>(NodeSet<D>::cartesian(g));
+  AlignedVector<Vec<D>> x(6, 0.5 * (g.lower + g.upper));
+  LatticeRows<D> rows;
+  CHECK(b->evaluate_lattice_rows(x, rows));
+  Vec<D> out = g.upper;
+  out[D - 1] += 1e-9 * g.h()[D - 1]; // beyond the round-off slack
+  for (const Vec<D>& bad :
+       {out, Vec<D>(Vec<D>::Constant(std::nan(""))), Vec<D>(Vec<D>::Constant(-INFINITY))}) {
+    x[3] = bad;
+    CHECK_FALSE(b->evaluate_lattice_rows(x, rows));
+  }
+  x[3] = x[0];
+  AlignedVector<Vec<D>> dx(static_cast<std::size_t>(b->nodes().size()), Vec<D>::Constant(1e-3 * g.h()[0]));
+  b->nodes().advect(dx);
+  b->nodes_moved(dx);
+  CHECK_FALSE(b->evaluate_lattice_rows(x, rows));
+  // the other families keep no lattice rows
+  BasisOptions lme;
+  lme.kind = "lme";
+  CHECK_FALSE(make_basis<D>(lme, NodeSet<D>::cartesian(g))->evaluate_lattice_rows(x, rows));
+}
+TEST_CASE_TEMPLATE_APPLY(rows_refused_id, Dims);
 
 TEST_CASE_TEMPLATE_DEFINE("linear on a Cartesian grid: partition of unity and linear completeness", T, cart_id) {
   constexpr int D = T::value;

@@ -6,6 +6,7 @@
 // on one table, and the sums of the column gather to round-off.
 #include <doctest/doctest.h>
 
+#include "otmpm/basis/families.hpp"
 #include "otmpm/engine/scatter.hpp"
 #include "support.hpp"
 
@@ -71,7 +72,8 @@ struct Sums {
   std::vector<int> updates;
 };
 
-Sums sums(const BasisTable<3>& table, int nodes, const Carried& c, int threads,
+template <class Rows>
+Sums sums(const Rows& table, int nodes, const Carried& c, int threads,
           std::optional<ScatterPath> forced = std::nullopt, int row_width = 0) {
   const ScopedThreads scope(threads);
   Sums s;
@@ -90,10 +92,12 @@ Sums sums(const BasisTable<3>& table, int nodes, const Carried& c, int threads,
       [&](int p0, int p1) {
         for (int p = p0; p < p1; ++p) ++s.updates[p];
       },
-      [&](int p) { return Payload{c.m[p], c.m[p] * c.v[p]}; },
-      [&](NodeSums<3>& acc, int e, const Payload& w) {
-        acc.m += table.N[e] * w.m;
-        acc.q += table.N[e] * w.mv;
+      [&](int p) {
+        return Payload{c.m[p], c.m[p] * c.v[p]};
+      },
+      [&](NodeSums<3>& acc, double N, const Vec<3>&, const Payload& w) {
+        acc.m += N * w.m;
+        acc.q += N * w.mv;
       },
       [&](int I, const NodeSums<3>& acc) {
         s.m[I] += acc.m;
@@ -213,5 +217,68 @@ TEST_CASE("scatter: rows of the fixed linear width give the bits of rows read fr
     CHECK(any.m == fixed.m);
     CHECK(any.q == fixed.q);
     CHECK(fixed.updates == std::vector<int>(static_cast<std::size_t>(table.rows()), 1));
+  }
+}
+
+namespace {
+/// The lattice rows of `linear` on an n^D-cell unit lattice at 2^D particles
+/// per cell (a fixed random order when `shuffle`), and their full table.
+template <int D> std::pair<LatticeRows<D>, BasisTable<D>> lattice_rows(int n, bool shuffle) {
+  CartesianGrid<D> g;
+  g.lower = Vec<D>::Zero(), g.upper = Vec<D>::Ones();
+  g.cells.fill(n);
+  AlignedVector<Vec<D>> x;
+  for (int i = 0; i < (2 * n) * (D > 1 ? 2 * n : 1) * (D > 2 ? 2 * n : 1); ++i) {
+    Vec<D> p;
+    for (int k = 0, r = i; k < D; ++k, r /= 2 * n) p[k] = (r % (2 * n) + 0.25 + 0.5 * (k % 2)) / (2.0 * n);
+    x.push_back(p);
+  }
+  if (shuffle) std::shuffle(x.begin(), x.end(), std::mt19937(42));
+  std::pair<LatticeRows<D>, BasisTable<D>> out;
+  REQUIRE(make_linear_basis<D>(NodeSet<D>::cartesian(g))->evaluate_lattice_rows(x, out.first));
+  expand_lattice_rows(out.first, out.second);
+  return out;
+}
+
+/// Every entry (I, N, grad N) a view visits, in order.
+template <int D, class View>
+std::vector<std::pair<int, Eigen::Matrix<double, D + 1, 1>>> visited(const View& v, int rows) {
+  std::vector<std::pair<int, Eigen::Matrix<double, D + 1, 1>>> out;
+  for (int p = 0; p < rows; ++p)
+    v.visit_row(p, [&](int I, double N, const Vec<D>& dN) {
+      Eigen::Matrix<double, D + 1, 1> w;
+      w << N, dN;
+      out.emplace_back(I, w);
+    });
+  return out;
+}
+} // namespace
+
+TEST_CASE_TEMPLATE("lattice rows: a pass visits the table's entries in the table's order, bit for bit", T,
+                   std::integral_constant<int, 1>, std::integral_constant<int, 2>,
+                   std::integral_constant<int, 3>) {
+  constexpr int D = T::value;
+  const auto [rows, table] = lattice_rows<D>(5, true);
+  const auto lattice = visited<D>(LatticeView<D>(rows), rows.rows());
+  CHECK(lattice == visited<D>(TableView<D, (1 << D)>(table), table.rows()));
+  CHECK(lattice == visited<D>(TableView<D, 0>(table), table.rows()));
+}
+
+TEST_CASE(
+    "lattice rows: the scatter sums them to the bits of their table on both blocked paths, 1 and 2 threads") {
+  const int n = 12, nodes = (n + 1) * (n + 1) * (n + 1);
+  for (const bool shuffle : {false, true}) {
+    const auto [rows, table] = lattice_rows<3>(n, shuffle);
+    const Carried c = carried(table.rows());
+    for (const ScatterPath path : {ScatterPath::dense, ScatterPath::sparse})
+      for (const int threads : {1, 2}) {
+        const Sums a = sums(rows, nodes, c, threads, path, 8), b = sums(table, nodes, c, threads, path, 8);
+        CHECK(a.path == path);
+        CHECK(a.m == b.m);
+        CHECK(a.q == b.q);
+        CHECK(a.updates == std::vector<int>(static_cast<std::size_t>(table.rows()), 1));
+      }
+    ParticleToNodes<3> plan; // the plan of the lattice rows is the table's
+    CHECK(plan.plan_for(rows, nodes) == ParticleToNodes<3>().plan_for(table, nodes));
   }
 }

@@ -293,8 +293,9 @@ value = [0.0, 0.0, -9.81]
   }
   CHECK(ranges > static_cast<long long>(max_block_overlap) * nodes);
   ParticleToNodes<3> probe; // the plan the engine made on this table
-  probe.run(table, nodes, [](int, int) {}, [](int) { return 0; }, [](NodeSums<3>&, int, int) {},
-            [](int, const NodeSums<3>&) {}, [](int, int) {});
+  probe.run(
+      table, nodes, [](int, int) {}, [](int) { return 0; }, [](NodeSums<3>&, double, const Vec<3>&, int) {},
+      [](int, const NodeSums<3>&) {}, [](int, int) {});
   CHECK(probe.path() == ScatterPath::dense);
   const Particles<3>& a = one.particles();
   const Particles<3>& b = two.particles();

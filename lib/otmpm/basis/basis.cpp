@@ -731,13 +731,29 @@ template <int D> void transpose_basis_table(const BasisTable<D>& table, int node
   });
 }
 
-#define OTMPM_INSTANTIATE_BASIS(D)                                                                      \
-  template class Basis<D>;                                                                              \
-  template void fill_basis_table<D>(const Basis<D>&, const AlignedVector<Vec<D>>&, AlignedVector<Vec<D>>*, \
-                                    std::vector<Index<D>>*, BasisTable<D>&, NeighbourLists<D>*);          \
-  template void fill_basis_table<D>(const Basis<D>&, const AlignedVector<Vec<D>>&, const PointArrays<D>&,  \
-                                    BasisTable<D>&);                                                      \
-  template void transpose_basis_table<D>(const BasisTable<D>&, int, NodeColumns&);
+template <int D> void expand_lattice_rows(const LatticeRows<D>& rows, BasisTable<D>& table) {
+  constexpr int S = LatticeRows<D>::kCorners;
+  const int n = rows.rows();
+  table.offset.resize(static_cast<std::size_t>(n) + 1);
+  table.node.resize(static_cast<std::size_t>(n) * S);
+  table.N.resize(static_cast<std::size_t>(n) * S);
+  table.dN.resize(static_cast<std::size_t>(n) * S);
+  parallel_for(n, [&](long long p) {
+    const auto e = static_cast<std::size_t>(p) * S;
+    rows.row(static_cast<int>(p), &table.node[e], &table.N[e], &table.dN[e]);
+    table.offset[static_cast<std::size_t>(p)] = static_cast<int>(e);
+  });
+  table.offset.back() = n * S;
+}
+
+#define OTMPM_INSTANTIATE_BASIS(D)                                                                           \
+  template class Basis<D>;                                                                                   \
+  template void fill_basis_table<D>(const Basis<D>&, const AlignedVector<Vec<D>>&, AlignedVector<Vec<D>>*,   \
+                                    std::vector<Index<D>>*, BasisTable<D>&, NeighbourLists<D>*);             \
+  template void fill_basis_table<D>(const Basis<D>&, const AlignedVector<Vec<D>>&, const PointArrays<D>&,    \
+                                    BasisTable<D>&);                                                         \
+  template void transpose_basis_table<D>(const BasisTable<D>&, int, NodeColumns&);                           \
+  template void expand_lattice_rows<D>(const LatticeRows<D>&, BasisTable<D>&);
 OTMPM_INSTANTIATE_BASIS(1)
 OTMPM_INSTANTIATE_BASIS(2)
 OTMPM_INSTANTIATE_BASIS(3)

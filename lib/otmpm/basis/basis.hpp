@@ -25,6 +25,7 @@ namespace otmpm {
 
 struct StateGroup;
 template <int D> struct BasisTable;
+template <int D> struct LatticeRows;
 
 /// The stencil of one point: node ids I with N_I(x) > 0 and grad N_I(x).
 /// Also carries scratch arrays that a family may use during evaluation, so
@@ -264,6 +265,16 @@ public:
     (void)x, (void)count, (void)cell_hint, (void)node, (void)N, (void)dN;
     return -1;
   }
+  /// The compact rows of the points x (LatticeRows) when the family has
+  /// them in its present state (`linear` on an untouched lattice): true, and
+  /// `rows` holds them; false when it has none or a point lies outside its
+  /// domain or is not finite (`rows` then unspecified: the caller builds the
+  /// table, which reports the point). Keeps no per-point state. The default:
+  /// false.
+  virtual bool evaluate_lattice_rows(const AlignedVector<Vec<D>>& x, LatticeRows<D>& rows) const {
+    (void)x, (void)rows;
+    return false;
+  }
   /// Which per-point state the family keeps when it evaluates the same points
   /// step after step (the particles, bind_points): the Lagrange multiplier
   /// of the max-ent families (warm start) and the cell hint of the element
@@ -351,6 +362,69 @@ template <int D> struct BasisTable {
   int size(int p) const { return offset[p + 1] - offset[p]; } ///< entries of row p
   std::size_t entries() const { return node.size(); }
 };
+
+/// The 2^D hat functions of a point at t_k in [0, 1] of its cell along each
+/// axis (docs/theory.md eq. 4.1): w_k = (1 - t_k, t_k), d_k = (-1/h_k,
+/// 1/h_k), N_a = prod_k w_k[a_k] and (grad N_a)_m the same product with d_m in
+/// place of w_m, corner a having bit k set at the upper node of axis k. Calls
+/// f(a, N_a, grad N_a) for a = 0, 1, ..., 2^D - 1, each product formed left
+/// to right in axis order where it is used: LinearBasis' table
+/// (hat_products) and the compact rows (LatticeRows) both take their values
+/// from here, so a row rebuilt from t has the table's bits.
+template <int D, class F>
+[[gnu::always_inline]] inline void visit_hats(const Vec<D>& t, const std::array<std::array<double, 2>, D>& d,
+                                              F&& f) {
+  double w[D][2];
+  for (int k = 0; k < D; ++k) w[k][0] = 1.0 - t[k], w[k][1] = t[k];
+  if constexpr (D == 1) {
+    for (int a = 0; a < 2; ++a) f(a, w[0][a], Vec<D>(d[0][a]));
+  } else {
+    for (int a2 = 0; a2 < (D == 3 ? 2 : 1); ++a2)
+      for (int a1 = 0; a1 < 2; ++a1)
+        for (int a0 = 0; a0 < 2; ++a0) {
+          const double ww = w[0][a0] * w[1][a1], dw = d[0][a0] * w[1][a1], wd = w[0][a0] * d[1][a1];
+          if constexpr (D == 2)
+            f(a0 + 2 * a1, ww, Vec<D>(dw, wd));
+          else
+            f(a0 + 2 * a1 + 4 * a2, ww * w[2][a2], Vec<D>(dw * w[2][a2], wd * w[2][a2], ww * d[2][a2]));
+        }
+  }
+}
+
+/// visit_hats into N[a] and dN[a].
+template <int D>
+[[gnu::always_inline]] inline void
+hat_products(const Vec<D>& t, const std::array<std::array<double, 2>, D>& d, double* N, Vec<D>* dN) {
+  visit_hats<D>(t, d, [N, dN](int a, double Na, const Vec<D>& dNa) { N[a] = Na, dN[a] = dNa; });
+}
+
+/// The rows of the `linear` family on an untouched lattice, kept compact
+/// (docs/architecture.md, "Lattice rows"): for point p the node id of the
+/// lowest corner of its cell (base) and its place t_k in [0, 1] in that cell
+/// along each axis, 4 + 8 D bytes where the table's row takes 2^D (12 + 8 D)
+/// + 4. Row p's 2^D entries are nodes base + corner_offset[a] with the
+/// weights visit_hats(t_p): entry for entry the table's row, bit for bit.
+template <int D> struct LatticeRows {
+  static constexpr int kCorners = 1 << D;
+  std::vector<int> base;
+  AlignedVector<Vec<D>> t;
+  std::array<int, kCorners> corner_offset{}; ///< node id of corner a minus that of corner 0
+  std::array<std::array<double, 2>, D> d{};  ///< d N / d x_k of the lower / upper 1D hat: -1/h_k, 1/h_k
+
+  int rows() const { return static_cast<int>(base.size()); }
+  /// The entries of row p, in the table's order.
+  [[gnu::always_inline]] void row(int p, int* node, double* N, Vec<D>* dN) const {
+    for (int a = 0; a < kCorners; ++a) node[a] = base[static_cast<std::size_t>(p)] + corner_offset[a];
+    hat_products<D>(t[static_cast<std::size_t>(p)], d, N, dN);
+  }
+  /// The smallest and largest node id of row p.
+  int lowest(int p) const { return base[static_cast<std::size_t>(p)]; }
+  int highest(int p) const { return base[static_cast<std::size_t>(p)] + corner_offset[kCorners - 1]; }
+};
+
+/// Rebuilds the full table of `rows` (the same entries and bits as the
+/// family's own table at the same points).
+template <int D> void expand_lattice_rows(const LatticeRows<D>& rows, BasisTable<D>& table);
 
 /// S when every row of a table with these row offsets holds the same number
 /// S >= 1 of entries (offset[p] = p S), else 0 (also for no rows). An OR of

@@ -6,10 +6,12 @@
 #include "otmpm/basis/linear.hpp"
 
 #include "otmpm/basis/families.hpp"
+#include "otmpm/parallel.hpp"
 
 #include <Eigen/LU>
 
 #include <algorithm>
+#include <atomic>
 #include <bit>
 #include <cmath>
 #include <limits>
@@ -351,6 +353,27 @@ public:
     return cell_hint ? hats_run<true>(x, count, cell_hint, node, N, dN) : hats_run<false>(x, count, nullptr, node, N, dN);
   }
 
+  /// The compact rows of the points x on the untouched lattice
+  /// (LatticeRows; locate() of each point, so each t_k and base is the one
+  /// the table's hats start from).
+  bool evaluate_lattice_rows(const AlignedVector<Vec<D>>& x, LatticeRows<D>& rows) const override {
+    if (!nodes_.on_lattice()) return false;
+    const auto n = static_cast<long long>(x.size());
+    rows.base.resize(x.size());
+    rows.t.resize(x.size());
+    for (int a = 0; a < kCorners<D>; ++a) rows.corner_offset[a] = lattice_.corner_offset[a];
+    rows.d = lattice_.d;
+    std::atomic<bool> inside{true};
+    parallel_chunks(n, [&](long long p0, long long p1) {
+      std::conditional_t<(D < 3), const Lattice, const Lattice&> L = lattice_;
+      int* base = rows.base.data();
+      Vec<D>* t = rows.t.data();
+      for (auto p = p0; p < p1; ++p)
+        if (!locate(L, x[p], base[p], t[p], nullptr)) return inside.store(false, std::memory_order_relaxed);
+    });
+    return inside.load();
+  }
+
 private:
   /// What the lattice hats read, in one place (in 1D and 2D copied to a
   /// local before a batch, so that the compiler need not reload it after
@@ -358,7 +381,7 @@ private:
   struct Lattice {
     double lo[D], hi[D];  ///< the grid box widened by kInsideTolerance cells (WidenedBox)
     double lower[D], h[D];
-    double d[D][2];       ///< d N / d x_k of the lower / upper 1D hat: -1/h_k, 1/h_k
+    std::array<std::array<double, 2>, D> d; ///< d N / d x_k of the lower / upper 1D hat: -1/h_k, 1/h_k
     int last_cell[D];     ///< cells - 1 per axis
     double last[D];       ///< last_cell as a double (the two-lane hats)
     int stride[D];        ///< node-id stride per axis
@@ -406,47 +429,29 @@ private:
 #if defined(__SSE2__)
     if constexpr (D > 1) return hats_in_lanes(L, x, node, N, dN, cell);
 #endif
+    int base = 0;
+    Vec<D> t;
+    if (!locate(L, x, base, t, cell)) return false;
+    for (int a = 0; a < kCorners<D>; ++a) node[a] = base + L.corner_offset[a];
+    hat_products<D>(t, L.d, N, dN);
+    return true;
+  }
+
+  /// The cell of x: the id of its lowest corner into base and x's place t_k
+  /// in [0, 1] in it along each axis (and the cell into *cell when not
+  /// null); false when x is outside the widened grid box or not finite.
+  [[gnu::always_inline]] static inline bool locate(const Lattice& L, const Vec<D>& x, int& base, Vec<D>& t,
+                                                   Index<D>* cell) {
     for (int k = 0; k < D; ++k)
       if (!(x[k] >= L.lo[k] && x[k] <= L.hi[k])) return false; // also for NaN
-    double w[D][2];
-    const auto& d = L.d;
-    int base = 0;
+    base = 0;
     for (int k = 0; k < D; ++k) {
       const double u = (x[k] - L.lower[k]) / L.h[k];
       // u >= -1e-12 here (the box), so truncation, clamped, is floor, clamped
       const int c = std::clamp(static_cast<int>(u), 0, L.last_cell[k]);
-      const double t = std::clamp(u - c, 0.0, 1.0);
-      w[k][0] = 1.0 - t;
-      w[k][1] = t;
+      t[k] = std::clamp(u - c, 0.0, 1.0);
       base += L.stride[k] * c;
       if (cell) (*cell)[k] = c;
-    }
-    for (int a = 0; a < kCorners<D>; ++a) node[a] = base + L.corner_offset[a];
-    if constexpr (D == 1) {
-      for (int a = 0; a < 2; ++a) {
-        N[a] = w[0][a];
-        dN[a][0] = d[0][a];
-      }
-    } else if constexpr (D == 2) {
-      for (int a1 = 0; a1 < 2; ++a1)
-        for (int a0 = 0; a0 < 2; ++a0) {
-          const int a = a0 + 2 * a1;
-          N[a] = w[0][a0] * w[1][a1];
-          dN[a][0] = d[0][a0] * w[1][a1];
-          dN[a][1] = w[0][a0] * d[1][a1];
-        }
-    } else {
-      for (int a1 = 0; a1 < 2; ++a1)
-        for (int a0 = 0; a0 < 2; ++a0) {
-          const double ww = w[0][a0] * w[1][a1], dw = d[0][a0] * w[1][a1], wd = w[0][a0] * d[1][a1];
-          for (int a2 = 0; a2 < 2; ++a2) {
-            const int a = a0 + 2 * a1 + 4 * a2;
-            N[a] = ww * w[2][a2];
-            dN[a][0] = dw * w[2][a2];
-            dN[a][1] = wd * w[2][a2];
-            dN[a][2] = ww * d[2][a2];
-          }
-        }
     }
     return true;
   }
@@ -479,7 +484,7 @@ private:
     const __m128d s = _mm_sub_pd(one, t); // (1 - t_0, 1 - t_1)
     p.w0 = _mm_unpacklo_pd(s, t);
     p.w1 = _mm_unpackhi_pd(s, t);
-    const __m128d d0 = _mm_loadu_pd(L.d[0]), d1 = _mm_loadu_pd(L.d[1]);
+    const __m128d d0 = _mm_loadu_pd(L.d[0].data()), d1 = _mm_loadu_pd(L.d[1].data());
     p.a0 = _mm_unpacklo_pd(d0, p.w0);
     p.a1 = _mm_unpackhi_pd(d0, p.w0);
     p.b0 = _mm_unpacklo_pd(p.w1, d1);

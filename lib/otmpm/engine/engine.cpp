@@ -166,11 +166,10 @@ void start_channel(const SideWalls& walls, const Particles<D>& P, Distribution<D
 
 /// The side walls' force on every particle for a pass of the step dt (eq. 6.7).
 template <int D>
-void channel_forces(std::unique_ptr<ChannelWalls<D>>& channel, const Particles<D>& P,
-                    const BasisTable<D>& table, int nodes,
-                    const std::vector<std::unique_ptr<Material<D>>>& materials, double dt) {
+void channel_forces(std::unique_ptr<ChannelWalls<D>>& channel, const Particles<D>& P, StepRows<D>& rows,
+                    int nodes, const std::vector<std::unique_ptr<Material<D>>>& materials, double dt) {
   if (!channel) return;
-  channel->compute(P, table, nodes, dt, [&](int p0, int p1, double* out) {
+  channel->compute(P, rows.full(), nodes, dt, [&](int p0, int p1, double* out) {
     materials[static_cast<std::size_t>(P.material[p0])]->out_of_plane_stress(P, p0, p1, out);
   });
 }
@@ -375,25 +374,44 @@ template <int D> void Engine<D>::evaluate_basis() {
   // Every particle gets an empty row until the ranks stop on a failure
   // (fallible() names the particle by its global id).
   const auto empty_rows = [&] {
-    table_ = BasisTable<D>{};
-    table_.offset.assign(static_cast<std::size_t>(P_.size()) + 1, 0);
-    row_width_ = 0;
-    scatter_->invalidate(row_width_);
+    rows_.compact = false;
+    rows_.table = BasisTable<D>{};
+    rows_.table.offset.assign(static_cast<std::size_t>(P_.size()) + 1, 0);
+    rows_.width = 0;
+    scatter_->invalidate(rows_.width);
     list_visited_nodes();
+  };
+  // The compact lattice rows (StepRows) where no part of the step reads the
+  // table: without body contact, ranks, saturated bodies, F-bar, the
+  // consistent mass and side walls, on fixed nodes; in 1D and 2D (in 3D the
+  // passes rebuilding eight entries took 6.5% more instructions per
+  // particle-step than reading them, docs/performance.md).
+  const bool lattice = D < 3 && !contact_ && !dist_ && !settings_.two_phase &&
+                       settings_.volumetric == Volumetric::none && !settings_.consistent_mass && !channel_ &&
+                       !mode_.nodes_move();
+  const auto table_rows = [&] {
+    const bool may_move = mode_.nodes_move() && basis_->search_radius() > 0.0;
+    if (may_move) moved_.resize(P_.x.size(), Vec<D>::Zero());
+    const long long moved_before = basis_->moved_points();
+    basis_->evaluate_points(P_.x, rows_.table, P_.F.empty() ? nullptr : &P_.F, may_move ? &moved_ : nullptr);
+    if (basis_->moved_points() != moved_before) move_into_hull();
+    if (contact_) contact_->remap(rows_.table, P_.body);
+    rows_.width = linear_row_width(rows_.table);
+    scatter_->invalidate(rows_.width);
   };
   fallible([&] {
     try {
       if (test_allocation_fails("basis", step_)) throw std::bad_alloc();
-      const bool may_move = mode_.nodes_move() && basis_->search_radius() > 0.0;
-      if (may_move) moved_.resize(P_.x.size(), Vec<D>::Zero());
-      const long long moved_before = basis_->moved_points();
-      basis_->evaluate_points(P_.x, table_, P_.F.empty() ? nullptr : &P_.F, may_move ? &moved_ : nullptr);
-      if (basis_->moved_points() != moved_before) move_into_hull();
-      if (contact_) contact_->remap(table_, P_.body);
-      row_width_ = linear_row_width(table_);
-      scatter_->invalidate(row_width_);
+      rows_.compact = rows_.built = false;
+      if (lattice && basis_->evaluate_lattice_rows(P_.x, rows_.lattice)) {
+        rows_.compact = true, rows_.width = 1 << D;
+        scatter_->invalidate(rows_.width); // the column gather reads the table
+        rows_.compact =
+            scatter_->plan_for(rows_.lattice, static_cast<int>(nodal_.m.size())) != ScatterPath::columns;
+      }
+      if (!rows_.compact) table_rows();
       list_visited_nodes();
-      if (dist_) dist_->check_support(table_);
+      if (dist_) dist_->check_support(rows_.table);
       if (settings_.volumetric == Volumetric::fbar) assign_patches();
       if (mode_.nodes_move() && basis_->search_radius() > 0.0) measure_gradients();
     } catch (const BasisError& e) {
@@ -410,7 +428,7 @@ template <int D> void Engine<D>::evaluate_basis() {
 template <int D> void Engine<D>::to_nodes(const ToNodes<D>& what) {
   ScopedPhase timer(timers_, Phase::to_nodes);
   if (what.forces && !loads_.uniform() && loads_.any()) loads_.particle_forces(what.t, P_, fext_);
-  if (what.forces) channel_forces(channel_, P_, table_, static_cast<int>(nodal_.m.size()), materials_, dt_);
+  if (what.forces) channel_forces(channel_, P_, rows_, static_cast<int>(nodal_.m.size()), materials_, dt_);
   to_nodes_with(what, [](int, int) {});
   exchange_sums(what.mass, what.w != nullptr, what.forces || what.split);
   if (what.mass) finish_mass();
@@ -446,7 +464,7 @@ template <int D> void Engine<D>::update_stress_and_to_nodes(const Gradient<D>& g
                                  "Engine::update_stress_and_to_nodes: only the forces follow a stress update");
   if (!loads_.uniform() && loads_.any()) loads_.particle_forces(what.t, P_, fext_);
   // the side walls press with sigma_zz before the update (the pass's start)
-  channel_forces(channel_, P_, table_, static_cast<int>(nodal_.m.size()), materials_, dt_);
+  channel_forces(channel_, P_, rows_, static_cast<int>(nodal_.m.size()), materials_, dt_);
   fallible([&] {
     // F-bar: the forces' patch means need every new stress first. With few
     // scatter blocks per thread the updates also run first, in chunks the
@@ -470,7 +488,7 @@ template <int D> void Engine<D>::to_particles_then_to_nodes(const ToParticles<D>
   require<std::invalid_argument>(!what.mass, "Engine::to_particles_then_to_nodes: the mass does not follow a move");
   if (move.rate) book_transfer(move);
   if (what.forces && !loads_.uniform() && loads_.any()) loads_.particle_forces(what.t, P_, fext_);
-  if (what.forces) channel_forces(channel_, P_, table_, static_cast<int>(nodal_.m.size()), materials_, dt_);
+  if (what.forces) channel_forces(channel_, P_, rows_, static_cast<int>(nodal_.m.size()), materials_, dt_);
   to_nodes_with(what, [&](int p0, int p1) { to_particles_on(move, {}, p0, p1); });
   exchange_sums(false, what.w != nullptr, what.forces);
 }
@@ -506,7 +524,7 @@ void Engine<D>::to_nodes_impl(const ToNodes<D>& what, Update&& update) {
   const double* shift = !Forces                                    ? nullptr
                         : settings_.volumetric == Volumetric::fbar ? fbar_.mean_stress_shift(P_)
                         : settings_.volumetric == Volumetric::fbar_nodal
-                            ? fbar_.nodal_mean_stress_shift(P_, table_, static_cast<int>(nodal_.m.size()))
+                            ? fbar_.nodal_mean_stress_shift(P_, table(), static_cast<int>(nodal_.m.size()))
                             : nullptr;
   const double c = what.c;
   // Inlined also where the liquid's sums join it (TwoPhase::scatter_with; measured: called, its
@@ -529,15 +547,13 @@ void Engine<D>::to_nodes_impl(const ToNodes<D>& what, Update&& update) {
     }
     return w;
   };
-  const double* Ne = table_.N.data(); // by value in the lambda: the sums' stores cannot alias it
-  const Vec<D>* dNe = table_.dN.data();
-  auto add = [Ne, dNe](NodeSums<D>& acc, int e, const Payload& w) {
-    const double N = Ne[e];
+  auto add =
+      [](NodeSums<D> & acc, double N, const Vec<D>& dN, const Payload& w) __attribute__((always_inline)) {
     if (Mass) acc.m += N * w.m;
     if (Momentum) acc.q += N * w.mw;
     if (Split) acc.f += N * w.fext;
     if (Forces) {
-      acc.f -= w.Vs * dNe[e];
+      acc.f -= w.Vs * dN;
       acc.f += N * w.fext;
     }
   };
@@ -553,7 +569,11 @@ void Engine<D>::to_nodes_impl(const ToNodes<D>& what, Update&& update) {
   };
   if constexpr (Mass && Momentum && Forces && !Split)
     if (what.liquid) return what.liquid->scatter_with(*this, update, prep, add, merge, clear);
-  scatter_->run(table_, static_cast<int>(nodal_.m.size()), update, prep, add, merge, clear, visit_list(nodal_));
+  const int nodes = static_cast<int>(nodal_.m.size());
+  if (rows_.compact)
+    scatter_->run(rows_.lattice, nodes, update, prep, add, merge, clear, visit_list(nodal_));
+  else
+    scatter_->run(rows_.table, nodes, update, prep, add, merge, clear, visit_list(nodal_));
 }
 
 /// The nodes the step's nodal loops visit (NodalFields::visited), after the
@@ -585,12 +605,18 @@ template <int D> void Engine<D>::list_visited_nodes() {
   // entries stay in its caches); a node two threads mark gets the same 1.
   // The bounds and pointers in locals: a char store may alias any memory,
   // so members read in the loop would be loaded again after every mark.
-  parallel_chunks(table_.rows(), [&](long long p0, long long p1) {
-    const int* node = table_.node.data();
+  parallel_chunks(P_.size(), [&](long long p0, long long p1) {
     char* const marks = mark;
-    const int e1 = table_.end(static_cast<int>(p1) - 1);
-    for (int e = table_.begin(static_cast<int>(p0)); e < e1; ++e)
-      std::atomic_ref<char>(marks[node[e]]).store(1, std::memory_order_relaxed);
+    const auto on = [marks](int I) { std::atomic_ref<char>(marks[I]).store(1, std::memory_order_relaxed); };
+    if (rows_.compact) {
+      const LatticeRows<D>& r = rows_.lattice;
+      for (auto p = static_cast<int>(p0); p < p1; ++p)
+        for (int a = 0; a < LatticeRows<D>::kCorners; ++a) on(r.lowest(p) + r.corner_offset[a]);
+      return;
+    }
+    const int* node = rows_.table.node.data();
+    const int e1 = rows_.table.end(static_cast<int>(p1) - 1);
+    for (int e = rows_.table.begin(static_cast<int>(p0)); e < e1; ++e) on(node[e]);
   });
   for (const int I : constraints_.fixed_nodes()) mark[I] = 1;
   if (static_cast<int>(list.size()) < nodes)
@@ -638,7 +664,7 @@ template <int D> void Engine<D>::finish_mass() {
   if (mode_.nodes_move()) // the lattice's own nodes fill their cells: none is light (sect. 3)
     for (int I = 0; I < nodes; ++I)
       if (nodal_.m[I] > 0.0 && nodal_.m[I] < kLightNode * m_max) light_.push_back(I);
-  if (mass_matrix_) mass_matrix_->assemble(table_, P_.m, nodal_.active, constraints_.constrained(), nodes);
+  if (mass_matrix_) mass_matrix_->assemble(table(), P_.m, nodal_.active, constraints_.constrained(), nodes);
   if (contact_) contact_mass_gradient();
 }
 
@@ -646,10 +672,10 @@ template <int D> void Engine<D>::contact_mass_gradient() {
   AlignedVector<Vec<D>>& g = contact_->mass_gradient();
   auto update = [](int, int) {};
   auto prep = [&](int p) { return P_.m[p]; };
-  auto add = [&](NodeSums<D>& acc, int e, double m) { acc.q += m * table_.dN[e]; };
+  auto add = [](NodeSums<D>& acc, double, const Vec<D>& dN, double m) { acc.q += m * dN; };
   auto merge = [&](int I, const NodeSums<D>& acc) { g[I] += acc.q; };
   auto clear = [&](int I0, int I1) { std::fill(g.begin() + I0, g.begin() + I1, Vec<D>::Zero()); };
-  scatter_->run(table_, static_cast<int>(g.size()), update, prep, add, merge, clear);
+  scatter_->run(table(), static_cast<int>(g.size()), update, prep, add, merge, clear);
 }
 
 template <int D> const AlignedVector<Vec<D>>& Engine<D>::field_positions() const {
@@ -668,7 +694,8 @@ void Engine<D>::solve_mass(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>
     y[I] = lumped && nodal_.active[I] ? Vec<D>(r[I] / nodal_.m[I]) : Vec<D>::Zero();
   });
   if (lumped) return;
-  if (dist_) dist_->solve_consistent_mass(table_, P_.m, nodal_.m, nodal_.active, constraints_.constrained(), r, y);
+  if (dist_)
+    dist_->solve_consistent_mass(table(), P_.m, nodal_.m, nodal_.active, constraints_.constrained(), r, y);
   else mass_matrix_->solve(r, y);
   // The fixed components: what the lumped mass gives them (the constraints
   // then set them; their change reaches the particles from there).
@@ -686,7 +713,8 @@ template <int D> void Engine<D>::book_inertial_reaction(const AlignedVector<Vec<
   if (dist_) dist_->max({&any, 1});
   if (any == 0.0) return;
   AlignedVector<Vec<D>> rho(y.size(), Vec<D>::Zero());
-  if (dist_) dist_->constrained_rows_product(table_, P_.m, nodal_.active, constraints_.constrained(), y, rho);
+  if (dist_)
+    dist_->constrained_rows_product(table(), P_.m, nodal_.active, constraints_.constrained(), y, rho);
   else mass_matrix_->constrained_rows_product(y, rho);
   constraints_.book_reaction(rho, c, ledger());
 }
@@ -717,9 +745,10 @@ template <int D> void Engine<D>::constrain_velocity(AlignedVector<Vec<D>>& v, co
 }
 
 template <int D>
-template <class Change, class NodesOf>
-double WallTransfer<D>::booked(Change&& change, const BasisTable<D>& table, const Particles<D>& P,
-                            const std::vector<double>& m, const Constraints<D>& c, NodesOf&& nodes_of) const {
+template <class Change, class Rows, class NodesOf>
+double WallTransfer<D>::booked(Change&& change, const Rows& rows, const Particles<D>& P,
+                               const std::vector<double>& m, const Constraints<D>& c,
+                               NodesOf&& nodes_of) const {
   auto normal_part = [&](std::size_t I) -> Vec<D> {
     const Vec<D>& n = axis[I];
     if (n == Vec<D>::Zero()) return n;
@@ -738,14 +767,13 @@ double WallTransfer<D>::booked(Change&& change, const BasisTable<D>& table, cons
     if (none_noted(static_cast<int>(p0))) return; // every particle adds zero
     for (auto p = static_cast<int>(p0); p < p1; ++p) {
       char near = 0; // a node of the row is noted (else h is zero)
-      for (int e = table.begin(p); e < table.end(p); ++e)
-        near |= is_noted[static_cast<std::size_t>(table.node[e])];
+      rows.visit_row(p, [&](int I, double, const Vec<D>&) { near |= is_noted[static_cast<std::size_t>(I)]; });
       if (!near) continue;
       Vec<D> h = Vec<D>::Zero();
-      for (int e = table.begin(p); e < table.end(p); ++e) h += table.N[e] * normal_part(table.node[e]);
+      rows.visit_row(p, [&](int I, double N, const Vec<D>&) { h += N * normal_part(I); });
       if (h == Vec<D>::Zero()) continue;
       Vec<D> d = Vec<D>::Zero();
-      for (int e = table.begin(p); e < table.end(p); ++e) d += table.N[e] * change(table.node[e]);
+      rows.visit_row(p, [&](int I, double N, const Vec<D>&) { d += N * change(I); });
       acc += P.m[p] * h.dot(2.0 * d - h);
     }
   });
@@ -761,15 +789,16 @@ double WallTransfer<D>::booked(Change&& change, const BasisTable<D>& table, cons
 template <int D> void Engine<D>::book_transfer(const ToParticles<D>& what) {
   if (!transfer_.any()) return;
   // with the consistent mass the nodes' kinetic energy is the particles' (T = 0)
+  const auto change = [&](int I) {
+    Vec<D> d = what.c_rate * (*what.rate)[I];
+    if (what.kick) d += (*what.kick)[I];
+    return d;
+  };
+  const auto nodes_of = [&](int p, int& lo, int& hi) { return scatter_->block_nodes(p, lo, hi); };
   if (!settings_.consistent_mass)
-    *ledger().impact += transfer_.booked(
-        [&](int I) {
-          Vec<D> d = what.c_rate * (*what.rate)[I];
-          if (what.kick) d += (*what.kick)[I];
-          return d;
-        },
-        table_, P_, nodal_.m, constraints_,
-        [&](int p, int& lo, int& hi) { return scatter_->block_nodes(p, lo, hi); });
+    *ledger().impact += rows_.view([&](const auto view) {
+      return transfer_.booked(change, view, P_, nodal_.m, constraints_, nodes_of);
+    });
   transfer_.clear();
 }
 
@@ -821,13 +850,15 @@ void Engine<D>::to_particles_and_update_stress(const ToParticles<D>& what, const
   // in fixed blocks (the same bits for any thread count) and booked as W_v.
   const Vec<D>* pic = what.pic->data();
   const double share = what.pic_share;
-  *ledger().relaxation += blocked_reduce<double>(P_.size(), [&](long long q, double& removed) {
-    const int p = static_cast<int>(q);
-    Vec<D> u = Vec<D>::Zero();
-    for (int e = table_.begin(p); e < table_.end(p); ++e) u += table_.N[e] * pic[table_.node[e]];
-    const Vec<D> v = P_.v[p] + share * (u - P_.v[p]);
-    removed += 0.5 * P_.m[p] * (P_.v[p].squaredNorm() - v.squaredNorm());
-    P_.v[p] = v;
+  *ledger().relaxation += rows_.view([&](const auto view) {
+    return blocked_reduce<double>(P_.size(), [&](long long q, double& removed) {
+      const int p = static_cast<int>(q);
+      Vec<D> u = Vec<D>::Zero();
+      view.visit_row(p, [&](int I, double N, const Vec<D>&) { u += N * pic[I]; });
+      const Vec<D> v = P_.v[p] + share * (u - P_.v[p]);
+      removed += 0.5 * P_.m[p] * (P_.v[p].squaredNorm() - v.squaredNorm());
+      P_.v[p] = v;
+    });
   });
 }
 
@@ -858,13 +889,15 @@ void Engine<D>::to_particles_on(const ToParticles<D>& what, const Gradient<D>& g
 template <int D>
 template <bool Rate, bool Move, bool Field, bool Kick, bool Liquid>
 void Engine<D>::to_particles_range(const ToParticles<D>& what, const Gradient<D>& g, int begin, int end) {
-  if (row_width_ == (1 << D)) to_particles_rows<Rate, Move, Field, Kick, Liquid, (1 << D)>(what, g, begin, end);
-  else to_particles_rows<Rate, Move, Field, Kick, Liquid, 0>(what, g, begin, end);
+  rows_.view([&](const auto view) {
+    to_particles_rows<Rate, Move, Field, Kick, Liquid>(what, g, begin, end, view);
+  });
 }
 
 template <int D>
-template <bool Rate, bool Move, bool Field, bool Kick, bool Liquid, int W>
-void Engine<D>::to_particles_rows(const ToParticles<D>& what, const Gradient<D>& g, int begin, int end) {
+template <bool Rate, bool Move, bool Field, bool Kick, bool Liquid, class View>
+void Engine<D>::to_particles_rows(const ToParticles<D>& what, const Gradient<D>& g, int begin, int end,
+                                  const View view) {
   // Plain pointers and factors in locals: the stores to the particles below
   // cannot alias them, so the loops keep them in registers.
   const Vec<D>* rate = Rate ? what.rate->data() : nullptr;
@@ -873,10 +906,6 @@ void Engine<D>::to_particles_rows(const ToParticles<D>& what, const Gradient<D>&
   const Vec<D>* kick = Kick ? what.kick->data() : nullptr;
   Vec<D>* rate_out = what.rate_out ? what.rate_out->data() : nullptr;
   const double c_rate = what.c_rate, c_move = what.c_move, c = g.c;
-  const int* offset = table_.offset.data();
-  const int* node = table_.node.data();
-  const double* N = table_.N.data();
-  const Vec<D>* dN = table_.dN.data();
   Vec<D>* v = P_.v.data();
   Vec<D>* x = P_.x.data();
   const Mat<D>* averaged = fbar_.ready ? fbar_.H.data() : nullptr; // F-bar: H_p from average_volumetric
@@ -890,15 +919,14 @@ void Engine<D>::to_particles_rows(const ToParticles<D>& what, const Gradient<D>&
       Vec<D> r = Vec<D>::Zero(), u = Vec<D>::Zero(), k = Vec<D>::Zero();
       Mat<D> G = Mat<D>::Zero();
       [[maybe_unused]] LiquidRow<D> l;
-      const auto [e0, e1] = row_entries<W>(offset, p);
-      for (int e = e0; e < e1; ++e) {
-        const int I = node[e];
-        if constexpr (Rate) r += N[e] * rate[I];
-        if constexpr (Kick) k += N[e] * kick[I];
-        if constexpr (Move) u += N[e] * move[I];
-        if constexpr (Field) G.noalias() += field[I] * dN[e].transpose();
-        if constexpr (Liquid) liquid.add(l, I, N[e], dN[e]);
-      }
+      view.visit_row(
+          p, [&](int I, double N, const Vec<D>& dN) __attribute__((always_inline)) {
+            if constexpr (Rate) r += N * rate[I];
+            if constexpr (Kick) k += N * kick[I];
+            if constexpr (Move) u += N * move[I];
+            if constexpr (Field) G.noalias() += field[I] * dN.transpose();
+            if constexpr (Liquid) liquid.add(l, I, N, dN);
+          });
       if constexpr (Liquid) liquid.row[p - p0] = l;
       if constexpr (Rate) {
         if (rate_out) rate_out[p] = r;
@@ -1062,7 +1090,7 @@ template <int D> void Engine<D>::reset_nodes(const CartesianGrid<D>* given) {
 }
 
 template <int D> void Engine<D>::measure_gradients() {
-  const AlignedVector<Vec<D>>& dN = table_.dN;
+  const AlignedVector<Vec<D>>& dN = table().dN;
   double g2 = blocked_reduce<MaxOf>(static_cast<long long>(dN.size()), [&](long long e, MaxOf& acc) {
     acc.value = std::max(acc.value, dN[static_cast<std::size_t>(e)].squaredNorm());
   }).value;
@@ -1102,14 +1130,15 @@ template <int D> bool Engine<D>::average_volumetric(const Gradient<D>& g) {
   fbar_.H.resize(static_cast<std::size_t>(P_.size()));
   const Vec<D>* field = g.field->data();
   const double c = g.c;
+  const BasisTable<D>& t = table();
   parallel_for(P_.size(), [&](long long p) { // the arithmetic of to_particles_rows' gradient
     Mat<D> G = Mat<D>::Zero();
-    for (int e = table_.begin(static_cast<int>(p)); e < table_.end(static_cast<int>(p)); ++e)
-      G.noalias() += field[table_.node[e]] * table_.dN[e].transpose();
+    for (int e = t.begin(static_cast<int>(p)); e < t.end(static_cast<int>(p)); ++e)
+      G.noalias() += field[t.node[e]] * t.dN[e].transpose();
     fbar_.H[p] = c * G;
   });
   if (settings_.volumetric == Volumetric::fbar_nodal)
-    fbar_.nodal.apply(table_, static_cast<int>(nodal_.m.size()), P_.V.data(), fbar_.H.data(), P_.size());
+    fbar_.nodal.apply(t, static_cast<int>(nodal_.m.size()), P_.V.data(), fbar_.H.data(), P_.size());
   else
     fbar_.average.apply(fbar_.patch, fbar_.patches, P_.V.data(), fbar_.H.data(), P_.size());
   fbar_.ready = true;
@@ -1153,10 +1182,10 @@ std::optional<AlignedVector<Vec<D>>> Engine<D>::light_increments(const AlignedVe
   AlignedVector<Vec<D>> carried(static_cast<std::size_t>(nodes), Vec<D>::Zero()); // sum_p N_Ip m_p dx_p
   auto update = [](int, int) {};
   auto prep = [&](int p) { return Vec<D>(P_.m[p] * (P_.x[p] - x_start_[p])); };
-  auto add = [&](NodeSums<D>& acc, int e, const Vec<D>& w) { acc.q += table_.N[e] * w; };
+  auto add = [](NodeSums<D>& acc, double N, const Vec<D>&, const Vec<D>& w) { acc.q += N * w; };
   auto merge = [&](int I, const NodeSums<D>& acc) { carried[I] += acc.q; };
   auto clear = [&](int I0, int I1) { std::fill(carried.begin() + I0, carried.begin() + I1, Vec<D>::Zero()); };
-  scatter_->run(table_, nodes, update, prep, add, merge, clear);
+  scatter_->run(table(), nodes, update, prep, add, merge, clear);
   if (dist_) {
     const NodalArray sums[] = {{carried.data()->data(), D}};
     dist_->sum_nodal(sums);

@@ -15,6 +15,7 @@
 #include "otmpm/engine/loads.hpp"
 #include "otmpm/engine/mass_matrix.hpp"
 #include "otmpm/engine/node_mode.hpp"
+#include "otmpm/engine/rows.hpp"
 #include "otmpm/engine/side_walls.hpp"
 #include "otmpm/engine/step.hpp"
 #include "otmpm/engine/timers.hpp"
@@ -255,9 +256,10 @@ public:
   const Basis<D>& basis() const { return *basis_; }
   NodalFields<D>& nodal() { return nodal_; }
   const NodalFields<D>& nodal() const { return nodal_; }
-  /// The basis table of the step; with body contact its node ids are field
-  /// nodes, I + body_p N (contact.hpp).
-  const BasisTable<D>& table() const { return table_; }
+  /// The basis table of the step (built from the compact lattice rows on the
+  /// first call when the step kept only those: StepRows); with body contact
+  /// its node ids are field nodes, I + body_p N (contact.hpp).
+  const BasisTable<D>& table() const { return rows_.full(); }
   /// The body contact, or null when the bodies share one nodal field.
   const BodyContact<D>* contact() const { return contact_.get(); }
   const Material<D>& material(int i) const { return *materials_[static_cast<std::size_t>(i)]; }
@@ -423,10 +425,10 @@ private:
   /// `g` when Field) on particles [begin, end).
   template <bool Rate, bool Move, bool Field, bool Kick = false, bool Liquid = false>
   void to_particles_range(const ToParticles<D>& what, const Gradient<D>& g, int begin, int end);
-  /// to_particles_range with rows of W entries each (W = 0: any length,
-  /// from the table's offsets; row_entries); Liquid: ToParticles::liquid.
-  template <bool Rate, bool Move, bool Field, bool Kick, bool Liquid, int W>
-  void to_particles_rows(const ToParticles<D>& what, const Gradient<D>& g, int begin, int end);
+  /// to_particles_range over the rows of `view` (rows.hpp); Liquid: ToParticles::liquid.
+  template <bool Rate, bool Move, bool Field, bool Kick, bool Liquid, class View>
+  void to_particles_rows(const ToParticles<D>& what, const Gradient<D>& g, int begin, int end,
+                         const View view);
   /// Dispatches to_particles_range on what `what` and `g` hold.
   void to_particles_on(const ToParticles<D>& what, const Gradient<D>& g, int begin, int end);
   void finish_mass();
@@ -496,8 +498,7 @@ private:
   StepSettings<D> settings_;
   std::unique_ptr<MassMatrix<D>> mass_matrix_;
   NodalFields<D> nodal_;
-  BasisTable<D> table_;
-  int row_width_ = 0; ///< linear_row_width(table_), set with the table
+  mutable StepRows<D> rows_; ///< the step's basis rows (mutable: table() builds the table on demand)
   std::unique_ptr<ParticleToNodes<D>> scatter_; ///< engine/scatter.hpp (internal: needs parallel.hpp)
   AlignedVector<Vec<D>> fext_; ///< external force per particle when not uniform
   std::unique_ptr<ChannelWalls<D>> channel_; ///< side walls (2D; engine/channel_walls.hpp)
@@ -532,7 +533,8 @@ private:
 
 template <int D> Vec<D> Engine<D>::interpolate(int p, const AlignedVector<Vec<D>>& y) const {
   Vec<D> s = Vec<D>::Zero();
-  for (int e = table_.begin(p); e < table_.end(p); ++e) s += table_.N[e] * y[table_.node[e]];
+  const BasisTable<D>& t = table();
+  for (int e = t.begin(p); e < t.end(p); ++e) s += t.N[e] * y[t.node[e]];
   return s;
 }
 

@@ -13,10 +13,13 @@
 /// than the transposed table, a gather over the transposed table does it.
 /// Internal to the engine.
 #include "otmpm/basis/basis.hpp"
+#include "otmpm/engine/rows.hpp"
 #include "otmpm/parallel.hpp"
 
 #include <algorithm>
 #include <optional>
+#include <stdexcept>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -101,19 +104,25 @@ public:
     valid_ = false;
   }
 
-  /// The particle-to-node sum over `table` (rows: particles, `nodes` nodes):
-  /// update(p0, p1) runs a per-particle update (or nothing) on particles
-  /// [p0, p1), each particle once and before its prep; clear(I0, I1) zeroes
-  /// the nodal fields of nodes [I0, I1); then for every table entry e
-  /// (particle p, node I) add(acc_I, e, prep(p)), and merge(I, acc_I) adds
+  /// The particle-to-node sum over `rows` (a BasisTable or the compact
+  /// LatticeRows; rows: particles, `nodes` nodes): update(p0, p1) runs a
+  /// per-particle update (or nothing) on particles [p0, p1), each particle
+  /// once and before its prep; clear(I0, I1) zeroes the nodal fields of
+  /// nodes [I0, I1); then for every entry (particle p, node I, N_Ip, grad
+  /// N_Ip) add(acc_I, N_Ip, grad N_Ip, prep(p)), and merge(I, acc_I) adds
   /// acc_I into the nodal fields. `visit`: the nodes, ascending, that
   /// phase 2 clears and merges into (every node of a table row among them;
   /// the others' fields are left as they are), or null: every node.
-  template <class Update, class Prep, class Add, class Merge, class Clear>
-  void run(const BasisTable<D>& table, int nodes, Update&& update, Prep&& prep, Add&& add, Merge&& merge,
+  template <class Rows, class Update, class Prep, class Add, class Merge, class Clear>
+  void run(const Rows& table, int nodes, Update&& update, Prep&& prep, Add&& add, Merge&& merge,
            Clear&& clear, const std::vector<int>* visit = nullptr) {
     plan(table, nodes);
-    if (path_ == ScatterPath::columns) return gather_columns(table, nodes, update, prep, add, merge, clear, visit);
+    if (path_ == ScatterPath::columns) {
+      if constexpr (std::is_same_v<Rows, BasisTable<D>>)
+        return gather_columns(table, nodes, update, prep, add, merge, clear, visit);
+      else
+        throw std::logic_error("BlockedScatter::run: the column gather needs the basis table");
+    }
     const int n = table.rows(), count = static_cast<int>(lo_.size());
     const bool dense = path_ == ScatterPath::dense;
     buffer_.resize(static_cast<std::size_t>(offset_.back()));
@@ -138,6 +147,14 @@ public:
     });
   }
 
+  /// Plans the sums over `rows` (the plan run() then takes) and returns
+  /// its path: the engine keeps the compact lattice rows only for a
+  /// blocked path.
+  template <class Rows> ScatterPath plan_for(const Rows& rows, int nodes) {
+    plan(rows, nodes);
+    return path_;
+  }
+
 private:
   /// Chooses the path for the current basis table: dense when the block
   /// ranges add up to at most max_block_overlap times the node count or to
@@ -145,11 +162,11 @@ private:
   /// add up to at most max_sparse_ranges times the entries, else the column
   /// gather (measured: both blocked paths are faster than the column gather,
   /// also for shuffled particles, docs/performance-log-2026.md).
-  void plan(const BasisTable<D>& table, int nodes) {
+  template <class Rows> void plan(const Rows& table, int nodes) {
     if (valid_) return;
     valid_ = true;
     const long long ranges = node_ranges(table, nodes);
-    const auto entries = static_cast<long long>(table.entries());
+    const auto entries = entry_count(table);
     path_ = ScatterPath::columns;
     if (ranges <= static_cast<long long>(max_block_overlap) * std::max(nodes, 1) ||
         ranges * dense_entries_per_slot <= entries)
@@ -163,7 +180,7 @@ private:
 
   /// The node range [lo_, hi_] of every block and their prefix sums
   /// (range_start_); returns the total of the ranges.
-  long long node_ranges(const BasisTable<D>& table, int nodes) {
+  template <class Rows> long long node_ranges(const Rows& table, int nodes) {
     const int n = table.rows();
     const int count = (n + scatter_block - 1) / scatter_block;
     lo_.assign(static_cast<std::size_t>(count), nodes);
@@ -171,15 +188,7 @@ private:
     parallel_chunks(
         count, team_size(n),
         [&](long long b0, long long b1) {
-          for (int b = static_cast<int>(b0); b < b1; ++b) {
-            int lo = nodes, hi = -1; // locals: the loop vectorises
-            for (int e = entry_begin(table, b); e < entry_end(table, b); ++e) {
-              lo = std::min(lo, table.node[e]);
-              hi = std::max(hi, table.node[e]);
-            }
-            lo_[b] = lo;
-            hi_[b] = hi;
-          }
+          for (int b = static_cast<int>(b0); b < b1; ++b) block_range(table, b, nodes, lo_[b], hi_[b]);
         },
         1);
     range_start_.assign(static_cast<std::size_t>(count) + 1, 0);
@@ -190,7 +199,7 @@ private:
   /// The sparse plan: for every block, over its node range, the slot of each
   /// node it touches (in node order) or -1 (slot_), and the start of its
   /// slots in the buffer (offset_).
-  void sparse_slots(const BasisTable<D>& table) {
+  template <class Rows> void sparse_slots(const Rows& table) {
     const int count = static_cast<int>(lo_.size());
     slot_.resize(static_cast<std::size_t>(range_start_.back()));
     std::vector<long long> used(static_cast<std::size_t>(count));
@@ -206,10 +215,11 @@ private:
 
   /// Marks the nodes block b touches in its part of slot_, then numbers
   /// them in node order; returns how many there are.
-  int number_slots(const BasisTable<D>& table, int b) {
+  template <class Rows> int number_slots(const Rows& table, int b) {
     int* slot = slot_.data() + range_start_[b];
     std::fill(slot, slot + (range_start_[b + 1] - range_start_[b]), -1);
-    for (int e = entry_begin(table, b); e < entry_end(table, b); ++e) slot[table.node[e] - lo_[b]] = 0;
+    const int lo = lo_[b];
+    block_nodes_visit(table, b, [slot, lo](int I) { slot[I - lo] = 0; });
     int used = 0;
     for (long long i = 0; i < range_start_[b + 1] - range_start_[b]; ++i)
       if (slot[i] == 0) slot[i] = used++;
@@ -220,14 +230,48 @@ private:
   static int entry_end(const BasisTable<D>& table, int b) {
     return table.end(std::min(table.rows(), (b + 1) * scatter_block) - 1);
   }
+  static long long entry_count(const BasisTable<D>& table) { return static_cast<long long>(table.entries()); }
+  static long long entry_count(const LatticeRows<D>& rows) {
+    return static_cast<long long>(rows.rows()) * LatticeRows<D>::kCorners;
+  }
+
+  /// The smallest and largest node id of block b's rows (lo = nodes, hi =
+  /// -1: none), in locals so that the loop vectorises.
+  static void block_range(const BasisTable<D>& table, int b, int nodes, int& lo_b, int& hi_b) {
+    int lo = nodes, hi = -1;
+    for (int e = entry_begin(table, b); e < entry_end(table, b); ++e) {
+      lo = std::min(lo, table.node[e]);
+      hi = std::max(hi, table.node[e]);
+    }
+    lo_b = lo, hi_b = hi;
+  }
+  static void block_range(const LatticeRows<D>& rows, int b, int nodes, int& lo_b, int& hi_b) {
+    int lo = nodes, hi = -1;
+    const int end = std::min(rows.rows(), (b + 1) * scatter_block);
+    for (int p = b * scatter_block; p < end; ++p) {
+      lo = std::min(lo, rows.lowest(p));
+      hi = std::max(hi, rows.highest(p));
+    }
+    lo_b = lo, hi_b = hi;
+  }
+
+  /// f(I) for the node of every entry of block b's rows.
+  template <class F> static void block_nodes_visit(const BasisTable<D>& table, int b, F&& f) {
+    for (int e = entry_begin(table, b); e < entry_end(table, b); ++e) f(table.node[e]);
+  }
+  template <class F> static void block_nodes_visit(const LatticeRows<D>& rows, int b, F&& f) {
+    const int end = std::min(rows.rows(), (b + 1) * scatter_block);
+    for (int p = b * scatter_block; p < end; ++p)
+      for (int a = 0; a < LatticeRows<D>::kCorners; ++a) f(rows.lowest(p) + rows.corner_offset[a]);
+  }
 
   /// Phase 1 for block b, dense: update() on the block's particles, then
   /// their sums into the block's buffer (the block's table rows, read by
   /// both, partly still in cache; measured: updating smaller batches between
   /// their sums is slower, the two access streams interfere). `clean`: the
   /// buffer is all zero already (merge_visited left it so).
-  template <class Update, class Prep, class Add>
-  void dense_block_sums(const BasisTable<D>& table, int b, bool clean, Update& update, Prep& prep, Add& add) {
+  template <class Rows, class Update, class Prep, class Add>
+  void dense_block_sums(const Rows& table, int b, bool clean, Update& update, Prep& prep, Add& add) {
     const bool entries = hi_[b] >= lo_[b];
     Sums* buf = entries ? buffer_.data() + offset_[b] - lo_[b] : nullptr;
     if (entries && !clean) std::fill(buf + lo_[b], buf + hi_[b] + 1, Sums{});
@@ -235,8 +279,8 @@ private:
   }
 
   /// Phase 1 for block b, sparse: as dense_block_sums into the block's slots.
-  template <class Update, class Prep, class Add>
-  void sparse_block_sums(const BasisTable<D>& table, int b, Update& update, Prep& prep, Add& add) {
+  template <class Rows, class Update, class Prep, class Add>
+  void sparse_block_sums(const Rows& table, int b, Update& update, Prep& prep, Add& add) {
     Sums* buf = buffer_.data() + offset_[b];
     std::fill(buf, buffer_.data() + offset_[b + 1], Sums{});
     const int* slot = hi_[b] >= lo_[b] ? slot_.data() + range_start_[b] - lo_[b] : nullptr;
@@ -245,30 +289,26 @@ private:
 
   /// update() on block b's particles, then add() of each of their entries
   /// into at(node), in particle order.
-  template <class At, class Update, class Prep, class Add>
-  void block_sums(const BasisTable<D>& table, int b, At at, Update& update, Prep& prep, Add& add) {
+  template <class Rows, class At, class Update, class Prep, class Add>
+  void block_sums(const Rows& table, int b, At at, Update& update, Prep& prep, Add& add) {
     const int begin = b * scatter_block, end = std::min(table.rows(), begin + scatter_block);
     update(begin, end);
-    if (width_ == (1 << D)) rows_sums<(1 << D)>(table, begin, end, at, prep, add);
-    else rows_sums<0>(table, begin, end, at, prep, add);
+    with_row_view(table, width_, [&](const auto& view) { rows_sums(view, begin, end, at, prep, add); });
   }
 
   /// add() of each entry of particles [begin, end) into at(node), in
-  /// particle order; rows of W entries (W = 0: any length).
-  template <int W, class At, class Prep, class Add>
-  static void rows_sums(const BasisTable<D>& table, int begin, int end, At at, const Prep& prep_in,
-                        const Add& add_in) {
+  /// particle order (`view`: a TableView or LatticeView of the rows).
+  template <class View, class At, class Prep, class Add>
+  static void rows_sums(const View view, int begin, int end, At at, const Prep& prep_in, const Add& add_in) {
     // Local copies of the two functions (their captured pointers): the
     // sums' vector stores may alias any memory, so members reached through
     // the references would be loaded again for every entry.
     const Prep prep = prep_in;
     const Add add = add_in;
-    const int* offset = table.offset.data();
-    const int* node = table.node.data();
     for (int p = begin; p < end; ++p) {
       const auto w = prep(p);
-      const auto [e0, e1] = row_entries<W>(offset, p);
-      for (int e = e0; e < e1; ++e) add(at(node[e]), e, w);
+      view.visit_row(
+          p, [&](int I, double N, const Vec<D>& dN) __attribute__((always_inline)) { add(at(I), N, dN, w); });
     }
   }
 
@@ -332,7 +372,10 @@ private:
         const int I = visit ? (*visit)[i] : static_cast<int>(i);
         if (visit) clear(I, I + 1);
         Sums acc{};
-        for (int k = off[I]; k < off[I + 1]; ++k) add(acc, columns_.entry[k], prep(columns_.particle[k]));
+        for (int k = off[I]; k < off[I + 1]; ++k) {
+          const int e = columns_.entry[k];
+          add(acc, table.N[e], table.dN[e], prep(columns_.particle[k]));
+        }
         merge(I, acc);
       }
     });

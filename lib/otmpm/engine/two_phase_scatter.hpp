@@ -75,17 +75,16 @@ void TwoPhase<D>::with_sums(const Engine<D>& e, Sum&& sum) {
     w.V = V[p], w.nV = nV;
     return w;
   };
-  const double* Ne = table.N.data();
-  const Vec<D>* dNe = table.dN.data();
-  auto add = [Ne, dNe](LiquidSums<D>& acc, int e, const Payload& w) {
-    acc.q += Ne[e] * w.q;
+  auto add =
+      [](LiquidSums<D> & acc, double N, const Vec<D>& dN, const Payload& w) __attribute__((always_inline)) {
+    acc.q += N * w.q;
     if constexpr (MomentumOnly) return;
-    acc.m += Ne[e] * w.m;
-    acc.drag += Ne[e] * w.drag;
-    acc.fw += w.Vnp * dNe[e];
-    acc.fp += w.Vp * dNe[e];
-    acc.g += w.V * dNe[e];
-    acc.gn += w.nV * dNe[e];
+    acc.m += N * w.m;
+    acc.drag += N * w.drag;
+    acc.fw += w.Vnp * dN;
+    acc.fp += w.Vp * dN;
+    acc.g += w.V * dN;
+    acc.gn += w.nV * dN;
   };
   auto merge = [&](int I, const LiquidSums<D>& acc) {
     qw_[I] += acc.q;
@@ -124,9 +123,10 @@ void TwoPhase<D>::scatter_with(const Engine<D>& e, Update&& update, Prep&& prep,
     auto prep_both = [prep, liquid_prep](int p) __attribute__((always_inline)) {
       return std::pair(prep(p), liquid_prep(p));
     };
-    auto add_both = [add, liquid_add](MixtureSums<D>& acc, int k, const auto& w) __attribute__((always_inline)) {
-      add(acc.solid, k, w.first);
-      liquid_add(acc.liquid, k, w.second);
+    auto add_both = [ add, liquid_add ](MixtureSums<D> & acc, double N, const Vec<D>& dN, const auto& w)
+        __attribute__((always_inline)) {
+      add(acc.solid, N, dN, w.first);
+      liquid_add(acc.liquid, N, dN, w.second);
     };
     auto merge_both = [&](int I, const MixtureSums<D>& acc) { merge(I, acc.solid), liquid_merge(I, acc.liquid); };
     auto clear_both = [&](int I0, int I1) { clear(I0, I1), liquid_clear(I0, I1); };

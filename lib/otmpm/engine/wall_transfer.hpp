@@ -58,9 +58,11 @@ template <int D> struct WallTransfer {
   /// nodes_of(p, lo, hi): the node-id range of the rows of a group of
   /// particles holding p, all of whose members the summing block holds
   /// (false: unknown); a block whose range holds no noted node is skipped.
-  template <class Change, class NodesOf>
-  double booked(Change&& change, const BasisTable<D>& table, const Particles<D>& P, const std::vector<double>& m,
-                const Constraints<D>& c, NodesOf&& nodes_of) const; // engine.cpp (it sums over the particles in parallel blocks)
+  /// `rows`: the step's rows as a pass reads them (rows.hpp, visit_row).
+  template <class Change, class Rows, class NodesOf>
+  double booked(Change&& change, const Rows& rows, const Particles<D>& P, const std::vector<double>& m,
+                const Constraints<D>& c,
+                NodesOf&& nodes_of) const; // engine.cpp (it sums over the particles in parallel blocks)
 };
 
 } // namespace otmpm
