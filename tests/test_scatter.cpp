@@ -25,8 +25,9 @@ namespace {
 
 /// The trilinear basis table of an n^3-cell unit lattice ((n + 1)^3 nodes,
 /// x fastest) with 2 x 2 x 2 particles per cell, seeded in the order of the
-/// bench's 3D block: x fastest over the whole block, then y, then z. Only
-/// node ids and weights (the sums below use no gradients).
+/// bench's 3D block: x fastest over the whole block, then y, then z. Node
+/// ids and weights; the gradients zero (the sums below use none, but a pass
+/// hands each entry's to its add).
 BasisTable<3> seeded_table(int n) {
   BasisTable<3> t;
   const int rows = 2 * n, nn = n + 1;
@@ -40,6 +41,7 @@ BasisTable<3> seeded_table(int n) {
             for (int dx = 0; dx < 2; ++dx) {
               t.node.push_back((c[0] + dx) + nn * ((c[1] + dy) + nn * (c[2] + dz)));
               t.N.push_back((dx ? f[0] : 1 - f[0]) * (dy ? f[1] : 1 - f[1]) * (dz ? f[2] : 1 - f[2]));
+              t.dN.push_back(Vec<3>::Zero());
             }
         t.offset.push_back(static_cast<int>(t.node.size()));
       }
@@ -131,6 +133,7 @@ BasisTable<3> shuffled(const BasisTable<3>& t) {
   for (const int p : perm) {
     out.node.insert(out.node.end(), t.node.begin() + t.begin(p), t.node.begin() + t.end(p));
     out.N.insert(out.N.end(), t.N.begin() + t.begin(p), t.N.begin() + t.end(p));
+    out.dN.insert(out.dN.end(), t.dN.begin() + t.begin(p), t.dN.begin() + t.end(p));
     out.offset.push_back(static_cast<int>(out.node.size()));
   }
   return out;
