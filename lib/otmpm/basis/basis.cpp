@@ -739,9 +739,12 @@ template <int D> void expand_lattice_rows(const LatticeRows<D>& rows, BasisTable
   table.N.resize(static_cast<std::size_t>(n) * S);
   table.dN.resize(static_cast<std::size_t>(n) * S);
   parallel_for(n, [&](long long p) {
-    const auto e = static_cast<std::size_t>(p) * S;
-    rows.row(static_cast<int>(p), &table.node[e], &table.N[e], &table.dN[e]);
+    auto e = static_cast<std::size_t>(p) * S;
     table.offset[static_cast<std::size_t>(p)] = static_cast<int>(e);
+    rows.visit_row(static_cast<int>(p), [&](int I, double N, const Vec<D>& dN) {
+      table.node[e] = I, table.N[e] = N, table.dN[e] = dN;
+      ++e;
+    });
   });
   table.offset.back() = n * S;
 }

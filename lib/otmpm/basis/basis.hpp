@@ -368,9 +368,10 @@ template <int D> struct BasisTable {
 /// 1/h_k), N_a = prod_k w_k[a_k] and (grad N_a)_m the same product with d_m in
 /// place of w_m, corner a having bit k set at the upper node of axis k. Calls
 /// f(a, N_a, grad N_a) for a = 0, 1, ..., 2^D - 1, each product formed left
-/// to right in axis order where it is used: LinearBasis' table
-/// (hat_products) and the compact rows (LatticeRows) both take their values
-/// from here, so a row rebuilt from t has the table's bits.
+/// to right in axis order where it is used: LinearBasis' table (through
+/// hat_products; its SSE2 form in 2D and 3D computes the same products, the
+/// same bits - tests/test_linear.cpp) and the compact rows (LatticeRows)
+/// take their values from here, so a row rebuilt from t has the table's bits.
 template <int D, class F>
 [[gnu::always_inline]] inline void visit_hats(const Vec<D>& t, const std::array<std::array<double, 2>, D>& d,
                                               F&& f) {
@@ -412,10 +413,22 @@ template <int D> struct LatticeRows {
   std::array<std::array<double, 2>, D> d{};  ///< d N / d x_k of the lower / upper 1D hat: -1/h_k, 1/h_k
 
   int rows() const { return static_cast<int>(base.size()); }
-  /// The entries of row p, in the table's order.
-  [[gnu::always_inline]] void row(int p, int* node, double* N, Vec<D>* dN) const {
-    for (int a = 0; a < kCorners; ++a) node[a] = base[static_cast<std::size_t>(p)] + corner_offset[a];
-    hat_products<D>(t[static_cast<std::size_t>(p)], d, N, dN);
+  /// f(I, N_Ip, grad N_Ip) for the entries of a row with lowest node `b` and
+  /// place `tp` (its base and t), in the table's order, each weight formed
+  /// where it is used (visit_hats: a caller that reads only N or only grad N
+  /// forms only those). Static, so that a pass may hold the arrays in its own
+  /// locals (engine/rows.hpp, LatticeView).
+  template <class F>
+  [[gnu::always_inline]] static void visit(int b, const Vec<D>& tp, const std::array<int, kCorners>& offset,
+                                           const std::array<std::array<double, 2>, D>& d, F&& f) {
+    visit_hats<D>(
+        tp, d, [&](int a, double N, const Vec<D>& dN) __attribute__((always_inline)) {
+          f(b + offset[a], N, dN);
+        });
+  }
+  /// visit() for row p.
+  template <class F> [[gnu::always_inline]] void visit_row(int p, F&& f) const {
+    visit(base[static_cast<std::size_t>(p)], t[static_cast<std::size_t>(p)], corner_offset, d, f);
   }
   /// The smallest and largest node id of row p.
   int lowest(int p) const { return base[static_cast<std::size_t>(p)]; }

@@ -30,7 +30,9 @@ template <int D, int W> struct TableView {
 };
 
 /// The compact lattice rows (LatticeRows) as a pass reads them: each row's
-/// 2^D entries rebuilt (LatticeRows::row) before they are visited.
+/// 2^D entries rebuilt (LatticeRows::visit) before they are visited. The
+/// arrays' pointers and the lattice's constants are the view's own copies,
+/// so that a pass's stores cannot alias them.
 template <int D> struct LatticeView {
   static constexpr int S = LatticeRows<D>::kCorners;
   const int* base;
@@ -39,15 +41,9 @@ template <int D> struct LatticeView {
   std::array<std::array<double, 2>, D> d;
   explicit LatticeView(const LatticeRows<D>& r)
       : base(r.base.data()), t(r.t.data()), corner_offset(r.corner_offset), d(r.d) {}
-  /// f(I, N_Ip, grad N_Ip) for the entries of row p in the table's order,
-  /// each weight formed where it is used (visit_hats: a pass that reads
-  /// only N or only grad N forms only those).
+  /// f(I, N_Ip, grad N_Ip) for the entries of row p in the table's order.
   template <class F> [[gnu::always_inline]] void visit_row(int p, F&& f) const {
-    const int b = base[p];
-    visit_hats<D>(
-        t[p], d, [&](int a, double N, const Vec<D>& dN) __attribute__((always_inline)) {
-          f(b + corner_offset[a], N, dN);
-        });
+    LatticeRows<D>::visit(base[p], t[p], corner_offset, d, f);
   }
 };
 
@@ -73,10 +69,15 @@ template <int D> struct StepRows {
   bool built = false;   ///< (compact) `table` holds them too
   int width = 0;        ///< linear_row_width(table) (compact: 2^D)
 
-  /// The full table of the step's rows.
+  /// The full table of the step's rows. Built on the first call of a
+  /// step that kept the lattice rows, which must not run beside a pass (it
+  /// writes the table); after that, and for the table's own steps, it only
+  /// reads, so the threads of a pass may call it.
   const BasisTable<D>& full() {
-    if (compact && !built) expand_lattice_rows(lattice, table);
-    built = true;
+    if (compact && !built) {
+      expand_lattice_rows(lattice, table);
+      built = true;
+    }
     return table;
   }
   /// Runs f(view) with the view of the step's rows for a pass (with_row_view).

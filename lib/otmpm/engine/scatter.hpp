@@ -226,10 +226,12 @@ private:
     return used;
   }
 
-  static int entry_begin(const BasisTable<D>& table, int b) { return table.begin(b * scatter_block); }
-  static int entry_end(const BasisTable<D>& table, int b) {
-    return table.end(std::min(table.rows(), (b + 1) * scatter_block) - 1);
+  /// One past block b's last row.
+  template <class Rows> static int block_end(const Rows& rows, int b) {
+    return std::min(rows.rows(), (b + 1) * scatter_block);
   }
+  static int entry_begin(const BasisTable<D>& table, int b) { return table.begin(b * scatter_block); }
+  static int entry_end(const BasisTable<D>& table, int b) { return table.end(block_end(table, b) - 1); }
   static long long entry_count(const BasisTable<D>& table) { return static_cast<long long>(table.entries()); }
   static long long entry_count(const LatticeRows<D>& rows) {
     return static_cast<long long>(rows.rows()) * LatticeRows<D>::kCorners;
@@ -247,8 +249,7 @@ private:
   }
   static void block_range(const LatticeRows<D>& rows, int b, int nodes, int& lo_b, int& hi_b) {
     int lo = nodes, hi = -1;
-    const int end = std::min(rows.rows(), (b + 1) * scatter_block);
-    for (int p = b * scatter_block; p < end; ++p) {
+    for (int p = b * scatter_block; p < block_end(rows, b); ++p) {
       lo = std::min(lo, rows.lowest(p));
       hi = std::max(hi, rows.highest(p));
     }
@@ -260,8 +261,7 @@ private:
     for (int e = entry_begin(table, b); e < entry_end(table, b); ++e) f(table.node[e]);
   }
   template <class F> static void block_nodes_visit(const LatticeRows<D>& rows, int b, F&& f) {
-    const int end = std::min(rows.rows(), (b + 1) * scatter_block);
-    for (int p = b * scatter_block; p < end; ++p)
+    for (int p = b * scatter_block; p < block_end(rows, b); ++p)
       for (int a = 0; a < LatticeRows<D>::kCorners; ++a) f(rows.lowest(p) + rows.corner_offset[a]);
   }
 
@@ -291,7 +291,7 @@ private:
   /// into at(node), in particle order.
   template <class Rows, class At, class Update, class Prep, class Add>
   void block_sums(const Rows& table, int b, At at, Update& update, Prep& prep, Add& add) {
-    const int begin = b * scatter_block, end = std::min(table.rows(), begin + scatter_block);
+    const int begin = b * scatter_block, end = block_end(table, b);
     update(begin, end);
     with_row_view(table, width_, [&](const auto& view) { rows_sums(view, begin, end, at, prep, add); });
   }
