@@ -446,6 +446,16 @@ private:
     return locate(L, x, base, t, nullptr);
   }
 
+  /// The cell index of coordinate xk along axis k, and xk's place t_k in
+  /// [0, 1] in that cell; xk inside the widened box.
+  [[gnu::always_inline]] static inline int axis_cell(const Lattice& L, int k, double xk, double& tk) {
+    const double u = (xk - L.lower[k]) / L.h[k];
+    // u >= -1e-12 here (the box), so truncation, clamped, is floor, clamped
+    const int c = std::clamp(static_cast<int>(u), 0, L.last_cell[k]);
+    tk = std::clamp(u - c, 0.0, 1.0);
+    return c;
+  }
+
   /// The cell of x: the id of its lowest corner into base and x's place t_k
   /// in [0, 1] in it along each axis (and the cell into *cell when not
   /// null); false when x is outside the widened grid box or not finite.
@@ -455,10 +465,7 @@ private:
       if (!(x[k] >= L.lo[k] && x[k] <= L.hi[k])) return false; // also for NaN
     base = 0;
     for (int k = 0; k < D; ++k) {
-      const double u = (x[k] - L.lower[k]) / L.h[k];
-      // u >= -1e-12 here (the box), so truncation, clamped, is floor, clamped
-      const int c = std::clamp(static_cast<int>(u), 0, L.last_cell[k]);
-      t[k] = std::clamp(u - c, 0.0, 1.0);
+      const int c = axis_cell(L, k, x[k], t[k]);
       base += L.stride[k] * c;
       if (cell) (*cell)[k] = c;
     }
@@ -512,8 +519,6 @@ private:
     return true;
   }
 
-  /// hats() in 2D and 3D with axes 0 and 1 in lanes (pair_hats) and axis 2
-  /// as the generic form takes it: the same bits.
   /// locate() in 2D and 3D with axes 0 and 1 in lanes (pair_place) and axis
   /// 2 as locate() takes it: the same bits, one division fewer.
   [[gnu::always_inline]] static inline bool locate_in_lanes(const Lattice& L, const Vec<D>& x, int& base,
@@ -525,14 +530,13 @@ private:
     _mm_storeu_pd(t.data(), t01);
     if constexpr (D == 3) {
       if (!(x[2] >= L.lo[2] && x[2] <= L.hi[2])) return false;
-      const double u = (x[2] - L.lower[2]) / L.h[2];
-      const int c2 = std::clamp(static_cast<int>(u), 0, L.last_cell[2]);
-      t[2] = std::clamp(u - c2, 0.0, 1.0);
-      base += L.stride[2] * c2;
+      base += L.stride[2] * axis_cell(L, 2, x[2], t[2]);
     }
     return true;
   }
 
+  /// hats() in 2D and 3D with axes 0 and 1 in lanes (pair_hats) and axis 2
+  /// as the generic form takes it: the same bits.
   [[gnu::always_inline]] static inline bool hats_in_lanes(const Lattice& L, const Vec<D>& x, int* node, double* N,
                                                           Vec<D>* dN, Index<D>* cell) {
     PairHats p;
@@ -542,9 +546,8 @@ private:
     int c2 = 0;
     if constexpr (D == 3) {
       if (!(x[2] >= L.lo[2] && x[2] <= L.hi[2])) return false;
-      const double u = (x[2] - L.lower[2]) / L.h[2];
-      c2 = std::clamp(static_cast<int>(u), 0, L.last_cell[2]);
-      const double t = std::clamp(u - c2, 0.0, 1.0);
+      double t;
+      c2 = axis_cell(L, 2, x[2], t);
       w2[0] = 1.0 - t, w2[1] = t;
       base += L.stride[2] * c2;
     }
