@@ -139,27 +139,43 @@ template <class Body> void parallel_for(long long n, Body&& body) {
 constexpr int reduction_block = 1024;
 static_assert(home_granule % reduction_block == 0, "a particle loop and a blocked sum give each thread the same particles");
 
+/// Blocks of reduction_block items of [0, n), the last one short.
+inline long long reduction_blocks(long long n) { return (n + reduction_block - 1) / reduction_block; }
+
+/// Runs body(b, begin, end) for every fixed block b = 0 .. reduction_blocks(n)
+/// - 1 of [0, n), [begin, end) its items, on the threads of a loop over n
+/// items (each thread its own home items, as parallel_chunks gives them).
+template <class Body> void parallel_blocks(long long n, Body&& body) {
+  parallel_chunks(
+      reduction_blocks(n), team_size(n),
+      [&](long long b0, long long b1) {
+        for (long long b = b0; b < b1; ++b)
+          body(b, b * reduction_block, std::min(n, (b + 1) * reduction_block));
+      },
+      home_granule / reduction_block);
+}
+
+/// The total of per-block sums in block order (Acc default-constructed =
+/// zero, with `a += b`).
+template <class Acc> Acc total_in_order(const std::vector<Acc>& partial) {
+  Acc total{};
+  for (const Acc& a : partial) total += a;
+  return total;
+}
+
 /// Sums over [0, n) into an accumulator `Acc` (default-constructed = zero,
 /// with `a += b`) block by block: term(begin, end, acc) adds items
 /// [begin, end) to acc, in index order. The blocks are the fixed ranges of
 /// reduction_block items, and their sums are added in block order - the
 /// same bits for any thread count.
 template <class Acc, class Term> Acc blocked_reduce_ranges(long long n, Term&& term) {
-  const long long blocks = (n + reduction_block - 1) / reduction_block;
-  std::vector<Acc> partial(static_cast<std::size_t>(blocks));
-  parallel_chunks(
-      blocks, team_size(n),
-      [&](long long b0, long long b1) {
-        for (long long b = b0; b < b1; ++b) {
-          Acc acc{};
-          term(b * reduction_block, std::min(n, (b + 1) * reduction_block), acc);
-          partial[static_cast<std::size_t>(b)] = acc;
-        }
-      },
-      home_granule / reduction_block);
-  Acc total{};
-  for (const Acc& a : partial) total += a;
-  return total;
+  std::vector<Acc> partial(static_cast<std::size_t>(reduction_blocks(n)));
+  parallel_blocks(n, [&](long long b, long long begin, long long end) {
+    Acc acc{};
+    term(begin, end, acc);
+    partial[static_cast<std::size_t>(b)] = acc;
+  });
+  return total_in_order(partial);
 }
 
 /// A list built over [0, n): emit(begin, end, list) appends what indices
@@ -169,7 +185,7 @@ template <class Acc, class Term> Acc blocked_reduce_ranges(long long n, Term&& t
 /// join in block order; on one, emit runs once over [0, n): the same list
 /// for any thread count (out's memory is reused).
 template <class Emit> void parallel_list(long long n, Emit&& emit, std::vector<int>& out) {
-  const long long blocks = (n + reduction_block - 1) / reduction_block;
+  const long long blocks = reduction_blocks(n);
   out.clear();
   if (blocks <= 1 || team_size(n) <= 1) return emit(0LL, n, out);
   std::vector<std::vector<int>> lists(static_cast<std::size_t>(blocks));

@@ -311,6 +311,7 @@ template <int D> void Engine<D>::step() {
     unstable("time step " + format_number(dt_) + " is not positive and finite");
   if (dt_prev_ == 0.0) dt_prev_ = dt_;
   transfer_.clear(); // what a step did not book (otm)
+  step_sums_.ready = false; // until the step's last pass takes them (ToParticles::last)
   loads_.traction_positions(P_, traction_start_);
   if (mode_.nodes_move()) x_start_.assign(P_.x.begin(), P_.x.end());
   if (channel_) channel_->start(P_);
@@ -706,6 +707,31 @@ void Engine<D>::solve_mass(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>
   if (c > 0.0) book_inertial_reaction(y, c);
 }
 
+template <int D>
+void Engine<D>::solve_mass_add(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>& y, double c,
+                               AlignedVector<Vec<D>>& v, double s, const AlignedVector<Vec<D>>* q) {
+  if (settings_.consistent_mass) {
+    solve_mass(r, y, c);
+    if (q) solve_mass(*q, v);
+    ScopedPhase timer(timers_, Phase::nodal_update);
+    const std::vector<int>& visited = nodal_.visited;
+    parallel_for(static_cast<long long>(visited.size()),
+                 [&](long long i) { v[visited[i]] += s * y[visited[i]]; });
+    return;
+  }
+  ScopedPhase timer(timers_, Phase::nodal_update);
+  y.resize(r.size());
+  if (q) v.resize(q->size());
+  const std::vector<int>& visited = nodal_.visited; // the others hold zero in r, q, y and v
+  parallel_for(static_cast<long long>(visited.size()), [&](long long i) {
+    const int I = visited[i];
+    const bool active = nodal_.active[I];
+    y[I] = active ? Vec<D>(r[I] / nodal_.m[I]) : Vec<D>::Zero();
+    if (q) v[I] = active ? Vec<D>((*q)[I] / nodal_.m[I]) : Vec<D>::Zero();
+    v[I] += s * y[I];
+  });
+}
+
 template <int D> void Engine<D>::book_inertial_reaction(const AlignedVector<Vec<D>>& y, double c) {
   // The distributed product is collective: every rank takes it when any
   // rank holds a fixed node (a rank without one would leave the others waiting).
@@ -840,6 +866,8 @@ void Engine<D>::to_particles_and_update_stress(const ToParticles<D>& what, const
   if (what.rate) book_transfer(what);
   fallible([&] {
     const Gradient<D> own = average_volumetric(g) ? Gradient<D>{} : g;
+    const bool pic = what.pic && what.pic_share > 0.0;
+    if (what.last && !pic && !what.liquid && !settings_.two_phase) return to_particles_and_sum(what, own);
     parallel_chunks(P_.size(), [&](long long begin, long long end) {
       to_particles_on(what, own, static_cast<int>(begin), static_cast<int>(end));
     });

@@ -9,6 +9,7 @@
 /// below (evaluate_basis, to_nodes, solve_mass, to_particles, advect_nodes).
 /// The engine knows no scene, no benchmark and no integrator by name.
 #include "otmpm/basis/basis.hpp"
+#include "otmpm/engine/after_step.hpp"
 #include "otmpm/engine/constraints.hpp"
 #include "otmpm/engine/contact.hpp"
 #include "otmpm/engine/distribution.hpp"
@@ -221,6 +222,12 @@ template <int D> struct ToParticles {
   /// the kinetic energy it removes booked as W_v (EnergyBalance::relaxation).
   const AlignedVector<Vec<D>>* pic = nullptr;
   double pic_share = 0.0;
+  /// The step's last change to the particles (nothing after it moves them
+  /// or changes their state): the engine takes the after-step sums and
+  /// checks of each block of particles right after the block's update
+  /// (after_step.hpp) - the same bits as the sweep after the step, which it
+  /// saves. Not with a PIC relaxation or the liquid of saturated bodies.
+  bool last = false;
 };
 
 /// A nodal field g with a factor c whose gradient drives the constitutive
@@ -331,6 +338,10 @@ public:
   /// reaction (impulse c rho, work c rho vbar), so that the reaction impulse
   /// is the momentum the particles get.
   void solve_mass(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>& y, double c = 0.0);
+  /// solve_mass(r, y, c), then v += s y - or, with `q`, v = M^{-1} q + s y;
+  /// with the lumped mass in one pass over the nodes (the same bits as the separate calls).
+  void solve_mass_add(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>& y, double c,
+                      AlignedVector<Vec<D>>& v, double s, const AlignedVector<Vec<D>>* q = nullptr);
   /// Sets the fixed components of a nodal velocity-like field to their value,
   /// corrects the velocities of bodies in contact (BodyContact::apply) and
   /// applies the rigid walls (Constraints::apply_walls) at the nodes'
@@ -384,34 +395,28 @@ private:
   /// The checks of particle p: finite position, velocity and stress; on the
   /// fixed grid inside it and not about to leave it.
   void check_particle(int p) const;
-  /// True when particle p passes check_particle (inline, no message: x - x
-  /// is 0 for a finite x and NaN otherwise, so one sum tests every value).
-  bool particle_ok(int p) const { return finite_state(p) && mode_.keeps_inside(P_.x[p], P_.v[p], dt_); }
+  /// True when particle p passes check_particle (no message: x - x is 0 for
+  /// a finite x and NaN otherwise, so one sum tests every value).
+  bool particle_ok(int p) const;
   /// True when particles [p0, p1) all pass check_particle: particle_ok
   /// without a branch per particle (the after-step pass's fast test).
-  bool particles_ok(int p0, int p1) const {
-    Vec<D> z = Vec<D>::Zero(); // 0 when every value of every particle is finite
-    for (int p = p0; p < p1; ++p) z += finite_terms(p);
-    bool ok = (z.array() == 0.0).all();
-    ok &= mode_.keep_inside(P_.x.data(), P_.v.data(), p0, p1, dt_);
-    return ok;
-  }
-  /// x - x is 0 for a finite x and NaN otherwise: the sum of these terms of
-  /// particle p's position, velocity and stress columns, as a D-vector, is 0
-  /// exactly when every value is finite.
-  Vec<D> finite_terms(int p) const {
-    const Vec<D>& x = P_.x[p];
-    const Vec<D>& v = P_.v[p];
-    Vec<D> t = (x - x) + (v - v);
-    for (int j = 0; j < D; ++j) t += P_.sigma[p].col(j) - P_.sigma[p].col(j);
-    return t;
-  }
-  /// True when particle p's position, velocity and stress are finite.
-  bool finite_state(int p) const { return (finite_terms(p).array() == 0.0).all(); }
+  bool particles_ok(int p0, int p1) const;
+  /// The sum of x - x over particle p's position, velocity and stress
+  /// columns: zero exactly when every value is finite.
+  Vec<D> finite_terms(int p) const;
   /// After each step: check_particle() for every particle, the energies,
   /// the wave speed for the next stable_dt() and the momentum, in one pass
   /// (no checks when `check` is false).
   void sum_particles(bool check);
+  /// Adds particles [p0, p1) (a sub-block of a block of sum_particles) to
+  /// acc: kinetic energy, momentum, |v_p|^2 and the staying() test; false
+  /// when `check` and particles_ok fails (acc's sums then go on).
+  bool kinematic_sums(int p0, int p1, bool check, ParticleSums<D>& acc) const;
+  /// Adds the materials' stored and dissipated energies and c_p^2 of particles [p0, p1) to acc.
+  void material_sums(int p0, int p1, ParticleSums<D>& acc) const;
+  /// to_particles_on over the blocks of particles, each block's sums into step_sums_ after its update
+  /// (ToParticles::last).
+  void to_particles_and_sum(const ToParticles<D>& what, const Gradient<D>& g);
   /// Distributed runs: every rank stops on the failing particle with the
   /// lowest global id when any rank's checks failed (`failed`).
   void agree_checks(bool failed) const;
@@ -510,6 +515,7 @@ private:
   std::vector<int> light_;        ///< ul: nodes under kLightNode of the heaviest's mass (finish_mass)
   LaidOutLattice<D> laid_out_;
   FbarState<D> fbar_;
+  StepSums<D> step_sums_; ///< the after-step sums of the step's last pass (ToParticles::last)
   double t_ = 0.0, dt_ = 0.0, dt_prev_ = 0.0;
   long step_ = 0;
   PhaseTimers timers_;

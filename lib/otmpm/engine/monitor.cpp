@@ -25,23 +25,6 @@ constexpr double energy_floor = 1e-300;
 /// stresses and strains missed it: about 4% of a linear block step).
 constexpr int monitor_sub_block = 64;
 
-/// Per-block sums of the after-step pass (added block by block; the
-/// momentum as momentum() adds it, so it has its bits).
-template <int D> struct ParticleSums {
-  double kinetic = 0.0, strain = 0.0, dissipated = 0.0, wave_speed2 = 0.0;
-  bool outside = false; ///< a particle outside the rank's staying() box
-  Vec<D> momentum = Vec<D>::Zero();
-  ParticleSums& operator+=(const ParticleSums& o) {
-    kinetic += o.kinetic;
-    strain += o.strain;
-    dissipated += o.dissipated;
-    wave_speed2 = std::max(wave_speed2, o.wave_speed2);
-    outside |= o.outside;
-    momentum += o.momentum;
-    return *this;
-  }
-};
-
 /// A D-vector summed over particles with blocked_reduce.
 template <int D> struct VecSum {
   Vec<D> v = Vec<D>::Zero();
@@ -62,69 +45,121 @@ template <int D> Vec<D> Engine<D>::momentum() const {
 
 template <int D> void Engine<D>::update_energy() { sum_particles(false); }
 
+template <int D> Vec<D> Engine<D>::finite_terms(int p) const {
+  const Vec<D>& x = P_.x[p];
+  const Vec<D>& v = P_.v[p];
+  Vec<D> t = (x - x) + (v - v);
+  for (int j = 0; j < D; ++j) t += P_.sigma[p].col(j) - P_.sigma[p].col(j);
+  return t;
+}
+
+template <int D> bool Engine<D>::particle_ok(int p) const {
+  return (finite_terms(p).array() == 0.0).all() && mode_.keeps_inside(P_.x[p], P_.v[p], dt_);
+}
+
+template <int D> bool Engine<D>::particles_ok(int p0, int p1) const {
+  Vec<D> z = Vec<D>::Zero(); // 0 when every value of every particle is finite
+  for (int p = p0; p < p1; ++p) z += finite_terms(p);
+  bool ok = (z.array() == 0.0).all();
+  ok &= mode_.keep_inside(P_.x.data(), P_.v.data(), p0, p1, dt_);
+  return ok;
+}
+
+template <int D> bool Engine<D>::kinematic_sums(int p0, int p1, bool check, ParticleSums<D>& acc) const {
+  if (const PositionBox<D>* stay = dist_ ? dist_->staying() : nullptr)
+    for (int p = p0; p < p1; ++p) acc.outside |= !stay->contains(P_.x[p]);
+  const bool ok = !check || particles_ok(p0, p1);
+  // The sums in locals (acc is memory the particle arrays might alias, as
+  // far as the compiler knows), in particle order.
+  const Vec<D>* v = P_.v.data();
+  const double* m = P_.m.data();
+  double kinetic = acc.kinetic, wave_speed2 = acc.wave_speed2;
+  Vec<D> momentum = acc.momentum;
+  for (int p = p0; p < p1; ++p) {
+    const double v2 = v[p].squaredNorm();
+    kinetic += 0.5 * m[p] * v2;
+    momentum += m[p] * v[p];
+    wave_speed2 = std::max(wave_speed2, v2);
+  }
+  acc.kinetic = kinetic, acc.wave_speed2 = wave_speed2, acc.momentum = momentum;
+  return ok;
+}
+
+template <int D> void Engine<D>::material_sums(int p0, int p1, ParticleSums<D>& acc) const {
+  for (int r0 = p0; r0 < p1;) { // runs of one material
+    const int id = P_.material[r0];
+    int r1 = r0 + 1;
+    while (r1 < p1 && P_.material[r1] == id) ++r1;
+    const Material<D>& material = *materials_[static_cast<std::size_t>(id)];
+    material.add_energies(P_, r0, r1, acc.strain, acc.dissipated);
+    material.max_wave_speed2(P_, r0, r1, acc.wave_speed2); // the model's own c_p
+    r0 = r1;
+  }
+}
+
+template <int D> void Engine<D>::to_particles_and_sum(const ToParticles<D>& what, const Gradient<D>& g) {
+  std::vector<ParticleSums<D>>& partial = step_sums_.partial;
+  partial.assign(static_cast<std::size_t>(reduction_blocks(P_.size())), {});
+  parallel_blocks(P_.size(), [&](long long b, long long b0, long long b1) {
+    ParticleSums<D>& acc = partial[static_cast<std::size_t>(b)];
+    // The sums' sub-blocks of sum_particles, each right after its update.
+    for (int s0 = static_cast<int>(b0); s0 < b1; s0 += monitor_sub_block) {
+      const int s1 = static_cast<int>(std::min<long long>(b1, s0 + monitor_sub_block));
+      to_particles_on(what, g, s0, s1);
+      if (acc.unchecked) continue; // the sweep after the step takes this step's sums
+      try {
+        acc.unchecked = !kinematic_sums(s0, s1, true, acc);
+        if (!acc.unchecked) material_sums(s0, s1, acc);
+      } catch (const InstabilityError&) { // a model that cannot price a failed particle: the sweep names it
+        acc.unchecked = true;
+      }
+    }
+  });
+  step_sums_.ready = true;
+}
+
 template <int D> void Engine<D>::sum_particles(bool check) {
   // Checks in particle order within each block: the lowest failing particle
   // is reported, as a serial loop would. A rank of a distributed run notes
   // a failure and looks for its lowest global id afterwards (agree_checks).
   std::atomic<bool> failed{false};
-  const PositionBox<D>* stay = dist_ ? dist_->staying() : nullptr;
-  const auto kinematics = [&](int p0, int p1, ParticleSums<D>& acc) {
-    if (stay)
-      for (int p = p0; p < p1; ++p) acc.outside |= !stay->contains(P_.x[p]);
-    const bool all_ok = !check || particles_ok(p0, p1);
-    for (int p = p0; !all_ok && p < p1; ++p) {
-      if (particle_ok(p)) continue;
-      if (!dist_) check_particle(p);
-      else try {
-          check_particle(p);
-        } catch (const InstabilityError&) {
-          failed.store(true, std::memory_order_relaxed);
-        }
-    }
-    // The sums in locals (acc is memory the particle arrays might alias, as
-    // far as the compiler knows), in particle order.
-    const Vec<D>* v = P_.v.data();
-    const double* m = P_.m.data();
-    double kinetic = acc.kinetic, wave_speed2 = acc.wave_speed2;
-    Vec<D> momentum = acc.momentum;
-    for (int p = p0; p < p1; ++p) {
-      const double v2 = v[p].squaredNorm();
-      kinetic += 0.5 * m[p] * v2;
-      momentum += m[p] * v[p];
-      wave_speed2 = std::max(wave_speed2, v2);
-    }
-    acc.kinetic = kinetic, acc.wave_speed2 = wave_speed2, acc.momentum = momentum;
-  };
   const auto sums = [&](long long b0, long long b1, ParticleSums<D>& acc) {
     // Sub-blocks small enough that the material's energy pass finds the
     // particles still in the L1 cache; the sums keep particle order.
     for (int s0 = static_cast<int>(b0); s0 < b1; s0 += monitor_sub_block) {
       const int s1 = static_cast<int>(std::min<long long>(b1, s0 + monitor_sub_block));
-      kinematics(s0, s1, acc);
-      for (int r0 = s0; r0 < s1;) { // runs of one material
-        const int id = P_.material[r0];
-        int r1 = r0 + 1;
-        while (r1 < s1 && P_.material[r1] == id) ++r1;
-        const Material<D>& material = *materials_[static_cast<std::size_t>(id)];
-        material.add_energies(P_, r0, r1, acc.strain, acc.dissipated);
-        material.max_wave_speed2(P_, r0, r1, acc.wave_speed2); // the model's own c_p
-        r0 = r1;
+      const bool ok = kinematic_sums(s0, s1, check, acc);
+      for (int p = s0; !ok && p < s1; ++p) {
+        if (particle_ok(p)) continue;
+        if (!dist_)
+          check_particle(p);
+        else
+          try {
+            check_particle(p);
+          } catch (const InstabilityError&) {
+            failed.store(true, std::memory_order_relaxed);
+          }
       }
+      material_sums(s0, s1, acc);
     }
   };
-  ParticleSums<D> s;
-  try {
-    s = blocked_reduce_ranges<ParticleSums<D>>(P_.size(), sums);
-  } catch (const InstabilityError& e) {
-    // A model that cannot price a failed particle (det F <= 0): a rank of a
-    // distributed run defers it and meets the others in the reduction below,
-    // where every rank stops on the lowest failure.
-    if (!dist_) throw;
-    LocalFailure failure;
-    failure.deferred = true;
-    failure.message = e.what();
-    dist_->defer(failure);
-  }
+  // The step's last pass took the blocks' sums (ToParticles::last) unless a particle failed there.
+  const bool taken = check && step_sums_.ready;
+  step_sums_.ready = false;
+  ParticleSums<D> s = taken ? total_in_order(step_sums_.partial) : ParticleSums<D>{};
+  if (!taken || s.unchecked) try {
+      s = {};
+      s = blocked_reduce_ranges<ParticleSums<D>>(P_.size(), sums);
+    } catch (const InstabilityError& e) {
+      // A model that cannot price a failed particle (det F <= 0): a rank of a
+      // distributed run defers it and meets the others in the reduction below,
+      // where every rank stops on the lowest failure.
+      if (!dist_) throw;
+      LocalFailure failure;
+      failure.deferred = true;
+      failure.message = e.what();
+      dist_->defer(failure);
+    }
   TwoPhase<D>* phase = settings_.two_phase.get(); // the liquid of saturated bodies
   LiquidTotals<D> liquid;
   if (phase) {
@@ -239,13 +274,19 @@ template <int D> void Engine<D>::check_energy() const {
              format_number(reference) + " J");
 }
 
-#define OTMPM_INSTANTIATE(D)                                  \
-  template Vec<D> Engine<D>::momentum() const;               \
-  template void Engine<D>::update_energy();                  \
-  template void Engine<D>::sum_particles(bool);              \
-  template void Engine<D>::check_particle(int) const;        \
-  template void Engine<D>::check_particles_inside() const;   \
-  template void Engine<D>::agree_checks(bool) const;        \
+#define OTMPM_INSTANTIATE(D)                                                                                 \
+  template Vec<D> Engine<D>::momentum() const;                                                               \
+  template void Engine<D>::update_energy();                                                                  \
+  template void Engine<D>::sum_particles(bool);                                                              \
+  template void Engine<D>::to_particles_and_sum(const ToParticles<D>&, const Gradient<D>&);                  \
+  template bool Engine<D>::kinematic_sums(int, int, bool, ParticleSums<D>&) const;                           \
+  template void Engine<D>::material_sums(int, int, ParticleSums<D>&) const;                                  \
+  template bool Engine<D>::particle_ok(int) const;                                                           \
+  template bool Engine<D>::particles_ok(int, int) const;                                                     \
+  template Vec<D> Engine<D>::finite_terms(int) const;                                                        \
+  template void Engine<D>::check_particle(int) const;                                                        \
+  template void Engine<D>::check_particles_inside() const;                                                   \
+  template void Engine<D>::agree_checks(bool) const;                                                         \
   template void Engine<D>::check_energy() const;
 OTMPM_INSTANTIATE(1)
 OTMPM_INSTANTIATE(2)

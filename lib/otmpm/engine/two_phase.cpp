@@ -658,7 +658,7 @@ template <int D> std::vector<double> TwoPhase<D>::wave_maxima(const Engine<D>& e
     double count = 0.0;
     for (int p = 0; p < P.size(); ++p) count = std::max(count, static_cast<double>(dist.global_id(p)) + 1.0);
     e.distribution()->max({&count, 1});
-    blocks_ = (static_cast<long long>(count) + reduction_block - 1) / reduction_block;
+    blocks_ = reduction_blocks(static_cast<long long>(count));
   }
   const std::size_t materials = fluids_.size();
   std::vector<double> m(static_cast<std::size_t>(blocks_) * materials * 3, -kUnbounded);

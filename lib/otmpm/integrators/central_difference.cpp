@@ -19,9 +19,7 @@ template <int D> void step_central_difference(Engine<D>& e, const StepContext<D>
   // reactions of each kick are booked with dt/2.
   e.apply_dirichlet_force(n.f, half);
   // 2. kick: a^n = f / m; v^{n+1/2} = q / m + dt/2 a^n; constraints. a^n kept in q.
-  e.solve_mass(n.f, n.a, half);
-  e.solve_mass(n.q, n.v);
-  axpy(n, n.v, half, n.a);
+  e.solve_mass_add(n.f, n.a, half, n.v, half, &n.q);
   e.constrain_velocity(n.v, {.rate = &n.a, .c = half});
   scale(n, n.q, 1.0, n.a);
   // 3. drift: dx_I = dt v^{n+1/2}; sigma^{n+1} from sum dx_I (x) grad N_Ip and (same
@@ -30,13 +28,18 @@ template <int D> void step_central_difference(Engine<D>& e, const StepContext<D>
   e.update_stress_and_to_nodes({&n.dx, 1.0}, {.forces = true, .t = s.t + dt});
   e.apply_dirichlet_force(n.f, half);
   // 4. kick: a^{n+1} = f / m; v^{n+1} = v^{n+1/2} + dt/2 a^{n+1}; constraints.
-  e.solve_mass(n.f, n.a, half);
-  axpy(n, n.v, half, n.a);
+  e.solve_mass_add(n.f, n.a, half, n.v, half);
   e.constrain_velocity(n.v, {.rate = &n.a, .c = half, .hold_rate = true});
   // 5. v_p += dt/2 sum N_Ip (a^n + a^{n+1}), then the PIC relaxation toward
   //    sum N_Ip v^{n+1}, if any; x_p += sum N_Ip dx_I; x_I += dx_I in ul.
   axpy(n, n.a, 1.0, n.q);
-  e.to_particles({.rate = &n.a, .c_rate = half, .move = &n.dx, .c_move = 1.0, .pic = &n.v, .pic_share = pic_share(s)});
+  e.to_particles({.rate = &n.a,
+                  .c_rate = half,
+                  .move = &n.dx,
+                  .c_move = 1.0,
+                  .pic = &n.v,
+                  .pic_share = pic_share(s),
+                  .last = true});
   e.advect_nodes(n.dx);
 }
 

@@ -24,9 +24,7 @@ template <int D> void step_usl(Engine<D>& e, const StepContext<D>& s, bool musl)
   // 2. a_I = f_I / m_I; v_I = q_I / m_I + dt a_I; constraints (their change
   //    of v_I - a held value, a wall - also enters a_I, which updates the
   //    particle velocities).
-  e.solve_mass(n.f, n.a, dt);
-  e.solve_mass(n.q, n.v);
-  axpy(n, n.v, dt, n.a);
+  e.solve_mass_add(n.f, n.a, dt, n.v, dt, &n.q);
   e.constrain_velocity(n.v, {.rate = &n.a, .c = dt});
   if (liquid) liquid->nodal_velocity(e, dt);
   // 3. v_p += dt sum N_Ip a_I; x_p += dt sum N_Ip v_I; x_I += dt v_I in ul;
@@ -35,8 +33,14 @@ template <int D> void step_usl(Engine<D>& e, const StepContext<D>& s, bool musl)
   TwoPhase<D>* rows = musl ? nullptr : liquid;
   if (rows) rows->begin_rows(e, dt);
   const double share = pic_share(s);
-  const ToParticles<D> move{.rate = &n.a, .c_rate = dt, .move = &n.v, .c_move = dt, .liquid = rows,
-                            .pic = musl ? nullptr : &n.v, .pic_share = share};
+  const ToParticles<D> move{.rate = &n.a,
+                            .c_rate = dt,
+                            .move = &n.v,
+                            .c_move = dt,
+                            .liquid = rows,
+                            .pic = musl ? nullptr : &n.v,
+                            .pic_share = share,
+                            .last = !musl};
   // 4. (usl) L_p = sum v_I (x) grad N_Ip; strain, density and stress
   //    update, in the same pass over the particles.
   // musl: v_I recomputed from the updated particle momenta (each block of

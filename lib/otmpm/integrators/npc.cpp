@@ -26,8 +26,7 @@ template <int D> void step_npc(Engine<D>& e, const StepContext<D>& s) {
   e.apply_dirichlet_force(n.f, dt);
   // 6. corrector: v_I = v_I^pred + gamma dt f_I / m_I; a wall holds a node
   //    by zeroing its normal acceleration, as a Dirichlet set zeroes f_I.
-  e.solve_mass(n.f, n.a);
-  axpy(n, n.v, gamma * dt, n.a);
+  e.solve_mass_add(n.f, n.a, 0.0, n.v, gamma * dt);
   e.constrain_velocity(n.v,
                        {.rate = &n.a, .c = gamma * dt, .hold_rate = true, .booking = Booking::held, .reach = 1.0 / gamma});
   // 7. x_p += sum N_Ip (dt v_I + dt^2/2 a_I); a_p = sum N_Ip a_I; v_p += dt
@@ -39,8 +38,15 @@ template <int D> void step_npc(Engine<D>& e, const StepContext<D>& s) {
   for_nodes(n, [&](int I) { n.dx[I] = dt * n.v[I] + (0.5 * dt * dt) * n.a[I]; });
   e.constrain_increment(n.dx);
   e.book_held(n.a);
-  e.to_particles({.rate = &n.a, .c_rate = dt, .rate_out = &P.a, .kick = &n.q, .move = &n.dx, .c_move = 1.0,
-                  .pic = &n.v, .pic_share = pic_share(s)});
+  e.to_particles({.rate = &n.a,
+                  .c_rate = dt,
+                  .rate_out = &P.a,
+                  .kick = &n.q,
+                  .move = &n.dx,
+                  .c_move = 1.0,
+                  .pic = &n.v,
+                  .pic_share = pic_share(s),
+                  .last = true});
   e.advect_nodes(n.dx);
 }
 

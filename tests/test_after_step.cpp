@@ -1,0 +1,115 @@
+// The after-step sums (kinetic, stored and dissipated energy, momentum, the
+// CFL signal speed) and checks, which fe, npc and central_difference take in
+// their last particle pass, block by block right after each block's update
+// (ToParticles::last): they must have the bits of the sweep after the step
+// (Engine::update_energy sums that way), for every integrator, in both node
+// modes, with elastic and plastic materials side by side in one block and a
+// PIC relaxation (which moves the particles after the pass, so that the
+// sweep takes the sums); and a particle that fails the checks in that pass
+// must be the one the full check names.
+#include "otmpm/assembly/assembler.hpp"
+#include "otmpm/scene/scene.hpp"
+
+#include <doctest/doctest.h>
+
+#include <string>
+
+using namespace otmpm;
+
+namespace {
+
+/// Three bodies of 9 particles per cell (3888 particles: four blocks of
+/// sums, the second and the third holding two materials): an elastic one moving at 1 m/s
+/// into a j2 one at rest, a Drucker-Prager one beside them, under gravity on a
+/// floor wall with friction.
+std::string three_blocks(const std::string& mode, const std::string& integrator, const std::string& extra) {
+  return "[simulation]\ndimension = 2\nmode = \"" + mode + "\"\nintegrator = \"" + integrator +
+         "\"\nt_end = 1.0\ncfl = 0.2\n" + extra +
+         "[basis]\nkind = \"linear\"\n[grid]\nlower = [-0.25, -0.25]\nupper = [3.0, 1.5]\ncells = [52, 28]\n"
+         "[[material]]\nname = \"rubber\"\nmodel = \"linear_elastic\"\ndensity = 1000.0\nyoung = 1.0e6\n"
+         "poisson = 0.3\n"
+         "[[material]]\nname = \"metal\"\nmodel = \"j2\"\ndensity = 1000.0\nyoung = 1.0e6\npoisson = 0.3\n"
+         "yield_stress = 2.0e3\nhardening_modulus = 1.0e4\n"
+         "[[material]]\nname = \"sand\"\nmodel = \"drucker_prager\"\ndensity = 1000.0\nyoung = 1.0e6\n"
+         "poisson = 0.3\nfriction_angle = 30.0\n"
+         "[[body]]\nname = \"a\"\nmaterial = \"rubber\"\nlower = [0.0, 0.0]\nupper = [0.75, 0.75]\n"
+         "particles_per_cell = 3\nvelocity = [1.0, 0.0]\n"
+         "[[body]]\nname = \"b\"\nmaterial = \"metal\"\nlower = [0.75, 0.0]\nupper = [1.5, 0.75]\n"
+         "particles_per_cell = 3\n"
+         "[[body]]\nname = \"c\"\nmaterial = \"sand\"\nlower = [1.75, 0.0]\nupper = [2.5, 0.75]\n"
+         "particles_per_cell = 3\n"
+         "[[wall]]\nname = \"floor\"\npoint = [0.0, 0.0]\nnormal = [0.0, 1.0]\nfriction = 0.3\n"
+         "[body_force]\nvalue = [0.0, -9.81]\n";
+}
+
+/// What the after-step sums give, as the engine keeps them.
+struct Sums {
+  double kinetic, strain, dissipated, wave_speed;
+  Vec<2> momentum;
+};
+
+Sums sums_of(const Engine<2>& e) {
+  return {e.energy().kinetic, e.energy().strain, e.energy().dissipated, e.wave_speed(), e.momentum()};
+}
+
+} // namespace
+
+TEST_CASE("the after-step sums taken in the last particle pass have the bits of the sweep after the step") {
+  for (const char* mode : {"mpm", "ul"})
+    for (const char* integrator : {"fe", "musl", "npc", "central_difference", "explicit_alpha"})
+      for (const char* extra : {"", "pic_relaxation_time = 1e-3\n"}) {
+        const std::string run = std::string(mode) + " " + integrator + " " + extra;
+        INFO(run);
+        Engine<2> e = assemble<2>(parse_scene(three_blocks(mode, integrator, extra), "three_blocks.toml"));
+        REQUIRE(e.particles().size() == 3888);
+        for (int s = 0; s < 40; ++s) {
+          e.step();
+          const Sums pass = sums_of(e);
+          e.update_energy(); // the sweep
+          const Sums sweep = sums_of(e);
+          REQUIRE(pass.kinetic == sweep.kinetic);
+          REQUIRE(pass.strain == sweep.strain);
+          REQUIRE(pass.dissipated == sweep.dissipated);
+          REQUIRE(pass.wave_speed == sweep.wave_speed);
+          REQUIRE(pass.momentum == sweep.momentum);
+        }
+        // the sums are not trivially equal: the bodies move, deform and yield
+        CHECK(e.energy().kinetic > 0.0);
+        CHECK(e.energy().strain > 0.0);
+        CHECK(e.energy().dissipated > 0.0);
+      }
+}
+
+TEST_CASE("a particle about to leave the grid in the last particle pass is the one the full check names") {
+  // 1536 particles (two blocks of sums) at 1 m/s towards the grid's right
+  // end: the step that brings the front within a step of it fails, and its
+  // message names the particle check_particles_inside() finds first.
+  const std::string block =
+      "[simulation]\ndimension = 2\nmode = \"mpm\"\nintegrator = \"INTEGRATOR\"\nt_end = 10.0\ncfl = 0.5\n"
+      "[basis]\nkind = \"linear\"\n[grid]\nlower = [0.0, 0.0]\nupper = [4.0, 1.0]\ncells = [64, 16]\n"
+      "[[material]]\nname = \"m\"\nmodel = \"linear_elastic\"\ndensity = 1.0\nyoung = 1.0\npoisson = 0.0\n"
+      "[[body]]\nname = \"b\"\nmaterial = \"m\"\nlower = [0.5, 0.25]\nupper = [3.5, 0.75]\n"
+      "particles_per_cell = 2\nvelocity = [1.0, 0.0]\n";
+  for (const char* integrator : {"fe", "npc", "central_difference"}) {
+    const std::string run = integrator;
+    INFO(run);
+    std::string text = block;
+    text.replace(text.find("INTEGRATOR"), 10, integrator);
+    Engine<2> e = assemble<2>(parse_scene(text, "escaping.toml"));
+    REQUIRE(e.particles().size() == 1536);
+    std::string message;
+    try {
+      for (int s = 0; s < 10000; ++s) e.step();
+    } catch (const InstabilityError& err) {
+      message = err.what();
+    }
+    REQUIRE(message.find("would leave the grid in the next step") != std::string::npos);
+    std::string full;
+    try {
+      e.check_particles_inside();
+    } catch (const InstabilityError& err) {
+      full = err.what();
+    }
+    CHECK(message == full);
+  }
+}
