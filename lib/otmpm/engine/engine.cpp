@@ -683,6 +683,13 @@ template <int D> const AlignedVector<Vec<D>>& Engine<D>::field_positions() const
   return contact_ ? field_positions_ : basis_->nodes().positions();
 }
 
+namespace {
+/// y_I = r_I / m_I of the lumped mass on an active node, 0 on the others (Engine::solve_mass).
+template <int D> Vec<D> lumped_solve(const NodalFields<D>& n, int I, const Vec<D>& r) {
+  return n.active[I] ? Vec<D>(r / n.m[I]) : Vec<D>::Zero();
+}
+} // namespace
+
 template <int D>
 void Engine<D>::solve_mass(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>& y, double c) {
   ScopedPhase timer(timers_, Phase::nodal_update);
@@ -692,7 +699,7 @@ void Engine<D>::solve_mass(const AlignedVector<Vec<D>>& r, AlignedVector<Vec<D>>
   const std::vector<int>& visited = nodal_.visited; // the others hold zero in r and y
   parallel_for(static_cast<long long>(visited.size()), [&](long long i) {
     const int I = visited[i];
-    y[I] = lumped && nodal_.active[I] ? Vec<D>(r[I] / nodal_.m[I]) : Vec<D>::Zero();
+    y[I] = lumped ? lumped_solve(nodal_, I, r[I]) : Vec<D>::Zero();
   });
   if (lumped) return;
   if (dist_)
@@ -725,9 +732,8 @@ void Engine<D>::solve_mass_add(const AlignedVector<Vec<D>>& r, AlignedVector<Vec
   const std::vector<int>& visited = nodal_.visited; // the others hold zero in r, q, y and v
   parallel_for(static_cast<long long>(visited.size()), [&](long long i) {
     const int I = visited[i];
-    const bool active = nodal_.active[I];
-    y[I] = active ? Vec<D>(r[I] / nodal_.m[I]) : Vec<D>::Zero();
-    if (q) v[I] = active ? Vec<D>((*q)[I] / nodal_.m[I]) : Vec<D>::Zero();
+    y[I] = lumped_solve(nodal_, I, r[I]);
+    if (q) v[I] = lumped_solve(nodal_, I, (*q)[I]);
     v[I] += s * y[I];
   });
 }
@@ -867,7 +873,8 @@ void Engine<D>::to_particles_and_update_stress(const ToParticles<D>& what, const
   fallible([&] {
     const Gradient<D> own = average_volumetric(g) ? Gradient<D>{} : g;
     const bool pic = what.pic && what.pic_share > 0.0;
-    if (what.last && !pic && !what.liquid && !settings_.two_phase) return to_particles_and_sum(what, own);
+    if (what.last && !pic && !settings_.two_phase)
+      return to_particles_and_sum(what, own); // (liquid: two_phase)
     parallel_chunks(P_.size(), [&](long long begin, long long end) {
       to_particles_on(what, own, static_cast<int>(begin), static_cast<int>(end));
     });
