@@ -872,15 +872,14 @@ void Engine<D>::to_particles_and_update_stress(const ToParticles<D>& what, const
   if (what.rate) book_transfer(what);
   fallible([&] {
     const Gradient<D> own = average_volumetric(g) ? Gradient<D>{} : g;
-    const bool pic = what.pic && what.pic_share > 0.0;
-    if (what.last && !pic && !settings_.two_phase)
+    if (what.last && !what.relaxes() && !settings_.two_phase)
       return to_particles_and_sum(what, own); // (liquid: two_phase)
     parallel_chunks(P_.size(), [&](long long begin, long long end) {
       to_particles_on(what, own, static_cast<int>(begin), static_cast<int>(end));
     });
   });
   fbar_.ready = false;
-  if (!what.pic || !(what.pic_share > 0.0)) return;
+  if (!what.relaxes()) return;
   // PIC relaxation (ToParticles::pic), the kinetic energy it removes summed
   // in fixed blocks (the same bits for any thread count) and booked as W_v.
   const Vec<D>* pic = what.pic->data();

@@ -222,11 +222,16 @@ template <int D> struct ToParticles {
   /// the kinetic energy it removes booked as W_v (EnergyBalance::relaxation).
   const AlignedVector<Vec<D>>* pic = nullptr;
   double pic_share = 0.0;
+  /// True when the pass is followed by the PIC relaxation.
+  bool relaxes() const { return pic && pic_share > 0.0; }
   /// The step's last change to the particles (nothing after it moves them
   /// or changes their state): the engine takes the after-step sums and
   /// checks of each block of particles right after the block's update
   /// (after_step.hpp) - the same bits as the sweep after the step, which it
   /// saves. Not with a PIC relaxation or the liquid of saturated bodies.
+  /// fe, npc and central_difference mark it; integrators whose last pass
+  /// updates the stress alone (musl, explicit_alpha, otm) leave the sums to
+  /// the sweep, which was measured faster there (docs/performance-log-2026.md).
   bool last = false;
 };
 
