@@ -71,8 +71,9 @@ TEST_CASE("the after-step sums taken in the last particle pass have the bits of 
         Engine<2> e = assemble<2>(parse_scene(three_blocks(mode, integrator, extra), "three_blocks.toml"));
         REQUIRE(e.particles().size() == 3888);
         // unified 30 steps: its knots, advected with the bodies, are laid out
-        // anew at step 39, where the gap between two bodies leaves its
-        // consistent mass singular
+        // anew at step 39, and the new lattice's top row of cells holds only a
+        // sliver of body b (lifted by the impact): its consistent mass is
+        // singular there
         const int steps = integrator.needs_bspline ? 30 : 40;
         for (int s = 0; s < steps; ++s) {
           e.step();

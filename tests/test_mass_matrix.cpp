@@ -221,6 +221,37 @@ TEST_CASE("consistent mass: an active node without mass is a singular matrix, re
 
 namespace {
 
+/// The node a failed factorisation names: with every node flagged active, a
+/// node of the unfilled cells (no mass: its row of M is empty, its pivot zero).
+template <int D> void check_singular_node(bool band) {
+  INFO("dimension " << D << ", band " << band);
+  Setup<D> s("linear", 4, 2);
+  MassMatrix<D> M(band);
+  const int n = s.nodes();
+  int node = -2;
+  try {
+    M.assemble(s.table, s.m, std::vector<char>(n, 1), std::vector<char>(n * D, 0), n);
+  } catch (const SingularMassError& e) {
+    node = e.node;
+    CHECK(std::string(e.what()).find("at node " + std::to_string(e.node)) != std::string::npos);
+  }
+  REQUIRE(node >= 0);
+  REQUIRE(node < n);
+  CHECK(s.lumped[static_cast<std::size_t>(node)] == 0.0);
+  if (band) CHECK(M.band() == 1); // the band path was taken (1D)
+}
+
+} // namespace
+
+TEST_CASE("consistent mass: a failed factorisation names the node whose pivot is zero, on both paths") {
+  check_singular_node<1>(false);
+  check_singular_node<1>(true);
+  check_singular_node<2>(false);
+  check_singular_node<3>(false);
+}
+
+namespace {
+
 /// The matrices (signed zeros included) and the solves of a and b have the same bits.
 template <int D> bool same_bits(const MassMatrix<D>& a, const MassMatrix<D>& b, int n) {
   const Eigen::SparseMatrix<double>&A = a.matrix(), &B = b.matrix();

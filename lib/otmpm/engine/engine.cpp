@@ -665,8 +665,25 @@ template <int D> void Engine<D>::finish_mass() {
   if (mode_.nodes_move()) // the lattice's own nodes fill their cells: none is light (sect. 3)
     for (int I = 0; I < nodes; ++I)
       if (nodal_.m[I] > 0.0 && nodal_.m[I] < kLightNode * m_max) light_.push_back(I);
-  if (mass_matrix_) mass_matrix_->assemble(table(), P_.m, nodal_.active, constraints_.constrained(), nodes);
+  if (mass_matrix_) assemble_mass_matrix();
   if (contact_) contact_mass_gradient();
+}
+
+/// The consistent mass of this step, factorised; a singular one stops the
+/// run naming the node, where it is, and what to change.
+template <int D> void Engine<D>::assemble_mass_matrix() {
+  try {
+    mass_matrix_->assemble(table(), P_.m, nodal_.active, constraints_.constrained(),
+                           static_cast<int>(nodal_.m.size()));
+  } catch (const SingularMassError& e) {
+    if (e.node < 0) throw;
+    unstable(
+        "consistent mass matrix: singular at node " + std::to_string(e.node) + " at " +
+        format_point<D>(basis_->nodes().positions()[e.node]) +
+        " (a cell its particles fill only partly: its shape function is, at the particles, a combination of "
+        "the others'); the lumped mass (simulation.mass = \"lumped\", not with unified) needs no filled "
+        "cells (user guide, 'Consistent mass on partly filled cells')");
+  }
 }
 
 template <int D> void Engine<D>::contact_mass_gradient() {

@@ -442,6 +442,7 @@ private:
   /// Dispatches to_particles_range on what `what` and `g` hold.
   void to_particles_on(const ToParticles<D>& what, const Gradient<D>& g, int begin, int end);
   void finish_mass();
+  void assemble_mass_matrix();
   void list_visited_nodes(); ///< NodalFields::visited for the new basis table (engine.cpp says which)
   void contact_mass_gradient(); ///< the mass gradients of the bodies' fields for the contact normals
   /// Node positions per field node (the nodes' own without contact).

@@ -508,15 +508,23 @@ void MassMatrix<D>::factorise(int k, const std::vector<char>& fixed, std::vector
     f->version = -1;
     if (f->ldlt.info() == Eigen::Success) map_gather(*f, fixed);
   }
-  if (f->ldlt.info() != Eigen::Success)
-    throw InstabilityError("consistent mass matrix: factorisation failed (singular matrix)");
+  if (f->ldlt.info() != Eigen::Success) { // Eigen stops at the first zero pivot: the row eliminated there
+    const Eigen::VectorXd pivots = f->ldlt.vectorD();
+    const Eigen::Index e = std::find(pivots.begin(), pivots.end(), 0.0) - pivots.begin();
+    singular(e < pivots.size() ? f->ldlt.permutationPinv().indices()[e] : -1);
+  }
   factor_.push_back(std::move(f));
+}
+
+template <int D> void MassMatrix<D>::singular(int node) {
+  const std::string where = node >= 0 ? " at node " + std::to_string(node) : "";
+  throw SingularMassError("consistent mass matrix: factorisation failed (singular matrix)" + where, node);
 }
 
 /// The band path of factorise(): M_ with identity rows at `fixed` copied into
 /// f's band (lower triangle, row by row; the places of the copy recorded
 /// once per pattern and fixed flags), then L D L^T. Throws
-/// InstabilityError, as the sparse path does (Eigen's LDL^T tests D_i == 0),
+/// SingularMassError, as the sparse path does (Eigen's LDL^T tests D_i == 0),
 /// for a pivot D_i that is exactly zero (an active node whose row is empty:
 /// no mass) or not finite. A matrix that is singular only numerically (rank
 /// deficient, e.g. one particle alone in a cell of nodes all active) leaves
@@ -546,8 +554,9 @@ template <int D> void MassMatrix<D>::factorise_band(Factor& f, const std::vector
     const int e = f.band_source[s];
     f.band[s] = e >= 0 ? v[e] : e == Factor::kIdentity ? 1.0 : 0.0;
   }
-  if (with_band(b, [&](auto B) { return band_factorise<B()>(f.band.data(), f.inv_d.data(), n, b); }) < n)
-    throw InstabilityError("consistent mass matrix: factorisation failed (singular matrix)");
+  const int stop =
+      with_band(b, [&](auto B) { return band_factorise<B()>(f.band.data(), f.inv_d.data(), n, b); });
+  if (stop < n) singular(stop);
   for (double& D_i : f.inv_d) D_i = 1.0 / D_i; // the solve multiplies
 }
 

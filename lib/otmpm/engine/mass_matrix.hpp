@@ -32,11 +32,25 @@
 /// on the max-ent fixed bar, 5e-10 on the LME Dyka bar). A given
 /// pattern always takes the same path.
 #include "otmpm/basis/basis.hpp"
+#include "otmpm/core.hpp"
 
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
 
+#include <string>
+
 namespace otmpm {
+
+/// The consistent mass matrix could not be factorised: the pivot of `node`'s
+/// row (the first zero one in the order of elimination) is zero or not
+/// finite - an active node without mass, or a node whose shape function is,
+/// at the particles, a combination of the others' (a cell its particles fill
+/// only partly: a lone particle or a sliver of them beside a new cell).
+class SingularMassError : public InstabilityError {
+public:
+  SingularMassError(const std::string& what, int node) : InstabilityError(what), node(node) {}
+  int node; ///< the node id (-1: not known)
+};
 
 template <int D> class MassMatrix {
 public:
@@ -49,7 +63,7 @@ public:
   /// std::invalid_argument unless m_p has one mass per table row, active
   /// `nodes` and constrained nodes * D flags, and every table node id lies in
   /// [0, nodes); InputError for a mass that is negative or not finite;
-  /// InstabilityError when the factorisation fails.
+  /// SingularMassError, naming the node, when the factorisation fails.
   void assemble(const BasisTable<D>& table, const std::vector<double>& m_p,
                 const std::vector<char>& active, const std::vector<char>& constrained, int nodes);
   /// y = M^{-1} r per component; constrained components and inactive nodes
@@ -90,6 +104,7 @@ private:
   template <int S> void sum_rows(const BasisTable<D>& table, const std::vector<double>& m_p);
   void factorise(int k, const std::vector<char>& fixed, std::vector<std::unique_ptr<Factor>>& old);
   void factorise_band(Factor& f, const std::vector<char>& fixed) const;
+  [[noreturn]] static void singular(int node);
   void map_gather(Factor& f, const std::vector<char>& fixed);
   bool gather(Factor& f) const;
   void move_prescribed(int k, const std::vector<char>& fixed, const AlignedVector<Vec<D>>& y,
