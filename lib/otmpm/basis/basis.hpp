@@ -178,6 +178,13 @@ template <int D> struct PointState {
   NeighbourLists<D> neighbours;
 };
 
+/// A plane x_axis = at that moves by `by` within a step: a rigid wall whose
+/// normal is a coordinate axis (Basis::hold_on_planes).
+struct AxisPlane {
+  int axis = 0;
+  double at = 0.0, by = 0.0;
+};
+
 /// A basis family bound to a node set. `evaluate` is const and thread-safe
 /// (all scratch lives in the Stencil). Implementations: see make_basis().
 template <int D> class Basis {
@@ -195,6 +202,12 @@ public:
   /// Tells the family the nodes moved by dx (already applied to nodes()). The
   /// B-spline family advects its knot vectors here; others refresh indices.
   virtual void nodes_moved(const AlignedVector<Vec<D>>& dx) = 0;
+  /// The planes (walls whose normal is a coordinate axis) that hold what lies
+  /// on them through the next nodes_moved(): the B-spline family keeps a knot
+  /// on such a plane with it (its control points follow the knots, not their
+  /// own increments); the families whose nodes move by their own increments
+  /// need nothing.
+  virtual void hold_on_planes(std::vector<AxisPlane> /*planes*/) {}
   /// Fills `out` with the stencil of q.x (on success it holds exactly that
   /// stencil; after a throw its contents are unspecified). Throws BasisError
   /// naming the point when it cannot, also when q.x is not finite (one check

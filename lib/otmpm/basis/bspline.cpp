@@ -206,7 +206,14 @@ double KnotVector::span_sum(const BsplineSpanValues& b, const std::vector<double
   return u;
 }
 
-KnotVector KnotVector::advected(const std::vector<double>& d) const {
+int KnotVector::vertex_at(double x) const {
+  const double r = kBoundaryRoundoff * (upper() - lower());
+  const auto it = std::lower_bound(v_.begin(), v_.end(), x - r);
+  return it != v_.end() && *it <= x + r ? static_cast<int>(it - v_.begin()) : -1;
+}
+
+KnotVector KnotVector::advected(const std::vector<double>& d,
+                                const std::vector<std::pair<int, double>>& held) const {
   require<std::invalid_argument>(d.size() == static_cast<std::size_t>(num_basis()), "KnotVector::advected: d has ",
                                  d.size(), " increments for ", num_basis(), " control points");
   for (std::size_t i = 0; i < d.size(); ++i)
@@ -219,6 +226,7 @@ KnotVector KnotVector::advected(const std::vector<double>& d) const {
   case 2: advect_vertices<2>(t_, inv_width_, v_, d, w); break;
   default: advect_vertices<3>(t_, inv_width_, v_, d, w); break; // p_ <= kMaxBsplineDegree
   }
+  for (const auto& [j, x] : held) w[static_cast<std::size_t>(j)] = x;
   for (std::size_t j = 0; j + 1 < w.size(); ++j)
     if (!(w[j] < w[j + 1]))
       throw InstabilityError("B-spline knot vector inverted: cell " + std::to_string(j) + " [" +
@@ -357,7 +365,14 @@ template <int D> void BsplineBasis<D>::nodes_moved(const AlignedVector<Vec<D>>& 
                                  "BsplineBasis::nodes_moved: dx has ", dx.size(), " increments for ", nodes_.size(),
                                  " control points");
   std::array<KnotVector, D> moved;
-  for (int k = 0; k < D; ++k) moved[k] = knots_[k].advected(mean_axis_increments(dx, k));
+  for (int k = 0; k < D; ++k) {
+    std::vector<std::pair<int, double>> held; // the knots on the walls' planes move with them
+    for (const AxisPlane& plane : held_planes_)
+      if (const int j = knots_[k].vertex_at(plane.at); plane.axis == k && j >= 0)
+        held.emplace_back(j, plane.at + plane.by);
+    moved[k] = knots_[k].advected(mean_axis_increments(dx, k), held);
+  }
+  held_planes_.clear();
   knots_ = std::move(moved); // commit only once every axis succeeded
 
   const AlignedVector<Vec<D>> xi = greville_points();

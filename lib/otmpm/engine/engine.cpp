@@ -1064,6 +1064,21 @@ void end_on_planes(const Particles<D>& P, Distribution<D>* dist, const NodeReset
 }
 } // namespace
 
+namespace {
+
+/// The planes of the walls whose normal is a coordinate axis, where they are
+/// at t and how far they move in dt (Basis::hold_on_planes).
+template <int D> std::vector<AxisPlane> axis_planes(const std::vector<Wall<D>>& walls, double t, double dt) {
+  std::vector<AxisPlane> planes;
+  for (const Wall<D>& w : walls)
+    for (int k = 0; k < D; ++k)
+      if (std::abs(w.normal[k]) == 1.0)
+        planes.push_back({k, w.point[k] + w.velocity[k] * t, w.velocity[k] * dt});
+  return planes;
+}
+
+} // namespace
+
 template <int D> bool Engine<D>::reset_due() const {
   if (!(settings_.node_reset.below > 0.0) || settings_.dt) return false;
   if (const auto domain = basis_->domain()) { // a particle may leave the domain the nodes carry within a step
@@ -1221,6 +1236,7 @@ template <int D> void Engine<D>::advect_nodes(const AlignedVector<Vec<D>>& incre
                     std::to_string(it - dx.begin()) + " is not finite";
     dist_->agree(it != dx.end() ? &bad : nullptr);
   }
+  basis_->hold_on_planes(axis_planes(constraints_.walls(), t_, dt_));
   mode_.advect(*basis_, dx);
 }
 
