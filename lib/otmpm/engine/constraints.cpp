@@ -192,7 +192,8 @@ void Constraints<D>::apply_walls(AlignedVector<Vec<D>>& v, const NodeView<D>& no
         carried_step_[1 + w][I] += nodes.m[I] * dv;
       }
       if (effect.booking == Booking::held || !counts(static_cast<int>(I))) continue; // held: book_held
-      *ledger.friction += friction_loss<D>(nodes.m[I], s, u, dv, wall.normal);
+      if (effect.booking == Booking::now)
+        *ledger.friction += friction_loss<D>(nodes.m[I], s, u, dv, wall.normal);
       if (stops) *ledger.impact += impact_loss<D>(nodes.m[I], s, Vec<D>(u + dv), wall.normal);
       if (effect.booking == Booking::now) impulse += nodes.m[I] * dv; // the particles' momentum changes by m dv
     }
@@ -302,9 +303,10 @@ template <int D> void Constraints<D>::zero_carried(AlignedVector<Vec<D>>& a, con
   }
 }
 
-template <int D>
-void Constraints<D>::book_carried(double alpha_m, double gamma, double dt, bool first,
-                                  const AlignedVector<Vec<D>>& reaction, const Ledger<D>& ledger) {
+template <int D> void Constraints<D>::book_carried(const Carried<D>& step, const Ledger<D>& ledger) {
+  const double alpha_m = step.alpha_m, gamma = step.gamma, dt = step.dt;
+  const bool first = step.first;
+  const AlignedVector<Vec<D>>& reaction = step.reaction;
   size_carried(reaction.size());
   AlignedVector<Vec<D>>& wall_impulse = counted_.empty() ? impulse_ : rank_impulse_;
   // One node of source s (0: the Dirichlet sets, 1 + w: wall w): its part
@@ -328,9 +330,11 @@ void Constraints<D>::book_carried(double alpha_m, double gamma, double dt, bool 
   for (std::size_t w = 0; w < walls_.size(); ++w)
     for (std::size_t I = 0; I < reaction.size(); ++I) {
       const Vec<D> J = carry(1 + w, I, Vec<D>::Zero(), Vec<D>::Zero());
-      if (!counts(static_cast<int>(I))) continue;
+      if (!counts(static_cast<int>(I)) || J == Vec<D>::Zero()) continue;
       wall_impulse[w] += J;
       *ledger.work += J.dot(walls_[w].velocity);
+      *ledger.friction +=
+          friction_loss<D>(J, Vec<D>(step.mean2(I) - 2.0 * walls_[w].velocity), walls_[w].normal);
     }
 }
 

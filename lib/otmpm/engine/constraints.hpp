@@ -145,6 +145,22 @@ template <int D> Vec<D> wall_change(const Vec<D>& u, const Vec<D>& n, double dn,
   return change;
 }
 
+/// What Constraints::book_carried reads of explicit_alpha's step: its
+/// parameters, whether it is the run's first, the reactions R removed from
+/// the force, and the nodal velocity v_{n+1} with the accelerations a_n and
+/// a_{n+1} it came from (v_n = v_{n+1} - dt ((1 - gamma) a_n + gamma
+/// a_{n+1}), the constraints' changes included in a_{n+1}).
+template <int D> struct Carried {
+  double alpha_m, gamma, dt;
+  bool first;
+  const AlignedVector<Vec<D>>& reaction;
+  const AlignedVector<Vec<D>>& v;
+  const AlignedVector<Vec<D>>& a_n;
+  const AlignedVector<Vec<D>>& a_next;
+  /// The mean of node I's velocity over the step, times 2: v_n + v_{n+1}.
+  Vec<D> mean2(std::size_t I) const { return 2.0 * v[I] - dt * ((1.0 - gamma) * a_n[I] + gamma * a_next[I]); }
+};
+
 /// What Constraints::book_held reads of npc's step: the time t and step dt
 /// (and whether it is the run's first), the nodal forces f (the fixed
 /// components zeroed) and the rate the particles take up times dt.
@@ -238,9 +254,13 @@ public:
   /// the pass; X = s in the first step, where a_n = f / m), of which the
   /// particles take up J = dt ((1 - gamma) X +
   /// gamma Y) now; X becomes Y. J is booked as a Dirichlet reaction
-  /// (book_fixed) or as the wall's impulse (work J . w).
-  void book_carried(double alpha_m, double gamma, double dt, bool first, const AlignedVector<Vec<D>>& reaction,
-                    const Ledger<D>& ledger);
+  /// (book_fixed) or as the wall's impulse (work J . w), and a wall's
+  /// friction as the work of J's tangential part against the node's mean
+  /// slip over the step (friction_loss): the rate hands part of a change back
+  /// in the next steps, which the wall takes again with its friction, so the
+  /// changes themselves would count that friction more than once (1 + 1/3 +
+  /// 1/9 + ... = 1.5 times at rho_inf = 1/2).
+  void book_carried(const Carried<D>& step, const Ledger<D>& ledger);
   /// explicit_alpha's carried parts X (book_carried), per node: the
   /// Dirichlet sets' (entry 0) and each wall's (entry 1 + w); empty until
   /// first carried.

@@ -63,6 +63,9 @@ void BodyContact<D>::apply(AlignedVector<Vec<D>>& v, const ContactNodes& nodes, 
   const int P = pairs();
   loss_.assign(static_cast<std::size_t>(nodes_), 0.0);
   impact_.assign(static_cast<std::size_t>(nodes_), 0.0);
+  const std::size_t slots = static_cast<std::size_t>(nodes_) * static_cast<std::size_t>(P);
+  if (effect.booking == Booking::carried && carried_step_.size() != slots)
+    carried_step_.assign(slots, Vec<D>::Zero());
   parallel_for(nodes_, [&](long long node) {
     const int I = static_cast<int>(node);
     for (int a = 0, k = 0; a < fields_; ++a)
@@ -99,7 +102,10 @@ void BodyContact<D>::apply(AlignedVector<Vec<D>>& v, const ContactNodes& nodes, 
         // the particles take up reach x the change.
         const double ma = nodes.m[static_cast<std::size_t>(Ja)], mb = nodes.m[static_cast<std::size_t>(Jb)];
         const double reduced = effect.reach * ma * mb / (ma + mb);
-        loss_[static_cast<std::size_t>(I)] += friction_loss<D>(reduced, start, u, du, n);
+        if (effect.booking == Booking::carried)
+          carried_step_[static_cast<std::size_t>(I) * P + k] += reduced * du;
+        else
+          loss_[static_cast<std::size_t>(I)] += friction_loss<D>(reduced, start, u, du, n);
         impact_[static_cast<std::size_t>(I)] += impact_loss<D>(reduced, start, Vec<D>(u + du), n);
       }
   });
@@ -119,6 +125,35 @@ void BodyContact<D>::apply(AlignedVector<Vec<D>>& v, const ContactNodes& nodes, 
   });
   friction += sum.friction;
   impact += sum.impact;
+}
+
+template <int D>
+void BodyContact<D>::book_carried(const Carried<D>& step, const std::vector<char>& active, double& friction) {
+  const int P = pairs();
+  const std::size_t slots = static_cast<std::size_t>(nodes_) * static_cast<std::size_t>(P);
+  if (carried_.size() != slots) carried_.assign(slots, Vec<D>::Zero());
+  if (carried_step_.size() != slots) carried_step_.assign(slots, Vec<D>::Zero());
+  loss_.assign(static_cast<std::size_t>(nodes_), 0.0);
+  const double am = step.alpha_m, gamma = step.gamma, dt = step.dt;
+  parallel_for(nodes_, [&](long long node) {
+    const int I = static_cast<int>(node);
+    for (int a = 0, k = 0; a < fields_; ++a)
+      for (int b = a + 1; b < fields_; ++b, ++k) {
+        const std::size_t slot = static_cast<std::size_t>(I) * P + k;
+        Vec<D>& X = carried_[slot];
+        const Vec<D> Y = (-am / (1.0 - am)) * X + carried_step_[slot] / (gamma * dt);
+        const Vec<D> J = ((1.0 - gamma) * dt) * X + (gamma * dt) * Y;
+        X = Y;
+        carried_step_[slot] = Vec<D>::Zero();
+        const auto Ja = static_cast<std::size_t>(I + a * nodes_),
+                   Jb = static_cast<std::size_t>(I + b * nodes_);
+        const Vec<D> n = active[Ja] && active[Jb] ? normal(I, a, b) : Vec<D>::Zero();
+        if (J == Vec<D>::Zero() || n.isZero()) continue; // no slip to take it: a body has left the node
+        loss_[static_cast<std::size_t>(I)] += friction_loss<D>(J, Vec<D>(step.mean2(Ja) - step.mean2(Jb)), n);
+      }
+  });
+  friction += blocked_reduce<double>(
+      nodes_, [&](long long I, double& acc) { acc += loss_[static_cast<std::size_t>(I)]; });
 }
 
 template <int D> void BodyContact<D>::apply_to_increment(AlignedVector<Vec<D>>& dx, const ContactNodes& nodes) const {

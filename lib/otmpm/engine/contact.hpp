@@ -77,9 +77,21 @@ public:
   /// pass whose change is the bodies' (effect.impulse), the energy Coulomb
   /// friction takes from the pairs' relative motion (friction_loss with the
   /// reduced mass m_a m_b / (m_a + m_b)) is added to `friction`, the energy
-  /// the stopped approach takes (impact_loss, same mass) to `impact`.
+  /// the stopped approach takes (impact_loss, same mass) to `impact`; with
+  /// Booking::carried the friction is left to book_carried.
   void apply(AlignedVector<Vec<D>>& v, const ContactNodes& nodes, const WallEffect<D>& effect, double& friction,
              double& impact);
+  /// After a Booking::carried pass (explicit_alpha; Constraints::book_carried
+  /// for the walls): per pair and node, the momentum J that body a's
+  /// particles take up in this step from the changes the rate carries (b's:
+  /// -J), and the friction as the work of J's tangential part against the
+  /// pair's mean relative slip over the step (friction_loss; at a node
+  /// where both field nodes are active), added to `friction`.
+  void book_carried(const Carried<D>& step, const std::vector<char>& active, double& friction);
+  /// The carried parts X of book_carried (body a's side), per node and pair
+  /// (I * pairs() + k); empty until first carried.
+  AlignedVector<Vec<D>>& carried() { return carried_; }
+  const AlignedVector<Vec<D>>& carried() const { return carried_; }
   /// For the held pairs, an approaching relative normal increment of the
   /// field-node increments dx is removed (same sharing, no friction).
   void apply_to_increment(AlignedVector<Vec<D>>& dx, const ContactNodes& nodes) const;
@@ -106,7 +118,8 @@ private:
   std::vector<char> held_;
   std::vector<double> loss_;   ///< per grid node: the friction loss of the last pass
   std::vector<double> impact_; ///< per grid node: the impact loss of the last pass
-
+  /// book_carried: the parts X and the pass's changes m_a dv_a, per node and pair.
+  AlignedVector<Vec<D>> carried_, carried_step_;
 };
 
 extern template class BodyContact<1>;

@@ -862,8 +862,11 @@ template <int D> void Engine<D>::book_held(const AlignedVector<Vec<D>>& rate) {
   for (const int I : kicked) transfer_.note(I, constraints_, nodal_.v.size()); // it keeps only the nodes a wall holds
 }
 
-template <int D> void Engine<D>::book_carried(double alpha_m, double gamma, bool first) {
-  constraints_.book_carried(alpha_m, gamma, dt_, first, nodal_.reaction, ledger());
+template <int D>
+void Engine<D>::book_carried(double alpha_m, double gamma, bool first, const AlignedVector<Vec<D>>& a_n) {
+  const Carried<D> step{alpha_m, gamma, dt_, first, nodal_.reaction, nodal_.v, a_n, nodal_.a};
+  constraints_.book_carried(step, ledger());
+  if (contact_) contact_->book_carried(step, nodal_.active, *ledger().friction);
 }
 
 template <int D> void Engine<D>::constrain_increment(AlignedVector<Vec<D>>& dx) const {

@@ -360,8 +360,8 @@ public:
   /// After a Booking::held pass: Constraints::book_held on the nodal f and
   /// q, which becomes the held nodes' kick.
   void book_held(const AlignedVector<Vec<D>>& rate);
-  /// After a Booking::carried pass (Constraints::book_carried with the reactions).
-  void book_carried(double alpha_m, double gamma, bool first);
+  /// After a Booking::carried pass on v, a from a_n (Constraints and BodyContact::book_carried).
+  void book_carried(double alpha_m, double gamma, bool first, const AlignedVector<Vec<D>>& a_n);
   /// The Dirichlet sets' (dx = dt vbar), the contact's and the walls' rules
   /// on the node increments dx of this step.
   void constrain_increment(AlignedVector<Vec<D>>& dx) const;

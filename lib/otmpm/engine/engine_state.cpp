@@ -88,6 +88,7 @@ template <int D> void Engine<D>::save_state(Checkpoint& out) const {
     g.integer_arrays["wall_held_" + std::to_string(w)] = {1, std::vector<std::int64_t>(held.begin(), held.end())};
   }
   if (contact_) g.integer_arrays["contact_held"] = {1, std::vector<std::int64_t>(contact_->held().begin(), contact_->held().end())};
+  if (contact_ && !contact_->carried().empty()) save_field(g, "contact_carried", contact_->carried());
   for (std::size_t s = 0; s < constraints_.carried().size(); ++s)
     save_field(g, "carried_" + std::to_string(s), constraints_.carried()[s]);
   g.put_reals(energy_fields(energy_));
@@ -186,6 +187,9 @@ template <int D> void Engine<D>::restore_state(const Checkpoint& in) {
   if (contact_) {
     const auto& held = g.integer_array("contact_held", contact_->held().size(), 1).values;
     contact_->held().assign(held.begin(), held.end());
+    contact_->carried().clear();
+    if (g.has_array("contact_carried"))
+      restore_field(g, "contact_carried", contact_->carried(), contact_->held().size());
   }
   constraints_.carried().clear();
   for (std::size_t s = 0; g.has_array("carried_" + std::to_string(s)); ++s) {

@@ -50,7 +50,7 @@ template <int D> void step_explicit_alpha(Engine<D>& e, const StepContext<D>& s)
   const bool first = s.step == 0;
   if (first) scale(n, n.q, 0.0, n.v);
   e.constrain_velocity(n.v, {.rate = &n.a, .c = gamma * dt, .booking = Booking::carried, .kick = first ? &n.q : nullptr});
-  e.book_carried(am, gamma, first);
+  e.book_carried(am, gamma, first, n.dx);
   // 4. dx = dt v_{n+1} + dt^2 ((gamma - 1/2 - beta) a_n + (beta - gamma) a_{n+1})
   //    (= dt v_n + dt^2 ((1/2 - beta) a_n + beta a_{n+1})).
   for_nodes(n, [&](int I) {
