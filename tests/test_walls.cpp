@@ -94,23 +94,32 @@ TEST_CASE("a block slides on a frictional wall as 1/2 g (sin theta - mu cos thet
 }
 
 TEST_CASE("the wall force is the normal load N = m g cos theta and the friction -mu N (to 3%)") {
-  test::TempDir tmp("wallforce");
-  RunOptions opt;
-  opt.out_file = tmp.file("slide.h5");
-  const RunSummary s = run_scene(parse_scene(slide("mpm", "npc"), "slide.toml"), opt);
-  REQUIRE(s.exit_code == 0);
-  const double N = 1000.0 * 0.5 * kG * std::cos(kTheta);
-  const std::vector<double> J = last_row(opt.out_file, "walls/floor/impulse");
-  const std::vector<double> J1 = {0.0, 0.0};
-  // Mean force over the run after the first frame (the settling): impulse / time.
-  CHECK(J[1] / 0.5 == doctest::Approx(N).epsilon(0.03));
-  CHECK(J[0] / 0.5 == doctest::Approx(-kMu * N).epsilon(0.03));
-  CHECK(last_row(opt.out_file, "walls/floor/force").size() == 2);
+  // npc books the held nodes' impulse after its step; explicit_alpha books
+  // the momentum its rate hands on from step to step (measured: N and -mu N
+  // to 0.4% / 0.2% npc, 0.7% / 0.5% explicit_alpha). explicit_alpha runs in
+  // ul: in mpm on linear elements it becomes unstable at t = 0.15 s, when
+  // particles cross into cells whose nodes have almost no mass (as fe does).
+  for (const auto& [mode, integrator] : {std::pair{"mpm", "npc"}, std::pair{"ul", "explicit_alpha"}}) {
+    const std::string what = std::string(mode) + " " + integrator; // not a binding (clang 14)
+    INFO(what);
+    test::TempDir tmp("wallforce");
+    RunOptions opt;
+    opt.out_file = tmp.file("slide.h5");
+    const RunSummary s = run_scene(parse_scene(slide(mode, integrator), "slide.toml"), opt);
+    REQUIRE(s.exit_code == 0);
+    const double N = 1000.0 * 0.5 * kG * std::cos(kTheta);
+    const std::vector<double> J = last_row(opt.out_file, "walls/floor/impulse");
+    // Mean force over the run: impulse / time.
+    CHECK(J[1] / 0.5 == doctest::Approx(N).epsilon(0.03));
+    CHECK(J[0] / 0.5 == doctest::Approx(-kMu * N).epsilon(0.03));
+    CHECK(last_row(opt.out_file, "walls/floor/force").size() == 2);
+  }
 }
 
 TEST_CASE("a block dropped on a frictionless wall stays above it and gains no energy") {
-  for (const auto& [mode, integrator] : {std::pair{"mpm", "musl"}, std::pair{"mpm", "npc"}, std::pair{"ul", "npc"},
-                                         std::pair{"ul", "otm"}}) {
+  for (const auto& [mode, integrator] :
+       {std::pair{"mpm", "musl"}, std::pair{"mpm", "npc"}, std::pair{"ul", "npc"}, std::pair{"ul", "otm"},
+        std::pair{"ul", "explicit_alpha"}}) {
     const std::string what = std::string(mode) + " " + integrator; // not a binding (clang 14)
     INFO(what);
     std::string text = slide(mode, integrator);
@@ -130,7 +139,9 @@ TEST_CASE("a block dropped on a frictionless wall stays above it and gains no en
     }
     // A rigid impact dissipates; the explicit schemes overshoot by a few 0.1%
     // of the work at the instant of contact (without the held contact set the
-    // rebound created up to 100% more energy than gravity put in).
+    // rebound created up to 100% more energy than gravity put in; before its
+    // particles started from a_0, explicit_alpha's first step gave them 1.5 dt
+    // g, a "gain" of 50% of the work then).
     CHECK(worst <= 0.02);
     CHECK(lowest > -0.125 / 2); // no particle more than half a cell behind the wall (the grid's resolution)
     // Frictionless and vertical: the block spreads sideways (Poisson) but

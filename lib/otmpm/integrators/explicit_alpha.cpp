@@ -37,6 +37,10 @@ template <int D> void step_explicit_alpha(Engine<D>& e, const StepContext<D>& s)
     e.solve_mass(n.q, n.dx);
   }
   e.constrain_rate(n.dx);
+  // The particles start from it too, a_p = sum N a_0: step 5 takes (1 -
+  // gamma) dt a_p up, and with a_p = 0 the first step gave them gamma dt a_0
+  // instead of dt a_0 (1.5 times at rho_inf = 1/2), an offset FLIP kept.
+  if (s.step == 0) e.to_particles({.rate = &n.dx, .c_rate = 0.0, .rate_out = &P.a});
   // 3. a_{n+1} = (f / m - alpha_m a_n) / (1 - alpha_m); v_{n+1}; constraints
   //    (their change enters a_{n+1}, which the particles keep as a_p: the
   //    momentum it gives them over this and the next steps is booked as they
