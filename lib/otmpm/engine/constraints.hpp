@@ -300,8 +300,10 @@ public:
   /// pass whose change is the body's (effect.impulse) the change
   /// reaches the particles as `effect` says; its impulse (m_I dv_I summed
   /// per wall) is added to wall_impulse() and its work (impulse . v_wall) to
-  /// `ledger` as effect.booking says, the energy friction and the impact took
-  /// (friction_loss, impact_loss) at once. `touched`, if given, receives
+  /// `ledger` as effect.booking says, the energy the impact took
+  /// (impact_loss) at once, and friction's (friction_loss) at once unless
+  /// the booking is Booking::carried (book_carried books it then).
+  /// `touched`, if given, receives
   /// (I, v_I before the change) for every change a wall makes, in the
   /// order made (a node two walls change appears twice).
   void apply_walls(AlignedVector<Vec<D>>& v, const NodeView<D>& nodes, double t, double dt,
