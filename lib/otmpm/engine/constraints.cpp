@@ -304,19 +304,13 @@ template <int D> void Constraints<D>::zero_carried(AlignedVector<Vec<D>>& a, con
 }
 
 template <int D> void Constraints<D>::book_carried(const Carried<D>& step, const Ledger<D>& ledger) {
-  const double alpha_m = step.alpha_m, gamma = step.gamma, dt = step.dt;
-  const bool first = step.first;
   const AlignedVector<Vec<D>>& reaction = step.reaction;
   size_carried(reaction.size());
   AlignedVector<Vec<D>>& wall_impulse = counted_.empty() ? impulse_ : rank_impulse_;
   // One node of source s (0: the Dirichlet sets, 1 + w: wall w): its part
   // of the new total, the momentum the particles take up now (returned).
   auto carry = [&](std::size_t s, std::size_t I, const Vec<D>& removed, const Vec<D>& z) {
-    Vec<D>& X = carried_[s][I];
-    const Vec<D> Y = (removed - alpha_m * ((first ? removed : X) - z)) / (1.0 - alpha_m) +
-                     carried_step_[s][I] / (gamma * dt);
-    const Vec<D> J = ((1.0 - gamma) * dt) * X + (gamma * dt) * Y;
-    X = Y;
+    const Vec<D> J = step.take_up(carried_[s][I], removed, z, carried_step_[s][I]);
     carried_step_[s][I] = Vec<D>::Zero();
     return J;
   };

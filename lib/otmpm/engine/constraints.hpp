@@ -159,6 +159,16 @@ template <int D> struct Carried {
   const AlignedVector<Vec<D>>& a_next;
   /// The mean of node I's velocity over the step, times 2: v_n + v_{n+1}.
   Vec<D> mean2(std::size_t I) const { return 2.0 * v[I] - dt * ((1.0 - gamma) * a_n[I] + gamma * a_next[I]); }
+  /// Eq. 8.7.3 for one node and source: from its carried part X (which
+  /// becomes Y), the reaction s removed from the force, the momentum z
+  /// zeroed and the pass's change W = m dv, the momentum the particles take
+  /// up in the step, J = dt ((1 - gamma) X + gamma Y).
+  Vec<D> take_up(Vec<D>& X, const Vec<D>& s, const Vec<D>& z, const Vec<D>& W) const {
+    const Vec<D> Y = (s - alpha_m * ((first ? s : X) - z)) / (1.0 - alpha_m) + W / (gamma * dt);
+    const Vec<D> J = ((1.0 - gamma) * dt) * X + (gamma * dt) * Y;
+    X = Y;
+    return J;
+  }
 };
 
 /// What Constraints::book_held reads of npc's step: the time t and step dt

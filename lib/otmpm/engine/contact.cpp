@@ -134,16 +134,12 @@ void BodyContact<D>::book_carried(const Carried<D>& step, const std::vector<char
   if (carried_.size() != slots) carried_.assign(slots, Vec<D>::Zero());
   if (carried_step_.size() != slots) carried_step_.assign(slots, Vec<D>::Zero());
   loss_.assign(static_cast<std::size_t>(nodes_), 0.0);
-  const double am = step.alpha_m, gamma = step.gamma, dt = step.dt;
   parallel_for(nodes_, [&](long long node) {
     const int I = static_cast<int>(node);
     for (int a = 0, k = 0; a < fields_; ++a)
       for (int b = a + 1; b < fields_; ++b, ++k) {
         const std::size_t slot = static_cast<std::size_t>(I) * P + k;
-        Vec<D>& X = carried_[slot];
-        const Vec<D> Y = (-am / (1.0 - am)) * X + carried_step_[slot] / (gamma * dt);
-        const Vec<D> J = ((1.0 - gamma) * dt) * X + (gamma * dt) * Y;
-        X = Y;
+        const Vec<D> J = step.take_up(carried_[slot], Vec<D>::Zero(), Vec<D>::Zero(), carried_step_[slot]);
         carried_step_[slot] = Vec<D>::Zero();
         const auto Ja = static_cast<std::size_t>(I + a * nodes_),
                    Jb = static_cast<std::size_t>(I + b * nodes_);
