@@ -162,7 +162,7 @@ TEST_CASE("explicit_alpha books the friction between sliding bodies once: the en
   // steps and the contact takes it again, with its friction: booked from
   // each change, friction came to 45.9 J against musl's 30.6 J and the
   // balance error to 25% of E(0) = 62.5 J; booked from the momentum the
-  // particles take up in the step (BodyContact::book_carried), 30.64 J
+  // particles take up in the step (BodyContact::book_carried), 30.63 J
   // against musl's 30.62 J and at most 0.70% (frictionless 0.74%: the rest
   // is explicit_alpha's own response to the contact, not friction; musl
   // 0.03%).
