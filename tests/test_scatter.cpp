@@ -265,15 +265,23 @@ TEST_CASE_TEMPLATE("lattice rows: a pass visits the table's entries in the table
   const auto lattice = visited<D>(LatticeView<D>(rows), rows.rows());
   CHECK(lattice == visited<D>(TableView<D, (1 << D)>(table), table.rows()));
   CHECK(lattice == visited<D>(TableView<D, 0>(table), table.rows()));
+  // entry by entry (the column gather's access) the same bits
+  bool same = true;
+  for (int e = 0; e < static_cast<int>(table.entries()); ++e) {
+    double N;
+    Vec<D> dN;
+    rows.entry(e, N, dN);
+    same = same && rows.node(e) == table.node[e] && N == table.N[e] && dN == table.dN[e];
+  }
+  CHECK(same);
 }
 
-TEST_CASE(
-    "lattice rows: the scatter sums them to the bits of their table on both blocked paths, 1 and 2 threads") {
+TEST_CASE("lattice rows: the scatter sums them to the bits of their table on every path, 1 and 2 threads") {
   const int n = 12, nodes = (n + 1) * (n + 1) * (n + 1);
   for (const bool shuffle : {false, true}) {
     const auto [rows, table] = lattice_rows<3>(n, shuffle);
     const Carried c = carried(table.rows());
-    for (const ScatterPath path : {ScatterPath::dense, ScatterPath::sparse})
+    for (const ScatterPath path : {ScatterPath::dense, ScatterPath::sparse, ScatterPath::columns})
       for (const int threads : {1, 2}) {
         const Sums a = sums(rows, nodes, c, threads, path, 8), b = sums(table, nodes, c, threads, path, 8);
         CHECK(a.path == path);

@@ -683,9 +683,14 @@ void fill_basis_table(const Basis<D>& basis, const AlignedVector<Vec<D>>& x,
   fill_basis_table<D>(basis, x, a, table);
 }
 
-template <int D> void transpose_basis_table(const BasisTable<D>& table, int nodes, NodeColumns& columns) {
-  const int rows = table.rows();
-  const int team = team_size(static_cast<long long>(table.entries()));
+namespace {
+
+/// transpose_basis_table over `rows` rows of `entries` entries: row p holds
+/// entries [first(p), first(p + 1)), entry e at node node_of(e).
+template <class First, class NodeOf>
+void transpose_rows(int rows, std::size_t entries, int nodes, First&& first, NodeOf&& node_of,
+                    NodeColumns& columns) {
+  const int team = team_size(static_cast<long long>(entries));
   // counts[t * nodes + I]: entries of node I in thread t's particle chunk;
   // turned into that chunk's first slot in column I.
   std::vector<int>& counts = columns.scratch;
@@ -699,7 +704,7 @@ template <int D> void transpose_basis_table(const BasisTable<D>& table, int node
       int b, e;
       chunk_of(t, b, e);
       int* c = &counts[static_cast<std::size_t>(t) * static_cast<std::size_t>(nodes)];
-      for (int a = table.offset[static_cast<std::size_t>(b)]; a < table.offset[static_cast<std::size_t>(e)]; ++a) ++c[table.node[a]];
+      for (int a = first(b); a < first(e); ++a) ++c[node_of(a)];
     }
   });
   columns.offset.assign(static_cast<std::size_t>(nodes) + 1, 0);
@@ -714,21 +719,37 @@ template <int D> void transpose_basis_table(const BasisTable<D>& table, int node
     }
   }
   columns.offset[static_cast<std::size_t>(nodes)] = slot;
-  columns.entry.resize(table.entries());
-  columns.particle.resize(table.entries());
+  columns.entry.resize(entries);
+  columns.particle.resize(entries);
   parallel_chunks(team, team, [&](long long t0, long long t1) {
     for (int t = static_cast<int>(t0); t < t1; ++t) {
       int b, e;
       chunk_of(t, b, e);
       int* c = &counts[static_cast<std::size_t>(t) * static_cast<std::size_t>(nodes)];
       for (int p = b; p < e; ++p)
-        for (int a = table.begin(p); a < table.end(p); ++a) {
-          const int s = c[table.node[a]]++;
+        for (int a = first(p); a < first(p + 1); ++a) {
+          const int s = c[node_of(a)]++;
           columns.entry[static_cast<std::size_t>(s)] = a;
           columns.particle[static_cast<std::size_t>(s)] = p;
         }
     }
   });
+}
+
+} // namespace
+
+template <int D> void transpose_basis_table(const BasisTable<D>& table, int nodes, NodeColumns& columns) {
+  const int* node = table.node.data();
+  transpose_rows(
+      table.rows(), table.entries(), nodes, [&](int p) { return table.offset[static_cast<std::size_t>(p)]; },
+      [node](int e) { return node[e]; }, columns);
+}
+
+template <int D> void transpose_basis_table(const LatticeRows<D>& rows, int nodes, NodeColumns& columns) {
+  constexpr int S = LatticeRows<D>::kCorners;
+  transpose_rows(
+      rows.rows(), static_cast<std::size_t>(rows.rows()) * S, nodes, [](int p) { return p * S; },
+      [&rows](int e) { return rows.node(e); }, columns);
 }
 
 template <int D> void expand_lattice_rows(const LatticeRows<D>& rows, BasisTable<D>& table) {
@@ -756,6 +777,7 @@ template <int D> void expand_lattice_rows(const LatticeRows<D>& rows, BasisTable
   template void fill_basis_table<D>(const Basis<D>&, const AlignedVector<Vec<D>>&, const PointArrays<D>&,    \
                                     BasisTable<D>&);                                                         \
   template void transpose_basis_table<D>(const BasisTable<D>&, int, NodeColumns&);                           \
+  template void transpose_basis_table<D>(const LatticeRows<D>&, int, NodeColumns&);                          \
   template void expand_lattice_rows<D>(const LatticeRows<D>&, BasisTable<D>&);
 OTMPM_INSTANTIATE_BASIS(1)
 OTMPM_INSTANTIATE_BASIS(2)

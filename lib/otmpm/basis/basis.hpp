@@ -405,6 +405,33 @@ template <int D, class F>
   }
 }
 
+/// Corner a alone of visit_hats: the same products in the same order, so
+/// the same bits as the entry visit_hats gives for a (a gather over nodes
+/// that meets each of a row's entries apart: the column gather over
+/// LatticeRows).
+template <int D>
+[[gnu::always_inline]] inline void hat_corner(const Vec<D>& t, const std::array<std::array<double, 2>, D>& d,
+                                              int a, double& N, Vec<D>& dN) {
+  // the weights picked by index, not by a branch: a gather over nodes meets
+  // the corners in no predictable order
+  const int a0 = a & 1;
+  const double w0[2] = {1.0 - t[0], t[0]};
+  if constexpr (D == 1) {
+    N = w0[a0], dN = Vec<D>(d[0][a0]);
+  } else {
+    const int a1 = (a >> 1) & 1;
+    const double w1[2] = {1.0 - t[1], t[1]};
+    const double ww = w0[a0] * w1[a1], dw = d[0][a0] * w1[a1], wd = w0[a0] * d[1][a1];
+    if constexpr (D == 2) {
+      N = ww, dN = Vec<D>(dw, wd);
+    } else {
+      const int a2 = (a >> 2) & 1;
+      const double w2[2] = {1.0 - t[2], t[2]};
+      N = ww * w2[a2], dN = Vec<D>(dw * w2[a2], wd * w2[a2], ww * d[2][a2]);
+    }
+  }
+}
+
 /// visit_hats into N[a] and dN[a].
 template <int D>
 [[gnu::always_inline]] inline void
@@ -442,6 +469,14 @@ template <int D> struct LatticeRows {
   /// visit() for row p.
   template <class F> [[gnu::always_inline]] void visit_row(int p, F&& f) const {
     visit(base[static_cast<std::size_t>(p)], t[static_cast<std::size_t>(p)], corner_offset, d, f);
+  }
+  /// Entry e = p 2^D + a (row p's corner a): its node, and N_Ip and grad
+  /// N_Ip with the bits visit_row gives them.
+  int node(int e) const {
+    return lowest(e / kCorners) + corner_offset[static_cast<std::size_t>(e % kCorners)];
+  }
+  void entry(int e, double& N, Vec<D>& dN) const {
+    hat_corner<D>(t[static_cast<std::size_t>(e / kCorners)], d, e % kCorners, N, dN);
   }
   /// The smallest and largest node id of row p.
   int lowest(int p) const { return base[static_cast<std::size_t>(p)]; }
@@ -484,9 +519,10 @@ template <int W> std::pair<int, int> row_entries(const int* offset, int p) {
   else return {offset[p], offset[p + 1]};
 }
 
-/// The node-ordered (transposed) view of a BasisTable: column I lists the
-/// table entries e (and their particles p) whose node is I, entries
-/// offset[I] .. offset[I+1]-1, in increasing particle order. Gathering over a
+/// The node-ordered (transposed) view of a BasisTable or of LatticeRows:
+/// column I lists the entries e (and their particles p) whose node is I,
+/// entries offset[I] .. offset[I+1]-1, in increasing particle order (entry
+/// e of LatticeRows: row p's corner a, e = p 2^D + a). Gathering over a
 /// column visits a node's contributions in the same order as a serial
 /// scatter over particles, so parallel node loops reproduce its bits.
 struct NodeColumns {
@@ -500,6 +536,8 @@ struct NodeColumns {
 /// Builds `columns` for `table` over `nodes` nodes (OpenMP; the result does
 /// not depend on the thread count).
 template <int D> void transpose_basis_table(const BasisTable<D>& table, int nodes, NodeColumns& columns);
+/// The same for the compact lattice rows (entry e = p 2^D + a).
+template <int D> void transpose_basis_table(const LatticeRows<D>& rows, int nodes, NodeColumns& columns);
 
 /// The per-point arrays of a table fill, one entry per point each (a null or
 /// empty array: not used). `lambda`, `slope`, `history` and `cell_hint` are read and

@@ -406,9 +406,7 @@ template <int D> void Engine<D>::evaluate_basis() {
       rows_.compact = rows_.built = false;
       if (lattice && basis_->evaluate_lattice_rows(P_.x, rows_.lattice)) {
         rows_.compact = true, rows_.width = 1 << D;
-        scatter_->invalidate(rows_.width); // the column gather reads the table
-        rows_.compact =
-            scatter_->plan_for(rows_.lattice, static_cast<int>(nodal_.m.size())) != ScatterPath::columns;
+        scatter_->invalidate(rows_.width);
       }
       if (!rows_.compact) table_rows();
       list_visited_nodes();

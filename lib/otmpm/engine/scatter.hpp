@@ -10,7 +10,7 @@
 /// those buffers stay small (dense), else only the nodes the block touches
 /// (sparse: large 3D grids, whose slab blocks span two node layers each, or
 /// particles in no spatial order). When even that would need more memory
-/// than the transposed table, a gather over the transposed table does it.
+/// than the transposed rows, a gather over the transposed rows does it.
 /// Internal to the engine.
 #include "otmpm/basis/basis.hpp"
 #include "otmpm/engine/rows.hpp"
@@ -18,7 +18,6 @@
 
 #include <algorithm>
 #include <optional>
-#include <stdexcept>
 #include <type_traits>
 #include <utility>
 #include <vector>
@@ -66,7 +65,7 @@ inline bool few_scatter_blocks(long long n) {
 enum class ScatterPath {
   dense,   ///< each block sums into a buffer over its whole node-index range
   sparse,  ///< each block sums into a buffer over the nodes it touches only
-  columns, ///< a gather over the transposed table
+  columns, ///< a gather over the transposed rows
 };
 
 /// The particle-to-node sum with the same bits for any thread count. In
@@ -77,7 +76,7 @@ enum class ScatterPath {
 /// `Sums` is the per-node partial sum (default-constructed = zero).
 template <int D, class Sums> class BlockedScatter {
 public:
-  /// Forgets the plan and the transposed table: the basis table changed;
+  /// Forgets the plan and the transposed rows: the basis rows changed;
   /// `row_width` is the new table's linear_row_width (0: rows of any length).
   void invalidate(int row_width) {
     valid_ = false;
@@ -117,12 +116,8 @@ public:
   void run(const Rows& table, int nodes, Update&& update, Prep&& prep, Add&& add, Merge&& merge,
            Clear&& clear, const std::vector<int>* visit = nullptr) {
     plan(table, nodes);
-    if (path_ == ScatterPath::columns) {
-      if constexpr (std::is_same_v<Rows, BasisTable<D>>)
-        return gather_columns(table, nodes, update, prep, add, merge, clear, visit);
-      else
-        throw std::logic_error("BlockedScatter::run: the column gather needs the basis table");
-    }
+    if (path_ == ScatterPath::columns)
+      return gather_columns(table, nodes, update, prep, add, merge, clear, visit);
     const int n = table.rows(), count = static_cast<int>(lo_.size());
     const bool dense = path_ == ScatterPath::dense;
     buffer_.resize(static_cast<std::size_t>(offset_.back()));
@@ -148,8 +143,7 @@ public:
   }
 
   /// Plans the sums over `rows` (the plan run() then takes) and returns
-  /// its path: the engine keeps the compact lattice rows only for a
-  /// blocked path.
+  /// its path (tests: the lattice rows and their table plan alike).
   template <class Rows> ScatterPath plan_for(const Rows& rows, int nodes) {
     plan(rows, nodes);
     return path_;
@@ -356,17 +350,18 @@ private:
       if (slot[I] >= 0) merge(I, buf[slot[I]]);
   }
 
-  /// The same sums as run() by a gather over the transposed table, after
-  /// updating all particles (it calls prep once per entry).
-  template <class Update, class Prep, class Add, class Merge, class Clear>
-  void gather_columns(const BasisTable<D>& table, int nodes, Update& update, Prep& prep, Add& add, Merge& merge,
+  /// The same sums as run() by a gather over the transposed rows, after
+  /// updating all particles (it calls prep once per entry; the lattice
+  /// rows' entries are rebuilt one by one, with their bits).
+  template <class Rows, class Update, class Prep, class Add, class Merge, class Clear>
+  void gather_columns(const Rows& table, int nodes, Update& update, Prep& prep, Add& add, Merge& merge,
                       Clear& clear, const std::vector<int>* visit) {
     parallel_chunks(table.rows(), [&](long long p0, long long p1) { update(static_cast<int>(p0), static_cast<int>(p1)); });
     if (!columns_valid_) transpose_basis_table(table, nodes, columns_);
     columns_valid_ = true;
     const std::vector<int>& off = columns_.offset;
     const long long count = visit ? static_cast<long long>(visit->size()) : nodes;
-    parallel_chunks(count, team_size(static_cast<long long>(table.entries())), [&](long long i0, long long i1) {
+    parallel_chunks(count, team_size(entry_count(table)), [&](long long i0, long long i1) {
       if (!visit) clear(static_cast<int>(i0), static_cast<int>(i1)); // the chunk's nodes at once
       for (auto i = i0; i < i1; ++i) {
         const int I = visit ? (*visit)[i] : static_cast<int>(i);
@@ -374,7 +369,14 @@ private:
         Sums acc{};
         for (int k = off[I]; k < off[I + 1]; ++k) {
           const int e = columns_.entry[k];
-          add(acc, table.N[e], table.dN[e], prep(columns_.particle[k]));
+          if constexpr (std::is_same_v<Rows, BasisTable<D>>) {
+            add(acc, table.N[e], table.dN[e], prep(columns_.particle[k]));
+          } else {
+            double N;
+            Vec<D> dN;
+            table.entry(e, N, dN);
+            add(acc, N, dN, prep(columns_.particle[k]));
+          }
         }
         merge(I, acc);
       }
@@ -391,7 +393,7 @@ private:
   int width_ = 0; ///< linear_row_width of the table (0: rows of any length)
   std::optional<ScatterPath> forced_;
   ScatterPath path_ = ScatterPath::columns;
-  NodeColumns columns_; ///< the transposed table, for gather_columns
+  NodeColumns columns_; ///< the transposed rows, for gather_columns
   bool columns_valid_ = false;
 };
 
