@@ -607,10 +607,15 @@ template <int D> void Engine<D>::list_visited_nodes() {
   parallel_chunks(P_.size(), [&](long long p0, long long p1) {
     char* const marks = mark;
     const auto on = [marks](int I) { std::atomic_ref<char>(marks[I]).store(1, std::memory_order_relaxed); };
-    if (rows_.compact) {
+    if (rows_.compact) { // a particle in the cell of the one before marks nothing new
       const LatticeRows<D>& r = rows_.lattice;
-      for (auto p = static_cast<int>(p0); p < p1; ++p)
-        for (int a = 0; a < LatticeRows<D>::kCorners; ++a) on(r.lowest(p) + r.corner_offset[a]);
+      const std::array<int, LatticeRows<D>::kCorners> offset = r.corner_offset;
+      const int* lowest = r.base.data();
+      for (auto p = static_cast<int>(p0), last = -1; p < p1; ++p) {
+        if (lowest[p] == last) continue;
+        last = lowest[p];
+        for (const int o : offset) on(last + o);
+      }
       return;
     }
     const int* node = rows_.table.node.data();
