@@ -400,15 +400,14 @@ private:
   /// The checks of particle p: finite position, velocity and stress; on the
   /// fixed grid inside it and not about to leave it.
   void check_particle(int p) const;
-  /// True when particle p passes check_particle (no message: x - x is 0 for
-  /// a finite x and NaN otherwise, so one sum tests every value).
+  /// True when particle p passes check_particle (no message): particles_ok
+  /// of p alone.
   bool particle_ok(int p) const;
-  /// True when particles [p0, p1) all pass check_particle: particle_ok
-  /// without a branch per particle (the after-step pass's fast test).
+  /// True when particles [p0, p1) all pass check_particle, without a branch
+  /// per particle (the after-step pass's fast test): the sum of d - d over
+  /// their positions, velocities and stresses is 0 exactly when every value
+  /// is finite, and the box of x and x + dt v lies inside the fixed grid.
   bool particles_ok(int p0, int p1) const;
-  /// The sum of x - x over particle p's position, velocity and stress
-  /// columns: zero exactly when every value is finite.
-  Vec<D> finite_terms(int p) const;
   /// After each step: check_particle() for every particle, the energies,
   /// the wave speed for the next stable_dt() and the momentum, in one pass
   /// (no checks when `check` is false).
