@@ -293,3 +293,109 @@ TEST_CASE("lattice rows: the scatter sums them to the bits of their table on eve
     CHECK(plan.plan_for(rows, nodes) == ParticleToNodes<3>().plan_for(table, nodes));
   }
 }
+
+namespace {
+/// A particle's payload for the engine's sums (NodeSumsAdd): m, m w, f_ext
+/// and V sigma, random with both signs and several magnitudes (fixed seed).
+struct Loads {
+  double m;
+  Vec<3> mw, fext;
+  Mat<3> Vs;
+};
+
+std::vector<Loads> random_loads(int n) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<Loads> out(static_cast<std::size_t>(n));
+  for (Loads& w : out) {
+    w.m = 1.0 + std::abs(u(rng));
+    w.mw = Vec<3>(u(rng), u(rng), u(rng)) * 3.0;
+    w.fext = Vec<3>(u(rng), u(rng), u(rng)) * 0.1;
+    for (int i = 0; i < 9; ++i) w.Vs(i) = u(rng) * std::pow(10.0, 3 * u(rng));
+  }
+  return out;
+}
+
+/// The nodal sums of one ParticleToNodes pass with the engine's NodeSumsAdd.
+template <bool Mass, bool Momentum, bool Forces, class Rows>
+std::vector<NodeSums<3>> engine_sums(const Rows& rows, int nodes, const std::vector<Loads>& loads,
+                                     int threads, ScatterPath path) {
+  const ScopedThreads scope(threads);
+  std::vector<NodeSums<3>> out(static_cast<std::size_t>(nodes));
+  ParticleToNodes<3> scatter;
+  scatter.force(path);
+  scatter.invalidate(8);
+  scatter.run(
+      rows, nodes, [](int, int) {}, [&](int p) { return loads[static_cast<std::size_t>(p)]; },
+      NodeSumsAdd<3, Mass, Momentum, Forces, false>{},
+      [&](int I, const NodeSums<3>& acc) { out[I].m += acc.m, out[I].q += acc.q, out[I].f += acc.f; },
+      [&](int I0, int I1) { std::fill(out.begin() + I0, out.begin() + I1, NodeSums<3>{}); });
+  return out;
+}
+
+/// True when a and b hold the same bits in every node's m, q and f.
+bool same_sums(const std::vector<NodeSums<3>>& a, const std::vector<NodeSums<3>>& b) {
+  bool same = a.size() == b.size();
+  for (std::size_t I = 0; same && I < a.size(); ++I)
+    same = a[I].m == b[I].m && a[I].q == b[I].q && a[I].f == b[I].f;
+  return same;
+}
+
+template <bool Mass, bool Momentum, bool Forces> void check_pairs_against_table() {
+  const int n = 9, nodes = (n + 1) * (n + 1) * (n + 1);
+  for (const bool shuffle : {false, true}) {
+    const auto [rows, table] = lattice_rows<3>(n, shuffle);
+    const std::vector<Loads> loads = random_loads(rows.rows());
+    for (const ScatterPath path : {ScatterPath::dense, ScatterPath::sparse})
+      for (const int threads : {1, 2}) {
+        const auto a = engine_sums<Mass, Momentum, Forces>(rows, nodes, loads, threads, path);
+        const auto b = engine_sums<Mass, Momentum, Forces>(table, nodes, loads, threads, path);
+        CHECK(same_sums(a, b));
+        double largest = 0.0; // the forces are not trivially zero
+        for (const NodeSums<3>& s : a) largest = std::max(largest, s.f.cwiseAbs().maxCoeff());
+        CHECK(largest > 1.0);
+      }
+  }
+}
+} // namespace
+
+TEST_CASE(
+    "lattice rows: the engine's sums with forces, two corners of a 3D row at a time, give the table's bits") {
+  static_assert(NodeSumsAdd<3, false, false, true, false>::pairs && LatticeView<3>::pairs);
+  check_pairs_against_table<false, false, true>(); // the stress update's pass
+  check_pairs_against_table<true, true, true>();   // fe's and musl's first
+  check_pairs_against_table<true, false, true>();
+}
+
+TEST_CASE("lattice rows: two 3D rows' node-to-particle sums at a time give the bits of each row's own") {
+  const auto [rows, table] = lattice_rows<3>(7, true);
+  const int nodes = 8 * 8 * 8;
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<Vec<3>> rate(nodes), kick(nodes), move(nodes), field(nodes);
+  for (int I = 0; I < nodes; ++I)
+    for (auto* a : {&rate, &kick, &move, &field})
+      (*a)[I] = Vec<3>(u(rng), u(rng), u(rng)) * std::pow(10.0, 2 * u(rng));
+  const LatticeView<3> view(rows);
+  int checked = 0;
+  for (int p = 0; p + 1 < rows.rows(); p += 2) {
+    TwoRowSums<3, true, true, true, true> s{
+        .rate = rate.data(), .kick = kick.data(), .move = move.data(), .field = field.data()};
+    view.visit_two_rows(p, [&s](int I, int J, CornerPair N, const CornerPair* dN) { s.add(I, J, N, dN); });
+    for (int l = 0; l < 2; ++l) { // the engine's one-row sums (Engine::to_particles_rows)
+      Vec<3> r = Vec<3>::Zero(), k = Vec<3>::Zero(), m = Vec<3>::Zero();
+      Mat<3> G = Mat<3>::Zero();
+      view.visit_row(p + l, [&](int I, double N, const Vec<3>& dN) {
+        r += N * rate[I];
+        k += N * kick[I];
+        m += N * move[I];
+        G.noalias() += field[I] * dN.transpose();
+      });
+      const bool same =
+          r == s.lane(s.r, l) && k == s.lane(s.k, l) && m == s.lane(s.u, l) && G == s.gradient(l);
+      checked += same;
+      CHECK(same);
+    }
+  }
+  CHECK(checked == rows.rows());
+}

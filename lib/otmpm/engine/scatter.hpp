@@ -31,6 +31,60 @@ template <int D> struct NodeSums {
   Vec<D> f = Vec<D>::Zero();
 };
 
+/// The engine's sum of one basis entry (particle p, node I) into node I's
+/// partial sums (docs/theory.md eqs. 5.1, 5.2): m_I += N_Ip m_p, q_I += N_Ip
+/// (m w)_p, f_I -= (V sigma)_p grad N_Ip, then f_I += N_Ip fext_p; `Split`:
+/// f_I += N_Ip (m a)_p instead. `W` is the particle's payload (m, mw, fext,
+/// Vs). pair() adds two entries of one row, two corners of a compact lattice
+/// row in the lanes of a CornerPair, each lane the arithmetic of operator()
+/// in its order (Eigen's 3 x 3 times 3-vector sums its products left to
+/// right), so the same bits (tests/test_scatter.cpp).
+template <int D, bool Mass, bool Momentum, bool Forces, bool Split> struct NodeSumsAdd {
+  /// rows_sums may hand it corner pairs (where the rows offer them): with the
+  /// forces, whose products outweigh the lanes' moves (measured: the mass
+  /// and momenta alone, one product per value, take more instructions so)
+  static constexpr bool pairs = Forces;
+  template <class W>
+  [[gnu::always_inline]] void operator()(NodeSums<D>& acc, double N, const Vec<D>& dN, const W& w) const {
+    if (Mass) acc.m += N * w.m;
+    if (Momentum) acc.q += N * w.mw;
+    if (Split) acc.f += N * w.fext;
+    if (Forces) {
+      acc.f -= w.Vs * dN;
+      acc.f += N * w.fext;
+    }
+  }
+  /// operator() for the entries (a, N[0], dN[.][0]) and (b, N[1], dN[.][1]).
+  template <class W>
+  [[gnu::always_inline]] void pair(NodeSums<D>& a, NodeSums<D>& b, CornerPair N, const CornerPair* dN,
+                                   const W& w) const {
+    if (Mass) store(a.m, b.m, CornerPair{a.m, b.m} + N * w.m);
+    for (int i = 0; i < D; ++i) {
+      if (Momentum) store(a.q[i], b.q[i], CornerPair{a.q[i], b.q[i]} + N * w.mw[i]);
+      if (!Forces && !Split) continue;
+      CornerPair f{a.f[i], b.f[i]};
+      if (Split) f += N * w.fext[i];
+      if (Forces) {
+        f = (f - product_row(w.Vs, i, dN)) + N * w.fext[i];
+      }
+      store(a.f[i], b.f[i], f);
+    }
+  }
+
+private:
+  [[gnu::always_inline]] static void store(double& a, double& b, CornerPair v) { a = v[0], b = v[1]; }
+  /// Row i of Vs grad N in the order Eigen 3.4 sums `Vs * dN` (measured, and
+  /// held by tests/test_scatter.cpp): the rows it takes in SSE2 packets left
+  /// to right, ((p0 + p1) + p2); the third row of a 3 x 3, a scalar
+  /// reduction split in halves, p0 + (p1 + p2).
+  [[gnu::always_inline]] static CornerPair product_row(const Mat<D>& Vs, int i, const CornerPair* dN) {
+    if (D == 3 && i == 2) return Vs(i, 0) * dN[0] + (Vs(i, 1) * dN[1] + Vs(i, 2) * dN[2]);
+    CornerPair t = Vs(i, 0) * dN[0];
+    for (int k = 1; k < D; ++k) t += Vs(i, k) * dN[k];
+    return t;
+  }
+};
+
 /// Particles per scatter block, and a total of block node ranges (in units
 /// of the node count) up to which the dense blocked scatter is used.
 constexpr int scatter_block = static_cast<int>(home_granule);
@@ -301,8 +355,14 @@ private:
     const Add add = add_in;
     for (int p = begin; p < end; ++p) {
       const auto w = prep(p);
-      view.visit_row(
-          p, [&](int I, double N, const Vec<D>& dN) __attribute__((always_inline)) { add(at(I), N, dN, w); });
+      if constexpr (requires { requires View::pairs && Add::pairs; })
+        view.visit_row_pairs(
+            p, [&](int I, int J, CornerPair N, const CornerPair* dN)
+                   __attribute__((always_inline)) { add.pair(at(I), at(J), N, dN, w); });
+      else
+        view.visit_row(
+            p, [&](int I, double N, const Vec<D>& dN)
+                   __attribute__((always_inline)) { add(at(I), N, dN, w); });
     }
   }
 
