@@ -37,8 +37,8 @@ template <int D> struct NodeSums {
 /// f_I += N_Ip (m a)_p instead. `W` is the particle's payload (m, mw, fext,
 /// Vs). pair() adds two entries of one row, two corners of a compact lattice
 /// row in the lanes of a CornerPair, each lane the arithmetic of operator()
-/// in its order (Eigen's 3 x 3 times 3-vector sums its products left to
-/// right), so the same bits (tests/test_scatter.cpp).
+/// in its order (V sigma grad N summed as Eigen sums it, product_row), so
+/// the same bits (tests/test_scatter.cpp).
 template <int D, bool Mass, bool Momentum, bool Forces, bool Split> struct NodeSumsAdd {
   /// rows_sums may hand it corner pairs (where the rows offer them): with the
   /// forces, whose products outweigh the lanes' moves (measured: the mass
@@ -64,9 +64,7 @@ template <int D, bool Mass, bool Momentum, bool Forces, bool Split> struct NodeS
       if (!Forces && !Split) continue;
       CornerPair f{a.f[i], b.f[i]};
       if (Split) f += N * w.fext[i];
-      if (Forces) {
-        f = (f - product_row(w.Vs, i, dN)) + N * w.fext[i];
-      }
+      if (Forces) f = (f - product_row(w.Vs, i, dN)) + N * w.fext[i];
       store(a.f[i], b.f[i], f);
     }
   }
