@@ -961,19 +961,19 @@ void Engine<D>::to_particles_rows(const ToParticles<D>& what, const Gradient<D>&
   [[maybe_unused]] LiquidRows<D> liquid; // Liquid: the liquid's row sums of the batch
   static_assert(kStressBatch <= LiquidRows<D>::size);
   if constexpr (Liquid) what.liquid->bind(*this, liquid);
-  // What particle p takes from its row's sums (r, u, k, G); H: its batch's.
-  const auto take = [&](int p, Mat<D>* Hp, const Vec<D>& r, const Vec<D>& u, const Vec<D>& k, const Mat<D>& G)
-      __attribute__((always_inline)) {
-    if constexpr (Rate) {
-      if (rate_out) rate_out[p] = r;
-      v[p] += c_rate * r;
-    }
-    if constexpr (Kick) v[p] += k;
-    if constexpr (Move) x[p] += c_move * u;
-    if constexpr (Field) *Hp = c * G;
-  };
   for (int p0 = begin; p0 < end; p0 += kStressBatch) {
     const int p1 = std::min(end, p0 + kStressBatch);
+    // What particle p takes from its row's sums (r, u, k, G).
+    const auto take = [&](int p, const Vec<D>& r, const Vec<D>& u, const Vec<D>& k, const Mat<D>& G)
+        __attribute__((always_inline)) {
+      if constexpr (Rate) {
+        if (rate_out) rate_out[p] = r;
+        v[p] += c_rate * r;
+      }
+      if constexpr (Kick) v[p] += k;
+      if constexpr (Move) x[p] += c_move * u;
+      if constexpr (Field) H[p - p0] = c * G;
+    };
     int p = p0;
     // The compact lattice rows two at a time (the same bits, TwoRowSums).
     if constexpr (requires { requires View::pairs; } && !Liquid)
@@ -983,7 +983,7 @@ void Engine<D>::to_particles_rows(const ToParticles<D>& what, const Gradient<D>&
             p, [&s](int I, int J, CornerPair N, const CornerPair* dN)
                    __attribute__((always_inline)) { s.add(I, J, N, dN); });
         for (int l = 0; l < 2; ++l)
-          take(p + l, H + (p + l - p0), s.lane(s.r, l), s.lane(s.u, l), s.lane(s.k, l), s.gradient(l));
+          take(p + l, s.lane(s.r, l), s.lane(s.u, l), s.lane(s.k, l), s.gradient(l));
       }
     for (; p < p1; ++p) {
       Vec<D> r = Vec<D>::Zero(), u = Vec<D>::Zero(), k = Vec<D>::Zero();
@@ -998,7 +998,7 @@ void Engine<D>::to_particles_rows(const ToParticles<D>& what, const Gradient<D>&
             if constexpr (Liquid) liquid.add(l, I, N, dN);
           });
       if constexpr (Liquid) liquid.row[p - p0] = l;
-      take(p, H + (p - p0), r, u, k, G);
+      take(p, r, u, k, G);
     }
     if constexpr (Field) update_materials(p0, p1, H);
     else if (averaged) update_materials(p0, p1, averaged + p0);
