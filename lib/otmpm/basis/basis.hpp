@@ -376,6 +376,12 @@ template <int D> struct BasisTable {
   std::size_t entries() const { return node.size(); }
 };
 
+/// The gradient of a hat for lanes of type T: Vec<D> for one point (T =
+/// double), D lane vectors for several points at once (T a GCC vector of
+/// doubles, one point per lane: LatticeView::visit_two_rows).
+template <int D, class T>
+using HatGradient = std::conditional_t<std::is_same_v<T, double>, Vec<D>, std::array<T, D>>;
+
 /// The 2^D hat functions of a point at t_k in [0, 1] of its cell along each
 /// axis (docs/theory.md eq. 4.1): w_k = (1 - t_k, t_k), d_k = (-1/h_k,
 /// 1/h_k), N_a = prod_k w_k[a_k] and (grad N_a)_m the same product with d_m in
@@ -385,22 +391,27 @@ template <int D> struct BasisTable {
 /// hat_products; its SSE2 form in 2D and 3D computes the same products, the
 /// same bits - tests/test_linear.cpp) and the compact rows (LatticeRows)
 /// take their values from here, so a row rebuilt from t has the table's bits.
-template <int D, class F>
-[[gnu::always_inline]] inline void visit_hats(const Vec<D>& t, const std::array<std::array<double, 2>, D>& d,
-                                              F&& f) {
-  double w[D][2];
+/// `t` is a Vec<D>, or D lane vectors for several points at once: each
+/// lane's products are then the one point's, in its order, so its bits.
+/// `d[k]` is axis k's (-1/h_k, 1/h_k); t and d may have more axes than D,
+/// of which the first D are read.
+template <int D, class Point, class Slopes, class F>
+[[gnu::always_inline]] inline void visit_hats(const Point& t, const Slopes& d, F&& f) {
+  using T = std::remove_cvref_t<decltype(t[0])>;
+  using G = HatGradient<D, T>;
+  T w[D][2];
   for (int k = 0; k < D; ++k) w[k][0] = 1.0 - t[k], w[k][1] = t[k];
   if constexpr (D == 1) {
-    for (int a = 0; a < 2; ++a) f(a, w[0][a], Vec<D>(d[0][a]));
+    for (int a = 0; a < 2; ++a) f(a, w[0][a], G{d[0][a]});
   } else {
     for (int a2 = 0; a2 < (D == 3 ? 2 : 1); ++a2)
       for (int a1 = 0; a1 < 2; ++a1)
         for (int a0 = 0; a0 < 2; ++a0) {
-          const double ww = w[0][a0] * w[1][a1], dw = d[0][a0] * w[1][a1], wd = w[0][a0] * d[1][a1];
+          const T ww = w[0][a0] * w[1][a1], dw = d[0][a0] * w[1][a1], wd = w[0][a0] * d[1][a1];
           if constexpr (D == 2)
-            f(a0 + 2 * a1, ww, Vec<D>(dw, wd));
+            f(a0 + 2 * a1, ww, G{dw, wd});
           else
-            f(a0 + 2 * a1 + 4 * a2, ww * w[2][a2], Vec<D>(dw * w[2][a2], wd * w[2][a2], ww * d[2][a2]));
+            f(a0 + 2 * a1 + 4 * a2, ww * w[2][a2], G{dw * w[2][a2], wd * w[2][a2], ww * d[2][a2]});
         }
   }
 }

@@ -57,38 +57,33 @@ template <int D> struct LatticeView {
   static constexpr bool pairs = D == 3;
   /// Row p's entries two at a time, f(I, J, N, dN) with the corners a (lane
   /// 0, node I) and a + 4 (lane 1, node J, the upper node along z) for a =
-  /// 0 .. 3; each lane's N and grad N the products of visit_hats in its
-  /// order, so the bits of visit_row's entries.
+  /// 0 .. 3: the 2D hats of (x, y) (visit_hats) times the two z factors, so
+  /// each lane's products those of visit_hats in 3D, in its order - the bits
+  /// of visit_row's entries.
   template <class F> [[gnu::always_inline]] void visit_row_pairs(int p, F&& f) const {
     static_assert(D == 3);
     const Vec<D>& tp = t[p];
-    double w[D][2];
-    for (int k = 0; k < D; ++k) w[k][0] = 1.0 - tp[k], w[k][1] = tp[k];
-    const CornerPair wz{w[2][0], w[2][1]}, dz{d[2][0], d[2][1]};
-    for (int a = 0; a < S / 2; ++a) {
-      const int a0 = a & 1, a1 = a >> 1;
-      const double ww = w[0][a0] * w[1][a1], dw = d[0][a0] * w[1][a1], wd = w[0][a0] * d[1][a1];
-      const CornerPair dN[3] = {dw * wz, wd * wz, ww * dz};
-      f(base[p] + corner_offset[a], base[p] + corner_offset[a + S / 2], ww * wz, dN);
-    }
+    const CornerPair wz{1.0 - tp[2], tp[2]}, dz{d[2][0], d[2][1]};
+    const int b = base[p];
+    visit_hats<2>( // reads the x and y of tp and d alone
+        tp, d, [&](int a, double ww, const Vec<2>& g) __attribute__((always_inline)) {
+          const CornerPair dN[3] = {g[0] * wz, g[1] * wz, ww * dz};
+          f(b + corner_offset[a], b + corner_offset[a + S / 2], ww * wz, dN);
+        });
   }
   /// Rows p and p + 1 together, f(I, J, N, dN) for every corner a in
   /// visit_row's order, lane 0 row p's entry (node I), lane 1 row p + 1's
-  /// (node J); each lane's products those of visit_hats, so the bits of
+  /// (node J): visit_hats of the two points in lanes, so the bits of
   /// visit_row's entries of either row.
   template <class F> [[gnu::always_inline]] void visit_two_rows(int p, F&& f) const {
     static_assert(D == 3);
-    const Vec<D>&t0 = t[p], &t1 = t[p + 1];
-    CornerPair w[D][2];
-    for (int k = 0; k < D; ++k) w[k][1] = CornerPair{t0[k], t1[k]}, w[k][0] = 1.0 - w[k][1];
-    for (int a2 = 0; a2 < 2; ++a2)
-      for (int a1 = 0; a1 < 2; ++a1)
-        for (int a0 = 0; a0 < 2; ++a0) {
-          const int a = a0 + 2 * a1 + 4 * a2;
-          const CornerPair ww = w[0][a0] * w[1][a1], dw = d[0][a0] * w[1][a1], wd = w[0][a0] * d[1][a1];
-          const CornerPair dN[3] = {dw * w[2][a2], wd * w[2][a2], ww * d[2][a2]};
-          f(base[p] + corner_offset[a], base[p + 1] + corner_offset[a], ww * w[2][a2], dN);
-        }
+    std::array<CornerPair, D> tt;
+    for (int k = 0; k < D; ++k) tt[k] = CornerPair{t[p][k], t[p + 1][k]};
+    const int b0 = base[p], b1 = base[p + 1];
+    visit_hats<D>(
+        tt, d, [&](int a, CornerPair N, const std::array<CornerPair, D>& dN) __attribute__((always_inline)) {
+          f(b0 + corner_offset[a], b1 + corner_offset[a], N, dN.data());
+        });
   }
 };
 
