@@ -379,6 +379,92 @@ TEST_CASE("lme_box: N_I is the product of the 1D functions, and the box holds th
   }
 }
 
+namespace {
+/// `count` random points of [lo, 1 - lo]^D (fixed seed).
+template <int D> AlignedVector<Vec<D>> random_points(int count, double lo, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(lo, 1.0 - lo);
+  AlignedVector<Vec<D>> x(static_cast<std::size_t>(count));
+  for (Vec<D>& p : x)
+    for (int k = 0; k < D; ++k) p[k] = u(rng);
+  return x;
+}
+
+/// The product rows of lme_box at points over every cell of an n^D lattice
+/// (those within R of its ends among them) against the table the same
+/// family fills at the same points: the same entries, bits and multipliers.
+template <int D> void check_product_rows(int cells, double gamma, unsigned seed) {
+  const NodeSet<D> nodes = NodeSet<D>::cartesian(unit_grid<D>(cells));
+  const auto by_table = make_lme_box_basis<D>(nodes, box_options(gamma));
+  const auto by_rows = make_lme_box_basis<D>(nodes, box_options(gamma));
+  // off the hull's boundary by more than kBoxHullGap h on every axis
+  const AlignedVector<Vec<D>> x = random_points<D>(400, 2.0 * kBoxHullGap / cells, seed);
+  const int n = static_cast<int>(x.size());
+  by_table->bind_points(n, false);
+  by_rows->bind_points(n, false);
+  BasisTable<D> table, expanded;
+  by_table->evaluate_points(x, table);
+  ProductRows<D> rows;
+  REQUIRE(by_rows->evaluate_product_rows(x, rows));
+  expand_product_rows(rows, expanded);
+  CHECK(expanded.offset == table.offset);
+  CHECK(expanded.node == table.node);
+  CHECK(expanded.N == table.N);
+  CHECK(expanded.dN == table.dN);
+  CHECK(by_rows->point_state().lambda == by_table->point_state().lambda);
+  bool same = true; // entry by entry (the column gather's access), and each row's node range
+  for (int p = 0; p < n; ++p) {
+    const auto [lo, hi] =
+        std::minmax_element(table.node.begin() + table.begin(p), table.node.begin() + table.end(p));
+    same = same && rows.lowest(p) == *lo && rows.highest(p) == *hi;
+    for (int e = table.begin(p); e < table.end(p); ++e) {
+      int I;
+      double N;
+      Vec<D> dN;
+      rows.entry(p, e, I, N, dN);
+      same = same && I == table.node[e] && N == table.N[e] && dN == table.dN[e];
+    }
+  }
+  CHECK(same);
+}
+} // namespace
+
+TEST_CASE(
+    "lme_box: the product rows hold the table's entries bit for bit, and its multipliers (1D, 2D, 3D)") {
+  for (const double gamma : {1.5, 3.0, 6.0}) {
+    INFO("gamma_lme " << gamma);
+    check_product_rows<1>(9, gamma, 3);
+    check_product_rows<2>(9, gamma, 4);
+    check_product_rows<3>(7, gamma, 5);
+  }
+}
+
+TEST_CASE("lme_box: no product rows where a point's table does not reach, nor for another family") {
+  const NodeSet<2> nodes = NodeSet<2>::cartesian(unit_grid<2>(8));
+  const auto basis = make_lme_box_basis<2>(nodes, box_options());
+  AlignedVector<Vec<2>> x = random_points<2>(50, 0.01, 6);
+  basis->bind_points(static_cast<int>(x.size()), false);
+  ProductRows<2> rows;
+  REQUIRE(basis->evaluate_product_rows(x, rows));
+  const double h = 1.0 / 8;
+  for (const Vec<2>& off : {Vec<2>(0.5 * kBoxHullGap * h, 0.5), Vec<2>(0.5, 1.0 - 0.5 * kBoxHullGap * h),
+                            Vec<2>(-0.1, 0.5), Vec<2>(0.5, std::nan("")), Vec<2>(INFINITY, 0.5)}) {
+    AlignedVector<Vec<2>> y = x;
+    y[25] = off; // next to the hull's boundary (the Newton solve's), outside, not finite
+    INFO("x = " << off.transpose());
+    CHECK_FALSE(basis->evaluate_product_rows(y, rows));
+  }
+  BasisOptions lme = box_options();
+  lme.kind = "lme"; // the ball support is no product
+  const auto ball = make_basis<2>(lme, nodes);
+  ball->bind_points(static_cast<int>(x.size()), false);
+  CHECK_FALSE(ball->evaluate_product_rows(x, rows));
+  // the points of a run whose nodes move keep more state than the multiplier
+  const auto moving = make_lme_box_basis<2>(nodes, box_options());
+  moving->bind_points(static_cast<int>(x.size()), true);
+  CHECK_FALSE(moving->evaluate_product_rows(x, rows));
+}
+
 TEST_CASE("lme_box: a distributed run's window holds the lines within R per axis, not sqrt(D) R") {
   // The window's reach (BasisKind::reach, from the search radius sqrt(D) R
   // of the ball around the box) is lme's at R: R / h rounded up below and

@@ -276,21 +276,57 @@ TEST_CASE_TEMPLATE("lattice rows: a pass visits the table's entries in the table
   CHECK(same);
 }
 
+namespace {
+/// The compact rows `rows` (lattice or product rows) sum to the bits of
+/// their full `table` on every scatter path with 1 and 2 threads, each
+/// particle updated once, and their plan is the table's.
+template <class Rows>
+void check_same_sums(const Rows& rows, const BasisTable<3>& table, int nodes, int width) {
+  const Carried c = carried(table.rows());
+  for (const ScatterPath path : {ScatterPath::dense, ScatterPath::sparse, ScatterPath::columns})
+    for (const int threads : {1, 2}) {
+      const Sums a = sums(rows, nodes, c, threads, path, width),
+                 b = sums(table, nodes, c, threads, path, width);
+      CHECK(a.path == path);
+      CHECK(a.m == b.m);
+      CHECK(a.q == b.q);
+      CHECK(a.updates == std::vector<int>(static_cast<std::size_t>(table.rows()), 1));
+    }
+  ParticleToNodes<3> plan;
+  CHECK(plan.plan_for(rows, nodes) == ParticleToNodes<3>().plan_for(table, nodes));
+}
+} // namespace
+
 TEST_CASE("lattice rows: the scatter sums them to the bits of their table on every path, 1 and 2 threads") {
   const int n = 12, nodes = (n + 1) * (n + 1) * (n + 1);
   for (const bool shuffle : {false, true}) {
     const auto [rows, table] = lattice_rows<3>(n, shuffle);
-    const Carried c = carried(table.rows());
-    for (const ScatterPath path : {ScatterPath::dense, ScatterPath::sparse, ScatterPath::columns})
-      for (const int threads : {1, 2}) {
-        const Sums a = sums(rows, nodes, c, threads, path, 8), b = sums(table, nodes, c, threads, path, 8);
-        CHECK(a.path == path);
-        CHECK(a.m == b.m);
-        CHECK(a.q == b.q);
-        CHECK(a.updates == std::vector<int>(static_cast<std::size_t>(table.rows()), 1));
-      }
-    ParticleToNodes<3> plan; // the plan of the lattice rows is the table's
-    CHECK(plan.plan_for(rows, nodes) == ParticleToNodes<3>().plan_for(table, nodes));
+    check_same_sums(rows, table, nodes, 8);
+  }
+}
+
+TEST_CASE("product rows: the scatter sums them to the bits of their table on every path, 1 and 2 threads") {
+  // lme_box (gamma_lme 3: 4 - 5 lines per axis) at 2 x 2 x 2 points per cell of an 8^3 lattice
+  const int n = 8, nodes = (n + 1) * (n + 1) * (n + 1);
+  CartesianGrid<3> g;
+  g.lower = Vec<3>::Zero(), g.upper = Vec<3>::Ones();
+  g.cells.fill(n);
+  BasisOptions opt;
+  opt.kind = "lme_box";
+  opt.values["gamma_lme"] = 3.0;
+  for (const bool shuffle : {false, true}) {
+    AlignedVector<Vec<3>> x;
+    for (int i = 0; i < 8 * n * n * n; ++i)
+      x.push_back(Vec<3>((i % (2 * n) + 0.5) / (2.0 * n), (i / (2 * n) % (2 * n) + 0.5) / (2.0 * n),
+                         (i / (4 * n * n) + 0.5) / (2.0 * n)));
+    if (shuffle) std::shuffle(x.begin(), x.end(), std::mt19937(42));
+    const auto basis = make_lme_box_basis<3>(NodeSet<3>::cartesian(g), opt);
+    basis->bind_points(static_cast<int>(x.size()), false);
+    ProductRows<3> rows;
+    REQUIRE(basis->evaluate_product_rows(x, rows));
+    BasisTable<3> table;
+    expand_product_rows(rows, table);
+    check_same_sums(rows, table, nodes, 0);
   }
 }
 

@@ -770,6 +770,60 @@ template <int D> void expand_lattice_rows(const LatticeRows<D>& rows, BasisTable
   table.offset.back() = n * S;
 }
 
+template <int D> void transpose_basis_table(const ProductRows<D>& rows, int nodes, NodeColumns& columns) {
+  transpose_rows(
+      rows.rows(), static_cast<std::size_t>(rows.offset.back()), nodes,
+      [&rows](int p) { return rows.offset[static_cast<std::size_t>(p)]; },
+      [&rows](int e) { // the row of entry e: the last offset not above it
+        const auto p = std::upper_bound(rows.offset.begin(), rows.offset.end(), e) - rows.offset.begin() - 1;
+        int I;
+        double N;
+        Vec<D> dN;
+        rows.entry(static_cast<int>(p), e, I, N, dN);
+        return I;
+      },
+      columns);
+}
+
+template <int D> bool ProductRows<D>::count_entries() {
+  const long long n = rows();
+  std::vector<long long> start(static_cast<std::size_t>(reduction_blocks(n)) + 1, 0);
+  parallel_blocks(n, [&](long long b, long long p0, long long p1) { // the block's own prefix sums
+    long long sum = 0;
+    for (long long p = p0; p < p1; ++p) {
+      int entries = 1;
+      for (const int mk : m[static_cast<std::size_t>(p)]) entries *= mk;
+      sum += entries;
+      offset[static_cast<std::size_t>(p) + 1] = static_cast<int>(sum);
+    }
+    start[static_cast<std::size_t>(b) + 1] = sum;
+  });
+  for (std::size_t b = 1; b < start.size(); ++b) start[b] += start[b - 1];
+  if (start.back() > std::numeric_limits<int>::max()) return false;
+  parallel_blocks(n, [&](long long b, long long p0, long long p1) {
+    const auto s = static_cast<int>(start[static_cast<std::size_t>(b)]);
+    for (long long p = p0; p < p1; ++p) offset[static_cast<std::size_t>(p) + 1] += s;
+  });
+  offset[0] = 0;
+  return true;
+}
+
+template <int D> void expand_product_rows(const ProductRows<D>& rows, BasisTable<D>& table) {
+  const int n = rows.rows();
+  const auto entries = static_cast<std::size_t>(rows.offset.back());
+  table.offset.assign(rows.offset.begin(), rows.offset.end());
+  table.node.resize(entries);
+  table.N.resize(entries);
+  table.dN.resize(entries);
+  parallel_for(n, [&](long long p) {
+    auto e = static_cast<std::size_t>(rows.offset[static_cast<std::size_t>(p)]);
+    rows.visit_row(static_cast<int>(p), [&](int I, double N, const Vec<D>& dN) {
+      table.node[e] = I, table.N[e] = N, table.dN[e] = dN;
+      ++e;
+    });
+  });
+}
+
 #define OTMPM_INSTANTIATE_BASIS(D)                                                                           \
   template class Basis<D>;                                                                                   \
   template void fill_basis_table<D>(const Basis<D>&, const AlignedVector<Vec<D>>&, AlignedVector<Vec<D>>*,   \
@@ -778,7 +832,10 @@ template <int D> void expand_lattice_rows(const LatticeRows<D>& rows, BasisTable
                                     BasisTable<D>&);                                                         \
   template void transpose_basis_table<D>(const BasisTable<D>&, int, NodeColumns&);                           \
   template void transpose_basis_table<D>(const LatticeRows<D>&, int, NodeColumns&);                          \
-  template void expand_lattice_rows<D>(const LatticeRows<D>&, BasisTable<D>&);
+  template void expand_lattice_rows<D>(const LatticeRows<D>&, BasisTable<D>&);                               \
+  template void transpose_basis_table<D>(const ProductRows<D>&, int, NodeColumns&);                          \
+  template void expand_product_rows<D>(const ProductRows<D>&, BasisTable<D>&);                               \
+  template struct ProductRows<D>;
 OTMPM_INSTANTIATE_BASIS(1)
 OTMPM_INSTANTIATE_BASIS(2)
 OTMPM_INSTANTIATE_BASIS(3)

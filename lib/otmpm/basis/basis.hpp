@@ -26,6 +26,7 @@ namespace otmpm {
 struct StateGroup;
 template <int D> struct BasisTable;
 template <int D> struct LatticeRows;
+template <int D> struct ProductRows;
 
 /// The stencil of one point: node ids I with N_I(x) > 0 and grad N_I(x).
 /// Also carries scratch arrays that a family may use during evaluation, so
@@ -288,6 +289,17 @@ public:
     (void)x, (void)rows;
     return false;
   }
+  /// The product rows of the bound points at x (ProductRows) when the
+  /// family's functions there are products of one factor per lattice axis
+  /// (`lme_box` on its untouched lattice): true, `rows` holds them and the
+  /// per-point state is updated as evaluate_points() updates it; false when
+  /// it has none or a point lies where its table does not reach (`rows` and
+  /// the state then unspecified: the caller builds the table, which
+  /// evaluates or reports that point). The default: false.
+  virtual bool evaluate_product_rows(const AlignedVector<Vec<D>>& x, ProductRows<D>& rows) {
+    (void)x, (void)rows;
+    return false;
+  }
   /// Which per-point state the family keeps when it evaluates the same points
   /// step after step (the particles, bind_points): the Lagrange multiplier
   /// of the max-ent families (warm start) and the cell hint of the element
@@ -498,6 +510,113 @@ template <int D> struct LatticeRows {
 /// family's own table at the same points).
 template <int D> void expand_lattice_rows(const LatticeRows<D>& rows, BasisTable<D>& table);
 
+/// The rows of a family whose functions on an untouched lattice are
+/// products of one 1D factor per axis over a box of lattice lines
+/// (`lme_box`, docs/theory.md sect. 4.9): for point p, per axis k the
+/// m_k lines lo_k .. lo_k + m_k - 1 of its box and their 1D values n_k
+/// and derivatives d_k (per unit length), D (8 + 16 M) + 8 bytes with M
+/// the lanes of an axis, where the table's row takes prod_k m_k (12 + 8 D)
+/// + 4. Row p's entries are the box's nodes with node ids ascending (axis 0
+/// innermost), N_I = n_0 (n_1 n_2) and grad N_I = (d_0 (n_1 n_2), n_0 (d_1
+/// n_2), n_0 (n_1 d_2)) formed in that order where they are used, so each
+/// entry has the bits of the family's table (tests/test_lme_box.cpp).
+template <int D> struct ProductRows {
+  int lanes = 0;                     ///< M: the factors of one axis take M doubles (n), then M (d)
+  std::array<int, D> stride{};       ///< node-id stride of each axis
+  std::vector<int> base;             ///< the row's lowest node id, sum_k lo_k stride_k
+  std::vector<std::array<int, D>> m; ///< lines per axis
+  std::vector<int> offset{0};        ///< row p's entries are offset[p] .. offset[p + 1] - 1
+  AlignedVector<double> f;           ///< row p's factors from p 2 D M on: axis k's n, then its d
+
+  int rows() const { return static_cast<int>(base.size()); }
+  /// Sizes the arrays for `n` rows of `lanes` lanes (the values unset).
+  void resize(int n, int lanes_per_axis) {
+    lanes = lanes_per_axis;
+    base.resize(static_cast<std::size_t>(n));
+    m.resize(static_cast<std::size_t>(n));
+    offset.resize(static_cast<std::size_t>(n) + 1);
+    f.resize(static_cast<std::size_t>(n) * 2 * D * static_cast<std::size_t>(lanes));
+  }
+  /// Sets offset from the lines m of every row (in fixed blocks, the same
+  /// for any thread count); false (offset unspecified) when the entries
+  /// exceed the int range of the offsets.
+  bool count_entries();
+  /// Row p's factors (axis k's n at 2 k M, d at (2 k + 1) M).
+  const double* factors(int p) const { return f.data() + static_cast<std::size_t>(p) * 2 * D * lanes; }
+  double* factors(int p) { return f.data() + static_cast<std::size_t>(p) * 2 * D * lanes; }
+  /// f(I, N_Ip, grad N_Ip) for the entries of row p in the table's order.
+  template <class F> [[gnu::always_inline]] void visit_row(int p, F&& f) const {
+    visit(base[static_cast<std::size_t>(p)], m[static_cast<std::size_t>(p)], factors(p), lanes, stride, f);
+  }
+  /// visit_row() of a row given by its parts (static, so that a pass may
+  /// hold the arrays in its own locals: engine/rows.hpp, ProductView). M0 >
+  /// 0: axis 0 has M0 lines (its loop unrolled); 0: any.
+  template <int M0 = 0, class F>
+  [[gnu::always_inline]] static void visit(int b, const std::array<int, D>& mp, const double* r, int M,
+                                           const std::array<int, D>& stride, F&& f) {
+    const int m0 = M0 > 0 ? M0 : mp[0], m1 = D > 1 ? mp[1 % D] : 1, m2 = D > 2 ? mp[2 % D] : 1;
+    for (int i2 = 0; i2 < m2; ++i2)
+      for (int i1 = 0; i1 < m1; ++i1) {
+        double w;
+        Vec<D> g;
+        cross(r, M, i1, i2, w, g);
+        const int id = b + (D > 1 ? i1 * stride[1 % D] : 0) + (D > 2 ? i2 * stride[2 % D] : 0);
+        for (int i0 = 0; i0 < m0; ++i0) {
+          double N;
+          Vec<D> dN;
+          product(r[i0], r[M + i0], w, g, N, dN);
+          f(id + i0, N, dN);
+        }
+      }
+  }
+  /// Entry e of row p (offset[p] <= e < offset[p + 1]): its node, and N_Ip
+  /// and grad N_Ip with the bits visit_row gives them (the column gather).
+  void entry(int p, int e, int& I, double& N, Vec<D>& dN) const {
+    const std::array<int, D>& mp = m[static_cast<std::size_t>(p)];
+    int i[3] = {0, 0, 0};
+    for (int k = 0, l = e - offset[static_cast<std::size_t>(p)]; k < D; ++k) i[k] = l % mp[k], l /= mp[k];
+    double w;
+    Vec<D> g;
+    const double* r = factors(p);
+    cross(r, lanes, i[1], i[2], w, g);
+    product(r[i[0]], r[lanes + i[0]], w, g, N, dN);
+    I = base[static_cast<std::size_t>(p)] + i[0] + (D > 1 ? i[1] * stride[1 % D] : 0) +
+        (D > 2 ? i[2] * stride[2 % D] : 0);
+  }
+  /// The smallest and largest node id of row p.
+  int lowest(int p) const { return base[static_cast<std::size_t>(p)]; }
+  int highest(int p) const {
+    int h = base[static_cast<std::size_t>(p)];
+    for (int k = 0; k < D; ++k) h += (m[static_cast<std::size_t>(p)][k] - 1) * stride[k];
+    return h;
+  }
+
+private:
+  /// The factors of lines i1 and i2 of axes 1 and 2 (those that exist): w
+  /// = n_1 n_2, g = (-, d_1 n_2, n_1 d_2).
+  [[gnu::always_inline]] static void cross(const double* r, int M, int i1, int i2, double& w, Vec<D>& g) {
+    w = 1.0, g = Vec<D>::Zero();
+    if constexpr (D > 1) {
+      const double n1 = r[2 * M + i1], d1 = r[3 * M + i1];
+      const double n2 = D > 2 ? r[4 * M + i2] : 1.0, d2 = D > 2 ? r[5 * M + i2] : 0.0;
+      w = n1 * n2;
+      g[1 % D] = d1 * n2;
+      if constexpr (D > 2) g[2 % D] = n1 * d2;
+    }
+  }
+  /// The entry of axis 0's factors (n_0, d_0) with cross()'s w and g.
+  [[gnu::always_inline]] static void product(double n0, double d0, double w, const Vec<D>& g, double& N,
+                                             Vec<D>& dN) {
+    N = n0 * w;
+    dN[0] = d0 * w;
+    for (int k = 1; k < D; ++k) dN[k] = n0 * g[k];
+  }
+};
+
+/// Rebuilds the full table of `rows` (the same entries and bits as the
+/// family's own table at the same points).
+template <int D> void expand_product_rows(const ProductRows<D>& rows, BasisTable<D>& table);
+
 /// S when every row of a table with these row offsets holds the same number
 /// S >= 1 of entries (offset[p] = p S), else 0 (also for no rows). An OR of
 /// offset[p] - p S in unsigned arithmetic (vectorises); it is 0 exactly when
@@ -549,6 +668,8 @@ struct NodeColumns {
 template <int D> void transpose_basis_table(const BasisTable<D>& table, int nodes, NodeColumns& columns);
 /// The same for the compact lattice rows (entry e = p 2^D + a).
 template <int D> void transpose_basis_table(const LatticeRows<D>& rows, int nodes, NodeColumns& columns);
+/// The same for the product rows (entry e: row p's entry e - offset[p]).
+template <int D> void transpose_basis_table(const ProductRows<D>& rows, int nodes, NodeColumns& columns);
 
 /// The per-point arrays of a table fill, one entry per point each (a null or
 /// empty array: not used). `lambda`, `slope`, `history` and `cell_hint` are read and

@@ -1169,6 +1169,30 @@ bool MaxEntBasis<D, Prior>::evaluate_on_table(const PointQuery<D>& q, RowTarget<
 }
 
 template <int D, class Prior>
+bool MaxEntBasis<D, Prior>::evaluate_product_rows(const AlignedVector<Vec<D>>& x, ProductRows<D>& rows) {
+  if constexpr (Prior::kGaussian) {
+    if (!box_ || lattice_.empty() || !nodes_.on_lattice()) return false;
+    PointState<D>& state = this->point_state();
+    // lme_box keeps the multiplier alone (point_state_use) while the nodes stay
+    if (state.lambda.size() != x.size() || !state.slope.empty() || !state.history.empty()) return false;
+    const int n = static_cast<int>(x.size());
+    rows.resize(n, box_->max_lanes()); // evaluated in place: the lanes an axis' lookup writes
+    for (int k = 0; k < D; ++k) rows.stride[k] = lattice_.stride[k];
+    std::atomic<bool> inside{true};
+    parallel_chunks(n, [&](long long p0, long long p1) {
+      for (auto p = static_cast<int>(p0); p < p1; ++p)
+        if (!box_table_factors<D>(lattice_, *box_, x[p], rows.lanes, rows.base[p], rows.m[p], rows.factors(p),
+                                  state.lambda[p]))
+          return inside.store(false, std::memory_order_relaxed);
+    });
+    return inside.load() && rows.count_entries();
+  } else {
+    (void)x, (void)rows;
+    return false;
+  }
+}
+
+template <int D, class Prior>
 bool MaxEntBasis<D, Prior>::evaluate_on_lattice(const PointQuery<D>& q, const PointMetric<D>& pm,
                                                 const Vec<D>& warm, RowTarget<D>& out) const {
   if constexpr (Prior::kGaussian) {

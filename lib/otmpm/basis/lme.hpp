@@ -408,6 +408,11 @@ public:
   /// row when its stencil fits in `room` (see evaluate_on_lattice).
   int evaluate_into(const PointQuery<D>& q, int room, int* node, double* N, Vec<D>* dN,
                     Stencil<D>& st) const override;
+  /// lme_box on its untouched lattice: the product rows of the points
+  /// (box_table_factors; each point's multiplier stored as evaluate_points
+  /// stores it). False when the box has no tables, the points keep more
+  /// state than the multiplier, or a point lies where no table reaches.
+  bool evaluate_product_rows(const AlignedVector<Vec<D>>& x, ProductRows<D>& rows) override;
   bool linearly_complete() const override { return true; }
   int max_stencil() const override;
   double search_radius() const override { return settings_.support_radius; }

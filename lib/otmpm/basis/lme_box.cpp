@@ -185,6 +185,26 @@ bool BoxAxisTable::sample(const Segment& s, double u, double* row) const {
   return true;
 }
 
+namespace {
+/// The lanes of BoxAxisTable::interpolate: N[i] and dN[i] from the sample
+/// rows f0 and f1 (4 n entries each) with the Hermite weights w; n = N > 0
+/// lanes fixed at compile time (the loop unrolled), else `lanes`. Each lane
+/// the same arithmetic in the same order either way.
+template <int Lanes>
+[[gnu::always_inline]] inline void hermite_lanes(const double* __restrict f0, const double* __restrict f1,
+                                                 const double (&w)[6], double dN_scale, int lanes,
+                                                 double* __restrict N, double* __restrict dN) {
+  const int n = Lanes > 0 ? Lanes : lanes;
+  for (int i = 0; i < n; ++i) {
+    N[i] = w[0] * f0[i] + w[1] * f0[n + i] + w[2] * f0[2 * n + i] + w[3] * f1[i] + w[4] * f1[n + i] +
+           w[5] * f1[2 * n + i];
+    dN[i] = (w[0] * f0[n + i] + w[1] * f0[2 * n + i] + w[2] * f0[3 * n + i] + w[3] * f1[n + i] +
+             w[4] * f1[2 * n + i] + w[5] * f1[3 * n + i]) *
+            dN_scale;
+  }
+}
+} // namespace
+
 void BoxAxisTable::interpolate(const Segment& s, double u, double* __restrict N, double* __restrict dN,
                                double& L, double dN_scale) {
   const double t = std::clamp((u - s.a) * s.inv_du, 0.0, static_cast<double>(s.n));
@@ -192,18 +212,25 @@ void BoxAxisTable::interpolate(const Segment& s, double u, double* __restrict N,
   double h[6];
   hermite5(t - j, h);
   // the weights of (f, f', f'') at both ends in units of u
-  const double du = s.du, w0 = h[0], w1 = h[1] * du, w2 = h[2] * du * du, w3 = h[3], w4 = h[4] * du,
-               w5 = h[5] * du * du;
+  const double du = s.du;
+  const double w[6] = {h[0], h[1] * du, h[2] * du * du, h[3], h[4] * du, h[5] * du * du};
   const int n = s.lanes;
   const double* __restrict f0 = s.data.data() + static_cast<std::size_t>(j) * static_cast<std::size_t>(4 * n);
   const double* __restrict f1 = f0 + 4 * n;
-  // every lane straight into N and dN (the lines, then L and padding)
-  for (int i = 0; i < n; ++i) {
-    N[i] =
-        w0 * f0[i] + w1 * f0[n + i] + w2 * f0[2 * n + i] + w3 * f1[i] + w4 * f1[n + i] + w5 * f1[2 * n + i];
-    dN[i] = (w0 * f0[n + i] + w1 * f0[2 * n + i] + w2 * f0[3 * n + i] + w3 * f1[n + i] + w4 * f1[2 * n + i] +
-             w5 * f1[3 * n + i]) *
-            dN_scale;
+  // every lane straight into N and dN (the lines, then L and padding); the
+  // common widths unrolled (gamma_lme about 1.5 - 12 at the default cut-off)
+  switch (n) {
+  case 4:
+    hermite_lanes<4>(f0, f1, w, dN_scale, n, N, dN);
+    break;
+  case 6:
+    hermite_lanes<6>(f0, f1, w, dN_scale, n, N, dN);
+    break;
+  case 8:
+    hermite_lanes<8>(f0, f1, w, dN_scale, n, N, dN);
+    break;
+  default:
+    hermite_lanes<0>(f0, f1, w, dN_scale, n, N, dN);
   }
   L = N[s.m];
 }
@@ -248,6 +275,24 @@ bool BoxAxisTable::build_segment(Segment& s) const {
     if (accurate(s)) return true;
   }
   return false;
+}
+
+int BoxAxisTable::max_lanes() const {
+  int m = 0;
+  for (const Segment& s : segments_) m = std::max(m, s.lanes);
+  return m;
+}
+
+int BoxAxisTables::max_lanes() const {
+  int m = 0;
+  for (const BoxAxisTable* t : tables()) m = std::max(m, t->max_lanes());
+  return m;
+}
+
+template <int D> int BoxTables<D>::max_lanes() const {
+  int m = 0;
+  for (int k = 0; k < D && axis[k]; ++k) m = std::max(m, axis[k]->max_lanes());
+  return m;
 }
 
 std::size_t BoxAxisTable::samples() const {
@@ -335,11 +380,13 @@ struct BoxAxis {
   double n[kBoxLanes], d[kBoxLanes];
 };
 
-/// Axis k of the box of coordinate xk from its tables; false when xk is not
-/// in a cell with a table (BoxAxisTables::at).
+/// Axis k of the box of coordinate xk from its tables: its first line lo,
+/// lines m, values n and derivatives d (per unit length; each array takes
+/// the table's lanes, those from m on scratch) and the multiplier; false
+/// when xk is not in a cell with a table (BoxAxisTables::at).
 template <int D>
-bool box_axis(const LatticeAxes<D>& axes, const BoxAxisTables& tables, int k, double xk, BoxAxis& a,
-              double& lambda) {
+bool box_axis(const LatticeAxes<D>& axes, const BoxAxisTables& tables, int k, double xk, int& lo, int& m,
+              double* n, double* d, double& lambda) {
   const std::vector<double>& X = axes.coord[k];
   const double inv_h = axes.inv_h[k];
   const double ug = (xk - X.front()) * inv_h;
@@ -352,9 +399,9 @@ bool box_axis(const LatticeAxes<D>& axes, const BoxAxisTables& tables, int k, do
   const double u = std::clamp((xk - X[static_cast<std::size_t>(c)]) * inv_h, 0.0, 1.0);
   int first;
   double L;
-  a.m = table->evaluate(u, first, a.n, a.d, L, inv_h);
-  if (a.m == 0) return false; // next to the hull's boundary
-  a.lo = c + first;
+  m = table->evaluate(u, first, n, d, L, inv_h);
+  if (m == 0) return false; // next to the hull's boundary
+  lo = c + first;
   lambda = L * inv_h;
   return true;
 }
@@ -430,7 +477,8 @@ bool box_table_stencil(const LatticeAxes<D>& axes, const BoxTables<D>& tables, c
   BoxAxis a[D];
   int n = 1;
   for (int k = 0; k < D; ++k) {
-    if (!box_axis<D>(axes, *tables.axis[k], k, x[k], a[k], lambda[k])) return false;
+    if (!box_axis<D>(axes, *tables.axis[k], k, x[k], a[k].lo, a[k].m, a[k].n, a[k].d, lambda[k]))
+      return false;
     n *= a[k].m;
   }
   int* node;
@@ -442,6 +490,24 @@ bool box_table_stencil(const LatticeAxes<D>& axes, const BoxTables<D>& tables, c
   return true;
 }
 
+template <int D>
+bool box_table_factors(const LatticeAxes<D>& axes, const BoxTables<D>& tables, const Vec<D>& x, int lanes,
+                       int& base, std::array<int, D>& m, double* f, Vec<D>& lambda) {
+  if (tables.empty()) return false;
+  Vec<D> L;
+  int b = 0;
+  for (int k = 0; k < D; ++k) {
+    int lo;
+    if (!box_axis<D>(axes, *tables.axis[k], k, x[k], lo, m[k], f + 2 * k * lanes, f + (2 * k + 1) * lanes,
+                     L[k]))
+      return false;
+    b += lo * axes.stride[k];
+  }
+  base = b;
+  lambda = L;
+  return true;
+}
+
 template struct BoxTables<1>;
 template struct BoxTables<2>;
 template struct BoxTables<3>;
@@ -449,6 +515,12 @@ template bool box_table_stencil<1>(const LatticeAxes<1>&, const BoxTables<1>&, c
                                    Vec<1>&);
 template bool box_table_stencil<2>(const LatticeAxes<2>&, const BoxTables<2>&, const Vec<2>&, RowTarget<2>&,
                                    Vec<2>&);
+template bool box_table_factors<1>(const LatticeAxes<1>&, const BoxTables<1>&, const Vec<1>&, int, int&,
+                                   std::array<int, 1>&, double*, Vec<1>&);
+template bool box_table_factors<2>(const LatticeAxes<2>&, const BoxTables<2>&, const Vec<2>&, int, int&,
+                                   std::array<int, 2>&, double*, Vec<2>&);
+template bool box_table_factors<3>(const LatticeAxes<3>&, const BoxTables<3>&, const Vec<3>&, int, int&,
+                                   std::array<int, 3>&, double*, Vec<3>&);
 template bool box_table_stencil<3>(const LatticeAxes<3>&, const BoxTables<3>&, const Vec<3>&, RowTarget<3>&,
                                    Vec<3>&);
 

@@ -100,6 +100,9 @@ public:
   int reach() const { return reach_; }
   /// The configuration the table was built for (each side up to the reach).
   BoxEnds ends() const { return ends_; }
+  /// The most lanes evaluate() writes to N and dN (over the intervals: the
+  /// lines, L and the padding to pairs).
+  int max_lanes() const;
   /// The samples of the table (all intervals) and its size in bytes.
   std::size_t samples() const;
   std::size_t bytes() const;
@@ -171,6 +174,8 @@ public:
   }
   /// Every table built, the interior one first.
   std::vector<const BoxAxisTable*> tables() const;
+  /// The most lanes a point's evaluation writes on this axis (over its tables).
+  int max_lanes() const;
 
 private:
   double gamma_;
@@ -201,6 +206,8 @@ template <int D> struct BoxTables {
   /// Builds the tables of `axes` for the prior's beta and cut-off; empty
   /// when the lattice is empty or an axis has no interior table.
   static BoxTables from(const LatticeAxes<D>& axes, double beta, double max_exponent);
+  /// The most lanes a point's evaluation writes on any axis.
+  int max_lanes() const;
 };
 
 /// The box-support LME at x on the lattice `axes` from `tables`: writes the
@@ -210,5 +217,16 @@ template <int D> struct BoxTables {
 template <int D>
 bool box_table_stencil(const LatticeAxes<D>& axes, const BoxTables<D>& tables, const Vec<D>& x,
                        RowTarget<D>& out, Vec<D>& lambda);
+
+/// The factors of the box-support LME at x (ProductRows): per axis k the
+/// first line's offset lo_k (returned as base = sum_k lo_k stride_k), the
+/// lines m_k and the 1D values and derivatives (per unit length) at f + 2 k
+/// lanes and f + (2 k + 1) lanes (the lanes from m_k on scratch), the same
+/// bits box_table_stencil's products start from; the multiplier to
+/// `lambda`. False (base and lambda untouched) when x is not in a cell with
+/// a table on every axis; lanes >= tables.max_lanes().
+template <int D>
+bool box_table_factors(const LatticeAxes<D>& axes, const BoxTables<D>& tables, const Vec<D>& x, int lanes,
+                       int& base, std::array<int, D>& m, double* f, Vec<D>& lambda);
 
 } // namespace otmpm::maxent

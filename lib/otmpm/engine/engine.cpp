@@ -375,18 +375,19 @@ template <int D> void Engine<D>::evaluate_basis() {
   // Every particle gets an empty row until the ranks stop on a failure
   // (fallible() names the particle by its global id).
   const auto empty_rows = [&] {
-    rows_.compact = false;
+    rows_.compact = rows_.factored = false;
     rows_.table = BasisTable<D>{};
     rows_.table.offset.assign(static_cast<std::size_t>(P_.size()) + 1, 0);
     rows_.width = 0;
     scatter_->invalidate(rows_.width);
     list_visited_nodes();
   };
-  // The compact lattice rows (StepRows) where no part of the step reads the
-  // table: without body contact, ranks, saturated bodies, F-bar, the
-  // consistent mass and side walls, on fixed nodes. In 3D the passes take
-  // more instructions to rebuild the eight entries than to read them, and
-  // still run faster where the table leaves the caches (docs/performance.md).
+  // The compact lattice rows or the product rows (StepRows) where no part of
+  // the step reads the table: without body contact, ranks, saturated bodies,
+  // F-bar, the consistent mass and side walls, on fixed nodes. In 3D the
+  // passes take more instructions to rebuild the eight linear entries than
+  // to read them, and still run faster where the table leaves the caches
+  // (docs/performance.md).
   const bool lattice = !contact_ && !dist_ && !settings_.two_phase &&
                        settings_.volumetric == Volumetric::none && !settings_.consistent_mass && !channel_ &&
                        !mode_.nodes_move();
@@ -403,12 +404,15 @@ template <int D> void Engine<D>::evaluate_basis() {
   fallible([&] {
     try {
       if (test_allocation_fails("basis", step_)) throw std::bad_alloc();
-      rows_.compact = rows_.built = false;
+      rows_.compact = rows_.factored = rows_.built = false;
       if (lattice && basis_->evaluate_lattice_rows(P_.x, rows_.lattice)) {
         rows_.compact = true, rows_.width = 1 << D;
         scatter_->invalidate(rows_.width);
+      } else if (lattice && basis_->evaluate_product_rows(P_.x, rows_.product)) {
+        rows_.factored = true, rows_.width = 0;
+        scatter_->invalidate(rows_.width);
       }
-      if (!rows_.compact) table_rows();
+      if (!rows_.compact && !rows_.factored) table_rows();
       list_visited_nodes();
       if (dist_) dist_->check_support(rows_.table);
       if (settings_.volumetric == Volumetric::fbar) assign_patches();
@@ -562,6 +566,8 @@ void Engine<D>::to_nodes_impl(const ToNodes<D>& what, Update&& update) {
   const int nodes = static_cast<int>(nodal_.m.size());
   if (rows_.compact)
     scatter_->run(rows_.lattice, nodes, update, prep, add, merge, clear, visit_list(nodal_));
+  else if (rows_.factored)
+    scatter_->run(rows_.product, nodes, update, prep, add, merge, clear, visit_list(nodal_));
   else
     scatter_->run(rows_.table, nodes, update, prep, add, merge, clear, visit_list(nodal_));
 }
@@ -606,6 +612,15 @@ template <int D> void Engine<D>::list_visited_nodes() {
         if (lowest[p] == last) continue;
         last = lowest[p];
         for (const int o : offset) on(last + o);
+      }
+      return;
+    }
+    if (rows_.factored) { // a particle of the box of the one before marks nothing new
+      const ProductRows<D>& r = rows_.product;
+      for (auto p = static_cast<int>(p0), last = -1; p < p1; ++p) {
+        if (r.base[p] == last && r.m[p] == r.m[p - 1]) continue; // (last is -1 at p0)
+        last = r.base[p];
+        r.visit_row(p, [&](int I, double, const Vec<D>&) { on(I); });
       }
       return;
     }

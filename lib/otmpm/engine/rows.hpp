@@ -1,8 +1,9 @@
 #pragma once
 /// \file rows.hpp
-/// The two forms of the step's basis rows the engine's passes read: the
-/// basis table (BasisTable) and the compact rows of `linear` on an untouched
-/// lattice (LatticeRows, rebuilt entry by entry with the table's bits). A
+/// The three forms of the step's basis rows the engine's passes read: the
+/// basis table (BasisTable), the compact rows of `linear` on an untouched
+/// lattice (LatticeRows) and the product rows of `lme_box` on its lattice
+/// (ProductRows), the last two rebuilt entry by entry with the table's bits. A
 /// pass visits row p's entries (node I, N_Ip, grad N_Ip) through
 /// visit_row(), the same calls in the same order for either form.
 /// Internal to the engine.
@@ -87,6 +88,34 @@ template <int D> struct LatticeView {
   }
 };
 
+/// The product rows (ProductRows) as a pass reads them: each row's entries
+/// formed from its axes' factors (ProductRows::visit) as they are visited,
+/// with the arrays' pointers and the lattice's strides in the view's own
+/// copies, so that a pass's stores cannot alias them.
+template <int D> struct ProductView {
+  const int* base;
+  const std::array<int, D>* m;
+  const double* f;
+  int lanes;
+  std::array<int, D> stride;
+  explicit ProductView(const ProductRows<D>& r)
+      : base(r.base.data()), m(r.m.data()), f(r.f.data()), lanes(r.lanes), stride(r.stride) {}
+  /// f(I, N_Ip, grad N_Ip) for the entries of row p in the table's order;
+  /// the common box widths along axis 0 (gamma_lme = 3: 4 and 5 lines)
+  /// with the loop over them unrolled.
+  template <class F> [[gnu::always_inline]] void visit_row(int p, F&& g) const {
+    const double* r = f + static_cast<std::ptrdiff_t>(p) * 2 * D * lanes;
+    switch (m[p][0]) {
+    case 4:
+      return ProductRows<D>::template visit<4>(base[p], m[p], r, lanes, stride, g);
+    case 5:
+      return ProductRows<D>::template visit<5>(base[p], m[p], r, lanes, stride, g);
+    default:
+      return ProductRows<D>::visit(base[p], m[p], r, lanes, stride, g);
+    }
+  }
+};
+
 /// The node-to-particle sums of two rows at once (LatticeView::visit_two_rows;
 /// lane l: row p + l): r = sum N rate_I, k = sum N kick_I, u = sum N move_I,
 /// G = sum field_I (grad N)^T, each lane in its row's entry order with the
@@ -131,25 +160,34 @@ template <int D, class F> decltype(auto) with_row_view(const BasisTable<D>& rows
 template <int D, class F> decltype(auto) with_row_view(const LatticeRows<D>& rows, int, F&& f) {
   return f(LatticeView<D>(rows));
 }
+template <int D, class F> decltype(auto) with_row_view(const ProductRows<D>& rows, int, F&& f) {
+  return f(ProductView<D>(rows));
+}
 
-/// The step's basis rows: the basis table, or - `linear` on an untouched
-/// lattice, when no part of the step needs the table (Engine::evaluate_basis)
-/// - the compact lattice rows, the table then built from them (the same
-/// entries and bits) only when something asks for it (full()).
+/// The step's basis rows: the basis table, or - when no part of the step
+/// needs the table (Engine::evaluate_basis) - the compact lattice rows of
+/// `linear` on an untouched lattice or the product rows of `lme_box` on its
+/// lattice, the table then built from them (the same entries and bits)
+/// only when something asks for it (full()).
 template <int D> struct StepRows {
   BasisTable<D> table;
   LatticeRows<D> lattice;
-  bool compact = false; ///< the step's rows are `lattice`
-  bool built = false;   ///< (compact) `table` holds them too
-  int width = 0;        ///< linear_row_width(table) (compact: 2^D)
+  ProductRows<D> product;
+  bool compact = false;  ///< the step's rows are `lattice`
+  bool factored = false; ///< the step's rows are `product`
+  bool built = false;    ///< (compact or factored) `table` holds them too
+  int width = 0;         ///< linear_row_width(table) (compact: 2^D)
 
   /// The full table of the step's rows. Built on the first call of a
   /// step that kept the lattice rows, which must not run beside a pass (it
   /// writes the table); after that, and for the table's own steps, it only
   /// reads, so the threads of a pass may call it.
   const BasisTable<D>& full() {
-    if (compact && !built) {
-      expand_lattice_rows(lattice, table);
+    if ((compact || factored) && !built) {
+      if (compact)
+        expand_lattice_rows(lattice, table);
+      else
+        expand_product_rows(product, table);
       built = true;
     }
     return table;
@@ -157,6 +195,7 @@ template <int D> struct StepRows {
   /// Runs f(view) with the view of the step's rows for a pass (with_row_view).
   template <class F> decltype(auto) view(F&& f) const {
     if (compact) return with_row_view(lattice, width, f);
+    if (factored) return with_row_view(product, width, f);
     return with_row_view(table, width, f);
   }
 };

@@ -282,6 +282,7 @@ private:
   static long long entry_count(const LatticeRows<D>& rows) {
     return static_cast<long long>(rows.rows()) * LatticeRows<D>::kCorners;
   }
+  static long long entry_count(const ProductRows<D>& rows) { return rows.offset.back(); }
 
   /// The smallest and largest node id of block b's rows (lo = nodes, hi =
   /// -1: none), in locals so that the loop vectorises.
@@ -293,7 +294,7 @@ private:
     }
     lo_b = lo, hi_b = hi;
   }
-  static void block_range(const LatticeRows<D>& rows, int b, int nodes, int& lo_b, int& hi_b) {
+  template <class Rows> static void block_range(const Rows& rows, int b, int nodes, int& lo_b, int& hi_b) {
     int lo = nodes, hi = -1;
     for (int p = b * scatter_block; p < block_end(rows, b); ++p) {
       lo = std::min(lo, rows.lowest(p));
@@ -309,6 +310,10 @@ private:
   template <class F> static void block_nodes_visit(const LatticeRows<D>& rows, int b, F&& f) {
     for (int p = b * scatter_block; p < block_end(rows, b); ++p)
       for (int a = 0; a < LatticeRows<D>::kCorners; ++a) f(rows.lowest(p) + rows.corner_offset[a]);
+  }
+  template <class F> static void block_nodes_visit(const ProductRows<D>& rows, int b, F&& f) {
+    for (int p = b * scatter_block; p < block_end(rows, b); ++p)
+      rows.visit_row(p, [&](int I, double, const Vec<D>&) { f(I); });
   }
 
   /// Phase 1 for block b, dense: update() on the block's particles, then
@@ -429,6 +434,12 @@ private:
           const int e = columns_.entry[k];
           if constexpr (std::is_same_v<Rows, BasisTable<D>>) {
             add(acc, table.N[e], table.dN[e], prep(columns_.particle[k]));
+          } else if constexpr (std::is_same_v<Rows, ProductRows<D>>) {
+            int J;
+            double N;
+            Vec<D> dN;
+            table.entry(columns_.particle[k], e, J, N, dN);
+            add(acc, N, dN, prep(columns_.particle[k]));
           } else {
             double N;
             Vec<D> dN;
