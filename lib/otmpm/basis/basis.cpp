@@ -771,18 +771,15 @@ template <int D> void expand_lattice_rows(const LatticeRows<D>& rows, BasisTable
 }
 
 template <int D> void transpose_basis_table(const ProductRows<D>& rows, int nodes, NodeColumns& columns) {
+  // every entry's node once, read twice by the transposition
+  std::vector<int> node(static_cast<std::size_t>(rows.offset.back()));
+  parallel_for(rows.rows(), [&](long long p) {
+    auto e = static_cast<std::size_t>(rows.offset[static_cast<std::size_t>(p)]);
+    rows.visit_row(static_cast<int>(p), [&](int I, double, const Vec<D>&) { node[e++] = I; });
+  });
   transpose_rows(
-      rows.rows(), static_cast<std::size_t>(rows.offset.back()), nodes,
-      [&rows](int p) { return rows.offset[static_cast<std::size_t>(p)]; },
-      [&rows](int e) { // the row of entry e: the last offset not above it
-        const auto p = std::upper_bound(rows.offset.begin(), rows.offset.end(), e) - rows.offset.begin() - 1;
-        int I;
-        double N;
-        Vec<D> dN;
-        rows.entry(static_cast<int>(p), e, I, N, dN);
-        return I;
-      },
-      columns);
+      rows.rows(), node.size(), nodes, [&rows](int p) { return rows.offset[static_cast<std::size_t>(p)]; },
+      [&node](int e) { return node[static_cast<std::size_t>(e)]; }, columns);
 }
 
 template <int D> bool ProductRows<D>::count_entries() {

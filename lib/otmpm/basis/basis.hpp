@@ -514,7 +514,7 @@ template <int D> void expand_lattice_rows(const LatticeRows<D>& rows, BasisTable
 /// products of one 1D factor per axis over a box of lattice lines
 /// (`lme_box`, docs/theory.md sect. 4.9): for point p, per axis k the
 /// m_k lines lo_k .. lo_k + m_k - 1 of its box and their 1D values n_k
-/// and derivatives d_k (per unit length), D (8 + 16 M) + 8 bytes with M
+/// and derivatives d_k (per unit length), D (4 + 16 M) + 8 bytes with M
 /// the lanes of an axis, where the table's row takes prod_k m_k (12 + 8 D)
 /// + 4. Row p's entries are the box's nodes with node ids ascending (axis 0
 /// innermost), N_I = n_0 (n_1 n_2) and grad N_I = (d_0 (n_1 n_2), n_0 (d_1
