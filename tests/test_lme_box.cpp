@@ -412,6 +412,12 @@ template <int D> void check_product_rows(int cells, double gamma, unsigned seed)
   CHECK(expanded.N == table.N);
   CHECK(expanded.dN == table.dN);
   CHECK(by_rows->point_state().lambda == by_table->point_state().lambda);
+  // what the memory estimate counts per row (lme_box_row_bytes): the rows'
+  // arrays and the multiplier, exact or at most one pair of lanes per axis over
+  const double held = static_cast<double>(rows.f.size() * sizeof(double)) / n +
+                      static_cast<double>((D + 2) * sizeof(int) + D * sizeof(double));
+  CHECK(held <= lme_box_row_bytes(box_options(gamma), D));
+  CHECK(held >= lme_box_row_bytes(box_options(gamma), D) - 32.0 * D);
   bool same = true; // entry by entry (the column gather's access), and each row's node range
   for (int p = 0; p < n; ++p) {
     const auto [lo, hi] =

@@ -199,10 +199,10 @@ TEST_CASE("check_scene: the run's memory estimate stays above the peak a run add
 #endif
   // The lumped runs' estimate is fitted to measured peaks of runs with a
   // basis table (docs/stability.md, "What a run may cost"; here 1.4 to 1.9
-  // times them). `linear` on the lattice keeps the compact lattice rows
-  // instead (28 B per particle in 3D where the table takes 292 B), on every
-  // path of its particle-to-node sums: the estimate, fitted to the table's
-  // runs, is here 2.9 times the compact run's peak, and F-bar, which always
+  // times them). `linear` and `lme_box` on the lattice keep compact rows
+  // instead (28 B and 332 B per particle in 3D where their tables take 292
+  // B and about 3 kB), on every path of their particle-to-node sums, and
+  // the estimate counts those rows and a scatter plan; F-bar, which always
   // builds the table, checks the bound of the table's runs.
   // The consistent mass matrix's factor is bounded by the lattice's
   // profile, which the fill of the ordered factor stays far below in 3D
@@ -212,7 +212,8 @@ TEST_CASE("check_scene: the run's memory estimate stays above the peak a run add
     double most; ///< the largest estimate / peak allowed
   };
   for (const Case& c : std::vector<Case>{
-           {{"basis.kind=linear"}, 3.5},
+           {{"basis.kind=linear"}, 2.5},
+           {{"basis.kind=lme_box"}, 3.0},
            {{"basis.kind=linear", "simulation.volumetric=fbar"}, 2.5},
            {{"basis.kind=bspline2"}, 2.5},
            {{"basis.kind=lme", "grid.cells=[20, 20, 20]"}, 2.5},
@@ -232,11 +233,15 @@ TEST_CASE("check_scene: the run's memory estimate stays above the peak a run add
 
 // The cube's particles written to a particle file in a random order, on a
 // grid ten times as long: the blocks' node ranges then outgrow twice the
-// entries, and the particle-to-node sums take the gather over the
-// transposed rows. That gather reads the compact lattice rows too, so the
-// run adds its columns (8 B per entry) to the ordered run's peak, not the
-// basis table's 292 B per particle, which the gather read before.
-TEST_CASE("a linear run whose particles are in no spatial order builds no basis table") {
+// entries of `linear`, and its particle-to-node sums take the gather over
+// the transposed rows (`lme_box`, with about ten times the entries, takes
+// the sparse blocked sums, whose slot maps take at most two ints per
+// entry). Both read the compact rows too (the lattice rows of `linear`, the
+// product rows of `lme_box`), so the run adds its plan (8 B per entry) to
+// the ordered run's peak, not the basis table (292 B per particle for
+// `linear`, 64 to 125 entries of 36 B for `lme_box`); the run's estimate,
+// which counts a plan of 14 B per entry, stays above that peak.
+TEST_CASE("a linear or lme_box run whose particles are in no spatial order builds no basis table") {
 #ifdef OTMPM_HAVE_OPENMP
   const int threads = omp_get_max_threads();
   omp_set_num_threads(1);
@@ -256,24 +261,36 @@ TEST_CASE("a linear run whose particles are in no spatial order builds no basis 
     for (const auto& p : x)
       csv << p[0] << ", " << p[1] << ", " << p[2] << ", " << s * s * s << ", 1.0, 0.0, 0.0\n";
   }
-  const std::vector<std::string> wide{"grid.upper=[10.0, 1.0, 1.0]", "grid.cells=[300, 30, 30]"};
   std::string file_cube = kCube;
   const std::string box = "lower = [0.2, 0.2, 0.2]\nupper = [0.8, 0.8, 0.8]\nparticles_per_cell = "
                           "3\nvelocity = [1.0, 0.0, 0.0]\n";
   REQUIRE(file_cube.find(box) != std::string::npos);
   file_cube.replace(file_cube.find(box), box.size(),
                     "shape = \"file\"\nfile = \"" + dir.file("cube.csv") + "\"\n");
-  const Scene ordered = parse_scene(kCube, "cube.toml", wide),
-              shuffled = parse_scene(file_cube, "cube.toml", wide);
-  {
-    Engine<3> e = assemble<3>(shuffled);
-    REQUIRE(e.particles().size() == 157464);
-    e.step();
-    CHECK_FALSE(e.scatter_blocked()); // the gather over the transposed rows
+  struct Case {
+    std::string kind;
+    double table_row; ///< bytes per particle of its basis table
+    bool column;      ///< the sums take the gather over the transposed rows
+  };
+  for (const auto& [kind, table_row, column] :
+       {Case{"linear", 292.0, true}, Case{"lme_box", 64 * 36.0, false}}) {
+    const std::vector<std::string> wide{"grid.upper=[10.0, 1.0, 1.0]", "grid.cells=[300, 30, 30]",
+                                        "basis.kind=" + kind};
+    const Scene ordered = parse_scene(kCube, "cube.toml", wide),
+                shuffled = parse_scene(file_cube, "cube.toml", wide);
+    {
+      Engine<3> e = assemble<3>(shuffled);
+      REQUIRE(e.particles().size() == 157464);
+      e.step();
+      CHECK(e.scatter_blocked() == !column);
+    }
+    const double table = table_row * 157464, base = measured_peak(ordered), peak = measured_peak(shuffled);
+    INFO(kind << ": ordered " << base / 1e6 << " MB, shuffled " << peak / 1e6 << " MB, a table "
+              << table / 1e6 << " MB");
+    CHECK(peak < base + 0.5 * table);
+    CHECK(check_scene(shuffled).memory_bytes > peak);
+    CHECK(check_scene(ordered).memory_bytes > base);
   }
-  const double table = 292.0 * 157464, base = measured_peak(ordered), peak = measured_peak(shuffled);
-  INFO("ordered " << base / 1e6 << " MB, shuffled " << peak / 1e6 << " MB, a table " << table / 1e6 << " MB");
-  CHECK(peak < base + 0.5 * table);
 #ifdef OTMPM_HAVE_OPENMP
   omp_set_num_threads(threads);
 #endif

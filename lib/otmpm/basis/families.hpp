@@ -54,6 +54,11 @@ std::span<const ParameterSpec> maxent_parameters();
 double lme_stencil_nodes(const BasisOptions& o, int dim);
 /// The mean support of lme_box on a lattice: (2 R / h)^dim.
 double lme_box_stencil_nodes(const BasisOptions& o, int dim);
+/// The bytes per particle of lme_box's product rows on a lattice (ProductRows:
+/// D (4 + 16 M) + 8, M the lanes of its widest axis box) and its multiplier
+/// (D doubles); 0 when it fills a table (a metric other than isotropic, or a
+/// support wider than its 1D tables take).
+double lme_box_row_bytes(const BasisOptions& o, int dim);
 double maxent_stencil_nodes(const BasisOptions& o, int dim);
 
 } // namespace otmpm

@@ -52,6 +52,10 @@ template <int D> std::unique_ptr<Basis<D>> maxent(const BasisOptions& opt, NodeS
 /// Stencil sizes of the tensor-product families: (degree + 1)^dim.
 template <int Width> double tensor_stencil(const BasisOptions&, int dim) { return std::pow(Width, dim); }
 
+/// The compact lattice rows of `linear` (LatticeRows): the cell's lowest
+/// corner and the place in the cell, 4 + 8 D bytes.
+double lattice_row_bytes(const BasisOptions&, int dim) { return 4.0 + 8.0 * dim; }
+
 /// The reaches on the lattice (LatticeReach): the cell's corners (linear),
 /// one more cell each side (uGIMP: |x - x_I| < h + l_p), the p + 1 control
 /// points c .. c + p of a cell (B-splines of degree p, cells + p per axis),
@@ -86,6 +90,7 @@ const std::array kKinds{
                   "a mesh's own elements on its vertices",
               .mesh_elements = true,
               .stencil_nodes = tensor_stencil<2>,
+              .compact_row_bytes = lattice_row_bytes,
               .reach = corners,
               OTMPM_FACTORIES(linear)},
     BasisKind{.name = "ugimp",
@@ -122,6 +127,7 @@ const std::array kKinds{
               .needs_lattice = false,
               .searches_nodes = true,
               .stencil_nodes = lme_box_stencil_nodes,
+              .compact_row_bytes = lme_box_row_bytes,
               .reach = box_reach,
               .parameters = lme_parameters(),
               OTMPM_FACTORIES(lme_box)},

@@ -63,6 +63,12 @@ struct BasisKind {
   /// Expected nodes in one particle's stencil on a uniform lattice (for the
   /// memory estimate of `otmpm run --check`).
   double (*stencil_nodes)(const BasisOptions&, int dim) = nullptr;
+  /// Bytes per particle of the rows the family keeps instead of a basis
+  /// table on an untouched lattice, in a run whose every pass takes them
+  /// (`mpm`, one process, no body contact, saturated body, F-bar, consistent
+  /// mass or side walls: Engine::evaluate_basis), for the memory estimate;
+  /// null, or 0 for the given options: the family fills a table.
+  double (*compact_row_bytes)(const BasisOptions&, int dim) = nullptr;
   /// Its reach along an axis of spacing h in `dim` dimensions, `radius` its
   /// search radius (Basis::search_radius(); 0 for the families that do not search).
   LatticeReach (*reach)(double radius, double h, int dim) = nullptr;

@@ -1445,14 +1445,31 @@ double ball_volume(int dim, double r) {
 std::span<const ParameterSpec> lme_parameters() { return maxent::kLmeParameters; }
 std::span<const ParameterSpec> maxent_parameters() { return maxent::kMaxentParameters; }
 
+namespace {
+/// The support radius of lme and lme_box in units of h: exp(-gamma_lme r^2) = tolerance.
+double lme_radius(const BasisOptions& o) {
+  return std::sqrt(-std::log(o.value(maxent::kTolerance)) / o.value(maxent::kGammaLme));
+}
+} // namespace
+
 double lme_stencil_nodes(const BasisOptions& o, int dim) {
-  const double radius = std::sqrt(-std::log(o.value(maxent::kTolerance)) / o.value(maxent::kGammaLme));
+  const double radius = lme_radius(o);
   return std::max(std::pow(2.0, dim), ball_volume(dim, radius));
 }
 double lme_box_stencil_nodes(const BasisOptions& o, int dim) {
   // the mean count of lattice lines within R of a point is 2 R / h per axis
-  const double radius = std::sqrt(-std::log(o.value(maxent::kTolerance)) / o.value(maxent::kGammaLme));
+  const double radius = lme_radius(o);
   return std::max(std::pow(2.0, dim), std::pow(2.0 * radius, dim));
+}
+double lme_box_row_bytes(const BasisOptions& o, int dim) {
+  if (o.metric != "isotropic") return 0.0; // the metric adapts: a table (evaluate_product_rows)
+  const double radius = lme_radius(o);
+  // an axis' box: at most floor(2 R / h) + 1 lines (BoxAxisTable's segments),
+  // and its multiplier, in lanes rounded up to pairs
+  if (!(2.0 * radius + 1.0 <= maxent::kBoxMaxLines)) return 0.0; // no 1D tables (BoxAxisTable): a table
+  const double lines = std::floor(2.0 * radius) + 1.0;
+  const double lanes = 2.0 * std::floor((lines + 2.0) / 2.0);
+  return dim * (4.0 + 16.0 * lanes) + 8.0 + dim * sizeof(double);
 }
 double maxent_stencil_nodes(const BasisOptions& o, int dim) {
   return std::max(std::pow(2.0, dim), ball_volume(dim, o.value(maxent::kDMax)));

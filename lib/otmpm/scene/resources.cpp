@@ -4,6 +4,7 @@
 
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/materials/elasticity.hpp"
+#include "otmpm/materials/pore_fluid.hpp"
 #include "otmpm/scene/validate.hpp"
 
 #include <sys/resource.h>
@@ -29,6 +30,10 @@ namespace {
 constexpr std::array<double, 3> kParticleBytes = {70, 115, 245};
 constexpr double kStencilEntryBytes = 60;
 constexpr double kNodeBytes = 260;
+/// Bytes per entry of a step's scatter plan over compact rows: at most the
+/// dense blocked scatter's buffers (14 B per entry in 3D) or the column
+/// gather's transposed nodes and particles (8 B; engine/scatter.hpp).
+constexpr double kPlanEntryBytes = 14;
 /// Bytes per entry of the LDL^T factor of the consistent mass matrix.
 constexpr double kFactorEntryBytes = 12;
 /// Nodal vectors of D doubles of the conjugate gradients that solve the
@@ -57,6 +62,20 @@ double support_radius(const BasisKind& kind, double stencil, int dim) {
 double factor_entries(double nodes, double radius, int dim) {
   const double band = std::pow(nodes, 1.0 - 1.0 / dim) * (2 * radius + 1);
   return nodes * std::min(nodes, band);
+}
+
+/// The bytes per particle of the compact rows a run of the scene in `ranks`
+/// processes keeps instead of a basis table (BasisKind::compact_row_bytes),
+/// or 0: only `mpm` on a Cartesian lattice in one process without body
+/// contact, saturated bodies, F-bar, the consistent mass or side walls takes
+/// them in every pass (Engine::evaluate_basis).
+double compact_row_bytes(const Scene& s, const BasisKind& kind, int ranks) {
+  if (!kind.compact_row_bytes || ranks > 1 || s.simulation.mode != "mpm" || s.grid.kind != "cartesian" ||
+      s.contact || s.channel || uses_consistent_mass(s) || volumetric_treatment(s) != "none")
+    return 0.0;
+  for (const MaterialSection& ms : s.materials)
+    if (pore_fluid(ms)) return 0.0;
+  return kind.compact_row_bytes(s.basis, s.simulation.dimension);
 }
 
 /// Smallest grid spacing over the scene's axes.
@@ -148,7 +167,9 @@ ResourceEstimate estimate_resources(const Scene& scene, const SceneSize& share, 
   e.nodes = share.nodes;
   const BasisKind& kind = basis_kind(scene.basis.kind);
   e.stencil = kind.stencil_nodes(scene.basis, dim);
-  e.bytes_per_particle = kSafety * (kParticleBytes[d] + e.stencil * kStencilEntryBytes);
+  const double compact = compact_row_bytes(scene, kind, ranks);
+  e.bytes_per_particle = kSafety * (kParticleBytes[d] + (compact > 0 ? compact + e.stencil * kPlanEntryBytes
+                                                                     : e.stencil * kStencilEntryBytes));
   e.bytes_per_node = kSafety * kNodeBytes;
   if (uses_consistent_mass(scene) && ranks > 1)
     e.bytes_per_node += kSafety * kCgVectors * dim * sizeof(double);

@@ -28,7 +28,7 @@ struct ResourceEstimate {
   double particles = 0;           ///< the particles the process holds (scene_size(scene).particles in one process)
   double nodes = 0;               ///< the nodes it holds (scene_size(scene).nodes in one process)
   double stencil = 0;             ///< nodes per particle of the basis family (its support)
-  double bytes_per_particle = 0;  ///< particle fields, basis table and scatter plan
+  double bytes_per_particle = 0;  ///< particle fields, basis table (or compact rows) and scatter plan
   double bytes_per_node = 0;      ///< nodal fields (and the mass matrix, when consistent)
   double bytes = 0;               ///< the total, with the process's fixed footprint (and a gravity-loading phase's engine)
   double dt = 0;                  ///< simulation.dt, or the first CFL step
