@@ -10,8 +10,9 @@
 ///
 /// The memory estimate here is an upper bound, fitted to measured peaks and
 /// kept above them (docs/stability.md, "What a run may cost"), because it
-/// refuses runs; estimate_memory_bytes() (run/run.hpp), which `otmpm run
-/// --check` prints, is a point estimate within a factor 2 either way.
+/// refuses runs; `otmpm run --check` prints the same estimate (check_scene,
+/// run/run.hpp). A run that keeps compact rows instead of a basis table
+/// (BasisKind::compact_row_bytes) is counted with its rows.
 ///
 /// Limits: memory - simulation.memory_limit in bytes when set, else the
 /// memory this process may use (physical memory, lowered by a cgroup limit
