@@ -1464,11 +1464,9 @@ double lme_box_stencil_nodes(const BasisOptions& o, int dim) {
 double lme_box_row_bytes(const BasisOptions& o, int dim) {
   if (o.metric != "isotropic") return 0.0; // the metric adapts: a table (evaluate_product_rows)
   const double radius = lme_radius(o);
-  // an axis' box: at most floor(2 R / h) + 1 lines (BoxAxisTable's segments),
-  // and its multiplier, in lanes rounded up to pairs
-  if (!(2.0 * radius + 1.0 <= maxent::kBoxMaxLines)) return 0.0; // no 1D tables (BoxAxisTable): a table
-  const double lines = std::floor(2.0 * radius) + 1.0;
-  const double lanes = 2.0 * std::floor((lines + 2.0) / 2.0);
+  if (!maxent::box_support_fits(radius)) return 0.0; // no 1D tables (BoxAxisTable): a table
+  // an axis' box: at most floor(2 R / h) + 1 lines (BoxAxisTable's segments)
+  const double lanes = maxent::box_lanes(static_cast<int>(std::floor(2.0 * radius)) + 1);
   return dim * (4.0 + 16.0 * lanes) + 8.0 + dim * sizeof(double);
 }
 double maxent_stencil_nodes(const BasisOptions& o, int dim) {

@@ -118,7 +118,7 @@ bool solve_lme_1d(double gamma, const double* dx, int m, Lme1d& out) {
 
 BoxAxisTable::BoxAxisTable(double gamma, double max_exponent, BoxEnds ends)
     : gamma_(gamma), r_(std::sqrt(max_exponent / gamma)) {
-  if (!(r_ > 0.0) || !(2.0 * r_ + 1.0 <= kBoxMaxLines)) return;
+  if (!(r_ > 0.0) || !box_support_fits(r_)) return;
   reach_ = static_cast<int>(std::floor(r_));
   ends_ = {std::max(0, std::min(ends.below, reach_)), std::max(0, std::min(ends.above, reach_))};
   // the interval ends: 0 (kBoxHullGap at the hull's boundary), frac(r),
@@ -137,7 +137,7 @@ BoxAxisTable::BoxAxisTable(double gamma, double max_exponent, BoxEnds ends)
     // the lines within r of the interval that exist
     s.first = std::max(static_cast<int>(std::ceil(mid - r_)), -ends_.below);
     s.m = std::min(static_cast<int>(std::floor(mid + r_)), 1 + ends_.above) - s.first + 1;
-    s.lanes = (s.m + 2) & ~1; // the lines and L, rounded up to pairs
+    s.lanes = box_lanes(s.m);
     if (!build_segment(s)) {
       segments_.clear();
       return;

@@ -57,6 +57,12 @@ inline constexpr int kBoxMaxLines = 16;
 /// lane of padding (the interpolation runs over pairs of lanes and writes
 /// them all).
 inline constexpr int kBoxLanes = kBoxMaxLines + 2;
+/// Whether the 1D tables hold a support of radius r = R / h (2 r + 1 lines
+/// at most kBoxMaxLines; false for NaN).
+inline bool box_support_fits(double r) { return 2.0 * r + 1.0 <= kBoxMaxLines; }
+/// The lanes of an axis' box of `lines` lines: the lines and the
+/// multiplier, rounded up to pairs.
+constexpr int box_lanes(int lines) { return (lines + 2) & ~1; }
 /// Bounds on |N - N_solve| and on h |dN/dx - dN_solve/dx| of the table
 /// against the 1D Newton solution, for every gamma_lme and tolerance whose
 /// table is built (measured: tests/test_lme_box.cpp): below the Newton
