@@ -117,6 +117,17 @@ TEST_CASE("every key read remembers its line") {
   CHECK(s.locate("no.such.key").line == 0);
 }
 
+TEST_CASE("a key left to its default is located at the table around it, so a check on it names a line") {
+  const Scene s = load_scene(kGood);
+  REQUIRE(s.where.count("simulation.mass") == 0); // the file leaves the mass to its default
+  CHECK(s.locate("simulation.mass").line == s.simulation.where.line);
+  CHECK(s.locate("simulation.mass").key == "simulation.mass");
+  CHECK(s.locate("body.bar.k0").line == s.bodies[0].where.line);
+  CHECK(s.locate("body.sand.k0").line == 0); // no such element
+  const Scene whole = load_scene(kGood, {"simulation={dimension=1, t_end=1e-4}"});
+  CHECK(whole.locate("simulation.mass").describe() == "--set simulation: key 'simulation.mass'");
+}
+
 TEST_CASE("an unnamed table's keys are found under the name the reader gives it, for the validator's messages") {
   // the reader records the plate's unnamed [[body]] as body.0; the validator names it body.body0
   const Scene s = parse_scene(kPlate2D, "plate.toml");

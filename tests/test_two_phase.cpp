@@ -375,6 +375,9 @@ TEST_CASE("saturated scenes: bad keys are refused with the file, line and key") 
     (void)parse_scene(text, "bad.toml");
   });
   CHECK(why.find("model \"neo_hookean\" does not take") != std::string::npos);
+  why = refused("integrator = \"fe\"\n", ""); // the default, "npc", does not step them
+  CHECK(why.find("bad.toml:1: key 'simulation.integrator'") != std::string::npos);
+  CHECK(why.find("(got \"npc\", the default)") != std::string::npos);
   why = refused("mode = \"mpm\"", "mode = \"ul\"");
   CHECK(why.find("saturated bodies (materials with a pore fluid) need simulation.mode = \"mpm\"") != std::string::npos);
   why = refused("[basis]", "mass = \"consistent\"\n[basis]");

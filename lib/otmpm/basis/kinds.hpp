@@ -40,6 +40,25 @@ struct LatticeReach {
 
 /// One basis family as the scene names it (`basis.kind`) and the facts about
 /// it that the rest of otmpm needs.
+/// The parts of a run that read a basis table in some pass of the step: where
+/// none does, a family with compact rows (BasisKind::compact_row_bytes: the
+/// lattice rows of `linear`, the product rows of `lme_box`) keeps those
+/// instead. One rule for the run (Engine::evaluate_basis) and for the memory
+/// estimate made from the scene before it (scene/resources.cpp).
+struct TableReaders {
+  bool nodes_move = false;      ///< `ul`: the nodes move with the particles
+  bool ranks = false;           ///< more than one process: the halo's support check
+  bool contact = false;         ///< body contact: each body's own rows
+  bool two_phase = false;       ///< saturated bodies
+  bool fbar = false;            ///< a volumetric treatment (F-bar, either form): cell patches
+  bool consistent_mass = false; ///< the consistent mass matrix and its solve
+  bool side_walls = false;      ///< the channel's side walls ([channel])
+  /// True when no pass of the step reads a table.
+  bool none() const {
+    return !(nodes_move || ranks || contact || two_phase || fbar || consistent_mass || side_walls);
+  }
+};
+
 struct BasisKind {
   std::string_view name;
   std::string_view description;
@@ -65,9 +84,8 @@ struct BasisKind {
   double (*stencil_nodes)(const BasisOptions&, int dim) = nullptr;
   /// Bytes per particle of the rows the family keeps instead of a basis
   /// table on an untouched lattice, in a run whose every pass takes them
-  /// (`mpm`, one process, no body contact, saturated body, F-bar, consistent
-  /// mass or side walls: Engine::evaluate_basis), for the memory estimate;
-  /// null, or 0 for the given options: the family fills a table.
+  /// (TableReaders::none()), for the memory estimate; null, or 0 for the
+  /// given options: the family fills a table.
   double (*compact_row_bytes)(const BasisOptions&, int dim) = nullptr;
   /// Its reach along an axis of spacing h in `dim` dimensions, `radius` its
   /// search radius (Basis::search_radius(); 0 for the families that do not search).

@@ -4,11 +4,10 @@
 
 #include "otmpm/assembly/assembler.hpp"
 #include "otmpm/assembly/seeding.hpp"
-#include "otmpm/distributed/share_seeding.hpp"
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/basis/lme.hpp"
+#include "otmpm/distributed/share_seeding.hpp"
 #include "otmpm/io/checkpoint.hpp"
-#include "otmpm/materials/pore_fluid.hpp"
 #include "otmpm/particles/particle_state.hpp"
 #include "otmpm/scene/resources.hpp"
 
@@ -347,9 +346,7 @@ void require_lattice_nodes(const Scene& scene) {
 /// surfaces are the node lattice's, which a rank's window of control points
 /// does not give.
 template <int D> void require_liquid_on_nodes(const Scene& scene) {
-  const bool saturated = std::any_of(scene.materials.begin(), scene.materials.end(),
-                                     [](const MaterialSection& m) { return pore_fluid(m).has_value(); });
-  if (saturated && basis_kind(scene.basis.kind).window<D>())
+  if (saturated(scene) && basis_kind(scene.basis.kind).window<D>())
     input_error(scene.locate("basis.kind"), "saturated bodies on a basis of control points (\"" + scene.basis.kind +
                                                 "\") run in one process only: run without mpirun, or take a basis "
                                                 "on the lattice's nodes (such as \"linear\" or \"lme\")");

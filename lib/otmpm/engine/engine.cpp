@@ -383,14 +383,17 @@ template <int D> void Engine<D>::evaluate_basis() {
     list_visited_nodes();
   };
   // The compact lattice rows or the product rows (StepRows) where no part of
-  // the step reads the table: without body contact, ranks, saturated bodies,
-  // F-bar, the consistent mass and side walls, on fixed nodes. In 3D the
-  // passes take more instructions to rebuild the eight linear entries than
-  // to read them, and still run faster where the table leaves the caches
-  // (docs/performance.md).
-  const bool lattice = !contact_ && !dist_ && !settings_.two_phase &&
-                       settings_.volumetric == Volumetric::none && !settings_.consistent_mass && !channel_ &&
-                       !mode_.nodes_move();
+  // the step reads the table (TableReaders). In 3D the passes take more
+  // instructions to rebuild the eight linear entries than to read them, and
+  // still run faster where the table leaves the caches (docs/performance.md).
+  const bool lattice = TableReaders{.nodes_move = mode_.nodes_move(),
+                                    .ranks = dist_ != nullptr,
+                                    .contact = contact_ != nullptr,
+                                    .two_phase = settings_.two_phase != nullptr,
+                                    .fbar = settings_.volumetric != Volumetric::none,
+                                    .consistent_mass = settings_.consistent_mass,
+                                    .side_walls = channel_ != nullptr}
+                           .none();
   const auto table_rows = [&] {
     const bool may_move = mode_.nodes_move() && basis_->search_radius() > 0.0;
     if (may_move) moved_.resize(P_.x.size(), Vec<D>::Zero());

@@ -4,7 +4,6 @@
 
 #include "otmpm/basis/kinds.hpp"
 #include "otmpm/materials/elasticity.hpp"
-#include "otmpm/materials/pore_fluid.hpp"
 #include "otmpm/scene/validate.hpp"
 
 #include <sys/resource.h>
@@ -66,15 +65,16 @@ double factor_entries(double nodes, double radius, int dim) {
 
 /// The bytes per particle of the compact rows a run of the scene in `ranks`
 /// processes keeps instead of a basis table (BasisKind::compact_row_bytes),
-/// or 0: only `mpm` on a Cartesian lattice in one process without body
-/// contact, saturated bodies, F-bar, the consistent mass or side walls takes
-/// them in every pass (Engine::evaluate_basis).
+/// or 0: on a Cartesian lattice, where no pass reads a table (TableReaders).
 double compact_row_bytes(const Scene& s, const BasisKind& kind, int ranks) {
-  if (!kind.compact_row_bytes || ranks > 1 || s.simulation.mode != "mpm" || s.grid.kind != "cartesian" ||
-      s.contact || s.channel || uses_consistent_mass(s) || volumetric_treatment(s) != "none")
-    return 0.0;
-  for (const MaterialSection& ms : s.materials)
-    if (pore_fluid(ms)) return 0.0;
+  const TableReaders readers{.nodes_move = s.simulation.nodes_move(),
+                             .ranks = ranks > 1,
+                             .contact = s.contact.has_value(),
+                             .two_phase = saturated(s),
+                             .fbar = volumetric_treatment(s) != "none",
+                             .consistent_mass = uses_consistent_mass(s),
+                             .side_walls = s.channel.has_value()};
+  if (!kind.compact_row_bytes || s.grid.kind != "cartesian" || !readers.none()) return 0.0;
   return kind.compact_row_bytes(s.basis, s.simulation.dimension);
 }
 

@@ -1021,10 +1021,26 @@ std::string unnamed_element_key(const std::string& key) {
 } // namespace
 
 SourceRef Scene::locate(const std::string& key) const {
-  auto it = where.find(key);
-  if (it != where.end()) return it->second;
-  const std::string unnamed = unnamed_element_key(key);
-  if (!unnamed.empty() && (it = where.find(unnamed)) != where.end()) return it->second;
+  const auto found = [&](const std::string& k) -> const SourceRef* {
+    auto it = where.find(k);
+    if (it == where.end() && !unnamed_element_key(k).empty()) it = where.find(unnamed_element_key(k));
+    return it == where.end() ? nullptr : &it->second;
+  };
+  if (const SourceRef* r = found(key)) return *r;
+  // A key the file leaves to its default: the line of the nearest table
+  // around it that the file has (its [simulation], its [[body]] element).
+  // A section's own line is taken only for its direct keys ("simulation.mass"),
+  // not for an element it does not have ("body.sand.k0" is not at [[body]]).
+  const std::size_t section_end = key.find('.');
+  const bool direct = section_end != std::string::npos && key.find('.', section_end + 1) == std::string::npos;
+  for (std::size_t dot = key.rfind('.');
+       dot != std::string::npos && (dot > section_end || (dot > 0 && direct));
+       dot = key.rfind('.', dot - 1)) {
+    const SourceRef* table = found(key.substr(0, dot));
+    if (!table || table->line == 0) continue;
+    if (table->line == kCommandLineLine) return SourceRef{table->file, table->line, table->key, key};
+    return SourceRef{table->file, table->line, key};
+  }
   return SourceRef{file, 0, key};
 }
 
@@ -1067,6 +1083,11 @@ constexpr double kDefaultNodeReset = 0.7;
 bool uses_consistent_mass(const Scene& scene) {
   const IntegratorKind* integrator = find_integrator(scene.simulation.integrator);
   return scene.simulation.mass == "consistent" || (integrator && integrator->needs_consistent_mass);
+}
+
+bool saturated(const Scene& scene) {
+  return std::any_of(scene.materials.begin(), scene.materials.end(),
+                     [](const MaterialSection& m) { return pore_fluid(m).has_value(); });
 }
 
 double node_reset_fraction(const Scene& scene) {

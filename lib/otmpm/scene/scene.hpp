@@ -326,7 +326,9 @@ struct Scene {
   ReferenceSection reference;
   /// Source locations of every key read, for consistency errors found later.
   std::map<std::string, SourceRef> where;
-  /// The SourceRef of `key` if known, else {file, 0, key}.
+  /// The SourceRef of `key`: its own line when the file sets it, else (a key
+  /// left to its default) the line of the nearest table around it that the
+  /// file has, else {file, 0, key}.
   SourceRef locate(const std::string& key) const;
 };
 
@@ -354,6 +356,10 @@ std::string volumetric_treatment(const Scene& scene);
 /// a file name it, scenes built in code may leave it out). The assembler, the
 /// checks and the defaults that depend on it all ask here.
 bool uses_consistent_mass(const Scene& scene);
+
+/// True when a material of the scene has a pore fluid: its bodies are
+/// saturated (docs/theory.md sect. 15).
+bool saturated(const Scene& scene);
 
 /// simulation.node_reset, or when the scene does not give it the default:
 /// 0.7 in `ul` mode on a node lattice (not a mesh's vertices) whose

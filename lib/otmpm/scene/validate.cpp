@@ -308,12 +308,6 @@ void check_contact(const Scene& s) {
                          "correction acts node by node on each body's velocity field");
 }
 
-/// True when a material of the scene has a pore fluid (docs/theory.md sect. 15).
-bool saturated(const Scene& s) {
-  return std::any_of(s.materials.begin(), s.materials.end(),
-                     [](const MaterialSection& m) { return pore_fluid(m).has_value(); });
-}
-
 /// [channel]: width > 0, friction >= 0, finite; plane strain (2D) only, dry
 /// bodies.
 void check_channel(const Scene& s) {
@@ -421,8 +415,9 @@ void check_plates(const Scene& s, int dim) {
 void check_saturated(const Scene& s) {
   if (!saturated(s)) return;
   const std::string why = "saturated bodies (materials with a pore fluid) ";
-  check(s, find_integrator(s.simulation.integrator)->two_phase, "simulation.integrator", why, "are stepped by ",
-        two_phase_integrators(), " (got \"", s.simulation.integrator, "\")");
+  check(s, find_integrator(s.simulation.integrator)->two_phase, "simulation.integrator", why,
+        "are stepped by ", two_phase_integrators(), " (got \"", s.simulation.integrator, "\"",
+        s.where.count("simulation.integrator") ? "" : ", the default", ")");
   check(s, !s.simulation.nodes_move(), "simulation.mode", why, "need simulation.mode = \"mpm\"");
   check(s, s.simulation.mass == "lumped", "simulation.mass", why, "need the lumped mass");
   check(s, s.walls.empty(), element_key("wall", s.walls.empty() ? "" : s.walls[0].name, 0), why,
