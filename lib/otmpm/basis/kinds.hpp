@@ -38,8 +38,6 @@ struct LatticeReach {
   int above = 1;
 };
 
-/// One basis family as the scene names it (`basis.kind`) and the facts about
-/// it that the rest of otmpm needs.
 /// The parts of a run that read a basis table in some pass of the step: where
 /// none does, a family with compact rows (BasisKind::compact_row_bytes: the
 /// lattice rows of `linear`, the product rows of `lme_box`) keeps those
@@ -59,6 +57,8 @@ struct TableReaders {
   }
 };
 
+/// One basis family as the scene names it (`basis.kind`) and the facts about
+/// it that the rest of otmpm needs.
 struct BasisKind {
   std::string_view name;
   std::string_view description;

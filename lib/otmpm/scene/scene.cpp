@@ -1023,7 +1023,10 @@ std::string unnamed_element_key(const std::string& key) {
 SourceRef Scene::locate(const std::string& key) const {
   const auto found = [&](const std::string& k) -> const SourceRef* {
     auto it = where.find(k);
-    if (it == where.end() && !unnamed_element_key(k).empty()) it = where.find(unnamed_element_key(k));
+    if (it == where.end()) {
+      const std::string unnamed = unnamed_element_key(k);
+      if (!unnamed.empty()) it = where.find(unnamed);
+    }
     return it == where.end() ? nullptr : &it->second;
   };
   if (const SourceRef* r = found(key)) return *r;
