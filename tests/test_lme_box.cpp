@@ -430,6 +430,9 @@ template <int D> void check_product_rows(int cells, double gamma, unsigned seed)
       rows.entry(p, e, I, N, dN);
       same = same && I == table.node[e] && N == table.N[e] && dN == table.dN[e];
     }
+    int e = table.begin(p); // the node ids alone, in the table's order
+    rows.visit_nodes(p, [&](int I) { same = same && e < table.end(p) && I == table.node[e++]; });
+    same = same && e == table.end(p);
   }
   CHECK(same);
 }

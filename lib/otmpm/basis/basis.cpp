@@ -775,7 +775,7 @@ template <int D> void transpose_basis_table(const ProductRows<D>& rows, int node
   std::vector<int> node(static_cast<std::size_t>(rows.offset.back()));
   parallel_for(rows.rows(), [&](long long p) {
     auto e = static_cast<std::size_t>(rows.offset[static_cast<std::size_t>(p)]);
-    rows.visit_row(static_cast<int>(p), [&](int I, double, const Vec<D>&) { node[e++] = I; });
+    rows.visit_nodes(static_cast<int>(p), [&](int I) { node[e++] = I; });
   });
   transpose_rows(
       rows.rows(), node.size(), nodes, [&rows](int p) { return rows.offset[static_cast<std::size_t>(p)]; },

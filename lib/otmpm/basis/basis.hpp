@@ -548,6 +548,18 @@ template <int D> struct ProductRows {
   template <class F> [[gnu::always_inline]] void visit_row(int p, F&& f) const {
     visit(base[static_cast<std::size_t>(p)], m[static_cast<std::size_t>(p)], factors(p), lanes, stride, f);
   }
+  /// f(I) for the node ids of row p in the table's order, without reading
+  /// its factors (the passes that only mark or number nodes). The lines and
+  /// strides in locals, so that f's stores cannot make them reload.
+  template <class F> [[gnu::always_inline]] void visit_nodes(int p, F&& f) const {
+    const std::array<int, D> mp = m[static_cast<std::size_t>(p)], s = stride;
+    const int b = base[static_cast<std::size_t>(p)], m1 = D > 1 ? mp[1 % D] : 1, m2 = D > 2 ? mp[2 % D] : 1;
+    for (int i2 = 0; i2 < m2; ++i2)
+      for (int i1 = 0; i1 < m1; ++i1) {
+        const int id = b + (D > 1 ? i1 * s[1 % D] : 0) + (D > 2 ? i2 * s[2 % D] : 0);
+        for (int i0 = 0; i0 < mp[0]; ++i0) f(id + i0);
+      }
+  }
   /// visit_row() of a row given by its parts (static, so that a pass may
   /// hold the arrays in its own locals: engine/rows.hpp, ProductView). M0 >
   /// 0: axis 0 has M0 lines (its loop unrolled); 0: any.

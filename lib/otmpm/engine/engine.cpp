@@ -623,7 +623,7 @@ template <int D> void Engine<D>::list_visited_nodes() {
       for (auto p = static_cast<int>(p0), last = -1; p < p1; ++p) {
         if (r.base[p] == last && r.m[p] == r.m[p - 1]) continue; // (last is -1 at p0)
         last = r.base[p];
-        r.visit_row(p, [&](int I, double, const Vec<D>&) { on(I); });
+        r.visit_nodes(p, on);
       }
       return;
     }

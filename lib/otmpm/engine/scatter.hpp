@@ -312,8 +312,7 @@ private:
       for (int a = 0; a < LatticeRows<D>::kCorners; ++a) f(rows.lowest(p) + rows.corner_offset[a]);
   }
   template <class F> static void block_nodes_visit(const ProductRows<D>& rows, int b, F&& f) {
-    for (int p = b * scatter_block; p < block_end(rows, b); ++p)
-      rows.visit_row(p, [&](int I, double, const Vec<D>&) { f(I); });
+    for (int p = b * scatter_block; p < block_end(rows, b); ++p) rows.visit_nodes(p, f);
   }
 
   /// Phase 1 for block b, dense: update() on the block's particles, then
