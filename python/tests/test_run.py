@@ -103,6 +103,16 @@ def test_run_releases_the_gil():
     assert len(ticks) > 20 and gaps.max() < 0.2, (len(ticks), gaps.max())
 
 
+def ctrl_c_child(*args):
+    """A Python child that Ctrl-C reaches: SIGINT at its default in the child
+    (Python then installs its KeyboardInterrupt handler), whatever this test
+    inherited - a shell's background job (`cmd &` without job control, as a
+    CI runner may start it) ignores SIGINT, and an ignored signal stays
+    ignored across exec."""
+    return subprocess.Popen([sys.executable, "-c", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+
+
 CHILD = textwrap.dedent("""
     import sys, otmpm
     scene = otmpm.Scene.from_toml(sys.argv[1], {"simulation.t_end": 100.0, "output.every": 0.01})
@@ -173,8 +183,7 @@ def test_ctrl_c_during_the_set_up_raises_keyboard_interrupt_at_once_and_writes_n
     scene = tmp_path / "slow.toml"
     scene.write_text(SLOW_SETUP)
     out = tmp_path / "r.h5"
-    child = subprocess.Popen([sys.executable, "-c", SETUP_CHILD, str(scene), str(out)],
-                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    child = ctrl_c_child(SETUP_CHILD, str(scene), str(out))
     assert child.stdout.readline().strip() == "building"
     time.sleep(1.0)  # seeding (measured 8.5 s in all)
     sent = time.perf_counter()
@@ -189,8 +198,7 @@ def test_ctrl_c_during_the_set_up_raises_keyboard_interrupt_at_once_and_writes_n
 
 def test_ctrl_c_raises_keyboard_interrupt_and_leaves_a_valid_file(tmp_path):
     out = tmp_path / "interrupted.h5"
-    child = subprocess.Popen([sys.executable, "-c", CHILD, example("fixed_bar.toml"), str(out)],
-                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    child = ctrl_c_child(CHILD, example("fixed_bar.toml"), str(out))
     assert child.stdout.readline().strip() == "running"
     time.sleep(1.0)  # the run is under way (its t_end is minutes away)
     sent = time.perf_counter()
