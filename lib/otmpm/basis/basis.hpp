@@ -553,12 +553,10 @@ template <int D> struct ProductRows {
   /// strides in locals, so that f's stores cannot make them reload.
   template <class F> [[gnu::always_inline]] void visit_nodes(int p, F&& f) const {
     const std::array<int, D> mp = m[static_cast<std::size_t>(p)], s = stride;
-    const int b = base[static_cast<std::size_t>(p)], m1 = D > 1 ? mp[1 % D] : 1, m2 = D > 2 ? mp[2 % D] : 1;
-    for (int i2 = 0; i2 < m2; ++i2)
-      for (int i1 = 0; i1 < m1; ++i1) {
-        const int id = b + (D > 1 ? i1 * s[1 % D] : 0) + (D > 2 ? i2 * s[2 % D] : 0);
-        for (int i0 = 0; i0 < mp[0]; ++i0) f(id + i0);
-      }
+    walk_lines(
+        base[static_cast<std::size_t>(p)], mp, s, [&](int, int, int id) __attribute__((always_inline)) {
+          for (int i0 = 0; i0 < mp[0]; ++i0) f(id + i0);
+        });
   }
   /// visit_row() of a row given by its parts (static, so that a pass may
   /// hold the arrays in its own locals: engine/rows.hpp, ProductView). M0 >
@@ -566,20 +564,19 @@ template <int D> struct ProductRows {
   template <int M0 = 0, class F>
   [[gnu::always_inline]] static void visit(int b, const std::array<int, D>& mp, const double* r, int M,
                                            const std::array<int, D>& stride, F&& f) {
-    const int m0 = M0 > 0 ? M0 : mp[0], m1 = D > 1 ? mp[1 % D] : 1, m2 = D > 2 ? mp[2 % D] : 1;
-    for (int i2 = 0; i2 < m2; ++i2)
-      for (int i1 = 0; i1 < m1; ++i1) {
-        double w;
-        Vec<D> g;
-        cross(r, M, i1, i2, w, g);
-        const int id = b + (D > 1 ? i1 * stride[1 % D] : 0) + (D > 2 ? i2 * stride[2 % D] : 0);
-        for (int i0 = 0; i0 < m0; ++i0) {
-          double N;
-          Vec<D> dN;
-          product(r[i0], r[M + i0], w, g, N, dN);
-          f(id + i0, N, dN);
-        }
-      }
+    const int m0 = M0 > 0 ? M0 : mp[0];
+    walk_lines(
+        b, mp, stride, [&](int i1, int i2, int id) __attribute__((always_inline)) {
+          double w;
+          Vec<D> g;
+          cross(r, M, i1, i2, w, g);
+          for (int i0 = 0; i0 < m0; ++i0) {
+            double N;
+            Vec<D> dN;
+            product(r[i0], r[M + i0], w, g, N, dN);
+            f(id + i0, N, dN);
+          }
+        });
   }
   /// Entry e of row p (offset[p] <= e < offset[p + 1]): its node, and N_Ip
   /// and grad N_Ip with the bits visit_row gives them (the column gather).
@@ -592,18 +589,33 @@ template <int D> struct ProductRows {
     const double* r = factors(p);
     cross(r, lanes, i[1], i[2], w, g);
     product(r[i[0]], r[lanes + i[0]], w, g, N, dN);
-    I = base[static_cast<std::size_t>(p)] + i[0] + (D > 1 ? i[1] * stride[1 % D] : 0) +
-        (D > 2 ? i[2] * stride[2 % D] : 0);
+    I = line_id(base[static_cast<std::size_t>(p)], i[1], i[2], stride) + i[0];
   }
   /// The smallest and largest node id of row p.
   int lowest(int p) const { return base[static_cast<std::size_t>(p)]; }
   int highest(int p) const {
-    int h = base[static_cast<std::size_t>(p)];
-    for (int k = 0; k < D; ++k) h += (m[static_cast<std::size_t>(p)][k] - 1) * stride[k];
-    return h;
+    const std::array<int, D>& mp = m[static_cast<std::size_t>(p)];
+    return line_id(base[static_cast<std::size_t>(p)], D > 1 ? mp[1 % D] - 1 : 0, D > 2 ? mp[2 % D] - 1 : 0,
+                   stride) +
+           mp[0] - 1;
   }
 
 private:
+  /// The node id of the first entry of line (i1, i2) of axes 1 and 2 (those
+  /// that exist) of a row whose lowest node is b: b + i1 stride_1 + i2 stride_2.
+  [[gnu::always_inline]] static int line_id(int b, int i1, int i2, const std::array<int, D>& s) {
+    return b + (D > 1 ? i1 * s[1 % D] : 0) + (D > 2 ? i2 * s[2 % D] : 0);
+  }
+  /// g(i1, i2, id) for every line of axes 1 and 2 of a row with lines mp and
+  /// lowest node b, in the table's order (axis 2 outermost), id its first
+  /// node (line_id): the walk visit() and visit_nodes() share.
+  template <class G>
+  [[gnu::always_inline]] static void walk_lines(int b, const std::array<int, D>& mp,
+                                                const std::array<int, D>& s, G&& g) {
+    const int m1 = D > 1 ? mp[1 % D] : 1, m2 = D > 2 ? mp[2 % D] : 1;
+    for (int i2 = 0; i2 < m2; ++i2)
+      for (int i1 = 0; i1 < m1; ++i1) g(i1, i2, line_id(b, i1, i2, s));
+  }
   /// The factors of lines i1 and i2 of axes 1 and 2 (those that exist): w
   /// = n_1 n_2, g = (-, d_1 n_2, n_1 d_2).
   [[gnu::always_inline]] static void cross(const double* r, int M, int i1, int i2, double& w, Vec<D>& g) {
