@@ -3,7 +3,7 @@
 // the machine": the bound of a one-pass step).
 //
 //   OMP_NUM_THREADS=1 build/bench/bench_one_pass [--cells N] [--steps S] [--repeat R] [--check C]
-//       [--engine 0]
+//       [--engine 0] [--batch 1|32]
 //
 // OnePassBlock below is a model of the step, not a part of the library: the
 // physics of step_fe (wobbes et al. Algorithm 1, lumped mass) with
@@ -17,6 +17,10 @@
 // needs beyond that block (other bases, integrators, threads, walls,
 // deterministic blocked sums, the straight-path strain energy), so its rate
 // bounds from above what fusing the engine's passes can give on this core.
+// --batch 32 takes the sweep's three stages (grid-to-particle, stress and
+// sums, particle-to-grid) a batch of 32 particles at a time, each stage a
+// loop of its own over the batch; --batch 1 (the default) takes each
+// particle through all three before the next.
 //
 // It first proves that it computes the engine's step: from the engine's
 // initial particles and with the engine's time steps, its velocities and
@@ -57,17 +61,116 @@ struct NodeSums {
 struct NodeRates {
   double ax = 0, ay = 0, vx = 0, vy = 0;
 };
-/// The four linear hats of a particle: the lower-left node and N, dN/dx, dN/dy.
+/// The four linear hats of a particle: its nodes and N, dN/dx, dN/dy.
 struct Hats {
-  int I;
+  int node[4];
   double N[4], dNx[4], dNy[4];
 };
+
+/// The grid and material constants of the sweep; the grid's nodes x = lo +
+/// i h (i < NX), y = j h, node id j NX + i.
+struct SweepConstants {
+  double h, lo, lambda, mu, dt;
+  int NX;
+};
+
+/// The linear hats at (px, py).
+[[gnu::always_inline]] inline Hats linear_hats(double px, double py, const SweepConstants& c) {
+  const double inv_h = 1.0 / c.h, u = (px - c.lo) * inv_h, w = py * inv_h;
+  const int i = static_cast<int>(u), j = static_cast<int>(w), I = j * c.NX + i;
+  const double a = u - i, b = w - j, Nx0 = 1 - a, Ny0 = 1 - b;
+  return {{I, I + 1, I + c.NX, I + c.NX + 1},
+          {Nx0 * Ny0, a * Ny0, Nx0 * b, a * b},
+          {-inv_h * Ny0, inv_h * Ny0, -inv_h * b, inv_h * b},
+          {-inv_h * Nx0, -inv_h * a, inv_h * Nx0, inv_h * a}};
+}
+
+/// Adds particle p's m_I, q_I = m_p v_p and f_I = -V_p sigma_p grad N + N m_p g to S.
+[[gnu::always_inline]] inline void scatter_particle(const Hats& w, double mp, double Vp, double pvx,
+                                                    double pvy, const double* s, NodeSums* __restrict S) {
+  const double sxx = Vp * s[0], syy = Vp * s[1], sxy = Vp * s[2];
+  const double qx = mp * pvx, qy = mp * pvy, fg = mp * -9.81;
+  for (int k = 0; k < 4; ++k) {
+    NodeSums& d = S[w.node[k]];
+    d.m += w.N[k] * mp;
+    d.qx += w.N[k] * qx, d.qy += w.N[k] * qy;
+    d.fx -= sxx * w.dNx[k] + sxy * w.dNy[k];
+    d.fy -= sxy * w.dNx[k] + syy * w.dNy[k];
+    d.fy += w.N[k] * fg;
+  }
+}
+
+/// The energy sums and the count of failed checks of one sweep.
+struct SweepTotals {
+  double kinetic = 0, strain = 0, speed2 = 0;
+  long failed = 0;
+};
+
+/// The sweep over the particles, in batches of `Batch`: for each batch the
+/// grid-to-particle update (v_p, x_p and the velocity gradient from the
+/// nodes' a_I, v_I), then linear_elastic's update with the energy sums and
+/// checks, then the next step's particle-to-node sums at the new x_p, each
+/// stage a loop over the batch. Batch 1 is the fused loop (one particle
+/// through all three); a larger batch gives the core short loops of
+/// independent iterations. The arrays are restrict parameters and the sums
+/// locals, so that the compiler keeps them in registers.
+template <int Batch>
+[[gnu::noinline]] SweepTotals
+sweep_stages(int n, const SweepConstants c, double* __restrict x, double* __restrict y, double* __restrict vx,
+             double* __restrict vy, const double* __restrict m, double* __restrict V, double* __restrict rho,
+             double* __restrict eps, double* __restrict sigma, const NodeRates* __restrict R,
+             NodeSums* __restrict S) {
+  const double dt = c.dt, two_mu = 2 * c.mu;
+  SweepTotals t;
+  double G[4][Batch]; // dt L of the batch: xx, yy, (xy + yx) / 2, trace
+  for (int p0 = 0; p0 < n; p0 += Batch) {
+    const int nb = std::min(Batch, n - p0);
+    for (int q = 0; q < nb; ++q) { // grid to particle
+      const int p = p0 + q;
+      const Hats w = linear_hats(x[p], y[p], c);
+      double ax = 0, ay = 0, ux = 0, uy = 0, Lxx = 0, Lxy = 0, Lyx = 0, Lyy = 0;
+      for (int k = 0; k < 4; ++k) {
+        const NodeRates& o = R[w.node[k]];
+        ax += w.N[k] * o.ax, ay += w.N[k] * o.ay, ux += w.N[k] * o.vx, uy += w.N[k] * o.vy;
+        Lxx += o.vx * w.dNx[k], Lxy += o.vx * w.dNy[k], Lyx += o.vy * w.dNx[k], Lyy += o.vy * w.dNy[k];
+      }
+      vx[p] += dt * ax, vy[p] += dt * ay;
+      x[p] += dt * ux, y[p] += dt * uy;
+      G[0][q] = dt * Lxx, G[1][q] = dt * Lyy, G[2][q] = 0.5 * (dt * Lxy + dt * Lyx);
+      G[3][q] = G[0][q] + G[1][q];
+    }
+    for (int q = 0; q < nb; ++q) { // eps += dt sym L, sigma += C : dt sym L, rho /= 1 + tr, V = m / rho
+      const int p = p0 + q;
+      const double gxx = G[0][q], gyy = G[1][q], dxy = G[2][q], tr = G[3][q];
+      double* __restrict e = eps + 3 * static_cast<std::size_t>(p);
+      double* __restrict s = sigma + 3 * static_cast<std::size_t>(p);
+      e[0] += gxx, e[1] += gyy, e[2] += dxy;
+      s[0] += c.lambda * tr + two_mu * gxx, s[1] += c.lambda * tr + two_mu * gyy, s[2] += two_mu * dxy;
+      rho[p] /= 1.0 + tr;
+      V[p] = m[p] / rho[p];
+      // kinetic and stored energy, the fastest particle, the finiteness check
+      const double v2 = vx[p] * vx[p] + vy[p] * vy[p];
+      t.kinetic += 0.5 * m[p] * v2;
+      t.strain += 0.5 * V[p] * (s[0] * e[0] + s[1] * e[1] + 2 * s[2] * e[2]);
+      t.speed2 = std::max(t.speed2, v2);
+      const double z = (x[p] - x[p]) + (y[p] - y[p]) + (s[0] - s[0]) + (s[1] - s[1]) + (s[2] - s[2]);
+      t.failed += !(z == 0.0);
+    }
+    for (int q = 0; q < nb; ++q) { // the next step's particle-to-node sums
+      const int p = p0 + q;
+      scatter_particle(linear_hats(x[p], y[p], c), m[p], V[p], vx[p], vy[p],
+                       sigma + 3 * static_cast<std::size_t>(p), S);
+    }
+  }
+  return t;
+}
 
 /// The 2D block's linear `fe` step as one sweep over the particles (see the file's head).
 class OnePassBlock {
 public:
-  OnePassBlock(const Engine<2>& e, int cells)
-      : h_(1.0 / cells), lo_(-2.0 / cells), NX_(cells + 5), NY_(cells + 3) {
+  /// `batch`: the sweep's batch (1 or 32; sweep_stages).
+  OnePassBlock(const Engine<2>& e, int cells, int batch)
+      : c_{1.0 / cells, -2.0 / cells, 0.0, 0.0, 0.0, cells + 5}, NY_(cells + 3), batch_(batch) {
     const Particles<2>& P = e.particles();
     const int n = static_cast<int>(P.size());
     for (int p = 0; p < n; ++p) {
@@ -78,16 +181,21 @@ public:
       sigma_.insert(sigma_.end(), {0.0, 0.0, 0.0});
     }
     const double E = 1e7, nu = 0.3; // the block's material (bench_scenes.hpp)
-    lambda_ = E * nu / ((1 + nu) * (1 - 2 * nu)), mu_ = E / (2 * (1 + nu));
-    sums_.assign(static_cast<std::size_t>(NX_) * NY_, NodeSums{});
+    c_.lambda = E * nu / ((1 + nu) * (1 - 2 * nu)), c_.mu = E / (2 * (1 + nu));
+    sums_.assign(static_cast<std::size_t>(c_.NX) * NY_, NodeSums{});
     next_ = sums_;
     rates_.assign(sums_.size(), NodeRates{});
-    for (int p = 0; p < n; ++p) scatter(sums_, p);
+    for (int p = 0; p < n; ++p)
+      scatter_particle(linear_hats(x_[p], y_[p], c_), m_[p], V_[p], vx_[p], vy_[p], &sigma_[3 * p],
+                       sums_.data());
   }
   /// One step of size dt: the nodal update, then the sweep.
   void step(double dt) {
     nodal_update(dt);
-    sweep(dt);
+    c_.dt = dt;
+    const auto sweep = batch_ == 32 ? sweep_stages<32> : sweep_stages<1>;
+    totals_ = sweep(size(), c_, x_.data(), y_.data(), vx_.data(), vy_.data(), m_.data(), V_.data(),
+                    rho_.data(), eps_.data(), sigma_.data(), rates_.data(), next_.data());
     std::swap(sums_, next_);
   }
   int size() const { return static_cast<int>(x_.size()); }
@@ -95,40 +203,15 @@ public:
   double vy(int p) const { return vy_[p]; }
   double x(int p) const { return x_[p]; }
   double y(int p) const { return y_[p]; }
-  long failed() const { return failed_; }
+  long failed() const { return totals_.failed; }
 
 private:
-  Hats hats(double px, double py) const {
-    const double inv_h = 1.0 / h_, u = (px - lo_) * inv_h, w = py * inv_h; // the grid: x from -2h, y from 0
-    const int i = static_cast<int>(u), j = static_cast<int>(w);
-    const double a = u - i, b = w - j, Nx0 = 1 - a, Ny0 = 1 - b;
-    return {j * NX_ + i,
-            {Nx0 * Ny0, a * Ny0, Nx0 * b, a * b},
-            {-inv_h * Ny0, inv_h * Ny0, -inv_h * b, inv_h * b},
-            {-inv_h * Nx0, -inv_h * a, inv_h * Nx0, inv_h * a}};
-  }
-  int node(const Hats& w, int k) const { return w.I + (k & 1) + (k >> 1) * NX_; }
-  /// m_I, q_I = m_p v_p and f_I = -V_p sigma_p grad N + N m_p g of particle p.
-  void scatter(std::vector<NodeSums>& s, int p) const {
-    const Hats w = hats(x_[p], y_[p]);
-    const double sxx = V_[p] * sigma_[3 * p], syy = V_[p] * sigma_[3 * p + 1],
-                 sxy = V_[p] * sigma_[3 * p + 2];
-    const double mp = m_[p], qx = mp * vx_[p], qy = mp * vy_[p], fg = mp * -9.81;
-    for (int k = 0; k < 4; ++k) {
-      NodeSums& d = s[static_cast<std::size_t>(node(w, k))];
-      d.m += w.N[k] * mp;
-      d.qx += w.N[k] * qx, d.qy += w.N[k] * qy;
-      d.fx -= sxx * w.dNx[k] + sxy * w.dNy[k];
-      d.fy -= sxy * w.dNx[k] + syy * w.dNy[k];
-      d.fy += w.N[k] * fg;
-    }
-  }
   /// a_I, v_I of every node with mass; the base's row (y = 0) held: v_I = 0 and, as the engine's Dirichlet
   /// sets give it (the fixed components of f_I zeroed), a_I = 0.
   void nodal_update(double dt) {
     for (int r = 0; r < NY_; ++r)
-      for (int i = 0; i < NX_; ++i) {
-        const std::size_t I = static_cast<std::size_t>(r) * NX_ + i;
+      for (int i = 0; i < c_.NX; ++i) {
+        const std::size_t I = static_cast<std::size_t>(r) * c_.NX + i;
         const NodeSums& d = sums_[I];
         NodeRates& o = rates_[I];
         if (d.m > 0 && r > 0) {
@@ -141,64 +224,21 @@ private:
         next_[I] = NodeSums{};
       }
   }
-  /// The grid-to-particle update, stress update, sums and checks and the
-  /// next particle-to-node sums, particle by particle.
-  void sweep(double dt) {
-    kinetic_ = strain_ = speed2_ = 0.0;
-    failed_ = 0;
-    for (int p = 0; p < size(); ++p) {
-      const Hats w = hats(x_[p], y_[p]);
-      double ax = 0, ay = 0, ux = 0, uy = 0, Lxx = 0, Lxy = 0, Lyx = 0, Lyy = 0;
-      for (int k = 0; k < 4; ++k) {
-        const NodeRates& o = rates_[static_cast<std::size_t>(node(w, k))];
-        ax += w.N[k] * o.ax, ay += w.N[k] * o.ay, ux += w.N[k] * o.vx, uy += w.N[k] * o.vy;
-        Lxx += o.vx * w.dNx[k], Lxy += o.vx * w.dNy[k], Lyx += o.vy * w.dNx[k], Lyy += o.vy * w.dNy[k];
-      }
-      vx_[p] += dt * ax, vy_[p] += dt * ay;
-      x_[p] += dt * ux, y_[p] += dt * uy;
-      update_stress(p, dt * Lxx, dt * Lxy, dt * Lyx, dt * Lyy);
-      sum_and_check(p);
-      scatter(next_, p);
-    }
-  }
-  /// eps += dt sym L, sigma += C : dt sym L, rho /= 1 + tr(dt sym L), V = m / rho (linear_elastic's update).
-  void update_stress(int p, double gxx, double gxy, double gyx, double gyy) {
-    const double dxy = 0.5 * (gxy + gyx), tr = gxx + gyy;
-    double* e = &eps_[3 * static_cast<std::size_t>(p)];
-    double* s = &sigma_[3 * static_cast<std::size_t>(p)];
-    e[0] += gxx, e[1] += gyy, e[2] += dxy;
-    s[0] += lambda_ * tr + 2 * mu_ * gxx, s[1] += lambda_ * tr + 2 * mu_ * gyy, s[2] += 2 * mu_ * dxy;
-    rho_[p] /= 1.0 + tr;
-    V_[p] = m_[p] / rho_[p];
-  }
-  /// Kinetic and stored energy, the fastest particle, the finiteness check.
-  void sum_and_check(int p) {
-    const double* e = &eps_[3 * static_cast<std::size_t>(p)];
-    const double* s = &sigma_[3 * static_cast<std::size_t>(p)];
-    const double v2 = vx_[p] * vx_[p] + vy_[p] * vy_[p];
-    kinetic_ += 0.5 * m_[p] * v2;
-    strain_ += 0.5 * V_[p] * (s[0] * e[0] + s[1] * e[1] + 2 * s[2] * e[2]);
-    speed2_ = std::max(speed2_, v2);
-    const double z = (x_[p] - x_[p]) + (y_[p] - y_[p]) + (s[0] - s[0]) + (s[1] - s[1]) + (s[2] - s[2]);
-    failed_ += !(z == 0.0);
-  }
 
-  double h_, lo_;
-  int NX_, NY_;
-  double lambda_ = 0, mu_ = 0;
+  SweepConstants c_;
+  int NY_, batch_;
   std::vector<double> x_, y_, vx_, vy_, m_, V_, rho_, eps_, sigma_;
   std::vector<NodeSums> sums_, next_;
   std::vector<NodeRates> rates_;
-  double kinetic_ = 0, strain_ = 0, speed2_ = 0;
-  long failed_ = 0;
+  SweepTotals totals_;
 };
 
 /// Steps the engine and the model `steps` times with the engine's dt and
 /// returns the largest difference of velocity and position, each relative
 /// to the largest value of its field.
-double agreement(const Scene& scene, int cells, int steps) {
+double agreement(const Scene& scene, int cells, int steps, int batch) {
   Engine<2> e = assemble<2>(scene);
-  OnePassBlock b(e, cells);
+  OnePassBlock b(e, cells, batch);
   for (int s = 0; s < steps; ++s) {
     e.step();
     b.step(e.last_dt());
@@ -214,9 +254,9 @@ double agreement(const Scene& scene, int cells, int steps) {
 }
 
 /// Particle-steps per second of `steps` model steps (after one untimed step).
-double time_model(const Scene& scene, int cells, int steps) {
+double time_model(const Scene& scene, int cells, int steps, int batch) {
   Engine<2> e = assemble<2>(scene);
-  OnePassBlock b(e, cells);
+  OnePassBlock b(e, cells, batch);
   const double dt = e.stable_dt();
   b.step(dt);
   const auto t0 = std::chrono::steady_clock::now();
@@ -230,7 +270,7 @@ double time_model(const Scene& scene, int cells, int steps) {
 
 int main(int argc, char** argv) {
   otmpm::default_openmp_wait(argv);
-  int cells = 500, steps = 50, repeat = 5, check = 20, with_engine = 1;
+  int cells = 500, steps = 50, repeat = 5, check = 20, with_engine = 1, batch = 1;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i], v = argv[i + 1];
     if (a == "--cells")
@@ -243,9 +283,15 @@ int main(int argc, char** argv) {
       check = std::stoi(v);
     else if (a == "--engine")
       with_engine = std::stoi(v);
+    else if (a == "--batch")
+      batch = std::stoi(v);
+  }
+  if (batch != 1 && batch != 32) {
+    std::fprintf(stderr, "bench_one_pass: --batch takes 1 or 32\n");
+    return 2;
   }
   const Scene scene = parse_scene(block_scene(2, cells, "linear", "fe", "mpm", 3.0), "bench_one_pass.toml");
-  const double differ = agreement(scene, cells, check);
+  const double differ = agreement(scene, cells, check, batch);
   std::printf(
       "one-pass model against the engine after %d steps: velocities and positions within %.1e of their "
       "scale (bound %.0e)\n",
@@ -253,19 +299,19 @@ int main(int argc, char** argv) {
   if (!(differ <= kAgreement)) return 1;
   std::vector<double> model, engine;
   for (int r = 0; r < repeat; ++r) {
-    model.push_back(time_model(scene, cells, steps));
+    model.push_back(time_model(scene, cells, steps, batch));
     if (!with_engine) continue;
     const Timing t = time_run<2>(scene, steps, 1);
     engine.push_back(double(t.particles) / t.per_step);
   }
   if (!with_engine) {
-    std::printf("block %d^2 cells, one-pass model, median of %d rounds: %.3e particle-steps/s\n", cells,
-                repeat, median(model));
+    std::printf("block %d^2 cells, one-pass model (batch %d), median of %d rounds: %.3e particle-steps/s\n",
+                cells, batch, repeat, median(model));
     return 0;
   }
   std::printf(
-      "block %d^2 cells, linear fe, one thread, median of %d rounds: one-pass model %.3e, engine %.3e "
-      "particle-steps/s (model / engine %.2f)\n",
-      cells, repeat, median(model), median(engine), median(model) / median(engine));
+      "block %d^2 cells, linear fe, one thread, median of %d rounds: one-pass model (batch %d) %.3e, engine "
+      "%.3e particle-steps/s (model / engine %.2f)\n",
+      cells, repeat, batch, median(model), median(engine), median(model) / median(engine));
   return 0;
 }

@@ -93,16 +93,17 @@ block() {
   row "$name" "$rate" "$(per_particle_step "$sum1" "$sum2" $(( (s2 - s1) * particles )))"
 }
 
-# one_pass CELLS_RATE CELLS_CG S1 S2: the row of bench_one_pass's model of the 2D linear fe step
-# (one sweep over the particles, no basis table: an upper bound of what fusing the passes gives)
+# one_pass CELLS_RATE CELLS_CG S1 S2 BATCH: the row of bench_one_pass's model of the 2D linear fe step
+# (one sweep over the particles, no basis table, its stages BATCH particles at a time: an upper bound of
+# what fusing the passes gives)
 one_pass() {
-  local rate sum1 sum2
-  rate=$("$build/bench/bench_one_pass" --cells "$1" --steps 10 --repeat "$repeat" --engine 0 |
+  local rate sum1 sum2 args=(--repeat 1 --check 1 --engine 0 --batch "$5")
+  rate=$("$build/bench/bench_one_pass" --cells "$1" --steps 10 --repeat "$repeat" --engine 0 --batch "$5" |
     sed -n 's/.*rounds: \([0-9.e+]*\) particle-steps.*/\1/p')
-  sum1=$(cachegrind_summary "$build/bench/bench_one_pass" --cells "$2" --steps "$3" --repeat 1 --check 1 --engine 0)
-  sum2=$(cachegrind_summary "$build/bench/bench_one_pass" --cells "$2" --steps "$4" --repeat 1 --check 1 --engine 0)
-  row "2D block, one-pass model of linear fe (bench_one_pass; rate: 10^6 particles; counts: 200^2 cells)" "$rate" \
-    "$(per_particle_step "$sum1" "$sum2" $(( ($4 - $3) * 4 * $2 ** 2 )))"
+  sum1=$(cachegrind_summary "$build/bench/bench_one_pass" --cells "$2" --steps "$3" "${args[@]}")
+  sum2=$(cachegrind_summary "$build/bench/bench_one_pass" --cells "$2" --steps "$4" "${args[@]}")
+  row "2D block, one-pass model of linear fe, batch $5 (bench_one_pass; rate: 10^6 particles; counts: 200^2 cells)" \
+    "$rate" "$(per_particle_step "$sum1" "$sum2" $(( ($4 - $3) * 4 * $2 ** 2 )))"
 }
 
 # taylor_cachegrind T_END: "summary steps" of a cachegrind run of the Taylor bar to T_END
@@ -118,7 +119,8 @@ echo "| case (one core) | particle-steps/s | instructions per particle-step | in
 echo "|---|---|---|---|---|---|---|"
 block "2D block, linear fe (rate: 10^6 particles; counts: 200^2 cells)" 500 200 2 6 2 --basis linear --integrator fe
 bytes_l1=$l1 bytes_l3=$l3 # row() leaves the row's bytes in l1 and l3: the bytes target's row, after the table
-one_pass 500 200 2 6
+one_pass 500 200 2 6 1
+one_pass 500 200 2 6 32
 block "2D block 200^2, LME gamma_lme = 3 npc" 200 200 2 4 2 --basis lme --integrator npc
 block "3D block, linear fe (rate: 64^3 cells; counts: 24^3)" 64 24 2 4 3 --basis linear --integrator fe
 block "3D block, LME gamma_lme = 3 npc (rate: 32^3 cells; counts: 16^3)" 32 16 2 4 3 --basis lme --integrator npc
