@@ -522,7 +522,9 @@ template <int D> void expand_lattice_rows(const LatticeRows<D>& rows, BasisTable
 /// entry has the bits of the family's table (tests/test_lme_box.cpp).
 template <int D> struct ProductRows {
   int lanes = 0;                     ///< M: the factors of one axis take M doubles (n), then M (d)
-  std::array<int, D> stride{};       ///< node-id stride of each axis
+  /// Node-id stride of each axis; axis 0's must be 1 (the lattice's node
+  /// order): visit, entry and highest add i_0 to a line's id.
+  std::array<int, D> stride{};
   std::vector<int> base;             ///< the row's lowest node id, sum_k lo_k stride_k
   std::vector<std::array<int, D>> m; ///< lines per axis
   std::vector<int> offset{0};        ///< row p's entries are offset[p] .. offset[p + 1] - 1
