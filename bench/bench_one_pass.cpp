@@ -3,7 +3,7 @@
 // the machine": the bound of a one-pass step).
 //
 //   OMP_NUM_THREADS=1 build/bench/bench_one_pass [--cells N] [--steps S] [--repeat R] [--check C]
-//       [--engine 0] [--batch 1|32]
+//       [--engine 0] [--batch 1|32] [--lanes 1|4]
 //
 // OnePassBlock below is a model of the step, not a part of the library: the
 // physics of step_fe (wobbes et al. Algorithm 1, lumped mass) with
@@ -20,7 +20,9 @@
 // --batch 32 takes the sweep's three stages (grid-to-particle, stress and
 // sums, particle-to-grid) a batch of 32 particles at a time, each stage a
 // loop of its own over the batch; --batch 1 (the default) takes each
-// particle through all three before the next.
+// particle through all three before the next. --lanes 4 (with --batch 32,
+// on a core with AVX2) runs the batched sweep four particles per instruction
+// (sweep_lanes), with the scalar sweep's bits: it checks that too.
 //
 // It first proves that it computes the engine's step: from the engine's
 // initial particles and with the engine's time steps, its velocities and
@@ -36,6 +38,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <string>
 #include <vector>
 
@@ -165,12 +168,152 @@ sweep_stages(int n, const SweepConstants c, double* __restrict x, double* __rest
   return t;
 }
 
+#if defined(__x86_64__)
+/// Four doubles, one particle per lane (GCC's vector extension: AVX registers in sweep_lanes).
+using Lanes = double __attribute__((vector_size(32)));
+/// Four ints, one particle per lane.
+using LaneInts = int __attribute__((vector_size(16)));
+/// A comparison's lanes: all bits set where it holds.
+using LaneFlags = decltype(Lanes{} != Lanes{});
+
+[[gnu::target("avx2"), gnu::always_inline]] inline Lanes load(const double* p) {
+  Lanes v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+[[gnu::target("avx2"), gnu::always_inline]] inline void store(double* p, Lanes v) {
+  std::memcpy(p, &v, sizeof v);
+}
+
+/// The linear hats of four particles, one per lane: the lowest node of each
+/// cell and N, dN/dx, dN/dy of its four corners, linear_hats' operations
+/// lane by lane (the same bits).
+struct LaneHats {
+  LaneInts node;
+  Lanes N[4], dNx[4], dNy[4];
+};
+
+[[gnu::target("avx2"), gnu::always_inline]] inline LaneHats lane_hats(Lanes px, Lanes py,
+                                                                      const SweepConstants& c) {
+  const double inv_h = 1.0 / c.h;
+  const Lanes u = (px - c.lo) * inv_h, w = py * inv_h;
+  const LaneInts i = __builtin_convertvector(u, LaneInts), j = __builtin_convertvector(w, LaneInts);
+  const Lanes a = u - __builtin_convertvector(i, Lanes), b = w - __builtin_convertvector(j, Lanes);
+  const Lanes Nx0 = 1.0 - a, Ny0 = 1.0 - b;
+  LaneHats h;
+  h.node = j * c.NX + i;
+  h.N[0] = Nx0 * Ny0, h.N[1] = a * Ny0, h.N[2] = Nx0 * b, h.N[3] = a * b;
+  h.dNx[0] = -inv_h * Ny0, h.dNx[1] = inv_h * Ny0, h.dNx[2] = -inv_h * b, h.dNx[3] = inv_h * b;
+  h.dNy[0] = -inv_h * Nx0, h.dNy[1] = -inv_h * a, h.dNy[2] = inv_h * Nx0, h.dNy[3] = inv_h * a;
+  return h;
+}
+
+/// Four rows of four doubles turned into four columns: r[i][l] becomes r[l][i].
+[[gnu::target("avx2"), gnu::always_inline]] inline void transpose4(Lanes r[4]) {
+  const Lanes t0 = __builtin_shufflevector(r[0], r[1], 0, 4, 2, 6),
+              t1 = __builtin_shufflevector(r[0], r[1], 1, 5, 3, 7),
+              t2 = __builtin_shufflevector(r[2], r[3], 0, 4, 2, 6),
+              t3 = __builtin_shufflevector(r[2], r[3], 1, 5, 3, 7);
+  r[0] = __builtin_shufflevector(t0, t2, 0, 1, 4, 5), r[1] = __builtin_shufflevector(t1, t3, 0, 1, 4, 5);
+  r[2] = __builtin_shufflevector(t0, t2, 2, 3, 6, 7), r[3] = __builtin_shufflevector(t1, t3, 2, 3, 6, 7);
+}
+
+/// sweep_stages<32> with four particles per instruction (AVX2 across
+/// particles, no fused multiply-adds), the same bits: the hats, the
+/// grid-to-particle sums (each lane's node rates loaded as one row and
+/// turned into columns), the stress update and the sums on four particles at
+/// once; the scatter turns each corner's lanes of (N m, N q_x, N q_y, -V
+/// sigma grad N . e_x) into rows and adds each to its node with one
+/// instruction, particle by particle, so each node receives the scalar
+/// sweep's terms in the scalar sweep's order. The energy sums are taken per
+/// lane and added at the end (another order; nothing is checked against
+/// them). n must be a multiple of 4.
+[[gnu::target("avx2"), gnu::noinline]] SweepTotals
+sweep_lanes(int n, const SweepConstants c, double* __restrict x, double* __restrict y, double* __restrict vx,
+            double* __restrict vy, const double* __restrict m, double* __restrict V, double* __restrict rho,
+            double* __restrict eps, double* __restrict sigma, const NodeRates* __restrict R,
+            NodeSums* __restrict S) {
+  constexpr int Batch = 32;
+  const double dt = c.dt, two_mu = 2 * c.mu;
+  const int corner[4] = {0, 1, c.NX, c.NX + 1};
+  Lanes kinetic{}, strain{}, speed2{};
+  LaneFlags failed{};
+  Lanes G[4][Batch / 4]; // dt L of the batch: xx, yy, (xy + yx) / 2, trace
+  for (int p0 = 0; p0 < n; p0 += Batch) {
+    const int nb = std::min(Batch, n - p0);
+    for (int q = 0; q < nb; q += 4) { // grid to particle
+      const int p = p0 + q;
+      const Lanes px = load(x + p), py = load(y + p);
+      const LaneHats w = lane_hats(px, py, c);
+      Lanes ax{}, ay{}, ux{}, uy{}, Lxx{}, Lxy{}, Lyx{}, Lyy{};
+      for (int k = 0; k < 4; ++k) {
+        Lanes o[4]; // lane l's node rates (a_x, a_y, v_x, v_y), then the lanes' a_x, a_y, v_x, v_y
+        for (int l = 0; l < 4; ++l) o[l] = load(&R[w.node[l] + corner[k]].ax);
+        transpose4(o);
+        ax += w.N[k] * o[0], ay += w.N[k] * o[1], ux += w.N[k] * o[2], uy += w.N[k] * o[3];
+        Lxx += o[2] * w.dNx[k], Lxy += o[2] * w.dNy[k], Lyx += o[3] * w.dNx[k], Lyy += o[3] * w.dNy[k];
+      }
+      store(vx + p, load(vx + p) + dt * ax), store(vy + p, load(vy + p) + dt * ay);
+      store(x + p, px + dt * ux), store(y + p, py + dt * uy);
+      G[0][q / 4] = dt * Lxx, G[1][q / 4] = dt * Lyy, G[2][q / 4] = 0.5 * (dt * Lxy + dt * Lyx);
+      G[3][q / 4] = G[0][q / 4] + G[1][q / 4];
+    }
+    for (int q = 0; q < nb; q += 4) { // the stress update, the sums and checks, the particle-to-node sums
+      const int p = p0 + q;
+      const Lanes gxx = G[0][q / 4], gyy = G[1][q / 4], dxy = G[2][q / 4], tr = G[3][q / 4];
+      double* e = eps + 3 * static_cast<std::size_t>(p);
+      double* s = sigma + 3 * static_cast<std::size_t>(p);
+      Lanes E[3], T[3]; // eps and sigma of the four particles, component by component
+      for (int i = 0; i < 3; ++i) E[i] = Lanes{e[i], e[3 + i], e[6 + i], e[9 + i]};
+      for (int i = 0; i < 3; ++i) T[i] = Lanes{s[i], s[3 + i], s[6 + i], s[9 + i]};
+      E[0] += gxx, E[1] += gyy, E[2] += dxy;
+      T[0] += c.lambda * tr + two_mu * gxx, T[1] += c.lambda * tr + two_mu * gyy, T[2] += two_mu * dxy;
+      for (int l = 0; l < 4; ++l)
+        for (int i = 0; i < 3; ++i) e[3 * l + i] = E[i][l], s[3 * l + i] = T[i][l];
+      const Lanes r = load(rho + p) / (1.0 + tr), mp = load(m + p), Vp = mp / r;
+      store(rho + p, r), store(V + p, Vp);
+      const Lanes px = load(x + p), py = load(y + p), pvx = load(vx + p), pvy = load(vy + p);
+      const Lanes v2 = pvx * pvx + pvy * pvy;
+      kinetic += 0.5 * mp * v2;
+      strain += 0.5 * Vp * (T[0] * E[0] + T[1] * E[1] + 2 * T[2] * E[2]);
+      speed2 = speed2 > v2 ? speed2 : v2;
+      const Lanes z = (px - px) + (py - py) + (T[0] - T[0]) + (T[1] - T[1]) + (T[2] - T[2]);
+      failed -= z != 0.0;
+      // the next step's particle-to-node sums
+      const LaneHats w = lane_hats(px, py, c);
+      const Lanes sxx = Vp * T[0], syy = Vp * T[1], sxy = Vp * T[2], qx = mp * pvx, qy = mp * pvy,
+                  fg = mp * -9.81;
+      Lanes rows[4][4], fy[4][2]; // per corner: the rows of the lanes; -(V sigma grad N) . e_y and N m g
+      for (int k = 0; k < 4; ++k) {
+        rows[k][0] = w.N[k] * mp, rows[k][1] = w.N[k] * qx, rows[k][2] = w.N[k] * qy;
+        rows[k][3] = -(sxx * w.dNx[k] + sxy * w.dNy[k]); // f_x - t is f_x + (-t), bit for bit
+        transpose4(rows[k]);
+        fy[k][0] = sxy * w.dNx[k] + syy * w.dNy[k], fy[k][1] = w.N[k] * fg;
+      }
+      for (int l = 0; l < 4; ++l)
+        for (int k = 0; k < 4; ++k) {
+          NodeSums& d = S[w.node[l] + corner[k]];
+          store(&d.m, load(&d.m) + rows[k][l]); // m, q_x, q_y, f_x
+          d.fy -= fy[k][0][l];
+          d.fy += fy[k][1][l];
+        }
+    }
+  }
+  SweepTotals t;
+  for (int l = 0; l < 4; ++l)
+    t.kinetic += kinetic[l], t.strain += strain[l], t.speed2 = std::max(t.speed2, speed2[l]),
+                                                    t.failed += static_cast<long>(failed[l]);
+  return t;
+}
+#endif
+
 /// The 2D block's linear `fe` step as one sweep over the particles (see the file's head).
 class OnePassBlock {
 public:
-  /// `batch`: the sweep's batch (1 or 32; sweep_stages).
-  OnePassBlock(const Engine<2>& e, int cells, int batch)
-      : c_{1.0 / cells, -2.0 / cells, 0.0, 0.0, 0.0, cells + 5}, NY_(cells + 3), batch_(batch) {
+  /// `batch`: the sweep's batch (1 or 32; sweep_stages); `lanes` 4: sweep_lanes.
+  OnePassBlock(const Engine<2>& e, int cells, int batch, int lanes)
+      : c_{1.0 / cells, -2.0 / cells, 0.0, 0.0, 0.0, cells + 5}, NY_(cells + 3), batch_(batch),
+        lanes_(lanes) {
     const Particles<2>& P = e.particles();
     const int n = static_cast<int>(P.size());
     for (int p = 0; p < n; ++p) {
@@ -193,7 +336,10 @@ public:
   void step(double dt) {
     nodal_update(dt);
     c_.dt = dt;
-    const auto sweep = batch_ == 32 ? sweep_stages<32> : sweep_stages<1>;
+    auto sweep = batch_ == 32 ? sweep_stages<32> : sweep_stages<1>;
+#if defined(__x86_64__)
+    if (lanes_ == 4) sweep = sweep_lanes;
+#endif
     totals_ = sweep(size(), c_, x_.data(), y_.data(), vx_.data(), vy_.data(), m_.data(), V_.data(),
                     rho_.data(), eps_.data(), sigma_.data(), rates_.data(), next_.data());
     std::swap(sums_, next_);
@@ -226,7 +372,7 @@ private:
   }
 
   SweepConstants c_;
-  int NY_, batch_;
+  int NY_, batch_, lanes_;
   std::vector<double> x_, y_, vx_, vy_, m_, V_, rho_, eps_, sigma_;
   std::vector<NodeSums> sums_, next_;
   std::vector<NodeRates> rates_;
@@ -236,9 +382,9 @@ private:
 /// Steps the engine and the model `steps` times with the engine's dt and
 /// returns the largest difference of velocity and position, each relative
 /// to the largest value of its field.
-double agreement(const Scene& scene, int cells, int steps, int batch) {
+double agreement(const Scene& scene, int cells, int steps, int batch, int lanes) {
   Engine<2> e = assemble<2>(scene);
-  OnePassBlock b(e, cells, batch);
+  OnePassBlock b(e, cells, batch, lanes);
   for (int s = 0; s < steps; ++s) {
     e.step();
     b.step(e.last_dt());
@@ -253,10 +399,26 @@ double agreement(const Scene& scene, int cells, int steps, int batch) {
   return std::max(dv / vmax, dx / xmax);
 }
 
-/// Particle-steps per second of `steps` model steps (after one untimed step).
-double time_model(const Scene& scene, int cells, int steps, int batch) {
+/// The particles of the scalar sweep (sweep_stages<32>) and of sweep_lanes
+/// after `steps` steps of the engine's dt that differ in any bit of v_p or x_p.
+int lanes_differ(const Scene& scene, int cells, int steps) {
   Engine<2> e = assemble<2>(scene);
-  OnePassBlock b(e, cells, batch);
+  OnePassBlock scalar(e, cells, 32, 1), lanes(e, cells, 32, 4);
+  for (int s = 0; s < steps; ++s) {
+    e.step();
+    scalar.step(e.last_dt()), lanes.step(e.last_dt());
+  }
+  int differ = 0;
+  for (int p = 0; p < scalar.size(); ++p)
+    differ += scalar.vx(p) != lanes.vx(p) || scalar.vy(p) != lanes.vy(p) || scalar.x(p) != lanes.x(p) ||
+              scalar.y(p) != lanes.y(p);
+  return differ;
+}
+
+/// Particle-steps per second of `steps` model steps (after one untimed step).
+double time_model(const Scene& scene, int cells, int steps, int batch, int lanes) {
+  Engine<2> e = assemble<2>(scene);
+  OnePassBlock b(e, cells, batch, lanes);
   const double dt = e.stable_dt();
   b.step(dt);
   const auto t0 = std::chrono::steady_clock::now();
@@ -266,11 +428,20 @@ double time_model(const Scene& scene, int cells, int steps, int batch) {
   return double(b.size()) * steps / wall;
 }
 
+/// True on a core with AVX2 (sweep_lanes).
+bool avx2() {
+#if defined(__x86_64__)
+  return __builtin_cpu_supports("avx2");
+#else
+  return false;
+#endif
+}
+
 } // namespace
 
 int main(int argc, char** argv) {
   otmpm::default_openmp_wait(argv);
-  int cells = 500, steps = 50, repeat = 5, check = 20, with_engine = 1, batch = 1;
+  int cells = 500, steps = 50, repeat = 5, check = 20, with_engine = 1, batch = 1, lanes = 1;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i], v = argv[i + 1];
     if (a == "--cells")
@@ -285,33 +456,47 @@ int main(int argc, char** argv) {
       with_engine = std::stoi(v);
     else if (a == "--batch")
       batch = std::stoi(v);
+    else if (a == "--lanes")
+      lanes = std::stoi(v);
   }
   if (batch != 1 && batch != 32) {
     std::fprintf(stderr, "bench_one_pass: --batch takes 1 or 32\n");
     return 2;
   }
+  if (lanes != 1 && !(lanes == 4 && batch == 32 && avx2())) {
+    std::fprintf(stderr, "bench_one_pass: --lanes takes 1, or 4 with --batch 32 on a core with AVX2\n");
+    return 2;
+  }
   const Scene scene = parse_scene(block_scene(2, cells, "linear", "fe", "mpm", 3.0), "bench_one_pass.toml");
-  const double differ = agreement(scene, cells, check, batch);
+  const double differ = agreement(scene, cells, check, batch, lanes);
   std::printf(
       "one-pass model against the engine after %d steps: velocities and positions within %.1e of their "
       "scale (bound %.0e)\n",
       check, differ, kAgreement);
   if (!(differ <= kAgreement)) return 1;
+  if (lanes == 4) {
+    const int bits = lanes_differ(scene, cells, check);
+    std::printf(
+        "four lanes against the scalar sweep (batch 32) after %d steps: %d particles differ in any bit\n",
+        check, bits);
+    if (bits != 0) return 1;
+  }
   std::vector<double> model, engine;
   for (int r = 0; r < repeat; ++r) {
-    model.push_back(time_model(scene, cells, steps, batch));
+    model.push_back(time_model(scene, cells, steps, batch, lanes));
     if (!with_engine) continue;
     const Timing t = time_run<2>(scene, steps, 1);
     engine.push_back(double(t.particles) / t.per_step);
   }
   if (!with_engine) {
-    std::printf("block %d^2 cells, one-pass model (batch %d), median of %d rounds: %.3e particle-steps/s\n",
-                cells, batch, repeat, median(model));
+    std::printf(
+        "block %d^2 cells, one-pass model (batch %d, lanes %d), median of %d rounds: %.3e particle-steps/s\n",
+        cells, batch, lanes, repeat, median(model));
     return 0;
   }
-  std::printf(
-      "block %d^2 cells, linear fe, one thread, median of %d rounds: one-pass model (batch %d) %.3e, engine "
-      "%.3e particle-steps/s (model / engine %.2f)\n",
-      cells, repeat, batch, median(model), median(engine), median(model) / median(engine));
+  std::printf("block %d^2 cells, linear fe, one thread, median of %d rounds: one-pass model (batch %d, lanes "
+              "%d) %.3e, "
+              "engine %.3e particle-steps/s (model / engine %.2f)\n",
+              cells, repeat, batch, lanes, median(model), median(engine), median(model) / median(engine));
   return 0;
 }

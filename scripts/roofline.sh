@@ -93,16 +93,17 @@ block() {
   row "$name" "$rate" "$(per_particle_step "$sum1" "$sum2" $(( (s2 - s1) * particles )))"
 }
 
-# one_pass CELLS_RATE CELLS_CG S1 S2 BATCH: the row of bench_one_pass's model of the 2D linear fe step
-# (one sweep over the particles, no basis table, its stages BATCH particles at a time: an upper bound of
-# what fusing the passes gives)
+# one_pass CELLS_RATE CELLS_CG S1 S2 BATCH [LANES]: the row of bench_one_pass's model of the 2D linear fe
+# step (one sweep over the particles, no basis table, its stages BATCH particles at a time, LANES particles
+# per instruction: an upper bound of what fusing the passes gives)
 one_pass() {
-  local rate sum1 sum2 args=(--repeat 1 --check 1 --engine 0 --batch "$5")
-  rate=$("$build/bench/bench_one_pass" --cells "$1" --steps 10 --repeat "$repeat" --engine 0 --batch "$5" |
-    sed -n 's/.*rounds: \([0-9.e+]*\) particle-steps.*/\1/p')
+  local rate sum1 sum2 lanes=${6:-1}
+  local args=(--repeat 1 --check 1 --engine 0 --batch "$5" --lanes "$lanes")
+  rate=$("$build/bench/bench_one_pass" --cells "$1" --steps 10 --repeat "$repeat" --engine 0 --batch "$5" \
+    --lanes "$lanes" | sed -n 's/.*rounds: \([0-9.e+]*\) particle-steps.*/\1/p')
   sum1=$(cachegrind_summary "$build/bench/bench_one_pass" --cells "$2" --steps "$3" "${args[@]}")
   sum2=$(cachegrind_summary "$build/bench/bench_one_pass" --cells "$2" --steps "$4" "${args[@]}")
-  row "2D block, one-pass model of linear fe, batch $5 (bench_one_pass; rate: 10^6 particles; counts: 200^2 cells)" \
+  row "2D block, one-pass model of linear fe, batch $5, lanes $lanes (bench_one_pass; rate: 10^6 particles; counts: 200^2 cells)" \
     "$rate" "$(per_particle_step "$sum1" "$sum2" $(( ($4 - $3) * 4 * $2 ** 2 )))"
 }
 
@@ -121,6 +122,7 @@ block "2D block, linear fe (rate: 10^6 particles; counts: 200^2 cells)" 500 200 
 bytes_l1=$l1 bytes_l3=$l3 # row() leaves the row's bytes in l1 and l3: the bytes target's row, after the table
 one_pass 500 200 2 6 1
 one_pass 500 200 2 6 32
+grep -qw avx2 /proc/cpuinfo && one_pass 500 200 2 6 32 4 # four particles per instruction: AVX2 only
 block "2D block 200^2, LME gamma_lme = 3 npc" 200 200 2 4 2 --basis lme --integrator npc
 block "3D block, linear fe (rate: 64^3 cells; counts: 24^3)" 64 24 2 4 3 --basis linear --integrator fe
 block "3D block, LME gamma_lme = 3 npc (rate: 32^3 cells; counts: 16^3)" 32 16 2 4 3 --basis lme --integrator npc
