@@ -300,9 +300,11 @@ sweep_lanes(int n, const SweepConstants c, double* __restrict x, double* __restr
     }
   }
   SweepTotals t;
-  for (int l = 0; l < 4; ++l)
-    t.kinetic += kinetic[l], t.strain += strain[l], t.speed2 = std::max(t.speed2, speed2[l]),
-                                                    t.failed += static_cast<long>(failed[l]);
+  for (int l = 0; l < 4; ++l) {
+    t.kinetic += kinetic[l], t.strain += strain[l];
+    t.speed2 = std::max(t.speed2, speed2[l]);
+    t.failed += static_cast<long>(failed[l]);
+  }
   return t;
 }
 #endif
