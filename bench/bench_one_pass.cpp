@@ -33,6 +33,7 @@
 // instructions and bytes with cachegrind, scripts/roofline.sh's way).
 #include "bench_run.hpp"
 #include "bench_scenes.hpp"
+#include "otmpm/materials/hencky_solid_j2.hpp"
 #include "otmpm/openmp_wait.hpp"
 
 #include <algorithm>
@@ -168,13 +169,13 @@ sweep_stages(int n, const SweepConstants c, double* __restrict x, double* __rest
   return t;
 }
 
-#if defined(__x86_64__)
-/// Four doubles, one particle per lane (GCC's vector extension: AVX registers in sweep_lanes).
-using Lanes = double __attribute__((vector_size(32)));
+#ifdef OTMPM_WIDE_LANES
+/// Four doubles, one particle per lane: the library's four-lane type (AVX registers in sweep_lanes).
+using Lanes = plasticity::point::Lanes4;
 /// Four ints, one particle per lane.
 using LaneInts = int __attribute__((vector_size(16)));
 /// A comparison's lanes: all bits set where it holds.
-using LaneFlags = decltype(Lanes{} != Lanes{});
+using LaneFlags = plasticity::point::Mask4;
 
 [[gnu::target("avx2"), gnu::always_inline]] inline Lanes load(const double* p) {
   Lanes v;
@@ -339,7 +340,7 @@ public:
     nodal_update(dt);
     c_.dt = dt;
     auto sweep = batch_ == 32 ? sweep_stages<32> : sweep_stages<1>;
-#if defined(__x86_64__)
+#ifdef OTMPM_WIDE_LANES
     if (lanes_ == 4) sweep = sweep_lanes;
 #endif
     totals_ = sweep(size(), c_, x_.data(), y_.data(), vx_.data(), vy_.data(), m_.data(), V_.data(),
@@ -430,15 +431,6 @@ double time_model(const Scene& scene, int cells, int steps, int batch, int lanes
   return double(b.size()) * steps / wall;
 }
 
-/// True on a core with AVX2 (sweep_lanes).
-bool avx2() {
-#if defined(__x86_64__)
-  return __builtin_cpu_supports("avx2");
-#else
-  return false;
-#endif
-}
-
 } // namespace
 
 int main(int argc, char** argv) {
@@ -465,7 +457,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "bench_one_pass: --batch takes 1 or 32\n");
     return 2;
   }
-  if (lanes != 1 && !(lanes == 4 && batch == 32 && avx2())) {
+  if (lanes != 1 && !(lanes == 4 && batch == 32 && plasticity::point::wide_lanes())) {
     std::fprintf(stderr, "bench_one_pass: --lanes takes 1, or 4 with --batch 32 on a core with AVX2\n");
     return 2;
   }
