@@ -56,7 +56,9 @@ template <int D> Timing time_steps(Engine<D>& e, long steps, int threads, double
   t.per_step = t.wall / double(done);
   t.particles = e.particles().size();
   t.steps = done;
-  t.nodes_per_particle = double(e.table().entries()) / double(std::max(1, e.table().rows()));
+  // counted from the step's rows: building the table here would add its
+  // bytes to the memory row's peak, which the runs never allocate
+  t.nodes_per_particle = double(e.basis_entries()) / double(std::max(1, e.particles().size()));
   t.phases = e.timers();
   return t;
 }

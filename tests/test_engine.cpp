@@ -21,6 +21,7 @@
 #include <numbers>
 #include <string>
 #include <tuple>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -244,6 +245,34 @@ TEST_CASE("mass: sum of particle masses is constant and equals sum of nodal mass
 TEST_CASE("mass: sum of nodal masses equals particle mass in 2D (every basis, mpm npc and ul otm)") {
   for (const auto& b : kAllBases) check_mass_conservation<2>({"mpm", "npc", b});
   for (const auto& b : kUlBases) check_mass_conservation<2>({"ul", "otm", b});
+}
+
+TEST_CASE("basis_entries counts the rows without building the table (2D, 3D, every basis, both modes)") {
+  // Compact lattice rows (linear in mpm), product rows (lme_box in mpm) and
+  // the table itself: the count read first must be the entries of the table
+  // built afterwards from the same rows, exactly.
+  auto check = []<int D>(std::integral_constant<int, D>, const Variant& v) {
+    INFO(D << "D, mode " << v.mode << ", integrator " << v.integrator << ", basis " << v.basis);
+    Spec s = free_body(2);
+    if (D == 3) {
+      s.dim = 3, s.grid_lower = {-1.5, -1.0, -1.0}, s.grid_upper = {1.5, 1.0, 1.0}, s.cells = {12, 8, 8};
+      s.body_lower = {-0.5, -0.375, -0.375}, s.body_upper = {0.5, 0.375, 0.375},
+      s.velocity = {0.05, 0.03, 0.0};
+      s.extra.clear(), s.profile.clear();
+    }
+    Engine<D> e = assemble<D>(scene_of(s, overrides_of(v)));
+    for (int k = 0; k < 2; ++k) e.step();
+    const std::size_t counted = e.basis_entries();
+    CHECK(counted == e.table().entries());
+    CHECK(counted >= static_cast<std::size_t>(e.particles().size()));
+    if (v.mode == "mpm" && v.basis == "linear") // the hats: 2^D nodes per particle, every one kept
+      CHECK(counted == static_cast<std::size_t>(e.particles().size()) << D);
+  };
+  for (const auto& b : kAllBases) {
+    check(std::integral_constant<int, 2>{}, {"mpm", "npc", b});
+    check(std::integral_constant<int, 3>{}, {"mpm", "fe", b});
+  }
+  for (const auto& b : kUlBases) check(std::integral_constant<int, 2>{}, {"ul", "otm", b});
 }
 
 TEST_CASE("momentum: free body conserves sum m_p v_p to round-off (1D, every integrator and basis)") {

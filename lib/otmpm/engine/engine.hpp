@@ -268,10 +268,11 @@ public:
   const Basis<D>& basis() const { return *basis_; }
   NodalFields<D>& nodal() { return nodal_; }
   const NodalFields<D>& nodal() const { return nodal_; }
-  /// The basis table of the step (built from the compact lattice rows on the
-  /// first call when the step kept only those: StepRows); with body contact
-  /// its node ids are field nodes, I + body_p N (contact.hpp).
+  /// The step's basis table (built from its compact rows on the first call: StepRows);
+  /// with body contact its node ids are field nodes, I + body_p N (contact.hpp).
   const BasisTable<D>& table() const { return rows_.full(); }
+  /// table().entries(), sum over p of the nodes of N_Ip, without building the table.
+  std::size_t basis_entries() const { return rows_.entries(); }
   /// The body contact, or null when the bodies share one nodal field.
   const BodyContact<D>* contact() const { return contact_.get(); }
   const Material<D>& material(int i) const { return *materials_[static_cast<std::size_t>(i)]; }

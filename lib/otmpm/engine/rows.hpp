@@ -192,6 +192,13 @@ template <int D> struct StepRows {
     }
     return table;
   }
+  /// The entries of the step's rows (their nodes summed over the
+  /// particles), counted without building the table.
+  std::size_t entries() const {
+    if (compact) return static_cast<std::size_t>(lattice.rows()) * LatticeRows<D>::kCorners;
+    if (factored) return static_cast<std::size_t>(product.offset.back());
+    return table.entries();
+  }
   /// Runs f(view) with the view of the step's rows for a pass (with_row_view).
   template <class F> decltype(auto) view(F&& f) const {
     if (compact) return with_row_view(lattice, width, f);
