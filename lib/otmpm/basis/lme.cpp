@@ -1180,10 +1180,9 @@ bool MaxEntBasis<D, Prior>::evaluate_product_rows(const AlignedVector<Vec<D>>& x
     for (int k = 0; k < D; ++k) rows.stride[k] = lattice_.stride[k];
     std::atomic<bool> inside{true};
     parallel_chunks(n, [&](long long p0, long long p1) {
-      for (auto p = static_cast<int>(p0); p < p1; ++p)
-        if (!box_table_factors<D>(lattice_, *box_, x[p], rows.lanes, rows.base[p], rows.m[p], rows.factors(p),
-                                  state.lambda[p]))
-          return inside.store(false, std::memory_order_relaxed);
+      const auto end = static_cast<int>(p1);
+      if (box_table_factor_rows<D>(lattice_, *box_, x, static_cast<int>(p0), end, rows, state.lambda) != end)
+        inside.store(false, std::memory_order_relaxed);
     });
     return inside.load() && rows.count_entries();
   } else {

@@ -409,7 +409,7 @@ public:
   int evaluate_into(const PointQuery<D>& q, int room, int* node, double* N, Vec<D>* dN,
                     Stencil<D>& st) const override;
   /// lme_box on its untouched lattice: the product rows of the points
-  /// (box_table_factors; each point's multiplier stored as evaluate_points
+  /// (box_table_factor_rows; each point's multiplier stored as evaluate_points
   /// stores it). False when the box has no tables, the points keep more
   /// state than the multiplier, or a point lies where no table reaches.
   bool evaluate_product_rows(const AlignedVector<Vec<D>>& x, ProductRows<D>& rows) override;

@@ -58,7 +58,7 @@ Moments1d moments_1d(double gamma, double L, const double* dx, int m, double* p)
 
 /// The quintic Hermite basis at s in [0, 1]: h[0..5], the weights of f0,
 /// f0', f0'', f1, f1', f1'' with the derivatives in units of the interval.
-void hermite5(double s, double* h) {
+[[gnu::always_inline]] inline void hermite5(double s, double* h) {
   const double s2 = s * s, s3 = s2 * s, s4 = s3 * s, s5 = s4 * s;
   h[0] = 1.0 - 10.0 * s3 + 15.0 * s4 - 6.0 * s5;
   h[1] = s - 6.0 * s3 + 8.0 * s4 - 3.0 * s5;
@@ -205,8 +205,9 @@ template <int Lanes>
 }
 } // namespace
 
-void BoxAxisTable::interpolate(const Segment& s, double u, double* __restrict N, double* __restrict dN,
-                               double& L, double dN_scale) {
+[[gnu::always_inline]] inline void BoxAxisTable::interpolate(const Segment& s, double u, double* __restrict N,
+                                                             double* __restrict dN, double& L,
+                                                             double dN_scale) {
   const double t = std::clamp((u - s.a) * s.inv_du, 0.0, static_cast<double>(s.n));
   const int j = std::min(static_cast<int>(t), s.n - 1);
   double h[6];
@@ -308,6 +309,11 @@ std::size_t BoxAxisTable::bytes() const {
 }
 
 int BoxAxisTable::evaluate(double u, int& first, double* N, double* dN, double& L, double dN_scale) const {
+  return lookup(u, first, N, dN, L, dN_scale);
+}
+
+[[gnu::always_inline]] inline int BoxAxisTable::lookup(double u, int& first, double* N, double* dN, double& L,
+                                                       double dN_scale) const {
   if (u < segments_.front().a || u > segments_.back().b)
     return 0; // within kBoxHullGap of the hull's boundary
   std::size_t k = 0;
@@ -399,7 +405,7 @@ bool box_axis(const LatticeAxes<D>& axes, const BoxAxisTables& tables, int k, do
   const double u = std::clamp((xk - X[static_cast<std::size_t>(c)]) * inv_h, 0.0, 1.0);
   int first;
   double L;
-  m = table->evaluate(u, first, n, d, L, inv_h);
+  m = table->lookup(u, first, n, d, L, inv_h);
   if (m == 0) return false; // next to the hull's boundary
   lo = c + first;
   lambda = L * inv_h;
@@ -490,10 +496,13 @@ bool box_table_stencil(const LatticeAxes<D>& axes, const BoxTables<D>& tables, c
   return true;
 }
 
+namespace {
+/// The factors of point x (box_table_factor_rows); false when x is not in a
+/// cell with a table on every axis.
 template <int D>
-bool box_table_factors(const LatticeAxes<D>& axes, const BoxTables<D>& tables, const Vec<D>& x, int lanes,
-                       int& base, std::array<int, D>& m, double* f, Vec<D>& lambda) {
-  if (tables.empty()) return false;
+[[gnu::always_inline]] inline bool box_factors(const LatticeAxes<D>& axes, const BoxTables<D>& tables,
+                                               const Vec<D>& x, int lanes, int& base, std::array<int, D>& m,
+                                               double* f, Vec<D>& lambda) {
   Vec<D> L;
   int b = 0;
   for (int k = 0; k < D; ++k) {
@@ -507,6 +516,20 @@ bool box_table_factors(const LatticeAxes<D>& axes, const BoxTables<D>& tables, c
   lambda = L;
   return true;
 }
+} // namespace
+
+template <int D>
+int box_table_factor_rows(const LatticeAxes<D>& axes, const BoxTables<D>& tables,
+                          const AlignedVector<Vec<D>>& x, int p0, int p1, ProductRows<D>& rows,
+                          AlignedVector<Vec<D>>& lambda) {
+  if (tables.empty()) return p0;
+  for (int p = p0; p < p1; ++p) {
+    const auto i = static_cast<std::size_t>(p);
+    if (!box_factors<D>(axes, tables, x[i], rows.lanes, rows.base[i], rows.m[i], rows.factors(p), lambda[i]))
+      return p;
+  }
+  return p1;
+}
 
 template struct BoxTables<1>;
 template struct BoxTables<2>;
@@ -515,12 +538,15 @@ template bool box_table_stencil<1>(const LatticeAxes<1>&, const BoxTables<1>&, c
                                    Vec<1>&);
 template bool box_table_stencil<2>(const LatticeAxes<2>&, const BoxTables<2>&, const Vec<2>&, RowTarget<2>&,
                                    Vec<2>&);
-template bool box_table_factors<1>(const LatticeAxes<1>&, const BoxTables<1>&, const Vec<1>&, int, int&,
-                                   std::array<int, 1>&, double*, Vec<1>&);
-template bool box_table_factors<2>(const LatticeAxes<2>&, const BoxTables<2>&, const Vec<2>&, int, int&,
-                                   std::array<int, 2>&, double*, Vec<2>&);
-template bool box_table_factors<3>(const LatticeAxes<3>&, const BoxTables<3>&, const Vec<3>&, int, int&,
-                                   std::array<int, 3>&, double*, Vec<3>&);
+template int box_table_factor_rows<1>(const LatticeAxes<1>&, const BoxTables<1>&,
+                                      const AlignedVector<Vec<1>>&, int, int, ProductRows<1>&,
+                                      AlignedVector<Vec<1>>&);
+template int box_table_factor_rows<2>(const LatticeAxes<2>&, const BoxTables<2>&,
+                                      const AlignedVector<Vec<2>>&, int, int, ProductRows<2>&,
+                                      AlignedVector<Vec<2>>&);
+template int box_table_factor_rows<3>(const LatticeAxes<3>&, const BoxTables<3>&,
+                                      const AlignedVector<Vec<3>>&, int, int, ProductRows<3>&,
+                                      AlignedVector<Vec<3>>&);
 template bool box_table_stencil<3>(const LatticeAxes<3>&, const BoxTables<3>&, const Vec<3>&, RowTarget<3>&,
                                    Vec<3>&);
 

@@ -119,6 +119,9 @@ public:
   /// Returns 0 (nothing written) when u lies within kBoxHullGap of a side
   /// that is the hull's boundary.
   int evaluate(double u, int& first, double* N, double* dN, double& L, double dN_scale = 1.0) const;
+  /// evaluate()'s work, the same arithmetic: defined (inline) in
+  /// lme_box.cpp only, where the lattice lookups compile it in.
+  inline int lookup(double u, int& first, double* N, double* dN, double& L, double dN_scale) const;
 
 private:
   /// An interval [a, b] of u with lines first .. first + m - 1, sampled
@@ -148,8 +151,9 @@ private:
   /// True when every sample interval of s meets the refinement bounds.
   bool accurate(const Segment& s) const;
   /// The interpolant of s at u: N[i], dN[i] dN_scale (i < m; the arrays
-  /// take all s.lanes lanes), L.
-  static void interpolate(const Segment& s, double u, double* N, double* dN, double& L, double dN_scale);
+  /// take all s.lanes lanes), L. Defined inline in lme_box.cpp, its only user.
+  static inline void interpolate(const Segment& s, double u, double* N, double* dN, double& L,
+                                 double dN_scale);
   /// Samples s finely enough (see kBoxMinSamples); false when a solve
   /// fails or more than kBoxMaxSamples would be needed.
   bool build_segment(Segment& s) const;
@@ -224,15 +228,17 @@ template <int D>
 bool box_table_stencil(const LatticeAxes<D>& axes, const BoxTables<D>& tables, const Vec<D>& x,
                        RowTarget<D>& out, Vec<D>& lambda);
 
-/// The factors of the box-support LME at x (ProductRows): per axis k the
-/// first line's offset lo_k (returned as base = sum_k lo_k stride_k), the
-/// lines m_k and the 1D values and derivatives (per unit length) at f + 2 k
-/// lanes and f + (2 k + 1) lanes (the lanes from m_k on scratch), the same
-/// bits box_table_stencil's products start from; the multiplier to
-/// `lambda`. False (base and lambda untouched) when x is not in a cell with
-/// a table on every axis; lanes >= tables.max_lanes().
+/// The factors of the box-support LME (ProductRows) at the points p0 ..
+/// p1 - 1 of x: for point p, per axis k the first line's offset lo_k (row
+/// p's base = sum_k lo_k stride_k), the lines m_k and the 1D values and
+/// derivatives (per unit length) at factors(p) + 2 k lanes and + (2 k + 1)
+/// lanes (the lanes from m_k on scratch), the same bits box_table_stencil's
+/// products start from; the multiplier to lambda[p]. `rows` sized, its
+/// lanes >= tables.max_lanes(). Returns the first point not in a cell with
+/// a table on every axis (its row and multiplier untouched), or p1.
 template <int D>
-bool box_table_factors(const LatticeAxes<D>& axes, const BoxTables<D>& tables, const Vec<D>& x, int lanes,
-                       int& base, std::array<int, D>& m, double* f, Vec<D>& lambda);
+int box_table_factor_rows(const LatticeAxes<D>& axes, const BoxTables<D>& tables,
+                          const AlignedVector<Vec<D>>& x, int p0, int p1, ProductRows<D>& rows,
+                          AlignedVector<Vec<D>>& lambda);
 
 } // namespace otmpm::maxent
