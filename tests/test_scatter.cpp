@@ -16,7 +16,7 @@
 #include <optional>
 #include <random>
 #include <string>
-
+#include <tuple>
 
 using namespace otmpm;
 using otmpm::test::ScopedThreads;
@@ -305,28 +305,72 @@ TEST_CASE("lattice rows: the scatter sums them to the bits of their table on eve
   }
 }
 
-TEST_CASE("product rows: the scatter sums them to the bits of their table on every path, 1 and 2 threads") {
-  // lme_box (gamma_lme 3: 4 - 5 lines per axis) at 2 x 2 x 2 points per cell of an 8^3 lattice
-  const int n = 8, nodes = (n + 1) * (n + 1) * (n + 1);
+namespace {
+/// The product rows of lme_box (gamma_lme 3: 4 - 5 lines per axis) on an
+/// n^3-cell unit lattice at 2 x 2 x 2 points per cell (a fixed random order
+/// when `shuffle`), and their full table.
+std::pair<ProductRows<3>, BasisTable<3>> product_rows(int n, bool shuffle) {
   CartesianGrid<3> g;
   g.lower = Vec<3>::Zero(), g.upper = Vec<3>::Ones();
   g.cells.fill(n);
   BasisOptions opt;
   opt.kind = "lme_box";
   opt.values["gamma_lme"] = 3.0;
+  AlignedVector<Vec<3>> x;
+  for (int i = 0; i < 8 * n * n * n; ++i)
+    x.push_back(Vec<3>((i % (2 * n) + 0.5) / (2.0 * n), (i / (2 * n) % (2 * n) + 0.5) / (2.0 * n),
+                       (i / (4 * n * n) + 0.5) / (2.0 * n)));
+  if (shuffle) std::shuffle(x.begin(), x.end(), std::mt19937(42));
+  const auto basis = make_lme_box_basis<3>(NodeSet<3>::cartesian(g), opt);
+  basis->bind_points(static_cast<int>(x.size()), false);
+  std::pair<ProductRows<3>, BasisTable<3>> out;
+  REQUIRE(basis->evaluate_product_rows(x, out.first));
+  expand_product_rows(out.first, out.second);
+  return out;
+}
+} // namespace
+
+TEST_CASE("product rows: the scatter sums them to the bits of their table on every path, 1 and 2 threads") {
+  const int n = 8, nodes = (n + 1) * (n + 1) * (n + 1);
   for (const bool shuffle : {false, true}) {
-    AlignedVector<Vec<3>> x;
-    for (int i = 0; i < 8 * n * n * n; ++i)
-      x.push_back(Vec<3>((i % (2 * n) + 0.5) / (2.0 * n), (i / (2 * n) % (2 * n) + 0.5) / (2.0 * n),
-                         (i / (4 * n * n) + 0.5) / (2.0 * n)));
-    if (shuffle) std::shuffle(x.begin(), x.end(), std::mt19937(42));
-    const auto basis = make_lme_box_basis<3>(NodeSet<3>::cartesian(g), opt);
-    basis->bind_points(static_cast<int>(x.size()), false);
-    ProductRows<3> rows;
-    REQUIRE(basis->evaluate_product_rows(x, rows));
-    BasisTable<3> table;
-    expand_product_rows(rows, table);
+    const auto [rows, table] = product_rows(n, shuffle);
     check_same_sums(rows, table, nodes, 0);
+  }
+}
+
+namespace {
+/// StepRows::node_range of the rows in `r` over particle ranges of every
+/// length (single rows, the summing blocks' 1 024, all of them) is the
+/// smallest and the largest node of those rows in `table` (their entries).
+void check_node_ranges(const StepRows<3>& r, const BasisTable<3>& table) {
+  const int n = table.rows();
+  std::mt19937 rng(5);
+  for (int len : {1, 7, 1024, n}) {
+    for (int trial = 0; trial < 20; ++trial) {
+      const int p0 = std::uniform_int_distribution<int>(0, n - len)(rng), p1 = p0 + len;
+      const auto first = table.node.begin() + table.begin(p0), last = table.node.begin() + table.end(p1 - 1);
+      int lo = -1, hi = -1;
+      r.node_range(p0, p1, lo, hi);
+      CHECK(lo == *std::min_element(first, last));
+      CHECK(hi == *std::max_element(first, last));
+    }
+  }
+}
+} // namespace
+
+TEST_CASE(
+    "step rows: the node range of a run of particles is the least and the greatest node of their rows") {
+  for (const bool shuffle : {false, true}) {
+    StepRows<3> lattice, product, table;
+    BasisTable<3> lattice_table, product_table;
+    std::tie(lattice.lattice, lattice_table) = lattice_rows<3>(8, shuffle);
+    lattice.compact = true;
+    std::tie(product.product, product_table) = product_rows(6, shuffle);
+    product.factored = true;
+    table.table = product_table; // the table's own rows: their entries
+    check_node_ranges(lattice, lattice_table);
+    check_node_ranges(product, product_table);
+    check_node_ranges(table, product_table);
   }
 }
 

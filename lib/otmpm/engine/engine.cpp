@@ -818,14 +818,15 @@ double WallTransfer<D>::booked(Change&& change, const Rows& rows, const Particle
   // The nodes in ascending order (the others add zero).
   std::vector<int> ascending(noted);
   std::sort(ascending.begin(), ascending.end());
-  const auto none_noted = [&](int p) { // the rows of p's group reach no noted node
+  const auto none_noted = [&](int p0, int p1) { // the rows of particles [p0, p1) reach no noted node
     int lo, hi;
-    if (!nodes_of(p, lo, hi)) return false;
+    nodes_of(p0, p1, lo, hi);
     const auto first = std::lower_bound(ascending.begin(), ascending.end(), lo);
     return first == ascending.end() || *first > hi;
   };
-  const double particles = blocked_reduce_ranges<double>(P.size(), [&](long long p0, long long p1, double& acc) {
-    if (none_noted(static_cast<int>(p0))) return; // every particle adds zero
+  const double particles = blocked_reduce_ranges<double>(P.size(), [&](long long p0, long long p1,
+                                                                       double& acc) {
+    if (none_noted(static_cast<int>(p0), static_cast<int>(p1))) return; // every particle adds zero
     for (auto p = static_cast<int>(p0); p < p1; ++p) {
       char near = 0; // a node of the row is noted (else h is zero)
       rows.visit_row(p, [&](int I, double, const Vec<D>&) { near |= is_noted[static_cast<std::size_t>(I)]; });
@@ -855,7 +856,7 @@ template <int D> void Engine<D>::book_transfer(const ToParticles<D>& what) {
     if (what.kick) d += (*what.kick)[I];
     return d;
   };
-  const auto nodes_of = [&](int p, int& lo, int& hi) { return scatter_->block_nodes(p, lo, hi); };
+  const auto nodes_of = [&](int p0, int p1, int& lo, int& hi) { rows_.node_range(p0, p1, lo, hi); };
   if (!settings_.consistent_mass)
     *ledger().impact += rows_.view([&](const auto view) {
       return transfer_.booked(change, view, P_, nodal_.m, constraints_, nodes_of);

@@ -9,6 +9,7 @@
 /// Internal to the engine.
 #include "otmpm/basis/basis.hpp"
 
+#include <algorithm>
 #include <utility>
 
 namespace otmpm {
@@ -198,6 +199,20 @@ template <int D> struct StepRows {
     if (compact) return static_cast<std::size_t>(lattice.rows()) * LatticeRows<D>::kCorners;
     if (factored) return static_cast<std::size_t>(product.offset.back());
     return table.entries();
+  }
+  /// The smallest and largest node id of the rows of particles [p0, p1)
+  /// (p0 < p1): a pass over their lowest and highest nodes, or over their
+  /// entries in the table.
+  void node_range(int p0, int p1, int& lo, int& hi) const {
+    const auto span = [&](const auto& rows) {
+      lo = rows.lowest(p0), hi = rows.highest(p0);
+      for (int p = p0 + 1; p < p1; ++p) lo = std::min(lo, rows.lowest(p)), hi = std::max(hi, rows.highest(p));
+    };
+    if (compact) return span(lattice);
+    if (factored) return span(product);
+    const auto first = table.node.begin() + table.begin(p0), last = table.node.begin() + table.end(p1 - 1);
+    lo = first == last ? 0 : *std::min_element(first, last);
+    hi = first == last ? -1 : *std::max_element(first, last);
   }
   /// Runs f(view) with the view of the step's rows for a pass (with_row_view).
   template <class F> decltype(auto) view(F&& f) const {

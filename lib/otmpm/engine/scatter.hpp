@@ -139,15 +139,6 @@ public:
   bool blocked() const { return path_ != ScatterPath::columns; }
   /// The path of the last plan.
   ScatterPath path() const { return path_; }
-  /// The node-id range [lo, hi] of the rows of the scatter block holding
-  /// particle p (lo > hi: none), from the plan of the current table; false
-  /// when the table changed since the last plan.
-  bool block_nodes(int p, int& lo, int& hi) const {
-    const int b = p / scatter_block;
-    if (!valid_ || b < 0 || b >= static_cast<int>(lo_.size())) return false;
-    lo = lo_[static_cast<std::size_t>(b)], hi = hi_[static_cast<std::size_t>(b)];
-    return true;
-  }
   /// Makes every later plan take `path` (tests and measurements that compare
   /// the paths on one table); std::nullopt: the plan chooses.
   void force(std::optional<ScatterPath> path) {

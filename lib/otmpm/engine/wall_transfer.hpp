@@ -55,9 +55,9 @@ template <int D> struct WallTransfer {
   /// T(Delta - g) - T(Delta), change(I) = Delta_I: with d_p = sum_I N_Ip
   /// Delta_I and h_p = sum_I N_Ip g_I, |d|^2 - |d - h|^2 = h . (2 d - h).
   /// The nodes are summed where c.counts(I) (a distributed run's owned nodes).
-  /// nodes_of(p, lo, hi): the node-id range of the rows of a group of
-  /// particles holding p, all of whose members the summing block holds
-  /// (false: unknown); a block whose range holds no noted node is skipped.
+  /// nodes_of(p0, p1, lo, hi): a node-id range [lo, hi] that holds every
+  /// node of the rows of particles [p0, p1) (StepRows::node_range); a
+  /// summing block whose range holds no noted node is skipped.
   /// `rows`: the step's rows as a pass reads them (rows.hpp, visit_row).
   template <class Change, class Rows, class NodesOf>
   double booked(Change&& change, const Rows& rows, const Particles<D>& P, const std::vector<double>& m,
