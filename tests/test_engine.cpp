@@ -7,14 +7,16 @@
 #include "otmpm/assembly/assembler.hpp"
 #include "otmpm/assembly/exact_solutions.hpp"
 #include "otmpm/basis/kinds.hpp"
+#include "otmpm/engine/timers.hpp"
 #include "otmpm/integrators/integrator.hpp"
-#include "otmpm/run/run.hpp"
 #include "otmpm/reference/exact.hpp"
+#include "otmpm/run/run.hpp"
 
 #include <Eigen/Cholesky>
 #include <doctest/doctest.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -837,4 +839,30 @@ TEST_CASE("Dyka bar at h = L/20 as in the examples (cut-off 1e-6): 1D, 2D and 3D
     CHECK(d.rms <= 1e-4 * kJump);
     CHECK(d.transverse <= 1e-4 * kJump);
   }
+}
+
+TEST_CASE("phase timers: a stage timed inside another counts once, in the outer phase") {
+  PhaseTimers t;
+  const auto busy = [] { // about a millisecond of the steady clock
+    const auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(1);
+    while (std::chrono::steady_clock::now() < end) {
+    }
+  };
+  {
+    ScopedPhase outer(t, Phase::to_particles);
+    busy();
+    {
+      ScopedPhase inner(t, Phase::nodal_update);
+      busy();
+    }
+    CHECK(t.open);
+  }
+  CHECK_FALSE(t.open);
+  CHECK(t[Phase::nodal_update] == 0.0);
+  CHECK(t[Phase::to_particles] >= 2e-3);
+  {
+    ScopedPhase next(t, Phase::nodal_update); // a guard after the outer one closed times again
+    busy();
+  }
+  CHECK(t[Phase::nodal_update] >= 1e-3);
 }

@@ -326,7 +326,8 @@ template <int D> void Engine<D>::step() {
   ++step_;
   dt_prev_ = dt_;
   try {
-    sum_particles(true); // checks, energies, wave speed
+    ScopedPhase timer(timers_, Phase::to_particles); // as the sums a step's last pass takes count
+    sum_particles(true);                             // checks, energies, wave speed
   } catch (const DeferredInstability&) { // a rank failed inside the step: stop there, as a serial run does
     t_ = t0, dt_prev_ = dt_prev0, --step_;
     throw;
@@ -781,6 +782,7 @@ template <int D> void Engine<D>::book_inertial_reaction(const AlignedVector<Vec<
 }
 
 template <int D> void Engine<D>::constrain_velocity(AlignedVector<Vec<D>>& v, const WallEffect<D>& effect) {
+  ScopedPhase timer(timers_, Phase::nodal_update);
   // A distributed run books this rank's owned nodes, summed over the ranks after the step.
   const NodeView<D> nodes = node_view(field_positions(), nodal_, *basis_, mode_.nodes_move());
   const Ledger<D> books = ledger();
@@ -865,6 +867,7 @@ template <int D> void Engine<D>::book_transfer(const ToParticles<D>& what) {
 }
 
 template <int D> void Engine<D>::book_held(const AlignedVector<Vec<D>>& rate) {
+  ScopedPhase timer(timers_, Phase::nodal_update);
   constraints_.book_held({t_, dt_, step_ == 0, nodal_.f, rate}, nodal_.q,
                          node_view(field_positions(), nodal_, *basis_, mode_.nodes_move()), ledger());
   // The nodes a wall holds: the particles take their kick up (book_transfer;
@@ -883,6 +886,7 @@ void Engine<D>::book_carried(double alpha_m, double gamma, bool first, const Ali
 }
 
 template <int D> void Engine<D>::constrain_increment(AlignedVector<Vec<D>>& dx) const {
+  ScopedPhase timer(timers_, Phase::nodal_update);
   constraints_.apply_increment(dx, dt_);
   if (contact_) contact_->apply_to_increment(dx, {nodal_.m, nodal_.active, constraints_.constrained()});
   if (constraints_.walls().empty()) return;

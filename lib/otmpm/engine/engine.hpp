@@ -524,7 +524,7 @@ private:
   StepSums<D> step_sums_; ///< the after-step sums of the step's last pass (ToParticles::last)
   double t_ = 0.0, dt_ = 0.0, dt_prev_ = 0.0;
   long step_ = 0;
-  PhaseTimers timers_;
+  mutable PhaseTimers timers_; // also the const stages time themselves (constrain_increment)
   EnergyBalance energy_;
   double wave_speed_ = 0.0;          ///< max_p max(c_p, |v_p|) after the last step
   Vec<D> momentum_ = Vec<D>::Zero(); ///< sum_p m_p v_p after the last step
