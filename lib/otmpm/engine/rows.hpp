@@ -10,6 +10,7 @@
 #include "otmpm/basis/basis.hpp"
 
 #include <algorithm>
+#include <limits>
 #include <utility>
 
 namespace otmpm {
@@ -165,6 +166,22 @@ template <int D, class F> decltype(auto) with_row_view(const ProductRows<D>& row
   return f(ProductView<D>(rows));
 }
 
+/// The smallest and largest node id of rows [p0, p1) of `rows` (lo > hi
+/// when they hold no entry): a pass over the lattice or product rows'
+/// lowest and highest nodes, in locals so that the loop vectorises.
+template <class Rows> void row_node_range(const Rows& rows, int p0, int p1, int& lo_out, int& hi_out) {
+  int lo = std::numeric_limits<int>::max(), hi = -1;
+  for (int p = p0; p < p1; ++p) lo = std::min(lo, rows.lowest(p)), hi = std::max(hi, rows.highest(p));
+  lo_out = lo, hi_out = hi;
+}
+/// row_node_range over a table's entries.
+template <int D> void row_node_range(const BasisTable<D>& table, int p0, int p1, int& lo_out, int& hi_out) {
+  int lo = std::numeric_limits<int>::max(), hi = -1;
+  for (int e = table.begin(p0); e < table.begin(p1); ++e)
+    lo = std::min(lo, table.node[e]), hi = std::max(hi, table.node[e]);
+  lo_out = lo, hi_out = hi;
+}
+
 /// The step's basis rows: the basis table, or - when no part of the step
 /// needs the table (Engine::evaluate_basis) - the compact lattice rows of
 /// `linear` on an untouched lattice or the product rows of `lme_box` on its
@@ -201,18 +218,11 @@ template <int D> struct StepRows {
     return table.entries();
   }
   /// The smallest and largest node id of the rows of particles [p0, p1)
-  /// (p0 < p1): a pass over their lowest and highest nodes, or over their
-  /// entries in the table.
+  /// (row_node_range).
   void node_range(int p0, int p1, int& lo, int& hi) const {
-    const auto span = [&](const auto& rows) {
-      lo = rows.lowest(p0), hi = rows.highest(p0);
-      for (int p = p0 + 1; p < p1; ++p) lo = std::min(lo, rows.lowest(p)), hi = std::max(hi, rows.highest(p));
-    };
-    if (compact) return span(lattice);
-    if (factored) return span(product);
-    const auto first = table.node.begin() + table.begin(p0), last = table.node.begin() + table.end(p1 - 1);
-    lo = first == last ? 0 : *std::min_element(first, last);
-    hi = first == last ? -1 : *std::max_element(first, last);
+    if (compact) return row_node_range(lattice, p0, p1, lo, hi);
+    if (factored) return row_node_range(product, p0, p1, lo, hi);
+    row_node_range(table, p0, p1, lo, hi);
   }
   /// Runs f(view) with the view of the step's rows for a pass (with_row_view).
   template <class F> decltype(auto) view(F&& f) const {

@@ -276,22 +276,10 @@ private:
   static long long entry_count(const ProductRows<D>& rows) { return rows.offset.back(); }
 
   /// The smallest and largest node id of block b's rows (lo = nodes, hi =
-  /// -1: none), in locals so that the loop vectorises.
-  static void block_range(const BasisTable<D>& table, int b, int nodes, int& lo_b, int& hi_b) {
-    int lo = nodes, hi = -1;
-    for (int e = entry_begin(table, b); e < entry_end(table, b); ++e) {
-      lo = std::min(lo, table.node[e]);
-      hi = std::max(hi, table.node[e]);
-    }
-    lo_b = lo, hi_b = hi;
-  }
+  /// -1: none; row_node_range).
   template <class Rows> static void block_range(const Rows& rows, int b, int nodes, int& lo_b, int& hi_b) {
-    int lo = nodes, hi = -1;
-    for (int p = b * scatter_block; p < block_end(rows, b); ++p) {
-      lo = std::min(lo, rows.lowest(p));
-      hi = std::max(hi, rows.highest(p));
-    }
-    lo_b = lo, hi_b = hi;
+    row_node_range(rows, b * scatter_block, block_end(rows, b), lo_b, hi_b);
+    lo_b = std::min(lo_b, nodes); // an empty block: lo = nodes, hi = -1
   }
 
   /// f(I) for the node of every entry of block b's rows.
