@@ -394,6 +394,32 @@ TEST_CASE("cli: OpenMP threads wait passively after a short spin by default, and
   CHECK(printed == 1);
 }
 
+TEST_CASE("cli: with bound threads (OMP_PROC_BIND, OMP_PLACES) the process started again keeps every place") {
+  // libgomp binds the first thread to the first place when it is loaded;
+  // the process otmpm starts again for its wait must still see every CPU
+  // (else all its threads would run on the first one)
+  TempDir dir("cli");
+  const fs::path err = dir.dir / "env.txt";
+  for (const char* bind : {"OMP_PROC_BIND=true", "OMP_PLACES=cores", "OMP_PROC_BIND=spread"}) {
+    INFO(bind);
+    const std::string cmd = std::string("env -u OMP_WAIT_POLICY -u GOMP_SPINCOUNT ") + bind +
+                            " OMP_DISPLAY_ENV=true " + quote(kBinary) + " --version >/dev/null 2>" +
+                            quote(err.string());
+    REQUIRE(std::system(cmd.c_str()) == 0);
+    const std::string text = read_text(err);
+    const std::string key = "OMP_PLACES = '";
+    const auto first = text.find(key), last = text.rfind(key);
+    REQUIRE(first != std::string::npos);
+    REQUIRE(last != first); // two processes printed: otmpm started itself again
+    const auto places = [&](std::size_t at) {
+      const auto from = at + key.size();
+      return text.substr(from, text.find('\'', from) - from);
+    };
+    CHECK(places(first) != "");
+    CHECK(places(last) == places(first));
+  }
+}
+
 TEST_CASE("cli: run --check validates, prints the size, dt, steps and memory, and runs nothing") {
   TempDir dir("cli");
   const fs::path out = dir.dir / "checked.h5";

@@ -11,6 +11,7 @@
 #include <doctest/doctest.h>
 
 #include <fcntl.h>
+#include <sched.h>
 #include <sys/file.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -273,6 +274,32 @@ TEST_CASE("study: a run that cannot be started is not recorded, says why in its 
   REQUIRE(rows.size() == 3); // a and b, not huge
   CHECK(rows[1][column(rows[0], "status")] == "ok");
   CHECK(rows[2][column(rows[0], "status")] == "ok");
+  fs::remove_all(dir);
+}
+
+TEST_CASE("study: with bound threads (OMP_PROC_BIND) the runs side by side get CPUs of their own") {
+  // libgomp binds each process's first thread to the first CPU it may use:
+  // two runs that may both use every CPU would both run on the first one
+  cpu_set_t mask;
+  REQUIRE(sched_getaffinity(0, sizeof mask, &mask) == 0);
+  const fs::path dir = study_dir("d9_bound", two_variants("2e-5", "2e-5", 2));
+  std::string out;
+  REQUIRE(run_command("cd " + quote(dir.string()) +
+                          " && env OMP_PROC_BIND=true OMP_DISPLAY_ENV=true '" OTMPM_BINARY
+                          "' study study.toml",
+                      out) == 0);
+  const auto places = [&](const std::string& run) { // the last process of the run's log to print them
+    const std::string text = read_text(dir / "study_results" / (run + ".log")), key = "OMP_PLACES = '";
+    const auto at = text.rfind(key);
+    REQUIRE(at != std::string::npos);
+    return text.substr(at + key.size(), text.find('\'', at + key.size()) - at - key.size());
+  };
+  const std::string a = places("a_n13"), b = places("b_n13");
+  CHECK(a != "");
+  if (CPU_COUNT(&mask) >= 2)
+    CHECK(a != b); // one CPU each on two, half of them each on more
+  else
+    MESSAGE("one CPU: both runs have it");
   fs::remove_all(dir);
 }
 

@@ -5,10 +5,11 @@
 #include <csignal>
 #include <cstring>
 #include <fcntl.h>
+#include <sched.h>
 #include <stdexcept>
-#include <thread>
 #include <sys/prctl.h>
 #include <sys/wait.h>
+#include <thread>
 #include <unistd.h>
 
 extern char** environ;
@@ -22,6 +23,17 @@ ProcessPool::~ProcessPool() {
     while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
     }
   }
+}
+
+void ProcessPool::share_cpus(std::vector<int> cpus, int slots) {
+  cpus_ = std::move(cpus);
+  slots_ = cpus_.empty() ? 0 : std::max(slots, 1);
+}
+
+std::vector<int> ProcessPool::group(int slot) const {
+  const auto n = static_cast<int>(cpus_.size());
+  if (n < slots_) return {cpus_[static_cast<std::size_t>(slot % n)]};
+  return {cpus_.begin() + n * slot / slots_, cpus_.begin() + n * (slot + 1) / slots_};
 }
 
 pid_t ProcessPool::start(const std::string& program, const std::vector<std::string>& argv,
@@ -42,6 +54,14 @@ pid_t ProcessPool::start(const std::string& program, const std::vector<std::stri
   }
   for (std::string& v : vars) cenv.push_back(v.data());
   cenv.push_back(nullptr);
+  int slot = -1; // the first group no running child holds
+  for (int g = 0; g < slots_ && slot < 0; ++g)
+    if (std::find(slot_.begin(), slot_.end(), g) == slot_.end()) slot = g;
+  cpu_set_t cpus;
+  CPU_ZERO(&cpus);
+  if (slot >= 0)
+    for (const int id : group(slot))
+      if (id < CPU_SETSIZE) CPU_SET(id, &cpus);
   const std::string log_path = log.string(), cannot = "otmpm study: cannot start " + argv.at(0) + ": ";
   const pid_t parent = getpid();
   const pid_t pid = fork();
@@ -49,6 +69,7 @@ pid_t ProcessPool::start(const std::string& program, const std::vector<std::stri
   if (pid == 0) {
     prctl(PR_SET_PDEATHSIG, SIGTERM);
     if (getppid() != parent) _exit(128 + SIGTERM); // the study died before prctl took effect
+    if (slot >= 0) sched_setaffinity(0, sizeof cpus, &cpus); // on failure the child keeps the study's mask
     const int fd = open(log_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
     if (fd >= 0) {
       dup2(fd, STDOUT_FILENO);
@@ -62,6 +83,7 @@ pid_t ProcessPool::start(const std::string& program, const std::vector<std::stri
     _exit(kNotStarted);
   }
   children_.push_back(pid);
+  slot_.push_back(slot);
   return pid;
 }
 
@@ -74,7 +96,11 @@ ChildExit ProcessPool::wait_any(std::chrono::milliseconds limit) {
     if (pid < 0 && errno != EINTR)
       throw std::runtime_error(std::string("waitpid failed: ") + std::strerror(errno));
     if (pid > 0) {
-      children_.erase(std::remove(children_.begin(), children_.end(), pid), children_.end());
+      const auto at = std::find(children_.begin(), children_.end(), pid) - children_.begin();
+      if (at < static_cast<std::ptrdiff_t>(children_.size())) {
+        children_.erase(children_.begin() + at);
+        slot_.erase(slot_.begin() + at);
+      }
       c.pid = pid;
       c.signalled = WIFSIGNALED(status);
       c.status = c.signalled ? 128 + WTERMSIG(status) : WEXITSTATUS(status);

@@ -31,6 +31,14 @@ public:
   ProcessPool(const ProcessPool&) = delete;
   ProcessPool& operator=(const ProcessPool&) = delete;
 
+  /// Gives each child its own share of `cpus` (openmp_place_cpus: the
+  /// threads are bound): the CPUs split into `slots` contiguous groups (one
+  /// CPU each, in turn, when there are fewer CPUs than slots), a child
+  /// taking the first group no running child holds. libgomp binds a
+  /// process's first thread to the first CPU it may use, so children that
+  /// all may use every CPU would all run there. Empty `cpus`: the children
+  /// keep the study's mask.
+  void share_cpus(std::vector<int> cpus, int slots);
   /// Starts the executable `program` with argv (argv[0] the name it is
   /// given), stdout and stderr to `log` and the extra environment `env`
   /// ("NAME=VALUE"); returns its pid. A child that cannot execute `program`
@@ -47,7 +55,13 @@ public:
   std::size_t running() const { return children_.size(); }
 
 private:
+  /// The CPUs of group `slot` of share_cpus.
+  std::vector<int> group(int slot) const;
+
   std::vector<pid_t> children_;
+  std::vector<int> slot_; ///< per child: its group of cpus_ (-1: none)
+  std::vector<int> cpus_;
+  int slots_ = 0;
 };
 
 } // namespace otmpm::study

@@ -25,6 +25,7 @@
 
 #include "otmpm/core.hpp"
 #include "otmpm/io/output_files.hpp"
+#include "otmpm/openmp_wait.hpp"
 #include "otmpm/run/run.hpp"
 #include "otmpm/scene/scene.hpp"
 
@@ -121,7 +122,9 @@ constexpr std::chrono::milliseconds kPoll{200};
 class StudyRunner {
 public:
   StudyRunner(const Study& s, const StudyArgs& a, std::vector<const StudyRun*> todo)
-      : s_(s), a_(a), todo_(std::move(todo)) {}
+      : s_(s), a_(a), todo_(std::move(todo)) {
+    pool_.share_cpus(openmp_place_cpus(), s_.jobs); // bound threads: each run its own CPUs
+  }
   /// Runs until every run ended or the study was interrupted; returns 0 or
   /// the interrupted exit status (130/143).
   int run();

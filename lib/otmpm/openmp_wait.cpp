@@ -9,6 +9,14 @@
 #include <cstring>
 #include <string>
 #include <unistd.h>
+#include <vector>
+
+#ifdef OTMPM_HAVE_OPENMP
+#include <omp.h>
+#endif
+#ifdef __linux__
+#include <sched.h>
+#endif
 
 namespace otmpm {
 
@@ -49,7 +57,40 @@ double seconds_per_spin() {
   return best;
 }
 
+/// Gives the process the CPUs of every OpenMP place again. With OMP_PROC_BIND,
+/// OMP_PLACES or GOMP_CPU_AFFINITY libgomp binds the initial thread to the
+/// first place when it is loaded, and a program executed again inherits that
+/// one place as its whole affinity mask: its libgomp would then find one
+/// place and put every thread on it.
+void allow_every_place() {
+#ifdef __linux__
+  const std::vector<int> cpus = openmp_place_cpus();
+  if (cpus.empty()) return;
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  for (const int id : cpus)
+    if (id < CPU_SETSIZE) CPU_SET(id, &set);
+  if (CPU_COUNT(&set) > 0) sched_setaffinity(0, sizeof set, &set); // on failure the mask stays as it is
+#endif
+}
+
 } // namespace
+
+std::vector<int> openmp_place_cpus() {
+  std::vector<int> cpus;
+#ifdef OTMPM_HAVE_OPENMP
+  std::vector<int> ids;
+  for (int p = 0; p < omp_get_num_places(); ++p) {
+    ids.resize(static_cast<std::size_t>(std::max(0, omp_get_place_num_procs(p))));
+    omp_get_place_proc_ids(p, ids.data());
+    for (const int id : ids)
+      if (id >= 0) cpus.push_back(id);
+  }
+  std::sort(cpus.begin(), cpus.end());
+  cpus.erase(std::unique(cpus.begin(), cpus.end()), cpus.end());
+#endif
+  return cpus;
+}
 
 long long spin_count_for(double seconds) {
   double per_spin = seconds_per_spin();
@@ -68,6 +109,7 @@ void default_openmp_wait(char** argv) {
   if (std::getenv("OMP_WAIT_POLICY") || std::getenv("GOMP_SPINCOUNT") || under_valgrind()) return;
   const std::string spins = std::to_string(spin_count_for(kDefaultSpinSeconds));
   if (setenv("GOMP_SPINCOUNT", spins.c_str(), 1) != 0 || setenv("OMP_WAIT_POLICY", "passive", 1) != 0) return;
+  allow_every_place();
   execv("/proc/self/exe", argv);
   // exec failed (no /proc): go on with libgomp's default wait.
 #else

@@ -11,6 +11,8 @@
 /// kDefaultSpinSeconds, counted for the processor it runs on (a pause takes
 /// from a few to about 50 ns, depending on the processor).
 
+#include <vector>
+
 namespace otmpm {
 
 /// Seconds a waiting OpenMP thread spins before it sleeps, by default
@@ -23,6 +25,14 @@ inline constexpr double kDefaultSpinSeconds = 2e-4;
 /// [100, 10^7].
 long long spin_count_for(double seconds);
 
+/// The CPUs of every OpenMP place, ascending: where OMP_PROC_BIND,
+/// OMP_PLACES or GOMP_CPU_AFFINITY bind the threads, the CPUs the process was
+/// started with (for a list of places, the listed ones among them); empty
+/// where the threads are not bound (or without OpenMP). libgomp binds each
+/// process's first thread to the first place, so processes started side
+/// by side must each be given their own share of these (the study does).
+std::vector<int> openmp_place_cpus();
+
 /// True when the program runs under valgrind (its core library is preloaded:
 /// LD_PRELOAD names vgpreload_*). There /proc/self/exe is valgrind's tool,
 /// which cannot be executed again on its own.
@@ -31,8 +41,10 @@ bool under_valgrind();
 /// When neither OMP_WAIT_POLICY nor GOMP_SPINCOUNT is set, sets
 /// OMP_WAIT_POLICY=passive and GOMP_SPINCOUNT=spin_count_for(
 /// kDefaultSpinSeconds) and executes the program again with the same
-/// arguments (libgomp reads both once, when it is loaded). A user's own
-/// setting of either is kept. Nothing without OpenMP or under valgrind
+/// arguments (libgomp reads both once, when it is loaded), with the CPUs of
+/// every OpenMP place (where a user's OMP_PROC_BIND bound this process to
+/// the first place, the new one would otherwise run every thread there). A
+/// user's own setting of either is kept. Nothing without OpenMP or under valgrind
 /// (under_valgrind: libgomp's defaults, or the caller's settings); when the
 /// new process cannot be started, the program goes on with libgomp's
 /// defaults. Call it first in main, before any thread or MPI starts.
