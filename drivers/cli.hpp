@@ -34,5 +34,9 @@ void set_threads(int threads);
 /// (RunOptions::background_output): a writer sharing a core with the OpenMP
 /// team slows each of its parallel loops (docs/performance.md).
 bool core_free_for_writer();
+/// The OpenMP threads and the CPUs this process may run on, for `run
+/// --check`: "2 OpenMP threads on 2 CPUs", and when there are more threads
+/// than CPUs what shares them and how to give each thread its core.
+std::string threads_line();
 
 } // namespace otmpm::cli

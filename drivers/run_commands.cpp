@@ -179,6 +179,7 @@ int check_command(const SceneArgs& a) {
     std::printf("  %dD, mode %s, integrator %s, basis %s\n", c.dimension, c.mode.c_str(), c.integrator.c_str(),
                 c.basis.c_str());
     print_ranks(c, scene);
+    std::printf("  threads    on rank 0: %s\n", threads_line().c_str());
     std::printf("  results    %s\n", (a.out.empty() ? c.out_file : a.out).c_str());
     return 0;
   }
@@ -194,6 +195,7 @@ int check_command(const SceneArgs& a) {
                 c.phase_steps, scene.simulation.initial_equilibrium->time);
   std::printf("  memory     about %s (the run's estimate; limit %s)\n", format_bytes(c.memory_bytes).c_str(),
               format_bytes(c.memory_limit).c_str());
+  std::printf("  threads    %s\n", threads_line().c_str());
   std::printf("  results    %s\n", (a.out.empty() ? c.out_file : a.out).c_str());
   for (const BodyVolume& v : c.volumes) {
     if (!std::isfinite(v.exact)) continue; // a file body: its particles' volumes are its volume

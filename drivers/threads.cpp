@@ -1,8 +1,10 @@
 // --threads of the otmpm command (the default OpenMP wait: otmpm/openmp_wait.hpp).
 #include "cli.hpp"
 
+#include <algorithm>
 #include <cstdlib>
 #include <sched.h>
+#include <string>
 #include <thread>
 #include <unistd.h>
 
@@ -34,19 +36,41 @@ void set_threads(int threads) {
 #endif
 }
 
-bool core_free_for_writer() {
-  int cores = static_cast<int>(std::thread::hardware_concurrency());
+namespace {
+/// The CPUs this process may run on (its affinity mask: taskset, a cgroup's
+/// cpuset, a launcher's binding), else the machine's.
+int usable_cpus() {
+  int cpus = static_cast<int>(std::thread::hardware_concurrency());
 #ifdef __linux__
   cpu_set_t set;
   CPU_ZERO(&set);
-  if (sched_getaffinity(0, sizeof set, &set) == 0) cores = CPU_COUNT(&set); // taskset, cgroups' cpusets
+  if (sched_getaffinity(0, sizeof set, &set) == 0) cpus = CPU_COUNT(&set);
 #endif
+  return std::max(cpus, 1);
+}
+
+int openmp_threads() {
 #ifdef OTMPM_HAVE_OPENMP
-  const int threads = omp_get_max_threads();
+  return omp_get_max_threads();
 #else
-  const int threads = 1;
+  return 1;
 #endif
-  return cores > threads;
+}
+} // namespace
+
+bool core_free_for_writer() { return usable_cpus() > openmp_threads(); }
+
+std::string threads_line() {
+  const int threads = openmp_threads(), cpus = usable_cpus();
+  std::string line = std::to_string(threads) + (threads == 1 ? " OpenMP thread" : " OpenMP threads") +
+                     " on " + std::to_string(cpus) + (cpus == 1 ? " CPU" : " CPUs") + " this process may use";
+  if (threads > cpus)
+    line += ": more threads than CPUs take turns, slower than " + std::to_string(cpus) +
+            " thread(s) would be (the CPUs are this process's affinity mask: taskset, a cgroup, or mpirun or "
+            "srun "
+            "binding each rank to one core; give each rank a core per thread, e.g. mpirun --map-by slot:pe=" +
+            std::to_string(threads) + " or srun --cpus-per-task=" + std::to_string(threads) + ")";
+  return line;
 }
 
 } // namespace otmpm::cli

@@ -442,6 +442,25 @@ TEST_CASE("cli: run --check validates, prints the size, dt, steps and memory, an
   CHECK(bad.status == 2);
 }
 
+TEST_CASE(
+    "cli: run --check prints the threads and the CPUs the process may use, and says when threads share one") {
+  // taskset gives the process one CPU (as mpirun's default binding gives each rank of two one core)
+  const std::string scene = quote((kSource / "examples" / "dyka" / "dyka_n40.toml").string());
+  const auto check = [&](const std::string& threads) {
+    return otmpm::test::shell("taskset -c 0 " + quote(kBinary) + " run --check " + scene + " --threads " +
+                              threads);
+  };
+  const otmpm::test::ShellResult one = check("1"), two = check("2");
+  INFO(one.output << two.output);
+  REQUIRE(one.status == 0);
+  REQUIRE(two.status == 0);
+  CHECK(one.output.find("threads    1 OpenMP thread on 1 CPU this process may use\n") != std::string::npos);
+  CHECK(
+      two.output.find("threads    2 OpenMP threads on 1 CPU this process may use: more threads than CPUs") !=
+      std::string::npos);
+  CHECK(two.output.find("mpirun --map-by slot:pe=2 or srun --cpus-per-task=2") != std::string::npos);
+}
+
 TEST_CASE("cli: a directory given as the scene or checkpoint file gets a clear message (run, pair, check, restart)") {
   TempDir dir("cli");
   for (const auto& args : std::vector<std::vector<std::string>>{{"run", dir.dir.string()},
