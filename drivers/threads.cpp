@@ -1,6 +1,8 @@
 // --threads of the otmpm command (the default OpenMP wait: otmpm/openmp_wait.hpp).
 #include "cli.hpp"
 
+#include "otmpm/openmp_wait.hpp"
+
 #include <algorithm>
 #include <cstdlib>
 #include <sched.h>
@@ -37,9 +39,12 @@ void set_threads(int threads) {
 }
 
 namespace {
-/// The CPUs this process may run on (its affinity mask: taskset, a cgroup's
-/// cpuset, a launcher's binding), else the machine's.
+/// The CPUs this process may run on: with bound threads those of the OpenMP
+/// places (libgomp bound this thread to the first place when it was
+/// loaded), else its affinity mask (taskset, a cgroup's cpuset, a
+/// launcher's binding), else the machine's.
 int usable_cpus() {
+  if (const std::size_t places = openmp_place_cpus().size(); places > 0) return static_cast<int>(places);
   int cpus = static_cast<int>(std::thread::hardware_concurrency());
 #ifdef __linux__
   cpu_set_t set;
