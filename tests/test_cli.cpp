@@ -8,11 +8,13 @@
 #include <doctest/doctest.h>
 #include <hdf5.h>
 
+#include <sched.h>
 #include <sys/wait.h>
 
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -440,6 +442,45 @@ TEST_CASE("cli: run --check validates, prints the size, dt, steps and memory, an
                                       "boundary.0.upper=[-0.0067]"});
   INFO(bad.err);
   CHECK(bad.status == 2);
+}
+
+TEST_CASE(
+    "cli: with bound threads the result file's writer thread may run on every place, not on the first one") {
+  // libgomp binds the first thread to the first place; the writer thread it
+  // starts (one OpenMP thread, a CPU left free) must not share that core
+  cpu_set_t mask;
+  REQUIRE(sched_getaffinity(0, sizeof mask, &mask) == 0);
+  if (CPU_COUNT(&mask) < 2) {
+    MESSAGE("one CPU: nothing to spread over");
+    return;
+  }
+  TempDir dir("cli");
+  const std::string out = (dir.dir / "out.txt").string(), err = (dir.dir / "err.txt").string();
+  const pid_t pid = otmpm::test::spawn_process(
+      kBinary,
+      {"run", (kSource / "examples" / "taylor_bar" / "full_cylinder.toml").string(), "--threads", "1",
+       "--set", "output.every=2e-6", "--out", (dir.dir / "tb.h5").string(), "-q"},
+      out, err, {"OMP_PROC_BIND=true"});
+  const auto cpus_of = [](const fs::path& task) { // its Cpus_allowed_list
+    std::ifstream in(task / "status");
+    for (std::string line; std::getline(in, line);)
+      if (line.rfind("Cpus_allowed_list:", 0) == 0) return line.substr(line.find_first_not_of(" \t", 18));
+    return std::string();
+  };
+  const fs::path tasks = fs::path("/proc") / std::to_string(pid) / "task";
+  std::string first, other; // the first thread's CPUs, and another thread's that differ
+  for (int i = 0; i < 600 && other.empty(); ++i) { // up to 30 s for the writer to start
+    first = cpus_of(tasks / std::to_string(pid));
+    std::error_code ec;
+    for (const auto& t : fs::directory_iterator(tasks, ec))
+      if (t.path().filename() != std::to_string(pid) && cpus_of(t.path()) != first) other = cpus_of(t.path());
+    if (other.empty()) usleep(50000);
+  }
+  kill(pid, SIGTERM);
+  otmpm::test::wait_process(pid, out, err);
+  INFO("first thread: " << first);
+  CHECK(first.find_first_of(",-") == std::string::npos); // bound to one CPU
+  CHECK(other.find_first_of(",-") != std::string::npos); // the writer: more than one
 }
 
 TEST_CASE(

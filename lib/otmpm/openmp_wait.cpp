@@ -57,23 +57,6 @@ double seconds_per_spin() {
   return best;
 }
 
-/// Gives the process the CPUs of every OpenMP place again. With OMP_PROC_BIND,
-/// OMP_PLACES or GOMP_CPU_AFFINITY libgomp binds the initial thread to the
-/// first place when it is loaded, and a program executed again inherits that
-/// one place as its whole affinity mask: its libgomp would then find one
-/// place and put every thread on it.
-void allow_every_place() {
-#ifdef __linux__
-  const std::vector<int> cpus = openmp_place_cpus();
-  if (cpus.empty()) return;
-  cpu_set_t set;
-  CPU_ZERO(&set);
-  for (const int id : cpus)
-    if (id < CPU_SETSIZE) CPU_SET(id, &set);
-  if (CPU_COUNT(&set) > 0) sched_setaffinity(0, sizeof set, &set); // on failure the mask stays as it is
-#endif
-}
-
 } // namespace
 
 std::vector<int> openmp_place_cpus() {
@@ -90,6 +73,18 @@ std::vector<int> openmp_place_cpus() {
   cpus.erase(std::unique(cpus.begin(), cpus.end()), cpus.end());
 #endif
   return cpus;
+}
+
+void allow_every_place() {
+#ifdef __linux__
+  const std::vector<int> cpus = openmp_place_cpus();
+  if (cpus.empty()) return;
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  for (const int id : cpus)
+    if (id < CPU_SETSIZE) CPU_SET(id, &set);
+  if (CPU_COUNT(&set) > 0) sched_setaffinity(0, sizeof set, &set); // on failure the mask stays as it is
+#endif
 }
 
 long long spin_count_for(double seconds) {

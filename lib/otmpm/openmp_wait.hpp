@@ -33,6 +33,14 @@ long long spin_count_for(double seconds);
 /// by side must each be given their own share of these (the study does).
 std::vector<int> openmp_place_cpus();
 
+/// Lets the calling thread run on the CPUs of every OpenMP place (nothing
+/// where the threads are not bound). libgomp binds a program's first thread
+/// to the first place when it is loaded: a process that thread starts again
+/// would inherit that one place as all its CPUs (default_openmp_wait), and a
+/// thread it starts outside OpenMP (the result file's writer) would share
+/// that place's core with the first OpenMP thread.
+void allow_every_place();
+
 /// True when the program runs under valgrind (its core library is preloaded:
 /// LD_PRELOAD names vgpreload_*). There /proc/self/exe is valgrind's tool,
 /// which cannot be executed again on its own.

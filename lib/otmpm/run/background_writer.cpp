@@ -2,12 +2,20 @@
 /// BackgroundWriter: one job at a time on a thread of its own.
 #include "otmpm/run/background_writer.hpp"
 
+#include "otmpm/openmp_wait.hpp"
+
 #include <chrono>
 #include <utility>
 
 namespace otmpm {
 
-BackgroundWriter::BackgroundWriter() : thread_([this] { loop(); }) {}
+// Bound OpenMP threads: the writer would otherwise inherit the first
+// thread's place and share its core (allow_every_place).
+BackgroundWriter::BackgroundWriter()
+    : thread_([this] {
+        allow_every_place();
+        loop();
+      }) {}
 
 BackgroundWriter::~BackgroundWriter() {
   {
