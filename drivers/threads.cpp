@@ -69,12 +69,13 @@ std::string threads_line() {
   const int threads = openmp_threads(), cpus = usable_cpus();
   std::string line = std::to_string(threads) + (threads == 1 ? " OpenMP thread" : " OpenMP threads") +
                      " on " + std::to_string(cpus) + (cpus == 1 ? " CPU" : " CPUs") + " this process may use";
-  if (threads > cpus)
-    line += ": more threads than CPUs take turns, slower than " + std::to_string(cpus) +
-            " thread(s) would be (the CPUs are this process's affinity mask: taskset, a cgroup, or mpirun or "
-            "srun "
-            "binding each rank to one core; give each rank a core per thread, e.g. mpirun --map-by slot:pe=" +
-            std::to_string(threads) + " or srun --cpus-per-task=" + std::to_string(threads) + ")";
+  if (threads > cpus) {
+    const std::string n = std::to_string(threads), c = std::to_string(cpus);
+    line += ": more threads than CPUs take turns, no faster than " + c + " would be (the CPUs are this";
+    line += " process's affinity mask: taskset, a cgroup, or mpirun or srun binding each rank to one";
+    line += " core; give each rank a core per thread, e.g. mpirun --map-by slot:pe=" + n;
+    line += " or srun --cpus-per-task=" + n + ")";
+  }
   return line;
 }
 
